@@ -1,0 +1,53 @@
+// Down-looking floor camera: OpenCV pinhole + Brown-Conrady distortion, optical axis
+// perpendicular to the floor at a known height, mounted on the vehicle with an offset and yaw.
+// Frames and sign conventions: docs/frames.md ("Camera frame" and "Mounting").
+#pragma once
+
+#include "agv/common/geometry.hpp"
+
+namespace agv {
+
+// OpenCV camera model; pixel centres at integer coordinates (pixel (0,0) covers [-0.5,0.5]^2).
+struct CameraIntrinsics {
+  int width_px = 640;
+  int height_px = 480;
+  double fx = 0.0, fy = 0.0;  // focal lengths in pixels
+  double cx = 0.0, cy = 0.0;  // principal point in pixels
+  double k1 = 0.0, k2 = 0.0, p1 = 0.0, p2 = 0.0, k3 = 0.0;  // OpenCV distortion
+};
+
+// Where the camera sits on the vehicle. The vehicle frame has x forward, y left (mm).
+struct CameraMount {
+  double offset_x_mm = 0.0;  // optical centre in the vehicle frame
+  double offset_y_mm = 0.0;
+  // Yaw of the image axes relative to the vehicle, counter-clockwise seen from above.
+  // 0 means: image "up" (decreasing row) points along vehicle +x, image "right" along -y.
+  double yaw_rad = 0.0;
+  double height_mm = 200.0;  // optical centre above the floor
+};
+
+struct CameraModel {
+  CameraIntrinsics intrinsics;
+  CameraMount mount;
+
+  // Floor point in the vehicle frame (mm) -> distorted pixel. False when the point cannot be
+  // imaged (non-finite input). Does not check image bounds.
+  bool vehicle_to_pixel(Vec2 p_vehicle_mm, Vec2* pixel) const;
+  // Distorted pixel -> floor point in the vehicle frame (mm). False when undistortion does not
+  // converge (far outside the calibrated field).
+  bool pixel_to_vehicle(Vec2 pixel, Vec2* p_vehicle_mm) const;
+
+  // Normalised undistorted image coordinates <-> distorted pixels.
+  Vec2 distort_normalized_to_pixel(Vec2 xn) const;
+  bool undistort_pixel_to_normalized(Vec2 pixel, Vec2* xn) const;
+
+  // Approximate floor size of one pixel at the image centre (mm/px), from fx, fy and height.
+  double mm_per_px() const;
+
+  // A consistent default: 640x480, 0.26 mm/px at the floor, no distortion, centred mount.
+  static CameraModel default_640x480();
+  // 1280x800 profile with the same field of view in x (about 0.13 mm/px).
+  static CameraModel default_1280x800();
+};
+
+}  // namespace agv

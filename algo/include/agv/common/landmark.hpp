@@ -1,0 +1,107 @@
+// The floor landmark: geometry as a function of one size parameter, the QR payload and the
+// landmark map. Exact definitions, with figures: docs/landmark.md.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "agv/common/geometry.hpp"
+
+namespace agv {
+
+// Geometry on the printed page, in millimetres, with the origin at the landmark centre,
+// u to the right and v downwards when the landmark is viewed from above with its forward
+// direction pointing up the page. Every length scales with size_mm (S); the unit k = S/60 makes
+// the default S = 60 mm read in whole millimetres.
+//
+//   outer border     square, half-side 30k                       (function region)
+//   inner white      square, half-side 24k  -> border width 6k    (stable Prewitt edge fits)
+//   QR code          square, u in [-15k, 15k], v in [-10k, 20k]    (encoding region, 30k wide)
+//   direction logo   filled triangle, apex (0, -21k), base (-5k, -13k) .. (5k, -13k)
+//   quiet zones      QR to border >= 4k; QR to logo 3k (2.5 modules of a version-2 code)
+//
+// Landmark frame (docs/frames.md): x forward = page up (-v), y left = page left (-u).
+struct LandmarkGeometry {
+  double size_mm = 60.0;
+
+  double k() const { return size_mm / 60.0; }
+  double outer_half_mm() const { return 30.0 * k(); }
+  double inner_half_mm() const { return 24.0 * k(); }
+  double border_width_mm() const { return 6.0 * k(); }
+  // QR square on the page: [qr_u0, qr_u0 + qr_side] x [qr_v0, qr_v0 + qr_side].
+  double qr_u0_mm() const { return -15.0 * k(); }
+  double qr_v0_mm() const { return -10.0 * k(); }
+  double qr_side_mm() const { return 30.0 * k(); }
+  // Direction logo triangle on the page.
+  Vec2 logo_apex_uv_mm() const { return {0.0, -21.0 * k()}; }
+  Vec2 logo_base_left_uv_mm() const { return {-5.0 * k(), -13.0 * k()}; }
+  Vec2 logo_base_right_uv_mm() const { return {5.0 * k(), -13.0 * k()}; }
+
+  // Outer border corners in the landmark frame (mm), counter-clockwise starting front-left:
+  // front-left, rear-left, rear-right, front-right.
+  std::vector<Vec2> outer_corners_landmark_mm() const;
+};
+
+// Page (u right, v down) <-> landmark frame (x forward, y left).
+inline Vec2 page_to_landmark(Vec2 uv) { return {-uv.y, -uv.x}; }
+inline Vec2 landmark_to_page(Vec2 xy) { return {-xy.y, -xy.x}; }
+
+// QR payload, QR alphanumeric mode, fixed width so that every full payload is exactly 38
+// characters and therefore always a version-2 code at ECC level M:
+//   full:    "AGV1/iiiii/sxxxxxx.x/syyyyyy.y/shhh.hh"   e.g. "AGV1/00017/+001000.0/-002000.0/+090.00"
+//   id only: "AGV1/iiiii/MAP"                           (pose comes from the map file)
+// iiiii: id 1..65535, 5 digits; s: '+' or '-'; x, y: world position of the landmark centre in
+// mm, |x|,|y| <= 999999.9; h: heading of the landmark's forward axis in the world, degrees in
+// (-180, 180]. Anything else is rejected.
+struct LandmarkPayload {
+  int format_version = 1;
+  std::uint32_t id = 0;
+  bool has_pose = false;  // false for the id-only form
+  double x_mm = 0.0;
+  double y_mm = 0.0;
+  double heading_deg = 0.0;
+};
+
+enum class PayloadError {
+  kOk = 0,
+  kEmpty,
+  kBadPrefix,        // does not start with "AGV"
+  kUnsupportedVersion,
+  kBadLength,
+  kBadField,         // a field has the wrong width, sign or characters
+  kOutOfRange,       // id 0, |coordinate| too large, heading outside (-180, 180]
+};
+
+const char* to_string(PayloadError e);
+
+// Strict parser: returns kOk and fills *out only when the text is exactly one of the two forms.
+PayloadError parse_payload(std::string_view text, LandmarkPayload* out);
+// Canonical text for a payload (rounds to the format's resolution). Values out of range are an
+// error: returns an empty string.
+std::string format_payload(const LandmarkPayload& p);
+
+// Landmark map: landmark id -> world pose of the landmark frame. Text format (docs/landmark.md):
+//   # comment lines and blank lines are ignored
+//   id,x_mm,y_mm,heading_deg          <- this exact header line first
+//   17,1000.0,-2000.0,90
+struct LandmarkMapEntry {
+  std::uint32_t id = 0;
+  Pose2 pose;  // world <- landmark
+};
+
+struct LandmarkMap {
+  std::map<std::uint32_t, LandmarkMapEntry> entries;
+  const LandmarkMapEntry* find(std::uint32_t id) const;
+};
+
+// Parses the map text. On error returns false and sets *error to "line N: reason".
+bool parse_landmark_map(std::string_view text, LandmarkMap* out, std::string* error);
+std::string format_landmark_map(const LandmarkMap& map);
+
+// A payload with its pose, converted to the world <- landmark pose.
+Pose2 payload_pose(const LandmarkPayload& p);
+
+}  // namespace agv

@@ -1,0 +1,98 @@
+#include "agv/common/camera_model.hpp"
+
+#include <cmath>
+
+namespace agv {
+
+Vec2 CameraModel::distort_normalized_to_pixel(Vec2 xn) const {
+  const auto& k = intrinsics;
+  const double r2 = xn.x * xn.x + xn.y * xn.y;
+  const double radial = 1.0 + r2 * (k.k1 + r2 * (k.k2 + r2 * k.k3));
+  const double xd = xn.x * radial + 2.0 * k.p1 * xn.x * xn.y + k.p2 * (r2 + 2.0 * xn.x * xn.x);
+  const double yd = xn.y * radial + k.p1 * (r2 + 2.0 * xn.y * xn.y) + 2.0 * k.p2 * xn.x * xn.y;
+  return {k.fx * xd + k.cx, k.fy * yd + k.cy};
+}
+
+bool CameraModel::undistort_pixel_to_normalized(Vec2 pixel, Vec2* xn) const {
+  const auto& k = intrinsics;
+  if (!(k.fx > 0.0) || !(k.fy > 0.0) || !std::isfinite(pixel.x) || !std::isfinite(pixel.y)) {
+    return false;
+  }
+  const double xd = (pixel.x - k.cx) / k.fx;
+  const double yd = (pixel.y - k.cy) / k.fy;
+  // Newton iterations on the forward model: converges in a few steps for realistic lenses,
+  // unlike the fixed-point scheme, and lets us detect divergence.
+  double x = xd, y = yd;
+  for (int it = 0; it < 20; ++it) {
+    const double r2 = x * x + y * y;
+    const double radial = 1.0 + r2 * (k.k1 + r2 * (k.k2 + r2 * k.k3));
+    const double dradial_dr2 = k.k1 + r2 * (2.0 * k.k2 + 3.0 * r2 * k.k3);
+    const double fx_ = x * radial + 2.0 * k.p1 * x * y + k.p2 * (r2 + 2.0 * x * x) - xd;
+    const double fy_ = y * radial + k.p1 * (r2 + 2.0 * y * y) + 2.0 * k.p2 * x * y - yd;
+    const double j11 = radial + 2.0 * x * x * dradial_dr2 + 2.0 * k.p1 * y + 6.0 * k.p2 * x;
+    const double j12 = 2.0 * x * y * dradial_dr2 + 2.0 * k.p1 * x + 2.0 * k.p2 * y;
+    const double j21 = 2.0 * x * y * dradial_dr2 + 2.0 * k.p1 * x + 2.0 * k.p2 * y;
+    const double j22 = radial + 2.0 * y * y * dradial_dr2 + 6.0 * k.p1 * y + 2.0 * k.p2 * x;
+    const double det = j11 * j22 - j12 * j21;
+    if (!(std::abs(det) > 1e-12)) return false;
+    const double dx = (j22 * fx_ - j12 * fy_) / det;
+    const double dy = (-j21 * fx_ + j11 * fy_) / det;
+    x -= dx;
+    y -= dy;
+    if (std::abs(dx) < 1e-14 && std::abs(dy) < 1e-14) break;
+  }
+  const Vec2 back = distort_normalized_to_pixel({x, y});
+  if (!(std::abs(back.x - pixel.x) < 1e-6 && std::abs(back.y - pixel.y) < 1e-6)) return false;
+  *xn = {x, y};
+  return true;
+}
+
+bool CameraModel::vehicle_to_pixel(Vec2 p, Vec2* pixel) const {
+  if (!std::isfinite(p.x) || !std::isfinite(p.y) || !(mount.height_mm > 0.0)) return false;
+  const double dx = p.x - mount.offset_x_mm, dy = p.y - mount.offset_y_mm;
+  const double c = std::cos(mount.yaw_rad), s = std::sin(mount.yaw_rad);
+  // image right = (sin, -cos), image up = (cos, sin) in the vehicle frame.
+  const double xc = dx * s - dy * c;
+  const double yc = -(dx * c + dy * s);
+  *pixel = distort_normalized_to_pixel({xc / mount.height_mm, yc / mount.height_mm});
+  return true;
+}
+
+bool CameraModel::pixel_to_vehicle(Vec2 pixel, Vec2* p) const {
+  Vec2 xn;
+  if (!(mount.height_mm > 0.0) || !undistort_pixel_to_normalized(pixel, &xn)) return false;
+  const double xc = xn.x * mount.height_mm, yc = xn.y * mount.height_mm;
+  const double c = std::cos(mount.yaw_rad), s = std::sin(mount.yaw_rad);
+  // Inverse of the rotation in vehicle_to_pixel.
+  const double dx = xc * s - yc * c;
+  const double dy = -xc * c - yc * s;
+  *p = {dx + mount.offset_x_mm, dy + mount.offset_y_mm};
+  return true;
+}
+
+double CameraModel::mm_per_px() const {
+  return mount.height_mm * 0.5 * (1.0 / intrinsics.fx + 1.0 / intrinsics.fy);
+}
+
+CameraModel CameraModel::default_640x480() {
+  CameraModel m;
+  m.intrinsics.width_px = 640;
+  m.intrinsics.height_px = 480;
+  m.mount.height_mm = 200.0;
+  m.intrinsics.fx = m.intrinsics.fy = 200.0 / 0.26;  // 0.26 mm/px at the floor
+  m.intrinsics.cx = 319.5;
+  m.intrinsics.cy = 239.5;
+  return m;
+}
+
+CameraModel CameraModel::default_1280x800() {
+  CameraModel m = default_640x480();
+  m.intrinsics.width_px = 1280;
+  m.intrinsics.height_px = 800;
+  m.intrinsics.fx = m.intrinsics.fy = 200.0 / 0.13;
+  m.intrinsics.cx = 639.5;
+  m.intrinsics.cy = 399.5;
+  return m;
+}
+
+}  // namespace agv

@@ -1,0 +1,1 @@
+// Intentionally empty translation unit so the library exists before its sources land.

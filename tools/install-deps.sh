@@ -1,0 +1,51 @@
+#!/usr/bin/env bash
+# Installs every Debian package the build, the tests and the tools need.
+# Idempotent; run as root (or with sudo) on Debian bookworm.
+#   tools/install-deps.sh            host build + tests (incl. HIL VM tooling)
+#   tools/install-deps.sh --cross    also the arm64 cross environment (see toolchain/)
+set -euo pipefail
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+
+PKGS=(
+  build-essential cmake ninja-build pkg-config git ca-certificates
+  # algo / drivers / firmware
+  libopencv-dev
+  libeigen3-dev libzxing-dev libyaml-cpp-dev libcli11-dev
+  libcamera-dev libcamera-ipa
+  # tests, benchmarks, comparison baseline
+  libgtest-dev libgmock-dev libbenchmark-dev libapriltag-dev valgrind
+  clang-format clang-tidy
+  # CAN tools and independent decoders
+  can-utils python3-can iproute2
+  # hardware-in-the-loop virtual machine
+  qemu-system-x86 qemu-user busybox-static kmod cpio gzip xz-utils
+)
+
+missing=()
+for p in "${PKGS[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+if [ "${#missing[@]}" -gt 0 ]; then
+  echo "install-deps: installing ${#missing[@]} package(s): ${missing[*]}"
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -q
+  $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
+else
+  echo "install-deps: all ${#PKGS[@]} packages present"
+fi
+
+# npm (for the independent DBC decoder `candied`): Debian's nodejs+npm only when
+# no node toolchain is present; some images ship their own node, which conflicts.
+if ! command -v npm >/dev/null 2>&1; then
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get install -y -q --no-install-recommends nodejs npm
+fi
+
+if [ "${1:-}" = "--cross" ]; then
+  "$(dirname "$0")/../toolchain/prepare-aarch64.sh"
+fi
