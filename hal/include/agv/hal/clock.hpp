@@ -1,0 +1,18 @@
+// Time source. The real backend reads CLOCK_MONOTONIC; replay and tests use a simulated clock.
+#pragma once
+
+#include <cstdint>
+
+namespace agv::hal {
+
+class Clock {
+ public:
+  virtual ~Clock() = default;
+  // Monotonic time in nanoseconds (same clock as frame and CAN timestamps).
+  virtual std::int64_t now_ns() const = 0;
+  // Sleeps until the absolute monotonic time t_ns (returns at once if it has passed).
+  // Returns 0, or an errno value when the sleep was interrupted (EINTR) or failed.
+  virtual int sleep_until_ns(std::int64_t t_ns) = 0;
+};
+
+}  // namespace agv::hal
