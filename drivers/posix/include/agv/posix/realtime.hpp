@@ -1,0 +1,18 @@
+// Optional real-time setup for the loop threads. Each returns 0 or an errno value; the caller
+// decides whether a refusal (EPERM without CAP_SYS_NICE / CAP_IPC_LOCK) is fatal.
+#pragma once
+
+#include <string>
+
+namespace agv::posix {
+
+// SCHED_FIFO at `priority` (1..99) for the calling thread.
+int set_fifo_priority(int priority);
+// mlockall(MCL_CURRENT | MCL_FUTURE) so page faults cannot stall the loop.
+int lock_all_memory();
+// A one-line explanation of a failure above, naming the capability or limit to change.
+std::string explain_realtime_error(const char* what, int err);
+// Names the calling thread (visible in top -H, gdb). Truncated to 15 characters.
+void set_thread_name(const char* name);
+
+}  // namespace agv::posix

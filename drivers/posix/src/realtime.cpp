@@ -1,0 +1,39 @@
+#include "agv/posix/realtime.hpp"
+
+#include <pthread.h>
+#include <sched.h>
+#include <sys/mman.h>
+
+#include <cerrno>
+#include <cstring>
+
+namespace agv::posix {
+
+int set_fifo_priority(int priority) {
+  if (priority < 1 || priority > 99) return EINVAL;
+  sched_param sp{};
+  sp.sched_priority = priority;
+  return pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+}
+
+int lock_all_memory() { return mlockall(MCL_CURRENT | MCL_FUTURE) == 0 ? 0 : errno; }
+
+std::string explain_realtime_error(const char* what, int err) {
+  std::string s = std::string(what) + ": " + std::strerror(err);
+  if (err == EPERM) {
+    s += " (needs CAP_SYS_NICE / LimitRTPRIO for SCHED_FIFO, CAP_IPC_LOCK / LimitMEMLOCK for "
+         "mlockall; continuing without it)";
+  } else if (err == ENOMEM) {
+    s += " (RLIMIT_MEMLOCK too small; raise LimitMEMLOCK; continuing without it)";
+  }
+  return s;
+}
+
+void set_thread_name(const char* name) {
+  char buf[16];
+  std::strncpy(buf, name, sizeof buf - 1);
+  buf[sizeof buf - 1] = '\0';
+  pthread_setname_np(pthread_self(), buf);
+}
+
+}  // namespace agv::posix
