@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 
 namespace agv::hal {
 
@@ -18,6 +19,40 @@ enum class CameraStatus : int {
 };
 
 const char* to_string(CameraStatus s);
+
+// Which pixel formats a live driver may ask the sensor for. Every format ends up as 8-bit gray:
+// GREY/R8 and the Y plane of NV12/YU12 are used in place; YUYV needs one copy per frame.
+enum class PixelFormatPreference : int {
+  kAuto = 0,  // gray if the camera offers it, else planar YUV, else YUYV
+  kGray = 1,  // only 8-bit monochrome (GREY / R8)
+  kYuv = 2,   // only YUV (NV12, YU12, YUYV); for colour sensors
+};
+
+// Configuration shared by the live camera drivers (drivers/libcamera, drivers/v4l2).
+// Validated by agv::camera::validate_config (drivers/camera_common). Trade-offs: docs/camera.md.
+struct CameraConfig {
+  // libcamera: camera id (e.g. "/base/soc/i2c0mux/i2c@1/imx296@1a") or empty for "first camera
+  // that matches `model`". V4L2: device node, e.g. "/dev/video0" (required).
+  std::string id;
+  // libcamera only: properties::Model to match (e.g. "imx296"); empty matches any.
+  std::string model;
+  int width_px = 640;
+  int height_px = 480;
+  // Frame rate. Higher gives more chances to see a landmark, costs CPU; the exposure must fit
+  // into one frame period.
+  double fps = 30.0;
+  // Fixed exposure. Short = less motion blur (blur_px = v * t_exp / mm_per_px) but darker
+  // images; compensate with light and gain. Default 500 us: 1 mm of blur at 2 m/s.
+  int exposure_us = 500;
+  // Fixed analogue gain (>= 1). Higher brightens but adds noise.
+  double analogue_gain = 1.0;
+  PixelFormatPreference pixel_format = PixelFormatPreference::kAuto;
+  // Driver buffers in flight. More survive longer processing hiccups, cost memory and latency.
+  int buffer_count = 4;
+  // Rolling-shutter readout time from the first to the last row (0 for a global shutter);
+  // shifts the frame timestamp to the centre row.
+  int readout_us = 0;
+};
 
 // One 8-bit grayscale frame, borrowed from the driver. `data` stays valid until the frame is
 // returned with release(); the driver owns the memory (no copy on the hot path).
