@@ -1,0 +1,651 @@
+#include "agv/sim/render.hpp"
+
+#include <ZXing/BitMatrix.h>
+#include <ZXing/MultiFormatWriter.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+
+namespace agv::sim {
+
+namespace {
+
+// zxing-cpp 1.4 maps setEccLevel(0..8) to QR levels L,L,L,M,M,Q,Q,H,H (level = (e-1)/2);
+// 4 is M. Confirmed by decoding the generated codes in tests/sim.
+constexpr int kZxingEccLevelM = 4;
+
+double cross(Vec2 o, Vec2 a, Vec2 b) { return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x); }
+
+bool in_triangle(Vec2 p, Vec2 a, Vec2 b, Vec2 c) {
+  const double d1 = cross(a, b, p), d2 = cross(b, c, p), d3 = cross(c, a, p);
+  const bool has_neg = d1 < 0 || d2 < 0 || d3 < 0;
+  const bool has_pos = d1 > 0 || d2 > 0 || d3 > 0;
+  return !(has_neg && has_pos);
+}
+
+std::uint64_t splitmix64(std::uint64_t x) {
+  x += 0x9e3779b97f4a7c15ULL;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+  return x ^ (x >> 31);
+}
+
+double hash01(std::int64_t ix, std::int64_t iy, std::uint64_t salt) {
+  std::uint64_t h = splitmix64(static_cast<std::uint64_t>(ix) ^ splitmix64(salt));
+  h = splitmix64(h ^ static_cast<std::uint64_t>(iy));
+  return static_cast<double>(h >> 11) * (1.0 / 9007199254740992.0);
+}
+
+double value_noise(double x, double y, std::uint64_t salt) {
+  const double fx = std::floor(x), fy = std::floor(y);
+  const auto ix = static_cast<std::int64_t>(fx), iy = static_cast<std::int64_t>(fy);
+  double tx = x - fx, ty = y - fy;
+  tx = tx * tx * (3.0 - 2.0 * tx);
+  ty = ty * ty * (3.0 - 2.0 * ty);
+  const double a = hash01(ix, iy, salt), b = hash01(ix + 1, iy, salt);
+  const double c = hash01(ix, iy + 1, salt), d = hash01(ix + 1, iy + 1, salt);
+  return (a + (b - a) * tx) + ((c + (d - c) * tx) - (a + (b - a) * tx)) * ty;
+}
+
+std::string fmt(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.4f", v);
+  std::string s = buf;
+  while (!s.empty() && s.back() == '0') s.pop_back();
+  if (!s.empty() && s.back() == '.') s.pop_back();
+  if (s == "-0") s = "0";
+  return s;
+}
+
+// SVG elements of one landmark whose page origin is at (cx, cy) in the SVG's mm coordinates.
+void append_landmark_svg(std::ostringstream& os, const LandmarkPattern& pat, double cx, double cy) {
+  const LandmarkGeometry& g = pat.geometry();
+  const double oh = g.outer_half_mm(), ih = g.inner_half_mm();
+  os << "  <rect x=\"" << fmt(cx - oh) << "\" y=\"" << fmt(cy - oh) << "\" width=\""
+     << fmt(2 * oh) << "\" height=\"" << fmt(2 * oh) << "\" fill=\"#000\"/>\n";
+  os << "  <rect x=\"" << fmt(cx - ih) << "\" y=\"" << fmt(cy - ih) << "\" width=\""
+     << fmt(2 * ih) << "\" height=\"" << fmt(2 * ih) << "\" fill=\"#fff\"/>\n";
+  const QrModules& q = pat.qr();
+  const double m = pat.module_mm();
+  os << "  <g fill=\"#000\">\n";
+  for (int r = 0; r < q.n; ++r) {
+    int c = 0;
+    while (c < q.n) {
+      if (!q.at(c, r)) {
+        ++c;
+        continue;
+      }
+      int e = c;
+      while (e < q.n && q.at(e, r)) ++e;
+      // Runs are merged per row; rows overlap by nothing, so printers show no hairlines between
+      // modules of one row and exact module boundaries between rows.
+      os << "    <rect x=\"" << fmt(cx + g.qr_u0_mm() + c * m) << "\" y=\""
+         << fmt(cy + g.qr_v0_mm() + r * m) << "\" width=\"" << fmt((e - c) * m)
+         << "\" height=\"" << fmt(m) << "\"/>\n";
+      c = e;
+    }
+  }
+  os << "  </g>\n";
+  const Vec2 a = g.logo_apex_uv_mm(), b = g.logo_base_left_uv_mm(), c = g.logo_base_right_uv_mm();
+  os << "  <polygon points=\"" << fmt(cx + a.x) << "," << fmt(cy + a.y) << " " << fmt(cx + b.x)
+     << "," << fmt(cy + b.y) << " " << fmt(cx + c.x) << "," << fmt(cy + c.y)
+     << "\" fill=\"#000\"/>\n";
+}
+
+}  // namespace
+
+bool encode_qr(const std::string& payload, QrModules* out, std::string* error) {
+  if (payload.empty()) {
+    if (error) *error = "empty payload";
+    return false;
+  }
+  try {
+    const ZXing::BitMatrix bm = ZXing::MultiFormatWriter(ZXing::BarcodeFormat::QRCode)
+                                    .setEccLevel(kZxingEccLevelM)
+                                    .setMargin(0)
+                                    .encode(payload, 0, 0);
+    if (bm.width() <= 0 || bm.width() != bm.height()) {
+      if (error) *error = "QR encoder returned an empty or non-square matrix";
+      return false;
+    }
+    QrModules q;
+    q.n = bm.width();
+    q.dark.resize(static_cast<size_t>(q.n * q.n));
+    for (int r = 0; r < q.n; ++r) {
+      for (int c = 0; c < q.n; ++c) q.dark[static_cast<size_t>(r * q.n + c)] = bm.get(c, r) ? 1 : 0;
+    }
+    *out = std::move(q);
+    return true;
+  } catch (const std::exception& e) {
+    if (error) *error = std::string("QR encoding failed: ") + e.what();
+    return false;
+  }
+}
+
+bool LandmarkPattern::make(const LandmarkGeometry& geometry, const std::string& payload,
+                           LandmarkPattern* out, std::string* error) {
+  if (!(geometry.size_mm > 0.0) || !std::isfinite(geometry.size_mm)) {
+    if (error) *error = "landmark size must be a positive number of millimetres";
+    return false;
+  }
+  LandmarkPattern p;
+  if (!encode_qr(payload, &p.qr_, error)) return false;
+  p.geometry_ = geometry;
+  p.payload_ = payload;
+  p.module_mm_ = geometry.qr_side_mm() / p.qr_.n;
+  *out = std::move(p);
+  return true;
+}
+
+PageInk LandmarkPattern::at(Vec2 uv) const {
+  const double au = std::abs(uv.x), av = std::abs(uv.y);
+  const double oh = geometry_.outer_half_mm();
+  // Half-open squares so that every point belongs to exactly one region.
+  if (!(au < oh && av < oh)) return PageInk::kOutside;
+  const double ih = geometry_.inner_half_mm();
+  if (!(au < ih && av < ih)) return PageInk::kBlack;
+  const double qu = (uv.x - geometry_.qr_u0_mm()) / module_mm_;
+  const double qv = (uv.y - geometry_.qr_v0_mm()) / module_mm_;
+  if (qu >= 0.0 && qv >= 0.0 && qu < qr_.n && qv < qr_.n) {
+    return qr_.at(static_cast<int>(qu), static_cast<int>(qv)) ? PageInk::kBlack : PageInk::kWhite;
+  }
+  if (in_triangle(uv, geometry_.logo_apex_uv_mm(), geometry_.logo_base_left_uv_mm(),
+                  geometry_.logo_base_right_uv_mm())) {
+    return PageInk::kBlack;
+  }
+  return PageInk::kWhite;
+}
+
+cv::Mat render_landmark_page(const LandmarkGeometry& geometry, const std::string& payload,
+                             double mm_per_px, double margin_mm) {
+  LandmarkPattern pat;
+  if (!(mm_per_px > 0.0) || !std::isfinite(mm_per_px) ||
+      !LandmarkPattern::make(geometry, payload, &pat, nullptr)) {
+    return {};
+  }
+  if (margin_mm < 0.0) margin_mm = geometry.border_width_mm();
+  const double side_mm = 2.0 * (geometry.outer_half_mm() + margin_mm);
+  const int n = static_cast<int>(std::lround(side_mm / mm_per_px));
+  if (n <= 0 || n > 20000) return {};
+  cv::Mat img(n, n, CV_8UC1);
+  const double c0 = 0.5 * (n - 1);
+  constexpr int kSub = 16;
+  auto grey = [&](Vec2 uv) { return pat.at(uv) == PageInk::kBlack ? 0.0 : 1.0; };
+  for (int y = 0; y < n; ++y) {
+    auto* row = img.ptr<std::uint8_t>(y);
+    for (int x = 0; x < n; ++x) {
+      const double u = (x - c0) * mm_per_px, v = (y - c0) * mm_per_px, hp = 0.5 * mm_per_px;
+      const PageInk k = pat.at({u, v});
+      const bool uniform = pat.at({u - hp, v - hp}) == k && pat.at({u + hp, v - hp}) == k &&
+                           pat.at({u - hp, v + hp}) == k && pat.at({u + hp, v + hp}) == k;
+      double g = 0.0;
+      if (uniform) {
+        g = k == PageInk::kBlack ? 0.0 : 1.0;
+      } else {
+        for (int j = 0; j < kSub; ++j) {
+          for (int i = 0; i < kSub; ++i) {
+            g += grey({u + ((i + 0.5) / kSub - 0.5) * mm_per_px,
+                       v + ((j + 0.5) / kSub - 0.5) * mm_per_px});
+          }
+        }
+        g /= kSub * kSub;
+      }
+      row[x] = static_cast<std::uint8_t>(std::lround(255.0 * g));
+    }
+  }
+  return img;
+}
+
+std::string landmark_svg(const LandmarkGeometry& geometry, const std::string& payload,
+                         double margin_mm) {
+  LandmarkPattern pat;
+  if (!LandmarkPattern::make(geometry, payload, &pat, nullptr)) return {};
+  if (margin_mm < 0.0) margin_mm = geometry.border_width_mm();
+  const double side = 2.0 * (geometry.outer_half_mm() + margin_mm);
+  std::ostringstream os;
+  os << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+     << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << fmt(side) << "mm\" height=\""
+     << fmt(side) << "mm\" viewBox=\"0 0 " << fmt(side) << " " << fmt(side)
+     << "\" shape-rendering=\"crispEdges\">\n"
+     << "  <!-- agvloc landmark, payload " << payload << ", size " << fmt(geometry.size_mm)
+     << " mm; print at 100% scale -->\n"
+     << "  <rect x=\"0\" y=\"0\" width=\"" << fmt(side) << "\" height=\"" << fmt(side)
+     << "\" fill=\"#fff\"/>\n";
+  append_landmark_svg(os, pat, side / 2, side / 2);
+  os << "</svg>\n";
+  return os.str();
+}
+
+std::string full_payload(const LandmarkMapEntry& e) {
+  LandmarkPayload p;
+  p.id = e.id;
+  p.has_pose = true;
+  p.x_mm = e.pose.x_mm;
+  p.y_mm = e.pose.y_mm;
+  p.heading_deg = rad_to_deg(wrap_angle_rad(e.pose.theta_rad));
+  return format_payload(p);
+}
+
+std::string landmark_sheet_svg(const LandmarkGeometry& geometry, const LandmarkMap& map,
+                               int columns) {
+  if (columns < 1 || map.entries.empty()) return {};
+  const double cell_w = 2.0 * geometry.outer_half_mm() + 2.0 * geometry.border_width_mm() + 10.0;
+  const double cell_h = cell_w + 8.0;  // caption line under each landmark
+  const int n = static_cast<int>(map.entries.size());
+  const int cols = std::min(columns, n);
+  const int rows = (n + cols - 1) / cols;
+  const double w = cols * cell_w, h = rows * cell_h;
+  std::ostringstream os;
+  os << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+     << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << fmt(w) << "mm\" height=\""
+     << fmt(h) << "mm\" viewBox=\"0 0 " << fmt(w) << " " << fmt(h)
+     << "\" shape-rendering=\"crispEdges\">\n"
+     << "  <!-- agvloc landmark sheet, size " << fmt(geometry.size_mm)
+     << " mm; print at 100% scale -->\n"
+     << "  <rect x=\"0\" y=\"0\" width=\"" << fmt(w) << "\" height=\"" << fmt(h)
+     << "\" fill=\"#fff\"/>\n";
+  int i = 0;
+  for (const auto& [id, e] : map.entries) {
+    const std::string payload = full_payload(e);
+    LandmarkPattern pat;
+    if (payload.empty() || !LandmarkPattern::make(geometry, payload, &pat, nullptr)) return {};
+    const double cx = (i % cols + 0.5) * cell_w, cy = (i / cols) * cell_h + cell_w / 2;
+    append_landmark_svg(os, pat, cx, cy);
+    char cap[160];
+    std::snprintf(cap, sizeof cap, "id %u  x %.1f  y %.1f  heading %.2f deg",
+                  static_cast<unsigned>(id), e.pose.x_mm, e.pose.y_mm,
+                  rad_to_deg(wrap_angle_rad(e.pose.theta_rad)));
+    os << "  <text x=\"" << fmt(cx) << "\" y=\"" << fmt(cy + cell_w / 2 + 3.0)
+       << "\" font-family=\"sans-serif\" font-size=\"3\" text-anchor=\"middle\">" << cap
+       << "</text>\n";
+    ++i;
+  }
+  os << "</svg>\n";
+  return os.str();
+}
+
+// ---------------------------------------------------------------------------------------------
+
+double floor_texture(const FloorTexture& t, Vec2 p) {
+  if (t.amplitude == 0.0) return t.mean;
+  // Octaves of value noise (wavelength mm, weight): large stains, aggregate, fine grain.
+  static constexpr double kWave[4] = {90.0, 22.0, 5.0, 1.3};
+  static constexpr double kWeight[4] = {0.40, 0.28, 0.20, 0.12};
+  double s = 0.0;
+  for (int o = 0; o < 4; ++o) {
+    s += kWeight[o] * (value_noise(p.x / kWave[o], p.y / kWave[o], t.seed * 31 + static_cast<std::uint64_t>(o)) - 0.5);
+  }
+  return t.mean + 2.0 * t.amplitude * s;
+}
+
+bool make_scene(const LandmarkMap& map, const LandmarkGeometry& geometry, PayloadMode mode,
+                Scene* out, std::string* error) {
+  Scene s;
+  s.geometry = geometry;
+  for (const auto& [id, e] : map.entries) {
+    std::string payload;
+    if (mode == PayloadMode::kFull) {
+      payload = full_payload(e);
+    } else {
+      LandmarkPayload p;
+      p.id = id;
+      p.has_pose = false;
+      payload = format_payload(p);
+    }
+    if (payload.empty()) {
+      if (error) *error = "landmark " + std::to_string(id) + ": pose cannot be put in a payload";
+      return false;
+    }
+    SceneLandmark l;
+    l.id = id;
+    l.world_pose = e.pose;
+    if (!LandmarkPattern::make(geometry, payload, &l.pattern, error)) return false;
+    s.landmarks.push_back(std::move(l));
+  }
+  *out = std::move(s);
+  return true;
+}
+
+RenderOptions realistic_options() {
+  RenderOptions o;
+  o.defocus_sigma_px = 0.8;
+  o.exposure_s = 0.002;
+  o.illumination_ratio = 0.7;
+  o.illumination_direction_deg = 30.0;
+  o.read_noise_sigma = 2.0;
+  o.shot_noise_gain = 0.05;
+  return o;
+}
+
+// ---------------------------------------------------------------------------------------------
+
+namespace {
+
+// Degradations of one landmark in page coordinates, generated from the seed and the id.
+struct Scratch {
+  Vec2 a, b;           // segment on the page (mm)
+  double half_width;   // mm
+};
+struct Spot {
+  Vec2 c;
+  double radius;       // mm
+  double darkness;     // 0..1 multiplier reduction at the centre
+};
+struct LandmarkDegradation {
+  std::vector<Scratch> scratches;
+  std::vector<Spot> spots;
+};
+
+LandmarkDegradation make_degradation(const RenderOptions& o, const LandmarkGeometry& g,
+                                     std::uint32_t id) {
+  LandmarkDegradation d;
+  std::mt19937_64 r(splitmix64(o.degradation_seed ^ (static_cast<std::uint64_t>(id) << 20)));
+  std::uniform_real_distribution<double> pos(-g.outer_half_mm(), g.outer_half_mm());
+  for (int i = 0; i < o.scratches_per_landmark; ++i) {
+    d.scratches.push_back({{pos(r), pos(r)}, {pos(r), pos(r)}, 0.15 * g.k()});
+  }
+  if (o.dirt_spots_per_landmark > 0.0) {
+    std::poisson_distribution<int> count(o.dirt_spots_per_landmark);
+    std::uniform_real_distribution<double> rad(0.8 * g.k(), 3.0 * g.k()), dark(0.3, 0.7);
+    const int n = count(r);
+    for (int i = 0; i < n; ++i) d.spots.push_back({{pos(r), pos(r)}, rad(r), dark(r)});
+  }
+  return d;
+}
+
+double seg_dist(Vec2 p, Vec2 a, Vec2 b) {
+  const double dx = b.x - a.x, dy = b.y - a.y;
+  const double l2 = dx * dx + dy * dy;
+  double t = l2 > 0 ? ((p.x - a.x) * dx + (p.y - a.y) * dy) / l2 : 0.0;
+  t = std::clamp(t, 0.0, 1.0);
+  return std::hypot(p.x - a.x - t * dx, p.y - a.y - t * dy);
+}
+
+// Everything about one visible landmark that a pixel evaluation needs.
+struct ActiveLandmark {
+  const SceneLandmark* lm;
+  Pose2 landmark_from_vehicle;
+  LandmarkDegradation deg;
+  double reach_mm;  // page half-extent that can differ from the bare floor
+};
+
+struct Sample {
+  int key;       // discrete class: equal keys at all probe points => pixel needs no supersampling
+  double value;  // reflectance grey (8-bit units at full illumination); <0 = bare floor
+};
+
+class Evaluator {
+ public:
+  Evaluator(const Scene& scene, const RenderOptions& o) : scene_(scene), o_(o) {
+    const LandmarkGeometry& g = scene.geometry;
+    occ_band_lo_ = g.inner_half_mm();
+    occ_band_hi_ = g.outer_half_mm() + 3.0 * g.k();
+    // Border midline square: perimeter parameter runs over 8 * mid half-sides.
+    mid_half_ = 0.5 * (g.inner_half_mm() + g.outer_half_mm());
+    occ_len_ = std::clamp(o.occluder_border_fraction, 0.0, 1.0) * 8.0 * mid_half_;
+  }
+
+  double reach(const LandmarkGeometry& g) const {
+    return occ_len_ > 0.0 ? occ_band_hi_ : g.outer_half_mm();
+  }
+
+  // Perimeter parameter of a page point projected on the border's midline square, starting at
+  // the front-left (top-left on the page) corner and going down the left edge.
+  double perimeter_param(Vec2 uv) const {
+    const double h = mid_half_;
+    const double au = std::abs(uv.x), av = std::abs(uv.y);
+    if (au >= av) {
+      if (uv.x < 0) return std::clamp(uv.y + h, 0.0, 2 * h);           // left edge, down
+      return 4 * h + std::clamp(h - uv.y, 0.0, 2 * h);                  // right edge, up
+    }
+    if (uv.y > 0) return 2 * h + std::clamp(uv.x + h, 0.0, 2 * h);      // bottom edge, right
+    return 6 * h + std::clamp(h - uv.x, 0.0, 2 * h);                    // top edge, left
+  }
+
+  Sample eval(const ActiveLandmark& a, Vec2 uv) const {
+    const double m = std::max(std::abs(uv.x), std::abs(uv.y));
+    if (occ_len_ > 0.0 && m >= occ_band_lo_ && m < occ_band_hi_ && perimeter_param(uv) < occ_len_) {
+      return {8, o_.occluder_grey};
+    }
+    const PageInk ink = a.lm->pattern.at(uv);
+    if (ink == PageInk::kOutside) return {0, -1.0};
+    int key = static_cast<int>(ink);
+    double v = ink == PageInk::kBlack ? scene_.ink_black : scene_.paper_white;
+    for (const Scratch& s : a.deg.scratches) {
+      if (seg_dist(uv, s.a, s.b) < s.half_width) {
+        key = 16;
+        v = std::max(v, 0.9 * scene_.paper_white);
+        break;
+      }
+    }
+    for (const Spot& sp : a.deg.spots) {
+      const double r = std::hypot(uv.x - sp.c.x, uv.y - sp.c.y) / sp.radius;
+      if (r < 1.0) v *= 1.0 - sp.darkness * (1.0 - r * r);  // soft smudge, no hard edge
+    }
+    return {key, v};
+  }
+
+ private:
+  const Scene& scene_;
+  const RenderOptions& o_;
+  double occ_band_lo_ = 0, occ_band_hi_ = 0, mid_half_ = 0, occ_len_ = 0;
+};
+
+}  // namespace
+
+FrameRenderer::FrameRenderer(const Scene& scene, const CameraModel& camera)
+    : scene_(&scene), camera_(camera) {
+  w_ = std::max(0, camera.intrinsics.width_px);
+  h_ = std::max(0, camera.intrinsics.height_px);
+  corner_v_.resize(static_cast<size_t>((w_ + 1) * (h_ + 1)));
+  corner_ok_.resize(corner_v_.size());
+  centre_v_.resize(static_cast<size_t>(w_ * h_));
+  centre_ok_.resize(centre_v_.size());
+  bbox_min_ = {1e300, 1e300};
+  bbox_max_ = {-1e300, -1e300};
+  for (int y = 0; y <= h_; ++y) {
+    for (int x = 0; x <= w_; ++x) {
+      const size_t i = static_cast<size_t>(y * (w_ + 1) + x);
+      Vec2 p;
+      corner_ok_[i] = camera_.pixel_to_vehicle({x - 0.5, y - 0.5}, &p) ? 1 : 0;
+      corner_v_[i] = p;
+      if (corner_ok_[i]) {
+        bbox_min_ = {std::min(bbox_min_.x, p.x), std::min(bbox_min_.y, p.y)};
+        bbox_max_ = {std::max(bbox_max_.x, p.x), std::max(bbox_max_.y, p.y)};
+      }
+    }
+  }
+  for (int y = 0; y < h_; ++y) {
+    for (int x = 0; x < w_; ++x) {
+      const size_t i = static_cast<size_t>(y * w_ + x);
+      Vec2 p;
+      centre_ok_[i] = camera_.pixel_to_vehicle({static_cast<double>(x), static_cast<double>(y)}, &p) ? 1 : 0;
+      centre_v_[i] = p;
+    }
+  }
+}
+
+std::vector<std::uint32_t> FrameRenderer::visible_landmarks(const Pose2& pose) const {
+  std::vector<std::uint32_t> ids;
+  const Pose2 v_from_w = inverse(pose);
+  for (const SceneLandmark& l : scene_->landmarks) {
+    const Pose2 v_from_l = compose(v_from_w, l.world_pose);
+    std::vector<Vec2> pts = scene_->geometry.outer_corners_landmark_mm();
+    pts.push_back({0.0, 0.0});
+    for (const Vec2& q : pts) {
+      Vec2 px;
+      if (camera_.vehicle_to_pixel(transform(v_from_l, q), &px) && px.x >= -0.5 &&
+          px.y >= -0.5 && px.x < w_ - 0.5 && px.y < h_ - 0.5) {
+        ids.push_back(l.id);
+        break;
+      }
+    }
+  }
+  return ids;
+}
+
+cv::Mat FrameRenderer::render(const Pose2& pose, const RenderOptions& o,
+                              std::mt19937_64& rng) const {
+  cv::Mat img(h_, w_, CV_32FC1);
+  if (w_ == 0 || h_ == 0) return cv::Mat(h_, w_, CV_8UC1);
+  const Scene& scene = *scene_;
+  const Evaluator ev(scene, o);
+  const Pose2 v_from_w = inverse(pose);
+  const double reach = ev.reach(scene.geometry);
+
+  // Landmarks that can touch the image: centre within the footprint box grown by their reach.
+  std::vector<ActiveLandmark> active;
+  for (const SceneLandmark& l : scene.landmarks) {
+    const Pose2 v_from_l = compose(v_from_w, l.world_pose);
+    const double r = reach * std::sqrt(2.0) + 1.0;
+    if (v_from_l.x_mm < bbox_min_.x - r || v_from_l.x_mm > bbox_max_.x + r ||
+        v_from_l.y_mm < bbox_min_.y - r || v_from_l.y_mm > bbox_max_.y + r) {
+      continue;
+    }
+    active.push_back({&l, inverse(v_from_l), make_degradation(o, scene.geometry, l.id), reach});
+  }
+
+  const int n_sub = std::max(1, o.supersample);
+  for (int y = 0; y < h_; ++y) {
+    float* row = img.ptr<float>(y);
+    for (int x = 0; x < w_; ++x) {
+      const size_t ic = static_cast<size_t>(y * w_ + x);
+      if (!centre_ok_[ic]) {
+        row[x] = 0.0f;  // outside the lens model's valid field
+        continue;
+      }
+      const Vec2 pc = centre_v_[ic];
+      const double floor_grey = floor_texture(scene.floor, transform(pose, pc));
+      double value = floor_grey;
+      for (const ActiveLandmark& a : active) {
+        const Vec2 uvc = landmark_to_page(transform(a.landmark_from_vehicle, pc));
+        // Pixels are < 2 mm wide for any sensible camera; skip landmarks clearly away.
+        if (std::abs(uvc.x) > a.reach_mm + 3.0 || std::abs(uvc.y) > a.reach_mm + 3.0) continue;
+        const Sample sc = ev.eval(a, uvc);
+        bool uniform = true;
+        const size_t i00 = static_cast<size_t>(y * (w_ + 1) + x);
+        const size_t corners[4] = {i00, i00 + 1, i00 + static_cast<size_t>(w_ + 1),
+                                   i00 + static_cast<size_t>(w_ + 2)};
+        for (size_t ci : corners) {
+          if (!corner_ok_[ci] ||
+              ev.eval(a, landmark_to_page(transform(a.landmark_from_vehicle, corner_v_[ci]))).key !=
+                  sc.key) {
+            uniform = false;
+            break;
+          }
+        }
+        if (uniform || n_sub == 1) {
+          value = sc.value < 0.0 ? floor_grey : sc.value;
+        } else {
+          // Exact per-sub-sample back-projection, so edges and corners land exactly where the
+          // camera model puts them.
+          double sum = 0.0;
+          int cnt = 0;
+          for (int j = 0; j < n_sub; ++j) {
+            for (int i = 0; i < n_sub; ++i) {
+              Vec2 pv;
+              if (!camera_.pixel_to_vehicle({x - 0.5 + (i + 0.5) / n_sub, y - 0.5 + (j + 0.5) / n_sub},
+                                            &pv)) {
+                continue;
+              }
+              const Sample s = ev.eval(a, landmark_to_page(transform(a.landmark_from_vehicle, pv)));
+              sum += s.value < 0.0 ? floor_grey : s.value;
+              ++cnt;
+            }
+          }
+          value = cnt > 0 ? sum / cnt : sc.value;
+        }
+        break;
+      }
+      row[x] = static_cast<float>(value);
+    }
+  }
+
+  // Illumination (multiplies scene radiance, so it comes before the optical blurs).
+  const double gain = std::max(0.0, o.exposure_gain);
+  if (o.illumination_ratio != 1.0 || gain != 1.0) {
+    const double dir = deg_to_rad(o.illumination_direction_deg);
+    const double dx = std::cos(dir), dy = std::sin(dir);
+    double tmin = 1e300, tmax = -1e300;
+    for (int cy = 0; cy <= 1; ++cy) {
+      for (int cx = 0; cx <= 1; ++cx) {
+        const double t = cx * (w_ - 1) * dx + cy * (h_ - 1) * dy;
+        tmin = std::min(tmin, t);
+        tmax = std::max(tmax, t);
+      }
+    }
+    const double span = std::max(1e-9, tmax - tmin);
+    const double ratio = std::clamp(o.illumination_ratio, 0.0, 10.0);
+    for (int y = 0; y < h_; ++y) {
+      float* row = img.ptr<float>(y);
+      for (int x = 0; x < w_; ++x) {
+        const double t = (x * dx + y * dy - tmin) / span;
+        row[x] = static_cast<float>(static_cast<double>(row[x]) * gain * (1.0 + (ratio - 1.0) * t));
+      }
+    }
+  }
+
+  if (o.defocus_sigma_px > 0.0) {
+    cv::GaussianBlur(img, img, cv::Size(0, 0), o.defocus_sigma_px, o.defocus_sigma_px,
+                     cv::BORDER_REFLECT);
+  }
+
+  if (o.exposure_s > 0.0 && (o.speed_mps != 0.0 || o.yaw_rate_radps != 0.0)) {
+    // Image motion of the floor point under the image centre during the exposure. A fixed
+    // world point moves in the vehicle frame with velocity (-v + w*y, -w*x).
+    const size_t ic = static_cast<size_t>((h_ / 2) * w_ + w_ / 2);
+    const Vec2 p = centre_v_[ic];
+    const double t = o.exposure_s;
+    const Vec2 d{t * (-o.speed_mps * 1000.0 + o.yaw_rate_radps * p.y), t * (-o.yaw_rate_radps * p.x)};
+    Vec2 pa, pb;
+    if (centre_ok_[ic] && camera_.vehicle_to_pixel({p.x - 0.5 * d.x, p.y - 0.5 * d.y}, &pa) &&
+        camera_.vehicle_to_pixel({p.x + 0.5 * d.x, p.y + 0.5 * d.y}, &pb)) {
+      const double mx = pb.x - pa.x, my = pb.y - pa.y, len = std::hypot(mx, my);
+      if (len > 0.25 && len < 500.0) {
+        const int half = static_cast<int>(std::ceil(0.5 * len)) + 1;
+        cv::Mat k = cv::Mat::zeros(2 * half + 1, 2 * half + 1, CV_32FC1);
+        const int steps = static_cast<int>(std::ceil(len * 8.0)) + 1;
+        for (int s = 0; s < steps; ++s) {
+          const double f = (s + 0.5) / steps - 0.5;
+          const double kx = half + f * mx, ky = half + f * my;
+          const int x0 = static_cast<int>(std::floor(kx)), y0 = static_cast<int>(std::floor(ky));
+          const double ax = kx - x0, ay = ky - y0;
+          k.at<float>(y0, x0) += static_cast<float>((1 - ax) * (1 - ay));
+          k.at<float>(y0, x0 + 1) += static_cast<float>(ax * (1 - ay));
+          k.at<float>(y0 + 1, x0) += static_cast<float>((1 - ax) * ay);
+          k.at<float>(y0 + 1, x0 + 1) += static_cast<float>(ax * ay);
+        }
+        k /= cv::sum(k)[0];
+        cv::filter2D(img, img, -1, k, cv::Point(-1, -1), 0.0, cv::BORDER_REFLECT);
+      }
+    }
+  }
+
+  cv::Mat out(h_, w_, CV_8UC1);
+  const bool noisy = o.read_noise_sigma > 0.0 || o.shot_noise_gain > 0.0;
+  std::normal_distribution<double> nd(0.0, 1.0);
+  for (int y = 0; y < h_; ++y) {
+    const float* src = img.ptr<float>(y);
+    auto* dst = out.ptr<std::uint8_t>(y);
+    for (int x = 0; x < w_; ++x) {
+      double v = static_cast<double>(src[x]);
+      if (noisy) {
+        const double var = o.read_noise_sigma * o.read_noise_sigma +
+                           std::max(0.0, o.shot_noise_gain) * std::max(0.0, v);
+        v += std::sqrt(var) * nd(rng);
+      }
+      dst[x] = static_cast<std::uint8_t>(std::clamp(std::lround(v), 0L, 255L));
+    }
+  }
+  return out;
+}
+
+cv::Mat render_frame(const Scene& scene, const CameraModel& camera, const Pose2& vehicle_pose_world,
+                     const RenderOptions& options, std::mt19937_64& rng) {
+  return FrameRenderer(scene, camera).render(vehicle_pose_world, options, rng);
+}
+
+}  // namespace agv::sim
