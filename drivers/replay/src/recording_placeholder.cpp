@@ -1,1 +1,0 @@
-// Intentionally empty translation unit so the library exists before its sources land.
