@@ -1,0 +1,201 @@
+// Encoder for the localizer's output frames and decoder for the odometry input frames
+// (layout: signals.hpp, contract: can/agvloc.dbc, rules: docs/can.md). Pure: no I/O, no clocks,
+// no heap; time is an argument.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "agv/protocol/can_frame.hpp"
+#include "agv/protocol/e2e.hpp"
+#include "agv/protocol/signals.hpp"
+
+namespace agv::protocol {
+
+enum class OdometryMode : std::uint8_t {
+  kWheels = 0,  // MC_OdomWheels: left and right wheel ground speeds
+  kTwist = 1,   // MC_OdomTwist: v and omega of the reference point
+};
+
+struct OdometryConfig {
+  OdometryMode mode = OdometryMode::kWheels;
+  // CAN ID of the odometry frame. Default base_id + 0x10 (wheels) / + 0x11 (twist) when 0.
+  std::uint32_t can_id = 0;
+  bool extended_id = false;
+  // true: CRC and alive counter are checked (E2E as for our own frames). Motor controllers that
+  // cannot compute the CRC set false; then only ID and length are checked.
+  bool protected_e2e = true;
+  std::uint16_t data_id = 0;  // 0 = the DBC's data ID for the selected mode
+  std::uint8_t max_delta_counter = 3;  // see E2eCheckerConfig
+  // Distance between the wheel contact points (wheels mode only). Default for a small AGV.
+  double track_width_mm = 500.0;
+  // Multiplies decoded speeds (wheel speeds, or v) / omega: calibrates wheel radius errors.
+  // 1.0 = the DBC scaling is exact.
+  double speed_scale = 1.0;
+  double omega_scale = 1.0;
+  // No accepted frame for this long -> timed_out(). Trade-off: short reacts fast to a dead
+  // controller but trips on bus jitter; default 100 ms = 10 missed frames at 10 ms.
+  std::int64_t timeout_ns = 100'000'000;
+};
+
+struct ProtocolConfig {
+  // CAN ID of AGV_PoseXY; the other output frames follow at +1..+5 (signals.hpp id_offset).
+  std::uint32_t base_id = 0x300;
+  bool extended_ids = false;  // 29-bit IDs for the output frames
+  OdometryConfig odometry;
+};
+
+// Empty string when valid; otherwise why not (ID does not fit 11/29 bits, track width <= 0, ...).
+std::string validate(const ProtocolConfig& cfg);
+
+// CAN ID of message m under cfg (odometry IDs honour OdometryConfig::can_id).
+std::uint32_t can_id_of(const ProtocolConfig& cfg, Msg m);
+bool is_extended(const ProtocolConfig& cfg, Msg m);
+
+struct PoseOut {
+  double x_mm = 0.0;
+  double y_mm = 0.0;
+  double theta_rad = 0.0;  // wrapped to (-pi, pi] before encoding
+  double latency_ms = 0.0;  // age of the estimate at encoding time
+  bool valid = false;
+};
+struct VelocityOut {
+  double v_mps = 0.0;
+  double omega_radps = 0.0;
+  bool valid = false;
+};
+struct QualityOut {
+  double sigma_x_mm = 0.0;
+  double sigma_y_mm = 0.0;
+  double sigma_theta_rad = 0.0;
+  bool valid = false;
+};
+
+enum class Health : std::uint8_t { kOk = 0, kDegraded = 1, kLost = 2, kFault = 3 };
+
+// Fault and rejection flags: bit i = the i-th flag signal of AGV_Status (signals.cpp order).
+namespace fault {
+inline constexpr std::uint8_t kCameraStalled = 1u << 0;
+inline constexpr std::uint8_t kCameraError = 1u << 1;
+inline constexpr std::uint8_t kOdomTimeout = 1u << 2;
+inline constexpr std::uint8_t kOdomE2E = 1u << 3;
+inline constexpr std::uint8_t kCanErrorPassive = 1u << 4;
+inline constexpr std::uint8_t kCanBusOff = 1u << 5;
+inline constexpr std::uint8_t kNoMap = 1u << 6;
+inline constexpr std::uint8_t kLoopOverrun = 1u << 7;
+}  // namespace fault
+namespace reject {
+inline constexpr std::uint8_t kGate = 1u << 0;
+inline constexpr std::uint8_t kUnknownLandmark = 1u << 1;
+inline constexpr std::uint8_t kDecodeFailed = 1u << 2;
+inline constexpr std::uint8_t kGeometry = 1u << 3;
+inline constexpr std::uint8_t kFixTooOld = 1u << 4;
+}  // namespace reject
+
+struct StatusOut {
+  Health health = Health::kLost;
+  std::uint16_t last_landmark_id = 0;  // 0 = none
+  double time_since_fix_ms = -1.0;     // negative or non-finite = never (sent as 65535)
+  std::uint8_t faults = 0;             // fault::*
+  std::uint8_t rejections = 0;         // reject::* (bits 5..7 must be 0)
+};
+struct HeartbeatOut {
+  std::uint8_t sw_major = 0;
+  std::uint8_t sw_minor = 0;
+  std::uint8_t sw_patch = 0;
+  double uptime_s = 0.0;
+};
+
+// Fills 8-byte frames with ID, data, alive counter and CRC. One counter per output message,
+// starting at 0. Non-finite values clear the frame's valid flag and encode 0 (NaN) or saturate
+// (+-inf); finite values beyond the range saturate.
+class Encoder {
+ public:
+  explicit Encoder(const ProtocolConfig& cfg);
+  // Writes the AGV_PoseXY / AGV_PoseHeading pair; both get the same counter value.
+  void encode_pose(const PoseOut& p, CanFrameData* xy, CanFrameData* heading);
+  void encode_velocity(const VelocityOut& v, CanFrameData* out);
+  void encode_quality(const QualityOut& q, CanFrameData* out);
+  void encode_status(const StatusOut& s, CanFrameData* out);
+  void encode_heartbeat(const HeartbeatOut& h, CanFrameData* out);
+  // The counter the next frame of m will carry (tests, diagnostics).
+  std::uint8_t next_counter(Msg m) const { return counters_[static_cast<int>(m)]; }
+
+ private:
+  void begin(Msg m, CanFrameData* out) const;
+  void finish(Msg m, CanFrameData* out);
+  ProtocolConfig cfg_;
+  std::uint8_t counters_[static_cast<int>(Msg::kCount)] = {};
+};
+
+// Typed decoding of output frames (tests, HIL checks, log inspection). Returns false when the
+// frame is not the expected message (ID, length); the E2E check is separate (E2eChecker).
+bool decode_pose(const ProtocolConfig& cfg, const CanFrameData& xy, const CanFrameData& heading,
+                 PoseOut* out);
+bool decode_velocity(const ProtocolConfig& cfg, const CanFrameData& f, VelocityOut* out);
+bool decode_quality(const ProtocolConfig& cfg, const CanFrameData& f, QualityOut* out);
+bool decode_status(const ProtocolConfig& cfg, const CanFrameData& f, StatusOut* out);
+bool decode_heartbeat(const ProtocolConfig& cfg, const CanFrameData& f, HeartbeatOut* out,
+                      int* protocol_version);
+// Which message a frame is under cfg; Msg::kCount when none.
+Msg identify(const ProtocolConfig& cfg, const CanFrameData& f);
+
+// One odometry measurement, in the units of docs/frames.md.
+struct OdomSample {
+  std::int64_t t_ns = 0;  // frame receive timestamp
+  double v_mps = 0.0;
+  double omega_radps = 0.0;
+  double left_mps = 0.0;   // wheels mode only
+  double right_mps = 0.0;  // wheels mode only
+  std::uint32_t lost_before = 0;  // frames lost just before this one (E2E gap)
+};
+
+enum class DecodeResult : std::uint8_t {
+  kOk = 0,
+  kNotOdometry,     // other ID or ID type: ignored, not counted as an error
+  kBadLength,       // len != 8
+  kBadCrc,
+  kRepeated,        // alive counter did not advance
+  kCounterJump,     // counter advanced by more than max_delta_counter
+  kBadCounter,      // counter value 15
+  kStale,           // receive timestamp older than the last accepted frame's
+};
+const char* to_string(DecodeResult r);
+
+struct OdometryCounters {
+  std::uint64_t accepted = 0;
+  std::uint64_t lost_frames = 0;  // gaps within max_delta_counter (accepted frames after a gap)
+  std::uint64_t bad_length = 0;
+  std::uint64_t bad_crc = 0;
+  std::uint64_t repeated = 0;
+  std::uint64_t counter_jump = 0;
+  std::uint64_t bad_counter = 0;
+  std::uint64_t stale = 0;
+  std::uint64_t rejected() const {
+    return bad_length + bad_crc + repeated + counter_jump + bad_counter + stale;
+  }
+};
+
+class OdometryDecoder {
+ public:
+  explicit OdometryDecoder(const ProtocolConfig& cfg);
+  // kOk fills *out; anything else leaves it untouched. Rejections are counted.
+  DecodeResult decode(const CanFrameData& f, OdomSample* out);
+  // True when no frame was accepted within timeout_ns before now_ns (or none ever).
+  bool timed_out(std::int64_t now_ns) const;
+  // Receive time of the last accepted frame; INT64_MIN when none.
+  std::int64_t last_accepted_ns() const { return last_ok_ns_; }
+  const OdometryCounters& counters() const { return counters_; }
+  std::uint32_t can_id() const { return id_; }
+  bool extended() const { return ext_; }
+
+ private:
+  OdometryConfig cfg_;
+  std::uint32_t id_;
+  bool ext_;
+  E2eChecker checker_;
+  OdometryCounters counters_;
+  std::int64_t last_ok_ns_;
+};
+
+}  // namespace agv::protocol

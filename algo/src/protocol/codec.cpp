@@ -1,0 +1,326 @@
+#include "agv/protocol/codec.hpp"
+
+#include <climits>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "agv/common/geometry.hpp"
+
+namespace agv::protocol {
+
+namespace {
+
+const SignalDef& sig(Msg m, const char* name) {
+  // The table is constant; a missing name is a programming error caught by the unit tests.
+  return *find_signal(message_def(m), name);
+}
+
+std::uint16_t odom_data_id(const OdometryConfig& o) {
+  if (o.data_id != 0) return o.data_id;
+  return message_def(o.mode == OdometryMode::kWheels ? Msg::kOdomWheels : Msg::kOdomTwist)
+      .data_id;
+}
+
+Msg odom_msg(const OdometryConfig& o) {
+  return o.mode == OdometryMode::kWheels ? Msg::kOdomWheels : Msg::kOdomTwist;
+}
+
+bool finite(double v) { return std::isfinite(v); }
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+}  // namespace
+
+std::string validate(const ProtocolConfig& cfg) {
+  const std::uint32_t out_mask = cfg.extended_ids ? kCanExtIdMask : kCanStdIdMask;
+  std::uint32_t max_off = 0;
+  for (const MessageDef& m : message_table()) {
+    if (m.dir == Direction::kTx && m.id_offset > max_off) max_off = m.id_offset;
+  }
+  if (cfg.base_id > out_mask || cfg.base_id + max_off > out_mask) {
+    return std::string("base_id + ") + std::to_string(max_off) + " does not fit a " +
+           (cfg.extended_ids ? "29" : "11") + "-bit CAN ID";
+  }
+  const std::uint32_t odom_id = can_id_of(cfg, odom_msg(cfg.odometry));
+  if (odom_id > (cfg.odometry.extended_id ? kCanExtIdMask : kCanStdIdMask)) {
+    return "odometry CAN ID does not fit its ID type";
+  }
+  if (cfg.odometry.extended_id == cfg.extended_ids) {
+    for (const MessageDef& m : message_table()) {
+      if (m.dir == Direction::kTx && cfg.base_id + m.id_offset == odom_id) {
+        return std::string("odometry CAN ID collides with ") + m.name;
+      }
+    }
+  }
+  if (!(cfg.odometry.track_width_mm > 0.0) || !finite(cfg.odometry.track_width_mm)) {
+    return "odometry.track_width_mm must be > 0";
+  }
+  if (!finite(cfg.odometry.speed_scale) || !finite(cfg.odometry.omega_scale) ||
+      cfg.odometry.speed_scale == 0.0 || cfg.odometry.omega_scale == 0.0) {
+    return "odometry speed_scale/omega_scale must be finite and non-zero";
+  }
+  if (cfg.odometry.timeout_ns <= 0) return "odometry.timeout_ns must be > 0";
+  if (cfg.odometry.max_delta_counter < 1 || cfg.odometry.max_delta_counter > 14) {
+    return "odometry.max_delta_counter must be 1..14";
+  }
+  return {};
+}
+
+std::uint32_t can_id_of(const ProtocolConfig& cfg, Msg m) {
+  const MessageDef& d = message_def(m);
+  if (d.dir == Direction::kRx) {
+    if (m == odom_msg(cfg.odometry) && cfg.odometry.can_id != 0) return cfg.odometry.can_id;
+    return cfg.base_id + d.id_offset;
+  }
+  return (cfg.base_id + d.id_offset) & (cfg.extended_ids ? kCanExtIdMask : kCanStdIdMask);
+}
+
+bool is_extended(const ProtocolConfig& cfg, Msg m) {
+  return message_def(m).dir == Direction::kRx ? cfg.odometry.extended_id : cfg.extended_ids;
+}
+
+// ---------------------------------------------------------------------------------- Encoder
+
+Encoder::Encoder(const ProtocolConfig& cfg) : cfg_(cfg) {}
+
+void Encoder::begin(Msg m, CanFrameData* out) const {
+  *out = CanFrameData{};
+  out->id = can_id_of(cfg_, m);
+  out->extended = cfg_.extended_ids;
+  out->len = message_def(m).dlc;
+}
+
+void Encoder::finish(Msg m, CanFrameData* out) {
+  std::uint8_t& c = counters_[static_cast<int>(m)];
+  e2e_protect(message_def(m).data_id, c, out->data);
+  c = static_cast<std::uint8_t>((c + 1) % kE2eCounterModulo);
+}
+
+void Encoder::encode_pose(const PoseOut& p, CanFrameData* xy, CanFrameData* heading) {
+  const bool valid =
+      p.valid && finite(p.x_mm) && finite(p.y_mm) && finite(p.theta_rad);
+  begin(Msg::kPoseXY, xy);
+  put_raw(sig(Msg::kPoseXY, "PoseValid"), valid ? 1 : 0, xy->data);
+  put_phys(sig(Msg::kPoseXY, "X"), p.x_mm, xy->data);
+  put_phys(sig(Msg::kPoseXY, "Y"), p.y_mm, xy->data);
+  begin(Msg::kPoseHeading, heading);
+  put_raw(sig(Msg::kPoseHeading, "PoseValid"), valid ? 1 : 0, heading->data);
+  const double th = finite(p.theta_rad) ? wrap_angle_rad(p.theta_rad) : 0.0;
+  put_phys(sig(Msg::kPoseHeading, "Theta"), th, heading->data);
+  // Unknown latency is reported as the maximum (pessimistic).
+  put_phys(sig(Msg::kPoseHeading, "Latency"),
+           std::isnan(p.latency_ms) ? kInf : p.latency_ms, heading->data);
+  // Pair the two frames by counter: both advance together, so use the XY counter for both.
+  counters_[static_cast<int>(Msg::kPoseHeading)] = counters_[static_cast<int>(Msg::kPoseXY)];
+  finish(Msg::kPoseXY, xy);
+  finish(Msg::kPoseHeading, heading);
+}
+
+void Encoder::encode_velocity(const VelocityOut& v, CanFrameData* out) {
+  begin(Msg::kVelocity, out);
+  const bool valid = v.valid && finite(v.v_mps) && finite(v.omega_radps);
+  put_raw(sig(Msg::kVelocity, "VelocityValid"), valid ? 1 : 0, out->data);
+  put_phys(sig(Msg::kVelocity, "V"), v.v_mps, out->data);
+  put_phys(sig(Msg::kVelocity, "Omega"), v.omega_radps, out->data);
+  finish(Msg::kVelocity, out);
+}
+
+void Encoder::encode_quality(const QualityOut& q, CanFrameData* out) {
+  begin(Msg::kQuality, out);
+  // A NaN sigma is unknown: invalid. +inf is "very uncertain": saturates, stays valid.
+  const bool valid = q.valid && !std::isnan(q.sigma_x_mm) && !std::isnan(q.sigma_y_mm) &&
+                     !std::isnan(q.sigma_theta_rad);
+  put_raw(sig(Msg::kQuality, "QualityValid"), valid ? 1 : 0, out->data);
+  put_phys(sig(Msg::kQuality, "SigmaX"), q.sigma_x_mm, out->data);
+  put_phys(sig(Msg::kQuality, "SigmaY"), q.sigma_y_mm, out->data);
+  put_phys(sig(Msg::kQuality, "SigmaTheta"), q.sigma_theta_rad, out->data);
+  finish(Msg::kQuality, out);
+}
+
+void Encoder::encode_status(const StatusOut& s, CanFrameData* out) {
+  begin(Msg::kStatus, out);
+  put_raw(sig(Msg::kStatus, "Health"), static_cast<std::int64_t>(s.health) & 3, out->data);
+  put_raw(sig(Msg::kStatus, "LastLandmarkId"), s.last_landmark_id, out->data);
+  const bool never = !(s.time_since_fix_ms >= 0.0);  // negative or NaN
+  put_phys(sig(Msg::kStatus, "TimeSinceFix"), never ? kInf : s.time_since_fix_ms, out->data);
+  const SignalDef& f0 = sig(Msg::kStatus, "FaultCameraStalled");
+  const SignalDef& r0 = sig(Msg::kStatus, "RejectGate");
+  for (int i = 0; i < 8; ++i) {
+    SignalDef b = f0;
+    b.start_bit = static_cast<std::uint8_t>(f0.start_bit + i);
+    put_raw(b, (s.faults >> i) & 1, out->data);
+  }
+  for (int i = 0; i < 5; ++i) {  // bits 5..7 are reserved and stay 0
+    SignalDef b = r0;
+    b.start_bit = static_cast<std::uint8_t>(r0.start_bit + i);
+    put_raw(b, (s.rejections >> i) & 1, out->data);
+  }
+  finish(Msg::kStatus, out);
+}
+
+void Encoder::encode_heartbeat(const HeartbeatOut& h, CanFrameData* out) {
+  begin(Msg::kHeartbeat, out);
+  put_raw(sig(Msg::kHeartbeat, "ProtocolVersion"), kProtocolVersion, out->data);
+  put_raw(sig(Msg::kHeartbeat, "SwMajor"), h.sw_major, out->data);
+  put_raw(sig(Msg::kHeartbeat, "SwMinor"), h.sw_minor, out->data);
+  put_raw(sig(Msg::kHeartbeat, "SwPatch"), h.sw_patch, out->data);
+  // Whole seconds, truncated (rounding would report a second early).
+  const double up = std::isnan(h.uptime_s) ? 0.0 : std::floor(h.uptime_s);
+  put_phys(sig(Msg::kHeartbeat, "Uptime"), up, out->data);
+  finish(Msg::kHeartbeat, out);
+}
+
+// ------------------------------------------------------------------------ output decoders
+
+Msg identify(const ProtocolConfig& cfg, const CanFrameData& f) {
+  for (const MessageDef& m : message_table()) {
+    if (f.id == can_id_of(cfg, m.msg) && f.extended == is_extended(cfg, m.msg)) {
+      if (m.dir == Direction::kRx && m.msg != odom_msg(cfg.odometry) &&
+          cfg.odometry.can_id != 0) {
+        continue;  // the inactive odometry variant has no configured ID
+      }
+      return m.msg;
+    }
+  }
+  return Msg::kCount;
+}
+
+namespace {
+bool is_msg(const ProtocolConfig& cfg, const CanFrameData& f, Msg m) {
+  return f.len == message_def(m).dlc && f.id == can_id_of(cfg, m) &&
+         f.extended == is_extended(cfg, m);
+}
+}  // namespace
+
+bool decode_pose(const ProtocolConfig& cfg, const CanFrameData& xy, const CanFrameData& heading,
+                 PoseOut* out) {
+  if (!is_msg(cfg, xy, Msg::kPoseXY) || !is_msg(cfg, heading, Msg::kPoseHeading)) return false;
+  out->x_mm = get_phys(sig(Msg::kPoseXY, "X"), xy.data);
+  out->y_mm = get_phys(sig(Msg::kPoseXY, "Y"), xy.data);
+  out->theta_rad = get_phys(sig(Msg::kPoseHeading, "Theta"), heading.data);
+  out->latency_ms = get_phys(sig(Msg::kPoseHeading, "Latency"), heading.data);
+  out->valid = get_raw(sig(Msg::kPoseXY, "PoseValid"), xy.data) == 1 &&
+               get_raw(sig(Msg::kPoseHeading, "PoseValid"), heading.data) == 1 &&
+               (xy.data[1] & 0x0F) == (heading.data[1] & 0x0F);  // same estimate
+  return true;
+}
+
+bool decode_velocity(const ProtocolConfig& cfg, const CanFrameData& f, VelocityOut* out) {
+  if (!is_msg(cfg, f, Msg::kVelocity)) return false;
+  out->valid = get_raw(sig(Msg::kVelocity, "VelocityValid"), f.data) == 1;
+  out->v_mps = get_phys(sig(Msg::kVelocity, "V"), f.data);
+  out->omega_radps = get_phys(sig(Msg::kVelocity, "Omega"), f.data);
+  return true;
+}
+
+bool decode_quality(const ProtocolConfig& cfg, const CanFrameData& f, QualityOut* out) {
+  if (!is_msg(cfg, f, Msg::kQuality)) return false;
+  out->valid = get_raw(sig(Msg::kQuality, "QualityValid"), f.data) == 1;
+  out->sigma_x_mm = get_phys(sig(Msg::kQuality, "SigmaX"), f.data);
+  out->sigma_y_mm = get_phys(sig(Msg::kQuality, "SigmaY"), f.data);
+  out->sigma_theta_rad = get_phys(sig(Msg::kQuality, "SigmaTheta"), f.data);
+  return true;
+}
+
+bool decode_status(const ProtocolConfig& cfg, const CanFrameData& f, StatusOut* out) {
+  if (!is_msg(cfg, f, Msg::kStatus)) return false;
+  out->health = static_cast<Health>(get_raw(sig(Msg::kStatus, "Health"), f.data));
+  out->last_landmark_id =
+      static_cast<std::uint16_t>(get_raw(sig(Msg::kStatus, "LastLandmarkId"), f.data));
+  const std::int64_t t = get_raw(sig(Msg::kStatus, "TimeSinceFix"), f.data);
+  out->time_since_fix_ms = t == 65535 ? -1.0 : static_cast<double>(t);
+  out->faults = f.data[6];
+  out->rejections = f.data[7];
+  return true;
+}
+
+bool decode_heartbeat(const ProtocolConfig& cfg, const CanFrameData& f, HeartbeatOut* out,
+                      int* protocol_version) {
+  if (!is_msg(cfg, f, Msg::kHeartbeat)) return false;
+  out->sw_major = static_cast<std::uint8_t>(get_raw(sig(Msg::kHeartbeat, "SwMajor"), f.data));
+  out->sw_minor = static_cast<std::uint8_t>(get_raw(sig(Msg::kHeartbeat, "SwMinor"), f.data));
+  out->sw_patch = static_cast<std::uint8_t>(get_raw(sig(Msg::kHeartbeat, "SwPatch"), f.data));
+  out->uptime_s = get_phys(sig(Msg::kHeartbeat, "Uptime"), f.data);
+  if (protocol_version) {
+    *protocol_version = static_cast<int>(get_raw(sig(Msg::kHeartbeat, "ProtocolVersion"), f.data));
+  }
+  return true;
+}
+
+// ---------------------------------------------------------------------- OdometryDecoder
+
+const char* to_string(DecodeResult r) {
+  switch (r) {
+    case DecodeResult::kOk: return "ok";
+    case DecodeResult::kNotOdometry: return "not-odometry";
+    case DecodeResult::kBadLength: return "bad-length";
+    case DecodeResult::kBadCrc: return "bad-crc";
+    case DecodeResult::kRepeated: return "repeated";
+    case DecodeResult::kCounterJump: return "counter-jump";
+    case DecodeResult::kBadCounter: return "bad-counter";
+    case DecodeResult::kStale: return "stale";
+  }
+  return "?";
+}
+
+OdometryDecoder::OdometryDecoder(const ProtocolConfig& cfg)
+    : cfg_(cfg.odometry),
+      id_(can_id_of(cfg, odom_msg(cfg.odometry))),
+      ext_(cfg.odometry.extended_id),
+      checker_(E2eCheckerConfig{odom_data_id(cfg.odometry), cfg.odometry.max_delta_counter}),
+      last_ok_ns_(INT64_MIN) {}
+
+DecodeResult OdometryDecoder::decode(const CanFrameData& f, OdomSample* out) {
+  if (f.id != id_ || f.extended != ext_) return DecodeResult::kNotOdometry;
+  if (f.len != kE2eFrameLen) {
+    ++counters_.bad_length;
+    return DecodeResult::kBadLength;
+  }
+  // Stale before E2E, so a replayed old frame does not move the counter reference.
+  if (last_ok_ns_ != INT64_MIN && f.t_ns < last_ok_ns_) {
+    ++counters_.stale;
+    return DecodeResult::kStale;
+  }
+  std::uint32_t lost = 0;
+  if (cfg_.protected_e2e) {
+    const std::uint64_t lost_before = checker_.counters().lost_frames;
+    switch (checker_.check(f)) {
+      case E2eStatus::kOk:
+      case E2eStatus::kInitial:
+        break;
+      case E2eStatus::kOkSomeLost:
+        lost = static_cast<std::uint32_t>(checker_.counters().lost_frames - lost_before);
+        counters_.lost_frames += lost;
+        break;
+      case E2eStatus::kRepeated: ++counters_.repeated; return DecodeResult::kRepeated;
+      case E2eStatus::kWrongSequence: ++counters_.counter_jump; return DecodeResult::kCounterJump;
+      case E2eStatus::kBadCrc: ++counters_.bad_crc; return DecodeResult::kBadCrc;
+      case E2eStatus::kBadLength: ++counters_.bad_length; return DecodeResult::kBadLength;
+      case E2eStatus::kBadCounter: ++counters_.bad_counter; return DecodeResult::kBadCounter;
+    }
+  }
+  OdomSample s;
+  s.t_ns = f.t_ns;
+  s.lost_before = lost;
+  const Msg m = odom_msg(cfg_);
+  if (cfg_.mode == OdometryMode::kWheels) {
+    s.left_mps = get_phys(sig(m, "LeftSpeed"), f.data) * cfg_.speed_scale;
+    s.right_mps = get_phys(sig(m, "RightSpeed"), f.data) * cfg_.speed_scale;
+    s.v_mps = 0.5 * (s.left_mps + s.right_mps);
+    s.omega_radps = (s.right_mps - s.left_mps) / (cfg_.track_width_mm * 1e-3) * cfg_.omega_scale;
+  } else {
+    s.v_mps = get_phys(sig(m, "V"), f.data) * cfg_.speed_scale;
+    s.omega_radps = get_phys(sig(m, "Omega"), f.data) * cfg_.omega_scale;
+  }
+  ++counters_.accepted;
+  last_ok_ns_ = f.t_ns;
+  *out = s;
+  return DecodeResult::kOk;
+}
+
+bool OdometryDecoder::timed_out(std::int64_t now_ns) const {
+  if (last_ok_ns_ == INT64_MIN) return true;
+  return now_ns - last_ok_ns_ > cfg_.timeout_ns;
+}
+
+}  // namespace agv::protocol
