@@ -21,9 +21,9 @@ enum class CameraStatus : int {
 const char* to_string(CameraStatus s);
 
 // Which pixel formats a live driver may ask the sensor for. Every format ends up as 8-bit gray:
-// GREY/R8 and the Y plane of NV12/YU12 are used in place; YUYV needs one copy per frame.
+// GREY/R8 and the Y plane of NV12/YU12 are used in place; YUYV and packed RGB need one copy.
 enum class PixelFormatPreference : int {
-  kAuto = 0,  // gray if the camera offers it, else planar YUV, else YUYV
+  kAuto = 0,  // gray if the camera offers it, else planar YUV, else YUYV, else packed RGB
   kGray = 1,  // only 8-bit monochrome (GREY / R8)
   kYuv = 2,   // only YUV (NV12, YU12, YUYV); for colour sensors
 };
