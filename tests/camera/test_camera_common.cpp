@@ -108,6 +108,33 @@ TEST(PixelFormat, YuyvToGrayTakesLumaAndHonoursStrides) {
   }
 }
 
+TEST(PixelFormat, Rgb24ToGrayWeightsAndByteOrder) {
+  using namespace agv::camera;
+  // One row: pure red, pure green, pure blue, white, in memory order R G B.
+  const std::uint8_t rgb[12] = {255, 0, 0, 0, 255, 0, 0, 0, 255, 255, 255, 255};
+  std::uint8_t gray[4] = {};
+  ASSERT_TRUE(convert_to_gray(kFourccBgr888, rgb, 12, 4, 1, gray, 4));  // libcamera BGR888 = R G B
+  EXPECT_EQ(gray[0], 77);   // (77*255+128)>>8
+  EXPECT_EQ(gray[1], 149);  // (150*255+128)>>8
+  EXPECT_EQ(gray[2], 29);
+  EXPECT_EQ(gray[3], 255);
+  // Same bytes read as B G R: red and blue swap.
+  ASSERT_TRUE(convert_to_gray(kFourccRgb888, rgb, 12, 4, 1, gray, 4));
+  EXPECT_EQ(gray[0], 29);
+  EXPECT_EQ(gray[2], 77);
+  EXPECT_FALSE(convert_to_gray(kFourccNv12, rgb, 12, 4, 1, gray, 4));  // in place, no copy
+  GrayLayout l;
+  std::string err;
+  ASSERT_TRUE(gray_layout(kFourccRgb888, 648, 480, 1944, &l, &err)) << err;
+  EXPECT_FALSE(l.in_place);
+  EXPECT_FALSE(gray_layout(kFourccRgb888, 648, 480, 1000, &l, &err));
+  // RGB only as the last resort under kAuto, never under kYuv.
+  EXPECT_EQ(choose_format(PixelFormatPreference::kAuto, {kFourccRgb888, kFourccYuyv}), kFourccYuyv);
+  EXPECT_EQ(choose_format(PixelFormatPreference::kAuto, {kFourccRgb888, kFourccBgr888}),
+            kFourccRgb888);
+  EXPECT_EQ(choose_format(PixelFormatPreference::kYuv, {kFourccRgb888}), 0u);
+}
+
 TEST(Timestamp, MidExposureFromStartOfExposure) {
   // Global shutter, 1 ms exposure starting at t=10 ms -> mid at 10.5 ms.
   EXPECT_EQ(agv::camera::exposure_mid_ns(10'000'000, TimestampRef::kStartOfExposure, 1'000'000, 0),

@@ -25,6 +25,9 @@ std::vector<std::uint32_t> acceptable_formats(hal::PixelFormatPreference pref) {
   }
   std::vector<std::uint32_t> all = gray;
   all.insert(all.end(), yuv.begin(), yuv.end());
+  for (std::uint32_t f : {kFourccRgb888, kFourccBgr888, kFourccV4l2Bgr24, kFourccV4l2Rgb24}) {
+    all.push_back(f);
+  }
   return all;
 }
 
@@ -67,6 +70,11 @@ bool gray_layout(std::uint32_t fourcc, int w, int h, int stride, GrayLayout* out
     if (w % 2 != 0) return fail("YUYV needs an even width");
     l.in_place = false;
     l.min_bytes = pitch * (rows - 1) + 2 * static_cast<std::size_t>(w);
+  } else if (fourcc == kFourccRgb888 || fourcc == kFourccBgr888 || fourcc == kFourccV4l2Bgr24 ||
+             fourcc == kFourccV4l2Rgb24) {
+    if (stride < 3 * w) return fail("stride shorter than a row (3 bytes per pixel)");
+    l.in_place = false;
+    l.min_bytes = pitch * (rows - 1) + 3 * static_cast<std::size_t>(w);
   } else {
     return fail("unsupported pixel format");
   }
@@ -81,6 +89,32 @@ void yuyv_to_gray(const std::uint8_t* src, int src_stride, int w, int h, std::ui
     std::uint8_t* d = dst + static_cast<std::ptrdiff_t>(r) * dst_stride;
     for (int c = 0; c < w; ++c) d[c] = s[2 * c];
   }
+}
+
+void rgb24_to_gray(const std::uint8_t* src, int src_stride, int w, int h, bool r_first,
+                   std::uint8_t* dst, int dst_stride) {
+  const int ir = r_first ? 0 : 2, ib = r_first ? 2 : 0;
+  for (int r = 0; r < h; ++r) {
+    const std::uint8_t* s = src + static_cast<std::ptrdiff_t>(r) * src_stride;
+    std::uint8_t* d = dst + static_cast<std::ptrdiff_t>(r) * dst_stride;
+    for (int c = 0; c < w; ++c, s += 3) {
+      d[c] = static_cast<std::uint8_t>((77 * s[ir] + 150 * s[1] + 29 * s[ib] + 128) >> 8);
+    }
+  }
+}
+
+bool convert_to_gray(std::uint32_t fourcc, const std::uint8_t* src, int src_stride, int w, int h,
+                     std::uint8_t* dst, int dst_stride) {
+  if (fourcc == kFourccYuyv) {
+    yuyv_to_gray(src, src_stride, w, h, dst, dst_stride);
+  } else if (fourcc == kFourccBgr888 || fourcc == kFourccV4l2Rgb24) {
+    rgb24_to_gray(src, src_stride, w, h, true, dst, dst_stride);
+  } else if (fourcc == kFourccRgb888 || fourcc == kFourccV4l2Bgr24) {
+    rgb24_to_gray(src, src_stride, w, h, false, dst, dst_stride);
+  } else {
+    return false;
+  }
+  return true;
 }
 
 }  // namespace agv::camera

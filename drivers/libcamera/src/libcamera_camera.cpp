@@ -186,7 +186,7 @@ CameraStatus LibcameraCamera::Impl::configure_stream() {
     std::string list;
     for (std::uint32_t f : offered) list += " " + camera::fourcc_to_string(f);
     return fail(CameraStatus::kInvalidArgument,
-                "no usable pixel format (need R8, NV12, YUV420 or YUYV); camera offers:" + list);
+                "no usable pixel format (need R8, NV12, YUV420, YUYV or RGB888); camera offers:" + list);
   }
   sc.pixelFormat = lc::PixelFormat(fourcc);
   sc.size = lc::Size(static_cast<unsigned>(cfg.width_px), static_cast<unsigned>(cfg.height_px));
@@ -414,8 +414,8 @@ CameraStatus LibcameraCamera::next_frame(std::int64_t timeout_ns, hal::FrameView
       frame->data = slot->y_plane;
       frame->stride_bytes = m.stride;
     } else {
-      camera::yuyv_to_gray(slot->y_plane, m.stride, m.cfg.width_px, m.cfg.height_px,
-                           slot->gray.data(), m.cfg.width_px);
+    camera::convert_to_gray(m.fourcc, slot->y_plane, m.stride, m.cfg.width_px, m.cfg.height_px,
+                            slot->gray.data(), m.cfg.width_px);
       frame->data = slot->gray.data();
       frame->stride_bytes = m.cfg.width_px;
     }

@@ -167,7 +167,7 @@ CameraStatus V4l2Camera::Impl::configure_format() {
     std::string list;
     for (std::uint32_t f : offered) list += " " + camera::fourcc_to_string(f);
     return fail(CameraStatus::kInvalidArgument,
-                "no usable pixel format (need GREY, NV12, YU12 or YUYV); device offers:" + list,
+                "no usable pixel format (need GREY, NV12, YU12, YUYV or RGB24); device offers:" + list,
                 0);
   }
   v4l2_format fmt{};
@@ -395,8 +395,8 @@ CameraStatus V4l2Camera::next_frame(std::int64_t timeout_ns, hal::FrameView* fra
     frame->data = base;
     frame->stride_bytes = m.stride;
   } else {
-    camera::yuyv_to_gray(base, m.stride, m.cfg.width_px, m.cfg.height_px, buf.gray.data(),
-                         m.cfg.width_px);
+    camera::convert_to_gray(m.fourcc, base, m.stride, m.cfg.width_px, m.cfg.height_px,
+                            buf.gray.data(), m.cfg.width_px);
     frame->data = buf.gray.data();
     frame->stride_bytes = m.cfg.width_px;
   }

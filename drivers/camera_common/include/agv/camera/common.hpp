@@ -40,11 +40,17 @@ inline constexpr std::uint32_t kFourccR8 = make_fourcc('R', '8', ' ', ' ');    /
 inline constexpr std::uint32_t kFourccNv12 = make_fourcc('N', 'V', '1', '2');
 inline constexpr std::uint32_t kFourccYu12 = make_fourcc('Y', 'U', '1', '2');  // YUV420 planar
 inline constexpr std::uint32_t kFourccYuyv = make_fourcc('Y', 'U', 'Y', 'V');
+// Packed 24-bit RGB, last resort (one copy + weighted sum). Byte order in memory:
+inline constexpr std::uint32_t kFourccRgb888 = make_fourcc('R', 'G', '2', '4');  // libcamera RGB888: B G R
+inline constexpr std::uint32_t kFourccBgr888 = make_fourcc('B', 'G', '2', '4');  // libcamera BGR888: R G B
+inline constexpr std::uint32_t kFourccV4l2Bgr24 = make_fourcc('B', 'G', 'R', '3');  // B G R
+inline constexpr std::uint32_t kFourccV4l2Rgb24 = make_fourcc('R', 'G', 'B', '3');  // R G B
 
 std::string fourcc_to_string(std::uint32_t fourcc);
 
 // Formats acceptable under a preference, best first: formats whose Y plane can be used in place
-// come before YUYV, which needs a copy.
+// come before YUYV, which needs a copy; packed RGB (e.g. the vimc test camera) comes last and
+// only under kAuto.
 std::vector<std::uint32_t> acceptable_formats(hal::PixelFormatPreference pref);
 // First entry of acceptable_formats(pref) that `offered` contains; 0 when none.
 std::uint32_t choose_format(hal::PixelFormatPreference pref,
@@ -63,6 +69,16 @@ bool gray_layout(std::uint32_t fourcc, int width_px, int height_px, int stride_b
 // YUYV (Y0 U Y1 V) -> gray, taking every luma byte. dst must hold height rows of dst_stride.
 void yuyv_to_gray(const std::uint8_t* src, int src_stride_bytes, int width_px, int height_px,
                   std::uint8_t* dst, int dst_stride_bytes);
+
+// Packed 24-bit RGB -> gray with full-range BT.601 weights (77 R + 150 G + 29 B) / 256.
+// r_first: memory order R G B (else B G R).
+void rgb24_to_gray(const std::uint8_t* src, int src_stride_bytes, int width_px, int height_px,
+                   bool r_first, std::uint8_t* dst, int dst_stride_bytes);
+
+// Copying conversion for a format whose GrayLayout is not in place (YUYV, packed RGB).
+// False for formats that need no copy or are unknown.
+bool convert_to_gray(std::uint32_t fourcc, const std::uint8_t* src, int src_stride_bytes,
+                     int width_px, int height_px, std::uint8_t* dst, int dst_stride_bytes);
 
 // ---- timestamps -------------------------------------------------------------------------------
 
