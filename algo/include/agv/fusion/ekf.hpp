@@ -1,0 +1,259 @@
+// Fusion EKF: wheel odometry (v, omega) and landmark fixes (world pose of the vehicle) into a
+// pose at any requested time, with delayed fixes, chi-square gating, kidnap recovery and health.
+// Model: paper 000 eq. 14-19 (state x, y, theta, v, omega); details and measured accuracy in
+// docs/fusion.md. Conventions: docs/frames.md (mm, rad wrapped to (-pi, pi], ns).
+//
+// Real-time use: construct once (all memory is allocated in the constructor); afterwards
+// add_odometry, add_fix, estimate_at and take_flags never allocate. Not thread-safe: call from
+// one thread (the fusion/output loop) or guard externally.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstddef>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "agv/common/geometry.hpp"
+#include "agv/fusion/motion_model.hpp"
+
+namespace agv::fusion {
+
+struct EkfConfig {
+  // ---- Process noise (added per prediction step; all are white-noise densities) ----
+  // Random walk of the speed state between odometry samples. Larger follows speed changes
+  // faster but lets the speed state be noisier; odometry at 100 Hz dominates either way.
+  double accel_sigma_mps2 = 2.0;  // m/s^2 per sqrt(s)
+  // Random walk of the yaw-rate state; same trade-off as accel_sigma_mps2.
+  double yaw_accel_sigma_radps2 = 3.0;  // rad/s^2 per sqrt(s)
+  // Position error of dead reckoning per travelled distance, along and across the direction of
+  // travel (vehicle frame), as sigma per sqrt(metre). This must cover the real odometry error
+  // between two landmarks, or good fixes fail the gate: with 1 % scale error the along-track
+  // error after 1 m is 10 mm, which the default makes a 2-sigma innovation. Smaller values make
+  // the gate reject smaller misreads (about 4 sigma = 20 mm after 1 m) but reject good fixes after
+  // long gaps; larger values accept larger misreads.
+  double along_track_sigma_mm_per_sqrt_m = 5.0;
+  double cross_track_sigma_mm_per_sqrt_m = 2.0;
+  // Heading error growth: with travelled distance (wheel slip, track-width error), with time
+  // (gyro/odometry heading drift, rad per sqrt(s)) and with turned angle (yaw scale error,
+  // 1 % of a 90 deg turn = 0.9 deg). Too small: fixes after long or turning stretches fail the
+  // gate. Too large: heading misreads of a few degrees pass the gate.
+  double heading_sigma_rad_per_sqrt_m = deg_to_rad(0.1);
+  double heading_drift_sigma_rad_per_sqrt_s = deg_to_rad(0.3);
+  double turn_heading_sigma_rad_per_sqrt_rad = 0.0125;
+
+  // ---- Odometry measurement noise (v and omega are fused as a direct measurement) ----
+  // Noise of one odometry sample. Smaller makes the speed state follow odometry more tightly.
+  double odom_v_sigma_mps = 0.01;
+  double odom_omega_sigma_radps = deg_to_rad(0.5);
+  // Plausibility limits: samples beyond them are rejected as invalid input.
+  double max_abs_v_mps = 5.0;
+  double max_abs_omega_radps = 10.0;
+
+  // ---- Fixes ----
+  // The reported fix covariance is used as R = fix_cov_scale * R_reported + diag(floor^2).
+  // The floor models what the vision stage cannot know (landmark placement and map survey
+  // error, camera mounting); scale > 1 distrusts an optimistic vision covariance.
+  double fix_cov_scale = 1.0;
+  double fix_floor_sigma_mm = 0.1;
+  double fix_floor_sigma_rad = deg_to_rad(0.01);
+  // Probability of the chi-square(3) gate on the fix innovation. 0.999 gives 16.27; higher
+  // accepts more true fixes after poor dead reckoning but lets larger misreads through.
+  double gate_probability = 0.999;
+  // Consecutive gate-rejected fixes that must agree with each other (given the odometry motion
+  // between them) before the filter re-initialises ("kidnapped" vehicle). >= 2. Smaller recovers
+  // faster after the vehicle was moved by hand; larger makes repeated misreads less likely to
+  // hijack the pose.
+  int kidnap_fixes = 3;
+  // Agreeing fixes closer together than this count once towards kidnap_fixes (they are most
+  // likely the same landmark seen in consecutive frames, e.g. one misprinted landmark). Larger
+  // protects better against a bad landmark but recovers more slowly.
+  std::int64_t kidnap_min_separation_ns = 300'000'000;
+  // Initial uncertainty of v and omega when initialising from a fix.
+  double init_v_sigma_mps = 0.1;
+  double init_omega_sigma_radps = 0.1;
+
+  // ---- Delayed fixes ----
+  // Events (odometry samples, fused fixes) kept for re-propagation. Must exceed the odometry rate
+  // times max_fix_delay_ns plus the fixes in that time: 256 covers 1.5 s at 100 Hz odometry and
+  // 30 Hz fixes. Memory: ~0.4 kB per event, allocated once.
+  std::size_t history_capacity = 256;
+  // Fixes whose exposure time is older than the newest event by more than this are rejected as
+  // too old (counted). Also rejected: anything older than the oldest event kept.
+  std::int64_t max_fix_delay_ns = 500'000'000;
+  // Fixes stamped further than this after the newest odometry are rejected as invalid (a clock
+  // error would otherwise predict the pose far ahead).
+  std::int64_t max_fix_lead_ns = 200'000'000;
+
+  // ---- Health ----
+  // Localized while the last fused fix is at most this old; dead reckoning afterwards. With a
+  // 1 m grid at 1 m/s a fix arrives every ~1 s (longer in turns).
+  std::int64_t localized_timeout_ns = 2'000'000'000;
+  // Lost when no odometry arrived for this long (odometry is expected at ~100 Hz).
+  std::int64_t odom_timeout_ns = 100'000'000;
+  // Lost when the position sigma (sqrt of the largest eigenvalue of the xy covariance) or the
+  // heading sigma exceeds these.
+  double lost_position_sigma_mm = 50.0;
+  double lost_heading_sigma_rad = deg_to_rad(2.0);
+};
+
+// Empty string when the configuration is usable, otherwise what is wrong.
+std::string validate(const EkfConfig& config);
+
+enum class HealthState : std::uint8_t {
+  kUninitialized = 0,
+  kLocalized = 1,
+  kDeadReckoning = 2,
+  kLost = 3
+};
+const char* to_string(HealthState h);
+
+// Bit flags for the CAN status frame.
+namespace flags {
+inline constexpr std::uint16_t kFusedOdom = 1u << 0;
+inline constexpr std::uint16_t kFusedFix = 1u << 1;
+inline constexpr std::uint16_t kRejectedGate = 1u << 2;
+inline constexpr std::uint16_t kRejectedTooOld = 1u << 3;
+inline constexpr std::uint16_t kReinitialised = 1u << 4;
+inline constexpr std::uint16_t kOdomTimeout = 1u << 5;      // status at the queried time
+inline constexpr std::uint16_t kCovarianceLimit = 1u << 6;  // status at the queried time
+inline constexpr std::uint16_t kInvalidInput = 1u << 7;     // odometry or fix rejected as bad
+inline constexpr std::uint16_t kInitialised = 1u << 8;      // first fix initialised the filter
+inline constexpr std::uint16_t kDelayedFix = 1u << 9;       // a fix was fused behind newer data
+}  // namespace flags
+
+struct PoseEstimate {
+  bool valid = false;  // false until the first fix initialised the filter
+  std::int64_t t_ns = 0;
+  Pose2 pose;
+  double v_mps = 0.0;
+  double omega_radps = 0.0;
+  StateCov cov = StateCov::Zero();  // order x_mm, y_mm, theta_rad, v_mps, omega_radps
+  HealthState health = HealthState::kUninitialized;
+  std::int64_t time_since_fix_ns = -1;  // -1 when no fix has been fused
+  std::uint16_t flags = 0;         // pending event flags (see take_flags) | status flags at t_ns
+  double position_sigma_mm = 0.0;  // sqrt(largest eigenvalue of the xy covariance)
+  double heading_sigma_rad = 0.0;
+};
+
+enum class FixOutcome {
+  kFused,
+  kInitialised,
+  kRejectedGate,
+  kRejectedTooOld,
+  kRejectedInvalid,
+  kReinitialised
+};
+const char* to_string(FixOutcome o);
+
+class Ekf {
+ public:
+  // Throws std::invalid_argument when validate(config) is not empty.
+  explicit Ekf(const EkfConfig& config);
+
+  // Odometry sample stamped t_ns (strictly increasing). Predicts from the previous event to t_ns
+  // and fuses (v, omega). Before initialisation the sample is only stored (it is replayed after
+  // a fix initialises the filter at an earlier time). Returns false, counts and flags, and
+  // leaves the state untouched for non-finite or implausible values and non-increasing time.
+  bool add_odometry(std::int64_t t_ns, double v_mps, double omega_radps);
+
+  // Landmark fix: world pose of the vehicle at exposure time t_exposure_ns with covariance R of
+  // (x_mm, y_mm, theta_rad). May be older than the newest odometry (delayed): it is fused at
+  // its own time and later events are re-propagated.
+  FixOutcome add_fix(std::int64_t t_exposure_ns, const Pose2& z_world, const Eigen::Matrix3d& R);
+
+  // Estimate predicted (or, inside the history, interpolated by prediction from the last event
+  // at or before t_ns) to t_ns; does not change the filter. valid only once initialised and when
+  // t_ns is not older than the oldest state kept.
+  PoseEstimate estimate_at(std::int64_t t_ns) const;
+
+  struct Counters {
+    std::uint64_t odom_fused = 0;
+    std::uint64_t odom_stored_uninitialised = 0;  // accepted before the first fix
+    std::uint64_t odom_rejected_invalid = 0;      // NaN/inf or beyond the plausibility limits
+    std::uint64_t odom_rejected_time = 0;         // time not after the previous sample
+    std::uint64_t fixes_fused = 0;
+    std::uint64_t fixes_delayed = 0;  // of fixes_fused: fused behind newer events
+    std::uint64_t fixes_initialised = 0;
+    std::uint64_t fixes_rejected_gate = 0;
+    std::uint64_t fixes_rejected_too_old = 0;
+    std::uint64_t fixes_rejected_invalid = 0;
+    std::uint64_t reinitialisations = 0;
+    std::uint64_t events_replayed = 0;     // re-propagation steps done for delayed data
+    std::uint64_t history_overwrites = 0;  // oldest events dropped because the buffer was full
+  };
+  const Counters& counters() const { return counters_; }
+
+  // Event flags accumulated since the previous call; clears them.
+  std::uint16_t take_flags();
+
+  bool initialised() const { return initialised_; }
+  // Gate threshold computed from gate_probability (chi-square, 3 dof).
+  double gate_threshold() const { return gate_threshold_; }
+  // Mahalanobis distance^2 of the most recent fix against its prior (NaN before any gated fix).
+  double last_fix_mahalanobis_sq() const { return last_fix_d2_; }
+  const EkfConfig& config() const { return config_; }
+
+ private:
+  enum class EventKind : std::uint8_t { kOdom, kFix, kInit };
+  struct Event {
+    std::int64_t t_ns = 0;
+    EventKind kind = EventKind::kOdom;
+    double v_mps = 0.0, omega_radps = 0.0;            // odometry input
+    Eigen::Vector3d z = Eigen::Vector3d::Zero();      // fix (x_mm, y_mm, theta_rad)
+    Eigen::Matrix3d R = Eigen::Matrix3d::Identity();  // effective fix covariance
+    bool valid = false;             // state below is meaningful (filter initialised at this time)
+    StateVec x = StateVec::Zero();  // posterior after this event
+    StateCov P = StateCov::Zero();
+  };
+  // Candidate track of consecutive gate-rejected fixes (kidnap detection).
+  struct Hypothesis {
+    int count = 0;
+    std::int64_t t_ns = 0;        // time of the newest fix fused into the candidate
+    std::int64_t t_count_ns = 0;  // time of the newest fix that incremented count
+    StateVec x = StateVec::Zero();
+    StateCov P = StateCov::Zero();
+  };
+
+  // Ring buffer access in time order: 0 = oldest.
+  Event& at(std::size_t i) { return history_[(head_ + i) % history_.size()]; }
+  const Event& at(std::size_t i) const { return history_[(head_ + i) % history_.size()]; }
+  // Index of the last event with t <= t_ns, or -1.
+  long find_last_at_or_before(std::int64_t t_ns) const;
+  // Appends then moves the event back to its time-ordered place; returns its index.
+  std::size_t insert_event(const Event& ev);
+  // Recomputes the posteriors of events from index `from` to the newest.
+  void replay_from(std::size_t from);
+  void process_event(const Event& prev, Event* ev) const;
+
+  void predict(StateVec* x, StateCov* P, double dt_s) const;
+  void update_odometry(StateVec* x, StateCov* P, double v_mps, double omega_radps) const;
+  void update_fix(StateVec* x, StateCov* P, const Eigen::Vector3d& z,
+                  const Eigen::Matrix3d& R) const;
+  // Innovation (angle wrapped) and its Mahalanobis distance^2.
+  double mahalanobis_sq(const StateVec& x, const StateCov& P, const Eigen::Vector3d& z,
+                        const Eigen::Matrix3d& R) const;
+  // Kidnap candidate handling for a gate-rejected fix; true when it re-initialised the filter.
+  bool kidnap_candidate(std::int64_t t_ns, const Eigen::Vector3d& z, const Eigen::Matrix3d& R,
+                        const StateVec& prior_x, const StateCov& prior_P);
+  void initialise_at(std::int64_t t_ns, const StateVec& x, const StateCov& P);
+
+  EkfConfig config_;
+  double gate_threshold_ = 0.0;
+  std::vector<Event> history_;  // sized in the constructor, never resized
+  std::size_t head_ = 0;
+  std::size_t size_ = 0;
+
+  bool initialised_ = false;
+  std::int64_t t_init_ns_ = 0;  // time of the latest (re)initialisation
+  bool have_odom_ = false;
+  std::int64_t last_odom_t_ns_ = 0;
+  bool have_fix_ = false;
+  std::int64_t last_fix_t_ns_ = 0;  // exposure time of the newest fused fix
+  double last_fix_d2_;
+  Hypothesis hyp_;
+  std::uint16_t pending_flags_ = 0;
+  Counters counters_;
+};
+
+}  // namespace agv::fusion

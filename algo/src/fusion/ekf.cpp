@@ -1,0 +1,508 @@
+#include "agv/fusion/ekf.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <utility>
+
+#include "agv/fusion/chi2.hpp"
+
+namespace agv::fusion {
+
+namespace {
+
+constexpr double kNsToS = 1e-9;
+
+bool finite_nonneg(double v) { return std::isfinite(v) && v >= 0.0; }
+bool finite_pos(double v) { return std::isfinite(v) && v > 0.0; }
+
+void symmetrize(StateCov* P) { *P = 0.5 * (*P + P->transpose()); }
+
+}  // namespace
+
+std::string validate(const EkfConfig& c) {
+  if (!finite_nonneg(c.accel_sigma_mps2) || !finite_nonneg(c.yaw_accel_sigma_radps2))
+    return "accel_sigma_mps2 and yaw_accel_sigma_radps2 must be finite and >= 0";
+  if (!finite_nonneg(c.along_track_sigma_mm_per_sqrt_m) ||
+      !finite_nonneg(c.cross_track_sigma_mm_per_sqrt_m) ||
+      !finite_nonneg(c.heading_sigma_rad_per_sqrt_m) ||
+      !finite_nonneg(c.heading_drift_sigma_rad_per_sqrt_s) ||
+      !finite_nonneg(c.turn_heading_sigma_rad_per_sqrt_rad))
+    return "process noise densities must be finite and >= 0";
+  if (!finite_pos(c.odom_v_sigma_mps) || !finite_pos(c.odom_omega_sigma_radps))
+    return "odom_v_sigma_mps and odom_omega_sigma_radps must be finite and > 0";
+  if (!finite_pos(c.max_abs_v_mps) || !finite_pos(c.max_abs_omega_radps))
+    return "max_abs_v_mps and max_abs_omega_radps must be finite and > 0";
+  if (!finite_pos(c.fix_cov_scale)) return "fix_cov_scale must be finite and > 0";
+  if (!finite_nonneg(c.fix_floor_sigma_mm) || !finite_nonneg(c.fix_floor_sigma_rad))
+    return "fix floor sigmas must be finite and >= 0";
+  if (!(c.gate_probability > 0.0 && c.gate_probability < 1.0))
+    return "gate_probability must be in (0, 1)";
+  if (c.kidnap_fixes < 2) return "kidnap_fixes must be >= 2";
+  if (c.kidnap_min_separation_ns < 0) return "kidnap_min_separation_ns must be >= 0";
+  if (!finite_pos(c.init_v_sigma_mps) || !finite_pos(c.init_omega_sigma_radps))
+    return "init sigmas must be finite and > 0";
+  if (c.history_capacity < 8) return "history_capacity must be >= 8";
+  if (c.max_fix_delay_ns <= 0 || c.max_fix_lead_ns < 0)
+    return "max_fix_delay_ns must be > 0 and max_fix_lead_ns >= 0";
+  if (c.localized_timeout_ns <= 0 || c.odom_timeout_ns <= 0)
+    return "localized_timeout_ns and odom_timeout_ns must be > 0";
+  if (!finite_pos(c.lost_position_sigma_mm) || !finite_pos(c.lost_heading_sigma_rad))
+    return "lost sigma limits must be finite and > 0";
+  return {};
+}
+
+const char* to_string(HealthState h) {
+  switch (h) {
+    case HealthState::kUninitialized:
+      return "uninitialized";
+    case HealthState::kLocalized:
+      return "localized";
+    case HealthState::kDeadReckoning:
+      return "dead_reckoning";
+    case HealthState::kLost:
+      return "lost";
+  }
+  return "?";
+}
+
+const char* to_string(FixOutcome o) {
+  switch (o) {
+    case FixOutcome::kFused:
+      return "fused";
+    case FixOutcome::kInitialised:
+      return "initialised";
+    case FixOutcome::kRejectedGate:
+      return "rejected_gate";
+    case FixOutcome::kRejectedTooOld:
+      return "rejected_too_old";
+    case FixOutcome::kRejectedInvalid:
+      return "rejected_invalid";
+    case FixOutcome::kReinitialised:
+      return "reinitialised";
+  }
+  return "?";
+}
+
+Ekf::Ekf(const EkfConfig& config)
+    : config_(config), last_fix_d2_(std::numeric_limits<double>::quiet_NaN()) {
+  const std::string err = validate(config_);
+  if (!err.empty()) throw std::invalid_argument("EkfConfig: " + err);
+  gate_threshold_ = chi2_3dof_quantile(config_.gate_probability);
+  history_.resize(config_.history_capacity);  // the only allocation; never resized later
+}
+
+std::uint16_t Ekf::take_flags() { return std::exchange(pending_flags_, std::uint16_t{0}); }
+
+// ---------------------------------------------------------------------------------------------
+// Filter steps
+
+void Ekf::predict(StateVec* x, StateCov* P, double dt_s) const {
+  if (dt_s == 0.0) return;
+  const StateCov F = motion_jacobian(*x, dt_s);
+  const double th = (*x)(kItheta), v = (*x)(kIv), w = (*x)(kIomega);
+  const double dist_m = std::abs(v * dt_s);
+  const double turn_rad = std::abs(w * dt_s);
+  const double adt = std::abs(dt_s);
+
+  // Position noise is defined along/across the direction of travel (mid-step heading).
+  const double th_mid = th + 0.5 * w * dt_s;
+  const double c = std::cos(th_mid), s = std::sin(th_mid);
+  const double qa =
+      config_.along_track_sigma_mm_per_sqrt_m * config_.along_track_sigma_mm_per_sqrt_m * dist_m;
+  const double qc =
+      config_.cross_track_sigma_mm_per_sqrt_m * config_.cross_track_sigma_mm_per_sqrt_m * dist_m;
+  StateCov Q = StateCov::Zero();
+  Q(kIx, kIx) = c * c * qa + s * s * qc;
+  Q(kIy, kIy) = s * s * qa + c * c * qc;
+  Q(kIx, kIy) = Q(kIy, kIx) = c * s * (qa - qc);
+  const double hd = config_.heading_sigma_rad_per_sqrt_m;
+  const double hdr = config_.heading_drift_sigma_rad_per_sqrt_s;
+  const double ht = config_.turn_heading_sigma_rad_per_sqrt_rad;
+  Q(kItheta, kItheta) = hd * hd * dist_m + hdr * hdr * adt + ht * ht * turn_rad;
+  Q(kIv, kIv) = config_.accel_sigma_mps2 * config_.accel_sigma_mps2 * adt;
+  Q(kIomega, kIomega) = config_.yaw_accel_sigma_radps2 * config_.yaw_accel_sigma_radps2 * adt;
+
+  *x = motion_predict(*x, dt_s);
+  *P = F * (*P) * F.transpose() + Q;
+  symmetrize(P);
+}
+
+void Ekf::update_odometry(StateVec* x, StateCov* P, double v_mps, double omega_radps) const {
+  // h(x) = (v, omega): H selects rows 3..4, so H P H^T and P H^T are sub-blocks.
+  const Eigen::Matrix2d R =
+      Eigen::Vector2d(config_.odom_v_sigma_mps * config_.odom_v_sigma_mps,
+                      config_.odom_omega_sigma_radps * config_.odom_omega_sigma_radps)
+          .asDiagonal();
+  const Eigen::Matrix2d S = P->block<2, 2>(kIv, kIv) + R;
+  const Eigen::Matrix<double, 5, 2> PHt = P->block<5, 2>(0, kIv);
+  const Eigen::Matrix<double, 5, 2> K = S.llt().solve(PHt.transpose()).transpose();
+  const Eigen::Vector2d nu(v_mps - (*x)(kIv), omega_radps - (*x)(kIomega));
+  *x += K * nu;
+  (*x)(kItheta) = wrap_angle_rad((*x)(kItheta));
+  // Joseph form: (I - K H) P (I - K H)^T + K R K^T stays symmetric positive definite.
+  StateCov IKH = StateCov::Identity();
+  IKH.block<5, 2>(0, kIv) -= K;
+  *P = IKH * (*P) * IKH.transpose() + K * R * K.transpose();
+  symmetrize(P);
+}
+
+void Ekf::update_fix(StateVec* x, StateCov* P, const Eigen::Vector3d& z,
+                     const Eigen::Matrix3d& R) const {
+  // h(x) = (x, y, theta): H = [I3 0] (eq. 17-19); innovation angle wrapped.
+  const Eigen::Matrix3d S = P->topLeftCorner<3, 3>() + R;
+  const Eigen::Matrix<double, 5, 3> PHt = P->leftCols<3>();
+  const Eigen::Matrix<double, 5, 3> K = S.llt().solve(PHt.transpose()).transpose();
+  Eigen::Vector3d nu = z - x->head<3>();
+  nu(2) = wrap_angle_rad(nu(2));
+  *x += K * nu;
+  (*x)(kItheta) = wrap_angle_rad((*x)(kItheta));
+  StateCov IKH = StateCov::Identity();
+  IKH.leftCols<3>() -= K;
+  *P = IKH * (*P) * IKH.transpose() + K * R * K.transpose();
+  symmetrize(P);
+}
+
+double Ekf::mahalanobis_sq(const StateVec& x, const StateCov& P, const Eigen::Vector3d& z,
+                           const Eigen::Matrix3d& R) const {
+  const Eigen::Matrix3d S = P.topLeftCorner<3, 3>() + R;
+  Eigen::Vector3d nu = z - x.head<3>();
+  nu(2) = wrap_angle_rad(nu(2));
+  const Eigen::LLT<Eigen::Matrix3d> llt(S);
+  if (llt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
+  return nu.dot(llt.solve(nu));
+}
+
+// ---------------------------------------------------------------------------------------------
+// History
+
+long Ekf::find_last_at_or_before(std::int64_t t_ns) const {
+  // Binary search over the time-ordered ring.
+  long lo = 0, hi = static_cast<long>(size_);  // first index with t > t_ns lies in [lo, hi]
+  while (lo < hi) {
+    const long mid = (lo + hi) / 2;
+    if (at(static_cast<std::size_t>(mid)).t_ns <= t_ns) {
+      lo = mid + 1;
+    } else {
+      hi = mid;
+    }
+  }
+  return lo - 1;
+}
+
+std::size_t Ekf::insert_event(const Event& ev) {
+  const std::size_t cap = history_.size();
+  if (size_ == cap) {  // drop the oldest
+    head_ = (head_ + 1) % cap;
+    --size_;
+    ++counters_.history_overwrites;
+  }
+  std::size_t i = size_;
+  at(i) = ev;
+  ++size_;
+  // Bubble back to time order; equal times keep arrival order. Delays are short, so few swaps.
+  while (i > 0 && at(i - 1).t_ns > at(i).t_ns) {
+    std::swap(at(i - 1), at(i));
+    --i;
+  }
+  return i;
+}
+
+void Ekf::process_event(const Event& prev, Event* ev) const {
+  if (ev->kind == EventKind::kInit) return;  // fixed state, independent of the past
+  if (!prev.valid) {
+    ev->valid = false;
+    return;
+  }
+  StateVec x = prev.x;
+  StateCov P = prev.P;
+  predict(&x, &P, static_cast<double>(ev->t_ns - prev.t_ns) * kNsToS);
+  if (ev->kind == EventKind::kOdom) {
+    update_odometry(&x, &P, ev->v_mps, ev->omega_radps);
+  } else {
+    update_fix(&x, &P, ev->z, ev->R);
+  }
+  ev->x = x;
+  ev->P = P;
+  ev->valid = true;
+}
+
+void Ekf::replay_from(std::size_t from) {
+  for (std::size_t i = from; i < size_; ++i) {
+    if (i == 0) {
+      // No predecessor kept: only an initialisation carries its own state.
+      if (at(0).kind != EventKind::kInit) at(0).valid = false;
+      continue;
+    }
+    process_event(at(i - 1), &at(i));
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Inputs
+
+bool Ekf::add_odometry(std::int64_t t_ns, double v_mps, double omega_radps) {
+  if (!std::isfinite(v_mps) || !std::isfinite(omega_radps) ||
+      std::abs(v_mps) > config_.max_abs_v_mps ||
+      std::abs(omega_radps) > config_.max_abs_omega_radps) {
+    ++counters_.odom_rejected_invalid;
+    pending_flags_ |= flags::kInvalidInput;
+    return false;
+  }
+  if (have_odom_ && t_ns <= last_odom_t_ns_) {
+    ++counters_.odom_rejected_time;
+    pending_flags_ |= flags::kInvalidInput;
+    return false;
+  }
+  Event ev;
+  ev.t_ns = t_ns;
+  ev.kind = EventKind::kOdom;
+  ev.v_mps = v_mps;
+  ev.omega_radps = omega_radps;
+  const std::size_t i = insert_event(ev);
+  replay_from(i);
+  counters_.events_replayed += size_ - i - 1;
+  have_odom_ = true;
+  last_odom_t_ns_ = t_ns;
+  if (at(i).valid) {
+    ++counters_.odom_fused;
+    pending_flags_ |= flags::kFusedOdom;
+  } else {
+    ++counters_.odom_stored_uninitialised;
+  }
+  return true;
+}
+
+void Ekf::initialise_at(std::int64_t t_ns, const StateVec& x, const StateCov& P) {
+  Event ev;
+  ev.t_ns = t_ns;
+  ev.kind = EventKind::kInit;
+  ev.valid = true;
+  ev.x = x;
+  ev.x(kItheta) = wrap_angle_rad(ev.x(kItheta));
+  ev.P = P;
+  const std::size_t i = insert_event(ev);
+  replay_from(i + 1);
+  counters_.events_replayed += size_ - i - 1;
+  initialised_ = true;
+  t_init_ns_ = t_ns;
+  have_fix_ = true;
+  last_fix_t_ns_ = t_ns;
+  hyp_.count = 0;
+}
+
+bool Ekf::kidnap_candidate(std::int64_t t_ns, const Eigen::Vector3d& z, const Eigen::Matrix3d& R,
+                           const StateVec& prior_x, const StateCov& prior_P) {
+  bool extended = false;
+  if (hyp_.count > 0 && t_ns >= hyp_.t_ns && size_ > 0 && hyp_.t_ns >= at(0).t_ns) {
+    // Carry the candidate track forward with the same odometry the filter used, then test the
+    // new fix against it with the same gate.
+    StateVec x = hyp_.x;
+    StateCov P = hyp_.P;
+    std::int64_t tc = hyp_.t_ns;
+    for (std::size_t i = static_cast<std::size_t>(find_last_at_or_before(hyp_.t_ns) + 1);
+         i < size_ && at(i).t_ns <= t_ns; ++i) {
+      const Event& ev = at(i);
+      if (ev.kind != EventKind::kOdom) continue;
+      predict(&x, &P, static_cast<double>(ev.t_ns - tc) * kNsToS);
+      update_odometry(&x, &P, ev.v_mps, ev.omega_radps);
+      tc = ev.t_ns;
+    }
+    predict(&x, &P, static_cast<double>(t_ns - tc) * kNsToS);
+    if (mahalanobis_sq(x, P, z, R) <= gate_threshold_) {
+      update_fix(&x, &P, z, R);
+      hyp_.x = x;
+      hyp_.P = P;
+      // Fixes of the same pass over one landmark arrive within milliseconds; only fixes at
+      // least kidnap_min_separation_ns apart count, so one misprinted landmark seen in several
+      // frames cannot hijack the pose.
+      if (t_ns - hyp_.t_count_ns >= config_.kidnap_min_separation_ns) {
+        ++hyp_.count;
+        hyp_.t_count_ns = t_ns;
+      }
+      hyp_.t_ns = t_ns;
+      extended = true;
+    }
+  }
+  if (!extended) {
+    hyp_.count = 1;
+    hyp_.t_ns = t_ns;
+    hyp_.t_count_ns = t_ns;
+    hyp_.x = prior_x;
+    hyp_.x.head<3>() = z;
+    hyp_.P = StateCov::Zero();
+    hyp_.P.topLeftCorner<3, 3>() = R;
+    hyp_.P.bottomRightCorner<2, 2>() = prior_P.bottomRightCorner<2, 2>();
+  }
+  if (hyp_.count >= config_.kidnap_fixes) {
+    const StateVec x = hyp_.x;
+    const StateCov P = hyp_.P;
+    initialise_at(t_ns, x, P);
+    ++counters_.reinitialisations;
+    pending_flags_ |= flags::kReinitialised;
+    return true;
+  }
+  return false;
+}
+
+FixOutcome Ekf::add_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::Matrix3d& R_in) {
+  auto reject_invalid = [this]() {
+    ++counters_.fixes_rejected_invalid;
+    pending_flags_ |= flags::kInvalidInput;
+    return FixOutcome::kRejectedInvalid;
+  };
+  auto reject_old = [this]() {
+    ++counters_.fixes_rejected_too_old;
+    pending_flags_ |= flags::kRejectedTooOld;
+    return FixOutcome::kRejectedTooOld;
+  };
+
+  // ---- Input validation: never let a bad fix touch the state ----
+  if (!std::isfinite(z_world.x_mm) || !std::isfinite(z_world.y_mm) ||
+      !std::isfinite(z_world.theta_rad) || !R_in.allFinite())
+    return reject_invalid();
+  const double scale = R_in.cwiseAbs().maxCoeff();
+  if (!((R_in - R_in.transpose()).cwiseAbs().maxCoeff() <= 1e-9 * scale)) return reject_invalid();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(R_in, Eigen::EigenvaluesOnly);
+  if (eig.info() != Eigen::Success || !(eig.eigenvalues()(0) > 0.0)) return reject_invalid();
+
+  std::int64_t newest_t = 0;
+  bool have_newest = false;
+  if (size_ > 0) {
+    newest_t = at(size_ - 1).t_ns;
+    have_newest = true;
+  }
+  if (have_odom_ && (!have_newest || last_odom_t_ns_ > newest_t)) {
+    newest_t = last_odom_t_ns_;
+    have_newest = true;
+  }
+  if (have_newest && have_odom_ && t_ns > last_odom_t_ns_ + config_.max_fix_lead_ns)
+    return reject_invalid();
+
+  Eigen::Matrix3d R = config_.fix_cov_scale * R_in;
+  R(0, 0) += config_.fix_floor_sigma_mm * config_.fix_floor_sigma_mm;
+  R(1, 1) += config_.fix_floor_sigma_mm * config_.fix_floor_sigma_mm;
+  R(2, 2) += config_.fix_floor_sigma_rad * config_.fix_floor_sigma_rad;
+  const Eigen::Vector3d z(z_world.x_mm, z_world.y_mm, wrap_angle_rad(z_world.theta_rad));
+
+  // ---- Too old? ----
+  if (have_newest && newest_t - t_ns > config_.max_fix_delay_ns) return reject_old();
+  if (initialised_ && t_ns < t_init_ns_) return reject_old();
+  const long k = find_last_at_or_before(t_ns);
+
+  // ---- Initialisation from the first valid fix ----
+  if (!initialised_) {
+    if (k < 0 && size_ == history_.size()) return reject_old();  // older than all kept inputs
+    StateVec x = StateVec::Zero();
+    x.head<3>() = z;
+    // Speed from the newest odometry at or before the fix, if any.
+    for (long i = k; i >= 0; --i) {
+      const Event& ev = at(static_cast<std::size_t>(i));
+      if (ev.kind == EventKind::kOdom) {
+        x(kIv) = ev.v_mps;
+        x(kIomega) = ev.omega_radps;
+        break;
+      }
+    }
+    StateCov P = StateCov::Zero();
+    P.topLeftCorner<3, 3>() = R;
+    P(kIv, kIv) = config_.init_v_sigma_mps * config_.init_v_sigma_mps;
+    P(kIomega, kIomega) = config_.init_omega_sigma_radps * config_.init_omega_sigma_radps;
+    initialise_at(t_ns, x, P);
+    ++counters_.fixes_initialised;
+    pending_flags_ |= flags::kInitialised;
+    return FixOutcome::kInitialised;
+  }
+
+  if (k < 0 || !at(static_cast<std::size_t>(k)).valid) return reject_old();
+
+  // ---- Prior at the exposure time, gate ----
+  const Event& base = at(static_cast<std::size_t>(k));
+  StateVec x = base.x;
+  StateCov P = base.P;
+  predict(&x, &P, static_cast<double>(t_ns - base.t_ns) * kNsToS);
+  const double d2 = mahalanobis_sq(x, P, z, R);
+  last_fix_d2_ = d2;
+  if (!(d2 <= gate_threshold_)) {
+    ++counters_.fixes_rejected_gate;
+    pending_flags_ |= flags::kRejectedGate;
+    if (kidnap_candidate(t_ns, z, R, x, P)) return FixOutcome::kReinitialised;
+    return FixOutcome::kRejectedGate;
+  }
+
+  // ---- Fuse at the exposure time and re-propagate newer events ----
+  hyp_.count = 0;
+  update_fix(&x, &P, z, R);
+  Event ev;
+  ev.t_ns = t_ns;
+  ev.kind = EventKind::kFix;
+  ev.z = z;
+  ev.R = R;
+  ev.valid = true;
+  ev.x = x;
+  ev.P = P;
+  const std::size_t i = insert_event(ev);
+  const bool delayed = i + 1 < size_;
+  replay_from(i + 1);
+  counters_.events_replayed += size_ - i - 1;
+  ++counters_.fixes_fused;
+  pending_flags_ |= flags::kFusedFix;
+  if (delayed) {
+    ++counters_.fixes_delayed;
+    pending_flags_ |= flags::kDelayedFix;
+  }
+  have_fix_ = true;
+  last_fix_t_ns_ = std::max(last_fix_t_ns_, t_ns);
+  return FixOutcome::kFused;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Output
+
+PoseEstimate Ekf::estimate_at(std::int64_t t_ns) const {
+  PoseEstimate e;
+  e.t_ns = t_ns;
+  e.flags = pending_flags_;
+  const bool odom_timeout = !have_odom_ || t_ns - last_odom_t_ns_ > config_.odom_timeout_ns;
+  if (odom_timeout) e.flags |= flags::kOdomTimeout;
+  if (!initialised_) {
+    e.health = HealthState::kUninitialized;
+    return e;
+  }
+  const long k = find_last_at_or_before(t_ns);
+  if (k < 0 || !at(static_cast<std::size_t>(k)).valid) {
+    // Older than the kept history (or than the initialisation): no estimate.
+    e.health = HealthState::kLost;
+    return e;
+  }
+  const Event& base = at(static_cast<std::size_t>(k));
+  StateVec x = base.x;
+  StateCov P = base.P;
+  predict(&x, &P, static_cast<double>(t_ns - base.t_ns) * kNsToS);
+  e.valid = true;
+  e.pose = {x(kIx), x(kIy), wrap_angle_rad(x(kItheta))};
+  e.v_mps = x(kIv);
+  e.omega_radps = x(kIomega);
+  e.cov = P;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(P.topLeftCorner<2, 2>(),
+                                                           Eigen::EigenvaluesOnly);
+  e.position_sigma_mm = std::sqrt(std::max(0.0, eig.eigenvalues()(1)));
+  e.heading_sigma_rad = std::sqrt(std::max(0.0, P(kItheta, kItheta)));
+  e.time_since_fix_ns = have_fix_ ? std::max<std::int64_t>(0, t_ns - last_fix_t_ns_) : -1;
+  const bool cov_limit = !(e.position_sigma_mm <= config_.lost_position_sigma_mm) ||
+                         !(e.heading_sigma_rad <= config_.lost_heading_sigma_rad);
+  if (cov_limit) e.flags |= flags::kCovarianceLimit;
+  if (odom_timeout || cov_limit) {
+    e.health = HealthState::kLost;
+  } else if (have_fix_ && e.time_since_fix_ns <= config_.localized_timeout_ns) {
+    e.health = HealthState::kLocalized;
+  } else {
+    e.health = HealthState::kDeadReckoning;
+  }
+  return e;
+}
+
+}  // namespace agv::fusion
