@@ -1,0 +1,76 @@
+// Building blocks of the pose stage (paper 001 eq. 1-7, paper 000 eq. 9-11), exposed so each
+// stage can be tested on its own. Image coordinates: x right, y down, pixel centres at integers.
+#pragma once
+
+#include <cstdint>
+#include <span>
+
+#include "agv/common/geometry.hpp"
+
+namespace cv {
+class Mat;
+template <typename T>
+class Rect_;
+using Rect = Rect_<int>;
+}  // namespace cv
+
+namespace agv::vision {
+
+// Prewitt gradients (paper 001 eq. 1-3) of gray8 inside roi, written to CV_16SC1 images of the
+// roi's size: gx = right column minus left column, gy = bottom row minus top row (sums of three).
+// Pixels on the image border get 0. roi is clipped to the image.
+void prewitt(const cv::Mat& gray8, const cv::Rect& roi, cv::Mat* gx, cv::Mat* gy);
+
+// Side of the border a gradient belongs to, by gradient direction (paper 001 figure 7). The
+// landmark's page-up axis points along image angle up_angle_rad = atan2(dy, dx) (y down); side k
+// has its outward normal at up_angle_rad + k * 90 degrees: 0 up, 1 right, 2 down, 3 left
+// (as seen on the page). A dark-to-bright gradient points outward on the outer edge of side k and
+// inward (class k+2) on its inner edge.
+enum class EdgeClass : std::int8_t { kUp = 0, kRight = 1, kDown = 2, kLeft = 3, kNone = -1 };
+
+// Returns the class whose direction is within tol_rad of the gradient direction, else kNone.
+// A zero gradient is kNone.
+EdgeClass classify_gradient(double gx, double gy, double up_angle_rad, double tol_rad);
+
+// Line n . p = d with |n| = 1.
+struct Line2 {
+  double nx = 0.0, ny = 1.0, d = 0.0;
+  double angle_rad() const;  // direction of the line, atan2(-nx, ny), in (-pi, pi]
+};
+
+// Weighted total-least-squares line with its uncertainty from the residuals.
+struct LineFit {
+  Line2 line;
+  int n = 0;
+  double sum_w = 0.0;
+  double rms = 0.0;            // weighted rms of the normal residuals
+  double var_angle = 0.0;      // variance of the line direction (rad^2)
+  double var_offset = 0.0;     // variance of d at the centroid (length^2)
+  Vec2 centroid;
+  double extent = 0.0;         // spread of the points along the line (max - min projection)
+};
+
+// weights may be empty (all 1). Returns false for fewer than 2 points or degenerate input.
+bool fit_line_tls(std::span<const Vec2> pts, std::span<const double> weights, LineFit* out);
+
+// Paper 001 eq. 5-6: ordinary least squares y = k x + b; returns false when all x are equal.
+bool fit_line_ols(std::span<const Vec2> pts, double* k, double* b);
+
+// Tukey-biweight IRLS on top of fit_line_tls: weights are recomputed from the residuals with the
+// scale sigma = 1.4826 * MAD (floored at min_sigma). w_out (same size as pts) receives the final
+// weights. Returns false when the fit fails.
+bool fit_line_robust(std::span<const Vec2> pts, double tukey_c, double min_sigma, int iterations,
+                     std::span<double> w_out, LineFit* out);
+
+// Paper 001 eq. 7: mean of the four dip angles after removing the 90-degree offsets; here with
+// any number of angles already reduced to a common axis (radians).
+double mean_angle(std::span<const double> angles_rad);
+// Paper 000 eq. 10-11: weighted mean with k_i = sum y^2 / (sum y^2 - sum (y - Y)^2).
+double weighted_angle_000(std::span<const double> angles_rad, std::span<const double> k_weights);
+// Paper 000 eq. 11 weight for one edge: sum_y2 = sum of y_j^2, ssr = sum of (y_j - Y_j)^2.
+double weight_000(double sum_y2, double ssr);
+
+// Reduces a line angle to the representative within +-45 degrees of ref_rad modulo 90 degrees.
+double reduce_angle_90(double angle_rad, double ref_rad);
+
+}  // namespace agv::vision

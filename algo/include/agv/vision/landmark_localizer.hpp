@@ -1,0 +1,218 @@
+// Landmark pose from one floor image: paper 001's pipeline (adaptive threshold, NCC corner
+// templates, QR decode, logo direction, Prewitt edge classes, least-squares edge lines) plus the
+// improvements measured in docs/accuracy.md. Tunables and their trade-offs: docs/vision.md.
+// Frames: docs/frames.md. Pure: no I/O, no threads, no clocks (time comes from an injected
+// function only to fill the per-stage timings).
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <functional>
+#include <memory>
+
+#include "agv/common/camera_model.hpp"
+#include "agv/common/geometry.hpp"
+#include "agv/common/landmark.hpp"
+
+namespace cv {
+class Mat;
+}
+
+namespace agv::vision {
+
+// How edge-point coordinates become millimetres.
+enum class MetricMode {
+  kLinearRatio,   // paper 001: one mm-per-pixel ratio about the image centre (ignores distortion)
+  kCameraModel,   // every edge point through CameraModel::pixel_to_vehicle (undistorts)
+};
+
+// How the landmark centre and heading are computed from the classified edge points.
+enum class PoseMethod {
+  kPaperCornerA,       // paper 001 eq. 7-11: heading from the line angles, centre from corner A
+  kLineIntersections,  // 8 independent line fits; centre = mean of the outer+inner corners
+  kJointSquareFit,     // one Gauss-Newton fit of the known square to all points (shared angle)
+};
+
+// How the four (eight) line angles are averaged into one heading (kPaperCornerA and
+// kLineIntersections; the joint fit estimates one shared angle directly).
+enum class HeadingMethod {
+  kMean,             // paper 001 eq. 7
+  kWeighted000,      // paper 000 eq. 10-11 (weights k_i from the fit residuals)
+  kInverseVariance,  // each line angle weighted by 1/var from its own residuals
+};
+
+struct VisionConfig {
+  // --- 1. binarization -------------------------------------------------------------------
+  // Adaptive threshold on the coarse detection image: a pixel is dark when it is below the local
+  // mean (box of adaptive_block_mm on the floor) minus adaptive_offset grey levels. A larger block
+  // tolerates stronger illumination gradients less well but ignores small texture; the offset
+  // trades sensitivity on low-contrast frames against false dark pixels on floor texture.
+  // Defaults 24 mm (about 4 border widths) and 6 grey levels.
+  double adaptive_block_mm = 24.0;
+  double adaptive_offset = 6.0;
+
+  // --- 2. detection ------------------------------------------------------------------------
+  // The coarse level is chosen so the 6 mm border is at least this many coarse pixels wide.
+  // Smaller = faster full-frame search but weaker corner templates. Default 2.5 (a factor 8
+  // pyramid at 0.26 mm/px).
+  double coarse_border_px = 2.5;
+  // Number of rotations of the corner template (one corner type; the other three corners are
+  // its 90-degree turns). More rotations = higher NCC peaks for arbitrary headings and slower
+  // search. Default 12 (30-degree steps, at most 15 degrees off).
+  int corner_rotations = 12;
+  // NCC score a corner must reach for the landmark to count as present (paper: "as long as one
+  // of the four templates has a matching score greater than a threshold"). Lower finds more
+  // blurred / occluded landmarks and lets more floor texture through to the (strict) ring and
+  // QR checks. Default 0.55.
+  double corner_threshold = 0.55;
+  // Fraction of the predicted border ring (where it is inside the image) that must be dark in
+  // the binary image for a hypothesis to be accepted. Guards against texture that happens to
+  // look like a corner. Default 0.55 (occluders and scratches lower it).
+  double ring_dark_fraction = 0.55;
+  // Maximal number of corner peaks examined per frame. Default 16.
+  int max_corner_peaks = 16;
+
+  // --- 3. QR decode ------------------------------------------------------------------------
+  // zxing-cpp TryHarder: slower, reads a few more damaged codes. Default false (measured in
+  // docs/accuracy.md).
+  bool qr_try_harder = false;
+  // The QR crop is downscaled by an integer factor so a module is about this many pixels (zxing
+  // is fastest at 3-5 px per module). 0 disables downscaling. Default 4.
+  double qr_target_module_px = 4.0;
+  // A full payload must agree with the map entry (if a map is given) within these tolerances.
+  // The payload stores 0.1 mm and 0.01 deg, so anything above rounding means a wrong map or a
+  // wrong label. Defaults 1.0 mm and 0.1 deg.
+  double map_tolerance_mm = 1.0;
+  double map_tolerance_deg = 0.1;
+
+  // --- 4. direction -----------------------------------------------------------------------
+  // NCC of the logo template at the four 90-degree turns: the best must reach logo_threshold and
+  // beat the second best by logo_margin, and must agree with the QR orientation reported by
+  // zxing (else kDirectionAmbiguous). Defaults 0.5 and 0.2.
+  double logo_threshold = 0.5;
+  double logo_margin = 0.2;
+  // When the logo is unreadable (below threshold: dirt, occluder) but the QR was decoded, take
+  // the direction from the QR finder patterns alone. Default true (the QR orientation comes with
+  // Reed-Solomon-checked content, so it is reliable).
+  bool direction_from_qr_when_logo_weak = true;
+
+  // --- 5./6. pose --------------------------------------------------------------------------
+  // Gradient magnitude threshold relative to the landmark's measured contrast (dark border vs
+  // white). The paper uses an absolute threshold; relative keeps working under illumination
+  // changes. Lower keeps more (noisier) points on blurred edges. Default 0.25.
+  double edge_threshold_rel = 0.25;
+  // Maximal angle between a point's gradient and the expected normal of its side (the
+  // gradient-direction classification). Smaller rejects more points from dirt and scratches,
+  // larger keeps more points on blurred corners. Default 20 deg.
+  double edge_direction_tol_deg = 20.0;
+  // Half-width of the band around each predicted edge line in which points are collected, as a
+  // fraction of the border width, for the first and the second (refined) pass. Default 0.45 /
+  // 0.2.
+  double band_first_rel = 0.45;
+  double band_final_rel = 0.2;
+  // Subpixel edge positions: parabola through the gradient magnitude across the edge. Default on.
+  bool subpixel = true;
+  // Robust fitting (Tukey biweight IRLS, scale from the MAD) against scratches, dirt and
+  // occluders. Default on; tukey_c in units of the robust sigma, default 4.685.
+  bool robust = true;
+  double tukey_c = 4.685;
+  MetricMode metric = MetricMode::kCameraModel;
+  PoseMethod pose_method = PoseMethod::kJointSquareFit;
+  HeadingMethod heading_method = HeadingMethod::kInverseVariance;
+  // Minimal number of edge points on a fitted line, and minimal total; fewer gives
+  // kTooFewEdgePoints. Defaults 20 and 200.
+  int min_points_per_line = 20;
+  int min_points_total = 200;
+  // A landmark with a predicted corner more than this far (mm) outside the image is "partly
+  // outside". It is still measured when each axis keeps at least one complete side (outer and
+  // inner edge) and the QR is readable; otherwise kPartlyOutside. Default 0 (any cut counts).
+  double outside_margin_mm = 0.0;
+  bool allow_partly_outside = true;
+
+  // --- covariance -------------------------------------------------------------------------
+  // The fit covariance assumes independent edge points; neighbouring points share blur and
+  // noise, so it is scaled by cov_inflation and floored by sigma_floor_mm / sigma_floor_deg
+  // (model errors: calibration, print). Defaults 4, 0.05 mm, 0.01 deg.
+  double cov_inflation = 4.0;
+  double sigma_floor_mm = 0.05;
+  double sigma_floor_deg = 0.01;
+
+  // --- timings -----------------------------------------------------------------------------
+  // Optional monotonic clock supplied by the caller (algo/ never reads a clock). When empty,
+  // StageTimings stay 0.
+  std::function<std::int64_t()> now_ns;
+};
+
+enum class FixStatus {
+  kOk,
+  kBadInput,            // empty image, not 8-bit single channel, or size unlike the camera model
+  kNoLandmark,          // no corner template above threshold / no border ring
+  kPartlyOutside,       // the landmark is cut by the image border too much for a safe pose
+  kQrUnreadable,        // landmark found but zxing could not read the code
+  kPayloadInvalid,      // payload text fails the strict parser or disagrees with the map
+  kUnknownLandmark,     // id-only payload (or full payload) whose id is not in the map
+  kDirectionAmbiguous,  // logo and QR orientation disagree, or the logo has no clear winner
+  kTooFewEdgePoints,    // not enough classified edge points for the line fits
+};
+
+const char* to_string(FixStatus s);
+
+// Milliseconds per stage, filled only when VisionConfig::now_ns is set.
+struct StageTimings {
+  double detect_ms = 0.0;     // pyramid + binarization + corner templates + ring check
+  double decode_ms = 0.0;     // zxing + payload parse + map check
+  double direction_ms = 0.0;  // logo template at four turns + QR orientation cross-check
+  double pose_ms = 0.0;       // Prewitt, classification, line fits, centre, covariance
+  double total_ms = 0.0;
+};
+
+struct LandmarkFix {
+  FixStatus status = FixStatus::kNoLandmark;
+  std::uint32_t landmark_id = 0;
+  char payload[48] = {};  // NUL-terminated QR text (truncated if longer; valid payloads are 38)
+  // Pose of the vehicle in the landmark frame (docs/frames.md "Vision output").
+  double e_x_mm = 0.0, e_y_mm = 0.0, e_phi_deg = 0.0;
+  Pose2 landmark_in_vehicle;  // V<-L
+  Pose2 vehicle_in_world;     // W<-V, valid only when status == kOk
+  // Covariance of (x_mm, y_mm, theta_rad) of vehicle_in_world (and, below, of
+  // landmark_in_vehicle), from the fit residuals.
+  Eigen::Matrix3d cov_world = Eigen::Matrix3d::Zero();
+  Eigen::Matrix3d cov_landmark_in_vehicle = Eigen::Matrix3d::Zero();
+  StageTimings timings;
+  int edge_points_used = 0;
+  double corner_score = 0.0;   // best corner-template NCC
+  double logo_score = 0.0;     // best logo NCC
+  double logo_margin = 0.0;    // best minus second-best logo NCC
+  int sides_used = 0;          // border sides with both edges fitted (4 when fully visible)
+  bool partly_outside = false; // some of the border is outside the image (pose still valid)
+  double residual_rms_mm = 0.0;
+};
+
+class LandmarkLocalizer {
+ public:
+  // `map` may be null: then only full payloads can give a world pose. The map must outlive the
+  // localizer.
+  LandmarkLocalizer(const VisionConfig& config, const agv::CameraModel& camera,
+                    const agv::LandmarkGeometry& geometry, const agv::LandmarkMap* map);
+  ~LandmarkLocalizer();
+  LandmarkLocalizer(const LandmarkLocalizer&) = delete;
+  LandmarkLocalizer& operator=(const LandmarkLocalizer&) = delete;
+
+  // gray8: CV_8UC1 image of the camera model's size. Never throws; the reason is in the status
+  // (also written to out->status). Buffers are reused between calls.
+  FixStatus process(const cv::Mat& gray8, LandmarkFix* out);
+
+  // Debug overlay like paper 001 figures 5-9: edge points coloured by class, fitted lines,
+  // corners, centre, the numbers. Uses the edge points kept from the last process() call, so
+  // pass the same image and the fix that call returned.
+  void draw_overlay(const cv::Mat& gray8, const LandmarkFix& fix, cv::Mat* bgr_out) const;
+
+  const VisionConfig& config() const;
+
+  struct Impl;
+
+ private:
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace agv::vision

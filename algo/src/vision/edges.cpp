@@ -1,0 +1,194 @@
+#include "agv/vision/edges.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/core.hpp>
+#include <vector>
+
+namespace agv::vision {
+
+void prewitt(const cv::Mat& gray8, const cv::Rect& roi_in, cv::Mat* gx, cv::Mat* gy) {
+  const cv::Rect roi = roi_in & cv::Rect(0, 0, gray8.cols, gray8.rows);
+  gx->create(std::max(roi.height, 1), std::max(roi.width, 1), CV_16SC1);
+  gy->create(std::max(roi.height, 1), std::max(roi.width, 1), CV_16SC1);
+  gx->setTo(0);
+  gy->setTo(0);
+  if (roi.width <= 0 || roi.height <= 0) return;
+  const int x_begin = std::max(roi.x, 1), x_end = std::min(roi.x + roi.width, gray8.cols - 1);
+  const int y_begin = std::max(roi.y, 1), y_end = std::min(roi.y + roi.height, gray8.rows - 1);
+  for (int y = y_begin; y < y_end; ++y) {
+    const std::uint8_t* rm = gray8.ptr<std::uint8_t>(y - 1);
+    const std::uint8_t* r0 = gray8.ptr<std::uint8_t>(y);
+    const std::uint8_t* rp = gray8.ptr<std::uint8_t>(y + 1);
+    std::int16_t* ox = gx->ptr<std::int16_t>(y - roi.y) - roi.x;
+    std::int16_t* oy = gy->ptr<std::int16_t>(y - roi.y) - roi.x;
+    for (int x = x_begin; x < x_end; ++x) {
+      // eq. 2: right column minus left column; eq. 3: bottom row minus top row.
+      const int col_r = rm[x + 1] + r0[x + 1] + rp[x + 1];
+      const int col_l = rm[x - 1] + r0[x - 1] + rp[x - 1];
+      const int row_b = rp[x - 1] + rp[x] + rp[x + 1];
+      const int row_t = rm[x - 1] + rm[x] + rm[x + 1];
+      ox[x] = static_cast<std::int16_t>(col_r - col_l);
+      oy[x] = static_cast<std::int16_t>(row_b - row_t);
+    }
+  }
+}
+
+EdgeClass classify_gradient(double gx, double gy, double up_angle_rad, double tol_rad) {
+  if (gx == 0.0 && gy == 0.0) return EdgeClass::kNone;
+  const double rel = wrap_angle_rad(std::atan2(gy, gx) - up_angle_rad);
+  const double q = std::round(rel / (kPi / 2.0));
+  if (std::abs(rel - q * (kPi / 2.0)) > tol_rad) return EdgeClass::kNone;
+  const int k = ((static_cast<int>(q) % 4) + 4) % 4;
+  return static_cast<EdgeClass>(k);
+}
+
+double Line2::angle_rad() const { return std::atan2(-nx, ny); }
+
+bool fit_line_tls(std::span<const Vec2> pts, std::span<const double> weights, LineFit* out) {
+  const size_t n = pts.size();
+  if (n < 2 || (!weights.empty() && weights.size() != n)) return false;
+  double sw = 0, sx = 0, sy = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const double w = weights.empty() ? 1.0 : weights[i];
+    sw += w;
+    sx += w * pts[i].x;
+    sy += w * pts[i].y;
+  }
+  if (!(sw > 0.0)) return false;
+  const double mx = sx / sw, my = sy / sw;
+  double cxx = 0, cxy = 0, cyy = 0;
+  int n_pos = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const double w = weights.empty() ? 1.0 : weights[i];
+    if (w > 0.0) ++n_pos;
+    const double dx = pts[i].x - mx, dy = pts[i].y - my;
+    cxx += w * dx * dx;
+    cxy += w * dx * dy;
+    cyy += w * dy * dy;
+  }
+  if (n_pos < 2) return false;
+  // Smallest eigenvector of the scatter matrix is the normal.
+  const double tr = cxx + cyy;
+  const double det = cxx * cyy - cxy * cxy;
+  const double disc = std::sqrt(std::max(0.0, tr * tr / 4.0 - det));
+  const double l_small = tr / 2.0 - disc, l_big = tr / 2.0 + disc;
+  if (!(l_big > 0.0)) return false;
+  // Direction (eigenvector of l_big).
+  double dx, dy;
+  if (std::abs(cxy) > 1e-12 * l_big) {
+    dx = l_big - cyy;
+    dy = cxy;
+  } else if (cxx >= cyy) {
+    dx = 1.0;
+    dy = 0.0;
+  } else {
+    dx = 0.0;
+    dy = 1.0;
+  }
+  const double norm = std::hypot(dx, dy);
+  dx /= norm;
+  dy /= norm;
+  LineFit f;
+  f.line.nx = -dy;
+  f.line.ny = dx;
+  f.line.d = f.line.nx * mx + f.line.ny * my;
+  f.n = n_pos;
+  f.sum_w = sw;
+  f.centroid = {mx, my};
+  const double ssr = std::max(0.0, l_small);  // weighted sum of squared normal residuals
+  const double dof = std::max(1.0, static_cast<double>(n_pos) - 2.0);
+  // Effective residual variance per unit weight.
+  const double s2 = ssr / dof * (static_cast<double>(n_pos) / sw);
+  f.rms = std::sqrt(ssr / sw);
+  // Along-line scatter l_big (weighted); angle variance = s2 / sum w t^2, offset var = s2 / sum w.
+  f.var_angle = s2 / l_big;
+  f.var_offset = s2 / sw;
+  double tmin = 1e300, tmax = -1e300;
+  for (size_t i = 0; i < n; ++i) {
+    if (!weights.empty() && !(weights[i] > 0.0)) continue;
+    const double t = (pts[i].x - mx) * dx + (pts[i].y - my) * dy;
+    tmin = std::min(tmin, t);
+    tmax = std::max(tmax, t);
+  }
+  f.extent = tmax - tmin;
+  *out = f;
+  return true;
+}
+
+bool fit_line_ols(std::span<const Vec2> pts, double* k, double* b) {
+  const double n = static_cast<double>(pts.size());
+  if (pts.size() < 2) return false;
+  double sx = 0, sy = 0, sxx = 0, sxy = 0;
+  for (const Vec2& p : pts) {
+    sx += p.x;
+    sy += p.y;
+    sxx += p.x * p.x;
+    sxy += p.x * p.y;
+  }
+  // Centred form of eq. 5-6 (same estimate, better conditioned than the raw sums).
+  const double mx = sx / n, my = sy / n;
+  const double vxx = sxx / n - mx * mx, vxy = sxy / n - mx * my;
+  if (!(vxx > 1e-12 * (1.0 + mx * mx))) return false;
+  *k = vxy / vxx;
+  *b = my - *k * mx;
+  return true;
+}
+
+bool fit_line_robust(std::span<const Vec2> pts, double tukey_c, double min_sigma, int iterations,
+                     std::span<double> w_out, LineFit* out) {
+  if (w_out.size() != pts.size()) return false;
+  std::fill(w_out.begin(), w_out.end(), 1.0);
+  LineFit f;
+  if (!fit_line_tls(pts, {}, &f)) return false;
+  thread_local std::vector<double> abs_r, tmp;
+  for (int it = 0; it < iterations; ++it) {
+    abs_r.resize(pts.size());
+    for (size_t i = 0; i < pts.size(); ++i) {
+      abs_r[i] = std::abs(f.line.nx * pts[i].x + f.line.ny * pts[i].y - f.line.d);
+    }
+    // nth_element on a copy keeps abs_r for the weights.
+    auto mid = abs_r.size() / 2;
+    tmp.assign(abs_r.begin(), abs_r.end());
+    std::nth_element(tmp.begin(), tmp.begin() + static_cast<std::ptrdiff_t>(mid), tmp.end());
+    const double sigma = std::max(min_sigma, 1.4826 * tmp[mid]);
+    const double c = tukey_c * sigma;
+    for (size_t i = 0; i < pts.size(); ++i) {
+      const double u = abs_r[i] / c;
+      w_out[i] = u < 1.0 ? (1.0 - u * u) * (1.0 - u * u) : 0.0;
+    }
+    LineFit g;
+    if (!fit_line_tls(pts, w_out, &g)) return false;
+    f = g;
+  }
+  *out = f;
+  return true;
+}
+
+double mean_angle(std::span<const double> a) {
+  if (a.empty()) return 0.0;
+  double s = 0.0;
+  for (double v : a) s += v;
+  return s / static_cast<double>(a.size());
+}
+
+double weight_000(double sum_y2, double ssr) {
+  const double den = sum_y2 - ssr;
+  return den > 0.0 ? sum_y2 / den : 0.0;
+}
+
+double weighted_angle_000(std::span<const double> a, std::span<const double> k) {
+  double sw = 0.0, s = 0.0;
+  for (size_t i = 0; i < a.size() && i < k.size(); ++i) {
+    s += k[i] * a[i];
+    sw += k[i];
+  }
+  return sw > 0.0 ? s / sw : mean_angle(a);
+}
+
+double reduce_angle_90(double angle_rad, double ref_rad) {
+  const double q = std::round((angle_rad - ref_rad) / (kPi / 2.0));
+  return angle_rad - q * (kPi / 2.0);
+}
+
+}  // namespace agv::vision

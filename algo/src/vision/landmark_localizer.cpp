@@ -1,0 +1,1076 @@
+#include "agv/vision/landmark_localizer.hpp"
+
+#define ZX_USE_UTF8 1
+#include <ZXing/ReadBarcode.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstring>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+#include <vector>
+
+#include "agv/vision/edges.hpp"
+
+namespace agv::vision {
+
+const char* to_string(FixStatus s) {
+  switch (s) {
+    case FixStatus::kOk: return "ok";
+    case FixStatus::kBadInput: return "bad input image";
+    case FixStatus::kNoLandmark: return "no landmark";
+    case FixStatus::kPartlyOutside: return "landmark partly outside the image";
+    case FixStatus::kQrUnreadable: return "QR code unreadable";
+    case FixStatus::kPayloadInvalid: return "payload invalid";
+    case FixStatus::kUnknownLandmark: return "landmark not in the map";
+    case FixStatus::kDirectionAmbiguous: return "direction ambiguous";
+    case FixStatus::kTooFewEdgePoints: return "too few edge points";
+  }
+  return "unknown status";
+}
+
+namespace {
+
+constexpr int kNumLines = 8;  // line index = side * 2 + (inner ? 1 : 0)
+
+struct CornerPeak {
+  double x = 0, y = 0;  // coarse pixels (template centre)
+  double score = 0;
+  int rot = 0;
+};
+
+struct Hypothesis {
+  double cx = 0, cy = 0;      // landmark centre, coarse pixels
+  double up_angle = 0;        // image angle of one border normal (mod 90 deg)
+  double score_sum = 0, score_max = 0;
+  double sum_w = 0;
+  double c4 = 0, s4 = 0;      // accumulated 4*angle vector
+};
+
+Vec2 rot(Vec2 v, double a) {
+  const double c = std::cos(a), s = std::sin(a);
+  return {c * v.x - s * v.y, s * v.x + c * v.y};
+}
+
+// Bilinear sample of an 8-bit image; false outside.
+bool sample(const cv::Mat& img, double x, double y, double* v) {
+  if (!(x >= 0.0 && y >= 0.0 && x <= img.cols - 1.0 && y <= img.rows - 1.0)) return false;
+  const int x0 = std::min(static_cast<int>(x), img.cols - 2 < 0 ? 0 : img.cols - 2);
+  const int y0 = std::min(static_cast<int>(y), img.rows - 2 < 0 ? 0 : img.rows - 2);
+  const double fx = x - x0, fy = y - y0;
+  const std::uint8_t* r0 = img.ptr<std::uint8_t>(y0);
+  const std::uint8_t* r1 = img.ptr<std::uint8_t>(std::min(y0 + 1, img.rows - 1));
+  const int x1 = std::min(x0 + 1, img.cols - 1);
+  *v = (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x1]);
+  return true;
+}
+
+double ncc(const std::vector<double>& a, const std::vector<double>& b) {
+  const size_t n = std::min(a.size(), b.size());
+  if (n < 2) return 0.0;
+  double ma = 0, mb = 0;
+  for (size_t i = 0; i < n; ++i) {
+    ma += a[i];
+    mb += b[i];
+  }
+  ma /= static_cast<double>(n);
+  mb /= static_cast<double>(n);
+  double sab = 0, saa = 0, sbb = 0;
+  for (size_t i = 0; i < n; ++i) {
+    sab += (a[i] - ma) * (b[i] - mb);
+    saa += (a[i] - ma) * (a[i] - ma);
+    sbb += (b[i] - mb) * (b[i] - mb);
+  }
+  return saa > 1e-9 && sbb > 1e-9 ? sab / std::sqrt(saa * sbb) : 0.0;
+}
+
+}  // namespace
+
+struct LandmarkLocalizer::Impl {
+  VisionConfig cfg;
+  CameraModel cam;
+  CameraModel cam_linear;  // same mount, one mm/px ratio, no distortion (paper 001)
+  LandmarkGeometry geom;
+  const LandmarkMap* map = nullptr;
+
+  // Detection.
+  int coarse_factor = 8;
+  double coarse_w = 0, coarse_h = 0, coarse_anchor = 0;  // border width, outer half, anchor
+  std::vector<cv::Mat> templates;                         // CV_32F corner templates
+  std::vector<double> template_angles;
+  cv::Mat coarse, binary, score, best_score, best_rot;
+  std::vector<CornerPeak> peaks;
+  std::vector<Hypothesis> hyps;
+
+  // QR.
+  cv::Mat qr_small;
+
+  // Pose.
+  cv::Mat gx, gy;
+  std::array<std::vector<Vec2>, kNumLines> pts_px, pts_mm;
+  std::array<std::vector<double>, kNumLines> weights;
+  std::vector<double> logo_template, logo_samples;
+  std::vector<Vec2> logo_page_pts;
+
+  // Kept for the overlay.
+  bool have_overlay = false;
+  std::array<Line2, kNumLines> lines_px;
+  std::array<bool, kNumLines> line_ok{};
+  std::array<Vec2, 8> corners_px{};  // outer 0..3, inner 4..7
+  Vec2 centre_px;
+  int quadrant = 0;
+  double up_angle_px = 0;
+
+  double mm_per_px = 0.26;
+
+  Impl(const VisionConfig& c, const CameraModel& m, const LandmarkGeometry& g,
+       const LandmarkMap* mp)
+      : cfg(c), cam(m), cam_linear(m), geom(g), map(mp) {
+    mm_per_px = cam.mm_per_px();
+    if (!(mm_per_px > 0.0) || !std::isfinite(mm_per_px)) mm_per_px = 0.26;
+    auto& li = cam_linear.intrinsics;
+    li.fx = li.fy = cam.mount.height_mm / mm_per_px;
+    li.k1 = li.k2 = li.p1 = li.p2 = li.k3 = 0.0;
+    const double border_px = geom.border_width_mm() / mm_per_px;
+    coarse_factor = 1;
+    while (border_px / (coarse_factor * 2) >= cfg.coarse_border_px) coarse_factor *= 2;
+    coarse_w = border_px / coarse_factor;
+    coarse_h = geom.outer_half_mm() / mm_per_px / coarse_factor;
+    coarse_anchor = coarse_w / 2.0;
+    build_templates();
+    build_logo();
+  }
+
+  // Corner template: the top-left outer corner of the border (square towards +x, +y), rendered
+  // by 8x8 supersampling and rotated about its anchor (middle of the corner's dark square).
+  void build_templates() {
+    const int r = static_cast<int>(std::ceil(1.5 * coarse_w));
+    const int n_rot = std::max(1, cfg.corner_rotations);
+    templates.clear();
+    template_angles.clear();
+    for (int i = 0; i < n_rot; ++i) {
+      const double a = 2.0 * kPi * i / n_rot;
+      cv::Mat t(2 * r + 1, 2 * r + 1, CV_32FC1);
+      for (int y = -r; y <= r; ++y) {
+        for (int x = -r; x <= r; ++x) {
+          double acc = 0;
+          for (int sy = 0; sy < 8; ++sy) {
+            for (int sx = 0; sx < 8; ++sx) {
+              const Vec2 q{x + (sx + 0.5) / 8.0 - 0.5, y + (sy + 0.5) / 8.0 - 0.5};
+              const Vec2 u = rot(q, -a);
+              const double px = u.x + coarse_anchor, py = u.y + coarse_anchor;
+              const bool inside = px >= 0 && py >= 0;
+              const bool dark = inside && (px < coarse_w || py < coarse_w);
+              acc += dark ? 0.0 : 1.0;
+            }
+          }
+          t.at<float>(y + r, x + r) = static_cast<float>(acc / 64.0);
+        }
+      }
+      templates.push_back(t);
+      template_angles.push_back(a);
+    }
+  }
+
+  // Logo template: samples on the page around the triangle, 1 = white, 0 = inside the triangle.
+  void build_logo() {
+    const double k = geom.k();
+    const Vec2 apex = geom.logo_apex_uv_mm(), bl = geom.logo_base_left_uv_mm(),
+               br = geom.logo_base_right_uv_mm();
+    auto inside = [&](Vec2 p) {
+      auto cross = [](Vec2 a, Vec2 b, Vec2 c) {
+        return (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+      };
+      const double d1 = cross(apex, bl, p), d2 = cross(bl, br, p), d3 = cross(br, apex, p);
+      const bool neg = d1 < 0 || d2 < 0 || d3 < 0, pos = d1 > 0 || d2 > 0 || d3 > 0;
+      return !(neg && pos);
+    };
+    logo_page_pts.clear();
+    logo_template.clear();
+    const int nu = 20, nv = 16;
+    for (int j = 0; j < nv; ++j) {
+      for (int i = 0; i < nu; ++i) {
+        const Vec2 p{(-8.0 + 16.0 * (i + 0.5) / nu) * k, (-23.0 + 12.0 * (j + 0.5) / nv) * k};
+        logo_page_pts.push_back(p);
+        logo_template.push_back(inside(p) ? 0.0 : 1.0);
+      }
+    }
+  }
+
+  double now_ms() const {
+    return cfg.now_ns ? static_cast<double>(cfg.now_ns()) * 1e-6 : 0.0;
+  }
+
+  Vec2 coarse_to_full(Vec2 c) const {
+    const double f = coarse_factor;
+    return {(c.x + 0.5) * f - 0.5, (c.y + 0.5) * f - 0.5};
+  }
+
+  bool detect(const cv::Mat& img, Hypothesis* best, bool* found_corner, double* corner_score);
+  bool ring_check(const Hypothesis& h, double* dark_level, double* white_level);
+  FixStatus decode(const cv::Mat& img, Vec2 centre_px, double up_angle, LandmarkFix* out,
+                   Pose2* world_landmark, bool* have_world, double* qr_up_angle, bool* qr_ok);
+  FixStatus pose(const cv::Mat& img, Vec2 centre_px, double up_angle, double contrast,
+                 LandmarkFix* out, Vec2* c_mm, double* beta, Eigen::Matrix3d* cov);
+  int collect(const cv::Mat& img, Vec2 centre_px, double up_angle, double band_px, double thr,
+              bool refine_angle, double* refined_up);
+  FixStatus run(const cv::Mat& img, LandmarkFix* out);
+  const CameraModel& metric_cam() const {
+    return cfg.metric == MetricMode::kCameraModel ? cam : cam_linear;
+  }
+};
+
+bool LandmarkLocalizer::Impl::detect(const cv::Mat& img, Hypothesis* best, bool* found_corner,
+                                     double* corner_score) {
+  *found_corner = false;
+  *corner_score = 0.0;
+  const int f = coarse_factor;
+  const cv::Size cs(img.cols / f, img.rows / f);
+  if (cs.width < templates[0].cols + 2 || cs.height < templates[0].rows + 2) return false;
+  cv::resize(img(cv::Rect(0, 0, cs.width * f, cs.height * f)), coarse, cs, 0, 0, cv::INTER_AREA);
+  int block = static_cast<int>(std::lround(cfg.adaptive_block_mm / (mm_per_px * f)));
+  block = std::max(3, block | 1);
+  cv::adaptiveThreshold(coarse, binary, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY_INV,
+                        block, cfg.adaptive_offset);
+  // NCC of every rotated corner template; keep the best score and rotation per position.
+  for (size_t i = 0; i < templates.size(); ++i) {
+    cv::matchTemplate(coarse, templates[i], score, cv::TM_CCOEFF_NORMED);
+    if (i == 0) {
+      score.copyTo(best_score);
+      best_rot.create(score.size(), CV_8UC1);
+      best_rot.setTo(0);
+    } else {
+      for (int y = 0; y < score.rows; ++y) {
+        const float* s = score.ptr<float>(y);
+        float* b = best_score.ptr<float>(y);
+        std::uint8_t* r = best_rot.ptr<std::uint8_t>(y);
+        for (int x = 0; x < score.cols; ++x) {
+          if (s[x] > b[x]) {
+            b[x] = s[x];
+            r[x] = static_cast<std::uint8_t>(i);
+          }
+        }
+      }
+    }
+  }
+  // Local maxima above threshold.
+  peaks.clear();
+  const float thr = static_cast<float>(cfg.corner_threshold);
+  const int tr = templates[0].cols / 2;
+  for (int y = 1; y + 1 < best_score.rows; ++y) {
+    const float* sm = best_score.ptr<float>(y - 1);
+    const float* s0 = best_score.ptr<float>(y);
+    const float* sp = best_score.ptr<float>(y + 1);
+    for (int x = 1; x + 1 < best_score.cols; ++x) {
+      const float v = s0[x];
+      if (v < thr) continue;
+      if (v < s0[x - 1] || v <= s0[x + 1] || v < sm[x - 1] || v < sm[x] || v < sm[x + 1] ||
+          v <= sp[x - 1] || v <= sp[x] || v <= sp[x + 1]) {
+        continue;
+      }
+      // Subpixel peak by parabolas in x and y.
+      const double vl = s0[x - 1], vr = s0[x + 1], vu = sm[x], vd = sp[x], vc = v;
+      const double dxd = vl - 2.0 * vc + vr;
+      const double dyd = vu - 2.0 * vc + vd;
+      const double ox = dxd < 0 ? std::clamp(0.5 * (vl - vr) / dxd, -0.5, 0.5) : 0;
+      const double oy = dyd < 0 ? std::clamp(0.5 * (vu - vd) / dyd, -0.5, 0.5) : 0;
+      CornerPeak p;
+      p.x = x + tr + ox;
+      p.y = y + tr + oy;
+      p.score = v;
+      p.rot = best_rot.at<std::uint8_t>(y, x);
+      // Contrast guard: NCC ignores contrast, so faint texture can look like a corner.
+      const cv::Mat patch = coarse(cv::Rect(x, y, templates[0].cols, templates[0].rows));
+      cv::Scalar mean, sd;
+      cv::meanStdDev(patch, mean, sd);
+      if (sd[0] < 12.0) continue;
+      peaks.push_back(p);
+    }
+  }
+  if (peaks.empty()) return false;
+  *found_corner = true;
+  std::sort(peaks.begin(), peaks.end(),
+            [](const CornerPeak& a, const CornerPeak& b) { return a.score > b.score; });
+  if (static_cast<int>(peaks.size()) > cfg.max_corner_peaks) {
+    peaks.resize(static_cast<size_t>(cfg.max_corner_peaks));
+  }
+  *corner_score = peaks[0].score;
+  // Each corner predicts the landmark centre; corners that agree are merged.
+  hyps.clear();
+  for (const CornerPeak& p : peaks) {
+    const double a = template_angles[static_cast<size_t>(p.rot)];
+    const Vec2 d = rot({coarse_h - coarse_anchor, coarse_h - coarse_anchor}, a);
+    const Vec2 c{p.x + d.x, p.y + d.y};
+    // Normal of the template's top side points to image angle a - 90 deg.
+    const double up = a - kPi / 2.0;
+    Hypothesis* hit = nullptr;
+    for (Hypothesis& h : hyps) {
+      const double da = std::abs(reduce_angle_90(up, h.up_angle) - h.up_angle);
+      if (std::hypot(h.cx - c.x, h.cy - c.y) < 1.5 * coarse_w && da < deg_to_rad(25.0)) {
+        hit = &h;
+        break;
+      }
+    }
+    if (!hit) {
+      hyps.push_back({});
+      hit = &hyps.back();
+    }
+    const double w = p.score;
+    hit->cx = (hit->cx * hit->sum_w + c.x * w) / (hit->sum_w + w);
+    hit->cy = (hit->cy * hit->sum_w + c.y * w) / (hit->sum_w + w);
+    hit->sum_w += w;
+    hit->c4 += w * std::cos(4.0 * up);
+    hit->s4 += w * std::sin(4.0 * up);
+    hit->up_angle = std::atan2(hit->s4, hit->c4) / 4.0;
+    hit->score_sum += p.score;
+    hit->score_max = std::max(hit->score_max, p.score);
+  }
+  std::sort(hyps.begin(), hyps.end(),
+            [](const Hypothesis& a, const Hypothesis& b) { return a.score_sum > b.score_sum; });
+  for (const Hypothesis& h : hyps) {
+    double dark = 0, white = 0;
+    if (ring_check(h, &dark, &white)) {
+      *best = h;
+      best->score_max = dark;    // reuse: dark level
+      best->score_sum = white;   // white level
+      *corner_score = h.score_max;
+      return true;
+    }
+  }
+  return false;
+}
+
+bool LandmarkLocalizer::Impl::ring_check(const Hypothesis& h, double* dark_level,
+                                         double* white_level) {
+  int ring_in = 0, ring_dark = 0, out_in = 0, out_dark = 0, total = 0;
+  double dark_sum = 0, white_sum = 0;
+  const double len = coarse_h - coarse_w;
+  const int n = std::max(4, static_cast<int>(2.0 * len));
+  for (int k = 0; k < 4; ++k) {
+    const double a = h.up_angle + k * kPi / 2.0;
+    const Vec2 nrm{std::cos(a), std::sin(a)}, tan{-nrm.y, nrm.x};
+    for (int i = 0; i <= n; ++i) {
+      const double t = -len + 2.0 * len * i / n;
+      ++total;
+      const double rx = h.cx + nrm.x * (coarse_h - coarse_w / 2) + tan.x * t;
+      const double ry = h.cy + nrm.y * (coarse_h - coarse_w / 2) + tan.y * t;
+      const int ix = static_cast<int>(std::lround(rx)), iy = static_cast<int>(std::lround(ry));
+      if (ix >= 0 && iy >= 0 && ix < binary.cols && iy < binary.rows) {
+        ++ring_in;
+        if (binary.at<std::uint8_t>(iy, ix)) {
+          ++ring_dark;
+          dark_sum += coarse.at<std::uint8_t>(iy, ix);
+        }
+      }
+      const double ox = h.cx + nrm.x * (coarse_h + 0.9 * coarse_w) + tan.x * t;
+      const double oy = h.cy + nrm.y * (coarse_h + 0.9 * coarse_w) + tan.y * t;
+      const int jx = static_cast<int>(std::lround(ox)), jy = static_cast<int>(std::lround(oy));
+      if (jx >= 0 && jy >= 0 && jx < binary.cols && jy < binary.rows) {
+        ++out_in;
+        if (binary.at<std::uint8_t>(jy, jx)) {
+          ++out_dark;
+        } else {
+          white_sum += coarse.at<std::uint8_t>(jy, jx);
+        }
+      }
+    }
+  }
+  if (ring_in < total / 4 || ring_dark == 0) return false;
+  if (static_cast<double>(ring_dark) < cfg.ring_dark_fraction * ring_in) return false;
+  if (out_in > 0 && out_dark > out_in / 2) return false;
+  *dark_level = dark_sum / ring_dark;
+  *white_level = out_in > out_dark ? white_sum / (out_in - out_dark) : 255.0;
+  return true;
+}
+
+FixStatus LandmarkLocalizer::Impl::decode(const cv::Mat& img, Vec2 c, double up_angle,
+                                          LandmarkFix* out, Pose2* world_landmark,
+                                          bool* have_world, double* qr_up_angle, bool* qr_ok) {
+  *qr_ok = false;
+  *have_world = false;
+  const double half = geom.inner_half_mm() / mm_per_px *
+                          (std::abs(std::cos(up_angle)) + std::abs(std::sin(up_angle))) +
+                      4.0;
+  cv::Rect r(static_cast<int>(std::floor(c.x - half)), static_cast<int>(std::floor(c.y - half)),
+             static_cast<int>(std::ceil(2 * half)) + 1, static_cast<int>(std::ceil(2 * half)) + 1);
+  r &= cv::Rect(0, 0, img.cols, img.rows);
+  if (r.width < 16 || r.height < 16) return FixStatus::kQrUnreadable;
+  const double module_px = geom.qr_side_mm() / 25.0 / mm_per_px;
+  int d = 1;
+  if (cfg.qr_target_module_px > 0) {
+    d = std::max(1, static_cast<int>(std::floor(module_px / cfg.qr_target_module_px + 0.25)));
+  }
+  const cv::Mat* view = nullptr;
+  cv::Mat roi = img(r);
+  if (d > 1) {
+    cv::resize(roi, qr_small, cv::Size(r.width / d, r.height / d), 0, 0, cv::INTER_AREA);
+    view = &qr_small;
+  } else {
+    view = &roi;
+  }
+  ZXing::ImageView iv(view->data, view->cols, view->rows, ZXing::ImageFormat::Lum,
+                      static_cast<int>(view->step[0]));
+  ZXing::DecodeHints hints;
+  hints.setFormats(ZXing::BarcodeFormat::QRCode)
+      .setTryHarder(cfg.qr_try_harder)
+      .setTryRotate(cfg.qr_try_harder)
+      .setTryDownscale(false)
+      .setMaxNumberOfSymbols(1);
+  const ZXing::Result res = ZXing::ReadBarcode(iv, hints);
+  if (!res.isValid()) return FixStatus::kQrUnreadable;
+  const std::string text = res.text();
+  std::snprintf(out->payload, sizeof out->payload, "%s", text.c_str());
+  const auto& pos = res.position();
+  auto to_full = [&](ZXing::PointI p) {
+    return Vec2{r.x + (p.x + 0.5) * d - 0.5, r.y + (p.y + 0.5) * d - 0.5};
+  };
+  const Vec2 tl = to_full(pos.topLeft()), tr = to_full(pos.topRight()),
+             br = to_full(pos.bottomRight()), bl = to_full(pos.bottomLeft());
+  *qr_up_angle = std::atan2((tl.y + tr.y) - (bl.y + br.y), (tl.x + tr.x) - (bl.x + br.x));
+  *qr_ok = !res.isMirrored();
+
+  LandmarkPayload p;
+  if (parse_payload(text, &p) != PayloadError::kOk) return FixStatus::kPayloadInvalid;
+  out->landmark_id = p.id;
+  const LandmarkMapEntry* e = map ? map->find(p.id) : nullptr;
+  if (!p.has_pose) {
+    if (!e) return FixStatus::kUnknownLandmark;
+    *world_landmark = e->pose;
+  } else {
+    const Pose2 pp = payload_pose(p);
+    if (map) {
+      if (!e) return FixStatus::kUnknownLandmark;
+      const double dpos = std::hypot(pp.x_mm - e->pose.x_mm, pp.y_mm - e->pose.y_mm);
+      const double dang = std::abs(rad_to_deg(wrap_angle_rad(pp.theta_rad - e->pose.theta_rad)));
+      if (!(dpos <= cfg.map_tolerance_mm) || !(dang <= cfg.map_tolerance_deg)) {
+        return FixStatus::kPayloadInvalid;
+      }
+    }
+    *world_landmark = pp;
+  }
+  *have_world = true;
+  return FixStatus::kOk;
+}
+
+// Collects classified, non-maximum-suppressed, optionally subpixel edge points of the 8 border
+// lines (outer and inner edge of each side) inside bands around the predicted lines.
+int LandmarkLocalizer::Impl::collect(const cv::Mat& img, Vec2 c, double up, double band,
+                                     double thr, bool refine_angle, double* refined_up) {
+  const double h_out = geom.outer_half_mm() / mm_per_px;
+  const double h_in = geom.inner_half_mm() / mm_per_px;
+  const double reach = (h_out + band + 2) * (std::abs(std::cos(up)) + std::abs(std::sin(up)));
+  cv::Rect roi(static_cast<int>(std::floor(c.x - reach)), static_cast<int>(std::floor(c.y - reach)),
+               static_cast<int>(std::ceil(2 * reach)) + 1, static_cast<int>(std::ceil(2 * reach)) + 1);
+  roi &= cv::Rect(1, 1, img.cols - 2, img.rows - 2);
+  for (auto& v : pts_px) v.clear();
+  if (roi.width < 3 || roi.height < 3) return 0;
+  prewitt(img, roi, &gx, &gy);
+  const double tol = deg_to_rad(cfg.edge_direction_tol_deg);
+  const double thr2 = thr * thr;
+  std::array<Vec2, 4> nrm;
+  for (int k = 0; k < 4; ++k) nrm[k] = {std::cos(up + k * kPi / 2), std::sin(up + k * kPi / 2)};
+  double c4 = 0, s4 = 0;
+  const double tan_tol = std::tan(tol);
+  for (int y = 1; y + 1 < roi.height; ++y) {
+    const std::int16_t* gxr = gx.ptr<std::int16_t>(y);
+    const std::int16_t* gyr = gy.ptr<std::int16_t>(y);
+    for (int x = 1; x + 1 < roi.width; ++x) {
+      const double ex = gxr[x], ey = gyr[x];
+      const double m2 = ex * ex + ey * ey;
+      if (m2 < thr2) continue;
+      const double px = roi.x + x, py = roi.y + y;
+      if (refine_angle) {
+        // Dominant orientation modulo 90 deg (4x angle), weighted by |g|^2, inside the square.
+        const double dx = px - c.x, dy = py - c.y;
+        if (std::abs(dx * nrm[0].x + dy * nrm[0].y) < h_out &&
+            std::abs(dx * nrm[1].x + dy * nrm[1].y) < h_out) {
+          const double a = ex * ex - ey * ey, b = 2 * ex * ey;
+          c4 += (a * a - b * b) / m2;
+          s4 += 2 * a * b / m2;
+        }
+      }
+      // Classification by gradient direction (paper 001 fig. 7): which normal is it close to?
+      int k = -1;
+      double along = 0;
+      for (int j = 0; j < 4; ++j) {
+        const double pr = ex * nrm[j].x + ey * nrm[j].y;
+        if (pr <= 0) continue;
+        const double perp = std::abs(-ex * nrm[j].y + ey * nrm[j].x);
+        if (perp <= tan_tol * pr) {
+          k = j;
+          along = pr;
+        }
+        break;
+      }
+      if (k < 0) {
+        for (int j = 1; j < 4; ++j) {
+          const double pr = ex * nrm[j].x + ey * nrm[j].y;
+          if (pr <= 0) continue;
+          const double perp = std::abs(-ex * nrm[j].y + ey * nrm[j].x);
+          if (perp <= tan_tol * pr) {
+            k = j;
+            along = pr;
+            break;
+          }
+        }
+      }
+      if (k < 0) continue;
+      const Vec2 n = nrm[k];
+      const double s = (px - c.x) * n.x + (py - c.y) * n.y;
+      int line = -1;
+      if (std::abs(s - h_out) <= band) {
+        line = k * 2;  // outer edge of side k: gradient points outward
+      } else if (std::abs(-s - h_in) <= band) {
+        line = ((k + 2) % 4) * 2 + 1;  // inner edge of the opposite side: gradient inward
+      }
+      if (line < 0) continue;
+      // Non-maximum suppression along the pixel axis closest to the normal.
+      const bool horiz = std::abs(n.x) >= std::abs(n.y);
+      const int sx = horiz ? 1 : 0, sy = horiz ? 0 : 1;
+      const double em = gx.at<std::int16_t>(y - sy, x - sx) * n.x +
+                        gy.at<std::int16_t>(y - sy, x - sx) * n.y;
+      const double ep = gx.at<std::int16_t>(y + sy, x + sx) * n.x +
+                        gy.at<std::int16_t>(y + sy, x + sx) * n.y;
+      if (!(along >= em && along > ep)) continue;
+      double off = 0;
+      if (cfg.subpixel) {
+        const double den = em - 2 * along + ep;
+        if (den < 0) off = std::clamp(0.5 * (em - ep) / den, -0.5, 0.5);
+      }
+      pts_px[static_cast<size_t>(line)].push_back({px + off * sx, py + off * sy});
+    }
+  }
+  if (refine_angle && refined_up) {
+    if (c4 != 0 || s4 != 0) {
+      *refined_up = reduce_angle_90(std::atan2(s4, c4) / 4.0, up);
+    } else {
+      *refined_up = up;
+    }
+  }
+  int total = 0;
+  for (const auto& v : pts_px) total += static_cast<int>(v.size());
+  return total;
+}
+
+namespace {
+
+// Joint model: outward normal of side k in the metric frame is at beta - k * 90 deg (the image
+// shows the floor from above, and image y points down, so the clockwise order flips).
+Vec2 side_normal_mm(double beta, int k) {
+  const double a = beta - k * kPi / 2.0;
+  return {std::cos(a), std::sin(a)};
+}
+
+Vec2 intersect(const Line2& a, const Line2& b, bool* ok) {
+  const double det = a.nx * b.ny - a.ny * b.nx;
+  *ok = std::abs(det) > 1e-9;
+  if (!*ok) return {};
+  return {(a.d * b.ny - a.ny * b.d) / det, (a.nx * b.d - a.d * b.nx) / det};
+}
+
+}  // namespace
+
+FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up, double contrast,
+                                        LandmarkFix* out, Vec2* c_mm, double* beta_out,
+                                        Eigen::Matrix3d* cov) {
+  const double w_px = geom.border_width_mm() / mm_per_px;
+  const double thr = cfg.edge_threshold_rel * 3.0 * contrast;
+  // Pass 1: wide bands, refine the orientation from the gradient field.
+  double up1 = up;
+  collect(img, c_px, up, cfg.band_first_rel * w_px, thr, true, &up1);
+  // Re-collect with the refined angle, then re-centre from quick line fits.
+  collect(img, c_px, up1, cfg.band_first_rel * w_px, thr, false, nullptr);
+  {
+    // Centre refinement in pixels: along each normal, mean of (outer+inner)/2 of opposite sides.
+    double shift[2] = {0, 0};
+    int cnt[2] = {0, 0};
+    for (int k = 0; k < 4; ++k) {
+      const Vec2 n{std::cos(up1 + k * kPi / 2), std::sin(up1 + k * kPi / 2)};
+      for (int e = 0; e < 2; ++e) {
+        const auto& v = pts_px[static_cast<size_t>(k * 2 + e)];
+        if (static_cast<int>(v.size()) < cfg.min_points_per_line) continue;
+        double s = 0;
+        for (const Vec2& p : v) s += (p.x - c_px.x) * n.x + (p.y - c_px.y) * n.y;
+        s /= static_cast<double>(v.size());
+        const double nominal = (e == 0 ? geom.outer_half_mm() : geom.inner_half_mm()) / mm_per_px;
+        // Offset of the centre along n (axis k%2, sign for k>=2).
+        shift[k % 2] += (k < 2 ? 1.0 : -1.0) * (s - nominal);
+        ++cnt[k % 2];
+      }
+    }
+    const Vec2 n0{std::cos(up1), std::sin(up1)}, n1{std::cos(up1 + kPi / 2), std::sin(up1 + kPi / 2)};
+    const double s0 = cnt[0] ? shift[0] / cnt[0] : 0, s1 = cnt[1] ? shift[1] / cnt[1] : 0;
+    c_px = {c_px.x + n0.x * s0 + n1.x * s1, c_px.y + n0.y * s0 + n1.y * s1};
+  }
+  // Pass 2: narrow bands around the refined prediction.
+  const int total = collect(img, c_px, up1, cfg.band_final_rel * w_px + 1.0, thr, false, nullptr);
+  up_angle_px = up1;
+  if (total < cfg.min_points_total) return FixStatus::kTooFewEdgePoints;
+
+  // Metric conversion of every point.
+  const CameraModel& mc = metric_cam();
+  std::array<LineFit, kNumLines> fits;
+  line_ok.fill(false);
+  int used = 0;
+  for (int l = 0; l < kNumLines; ++l) {
+    auto& src = pts_px[static_cast<size_t>(l)];
+    auto& dst = pts_mm[static_cast<size_t>(l)];
+    dst.clear();
+    size_t keep = 0;
+    for (size_t i = 0; i < src.size(); ++i) {
+      Vec2 q;
+      if (mc.pixel_to_vehicle(src[i], &q)) {
+        src[keep++] = src[i];
+        dst.push_back(q);
+      }
+    }
+    src.resize(keep);
+    auto& w = weights[static_cast<size_t>(l)];
+    w.assign(dst.size(), 1.0);
+    if (static_cast<int>(dst.size()) < cfg.min_points_per_line) continue;
+    bool ok;
+    if (cfg.robust) {
+      ok = fit_line_robust(dst, cfg.tukey_c, 0.02, 4, w, &fits[static_cast<size_t>(l)]);
+    } else {
+      ok = fit_line_tls(dst, {}, &fits[static_cast<size_t>(l)]);
+    }
+    // A line must be long enough to carry an angle (half the inner side).
+    if (ok && fits[static_cast<size_t>(l)].extent >= geom.inner_half_mm()) {
+      line_ok[static_cast<size_t>(l)] = true;
+      used += fits[static_cast<size_t>(l)].n;
+    }
+  }
+  std::array<bool, 4> side_ok{};
+  for (int k = 0; k < 4; ++k) side_ok[k] = line_ok[k * 2] && line_ok[k * 2 + 1];
+  out->sides_used = side_ok[0] + side_ok[1] + side_ok[2] + side_ok[3];
+  const bool axis0 = side_ok[0] || side_ok[2], axis1 = side_ok[1] || side_ok[3];
+  if (!axis0 || !axis1 || used < cfg.min_points_total) return FixStatus::kTooFewEdgePoints;
+  out->edge_points_used = used;
+
+  // Initial metric angle of side 0's normal from the pixel angle.
+  Vec2 a0, a1;
+  mc.pixel_to_vehicle(c_px, &a0);
+  mc.pixel_to_vehicle({c_px.x + 20 * std::cos(up1), c_px.y + 20 * std::sin(up1)}, &a1);
+  const double beta0 = std::atan2(a1.y - a0.y, a1.x - a0.x);
+
+  // Per-line angles reduced to side 0's normal direction (line direction +90 deg).
+  std::vector<double>& angles = logo_samples;  // scratch (reused below for the logo)
+  angles.clear();
+  std::array<double, kNumLines> ang{}, var_ang{}, k000{};
+  for (int l = 0; l < kNumLines; ++l) {
+    if (!line_ok[static_cast<size_t>(l)]) continue;
+    const LineFit& f = fits[static_cast<size_t>(l)];
+    const double nrm_angle = std::atan2(f.line.ny, f.line.nx);
+    ang[static_cast<size_t>(l)] = reduce_angle_90(nrm_angle, beta0);
+    var_ang[static_cast<size_t>(l)] = std::max(f.var_angle, 1e-14);
+    // Paper 000 eq. 11 with raw coordinates across the line.
+    double sy2 = 0;
+    for (const Vec2& p : pts_mm[static_cast<size_t>(l)]) {
+      const double y = f.line.nx * p.x + f.line.ny * p.y;
+      sy2 += y * y;
+    }
+    k000[static_cast<size_t>(l)] = weight_000(sy2, f.rms * f.rms * f.sum_w);
+  }
+  auto heading = [&]() {
+    double s = 0, sw = 0;
+    for (int l = 0; l < kNumLines; ++l) {
+      if (!line_ok[static_cast<size_t>(l)]) continue;
+      double w = 1.0;
+      if (cfg.heading_method == HeadingMethod::kWeighted000) w = k000[static_cast<size_t>(l)];
+      if (cfg.heading_method == HeadingMethod::kInverseVariance) {
+        w = 1.0 / var_ang[static_cast<size_t>(l)];
+      }
+      s += w * (ang[static_cast<size_t>(l)] - beta0);
+      sw += w;
+    }
+    return beta0 + (sw > 0 ? s / sw : 0.0);
+  };
+
+  double beta = heading();
+  Vec2 c{a0.x, a0.y};
+  const bool all_sides = out->sides_used == 4;
+  PoseMethod method = cfg.pose_method;
+  if (!all_sides) method = PoseMethod::kJointSquareFit;
+
+  if (method == PoseMethod::kPaperCornerA) {
+    // Paper 001 eq. 8-11 in the frame aligned with the fine heading: corner A of the border's
+    // midline square from the extreme edge points of the left (side 3) and top (side 0) sides.
+    const double cb = std::cos(beta), sb = std::sin(beta);
+    auto to_al = [&](Vec2 p) { return Vec2{cb * p.x + sb * p.y, -sb * p.x + cb * p.y}; };
+    // Aligned frame: side 0 normal = +x, side 3 normal = beta + 90 deg = +y.
+    auto extreme = [&](int line, bool along_y, double* coord) {
+      const auto& v = pts_mm[static_cast<size_t>(line)];
+      double best = -1e300;
+      for (const Vec2& p : v) {
+        const Vec2 q = to_al(p);
+        const double t = along_y ? q.y : q.x;
+        if (t > best) {
+          best = t;
+          *coord = along_y ? q.x : q.y;
+        }
+      }
+    };
+    double x1 = 0, x2 = 0, y3 = 0, y4 = 0;
+    extreme(0, true, &x1);   // side 0 outer, point with max y -> its x
+    extreme(1, true, &x2);   // side 0 inner
+    extreme(6, false, &y3);  // side 3 outer, point with max x -> its y
+    extreme(7, false, &y4);  // side 3 inner
+    const double xa = (x1 + x2) / 2, ya = (y3 + y4) / 2;  // eq. 8-9
+    const double half_d = 0.5 * (geom.outer_half_mm() + geom.inner_half_mm());
+    const Vec2 o_al{xa - half_d, ya - half_d};  // eq. 10-11 (rotation already removed)
+    c = {cb * o_al.x - sb * o_al.y, sb * o_al.x + cb * o_al.y};
+  } else if (method == PoseMethod::kLineIntersections) {
+    Vec2 sum{0, 0};
+    int n = 0;
+    for (int e = 0; e < 2; ++e) {
+      for (int k = 0; k < 4; ++k) {
+        bool ok;
+        const Vec2 p = intersect(fits[static_cast<size_t>(k * 2 + e)].line,
+                                 fits[static_cast<size_t>(((k + 1) % 4) * 2 + e)].line, &ok);
+        if (ok) {
+          sum.x += p.x;
+          sum.y += p.y;
+          ++n;
+        }
+      }
+    }
+    if (n == 0) return FixStatus::kTooFewEdgePoints;
+    c = {sum.x / n, sum.y / n};
+  }
+
+  // Joint fit (also used for the covariance of every method). Parameters: c_x, c_y, beta and,
+  // when an axis has both sides, shared outer/inner half sizes.
+  const bool free_size = (side_ok[0] && side_ok[2]) || (side_ok[1] && side_ok[3]);
+  double h_out = geom.outer_half_mm(), h_in = geom.inner_half_mm();
+  const int np = free_size ? 5 : 3;
+  if (method == PoseMethod::kJointSquareFit) {
+    // Start: the centre's coordinate along each axis from the line centroids, n_k . c =
+    // n_k . centroid - h (side k's normal is +-n_(k%2)).
+    double num[2] = {0, 0};
+    int cnt[2] = {0, 0};
+    for (int k = 0; k < 4; ++k) {
+      const Vec2 n = side_normal_mm(beta, k);
+      const double sgn = k < 2 ? 1.0 : -1.0;
+      for (int e = 0; e < 2; ++e) {
+        const int l = k * 2 + e;
+        if (!line_ok[static_cast<size_t>(l)]) continue;
+        const Vec2 m = fits[static_cast<size_t>(l)].centroid;
+        num[k % 2] += sgn * (m.x * n.x + m.y * n.y - (e == 0 ? h_out : h_in));
+        ++cnt[k % 2];
+      }
+    }
+    const Vec2 n0 = side_normal_mm(beta, 0), n1 = side_normal_mm(beta, 1);
+    const double t0 = cnt[0] ? num[0] / cnt[0] : (c.x * n0.x + c.y * n0.y);
+    const double t1 = cnt[1] ? num[1] / cnt[1] : (c.x * n1.x + c.y * n1.y);
+    c = {t0 * n0.x + t1 * n1.x, t0 * n0.y + t1 * n1.y};
+  }
+  Eigen::MatrixXd jtj(np, np);
+  Eigen::VectorXd jtr(np);
+  double ssr = 0, sw_all = 0;
+  const int iters = method == PoseMethod::kJointSquareFit ? 6 : 1;
+  for (int it = 0; it < iters; ++it) {
+    jtj.setZero();
+    jtr.setZero();
+    ssr = 0;
+    sw_all = 0;
+    for (int k = 0; k < 4; ++k) {
+      const Vec2 n = side_normal_mm(beta, k);
+      const Vec2 dn{-n.y, n.x};  // d n / d beta
+      for (int e = 0; e < 2; ++e) {
+        const int l = k * 2 + e;
+        if (!line_ok[static_cast<size_t>(l)]) continue;
+        const auto& v = pts_mm[static_cast<size_t>(l)];
+        const auto& w = weights[static_cast<size_t>(l)];
+        for (size_t i = 0; i < v.size(); ++i) {
+          if (!(w[i] > 0)) continue;
+          const double dx = v[i].x - c.x, dy = v[i].y - c.y;
+          const double r = n.x * dx + n.y * dy - (e == 0 ? h_out : h_in);
+          double jrow[5] = {-n.x, -n.y, dn.x * dx + dn.y * dy, e == 0 ? -1.0 : 0.0,
+                            e == 1 ? -1.0 : 0.0};
+          for (int a = 0; a < np; ++a) {
+            jtr(a) += w[i] * jrow[a] * r;
+            for (int b = 0; b < np; ++b) jtj(a, b) += w[i] * jrow[a] * jrow[b];
+          }
+          ssr += w[i] * r * r;
+          sw_all += w[i];
+        }
+      }
+    }
+    if (method != PoseMethod::kJointSquareFit) break;
+    const Eigen::VectorXd delta = jtj.ldlt().solve(-jtr);
+    if (!delta.allFinite()) return FixStatus::kTooFewEdgePoints;
+    c.x += delta(0);
+    c.y += delta(1);
+    beta += delta(2);
+    if (free_size) {
+      h_out += delta(3);
+      h_in += delta(4);
+    }
+    if (delta.head(3).norm() < 1e-9) break;
+  }
+  const double dof = std::max(1.0, sw_all - np);
+  const double s2 = ssr / dof;
+  Eigen::MatrixXd cov_full = jtj.ldlt().solve(Eigen::MatrixXd::Identity(np, np)) * s2;
+  Eigen::Matrix3d cv3 = cov_full.topLeftCorner(3, 3) * cfg.cov_inflation;
+  cv3(0, 0) += cfg.sigma_floor_mm * cfg.sigma_floor_mm;
+  cv3(1, 1) += cfg.sigma_floor_mm * cfg.sigma_floor_mm;
+  cv3(2, 2) += deg_to_rad(cfg.sigma_floor_deg) * deg_to_rad(cfg.sigma_floor_deg);
+  *cov = cv3;
+  out->residual_rms_mm = sw_all > 0 ? std::sqrt(ssr / sw_all) : 0.0;
+  *c_mm = c;
+  *beta_out = beta;
+
+  // Overlay geometry in pixels.
+  for (int l = 0; l < kNumLines; ++l) {
+    LineFit f;
+    if (line_ok[static_cast<size_t>(l)] && fit_line_tls(pts_px[static_cast<size_t>(l)], {}, &f)) {
+      lines_px[static_cast<size_t>(l)] = f.line;
+    }
+  }
+  for (int e = 0; e < 2; ++e) {
+    const double h = e == 0 ? h_out : h_in;
+    for (int k = 0; k < 4; ++k) {
+      const Vec2 n = side_normal_mm(beta, k), m = side_normal_mm(beta, k + 1);
+      Vec2 px;
+      mc.vehicle_to_pixel({c.x + h * (n.x + m.x), c.y + h * (n.y + m.y)}, &px);
+      corners_px[static_cast<size_t>(e * 4 + k)] = px;
+    }
+  }
+  mc.vehicle_to_pixel(c, &centre_px);
+  return FixStatus::kOk;
+}
+
+FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, LandmarkFix* out) {
+  have_overlay = false;
+  const double t0 = now_ms();
+  auto finish = [&](FixStatus s) {
+    out->status = s;
+    if (cfg.now_ns) out->timings.total_ms = now_ms() - t0;
+    return s;
+  };
+  if (img.empty() || img.type() != CV_8UC1 || img.dims != 2 ||
+      img.cols != cam.intrinsics.width_px || img.rows != cam.intrinsics.height_px) {
+    return finish(FixStatus::kBadInput);
+  }
+  // 1-2. Detection.
+  Hypothesis h;
+  bool found_corner = false;
+  double corner_score = 0;
+  const bool found = detect(img, &h, &found_corner, &corner_score);
+  out->corner_score = corner_score;
+  const double t1 = now_ms();
+  if (cfg.now_ns) out->timings.detect_ms = t1 - t0;
+  if (!found) return finish(FixStatus::kNoLandmark);
+  const double dark = h.score_max, white = h.score_sum;
+  const double contrast = white - dark;
+  if (contrast < 15.0) return finish(FixStatus::kNoLandmark);
+  Vec2 c_px = coarse_to_full({h.cx, h.cy});
+  const double up = h.up_angle;
+
+  // Partly outside: any predicted outer corner beyond the image (plus margin).
+  {
+    const double margin_px = cfg.outside_margin_mm / mm_per_px;
+    const double ho = geom.outer_half_mm() / mm_per_px;
+    for (int k = 0; k < 4; ++k) {
+      const Vec2 d = rot({ho, ho}, up + k * kPi / 2);
+      const double x = c_px.x + d.x, y = c_px.y + d.y;
+      if (x < -0.5 - margin_px || y < -0.5 - margin_px || x > img.cols - 0.5 + margin_px ||
+          y > img.rows - 0.5 + margin_px) {
+        out->partly_outside = true;
+      }
+    }
+    if (out->partly_outside && !cfg.allow_partly_outside) return finish(FixStatus::kPartlyOutside);
+  }
+
+  // 3. QR decode.
+  Pose2 world_landmark;
+  bool have_world = false, qr_ok = false;
+  double qr_up = 0;
+  FixStatus st = decode(img, c_px, up, out, &world_landmark, &have_world, &qr_up, &qr_ok);
+  const double t2 = now_ms();
+  if (cfg.now_ns) out->timings.decode_ms = t2 - t1;
+  if (st == FixStatus::kQrUnreadable && out->partly_outside) st = FixStatus::kPartlyOutside;
+  if (st != FixStatus::kOk) return finish(st);
+
+  // 5. Pose (before the direction so the logo is sampled with the fine pose).
+  Vec2 c_mm;
+  double beta = 0;
+  Eigen::Matrix3d cov;
+  st = pose(img, c_px, up, contrast, out, &c_mm, &beta, &cov);
+  const double t3 = now_ms();
+  if (cfg.now_ns) out->timings.pose_ms = t3 - t2;
+  if (st == FixStatus::kTooFewEdgePoints && out->partly_outside) st = FixStatus::kPartlyOutside;
+  if (st != FixStatus::kOk) return finish(st);
+  have_overlay = true;
+
+  // 4. Direction: logo NCC at the four turns; the true forward axis is side q's normal.
+  const CameraModel& mc = metric_cam();
+  std::array<double, 4> sc{};
+  for (int q = 0; q < 4; ++q) {
+    const double fwd = beta - q * kPi / 2.0;
+    logo_samples.clear();
+    bool all_in = true;
+    for (const Vec2& uv : logo_page_pts) {
+      const Vec2 l = page_to_landmark(uv);
+      const Vec2 v = transform({c_mm.x, c_mm.y, fwd}, l);
+      Vec2 px;
+      double val = 0;
+      if (!mc.vehicle_to_pixel(v, &px) || !sample(img, px.x, px.y, &val)) {
+        all_in = false;
+        break;
+      }
+      logo_samples.push_back(val);
+    }
+    sc[static_cast<size_t>(q)] = all_in ? ncc(logo_samples, logo_template) : -1.0;
+  }
+  int best_q = 0;
+  for (int q = 1; q < 4; ++q) {
+    if (sc[static_cast<size_t>(q)] > sc[static_cast<size_t>(best_q)]) best_q = q;
+  }
+  double second = -1.0;
+  for (int q = 0; q < 4; ++q) {
+    if (q != best_q) second = std::max(second, sc[static_cast<size_t>(q)]);
+  }
+  out->logo_score = sc[static_cast<size_t>(best_q)];
+  out->logo_margin = out->logo_score - second;
+  const bool logo_clear =
+      out->logo_score >= cfg.logo_threshold && out->logo_margin >= cfg.logo_margin;
+  // QR orientation in the metric frame: which turn does it point to?
+  int qr_q = -1;
+  if (qr_ok) {
+    Vec2 a0, a1;
+    if (mc.pixel_to_vehicle(c_px, &a0) &&
+        mc.pixel_to_vehicle({c_px.x + 20 * std::cos(qr_up), c_px.y + 20 * std::sin(qr_up)}, &a1)) {
+      const double b_qr = std::atan2(a1.y - a0.y, a1.x - a0.x);
+      for (int q = 0; q < 4; ++q) {
+        if (std::abs(wrap_angle_rad(b_qr - (beta - q * kPi / 2.0))) < deg_to_rad(30.0)) qr_q = q;
+      }
+    }
+  }
+  int q_final = -1;
+  if (logo_clear) {
+    if (qr_q >= 0 && qr_q != best_q) {
+      const double t4 = now_ms();
+      if (cfg.now_ns) out->timings.direction_ms = t4 - t3;
+      return finish(FixStatus::kDirectionAmbiguous);
+    }
+    q_final = best_q;
+  } else if (cfg.direction_from_qr_when_logo_weak && qr_q >= 0 &&
+             out->logo_score < cfg.logo_threshold) {
+    q_final = qr_q;
+  }
+  const double t4 = now_ms();
+  if (cfg.now_ns) out->timings.direction_ms = t4 - t3;
+  if (q_final < 0) return finish(FixStatus::kDirectionAmbiguous);
+  quadrant = q_final;
+
+  // Result.
+  const double fwd = wrap_angle_rad(beta - q_final * kPi / 2.0);
+  out->landmark_in_vehicle = {c_mm.x, c_mm.y, fwd};
+  const Pose2 v_in_l = inverse(out->landmark_in_vehicle);
+  out->e_x_mm = v_in_l.x_mm;
+  out->e_y_mm = v_in_l.y_mm;
+  out->e_phi_deg = rad_to_deg(v_in_l.theta_rad);
+  out->cov_landmark_in_vehicle = cov;
+  out->vehicle_in_world = compose(world_landmark, v_in_l);
+  // Covariance through W<-V = (W<-L) (+) inverse(V<-L), Jacobian by central differences.
+  Eigen::Matrix3d jac;
+  const double eps[3] = {1e-4, 1e-4, 1e-7};
+  for (int j = 0; j < 3; ++j) {
+    Pose2 a = out->landmark_in_vehicle, b = out->landmark_in_vehicle;
+    double* pa = j == 0 ? &a.x_mm : j == 1 ? &a.y_mm : &a.theta_rad;
+    double* pb = j == 0 ? &b.x_mm : j == 1 ? &b.y_mm : &b.theta_rad;
+    *pa += eps[j];
+    *pb -= eps[j];
+    const Pose2 wa = compose(world_landmark, inverse(a)), wb = compose(world_landmark, inverse(b));
+    jac(0, j) = (wa.x_mm - wb.x_mm) / (2 * eps[j]);
+    jac(1, j) = (wa.y_mm - wb.y_mm) / (2 * eps[j]);
+    jac(2, j) = wrap_angle_rad(wa.theta_rad - wb.theta_rad) / (2 * eps[j]);
+  }
+  out->cov_world = jac * cov * jac.transpose();
+  return finish(FixStatus::kOk);
+}
+
+LandmarkLocalizer::LandmarkLocalizer(const VisionConfig& config, const CameraModel& camera,
+                                     const LandmarkGeometry& geometry, const LandmarkMap* map)
+    : impl_(std::make_unique<Impl>(config, camera, geometry, map)) {}
+
+LandmarkLocalizer::~LandmarkLocalizer() = default;
+
+const VisionConfig& LandmarkLocalizer::config() const { return impl_->cfg; }
+
+FixStatus LandmarkLocalizer::process(const cv::Mat& gray8, LandmarkFix* out) {
+  if (!out) return FixStatus::kBadInput;
+  *out = LandmarkFix{};
+  try {
+    return impl_->run(gray8, out);
+  } catch (...) {
+    // OpenCV and zxing report some malformed input by exceptions; never let them escape.
+    impl_->have_overlay = false;
+    out->status = FixStatus::kBadInput;
+    return out->status;
+  }
+}
+
+void LandmarkLocalizer::draw_overlay(const cv::Mat& gray8, const LandmarkFix& fix,
+                                     cv::Mat* bgr_out) const {
+  if (!bgr_out) return;
+  if (gray8.empty() || gray8.type() != CV_8UC1) {
+    *bgr_out = cv::Mat();
+    return;
+  }
+  cv::cvtColor(gray8, *bgr_out, cv::COLOR_GRAY2BGR);
+  const Impl& m = *impl_;
+  char text[160];
+  if (m.have_overlay) {
+    // Colours by class relative to the landmark's forward direction (page up/right/down/left).
+    const cv::Scalar colours[4] = {{0, 255, 0}, {0, 0, 255}, {255, 0, 0}, {0, 255, 255}};
+    for (int l = 0; l < kNumLines; ++l) {
+      const int side = l / 2;
+      const int cls_img = (l % 2 == 0) ? side : (side + 2) % 4;  // gradient class
+      const int cls = ((cls_img - m.quadrant) % 4 + 4) % 4;
+      for (const Vec2& p : m.pts_px[static_cast<size_t>(l)]) {
+        const int x = static_cast<int>(std::lround(p.x)), y = static_cast<int>(std::lround(p.y));
+        if (x >= 0 && y >= 0 && x < bgr_out->cols && y < bgr_out->rows) {
+          bgr_out->at<cv::Vec3b>(y, x) =
+              cv::Vec3b(static_cast<std::uint8_t>(colours[cls][0]),
+                        static_cast<std::uint8_t>(colours[cls][1]),
+                        static_cast<std::uint8_t>(colours[cls][2]));
+        }
+      }
+    }
+    for (int e = 0; e < 2; ++e) {
+      for (int k = 0; k < 4; ++k) {
+        const Vec2 a = m.corners_px[static_cast<size_t>(e * 4 + k)];
+        const Vec2 b = m.corners_px[static_cast<size_t>(e * 4 + (k + 1) % 4)];
+        cv::line(*bgr_out, cv::Point2d(a.x, a.y), cv::Point2d(b.x, b.y), {0, 0, 255}, 1,
+                 cv::LINE_AA);
+      }
+    }
+    for (const Vec2& c : m.corners_px) {
+      cv::circle(*bgr_out, cv::Point2d(c.x, c.y), 3, {0, 0, 255}, -1, cv::LINE_AA);
+    }
+    cv::circle(*bgr_out, cv::Point2d(m.centre_px.x, m.centre_px.y), 4, {255, 0, 255}, -1,
+               cv::LINE_AA);
+    // Forward arrow.
+    const double fwd_img = m.up_angle_px + m.quadrant * kPi / 2.0;
+    const double len = 0.6 * m.geom.outer_half_mm() / m.mm_per_px;
+    cv::arrowedLine(*bgr_out, cv::Point2d(m.centre_px.x, m.centre_px.y),
+                    cv::Point2d(m.centre_px.x + len * std::cos(fwd_img),
+                                m.centre_px.y + len * std::sin(fwd_img)),
+                    {255, 0, 255}, 2, cv::LINE_AA);
+  }
+  std::snprintf(text, sizeof text, "%s id=%u", to_string(fix.status),
+                static_cast<unsigned>(fix.landmark_id));
+  cv::putText(*bgr_out, text, {8, 20}, cv::FONT_HERSHEY_SIMPLEX, 0.5, {0, 0, 255}, 1, cv::LINE_AA);
+  if (fix.status == FixStatus::kOk) {
+    std::snprintf(text, sizeof text, "ex=%.2f mm ey=%.2f mm ephi=%.3f deg", fix.e_x_mm,
+                  fix.e_y_mm, fix.e_phi_deg);
+    cv::putText(*bgr_out, text, {8, 40}, cv::FONT_HERSHEY_SIMPLEX, 0.5, {0, 0, 255}, 1,
+                cv::LINE_AA);
+  }
+}
+
+}  // namespace agv::vision

@@ -1,0 +1,166 @@
+// Stage tests on small synthetic images with known answers: Prewitt (eq. 1-4), gradient-direction
+// classes, least-squares lines (eq. 5-6), robust fitting, angle averaging (eq. 7, paper 000 eq. 10-11).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <opencv2/core.hpp>
+#include <random>
+#include <vector>
+
+#include "agv/vision/edges.hpp"
+
+using namespace agv;
+using namespace agv::vision;
+
+namespace {
+
+// A dark square (value 30) on white (220), half-side h_px, centred at (cx, cy), rotated by
+// angle_rad (image angle), area-sampled 8x8.
+cv::Mat draw_square(int w, int h, double cx, double cy, double half_px, double angle_rad) {
+  cv::Mat img(h, w, CV_8UC1);
+  const double c = std::cos(angle_rad), s = std::sin(angle_rad);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      int dark = 0;
+      for (int sy = 0; sy < 8; ++sy) {
+        for (int sx = 0; sx < 8; ++sx) {
+          const double dx = x - 0.5 + (sx + 0.5) / 8 - cx, dy = y - 0.5 + (sy + 0.5) / 8 - cy;
+          const double u = c * dx + s * dy, v = -s * dx + c * dy;
+          if (std::abs(u) <= half_px && std::abs(v) <= half_px) ++dark;
+        }
+      }
+      img.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(std::lround(220 - 190 * dark / 64.0));
+    }
+  }
+  return img;
+}
+
+}  // namespace
+
+TEST(VisionPrewitt, MatchesEquations2And3) {
+  cv::Mat img(5, 5, CV_8UC1);
+  for (int y = 0; y < 5; ++y) {
+    for (int x = 0; x < 5; ++x) img.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(10 * x + 3 * y * y);
+  }
+  cv::Mat gx, gy;
+  prewitt(img, cv::Rect(0, 0, 5, 5), &gx, &gy);
+  // Interior pixel (2, 2): gx = sum over rows of f(x+1) - f(x-1) = 3 * 20; gy = sum of columns
+  // f(y+1) - f(y-1) = 3 * (3*9 - 3*1).
+  EXPECT_EQ(gx.at<std::int16_t>(2, 2), 60);
+  EXPECT_EQ(gy.at<std::int16_t>(2, 2), 72);
+  // Image border gets 0.
+  EXPECT_EQ(gx.at<std::int16_t>(0, 0), 0);
+  EXPECT_EQ(gy.at<std::int16_t>(4, 4), 0);
+  // An ROI gives the same values at the same image pixel.
+  cv::Mat gx2, gy2;
+  prewitt(img, cv::Rect(1, 1, 3, 3), &gx2, &gy2);
+  EXPECT_EQ(gx2.at<std::int16_t>(1, 1), 60);
+  EXPECT_EQ(gy2.at<std::int16_t>(1, 1), 72);
+}
+
+TEST(VisionClassify, FourDirectionsAndTolerance) {
+  const double up = -kPi / 2;  // page up = image up
+  const double tol = deg_to_rad(20);
+  EXPECT_EQ(classify_gradient(0, -100, up, tol), EdgeClass::kUp);
+  EXPECT_EQ(classify_gradient(100, 0, up, tol), EdgeClass::kRight);
+  EXPECT_EQ(classify_gradient(0, 100, up, tol), EdgeClass::kDown);
+  EXPECT_EQ(classify_gradient(-100, 0, up, tol), EdgeClass::kLeft);
+  EXPECT_EQ(classify_gradient(100, -100, up, tol), EdgeClass::kNone);  // 45 deg: no class
+  EXPECT_EQ(classify_gradient(0, 0, up, tol), EdgeClass::kNone);
+  // Rotated landmark: up axis at -90 + 30 deg.
+  const double up2 = up + deg_to_rad(30);
+  EXPECT_EQ(classify_gradient(std::cos(up2), std::sin(up2), up2, tol), EdgeClass::kUp);
+  EXPECT_EQ(classify_gradient(std::cos(up2 + kPi), std::sin(up2 + kPi), up2, tol), EdgeClass::kDown);
+}
+
+// Every edge pixel of each side of a rotated dark square is classified to that side (the square
+// is dark, so the gradient points outward; side k's outward normal is up + k * 90 deg).
+TEST(VisionClassify, EverySidePointGoesToItsSide) {
+  for (double deg : {0.0, 17.0, 38.0, -25.0}) {
+    const double a = deg_to_rad(deg);
+    const double cx = 60.3, cy = 59.6, half = 35.0;
+    const cv::Mat img = draw_square(121, 121, cx, cy, half, a);
+    cv::Mat gx, gy;
+    prewitt(img, cv::Rect(0, 0, img.cols, img.rows), &gx, &gy);
+    const double up = a - kPi / 2;
+    int checked = 0;
+    for (int k = 0; k < 4; ++k) {
+      const double na = up + k * kPi / 2;
+      const Vec2 n{std::cos(na), std::sin(na)}, t{-n.y, n.x};
+      // Pixels nearest to the side, away from the corners.
+      for (double s = -half + 6; s <= half - 6; s += 1.0) {
+        const double px = cx + n.x * half + t.x * s, py = cy + n.y * half + t.y * s;
+        const int ix = static_cast<int>(std::lround(px)), iy = static_cast<int>(std::lround(py));
+        const double g_x = gx.at<std::int16_t>(iy, ix), g_y = gy.at<std::int16_t>(iy, ix);
+        ASSERT_GT(std::hypot(g_x, g_y), 100.0);
+        EXPECT_EQ(static_cast<int>(classify_gradient(g_x, g_y, up, deg_to_rad(20))), k)
+            << "deg " << deg << " side " << k << " s " << s;
+        ++checked;
+      }
+    }
+    EXPECT_GT(checked, 200);
+  }
+}
+
+TEST(VisionLineFit, TlsAndOlsRecoverKnownAngle) {
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> noise(0.0, 0.1);
+  for (double deg : {0.0, 3.7, 12.0, -30.0, 44.0, 89.0}) {
+    const double a = deg_to_rad(deg);
+    std::vector<Vec2> pts;
+    for (int i = -100; i <= 100; ++i) {
+      const double t = i;
+      const double off = noise(rng);
+      pts.push_back({5 + t * std::cos(a) - off * std::sin(a), -2 + t * std::sin(a) + off * std::cos(a)});
+    }
+    LineFit f;
+    ASSERT_TRUE(fit_line_tls(pts, {}, &f));
+    const double got = reduce_angle_90(f.line.angle_rad(), a);
+    EXPECT_NEAR(rad_to_deg(got), deg, 0.01) << deg;
+    EXPECT_NEAR(f.rms, 0.1, 0.02);
+    EXPECT_GT(f.var_angle, 0.0);
+    if (std::abs(deg) < 60) {
+      double k, b;
+      ASSERT_TRUE(fit_line_ols(pts, &k, &b));
+      EXPECT_NEAR(rad_to_deg(std::atan(k)), deg, 0.01);  // eq. 6
+    }
+  }
+}
+
+TEST(VisionLineFit, RobustFitIgnoresOutliers) {
+  std::vector<Vec2> pts;
+  for (int i = 0; i < 200; ++i) pts.push_back({static_cast<double>(i), 0.5 * std::sin(i * 0.37) * 0.05});
+  // 20 % gross outliers on one side (a scratch or an occluder edge).
+  for (int i = 0; i < 50; ++i) pts.push_back({80.0 + i, 20.0});
+  std::vector<double> w(pts.size());
+  LineFit plain, robust;
+  ASSERT_TRUE(fit_line_tls(pts, {}, &plain));
+  ASSERT_TRUE(fit_line_robust(pts, 4.685, 0.01, 5, w, &robust));
+  EXPECT_GT(std::abs(rad_to_deg(plain.line.angle_rad())), 0.3);
+  EXPECT_LT(std::abs(rad_to_deg(reduce_angle_90(robust.line.angle_rad(), 0.0))), 0.01);
+  EXPECT_NEAR(robust.line.d / robust.line.ny, 0.0, 0.01);
+  for (size_t i = 200; i < pts.size(); ++i) EXPECT_EQ(w[i], 0.0);
+}
+
+TEST(VisionLineFit, DegenerateInputFails) {
+  LineFit f;
+  std::vector<Vec2> one{{1, 1}};
+  EXPECT_FALSE(fit_line_tls(one, {}, &f));
+  std::vector<Vec2> same{{1, 1}, {1, 1}, {1, 1}};
+  EXPECT_FALSE(fit_line_tls(same, {}, &f));
+  double k, b;
+  std::vector<Vec2> vertical{{2, 0}, {2, 1}, {2, 5}};
+  EXPECT_FALSE(fit_line_ols(vertical, &k, &b));
+}
+
+TEST(VisionHeading, Equation7AndPaper000Weights) {
+  const std::vector<double> a{0.010, 0.012, 0.008, 0.011};
+  EXPECT_NEAR(mean_angle(a), 0.01025, 1e-12);
+  // eq. 11: a perfect fit has weight 1; residuals increase the weight above 1.
+  EXPECT_DOUBLE_EQ(weight_000(100.0, 0.0), 1.0);
+  EXPECT_NEAR(weight_000(100.0, 20.0), 1.25, 1e-12);
+  const std::vector<double> k{1.0, 1.0, 1.0, 3.0};
+  EXPECT_NEAR(weighted_angle_000(a, k), (0.010 + 0.012 + 0.008 + 3 * 0.011) / 6.0, 1e-12);
+  EXPECT_NEAR(reduce_angle_90(deg_to_rad(92.0), 0.0), deg_to_rad(2.0), 1e-12);
+  EXPECT_NEAR(reduce_angle_90(deg_to_rad(-178.0), 0.0), deg_to_rad(2.0), 1e-12);
+}
