@@ -13,7 +13,7 @@ PKGS=(
   # algo / drivers / firmware
   libopencv-dev
   libeigen3-dev libzxing-dev libyaml-cpp-dev libcli11-dev
-  libcamera-dev libcamera-ipa
+  libcamera-dev libcamera-ipa udev
   # tests, benchmarks, comparison baseline
   libgtest-dev libgmock-dev libbenchmark-dev libapriltag-dev valgrind
   clang-format clang-tidy
