@@ -2,11 +2,16 @@
 // odom.csv and an optional truth.csv. Used by replay, the simulator and the live recorder.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
 
 #include "agv/common/camera_model.hpp"
+
+namespace cv {
+class Mat;
+}
 
 namespace agv::recording {
 
@@ -16,6 +21,7 @@ struct Meta {
   int format_version = kFormatVersion;
   CameraModel camera;              // image size, intrinsics, distortion, height, mounting
   double landmark_size_mm = 60.0;  // outer border side
+  std::string source;              // optional free text (e.g. the command that made it)
 };
 
 struct FrameRow {
@@ -50,10 +56,28 @@ struct Recording {
 // Timestamps must be strictly increasing within each file; referenced PNGs must exist.
 bool read_recording(const std::string& dir, Recording* out, std::string* error);
 
+// Parts of read_recording, usable on their own. `name` is the file name used in messages.
+bool parse_meta_yaml(const std::string& text, Meta* out, std::string* error,
+                     const std::string& name = "meta.yaml");
+bool read_meta(const std::string& dir, Meta* out, std::string* error);
+bool parse_frames_csv(const std::string& text, std::vector<FrameRow>* out, std::string* error,
+                      const std::string& name = "frames.csv");
+bool parse_odom_csv(const std::string& text, std::vector<OdomRow>* out, std::string* error,
+                    const std::string& name = "odom.csv");
+bool parse_truth_csv(const std::string& text, std::vector<TruthRow>* out, std::string* error,
+                     const std::string& name = "truth.csv");
+
+// Loads frame i as 8-bit grey. False with *error when the file is missing, not decodable, or not
+// of the size in meta.yaml.
+bool load_frame(const Recording& rec, size_t i, cv::Mat* image, std::string* error);
+
 // Writers create the directory if needed and overwrite the files.
 bool write_meta(const std::string& dir, const Meta& meta, std::string* error);
 bool write_frames_csv(const std::string& dir, const std::vector<FrameRow>& rows, std::string* error);
 bool write_odom_csv(const std::string& dir, const std::vector<OdomRow>& rows, std::string* error);
 bool write_truth_csv(const std::string& dir, const std::vector<TruthRow>& rows, std::string* error);
+// Writes an 8-bit grey image as PNG at dir/relative_file (creating sub-directories).
+bool write_frame_png(const std::string& dir, const std::string& relative_file, const cv::Mat& image,
+                     std::string* error);
 
 }  // namespace agv::recording

@@ -1,0 +1,592 @@
+// Recording format I/O (docs/recording.md). Strict: anything unexpected is an error that names
+// the file and line; nothing here throws or crashes on malformed input.
+#include "agv/recording/recording.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <set>
+#include <sstream>
+#include <string_view>
+
+#include "agv/common/geometry.hpp"
+
+namespace agv::recording {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+constexpr std::int64_t kMaxFileBytes = 512LL * 1024 * 1024;  // refuse absurd files, not crash
+
+bool read_text(const fs::path& path, std::string* text, std::string* error) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) {
+    *error = path.filename().string() + ": missing (expected at " + path.string() + ")";
+    return false;
+  }
+  const auto size = fs::file_size(path, ec);
+  if (ec || static_cast<std::int64_t>(size) > kMaxFileBytes) {
+    *error = path.filename().string() + ": cannot read or larger than 512 MiB";
+    return false;
+  }
+  std::ifstream f(path, std::ios::binary);
+  if (!f) {
+    *error = path.filename().string() + ": cannot open";
+    return false;
+  }
+  std::ostringstream ss;
+  ss << f.rdbuf();
+  *text = ss.str();
+  return true;
+}
+
+bool write_text(const fs::path& path, const std::string& text, std::string* error) {
+  std::error_code ec;
+  fs::create_directories(path.parent_path(), ec);
+  std::ofstream f(path, std::ios::binary | std::ios::trunc);
+  if (f) f << text;
+  if (!f) {
+    if (error) *error = path.string() + ": cannot write";
+    return false;
+  }
+  return true;
+}
+
+// ---- meta.yaml ------------------------------------------------------------------------------
+
+struct MetaParser {
+  const std::string& name;
+  std::string* error;
+
+  bool fail(const YAML::Node& n, const std::string& why) {
+    const int line = n.Mark().is_null() ? 0 : n.Mark().line + 1;
+    if (error) *error = name + ":" + std::to_string(line) + ": " + why;
+    return false;
+  }
+
+  // The mapping must have exactly these keys (all required).
+  bool keys(const YAML::Node& map, const std::string& where, const std::set<std::string>& required,
+            const std::set<std::string>& optional = {}) {
+    if (!map.IsMap()) return fail(map, where + " must be a mapping");
+    std::set<std::string> seen;
+    for (const auto& kv : map) {
+      std::string k;
+      try {
+        k = kv.first.as<std::string>();
+      } catch (const YAML::Exception&) {
+        return fail(kv.first, where + ": keys must be plain strings");
+      }
+      if (!required.count(k) && !optional.count(k)) {
+        return fail(kv.first, "unknown key '" + (where.empty() ? k : where + "." + k) + "'");
+      }
+      if (!seen.insert(k).second) return fail(kv.first, "duplicate key '" + k + "'");
+    }
+    for (const auto& k : required) {
+      if (!seen.count(k)) {
+        return fail(map, "missing key '" + (where.empty() ? k : where + "." + k) + "'");
+      }
+    }
+    return true;
+  }
+
+  bool number(const YAML::Node& map, const std::string& where, const std::string& key, double lo,
+              double hi, double* out) {
+    const YAML::Node n = map[key];
+    const std::string full = where.empty() ? key : where + "." + key;
+    if (!n.IsScalar()) return fail(n, "'" + full + "' must be a number");
+    double v = 0.0;
+    if (!YAML::convert<double>::decode(n, v) || !std::isfinite(v)) {
+      return fail(n, "'" + full + "' must be a finite number, got '" + n.Scalar() + "'");
+    }
+    if (v < lo || v > hi) {
+      char buf[160];
+      std::snprintf(buf, sizeof buf, "'%s' = %g is outside [%g, %g]", full.c_str(), v, lo, hi);
+      return fail(n, buf);
+    }
+    *out = v;
+    return true;
+  }
+
+  bool integer(const YAML::Node& map, const std::string& where, const std::string& key, int lo,
+               int hi, int* out) {
+    const YAML::Node n = map[key];
+    const std::string full = where.empty() ? key : where + "." + key;
+    int v = 0;
+    if (!n.IsScalar() || !YAML::convert<int>::decode(n, v)) {
+      return fail(n, "'" + full + "' must be an integer");
+    }
+    if (v < lo || v > hi) {
+      return fail(n, "'" + full + "' = " + std::to_string(v) + " is outside [" +
+                         std::to_string(lo) + ", " + std::to_string(hi) + "]");
+    }
+    *out = v;
+    return true;
+  }
+};
+
+// ---- CSV ------------------------------------------------------------------------------------
+
+struct CsvLine {
+  size_t line_no;
+  std::string_view text;
+};
+
+// Splits into lines; the header must match exactly; every line must end with '\n' (a missing
+// final newline means the writer was interrupted). CRLF is accepted.
+bool csv_lines(const std::string& text, const std::string& name, const char* header,
+               std::vector<CsvLine>* rows, std::string* error) {
+  auto fail = [&](size_t line, const std::string& why) {
+    if (error) *error = name + ":" + std::to_string(line) + ": " + why;
+    return false;
+  };
+  if (text.empty()) return fail(1, std::string("empty file, expected header '") + header + "'");
+  if (text.find('\0') != std::string::npos) {
+    const size_t line = 1 + static_cast<size_t>(std::count(text.begin(), text.begin() +
+        static_cast<std::ptrdiff_t>(text.find('\0')), '\n'));
+    return fail(line, "binary data (NUL byte)");
+  }
+  size_t pos = 0, line_no = 0;
+  while (pos < text.size()) {
+    ++line_no;
+    const size_t end = text.find('\n', pos);
+    if (end == std::string::npos) {
+      return fail(line_no, "truncated: last line has no newline (interrupted write?)");
+    }
+    std::string_view line(text.data() + pos, end - pos);
+    pos = end + 1;
+    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+    if (line_no == 1) {
+      if (line != header) {
+        return fail(1, std::string("expected header '") + header + "', got '" +
+                           std::string(line.substr(0, 80)) + "'");
+      }
+      continue;
+    }
+    if (line.empty()) return fail(line_no, "empty line");
+    rows->push_back({line_no, line});
+  }
+  return true;
+}
+
+std::vector<std::string_view> split_commas(std::string_view line) {
+  std::vector<std::string_view> f;
+  size_t start = 0;
+  for (size_t i = 0; i <= line.size(); ++i) {
+    if (i == line.size() || line[i] == ',') {
+      f.push_back(line.substr(start, i - start));
+      start = i + 1;
+    }
+  }
+  return f;
+}
+
+bool parse_i64(std::string_view s, std::int64_t* v) {
+  if (s.empty()) return false;
+  auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), *v);
+  return ec == std::errc() && p == s.data() + s.size();
+}
+
+bool parse_f64(std::string_view s, double* v) {
+  if (s.empty()) return false;
+  auto [p, ec] = std::from_chars(s.data(), s.data() + s.size(), *v);
+  return ec == std::errc() && p == s.data() + s.size() && std::isfinite(*v);
+}
+
+// Parses rows with a t_ns column first and `n` more numeric columns; checks strict time order.
+template <typename Fill>
+bool parse_timed_csv(const std::string& text, const std::string& name, const char* header,
+                     const std::vector<std::string>& cols, Fill fill, std::string* error) {
+  std::vector<CsvLine> lines;
+  if (!csv_lines(text, name, header, &lines, error)) return false;
+  std::int64_t prev = 0;
+  bool have_prev = false;
+  std::vector<double> vals(cols.size());
+  for (const CsvLine& l : lines) {
+    auto fail = [&](const std::string& why) {
+      if (error) *error = name + ":" + std::to_string(l.line_no) + ": " + why;
+      return false;
+    };
+    const auto f = split_commas(l.text);
+    if (f.size() != cols.size() + 1) {
+      return fail("expected " + std::to_string(cols.size() + 1) + " fields, got " +
+                  std::to_string(f.size()));
+    }
+    std::int64_t t = 0;
+    if (!parse_i64(f[0], &t)) return fail("t_ns '" + std::string(f[0].substr(0, 40)) + "' is not an integer");
+    if (t < 0) return fail("t_ns must not be negative");
+    if (have_prev && t <= prev) {
+      return fail("t_ns " + std::to_string(t) + " is not after the previous row's " +
+                  std::to_string(prev));
+    }
+    for (size_t i = 0; i < cols.size(); ++i) {
+      if (!parse_f64(f[i + 1], &vals[i])) {
+        return fail(cols[i] + " '" + std::string(f[i + 1].substr(0, 40)) +
+                    "' is not a finite number");
+      }
+    }
+    std::string why;
+    if (!fill(t, vals, &why)) return fail(why);
+    prev = t;
+    have_prev = true;
+  }
+  return true;
+}
+
+std::string fmt_g17(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+bool safe_relative_path(std::string_view f) {
+  if (f.empty() || f.front() == '/' || f.find('\\') != std::string_view::npos) return false;
+  for (char c : f) {
+    if (static_cast<unsigned char>(c) < 0x20 || c == '"') return false;
+  }
+  const fs::path p{std::string(f)};
+  for (const auto& part : p) {
+    if (part == "..") return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+bool parse_meta_yaml(const std::string& text, Meta* out, std::string* error,
+                     const std::string& name) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(text);
+  } catch (const YAML::ParserException& e) {
+    if (error) *error = name + ":" + std::to_string(e.mark.line + 1) + ": YAML syntax: " + e.msg;
+    return false;
+  } catch (const std::exception& e) {
+    if (error) *error = name + ":0: " + e.what();
+    return false;
+  }
+  MetaParser p{name, error};
+  try {
+    if (!root.IsMap()) return p.fail(root, "top level must be a mapping");
+    if (!p.keys(root, "", {"format_version", "image", "intrinsics", "distortion", "mount", "landmark"},
+                {"source"})) {
+      return false;
+    }
+    Meta m;
+    if (!p.integer(root, "", "format_version", 1, 1000000, &m.format_version)) return false;
+    if (m.format_version != kFormatVersion) {
+      return p.fail(root["format_version"], "unsupported format_version " +
+                                                std::to_string(m.format_version) + " (this build reads " +
+                                                std::to_string(kFormatVersion) + ")");
+    }
+    const YAML::Node img = root["image"], in = root["intrinsics"], di = root["distortion"],
+                     mo = root["mount"], lm = root["landmark"];
+    auto& k = m.camera.intrinsics;
+    auto& mt = m.camera.mount;
+    if (!p.keys(img, "image", {"width_px", "height_px"}) ||
+        !p.integer(img, "image", "width_px", 1, 16384, &k.width_px) ||
+        !p.integer(img, "image", "height_px", 1, 16384, &k.height_px)) {
+      return false;
+    }
+    if (!p.keys(in, "intrinsics", {"fx", "fy", "cx", "cy"}) ||
+        !p.number(in, "intrinsics", "fx", 1.0, 1e6, &k.fx) ||
+        !p.number(in, "intrinsics", "fy", 1.0, 1e6, &k.fy) ||
+        !p.number(in, "intrinsics", "cx", -k.width_px, 2.0 * k.width_px, &k.cx) ||
+        !p.number(in, "intrinsics", "cy", -k.height_px, 2.0 * k.height_px, &k.cy)) {
+      return false;
+    }
+    if (!p.keys(di, "distortion", {"k1", "k2", "p1", "p2", "k3"}) ||
+        !p.number(di, "distortion", "k1", -100, 100, &k.k1) ||
+        !p.number(di, "distortion", "k2", -100, 100, &k.k2) ||
+        !p.number(di, "distortion", "p1", -1, 1, &k.p1) ||
+        !p.number(di, "distortion", "p2", -1, 1, &k.p2) ||
+        !p.number(di, "distortion", "k3", -100, 100, &k.k3)) {
+      return false;
+    }
+    double yaw_deg = 0.0;
+    if (!p.keys(mo, "mount", {"height_mm", "offset_x_mm", "offset_y_mm", "yaw_deg"}) ||
+        !p.number(mo, "mount", "height_mm", 1.0, 10000.0, &mt.height_mm) ||
+        !p.number(mo, "mount", "offset_x_mm", -10000.0, 10000.0, &mt.offset_x_mm) ||
+        !p.number(mo, "mount", "offset_y_mm", -10000.0, 10000.0, &mt.offset_y_mm) ||
+        !p.number(mo, "mount", "yaw_deg", -180.0, 180.0, &yaw_deg)) {
+      return false;
+    }
+    if (yaw_deg == -180.0) return p.fail(mo["yaw_deg"], "'mount.yaw_deg' must be in (-180, 180]");
+    mt.yaw_rad = deg_to_rad(yaw_deg);
+    if (!p.keys(lm, "landmark", {"size_mm"}) ||
+        !p.number(lm, "landmark", "size_mm", 1.0, 1000.0, &m.landmark_size_mm)) {
+      return false;
+    }
+    if (root["source"]) {
+      if (!root["source"].IsScalar()) return p.fail(root["source"], "'source' must be a string");
+      m.source = root["source"].Scalar();
+    }
+    *out = std::move(m);
+    return true;
+  } catch (const YAML::Exception& e) {
+    if (error) *error = name + ":" + std::to_string(e.mark.line + 1) + ": " + e.msg;
+    return false;
+  }
+}
+
+bool read_meta(const std::string& dir, Meta* out, std::string* error) {
+  std::string text, err;
+  if (!read_text(fs::path(dir) / "meta.yaml", &text, &err)) {
+    if (error) *error = err;
+    return false;
+  }
+  return parse_meta_yaml(text, out, error);
+}
+
+bool parse_frames_csv(const std::string& text, std::vector<FrameRow>* out, std::string* error,
+                      const std::string& name) {
+  std::vector<CsvLine> lines;
+  if (!csv_lines(text, name, "t_ns,file", &lines, error)) return false;
+  std::vector<FrameRow> rows;
+  rows.reserve(lines.size());
+  for (const CsvLine& l : lines) {
+    auto fail = [&](const std::string& why) {
+      if (error) *error = name + ":" + std::to_string(l.line_no) + ": " + why;
+      return false;
+    };
+    const auto f = split_commas(l.text);
+    if (f.size() != 2) return fail("expected 2 fields, got " + std::to_string(f.size()));
+    FrameRow r;
+    if (!parse_i64(f[0], &r.t_ns)) {
+      return fail("t_ns '" + std::string(f[0].substr(0, 40)) + "' is not an integer");
+    }
+    if (r.t_ns < 0) return fail("t_ns must not be negative");
+    if (!rows.empty() && r.t_ns <= rows.back().t_ns) {
+      return fail("t_ns " + std::to_string(r.t_ns) + " is not after the previous row's " +
+                  std::to_string(rows.back().t_ns));
+    }
+    if (!safe_relative_path(f[1])) {
+      return fail("file '" + std::string(f[1].substr(0, 80)) +
+                  "' must be a relative path inside the recording");
+    }
+    r.file = std::string(f[1]);
+    rows.push_back(std::move(r));
+  }
+  *out = std::move(rows);
+  return true;
+}
+
+bool parse_odom_csv(const std::string& text, std::vector<OdomRow>* out, std::string* error,
+                    const std::string& name) {
+  std::vector<OdomRow> rows;
+  const bool ok = parse_timed_csv(
+      text, name, "t_ns,v_mps,omega_radps", {"v_mps", "omega_radps"},
+      [&](std::int64_t t, const std::vector<double>& v, std::string* why) {
+        if (std::abs(v[0]) > 20.0) return *why = "v_mps outside [-20, 20]", false;
+        if (std::abs(v[1]) > 20.0) return *why = "omega_radps outside [-20, 20]", false;
+        rows.push_back({t, v[0], v[1]});
+        return true;
+      },
+      error);
+  if (ok) *out = std::move(rows);
+  return ok;
+}
+
+bool parse_truth_csv(const std::string& text, std::vector<TruthRow>* out, std::string* error,
+                     const std::string& name) {
+  std::vector<TruthRow> rows;
+  const bool ok = parse_timed_csv(
+      text, name, "t_ns,x_mm,y_mm,theta_deg", {"x_mm", "y_mm", "theta_deg"},
+      [&](std::int64_t t, const std::vector<double>& v, std::string* why) {
+        if (std::abs(v[0]) > 1e9 || std::abs(v[1]) > 1e9) {
+          return *why = "x_mm/y_mm outside [-1e9, 1e9]", false;
+        }
+        if (!(v[2] > -180.0 && v[2] <= 180.0)) return *why = "theta_deg outside (-180, 180]", false;
+        rows.push_back({t, v[0], v[1], v[2]});
+        return true;
+      },
+      error);
+  if (ok) *out = std::move(rows);
+  return ok;
+}
+
+bool read_recording(const std::string& dir, Recording* out, std::string* error) {
+  std::string err;
+  auto fail = [&](const std::string& why) {
+    if (error) *error = why;
+    return false;
+  };
+  try {
+    const fs::path d(dir);
+    std::error_code ec;
+    if (!fs::is_directory(d, ec)) return fail(dir + ": not a directory");
+    Recording r;
+    r.dir = dir;
+    if (!read_meta(dir, &r.meta, &err)) return fail(err);
+    std::string text;
+    if (!read_text(d / "frames.csv", &text, &err) || !parse_frames_csv(text, &r.frames, &err)) {
+      return fail(err);
+    }
+    // Every referenced image must exist and carry the PNG signature.
+    size_t line = 1;
+    for (const FrameRow& f : r.frames) {
+      ++line;
+      const fs::path p = d / f.file;
+      unsigned char sig[8] = {0};
+      std::ifstream in(p, std::ios::binary);
+      if (!fs::is_regular_file(p, ec) || !in) {
+        return fail("frames.csv:" + std::to_string(line) + ": image '" + f.file + "' is missing");
+      }
+      in.read(reinterpret_cast<char*>(sig), 8);
+      static constexpr unsigned char kPng[8] = {0x89, 'P', 'N', 'G', 0x0d, 0x0a, 0x1a, 0x0a};
+      if (in.gcount() != 8 || !std::equal(sig, sig + 8, kPng)) {
+        return fail("frames.csv:" + std::to_string(line) + ": image '" + f.file +
+                    "' is not a PNG file");
+      }
+    }
+    if (!read_text(d / "odom.csv", &text, &err) || !parse_odom_csv(text, &r.odom, &err)) {
+      return fail(err);
+    }
+    if (fs::exists(d / "truth.csv", ec)) {
+      if (!read_text(d / "truth.csv", &text, &err) || !parse_truth_csv(text, &r.truth, &err)) {
+        return fail(err);
+      }
+      r.has_truth = true;
+    }
+    *out = std::move(r);
+    return true;
+  } catch (const std::exception& e) {
+    return fail(dir + ": " + e.what());
+  }
+}
+
+bool load_frame(const Recording& rec, size_t i, cv::Mat* image, std::string* error) {
+  if (i >= rec.frames.size()) {
+    if (error) *error = "frame index " + std::to_string(i) + " out of range";
+    return false;
+  }
+  const std::string path = (fs::path(rec.dir) / rec.frames[i].file).string();
+  cv::Mat img;
+  try {
+    img = cv::imread(path, cv::IMREAD_GRAYSCALE);
+  } catch (const cv::Exception&) {
+    img.release();
+  }
+  if (img.empty()) {
+    if (error) *error = "frames.csv:" + std::to_string(i + 2) + ": cannot decode '" + rec.frames[i].file + "'";
+    return false;
+  }
+  const auto& k = rec.meta.camera.intrinsics;
+  if (img.cols != k.width_px || img.rows != k.height_px) {
+    if (error) {
+      *error = "frames.csv:" + std::to_string(i + 2) + ": '" + rec.frames[i].file + "' is " +
+               std::to_string(img.cols) + "x" + std::to_string(img.rows) + ", meta.yaml says " +
+               std::to_string(k.width_px) + "x" + std::to_string(k.height_px);
+    }
+    return false;
+  }
+  *image = img;
+  return true;
+}
+
+bool write_meta(const std::string& dir, const Meta& m, std::string* error) {
+  const auto& k = m.camera.intrinsics;
+  const auto& mt = m.camera.mount;
+  std::ostringstream os;
+  os << "# agvloc recording metadata, docs/recording.md\n"
+     << "format_version: " << m.format_version << "\n";
+  if (!m.source.empty()) {
+    // Double-quoted YAML scalar with escapes, so any text round-trips.
+    std::string q;
+    for (char c : m.source) {
+      if (c == '"' || c == '\\') q += '\\';
+      if (c == '\n') {
+        q += "\\n";
+        continue;
+      }
+      q += c;
+    }
+    os << "source: \"" << q << "\"\n";
+  }
+  os << "image:\n  width_px: " << k.width_px << "\n  height_px: " << k.height_px << "\n"
+     << "intrinsics:\n  fx: " << fmt_g17(k.fx) << "\n  fy: " << fmt_g17(k.fy)
+     << "\n  cx: " << fmt_g17(k.cx) << "\n  cy: " << fmt_g17(k.cy) << "\n"
+     << "distortion:\n  k1: " << fmt_g17(k.k1) << "\n  k2: " << fmt_g17(k.k2)
+     << "\n  p1: " << fmt_g17(k.p1) << "\n  p2: " << fmt_g17(k.p2) << "\n  k3: " << fmt_g17(k.k3)
+     << "\n"
+     << "mount:\n  height_mm: " << fmt_g17(mt.height_mm)
+     << "\n  offset_x_mm: " << fmt_g17(mt.offset_x_mm)
+     << "\n  offset_y_mm: " << fmt_g17(mt.offset_y_mm)
+     << "\n  yaw_deg: " << fmt_g17(rad_to_deg(wrap_angle_rad(mt.yaw_rad))) << "\n"
+     << "landmark:\n  size_mm: " << fmt_g17(m.landmark_size_mm) << "\n";
+  // Refuse to write what the reader would reject.
+  Meta check;
+  std::string err;
+  if (!parse_meta_yaml(os.str(), &check, &err)) {
+    if (error) *error = "refusing to write invalid meta: " + err;
+    return false;
+  }
+  return write_text(fs::path(dir) / "meta.yaml", os.str(), error);
+}
+
+bool write_frames_csv(const std::string& dir, const std::vector<FrameRow>& rows, std::string* error) {
+  std::string s = "t_ns,file\n";
+  for (const FrameRow& r : rows) {
+    if (!safe_relative_path(r.file) || r.file.find(',') != std::string::npos) {
+      if (error) *error = "frames.csv: file name '" + r.file + "' cannot be written";
+      return false;
+    }
+    s += std::to_string(r.t_ns) + "," + r.file + "\n";
+  }
+  return write_text(fs::path(dir) / "frames.csv", s, error);
+}
+
+bool write_odom_csv(const std::string& dir, const std::vector<OdomRow>& rows, std::string* error) {
+  std::string s = "t_ns,v_mps,omega_radps\n";
+  char buf[96];
+  for (const OdomRow& r : rows) {
+    std::snprintf(buf, sizeof buf, "%lld,%.9g,%.9g\n", static_cast<long long>(r.t_ns), r.v_mps,
+                  r.omega_radps);
+    s += buf;
+  }
+  return write_text(fs::path(dir) / "odom.csv", s, error);
+}
+
+bool write_truth_csv(const std::string& dir, const std::vector<TruthRow>& rows, std::string* error) {
+  std::string s = "t_ns,x_mm,y_mm,theta_deg\n";
+  char buf[128];
+  for (const TruthRow& r : rows) {
+    // Round first, then wrap, so -179.9999999 never prints as the out-of-range -180.000000.
+    double th = std::round(wrap_angle_deg(r.theta_deg) * 1e6) / 1e6;
+    if (th <= -180.0) th += 360.0;
+    std::snprintf(buf, sizeof buf, "%lld,%.4f,%.4f,%.6f\n", static_cast<long long>(r.t_ns), r.x_mm,
+                  r.y_mm, th);
+    s += buf;
+  }
+  return write_text(fs::path(dir) / "truth.csv", s, error);
+}
+
+bool write_frame_png(const std::string& dir, const std::string& relative_file,
+                     const cv::Mat& image, std::string* error) {
+  if (image.empty() || image.type() != CV_8UC1 || !safe_relative_path(relative_file)) {
+    if (error) *error = relative_file + ": need an 8-bit grey image and a relative path";
+    return false;
+  }
+  const fs::path p = fs::path(dir) / relative_file;
+  std::error_code ec;
+  fs::create_directories(p.parent_path(), ec);
+  bool ok = false;
+  try {
+    // Fast zlib level: frames are written at 30 fps by the simulator and the recorder.
+    ok = cv::imwrite(p.string(), image, {cv::IMWRITE_PNG_COMPRESSION, 1});
+  } catch (const cv::Exception&) {
+    ok = false;
+  }
+  if (!ok && error) *error = p.string() + ": cannot write PNG";
+  return ok;
+}
+
+}  // namespace agv::recording

@@ -1,0 +1,315 @@
+// Recording format: exact round trip, and every kind of malformed input is rejected with
+// "file:line: reason" instead of crashing or being half-accepted.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <opencv2/core.hpp>
+#include <random>
+#include <sstream>
+
+#include "agv/recording/recording.hpp"
+
+using namespace agv;
+using namespace agv::recording;
+namespace fs = std::filesystem;
+
+namespace {
+
+fs::path fresh_dir(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / ("agv_test_recording_" + std::to_string(::getpid()) + "_" + name);
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  std::ostringstream s;
+  s << f.rdbuf();
+  return s.str();
+}
+
+void spit(const fs::path& p, const std::string& text) {
+  std::ofstream f(p, std::ios::binary | std::ios::trunc);
+  f << text;
+}
+
+Meta sample_meta() {
+  Meta m;
+  m.camera = CameraModel::default_640x480();
+  m.camera.intrinsics.width_px = 64;
+  m.camera.intrinsics.height_px = 48;
+  m.camera.intrinsics.cx = 31.7;
+  m.camera.intrinsics.cy = 23.25;
+  m.camera.intrinsics.k1 = -0.2134;
+  m.camera.intrinsics.k2 = 0.051;
+  m.camera.intrinsics.p1 = 1e-4;
+  m.camera.intrinsics.p2 = -3e-4;
+  m.camera.intrinsics.k3 = -0.01;
+  m.camera.mount = {35.5, -12.25, deg_to_rad(3.5), 201.5};
+  m.landmark_size_mm = 60.0;
+  m.source = "agvloc sim --seed 3 \"quoted\"";
+  return m;
+}
+
+// Writes a small valid recording and returns its directory.
+fs::path write_sample(const std::string& name) {
+  const fs::path d = fresh_dir(name);
+  std::string err;
+  EXPECT_TRUE(write_meta(d.string(), sample_meta(), &err)) << err;
+  std::vector<FrameRow> frames;
+  for (int i = 0; i < 3; ++i) {
+    cv::Mat img(48, 64, CV_8UC1, cv::Scalar(40 * i));
+    char f[32];
+    std::snprintf(f, sizeof f, "frames/%06d.png", i);
+    EXPECT_TRUE(write_frame_png(d.string(), f, img, &err)) << err;
+    frames.push_back({1000000000LL + i * 33333333LL, f});
+  }
+  EXPECT_TRUE(write_frames_csv(d.string(), frames, &err)) << err;
+  std::vector<OdomRow> odom;
+  std::vector<TruthRow> truth;
+  for (int i = 0; i < 10; ++i) {
+    odom.push_back({1000000000LL + i * 10000000LL, 0.5 + 0.001 * i, -0.1234567});
+    truth.push_back({1000000000LL + i * 10000000LL, 1000.0 + 5.0 * i, -20.125, 179.9999999});
+  }
+  EXPECT_TRUE(write_odom_csv(d.string(), odom, &err)) << err;
+  EXPECT_TRUE(write_truth_csv(d.string(), truth, &err)) << err;
+  return d;
+}
+
+// Reads and expects failure with a message starting with `prefix` (file:line).
+void expect_rejected(const fs::path& d, const std::string& prefix) {
+  Recording r;
+  std::string err;
+  EXPECT_FALSE(read_recording(d.string(), &r, &err));
+  EXPECT_EQ(err.rfind(prefix, 0), 0u) << "got: " << err;
+}
+
+}  // namespace
+
+TEST(Recording, RoundTrip) {
+  const fs::path d = write_sample("roundtrip");
+  Recording r;
+  std::string err;
+  ASSERT_TRUE(read_recording(d.string(), &r, &err)) << err;
+  const Meta m = sample_meta();
+  const auto& a = r.meta.camera.intrinsics;
+  const auto& b = m.camera.intrinsics;
+  EXPECT_EQ(a.width_px, b.width_px);
+  EXPECT_EQ(a.height_px, b.height_px);
+  EXPECT_EQ(a.fx, b.fx);
+  EXPECT_EQ(a.cx, b.cx);
+  EXPECT_EQ(a.cy, b.cy);
+  EXPECT_EQ(a.k1, b.k1);
+  EXPECT_EQ(a.k2, b.k2);
+  EXPECT_EQ(a.p1, b.p1);
+  EXPECT_EQ(a.p2, b.p2);
+  EXPECT_EQ(a.k3, b.k3);
+  EXPECT_EQ(r.meta.camera.mount.offset_x_mm, m.camera.mount.offset_x_mm);
+  EXPECT_EQ(r.meta.camera.mount.offset_y_mm, m.camera.mount.offset_y_mm);
+  EXPECT_EQ(r.meta.camera.mount.height_mm, m.camera.mount.height_mm);
+  EXPECT_NEAR(r.meta.camera.mount.yaw_rad, m.camera.mount.yaw_rad, 1e-15);
+  EXPECT_EQ(r.meta.landmark_size_mm, 60.0);
+  EXPECT_EQ(r.meta.source, m.source);
+  ASSERT_EQ(r.frames.size(), 3u);
+  EXPECT_EQ(r.frames[2].t_ns, 1000000000LL + 2 * 33333333LL);
+  EXPECT_EQ(r.frames[1].file, "frames/000001.png");
+  ASSERT_EQ(r.odom.size(), 10u);
+  EXPECT_EQ(r.odom[9].t_ns, 1090000000LL);
+  EXPECT_NEAR(r.odom[9].v_mps, 0.509, 1e-12);
+  EXPECT_NEAR(r.odom[3].omega_radps, -0.1234567, 1e-12);
+  ASSERT_TRUE(r.has_truth);
+  ASSERT_EQ(r.truth.size(), 10u);
+  EXPECT_NEAR(r.truth[4].x_mm, 1020.0, 1e-9);
+  EXPECT_NEAR(r.truth[4].y_mm, -20.125, 1e-9);
+  EXPECT_NEAR(r.truth[4].theta_deg, 180.0, 1e-6);  // 179.9999999 rounds to 180, stays in range
+  cv::Mat img;
+  ASSERT_TRUE(load_frame(r, 2, &img, &err)) << err;
+  EXPECT_EQ(img.at<std::uint8_t>(5, 5), 80);
+  EXPECT_FALSE(load_frame(r, 3, &img, &err));
+  // truth.csv is optional.
+  fs::remove(d / "truth.csv");
+  ASSERT_TRUE(read_recording(d.string(), &r, &err)) << err;
+  EXPECT_FALSE(r.has_truth);
+  EXPECT_TRUE(r.truth.empty());
+  fs::remove_all(d);
+}
+
+TEST(Recording, WrongImageSizeRejectedOnLoad) {
+  const fs::path d = write_sample("imgsize");
+  std::string err;
+  ASSERT_TRUE(write_frame_png(d.string(), "frames/000001.png", cv::Mat(10, 10, CV_8UC1, cv::Scalar(0)), &err));
+  Recording r;
+  ASSERT_TRUE(read_recording(d.string(), &r, &err)) << err;
+  cv::Mat img;
+  EXPECT_FALSE(load_frame(r, 1, &img, &err));
+  EXPECT_EQ(err.rfind("frames.csv:3:", 0), 0u) << err;
+  fs::remove_all(d);
+}
+
+TEST(Recording, MalformedCsvRejectedWithFileAndLine) {
+  struct Case {
+    const char* file;
+    std::string text;
+    const char* prefix;
+  };
+  const std::vector<Case> cases = {
+      {"frames.csv", "t,file\n1,frames/000000.png\n", "frames.csv:1:"},
+      {"frames.csv", "", "frames.csv:1:"},
+      {"frames.csv", "t_ns,file\n1000000000,frames/000000.png\n1000000000,frames/000001.png\n", "frames.csv:3:"},
+      {"frames.csv", "t_ns,file\n1000000000,frames/000000.png\n999,frames/000001.png\n", "frames.csv:3:"},
+      {"frames.csv", "t_ns,file\n1000000000,frames/000000.png\n1000000001,frames/nope.png\n", "frames.csv:3:"},
+      {"frames.csv", "t_ns,file\n1000000000,../etc/passwd\n", "frames.csv:2:"},
+      {"frames.csv", "t_ns,file\n1e9,frames/000000.png\n", "frames.csv:2:"},
+      {"frames.csv", "t_ns,file\n1000000000,frames/000000.png,x\n", "frames.csv:2:"},
+      {"frames.csv", "t_ns,file\n1000000000,frames/000000.png\n\n", "frames.csv:3:"},
+      {"frames.csv", "t_ns,file\n-5,frames/000000.png\n", "frames.csv:2:"},
+      {"odom.csv", "t_ns,v_mps,omega_radps\n1,0.5,0.1\n2,abc,0.1\n", "odom.csv:3:"},
+      {"odom.csv", "t_ns,v_mps,omega_radps\n1,0.5,0.1\n2,0.5,nan\n", "odom.csv:3:"},
+      {"odom.csv", "t_ns,v_mps,omega_radps\n1,0.5,0.1\n2,0.5\n", "odom.csv:3:"},
+      {"odom.csv", "t_ns,v_mps,omega_radps\n1,0.5,0.1\n2,0.5,0.1", "odom.csv:3:"},  // truncated
+      {"odom.csv", "t_ns,v_mps,omega_radps\n1,0.5,0.1\n1,0.5,0.1\n", "odom.csv:3:"},
+      {"odom.csv", "t_ns,v_mps,omega_radps\n1,99,0.1\n", "odom.csv:2:"},
+      {"odom.csv", "t_ns,v_mps,omega_radps\n1, 0.5,0.1\n", "odom.csv:2:"},
+      {"odom.csv", "t_ns,v_mps\n1,0.5\n", "odom.csv:1:"},
+      {"odom.csv", "t_ns,v_mps,omega_radps\n99999999999999999999,0.5,0.1\n", "odom.csv:2:"},
+      {"odom.csv", std::string("t_ns,v_mps,omega_radps\n1,0.5,0.1\n2,0.\0,0.1\n", 46), "odom.csv:3:"},
+      {"truth.csv", "t_ns,x_mm,y_mm,theta_deg\n1,0,0,-180\n", "truth.csv:2:"},
+      {"truth.csv", "t_ns,x_mm,y_mm,theta_deg\n1,0,0,0\n2,0,0,0\n0,0,0,0\n", "truth.csv:4:"},
+  };
+  for (const Case& c : cases) {
+    const fs::path d = write_sample("csv");
+    spit(d / c.file, c.text);
+    SCOPED_TRACE(std::string(c.file) + " <<" + c.text + ">>");
+    expect_rejected(d, c.prefix);
+    fs::remove_all(d);
+  }
+}
+
+TEST(Recording, MissingFilesAndBrokenImages) {
+  fs::path d = write_sample("missing");
+  fs::remove(d / "frames" / "000001.png");
+  expect_rejected(d, "frames.csv:3:");
+  fs::remove_all(d);
+  d = write_sample("notpng");
+  spit(d / "frames" / "000002.png", "GIF89a....");
+  expect_rejected(d, "frames.csv:4:");
+  fs::remove_all(d);
+  d = write_sample("noodom");
+  fs::remove(d / "odom.csv");
+  expect_rejected(d, "odom.csv:");
+  fs::remove_all(d);
+  d = write_sample("nometa");
+  fs::remove(d / "meta.yaml");
+  expect_rejected(d, "meta.yaml:");
+  fs::remove_all(d);
+  expect_rejected("/nonexistent/agv/recording", "/nonexistent/agv/recording: not a directory");
+}
+
+TEST(Recording, MalformedMetaRejectedNamingTheKey) {
+  const fs::path d = write_sample("meta");
+  const std::string good = slurp(d / "meta.yaml");
+  auto replace = [&](const std::string& from, const std::string& to) {
+    std::string s = good;
+    const size_t p = s.find(from);
+    EXPECT_NE(p, std::string::npos) << from;
+    return s.replace(p, from.size(), to);
+  };
+  struct Case {
+    std::string text;
+    std::string must_contain;
+  };
+  const std::vector<Case> cases = {
+      {replace("  fx: ", "  fxx: "), "unknown key 'intrinsics.fxx'"},
+      {replace("  k3: ", "  k3: 1\n  k4: "), "unknown key 'distortion.k4'"},
+      {replace("landmark:\n  size_mm: 60\n", ""), "missing key 'landmark'"},
+      {replace("  height_px: 48\n", ""), "missing key 'image.height_px'"},
+      {replace("  width_px: 64", "  width_px: 64.5"), "'image.width_px' must be an integer"},
+      {replace("  width_px: 64", "  width_px: wide"), "'image.width_px' must be an integer"},
+      {replace("  cy: 23.25", "  cy: [1, 2]"), "'intrinsics.cy' must be a number"},
+      {replace("  height_mm: ", "  height_mm: -"), "'mount.height_mm'"},
+      {replace("  fy: ", "  fy: .nan\n  fq: "), "unknown key"},
+      {replace("format_version: 1", "format_version: 2"), "unsupported format_version 2"},
+      {replace("  size_mm: 60", "  size_mm: .inf"), "'landmark.size_mm' must be a finite number"},
+      {replace("image:", "image: [\n"), "YAML syntax"},
+      {"just a string\n", "top level must be a mapping"},
+      {"", "top level must be a mapping"},
+      {replace("  yaw_deg: ", "  yaw_deg: 400 #"), "'mount.yaw_deg' = 400 is outside"},
+  };
+  for (const Case& c : cases) {
+    spit(d / "meta.yaml", c.text);
+    Recording r;
+    std::string err;
+    EXPECT_FALSE(read_recording(d.string(), &r, &err)) << c.text;
+    EXPECT_EQ(err.rfind("meta.yaml:", 0), 0u) << err;
+    EXPECT_NE(err.find(c.must_contain), std::string::npos) << "got: " << err;
+  }
+  // The line number points at the offending key.
+  spit(d / "meta.yaml", replace("  fx: ", "  fxx: "));
+  Recording r;
+  std::string err;
+  EXPECT_FALSE(read_recording(d.string(), &r, &err));
+  std::istringstream in(replace("  fx: ", "  fxx: "));
+  std::string line;
+  int n = 0, fx_line = 0;
+  while (std::getline(in, line)) {
+    ++n;
+    if (line.find("fxx") != std::string::npos) fx_line = n;
+  }
+  EXPECT_EQ(err.rfind("meta.yaml:" + std::to_string(fx_line) + ":", 0), 0u) << err;
+  fs::remove_all(d);
+}
+
+TEST(Recording, GarbageAndTruncationNeverCrash) {
+  const fs::path d = write_sample("garbage");
+  std::mt19937 rng(5);
+  const std::vector<std::string> files = {"meta.yaml", "frames.csv", "odom.csv", "truth.csv"};
+  for (const std::string& f : files) {
+    const std::string good = slurp(d / f);
+    // Every truncation point: either accepted (cut exactly at a line end) or rejected.
+    // Every truncation point through the parser, every 9th through the whole reader.
+    for (size_t cut = 0; cut < good.size(); ++cut) {
+      const std::string part = good.substr(0, cut);
+      std::string err;
+      bool ok = false;
+      if (f == "meta.yaml") {
+        Meta m;
+        ok = parse_meta_yaml(part, &m, &err);
+      } else if (f == "frames.csv") {
+        std::vector<FrameRow> rows;
+        ok = parse_frames_csv(part, &rows, &err);
+      } else if (f == "odom.csv") {
+        std::vector<OdomRow> rows;
+        ok = parse_odom_csv(part, &rows, &err);
+      } else {
+        std::vector<TruthRow> rows;
+        ok = parse_truth_csv(part, &rows, &err);
+      }
+      if (cut % 9 == 0) {
+        spit(d / f, part);
+        Recording r;
+        std::string err2;
+        EXPECT_EQ(read_recording(d.string(), &r, &err2), ok)
+            << f << " cut " << cut << ": " << err2;
+      }
+      if (!ok) {
+        EXPECT_FALSE(err.empty());
+      } else {
+        EXPECT_TRUE(f == "meta.yaml" || cut == 0 || good[cut - 1] == '\n') << f << " cut " << cut;
+      }
+    }
+    for (int trial = 0; trial < 50; ++trial) {
+      std::string g = good;
+      for (int k = 0; k < 4; ++k) {
+        g[rng() % g.size()] = static_cast<char>(rng() % 256);
+      }
+      spit(d / f, g);
+      Recording r;
+      std::string err;
+      (void)read_recording(d.string(), &r, &err);
+    }
+    spit(d / f, good);
+  }
+  fs::remove_all(d);
+}
