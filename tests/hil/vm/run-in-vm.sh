@@ -178,6 +178,12 @@ if [ -d "$R$AGV_VM_MODDIR" ] && mount -t tmpfs tmpfs $R/lib/modules; then
   mkdir -p "$R/lib/modules/$AGV_VM_KVER"
   mount -o bind "$R$AGV_VM_MODDIR" "$R/lib/modules/$AGV_VM_KVER"
 fi
+# The kernel's on-demand module loading (request_module, e.g. for `tc qdisc ... tbf`) runs
+# /sbin/modprobe in THIS root, not in the chroot: give busybox modprobe the modules as well.
+if [ -d "$R$AGV_VM_MODDIR" ]; then
+  mkdir -p "/lib/modules/$AGV_VM_KVER"
+  mount -o bind "$R$AGV_VM_MODDIR" "/lib/modules/$AGV_VM_KVER"
+fi
 ip link set lo up 2>/dev/null
 echo "AGV-VM: COMMAND-START uptime $(cut -d' ' -f1 /proc/uptime)"
 cut -d' ' -f1 /proc/uptime >"$R$AGV_VM_RESULTS/.vm/uptime_start"
