@@ -1,0 +1,430 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <random>
+
+#include "agv/common/geometry.hpp"
+#include "agv/protocol/codec.hpp"
+
+namespace p = agv::protocol;
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+const p::SignalDef& sig(p::Msg m, const char* name) {
+  const p::SignalDef* s = p::find_signal(p::message_def(m), name);
+  EXPECT_NE(s, nullptr) << name;
+  return *s;
+}
+
+p::PoseOut roundtrip(p::Encoder& enc, const p::PoseOut& in, const p::ProtocolConfig& cfg = {}) {
+  p::CanFrameData xy, hd;
+  enc.encode_pose(in, &xy, &hd);
+  p::PoseOut out;
+  EXPECT_TRUE(p::decode_pose(cfg, xy, hd, &out));
+  return out;
+}
+
+// A frame for the odometry decoder, with E2E like a motor controller would send it.
+p::CanFrameData odom_frame(const p::ProtocolConfig& cfg, double a, double b, std::uint8_t counter,
+                           std::int64_t t_ns) {
+  const p::Msg m = cfg.odometry.mode == p::OdometryMode::kWheels ? p::Msg::kOdomWheels
+                                                                  : p::Msg::kOdomTwist;
+  const p::MessageDef& d = p::message_def(m);
+  p::CanFrameData f;
+  f.id = p::can_id_of(cfg, m);
+  f.extended = cfg.odometry.extended_id;
+  f.len = 8;
+  f.t_ns = t_ns;
+  p::put_phys(d.signals[2], a, f.data);
+  p::put_phys(d.signals[3], b, f.data);
+  p::e2e_protect(cfg.odometry.data_id ? cfg.odometry.data_id : d.data_id, counter, f.data);
+  return f;
+}
+
+}  // namespace
+
+TEST(SignalTable, LayoutIsConsistent) {
+  for (const p::MessageDef& m : p::message_table()) {
+    std::uint64_t used = 0;
+    ASSERT_EQ(&p::message_def(m.msg), &m);
+    ASSERT_GE(m.signals.size(), 2u);
+    EXPECT_STREQ(m.signals[0].name, "CRC");
+    EXPECT_STREQ(m.signals[1].name, "AliveCounter");
+    for (const p::SignalDef& s : m.signals) {
+      ASSERT_LE(s.start_bit + s.length, 8 * m.dlc) << m.name << "." << s.name;
+      const std::uint64_t bits = ((s.length == 64 ? 0 : (1ull << s.length)) - 1) << s.start_bit;
+      EXPECT_EQ(used & bits, 0u) << m.name << "." << s.name << " overlaps";
+      used |= bits;
+      // The physical range must be representable: no silent wrap inside [min, max].
+      const std::int64_t lo = s.is_signed ? -(1ll << (s.length - 1)) : 0;
+      const std::int64_t hi = s.is_signed ? (1ll << (s.length - 1)) - 1 : (1ll << s.length) - 1;
+      EXPECT_GE(p::raw_min(s), lo) << m.name << "." << s.name;
+      EXPECT_LE(p::raw_max(s), hi) << m.name << "." << s.name;
+      EXPECT_GT(s.scale, 0.0);
+    }
+  }
+}
+
+TEST(SignalPacking, SignedAndUnsignedAtEveryBitOffset) {
+  for (int len : {1, 4, 12, 16, 24}) {
+    for (int start = 0; start + len <= 64; start += 3) {
+      for (bool is_signed : {false, true}) {
+        if (is_signed && len == 1) continue;
+        const double maxv = is_signed ? std::ldexp(1.0, len - 1) - 1 : std::ldexp(1.0, len) - 1;
+        const double minv = is_signed ? -std::ldexp(1.0, len - 1) : 0.0;
+        p::SignalDef s{"S", static_cast<std::uint8_t>(start), static_cast<std::uint8_t>(len),
+                       true, is_signed, 1.0, 0.0, minv, maxv, "", ""};
+        for (double v : {minv, maxv, 0.0, std::floor(maxv / 3)}) {
+          std::uint8_t d[8];
+          std::memset(d, 0xA5, sizeof d);
+          std::uint8_t before[8];
+          std::memcpy(before, d, sizeof d);
+          p::put_phys(s, v, d);
+          EXPECT_EQ(p::get_phys(s, d), v) << "len " << len << " start " << start;
+          // Bits outside the signal are untouched.
+          for (int bit = 0; bit < 64; ++bit) {
+            if (bit >= start && bit < start + len) continue;
+            EXPECT_EQ((d[bit / 8] >> (bit % 8)) & 1, (before[bit / 8] >> (bit % 8)) & 1);
+          }
+        }
+      }
+    }
+  }
+}
+
+TEST(Codec, PoseRoundTripOverTheFullRange) {
+  p::Encoder enc({});
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> pos(-838860.8, 838860.7), ang(-agv::kPi, agv::kPi);
+  for (int i = 0; i < 2000; ++i) {
+    p::PoseOut in{pos(rng), pos(rng), ang(rng), 12.3, true};
+    const p::PoseOut out = roundtrip(enc, in);
+    EXPECT_NEAR(out.x_mm, in.x_mm, 0.05 + 1e-9);
+    EXPECT_NEAR(out.y_mm, in.y_mm, 0.05 + 1e-9);
+    EXPECT_NEAR(out.theta_rad, in.theta_rad, 0.00005 + 1e-12);
+    EXPECT_NEAR(out.latency_ms, 12.3, 0.05 + 1e-9);
+    EXPECT_TRUE(out.valid);
+  }
+}
+
+TEST(Codec, PoseSaturatesInsteadOfWrapping) {
+  p::Encoder enc({});
+  p::PoseOut out = roundtrip(enc, {838860.7, -838860.8, 0.0, 0.0, true});
+  EXPECT_DOUBLE_EQ(out.x_mm, 838860.7);
+  EXPECT_DOUBLE_EQ(out.y_mm, -838860.8);
+  out = roundtrip(enc, {1e7, -1e7, 0.0, 1e9, true});  // far beyond: saturate, do not wrap
+  EXPECT_DOUBLE_EQ(out.x_mm, 838860.7);
+  EXPECT_DOUBLE_EQ(out.y_mm, -838860.8);
+  EXPECT_DOUBLE_EQ(out.latency_ms, 6553.5);
+  EXPECT_TRUE(out.valid);
+  out = roundtrip(enc, {838860.76, -838860.86, 0.0, -5.0, true});  // just beyond the last LSB
+  EXPECT_DOUBLE_EQ(out.x_mm, 838860.7);
+  EXPECT_DOUBLE_EQ(out.y_mm, -838860.8);
+  EXPECT_DOUBLE_EQ(out.latency_ms, 0.0);
+}
+
+TEST(Codec, NonFiniteInputClearsValidOrSaturates) {
+  p::Encoder enc({});
+  p::PoseOut out = roundtrip(enc, {kNaN, 1.0, 0.0, 0.0, true});
+  EXPECT_FALSE(out.valid);
+  EXPECT_EQ(out.x_mm, 0.0);
+  out = roundtrip(enc, {kInf, -kInf, 0.0, kNaN, true});
+  EXPECT_FALSE(out.valid);
+  EXPECT_DOUBLE_EQ(out.x_mm, 838860.7);
+  EXPECT_DOUBLE_EQ(out.y_mm, -838860.8);
+  EXPECT_DOUBLE_EQ(out.latency_ms, 6553.5);  // unknown latency is reported as the worst
+  out = roundtrip(enc, {1.0, 2.0, 0.5, 0.0, false});
+  EXPECT_FALSE(out.valid);
+}
+
+TEST(Codec, HeadingIsWrappedBeforeEncoding) {
+  p::Encoder enc({});
+  EXPECT_NEAR(roundtrip(enc, {0, 0, 3 * agv::kPi / 2, 0, true}).theta_rad, -agv::kPi / 2, 1e-4);
+  EXPECT_NEAR(roundtrip(enc, {0, 0, agv::kPi, 0, true}).theta_rad, agv::kPi, 1e-4);
+  EXPECT_NEAR(roundtrip(enc, {0, 0, -7.0, 0, true}).theta_rad, agv::wrap_angle_rad(-7.0), 1e-4);
+}
+
+TEST(Codec, PosePairSharesTheCounterAndCountersWrap) {
+  p::Encoder enc({});
+  p::CanFrameData xy, hd;
+  for (int i = 0; i < 40; ++i) {
+    enc.encode_pose({1, 2, 0.1, 0, true}, &xy, &hd);
+    EXPECT_EQ(xy.data[1] & 0x0F, i % 15);
+    EXPECT_EQ(hd.data[1] & 0x0F, i % 15);
+    EXPECT_EQ(xy.data[0], p::e2e_crc(p::message_def(p::Msg::kPoseXY).data_id, xy.data));
+    EXPECT_EQ(hd.data[0], p::e2e_crc(p::message_def(p::Msg::kPoseHeading).data_id, hd.data));
+  }
+  // Counters are per message: the velocity frame starts at 0.
+  p::CanFrameData v;
+  enc.encode_velocity({1, 1, true}, &v);
+  EXPECT_EQ(v.data[1] & 0x0F, 0);
+  // A mismatched pair (counters differ) decodes as invalid.
+  p::CanFrameData xy2, hd2;
+  enc.encode_pose({1, 2, 0.1, 0, true}, &xy2, &hd2);
+  p::PoseOut out;
+  ASSERT_TRUE(p::decode_pose({}, xy, hd2, &out));
+  EXPECT_FALSE(out.valid);
+}
+
+TEST(Codec, IdsStandardAndExtended) {
+  p::ProtocolConfig cfg;
+  p::Encoder enc(cfg);
+  p::CanFrameData f, g;
+  enc.encode_pose({}, &f, &g);
+  EXPECT_EQ(f.id, 0x300u);
+  EXPECT_EQ(g.id, 0x301u);
+  EXPECT_FALSE(f.extended);
+  EXPECT_EQ(f.len, 8);
+  enc.encode_heartbeat({}, &f);
+  EXPECT_EQ(f.id, 0x305u);
+
+  cfg.base_id = 0x18FF1000;
+  cfg.extended_ids = true;
+  EXPECT_NE(p::validate(cfg), "");  // odometry still standard: 0x18FF1010 does not fit
+  cfg.odometry.extended_id = true;
+  EXPECT_EQ(p::validate(cfg), "");
+  p::Encoder ext(cfg);
+  ext.encode_status({}, &f);
+  EXPECT_EQ(f.id, 0x18FF1004u);
+  EXPECT_TRUE(f.extended);
+  EXPECT_EQ(p::identify(cfg, f), p::Msg::kStatus);
+}
+
+TEST(Codec, ValidateRejectsBadConfigs) {
+  p::ProtocolConfig cfg;
+  EXPECT_EQ(p::validate(cfg), "");
+  cfg.base_id = 0x7FE;  // +5 does not fit 11 bits
+  EXPECT_NE(p::validate(cfg), "");
+  cfg = {};
+  cfg.odometry.can_id = 0x302;  // collides with AGV_Velocity
+  EXPECT_NE(p::validate(cfg), "");
+  cfg = {};
+  cfg.odometry.track_width_mm = 0.0;
+  EXPECT_NE(p::validate(cfg), "");
+  cfg = {};
+  cfg.odometry.timeout_ns = 0;
+  EXPECT_NE(p::validate(cfg), "");
+  cfg = {};
+  cfg.odometry.max_delta_counter = 15;
+  EXPECT_NE(p::validate(cfg), "");
+}
+
+TEST(Codec, VelocityQualityRoundTripAndSaturation) {
+  p::Encoder enc({});
+  p::CanFrameData f;
+  p::VelocityOut v;
+  enc.encode_velocity({1.2345, -0.54321, true}, &f);
+  ASSERT_TRUE(p::decode_velocity({}, f, &v));
+  EXPECT_NEAR(v.v_mps, 1.2345, 0.0005 + 1e-12);
+  EXPECT_NEAR(v.omega_radps, -0.54321, 0.00005 + 1e-12);
+  EXPECT_TRUE(v.valid);
+  enc.encode_velocity({100.0, -100.0, true}, &f);
+  ASSERT_TRUE(p::decode_velocity({}, f, &v));
+  EXPECT_DOUBLE_EQ(v.v_mps, 32.767);
+  EXPECT_DOUBLE_EQ(v.omega_radps, -3.2768);
+  enc.encode_velocity({kNaN, 0.0, true}, &f);
+  ASSERT_TRUE(p::decode_velocity({}, f, &v));
+  EXPECT_FALSE(v.valid);
+
+  p::QualityOut q;
+  enc.encode_quality({0.84, 1.26, 0.0123, true}, &f);
+  ASSERT_TRUE(p::decode_quality({}, f, &q));
+  EXPECT_NEAR(q.sigma_x_mm, 0.84, 0.05 + 1e-12);
+  EXPECT_NEAR(q.sigma_y_mm, 1.26, 0.05 + 1e-12);
+  EXPECT_NEAR(q.sigma_theta_rad, 0.0123, 0.00005 + 1e-12);
+  EXPECT_TRUE(q.valid);
+  enc.encode_quality({kInf, 1e9, -1.0, true}, &f);  // huge: saturate; negative: clamp to 0
+  ASSERT_TRUE(p::decode_quality({}, f, &q));
+  EXPECT_DOUBLE_EQ(q.sigma_x_mm, 6553.5);
+  EXPECT_DOUBLE_EQ(q.sigma_y_mm, 6553.5);
+  EXPECT_DOUBLE_EQ(q.sigma_theta_rad, 0.0);
+  EXPECT_TRUE(q.valid);
+  enc.encode_quality({1.0, kNaN, 0.1, true}, &f);
+  ASSERT_TRUE(p::decode_quality({}, f, &q));
+  EXPECT_FALSE(q.valid);
+}
+
+TEST(Codec, StatusFlagsAndTimeSinceFix) {
+  p::Encoder enc({});
+  p::CanFrameData f;
+  p::StatusOut s;
+  s.health = p::Health::kDegraded;
+  s.last_landmark_id = 65535;
+  s.time_since_fix_ms = 1234.4;
+  s.faults = p::fault::kOdomTimeout | p::fault::kCanBusOff | p::fault::kLoopOverrun;
+  s.rejections = p::reject::kGate | p::reject::kFixTooOld | 0xE0;  // reserved bits dropped
+  enc.encode_status(s, &f);
+  p::StatusOut d;
+  ASSERT_TRUE(p::decode_status({}, f, &d));
+  EXPECT_EQ(d.health, p::Health::kDegraded);
+  EXPECT_EQ(d.last_landmark_id, 65535);
+  EXPECT_DOUBLE_EQ(d.time_since_fix_ms, 1234.0);
+  EXPECT_EQ(d.faults, s.faults);
+  EXPECT_EQ(d.rejections, p::reject::kGate | p::reject::kFixTooOld);
+  // Each flag lands on its named DBC signal.
+  EXPECT_EQ(p::get_raw(sig(p::Msg::kStatus, "FaultOdomTimeout"), f.data), 1);
+  EXPECT_EQ(p::get_raw(sig(p::Msg::kStatus, "FaultCanBusOff"), f.data), 1);
+  EXPECT_EQ(p::get_raw(sig(p::Msg::kStatus, "FaultCameraStalled"), f.data), 0);
+  EXPECT_EQ(p::get_raw(sig(p::Msg::kStatus, "RejectFixTooOld"), f.data), 1);
+  EXPECT_EQ(p::get_raw(sig(p::Msg::kStatus, "RejectGeometry"), f.data), 0);
+  // Never / very long ago / NaN all send the saturated value, decoded as "never" (-1).
+  for (double t : {-1.0, 1e12, kNaN, kInf}) {
+    s.time_since_fix_ms = t;
+    enc.encode_status(s, &f);
+    ASSERT_TRUE(p::decode_status({}, f, &d));
+    EXPECT_EQ(d.time_since_fix_ms, -1.0) << t;
+  }
+}
+
+TEST(Codec, HeartbeatCarriesVersions) {
+  p::Encoder enc({});
+  p::CanFrameData f;
+  enc.encode_heartbeat({1, 2, 3, 86400.9}, &f);
+  p::HeartbeatOut h;
+  int pv = -1;
+  ASSERT_TRUE(p::decode_heartbeat({}, f, &h, &pv));
+  EXPECT_EQ(h.sw_major, 1);
+  EXPECT_EQ(h.sw_minor, 2);
+  EXPECT_EQ(h.sw_patch, 3);
+  EXPECT_EQ(h.uptime_s, 86400.0);
+  EXPECT_EQ(pv, p::kProtocolVersion);
+  enc.encode_heartbeat({0, 0, 0, 1e12}, &f);
+  ASSERT_TRUE(p::decode_heartbeat({}, f, &h, &pv));
+  EXPECT_EQ(h.uptime_s, 16777215.0);
+}
+
+TEST(Codec, DecodersRejectOtherFrames) {
+  p::Encoder enc({});
+  p::CanFrameData f;
+  enc.encode_velocity({}, &f);
+  p::QualityOut q;
+  EXPECT_FALSE(p::decode_quality({}, f, &q));
+  p::VelocityOut v;
+  f.len = 7;
+  EXPECT_FALSE(p::decode_velocity({}, f, &v));
+  f.len = 8;
+  f.extended = true;
+  EXPECT_FALSE(p::decode_velocity({}, f, &v));
+  EXPECT_EQ(p::identify({}, f), p::Msg::kCount);
+}
+
+// ------------------------------------------------------------------------- odometry input
+
+TEST(Odometry, WheelModeComputesVAndOmega) {
+  p::ProtocolConfig cfg;
+  cfg.odometry.track_width_mm = 400.0;
+  p::OdometryDecoder dec(cfg);
+  EXPECT_EQ(dec.can_id(), 0x310u);
+  p::OdomSample s;
+  ASSERT_EQ(dec.decode(odom_frame(cfg, 0.9, 1.1, 0, 1000), &s), p::DecodeResult::kOk);
+  EXPECT_NEAR(s.left_mps, 0.9, 1e-9);
+  EXPECT_NEAR(s.right_mps, 1.1, 1e-9);
+  EXPECT_NEAR(s.v_mps, 1.0, 1e-9);
+  EXPECT_NEAR(s.omega_radps, 0.2 / 0.4, 1e-9);
+  EXPECT_EQ(s.t_ns, 1000);
+}
+
+TEST(Odometry, TwistModeWithScalesAndConfiguredId) {
+  p::ProtocolConfig cfg;
+  cfg.odometry.mode = p::OdometryMode::kTwist;
+  cfg.odometry.can_id = 0x1A0;
+  cfg.odometry.speed_scale = 1.02;
+  cfg.odometry.omega_scale = 0.5;
+  ASSERT_EQ(p::validate(cfg), "");
+  p::OdometryDecoder dec(cfg);
+  p::OdomSample s;
+  p::CanFrameData f = odom_frame(cfg, -1.5, 0.25, 0, 5);
+  EXPECT_EQ(f.id, 0x1A0u);
+  ASSERT_EQ(dec.decode(f, &s), p::DecodeResult::kOk);
+  EXPECT_NEAR(s.v_mps, -1.5 * 1.02, 1e-9);
+  EXPECT_NEAR(s.omega_radps, 0.125, 1e-9);
+  // The default-ID frame of the same layout is not ours any more.
+  f.id = 0x311;
+  EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kNotOdometry);
+}
+
+TEST(Odometry, MalformedFramesAreRejectedAndCounted) {
+  p::ProtocolConfig cfg;
+  p::OdometryDecoder dec(cfg);
+  p::OdomSample s;
+  s.v_mps = 42.0;
+  ASSERT_EQ(dec.decode(odom_frame(cfg, 1, 1, 0, 10), &s), p::DecodeResult::kOk);
+  s.v_mps = 42.0;
+  p::CanFrameData f = odom_frame(cfg, 2, 2, 1, 20);
+  f.len = 6;
+  EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kBadLength);
+  f = odom_frame(cfg, 2, 2, 1, 20);
+  f.data[3] ^= 0x40;
+  EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kBadCrc);
+  EXPECT_EQ(dec.decode(odom_frame(cfg, 2, 2, 0, 30), &s), p::DecodeResult::kRepeated);
+  EXPECT_EQ(dec.decode(odom_frame(cfg, 2, 2, 9, 40), &s), p::DecodeResult::kCounterJump);
+  EXPECT_EQ(s.v_mps, 42.0);  // untouched by rejected frames
+  // After the jump the decoder follows the new sequence.
+  EXPECT_EQ(dec.decode(odom_frame(cfg, 2, 2, 10, 50), &s), p::DecodeResult::kOk);
+  // Two frames lost (11, 12): still accepted with max_delta_counter 3, and counted.
+  EXPECT_EQ(dec.decode(odom_frame(cfg, 2, 2, 13, 60), &s), p::DecodeResult::kOk);
+  EXPECT_EQ(s.lost_before, 2u);
+  // Older receive time than the last accepted frame: stale.
+  EXPECT_EQ(dec.decode(odom_frame(cfg, 2, 2, 14, 55), &s), p::DecodeResult::kStale);
+  f = odom_frame(cfg, 2, 2, 14, 70);
+  f.extended = true;
+  EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kNotOdometry);
+  const p::OdometryCounters& c = dec.counters();
+  EXPECT_EQ(c.accepted, 3u);
+  EXPECT_EQ(c.bad_length, 1u);
+  EXPECT_EQ(c.bad_crc, 1u);
+  EXPECT_EQ(c.repeated, 1u);
+  EXPECT_EQ(c.counter_jump, 1u);
+  EXPECT_EQ(c.stale, 1u);
+  EXPECT_EQ(c.lost_frames, 2u);
+  EXPECT_EQ(c.rejected(), 5u);
+}
+
+TEST(Odometry, UnprotectedModeIgnoresCrcAndCounter) {
+  p::ProtocolConfig cfg;
+  cfg.odometry.protected_e2e = false;
+  p::OdometryDecoder dec(cfg);
+  p::OdomSample s;
+  p::CanFrameData f = odom_frame(cfg, 0.5, 0.5, 3, 10);
+  f.data[0] = 0;  // no CRC
+  EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kOk);
+  f.t_ns = 20;
+  EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kOk);  // same counter: fine when unprotected
+  f.len = 4;
+  EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kBadLength);
+}
+
+TEST(Odometry, TimeoutIsAPureFunctionOfNow) {
+  p::ProtocolConfig cfg;
+  cfg.odometry.timeout_ns = 100'000'000;
+  p::OdometryDecoder dec(cfg);
+  EXPECT_TRUE(dec.timed_out(0));  // nothing received yet
+  p::OdomSample s;
+  ASSERT_EQ(dec.decode(odom_frame(cfg, 0, 0, 0, 1'000'000'000), &s), p::DecodeResult::kOk);
+  EXPECT_FALSE(dec.timed_out(1'000'000'000));
+  EXPECT_FALSE(dec.timed_out(1'100'000'000));
+  EXPECT_TRUE(dec.timed_out(1'100'000'001));
+  // Rejected frames do not keep it alive.
+  p::CanFrameData f = odom_frame(cfg, 0, 0, 1, 1'090'000'000);
+  f.data[0] ^= 1;
+  dec.decode(f, &s);
+  EXPECT_TRUE(dec.timed_out(1'150'000'000));
+  ASSERT_EQ(dec.decode(odom_frame(cfg, 0, 0, 1, 1'140'000'000), &s), p::DecodeResult::kOk);
+  EXPECT_FALSE(dec.timed_out(1'150'000'000));
+}
+
+TEST(Odometry, CustomDataIdIsUsedForTheCrc) {
+  p::ProtocolConfig cfg;
+  cfg.odometry.data_id = 0x1234;
+  p::OdometryDecoder dec(cfg);
+  p::OdomSample s;
+  EXPECT_EQ(dec.decode(odom_frame(cfg, 1, 1, 0, 1), &s), p::DecodeResult::kOk);
+  p::ProtocolConfig other;  // default data ID: the CRC no longer matches
+  p::CanFrameData f = odom_frame(other, 1, 1, 1, 2);
+  EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kBadCrc);
+}
