@@ -21,11 +21,14 @@ namespace agv::fusion {
 
 struct EkfConfig {
   // ---- Process noise (added per prediction step; all are white-noise densities) ----
-  // Random walk of the speed state between odometry samples. Larger follows speed changes
-  // faster but lets the speed state be noisier; odometry at 100 Hz dominates either way.
-  double accel_sigma_mps2 = 2.0;  // m/s^2 per sqrt(s)
-  // Random walk of the yaw-rate state; same trade-off as accel_sigma_mps2.
-  double yaw_accel_sigma_radps2 = 3.0;  // rad/s^2 per sqrt(s)
+  // Random walk of the speed state (m/s^2 per sqrt(s)). Per 10 ms odometry period it must be
+  // well above odom_v_sigma_mps so the state follows the odometry without lag (0.5 gives
+  // 0.05 m/s, gain 0.96); it also sets how fast the pose uncertainty grows when odometry stops
+  // (0.11 m/s after 50 ms). Larger: faster growth when predicting past the newest odometry.
+  double accel_sigma_mps2 = 0.5;
+  // Random walk of the yaw-rate state (rad/s^2 per sqrt(s)); same trade-off (0.1 rad/s per
+  // 10 ms vs 0.009 rad/s odometry noise).
+  double yaw_accel_sigma_radps2 = 1.0;
   // Position error of dead reckoning per travelled distance, along and across the direction of
   // travel (vehicle frame), as sigma per sqrt(metre). This must cover the real odometry error
   // between two landmarks, or good fixes fail the gate: with 1 % scale error the along-track
@@ -151,10 +154,12 @@ class Ekf {
   // Throws std::invalid_argument when validate(config) is not empty.
   explicit Ekf(const EkfConfig& config);
 
-  // Odometry sample stamped t_ns (strictly increasing). Predicts from the previous event to t_ns
-  // and fuses (v, omega). Before initialisation the sample is only stored (it is replayed after
-  // a fix initialises the filter at an earlier time). Returns false, counts and flags, and
-  // leaves the state untouched for non-finite or implausible values and non-increasing time.
+  // Odometry sample stamped t_ns (strictly increasing): the mean forward speed and yaw rate
+  // over the period ending at t_ns (as encoder tick counts give them). Fuses (v, omega) and
+  // predicts from the previous event to t_ns with them. Before initialisation the sample is only
+  // stored (it is replayed after a fix initialises the filter at an earlier time). Returns false,
+  // counts and flags, and leaves the state untouched for non-finite or implausible values and
+  // non-increasing time.
   bool add_odometry(std::int64_t t_ns, double v_mps, double omega_radps);
 
   // Landmark fix: world pose of the vehicle at exposure time t_exposure_ns with covariance R of
@@ -226,8 +231,14 @@ class Ekf {
   void replay_from(std::size_t from);
   void process_event(const Event& prev, Event* ev) const;
 
-  void predict(StateVec* x, StateCov* P, double dt_s) const;
+  // x, P over dt_s with the motion model (eq. 15-16); velocity_noise adds the random walk of v
+  // and omega over dt_s (off when an odometry sample for the period is fused just before).
+  void predict(StateVec* x, StateCov* P, double dt_s, bool velocity_noise = true) const;
+  void add_velocity_noise(StateCov* P, double dt_s) const;
   void update_odometry(StateVec* x, StateCov* P, double v_mps, double omega_radps) const;
+  // Odometry step: fuse the sample, then predict over the period it covers.
+  void propagate_odometry(StateVec* x, StateCov* P, double dt_s, double v_mps,
+                          double omega_radps) const;
   void update_fix(StateVec* x, StateCov* P, const Eigen::Vector3d& z,
                   const Eigen::Matrix3d& R) const;
   // Innovation (angle wrapped) and its Mahalanobis distance^2.
