@@ -171,6 +171,16 @@ TEST(Codec, PosePairSharesTheCounterAndCountersWrap) {
   EXPECT_FALSE(out.valid);
 }
 
+// The worked example of docs/can.md, byte for byte.
+TEST(Codec, DocumentedPoseExample) {
+  p::Encoder enc({});
+  p::CanFrameData xy, hd;
+  enc.encode_pose({1000.0, 2000.0, 0.0, 0.0, true}, &xy, &hd);
+  const std::uint8_t expected[8] = {0xD3, 0x10, 0x10, 0x27, 0x00, 0x20, 0x4E, 0x00};
+  EXPECT_EQ(xy.id, 0x300u);
+  EXPECT_EQ(std::memcmp(xy.data, expected, 8), 0);
+}
+
 TEST(Codec, IdsStandardAndExtended) {
   p::ProtocolConfig cfg;
   p::Encoder enc(cfg);

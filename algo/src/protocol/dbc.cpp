@@ -91,7 +91,7 @@ std::string render_markdown_table(const ProtocolConfig& cfg) {
     head += std::string(buf) + " | ";
     bool first = true;
     for (const SignalDef& g : m.signals) {
-      s += first ? head : std::string("| | | | | ");
+      s += first ? head : std::string("| | | | | | ");
       first = false;
       s += std::string(g.name) + " | " + std::to_string(g.start_bit) + "\\|" +
            std::to_string(g.length) + " | " + (g.is_signed ? "signed" : "unsigned") + " | " +
