@@ -23,7 +23,8 @@ case "$driver" in
     ;;
   libcamera)
     # libcamera enumerates media devices through udev; the guest runs in a chroot.
-    SYSTEMD_IGNORE_CHROOT=1 /lib/systemd/systemd-udevd --daemon || { echo "FAIL: udevd"; exit 1; }
+    export SYSTEMD_IGNORE_CHROOT=1  # udevd and udevadm refuse to work in a chroot otherwise
+    /lib/systemd/systemd-udevd --daemon || { echo "FAIL: udevd"; exit 1; }
     udevadm trigger --action=add
     udevadm settle --timeout=60
     ls /dev/media* /dev/video* 2>&1 | tr '\n' ' '; echo

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <map>
 #include <mutex>
@@ -40,6 +41,21 @@ int select_camera(const std::vector<CameraInfo>& cameras, const std::string& id,
 
 namespace {
 
+// libcamera 0.0.3 aborts (assertion in PipelineHandler::stop) when a camera whose device has
+// vanished is stopped, because the failed STREAMOFF leaves requests queued. A removed camera is
+// therefore abandoned, never stopped: its objects are leaked on purpose and its CameraManager
+// (libcamera allows one per process, and it cannot be stopped with that camera inside) lives on
+// as the process's shared manager, reused by later start() calls (it still sees hotplug).
+std::mutex g_orphan_mutex;
+lc::CameraManager* g_orphan_cm = nullptr;
+
+struct Abandoned {  // never deleted
+  std::shared_ptr<lc::Camera> camera;
+  std::unique_ptr<lc::CameraConfiguration> config;
+  std::unique_ptr<lc::FrameBufferAllocator> allocator;
+  std::vector<std::unique_ptr<lc::Request>> requests;
+};
+
 std::string model_of(const lc::Camera& cam) {
   const auto m = cam.properties().get(lc::properties::Model);
   return m ? std::string(*m) : std::string();
@@ -61,6 +77,10 @@ std::string describe(const std::vector<CameraInfo>& cams) {
 }  // namespace
 
 std::vector<CameraInfo> list_cameras(std::string* error) {
+  {
+    std::lock_guard<std::mutex> lock(g_orphan_mutex);
+    if (g_orphan_cm != nullptr) return infos(g_orphan_cm->cameras());
+  }
   lc::CameraManager cm;
   if (const int r = cm.start(); r != 0) {
     if (error) *error = "libcamera CameraManager::start failed: " + std::to_string(r);
@@ -84,7 +104,9 @@ struct LibcameraCamera::Impl {
   };
 
   hal::CameraConfig cfg;
-  std::unique_ptr<lc::CameraManager> cm;
+  lc::CameraManager* cm = nullptr;              // own_cm or the shared orphan
+  std::unique_ptr<lc::CameraManager> own_cm;
+  std::atomic<bool> removed{false};             // cameraRemoved / Camera::disconnected seen
   std::shared_ptr<lc::Camera> camera;
   bool acquired = false;
   bool running = false;
@@ -113,7 +135,11 @@ struct LibcameraCamera::Impl {
   // --- runs on libcamera's thread: hand over only ---
   void on_request_completed(lc::Request* request) { queue.push(request); }
   void on_camera_removed(std::shared_ptr<lc::Camera> cam) {
-    if (cam == camera) queue.set_disconnected();
+    if (cam == camera) on_camera_disconnected();
+  }
+  void on_camera_disconnected() {
+    removed = true;
+    queue.set_disconnected();
   }
 
   CameraStatus fail(CameraStatus s, const std::string& what) {
@@ -258,10 +284,19 @@ CameraStatus LibcameraCamera::Impl::map_buffers() {
 }
 
 CameraStatus LibcameraCamera::Impl::open_and_start() {
-  cm = std::make_unique<lc::CameraManager>();
-  if (const int r = cm->start(); r != 0) {
-    cm.reset();
-    return fail(CameraStatus::kDeviceError, "CameraManager::start failed: " + std::to_string(r));
+  removed = false;
+  {
+    std::lock_guard<std::mutex> lock(g_orphan_mutex);
+    cm = g_orphan_cm;
+  }
+  if (cm == nullptr) {
+    own_cm = std::make_unique<lc::CameraManager>();
+    if (const int r = own_cm->start(); r != 0) {
+      own_cm.reset();
+      return fail(CameraStatus::kDeviceError,
+                  "CameraManager::start failed: " + std::to_string(r));
+    }
+    cm = own_cm.get();
   }
   const auto cams = cm->cameras();
   const std::vector<CameraInfo> list = infos(cams);
@@ -282,6 +317,7 @@ CameraStatus LibcameraCamera::Impl::open_and_start() {
 
   queue.reset();
   camera->requestCompleted.connect(this, &Impl::on_request_completed);
+  camera->disconnected.connect(this, &Impl::on_camera_disconnected);
   cm->cameraRemoved.connect(this, &Impl::on_camera_removed);
   lc::ControlList start_controls(camera->controls());
   apply_controls(start_controls);
@@ -300,12 +336,42 @@ CameraStatus LibcameraCamera::Impl::open_and_start() {
 }
 
 void LibcameraCamera::Impl::teardown() {
+  // A camera that stopped delivering is never stopped: if its device is gone, libcamera 0.0.3's
+  // Camera::stop() aborts the process (see g_orphan_cm), and hotplug removal is not reported
+  // reliably enough to tell a dead device from a silent one (not seen within 3 s under vimc in
+  // the VM although udev delivered the events). Recovery therefore needs a new process.
+  const bool abandon = running && disconnected;
   if (camera) {
-    if (running) camera->stop();  // completes pending requests as cancelled, synchronously
-    running = false;
     camera->requestCompleted.disconnect(this, &Impl::on_request_completed);
+    camera->disconnected.disconnect(this, &Impl::on_camera_disconnected);
   }
   if (cm) cm->cameraRemoved.disconnect(this, &Impl::on_camera_removed);
+  if (abandon) {
+    auto* grave = new Abandoned;  // intentionally leaked, see g_orphan_cm
+    grave->camera = std::move(camera);
+    grave->config = std::move(config);
+    grave->allocator = std::move(allocator);
+    for (Slot& sl : slots) grave->requests.push_back(std::move(sl.request));
+    slots.clear();
+    mappings.clear();  // the mapped memory stays mapped with the abandoned buffers
+    queue.drain();
+    if (own_cm) {
+      std::lock_guard<std::mutex> lock(g_orphan_mutex);
+      g_orphan_cm = own_cm.release();
+    }
+    cm = nullptr;
+    running = false;
+    acquired = false;
+    stream = nullptr;
+    started = false;
+    last_sequence = -1;
+    fail(CameraStatus::kDisconnected,
+         std::string("camera lost (") + (removed ? "removed" : "no frames") +
+             "); abandoned without stop, restart the process to use it again");
+    return;
+  }
+  if (camera && running) camera->stop();  // completes pending requests as cancelled
+  running = false;
   queue.drain();
   slots.clear();  // requests before the buffers they reference
   for (Mapping& m : mappings) munmap(m.base, m.length);
@@ -317,8 +383,9 @@ void LibcameraCamera::Impl::teardown() {
   if (camera && acquired) camera->release();
   acquired = false;
   camera.reset();
-  if (cm) cm->stop();
-  cm.reset();
+  if (own_cm) own_cm->stop();
+  own_cm.reset();
+  cm = nullptr;
   started = false;
   last_sequence = -1;
 }
