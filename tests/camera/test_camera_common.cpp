@@ -103,7 +103,8 @@ TEST(PixelFormat, YuyvToGrayTakesLumaAndHonoursStrides) {
   std::vector<std::uint8_t> dst(static_cast<std::size_t>(dst_stride * h), 0x55);
   agv::camera::yuyv_to_gray(src.data(), src_stride, w, h, dst.data(), dst_stride);
   for (int r = 0; r < h; ++r) {
-    for (int c = 0; c < w; ++c) EXPECT_EQ(dst[static_cast<std::size_t>(r * dst_stride + c)], 10 * r + c);
+    for (int c = 0; c < w; ++c)
+      EXPECT_EQ(dst[static_cast<std::size_t>(r * dst_stride + c)], 10 * r + c);
     EXPECT_EQ(dst[static_cast<std::size_t>(r * dst_stride + w)], 0x55) << "padding overwritten";
   }
 }
@@ -114,8 +115,8 @@ TEST(PixelFormat, Rgb24ToGrayWeightsAndByteOrder) {
   const std::uint8_t rgb[12] = {255, 0, 0, 0, 255, 0, 0, 0, 255, 255, 255, 255};
   std::uint8_t gray[4] = {};
   ASSERT_TRUE(convert_to_gray(kFourccBgr888, rgb, 12, 4, 1, gray, 4));  // libcamera BGR888 = R G B
-  EXPECT_EQ(gray[0], 77);   // (77*255+128)>>8
-  EXPECT_EQ(gray[1], 149);  // (150*255+128)>>8
+  EXPECT_EQ(gray[0], 77);                                               // (77*255+128)>>8
+  EXPECT_EQ(gray[1], 149);                                              // (150*255+128)>>8
   EXPECT_EQ(gray[2], 29);
   EXPECT_EQ(gray[3], 255);
   // Same bytes read as B G R: red and blue swap.
@@ -148,9 +149,9 @@ TEST(Timestamp, MidExposureFromStartOfExposure) {
 TEST(Timestamp, MidExposureFromEndOfFrame) {
   EXPECT_EQ(agv::camera::exposure_mid_ns(50'000'000, TimestampRef::kEndOfFrame, 2'000'000, 0),
             49'000'000);
-  EXPECT_EQ(agv::camera::exposure_mid_ns(50'000'000, TimestampRef::kEndOfFrame, 2'000'000,
-                                         30'000'000),
-            34'000'000);
+  EXPECT_EQ(
+      agv::camera::exposure_mid_ns(50'000'000, TimestampRef::kEndOfFrame, 2'000'000, 30'000'000),
+      34'000'000);
 }
 
 TEST(Timestamp, ClockDomainEqualClocksIsMonotonic) {

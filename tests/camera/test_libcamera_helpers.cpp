@@ -11,8 +11,8 @@ using agv::libcam::CameraInfo;
 using Queue = agv::libcam::CompletionQueue<int>;
 
 TEST(LibcameraSelect, ByIdModelOrFirst) {
-  const std::vector<CameraInfo> cams = {{"/base/a", "imx219"}, {"/base/b", "imx296"},
-                                        {"/base/c", "imx296"}};
+  const std::vector<CameraInfo> cams = {
+      {"/base/a", "imx219"}, {"/base/b", "imx296"}, {"/base/c", "imx296"}};
   EXPECT_EQ(agv::libcam::select_camera(cams, "", ""), 0);
   EXPECT_EQ(agv::libcam::select_camera(cams, "/base/c", ""), 2);
   EXPECT_EQ(agv::libcam::select_camera(cams, "", "imx296"), 1);

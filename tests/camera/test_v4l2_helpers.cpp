@@ -8,8 +8,8 @@ namespace {
 using agv::camera::TimestampRef;
 
 TEST(V4l2Timestamp, FlagsDecoded) {
-  auto k = agv::v4l2::timestamp_kind(V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC |
-                                     V4L2_BUF_FLAG_TSTAMP_SRC_SOE);
+  auto k =
+      agv::v4l2::timestamp_kind(V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC | V4L2_BUF_FLAG_TSTAMP_SRC_SOE);
   EXPECT_TRUE(k.monotonic);
   EXPECT_EQ(k.ref, TimestampRef::kStartOfExposure);
   k = agv::v4l2::timestamp_kind(V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC | V4L2_BUF_FLAG_TSTAMP_SRC_EOF);
@@ -22,9 +22,8 @@ TEST(V4l2Timestamp, FlagsDecoded) {
 TEST(V4l2Timestamp, MidExposureForEachSource) {
   const std::int64_t ts = 1'000'000'000, deq = 1'005'000'000, exp = 2'000'000, ro = 10'000'000;
   // Start of exposure (UVC): first row + half readout + half exposure.
-  EXPECT_EQ(agv::v4l2::frame_time_ns(V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC |
-                                         V4L2_BUF_FLAG_TSTAMP_SRC_SOE,
-                                     ts, deq, exp, ro),
+  EXPECT_EQ(agv::v4l2::frame_time_ns(
+                V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC | V4L2_BUF_FLAG_TSTAMP_SRC_SOE, ts, deq, exp, ro),
             ts + 5'000'000 + 1'000'000);
   // End of frame (most drivers): back by half readout + half exposure.
   EXPECT_EQ(agv::v4l2::frame_time_ns(V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC, ts, deq, exp, ro),

@@ -55,8 +55,8 @@ struct Args {
   agv::hal::CameraConfig cfg;
   int frames = 300;
   int restart_frames = 30;
-  std::int64_t timeout_ns = 3'000'000'000;   // TCG emulation is slow
-  std::int64_t max_age_ns = 1'000'000'000;   // frame exposure mid-time vs now
+  std::int64_t timeout_ns = 3'000'000'000;  // TCG emulation is slow
+  std::int64_t max_age_ns = 1'000'000'000;  // frame exposure mid-time vs now
   std::string unbind_path, unbind_device;
   std::vector<std::pair<std::string, int>> v4l2_ctrls;
 };
@@ -66,22 +66,37 @@ bool parse(int argc, char** argv, Args* a) {
     const std::string k = argv[i];
     if (i + 1 >= argc) return false;
     const std::string v = argv[++i];
-    if (k == "--driver") a->driver = v;
-    else if (k == "--id") a->cfg.id = v;
-    else if (k == "--model") a->cfg.model = v;
-    else if (k == "--width") a->cfg.width_px = std::atoi(v.c_str());
-    else if (k == "--height") a->cfg.height_px = std::atoi(v.c_str());
-    else if (k == "--fps") a->cfg.fps = std::atof(v.c_str());
-    else if (k == "--exposure-us") a->cfg.exposure_us = std::atoi(v.c_str());
-    else if (k == "--frames") a->frames = std::atoi(v.c_str());
-    else if (k == "--restart-frames") a->restart_frames = std::atoi(v.c_str());
-    else if (k == "--timeout-ms") a->timeout_ns = std::atoll(v.c_str()) * 1'000'000;
-    else if (k == "--max-age-ms") a->max_age_ns = std::atoll(v.c_str()) * 1'000'000;
+    if (k == "--driver")
+      a->driver = v;
+    else if (k == "--id")
+      a->cfg.id = v;
+    else if (k == "--model")
+      a->cfg.model = v;
+    else if (k == "--width")
+      a->cfg.width_px = std::atoi(v.c_str());
+    else if (k == "--height")
+      a->cfg.height_px = std::atoi(v.c_str());
+    else if (k == "--fps")
+      a->cfg.fps = std::atof(v.c_str());
+    else if (k == "--exposure-us")
+      a->cfg.exposure_us = std::atoi(v.c_str());
+    else if (k == "--frames")
+      a->frames = std::atoi(v.c_str());
+    else if (k == "--restart-frames")
+      a->restart_frames = std::atoi(v.c_str());
+    else if (k == "--timeout-ms")
+      a->timeout_ns = std::atoll(v.c_str()) * 1'000'000;
+    else if (k == "--max-age-ms")
+      a->max_age_ns = std::atoll(v.c_str()) * 1'000'000;
     else if (k == "--format") {
-      if (v == "auto") a->cfg.pixel_format = agv::hal::PixelFormatPreference::kAuto;
-      else if (v == "gray") a->cfg.pixel_format = agv::hal::PixelFormatPreference::kGray;
-      else if (v == "yuv") a->cfg.pixel_format = agv::hal::PixelFormatPreference::kYuv;
-      else return false;
+      if (v == "auto")
+        a->cfg.pixel_format = agv::hal::PixelFormatPreference::kAuto;
+      else if (v == "gray")
+        a->cfg.pixel_format = agv::hal::PixelFormatPreference::kGray;
+      else if (v == "yuv")
+        a->cfg.pixel_format = agv::hal::PixelFormatPreference::kYuv;
+      else
+        return false;
     } else if (k == "--unbind") {
       const auto eq = v.find('=');
       if (eq == std::string::npos) return false;
@@ -129,8 +144,8 @@ std::int64_t capture(agv::hal::Camera& cam, const Args& a, const Extra& x, int n
     const std::int64_t now = agv::camera::monotonic_now_ns();
     if (s == CameraStatus::kTimeout && ++timeouts <= 3) continue;
     if (s != CameraStatus::kOk) {
-      fail(std::string(phase) + ": next_frame after " + std::to_string(got) + " frames: " +
-           agv::hal::to_string(s) + " (" + cam.last_error() + ")");
+      fail(std::string(phase) + ": next_frame after " + std::to_string(got) +
+           " frames: " + agv::hal::to_string(s) + " (" + cam.last_error() + ")");
       return last_t;
     }
     ++got;
@@ -138,7 +153,8 @@ std::int64_t capture(agv::hal::Camera& cam, const Args& a, const Extra& x, int n
       fail(std::string(phase) + ": frame size " + std::to_string(f.width_px) + "x" +
            std::to_string(f.height_px) + " != configured");
     }
-    if (f.data == nullptr || f.stride_bytes < f.width_px) fail(std::string(phase) + ": bad data/stride");
+    if (f.data == nullptr || f.stride_bytes < f.width_px)
+      fail(std::string(phase) + ": bad data/stride");
     if (f.t_exposure_ns <= last_t) {
       fail(std::string(phase) + ": timestamp not increasing at frame " + std::to_string(got) +
            ": " + std::to_string(f.t_exposure_ns) + " <= " + std::to_string(last_t));
@@ -185,8 +201,10 @@ std::int64_t capture(agv::hal::Camera& cam, const Args& a, const Extra& x, int n
       static_cast<unsigned long long>(st.errors), timeouts, x.format().c_str());
   if (x.outstanding() != 0) fail(std::string(phase) + ": frames still outstanding after release");
   if (n >= 4 * x.buffers()) {
-    if (static_cast<int>(slots.size()) < 2) fail(std::string(phase) + ": only one buffer slot used");
-    if (static_cast<int>(slots.size()) > x.buffers()) fail(std::string(phase) + ": slot outside buffers");
+    if (static_cast<int>(slots.size()) < 2)
+      fail(std::string(phase) + ": only one buffer slot used");
+    if (static_cast<int>(slots.size()) > x.buffers())
+      fail(std::string(phase) + ": slot outside buffers");
   }
   return last_t;
 }
@@ -218,7 +236,9 @@ void check_unbind(agv::hal::Camera& cam, const Args& a) {
     std::this_thread::sleep_for(std::chrono::milliseconds(500));
     std::ofstream f(a.unbind_path);
     f << a.unbind_device << std::flush;
-    if (!f) std::printf("unbind: writing %s to %s failed\n", a.unbind_device.c_str(), a.unbind_path.c_str());
+    if (!f)
+      std::printf("unbind: writing %s to %s failed\n", a.unbind_device.c_str(),
+                  a.unbind_path.c_str());
   });
   const std::int64_t t0 = agv::camera::monotonic_now_ns();
   CameraStatus s = CameraStatus::kOk;
@@ -237,9 +257,11 @@ void check_unbind(agv::hal::Camera& cam, const Args& a) {
   const double secs = static_cast<double>(agv::camera::monotonic_now_ns() - t0) * 1e-9;
   std::printf("unbind: %d frames, then '%s' after %.2f s (%s)\n", frames, agv::hal::to_string(s),
               secs, cam.last_error());
-  if (s != CameraStatus::kDisconnected) fail("unbind: expected disconnected, got " + std::string(agv::hal::to_string(s)));
+  if (s != CameraStatus::kDisconnected)
+    fail("unbind: expected disconnected, got " + std::string(agv::hal::to_string(s)));
   agv::hal::FrameView f;
-  if (cam.next_frame(0, &f) != CameraStatus::kDisconnected) fail("unbind: disconnected is not sticky");
+  if (cam.next_frame(0, &f) != CameraStatus::kDisconnected)
+    fail("unbind: disconnected is not sticky");
   cam.stop();
   if (cam.start() == CameraStatus::kOk) fail("unbind: start() succeeded on a removed device");
   std::printf("unbind: restart on the removed device fails with: %s\n", cam.last_error());
@@ -288,7 +310,8 @@ int main(int argc, char** argv) {
     x.outstanding = [p] { return p->frames_outstanding(); };
     x.format = [p] {
       return agv::camera::fourcc_to_string(p->fourcc()) + " stride " +
-             std::to_string(p->stride_bytes()) + (p->exposure_applied() ? "" : " (no manual exposure)");
+             std::to_string(p->stride_bytes()) +
+             (p->exposure_applied() ? "" : " (no manual exposure)");
     };
     cam = std::move(c);
   } else {
@@ -298,8 +321,8 @@ int main(int argc, char** argv) {
     x.buffers = [p] { return p->buffers(); };
     x.outstanding = [p] { return p->frames_outstanding(); };
     x.format = [p] {
-      return "'" + p->camera_id() + "' " + agv::camera::fourcc_to_string(p->fourcc()) +
-             " stride " + std::to_string(p->stride_bytes()) +
+      return "'" + p->camera_id() + "' " + agv::camera::fourcc_to_string(p->fourcc()) + " stride " +
+             std::to_string(p->stride_bytes()) +
              (p->exposure_applied() ? "" : " (no ExposureTime control)");
     };
     cam = std::move(c);
@@ -333,7 +356,8 @@ int main(int argc, char** argv) {
   cam->stop();
   cam->stop();  // idempotent
   agv::hal::FrameView f;
-  if (cam->next_frame(0, &f) != CameraStatus::kNotStarted) fail("after stop: next_frame should be kNotStarted");
+  if (cam->next_frame(0, &f) != CameraStatus::kNotStarted)
+    fail("after stop: next_frame should be kNotStarted");
   if (a.restart_frames > 0) {
     s = cam->start();
     if (s != CameraStatus::kOk) {

@@ -21,8 +21,7 @@ std::string validate_config(const hal::CameraConfig& c) {
   } else if (static_cast<double>(c.exposure_us) > 1e6 / c.fps) {
     e << "camera exposure_us " << c.exposure_us << " longer than one frame period at " << c.fps
       << " fps (" << 1e6 / c.fps << " us)";
-  } else if (!std::isfinite(c.analogue_gain) || c.analogue_gain < 1.0 ||
-             c.analogue_gain > 64.0) {
+  } else if (!std::isfinite(c.analogue_gain) || c.analogue_gain < 1.0 || c.analogue_gain > 64.0) {
     e << "camera analogue_gain " << c.analogue_gain << " outside [1, 64]";
   } else if (c.buffer_count < 2 || c.buffer_count > kMaxBuffers) {
     e << "camera buffer_count " << c.buffer_count << " outside [2, " << kMaxBuffers << "]";

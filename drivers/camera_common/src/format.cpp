@@ -19,9 +19,12 @@ std::vector<std::uint32_t> acceptable_formats(hal::PixelFormatPreference pref) {
   const std::vector<std::uint32_t> gray = {kFourccGrey, kFourccR8};
   const std::vector<std::uint32_t> yuv = {kFourccNv12, kFourccYu12, kFourccYuyv};
   switch (pref) {
-    case hal::PixelFormatPreference::kGray: return gray;
-    case hal::PixelFormatPreference::kYuv: return yuv;
-    case hal::PixelFormatPreference::kAuto: break;
+    case hal::PixelFormatPreference::kGray:
+      return gray;
+    case hal::PixelFormatPreference::kYuv:
+      return yuv;
+    case hal::PixelFormatPreference::kAuto:
+      break;
   }
   std::vector<std::uint32_t> all = gray;
   all.insert(all.end(), yuv.begin(), yuv.end());

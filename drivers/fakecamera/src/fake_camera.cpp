@@ -149,8 +149,8 @@ CameraStatus FakeCamera::next_frame(std::int64_t timeout_ns, hal::FrameView* fra
           stats_.frames_dropped += ev.sequence - static_cast<std::uint64_t>(last_sequence_) - 1;
         }
         last_sequence_ = static_cast<std::int64_t>(ev.sequence);
-        auto free_slot = std::find_if(slots_.begin(), slots_.end(),
-                                      [](const Slot& s) { return !s.busy; });
+        auto free_slot =
+            std::find_if(slots_.begin(), slots_.end(), [](const Slot& s) { return !s.busy; });
         if (free_slot == slots_.end()) {  // every buffer held by the consumer: frame lost
           ++stats_.frames_dropped;
           continue;
@@ -198,8 +198,8 @@ const char* FakeCamera::last_error() const {
 
 int FakeCamera::frames_outstanding() const {
   std::lock_guard<std::mutex> lock(mutex_);
-  return static_cast<int>(std::count_if(slots_.begin(), slots_.end(),
-                                        [](const Slot& s) { return s.busy; }));
+  return static_cast<int>(
+      std::count_if(slots_.begin(), slots_.end(), [](const Slot& s) { return s.busy; }));
 }
 
 int FakeCamera::start_calls() const {

@@ -1,10 +1,9 @@
 #include "agv/libcamera/libcamera_camera.hpp"
 
-#include <sys/mman.h>
-#include <unistd.h>
-
 #include <libcamera/libcamera.h>
 #include <libcamera/version.h>
+#include <sys/mman.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -95,8 +94,8 @@ struct LibcameraCamera::Impl {
   struct Slot {
     std::unique_ptr<lc::Request> request;
     const std::uint8_t* y_plane = nullptr;
-    bool outstanding = false;          // held by the consumer
-    std::vector<std::uint8_t> gray;    // YUYV only
+    bool outstanding = false;        // held by the consumer
+    std::vector<std::uint8_t> gray;  // YUYV only
   };
   struct Mapping {
     void* base = MAP_FAILED;
@@ -104,9 +103,9 @@ struct LibcameraCamera::Impl {
   };
 
   hal::CameraConfig cfg;
-  lc::CameraManager* cm = nullptr;              // own_cm or the shared orphan
+  lc::CameraManager* cm = nullptr;  // own_cm or the shared orphan
   std::unique_ptr<lc::CameraManager> own_cm;
-  std::atomic<bool> removed{false};             // cameraRemoved / Camera::disconnected seen
+  std::atomic<bool> removed{false};  // cameraRemoved / Camera::disconnected seen
   std::shared_ptr<lc::Camera> camera;
   bool acquired = false;
   bool running = false;
@@ -211,8 +210,9 @@ CameraStatus LibcameraCamera::Impl::configure_stream() {
   if (fourcc == 0) {
     std::string list;
     for (std::uint32_t f : offered) list += " " + camera::fourcc_to_string(f);
-    return fail(CameraStatus::kInvalidArgument,
-                "no usable pixel format (need R8, NV12, YUV420, YUYV or RGB888); camera offers:" + list);
+    return fail(
+        CameraStatus::kInvalidArgument,
+        "no usable pixel format (need R8, NV12, YUV420, YUYV or RGB888); camera offers:" + list);
   }
   sc.pixelFormat = lc::PixelFormat(fourcc);
   sc.size = lc::Size(static_cast<unsigned>(cfg.width_px), static_cast<unsigned>(cfg.height_px));
@@ -222,8 +222,8 @@ CameraStatus LibcameraCamera::Impl::configure_stream() {
     return fail(CameraStatus::kInvalidArgument, "configuration rejected: " + sc.toString());
   }
   if (sc.pixelFormat.fourcc() != fourcc ||
-      sc.size != lc::Size(static_cast<unsigned>(cfg.width_px),
-                          static_cast<unsigned>(cfg.height_px))) {
+      sc.size !=
+          lc::Size(static_cast<unsigned>(cfg.width_px), static_cast<unsigned>(cfg.height_px))) {
     return fail(CameraStatus::kInvalidArgument,
                 "camera cannot deliver " + camera::fourcc_to_string(fourcc) + " " +
                     std::to_string(cfg.width_px) + "x" + std::to_string(cfg.height_px) +
@@ -256,8 +256,8 @@ CameraStatus LibcameraCamera::Impl::map_buffers() {
     if (it == mapping_of_fd.end()) {
       const off_t len = lseek(fd, 0, SEEK_END);
       Mapping m;
-      m.length = len > 0 ? static_cast<std::size_t>(len)
-                         : static_cast<std::size_t>(p0.offset) + p0.length;
+      m.length =
+          len > 0 ? static_cast<std::size_t>(len) : static_cast<std::size_t>(p0.offset) + p0.length;
       m.base = mmap(nullptr, m.length, PROT_READ, MAP_SHARED, fd, 0);
       if (m.base == MAP_FAILED) return fail(CameraStatus::kDeviceError, "mmap of a buffer failed");
       mappings.push_back(m);
@@ -293,8 +293,7 @@ CameraStatus LibcameraCamera::Impl::open_and_start() {
     own_cm = std::make_unique<lc::CameraManager>();
     if (const int r = own_cm->start(); r != 0) {
       own_cm.reset();
-      return fail(CameraStatus::kDeviceError,
-                  "CameraManager::start failed: " + std::to_string(r));
+      return fail(CameraStatus::kDeviceError, "CameraManager::start failed: " + std::to_string(r));
     }
     cm = own_cm.get();
   }
@@ -302,9 +301,8 @@ CameraStatus LibcameraCamera::Impl::open_and_start() {
   const std::vector<CameraInfo> list = infos(cams);
   const int idx = select_camera(list, cfg.id, cfg.model);
   if (idx < 0) {
-    return fail(CameraStatus::kDisconnected,
-                "no camera matches id '" + cfg.id + "' model '" + cfg.model + "'; " +
-                    describe(list));
+    return fail(CameraStatus::kDisconnected, "no camera matches id '" + cfg.id + "' model '" +
+                                                 cfg.model + "'; " + describe(list));
   }
   camera = cams[static_cast<std::size_t>(idx)];
   camera_id = list[static_cast<std::size_t>(idx)].id;
@@ -441,10 +439,9 @@ CameraStatus LibcameraCamera::next_frame(std::int64_t timeout_ns, hal::FrameView
       if (all_held) m.last_activity_ns = now;  // starvation by the consumer is not a fault
       if (now - m.last_activity_ns > m.stall_timeout_ns()) {
         m.disconnected = true;
-        return m.fail(CameraStatus::kDisconnected, "no frame for " +
-                                                       std::to_string((now - m.last_activity_ns) /
-                                                                      1'000'000) +
-                                                       " ms");
+        return m.fail(
+            CameraStatus::kDisconnected,
+            "no frame for " + std::to_string((now - m.last_activity_ns) / 1'000'000) + " ms");
       }
       return CameraStatus::kTimeout;
     }
@@ -472,17 +469,17 @@ CameraStatus LibcameraCamera::next_frame(std::int64_t timeout_ns, hal::FrameView
     const auto exp_md = req->metadata().get(lc::controls::ExposureTime);
     const std::int64_t exposure_ns =
         static_cast<std::int64_t>(exp_md ? *exp_md : m.cfg.exposure_us) * 1000;
-    frame->t_exposure_ns = camera::exposure_mid_ns(
-        camera::to_monotonic_ns(ts, dom, now_mono, now_boot),
-        camera::TimestampRef::kStartOfExposure, exposure_ns,
-        static_cast<std::int64_t>(m.cfg.readout_us) * 1000);
+    frame->t_exposure_ns =
+        camera::exposure_mid_ns(camera::to_monotonic_ns(ts, dom, now_mono, now_boot),
+                                camera::TimestampRef::kStartOfExposure, exposure_ns,
+                                static_cast<std::int64_t>(m.cfg.readout_us) * 1000);
     slot->outstanding = true;
     if (m.layout.in_place) {
       frame->data = slot->y_plane;
       frame->stride_bytes = m.stride;
     } else {
-    camera::convert_to_gray(m.fourcc, slot->y_plane, m.stride, m.cfg.width_px, m.cfg.height_px,
-                            slot->gray.data(), m.cfg.width_px);
+      camera::convert_to_gray(m.fourcc, slot->y_plane, m.stride, m.cfg.width_px, m.cfg.height_px,
+                              slot->gray.data(), m.cfg.width_px);
       frame->data = slot->gray.data();
       frame->stride_bytes = m.cfg.width_px;
     }
@@ -514,9 +511,7 @@ void LibcameraCamera::release(const hal::FrameView& frame) {
 
 hal::CameraStats LibcameraCamera::stats() const {
   std::lock_guard<std::mutex> lock(impl_->stat_mutex);
-  hal::CameraStats s = impl_->stats;
-  s.frames_dropped += impl_->queue.dropped();
-  return s;
+  return impl_->stats;  // frames evicted by newest-wins show up as sequence gaps
 }
 
 const char* LibcameraCamera::last_error() const {

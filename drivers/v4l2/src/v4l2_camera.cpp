@@ -34,8 +34,8 @@ std::int64_t frame_time_ns(std::uint32_t flags, std::int64_t buffer_ts_ns,
                            std::int64_t readout_ns) {
   const TimestampKind k = timestamp_kind(flags);
   if (!k.monotonic) {
-    return camera::exposure_mid_ns(dequeue_mono_ns, camera::TimestampRef::kEndOfFrame,
-                                   exposure_ns, readout_ns);
+    return camera::exposure_mid_ns(dequeue_mono_ns, camera::TimestampRef::kEndOfFrame, exposure_ns,
+                                   readout_ns);
   }
   return camera::exposure_mid_ns(buffer_ts_ns, k.ref, exposure_ns, readout_ns);
 }
@@ -58,7 +58,7 @@ struct V4l2Camera::Impl {
   struct Buffer {
     void* map = MAP_FAILED;
     std::size_t length = 0;
-    bool outstanding = false;       // held by the consumer
+    bool outstanding = false;        // held by the consumer
     std::vector<std::uint8_t> gray;  // YUYV only: converted copy
   };
 
@@ -166,9 +166,9 @@ CameraStatus V4l2Camera::Impl::configure_format() {
   if (fourcc == 0) {
     std::string list;
     for (std::uint32_t f : offered) list += " " + camera::fourcc_to_string(f);
-    return fail(CameraStatus::kInvalidArgument,
-                "no usable pixel format (need GREY, NV12, YU12, YUYV or RGB24); device offers:" + list,
-                0);
+    return fail(
+        CameraStatus::kInvalidArgument,
+        "no usable pixel format (need GREY, NV12, YU12, YUYV or RGB24); device offers:" + list, 0);
   }
   v4l2_format fmt{};
   fmt.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
@@ -181,10 +181,9 @@ CameraStatus V4l2Camera::Impl::configure_format() {
       fmt.fmt.pix.width != static_cast<std::uint32_t>(cfg.width_px) ||
       fmt.fmt.pix.height != static_cast<std::uint32_t>(cfg.height_px)) {
     std::ostringstream e;
-    e << "device cannot capture " << camera::fourcc_to_string(fourcc) << " " << cfg.width_px
-      << "x" << cfg.height_px << "; nearest is "
-      << camera::fourcc_to_string(fmt.fmt.pix.pixelformat) << " " << fmt.fmt.pix.width << "x"
-      << fmt.fmt.pix.height;
+    e << "device cannot capture " << camera::fourcc_to_string(fourcc) << " " << cfg.width_px << "x"
+      << cfg.height_px << "; nearest is " << camera::fourcc_to_string(fmt.fmt.pix.pixelformat)
+      << " " << fmt.fmt.pix.width << "x" << fmt.fmt.pix.height;
     return fail(CameraStatus::kInvalidArgument, e.str(), 0);
   }
   if (fmt.fmt.pix.field != V4L2_FIELD_NONE && fmt.fmt.pix.field != V4L2_FIELD_ANY) {
@@ -326,10 +325,7 @@ CameraStatus V4l2Camera::next_frame(std::int64_t timeout_ns, hal::FrameView* fra
         continue;
       }
       if (have) {  // a newer frame is ready: hand out the newest, recycle the older one
-        {
-          std::lock_guard<std::mutex> lock(m.stat_mutex);
-          ++m.stats.frames_dropped;
-        }
+        // (counted as dropped through the sequence gap below)
         if (!m.queue(got.index) && m.disconnected) return CameraStatus::kDisconnected;
       }
       got = b;
@@ -385,9 +381,8 @@ CameraStatus V4l2Camera::next_frame(std::int64_t timeout_ns, hal::FrameView* fra
     }
   }
   const std::int64_t now = camera::monotonic_now_ns();
-  const std::int64_t ts_ns =
-      static_cast<std::int64_t>(got.timestamp.tv_sec) * 1'000'000'000 +
-      static_cast<std::int64_t>(got.timestamp.tv_usec) * 1000;
+  const std::int64_t ts_ns = static_cast<std::int64_t>(got.timestamp.tv_sec) * 1'000'000'000 +
+                             static_cast<std::int64_t>(got.timestamp.tv_usec) * 1000;
   Impl::Buffer& buf = m.buffers[got.index];
   buf.outstanding = true;
   const auto* base = static_cast<const std::uint8_t*>(buf.map);

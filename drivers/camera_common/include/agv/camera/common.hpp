@@ -41,8 +41,10 @@ inline constexpr std::uint32_t kFourccNv12 = make_fourcc('N', 'V', '1', '2');
 inline constexpr std::uint32_t kFourccYu12 = make_fourcc('Y', 'U', '1', '2');  // YUV420 planar
 inline constexpr std::uint32_t kFourccYuyv = make_fourcc('Y', 'U', 'Y', 'V');
 // Packed 24-bit RGB, last resort (one copy + weighted sum). Byte order in memory:
-inline constexpr std::uint32_t kFourccRgb888 = make_fourcc('R', 'G', '2', '4');  // libcamera RGB888: B G R
-inline constexpr std::uint32_t kFourccBgr888 = make_fourcc('B', 'G', '2', '4');  // libcamera BGR888: R G B
+inline constexpr std::uint32_t kFourccRgb888 =
+    make_fourcc('R', 'G', '2', '4');  // libcamera RGB888: B G R
+inline constexpr std::uint32_t kFourccBgr888 =
+    make_fourcc('B', 'G', '2', '4');  // libcamera BGR888: R G B
 inline constexpr std::uint32_t kFourccV4l2Bgr24 = make_fourcc('B', 'G', 'R', '3');  // B G R
 inline constexpr std::uint32_t kFourccV4l2Rgb24 = make_fourcc('R', 'G', 'B', '3');  // R G B
 
@@ -58,8 +60,8 @@ std::uint32_t choose_format(hal::PixelFormatPreference pref,
 
 // How to obtain 8-bit gray from one buffer of a negotiated format.
 struct GrayLayout {
-  bool in_place = false;    // true: the gray image is the buffer's first plane (no copy)
-  int stride_bytes = 0;     // in place: row pitch of the Y plane; copy: source row pitch
+  bool in_place = false;      // true: the gray image is the buffer's first plane (no copy)
+  int stride_bytes = 0;       // in place: row pitch of the Y plane; copy: source row pitch
   std::size_t min_bytes = 0;  // smallest valid buffer (payload) for this format and size
 };
 // Checks that fourcc/size/stride are consistent; false with *error otherwise.

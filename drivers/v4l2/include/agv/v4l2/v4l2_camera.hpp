@@ -9,7 +9,8 @@
 //   agv::v4l2::V4l2Camera cam(cfg);
 //   if (cam.start() != agv::hal::CameraStatus::kOk) fail(cam.last_error());
 //   agv::hal::FrameView f;
-//   while (cam.next_frame(200'000'000, &f) == agv::hal::CameraStatus::kOk) { use(f); cam.release(f); }
+//   while (cam.next_frame(200'000'000, &f) == agv::hal::CameraStatus::kOk) { use(f);
+//   cam.release(f); }
 //
 // One consumer thread calls next_frame/release; stats()/last_error() may be called from others.
 #pragma once
