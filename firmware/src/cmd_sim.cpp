@@ -1,13 +1,247 @@
-// Placeholder until the owning issue lands; exits 2 so no caller mistakes it for success.
-#include <cstdio>
+// agvloc sim: writes a simulated recording (docs/simulator.md, docs/recording.md).
+#include <CLI/CLI.hpp>
 
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "agv/recording/recording.hpp"
+#include "agv/sim/render.hpp"
+#include "agv/sim/trajectory.hpp"
 #include "commands.hpp"
 
 namespace agv::cmd {
 
-int sim(int, char**) {
-  std::fprintf(stderr, "agvloc sim: not implemented yet\n");
-  return 2;
+namespace {
+
+namespace fs = std::filesystem;
+
+bool load_map(const std::string& path, LandmarkMap* map, std::string* error) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) {
+    *error = path + ": cannot open";
+    return false;
+  }
+  std::ostringstream ss;
+  ss << f.rdbuf();
+  std::string err;
+  if (!parse_landmark_map(ss.str(), map, &err)) {
+    *error = path + ": " + err;
+    return false;
+  }
+  if (map->entries.empty()) {
+    *error = path + ": no landmarks";
+    return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+int sim(int argc, char** argv) {
+  CLI::App app{"Write a simulated recording: textured floor with landmarks, a differential-drive "
+               "vehicle, odometry with errors, ground truth (docs/simulator.md)",
+               "agvloc sim"};
+  std::string out_dir, map_path, trajectory = "line", profile = "640x480", degrade = "realistic",
+                                 payload_mode = "full";
+  double duration_s = 60.0, fps = 30.0, odom_hz = 100.0, speed_mps = 0.5, exposure_ms = 2.0;
+  double grid_spacing_mm = 1000.0, k1 = 0.0, k2 = 0.0, occluder = 0.0, dirt = 0.0;
+  int scratches = 0;
+  std::uint64_t seed = 1;
+  bool force = false;
+  app.add_option("--out", out_dir, "Recording directory to write")->required();
+  app.add_option("--map", map_path, "Landmark map (docs/landmark.md); default: built-in 5x5 grid at 1 m "
+                                    "(= tools/maps/default_grid.csv)");
+  app.add_option("--trajectory", trajectory, "line|square|circle|figure8|lawnmower")
+      ->capture_default_str();
+  app.add_option("--duration-s", duration_s, "Recording length in seconds")
+      ->check(CLI::Range(0.1, 3600.0))->capture_default_str();
+  app.add_option("--fps", fps, "Frame rate")->check(CLI::Range(1.0, 200.0))->capture_default_str();
+  app.add_option("--odom-hz", odom_hz, "Odometry (and truth) rate")
+      ->check(CLI::Range(10.0, 1000.0))->capture_default_str();
+  app.add_option("--seed", seed, "Seed for every random effect (same seed = same recording)")
+      ->capture_default_str();
+  app.add_option("--speed-mps", speed_mps, "Cruise speed")->check(CLI::Range(0.01, 5.0))
+      ->capture_default_str();
+  app.add_option("--profile", profile, "Camera profile 640x480|1280x800")->capture_default_str();
+  app.add_option("--degrade", degrade, "clean (anti-aliasing only) | realistic (defocus, motion "
+                                       "blur, illumination gradient, noise)")
+      ->capture_default_str();
+  app.add_option("--exposure-ms", exposure_ms, "Exposure time for motion blur (realistic only)")
+      ->check(CLI::Range(0.0, 50.0))->capture_default_str();
+  app.add_option("--payload", payload_mode, "full (pose in the QR) | id (pose from the map)")
+      ->capture_default_str();
+  app.add_option("--grid-spacing-mm", grid_spacing_mm, "Landmark grid spacing the path follows")
+      ->check(CLI::Range(200.0, 100000.0))->capture_default_str();
+  app.add_option("--k1", k1, "Radial distortion k1 of the simulated lens")->capture_default_str();
+  app.add_option("--k2", k2, "Radial distortion k2 of the simulated lens")->capture_default_str();
+  app.add_option("--occluder-fraction", occluder, "Fraction of every landmark border covered")
+      ->check(CLI::Range(0.0, 1.0))->capture_default_str();
+  app.add_option("--scratches", scratches, "Scratches per landmark")->check(CLI::Range(0, 100))
+      ->capture_default_str();
+  app.add_option("--dirt", dirt, "Mean dirt spots per landmark")->check(CLI::Range(0.0, 100.0))
+      ->capture_default_str();
+  app.add_flag("--force", force, "Overwrite an existing recording in --out");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+
+  auto usage_error = [](const std::string& msg) {
+    std::fprintf(stderr, "agvloc sim: %s\n", msg.c_str());
+    return 2;
+  };
+  sim::TrajectoryParams tp;
+  if (!sim::parse_trajectory_kind(trajectory, &tp.kind)) {
+    return usage_error("unknown trajectory '" + trajectory + "'");
+  }
+  CameraModel cam;
+  if (profile == "640x480") {
+    cam = CameraModel::default_640x480();
+  } else if (profile == "1280x800") {
+    cam = CameraModel::default_1280x800();
+  } else {
+    return usage_error("unknown profile '" + profile + "' (640x480 or 1280x800)");
+  }
+  cam.intrinsics.k1 = k1;
+  cam.intrinsics.k2 = k2;
+  sim::RenderOptions ro;
+  if (degrade == "realistic") {
+    ro = sim::realistic_options();
+    ro.exposure_s = exposure_ms * 1e-3;
+  } else if (degrade != "clean") {
+    return usage_error("unknown --degrade '" + degrade + "' (clean or realistic)");
+  }
+  ro.occluder_border_fraction = occluder;
+  ro.scratches_per_landmark = scratches;
+  ro.dirt_spots_per_landmark = dirt;
+  ro.degradation_seed = seed * 7919 + 3;
+  sim::PayloadMode pm;
+  if (payload_mode == "full") {
+    pm = sim::PayloadMode::kFull;
+  } else if (payload_mode == "id") {
+    pm = sim::PayloadMode::kIdOnly;
+  } else {
+    return usage_error("unknown --payload '" + payload_mode + "' (full or id)");
+  }
+
+  std::string err;
+  LandmarkMap map = sim::default_landmark_grid();
+  if (!map_path.empty() && !load_map(map_path, &map, &err)) return usage_error(err);
+
+  // Lay the path over the map's bounding box.
+  double minx = 1e300, miny = 1e300, maxx = -1e300, maxy = -1e300;
+  for (const auto& [id, e] : map.entries) {
+    minx = std::min(minx, e.pose.x_mm);
+    miny = std::min(miny, e.pose.y_mm);
+    maxx = std::max(maxx, e.pose.x_mm);
+    maxy = std::max(maxy, e.pose.y_mm);
+  }
+  tp.grid_origin_mm = {minx, miny};
+  tp.grid_spacing_mm = grid_spacing_mm;
+  tp.grid_columns = std::max(2, static_cast<int>(std::lround((maxx - minx) / grid_spacing_mm)) + 1);
+  tp.grid_rows = std::max(2, static_cast<int>(std::lround((maxy - miny) / grid_spacing_mm)) + 1);
+  tp.lawnmower_rows = tp.grid_rows - (tp.grid_rows % 2);  // even: the loop closes
+  tp.speed_mps = speed_mps;
+  sim::Trajectory traj;
+  if (!sim::make_trajectory(tp, &traj, &err)) return usage_error("trajectory: " + err);
+
+  sim::Scene scene;
+  if (!sim::make_scene(map, LandmarkGeometry{}, pm, &scene, &err)) return usage_error(err);
+  scene.floor.seed = seed;
+
+  std::error_code ec;
+  if (fs::exists(fs::path(out_dir) / "meta.yaml", ec) && !force) {
+    return usage_error(out_dir + " already holds a recording (use --force to overwrite)");
+  }
+  if (force) fs::remove_all(fs::path(out_dir) / "frames", ec);
+  fs::create_directories(out_dir, ec);
+  if (ec) {
+    std::fprintf(stderr, "agvloc sim: cannot create %s: %s\n", out_dir.c_str(), ec.message().c_str());
+    return 1;
+  }
+
+  recording::Meta meta;
+  meta.camera = cam;
+  meta.landmark_size_mm = scene.geometry.size_mm;
+  std::string cmdline = "agvloc sim";
+  for (int i = 1; i < argc; ++i) cmdline += std::string(" ") + argv[i];
+  meta.source = cmdline;
+  if (!recording::write_meta(out_dir, meta, &err)) {
+    std::fprintf(stderr, "agvloc sim: %s\n", err.c_str());
+    return 1;
+  }
+
+  // Monotonic clock starts at an arbitrary 10 s, like a freshly booted controller.
+  constexpr std::int64_t kT0_ns = 10'000'000'000LL;
+  const auto duration_ns = static_cast<std::int64_t>(std::llround(duration_s * 1e9));
+  sim::OdometryParams op;
+  op.seed = seed;
+  const std::vector<sim::SlipEvent> slips = sim::make_slip_events(op, duration_ns);
+
+  std::vector<recording::OdomRow> odom;
+  std::vector<std::int64_t> truth_times;
+  const auto odom_period_ns = static_cast<std::int64_t>(std::llround(1e9 / odom_hz));
+  for (std::int64_t t = 0; t <= duration_ns; t += odom_period_ns) {
+    const sim::MotionState m = sim::trajectory_state(traj, t);
+    const sim::OdometrySample o = sim::odometry_sample(op, slips, m, t);
+    odom.push_back({kT0_ns + t, o.v_mps, o.omega_radps});
+    truth_times.push_back(t);
+  }
+
+  const sim::FrameRenderer renderer(scene, cam);
+  std::mt19937_64 noise_rng(seed * 0x2545F4914F6CDD1DULL + 1);
+  std::vector<recording::FrameRow> frames;
+  const auto n_frames = static_cast<std::int64_t>(std::floor(duration_s * fps)) + 1;
+  const auto t_start = std::chrono::steady_clock::now();
+  std::int64_t frames_with_landmark = 0;
+  for (std::int64_t k = 0; k < n_frames; ++k) {
+    const auto t = static_cast<std::int64_t>(std::llround(static_cast<double>(k) * 1e9 / fps));
+    if (t > duration_ns) break;
+    const sim::MotionState m = sim::trajectory_state(traj, t);
+    sim::RenderOptions fo = ro;
+    fo.speed_mps = m.v_mps;
+    fo.yaw_rate_radps = m.omega_radps;
+    const cv::Mat img = renderer.render(m.pose, fo, noise_rng);
+    if (!renderer.visible_landmarks(m.pose).empty()) ++frames_with_landmark;
+    char name[40];
+    std::snprintf(name, sizeof name, "frames/%06lld.png", static_cast<long long>(k));
+    if (!recording::write_frame_png(out_dir, name, img, &err)) {
+      std::fprintf(stderr, "agvloc sim: %s\n", err.c_str());
+      return 1;
+    }
+    frames.push_back({kT0_ns + t, name});
+    truth_times.push_back(t);
+  }
+  const double render_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+
+  // Truth at every odometry and frame time (exact pose at each exposure mid-time).
+  std::sort(truth_times.begin(), truth_times.end());
+  truth_times.erase(std::unique(truth_times.begin(), truth_times.end()), truth_times.end());
+  std::vector<recording::TruthRow> truth;
+  truth.reserve(truth_times.size());
+  for (std::int64_t t : truth_times) {
+    const sim::MotionState m = sim::trajectory_state(traj, t);
+    truth.push_back({kT0_ns + t, m.pose.x_mm, m.pose.y_mm, rad_to_deg(m.pose.theta_rad)});
+  }
+  if (!recording::write_frames_csv(out_dir, frames, &err) ||
+      !recording::write_odom_csv(out_dir, odom, &err) ||
+      !recording::write_truth_csv(out_dir, truth, &err)) {
+    std::fprintf(stderr, "agvloc sim: %s\n", err.c_str());
+    return 1;
+  }
+  std::printf("agvloc sim: wrote %s: %zu frames (%lld with a landmark in view), %zu odometry rows, "
+              "%zu truth rows; trajectory %s, lap %.1f m, %zu slip events; %.1f s to render\n",
+              out_dir.c_str(), frames.size(), static_cast<long long>(frames_with_landmark),
+              odom.size(), truth.size(), sim::to_string(tp.kind), traj.length_mm / 1000.0,
+              slips.size(), render_s);
+  return 0;
 }
 
 }  // namespace agv::cmd

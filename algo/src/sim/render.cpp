@@ -281,6 +281,18 @@ double floor_texture(const FloorTexture& t, Vec2 p) {
   return t.mean + 2.0 * t.amplitude * s;
 }
 
+LandmarkMap default_landmark_grid(int columns, int rows, double spacing_mm) {
+  LandmarkMap m;
+  std::uint32_t id = 1;
+  static constexpr double kHeadings_deg[4] = {0.0, 90.0, 180.0, -90.0};
+  for (int r = 0; r < rows; ++r) {
+    for (int c = 0; c < columns; ++c, ++id) {
+      m.entries[id] = {id, {c * spacing_mm, r * spacing_mm, deg_to_rad(kHeadings_deg[(id - 1) % 4])}};
+    }
+  }
+  return m;
+}
+
 bool make_scene(const LandmarkMap& map, const LandmarkGeometry& geometry, PayloadMode mode,
                 Scene* out, std::string* error) {
   Scene s;

@@ -97,6 +97,11 @@ struct Scene {
 
 enum class PayloadMode { kFull, kIdOnly };
 
+// The default map (tools/maps/default_grid.csv is exactly this): columns x rows landmarks at
+// `spacing_mm`, first at the world origin, ids 1.. row by row (x fastest), headings cycling
+// 0, 90, 180, -90 degrees so every heading quadrant is exercised.
+LandmarkMap default_landmark_grid(int columns = 5, int rows = 5, double spacing_mm = 1000.0);
+
 // Builds a scene with one landmark per map entry. False with *error on an encoding error.
 bool make_scene(const LandmarkMap& map, const LandmarkGeometry& geometry, PayloadMode mode,
                 Scene* out, std::string* error);

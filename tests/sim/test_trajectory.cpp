@@ -1,0 +1,179 @@
+// Trajectories are closed, consistent with their own speeds, pass over the landmark grid; the
+// odometry model has the documented errors and is a pure function of time.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "agv/sim/render.hpp"
+#include "agv/sim/trajectory.hpp"
+
+using namespace agv;
+using namespace agv::sim;
+
+namespace {
+
+constexpr TrajectoryKind kAll[] = {TrajectoryKind::kLine, TrajectoryKind::kSquare,
+                                   TrajectoryKind::kCircle, TrajectoryKind::kFigure8,
+                                   TrajectoryKind::kLawnmower};
+
+Trajectory make(TrajectoryKind k) {
+  TrajectoryParams p;
+  p.kind = k;
+  Trajectory t;
+  std::string err;
+  EXPECT_TRUE(make_trajectory(p, &t, &err)) << err;
+  return t;
+}
+
+}  // namespace
+
+TEST(Trajectory, ClosedLoopsAndNames) {
+  for (TrajectoryKind k : kAll) {
+    const Trajectory t = make(k);
+    EXPECT_LT(t.closure_error_mm, 1e-6) << to_string(k);
+    EXPECT_GT(t.length_mm, 3000.0);
+    TrajectoryKind back;
+    ASSERT_TRUE(parse_trajectory_kind(to_string(k), &back));
+    EXPECT_EQ(back, k);
+  }
+  TrajectoryKind k;
+  EXPECT_FALSE(parse_trajectory_kind("spiral", &k));
+}
+
+TEST(Trajectory, IntegratingOwnSpeedsReproducesPose) {
+  for (TrajectoryKind kind : kAll) {
+    const Trajectory t = make(kind);
+    Pose2 p = t.start;
+    const std::int64_t dt = 200'000;  // 0.2 ms midpoint integration
+    const double dt_s = 2e-4;
+    double max_err = 0.0;
+    for (std::int64_t tn = 0; tn < 30'000'000'000LL; tn += dt) {
+      const MotionState m = trajectory_state(t, tn + dt / 2);
+      const double th = p.theta_rad + 0.5 * m.omega_radps * dt_s;
+      p.x_mm += 1000.0 * m.v_mps * dt_s * std::cos(th);
+      p.y_mm += 1000.0 * m.v_mps * dt_s * std::sin(th);
+      p.theta_rad = wrap_angle_rad(p.theta_rad + m.omega_radps * dt_s);
+      const MotionState truth = trajectory_state(t, tn + dt);
+      max_err = std::max(max_err, std::hypot(p.x_mm - truth.pose.x_mm, p.y_mm - truth.pose.y_mm));
+    }
+    EXPECT_LT(max_err, 2.0) << to_string(kind);
+  }
+}
+
+TEST(Trajectory, StartsAtRestAndRampsUp) {
+  const Trajectory t = make(TrajectoryKind::kLine);
+  EXPECT_EQ(trajectory_state(t, 0).v_mps, 0.0);
+  EXPECT_EQ(trajectory_state(t, -5).pose.x_mm, t.start.x_mm);
+  EXPECT_NEAR(trajectory_state(t, 500'000'000).v_mps, 0.25, 1e-12);
+  EXPECT_NEAR(trajectory_state(t, 5'000'000'000).v_mps, 0.5, 1e-12);
+}
+
+TEST(Trajectory, PassesOverLandmarks) {
+  const LandmarkMap grid = default_landmark_grid();
+  for (TrajectoryKind kind : kAll) {
+    const Trajectory t = make(kind);
+    int passed = 0;
+    for (const auto& [id, e] : grid.entries) {
+      double best = 1e300;
+      for (std::int64_t tn = 0; tn < 200'000'000'000LL && tn * 0.5e-6 < t.length_mm + 1000; tn += 20'000'000) {
+        const Pose2 p = trajectory_state(t, tn).pose;
+        best = std::min(best, std::hypot(p.x_mm - e.pose.x_mm, p.y_mm - e.pose.y_mm));
+      }
+      if (best < 40.0) ++passed;
+    }
+    EXPECT_GE(passed, 4) << to_string(kind);
+  }
+}
+
+TEST(Trajectory, RejectsBadParams) {
+  TrajectoryParams p;
+  Trajectory t;
+  std::string err;
+  p.speed_mps = 0.0;
+  EXPECT_FALSE(make_trajectory(p, &t, &err));
+  EXPECT_FALSE(err.empty());
+  p = {};
+  p.kind = TrajectoryKind::kLawnmower;
+  p.lawnmower_rows = 3;
+  EXPECT_FALSE(make_trajectory(p, &t, &err));
+  p = {};
+  p.grid_spacing_mm = std::nan("");
+  EXPECT_FALSE(make_trajectory(p, &t, &err));
+}
+
+TEST(Odometry, ErrorFreeModelMatchesTruth) {
+  const Trajectory t = make(TrajectoryKind::kFigure8);
+  OdometryParams op;
+  op.scale_error = op.scale_asymmetry = op.noise_mps = 0.0;
+  op.slip_rate_per_s = 0.0;
+  for (std::int64_t tn = 0; tn < 30'000'000'000LL; tn += 123'456'789) {
+    const MotionState m = trajectory_state(t, tn);
+    const OdometrySample o = odometry_sample(op, {}, m, tn);
+    EXPECT_NEAR(o.v_mps, m.v_mps, 1e-12);
+    EXPECT_NEAR(o.omega_radps, m.omega_radps, 1e-12);
+  }
+}
+
+TEST(Odometry, ScaleNoiseSlipAndDeterminism) {
+  const Trajectory t = make(TrajectoryKind::kLine);
+  OdometryParams op;
+  op.slip_rate_per_s = 0.0;
+  double sum_ratio = 0.0, sum_sq = 0.0;
+  int n = 0;
+  for (std::int64_t tn = 2'000'000'000; tn < 6'000'000'000LL; tn += 10'000'000) {
+    const MotionState m = trajectory_state(t, tn);  // straight at 0.5 m/s
+    ASSERT_EQ(m.omega_radps, 0.0);
+    const OdometrySample o = odometry_sample(op, {}, m, tn);
+    EXPECT_EQ(o.v_mps, odometry_sample(op, {}, m, tn).v_mps);  // pure function of t
+    sum_ratio += o.v_mps / m.v_mps;
+    sum_sq += (o.v_mps - 1.01 * m.v_mps) * (o.v_mps - 1.01 * m.v_mps);
+    ++n;
+  }
+  EXPECT_NEAR(sum_ratio / n, 1.01, 0.001);  // documented 1 % scale error
+  // v noise is the mean of two wheels: sigma / sqrt(2).
+  EXPECT_NEAR(std::sqrt(sum_sq / n), 0.003 / std::sqrt(2.0), 0.0006);
+
+  // Slip: deterministic events; during one the reported speed exceeds the truth a lot.
+  op.slip_rate_per_s = 0.5;
+  const auto ev = make_slip_events(op, 60'000'000'000LL);
+  const auto ev2 = make_slip_events(op, 60'000'000'000LL);
+  ASSERT_FALSE(ev.empty());
+  ASSERT_EQ(ev.size(), ev2.size());
+  EXPECT_EQ(ev[0].t_start_ns, ev2[0].t_start_ns);
+  EXPECT_GT(ev.size(), 15u);
+  EXPECT_LT(ev.size(), 50u);
+  const std::int64_t mid = (ev[0].t_start_ns + ev[0].t_end_ns) / 2 + 3'000'000'000LL;
+  auto shifted = ev;
+  for (auto& e : shifted) {
+    e.t_start_ns += 3'000'000'000LL;
+    e.t_end_ns += 3'000'000'000LL;
+  }
+  op.noise_mps = 0.0;
+  const MotionState m = trajectory_state(t, mid);
+  const OdometrySample slipping = odometry_sample(op, shifted, m, mid);
+  const OdometrySample normal = odometry_sample(op, {}, m, mid);
+  EXPECT_NEAR(slipping.v_mps - normal.v_mps, 0.5 * 0.25 * m.v_mps, 0.01);
+  EXPECT_GT(std::abs(slipping.omega_radps), 0.2);
+}
+
+TEST(DefaultMap, FileMatchesBuiltInGrid) {
+  std::ifstream f(std::string(AGV_SOURCE_DIR) + "/tools/maps/default_grid.csv");
+  ASSERT_TRUE(f) << "tools/maps/default_grid.csv missing";
+  std::stringstream ss;
+  ss << f.rdbuf();
+  LandmarkMap m;
+  std::string err;
+  ASSERT_TRUE(parse_landmark_map(ss.str(), &m, &err)) << err;
+  const LandmarkMap g = default_landmark_grid();
+  ASSERT_EQ(m.entries.size(), 25u);
+  ASSERT_EQ(m.entries.size(), g.entries.size());
+  for (const auto& [id, e] : g.entries) {
+    const LandmarkMapEntry* o = m.find(id);
+    ASSERT_NE(o, nullptr);
+    EXPECT_NEAR(o->pose.x_mm, e.pose.x_mm, 1e-9);
+    EXPECT_NEAR(o->pose.y_mm, e.pose.y_mm, 1e-9);
+    EXPECT_NEAR(wrap_angle_rad(o->pose.theta_rad - e.pose.theta_rad), 0.0, 1e-9);
+  }
+}
