@@ -63,15 +63,15 @@ TEST(CandumpLine, ParsesStandardExtendedRemoteAndError) {
 
 TEST(CandumpLine, RejectsMalformedLines) {
   EXPECT_NE(parse_err(""), "");
-  EXPECT_NE(parse_err("1436509052.249713 vcan0 044#00"), "");   // no parentheses
-  EXPECT_NE(parse_err("(1436509052) vcan0 044#00"), "");        // no fraction
-  EXPECT_NE(parse_err("(1.5) vcan0"), "");                      // no frame
-  EXPECT_NE(parse_err("(1.5) vcan0 0440#00"), "");              // 4-digit ID
-  EXPECT_NE(parse_err("(1.5) vcan0 844#00"), "");               // standard ID > 0x7FF
-  EXPECT_NE(parse_err("(1.5) vcan0 044#0"), "");                // odd hex digits
-  EXPECT_NE(parse_err("(1.5) vcan0 044#GG"), "");               // not hex
+  EXPECT_NE(parse_err("1436509052.249713 vcan0 044#00"), "");      // no parentheses
+  EXPECT_NE(parse_err("(1436509052) vcan0 044#00"), "");           // no fraction
+  EXPECT_NE(parse_err("(1.5) vcan0"), "");                         // no frame
+  EXPECT_NE(parse_err("(1.5) vcan0 0440#00"), "");                 // 4-digit ID
+  EXPECT_NE(parse_err("(1.5) vcan0 844#00"), "");                  // standard ID > 0x7FF
+  EXPECT_NE(parse_err("(1.5) vcan0 044#0"), "");                   // odd hex digits
+  EXPECT_NE(parse_err("(1.5) vcan0 044#GG"), "");                  // not hex
   EXPECT_NE(parse_err("(1.5) vcan0 044#001122334455667788"), "");  // 9 bytes
-  EXPECT_NE(parse_err("(1.5) vcan0 044##100"), "");             // CAN FD
+  EXPECT_NE(parse_err("(1.5) vcan0 044##100"), "");                // CAN FD
   EXPECT_NE(parse_err("(1.5) vcan0 G44#00"), "");
   EXPECT_NE(parse_err("(1.5) vcan0 123#R9"), "");
 }

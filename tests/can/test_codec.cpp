@@ -32,8 +32,8 @@ p::PoseOut roundtrip(p::Encoder& enc, const p::PoseOut& in, const p::ProtocolCon
 // A frame for the odometry decoder, with E2E like a motor controller would send it.
 p::CanFrameData odom_frame(const p::ProtocolConfig& cfg, double a, double b, std::uint8_t counter,
                            std::int64_t t_ns) {
-  const p::Msg m = cfg.odometry.mode == p::OdometryMode::kWheels ? p::Msg::kOdomWheels
-                                                                  : p::Msg::kOdomTwist;
+  const p::Msg m =
+      cfg.odometry.mode == p::OdometryMode::kWheels ? p::Msg::kOdomWheels : p::Msg::kOdomTwist;
   const p::MessageDef& d = p::message_def(m);
   p::CanFrameData f;
   f.id = p::can_id_of(cfg, m);
@@ -77,8 +77,17 @@ TEST(SignalPacking, SignedAndUnsignedAtEveryBitOffset) {
         if (is_signed && len == 1) continue;
         const double maxv = is_signed ? std::ldexp(1.0, len - 1) - 1 : std::ldexp(1.0, len) - 1;
         const double minv = is_signed ? -std::ldexp(1.0, len - 1) : 0.0;
-        p::SignalDef s{"S", static_cast<std::uint8_t>(start), static_cast<std::uint8_t>(len),
-                       true, is_signed, 1.0, 0.0, minv, maxv, "", ""};
+        p::SignalDef s{"S",
+                       static_cast<std::uint8_t>(start),
+                       static_cast<std::uint8_t>(len),
+                       true,
+                       is_signed,
+                       1.0,
+                       0.0,
+                       minv,
+                       maxv,
+                       "",
+                       ""};
         for (double v : {minv, maxv, 0.0, std::floor(maxv / 3)}) {
           std::uint8_t d[8];
           std::memset(d, 0xA5, sizeof d);

@@ -99,7 +99,9 @@ Dbc parse_dbc(const std::string& text) {
   return dbc;
 }
 
-bool near_rel(double a, double b) { return std::fabs(a - b) <= 1e-12 * std::max(1.0, std::fabs(b)); }
+bool near_rel(double a, double b) {
+  return std::fabs(a - b) <= 1e-12 * std::max(1.0, std::fabs(b));
+}
 
 const std::string kDbcPath = std::string(AGV_SOURCE_DIR) + "/can/agvloc.dbc";
 const std::string kRegen =

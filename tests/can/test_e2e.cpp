@@ -8,7 +8,9 @@ namespace p = agv::protocol;
 
 namespace {
 
-std::uint8_t crc(const std::vector<std::uint8_t>& v) { return p::crc8_sae_j1850(v.data(), v.size()); }
+std::uint8_t crc(const std::vector<std::uint8_t>& v) {
+  return p::crc8_sae_j1850(v.data(), v.size());
+}
 
 p::CanFrameData protected_frame(std::uint16_t data_id, std::uint8_t counter, std::uint8_t fill) {
   p::CanFrameData f;

@@ -156,11 +156,11 @@ void test_filters(SocketCanBus& a, SocketCanBus& b) {
   drain(b);
   const CanFilter flt[] = {{0x123, 0x7FF, false}, {0x18FF0000, 0x1FFF0000, true}};
   ok &= check(b.set_filters(flt, 2) == CanStatus::kOk, t, "set_filters: %s", b.last_error());
-  a.send(frame(0x100, false, 2, 1));       // rejected: other ID
-  a.send(frame(0x123, true, 2, 2));        // rejected: extended with the same number
-  a.send(frame(0x123, false, 2, 3));       // accepted
-  a.send(frame(0x18FF1234, true, 3, 4));   // accepted by mask
-  a.send(frame(0x18FE1234, true, 3, 5));   // rejected
+  a.send(frame(0x100, false, 2, 1));      // rejected: other ID
+  a.send(frame(0x123, true, 2, 2));       // rejected: extended with the same number
+  a.send(frame(0x123, false, 2, 3));      // accepted
+  a.send(frame(0x18FF1234, true, 3, 4));  // accepted by mask
+  a.send(frame(0x18FE1234, true, 3, 5));  // rejected
   std::vector<CanFrame> got;
   CanFrame r;
   while (b.receive(&r, 100'000'000) == CanStatus::kOk) got.push_back(r);
@@ -256,15 +256,14 @@ void test_error_frames(SocketCanBus& a, SocketCanBus& b) {
               (unsigned long long)b.stats().rx_error_frames);
   ok &= check(b.state() == CanBusState::kErrorPassive, t, "state %s, want error-passive",
               to_string(b.state()));
-  ok &= check(b.error_counters().tx == 130 && b.error_counters().rx == 5, t,
-              "counters tx %u rx %u", b.error_counters().tx, b.error_counters().rx);
+  ok &= check(b.error_counters().tx == 130 && b.error_counters().rx == 5, t, "counters tx %u rx %u",
+              b.error_counters().tx, b.error_counters().rx);
   ok &= check(b.stats().error_passive_count == 1, t, "error_passive_count");
 
   inject_error(s, CAN_ERR_BUSOFF, 0, 0, 0);
   st = b.receive(&r, 100'000'000);  // consumes the error frame, then times out
   ok &= check(st == CanStatus::kTimeout, t, "receive after bus-off: %s", to_string(st));
-  ok &= check(b.state() == CanBusState::kBusOff, t, "state %s, want bus-off",
-              to_string(b.state()));
+  ok &= check(b.state() == CanBusState::kBusOff, t, "state %s, want bus-off", to_string(b.state()));
   ok &= check(b.stats().bus_off_count == 1, t, "bus_off_count");
   ok &= check(b.send(frame(0x301, false, 1, 1)) == CanStatus::kBusOff, t,
               "send during bus-off not refused");
@@ -292,8 +291,7 @@ void test_full_tx_queue(SocketCanBus& b) {
   const bool root = geteuid() == 0;
   bool shaped = false;
   if (root) {
-    shaped = sh("tc qdisc replace dev " + g_if + " root tbf rate 8kbit burst 1600 limit 2000") ==
-             0;
+    shaped = sh("tc qdisc replace dev " + g_if + " root tbf rate 8kbit burst 1600 limit 2000") == 0;
   }
   SocketCanBus a(cfg(1));  // kernel raises 1 to its SO_SNDBUF minimum (a few kB)
   bool ok = check(a.is_open(), t, "open: %s", a.last_error());
@@ -305,9 +303,12 @@ void test_full_tx_queue(SocketCanBus& b) {
     const CanStatus st = a.send(frame(0x400, false, 8, static_cast<std::uint8_t>(i)));
     const std::int64_t d = mono_ns() - t0;
     if (d > worst_ns) worst_ns = d;
-    if (st == CanStatus::kOk) ++n_ok;
-    else if (st == CanStatus::kWouldBlock) ++n_block;
-    else ++n_other;
+    if (st == CanStatus::kOk)
+      ++n_ok;
+    else if (st == CanStatus::kWouldBlock)
+      ++n_block;
+    else
+      ++n_other;
   }
   const agv::hal::CanStats s = a.stats();
   std::printf("INFO %s: %d ok, %d would-block, %d other, worst send %lld us, tc shaping %s\n", t,
@@ -353,11 +354,10 @@ void test_down_up(SocketCanBus& a, SocketCanBus& b) {
   ok &= check(sh("ip link set " + g_if + " down") == 0, t, "ip link set down failed");
   CanFrame r;
   const CanStatus srx = b.receive(&r, 200'000'000);
-  ok &= check(srx == CanStatus::kDown, t, "receive on a downed link: %s, want down",
-              to_string(srx));
+  ok &=
+      check(srx == CanStatus::kDown, t, "receive on a downed link: %s, want down", to_string(srx));
   const CanStatus stx = a.send(frame(0x500, false, 1, 1));
-  ok &= check(stx == CanStatus::kDown, t, "send on a downed link: %s, want down",
-              to_string(stx));
+  ok &= check(stx == CanStatus::kDown, t, "send on a downed link: %s, want down", to_string(stx));
   ok &= check(a.state() == CanBusState::kDown && b.state() == CanBusState::kDown, t,
               "state a %s b %s, want down", to_string(a.state()), to_string(b.state()));
   // While down, calls keep returning kDown quickly (reopen attempts are rate-limited).
@@ -381,8 +381,8 @@ void test_down_up(SocketCanBus& a, SocketCanBus& b) {
   ok &= check(a.stats().restarts == ra + 1 && b.stats().restarts == rb + 1, t,
               "restarts a %llu b %llu, want +1 each", (unsigned long long)a.stats().restarts,
               (unsigned long long)b.stats().restarts);
-  ok &= check(a.state() == CanBusState::kErrorActive && b.state() == CanBusState::kErrorActive,
-              t, "state after recovery a %s b %s", to_string(a.state()), to_string(b.state()));
+  ok &= check(a.state() == CanBusState::kErrorActive && b.state() == CanBusState::kErrorActive, t,
+              "state after recovery a %s b %s", to_string(a.state()), to_string(b.state()));
   drain(b);
   result(t, ok);
 }

@@ -47,8 +47,8 @@ Expect expect_phys(p::Msg m, const char* name, double phys) {
 Expect exact(const char* name, double v) { return {name, v, 1e-9}; }
 
 std::string json_line(const p::CanFrameData& f, const std::vector<Expect>& ex) {
-  std::string s = "{\"id\":" + std::to_string(f.id) + ",\"extended\":" +
-                  (f.extended ? "true" : "false") + ",\"signals\":{";
+  std::string s = "{\"id\":" + std::to_string(f.id) +
+                  ",\"extended\":" + (f.extended ? "true" : "false") + ",\"signals\":{";
   char buf[128];
   for (std::size_t i = 0; i < ex.size(); ++i) {
     std::snprintf(buf, sizeof buf, "%s\"%s\":[%.17g,%.17g]", i ? "," : "", ex[i].name.c_str(),
@@ -103,7 +103,7 @@ int interop(const char* log_path, const char* expected_path) {
                  expect_phys(p::Msg::kQuality, "SigmaTheta", q.sigma_theta_rad)};
     items.push_back(it);
   }
-  const char* fault_names[] = {"FaultCameraStalled", "FaultCameraError", "FaultOdomTimeout",
+  const char* fault_names[] = {"FaultCameraStalled", "FaultCameraError",     "FaultOdomTimeout",
                                "FaultOdomE2E",       "FaultCanErrorPassive", "FaultCanBusOff",
                                "FaultNoMap",         "FaultLoopOverrun"};
   const char* reject_names[] = {"RejectGate", "RejectUnknownLandmark", "RejectDecodeFailed",

@@ -94,7 +94,8 @@ bool parse_candump_line(std::string_view line, CandumpRecord* out, std::string* 
   } else {
     int n = 0;
     while (p < line.size() && line[p] != '_') {
-      if (p + 1 >= line.size() || line[p + 1] == '_') return fail(error, "odd number of hex digits");
+      if (p + 1 >= line.size() || line[p + 1] == '_')
+        return fail(error, "odd number of hex digits");
       const int hi = hex_val(line[p]), lo = hex_val(line[p + 1]);
       if (hi < 0 || lo < 0) return fail(error, "data is not hexadecimal");
       if (n >= 8) return fail(error, "more than 8 data bytes");
@@ -117,9 +118,9 @@ bool parse_candump_line(std::string_view line, CandumpRecord* out, std::string* 
 std::string format_candump_line(const CandumpRecord& rec) {
   char buf[128];
   const std::int64_t t = rec.t_ns < 0 ? 0 : rec.t_ns;
-  int n = std::snprintf(buf, sizeof buf, "(%010lld.%06lld) ",
-                        static_cast<long long>(t / 1'000'000'000),
-                        static_cast<long long>((t % 1'000'000'000) / 1000));
+  int n =
+      std::snprintf(buf, sizeof buf, "(%010lld.%06lld) ", static_cast<long long>(t / 1'000'000'000),
+                    static_cast<long long>((t % 1'000'000'000) / 1000));
   std::string s(buf, static_cast<std::size_t>(n));
   s += rec.iface;
   if (rec.error_frame) {

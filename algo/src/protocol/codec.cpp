@@ -18,8 +18,7 @@ const SignalDef& sig(Msg m, const char* name) {
 
 std::uint16_t odom_data_id(const OdometryConfig& o) {
   if (o.data_id != 0) return o.data_id;
-  return message_def(o.mode == OdometryMode::kWheels ? Msg::kOdomWheels : Msg::kOdomTwist)
-      .data_id;
+  return message_def(o.mode == OdometryMode::kWheels ? Msg::kOdomWheels : Msg::kOdomTwist).data_id;
 }
 
 Msg odom_msg(const OdometryConfig& o) {
@@ -97,8 +96,7 @@ void Encoder::finish(Msg m, CanFrameData* out) {
 }
 
 void Encoder::encode_pose(const PoseOut& p, CanFrameData* xy, CanFrameData* heading) {
-  const bool valid =
-      p.valid && finite(p.x_mm) && finite(p.y_mm) && finite(p.theta_rad);
+  const bool valid = p.valid && finite(p.x_mm) && finite(p.y_mm) && finite(p.theta_rad);
   begin(Msg::kPoseXY, xy);
   put_raw(sig(Msg::kPoseXY, "PoseValid"), valid ? 1 : 0, xy->data);
   put_phys(sig(Msg::kPoseXY, "X"), p.x_mm, xy->data);
@@ -108,8 +106,8 @@ void Encoder::encode_pose(const PoseOut& p, CanFrameData* xy, CanFrameData* head
   const double th = finite(p.theta_rad) ? wrap_angle_rad(p.theta_rad) : 0.0;
   put_phys(sig(Msg::kPoseHeading, "Theta"), th, heading->data);
   // Unknown latency is reported as the maximum (pessimistic).
-  put_phys(sig(Msg::kPoseHeading, "Latency"),
-           std::isnan(p.latency_ms) ? kInf : p.latency_ms, heading->data);
+  put_phys(sig(Msg::kPoseHeading, "Latency"), std::isnan(p.latency_ms) ? kInf : p.latency_ms,
+           heading->data);
   // Pair the two frames by counter: both advance together, so use the XY counter for both.
   counters_[static_cast<int>(Msg::kPoseHeading)] = counters_[static_cast<int>(Msg::kPoseXY)];
   finish(Msg::kPoseXY, xy);
@@ -175,8 +173,7 @@ void Encoder::encode_heartbeat(const HeartbeatOut& h, CanFrameData* out) {
 Msg identify(const ProtocolConfig& cfg, const CanFrameData& f) {
   for (const MessageDef& m : message_table()) {
     if (f.id == can_id_of(cfg, m.msg) && f.extended == is_extended(cfg, m.msg)) {
-      if (m.dir == Direction::kRx && m.msg != odom_msg(cfg.odometry) &&
-          cfg.odometry.can_id != 0) {
+      if (m.dir == Direction::kRx && m.msg != odom_msg(cfg.odometry) && cfg.odometry.can_id != 0) {
         continue;  // the inactive odometry variant has no configured ID
       }
       return m.msg;
@@ -251,14 +248,22 @@ bool decode_heartbeat(const ProtocolConfig& cfg, const CanFrameData& f, Heartbea
 
 const char* to_string(DecodeResult r) {
   switch (r) {
-    case DecodeResult::kOk: return "ok";
-    case DecodeResult::kNotOdometry: return "not-odometry";
-    case DecodeResult::kBadLength: return "bad-length";
-    case DecodeResult::kBadCrc: return "bad-crc";
-    case DecodeResult::kRepeated: return "repeated";
-    case DecodeResult::kCounterJump: return "counter-jump";
-    case DecodeResult::kBadCounter: return "bad-counter";
-    case DecodeResult::kStale: return "stale";
+    case DecodeResult::kOk:
+      return "ok";
+    case DecodeResult::kNotOdometry:
+      return "not-odometry";
+    case DecodeResult::kBadLength:
+      return "bad-length";
+    case DecodeResult::kBadCrc:
+      return "bad-crc";
+    case DecodeResult::kRepeated:
+      return "repeated";
+    case DecodeResult::kCounterJump:
+      return "counter-jump";
+    case DecodeResult::kBadCounter:
+      return "bad-counter";
+    case DecodeResult::kStale:
+      return "stale";
   }
   return "?";
 }
@@ -292,11 +297,21 @@ DecodeResult OdometryDecoder::decode(const CanFrameData& f, OdomSample* out) {
         lost = static_cast<std::uint32_t>(checker_.counters().lost_frames - lost_before);
         counters_.lost_frames += lost;
         break;
-      case E2eStatus::kRepeated: ++counters_.repeated; return DecodeResult::kRepeated;
-      case E2eStatus::kWrongSequence: ++counters_.counter_jump; return DecodeResult::kCounterJump;
-      case E2eStatus::kBadCrc: ++counters_.bad_crc; return DecodeResult::kBadCrc;
-      case E2eStatus::kBadLength: ++counters_.bad_length; return DecodeResult::kBadLength;
-      case E2eStatus::kBadCounter: ++counters_.bad_counter; return DecodeResult::kBadCounter;
+      case E2eStatus::kRepeated:
+        ++counters_.repeated;
+        return DecodeResult::kRepeated;
+      case E2eStatus::kWrongSequence:
+        ++counters_.counter_jump;
+        return DecodeResult::kCounterJump;
+      case E2eStatus::kBadCrc:
+        ++counters_.bad_crc;
+        return DecodeResult::kBadCrc;
+      case E2eStatus::kBadLength:
+        ++counters_.bad_length;
+        return DecodeResult::kBadLength;
+      case E2eStatus::kBadCounter:
+        ++counters_.bad_counter;
+        return DecodeResult::kBadCounter;
     }
   }
   OdomSample s;

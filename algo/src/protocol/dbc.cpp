@@ -39,14 +39,13 @@ std::string render_dbc(const ProtocolConfig& cfg) {
   for (const MessageDef& m : message_table()) {
     const char* tx = m.dir == Direction::kTx ? "AGVLOC" : "MC";
     const char* rx = m.dir == Direction::kTx ? "MC" : "AGVLOC";
-    s += "BO_ " + std::to_string(dbc_id(cfg, m.msg)) + " " + m.name + ": " +
-         std::to_string(m.dlc) + " " + tx + "\n";
+    s += "BO_ " + std::to_string(dbc_id(cfg, m.msg)) + " " + m.name + ": " + std::to_string(m.dlc) +
+         " " + tx + "\n";
     for (const SignalDef& g : m.signals) {
       s += std::string(" SG_ ") + g.name + " : " + std::to_string(g.start_bit) + "|" +
-           std::to_string(g.length) + (g.little_endian ? "@1" : "@0") +
-           (g.is_signed ? "-" : "+") + " (" + format_number(g.scale) + "," +
-           format_number(g.offset) + ") [" + format_number(g.min) + "|" + format_number(g.max) +
-           "] \"" + g.unit + "\" " + rx + "\n";
+           std::to_string(g.length) + (g.little_endian ? "@1" : "@0") + (g.is_signed ? "-" : "+") +
+           " (" + format_number(g.scale) + "," + format_number(g.offset) + ") [" +
+           format_number(g.min) + "|" + format_number(g.max) + "] \"" + g.unit + "\" " + rx + "\n";
     }
     s += "\n";
   }
@@ -95,8 +94,8 @@ std::string render_markdown_table(const ProtocolConfig& cfg) {
       first = false;
       s += std::string(g.name) + " | " + std::to_string(g.start_bit) + "\\|" +
            std::to_string(g.length) + " | " + (g.is_signed ? "signed" : "unsigned") + " | " +
-           format_number(g.scale) + " | " + format_number(g.offset) + " | " +
-           format_number(g.min) + " | " + format_number(g.max) + " | " + g.unit + " |\n";
+           format_number(g.scale) + " | " + format_number(g.offset) + " | " + format_number(g.min) +
+           " | " + format_number(g.max) + " | " + g.unit + " |\n";
     }
   }
   return s;

@@ -35,14 +35,22 @@ void e2e_protect(std::uint16_t data_id, std::uint8_t counter, std::uint8_t data[
 
 const char* to_string(E2eStatus s) {
   switch (s) {
-    case E2eStatus::kOk: return "ok";
-    case E2eStatus::kOkSomeLost: return "ok-some-lost";
-    case E2eStatus::kInitial: return "initial";
-    case E2eStatus::kRepeated: return "repeated";
-    case E2eStatus::kWrongSequence: return "wrong-sequence";
-    case E2eStatus::kBadCrc: return "bad-crc";
-    case E2eStatus::kBadLength: return "bad-length";
-    case E2eStatus::kBadCounter: return "bad-counter";
+    case E2eStatus::kOk:
+      return "ok";
+    case E2eStatus::kOkSomeLost:
+      return "ok-some-lost";
+    case E2eStatus::kInitial:
+      return "initial";
+    case E2eStatus::kRepeated:
+      return "repeated";
+    case E2eStatus::kWrongSequence:
+      return "wrong-sequence";
+    case E2eStatus::kBadCrc:
+      return "bad-crc";
+    case E2eStatus::kBadLength:
+      return "bad-length";
+    case E2eStatus::kBadCounter:
+      return "bad-counter";
   }
   return "?";
 }

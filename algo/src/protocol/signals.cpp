@@ -7,16 +7,17 @@ namespace agv::protocol {
 
 namespace {
 
-#define AGV_E2E_SIGNALS                                                                       \
-  SignalDef{"CRC", 0, 8, true, false, 1, 0, 0, 255, "",                                       \
-            "CRC-8 SAE J1850 over data ID (low, high byte) and bytes 1..7 (docs/can.md)"},    \
-      SignalDef {                                                                             \
-    "AliveCounter", 8, 4, true, false, 1, 0, 0, 14, "",                                       \
-        "E2E alive counter 0..14, +1 per frame of this ID, wraps 14->0; 15 is invalid"        \
-  }
+// Bytes 0 and the low nibble of byte 1 of every frame (e2e.hpp).
+// clang-format off
+constexpr SignalDef kCrcSignal{"CRC", 0, 8, true, false, 1, 0, 0, 255, "",
+    "CRC-8 SAE J1850 over data ID (low, high byte) and bytes 1..7 (docs/can.md)"};
+constexpr SignalDef kCounterSignal{"AliveCounter", 8, 4, true, false, 1, 0, 0, 14, "",
+    "E2E alive counter 0..14, +1 per frame of this ID, wraps 14->0; 15 is invalid"};
+// clang-format on
 
 constexpr SignalDef kPoseXY[] = {
-    AGV_E2E_SIGNALS,
+    kCrcSignal,
+    kCounterSignal,
     {"PoseValid", 12, 1, true, false, 1, 0, 0, 1, "",
      "1: pose initialised and usable; 0: X/Y/Theta must be ignored"},
     {"X", 16, 24, true, true, 0.1, 0, -838860.8, 838860.7, "mm",
@@ -25,7 +26,8 @@ constexpr SignalDef kPoseXY[] = {
      "World y of the vehicle reference point; saturates at the range limits"},
 };
 constexpr SignalDef kPoseHeading[] = {
-    AGV_E2E_SIGNALS,
+    kCrcSignal,
+    kCounterSignal,
     {"PoseValid", 12, 1, true, false, 1, 0, 0, 1, "", "Same as PoseXY.PoseValid"},
     {"Theta", 16, 16, true, true, 0.0001, 0, -3.1416, 3.1416, "rad",
      "Heading, counter-clockwise from world +x, wrapped to (-pi, pi]"},
@@ -33,7 +35,8 @@ constexpr SignalDef kPoseHeading[] = {
      "Age of the pose estimate when the frame was encoded; saturates at 6553.5 ms"},
 };
 constexpr SignalDef kVelocity[] = {
-    AGV_E2E_SIGNALS,
+    kCrcSignal,
+    kCounterSignal,
     {"VelocityValid", 12, 1, true, false, 1, 0, 0, 1, "", "1: V and Omega are usable"},
     {"V", 16, 16, true, true, 0.001, 0, -32.768, 32.767, "m/s",
      "Forward speed of the vehicle reference point"},
@@ -41,7 +44,8 @@ constexpr SignalDef kVelocity[] = {
      "Yaw rate, counter-clockwise positive"},
 };
 constexpr SignalDef kQuality[] = {
-    AGV_E2E_SIGNALS,
+    kCrcSignal,
+    kCounterSignal,
     {"QualityValid", 12, 1, true, false, 1, 0, 0, 1, "", "1: the sigmas are meaningful"},
     {"SigmaX", 16, 16, true, false, 0.1, 0, 0, 6553.5, "mm",
      "Standard deviation of X; saturates at 6553.5 mm (= at least that)"},
@@ -51,7 +55,8 @@ constexpr SignalDef kQuality[] = {
      "Standard deviation of Theta; saturates at 6.5535 rad"},
 };
 constexpr SignalDef kStatus[] = {
-    AGV_E2E_SIGNALS,
+    kCrcSignal,
+    kCounterSignal,
     {"Health", 12, 2, true, false, 1, 0, 0, 3, "",
      "0 OK, 1 DEGRADED (dead reckoning, fix too old or sigma too large), 2 LOST (no usable "
      "pose), 3 FAULT (a fault flag stops localisation)"},
@@ -84,7 +89,8 @@ constexpr SignalDef kStatus[] = {
      "A fix arrived later than the fusion history covers"},
 };
 constexpr SignalDef kHeartbeat[] = {
-    AGV_E2E_SIGNALS,
+    kCrcSignal,
+    kCounterSignal,
     {"ProtocolVersion", 12, 4, true, false, 1, 0, 0, 15, "",
      "Version of this frame layout (agv::protocol::kProtocolVersion)"},
     {"SwMajor", 16, 8, true, false, 1, 0, 0, 255, "", "Software version major"},
@@ -94,20 +100,21 @@ constexpr SignalDef kHeartbeat[] = {
      "Time since the localizer started; saturates at 16777215 s"},
 };
 constexpr SignalDef kOdomWheels[] = {
-    AGV_E2E_SIGNALS,
+    kCrcSignal,
+    kCounterSignal,
     {"LeftSpeed", 16, 16, true, true, 0.001, 0, -32.768, 32.767, "m/s",
      "Left wheel ground speed, forward positive"},
     {"RightSpeed", 32, 16, true, true, 0.001, 0, -32.768, 32.767, "m/s",
      "Right wheel ground speed, forward positive"},
 };
 constexpr SignalDef kOdomTwist[] = {
-    AGV_E2E_SIGNALS,
+    kCrcSignal,
+    kCounterSignal,
     {"V", 16, 16, true, true, 0.001, 0, -32.768, 32.767, "m/s",
      "Forward speed of the vehicle reference point"},
     {"Omega", 32, 16, true, true, 0.0001, 0, -3.2768, 3.2767, "rad/s",
      "Yaw rate, counter-clockwise positive"},
 };
-#undef AGV_E2E_SIGNALS
 
 const MessageDef kMessages[] = {
     {Msg::kPoseXY, "AGV_PoseXY", 0x00, 0x4C00, 8, Direction::kTx, 20,

@@ -48,8 +48,7 @@ bool CandumpWriter::write(const protocol::CandumpRecord& rec) {
   return ok_;
 }
 
-bool CandumpWriter::write(const hal::CanFrame& frame, const std::string& iface,
-                          std::int64_t t_ns) {
+bool CandumpWriter::write(const hal::CanFrame& frame, const std::string& iface, std::int64_t t_ns) {
   protocol::CandumpRecord r;
   r.t_ns = t_ns;
   r.iface = iface;
@@ -64,8 +63,8 @@ bool CandumpWriter::close() {
   return ok_;
 }
 
-CandumpReplayBus::CandumpReplayBus(std::vector<protocol::CandumpRecord> records,
-                                   std::string iface, std::int64_t time_offset_ns)
+CandumpReplayBus::CandumpReplayBus(std::vector<protocol::CandumpRecord> records, std::string iface,
+                                   std::int64_t time_offset_ns)
     : records_(std::move(records)), iface_(std::move(iface)), offset_ns_(time_offset_ns) {}
 
 bool CandumpReplayBus::wanted(const protocol::CandumpRecord& r) const {

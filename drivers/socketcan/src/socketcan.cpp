@@ -23,9 +23,8 @@ std::int64_t clock_ns(clockid_t id) {
   return static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
 }
 
-constexpr can_err_mask_t kErrMask = CAN_ERR_TX_TIMEOUT | CAN_ERR_CRTL | CAN_ERR_PROT |
-                                    CAN_ERR_TRX | CAN_ERR_ACK | CAN_ERR_BUSOFF |
-                                    CAN_ERR_RESTARTED | CAN_ERR_CNT;
+constexpr can_err_mask_t kErrMask = CAN_ERR_TX_TIMEOUT | CAN_ERR_CRTL | CAN_ERR_PROT | CAN_ERR_TRX |
+                                    CAN_ERR_ACK | CAN_ERR_BUSOFF | CAN_ERR_RESTARTED | CAN_ERR_CNT;
 
 }  // namespace
 
@@ -154,7 +153,8 @@ bool SocketCanBus::ensure_open() {
   const std::int64_t now = clock_ns(CLOCK_MONOTONIC);
   if (now < next_attempt_ns_) return false;
   if (open_socket()) return true;
-  backoff_ns_ = next_backoff_ns(backoff_ns_, cfg_.reopen_backoff_min_ns, cfg_.reopen_backoff_max_ns);
+  backoff_ns_ =
+      next_backoff_ns(backoff_ns_, cfg_.reopen_backoff_min_ns, cfg_.reopen_backoff_max_ns);
   next_attempt_ns_ = now + backoff_ns_;
   return false;
 }
@@ -247,8 +247,8 @@ hal::CanStatus SocketCanBus::receive(hal::CanFrame* frame, std::int64_t timeout_
       if (c->cmsg_type == SCM_TIMESTAMPNS) {
         timespec ts{};
         std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
-        const std::int64_t stamp = static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 +
-                                   ts.tv_nsec;
+        const std::int64_t stamp =
+            static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
         t_ns = realtime_stamp_to_monotonic_ns(stamp, rt_now, mono_now);
       } else if (c->cmsg_type == SO_RXQ_OVFL) {
         std::uint32_t dropped = 0;

@@ -25,7 +25,7 @@ struct OdometryConfig {
   // true: CRC and alive counter are checked (E2E as for our own frames). Motor controllers that
   // cannot compute the CRC set false; then only ID and length are checked.
   bool protected_e2e = true;
-  std::uint16_t data_id = 0;  // 0 = the DBC's data ID for the selected mode
+  std::uint16_t data_id = 0;           // 0 = the DBC's data ID for the selected mode
   std::uint8_t max_delta_counter = 3;  // see E2eCheckerConfig
   // Distance between the wheel contact points (wheels mode only). Default for a small AGV.
   double track_width_mm = 500.0;
@@ -55,7 +55,7 @@ bool is_extended(const ProtocolConfig& cfg, Msg m);
 struct PoseOut {
   double x_mm = 0.0;
   double y_mm = 0.0;
-  double theta_rad = 0.0;  // wrapped to (-pi, pi] before encoding
+  double theta_rad = 0.0;   // wrapped to (-pi, pi] before encoding
   double latency_ms = 0.0;  // age of the estimate at encoding time
   bool valid = false;
 };
@@ -145,20 +145,20 @@ struct OdomSample {
   std::int64_t t_ns = 0;  // frame receive timestamp
   double v_mps = 0.0;
   double omega_radps = 0.0;
-  double left_mps = 0.0;   // wheels mode only
-  double right_mps = 0.0;  // wheels mode only
+  double left_mps = 0.0;          // wheels mode only
+  double right_mps = 0.0;         // wheels mode only
   std::uint32_t lost_before = 0;  // frames lost just before this one (E2E gap)
 };
 
 enum class DecodeResult : std::uint8_t {
   kOk = 0,
-  kNotOdometry,     // other ID or ID type: ignored, not counted as an error
-  kBadLength,       // len != 8
+  kNotOdometry,  // other ID or ID type: ignored, not counted as an error
+  kBadLength,    // len != 8
   kBadCrc,
-  kRepeated,        // alive counter did not advance
-  kCounterJump,     // counter advanced by more than max_delta_counter
-  kBadCounter,      // counter value 15
-  kStale,           // receive timestamp older than the last accepted frame's
+  kRepeated,     // alive counter did not advance
+  kCounterJump,  // counter advanced by more than max_delta_counter
+  kBadCounter,   // counter value 15
+  kStale,        // receive timestamp older than the last accepted frame's
 };
 const char* to_string(DecodeResult r);
 

@@ -26,14 +26,14 @@ std::uint8_t e2e_crc(std::uint16_t data_id, const std::uint8_t data[8]);
 void e2e_protect(std::uint16_t data_id, std::uint8_t counter, std::uint8_t data[8]);
 
 enum class E2eStatus : std::uint8_t {
-  kOk = 0,          // next counter, CRC good: accept
-  kOkSomeLost,      // CRC good, 2..max_delta_counter ahead: accept, (delta - 1) frames were lost
-  kInitial,         // first frame seen (or first after reset): accept, no sequence reference yet
-  kRepeated,        // same counter as the last accepted frame: reject (sender stuck or duplicate)
-  kWrongSequence,   // counter jumped more than max_delta_counter: reject, resynchronise on it
-  kBadCrc,          // CRC mismatch: reject (corruption or wrong data ID = masquerade)
-  kBadLength,       // len != 8: reject
-  kBadCounter,      // counter value 15: reject
+  kOk = 0,         // next counter, CRC good: accept
+  kOkSomeLost,     // CRC good, 2..max_delta_counter ahead: accept, (delta - 1) frames were lost
+  kInitial,        // first frame seen (or first after reset): accept, no sequence reference yet
+  kRepeated,       // same counter as the last accepted frame: reject (sender stuck or duplicate)
+  kWrongSequence,  // counter jumped more than max_delta_counter: reject, resynchronise on it
+  kBadCrc,         // CRC mismatch: reject (corruption or wrong data ID = masquerade)
+  kBadLength,      // len != 8: reject
+  kBadCounter,     // counter value 15: reject
 };
 
 const char* to_string(E2eStatus s);

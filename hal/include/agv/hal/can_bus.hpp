@@ -11,11 +11,11 @@ namespace agv::hal {
 
 // Same members as agv::protocol::CanFrameData (algo/); convert with agv::can::to_hal/from_hal.
 struct CanFrame {
-  std::uint32_t id = 0;    // 11- or 29-bit identifier, no flag bits
-  bool extended = false;   // 29-bit identifier
-  std::uint8_t len = 0;    // data length 0..8
+  std::uint32_t id = 0;   // 11- or 29-bit identifier, no flag bits
+  bool extended = false;  // 29-bit identifier
+  std::uint8_t len = 0;   // data length 0..8
   std::uint8_t data[8] = {};
-  std::int64_t t_ns = 0;   // receive: kernel receive timestamp on CLOCK_MONOTONIC; send: ignored
+  std::int64_t t_ns = 0;  // receive: kernel receive timestamp on CLOCK_MONOTONIC; send: ignored
 };
 
 enum class CanStatus : int {
@@ -99,25 +99,38 @@ inline constexpr std::size_t kMaxCanFilters = 64;
 
 inline const char* to_string(CanStatus s) {
   switch (s) {
-    case CanStatus::kOk: return "ok";
-    case CanStatus::kWouldBlock: return "would-block";
-    case CanStatus::kTimeout: return "timeout";
-    case CanStatus::kBusOff: return "bus-off";
-    case CanStatus::kDown: return "down";
-    case CanStatus::kInvalidArgument: return "invalid-argument";
-    case CanStatus::kError: return "error";
-    case CanStatus::kEndOfStream: return "end-of-stream";
+    case CanStatus::kOk:
+      return "ok";
+    case CanStatus::kWouldBlock:
+      return "would-block";
+    case CanStatus::kTimeout:
+      return "timeout";
+    case CanStatus::kBusOff:
+      return "bus-off";
+    case CanStatus::kDown:
+      return "down";
+    case CanStatus::kInvalidArgument:
+      return "invalid-argument";
+    case CanStatus::kError:
+      return "error";
+    case CanStatus::kEndOfStream:
+      return "end-of-stream";
   }
   return "?";
 }
 
 inline const char* to_string(CanBusState s) {
   switch (s) {
-    case CanBusState::kErrorActive: return "error-active";
-    case CanBusState::kErrorWarning: return "error-warning";
-    case CanBusState::kErrorPassive: return "error-passive";
-    case CanBusState::kBusOff: return "bus-off";
-    case CanBusState::kDown: return "down";
+    case CanBusState::kErrorActive:
+      return "error-active";
+    case CanBusState::kErrorWarning:
+      return "error-warning";
+    case CanBusState::kErrorPassive:
+      return "error-passive";
+    case CanBusState::kBusOff:
+      return "bus-off";
+    case CanBusState::kDown:
+      return "down";
   }
   return "?";
 }

@@ -27,7 +27,7 @@ struct SocketCanConfig {
   // (lower worst-case latency of what does get out) but earlier kWouldBlock under bursts.
   int sndbuf_bytes = 0;
   // Reopen backoff after the link went down. Short: quick recovery, more syscalls while down.
-  std::int64_t reopen_backoff_min_ns = 50'000'000;   // 50 ms
+  std::int64_t reopen_backoff_min_ns = 50'000'000;     // 50 ms
   std::int64_t reopen_backoff_max_ns = 2'000'000'000;  // 2 s
   // Also receive the frames this socket sends (CAN_RAW_RECV_OWN_MSGS). Tests only.
   bool receive_own = false;

@@ -12,19 +12,19 @@ namespace agv::can {
 struct ErrorFrameInfo {
   bool tx_timeout = false;
   bool lost_arbitration = false;
-  bool controller = false;       // CAN_ERR_CRTL: see the flags below
-  bool rx_overflow = false;      // controller buffer overflows
+  bool controller = false;   // CAN_ERR_CRTL: see the flags below
+  bool rx_overflow = false;  // controller buffer overflows
   bool tx_overflow = false;
-  bool warning = false;          // rx or tx counter reached 96
-  bool passive = false;          // rx or tx counter reached 128
-  bool back_to_active = false;   // CAN_ERR_CRTL_ACTIVE
-  bool protocol = false;         // CAN_ERR_PROT (bit, form, stuff errors)
-  bool transceiver = false;      // CAN_ERR_TRX (wiring)
-  bool no_ack = false;           // CAN_ERR_ACK: nobody acknowledged (alone on the bus)
+  bool warning = false;         // rx or tx counter reached 96
+  bool passive = false;         // rx or tx counter reached 128
+  bool back_to_active = false;  // CAN_ERR_CRTL_ACTIVE
+  bool protocol = false;        // CAN_ERR_PROT (bit, form, stuff errors)
+  bool transceiver = false;     // CAN_ERR_TRX (wiring)
+  bool no_ack = false;          // CAN_ERR_ACK: nobody acknowledged (alone on the bus)
   bool bus_off = false;
   bool bus_error = false;
   bool restarted = false;
-  bool has_counters = false;     // data[6] = tx, data[7] = rx error counter
+  bool has_counters = false;  // data[6] = tx, data[7] = rx error counter
   std::uint8_t tx_errors = 0;
   std::uint8_t rx_errors = 0;
 };
