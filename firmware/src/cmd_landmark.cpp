@@ -1,13 +1,120 @@
-// Placeholder until the owning issue lands; exits 2 so no caller mistakes it for success.
-#include <cstdio>
+// agvloc landmark: one landmark as SVG (exact physical scale) and/or PNG, or a printable sheet of
+// every landmark in a map (docs/landmark.md).
+#include <CLI/CLI.hpp>
 
+#include <cstdio>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <sstream>
+
+#include "agv/sim/render.hpp"
 #include "commands.hpp"
 
 namespace agv::cmd {
 
-int landmark(int, char**) {
-  std::fprintf(stderr, "agvloc landmark: not implemented yet\n");
-  return 2;
+namespace {
+
+bool write_file(const std::string& path, const std::string& text) {
+  std::ofstream f(path, std::ios::binary | std::ios::trunc);
+  f << text;
+  return static_cast<bool>(f);
+}
+
+}  // namespace
+
+int landmark(int argc, char** argv) {
+  CLI::App app{"Print landmarks: one landmark as SVG at exact physical scale and/or PNG, or a "
+               "sheet of every landmark of a map (geometry: docs/landmark.md)",
+               "agvloc landmark"};
+  int id = 0;
+  double x_mm = 0.0, y_mm = 0.0, heading_deg = 0.0, size_mm = 60.0, mm_per_px = 0.1;
+  std::string svg, png, map_path, sheet;
+  bool id_only = false;
+  int columns = 3;
+  auto* id_opt = app.add_option("--id", id, "Landmark id 1..65535");
+  app.add_option("--x-mm", x_mm, "World x of the landmark centre (mm)")->capture_default_str();
+  app.add_option("--y-mm", y_mm, "World y of the landmark centre (mm)")->capture_default_str();
+  app.add_option("--heading-deg", heading_deg, "Heading of the landmark's forward axis (deg)")
+      ->capture_default_str();
+  app.add_flag("--id-only", id_only, "Encode only the id (pose comes from the map file)");
+  app.add_option("--size-mm", size_mm, "Outer border side S (mm)")->check(CLI::Range(10.0, 1000.0))
+      ->capture_default_str();
+  app.add_option("--svg", svg, "Write SVG here (mm units; print at 100 %)");
+  app.add_option("--png", png, "Write PNG here (landmark centred, black 0 / white 255)");
+  app.add_option("--mm-per-px", mm_per_px, "PNG resolution")->check(CLI::Range(0.005, 10.0))
+      ->capture_default_str();
+  auto* map_opt = app.add_option("--map", map_path, "Landmark map file: print a sheet of all");
+  app.add_option("--sheet", sheet, "Sheet SVG output (with --map)");
+  app.add_option("--columns", columns, "Landmarks per sheet row")->check(CLI::Range(1, 100))
+      ->capture_default_str();
+  id_opt->excludes(map_opt);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  auto usage_error = [](const std::string& msg) {
+    std::fprintf(stderr, "agvloc landmark: %s\n", msg.c_str());
+    return 2;
+  };
+  const LandmarkGeometry geometry{size_mm};
+
+  if (!map_path.empty()) {
+    if (sheet.empty()) return usage_error("--map needs --sheet FILE.svg");
+    std::ifstream f(map_path, std::ios::binary);
+    if (!f) return usage_error(map_path + ": cannot open");
+    std::ostringstream ss;
+    ss << f.rdbuf();
+    LandmarkMap map;
+    std::string err;
+    if (!parse_landmark_map(ss.str(), &map, &err)) return usage_error(map_path + ": " + err);
+    if (map.entries.empty()) return usage_error(map_path + ": no landmarks");
+    const std::string text = sim::landmark_sheet_svg(geometry, map, columns);
+    if (text.empty()) return usage_error("a landmark pose cannot be encoded in a payload");
+    if (!write_file(sheet, text)) {
+      std::fprintf(stderr, "agvloc landmark: cannot write %s\n", sheet.c_str());
+      return 1;
+    }
+    std::printf("agvloc landmark: wrote %s (%zu landmarks, S = %.1f mm)\n", sheet.c_str(),
+                map.entries.size(), size_mm);
+    return 0;
+  }
+
+  if (id_opt->count() == 0) return usage_error("need --id N (or --map FILE --sheet OUT.svg)");
+  if (svg.empty() && png.empty()) return usage_error("need --svg FILE and/or --png FILE");
+  if (id < 1 || id > 65535) return usage_error("--id must be in 1..65535");
+  LandmarkPayload p;
+  p.id = static_cast<std::uint32_t>(id);
+  p.has_pose = !id_only;
+  p.x_mm = x_mm;
+  p.y_mm = y_mm;
+  p.heading_deg = wrap_angle_deg(heading_deg);
+  const std::string payload = format_payload(p);
+  if (payload.empty()) return usage_error("pose out of the payload's range (|x|,|y| <= 999999.9 mm)");
+  if (!svg.empty()) {
+    const std::string text = sim::landmark_svg(geometry, payload);
+    if (text.empty() || !write_file(svg, text)) {
+      std::fprintf(stderr, "agvloc landmark: cannot write %s\n", svg.c_str());
+      return 1;
+    }
+  }
+  if (!png.empty()) {
+    const cv::Mat img = sim::render_landmark_page(geometry, payload, mm_per_px);
+    if (img.empty()) return usage_error("image too large for this --mm-per-px");
+    bool ok = false;
+    try {
+      ok = cv::imwrite(png, img);
+    } catch (const cv::Exception&) {
+      ok = false;
+    }
+    if (!ok) {
+      std::fprintf(stderr, "agvloc landmark: cannot write %s\n", png.c_str());
+      return 1;
+    }
+  }
+  std::printf("agvloc landmark: payload %s%s%s\n", payload.c_str(),
+              svg.empty() ? "" : (" -> " + svg).c_str(), png.empty() ? "" : (" -> " + png).c_str());
+  return 0;
 }
 
 }  // namespace agv::cmd

@@ -1,7 +1,10 @@
 // `agvloc sim` end to end: writes a recording the strict reader accepts, with truth at every
 // frame time, deterministic for a seed.
+#include <ZXing/ReadBarcode.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
+
+#include <opencv2/imgcodecs.hpp>
 
 #include <filesystem>
 #include <fstream>
@@ -86,4 +89,48 @@ TEST(SimCommand, RejectsBadArguments) {
   EXPECT_EQ(run_sim({"--out", d.string(), "--map", "/nonexistent.csv"}), 2);
   EXPECT_EQ(run_sim({"--duration-s", "1"}), 2);  // --out is required
   EXPECT_FALSE(fs::exists(d / "meta.yaml"));
+}
+
+namespace {
+
+int run_landmark(std::vector<std::string> args) {
+  args.insert(args.begin(), "landmark");
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  return agv::cmd::landmark(static_cast<int>(argv.size()), argv.data());
+}
+
+}  // namespace
+
+TEST(LandmarkCommand, PngDecodesAndSvgAndSheet) {
+  const fs::path d = tmp("lm");
+  fs::create_directories(d);
+  ASSERT_EQ(run_landmark({"--id", "17", "--x-mm", "1000", "--y-mm", "-2000", "--heading-deg", "90",
+                          "--svg", (d / "l.svg").string(), "--png", (d / "l.png").string(),
+                          "--mm-per-px", "0.2"}),
+            0);
+  const cv::Mat img = cv::imread((d / "l.png").string(), cv::IMREAD_GRAYSCALE);
+  ASSERT_FALSE(img.empty());
+  EXPECT_EQ(img.cols, 360);  // (60 + 2 * 6) mm / 0.2
+  const auto r = ZXing::ReadBarcode(
+      ZXing::ImageView(img.data, img.cols, img.rows, ZXing::ImageFormat::Lum),
+      ZXing::DecodeHints().setFormats(ZXing::BarcodeFormat::QRCode));
+  ASSERT_TRUE(r.isValid());
+  EXPECT_EQ(r.text(), "AGV1/00017/+001000.0/-002000.0/+090.00");
+  EXPECT_NE(slurp(d / "l.svg").find("viewBox=\"0 0 72 72\""), std::string::npos);
+  // Sheet of the default map: all 25 landmarks.
+  ASSERT_EQ(run_landmark({"--map", std::string(AGV_SOURCE_DIR) + "/tools/maps/default_grid.csv",
+                          "--sheet", (d / "sheet.svg").string()}),
+            0);
+  const std::string sheet = slurp(d / "sheet.svg");
+  size_t n = 0;
+  for (size_t p = sheet.find("<polygon"); p != std::string::npos; p = sheet.find("<polygon", p + 1)) ++n;
+  EXPECT_EQ(n, 25u);
+  // Bad input is a usage error, not a crash or a wrong landmark.
+  EXPECT_EQ(run_landmark({"--id", "0", "--svg", (d / "x.svg").string()}), 2);
+  EXPECT_EQ(run_landmark({"--id", "5"}), 2);
+  EXPECT_EQ(run_landmark({"--id", "5", "--x-mm", "5e9", "--svg", (d / "x.svg").string()}), 2);
+  EXPECT_EQ(run_landmark({"--map", "/nonexistent.csv", "--sheet", (d / "x.svg").string()}), 2);
+  EXPECT_FALSE(fs::exists(d / "x.svg"));
+  fs::remove_all(d);
 }
