@@ -59,6 +59,12 @@ TEST(CandumpLine, ParsesStandardExtendedRemoteAndError) {
 
   r = parse_ok("(1.000000) can0 123#1122334455667788_F\r\n");  // len8_dlc suffix
   EXPECT_EQ(r.frame.len, 8);
+  r = parse_ok("(1795249950.846187) can0 300#3810000000000000 R");  // as asc2log writes it
+  EXPECT_EQ(r.frame.len, 8);
+  EXPECT_EQ(r.frame.data[0], 0x38);
+  r = parse_ok("(1.000000) can0 123#R2 T");
+  EXPECT_TRUE(r.rtr);
+  EXPECT_EQ(r.frame.len, 2);
 }
 
 TEST(CandumpLine, RejectsMalformedLines) {
@@ -74,6 +80,8 @@ TEST(CandumpLine, RejectsMalformedLines) {
   EXPECT_NE(parse_err("(1.5) vcan0 044##100"), "");                // CAN FD
   EXPECT_NE(parse_err("(1.5) vcan0 G44#00"), "");
   EXPECT_NE(parse_err("(1.5) vcan0 123#R9"), "");
+  EXPECT_NE(parse_err("(1.5) vcan0 123#1122 X"), "");  // unknown trailing field
+  EXPECT_NE(parse_err("(1.5) vcan0 123#1122_"), "");
 }
 
 TEST(CandumpLine, FormatMatchesCandumpAndRoundTrips) {

@@ -4,10 +4,13 @@
 //   agv_can_tool interop LOG EXPECTED       frames the codec wrote (candump -l) + the physical
 //                                           values each must decode to (JSON lines), for
 //                                           tools/dbc/check_candied.cjs
+//   agv_can_tool same-frames LOG_A LOG_B    exit 0 when both candump -l logs hold the same
+//                                           frames (ID, type, length, data) in the same order
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <limits>
 #include <random>
 #include <string>
@@ -170,6 +173,46 @@ int interop(const char* log_path, const char* expected_path) {
   return ok ? 0 : 1;
 }
 
+bool read_log(const char* path, std::vector<p::CandumpRecord>* out) {
+  std::ifstream in(path);
+  if (!in) {
+    std::fprintf(stderr, "%s: cannot open\n", path);
+    return false;
+  }
+  std::string line, err;
+  int n = 0;
+  while (std::getline(in, line)) {
+    ++n;
+    if (line.empty()) continue;
+    p::CandumpRecord r;
+    if (!p::parse_candump_line(line, &r, &err)) {
+      std::fprintf(stderr, "%s:%d: %s\n", path, n, err.c_str());
+      return false;
+    }
+    out->push_back(r);
+  }
+  return true;
+}
+
+int same_frames(const char* a_path, const char* b_path) {
+  std::vector<p::CandumpRecord> a, b;
+  if (!read_log(a_path, &a) || !read_log(b_path, &b)) return 1;
+  if (a.size() != b.size() || a.empty()) {
+    std::fprintf(stderr, "frame counts differ: %zu vs %zu\n", a.size(), b.size());
+    return 1;
+  }
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    const p::CanFrameData &x = a[i].frame, &y = b[i].frame;
+    if (x.id != y.id || x.extended != y.extended || x.len != y.len ||
+        std::memcmp(x.data, y.data, x.len) != 0 || a[i].rtr != b[i].rtr) {
+      std::fprintf(stderr, "frame %zu differs\n", i + 1);
+      return 1;
+    }
+  }
+  std::printf("PASS: %zu frames identical\n", a.size());
+  return 0;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -191,7 +234,9 @@ int main(int argc, char** argv) {
     return 0;
   }
   if (cmd == "interop" && argc == 4) return interop(argv[2], argv[3]);
+  if (cmd == "same-frames" && argc == 4) return same_frames(argv[2], argv[3]);
   std::fprintf(stderr,
-               "usage: agv_can_tool dbc [base_id [ext]] | doc-table | interop LOG EXPECTED\n");
+               "usage: agv_can_tool dbc [base_id [ext]] | doc-table | interop LOG EXPECTED |\n"
+               "                    same-frames LOG_A LOG_B\n");
   return 2;
 }

@@ -85,15 +85,15 @@ bool parse_candump_line(std::string_view line, CandumpRecord* out, std::string* 
   if (p < line.size() && (line[p] == 'R' || line[p] == 'r')) {
     rec.rtr = true;
     ++p;
-    if (p < line.size()) {
+    if (p < line.size() && line[p] != ' ') {
       const int v = hex_val(line[p]);
-      if (v < 0 || v > 8 || p + 1 != line.size()) return fail(error, "bad remote frame length");
+      if (v < 0 || v > 8) return fail(error, "bad remote frame length");
       rec.frame.len = static_cast<std::uint8_t>(v);
       ++p;
     }
   } else {
     int n = 0;
-    while (p < line.size() && line[p] != '_') {
+    while (p < line.size() && line[p] != '_' && line[p] != ' ') {
       if (p + 1 >= line.size() || line[p + 1] == '_')
         return fail(error, "odd number of hex digits");
       const int hi = hex_val(line[p]), lo = hex_val(line[p + 1]);
@@ -103,11 +103,17 @@ bool parse_candump_line(std::string_view line, CandumpRecord* out, std::string* 
       p += 2;
     }
     rec.frame.len = static_cast<std::uint8_t>(n);
-    if (p < line.size()) {  // "_X": raw DLC 9..F for an 8-byte frame (len8_dlc); ignored
-      if (n != 8 || p + 2 != line.size() || hex_val(line[p + 1]) < 9) {
+    if (p < line.size() && line[p] == '_') {  // "_X": raw DLC 9..F of an 8-byte frame; ignored
+      if (n != 8 || p + 1 >= line.size() || hex_val(line[p + 1]) < 9) {
         return fail(error, "bad '_' DLC suffix");
       }
+      p += 2;
     }
+  }
+  // candump -x / asc2log append " R" or " T" (direction); other trailing text is an error.
+  if (p < line.size()) {
+    const std::string_view rest = line.substr(p);
+    if (rest != " R" && rest != " T") return fail(error, "unexpected text after the frame");
   }
   rec.t_ns = sec * 1'000'000'000 + frac_ns;
   rec.frame.t_ns = rec.t_ns;

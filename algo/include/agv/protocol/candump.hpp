@@ -3,6 +3,8 @@
 //   (1436509052.249713) can0 12345678#0102       extended ID: 8 hex digits
 //   (1436509052.249713) can0 123#R               remote frame (no data; optional DLC digit)
 //   (1436509052.249713) can0 20000004#0004...    error frame (CAN_ERR_FLAG, bit 29, set)
+//   (1436509052.249713) can0 123#1122 R          direction suffix of candump -x / asc2log
+//                                                (" R" / " T", accepted and ignored)
 // The timestamp is whatever clock candump used (wall clock for live captures); records keep it
 // as integer nanoseconds with microsecond resolution. CAN FD lines ("##") are rejected.
 // Pure parse/format: the file I/O is in drivers/candump.
