@@ -309,13 +309,19 @@ int main(int argc, char** argv) {
     x.buffers = [p] { return p->buffers(); };
     x.outstanding = [p] { return p->frames_outstanding(); };
     x.format = [p] {
-      return agv::camera::fourcc_to_string(p->fourcc()) + " stride " +
+      return agv::camera::fourcc_to_string(p->fourcc()) + " period " +
+             std::to_string(p->frame_period_ns() / 1000) + " us stride " +
              std::to_string(p->stride_bytes()) +
              (p->exposure_applied() ? "" : " (no manual exposure)");
     };
     cam = std::move(c);
   } else {
 #ifdef AGV_HAVE_LIBCAMERA_DRIVER
+    std::string list_error;
+    const auto cams = agv::libcam::list_cameras(&list_error);
+    for (const auto& c : cams)
+      std::printf("libcamera camera: '%s' model '%s'\n", c.id.c_str(), c.model.c_str());
+    if (cams.empty()) fail("list_cameras: no camera " + list_error);
     auto c = std::make_unique<agv::libcam::LibcameraCamera>(a.cfg);
     auto* p = c.get();
     x.buffers = [p] { return p->buffers(); };

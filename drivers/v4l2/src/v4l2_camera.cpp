@@ -71,6 +71,7 @@ struct V4l2Camera::Impl {
   camera::GrayLayout layout;
   bool exposure_applied = false;
   std::int64_t exposure_ns = 0;
+  std::int64_t frame_period_ns = 0;
   std::vector<Buffer> buffers;
   std::int64_t last_sequence = -1;
 
@@ -204,6 +205,11 @@ CameraStatus V4l2Camera::Impl::configure_format() {
     parm.parm.capture.timeperframe.denominator =
         static_cast<std::uint32_t>(std::lround(cfg.fps * 1000.0));
     xioctl(fd, VIDIOC_S_PARM, &parm);
+  }
+  frame_period_ns = 0;
+  if (xioctl(fd, VIDIOC_G_PARM, &parm) == 0 && parm.parm.capture.timeperframe.denominator != 0) {
+    frame_period_ns = static_cast<std::int64_t>(parm.parm.capture.timeperframe.numerator) *
+                      1'000'000'000 / parm.parm.capture.timeperframe.denominator;
   }
   return CameraStatus::kOk;
 }
@@ -436,6 +442,7 @@ const char* V4l2Camera::last_error() const {
 std::uint32_t V4l2Camera::fourcc() const { return impl_->fourcc; }
 int V4l2Camera::stride_bytes() const { return impl_->stride; }
 bool V4l2Camera::exposure_applied() const { return impl_->exposure_applied; }
+std::int64_t V4l2Camera::frame_period_ns() const { return impl_->frame_period_ns; }
 int V4l2Camera::buffers() const { return static_cast<int>(impl_->buffers.size()); }
 int V4l2Camera::frames_outstanding() const {
   return static_cast<int>(std::count_if(impl_->buffers.begin(), impl_->buffers.end(),

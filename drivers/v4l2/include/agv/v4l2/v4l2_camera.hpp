@@ -56,6 +56,9 @@ class V4l2Camera : public hal::Camera {
   int stride_bytes() const;
   bool exposure_applied() const;  // false: device has no manual exposure control
   int buffers() const;            // buffers granted by the driver
+  // Frame period the device reports after the rate request (0: unknown). Devices with discrete
+  // rates pick the nearest one, e.g. vivid gives 40 ms for a 30 fps request at 640x480.
+  std::int64_t frame_period_ns() const;
   // Frames handed out and not released.
   int frames_outstanding() const;
 
