@@ -10,13 +10,19 @@ hil_vcan_up() {
   ip link set up "$1" || hil_die "ip link set up $1"
 }
 
-# hil_wait_receivers IF N [TIMEOUT_S]: waits until at least N CAN_RAW receivers are registered
+# hil_receivers IF: number of CAN receive filters registered on IF (all lists: rx_all, rx_fil,
+# rx_inv, rx_sff, rx_eff, rx_err).
+hil_receivers() {
+  cat /proc/net/can/rcvlist_* 2>/dev/null | awk -v dev="$1" '$1 == dev' | wc -l
+}
+
+# hil_wait_receivers IF N [TIMEOUT_S]: waits until at least N CAN receive filters are registered
 # on IF (so a freshly started candump or localizer cannot miss the first frames).
 hil_wait_receivers() {
   _n=0
   _deadline=$(( $(cut -d. -f1 /proc/uptime) + ${3:-30} ))
   while :; do
-    _n=$(awk -v dev="$1" '$1 == dev' /proc/net/can/rcvlist_all 2>/dev/null | wc -l)
+    _n=$(hil_receivers "$1")
     [ "$_n" -ge "$2" ] && return 0
     [ "$(cut -d. -f1 /proc/uptime)" -ge "$_deadline" ] &&
       hil_die "only $_n of $2 CAN receivers appeared on $1 within ${3:-30}s"
@@ -27,7 +33,7 @@ hil_wait_receivers() {
 # hil_capture_start IF FILE: candump in log format (same as `candump -l`) into FILE, waits
 # until it listens. Sets HIL_CAPTURE_PID.
 hil_capture_start() {
-  _before=$(awk -v dev="$1" '$1 == dev' /proc/net/can/rcvlist_all 2>/dev/null | wc -l)
+  _before=$(hil_receivers "$1")
   candump -L "$1" >"$2" &
   HIL_CAPTURE_PID=$!
   hil_wait_receivers "$1" $((_before + 1)) 30

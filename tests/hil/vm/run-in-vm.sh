@@ -21,7 +21,8 @@
 # current directory with the current PATH, writes its exit code to HOSTDIR/.vm/exit_code and
 # powers off. Software emulation only (TCG): KVM hangs on the CI machines.
 #
-# In the guest: AGV_IN_VM=1, AGV_VM_RESULTS=HOSTDIR, HOME=/tmp.
+# In the guest: AGV_IN_VM=1, AGV_VM_RESULTS=HOSTDIR, HOME=/tmp, PATH and every AGV_* variable of
+# the caller.
 # Exit status: COMMAND's, or 124 on timeout, or 125 when the VM failed before reporting one.
 # Timing is written to HOSTDIR/.vm/timing (boot_to_command_s, command_s, total_s).
 set -uo pipefail
@@ -210,6 +211,10 @@ chmod 755 "$ird/init"
   echo "export HOME=/tmp AGV_IN_VM=1"
   printf 'export AGV_VM_RESULTS=%q\n' "$share"
   [ -n "${LANG:-}" ] && printf 'export LANG=%q\n' "$LANG"
+  # AGV_* variables (test knobs) pass through to the guest.
+  for v in $(compgen -v AGV_); do
+    case "$v" in AGV_VM_*|AGV_IN_VM) ;; *) printf 'export %s=%q\n' "$v" "${!v}" ;; esac
+  done
   printf 'cd %q || exit 126\n' "$(pwd -P)"
   printf 'exec'
   printf ' %q' "$@"
