@@ -18,7 +18,26 @@ enum class CameraStatus : int {
   kDeviceError = 6,    // driver-specific failure; see last_error()
 };
 
-const char* to_string(CameraStatus s);
+// Short name for logs ("ok", "timeout", ...). Inline so that users need only agv_hal.
+inline const char* to_string(CameraStatus s) {
+  switch (s) {
+    case CameraStatus::kOk:
+      return "ok";
+    case CameraStatus::kTimeout:
+      return "timeout";
+    case CameraStatus::kEndOfStream:
+      return "end of stream";
+    case CameraStatus::kNotStarted:
+      return "not started";
+    case CameraStatus::kDisconnected:
+      return "disconnected";
+    case CameraStatus::kInvalidArgument:
+      return "invalid argument";
+    case CameraStatus::kDeviceError:
+      return "device error";
+  }
+  return "unknown camera status";
+}
 
 // Which pixel formats a live driver may ask the sensor for. Every format ends up as 8-bit gray:
 // GREY/R8 and the Y plane of NV12/YU12 are used in place; YUYV and packed RGB need one copy.
