@@ -447,3 +447,19 @@ TEST(Odometry, CustomDataIdIsUsedForTheCrc) {
   p::CanFrameData f = odom_frame(other, 1, 1, 1, 2);
   EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kBadCrc);
 }
+
+TEST(Odometry, FaultMonitorLatchesRejectionsAndReportsTimeout) {
+  p::ProtocolConfig cfg;
+  p::OdometryDecoder dec(cfg);
+  p::OdometryFaultMonitor mon;
+  EXPECT_EQ(mon.update(dec, 0), p::fault::kOdomTimeout);  // nothing received yet
+  p::OdomSample s;
+  ASSERT_EQ(dec.decode(odom_frame(cfg, 0, 0, 0, 10), &s), p::DecodeResult::kOk);
+  EXPECT_EQ(mon.update(dec, 20), 0);
+  p::CanFrameData bad = odom_frame(cfg, 0, 0, 1, 30);
+  bad.data[0] ^= 0xFF;
+  dec.decode(bad, &s);
+  EXPECT_EQ(mon.update(dec, 40), p::fault::kOdomE2E);
+  EXPECT_EQ(mon.update(dec, 50), 0);  // reported once, then cleared
+  EXPECT_EQ(mon.update(dec, 10 + cfg.odometry.timeout_ns + 1), p::fault::kOdomTimeout);
+}

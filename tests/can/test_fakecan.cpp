@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include "agv/can/can_faults.hpp"
 #include "agv/can/fake_can.hpp"
 #include "agv/can/frame_convert.hpp"
 #include "agv/protocol/codec.hpp"
@@ -159,4 +160,29 @@ TEST(FakeCan, OdometryThroughTheFakeBus) {
   EXPECT_EQ(dec.counters().lost_frames, 1u);
   EXPECT_FALSE(dec.timed_out(100'000'000));
   EXPECT_TRUE(dec.timed_out(191'000'000));
+}
+
+TEST(FakeCan, FaultMonitorMapsBusHealthToStatusFlags) {
+  namespace p = agv::protocol;
+  agv::can::FakeCanNetwork net;
+  auto a = net.create_endpoint();
+  agv::can::CanFaultMonitor mon;
+  EXPECT_EQ(mon.update(a->state(), a->stats()), 0);
+  a->set_tx_queue_full(true);
+  a->send(frame(1));
+  a->set_tx_queue_full(false);
+  EXPECT_EQ(mon.update(a->state(), a->stats()), p::fault::kCanBusOff);  // a dropped frame
+  EXPECT_EQ(mon.update(a->state(), a->stats()), 0);
+  a->set_error_counters(130, 0);
+  EXPECT_EQ(mon.update(a->state(), a->stats()), p::fault::kCanErrorPassive);
+  a->set_error_counters(0, 0);
+  EXPECT_EQ(mon.update(a->state(), a->stats()), 0);
+  a->set_bus_off(true);
+  a->set_bus_off(false);  // short bus-off between two status frames is still reported
+  EXPECT_EQ(mon.update(a->state(), a->stats()), p::fault::kCanBusOff);
+  a->set_down(true);
+  EXPECT_EQ(mon.update(a->state(), a->stats()), p::fault::kCanBusOff);
+  a->set_down(false);
+  EXPECT_EQ(mon.update(a->state(), a->stats()), p::fault::kCanBusOff);  // the restart
+  EXPECT_EQ(mon.update(a->state(), a->stats()), 0);
 }

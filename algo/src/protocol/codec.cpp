@@ -338,4 +338,13 @@ bool OdometryDecoder::timed_out(std::int64_t now_ns) const {
   return now_ns - last_ok_ns_ > cfg_.timeout_ns;
 }
 
+std::uint8_t OdometryFaultMonitor::update(const OdometryDecoder& decoder, std::int64_t now_ns) {
+  std::uint8_t f = 0;
+  if (decoder.timed_out(now_ns)) f |= fault::kOdomTimeout;
+  const std::uint64_t rejected = decoder.counters().rejected();
+  if (rejected > last_rejected_) f |= fault::kOdomE2E;
+  last_rejected_ = rejected;
+  return f;
+}
+
 }  // namespace agv::protocol

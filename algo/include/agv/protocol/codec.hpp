@@ -176,6 +176,18 @@ struct OdometryCounters {
   }
 };
 
+class OdometryDecoder;
+
+// AGV_Status odometry flags, once per status frame: fault::kOdomTimeout while
+// decoder.timed_out(now_ns); fault::kOdomE2E when frames were rejected since the last call.
+class OdometryFaultMonitor {
+ public:
+  std::uint8_t update(const OdometryDecoder& decoder, std::int64_t now_ns);
+
+ private:
+  std::uint64_t last_rejected_ = 0;
+};
+
 class OdometryDecoder {
  public:
   explicit OdometryDecoder(const ProtocolConfig& cfg);

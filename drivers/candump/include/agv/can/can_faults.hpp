@@ -1,0 +1,23 @@
+// Maps CAN bus health to the AGV_Status fault flags (agv::protocol::fault), once per status
+// frame. Events are latched between two calls so a short error-passive or a single dropped frame
+// still shows in the next status frame.
+#pragma once
+
+#include <cstdint>
+
+#include "agv/hal/can_bus.hpp"
+
+namespace agv::can {
+
+class CanFaultMonitor {
+ public:
+  // Returns fault::kCanErrorPassive when the bus is in warning/passive now or went passive since
+  // the last call; fault::kCanBusOff when it is bus-off or down now, or since the last call
+  // went bus-off, was reopened, or dropped frames (full transmit queue, receive overflow).
+  std::uint8_t update(hal::CanBusState state, const hal::CanStats& stats);
+
+ private:
+  hal::CanStats last_;
+};
+
+}  // namespace agv::can
