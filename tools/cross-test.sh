@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# The arm64 cross build in one command (CI runs it from tools/test.sh):
+#   1. prepares the cross environment (toolchain/prepare-aarch64.sh; idempotent, needs root/sudo),
+#   2. configures and builds the preset `aarch64` (build/aarch64; no benchmarks, no VM tests),
+#   3. runs the tests under qemu-aarch64 (CMAKE_CROSSCOMPILING_EMULATOR), except the labels
+#      hil, vm (they boot an x86-64 VM) and interop (needs npm tooling),
+#   4. the package test (label package) builds the arm64 .deb and runs its binary emulated.
+# Prints the time of each step. Environment: AGV_CROSS_JOBS (default nproc).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+jobs="${AGV_CROSS_JOBS:-$(nproc)}"
+t0=$(date +%s)
+step() { echo "cross-test: $1 done after $(( $(date +%s) - t0 )) s"; }
+
+bash toolchain/prepare-aarch64.sh
+step "prepare"
+cmake --preset aarch64 -DAGV_BUILD_HIL=OFF -DAGV_BUILD_CAMERA_VM=OFF
+cmake --build --preset aarch64 -j "$jobs"
+step "build"
+ctest --preset aarch64 -j "$jobs" -LE "^(hil|vm|interop)$"
+step "tests"
+ls -l build/aarch64/packages/*.deb

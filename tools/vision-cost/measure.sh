@@ -1,0 +1,61 @@
+#!/usr/bin/env bash
+# Instructions per frame of the vision pipeline on x86-64 (valgrind callgrind) and on aarch64
+# (qemu-aarch64 with insn_count_plugin.c), for the same frames; docs/deployment.md reports it.
+#   bash tools/vision-cost/measure.sh [RECORDING] [FRAMES]
+# Without RECORDING it simulates one (agvloc sim, 20 s at 10 fps, seed 7). Needs the cross
+# environment (toolchain/prepare-aarch64.sh) and valgrind. Build dirs: build/aarch64-cost-*.
+# Prints, per frame class (ok = a landmark pose, none = no landmark found), the mean instructions
+# per frame for both architectures and their ratio; the aarch64 per-frame lists stay in
+# build/aarch64-cost-results/.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+src="$PWD"
+jobs="${AGV_COST_JOBS:-2}"
+nat="$src/build/aarch64-cost-native"
+arm="$src/build/aarch64-cost-arm64"
+res="$src/build/aarch64-cost-results"
+mkdir -p "$res"
+
+cmake -S . -B "$nat" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DAGV_BUILD_TESTS=OFF \
+      -DAGV_BUILD_BENCHMARKS=OFF -DAGV_BUILD_VISION_COST=ON >/dev/null
+cmake --build "$nat" -j "$jobs" --target vision_cost agvloc
+cmake -S . -B "$arm" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DAGV_BUILD_TESTS=OFF \
+      -DAGV_BUILD_BENCHMARKS=OFF -DAGV_BUILD_VISION_COST=ON \
+      -DCMAKE_TOOLCHAIN_FILE="$src/toolchain/aarch64-linux-gnu.cmake" >/dev/null
+cmake --build "$arm" -j "$jobs" --target vision_cost
+gcc -O2 -shared -fPIC -Wall -Wextra -o "$res/insn_count_plugin.so" \
+    tools/vision-cost/insn_count_plugin.c
+
+rec="${1:-}"
+frames="${2:-200}"
+if [ -z "$rec" ]; then
+  rec="$res/rec"
+  "$nat/firmware/agvloc" sim --out "$rec" --duration-s 20 --fps 10 --seed 7 --force >/dev/null
+fi
+extra="$(grep -o 'LD_LIBRARY_PATH=[^ ;]*' "$arm/CMakeCache.txt" | head -n 1 || true)"
+[ -n "$extra" ] || extra="LD_LIBRARY_PATH=/opt/agvloc-aarch64/usr/lib/aarch64-linux-gnu:/opt/agvloc-aarch64/usr/lib"
+
+printf '%-6s %8s %16s %16s %8s\n' class frames x86-64/frame aarch64/frame ratio
+for cls in ok none; do
+  # x86-64: callgrind collects only inside agv_cost_frame (the measured calls).
+  valgrind --tool=callgrind --collect-atstart=no --toggle-collect='agv_cost_frame*' \
+           --callgrind-out-file="$res/callgrind.$cls.out" \
+           "$nat/tools/vision-cost/vision_cost" "$rec" --frames "$frames" --class "$cls" \
+           >"$res/native.$cls.log" 2>"$res/callgrind.$cls.log"
+  n="$(sed -n 's/.*: \([0-9]*\) measured.*/\1/p' "$res/native.$cls.log")"
+  ir="$(sed -n 's/^summary: *\([0-9]*\).*/\1/p' "$res/callgrind.$cls.out")"
+  # aarch64: the plugin writes one count per measured frame.
+  qemu-aarch64 -E "$extra" -plugin "$res/insn_count_plugin.so,out=$res/aarch64.$cls.txt" \
+               "$arm/tools/vision-cost/vision_cost" "$rec" --frames "$frames" --class "$cls" \
+               >"$res/aarch64.$cls.log" 2>&1
+  n_arm="$(wc -l <"$res/aarch64.$cls.txt")"
+  if [ "$n" != "$n_arm" ]; then
+    echo "frame counts differ: x86-64 $n, aarch64 $n_arm" >&2
+    exit 1
+  fi
+  arm_sum="$(awk '{s += $1} END {printf "%.0f", s}' "$res/aarch64.$cls.txt")"
+  awk -v c="$cls" -v n="$n" -v x="$ir" -v a="$arm_sum" \
+      'BEGIN {printf "%-6s %8d %16.0f %16.0f %8.3f\n", c, n, x / n, a / n, a / x}'
+  sort -n "$res/aarch64.$cls.txt" |
+    awk -v c="$cls" '{v[NR] = $1} END {printf "  aarch64 %s: min %d median %d max %d\n", c, v[1], v[int((NR + 1) / 2)], v[NR]}'
+done
