@@ -296,13 +296,15 @@ void test_full_tx_queue(SocketCanBus& b) {
   SocketCanBus a(cfg(1));  // kernel raises 1 to its SO_SNDBUF minimum (a few kB)
   bool ok = check(a.is_open(), t, "open: %s", a.last_error());
   constexpr int kN = 20000;
-  int n_ok = 0, n_block = 0, n_other = 0;
-  std::int64_t worst_ns = 0;
+  int n_ok = 0, n_block = 0, n_other = 0, n_slow = 0;
+  std::int64_t worst_ns = 0, total_ns = 0;
   for (int i = 0; i < kN && ok; ++i) {
     const std::int64_t t0 = mono_ns();
     const CanStatus st = a.send(frame(0x400, false, 8, static_cast<std::uint8_t>(i)));
     const std::int64_t d = mono_ns() - t0;
     if (d > worst_ns) worst_ns = d;
+    if (d > 2'000'000) ++n_slow;
+    total_ns += d;
     if (st == CanStatus::kOk)
       ++n_ok;
     else if (st == CanStatus::kWouldBlock)
@@ -311,15 +313,20 @@ void test_full_tx_queue(SocketCanBus& b) {
       ++n_other;
   }
   const agv::hal::CanStats s = a.stats();
-  std::printf("INFO %s: %d ok, %d would-block, %d other, worst send %lld us, tc shaping %s\n", t,
-              n_ok, n_block, n_other, static_cast<long long>(worst_ns / 1000),
-              shaped ? "on" : "off");
+  std::printf(
+      "INFO %s: %d ok, %d would-block, %d other; send time mean %lld ns, worst %lld us, %d sends "
+      "> 2 ms; tc shaping %s\n",
+      t, n_ok, n_block, n_other, static_cast<long long>(total_ns / kN),
+      static_cast<long long>(worst_ns / 1000), n_slow, shaped ? "on" : "off");
   ok &= check(n_other == 0, t, "%d sends failed otherwise (%s)", n_other, a.last_error());
   ok &= check(s.tx_ok == static_cast<std::uint64_t>(n_ok) &&
                   s.tx_dropped_queue_full == static_cast<std::uint64_t>(n_block),
               t, "stats tx_ok %llu dropped %llu do not match the returns",
               (unsigned long long)s.tx_ok, (unsigned long long)s.tx_dropped_queue_full);
-  ok &= check(worst_ns < 50'000'000, t, "a send took %lld us: it blocked",
+  // A blocking send would wait for the shaped link to drain one frame (~16 ms at 8 kbit/s) on
+  // nearly every call once the queue is full; an emulated VM may stall any call now and then.
+  ok &= check(n_slow <= kN / 100, t, "%d of %d sends took > 2 ms: send blocks", n_slow, kN);
+  ok &= check(worst_ns < 1'000'000'000, t, "a send took %lld us: it blocked",
               static_cast<long long>(worst_ns / 1000));
   if (shaped) sh("tc qdisc del dev " + g_if + " root");
   drain(b);
