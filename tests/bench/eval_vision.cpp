@@ -110,14 +110,26 @@ struct Stats {
   std::vector<double> nees;
 };
 
-void evaluate(LandmarkLocalizer& loc, const std::vector<Frame>& frames, Stats* s) {
+std::string g_dump_dir;  // --dump: failed frames are written here
+
+void evaluate(LandmarkLocalizer& loc, const std::vector<Frame>& frames, Stats* s,
+              const std::string& tag = "") {
   LandmarkFix fix;
   for (const Frame& f : frames) {
     loc.process(f.img, &fix);
     ++s->n;
     ++s->status[fix.status];
     s->t_total.push_back(fix.timings.total_ms);
-    if (fix.status != FixStatus::kOk) continue;
+    if (fix.status != FixStatus::kOk) {
+      if (!g_dump_dir.empty() && !tag.empty() && s->status[fix.status] <= 4) {
+        char name[256];
+        std::snprintf(name, sizeof name, "%s/%s_%d_%d_ex%.0f_ey%.0f_phi%.0f.png", g_dump_dir.c_str(),
+                      tag.c_str(), static_cast<int>(fix.status), s->n, f.e_true.x_mm,
+                      f.e_true.y_mm, rad_to_deg(f.e_true.theta_rad));
+        cv::imwrite(name, f.img);
+      }
+      continue;
+    }
     const double dh = std::abs(rad_to_deg(wrap_angle_rad(deg_to_rad(fix.e_phi_deg) - f.e_true.theta_rad)));
     if (dh > 45.0) {
       ++s->wrong_direction;
@@ -243,6 +255,7 @@ struct AprilTagBench {
 #endif
 
 int run(const Args& a) {
+  g_dump_dir = a.dump;
   const CameraModel cam =
       a.profile == 1280 ? CameraModel::default_1280x800() : CameraModel::default_640x480();
   CameraModel cam_dist = cam;
@@ -313,14 +326,8 @@ int run(const Args& a) {
     auto frames = render_set(scene, cm, c, a.frames, a.seed * 1000 + ci);
     LandmarkLocalizer loc(cfg, cm, geom, &map);
     Stats s;
-    evaluate(loc, frames, &s);
+    evaluate(loc, frames, &s, "c" + std::to_string(ci));
     print_row(c.name, s);
-    if (!a.dump.empty()) {
-      for (size_t i = 0; i < std::min<size_t>(frames.size(), 3); ++i) {
-        cv::imwrite(a.dump + "/" + std::to_string(ci) + "_" + std::to_string(i) + ".png",
-                    frames[i].img);
-      }
-    }
     if (ci == 0) clean_frames = std::move(frames);
     if (ci + 1 == conds.size()) combined_frames = std::move(frames);
   }
@@ -333,7 +340,7 @@ int run(const Args& a) {
     auto frames = render_set(scene, cam, c, a.frames, a.seed * 1000 + 77);
     LandmarkLocalizer loc(cfg, cam, geom, &map);
     Stats s;
-    evaluate(loc, frames, &s);
+    evaluate(loc, frames, &s, "cut");
     print_row(c.name, s);
     Condition c2{"partly outside, realistic", [](std::mt19937_64&, sim::RenderOptions* o) {
                    *o = sim::realistic_options();

@@ -47,6 +47,8 @@ struct Hypothesis {
   double score_sum = 0, score_max = 0;
   double sum_w = 0;
   double c4 = 0, s4 = 0;      // accumulated 4*angle vector
+  std::array<int, 8> peak_idx{};  // supporting corner peaks
+  int n_peaks = 0;
 };
 
 Vec2 rot(Vec2 v, double a) {
@@ -86,6 +88,15 @@ double ncc(const std::vector<double>& a, const std::vector<double>& b) {
   return saa > 1e-9 && sbb > 1e-9 ? sab / std::sqrt(saa * sbb) : 0.0;
 }
 
+// Prewitt gradient (paper 001 eq. 2-3) at one interior pixel.
+inline void prewitt_at(const cv::Mat& img, int x, int y, int* gx_out, int* gy_out) {
+  const std::uint8_t* rm = img.ptr<std::uint8_t>(y - 1);
+  const std::uint8_t* r0 = img.ptr<std::uint8_t>(y);
+  const std::uint8_t* rp = img.ptr<std::uint8_t>(y + 1);
+  *gx_out = (rm[x + 1] + r0[x + 1] + rp[x + 1]) - (rm[x - 1] + r0[x - 1] + rp[x - 1]);
+  *gy_out = (rp[x - 1] + rp[x] + rp[x + 1]) - (rm[x - 1] + rm[x] + rm[x + 1]);
+}
+
 }  // namespace
 
 struct LandmarkLocalizer::Impl {
@@ -100,7 +111,10 @@ struct LandmarkLocalizer::Impl {
   double coarse_w = 0, coarse_h = 0, coarse_anchor = 0;  // border width, outer half, anchor
   std::vector<cv::Mat> templates;                         // CV_32F corner templates
   std::vector<double> template_angles;
-  cv::Mat coarse, binary, score, best_score, best_rot;
+  cv::Mat coarse, binary, isum, isq, best_score, best_rot;
+  std::vector<std::vector<float>> templates_zm;  // zero-mean, unit-norm
+  std::vector<float> patch_buf;
+  cv::Mat local_t;
   std::vector<CornerPeak> peaks;
   std::vector<Hypothesis> hyps;
 
@@ -145,33 +159,74 @@ struct LandmarkLocalizer::Impl {
 
   // Corner template: the top-left outer corner of the border (square towards +x, +y), rendered
   // by 8x8 supersampling and rotated about its anchor (middle of the corner's dark square).
+  // Renders the corner template rotated by angle a (image angle) into t (CV_32F, (2r+1)^2).
+  void render_corner(double a, int r, cv::Mat* t) const {
+    t->create(2 * r + 1, 2 * r + 1, CV_32FC1);
+    for (int y = -r; y <= r; ++y) {
+      for (int x = -r; x <= r; ++x) {
+        double acc = 0;
+        for (int sy = 0; sy < 8; ++sy) {
+          for (int sx = 0; sx < 8; ++sx) {
+            const Vec2 q{x + (sx + 0.5) / 8.0 - 0.5, y + (sy + 0.5) / 8.0 - 0.5};
+            const Vec2 u = rot(q, -a);
+            const double px = u.x + coarse_anchor, py = u.y + coarse_anchor;
+            const bool inside = px >= 0 && py >= 0;
+            const bool dark = inside && (px < coarse_w || py < coarse_w);
+            acc += dark ? 0.0 : 1.0;
+          }
+        }
+        t->at<float>(y + r, x + r) = static_cast<float>(acc / 64.0);
+      }
+    }
+  }
+
+  static std::vector<float> zero_mean_unit(const cv::Mat& t) {
+    cv::Scalar mean = cv::mean(t);
+    std::vector<float> zm(static_cast<size_t>(t.total()));
+    double norm = 0;
+    for (size_t q = 0; q < zm.size(); ++q) {
+      zm[q] = static_cast<float>(static_cast<double>(t.at<float>(static_cast<int>(q))) - mean[0]);
+      norm += static_cast<double>(zm[q]) * static_cast<double>(zm[q]);
+    }
+    for (float& v : zm) v = static_cast<float>(static_cast<double>(v) / std::sqrt(norm));
+    return zm;
+  }
+
+  // Corner template: the top-left outer corner of the border (square towards +x, +y), rendered
+  // by 8x8 supersampling and rotated about its anchor (middle of the corner's dark square).
   void build_templates() {
     const int r = static_cast<int>(std::ceil(1.5 * coarse_w));
     const int n_rot = std::max(1, cfg.corner_rotations);
     templates.clear();
+    templates_zm.clear();
     template_angles.clear();
     for (int i = 0; i < n_rot; ++i) {
       const double a = 2.0 * kPi * i / n_rot;
-      cv::Mat t(2 * r + 1, 2 * r + 1, CV_32FC1);
-      for (int y = -r; y <= r; ++y) {
-        for (int x = -r; x <= r; ++x) {
-          double acc = 0;
-          for (int sy = 0; sy < 8; ++sy) {
-            for (int sx = 0; sx < 8; ++sx) {
-              const Vec2 q{x + (sx + 0.5) / 8.0 - 0.5, y + (sy + 0.5) / 8.0 - 0.5};
-              const Vec2 u = rot(q, -a);
-              const double px = u.x + coarse_anchor, py = u.y + coarse_anchor;
-              const bool inside = px >= 0 && py >= 0;
-              const bool dark = inside && (px < coarse_w || py < coarse_w);
-              acc += dark ? 0.0 : 1.0;
-            }
-          }
-          t.at<float>(y + r, x + r) = static_cast<float>(acc / 64.0);
-        }
-      }
+      cv::Mat t;
+      render_corner(a, r, &t);
+      templates_zm.push_back(zero_mean_unit(t));
       templates.push_back(t);
       template_angles.push_back(a);
     }
+  }
+
+  // NCC of a zero-mean unit template at coarse position (x, y) (top-left of the window); -1 when
+  // the window leaves the image or has no contrast.
+  double ncc_at(const std::vector<float>& tz, int tsz, int x, int y) const {
+    if (x < 0 || y < 0 || x + tsz > coarse.cols || y + tsz > coarse.rows) return -1.0;
+    double sum = 0, sq = 0, dot = 0;
+    for (int j = 0; j < tsz; ++j) {
+      const std::uint8_t* src = coarse.ptr<std::uint8_t>(y + j) + x;
+      for (int i = 0; i < tsz; ++i) {
+        const double v = src[i];
+        sum += v;
+        sq += v * v;
+        dot += static_cast<double>(tz[static_cast<size_t>(j * tsz + i)]) * v;
+      }
+    }
+    const double n = tsz * tsz;
+    const double var = sq / n - (sum / n) * (sum / n);
+    return var > 1.0 ? dot / std::sqrt(var * n) : -1.0;
   }
 
   // Logo template: samples on the page around the triangle, 1 = white, 0 = inside the triangle.
@@ -209,13 +264,13 @@ struct LandmarkLocalizer::Impl {
   }
 
   bool detect(const cv::Mat& img, Hypothesis* best, bool* found_corner, double* corner_score);
-  bool ring_check(const Hypothesis& h, double* dark_level, double* white_level);
+  bool ring_check(const Hypothesis& h, double* dark_level, double* white_level, int* n_dark);
+  void refine_coarse_angle(Hypothesis* h) const;
   FixStatus decode(const cv::Mat& img, Vec2 centre_px, double up_angle, LandmarkFix* out,
                    Pose2* world_landmark, bool* have_world, double* qr_up_angle, bool* qr_ok);
   FixStatus pose(const cv::Mat& img, Vec2 centre_px, double up_angle, double contrast,
                  LandmarkFix* out, Vec2* c_mm, double* beta, Eigen::Matrix3d* cov);
-  int collect(const cv::Mat& img, Vec2 centre_px, double up_angle, double band_px, double thr,
-              bool refine_angle, double* refined_up);
+  int collect(const cv::Mat& img, Vec2 centre_px, double up_angle, double band_px, double thr);
   FixStatus run(const cv::Mat& img, LandmarkFix* out);
   const CameraModel& metric_cam() const {
     return cfg.metric == MetricMode::kCameraModel ? cam : cam_linear;
@@ -234,25 +289,44 @@ bool LandmarkLocalizer::Impl::detect(const cv::Mat& img, Hypothesis* best, bool*
   block = std::max(3, block | 1);
   cv::adaptiveThreshold(coarse, binary, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY_INV,
                         block, cfg.adaptive_offset);
-  // NCC of every rotated corner template; keep the best score and rotation per position.
-  for (size_t i = 0; i < templates.size(); ++i) {
-    cv::matchTemplate(coarse, templates[i], score, cv::TM_CCOEFF_NORMED);
-    if (i == 0) {
-      score.copyTo(best_score);
-      best_rot.create(score.size(), CV_8UC1);
-      best_rot.setTo(0);
-    } else {
-      for (int y = 0; y < score.rows; ++y) {
-        const float* s = score.ptr<float>(y);
-        float* b = best_score.ptr<float>(y);
-        std::uint8_t* r = best_rot.ptr<std::uint8_t>(y);
-        for (int x = 0; x < score.cols; ++x) {
-          if (s[x] > b[x]) {
-            b[x] = s[x];
-            r[x] = static_cast<std::uint8_t>(i);
-          }
+  // NCC of every rotated corner template at the candidate positions: the template's anchor (the
+  // middle of the corner's dark square) must be dark in the binary image and the patch must have
+  // contrast. Keeps the best score and rotation per position.
+  cv::integral(coarse, isum, isq, CV_32S, CV_64F);
+  const int tsz = templates[0].cols, r = tsz / 2, n_pix = tsz * tsz;
+  best_score.create(coarse.rows - tsz + 1, coarse.cols - tsz + 1, CV_32FC1);
+  best_score.setTo(-1.0f);
+  best_rot.create(best_score.size(), CV_8UC1);
+  patch_buf.resize(static_cast<size_t>(n_pix));
+  const double min_var = 12.0 * 12.0;
+  for (int y = 0; y < best_score.rows; ++y) {
+    const std::uint8_t* brow = binary.ptr<std::uint8_t>(y + r);
+    float* out_row = best_score.ptr<float>(y);
+    for (int x = 0; x < best_score.cols; ++x) {
+      if (!brow[x + r]) continue;
+      const double sum = isum.at<int>(y + tsz, x + tsz) - isum.at<int>(y, x + tsz) -
+                         isum.at<int>(y + tsz, x) + isum.at<int>(y, x);
+      const double sq = isq.at<double>(y + tsz, x + tsz) - isq.at<double>(y, x + tsz) -
+                        isq.at<double>(y + tsz, x) + isq.at<double>(y, x);
+      const double var = sq / n_pix - (sum / n_pix) * (sum / n_pix);
+      if (var < min_var) continue;  // NCC ignores contrast; faint texture is not a corner
+      for (int j = 0; j < tsz; ++j) {
+        const std::uint8_t* src = coarse.ptr<std::uint8_t>(y + j) + x;
+        for (int i = 0; i < tsz; ++i) patch_buf[static_cast<size_t>(j * tsz + i)] = src[i];
+      }
+      float best_dot = -1e30f;
+      int best_i = 0;
+      for (size_t t = 0; t < templates_zm.size(); ++t) {
+        const float* tp = templates_zm[t].data();
+        float dot = 0.0f;
+        for (int q = 0; q < n_pix; ++q) dot += tp[q] * patch_buf[static_cast<size_t>(q)];
+        if (dot > best_dot) {
+          best_dot = dot;
+          best_i = static_cast<int>(t);
         }
       }
+      out_row[x] = static_cast<float>(static_cast<double>(best_dot) / std::sqrt(var * n_pix));
+      best_rot.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(best_i);
     }
   }
   // Local maxima above threshold.
@@ -281,11 +355,6 @@ bool LandmarkLocalizer::Impl::detect(const cv::Mat& img, Hypothesis* best, bool*
       p.y = y + tr + oy;
       p.score = v;
       p.rot = best_rot.at<std::uint8_t>(y, x);
-      // Contrast guard: NCC ignores contrast, so faint texture can look like a corner.
-      const cv::Mat patch = coarse(cv::Rect(x, y, templates[0].cols, templates[0].rows));
-      cv::Scalar mean, sd;
-      cv::meanStdDev(patch, mean, sd);
-      if (sd[0] < 12.0) continue;
       peaks.push_back(p);
     }
   }
@@ -326,24 +395,105 @@ bool LandmarkLocalizer::Impl::detect(const cv::Mat& img, Hypothesis* best, bool*
     hit->up_angle = std::atan2(hit->s4, hit->c4) / 4.0;
     hit->score_sum += p.score;
     hit->score_max = std::max(hit->score_max, p.score);
+    if (hit->n_peaks < static_cast<int>(hit->peak_idx.size())) {
+      hit->peak_idx[static_cast<size_t>(hit->n_peaks++)] = static_cast<int>(&p - peaks.data());
+    }
   }
   std::sort(hyps.begin(), hyps.end(),
             [](const Hypothesis& a, const Hypothesis& b) { return a.score_sum > b.score_sum; });
-  for (const Hypothesis& h : hyps) {
+  int best_dark_count = 0;
+  for (Hypothesis& h : hyps) {
+    // The templates are 30 degrees apart: refine the angle from the gradients, then the centre
+    // from the supporting corners with the refined angle; twice.
+    for (int it = 0; it < 2; ++it) {
+      refine_coarse_angle(&h);
+      double sx = 0, sy = 0, sw = 0;
+      for (int i = 0; i < h.n_peaks; ++i) {
+        const CornerPeak& p = peaks[static_cast<size_t>(h.peak_idx[static_cast<size_t>(i)])];
+        const double a_tmpl = template_angles[static_cast<size_t>(p.rot)];
+        // The corner's true rotation: the template's, snapped to the refined square angle.
+        const double a = reduce_angle_90(h.up_angle + kPi / 2.0, a_tmpl);
+        // Re-match a template at that rotation around the peak (the 30-degree templates shift
+        // the peak), with a parabolic subpixel maximum.
+        render_corner(a, r, &local_t);
+        const std::vector<float> tz = zero_mean_unit(local_t);
+        const int px0 = static_cast<int>(std::lround(p.x)), py0 = static_cast<int>(std::lround(p.y));
+        double sc[7][7];
+        int bx = 3, by = 3;
+        for (int dy = -3; dy <= 3; ++dy) {
+          for (int dx = -3; dx <= 3; ++dx) {
+            sc[dy + 3][dx + 3] = ncc_at(tz, tsz, px0 + dx - r, py0 + dy - r);
+            if (sc[dy + 3][dx + 3] > sc[by][bx]) {
+              bx = dx + 3;
+              by = dy + 3;
+            }
+          }
+        }
+        double qx = px0 + bx - 3, qy = py0 + by - 3;
+        if (bx > 0 && bx < 6) {
+          const double d2 = sc[by][bx - 1] - 2 * sc[by][bx] + sc[by][bx + 1];
+          if (d2 < 0) qx += std::clamp(0.5 * (sc[by][bx - 1] - sc[by][bx + 1]) / d2, -0.5, 0.5);
+        }
+        if (by > 0 && by < 6) {
+          const double d2 = sc[by - 1][bx] - 2 * sc[by][bx] + sc[by + 1][bx];
+          if (d2 < 0) qy += std::clamp(0.5 * (sc[by - 1][bx] - sc[by + 1][bx]) / d2, -0.5, 0.5);
+        }
+        const double w = std::max(0.05, sc[by][bx]);
+        const Vec2 d = rot({coarse_h - coarse_anchor, coarse_h - coarse_anchor}, a);
+        sx += w * (qx + d.x);
+        sy += w * (qy + d.y);
+        sw += w;
+      }
+      if (sw > 0) {
+        h.cx = sx / sw;
+        h.cy = sy / sw;
+      }
+    }
     double dark = 0, white = 0;
-    if (ring_check(h, &dark, &white)) {
+    int n_dark = 0;
+    if (ring_check(h, &dark, &white, &n_dark) && n_dark > best_dark_count) {
+      // The hypothesis with the most dark ring samples wins (a false corner predicting a
+      // landmark mostly outside the image has few).
+      best_dark_count = n_dark;
       *best = h;
       best->score_max = dark;    // reuse: dark level
       best->score_sum = white;   // white level
       *corner_score = h.score_max;
-      return true;
     }
   }
-  return false;
+  return best_dark_count > 0;
+}
+
+// The corner templates come in 30-degree steps; the dominant gradient orientation (modulo 90
+// degrees, from the 4x angle weighted by |g|^2) inside the predicted square refines the angle.
+void LandmarkLocalizer::Impl::refine_coarse_angle(Hypothesis* h) const {
+  const double reach = coarse_h + 1.0;
+  const int x0 = std::max(1, static_cast<int>(h->cx - reach));
+  const int x1 = std::min(coarse.cols - 2, static_cast<int>(h->cx + reach) + 1);
+  const int y0 = std::max(1, static_cast<int>(h->cy - reach));
+  const int y1 = std::min(coarse.rows - 2, static_cast<int>(h->cy + reach) + 1);
+  const Vec2 n0{std::cos(h->up_angle), std::sin(h->up_angle)};
+  double c4 = 0, s4 = 0;
+  for (int y = y0; y <= y1; ++y) {
+    for (int x = x0; x <= x1; ++x) {
+      const double dx = x - h->cx, dy = y - h->cy;
+      if (std::abs(dx * n0.x + dy * n0.y) > reach || std::abs(-dx * n0.y + dy * n0.x) > reach) {
+        continue;
+      }
+      int gxi, gyi;
+      prewitt_at(coarse, x, y, &gxi, &gyi);
+      const double ex = gxi, ey = gyi, m2 = ex * ex + ey * ey;
+      if (m2 < 1.0) continue;
+      const double a = ex * ex - ey * ey, b = 2 * ex * ey;
+      c4 += (a * a - b * b) / m2;
+      s4 += 2 * a * b / m2;
+    }
+  }
+  if (c4 != 0 || s4 != 0) h->up_angle = reduce_angle_90(std::atan2(s4, c4) / 4.0, h->up_angle);
 }
 
 bool LandmarkLocalizer::Impl::ring_check(const Hypothesis& h, double* dark_level,
-                                         double* white_level) {
+                                         double* white_level, int* n_dark) {
   int ring_in = 0, ring_dark = 0, out_in = 0, out_dark = 0, total = 0;
   double dark_sum = 0, white_sum = 0;
   const double len = coarse_h - coarse_w;
@@ -381,6 +531,7 @@ bool LandmarkLocalizer::Impl::ring_check(const Hypothesis& h, double* dark_level
   if (static_cast<double>(ring_dark) < cfg.ring_dark_fraction * ring_in) return false;
   if (out_in > 0 && out_dark > out_in / 2) return false;
   *dark_level = dark_sum / ring_dark;
+  *n_dark = ring_dark;
   *white_level = out_in > out_dark ? white_sum / (out_in - out_dark) : 255.0;
   return true;
 }
@@ -455,102 +606,75 @@ FixStatus LandmarkLocalizer::Impl::decode(const cv::Mat& img, Vec2 c, double up_
 }
 
 // Collects classified, non-maximum-suppressed, optionally subpixel edge points of the 8 border
-// lines (outer and inner edge of each side) inside bands around the predicted lines.
+// lines (outer and inner edge of each side). Only pixels inside a band of +-band px around each
+// predicted line are visited (rasterised strip), and a pixel is kept for a line only when its
+// gradient class (paper 001 fig. 7: direction within the tolerance of the line's normal, outward
+// on outer edges, inward on inner edges) is that line's class.
 int LandmarkLocalizer::Impl::collect(const cv::Mat& img, Vec2 c, double up, double band,
-                                     double thr, bool refine_angle, double* refined_up) {
+                                     double thr) {
   const double h_out = geom.outer_half_mm() / mm_per_px;
   const double h_in = geom.inner_half_mm() / mm_per_px;
-  const double reach = (h_out + band + 2) * (std::abs(std::cos(up)) + std::abs(std::sin(up)));
-  cv::Rect roi(static_cast<int>(std::floor(c.x - reach)), static_cast<int>(std::floor(c.y - reach)),
-               static_cast<int>(std::ceil(2 * reach)) + 1, static_cast<int>(std::ceil(2 * reach)) + 1);
-  roi &= cv::Rect(1, 1, img.cols - 2, img.rows - 2);
-  for (auto& v : pts_px) v.clear();
-  if (roi.width < 3 || roi.height < 3) return 0;
-  prewitt(img, roi, &gx, &gy);
-  const double tol = deg_to_rad(cfg.edge_direction_tol_deg);
+  const double tan_tol = std::tan(deg_to_rad(cfg.edge_direction_tol_deg));
   const double thr2 = thr * thr;
-  std::array<Vec2, 4> nrm;
-  for (int k = 0; k < 4; ++k) nrm[k] = {std::cos(up + k * kPi / 2), std::sin(up + k * kPi / 2)};
-  double c4 = 0, s4 = 0;
-  const double tan_tol = std::tan(tol);
-  for (int y = 1; y + 1 < roi.height; ++y) {
-    const std::int16_t* gxr = gx.ptr<std::int16_t>(y);
-    const std::int16_t* gyr = gy.ptr<std::int16_t>(y);
-    for (int x = 1; x + 1 < roi.width; ++x) {
-      const double ex = gxr[x], ey = gyr[x];
-      const double m2 = ex * ex + ey * ey;
-      if (m2 < thr2) continue;
-      const double px = roi.x + x, py = roi.y + y;
-      if (refine_angle) {
-        // Dominant orientation modulo 90 deg (4x angle), weighted by |g|^2, inside the square.
-        const double dx = px - c.x, dy = py - c.y;
-        if (std::abs(dx * nrm[0].x + dy * nrm[0].y) < h_out &&
-            std::abs(dx * nrm[1].x + dy * nrm[1].y) < h_out) {
-          const double a = ex * ex - ey * ey, b = 2 * ex * ey;
-          c4 += (a * a - b * b) / m2;
-          s4 += 2 * a * b / m2;
-        }
-      }
-      // Classification by gradient direction (paper 001 fig. 7): which normal is it close to?
-      int k = -1;
-      double along = 0;
-      for (int j = 0; j < 4; ++j) {
-        const double pr = ex * nrm[j].x + ey * nrm[j].y;
-        if (pr <= 0) continue;
-        const double perp = std::abs(-ex * nrm[j].y + ey * nrm[j].x);
-        if (perp <= tan_tol * pr) {
-          k = j;
-          along = pr;
-        }
-        break;
-      }
-      if (k < 0) {
-        for (int j = 1; j < 4; ++j) {
-          const double pr = ex * nrm[j].x + ey * nrm[j].y;
-          if (pr <= 0) continue;
-          const double perp = std::abs(-ex * nrm[j].y + ey * nrm[j].x);
-          if (perp <= tan_tol * pr) {
-            k = j;
-            along = pr;
-            break;
-          }
-        }
-      }
-      if (k < 0) continue;
-      const Vec2 n = nrm[k];
-      const double s = (px - c.x) * n.x + (py - c.y) * n.y;
-      int line = -1;
-      if (std::abs(s - h_out) <= band) {
-        line = k * 2;  // outer edge of side k: gradient points outward
-      } else if (std::abs(-s - h_in) <= band) {
-        line = ((k + 2) % 4) * 2 + 1;  // inner edge of the opposite side: gradient inward
-      }
-      if (line < 0) continue;
-      // Non-maximum suppression along the pixel axis closest to the normal.
-      const bool horiz = std::abs(n.x) >= std::abs(n.y);
-      const int sx = horiz ? 1 : 0, sy = horiz ? 0 : 1;
-      const double em = gx.at<std::int16_t>(y - sy, x - sx) * n.x +
-                        gy.at<std::int16_t>(y - sy, x - sx) * n.y;
-      const double ep = gx.at<std::int16_t>(y + sy, x + sx) * n.x +
-                        gy.at<std::int16_t>(y + sy, x + sx) * n.y;
-      if (!(along >= em && along > ep)) continue;
-      double off = 0;
-      if (cfg.subpixel) {
-        const double den = em - 2 * along + ep;
-        if (den < 0) off = std::clamp(0.5 * (em - ep) / den, -0.5, 0.5);
-      }
-      pts_px[static_cast<size_t>(line)].push_back({px + off * sx, py + off * sy});
-    }
-  }
-  if (refine_angle && refined_up) {
-    if (c4 != 0 || s4 != 0) {
-      *refined_up = reduce_angle_90(std::atan2(s4, c4) / 4.0, up);
-    } else {
-      *refined_up = up;
-    }
-  }
+  const int x_lo = 2, y_lo = 2, x_hi = img.cols - 3, y_hi = img.rows - 3;
   int total = 0;
-  for (const auto& v : pts_px) total += static_cast<int>(v.size());
+  for (auto& v : pts_px) v.clear();
+  for (int k = 0; k < 4; ++k) {
+    const double na = up + k * kPi / 2;
+    const Vec2 nk{std::cos(na), std::sin(na)}, tk{-nk.y, nk.x};
+    for (int e = 0; e < 2; ++e) {
+      const double h = e == 0 ? h_out : h_in;
+      // Expected gradient direction: outward on the outer edge, inward on the inner edge.
+      const Vec2 g_dir = e == 0 ? nk : Vec2{-nk.x, -nk.y};
+      const double t_max = h - band;  // stay away from the corners
+      if (t_max <= 0) continue;
+      auto& dst = pts_px[static_cast<size_t>(k * 2 + e)];
+      const Vec2 m{c.x + nk.x * h, c.y + nk.y * h};  // foot of the line
+      // Iterate along the pixel axis closest to the line direction.
+      const bool by_rows = std::abs(tk.y) >= std::abs(tk.x);
+      const double ta = by_rows ? tk.y : tk.x;        // line direction, major component
+      const double na_major = by_rows ? nk.x : nk.y;  // normal, across component
+      const double m_major = by_rows ? m.y : m.x;
+      const double m_minor = by_rows ? m.x : m.y;
+      const double t_minor = by_rows ? tk.x : tk.y;
+      const double q0 = m_major - std::abs(ta) * t_max, q1 = m_major + std::abs(ta) * t_max;
+      const int i0 = std::max(static_cast<int>(std::ceil(q0)), by_rows ? y_lo : x_lo);
+      const int i1 = std::min(static_cast<int>(std::floor(q1)), by_rows ? y_hi : x_hi);
+      const double half_w = band / std::max(std::abs(na_major), 1e-6);
+      const int sx = by_rows ? 1 : 0, sy = by_rows ? 0 : 1;  // step across the line
+      for (int i = i0; i <= i1; ++i) {
+        const double tau = (i - m_major) / ta;
+        const double centre_minor = m_minor + tau * t_minor;
+        const int j0 = std::max(static_cast<int>(std::ceil(centre_minor - half_w)),
+                                by_rows ? x_lo : y_lo);
+        const int j1 = std::min(static_cast<int>(std::floor(centre_minor + half_w)),
+                                by_rows ? x_hi : y_hi);
+        for (int j = j0; j <= j1; ++j) {
+          const int x = by_rows ? j : i, y = by_rows ? i : j;
+          int gxi, gyi;
+          prewitt_at(img, x, y, &gxi, &gyi);
+          const double ex = gxi, ey = gyi;
+          if (ex * ex + ey * ey < thr2) continue;
+          const double along = ex * g_dir.x + ey * g_dir.y;
+          if (along <= 0) continue;
+          if (std::abs(-ex * g_dir.y + ey * g_dir.x) > tan_tol * along) continue;
+          // Non-maximum suppression across the line (along the pixel axis closest to it).
+          int ax, ay, bx, by;
+          prewitt_at(img, x - sx, y - sy, &ax, &ay);
+          prewitt_at(img, x + sx, y + sy, &bx, &by);
+          const double em = ax * g_dir.x + ay * g_dir.y, ep = bx * g_dir.x + by * g_dir.y;
+          if (!(along >= em && along > ep)) continue;
+          double off = 0;
+          if (cfg.subpixel) {
+            const double den = em - 2 * along + ep;
+            if (den < 0) off = std::clamp(0.5 * (em - ep) / den, -0.5, 0.5);
+          }
+          dst.push_back({x + off * sx, y + off * sy});
+        }
+      }
+      total += static_cast<int>(dst.size());
+    }
+  }
   return total;
 }
 
@@ -577,36 +701,8 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
                                         Eigen::Matrix3d* cov) {
   const double w_px = geom.border_width_mm() / mm_per_px;
   const double thr = cfg.edge_threshold_rel * 3.0 * contrast;
-  // Pass 1: wide bands, refine the orientation from the gradient field.
-  double up1 = up;
-  collect(img, c_px, up, cfg.band_first_rel * w_px, thr, true, &up1);
-  // Re-collect with the refined angle, then re-centre from quick line fits.
-  collect(img, c_px, up1, cfg.band_first_rel * w_px, thr, false, nullptr);
-  {
-    // Centre refinement in pixels: along each normal, mean of (outer+inner)/2 of opposite sides.
-    double shift[2] = {0, 0};
-    int cnt[2] = {0, 0};
-    for (int k = 0; k < 4; ++k) {
-      const Vec2 n{std::cos(up1 + k * kPi / 2), std::sin(up1 + k * kPi / 2)};
-      for (int e = 0; e < 2; ++e) {
-        const auto& v = pts_px[static_cast<size_t>(k * 2 + e)];
-        if (static_cast<int>(v.size()) < cfg.min_points_per_line) continue;
-        double s = 0;
-        for (const Vec2& p : v) s += (p.x - c_px.x) * n.x + (p.y - c_px.y) * n.y;
-        s /= static_cast<double>(v.size());
-        const double nominal = (e == 0 ? geom.outer_half_mm() : geom.inner_half_mm()) / mm_per_px;
-        // Offset of the centre along n (axis k%2, sign for k>=2).
-        shift[k % 2] += (k < 2 ? 1.0 : -1.0) * (s - nominal);
-        ++cnt[k % 2];
-      }
-    }
-    const Vec2 n0{std::cos(up1), std::sin(up1)}, n1{std::cos(up1 + kPi / 2), std::sin(up1 + kPi / 2)};
-    const double s0 = cnt[0] ? shift[0] / cnt[0] : 0, s1 = cnt[1] ? shift[1] / cnt[1] : 0;
-    c_px = {c_px.x + n0.x * s0 + n1.x * s1, c_px.y + n0.y * s0 + n1.y * s1};
-  }
-  // Pass 2: narrow bands around the refined prediction.
-  const int total = collect(img, c_px, up1, cfg.band_final_rel * w_px + 1.0, thr, false, nullptr);
-  up_angle_px = up1;
+  const int total = collect(img, c_px, up, cfg.band_rel * w_px, thr);
+  up_angle_px = up;
   if (total < cfg.min_points_total) return FixStatus::kTooFewEdgePoints;
 
   // Metric conversion of every point.
@@ -652,7 +748,7 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
   // Initial metric angle of side 0's normal from the pixel angle.
   Vec2 a0, a1;
   mc.pixel_to_vehicle(c_px, &a0);
-  mc.pixel_to_vehicle({c_px.x + 20 * std::cos(up1), c_px.y + 20 * std::sin(up1)}, &a1);
+  mc.pixel_to_vehicle({c_px.x + 20 * std::cos(up), c_px.y + 20 * std::sin(up)}, &a1);
   const double beta0 = std::atan2(a1.y - a0.y, a1.x - a0.x);
 
   // Per-line angles reduced to side 0's normal direction (line direction +90 deg).
@@ -868,6 +964,9 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, LandmarkFix* out) {
   if (contrast < 15.0) return finish(FixStatus::kNoLandmark);
   Vec2 c_px = coarse_to_full({h.cx, h.cy});
   const double up = h.up_angle;
+  out->detect_x_px = c_px.x;
+  out->detect_y_px = c_px.y;
+  out->detect_angle_deg = rad_to_deg(up);
 
   // Partly outside: any predicted outer corner beyond the image (plus margin).
   {

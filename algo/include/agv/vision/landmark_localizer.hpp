@@ -105,11 +105,10 @@ struct VisionConfig {
   // gradient-direction classification). Smaller rejects more points from dirt and scratches,
   // larger keeps more points on blurred corners. Default 20 deg.
   double edge_direction_tol_deg = 20.0;
-  // Half-width of the band around each predicted edge line in which points are collected, as a
-  // fraction of the border width, for the first and the second (refined) pass. Default 0.45 /
-  // 0.2.
-  double band_first_rel = 0.45;
-  double band_final_rel = 0.2;
+  // Half-width of the band around each predicted edge line in which pixels are examined, as a
+  // fraction of the border width (6 mm). Wider tolerates a worse detection estimate and costs
+  // time; it must stay below half the distance to the QR code (4 mm). Default 0.4 (2.4 mm).
+  double band_rel = 0.4;
   // Subpixel edge positions: parabola through the gradient magnitude across the edge. Default on.
   bool subpixel = true;
   // Robust fitting (Tukey biweight IRLS, scale from the MAD) against scratches, dirt and
@@ -186,6 +185,9 @@ struct LandmarkFix {
   int sides_used = 0;          // border sides with both edges fitted (4 when fully visible)
   bool partly_outside = false; // some of the border is outside the image (pose still valid)
   double residual_rms_mm = 0.0;
+  // Detection estimate (before the edge fit), for diagnostics: landmark centre in pixels and the
+  // image angle of one border normal (modulo 90 deg).
+  double detect_x_px = 0.0, detect_y_px = 0.0, detect_angle_deg = 0.0;
 };
 
 class LandmarkLocalizer {
