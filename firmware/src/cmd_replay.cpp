@@ -1,13 +1,240 @@
-// Placeholder until the owning issue lands; exits 2 so no caller mistakes it for success.
-#include <cstdio>
+// agvloc replay RECORDING [--out DIR] [--config FILE] [--map FILE] [--can IFACE]
+//                         [--odom-from-can] [--realtime [--speed X] | --fast] [--overlay LIST]
+#include <CLI/CLI.hpp>
+#include <opencv2/imgcodecs.hpp>
 
+#include <atomic>
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <sstream>
+
+#include "adapters.hpp"
+#include "agv/can/candump_file.hpp"
+#include "agv/can/socketcan.hpp"
+#include "agv/posix/posix_clock.hpp"
+#include "agv/recording/replay_camera.hpp"
 #include "commands.hpp"
+#include "config.hpp"
+#include "pipeline.hpp"
+#include "replay_report.hpp"
+#include "signals.hpp"
 
 namespace agv::cmd {
 
-int replay(int, char**) {
-  std::fprintf(stderr, "agvloc replay: not implemented yet\n");
-  return 2;
+namespace {
+
+bool load_map(const std::string& path, LandmarkMap* map, std::string* error) {
+  std::ifstream f(path);
+  if (!f) {
+    *error = path + ": cannot open";
+    return false;
+  }
+  std::stringstream ss;
+  ss << f.rdbuf();
+  std::string e;
+  if (!parse_landmark_map(ss.str(), map, &e)) {
+    *error = path + ": " + e;
+    return false;
+  }
+  return true;
+}
+
+void write_overlays(const config::Config& cfg, const LandmarkMap* map,
+                    const recording::Recording& rec, const std::vector<int>& frames,
+                    const std::string& out_dir) {
+  LandmarkGeometry g;
+  g.size_mm = cfg.landmark_size_mm;
+  vision::LandmarkLocalizer loc(cfg.vision, cfg.camera_model, g, map);
+  for (int i : frames) {
+    cv::Mat img, bgr;
+    std::string err;
+    if (i < 0 || static_cast<size_t>(i) >= rec.frames.size() ||
+        !recording::load_frame(rec, static_cast<size_t>(i), &img, &err)) {
+      std::fprintf(stderr, "replay: overlay frame %d: %s\n", i,
+                   err.empty() ? "no such frame" : err.c_str());
+      continue;
+    }
+    vision::LandmarkFix fix;
+    loc.process(img, &fix);
+    loc.draw_overlay(img, fix, &bgr);
+    char name[64];
+    std::snprintf(name, sizeof name, "overlay_%06d.png", i);
+    cv::imwrite((std::filesystem::path(out_dir) / name).string(), bgr);
+  }
+}
+
+}  // namespace
+
+int replay(int argc, char** argv) {
+  CLI::App app{"Run the localizer on a recording (frames + odometry), docs/replay.md"};
+  std::string rec_dir, out_dir = "replay_out", config_file, map_file, can_iface, can_log;
+  bool realtime = false, fast = false, odom_from_can = false, quiet = false;
+  double speed = 1.0;
+  std::vector<int> overlay_frames;
+  app.add_option("recording", rec_dir, "recording directory (docs/recording.md)")->required();
+  app.add_option("--out", out_dir, "output directory (poses.csv, fixes.csv, trajectory.svg, ...)");
+  app.add_option("--config", config_file, "configuration YAML (camera/mounting come from meta.yaml)");
+  app.add_option("--map", map_file, "landmark map (default: RECORDING/map.csv if present)");
+  app.add_option("--can", can_iface, "send output frames on this SocketCAN interface");
+  app.add_flag("--odom-from-can", odom_from_can,
+               "take odometry from the CAN bus instead of odom.csv (needs --can, --realtime)");
+  app.add_option("--can-log", can_log, "write sent frames as a candump -l log (default OUT/can.log)");
+  auto* rt = app.add_flag("--realtime", realtime, "pace the replay by the clock (threads as live)");
+  auto* ft = app.add_flag("--fast", fast, "as fast as possible, deterministic (default)");
+  rt->excludes(ft);
+  app.add_option("--speed", speed, "pace for --realtime: 1 = real time, 0.5 = half speed")
+      ->check(CLI::Range(0.01, 100.0));
+  app.add_option("--overlay", overlay_frames, "frame indices to write debug overlays for");
+  app.add_flag("--quiet", quiet, "no progress or periodic lines");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  if (odom_from_can && (can_iface.empty() || !realtime)) {
+    std::fprintf(stderr, "replay: --odom-from-can needs --can IFACE and --realtime\n");
+    return 2;
+  }
+
+  recording::Recording rec;
+  std::string err;
+  if (!recording::read_recording(rec_dir, &rec, &err)) {
+    std::fprintf(stderr, "replay: %s\n", err.c_str());
+    return 1;
+  }
+  config::Config cfg;
+  if (!config_file.empty()) {
+    std::vector<std::string> errors;
+    if (!config::load_config(config_file, &cfg, &errors)) {
+      for (const auto& e : errors) std::fprintf(stderr, "replay: config: %s\n", e.c_str());
+      return 2;
+    }
+  }
+  // The recording describes its own camera.
+  cfg.camera_model = rec.meta.camera;
+  cfg.landmark_size_mm = rec.meta.landmark_size_mm;
+  if (map_file.empty() && std::filesystem::exists(std::filesystem::path(rec_dir) / "map.csv")) {
+    map_file = (std::filesystem::path(rec_dir) / "map.csv").string();
+  }
+  if (map_file.empty() && !cfg.map_file.empty()) map_file = cfg.map_file;
+  LandmarkMap map;
+  const LandmarkMap* map_ptr = nullptr;
+  if (!map_file.empty()) {
+    if (!load_map(map_file, &map, &err)) {
+      std::fprintf(stderr, "replay: map: %s\n", err.c_str());
+      return 2;
+    }
+    map_ptr = &map;
+  }
+  std::error_code ec;
+  std::filesystem::create_directories(out_dir, ec);
+  if (ec) {
+    std::fprintf(stderr, "replay: cannot create %s: %s\n", out_dir.c_str(), ec.message().c_str());
+    return 1;
+  }
+  if (can_log.empty()) can_log = (std::filesystem::path(out_dir) / "can.log").string();
+
+  install_stop_signals();
+  std::vector<app::TickRecord> ticks;
+  std::vector<app::FixRecord> fixes;
+  app::RunResult result;
+  std::printf("replay: %s: %zu frames, %zu odometry samples%s, map %s, mode %s\n", rec_dir.c_str(),
+              rec.frames.size(), rec.odom.size(), rec.has_truth ? ", truth" : "",
+              map_ptr ? map_file.c_str() : "(payload poses only)",
+              realtime ? "realtime" : "fast");
+
+  can::CandumpWriter log;
+  std::unique_ptr<can::SocketCanBus> socket_bus;
+  if (!can_iface.empty()) {
+    can::SocketCanConfig sc;
+    sc.iface = can_iface;
+    socket_bus = std::make_unique<can::SocketCanBus>(sc);
+    if (socket_bus->state() == hal::CanBusState::kDown) {
+      std::fprintf(stderr, "replay: CAN %s not available yet (%s); will keep retrying\n",
+                   can_iface.c_str(), socket_bus->last_error());
+    }
+  } else if (!log.open(can_log, &err)) {
+    std::fprintf(stderr, "replay: %s\n", err.c_str());
+    return 1;
+  }
+
+  if (realtime) {
+    posix::PosixClock mono;
+    const std::int64_t t_first = rec.frames.empty() ? (rec.odom.empty() ? 0 : rec.odom.front().t_ns)
+                                                    : rec.frames.front().t_ns;
+    app::ScaledClock clock(mono, t_first, speed);
+    recording::ReplayCamera camera(rec, &clock, t_first, 1.0);
+    std::unique_ptr<hal::CanBus> bus;
+    if (socket_bus) {
+      bus = std::make_unique<app::TimeMappedBus>(*socket_bus, &clock);
+    } else {
+      bus = std::make_unique<app::LogOnlyBus>(log, &clock, nullptr, "can0");
+    }
+    const double duration_s =
+        static_cast<double>((rec.odom.empty() ? t_first : rec.odom.back().t_ns) - t_first) / 1e9;
+    ticks.reserve(static_cast<size_t>((duration_s + 5.0) * cfg.loop.output_rate_hz) + 16);
+    fixes.reserve(rec.frames.size() + 16);
+    app::PipelineIo io;
+    io.camera = &camera;
+    io.bus = bus.get();
+    io.clock = &clock;
+    io.odometry = odom_from_can ? nullptr : &rec.odom;
+    io.ticks = &ticks;
+    io.fixes = &fixes;
+    io.stop = &stop_requested();
+    io.quiet = quiet;
+    if (odom_from_can) {
+      // Odometry arrives from the bus for the whole run; stop when the frames are done and
+      // the recording's duration has passed.
+      io.stop_at_end_of_stream = true;
+    }
+    const std::int64_t w0 = posix::monotonic_now_ns();
+    app::run_threads(cfg, map_ptr, io, &result);
+    result.wall_ns = posix::monotonic_now_ns() - w0;
+  } else {
+    std::atomic<std::int64_t> loop_time{0};
+    app::LogOnlyBus bus(log, nullptr, &loop_time, "can0");
+    app::run_fast(cfg, map_ptr, rec, &bus, &ticks, &fixes, &stop_requested(), &result, !quiet,
+                  &loop_time);
+  }
+  if (!can_iface.empty()) {
+  } else if (!log.close()) {
+    std::fprintf(stderr, "replay: writing %s failed\n", can_log.c_str());
+  }
+
+  int rc = 0;
+  const std::string poses = (std::filesystem::path(out_dir) / "poses.csv").string();
+  const std::string fixes_csv = (std::filesystem::path(out_dir) / "fixes.csv").string();
+  const std::string plot = (std::filesystem::path(out_dir) / "trajectory.svg").string();
+  if (!app::write_poses_csv(poses, ticks, &err) || !app::write_fixes_csv(fixes_csv, fixes, &err)) {
+    std::fprintf(stderr, "replay: %s\n", err.c_str());
+    rc = 1;
+  }
+  std::vector<Vec2> odo_track;
+  app::AccuracySummary acc;
+  if (rec.has_truth) acc = app::evaluate(rec, ticks, fixes, &odo_track);
+  if (!app::write_plot(plot, rec, ticks, odo_track, map_ptr, &err)) {
+    std::fprintf(stderr, "replay: %s\n", err.c_str());
+    rc = 1;
+  }
+  if (!overlay_frames.empty()) write_overlays(cfg, map_ptr, rec, overlay_frames, out_dir);
+
+  std::string summary;
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "replay summary: %zu frames, %llu landmark fixes fused, %zu output ticks, wall %.1f s\n",
+                rec.frames.size(), static_cast<unsigned long long>(result.output.fixes_fused),
+                ticks.size(), static_cast<double>(result.wall_ns) / 1e9);
+  summary += buf;
+  summary += app::format_statistics(result);
+  if (rec.has_truth) summary += app::format_accuracy(acc);
+  summary += "outputs: " + poses + ", " + fixes_csv + ", " + plot +
+             (can_iface.empty() ? ", " + can_log : "") + "\n";
+  std::fputs(summary.c_str(), stdout);
+  std::ofstream(std::filesystem::path(out_dir) / "summary.txt") << summary;
+  return rc;
 }
 
 }  // namespace agv::cmd

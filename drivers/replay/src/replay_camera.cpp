@@ -1,0 +1,89 @@
+#include "agv/recording/replay_camera.hpp"
+
+#include <opencv2/imgcodecs.hpp>
+
+#include <filesystem>
+
+namespace agv::recording {
+
+ReplayCamera::ReplayCamera(const Recording& rec, hal::Clock* clock, std::int64_t t0_ns,
+                           double speed)
+    : rec_(rec), clock_(clock), t0_ns_(t0_ns), speed_(speed > 0.0 ? speed : 1.0) {}
+
+hal::CameraStatus ReplayCamera::start() {
+  started_ = true;
+  return hal::CameraStatus::kOk;
+}
+
+void ReplayCamera::stop() {
+  started_ = false;
+  for (auto& h : held_) h = false;
+}
+
+std::int64_t ReplayCamera::mapped_ns(std::int64_t t_rec_ns) const {
+  if (!clock_ || rec_.frames.empty()) return t_rec_ns;
+  return t0_ns_ + static_cast<std::int64_t>(static_cast<double>(t_rec_ns - rec_.frames.front().t_ns) /
+                                            speed_);
+}
+
+hal::CameraStatus ReplayCamera::next_frame(std::int64_t timeout_ns, hal::FrameView* frame) {
+  if (!started_) return hal::CameraStatus::kNotStarted;
+  // Skip frames inside a simulated stall and frames that cannot be decoded.
+  while (next_ < rec_.frames.size()) {
+    const FrameRow& row = rec_.frames[next_];
+    const std::int64_t due_ns = mapped_ns(row.t_ns);
+    if (clock_) {
+      const std::int64_t now = clock_->now_ns();
+      if (due_ns > now) {
+        if (due_ns - now > timeout_ns) {
+          clock_->sleep_until_ns(now + timeout_ns);
+          return hal::CameraStatus::kTimeout;
+        }
+        clock_->sleep_until_ns(due_ns);
+      }
+    }
+    ++next_;
+    if (row.t_ns >= stall_from_ns_ && row.t_ns < stall_to_ns_) continue;
+    int slot = -1;
+    for (int i = 0; i < kSlots; ++i) {
+      if (!held_[i]) {
+        slot = i;
+        break;
+      }
+    }
+    if (slot < 0) {
+      ++stats_.frames_dropped;
+      ++sequence_;
+      continue;
+    }
+    const std::string path = (std::filesystem::path(rec_.dir) / row.file).string();
+    cv::Mat& image = slots_[slot];
+    image = cv::imread(path, cv::IMREAD_UNCHANGED);
+    if (image.empty() || image.type() != CV_8UC1 ||
+        image.cols != rec_.meta.camera.intrinsics.width_px ||
+        image.rows != rec_.meta.camera.intrinsics.height_px) {
+      ++stats_.errors;
+      error_ = path + ": " +
+               (image.empty() ? "cannot decode image" : "not an 8-bit gray image of the meta size");
+      ++sequence_;
+      continue;
+    }
+    frame->data = image.data;
+    frame->width_px = image.cols;
+    frame->height_px = image.rows;
+    frame->stride_bytes = static_cast<int>(image.step[0]);
+    frame->t_exposure_ns = mapped_ns(row.t_ns);
+    frame->sequence = sequence_++;
+    frame->slot = slot;
+    held_[slot] = true;
+    ++stats_.frames_delivered;
+    return hal::CameraStatus::kOk;
+  }
+  return hal::CameraStatus::kEndOfStream;
+}
+
+void ReplayCamera::release(const hal::FrameView& frame) {
+  if (frame.slot >= 0 && frame.slot < kSlots) held_[frame.slot] = false;
+}
+
+}  // namespace agv::recording

@@ -1,0 +1,82 @@
+// The localizer's configuration: one YAML file, validated at start. Every key, its default and
+// its accepted range: docs/config.md. Example: firmware/config/agvloc.yaml.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "agv/common/camera_model.hpp"
+#include "agv/fusion/ekf.hpp"
+#include "agv/hal/camera.hpp"
+#include "agv/protocol/codec.hpp"
+#include "agv/vision/landmark_localizer.hpp"
+
+namespace agv::config {
+
+struct CameraSection {
+  std::string driver = "libcamera";  // libcamera | v4l2 | replay
+  hal::CameraConfig camera;
+  // No frame for this long -> camera flagged stalled; fusion keeps dead-reckoning.
+  double timeout_ms = 500.0;
+};
+
+struct CanSection {
+  std::string interface = "can0";
+  std::uint32_t base_id = 0x300;
+  bool extended_ids = false;
+  std::string odometry_mode = "v_omega";  // v_omega | wheels
+  std::uint32_t odometry_id = 0;          // 0 = the DBC's ID: base_id + 0x10 (wheels) / 0x11
+  bool odometry_protected = true;         // E2E counter + CRC checked on odometry input
+  double track_width_mm = 500.0;          // wheels mode: distance between the wheel contact points
+  double wheel_speed_scale = 1.0;         // wheels mode: multiplies decoded wheel speeds
+  double odometry_timeout_ms = 100.0;
+};
+
+struct LoopSection {
+  double output_rate_hz = 100.0;     // pose, velocity, quality, status frames
+  double heartbeat_rate_hz = 1.0;
+  int realtime_priority = 0;         // SCHED_FIFO priority of the output thread; 0 = off
+  bool lock_memory = false;          // mlockall at start
+  double log_period_s = 10.0;        // periodic statistics line; 0 = off
+};
+
+struct Config {
+  CameraSection camera;
+  CameraModel camera_model;  // intrinsics + mounting
+  double landmark_size_mm = 60.0;
+  std::string map_file;      // resolved relative to the config file; empty = payload poses only
+  CanSection can;
+  LoopSection loop;
+  // Algorithm sections, read by config_algo.cpp.
+  vision::VisionConfig vision;
+  fusion::EkfConfig fusion;
+  // Replay only: delay between a frame's exposure and its fix reaching fusion in --fast mode
+  // (live, it is whatever the vision worker takes).
+  double replay_fix_delay_ms = 30.0;
+  std::string source;        // file name the config came from, for messages
+};
+
+// Parses YAML text. On error returns false and fills *errors with one line per problem, each
+// naming the key path and accepted range ("can.base_id: value 4096 outside ...").
+bool parse_config(const std::string& yaml_text, const std::string& base_dir, Config* out,
+                  std::vector<std::string>* errors);
+// The CAN protocol configuration implied by the can section.
+protocol::ProtocolConfig protocol_config(const Config& cfg);
+
+// Reads and parses a file (base_dir = the file's directory).
+bool load_config(const std::string& path, Config* out, std::vector<std::string>* errors);
+
+}  // namespace agv::config
+
+namespace agv::config {
+class YamlChecker;
+struct Config;
+// Reads the algorithm sections (vision, fusion) into cfg; defined in config_algo.cpp.
+}  // namespace agv::config
+namespace YAML {
+class Node;
+}
+namespace agv::config {
+void read_algo_sections(YamlChecker& c, const YAML::Node& root, Config* cfg);
+}  // namespace agv::config

@@ -1,0 +1,408 @@
+#include "pipeline.hpp"
+
+#include <opencv2/core.hpp>
+
+#include <algorithm>
+#include <cinttypes>
+#include <cstdio>
+#include <thread>
+#include <unistd.h>
+
+#include "agv/posix/posix_clock.hpp"
+#include "agv/posix/realtime.hpp"
+#include "handoff.hpp"
+
+namespace agv::app {
+
+namespace {
+
+constexpr std::int64_t kMs = 1'000'000;
+
+void record_vision(const vision::LandmarkFix& fix, std::int64_t exposure_to_start_ns,
+                   std::int64_t vision_ns, VisionStats* vs) {
+  ++vs->frames_processed;
+  const int s = static_cast<int>(fix.status);
+  if (s >= 0 && s < kFixStatusCount) ++vs->by_status[s];
+  vs->exposure_to_start_ns.record_ns(exposure_to_start_ns);
+  vs->vision_ns.record_ns(vision_ns);
+  vs->detect_ns.record_ns(static_cast<std::int64_t>(fix.timings.detect_ms * 1e6));
+  if (fix.timings.decode_ms > 0) {
+    vs->decode_ns.record_ns(static_cast<std::int64_t>(fix.timings.decode_ms * 1e6));
+  }
+  if (fix.timings.direction_ms > 0) {
+    vs->direction_ns.record_ns(static_cast<std::int64_t>(fix.timings.direction_ms * 1e6));
+  }
+  if (fix.timings.pose_ms > 0) {
+    vs->pose_ns.record_ns(static_cast<std::int64_t>(fix.timings.pose_ms * 1e6));
+  }
+}
+
+vision::VisionConfig vision_config_with_clock(const config::Config& cfg, const hal::Clock* clock) {
+  vision::VisionConfig v = cfg.vision;
+  if (clock) {
+    v.now_ns = [clock] { return clock->now_ns(); };
+  } else {
+    v.now_ns = [] { return posix::monotonic_now_ns(); };
+  }
+  return v;
+}
+
+LandmarkGeometry geometry_of(const config::Config& cfg) {
+  LandmarkGeometry g;
+  g.size_mm = cfg.landmark_size_mm;
+  return g;
+}
+
+void print_period_line(const OutputStats& o, const VisionStats* v, std::uint64_t dropped) {
+  std::fprintf(stderr,
+               "agvloc: ticks %" PRIu64 " missed %" PRIu64 " | fixes fused %" PRIu64
+               " gated %" PRIu64 " | e2e p50 %.2f ms p99 %.2f ms | jitter p99 %.0f us | "
+               "frames dropped %" PRIu64 " | can tx ok %" PRIu64 " failed %" PRIu64 "%s\n",
+               o.ticks, o.missed_periods, o.fixes_fused, o.fixes_rejected_gate,
+               static_cast<double>(o.end_to_end_ns.percentile_ns(0.5)) / 1e6,
+               static_cast<double>(o.end_to_end_ns.percentile_ns(0.99)) / 1e6,
+               static_cast<double>(o.period_jitter_ns.percentile_ns(0.99)) / 1e3, dropped,
+               o.can_tx_ok, o.can_tx_failed, v ? "" : "");
+}
+
+}  // namespace
+
+int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& io,
+                RunResult* result) {
+  hal::Clock& clock = *io.clock;
+  OutputStage out(cfg, io.bus);
+  FrameMailbox mailbox;
+  SpscRing<FixRecord, 16> fix_queue;
+  std::atomic<bool> done{false};
+  std::atomic<bool> camera_eos{false};
+  std::atomic<bool> camera_error{false};
+  std::atomic<std::int64_t> last_frame_ns{clock.now_ns()};
+  std::atomic<std::uint64_t> vision_busy{0};
+  VisionStats vstats;
+  std::string camera_error_text;
+
+  if (io.camera->start() != hal::CameraStatus::kOk) {
+    std::fprintf(stderr, "agvloc: camera did not start: %s (continuing: dead reckoning only)\n",
+                 io.camera->last_error());
+    camera_error = true;
+  }
+
+  // Capture: never blocks on processing; the mailbox keeps only the newest frame.
+  std::thread capture([&] {
+    posix::set_thread_name("agv-capture");
+    std::int64_t retry_at_ns = 0;
+    while (!done.load()) {
+      if (camera_error.load()) {
+        // Reopen a vanished camera once a second; fusion dead-reckons meanwhile.
+        if (clock.now_ns() < retry_at_ns) {
+          clock.sleep_until_ns(std::min(retry_at_ns, clock.now_ns() + 50 * kMs));
+          continue;
+        }
+        io.camera->stop();
+        if (io.camera->start() == hal::CameraStatus::kOk) {
+          camera_error = false;
+        } else {
+          retry_at_ns = clock.now_ns() + 1000 * kMs;
+          continue;
+        }
+      }
+      hal::FrameView f;
+      const hal::CameraStatus s = io.camera->next_frame(50 * kMs, &f);
+      if (s == hal::CameraStatus::kOk) {
+        last_frame_ns = clock.now_ns();
+        hal::FrameView old;
+        if (mailbox.put(f, &old)) io.camera->release(old);
+      } else if (s == hal::CameraStatus::kEndOfStream) {
+        camera_eos = true;
+        break;
+      } else if (s == hal::CameraStatus::kDisconnected || s == hal::CameraStatus::kDeviceError ||
+                 s == hal::CameraStatus::kNotStarted) {
+        camera_error = true;
+        retry_at_ns = clock.now_ns() + 1000 * kMs;
+      }
+    }
+    mailbox.close();
+  });
+
+  // Vision worker: always the newest frame; results go to fusion through a fixed ring.
+  std::thread worker([&] {
+    posix::set_thread_name("agv-vision");
+    vision::LandmarkLocalizer loc(vision_config_with_clock(cfg, &clock), cfg.camera_model,
+                                  geometry_of(cfg), map);
+    FixRecord rec;
+    while (true) {
+      hal::FrameView f;
+      if (!mailbox.take(100 * kMs, &f)) {
+        if (mailbox.closed() || done.load()) break;
+        continue;
+      }
+      vision_busy = 1;
+      const std::int64_t t0 = clock.now_ns();
+      const cv::Mat img(f.height_px, f.width_px, CV_8UC1, const_cast<std::uint8_t*>(f.data),
+                        static_cast<size_t>(f.stride_bytes));
+      loc.process(img, &rec.fix);
+      const std::int64_t t1 = clock.now_ns();
+      rec.t_exposure_ns = f.t_exposure_ns;
+      rec.t_done_ns = t1;
+      io.camera->release(f);
+      record_vision(rec.fix, t0 - f.t_exposure_ns, t1 - t0, &vstats);
+      if (io.fixes && io.fixes->size() < io.fixes->capacity()) io.fixes->push_back(rec);
+      if (rec.fix.status != vision::FixStatus::kNoLandmark) fix_queue.push(rec);
+      vision_busy = 0;
+    }
+    hal::FrameView f;
+    if (mailbox.drain(&f)) io.camera->release(f);
+  });
+
+  // Output: absolute-time periodic timer; odometry, fixes, fusion, CAN every period.
+  const std::int64_t period_ns = static_cast<std::int64_t>(1e9 / cfg.loop.output_rate_hz);
+  const std::int64_t camera_timeout_ns = static_cast<std::int64_t>(cfg.camera.timeout_ms * 1e6);
+  const std::int64_t log_period_ns = static_cast<std::int64_t>(cfg.loop.log_period_s * 1e9);
+  std::thread output([&] {
+    posix::set_thread_name("agv-output");
+    if (cfg.loop.realtime_priority > 0) {
+      const int err = posix::set_fifo_priority(cfg.loop.realtime_priority);
+      if (err) {
+        std::fprintf(stderr, "agvloc: %s\n",
+                     posix::explain_realtime_error("SCHED_FIFO", err).c_str());
+      }
+    }
+    std::size_t odom_i = 0;
+    std::int64_t next_ns = clock.now_ns() + period_ns;
+    std::int64_t next_log_ns = next_ns + log_period_ns;
+    FixRecord rec;
+    while (!done.load()) {
+      clock.sleep_until_ns(next_ns);
+      const std::int64_t now = clock.now_ns();
+      out.mutable_stats().period_jitter_ns.record_ns(now - next_ns);
+      if (now - next_ns > period_ns) {
+        out.note_missed_period();
+        // Skip the missed periods instead of bursting to catch up.
+        next_ns += ((now - next_ns) / period_ns) * period_ns;
+      }
+      if (io.odometry) {
+        while (odom_i < io.odometry->size() && (*io.odometry)[odom_i].t_ns <= now) {
+          const auto& r = (*io.odometry)[odom_i++];
+          out.on_odometry(r.t_ns, r.v_mps, r.omega_radps);
+        }
+      }
+      out.poll_can();
+      while (fix_queue.pop(&rec)) out.on_fix(rec.fix, rec.t_exposure_ns);
+      out.set_camera_state(now - last_frame_ns.load() > camera_timeout_ns && !camera_eos.load(),
+                           camera_error.load());
+      TickRecord* tr = nullptr;
+      if (io.ticks && io.ticks->size() < io.ticks->capacity()) tr = &io.ticks->emplace_back();
+      out.tick(now, &clock, tr);
+      if (log_period_ns > 0 && now >= next_log_ns && !io.quiet) {
+        print_period_line(out.stats(), nullptr, mailbox.dropped());
+        next_log_ns += log_period_ns;
+      }
+      next_ns += period_ns;
+      if (io.stop && io.stop->load()) done = true;
+      if (io.stop_at_end_of_stream && camera_eos.load() && vision_busy.load() == 0 &&
+          mailbox.closed() && (!io.odometry || odom_i >= io.odometry->size())) {
+        // Drain what the worker produced, then stop.
+        while (fix_queue.pop(&rec)) out.on_fix(rec.fix, rec.t_exposure_ns);
+        done = true;
+      }
+    }
+  });
+
+  output.join();
+  done = true;
+  mailbox.close();
+  capture.join();
+  worker.join();
+  io.camera->stop();
+
+  result->output = out.stats();
+  result->vision = vstats;
+  result->camera = io.camera->stats();
+  result->frames_dropped_mailbox = mailbox.dropped();
+  result->fixes_dropped_queue = fix_queue.dropped();
+  result->odometry_rejected_can = out.odometry_decoder().counters().rejected();
+  if (io.bus) {
+    result->can = io.bus->stats();
+    result->can_present = true;
+  }
+  result->camera_error = io.camera->last_error();
+  return 0;
+}
+
+int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording::Recording& rec,
+             hal::CanBus* bus, std::vector<TickRecord>* ticks, std::vector<FixRecord>* fixes,
+             std::atomic<bool>* stop, RunResult* result, bool show_progress,
+             std::atomic<std::int64_t>* loop_time_ns) {
+  OutputStage out(cfg, bus);
+  vision::LandmarkLocalizer loc(vision_config_with_clock(cfg, nullptr), cfg.camera_model,
+                                geometry_of(cfg), map);
+  VisionStats vstats;
+  const std::int64_t period_ns = static_cast<std::int64_t>(1e9 / cfg.loop.output_rate_hz);
+  const std::int64_t delay_ns = static_cast<std::int64_t>(cfg.replay_fix_delay_ms * 1e6);
+  const std::int64_t camera_timeout_ns = static_cast<std::int64_t>(cfg.camera.timeout_ms * 1e6);
+  std::int64_t t_begin = INT64_MAX, t_end = INT64_MIN;
+  if (!rec.frames.empty()) {
+    t_begin = std::min(t_begin, rec.frames.front().t_ns);
+    t_end = std::max(t_end, rec.frames.back().t_ns);
+  }
+  if (!rec.odom.empty()) {
+    t_begin = std::min(t_begin, rec.odom.front().t_ns);
+    t_end = std::max(t_end, rec.odom.back().t_ns);
+  }
+  if (t_begin > t_end) return 0;
+  t_end += delay_ns;
+
+  // Pending fixes in arrival order (arrival = exposure + fixed delay, so FIFO is time order).
+  std::vector<FixRecord> pending;
+  pending.reserve(64);
+  std::size_t pending_head = 0;
+  std::size_t frame_i = 0, odom_i = 0;
+  std::int64_t last_frame_t = t_begin;
+  bool camera_error = false;
+  const std::int64_t wall0 = posix::monotonic_now_ns();
+  cv::Mat img;
+  std::string err;
+  int last_pct = -1;
+  const bool tty = show_progress && isatty(STDERR_FILENO);
+  for (std::int64_t now = t_begin + period_ns; now <= t_end + period_ns; now += period_ns) {
+    if (stop && stop->load()) break;
+    // Frames exposed up to now are processed; their fixes arrive after the vision delay.
+    while (frame_i < rec.frames.size() && rec.frames[frame_i].t_ns <= now) {
+      const std::size_t i = frame_i++;
+      if (!recording::load_frame(rec, i, &img, &err)) {
+        camera_error = true;
+        result->camera_error = err;
+        ++result->camera.errors;
+        continue;
+      }
+      camera_error = false;
+      ++result->camera.frames_delivered;
+      last_frame_t = rec.frames[i].t_ns;
+      FixRecord fr;
+      const std::int64_t w0 = posix::monotonic_now_ns();
+      loc.process(img, &fr.fix);
+      const std::int64_t w1 = posix::monotonic_now_ns();
+      fr.t_exposure_ns = rec.frames[i].t_ns;
+      fr.t_done_ns = fr.t_exposure_ns + delay_ns;
+      record_vision(fr.fix, 0, w1 - w0, &vstats);  // exposure->start is not simulated
+      if (fixes) fixes->push_back(fr);
+      if (fr.fix.status != vision::FixStatus::kNoLandmark) pending.push_back(fr);
+    }
+    // Odometry and fixes merged in time order up to now.
+    while (true) {
+      const bool have_odom = odom_i < rec.odom.size() && rec.odom[odom_i].t_ns <= now;
+      const bool have_fix = pending_head < pending.size() && pending[pending_head].t_done_ns <= now;
+      if (!have_odom && !have_fix) break;
+      if (have_odom &&
+          (!have_fix || rec.odom[odom_i].t_ns <= pending[pending_head].t_done_ns)) {
+        const auto& r = rec.odom[odom_i++];
+        out.on_odometry(r.t_ns, r.v_mps, r.omega_radps);
+      } else {
+        const FixRecord& fr = pending[pending_head++];
+        out.on_fix(fr.fix, fr.t_exposure_ns);
+      }
+    }
+    if (pending_head == pending.size()) {
+      pending.clear();
+      pending_head = 0;
+    }
+    out.set_camera_state(now - last_frame_t > camera_timeout_ns && frame_i < rec.frames.size(),
+                         camera_error);
+    TickRecord tr;
+    if (loop_time_ns) loop_time_ns->store(now);
+    out.tick(now, nullptr, &tr);
+    if (ticks) ticks->push_back(tr);
+    if (tty) {
+      const int pct = static_cast<int>(100.0 * static_cast<double>(now - t_begin) /
+                                       static_cast<double>(t_end - t_begin + 1));
+      if (pct != last_pct) {
+        std::fprintf(stderr, "\rreplay: %3d %%  frames %zu/%zu  fixes fused %" PRIu64, pct,
+                     frame_i, rec.frames.size(), out.stats().fixes_fused);
+        last_pct = pct;
+      }
+    }
+  }
+  if (tty) std::fprintf(stderr, "\n");
+  result->output = out.stats();
+  result->vision = vstats;
+  result->odometry_rejected_can = out.odometry_decoder().counters().rejected();
+  result->wall_ns = posix::monotonic_now_ns() - wall0;
+  if (bus) {
+    result->can = bus->stats();
+    result->can_present = true;
+  }
+  return 0;
+}
+
+namespace {
+void line(std::string* s, const char* name, const LatencyHistogram& h) {
+  char buf[200];
+  if (h.count() == 0) {
+    std::snprintf(buf, sizeof buf, "  %-26s (no samples)\n", name);
+  } else {
+    std::snprintf(buf, sizeof buf, "  %-26s p50 %8.3f ms  p99 %8.3f ms  max %8.3f ms  (n=%" PRIu64 ")\n",
+                  name, static_cast<double>(h.percentile_ns(0.5)) / 1e6,
+                  static_cast<double>(h.percentile_ns(0.99)) / 1e6,
+                  static_cast<double>(h.max_ns()) / 1e6, h.count());
+  }
+  *s += buf;
+}
+}  // namespace
+
+std::string format_statistics(const RunResult& r) {
+  std::string s;
+  char buf[400];
+  const auto& o = r.output;
+  const auto& v = r.vision;
+  std::snprintf(buf, sizeof buf,
+                "statistics:\n  frames: delivered %" PRIu64 ", processed %" PRIu64
+                ", dropped (newest-wins) %" PRIu64 ", driver drops %" PRIu64
+                ", unreadable %" PRIu64 "\n",
+                r.camera.frames_delivered, v.frames_processed, r.frames_dropped_mailbox,
+                r.camera.frames_dropped, r.camera.errors);
+  s += buf;
+  s += "  vision results:";
+  for (int i = 0; i < kFixStatusCount; ++i) {
+    if (v.by_status[i] == 0) continue;
+    std::snprintf(buf, sizeof buf, " %s %" PRIu64, vision::to_string(static_cast<vision::FixStatus>(i)),
+                  v.by_status[i]);
+    s += buf;
+  }
+  s += "\n";
+  std::snprintf(buf, sizeof buf,
+                "  fusion: odometry %" PRIu64 " (rejected %" PRIu64 ", CAN E2E rejected %" PRIu64
+                "), fixes fused %" PRIu64 ", gated %" PRIu64 ", too old %" PRIu64
+                ", invalid %" PRIu64 ", re-initialisations %" PRIu64 "\n",
+                o.odom_samples, o.odom_rejected, r.odometry_rejected_can, o.fixes_fused,
+                o.fixes_rejected_gate, o.fixes_rejected_too_old, o.fixes_rejected_invalid,
+                o.reinitialisations);
+  s += buf;
+  std::snprintf(buf, sizeof buf,
+                "  output: ticks %" PRIu64 ", missed periods %" PRIu64 ", CAN tx ok %" PRIu64
+                ", failed %" PRIu64 ", rx %" PRIu64 "\n",
+                o.ticks, o.missed_periods, o.can_tx_ok, o.can_tx_failed, o.can_rx_frames);
+  s += buf;
+  if (r.can_present) {
+    std::snprintf(buf, sizeof buf,
+                  "  CAN bus: tx ok %" PRIu64 ", queue full %" PRIu64 ", tx errors %" PRIu64
+                  ", rx %" PRIu64 ", error frames %" PRIu64 ", bus-off %" PRIu64
+                  ", restarts %" PRIu64 "\n",
+                  r.can.tx_ok, r.can.tx_dropped_queue_full, r.can.tx_errors, r.can.rx_frames,
+                  r.can.rx_error_frames, r.can.bus_off_count, r.can.restarts);
+    s += buf;
+  }
+  s += " latency:\n";
+  line(&s, "exposure -> vision start", v.exposure_to_start_ns);
+  line(&s, "vision (total)", v.vision_ns);
+  line(&s, "  detect", v.detect_ns);
+  line(&s, "  decode", v.decode_ns);
+  line(&s, "  direction", v.direction_ns);
+  line(&s, "  pose", v.pose_ns);
+  line(&s, "fusion (per period)", o.fusion_ns);
+  line(&s, "CAN send (per period)", o.can_send_ns);
+  line(&s, "end to end (exposure->CAN)", o.end_to_end_ns);
+  line(&s, "output period jitter", o.period_jitter_ns);
+  return s;
+}
+
+}  // namespace agv::app

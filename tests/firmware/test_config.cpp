@@ -1,0 +1,84 @@
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include "config.hpp"
+
+using agv::config::Config;
+
+namespace {
+
+std::vector<std::string> errors_for(const std::string& yaml) {
+  Config cfg;
+  std::vector<std::string> errors;
+  EXPECT_FALSE(agv::config::parse_config(yaml, "", &cfg, &errors)) << yaml;
+  return errors;
+}
+
+bool mentions(const std::vector<std::string>& errors, const std::string& what) {
+  for (const auto& e : errors) {
+    if (e.find(what) != std::string::npos) return true;
+  }
+  return false;
+}
+
+}  // namespace
+
+TEST(Config, ShippedExampleLoads) {
+  Config cfg;
+  std::vector<std::string> errors;
+  ASSERT_TRUE(agv::config::load_config(std::string(AGV_SOURCE_DIR) + "/firmware/config/agvloc.yaml",
+                                       &cfg, &errors))
+      << (errors.empty() ? "" : errors.front());
+  EXPECT_EQ(cfg.camera.driver, "libcamera");
+  EXPECT_EQ(cfg.can.base_id, 0x300u);
+  EXPECT_NEAR(cfg.camera_model.mm_per_px(), 0.26, 1e-6);
+  EXPECT_NE(cfg.map_file.find("tools/maps/default_grid.csv"), std::string::npos);
+}
+
+TEST(Config, EmptyMappingGivesDefaults) {
+  Config cfg;
+  std::vector<std::string> errors;
+  ASSERT_TRUE(agv::config::parse_config("{}", "", &cfg, &errors));
+  EXPECT_DOUBLE_EQ(cfg.loop.output_rate_hz, 100.0);
+}
+
+TEST(Config, UnknownKeyIsNamed) {
+  EXPECT_TRUE(mentions(errors_for("can:\n  interfcae: can1\n"), "can.interfcae: unknown key"));
+  EXPECT_TRUE(mentions(errors_for("bogus: 1\n"), "bogus: unknown key"));
+}
+
+TEST(Config, OutOfRangeNamesKeyAndRange) {
+  const auto e = errors_for("loop:\n  output_rate_hz: 5000\n");
+  EXPECT_TRUE(mentions(e, "loop.output_rate_hz: value 5000 outside the accepted range [1, 1000]"));
+  EXPECT_TRUE(mentions(errors_for("can:\n  base_id: 0x800\n"), "can.base_id"));
+}
+
+TEST(Config, ExtendedIdsWidenTheRange) {
+  Config cfg;
+  std::vector<std::string> errors;
+  EXPECT_TRUE(agv::config::parse_config("can:\n  extended_ids: true\n  base_id: 0x18FF0000\n", "",
+                                        &cfg, &errors));
+  EXPECT_EQ(cfg.can.base_id, 0x18FF0000u);
+}
+
+TEST(Config, WrongTypesAndChoices) {
+  EXPECT_TRUE(mentions(errors_for("camera:\n  width: wide\n"), "camera.width: expected an integer"));
+  EXPECT_TRUE(mentions(errors_for("camera:\n  driver: gopro\n"), "camera.driver: 'gopro' is not one of"));
+  EXPECT_TRUE(mentions(errors_for("loop:\n  lock_memory: maybe\n"), "loop.lock_memory: expected true or false"));
+  EXPECT_TRUE(mentions(errors_for("can: 5\n"), "can: expected a mapping"));
+  EXPECT_TRUE(mentions(errors_for("intrinsics:\n  fx: .nan\n"), "intrinsics.fx: expected a number"));
+}
+
+TEST(Config, SyntaxErrorAndNonMapping) {
+  EXPECT_TRUE(mentions(errors_for("camera: [1, 2\n"), "YAML syntax error"));
+  EXPECT_TRUE(mentions(errors_for("- a\n- b\n"), "top level"));
+}
+
+TEST(Config, MissingFile) {
+  Config cfg;
+  std::vector<std::string> errors;
+  EXPECT_FALSE(agv::config::load_config("/nonexistent/agvloc.yaml", &cfg, &errors));
+  EXPECT_TRUE(mentions(errors, "cannot open"));
+}

@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# The main job on the bundled default: install dependencies, build, simulate a demo recording
+# (if absent), replay it through the localizer, print the summary and write the trajectory plot.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash tools/install-deps.sh
+cmake --preset default
+cmake --build --preset default -j "$(nproc)" --target agvloc
+BIN=build/default/firmware/agvloc
+REC=demo/recording
+OUT=demo/out
+if [ ! -f "$REC/frames.csv" ]; then
+  echo "demo: simulating a recording into $REC (default map tools/maps/default_grid.csv)"
+  "$BIN" sim --out "$REC" --map tools/maps/default_grid.csv --trajectory lawnmower --duration-s 30
+fi
+"$BIN" replay "$REC" --out "$OUT" --fast
+echo "demo: trajectory plot $OUT/trajectory.svg, fused poses $OUT/poses.csv, fixes $OUT/fixes.csv"
