@@ -19,7 +19,7 @@ constexpr double kNsToS = 1e-9;
 bool finite_nonneg(double v) { return std::isfinite(v) && v >= 0.0; }
 bool finite_pos(double v) { return std::isfinite(v) && v > 0.0; }
 
-void symmetrize(StateCov* P) { *P = 0.5 * (*P + P->transpose()); }
+void symmetrize(FilterCov* P) { *P = 0.5 * (*P + P->transpose()); }
 
 }  // namespace
 
@@ -43,6 +43,11 @@ std::string validate(const EkfConfig& c) {
     return "gate_probability must be in (0, 1)";
   if (c.kidnap_fixes < 2) return "kidnap_fixes must be >= 2";
   if (c.kidnap_min_separation_ns < 0) return "kidnap_min_separation_ns must be >= 0";
+  if (!finite_nonneg(c.init_v_scale_sigma) || !finite_nonneg(c.init_omega_scale_sigma) ||
+      !finite_nonneg(c.init_omega_bias_sigma_radps) || !finite_nonneg(c.v_scale_sigma_per_sqrt_s) ||
+      !finite_nonneg(c.omega_scale_sigma_per_sqrt_s) ||
+      !finite_nonneg(c.omega_bias_sigma_radps_per_sqrt_s))
+    return "odometry calibration sigmas must be finite and >= 0";
   if (!finite_pos(c.init_v_sigma_mps) || !finite_pos(c.init_omega_sigma_radps))
     return "init sigmas must be finite and > 0";
   if (c.history_capacity < 8) return "history_capacity must be >= 8";
@@ -100,16 +105,18 @@ std::uint16_t Ekf::take_flags() { return std::exchange(pending_flags_, std::uint
 // ---------------------------------------------------------------------------------------------
 // Filter steps
 
-void Ekf::add_velocity_noise(StateCov* P, double dt_s) const {
+void Ekf::add_velocity_noise(FilterCov* P, double dt_s) const {
   const double adt = std::abs(dt_s);
   (*P)(kIv, kIv) += config_.accel_sigma_mps2 * config_.accel_sigma_mps2 * adt;
   (*P)(kIomega, kIomega) += config_.yaw_accel_sigma_radps2 * config_.yaw_accel_sigma_radps2 * adt;
 }
 
-void Ekf::predict(StateVec* x, StateCov* P, double dt_s, bool velocity_noise) const {
+void Ekf::predict(FilterVec* x, FilterCov* P, double dt_s, bool velocity_noise) const {
   if (dt_s == 0.0) return;
   if (velocity_noise) add_velocity_noise(P, dt_s);
-  const StateCov F = motion_jacobian(*x, dt_s);
+  // Motion (eq. 14) acts on the first five states; the calibration is constant.
+  FilterCov F = FilterCov::Identity();
+  F.topLeftCorner<5, 5>() = motion_jacobian(x->head<5>(), dt_s);
   const double th = (*x)(kItheta), v = (*x)(kIv), w = (*x)(kIomega);
   const double dist_m = std::abs(v * dt_s);
   const double turn_rad = std::abs(w * dt_s);
@@ -122,7 +129,7 @@ void Ekf::predict(StateVec* x, StateCov* P, double dt_s, bool velocity_noise) co
       config_.along_track_sigma_mm_per_sqrt_m * config_.along_track_sigma_mm_per_sqrt_m * dist_m;
   const double qc =
       config_.cross_track_sigma_mm_per_sqrt_m * config_.cross_track_sigma_mm_per_sqrt_m * dist_m;
-  StateCov Q = StateCov::Zero();
+  FilterCov Q = FilterCov::Zero();
   Q(kIx, kIx) = c * c * qa + s * s * qc;
   Q(kIy, kIy) = s * s * qa + c * c * qc;
   Q(kIx, kIy) = Q(kIy, kIx) = c * s * (qa - qc);
@@ -130,32 +137,47 @@ void Ekf::predict(StateVec* x, StateCov* P, double dt_s, bool velocity_noise) co
   const double hdr = config_.heading_drift_sigma_rad_per_sqrt_s;
   const double ht = config_.turn_heading_sigma_rad_per_sqrt_rad;
   Q(kItheta, kItheta) = hd * hd * dist_m + hdr * hdr * adt + ht * ht * turn_rad;
+  if (config_.estimate_odometry_calibration) {
+    Q(kIsv, kIsv) = config_.v_scale_sigma_per_sqrt_s * config_.v_scale_sigma_per_sqrt_s * adt;
+    Q(kIsomega, kIsomega) =
+        config_.omega_scale_sigma_per_sqrt_s * config_.omega_scale_sigma_per_sqrt_s * adt;
+    Q(kIbomega, kIbomega) =
+        config_.omega_bias_sigma_radps_per_sqrt_s * config_.omega_bias_sigma_radps_per_sqrt_s * adt;
+  }
 
-  *x = motion_predict(*x, dt_s);
+  x->head<5>() = motion_predict(x->head<5>(), dt_s);
   *P = F * (*P) * F.transpose() + Q;
   symmetrize(P);
 }
 
-void Ekf::update_odometry(StateVec* x, StateCov* P, double v_mps, double omega_radps) const {
-  // h(x) = (v, omega): H selects rows 3..4, so H P H^T and P H^T are sub-blocks.
+void Ekf::update_odometry(FilterVec* x, FilterCov* P, double v_mps, double omega_radps) const {
+  // h(x) = ((1 + s_v) v, (1 + s_omega) omega + b_omega); without calibration s = b = 0 and H
+  // simply selects v and omega.
   const Eigen::Matrix2d R =
       Eigen::Vector2d(config_.odom_v_sigma_mps * config_.odom_v_sigma_mps,
                       config_.odom_omega_sigma_radps * config_.odom_omega_sigma_radps)
           .asDiagonal();
-  const Eigen::Matrix2d S = P->block<2, 2>(kIv, kIv) + R;
-  const Eigen::Matrix<double, 5, 2> PHt = P->block<5, 2>(0, kIv);
-  const Eigen::Matrix<double, 5, 2> K = S.llt().solve(PHt.transpose()).transpose();
-  const Eigen::Vector2d nu(v_mps - (*x)(kIv), omega_radps - (*x)(kIomega));
+  const double v = (*x)(kIv), w = (*x)(kIomega);
+  const double sv = (*x)(kIsv), sw = (*x)(kIsomega), bw = (*x)(kIbomega);
+  Eigen::Matrix<double, 2, kFilterDim> H = Eigen::Matrix<double, 2, kFilterDim>::Zero();
+  H(0, kIv) = 1.0 + sv;
+  H(0, kIsv) = v;
+  H(1, kIomega) = 1.0 + sw;
+  H(1, kIsomega) = w;
+  H(1, kIbomega) = 1.0;
+  const Eigen::Matrix<double, kFilterDim, 2> PHt = (*P) * H.transpose();
+  const Eigen::Matrix2d S = H * PHt + R;
+  const Eigen::Matrix<double, kFilterDim, 2> K = S.llt().solve(PHt.transpose()).transpose();
+  const Eigen::Vector2d nu(v_mps - (1.0 + sv) * v, omega_radps - ((1.0 + sw) * w + bw));
   *x += K * nu;
   (*x)(kItheta) = wrap_angle_rad((*x)(kItheta));
   // Joseph form: (I - K H) P (I - K H)^T + K R K^T stays symmetric positive definite.
-  StateCov IKH = StateCov::Identity();
-  IKH.block<5, 2>(0, kIv) -= K;
+  const FilterCov IKH = FilterCov::Identity() - K * H;
   *P = IKH * (*P) * IKH.transpose() + K * R * K.transpose();
   symmetrize(P);
 }
 
-void Ekf::propagate_odometry(StateVec* x, StateCov* P, double dt_s, double v_mps,
+void Ekf::propagate_odometry(FilterVec* x, FilterCov* P, double dt_s, double v_mps,
                              double omega_radps) const {
   // An odometry sample is the mean speed over the period ending at its time stamp (encoder
   // ticks per period). Model: v and omega change (random walk) at the start of the period, the
@@ -167,23 +189,23 @@ void Ekf::propagate_odometry(StateVec* x, StateCov* P, double dt_s, double v_mps
   predict(x, P, dt_s, /*velocity_noise=*/false);
 }
 
-void Ekf::update_fix(StateVec* x, StateCov* P, const Eigen::Vector3d& z,
+void Ekf::update_fix(FilterVec* x, FilterCov* P, const Eigen::Vector3d& z,
                      const Eigen::Matrix3d& R) const {
   // h(x) = (x, y, theta): H = [I3 0] (eq. 17-19); innovation angle wrapped.
   const Eigen::Matrix3d S = P->topLeftCorner<3, 3>() + R;
-  const Eigen::Matrix<double, 5, 3> PHt = P->leftCols<3>();
-  const Eigen::Matrix<double, 5, 3> K = S.llt().solve(PHt.transpose()).transpose();
+  const Eigen::Matrix<double, kFilterDim, 3> PHt = P->leftCols<3>();
+  const Eigen::Matrix<double, kFilterDim, 3> K = S.llt().solve(PHt.transpose()).transpose();
   Eigen::Vector3d nu = z - x->head<3>();
   nu(2) = wrap_angle_rad(nu(2));
   *x += K * nu;
   (*x)(kItheta) = wrap_angle_rad((*x)(kItheta));
-  StateCov IKH = StateCov::Identity();
+  FilterCov IKH = FilterCov::Identity();
   IKH.leftCols<3>() -= K;
   *P = IKH * (*P) * IKH.transpose() + K * R * K.transpose();
   symmetrize(P);
 }
 
-double Ekf::mahalanobis_sq(const StateVec& x, const StateCov& P, const Eigen::Vector3d& z,
+double Ekf::mahalanobis_sq(const FilterVec& x, const FilterCov& P, const Eigen::Vector3d& z,
                            const Eigen::Matrix3d& R) const {
   const Eigen::Matrix3d S = P.topLeftCorner<3, 3>() + R;
   Eigen::Vector3d nu = z - x.head<3>();
@@ -234,8 +256,8 @@ void Ekf::process_event(const Event& prev, Event* ev) const {
     ev->valid = false;
     return;
   }
-  StateVec x = prev.x;
-  StateCov P = prev.P;
+  FilterVec x = prev.x;
+  FilterCov P = prev.P;
   const double dt_s = static_cast<double>(ev->t_ns - prev.t_ns) * kNsToS;
   if (ev->kind == EventKind::kOdom) {
     propagate_odometry(&x, &P, dt_s, ev->v_mps, ev->omega_radps);
@@ -294,7 +316,7 @@ bool Ekf::add_odometry(std::int64_t t_ns, double v_mps, double omega_radps) {
   return true;
 }
 
-void Ekf::initialise_at(std::int64_t t_ns, const StateVec& x, const StateCov& P) {
+void Ekf::initialise_at(std::int64_t t_ns, const FilterVec& x, const FilterCov& P) {
   Event ev;
   ev.t_ns = t_ns;
   ev.kind = EventKind::kInit;
@@ -313,13 +335,13 @@ void Ekf::initialise_at(std::int64_t t_ns, const StateVec& x, const StateCov& P)
 }
 
 bool Ekf::kidnap_candidate(std::int64_t t_ns, const Eigen::Vector3d& z, const Eigen::Matrix3d& R,
-                           const StateVec& prior_x, const StateCov& prior_P) {
+                           const FilterVec& prior_x, const FilterCov& prior_P) {
   bool extended = false;
   if (hyp_.count > 0 && t_ns >= hyp_.t_ns && size_ > 0 && hyp_.t_ns >= at(0).t_ns) {
     // Carry the candidate track forward with the same odometry the filter used, then test the
     // new fix against it with the same gate.
-    StateVec x = hyp_.x;
-    StateCov P = hyp_.P;
+    FilterVec x = hyp_.x;
+    FilterCov P = hyp_.P;
     std::int64_t tc = hyp_.t_ns;
     for (std::size_t i = static_cast<std::size_t>(find_last_at_or_before(hyp_.t_ns) + 1);
          i < size_ && at(i).t_ns <= t_ns; ++i) {
@@ -351,13 +373,16 @@ bool Ekf::kidnap_candidate(std::int64_t t_ns, const Eigen::Vector3d& z, const Ei
     hyp_.t_count_ns = t_ns;
     hyp_.x = prior_x;
     hyp_.x.head<3>() = z;
-    hyp_.P = StateCov::Zero();
+    hyp_.P = FilterCov::Zero();
     hyp_.P.topLeftCorner<3, 3>() = R;
-    hyp_.P.bottomRightCorner<2, 2>() = prior_P.bottomRightCorner<2, 2>();
+    // v, omega and the odometry calibration carry over (they do not change when the vehicle
+    // is carried); their correlation with the old pose does not.
+    hyp_.P.bottomRightCorner<kFilterDim - 3, kFilterDim - 3>() =
+        prior_P.bottomRightCorner<kFilterDim - 3, kFilterDim - 3>();
   }
   if (hyp_.count >= config_.kidnap_fixes) {
-    const StateVec x = hyp_.x;
-    const StateCov P = hyp_.P;
+    const FilterVec x = hyp_.x;
+    const FilterCov P = hyp_.P;
     initialise_at(t_ns, x, P);
     ++counters_.reinitialisations;
     pending_flags_ |= flags::kReinitialised;
@@ -414,7 +439,7 @@ FixOutcome Ekf::add_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::Ma
   // ---- Initialisation from the first valid fix ----
   if (!initialised_) {
     if (k < 0 && size_ == history_.size()) return reject_old();  // older than all kept inputs
-    StateVec x = StateVec::Zero();
+    FilterVec x = FilterVec::Zero();
     x.head<3>() = z;
     // Speed from the newest odometry at or before the fix, if any.
     for (long i = k; i >= 0; --i) {
@@ -425,9 +450,15 @@ FixOutcome Ekf::add_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::Ma
         break;
       }
     }
-    StateCov P = StateCov::Zero();
+    FilterCov P = FilterCov::Zero();
     P.topLeftCorner<3, 3>() = R;
     P(kIv, kIv) = config_.init_v_sigma_mps * config_.init_v_sigma_mps;
+    if (config_.estimate_odometry_calibration) {
+      P(kIsv, kIsv) = config_.init_v_scale_sigma * config_.init_v_scale_sigma;
+      P(kIsomega, kIsomega) = config_.init_omega_scale_sigma * config_.init_omega_scale_sigma;
+      P(kIbomega, kIbomega) =
+          config_.init_omega_bias_sigma_radps * config_.init_omega_bias_sigma_radps;
+    }
     P(kIomega, kIomega) = config_.init_omega_sigma_radps * config_.init_omega_sigma_radps;
     initialise_at(t_ns, x, P);
     ++counters_.fixes_initialised;
@@ -439,8 +470,8 @@ FixOutcome Ekf::add_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::Ma
 
   // ---- Prior at the exposure time, gate ----
   const Event& base = at(static_cast<std::size_t>(k));
-  StateVec x = base.x;
-  StateCov P = base.P;
+  FilterVec x = base.x;
+  FilterCov P = base.P;
   predict(&x, &P, static_cast<double>(t_ns - base.t_ns) * kNsToS);
   const double d2 = mahalanobis_sq(x, P, z, R);
   last_fix_d2_ = d2;
@@ -497,14 +528,17 @@ PoseEstimate Ekf::estimate_at(std::int64_t t_ns) const {
     return e;
   }
   const Event& base = at(static_cast<std::size_t>(k));
-  StateVec x = base.x;
-  StateCov P = base.P;
+  FilterVec x = base.x;
+  FilterCov P = base.P;
   predict(&x, &P, static_cast<double>(t_ns - base.t_ns) * kNsToS);
   e.valid = true;
   e.pose = {x(kIx), x(kIy), wrap_angle_rad(x(kItheta))};
   e.v_mps = x(kIv);
   e.omega_radps = x(kIomega);
-  e.cov = P;
+  e.cov = P.topLeftCorner<5, 5>();
+  e.odom_v_scale_error = x(kIsv);
+  e.odom_omega_scale_error = x(kIsomega);
+  e.odom_omega_bias_radps = x(kIbomega);
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(P.topLeftCorner<2, 2>(),
                                                            Eigen::EigenvaluesOnly);
   e.position_sigma_mm = std::sqrt(std::max(0.0, eig.eigenvalues()(1)));

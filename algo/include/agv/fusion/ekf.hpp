@@ -19,6 +19,17 @@
 
 namespace agv::fusion {
 
+// The filter state is the paper's (x, y, theta, v, omega) followed by three odometry
+// calibration states (docs/fusion.md, "Odometry calibration"):
+//   odometry v     = (1 + s_v) v                    s_v:  speed scale error
+//   odometry omega = (1 + s_omega) omega + b_omega  s_omega: yaw-rate scale error, b_omega: bias
+inline constexpr int kIsv = 5;
+inline constexpr int kIsomega = 6;
+inline constexpr int kIbomega = 7;
+inline constexpr int kFilterDim = 8;
+using FilterVec = Eigen::Matrix<double, kFilterDim, 1>;
+using FilterCov = Eigen::Matrix<double, kFilterDim, kFilterDim>;
+
 struct EkfConfig {
   // ---- Process noise (added per prediction step; all are white-noise densities) ----
   // Random walk of the speed state (m/s^2 per sqrt(s)). Per 10 ms odometry period it must be
@@ -44,6 +55,22 @@ struct EkfConfig {
   double heading_sigma_rad_per_sqrt_m = deg_to_rad(0.1);
   double heading_drift_sigma_rad_per_sqrt_s = deg_to_rad(0.3);
   double turn_heading_sigma_rad_per_sqrt_rad = 0.0125;
+
+  // ---- Odometry calibration ----
+  // Estimate s_v, s_omega and b_omega from the fixes. A 1 % scale error alone is 5 mm at the
+  // midpoint of a 1 m landmark spacing and a 0.5 deg/s yaw-rate bias another ~1-3 mm; learning
+  // them (a few landmarks suffice) removes most of that. false: the plain 5-state filter of
+  // paper 000 (the calibration states stay exactly 0).
+  bool estimate_odometry_calibration = true;
+  // Prior sigmas of the calibration (what a new or re-tyred vehicle may be off by).
+  double init_v_scale_sigma = 0.03;
+  double init_omega_scale_sigma = 0.03;
+  double init_omega_bias_sigma_radps = deg_to_rad(1.5);
+  // Random walk of the calibration (tyre wear, load, temperature), per sqrt(s). Larger tracks
+  // changes faster but lets the calibration absorb noise of individual fixes.
+  double v_scale_sigma_per_sqrt_s = 1e-4;
+  double omega_scale_sigma_per_sqrt_s = 1e-4;
+  double omega_bias_sigma_radps_per_sqrt_s = deg_to_rad(0.005);
 
   // ---- Odometry measurement noise (v and omega are fused as a direct measurement) ----
   // Noise of one odometry sample. Smaller makes the speed state follow odometry more tightly.
@@ -97,7 +124,7 @@ struct EkfConfig {
   // Lost when the position sigma (sqrt of the largest eigenvalue of the xy covariance) or the
   // heading sigma exceeds these.
   double lost_position_sigma_mm = 50.0;
-  double lost_heading_sigma_rad = deg_to_rad(2.0);
+  double lost_heading_sigma_rad = deg_to_rad(3.0);
 };
 
 // Empty string when the configuration is usable, otherwise what is wrong.
@@ -137,6 +164,10 @@ struct PoseEstimate {
   std::uint16_t flags = 0;         // pending event flags (see take_flags) | status flags at t_ns
   double position_sigma_mm = 0.0;  // sqrt(largest eigenvalue of the xy covariance)
   double heading_sigma_rad = 0.0;
+  // Estimated odometry calibration (0 when EkfConfig::estimate_odometry_calibration is false).
+  double odom_v_scale_error = 0.0;
+  double odom_omega_scale_error = 0.0;
+  double odom_omega_bias_radps = 0.0;
 };
 
 enum class FixOutcome {
@@ -207,17 +238,17 @@ class Ekf {
     double v_mps = 0.0, omega_radps = 0.0;            // odometry input
     Eigen::Vector3d z = Eigen::Vector3d::Zero();      // fix (x_mm, y_mm, theta_rad)
     Eigen::Matrix3d R = Eigen::Matrix3d::Identity();  // effective fix covariance
-    bool valid = false;             // state below is meaningful (filter initialised at this time)
-    StateVec x = StateVec::Zero();  // posterior after this event
-    StateCov P = StateCov::Zero();
+    bool valid = false;               // state below is meaningful (filter initialised at this time)
+    FilterVec x = FilterVec::Zero();  // posterior after this event
+    FilterCov P = FilterCov::Zero();
   };
   // Candidate track of consecutive gate-rejected fixes (kidnap detection).
   struct Hypothesis {
     int count = 0;
     std::int64_t t_ns = 0;        // time of the newest fix fused into the candidate
     std::int64_t t_count_ns = 0;  // time of the newest fix that incremented count
-    StateVec x = StateVec::Zero();
-    StateCov P = StateCov::Zero();
+    FilterVec x = FilterVec::Zero();
+    FilterCov P = FilterCov::Zero();
   };
 
   // Ring buffer access in time order: 0 = oldest.
@@ -233,21 +264,21 @@ class Ekf {
 
   // x, P over dt_s with the motion model (eq. 15-16); velocity_noise adds the random walk of v
   // and omega over dt_s (off when an odometry sample for the period is fused just before).
-  void predict(StateVec* x, StateCov* P, double dt_s, bool velocity_noise = true) const;
-  void add_velocity_noise(StateCov* P, double dt_s) const;
-  void update_odometry(StateVec* x, StateCov* P, double v_mps, double omega_radps) const;
+  void predict(FilterVec* x, FilterCov* P, double dt_s, bool velocity_noise = true) const;
+  void add_velocity_noise(FilterCov* P, double dt_s) const;
+  void update_odometry(FilterVec* x, FilterCov* P, double v_mps, double omega_radps) const;
   // Odometry step: fuse the sample, then predict over the period it covers.
-  void propagate_odometry(StateVec* x, StateCov* P, double dt_s, double v_mps,
+  void propagate_odometry(FilterVec* x, FilterCov* P, double dt_s, double v_mps,
                           double omega_radps) const;
-  void update_fix(StateVec* x, StateCov* P, const Eigen::Vector3d& z,
+  void update_fix(FilterVec* x, FilterCov* P, const Eigen::Vector3d& z,
                   const Eigen::Matrix3d& R) const;
   // Innovation (angle wrapped) and its Mahalanobis distance^2.
-  double mahalanobis_sq(const StateVec& x, const StateCov& P, const Eigen::Vector3d& z,
+  double mahalanobis_sq(const FilterVec& x, const FilterCov& P, const Eigen::Vector3d& z,
                         const Eigen::Matrix3d& R) const;
   // Kidnap candidate handling for a gate-rejected fix; true when it re-initialised the filter.
   bool kidnap_candidate(std::int64_t t_ns, const Eigen::Vector3d& z, const Eigen::Matrix3d& R,
-                        const StateVec& prior_x, const StateCov& prior_P);
-  void initialise_at(std::int64_t t_ns, const StateVec& x, const StateCov& P);
+                        const FilterVec& prior_x, const FilterCov& prior_P);
+  void initialise_at(std::int64_t t_ns, const FilterVec& x, const FilterCov& P);
 
   EkfConfig config_;
   double gate_threshold_ = 0.0;
