@@ -2,7 +2,7 @@
 //   camera_vm_check --driver libcamera|v4l2 [--id ID] [--model M] [--width W] [--height H]
 //                   [--fps F] [--exposure-us E] [--format auto|gray|yuv] [--frames N]
 //                   [--restart-frames N] [--timeout-ms T] [--max-age-ms A]
-//                   [--unbind PATH=DEVICE] [--v4l2-ctrl "NAME=VALUE"]
+//                   [--unbind PATH=DEVICE] [--v4l2-ctrl "NAME=VALUE"] [--v4l2-fourcc YUYV]
 // Opens the camera, captures N frames at the configured size and checks: every frame has the
 // configured size and a plausible stride, the image is not blank, exposure timestamps strictly
 // increase and lie close to CLOCK_MONOTONIC "now", sequence numbers increase, buffers are
@@ -59,6 +59,7 @@ struct Args {
   std::int64_t max_age_ns = 1'000'000'000;  // frame exposure mid-time vs now
   std::string unbind_path, unbind_device;
   std::vector<std::pair<std::string, int>> v4l2_ctrls;
+  std::string v4l2_fourcc;  // V4L2 only: force this format (e.g. YUYV)
 };
 
 bool parse(int argc, char** argv, Args* a) {
@@ -102,6 +103,9 @@ bool parse(int argc, char** argv, Args* a) {
       if (eq == std::string::npos) return false;
       a->unbind_path = v.substr(0, eq);
       a->unbind_device = v.substr(eq + 1);
+    } else if (k == "--v4l2-fourcc") {
+      if (v.size() < 2 || v.size() > 4) return false;
+      a->v4l2_fourcc = v;
     } else if (k == "--v4l2-ctrl") {
       const auto eq = v.rfind('=');
       if (eq == std::string::npos) return false;
@@ -294,11 +298,12 @@ bool set_v4l2_ctrl(const std::string& dev, const std::string& name, int value) {
 int main(int argc, char** argv) {
   Args a;
   if (!parse(argc, argv, &a)) {
-    std::fprintf(stderr,
-                 "usage: camera_vm_check --driver libcamera|v4l2 [--id ID] [--model M] "
-                 "[--width W] [--height H] [--fps F] [--exposure-us E] [--format auto|gray|yuv] "
-                 "[--frames N] [--restart-frames N] [--timeout-ms T] [--max-age-ms A] "
-                 "[--unbind SYSFS_UNBIND=DEVICE]\n");
+    std::fprintf(
+        stderr,
+        "usage: camera_vm_check --driver libcamera|v4l2 [--id ID] [--model M] "
+        "[--width W] [--height H] [--fps F] [--exposure-us E] [--format auto|gray|yuv] "
+        "[--frames N] [--restart-frames N] [--timeout-ms T] [--max-age-ms A] "
+        "[--unbind SYSFS_UNBIND=DEVICE] [--v4l2-ctrl NAME=VALUE] [--v4l2-fourcc FOURCC]\n");
     return 2;
   }
   std::unique_ptr<agv::hal::Camera> cam;
@@ -306,6 +311,11 @@ int main(int argc, char** argv) {
   if (a.driver == "v4l2") {
     auto c = std::make_unique<agv::v4l2::V4l2Camera>(a.cfg);
     auto* p = c.get();
+    if (!a.v4l2_fourcc.empty()) {
+      std::string f = a.v4l2_fourcc;
+      f.resize(4, ' ');
+      p->force_fourcc(agv::camera::make_fourcc(f[0], f[1], f[2], f[3]));
+    }
     x.buffers = [p] { return p->buffers(); };
     x.outstanding = [p] { return p->frames_outstanding(); };
     x.format = [p] {

@@ -14,8 +14,11 @@ case "$driver" in
     echo "guest: vivid capture node $dev"
     # vivid's end-of-frame stamps are synthetic (in the future); use its real start-of-exposure.
     tsrc=(--v4l2-ctrl "Timestamp Source=1")
-    # 1) YUV (NV12, Y plane in place), short run; 2) gray (GREY), full run, then device removal.
+    # 1) NV12 (Y plane in place) and 2) YUYV (copied to gray), short runs; 3) GREY (in place),
+    # full run, restart, then device removal.
     "$bin" --driver v4l2 --id "$dev" --width 640 --height 480 --format yuv "${tsrc[@]}" \
+      --fps 30 --exposure-us 1000 --frames 100 --restart-frames 0 || exit 1
+    "$bin" --driver v4l2 --id "$dev" --width 640 --height 480 --v4l2-fourcc YUYV "${tsrc[@]}" \
       --fps 30 --exposure-us 1000 --frames 100 --restart-frames 0 || exit 1
     exec "$bin" --driver v4l2 --id "$dev" --width 640 --height 480 --format gray "${tsrc[@]}" \
       "${common[@]}" --unbind /sys/bus/platform/drivers/vivid/unbind=vivid.0 \

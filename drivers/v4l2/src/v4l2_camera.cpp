@@ -67,6 +67,7 @@ struct V4l2Camera::Impl {
   bool started = false;
   bool disconnected = false;
   std::uint32_t fourcc = 0;
+  std::uint32_t forced_fourcc = 0;
   int stride = 0;
   camera::GrayLayout layout;
   bool exposure_applied = false;
@@ -164,6 +165,12 @@ CameraStatus V4l2Camera::Impl::configure_format() {
     offered.push_back(d.pixelformat);
   }
   fourcc = camera::choose_format(cfg.pixel_format, offered);
+  if (forced_fourcc != 0) {
+    fourcc = std::find(offered.begin(), offered.end(), forced_fourcc) != offered.end() &&
+                     camera::choose_format(hal::PixelFormatPreference::kAuto, {forced_fourcc}) != 0
+                 ? forced_fourcc
+                 : 0;
+  }
   if (fourcc == 0) {
     std::string list;
     for (std::uint32_t f : offered) list += " " + camera::fourcc_to_string(f);
@@ -439,6 +446,7 @@ const char* V4l2Camera::last_error() const {
   return impl_->error.c_str();
 }
 
+void V4l2Camera::force_fourcc(std::uint32_t fourcc) { impl_->forced_fourcc = fourcc; }
 std::uint32_t V4l2Camera::fourcc() const { return impl_->fourcc; }
 int V4l2Camera::stride_bytes() const { return impl_->stride; }
 bool V4l2Camera::exposure_applied() const { return impl_->exposure_applied; }

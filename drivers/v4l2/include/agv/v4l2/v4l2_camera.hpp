@@ -51,6 +51,11 @@ class V4l2Camera : public hal::Camera {
   hal::CameraStats stats() const override;
   const char* last_error() const override;
 
+  // Use exactly this format (one of those acceptable under kAuto) instead of the preference
+  // order, for cameras whose "best" format is worse in practice (e.g. a UVC camera that
+  // delivers NV12 at a lower rate than YUYV). 0 restores the automatic choice. Before start().
+  void force_fourcc(std::uint32_t fourcc);
+
   // After start(): negotiated format and what the device accepted.
   std::uint32_t fourcc() const;
   int stride_bytes() const;
