@@ -682,12 +682,15 @@ def main() -> int:
     ap.add_argument("--results", required=True)
     ap.add_argument("--recording", help="recording directory (default: generate with agvloc sim)")
     ap.add_argument("--sim-args", default="", help="arguments for `agvloc sim` after --out DIR")
+    ap.add_argument("--recording-cache", help="where the generated recording is kept between runs")
     ap.add_argument("--config", default=os.path.join(SOURCE_DIR, "firmware/config/agvloc.yaml"))
     ap.add_argument("--set", action="append", help="extra config override key.sub=value")
     ap.add_argument("--dbc", default=os.path.join(SOURCE_DIR, "can/agvloc.dbc"))
     ap.add_argument("--speed", type=float, default=float(os.environ.get("AGV_HIL_SPEED", "0.5")),
                     help="replay pace (1 = real time); the TCG VM is slow (docs/hil.md)")
-    ap.add_argument("--iface", default="vcan0")
+    ap.add_argument("--iface", default="vcan0", help="bus interface (can0 with --no-vm)")
+    ap.add_argument("--no-vm", action="store_true",
+                    help="run on this machine's own interface (a real bench bus; needs root)")
     ap.add_argument("--match-window-ms", type=float, default=250.0,
                     help="search window (recording time) around the estimate time; poses must\n"
                          "still be equal within the signal resolution")
@@ -720,6 +723,26 @@ def main() -> int:
     return 0
 
 
+def make_recording(agvloc: str, rec: str, sim_args: str, res: str) -> str | None:
+    """`agvloc sim --out REC SIM_ARGS`, reused while the binary and the arguments are the same
+    (the scenarios run one after the other and share it)."""
+    stamp = f"{agvloc} {os.stat(agvloc).st_mtime_ns} {sim_args}\n"
+    stamp_path = os.path.join(rec, ".hil-stamp")
+    if os.path.exists(stamp_path) and open(stamp_path).read() == stamp:
+        return rec
+    shutil.rmtree(rec, ignore_errors=True)
+    cmd = [agvloc, "sim", "--out", rec] + shlex.split(sim_args)
+    log = os.path.join(res, "sim.log")
+    if run(cmd, log, 150) != 0:
+        if "not implemented" in open(log).read():
+            print(f"SKIP: `agvloc sim` is not implemented yet ({log})")
+            return None
+        raise HilError(f"`{' '.join(cmd)}` failed, see {log}")
+    with open(stamp_path, "w") as f:
+        f.write(stamp)
+    return rec
+
+
 def scenario(a, res: str, rep: Report) -> int:
     agvloc = os.path.abspath(a.agvloc)
     if not os.access(agvloc, os.X_OK):
@@ -740,10 +763,10 @@ def scenario(a, res: str, rep: Report) -> int:
     if rec and rec.startswith("synthetic:"):
         rec = synthetic_recording(os.path.join(res, "recording"), float(rec.split(":", 1)[1]))
     if not rec:
-        rec = os.path.join(res, "recording")
-        cmd = [agvloc, "sim", "--out", rec] + shlex.split(a.sim_args)
-        if run(cmd, os.path.join(res, "sim.log"), 600) != 0:
-            raise HilError(f"`{' '.join(cmd)}` failed, see {os.path.join(res, 'sim.log')}")
+        rec = a.recording_cache or os.path.join(res, "recording")
+        rec = make_recording(agvloc, rec, a.sim_args, res)
+        if rec is None:
+            return SKIP
     rec = os.path.abspath(rec)
 
     cfg_path, cfg = prepare_config(a, res)
@@ -783,7 +806,7 @@ def scenario(a, res: str, rep: Report) -> int:
     off_dir = os.path.join(res, "offline")
     cmd = [agvloc, "replay", rec, "--out", off_dir, "--config", cfg_path]
     t = time.monotonic()
-    if run(cmd, os.path.join(res, "offline.log"), 600) != 0:
+    if run(cmd, os.path.join(res, "offline.log"), 150) != 0:
         raise HilError(f"offline replay `{' '.join(cmd)}` failed, see {res}/offline.log")
     rep.info(f"offline replay {time.monotonic() - t:.1f} s")
     sc = {"offline": read_pose_csv(off_dir), "match_window_ms": a.match_window_ms}
@@ -850,9 +873,17 @@ def scenario(a, res: str, rep: Report) -> int:
     vm_timeout = a.vm_timeout or (90 + dur * 1.5 + int(env["LOCALIZER_LIMIT_S"]) +
                                   float(env["LINK_DOWN_S"]))
     t = time.monotonic()
-    vm_rc = subprocess.run([os.path.join(HERE, "vm/run-in-vm.sh"), "--quiet", "--share", res,
-                            "--timeout", str(int(vm_timeout)), "--",
-                            os.path.join(HERE, "guest/scenario.sh"), res]).returncode
+    guest = [os.path.join(HERE, "guest/scenario.sh"), res]
+    if a.no_vm:
+        # A real bus (docs/hil.md, "On a real bus"): the same guest script, on this machine.
+        try:
+            vm_rc = subprocess.run(guest, timeout=vm_timeout).returncode
+        except subprocess.TimeoutExpired:
+            rep.check(False, "scenario run", f"still running after {vm_timeout:.0f} s")
+            return 1
+    else:
+        vm_rc = subprocess.run([os.path.join(HERE, "vm/run-in-vm.sh"), "--quiet", "--share", res,
+                                "--timeout", str(int(vm_timeout)), "--"] + guest).returncode
     rep.info(f"VM run {time.monotonic() - t:.1f} s (" +
              open(os.path.join(res, ".vm/timing")).read().replace("\n", " ").strip() + ")"
              if os.path.exists(os.path.join(res, ".vm/timing")) else "no timing")

@@ -4,6 +4,7 @@ hil_log() { echo "hil-guest: $*"; }
 hil_die() { echo "hil-guest: FAIL: $*"; exit 1; }
 
 # hil_vcan_up IF [MTU]: creates (if needed) and brings up a vcan interface. MTU 72 = CAN FD.
+# A real interface (can0) must exist already, with its bitrate set; it is only brought up.
 hil_vcan_up() {
   ip link show "$1" >/dev/null 2>&1 || ip link add dev "$1" type vcan || hil_die "ip link add $1"
   if [ -n "${2:-}" ]; then ip link set "$1" mtu "$2" || hil_die "ip link set $1 mtu $2"; fi
