@@ -33,9 +33,11 @@ std::uint64_t splitmix64(std::uint64_t x) {
   return x ^ (x >> 31);
 }
 
+// One mixing round per lattice point: texture needs decorrelation, not cryptography, and this is
+// the renderer's innermost loop. `salt` is pre-mixed by the caller.
 double hash01(std::int64_t ix, std::int64_t iy, std::uint64_t salt) {
-  std::uint64_t h = splitmix64(static_cast<std::uint64_t>(ix) ^ splitmix64(salt));
-  h = splitmix64(h ^ static_cast<std::uint64_t>(iy));
+  const std::uint64_t h = splitmix64(static_cast<std::uint64_t>(ix) * 0x9E3779B97F4A7C15ULL +
+                                     static_cast<std::uint64_t>(iy) * 0xC2B2AE3D27D4EB4FULL + salt);
   return static_cast<double>(h >> 11) * (1.0 / 9007199254740992.0);
 }
 
@@ -273,10 +275,11 @@ double floor_texture(const FloorTexture& t, Vec2 p) {
   if (t.amplitude == 0.0) return t.mean;
   // Octaves of value noise (wavelength mm, weight): large stains, aggregate, fine grain.
   static constexpr double kWave[4] = {90.0, 22.0, 5.0, 1.3};
-  static constexpr double kWeight[4] = {0.40, 0.28, 0.20, 0.12};
+  static constexpr double kWeight[4] = {0.30, 0.30, 0.25, 0.15};
   double s = 0.0;
   for (int o = 0; o < 4; ++o) {
-    s += kWeight[o] * (value_noise(p.x / kWave[o], p.y / kWave[o], t.seed * 31 + static_cast<std::uint64_t>(o)) - 0.5);
+    const std::uint64_t salt = splitmix64(t.seed * 31 + static_cast<std::uint64_t>(o));
+    s += kWeight[o] * (value_noise(p.x / kWave[o], p.y / kWave[o], salt) - 0.5);
   }
   return t.mean + 2.0 * t.amplitude * s;
 }

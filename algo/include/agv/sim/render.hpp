@@ -83,7 +83,7 @@ struct FloorTexture {
   // Concrete-like value noise, a deterministic function of the world position (so consecutive
   // frames agree): mean grey and peak-to-peak-ish amplitude in 8-bit units at full illumination.
   double mean = 135.0;
-  double amplitude = 30.0;      // 0 = flat floor
+  double amplitude = 40.0;      // 0 = flat floor
   std::uint64_t seed = 1;       // different floors for different seeds
 };
 
