@@ -91,7 +91,18 @@ if [ ! -f "$EXTRA/.stamp" ] || [ "$(cat "$EXTRA/.stamp")" != "$want" ]; then
   (cd "$tmp" && $SUDO apt-get download -q "${EXTRACT[@]/%/:arm64}")
   $SUDO rm -rf "$EXTRA"
   $SUDO mkdir -p "$EXTRA"
-  for deb in "$tmp"/*.deb; do $SUDO dpkg-deb -x "$deb" "$EXTRA"; done
+  # .filemap ("file package version" per line) lets packaging/deb-depends.cmake name the Debian
+  # package behind each of these libraries for the arm64 .deb's Depends (they are not in dpkg's
+  # database here).
+  filemap="$tmp/filemap"
+  : >"$filemap"
+  for deb in "$tmp"/*.deb; do
+    $SUDO dpkg-deb -x "$deb" "$EXTRA"
+    pkg="$(dpkg-deb -f "$deb" Package)"
+    ver="$(dpkg-deb -f "$deb" Version)"
+    dpkg-deb -c "$deb" | awk -v p="$pkg" -v v="$ver" '$1 !~ /^d/ {n = split($6, a, "/"); print a[n], p, v}' >>"$filemap"
+  done
+  $SUDO cp "$filemap" "$EXTRA/.filemap"
   # Development symlink for the one library we link directly (libopencv-imgcodecs-dev:arm64
   # cannot be installed either).
   lib="$EXTRA/usr/lib/aarch64-linux-gnu"

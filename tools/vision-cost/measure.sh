@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # Instructions per frame of the vision pipeline on x86-64 (valgrind callgrind) and on aarch64
-# (qemu-aarch64 with insn_count_plugin.c), for the same frames; docs/deployment.md reports it.
+# (qemu-aarch64 with insn_count_plugin.c), for the same frames, both RelWithDebInfo (-O2) with the
+# architectures' baseline instruction sets; docs/deployment.md reports it.
 #   bash tools/vision-cost/measure.sh [RECORDING] [FRAMES]
 # Without RECORDING it simulates one (agvloc sim, 20 s at 10 fps, seed 7). Needs the cross
-# environment (toolchain/prepare-aarch64.sh) and valgrind. Build dirs: build/aarch64-cost-*.
+# environment (toolchain/prepare-aarch64.sh) and valgrind. Build dirs: build/aarch64-cost-native
+# (x86-64) and build/aarch64 (the cross preset, with -DAGV_BUILD_VISION_COST=ON).
 # Prints, per frame class (ok = a landmark pose, none = no landmark found), the mean instructions
 # per frame for both architectures and their ratio; the aarch64 per-frame lists stay in
 # build/aarch64-cost-results/.
@@ -12,16 +14,15 @@ cd "$(dirname "$0")/../.."
 src="$PWD"
 jobs="${AGV_COST_JOBS:-2}"
 nat="$src/build/aarch64-cost-native"
-arm="$src/build/aarch64-cost-arm64"
+arm="$src/build/aarch64"
 res="$src/build/aarch64-cost-results"
 mkdir -p "$res"
 
 cmake -S . -B "$nat" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DAGV_BUILD_TESTS=OFF \
       -DAGV_BUILD_BENCHMARKS=OFF -DAGV_BUILD_VISION_COST=ON >/dev/null
 cmake --build "$nat" -j "$jobs" --target vision_cost agvloc
-cmake -S . -B "$arm" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DAGV_BUILD_TESTS=OFF \
-      -DAGV_BUILD_BENCHMARKS=OFF -DAGV_BUILD_VISION_COST=ON \
-      -DCMAKE_TOOLCHAIN_FILE="$src/toolchain/aarch64-linux-gnu.cmake" >/dev/null
+# The cross preset's directory (already built by tools/cross-test.sh): only vision_cost is added.
+cmake --preset aarch64 -DAGV_BUILD_VISION_COST=ON >/dev/null
 cmake --build "$arm" -j "$jobs" --target vision_cost
 gcc -O2 -shared -fPIC -Wall -Wextra -o "$res/insn_count_plugin.so" \
     tools/vision-cost/insn_count_plugin.c
