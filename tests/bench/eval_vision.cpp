@@ -136,7 +136,16 @@ void evaluate(LandmarkLocalizer& loc, const std::vector<Frame>& frames, Stats* s
       continue;
     }
     ++s->ok;
-    s->pos_err.push_back(std::hypot(fix.e_x_mm - f.e_true.x_mm, fix.e_y_mm - f.e_true.y_mm));
+    const double pe = std::hypot(fix.e_x_mm - f.e_true.x_mm, fix.e_y_mm - f.e_true.y_mm);
+    if (!g_dump_dir.empty() && !tag.empty() && pe > 0.3) {
+      cv::Mat ov;
+      loc.draw_overlay(f.img, fix, &ov);
+      char name[256];
+      std::snprintf(name, sizeof name, "%s/%s_bad%d_%.2fmm.png", g_dump_dir.c_str(), tag.c_str(),
+                    s->n, pe);
+      cv::imwrite(name, ov);
+    }
+    s->pos_err.push_back(pe);
     s->head_err.push_back(dh);
     s->world_err.push_back(std::hypot(fix.vehicle_in_world.x_mm - f.vehicle_world.x_mm,
                                       fix.vehicle_in_world.y_mm - f.vehicle_world.y_mm));

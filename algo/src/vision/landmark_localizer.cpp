@@ -33,7 +33,8 @@ const char* to_string(FixStatus s) {
 
 namespace {
 
-constexpr int kNumLines = 8;  // line index = side * 2 + (inner ? 1 : 0)
+constexpr int kNumLines = 8;
+constexpr int kMaxTemplates = 32;  // upper bound of VisionConfig::corner_rotations  // line index = side * 2 + (inner ? 1 : 0)
 
 struct CornerPeak {
   double x = 0, y = 0;  // coarse pixels (template centre)
@@ -113,13 +114,13 @@ struct LandmarkLocalizer::Impl {
   std::vector<double> template_angles;
   cv::Mat coarse, binary, isum, isq, best_score, best_rot;
   std::vector<std::vector<float>> templates_zm;  // zero-mean, unit-norm
-  std::vector<float> patch_buf;
-  cv::Mat local_t;
+  std::vector<float> patch_buf, templates_t;
+  std::vector<std::vector<float>> fine_templates;  // 1-degree steps
   std::vector<CornerPeak> peaks;
   std::vector<Hypothesis> hyps;
 
   // QR.
-  cv::Mat qr_small;
+  cv::Mat qr_small, qr_blur;
 
   // Pose.
   cv::Mat gx, gy;
@@ -162,13 +163,14 @@ struct LandmarkLocalizer::Impl {
   // Renders the corner template rotated by angle a (image angle) into t (CV_32F, (2r+1)^2).
   void render_corner(double a, int r, cv::Mat* t) const {
     t->create(2 * r + 1, 2 * r + 1, CV_32FC1);
+    const double ca = std::cos(a), sa = std::sin(a);
     for (int y = -r; y <= r; ++y) {
       for (int x = -r; x <= r; ++x) {
         double acc = 0;
         for (int sy = 0; sy < 8; ++sy) {
           for (int sx = 0; sx < 8; ++sx) {
             const Vec2 q{x + (sx + 0.5) / 8.0 - 0.5, y + (sy + 0.5) / 8.0 - 0.5};
-            const Vec2 u = rot(q, -a);
+            const Vec2 u{ca * q.x + sa * q.y, -sa * q.x + ca * q.y};  // rotate by -a
             const double px = u.x + coarse_anchor, py = u.y + coarse_anchor;
             const bool inside = px >= 0 && py >= 0;
             const bool dark = inside && (px < coarse_w || py < coarse_w);
@@ -196,7 +198,7 @@ struct LandmarkLocalizer::Impl {
   // by 8x8 supersampling and rotated about its anchor (middle of the corner's dark square).
   void build_templates() {
     const int r = static_cast<int>(std::ceil(1.5 * coarse_w));
-    const int n_rot = std::max(1, cfg.corner_rotations);
+    const int n_rot = std::clamp(cfg.corner_rotations, 1, kMaxTemplates);
     templates.clear();
     templates_zm.clear();
     template_angles.clear();
@@ -207,6 +209,20 @@ struct LandmarkLocalizer::Impl {
       templates_zm.push_back(zero_mean_unit(t));
       templates.push_back(t);
       template_angles.push_back(a);
+    }
+    // Transposed, padded to kMaxTemplates lanes (zeros) so the NCC inner loop has a fixed
+    // trip count and vectorises.
+    const size_t n_pix = templates_zm[0].size(), n_t = templates_zm.size();
+    templates_t.assign(n_pix * kMaxTemplates, 0.0f);
+    for (size_t t = 0; t < n_t; ++t) {
+      for (size_t q = 0; q < n_pix; ++q) templates_t[q * kMaxTemplates + t] = templates_zm[t][q];
+    }
+    // Zero-mean templates at every whole degree, for the local re-match.
+    fine_templates.clear();
+    for (int deg = 0; deg < 360; ++deg) {
+      cv::Mat t;
+      render_corner(deg_to_rad(deg), r, &t);
+      fine_templates.push_back(zero_mean_unit(t));
     }
   }
 
@@ -314,14 +330,21 @@ bool LandmarkLocalizer::Impl::detect(const cv::Mat& img, Hypothesis* best, bool*
         const std::uint8_t* src = coarse.ptr<std::uint8_t>(y + j) + x;
         for (int i = 0; i < tsz; ++i) patch_buf[static_cast<size_t>(j * tsz + i)] = src[i];
       }
+      // Templates are stored transposed (pixel-major), so the inner loop runs over templates
+      // with independent accumulators and vectorises.
+      float acc[kMaxTemplates] = {};
+      const size_t n_t = templates_zm.size();
+      const float* __restrict tp = templates_t.data();
+      for (int q = 0; q < n_pix; ++q) {
+        const float v = patch_buf[static_cast<size_t>(q)];
+        const float* __restrict tq = tp + static_cast<size_t>(q) * kMaxTemplates;
+        for (int t = 0; t < kMaxTemplates; ++t) acc[t] += tq[t] * v;
+      }
       float best_dot = -1e30f;
       int best_i = 0;
-      for (size_t t = 0; t < templates_zm.size(); ++t) {
-        const float* tp = templates_zm[t].data();
-        float dot = 0.0f;
-        for (int q = 0; q < n_pix; ++q) dot += tp[q] * patch_buf[static_cast<size_t>(q)];
-        if (dot > best_dot) {
-          best_dot = dot;
+      for (size_t t = 0; t < n_t; ++t) {
+        if (acc[t] > best_dot) {
+          best_dot = acc[t];
           best_i = static_cast<int>(t);
         }
       }
@@ -415,13 +438,14 @@ bool LandmarkLocalizer::Impl::detect(const cv::Mat& img, Hypothesis* best, bool*
         const double a = reduce_angle_90(h.up_angle + kPi / 2.0, a_tmpl);
         // Re-match a template at that rotation around the peak (the 30-degree templates shift
         // the peak), with a parabolic subpixel maximum.
-        render_corner(a, r, &local_t);
-        const std::vector<float> tz = zero_mean_unit(local_t);
+        const int deg = static_cast<int>(std::lround(rad_to_deg(a))) % 360;
+        const std::vector<float>& tz = fine_templates[static_cast<size_t>(deg < 0 ? deg + 360 : deg)];
         const int px0 = static_cast<int>(std::lround(p.x)), py0 = static_cast<int>(std::lround(p.y));
         double sc[7][7];
+        for (auto& row : sc) std::fill(std::begin(row), std::end(row), -1.0);
         int bx = 3, by = 3;
-        for (int dy = -3; dy <= 3; ++dy) {
-          for (int dx = -3; dx <= 3; ++dx) {
+        for (int dy = -2; dy <= 2; ++dy) {
+          for (int dx = -2; dx <= 2; ++dx) {
             sc[dy + 3][dx + 3] = ncc_at(tz, tsz, px0 + dx - r, py0 + dy - r);
             if (sc[dy + 3][dx + 3] > sc[by][bx]) {
               bx = dx + 3;
@@ -541,35 +565,50 @@ FixStatus LandmarkLocalizer::Impl::decode(const cv::Mat& img, Vec2 c, double up_
                                           bool* have_world, double* qr_up_angle, bool* qr_ok) {
   *qr_ok = false;
   *have_world = false;
-  const double half = geom.inner_half_mm() / mm_per_px *
-                          (std::abs(std::cos(up_angle)) + std::abs(std::sin(up_angle))) +
-                      4.0;
-  cv::Rect r(static_cast<int>(std::floor(c.x - half)), static_cast<int>(std::floor(c.y - half)),
-             static_cast<int>(std::ceil(2 * half)) + 1, static_cast<int>(std::ceil(2 * half)) + 1);
-  r &= cv::Rect(0, 0, img.cols, img.rows);
-  if (r.width < 16 || r.height < 16) return FixStatus::kQrUnreadable;
   const double module_px = geom.qr_side_mm() / 25.0 / mm_per_px;
   int d = 1;
   if (cfg.qr_target_module_px > 0) {
     d = std::max(1, static_cast<int>(std::floor(module_px / cfg.qr_target_module_px + 0.25)));
   }
-  const cv::Mat* view = nullptr;
-  cv::Mat roi = img(r);
-  if (d > 1) {
-    cv::resize(roi, qr_small, cv::Size(r.width / d, r.height / d), 0, 0, cv::INTER_AREA);
-    view = &qr_small;
-  } else {
-    view = &roi;
-  }
-  ZXing::ImageView iv(view->data, view->cols, view->rows, ZXing::ImageFormat::Lum,
-                      static_cast<int>(view->step[0]));
   ZXing::DecodeHints hints;
   hints.setFormats(ZXing::BarcodeFormat::QRCode)
       .setTryHarder(cfg.qr_try_harder)
       .setTryRotate(cfg.qr_try_harder)
       .setTryDownscale(false)
       .setMaxNumberOfSymbols(1);
-  const ZXing::Result res = ZXing::ReadBarcode(iv, hints);
+  ZXing::Result res;
+  cv::Rect r;
+  // Attempts: (0) the inner white square's bounding box; only when that fails: (1) the same crop
+  // slightly blurred, which removes thin scratches that break zxing's local binarizer; (2) a
+  // larger crop (zxing's block binarizer is sensitive to where blocks fall on a blurred code);
+  // (3) zxing's global-histogram binarizer.
+  const int attempts = cfg.qr_retries ? 4 : 1;
+  for (int attempt = 0; attempt < attempts; ++attempt) {
+    const double half = (attempt == 2 ? geom.outer_half_mm() : geom.inner_half_mm()) / mm_per_px *
+                            (std::abs(std::cos(up_angle)) + std::abs(std::sin(up_angle))) +
+                        4.0;
+    r = cv::Rect(static_cast<int>(std::floor(c.x - half)), static_cast<int>(std::floor(c.y - half)),
+                 static_cast<int>(std::ceil(2 * half)) + 1,
+                 static_cast<int>(std::ceil(2 * half)) + 1);
+    r &= cv::Rect(0, 0, img.cols, img.rows);
+    if (r.width < 16 || r.height < 16) return FixStatus::kQrUnreadable;
+    cv::Mat roi = img(r);
+    const cv::Mat* src = &roi;
+    if (d > 1) {
+      cv::resize(roi, qr_small, cv::Size(r.width / d, r.height / d), 0, 0, cv::INTER_AREA);
+      src = &qr_small;
+    }
+    if (attempt == 1) {
+      cv::GaussianBlur(*src, qr_blur, cv::Size(0, 0), 1.0);
+      src = &qr_blur;
+    }
+    hints.setBinarizer(attempt == 3 ? ZXing::Binarizer::GlobalHistogram
+                                    : ZXing::Binarizer::LocalAverage);
+    ZXing::ImageView iv(src->data, src->cols, src->rows, ZXing::ImageFormat::Lum,
+                        static_cast<int>(src->step[0]));
+    res = ZXing::ReadBarcode(iv, hints);
+    if (res.isValid()) break;
+  }
   if (!res.isValid()) return FixStatus::kQrUnreadable;
   const std::string text = res.text();
   std::snprintf(out->payload, sizeof out->payload, "%s", text.c_str());

@@ -58,7 +58,7 @@ struct VisionConfig {
   double coarse_border_px = 2.5;
   // Number of rotations of the corner template (one corner type; the other three corners are
   // its 90-degree turns). More rotations = higher NCC peaks for arbitrary headings and slower
-  // search. Default 12 (30-degree steps, at most 15 degrees off).
+  // search. Default 12 (30-degree steps, at most 15 degrees off); at most 32.
   int corner_rotations = 12;
   // NCC score a corner must reach for the landmark to count as present (paper: "as long as one
   // of the four templates has a matching score greater than a threshold"). Lower finds more
@@ -76,6 +76,10 @@ struct VisionConfig {
   // zxing-cpp TryHarder: slower, reads a few more damaged codes. Default false (measured in
   // docs/accuracy.md).
   bool qr_try_harder = false;
+  // When the first zxing attempt fails, retry on a slightly blurred crop (thin bright scratches
+  // break zxing's local binarizer) and then with zxing's global-histogram binarizer. Costs time
+  // only on frames that would otherwise be lost. Default true.
+  bool qr_retries = true;
   // The QR crop is downscaled by an integer factor so a module is about this many pixels (zxing
   // is fastest at 3-5 px per module). 0 disables downscaling. Default 4.
   double qr_target_module_px = 4.0;
