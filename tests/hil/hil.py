@@ -468,16 +468,37 @@ def analyse(s: Setup, sc: dict, rep: Report) -> None:
     versions = {int(hb.signals["ProtocolVersion"].decode(f.data)) for f in by_name["AGV_Heartbeat"]}
     rep.check(versions == {1}, "AGV_Heartbeat.ProtocolVersion == 1", f"seen {sorted(versions)}")
 
-    # --- poses vs the offline replay ------------------------------------------------------------
+    # --- poses vs the localizer's own record and vs the offline replay --------------------------
     mxy, mhd = s.dbc.by_name("AGV_PoseXY"), s.dbc.by_name("AGV_PoseHeading")
-    res_xy = mxy.signals["X"].resolution / 2 + 1e-6
-    res_th = mhd.signals["Theta"].resolution / 2 + 1e-9
+    # Half a signal step, plus the CSV's own rounding (4 decimals in mm, 5 in degrees).
+    res_xy = mxy.signals["X"].resolution / 2 + 1e-4
+    res_th = mhd.signals["Theta"].resolution / 2 + 1e-6
+    compare_until = sc.get("compare_until", float("inf"))
+    run_dir = os.path.join(res, "run")
+    try:
+        own_path, own = read_pose_csv(run_dir)
+    except HilError as e:
+        own_path, own = None, None
+        rep.check(False, "the localizer's own pose record (--out DIR)", str(e))
+    if own:
+        compare_poses(s, sc, rep, pairs, own_path, own, rec_ns, t_cap0, odom_end, float("inf"),
+                      res_xy, res_th, "decoded poses equal the localizer's own poses.csv")
     off_path, off = sc["offline"]
+    compare_poses(s, sc, rep, pairs, off_path, off, rec_ns, t_cap0, odom_end, compare_until,
+                  res_xy, res_th, "decoded poses equal the offline replay")
+    analyse_status(s, sc, rep, by_name, xy, odom_frames_cap, t_cap0, odom_end, excluded,
+                   status_period, frames)
+
+
+def compare_poses(s, sc, rep, pairs, off_path, off, rec_ns, t_cap0, odom_end, compare_until,
+                  res_xy, res_th, title):
+    """Each valid bus pose (XY + Heading pair) must equal, within res, a reference row whose
+    time is within the window of the estimate time (capture time - Latency, in recording time)."""
+    mxy, mhd = s.dbc.by_name("AGV_PoseXY"), s.dbc.by_name("AGV_PoseHeading")
     off_t = [r["t_ns"] for r in off]
     window_ns = sc["match_window_ms"] * 1e6
     compared = matched = 0
     mismatches, interp_err = [], []
-    compare_until = sc.get("compare_until", float("inf"))
     for f, g in pairs:
         if f.t > compare_until or f.t < t_cap0 or f.t > odom_end:
             continue
@@ -505,19 +526,24 @@ def analyse(s: Setup, sc: dict, rep: Report) -> None:
             interp_err.append(math.hypot(a["x"] + u * (b["x"] - a["x"]) - dx["X"],
                                          a["y"] + u * (b["y"] - a["y"]) - dx["Y"]))
     if interp_err:
-        rep.info(f"position vs the offline track interpolated at the estimate time: median "
+        rep.info(f"{os.path.basename(os.path.dirname(off_path))}: position vs the reference "
+                 f"track interpolated at the estimate time: median "
                  f"{statistics.median(interp_err):.3f} mm, max {max(interp_err):.3f} mm")
-    detail = f"{matched}/{compared} valid bus poses equal an offline pose within +-{res_xy:.3f} mm" \
-             f" / {res_th:.5f} rad (window +-{sc['match_window_ms']} ms; offline {off_path})"
+    detail = f"{matched}/{compared} valid bus poses equal a reference pose within +-{res_xy:.4f}" \
+             f" mm / {res_th:.6f} rad (window +-{sc['match_window_ms']} ms; {off_path})"
     if mismatches:
         t, te, x, y, th, best = mismatches[0]
         detail += (f"; first mismatch at capture {t:.6f} (recording {te/1e9:.3f} s): bus "
                    f"({x:.2f}, {y:.2f}, {th:.4f})" +
-                   (f", nearest offline t={best[1]['t_ns']/1e9:.3f} s ({best[1]['x']:.2f}, "
-                    f"{best[1]['y']:.2f}, {best[1]['th']:.4f})" if best else ", no offline row"))
-    rep.check(compared > 0 and matched == compared, "decoded poses equal the offline replay",
-              detail)
+                   (f", nearest reference t={best[1]['t_ns']/1e9:.3f} s ({best[1]['x']:.2f}, "
+                    f"{best[1]['y']:.2f}, {best[1]['th']:.4f})" if best else ", no reference row"))
+    rep.check(compared > 0 and matched == compared, title, detail)
 
+
+def analyse_status(s, sc, rep, by_name, xy, odom_frames_cap, t_cap0, odom_end, excluded,
+                   status_period, frames):
+    res = s.results
+    pose_period = 1.0 / s.output_rate_hz
     # --- status ---------------------------------------------------------------------------------
     stm = s.dbc.by_name("AGV_Status")
     status = [(f.t, stm.decode(f.data)) for f in by_name["AGV_Status"]]
@@ -654,12 +680,16 @@ def t0_plus(t0: float, dt: float) -> float:
 
 
 def parse_counters(log: str) -> dict[str, int]:
-    """key=value integer pairs the localizer prints (last occurrence wins)."""
+    """key=value integer pairs the localizer prints (last occurrence wins), and the replay
+    summary's "CAN E2E rejected N" as odom_rejected."""
     out = {}
     if os.path.exists(log):
         for line in open(log, errors="replace"):
             for k, v in re.findall(r"\b([a-z][a-z0-9_]*)=(\d+)\b", line):
                 out[k] = int(v)
+            m = re.search(r"CAN E2E rejected (\d+)", line)
+            if m:
+                out["odom_rejected"] = int(m.group(1))
     return out
 
 
