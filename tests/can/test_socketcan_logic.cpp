@@ -5,6 +5,7 @@
 #include <linux/can/error.h>
 
 #include <cerrno>
+#include <chrono>
 
 #include "agv/can/socketcan.hpp"
 #include "agv/can/socketcan_logic.hpp"
@@ -113,6 +114,7 @@ TEST(SocketCanLogic, Backoff) {
 TEST(SocketCanBus, MissingInterfaceIsDownNotFatal) {
   c::SocketCanConfig cfg;
   cfg.iface = "agvnosuch0";
+  cfg.reopen_backoff_min_ns = 10'000'000'000;  // no reopen attempt during the test
   c::SocketCanBus bus(cfg);
   EXPECT_FALSE(bus.is_open());
   EXPECT_EQ(bus.state(), CanBusState::kDown);
@@ -122,6 +124,12 @@ TEST(SocketCanBus, MissingInterfaceIsDownNotFatal) {
   f.len = 1;
   EXPECT_EQ(bus.send(f), CanStatus::kDown);
   EXPECT_EQ(bus.receive(&f, 1'000'000), CanStatus::kDown);
+  // A down link makes receive wait (up to the timeout) for the next reopen attempt.
+  const auto t0 = std::chrono::steady_clock::now();
+  EXPECT_EQ(bus.receive(&f, 20'000'000), CanStatus::kDown);
+  const auto waited = std::chrono::steady_clock::now() - t0;
+  EXPECT_GE(waited, std::chrono::milliseconds(15));
+  EXPECT_LT(waited, std::chrono::seconds(2));
   EXPECT_EQ(bus.stats().tx_errors, 1u);
   f.len = 9;
   EXPECT_EQ(bus.send(f), CanStatus::kInvalidArgument);

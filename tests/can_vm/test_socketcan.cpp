@@ -367,7 +367,15 @@ void test_down_up(SocketCanBus& a, SocketCanBus& b) {
   ok &= check(stx == CanStatus::kDown, t, "send on a downed link: %s, want down", to_string(stx));
   ok &= check(a.state() == CanBusState::kDown && b.state() == CanBusState::kDown, t,
               "state a %s b %s, want down", to_string(a.state()), to_string(b.state()));
-  // While down, calls keep returning kDown quickly (reopen attempts are rate-limited).
+  // While down, receive waits for the next reopen attempt (no spinning) but within its timeout.
+  const std::int64_t tr = mono_ns();
+  const CanStatus srx2 = b.receive(&r, 100'000'000);
+  const std::int64_t wait_ns = mono_ns() - tr;
+  ok &= check(srx2 == CanStatus::kDown, t, "second receive while down: %s", to_string(srx2));
+  ok &= check(wait_ns >= 5'000'000 && wait_ns < 400'000'000, t,
+              "receive while down returned after %lld us (want a wait, bounded by the timeout)",
+              static_cast<long long>(wait_ns / 1000));
+  // While down, sends keep returning kDown quickly (reopen attempts are rate-limited).
   const std::int64_t t0 = mono_ns();
   for (int i = 0; i < 100; ++i) a.send(frame(0x500, false, 1, 1));
   ok &= check(mono_ns() - t0 < 100'000'000, t, "sends while down are slow");

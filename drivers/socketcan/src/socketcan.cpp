@@ -10,6 +10,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 
@@ -201,8 +202,18 @@ hal::CanStatus SocketCanBus::send(const hal::CanFrame& frame) {
 }
 
 hal::CanStatus SocketCanBus::receive(hal::CanFrame* frame, std::int64_t timeout_ns) {
-  if (!ensure_open()) return hal::CanStatus::kDown;
   const std::int64_t deadline = clock_ns(CLOCK_MONOTONIC) + (timeout_ns > 0 ? timeout_ns : 0);
+  if (!ensure_open()) {
+    // Link down: sleep until the next reopen attempt (within the timeout) instead of letting a
+    // receive loop spin, then try once.
+    const std::int64_t wake = std::min(deadline, next_attempt_ns_);
+    if (wake > clock_ns(CLOCK_MONOTONIC)) {
+      const timespec ts{static_cast<time_t>(wake / 1'000'000'000),
+                        static_cast<long>(wake % 1'000'000'000)};
+      ::clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, nullptr);
+    }
+    if (!ensure_open()) return hal::CanStatus::kDown;
+  }
   for (;;) {
     can_frame cf{};
     iovec iov{&cf, sizeof cf};

@@ -81,7 +81,8 @@ class CanBus {
   // Waits up to timeout_ns (0 = poll) for the next data frame passing the filters and fills
   // *frame (t_ns = receive time on CLOCK_MONOTONIC). Error frames are consumed internally and
   // update state(), error_counters() and stats(); they are never returned.
-  // kOk, kTimeout, kDown (link down; returns at once), kEndOfStream (replay), kError.
+  // kOk, kTimeout, kDown (link down: waits at most timeout_ns for the backend's next reopen
+  // attempt, so a receive loop does not spin), kEndOfStream (replay), kError.
   virtual CanStatus receive(CanFrame* frame, std::int64_t timeout_ns) = 0;
 
   // Replaces the receive filters. count == 0 receives every frame. kOk, kInvalidArgument
