@@ -134,12 +134,12 @@ const MessageDef kMessages[] = {
     {Msg::kHeartbeat, "AGV_Heartbeat", 0x05, 0x4C05, 8, Direction::kTx, 1000,
      "Software and protocol version, uptime.", kHeartbeat},
     {Msg::kOdomWheels, "MC_OdomWheels", 0x10, 0x4C10, 8, Direction::kRx, 10,
-     "Odometry input, wheel-speed variant (configuration odometry.mode = wheels). CRC and "
-     "AliveCounter are checked only when odometry.protected is set.",
+     "Odometry input, wheel-speed variant (config can.odometry.mode: wheels). CRC and "
+     "AliveCounter are checked only when can.odometry.protected is true.",
      kOdomWheels},
     {Msg::kOdomTwist, "MC_OdomTwist", 0x11, 0x4C11, 8, Direction::kRx, 10,
-     "Odometry input, v/omega variant (configuration odometry.mode = twist). CRC and "
-     "AliveCounter are checked only when odometry.protected is set.",
+     "Odometry input, v/omega variant (config can.odometry.mode: v_omega). CRC and "
+     "AliveCounter are checked only when can.odometry.protected is true.",
      kOdomTwist},
 };
 static_assert(sizeof kMessages / sizeof kMessages[0] == static_cast<std::size_t>(Msg::kCount));
