@@ -136,24 +136,58 @@ bool fit_line_ols(std::span<const Vec2> pts, double* k, double* b) {
 }
 
 bool fit_line_robust(std::span<const Vec2> pts, double tukey_c, double min_sigma, int iterations,
-                     std::span<double> w_out, LineFit* out) {
+                     std::span<double> w_out, LineFit* out, int ransac_iterations,
+                     double ransac_tol) {
   if (w_out.size() != pts.size()) return false;
   std::fill(w_out.begin(), w_out.end(), 1.0);
   LineFit f;
-  if (!fit_line_tls(pts, {}, &f)) return false;
+  const size_t n = pts.size();
+  if (ransac_iterations > 0 && n >= 8 && ransac_tol > 0) {
+    // Deterministic RANSAC start: one point from each half of the list (the points come in
+    // order along the line, so the pair spans it), keep the line with the most inliers.
+    size_t best_count = 0;
+    Line2 best;
+    const size_t half = n / 2;
+    for (int k = 0; k < ransac_iterations; ++k) {
+      const size_t i = (static_cast<size_t>(k) * 7919u + 13u) % half;
+      const size_t j = half + (static_cast<size_t>(k) * 104729u + 7u) % (n - half);
+      const double dx = pts[j].x - pts[i].x, dy = pts[j].y - pts[i].y;
+      const double len = std::hypot(dx, dy);
+      if (!(len > 0)) continue;
+      Line2 l{-dy / len, dx / len, 0.0};
+      l.d = l.nx * pts[i].x + l.ny * pts[i].y;
+      size_t count = 0;
+      for (const Vec2& p : pts) {
+        if (std::abs(l.nx * p.x + l.ny * p.y - l.d) <= ransac_tol) ++count;
+      }
+      if (count > best_count) {
+        best_count = count;
+        best = l;
+      }
+    }
+    if (best_count >= 2) {
+      for (size_t i = 0; i < n; ++i) {
+        w_out[i] = std::abs(best.nx * pts[i].x + best.ny * pts[i].y - best.d) <= ransac_tol ? 1.0
+                                                                                          : 0.0;
+      }
+    }
+  }
+  if (!fit_line_tls(pts, w_out, &f)) return false;
   thread_local std::vector<double> abs_r, tmp;
   for (int it = 0; it < iterations; ++it) {
-    abs_r.resize(pts.size());
-    for (size_t i = 0; i < pts.size(); ++i) {
+    abs_r.resize(n);
+    tmp.clear();
+    for (size_t i = 0; i < n; ++i) {
       abs_r[i] = std::abs(f.line.nx * pts[i].x + f.line.ny * pts[i].y - f.line.d);
+      // Scale from the points the previous step kept (all of them without RANSAC).
+      if (w_out[i] > 0) tmp.push_back(abs_r[i]);
     }
-    // nth_element on a copy keeps abs_r for the weights.
-    auto mid = abs_r.size() / 2;
-    tmp.assign(abs_r.begin(), abs_r.end());
+    if (tmp.empty()) return false;
+    const auto mid = tmp.size() / 2;
     std::nth_element(tmp.begin(), tmp.begin() + static_cast<std::ptrdiff_t>(mid), tmp.end());
     const double sigma = std::max(min_sigma, 1.4826 * tmp[mid]);
     const double c = tukey_c * sigma;
-    for (size_t i = 0; i < pts.size(); ++i) {
+    for (size_t i = 0; i < n; ++i) {
       const double u = abs_r[i] / c;
       w_out[i] = u < 1.0 ? (1.0 - u * u) * (1.0 - u * u) : 0.0;
     }

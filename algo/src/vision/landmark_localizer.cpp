@@ -126,7 +126,7 @@ struct LandmarkLocalizer::Impl {
   cv::Mat gx, gy;
   std::array<std::vector<Vec2>, kNumLines> pts_px, pts_mm;
   std::array<std::vector<double>, kNumLines> weights;
-  std::vector<double> logo_template, logo_samples;
+  std::vector<double> logo_template, logo_samples, residual_buf, scratch_buf;
   std::vector<Vec2> logo_page_pts;
 
   // Kept for the overlay.
@@ -767,7 +767,8 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
     if (static_cast<int>(dst.size()) < cfg.min_points_per_line) continue;
     bool ok;
     if (cfg.robust) {
-      ok = fit_line_robust(dst, cfg.tukey_c, 0.02, 4, w, &fits[static_cast<size_t>(l)]);
+      ok = fit_line_robust(dst, cfg.tukey_c, 0.02, 4, w, &fits[static_cast<size_t>(l)],
+                           cfg.ransac_iterations, 0.5 * mm_per_px);
     } else {
       ok = fit_line_tls(dst, {}, &fits[static_cast<size_t>(l)]);
     }
@@ -904,8 +905,41 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
   Eigen::MatrixXd jtj(np, np);
   Eigen::VectorXd jtr(np);
   double ssr = 0, sw_all = 0;
-  const int iters = method == PoseMethod::kJointSquareFit ? 6 : 1;
+  const bool joint = method == PoseMethod::kJointSquareFit;
+  // Joint robust rounds: after the first round, every point of every fitted line (also those the
+  // per-line fit rejected) is re-weighted (Tukey) by its residual to the joint model with one
+  // global scale, so an occluder edge that won a single line's vote is rejected by the square.
+  const int rounds = joint && cfg.robust ? 3 : 1;
+  const int iters = joint ? 5 * rounds : 1;
   for (int it = 0; it < iters; ++it) {
+    if (joint && cfg.robust && it > 0 && it % 5 == 0) {
+      residual_buf.clear();
+      for (int k = 0; k < 4; ++k) {
+        const Vec2 n = side_normal_mm(beta, k);
+        for (int e = 0; e < 2; ++e) {
+          const int l = k * 2 + e;
+          if (!line_ok[static_cast<size_t>(l)]) continue;
+          for (const Vec2& p : pts_mm[static_cast<size_t>(l)]) {
+            residual_buf.push_back(
+                std::abs(n.x * (p.x - c.x) + n.y * (p.y - c.y) - (e == 0 ? h_out : h_in)));
+          }
+        }
+      }
+      scratch_buf = residual_buf;
+      const auto mid = scratch_buf.size() / 2;
+      std::nth_element(scratch_buf.begin(),
+                       scratch_buf.begin() + static_cast<std::ptrdiff_t>(mid), scratch_buf.end());
+      const double sigma = std::max(0.005, 1.4826 * scratch_buf[mid]);
+      const double cut = cfg.tukey_c * sigma;
+      size_t idx = 0;
+      for (int l = 0; l < kNumLines; ++l) {
+        if (!line_ok[static_cast<size_t>(l)]) continue;
+        for (double& wi : weights[static_cast<size_t>(l)]) {
+          const double u = residual_buf[idx++] / cut;
+          wi = u < 1.0 ? (1.0 - u * u) * (1.0 - u * u) : 0.0;
+        }
+      }
+    }
     jtj.setZero();
     jtr.setZero();
     ssr = 0;
@@ -943,7 +977,7 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
       h_out += delta(3);
       h_in += delta(4);
     }
-    if (delta.head(3).norm() < 1e-9) break;
+    if (delta.head(3).norm() < 1e-9 && (it + 1) % 5 != 0) it += 4 - it % 5;  // next round
   }
   const double dof = std::max(1.0, sw_all - np);
   const double s2 = ssr / dof;

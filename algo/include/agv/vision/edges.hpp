@@ -57,10 +57,13 @@ bool fit_line_tls(std::span<const Vec2> pts, std::span<const double> weights, Li
 bool fit_line_ols(std::span<const Vec2> pts, double* k, double* b);
 
 // Tukey-biweight IRLS on top of fit_line_tls: weights are recomputed from the residuals with the
-// scale sigma = 1.4826 * MAD (floored at min_sigma). w_out (same size as pts) receives the final
-// weights. Returns false when the fit fails.
+// scale sigma = 1.4826 * MAD (floored at min_sigma). With ransac_iterations > 0 the start is the
+// two-point line with the most points within ransac_tol (deterministic sampling), so that up to
+// about half of the points may be outliers (an occluder's edge parallel to the border). w_out
+// (same size as pts) receives the final weights. Returns false when the fit fails.
 bool fit_line_robust(std::span<const Vec2> pts, double tukey_c, double min_sigma, int iterations,
-                     std::span<double> w_out, LineFit* out);
+                     std::span<double> w_out, LineFit* out, int ransac_iterations = 0,
+                     double ransac_tol = 0.0);
 
 // Paper 001 eq. 7: mean of the four dip angles after removing the 90-degree offsets; here with
 // any number of angles already reduced to a common axis (radians).

@@ -119,6 +119,11 @@ struct VisionConfig {
   // occluders. Default on; tukey_c in units of the robust sigma, default 4.685.
   bool robust = true;
   double tukey_c = 4.685;
+  // RANSAC start of the robust fit (two-point lines, inliers within 0.5 px): needed when an
+  // occluder or dirt puts a parallel edge into the band over a large part of a side, which pulls
+  // a plain least-squares start too far for IRLS to recover. More iterations = safer, slower.
+  // 0 disables. Default 24.
+  int ransac_iterations = 24;
   MetricMode metric = MetricMode::kCameraModel;
   PoseMethod pose_method = PoseMethod::kJointSquareFit;
   HeadingMethod heading_method = HeadingMethod::kInverseVariance;
