@@ -26,22 +26,6 @@ namespace agv::cmd {
 
 namespace {
 
-bool load_map(const std::string& path, LandmarkMap* map, std::string* error) {
-  std::ifstream f(path);
-  if (!f) {
-    *error = path + ": cannot open";
-    return false;
-  }
-  std::stringstream ss;
-  ss << f.rdbuf();
-  std::string e;
-  if (!parse_landmark_map(ss.str(), map, &e)) {
-    *error = path + ": " + e;
-    return false;
-  }
-  return true;
-}
-
 void write_overlays(const config::Config& cfg, const LandmarkMap* map,
                     const recording::Recording& rec, const std::vector<int>& frames,
                     const std::string& out_dir) {
@@ -123,7 +107,7 @@ int replay(int argc, char** argv) {
   LandmarkMap map;
   const LandmarkMap* map_ptr = nullptr;
   if (!map_file.empty()) {
-    if (!load_map(map_file, &map, &err)) {
+    if (!load_map_file(map_file, &map, &err)) {
       std::fprintf(stderr, "replay: map: %s\n", err.c_str());
       return 2;
     }

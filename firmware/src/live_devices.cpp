@@ -1,0 +1,31 @@
+#include "live_devices.hpp"
+
+#include "agv/camera/common.hpp"
+#include "agv/v4l2/v4l2_camera.hpp"
+#ifdef AGV_HAVE_LIBCAMERA
+#include "agv/libcamera/libcamera_camera.hpp"
+#endif
+
+namespace agv::app {
+
+std::unique_ptr<hal::Camera> make_live_camera(const config::Config& cfg, std::string* error) {
+  const std::string verr = camera::validate_config(cfg.camera.camera);
+  if (!verr.empty()) {
+    *error = "camera: " + verr;
+    return nullptr;
+  }
+  if (cfg.camera.driver == "v4l2") return std::make_unique<v4l2::V4l2Camera>(cfg.camera.camera);
+  if (cfg.camera.driver == "libcamera") {
+#ifdef AGV_HAVE_LIBCAMERA
+    return std::make_unique<libcam::LibcameraCamera>(cfg.camera.camera);
+#else
+    *error = "camera.driver: libcamera is not available in this build (replay-only build; use "
+             "v4l2 or rebuild with libcamera-dev installed)";
+    return nullptr;
+#endif
+  }
+  *error = "camera.driver: '" + cfg.camera.driver + "' is not a live driver (use libcamera or v4l2)";
+  return nullptr;
+}
+
+}  // namespace agv::app
