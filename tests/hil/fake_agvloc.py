@@ -7,7 +7,8 @@ fails a broken one -- independently of the real localizer. It is NOT the localiz
   fake_agvloc.py replay REC --out DIR --config CFG [--can IF --odom-from-can --realtime
                  [--speed S]]
 
-Offline: DIR/poses.csv, one row per odometry sample. On the bus: the same poses, the replay
+Offline: DIR/poses.csv, one row per odometry sample; on the bus DIR/poses.csv holds what was
+sent, one row per output tick. On the bus: the same poses, the replay
 clock slaved to the first accepted odometry frame (that frame = the first odom.csv row; each
 later accepted frame advances the row by its alive-counter step). Status: FaultOdomTimeout, FaultOdomE2E
 (latched), FaultCanBusOff (latched on a failed send). Prints counters at exit.
@@ -81,7 +82,8 @@ def bus(a, rows) -> int:
     track = float(g("can", "odometry", "track_width_mm", d="500"))
     protected = as_bool(g("can", "odometry", "protected", d="true"))
     timeout = float(g("can", "odometry", "timeout_ms", d="100")) / 1000.0
-    rate = float(g("loop", "output_rate_hz", d="100"))
+    # Rates are on the replay clock, like the localizer's: wall periods are 1/speed longer.
+    rate = float(g("loop", "output_rate_hz", d="100")) * a.speed
     if "half-rate" in FAULT:
         rate /= 2
     msgs = {n: dbc.by_name(n) for n in ("AGV_PoseXY", "AGV_PoseHeading", "AGV_Velocity",
@@ -115,6 +117,7 @@ def bus(a, rows) -> int:
             stats["tx_failed"] += 1
 
     state = {"busoff": False, "e2e": False, "n_pose": 0}
+    ticks = []  # what was sent, like the localizer's own --out DIR/poses.csv
     last_ctr = None
     t_wall0 = None
     last_ok = None
@@ -198,15 +201,16 @@ def bus(a, rows) -> int:
                 m.signals["VelocityValid"].encode(d, 1)
                 m.signals["V"].encode(d, v_prev)
                 m.signals["Omega"].encode(d, w_prev)
+            ticks.append(est)
             send("AGV_PoseXY", xy)
             send("AGV_PoseHeading", hd)
             counters["AGV_PoseXY"] = counters["AGV_PoseHeading"] = (counters["AGV_PoseXY"] + 1) % 15
             send("AGV_Velocity", vel)
             counters["AGV_Velocity"] = (counters["AGV_Velocity"] + 1) % 15
         if now >= next_status:
-            next_status += 0.1
+            next_status += 0.1 / a.speed
             if next_status < now:
-                next_status = now + 0.1
+                next_status = now + 0.1 / a.speed
             tmo = last_ok is None or now - last_ok > timeout
             if "no-timeout" in FAULT:
                 tmo = False
@@ -228,9 +232,9 @@ def bus(a, rows) -> int:
             send("AGV_Quality", q)
             counters["AGV_Quality"] = (counters["AGV_Quality"] + 1) % 15
         if now >= next_hb:
-            next_hb += 1.0
+            next_hb += 1.0 / a.speed
             if next_hb < now:
-                next_hb = now + 1.0
+                next_hb = now + 1.0 / a.speed
 
             def hb(m, d):
                 m.signals["ProtocolVersion"].encode(d, 1)
@@ -239,6 +243,10 @@ def bus(a, rows) -> int:
             counters["AGV_Heartbeat"] = (counters["AGV_Heartbeat"] + 1) % 15
         if t_rec_now > end_rec:
             break
+    with open(os.path.join(a.out, "poses.csv"), "w") as f:
+        f.write("t_ns,x_mm,y_mm,theta_rad,valid\n")
+        for t, x, y, th in ticks:
+            f.write(f"{t},{x!r},{y!r},{th!r},1\n")
     print("can: " + " ".join(f"{k}={v}" for k, v in stats.items()))
     return 0
 

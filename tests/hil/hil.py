@@ -295,7 +295,7 @@ def read_pose_csv(out_dir: str) -> tuple[str, list[dict]]:
     with open(cands[0], newline="") as f:
         for r in csv.DictReader(f):
             th = float(r["theta_rad"]) if "theta_rad" in r else math.radians(float(r["theta_deg"]))
-            valid = r.get("valid", "1").strip().lower() not in ("0", "false", "")
+            valid = (r.get("valid") or "1").strip().lower() not in ("0", "false")
             rows.append({"t_ns": int(r["t_ns"]), "x": float(r["x_mm"]), "y": float(r["y_mm"]),
                          "th": th, "valid": valid})
     rows.sort(key=lambda r: r["t_ns"])
@@ -428,7 +428,9 @@ def analyse(s: Setup, sc: dict, rep: Report) -> None:
                       f"{tol*100:.0f}%)", fmt_ms(st))
         return st
 
-    pose_period = 1.0 / s.output_rate_hz
+    # The localizer's loop runs on the replay clock (recording time): at --speed S every period
+    # is 1/S longer on the wall clock (the capture's).
+    pose_period = 1.0 / s.output_rate_hz / s.speed
     st = gaps_ok(by_name["AGV_PoseXY"], pose_period, "AGV_PoseXY", 0.10)
     sc["pose_period_stats"] = st
     if "max" in st:
@@ -436,9 +438,11 @@ def analyse(s: Setup, sc: dict, rep: Report) -> None:
         # a hung loop). p95 is only reported: an overloaded host delays the emulated guest.
         rep.check(st["max"] <= MAX_POSE_GAP_S, f"no AGV_PoseXY gap over {MAX_POSE_GAP_S*1e3:.0f} ms"
                   " (outside expected outages)", f"longest {st['max']*1e3:.1f} ms")
-    status_period = s.dbc.by_name("AGV_Status").cycle_ms / 1000.0
+    status_period = s.dbc.by_name("AGV_Status").cycle_ms / 1000.0 / s.speed
     gaps_ok(by_name["AGV_Status"], status_period, "AGV_Status", 0.10)
-    gaps_ok(by_name["AGV_Heartbeat"], 1.0 / s.heartbeat_rate_hz, "AGV_Heartbeat", 0.10)
+    quality_period = s.dbc.by_name("AGV_Quality").cycle_ms / 1000.0 / s.speed
+    gaps_ok(by_name["AGV_Quality"], quality_period, "AGV_Quality", 0.10)
+    gaps_ok(by_name["AGV_Heartbeat"], 1.0 / s.heartbeat_rate_hz / s.speed, "AGV_Heartbeat", 0.10)
 
     # XY / Heading pairing by counter.
     xy, hd = by_name["AGV_PoseXY"], by_name["AGV_PoseHeading"]
@@ -480,20 +484,58 @@ def analyse(s: Setup, sc: dict, rep: Report) -> None:
     except HilError as e:
         own_path, own = None, None
         rep.check(False, "the localizer's own pose record (--out DIR)", str(e))
+    tick_time = {}
     if own:
-        compare_poses(s, sc, rep, pairs, own_path, own, rec_ns, t_cap0, odom_end, float("inf"),
-                      res_xy, res_th, "decoded poses equal the localizer's own poses.csv")
+        tick_time = match_own(s, rep, pairs, own_path, own, res_xy, res_th)
     off_path, off = sc["offline"]
     compare_poses(s, sc, rep, pairs, off_path, off, rec_ns, t_cap0, odom_end, compare_until,
-                  res_xy, res_th, "decoded poses equal the offline replay")
+                  res_xy, res_th, "decoded poses equal the offline replay", tick_time)
     analyse_status(s, sc, rep, by_name, xy, odom_frames_cap, t_cap0, odom_end, excluded,
                    status_period, frames)
 
 
+def match_own(s, rep, pairs, own_path, own, res_xy, res_th) -> dict:
+    """The localizer's own record (--out DIR/poses.csv, one row per output tick) in sequence:
+    each bus pose pair must equal the next row(s) within the signal resolution (rows whose
+    frames were not sent, e.g. while the link was down, are skipped). Returns {id(xy frame):
+    tick t_ns} for the matched ones: the tick time of each bus pose."""
+    mxy, mhd = s.dbc.by_name("AGV_PoseXY"), s.dbc.by_name("AGV_PoseHeading")
+    j, out, bad, valid_differs = 0, {}, [], 0
+    for f, g in pairs:
+        dx, dh = mxy.decode(f.data), mhd.decode(g.data)
+        hit = None
+        for k in range(j, min(j + 200, len(own))):
+            r = own[k]
+            if (max(abs(r["x"] - dx["X"]), abs(r["y"] - dx["Y"])) <= res_xy and
+                    abs(wrap(r["th"] - dh["Theta"])) <= res_th):
+                hit = k
+                break
+        if hit is None:
+            bad.append((f.t, dx, dh, own[j] if j < len(own) else None))
+        else:
+            out[id(f)] = own[hit]["t_ns"]
+            valid_differs += bool(dx["PoseValid"]) != own[hit]["valid"]
+            j = hit + 1
+    # The CSV's `valid` is the estimate's; PoseValid on the bus is also cleared without
+    # odometry, so a difference is reported, not failed.
+    rep.info(f"PoseValid differs from the record's valid column on {valid_differs} pose(s)")
+    detail = f"{len(pairs) - len(bad)}/{len(pairs)} bus poses equal the next rows of {own_path}"
+    if bad:
+        t, dx, dh, r = bad[0]
+        detail += (f"; first mismatch at capture {t:.6f}: bus valid={int(dx['PoseValid'])} "
+                   f"({dx['X']:.2f}, {dx['Y']:.2f}, {dh['Theta']:.4f})" +
+                   (f", expected row t={r['t_ns']/1e9:.3f} s valid={int(r['valid'])} "
+                    f"({r['x']:.2f}, {r['y']:.2f}, {r['th']:.4f})" if r else ""))
+    rep.check(bool(pairs) and not bad, "decoded poses equal the localizer's own poses.csv "
+              "(what it says it sent)", detail)
+    return out
+
+
 def compare_poses(s, sc, rep, pairs, off_path, off, rec_ns, t_cap0, odom_end, compare_until,
-                  res_xy, res_th, title):
+                  res_xy, res_th, title, tick_time):
     """Each valid bus pose (XY + Heading pair) must equal, within res, a reference row whose
-    time is within the window of the estimate time (capture time - Latency, in recording time)."""
+    time is within the window of the estimate time: the pose's tick time from the localizer's
+    own record when known, else capture time - Latency mapped to recording time."""
     mxy, mhd = s.dbc.by_name("AGV_PoseXY"), s.dbc.by_name("AGV_PoseHeading")
     off_t = [r["t_ns"] for r in off]
     window_ns = sc["match_window_ms"] * 1e6
@@ -506,7 +548,7 @@ def compare_poses(s, sc, rep, pairs, off_path, off, rec_ns, t_cap0, odom_end, co
         dh = mhd.decode(g.data)
         if not dx["PoseValid"]:
             continue
-        t_est = rec_ns(f.t) - dh["Latency"] * 1e6 * s.speed
+        t_est = tick_time.get(id(f), rec_ns(f.t) - dh["Latency"] * 1e6 * s.speed)
         lo = bisect.bisect_left(off_t, t_est - window_ns)
         hi = bisect.bisect_right(off_t, t_est + window_ns)
         compared += 1
@@ -543,12 +585,12 @@ def compare_poses(s, sc, rep, pairs, off_path, off, rec_ns, t_cap0, odom_end, co
 def analyse_status(s, sc, rep, by_name, xy, odom_frames_cap, t_cap0, odom_end, excluded,
                    status_period, frames):
     res = s.results
-    pose_period = 1.0 / s.output_rate_hz
+    pose_period = 1.0 / s.output_rate_hz / s.speed
     # --- status ---------------------------------------------------------------------------------
     stm = s.dbc.by_name("AGV_Status")
     status = [(f.t, stm.decode(f.data)) for f in by_name["AGV_Status"]]
     timeout_s = s.odom_timeout_ms / 1000.0
-    settle = timeout_s / s.speed + status_period + 0.1  # detection bound (either clock)
+    settle = timeout_s / s.speed + status_period + 0.1  # detection bound, wall clock
     rep.info(f"status detection bound {settle*1e3:.0f} ms (timeout {s.odom_timeout_ms} ms "
              f"at speed {s.speed}, status period {status_period*1e3:.0f} ms, 100 ms slack)")
     health_names = stm.values.get("Health", {})
@@ -725,11 +767,14 @@ def main() -> int:
                     help="search window (recording time) around the estimate time; poses must\n"
                          "still be equal within the signal resolution")
     ap.add_argument("--vm-timeout", type=float, default=0, help="0 = from the recording length")
+    ap.add_argument("--analyse-only", action="store_true",
+                    help="re-run only the checks on an existing results dir (same arguments)")
     a = ap.parse_args()
 
     res = os.path.abspath(a.results)
-    shutil.rmtree(res, ignore_errors=True)
-    os.makedirs(res)
+    if not a.analyse_only:
+        shutil.rmtree(res, ignore_errors=True)
+    os.makedirs(res, exist_ok=True)
     rep = Report(os.path.join(res, "report.txt"))
     rep.lines.append(f"HIL scenario {a.scenario}  ({time.strftime('%Y-%m-%d %H:%M:%S')})")
     try:
@@ -797,7 +842,10 @@ def scenario(a, res: str, rep: Report) -> int:
         rec = make_recording(agvloc, rec, a.sim_args, res)
         if rec is None:
             return SKIP
-    rec = os.path.abspath(rec)
+    rec = os.path.realpath(rec)
+    if not a.no_vm and re.match(r"^/(tmp|run|var/tmp|dev/shm)(/|$)", rec):
+        raise HilError(f"the recording {rec} is under a directory the guest replaces with its own "
+                       "tmpfs; put it elsewhere (e.g. in the build tree)")
 
     cfg_path, cfg = prepare_config(a, res)
     dbc = hil_dbc.Dbc(a.dbc)
@@ -825,7 +873,12 @@ def scenario(a, res: str, rep: Report) -> int:
         drop = (g0_ns, g0_ns + gap_ns)
         rep.info(f"odometry gap: recording {(g0_ns - s.odom[0][0]) / 1e9:.2f} s + "
                  f"{gap_ns / 1e9:.2f} s")
-    rec = s.recording = quantize_recording(s, os.path.join(res, "recording-q"), drop)
+    if a.analyse_only:
+        s.recording = os.path.join(res, "recording-q")
+        s.odom = read_odom(s.recording)
+        rec = s.recording
+    else:
+        rec = s.recording = quantize_recording(s, os.path.join(res, "recording-q"), drop)
     rep.info(f"recording {rec}: {len(s.odom)} odometry rows, "
              f"{(s.odom[-1][0]-s.odom[0][0])/1e9:.2f} s; speed {s.speed} (wall = recording / "
              f"{s.speed})")
@@ -836,7 +889,7 @@ def scenario(a, res: str, rep: Report) -> int:
     off_dir = os.path.join(res, "offline")
     cmd = [agvloc, "replay", rec, "--out", off_dir, "--config", cfg_path]
     t = time.monotonic()
-    if run(cmd, os.path.join(res, "offline.log"), 150) != 0:
+    if not a.analyse_only and run(cmd, os.path.join(res, "offline.log"), 150) != 0:
         raise HilError(f"offline replay `{' '.join(cmd)}` failed, see {res}/offline.log")
     rep.info(f"offline replay {time.monotonic() - t:.1f} s")
     sc = {"offline": read_pose_csv(off_dir), "match_window_ms": a.match_window_ms}
@@ -904,7 +957,9 @@ def scenario(a, res: str, rep: Report) -> int:
                                   float(env["LINK_DOWN_S"]))
     t = time.monotonic()
     guest = [os.path.join(HERE, "guest/scenario.sh"), res]
-    if a.no_vm:
+    if a.analyse_only:
+        vm_rc = 0
+    elif a.no_vm:
         # A real bus (docs/hil.md, "On a real bus"): the same guest script, on this machine.
         try:
             vm_rc = subprocess.run(guest, timeout=vm_timeout).returncode
