@@ -46,7 +46,9 @@ std::string validate(const EkfConfig& c) {
   if (!finite_nonneg(c.init_v_scale_sigma) || !finite_nonneg(c.init_omega_scale_sigma) ||
       !finite_nonneg(c.init_omega_bias_sigma_radps) || !finite_nonneg(c.v_scale_sigma_per_sqrt_s) ||
       !finite_nonneg(c.omega_scale_sigma_per_sqrt_s) ||
-      !finite_nonneg(c.omega_bias_sigma_radps_per_sqrt_s))
+      !finite_nonneg(c.omega_bias_sigma_radps_per_sqrt_s) ||
+      !finite_nonneg(c.init_omega_per_v_sigma_radpm) ||
+      !finite_nonneg(c.omega_per_v_sigma_radpm_per_sqrt_s))
     return "odometry calibration sigmas must be finite and >= 0";
   if (!finite_pos(c.init_v_sigma_mps) || !finite_pos(c.init_omega_sigma_radps))
     return "init sigmas must be finite and > 0";
@@ -143,6 +145,8 @@ void Ekf::predict(FilterVec* x, FilterCov* P, double dt_s, bool velocity_noise) 
         config_.omega_scale_sigma_per_sqrt_s * config_.omega_scale_sigma_per_sqrt_s * adt;
     Q(kIbomega, kIbomega) =
         config_.omega_bias_sigma_radps_per_sqrt_s * config_.omega_bias_sigma_radps_per_sqrt_s * adt;
+    Q(kIcomegav, kIcomegav) = config_.omega_per_v_sigma_radpm_per_sqrt_s *
+                              config_.omega_per_v_sigma_radpm_per_sqrt_s * adt;
   }
 
   x->head<5>() = motion_predict(x->head<5>(), dt_s);
@@ -151,24 +155,27 @@ void Ekf::predict(FilterVec* x, FilterCov* P, double dt_s, bool velocity_noise) 
 }
 
 void Ekf::update_odometry(FilterVec* x, FilterCov* P, double v_mps, double omega_radps) const {
-  // h(x) = ((1 + s_v) v, (1 + s_omega) omega + b_omega); without calibration s = b = 0 and H
-  // simply selects v and omega.
+  // h(x) = ((1 + s_v) v, (1 + s_omega) omega + b_omega + c_omega_v v); without calibration
+  // those states are 0 and H simply selects v and omega.
   const Eigen::Matrix2d R =
       Eigen::Vector2d(config_.odom_v_sigma_mps * config_.odom_v_sigma_mps,
                       config_.odom_omega_sigma_radps * config_.odom_omega_sigma_radps)
           .asDiagonal();
   const double v = (*x)(kIv), w = (*x)(kIomega);
   const double sv = (*x)(kIsv), sw = (*x)(kIsomega), bw = (*x)(kIbomega);
+  const double cwv = (*x)(kIcomegav);
   Eigen::Matrix<double, 2, kFilterDim> H = Eigen::Matrix<double, 2, kFilterDim>::Zero();
   H(0, kIv) = 1.0 + sv;
   H(0, kIsv) = v;
   H(1, kIomega) = 1.0 + sw;
   H(1, kIsomega) = w;
   H(1, kIbomega) = 1.0;
+  H(1, kIv) = cwv;
+  H(1, kIcomegav) = v;
   const Eigen::Matrix<double, kFilterDim, 2> PHt = (*P) * H.transpose();
   const Eigen::Matrix2d S = H * PHt + R;
   const Eigen::Matrix<double, kFilterDim, 2> K = S.llt().solve(PHt.transpose()).transpose();
-  const Eigen::Vector2d nu(v_mps - (1.0 + sv) * v, omega_radps - ((1.0 + sw) * w + bw));
+  const Eigen::Vector2d nu(v_mps - (1.0 + sv) * v, omega_radps - ((1.0 + sw) * w + bw + cwv * v));
   *x += K * nu;
   (*x)(kItheta) = wrap_angle_rad((*x)(kItheta));
   // Joseph form: (I - K H) P (I - K H)^T + K R K^T stays symmetric positive definite.
@@ -458,6 +465,8 @@ FixOutcome Ekf::add_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::Ma
       P(kIsomega, kIsomega) = config_.init_omega_scale_sigma * config_.init_omega_scale_sigma;
       P(kIbomega, kIbomega) =
           config_.init_omega_bias_sigma_radps * config_.init_omega_bias_sigma_radps;
+      P(kIcomegav, kIcomegav) =
+          config_.init_omega_per_v_sigma_radpm * config_.init_omega_per_v_sigma_radpm;
     }
     P(kIomega, kIomega) = config_.init_omega_sigma_radps * config_.init_omega_sigma_radps;
     initialise_at(t_ns, x, P);
@@ -539,6 +548,7 @@ PoseEstimate Ekf::estimate_at(std::int64_t t_ns) const {
   e.odom_v_scale_error = x(kIsv);
   e.odom_omega_scale_error = x(kIsomega);
   e.odom_omega_bias_radps = x(kIbomega);
+  e.odom_omega_per_v_radpm = x(kIcomegav);
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(P.topLeftCorner<2, 2>(),
                                                            Eigen::EigenvaluesOnly);
   e.position_sigma_mm = std::sqrt(std::max(0.0, eig.eigenvalues()(1)));

@@ -86,8 +86,12 @@ struct SynthParams {
   double accel_mps2 = 1.0;
   double omega_max_radps = 1.0;
   double yaw_accel_radps2 = 2.0;
-  double scale_error = 0.01;   // odometry reads 1 % high (v and omega)
-  double drift_degps = 0.5;    // yaw-rate bias
+  double scale_error = 0.01;     // odometry reads 1 % high (v and omega)
+  double drift_degps = 0.5;      // yaw-rate bias
+  double drift_degpm = 0.0;      // yaw-rate error per speed (left/right wheel mismatch), deg/m
+  double drift_variation = 0.0;  // bias varies by this fraction, sinusoid with a 120 s period
+  double slip_rate_hz = 0.0;     // slip events: one wheel reports 25 % more for 0.3 s
+  double wheelbase_mm = 500.0;
   double v_noise_mps = 0.003;  // per 10 ms sample
   double omega_noise_radps = 0.002;
   double camera_offset_x_mm = 0.0;
@@ -120,6 +124,9 @@ World make_synthetic_world(const SynthParams& p, double grid_mm) {
   w.camera_offset_x_mm = p.camera_offset_x_mm;
   std::mt19937_64 rng(p.seed);
   std::normal_distribution<double> n01(0.0, 1.0);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  std::int64_t slip_end_ns = -1;
+  double slip_sign = 1.0;
   const double dt = 1e-3;  // truth integration step
   const std::int64_t dt_ns = 1'000'000;
   const int odom_every = 10;  // 100 Hz
@@ -142,8 +149,20 @@ World make_synthetic_world(const SynthParams& p, double grid_mm) {
     if (step % odom_every == 0) {
       const double T = dt * odom_every;
       const double v_mean = acc_dist_m / T, om_mean = acc_turn_rad / T;
-      w.odom.push_back({t, v_mean * (1.0 + p.scale_error) + p.v_noise_mps * n01(rng),
-                        om_mean * (1.0 + p.scale_error) + bias + p.omega_noise_radps * n01(rng)});
+      const double ts = static_cast<double>(t) * 1e-9;
+      const double b = bias * (1.0 + p.drift_variation * std::sin(2.0 * agv::kPi * ts / 120.0)) +
+                       agv::deg_to_rad(p.drift_degpm) * v_mean;
+      double v_meas = v_mean * (1.0 + p.scale_error) + p.v_noise_mps * n01(rng);
+      double om_meas = om_mean * (1.0 + p.scale_error) + b + p.omega_noise_radps * n01(rng);
+      if (t < slip_end_ns) {  // one wheel over-reports: half of it in v, all of it in omega
+        const double extra_mps = 0.25 * std::abs(v_mean);
+        v_meas += 0.5 * extra_mps;
+        om_meas += slip_sign * extra_mps / (p.wheelbase_mm / 1000.0);
+      } else if (u01(rng) < p.slip_rate_hz * T) {
+        slip_end_ns = t + 300 * kMsNs;
+        slip_sign = (rng() % 2 == 0) ? 1.0 : -1.0;
+      }
+      w.odom.push_back({t, v_meas, om_meas});
       acc_dist_m = acc_turn_rad = 0.0;
     }
   };
@@ -469,9 +488,10 @@ void print_row(const char* name, const RunResult& r) {
 }
 
 void usage() {
-  std::fprintf(stderr,
-               "usage: eval_fusion [--recording DIR] [--duration S] [--seed N] [--drift DEGPS]\n"
-               "                   [--scale-error F] [--grid MM] [--quick]\n");
+  std::fprintf(
+      stderr,
+      "usage: eval_fusion [--recording DIR] [--duration S] [--seed N] [--drift DEGPS]\n"
+      "                   [--scale-error F] [--grid MM] [--window full|partial] [--quick]\n");
 }
 
 }  // namespace
@@ -480,6 +500,7 @@ int main(int argc, char** argv) {
   std::string recording;
   SynthParams sp;
   double grid_mm = 1000.0;
+  bool partial_window = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> const char* {
@@ -501,6 +522,14 @@ int main(int argc, char** argv) {
       sp.scale_error = std::atof(next());
     } else if (a == "--grid") {
       grid_mm = std::atof(next());
+    } else if (a == "--window") {
+      const std::string v = next();
+      if (v == "partial") {
+        partial_window = true;
+      } else if (v != "full") {
+        usage();
+        return 2;
+      }
     } else if (a == "--quick") {
       sp.duration_s = 60.0;
     } else {
@@ -514,10 +543,14 @@ int main(int argc, char** argv) {
   }
 
   const EkfConfig cfg;  // documented defaults
-  auto synth = [&](double drift, double offset_x) {
+  auto synth = [&](double drift, double offset_x, double drift_degpm = 0.0, double variation = 0.0,
+                   double slip_hz = 0.0) {
     SynthParams p = sp;
     p.drift_degps = drift;
     p.camera_offset_x_mm = offset_x;
+    p.drift_degpm = drift_degpm;
+    p.drift_variation = variation;
+    p.slip_rate_hz = slip_hz;
     return make_synthetic_world(p, grid_mm);
   };
   World base;
@@ -549,6 +582,14 @@ int main(int argc, char** argv) {
 
   FixParams fp;
   fp.grid_mm = grid_mm;
+  if (partial_window) {
+    // The vision stage also measures a landmark cut by the image border as long as the QR code
+    // and one complete side per axis are inside: centre within about +-40 / +-60 mm.
+    fp.visible_half_x_mm = 40.0;
+    fp.visible_half_y_mm = 60.0;
+  }
+  std::printf("fix window: landmark centre within +-%.1f mm along, +-%.1f mm across the vehicle\n",
+              fp.visible_half_x_mm, fp.visible_half_y_mm);
   auto with = [&](FixParams p, auto&& mod) {
     mod(p);
     return p;
@@ -604,6 +645,13 @@ int main(int argc, char** argv) {
       std::snprintf(name, sizeof name, "heading drift %.2f deg/s", drift);
       print_row(name, run(wd, simulate_fixes(wd, fp), cfg, grid_mm));
     }
+    const World wm = synth(0.0, 0.0, 0.46);
+    print_row("drift 0.46 deg/m (wheel mismatch)", run(wm, simulate_fixes(wm, fp), cfg, grid_mm));
+    const World wvar = synth(1.0, 0.0, 0.0, 0.5);
+    print_row("drift 1 deg/s varying +-50 %", run(wvar, simulate_fixes(wvar, fp), cfg, grid_mm));
+    const World wslip = synth(sp.drift_degps, 0.0, 0.0, 0.0, 0.05);
+    print_row("slips 0.05/s (wheel +25 %, 0.3 s)",
+              run(wslip, simulate_fixes(wslip, fp), cfg, grid_mm));
   }
   // The plain 5-state filter of paper 000 (no odometry calibration states), same data.
   EkfConfig cfg5 = cfg;
