@@ -577,8 +577,7 @@ int main(int argc, char** argv) {
       "taken\n  at >= 0.5 m/s (lm_n of them), lm_p95d heading (deg);\n  mid_* = real-time error "
       "(mm) with the camera >= 0.45 grid from any landmark; "
       "all_* over all\n  output ticks after 2 s; fixes = good fixes, rejG = good fixes rejected "
-      "by the gate,\n  outl/outlAcc = corrupted fixes / accepted; reini = re-initialisations\n\n");
-  print_header();
+      "by the gate,\n  outl/outlAcc = corrupted fixes / accepted; reini = re-initialisations\n");
 
   FixParams fp;
   fp.grid_mm = grid_mm;
@@ -588,8 +587,10 @@ int main(int argc, char** argv) {
     fp.visible_half_x_mm = 40.0;
     fp.visible_half_y_mm = 60.0;
   }
-  std::printf("fix window: landmark centre within +-%.1f mm along, +-%.1f mm across the vehicle\n",
-              fp.visible_half_x_mm, fp.visible_half_y_mm);
+  std::printf(
+      "fix window: landmark centre within +-%.1f mm along, +-%.1f mm across the vehicle\n\n",
+      fp.visible_half_x_mm, fp.visible_half_y_mm);
+  print_header();
   auto with = [&](FixParams p, auto&& mod) {
     mod(p);
     return p;
