@@ -115,7 +115,7 @@ struct EkfConfig {
   // ---- Delayed fixes ----
   // Events (odometry samples, fused fixes) kept for re-propagation. Must exceed the odometry rate
   // times max_fix_delay_ns plus the fixes in that time: 256 covers 1.5 s at 100 Hz odometry and
-  // 30 Hz fixes. Memory: ~0.4 kB per event, allocated once.
+  // 30 Hz fixes. Memory: ~0.85 kB per event, allocated once.
   std::size_t history_capacity = 256;
   // Fixes whose exposure time is older than the newest event by more than this are rejected as
   // too old (counted). Also rejected: anything older than the oldest event kept.
