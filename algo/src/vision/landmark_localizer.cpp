@@ -120,7 +120,7 @@ struct LandmarkLocalizer::Impl {
   std::vector<Hypothesis> hyps;
 
   // QR.
-  cv::Mat qr_small, qr_blur;
+  cv::Mat qr_small, qr_blur, qr_sharp;
 
   // Pose.
   cv::Mat gx, gy;
@@ -581,8 +581,9 @@ FixStatus LandmarkLocalizer::Impl::decode(const cv::Mat& img, Vec2 c, double up_
   // Attempts: (0) the inner white square's bounding box; only when that fails: (1) the same crop
   // slightly blurred, which removes thin scratches that break zxing's local binarizer; (2) a
   // larger crop (zxing's block binarizer is sensitive to where blocks fall on a blurred code);
-  // (3) zxing's global-histogram binarizer.
-  const int attempts = cfg.qr_retries ? 4 : 1;
+  // (3) zxing's global-histogram binarizer; (4, 5) an unsharp-masked crop (sigma 2.5 px, amount
+  // 1) with either binarizer, which recovers codes smeared by defocus plus motion blur.
+  const int attempts = cfg.qr_retries ? 6 : 1;
   for (int attempt = 0; attempt < attempts; ++attempt) {
     const double half = (attempt == 2 ? geom.outer_half_mm() : geom.inner_half_mm()) / mm_per_px *
                             (std::abs(std::cos(up_angle)) + std::abs(std::sin(up_angle))) +
@@ -601,9 +602,13 @@ FixStatus LandmarkLocalizer::Impl::decode(const cv::Mat& img, Vec2 c, double up_
     if (attempt == 1) {
       cv::GaussianBlur(*src, qr_blur, cv::Size(0, 0), 1.0);
       src = &qr_blur;
+    } else if (attempt >= 4) {
+      cv::GaussianBlur(*src, qr_blur, cv::Size(0, 0), 2.5);
+      cv::addWeighted(*src, 2.0, qr_blur, -1.0, 0.0, qr_sharp);
+      src = &qr_sharp;
     }
-    hints.setBinarizer(attempt == 3 ? ZXing::Binarizer::GlobalHistogram
-                                    : ZXing::Binarizer::LocalAverage);
+    hints.setBinarizer(attempt == 3 || attempt == 5 ? ZXing::Binarizer::GlobalHistogram
+                                                    : ZXing::Binarizer::LocalAverage);
     ZXing::ImageView iv(src->data, src->cols, src->rows, ZXing::ImageFormat::Lum,
                         static_cast<int>(src->step[0]));
     res = ZXing::ReadBarcode(iv, hints);

@@ -77,8 +77,9 @@ struct VisionConfig {
   // docs/accuracy.md).
   bool qr_try_harder = false;
   // When the first zxing attempt fails, retry on a slightly blurred crop (thin bright scratches
-  // break zxing's local binarizer) and then with zxing's global-histogram binarizer. Costs time
-  // only on frames that would otherwise be lost. Default true.
+  // break zxing's local binarizer), a larger crop, zxing's global-histogram binarizer and an
+  // unsharp-masked crop (defocus plus motion blur). Costs time only on frames that would
+  // otherwise be lost (up to 6 decodes). Default true.
   bool qr_retries = true;
   // The QR crop is downscaled by an integer factor so a module is about this many pixels (zxing
   // is fastest at 3-5 px per module). 0 disables downscaling. Default 4.
