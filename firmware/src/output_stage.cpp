@@ -179,11 +179,7 @@ void OutputStage::tick(std::int64_t now_ns, const hal::Clock* clock, TickRecord*
     st.faults |= protocol::fault::kOdomE2E;
     odom_rejected_seen_ = odom_rej;
   }
-  if (bus_) {
-    const hal::CanBusState bs = bus_->state();
-    if (bs == hal::CanBusState::kErrorPassive) st.faults |= protocol::fault::kCanErrorPassive;
-    if (bs == hal::CanBusState::kBusOff) st.faults |= protocol::fault::kCanBusOff;
-  }
+  if (bus_) st.faults |= can_faults_.update(bus_->state(), bus_->stats());
   if (overrun_) st.faults |= protocol::fault::kLoopOverrun;
   overrun_ = false;
   if (est.flags & fusion::flags::kRejectedGate) rejections_ |= protocol::reject::kGate;

@@ -6,6 +6,7 @@
 #include <cstdint>
 
 #include "agv/common/latency_histogram.hpp"
+#include "agv/can/can_faults.hpp"
 #include "agv/fusion/ekf.hpp"
 #include "agv/hal/can_bus.hpp"
 #include "agv/hal/clock.hpp"
@@ -98,6 +99,7 @@ class OutputStage {
   bool camera_error_ = false;
   bool overrun_ = false;
   std::int64_t pending_e2e_exposure_ns_ = INT64_MIN;  // newest fused fix not yet sent
+  can::CanFaultMonitor can_faults_;  // latches bus-off / passive / drops between status frames
   OutputStats stats_;
 };
 

@@ -347,4 +347,18 @@ std::uint8_t OdometryFaultMonitor::update(const OdometryDecoder& decoder, std::i
   return f;
 }
 
+void encode_odometry(const ProtocolConfig& cfg, double a, double b, std::uint8_t counter,
+                     CanFrameData* out) {
+  const Msg m = cfg.odometry.mode == OdometryMode::kWheels ? Msg::kOdomWheels : Msg::kOdomTwist;
+  const MessageDef& d = message_def(m);
+  *out = CanFrameData{};
+  out->id = can_id_of(cfg, m);
+  out->extended = cfg.odometry.extended_id;
+  out->len = 8;
+  put_phys(d.signals[2], a, out->data);
+  put_phys(d.signals[3], b, out->data);
+  e2e_protect(cfg.odometry.data_id ? cfg.odometry.data_id : d.data_id,
+              static_cast<std::uint8_t>(counter % kE2eCounterModulo), out->data);
+}
+
 }  // namespace agv::protocol

@@ -1,0 +1,204 @@
+// Degradation, never silence: camera stall, odometry loss, CAN send failure and garbage on the
+// bus, driven through fake drivers, checked on the frames the localizer actually sends.
+#include <gtest/gtest.h>
+
+#include <vector>
+
+#include "agv/can/frame_convert.hpp"
+#include "agv/fakecamera/fake_camera.hpp"
+#include "agv/posix/posix_clock.hpp"
+#include "agv/protocol/codec.hpp"
+#include "config.hpp"
+#include "output_stage.hpp"
+#include "pipeline.hpp"
+#include "test_loop_support.hpp"
+
+using namespace agv;
+namespace p = agv::protocol;
+
+namespace {
+
+config::Config test_config() {
+  config::Config cfg;
+  cfg.can.odometry_mode = "v_omega";
+  cfg.can.odometry_timeout_ms = 100.0;
+  return cfg;
+}
+
+// The last status frame the bus carried.
+bool last_status(const config::Config& cfg, const test::StaticBus& bus, p::StatusOut* st) {
+  const p::ProtocolConfig pc = config::protocol_config(cfg);
+  for (std::size_t i = bus.sent_n; i-- > 0;) {
+    const p::CanFrameData f = can::from_hal(bus.sent[i]);
+    if (p::identify(pc, f) == p::Msg::kStatus) return p::decode_status(pc, f, st);
+  }
+  return false;
+}
+
+bool last_pose_valid(const config::Config& cfg, const test::StaticBus& bus) {
+  const p::ProtocolConfig pc = config::protocol_config(cfg);
+  for (std::size_t i = bus.sent_n; i-- > 1;) {
+    const p::CanFrameData b = can::from_hal(bus.sent[i]);
+    if (p::identify(pc, b) != p::Msg::kPoseHeading) continue;
+    p::PoseOut pose;
+    EXPECT_TRUE(p::decode_pose(pc, can::from_hal(bus.sent[i - 1]), b, &pose));
+    return pose.valid;
+  }
+  ADD_FAILURE() << "no pose frame sent";
+  return false;
+}
+
+vision::LandmarkFix good_fix(double x_mm) {
+  vision::LandmarkFix fix;
+  fix.status = vision::FixStatus::kOk;
+  fix.landmark_id = 3;
+  fix.vehicle_in_world = {x_mm, 0.0, 0.0};
+  fix.cov_world = Eigen::Matrix3d::Identity() * 0.01;
+  fix.cov_world(2, 2) = 1e-6;
+  return fix;
+}
+
+hal::CanFrame odom(const config::Config& cfg, std::int64_t t_ns, double v, std::uint8_t counter,
+                   bool corrupt = false) {
+  p::CanFrameData f;
+  p::encode_odometry(config::protocol_config(cfg), v, 0.0, counter, &f);
+  if (corrupt) f.data[3] ^= 0x10;
+  hal::CanFrame h = can::to_hal(f);
+  h.t_ns = t_ns;
+  return h;
+}
+
+}  // namespace
+
+TEST(Degradation, OdometryLossFlagsAndInvalidatesThePoseThenRecovers) {
+  const config::Config cfg = test_config();
+  test::StaticBus bus;
+  app::OutputStage out(cfg, &bus);
+  std::int64_t t = 1'000'000'000;
+  std::uint8_t c = 0;
+  auto tick = [&](bool with_odom) {
+    t += 10'000'000;
+    if (with_odom) bus.inject(odom(cfg, t - 1'000'000, 0.5, c++ % 15));
+    out.poll_can();
+    out.tick(t, nullptr, nullptr);
+  };
+  for (int i = 0; i < 20; ++i) tick(true);
+  out.on_fix(good_fix(0.0), t);
+  for (int i = 0; i < 20; ++i) tick(true);
+  p::StatusOut st;
+  ASSERT_TRUE(last_status(cfg, bus, &st));
+  EXPECT_EQ(st.faults & p::fault::kOdomTimeout, 0);
+  EXPECT_TRUE(last_pose_valid(cfg, bus));
+  EXPECT_EQ(st.health, p::Health::kOk);
+
+  for (int i = 0; i < 15; ++i) tick(false);  // 150 ms without odometry > 100 ms timeout
+  ASSERT_TRUE(last_status(cfg, bus, &st));
+  EXPECT_NE(st.faults & p::fault::kOdomTimeout, 0);
+  EXPECT_FALSE(last_pose_valid(cfg, bus));
+
+  for (int i = 0; i < 5; ++i) tick(true);  // resumes (counter jump re-synchronises)
+  for (int i = 0; i < 5; ++i) tick(true);
+  ASSERT_TRUE(last_status(cfg, bus, &st));
+  EXPECT_EQ(st.faults & p::fault::kOdomTimeout, 0);
+  EXPECT_TRUE(last_pose_valid(cfg, bus));
+}
+
+TEST(Degradation, GarbageOdometryFramesAreRejectedCountedAndFlagged) {
+  const config::Config cfg = test_config();
+  test::StaticBus bus;
+  app::OutputStage out(cfg, &bus);
+  std::int64_t t = 1'000'000'000;
+  std::uint8_t c = 0;
+  for (int i = 0; i < 10; ++i) {
+    t += 10'000'000;
+    bus.inject(odom(cfg, t, 0.5, c++ % 15));
+    out.poll_can();
+    out.tick(t, nullptr, nullptr);
+  }
+  t += 10'000'000;
+  bus.inject(odom(cfg, t, 3.0, c % 15, /*corrupt=*/true));
+  hal::CanFrame short_frame = odom(cfg, t, 0.5, c % 15);
+  short_frame.len = 5;
+  bus.inject(short_frame);
+  out.poll_can();
+  out.tick(t, nullptr, nullptr);
+  EXPECT_EQ(out.odometry_decoder().counters().bad_crc, 1u);
+  EXPECT_EQ(out.odometry_decoder().counters().bad_length, 1u);
+  EXPECT_EQ(out.stats().odom_samples, 10u);  // neither reached fusion
+  p::StatusOut st;
+  ASSERT_TRUE(last_status(cfg, bus, &st));
+  EXPECT_NE(st.faults & p::fault::kOdomE2E, 0);
+}
+
+TEST(Degradation, CanSendFailureIsCountedAndTheLoopKeepsRunning) {
+  const config::Config cfg = test_config();
+  test::StaticBus bus;
+  app::OutputStage out(cfg, &bus);
+  std::int64_t t = 1'000'000'000;
+  bus.fail_sends = true;
+  for (int i = 0; i < 50; ++i) out.tick(t += 10'000'000, nullptr, nullptr);
+  EXPECT_EQ(out.stats().ticks, 50u);
+  EXPECT_GE(out.stats().can_tx_failed, 250u);  // 5 frames per period, heartbeat extra
+  EXPECT_EQ(out.stats().can_tx_ok, 0u);
+  bus.fail_sends = false;
+  out.tick(t += 10'000'000, nullptr, nullptr);
+  EXPECT_GE(out.stats().can_tx_ok, 5u);
+  p::StatusOut st;
+  ASSERT_TRUE(last_status(cfg, bus, &st));
+}
+
+TEST(Degradation, BusOffIsReportedInTheStatusFrame) {
+  const config::Config cfg = test_config();
+  test::StaticBus bus;
+  app::OutputStage out(cfg, &bus);
+  bus.bus_state = hal::CanBusState::kErrorPassive;
+  out.tick(1'000'000'000, nullptr, nullptr);
+  p::StatusOut st;
+  ASSERT_TRUE(last_status(cfg, bus, &st));
+  EXPECT_NE(st.faults & p::fault::kCanErrorPassive, 0);
+}
+
+TEST(Degradation, CameraStallIsFlaggedWhileTheLoopKeepsRunning) {
+  // Real threads and clock: frames for 0.3 s, a 0.8 s stall, frames again, end of stream.
+  config::Config cfg = test_config();
+  cfg.camera.timeout_ms = 200.0;
+  cfg.loop.log_period_s = 0.0;
+  posix::PosixClock clock;
+  fakecamera::FakeCamera::Options o;
+  o.clock = &clock;
+  o.end_of_stream_when_empty = true;
+  fakecamera::FakeCamera cam(o);
+  const std::int64_t t0 = clock.now_ns() + 50'000'000;
+  std::int64_t t = t0;
+  for (int i = 0; i < 9; ++i) cam.push_frame(fakecamera::FakeCamera::solid(64, 48, 128), t += 33'000'000);
+  cam.push_stall(800'000'000);
+  for (int i = 0; i < 9; ++i) cam.push_frame(fakecamera::FakeCamera::solid(64, 48, 128), t + 800'000'000 + 33'000'000 * i);
+  cam.push_end_of_stream();
+  std::vector<recording::OdomRow> odo;
+  for (std::int64_t to = t0 - 100'000'000; to < t0 + 2'000'000'000; to += 10'000'000) {
+    odo.push_back({to, 0.2, 0.0});
+  }
+  test::StaticBus bus;
+  std::vector<app::TickRecord> ticks;
+  ticks.reserve(1000);
+  app::PipelineIo io;
+  io.camera = &cam;
+  io.bus = &bus;
+  io.clock = &clock;
+  io.odometry = &odo;
+  io.ticks = &ticks;
+  io.quiet = true;
+  app::RunResult r;
+  ASSERT_EQ(app::run_threads(cfg, nullptr, io, &r), 0);
+  int stalled = 0, not_stalled_before = 0;
+  for (const auto& tr : ticks) {
+    const bool s = tr.status.faults & p::fault::kCameraStalled;
+    if (s) ++stalled;
+    if (!s && stalled == 0) ++not_stalled_before;
+  }
+  EXPECT_GT(not_stalled_before, 10);
+  EXPECT_GT(stalled, 30);  // ~0.6 s of 10 ms periods flagged (0.8 s stall - 0.2 s timeout)
+  EXPECT_LT(stalled, 80);
+  EXPECT_EQ(r.vision.frames_processed + r.frames_dropped_mailbox, 18u);
+  EXPECT_GT(r.output.ticks, 100u);
+}
