@@ -164,3 +164,20 @@ TEST(VisionHeading, Equation7AndPaper000Weights) {
   EXPECT_NEAR(reduce_angle_90(deg_to_rad(92.0), 0.0), deg_to_rad(2.0), 1e-12);
   EXPECT_NEAR(reduce_angle_90(deg_to_rad(-178.0), 0.0), deg_to_rad(2.0), 1e-12);
 }
+
+// An occluder edge parallel to the border, 5 px outside it, over 45 % of a side: plain IRLS
+// starts between the two and keeps a biased line; the RANSAC start locks onto the majority.
+TEST(VisionLineFit, RansacStartRejectsParallelOccluderEdge) {
+  std::vector<Vec2> pts;
+  for (int i = 0; i < 110; ++i) pts.push_back({static_cast<double>(i), 0.03 * std::sin(i * 1.3)});
+  for (int i = 110; i < 200; ++i) pts.push_back({static_cast<double>(i), 5.0 + 0.03 * std::sin(i * 0.7)});
+  std::vector<double> w(pts.size());
+  LineFit plain, ransac;
+  ASSERT_TRUE(fit_line_robust(pts, 4.685, 0.01, 5, w, &plain));
+  ASSERT_TRUE(fit_line_robust(pts, 4.685, 0.01, 5, w, &ransac, 24, 0.5));
+  const double off_plain = std::abs(plain.line.d / plain.line.ny - 0.0);
+  EXPECT_GT(off_plain + std::abs(rad_to_deg(reduce_angle_90(plain.line.angle_rad(), 0.0))), 0.1);
+  EXPECT_NEAR(ransac.line.d / ransac.line.ny, 0.0, 0.01);
+  EXPECT_LT(std::abs(rad_to_deg(reduce_angle_90(ransac.line.angle_rad(), 0.0))), 0.01);
+  for (size_t i = 110; i < pts.size(); ++i) EXPECT_EQ(w[i], 0.0);
+}
