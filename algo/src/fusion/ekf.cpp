@@ -42,7 +42,8 @@ std::string validate(const EkfConfig& c) {
   if (!(c.gate_probability > 0.0 && c.gate_probability < 1.0))
     return "gate_probability must be in (0, 1)";
   if (c.kidnap_fixes < 2) return "kidnap_fixes must be >= 2";
-  if (c.kidnap_min_separation_ns < 0) return "kidnap_min_separation_ns must be >= 0";
+  if (!finite_nonneg(c.kidnap_min_separation_mm))
+    return "kidnap_min_separation_mm must be finite and >= 0";
   if (!finite_nonneg(c.init_v_scale_sigma) || !finite_nonneg(c.init_omega_scale_sigma) ||
       !finite_nonneg(c.init_omega_bias_sigma_radps) || !finite_nonneg(c.v_scale_sigma_per_sqrt_s) ||
       !finite_nonneg(c.omega_scale_sigma_per_sqrt_s) ||
@@ -363,12 +364,13 @@ bool Ekf::kidnap_candidate(std::int64_t t_ns, const Eigen::Vector3d& z, const Ei
       update_fix(&x, &P, z, R);
       hyp_.x = x;
       hyp_.P = P;
-      // Fixes of the same pass over one landmark arrive within milliseconds; only fixes at
-      // least kidnap_min_separation_ns apart count, so one misprinted landmark seen in several
-      // frames cannot hijack the pose.
-      if (t_ns - hyp_.t_count_ns >= config_.kidnap_min_separation_ns) {
+      // Fixes of one landmark (consecutive frames, or standing on it) count once, so one
+      // misprinted landmark cannot hijack the pose: only fixes kidnap_min_separation_mm apart.
+      if (std::hypot(z(0) - hyp_.x_count_mm, z(1) - hyp_.y_count_mm) >=
+          config_.kidnap_min_separation_mm) {
         ++hyp_.count;
-        hyp_.t_count_ns = t_ns;
+        hyp_.x_count_mm = z(0);
+        hyp_.y_count_mm = z(1);
       }
       hyp_.t_ns = t_ns;
       extended = true;
@@ -377,7 +379,8 @@ bool Ekf::kidnap_candidate(std::int64_t t_ns, const Eigen::Vector3d& z, const Ei
   if (!extended) {
     hyp_.count = 1;
     hyp_.t_ns = t_ns;
-    hyp_.t_count_ns = t_ns;
+    hyp_.x_count_mm = z(0);
+    hyp_.y_count_mm = z(1);
     hyp_.x = prior_x;
     hyp_.x.head<3>() = z;
     hyp_.P = FilterCov::Zero();

@@ -653,6 +653,17 @@ int main(int argc, char** argv) {
     const World wslip = synth(sp.drift_degps, 0.0, 0.0, 0.0, 0.05);
     print_row("slips 0.05/s (wheel +25 %, 0.3 s)",
               run(wslip, simulate_fixes(wslip, fp), cfg, grid_mm));
+    EkfConfig cfg_k2 = cfg;
+    cfg_k2.kidnap_fixes = 2;
+    print_row("slips, kidnap_fixes 2", run(wslip, simulate_fixes(wslip, fp), cfg_k2, grid_mm));
+    print_row("kidnap_fixes 2, 20 % outliers", run(base,
+                                                   simulate_fixes(base, with(fp,
+                                                                             [](FixParams& p) {
+                                                                               p.outlier_fraction =
+                                                                                   0.2;
+                                                                               p.seed = 11;
+                                                                             })),
+                                                   cfg_k2, grid_mm));
   }
   // The plain 5-state filter of paper 000 (no odometry calibration states), same data.
   EkfConfig cfg5 = cfg;

@@ -104,10 +104,12 @@ struct EkfConfig {
   // faster after the vehicle was moved by hand; larger makes repeated misreads less likely to
   // hijack the pose.
   int kidnap_fixes = 3;
-  // Agreeing fixes closer together than this count once towards kidnap_fixes (they are most
-  // likely the same landmark seen in consecutive frames, e.g. one misprinted landmark). Larger
-  // protects better against a bad landmark but recovers more slowly.
-  std::int64_t kidnap_min_separation_ns = 300'000'000;
+  // Agreeing fixes less than this far apart (mm, between the fix positions) count once towards
+  // kidnap_fixes: they are most likely the same landmark seen in consecutive frames or while
+  // standing on it, e.g. one misprinted landmark. A landmark is in view over ~40-120 mm of
+  // travel; with landmarks 1 m apart, 300 mm means every counted fix is another landmark.
+  // Larger protects better against a bad landmark; the vehicle has to move to recover.
+  double kidnap_min_separation_mm = 300.0;
   // Initial uncertainty of v and omega when initialising from a fix.
   double init_v_sigma_mps = 0.1;
   double init_omega_sigma_radps = 0.1;
@@ -255,8 +257,9 @@ class Ekf {
   // Candidate track of consecutive gate-rejected fixes (kidnap detection).
   struct Hypothesis {
     int count = 0;
-    std::int64_t t_ns = 0;        // time of the newest fix fused into the candidate
-    std::int64_t t_count_ns = 0;  // time of the newest fix that incremented count
+    std::int64_t t_ns = 0;    // time of the newest fix fused into the candidate
+    double x_count_mm = 0.0;  // position of the newest fix that incremented count
+    double y_count_mm = 0.0;
     FilterVec x = FilterVec::Zero();
     FilterCov P = FilterCov::Zero();
   };
