@@ -40,6 +40,7 @@ using agv::fusion::Ekf;
 using agv::fusion::EkfConfig;
 using agv::fusion::FixOutcome;
 using agv::fusion::PoseEstimate;
+using agv::fusion::validate;
 
 constexpr std::int64_t kMsNs = 1'000'000;
 
@@ -488,10 +489,10 @@ void print_row(const char* name, const RunResult& r) {
 }
 
 void usage() {
-  std::fprintf(
-      stderr,
-      "usage: eval_fusion [--recording DIR] [--duration S] [--seed N] [--drift DEGPS]\n"
-      "                   [--scale-error F] [--grid MM] [--window full|partial] [--quick]\n");
+  std::fprintf(stderr,
+               "usage: eval_fusion [--recording DIR] [--duration S] [--seed N] [--drift DEGPS]\n"
+               "                   [--scale-error F] [--grid MM] [--window full|partial]\n"
+               "                   [--kidnap-fixes N] [--quick]\n");
 }
 
 }  // namespace
@@ -501,6 +502,7 @@ int main(int argc, char** argv) {
   SynthParams sp;
   double grid_mm = 1000.0;
   bool partial_window = false;
+  int kidnap_fixes = EkfConfig{}.kidnap_fixes;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> const char* {
@@ -522,6 +524,8 @@ int main(int argc, char** argv) {
       sp.scale_error = std::atof(next());
     } else if (a == "--grid") {
       grid_mm = std::atof(next());
+    } else if (a == "--kidnap-fixes") {
+      kidnap_fixes = std::atoi(next());
     } else if (a == "--window") {
       const std::string v = next();
       if (v == "partial") {
@@ -542,7 +546,12 @@ int main(int argc, char** argv) {
     return 2;
   }
 
-  const EkfConfig cfg;  // documented defaults
+  EkfConfig cfg;  // documented defaults
+  cfg.kidnap_fixes = kidnap_fixes;
+  if (!validate(cfg).empty()) {
+    std::fprintf(stderr, "eval_fusion: %s\n", validate(cfg).c_str());
+    return 2;
+  }
   auto synth = [&](double drift, double offset_x, double drift_degpm = 0.0, double variation = 0.0,
                    double slip_hz = 0.0) {
     SynthParams p = sp;
