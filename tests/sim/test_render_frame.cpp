@@ -5,6 +5,7 @@
 #include <cmath>
 #include <functional>
 #include <string>
+#include <vector>
 
 #include "agv/sim/render.hpp"
 
@@ -26,7 +27,34 @@ Scene one_landmark_scene(Pose2 world_pose, double texture_amplitude) {
 struct EdgeCheck {
   double max_err_px = 0.0;
   int points = 0;
+  std::vector<std::vector<Vec2>> measured;  // per outer edge: measured crossing points (px)
 };
+
+// Total-least-squares line through points: returns point on line and unit direction.
+void fit_line(const std::vector<Vec2>& pts, Vec2* c, Vec2* d) {
+  double mx = 0, my = 0;
+  for (const Vec2& p : pts) {
+    mx += p.x;
+    my += p.y;
+  }
+  mx /= pts.size();
+  my /= pts.size();
+  double sxx = 0, sxy = 0, syy = 0;
+  for (const Vec2& p : pts) {
+    sxx += (p.x - mx) * (p.x - mx);
+    sxy += (p.x - mx) * (p.y - my);
+    syy += (p.y - my) * (p.y - my);
+  }
+  const double th = 0.5 * std::atan2(2 * sxy, sxx - syy);
+  *c = {mx, my};
+  *d = {std::cos(th), std::sin(th)};
+}
+
+Vec2 intersect(Vec2 c1, Vec2 d1, Vec2 c2, Vec2 d2) {
+  const double det = d1.x * (-d2.y) - d1.y * (-d2.x);
+  const double t = ((c2.x - c1.x) * (-d2.y) - (c2.y - c1.y) * (-d2.x)) / det;
+  return {c1.x + t * d1.x, c1.y + t * d1.y};
+}
 
 // Measures where the outer border edges cross pixel rows (or columns, for edges closer to
 // horizontal) from the area between the flat floor grey F and the ink grey B, and compares each
@@ -44,6 +72,7 @@ EdgeCheck check_outer_edges(const cv::Mat& img, const Scene& scene, const Camera
     model.vehicle_to_pixel(transform(v_from_l, p_l), &px);
     return px;
   };
+  res.measured.resize(4);
   for (int e = 0; e < 4; ++e) {
     const Vec2 a = corners[static_cast<size_t>(e)], b = corners[static_cast<size_t>((e + 1) % 4)];
     const Vec2 pa = proj(a), pb = proj(b);
@@ -76,6 +105,8 @@ EdgeCheck check_outer_edges(const cv::Mat& img, const Scene& scene, const Camera
       }
       const double measured = floor_low ? (lo_i - 0.5) + floor_len : (hi_i + 0.5) - floor_len;
       res.max_err_px = std::max(res.max_err_px, std::abs(measured - truth));
+      res.measured[static_cast<size_t>(e)].push_back(rows ? Vec2{measured, static_cast<double>(s)}
+                                                          : Vec2{static_cast<double>(s), measured});
       ++res.points;
     }
   }
@@ -96,6 +127,21 @@ TEST(RenderFrame, BorderEdgesWhereCameraModelSaysNoDistortion) {
   const EdgeCheck r = check_outer_edges(img, scene, cam, vehicle);
   EXPECT_GT(r.points, 400);
   EXPECT_LT(r.max_err_px, 0.1);
+  // Corners: intersections of lines fitted to the measured edge points of adjacent edges,
+  // against the camera model's projection of the border corners.
+  const Pose2 v_from_l = compose(inverse(vehicle), scene.landmarks[0].world_pose);
+  const auto corners = scene.geometry.outer_corners_landmark_mm();
+  for (size_t k = 0; k < 4; ++k) {
+    // Corner k is shared by edge k-1 (ending at it) and edge k (starting at it).
+    Vec2 c1, d1, c2, d2;
+    fit_line(r.measured[(k + 3) % 4], &c1, &d1);
+    fit_line(r.measured[k], &c2, &d2);
+    const Vec2 got = intersect(c1, d1, c2, d2);
+    Vec2 want;
+    ASSERT_TRUE(cam.vehicle_to_pixel(transform(v_from_l, corners[k]), &want));
+    EXPECT_NEAR(got.x, want.x, 0.1) << "corner " << k;
+    EXPECT_NEAR(got.y, want.y, 0.1) << "corner " << k;
+  }
   // The check is sensitive: a 0.3 px principal point error is detected.
   CameraModel shifted = cam;
   shifted.intrinsics.cx += 0.3;
