@@ -1,7 +1,6 @@
 // agvloc landmark: one landmark as SVG (exact physical scale) and/or PNG, or a printable sheet of
 // every landmark in a map (docs/landmark.md).
 #include <CLI/CLI.hpp>
-
 #include <cstdio>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
@@ -23,9 +22,10 @@ bool write_file(const std::string& path, const std::string& text) {
 }  // namespace
 
 int landmark(int argc, char** argv) {
-  CLI::App app{"Print landmarks: one landmark as SVG at exact physical scale and/or PNG, or a "
-               "sheet of every landmark of a map (geometry: docs/landmark.md)",
-               "agvloc landmark"};
+  CLI::App app{
+      "Print landmarks: one landmark as SVG at exact physical scale and/or PNG, or a "
+      "sheet of every landmark of a map (geometry: docs/landmark.md)",
+      "agvloc landmark"};
   int id = 0;
   double x_mm = 0.0, y_mm = 0.0, heading_deg = 0.0, size_mm = 60.0, mm_per_px = 0.1;
   std::string svg, png, map_path, sheet;
@@ -37,15 +37,18 @@ int landmark(int argc, char** argv) {
   app.add_option("--heading-deg", heading_deg, "Heading of the landmark's forward axis (deg)")
       ->capture_default_str();
   app.add_flag("--id-only", id_only, "Encode only the id (pose comes from the map file)");
-  app.add_option("--size-mm", size_mm, "Outer border side S (mm)")->check(CLI::Range(10.0, 1000.0))
+  app.add_option("--size-mm", size_mm, "Outer border side S (mm)")
+      ->check(CLI::Range(10.0, 1000.0))
       ->capture_default_str();
   app.add_option("--svg", svg, "Write SVG here (mm units; print at 100 %)");
   app.add_option("--png", png, "Write PNG here (landmark centred, black 0 / white 255)");
-  app.add_option("--mm-per-px", mm_per_px, "PNG resolution")->check(CLI::Range(0.005, 10.0))
+  app.add_option("--mm-per-px", mm_per_px, "PNG resolution")
+      ->check(CLI::Range(0.005, 10.0))
       ->capture_default_str();
   auto* map_opt = app.add_option("--map", map_path, "Landmark map file: print a sheet of all");
   app.add_option("--sheet", sheet, "Sheet SVG output (with --map)");
-  app.add_option("--columns", columns, "Landmarks per sheet row")->check(CLI::Range(1, 100))
+  app.add_option("--columns", columns, "Landmarks per sheet row")
+      ->check(CLI::Range(1, 100))
       ->capture_default_str();
   id_opt->excludes(map_opt);
   try {
@@ -90,7 +93,8 @@ int landmark(int argc, char** argv) {
   p.y_mm = y_mm;
   p.heading_deg = wrap_angle_deg(heading_deg);
   const std::string payload = format_payload(p);
-  if (payload.empty()) return usage_error("pose out of the payload's range (|x|,|y| <= 999999.9 mm)");
+  if (payload.empty())
+    return usage_error("pose out of the payload's range (|x|,|y| <= 999999.9 mm)");
   if (!svg.empty()) {
     const std::string text = sim::landmark_svg(geometry, payload);
     if (text.empty() || !write_file(svg, text)) {

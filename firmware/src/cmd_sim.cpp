@@ -1,6 +1,5 @@
 // agvloc sim: writes a simulated recording (docs/simulator.md, docs/recording.md).
 #include <CLI/CLI.hpp>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -43,9 +42,10 @@ bool load_map(const std::string& path, LandmarkMap* map, std::string* error) {
 }  // namespace
 
 int sim(int argc, char** argv) {
-  CLI::App app{"Write a simulated recording: textured floor with landmarks, a differential-drive "
-               "vehicle, odometry with errors, ground truth (docs/simulator.md)",
-               "agvloc sim"};
+  CLI::App app{
+      "Write a simulated recording: textured floor with landmarks, a differential-drive "
+      "vehicle, odometry with errors, ground truth (docs/simulator.md)",
+      "agvloc sim"};
   std::string out_dir, map_path, trajectory = "line", profile = "640x480", degrade = "realistic",
                                  payload_mode = "full";
   double duration_s = 60.0, fps = 30.0, odom_hz = 100.0, speed_mps = 0.5, exposure_ms = 2.0;
@@ -54,36 +54,46 @@ int sim(int argc, char** argv) {
   std::uint64_t seed = 1;
   bool force = false;
   app.add_option("--out", out_dir, "Recording directory to write")->required();
-  app.add_option("--map", map_path, "Landmark map (docs/landmark.md); default: built-in 5x5 grid at 1 m "
-                                    "(= tools/maps/default_grid.csv)");
+  app.add_option("--map", map_path,
+                 "Landmark map (docs/landmark.md); default: built-in 5x5 grid at 1 m "
+                 "(= tools/maps/default_grid.csv)");
   app.add_option("--trajectory", trajectory, "line|square|circle|figure8|lawnmower")
       ->capture_default_str();
   app.add_option("--duration-s", duration_s, "Recording length in seconds")
-      ->check(CLI::Range(0.1, 3600.0))->capture_default_str();
+      ->check(CLI::Range(0.1, 3600.0))
+      ->capture_default_str();
   app.add_option("--fps", fps, "Frame rate")->check(CLI::Range(1.0, 200.0))->capture_default_str();
   app.add_option("--odom-hz", odom_hz, "Odometry (and truth) rate")
-      ->check(CLI::Range(10.0, 1000.0))->capture_default_str();
+      ->check(CLI::Range(10.0, 1000.0))
+      ->capture_default_str();
   app.add_option("--seed", seed, "Seed for every random effect (same seed = same recording)")
       ->capture_default_str();
-  app.add_option("--speed-mps", speed_mps, "Cruise speed")->check(CLI::Range(0.01, 5.0))
+  app.add_option("--speed-mps", speed_mps, "Cruise speed")
+      ->check(CLI::Range(0.01, 5.0))
       ->capture_default_str();
   app.add_option("--profile", profile, "Camera profile 640x480|1280x800")->capture_default_str();
-  app.add_option("--degrade", degrade, "clean (anti-aliasing only) | realistic (defocus, motion "
-                                       "blur, illumination gradient, noise)")
+  app.add_option("--degrade", degrade,
+                 "clean (anti-aliasing only) | realistic (defocus, motion "
+                 "blur, illumination gradient, noise)")
       ->capture_default_str();
   app.add_option("--exposure-ms", exposure_ms, "Exposure time for motion blur (realistic only)")
-      ->check(CLI::Range(0.0, 50.0))->capture_default_str();
+      ->check(CLI::Range(0.0, 50.0))
+      ->capture_default_str();
   app.add_option("--payload", payload_mode, "full (pose in the QR) | id (pose from the map)")
       ->capture_default_str();
   app.add_option("--grid-spacing-mm", grid_spacing_mm, "Landmark grid spacing the path follows")
-      ->check(CLI::Range(200.0, 100000.0))->capture_default_str();
+      ->check(CLI::Range(200.0, 100000.0))
+      ->capture_default_str();
   app.add_option("--k1", k1, "Radial distortion k1 of the simulated lens")->capture_default_str();
   app.add_option("--k2", k2, "Radial distortion k2 of the simulated lens")->capture_default_str();
   app.add_option("--occluder-fraction", occluder, "Fraction of every landmark border covered")
-      ->check(CLI::Range(0.0, 1.0))->capture_default_str();
-  app.add_option("--scratches", scratches, "Scratches per landmark")->check(CLI::Range(0, 100))
+      ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
-  app.add_option("--dirt", dirt, "Mean dirt spots per landmark")->check(CLI::Range(0.0, 100.0))
+  app.add_option("--scratches", scratches, "Scratches per landmark")
+      ->check(CLI::Range(0, 100))
+      ->capture_default_str();
+  app.add_option("--dirt", dirt, "Mean dirt spots per landmark")
+      ->check(CLI::Range(0.0, 100.0))
       ->capture_default_str();
   app.add_flag("--force", force, "Overwrite an existing recording in --out");
   try {
@@ -162,7 +172,8 @@ int sim(int argc, char** argv) {
   if (force) fs::remove_all(fs::path(out_dir) / "frames", ec);
   fs::create_directories(out_dir, ec);
   if (ec) {
-    std::fprintf(stderr, "agvloc sim: cannot create %s: %s\n", out_dir.c_str(), ec.message().c_str());
+    std::fprintf(stderr, "agvloc sim: cannot create %s: %s\n", out_dir.c_str(),
+                 ec.message().c_str());
     return 1;
   }
 
@@ -236,11 +247,11 @@ int sim(int argc, char** argv) {
     std::fprintf(stderr, "agvloc sim: %s\n", err.c_str());
     return 1;
   }
-  std::printf("agvloc sim: wrote %s: %zu frames (%lld with a landmark in view), %zu odometry rows, "
-              "%zu truth rows; trajectory %s, lap %.1f m, %zu slip events; %.1f s to render\n",
-              out_dir.c_str(), frames.size(), static_cast<long long>(frames_with_landmark),
-              odom.size(), truth.size(), sim::to_string(tp.kind), traj.length_mm / 1000.0,
-              slips.size(), render_s);
+  std::printf(
+      "agvloc sim: wrote %s: %zu frames (%lld with a landmark in view), %zu odometry rows, "
+      "%zu truth rows; trajectory %s, lap %.1f m, %zu slip events; %.1f s to render\n",
+      out_dir.c_str(), frames.size(), static_cast<long long>(frames_with_landmark), odom.size(),
+      truth.size(), sim::to_string(tp.kind), traj.length_mm / 1000.0, slips.size(), render_s);
   return 0;
 }
 

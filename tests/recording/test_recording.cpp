@@ -17,7 +17,8 @@ namespace fs = std::filesystem;
 namespace {
 
 fs::path fresh_dir(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("agv_test_recording_" + std::to_string(::getpid()) + "_" + name);
+  const fs::path d =
+      fs::temp_directory_path() / ("agv_test_recording_" + std::to_string(::getpid()) + "_" + name);
   fs::remove_all(d);
   fs::create_directories(d);
   return d;
@@ -139,7 +140,8 @@ TEST(Recording, RoundTrip) {
 TEST(Recording, WrongImageSizeRejectedOnLoad) {
   const fs::path d = write_sample("imgsize");
   std::string err;
-  ASSERT_TRUE(write_frame_png(d.string(), "frames/000001.png", cv::Mat(10, 10, CV_8UC1, cv::Scalar(0)), &err));
+  ASSERT_TRUE(write_frame_png(d.string(), "frames/000001.png",
+                              cv::Mat(10, 10, CV_8UC1, cv::Scalar(0)), &err));
   Recording r;
   ASSERT_TRUE(read_recording(d.string(), &r, &err)) << err;
   cv::Mat img;
@@ -157,9 +159,12 @@ TEST(Recording, MalformedCsvRejectedWithFileAndLine) {
   const std::vector<Case> cases = {
       {"frames.csv", "t,file\n1,frames/000000.png\n", "frames.csv:1:"},
       {"frames.csv", "", "frames.csv:1:"},
-      {"frames.csv", "t_ns,file\n1000000000,frames/000000.png\n1000000000,frames/000001.png\n", "frames.csv:3:"},
-      {"frames.csv", "t_ns,file\n1000000000,frames/000000.png\n999,frames/000001.png\n", "frames.csv:3:"},
-      {"frames.csv", "t_ns,file\n1000000000,frames/000000.png\n1000000001,frames/nope.png\n", "frames.csv:3:"},
+      {"frames.csv", "t_ns,file\n1000000000,frames/000000.png\n1000000000,frames/000001.png\n",
+       "frames.csv:3:"},
+      {"frames.csv", "t_ns,file\n1000000000,frames/000000.png\n999,frames/000001.png\n",
+       "frames.csv:3:"},
+      {"frames.csv", "t_ns,file\n1000000000,frames/000000.png\n1000000001,frames/nope.png\n",
+       "frames.csv:3:"},
       {"frames.csv", "t_ns,file\n1000000000,../etc/passwd\n", "frames.csv:2:"},
       {"frames.csv", "t_ns,file\n1e9,frames/000000.png\n", "frames.csv:2:"},
       {"frames.csv", "t_ns,file\n1000000000,frames/000000.png,x\n", "frames.csv:2:"},
@@ -174,7 +179,8 @@ TEST(Recording, MalformedCsvRejectedWithFileAndLine) {
       {"odom.csv", "t_ns,v_mps,omega_radps\n1, 0.5,0.1\n", "odom.csv:2:"},
       {"odom.csv", "t_ns,v_mps\n1,0.5\n", "odom.csv:1:"},
       {"odom.csv", "t_ns,v_mps,omega_radps\n99999999999999999999,0.5,0.1\n", "odom.csv:2:"},
-      {"odom.csv", std::string("t_ns,v_mps,omega_radps\n1,0.5,0.1\n2,0.\0,0.1\n", 46), "odom.csv:3:"},
+      {"odom.csv", std::string("t_ns,v_mps,omega_radps\n1,0.5,0.1\n2,0.\0,0.1\n", 46),
+       "odom.csv:3:"},
       {"truth.csv", "t_ns,x_mm,y_mm,theta_deg\n1,0,0,-180\n", "truth.csv:2:"},
       {"truth.csv", "t_ns,x_mm,y_mm,theta_deg\n1,0,0,0\n2,0,0,0\n0,0,0,0\n", "truth.csv:4:"},
   };
@@ -290,8 +296,7 @@ TEST(Recording, GarbageAndTruncationNeverCrash) {
         spit(d / f, part);
         Recording r;
         std::string err2;
-        EXPECT_EQ(read_recording(d.string(), &r, &err2), ok)
-            << f << " cut " << cut << ": " << err2;
+        EXPECT_EQ(read_recording(d.string(), &r, &err2), ok) << f << " cut " << cut << ": " << err2;
       }
       if (!ok) {
         EXPECT_FALSE(err.empty());

@@ -3,8 +3,8 @@
 // frame measured in the same run.
 #include <algorithm>
 #include <chrono>
-#include <ctime>
 #include <cstdio>
+#include <ctime>
 #include <vector>
 
 #include "agv/sim/render.hpp"
@@ -44,17 +44,18 @@ int main(int argc, char** argv) {
     const FrameRenderer r(scene, cam);
     const double setup_ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - a).count();
-    const Pose2 away{500.0, 500.0, 0.3};      // no landmark in view
-    const Pose2 over{1010.0, 995.0, 0.3};     // landmark 2 centred
+    const Pose2 away{500.0, 500.0, 0.3};   // no landmark in view
+    const Pose2 over{1010.0, 995.0, 0.3};  // landmark 2 centred
     RenderOptions real = realistic_options();
     real.speed_mps = 0.5;
     const double base = median_ms(r, away, RenderOptions{}, n);
     const double lm = median_ms(r, over, RenderOptions{}, n);
     const double lm_real = median_ms(r, over, real, n);
-    std::printf("%dx%d: setup %.0f ms; median per frame over %d runs: floor only %.1f ms, "
-                "with landmark %.1f ms (x%.2f), with landmark realistic %.1f ms (x%.2f)\n",
-                cam.intrinsics.width_px, cam.intrinsics.height_px, setup_ms, n, base, lm,
-                lm / base, lm_real, lm_real / base);
+    std::printf(
+        "%dx%d: setup %.0f ms; median per frame over %d runs: floor only %.1f ms, "
+        "with landmark %.1f ms (x%.2f), with landmark realistic %.1f ms (x%.2f)\n",
+        cam.intrinsics.width_px, cam.intrinsics.height_px, setup_ms, n, base, lm, lm / base,
+        lm_real, lm_real / base);
   }
   return 0;
 }

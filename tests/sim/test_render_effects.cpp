@@ -61,7 +61,7 @@ TEST(RenderEffects, OccluderCoversRequestedFractionOfBorderInOrder) {
   o.occluder_border_fraction = 0.25;  // exactly the left edge (perimeter starts front-left)
   cv::Mat img = f.render(o);
   EXPECT_NEAR(f.at_page(img, -27.0, 0.0), 90.0, 0.5);
-  EXPECT_NEAR(f.at_page(img, 0.0, 27.0), 30.0, 0.5);   // bottom still ink
+  EXPECT_NEAR(f.at_page(img, 0.0, 27.0), 30.0, 0.5);  // bottom still ink
   EXPECT_NEAR(f.at_page(img, 27.0, 0.0), 30.0, 0.5);
   EXPECT_NEAR(f.at_page(img, 0.0, -27.0), 30.0, 0.5);
   EXPECT_NEAR(f.at_page(img, 0.0, 0.0), f.at_page(f.render(RenderOptions{}), 0.0, 0.0), 1e-9);
@@ -101,13 +101,15 @@ TEST(RenderEffects, DefocusAndMotionBlur) {
   RenderOptions o;
   o.defocus_sigma_px = 1.5;
   const cv::Mat blurred = f.render(o);
-  EXPECT_LT(max_abs_gradient(blurred, true, left_edge), 0.6 * max_abs_gradient(clean, true, left_edge));
+  EXPECT_LT(max_abs_gradient(blurred, true, left_edge),
+            0.6 * max_abs_gradient(clean, true, left_edge));
   // Forward motion moves the floor along image rows: horizontal edges smear, vertical ones not.
   o = {};
   o.exposure_s = 0.004;
   o.speed_mps = 1.0;  // 4 mm = 15 px
   const cv::Mat moving = f.render(o);
-  EXPECT_LT(max_abs_gradient(moving, false, top_edge), 0.3 * max_abs_gradient(clean, false, top_edge));
+  EXPECT_LT(max_abs_gradient(moving, false, top_edge),
+            0.3 * max_abs_gradient(clean, false, top_edge));
   EXPECT_NEAR(max_abs_gradient(moving, true, left_edge), max_abs_gradient(clean, true, left_edge),
               0.05 * max_abs_gradient(clean, true, left_edge));
   // Blur is centred on the frame time: the smeared edge keeps its mean position.

@@ -81,7 +81,8 @@ EdgeCheck check_outer_edges(const cv::Mat& img, const Scene& scene, const Camera
     const double s0 = rows ? std::min(pa.y, pb.y) : std::min(pa.x, pb.x);
     const double s1 = rows ? std::max(pa.y, pb.y) : std::max(pa.x, pb.x);
     const double margin = 0.15 * (s1 - s0);
-    for (int s = static_cast<int>(std::ceil(s0 + margin)); s <= static_cast<int>(s1 - margin); ++s) {
+    for (int s = static_cast<int>(std::ceil(s0 + margin)); s <= static_cast<int>(s1 - margin);
+         ++s) {
       // True crossing: bisection along the edge in landmark coordinates.
       double lo = 0.0, hi = 1.0;
       auto scan_of = [&](double t) {
@@ -91,7 +92,10 @@ EdgeCheck check_outer_edges(const cv::Mat& img, const Scene& scene, const Camera
       const bool inc = scan_of(1.0) > scan_of(0.0);
       for (int it = 0; it < 60; ++it) {
         const double mid = 0.5 * (lo + hi);
-        if ((scan_of(mid) < s) == inc) lo = mid; else hi = mid;
+        if ((scan_of(mid) < s) == inc)
+          lo = mid;
+        else
+          hi = mid;
       }
       const Vec2 tp = proj({a.x + lo * (b.x - a.x), a.y + lo * (b.y - a.y)});
       const double truth = rows ? tp.x : tp.y;
@@ -191,7 +195,8 @@ TEST(RenderFrame, DeterministicForSeedAndTextureStableAcrossFrames) {
   const cv::Mat f0 = render_frame(floor_only, cam, {0, 0, 0}, RenderOptions{}, rng);
   const cv::Mat f1 = render_frame(floor_only, cam, {10 * mmpp, 0, 0}, RenderOptions{}, rng);
   // Moving forward 10 px: the floor seen at row y now appears at row y + 10.
-  EXPECT_LE(cv::norm(f0(cv::Rect(0, 0, 640, 470)), f1(cv::Rect(0, 10, 640, 470)), cv::NORM_INF), 1.0);
+  EXPECT_LE(cv::norm(f0(cv::Rect(0, 0, 640, 470)), f1(cv::Rect(0, 10, 640, 470)), cv::NORM_INF),
+            1.0);
   cv::Scalar mean, sd;
   cv::meanStdDev(f0, mean, sd);
   EXPECT_GT(sd[0], 5.0);  // textured, not flat

@@ -4,10 +4,9 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
-#include <opencv2/imgcodecs.hpp>
-
 #include <filesystem>
 #include <fstream>
+#include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
 #include "agv/recording/recording.hpp"
@@ -33,7 +32,8 @@ std::string slurp(const fs::path& p) {
 }
 
 fs::path tmp(const std::string& name) {
-  const fs::path d = fs::temp_directory_path() / ("agv_test_simcmd_" + std::to_string(::getpid()) + "_" + name);
+  const fs::path d =
+      fs::temp_directory_path() / ("agv_test_simcmd_" + std::to_string(::getpid()) + "_" + name);
   fs::remove_all(d);
   return d;
 }
@@ -42,8 +42,8 @@ fs::path tmp(const std::string& name) {
 
 TEST(SimCommand, WritesValidDeterministicRecording) {
   const fs::path a = tmp("a"), b = tmp("b"), c = tmp("c");
-  const std::vector<std::string> common = {"--duration-s", "1.0", "--fps", "10", "--trajectory",
-                                           "figure8", "--degrade", "realistic"};
+  const std::vector<std::string> common = {"--duration-s", "1.0",     "--fps",     "10",
+                                           "--trajectory", "figure8", "--degrade", "realistic"};
   auto with = [&](const fs::path& out, const std::string& seed) {
     std::vector<std::string> v = common;
     v.insert(v.end(), {"--out", out.string(), "--seed", seed});
@@ -112,9 +112,9 @@ TEST(LandmarkCommand, PngDecodesAndSvgAndSheet) {
   const cv::Mat img = cv::imread((d / "l.png").string(), cv::IMREAD_GRAYSCALE);
   ASSERT_FALSE(img.empty());
   EXPECT_EQ(img.cols, 360);  // (60 + 2 * 6) mm / 0.2
-  const auto r = ZXing::ReadBarcode(
-      ZXing::ImageView(img.data, img.cols, img.rows, ZXing::ImageFormat::Lum),
-      ZXing::DecodeHints().setFormats(ZXing::BarcodeFormat::QRCode));
+  const auto r =
+      ZXing::ReadBarcode(ZXing::ImageView(img.data, img.cols, img.rows, ZXing::ImageFormat::Lum),
+                         ZXing::DecodeHints().setFormats(ZXing::BarcodeFormat::QRCode));
   ASSERT_TRUE(r.isValid());
   EXPECT_EQ(r.text(), "AGV1/00017/+001000.0/-002000.0/+090.00");
   EXPECT_NE(slurp(d / "l.svg").find("viewBox=\"0 0 72 72\""), std::string::npos);
@@ -124,7 +124,8 @@ TEST(LandmarkCommand, PngDecodesAndSvgAndSheet) {
             0);
   const std::string sheet = slurp(d / "sheet.svg");
   size_t n = 0;
-  for (size_t p = sheet.find("<polygon"); p != std::string::npos; p = sheet.find("<polygon", p + 1)) ++n;
+  for (size_t p = sheet.find("<polygon"); p != std::string::npos; p = sheet.find("<polygon", p + 1))
+    ++n;
   EXPECT_EQ(n, 25u);
   // Bad input is a usage error, not a crash or a wrong landmark.
   EXPECT_EQ(run_landmark({"--id", "0", "--svg", (d / "x.svg").string()}), 2);

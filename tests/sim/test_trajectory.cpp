@@ -77,7 +77,8 @@ TEST(Trajectory, PassesOverLandmarks) {
     int passed = 0;
     for (const auto& [id, e] : grid.entries) {
       double best = 1e300;
-      for (std::int64_t tn = 0; tn < 200'000'000'000LL && tn * 0.5e-6 < t.length_mm + 1000; tn += 20'000'000) {
+      for (std::int64_t tn = 0; tn < 200'000'000'000LL && tn * 0.5e-6 < t.length_mm + 1000;
+           tn += 20'000'000) {
         const Pose2 p = trajectory_state(t, tn).pose;
         best = std::min(best, std::hypot(p.x_mm - e.pose.x_mm, p.y_mm - e.pose.y_mm));
       }

@@ -17,7 +17,9 @@ namespace {
 // 4 is M. Confirmed by decoding the generated codes in tests/sim.
 constexpr int kZxingEccLevelM = 4;
 
-double cross(Vec2 o, Vec2 a, Vec2 b) { return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x); }
+double cross(Vec2 o, Vec2 a, Vec2 b) {
+  return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
+}
 
 bool in_triangle(Vec2 p, Vec2 a, Vec2 b, Vec2 c) {
   const double d1 = cross(a, b, p), d2 = cross(b, c, p), d3 = cross(c, a, p);
@@ -66,10 +68,10 @@ std::string fmt(double v) {
 void append_landmark_svg(std::ostringstream& os, const LandmarkPattern& pat, double cx, double cy) {
   const LandmarkGeometry& g = pat.geometry();
   const double oh = g.outer_half_mm(), ih = g.inner_half_mm();
-  os << "  <rect x=\"" << fmt(cx - oh) << "\" y=\"" << fmt(cy - oh) << "\" width=\""
-     << fmt(2 * oh) << "\" height=\"" << fmt(2 * oh) << "\" fill=\"#000\"/>\n";
-  os << "  <rect x=\"" << fmt(cx - ih) << "\" y=\"" << fmt(cy - ih) << "\" width=\""
-     << fmt(2 * ih) << "\" height=\"" << fmt(2 * ih) << "\" fill=\"#fff\"/>\n";
+  os << "  <rect x=\"" << fmt(cx - oh) << "\" y=\"" << fmt(cy - oh) << "\" width=\"" << fmt(2 * oh)
+     << "\" height=\"" << fmt(2 * oh) << "\" fill=\"#000\"/>\n";
+  os << "  <rect x=\"" << fmt(cx - ih) << "\" y=\"" << fmt(cy - ih) << "\" width=\"" << fmt(2 * ih)
+     << "\" height=\"" << fmt(2 * ih) << "\" fill=\"#fff\"/>\n";
   const QrModules& q = pat.qr();
   const double m = pat.module_mm();
   os << "  <g fill=\"#000\">\n";
@@ -85,8 +87,8 @@ void append_landmark_svg(std::ostringstream& os, const LandmarkPattern& pat, dou
       // Runs are merged per row; rows overlap by nothing, so printers show no hairlines between
       // modules of one row and exact module boundaries between rows.
       os << "    <rect x=\"" << fmt(cx + g.qr_u0_mm() + c * m) << "\" y=\""
-         << fmt(cy + g.qr_v0_mm() + r * m) << "\" width=\"" << fmt((e - c) * m)
-         << "\" height=\"" << fmt(m) << "\"/>\n";
+         << fmt(cy + g.qr_v0_mm() + r * m) << "\" width=\"" << fmt((e - c) * m) << "\" height=\""
+         << fmt(m) << "\"/>\n";
       c = e;
     }
   }
@@ -242,9 +244,8 @@ std::string landmark_sheet_svg(const LandmarkGeometry& geometry, const LandmarkM
   const double w = cols * cell_w, h = rows * cell_h;
   std::ostringstream os;
   os << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-     << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << fmt(w) << "mm\" height=\""
-     << fmt(h) << "mm\" viewBox=\"0 0 " << fmt(w) << " " << fmt(h)
-     << "\" shape-rendering=\"crispEdges\">\n"
+     << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << fmt(w) << "mm\" height=\"" << fmt(h)
+     << "mm\" viewBox=\"0 0 " << fmt(w) << " " << fmt(h) << "\" shape-rendering=\"crispEdges\">\n"
      << "  <!-- agvloc landmark sheet, size " << fmt(geometry.size_mm)
      << " mm; print at 100% scale -->\n"
      << "  <rect x=\"0\" y=\"0\" width=\"" << fmt(w) << "\" height=\"" << fmt(h)
@@ -290,7 +291,8 @@ LandmarkMap default_landmark_grid(int columns, int rows, double spacing_mm) {
   static constexpr double kHeadings_deg[4] = {0.0, 90.0, 180.0, -90.0};
   for (int r = 0; r < rows; ++r) {
     for (int c = 0; c < columns; ++c, ++id) {
-      m.entries[id] = {id, {c * spacing_mm, r * spacing_mm, deg_to_rad(kHeadings_deg[(id - 1) % 4])}};
+      m.entries[id] = {id,
+                       {c * spacing_mm, r * spacing_mm, deg_to_rad(kHeadings_deg[(id - 1) % 4])}};
     }
   }
   return m;
@@ -341,13 +343,13 @@ namespace {
 
 // Degradations of one landmark in page coordinates, generated from the seed and the id.
 struct Scratch {
-  Vec2 a, b;           // segment on the page (mm)
-  double half_width;   // mm
+  Vec2 a, b;          // segment on the page (mm)
+  double half_width;  // mm
 };
 struct Spot {
   Vec2 c;
-  double radius;       // mm
-  double darkness;     // 0..1 multiplier reduction at the centre
+  double radius;    // mm
+  double darkness;  // 0..1 multiplier reduction at the centre
 };
 struct LandmarkDegradation {
   std::vector<Scratch> scratches;
@@ -413,11 +415,11 @@ class Evaluator {
     const double h = mid_half_;
     const double au = std::abs(uv.x), av = std::abs(uv.y);
     if (au >= av) {
-      if (uv.x < 0) return std::clamp(uv.y + h, 0.0, 2 * h);           // left edge, down
-      return 4 * h + std::clamp(h - uv.y, 0.0, 2 * h);                  // right edge, up
+      if (uv.x < 0) return std::clamp(uv.y + h, 0.0, 2 * h);  // left edge, down
+      return 4 * h + std::clamp(h - uv.y, 0.0, 2 * h);        // right edge, up
     }
-    if (uv.y > 0) return 2 * h + std::clamp(uv.x + h, 0.0, 2 * h);      // bottom edge, right
-    return 6 * h + std::clamp(h - uv.x, 0.0, 2 * h);                    // top edge, left
+    if (uv.y > 0) return 2 * h + std::clamp(uv.x + h, 0.0, 2 * h);  // bottom edge, right
+    return 6 * h + std::clamp(h - uv.x, 0.0, 2 * h);                // top edge, left
   }
 
   Sample eval(const ActiveLandmark& a, Vec2 uv) const {
@@ -477,7 +479,8 @@ FrameRenderer::FrameRenderer(const Scene& scene, const CameraModel& camera)
     for (int x = 0; x < w_; ++x) {
       const size_t i = static_cast<size_t>(y * w_ + x);
       Vec2 p;
-      centre_ok_[i] = camera_.pixel_to_vehicle({static_cast<double>(x), static_cast<double>(y)}, &p) ? 1 : 0;
+      centre_ok_[i] =
+          camera_.pixel_to_vehicle({static_cast<double>(x), static_cast<double>(y)}, &p) ? 1 : 0;
       centre_v_[i] = p;
     }
   }
@@ -492,8 +495,8 @@ std::vector<std::uint32_t> FrameRenderer::visible_landmarks(const Pose2& pose) c
     pts.push_back({0.0, 0.0});
     for (const Vec2& q : pts) {
       Vec2 px;
-      if (camera_.vehicle_to_pixel(transform(v_from_l, q), &px) && px.x >= -0.5 &&
-          px.y >= -0.5 && px.x < w_ - 0.5 && px.y < h_ - 0.5) {
+      if (camera_.vehicle_to_pixel(transform(v_from_l, q), &px) && px.x >= -0.5 && px.y >= -0.5 &&
+          px.x < w_ - 0.5 && px.y < h_ - 0.5) {
         ids.push_back(l.id);
         break;
       }
@@ -562,8 +565,8 @@ cv::Mat FrameRenderer::render(const Pose2& pose, const RenderOptions& o,
           for (int j = 0; j < n_sub; ++j) {
             for (int i = 0; i < n_sub; ++i) {
               Vec2 pv;
-              if (!camera_.pixel_to_vehicle({x - 0.5 + (i + 0.5) / n_sub, y - 0.5 + (j + 0.5) / n_sub},
-                                            &pv)) {
+              if (!camera_.pixel_to_vehicle(
+                      {x - 0.5 + (i + 0.5) / n_sub, y - 0.5 + (j + 0.5) / n_sub}, &pv)) {
                 continue;
               }
               const Sample s = ev.eval(a, landmark_to_page(transform(a.landmark_from_vehicle, pv)));
@@ -614,7 +617,8 @@ cv::Mat FrameRenderer::render(const Pose2& pose, const RenderOptions& o,
     const size_t ic = static_cast<size_t>((h_ / 2) * w_ + w_ / 2);
     const Vec2 p = centre_v_[ic];
     const double t = o.exposure_s;
-    const Vec2 d{t * (-o.speed_mps * 1000.0 + o.yaw_rate_radps * p.y), t * (-o.yaw_rate_radps * p.x)};
+    const Vec2 d{t * (-o.speed_mps * 1000.0 + o.yaw_rate_radps * p.y),
+                 t * (-o.yaw_rate_radps * p.x)};
     Vec2 pa, pb;
     if (centre_ok_[ic] && camera_.vehicle_to_pixel({p.x - 0.5 * d.x, p.y - 0.5 * d.y}, &pa) &&
         camera_.vehicle_to_pixel({p.x + 0.5 * d.x, p.y + 0.5 * d.y}, &pb)) {

@@ -8,8 +8,10 @@ namespace agv::sim {
 
 bool parse_trajectory_kind(const std::string& name, TrajectoryKind* out) {
   static const std::pair<const char*, TrajectoryKind> kNames[] = {
-      {"line", TrajectoryKind::kLine},       {"square", TrajectoryKind::kSquare},
-      {"circle", TrajectoryKind::kCircle},   {"figure8", TrajectoryKind::kFigure8},
+      {"line", TrajectoryKind::kLine},
+      {"square", TrajectoryKind::kSquare},
+      {"circle", TrajectoryKind::kCircle},
+      {"figure8", TrajectoryKind::kFigure8},
       {"lawnmower", TrajectoryKind::kLawnmower}};
   for (const auto& [n, k] : kNames) {
     if (name == n) {
@@ -22,11 +24,16 @@ bool parse_trajectory_kind(const std::string& name, TrajectoryKind* out) {
 
 const char* to_string(TrajectoryKind k) {
   switch (k) {
-    case TrajectoryKind::kLine: return "line";
-    case TrajectoryKind::kSquare: return "square";
-    case TrajectoryKind::kCircle: return "circle";
-    case TrajectoryKind::kFigure8: return "figure8";
-    case TrajectoryKind::kLawnmower: return "lawnmower";
+    case TrajectoryKind::kLine:
+      return "line";
+    case TrajectoryKind::kSquare:
+      return "square";
+    case TrajectoryKind::kCircle:
+      return "circle";
+    case TrajectoryKind::kFigure8:
+      return "figure8";
+    case TrajectoryKind::kLawnmower:
+      return "lawnmower";
   }
   return "?";
 }
@@ -59,14 +66,16 @@ bool make_trajectory(const TrajectoryParams& p, Trajectory* out, std::string* er
     return false;
   };
   if (!(p.speed_mps > 0.0 && p.speed_mps <= 5.0)) return fail("speed must be in (0, 5] m/s");
-  if (!(p.accel_mps2 > 0.0 && p.accel_mps2 <= 10.0)) return fail("acceleration must be in (0, 10] m/s^2");
+  if (!(p.accel_mps2 > 0.0 && p.accel_mps2 <= 10.0))
+    return fail("acceleration must be in (0, 10] m/s^2");
   if (!(p.grid_spacing_mm >= 200.0 && p.grid_spacing_mm <= 100000.0)) {
     return fail("grid spacing must be in [200, 100000] mm");
   }
   if (p.grid_columns < 2 || p.grid_rows < 2 || p.grid_columns > 1000 || p.grid_rows > 1000) {
     return fail("grid must have 2..1000 columns and rows");
   }
-  if (!(p.lead_mm >= 100.0 && p.lead_mm <= 100000.0)) return fail("lead must be in [100, 100000] mm");
+  if (!(p.lead_mm >= 100.0 && p.lead_mm <= 100000.0))
+    return fail("lead must be in [100, 100000] mm");
   if (!std::isfinite(p.lateral_offset_mm) || !std::isfinite(p.grid_origin_mm.x) ||
       !std::isfinite(p.grid_origin_mm.y)) {
     return fail("grid origin and lateral offset must be finite");
@@ -153,7 +162,8 @@ MotionState trajectory_state(const Trajectory& tr, std::int64_t t_ns) {
   m.s_mm = s_m * 1000.0;
   const double lap_s = std::fmod(m.s_mm, tr.length_mm);
   auto it = std::upper_bound(tr.seg_start_s_mm.begin(), tr.seg_start_s_mm.end(), lap_s);
-  const size_t i = static_cast<size_t>(std::max<std::ptrdiff_t>(0, it - tr.seg_start_s_mm.begin() - 1));
+  const size_t i =
+      static_cast<size_t>(std::max<std::ptrdiff_t>(0, it - tr.seg_start_s_mm.begin() - 1));
   const Segment& seg = tr.segments[i];
   m.pose = advance(tr.seg_start_pose[i], seg, lap_s - tr.seg_start_s_mm[i]);
   m.omega_radps = m.v_mps * 1000.0 * seg.curvature_per_mm;

@@ -150,8 +150,9 @@ bool csv_lines(const std::string& text, const std::string& name, const char* hea
   };
   if (text.empty()) return fail(1, std::string("empty file, expected header '") + header + "'");
   if (text.find('\0') != std::string::npos) {
-    const size_t line = 1 + static_cast<size_t>(std::count(text.begin(), text.begin() +
-        static_cast<std::ptrdiff_t>(text.find('\0')), '\n'));
+    const size_t line =
+        1 + static_cast<size_t>(std::count(
+                text.begin(), text.begin() + static_cast<std::ptrdiff_t>(text.find('\0')), '\n'));
     return fail(line, "binary data (NUL byte)");
   }
   size_t pos = 0, line_no = 0;
@@ -221,7 +222,8 @@ bool parse_timed_csv(const std::string& text, const std::string& name, const cha
                   std::to_string(f.size()));
     }
     std::int64_t t = 0;
-    if (!parse_i64(f[0], &t)) return fail("t_ns '" + std::string(f[0].substr(0, 40)) + "' is not an integer");
+    if (!parse_i64(f[0], &t))
+      return fail("t_ns '" + std::string(f[0].substr(0, 40)) + "' is not an integer");
     if (t < 0) return fail("t_ns must not be negative");
     if (have_prev && t <= prev) {
       return fail("t_ns " + std::to_string(t) + " is not after the previous row's " +
@@ -276,16 +278,17 @@ bool parse_meta_yaml(const std::string& text, Meta* out, std::string* error,
   MetaParser p{name, error};
   try {
     if (!root.IsMap()) return p.fail(root, "top level must be a mapping");
-    if (!p.keys(root, "", {"format_version", "image", "intrinsics", "distortion", "mount", "landmark"},
+    if (!p.keys(root, "",
+                {"format_version", "image", "intrinsics", "distortion", "mount", "landmark"},
                 {"source"})) {
       return false;
     }
     Meta m;
     if (!p.integer(root, "", "format_version", 1, 1000000, &m.format_version)) return false;
     if (m.format_version != kFormatVersion) {
-      return p.fail(root["format_version"], "unsupported format_version " +
-                                                std::to_string(m.format_version) + " (this build reads " +
-                                                std::to_string(kFormatVersion) + ")");
+      return p.fail(root["format_version"],
+                    "unsupported format_version " + std::to_string(m.format_version) +
+                        " (this build reads " + std::to_string(kFormatVersion) + ")");
     }
     const YAML::Node img = root["image"], in = root["intrinsics"], di = root["distortion"],
                      mo = root["mount"], lm = root["landmark"];
@@ -476,7 +479,9 @@ bool load_frame(const Recording& rec, size_t i, cv::Mat* image, std::string* err
     img.release();
   }
   if (img.empty()) {
-    if (error) *error = "frames.csv:" + std::to_string(i + 2) + ": cannot decode '" + rec.frames[i].file + "'";
+    if (error)
+      *error =
+          "frames.csv:" + std::to_string(i + 2) + ": cannot decode '" + rec.frames[i].file + "'";
     return false;
   }
   const auto& k = rec.meta.camera.intrinsics;
@@ -532,7 +537,8 @@ bool write_meta(const std::string& dir, const Meta& m, std::string* error) {
   return write_text(fs::path(dir) / "meta.yaml", os.str(), error);
 }
 
-bool write_frames_csv(const std::string& dir, const std::vector<FrameRow>& rows, std::string* error) {
+bool write_frames_csv(const std::string& dir, const std::vector<FrameRow>& rows,
+                      std::string* error) {
   std::string s = "t_ns,file\n";
   for (const FrameRow& r : rows) {
     if (!safe_relative_path(r.file) || r.file.find(',') != std::string::npos) {
@@ -555,7 +561,8 @@ bool write_odom_csv(const std::string& dir, const std::vector<OdomRow>& rows, st
   return write_text(fs::path(dir) / "odom.csv", s, error);
 }
 
-bool write_truth_csv(const std::string& dir, const std::vector<TruthRow>& rows, std::string* error) {
+bool write_truth_csv(const std::string& dir, const std::vector<TruthRow>& rows,
+                     std::string* error) {
   std::string s = "t_ns,x_mm,y_mm,theta_deg\n";
   char buf[128];
   for (const TruthRow& r : rows) {
@@ -569,8 +576,8 @@ bool write_truth_csv(const std::string& dir, const std::vector<TruthRow>& rows, 
   return write_text(fs::path(dir) / "truth.csv", s, error);
 }
 
-bool write_frame_png(const std::string& dir, const std::string& relative_file,
-                     const cv::Mat& image, std::string* error) {
+bool write_frame_png(const std::string& dir, const std::string& relative_file, const cv::Mat& image,
+                     std::string* error) {
   if (image.empty() || image.type() != CV_8UC1 || !safe_relative_path(relative_file)) {
     if (error) *error = relative_file + ": need an 8-bit grey image and a relative path";
     return false;

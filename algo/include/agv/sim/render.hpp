@@ -83,8 +83,8 @@ struct FloorTexture {
   // Concrete-like value noise, a deterministic function of the world position (so consecutive
   // frames agree): mean grey and peak-to-peak-ish amplitude in 8-bit units at full illumination.
   double mean = 135.0;
-  double amplitude = 40.0;      // 0 = flat floor
-  std::uint64_t seed = 1;       // different floors for different seeds
+  double amplitude = 40.0;  // 0 = flat floor
+  std::uint64_t seed = 1;   // different floors for different seeds
 };
 
 struct Scene {
@@ -117,8 +117,8 @@ struct RenderOptions {
   // Motion blur: uniform kernel along the image motion of the image centre during the exposure,
   // centred on the frame time (the truth pose is the exposure mid-time). 0 exposure = none.
   double exposure_s = 0.0;
-  double speed_mps = 0.0;      // vehicle forward speed during the exposure
-  double yaw_rate_radps = 0.0; // vehicle yaw rate during the exposure
+  double speed_mps = 0.0;       // vehicle forward speed during the exposure
+  double yaw_rate_radps = 0.0;  // vehicle yaw rate during the exposure
   // Illumination: gain falls linearly from 1 to illumination_ratio across the image along
   // illumination_direction_deg (0 = image +x, 90 = image +y). 1 = uniform.
   double illumination_ratio = 1.0;
@@ -135,7 +135,7 @@ struct RenderOptions {
   // seen on the page (down the left edge first).
   double occluder_border_fraction = 0.0;
   double occluder_grey = 90.0;
-  int scratches_per_landmark = 0;    // thin bright scratches across the print
+  int scratches_per_landmark = 0;      // thin bright scratches across the print
   double dirt_spots_per_landmark = 0;  // mean count of dark smudges on the print
   std::uint64_t degradation_seed = 7;
 };
@@ -168,9 +168,8 @@ class FrameRenderer {
 };
 
 // Convenience (precomputes the tables each call; use FrameRenderer for sequences).
-cv::Mat render_frame(const Scene& scene, const CameraModel& camera,
-                     const Pose2& vehicle_pose_world, const RenderOptions& options,
-                     std::mt19937_64& rng);
+cv::Mat render_frame(const Scene& scene, const CameraModel& camera, const Pose2& vehicle_pose_world,
+                     const RenderOptions& options, std::mt19937_64& rng);
 
 // Floor texture grey at a world point (mm), before illumination. Exposed for tests.
 double floor_texture(const FloorTexture& t, Vec2 p_world_mm);

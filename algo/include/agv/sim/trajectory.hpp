@@ -32,10 +32,10 @@ struct TrajectoryParams {
   double grid_spacing_mm = 1000.0;
   int grid_columns = 5;
   int grid_rows = 5;
-  int lawnmower_rows = 4;      // even, so the return leg closes the loop on the start side
-  double lead_mm = 500.0;      // straight run before the first / after the last landmark of a row
-  double speed_mps = 0.5;      // cruise speed
-  double accel_mps2 = 0.5;     // start from rest with this acceleration
+  int lawnmower_rows = 4;   // even, so the return leg closes the loop on the start side
+  double lead_mm = 500.0;   // straight run before the first / after the last landmark of a row
+  double speed_mps = 0.5;   // cruise speed
+  double accel_mps2 = 0.5;  // start from rest with this acceleration
   // Lateral offset of the whole path (mm, to the vehicle's left at the start) so the camera does
   // not pass exactly over every landmark centre.
   double lateral_offset_mm = 20.0;
@@ -48,22 +48,22 @@ struct Segment {
 
 struct Trajectory {
   TrajectoryParams params;
-  Pose2 start;                   // world pose at s = 0
+  Pose2 start;  // world pose at s = 0
   std::vector<Segment> segments;
   std::vector<double> seg_start_s_mm;
   std::vector<Pose2> seg_start_pose;
-  double length_mm = 0.0;        // one lap
-  double closure_error_mm = 0.0; // end pose vs start pose of one lap (0 for a closed path)
+  double length_mm = 0.0;         // one lap
+  double closure_error_mm = 0.0;  // end pose vs start pose of one lap (0 for a closed path)
 };
 
 // False with *error for invalid parameters (non-positive speed, odd lawnmower rows, ...).
 bool make_trajectory(const TrajectoryParams& p, Trajectory* out, std::string* error);
 
 struct MotionState {
-  Pose2 pose;              // world <- vehicle
-  double v_mps = 0.0;      // true forward speed
+  Pose2 pose;                // world <- vehicle
+  double v_mps = 0.0;        // true forward speed
   double omega_radps = 0.0;  // true yaw rate
-  double s_mm = 0.0;       // distance travelled
+  double s_mm = 0.0;         // distance travelled
 };
 
 // True state at t_ns >= 0 after the start (t < 0 = standing at the start pose).
@@ -72,13 +72,13 @@ MotionState trajectory_state(const Trajectory& tr, std::int64_t t_ns);
 // Odometry as the motor controllers report it: wheel-speed based, with a constant scale error
 // per wheel, white noise, and occasional slip (one wheel reports more than it moved).
 struct OdometryParams {
-  double wheelbase_mm = 500.0;   // track width used to convert wheel speeds to v and omega
-  double scale_error = 0.01;     // both wheels report this much too much (1 %)
+  double wheelbase_mm = 500.0;     // track width used to convert wheel speeds to v and omega
+  double scale_error = 0.01;       // both wheels report this much too much (1 %)
   double scale_asymmetry = 0.004;  // right minus left scale error (makes straight runs curve)
-  double noise_mps = 0.003;      // white noise per wheel speed sample (sigma)
+  double noise_mps = 0.003;        // white noise per wheel speed sample (sigma)
   double slip_rate_per_s = 0.05;   // mean slip events per second (Poisson)
   double slip_duration_s = 0.3;
-  double slip_excess = 0.25;     // the slipping wheel reports this fraction more than it moved
+  double slip_excess = 0.25;  // the slipping wheel reports this fraction more than it moved
   std::uint64_t seed = 1;
 };
 

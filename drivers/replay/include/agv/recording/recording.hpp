@@ -73,7 +73,8 @@ bool load_frame(const Recording& rec, size_t i, cv::Mat* image, std::string* err
 
 // Writers create the directory if needed and overwrite the files.
 bool write_meta(const std::string& dir, const Meta& meta, std::string* error);
-bool write_frames_csv(const std::string& dir, const std::vector<FrameRow>& rows, std::string* error);
+bool write_frames_csv(const std::string& dir, const std::vector<FrameRow>& rows,
+                      std::string* error);
 bool write_odom_csv(const std::string& dir, const std::vector<OdomRow>& rows, std::string* error);
 bool write_truth_csv(const std::string& dir, const std::vector<TruthRow>& rows, std::string* error);
 // Writes an 8-bit grey image as PNG at dir/relative_file (creating sub-directories).
