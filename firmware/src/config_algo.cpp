@@ -68,6 +68,18 @@ void read_fusion(YamlChecker& c, const YAML::Node& root, fusion::EkfConfig* f) {
   read_deg(c, n, p, "fix_floor_sigma_deg", 0.0, 10.0, &f->fix_floor_sigma_rad);
   c.number(n, p, "gate_probability", 0.5, 0.999999, &f->gate_probability);
   c.integer(n, p, "kidnap_fixes", 2, 100, &f->kidnap_fixes);
+  c.number(n, p, "kidnap_min_separation_mm", 0.0, 100000.0, &f->kidnap_min_separation_mm);
+  c.boolean(n, p, "estimate_odometry_calibration", &f->estimate_odometry_calibration);
+  c.number(n, p, "init_v_scale_sigma", 0.0, 1.0, &f->init_v_scale_sigma);
+  c.number(n, p, "init_omega_scale_sigma", 0.0, 1.0, &f->init_omega_scale_sigma);
+  read_deg(c, n, p, "init_omega_bias_sigma_degps", 0.0, 90.0, &f->init_omega_bias_sigma_radps);
+  read_deg(c, n, p, "init_omega_per_v_sigma_degpm", 0.0, 90.0, &f->init_omega_per_v_sigma_radpm);
+  c.number(n, p, "v_scale_sigma_per_sqrt_s", 0.0, 1.0, &f->v_scale_sigma_per_sqrt_s);
+  c.number(n, p, "omega_scale_sigma_per_sqrt_s", 0.0, 1.0, &f->omega_scale_sigma_per_sqrt_s);
+  read_deg(c, n, p, "omega_bias_sigma_degps_per_sqrt_s", 0.0, 90.0,
+           &f->omega_bias_sigma_radps_per_sqrt_s);
+  read_deg(c, n, p, "omega_per_v_sigma_degpm_per_sqrt_s", 0.0, 90.0,
+           &f->omega_per_v_sigma_radpm_per_sqrt_s);
   std::int64_t hist = static_cast<std::int64_t>(f->history_capacity);
   c.integer(n, p, "history_capacity", 16, 100000, &hist);
   f->history_capacity = static_cast<std::size_t>(hist);

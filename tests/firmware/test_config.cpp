@@ -82,3 +82,22 @@ TEST(Config, MissingFile) {
   EXPECT_FALSE(agv::config::load_config("/nonexistent/agvloc.yaml", &cfg, &errors));
   EXPECT_TRUE(mentions(errors, "cannot open"));
 }
+
+TEST(Config, FusionAndVisionSectionsReachTheAlgorithms) {
+  Config cfg;
+  std::vector<std::string> errors;
+  ASSERT_TRUE(agv::config::parse_config(
+      "fusion:\n  gate_probability: 0.99\n  estimate_odometry_calibration: false\n"
+      "  max_fix_delay_ms: 250\n  lost_heading_sigma_deg: 5\n"
+      "vision:\n  corner_threshold: 0.7\n  robust: false\n",
+      "", &cfg, &errors))
+      << errors.front();
+  EXPECT_DOUBLE_EQ(cfg.fusion.gate_probability, 0.99);
+  EXPECT_FALSE(cfg.fusion.estimate_odometry_calibration);
+  EXPECT_EQ(cfg.fusion.max_fix_delay_ns, 250'000'000);
+  EXPECT_NEAR(cfg.fusion.lost_heading_sigma_rad, agv::deg_to_rad(5.0), 1e-12);
+  EXPECT_DOUBLE_EQ(cfg.vision.corner_threshold, 0.7);
+  EXPECT_FALSE(cfg.vision.robust);
+  EXPECT_TRUE(mentions(errors_for("fusion:\n  gate_probability: 1.5\n"), "fusion.gate_probability"));
+  EXPECT_TRUE(mentions(errors_for("vision:\n  colour: red\n"), "vision.colour: unknown key"));
+}
