@@ -61,7 +61,7 @@ double pct(std::vector<double> v, double p) {
 
 struct Frame {
   cv::Mat img;
-  Pose2 e_true;            // vehicle in landmark frame
+  Pose2 e_true;  // vehicle in landmark frame
   Pose2 vehicle_world;
 };
 
@@ -123,14 +123,15 @@ void evaluate(LandmarkLocalizer& loc, const std::vector<Frame>& frames, Stats* s
     if (fix.status != FixStatus::kOk) {
       if (!g_dump_dir.empty() && !tag.empty() && s->status[fix.status] <= 4) {
         char name[256];
-        std::snprintf(name, sizeof name, "%s/%s_%d_%d_ex%.0f_ey%.0f_phi%.0f.png", g_dump_dir.c_str(),
-                      tag.c_str(), static_cast<int>(fix.status), s->n, f.e_true.x_mm,
-                      f.e_true.y_mm, rad_to_deg(f.e_true.theta_rad));
+        std::snprintf(name, sizeof name, "%s/%s_%d_%d_ex%.0f_ey%.0f_phi%.0f.png",
+                      g_dump_dir.c_str(), tag.c_str(), static_cast<int>(fix.status), s->n,
+                      f.e_true.x_mm, f.e_true.y_mm, rad_to_deg(f.e_true.theta_rad));
         cv::imwrite(name, f.img);
       }
       continue;
     }
-    const double dh = std::abs(rad_to_deg(wrap_angle_rad(deg_to_rad(fix.e_phi_deg) - f.e_true.theta_rad)));
+    const double dh =
+        std::abs(rad_to_deg(wrap_angle_rad(deg_to_rad(fix.e_phi_deg) - f.e_true.theta_rad)));
     if (dh > 45.0) {
       ++s->wrong_direction;
       continue;
@@ -163,7 +164,8 @@ void evaluate(LandmarkLocalizer& loc, const std::vector<Frame>& frames, Stats* s
 
 void print_header() {
   std::printf(
-      "| condition | frames | detected | wrong dir | pos p50 / p95 / max (mm) | heading p50 / p95 / "
+      "| condition | frames | detected | wrong dir | pos p50 / p95 / max (mm) | heading p50 / p95 "
+      "/ "
       "max (deg) | mean NEES | statuses |\n|---|---|---|---|---|---|---|---|\n");
 }
 
@@ -185,8 +187,8 @@ void print_row(const std::string& name, const Stats& s) {
   std::fflush(stdout);
 }
 
-std::vector<Frame> render_set(const sim::Scene& scene, const CameraModel& cam,
-                              const Condition& c, int n, std::uint64_t seed) {
+std::vector<Frame> render_set(const sim::Scene& scene, const CameraModel& cam, const Condition& c,
+                              int n, std::uint64_t seed) {
   sim::FrameRenderer r(scene, cam);
   std::mt19937_64 rng(seed);
   std::vector<Frame> out;
@@ -222,8 +224,8 @@ struct AprilTagBench {
     tag36h11_destroy(fam);
   }
   // Paints the tag (outer black square = size_mm) centred at the landmark pose.
-  void paint(cv::Mat* img, const CameraModel& cam, const Pose2& landmark_in_vehicle,
-             double size_mm, double white, double black) const {
+  void paint(cv::Mat* img, const CameraModel& cam, const Pose2& landmark_in_vehicle, double size_mm,
+             double white, double black) const {
     const int tw = fam->total_width, bw = fam->width_at_border;
     const double cell = size_mm / bw;
     const double half_total = cell * tw / 2.0;
@@ -294,25 +296,34 @@ int run(const Args& a) {
   };
   std::vector<Condition> conds = {
       {"clean", nullptr, false, true},
-      {"defocus sigma 2 px", [](std::mt19937_64&, sim::RenderOptions* o) { o->defocus_sigma_px = 2.0; }, false, true},
-      {"motion blur 7 px", [&](std::mt19937_64&, sim::RenderOptions* o) { blur_opts(7.0, o); }, false, true},
-      {"noise (read 4 + shot 0.3)", [](std::mt19937_64&, sim::RenderOptions* o) {
+      {"defocus sigma 2 px",
+       [](std::mt19937_64&, sim::RenderOptions* o) { o->defocus_sigma_px = 2.0; }, false, true},
+      {"motion blur 7 px", [&](std::mt19937_64&, sim::RenderOptions* o) { blur_opts(7.0, o); },
+       false, true},
+      {"noise (read 4 + shot 0.3)",
+       [](std::mt19937_64&, sim::RenderOptions* o) {
          o->read_noise_sigma = 4.0;
          o->shot_noise_gain = 0.3;
-       }, false, true},
-      {"illumination 2:1", [](std::mt19937_64& r, sim::RenderOptions* o) {
+       },
+       false, true},
+      {"illumination 2:1",
+       [](std::mt19937_64& r, sim::RenderOptions* o) {
          o->illumination_ratio = 0.5;
          o->illumination_direction_deg = std::uniform_real_distribution<double>(0, 360)(r);
-       }, false, true},
+       },
+       false, true},
       {"lens distortion k1=-0.25", nullptr, true, true},
-      {"3 scratches + 3 dirt spots", [](std::mt19937_64&, sim::RenderOptions* o) {
+      {"3 scratches + 3 dirt spots",
+       [](std::mt19937_64&, sim::RenderOptions* o) {
          o->scratches_per_landmark = 3;
          o->dirt_spots_per_landmark = 3;
-       }, false, true},
-      {"occluder 15 % of border", [](std::mt19937_64&, sim::RenderOptions* o) {
-         o->occluder_border_fraction = 0.15;
-       }, false, true},
-      {"all combined (random, up to the limits)", [&](std::mt19937_64& r, sim::RenderOptions* o) {
+       },
+       false, true},
+      {"occluder 15 % of border",
+       [](std::mt19937_64&, sim::RenderOptions* o) { o->occluder_border_fraction = 0.15; }, false,
+       true},
+      {"all combined (random, up to the limits)",
+       [&](std::mt19937_64& r, sim::RenderOptions* o) {
          std::uniform_real_distribution<double> u(0, 1);
          o->defocus_sigma_px = 2.0 * u(r);
          blur_opts(7.0 * u(r), o);
@@ -323,7 +334,8 @@ int run(const Args& a) {
          o->scratches_per_landmark = static_cast<int>(4 * u(r));
          o->dirt_spots_per_landmark = 3 * u(r);
          o->occluder_border_fraction = 0.15 * u(r);
-       }, true, true},
+       },
+       true, true},
   };
 
   std::vector<Frame> clean_frames, combined_frames;
@@ -351,9 +363,9 @@ int run(const Args& a) {
     Stats s;
     evaluate(loc, frames, &s, "cut");
     print_row(c.name, s);
-    Condition c2{"partly outside, realistic", [](std::mt19937_64&, sim::RenderOptions* o) {
-                   *o = sim::realistic_options();
-                 }, false, false};
+    Condition c2{"partly outside, realistic",
+                 [](std::mt19937_64&, sim::RenderOptions* o) { *o = sim::realistic_options(); },
+                 false, false};
     auto frames2 = render_set(scene, cam, c2, a.frames, a.seed * 1000 + 78);
     Stats s2;
     evaluate(loc, frames2, &s2);
@@ -452,15 +464,21 @@ int run(const Args& a) {
       std::printf(
           "\n## AprilTag 3 (tag36h11, quad_decimate 2, 1 thread), same clean frames with a tag of "
           "the same outer size\n\n");
-      std::printf("| | detected | median time (ms) | pos p50 / p95 (mm) | heading mod 90 p50 / p95 (deg) |\n|---|---|---|---|---|\n");
+      std::printf(
+          "| | detected | median time (ms) | pos p50 / p95 (mm) | heading mod 90 p50 / p95 (deg) "
+          "|\n|---|---|---|---|---|\n");
       std::printf("| AprilTag 3 detection | %.1f %% | %.3f | %.3f / %.3f | %.4f / %.4f |\n",
                   100.0 * found / std::max(1, n), pct(t_at, 50), pct(pos_at, 50), pct(pos_at, 95),
                   pct(head_at, 50), pct(head_at, 95));
-      std::printf("| this pipeline, full (detect+decode+pose+direction) | %.1f %% | %.3f | %.3f / %.3f | %.4f / %.4f |\n",
-                  100.0 * s.ok / std::max(1, s.n), pct(ours_best, 50), pct(s.pos_err, 50),
-                  pct(s.pos_err, 95), pct(s.head_err, 50), pct(s.head_err, 95));
-      std::printf("\nSpeed ratio AprilTag / ours (medians, best of 3 per frame): %.2fx (ours with per-stage clock: %.3f ms)\n",
-                  pct(t_at, 50) / pct(ours_best, 50), ours);
+      std::printf(
+          "| this pipeline, full (detect+decode+pose+direction) | %.1f %% | %.3f | %.3f / %.3f | "
+          "%.4f / %.4f |\n",
+          100.0 * s.ok / std::max(1, s.n), pct(ours_best, 50), pct(s.pos_err, 50),
+          pct(s.pos_err, 95), pct(s.head_err, 50), pct(s.head_err, 95));
+      std::printf(
+          "\nSpeed ratio AprilTag / ours (medians, best of 3 per frame): %.2fx (ours with "
+          "per-stage clock: %.3f ms)\n",
+          pct(t_at, 50) / pct(ours_best, 50), ours);
     }
 #endif
   }
@@ -506,31 +524,37 @@ int run(const Args& a) {
     };
     std::vector<Variant> vars = {
         {"paper 001 (eq. 7, corner A eq. 8-11, one mm/px ratio, pixel edges)", paper},
-        {"+ paper 000 weighted heading (eq. 10-11)", [&](VisionConfig* c) {
+        {"+ paper 000 weighted heading (eq. 10-11)",
+         [&](VisionConfig* c) {
            paper(c);
            c->heading_method = HeadingMethod::kWeighted000;
          }},
-        {"+ inverse-variance heading", [&](VisionConfig* c) {
+        {"+ inverse-variance heading",
+         [&](VisionConfig* c) {
            paper(c);
            c->heading_method = HeadingMethod::kInverseVariance;
          }},
-        {"+ subpixel edges", [&](VisionConfig* c) {
+        {"+ subpixel edges",
+         [&](VisionConfig* c) {
            paper(c);
            c->heading_method = HeadingMethod::kInverseVariance;
            c->subpixel = true;
          }},
-        {"+ corners as line intersections", [&](VisionConfig* c) {
+        {"+ corners as line intersections",
+         [&](VisionConfig* c) {
            paper(c);
            c->heading_method = HeadingMethod::kInverseVariance;
            c->subpixel = true;
            c->pose_method = PoseMethod::kLineIntersections;
          }},
-        {"+ joint square fit", [&](VisionConfig* c) {
+        {"+ joint square fit",
+         [&](VisionConfig* c) {
            paper(c);
            c->subpixel = true;
            c->pose_method = PoseMethod::kJointSquareFit;
          }},
-        {"+ robust (Tukey IRLS)", [&](VisionConfig* c) {
+        {"+ robust (Tukey IRLS)",
+         [&](VisionConfig* c) {
            paper(c);
            c->subpixel = true;
            c->pose_method = PoseMethod::kJointSquareFit;
@@ -541,7 +565,8 @@ int run(const Args& a) {
     for (int set = 0; set < 2; ++set) {
       const auto& frames = set == 0 ? clean_frames : combined_frames;
       const CameraModel& cm = set == 0 ? cam : cam_dist;
-      std::printf("\n### %s\n\n", set == 0 ? "clean" : "all degradations combined (distorted lens)");
+      std::printf("\n### %s\n\n",
+                  set == 0 ? "clean" : "all degradations combined (distorted lens)");
       print_header();
       for (const Variant& v : vars) {
         VisionConfig c = cfg;

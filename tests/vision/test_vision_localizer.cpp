@@ -32,7 +32,8 @@ LandmarkMap one_map(Pose2 pose = kLandmarkWorld) {
 
 // Renders the landmark seen from vehicle pose e (vehicle in the landmark frame).
 cv::Mat render(const Pose2& e, sim::PayloadMode mode = sim::PayloadMode::kFull,
-               const sim::RenderOptions& o = {}, const CameraModel& cam = CameraModel::default_640x480()) {
+               const sim::RenderOptions& o = {},
+               const CameraModel& cam = CameraModel::default_640x480()) {
   sim::Scene scene;
   std::string err;
   EXPECT_TRUE(sim::make_scene(one_map(), LandmarkGeometry{}, mode, &scene, &err)) << err;
@@ -53,7 +54,8 @@ TEST(VisionLocalizer, FourQuarterTurnsGiveTheRightQuadrant) {
     const Pose2 e{6.0, -4.0, deg_to_rad(7.0 + 90.0 * q)};
     const cv::Mat img = render(e);
     LandmarkFix fix;
-    ASSERT_EQ(loc.process(img, &fix), FixStatus::kOk) << "turn " << q << ": " << to_string(fix.status);
+    ASSERT_EQ(loc.process(img, &fix), FixStatus::kOk)
+        << "turn " << q << ": " << to_string(fix.status);
     EXPECT_LT(heading_err_deg(fix.e_phi_deg, e.theta_rad), 0.02) << "turn " << q;
     EXPECT_NEAR(fix.e_x_mm, e.x_mm, 0.02);
     EXPECT_NEAR(fix.e_y_mm, e.y_mm, 0.02);
@@ -87,7 +89,8 @@ TEST(VisionLocalizer, MapChecks) {
   }
   {
     // Id-only payload without a map: unknown.
-    LandmarkLocalizer loc(VisionConfig{}, CameraModel::default_640x480(), LandmarkGeometry{}, nullptr);
+    LandmarkLocalizer loc(VisionConfig{}, CameraModel::default_640x480(), LandmarkGeometry{},
+                          nullptr);
     EXPECT_EQ(loc.process(id_only, &fix), FixStatus::kUnknownLandmark);
     // Full payload without a map: fine.
     EXPECT_EQ(loc.process(full, &fix), FixStatus::kOk);
@@ -108,7 +111,8 @@ TEST(VisionLocalizer, MapChecks) {
 }
 
 TEST(VisionLocalizer, BadInputReturnsAReason) {
-  LandmarkLocalizer loc(VisionConfig{}, CameraModel::default_640x480(), LandmarkGeometry{}, nullptr);
+  LandmarkLocalizer loc(VisionConfig{}, CameraModel::default_640x480(), LandmarkGeometry{},
+                        nullptr);
   LandmarkFix fix;
   EXPECT_EQ(loc.process(cv::Mat(), &fix), FixStatus::kBadInput);
   EXPECT_EQ(fix.status, FixStatus::kBadInput);
@@ -118,7 +122,8 @@ TEST(VisionLocalizer, BadInputReturnsAReason) {
   EXPECT_EQ(loc.process(cv::Mat(240, 320, CV_8UC1, cv::Scalar(128)), &fix), FixStatus::kBadInput);
   EXPECT_EQ(loc.process(cv::Mat(480, 640, CV_8UC1, cv::Scalar(0)), &fix), FixStatus::kNoLandmark);
   EXPECT_EQ(loc.process(cv::Mat(480, 640, CV_8UC1, cv::Scalar(255)), &fix), FixStatus::kNoLandmark);
-  EXPECT_EQ(loc.process(cv::Mat(480, 640, CV_8UC1, cv::Scalar(128)), nullptr), FixStatus::kBadInput);
+  EXPECT_EQ(loc.process(cv::Mat(480, 640, CV_8UC1, cv::Scalar(128)), nullptr),
+            FixStatus::kBadInput);
   // Noise and a non-continuous view (ROI of a bigger image) must not crash.
   cv::Mat noise(480, 640, CV_8UC1);
   cv::randu(noise, 0, 256);

@@ -1,5 +1,6 @@
 // Stage tests on small synthetic images with known answers: Prewitt (eq. 1-4), gradient-direction
-// classes, least-squares lines (eq. 5-6), robust fitting, angle averaging (eq. 7, paper 000 eq. 10-11).
+// classes, least-squares lines (eq. 5-6), robust fitting, angle averaging (eq. 7, paper 000 eq.
+// 10-11).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -40,7 +41,8 @@ cv::Mat draw_square(int w, int h, double cx, double cy, double half_px, double a
 TEST(VisionPrewitt, MatchesEquations2And3) {
   cv::Mat img(5, 5, CV_8UC1);
   for (int y = 0; y < 5; ++y) {
-    for (int x = 0; x < 5; ++x) img.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(10 * x + 3 * y * y);
+    for (int x = 0; x < 5; ++x)
+      img.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(10 * x + 3 * y * y);
   }
   cv::Mat gx, gy;
   prewitt(img, cv::Rect(0, 0, 5, 5), &gx, &gy);
@@ -70,7 +72,8 @@ TEST(VisionClassify, FourDirectionsAndTolerance) {
   // Rotated landmark: up axis at -90 + 30 deg.
   const double up2 = up + deg_to_rad(30);
   EXPECT_EQ(classify_gradient(std::cos(up2), std::sin(up2), up2, tol), EdgeClass::kUp);
-  EXPECT_EQ(classify_gradient(std::cos(up2 + kPi), std::sin(up2 + kPi), up2, tol), EdgeClass::kDown);
+  EXPECT_EQ(classify_gradient(std::cos(up2 + kPi), std::sin(up2 + kPi), up2, tol),
+            EdgeClass::kDown);
 }
 
 // Every edge pixel of each side of a rotated dark square is classified to that side (the square
@@ -111,7 +114,8 @@ TEST(VisionLineFit, TlsAndOlsRecoverKnownAngle) {
     for (int i = -100; i <= 100; ++i) {
       const double t = i;
       const double off = noise(rng);
-      pts.push_back({5 + t * std::cos(a) - off * std::sin(a), -2 + t * std::sin(a) + off * std::cos(a)});
+      pts.push_back(
+          {5 + t * std::cos(a) - off * std::sin(a), -2 + t * std::sin(a) + off * std::cos(a)});
     }
     LineFit f;
     ASSERT_TRUE(fit_line_tls(pts, {}, &f));
@@ -129,7 +133,8 @@ TEST(VisionLineFit, TlsAndOlsRecoverKnownAngle) {
 
 TEST(VisionLineFit, RobustFitIgnoresOutliers) {
   std::vector<Vec2> pts;
-  for (int i = 0; i < 200; ++i) pts.push_back({static_cast<double>(i), 0.5 * std::sin(i * 0.37) * 0.05});
+  for (int i = 0; i < 200; ++i)
+    pts.push_back({static_cast<double>(i), 0.5 * std::sin(i * 0.37) * 0.05});
   // 20 % gross outliers on one side (a scratch or an occluder edge).
   for (int i = 0; i < 50; ++i) pts.push_back({80.0 + i, 20.0});
   std::vector<double> w(pts.size());
@@ -170,7 +175,8 @@ TEST(VisionHeading, Equation7AndPaper000Weights) {
 TEST(VisionLineFit, RansacStartRejectsParallelOccluderEdge) {
   std::vector<Vec2> pts;
   for (int i = 0; i < 110; ++i) pts.push_back({static_cast<double>(i), 0.03 * std::sin(i * 1.3)});
-  for (int i = 110; i < 200; ++i) pts.push_back({static_cast<double>(i), 5.0 + 0.03 * std::sin(i * 0.7)});
+  for (int i = 110; i < 200; ++i)
+    pts.push_back({static_cast<double>(i), 5.0 + 0.03 * std::sin(i * 0.7)});
   std::vector<double> w(pts.size());
   LineFit plain, ransac;
   ASSERT_TRUE(fit_line_robust(pts, 4.685, 0.01, 5, w, &plain));

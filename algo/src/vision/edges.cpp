@@ -167,8 +167,8 @@ bool fit_line_robust(std::span<const Vec2> pts, double tukey_c, double min_sigma
     }
     if (best_count >= 2) {
       for (size_t i = 0; i < n; ++i) {
-        w_out[i] = std::abs(best.nx * pts[i].x + best.ny * pts[i].y - best.d) <= ransac_tol ? 1.0
-                                                                                          : 0.0;
+        w_out[i] =
+            std::abs(best.nx * pts[i].x + best.ny * pts[i].y - best.d) <= ransac_tol ? 1.0 : 0.0;
       }
     }
   }

@@ -19,15 +19,24 @@ namespace agv::vision {
 
 const char* to_string(FixStatus s) {
   switch (s) {
-    case FixStatus::kOk: return "ok";
-    case FixStatus::kBadInput: return "bad input image";
-    case FixStatus::kNoLandmark: return "no landmark";
-    case FixStatus::kPartlyOutside: return "landmark partly outside the image";
-    case FixStatus::kQrUnreadable: return "QR code unreadable";
-    case FixStatus::kPayloadInvalid: return "payload invalid";
-    case FixStatus::kUnknownLandmark: return "landmark not in the map";
-    case FixStatus::kDirectionAmbiguous: return "direction ambiguous";
-    case FixStatus::kTooFewEdgePoints: return "too few edge points";
+    case FixStatus::kOk:
+      return "ok";
+    case FixStatus::kBadInput:
+      return "bad input image";
+    case FixStatus::kNoLandmark:
+      return "no landmark";
+    case FixStatus::kPartlyOutside:
+      return "landmark partly outside the image";
+    case FixStatus::kQrUnreadable:
+      return "QR code unreadable";
+    case FixStatus::kPayloadInvalid:
+      return "payload invalid";
+    case FixStatus::kUnknownLandmark:
+      return "landmark not in the map";
+    case FixStatus::kDirectionAmbiguous:
+      return "direction ambiguous";
+    case FixStatus::kTooFewEdgePoints:
+      return "too few edge points";
   }
   return "unknown status";
 }
@@ -35,7 +44,8 @@ const char* to_string(FixStatus s) {
 namespace {
 
 constexpr int kNumLines = 8;
-constexpr int kMaxTemplates = 32;  // upper bound of VisionConfig::corner_rotations  // line index = side * 2 + (inner ? 1 : 0)
+constexpr int kMaxTemplates = 32;  // upper bound of VisionConfig::corner_rotations  // line index =
+                                   // side * 2 + (inner ? 1 : 0)
 
 struct CornerPeak {
   double x = 0, y = 0;  // coarse pixels (template centre)
@@ -44,11 +54,11 @@ struct CornerPeak {
 };
 
 struct Hypothesis {
-  double cx = 0, cy = 0;      // landmark centre, coarse pixels
-  double up_angle = 0;        // image angle of one border normal (mod 90 deg)
+  double cx = 0, cy = 0;  // landmark centre, coarse pixels
+  double up_angle = 0;    // image angle of one border normal (mod 90 deg)
   double score_sum = 0, score_max = 0;
   double sum_w = 0;
-  double c4 = 0, s4 = 0;      // accumulated 4*angle vector
+  double c4 = 0, s4 = 0;          // accumulated 4*angle vector
   std::array<int, 8> peak_idx{};  // supporting corner peaks
   int n_peaks = 0;
 };
@@ -111,7 +121,7 @@ struct LandmarkLocalizer::Impl {
   // Detection.
   int coarse_factor = 8;
   double coarse_w = 0, coarse_h = 0, coarse_anchor = 0;  // border width, outer half, anchor
-  std::vector<cv::Mat> templates;                         // CV_32F corner templates
+  std::vector<cv::Mat> templates;                        // CV_32F corner templates
   std::vector<double> template_angles;
   cv::Mat coarse, binary, isum, isq, best_score, best_rot;
   std::vector<std::vector<float>> templates_zm;  // zero-mean, unit-norm
@@ -256,7 +266,7 @@ struct LandmarkLocalizer::Impl {
         return (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
       };
       const double d1 = cross(apex, bl, p), d2 = cross(bl, br, p), d3 = cross(br, apex, p);
-      const bool neg = d1 < 0 || d2 < 0 || d3 < 0, pos = d1 > 0 || d2 > 0 || d3 > 0;
+      const bool neg = d1 < 0 || d2 < 0 || d3<0, pos = d1> 0 || d2 > 0 || d3 > 0;
       return !(neg && pos);
     };
     logo_page_pts.clear();
@@ -271,9 +281,7 @@ struct LandmarkLocalizer::Impl {
     }
   }
 
-  double now_ms() const {
-    return cfg.now_ns ? static_cast<double>(cfg.now_ns()) * 1e-6 : 0.0;
-  }
+  double now_ms() const { return cfg.now_ns ? static_cast<double>(cfg.now_ns()) * 1e-6 : 0.0; }
 
   Vec2 coarse_to_full(Vec2 c) const {
     const double f = coarse_factor;
@@ -440,8 +448,10 @@ bool LandmarkLocalizer::Impl::detect(const cv::Mat& img, Hypothesis* best, bool*
         // Re-match a template at that rotation around the peak (the 30-degree templates shift
         // the peak), with a parabolic subpixel maximum.
         const int deg = static_cast<int>(std::lround(rad_to_deg(a))) % 360;
-        const std::vector<float>& tz = fine_templates[static_cast<size_t>(deg < 0 ? deg + 360 : deg)];
-        const int px0 = static_cast<int>(std::lround(p.x)), py0 = static_cast<int>(std::lround(p.y));
+        const std::vector<float>& tz =
+            fine_templates[static_cast<size_t>(deg < 0 ? deg + 360 : deg)];
+        const int px0 = static_cast<int>(std::lround(p.x)),
+                  py0 = static_cast<int>(std::lround(p.y));
         double sc[7][7];
         for (auto& row : sc) std::fill(std::begin(row), std::end(row), -1.0);
         int bx = 3, by = 3;
@@ -481,8 +491,8 @@ bool LandmarkLocalizer::Impl::detect(const cv::Mat& img, Hypothesis* best, bool*
       // landmark mostly outside the image has few).
       best_dark_count = n_dark;
       *best = h;
-      best->score_max = dark;    // reuse: dark level
-      best->score_sum = white;   // white level
+      best->score_max = dark;   // reuse: dark level
+      best->score_sum = white;  // white level
       *corner_score = h.score_max;
     }
   }
@@ -562,8 +572,8 @@ bool LandmarkLocalizer::Impl::ring_check(const Hypothesis& h, double* dark_level
 }
 
 FixStatus LandmarkLocalizer::Impl::decode(const cv::Mat& img, Vec2 c, double up_angle,
-                                          LandmarkFix* out, Pose2* world_landmark,
-                                          bool* have_world, double* qr_up_angle, bool* qr_ok) {
+                                          LandmarkFix* out, Pose2* world_landmark, bool* have_world,
+                                          double* qr_up_angle, bool* qr_ok) {
   *qr_ok = false;
   *have_world = false;
   const double module_px = geom.qr_side_mm() / 25.0 / mm_per_px;
@@ -690,10 +700,10 @@ int LandmarkLocalizer::Impl::collect(const cv::Mat& img, Vec2 c, double up, doub
       for (int i = i0; i <= i1; ++i) {
         const double tau = (i - m_major) / ta;
         const double centre_minor = m_minor + tau * t_minor;
-        const int j0 = std::max(static_cast<int>(std::ceil(centre_minor - half_w)),
-                                by_rows ? x_lo : y_lo);
-        const int j1 = std::min(static_cast<int>(std::floor(centre_minor + half_w)),
-                                by_rows ? x_hi : y_hi);
+        const int j0 =
+            std::max(static_cast<int>(std::ceil(centre_minor - half_w)), by_rows ? x_lo : y_lo);
+        const int j1 =
+            std::min(static_cast<int>(std::floor(centre_minor + half_w)), by_rows ? x_hi : y_hi);
         for (int j = j0; j <= j1; ++j) {
           const int x = by_rows ? j : i, y = by_rows ? i : j;
           int gxi, gyi;
@@ -855,10 +865,10 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
       }
     };
     double x1 = 0, x2 = 0, y3 = 0, y4 = 0;
-    extreme(0, true, &x1);   // side 0 outer, point with max y -> its x
-    extreme(1, true, &x2);   // side 0 inner
-    extreme(6, false, &y3);  // side 3 outer, point with max x -> its y
-    extreme(7, false, &y4);  // side 3 inner
+    extreme(0, true, &x1);                                // side 0 outer, point with max y -> its x
+    extreme(1, true, &x2);                                // side 0 inner
+    extreme(6, false, &y3);                               // side 3 outer, point with max x -> its y
+    extreme(7, false, &y4);                               // side 3 inner
     const double xa = (x1 + x2) / 2, ya = (y3 + y4) / 2;  // eq. 8-9
     const double half_d = 0.5 * (geom.outer_half_mm() + geom.inner_half_mm());
     const Vec2 o_al{xa - half_d, ya - half_d};  // eq. 10-11 (rotation already removed)
@@ -933,8 +943,8 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
       }
       scratch_buf = residual_buf;
       const auto mid = scratch_buf.size() / 2;
-      std::nth_element(scratch_buf.begin(),
-                       scratch_buf.begin() + static_cast<std::ptrdiff_t>(mid), scratch_buf.end());
+      std::nth_element(scratch_buf.begin(), scratch_buf.begin() + static_cast<std::ptrdiff_t>(mid),
+                       scratch_buf.end());
       const double sigma = std::max(0.005, 1.4826 * scratch_buf[mid]);
       const double cut = cfg.tukey_c * sigma;
       size_t idx = 0;
@@ -1212,10 +1222,9 @@ void LandmarkLocalizer::draw_overlay(const cv::Mat& gray8, const LandmarkFix& fi
       for (const Vec2& p : m.pts_px[static_cast<size_t>(l)]) {
         const int x = static_cast<int>(std::lround(p.x)), y = static_cast<int>(std::lround(p.y));
         if (x >= 0 && y >= 0 && x < bgr_out->cols && y < bgr_out->rows) {
-          bgr_out->at<cv::Vec3b>(y, x) =
-              cv::Vec3b(static_cast<std::uint8_t>(colours[cls][0]),
-                        static_cast<std::uint8_t>(colours[cls][1]),
-                        static_cast<std::uint8_t>(colours[cls][2]));
+          bgr_out->at<cv::Vec3b>(y, x) = cv::Vec3b(static_cast<std::uint8_t>(colours[cls][0]),
+                                                   static_cast<std::uint8_t>(colours[cls][1]),
+                                                   static_cast<std::uint8_t>(colours[cls][2]));
         }
       }
     }
@@ -1244,8 +1253,8 @@ void LandmarkLocalizer::draw_overlay(const cv::Mat& gray8, const LandmarkFix& fi
                 static_cast<unsigned>(fix.landmark_id));
   cv::putText(*bgr_out, text, {8, 20}, cv::FONT_HERSHEY_SIMPLEX, 0.5, {0, 0, 255}, 1, cv::LINE_AA);
   if (fix.status == FixStatus::kOk) {
-    std::snprintf(text, sizeof text, "ex=%.2f mm ey=%.2f mm ephi=%.3f deg", fix.e_x_mm,
-                  fix.e_y_mm, fix.e_phi_deg);
+    std::snprintf(text, sizeof text, "ex=%.2f mm ey=%.2f mm ephi=%.3f deg", fix.e_x_mm, fix.e_y_mm,
+                  fix.e_phi_deg);
     cv::putText(*bgr_out, text, {8, 40}, cv::FONT_HERSHEY_SIMPLEX, 0.5, {0, 0, 255}, 1,
                 cv::LINE_AA);
   }

@@ -43,11 +43,11 @@ struct LineFit {
   Line2 line;
   int n = 0;
   double sum_w = 0.0;
-  double rms = 0.0;            // weighted rms of the normal residuals
-  double var_angle = 0.0;      // variance of the line direction (rad^2)
-  double var_offset = 0.0;     // variance of d at the centroid (length^2)
+  double rms = 0.0;         // weighted rms of the normal residuals
+  double var_angle = 0.0;   // variance of the line direction (rad^2)
+  double var_offset = 0.0;  // variance of d at the centroid (length^2)
   Vec2 centroid;
-  double extent = 0.0;         // spread of the points along the line (max - min projection)
+  double extent = 0.0;  // spread of the points along the line (max - min projection)
 };
 
 // weights may be empty (all 1). Returns false for fewer than 2 points or degenerate input.

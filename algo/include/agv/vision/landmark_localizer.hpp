@@ -22,8 +22,8 @@ namespace agv::vision {
 
 // How edge-point coordinates become millimetres.
 enum class MetricMode {
-  kLinearRatio,   // paper 001: one mm-per-pixel ratio about the image centre (ignores distortion)
-  kCameraModel,   // every edge point through CameraModel::pixel_to_vehicle (undistorts)
+  kLinearRatio,  // paper 001: one mm-per-pixel ratio about the image centre (ignores distortion)
+  kCameraModel,  // every edge point through CameraModel::pixel_to_vehicle (undistorts)
 };
 
 // How the landmark centre and heading are computed from the classified edge points.
@@ -189,11 +189,11 @@ struct LandmarkFix {
   Eigen::Matrix3d cov_landmark_in_vehicle = Eigen::Matrix3d::Zero();
   StageTimings timings;
   int edge_points_used = 0;
-  double corner_score = 0.0;   // best corner-template NCC
-  double logo_score = 0.0;     // best logo NCC
-  double logo_margin = 0.0;    // best minus second-best logo NCC
-  int sides_used = 0;          // border sides with both edges fitted (4 when fully visible)
-  bool partly_outside = false; // some of the border is outside the image (pose still valid)
+  double corner_score = 0.0;    // best corner-template NCC
+  double logo_score = 0.0;      // best logo NCC
+  double logo_margin = 0.0;     // best minus second-best logo NCC
+  int sides_used = 0;           // border sides with both edges fitted (4 when fully visible)
+  bool partly_outside = false;  // some of the border is outside the image (pose still valid)
   double residual_rms_mm = 0.0;
   // Detection estimate (before the edge fit), for diagnostics: landmark centre in pixels and the
   // image angle of one border normal (modulo 90 deg).
