@@ -6,3 +6,5 @@ bash tools/install-deps.sh
 cmake --preset default
 cmake --build --preset default -j "$(nproc)"
 ctest --preset default -j "$(nproc)"
+# arm64: cross build, tests under qemu-aarch64, .deb package test (docs/deployment.md)
+bash tools/cross-test.sh
