@@ -12,7 +12,7 @@ PKGS=(
   build-essential cmake ninja-build pkg-config git ca-certificates
   # algo / drivers / firmware
   libopencv-dev
-  libeigen3-dev libzxing-dev libyaml-cpp-dev libcli11-dev
+  libeigen3-dev libpng-dev libzxing-dev libyaml-cpp-dev libcli11-dev
   libcamera-dev libcamera-ipa udev
   # tests, benchmarks, comparison baseline
   libgtest-dev libgmock-dev libbenchmark-dev libapriltag-dev valgrind

@@ -3,10 +3,10 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <fstream>
-#include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
 #include "agv/sim/render.hpp"
+#include "agv/recording/png_io.hpp"
 #include "commands.hpp"
 
 namespace agv::cmd {
@@ -105,14 +105,9 @@ int landmark(int argc, char** argv) {
   if (!png.empty()) {
     const cv::Mat img = sim::render_landmark_page(geometry, payload, mm_per_px);
     if (img.empty()) return usage_error("image too large for this --mm-per-px");
-    bool ok = false;
-    try {
-      ok = cv::imwrite(png, img);
-    } catch (const cv::Exception&) {
-      ok = false;
-    }
-    if (!ok) {
-      std::fprintf(stderr, "agvloc landmark: cannot write %s\n", png.c_str());
+    std::string err;
+    if (!png::write(png, img, &err)) {
+      std::fprintf(stderr, "agvloc landmark: %s\n", err.c_str());
       return 1;
     }
   }

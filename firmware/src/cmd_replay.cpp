@@ -1,7 +1,6 @@
 // agvloc replay RECORDING [--out DIR] [--config FILE] [--map FILE] [--can IFACE]
 //                         [--odom-from-can] [--realtime [--speed X] | --fast] [--overlay LIST]
 #include <CLI/CLI.hpp>
-#include <opencv2/imgcodecs.hpp>
 
 #include <atomic>
 #include <csignal>
@@ -15,6 +14,7 @@
 #include "agv/can/candump_file.hpp"
 #include "agv/can/socketcan.hpp"
 #include "agv/posix/posix_clock.hpp"
+#include "agv/recording/png_io.hpp"
 #include "agv/recording/replay_camera.hpp"
 #include "commands.hpp"
 #include "config.hpp"
@@ -46,7 +46,9 @@ void write_overlays(const config::Config& cfg, const LandmarkMap* map,
     loc.draw_overlay(img, fix, &bgr);
     char name[64];
     std::snprintf(name, sizeof name, "overlay_%06d.png", i);
-    cv::imwrite((std::filesystem::path(out_dir) / name).string(), bgr);
+    if (!png::write((std::filesystem::path(out_dir) / name).string(), bgr, &err)) {
+      std::fprintf(stderr, "replay: %s\n", err.c_str());
+    }
   }
 }
 

@@ -1,6 +1,7 @@
 // Recording format I/O (docs/recording.md). Strict: anything unexpected is an error that names
 // the file and line; nothing here throws or crashes on malformed input.
 #include "agv/recording/recording.hpp"
+#include "agv/recording/png_io.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -12,7 +13,6 @@
 #include <fstream>
 #include <map>
 #include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
 #include <set>
 #include <sstream>
 #include <string_view>
@@ -473,15 +473,12 @@ bool load_frame(const Recording& rec, size_t i, cv::Mat* image, std::string* err
   }
   const std::string path = (fs::path(rec.dir) / rec.frames[i].file).string();
   cv::Mat img;
-  try {
-    img = cv::imread(path, cv::IMREAD_GRAYSCALE);
-  } catch (const cv::Exception&) {
-    img.release();
-  }
-  if (img.empty()) {
-    if (error)
-      *error =
-          "frames.csv:" + std::to_string(i + 2) + ": cannot decode '" + rec.frames[i].file + "'";
+  std::string png_error;
+  if (!png::read_gray(path, &img, &png_error)) {
+    if (error) {
+      *error = "frames.csv:" + std::to_string(i + 2) + ": cannot decode '" + rec.frames[i].file +
+               "' (" + png_error + ")";
+    }
     return false;
   }
   const auto& k = rec.meta.camera.intrinsics;
@@ -585,14 +582,10 @@ bool write_frame_png(const std::string& dir, const std::string& relative_file, c
   const fs::path p = fs::path(dir) / relative_file;
   std::error_code ec;
   fs::create_directories(p.parent_path(), ec);
-  bool ok = false;
-  try {
-    // Fast zlib level: frames are written at 30 fps by the simulator and the recorder.
-    ok = cv::imwrite(p.string(), image, {cv::IMWRITE_PNG_COMPRESSION, 1});
-  } catch (const cv::Exception&) {
-    ok = false;
-  }
-  if (!ok && error) *error = p.string() + ": cannot write PNG";
+  // Fast zlib level: frames are written at 30 fps by the simulator and the recorder.
+  std::string e;
+  const bool ok = png::write(p.string(), image, &e, 1);
+  if (!ok && error) *error = e;
   return ok;
 }
 

@@ -1,6 +1,6 @@
 #include "agv/recording/replay_camera.hpp"
 
-#include <opencv2/imgcodecs.hpp>
+#include "agv/recording/png_io.hpp"
 
 #include <filesystem>
 
@@ -58,13 +58,12 @@ hal::CameraStatus ReplayCamera::next_frame(std::int64_t timeout_ns, hal::FrameVi
     }
     const std::string path = (std::filesystem::path(rec_.dir) / row.file).string();
     cv::Mat& image = slots_[slot];
-    image = cv::imread(path, cv::IMREAD_UNCHANGED);
-    if (image.empty() || image.type() != CV_8UC1 ||
+    std::string err;
+    if (!png::read_gray(path, &image, &err) ||
         image.cols != rec_.meta.camera.intrinsics.width_px ||
         image.rows != rec_.meta.camera.intrinsics.height_px) {
       ++stats_.errors;
-      error_ = path + ": " +
-               (image.empty() ? "cannot decode image" : "not an 8-bit gray image of the meta size");
+      error_ = err.empty() ? path + ": image size differs from meta.yaml" : err;
       ++sequence_;
       continue;
     }
