@@ -11,7 +11,8 @@ REC=demo/recording
 OUT=demo/out
 if [ ! -f "$REC/frames.csv" ]; then
   echo "demo: simulating a recording into $REC (default map tools/maps/default_grid.csv)"
-  "$BIN" sim --out "$REC" --map tools/maps/default_grid.csv --trajectory lawnmower --duration-s 30
+  "$BIN" sim --out "$REC" --map tools/maps/default_grid.csv --trajectory lawnmower --duration-s 30 \
+    --speed-mps 1.0 --exposure-ms 0.5 --seed 1
 fi
 "$BIN" replay "$REC" --out "$OUT" --fast
 echo "demo: trajectory plot $OUT/trajectory.svg, fused poses $OUT/poses.csv, fixes $OUT/fixes.csv"

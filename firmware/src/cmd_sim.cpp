@@ -66,6 +66,12 @@ int sim(int argc, char** argv) {
   app.add_option("--odom-hz", odom_hz, "Odometry (and truth) rate")
       ->check(CLI::Range(10.0, 1000.0))
       ->capture_default_str();
+  sim::OdometryParams op;
+  app.add_option("--slip-rate-per-s", op.slip_rate_per_s, "Mean wheel-slip events per second")
+      ->check(CLI::Range(0.0, 10.0));
+  app.add_option("--slip-excess", op.slip_excess,
+                 "Fraction the slipping wheel over-reports (0.05 = 5 %)")
+      ->check(CLI::Range(0.0, 2.0));
   app.add_option("--seed", seed, "Seed for every random effect (same seed = same recording)")
       ->capture_default_str();
   app.add_option("--speed-mps", speed_mps, "Cruise speed")
@@ -191,7 +197,6 @@ int sim(int argc, char** argv) {
   // Monotonic clock starts at an arbitrary 10 s, like a freshly booted controller.
   constexpr std::int64_t kT0_ns = 10'000'000'000LL;
   const auto duration_ns = static_cast<std::int64_t>(std::llround(duration_s * 1e9));
-  sim::OdometryParams op;
   op.seed = seed;
   const std::vector<sim::SlipEvent> slips = sim::make_slip_events(op, duration_ns);
 

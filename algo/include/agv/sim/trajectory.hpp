@@ -76,9 +76,9 @@ struct OdometryParams {
   double scale_error = 0.01;       // both wheels report this much too much (1 %)
   double scale_asymmetry = 0.004;  // right minus left scale error (makes straight runs curve)
   double noise_mps = 0.003;        // white noise per wheel speed sample (sigma)
-  double slip_rate_per_s = 0.05;   // mean slip events per second (Poisson)
+  double slip_rate_per_s = 0.02;   // mean slip events per second (Poisson)
   double slip_duration_s = 0.3;
-  double slip_excess = 0.25;  // the slipping wheel reports this fraction more than it moved
+  double slip_excess = 0.05;  // the slipping wheel reports this fraction more than it moved
   std::uint64_t seed = 1;
 };
 
