@@ -2,6 +2,7 @@
  * executed between marker system calls made by vision_cost (prctl with the option values
  * below, which the kernel rejects with EINVAL). Every on->off window is one frame; the plugin
  * writes one line per window ("<instructions>") to the file given as out=FILE.
+ * Arguments: out=FILE (required), nr=N (prctl's system call number, default 167 = aarch64).
  *
  * Counting is per translated block: each executed block adds its instruction count (inline,
  * no callback), as QEMU's contrib/plugins/insn.c does in its inline mode. A block always ends at
@@ -37,7 +38,9 @@ void qemu_plugin_register_vcpu_tb_exec_inline(struct qemu_plugin_tb* tb, enum qe
 #define EXPORT __attribute__((visibility("default")))
 EXPORT int qemu_plugin_version = 1;
 
-enum { kPrctlAarch64 = 167 };           /* __NR_prctl in the aarch64 (generic) syscall table */
+/* __NR_prctl of the guest: 167 on aarch64 (default); 157 on x86-64 (argument nr=157), used to
+ * check the method against callgrind on the same x86-64 binary. */
+static int64_t g_prctl_nr = 167;
 #define kMarkerOn 0x41475631u            /* "AGV1": start of a measured frame */
 #define kMarkerOff 0x41475630u           /* "AGV0": end of a measured frame */
 
@@ -57,7 +60,7 @@ static void on_syscall(qemu_plugin_id_t id, unsigned int vcpu, int64_t num, uint
                        uint64_t a2, uint64_t a3, uint64_t a4, uint64_t a5, uint64_t a6,
                        uint64_t a7, uint64_t a8) {
   (void)id, (void)vcpu, (void)a2, (void)a3, (void)a4, (void)a5, (void)a6, (void)a7, (void)a8;
-  if (num != kPrctlAarch64) return;
+  if (num != g_prctl_nr) return;
   if (a1 == kMarkerOn) {
     g_start = g_insns;
     g_open = 1;
@@ -81,6 +84,7 @@ EXPORT int qemu_plugin_install(qemu_plugin_id_t id, const qemu_info_t* info, int
   const char* path = NULL;
   for (int i = 0; i < argc; i++) {
     if (strncmp(argv[i], "out=", 4) == 0) path = argv[i] + 4;
+    if (strncmp(argv[i], "nr=", 3) == 0) g_prctl_nr = strtoll(argv[i] + 3, NULL, 10);
   }
   if (!path) {
     fprintf(stderr, "insn_count_plugin: needs out=FILE\n");

@@ -55,6 +55,13 @@ for cls in ok none; do
     exit 1
   fi
   arm_sum="$(awk '{s += $1} END {printf "%.0f", s}' "$res/aarch64.$cls.txt")"
+  # Check of the counting method: the plugin under qemu-x86_64 on the x86-64 binary must agree
+  # with callgrind.
+  qemu-x86_64 -plugin "$res/insn_count_plugin.so,out=$res/x86qemu.$cls.txt,nr=157" \
+              "$nat/tools/vision-cost/vision_cost" "$rec" --frames "$frames" --class "$cls" \
+              >"$res/x86qemu.$cls.log" 2>&1
+  awk -v x="$ir" '{s += $1} END {printf "  method check: qemu-x86_64 plugin / callgrind = %.5f\n", s / x}' \
+      "$res/x86qemu.$cls.txt"
   awk -v c="$cls" -v n="$n" -v x="$ir" -v a="$arm_sum" \
       'BEGIN {printf "%-6s %8d %16.0f %16.0f %8.3f\n", c, n, x / n, a / n, a / x}'
   sort -n "$res/aarch64.$cls.txt" |
