@@ -84,6 +84,7 @@ void read_loop(YamlChecker& c, const YAML::Node& root, LoopSection* s) {
   c.integer(n, "loop", "realtime_priority", 0, 99, &s->realtime_priority);
   c.boolean(n, "loop", "lock_memory", &s->lock_memory);
   c.number(n, "loop", "log_period_s", 0.0, 3600.0, &s->log_period_s);
+  c.boolean(n, "loop", "pose_on_fix", &s->pose_on_fix);
   c.finish_map(n, "loop");
 }
 

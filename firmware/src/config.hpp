@@ -39,6 +39,12 @@ struct LoopSection {
   int realtime_priority = 0;         // SCHED_FIFO priority of the output thread; 0 = off
   bool lock_memory = false;          // mlockall at start
   double log_period_s = 10.0;        // periodic statistics line; 0 = off
+  // Also send the pose pair right after a fix is fused, outside the fixed schedule: the
+  // correction reaches the bus ~1 vision-time after exposure instead of waiting up to one output
+  // period, at the cost of irregular pose-frame spacing (receivers must not derive speed from
+  // pose-frame intervals). Off by default: a fixed-rate stream is what most motor controllers
+  // expect.
+  bool pose_on_fix = false;
 };
 
 struct Config {

@@ -85,7 +85,7 @@ void OutputStage::poll_can() {
 }
 
 bool OutputStage::odometry_timed_out(std::int64_t now_ns) const {
-  if (odom_from_can_seen_ || bus_) return odom_.timed_out(now_ns);
+  // Whatever the source (CAN or a recording): the newest sample fusion accepted.
   return last_odom_ns_ == INT64_MIN ||
          now_ns - last_odom_ns_ > static_cast<std::int64_t>(cfg_.can.odometry_timeout_ms * 1e6);
 }
@@ -139,6 +139,38 @@ void OutputStage::send(const protocol::CanFrameData& f) {
   }
 }
 
+protocol::PoseOut OutputStage::pose_out(const fusion::PoseEstimate& est, std::int64_t now_ns,
+                                        bool* odom_timeout) const {
+  protocol::PoseOut pose;
+  pose.valid = est.valid && est.health != fusion::HealthState::kLost;
+  pose.x_mm = est.pose.x_mm;
+  pose.y_mm = est.pose.y_mm;
+  pose.theta_rad = est.pose.theta_rad;
+  pose.latency_ms =
+      last_odom_ns_ == INT64_MIN ? 0.0 : static_cast<double>(now_ns - last_odom_ns_) / 1e6;
+  *odom_timeout = odometry_timed_out(now_ns) || (est.flags & fusion::flags::kOdomTimeout);
+  if (*odom_timeout) pose.valid = false;  // without odometry behind it, not for control
+  return pose;
+}
+
+void OutputStage::send_pose(const protocol::PoseOut& pose, const hal::Clock* clock,
+                            std::int64_t now_ns) {
+  protocol::CanFrameData a, b;
+  encoder_.encode_pose(pose, &a, &b);
+  send(a);
+  send(b);
+  if (pending_e2e_exposure_ns_ != INT64_MIN) {
+    stats_.end_to_end_ns.record_ns((clock ? clock->now_ns() : now_ns) - pending_e2e_exposure_ns_);
+    pending_e2e_exposure_ns_ = INT64_MIN;
+  }
+}
+
+void OutputStage::send_pose_now(std::int64_t now_ns, const hal::Clock* clock) {
+  const fusion::PoseEstimate est = ekf_.estimate_at(now_ns);
+  bool odom_timeout = false;
+  send_pose(pose_out(est, now_ns, &odom_timeout), clock, now_ns);
+}
+
 void OutputStage::tick(std::int64_t now_ns, const hal::Clock* clock, TickRecord* rec) {
   const std::int64_t t_start = clock ? clock->now_ns() : now_ns;
   ++stats_.ticks;
@@ -147,12 +179,8 @@ void OutputStage::tick(std::int64_t now_ns, const hal::Clock* clock, TickRecord*
   fusion::PoseEstimate est = ekf_.estimate_at(now_ns);
   est.flags |= ekf_.take_flags();
 
-  protocol::PoseOut pose;
-  pose.valid = est.valid && est.health != fusion::HealthState::kLost;
-  pose.x_mm = est.pose.x_mm;
-  pose.y_mm = est.pose.y_mm;
-  pose.theta_rad = est.pose.theta_rad;
-  pose.latency_ms = last_odom_ns_ == INT64_MIN ? 0.0 : static_cast<double>(now_ns - last_odom_ns_) / 1e6;
+  bool odom_timeout = false;
+  const protocol::PoseOut pose = pose_out(est, now_ns, &odom_timeout);
   protocol::VelocityOut vel;
   vel.valid = est.valid;
   vel.v_mps = est.v_mps;
@@ -170,10 +198,7 @@ void OutputStage::tick(std::int64_t now_ns, const hal::Clock* clock, TickRecord*
       est.time_since_fix_ns < 0 ? -1.0 : static_cast<double>(est.time_since_fix_ns) / 1e6;
   if (camera_stalled_) st.faults |= protocol::fault::kCameraStalled;
   if (camera_error_) st.faults |= protocol::fault::kCameraError;
-  if (odometry_timed_out(now_ns) || (est.flags & fusion::flags::kOdomTimeout)) {
-    st.faults |= protocol::fault::kOdomTimeout;
-    pose.valid = false;  // a pose without odometry behind it must not be trusted for control
-  }
+  if (odom_timeout) st.faults |= protocol::fault::kOdomTimeout;
   const std::uint64_t odom_rej = odom_.counters().rejected();
   if (odom_rej != odom_rejected_seen_) {
     st.faults |= protocol::fault::kOdomE2E;
@@ -190,15 +215,8 @@ void OutputStage::tick(std::int64_t now_ns, const hal::Clock* clock, TickRecord*
   const std::int64_t t_fused = clock ? clock->now_ns() : now_ns;
   stats_.fusion_ns.record_ns(t_fused - t_start);
 
-  protocol::CanFrameData a, b;
-  encoder_.encode_pose(pose, &a, &b);
-  send(a);
-  send(b);
-  const std::int64_t t_pose_sent = clock ? clock->now_ns() : now_ns;
-  if (pending_e2e_exposure_ns_ != INT64_MIN) {
-    stats_.end_to_end_ns.record_ns(t_pose_sent - pending_e2e_exposure_ns_);
-    pending_e2e_exposure_ns_ = INT64_MIN;
-  }
+  send_pose(pose, clock, now_ns);
+  protocol::CanFrameData a;
   encoder_.encode_velocity(vel, &a);
   send(a);
   encoder_.encode_quality(q, &a);

@@ -66,6 +66,10 @@ class OutputStage {
   // due). `clock` times the sends for latency accounting; null in fast replay, where the send
   // is taken to happen at now_ns. Fills *rec when not null.
   void tick(std::int64_t now_ns, const hal::Clock* clock, TickRecord* rec);
+  // Sends the pose pair at once, estimated at now_ns, outside the periodic schedule (used after
+  // a fused fix when loop.pose_on_fix is set, so the correction reaches the bus without waiting
+  // up to one period). Counts end-to-end latency like tick().
+  void send_pose_now(std::int64_t now_ns, const hal::Clock* clock);
   void note_missed_period() {
     ++stats_.missed_periods;
     overrun_ = true;
@@ -79,6 +83,9 @@ class OutputStage {
 
  private:
   void send(const protocol::CanFrameData& f);
+  // Pose output for an estimate: invalid when uninitialised, lost or without odometry.
+  protocol::PoseOut pose_out(const fusion::PoseEstimate& est, std::int64_t now_ns, bool* odom_timeout) const;
+  void send_pose(const protocol::PoseOut& pose, const hal::Clock* clock, std::int64_t now_ns);
 
   config::Config cfg_;
   hal::CanBus* bus_;

@@ -8,6 +8,7 @@
 #include <thread>
 #include <unistd.h>
 
+#include "agv/posix/pi_mutex.hpp"
 #include "agv/posix/posix_clock.hpp"
 #include "agv/posix/realtime.hpp"
 #include "handoff.hpp"
@@ -71,6 +72,10 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
                 RunResult* result) {
   hal::Clock& clock = *io.clock;
   OutputStage out(cfg, io.bus);
+  // Guards `out` only when the vision worker sends fix-triggered poses (loop.pose_on_fix);
+  // priority inheritance keeps the real-time output thread's wait bounded.
+  posix::PiMutex out_mutex;
+  const bool pose_on_fix = cfg.loop.pose_on_fix;
   FrameMailbox mailbox;
   SpscRing<FixRecord, 16> fix_queue;
   std::atomic<bool> done{false};
@@ -147,7 +152,14 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
       io.camera->release(f);
       record_vision(rec.fix, t0 - f.t_exposure_ns, t1 - t0, &vstats);
       if (io.fixes && io.fixes->size() < io.fixes->capacity()) io.fixes->push_back(rec);
-      if (rec.fix.status != vision::FixStatus::kNoLandmark) fix_queue.push(rec);
+      if (pose_on_fix && rec.fix.status == vision::FixStatus::kOk) {
+        out_mutex.lock();
+        out.on_fix(rec.fix, rec.t_exposure_ns);
+        out.send_pose_now(clock.now_ns(), &clock);
+        out_mutex.unlock();
+      } else if (rec.fix.status != vision::FixStatus::kNoLandmark) {
+        fix_queue.push(rec);
+      }
       vision_busy = 0;
     }
     hal::FrameView f;
@@ -174,6 +186,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
     while (!done.load()) {
       clock.sleep_until_ns(next_ns);
       const std::int64_t now = clock.now_ns();
+      if (pose_on_fix) out_mutex.lock();
       out.mutable_stats().period_jitter_ns.record_ns(now - next_ns);
       if (now - next_ns > period_ns) {
         out.note_missed_period();
@@ -205,6 +218,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
         while (fix_queue.pop(&rec)) out.on_fix(rec.fix, rec.t_exposure_ns);
         done = true;
       }
+      if (pose_on_fix) out_mutex.unlock();
     }
   });
 

@@ -202,3 +202,22 @@ TEST(Degradation, CameraStallIsFlaggedWhileTheLoopKeepsRunning) {
   EXPECT_EQ(r.vision.frames_processed + r.frames_dropped_mailbox, 18u);
   EXPECT_GT(r.output.ticks, 100u);
 }
+
+TEST(OutputStage, PoseOnFixSendsThePoseWithoutWaitingForThePeriod) {
+  const config::Config cfg = test_config();
+  test::StaticBus bus;
+  app::OutputStage out(cfg, &bus);
+  std::int64_t t = 1'000'000'000;
+  for (int i = 0; i < 10; ++i) {
+    out.on_odometry(t += 10'000'000, 0.5, 0.0);
+    out.tick(t, nullptr, nullptr);
+  }
+  const std::size_t before = bus.sent_n;
+  out.on_odometry(t + 2'000'000, 0.5, 0.0);
+  out.on_fix(good_fix(0.0), t + 1'000'000);
+  out.send_pose_now(t + 3'000'000, nullptr);
+  ASSERT_EQ(bus.sent_n, before + 2);  // exactly the pose pair
+  EXPECT_TRUE(last_pose_valid(cfg, bus));
+  ASSERT_EQ(out.stats().end_to_end_ns.count(), 1u);
+  EXPECT_EQ(out.stats().end_to_end_ns.max_ns(), 2'000'000);  // exposure -> send
+}
