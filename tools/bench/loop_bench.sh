@@ -15,7 +15,7 @@ if [ ! -f "$WORK/rec60/frames.csv" ]; then
 fi
 "$BUILD/tests/bench/timer_baseline" 100 60 > "$WORK/baseline.txt" &
 BASE_PID=$!
-/usr/bin/time -v "$BIN" replay "$WORK/rec60" --out "$WORK/out" --realtime --quiet \
+/usr/bin/time -v "$BIN" replay "$WORK/rec60" --out "$WORK/out" --realtime --quiet ${AGV_BENCH_CONFIG:+--config "$AGV_BENCH_CONFIG"} \
   > "$WORK/replay.txt" 2> "$WORK/time.txt"
 wait "$BASE_PID"
 echo "== machine: $(nproc) cores, load average $(cut -d' ' -f1-3 /proc/loadavg)"

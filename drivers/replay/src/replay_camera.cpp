@@ -2,6 +2,7 @@
 
 #include "agv/recording/png_io.hpp"
 
+#include <algorithm>
 #include <filesystem>
 
 namespace agv::recording {
@@ -17,6 +18,7 @@ hal::CameraStatus ReplayCamera::start() {
 
 void ReplayCamera::stop() {
   started_ = false;
+  prefetched_slot_ = -1;
   for (auto& h : held_) h = false;
 }
 
@@ -28,10 +30,50 @@ std::int64_t ReplayCamera::mapped_ns(std::int64_t t_rec_ns) const {
 
 hal::CameraStatus ReplayCamera::next_frame(std::int64_t timeout_ns, hal::FrameView* frame) {
   if (!started_) return hal::CameraStatus::kNotStarted;
-  // Skip frames inside a simulated stall and frames that cannot be decoded.
-  while (next_ < rec_.frames.size()) {
-    const FrameRow& row = rec_.frames[next_];
-    const std::int64_t due_ns = mapped_ns(row.t_ns);
+  while (true) {
+    if (prefetched_slot_ < 0) {
+      if (next_ >= rec_.frames.size()) return hal::CameraStatus::kEndOfStream;
+      const FrameRow& row = rec_.frames[next_];
+      if (row.t_ns >= stall_from_ns_ && row.t_ns < stall_to_ns_) {  // withheld: simulated stall
+        ++next_;
+        continue;
+      }
+      int slot = -1;
+      for (int i = 0; i < kSlots; ++i) {
+        if (!held_[i]) {
+          slot = i;
+          break;
+        }
+      }
+      if (slot < 0) {
+        // Every buffer is held by the loop: like a starved live queue, this frame is lost.
+        if (clock_ && mapped_ns(row.t_ns) > clock_->now_ns()) {
+          clock_->sleep_until_ns(std::min(mapped_ns(row.t_ns), clock_->now_ns() + timeout_ns));
+          return hal::CameraStatus::kTimeout;
+        }
+        ++stats_.frames_dropped;
+        ++sequence_;
+        ++next_;
+        continue;
+      }
+      // Decode before the frame is due, so the loop sees it at its time as from a live camera
+      // (PNG decoding takes milliseconds; a live driver hands over a finished buffer).
+      const std::string path = (std::filesystem::path(rec_.dir) / row.file).string();
+      cv::Mat& image = slots_[slot];
+      std::string err;
+      if (!png::read_gray(path, &image, &err) ||
+          image.cols != rec_.meta.camera.intrinsics.width_px ||
+          image.rows != rec_.meta.camera.intrinsics.height_px) {
+        ++stats_.errors;
+        error_ = err.empty() ? path + ": image size differs from meta.yaml" : err;
+        ++sequence_;
+        ++next_;
+        continue;
+      }
+      held_[slot] = true;
+      prefetched_slot_ = slot;
+    }
+    const std::int64_t due_ns = mapped_ns(rec_.frames[next_].t_ns);
     if (clock_) {
       const std::int64_t now = clock_->now_ns();
       if (due_ns > now) {
@@ -42,43 +84,19 @@ hal::CameraStatus ReplayCamera::next_frame(std::int64_t timeout_ns, hal::FrameVi
         clock_->sleep_until_ns(due_ns);
       }
     }
-    ++next_;
-    if (row.t_ns >= stall_from_ns_ && row.t_ns < stall_to_ns_) continue;
-    int slot = -1;
-    for (int i = 0; i < kSlots; ++i) {
-      if (!held_[i]) {
-        slot = i;
-        break;
-      }
-    }
-    if (slot < 0) {
-      ++stats_.frames_dropped;
-      ++sequence_;
-      continue;
-    }
-    const std::string path = (std::filesystem::path(rec_.dir) / row.file).string();
-    cv::Mat& image = slots_[slot];
-    std::string err;
-    if (!png::read_gray(path, &image, &err) ||
-        image.cols != rec_.meta.camera.intrinsics.width_px ||
-        image.rows != rec_.meta.camera.intrinsics.height_px) {
-      ++stats_.errors;
-      error_ = err.empty() ? path + ": image size differs from meta.yaml" : err;
-      ++sequence_;
-      continue;
-    }
+    const cv::Mat& image = slots_[prefetched_slot_];
     frame->data = image.data;
     frame->width_px = image.cols;
     frame->height_px = image.rows;
     frame->stride_bytes = static_cast<int>(image.step[0]);
-    frame->t_exposure_ns = mapped_ns(row.t_ns);
+    frame->t_exposure_ns = due_ns;
     frame->sequence = sequence_++;
-    frame->slot = slot;
-    held_[slot] = true;
+    frame->slot = prefetched_slot_;
+    prefetched_slot_ = -1;
+    ++next_;
     ++stats_.frames_delivered;
     return hal::CameraStatus::kOk;
   }
-  return hal::CameraStatus::kEndOfStream;
 }
 
 void ReplayCamera::release(const hal::FrameView& frame) {

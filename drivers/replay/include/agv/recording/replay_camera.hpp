@@ -53,6 +53,7 @@ class ReplayCamera final : public hal::Camera {
   cv::Mat slots_[kSlots];
   std::atomic<bool> held_[kSlots] = {false, false, false};  // released from another thread
   std::size_t next_ = 0;
+  int prefetched_slot_ = -1;  // decoded, waiting for its time
   std::uint64_t sequence_ = 0;
   std::int64_t stall_from_ns_ = 0, stall_to_ns_ = 0;
   hal::CameraStats stats_;
