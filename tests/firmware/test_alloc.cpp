@@ -17,6 +17,9 @@ std::atomic<long> g_allocs{0};
 std::atomic<bool> g_counting{false};
 }  // namespace
 
+// The replacements pair malloc with free on purpose; GCC cannot see that through inlining.
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
+
 void* operator new(std::size_t n) {
   if (g_counting.load(std::memory_order_relaxed)) g_allocs.fetch_add(1);
   if (void* p = std::malloc(n ? n : 1)) return p;
