@@ -684,8 +684,9 @@ def analyse_status(s, sc, rep, by_name, xy, odom_frames_cap, t_cap0, odom_end, e
         # Every frame on the odometry ID that is not ours must be counted as rejected: at least
         # those before its last output frame, at most those before it exited.
         ours = set(d for _, d in sc["odom_payloads"])
+        # Remote (RTR) frames carry no data and are not odometry candidates: not counted.
         foreign = [f.t for f in frames if (f.can_id, f.ext) == (s.odom_id, s.odom_ext)
-                   and f.data not in ours]
+                   and not f.rtr and f.data not in ours]
         last_tx = max(f.t for fl in by_name.values() for f in fl)
         lo = sum(1 for t in foreign if t <= last_tx)
         hi = sum(1 for t in foreign if t <= sc.get("loc_exit", float("inf")))
