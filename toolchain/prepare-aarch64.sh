@@ -83,7 +83,7 @@ want=""
 for p in "${EXTRACT[@]}"; do
   want+="$p=$(apt-cache policy "$p:arm64" | awk '/Candidate:/ {print $2}')"$'\n'
 done
-if [ ! -f "$EXTRA/.stamp" ] || [ "$(cat "$EXTRA/.stamp")" != "$want" ]; then
+if [ ! -f "$EXTRA/.stamp" ] || [ "$(cat "$EXTRA/.stamp")" != "$(printf '%s' "$want")" ]; then
   echo "prepare-aarch64: unpacking ${EXTRACT[*]} (arm64) into $EXTRA"
   tmp="$(mktemp -d)"
   trap 'rm -rf "$tmp"' EXIT
