@@ -138,6 +138,7 @@ TEST(Odometry, ScaleNoiseSlipAndDeterminism) {
 
   // Slip: deterministic events; during one the reported speed exceeds the truth a lot.
   op.slip_rate_per_s = 0.5;
+  op.slip_excess = 0.25;  // harsh slip, well above the noise
   const auto ev = make_slip_events(op, 60'000'000'000LL);
   const auto ev2 = make_slip_events(op, 60'000'000'000LL);
   ASSERT_FALSE(ev.empty());
