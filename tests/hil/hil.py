@@ -37,6 +37,8 @@ sys.path.insert(0, HERE)
 import hil_dbc  # noqa: E402
 
 SKIP = 77
+OFFLINE_MEDIAN_MM = 2.0  # bus vs offline replay, see compare_poses
+OFFLINE_P90_MM = 10.0
 MAX_POSE_GAP_S = 0.5  # longest tolerated pose-frame gap while nothing is injected
 SOURCE_DIR = os.path.dirname(os.path.dirname(HERE))
 
@@ -489,7 +491,7 @@ def analyse(s: Setup, sc: dict, rep: Report) -> None:
         tick_time = match_own(s, rep, pairs, own_path, own, res_xy, res_th)
     off_path, off = sc["offline"]
     compare_poses(s, sc, rep, pairs, off_path, off, rec_ns, t_cap0, odom_end, compare_until,
-                  res_xy, res_th, "decoded poses equal the offline replay", tick_time)
+                  res_xy, res_th, "decoded poses agree with the offline replay", tick_time)
     analyse_status(s, sc, rep, by_name, xy, odom_frames_cap, t_cap0, odom_end, excluded,
                    status_period, frames)
 
@@ -567,19 +569,29 @@ def compare_poses(s, sc, rep, pairs, off_path, off, rec_ns, t_cap0, odom_end, co
             u = (t_est - a["t_ns"]) / max(1, b["t_ns"] - a["t_ns"])
             interp_err.append(math.hypot(a["x"] + u * (b["x"] - a["x"]) - dx["X"],
                                          a["y"] + u * (b["y"] - a["y"]) - dx["Y"]))
+    # Bit-exact agreement with the offline replay is not achievable: on the bus the odometry
+    # carries kernel receive times (jitter of milliseconds, tens under emulation) and each fix
+    # reaches fusion when the vision worker finishes, while the offline replay uses the recorded
+    # times and a fixed fix delay. Between a fix's exposure and its arrival the two runs differ by
+    # up to that fix's correction. Exact equality is checked against what the localizer itself
+    # recorded (match_own); here the tracks must agree to within the timing effects.
+    med = statistics.median(interp_err) if interp_err else float("inf")
+    p90 = sorted(interp_err)[int(0.9 * (len(interp_err) - 1))] if interp_err else float("inf")
     if interp_err:
         rep.info(f"{os.path.basename(os.path.dirname(off_path))}: position vs the reference "
-                 f"track interpolated at the estimate time: median "
-                 f"{statistics.median(interp_err):.3f} mm, max {max(interp_err):.3f} mm")
+                 f"track interpolated at the estimate time: median {med:.3f} mm, p90 {p90:.3f} mm,"
+                 f" max {max(interp_err):.3f} mm")
     detail = f"{matched}/{compared} valid bus poses equal a reference pose within +-{res_xy:.4f}" \
-             f" mm / {res_th:.6f} rad (window +-{sc['match_window_ms']} ms; {off_path})"
+             f" mm / {res_th:.6f} rad (window +-{sc['match_window_ms']} ms; {off_path}); " \
+             f"interpolated position difference median {med:.3f} mm (limit {OFFLINE_MEDIAN_MM})," \
+             f" p90 {p90:.3f} mm (limit {OFFLINE_P90_MM})"
     if mismatches:
         t, te, x, y, th, best = mismatches[0]
         detail += (f"; first mismatch at capture {t:.6f} (recording {te/1e9:.3f} s): bus "
                    f"({x:.2f}, {y:.2f}, {th:.4f})" +
                    (f", nearest reference t={best[1]['t_ns']/1e9:.3f} s ({best[1]['x']:.2f}, "
                     f"{best[1]['y']:.2f}, {best[1]['th']:.4f})" if best else ", no reference row"))
-    rep.check(compared > 0 and matched == compared, title, detail)
+    rep.check(compared > 0 and med <= OFFLINE_MEDIAN_MM and p90 <= OFFLINE_P90_MM, title, detail)
 
 
 def analyse_status(s, sc, rep, by_name, xy, odom_frames_cap, t_cap0, odom_end, excluded,

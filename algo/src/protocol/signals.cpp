@@ -117,17 +117,17 @@ constexpr SignalDef kOdomTwist[] = {
 };
 
 const MessageDef kMessages[] = {
-    {Msg::kPoseXY, "AGV_PoseXY", 0x00, 0x4C00, 8, Direction::kTx, 20,
+    {Msg::kPoseXY, "AGV_PoseXY", 0x00, 0x4C00, 8, Direction::kTx, 10,
      "Vehicle position. Sent together with AGV_PoseHeading from the same estimate; both carry "
      "the same AliveCounter, which pairs them.",
      kPoseXY},
-    {Msg::kPoseHeading, "AGV_PoseHeading", 0x01, 0x4C01, 8, Direction::kTx, 20,
+    {Msg::kPoseHeading, "AGV_PoseHeading", 0x01, 0x4C01, 8, Direction::kTx, 10,
      "Vehicle heading and pose latency; pairs with AGV_PoseXY by AliveCounter.", kPoseHeading},
-    {Msg::kVelocity, "AGV_Velocity", 0x02, 0x4C02, 8, Direction::kTx, 20,
+    {Msg::kVelocity, "AGV_Velocity", 0x02, 0x4C02, 8, Direction::kTx, 10,
      "Estimated vehicle velocity.", kVelocity},
-    {Msg::kQuality, "AGV_Quality", 0x03, 0x4C03, 8, Direction::kTx, 100,
+    {Msg::kQuality, "AGV_Quality", 0x03, 0x4C03, 8, Direction::kTx, 10,
      "Standard deviations of the pose estimate.", kQuality},
-    {Msg::kStatus, "AGV_Status", 0x04, 0x4C04, 8, Direction::kTx, 100,
+    {Msg::kStatus, "AGV_Status", 0x04, 0x4C04, 8, Direction::kTx, 10,
      "Health, last fix, fault and rejection flags. Event flags are latched between two status "
      "frames.",
      kStatus},
