@@ -14,5 +14,5 @@ if [ ! -f "$REC/frames.csv" ]; then
   "$BIN" sim --out "$REC" --map tools/maps/default_grid.csv --trajectory lawnmower --duration-s 30 \
     --speed-mps 1.0 --exposure-ms 0.5 --seed 1
 fi
-"$BIN" replay "$REC" --out "$OUT" --fast
+"$BIN" replay "$REC" --out "$OUT" --fast --map tools/maps/default_grid.csv
 echo "demo: trajectory plot $OUT/trajectory.svg, fused poses $OUT/poses.csv, fixes $OUT/fixes.csv"
