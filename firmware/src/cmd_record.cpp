@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <thread>
 
+#include "agv/can/frame_convert.hpp"
 #include "agv/can/socketcan.hpp"
 #include "agv/posix/posix_clock.hpp"
 #include "agv/protocol/codec.hpp"
@@ -119,14 +120,8 @@ int record(int argc, char** argv) {
   hal::CanFrame cf;
   while (!stop_requested().load() && clock.now_ns() < t_end) {
     if (bus.receive(&cf, 20'000'000) != hal::CanStatus::kOk) continue;
-    protocol::CanFrameData d;
-    d.id = cf.id;
-    d.extended = cf.extended;
-    d.len = cf.len;
-    for (int i = 0; i < 8; ++i) d.data[i] = cf.data[i];
-    d.t_ns = cf.t_ns;
     protocol::OdomSample s;
-    if (decoder.decode(d, &s) == protocol::DecodeResult::kOk &&
+    if (decoder.decode(can::from_hal(cf), &s) == protocol::DecodeResult::kOk &&
         (odom.empty() || s.t_ns > odom.back().t_ns)) {
       odom.push_back({s.t_ns, s.v_mps, s.omega_radps});
     }

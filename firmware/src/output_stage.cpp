@@ -1,30 +1,12 @@
 #include "output_stage.hpp"
 
+#include "agv/can/frame_convert.hpp"
+
 #include <cmath>
 
 namespace agv::app {
 
 namespace {
-
-hal::CanFrame to_hal(const protocol::CanFrameData& f) {
-  hal::CanFrame h;
-  h.id = f.id;
-  h.extended = f.extended;
-  h.len = f.len;
-  for (int i = 0; i < 8; ++i) h.data[i] = f.data[i];
-  h.t_ns = f.t_ns;
-  return h;
-}
-
-protocol::CanFrameData from_hal(const hal::CanFrame& h) {
-  protocol::CanFrameData f;
-  f.id = h.id;
-  f.extended = h.extended;
-  f.len = h.len;
-  for (int i = 0; i < 8; ++i) f.data[i] = h.data[i];
-  f.t_ns = h.t_ns;
-  return f;
-}
 
 protocol::Health to_protocol(fusion::HealthState h) {
   switch (h) {
@@ -74,7 +56,7 @@ void OutputStage::poll_can() {
     if (bus_->receive(&frame, 0) != hal::CanStatus::kOk) break;
     ++stats_.can_rx_frames;
     protocol::OdomSample s;
-    const protocol::DecodeResult r = odom_.decode(from_hal(frame), &s);
+    const protocol::DecodeResult r = odom_.decode(can::from_hal(frame), &s);
     if (r == protocol::DecodeResult::kOk) {
       odom_from_can_seen_ = true;
       on_odometry(s.t_ns, s.v_mps, s.omega_radps);
@@ -132,7 +114,7 @@ void OutputStage::on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure
 
 void OutputStage::send(const protocol::CanFrameData& f) {
   if (!bus_) return;
-  if (bus_->send(to_hal(f)) == hal::CanStatus::kOk) {
+  if (bus_->send(can::to_hal(f)) == hal::CanStatus::kOk) {
     ++stats_.can_tx_ok;
   } else {
     ++stats_.can_tx_failed;  // counted, never retried: the next period carries fresher data
