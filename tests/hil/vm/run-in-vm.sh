@@ -169,8 +169,20 @@ mount -t proc proc $R/proc && mount -t sysfs sysfs $R/sys && mount -t devtmpfs d
   fail "cannot mount proc/sys/dev in the new root"
 mkdir -p $R/dev/pts $R/dev/shm
 mount -t devpts devpts $R/dev/pts
+# Host directories under the guest's tmpfs mount points (a checkout in /tmp, say) are kept
+# visible: bound aside before the tmpfs covers them, bound back into it afterwards.
+i=0
+for p in $AGV_VM_KEEP; do
+  mkdir -p /keep/$i && mount -o bind "$R$p" /keep/$i || fail "cannot keep $p"
+  i=$((i + 1))
+done
 for d in /dev/shm /tmp /run /var/tmp; do
   mount -t tmpfs -o mode=1777 tmpfs $R$d || fail "cannot mount tmpfs on $d"
+done
+i=0
+for p in $AGV_VM_KEEP; do
+  mkdir -p "$R$p" && mount -o bind /keep/$i "$R$p" || fail "cannot restore $p"
+  i=$((i + 1))
 done
 mkdir -p "$R$AGV_VM_RESULTS" 2>/dev/null
 mount -o move /results "$R$AGV_VM_RESULTS" || fail "cannot move the results share to $AGV_VM_RESULTS"
@@ -199,10 +211,23 @@ poweroff -f
 INIT
 chmod 755 "$ird/init"
 
+# Paths the guest would otherwise lose under its own tmpfs on /tmp, /run, /var/tmp, /dev/shm:
+# the working directory, this checkout and the results share (their top directory below the
+# mount point, e.g. /tmp/ci for a clone in /tmp/ci). Paths with spaces are not supported.
+keep=""
+for p in "$PWD" "$(cd "$(dirname "$0")/../../.." && pwd -P)" "$share"; do
+  case "$p" in
+    /tmp/?*|/run/?*|/var/tmp/?*|/dev/shm/?*)
+      top="$(printf '%s\n' "$p" | cut -d/ -f1-3)"
+      [ "${p#/var/tmp/}" != "$p" ] || [ "${p#/dev/shm/}" != "$p" ] && top="$(printf '%s\n' "$p" | cut -d/ -f1-4)"
+      case " $keep " in *" $top "*) ;; *) keep="$keep $top" ;; esac ;;
+  esac
+done
 {
   echo "AGV_VM_RESULTS='$share'"
   echo "AGV_VM_KVER='$KVER'"
   echo "AGV_VM_MODDIR='$MODDIR'"
+  echo "AGV_VM_KEEP='${keep# }'"
 } >"$vm/vm.env"
 
 {
