@@ -869,9 +869,11 @@ def scenario(a, res: str, rep: Report) -> int:
         if rec is None:
             return SKIP
     rec = os.path.realpath(rec)
-    if not a.no_vm and re.match(r"^/(tmp|run|var/tmp|dev/shm)(/|$)", rec):
-        raise HilError(f"the recording {rec} is under a directory the guest replaces with its own "
-                       "tmpfs; put it elsewhere (e.g. in the build tree)")
+    # The guest mounts its own tmpfs on /tmp, /run, /var/tmp and /dev/shm; run-in-vm.sh keeps
+    # the host directories named here (and the working directory, checkout, results) visible.
+    os.environ["AGV_VM_KEEP_EXTRA"] = " ".join(
+        p for p in (rec, os.path.dirname(os.path.realpath(agvloc)))
+        if re.match(r"^/(tmp|run|var/tmp|dev/shm)/", p))
 
     cfg_path, cfg = prepare_config(a, res)
     dbc = hil_dbc.Dbc(a.dbc)

@@ -213,9 +213,10 @@ chmod 755 "$ird/init"
 
 # Paths the guest would otherwise lose under its own tmpfs on /tmp, /run, /var/tmp, /dev/shm:
 # the working directory, this checkout and the results share (their top directory below the
-# mount point, e.g. /tmp/ci for a clone in /tmp/ci). Paths with spaces are not supported.
+# mount point, e.g. /tmp/ci for a clone in /tmp/ci), plus AGV_VM_KEEP_EXTRA (space-separated).
+# Paths with spaces are not supported.
 keep=""
-for p in "$PWD" "$(cd "$(dirname "$0")/../../.." && pwd -P)" "$share"; do
+for p in "$PWD" "$(cd "$(dirname "$0")/../../.." && pwd -P)" "$share" ${AGV_VM_KEEP_EXTRA:-}; do
   case "$p" in
     /tmp/?*|/run/?*|/var/tmp/?*|/dev/shm/?*)
       top="$(printf '%s\n' "$p" | cut -d/ -f1-3)"
