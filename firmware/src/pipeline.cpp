@@ -339,6 +339,7 @@ int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording:
   if (tty) std::fprintf(stderr, "\n");
   result->output = out.stats();
   result->vision = vstats;
+  result->simulated_time = true;
   result->odometry_rejected_can = out.odometry_decoder().counters().rejected();
   result->wall_ns = posix::monotonic_now_ns() - wall0;
   if (bus) {
@@ -405,7 +406,9 @@ std::string format_statistics(const RunResult& r) {
                   r.can.rx_error_frames, r.can.bus_off_count, r.can.restarts);
     s += buf;
   }
-  s += " latency:\n";
+  s += r.simulated_time ? " latency (fast replay: only the vision times are measured; the rest "
+                          "follow from replay.fix_delay_ms and the output period):\n"
+                        : " latency:\n";
   line(&s, "exposure -> vision start", v.exposure_to_start_ns);
   line(&s, "vision (total)", v.vision_ns);
   line(&s, "  detect", v.detect_ns);

@@ -48,6 +48,7 @@ struct RunResult {
   bool can_present = false;
   std::int64_t wall_ns = 0;
   std::string camera_error;  // last camera error, if any
+  bool simulated_time = false;  // --fast: latencies other than the vision stage are simulated
 };
 
 struct PipelineIo {
