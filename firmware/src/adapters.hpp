@@ -21,7 +21,8 @@ class ScaledClock final : public hal::Clock {
   std::int64_t now_ns() const override { return to_scaled(base_.now_ns()); }
   int sleep_until_ns(std::int64_t t_ns) override { return base_.sleep_until_ns(to_base(t_ns)); }
   std::int64_t to_scaled(std::int64_t mono_ns) const {
-    return t_first_ns_ + static_cast<std::int64_t>(static_cast<double>(mono_ns - mono0_ns_) * speed_);
+    return t_first_ns_ +
+           static_cast<std::int64_t>(static_cast<double>(mono_ns - mono0_ns_) * speed_);
   }
   std::int64_t to_base(std::int64_t t_ns) const {
     return mono0_ns_ + static_cast<std::int64_t>(static_cast<double>(t_ns - t_first_ns_) / speed_);

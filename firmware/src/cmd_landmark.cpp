@@ -5,8 +5,8 @@
 #include <fstream>
 #include <sstream>
 
-#include "agv/sim/render.hpp"
 #include "agv/recording/png_io.hpp"
+#include "agv/sim/render.hpp"
 #include "commands.hpp"
 
 namespace agv::cmd {

@@ -1,11 +1,10 @@
 // agvloc record --config FILE --out DIR: the live camera and CAN odometry, written in the
 // recording format (docs/recording.md) for later replay.
 #include <CLI/CLI.hpp>
-#include <opencv2/core.hpp>
-
 #include <cinttypes>
 #include <cstdio>
 #include <filesystem>
+#include <opencv2/core.hpp>
 #include <thread>
 
 #include "agv/can/frame_convert.hpp"
@@ -34,11 +33,7 @@ int record(int argc, char** argv) {
     return app.exit(e) == 0 ? 0 : 2;
   }
   config::Config cfg;
-  std::vector<std::string> errors;
-  if (!config::load_config(config_file, &cfg, &errors)) {
-    for (const auto& e : errors) std::fprintf(stderr, "agvloc record: config: %s\n", e.c_str());
-    return 2;
-  }
+  if (!config::load_config_or_report(config_file, "agvloc record", &cfg)) return 2;
   std::string err;
   if (std::filesystem::exists(std::filesystem::path(out_dir) / "frames.csv")) {
     std::fprintf(stderr, "agvloc record: %s already holds a recording; not overwriting\n",
@@ -133,7 +128,8 @@ int record(int argc, char** argv) {
   bool ok = recording::write_frames_csv(out_dir, frames, &err) &&
             recording::write_odom_csv(out_dir, odom, &err);
   if (!ok) std::fprintf(stderr, "agvloc record: %s\n", err.c_str());
-  std::printf("agvloc record: %zu frames (%" PRIu64 " dropped while encoding), %zu odometry samples "
+  std::printf("agvloc record: %zu frames (%" PRIu64
+              " dropped while encoding), %zu odometry samples "
               "(%" PRIu64 " rejected) -> %s\n",
               frames.size(), mailbox.dropped(), odom.size(), decoder.counters().rejected(),
               out_dir.c_str());

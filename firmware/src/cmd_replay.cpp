@@ -1,7 +1,6 @@
 // agvloc replay RECORDING [--out DIR] [--config FILE] [--map FILE] [--can IFACE]
 //                         [--odom-from-can] [--realtime [--speed X] | --fast] [--overlay LIST]
 #include <CLI/CLI.hpp>
-
 #include <atomic>
 #include <csignal>
 #include <cstdio>
@@ -62,12 +61,14 @@ int replay(int argc, char** argv) {
   std::vector<int> overlay_frames;
   app.add_option("recording", rec_dir, "recording directory (docs/recording.md)")->required();
   app.add_option("--out", out_dir, "output directory (poses.csv, fixes.csv, trajectory.svg, ...)");
-  app.add_option("--config", config_file, "configuration YAML (camera/mounting come from meta.yaml)");
+  app.add_option("--config", config_file,
+                 "configuration YAML (camera/mounting come from meta.yaml)");
   app.add_option("--map", map_file, "landmark map (default: RECORDING/map.csv if present)");
   app.add_option("--can", can_iface, "send output frames on this SocketCAN interface");
   app.add_flag("--odom-from-can", odom_from_can,
                "take odometry from the CAN bus instead of odom.csv (needs --can, --realtime)");
-  app.add_option("--can-log", can_log, "write sent frames as a candump -l log (default OUT/can.log)");
+  app.add_option("--can-log", can_log,
+                 "write sent frames as a candump -l log (default OUT/can.log)");
   auto* rt = app.add_flag("--realtime", realtime, "pace the replay by the clock (threads as live)");
   auto* ft = app.add_flag("--fast", fast, "as fast as possible, deterministic (default)");
   rt->excludes(ft);
@@ -93,11 +94,7 @@ int replay(int argc, char** argv) {
   }
   config::Config cfg;
   if (!config_file.empty()) {
-    std::vector<std::string> errors;
-    if (!config::load_config(config_file, &cfg, &errors)) {
-      for (const auto& e : errors) std::fprintf(stderr, "replay: config: %s\n", e.c_str());
-      return 2;
-    }
+    if (!config::load_config_or_report(config_file, "replay", &cfg)) return 2;
   }
   // The recording describes its own camera.
   cfg.camera_model = rec.meta.camera;
@@ -109,7 +106,7 @@ int replay(int argc, char** argv) {
   LandmarkMap map;
   const LandmarkMap* map_ptr = nullptr;
   if (!map_file.empty()) {
-    if (!load_map_file(map_file, &map, &err)) {
+    if (!config::load_map_file(map_file, &map, &err)) {
       std::fprintf(stderr, "replay: map: %s\n", err.c_str());
       return 2;
     }
@@ -129,8 +126,7 @@ int replay(int argc, char** argv) {
   app::RunResult result;
   std::printf("replay: %s: %zu frames, %zu odometry samples%s, map %s, mode %s\n", rec_dir.c_str(),
               rec.frames.size(), rec.odom.size(), rec.has_truth ? ", truth" : "",
-              map_ptr ? map_file.c_str() : "(payload poses only)",
-              realtime ? "realtime" : "fast");
+              map_ptr ? map_file.c_str() : "(payload poses only)", realtime ? "realtime" : "fast");
 
   can::CandumpWriter log;
   std::unique_ptr<can::SocketCanBus> socket_bus;
@@ -152,7 +148,7 @@ int replay(int argc, char** argv) {
     const std::int64_t t_first = rec.frames.empty() ? (rec.odom.empty() ? 0 : rec.odom.front().t_ns)
                                                     : rec.frames.front().t_ns;
     app::ScaledClock clock(mono, t_first, speed);
-    recording::ReplayCamera camera(rec, &clock, t_first, 1.0);
+    recording::ReplayCamera camera(rec, &clock);
     std::unique_ptr<hal::CanBus> bus;
     if (socket_bus) {
       bus = std::make_unique<app::TimeMappedBus>(*socket_bus, &clock);
@@ -186,8 +182,7 @@ int replay(int argc, char** argv) {
     app::run_fast(cfg, map_ptr, rec, &bus, &ticks, &fixes, &stop_requested(), &result, !quiet,
                   &loop_time);
   }
-  if (!can_iface.empty()) {
-  } else if (!log.close()) {
+  if (can_iface.empty() && !log.close()) {
     std::fprintf(stderr, "replay: writing %s failed\n", can_log.c_str());
   }
 
@@ -210,9 +205,11 @@ int replay(int argc, char** argv) {
 
   std::string summary;
   char buf[256];
-  std::snprintf(buf, sizeof buf, "replay summary: %zu frames, %llu landmark fixes fused, %zu output ticks, wall %.1f s\n",
-                rec.frames.size(), static_cast<unsigned long long>(result.output.fixes_fused),
-                ticks.size(), static_cast<double>(result.wall_ns) / 1e9);
+  std::snprintf(
+      buf, sizeof buf,
+      "replay summary: %zu frames, %llu landmark fixes fused, %zu output ticks, wall %.1f s\n",
+      rec.frames.size(), static_cast<unsigned long long>(result.output.fixes_fused), ticks.size(),
+      static_cast<double>(result.wall_ns) / 1e9);
   summary += buf;
   summary += app::format_statistics(result);
   if (rec.has_truth) summary += app::format_accuracy(acc);

@@ -1,9 +1,6 @@
 // agvloc run --config FILE: live camera, vision, fusion, CAN output; odometry from CAN.
 #include <CLI/CLI.hpp>
-
 #include <cstdio>
-#include <fstream>
-#include <sstream>
 
 #include "agv/can/socketcan.hpp"
 #include "agv/posix/posix_clock.hpp"
@@ -15,22 +12,6 @@
 #include "signals.hpp"
 
 namespace agv::cmd {
-
-bool load_map_file(const std::string& path, LandmarkMap* map, std::string* error) {
-  std::ifstream f(path);
-  if (!f) {
-    *error = path + ": cannot open";
-    return false;
-  }
-  std::stringstream ss;
-  ss << f.rdbuf();
-  std::string e;
-  if (!parse_landmark_map(ss.str(), map, &e)) {
-    *error = path + ": " + e;
-    return false;
-  }
-  return true;
-}
 
 int run(int argc, char** argv) {
   CLI::App app{"Live localization: camera -> vision -> fusion -> CAN (docs/config.md)"};
@@ -44,16 +25,12 @@ int run(int argc, char** argv) {
     return app.exit(e) == 0 ? 0 : 2;
   }
   config::Config cfg;
-  std::vector<std::string> errors;
-  if (!config::load_config(config_file, &cfg, &errors)) {
-    for (const auto& e : errors) std::fprintf(stderr, "agvloc: config: %s\n", e.c_str());
-    return 2;
-  }
+  if (!config::load_config_or_report(config_file, "agvloc", &cfg)) return 2;
   LandmarkMap map;
   const LandmarkMap* map_ptr = nullptr;
   std::string err;
   if (!cfg.map_file.empty()) {
-    if (!load_map_file(cfg.map_file, &map, &err)) {
+    if (!config::load_map_file(cfg.map_file, &map, &err)) {
       std::fprintf(stderr, "agvloc: map: %s\n", err.c_str());
       return 2;
     }
@@ -70,7 +47,8 @@ int run(int argc, char** argv) {
   }
   if (cfg.loop.lock_memory) {
     const int e = posix::lock_all_memory();
-    if (e) std::fprintf(stderr, "agvloc: %s\n", posix::explain_realtime_error("mlockall", e).c_str());
+    if (e)
+      std::fprintf(stderr, "agvloc: %s\n", posix::explain_realtime_error("mlockall", e).c_str());
   }
   can::SocketCanConfig sc;
   sc.iface = cfg.can.interface;

@@ -1,5 +1,6 @@
 #include "config.hpp"
 
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -132,6 +133,29 @@ bool parse_config(const std::string& yaml_text, const std::string& base_dir, Con
     return false;
   }
   *out = cfg;
+  return true;
+}
+
+bool load_config_or_report(const std::string& path, const char* who, Config* out) {
+  std::vector<std::string> errors;
+  if (load_config(path, out, &errors)) return true;
+  for (const auto& e : errors) std::fprintf(stderr, "%s: config: %s\n", who, e.c_str());
+  return false;
+}
+
+bool load_map_file(const std::string& path, LandmarkMap* map, std::string* error) {
+  std::ifstream f(path);
+  if (!f) {
+    *error = path + ": cannot open";
+    return false;
+  }
+  std::stringstream ss;
+  ss << f.rdbuf();
+  std::string e;
+  if (!parse_landmark_map(ss.str(), map, &e)) {
+    *error = path + ": " + e;
+    return false;
+  }
   return true;
 }
 

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "agv/common/camera_model.hpp"
+#include "agv/common/landmark.hpp"
 #include "agv/fusion/ekf.hpp"
 #include "agv/hal/camera.hpp"
 #include "agv/protocol/codec.hpp"
@@ -34,11 +35,11 @@ struct CanSection {
 };
 
 struct LoopSection {
-  double output_rate_hz = 100.0;     // pose, velocity, quality, status frames
+  double output_rate_hz = 100.0;  // pose, velocity, quality, status frames
   double heartbeat_rate_hz = 1.0;
-  int realtime_priority = 0;         // SCHED_FIFO priority of the output thread; 0 = off
-  bool lock_memory = false;          // mlockall at start
-  double log_period_s = 10.0;        // periodic statistics line; 0 = off
+  int realtime_priority = 0;   // SCHED_FIFO priority of the output thread; 0 = off
+  bool lock_memory = false;    // mlockall at start
+  double log_period_s = 10.0;  // periodic statistics line; 0 = off
   // Also send the pose pair right after a fix is fused, outside the fixed schedule: the
   // correction reaches the bus ~1 vision-time after exposure instead of waiting up to one output
   // period, at the cost of irregular pose-frame spacing (receivers must not derive speed from
@@ -51,7 +52,7 @@ struct Config {
   CameraSection camera;
   CameraModel camera_model;  // intrinsics + mounting
   double landmark_size_mm = 60.0;
-  std::string map_file;      // resolved relative to the config file; empty = payload poses only
+  std::string map_file;  // resolved relative to the config file; empty = payload poses only
   CanSection can;
   LoopSection loop;
   // Algorithm sections, read by config_algo.cpp.
@@ -60,7 +61,7 @@ struct Config {
   // Replay only: delay between a frame's exposure and its fix reaching fusion in --fast mode
   // (live, it is whatever the vision worker takes).
   double replay_fix_delay_ms = 30.0;
-  std::string source;        // file name the config came from, for messages
+  std::string source;  // file name the config came from, for messages
 };
 
 // Parses YAML text. On error returns false and fills *errors with one line per problem, each
@@ -72,17 +73,9 @@ protocol::ProtocolConfig protocol_config(const Config& cfg);
 
 // Reads and parses a file (base_dir = the file's directory).
 bool load_config(const std::string& path, Config* out, std::vector<std::string>* errors);
+// load_config for the entry points: prints every error as "<who>: config: <error>".
+bool load_config_or_report(const std::string& path, const char* who, Config* out);
+// Reads a landmark map file (docs/landmark.md); false with *error naming file and line.
+bool load_map_file(const std::string& path, LandmarkMap* map, std::string* error);
 
-}  // namespace agv::config
-
-namespace agv::config {
-class YamlChecker;
-struct Config;
-// Reads the algorithm sections (vision, fusion) into cfg; defined in config_algo.cpp.
-}  // namespace agv::config
-namespace YAML {
-class Node;
-}
-namespace agv::config {
-void read_algo_sections(YamlChecker& c, const YAML::Node& root, Config* cfg);
 }  // namespace agv::config

@@ -42,8 +42,8 @@ void read_ms(YamlChecker& c, const YAML::Node& n, const std::string& p, const ch
   *ns = static_cast<std::int64_t>(std::llround(ms * 1e6));
 }
 
-void read_deg(YamlChecker& c, const YAML::Node& n, const std::string& p, const char* key,
-              double lo, double hi, double* rad) {
+void read_deg(YamlChecker& c, const YAML::Node& n, const std::string& p, const char* key, double lo,
+              double hi, double* rad) {
   double deg = rad_to_deg(*rad);
   c.number(n, p, key, lo, hi, &deg);
   *rad = deg_to_rad(deg);

@@ -19,12 +19,14 @@ std::unique_ptr<hal::Camera> make_live_camera(const config::Config& cfg, std::st
 #ifdef AGV_HAVE_LIBCAMERA
     return std::make_unique<libcam::LibcameraCamera>(cfg.camera.camera);
 #else
-    *error = "camera.driver: libcamera is not available in this build (replay-only build; use "
-             "v4l2 or rebuild with libcamera-dev installed)";
+    *error =
+        "camera.driver: libcamera is not available in this build (replay-only build; use "
+        "v4l2 or rebuild with libcamera-dev installed)";
     return nullptr;
 #endif
   }
-  *error = "camera.driver: '" + cfg.camera.driver + "' is not a live driver (use libcamera or v4l2)";
+  *error =
+      "camera.driver: '" + cfg.camera.driver + "' is not a live driver (use libcamera or v4l2)";
   return nullptr;
 }
 

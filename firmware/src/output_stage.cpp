@@ -1,8 +1,8 @@
 #include "output_stage.hpp"
 
-#include "agv/can/frame_convert.hpp"
-
 #include <cmath>
+
+#include "agv/can/frame_convert.hpp"
 
 namespace agv::app {
 
@@ -10,10 +10,13 @@ namespace {
 
 protocol::Health to_protocol(fusion::HealthState h) {
   switch (h) {
-    case fusion::HealthState::kLocalized: return protocol::Health::kOk;
-    case fusion::HealthState::kDeadReckoning: return protocol::Health::kDegraded;
+    case fusion::HealthState::kLocalized:
+      return protocol::Health::kOk;
+    case fusion::HealthState::kDeadReckoning:
+      return protocol::Health::kDegraded;
     case fusion::HealthState::kLost:
-    case fusion::HealthState::kUninitialized: return protocol::Health::kLost;
+    case fusion::HealthState::kUninitialized:
+      return protocol::Health::kLost;
   }
   return protocol::Health::kLost;
 }
@@ -58,7 +61,6 @@ void OutputStage::poll_can() {
     protocol::OdomSample s;
     const protocol::DecodeResult r = odom_.decode(can::from_hal(frame), &s);
     if (r == protocol::DecodeResult::kOk) {
-      odom_from_can_seen_ = true;
       on_odometry(s.t_ns, s.v_mps, s.omega_radps);
     } else if (r == protocol::DecodeResult::kNotOdometry) {
       ++stats_.can_rx_other;
@@ -75,15 +77,23 @@ bool OutputStage::odometry_timed_out(std::int64_t now_ns) const {
 void OutputStage::on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure_ns) {
   using vision::FixStatus;
   switch (fix.status) {
-    case FixStatus::kOk: break;
+    case FixStatus::kOk:
+      break;
     case FixStatus::kNoLandmark:
-    case FixStatus::kBadInput: return;
-    case FixStatus::kUnknownLandmark: rejections_ |= protocol::reject::kUnknownLandmark; return;
+    case FixStatus::kBadInput:
+      return;
+    case FixStatus::kUnknownLandmark:
+      rejections_ |= protocol::reject::kUnknownLandmark;
+      return;
     case FixStatus::kQrUnreadable:
-    case FixStatus::kPayloadInvalid: rejections_ |= protocol::reject::kDecodeFailed; return;
+    case FixStatus::kPayloadInvalid:
+      rejections_ |= protocol::reject::kDecodeFailed;
+      return;
     case FixStatus::kPartlyOutside:
     case FixStatus::kDirectionAmbiguous:
-    case FixStatus::kTooFewEdgePoints: rejections_ |= protocol::reject::kGeometry; return;
+    case FixStatus::kTooFewEdgePoints:
+      rejections_ |= protocol::reject::kGeometry;
+      return;
   }
   ++stats_.fixes_received;
   switch (ekf_.add_fix(t_exposure_ns, fix.vehicle_in_world, fix.cov_world)) {
@@ -213,8 +223,8 @@ void OutputStage::tick(std::int64_t now_ns, const hal::Clock* clock, TickRecord*
     hb.uptime_s = static_cast<double>(now_ns - first_tick_ns_) / 1e9;
     encoder_.encode_heartbeat(hb, &a);
     send(a);
-    next_heartbeat_ns_ = (next_heartbeat_ns_ == INT64_MIN ? now_ns : next_heartbeat_ns_) +
-                         heartbeat_period_ns_;
+    next_heartbeat_ns_ =
+        (next_heartbeat_ns_ == INT64_MIN ? now_ns : next_heartbeat_ns_) + heartbeat_period_ns_;
     if (next_heartbeat_ns_ <= now_ns) next_heartbeat_ns_ = now_ns + heartbeat_period_ns_;
   }
   stats_.can_send_ns.record_ns((clock ? clock->now_ns() : now_ns) - t_fused);

@@ -5,8 +5,8 @@
 
 #include <cstdint>
 
-#include "agv/common/latency_histogram.hpp"
 #include "agv/can/can_faults.hpp"
+#include "agv/common/latency_histogram.hpp"
 #include "agv/fusion/ekf.hpp"
 #include "agv/hal/can_bus.hpp"
 #include "agv/hal/clock.hpp"
@@ -30,10 +30,10 @@ struct OutputStats {
   std::uint64_t can_tx_ok = 0;
   std::uint64_t can_tx_failed = 0;
   std::uint64_t can_rx_frames = 0;
-  std::uint64_t can_rx_other = 0;  // frames that are not odometry (ignored)
-  LatencyHistogram fusion_ns;      // on_fix + estimate for one tick
-  LatencyHistogram can_send_ns;    // all sends of one tick
-  LatencyHistogram end_to_end_ns;  // first pose frame sent after a fix - that frame's exposure
+  std::uint64_t can_rx_other = 0;     // frames that are not odometry (ignored)
+  LatencyHistogram fusion_ns;         // on_fix + estimate for one tick
+  LatencyHistogram can_send_ns;       // all sends of one tick
+  LatencyHistogram end_to_end_ns;     // first pose frame sent after a fix - that frame's exposure
   LatencyHistogram period_jitter_ns;  // |actual wake-up - scheduled wake-up|
 };
 
@@ -84,7 +84,8 @@ class OutputStage {
  private:
   void send(const protocol::CanFrameData& f);
   // Pose output for an estimate: invalid when uninitialised, lost or without odometry.
-  protocol::PoseOut pose_out(const fusion::PoseEstimate& est, std::int64_t now_ns, bool* odom_timeout) const;
+  protocol::PoseOut pose_out(const fusion::PoseEstimate& est, std::int64_t now_ns,
+                             bool* odom_timeout) const;
   void send_pose(const protocol::PoseOut& pose, const hal::Clock* clock, std::int64_t now_ns);
 
   config::Config cfg_;
@@ -93,7 +94,6 @@ class OutputStage {
   protocol::ProtocolConfig proto_;
   protocol::Encoder encoder_;
   protocol::OdometryDecoder odom_;
-  bool odom_from_can_seen_ = false;
   std::int64_t last_odom_ns_ = INT64_MIN;
   std::uint64_t odom_rejected_seen_ = 0;
   std::int64_t period_ns_;

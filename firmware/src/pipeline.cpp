@@ -1,12 +1,12 @@
 #include "pipeline.hpp"
 
-#include <opencv2/core.hpp>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cinttypes>
 #include <cstdio>
+#include <opencv2/core.hpp>
 #include <thread>
-#include <unistd.h>
 
 #include "agv/posix/pi_mutex.hpp"
 #include "agv/posix/posix_clock.hpp"
@@ -54,16 +54,17 @@ LandmarkGeometry geometry_of(const config::Config& cfg) {
   return g;
 }
 
-void print_period_line(const OutputStats& o, const VisionStats* v, std::uint64_t dropped) {
+void print_period_line(const OutputStats& o, std::uint64_t dropped) {
   std::fprintf(stderr,
                "agvloc: ticks %" PRIu64 " missed %" PRIu64 " | fixes fused %" PRIu64
-               " gated %" PRIu64 " | e2e p50 %.2f ms p99 %.2f ms | jitter p99 %.0f us | "
-               "frames dropped %" PRIu64 " | can tx ok %" PRIu64 " failed %" PRIu64 "%s\n",
+               " gated %" PRIu64
+               " | e2e p50 %.2f ms p99 %.2f ms | jitter p99 %.0f us | "
+               "frames dropped %" PRIu64 " | can tx ok %" PRIu64 " failed %" PRIu64 "\n",
                o.ticks, o.missed_periods, o.fixes_fused, o.fixes_rejected_gate,
                static_cast<double>(o.end_to_end_ns.percentile_ns(0.5)) / 1e6,
                static_cast<double>(o.end_to_end_ns.percentile_ns(0.99)) / 1e6,
                static_cast<double>(o.period_jitter_ns.percentile_ns(0.99)) / 1e3, dropped,
-               o.can_tx_ok, o.can_tx_failed, v ? "" : "");
+               o.can_tx_ok, o.can_tx_failed);
 }
 
 }  // namespace
@@ -207,7 +208,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
       if (io.ticks && io.ticks->size() < io.ticks->capacity()) tr = &io.ticks->emplace_back();
       out.tick(now, &clock, tr);
       if (log_period_ns > 0 && now >= next_log_ns && !io.quiet) {
-        print_period_line(out.stats(), nullptr, mailbox.dropped());
+        print_period_line(out.stats(), mailbox.dropped());
         next_log_ns += log_period_ns;
       }
       next_ns += period_ns;
@@ -307,8 +308,7 @@ int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording:
       const bool have_odom = odom_i < rec.odom.size() && rec.odom[odom_i].t_ns <= now;
       const bool have_fix = pending_head < pending.size() && pending[pending_head].t_done_ns <= now;
       if (!have_odom && !have_fix) break;
-      if (have_odom &&
-          (!have_fix || rec.odom[odom_i].t_ns <= pending[pending_head].t_done_ns)) {
+      if (have_odom && (!have_fix || rec.odom[odom_i].t_ns <= pending[pending_head].t_done_ns)) {
         const auto& r = rec.odom[odom_i++];
         out.on_odometry(r.t_ns, r.v_mps, r.omega_radps);
       } else {
@@ -330,8 +330,8 @@ int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording:
       const int pct = static_cast<int>(100.0 * static_cast<double>(now - t_begin) /
                                        static_cast<double>(t_end - t_begin + 1));
       if (pct != last_pct) {
-        std::fprintf(stderr, "\rreplay: %3d %%  frames %zu/%zu  fixes fused %" PRIu64, pct,
-                     frame_i, rec.frames.size(), out.stats().fixes_fused);
+        std::fprintf(stderr, "\rreplay: %3d %%  frames %zu/%zu  fixes fused %" PRIu64, pct, frame_i,
+                     rec.frames.size(), out.stats().fixes_fused);
         last_pct = pct;
       }
     }
@@ -355,8 +355,9 @@ void line(std::string* s, const char* name, const LatencyHistogram& h) {
   if (h.count() == 0) {
     std::snprintf(buf, sizeof buf, "  %-26s (no samples)\n", name);
   } else {
-    std::snprintf(buf, sizeof buf, "  %-26s p50 %8.3f ms  p99 %8.3f ms  max %8.3f ms  (n=%" PRIu64 ")\n",
-                  name, static_cast<double>(h.percentile_ns(0.5)) / 1e6,
+    std::snprintf(buf, sizeof buf,
+                  "  %-26s p50 %8.3f ms  p99 %8.3f ms  max %8.3f ms  (n=%" PRIu64 ")\n", name,
+                  static_cast<double>(h.percentile_ns(0.5)) / 1e6,
                   static_cast<double>(h.percentile_ns(0.99)) / 1e6,
                   static_cast<double>(h.max_ns()) / 1e6, h.count());
   }
@@ -371,16 +372,16 @@ std::string format_statistics(const RunResult& r) {
   const auto& v = r.vision;
   std::snprintf(buf, sizeof buf,
                 "statistics:\n  frames: delivered %" PRIu64 ", processed %" PRIu64
-                ", dropped (newest-wins) %" PRIu64 ", driver drops %" PRIu64
-                ", unreadable %" PRIu64 "\n",
+                ", dropped (newest-wins) %" PRIu64 ", driver drops %" PRIu64 ", unreadable %" PRIu64
+                "\n",
                 r.camera.frames_delivered, v.frames_processed, r.frames_dropped_mailbox,
                 r.camera.frames_dropped, r.camera.errors);
   s += buf;
   s += "  vision results:";
   for (int i = 0; i < kFixStatusCount; ++i) {
     if (v.by_status[i] == 0) continue;
-    std::snprintf(buf, sizeof buf, " %s %" PRIu64, vision::to_string(static_cast<vision::FixStatus>(i)),
-                  v.by_status[i]);
+    std::snprintf(buf, sizeof buf, " %s %" PRIu64,
+                  vision::to_string(static_cast<vision::FixStatus>(i)), v.by_status[i]);
     s += buf;
   }
   s += "\n";

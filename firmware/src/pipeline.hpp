@@ -47,14 +47,14 @@ struct RunResult {
   hal::CanStats can;
   bool can_present = false;
   std::int64_t wall_ns = 0;
-  std::string camera_error;  // last camera error, if any
+  std::string camera_error;     // last camera error, if any
   bool simulated_time = false;  // --fast: latencies other than the vision stage are simulated
 };
 
 struct PipelineIo {
   hal::Camera* camera = nullptr;
-  hal::CanBus* bus = nullptr;      // null: no CAN output / input
-  hal::Clock* clock = nullptr;     // loop clock (monotonic, or scaled replay time)
+  hal::CanBus* bus = nullptr;   // null: no CAN output / input
+  hal::Clock* clock = nullptr;  // loop clock (monotonic, or scaled replay time)
   // Replay odometry (recording time == loop clock time); null: odometry comes from CAN.
   const std::vector<recording::OdomRow>* odometry = nullptr;
   // Optional outputs, reserved by the caller (the loop never grows them past their capacity).

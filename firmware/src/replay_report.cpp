@@ -11,8 +11,9 @@ namespace agv::app {
 
 bool truth_at(const std::vector<recording::TruthRow>& truth, std::int64_t t_ns, Pose2* out) {
   if (truth.empty() || t_ns < truth.front().t_ns || t_ns > truth.back().t_ns) return false;
-  auto it = std::lower_bound(truth.begin(), truth.end(), t_ns,
-                             [](const recording::TruthRow& r, std::int64_t t) { return r.t_ns < t; });
+  auto it =
+      std::lower_bound(truth.begin(), truth.end(), t_ns,
+                       [](const recording::TruthRow& r, std::int64_t t) { return r.t_ns < t; });
   if (it == truth.begin()) {
     *out = {it->x_mm, it->y_mm, deg_to_rad(it->theta_deg)};
     return true;
@@ -81,14 +82,16 @@ AccuracySummary evaluate(const recording::Recording& rec, const std::vector<Tick
   }
   // Odometry-only dead reckoning from the first truth pose, sampled at the ticks.
   if (!rec.truth.empty() && !rec.odom.empty()) {
-    Pose2 p{rec.truth.front().x_mm, rec.truth.front().y_mm, deg_to_rad(rec.truth.front().theta_deg)};
+    Pose2 p{rec.truth.front().x_mm, rec.truth.front().y_mm,
+            deg_to_rad(rec.truth.front().theta_deg)};
     std::int64_t tp = rec.truth.front().t_ns;
     std::size_t oi = 0;
     double v = 0.0, w = 0.0;
     auto advance_to = [&](std::int64_t t_ns) {
       while (tp < t_ns) {
         std::int64_t next = t_ns;
-        if (oi < rec.odom.size() && rec.odom[oi].t_ns <= t_ns) next = std::max(tp, rec.odom[oi].t_ns);
+        if (oi < rec.odom.size() && rec.odom[oi].t_ns <= t_ns)
+          next = std::max(tp, rec.odom[oi].t_ns);
         const double dt = static_cast<double>(next - tp) * 1e-9;
         const double th_mid = p.theta_rad + 0.5 * w * dt;
         p.x_mm += 1000.0 * v * dt * std::cos(th_mid);
@@ -154,13 +157,13 @@ bool write_poses_csv(const std::string& path, const std::vector<TickRecord>& tic
                "sigma_theta_deg,time_since_fix_ms,faults,rejections\n");
   for (const auto& t : ticks) {
     const auto& e = t.estimate;
-    std::fprintf(f, "%" PRId64 ",%d,%d,%.4f,%.4f,%.5f,%.5f,%.6f,%.4f,%.4f,%.5f,%.1f,%u,%u\n", t.t_ns,
-                 e.valid ? 1 : 0, static_cast<int>(e.health), e.pose.x_mm, e.pose.y_mm,
-                 rad_to_deg(e.pose.theta_rad), e.v_mps, e.omega_radps,
-                 std::sqrt(std::max(0.0, e.cov(0, 0))), std::sqrt(std::max(0.0, e.cov(1, 1))),
-                 rad_to_deg(std::sqrt(std::max(0.0, e.cov(2, 2)))),
-                 e.time_since_fix_ns < 0 ? -1.0 : static_cast<double>(e.time_since_fix_ns) / 1e6,
-                 static_cast<unsigned>(t.status.faults), static_cast<unsigned>(t.status.rejections));
+    std::fprintf(
+        f, "%" PRId64 ",%d,%d,%.4f,%.4f,%.5f,%.5f,%.6f,%.4f,%.4f,%.5f,%.1f,%u,%u\n", t.t_ns,
+        e.valid ? 1 : 0, static_cast<int>(e.health), e.pose.x_mm, e.pose.y_mm,
+        rad_to_deg(e.pose.theta_rad), e.v_mps, e.omega_radps, std::sqrt(std::max(0.0, e.cov(0, 0))),
+        std::sqrt(std::max(0.0, e.cov(1, 1))), rad_to_deg(std::sqrt(std::max(0.0, e.cov(2, 2)))),
+        e.time_since_fix_ns < 0 ? -1.0 : static_cast<double>(e.time_since_fix_ns) / 1e6,
+        static_cast<unsigned>(t.status.faults), static_cast<unsigned>(t.status.rejections));
   }
   const bool ok = std::fclose(f) == 0;
   if (!ok) *error = path + ": write failed";
@@ -180,15 +183,14 @@ bool write_fixes_csv(const std::string& path, const std::vector<FixRecord>& fixe
   for (const auto& r : fixes) {
     const auto& x = r.fix;
     const bool ok = x.status == vision::FixStatus::kOk;
-    std::fprintf(f, "%" PRId64 ",%s,%u,%.4f,%.4f,%.5f,%.4f,%.4f,%.5f,%.4f,%.4f,%.5f,%.3f\n",
-                 r.t_exposure_ns, vision::to_string(x.status), static_cast<unsigned>(x.landmark_id),
-                 ok ? x.e_x_mm : 0.0, ok ? x.e_y_mm : 0.0, ok ? x.e_phi_deg : 0.0,
-                 ok ? x.vehicle_in_world.x_mm : 0.0, ok ? x.vehicle_in_world.y_mm : 0.0,
-                 ok ? rad_to_deg(x.vehicle_in_world.theta_rad) : 0.0,
-                 ok ? std::sqrt(std::max(0.0, x.cov_world(0, 0))) : 0.0,
-                 ok ? std::sqrt(std::max(0.0, x.cov_world(1, 1))) : 0.0,
-                 ok ? rad_to_deg(std::sqrt(std::max(0.0, x.cov_world(2, 2)))) : 0.0,
-                 x.timings.total_ms);
+    std::fprintf(
+        f, "%" PRId64 ",%s,%u,%.4f,%.4f,%.5f,%.4f,%.4f,%.5f,%.4f,%.4f,%.5f,%.3f\n", r.t_exposure_ns,
+        vision::to_string(x.status), static_cast<unsigned>(x.landmark_id), ok ? x.e_x_mm : 0.0,
+        ok ? x.e_y_mm : 0.0, ok ? x.e_phi_deg : 0.0, ok ? x.vehicle_in_world.x_mm : 0.0,
+        ok ? x.vehicle_in_world.y_mm : 0.0, ok ? rad_to_deg(x.vehicle_in_world.theta_rad) : 0.0,
+        ok ? std::sqrt(std::max(0.0, x.cov_world(0, 0))) : 0.0,
+        ok ? std::sqrt(std::max(0.0, x.cov_world(1, 1))) : 0.0,
+        ok ? rad_to_deg(std::sqrt(std::max(0.0, x.cov_world(2, 2)))) : 0.0, x.timings.total_ms);
   }
   const bool ok = std::fclose(f) == 0;
   if (!ok) *error = path + ": write failed";

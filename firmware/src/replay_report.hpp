@@ -18,11 +18,11 @@ struct ErrorStats {
 };
 
 struct AccuracySummary {
-  ErrorStats fixes;            // vision fixes (status ok) against truth at their exposure time
-  ErrorStats at_landmark;      // fused pose at output ticks within 50 ms after a fused fix
-  ErrorStats between;          // fused pose at ticks >= 200 ms after the last fused fix
-  ErrorStats all;              // every valid tick
-  ErrorStats odometry_only;    // dead reckoning from the first truth pose, every tick
+  ErrorStats fixes;          // vision fixes (status ok) against truth at their exposure time
+  ErrorStats at_landmark;    // fused pose at output ticks within 50 ms after a fused fix
+  ErrorStats between;        // fused pose at ticks >= 200 ms after the last fused fix
+  ErrorStats all;            // every valid tick
+  ErrorStats odometry_only;  // dead reckoning from the first truth pose, every tick
   std::size_t ticks_invalid = 0;
 };
 

@@ -39,4 +39,8 @@ class YamlChecker {
   std::vector<std::string> errors_;
 };
 
+struct Config;
+// Reads the algorithm sections (vision, fusion, replay) into cfg; defined in config_algo.cpp.
+void read_algo_sections(YamlChecker& c, const YAML::Node& root, Config* cfg);
+
 }  // namespace agv::config

@@ -28,7 +28,10 @@ void* operator new(std::size_t n) {
 void* operator new[](std::size_t n) { return operator new(n); }
 void* operator new(std::size_t n, std::align_val_t al) {
   if (g_counting.load(std::memory_order_relaxed)) g_allocs.fetch_add(1);
-  if (void* p = std::aligned_alloc(static_cast<std::size_t>(al), (n + static_cast<std::size_t>(al) - 1) & ~(static_cast<std::size_t>(al) - 1))) return p;
+  if (void* p =
+          std::aligned_alloc(static_cast<std::size_t>(al), (n + static_cast<std::size_t>(al) - 1) &
+                                                               ~(static_cast<std::size_t>(al) - 1)))
+    return p;
   throw std::bad_alloc();
 }
 void operator delete(void* p) noexcept { std::free(p); }
@@ -46,8 +49,6 @@ TEST(SteadyStateLoop, NoHeapAllocationAfterWarmUp) {
   const protocol::ProtocolConfig pc = config::protocol_config(cfg);
   test::StaticBus bus;
   app::OutputStage out(cfg, &bus);
-  protocol::Encoder odo_enc(pc);  // plays the motor controller
-  (void)odo_enc;
 
   // Motor-controller odometry frames, encoded with the same protocol (twist mode, E2E).
   std::uint8_t counter = 0;

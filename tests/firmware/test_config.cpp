@@ -64,11 +64,15 @@ TEST(Config, ExtendedIdsWidenTheRange) {
 }
 
 TEST(Config, WrongTypesAndChoices) {
-  EXPECT_TRUE(mentions(errors_for("camera:\n  width: wide\n"), "camera.width: expected an integer"));
-  EXPECT_TRUE(mentions(errors_for("camera:\n  driver: gopro\n"), "camera.driver: 'gopro' is not one of"));
-  EXPECT_TRUE(mentions(errors_for("loop:\n  lock_memory: maybe\n"), "loop.lock_memory: expected true or false"));
+  EXPECT_TRUE(
+      mentions(errors_for("camera:\n  width: wide\n"), "camera.width: expected an integer"));
+  EXPECT_TRUE(
+      mentions(errors_for("camera:\n  driver: gopro\n"), "camera.driver: 'gopro' is not one of"));
+  EXPECT_TRUE(mentions(errors_for("loop:\n  lock_memory: maybe\n"),
+                       "loop.lock_memory: expected true or false"));
   EXPECT_TRUE(mentions(errors_for("can: 5\n"), "can: expected a mapping"));
-  EXPECT_TRUE(mentions(errors_for("intrinsics:\n  fx: .nan\n"), "intrinsics.fx: expected a number"));
+  EXPECT_TRUE(
+      mentions(errors_for("intrinsics:\n  fx: .nan\n"), "intrinsics.fx: expected a number"));
 }
 
 TEST(Config, SyntaxErrorAndNonMapping) {
@@ -98,6 +102,7 @@ TEST(Config, FusionAndVisionSectionsReachTheAlgorithms) {
   EXPECT_NEAR(cfg.fusion.lost_heading_sigma_rad, agv::deg_to_rad(5.0), 1e-12);
   EXPECT_DOUBLE_EQ(cfg.vision.corner_threshold, 0.7);
   EXPECT_FALSE(cfg.vision.robust);
-  EXPECT_TRUE(mentions(errors_for("fusion:\n  gate_probability: 1.5\n"), "fusion.gate_probability"));
+  EXPECT_TRUE(
+      mentions(errors_for("fusion:\n  gate_probability: 1.5\n"), "fusion.gate_probability"));
   EXPECT_TRUE(mentions(errors_for("vision:\n  colour: red\n"), "vision.colour: unknown key"));
 }

@@ -170,9 +170,11 @@ TEST(Degradation, CameraStallIsFlaggedWhileTheLoopKeepsRunning) {
   fakecamera::FakeCamera cam(o);
   const std::int64_t t0 = clock.now_ns() + 50'000'000;
   std::int64_t t = t0;
-  for (int i = 0; i < 9; ++i) cam.push_frame(fakecamera::FakeCamera::solid(64, 48, 128), t += 33'000'000);
+  for (int i = 0; i < 9; ++i)
+    cam.push_frame(fakecamera::FakeCamera::solid(64, 48, 128), t += 33'000'000);
   cam.push_stall(800'000'000);
-  for (int i = 0; i < 9; ++i) cam.push_frame(fakecamera::FakeCamera::solid(64, 48, 128), t + 800'000'000 + 33'000'000 * i);
+  for (int i = 0; i < 9; ++i)
+    cam.push_frame(fakecamera::FakeCamera::solid(64, 48, 128), t + 800'000'000 + 33'000'000 * i);
   cam.push_end_of_stream();
   std::vector<recording::OdomRow> odo;
   for (std::int64_t to = t0 - 100'000'000; to < t0 + 2'000'000'000; to += 10'000'000) {

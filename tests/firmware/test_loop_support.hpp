@@ -26,7 +26,9 @@ class StaticBus final : public hal::CanBus {
     ++stats_.rx_frames;
     return hal::CanStatus::kOk;
   }
-  hal::CanStatus set_filters(const hal::CanFilter*, std::size_t) override { return hal::CanStatus::kOk; }
+  hal::CanStatus set_filters(const hal::CanFilter*, std::size_t) override {
+    return hal::CanStatus::kOk;
+  }
   hal::CanBusState state() const override { return bus_state; }
   hal::CanErrorCounters error_counters() const override { return {}; }
   hal::CanStats stats() const override { return stats_; }

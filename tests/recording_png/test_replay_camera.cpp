@@ -32,7 +32,7 @@ recording::Recording make_rec(const std::string& dir, int n) {
 
 TEST(ReplayCamera, DeliversFramesInOrderWithTheirTimes) {
   const auto rec = make_rec("/tmp/agv_replay_cam_a", 5);
-  recording::ReplayCamera cam(rec, nullptr, 0, 1.0);
+  recording::ReplayCamera cam(rec, nullptr);
   hal::FrameView f;
   EXPECT_EQ(cam.next_frame(0, &f), hal::CameraStatus::kNotStarted);
   ASSERT_EQ(cam.start(), hal::CameraStatus::kOk);
@@ -49,7 +49,7 @@ TEST(ReplayCamera, DeliversFramesInOrderWithTheirTimes) {
 
 TEST(ReplayCamera, HeldBuffersStarveLikeALiveDriver) {
   const auto rec = make_rec("/tmp/agv_replay_cam_b", 5);
-  recording::ReplayCamera cam(rec, nullptr, 0, 1.0);
+  recording::ReplayCamera cam(rec, nullptr);
   cam.start();
   hal::FrameView f[3];
   for (auto& x : f) ASSERT_EQ(cam.next_frame(0, &x), hal::CameraStatus::kOk);  // none released
@@ -63,7 +63,7 @@ TEST(ReplayCamera, HeldBuffersStarveLikeALiveDriver) {
 TEST(ReplayCamera, CorruptFramesAreSkippedAndReportedStallsWithheld) {
   auto rec = make_rec("/tmp/agv_replay_cam_c", 6);
   std::ofstream(rec.dir + "/" + rec.frames[1].file, std::ios::trunc) << "garbage";
-  recording::ReplayCamera cam(rec, nullptr, 0, 1.0);
+  recording::ReplayCamera cam(rec, nullptr);
   cam.set_stall(rec.frames[3].t_ns, rec.frames[5].t_ns);  // withholds frames 3 and 4
   cam.start();
   std::vector<int> seen;

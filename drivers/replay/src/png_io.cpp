@@ -109,9 +109,10 @@ bool write(const std::string& path, const cv::Mat& image, std::string* error, in
   }
   png_init_io(png, f.get());
   png_set_compression_level(png, compression);
-  png_set_IHDR(png, info, static_cast<png_uint_32>(image.cols), static_cast<png_uint_32>(image.rows),
-               8, image.channels() == 1 ? PNG_COLOR_TYPE_GRAY : PNG_COLOR_TYPE_RGB,
-               PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  png_set_IHDR(png, info, static_cast<png_uint_32>(image.cols),
+               static_cast<png_uint_32>(image.rows), 8,
+               image.channels() == 1 ? PNG_COLOR_TYPE_GRAY : PNG_COLOR_TYPE_RGB, PNG_INTERLACE_NONE,
+               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
   png_write_info(png, info);
   if (image.channels() == 3) png_set_bgr(png);
   for (int y = 0; y < image.rows; ++y) {

@@ -1,7 +1,6 @@
 // Recording format I/O (docs/recording.md). Strict: anything unexpected is an error that names
 // the file and line; nothing here throws or crashes on malformed input.
 #include "agv/recording/recording.hpp"
-#include "agv/recording/png_io.hpp"
 
 #include <yaml-cpp/yaml.h>
 
@@ -18,6 +17,7 @@
 #include <string_view>
 
 #include "agv/common/geometry.hpp"
+#include "agv/recording/png_io.hpp"
 
 namespace agv::recording {
 

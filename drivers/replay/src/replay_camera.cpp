@@ -1,15 +1,13 @@
 #include "agv/recording/replay_camera.hpp"
 
-#include "agv/recording/png_io.hpp"
-
 #include <algorithm>
 #include <filesystem>
 
+#include "agv/recording/png_io.hpp"
+
 namespace agv::recording {
 
-ReplayCamera::ReplayCamera(const Recording& rec, hal::Clock* clock, std::int64_t t0_ns,
-                           double speed)
-    : rec_(rec), clock_(clock), t0_ns_(t0_ns), speed_(speed > 0.0 ? speed : 1.0) {}
+ReplayCamera::ReplayCamera(const Recording& rec, hal::Clock* clock) : rec_(rec), clock_(clock) {}
 
 hal::CameraStatus ReplayCamera::start() {
   started_ = true;
@@ -20,12 +18,6 @@ void ReplayCamera::stop() {
   started_ = false;
   prefetched_slot_ = -1;
   for (auto& h : held_) h = false;
-}
-
-std::int64_t ReplayCamera::mapped_ns(std::int64_t t_rec_ns) const {
-  if (!clock_ || rec_.frames.empty()) return t_rec_ns;
-  return t0_ns_ + static_cast<std::int64_t>(static_cast<double>(t_rec_ns - rec_.frames.front().t_ns) /
-                                            speed_);
 }
 
 hal::CameraStatus ReplayCamera::next_frame(std::int64_t timeout_ns, hal::FrameView* frame) {
@@ -47,8 +39,8 @@ hal::CameraStatus ReplayCamera::next_frame(std::int64_t timeout_ns, hal::FrameVi
       }
       if (slot < 0) {
         // Every buffer is held by the loop: like a starved live queue, this frame is lost.
-        if (clock_ && mapped_ns(row.t_ns) > clock_->now_ns()) {
-          clock_->sleep_until_ns(std::min(mapped_ns(row.t_ns), clock_->now_ns() + timeout_ns));
+        if (clock_ && row.t_ns > clock_->now_ns()) {
+          clock_->sleep_until_ns(std::min(row.t_ns, clock_->now_ns() + timeout_ns));
           return hal::CameraStatus::kTimeout;
         }
         ++stats_.frames_dropped;
@@ -73,7 +65,7 @@ hal::CameraStatus ReplayCamera::next_frame(std::int64_t timeout_ns, hal::FrameVi
       held_[slot] = true;
       prefetched_slot_ = slot;
     }
-    const std::int64_t due_ns = mapped_ns(rec_.frames[next_].t_ns);
+    const std::int64_t due_ns = rec_.frames[next_].t_ns;
     if (clock_) {
       const std::int64_t now = clock_->now_ns();
       if (due_ns > now) {

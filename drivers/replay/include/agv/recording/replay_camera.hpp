@@ -1,14 +1,12 @@
 // hal::Camera backend that plays a recording's frames.
 //
-// Pacing: with a clock, frame i is delivered when clock.now_ns() >= t0_ns + (t_i - t_first) /
-// speed, and its t_exposure_ns is moved onto that clock (t0_ns + (t_i - t_first)/speed), so the
-// rest of the loop sees live-like timestamps. Without a clock (fast replay) frames are delivered
-// at once with their recorded timestamps.
+// Pacing: with a clock, frame i is delivered once clock.now_ns() >= t_i, so the clock must run in
+// recording time (agvloc replay --realtime uses a ScaledClock for that). Without a clock frames
+// are delivered at once. Either way t_exposure_ns is the recorded time.
 #pragma once
 
-#include <opencv2/core.hpp>
-
 #include <atomic>
+#include <opencv2/core.hpp>
 #include <string>
 
 #include "agv/hal/camera.hpp"
@@ -20,7 +18,7 @@ namespace agv::recording {
 class ReplayCamera final : public hal::Camera {
  public:
   // `rec` must outlive the camera. clock may be null (fast replay).
-  ReplayCamera(const Recording& rec, hal::Clock* clock, std::int64_t t0_ns, double speed);
+  ReplayCamera(const Recording& rec, hal::Clock* clock);
 
   hal::CameraStatus start() override;
   void stop() override;
@@ -29,9 +27,9 @@ class ReplayCamera final : public hal::Camera {
   hal::CameraStats stats() const override { return stats_; }
   const char* last_error() const override { return error_.c_str(); }
 
-  // Frames that failed to load (corrupt or missing PNG, wrong size); they are skipped, counted
-  // in stats().errors and reported through last_error().
-  std::size_t index() const { return next_; }
+  // Frames that fail to load (corrupt or missing PNG, wrong size) are skipped, counted in
+  // stats().errors and reported through last_error().
+  //
   // Simulates a stalled camera for tests of the loop's degradation: frames with recorded time in
   // [from_ns, to_ns) are withheld (skipped without delivery).
   void set_stall(std::int64_t from_ns, std::int64_t to_ns) {
@@ -40,12 +38,8 @@ class ReplayCamera final : public hal::Camera {
   }
 
  private:
-  std::int64_t mapped_ns(std::int64_t t_rec_ns) const;
-
   const Recording& rec_;
   hal::Clock* clock_;
-  std::int64_t t0_ns_;
-  double speed_;
   bool started_ = false;
   // Like a live driver, a few buffers can be held by the loop at once (capture mailbox + vision
   // worker); a frame arriving while all are held is dropped and counted.
