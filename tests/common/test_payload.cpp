@@ -48,8 +48,8 @@ TEST(Payload, RejectsEverythingElse) {
 TEST(LandmarkMap, ParsesAndRejectsWithLineNumbers) {
   LandmarkMap m;
   std::string err;
-  ASSERT_TRUE(parse_landmark_map("# grid\nid,x_mm,y_mm,heading_deg\n1,0,0,0\n2,1000.5,-3,90\n", &m,
-                                 &err))
+  ASSERT_TRUE(
+      parse_landmark_map("# grid\nid,x_mm,y_mm,heading_deg\n1,0,0,0\n2,1000.5,-3,90\n", &m, &err))
       << err;
   ASSERT_NE(m.find(2), nullptr);
   EXPECT_DOUBLE_EQ(m.find(2)->pose.x_mm, 1000.5);

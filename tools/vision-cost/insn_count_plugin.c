@@ -41,12 +41,12 @@ EXPORT int qemu_plugin_version = 1;
 /* __NR_prctl of the guest: 167 on aarch64 (default); 157 on x86-64 (argument nr=157), used to
  * check the method against callgrind on the same x86-64 binary. */
 static int64_t g_prctl_nr = 167;
-#define kMarkerOn 0x41475631u            /* "AGV1": start of a measured frame */
-#define kMarkerOff 0x41475630u           /* "AGV0": end of a measured frame */
+#define kMarkerOn 0x41475631u  /* "AGV1": start of a measured frame */
+#define kMarkerOff 0x41475630u /* "AGV0": end of a measured frame */
 
-static uint64_t g_insns;    /* all guest instructions executed so far */
-static uint64_t g_start;    /* g_insns at the last "on" marker */
-static int g_open;          /* inside a window */
+static uint64_t g_insns; /* all guest instructions executed so far */
+static uint64_t g_start; /* g_insns at the last "on" marker */
+static int g_open;       /* inside a window */
 static FILE* g_out;
 static uint64_t g_windows;
 
@@ -57,8 +57,8 @@ static void on_tb_trans(qemu_plugin_id_t id, struct qemu_plugin_tb* tb) {
 }
 
 static void on_syscall(qemu_plugin_id_t id, unsigned int vcpu, int64_t num, uint64_t a1,
-                       uint64_t a2, uint64_t a3, uint64_t a4, uint64_t a5, uint64_t a6,
-                       uint64_t a7, uint64_t a8) {
+                       uint64_t a2, uint64_t a3, uint64_t a4, uint64_t a5, uint64_t a6, uint64_t a7,
+                       uint64_t a8) {
   (void)id, (void)vcpu, (void)a2, (void)a3, (void)a4, (void)a5, (void)a6, (void)a7, (void)a8;
   if (num != g_prctl_nr) return;
   if (a1 == kMarkerOn) {

@@ -9,13 +9,13 @@
 //     plugin insn_count_plugin.c, under qemu-aarch64.
 // Both count user-space instructions of the same calls. OpenCV runs single-threaded so that the
 // count is one core's work. measure.sh runs the whole comparison.
-#include <opencv2/core.hpp>
-#include <opencv2/core/utility.hpp>
 #include <sys/prctl.h>
 
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <opencv2/core.hpp>
+#include <opencv2/core/utility.hpp>
 #include <string>
 #include <vector>
 

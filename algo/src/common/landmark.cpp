@@ -14,13 +14,20 @@ std::vector<Vec2> LandmarkGeometry::outer_corners_landmark_mm() const {
 
 const char* to_string(PayloadError e) {
   switch (e) {
-    case PayloadError::kOk: return "ok";
-    case PayloadError::kEmpty: return "empty payload";
-    case PayloadError::kBadPrefix: return "payload does not start with AGV";
-    case PayloadError::kUnsupportedVersion: return "unsupported payload version";
-    case PayloadError::kBadLength: return "payload has the wrong length";
-    case PayloadError::kBadField: return "malformed payload field";
-    case PayloadError::kOutOfRange: return "payload value out of range";
+    case PayloadError::kOk:
+      return "ok";
+    case PayloadError::kEmpty:
+      return "empty payload";
+    case PayloadError::kBadPrefix:
+      return "payload does not start with AGV";
+    case PayloadError::kUnsupportedVersion:
+      return "unsupported payload version";
+    case PayloadError::kBadLength:
+      return "payload has the wrong length";
+    case PayloadError::kBadField:
+      return "malformed payload field";
+    case PayloadError::kOutOfRange:
+      return "payload value out of range";
   }
   return "unknown payload error";
 }
@@ -132,7 +139,8 @@ namespace {
 
 bool parse_double(std::string_view s, double* v) {
   while (!s.empty() && (s.front() == ' ' || s.front() == '\t')) s.remove_prefix(1);
-  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r')) s.remove_suffix(1);
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\t' || s.back() == '\r'))
+    s.remove_suffix(1);
   if (s.empty()) return false;
   if (s.front() == '+') s.remove_prefix(1);
   auto [ptr, ec] = std::from_chars(s.data(), s.data() + s.size(), *v);
@@ -182,7 +190,8 @@ bool parse_landmark_map(std::string_view text, LandmarkMap* out, std::string* er
       continue;
     }
     auto f = split(trimmed, ',');
-    if (f.size() != 4) return fail("expected 4 comma-separated fields, got " + std::to_string(f.size()));
+    if (f.size() != 4)
+      return fail("expected 4 comma-separated fields, got " + std::to_string(f.size()));
     double id_d = 0, x = 0, y = 0, h = 0;
     if (!parse_double(f[0], &id_d) || id_d != std::floor(id_d) || id_d < 1 || id_d > 65535) {
       return fail("id must be an integer in 1..65535");

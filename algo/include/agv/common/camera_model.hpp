@@ -11,8 +11,8 @@ namespace agv {
 struct CameraIntrinsics {
   int width_px = 640;
   int height_px = 480;
-  double fx = 0.0, fy = 0.0;  // focal lengths in pixels
-  double cx = 0.0, cy = 0.0;  // principal point in pixels
+  double fx = 0.0, fy = 0.0;                                // focal lengths in pixels
+  double cx = 0.0, cy = 0.0;                                // principal point in pixels
   double k1 = 0.0, k2 = 0.0, p1 = 0.0, p2 = 0.0, k3 = 0.0;  // OpenCV distortion
 };
 

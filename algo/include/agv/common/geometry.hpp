@@ -44,7 +44,8 @@ inline Pose2 compose(const Pose2& a_b, const Pose2& b_c) {
 // B<-A from A<-B.
 inline Pose2 inverse(const Pose2& a_b) {
   const double c = std::cos(a_b.theta_rad), s = std::sin(a_b.theta_rad);
-  return {-c * a_b.x_mm - s * a_b.y_mm, s * a_b.x_mm - c * a_b.y_mm, wrap_angle_rad(-a_b.theta_rad)};
+  return {-c * a_b.x_mm - s * a_b.y_mm, s * a_b.x_mm - c * a_b.y_mm,
+          wrap_angle_rad(-a_b.theta_rad)};
 }
 
 // Point p given in frame B, expressed in frame A.

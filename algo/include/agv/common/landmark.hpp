@@ -51,8 +51,9 @@ inline Vec2 landmark_to_page(Vec2 xy) { return {-xy.y, -xy.x}; }
 
 // QR payload, QR alphanumeric mode, fixed width so that every full payload is exactly 38
 // characters and therefore always a version-2 code at ECC level M:
-//   full:    "AGV1/iiiii/sxxxxxx.x/syyyyyy.y/shhh.hh"   e.g. "AGV1/00017/+001000.0/-002000.0/+090.00"
-//   id only: "AGV1/iiiii/MAP"                           (pose comes from the map file)
+//   full:    "AGV1/iiiii/sxxxxxx.x/syyyyyy.y/shhh.hh"   e.g.
+//   "AGV1/00017/+001000.0/-002000.0/+090.00" id only: "AGV1/iiiii/MAP" (pose comes from the map
+//   file)
 // iiiii: id 1..65535, 5 digits; s: '+' or '-'; x, y: world position of the landmark centre in
 // mm, |x|,|y| <= 999999.9; h: heading of the landmark's forward axis in the world, degrees in
 // (-180, 180]. Anything else is rejected.
@@ -68,11 +69,11 @@ struct LandmarkPayload {
 enum class PayloadError {
   kOk = 0,
   kEmpty,
-  kBadPrefix,        // does not start with "AGV"
+  kBadPrefix,  // does not start with "AGV"
   kUnsupportedVersion,
   kBadLength,
-  kBadField,         // a field has the wrong width, sign or characters
-  kOutOfRange,       // id 0, |coordinate| too large, heading outside (-180, 180]
+  kBadField,    // a field has the wrong width, sign or characters
+  kOutOfRange,  // id 0, |coordinate| too large, heading outside (-180, 180]
 };
 
 const char* to_string(PayloadError e);

@@ -10,12 +10,12 @@ namespace agv::hal {
 // Return codes shared by the camera methods.
 enum class CameraStatus : int {
   kOk = 0,
-  kTimeout = 1,        // no frame within the timeout; try again
-  kEndOfStream = 2,    // replay finished; no more frames will come
-  kNotStarted = 3,     // start() has not succeeded
-  kDisconnected = 4,   // the device disappeared or stopped delivering; reopen to recover
+  kTimeout = 1,       // no frame within the timeout; try again
+  kEndOfStream = 2,   // replay finished; no more frames will come
+  kNotStarted = 3,    // start() has not succeeded
+  kDisconnected = 4,  // the device disappeared or stopped delivering; reopen to recover
   kInvalidArgument = 5,
-  kDeviceError = 6,    // driver-specific failure; see last_error()
+  kDeviceError = 6,  // driver-specific failure; see last_error()
 };
 
 // Short name for logs ("ok", "timeout", ...). Inline so that users need only agv_hal.
@@ -88,7 +88,7 @@ struct FrameView {
 
 struct CameraStats {
   std::uint64_t frames_delivered = 0;
-  std::uint64_t frames_dropped = 0;   // detected by sequence gaps or full queues
+  std::uint64_t frames_dropped = 0;  // detected by sequence gaps or full queues
   std::uint64_t errors = 0;
 };
 
