@@ -13,6 +13,7 @@
 #include "agv/can/candump_file.hpp"
 #include "agv/can/socketcan.hpp"
 #include "agv/posix/posix_clock.hpp"
+#include "agv/posix/realtime.hpp"
 #include "agv/recording/png_io.hpp"
 #include "agv/recording/replay_camera.hpp"
 #include "commands.hpp"
@@ -144,6 +145,12 @@ int replay(int argc, char** argv) {
   }
 
   if (realtime) {
+    // Same real-time setup as `agvloc run` (threads get their priorities in run_threads).
+    if (cfg.loop.lock_memory) {
+      const int e = posix::lock_all_memory();
+      if (e)
+        std::fprintf(stderr, "replay: %s\n", posix::explain_realtime_error("mlockall", e).c_str());
+    }
     posix::PosixClock mono;
     const std::int64_t t_first = rec.frames.empty() ? (rec.odom.empty() ? 0 : rec.odom.front().t_ns)
                                                     : rec.frames.front().t_ns;

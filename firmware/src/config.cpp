@@ -83,10 +83,27 @@ void read_loop(YamlChecker& c, const YAML::Node& root, LoopSection* s) {
   c.number(n, "loop", "output_rate_hz", 1.0, 1000.0, &s->output_rate_hz);
   c.number(n, "loop", "heartbeat_rate_hz", 0.1, 100.0, &s->heartbeat_rate_hz);
   c.integer(n, "loop", "realtime_priority", 0, 99, &s->realtime_priority);
+  c.integer(n, "loop", "vision_priority", 0, 98, &s->vision_priority);
+  c.integer(n, "loop", "spin_before_deadline_us", 0, 2000, &s->spin_before_deadline_us);
   c.boolean(n, "loop", "lock_memory", &s->lock_memory);
   c.number(n, "loop", "log_period_s", 0.0, 3600.0, &s->log_period_s);
   c.boolean(n, "loop", "pose_on_fix", &s->pose_on_fix);
   c.finish_map(n, "loop");
+  // Relations between keys (each value is already in its own range here).
+  if (s->vision_priority > 0 && s->vision_priority >= s->realtime_priority) {
+    c.error("loop.vision_priority", "value " + std::to_string(s->vision_priority) +
+                                        " must be below loop.realtime_priority (" +
+                                        std::to_string(s->realtime_priority) +
+                                        ") so vision can never delay the fixed-rate output");
+  }
+  const double half_period_us = 0.5e6 / s->output_rate_hz;
+  if (static_cast<double>(s->spin_before_deadline_us) > half_period_us) {
+    c.error("loop.spin_before_deadline_us",
+            "value " + std::to_string(s->spin_before_deadline_us) +
+                " exceeds half the output period (" +
+                std::to_string(static_cast<int>(half_period_us)) + " us at loop.output_rate_hz " +
+                std::to_string(static_cast<int>(s->output_rate_hz)) + ")");
+  }
 }
 
 }  // namespace

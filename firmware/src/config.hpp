@@ -37,7 +37,16 @@ struct CanSection {
 struct LoopSection {
   double output_rate_hz = 100.0;  // pose, velocity, quality, status frames
   double heartbeat_rate_hz = 1.0;
-  int realtime_priority = 0;   // SCHED_FIFO priority of the output thread; 0 = off
+  int realtime_priority = 0;  // SCHED_FIFO priority of the output thread; 0 = off
+  // SCHED_FIFO priority of the capture and vision threads; 0 = normal scheduling. Must be below
+  // realtime_priority so vision can never delay the fixed-rate output. Shortens the exposure ->
+  // fix latency under CPU contention, at the cost of starving normal tasks on a core while a
+  // frame is processed.
+  int vision_priority = 0;
+  // Hybrid wait of the output thread: sleep to (deadline - spin), then busy-poll the clock to the
+  // deadline. Removes the kernel's wake-up latency from the period jitter for up to this many
+  // microseconds, at the cost of that much busy CPU per period. 0 = plain absolute sleep.
+  int spin_before_deadline_us = 0;
   bool lock_memory = false;    // mlockall at start
   double log_period_s = 10.0;  // periodic statistics line; 0 = off
   // Also send the pose pair right after a fix is fused, outside the fixed schedule: the

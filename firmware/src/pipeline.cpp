@@ -12,6 +12,7 @@
 #include "agv/posix/posix_clock.hpp"
 #include "agv/posix/realtime.hpp"
 #include "handoff.hpp"
+#include "hybrid_wait_clock.hpp"
 
 namespace agv::app {
 
@@ -52,6 +53,16 @@ LandmarkGeometry geometry_of(const config::Config& cfg) {
   LandmarkGeometry g;
   g.size_mm = cfg.landmark_size_mm;
   return g;
+}
+
+// SCHED_FIFO for the calling thread when priority > 0; a refusal is reported, not fatal.
+void apply_fifo_priority(int priority, const char* which) {
+  if (priority <= 0) return;
+  const int err = posix::set_fifo_priority(priority);
+  if (err) {
+    const std::string what = std::string("SCHED_FIFO (") + which + ")";
+    std::fprintf(stderr, "agvloc: %s\n", posix::explain_realtime_error(what.c_str(), err).c_str());
+  }
 }
 
 void print_period_line(const OutputStats& o, std::uint64_t dropped) {
@@ -96,6 +107,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
   // Capture: never blocks on processing; the mailbox keeps only the newest frame.
   std::thread capture([&] {
     posix::set_thread_name("agv-capture");
+    apply_fifo_priority(cfg.loop.vision_priority, "capture, loop.vision_priority");
     std::int64_t retry_at_ns = 0;
     while (!done.load()) {
       if (camera_error.load()) {
@@ -133,6 +145,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
   // Vision worker: always the newest frame; results go to fusion through a fixed ring.
   std::thread worker([&] {
     posix::set_thread_name("agv-vision");
+    apply_fifo_priority(cfg.loop.vision_priority, "vision, loop.vision_priority");
     vision::LandmarkLocalizer loc(vision_config_with_clock(cfg, &clock), cfg.camera_model,
                                   geometry_of(cfg), map);
     FixRecord rec;
@@ -173,19 +186,14 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
   const std::int64_t log_period_ns = static_cast<std::int64_t>(cfg.loop.log_period_s * 1e9);
   std::thread output([&] {
     posix::set_thread_name("agv-output");
-    if (cfg.loop.realtime_priority > 0) {
-      const int err = posix::set_fifo_priority(cfg.loop.realtime_priority);
-      if (err) {
-        std::fprintf(stderr, "agvloc: %s\n",
-                     posix::explain_realtime_error("SCHED_FIFO", err).c_str());
-      }
-    }
+    apply_fifo_priority(cfg.loop.realtime_priority, "output, loop.realtime_priority");
+    HybridWaitClock wait(clock, std::int64_t{cfg.loop.spin_before_deadline_us} * 1000);
     std::size_t odom_i = 0;
     std::int64_t next_ns = clock.now_ns() + period_ns;
     std::int64_t next_log_ns = next_ns + log_period_ns;
     FixRecord rec;
     while (!done.load()) {
-      clock.sleep_until_ns(next_ns);
+      wait.sleep_until_ns(next_ns);
       const std::int64_t now = clock.now_ns();
       if (pose_on_fix) out_mutex.lock();
       out.mutable_stats().period_jitter_ns.record_ns(now - next_ns);

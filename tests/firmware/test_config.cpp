@@ -106,3 +106,31 @@ TEST(Config, FusionAndVisionSectionsReachTheAlgorithms) {
       mentions(errors_for("fusion:\n  gate_probability: 1.5\n"), "fusion.gate_probability"));
   EXPECT_TRUE(mentions(errors_for("vision:\n  colour: red\n"), "vision.colour: unknown key"));
 }
+
+TEST(Config, LoopRealTimeKeysAndTheirRelations) {
+  Config cfg;
+  std::vector<std::string> errors;
+  ASSERT_TRUE(agv::config::parse_config(
+      "loop:\n  realtime_priority: 50\n  vision_priority: 40\n  spin_before_deadline_us: 200\n", "",
+      &cfg, &errors))
+      << (errors.empty() ? "" : errors.front());
+  EXPECT_EQ(cfg.loop.vision_priority, 40);
+  EXPECT_EQ(cfg.loop.spin_before_deadline_us, 200);
+  // Vision must stay below the output thread, also when the output thread has no priority.
+  EXPECT_TRUE(mentions(errors_for("loop:\n  realtime_priority: 50\n  vision_priority: 50\n"),
+                       "loop.vision_priority: value 50 must be below loop.realtime_priority (50)"));
+  EXPECT_TRUE(mentions(errors_for("loop:\n  vision_priority: 10\n"),
+                       "loop.vision_priority: value 10 must be below loop.realtime_priority (0)"));
+  EXPECT_TRUE(mentions(errors_for("loop:\n  vision_priority: 99\n"),
+                       "loop.vision_priority: value 99 outside the accepted range [0, 98]"));
+  EXPECT_TRUE(
+      mentions(errors_for("loop:\n  spin_before_deadline_us: 2001\n"),
+               "loop.spin_before_deadline_us: value 2001 outside the accepted range [0, 2000]"));
+  // The spin must leave most of the period asleep.
+  EXPECT_TRUE(
+      mentions(errors_for("loop:\n  output_rate_hz: 1000\n  spin_before_deadline_us: 600\n"),
+               "loop.spin_before_deadline_us: value 600 exceeds half the output period (500 us at "
+               "loop.output_rate_hz 1000)"));
+  EXPECT_TRUE(mentions(errors_for("loop:\n  spin_before_deadline_us: -1\n"),
+                       "loop.spin_before_deadline_us"));
+}
