@@ -73,6 +73,12 @@ struct VisionConfig {
   int max_corner_peaks = 16;
 
   // --- 3. QR decode ------------------------------------------------------------------------
+  // Model-guided reading (qr_grid.hpp): after the border fit, sample every module where the pose
+  // puts it, binarize against the local mean of the modules around it and decode a re-rendered
+  // code with zxing's pure-code reader (Reed-Solomon checked, so a wrong grid cannot give a
+  // payload). zxing's own search on the image crop remains as the fallback. Reads codes zxing's
+  // binarizer loses under blur and scratches and is several times faster. Default true.
+  bool qr_guided = true;
   // zxing-cpp TryHarder: slower, reads a few more damaged codes. Default false (measured in
   // docs/accuracy.md).
   bool qr_try_harder = false;
@@ -169,7 +175,7 @@ const char* to_string(FixStatus s);
 // Milliseconds per stage, filled only when VisionConfig::now_ns is set.
 struct StageTimings {
   double detect_ms = 0.0;     // pyramid + binarization + corner templates + ring check
-  double decode_ms = 0.0;     // zxing + payload parse + map check
+  double decode_ms = 0.0;     // QR (guided sampling, then zxing search) + payload + map check
   double direction_ms = 0.0;  // logo template at four turns + QR orientation cross-check
   double pose_ms = 0.0;       // Prewitt, classification, line fits, centre, covariance
   double total_ms = 0.0;
@@ -195,6 +201,8 @@ struct LandmarkFix {
   int sides_used = 0;           // border sides with both edges fitted (4 when fully visible)
   bool partly_outside = false;  // some of the border is outside the image (pose still valid)
   double residual_rms_mm = 0.0;
+  // How the QR code was read: 1 = model-guided module sampling, 2 = zxing's search on the crop.
+  int qr_method = 0;
   // Detection estimate (before the edge fit), for diagnostics: landmark centre in pixels and the
   // image angle of one border normal (modulo 90 deg).
   double detect_x_px = 0.0, detect_y_px = 0.0, detect_angle_deg = 0.0;

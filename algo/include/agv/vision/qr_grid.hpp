@@ -1,0 +1,54 @@
+// Model-guided QR reading: once the border fit has given the landmark's pose to a fraction of a
+// pixel, the position of every QR module in the image is known. Sampling the modules there and
+// handing zxing a clean, re-rendered code replaces zxing's own binarizer and finder-pattern
+// search, which are what fail on small (4.6 px) modules under blur, scratches and dirt.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace agv::vision {
+
+// Modules of a QR code of side n (21 = version 1, 25 = version 2) whose value the standard fixes:
+// finder patterns with their separators, timing patterns, the version-2 alignment pattern and the
+// dark module. Returns 1 (dark), 0 (light) or -1 (data or format information, or n unsupported).
+int qr_fixed_module(int n, int row, int col);
+
+// Grey values sampled at module centres: (n + 2 ring)^2 values, row-major, where the outer `ring`
+// modules lie in the quiet zone around the code (light on the landmark).
+struct QrSamples {
+  int n = 25;
+  int ring = 2;
+  std::vector<float> v;
+  int side() const { return n + 2 * ring; }
+  // row, col of the code (0..n-1); the quiet zone is at -ring..-1 and n..n+ring-1.
+  float at(int row, int col) const {
+    return v[static_cast<size_t>((row + ring) * side() + col + ring)];
+  }
+};
+
+// How module samples become dark/light. Blur pulls a module towards its neighbours; comparing
+// with the local mean (a module-scale high-pass) undoes part of it, sharpening first undoes more
+// (on the combined degradations of docs/accuracy.md it alone reads 298 of 300 codes, the local
+// mean alone 278). The localizer tries them in this order.
+enum class QrThreshold {
+  kSharpenedLocalMean,  // local mean after v' = v + (v - mean of the 4 neighbours)
+  kLocalMean,           // dark when below the mean of the 5x5 modules around it
+  kMidpoint,            // dark when below the midpoint of the quiet zone and the darkest decile
+};
+
+// Reusable buffers (no allocation after the first call of a given size, except inside zxing).
+struct QrGridScratch {
+  std::vector<float> work, mean;
+  std::vector<unsigned char> bits, image;
+};
+
+// Binarizes the samples, forces the fixed modules and decodes with zxing's pure-code reader
+// (Reed-Solomon checked). Returns true and the text on success.
+bool decode_qr_grid(const QrSamples& s, QrThreshold t, std::string* text, QrGridScratch* scratch);
+
+// Number of fixed modules (qr_fixed_module != -1) whose binarized value disagrees with the
+// standard, for diagnostics and tests; -1 for an unsupported n.
+int qr_fixed_module_errors(const QrSamples& s, QrThreshold t, QrGridScratch* scratch);
+
+}  // namespace agv::vision

@@ -1,0 +1,169 @@
+#include "agv/vision/qr_grid.hpp"
+
+#define ZX_USE_UTF8 1
+#include <ZXing/ReadBarcode.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+
+namespace agv::vision {
+
+namespace {
+
+constexpr int kPxPerModule = 3;  // zxing's pure reader needs whole pixels per module
+constexpr int kMargin = 4;       // quiet zone of the rendered code, modules
+
+int finder_value(int r, int c) {  // r, c in 0..6 inside a finder pattern
+  const int d = std::max(std::abs(r - 3), std::abs(c - 3));
+  return d == 2 ? 0 : 1;
+}
+
+void binarize(const QrSamples& s, QrThreshold t, QrGridScratch* sc) {
+  const int side = s.side();
+  const size_t nn = static_cast<size_t>(side) * static_cast<size_t>(side);
+  sc->work.assign(s.v.begin(), s.v.end());
+  if (t == QrThreshold::kSharpenedLocalMean) {
+    for (int r = 0; r < side; ++r) {
+      for (int c = 0; c < side; ++c) {
+        double sum = 0;
+        int cnt = 0;
+        const int dr[4] = {-1, 1, 0, 0}, dc[4] = {0, 0, -1, 1};
+        for (int k = 0; k < 4; ++k) {
+          const int rr = r + dr[k], cc = c + dc[k];
+          if (rr < 0 || cc < 0 || rr >= side || cc >= side) continue;
+          sum += static_cast<double>(s.v[static_cast<size_t>(rr * side + cc)]);
+          ++cnt;
+        }
+        const double v = static_cast<double>(s.v[static_cast<size_t>(r * side + c)]);
+        sc->work[static_cast<size_t>(r * side + c)] =
+            static_cast<float>(cnt ? v + (v - sum / cnt) : v);
+      }
+    }
+  }
+  sc->mean.assign(nn, 0.0f);
+  if (t == QrThreshold::kMidpoint) {
+    // Light level: median of the quiet zone; dark level: darkest decile of the code.
+    std::vector<float>& tmp = sc->mean;
+    tmp.clear();
+    for (int r = 0; r < side; ++r) {
+      for (int c = 0; c < side; ++c) {
+        const int rr = r - s.ring, cc = c - s.ring;
+        if (rr < 0 || cc < 0 || rr >= s.n || cc >= s.n) tmp.push_back(sc->work[r * side + c]);
+      }
+    }
+    const size_t mid = tmp.size() / 2;
+    std::nth_element(tmp.begin(), tmp.begin() + static_cast<std::ptrdiff_t>(mid), tmp.end());
+    const float light = tmp.empty() ? 255.0f : tmp[mid];
+    tmp.clear();
+    for (int r = 0; r < s.n; ++r) {
+      for (int c = 0; c < s.n; ++c) tmp.push_back(s.at(r, c));
+    }
+    const size_t dec = tmp.size() / 10;
+    std::nth_element(tmp.begin(), tmp.begin() + static_cast<std::ptrdiff_t>(dec), tmp.end());
+    const float dark = tmp[dec];
+    sc->mean.assign(nn, 0.5f * (light + dark));
+  } else {
+    // Mean of the 5x5 modules around each module (clipped to the sampled grid).
+    for (int r = 0; r < side; ++r) {
+      for (int c = 0; c < side; ++c) {
+        double sum = 0;
+        int cnt = 0;
+        for (int rr = std::max(0, r - 2); rr <= std::min(side - 1, r + 2); ++rr) {
+          for (int cc = std::max(0, c - 2); cc <= std::min(side - 1, c + 2); ++cc) {
+            sum += static_cast<double>(sc->work[static_cast<size_t>(rr * side + cc)]);
+            ++cnt;
+          }
+        }
+        sc->mean[static_cast<size_t>(r * side + c)] = static_cast<float>(sum / cnt);
+      }
+    }
+  }
+  sc->bits.assign(static_cast<size_t>(s.n * s.n), 0);
+  for (int r = 0; r < s.n; ++r) {
+    for (int c = 0; c < s.n; ++c) {
+      const size_t g = static_cast<size_t>((r + s.ring) * side + c + s.ring);
+      sc->bits[static_cast<size_t>(r * s.n + c)] = sc->work[g] < sc->mean[g] ? 1 : 0;
+    }
+  }
+}
+
+}  // namespace
+
+int qr_fixed_module(int n, int r, int c) {
+  if (n != 21 && n != 25) return -1;
+  if (r < 0 || c < 0 || r >= n || c >= n) return -1;
+  // Finder patterns and separators.
+  if (r < 7 && c < 7) return finder_value(r, c);
+  if (r < 7 && c >= n - 7) return finder_value(r, c - (n - 7));
+  if (r >= n - 7 && c < 7) return finder_value(r - (n - 7), c);
+  if ((r == 7 && (c <= 7 || c >= n - 8)) || (c == 7 && (r <= 7 || r >= n - 8)) ||
+      (r == n - 8 && c <= 7) || (c == n - 8 && r <= 7)) {
+    return 0;
+  }
+  // Dark module (row 4V + 9 = n - 8, column 8); format information around the finders.
+  if (r == n - 8 && c == 8) return 1;
+  if ((r == 8 && (c <= 8 || c >= n - 8)) || (c == 8 && (r <= 8 || r >= n - 7))) return -1;
+  // Timing patterns.
+  if (r == 6) return c % 2 == 0 ? 1 : 0;
+  if (c == 6) return r % 2 == 0 ? 1 : 0;
+  // Version-2 alignment pattern centred on (18, 18).
+  if (n == 25 && std::abs(r - 18) <= 2 && std::abs(c - 18) <= 2) {
+    const int d = std::max(std::abs(r - 18), std::abs(c - 18));
+    return d == 1 ? 0 : 1;
+  }
+  return -1;
+}
+
+int qr_fixed_module_errors(const QrSamples& s, QrThreshold t, QrGridScratch* sc) {
+  if ((s.n != 21 && s.n != 25) || s.v.size() != static_cast<size_t>(s.side() * s.side())) {
+    return -1;
+  }
+  binarize(s, t, sc);
+  int errors = 0;
+  for (int r = 0; r < s.n; ++r) {
+    for (int c = 0; c < s.n; ++c) {
+      const int f = qr_fixed_module(s.n, r, c);
+      if (f >= 0 && f != sc->bits[static_cast<size_t>(r * s.n + c)]) ++errors;
+    }
+  }
+  return errors;
+}
+
+bool decode_qr_grid(const QrSamples& s, QrThreshold t, std::string* text, QrGridScratch* sc) {
+  if ((s.n != 21 && s.n != 25) || s.ring < 1 ||
+      s.v.size() != static_cast<size_t>(s.side() * s.side())) {
+    return false;
+  }
+  binarize(s, t, sc);
+  const int dim = (s.n + 2 * kMargin) * kPxPerModule;
+  sc->image.assign(static_cast<size_t>(dim) * static_cast<size_t>(dim), 255);
+  for (int r = 0; r < s.n; ++r) {
+    for (int c = 0; c < s.n; ++c) {
+      const int f = qr_fixed_module(s.n, r, c);
+      const bool dark = f >= 0 ? f == 1 : sc->bits[static_cast<size_t>(r * s.n + c)] != 0;
+      if (!dark) continue;
+      for (int y = 0; y < kPxPerModule; ++y) {
+        unsigned char* row = sc->image.data() +
+                             static_cast<size_t>((r + kMargin) * kPxPerModule + y) * dim +
+                             static_cast<size_t>((c + kMargin) * kPxPerModule);
+        std::fill(row, row + kPxPerModule, static_cast<unsigned char>(0));
+      }
+    }
+  }
+  ZXing::DecodeHints hints;
+  hints.setFormats(ZXing::BarcodeFormat::QRCode)
+      .setIsPure(true)
+      .setBinarizer(ZXing::Binarizer::FixedThreshold)
+      .setTryHarder(false)
+      .setTryRotate(false)
+      .setTryDownscale(false)
+      .setMaxNumberOfSymbols(1);
+  const ZXing::ImageView iv(sc->image.data(), dim, dim, ZXing::ImageFormat::Lum, dim);
+  const ZXing::Result res = ZXing::ReadBarcode(iv, hints);
+  if (!res.isValid() || res.isMirrored()) return false;
+  *text = res.text();
+  return true;
+}
+
+}  // namespace agv::vision
