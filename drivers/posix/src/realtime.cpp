@@ -16,7 +16,16 @@ int set_fifo_priority(int priority) {
   return pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
 }
 
-int lock_all_memory() { return mlockall(MCL_CURRENT | MCL_FUTURE) == 0 ? 0 : errno; }
+int lock_all_memory() {
+#ifdef MCL_ONFAULT
+  // Lock pages as they are first touched: after warm-up nothing the loop uses can be reclaimed,
+  // without faulting in every mapped library page and the whole 8 MB stack of each thread (that
+  // took the loop benchmark's peak RSS from 25 MB to 90 MB). Kernels before 4.4 reject the flag.
+  if (mlockall(MCL_CURRENT | MCL_FUTURE | MCL_ONFAULT) == 0) return 0;
+  if (errno != EINVAL) return errno;
+#endif
+  return mlockall(MCL_CURRENT | MCL_FUTURE) == 0 ? 0 : errno;
+}
 
 std::string explain_realtime_error(const char* what, int err) {
   std::string s = std::string(what) + ": " + std::strerror(err);

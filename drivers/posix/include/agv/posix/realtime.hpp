@@ -8,7 +8,9 @@ namespace agv::posix {
 
 // SCHED_FIFO at `priority` (1..99) for the calling thread.
 int set_fifo_priority(int priority);
-// mlockall(MCL_CURRENT | MCL_FUTURE) so page faults cannot stall the loop.
+// mlockall(MCL_CURRENT | MCL_FUTURE | MCL_ONFAULT) so pages the loop has touched cannot be
+// reclaimed and fault again; falls back to MCL_CURRENT | MCL_FUTURE (prefaults everything mapped)
+// on kernels without MCL_ONFAULT.
 int lock_all_memory();
 // A one-line explanation of a failure above, naming the capability or limit to change.
 std::string explain_realtime_error(const char* what, int err);
