@@ -52,9 +52,10 @@ struct LoopSection {
   // Also send the pose pair right after a fix is fused, outside the fixed schedule: the
   // correction reaches the bus ~1 vision-time after exposure instead of waiting up to one output
   // period, at the cost of irregular pose-frame spacing (receivers must not derive speed from
-  // pose-frame intervals). Off by default: a fixed-rate stream is what most motor controllers
-  // expect.
-  bool pose_on_fix = false;
+  // pose-frame intervals). The fixed-rate stream (all frames every period) runs either way. On by
+  // default: without it the end-to-end latency is bounded below by the period
+  // (docs/performance.md).
+  bool pose_on_fix = true;
 };
 
 struct Config {

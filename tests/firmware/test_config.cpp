@@ -35,6 +35,11 @@ TEST(Config, ShippedExampleLoads) {
   EXPECT_EQ(cfg.can.base_id, 0x300u);
   EXPECT_NEAR(cfg.camera_model.mm_per_px(), 0.26, 1e-6);
   EXPECT_NE(cfg.map_file.find("tools/maps/default_grid.csv"), std::string::npos);
+  // The vehicle configuration runs real time (docs/config.md, loop section).
+  EXPECT_EQ(cfg.loop.realtime_priority, 50);
+  EXPECT_EQ(cfg.loop.vision_priority, 40);
+  EXPECT_TRUE(cfg.loop.lock_memory);
+  EXPECT_TRUE(cfg.loop.pose_on_fix);
 }
 
 TEST(Config, EmptyMappingGivesDefaults) {
@@ -42,6 +47,12 @@ TEST(Config, EmptyMappingGivesDefaults) {
   std::vector<std::string> errors;
   ASSERT_TRUE(agv::config::parse_config("{}", "", &cfg, &errors));
   EXPECT_DOUBLE_EQ(cfg.loop.output_rate_hz, 100.0);
+  // Built-in defaults need no privileges; the fix-triggered pose needs none either.
+  EXPECT_EQ(cfg.loop.realtime_priority, 0);
+  EXPECT_EQ(cfg.loop.vision_priority, 0);
+  EXPECT_FALSE(cfg.loop.lock_memory);
+  EXPECT_EQ(cfg.loop.spin_before_deadline_us, 0);
+  EXPECT_TRUE(cfg.loop.pose_on_fix);
 }
 
 TEST(Config, UnknownKeyIsNamed) {

@@ -132,6 +132,12 @@ def prepare_config(args, results: str) -> tuple[str, dict]:
     text = open(src, encoding="utf-8").read()
     vals = yaml_scalars(text)
     patch = {("can", "interface"): args.iface, ("camera", "driver"): "replay"}
+    # Fix-triggered pose pairs have no row in the localizer's poses.csv (one row per tick), which
+    # the bus poses are matched against; and under TCG emulation a landmark frame takes many times
+    # longer, which at SCHED_FIFO would hold a guest CPU from everything else for that long.
+    for key, value in ((("loop", "pose_on_fix"), "false"), (("loop", "vision_priority"), "0")):
+        if key in vals:
+            patch[key] = value
     if ("landmark", "map") in vals and not os.path.isabs(vals[("landmark", "map")]):
         patch[("landmark", "map")] = os.path.normpath(
             os.path.join(os.path.dirname(src), vals[("landmark", "map")]))
