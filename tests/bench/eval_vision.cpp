@@ -48,7 +48,8 @@ struct Args {
   bool ablation = false;
   bool apriltag = true;
   std::string dump;
-  std::string only;  // run only the fully-visible conditions whose name contains this
+  std::string only;      // run only the fully-visible conditions whose name contains this
+  int profile_reps = 0;  // --profile-loop: only process the clean frames this many times (perf)
 };
 
 double pct(std::vector<double> v, double p) {
@@ -346,6 +347,15 @@ int run(const Args& a) {
   };
 
   std::vector<Frame> clean_frames, combined_frames;
+  if (a.profile_reps > 0) {
+    // For a sampling profiler: rendering would dominate a normal run.
+    auto frames = render_set(scene, cam, conds[0], a.frames, a.seed * 1000);
+    LandmarkLocalizer loc(cfg, cam, geom, &map);
+    Stats s;
+    for (int rep = 0; rep < a.profile_reps; ++rep) evaluate(loc, frames, &s);
+    std::printf("processed %d frames, total median %.3f ms\n", s.n, pct(s.t_total, 50));
+    return 0;
+  }
   std::printf("## Fully visible landmark, paper range, full heading circle\n\n");
   print_header();
   for (size_t ci = 0; ci < conds.size(); ++ci) {
@@ -633,10 +643,13 @@ int main(int argc, char** argv) {
       a.dump = next();
     } else if (s == "--only") {
       a.only = next();
+    } else if (s == "--profile-loop") {
+      a.profile_reps = std::atoi(next().c_str());
     } else {
       std::fprintf(stderr,
                    "usage: eval_vision [--profile 640|1280] [--frames N] [--floor-frames N] "
-                   "[--seed S] [--ablation] [--no-apriltag] [--dump DIR] [--only NAME]\n");
+                   "[--seed S] [--ablation] [--no-apriltag] [--dump DIR] [--only NAME] "
+                   "[--profile-loop REPS]\n");
       return 2;
     }
   }

@@ -111,26 +111,37 @@ inline void prewitt_at(const cv::Mat& img, int x, int y, int* gx_out, int* gy_ou
 }
 
 // Dot products of one coarse patch (row pointer, stride) with every corner template at once.
-// Templates are stored pixel-major with `Lanes` slots per pixel, so the inner loop runs over
-// templates with independent accumulators and vectorises; 16 lanes hold the default 12
-// rotations, 32 the maximum.
+// Templates are stored pixel-major with `Lanes` slots per pixel, so one pixel value multiplies
+// Lanes / 4 vectors of four templates (GCC/Clang vector extensions: SSE on x86-64, NEON on
+// aarch64; the auto-vectoriser interleaved this loop badly at 16 lanes). 16 lanes hold the
+// default 12 rotations, 32 the maximum.
 template <int Lanes>
-int best_template(const float* patch, size_t stride, int tsz, const float* __restrict tp, int n_t,
+int best_template(const float* patch, size_t stride, int tsz, const float* tp, int n_t,
                   float* best_dot) {
-  float acc[Lanes] = {};
+  typedef float V4 __attribute__((vector_size(16)));
+  constexpr int kV = Lanes / 4;
+  V4 acc[kV];
+  for (int k = 0; k < kV; ++k) acc[k] = V4{0, 0, 0, 0};
   for (int j = 0; j < tsz; ++j) {
     const float* row = patch + static_cast<size_t>(j) * stride;
     for (int i = 0; i < tsz; ++i) {
       const float v = row[i];
-      const float* __restrict tq = tp + static_cast<size_t>(j * tsz + i) * Lanes;
-      for (int t = 0; t < Lanes; ++t) acc[t] += tq[t] * v;
+      const V4 vv{v, v, v, v};
+      const float* tq = tp + static_cast<size_t>(j * tsz + i) * Lanes;
+      for (int k = 0; k < kV; ++k) {
+        V4 t;
+        std::memcpy(&t, tq + 4 * k, sizeof t);
+        acc[k] += t * vv;
+      }
     }
   }
+  float out[Lanes];
+  std::memcpy(out, acc, sizeof out);
   int best_i = 0;
   for (int t = 1; t < n_t; ++t) {
-    if (acc[t] > acc[best_i]) best_i = t;
+    if (out[t] > out[best_i]) best_i = t;
   }
-  *best_dot = acc[best_i];
+  *best_dot = out[best_i];
   return best_i;
 }
 
@@ -178,6 +189,7 @@ struct LandmarkLocalizer::Impl {
   std::vector<float> templates_t;
   int template_lanes = 16;
   cv::Mat coarse_f;  // CV_32F copy of `coarse` for the NCC kernel
+  cv::Mat orient4;   // CV_32FC2 per coarse pixel: |g|^2-weighted (cos 4a, sin 4a) of the gradient
   std::vector<std::uint32_t> row_sums;
   std::vector<std::vector<float>> fine_templates;  // 1-degree steps
   std::vector<CornerPeak> peaks;
@@ -195,6 +207,8 @@ struct LandmarkLocalizer::Impl {
   std::array<std::vector<double>, kNumLines> weights;
   std::vector<double> logo_template, logo_samples, residual_buf, scratch_buf;
   std::vector<Vec2> logo_page_pts;
+  std::vector<int> strip_gx, strip_gy;
+  std::vector<double> strip_along;
 
   // Kept for the overlay.
   bool have_overlay = false;
@@ -296,22 +310,23 @@ struct LandmarkLocalizer::Impl {
   }
 
   // NCC of a zero-mean unit template at coarse position (x, y) (top-left of the window); -1 when
-  // the window leaves the image or has no contrast.
+  // the window leaves the image or has no contrast. Window sums come from the integral images.
   double ncc_at(const std::vector<float>& tz, int tsz, int x, int y) const {
     if (x < 0 || y < 0 || x + tsz > coarse.cols || y + tsz > coarse.rows) return -1.0;
-    double sum = 0, sq = 0, dot = 0;
-    for (int j = 0; j < tsz; ++j) {
-      const std::uint8_t* src = coarse.ptr<std::uint8_t>(y + j) + x;
-      for (int i = 0; i < tsz; ++i) {
-        const double v = src[i];
-        sum += v;
-        sq += v * v;
-        dot += static_cast<double>(tz[static_cast<size_t>(j * tsz + i)]) * v;
-      }
-    }
+    const double sum = isum.at<int>(y + tsz, x + tsz) - isum.at<int>(y, x + tsz) -
+                       isum.at<int>(y + tsz, x) + isum.at<int>(y, x);
+    const double sq = isq.at<double>(y + tsz, x + tsz) - isq.at<double>(y, x + tsz) -
+                      isq.at<double>(y + tsz, x) + isq.at<double>(y, x);
     const double n = tsz * tsz;
     const double var = sq / n - (sum / n) * (sum / n);
-    return var > 1.0 ? dot / std::sqrt(var * n) : -1.0;
+    if (!(var > 1.0)) return -1.0;
+    float dot = 0.0f;
+    const float* t = tz.data();
+    for (int j = 0; j < tsz; ++j) {
+      const float* row = coarse_f.ptr<float>(y + j) + x;
+      for (int i = 0; i < tsz; ++i) dot += t[j * tsz + i] * row[i];
+    }
+    return static_cast<double>(dot) / std::sqrt(var * n);
   }
 
   // Logo template: samples on the page around the triangle, 1 = white, 0 = inside the triangle.
@@ -349,6 +364,7 @@ struct LandmarkLocalizer::Impl {
   bool detect(const cv::Mat& img, Hypothesis* best, bool* found_corner, double* corner_score);
   bool ring_check(const Hypothesis& h, double* dark_level, double* white_level, int* n_dark);
   void refine_coarse_angle(Hypothesis* h) const;
+  void compute_orient4();
   bool read_qr_search(const cv::Mat& img, Vec2 centre_px, double up_angle, std::string* text,
                       double* qr_up_angle, bool* qr_ok);
   bool sample_qr(const cv::Mat& img, Vec2 c_mm, double fwd, int n, QrSamples* s) const;
@@ -481,11 +497,19 @@ bool LandmarkLocalizer::Impl::detect(const cv::Mat& img, Hypothesis* best, bool*
   std::sort(hyps.begin(), hyps.end(),
             [](const Hypothesis& a, const Hypothesis& b) { return a.score_sum > b.score_sum; });
   int best_dark_count = 0;
+  compute_orient4();
   for (Hypothesis& h : hyps) {
     // The templates are 30 degrees apart: refine the angle from the gradients, then the centre
     // from the supporting corners with the refined angle; twice.
+    int prev_deg = -1;
     for (int it = 0; it < 2; ++it) {
       refine_coarse_angle(&h);
+      // The re-match below depends on the angle only through its whole degree (mod 90): when
+      // that did not change, a second pass would repeat the first.
+      const int deg90 = static_cast<int>(std::lround(rad_to_deg(h.up_angle))) % 90;
+      const int key = deg90 < 0 ? deg90 + 90 : deg90;
+      if (key == prev_deg) break;
+      prev_deg = key;
       double sx = 0, sy = 0, sw = 0;
       for (int i = 0; i < h.n_peaks; ++i) {
         const CornerPeak& p = peaks[static_cast<size_t>(h.peak_idx[static_cast<size_t>(i)])];
@@ -548,6 +572,24 @@ bool LandmarkLocalizer::Impl::detect(const cv::Mat& img, Hypothesis* best, bool*
 
 // The corner templates come in 30-degree steps; the dominant gradient orientation (modulo 90
 // degrees, from the 4x angle weighted by |g|^2) inside the predicted square refines the angle.
+// The per-pixel 4x-angle vectors are computed once per frame (orient4), not per hypothesis.
+void LandmarkLocalizer::Impl::compute_orient4() {
+  orient4.create(coarse.size(), CV_32FC2);
+  orient4.setTo(cv::Scalar::all(0));
+  for (int y = 1; y + 1 < coarse.rows; ++y) {
+    cv::Vec2f* o = orient4.ptr<cv::Vec2f>(y);
+    for (int x = 1; x + 1 < coarse.cols; ++x) {
+      int gxi, gyi;
+      prewitt_at(coarse, x, y, &gxi, &gyi);
+      const double ex = gxi, ey = gyi, m2 = ex * ex + ey * ey;
+      if (m2 < 1.0) continue;
+      const double a = ex * ex - ey * ey, b = 2 * ex * ey;
+      o[x] =
+          cv::Vec2f(static_cast<float>((a * a - b * b) / m2), static_cast<float>(2 * a * b / m2));
+    }
+  }
+}
+
 void LandmarkLocalizer::Impl::refine_coarse_angle(Hypothesis* h) const {
   const double reach = coarse_h + 1.0;
   const int x0 = std::max(1, static_cast<int>(h->cx - reach));
@@ -557,18 +599,14 @@ void LandmarkLocalizer::Impl::refine_coarse_angle(Hypothesis* h) const {
   const Vec2 n0{std::cos(h->up_angle), std::sin(h->up_angle)};
   double c4 = 0, s4 = 0;
   for (int y = y0; y <= y1; ++y) {
+    const cv::Vec2f* o = orient4.ptr<cv::Vec2f>(y);
     for (int x = x0; x <= x1; ++x) {
       const double dx = x - h->cx, dy = y - h->cy;
       if (std::abs(dx * n0.x + dy * n0.y) > reach || std::abs(-dx * n0.y + dy * n0.x) > reach) {
         continue;
       }
-      int gxi, gyi;
-      prewitt_at(coarse, x, y, &gxi, &gyi);
-      const double ex = gxi, ey = gyi, m2 = ex * ex + ey * ey;
-      if (m2 < 1.0) continue;
-      const double a = ex * ex - ey * ey, b = 2 * ex * ey;
-      c4 += (a * a - b * b) / m2;
-      s4 += 2 * a * b / m2;
+      c4 += static_cast<double>(o[x][0]);
+      s4 += static_cast<double>(o[x][1]);
     }
   }
   if (c4 != 0 || s4 != 0) h->up_angle = reduce_angle_90(std::atan2(s4, c4) / 4.0, h->up_angle);
@@ -761,7 +799,11 @@ int LandmarkLocalizer::Impl::collect(const cv::Mat& img, Vec2 c, double up, doub
   const double h_out = geom.outer_half_mm() / mm_per_px;
   const double h_in = geom.inner_half_mm() / mm_per_px;
   const double tan_tol = std::tan(deg_to_rad(cfg.edge_direction_tol_deg));
-  const double thr2 = thr * thr;
+  // Squared-magnitude threshold in integers (Prewitt sums are exact): a pixel passes when
+  // gx^2 + gy^2 >= thr^2.
+  const int thr2_int = static_cast<int>(std::ceil(std::min(thr * thr, 4.0e6)));
+  const std::uint8_t* base = img.data;
+  const std::ptrdiff_t step = static_cast<std::ptrdiff_t>(img.step[0]);
   const int x_lo = 2, y_lo = 2, x_hi = img.cols - 3, y_hi = img.rows - 3;
   int total = 0;
   for (auto& v : pts_px) v.clear();
@@ -795,26 +837,42 @@ int LandmarkLocalizer::Impl::collect(const cv::Mat& img, Vec2 c, double up, doub
             std::max(static_cast<int>(std::ceil(centre_minor - half_w)), by_rows ? x_lo : y_lo);
         const int j1 =
             std::min(static_cast<int>(std::floor(centre_minor + half_w)), by_rows ? x_hi : y_hi);
-        for (int j = j0; j <= j1; ++j) {
+        if (j1 < j0) continue;
+        // Gradients of the strip's pixels and of one more on each side (the non-maximum
+        // suppression compares each pixel with its two neighbours along j, which is the pixel
+        // axis closest to the line's normal).
+        const int n = j1 - j0 + 3;
+        strip_gx.resize(static_cast<size_t>(n));
+        strip_gy.resize(static_cast<size_t>(n));
+        strip_along.resize(static_cast<size_t>(n));
+        for (int q = 0; q < n; ++q) {
+          const int j = j0 - 1 + q;
           const int x = by_rows ? j : i, y = by_rows ? i : j;
-          int gxi, gyi;
-          prewitt_at(img, x, y, &gxi, &gyi);
-          const double ex = gxi, ey = gyi;
-          if (ex * ex + ey * ey < thr2) continue;
-          const double along = ex * g_dir.x + ey * g_dir.y;
+          const std::uint8_t* p = base + static_cast<std::ptrdiff_t>(y) * step + x;
+          const int gxi =
+              (p[1 - step] + p[1] + p[1 + step]) - (p[-1 - step] + p[-1] + p[-1 + step]);
+          const int gyi =
+              (p[step - 1] + p[step] + p[step + 1]) - (p[-step - 1] + p[-step] + p[-step + 1]);
+          strip_gx[static_cast<size_t>(q)] = gxi;
+          strip_gy[static_cast<size_t>(q)] = gyi;
+          strip_along[static_cast<size_t>(q)] = gxi * g_dir.x + gyi * g_dir.y;
+        }
+        for (int q = 1; q + 1 < n; ++q) {
+          const int gxi = strip_gx[static_cast<size_t>(q)], gyi = strip_gy[static_cast<size_t>(q)];
+          if (gxi * gxi + gyi * gyi < thr2_int) continue;
+          const double along = strip_along[static_cast<size_t>(q)];
           if (along <= 0) continue;
-          if (std::abs(-ex * g_dir.y + ey * g_dir.x) > tan_tol * along) continue;
-          // Non-maximum suppression across the line (along the pixel axis closest to it).
-          int ax, ay, bx, by;
-          prewitt_at(img, x - sx, y - sy, &ax, &ay);
-          prewitt_at(img, x + sx, y + sy, &bx, &by);
-          const double em = ax * g_dir.x + ay * g_dir.y, ep = bx * g_dir.x + by * g_dir.y;
+          if (std::abs(-gxi * g_dir.y + gyi * g_dir.x) > tan_tol * along) continue;
+          const double em = strip_along[static_cast<size_t>(q - 1)];
+          const double ep = strip_along[static_cast<size_t>(q + 1)];
           if (!(along >= em && along > ep)) continue;
           double off = 0;
           if (cfg.subpixel) {
             const double den = em - 2 * along + ep;
             if (den < 0) off = std::clamp(0.5 * (em - ep) / den, -0.5, 0.5);
           }
+          const int j = j0 - 1 + q;
+          const int x = by_rows ? j : i, y = by_rows ? i : j;
           dst.push_back({x + off * sx, y + off * sy});
         }
       }
