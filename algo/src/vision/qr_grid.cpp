@@ -103,7 +103,10 @@ int qr_fixed_module(int n, int r, int c) {
   }
   // Dark module (row 4V + 9 = n - 8, column 8); format information around the finders.
   if (r == n - 8 && c == 8) return 1;
-  if ((r == 8 && (c <= 8 || c >= n - 8)) || (c == 8 && (r <= 8 || r >= n - 7))) return -1;
+  if ((r == 8 && c != 6 && (c <= 8 || c >= n - 8)) ||
+      (c == 8 && r != 6 && (r <= 8 || r >= n - 7))) {
+    return -1;
+  }
   // Timing patterns.
   if (r == 6) return c % 2 == 0 ? 1 : 0;
   if (c == 6) return r % 2 == 0 ? 1 : 0;

@@ -1,0 +1,207 @@
+// Model-guided QR reading (qr_grid.hpp): the fixed-module layout against codes zxing encodes,
+// decoding of blurred module samples, rejection of wrong grids and garbage, and the localizer
+// reading blurred codes by guided sampling where zxing's own search fails.
+#include <ZXing/BitMatrix.h>
+#include <ZXing/MultiFormatWriter.h>
+#include <gtest/gtest.h>
+
+#include <random>
+#include <string>
+
+#include "agv/sim/render.hpp"
+#include "agv/vision/landmark_localizer.hpp"
+#include "agv/vision/qr_grid.hpp"
+
+using namespace agv;
+using namespace agv::vision;
+
+namespace {
+
+// The landmark's QR settings (docs/landmark.md): ECC level M, no margin.
+ZXing::BitMatrix encode(const std::string& text) {
+  return ZXing::MultiFormatWriter(ZXing::BarcodeFormat::QRCode)
+      .setEccLevel(4)
+      .setMargin(0)
+      .encode(text, 0, 0);
+}
+
+// Module samples of a code: dark 40, light 220, with a light quiet-zone ring; then a module-scale
+// blur (each module mixes `mix` of the mean of its 4 neighbours) and Gaussian noise.
+QrSamples samples_of(const ZXing::BitMatrix& bm, double mix, double noise, std::uint64_t seed) {
+  QrSamples s;
+  s.n = bm.width();
+  s.ring = 2;
+  const int side = s.side();
+  std::vector<float> clean(static_cast<size_t>(side * side), 220.0f);
+  for (int r = 0; r < s.n; ++r) {
+    for (int c = 0; c < s.n; ++c) {
+      if (bm.get(c, r)) clean[static_cast<size_t>((r + 2) * side + c + 2)] = 40.0f;
+    }
+  }
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> nd(0.0, noise);
+  s.v.resize(clean.size());
+  for (int r = 0; r < side; ++r) {
+    for (int c = 0; c < side; ++c) {
+      auto at = [&](int rr, int cc) {
+        rr = std::clamp(rr, 0, side - 1);
+        cc = std::clamp(cc, 0, side - 1);
+        return static_cast<double>(clean[static_cast<size_t>(rr * side + cc)]);
+      };
+      const double nb = 0.25 * (at(r - 1, c) + at(r + 1, c) + at(r, c - 1) + at(r, c + 1));
+      s.v[static_cast<size_t>(r * side + c)] =
+          static_cast<float>((1.0 - mix) * at(r, c) + mix * nb + nd(rng));
+    }
+  }
+  return s;
+}
+
+const char* kFull = "AGV1/00017/+001000.0/-002000.0/+090.00";
+const char* kIdOnly = "AGV1/00017/MAP";
+
+}  // namespace
+
+TEST(QrGrid, FixedModulesMatchEncodedCodes) {
+  // Different payloads give different masks; the fixed modules never depend on them.
+  for (const char* text : {kFull, kIdOnly, "AGV1/65535/-999999.9/+000000.1/-179.99",
+                           "AGV1/00001/+000000.0/+000000.0/+000.00", "AGV1/00002/MAP"}) {
+    const ZXing::BitMatrix bm = encode(text);
+    const int n = bm.width();
+    ASSERT_TRUE(n == 21 || n == 25) << text;
+    int fixed = 0;
+    for (int r = 0; r < n; ++r) {
+      for (int c = 0; c < n; ++c) {
+        const int f = qr_fixed_module(n, r, c);
+        if (f < 0) continue;
+        ++fixed;
+        EXPECT_EQ(f, bm.get(c, r) ? 1 : 0) << text << " row " << r << " col " << c;
+      }
+    }
+    // 3 finders with separators (192) + timing (2 x (n - 16)) + dark module (+ the 5 x 5
+    // alignment pattern of version 2).
+    EXPECT_EQ(fixed, n == 21 ? 192 + 10 + 1 : 192 + 18 + 1 + 25) << text;
+  }
+  EXPECT_EQ(qr_fixed_module(29, 0, 0), -1);
+  EXPECT_EQ(qr_fixed_module(25, -1, 0), -1);
+}
+
+TEST(QrGrid, DecodesBlurredNoisySamples) {
+  QrGridScratch scratch;
+  for (const char* text : {kFull, kIdOnly}) {
+    const ZXing::BitMatrix bm = encode(text);
+    std::string out;
+    const QrSamples clean = samples_of(bm, 0.0, 0.0, 1);
+    for (QrThreshold t :
+         {QrThreshold::kSharpenedLocalMean, QrThreshold::kLocalMean, QrThreshold::kMidpoint}) {
+      ASSERT_TRUE(decode_qr_grid(clean, t, &out, &scratch)) << text;
+      EXPECT_EQ(out, text);
+      EXPECT_EQ(qr_fixed_module_errors(clean, t, &scratch), 0);
+    }
+    // Strong module-scale blur (40 % from the neighbours) and noise: the global midpoint loses
+    // modules that the sharpened local mean keeps.
+    const QrSamples blurred = samples_of(bm, 0.4, 6.0, 2);
+    ASSERT_TRUE(decode_qr_grid(blurred, QrThreshold::kSharpenedLocalMean, &out, &scratch)) << text;
+    EXPECT_EQ(out, text);
+  }
+}
+
+TEST(QrGrid, FixedModulesAreForcedSoDamagedFindersStillDecode) {
+  const ZXing::BitMatrix bm = encode(kFull);
+  QrSamples s = samples_of(bm, 0.0, 0.0, 3);
+  // A dirt spot over most of the top-left finder pattern.
+  for (int r = 0; r < 6; ++r) {
+    for (int c = 0; c < 6; ++c) s.v[static_cast<size_t>((r + 2) * s.side() + c + 2)] = 40.0f;
+  }
+  QrGridScratch scratch;
+  EXPECT_GT(qr_fixed_module_errors(s, QrThreshold::kLocalMean, &scratch), 0);
+  std::string out;
+  ASSERT_TRUE(decode_qr_grid(s, QrThreshold::kLocalMean, &out, &scratch));
+  EXPECT_EQ(out, kFull);
+}
+
+TEST(QrGrid, WrongGridOrGarbageNeverDecodes) {
+  QrGridScratch scratch;
+  std::string out;
+  // Version-2 samples read as a version-1 grid (the outer 21 x 21 modules).
+  const QrSamples v2 = samples_of(encode(kFull), 0.0, 0.0, 4);
+  QrSamples as_v1;
+  as_v1.n = 21;
+  as_v1.ring = 2;
+  for (int r = 0; r < as_v1.side(); ++r) {
+    for (int c = 0; c < as_v1.side(); ++c) {
+      as_v1.v.push_back(v2.v[static_cast<size_t>(r * v2.side() + c)]);
+    }
+  }
+  EXPECT_FALSE(decode_qr_grid(as_v1, QrThreshold::kLocalMean, &out, &scratch));
+  // Random modules (floor texture, a wrong turn of the landmark).
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<float> u(0.0f, 255.0f);
+  for (int trial = 0; trial < 50; ++trial) {
+    QrSamples g;
+    g.n = trial % 2 ? 21 : 25;
+    g.v.resize(static_cast<size_t>(g.side() * g.side()));
+    for (float& v : g.v) v = u(rng);
+    for (QrThreshold t :
+         {QrThreshold::kSharpenedLocalMean, QrThreshold::kLocalMean, QrThreshold::kMidpoint}) {
+      EXPECT_FALSE(decode_qr_grid(g, t, &out, &scratch)) << "trial " << trial;
+    }
+  }
+  // Malformed input: unsupported size, wrong number of samples, no quiet zone.
+  QrSamples bad = v2;
+  bad.n = 29;
+  EXPECT_FALSE(decode_qr_grid(bad, QrThreshold::kLocalMean, &out, &scratch));
+  bad = v2;
+  bad.v.pop_back();
+  EXPECT_FALSE(decode_qr_grid(bad, QrThreshold::kLocalMean, &out, &scratch));
+  EXPECT_EQ(qr_fixed_module_errors(bad, QrThreshold::kLocalMean, &scratch), -1);
+  bad = v2;
+  bad.ring = 0;
+  EXPECT_FALSE(decode_qr_grid(bad, QrThreshold::kLocalMean, &out, &scratch));
+}
+
+TEST(QrGrid, LocalizerReadsBlurredCodesByGuidedSampling) {
+  LandmarkMap map;
+  const Pose2 lw{1000.0, -2000.0, deg_to_rad(90.0)};
+  map.entries[17] = {17, lw};
+  sim::Scene scene;
+  std::string err;
+  ASSERT_TRUE(sim::make_scene(map, LandmarkGeometry{}, sim::PayloadMode::kFull, &scene, &err));
+  const CameraModel cam = CameraModel::default_640x480();
+  VisionConfig guided, search;
+  search.qr_guided = false;
+  LandmarkLocalizer loc_g(guided, cam, LandmarkGeometry{}, &map);
+  LandmarkLocalizer loc_s(search, cam, LandmarkGeometry{}, &map);
+  // Clean: both read it, each by its own method.
+  std::mt19937_64 rng(5);
+  const Pose2 e{4.0, -3.0, deg_to_rad(33.0)};
+  const cv::Mat clean = sim::render_frame(scene, cam, compose(lw, e), {}, rng);
+  LandmarkFix fg, fs;
+  ASSERT_EQ(loc_g.process(clean, &fg), FixStatus::kOk);
+  EXPECT_EQ(fg.qr_method, 1);
+  ASSERT_EQ(loc_s.process(clean, &fs), FixStatus::kOk);
+  EXPECT_EQ(fs.qr_method, 2);
+  // Defocus and motion blur both at the limits of issue 3 at once (harsher than any frame of the
+  // evaluation's combined set, whose strengths are random up to the limits): count the frames
+  // each reads. Measured when written: guided 8, zxing search 2 of 12.
+  int read_g = 0, read_s = 0;
+  const int n = 12;
+  for (int i = 0; i < n; ++i) {
+    const Pose2 ei{-10.0 + 2.0 * i, 5.0 - i, deg_to_rad(17.0 + 29.0 * i)};
+    sim::RenderOptions o;
+    o.defocus_sigma_px = 2.0;
+    o.exposure_s = 0.001;
+    o.speed_mps = 7.0 * cam.mm_per_px();  // 7 px of motion blur
+    o.read_noise_sigma = 3.0;
+    o.degradation_seed = 100 + static_cast<std::uint64_t>(i);
+    const cv::Mat img = sim::render_frame(scene, cam, compose(lw, ei), o, rng);
+    if (loc_g.process(img, &fg) == FixStatus::kOk) ++read_g;
+    if (loc_s.process(img, &fs) == FixStatus::kOk) ++read_s;
+    if (fg.status == FixStatus::kOk) {
+      EXPECT_EQ(fg.landmark_id, 17u);
+      EXPECT_NEAR(fg.e_x_mm, ei.x_mm, 0.5);
+    }
+  }
+  std::printf("blurred frames read: guided %d, zxing search %d of %d\n", read_g, read_s, n);
+  EXPECT_GE(read_g, 8);
+  EXPECT_GE(read_g, read_s + 4);
+}
