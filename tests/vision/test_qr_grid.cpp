@@ -180,6 +180,16 @@ TEST(QrGrid, LocalizerReadsBlurredCodesByGuidedSampling) {
   EXPECT_EQ(fg.qr_method, 1);
   ASSERT_EQ(loc_s.process(clean, &fs), FixStatus::kOk);
   EXPECT_EQ(fs.qr_method, 2);
+  // An id-only payload is a version-1 code (21 modules): the guided reader tries both sizes.
+  {
+    sim::Scene id_scene;
+    ASSERT_TRUE(
+        sim::make_scene(map, LandmarkGeometry{}, sim::PayloadMode::kIdOnly, &id_scene, &err));
+    const cv::Mat img = sim::render_frame(id_scene, cam, compose(lw, e), {}, rng);
+    ASSERT_EQ(loc_g.process(img, &fg), FixStatus::kOk);
+    EXPECT_EQ(fg.qr_method, 1);
+    EXPECT_STREQ(fg.payload, "AGV1/00017/MAP");
+  }
   // Defocus and motion blur both at the limits of issue 3 at once (harsher than any frame of the
   // evaluation's combined set, whose strengths are random up to the limits): count the frames
   // each reads. Measured when written: guided 8, zxing search 2 of 12.
