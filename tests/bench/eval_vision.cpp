@@ -344,7 +344,18 @@ int run(const Args& a) {
          o->occluder_border_fraction = 0.15 * u(r);
        },
        true, true},
+      // Stress, beyond the "up to" limits: defocus, motion blur and noise all at their
+      // limits in the same frame.
+      {"stress: defocus 2 + motion 7 px + noise, all at the limits",
+       [&](std::mt19937_64&, sim::RenderOptions* o) {
+         o->defocus_sigma_px = 2.0;
+         blur_opts(7.0, o);
+         o->read_noise_sigma = 4.0;
+         o->shot_noise_gain = 0.3;
+       },
+       false, true},
   };
+  const size_t combined_index = conds.size() - 2;
 
   std::vector<Frame> clean_frames, combined_frames;
   if (a.profile_reps > 0) {
@@ -368,7 +379,7 @@ int run(const Args& a) {
     evaluate(loc, frames, &s, "c" + std::to_string(ci));
     print_row(c.name, s);
     if (ci == 0) clean_frames = std::move(frames);
-    if (ci + 1 == conds.size()) combined_frames = std::move(frames);
+    if (ci == combined_index) combined_frames = std::move(frames);
   }
 
   if (!a.only.empty()) return 0;

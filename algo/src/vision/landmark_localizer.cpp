@@ -1309,9 +1309,10 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, LandmarkFix* out) {
         return sc[static_cast<size_t>(x)] > sc[static_cast<size_t>(y)];
       });
     }
-    // Order measured on the combined degradations (docs/accuracy.md): sharpened alone reads the
-    // most codes; the other two rescue a few more at no cost to frames that already decode.
-    constexpr QrThreshold kThresholds[] = {QrThreshold::kSharpenedLocalMean,
+    // Order measured (qr_grid.hpp, docs/accuracy.md): strong sharpening reads the most codes;
+    // the others rescue a few more at no cost to frames that already decode.
+    constexpr QrThreshold kThresholds[] = {QrThreshold::kStronglySharpenedLocalMean,
+                                           QrThreshold::kSharpenedLocalMean,
                                            QrThreshold::kLocalMean, QrThreshold::kMidpoint};
     for (int q : order) {
       if (q < 0 || qr_q >= 0) break;

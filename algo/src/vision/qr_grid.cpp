@@ -23,7 +23,8 @@ void binarize(const QrSamples& s, QrThreshold t, QrGridScratch* sc) {
   const int side = s.side();
   const size_t nn = static_cast<size_t>(side) * static_cast<size_t>(side);
   sc->work.assign(s.v.begin(), s.v.end());
-  if (t == QrThreshold::kSharpenedLocalMean) {
+  if (t == QrThreshold::kStronglySharpenedLocalMean || t == QrThreshold::kSharpenedLocalMean) {
+    const double gain = t == QrThreshold::kStronglySharpenedLocalMean ? 6.0 : 1.0;
     for (int r = 0; r < side; ++r) {
       for (int c = 0; c < side; ++c) {
         double sum = 0;
@@ -37,7 +38,7 @@ void binarize(const QrSamples& s, QrThreshold t, QrGridScratch* sc) {
         }
         const double v = static_cast<double>(s.v[static_cast<size_t>(r * side + c)]);
         sc->work[static_cast<size_t>(r * side + c)] =
-            static_cast<float>(cnt ? v + (v - sum / cnt) : v);
+            static_cast<float>(cnt ? v + gain * (v - sum / cnt) : v);
       }
     }
   }

@@ -28,13 +28,17 @@ struct QrSamples {
 };
 
 // How module samples become dark/light. Blur pulls a module towards its neighbours; comparing
-// with the local mean (a module-scale high-pass) undoes part of it, sharpening first undoes more
-// (on the combined degradations of docs/accuracy.md it alone reads 298 of 300 codes, the local
-// mean alone 278). The localizer tries them in this order.
+// with the local mean (a module-scale high-pass) undoes part of it, sharpening first undoes more.
+// Measured on 300 frames each (docs/accuracy.md): defocus 2 px + motion 7 px + noise all at the
+// limits is read in 62 % of frames with gain 1, 88 % with 2, 99 % with 4, 99.7 % with 6 (the
+// same with 10); the combined degradations in 100 % with 4 or 6, and scratches + dirt in 100 % with
+// every gain. The localizer tries them in this order (each later one costs time only when the
+// earlier ones failed).
 enum class QrThreshold {
-  kSharpenedLocalMean,  // local mean after v' = v + (v - mean of the 4 neighbours)
-  kLocalMean,           // dark when below the mean of the 5x5 modules around it
-  kMidpoint,            // dark when below the midpoint of the quiet zone and the darkest decile
+  kStronglySharpenedLocalMean,  // local mean after v' = v + 6 (v - mean of the 4 neighbours)
+  kSharpenedLocalMean,          // local mean after v' = v + (v - mean of the 4 neighbours)
+  kLocalMean,                   // dark when below the mean of the 5x5 modules around it
+  kMidpoint,  // dark when below the midpoint of the quiet zone and the darkest decile
 };
 
 // Reusable buffers (no allocation after the first call of a given size, except inside zxing).
