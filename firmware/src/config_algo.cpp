@@ -18,6 +18,7 @@ void read_vision(YamlChecker& c, const YAML::Node& root, vision::VisionConfig* v
   c.number(n, p, "adaptive_offset", 0.0, 100.0, &v->adaptive_offset);
   c.number(n, p, "corner_threshold", 0.1, 0.99, &v->corner_threshold);
   c.boolean(n, p, "qr_guided", &v->qr_guided);
+  c.integer(n, p, "qr_max_missing_modules", 0, 625, &v->qr_max_missing_modules);
   c.boolean(n, p, "qr_try_harder", &v->qr_try_harder);
   c.number(n, p, "map_tolerance_mm", 0.0, 1000.0, &v->map_tolerance_mm);
   c.number(n, p, "map_tolerance_deg", 0.0, 180.0, &v->map_tolerance_deg);

@@ -382,7 +382,8 @@ int run(const Args& a) {
     if (ci == combined_index) combined_frames = std::move(frames);
   }
 
-  if (!a.only.empty()) return 0;
+  const bool only_cut = !a.only.empty() && std::string("partly outside").find(a.only) == 0;
+  if (!a.only.empty() && !only_cut) return 0;
   // Cut by the image border: the rest of the paper's range.
   {
     std::printf("\n## Landmark cut by the image border (rest of the paper range)\n\n");
@@ -401,6 +402,7 @@ int run(const Args& a) {
     evaluate(loc, frames2, &s2);
     print_row(c2.name, s2);
   }
+  if (only_cut) return 0;
 
   // Speed: medians over the clean frames.
   {

@@ -104,7 +104,8 @@ TEST(Config, FusionAndVisionSectionsReachTheAlgorithms) {
   ASSERT_TRUE(agv::config::parse_config(
       "fusion:\n  gate_probability: 0.99\n  estimate_odometry_calibration: false\n"
       "  max_fix_delay_ms: 250\n  lost_heading_sigma_deg: 5\n"
-      "vision:\n  corner_threshold: 0.7\n  robust: false\n  qr_guided: false\n",
+      "vision:\n  corner_threshold: 0.7\n  robust: false\n  qr_guided: false\n"
+      "  qr_max_missing_modules: 12\n",
       "", &cfg, &errors))
       << errors.front();
   EXPECT_DOUBLE_EQ(cfg.fusion.gate_probability, 0.99);
@@ -114,6 +115,9 @@ TEST(Config, FusionAndVisionSectionsReachTheAlgorithms) {
   EXPECT_DOUBLE_EQ(cfg.vision.corner_threshold, 0.7);
   EXPECT_FALSE(cfg.vision.robust);
   EXPECT_FALSE(cfg.vision.qr_guided);
+  EXPECT_EQ(cfg.vision.qr_max_missing_modules, 12);
+  EXPECT_TRUE(mentions(errors_for("vision:\n  qr_max_missing_modules: 700\n"),
+                       "vision.qr_max_missing_modules"));
   EXPECT_TRUE(
       mentions(errors_for("fusion:\n  gate_probability: 1.5\n"), "fusion.gate_probability"));
   EXPECT_TRUE(mentions(errors_for("vision:\n  colour: red\n"), "vision.colour: unknown key"));

@@ -141,8 +141,25 @@ TEST(VisionLocalizer, LandmarkCutByTheImageBorder) {
   const LandmarkMap map = one_map();
   LandmarkLocalizer loc(VisionConfig{}, CameraModel::default_640x480(), LandmarkGeometry{}, &map);
   LandmarkFix fix;
-  // Centre 70 mm to the side: more than half of the landmark (and the QR) is outside.
-  EXPECT_EQ(loc.process(render({0.0, 70.0, 0.0}), &fix), FixStatus::kPartlyOutside);
+  // Centre 70 mm to the side: a third of the landmark and a strip of the QR are outside. The
+  // guided reader fills the missing modules in (Reed-Solomon corrects them) and three sides give
+  // the pose; without the fill-in the code is unreadable.
+  {
+    const cv::Mat img = render({0.0, 70.0, 0.0});
+    ASSERT_EQ(loc.process(img, &fix), FixStatus::kOk);
+    EXPECT_TRUE(fix.partly_outside);
+    EXPECT_EQ(fix.qr_method, 1);
+    EXPECT_EQ(fix.sides_used, 3);
+    EXPECT_NEAR(fix.e_x_mm, 0.0, 0.05);
+    EXPECT_NEAR(fix.e_y_mm, 70.0, 0.05);
+    EXPECT_LT(heading_err_deg(fix.e_phi_deg, 0.0), 0.02);
+    VisionConfig whole;
+    whole.qr_max_missing_modules = 0;
+    LandmarkLocalizer loc_whole(whole, CameraModel::default_640x480(), LandmarkGeometry{}, &map);
+    EXPECT_EQ(loc_whole.process(img, &fix), FixStatus::kPartlyOutside);
+  }
+  // Centre 85 mm to the side: more than half of the landmark (and of the QR) is outside.
+  EXPECT_EQ(loc.process(render({0.0, 85.0, 0.0}), &fix), FixStatus::kPartlyOutside);
   EXPECT_TRUE(fix.partly_outside);
   // Centre 35 mm ahead: the front of the border is cut but the QR, both side edges and the rear
   // edge are visible, so the pose is measured from what is visible and flagged.

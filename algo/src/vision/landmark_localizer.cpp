@@ -198,6 +198,7 @@ struct LandmarkLocalizer::Impl {
   // QR.
   cv::Mat qr_small, qr_blur, qr_sharp;
   QrSamples qr_samples;
+  std::vector<float> qr_fill;
   QrGridScratch qr_scratch;
   std::string qr_text;
 
@@ -367,7 +368,7 @@ struct LandmarkLocalizer::Impl {
   void compute_orient4();
   bool read_qr_search(const cv::Mat& img, Vec2 centre_px, double up_angle, std::string* text,
                       double* qr_up_angle, bool* qr_ok);
-  bool sample_qr(const cv::Mat& img, Vec2 c_mm, double fwd, int n, QrSamples* s) const;
+  bool sample_qr(const cv::Mat& img, Vec2 c_mm, double fwd, int n, QrSamples* s);
   FixStatus check_payload(const std::string& text, LandmarkFix* out, Pose2* world_landmark);
   FixStatus pose(const cv::Mat& img, Vec2 centre_px, double up_angle, double contrast,
                  LandmarkFix* out, Vec2* c_mm, double* beta, Eigen::Matrix3d* cov);
@@ -722,7 +723,7 @@ bool LandmarkLocalizer::Impl::read_qr_search(const cv::Mat& img, Vec2 c, double 
 }
 
 bool LandmarkLocalizer::Impl::sample_qr(const cv::Mat& img, Vec2 c_mm, double fwd, int n,
-                                        QrSamples* s) const {
+                                        QrSamples* s) {
   const CameraModel& mc = metric_cam();
   const Pose2 l_in_v{c_mm.x, c_mm.y, fwd};
   const double m = geom.qr_side_mm() / n;
@@ -743,22 +744,68 @@ bool LandmarkLocalizer::Impl::sample_qr(const cv::Mat& img, Vec2 c_mm, double fw
   s->ring = 2;
   const int side = s->side();
   s->v.resize(static_cast<size_t>(side * side));
+  // Modules whose samples leave the image (a landmark cut by the image border) are filled in:
+  // quiet-zone modules with the quiet zone's median, fixed modules with their known value, and up
+  // to max_missing_data data modules with the code's mean (left to Reed-Solomon to correct).
+  constexpr float kMissing = -1.0f;
+  int missing_data = 0;
+  const int max_missing_data = cfg.qr_max_missing_modules;
   for (int r = 0; r < side; ++r) {
     for (int c = 0; c < side; ++c) {
       const Vec2 uv{geom.qr_u0_mm() + (c - s->ring + 0.5) * m,
                     geom.qr_v0_mm() + (r - s->ring + 0.5) * m};
       Vec2 px;
-      if (!to_px(uv, &px)) return false;
       double acc = 0, v = 0;
+      bool inside = to_px(uv, &px);
       const double ou[5] = {0, 1, -1, 0, 0}, ov[5] = {0, 0, 0, 1, -1};
-      for (int k = 0; k < 5; ++k) {
-        if (!sample(img, px.x + ou[k] * du.x + ov[k] * dv.x, px.y + ou[k] * du.y + ov[k] * dv.y,
-                    &v)) {
-          return false;
-        }
+      for (int k = 0; k < 5 && inside; ++k) {
+        inside =
+            sample(img, px.x + ou[k] * du.x + ov[k] * dv.x, px.y + ou[k] * du.y + ov[k] * dv.y, &v);
         acc += v;
       }
-      s->v[static_cast<size_t>(r * side + c)] = static_cast<float>(acc / 5.0);
+      if (!inside) {
+        const int rr = r - s->ring, cc = c - s->ring;
+        const bool in_code = rr >= 0 && cc >= 0 && rr < n && cc < n;
+        if (in_code && qr_fixed_module(n, rr, cc) < 0 && ++missing_data > max_missing_data) {
+          return false;
+        }
+      }
+      s->v[static_cast<size_t>(r * side + c)] = inside ? static_cast<float>(acc / 5.0) : kMissing;
+    }
+  }
+  if (missing_data == 0 && std::find(s->v.begin(), s->v.end(), kMissing) == s->v.end()) return true;
+  // Levels for the fill-in, from the samples that were inside.
+  qr_fill.clear();
+  double code_sum = 0;
+  int code_n = 0;
+  for (int r = 0; r < side; ++r) {
+    for (int c = 0; c < side; ++c) {
+      const float v = s->v[static_cast<size_t>(r * side + c)];
+      if (v == kMissing) continue;
+      const int rr = r - s->ring, cc = c - s->ring;
+      if (rr >= 0 && cc >= 0 && rr < n && cc < n) {
+        code_sum += static_cast<double>(v);
+        ++code_n;
+      } else {
+        qr_fill.push_back(v);
+      }
+    }
+  }
+  if (qr_fill.empty() || code_n == 0) return false;
+  std::nth_element(qr_fill.begin(),
+                   qr_fill.begin() + static_cast<std::ptrdiff_t>(qr_fill.size() / 2),
+                   qr_fill.end());
+  const float light = qr_fill[qr_fill.size() / 2];
+  const float mean = static_cast<float>(code_sum / code_n);
+  const float dark = std::max(0.0f, 2.0f * mean - light);
+  for (int r = 0; r < side; ++r) {
+    for (int c = 0; c < side; ++c) {
+      float& v = s->v[static_cast<size_t>(r * side + c)];
+      if (v != kMissing) continue;
+      const int rr = r - s->ring, cc = c - s->ring;
+      const int f = (rr >= 0 && cc >= 0 && rr < n && cc < n) ? qr_fixed_module(n, rr, cc) : 0;
+      const bool in_code = rr >= 0 && cc >= 0 && rr < n && cc < n;
+      v = !in_code ? light : f == 1 ? dark : f == 0 ? light : mean;
     }
   }
   return true;
