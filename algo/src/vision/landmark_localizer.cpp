@@ -44,8 +44,7 @@ const char* to_string(FixStatus s) {
 
 namespace {
 
-constexpr int kNumLines = 8;
-// Line index = side * 2 + (inner ? 1 : 0).
+constexpr int kNumLines = 8;       // line index = side * 2 + (inner ? 1 : 0)
 constexpr int kMaxTemplates = 32;  // upper bound of VisionConfig::corner_rotations
 
 struct CornerPeak {
