@@ -56,6 +56,21 @@ QrSamples samples_of(const ZXing::BitMatrix& bm, double mix, double noise, std::
   return s;
 }
 
+// Landmark 17 in its map and a simulator scene with its full payload, seen by the 640x480 camera.
+class QrGridScene : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    map.entries[17] = {17, lw};
+    std::string err;
+    ASSERT_TRUE(sim::make_scene(map, LandmarkGeometry{}, sim::PayloadMode::kFull, &scene, &err))
+        << err;
+  }
+  LandmarkMap map;
+  Pose2 lw{1000.0, -2000.0, deg_to_rad(90.0)};
+  sim::Scene scene;
+  CameraModel cam = CameraModel::default_640x480();
+};
+
 const char* kFull = "AGV1/00017/+001000.0/-002000.0/+090.00";
 const char* kIdOnly = "AGV1/00017/MAP";
 
@@ -161,14 +176,7 @@ TEST(QrGrid, WrongGridOrGarbageNeverDecodes) {
   EXPECT_FALSE(decode_qr_grid(bad, QrThreshold::kLocalMean, &out, &scratch));
 }
 
-TEST(QrGrid, LocalizerReadsBlurredCodesByGuidedSampling) {
-  LandmarkMap map;
-  const Pose2 lw{1000.0, -2000.0, deg_to_rad(90.0)};
-  map.entries[17] = {17, lw};
-  sim::Scene scene;
-  std::string err;
-  ASSERT_TRUE(sim::make_scene(map, LandmarkGeometry{}, sim::PayloadMode::kFull, &scene, &err));
-  const CameraModel cam = CameraModel::default_640x480();
+TEST_F(QrGridScene, LocalizerReadsBlurredCodesByGuidedSampling) {
   VisionConfig guided, search;
   search.qr_guided = false;
   LandmarkLocalizer loc_g(guided, cam, LandmarkGeometry{}, &map);
@@ -185,6 +193,7 @@ TEST(QrGrid, LocalizerReadsBlurredCodesByGuidedSampling) {
   // An id-only payload is a version-1 code (21 modules): the guided reader tries both sizes.
   {
     sim::Scene id_scene;
+    std::string err;
     ASSERT_TRUE(
         sim::make_scene(map, LandmarkGeometry{}, sim::PayloadMode::kIdOnly, &id_scene, &err));
     const cv::Mat img = sim::render_frame(id_scene, cam, compose(lw, e), {}, rng);
@@ -219,14 +228,7 @@ TEST(QrGrid, LocalizerReadsBlurredCodesByGuidedSampling) {
   EXPECT_GE(read_g, read_s + 8);
 }
 
-TEST(QrGrid, CodesCutByTheImageBorderAreReadWithFillIn) {
-  LandmarkMap map;
-  const Pose2 lw{1000.0, -2000.0, deg_to_rad(90.0)};
-  map.entries[17] = {17, lw};
-  sim::Scene scene;
-  std::string err;
-  ASSERT_TRUE(sim::make_scene(map, LandmarkGeometry{}, sim::PayloadMode::kFull, &scene, &err));
-  const CameraModel cam = CameraModel::default_640x480();
+TEST_F(QrGridScene, CodesCutByTheImageBorderAreReadWithFillIn) {
   VisionConfig fill, whole;
   whole.qr_max_missing_modules = 0;
   LandmarkLocalizer loc_fill(fill, cam, LandmarkGeometry{}, &map);
