@@ -16,20 +16,16 @@ void prewitt(const cv::Mat& gray8, const cv::Rect& roi_in, cv::Mat* gx, cv::Mat*
   if (roi.width <= 0 || roi.height <= 0) return;
   const int x_begin = std::max(roi.x, 1), x_end = std::min(roi.x + roi.width, gray8.cols - 1);
   const int y_begin = std::max(roi.y, 1), y_end = std::min(roi.y + roi.height, gray8.rows - 1);
+  const std::ptrdiff_t step = static_cast<std::ptrdiff_t>(gray8.step[0]);
   for (int y = y_begin; y < y_end; ++y) {
-    const std::uint8_t* rm = gray8.ptr<std::uint8_t>(y - 1);
     const std::uint8_t* r0 = gray8.ptr<std::uint8_t>(y);
-    const std::uint8_t* rp = gray8.ptr<std::uint8_t>(y + 1);
     std::int16_t* ox = gx->ptr<std::int16_t>(y - roi.y) - roi.x;
     std::int16_t* oy = gy->ptr<std::int16_t>(y - roi.y) - roi.x;
     for (int x = x_begin; x < x_end; ++x) {
-      // eq. 2: right column minus left column; eq. 3: bottom row minus top row.
-      const int col_r = rm[x + 1] + r0[x + 1] + rp[x + 1];
-      const int col_l = rm[x - 1] + r0[x - 1] + rp[x - 1];
-      const int row_b = rp[x - 1] + rp[x] + rp[x + 1];
-      const int row_t = rm[x - 1] + rm[x] + rm[x + 1];
-      ox[x] = static_cast<std::int16_t>(col_r - col_l);
-      oy[x] = static_cast<std::int16_t>(row_b - row_t);
+      int g_x, g_y;
+      prewitt_at(r0 + x, step, &g_x, &g_y);
+      ox[x] = static_cast<std::int16_t>(g_x);
+      oy[x] = static_cast<std::int16_t>(g_y);
     }
   }
 }

@@ -100,15 +100,6 @@ double ncc(const std::vector<double>& a, const std::vector<double>& b) {
   return saa > 1e-9 && sbb > 1e-9 ? sab / std::sqrt(saa * sbb) : 0.0;
 }
 
-// Prewitt gradient (paper 001 eq. 2-3) at one interior pixel.
-inline void prewitt_at(const cv::Mat& img, int x, int y, int* gx_out, int* gy_out) {
-  const std::uint8_t* rm = img.ptr<std::uint8_t>(y - 1);
-  const std::uint8_t* r0 = img.ptr<std::uint8_t>(y);
-  const std::uint8_t* rp = img.ptr<std::uint8_t>(y + 1);
-  *gx_out = (rm[x + 1] + r0[x + 1] + rp[x + 1]) - (rm[x - 1] + r0[x - 1] + rp[x - 1]);
-  *gy_out = (rp[x - 1] + rp[x] + rp[x + 1]) - (rm[x - 1] + rm[x] + rm[x + 1]);
-}
-
 // Dot products of one coarse patch (row pointer, stride) with every corner template at once.
 // Templates are stored pixel-major with `Lanes` slots per pixel, so one pixel value multiplies
 // Lanes / 4 vectors of four templates (GCC/Clang vector extensions: SSE on x86-64, NEON on
@@ -202,7 +193,6 @@ struct LandmarkLocalizer::Impl {
   std::string qr_text;
 
   // Pose.
-  cv::Mat gx, gy;
   std::array<std::vector<Vec2>, kNumLines> pts_px, pts_mm;
   std::array<std::vector<double>, kNumLines> weights;
   std::vector<double> logo_template, logo_samples, residual_buf, scratch_buf;
@@ -212,7 +202,6 @@ struct LandmarkLocalizer::Impl {
 
   // Kept for the overlay.
   bool have_overlay = false;
-  std::array<Line2, kNumLines> lines_px;
   std::array<bool, kNumLines> line_ok{};
   std::array<Vec2, 8> corners_px{};  // outer 0..3, inner 4..7
   Vec2 centre_px;
@@ -580,7 +569,8 @@ void LandmarkLocalizer::Impl::compute_orient4() {
     cv::Vec2f* o = orient4.ptr<cv::Vec2f>(y);
     for (int x = 1; x + 1 < coarse.cols; ++x) {
       int gxi, gyi;
-      prewitt_at(coarse, x, y, &gxi, &gyi);
+      prewitt_at(coarse.ptr<std::uint8_t>(y) + x, static_cast<std::ptrdiff_t>(coarse.step[0]), &gxi,
+                 &gyi);
       const double ex = gxi, ey = gyi, m2 = ex * ex + ey * ey;
       if (m2 < 1.0) continue;
       const double a = ex * ex - ey * ey, b = 2 * ex * ey;
@@ -747,7 +737,7 @@ bool LandmarkLocalizer::Impl::sample_qr(const cv::Mat& img, Vec2 c_mm, double fw
   // quiet-zone modules with the quiet zone's median, fixed modules with their known value, and up
   // to max_missing_data data modules with the code's mean (left to Reed-Solomon to correct).
   constexpr float kMissing = -1.0f;
-  int missing_data = 0;
+  int missing_data = 0, missing = 0;
   const int max_missing_data = cfg.qr_max_missing_modules;
   for (int r = 0; r < side; ++r) {
     for (int c = 0; c < side; ++c) {
@@ -763,6 +753,7 @@ bool LandmarkLocalizer::Impl::sample_qr(const cv::Mat& img, Vec2 c_mm, double fw
         acc += v;
       }
       if (!inside) {
+        ++missing;
         const int rr = r - s->ring, cc = c - s->ring;
         const bool in_code = rr >= 0 && cc >= 0 && rr < n && cc < n;
         if (in_code && qr_fixed_module(n, rr, cc) < 0 && ++missing_data > max_missing_data) {
@@ -772,7 +763,7 @@ bool LandmarkLocalizer::Impl::sample_qr(const cv::Mat& img, Vec2 c_mm, double fw
       s->v[static_cast<size_t>(r * side + c)] = inside ? static_cast<float>(acc / 5.0) : kMissing;
     }
   }
-  if (missing_data == 0 && std::find(s->v.begin(), s->v.end(), kMissing) == s->v.end()) return true;
+  if (missing == 0) return true;
   // Levels for the fill-in, from the samples that were inside.
   qr_fill.clear();
   double code_sum = 0;
@@ -894,11 +885,8 @@ int LandmarkLocalizer::Impl::collect(const cv::Mat& img, Vec2 c, double up, doub
         for (int q = 0; q < n; ++q) {
           const int j = j0 - 1 + q;
           const int x = by_rows ? j : i, y = by_rows ? i : j;
-          const std::uint8_t* p = base + static_cast<std::ptrdiff_t>(y) * step + x;
-          const int gxi =
-              (p[1 - step] + p[1] + p[1 + step]) - (p[-1 - step] + p[-1] + p[-1 + step]);
-          const int gyi =
-              (p[step - 1] + p[step] + p[step + 1]) - (p[-step - 1] + p[-step] + p[-step + 1]);
+          int gxi, gyi;
+          prewitt_at(base + static_cast<std::ptrdiff_t>(y) * step + x, step, &gxi, &gyi);
           strip_gx[static_cast<size_t>(q)] = gxi;
           strip_gy[static_cast<size_t>(q)] = gyi;
           strip_along[static_cast<size_t>(q)] = gxi * g_dir.x + gyi * g_dir.y;
@@ -1233,12 +1221,6 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
   *beta_out = beta;
 
   // Overlay geometry in pixels.
-  for (int l = 0; l < kNumLines; ++l) {
-    LineFit f;
-    if (line_ok[static_cast<size_t>(l)] && fit_line_tls(pts_px[static_cast<size_t>(l)], {}, &f)) {
-      lines_px[static_cast<size_t>(l)] = f.line;
-    }
-  }
   for (int e = 0; e < 2; ++e) {
     const double h = e == 0 ? h_out : h_in;
     for (int k = 0; k < 4; ++k) {

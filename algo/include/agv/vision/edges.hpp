@@ -2,6 +2,7 @@
 // stage can be tested on its own. Image coordinates: x right, y down, pixel centres at integers.
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <span>
 
@@ -15,6 +16,14 @@ using Rect = Rect_<int>;
 }  // namespace cv
 
 namespace agv::vision {
+
+// Prewitt gradient (paper 001 eq. 2-3) of the interior pixel at p in an 8-bit image whose rows are
+// `step` bytes apart: gx = right column minus left column, gy = bottom row minus top row (sums of
+// three). The one kernel every gradient of the pipeline goes through.
+inline void prewitt_at(const std::uint8_t* p, std::ptrdiff_t step, int* gx, int* gy) {
+  *gx = (p[1 - step] + p[1] + p[1 + step]) - (p[-1 - step] + p[-1] + p[-1 + step]);
+  *gy = (p[step - 1] + p[step] + p[step + 1]) - (p[-step - 1] + p[-step] + p[-step + 1]);
+}
 
 // Prewitt gradients (paper 001 eq. 1-3) of gray8 inside roi, written to CV_16SC1 images of the
 // roi's size: gx = right column minus left column, gy = bottom row minus top row (sums of three).
