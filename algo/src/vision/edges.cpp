@@ -31,12 +31,14 @@ void prewitt(const cv::Mat& gray8, const cv::Rect& roi_in, cv::Mat* gx, cv::Mat*
 }
 
 EdgeClass classify_gradient(double gx, double gy, double up_angle_rad, double tol_rad) {
-  if (gx == 0.0 && gy == 0.0) return EdgeClass::kNone;
-  const double rel = wrap_angle_rad(std::atan2(gy, gx) - up_angle_rad);
-  const double q = std::round(rel / (kPi / 2.0));
-  if (std::abs(rel - q * (kPi / 2.0)) > tol_rad) return EdgeClass::kNone;
-  const int k = ((static_cast<int>(q) % 4) + 4) % 4;
-  return static_cast<EdgeClass>(k);
+  const double tan_tol = std::tan(tol_rad);
+  for (int k = 0; k < 4; ++k) {
+    const double a = up_angle_rad + k * kPi / 2.0;
+    if (gradient_within(gx, gy, {std::cos(a), std::sin(a)}, tan_tol)) {
+      return static_cast<EdgeClass>(k);
+    }
+  }
+  return EdgeClass::kNone;
 }
 
 double Line2::angle_rad() const { return std::atan2(-nx, ny); }

@@ -894,9 +894,8 @@ int LandmarkLocalizer::Impl::collect(const cv::Mat& img, Vec2 c, double up, doub
         for (int q = 1; q + 1 < n; ++q) {
           const int gxi = strip_gx[static_cast<size_t>(q)], gyi = strip_gy[static_cast<size_t>(q)];
           if (gxi * gxi + gyi * gyi < thr2_int) continue;
+          if (!gradient_within(gxi, gyi, g_dir, tan_tol)) continue;
           const double along = strip_along[static_cast<size_t>(q)];
-          if (along <= 0) continue;
-          if (std::abs(-gxi * g_dir.y + gyi * g_dir.x) > tan_tol * along) continue;
           const double em = strip_along[static_cast<size_t>(q - 1)];
           const double ep = strip_along[static_cast<size_t>(q + 1)];
           if (!(along >= em && along > ep)) continue;

@@ -2,6 +2,7 @@
 // stage can be tested on its own. Image coordinates: x right, y down, pixel centres at integers.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <span>
@@ -37,8 +38,15 @@ void prewitt(const cv::Mat& gray8, const cv::Rect& roi, cv::Mat* gx, cv::Mat* gy
 // inward (class k+2) on its inner edge.
 enum class EdgeClass : std::int8_t { kUp = 0, kRight = 1, kDown = 2, kLeft = 3, kNone = -1 };
 
-// Returns the class whose direction is within tol_rad of the gradient direction, else kNone.
-// A zero gradient is kNone.
+// True when the gradient (gx, gy) points within atan(tan_tol) of the unit direction dir: the
+// class test of the pipeline's edge strips (a tangent instead of an angle: no atan2 per pixel).
+inline bool gradient_within(double gx, double gy, Vec2 dir, double tan_tol) {
+  const double along = gx * dir.x + gy * dir.y;
+  return along > 0 && std::abs(-gx * dir.y + gy * dir.x) <= tan_tol * along;
+}
+
+// Returns the class whose direction is within tol_rad (< 45 degrees) of the gradient direction,
+// else kNone; the same test as gradient_within. A zero gradient is kNone.
 EdgeClass classify_gradient(double gx, double gy, double up_angle_rad, double tol_rad);
 
 // Line n . p = d with |n| = 1.
