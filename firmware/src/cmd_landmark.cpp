@@ -3,11 +3,11 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <fstream>
-#include <sstream>
 
 #include "agv/recording/png_io.hpp"
 #include "agv/sim/render.hpp"
 #include "commands.hpp"
+#include "config.hpp"
 
 namespace agv::cmd {
 
@@ -64,13 +64,9 @@ int landmark(int argc, char** argv) {
 
   if (!map_path.empty()) {
     if (sheet.empty()) return usage_error("--map needs --sheet FILE.svg");
-    std::ifstream f(map_path, std::ios::binary);
-    if (!f) return usage_error(map_path + ": cannot open");
-    std::ostringstream ss;
-    ss << f.rdbuf();
     LandmarkMap map;
     std::string err;
-    if (!parse_landmark_map(ss.str(), &map, &err)) return usage_error(map_path + ": " + err);
+    if (!config::load_map_file(map_path, &map, &err)) return usage_error(err);
     if (map.entries.empty()) return usage_error(map_path + ": no landmarks");
     const std::string text = sim::landmark_sheet_svg(geometry, map, columns);
     if (text.empty()) return usage_error("a landmark pose cannot be encoded in a payload");

@@ -175,11 +175,6 @@ int replay(int argc, char** argv) {
     io.fixes = &fixes;
     io.stop = &stop_requested();
     io.quiet = quiet;
-    if (odom_from_can) {
-      // Odometry arrives from the bus for the whole run; stop when the frames are done and
-      // the recording's duration has passed.
-      io.stop_at_end_of_stream = true;
-    }
     const std::int64_t w0 = posix::monotonic_now_ns();
     app::run_threads(cfg, map_ptr, io, &result);
     result.wall_ns = posix::monotonic_now_ns() - w0;

@@ -5,39 +5,18 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 
 #include "agv/recording/recording.hpp"
 #include "agv/sim/render.hpp"
 #include "agv/sim/trajectory.hpp"
 #include "commands.hpp"
+#include "config.hpp"
 
 namespace agv::cmd {
 
 namespace {
 
 namespace fs = std::filesystem;
-
-bool load_map(const std::string& path, LandmarkMap* map, std::string* error) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) {
-    *error = path + ": cannot open";
-    return false;
-  }
-  std::ostringstream ss;
-  ss << f.rdbuf();
-  std::string err;
-  if (!parse_landmark_map(ss.str(), map, &err)) {
-    *error = path + ": " + err;
-    return false;
-  }
-  if (map->entries.empty()) {
-    *error = path + ": no landmarks";
-    return false;
-  }
-  return true;
-}
 
 }  // namespace
 
@@ -148,7 +127,10 @@ int sim(int argc, char** argv) {
 
   std::string err;
   LandmarkMap map = sim::default_landmark_grid();
-  if (!map_path.empty() && !load_map(map_path, &map, &err)) return usage_error(err);
+  if (!map_path.empty()) {
+    if (!config::load_map_file(map_path, &map, &err)) return usage_error(err);
+    if (map.entries.empty()) return usage_error(map_path + ": no landmarks");
+  }
 
   // Lay the path over the map's bounding box.
   double minx = 1e300, miny = 1e300, maxx = -1e300, maxy = -1e300;

@@ -30,7 +30,6 @@ OutputStage::OutputStage(const config::Config& cfg, hal::CanBus* bus)
       proto_(config::protocol_config(cfg)),
       encoder_(proto_),
       odom_(proto_),
-      period_ns_(static_cast<std::int64_t>(1e9 / cfg.loop.output_rate_hz)),
       heartbeat_period_ns_(static_cast<std::int64_t>(1e9 / cfg.loop.heartbeat_rate_hz)) {
   if (bus_) {
     // Only odometry reaches us; the kernel filters the rest.

@@ -96,7 +96,6 @@ class OutputStage {
   protocol::OdometryDecoder odom_;
   std::int64_t last_odom_ns_ = INT64_MIN;
   std::uint64_t odom_rejected_seen_ = 0;
-  std::int64_t period_ns_;
   std::int64_t heartbeat_period_ns_;
   std::int64_t next_heartbeat_ns_ = INT64_MIN;
   std::int64_t first_tick_ns_ = INT64_MIN;

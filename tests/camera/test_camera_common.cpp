@@ -66,6 +66,12 @@ TEST(PixelFormat, ChoiceFollowsPreferenceAndAvoidsCopies) {
   EXPECT_EQ(choose_format(PixelFormatPreference::kAuto, colour), kFourccNv12);  // in place
   EXPECT_EQ(choose_format(PixelFormatPreference::kAuto, {kFourccYuyv, kFourccGrey}), kFourccGrey);
   EXPECT_EQ(choose_format(PixelFormatPreference::kYuv, {kFourccYuyv, kFourccGrey}), kFourccYuyv);
+  // A forced format: exactly that one when offered and usable, else none (no fallback).
+  EXPECT_EQ(choose_format(PixelFormatPreference::kAuto, {kFourccYuyv, kFourccGrey}, kFourccYuyv),
+            kFourccYuyv);
+  EXPECT_EQ(choose_format(PixelFormatPreference::kAuto, {kFourccGrey}, kFourccYuyv), 0u);
+  const std::uint32_t mjpg = make_fourcc('M', 'J', 'P', 'G');  // offered but not usable
+  EXPECT_EQ(choose_format(PixelFormatPreference::kAuto, {mjpg, kFourccGrey}, mjpg), 0u);
   EXPECT_EQ(choose_format(PixelFormatPreference::kGray, colour), 0u);
   EXPECT_EQ(choose_format(PixelFormatPreference::kAuto, {make_fourcc('M', 'J', 'P', 'G')}), 0u);
 }

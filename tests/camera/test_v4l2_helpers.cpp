@@ -66,16 +66,3 @@ TEST(V4l2Camera, NonVideoDeviceRejected) {
 }
 
 }  // namespace
-
-namespace {
-
-TEST(V4l2Camera, ForcedFormatStillValidatesTheDevice) {
-  // A forced format does not bypass opening/validation: a missing device stays disconnected.
-  agv::hal::CameraConfig c;
-  c.id = "/dev/agv-no-such-video-device";
-  agv::v4l2::V4l2Camera cam(c);
-  cam.force_fourcc(agv::camera::kFourccYuyv);
-  EXPECT_EQ(cam.start(), agv::hal::CameraStatus::kDisconnected);
-}
-
-}  // namespace

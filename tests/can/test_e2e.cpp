@@ -114,21 +114,3 @@ TEST(E2eChecker, CorruptionWrongDataIdLengthAndCounter15) {
   EXPECT_EQ(c.check(f), p::E2eStatus::kInitial);
   EXPECT_EQ(c.counters().rejected(), 67u);
 }
-
-TEST(E2eChecker, StaleWhenNothingAcceptedWithinTimeout) {
-  p::E2eChecker c({0x4C00, 3, 50'000'000});
-  EXPECT_TRUE(c.stale(0));
-  p::CanFrameData f = protected_frame(0x4C00, 0, 0);
-  f.t_ns = 1'000'000'000;
-  c.check(f);
-  EXPECT_FALSE(c.stale(1'050'000'000));
-  EXPECT_TRUE(c.stale(1'050'000'001));
-  // A repeated frame (sender stuck) does not refresh the data.
-  f.t_ns = 1'040'000'000;
-  EXPECT_EQ(c.check(f), p::E2eStatus::kRepeated);
-  EXPECT_TRUE(c.stale(1'060'000'000));
-  p::CanFrameData g = protected_frame(0x4C00, 1, 0);
-  g.t_ns = 1'055'000'000;
-  EXPECT_EQ(c.check(g), p::E2eStatus::kOk);
-  EXPECT_FALSE(c.stale(1'060'000'000));
-}

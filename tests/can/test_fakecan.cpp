@@ -134,16 +134,11 @@ TEST(FakeCan, OdometryThroughTheFakeBus) {
   p::OdometryDecoder dec(cfg);
   const agv::hal::CanFilter f{dec.can_id(), 0x7FF, false};
   loc->set_filters(&f, 1);
-  const p::MessageDef& d = p::message_def(p::Msg::kOdomWheels);
   int accepted = 0;
   for (int i = 0; i < 10; ++i) {
     net.set_time_ns(i * 10'000'000LL);
     p::CanFrameData o;
-    o.id = dec.can_id();
-    o.len = 8;
-    p::put_phys(d.signals[2], 0.5, o.data);
-    p::put_phys(d.signals[3], 0.5, o.data);
-    p::e2e_protect(d.data_id, static_cast<std::uint8_t>(i % 15), o.data);
+    p::encode_odometry(cfg, 0.5, 0.5, static_cast<std::uint8_t>(i % 15), &o);
     if (i == 4) mc->drop_next_tx(1);
     mc->send(agv::can::to_hal(o));
     CanFrame r;

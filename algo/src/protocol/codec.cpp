@@ -338,18 +338,9 @@ bool OdometryDecoder::timed_out(std::int64_t now_ns) const {
   return now_ns - last_ok_ns_ > cfg_.timeout_ns;
 }
 
-std::uint8_t OdometryFaultMonitor::update(const OdometryDecoder& decoder, std::int64_t now_ns) {
-  std::uint8_t f = 0;
-  if (decoder.timed_out(now_ns)) f |= fault::kOdomTimeout;
-  const std::uint64_t rejected = decoder.counters().rejected();
-  if (rejected > last_rejected_) f |= fault::kOdomE2E;
-  last_rejected_ = rejected;
-  return f;
-}
-
 void encode_odometry(const ProtocolConfig& cfg, double a, double b, std::uint8_t counter,
                      CanFrameData* out) {
-  const Msg m = cfg.odometry.mode == OdometryMode::kWheels ? Msg::kOdomWheels : Msg::kOdomTwist;
+  const Msg m = odom_msg(cfg.odometry);
   const MessageDef& d = message_def(m);
   *out = CanFrameData{};
   out->id = can_id_of(cfg, m);
@@ -357,8 +348,8 @@ void encode_odometry(const ProtocolConfig& cfg, double a, double b, std::uint8_t
   out->len = 8;
   put_phys(d.signals[2], a, out->data);
   put_phys(d.signals[3], b, out->data);
-  e2e_protect(cfg.odometry.data_id ? cfg.odometry.data_id : d.data_id,
-              static_cast<std::uint8_t>(counter % kE2eCounterModulo), out->data);
+  e2e_protect(odom_data_id(cfg.odometry), static_cast<std::uint8_t>(counter % kE2eCounterModulo),
+              out->data);
 }
 
 }  // namespace agv::protocol

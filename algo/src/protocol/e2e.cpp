@@ -73,7 +73,6 @@ E2eStatus E2eChecker::check(const CanFrameData& frame) {
     have_ref_ = true;
     last_counter_ = counter;
     ++counters_.ok;
-    mark_accepted(frame.t_ns);
     return E2eStatus::kInitial;
   }
   const int delta = (counter - last_counter_ + kE2eCounterModulo) % kE2eCounterModulo;
@@ -87,7 +86,6 @@ E2eStatus E2eChecker::check(const CanFrameData& frame) {
     ++counters_.wrong_sequence;
     return E2eStatus::kWrongSequence;
   }
-  mark_accepted(frame.t_ns);
   if (delta == 1) {
     ++counters_.ok;
     return E2eStatus::kOk;

@@ -35,7 +35,12 @@ std::vector<std::uint32_t> acceptable_formats(hal::PixelFormatPreference pref) {
 }
 
 std::uint32_t choose_format(hal::PixelFormatPreference pref,
-                            const std::vector<std::uint32_t>& offered) {
+                            const std::vector<std::uint32_t>& offered, std::uint32_t forced) {
+  if (forced != 0) {
+    const bool ok = std::find(offered.begin(), offered.end(), forced) != offered.end() &&
+                    choose_format(hal::PixelFormatPreference::kAuto, {forced}) != 0;
+    return ok ? forced : 0;
+  }
   for (std::uint32_t f : acceptable_formats(pref)) {
     if (std::find(offered.begin(), offered.end(), f) != offered.end()) return f;
   }

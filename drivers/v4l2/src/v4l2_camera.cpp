@@ -164,19 +164,14 @@ CameraStatus V4l2Camera::Impl::configure_format() {
     if (xioctl(fd, VIDIOC_ENUM_FMT, &d) != 0) break;
     offered.push_back(d.pixelformat);
   }
-  fourcc = camera::choose_format(cfg.pixel_format, offered);
-  if (forced_fourcc != 0) {
-    fourcc = std::find(offered.begin(), offered.end(), forced_fourcc) != offered.end() &&
-                     camera::choose_format(hal::PixelFormatPreference::kAuto, {forced_fourcc}) != 0
-                 ? forced_fourcc
-                 : 0;
-  }
+  fourcc = camera::choose_format(cfg.pixel_format, offered, forced_fourcc);
   if (fourcc == 0) {
     std::string list;
     for (std::uint32_t f : offered) list += " " + camera::fourcc_to_string(f);
-    return fail(
-        CameraStatus::kInvalidArgument,
-        "no usable pixel format (need GREY, NV12, YU12, YUYV or RGB24); device offers:" + list, 0);
+    const std::string need =
+        forced_fourcc != 0 ? "forced format " + camera::fourcc_to_string(forced_fourcc)
+                           : std::string("a usable pixel format (GREY, NV12, YU12, YUYV or RGB24)");
+    return fail(CameraStatus::kInvalidArgument, "need " + need + "; device offers:" + list, 0);
   }
   v4l2_format fmt{};
   fmt.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;

@@ -176,23 +176,11 @@ struct OdometryCounters {
   }
 };
 
-class OdometryDecoder;
-
 // Motor-controller side (simulators, tests, the HIL peer): one odometry frame as the DBC
 // describes it, E2E-protected with `counter` (0..14) whether or not the receiver checks it.
 // a, b = left and right wheel speeds in m/s (wheels mode) or v_mps and omega_radps (twist mode).
 void encode_odometry(const ProtocolConfig& cfg, double a, double b, std::uint8_t counter,
                      CanFrameData* out);
-
-// AGV_Status odometry flags, once per status frame: fault::kOdomTimeout while
-// decoder.timed_out(now_ns); fault::kOdomE2E when frames were rejected since the last call.
-class OdometryFaultMonitor {
- public:
-  std::uint8_t update(const OdometryDecoder& decoder, std::int64_t now_ns);
-
- private:
-  std::uint64_t last_rejected_ = 0;
-};
 
 class OdometryDecoder {
  public:

@@ -46,9 +46,6 @@ struct E2eCheckerConfig {
   // Largest accepted counter step. 1 rejects any loss; larger tolerates (delta-1) lost frames.
   // Default 3: two lost frames in a row are still accepted (and counted), a longer gap is a jump.
   std::uint8_t max_delta_counter = 3;
-  // stale(now_ns) turns true when no frame was accepted for this long (frame.t_ns is the
-  // receive time). A receiver of our output frames typically uses 3 cycle times.
-  std::int64_t timeout_ns = 100'000'000;
 };
 
 struct E2eCounters {
@@ -71,25 +68,14 @@ class E2eChecker {
  public:
   explicit E2eChecker(const E2eCheckerConfig& cfg) : cfg_(cfg) {}
   E2eStatus check(const CanFrameData& frame);
-  // True when no frame was ever accepted or the last accepted one (by frame.t_ns) is older than
-  // timeout_ns at now_ns: the data must not be used any more.
-  bool stale(std::int64_t now_ns) const {
-    return !have_accepted_ || now_ns - last_accepted_ns_ > cfg_.timeout_ns;
-  }
   void reset() { have_ref_ = false; }
   const E2eCounters& counters() const { return counters_; }
 
  private:
-  void mark_accepted(std::int64_t t_ns) {
-    have_accepted_ = true;
-    last_accepted_ns_ = t_ns;
-  }
   E2eCheckerConfig cfg_;
   E2eCounters counters_;
   bool have_ref_ = false;
   std::uint8_t last_counter_ = 0;
-  bool have_accepted_ = false;
-  std::int64_t last_accepted_ns_ = 0;
 };
 
 }  // namespace agv::protocol

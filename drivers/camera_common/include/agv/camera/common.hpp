@@ -54,9 +54,10 @@ std::string fourcc_to_string(std::uint32_t fourcc);
 // come before YUYV, which needs a copy; packed RGB (e.g. the vimc test camera) comes last and
 // only under kAuto.
 std::vector<std::uint32_t> acceptable_formats(hal::PixelFormatPreference pref);
-// First entry of acceptable_formats(pref) that `offered` contains; 0 when none.
+// First entry of acceptable_formats(pref) that `offered` contains; 0 when none. With `forced`
+// (non-zero, for tests and odd devices) exactly that format, if offered and acceptable at all.
 std::uint32_t choose_format(hal::PixelFormatPreference pref,
-                            const std::vector<std::uint32_t>& offered);
+                            const std::vector<std::uint32_t>& offered, std::uint32_t forced = 0);
 
 // How to obtain 8-bit gray from one buffer of a negotiated format.
 struct GrayLayout {
