@@ -472,7 +472,9 @@ bool load_frame(const Recording& rec, size_t i, cv::Mat* image, std::string* err
     return false;
   }
   const std::string path = (fs::path(rec.dir) / rec.frames[i].file).string();
-  cv::Mat img;
+  // Decoded straight into the caller's buffer, so a reused Mat (the replay camera's slots) keeps
+  // its allocation.
+  cv::Mat& img = *image;
   std::string png_error;
   if (!png::read_gray(path, &img, &png_error)) {
     if (error) {
@@ -490,7 +492,6 @@ bool load_frame(const Recording& rec, size_t i, cv::Mat* image, std::string* err
     }
     return false;
   }
-  *image = img;
   return true;
 }
 

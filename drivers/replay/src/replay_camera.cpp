@@ -1,9 +1,6 @@
 #include "agv/recording/replay_camera.hpp"
 
 #include <algorithm>
-#include <filesystem>
-
-#include "agv/recording/png_io.hpp"
 
 namespace agv::recording {
 
@@ -50,14 +47,8 @@ hal::CameraStatus ReplayCamera::next_frame(std::int64_t timeout_ns, hal::FrameVi
       }
       // Decode before the frame is due, so the loop sees it at its time as from a live camera
       // (PNG decoding takes milliseconds; a live driver hands over a finished buffer).
-      const std::string path = (std::filesystem::path(rec_.dir) / row.file).string();
-      cv::Mat& image = slots_[slot];
-      std::string err;
-      if (!png::read_gray(path, &image, &err) ||
-          image.cols != rec_.meta.camera.intrinsics.width_px ||
-          image.rows != rec_.meta.camera.intrinsics.height_px) {
+      if (!load_frame(rec_, next_, &slots_[slot], &error_)) {
         ++stats_.errors;
-        error_ = err.empty() ? path + ": image size differs from meta.yaml" : err;
         ++sequence_;
         ++next_;
         continue;
