@@ -48,8 +48,9 @@ struct Args {
   bool ablation = false;
   bool apriltag = true;
   std::string dump;
-  std::string only;      // run only the fully-visible conditions whose name contains this
-  int profile_reps = 0;  // --profile-loop: only process the clean frames this many times (perf)
+  std::string only;         // run only the fully-visible conditions whose name contains this
+  int profile_reps = 0;     // --profile-loop: only process the clean frames this many times (perf)
+  int qr_max_missing = -1;  // --qr-max-missing: VisionConfig::qr_max_missing_modules (-1 = default)
 };
 
 double pct(std::vector<double> v, double p) {
@@ -297,6 +298,7 @@ int run(const Args& a) {
 
   VisionConfig cfg;
   cfg.now_ns = now_ns;
+  if (a.qr_max_missing >= 0) cfg.qr_max_missing_modules = a.qr_max_missing;
 
   auto blur_opts = [mmpp](double px, sim::RenderOptions* o) {
     o->exposure_s = 0.001;
@@ -656,11 +658,13 @@ int main(int argc, char** argv) {
       a.only = next();
     } else if (s == "--profile-loop") {
       a.profile_reps = std::atoi(next().c_str());
+    } else if (s == "--qr-max-missing") {
+      a.qr_max_missing = std::atoi(next().c_str());
     } else {
       std::fprintf(stderr,
                    "usage: eval_vision [--profile 640|1280] [--frames N] [--floor-frames N] "
                    "[--seed S] [--ablation] [--no-apriltag] [--dump DIR] [--only NAME] "
-                   "[--profile-loop REPS]\n");
+                   "[--profile-loop REPS] [--qr-max-missing N]\n");
       return 2;
     }
   }
