@@ -35,8 +35,8 @@ class ScaledClock final : public hal::Clock {
   double speed_;
 };
 
-// Wraps a bus: received frames get their kernel timestamps moved onto the scaled clock, and every
-// frame sent or received can be logged in `candump -l` format.
+// Wraps a bus: received frames get their kernel timestamps moved onto the scaled clock (a real
+// interface is logged with candump itself; --can-log applies only to the log-only bus).
 class TimeMappedBus final : public hal::CanBus {
  public:
   TimeMappedBus(hal::CanBus& inner, const ScaledClock* clock) : inner_(inner), clock_(clock) {}

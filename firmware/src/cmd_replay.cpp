@@ -69,7 +69,8 @@ int replay(int argc, char** argv) {
   app.add_flag("--odom-from-can", odom_from_can,
                "take odometry from the CAN bus instead of odom.csv (needs --can, --realtime)");
   app.add_option("--can-log", can_log,
-                 "write sent frames as a candump -l log (default OUT/can.log)");
+                 "without --can: write sent frames as a candump -l log (default OUT/can.log); with "
+                 "--can log the interface with candump -l instead");
   auto* rt = app.add_flag("--realtime", realtime, "pace the replay by the clock (threads as live)");
   auto* ft = app.add_flag("--fast", fast, "as fast as possible, deterministic (default)");
   rt->excludes(ft);
