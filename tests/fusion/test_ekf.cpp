@@ -442,16 +442,21 @@ TEST(FusionEkf, BadInputsAreRejectedAndCounted) {
   EXPECT_EQ(ekf.add_fix(10 * kMs, good, indefinite), FixOutcome::kRejectedInvalid);
   EXPECT_EQ(ekf.add_fix(10 * kMs, good, Eigen::Matrix3d::Zero()), FixOutcome::kRejectedInvalid);
   EXPECT_EQ(ekf.add_fix(10 * kMs, good, nan_cov), FixOutcome::kRejectedInvalid);
-  // Exposure far after the newest odometry (clock error).
-  EXPECT_EQ(ekf.add_fix(10 * kS, good, fix_cov()), FixOutcome::kRejectedInvalid);
-  EXPECT_EQ(ekf.counters().fixes_rejected_invalid, 8u);  // includes the NaN before init
+  // Exposure far after the newest odometry: held (odometry may be late) without touching the
+  // state...
+  EXPECT_EQ(ekf.add_fix(10 * kS, good, fix_cov()), FixOutcome::kHeld);
+  EXPECT_EQ(ekf.counters().fixes_held, 1u);
+  EXPECT_EQ(ekf.counters().fixes_rejected_invalid, 7u);  // includes the NaN before init
 
   expect_same_estimate(ekf.estimate_at(20 * kMs), before, 0.0);
   const std::uint16_t f = ekf.take_flags();
   EXPECT_EQ(f, flags::kInvalidInput);
   EXPECT_EQ(ekf.take_flags(), 0u);  // cleared
-  // Good data still works.
+  // Good data still works; the next odometry shows the held fix is 10 s ahead of flowing
+  // odometry: a camera clock error, rejected as invalid.
   EXPECT_TRUE(ekf.add_odometry(20 * kMs, 1.0, 0.0));
+  EXPECT_EQ(ekf.counters().fixes_rejected_invalid, 8u);
+  EXPECT_TRUE(ekf.take_flags() & flags::kInvalidInput);
   EXPECT_EQ(ekf.add_fix(20 * kMs, {20.0, 0.0, 0.0}, fix_cov()), FixOutcome::kFused);
 }
 
