@@ -141,6 +141,7 @@ int sim(int argc, char** argv) {
     char tail = 0;
     if (std::sscanf(misprint.c_str(), "%lu:%lf:%lf%c", &misprint_id, &misprint_offset_mm.x,
                     &misprint_offset_mm.y, &tail) != 3 ||
+        misprint.front() == '-' || misprint_id == 0 || misprint_id > 0xFFFFFFFFUL ||
         !std::isfinite(misprint_offset_mm.x) || !std::isfinite(misprint_offset_mm.y)) {
       return usage_error("--misprint '" + misprint + "': expected ID:DX_MM:DY_MM");
     }

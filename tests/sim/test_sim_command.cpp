@@ -118,6 +118,7 @@ TEST(SimCommand, RejectsBadArguments) {
   EXPECT_EQ(run_sim({"--out", d.string(), "--misprint", "8:300"}), 2);
   EXPECT_EQ(run_sim({"--out", d.string(), "--misprint", "8:300:0x"}), 2);
   EXPECT_EQ(run_sim({"--out", d.string(), "--misprint", "99:300:0"}), 2);  // not in the map
+  EXPECT_EQ(run_sim({"--out", d.string(), "--misprint", "-4294967288:300:0"}), 2);  // not 8
   EXPECT_EQ(run_sim({"--out", d.string(), "--misprint", "8:300:0", "--payload", "id"}), 2);
   EXPECT_FALSE(fs::exists(d / "meta.yaml"));
 }
