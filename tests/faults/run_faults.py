@@ -10,6 +10,7 @@ truth. Usage:
 Exit status 1 when any assertion fails. The table is printed and written to WORKDIR/faults.md.
 """
 import argparse
+import bisect
 import concurrent.futures
 import csv
 import math
@@ -89,7 +90,6 @@ class Truth:
 
     def at(self, t_ns):
         """Linear interpolation in time, heading with wrap. None outside the truth."""
-        import bisect
         if t_ns < self.t[0] or t_ns > self.t[-1]:
             return None
         i = bisect.bisect_right(self.t, t_ns) - 1
@@ -123,7 +123,8 @@ class Variant:
         self.name, self.base, self.desc = name, base, desc
         self.fault_start_ns, self.fault_end_ns = fault_start_ns, fault_end_ns
         self.steps = steps  # yaw-rate step times (nominal route only)
-        self.dir = None
+        self.dir = None  # the variant recording
+        self.out = None  # its replay output
         self.with_map = True
 
 
