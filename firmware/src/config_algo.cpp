@@ -71,6 +71,7 @@ void read_fusion(YamlChecker& c, const YAML::Node& root, fusion::EkfConfig* f) {
   c.number(n, p, "gate_probability", 0.5, 0.999999, &f->gate_probability);
   c.integer(n, p, "kidnap_fixes", 2, 100, &f->kidnap_fixes);
   c.number(n, p, "kidnap_min_separation_mm", 0.0, 100000.0, &f->kidnap_min_separation_mm);
+  read_ms(c, n, p, "kidnap_min_duration_ms", 0.0, 600000.0, &f->kidnap_min_duration_ns);
   c.boolean(n, p, "estimate_odometry_calibration", &f->estimate_odometry_calibration);
   c.number(n, p, "init_v_scale_sigma", 0.0, 1.0, &f->init_v_scale_sigma);
   c.number(n, p, "init_omega_scale_sigma", 0.0, 1.0, &f->init_omega_scale_sigma);

@@ -25,6 +25,10 @@ import time
 MAX_LOCALIZED_ERR_MM = 50.0  # no tick with health == 1 farther than this from the truth
 RECOVERY_OK_MM = 20.0  # "recovered" = localized and within this of the truth
 RECOVERY_MAX_S = 0.5  # ... within this time of the fault end, when a landmark is in view by then
+# "In view by then" means its fix can be there by then: the exposure plus the time the vision
+# takes to deliver it (replay --fast: replay.fix_delay_ms, 30 ms by default). A landmark first
+# exposed 0.48 s after the fault end cannot be fused before 0.51 s.
+FIX_DELAY_S = 0.03
 COVERAGE_MIN = 0.99  # share of valid ticks (fault start .. end of run) with |e| <= 3 sigma
 NEES_RMS_MIN = 0.2  # RMS of e/sigma pooled over x, y, theta: sigma at most 5x too large
 HEALTH_LOCALIZED = 1
@@ -208,7 +212,7 @@ def evaluate(v, truth):
                      and math.hypot(k[2], k[3]) <= RECOVERY_OK_MM), None)
         view = next((t for t in ok_fix_t if t >= t_end), None)
         rec = None if good is None else (good - t_end) * 1e-9
-        in_view = view is not None and view - t_end <= RECOVERY_MAX_S * 1e9
+        in_view = view is not None and view - t_end <= (RECOVERY_MAX_S - FIX_DELAY_S) * 1e9
         # 0 when the pose was already good before that frame (no fix was needed).
         rec_view = None if (good is None or view is None) else max(0, good - view) * 1e-9
         return rec, in_view, rec_view

@@ -117,6 +117,9 @@ class TruthAndEvaluation(unittest.TestCase):
         self.assertTrue(any("recovery" in e for e in r["errors"]))
         r = self.evaluate(poses, [f"{550 * MS},ok,3"], 0, 0)
         self.assertFalse(r["recovery"][2])
+        # Exposed 0.48 s after the end: its fix cannot be fused within 0.5 s (FIX_DELAY_S).
+        self.assertFalse(self.evaluate(poses, [f"{480 * MS},ok,3"], 0, 0)["recovery"][2])
+        self.assertTrue(self.evaluate(poses, [f"{460 * MS},ok,3"], 0, 0)["recovery"][2])
         self.assertAlmostEqual(r["recovery"][3], 0.05)
         self.assertTrue(r["pass"], r["errors"])
 

@@ -157,7 +157,8 @@ TEST(Config, FusionOdometryTimingAndGapKeys) {
   ASSERT_TRUE(agv::config::parse_config(
       "fusion:\n  odom_sample_timing: instant\n  odom_period_ms: 20\n  odom_gap_ms: 80\n"
       "  gap_yaw_rate_change_sigma_radps: 0.3\n  max_fix_lead_ms: 150\n  held_fix_capacity: 4\n"
-      "  relocalize_from_single_fix: false\n  relocalize_max_fix_sigma_deg: 1\n",
+      "  relocalize_from_single_fix: false\n  relocalize_max_fix_sigma_deg: 1\n"
+      "  kidnap_min_duration_ms: 1500\n",
       "", &cfg, &errors))
       << (errors.empty() ? "" : errors.front());
   using Timing = agv::fusion::EkfConfig::OdomSampleTiming;
@@ -169,6 +170,7 @@ TEST(Config, FusionOdometryTimingAndGapKeys) {
   EXPECT_EQ(cfg.fusion.held_fix_capacity, 4u);
   EXPECT_FALSE(cfg.fusion.relocalize_from_single_fix);
   EXPECT_NEAR(cfg.fusion.relocalize_max_fix_sigma_rad, agv::deg_to_rad(1.0), 1e-12);
+  EXPECT_EQ(cfg.fusion.kidnap_min_duration_ns, 1'500'000'000);
   EXPECT_TRUE(mentions(errors_for("fusion:\n  odom_sample_timing: mean\n"), "odom_sample_timing"));
   // A gap shorter than one period cannot be told from normal sampling.
   EXPECT_TRUE(mentions(errors_for("fusion:\n  odom_period_ms: 20\n  odom_gap_ms: 10\n"), "fusion"));

@@ -177,11 +177,11 @@ TEST(FusionEkfFaults, OneMapVerifiedFixRelocalisesALostFilter) {
     drive(ekf, &t, 3000 * kMs, 500 * kMs + 1, 2500 * kMs);  // 2 s gap: lost
     ASSERT_EQ(ekf->estimate_at(3000 * kMs).health, HealthState::kLost);
   }
-  // The vehicle was pushed 4 m sideways meanwhile (far outside even the honest gate).
-  Pose2 z = tr.pose();
+  // The vehicle was carried 20 m sideways meanwhile: beyond anywhere it could have driven in
+  // the gap, so outside even the honest gate.
   Truth t3 = tr;
   t3.advance_to(3000 * kMs);
-  z = {t3.x(kIx), t3.x(kIy) + 4000.0, t3.x(kItheta)};
+  const Pose2 z{t3.x(kIx), t3.x(kIy) + 20000.0, t3.x(kItheta)};
   EXPECT_EQ(unverified.add_fix(3000 * kMs, z, fix_cov()), FixOutcome::kRejectedGate);
   EXPECT_EQ(verified.add_fix(3000 * kMs, z, fix_cov(), true), FixOutcome::kReinitialised);
   EXPECT_EQ(verified.counters().relocalisations, 1u);

@@ -42,8 +42,8 @@ std::string validate(const EkfConfig& c) {
   if (!(c.gate_probability > 0.0 && c.gate_probability < 1.0))
     return "gate_probability must be in (0, 1)";
   if (c.kidnap_fixes < 2) return "kidnap_fixes must be >= 2";
-  if (!finite_nonneg(c.kidnap_min_separation_mm))
-    return "kidnap_min_separation_mm must be finite and >= 0";
+  if (!finite_nonneg(c.kidnap_min_separation_mm) || c.kidnap_min_duration_ns < 0)
+    return "kidnap_min_separation_mm and kidnap_min_duration_ns must be finite and >= 0";
   if (!finite_nonneg(c.init_v_scale_sigma) || !finite_nonneg(c.init_omega_scale_sigma) ||
       !finite_nonneg(c.init_omega_bias_sigma_radps) || !finite_nonneg(c.v_scale_sigma_per_sqrt_s) ||
       !finite_nonneg(c.omega_scale_sigma_per_sqrt_s) ||
@@ -240,6 +240,7 @@ void Ekf::predict_span(FilterVec* x, FilterCov* P, std::int64_t t0_ns, std::int6
   constexpr std::int64_t kSubstepNs = 100'000'000;
   const double qa = config_.gap_accel_sigma_mps2 * config_.gap_accel_sigma_mps2;
   const double qw = config_.gap_yaw_accel_sigma_radps2 * config_.gap_yaw_accel_sigma_radps2;
+  const double v0_mps = std::abs((*x)(kIv));
   for (std::int64_t t = known_end; t < t1_ns;) {
     const std::int64_t step = std::min(kSubstepNs, t1_ns - t);
     const double dt_s = static_cast<double>(step) * kNsToS;
@@ -248,6 +249,16 @@ void Ekf::predict_span(FilterVec* x, FilterCov* P, std::int64_t t0_ns, std::int6
     predict(x, P, dt_s, /*velocity_noise=*/false);
     t += step;
   }
+  // The linearised covariance puts the travel along the predicted heading; once the heading is
+  // uncertain by a radian or more, the vehicle may have gone any way. Add the expected squared
+  // chord of a heading error (1 - exp(-sigma^2 / 2) of the reachable distance squared) on both
+  // axes: nothing for a small heading sigma, the reachable disk for an unknown heading (a 5 s
+  // gap that starts in a turn and ends on a straight is metres off a linearised 3 sigma).
+  const double tu_s = static_cast<double>(t1_ns - known_end) * kNsToS;
+  const double reach_mm = kMmPerM * (v0_mps * tu_s + config_.gap_accel_sigma_mps2 * tu_s * tu_s);
+  const double chord = 1.0 - std::exp(-0.5 * (*P)(kItheta, kItheta));
+  (*P)(kIx, kIx) += reach_mm * reach_mm * chord;
+  (*P)(kIy, kIy) += reach_mm * reach_mm * chord;
 }
 
 void Ekf::apply_odometry(FilterVec* x, FilterCov* P, std::int64_t t_prev_ns, std::int64_t odom_t_ns,
@@ -523,6 +534,7 @@ bool Ekf::kidnap_candidate(std::int64_t t_ns, const Eigen::Vector3d& z, const Ei
   }
   if (!extended) {
     hyp_.count = 1;
+    hyp_.t_first_ns = t_ns;
     hyp_.t_ns = t_ns;
     hyp_.x_count_mm = z(0);
     hyp_.y_count_mm = z(1);
@@ -535,7 +547,8 @@ bool Ekf::kidnap_candidate(std::int64_t t_ns, const Eigen::Vector3d& z, const Ei
     hyp_.P.bottomRightCorner<kFilterDim - 3, kFilterDim - 3>() =
         prior_P.bottomRightCorner<kFilterDim - 3, kFilterDim - 3>();
   }
-  if (hyp_.count >= config_.kidnap_fixes) {
+  if (hyp_.count >= config_.kidnap_fixes &&
+      hyp_.t_ns - hyp_.t_first_ns >= config_.kidnap_min_duration_ns) {
     const FilterVec x = hyp_.x;
     const FilterCov P = hyp_.P;
     initialise_at(t_ns, x, P);

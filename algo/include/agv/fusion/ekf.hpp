@@ -50,14 +50,14 @@ struct EkfConfig {
   // error after 1 m is 10 mm, which the default makes a 2-sigma innovation. Smaller values make
   // the gate reject smaller misreads (about 4 sigma = 20 mm after 1 m) but reject good fixes after
   // long gaps; larger values accept larger misreads.
-  double along_track_sigma_mm_per_sqrt_m = 5.0;
-  double cross_track_sigma_mm_per_sqrt_m = 2.0;
+  double along_track_sigma_mm_per_sqrt_m = 1.0;
+  double cross_track_sigma_mm_per_sqrt_m = 0.5;
   // Heading error growth: with travelled distance (wheel slip, track-width error), with time
   // (gyro/odometry heading drift, rad per sqrt(s)) and with turned angle (yaw scale error,
   // 1 % of a 90 deg turn = 0.9 deg). Too small: fixes after long or turning stretches fail the
   // gate. Too large: heading misreads of a few degrees pass the gate.
-  double heading_sigma_rad_per_sqrt_m = deg_to_rad(0.1);
-  double heading_drift_sigma_rad_per_sqrt_s = deg_to_rad(0.3);
+  double heading_sigma_rad_per_sqrt_m = deg_to_rad(0.05);
+  double heading_drift_sigma_rad_per_sqrt_s = deg_to_rad(0.15);
   double turn_heading_sigma_rad_per_sqrt_rad = 0.0125;
 
   // ---- Odometry calibration ----
@@ -83,7 +83,7 @@ struct EkfConfig {
 
   // ---- Odometry measurement noise (v and omega are fused as a direct measurement) ----
   // Noise of one odometry sample. Smaller makes the speed state follow odometry more tightly.
-  double odom_v_sigma_mps = 0.01;
+  double odom_v_sigma_mps = 0.005;
   double odom_omega_sigma_radps = deg_to_rad(0.5);
   // Plausibility limits: samples beyond them are rejected as invalid input.
   double max_abs_v_mps = 5.0;
@@ -107,12 +107,12 @@ struct EkfConfig {
   // and the yaw rate may change by gap_yaw_rate_change_sigma_radps at once (arcs start and end
   // within one sample) and random-walks with gap_yaw_accel_sigma_radps2. Half the vehicle's
   // acceleration limits keeps 3 sigma above braking at the full limit for gaps up to 3 s, and
-  // 3 x 0.5 rad/s covers a turn of 1.5 rad/s starting or ending anywhere in the gap. Too small:
-  // fixes after a gap are gated although right; too large: the pose goes lost after shorter
-  // gaps (heading sigma 0.5 rad/s x (gap - odom_gap_ns): 3 deg after a 155 ms gap).
+  // 3 x 0.7 rad/s covers an arc of 2 rad/s (0.5 m radius at 1 m/s) starting or ending anywhere
+  // in the gap. Too small: fixes after a gap are gated although right; too large: the pose goes
+  // lost after shorter gaps (heading sigma 0.7 rad/s x (gap - odom_gap_ns): 3 deg after 125 ms).
   double gap_accel_sigma_mps2 = 0.5;
   double gap_yaw_accel_sigma_radps2 = 1.0;
-  double gap_yaw_rate_change_sigma_radps = 0.5;
+  double gap_yaw_rate_change_sigma_radps = 0.7;
 
   // ---- Fixes ----
   // The reported fix covariance is used as R = fix_cov_scale * R_reported + diag(floor^2).
@@ -135,6 +135,12 @@ struct EkfConfig {
   // travel; with landmarks 1 m apart, 300 mm means every counted fix is another landmark.
   // Larger protects better against a bad landmark; the vehicle has to move to recover.
   double kidnap_min_separation_mm = 300.0;
+  // ... and the agreeing track must have lasted this long (first to last fix). A kidnap is a
+  // lasting disagreement; a transient one (a camera clock glitch that stamps 2 s of frames
+  // 300 ms off, which looks like a consistent 300 mm shift, or a burst of misreads) must not
+  // move a healthy pose. Longer delays the recovery of a really carried vehicle (a lost one
+  // re-localises from one map-verified fix without waiting).
+  std::int64_t kidnap_min_duration_ns = 3'000'000'000;
   // Re-localisation from one fix: when the prior at the fix is lost (position or heading sigma
   // above the lost limits below), a single map-verified fix (its payload agreed with the map, so
   // a misprinted code cannot do it) whose own sigma is at most these re-initialises the pose
@@ -305,8 +311,9 @@ class Ekf {
   // Candidate track of consecutive gate-rejected fixes (kidnap detection).
   struct Hypothesis {
     int count = 0;
-    std::int64_t t_ns = 0;    // time of the newest fix fused into the candidate
-    double x_count_mm = 0.0;  // position of the newest fix that incremented count
+    std::int64_t t_first_ns = 0;  // time of the fix that started the candidate
+    std::int64_t t_ns = 0;        // time of the newest fix fused into the candidate
+    double x_count_mm = 0.0;      // position of the newest fix that incremented count
     double y_count_mm = 0.0;
     FilterVec x = FilterVec::Zero();
     FilterCov P = FilterCov::Zero();
