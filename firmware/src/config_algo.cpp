@@ -54,6 +54,9 @@ void read_deg(YamlChecker& c, const YAML::Node& n, const std::string& p, const c
 void read_fusion(YamlChecker& c, const YAML::Node& root, fusion::EkfConfig* f) {
   const std::string p = "fusion";
   const YAML::Node n = c.section(root, "", "fusion");
+  // First: without calibration states the noise defaults change (keys below still override).
+  c.boolean(n, p, "estimate_odometry_calibration", &f->estimate_odometry_calibration);
+  if (!f->estimate_odometry_calibration) fusion::use_uncalibrated_noise(f);
   c.number(n, p, "accel_sigma_mps2", 0.0, 100.0, &f->accel_sigma_mps2);
   c.number(n, p, "yaw_accel_sigma_radps2", 0.0, 100.0, &f->yaw_accel_sigma_radps2);
   c.number(n, p, "along_track_sigma_mm_per_sqrt_m", 0.0, 1000.0,
@@ -72,7 +75,6 @@ void read_fusion(YamlChecker& c, const YAML::Node& root, fusion::EkfConfig* f) {
   c.integer(n, p, "kidnap_fixes", 2, 100, &f->kidnap_fixes);
   c.number(n, p, "kidnap_min_separation_mm", 0.0, 100000.0, &f->kidnap_min_separation_mm);
   read_ms(c, n, p, "kidnap_min_duration_ms", 0.0, 600000.0, &f->kidnap_min_duration_ns);
-  c.boolean(n, p, "estimate_odometry_calibration", &f->estimate_odometry_calibration);
   c.number(n, p, "init_v_scale_sigma", 0.0, 1.0, &f->init_v_scale_sigma);
   c.number(n, p, "init_omega_scale_sigma", 0.0, 1.0, &f->init_omega_scale_sigma);
   read_deg(c, n, p, "init_omega_bias_sigma_degps", 0.0, 90.0, &f->init_omega_bias_sigma_radps);

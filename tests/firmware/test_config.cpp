@@ -172,6 +172,15 @@ TEST(Config, FusionOdometryTimingAndGapKeys) {
   EXPECT_NEAR(cfg.fusion.relocalize_max_fix_sigma_rad, agv::deg_to_rad(1.0), 1e-12);
   EXPECT_EQ(cfg.fusion.kidnap_min_duration_ns, 1'500'000'000);
   EXPECT_TRUE(mentions(errors_for("fusion:\n  odom_sample_timing: mean\n"), "odom_sample_timing"));
+  // Without calibration states the noise defaults cover the uncalibrated errors; explicit keys
+  // still win, whatever their order in the file.
+  Config plain;
+  ASSERT_TRUE(agv::config::parse_config(
+      "fusion:\n  cross_track_sigma_mm_per_sqrt_m: 3\n  estimate_odometry_calibration: false\n", "",
+      &plain, &errors));
+  EXPECT_FALSE(plain.fusion.estimate_odometry_calibration);
+  EXPECT_DOUBLE_EQ(plain.fusion.along_track_sigma_mm_per_sqrt_m, 5.0);
+  EXPECT_DOUBLE_EQ(plain.fusion.cross_track_sigma_mm_per_sqrt_m, 3.0);
   // A gap shorter than one period cannot be told from normal sampling.
   EXPECT_TRUE(mentions(errors_for("fusion:\n  odom_period_ms: 20\n  odom_gap_ms: 10\n"), "fusion"));
 }

@@ -571,11 +571,7 @@ TEST(FusionEkf, LearnsOdometryScaleAndYawRateBias) {
   EXPECT_NEAR(e.omega_radps, 0.0, deg_to_rad(0.05));
 
   EkfConfig plain;
-  plain.estimate_odometry_calibration = false;
-  // Without calibration states the process noise has to cover the scale error itself
-  // (docs/fusion.md: 5 / 2 mm per sqrt(m) for 1 %).
-  plain.along_track_sigma_mm_per_sqrt_m = 5.0;
-  plain.cross_track_sigma_mm_per_sqrt_m = 2.0;
+  use_uncalibrated_noise(&plain);
   const Ekf five = drive_with_biased_odometry(plain, scale, bias, 30, &err_plain);
   const PoseEstimate f = five.estimate_at(30 * kS);
   EXPECT_EQ(f.odom_v_scale_error, 0.0);  // calibration states stay exactly zero

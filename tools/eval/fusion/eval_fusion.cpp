@@ -721,7 +721,7 @@ int main(int argc, char** argv) {
   }
   // The plain 5-state filter of paper 000 (no odometry calibration states), same data.
   EkfConfig cfg5 = cfg;
-  cfg5.estimate_odometry_calibration = false;
+  agv::fusion::use_uncalibrated_noise(&cfg5);
   const RunResult r5 = run(base, simulate_fixes(base, fp), cfg5, grid_mm);
   print_row("5-state (no calibration)", r5);
   print_row("5-state, delay 50 ms",
