@@ -203,12 +203,11 @@ void Ekf::update_odometry(FilterVec* x, FilterCov* P, double v_mps, double omega
 
 void Ekf::propagate_odometry(FilterVec* x, FilterCov* P, double dt_s, double v_mps,
                              double omega_radps) const {
-  // An odometry sample is the mean speed over the period ending at its time stamp (encoder
-  // ticks per period). Model: v and omega change (random walk) at the start of the period, the
-  // sample measures them, and they drive the motion over the period. Predicting with the
-  // previous sample instead would lag by one period: 0.05 mm per 10 ms step at 1 m/s^2, 5 mm
-  // over a 1 s acceleration ramp.
-  add_velocity_noise(P, dt_s);
+  // A period-mean sample is the speed over the period ending at its time stamp (encoder ticks
+  // per period): it replaces v and omega first and then drives the motion over that period.
+  // Predicting with the previous sample instead would lag by one period: 0.05 mm per 10 ms step
+  // at 1 m/s^2, 5 mm over a 1 s acceleration ramp. (No speed random walk before it: the sample
+  // replaces v and omega together with their covariance.)
   update_odometry(x, P, v_mps, omega_radps);
   predict(x, P, dt_s, /*velocity_noise=*/false);
 }

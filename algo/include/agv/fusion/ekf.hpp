@@ -36,13 +36,12 @@ using FilterCov = Eigen::Matrix<double, kFilterDim, kFilterDim>;
 
 struct EkfConfig {
   // ---- Process noise (added per prediction step; all are white-noise densities) ----
-  // Random walk of the speed state (m/s^2 per sqrt(s)). Per 10 ms odometry period it must be
-  // well above odom_v_sigma_mps so the state follows the odometry without lag (0.5 gives
-  // 0.05 m/s, gain 0.96); it also sets how fast the pose uncertainty grows when odometry stops
-  // (0.11 m/s after 50 ms). Larger: faster growth when predicting past the newest odometry.
+  // Random walk of the speed (m/s^2 per sqrt(s)) when predicting past the newest odometry
+  // sample, within odom_gap_ns of it (each sample replaces v and omega with their covariance;
+  // beyond odom_gap_ns the gap model below applies): 0.11 m/s after 50 ms. Larger: the pose
+  // sigma grows faster between late samples and at fix times ahead of the odometry.
   double accel_sigma_mps2 = 0.5;
-  // Random walk of the yaw-rate state (rad/s^2 per sqrt(s)); same trade-off (0.1 rad/s per
-  // 10 ms vs 0.009 rad/s odometry noise).
+  // Random walk of the yaw rate (rad/s^2 per sqrt(s)); same role (0.22 rad/s after 50 ms).
   double yaw_accel_sigma_radps2 = 1.0;
   // Position error of dead reckoning per travelled distance, along and across the direction of
   // travel (vehicle frame), as sigma per sqrt(metre), beyond what the calibration states model
@@ -86,8 +85,10 @@ struct EkfConfig {
   double omega_bias_sigma_radps_per_sqrt_s = deg_to_rad(0.1);
   double omega_per_v_sigma_radpm_per_sqrt_s = deg_to_rad(0.005);
 
-  // ---- Odometry measurement noise (v and omega are fused as a direct measurement) ----
-  // Noise of one odometry sample. Smaller makes the speed state follow odometry more tightly.
+  // ---- Odometry sample noise (the samples drive the motion; docs/fusion.md, "Model") ----
+  // Noise of one sample: the pose sigma grows by it per period (0.005 m/s over 10 ms = 0.05 mm,
+  // a random walk). A real encoder's tick quantisation is about 0.0015 m/s per 10 ms; the
+  // simulator's noise is 0.002 m/s. Larger: sigma overstates the error between landmarks.
   double odom_v_sigma_mps = 0.005;
   double odom_omega_sigma_radps = deg_to_rad(0.5);
   // Plausibility limits: samples beyond them are rejected as invalid input.
