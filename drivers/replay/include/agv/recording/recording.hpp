@@ -16,6 +16,8 @@ class Mat;
 namespace agv::recording {
 
 inline constexpr int kFormatVersion = 1;
+// Largest accepted t_ns (2^62 ns, 146 years): sums of a time and a period or delay never overflow.
+inline constexpr std::int64_t kMaxTimeNs = std::int64_t{1} << 62;
 
 struct Meta {
   int format_version = kFormatVersion;
@@ -67,9 +69,20 @@ bool parse_odom_csv(const std::string& text, std::vector<OdomRow>* out, std::str
 bool parse_truth_csv(const std::string& text, std::vector<TruthRow>* out, std::string* error,
                      const std::string& name = "truth.csv");
 
-// Loads frame i as 8-bit grey. False with *error when the file is missing, not decodable, or not
-// of the size in meta.yaml.
+// Loads frame i as 8-bit grey. False with *error when the file is missing or unreadable (with
+// the reason), not decodable (with libpng's message), or not of the size in meta.yaml (checked on
+// the PNG header before anything is decoded).
 bool load_frame(const Recording& rec, size_t i, cv::Mat* image, std::string* error);
+
+// Reads a whole file that must be a regular file of at most max_bytes (not a device, FIFO or
+// directory). False with *error naming the path and the reason.
+bool read_file_bounded(const std::string& path, std::uintmax_t max_bytes, std::string* text,
+                       std::string* error);
+
+// Replay simulates every output period between the first and last time of frames.csv and
+// odom.csv. False with *error naming those rows when that is max_ticks periods or more.
+bool check_replay_span(const Recording& rec, std::int64_t period_ns, std::int64_t max_ticks,
+                       std::string* error);
 
 // Writers create the directory if needed and overwrite the files.
 bool write_meta(const std::string& dir, const Meta& meta, std::string* error);
