@@ -353,6 +353,9 @@ TEST(Recording, DevicesAndOversizedFilesAreRejected) {
   spit(d / "meta.yaml", std::string(65537, '#'));
   expect_rejected(d, "meta.yaml: larger than 65536 bytes");
   fs::remove_all(d);
+}
+
+TEST(Recording, ReadFileBoundedRefusesDevices) {
   std::string text, err;
   EXPECT_FALSE(read_file_bounded("/dev/zero", 1024, &text, &err));
   EXPECT_EQ(err, "/dev/zero: not a regular file");
