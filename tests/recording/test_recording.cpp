@@ -420,3 +420,14 @@ TEST(Recording, ReplaySpanIsBounded) {
   EXPECT_FALSE(check_replay_span(r, 10'000'000, 1'000'000, &err));
   EXPECT_NE(err.find("frames.csv:2 (t_ns 10000000000000)"), std::string::npos) << err;
 }
+
+// Found by fuzz_recording_frames (issue 15): "." named the recording directory itself.
+TEST(Recording, FramePathsNameFilesBelowTheRecording) {
+  std::vector<FrameRow> rows;
+  std::string err;
+  for (const char* f : {".", "./", "frames/.", "frames/", "./frames/0.png", "a/../0.png"}) {
+    EXPECT_FALSE(parse_frames_csv(std::string("t_ns,file\n1,") + f + "\n", &rows, &err)) << f;
+    EXPECT_EQ(err.rfind("frames.csv:2: file", 0), 0u) << err;
+  }
+  EXPECT_TRUE(parse_frames_csv("t_ns,file\n1,frames/.hidden.png\n", &rows, &err)) << err;
+}

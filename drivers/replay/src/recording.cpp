@@ -304,9 +304,12 @@ bool safe_relative_path(std::string_view f) {
   for (char c : f) {
     if (static_cast<unsigned char>(c) < 0x20 || c == '"') return false;
   }
+  // A file below the directory: no "..", and no "." or trailing "/" that names a directory
+  // ("." alone is the recording directory itself; found by fuzz_recording_frames).
+  if (f.back() == '/') return false;
   const fs::path p{std::string(f)};
   for (const auto& part : p) {
-    if (part == "..") return false;
+    if (part == ".." || part == ".") return false;
   }
   return true;
 }
@@ -602,7 +605,7 @@ bool load_frame(const Recording& rec, size_t i, cv::Mat* image, std::string* err
   return true;
 }
 
-bool write_meta(const std::string& dir, const Meta& m, std::string* error) {
+std::string format_meta_yaml(const Meta& m) {
   const auto& k = m.camera.intrinsics;
   const auto& mt = m.camera.mount;
   std::ostringstream os;
@@ -632,18 +635,22 @@ bool write_meta(const std::string& dir, const Meta& m, std::string* error) {
      << "\n  offset_y_mm: " << fmt_g17(mt.offset_y_mm)
      << "\n  yaw_deg: " << fmt_g17(rad_to_deg(wrap_angle_rad(mt.yaw_rad))) << "\n"
      << "landmark:\n  size_mm: " << fmt_g17(m.landmark_size_mm) << "\n";
+  return os.str();
+}
+
+bool write_meta(const std::string& dir, const Meta& m, std::string* error) {
+  const std::string text = format_meta_yaml(m);
   // Refuse to write what the reader would reject.
   Meta check;
   std::string err;
-  if (!parse_meta_yaml(os.str(), &check, &err)) {
+  if (!parse_meta_yaml(text, &check, &err)) {
     if (error) *error = "refusing to write invalid meta: " + err;
     return false;
   }
-  return write_text(fs::path(dir) / "meta.yaml", os.str(), error);
+  return write_text(fs::path(dir) / "meta.yaml", text, error);
 }
 
-bool write_frames_csv(const std::string& dir, const std::vector<FrameRow>& rows,
-                      std::string* error) {
+bool format_frames_csv(const std::vector<FrameRow>& rows, std::string* text, std::string* error) {
   std::string s = "t_ns,file\n";
   for (const FrameRow& r : rows) {
     if (!safe_relative_path(r.file) || r.file.find(',') != std::string::npos) {
@@ -652,10 +659,17 @@ bool write_frames_csv(const std::string& dir, const std::vector<FrameRow>& rows,
     }
     s += std::to_string(r.t_ns) + "," + r.file + "\n";
   }
-  return write_text(fs::path(dir) / "frames.csv", s, error);
+  *text = std::move(s);
+  return true;
 }
 
-bool write_odom_csv(const std::string& dir, const std::vector<OdomRow>& rows, std::string* error) {
+bool write_frames_csv(const std::string& dir, const std::vector<FrameRow>& rows,
+                      std::string* error) {
+  std::string s;
+  return format_frames_csv(rows, &s, error) && write_text(fs::path(dir) / "frames.csv", s, error);
+}
+
+std::string format_odom_csv(const std::vector<OdomRow>& rows) {
   std::string s = "t_ns,v_mps,omega_radps\n";
   char buf[96];
   for (const OdomRow& r : rows) {
@@ -663,11 +677,14 @@ bool write_odom_csv(const std::string& dir, const std::vector<OdomRow>& rows, st
                   r.omega_radps);
     s += buf;
   }
-  return write_text(fs::path(dir) / "odom.csv", s, error);
+  return s;
 }
 
-bool write_truth_csv(const std::string& dir, const std::vector<TruthRow>& rows,
-                     std::string* error) {
+bool write_odom_csv(const std::string& dir, const std::vector<OdomRow>& rows, std::string* error) {
+  return write_text(fs::path(dir) / "odom.csv", format_odom_csv(rows), error);
+}
+
+std::string format_truth_csv(const std::vector<TruthRow>& rows) {
   std::string s = "t_ns,x_mm,y_mm,theta_deg\n";
   char buf[128];
   for (const TruthRow& r : rows) {
@@ -678,7 +695,12 @@ bool write_truth_csv(const std::string& dir, const std::vector<TruthRow>& rows,
                   r.y_mm, th);
     s += buf;
   }
-  return write_text(fs::path(dir) / "truth.csv", s, error);
+  return s;
+}
+
+bool write_truth_csv(const std::string& dir, const std::vector<TruthRow>& rows,
+                     std::string* error) {
+  return write_text(fs::path(dir) / "truth.csv", format_truth_csv(rows), error);
 }
 
 bool write_frame_png(const std::string& dir, const std::string& relative_file, const cv::Mat& image,

@@ -84,6 +84,13 @@ bool read_file_bounded(const std::string& path, std::uintmax_t max_bytes, std::s
 bool check_replay_span(const Recording& rec, std::int64_t period_ns, std::int64_t max_ticks,
                        std::string* error);
 
+// The text the writers below write (docs/recording.md). Meta and frames round-trip exactly;
+// odom.csv keeps 9 significant digits, truth.csv 0.1 um and 1e-6 degrees.
+std::string format_meta_yaml(const Meta& meta);
+bool format_frames_csv(const std::vector<FrameRow>& rows, std::string* text, std::string* error);
+std::string format_odom_csv(const std::vector<OdomRow>& rows);
+std::string format_truth_csv(const std::vector<TruthRow>& rows);
+
 // Writers create the directory if needed and overwrite the files.
 bool write_meta(const std::string& dir, const Meta& meta, std::string* error);
 bool write_frames_csv(const std::string& dir, const std::vector<FrameRow>& rows,
