@@ -5,8 +5,9 @@
 # Fails on any crash, property violation, leak, timeout (> 1 s for one input), sanitizer report
 # or out-of-memory (> 2 GB RSS). The reproducer lands in $AGV_FUZZ_ARTIFACTS (default
 # build/fuzz/artifacts); rerun it with build/fuzz/fuzz/<harness> <file>.
-# Environment: AGV_FUZZ_JOBS (build parallelism, default nproc), AGV_FUZZ_KEEP_CORPUS=DIR keeps
-# the grown corpus per harness under DIR (for docs/security.md numbers or a longer campaign).
+# Environment: AGV_FUZZ_JOBS (build parallelism, default nproc); AGV_FUZZ_RUNS=N stops a harness
+# after N executions (SECONDS stays the cap); AGV_FUZZ_KEEP_CORPUS=DIR keeps the grown corpus per
+# harness under DIR (to continue a campaign or to minimise it into fuzz/corpus).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds="${1:-60}"
@@ -45,6 +46,7 @@ for h in "${harnesses[@]}"; do
   cp -r "fuzz/corpus/$h/." "$corpus/"
   args=(-max_total_time="$seconds" -timeout=1 -rss_limit_mb=2048 -malloc_limit_mb=2048
         -print_final_stats=1 -artifact_prefix="$artifacts/$h-")
+  [ -n "${AGV_FUZZ_RUNS:-}" ] && args+=(-runs="$AGV_FUZZ_RUNS")
   dict="$(dict_of "$h")"
   [ -n "$dict" ] && args+=(-dict="$dict")
   echo "fuzz: $h for $seconds s"

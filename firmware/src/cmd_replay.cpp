@@ -200,6 +200,7 @@ int replay(int argc, char** argv) {
     const std::int64_t t1 = std::max(rec.frames.empty() ? 0 : rec.frames.back().t_ns,
                                      rec.odom.empty() ? 0 : rec.odom.back().t_ns);
     if (t1 >= t0) ticks.reserve(static_cast<size_t>((t1 - t0) / period_ns) + 16);
+    fixes.reserve(rec.frames.size());  // at most one record per frame
     std::atomic<std::int64_t> loop_time{0};
     app::LogOnlyBus bus(log, nullptr, &loop_time, "can0");
     app::run_fast(cfg, map_ptr, rec, &bus, &ticks, &fixes, &stop_requested(), &result, !quiet,

@@ -28,10 +28,10 @@ namespace {
 // Per-file caps (docs/security.md): with them a hostile recording cannot make the reader hold
 // more than a few hundred MB (the longest legitimate files, odom.csv and truth.csv at 100 Hz, are
 // ~3 MB per hour).
-constexpr std::uintmax_t kMaxMetaBytes = 64u << 10;       // 64 KiB
-constexpr std::uintmax_t kMaxFramesCsvBytes = 16u << 20;  // 16 MiB: ~400k frames
-constexpr std::uintmax_t kMaxTimedCsvBytes = 32u << 20;   // 32 MiB: ~10 h of 100 Hz odometry
-constexpr std::uintmax_t kMaxPngBytes = 64u << 20;        // one frame
+constexpr std::uintmax_t kMaxMetaBytes = 64u << 10;      // 64 KiB
+constexpr std::uintmax_t kMaxFramesCsvBytes = 8u << 20;  // 8 MiB: ~250k frames, 2.3 h at 30 fps
+constexpr std::uintmax_t kMaxTimedCsvBytes = 32u << 20;  // 32 MiB: ~10 h of 100 Hz odometry
+constexpr std::uintmax_t kMaxPngBytes = 64u << 20;       // one frame
 
 // False with *why ("missing", "cannot be read (Too many levels of symbolic links)", "not a
 // regular file", "larger than N bytes") unless `p` is a regular file of at most max_bytes.
