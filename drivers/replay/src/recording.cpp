@@ -597,8 +597,7 @@ bool load_frame(const Recording& rec, size_t i, cv::Mat* image, std::string* err
   if (!png::read_gray(path, &img, &png_error, k.width_px, k.height_px)) {
     if (error) {
       *error = "frames.csv:" + std::to_string(i + 2) + ": cannot decode '" + rec.frames[i].file +
-               "' (" + png_error + "; meta.yaml says " + std::to_string(k.width_px) + "x" +
-               std::to_string(k.height_px) + ")";
+               "' (" + png_error + ")";
     }
     return false;
   }
