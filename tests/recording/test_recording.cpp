@@ -431,3 +431,16 @@ TEST(Recording, FramePathsNameFilesBelowTheRecording) {
   }
   EXPECT_TRUE(parse_frames_csv("t_ns,file\n1,frames/.hidden.png\n", &rows, &err)) << err;
 }
+
+// Issue 15, finding 5: the number of frames (one fix record each in replay) is bounded.
+TEST(Recording, FrameCountIsBounded) {
+  std::string text = "t_ns,file\n";
+  for (int i = 0; i <= kMaxFrames; ++i) text += std::to_string(i) + ",a\n";
+  std::vector<FrameRow> rows;
+  std::string err;
+  EXPECT_FALSE(parse_frames_csv(text, &rows, &err));
+  EXPECT_EQ(err, "frames.csv:250002: more than 250000 frames");
+  text.resize(text.rfind("250000,a\n"));
+  EXPECT_TRUE(parse_frames_csv(text, &rows, &err)) << err;
+  EXPECT_EQ(rows.size(), 250000u);
+}

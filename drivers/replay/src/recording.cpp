@@ -465,6 +465,13 @@ bool parse_frames_csv(const std::string& text, std::vector<FrameRow>* out, std::
                       const std::string& name) {
   std::vector<CsvLine> lines;
   if (!csv_lines(text, name, "t_ns,file", &lines, error)) return false;
+  if (lines.size() > static_cast<size_t>(kMaxFrames)) {
+    if (error) {
+      *error = name + ":" + std::to_string(lines[kMaxFrames].line_no) + ": more than " +
+               std::to_string(kMaxFrames) + " frames";
+    }
+    return false;
+  }
   std::vector<FrameRow> rows;
   rows.reserve(lines.size());
   for (const CsvLine& l : lines) {

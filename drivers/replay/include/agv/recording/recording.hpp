@@ -18,6 +18,8 @@ namespace agv::recording {
 inline constexpr int kFormatVersion = 1;
 // Largest accepted t_ns (2^62 ns, 146 years): sums of a time and a period or delay never overflow.
 inline constexpr std::int64_t kMaxTimeNs = std::int64_t{1} << 62;
+// Most frames a recording may have (2.3 h at 30 fps): replay keeps one 408-byte fix record each.
+inline constexpr int kMaxFrames = 250'000;
 
 struct Meta {
   int format_version = kFormatVersion;
