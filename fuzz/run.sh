@@ -39,7 +39,8 @@ trap 'rm -rf "$work"' EXIT
 export ASAN_OPTIONS="halt_on_error=1:abort_on_error=1:detect_leaks=1:allocator_may_return_null=1"
 export UBSAN_OPTIONS="halt_on_error=1:abort_on_error=1:print_stacktrace=1"
 failed=()
-printf '%-24s %10s %8s %8s %s\n' harness executions exec/s corpus result > "$work/summary"
+printf '%-24s %10s %8s %8s %8s %s\n' harness executions seconds exec/s corpus result \
+  > "$work/summary"
 for h in "${harnesses[@]}"; do
   corpus="$work/corpus_$h"
   mkdir -p "$corpus"
@@ -54,14 +55,17 @@ for h in "${harnesses[@]}"; do
   nice -n 10 "build/fuzz/fuzz/$h" "${args[@]}" "$corpus" >"$work/$h.log" 2>&1 || rc=$?
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$work/$h.log" | tail -1)
   rate=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$work/$h.log" | tail -1)
+  secs=$(sed -n 's/^Done [0-9]* runs in \([0-9]*\) second.*/\1/p' "$work/$h.log" | tail -1)
   files=$(find "$corpus" -type f | wc -l)
   if [ "$rc" -ne 0 ]; then
     failed+=("$h")
     echo "fuzz: $h FAILED (exit $rc); the end of its log:"
     tail -40 "$work/$h.log"
-    printf '%-24s %10s %8s %8s %s\n' "$h" "${execs:-?}" "${rate:-?}" "$files" FAILED >> "$work/summary"
+    printf '%-24s %10s %8s %8s %8s %s\n' "$h" "${execs:-?}" "${secs:-?}" "${rate:-?}" "$files" \
+      FAILED >> "$work/summary"
   else
-    printf '%-24s %10s %8s %8s %s\n' "$h" "${execs:-?}" "${rate:-?}" "$files" ok >> "$work/summary"
+    printf '%-24s %10s %8s %8s %8s %s\n' "$h" "${execs:-?}" "${secs:-?}" "${rate:-?}" "$files" \
+      ok >> "$work/summary"
   fi
   if [ -n "${AGV_FUZZ_KEEP_CORPUS:-}" ]; then
     mkdir -p "$AGV_FUZZ_KEEP_CORPUS/$h" && cp -r "$corpus/." "$AGV_FUZZ_KEEP_CORPUS/$h/"
