@@ -170,6 +170,9 @@ bool parse_config(const std::string& yaml_text, const std::string& base_dir, Con
   try {
     return parse_root(root, base_dir, use, out, errors);
   } catch (const std::exception& e) {
+#ifdef FUZZING_BUILD_MODE_UNSAFE_FOR_PRODUCTION
+    throw;  // fuzz_config: an exception here is a finding (the checker should have named it)
+#endif
     // The checker never lets yaml-cpp throw on any input the fuzzer found; should a new yaml-cpp
     // do so, it is still a configuration error and not an abort.
     errors->push_back(std::string("cannot read the configuration: ") + e.what());
