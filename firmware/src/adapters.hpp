@@ -17,7 +17,10 @@ namespace agv::app {
 class ScaledClock final : public hal::Clock {
  public:
   ScaledClock(hal::Clock& base, std::int64_t t_first_ns, double speed)
-      : base_(base), t_first_ns_(t_first_ns), mono0_ns_(base.now_ns()), speed_(speed) {}
+      : ScaledClock(base, t_first_ns, speed, base.now_ns()) {}
+  // t_first_ns is at base time mono0_ns (e.g. the receive time of the first odometry frame).
+  ScaledClock(hal::Clock& base, std::int64_t t_first_ns, double speed, std::int64_t mono0_ns)
+      : base_(base), t_first_ns_(t_first_ns), mono0_ns_(mono0_ns), speed_(speed) {}
   std::int64_t now_ns() const override { return to_scaled(base_.now_ns()); }
   int sleep_until_ns(std::int64_t t_ns) override { return base_.sleep_until_ns(to_base(t_ns)); }
   std::int64_t to_scaled(std::int64_t mono_ns) const {

@@ -12,6 +12,7 @@
 
 #include "adapters.hpp"
 #include "agv/can/candump_file.hpp"
+#include "agv/can/frame_convert.hpp"
 #include "agv/can/socketcan.hpp"
 #include "agv/posix/posix_clock.hpp"
 #include "agv/posix/realtime.hpp"
@@ -55,6 +56,23 @@ void write_overlays(const config::Config& cfg, const LandmarkMap* map,
       std::fprintf(stderr, "replay: %s\n", err.c_str());
     }
   }
+}
+
+// Waits for the first valid odometry frame on the bus and returns its receive time (monotonic),
+// or -1 when stopped first. With --odom-from-can the sender plays the recording's odometry from
+// its first row: anchoring the replay clock there puts frames and odometry on one time line,
+// whatever the delay between our start and the sender's (it varies with load, and every 10 ms
+// of it would shift the camera against the odometry by 10 ms of travel).
+std::int64_t wait_first_odometry(hal::CanBus& bus, const config::Config& cfg) {
+  protocol::OdometryDecoder decoder(config::protocol_config(cfg));
+  std::fprintf(stderr, "replay: waiting for the first odometry frame on the bus\n");
+  while (!stop_requested().load()) {
+    hal::CanFrame f;
+    if (bus.receive(&f, 100'000'000) != hal::CanStatus::kOk) continue;
+    protocol::OdomSample s;
+    if (decoder.decode(can::from_hal(f), &s) == protocol::DecodeResult::kOk) return f.t_ns;
+  }
+  return -1;
 }
 
 }  // namespace
@@ -167,9 +185,15 @@ int replay(int argc, char** argv) {
         std::fprintf(stderr, "replay: %s\n", posix::explain_realtime_error("mlockall", e).c_str());
     }
     posix::PosixClock mono;
-    const std::int64_t t_first = rec.frames.empty() ? (rec.odom.empty() ? 0 : rec.odom.front().t_ns)
-                                                    : rec.frames.front().t_ns;
-    app::ScaledClock clock(mono, t_first, speed);
+    std::int64_t t_first = rec.frames.empty() ? (rec.odom.empty() ? 0 : rec.odom.front().t_ns)
+                                              : rec.frames.front().t_ns;
+    std::int64_t mono0 = mono.now_ns();
+    if (odom_from_can) {
+      mono0 = wait_first_odometry(*socket_bus, cfg);
+      if (mono0 < 0) return 1;
+      if (!rec.odom.empty()) t_first = rec.odom.front().t_ns;
+    }
+    app::ScaledClock clock(mono, t_first, speed, mono0);
     recording::ReplayCamera camera(rec, &clock);
     std::unique_ptr<hal::CanBus> bus;
     if (socket_bus) {

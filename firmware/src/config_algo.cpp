@@ -54,6 +54,9 @@ void read_deg(YamlChecker& c, const YAML::Node& n, const std::string& p, const c
 void read_fusion(YamlChecker& c, const YAML::Node& root, fusion::EkfConfig* f) {
   const std::string p = "fusion";
   const YAML::Node n = c.section(root, "", "fusion");
+  // First: without calibration states the noise defaults change (keys below still override).
+  c.boolean(n, p, "estimate_odometry_calibration", &f->estimate_odometry_calibration);
+  if (!f->estimate_odometry_calibration) fusion::use_uncalibrated_noise(f);
   c.number(n, p, "accel_sigma_mps2", 0.0, 100.0, &f->accel_sigma_mps2);
   c.number(n, p, "yaw_accel_sigma_radps2", 0.0, 100.0, &f->yaw_accel_sigma_radps2);
   c.number(n, p, "along_track_sigma_mm_per_sqrt_m", 0.0, 1000.0,
@@ -71,7 +74,7 @@ void read_fusion(YamlChecker& c, const YAML::Node& root, fusion::EkfConfig* f) {
   c.number(n, p, "gate_probability", 0.5, 0.999999, &f->gate_probability);
   c.integer(n, p, "kidnap_fixes", 2, 100, &f->kidnap_fixes);
   c.number(n, p, "kidnap_min_separation_mm", 0.0, 100000.0, &f->kidnap_min_separation_mm);
-  c.boolean(n, p, "estimate_odometry_calibration", &f->estimate_odometry_calibration);
+  read_ms(c, n, p, "kidnap_min_duration_ms", 0.0, 600000.0, &f->kidnap_min_duration_ns);
   c.number(n, p, "init_v_scale_sigma", 0.0, 1.0, &f->init_v_scale_sigma);
   c.number(n, p, "init_omega_scale_sigma", 0.0, 1.0, &f->init_omega_scale_sigma);
   read_deg(c, n, p, "init_omega_bias_sigma_degps", 0.0, 90.0, &f->init_omega_bias_sigma_radps);
@@ -86,6 +89,25 @@ void read_fusion(YamlChecker& c, const YAML::Node& root, fusion::EkfConfig* f) {
   c.integer(n, p, "history_capacity", 16, 100000, &hist);
   f->history_capacity = static_cast<std::size_t>(hist);
   read_ms(c, n, p, "max_fix_delay_ms", 1.0, 10000.0, &f->max_fix_delay_ns);
+  read_ms(c, n, p, "max_fix_lead_ms", 0.0, 10000.0, &f->max_fix_lead_ns);
+  std::int64_t held = static_cast<std::int64_t>(f->held_fix_capacity);
+  c.integer(n, p, "held_fix_capacity", 1, 1000, &held);
+  f->held_fix_capacity = static_cast<std::size_t>(held);
+  std::string timing = f->odom_sample_timing == fusion::EkfConfig::OdomSampleTiming::kInstant
+                           ? "instant"
+                           : "period_mean";
+  c.choice(n, p, "odom_sample_timing", {"period_mean", "instant"}, &timing);
+  f->odom_sample_timing = timing == "instant" ? fusion::EkfConfig::OdomSampleTiming::kInstant
+                                              : fusion::EkfConfig::OdomSampleTiming::kPeriodMean;
+  read_ms(c, n, p, "odom_period_ms", 0.1, 1000.0, &f->odom_period_ns);
+  read_ms(c, n, p, "odom_gap_ms", 0.1, 10000.0, &f->odom_gap_ns);
+  c.number(n, p, "gap_accel_sigma_mps2", 0.0, 100.0, &f->gap_accel_sigma_mps2);
+  c.number(n, p, "gap_yaw_accel_sigma_radps2", 0.0, 100.0, &f->gap_yaw_accel_sigma_radps2);
+  c.number(n, p, "gap_yaw_rate_change_sigma_radps", 0.0, 100.0,
+           &f->gap_yaw_rate_change_sigma_radps);
+  c.boolean(n, p, "relocalize_from_single_fix", &f->relocalize_from_single_fix);
+  c.number(n, p, "relocalize_max_fix_sigma_mm", 0.001, 1000.0, &f->relocalize_max_fix_sigma_mm);
+  read_deg(c, n, p, "relocalize_max_fix_sigma_deg", 0.001, 90.0, &f->relocalize_max_fix_sigma_rad);
   read_ms(c, n, p, "localized_timeout_ms", 10.0, 600000.0, &f->localized_timeout_ns);
   read_ms(c, n, p, "odom_timeout_ms", 5.0, 10000.0, &f->odom_timeout_ns);
   c.number(n, p, "lost_position_sigma_mm", 0.1, 10000.0, &f->lost_position_sigma_mm);

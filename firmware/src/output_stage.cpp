@@ -73,7 +73,8 @@ bool OutputStage::odometry_timed_out(std::int64_t now_ns) const {
          now_ns - last_odom_ns_ > static_cast<std::int64_t>(cfg_.can.odometry_timeout_ms * 1e6);
 }
 
-void OutputStage::on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure_ns) {
+void OutputStage::on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure_ns,
+                         std::int64_t t_arrival_ns) {
   using vision::FixStatus;
   switch (fix.status) {
     case FixStatus::kOk:
@@ -95,7 +96,14 @@ void OutputStage::on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure
       return;
   }
   ++stats_.fixes_received;
-  switch (ekf_.add_fix(t_exposure_ns, fix.vehicle_in_world, fix.cov_world)) {
+  if (t_exposure_ns > t_arrival_ns) {
+    ++stats_.fixes_rejected_invalid;
+    rejections_ |= protocol::reject::kGeometry;
+    return;
+  }
+  switch (ekf_.add_fix(t_exposure_ns, fix.vehicle_in_world, fix.cov_world, fix.map_verified)) {
+    case fusion::FixOutcome::kHeld:  // fused (or rejected) when odometry catches up
+      return;
     case fusion::FixOutcome::kFused:
     case fusion::FixOutcome::kInitialised:
       ++stats_.fixes_fused;

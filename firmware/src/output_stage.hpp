@@ -55,8 +55,11 @@ class OutputStage {
   // Drains the CAN receive queue without blocking; odometry frames are decoded, checked and
   // fused, others counted and ignored.
   void poll_can();
-  // A vision result for a frame exposed at t_exposure_ns. Failed fixes only set status flags.
-  void on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure_ns);
+  // A vision result for a frame exposed at t_exposure_ns, ready at t_arrival_ns (same clock).
+  // Failed fixes only set status flags. An exposure after the arrival can only come from a
+  // camera clock that jumped ahead: rejected as invalid, never fused at a time it was not taken.
+  void on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure_ns,
+              std::int64_t t_arrival_ns = INT64_MAX);
   // Camera health as seen by the capture side.
   void set_camera_state(bool stalled, bool error) {
     camera_stalled_ = stalled;

@@ -168,7 +168,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
       if (io.fixes && io.fixes->size() < io.fixes->capacity()) io.fixes->push_back(rec);
       if (pose_on_fix && rec.fix.status == vision::FixStatus::kOk) {
         out_mutex.lock();
-        out.on_fix(rec.fix, rec.t_exposure_ns);
+        out.on_fix(rec.fix, rec.t_exposure_ns, rec.t_done_ns);
         out.send_pose_now(clock.now_ns(), &clock);
         out_mutex.unlock();
       } else if (rec.fix.status != vision::FixStatus::kNoLandmark) {
@@ -209,7 +209,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
         }
       }
       out.poll_can();
-      while (fix_queue.pop(&rec)) out.on_fix(rec.fix, rec.t_exposure_ns);
+      while (fix_queue.pop(&rec)) out.on_fix(rec.fix, rec.t_exposure_ns, rec.t_done_ns);
       out.set_camera_state(now - last_frame_ns.load() > camera_timeout_ns && !camera_eos.load(),
                            camera_error.load());
       TickRecord* tr = nullptr;
@@ -224,7 +224,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
       if (io.stop_at_end_of_stream && camera_eos.load() && vision_busy.load() == 0 &&
           mailbox.closed() && (!io.odometry || odom_i >= io.odometry->size())) {
         // Drain what the worker produced, then stop.
-        while (fix_queue.pop(&rec)) out.on_fix(rec.fix, rec.t_exposure_ns);
+        while (fix_queue.pop(&rec)) out.on_fix(rec.fix, rec.t_exposure_ns, rec.t_done_ns);
         done = true;
       }
       if (pose_on_fix) out_mutex.unlock();
@@ -321,7 +321,7 @@ int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording:
         out.on_odometry(r.t_ns, r.v_mps, r.omega_radps);
       } else {
         const FixRecord& fr = pending[pending_head++];
-        out.on_fix(fr.fix, fr.t_exposure_ns);
+        out.on_fix(fr.fix, fr.t_exposure_ns, fr.t_done_ns);
       }
     }
     if (pending_head == pending.size()) {

@@ -160,6 +160,42 @@ TEST(Config, LoopRealTimeKeysAndTheirRelations) {
                        "loop.spin_before_deadline_us"));
 }
 
+TEST(Config, FusionOdometryTimingAndGapKeys) {
+  Config cfg;
+  std::vector<std::string> errors;
+  ASSERT_TRUE(agv::config::parse_config(
+      std::string(kIntrinsics) +
+          "fusion:\n  odom_sample_timing: instant\n  odom_period_ms: 20\n  odom_gap_ms: 80\n"
+          "  gap_yaw_rate_change_sigma_radps: 0.3\n  max_fix_lead_ms: 150\n  held_fix_capacity: 4\n"
+          "  relocalize_from_single_fix: false\n  relocalize_max_fix_sigma_deg: 1\n"
+          "  kidnap_min_duration_ms: 1500\n",
+      "", &cfg, &errors))
+      << (errors.empty() ? "" : errors.front());
+  using Timing = agv::fusion::EkfConfig::OdomSampleTiming;
+  EXPECT_EQ(cfg.fusion.odom_sample_timing, Timing::kInstant);
+  EXPECT_EQ(cfg.fusion.odom_period_ns, 20'000'000);
+  EXPECT_EQ(cfg.fusion.odom_gap_ns, 80'000'000);
+  EXPECT_DOUBLE_EQ(cfg.fusion.gap_yaw_rate_change_sigma_radps, 0.3);
+  EXPECT_EQ(cfg.fusion.max_fix_lead_ns, 150'000'000);
+  EXPECT_EQ(cfg.fusion.held_fix_capacity, 4u);
+  EXPECT_FALSE(cfg.fusion.relocalize_from_single_fix);
+  EXPECT_NEAR(cfg.fusion.relocalize_max_fix_sigma_rad, agv::deg_to_rad(1.0), 1e-12);
+  EXPECT_EQ(cfg.fusion.kidnap_min_duration_ns, 1'500'000'000);
+  EXPECT_TRUE(mentions(errors_for("fusion:\n  odom_sample_timing: mean\n"), "odom_sample_timing"));
+  // Without calibration states the noise defaults cover the uncalibrated errors; explicit keys
+  // still win, whatever their order in the file.
+  Config plain;
+  ASSERT_TRUE(agv::config::parse_config(
+      std::string(kIntrinsics) +
+          "fusion:\n  cross_track_sigma_mm_per_sqrt_m: 3\n  estimate_odometry_calibration: false\n",
+      "", &plain, &errors));
+  EXPECT_FALSE(plain.fusion.estimate_odometry_calibration);
+  EXPECT_DOUBLE_EQ(plain.fusion.along_track_sigma_mm_per_sqrt_m, 5.0);
+  EXPECT_DOUBLE_EQ(plain.fusion.cross_track_sigma_mm_per_sqrt_m, 3.0);
+  // A gap shorter than one period cannot be told from normal sampling.
+  EXPECT_TRUE(mentions(errors_for("fusion:\n  odom_period_ms: 20\n  odom_gap_ms: 10\n"), "fusion"));
+}
+
 // ---- Issue 15: hostile configurations ------------------------------------------------------
 
 std::string tmp_path(const std::string& name) {

@@ -83,6 +83,7 @@ TEST(Degradation, OdometryLossFlagsAndInvalidatesThePoseThenRecovers) {
     out.tick(t, nullptr, nullptr);
   };
   for (int i = 0; i < 20; ++i) tick(true);
+  const std::int64_t t_fix0 = t;
   out.on_fix(good_fix(0.0), t);
   for (int i = 0; i < 20; ++i) tick(true);
   p::StatusOut st;
@@ -97,10 +98,16 @@ TEST(Degradation, OdometryLossFlagsAndInvalidatesThePoseThenRecovers) {
   EXPECT_FALSE(last_pose_valid(cfg, bus));
 
   for (int i = 0; i < 5; ++i) tick(true);  // resumes (counter jump re-synchronises)
+  ASSERT_TRUE(last_status(cfg, bus, &st));
+  EXPECT_EQ(st.faults & p::fault::kOdomTimeout, 0);
+  // What the vehicle did in the gap is unknown (it may have turned): the pose is valid again
+  // once the covariance says so, at the latest with the next landmark (0.5 m/s along x).
+  out.on_fix(good_fix(0.5e-6 * static_cast<double>(t - t_fix0)), t);
   for (int i = 0; i < 5; ++i) tick(true);
   ASSERT_TRUE(last_status(cfg, bus, &st));
   EXPECT_EQ(st.faults & p::fault::kOdomTimeout, 0);
   EXPECT_TRUE(last_pose_valid(cfg, bus));
+  EXPECT_EQ(st.health, p::Health::kOk);
 }
 
 TEST(Degradation, GarbageOdometryFramesAreRejectedCountedAndFlagged) {
@@ -222,4 +229,24 @@ TEST(OutputStage, PoseOnFixSendsThePoseWithoutWaitingForThePeriod) {
   EXPECT_TRUE(last_pose_valid(cfg, bus));
   ASSERT_EQ(out.stats().end_to_end_ns.count(), 1u);
   EXPECT_EQ(out.stats().end_to_end_ns.max_ns(), 2'000'000);  // exposure -> send
+}
+
+TEST(Degradation, FixExposedAfterItArrivedIsRejectedNotFused) {
+  // A camera clock that jumped ahead stamps frames in the future of the loop's clock.
+  const config::Config cfg = test_config();
+  test::StaticBus bus;
+  app::OutputStage out(cfg, &bus);
+  std::int64_t t = 1'000'000'000;
+  for (std::uint8_t c = 0; c < 10; ++c) {
+    t += 10'000'000;
+    bus.inject(odom(cfg, t, 0.5, c));
+    out.poll_can();
+    out.tick(t, nullptr, nullptr);
+  }
+  out.on_fix(good_fix(0.0), t + 5'000'000, t);
+  EXPECT_EQ(out.stats().fixes_rejected_invalid, 1u);
+  EXPECT_EQ(out.stats().fixes_fused, 0u);
+  EXPECT_FALSE(out.ekf().initialised());
+  out.on_fix(good_fix(0.0), t - 5'000'000, t);
+  EXPECT_EQ(out.stats().fixes_fused, 1u);
 }

@@ -264,31 +264,56 @@ TEST(FusionEkf, KidnapReinitialisesAfterAgreeingFixes) {
   };
   FixOutcome last = FixOutcome::kFused;
   int n_fix = 0;
-  for (int i = 1; i <= 400; ++i) {
+  std::int64_t t_re = 0;
+  for (int i = 1; i <= 600; ++i) {
     const std::int64_t t = i * 10 * kMs;
     ekf.add_odometry(t, 1.0, 0.0);
     if (t >= kS && i % 50 == 0) {  // a fix every 0.5 s
       last = ekf.add_fix(t, kidnapped(t), fix_cov());
       ++n_fix;
+      t_re = t;
       if (last == FixOutcome::kReinitialised) break;
       EXPECT_EQ(last, FixOutcome::kRejectedGate);
     }
   }
   EXPECT_EQ(last, FixOutcome::kReinitialised);
-  EXPECT_EQ(n_fix, 3);  // default kidnap_fixes
+  // Three agreeing fixes (kidnap_fixes) were there after 1 s; the track had to last
+  // kidnap_min_duration_ns (3 s) too: fixes at 1.0, 1.5, ..., 4.0 s.
+  EXPECT_EQ(n_fix, 7);
+  EXPECT_EQ(t_re, 4 * kS);
   EXPECT_EQ(ekf.counters().reinitialisations, 1u);
   EXPECT_TRUE(ekf.take_flags() & flags::kReinitialised);
-  const PoseEstimate e = ekf.estimate_at(2 * kS);
+  const PoseEstimate e = ekf.estimate_at(t_re);
   EXPECT_NEAR(e.pose.x_mm, 5000.0, 1.0);
-  EXPECT_NEAR(e.pose.y_mm, 4000.0, 1.0);
+  EXPECT_NEAR(e.pose.y_mm, 6000.0, 1.0);
   EXPECT_NEAR(e.pose.theta_rad, kPi / 2, 1e-3);
   // Subsequent fixes on the new track are fused normally.
-  ekf.add_odometry(2 * kS + 10 * kMs, 1.0, 0.0);
-  EXPECT_EQ(ekf.add_fix(2 * kS + 10 * kMs, kidnapped(2 * kS + 10 * kMs), fix_cov()),
+  ekf.add_odometry(t_re + 10 * kMs, 1.0, 0.0);
+  EXPECT_EQ(ekf.add_fix(t_re + 10 * kMs, kidnapped(t_re + 10 * kMs), fix_cov()),
             FixOutcome::kFused);
   // Fixes from before the re-initialisation are refused.
-  EXPECT_EQ(ekf.add_fix(2 * kS - 100 * kMs, kidnapped(2 * kS - 100 * kMs), fix_cov()),
+  EXPECT_EQ(ekf.add_fix(t_re - 100 * kMs, kidnapped(t_re - 100 * kMs), fix_cov()),
             FixOutcome::kRejectedTooOld);
+}
+
+TEST(FusionEkf, TransientConsistentDisagreementDoesNotKidnap) {
+  // A camera clock glitch: 2 s of fixes stamped 300 ms late look like a vehicle 300 mm behind,
+  // consistent with each other over three landmarks. Shorter than kidnap_min_duration_ns: the
+  // pose stays, and fixes agree again after it.
+  Ekf ekf{EkfConfig{}};
+  ekf.add_odometry(0, 1.0, 0.0);
+  ekf.add_fix(0, {0.0, 0.0, 0.0}, fix_cov());
+  for (int i = 1; i <= 500; ++i) {
+    const std::int64_t t = i * 10 * kMs;
+    ekf.add_odometry(t, 1.0, 0.0);
+    if (i % 50 == 0) {
+      const bool glitch = t >= 2 * kS && t < 4 * kS;
+      const double x = 1e-6 * static_cast<double>(t) - (glitch ? 300.0 : 0.0);
+      const FixOutcome o = ekf.add_fix(t, {x, 0.0, 0.0}, fix_cov());
+      EXPECT_EQ(o, glitch ? FixOutcome::kRejectedGate : FixOutcome::kFused) << t;
+    }
+  }
+  EXPECT_EQ(ekf.counters().reinitialisations, 0u);
 }
 
 TEST(FusionEkf, RepeatedMisreadOfOneLandmarkDoesNotHijackThePose) {
@@ -442,16 +467,21 @@ TEST(FusionEkf, BadInputsAreRejectedAndCounted) {
   EXPECT_EQ(ekf.add_fix(10 * kMs, good, indefinite), FixOutcome::kRejectedInvalid);
   EXPECT_EQ(ekf.add_fix(10 * kMs, good, Eigen::Matrix3d::Zero()), FixOutcome::kRejectedInvalid);
   EXPECT_EQ(ekf.add_fix(10 * kMs, good, nan_cov), FixOutcome::kRejectedInvalid);
-  // Exposure far after the newest odometry (clock error).
-  EXPECT_EQ(ekf.add_fix(10 * kS, good, fix_cov()), FixOutcome::kRejectedInvalid);
-  EXPECT_EQ(ekf.counters().fixes_rejected_invalid, 8u);  // includes the NaN before init
+  // Exposure far after the newest odometry: held (odometry may be late) without touching the
+  // state...
+  EXPECT_EQ(ekf.add_fix(10 * kS, good, fix_cov()), FixOutcome::kHeld);
+  EXPECT_EQ(ekf.counters().fixes_held, 1u);
+  EXPECT_EQ(ekf.counters().fixes_rejected_invalid, 7u);  // includes the NaN before init
 
   expect_same_estimate(ekf.estimate_at(20 * kMs), before, 0.0);
   const std::uint16_t f = ekf.take_flags();
   EXPECT_EQ(f, flags::kInvalidInput);
   EXPECT_EQ(ekf.take_flags(), 0u);  // cleared
-  // Good data still works.
+  // Good data still works; the next odometry shows the held fix is 10 s ahead of flowing
+  // odometry: a camera clock error, rejected as invalid.
   EXPECT_TRUE(ekf.add_odometry(20 * kMs, 1.0, 0.0));
+  EXPECT_EQ(ekf.counters().fixes_rejected_invalid, 8u);
+  EXPECT_TRUE(ekf.take_flags() & flags::kInvalidInput);
   EXPECT_EQ(ekf.add_fix(20 * kMs, {20.0, 0.0, 0.0}, fix_cov()), FixOutcome::kFused);
 }
 
@@ -541,7 +571,7 @@ TEST(FusionEkf, LearnsOdometryScaleAndYawRateBias) {
   EXPECT_NEAR(e.omega_radps, 0.0, deg_to_rad(0.05));
 
   EkfConfig plain;
-  plain.estimate_odometry_calibration = false;
+  use_uncalibrated_noise(&plain);
   const Ekf five = drive_with_biased_odometry(plain, scale, bias, 30, &err_plain);
   const PoseEstimate f = five.estimate_at(30 * kS);
   EXPECT_EQ(f.odom_v_scale_error, 0.0);  // calibration states stay exactly zero

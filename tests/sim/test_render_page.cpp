@@ -130,3 +130,28 @@ TEST(LandmarkSvg, PhysicalSizeAndElements) {
   EXPECT_NE(sheet.find("id 2  x 1000.0"), std::string::npos);
   EXPECT_TRUE(landmark_sheet_svg(g, LandmarkMap{}, 3).empty());
 }
+
+// The misprinted landmark stays at its map pose but its QR code claims the shifted one.
+TEST(Scene, MisprintShiftsOnlyThePayload) {
+  Scene scene;
+  std::string err;
+  ASSERT_TRUE(
+      make_scene(default_landmark_grid(), LandmarkGeometry{}, PayloadMode::kFull, &scene, &err))
+      << err;
+  const SceneLandmark before = scene.landmarks[7];
+  ASSERT_EQ(before.id, 8u);
+  ASSERT_TRUE(misprint_landmark(&scene, 8, {300.0, -40.0}, &err)) << err;
+  const SceneLandmark& after = scene.landmarks[7];
+  EXPECT_EQ(after.world_pose.x_mm, before.world_pose.x_mm);
+  EXPECT_EQ(after.world_pose.y_mm, before.world_pose.y_mm);
+  LandmarkPayload claimed, truth;
+  ASSERT_EQ(parse_payload(after.pattern.payload(), &claimed), PayloadError::kOk);
+  ASSERT_EQ(parse_payload(before.pattern.payload(), &truth), PayloadError::kOk);
+  EXPECT_EQ(claimed.id, 8u);
+  EXPECT_NEAR(claimed.x_mm, truth.x_mm + 300.0, 1e-6);
+  EXPECT_NEAR(claimed.y_mm, truth.y_mm - 40.0, 1e-6);
+  EXPECT_EQ(claimed.heading_deg, truth.heading_deg);
+  EXPECT_EQ(scene.landmarks[6].pattern.payload(), full_payload({7, scene.landmarks[6].world_pose}));
+  EXPECT_FALSE(misprint_landmark(&scene, 99, {300.0, 0.0}, &err));
+  EXPECT_NE(err.find("99"), std::string::npos);
+}

@@ -81,6 +81,32 @@ TEST(SimCommand, WritesValidDeterministicRecording) {
   for (const auto& d : {a, b, c}) fs::remove_all(d);
 }
 
+// The recording says which odometry sample timing it was made with (default: period mean).
+TEST(SimCommand, RecordsOdometrySampleTiming) {
+  const fs::path a = tmp("timing_default"), b = tmp("timing_instant");
+  const std::vector<std::string> common = {"--duration-s", "0.1", "--fps", "10"};
+  auto with = [&](const fs::path& out, std::vector<std::string> extra) {
+    std::vector<std::string> v = common;
+    v.insert(v.end(), {"--out", out.string()});
+    v.insert(v.end(), extra.begin(), extra.end());
+    return v;
+  };
+  ASSERT_EQ(run_sim(with(a, {})), 0);
+  ASSERT_EQ(run_sim(with(b, {"--odom-sample", "instant", "--misprint", "8:300:0"})), 0);
+  recording::Recording ra, rb;
+  std::string err;
+  ASSERT_TRUE(recording::read_recording(a.string(), &ra, &err)) << err;
+  ASSERT_TRUE(recording::read_recording(b.string(), &rb, &err)) << err;
+  EXPECT_NE(ra.meta.source.find("(odometry samples: period_mean)"), std::string::npos)
+      << ra.meta.source;
+  EXPECT_NE(rb.meta.source.find("(odometry samples: instant)"), std::string::npos)
+      << rb.meta.source;
+  // During the start ramp the period mean lags the instantaneous speed by half a period.
+  ASSERT_GE(ra.odom.size(), 5u);
+  EXPECT_NEAR(rb.odom[4].v_mps - ra.odom[4].v_mps, 0.5 * 0.5 * 0.01 * 1.01, 1e-6);
+  for (const auto& d : {a, b}) fs::remove_all(d);
+}
+
 TEST(SimCommand, RejectsBadArguments) {
   const fs::path d = tmp("bad");
   EXPECT_EQ(run_sim({"--out", d.string(), "--trajectory", "spiral"}), 2);
@@ -88,6 +114,12 @@ TEST(SimCommand, RejectsBadArguments) {
   EXPECT_EQ(run_sim({"--out", d.string(), "--fps", "0"}), 2);
   EXPECT_EQ(run_sim({"--out", d.string(), "--map", "/nonexistent.csv"}), 2);
   EXPECT_EQ(run_sim({"--duration-s", "1"}), 2);  // --out is required
+  EXPECT_EQ(run_sim({"--out", d.string(), "--odom-sample", "mean"}), 2);
+  EXPECT_EQ(run_sim({"--out", d.string(), "--misprint", "8:300"}), 2);
+  EXPECT_EQ(run_sim({"--out", d.string(), "--misprint", "8:300:0x"}), 2);
+  EXPECT_EQ(run_sim({"--out", d.string(), "--misprint", "99:300:0"}), 2);  // not in the map
+  EXPECT_EQ(run_sim({"--out", d.string(), "--misprint", "-4294967288:300:0"}), 2);  // not 8
+  EXPECT_EQ(run_sim({"--out", d.string(), "--misprint", "8:300:0", "--payload", "id"}), 2);
   EXPECT_FALSE(fs::exists(d / "meta.yaml"));
 }
 

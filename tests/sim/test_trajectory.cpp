@@ -111,7 +111,7 @@ TEST(Odometry, ErrorFreeModelMatchesTruth) {
   op.slip_rate_per_s = 0.0;
   for (std::int64_t tn = 0; tn < 30'000'000'000LL; tn += 123'456'789) {
     const MotionState m = trajectory_state(t, tn);
-    const OdometrySample o = odometry_sample(op, {}, m, tn);
+    const OdometrySample o = odometry_sample(op, {}, OdometrySample{m.v_mps, m.omega_radps}, tn);
     EXPECT_NEAR(o.v_mps, m.v_mps, 1e-12);
     EXPECT_NEAR(o.omega_radps, m.omega_radps, 1e-12);
   }
@@ -126,8 +126,9 @@ TEST(Odometry, ScaleNoiseSlipAndDeterminism) {
   for (std::int64_t tn = 2'000'000'000; tn < 6'000'000'000LL; tn += 10'000'000) {
     const MotionState m = trajectory_state(t, tn);  // straight at 0.5 m/s
     ASSERT_EQ(m.omega_radps, 0.0);
-    const OdometrySample o = odometry_sample(op, {}, m, tn);
-    EXPECT_EQ(o.v_mps, odometry_sample(op, {}, m, tn).v_mps);  // pure function of t
+    const OdometrySample o = odometry_sample(op, {}, OdometrySample{m.v_mps, m.omega_radps}, tn);
+    EXPECT_EQ(o.v_mps, odometry_sample(op, {}, OdometrySample{m.v_mps, m.omega_radps}, tn)
+                           .v_mps);  // pure function of t
     sum_ratio += o.v_mps / m.v_mps;
     sum_sq += (o.v_mps - 1.01 * m.v_mps) * (o.v_mps - 1.01 * m.v_mps);
     ++n;
@@ -154,10 +155,109 @@ TEST(Odometry, ScaleNoiseSlipAndDeterminism) {
   }
   op.noise_mps = 0.0;
   const MotionState m = trajectory_state(t, mid);
-  const OdometrySample slipping = odometry_sample(op, shifted, m, mid);
-  const OdometrySample normal = odometry_sample(op, {}, m, mid);
+  const OdometrySample slipping =
+      odometry_sample(op, shifted, OdometrySample{m.v_mps, m.omega_radps}, mid);
+  const OdometrySample normal =
+      odometry_sample(op, {}, OdometrySample{m.v_mps, m.omega_radps}, mid);
   EXPECT_NEAR(slipping.v_mps - normal.v_mps, 0.5 * 0.25 * m.v_mps, 0.01);
   EXPECT_GT(std::abs(slipping.omega_radps), 0.2);
+}
+
+namespace {
+
+OdometryParams error_free(OdomSampleTiming timing) {
+  OdometryParams op;
+  op.scale_error = op.scale_asymmetry = op.noise_mps = 0.0;
+  op.slip_rate_per_s = 0.0;
+  op.timing = timing;
+  return op;
+}
+
+// Time at which the vehicle reaches path length s_mm (after the start ramp).
+std::int64_t time_at_s(const Trajectory& t, double s_mm) {
+  const double v = t.params.speed_mps, a = t.params.accel_mps2;
+  const double ramp_s = v / a, ramp_mm = 500.0 * v * v / a;
+  return static_cast<std::int64_t>(std::llround((ramp_s + (s_mm - ramp_mm) / (1000.0 * v)) * 1e9));
+}
+
+}  // namespace
+
+TEST(Odometry, SampleTimingNames) {
+  for (OdomSampleTiming k : {OdomSampleTiming::kPeriodMean, OdomSampleTiming::kInstant}) {
+    OdomSampleTiming back;
+    ASSERT_TRUE(parse_odom_sample_timing(to_string(k), &back));
+    EXPECT_EQ(back, k);
+  }
+  OdomSampleTiming k;
+  EXPECT_FALSE(parse_odom_sample_timing("mean", &k));
+  EXPECT_EQ(OdometryParams{}.timing, OdomSampleTiming::kPeriodMean);  // what controllers send
+}
+
+// Arc entry of the lawnmower (omega steps from 0 to v * curvature inside one 10 ms period): the
+// period-mean sample integrates to exactly the heading the vehicle turned over the period; the
+// instantaneous sample claims the whole period was turning.
+TEST(Odometry, PeriodMeanIntegratesArcEntryExactly) {
+  TrajectoryParams tp;
+  tp.kind = TrajectoryKind::kLawnmower;
+  tp.speed_mps = 1.0;
+  Trajectory t;
+  ASSERT_TRUE(make_trajectory(tp, &t, nullptr));
+  ASSERT_EQ(t.segments[0].curvature_per_mm, 0.0);
+  ASSERT_NE(t.segments[1].curvature_per_mm, 0.0);
+  const std::int64_t entry = time_at_s(t, t.seg_start_s_mm[1]);
+  const OdometryParams mean = error_free(OdomSampleTiming::kPeriodMean);
+  const OdometryParams inst = error_free(OdomSampleTiming::kInstant);
+  const double period_s = static_cast<double>(mean.period_ns) * 1e-9;
+  for (const std::int64_t into : {1'000'000LL, 3'000'000LL, 7'000'000LL}) {
+    const std::int64_t tn = entry + into;  // sample period [tn - 10 ms, tn] straddles the step
+    const double turned = wrap_angle_rad(trajectory_state(t, tn).pose.theta_rad -
+                                         trajectory_state(t, tn - mean.period_ns).pose.theta_rad);
+    ASSERT_GT(std::abs(turned), 1e-4);
+    EXPECT_NEAR(odometry_sample(mean, {}, t, tn).omega_radps * period_s, turned, 1e-9) << into;
+    const double inst_turn = odometry_sample(inst, {}, t, tn).omega_radps * period_s;
+    EXPECT_GT(std::abs(inst_turn - turned), 0.2 * std::abs(turned)) << into;
+    // Distance too: the mean speed times the period is the distance driven.
+    EXPECT_NEAR(odometry_sample(mean, {}, t, tn).v_mps * period_s * 1000.0,
+                trajectory_state(t, tn).s_mm - trajectory_state(t, tn - mean.period_ns).s_mm, 1e-9);
+  }
+}
+
+// Dead reckoning from error-free period-mean samples over a whole lawnmower lap (start ramp,
+// twelve omega steps) ends where the vehicle is: heading exactly (the samples telescope), position
+// to the arc-vs-chord error of constant-curvature integration. Instantaneous samples do not.
+TEST(Odometry, PeriodMeanSamplesReproduceRoute) {
+  TrajectoryParams tp;
+  tp.kind = TrajectoryKind::kLawnmower;
+  tp.speed_mps = 1.0;
+  Trajectory t;
+  ASSERT_TRUE(make_trajectory(tp, &t, nullptr));
+  auto dead_reckon = [&](OdomSampleTiming timing, double* max_pos_mm, double* max_head_rad) {
+    const OdometryParams op = error_free(timing);
+    const double dt_s = static_cast<double>(op.period_ns) * 1e-9;
+    Pose2 p = t.start;
+    *max_pos_mm = *max_head_rad = 0.0;
+    const std::int64_t end = time_at_s(t, t.length_mm) + 1'000'000'000;
+    for (std::int64_t tn = op.period_ns; tn <= end; tn += op.period_ns) {
+      const OdometrySample o = odometry_sample(op, {}, t, tn);
+      const double ds = 1000.0 * o.v_mps * dt_s, dth = o.omega_radps * dt_s;
+      // Exact for a constant-curvature period: chord length along the mid heading.
+      const double chord = std::abs(dth) < 1e-12 ? ds : ds * std::sin(0.5 * dth) / (0.5 * dth);
+      p.x_mm += chord * std::cos(p.theta_rad + 0.5 * dth);
+      p.y_mm += chord * std::sin(p.theta_rad + 0.5 * dth);
+      p.theta_rad = wrap_angle_rad(p.theta_rad + dth);
+      const Pose2 truth = trajectory_state(t, tn).pose;
+      *max_pos_mm = std::max(*max_pos_mm, std::hypot(p.x_mm - truth.x_mm, p.y_mm - truth.y_mm));
+      *max_head_rad =
+          std::max(*max_head_rad, std::abs(wrap_angle_rad(p.theta_rad - truth.theta_rad)));
+    }
+  };
+  double pos_mm, head_rad;
+  dead_reckon(OdomSampleTiming::kPeriodMean, &pos_mm, &head_rad);
+  EXPECT_LT(head_rad, 1e-9);
+  EXPECT_LT(pos_mm, 0.1);  // periods that straddle an arc entry/exit are not one arc
+  dead_reckon(OdomSampleTiming::kInstant, &pos_mm, &head_rad);
+  EXPECT_GT(head_rad, 1e-3);  // about v * k * period per step until the next step cancels it
+  EXPECT_GT(pos_mm, 1.0);
 }
 
 TEST(DefaultMap, FileMatchesBuiltInGrid) {

@@ -42,8 +42,8 @@ std::string validate(const EkfConfig& c) {
   if (!(c.gate_probability > 0.0 && c.gate_probability < 1.0))
     return "gate_probability must be in (0, 1)";
   if (c.kidnap_fixes < 2) return "kidnap_fixes must be >= 2";
-  if (!finite_nonneg(c.kidnap_min_separation_mm))
-    return "kidnap_min_separation_mm must be finite and >= 0";
+  if (!finite_nonneg(c.kidnap_min_separation_mm) || c.kidnap_min_duration_ns < 0)
+    return "kidnap_min_separation_mm and kidnap_min_duration_ns must be finite and >= 0";
   if (!finite_nonneg(c.init_v_scale_sigma) || !finite_nonneg(c.init_omega_scale_sigma) ||
       !finite_nonneg(c.init_omega_bias_sigma_radps) || !finite_nonneg(c.v_scale_sigma_per_sqrt_s) ||
       !finite_nonneg(c.omega_scale_sigma_per_sqrt_s) ||
@@ -54,6 +54,14 @@ std::string validate(const EkfConfig& c) {
   if (!finite_pos(c.init_v_sigma_mps) || !finite_pos(c.init_omega_sigma_radps))
     return "init sigmas must be finite and > 0";
   if (c.history_capacity < 8) return "history_capacity must be >= 8";
+  if (c.held_fix_capacity < 1) return "held_fix_capacity must be >= 1";
+  if (c.odom_period_ns <= 0 || c.odom_gap_ns < c.odom_period_ns)
+    return "odom_period_ns must be > 0 and odom_gap_ns >= odom_period_ns";
+  if (!finite_nonneg(c.gap_accel_sigma_mps2) || !finite_nonneg(c.gap_yaw_accel_sigma_radps2) ||
+      !finite_nonneg(c.gap_yaw_rate_change_sigma_radps))
+    return "gap sigmas must be finite and >= 0";
+  if (!finite_pos(c.relocalize_max_fix_sigma_mm) || !finite_pos(c.relocalize_max_fix_sigma_rad))
+    return "relocalize_max_fix sigmas must be finite and > 0";
   if (c.max_fix_delay_ns <= 0 || c.max_fix_lead_ns < 0)
     return "max_fix_delay_ns must be > 0 and max_fix_lead_ns >= 0";
   if (c.localized_timeout_ns <= 0 || c.odom_timeout_ns <= 0)
@@ -91,6 +99,8 @@ const char* to_string(FixOutcome o) {
       return "rejected_invalid";
     case FixOutcome::kReinitialised:
       return "reinitialised";
+    case FixOutcome::kHeld:
+      return "held";
   }
   return "?";
 }
@@ -100,7 +110,8 @@ Ekf::Ekf(const EkfConfig& config)
   const std::string err = validate(config_);
   if (!err.empty()) throw std::invalid_argument("EkfConfig: " + err);
   gate_threshold_ = chi2_3dof_quantile(config_.gate_probability);
-  history_.resize(config_.history_capacity);  // the only allocation; never resized later
+  history_.resize(config_.history_capacity);  // the only allocations; never resized later
+  held_.resize(config_.held_fix_capacity);
 }
 
 std::uint16_t Ekf::take_flags() { return std::exchange(pending_flags_, std::uint16_t{0}); }
@@ -156,45 +167,126 @@ void Ekf::predict(FilterVec* x, FilterCov* P, double dt_s, bool velocity_noise) 
 }
 
 void Ekf::update_odometry(FilterVec* x, FilterCov* P, double v_mps, double omega_radps) const {
-  // h(x) = ((1 + s_v) v, (1 + s_omega) omega + b_omega + c_omega_v v); without calibration
-  // those states are 0 and H simply selects v and omega.
-  const Eigen::Matrix2d R =
-      Eigen::Vector2d(config_.odom_v_sigma_mps * config_.odom_v_sigma_mps,
-                      config_.odom_omega_sigma_radps * config_.odom_omega_sigma_radps)
-          .asDiagonal();
-  const double v = (*x)(kIv), w = (*x)(kIomega);
+  // Odometry drives the motion (an input, not a measurement of a random-walk state): the sample
+  // and the calibration give the true speeds,
+  //   v = v_odo / (1 + s_v),  omega = (omega_odo - b_omega - c_omega_v v) / (1 + s_omega),
+  // replacing the previous v and omega. Only fixes teach the calibration, through the
+  // correlation this builds. Fusing the sample as a measurement of (v, omega) instead splits
+  // every yaw-rate step between omega and the bias states by their prior variances: a 1.25
+  // rad/s step before the calibration settled moved b_omega by 0.1 rad/s and the heading by
+  // 5 deg over the next second (tests/fusion/test_ekf_faults.cpp).
   const double sv = (*x)(kIsv), sw = (*x)(kIsomega), bw = (*x)(kIbomega);
   const double cwv = (*x)(kIcomegav);
-  Eigen::Matrix<double, 2, kFilterDim> H = Eigen::Matrix<double, 2, kFilterDim>::Zero();
-  H(0, kIv) = 1.0 + sv;
-  H(0, kIsv) = v;
-  H(1, kIomega) = 1.0 + sw;
-  H(1, kIsomega) = w;
-  H(1, kIbomega) = 1.0;
-  H(1, kIv) = cwv;
-  H(1, kIcomegav) = v;
-  const Eigen::Matrix<double, kFilterDim, 2> PHt = (*P) * H.transpose();
-  const Eigen::Matrix2d S = H * PHt + R;
-  const Eigen::Matrix<double, kFilterDim, 2> K = S.llt().solve(PHt.transpose()).transpose();
-  const Eigen::Vector2d nu(v_mps - (1.0 + sv) * v, omega_radps - ((1.0 + sw) * w + bw + cwv * v));
-  *x += K * nu;
-  (*x)(kItheta) = wrap_angle_rad((*x)(kItheta));
-  // Joseph form: (I - K H) P (I - K H)^T + K R K^T stays symmetric positive definite.
-  const FilterCov IKH = FilterCov::Identity() - K * H;
-  *P = IKH * (*P) * IKH.transpose() + K * R * K.transpose();
+  const double v = v_mps / (1.0 + sv);
+  const double w = (omega_radps - bw - cwv * v) / (1.0 + sw);
+  // New (v, omega) as functions of the old state (J) and of the sample (Jz).
+  Eigen::Matrix<double, 2, kFilterDim> Jvw = Eigen::Matrix<double, 2, kFilterDim>::Zero();
+  const double dv_dsv = -v / (1.0 + sv);
+  Jvw(0, kIsv) = dv_dsv;
+  Jvw(1, kIsv) = -cwv * dv_dsv / (1.0 + sw);
+  Jvw(1, kIsomega) = -w / (1.0 + sw);
+  Jvw(1, kIbomega) = -1.0 / (1.0 + sw);
+  Jvw(1, kIcomegav) = -v / (1.0 + sw);
+  Eigen::Matrix2d Jz;
+  Jz << 1.0 / (1.0 + sv), 0.0, -cwv / ((1.0 + sv) * (1.0 + sw)), 1.0 / (1.0 + sw);
+  const Eigen::Vector2d r(config_.odom_v_sigma_mps * config_.odom_v_sigma_mps,
+                          config_.odom_omega_sigma_radps * config_.odom_omega_sigma_radps);
+  FilterCov J = FilterCov::Identity();
+  J.block<2, kFilterDim>(kIv, 0) = Jvw;
+  FilterCov Pn = J * (*P) * J.transpose();
+  Pn.block<2, 2>(kIv, kIv) += Jz * r.asDiagonal() * Jz.transpose();
+  *P = Pn;
   symmetrize(P);
+  (*x)(kIv) = v;
+  (*x)(kIomega) = w;
 }
 
 void Ekf::propagate_odometry(FilterVec* x, FilterCov* P, double dt_s, double v_mps,
                              double omega_radps) const {
-  // An odometry sample is the mean speed over the period ending at its time stamp (encoder
-  // ticks per period). Model: v and omega change (random walk) at the start of the period, the
-  // sample measures them, and they drive the motion over the period. Predicting with the
-  // previous sample instead would lag by one period: 0.05 mm per 10 ms step at 1 m/s^2, 5 mm
-  // over a 1 s acceleration ramp.
-  add_velocity_noise(P, dt_s);
+  // A period-mean sample is the speed over the period ending at its time stamp (encoder ticks
+  // per period): it replaces v and omega first and then drives the motion over that period.
+  // Predicting with the previous sample instead would lag by one period: 0.05 mm per 10 ms step
+  // at 1 m/s^2, 5 mm over a 1 s acceleration ramp. (No speed random walk before it: the sample
+  // replaces v and omega together with their covariance.)
   update_odometry(x, P, v_mps, omega_radps);
   predict(x, P, dt_s, /*velocity_noise=*/false);
+}
+
+void Ekf::predict_span(FilterVec* x, FilterCov* P, std::int64_t t0_ns, std::int64_t t1_ns,
+                       std::int64_t odom_t_ns) const {
+  if (t1_ns <= t0_ns) {
+    predict(x, P, static_cast<double>(t1_ns - t0_ns) * kNsToS);
+    return;
+  }
+  const std::int64_t known_end =
+      odom_t_ns == kNoOdom ? t0_ns : std::max(t0_ns, odom_t_ns + config_.odom_gap_ns);
+  if (t1_ns <= known_end) {
+    predict(x, P, static_cast<double>(t1_ns - t0_ns) * kNsToS);
+    return;
+  }
+  if (known_end > t0_ns) predict(x, P, static_cast<double>(known_end - t0_ns) * kNsToS);
+  // Unknown motion: the vehicle may have turned into or out of an arc at once (the yaw rate
+  // jumps; added once, where the span enters the unknown part) and accelerated within its
+  // limits. The mean stays the last known speed: the best guess, with a covariance that says so.
+  const bool enters_unknown =
+      odom_t_ns == kNoOdom ? false : t0_ns <= odom_t_ns + config_.odom_gap_ns;
+  if (enters_unknown) {
+    const double j = config_.gap_yaw_rate_change_sigma_radps;
+    (*P)(kIomega, kIomega) += j * j;
+  }
+  // Substeps, so the position variance grows as the integral of the speed's random walk
+  // (sigma^2 T^3 / 3), not as one step's sigma^2 T^3.
+  constexpr std::int64_t kSubstepNs = 100'000'000;
+  const double qa = config_.gap_accel_sigma_mps2 * config_.gap_accel_sigma_mps2;
+  const double qw = config_.gap_yaw_accel_sigma_radps2 * config_.gap_yaw_accel_sigma_radps2;
+  const double v0_mps = std::abs((*x)(kIv));
+  for (std::int64_t t = known_end; t < t1_ns;) {
+    const std::int64_t step = std::min(kSubstepNs, t1_ns - t);
+    const double dt_s = static_cast<double>(step) * kNsToS;
+    (*P)(kIv, kIv) += qa * dt_s;
+    (*P)(kIomega, kIomega) += qw * dt_s;
+    predict(x, P, dt_s, /*velocity_noise=*/false);
+    t += step;
+  }
+  // The linearised covariance puts the travel along the predicted heading; once the heading is
+  // uncertain by a radian or more, the vehicle may have gone any way. Add the expected squared
+  // chord of a heading error (1 - exp(-sigma^2 / 2) of the reachable distance squared) on both
+  // axes: nothing for a small heading sigma, the reachable disk for an unknown heading (a 5 s
+  // gap that starts in a turn and ends on a straight is metres off a linearised 3 sigma).
+  const double tu_s = static_cast<double>(t1_ns - known_end) * kNsToS;
+  const double reach_mm = kMmPerM * (v0_mps * tu_s + config_.gap_accel_sigma_mps2 * tu_s * tu_s);
+  const double chord = 1.0 - std::exp(-0.5 * (*P)(kItheta, kItheta));
+  (*P)(kIx, kIx) += reach_mm * reach_mm * chord;
+  (*P)(kIy, kIy) += reach_mm * reach_mm * chord;
+}
+
+void Ekf::apply_odometry(FilterVec* x, FilterCov* P, std::int64_t t_prev_ns, std::int64_t odom_t_ns,
+                         std::int64_t t_ns, double v_mps, double omega_radps) const {
+  const bool instant = config_.odom_sample_timing == EkfConfig::OdomSampleTiming::kInstant;
+  if (is_gap(odom_t_ns, t_ns)) {
+    // After a gap the sample says how fast the vehicle goes now (over its own period), not how
+    // it moved during the gap: the gap is predicted as unknown motion up to the sample's period.
+    const std::int64_t span_start =
+        std::max(t_prev_ns, t_ns - (instant ? std::int64_t{0} : config_.odom_period_ns));
+    predict_span(x, P, t_prev_ns, span_start, odom_t_ns);
+    if (instant) {
+      update_odometry(x, P, v_mps, omega_radps);
+    } else {
+      propagate_odometry(x, P, static_cast<double>(t_ns - span_start) * kNsToS, v_mps, omega_radps);
+    }
+    return;
+  }
+  const double dt_s = static_cast<double>(t_ns - t_prev_ns) * kNsToS;
+  if (instant) {
+    // Speeds at both ends of the period: the motion over it is their mean (trapezoid), so a
+    // step in the yaw rate turns the heading by half the step times the period, as it did.
+    add_velocity_noise(P, dt_s);
+    predict(x, P, 0.5 * dt_s, /*velocity_noise=*/false);
+    update_odometry(x, P, v_mps, omega_radps);
+    predict(x, P, 0.5 * dt_s, /*velocity_noise=*/false);
+  } else {
+    propagate_odometry(x, P, dt_s, v_mps, omega_radps);
+  }
 }
 
 void Ekf::update_fix(FilterVec* x, FilterCov* P, const Eigen::Vector3d& z,
@@ -221,6 +313,17 @@ double Ekf::mahalanobis_sq(const FilterVec& x, const FilterCov& P, const Eigen::
   const Eigen::LLT<Eigen::Matrix3d> llt(S);
   if (llt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
   return nu.dot(llt.solve(nu));
+}
+
+bool Ekf::prior_lost(const FilterCov& P, double* position_sigma_mm,
+                     double* heading_sigma_rad) const {
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(P.topLeftCorner<2, 2>(),
+                                                           Eigen::EigenvaluesOnly);
+  const double ps = std::sqrt(std::max(0.0, eig.eigenvalues()(1)));
+  const double hs = std::sqrt(std::max(0.0, P(kItheta, kItheta)));
+  if (position_sigma_mm) *position_sigma_mm = ps;
+  if (heading_sigma_rad) *heading_sigma_rad = hs;
+  return !(ps <= config_.lost_position_sigma_mm) || !(hs <= config_.lost_heading_sigma_rad);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -266,13 +369,14 @@ void Ekf::process_event(const Event& prev, Event* ev) const {
   }
   FilterVec x = prev.x;
   FilterCov P = prev.P;
-  const double dt_s = static_cast<double>(ev->t_ns - prev.t_ns) * kNsToS;
+  const std::int64_t odom_t = odom_time_after(prev);
   if (ev->kind == EventKind::kOdom) {
-    propagate_odometry(&x, &P, dt_s, ev->v_mps, ev->omega_radps);
+    apply_odometry(&x, &P, prev.t_ns, odom_t, ev->t_ns, ev->v_mps, ev->omega_radps);
   } else {
-    predict(&x, &P, dt_s);
+    predict_span(&x, &P, prev.t_ns, ev->t_ns, odom_t);
     update_fix(&x, &P, ev->z, ev->R);
   }
+  ev->odom_t_ns = odom_t;
   ev->x = x;
   ev->P = P;
   ev->valid = true;
@@ -305,6 +409,11 @@ bool Ekf::add_odometry(std::int64_t t_ns, double v_mps, double omega_radps) {
     pending_flags_ |= flags::kInvalidInput;
     return false;
   }
+  release_held_before(t_ns);
+  if (have_odom_ && is_gap(last_odom_t_ns_, t_ns)) {
+    ++counters_.odom_gaps;
+    pending_flags_ |= flags::kOdomGap;
+  }
   Event ev;
   ev.t_ns = t_ns;
   ev.kind = EventKind::kOdom;
@@ -321,7 +430,51 @@ bool Ekf::add_odometry(std::int64_t t_ns, double v_mps, double omega_radps) {
   } else {
     ++counters_.odom_stored_uninitialised;
   }
+  settle_held_after(t_ns);
   return true;
+}
+
+void Ekf::hold_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::Matrix3d& R_in,
+                   bool map_verified) {
+  if (held_count_ == held_.size()) {  // the newest fixes are worth more: drop the oldest
+    std::move(held_.begin() + 1, held_.begin() + static_cast<long>(held_count_), held_.begin());
+    --held_count_;
+    ++counters_.fixes_held_dropped;
+  }
+  std::size_t i = held_count_++;
+  held_[i] = HeldFix{t_ns, z_world, R_in, map_verified};
+  while (i > 0 && held_[i - 1].t_ns > held_[i].t_ns) {
+    std::swap(held_[i - 1], held_[i]);
+    --i;
+  }
+  ++counters_.fixes_held;
+}
+
+void Ekf::release_held_before(std::int64_t t_ns) {
+  std::size_t n = 0;
+  while (n < held_count_ && held_[n].t_ns < t_ns) {
+    const HeldFix h = held_[n++];
+    fuse_fix(h.t_ns, h.z, h.R, h.map_verified, /*from_hold=*/true);
+  }
+  std::move(held_.begin() + static_cast<long>(n), held_.begin() + static_cast<long>(held_count_),
+            held_.begin());
+  held_count_ -= n;
+}
+
+void Ekf::settle_held_after(std::int64_t t_ns) {
+  // Odometry flows again: what is still further ahead than max_fix_lead_ns comes from a camera
+  // clock that runs ahead, not from late odometry.
+  const std::size_t n = held_count_;
+  held_count_ = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const HeldFix h = held_[i];
+    if (h.t_ns > t_ns + config_.max_fix_lead_ns) {
+      ++counters_.fixes_rejected_invalid;
+      pending_flags_ |= flags::kInvalidInput;
+    } else {
+      fuse_fix(h.t_ns, h.z, h.R, h.map_verified, /*from_hold=*/false);
+    }
+  }
 }
 
 void Ekf::initialise_at(std::int64_t t_ns, const FilterVec& x, const FilterCov& P) {
@@ -333,6 +486,7 @@ void Ekf::initialise_at(std::int64_t t_ns, const FilterVec& x, const FilterCov& 
   ev.x(kItheta) = wrap_angle_rad(ev.x(kItheta));
   ev.P = P;
   const std::size_t i = insert_event(ev);
+  at(i).odom_t_ns = odom_time_before(i);
   replay_from(i + 1);
   counters_.events_replayed += size_ - i - 1;
   initialised_ = true;
@@ -351,15 +505,16 @@ bool Ekf::kidnap_candidate(std::int64_t t_ns, const Eigen::Vector3d& z, const Ei
     FilterVec x = hyp_.x;
     FilterCov P = hyp_.P;
     std::int64_t tc = hyp_.t_ns;
-    for (std::size_t i = static_cast<std::size_t>(find_last_at_or_before(hyp_.t_ns) + 1);
-         i < size_ && at(i).t_ns <= t_ns; ++i) {
+    const long k0 = find_last_at_or_before(hyp_.t_ns);
+    std::int64_t odom_t = k0 < 0 ? kNoOdom : odom_time_after(at(static_cast<std::size_t>(k0)));
+    for (std::size_t i = static_cast<std::size_t>(k0 + 1); i < size_ && at(i).t_ns <= t_ns; ++i) {
       const Event& ev = at(i);
       if (ev.kind != EventKind::kOdom) continue;
-      propagate_odometry(&x, &P, static_cast<double>(ev.t_ns - tc) * kNsToS, ev.v_mps,
-                         ev.omega_radps);
+      apply_odometry(&x, &P, tc, odom_t, ev.t_ns, ev.v_mps, ev.omega_radps);
       tc = ev.t_ns;
+      odom_t = ev.t_ns;
     }
-    predict(&x, &P, static_cast<double>(t_ns - tc) * kNsToS);
+    predict_span(&x, &P, tc, t_ns, odom_t);
     if (mahalanobis_sq(x, P, z, R) <= gate_threshold_) {
       update_fix(&x, &P, z, R);
       hyp_.x = x;
@@ -378,6 +533,7 @@ bool Ekf::kidnap_candidate(std::int64_t t_ns, const Eigen::Vector3d& z, const Ei
   }
   if (!extended) {
     hyp_.count = 1;
+    hyp_.t_first_ns = t_ns;
     hyp_.t_ns = t_ns;
     hyp_.x_count_mm = z(0);
     hyp_.y_count_mm = z(1);
@@ -390,7 +546,8 @@ bool Ekf::kidnap_candidate(std::int64_t t_ns, const Eigen::Vector3d& z, const Ei
     hyp_.P.bottomRightCorner<kFilterDim - 3, kFilterDim - 3>() =
         prior_P.bottomRightCorner<kFilterDim - 3, kFilterDim - 3>();
   }
-  if (hyp_.count >= config_.kidnap_fixes) {
+  if (hyp_.count >= config_.kidnap_fixes &&
+      hyp_.t_ns - hyp_.t_first_ns >= config_.kidnap_min_duration_ns) {
     const FilterVec x = hyp_.x;
     const FilterCov P = hyp_.P;
     initialise_at(t_ns, x, P);
@@ -401,7 +558,29 @@ bool Ekf::kidnap_candidate(std::int64_t t_ns, const Eigen::Vector3d& z, const Ei
   return false;
 }
 
-FixOutcome Ekf::add_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::Matrix3d& R_in) {
+void Ekf::relocalize(std::int64_t t_ns, const Eigen::Vector3d& z, const Eigen::Matrix3d& R,
+                     const FilterVec& prior_x, const FilterCov& prior_P) {
+  FilterVec x = prior_x;
+  x.head<3>() = z;
+  FilterCov P = FilterCov::Zero();
+  P.topLeftCorner<3, 3>() = R;
+  // Speed and calibration do not change with the pose error; their correlation with the old,
+  // lost pose is meaningless now.
+  P.bottomRightCorner<kFilterDim - 3, kFilterDim - 3>() =
+      prior_P.bottomRightCorner<kFilterDim - 3, kFilterDim - 3>();
+  initialise_at(t_ns, x, P);
+  ++counters_.reinitialisations;
+  ++counters_.relocalisations;
+  pending_flags_ |= flags::kReinitialised;
+}
+
+FixOutcome Ekf::add_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::Matrix3d& R_in,
+                        bool map_verified) {
+  return fuse_fix(t_ns, z_world, R_in, map_verified, /*from_hold=*/false);
+}
+
+FixOutcome Ekf::fuse_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::Matrix3d& R_in,
+                         bool map_verified, bool from_hold) {
   auto reject_invalid = [this]() {
     ++counters_.fixes_rejected_invalid;
     pending_flags_ |= flags::kInvalidInput;
@@ -432,8 +611,10 @@ FixOutcome Ekf::add_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::Ma
     newest_t = last_odom_t_ns_;
     have_newest = true;
   }
-  if (have_newest && have_odom_ && t_ns > last_odom_t_ns_ + config_.max_fix_lead_ns)
-    return reject_invalid();
+  if (!from_hold && have_odom_ && t_ns > last_odom_t_ns_ + config_.max_fix_lead_ns) {
+    hold_fix(t_ns, z_world, R_in, map_verified);
+    return FixOutcome::kHeld;
+  }
 
   Eigen::Matrix3d R = config_.fix_cov_scale * R_in;
   R(0, 0) += config_.fix_floor_sigma_mm * config_.fix_floor_sigma_mm;
@@ -484,9 +665,16 @@ FixOutcome Ekf::add_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::Ma
   const Event& base = at(static_cast<std::size_t>(k));
   FilterVec x = base.x;
   FilterCov P = base.P;
-  predict(&x, &P, static_cast<double>(t_ns - base.t_ns) * kNsToS);
+  predict_span(&x, &P, base.t_ns, t_ns, odom_time_after(base));
   const double d2 = mahalanobis_sq(x, P, z, R);
   last_fix_d2_ = d2;
+  if (config_.relocalize_from_single_fix && map_verified && prior_lost(P) &&
+      std::sqrt(R_in.topLeftCorner<2, 2>().diagonal().maxCoeff()) <=
+          config_.relocalize_max_fix_sigma_mm &&
+      std::sqrt(R_in(2, 2)) <= config_.relocalize_max_fix_sigma_rad) {
+    relocalize(t_ns, z, R, x, P);
+    return FixOutcome::kReinitialised;
+  }
   if (!(d2 <= gate_threshold_)) {
     ++counters_.fixes_rejected_gate;
     pending_flags_ |= flags::kRejectedGate;
@@ -505,6 +693,7 @@ FixOutcome Ekf::add_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::Ma
   ev.valid = true;
   ev.x = x;
   ev.P = P;
+  ev.odom_t_ns = odom_time_after(base);
   const std::size_t i = insert_event(ev);
   const bool delayed = i + 1 < size_;
   replay_from(i + 1);
@@ -542,7 +731,7 @@ PoseEstimate Ekf::estimate_at(std::int64_t t_ns) const {
   const Event& base = at(static_cast<std::size_t>(k));
   FilterVec x = base.x;
   FilterCov P = base.P;
-  predict(&x, &P, static_cast<double>(t_ns - base.t_ns) * kNsToS);
+  predict_span(&x, &P, base.t_ns, t_ns, odom_time_after(base));
   e.valid = true;
   e.pose = {x(kIx), x(kIy), wrap_angle_rad(x(kItheta))};
   e.v_mps = x(kIv);
@@ -552,13 +741,8 @@ PoseEstimate Ekf::estimate_at(std::int64_t t_ns) const {
   e.odom_omega_scale_error = x(kIsomega);
   e.odom_omega_bias_radps = x(kIbomega);
   e.odom_omega_per_v_radpm = x(kIcomegav);
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(P.topLeftCorner<2, 2>(),
-                                                           Eigen::EigenvaluesOnly);
-  e.position_sigma_mm = std::sqrt(std::max(0.0, eig.eigenvalues()(1)));
-  e.heading_sigma_rad = std::sqrt(std::max(0.0, P(kItheta, kItheta)));
   e.time_since_fix_ns = have_fix_ ? std::max<std::int64_t>(0, t_ns - last_fix_t_ns_) : -1;
-  const bool cov_limit = !(e.position_sigma_mm <= config_.lost_position_sigma_mm) ||
-                         !(e.heading_sigma_rad <= config_.lost_heading_sigma_rad);
+  const bool cov_limit = prior_lost(P, &e.position_sigma_mm, &e.heading_sigma_rad);
   if (cov_limit) e.flags |= flags::kCovarianceLimit;
   if (odom_timeout || cov_limit) {
     e.health = HealthState::kLost;

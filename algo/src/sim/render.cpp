@@ -326,6 +326,23 @@ bool make_scene(const LandmarkMap& map, const LandmarkGeometry& geometry, Payloa
   return true;
 }
 
+bool misprint_landmark(Scene* scene, std::uint32_t id, Vec2 offset_mm, std::string* error) {
+  for (SceneLandmark& l : scene->landmarks) {
+    if (l.id != id) continue;
+    LandmarkMapEntry claimed{id, l.world_pose};
+    claimed.pose.x_mm += offset_mm.x;
+    claimed.pose.y_mm += offset_mm.y;
+    const std::string payload = full_payload(claimed);
+    if (payload.empty()) {
+      if (error) *error = "landmark " + std::to_string(id) + ": misprinted pose out of range";
+      return false;
+    }
+    return LandmarkPattern::make(scene->geometry, payload, &l.pattern, error);
+  }
+  if (error) *error = "landmark " + std::to_string(id) + " is not in the map";
+  return false;
+}
+
 RenderOptions realistic_options() {
   RenderOptions o;
   o.defocus_sigma_px = 0.8;

@@ -205,8 +205,53 @@ double hash_gauss(std::uint64_t seed, std::int64_t t_ns, std::uint64_t stream) {
 
 }  // namespace
 
+bool parse_odom_sample_timing(const std::string& name, OdomSampleTiming* out) {
+  if (name == "period_mean") {
+    *out = OdomSampleTiming::kPeriodMean;
+  } else if (name == "instant") {
+    *out = OdomSampleTiming::kInstant;
+  } else {
+    return false;
+  }
+  return true;
+}
+
+const char* to_string(OdomSampleTiming t) {
+  return t == OdomSampleTiming::kPeriodMean ? "period_mean" : "instant";
+}
+
+OdometrySample true_odometry(const OdometryParams& p, const Trajectory& tr, std::int64_t t_ns) {
+  const MotionState now = trajectory_state(tr, t_ns);
+  if (p.timing == OdomSampleTiming::kInstant || p.period_ns <= 0) {
+    return {now.v_mps, now.omega_radps};
+  }
+  // Encoder ticks over the period = distance and heading change between its ends. The heading
+  // change is unwrapped by summing wrapped differences over sub-intervals that each turn less
+  // than a quarter turn at the path's tightest curvature (one sub-interval at ordinary rates).
+  double k_max = 0.0;
+  for (const Segment& seg : tr.segments) k_max = std::max(k_max, std::abs(seg.curvature_per_mm));
+  const double period_s = static_cast<double>(p.period_ns) * 1e-9;
+  const double max_turn_rad = tr.params.speed_mps * 1000.0 * k_max * period_s;
+  const auto n = static_cast<std::int64_t>(std::ceil(max_turn_rad / (0.5 * kPi))) + 1;
+  MotionState prev = trajectory_state(tr, t_ns - p.period_ns);
+  const double s0_mm = prev.s_mm;
+  double turned_rad = 0.0;
+  for (std::int64_t i = 1; i <= n; ++i) {
+    const MotionState cur =
+        i == n ? now : trajectory_state(tr, t_ns - p.period_ns + p.period_ns * i / n);
+    turned_rad += wrap_angle_rad(cur.pose.theta_rad - prev.pose.theta_rad);
+    prev = cur;
+  }
+  return {(now.s_mm - s0_mm) * 1e-3 / period_s, turned_rad / period_s};
+}
+
 OdometrySample odometry_sample(const OdometryParams& p, const std::vector<SlipEvent>& slips,
-                               const MotionState& truth, std::int64_t t_ns) {
+                               const Trajectory& tr, std::int64_t t_ns) {
+  return odometry_sample(p, slips, true_odometry(p, tr, t_ns), t_ns);
+}
+
+OdometrySample odometry_sample(const OdometryParams& p, const std::vector<SlipEvent>& slips,
+                               const OdometrySample& truth, std::int64_t t_ns) {
   const double b_m = p.wheelbase_mm * 1e-3;
   const double vl = truth.v_mps - 0.5 * truth.omega_radps * b_m;
   const double vr = truth.v_mps + 0.5 * truth.omega_radps * b_m;

@@ -823,6 +823,7 @@ FixStatus LandmarkLocalizer::Impl::check_payload(const std::string& text, Landma
     }
     *world_landmark = pp;
   }
+  out->map_verified = map != nullptr;
   return FixStatus::kOk;
 }
 

@@ -96,6 +96,12 @@ struct SynthParams {
   double v_noise_mps = 0.003;  // per 10 ms sample
   double omega_noise_radps = 0.002;
   double camera_offset_x_mm = 0.0;
+  // "grid": random runs along the grid lines with turns in place on landmarks. "lawnmower": rows
+  // 1 m apart across grid_cells landmarks at v_max, leaving the grid at each end for a leg of
+  // lawnmower_out_m straight, a half circle of radius 0.5 grid and the same straight back
+  // (5.6 s at 1 m/s with 2 m: the long legs without a landmark), yaw rate stepping at each arc.
+  std::string route = "grid";
+  double lawnmower_out_m = 2.0;
   std::uint64_t seed = 1;
 };
 
@@ -177,6 +183,28 @@ World make_synthetic_world(const SynthParams& p, double grid_mm) {
   const int dxs[4] = {1, 0, -1, 0}, dys[4] = {0, 1, 0, -1};
   const std::int64_t end_ns = static_cast<std::int64_t>(p.duration_s * 1e9);
   dwell(1.0);
+  if (p.route == "lawnmower") {
+    // Start 1 m before the first landmark of row 0, ramp up, then rows back and forth.
+    const double v = p.v_max_mps;
+    const Profile ramp(1.0, v, p.accel_mps2);
+    for (int i = 0; i < static_cast<int>(std::ceil(ramp.t_acc / dt)); ++i)
+      advance(p.accel_mps2 * (i + 0.5) * dt, 0.0);
+    double sign = 1.0;  // left turns going +x, right turns going -x: rows stack up in +y
+    while (t < end_ns) {
+      const double straight_m = (p.grid_cells - 1) * grid_mm / 1000.0 + 2.0 * p.lawnmower_out_m;
+      const double first_m = (t < 3'000'000'000LL) ? straight_m - 0.5 * ramp.t_acc * v : straight_m;
+      for (int i = 0; i < static_cast<int>(first_m / v / dt); ++i) advance(v, 0.0);
+      // Whole 1 ms steps turning exactly pi, so the rows stay on the landmark lines.
+      const double radius_m = 0.5 * grid_mm / 1000.0;
+      const int n = static_cast<int>(std::lround(agv::kPi * radius_m / v / dt));
+      const double om = agv::kPi / (n * dt);
+      for (int i = 0; i < n; ++i) advance(om * radius_m, sign * om);
+      sign = -sign;
+    }
+    const std::int64_t frame_ns = 33'333'333;
+    for (std::int64_t tf = frame_ns; tf < t; tf += frame_ns) w.frames_ns.push_back(tf);
+    return w;
+  }
   while (t < end_ns) {
     // Longest run possible in the current direction, then a random length 1..8 within it.
     int room = 0;
@@ -256,6 +284,8 @@ struct FixParams {
   // sweep); otherwise all kinds.
   double offset_only_min_mm = 0.0, offset_only_max_mm = 0.0;
   std::int64_t delay_ns = 0;
+  // Landmarks exist only for x in [0, grid_max_x_mm] when > 0 (the lawnmower route's grid).
+  double grid_max_x_mm = 0.0;
   std::uint64_t seed = 7;
 };
 
@@ -305,6 +335,7 @@ std::vector<SimFix> simulate_fixes(const World& w, const FixParams& p) {
     const Pose2 cam = agv::compose(truth, mount);
     const Pose2 lm{std::round(cam.x_mm / p.grid_mm) * p.grid_mm,
                    std::round(cam.y_mm / p.grid_mm) * p.grid_mm, 0.0};
+    if (p.grid_max_x_mm > 0.0 && (lm.x_mm < 0.0 || lm.x_mm > p.grid_max_x_mm)) continue;
     const Pose2 in_cam = agv::compose(agv::inverse(cam), lm);
     if (std::abs(in_cam.x_mm) > p.visible_half_x_mm || std::abs(in_cam.y_mm) > p.visible_half_y_mm)
       continue;
@@ -399,6 +430,7 @@ double percentile(std::vector<double> v, double q) {
 struct RunResult {
   std::vector<double> at_landmark_mm, at_landmark_deg;
   std::vector<double> midway_mm, all_mm, all_deg;
+  std::vector<double> between_mm;  // ticks >= 200 ms after the last fused fix (as replay's)
   long good_fixes = 0, good_fused = 0, good_rejected = 0;
   long outliers = 0, outliers_accepted = 0;
   long outliers_by_kind[6] = {}, accepted_by_kind[6] = {};
@@ -464,27 +496,29 @@ RunResult run(const World& w, const std::vector<SimFix>& fixes, const EkfConfig&
     const double lx = std::round(cam.x_mm / grid_mm) * grid_mm;
     const double ly = std::round(cam.y_mm / grid_mm) * grid_mm;
     if (std::hypot(cam.x_mm - lx, cam.y_mm - ly) >= 0.45 * grid_mm) r.midway_mm.push_back(err);
+    if (e.time_since_fix_ns >= 200 * kMsNs) r.between_mm.push_back(err);
   }
   r.counters = ekf.counters();
   return r;
 }
 
 void print_header() {
-  std::printf("%-34s %5s %7s %7s %7s %8s | %7s %7s | %7s %7s %7s | %6s %6s %5s %7s | %5s\n",
+  std::printf("%-34s %5s %7s %7s %7s %8s | %7s %7s %7s | %7s %7s %7s | %6s %6s %5s %7s | %5s\n",
               "scenario", "lm_n", "lm_p50", "lm_p95", "lm_max", "lm_p95d", "mid_p50", "mid_p95",
-              "all_p95", "all_max", "all95d", "fixes", "rejG", "outl", "outlAcc", "reini");
+              "btw_p95", "all_p95", "all_max", "all95d", "fixes", "rejG", "outl", "outlAcc",
+              "reini");
 }
 
 void print_row(const char* name, const RunResult& r) {
   std::printf(
-      "%-34s %5zu %7.3f %7.3f %7.3f %8.4f | %7.2f %7.2f | %7.2f %7.2f %7.3f | %6ld %6ld %5ld %7ld "
-      "| "
-      "%5llu\n",
+      "%-34s %5zu %7.3f %7.3f %7.3f %8.4f | %7.2f %7.2f %7.2f | %7.2f %7.2f %7.3f | %6ld %6ld "
+      "%5ld %7ld | %5llu\n",
       name, r.at_landmark_mm.size(), percentile(r.at_landmark_mm, 0.5),
       percentile(r.at_landmark_mm, 0.95), percentile(r.at_landmark_mm, 1.0),
       percentile(r.at_landmark_deg, 0.95), percentile(r.midway_mm, 0.5),
-      percentile(r.midway_mm, 0.95), percentile(r.all_mm, 0.95), percentile(r.all_mm, 1.0),
-      percentile(r.all_deg, 0.95), r.good_fixes, r.good_rejected, r.outliers, r.outliers_accepted,
+      percentile(r.midway_mm, 0.95), percentile(r.between_mm, 0.95), percentile(r.all_mm, 0.95),
+      percentile(r.all_mm, 1.0), percentile(r.all_deg, 0.95), r.good_fixes, r.good_rejected,
+      r.outliers, r.outliers_accepted,
       static_cast<unsigned long long>(r.counters.reinitialisations));
 }
 
@@ -492,7 +526,8 @@ void usage() {
   std::fprintf(stderr,
                "usage: eval_fusion [--recording DIR] [--duration S] [--seed N] [--drift DEGPS]\n"
                "                   [--scale-error F] [--grid MM] [--window full|partial]\n"
-               "                   [--kidnap-fixes N] [--quick]\n");
+               "                   [--kidnap-fixes N] [--route grid|lawnmower]\n"
+               "                   [--lawnmower-out M] [--quick]\n");
 }
 
 }  // namespace
@@ -534,6 +569,14 @@ int main(int argc, char** argv) {
         usage();
         return 2;
       }
+    } else if (a == "--route") {
+      sp.route = next();
+      if (sp.route != "grid" && sp.route != "lawnmower") {
+        usage();
+        return 2;
+      }
+    } else if (a == "--lawnmower-out") {
+      sp.lawnmower_out_m = std::atof(next());
     } else if (a == "--quick") {
       sp.duration_s = 60.0;
     } else {
@@ -585,11 +628,13 @@ int main(int argc, char** argv) {
       "columns: lm_* = position error (mm) at the fix exposure after fusing it, for fixes "
       "taken\n  at >= 0.5 m/s (lm_n of them), lm_p95d heading (deg);\n  mid_* = real-time error "
       "(mm) with the camera >= 0.45 grid from any landmark; "
-      "all_* over all\n  output ticks after 2 s; fixes = good fixes, rejG = good fixes rejected "
+      "btw_p95 at ticks >= 200 ms after the last fused fix;\n  all_* over all"
+      "\n  output ticks after 2 s; fixes = good fixes, rejG = good fixes rejected "
       "by the gate,\n  outl/outlAcc = corrupted fixes / accepted; reini = re-initialisations\n");
 
   FixParams fp;
   fp.grid_mm = grid_mm;
+  if (sp.route == "lawnmower") fp.grid_max_x_mm = (sp.grid_cells - 1) * grid_mm;
   if (partial_window) {
     // The vision stage also measures a landmark cut by the image border as long as the QR code
     // and one complete side per axis are inside: centre within about +-40 / +-60 mm.
@@ -676,7 +721,7 @@ int main(int argc, char** argv) {
   }
   // The plain 5-state filter of paper 000 (no odometry calibration states), same data.
   EkfConfig cfg5 = cfg;
-  cfg5.estimate_odometry_calibration = false;
+  agv::fusion::use_uncalibrated_noise(&cfg5);
   const RunResult r5 = run(base, simulate_fixes(base, fp), cfg5, grid_mm);
   print_row("5-state (no calibration)", r5);
   print_row("5-state, delay 50 ms",

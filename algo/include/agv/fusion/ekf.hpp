@@ -36,35 +36,39 @@ using FilterCov = Eigen::Matrix<double, kFilterDim, kFilterDim>;
 
 struct EkfConfig {
   // ---- Process noise (added per prediction step; all are white-noise densities) ----
-  // Random walk of the speed state (m/s^2 per sqrt(s)). Per 10 ms odometry period it must be
-  // well above odom_v_sigma_mps so the state follows the odometry without lag (0.5 gives
-  // 0.05 m/s, gain 0.96); it also sets how fast the pose uncertainty grows when odometry stops
-  // (0.11 m/s after 50 ms). Larger: faster growth when predicting past the newest odometry.
+  // Random walk of the speed (m/s^2 per sqrt(s)) when predicting past the newest odometry
+  // sample, within odom_gap_ns of it (each sample replaces v and omega with their covariance;
+  // beyond odom_gap_ns the gap model below applies): 0.11 m/s after 50 ms. Larger: the pose
+  // sigma grows faster between late samples and at fix times ahead of the odometry.
   double accel_sigma_mps2 = 0.5;
-  // Random walk of the yaw-rate state (rad/s^2 per sqrt(s)); same trade-off (0.1 rad/s per
-  // 10 ms vs 0.009 rad/s odometry noise).
+  // Random walk of the yaw rate (rad/s^2 per sqrt(s)); same role (0.22 rad/s after 50 ms).
   double yaw_accel_sigma_radps2 = 1.0;
   // Position error of dead reckoning per travelled distance, along and across the direction of
-  // travel (vehicle frame), as sigma per sqrt(metre). This must cover the real odometry error
-  // between two landmarks, or good fixes fail the gate: with 1 % scale error the along-track
-  // error after 1 m is 10 mm, which the default makes a 2-sigma innovation. Smaller values make
-  // the gate reject smaller misreads (about 4 sigma = 20 mm after 1 m) but reject good fixes after
-  // long gaps; larger values accept larger misreads.
-  double along_track_sigma_mm_per_sqrt_m = 5.0;
-  double cross_track_sigma_mm_per_sqrt_m = 2.0;
-  // Heading error growth: with travelled distance (wheel slip, track-width error), with time
-  // (gyro/odometry heading drift, rad per sqrt(s)) and with turned angle (yaw scale error,
-  // 1 % of a 90 deg turn = 0.9 deg). Too small: fixes after long or turning stretches fail the
-  // gate. Too large: heading misreads of a few degrees pass the gate.
-  double heading_sigma_rad_per_sqrt_m = deg_to_rad(0.1);
-  double heading_drift_sigma_rad_per_sqrt_s = deg_to_rad(0.3);
+  // travel (vehicle frame), as sigma per sqrt(metre), beyond what the calibration states model
+  // (scale errors and biases are states, with their own uncertainty): noise, slip, floor
+  // unevenness. Too small: good fixes fail the gate and the reported sigma is too small; too
+  // large: the gate accepts larger misreads and sigma overstates the error (the fault suite
+  // checks both: 3 sigma covers >= 99 % of ticks, sigma at most 5x too large). The earlier
+  // 5 / 2 mm per sqrt(m) also had to cover a 1 % scale error; with the calibration estimated that
+  // made sigma ~6x too large. Without calibration states use_uncalibrated_noise() restores them.
+  double along_track_sigma_mm_per_sqrt_m = 1.0;
+  double cross_track_sigma_mm_per_sqrt_m = 0.5;
+  // Heading error growth: with travelled distance (wheel slip), with time (gyro/odometry heading
+  // drift beyond the estimated bias, rad per sqrt(s)) and with turned angle (yaw scale error
+  // beyond the estimated one). Too small: fixes after long or turning stretches fail the gate.
+  // Too large: heading misreads of a few degrees pass the gate. 0.15 deg/sqrt(s): lawnmower
+  // between-landmark p95 4.8-6.0 mm (eval_fusion --route lawnmower, 3 seeds); 0.1 is 0.5-1 mm
+  // worse there, 0.3 makes sigma 6x too large on the fault suite.
+  double heading_sigma_rad_per_sqrt_m = deg_to_rad(0.05);
+  double heading_drift_sigma_rad_per_sqrt_s = deg_to_rad(0.15);
   double turn_heading_sigma_rad_per_sqrt_rad = 0.0125;
 
   // ---- Odometry calibration ----
   // Estimate s_v, s_omega, b_omega and c_omega_v from the fixes. A 1 % scale error alone is 5 mm at
   // the midpoint of a 1 m landmark spacing and a 0.5 deg/s yaw-rate bias another ~1-3 mm; learning
   // them (a few landmarks suffice) removes most of that. false: the plain 5-state filter of
-  // paper 000 (the calibration states stay exactly 0).
+  // paper 000 (the calibration states stay exactly 0); set it with use_uncalibrated_noise(),
+  // whose process noise covers the uncalibrated errors.
   bool estimate_odometry_calibration = true;
   // Prior sigmas of the calibration (what a new or re-tyred vehicle may be off by).
   double init_v_scale_sigma = 0.03;
@@ -81,13 +85,40 @@ struct EkfConfig {
   double omega_bias_sigma_radps_per_sqrt_s = deg_to_rad(0.1);
   double omega_per_v_sigma_radpm_per_sqrt_s = deg_to_rad(0.005);
 
-  // ---- Odometry measurement noise (v and omega are fused as a direct measurement) ----
-  // Noise of one odometry sample. Smaller makes the speed state follow odometry more tightly.
-  double odom_v_sigma_mps = 0.01;
+  // ---- Odometry sample noise (the samples drive the motion; docs/fusion.md, "Model") ----
+  // Noise of one sample: the pose sigma grows by it per period (0.005 m/s over 10 ms = 0.05 mm,
+  // a random walk). A real encoder's tick quantisation is about 0.0015 m/s per 10 ms; the
+  // simulator's noise is 0.002 m/s. Larger: sigma overstates the error between landmarks.
+  double odom_v_sigma_mps = 0.005;
   double odom_omega_sigma_radps = deg_to_rad(0.5);
   // Plausibility limits: samples beyond them are rejected as invalid input.
   double max_abs_v_mps = 5.0;
   double max_abs_omega_radps = 10.0;
+
+  // ---- Odometry timing and gaps (docs/fusion.md, "Odometry gaps") ----
+  // What one odometry sample means. kPeriodMean: the mean speed over the odom_period_ns ending at
+  // its stamp (encoder ticks per period, what most motor controllers send); kInstant: the speed
+  // at its stamp (a controller that reports its speed loop's current value). A filter set for the
+  // wrong one turns every yaw-rate step into a heading error of up to omega * period.
+  enum class OdomSampleTiming : std::uint8_t { kPeriodMean, kInstant };
+  OdomSampleTiming odom_sample_timing = OdomSampleTiming::kPeriodMean;
+  // Nominal sample period of the odometry source. With kPeriodMean the first sample after a gap
+  // covers only this much time (it measures the speed now, not the mean over the gap).
+  std::int64_t odom_period_ns = 10'000'000;
+  // Samples further apart than this are a gap: the motion after the previous sample is known
+  // (its speed holds) for odom_gap_ns and unknown after that (below). Larger tolerates more
+  // jitter of the source before the covariance grows; smaller notices a stall sooner.
+  std::int64_t odom_gap_ns = 50'000'000;
+  // Unknown motion: the speed random-walks with this acceleration density (m/s^2 per sqrt(s))
+  // and the yaw rate may change by gap_yaw_rate_change_sigma_radps at once (arcs start and end
+  // within one sample) and random-walks with gap_yaw_accel_sigma_radps2. Half the vehicle's
+  // acceleration limits keeps 3 sigma above braking at the full limit for gaps up to 3 s, and
+  // 3 x 0.7 rad/s covers an arc of 2 rad/s (0.5 m radius at 1 m/s) starting or ending anywhere
+  // in the gap. Too small: fixes after a gap are gated although right; too large: the pose goes
+  // lost after shorter gaps (heading sigma 0.7 rad/s x (gap - odom_gap_ns): 3 deg after 125 ms).
+  double gap_accel_sigma_mps2 = 0.5;
+  double gap_yaw_accel_sigma_radps2 = 1.0;
+  double gap_yaw_rate_change_sigma_radps = 0.7;
 
   // ---- Fixes ----
   // The reported fix covariance is used as R = fix_cov_scale * R_reported + diag(floor^2).
@@ -110,6 +141,19 @@ struct EkfConfig {
   // travel; with landmarks 1 m apart, 300 mm means every counted fix is another landmark.
   // Larger protects better against a bad landmark; the vehicle has to move to recover.
   double kidnap_min_separation_mm = 300.0;
+  // ... and the agreeing track must have lasted this long (first to last fix). A kidnap is a
+  // lasting disagreement; a transient one (a camera clock glitch that stamps 2 s of frames
+  // 300 ms off, which looks like a consistent 300 mm shift, or a burst of misreads) must not
+  // move a healthy pose. Longer delays the recovery of a really carried vehicle (a lost one
+  // re-localises from one map-verified fix without waiting).
+  std::int64_t kidnap_min_duration_ns = 3'000'000'000;
+  // Re-localisation from one fix: when the prior at the fix is lost (position or heading sigma
+  // above the lost limits below), a single map-verified fix (its payload agreed with the map, so
+  // a misprinted code cannot do it) whose own sigma is at most these re-initialises the pose
+  // at once instead of waiting for kidnap_fixes separate landmarks. false: only the kidnap rule.
+  bool relocalize_from_single_fix = true;
+  double relocalize_max_fix_sigma_mm = 2.0;
+  double relocalize_max_fix_sigma_rad = deg_to_rad(0.5);
   // Initial uncertainty of v and omega when initialising from a fix.
   double init_v_sigma_mps = 0.1;
   double init_omega_sigma_radps = 0.1;
@@ -122,9 +166,12 @@ struct EkfConfig {
   // Fixes whose exposure time is older than the newest event by more than this are rejected as
   // too old (counted). Also rejected: anything older than the oldest event kept.
   std::int64_t max_fix_delay_ns = 500'000'000;
-  // Fixes stamped further than this after the newest odometry are rejected as invalid (a clock
-  // error would otherwise predict the pose far ahead).
+  // Fixes stamped further than this after the newest odometry are held (odometry is late or in
+  // a gap) and fused when a newer odometry sample arrives; a held fix still more than this ahead
+  // of that sample is rejected as invalid (the camera clock is ahead). held_fix_capacity bounds
+  // the hold; when full the oldest held fix is dropped (counted).
   std::int64_t max_fix_lead_ns = 200'000'000;
+  std::size_t held_fix_capacity = 8;
 
   // ---- Health ----
   // Localized while the last fused fix is at most this old; dead reckoning afterwards. With a
@@ -137,6 +184,17 @@ struct EkfConfig {
   double lost_position_sigma_mm = 50.0;
   double lost_heading_sigma_rad = deg_to_rad(3.0);
 };
+
+// The plain 5-state filter: no calibration states, so the process noise has to cover the
+// odometry's systematic errors itself (1 % scale error = 10 mm after 1 m = 2 sigma): along /
+// across 5 / 2 mm per sqrt(m), heading 0.1 deg per sqrt(m) and 0.3 deg per sqrt(s).
+inline void use_uncalibrated_noise(EkfConfig* c) {
+  c->estimate_odometry_calibration = false;
+  c->along_track_sigma_mm_per_sqrt_m = 5.0;
+  c->cross_track_sigma_mm_per_sqrt_m = 2.0;
+  c->heading_sigma_rad_per_sqrt_m = deg_to_rad(0.1);
+  c->heading_drift_sigma_rad_per_sqrt_s = deg_to_rad(0.3);
+}
 
 // Empty string when the configuration is usable, otherwise what is wrong.
 std::string validate(const EkfConfig& config);
@@ -161,6 +219,8 @@ inline constexpr std::uint16_t kCovarianceLimit = 1u << 6;  // status at the que
 inline constexpr std::uint16_t kInvalidInput = 1u << 7;     // odometry or fix rejected as bad
 inline constexpr std::uint16_t kInitialised = 1u << 8;      // first fix initialised the filter
 inline constexpr std::uint16_t kDelayedFix = 1u << 9;       // a fix was fused behind newer data
+inline constexpr std::uint16_t kOdomGap = 1u
+                                          << 10;  // odometry resumed after a gap (unknown motion)
 }  // namespace flags
 
 struct PoseEstimate {
@@ -188,7 +248,8 @@ enum class FixOutcome {
   kRejectedGate,
   kRejectedTooOld,
   kRejectedInvalid,
-  kReinitialised
+  kReinitialised,
+  kHeld  // ahead of the newest odometry: kept and fused when odometry catches up
 };
 const char* to_string(FixOutcome o);
 
@@ -208,7 +269,10 @@ class Ekf {
   // Landmark fix: world pose of the vehicle at exposure time t_exposure_ns with covariance R of
   // (x_mm, y_mm, theta_rad). May be older than the newest odometry (delayed): it is fused at
   // its own time and later events are re-propagated.
-  FixOutcome add_fix(std::int64_t t_exposure_ns, const Pose2& z_world, const Eigen::Matrix3d& R);
+  // map_verified: the landmark's pose was checked against (or taken from) the survey map, so a
+  // misprinted code cannot be the source; only such fixes may re-localise a lost filter alone.
+  FixOutcome add_fix(std::int64_t t_exposure_ns, const Pose2& z_world, const Eigen::Matrix3d& R,
+                     bool map_verified = false);
 
   // Estimate predicted (or, inside the history, interpolated by prediction from the last event
   // at or before t_ns) to t_ns; does not change the filter. valid only once initialised and when
@@ -229,6 +293,10 @@ class Ekf {
     std::uint64_t reinitialisations = 0;
     std::uint64_t events_replayed = 0;     // re-propagation steps done for delayed data
     std::uint64_t history_overwrites = 0;  // oldest events dropped because the buffer was full
+    std::uint64_t odom_gaps = 0;           // samples that ended a gap (odom_gap_ns)
+    std::uint64_t fixes_held = 0;          // ahead of the odometry when they came
+    std::uint64_t fixes_held_dropped = 0;  // pushed out of the full hold
+    std::uint64_t relocalisations = 0;     // of reinitialisations: from a single fix when lost
   };
   const Counters& counters() const { return counters_; }
 
@@ -250,18 +318,30 @@ class Ekf {
     double v_mps = 0.0, omega_radps = 0.0;            // odometry input
     Eigen::Vector3d z = Eigen::Vector3d::Zero();      // fix (x_mm, y_mm, theta_rad)
     Eigen::Matrix3d R = Eigen::Matrix3d::Identity();  // effective fix covariance
-    bool valid = false;               // state below is meaningful (filter initialised at this time)
+    bool valid = false;  // state below is meaningful (filter initialised at this time)
+    // Newest odometry sample at or before this event (kNoOdom: none kept): where the known
+    // motion ends (odom_gap_ns after it).
+    std::int64_t odom_t_ns = kNoOdom;
     FilterVec x = FilterVec::Zero();  // posterior after this event
     FilterCov P = FilterCov::Zero();
   };
   // Candidate track of consecutive gate-rejected fixes (kidnap detection).
   struct Hypothesis {
     int count = 0;
-    std::int64_t t_ns = 0;    // time of the newest fix fused into the candidate
-    double x_count_mm = 0.0;  // position of the newest fix that incremented count
+    std::int64_t t_first_ns = 0;  // time of the fix that started the candidate
+    std::int64_t t_ns = 0;        // time of the newest fix fused into the candidate
+    double x_count_mm = 0.0;      // position of the newest fix that incremented count
     double y_count_mm = 0.0;
     FilterVec x = FilterVec::Zero();
     FilterCov P = FilterCov::Zero();
+  };
+
+  static constexpr std::int64_t kNoOdom = INT64_MIN;
+  struct HeldFix {
+    std::int64_t t_ns = 0;
+    Pose2 z;
+    Eigen::Matrix3d R = Eigen::Matrix3d::Identity();  // as given (before scale and floor)
+    bool map_verified = false;
   };
 
   // Ring buffer access in time order: 0 = oldest.
@@ -280,9 +360,40 @@ class Ekf {
   void predict(FilterVec* x, FilterCov* P, double dt_s, bool velocity_noise = true) const;
   void add_velocity_noise(FilterCov* P, double dt_s) const;
   void update_odometry(FilterVec* x, FilterCov* P, double v_mps, double omega_radps) const;
-  // Odometry step: fuse the sample, then predict over the period it covers.
+  // Odometry step (period-mean sample): fuse the sample, then predict over the period it covers.
   void propagate_odometry(FilterVec* x, FilterCov* P, double dt_s, double v_mps,
                           double omega_radps) const;
+  // Prediction from t0_ns to t1_ns when the newest odometry is at odom_t_ns: the known motion
+  // (predict()) up to odom_t_ns + odom_gap_ns, the unknown-motion model after it.
+  void predict_span(FilterVec* x, FilterCov* P, std::int64_t t0_ns, std::int64_t t1_ns,
+                    std::int64_t odom_t_ns) const;
+  // Applies an odometry sample at t_ns to the posterior of the previous event at t_prev_ns.
+  void apply_odometry(FilterVec* x, FilterCov* P, std::int64_t t_prev_ns, std::int64_t odom_t_ns,
+                      std::int64_t t_ns, double v_mps, double omega_radps) const;
+  bool is_gap(std::int64_t odom_t_ns, std::int64_t t_ns) const {
+    return odom_t_ns == kNoOdom || t_ns - odom_t_ns > config_.odom_gap_ns;
+  }
+  static std::int64_t odom_time_after(const Event& ev) {
+    return ev.kind == EventKind::kOdom ? ev.t_ns : ev.odom_t_ns;
+  }
+  // Newest odometry time at or before history index i (exclusive of i itself).
+  std::int64_t odom_time_before(std::size_t i) const {
+    return i == 0 ? kNoOdom : odom_time_after(at(i - 1));
+  }
+  FixOutcome fuse_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::Matrix3d& R_in,
+                      bool map_verified, bool from_hold);
+  void hold_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::Matrix3d& R_in,
+                bool map_verified);
+  // Fuses held fixes older than t_ns (before the odometry sample at t_ns is inserted).
+  void release_held_before(std::int64_t t_ns);
+  // After odometry at t_ns: fuses held fixes within max_fix_lead_ns, rejects those still ahead.
+  void settle_held_after(std::int64_t t_ns);
+  // Position or heading sigma of P beyond the lost limits; reports both sigmas when asked.
+  bool prior_lost(const FilterCov& P, double* position_sigma_mm = nullptr,
+                  double* heading_sigma_rad = nullptr) const;
+  // Re-initialises the pose from one fix, keeping speed and calibration of the prior.
+  void relocalize(std::int64_t t_ns, const Eigen::Vector3d& z, const Eigen::Matrix3d& R,
+                  const FilterVec& prior_x, const FilterCov& prior_P);
   void update_fix(FilterVec* x, FilterCov* P, const Eigen::Vector3d& z,
                   const Eigen::Matrix3d& R) const;
   // Innovation (angle wrapped) and its Mahalanobis distance^2.
@@ -307,6 +418,8 @@ class Ekf {
   std::int64_t last_fix_t_ns_ = 0;  // exposure time of the newest fused fix
   double last_fix_d2_;
   Hypothesis hyp_;
+  std::vector<HeldFix> held_;  // time order, held_count_ used; sized in the constructor
+  std::size_t held_count_ = 0;
   std::uint16_t pending_flags_ = 0;
   Counters counters_;
 };

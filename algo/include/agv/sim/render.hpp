@@ -106,6 +106,12 @@ LandmarkMap default_landmark_grid(int columns = 5, int rows = 5, double spacing_
 bool make_scene(const LandmarkMap& map, const LandmarkGeometry& geometry, PayloadMode mode,
                 Scene* out, std::string* error);
 
+// A misprinted landmark (fault-replay suite, tests/faults): landmark `id` stays where the map
+// says, but its QR code is re-rendered with a full payload claiming the pose shifted by
+// offset_mm (world frame). False with *error when the id is not in the scene or the shifted pose
+// cannot be encoded.
+bool misprint_landmark(Scene* scene, std::uint32_t id, Vec2 offset_mm, std::string* error);
+
 // Degradations and imaging effects. Defaults are a clean frame (anti-aliasing only); the
 // "realistic" profile (realistic_options()) turns the effects on.
 struct RenderOptions {

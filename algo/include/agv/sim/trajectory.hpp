@@ -69,14 +69,27 @@ struct MotionState {
 // True state at t_ns >= 0 after the start (t < 0 = standing at the start pose).
 MotionState trajectory_state(const Trajectory& tr, std::int64_t t_ns);
 
+// What one odometry sample at t_ns stands for. Motor controllers count encoder ticks per period,
+// so a sample is the mean speed over the period ending at t_ns (kPeriodMean, the default and what
+// the fusion assumes); kInstant is the true speed at t_ns (a controller that differentiates a
+// filtered position, or the simulator before issue 13). They differ only where v or omega
+// changes within a period: at the start ramp and at every arc entry/exit (an omega step).
+enum class OdomSampleTiming { kPeriodMean, kInstant };
+
+// Parses "period_mean", "instant". False for anything else.
+bool parse_odom_sample_timing(const std::string& name, OdomSampleTiming* out);
+const char* to_string(OdomSampleTiming t);
+
 // Odometry as the motor controllers report it: wheel-speed based, with a constant scale error
 // per wheel, white noise, and occasional slip (one wheel reports more than it moved).
 struct OdometryParams {
-  double wheelbase_mm = 500.0;     // track width used to convert wheel speeds to v and omega
-  double scale_error = 0.01;       // both wheels report this much too much (1 %)
-  double scale_asymmetry = 0.004;  // right minus left scale error (makes straight runs curve)
-  double noise_mps = 0.003;        // white noise per wheel speed sample (sigma)
-  double slip_rate_per_s = 0.02;   // mean slip events per second (Poisson)
+  OdomSampleTiming timing = OdomSampleTiming::kPeriodMean;
+  std::int64_t period_ns = 10'000'000;  // sample period (the mean is over [t - period, t])
+  double wheelbase_mm = 500.0;          // track width used to convert wheel speeds to v and omega
+  double scale_error = 0.01;            // both wheels report this much too much (1 %)
+  double scale_asymmetry = 0.004;       // right minus left scale error (makes straight runs curve)
+  double noise_mps = 0.003;             // white noise per wheel speed sample (sigma)
+  double slip_rate_per_s = 0.02;        // mean slip events per second (Poisson)
   double slip_duration_s = 0.3;
   double slip_excess = 0.05;  // the slipping wheel reports this fraction more than it moved
   std::uint64_t seed = 1;
@@ -96,9 +109,19 @@ struct OdometrySample {
   double omega_radps = 0.0;
 };
 
-// Reported odometry at t_ns: a pure function of (params, slips, true motion, t_ns); the noise is
-// a hash of (seed, t_ns), so the same time always gives the same sample.
+// The true v and omega a sample at t_ns stands for (p.timing): the state's own speeds at t_ns
+// (kInstant), or distance travelled and heading turned over [t_ns - p.period_ns, t_ns] divided by
+// the period (kPeriodMean; exact, from trajectory_state at both ends). No errors.
+OdometrySample true_odometry(const OdometryParams& p, const Trajectory& tr, std::int64_t t_ns);
+
+// Reported odometry given the true speeds `truth` of the sample at t_ns: per-wheel scale errors,
+// noise and slip applied to the wheel speeds. A pure function of (params, slips, truth, t_ns);
+// the noise is a hash of (seed, t_ns), so the same time always gives the same sample.
 OdometrySample odometry_sample(const OdometryParams& p, const std::vector<SlipEvent>& slips,
-                               const MotionState& truth, std::int64_t t_ns);
+                               const OdometrySample& truth, std::int64_t t_ns);
+
+// The sample the controllers send at t_ns: odometry_sample(true_odometry(p, tr, t_ns)).
+OdometrySample odometry_sample(const OdometryParams& p, const std::vector<SlipEvent>& slips,
+                               const Trajectory& tr, std::int64_t t_ns);
 
 }  // namespace agv::sim

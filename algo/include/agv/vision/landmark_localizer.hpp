@@ -201,6 +201,9 @@ struct LandmarkFix {
   double e_x_mm = 0.0, e_y_mm = 0.0, e_phi_deg = 0.0;
   Pose2 landmark_in_vehicle;  // V<-L
   Pose2 vehicle_in_world;     // W<-V, valid only when status == kOk
+  // The landmark's world pose came from the survey map or was checked against it (a map was
+  // given): a misprinted code cannot have produced this fix.
+  bool map_verified = false;
   // Covariance of (x_mm, y_mm, theta_rad) of vehicle_in_world (and, below, of
   // landmark_in_vehicle), from the fit residuals.
   Eigen::Matrix3d cov_world = Eigen::Matrix3d::Zero();
