@@ -17,6 +17,8 @@ PKGS=(
   # tests, benchmarks, comparison baseline
   libgtest-dev libgmock-dev libbenchmark-dev libapriltag-dev valgrind
   clang-format clang-tidy
+  # fuzzing (fuzz/, the fuzz preset): clang with libFuzzer and the sanitizer runtimes
+  clang libclang-rt-14-dev
   # CAN tools and independent decoders
   can-utils python3-can iproute2
   # hardware-in-the-loop virtual machine

@@ -1,6 +1,7 @@
 // agvloc replay RECORDING [--out DIR] [--config FILE] [--map FILE] [--can IFACE]
 //                         [--odom-from-can] [--realtime [--speed X] | --fast] [--overlay LIST]
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <atomic>
 #include <csignal>
 #include <cstdio>
@@ -26,6 +27,10 @@
 namespace agv::cmd {
 
 namespace {
+
+// Output periods one replay simulates at most: 10^6 tick records (360 MB) and poses.csv lines
+// (~130 MB); 2.8 h of recording at the default 100 Hz (docs/replay.md).
+constexpr std::int64_t kMaxReplayTicks = 1'000'000;
 
 void write_overlays(const config::Config& cfg, const LandmarkMap* map,
                     const recording::Recording& rec, const std::vector<int>& frames,
@@ -114,7 +119,16 @@ int replay(int argc, char** argv) {
   }
   config::Config cfg;
   if (!config_file.empty()) {
-    if (!config::load_config_or_report(config_file, "replay", &cfg)) return 2;
+    if (!config::load_config_or_report(config_file, "replay", &cfg, config::ConfigUse::kReplay)) {
+      return 2;
+    }
+  }
+  // Every output period from the first to the last recorded time is simulated and written to
+  // poses.csv: bound it, so odometry rows at t = 1e10 and 9e18 cannot run without end.
+  const auto period_ns = static_cast<std::int64_t>(1e9 / cfg.loop.output_rate_hz);
+  if (!recording::check_replay_span(rec, period_ns, kMaxReplayTicks, &err)) {
+    std::fprintf(stderr, "replay: %s: %s\n", rec_dir.c_str(), err.c_str());
+    return 2;
   }
   // The recording describes its own camera.
   cfg.camera_model = rec.meta.camera;
@@ -204,6 +218,13 @@ int replay(int argc, char** argv) {
     app::run_threads(cfg, map_ptr, io, &result);
     result.wall_ns = posix::monotonic_now_ns() - w0;
   } else {
+    // The span is bounded above, so this is at most kMaxReplayTicks records, allocated once.
+    const std::int64_t t0 = std::min(rec.frames.empty() ? INT64_MAX : rec.frames.front().t_ns,
+                                     rec.odom.empty() ? INT64_MAX : rec.odom.front().t_ns);
+    const std::int64_t t1 = std::max(rec.frames.empty() ? 0 : rec.frames.back().t_ns,
+                                     rec.odom.empty() ? 0 : rec.odom.back().t_ns);
+    if (t1 >= t0) ticks.reserve(static_cast<size_t>((t1 - t0) / period_ns) + 16);
+    fixes.reserve(rec.frames.size());  // at most one record per frame
     std::atomic<std::int64_t> loop_time{0};
     app::LogOnlyBus bus(log, nullptr, &loop_time, "can0");
     app::run_fast(cfg, map_ptr, rec, &bus, &ticks, &fixes, &stop_requested(), &result, !quiet,
@@ -214,6 +235,17 @@ int replay(int argc, char** argv) {
   }
 
   int rc = 0;
+  // Say what happened to unreadable frames; a replay that could read no frame at all failed.
+  if (result.camera.errors > 0) {
+    std::fprintf(stderr, "replay: %llu of %zu frames could not be read (last: %s)\n",
+                 static_cast<unsigned long long>(result.camera.errors), rec.frames.size(),
+                 result.camera_error.c_str());
+  }
+  if (!rec.frames.empty() && result.camera.frames_delivered == 0 && !stop_requested().load()) {
+    std::fprintf(stderr, "replay: no frame of %s could be read: the run used odometry only\n",
+                 rec_dir.c_str());
+    rc = 1;
+  }
   const std::string poses = (std::filesystem::path(out_dir) / "poses.csv").string();
   const std::string fixes_csv = (std::filesystem::path(out_dir) / "fixes.csv").string();
   const std::string plot = (std::filesystem::path(out_dir) / "trajectory.svg").string();

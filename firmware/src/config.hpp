@@ -74,18 +74,32 @@ struct Config {
   std::string source;  // file name the config came from, for messages
 };
 
+// What the configuration is read for. kLive (run, record, --check-config) requires the camera
+// calibration (intrinsics fx, fy, cx, cy); kReplay takes the camera from the recording's
+// meta.yaml, so intrinsics may be absent (if present they are still checked).
+enum class ConfigUse { kLive, kReplay };
+
+// Size caps of the files the localizer reads (docs/security.md); larger files are errors.
+inline constexpr std::uintmax_t kMaxConfigBytes = 1u << 20;  // 1 MiB
+inline constexpr std::uintmax_t kMaxMapBytes = 4u << 20;     // 4 MiB (65535 landmarks ~ 2.6 MB)
+
 // Parses YAML text. On error returns false and fills *errors with one line per problem, each
-// naming the key path and accepted range ("can.base_id: value 4096 outside ...").
+// naming the key path and accepted range ("can.base_id: value 4096 outside ..."). Unknown,
+// duplicate and non-scalar keys are errors; never throws.
 bool parse_config(const std::string& yaml_text, const std::string& base_dir, Config* out,
-                  std::vector<std::string>* errors);
+                  std::vector<std::string>* errors, ConfigUse use = ConfigUse::kLive);
 // The CAN protocol configuration implied by the can section.
 protocol::ProtocolConfig protocol_config(const Config& cfg);
 
-// Reads and parses a file (base_dir = the file's directory).
-bool load_config(const std::string& path, Config* out, std::vector<std::string>* errors);
+// Reads and parses a file (base_dir = the file's directory). The file must be a regular file of
+// at most kMaxConfigBytes.
+bool load_config(const std::string& path, Config* out, std::vector<std::string>* errors,
+                 ConfigUse use = ConfigUse::kLive);
 // load_config for the entry points: prints every error as "<who>: config: <error>".
-bool load_config_or_report(const std::string& path, const char* who, Config* out);
-// Reads a landmark map file (docs/landmark.md); false with *error naming file and line.
+bool load_config_or_report(const std::string& path, const char* who, Config* out,
+                           ConfigUse use = ConfigUse::kLive);
+// Reads a landmark map file (docs/landmark.md; a regular file of at most kMaxMapBytes); false
+// with *error naming file and line.
 bool load_map_file(const std::string& path, LandmarkMap* map, std::string* error);
 
 }  // namespace agv::config

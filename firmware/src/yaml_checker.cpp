@@ -1,6 +1,7 @@
 #include "yaml_checker.hpp"
 
 #include <cmath>
+#include <map>
 #include <sstream>
 
 namespace agv::config {
@@ -120,11 +121,35 @@ YAML::Node YamlChecker::section(const YAML::Node& node, const std::string& path,
   return s;
 }
 
+void YamlChecker::require(const YAML::Node& node, const std::string& path, const char* key,
+                          const std::string& why) {
+  if (!node.IsMap() || !node[key]) error(join(path, key), "missing (required: " + why + ")");
+}
+
 void YamlChecker::finish_map(const YAML::Node& node, const std::string& path) {
   if (!node.IsMap()) return;
+  std::map<std::string, int> lines;  // key -> line of its first occurrence
   for (const auto& kv : node) {
-    const std::string k = kv.first.as<std::string>();
+    const int line = kv.first.Mark().is_null() ? 0 : kv.first.Mark().line + 1;
+    if (!kv.first.IsScalar()) {
+      // `[a]: 1` or `{x: 1}: 2`: a key must be a plain name, never a sequence or a mapping.
+      error(path.empty() ? "top level" : path, "key at line " + std::to_string(line) +
+                                                   " is not a plain name (a " +
+                                                   (kv.first.IsSequence() ? "sequence"
+                                                    : kv.first.IsMap()    ? "mapping"
+                                                                          : "null") +
+                                                   " used as key)");
+      continue;
+    }
+    const std::string k = kv.first.Scalar();
     const std::string p = path.empty() ? k : path + "." + k;
+    const auto [first, inserted] = lines.emplace(k, line);
+    if (!inserted) {
+      // yaml-cpp keeps both entries and lookups return the first: never let one silently win.
+      error(p, "duplicate key at line " + std::to_string(line) + " (first at line " +
+                   std::to_string(first->second) + ")");
+      continue;
+    }
     if (!seen_.count(p)) error(p, "unknown key");
   }
 }

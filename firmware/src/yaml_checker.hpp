@@ -27,7 +27,11 @@ class YamlChecker {
               const std::vector<std::string>& allowed, std::string* out);
   // Returns the sub-map `key` (or an undefined node). Errors if it is present but not a map.
   YAML::Node section(const YAML::Node& node, const std::string& path, const char* key);
-  // Call after reading a map: every key not asked for is reported as unknown.
+  // Records "missing (required: why)" when map `node` has no `key`.
+  void require(const YAML::Node& node, const std::string& path, const char* key,
+               const std::string& why);
+  // Call after reading a map: every key not asked for is reported as unknown, a key that is not
+  // a scalar (`[a]: 1`) and a key given twice are errors too.
   void finish_map(const YAML::Node& node, const std::string& path);
 
   void error(const std::string& path, const std::string& what);

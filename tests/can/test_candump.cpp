@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -82,6 +83,18 @@ TEST(CandumpLine, RejectsMalformedLines) {
   EXPECT_NE(parse_err("(1.5) vcan0 123#R9"), "");
   EXPECT_NE(parse_err("(1.5) vcan0 123#1122 X"), "");  // unknown trailing field
   EXPECT_NE(parse_err("(1.5) vcan0 123#1122_"), "");
+}
+
+// Issue 15, finding 2: 12 digits of seconds overflowed int64 nanoseconds (UB; the timestamp
+// wrapped to a negative value without sanitizers).
+TEST(CandumpLine, TimestampBeyondInt64NanosecondsIsAnError) {
+  EXPECT_NE(parse_err("(9223372037.0) can0 123#"), "");
+  EXPECT_NE(parse_err("(999999999999.999999) can0 123#"), "");
+  EXPECT_NE(parse_err("(9223372036.854775808) can0 123#"), "");
+  // The largest representable time still parses, exactly.
+  const auto r = parse_ok("(9223372036.854775807) can0 123#");
+  EXPECT_EQ(r.t_ns, INT64_MAX);
+  EXPECT_GE(parse_ok("(9223372036.0) can0 123#").t_ns, 0);
 }
 
 TEST(CandumpLine, FormatMatchesCandumpAndRoundTrips) {

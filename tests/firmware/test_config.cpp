@@ -1,5 +1,8 @@
 #include <gtest/gtest.h>
+#include <unistd.h>
 
+#include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -42,10 +45,13 @@ TEST(Config, ShippedExampleLoads) {
   EXPECT_TRUE(cfg.loop.pose_on_fix);
 }
 
+// The camera calibration every live configuration must carry (issue 15, finding 3).
+const char* kIntrinsics = "intrinsics: {fx: 769.23, fy: 769.23, cx: 319.5, cy: 239.5}\n";
+
 TEST(Config, EmptyMappingGivesDefaults) {
   Config cfg;
   std::vector<std::string> errors;
-  ASSERT_TRUE(agv::config::parse_config("{}", "", &cfg, &errors));
+  ASSERT_TRUE(agv::config::parse_config(kIntrinsics, "", &cfg, &errors));
   EXPECT_DOUBLE_EQ(cfg.loop.output_rate_hz, 100.0);
   // Built-in defaults need no privileges; the fix-triggered pose needs none either.
   EXPECT_EQ(cfg.loop.realtime_priority, 0);
@@ -69,8 +75,9 @@ TEST(Config, OutOfRangeNamesKeyAndRange) {
 TEST(Config, ExtendedIdsWidenTheRange) {
   Config cfg;
   std::vector<std::string> errors;
-  EXPECT_TRUE(agv::config::parse_config("can:\n  extended_ids: true\n  base_id: 0x18FF0000\n", "",
-                                        &cfg, &errors));
+  EXPECT_TRUE(agv::config::parse_config(
+      std::string(kIntrinsics) + "can:\n  extended_ids: true\n  base_id: 0x18FF0000\n", "", &cfg,
+      &errors));
   EXPECT_EQ(cfg.can.base_id, 0x18FF0000u);
 }
 
@@ -102,10 +109,11 @@ TEST(Config, FusionAndVisionSectionsReachTheAlgorithms) {
   Config cfg;
   std::vector<std::string> errors;
   ASSERT_TRUE(agv::config::parse_config(
-      "fusion:\n  gate_probability: 0.99\n  estimate_odometry_calibration: false\n"
-      "  max_fix_delay_ms: 250\n  lost_heading_sigma_deg: 5\n"
-      "vision:\n  corner_threshold: 0.7\n  robust: false\n  qr_guided: false\n"
-      "  qr_max_missing_modules: 12\n",
+      std::string(kIntrinsics) +
+          "fusion:\n  gate_probability: 0.99\n  estimate_odometry_calibration: false\n"
+          "  max_fix_delay_ms: 250\n  lost_heading_sigma_deg: 5\n"
+          "vision:\n  corner_threshold: 0.7\n  robust: false\n  qr_guided: false\n"
+          "  qr_max_missing_modules: 12\n",
       "", &cfg, &errors))
       << errors.front();
   EXPECT_DOUBLE_EQ(cfg.fusion.gate_probability, 0.99);
@@ -127,8 +135,9 @@ TEST(Config, LoopRealTimeKeysAndTheirRelations) {
   Config cfg;
   std::vector<std::string> errors;
   ASSERT_TRUE(agv::config::parse_config(
-      "loop:\n  realtime_priority: 50\n  vision_priority: 40\n  spin_before_deadline_us: 200\n", "",
-      &cfg, &errors))
+      std::string(kIntrinsics) +
+          "loop:\n  realtime_priority: 50\n  vision_priority: 40\n  spin_before_deadline_us: 200\n",
+      "", &cfg, &errors))
       << (errors.empty() ? "" : errors.front());
   EXPECT_EQ(cfg.loop.vision_priority, 40);
   EXPECT_EQ(cfg.loop.spin_before_deadline_us, 200);
@@ -155,10 +164,11 @@ TEST(Config, FusionOdometryTimingAndGapKeys) {
   Config cfg;
   std::vector<std::string> errors;
   ASSERT_TRUE(agv::config::parse_config(
-      "fusion:\n  odom_sample_timing: instant\n  odom_period_ms: 20\n  odom_gap_ms: 80\n"
-      "  gap_yaw_rate_change_sigma_radps: 0.3\n  max_fix_lead_ms: 150\n  held_fix_capacity: 4\n"
-      "  relocalize_from_single_fix: false\n  relocalize_max_fix_sigma_deg: 1\n"
-      "  kidnap_min_duration_ms: 1500\n",
+      std::string(kIntrinsics) +
+          "fusion:\n  odom_sample_timing: instant\n  odom_period_ms: 20\n  odom_gap_ms: 80\n"
+          "  gap_yaw_rate_change_sigma_radps: 0.3\n  max_fix_lead_ms: 150\n  held_fix_capacity: 4\n"
+          "  relocalize_from_single_fix: false\n  relocalize_max_fix_sigma_deg: 1\n"
+          "  kidnap_min_duration_ms: 1500\n",
       "", &cfg, &errors))
       << (errors.empty() ? "" : errors.front());
   using Timing = agv::fusion::EkfConfig::OdomSampleTiming;
@@ -176,11 +186,90 @@ TEST(Config, FusionOdometryTimingAndGapKeys) {
   // still win, whatever their order in the file.
   Config plain;
   ASSERT_TRUE(agv::config::parse_config(
-      "fusion:\n  cross_track_sigma_mm_per_sqrt_m: 3\n  estimate_odometry_calibration: false\n", "",
-      &plain, &errors));
+      std::string(kIntrinsics) +
+          "fusion:\n  cross_track_sigma_mm_per_sqrt_m: 3\n  estimate_odometry_calibration: false\n",
+      "", &plain, &errors));
   EXPECT_FALSE(plain.fusion.estimate_odometry_calibration);
   EXPECT_DOUBLE_EQ(plain.fusion.along_track_sigma_mm_per_sqrt_m, 5.0);
   EXPECT_DOUBLE_EQ(plain.fusion.cross_track_sigma_mm_per_sqrt_m, 3.0);
   // A gap shorter than one period cannot be told from normal sampling.
   EXPECT_TRUE(mentions(errors_for("fusion:\n  odom_period_ms: 20\n  odom_gap_ms: 10\n"), "fusion"));
+}
+
+// ---- Issue 15: hostile configurations ------------------------------------------------------
+
+std::string tmp_path(const std::string& name) {
+  return (std::filesystem::temp_directory_path() /
+          ("agv_test_config_" + std::to_string(::getpid()) + "_" + name))
+      .string();
+}
+
+// Finding 1: a non-scalar key threw YAML::TypedBadConversion out of finish_map (abort, exit 134).
+TEST(Config, NonScalarKeyIsANamedError) {
+  EXPECT_TRUE(mentions(errors_for("[a]: 1"), "top level: key at line 1 is not a plain name"));
+  EXPECT_TRUE(mentions(errors_for("camera:\n  {x: 1}: 2"),
+                       "camera: key at line 2 is not a plain name (a mapping used as key)"));
+  EXPECT_TRUE(mentions(errors_for(std::string(kIntrinsics) + "can:\n  odometry:\n    [1, 2]: x\n"),
+                       "can.odometry: key at line 4 is not a plain name"));
+}
+
+// Finding 3: without intrinsics, --check-config passed and the loop ran with fx = fy = 0.
+TEST(Config, MissingIntrinsicsIsAnError) {
+  EXPECT_TRUE(
+      mentions(errors_for("{}"), "intrinsics: missing section (fx, fy, cx, cy are required"));
+  EXPECT_TRUE(mentions(errors_for("camera:\n  fps: 30\n"), "intrinsics: missing section"));
+  const auto e = errors_for("intrinsics:\n  fx: 700\n  cx: 320\n");
+  EXPECT_TRUE(mentions(e, "intrinsics.fy: missing (required: the camera calibration"));
+  EXPECT_TRUE(mentions(e, "intrinsics.cy: missing"));
+  EXPECT_FALSE(mentions(e, "intrinsics.fx"));
+  // Distortion defaults to none; the loaded model is the one configured.
+  Config cfg;
+  std::vector<std::string> errors;
+  ASSERT_TRUE(agv::config::parse_config(kIntrinsics, "", &cfg, &errors));
+  EXPECT_NEAR(cfg.camera_model.mm_per_px(), 0.26, 1e-4);
+  EXPECT_EQ(cfg.camera_model.intrinsics.k1, 0.0);
+}
+
+// Replay takes the camera from meta.yaml: there the section may be absent.
+TEST(Config, ReplayNeedsNoIntrinsics) {
+  Config rcfg;
+  std::vector<std::string> errors;
+  EXPECT_TRUE(agv::config::parse_config("{}", "", &rcfg, &errors, agv::config::ConfigUse::kReplay));
+  EXPECT_FALSE(agv::config::parse_config("intrinsics:\n  fx: 0\n", "", &rcfg, &errors,
+                                         agv::config::ConfigUse::kReplay));
+}
+
+// Finding 4: duplicate keys and sections were accepted silently (the first one won).
+TEST(Config, DuplicateKeysAndSectionsAreErrors) {
+  EXPECT_TRUE(mentions(errors_for(std::string(kIntrinsics) + "loop:\n  output_rate_hz: 50\n"
+                                                             "  output_rate_hz: 200\n"),
+                       "loop.output_rate_hz: duplicate key at line 4 (first at line 3)"));
+  EXPECT_TRUE(mentions(errors_for(std::string(kIntrinsics) + "can:\n  interface: can0\n"
+                                                             "can:\n  interface: can1\n"),
+                       "can: duplicate key at line 4 (first at line 2)"));
+  EXPECT_TRUE(
+      mentions(errors_for(std::string(kIntrinsics) + kIntrinsics), "intrinsics: duplicate key"));
+}
+
+// Finding 5: `--config /dev/zero` and `landmark.map: /dev/zero` grew memory without limit.
+TEST(Config, OnlyBoundedRegularFilesAreRead) {
+  Config cfg;
+  std::vector<std::string> errors;
+  EXPECT_FALSE(agv::config::load_config("/dev/zero", &cfg, &errors));
+  EXPECT_TRUE(mentions(errors, "/dev/zero: not a regular file"));
+  errors.clear();
+  const std::string big = tmp_path("big.yaml");
+  std::ofstream(big) << std::string((1u << 20) + 1, '#');  // kMaxConfigBytes + 1
+  EXPECT_FALSE(agv::config::load_config(big, &cfg, &errors));
+  EXPECT_TRUE(mentions(errors, "larger than 1048576 bytes"));
+  std::filesystem::remove(big);
+  agv::LandmarkMap map;
+  std::string err;
+  EXPECT_FALSE(agv::config::load_map_file("/dev/zero", &map, &err));
+  EXPECT_NE(err.find("/dev/zero: not a regular file"), std::string::npos) << err;
+  const std::string dir = tmp_path("dir");
+  std::filesystem::create_directories(dir);
+  EXPECT_FALSE(agv::config::load_map_file(dir, &map, &err));
+  EXPECT_NE(err.find("not a regular file"), std::string::npos) << err;
+  std::filesystem::remove_all(dir);
 }

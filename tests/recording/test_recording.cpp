@@ -1,7 +1,9 @@
 // Recording format: exact round trip, and every kind of malformed input is rejected with
 // "file:line: reason" instead of crashing or being half-accepted.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
 #include <opencv2/core.hpp>
@@ -317,4 +319,128 @@ TEST(Recording, GarbageAndTruncationNeverCrash) {
     spit(d / f, good);
   }
   fs::remove_all(d);
+}
+
+// ---- Issue 15: hostile recordings -----------------------------------------------------------
+
+// Finding 6: a frame that is a symlink to itself was reported as "missing".
+TEST(Recording, UnreadableImageSaysWhy) {
+  const fs::path d = write_sample("symloop");
+  fs::remove(d / "frames" / "000001.png");
+  fs::create_symlink("000001.png", d / "frames" / "000001.png");
+  Recording r;
+  std::string err;
+  EXPECT_FALSE(read_recording(d.string(), &r, &err));
+  EXPECT_EQ(err.rfind("frames.csv:3: image 'frames/000001.png': cannot be read (", 0), 0u) << err;
+  EXPECT_NE(err.find("symbolic links"), std::string::npos) << err;
+  fs::remove(d / "frames" / "000001.png");
+  fs::create_directories(d / "frames" / "000001.png");
+  expect_rejected(d, "frames.csv:3: image 'frames/000001.png': not a regular file");
+  fs::remove_all(d);
+}
+
+// Finding 5: every file of a recording is a bounded regular file; a device is never read.
+TEST(Recording, DevicesAndOversizedFilesAreRejected) {
+  fs::path d = write_sample("devzero");
+  fs::remove(d / "odom.csv");
+  fs::create_symlink("/dev/zero", d / "odom.csv");
+  expect_rejected(d, "odom.csv: not a regular file");
+  fs::remove(d / "odom.csv");
+  spit(d / "odom.csv", "t_ns,v_mps,omega_radps\n" + std::string(33u << 20, '#'));
+  expect_rejected(d, "odom.csv: larger than 33554432 bytes");
+  fs::remove_all(d);
+  d = write_sample("bigmeta");
+  spit(d / "meta.yaml", std::string(65537, '#'));
+  expect_rejected(d, "meta.yaml: larger than 65536 bytes");
+  fs::remove_all(d);
+}
+
+TEST(Recording, ReadFileBoundedRefusesDevices) {
+  std::string text, err;
+  EXPECT_FALSE(read_file_bounded("/dev/zero", 1024, &text, &err));
+  EXPECT_EQ(err, "/dev/zero: not a regular file");
+}
+
+// Finding 5: times near INT64_MAX are rejected, so later time arithmetic cannot overflow.
+TEST(Recording, TimesAreBounded) {
+  std::vector<OdomRow> rows;
+  std::string err;
+  EXPECT_FALSE(parse_odom_csv("t_ns,v_mps,omega_radps\n9223372036854775807,0,0\n", &rows, &err));
+  EXPECT_EQ(err.rfind("odom.csv:2: t_ns outside [0, 4611686018427387904]", 0), 0u) << err;
+  EXPECT_TRUE(parse_odom_csv("t_ns,v_mps,omega_radps\n4611686018427387904,0,0\n", &rows, &err));
+}
+
+// Finding 5: a PNG whose header declares 16384x16384 was decoded (268 MB) before its size was
+// compared with meta.yaml. The header alone is now enough to reject it.
+TEST(Recording, ImageHeaderIsCheckedBeforeDecoding) {
+  const fs::path d = write_sample("hugeheader");
+  // Signature, IHDR 16384x16384 8-bit grey, a 1-byte IDAT, IEND: 71 bytes.
+  auto be32 = [](std::uint32_t v) {
+    return std::string{static_cast<char>(v >> 24), static_cast<char>(v >> 16),
+                       static_cast<char>(v >> 8), static_cast<char>(v)};
+  };
+  const std::string ihdr = "IHDR" + be32(16384) + be32(16384) + std::string("\x08\0\0\0\0", 5);
+  // CRC-32 of chunk type + data (the PNG polynomial).
+  auto crc = [](const std::string& s) {
+    std::uint32_t c = 0xFFFFFFFFu;
+    for (unsigned char ch : s) {
+      c ^= ch;
+      for (int k = 0; k < 8; ++k) c = (c >> 1) ^ (0xEDB88320u & (0u - (c & 1u)));
+    }
+    return c ^ 0xFFFFFFFFu;
+  };
+  const std::string png = std::string("\x89PNG\r\n\x1a\n", 8) + be32(13) + ihdr + be32(crc(ihdr)) +
+                          be32(1) + "IDATx" + be32(crc("IDATx")) + be32(0) + "IEND" +
+                          be32(crc("IEND"));
+  spit(d / "frames" / "000001.png", png);
+  Recording r;
+  std::string err;
+  ASSERT_TRUE(read_recording(d.string(), &r, &err)) << err;
+  cv::Mat img;
+  EXPECT_FALSE(load_frame(r, 1, &img, &err));
+  EXPECT_EQ(err.rfind("frames.csv:3: cannot decode 'frames/000001.png'", 0), 0u) << err;
+  EXPECT_NE(err.find("image is 16384x16384, expected 64x48"), std::string::npos) << err;
+  EXPECT_TRUE(img.empty());  // nothing was allocated for it
+  fs::remove_all(d);
+}
+
+// Finding 5: replay bounds the time it simulates; the error names the rows.
+TEST(Recording, ReplaySpanIsBounded) {
+  Recording r;
+  r.odom = {{10'000'000'000, 0, 0}, {9'000'000'000'000'000'000, 0, 0}};
+  std::string err;
+  EXPECT_FALSE(check_replay_span(r, 10'000'000, 1'000'000, &err));
+  EXPECT_NE(err.find("odom.csv:2 (t_ns 10000000000) to odom.csv:3 (t_ns 9000000000000000000)"),
+            std::string::npos)
+      << err;
+  r.odom = {{0, 0, 0}, {9'990'000'000'000, 0, 0}};  // 999000 periods of 10 ms
+  r.frames = {{5, "a.png"}};
+  EXPECT_TRUE(check_replay_span(r, 10'000'000, 1'000'000, &err)) << err;
+  r.frames = {{10'000'000'000'000, "a.png"}};  // 10^6 periods
+  EXPECT_FALSE(check_replay_span(r, 10'000'000, 1'000'000, &err));
+  EXPECT_NE(err.find("frames.csv:2 (t_ns 10000000000000)"), std::string::npos) << err;
+}
+
+// Found by fuzz_recording_frames (issue 15): "." named the recording directory itself.
+TEST(Recording, FramePathsNameFilesBelowTheRecording) {
+  std::vector<FrameRow> rows;
+  std::string err;
+  for (const char* f : {".", "./", "frames/.", "frames/", "./frames/0.png", "a/../0.png"}) {
+    EXPECT_FALSE(parse_frames_csv(std::string("t_ns,file\n1,") + f + "\n", &rows, &err)) << f;
+    EXPECT_EQ(err.rfind("frames.csv:2: file", 0), 0u) << err;
+  }
+  EXPECT_TRUE(parse_frames_csv("t_ns,file\n1,frames/.hidden.png\n", &rows, &err)) << err;
+}
+
+// Issue 15, finding 5: the number of frames (one fix record each in replay) is bounded.
+TEST(Recording, FrameCountIsBounded) {
+  std::string text = "t_ns,file\n";
+  for (int i = 0; i <= kMaxFrames; ++i) text += std::to_string(i) + ",a\n";
+  std::vector<FrameRow> rows;
+  std::string err;
+  EXPECT_FALSE(parse_frames_csv(text, &rows, &err));
+  EXPECT_EQ(err, "frames.csv:250002: more than 250000 frames");
+  text.resize(text.rfind("250000,a\n"));
+  EXPECT_TRUE(parse_frames_csv(text, &rows, &err)) << err;
+  EXPECT_EQ(rows.size(), 250000u);
 }

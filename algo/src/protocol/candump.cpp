@@ -1,5 +1,6 @@
 #include "agv/protocol/candump.hpp"
 
+#include <cstdint>
 #include <cstdio>
 
 namespace agv::protocol {
@@ -47,6 +48,10 @@ bool parse_candump_line(std::string_view line, CandumpRecord* out, std::string* 
   }
   if (frac_digits == 0 || p >= line.size() || line[p] != ')') {
     return fail(error, "timestamp must end with ')'");
+  }
+  // 12 digits of seconds do not fit in int64 nanoseconds: bound before multiplying.
+  if (sec > (INT64_MAX - frac_ns) / 1'000'000'000) {
+    return fail(error, "timestamp above 9223372036.854775807 s (int64 nanoseconds)");
   }
   ++p;
   if (p >= line.size() || line[p] != ' ') return fail(error, "expected ' ' after timestamp");

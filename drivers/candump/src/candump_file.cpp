@@ -1,6 +1,7 @@
 #include "agv/can/candump_file.hpp"
 
 #include <climits>
+#include <filesystem>
 #include <fstream>
 
 #include "agv/can/frame_convert.hpp"
@@ -9,6 +10,14 @@ namespace agv::can {
 
 bool read_candump_file(const std::string& path, std::vector<protocol::CandumpRecord>* out,
                        std::string* error) {
+  // A regular file of bounded size only (docs/security.md): never /dev/zero or a FIFO.
+  constexpr std::uintmax_t kMaxBytes = 256u << 20;
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec) ||
+      std::filesystem::file_size(path, ec) > kMaxBytes || ec) {
+    if (error) *error = path + ": not a regular file of at most 256 MiB";
+    return false;
+  }
   std::ifstream in(path);
   if (!in) {
     if (error) *error = path + ": cannot open";

@@ -24,9 +24,12 @@ void on_error(png_structp p, png_const_charp msg) {
 }
 void on_warning(png_structp, png_const_charp) {}
 
+constexpr png_uint_32 kMaxSide = 16384;
+
 }  // namespace
 
-bool read_gray(const std::string& path, cv::Mat* out, std::string* error) {
+bool read_gray(const std::string& path, cv::Mat* out, std::string* error, int expect_width,
+               int expect_height) {
   std::unique_ptr<FILE, FileCloser> f(std::fopen(path.c_str(), "rb"));
   if (!f) {
     *error = path + ": cannot open";
@@ -43,6 +46,10 @@ bool read_gray(const std::string& path, cv::Mat* out, std::string* error) {
     *error = path + ": libpng init failed";
     return false;
   }
+  // Refuse oversized headers inside libpng, and bound what ancillary chunks (zTXt, iCCP) may
+  // allocate: a few hundred bytes of compressed text must not become megabytes.
+  png_set_user_limits(png, kMaxSide, kMaxSide);
+  png_set_chunk_malloc_max(png, 1u << 20);
   png_infop info = png_create_info_struct(png);
   // Everything touched after setjmp and read after a longjmp must not live in registers.
   cv::Mat* volatile result = out;
@@ -58,9 +65,17 @@ bool read_gray(const std::string& path, cv::Mat* out, std::string* error) {
   const png_uint_32 w = png_get_image_width(png, info);
   const png_uint_32 h = png_get_image_height(png, info);
   const int color = png_get_color_type(png, info);
-  if (w == 0 || h == 0 || w > 16384 || h > 16384) {
+  if (w == 0 || h == 0 || w > kMaxSide || h > kMaxSide) {
     png_destroy_read_struct(&png, &info, nullptr);
     *error = path + ": unsupported image size";
+    return false;
+  }
+  // Compared before decoding: a small file can declare 16384x16384 (268 MB of pixels).
+  if ((expect_width > 0 && w != static_cast<png_uint_32>(expect_width)) ||
+      (expect_height > 0 && h != static_cast<png_uint_32>(expect_height))) {
+    png_destroy_read_struct(&png, &info, nullptr);
+    *error = path + ": image is " + std::to_string(w) + "x" + std::to_string(h) + ", expected " +
+             std::to_string(expect_width) + "x" + std::to_string(expect_height);
     return false;
   }
   if (png_get_bit_depth(png, info) == 16) png_set_strip_16(png);

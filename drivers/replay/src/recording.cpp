@@ -25,28 +25,77 @@ namespace fs = std::filesystem;
 
 namespace {
 
-constexpr std::int64_t kMaxFileBytes = 512LL * 1024 * 1024;  // refuse absurd files, not crash
+// Per-file caps (docs/security.md): with them a hostile recording cannot make the reader hold
+// more than a few hundred MB (the longest legitimate files, odom.csv and truth.csv at 100 Hz, are
+// ~3 MB per hour).
+constexpr std::uintmax_t kMaxMetaBytes = 64u << 10;      // 64 KiB
+constexpr std::uintmax_t kMaxFramesCsvBytes = 8u << 20;  // 8 MiB: ~250k frames, 2.3 h at 30 fps
+constexpr std::uintmax_t kMaxTimedCsvBytes = 32u << 20;  // 32 MiB: ~10 h of 100 Hz odometry
+constexpr std::uintmax_t kMaxPngBytes = 64u << 20;       // one frame
 
-bool read_text(const fs::path& path, std::string* text, std::string* error) {
+// False with *why ("missing", "cannot be read (Too many levels of symbolic links)", "not a
+// regular file", "larger than N bytes") unless `p` is a regular file of at most max_bytes.
+bool check_regular_file(const fs::path& p, std::uintmax_t max_bytes, std::uintmax_t* size,
+                        std::string* why) {
   std::error_code ec;
-  if (!fs::is_regular_file(path, ec)) {
-    *error = path.filename().string() + ": missing (expected at " + path.string() + ")";
+  const fs::file_status st = fs::status(p, ec);
+  if (ec && ec != std::errc::no_such_file_or_directory) {
+    *why = "cannot be read (" + ec.message() + ")";
     return false;
   }
-  const auto size = fs::file_size(path, ec);
-  if (ec || static_cast<std::int64_t>(size) > kMaxFileBytes) {
-    *error = path.filename().string() + ": cannot read or larger than 512 MiB";
+  if (!fs::exists(st)) {
+    *why = "missing";
+    return false;
+  }
+  if (!fs::is_regular_file(st)) {
+    *why = "not a regular file";
+    return false;
+  }
+  *size = fs::file_size(p, ec);
+  if (ec) {
+    *why = "cannot be read (" + ec.message() + ")";
+    return false;
+  }
+  if (*size > max_bytes) {
+    *why = "larger than " + std::to_string(max_bytes) + " bytes";
+    return false;
+  }
+  return true;
+}
+
+// `who` names the file in messages: the recording's files by name, others by path.
+bool read_bounded(const fs::path& path, std::uintmax_t max_bytes, const std::string& who,
+                  std::string* text, std::string* error) {
+  std::uintmax_t size = 0;
+  std::string why;
+  if (!check_regular_file(path, max_bytes, &size, &why)) {
+    if (why == "missing") {
+      why = who == path.string() ? "cannot open (no such file)"
+                                 : "missing (expected at " + path.string() + ")";
+    }
+    *error = who + ": " + why;
     return false;
   }
   std::ifstream f(path, std::ios::binary);
   if (!f) {
-    *error = path.filename().string() + ": cannot open";
+    *error = who + ": cannot open";
     return false;
   }
-  std::ostringstream ss;
-  ss << f.rdbuf();
-  *text = ss.str();
+  // Never more than the cap, even if the file grows while it is read.
+  text->assign(static_cast<size_t>(size) + 1, '\0');
+  f.read(text->data(), static_cast<std::streamsize>(text->size()));
+  const auto got = static_cast<std::uintmax_t>(f.gcount());
+  if (got > max_bytes) {
+    *error = who + ": larger than " + std::to_string(max_bytes) + " bytes";
+    return false;
+  }
+  text->resize(static_cast<size_t>(got));
   return true;
+}
+
+bool read_text(const fs::path& path, std::uintmax_t max_bytes, std::string* text,
+               std::string* error) {
+  return read_bounded(path, max_bytes, path.filename().string(), text, error);
 }
 
 bool write_text(const fs::path& path, const std::string& text, std::string* error) {
@@ -224,7 +273,8 @@ bool parse_timed_csv(const std::string& text, const std::string& name, const cha
     std::int64_t t = 0;
     if (!parse_i64(f[0], &t))
       return fail("t_ns '" + std::string(f[0].substr(0, 40)) + "' is not an integer");
-    if (t < 0) return fail("t_ns must not be negative");
+    if (t < 0 || t > kMaxTimeNs)
+      return fail("t_ns outside [0, " + std::to_string(kMaxTimeNs) + "]");
     if (have_prev && t <= prev) {
       return fail("t_ns " + std::to_string(t) + " is not after the previous row's " +
                   std::to_string(prev));
@@ -254,14 +304,76 @@ bool safe_relative_path(std::string_view f) {
   for (char c : f) {
     if (static_cast<unsigned char>(c) < 0x20 || c == '"') return false;
   }
+  // A file below the directory: no "..", and no "." or trailing "/" that names a directory
+  // ("." alone is the recording directory itself; found by fuzz_recording_frames).
+  if (f.back() == '/') return false;
   const fs::path p{std::string(f)};
   for (const auto& part : p) {
-    if (part == "..") return false;
+    if (part == ".." || part == ".") return false;
+  }
+  return true;
+}
+
+// Says why `p` cannot be a frame: not a readable regular file of at most kMaxPngBytes (with
+// the system's reason, e.g. a symlink loop), or without the PNG signature.
+bool check_png_file(const fs::path& p, std::string* why) {
+  std::uintmax_t size = 0;
+  if (!check_regular_file(p, kMaxPngBytes, &size, why)) return false;
+  std::ifstream in(p, std::ios::binary);
+  if (!in.is_open()) {
+    *why = "cannot be opened";
+    return false;
+  }
+  unsigned char sig[8] = {0};
+  in.read(reinterpret_cast<char*>(sig), 8);
+  static constexpr unsigned char kPng[8] = {0x89, 'P', 'N', 'G', 0x0d, 0x0a, 0x1a, 0x0a};
+  if (in.gcount() != 8 || !std::equal(sig, sig + 8, kPng)) {
+    *why = "not a PNG file";
+    return false;
   }
   return true;
 }
 
 }  // namespace
+
+bool read_file_bounded(const std::string& path, std::uintmax_t max_bytes, std::string* text,
+                       std::string* error) {
+  return read_bounded(fs::path(path), max_bytes, path, text, error);
+}
+
+bool check_replay_span(const Recording& rec, std::int64_t period_ns, std::int64_t max_ticks,
+                       std::string* error) {
+  // The first and last time of each file, with the row (line) it is on.
+  struct End {
+    std::int64_t t;
+    std::string where;
+  };
+  std::vector<End> ends;
+  if (!rec.frames.empty()) {
+    ends.push_back({rec.frames.front().t_ns, "frames.csv:2"});
+    ends.push_back({rec.frames.back().t_ns, "frames.csv:" + std::to_string(rec.frames.size() + 1)});
+  }
+  if (!rec.odom.empty()) {
+    ends.push_back({rec.odom.front().t_ns, "odom.csv:2"});
+    ends.push_back({rec.odom.back().t_ns, "odom.csv:" + std::to_string(rec.odom.size() + 1)});
+  }
+  if (ends.empty() || period_ns <= 0) return true;
+  const auto [lo, hi] = std::minmax_element(ends.begin(), ends.end(),
+                                            [](const End& a, const End& b) { return a.t < b.t; });
+  // Both times are in [0, kMaxTimeNs], so the difference cannot overflow.
+  const std::int64_t span = hi->t - lo->t;
+  if (span / period_ns < max_ticks) return true;
+  char buf[320];
+  std::snprintf(buf, sizeof buf,
+                "%s (t_ns %lld) to %s (t_ns %lld) span %.6g s; replay simulates at most %lld "
+                "output periods (%.6g s at this output rate)",
+                lo->where.c_str(), static_cast<long long>(lo->t), hi->where.c_str(),
+                static_cast<long long>(hi->t), static_cast<double>(span) / 1e9,
+                static_cast<long long>(max_ticks),
+                static_cast<double>(max_ticks) * static_cast<double>(period_ns) / 1e9);
+  if (error) *error = buf;
+  return false;
+}
 
 bool parse_meta_yaml(const std::string& text, Meta* out, std::string* error,
                      const std::string& name) {
@@ -342,7 +454,7 @@ bool parse_meta_yaml(const std::string& text, Meta* out, std::string* error,
 
 bool read_meta(const std::string& dir, Meta* out, std::string* error) {
   std::string text, err;
-  if (!read_text(fs::path(dir) / "meta.yaml", &text, &err)) {
+  if (!read_text(fs::path(dir) / "meta.yaml", kMaxMetaBytes, &text, &err)) {
     if (error) *error = err;
     return false;
   }
@@ -353,6 +465,13 @@ bool parse_frames_csv(const std::string& text, std::vector<FrameRow>* out, std::
                       const std::string& name) {
   std::vector<CsvLine> lines;
   if (!csv_lines(text, name, "t_ns,file", &lines, error)) return false;
+  if (lines.size() > static_cast<size_t>(kMaxFrames)) {
+    if (error) {
+      *error = name + ":" + std::to_string(lines[kMaxFrames].line_no) + ": more than " +
+               std::to_string(kMaxFrames) + " frames";
+    }
+    return false;
+  }
   std::vector<FrameRow> rows;
   rows.reserve(lines.size());
   for (const CsvLine& l : lines) {
@@ -366,7 +485,9 @@ bool parse_frames_csv(const std::string& text, std::vector<FrameRow>* out, std::
     if (!parse_i64(f[0], &r.t_ns)) {
       return fail("t_ns '" + std::string(f[0].substr(0, 40)) + "' is not an integer");
     }
-    if (r.t_ns < 0) return fail("t_ns must not be negative");
+    if (r.t_ns < 0 || r.t_ns > kMaxTimeNs) {
+      return fail("t_ns outside [0, " + std::to_string(kMaxTimeNs) + "]");
+    }
     if (!rows.empty() && r.t_ns <= rows.back().t_ns) {
       return fail("t_ns " + std::to_string(r.t_ns) + " is not after the previous row's " +
                   std::to_string(rows.back().t_ns));
@@ -430,31 +551,26 @@ bool read_recording(const std::string& dir, Recording* out, std::string* error) 
     r.dir = dir;
     if (!read_meta(dir, &r.meta, &err)) return fail(err);
     std::string text;
-    if (!read_text(d / "frames.csv", &text, &err) || !parse_frames_csv(text, &r.frames, &err)) {
+    if (!read_text(d / "frames.csv", kMaxFramesCsvBytes, &text, &err) ||
+        !parse_frames_csv(text, &r.frames, &err)) {
       return fail(err);
     }
-    // Every referenced image must exist and carry the PNG signature.
+    // Every referenced image must be a readable regular file that carries the PNG signature.
     size_t line = 1;
     for (const FrameRow& f : r.frames) {
       ++line;
-      const fs::path p = d / f.file;
-      unsigned char sig[8] = {0};
-      std::ifstream in(p, std::ios::binary);
-      if (!fs::is_regular_file(p, ec) || !in) {
-        return fail("frames.csv:" + std::to_string(line) + ": image '" + f.file + "' is missing");
-      }
-      in.read(reinterpret_cast<char*>(sig), 8);
-      static constexpr unsigned char kPng[8] = {0x89, 'P', 'N', 'G', 0x0d, 0x0a, 0x1a, 0x0a};
-      if (in.gcount() != 8 || !std::equal(sig, sig + 8, kPng)) {
-        return fail("frames.csv:" + std::to_string(line) + ": image '" + f.file +
-                    "' is not a PNG file");
+      std::string why;
+      if (!check_png_file(d / f.file, &why)) {
+        return fail("frames.csv:" + std::to_string(line) + ": image '" + f.file + "': " + why);
       }
     }
-    if (!read_text(d / "odom.csv", &text, &err) || !parse_odom_csv(text, &r.odom, &err)) {
+    if (!read_text(d / "odom.csv", kMaxTimedCsvBytes, &text, &err) ||
+        !parse_odom_csv(text, &r.odom, &err)) {
       return fail(err);
     }
     if (fs::exists(d / "truth.csv", ec)) {
-      if (!read_text(d / "truth.csv", &text, &err) || !parse_truth_csv(text, &r.truth, &err)) {
+      if (!read_text(d / "truth.csv", kMaxTimedCsvBytes, &text, &err) ||
+          !parse_truth_csv(text, &r.truth, &err)) {
         return fail(err);
       }
       r.has_truth = true;
@@ -476,26 +592,26 @@ bool load_frame(const Recording& rec, size_t i, cv::Mat* image, std::string* err
   // its allocation.
   cv::Mat& img = *image;
   std::string png_error;
-  if (!png::read_gray(path, &img, &png_error)) {
+  const auto& k = rec.meta.camera.intrinsics;
+  std::string why;
+  if (!check_png_file(fs::path(path), &why)) {
+    if (error)
+      *error =
+          "frames.csv:" + std::to_string(i + 2) + ": image '" + rec.frames[i].file + "': " + why;
+    return false;
+  }
+  // The header is compared with meta.yaml before anything is decoded.
+  if (!png::read_gray(path, &img, &png_error, k.width_px, k.height_px)) {
     if (error) {
       *error = "frames.csv:" + std::to_string(i + 2) + ": cannot decode '" + rec.frames[i].file +
                "' (" + png_error + ")";
     }
     return false;
   }
-  const auto& k = rec.meta.camera.intrinsics;
-  if (img.cols != k.width_px || img.rows != k.height_px) {
-    if (error) {
-      *error = "frames.csv:" + std::to_string(i + 2) + ": '" + rec.frames[i].file + "' is " +
-               std::to_string(img.cols) + "x" + std::to_string(img.rows) + ", meta.yaml says " +
-               std::to_string(k.width_px) + "x" + std::to_string(k.height_px);
-    }
-    return false;
-  }
   return true;
 }
 
-bool write_meta(const std::string& dir, const Meta& m, std::string* error) {
+std::string format_meta_yaml(const Meta& m) {
   const auto& k = m.camera.intrinsics;
   const auto& mt = m.camera.mount;
   std::ostringstream os;
@@ -525,18 +641,22 @@ bool write_meta(const std::string& dir, const Meta& m, std::string* error) {
      << "\n  offset_y_mm: " << fmt_g17(mt.offset_y_mm)
      << "\n  yaw_deg: " << fmt_g17(rad_to_deg(wrap_angle_rad(mt.yaw_rad))) << "\n"
      << "landmark:\n  size_mm: " << fmt_g17(m.landmark_size_mm) << "\n";
+  return os.str();
+}
+
+bool write_meta(const std::string& dir, const Meta& m, std::string* error) {
+  const std::string text = format_meta_yaml(m);
   // Refuse to write what the reader would reject.
   Meta check;
   std::string err;
-  if (!parse_meta_yaml(os.str(), &check, &err)) {
+  if (!parse_meta_yaml(text, &check, &err)) {
     if (error) *error = "refusing to write invalid meta: " + err;
     return false;
   }
-  return write_text(fs::path(dir) / "meta.yaml", os.str(), error);
+  return write_text(fs::path(dir) / "meta.yaml", text, error);
 }
 
-bool write_frames_csv(const std::string& dir, const std::vector<FrameRow>& rows,
-                      std::string* error) {
+bool format_frames_csv(const std::vector<FrameRow>& rows, std::string* text, std::string* error) {
   std::string s = "t_ns,file\n";
   for (const FrameRow& r : rows) {
     if (!safe_relative_path(r.file) || r.file.find(',') != std::string::npos) {
@@ -545,10 +665,17 @@ bool write_frames_csv(const std::string& dir, const std::vector<FrameRow>& rows,
     }
     s += std::to_string(r.t_ns) + "," + r.file + "\n";
   }
-  return write_text(fs::path(dir) / "frames.csv", s, error);
+  *text = std::move(s);
+  return true;
 }
 
-bool write_odom_csv(const std::string& dir, const std::vector<OdomRow>& rows, std::string* error) {
+bool write_frames_csv(const std::string& dir, const std::vector<FrameRow>& rows,
+                      std::string* error) {
+  std::string s;
+  return format_frames_csv(rows, &s, error) && write_text(fs::path(dir) / "frames.csv", s, error);
+}
+
+std::string format_odom_csv(const std::vector<OdomRow>& rows) {
   std::string s = "t_ns,v_mps,omega_radps\n";
   char buf[96];
   for (const OdomRow& r : rows) {
@@ -556,11 +683,14 @@ bool write_odom_csv(const std::string& dir, const std::vector<OdomRow>& rows, st
                   r.omega_radps);
     s += buf;
   }
-  return write_text(fs::path(dir) / "odom.csv", s, error);
+  return s;
 }
 
-bool write_truth_csv(const std::string& dir, const std::vector<TruthRow>& rows,
-                     std::string* error) {
+bool write_odom_csv(const std::string& dir, const std::vector<OdomRow>& rows, std::string* error) {
+  return write_text(fs::path(dir) / "odom.csv", format_odom_csv(rows), error);
+}
+
+std::string format_truth_csv(const std::vector<TruthRow>& rows) {
   std::string s = "t_ns,x_mm,y_mm,theta_deg\n";
   char buf[128];
   for (const TruthRow& r : rows) {
@@ -571,7 +701,12 @@ bool write_truth_csv(const std::string& dir, const std::vector<TruthRow>& rows,
                   r.y_mm, th);
     s += buf;
   }
-  return write_text(fs::path(dir) / "truth.csv", s, error);
+  return s;
+}
+
+bool write_truth_csv(const std::string& dir, const std::vector<TruthRow>& rows,
+                     std::string* error) {
+  return write_text(fs::path(dir) / "truth.csv", format_truth_csv(rows), error);
 }
 
 bool write_frame_png(const std::string& dir, const std::string& relative_file, const cv::Mat& image,

@@ -16,6 +16,10 @@ class Mat;
 namespace agv::recording {
 
 inline constexpr int kFormatVersion = 1;
+// Largest accepted t_ns (2^62 ns, 146 years): sums of a time and a period or delay never overflow.
+inline constexpr std::int64_t kMaxTimeNs = std::int64_t{1} << 62;
+// Most frames a recording may have (2.3 h at 30 fps): replay keeps one 408-byte fix record each.
+inline constexpr int kMaxFrames = 250'000;
 
 struct Meta {
   int format_version = kFormatVersion;
@@ -67,9 +71,27 @@ bool parse_odom_csv(const std::string& text, std::vector<OdomRow>* out, std::str
 bool parse_truth_csv(const std::string& text, std::vector<TruthRow>* out, std::string* error,
                      const std::string& name = "truth.csv");
 
-// Loads frame i as 8-bit grey. False with *error when the file is missing, not decodable, or not
-// of the size in meta.yaml.
+// Loads frame i as 8-bit grey. False with *error when the file is missing or unreadable (with
+// the reason), not decodable (with libpng's message), or not of the size in meta.yaml (checked on
+// the PNG header before anything is decoded).
 bool load_frame(const Recording& rec, size_t i, cv::Mat* image, std::string* error);
+
+// Reads a whole file that must be a regular file of at most max_bytes (not a device, FIFO or
+// directory). False with *error naming the path and the reason.
+bool read_file_bounded(const std::string& path, std::uintmax_t max_bytes, std::string* text,
+                       std::string* error);
+
+// Replay simulates every output period between the first and last time of frames.csv and
+// odom.csv. False with *error naming those rows when that is max_ticks periods or more.
+bool check_replay_span(const Recording& rec, std::int64_t period_ns, std::int64_t max_ticks,
+                       std::string* error);
+
+// The text the writers below write (docs/recording.md). Meta and frames round-trip exactly;
+// odom.csv keeps 9 significant digits, truth.csv 0.1 um and 1e-6 degrees.
+std::string format_meta_yaml(const Meta& meta);
+bool format_frames_csv(const std::vector<FrameRow>& rows, std::string* text, std::string* error);
+std::string format_odom_csv(const std::vector<OdomRow>& rows);
+std::string format_truth_csv(const std::vector<TruthRow>& rows);
 
 // Writers create the directory if needed and overwrite the files.
 bool write_meta(const std::string& dir, const Meta& meta, std::string* error);

@@ -1,0 +1,80 @@
+#!/usr/bin/env bash
+# Builds the fuzz preset and runs every libFuzzer harness for a bounded time on a copy of the
+# committed corpus (fuzz/corpus/<harness>/, so the tree stays clean) plus what it finds.
+#   fuzz/run.sh [SECONDS_PER_HARNESS] [HARNESS...]      default 60 s, every harness
+# Fails on any crash, property violation, leak, timeout (> 1 s for one input), sanitizer report
+# or out-of-memory (> 2 GB RSS). The reproducer lands in $AGV_FUZZ_ARTIFACTS (default
+# build/fuzz/artifacts); rerun it with build/fuzz/fuzz/<harness> <file>.
+# Environment: AGV_FUZZ_JOBS (build parallelism, default nproc); AGV_FUZZ_RUNS=N stops a harness
+# after N executions (SECONDS stays the cap); AGV_FUZZ_KEEP_CORPUS=DIR keeps the grown corpus per
+# harness under DIR (to continue a campaign or to minimise it into fuzz/corpus).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+seconds="${1:-60}"
+shift || true
+all=(fuzz_payload fuzz_map fuzz_recording_meta fuzz_recording_frames fuzz_recording_odom
+     fuzz_recording_truth fuzz_config fuzz_candump fuzz_can_odometry fuzz_png fuzz_vision)
+if [ "$#" -gt 0 ]; then harnesses=("$@"); else harnesses=("${all[@]}"); fi
+
+t0=$(date +%s)
+cmake --preset fuzz >/dev/null
+nice -n 10 cmake --build --preset fuzz -j "${AGV_FUZZ_JOBS:-$(nproc)}"
+echo "fuzz: build took $(( $(date +%s) - t0 )) s"
+
+dict_of() {
+  case "$1" in
+    fuzz_payload) echo fuzz/dict/payload.dict ;;
+    fuzz_map) echo fuzz/dict/map.dict ;;
+    fuzz_recording_meta) echo fuzz/dict/meta.dict ;;
+    fuzz_recording_*) echo fuzz/dict/csv.dict ;;
+    fuzz_config) echo fuzz/dict/config.dict ;;
+    fuzz_candump) echo fuzz/dict/candump.dict ;;
+  esac
+}
+
+artifacts="${AGV_FUZZ_ARTIFACTS:-build/fuzz/artifacts}"
+mkdir -p "$artifacts"
+work="$(mktemp -d)"
+trap 'rm -rf "$work"' EXIT
+export ASAN_OPTIONS="halt_on_error=1:abort_on_error=1:detect_leaks=1:allocator_may_return_null=1"
+export UBSAN_OPTIONS="halt_on_error=1:abort_on_error=1:print_stacktrace=1"
+failed=()
+printf '%-24s %10s %8s %8s %8s %s\n' harness executions seconds exec/s corpus result \
+  > "$work/summary"
+for h in "${harnesses[@]}"; do
+  corpus="$work/corpus_$h"
+  mkdir -p "$corpus"
+  cp -r "fuzz/corpus/$h/." "$corpus/"
+  args=(-max_total_time="$seconds" -timeout=1 -rss_limit_mb=2048 -malloc_limit_mb=2048
+        -print_final_stats=1 -artifact_prefix="$artifacts/$h-")
+  [ -n "${AGV_FUZZ_RUNS:-}" ] && args+=(-runs="$AGV_FUZZ_RUNS")
+  dict="$(dict_of "$h")"
+  [ -n "$dict" ] && args+=(-dict="$dict")
+  echo "fuzz: $h for $seconds s"
+  rc=0
+  nice -n 10 "build/fuzz/fuzz/$h" "${args[@]}" "$corpus" >"$work/$h.log" 2>&1 || rc=$?
+  execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$work/$h.log" | tail -1)
+  rate=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$work/$h.log" | tail -1)
+  secs=$(sed -n 's/^Done [0-9]* runs in \([0-9]*\) second.*/\1/p' "$work/$h.log" | tail -1)
+  files=$(find "$corpus" -type f | wc -l)
+  if [ "$rc" -ne 0 ]; then
+    failed+=("$h")
+    echo "fuzz: $h FAILED (exit $rc); the end of its log:"
+    tail -40 "$work/$h.log"
+    printf '%-24s %10s %8s %8s %8s %s\n' "$h" "${execs:-?}" "${secs:-?}" "${rate:-?}" "$files" \
+      FAILED >> "$work/summary"
+  else
+    printf '%-24s %10s %8s %8s %8s %s\n' "$h" "${execs:-?}" "${secs:-?}" "${rate:-?}" "$files" \
+      ok >> "$work/summary"
+  fi
+  if [ -n "${AGV_FUZZ_KEEP_CORPUS:-}" ]; then
+    mkdir -p "$AGV_FUZZ_KEEP_CORPUS/$h" && cp -r "$corpus/." "$AGV_FUZZ_KEEP_CORPUS/$h/"
+  fi
+done
+cat "$work/summary"
+echo "fuzz: ${#harnesses[@]} harnesses, $(( $(date +%s) - t0 )) s in all (build included)"
+if [ "${#failed[@]}" -gt 0 ]; then
+  echo "fuzz: FAILED: ${failed[*]} (reproducers in $artifacts)"
+  exit 1
+fi
+echo "fuzz: every harness ran without a finding"

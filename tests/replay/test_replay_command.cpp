@@ -1,0 +1,131 @@
+// `agvloc replay` on hostile recordings (issue 15): frames that cannot be read are reported with
+// their reason, a replay that read no frame fails, and the simulated time span is bounded.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "agv/recording/recording.hpp"
+#include "commands.hpp"
+
+namespace fs = std::filesystem;
+using namespace agv;
+
+namespace {
+
+fs::path fresh_dir(const std::string& name) {
+  const fs::path d =
+      fs::temp_directory_path() / ("agv_test_replaycmd_" + std::to_string(::getpid()) + "_" + name);
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+// A 64x48 recording with `n` frames (0.1 s apart) and 100 Hz odometry over the same time.
+fs::path write_recording(const std::string& name, int n) {
+  const fs::path d = fresh_dir(name);
+  recording::Meta m;
+  m.camera = CameraModel::default_640x480();
+  m.camera.intrinsics.width_px = 64;
+  m.camera.intrinsics.height_px = 48;
+  m.camera.intrinsics.cx = 31.5;
+  m.camera.intrinsics.cy = 23.5;
+  std::string err;
+  EXPECT_TRUE(recording::write_meta(d.string(), m, &err)) << err;
+  std::vector<recording::FrameRow> frames;
+  for (int i = 0; i < n; ++i) {
+    const std::string f = "frames/" + std::to_string(i) + ".png";
+    EXPECT_TRUE(
+        recording::write_frame_png(d.string(), f, cv::Mat(48, 64, CV_8UC1, cv::Scalar(90)), &err))
+        << err;
+    frames.push_back({1'000'000'000LL + i * 100'000'000LL, f});
+  }
+  EXPECT_TRUE(recording::write_frames_csv(d.string(), frames, &err)) << err;
+  std::vector<recording::OdomRow> odom;
+  for (int i = 0; i <= n * 10; ++i) odom.push_back({1'000'000'000LL + i * 10'000'000LL, 0.1, 0.0});
+  EXPECT_TRUE(recording::write_odom_csv(d.string(), odom, &err)) << err;
+  return d;
+}
+
+// Keeps the PNG signature and IHDR, replaces the rest: libpng itself reports the damage.
+void corrupt(const fs::path& png) {
+  std::string s;
+  {
+    std::ifstream f(png, std::ios::binary);
+    s.assign(std::istreambuf_iterator<char>(f), {});
+  }
+  s.resize(33);
+  s += std::string(40, 'x');
+  std::ofstream(png, std::ios::binary | std::ios::trunc) << s;
+}
+
+struct ReplayRun {
+  int rc;
+  std::string err;
+};
+
+ReplayRun replay(const fs::path& rec) {
+  std::vector<std::string> args = {"replay", rec.string(), "--out", (rec / "out").string(),
+                                   "--fast", "--quiet"};
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  testing::internal::CaptureStderr();
+  const int rc = agv::cmd::replay(static_cast<int>(argv.size()), argv.data());
+  return {rc, testing::internal::GetCapturedStderr()};
+}
+
+}  // namespace
+
+// Finding 6: all frames unreadable replayed with exit 0 and without libpng's reason.
+TEST(ReplayCommand, NoReadableFrameIsAFailureAndSaysWhy) {
+  const fs::path d = write_recording("allbad", 3);
+  for (int i = 0; i < 3; ++i) corrupt(d / "frames" / (std::to_string(i) + ".png"));
+  const ReplayRun r = replay(d);
+  EXPECT_EQ(r.rc, 1) << r.err;
+  EXPECT_NE(r.err.find("3 of 3 frames could not be read (last: frames.csv:4: cannot decode "
+                       "'frames/2.png'"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("corrupt PNG ("), std::string::npos) << r.err;  // libpng's message
+  EXPECT_EQ(r.err.find("corrupt PNG (libpng error"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("no frame of " + d.string() + " could be read"), std::string::npos) << r.err;
+  fs::remove_all(d);
+}
+
+TEST(ReplayCommand, SomeUnreadableFramesAreReportedButTheRunSucceeds) {
+  const fs::path d = write_recording("somebad", 3);
+  corrupt(d / "frames" / "1.png");
+  const ReplayRun r = replay(d);
+  EXPECT_EQ(r.rc, 0) << r.err;
+  EXPECT_NE(r.err.find("1 of 3 frames could not be read (last: frames.csv:3:"), std::string::npos)
+      << r.err;
+  fs::remove_all(d);
+}
+
+// Finding 5: odometry rows at t = 1e10 and 9e18 made replay write output without end.
+TEST(ReplayCommand, TimeSpanIsBoundedAndTheRowsNamed) {
+  const fs::path d = write_recording("span", 1);
+  std::ofstream(d / "odom.csv", std::ios::trunc)
+      << "t_ns,v_mps,omega_radps\n10000000000,0,0\n9000000000000000000,0,0\n";
+  ReplayRun r = replay(d);
+  EXPECT_EQ(r.rc, 1) << r.err;  // beyond 2^62 ns: the recording itself is rejected
+  EXPECT_NE(r.err.find("odom.csv:3: t_ns outside [0, 4611686018427387904]"), std::string::npos)
+      << r.err;
+  std::ofstream(d / "odom.csv", std::ios::trunc)
+      << "t_ns,v_mps,omega_radps\n10000000000,0,0\n4000000000000000000,0,0\n";
+  r = replay(d);
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("frames.csv:2 (t_ns 1000000000) to odom.csv:3 (t_ns 4000000000000000000)"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("replay simulates at most 1000000 output periods (10000 s at this output "
+                       "rate)"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(d / "out" / "poses.csv"));
+  fs::remove_all(d);
+}
