@@ -1,11 +1,17 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
 #include <string>
 #include <vector>
 
+#include "agv/config/keys.hpp"
 #include "config.hpp"
 
 using agv::config::Config;
@@ -272,4 +278,230 @@ TEST(Config, OnlyBoundedRegularFilesAreRead) {
   EXPECT_FALSE(agv::config::load_map_file(dir, &map, &err));
   EXPECT_NE(err.find("not a regular file"), std::string::npos) << err;
   std::filesystem::remove_all(dir);
+}
+
+// ---- Issue 14: one key table for the checker, the defaults and docs/config.md ---------------
+
+namespace {
+
+using agv::config::Key;
+using agv::config::KeyType;
+using agv::config::Value;
+
+bool same_value(const Value& a, const Value& b) {
+  if (a.index() != b.index()) return false;
+  if (const auto* x = std::get_if<double>(&a)) {
+    const double y = std::get<double>(b);
+    return std::fabs(*x - y) <= 1e-9 * std::max(1.0, std::fabs(y));
+  }
+  return a == b;
+}
+
+// YAML for a set of dotted keys ("can.odometry.id" -> "0x123"), nested by section.
+std::string yaml_of(const std::map<std::string, std::string>& keys) {
+  std::string out;
+  std::vector<std::string> open;  // sections of the previous key
+  for (const auto& [path, value] : keys) {
+    std::vector<std::string> parts;
+    for (std::size_t start = 0;;) {
+      const std::size_t dot = path.find('.', start);
+      parts.push_back(path.substr(start, dot - start));
+      if (dot == std::string::npos) break;
+      start = dot + 1;
+    }
+    std::size_t common = 0;
+    while (common < open.size() && common + 1 < parts.size() && open[common] == parts[common]) {
+      ++common;
+    }
+    for (std::size_t i = common; i + 1 < parts.size(); ++i) {
+      out += std::string(2 * i, ' ') + parts[i] + ":\n";
+    }
+    out += std::string(2 * (parts.size() - 1), ' ') + parts.back() + ": " + value + "\n";
+    open.assign(parts.begin(), parts.end() - 1);
+  }
+  return out;
+}
+
+std::map<std::string, std::string> live_base() {
+  return {{"intrinsics.fx", "769.23"},
+          {"intrinsics.fy", "769.23"},
+          {"intrinsics.cx", "319.5"},
+          {"intrinsics.cy", "239.5"}};
+}
+
+std::string yaml_scalar(const Key& k, const Value& v) {
+  if (const auto* d = std::get_if<double>(&v)) {
+    std::ostringstream os;
+    os.precision(17);
+    os << *d;
+    return os.str();
+  }
+  if (k.type == KeyType::kString) return "\"" + std::get<std::string>(v) + "\"";
+  return agv::config::format_value(k, v);
+}
+
+// Values other than the default that the key accepts, most likely valid first.
+std::vector<Value> other_values(const Key& k) {
+  std::vector<Value> out;
+  switch (k.type) {
+    case KeyType::kNumber: {
+      const double def = k.required_live ? 700.0 : std::get<double>(k.def);
+      for (double v : {def * 0.5, def * 1.5, k.lo + 0.25 * (k.hi - k.lo),
+                       k.lo + 0.1 * (k.hi - k.lo), k.lo, k.hi}) {
+        if (v >= k.lo && v <= k.hi && v != def) out.emplace_back(v);
+      }
+      break;
+    }
+    case KeyType::kInteger:
+    case KeyType::kCanId: {
+      const auto def = std::get<std::int64_t>(k.def);
+      const auto lo = static_cast<std::int64_t>(k.lo), hi = static_cast<std::int64_t>(k.hi);
+      for (std::int64_t v : {def / 2, def * 2, def + 1, lo + (hi - lo) / 4, lo, hi, 0x123L}) {
+        if (v >= lo && v <= hi && v != def) out.emplace_back(v);
+      }
+      break;
+    }
+    case KeyType::kBool:
+      out.emplace_back(!std::get<bool>(k.def));
+      break;
+    case KeyType::kChoice:
+      for (const auto& c : k.choices) {
+        if (c != std::get<std::string>(k.def)) out.emplace_back(c);
+      }
+      break;
+    case KeyType::kString:
+      out.emplace_back(std::string("test_value"));
+      break;
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(Config, DocsMatchTheKeyTable) {
+  std::ifstream f(std::string(AGV_SOURCE_DIR) + "/docs/config.md", std::ios::binary);
+  ASSERT_TRUE(f) << "docs/config.md missing";
+  std::stringstream committed;
+  committed << f.rdbuf();
+  EXPECT_TRUE(committed.str() == agv::config::config_doc())
+      << "docs/config.md differs from the key table; regenerate it with\n"
+         "  build/default/tools/config-doc/agvloc-config-doc > docs/config.md";
+}
+
+TEST(Config, EveryDocumentedKeyIsInTheTableAndBack) {
+  std::ifstream f(std::string(AGV_SOURCE_DIR) + "/docs/config.md");
+  std::set<std::string> documented;
+  for (std::string line; std::getline(f, line);) {
+    if (line.rfind("| `", 0) != 0) continue;
+    const std::string key = line.substr(3, line.find('`', 3) - 3);
+    const bool removed =
+        std::any_of(agv::config::removed_keys().begin(), agv::config::removed_keys().end(),
+                    [&](const auto& r) { return r.name == key; });
+    if (!removed) documented.insert(key);
+  }
+  std::set<std::string> table;
+  for (const Key& k : agv::config::config_keys()) table.insert(k.name);
+  EXPECT_EQ(documented, table);
+  EXPECT_EQ(table.size(), agv::config::config_keys().size()) << "a key is in the table twice";
+}
+
+TEST(Config, DefaultsEqualTheTable) {
+  const Config built_in;
+  Config parsed;
+  std::vector<std::string> errors;
+  ASSERT_TRUE(agv::config::parse_config(kIntrinsics, "", &parsed, &errors));
+  for (const Key& k : agv::config::config_keys()) {
+    if (k.required_live) continue;
+    EXPECT_TRUE(same_value(k.get(built_in), k.def))
+        << k.name << ": struct default " << agv::config::format_value(k, k.get(built_in))
+        << ", table " << agv::config::format_value(k, k.def);
+    EXPECT_TRUE(same_value(k.get(parsed), k.def)) << k.name << " after parsing";
+  }
+}
+
+TEST(Config, EveryKeyRoundTrips) {
+  for (const Key& k : agv::config::config_keys()) {
+    bool one_accepted = false;
+    for (const Value& v : other_values(k)) {
+      auto keys = live_base();
+      // vision_priority must stay below realtime_priority.
+      if (k.name == "loop.vision_priority") keys["loop.realtime_priority"] = "99";
+      keys[k.name] = yaml_scalar(k, v);
+      Config cfg;
+      std::vector<std::string> errors;
+      if (!agv::config::parse_config(yaml_of(keys), "", &cfg, &errors)) continue;  // a relation
+      one_accepted = true;
+      EXPECT_TRUE(same_value(k.get(cfg), v))
+          << k.name << ": wrote " << yaml_scalar(k, v) << ", read "
+          << agv::config::format_value(k, k.get(cfg));
+      EXPECT_FALSE(same_value(k.get(cfg), k.get(Config{}))) << k.name << " kept its default";
+      // No two keys share a field (a row pointing at the wrong member shows up here). Turning
+      // the calibration off changes four noise defaults by design (FusionOdometryTiming...).
+      if (k.name != "fusion.estimate_odometry_calibration") {
+        auto without = keys;
+        without.erase(k.name);
+        Config base;
+        // kReplay: without k an intrinsics key may be missing.
+        ASSERT_TRUE(agv::config::parse_config(yaml_of(without), "", &base, &errors,
+                                              agv::config::ConfigUse::kReplay));
+        for (const Key& other : agv::config::config_keys()) {
+          if (&other == &k) continue;
+          EXPECT_TRUE(same_value(other.get(cfg), other.get(base)))
+              << "setting " << k.name << " changed " << other.name;
+        }
+      }
+      break;
+    }
+    EXPECT_TRUE(one_accepted) << k.name << ": no non-default value accepted";
+  }
+}
+
+TEST(Config, EveryKeyChecksItsType) {
+  for (const Key& k : agv::config::config_keys()) {
+    if (k.type == KeyType::kString) continue;  // any scalar is a string
+    auto keys = live_base();
+    keys[k.name] = "[1, 2]";
+    const auto e = errors_for(yaml_of(keys));
+    EXPECT_TRUE(mentions(e, k.name + ": expected")) << k.name;
+  }
+}
+
+TEST(Config, VisionFieldsOnceRejectedAreKeys) {
+  // docs/vision.md listed these as settings while the reader rejected them (issue 14).
+  for (const char* name :
+       {"coarse_border_px", "corner_rotations", "ring_dark_fraction", "max_corner_peaks",
+        "qr_retries", "qr_target_module_px", "direction_from_qr_when_logo_weak", "band_rel",
+        "tukey_c", "ransac_iterations", "metric", "pose_method", "heading_method",
+        "outside_margin_mm"}) {
+    EXPECT_NE(agv::config::find_key(std::string("vision.") + name), nullptr) << name;
+  }
+  Config cfg;
+  std::vector<std::string> errors;
+  ASSERT_TRUE(agv::config::parse_config(
+      std::string(kIntrinsics) + "vision:\n  metric: linear_ratio\n  pose_method: paper_corner_a\n"
+                                 "  tukey_c: 3\n  ransac_iterations: 0\n",
+      "", &cfg, &errors))
+      << errors.front();
+  EXPECT_EQ(cfg.vision.metric, agv::vision::MetricMode::kLinearRatio);
+  EXPECT_EQ(cfg.vision.pose_method, agv::vision::PoseMethod::kPaperCornerA);
+  EXPECT_DOUBLE_EQ(cfg.vision.tukey_c, 3.0);
+  EXPECT_EQ(cfg.vision.ransac_iterations, 0);
+  EXPECT_TRUE(mentions(errors_for("vision:\n  corner_rotations: 33\n"),
+                       "vision.corner_rotations: value 33 outside the accepted range [1, 32]"));
+  EXPECT_TRUE(mentions(errors_for("vision:\n  heading_method: median\n"),
+                       "vision.heading_method: 'median' is not one of: inverse_variance, mean, "
+                       "weighted_000"));
+}
+
+TEST(Config, OneOdometryTimeout) {
+  Config cfg;
+  std::vector<std::string> errors;
+  ASSERT_TRUE(agv::config::parse_config(
+      std::string(kIntrinsics) + "can:\n  odometry:\n    timeout_ms: 250\n", "", &cfg, &errors));
+  EXPECT_DOUBLE_EQ(cfg.can.odometry_timeout_ms, 250.0);
+  EXPECT_EQ(agv::config::protocol_config(cfg).odometry.timeout_ns, 250'000'000);
+  EXPECT_EQ(cfg.fusion.odom_timeout_ns, 250'000'000);  // the filter's flag follows the same key
+  const auto e = errors_for(std::string(kIntrinsics) + "fusion:\n  odom_timeout_ms: 100\n");
+  EXPECT_TRUE(mentions(e, "fusion.odom_timeout_ms: removed key; use can.odometry.timeout_ms"));
+  EXPECT_EQ(agv::config::find_key("fusion.odom_timeout_ms"), nullptr);
 }

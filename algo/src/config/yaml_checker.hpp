@@ -5,6 +5,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cstdint>
+#include <map>
 #include <set>
 #include <string>
 #include <vector>
@@ -19,8 +20,6 @@ class YamlChecker {
               double hi, double* out);
   void integer(const YAML::Node& node, const std::string& path, const char* key, std::int64_t lo,
                std::int64_t hi, std::int64_t* out);
-  void integer(const YAML::Node& node, const std::string& path, const char* key, std::int64_t lo,
-               std::int64_t hi, int* out);
   void boolean(const YAML::Node& node, const std::string& path, const char* key, bool* out);
   void string(const YAML::Node& node, const std::string& path, const char* key, std::string* out);
   void choice(const YAML::Node& node, const std::string& path, const char* key,
@@ -30,9 +29,12 @@ class YamlChecker {
   // Records "missing (required: why)" when map `node` has no `key`.
   void require(const YAML::Node& node, const std::string& path, const char* key,
                const std::string& why);
-  // Call after reading a map: every key not asked for is reported as unknown, a key that is not
-  // a scalar (`[a]: 1`) and a key given twice are errors too.
+  // Call after reading a map: every key not asked for is reported as unknown (or, when it was
+  // removed, with its replacement), a key that is not a scalar (`[a]: 1`) and a key given twice
+  // are errors too.
   void finish_map(const YAML::Node& node, const std::string& path);
+  // A key that no longer exists: finish_map names `replacement` instead of "unknown key".
+  void removed(const std::string& path, const std::string& replacement);
 
   void error(const std::string& path, const std::string& what);
   const std::vector<std::string>& errors() const { return errors_; }
@@ -40,11 +42,8 @@ class YamlChecker {
  private:
   static std::string join(const std::string& path, const char* key);
   std::set<std::string> seen_;
+  std::map<std::string, std::string> removed_;
   std::vector<std::string> errors_;
 };
-
-struct Config;
-// Reads the algorithm sections (vision, fusion, replay) into cfg; defined in config_algo.cpp.
-void read_algo_sections(YamlChecker& c, const YAML::Node& root, Config* cfg);
 
 }  // namespace agv::config

@@ -60,13 +60,6 @@ void YamlChecker::integer(const YAML::Node& node, const std::string& path, const
   *out = i;
 }
 
-void YamlChecker::integer(const YAML::Node& node, const std::string& path, const char* key,
-                          std::int64_t lo, std::int64_t hi, int* out) {
-  std::int64_t v = *out;
-  integer(node, path, key, lo, hi, &v);
-  *out = static_cast<int>(v);
-}
-
 void YamlChecker::boolean(const YAML::Node& node, const std::string& path, const char* key,
                           bool* out) {
   const std::string p = join(path, key);
@@ -126,6 +119,10 @@ void YamlChecker::require(const YAML::Node& node, const std::string& path, const
   if (!node.IsMap() || !node[key]) error(join(path, key), "missing (required: " + why + ")");
 }
 
+void YamlChecker::removed(const std::string& path, const std::string& replacement) {
+  removed_[path] = replacement;
+}
+
 void YamlChecker::finish_map(const YAML::Node& node, const std::string& path) {
   if (!node.IsMap()) return;
   std::map<std::string, int> lines;  // key -> line of its first occurrence
@@ -150,7 +147,13 @@ void YamlChecker::finish_map(const YAML::Node& node, const std::string& path) {
                    std::to_string(first->second) + ")");
       continue;
     }
-    if (!seen_.count(p)) error(p, "unknown key");
+    if (seen_.count(p)) continue;
+    const auto gone = removed_.find(p);
+    if (gone != removed_.end()) {
+      error(p, "removed key; use " + gone->second + " instead");
+    } else {
+      error(p, "unknown key");
+    }
   }
 }
 

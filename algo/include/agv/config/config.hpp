@@ -1,0 +1,79 @@
+// The localizer's configuration: one YAML text, validated completely. Every key, its type,
+// default, accepted range and trade-off is one record of the key table (agv/config/keys.hpp);
+// the checker, the defaults test and docs/config.md are all produced from that table. Pure: YAML
+// text in, structs and error lines out (file reading: firmware/src/config.hpp).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "agv/common/camera_model.hpp"
+#include "agv/fusion/ekf.hpp"
+#include "agv/hal/camera.hpp"
+#include "agv/protocol/codec.hpp"
+#include "agv/vision/landmark_localizer.hpp"
+
+namespace agv::config {
+
+// Defaults here must equal the key table's (test_config: DefaultsEqualTheTable); the meaning of
+// each field is documented once, in the table (docs/config.md).
+struct CameraSection {
+  std::string driver = "libcamera";  // libcamera | v4l2 | replay
+  hal::CameraConfig camera;
+  double timeout_ms = 500.0;
+};
+
+struct CanSection {
+  std::string interface = "can0";
+  std::uint32_t base_id = 0x300;
+  bool extended_ids = false;
+  std::string odometry_mode = "v_omega";  // v_omega | wheels
+  std::uint32_t odometry_id = 0;          // 0 = the DBC's ID: base_id + 0x10 (wheels) / 0x11
+  bool odometry_protected = true;
+  double track_width_mm = 500.0;
+  double wheel_speed_scale = 1.0;
+  // The one odometry timeout: pose validity and the filter's odometry flag (the key also sets
+  // fusion.odom_timeout_ns).
+  double odometry_timeout_ms = 100.0;
+};
+
+struct LoopSection {
+  double output_rate_hz = 100.0;
+  double heartbeat_rate_hz = 1.0;
+  int realtime_priority = 0;
+  int vision_priority = 0;
+  int spin_before_deadline_us = 0;
+  bool lock_memory = false;
+  double log_period_s = 10.0;
+  bool pose_on_fix = true;
+};
+
+struct Config {
+  CameraSection camera;
+  CameraModel camera_model;  // intrinsics + mounting
+  double landmark_size_mm = 60.0;
+  std::string map_file;  // resolved relative to the config file; empty = payload poses only
+  CanSection can;
+  LoopSection loop;
+  vision::VisionConfig vision;
+  fusion::EkfConfig fusion;
+  double replay_fix_delay_ms = 30.0;
+  std::string source;  // file name the config came from, for messages
+};
+
+// What the configuration is read for. kLive (run, record, --check-config) requires the camera
+// calibration (intrinsics fx, fy, cx, cy); kReplay takes the camera from the recording's
+// meta.yaml, so intrinsics may be absent (if present they are still checked).
+enum class ConfigUse { kLive, kReplay };
+
+// Parses YAML text. On error returns false and fills *errors with one line per problem, each
+// naming the key path and accepted range ("can.base_id: value 4096 outside ..."). Unknown,
+// removed, duplicate and non-scalar keys are errors; never throws. base_dir resolves a relative
+// landmark.map (a path operation only: nothing is read).
+bool parse_config(const std::string& yaml_text, const std::string& base_dir, Config* out,
+                  std::vector<std::string>* errors, ConfigUse use = ConfigUse::kLive);
+// The CAN protocol configuration implied by the can section.
+protocol::ProtocolConfig protocol_config(const Config& cfg);
+
+}  // namespace agv::config

@@ -1,0 +1,206 @@
+// Key table rows of the fusion section: fields of agv::fusion::EkfConfig
+// (algo/include/agv/fusion/ekf.hpp), same names with angles in degrees and times in ms.
+// The texts condense the header comments; measurements: docs/fusion.md.
+#include "key_builders.hpp"
+
+namespace agv::config::detail {
+
+namespace {
+
+void add_process_noise(std::vector<Key>* k) {
+  // First: without calibration states the noise defaults change (the keys after it override).
+  Key cal = boolean("fusion.estimate_odometry_calibration",
+                    AGV_AT(fusion.estimate_odometry_calibration), true,
+                    "the filter also learns speed scale, yaw-rate scale and bias, and yaw rate "
+                    "per speed from the fixes (a 1 % scale error alone is 5 mm midway between "
+                    "landmarks 1 m apart). false = the plain 5-state filter, and the defaults of "
+                    "the four dead-reckoning noise keys below become 5, 2, 0.1 and 0.3");
+  cal.set = [](Config& c, const Value& v) {
+    c.fusion.estimate_odometry_calibration = std::get<bool>(v);
+    if (!c.fusion.estimate_odometry_calibration) fusion::use_uncalibrated_noise(&c.fusion);
+  };
+  k->push_back(std::move(cal));
+  k->push_back(number("fusion.accel_sigma_mps2", AGV_AT(fusion.accel_sigma_mps2), 0.0, 100.0, 0.5,
+                      {"m/s² per √s",
+                       "speed random walk when predicting past the newest "
+                       "odometry (within odom_gap_ms). Larger: σ grows faster "
+                       "between late samples"}));
+  k->push_back(number("fusion.yaw_accel_sigma_radps2", AGV_AT(fusion.yaw_accel_sigma_radps2), 0.0,
+                      100.0, 1.0, {"rad/s² per √s", "yaw-rate random walk; same role"}));
+  k->push_back(number("fusion.along_track_sigma_mm_per_sqrt_m",
+                      AGV_AT(fusion.along_track_sigma_mm_per_sqrt_m), 0.0, 1000.0, 1.0,
+                      {"mm per √m",
+                       "dead-reckoning position noise along the travel beyond the "
+                       "calibration states (slip, floor). Too small: good fixes "
+                       "fail the gate; too large: misreads pass and σ overstates "
+                       "the error"}));
+  k->push_back(number("fusion.cross_track_sigma_mm_per_sqrt_m",
+                      AGV_AT(fusion.cross_track_sigma_mm_per_sqrt_m), 0.0, 1000.0, 0.5,
+                      {"mm per √m", "the same across the travel"}));
+  k->push_back(deg_as_rad("fusion.heading_sigma_deg_per_sqrt_m",
+                          AGV_AT(fusion.heading_sigma_rad_per_sqrt_m), 0.0, 10.0, 0.05,
+                          {"deg per √m",
+                           "heading noise per travelled distance (wheel slip). Too "
+                           "small: fixes after long stretches fail the gate; too "
+                           "large: heading misreads pass"}));
+  k->push_back(deg_as_rad("fusion.heading_drift_sigma_deg_per_sqrt_s",
+                          AGV_AT(fusion.heading_drift_sigma_rad_per_sqrt_s), 0.0, 10.0, 0.15,
+                          {"deg per √s",
+                           "heading drift with time beyond the estimated bias; 0.1 "
+                           "is 0.5–1 mm worse on the lawnmower route, 0.3 makes σ "
+                           "6x too large on the fault suite"}));
+  k->push_back(number("fusion.odom_v_sigma_mps", AGV_AT(fusion.odom_v_sigma_mps), 1e-6, 10.0, 0.005,
+                      {"m/s",
+                       "noise of one odometry speed sample (encoder quantisation ~0.0015 "
+                       "m/s per 10 ms). Larger: σ overstates the error between landmarks"}));
+  k->push_back(deg_as_rad("fusion.odom_omega_sigma_degps", AGV_AT(fusion.odom_omega_sigma_radps),
+                          1e-6, 100.0, 0.5,
+                          {"deg/s", "noise of one odometry yaw-rate sample; same role"}));
+}
+
+void add_fixes(std::vector<Key>* k) {
+  k->push_back(number("fusion.fix_cov_scale", AGV_AT(fusion.fix_cov_scale), 0.01, 1000.0, 1.0,
+                      {"",
+                       "fix covariance used = scale × reported + floor². > 1 distrusts an "
+                       "optimistic vision covariance"}));
+  k->push_back(number("fusion.fix_floor_sigma_mm", AGV_AT(fusion.fix_floor_sigma_mm), 0.0, 100.0,
+                      0.1,
+                      {"mm",
+                       "what vision cannot know: landmark placement and survey error, "
+                       "camera mounting"}));
+  k->push_back(deg_as_rad("fusion.fix_floor_sigma_deg", AGV_AT(fusion.fix_floor_sigma_rad), 0.0,
+                          10.0, 0.01, {"deg", "the same for the heading"}));
+  k->push_back(number("fusion.gate_probability", AGV_AT(fusion.gate_probability), 0.5, 0.999999,
+                      0.999,
+                      {"",
+                       "chi-square(3) gate on the fix innovation (0.999 = 16.27). Higher "
+                       "accepts more true fixes after poor dead reckoning, lets larger "
+                       "misreads through"}));
+  k->push_back(integer("fusion.kidnap_fixes", AGV_AT(fusion.kidnap_fixes), 2, 100, 3,
+                       {"",
+                        "agreeing gate-rejected fixes that re-initialise the pose. Smaller "
+                        "recovers faster after the vehicle was moved by hand, larger "
+                        "resists repeated misreads"}));
+  k->push_back(number("fusion.kidnap_min_separation_mm", AGV_AT(fusion.kidnap_min_separation_mm),
+                      0.0, 100000.0, 300.0,
+                      {"mm",
+                       "agreeing fixes closer than this count once (same landmark seen "
+                       "again, e.g. one misprint). Larger protects better; the vehicle "
+                       "must move to recover"}));
+  k->push_back(ms_as_ns("fusion.kidnap_min_duration_ms", AGV_AT(fusion.kidnap_min_duration_ns), 0.0,
+                        600000.0, 3000.0,
+                        "the agreeing fixes must span this long, so a transient disagreement "
+                        "(camera clock glitch, burst of misreads) cannot move a healthy pose; "
+                        "longer delays recovering a carried vehicle"));
+}
+
+void add_calibration(std::vector<Key>* k) {
+  k->push_back(number("fusion.init_v_scale_sigma", AGV_AT(fusion.init_v_scale_sigma), 0.0, 1.0,
+                      0.03, {"", "prior σ of the speed scale error (new or re-tyred vehicle)"}));
+  k->push_back(number("fusion.init_omega_scale_sigma", AGV_AT(fusion.init_omega_scale_sigma), 0.0,
+                      1.0, 0.03, {"", "prior σ of the yaw-rate scale error"}));
+  k->push_back(deg_as_rad("fusion.init_omega_bias_sigma_degps",
+                          AGV_AT(fusion.init_omega_bias_sigma_radps), 0.0, 90.0, 1.5,
+                          {"deg/s", "prior σ of the yaw-rate bias"}));
+  k->push_back(deg_as_rad("fusion.init_omega_per_v_sigma_degpm",
+                          AGV_AT(fusion.init_omega_per_v_sigma_radpm), 0.0, 90.0, 1.5,
+                          {"deg/m", "prior σ of the yaw rate per speed (wheel radius mismatch)"}));
+  k->push_back(number("fusion.v_scale_sigma_per_sqrt_s", AGV_AT(fusion.v_scale_sigma_per_sqrt_s),
+                      0.0, 1.0, 1e-4,
+                      {"per √s",
+                       "random walk of the speed scale (wear, load). Larger tracks "
+                       "changes faster, absorbs more fix noise"}));
+  k->push_back(number("fusion.omega_scale_sigma_per_sqrt_s",
+                      AGV_AT(fusion.omega_scale_sigma_per_sqrt_s), 0.0, 1.0, 1e-4,
+                      {"per √s", "random walk of the yaw-rate scale; same trade-off"}));
+  k->push_back(deg_as_rad("fusion.omega_bias_sigma_degps_per_sqrt_s",
+                          AGV_AT(fusion.omega_bias_sigma_radps_per_sqrt_s), 0.0, 90.0, 0.1,
+                          {"deg/s per √s",
+                           "random walk of the yaw-rate bias: follows a gyro "
+                           "bias swinging ±0.5 deg/s over 2 min (midway p95 1.3 "
+                           "instead of 6.6 mm with 0.005)"}));
+  k->push_back(deg_as_rad("fusion.omega_per_v_sigma_degpm_per_sqrt_s",
+                          AGV_AT(fusion.omega_per_v_sigma_radpm_per_sqrt_s), 0.0, 90.0, 0.005,
+                          {"deg/m per √s", "random walk of the yaw rate per speed"}));
+}
+
+void add_timing(std::vector<Key>* k) {
+  using Timing = fusion::EkfConfig::OdomSampleTiming;
+  k->push_back(integer("fusion.history_capacity", AGV_AT(fusion.history_capacity), 16, 100000, 256,
+                       {"events",
+                        "kept for re-propagating delayed fixes; must exceed the "
+                        "odometry rate × max_fix_delay_ms plus the fixes in that time "
+                        "(~0.85 kB each, allocated once)"}));
+  k->push_back(ms_as_ns("fusion.max_fix_delay_ms", AGV_AT(fusion.max_fix_delay_ns), 1.0, 10000.0,
+                        500.0, "fixes older than this behind the newest event are rejected"));
+  k->push_back(ms_as_ns("fusion.max_fix_lead_ms", AGV_AT(fusion.max_fix_lead_ns), 0.0, 10000.0,
+                        200.0,
+                        "fixes further ahead of the newest odometry are held and fused when it "
+                        "catches up; still further ahead of flowing odometry = camera clock "
+                        "error, rejected"));
+  k->push_back(integer("fusion.held_fix_capacity", AGV_AT(fusion.held_fix_capacity), 1, 1000, 8,
+                       {"fixes", "kept while odometry is late (oldest dropped, counted)"}));
+  k->push_back(enumeration(
+      "fusion.odom_sample_timing", AGV_AT(fusion.odom_sample_timing),
+      std::vector<std::pair<std::string, Timing>>{{"period_mean", Timing::kPeriodMean},
+                                                  {"instant", Timing::kInstant}},
+      "period_mean",
+      "what the vehicle's odometry sample is: the mean over the period ending at its stamp "
+      "(encoder ticks per period) or the speed at its stamp. Wrong choice: a yaw-rate step "
+      "turns into up to ω·period of heading error"));
+  k->push_back(ms_as_ns("fusion.odom_period_ms", AGV_AT(fusion.odom_period_ns), 0.1, 1000.0, 10.0,
+                        "the source's sample period; after a gap a period-mean sample covers "
+                        "only this much"));
+  k->push_back(ms_as_ns("fusion.odom_gap_ms", AGV_AT(fusion.odom_gap_ns), 0.1, 10000.0, 50.0,
+                        "samples further apart are a gap (at least odom_period_ms): motion "
+                        "beyond this after the last sample is unknown. Larger tolerates more "
+                        "jitter before σ grows"));
+  k->push_back(number("fusion.gap_accel_sigma_mps2", AGV_AT(fusion.gap_accel_sigma_mps2), 0.0,
+                      100.0, 0.5,
+                      {"m/s² per √s",
+                       "speed random walk in a gap; half the vehicle's "
+                       "acceleration limit keeps 3σ above full braking for gaps "
+                       "up to 3 s"}));
+  k->push_back(number("fusion.gap_yaw_accel_sigma_radps2",
+                      AGV_AT(fusion.gap_yaw_accel_sigma_radps2), 0.0, 100.0, 1.0,
+                      {"rad/s² per √s", "yaw-rate random walk in a gap"}));
+  k->push_back(number("fusion.gap_yaw_rate_change_sigma_radps",
+                      AGV_AT(fusion.gap_yaw_rate_change_sigma_radps), 0.0, 100.0, 0.7,
+                      {"rad/s",
+                       "the yaw rate may change this much at once in a gap (3σ covers "
+                       "a 2 rad/s arc); heading σ grows 0.7 rad/s × (gap − odom_gap): "
+                       "lost (3°) after a 125 ms gap"}));
+}
+
+void add_health(std::vector<Key>* k) {
+  k->push_back(boolean("fusion.relocalize_from_single_fix",
+                       AGV_AT(fusion.relocalize_from_single_fix), true,
+                       "when lost (σ above the limits) one map-verified fix re-initialises the "
+                       "pose; false: only the kidnap rule"));
+  k->push_back(number("fusion.relocalize_max_fix_sigma_mm",
+                      AGV_AT(fusion.relocalize_max_fix_sigma_mm), 0.001, 1000.0, 2.0,
+                      {"mm", "the largest vision position σ such a fix may have"}));
+  k->push_back(deg_as_rad("fusion.relocalize_max_fix_sigma_deg",
+                          AGV_AT(fusion.relocalize_max_fix_sigma_rad), 0.001, 90.0, 0.5,
+                          {"deg", "the largest vision heading σ such a fix may have"}));
+  k->push_back(ms_as_ns("fusion.localized_timeout_ms", AGV_AT(fusion.localized_timeout_ns), 10.0,
+                        600000.0, 2000.0,
+                        "localized while the last fused fix is at most this old, dead "
+                        "reckoning afterwards (a 1 m grid at 1 m/s gives a fix every ~1 s)"));
+  k->push_back(number("fusion.lost_position_sigma_mm", AGV_AT(fusion.lost_position_sigma_mm), 0.1,
+                      10000.0, 50.0, {"mm", "lost when the position σ exceeds this"}));
+  k->push_back(deg_as_rad("fusion.lost_heading_sigma_deg", AGV_AT(fusion.lost_heading_sigma_rad),
+                          0.01, 180.0, 3.0, {"deg", "lost when the heading σ exceeds this"}));
+}
+
+}  // namespace
+
+void add_fusion_keys(std::vector<Key>* keys) {
+  add_process_noise(keys);
+  add_fixes(keys);
+  add_calibration(keys);
+  add_timing(keys);
+  add_health(keys);
+}
+
+}  // namespace agv::config::detail

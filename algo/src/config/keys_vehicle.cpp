@@ -1,0 +1,188 @@
+// Key table rows of the vehicle sections: camera, intrinsics, mounting, landmark, can, loop,
+// replay. Trade-off texts are the documentation (docs/config.md is generated from them).
+#include "key_builders.hpp"
+
+namespace agv::config::detail {
+
+namespace {
+
+void add_camera(std::vector<Key>* k) {
+  using PF = hal::PixelFormatPreference;
+  k->push_back(choice("camera.driver", AGV_AT(camera.driver), {"libcamera", "v4l2", "replay"},
+                      "libcamera", "live backend (replay is used by `agvloc replay`)"));
+  k->push_back(text("camera.id", AGV_AT(camera.camera.id), "",
+                    "libcamera camera id, or the V4L2 device node (`/dev/video0`, required for "
+                    "v4l2)"));
+  k->push_back(text("camera.model", AGV_AT(camera.camera.model), "",
+                    "libcamera: first camera whose model matches, when `id` is empty"));
+  // width and height also set the camera model's image size (parse.cpp, after the section).
+  k->push_back(integer("camera.width", AGV_AT(camera.camera.width_px), 16, 8192, 640,
+                       {"px", "stream width; must match `intrinsics`"}));
+  k->push_back(integer("camera.height", AGV_AT(camera.camera.height_px), 16, 8192, 480,
+                       {"px", "stream height; must match `intrinsics`"}));
+  k->push_back(number("camera.fps", AGV_AT(camera.camera.fps), 1.0, 240.0, 30.0,
+                      {"Hz",
+                       "more frames = more chances to see a landmark, more CPU; the "
+                       "exposure must fit into one frame period"}));
+  k->push_back(integer("camera.exposure_us", AGV_AT(camera.camera.exposure_us), 10, 100000, 500,
+                       {"µs",
+                        "short exposure = less motion blur (blur_px = v·t_exp / mm_per_px, "
+                        "docs/camera.md) but a darker image; 500 µs = 1 mm blur at 2 m/s"}));
+  k->push_back(number("camera.analogue_gain", AGV_AT(camera.camera.analogue_gain), 1.0, 64.0, 1.0,
+                      {"", "brighter but noisier"}));
+  k->push_back(enumeration("camera.pixel_format", AGV_AT(camera.camera.pixel_format),
+                           std::vector<std::pair<std::string, PF>>{
+                               {"auto", PF::kAuto}, {"gray", PF::kGray}, {"yuv", PF::kYuv}},
+                           "auto", "auto: gray if offered, else planar YUV, else packed"));
+  k->push_back(integer("camera.buffer_count", AGV_AT(camera.camera.buffer_count), 2, 16, 4,
+                       {"",
+                        "driver buffers in flight (the loop holds at most 2): more survive "
+                        "longer processing hiccups, cost memory"}));
+  k->push_back(integer("camera.readout_us", AGV_AT(camera.camera.readout_us), 0, 100000, 0,
+                       {"µs",
+                        "rolling-shutter readout (0 = global shutter); shifts the "
+                        "timestamp to the centre row"}));
+  k->push_back(number("camera.timeout_ms", AGV_AT(camera.timeout_ms), 10.0, 60000.0, 500.0,
+                      {"ms",
+                       "no frame this long → `CameraStalled` in the status frame; fusion "
+                       "keeps dead-reckoning. Shorter reports a dead camera sooner, longer "
+                       "tolerates exposure and scheduling hiccups"}));
+}
+
+void add_intrinsics(std::vector<Key>* k) {
+  auto required = [](Key key) {
+    key.required_live = true;
+    return key;
+  };
+  k->push_back(required(number("intrinsics.fx", AGV_AT(camera_model.intrinsics.fx), 1.0, 1e6, 0.0,
+                               {"px", "focal length x, from calibration; scales every fix"})));
+  k->push_back(required(number("intrinsics.fy", AGV_AT(camera_model.intrinsics.fy), 1.0, 1e6, 0.0,
+                               {"px", "focal length y, from calibration"})));
+  k->push_back(required(number("intrinsics.cx", AGV_AT(camera_model.intrinsics.cx), -1e5, 1e5, 0.0,
+                               {"px", "principal point x (pixel centres at integers)"})));
+  k->push_back(required(number("intrinsics.cy", AGV_AT(camera_model.intrinsics.cy), -1e5, 1e5, 0.0,
+                               {"px", "principal point y"})));
+  k->push_back(number("intrinsics.k1", AGV_AT(camera_model.intrinsics.k1), -10.0, 10.0, 0.0,
+                      {"", "radial distortion (OpenCV model); 0 = none"}));
+  k->push_back(number("intrinsics.k2", AGV_AT(camera_model.intrinsics.k2), -10.0, 10.0, 0.0,
+                      {"", "radial distortion"}));
+  k->push_back(number("intrinsics.p1", AGV_AT(camera_model.intrinsics.p1), -1.0, 1.0, 0.0,
+                      {"", "tangential distortion"}));
+  k->push_back(number("intrinsics.p2", AGV_AT(camera_model.intrinsics.p2), -1.0, 1.0, 0.0,
+                      {"", "tangential distortion"}));
+  k->push_back(number("intrinsics.k3", AGV_AT(camera_model.intrinsics.k3), -10.0, 10.0, 0.0,
+                      {"", "radial distortion"}));
+}
+
+void add_mounting(std::vector<Key>* k) {
+  k->push_back(number("mounting.offset_x_mm", AGV_AT(camera_model.mount.offset_x_mm), -5000.0,
+                      5000.0, 0.0, {"mm", "optical centre in the vehicle frame, x forward"}));
+  k->push_back(number("mounting.offset_y_mm", AGV_AT(camera_model.mount.offset_y_mm), -5000.0,
+                      5000.0, 0.0, {"mm", "optical centre in the vehicle frame, y left"}));
+  k->push_back(deg_as_rad("mounting.yaw_deg", AGV_AT(camera_model.mount.yaw_rad), -180.0, 180.0,
+                          0.0, {"deg", "image axes relative to the vehicle, counter-clockwise"}));
+  k->push_back(number("mounting.height_mm", AGV_AT(camera_model.mount.height_mm), 10.0, 5000.0,
+                      200.0, {"mm", "optical centre above the floor; scales every measurement"}));
+}
+
+void add_landmark(std::vector<Key>* k) {
+  k->push_back(number("landmark.size_mm", AGV_AT(landmark_size_mm), 10.0, 1000.0, 60.0,
+                      {"mm", "outer border side, docs/landmark.md"}));
+  k->push_back(text("landmark.map", AGV_AT(map_file), "",
+                    "landmark map file, relative to the configuration file; empty = poses from "
+                    "the QR payload only (id-only payloads are then rejected)"));
+}
+
+void add_can(std::vector<Key>* k) {
+  k->push_back(text("can.interface", AGV_AT(can.interface), "can0", "SocketCAN interface"));
+  k->push_back(boolean("can.extended_ids", AGV_AT(can.extended_ids), false,
+                       "29-bit IDs for all frames (widens the ID ranges below)"));
+  k->push_back(can_id("can.base_id", AGV_AT(can.base_id), 0x300,
+                      "ID of AGV_PoseXY; the other output frames follow"));
+  k->push_back(choice("can.odometry.mode", AGV_AT(can.odometry_mode), {"v_omega", "wheels"},
+                      "v_omega", "MC_OdomTwist (v, ω) or MC_OdomWheels (left/right wheel speed)"));
+  k->push_back(can_id("can.odometry.id", AGV_AT(can.odometry_id), 0,
+                      "0 = DBC default: base_id + 0x10 (wheels) / + 0x11 (v_omega)"));
+  k->push_back(boolean("can.odometry.protected", AGV_AT(can.odometry_protected), true,
+                       "check CRC and alive counter of odometry frames; false only for motor "
+                       "controllers that cannot compute them (then only ID and length are "
+                       "checked)"));
+  k->push_back(number("can.odometry.track_width_mm", AGV_AT(can.track_width_mm), 50.0, 5000.0,
+                      500.0, {"mm", "wheels mode: converts wheel speeds to v, ω"}));
+  k->push_back(number("can.odometry.wheel_speed_scale", AGV_AT(can.wheel_speed_scale), 0.5, 2.0,
+                      1.0, {"", "wheels mode: calibrates wheel radius error"}));
+  Key timeout =
+      number("can.odometry.timeout_ms", AGV_AT(can.odometry_timeout_ms), 5.0, 10000.0, 100.0,
+             {"ms",
+              "the one odometry timeout: no valid odometry this long → `OdomTimeout`, pose "
+              "flagged invalid and the filter lost. Short reacts fast to a dead controller but "
+              "trips on bus jitter; 100 ms = 10 missed frames at 100 Hz"});
+  timeout.set = [](Config& c, const Value& v) {
+    c.can.odometry_timeout_ms = std::get<double>(v);
+    c.fusion.odom_timeout_ns = std::llround(c.can.odometry_timeout_ms * 1e6);
+  };
+  k->push_back(std::move(timeout));
+}
+
+void add_loop(std::vector<Key>* k) {
+  k->push_back(number("loop.output_rate_hz", AGV_AT(loop.output_rate_hz), 1.0, 1000.0, 100.0,
+                      {"Hz", "pose, velocity, quality, status frames per second"}));
+  k->push_back(number("loop.heartbeat_rate_hz", AGV_AT(loop.heartbeat_rate_hz), 0.1, 100.0, 1.0,
+                      {"Hz", "heartbeat frames per second"}));
+  k->push_back(integer("loop.realtime_priority", AGV_AT(loop.realtime_priority), 0, 99, 0,
+                       {"", "SCHED_FIFO priority of the output thread; 0 = normal scheduling"}));
+  k->push_back(integer(
+      "loop.vision_priority", AGV_AT(loop.vision_priority), 0, 98, 0,
+      {"",
+       "SCHED_FIFO priority of the capture and vision threads; 0 = normal scheduling. Under "
+       "CPU contention the worker no longer queues behind other processes, which shortens "
+       "exposure → vision start and the vision time itself (the end-to-end tail with "
+       "`pose_on_fix`). Cost: while a frame is processed, normal tasks on that core wait "
+       "(vision p99 1.1–1.4 ms per frame; the whole process used 8 % of a core at 30 fps, "
+       "docs/performance.md). Must be below `realtime_priority` so the output never waits "
+       "for vision (rejected at start otherwise)"}));
+  k->push_back(
+      integer("loop.spin_before_deadline_us", AGV_AT(loop.spin_before_deadline_us), 0, 2000, 0,
+              {"µs",
+               "hybrid wait of the output thread: `clock_nanosleep(TIMER_ABSTIME)` to deadline − "
+               "this, then busy-poll the clock to the deadline. Trade-off: CPU vs jitter — the "
+               "kernel's wake-up latency up to this many µs no longer reaches the period, for up "
+               "to this much busy CPU per period at the output thread's priority (100 µs at "
+               "100 Hz = 1 % of a core); a wake-up later than the spin window is not hidden. At "
+               "most half the output period (rejected otherwise). 0 = plain absolute sleep"}));
+  k->push_back(boolean("loop.lock_memory", AGV_AT(loop.lock_memory), false,
+                       "mlockall at start (needs CAP_IPC_LOCK or LimitMEMLOCK); also applied by "
+                       "`replay --realtime`. Pages are locked as they are first touched "
+                       "(`MCL_ONFAULT`), so the resident set does not grow (prefaulting "
+                       "everything mapped took the benchmark from 25 to 90 MB)"));
+  k->push_back(number("loop.log_period_s", AGV_AT(loop.log_period_s), 0.0, 3600.0, 10.0,
+                      {"s", "periodic statistics line on stderr; 0 = off"}));
+  k->push_back(boolean(
+      "loop.pose_on_fix", AGV_AT(loop.pose_on_fix), true,
+      "also send the pose pair right after each fused fix: the correction reaches the bus one "
+      "vision time after exposure instead of up to one period later (with the shipped real-time "
+      "settings end to end p99 1.5–2.6 ms instead of 12–14 ms, docs/performance.md); the extra "
+      "pose pairs make pose frames irregularly spaced (receivers must not derive speed from "
+      "pose-frame intervals). The fixed-rate stream (pose, velocity, quality, status every "
+      "period) runs either way. false = fixed-rate stream only"));
+}
+
+}  // namespace
+
+void add_vehicle_keys(std::vector<Key>* keys) {
+  add_camera(keys);
+  add_intrinsics(keys);
+  add_mounting(keys);
+  add_landmark(keys);
+  add_can(keys);
+  add_loop(keys);
+}
+
+void add_replay_keys(std::vector<Key>* keys) {
+  keys->push_back(number("replay.fix_delay_ms", AGV_AT(replay_fix_delay_ms), 0.0, 1000.0, 30.0,
+                         {"ms",
+                          "`--fast` only: time from exposure to the fix reaching fusion "
+                          "(live, it is whatever the vision worker takes)"}));
+}
+
+}  // namespace agv::config::detail

@@ -1,0 +1,174 @@
+// parse_config: walks the key table (keys.hpp) over the YAML tree. Everything key-specific is in
+// the table; what is here is the walk, the relations between keys and the final validations.
+#include <filesystem>
+#include <string>
+
+#include "agv/config/keys.hpp"
+#include "yaml_checker.hpp"
+
+namespace agv::config {
+
+namespace {
+
+std::string leaf_of(const std::string& path) { return path.substr(path.rfind('.') + 1); }
+std::string parent_of(const std::string& path) {
+  const auto dot = path.rfind('.');
+  return dot == std::string::npos ? std::string() : path.substr(0, dot);
+}
+
+// Reads one key into cfg. The value goes through get and set even when the key is absent, so a
+// unit conversion is applied the same way whether a key is given or defaulted.
+void read_key(YamlChecker& c, const YAML::Node& n, const Key& k, Config* cfg) {
+  const std::string sec = k.section();
+  const std::string leaf = k.leaf();
+  const char* key = leaf.c_str();
+  Value v = k.get(*cfg);
+  switch (k.type) {
+    case KeyType::kNumber:
+      c.number(n, sec, key, k.lo, k.hi, &std::get<double>(v));
+      break;
+    case KeyType::kInteger:
+      c.integer(n, sec, key, static_cast<std::int64_t>(k.lo), static_cast<std::int64_t>(k.hi),
+                &std::get<std::int64_t>(v));
+      break;
+    case KeyType::kCanId:
+      c.integer(n, sec, key, static_cast<std::int64_t>(k.lo),
+                cfg->can.extended_ids ? kCanExtendedIdMax : static_cast<std::int64_t>(k.hi),
+                &std::get<std::int64_t>(v));
+      break;
+    case KeyType::kBool:
+      c.boolean(n, sec, key, &std::get<bool>(v));
+      break;
+    case KeyType::kString:
+      c.string(n, sec, key, &std::get<std::string>(v));
+      break;
+    case KeyType::kChoice:
+      c.choice(n, sec, key, k.choices, &std::get<std::string>(v));
+      break;
+  }
+  k.set(*cfg, v);
+}
+
+void read_section(YamlChecker& c, const YAML::Node& parent, const Section& s, ConfigUse use,
+                  Config* cfg) {
+  const std::string leaf = leaf_of(s.path);
+  const YAML::Node n = c.section(parent, parent_of(s.path), leaf.c_str());
+  if (use == ConfigUse::kLive) {
+    // No default: a wrong focal length scales every fix, so a missing calibration is an error.
+    std::vector<std::string> required;
+    for (const Key& k : config_keys()) {
+      if (k.required_live && k.section() == s.path) required.push_back(k.leaf());
+    }
+    if (!required.empty()) {
+      if (!parent.IsMap() || !parent[leaf]) {
+        std::string list;
+        for (const auto& r : required) list += (list.empty() ? "" : ", ") + r;
+        c.error(s.path, "missing section (" + list + " are required: " + s.required_why + ")");
+      } else if (n.IsMap()) {
+        for (const auto& r : required) c.require(n, s.path, r.c_str(), s.required_why);
+      }
+    }
+  }
+  for (const Key& k : config_keys()) {
+    if (k.section() == s.path) read_key(c, n, k, cfg);
+  }
+  for (const Section& child : config_sections()) {
+    if (parent_of(child.path) == s.path) read_section(c, n, child, use, cfg);
+  }
+  c.finish_map(n, s.path);
+}
+
+// Relations between keys (each value is already in its own range here).
+void check_relations(YamlChecker& c, const Config& cfg) {
+  const LoopSection& s = cfg.loop;
+  if (s.vision_priority > 0 && s.vision_priority >= s.realtime_priority) {
+    c.error("loop.vision_priority", "value " + std::to_string(s.vision_priority) +
+                                        " must be below loop.realtime_priority (" +
+                                        std::to_string(s.realtime_priority) +
+                                        ") so vision can never delay the fixed-rate output");
+  }
+  const double half_period_us = 0.5e6 / s.output_rate_hz;
+  if (static_cast<double>(s.spin_before_deadline_us) > half_period_us) {
+    c.error("loop.spin_before_deadline_us",
+            "value " + std::to_string(s.spin_before_deadline_us) +
+                " exceeds half the output period (" +
+                std::to_string(static_cast<int>(half_period_us)) + " us at loop.output_rate_hz " +
+                std::to_string(static_cast<int>(s.output_rate_hz)) + ")");
+  }
+  const std::string err = fusion::validate(cfg.fusion);
+  if (!err.empty()) c.error("fusion", err);
+}
+
+bool parse_root(const YAML::Node& root, const std::string& base_dir, ConfigUse use, Config* out,
+                std::vector<std::string>* errors) {
+  if (!root.IsMap()) {
+    errors->push_back("top level: expected a mapping of sections (camera:, can:, ...)");
+    return false;
+  }
+  Config cfg = *out;
+  YamlChecker c;
+  for (const RemovedKey& r : removed_keys()) c.removed(r.name, r.replacement);
+  for (const Section& s : config_sections()) {
+    if (parent_of(s.path).empty()) read_section(c, root, s, use, &cfg);
+  }
+  cfg.camera_model.intrinsics.width_px = cfg.camera.camera.width_px;
+  cfg.camera_model.intrinsics.height_px = cfg.camera.camera.height_px;
+  if (!cfg.map_file.empty() && !base_dir.empty() &&
+      std::filesystem::path(cfg.map_file).is_relative()) {
+    cfg.map_file = (std::filesystem::path(base_dir) / cfg.map_file).lexically_normal().string();
+  }
+  check_relations(c, cfg);
+  if (c.errors().empty()) {
+    const std::string perr = protocol::validate(protocol_config(cfg));
+    if (!perr.empty()) c.error("can", perr);
+  }
+  c.finish_map(root, "");
+  if (!c.errors().empty()) {
+    *errors = c.errors();
+    return false;
+  }
+  *out = cfg;
+  return true;
+}
+
+}  // namespace
+
+bool parse_config(const std::string& yaml_text, const std::string& base_dir, Config* out,
+                  std::vector<std::string>* errors, ConfigUse use) {
+  YAML::Node root;
+  try {
+    root = YAML::Load(yaml_text);
+  } catch (const YAML::Exception& e) {
+    errors->push_back("YAML syntax error at line " + std::to_string(e.mark.line + 1) + ": " +
+                      e.msg);
+    return false;
+  }
+  try {
+    return parse_root(root, base_dir, use, out, errors);
+  } catch (const std::exception& e) {
+#ifdef FUZZING_BUILD_MODE_UNSAFE_FOR_PRODUCTION
+    throw;  // fuzz_config: an exception here is a finding (the checker should have named it)
+#endif
+    // The checker never lets yaml-cpp throw on any input the fuzzer found; should a new yaml-cpp
+    // do so, it is still a configuration error and not an abort.
+    errors->push_back(std::string("cannot read the configuration: ") + e.what());
+    return false;
+  }
+}
+
+protocol::ProtocolConfig protocol_config(const Config& cfg) {
+  protocol::ProtocolConfig p;
+  p.base_id = cfg.can.base_id;
+  p.extended_ids = cfg.can.extended_ids;
+  p.odometry.mode = cfg.can.odometry_mode == "wheels" ? protocol::OdometryMode::kWheels
+                                                      : protocol::OdometryMode::kTwist;
+  p.odometry.can_id = cfg.can.odometry_id;
+  p.odometry.extended_id = cfg.can.extended_ids;
+  p.odometry.protected_e2e = cfg.can.odometry_protected;
+  p.odometry.track_width_mm = cfg.can.track_width_mm;
+  p.odometry.speed_scale = cfg.can.wheel_speed_scale;
+  p.odometry.timeout_ns = static_cast<std::int64_t>(cfg.can.odometry_timeout_ms * 1e6);
+  return p;
+}
+
+}  // namespace agv::config
