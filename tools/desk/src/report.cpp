@@ -265,7 +265,7 @@ bool write_plot(const std::string& path, const recording::Recording& rec,
       marks.push_back({{e.pose.x_mm, e.pose.y_mm}, e.pose.theta_rad, std::to_string(id)});
     }
   }
-  return plot::write_trajectory_svg(path, "agvloc replay of " + rec.dir, series, marks, error);
+  return plot::write_trajectory_svg(path, "agvloc replay: " + rec.dir, series, marks, error);
 }
 
 }  // namespace agv::desk
