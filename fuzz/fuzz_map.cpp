@@ -1,5 +1,5 @@
-// Landmark map CSV (docs/landmark.md). Property: an accepted map has finite poses, and
-// format_landmark_map writes text that parses back to the same map (ids and poses).
+// Landmark map CSV (docs/landmark.md). Property: an accepted map has non-zero ids that match
+// their entries and finite poses.
 #include <cmath>
 
 #include "agv/common/landmark.hpp"
@@ -18,23 +18,6 @@ extern "C" int LLVMFuzzerTestOneInput(const unsigned char* data, std::size_t siz
         std::isfinite(e.pose.x_mm) && std::isfinite(e.pose.y_mm) && std::isfinite(e.pose.theta_rad),
         "landmark %u has a non-finite pose", id);
     FUZZ_CHECK(map.find(id) == &e, "find(%u)", id);
-  }
-  const std::string text = agv::format_landmark_map(map);
-  agv::LandmarkMap back;
-  FUZZ_CHECK(agv::parse_landmark_map(text, &back, &error), "formatted map rejected: %s",
-             error.c_str());
-  FUZZ_CHECK(back.entries.size() == map.entries.size(), "%zu vs %zu entries", back.entries.size(),
-             map.entries.size());
-  for (const auto& [id, e] : map.entries) {
-    const agv::LandmarkMapEntry* b = back.find(id);
-    FUZZ_CHECK(b != nullptr, "landmark %u lost", id);
-    // The writer keeps 0.1 mm and 0.01 degrees (the payload's resolution, docs/landmark.md).
-    FUZZ_CHECK(std::abs(b->pose.x_mm - e.pose.x_mm) <= 0.05 + 1e-9 * std::abs(e.pose.x_mm) &&
-                   std::abs(b->pose.y_mm - e.pose.y_mm) <= 0.05 + 1e-9 * std::abs(e.pose.y_mm) &&
-                   std::abs(agv::wrap_angle_rad(b->pose.theta_rad - e.pose.theta_rad)) <=
-                       agv::deg_to_rad(0.005) + 1e-12,
-               "landmark %u: (%.17g, %.17g, %.17g) -> (%.17g, %.17g, %.17g)", id, e.pose.x_mm,
-               e.pose.y_mm, e.pose.theta_rad, b->pose.x_mm, b->pose.y_mm, b->pose.theta_rad);
   }
   return 0;
 }

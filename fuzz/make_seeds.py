@@ -49,7 +49,7 @@ def main():
     # Recording files (docs/recording.md).
     meta = """# agvloc recording metadata, docs/recording.md
 format_version: 1
-source: "agvloc sim --out rec \\"q\\""
+source: "agvloc-desk sim --out rec \\"q\\""
 image:
   width_px: 640
   height_px: 480

@@ -84,7 +84,7 @@ int replay(int argc, char** argv) {
   double speed = 1.0;
   std::vector<int> overlay_frames;
   app.add_option("recording", rec_dir, "recording directory (docs/recording.md)")->required();
-  app.add_option("--out", out_dir, "output directory (poses.csv, fixes.csv, trajectory.svg, ...)");
+  app.add_option("--out", out_dir, "output directory (poses.csv, fixes.csv, summary.txt, ...)");
   app.add_option("--config", config_file,
                  "configuration YAML (camera/mounting come from meta.yaml)");
   app.add_option("--map", map_file, "landmark map (default: RECORDING/map.csv if present)");
@@ -248,15 +248,7 @@ int replay(int argc, char** argv) {
   }
   const std::string poses = (std::filesystem::path(out_dir) / "poses.csv").string();
   const std::string fixes_csv = (std::filesystem::path(out_dir) / "fixes.csv").string();
-  const std::string plot = (std::filesystem::path(out_dir) / "trajectory.svg").string();
   if (!app::write_poses_csv(poses, ticks, &err) || !app::write_fixes_csv(fixes_csv, fixes, &err)) {
-    std::fprintf(stderr, "replay: %s\n", err.c_str());
-    rc = 1;
-  }
-  std::vector<Vec2> odo_track;
-  app::AccuracySummary acc;
-  if (rec.has_truth) acc = app::evaluate(rec, ticks, fixes, &odo_track);
-  if (!app::write_plot(plot, rec, ticks, odo_track, map_ptr, &err)) {
     std::fprintf(stderr, "replay: %s\n", err.c_str());
     rc = 1;
   }
@@ -271,8 +263,12 @@ int replay(int argc, char** argv) {
       static_cast<double>(result.wall_ns) / 1e9);
   summary += buf;
   summary += app::format_statistics(result);
-  if (rec.has_truth) summary += app::format_accuracy(acc);
-  summary += "outputs: " + poses + ", " + fixes_csv + ", " + plot +
+  // Accuracy against truth and the plot are desk tools, not in the vehicle binary.
+  if (rec.has_truth) {
+    summary += "truth.csv present: accuracy and trajectory.svg with `agvloc-desk report " +
+               out_dir + " --recording " + rec_dir + "`\n";
+  }
+  summary += "outputs: " + poses + ", " + fixes_csv +
              (can_iface.empty() ? ", " + can_log : "") + "\n";
   std::fputs(summary.c_str(), stdout);
   std::ofstream(std::filesystem::path(out_dir) / "summary.txt") << summary;

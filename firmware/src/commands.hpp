@@ -1,13 +1,12 @@
-// Subcommands of the agvloc binary. Each returns the process exit code:
-// 0 success, 1 runtime failure (message on stderr), 2 usage or configuration error.
+// Subcommands of the vehicle binary agvloc (desk tools: tools/desk, agvloc-desk). Each returns
+// the process exit code: 0 success, 1 runtime failure (message on stderr), 2 usage or
+// configuration error.
 #pragma once
 
 namespace agv::cmd {
 
-int landmark(int argc, char** argv);  // print landmarks as SVG/PNG
-int sim(int argc, char** argv);       // write a simulated recording
-int replay(int argc, char** argv);    // run the pipeline on a recording
-int run(int argc, char** argv);       // live: camera + CAN
-int record(int argc, char** argv);    // live camera + CAN odometry -> recording
+int replay(int argc, char** argv);  // run the pipeline on a recording
+int run(int argc, char** argv);     // live: camera + CAN
+int record(int argc, char** argv);  // live camera + CAN odometry -> recording
 
 }  // namespace agv::cmd

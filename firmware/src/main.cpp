@@ -1,20 +1,20 @@
 #include <cstdio>
 #include <cstring>
+#include <initializer_list>
 
 #include "commands.hpp"
 
 namespace {
 
 void usage(FILE* f) {
-  std::fprintf(f,
-               "usage: agvloc <command> [options]\n"
-               "  replay RECORDING   run the localizer on a recording (frames + odometry)\n"
-               "  run --config FILE  live: camera, vision, fusion, CAN output\n"
-               "  record --config FILE --out DIR   record the live camera and CAN odometry\n"
-               "  sim --out DIR      write a simulated recording\n"
-               "  landmark           print landmarks (SVG at physical scale, PNG)\n"
-               "  --version          version and build features\n"
-               "Each command takes --help.\n");
+  std::fprintf(
+      f,
+      "usage: agvloc <command> [options]\n"
+      "  replay RECORDING   run the localizer on a recording (frames + odometry)\n"
+      "  run --config FILE  live: camera, vision, fusion, CAN output\n"
+      "  record --config FILE --out DIR   record the live camera and CAN odometry\n"
+      "  --version          version and build features\n"
+      "Each command takes --help. Desk tools (sim, landmark, report) are in agvloc-desk.\n");
 }
 
 }  // namespace
@@ -37,8 +37,15 @@ int main(int argc, char** argv) {
     usage(stdout);
     return 0;
   }
-  if (!std::strcmp(c, "landmark")) return agv::cmd::landmark(argc - 1, argv + 1);
-  if (!std::strcmp(c, "sim")) return agv::cmd::sim(argc - 1, argv + 1);
+  for (const char* desk : {"sim", "landmark", "report"}) {
+    if (!std::strcmp(c, desk)) {
+      std::fprintf(stderr,
+                   "agvloc: '%s' is a desk command and not part of the vehicle binary: run "
+                   "`agvloc-desk %s` (built beside agvloc, not in the .deb)\n",
+                   c, c);
+      return 2;
+    }
+  }
   if (!std::strcmp(c, "replay")) return agv::cmd::replay(argc - 1, argv + 1);
   if (!std::strcmp(c, "run")) return agv::cmd::run(argc - 1, argv + 1);
   if (!std::strcmp(c, "record")) return agv::cmd::record(argc - 1, argv + 1);

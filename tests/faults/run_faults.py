@@ -1,11 +1,14 @@
 #!/usr/bin/env python3
 """Fault-replay suite (issue 13 item 5, tests/faults/README.md).
 
-Renders simulated base recordings with `agvloc sim`, derives fault variants by editing copies of
+Renders simulated base recordings with `agvloc-desk sim`, derives fault variants by editing copies of
 their CSV files, replays each with `agvloc replay --fast` and checks the fused poses against the
 truth. Usage:
 
-    run_faults.py "AGVLOC [EMULATOR...]" WORKDIR [--only NAME_PREFIX ...] [--reuse] [--jobs N]
+    run_faults.py "AGVLOC [EMULATOR...]" WORKDIR [--desk "AGVLOC-DESK ..."] [--only NAME_PREFIX ...]
+                  [--reuse] [--jobs N]
+
+--desk defaults to agvloc-desk beside the agvloc binary (where the build puts it).
 
 Exit status 1 when any assertion fails. The table is printed and written to WORKDIR/faults.md.
 """
@@ -308,11 +311,11 @@ def run(cmd, log):
         raise RuntimeError(f"{' '.join(cmd)} exited with {p.returncode} (log {log})")
 
 
-def render(agvloc, out, extra, duration_s, reuse):
+def render(desk, out, extra, duration_s, reuse):
     if reuse and os.path.exists(os.path.join(out, "meta.yaml")):
         return 0.0
     t0 = time.monotonic()
-    run(agvloc + ["sim", "--out", out, "--force", "--duration-s", str(duration_s)] + SIM_COMMON
+    run(desk + ["sim", "--out", out, "--force", "--duration-s", str(duration_s)] + SIM_COMMON
         + extra, out + ".log")
     return time.monotonic() - t0
 
@@ -328,11 +331,16 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("agvloc")
     ap.add_argument("work")
+    ap.add_argument("--desk", help="the desk tool (default: agvloc-desk beside AGVLOC)")
     ap.add_argument("--only", nargs="*", help="run only faults whose name starts with one of these")
     ap.add_argument("--reuse", action="store_true", help="keep already rendered base recordings")
     ap.add_argument("--jobs", type=int, default=2)
     a = ap.parse_args()
     agvloc = shlex.split(a.agvloc)
+    if a.desk:
+        desk = shlex.split(a.desk)
+    else:
+        desk = agvloc[:-1] + [os.path.join(os.path.dirname(agvloc[-1]), "agvloc-desk")]
     work = os.path.abspath(a.work)
     os.makedirs(work, exist_ok=True)
     t_start = time.monotonic()
@@ -344,10 +352,10 @@ def main():
     base_mp = os.path.join(work, "base_misprint")
     renders = {}
     with concurrent.futures.ThreadPoolExecutor(max_workers=a.jobs) as ex:
-        jobs = {"base": ex.submit(render, agvloc, base, [], BASE_DURATION_S, a.reuse)}
+        jobs = {"base": ex.submit(render, desk, base, [], BASE_DURATION_S, a.reuse)}
         if wanted("misprint"):
             jobs["base_misprint"] = ex.submit(
-                render, agvloc, base_mp,
+                render, desk, base_mp,
                 ["--misprint", f"{MISPRINT_ID}:{MISPRINT_DX_MM:g}:{MISPRINT_DY_MM:g}"],
                 MISPRINT_DURATION_S, a.reuse)
         for k, j in jobs.items():

@@ -26,7 +26,7 @@ import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import hil_dbc  # noqa: E402
-from hil import as_bool, as_int, read_odom, yaml_scalars  # noqa: E402
+from hil_common import as_bool, as_int, read_odom, yaml_scalars  # noqa: E402
 
 FMT = "=IB3x8s"
 EFF, RTR, ERR = 0x80000000, 0x40000000, 0x20000000

@@ -2,15 +2,18 @@
 # Replay golden test: simulate a short deterministic recording, replay it (--fast) and compare the
 # fused poses and the per-frame fixes with the stored golden files and with the truth.
 #   golden_replay.sh AGVLOC WORKDIR [--update]
+# AGVLOC may be "EMULATOR ARGS... BINARY"; the simulator is agvloc-desk beside BINARY.
 set -euo pipefail
 read -r -a AGVLOC <<< "$1"  # may be "EMULATOR ARGS... BINARY"
+DESK=("${AGVLOC[@]}")
+DESK[-1]="$(dirname "${AGVLOC[-1]}")/agvloc-desk"
 WORK="$2"
 UPDATE="${3:-}"
 HERE="$(cd "$(dirname "$0")" && pwd)"
 GOLDEN="$HERE/../data/replay"
 rm -rf "$WORK"
 mkdir -p "$WORK"
-"${AGVLOC[@]}" sim --out "$WORK/rec" --trajectory line --duration-s 4 --fps 15 --seed 7 \
+"${DESK[@]}" sim --out "$WORK/rec" --trajectory line --duration-s 4 --fps 15 --seed 7 \
   --speed-mps 0.5 > "$WORK/sim.log"
 "${AGVLOC[@]}" replay "$WORK/rec" --out "$WORK/out" --fast --quiet > "$WORK/replay.log"
 if [ "$UPDATE" = "--update" ]; then

@@ -1,4 +1,4 @@
-// `agvloc sim` end to end: writes a recording the strict reader accepts, with truth at every
+// `agvloc-desk sim` end to end: writes a recording the strict reader accepts, with truth at every
 // frame time, deterministic for a seed.
 #include <ZXing/ReadBarcode.h>
 #include <gtest/gtest.h>
@@ -21,7 +21,7 @@ int run_sim(std::vector<std::string> args) {
   args.insert(args.begin(), "sim");
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
-  return agv::cmd::sim(static_cast<int>(argv.size()), argv.data());
+  return agv::desk::sim(static_cast<int>(argv.size()), argv.data());
 }
 
 std::string slurp(const fs::path& p) {
@@ -129,7 +129,7 @@ int run_landmark(std::vector<std::string> args) {
   args.insert(args.begin(), "landmark");
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
-  return agv::cmd::landmark(static_cast<int>(argv.size()), argv.data());
+  return agv::desk::landmark(static_cast<int>(argv.size()), argv.data());
 }
 
 }  // namespace

@@ -13,9 +13,10 @@ cd "$(dirname "$0")/../.."
 BUILD="${1:-build/default}"
 WORK="${2:-/tmp/agvloc-loop-bench}"
 BIN="$BUILD/firmware/agvloc"
+DESK="$BUILD/firmware/agvloc-desk"
 mkdir -p "$WORK"
 if [ ! -f "$WORK/rec60/frames.csv" ]; then
-  "$BIN" sim --out "$WORK/rec60" --trajectory lawnmower --duration-s 60 --fps 30 \
+  "$DESK" sim --out "$WORK/rec60" --trajectory lawnmower --duration-s 60 --fps 30 \
     --speed-mps 1.0 --exposure-ms 0.5 --seed 3 --force
 fi
 "$BUILD/tests/bench/timer_baseline" 100 60 "${AGV_BENCH_BASELINE_FIFO:-0}" "${AGV_BENCH_BASELINE_SPIN_US:-0}" > "$WORK/baseline.txt" &

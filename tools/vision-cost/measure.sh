@@ -3,7 +3,7 @@
 # (qemu-aarch64 with insn_count_plugin.c), for the same frames, both RelWithDebInfo (-O2) with the
 # architectures' baseline instruction sets; docs/deployment.md reports it.
 #   bash tools/vision-cost/measure.sh [RECORDING] [FRAMES]
-# Without RECORDING it simulates one (agvloc sim, 20 s at 10 fps, seed 7). Needs the cross
+# Without RECORDING it simulates one (agvloc-desk sim, 20 s at 10 fps, seed 7). Needs the cross
 # environment (toolchain/prepare-aarch64.sh) and valgrind. Build dirs: build/aarch64-cost-native
 # (x86-64) and build/aarch64 (the cross preset, with -DAGV_BUILD_VISION_COST=ON).
 # Prints, per frame class (ok = a landmark pose, none = no landmark found), the mean instructions
@@ -20,7 +20,7 @@ mkdir -p "$res"
 
 cmake -S . -B "$nat" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DAGV_BUILD_TESTS=OFF \
       -DAGV_BUILD_BENCHMARKS=OFF -DAGV_BUILD_VISION_COST=ON >/dev/null
-cmake --build "$nat" -j "$jobs" --target vision_cost agvloc
+cmake --build "$nat" -j "$jobs" --target vision_cost agvloc-desk
 # The cross preset's directory (already built by tools/cross-test.sh): only vision_cost is added.
 cmake --preset aarch64 -DAGV_BUILD_VISION_COST=ON >/dev/null
 cmake --build "$arm" -j "$jobs" --target vision_cost
@@ -31,7 +31,7 @@ rec="${1:-}"
 frames="${2:-200}"
 if [ -z "$rec" ]; then
   rec="$res/rec"
-  "$nat/firmware/agvloc" sim --out "$rec" --duration-s 20 --fps 10 --seed 7 --force >/dev/null
+  "$nat/firmware/agvloc-desk" sim --out "$rec" --duration-s 20 --fps 10 --seed 7 --force >/dev/null
 fi
 extra="$(grep -o 'LD_LIBRARY_PATH=[^ ;]*' "$arm/CMakeCache.txt" | head -n 1 || true)"
 [ -n "$extra" ] || extra="LD_LIBRARY_PATH=/opt/agvloc-aarch64/usr/lib/aarch64-linux-gnu:/opt/agvloc-aarch64/usr/lib"

@@ -3,7 +3,6 @@
 #include <charconv>
 #include <cmath>
 #include <cstdio>
-#include <sstream>
 
 namespace agv {
 
@@ -213,21 +212,6 @@ bool parse_landmark_map(std::string_view text, LandmarkMap* out, std::string* er
   }
   *out = std::move(map);
   return true;
-}
-
-std::string format_landmark_map(const LandmarkMap& map) {
-  std::ostringstream os;
-  os << "id,x_mm,y_mm,heading_deg\n";
-  char buf[128];
-  for (const auto& [id, e] : map.entries) {
-    // Round first, then wrap: -179.996 deg must not print as the rejected -180.00.
-    double h = std::round(rad_to_deg(e.pose.theta_rad) * 100.0) / 100.0;
-    if (h <= -180.0) h += 360.0;
-    std::snprintf(buf, sizeof buf, "%u,%.1f,%.1f,%.2f\n", static_cast<unsigned>(id), e.pose.x_mm,
-                  e.pose.y_mm, h);
-    os << buf;
-  }
-  return os.str();
 }
 
 }  // namespace agv

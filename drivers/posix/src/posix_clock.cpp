@@ -14,7 +14,6 @@ std::int64_t read(clockid_t id) {
 }  // namespace
 
 std::int64_t monotonic_now_ns() { return read(CLOCK_MONOTONIC); }
-std::int64_t realtime_now_ns() { return read(CLOCK_REALTIME); }
 
 std::int64_t PosixClock::now_ns() const { return read(CLOCK_MONOTONIC); }
 

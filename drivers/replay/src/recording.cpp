@@ -1,5 +1,6 @@
-// Recording format I/O (docs/recording.md). Strict: anything unexpected is an error that names
-// the file and line; nothing here throws or crashes on malformed input.
+// Recording format readers (docs/recording.md). Strict: anything unexpected is an error that
+// names the file and line; nothing here throws or crashes on malformed input. Writers:
+// recording_write.cpp.
 #include "agv/recording/recording.hpp"
 
 #include <yaml-cpp/yaml.h>
@@ -18,6 +19,7 @@
 
 #include "agv/common/geometry.hpp"
 #include "agv/recording/png_io.hpp"
+#include "recording_internal.hpp"
 
 namespace agv::recording {
 
@@ -96,18 +98,6 @@ bool read_bounded(const fs::path& path, std::uintmax_t max_bytes, const std::str
 bool read_text(const fs::path& path, std::uintmax_t max_bytes, std::string* text,
                std::string* error) {
   return read_bounded(path, max_bytes, path.filename().string(), text, error);
-}
-
-bool write_text(const fs::path& path, const std::string& text, std::string* error) {
-  std::error_code ec;
-  fs::create_directories(path.parent_path(), ec);
-  std::ofstream f(path, std::ios::binary | std::ios::trunc);
-  if (f) f << text;
-  if (!f) {
-    if (error) *error = path.string() + ": cannot write";
-    return false;
-  }
-  return true;
 }
 
 // ---- meta.yaml ------------------------------------------------------------------------------
@@ -293,27 +283,6 @@ bool parse_timed_csv(const std::string& text, const std::string& name, const cha
   return true;
 }
 
-std::string fmt_g17(double v) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
-}
-
-bool safe_relative_path(std::string_view f) {
-  if (f.empty() || f.front() == '/' || f.find('\\') != std::string_view::npos) return false;
-  for (char c : f) {
-    if (static_cast<unsigned char>(c) < 0x20 || c == '"') return false;
-  }
-  // A file below the directory: no "..", and no "." or trailing "/" that names a directory
-  // ("." alone is the recording directory itself; found by fuzz_recording_frames).
-  if (f.back() == '/') return false;
-  const fs::path p{std::string(f)};
-  for (const auto& part : p) {
-    if (part == ".." || part == ".") return false;
-  }
-  return true;
-}
-
 // Says why `p` cannot be a frame: not a readable regular file of at most kMaxPngBytes (with
 // the system's reason, e.g. a symlink loop), or without the PNG signature.
 bool check_png_file(const fs::path& p, std::string* why) {
@@ -335,6 +304,21 @@ bool check_png_file(const fs::path& p, std::string* why) {
 }
 
 }  // namespace
+
+bool safe_relative_path(std::string_view f) {
+  if (f.empty() || f.front() == '/' || f.find('\\') != std::string_view::npos) return false;
+  for (char c : f) {
+    if (static_cast<unsigned char>(c) < 0x20 || c == '"') return false;
+  }
+  // A file below the directory: no "..", and no "." or trailing "/" that names a directory
+  // ("." alone is the recording directory itself; found by fuzz_recording_frames).
+  if (f.back() == '/') return false;
+  const fs::path p{std::string(f)};
+  for (const auto& part : p) {
+    if (part == ".." || part == ".") return false;
+  }
+  return true;
+}
 
 bool read_file_bounded(const std::string& path, std::uintmax_t max_bytes, std::string* text,
                        std::string* error) {
@@ -609,120 +593,6 @@ bool load_frame(const Recording& rec, size_t i, cv::Mat* image, std::string* err
     return false;
   }
   return true;
-}
-
-std::string format_meta_yaml(const Meta& m) {
-  const auto& k = m.camera.intrinsics;
-  const auto& mt = m.camera.mount;
-  std::ostringstream os;
-  os << "# agvloc recording metadata, docs/recording.md\n"
-     << "format_version: " << m.format_version << "\n";
-  if (!m.source.empty()) {
-    // Double-quoted YAML scalar with escapes, so any text round-trips.
-    std::string q;
-    for (char c : m.source) {
-      if (c == '"' || c == '\\') q += '\\';
-      if (c == '\n') {
-        q += "\\n";
-        continue;
-      }
-      q += c;
-    }
-    os << "source: \"" << q << "\"\n";
-  }
-  os << "image:\n  width_px: " << k.width_px << "\n  height_px: " << k.height_px << "\n"
-     << "intrinsics:\n  fx: " << fmt_g17(k.fx) << "\n  fy: " << fmt_g17(k.fy)
-     << "\n  cx: " << fmt_g17(k.cx) << "\n  cy: " << fmt_g17(k.cy) << "\n"
-     << "distortion:\n  k1: " << fmt_g17(k.k1) << "\n  k2: " << fmt_g17(k.k2)
-     << "\n  p1: " << fmt_g17(k.p1) << "\n  p2: " << fmt_g17(k.p2) << "\n  k3: " << fmt_g17(k.k3)
-     << "\n"
-     << "mount:\n  height_mm: " << fmt_g17(mt.height_mm)
-     << "\n  offset_x_mm: " << fmt_g17(mt.offset_x_mm)
-     << "\n  offset_y_mm: " << fmt_g17(mt.offset_y_mm)
-     << "\n  yaw_deg: " << fmt_g17(rad_to_deg(wrap_angle_rad(mt.yaw_rad))) << "\n"
-     << "landmark:\n  size_mm: " << fmt_g17(m.landmark_size_mm) << "\n";
-  return os.str();
-}
-
-bool write_meta(const std::string& dir, const Meta& m, std::string* error) {
-  const std::string text = format_meta_yaml(m);
-  // Refuse to write what the reader would reject.
-  Meta check;
-  std::string err;
-  if (!parse_meta_yaml(text, &check, &err)) {
-    if (error) *error = "refusing to write invalid meta: " + err;
-    return false;
-  }
-  return write_text(fs::path(dir) / "meta.yaml", text, error);
-}
-
-bool format_frames_csv(const std::vector<FrameRow>& rows, std::string* text, std::string* error) {
-  std::string s = "t_ns,file\n";
-  for (const FrameRow& r : rows) {
-    if (!safe_relative_path(r.file) || r.file.find(',') != std::string::npos) {
-      if (error) *error = "frames.csv: file name '" + r.file + "' cannot be written";
-      return false;
-    }
-    s += std::to_string(r.t_ns) + "," + r.file + "\n";
-  }
-  *text = std::move(s);
-  return true;
-}
-
-bool write_frames_csv(const std::string& dir, const std::vector<FrameRow>& rows,
-                      std::string* error) {
-  std::string s;
-  return format_frames_csv(rows, &s, error) && write_text(fs::path(dir) / "frames.csv", s, error);
-}
-
-std::string format_odom_csv(const std::vector<OdomRow>& rows) {
-  std::string s = "t_ns,v_mps,omega_radps\n";
-  char buf[96];
-  for (const OdomRow& r : rows) {
-    std::snprintf(buf, sizeof buf, "%lld,%.9g,%.9g\n", static_cast<long long>(r.t_ns), r.v_mps,
-                  r.omega_radps);
-    s += buf;
-  }
-  return s;
-}
-
-bool write_odom_csv(const std::string& dir, const std::vector<OdomRow>& rows, std::string* error) {
-  return write_text(fs::path(dir) / "odom.csv", format_odom_csv(rows), error);
-}
-
-std::string format_truth_csv(const std::vector<TruthRow>& rows) {
-  std::string s = "t_ns,x_mm,y_mm,theta_deg\n";
-  char buf[128];
-  for (const TruthRow& r : rows) {
-    // Round first, then wrap, so -179.9999999 never prints as the out-of-range -180.000000.
-    double th = std::round(wrap_angle_deg(r.theta_deg) * 1e6) / 1e6;
-    if (th <= -180.0) th += 360.0;
-    std::snprintf(buf, sizeof buf, "%lld,%.4f,%.4f,%.6f\n", static_cast<long long>(r.t_ns), r.x_mm,
-                  r.y_mm, th);
-    s += buf;
-  }
-  return s;
-}
-
-bool write_truth_csv(const std::string& dir, const std::vector<TruthRow>& rows,
-                     std::string* error) {
-  return write_text(fs::path(dir) / "truth.csv", format_truth_csv(rows), error);
-}
-
-bool write_frame_png(const std::string& dir, const std::string& relative_file, const cv::Mat& image,
-                     std::string* error) {
-  if (image.empty() || image.type() != CV_8UC1 || !safe_relative_path(relative_file)) {
-    if (error) *error = relative_file + ": need an 8-bit grey image and a relative path";
-    return false;
-  }
-  const fs::path p = fs::path(dir) / relative_file;
-  std::error_code ec;
-  fs::create_directories(p.parent_path(), ec);
-  // Fast zlib level: frames are written at 30 fps by the simulator and the recorder.
-  std::string e;
-  const bool ok = png::write(p.string(), image, &e, 1);
-  if (!ok && error) *error = e;
-  return ok;
 }
 
 }  // namespace agv::recording

@@ -100,7 +100,6 @@ struct LandmarkMap {
 
 // Parses the map text. On error returns false and sets *error to "line N: reason".
 bool parse_landmark_map(std::string_view text, LandmarkMap* out, std::string* error);
-std::string format_landmark_map(const LandmarkMap& map);
 
 // A payload with its pose, converted to the world <- landmark pose.
 Pose2 payload_pose(const LandmarkPayload& p);

@@ -18,7 +18,6 @@ class LatencyHistogram {
       ++negative_;
       v_ns = 0;
     }
-    sum_ns_ += static_cast<double>(v_ns);
     if (v_ns > max_ns_) max_ns_ = v_ns;
     ++buckets_[static_cast<size_t>(bucket_of(v_ns))];
   }
@@ -26,7 +25,6 @@ class LatencyHistogram {
   std::uint64_t count() const { return count_; }
   std::uint64_t negative_count() const { return negative_; }
   std::int64_t max_ns() const { return max_ns_; }
-  double mean_ns() const { return count_ ? sum_ns_ / static_cast<double>(count_) : 0.0; }
 
   // Upper edge of the bucket holding the p-quantile (0 < p <= 1); 0 when empty.
   std::int64_t percentile_ns(double p) const {
@@ -62,7 +60,6 @@ class LatencyHistogram {
   std::uint64_t count_ = 0;
   std::uint64_t negative_ = 0;
   std::int64_t max_ns_ = 0;
-  double sum_ns_ = 0.0;
 };
 
 }  // namespace agv

@@ -12,8 +12,7 @@ class PosixClock final : public hal::Clock {
   int sleep_until_ns(std::int64_t t_ns) override;
 };
 
-// Monotonic and realtime now, for converting kernel timestamps taken on CLOCK_REALTIME.
+// CLOCK_MONOTONIC now, without a clock object.
 std::int64_t monotonic_now_ns();
-std::int64_t realtime_now_ns();
 
 }  // namespace agv::posix

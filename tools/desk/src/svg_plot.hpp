@@ -1,5 +1,5 @@
-// Minimal SVG trajectory plot (no plotting dependency on the vehicle): polylines in world mm,
-// equal axis scale, grid, legend.
+// Minimal SVG trajectory plot for `agvloc-desk report` (no plotting dependency): polylines in
+// world mm, equal axis scale, grid, legend.
 #pragma once
 
 #include <string>

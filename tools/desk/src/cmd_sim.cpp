@@ -1,4 +1,4 @@
-// agvloc sim: writes a simulated recording (docs/simulator.md, docs/recording.md).
+// agvloc-desk sim: writes a simulated recording (docs/simulator.md, docs/recording.md).
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
@@ -12,7 +12,7 @@
 #include "commands.hpp"
 #include "config.hpp"
 
-namespace agv::cmd {
+namespace agv::desk {
 
 namespace {
 
@@ -24,7 +24,7 @@ int sim(int argc, char** argv) {
   CLI::App app{
       "Write a simulated recording: textured floor with landmarks, a differential-drive "
       "vehicle, odometry with errors, ground truth (docs/simulator.md)",
-      "agvloc sim"};
+      "agvloc-desk sim"};
   std::string out_dir, map_path, trajectory = "line", profile = "640x480", degrade = "realistic",
                                  payload_mode = "full", odom_sample = "period_mean", misprint;
   double duration_s = 60.0, fps = 30.0, odom_hz = 100.0, speed_mps = 0.5, exposure_ms = 2.0;
@@ -95,7 +95,7 @@ int sim(int argc, char** argv) {
   }
 
   auto usage_error = [](const std::string& msg) {
-    std::fprintf(stderr, "agvloc sim: %s\n", msg.c_str());
+    std::fprintf(stderr, "agvloc-desk sim: %s\n", msg.c_str());
     return 2;
   };
   sim::TrajectoryParams tp;
@@ -187,7 +187,7 @@ int sim(int argc, char** argv) {
   if (force) fs::remove_all(fs::path(out_dir) / "frames", ec);
   fs::create_directories(out_dir, ec);
   if (ec) {
-    std::fprintf(stderr, "agvloc sim: cannot create %s: %s\n", out_dir.c_str(),
+    std::fprintf(stderr, "agvloc-desk sim: cannot create %s: %s\n", out_dir.c_str(),
                  ec.message().c_str());
     return 1;
   }
@@ -195,13 +195,13 @@ int sim(int argc, char** argv) {
   recording::Meta meta;
   meta.camera = cam;
   meta.landmark_size_mm = scene.geometry.size_mm;
-  std::string cmdline = "agvloc sim";
+  std::string cmdline = "agvloc-desk sim";
   for (int i = 1; i < argc; ++i) cmdline += std::string(" ") + argv[i];
   // The sample timing is part of what the recording means (the replay's fusion must agree), so
   // it is stated even when it is the default. meta.yaml has no key for it (docs/recording.md).
   meta.source = cmdline + " (odometry samples: " + sim::to_string(op.timing) + ")";
   if (!recording::write_meta(out_dir, meta, &err)) {
-    std::fprintf(stderr, "agvloc sim: %s\n", err.c_str());
+    std::fprintf(stderr, "agvloc-desk sim: %s\n", err.c_str());
     return 1;
   }
 
@@ -239,7 +239,7 @@ int sim(int argc, char** argv) {
     char name[40];
     std::snprintf(name, sizeof name, "frames/%06lld.png", static_cast<long long>(k));
     if (!recording::write_frame_png(out_dir, name, img, &err)) {
-      std::fprintf(stderr, "agvloc sim: %s\n", err.c_str());
+      std::fprintf(stderr, "agvloc-desk sim: %s\n", err.c_str());
       return 1;
     }
     frames.push_back({kT0_ns + t, name});
@@ -260,15 +260,15 @@ int sim(int argc, char** argv) {
   if (!recording::write_frames_csv(out_dir, frames, &err) ||
       !recording::write_odom_csv(out_dir, odom, &err) ||
       !recording::write_truth_csv(out_dir, truth, &err)) {
-    std::fprintf(stderr, "agvloc sim: %s\n", err.c_str());
+    std::fprintf(stderr, "agvloc-desk sim: %s\n", err.c_str());
     return 1;
   }
   std::printf(
-      "agvloc sim: wrote %s: %zu frames (%lld with a landmark in view), %zu odometry rows, "
+      "agvloc-desk sim: wrote %s: %zu frames (%lld with a landmark in view), %zu odometry rows, "
       "%zu truth rows; trajectory %s, lap %.1f m, %zu slip events; %.1f s to render\n",
       out_dir.c_str(), frames.size(), static_cast<long long>(frames_with_landmark), odom.size(),
       truth.size(), sim::to_string(tp.kind), traj.length_mm / 1000.0, slips.size(), render_s);
   return 0;
 }
 
-}  // namespace agv::cmd
+}  // namespace agv::desk

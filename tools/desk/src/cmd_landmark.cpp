@@ -1,5 +1,5 @@
-// agvloc landmark: one landmark as SVG (exact physical scale) and/or PNG, or a printable sheet of
-// every landmark in a map (docs/landmark.md).
+// agvloc-desk landmark: one landmark as SVG (exact physical scale) and/or PNG, or a printable sheet
+// of every landmark in a map (docs/landmark.md).
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <fstream>
@@ -9,7 +9,7 @@
 #include "commands.hpp"
 #include "config.hpp"
 
-namespace agv::cmd {
+namespace agv::desk {
 
 namespace {
 
@@ -25,7 +25,7 @@ int landmark(int argc, char** argv) {
   CLI::App app{
       "Print landmarks: one landmark as SVG at exact physical scale and/or PNG, or a "
       "sheet of every landmark of a map (geometry: docs/landmark.md)",
-      "agvloc landmark"};
+      "agvloc-desk landmark"};
   int id = 0;
   double x_mm = 0.0, y_mm = 0.0, heading_deg = 0.0, size_mm = 60.0, mm_per_px = 0.1;
   std::string svg, png, map_path, sheet;
@@ -57,7 +57,7 @@ int landmark(int argc, char** argv) {
     return app.exit(e) == 0 ? 0 : 2;
   }
   auto usage_error = [](const std::string& msg) {
-    std::fprintf(stderr, "agvloc landmark: %s\n", msg.c_str());
+    std::fprintf(stderr, "agvloc-desk landmark: %s\n", msg.c_str());
     return 2;
   };
   const LandmarkGeometry geometry{size_mm};
@@ -71,10 +71,10 @@ int landmark(int argc, char** argv) {
     const std::string text = sim::landmark_sheet_svg(geometry, map, columns);
     if (text.empty()) return usage_error("a landmark pose cannot be encoded in a payload");
     if (!write_file(sheet, text)) {
-      std::fprintf(stderr, "agvloc landmark: cannot write %s\n", sheet.c_str());
+      std::fprintf(stderr, "agvloc-desk landmark: cannot write %s\n", sheet.c_str());
       return 1;
     }
-    std::printf("agvloc landmark: wrote %s (%zu landmarks, S = %.1f mm)\n", sheet.c_str(),
+    std::printf("agvloc-desk landmark: wrote %s (%zu landmarks, S = %.1f mm)\n", sheet.c_str(),
                 map.entries.size(), size_mm);
     return 0;
   }
@@ -94,7 +94,7 @@ int landmark(int argc, char** argv) {
   if (!svg.empty()) {
     const std::string text = sim::landmark_svg(geometry, payload);
     if (text.empty() || !write_file(svg, text)) {
-      std::fprintf(stderr, "agvloc landmark: cannot write %s\n", svg.c_str());
+      std::fprintf(stderr, "agvloc-desk landmark: cannot write %s\n", svg.c_str());
       return 1;
     }
   }
@@ -103,13 +103,13 @@ int landmark(int argc, char** argv) {
     if (img.empty()) return usage_error("image too large for this --mm-per-px");
     std::string err;
     if (!png::write(png, img, &err)) {
-      std::fprintf(stderr, "agvloc landmark: %s\n", err.c_str());
+      std::fprintf(stderr, "agvloc-desk landmark: %s\n", err.c_str());
       return 1;
     }
   }
-  std::printf("agvloc landmark: payload %s%s%s\n", payload.c_str(),
+  std::printf("agvloc-desk landmark: payload %s%s%s\n", payload.c_str(),
               svg.empty() ? "" : (" -> " + svg).c_str(), png.empty() ? "" : (" -> " + png).c_str());
   return 0;
 }
 
-}  // namespace agv::cmd
+}  // namespace agv::desk

@@ -1,0 +1,11 @@
+// Subcommands of agvloc-desk, the desk tool (not shipped to the vehicle). Each returns the
+// process exit code: 0 success, 1 runtime failure (message on stderr), 2 usage error.
+#pragma once
+
+namespace agv::desk {
+
+int sim(int argc, char** argv);       // write a simulated recording
+int landmark(int argc, char** argv);  // print landmarks as SVG/PNG
+int report(int argc, char** argv);    // accuracy against truth + trajectory plot of a replay
+
+}  // namespace agv::desk
