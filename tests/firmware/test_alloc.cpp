@@ -6,10 +6,8 @@
 #include <cstdlib>
 #include <new>
 
-#include "agv/can/frame_convert.hpp"
 #include "agv/protocol/codec.hpp"
 #include "config.hpp"
-#include "output_stage.hpp"
 #include "test_loop_support.hpp"
 
 namespace {
@@ -48,15 +46,15 @@ TEST(SteadyStateLoop, NoHeapAllocationAfterWarmUp) {
   cfg.can.odometry_mode = "v_omega";
   const protocol::ProtocolConfig pc = config::protocol_config(cfg);
   test::StaticBus bus;
-  app::OutputStage out(cfg, &bus);
+  test::CoreHarness out(cfg, &bus);
 
   // Motor-controller odometry frames, encoded with the same protocol (twist mode, E2E).
   std::uint8_t counter = 0;
   auto odom_frame = [&](std::int64_t t_ns, double v, double w) {
-    protocol::CanFrameData f;
+    agv::hal::CanFrame f;
     protocol::encode_odometry(pc, v, w, counter, &f);
     counter = static_cast<std::uint8_t>((counter + 1) % 15);
-    hal::CanFrame h = can::to_hal(f);
+    hal::CanFrame h = f;
     h.t_ns = t_ns;
     return h;
   };
@@ -80,7 +78,7 @@ TEST(SteadyStateLoop, NoHeapAllocationAfterWarmUp) {
         out.on_fix(fix, t - 5'000'000);
       }
       app::TickRecord rec;
-      out.tick(t, nullptr, &rec);
+      out.tick(t, &rec);
       if (bus.sent_n > 3000) bus.clear_sent();
       if (bus.rx_n > 3000) bus.rx_n = bus.rx_head = 0;
     }
