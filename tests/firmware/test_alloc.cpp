@@ -1,5 +1,6 @@
-// Proves the steady-state output loop (CAN odometry in, fixes in, fusion, CAN out every period)
-// does not touch the heap once warmed up. Global operator new is replaced in this binary only.
+// Proves the steady-state output loop (CAN odometry in, fixes in, fusion, CAN out every period,
+// fix-triggered poses) does not touch the heap once warmed up. Global operator new is replaced
+// in this binary only.
 #include <gtest/gtest.h>
 
 #include <atomic>
@@ -54,9 +55,8 @@ TEST(SteadyStateLoop, NoHeapAllocationAfterWarmUp) {
     agv::hal::CanFrame f;
     protocol::encode_odometry(pc, v, w, counter, &f);
     counter = static_cast<std::uint8_t>((counter + 1) % 15);
-    hal::CanFrame h = f;
-    h.t_ns = t_ns;
-    return h;
+    f.t_ns = t_ns;
+    return f;
   };
 
   vision::LandmarkFix fix;
@@ -75,7 +75,8 @@ TEST(SteadyStateLoop, NoHeapAllocationAfterWarmUp) {
       if (i % 30 == 0) {
         const double x_mm = static_cast<double>(t - 1'000'000'000) * 1e-6;  // 1 m/s along x
         fix.vehicle_in_world = {x_mm - 5.0, 0.0, 0.0};
-        out.on_fix(fix, t - 5'000'000);
+        // Through the vision -> output hand-off and the fix-triggered pose (pose_on_fix).
+        ASSERT_TRUE(out.fix_arrives(fix, t - 5'000'000, t - 500'000));
       }
       app::TickRecord rec;
       out.tick(t, &rec);
@@ -92,6 +93,7 @@ TEST(SteadyStateLoop, NoHeapAllocationAfterWarmUp) {
   g_counting = false;
   EXPECT_EQ(g_allocs.load(), 0) << "heap allocations in 1000 steady-state periods";
   EXPECT_GT(out.stats().fixes_fused, 35u);
+  EXPECT_GT(out.stats().fix_poses, 35u);
   EXPECT_EQ(out.odometry_decoder().counters().rejected(), 0u);
 }
 

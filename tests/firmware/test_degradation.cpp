@@ -61,9 +61,8 @@ hal::CanFrame odom(const config::Config& cfg, std::int64_t t_ns, double v, std::
   agv::hal::CanFrame f;
   p::encode_odometry(config::protocol_config(cfg), v, 0.0, counter, &f);
   if (corrupt) f.data[3] ^= 0x10;
-  hal::CanFrame h = f;
-  h.t_ns = t_ns;
-  return h;
+  f.t_ns = t_ns;
+  return f;
 }
 
 }  // namespace
