@@ -157,8 +157,8 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
       io.camera->release(f);
       record_vision(rec.fix, t0 - f.t_exposure_ns, t1 - t0, &vstats);
       if (io.fixes && io.fixes->size() < io.fixes->capacity()) io.fixes->push_back(rec);
-      if (rec.fix.status != vision::FixStatus::kNoLandmark && fix_queue.push(rec) &&
-          pose_on_fix && rec.fix.status == vision::FixStatus::kOk) {
+      if (rec.fix.status != vision::FixStatus::kNoLandmark && fix_queue.push(rec) && pose_on_fix &&
+          rec.fix.status == vision::FixStatus::kOk) {
         wakeup.wake();
       }
       vision_busy = 0;
@@ -383,11 +383,11 @@ std::string format_statistics(const RunResult& r) {
                 o.fixes_rejected_gate, o.fixes_rejected_too_old, o.fixes_rejected_invalid,
                 o.reinitialisations);
   s += buf;
-  std::snprintf(buf, sizeof buf,
-                "  output: ticks %" PRIu64 ", missed periods %" PRIu64 ", fix-triggered poses %" PRIu64
-                ", CAN tx ok %" PRIu64 ", failed %" PRIu64 ", rx %" PRIu64 "\n",
-                o.ticks, o.missed_periods, o.fix_poses, o.can_tx_ok, o.can_tx_failed,
-                o.can_rx_frames);
+  std::snprintf(
+      buf, sizeof buf,
+      "  output: ticks %" PRIu64 ", missed periods %" PRIu64 ", fix-triggered poses %" PRIu64
+      ", CAN tx ok %" PRIu64 ", failed %" PRIu64 ", rx %" PRIu64 "\n",
+      o.ticks, o.missed_periods, o.fix_poses, o.can_tx_ok, o.can_tx_failed, o.can_rx_frames);
   s += buf;
   if (r.can_present) {
     std::snprintf(buf, sizeof buf,

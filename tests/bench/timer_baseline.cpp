@@ -9,10 +9,10 @@
 #include <cstdio>
 #include <cstdlib>
 
+#include "agv/adapters/hybrid_wait_clock.hpp"
 #include "agv/common/latency_histogram.hpp"
 #include "agv/posix/posix_clock.hpp"
 #include "agv/posix/realtime.hpp"
-#include "agv/adapters/hybrid_wait_clock.hpp"
 
 int main(int argc, char** argv) {
   const double rate_hz = argc > 1 ? std::atof(argv[1]) : 100.0;

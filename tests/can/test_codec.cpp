@@ -30,8 +30,8 @@ p::PoseOut roundtrip(p::Encoder& enc, const p::PoseOut& in, const p::ProtocolCon
 }
 
 // A frame for the odometry decoder, with E2E like a motor controller would send it.
-agv::hal::CanFrame odom_frame(const p::ProtocolConfig& cfg, double a, double b, std::uint8_t counter,
-                           std::int64_t t_ns) {
+agv::hal::CanFrame odom_frame(const p::ProtocolConfig& cfg, double a, double b,
+                              std::uint8_t counter, std::int64_t t_ns) {
   agv::hal::CanFrame f;
   p::encode_odometry(cfg, a, b, counter, &f);
   f.t_ns = t_ns;

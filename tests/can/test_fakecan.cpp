@@ -1,7 +1,7 @@
 #include <gtest/gtest.h>
 
-#include "agv/localizer/can_fault_monitor.hpp"
 #include "agv/can/fake_can.hpp"
+#include "agv/localizer/can_fault_monitor.hpp"
 #include "agv/protocol/codec.hpp"
 
 using agv::hal::CanBusState;

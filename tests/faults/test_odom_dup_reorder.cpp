@@ -1,12 +1,12 @@
 // Fault class "duplicated and reordered odometry" of the fault-replay suite
 // (tests/faults/README.md). A recording cannot hold it (odom.csv must be strictly increasing), so
-// this drives the localizer core directly: the simulator's lawnmower odometry (1 m/s, default errors,
-// period means) goes over the fake CAN bus as E2E-protected frames, some duplicated and some pairs
-// swapped inside a fault window that contains a turn, with landmark fixes synthesized from the
-// truth (vision-like noise, handed over 30 ms after exposure as `replay --fast` does). The same
-// assertions as run_faults.py: no localized pose > 50 mm off the truth, recovery <= 0.5 s after the
-// window when a landmark is in view by then, >= 99 % of ticks within 3 sigma and normalised-error
-// RMS >= 0.2.
+// this drives the localizer core directly: the simulator's lawnmower odometry (1 m/s, default
+// errors, period means) goes over the fake CAN bus as E2E-protected frames, some duplicated and
+// some pairs swapped inside a fault window that contains a turn, with landmark fixes synthesized
+// from the truth (vision-like noise, handed over 30 ms after exposure as `replay --fast` does). The
+// same assertions as run_faults.py: no localized pose > 50 mm off the truth, recovery <= 0.5 s
+// after the window when a landmark is in view by then, >= 99 % of ticks within 3 sigma and
+// normalised-error RMS >= 0.2.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -16,11 +16,11 @@
 #include <vector>
 
 #include "agv/can/fake_can.hpp"
+#include "agv/localizer/localizer.hpp"
 #include "agv/protocol/codec.hpp"
 #include "agv/sim/render.hpp"
 #include "agv/sim/trajectory.hpp"
 #include "config.hpp"
-#include "agv/localizer/localizer.hpp"
 #include "output_loop.hpp"
 
 using namespace agv;

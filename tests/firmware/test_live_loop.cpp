@@ -137,11 +137,12 @@ TEST(LiveLoop, PoseOnFixWakesTheOutputThreadAndThePoseIsNearTheTruth) {
       ++valid_near;
     }
   }
-  std::printf("fixes ok %d fused %llu, fix-triggered pose pairs %d, periodic %d (valid near the "
-              "truth after the first fix %d of %d), end to end p50 %.2f ms\n",
-              ok_fixes, static_cast<unsigned long long>(r.output.fixes_fused), between_ticks,
-              periodic_poses, valid_near, periodic_after_fix,
-              static_cast<double>(r.output.end_to_end_ns.percentile_ns(0.5)) / 1e6);
+  std::printf(
+      "fixes ok %d fused %llu, fix-triggered pose pairs %d, periodic %d (valid near the "
+      "truth after the first fix %d of %d), end to end p50 %.2f ms\n",
+      ok_fixes, static_cast<unsigned long long>(r.output.fixes_fused), between_ticks,
+      periodic_poses, valid_near, periodic_after_fix,
+      static_cast<double>(r.output.end_to_end_ns.percentile_ns(0.5)) / 1e6);
   EXPECT_EQ(static_cast<std::uint64_t>(between_ticks), r.output.fix_poses);
   EXPECT_GE(between_ticks, 3);
   EXPECT_GT(periodic_poses, 50);

@@ -216,8 +216,8 @@ void Localizer::tick(std::int64_t now_ns, OutFrames* out, TickRecord* rec) {
     hb.sw_patch = cfg_.sw_patch;
     hb.uptime_s = static_cast<double>(now_ns - first_tick_ns_) / 1e9;
     encoder_.encode_heartbeat(hb, &out->frame[out->n++]);
-    next_heartbeat_ns_ = (next_heartbeat_ns_ == INT64_MIN ? now_ns : next_heartbeat_ns_) +
-                         cfg_.heartbeat_period_ns;
+    next_heartbeat_ns_ =
+        (next_heartbeat_ns_ == INT64_MIN ? now_ns : next_heartbeat_ns_) + cfg_.heartbeat_period_ns;
     if (next_heartbeat_ns_ <= now_ns) next_heartbeat_ns_ = now_ns + cfg_.heartbeat_period_ns;
   }
 

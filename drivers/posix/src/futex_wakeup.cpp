@@ -36,7 +36,7 @@ hal::WaitResult FutexWakeup::wait_until_ns(std::int64_t t_ns) {
     if (rc == 0 || errno == EAGAIN || errno == EINTR) continue;
     if (errno == ETIMEDOUT) {
       return word_.exchange(0, std::memory_order_acquire) != 0 ? hal::WaitResult::kWoken
-                                                                : hal::WaitResult::kDeadline;
+                                                               : hal::WaitResult::kDeadline;
     }
     return hal::WaitResult::kError;
   }
@@ -44,8 +44,7 @@ hal::WaitResult FutexWakeup::wait_until_ns(std::int64_t t_ns) {
 
 void FutexWakeup::wake() {
   if (word_.exchange(1, std::memory_order_release) == 0) {
-    syscall(SYS_futex, futex_word(&word_), FUTEX_WAKE | FUTEX_PRIVATE_FLAG, 1, nullptr, nullptr,
-            0);
+    syscall(SYS_futex, futex_word(&word_), FUTEX_WAKE | FUTEX_PRIVATE_FLAG, 1, nullptr, nullptr, 0);
   }
 }
 
