@@ -28,6 +28,7 @@
 #include "agv/common/geometry.hpp"
 #include "agv/fusion/ekf.hpp"
 #include "agv/fusion/motion_model.hpp"
+#include "agv/vision/pose_covariance.hpp"
 
 #ifdef AGV_EVAL_HAVE_RECORDING
 #include "agv/recording/recording.hpp"
@@ -302,27 +303,6 @@ struct SimFix {
   OutlierKind outlier;
 };
 
-Eigen::Matrix3d propagate_cov(const Pose2& world_landmark, const Pose2& veh_landmark,
-                              const Eigen::Matrix3d& cov_vl) {
-  // z = W<-L (+) inverse(V<-L); numerical Jacobian with respect to V<-L.
-  Eigen::Matrix3d J;
-  const double h[3] = {1e-4, 1e-4, 1e-7};
-  for (int j = 0; j < 3; ++j) {
-    Pose2 a = veh_landmark, b = veh_landmark;
-    double* pa = j == 0 ? &a.x_mm : (j == 1 ? &a.y_mm : &a.theta_rad);
-    double* pb = j == 0 ? &b.x_mm : (j == 1 ? &b.y_mm : &b.theta_rad);
-    *pa += h[j];
-    *pb -= h[j];
-    const Pose2 za = agv::compose(world_landmark, agv::inverse(a));
-    const Pose2 zb = agv::compose(world_landmark, agv::inverse(b));
-    J(0, j) = (za.x_mm - zb.x_mm) / (2 * h[j]);
-    J(1, j) = (za.y_mm - zb.y_mm) / (2 * h[j]);
-    J(2, j) = agv::wrap_angle_rad(za.theta_rad - zb.theta_rad) / (2 * h[j]);
-  }
-  Eigen::Matrix3d R = J * cov_vl * J.transpose();
-  return 0.5 * (R + R.transpose());
-}
-
 std::vector<SimFix> simulate_fixes(const World& w, const FixParams& p) {
   std::vector<SimFix> out;
   std::mt19937_64 rng(p.seed);
@@ -402,7 +382,7 @@ std::vector<SimFix> simulate_fixes(const World& w, const FixParams& p) {
       Eigen::Matrix3d cov_vl = Eigen::Matrix3d::Zero();
       cov_vl(0, 0) = cov_vl(1, 1) = k * k * sxy * sxy;
       cov_vl(2, 2) = k * k * sth * sth;
-      f.R = propagate_cov(world_lm, vl, cov_vl);
+      f.R = agv::vision::vehicle_in_world_covariance(world_lm, vl, cov_vl);
     } else {
       f.R = Eigen::Matrix3d::Zero();
       f.R(0, 0) = f.R(1, 1) = sxy * sxy;
