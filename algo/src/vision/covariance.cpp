@@ -56,7 +56,12 @@ Eigen::Matrix3d vehicle_in_world_covariance(const Pose2& world_landmark,
     jac(1, j) = (wa.y_mm - wb.y_mm) / (2 * eps[j]);
     jac(2, j) = wrap_angle_rad(wa.theta_rad - wb.theta_rad) / (2 * eps[j]);
   }
-  return jac * cov_landmark_in_vehicle * jac.transpose();
+  // Assigned to an existing matrix, not constructed from the expression: Eigen evaluates the two
+  // forms along different paths, which round some off-diagonal entries differently in the last
+  // bit. This form is the one the localizer always used, so its fixes stay bit-identical.
+  Eigen::Matrix3d cov_world;
+  cov_world = jac * cov_landmark_in_vehicle * jac.transpose();
+  return cov_world;
 }
 
 }  // namespace agv::vision

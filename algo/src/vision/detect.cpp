@@ -42,6 +42,9 @@ constexpr int kRematchCentre = kRematchGrid / 2;
 // A re-matched corner with a poor (or negative) score still votes a little, so a hypothesis with
 // only weak corners keeps its centre estimate instead of none.
 constexpr double kMinRematchWeight = 0.05;
+// The local re-match skips windows with a grey-level variance up to this (grey levels^2): a flat
+// window has no corner and its NCC would divide by ~0.
+constexpr double kMinRematchWindowVar = 1.0;
 // Gradients below this squared Prewitt magnitude (grey levels^2) carry no orientation.
 constexpr double kMinOrientGradient2 = 1.0;
 // The angle refinement looks at pixels up to this far (coarse px) beyond the predicted outer
@@ -202,7 +205,7 @@ double LandmarkLocalizer::Impl::ncc_at(const std::vector<float>& tz, int tsz, in
                     isq.at<double>(y + tsz, x) + isq.at<double>(y, x);
   const double n = tsz * tsz;
   const double var = sq / n - (sum / n) * (sum / n);
-  if (!(var > 1.0)) return -1.0;
+  if (!(var > kMinRematchWindowVar)) return -1.0;
   float dot = 0.0f;
   const float* t = tz.data();
   for (int j = 0; j < tsz; ++j) {
