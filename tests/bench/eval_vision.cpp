@@ -5,14 +5,14 @@
 // Not a unit test. Usage and results: docs/accuracy.md.
 //   eval_vision [--profile 640|1280] [--frames N] [--floor-frames N] [--seed S] [--ablation]
 //               [--no-apriltag] [--dump DIR]
+#include "eval_vision.hpp"
+
 #include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <functional>
 #include <string>
 #include <vector>
-
-#include "eval_vision.hpp"
 
 using namespace eval_vision;
 
@@ -174,8 +174,7 @@ void run_speed(const Args& a, const Setup& su, const std::vector<Frame>& clean_f
         "%s: decode median %.3f ms (%s: %.3f ms); detection on combined degraded frames "
         "%.1f %% (%s: %.1f %%)\n",
         what, pct(sv.t_decode, 50), ref, pct(s.t_decode, 50),
-        100.0 * scomb_v.ok / std::max(1, scomb_v.n), ref,
-        100.0 * scomb.ok / std::max(1, scomb.n));
+        100.0 * scomb_v.ok / std::max(1, scomb_v.n), ref, 100.0 * scomb.ok / std::max(1, scomb.n));
   };
   std::printf("\n");
   compare("zxing TryHarder", "off", [](VisionConfig* v) { v->qr_try_harder = true; });

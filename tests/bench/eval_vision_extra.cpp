@@ -152,8 +152,8 @@ void run_apriltag(const Setup& su, const std::vector<Frame>& clean_frames, Landm
   std::printf(
       "| this pipeline, full (detect+decode+pose+direction) | %.1f %% | %.3f | %.3f / %.3f | "
       "%.4f / %.4f |\n",
-      100.0 * s.ok / std::max(1, s.n), pct(ours_best, 50), pct(s.pos_err, 50),
-      pct(s.pos_err, 95), pct(s.head_err, 50), pct(s.head_err, 95));
+      100.0 * s.ok / std::max(1, s.n), pct(ours_best, 50), pct(s.pos_err, 50), pct(s.pos_err, 95),
+      pct(s.head_err, 50), pct(s.head_err, 95));
   std::printf(
       "\nSpeed ratio AprilTag / ours (medians, best of 3 per frame): %.2fx (ours with "
       "per-stage clock: %.3f ms)\n",
@@ -230,8 +230,7 @@ void run_ablation(const Setup& su, const std::vector<Frame>& clean_frames,
   for (int set = 0; set < 2; ++set) {
     const auto& frames = set == 0 ? clean_frames : combined_frames;
     const CameraModel& cm = set == 0 ? cam : cam_dist;
-    std::printf("\n### %s\n\n",
-                set == 0 ? "clean" : "all degradations combined (distorted lens)");
+    std::printf("\n### %s\n\n", set == 0 ? "clean" : "all degradations combined (distorted lens)");
     print_header();
     for (const Variant& v : vars) {
       VisionConfig c = cfg;

@@ -90,9 +90,8 @@ TEST(VisionPoseCovariance, LocalizerReportsThePropagatedCovariance) {
   vision::LandmarkLocalizer loc(vision::VisionConfig{}, cam, LandmarkGeometry{}, &map);
   vision::LandmarkFix fix;
   ASSERT_EQ(loc.process(img, &fix), vision::FixStatus::kOk) << vision::to_string(fix.status);
-  const Eigen::Matrix3d want =
-      vehicle_in_world_covariance(world_landmark, fix.landmark_in_vehicle,
-                                  fix.cov_landmark_in_vehicle);
+  const Eigen::Matrix3d want = vehicle_in_world_covariance(world_landmark, fix.landmark_in_vehicle,
+                                                           fix.cov_landmark_in_vehicle);
   EXPECT_EQ(fix.cov_world, want);
   EXPECT_GT(fix.cov_landmark_in_vehicle(2, 2), 0.0);
 }

@@ -1,5 +1,6 @@
-// Covariance of the vision pose: of the landmark in the vehicle frame from the joint fit's normal
-// equations, and of the vehicle in the world from that (pose_covariance.hpp).
+// Stage 6 of the pipeline (docs/vision.md), the covariance of the result: of the landmark in the
+// vehicle frame from the joint fit's normal equations, and of the vehicle in the world from that
+// (pose_covariance.hpp).
 #include <Eigen/Dense>
 #include <algorithm>
 

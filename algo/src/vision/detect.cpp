@@ -1,6 +1,7 @@
-// Stage 1, detection: coarse pyramid level, adaptive binarization, rotated corner templates
-// (NCC), corner peaks merged into landmark hypotheses, angle and centre refinement, border ring
-// check. Paper 001 section 3.1 with the changes measured in docs/accuracy.md.
+// Stages 1-2 of the pipeline (docs/vision.md), binarization and detection: coarse pyramid level,
+// adaptive binarization, rotated corner templates (NCC), corner peaks merged into landmark
+// hypotheses, angle and centre refinement, border ring check. Paper 001 section 3.1 with the
+// changes measured in docs/accuracy.md.
 #include <algorithm>
 #include <cmath>
 #include <cstring>
@@ -219,9 +220,9 @@ bool LandmarkLocalizer::Impl::detect(const cv::Mat& img, Detection* best, bool* 
                                      double* corner_score) {
   *found_corner = false;
   *corner_score = 0.0;
-  // 1a. Pyramid and binarization.
+  // 1. Pyramid and binarization.
   if (!make_coarse(img)) return false;
-  // 1b. Corner templates at every candidate position, local maxima.
+  // 2a. Corner templates at every candidate position, local maxima.
   score_corner_templates();
   find_corner_peaks();
   if (peaks.empty()) return false;
@@ -232,9 +233,9 @@ bool LandmarkLocalizer::Impl::detect(const cv::Mat& img, Detection* best, bool* 
     peaks.resize(static_cast<size_t>(cfg.max_corner_peaks));
   }
   *corner_score = peaks[0].score;
-  // 1c. Corners that predict the same landmark become one hypothesis.
+  // 2b. Corners that predict the same landmark become one hypothesis.
   merge_peaks();
-  // 1d. Refinement and ring check of each hypothesis.
+  // 2c. Refinement and ring check of each hypothesis.
   return select_hypothesis(best, corner_score);
 }
 

@@ -1,4 +1,5 @@
-// Stage 3, direction: which of the four 90-degree turns of the fitted square is the landmark's
+// Stage 4 of the pipeline (docs/vision.md), logo, and the direction decision that closes stage 5:
+// which of the four 90-degree turns of the fitted square is the landmark's
 // forward axis. The logo (a filled triangle beside the QR code) is correlated at each turn; the
 // result is cross-checked with the QR code's own orientation after the decode stage.
 #include <algorithm>
@@ -25,7 +26,7 @@ bool in_triangle(Vec2 apex, Vec2 bl, Vec2 br, Vec2 p) {
     return (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
   };
   const double d1 = cross(apex, bl, p), d2 = cross(bl, br, p), d3 = cross(br, apex, p);
-  const bool neg = d1 < 0 || d2 < 0 || d3 < 0, pos = d1 > 0 || d2 > 0 || d3 > 0;
+  const bool neg = d1 < 0 || d2 < 0 || d3<0, pos = d1> 0 || d2 > 0 || d3 > 0;
   return !(neg && pos);
 }
 

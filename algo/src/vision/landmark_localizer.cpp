@@ -47,43 +47,6 @@ const char* to_string(FixStatus s) {
   }
   return "unknown status";
 }
-Vec2 rot(Vec2 v, double a) {
-  const double c = std::cos(a), s = std::sin(a);
-  return {c * v.x - s * v.y, s * v.x + c * v.y};
-}
-
-bool sample(const cv::Mat& img, double x, double y, double* v) {
-  if (!(x >= 0.0 && y >= 0.0 && x <= img.cols - 1.0 && y <= img.rows - 1.0)) return false;
-  const int x0 = std::min(static_cast<int>(x), img.cols - 2 < 0 ? 0 : img.cols - 2);
-  const int y0 = std::min(static_cast<int>(y), img.rows - 2 < 0 ? 0 : img.rows - 2);
-  const double fx = x - x0, fy = y - y0;
-  const std::uint8_t* r0 = img.ptr<std::uint8_t>(y0);
-  const std::uint8_t* r1 = img.ptr<std::uint8_t>(std::min(y0 + 1, img.rows - 1));
-  const int x1 = std::min(x0 + 1, img.cols - 1);
-  *v = (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x1]);
-  return true;
-}
-
-double ncc(const std::vector<double>& a, const std::vector<double>& b) {
-  const size_t n = std::min(a.size(), b.size());
-  if (n < 2) return 0.0;
-  double ma = 0, mb = 0;
-  for (size_t i = 0; i < n; ++i) {
-    ma += a[i];
-    mb += b[i];
-  }
-  ma /= static_cast<double>(n);
-  mb /= static_cast<double>(n);
-  double sab = 0, saa = 0, sbb = 0;
-  for (size_t i = 0; i < n; ++i) {
-    sab += (a[i] - ma) * (b[i] - mb);
-    saa += (a[i] - ma) * (a[i] - ma);
-    sbb += (b[i] - mb) * (b[i] - mb);
-  }
-  // A flat sample set (no contrast) correlates with nothing.
-  return saa > 1e-9 && sbb > 1e-9 ? sab / std::sqrt(saa * sbb) : 0.0;
-}
-
 LandmarkLocalizer::Impl::Impl(const VisionConfig& c, const CameraModel& m,
                               const LandmarkGeometry& g, const LandmarkMap* mp)
     : cfg(c), cam(m), cam_linear(m), geom(g), map(mp) {
@@ -105,8 +68,9 @@ LandmarkLocalizer::Impl::Impl(const VisionConfig& c, const CameraModel& m,
   build_logo();
 }
 
-// The stages in the order they run. The pose comes before the direction and the QR code: the
-// guided QR reading and the logo are sampled where the fitted pose puts them.
+// The stages in the order they run, numbered as in docs/vision.md "Pipeline". The pose comes before
+// the direction and the QR code: the guided QR reading and the logo are sampled where the fitted
+// pose puts them.
 FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, LandmarkFix* out) {
   have_overlay = false;
   const double t0 = now_ms();
@@ -119,7 +83,7 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, LandmarkFix* out) {
       img.cols != cam.intrinsics.width_px || img.rows != cam.intrinsics.height_px) {
     return finish(FixStatus::kBadInput);
   }
-  // 1. Detection.
+  // 1-2. Binarization and detection.
   Detection det;
   bool found_corner = false;
   double corner_score = 0;
@@ -138,7 +102,7 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, LandmarkFix* out) {
   out->partly_outside = partly_outside(img, c_px, up);
   if (out->partly_outside && !cfg.allow_partly_outside) return finish(FixStatus::kPartlyOutside);
 
-  // 2. Pose.
+  // 3. Pose.
   Vec2 c_mm;
   double beta = 0;
   Eigen::Matrix3d cov;
@@ -149,23 +113,23 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, LandmarkFix* out) {
   if (st != FixStatus::kOk) return finish(st);
   have_overlay = true;
 
-  // 3. Direction, first part: logo NCC at the four turns.
+  // 4. Logo: NCC at the four turns of the fitted square.
   const LogoScores logo = logo_scores(img, c_mm, beta);
   out->logo_score = logo.best;
   out->logo_margin = logo.margin;
   const double t3 = now_ms();
 
-  // 4. QR decode, payload and map check.
+  // 5a. QR decode, payload and map check.
   const int qr_q = decode_qr(img, c_px, up, c_mm, beta, logo, out);
   Pose2 world_landmark;
-  st = out->qr_method == 0 ? FixStatus::kQrUnreadable
-                           : check_payload(qr_text, out, &world_landmark);
+  st =
+      out->qr_method == 0 ? FixStatus::kQrUnreadable : check_payload(qr_text, out, &world_landmark);
   const double t4 = now_ms();
   if (cfg.now_ns) out->timings.decode_ms = t4 - t3;
   if (st == FixStatus::kQrUnreadable && out->partly_outside) st = FixStatus::kPartlyOutside;
   if (st != FixStatus::kOk) return finish(st);
 
-  // 5. Direction, second part: logo against the QR code's orientation.
+  // 5b. Direction: the logo against the QR code's orientation.
   const int q_final = decide_direction(logo, qr_q);
   if (cfg.now_ns) out->timings.direction_ms = (t3 - t2) + (now_ms() - t4);
   if (q_final < 0) return finish(FixStatus::kDirectionAmbiguous);

@@ -1,16 +1,17 @@
 // Private to algo/src/vision: the state LandmarkLocalizer keeps between frames and the stage
-// functions that share it. One file per stage:
-//   detect.cpp      pyramid, adaptive binarization, corner templates, hypotheses, ring check
-//   pose.cpp        Prewitt edge bands and classes, robust line fits, centre and heading
-//   covariance.cpp  fit covariance from the normal equations, vehicle-in-world propagation
-//   direction.cpp   logo template at the four turns, cross-check with the QR orientation
-//   qr_decode.cpp   guided module sampling, zxing fallback, payload and map check
+// functions that share it. One file per stage (numbers: docs/vision.md "Pipeline"):
+//   detect.cpp      1-2 pyramid, adaptive binarization, corner templates, hypotheses, ring check
+//   pose.cpp        3   Prewitt edge bands and classes, robust line fits, centre and heading
+//   direction.cpp   4-5 logo template at the four turns, cross-check with the QR orientation
+//   qr_decode.cpp   5   guided module sampling, zxing fallback, payload and map check
+//   covariance.cpp  6   fit covariance from the normal equations, vehicle-in-world propagation
 //   landmark_localizer.cpp  run(): the stages in order, the public class, the debug overlay
 #pragma once
 
 #include <Eigen/Core>
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <opencv2/core.hpp>
 #include <string>
@@ -22,7 +23,6 @@
 #include "agv/vision/edges.hpp"
 #include "agv/vision/landmark_localizer.hpp"
 #include "agv/vision/qr_grid.hpp"
-
 
 namespace agv::vision {
 
@@ -83,14 +83,48 @@ struct LogoScores {
   std::array<double, 4> ncc{};  // -1 at a turn where the logo leaves the image
   int best_q = 0;
   double best = 0.0, margin = 0.0;  // best NCC, best minus second best
-  bool clear = false;  // best above threshold and ahead of the second by the margin
+  bool clear = false;               // best above threshold and ahead of the second by the margin
 };
 
-// Shared helpers (landmark_localizer.cpp).
-Vec2 rot(Vec2 v, double a);
+// Shared helpers, inline: the logo and QR sampling call sample() thousands of times per frame
+// (kept inlinable as when they shared one file; out of line the direction stage took 8 % longer).
+inline Vec2 rot(Vec2 v, double a) {
+  const double c = std::cos(a), s = std::sin(a);
+  return {c * v.x - s * v.y, s * v.x + c * v.y};
+}
+
 // Bilinear sample of an 8-bit image; false outside.
-bool sample(const cv::Mat& img, double x, double y, double* v);
-double ncc(const std::vector<double>& a, const std::vector<double>& b);
+inline bool sample(const cv::Mat& img, double x, double y, double* v) {
+  if (!(x >= 0.0 && y >= 0.0 && x <= img.cols - 1.0 && y <= img.rows - 1.0)) return false;
+  const int x0 = std::min(static_cast<int>(x), img.cols - 2 < 0 ? 0 : img.cols - 2);
+  const int y0 = std::min(static_cast<int>(y), img.rows - 2 < 0 ? 0 : img.rows - 2);
+  const double fx = x - x0, fy = y - y0;
+  const std::uint8_t* r0 = img.ptr<std::uint8_t>(y0);
+  const std::uint8_t* r1 = img.ptr<std::uint8_t>(std::min(y0 + 1, img.rows - 1));
+  const int x1 = std::min(x0 + 1, img.cols - 1);
+  *v = (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x1]);
+  return true;
+}
+
+inline double ncc(const std::vector<double>& a, const std::vector<double>& b) {
+  const size_t n = std::min(a.size(), b.size());
+  if (n < 2) return 0.0;
+  double ma = 0, mb = 0;
+  for (size_t i = 0; i < n; ++i) {
+    ma += a[i];
+    mb += b[i];
+  }
+  ma /= static_cast<double>(n);
+  mb /= static_cast<double>(n);
+  double sab = 0, saa = 0, sbb = 0;
+  for (size_t i = 0; i < n; ++i) {
+    sab += (a[i] - ma) * (b[i] - mb);
+    saa += (a[i] - ma) * (a[i] - ma);
+    sbb += (b[i] - mb) * (b[i] - mb);
+  }
+  // A flat sample set (no contrast) correlates with nothing.
+  return saa > 1e-9 && sbb > 1e-9 ? sab / std::sqrt(saa * sbb) : 0.0;
+}
 
 // Fit covariance of (c_x, c_y, beta) from the joint fit's normal equations (covariance.cpp).
 Eigen::Matrix3d fit_covariance(const NormalEquations& ne, int n_params, const VisionConfig& cfg);
@@ -161,7 +195,7 @@ struct LandmarkLocalizer::Impl {
   void fill_result(const Pose2& world_landmark, Vec2 c_mm, double beta, int q_final,
                    const Eigen::Matrix3d& cov, LandmarkFix* out) const;
 
-  // Stage 1, detection (detect.cpp).
+  // Stages 1-2, binarization and detection (detect.cpp).
   void build_templates();
   void render_corner(double a, int r, cv::Mat* t) const;
   double ncc_at(const std::vector<float>& tz, int tsz, int x, int y) const;
@@ -177,7 +211,7 @@ struct LandmarkLocalizer::Impl {
   void refine_coarse_angle(Hypothesis* h) const;
   bool ring_check(const Hypothesis& h, double* dark_level, double* white_level, int* n_dark);
 
-  // Stage 2, pose (pose.cpp; covariance in covariance.cpp).
+  // Stage 3, pose (pose.cpp; its covariance, stage 6, in covariance.cpp).
   FixStatus pose(const cv::Mat& img, Vec2 centre_px, double up_angle, double contrast,
                  LandmarkFix* out, Vec2* c_mm, double* beta, Eigen::Matrix3d* cov);
   int collect(const cv::Mat& img, Vec2 centre_px, double up_angle, double band_px, double thr);
@@ -193,12 +227,12 @@ struct LandmarkLocalizer::Impl {
   bool joint_fit(PoseMethod method, bool free_size, SquareModel* m, NormalEquations* ne);
   void keep_overlay_geometry(const SquareModel& m);
 
-  // Stage 3, direction (direction.cpp).
+  // Stage 4, logo, and the direction decision of stage 5 (direction.cpp).
   void build_logo();
   LogoScores logo_scores(const cv::Mat& img, Vec2 c_mm, double beta);
   int decide_direction(const LogoScores& logo, int qr_q) const;
 
-  // Stage 4, QR decode (qr_decode.cpp).
+  // Stage 5, QR decode (qr_decode.cpp).
   int decode_qr(const cv::Mat& img, Vec2 c_px, double up, Vec2 c_mm, double beta,
                 const LogoScores& logo, LandmarkFix* out);
   int decode_guided(const cv::Mat& img, Vec2 c_mm, double beta, const LogoScores& logo);

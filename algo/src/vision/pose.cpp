@@ -1,7 +1,7 @@
-// Stage 2, pose: edge points of the eight border lines (Prewitt gradients in bands around the
-// detected square, classified by gradient direction, paper 001 fig. 7), robust line fits in the
-// metric frame, heading and centre by the configured method, then the joint square fit whose
-// normal equations also give the covariance (covariance.cpp).
+// Stage 3 of the pipeline (docs/vision.md), pose: edge points of the eight border lines (Prewitt
+// gradients in bands around the detected square, classified by gradient direction, paper 001 fig.
+// 7), robust line fits in the metric frame, heading and centre by the configured method, then the
+// joint square fit whose normal equations also give the covariance (covariance.cpp).
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -63,14 +63,14 @@ Vec2 intersect(const Line2& a, const Line2& b, bool* ok) {
 FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up, double contrast,
                                         LandmarkFix* out, Vec2* c_mm, double* beta_out,
                                         Eigen::Matrix3d* cov) {
-  // 2a. Classified edge points in bands around the detected square.
+  // 3a. Classified edge points in bands around the detected square.
   const double w_px = geom.border_width_mm() / mm_per_px;
   const double thr = cfg.edge_threshold_rel * kPrewittStepGain * contrast;
   const int total = collect(img, c_px, up, cfg.band_rel * w_px, thr);
   up_angle_px = up;
   if (total < cfg.min_points_total) return FixStatus::kTooFewEdgePoints;
 
-  // 2b. Metric points and one robust line per edge.
+  // 3b. Metric points and one robust line per edge.
   std::array<LineFit, kNumLines> fits;
   const int used = fit_lines(&fits);
   std::array<bool, 4> side_ok{};
@@ -80,19 +80,19 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
   if (!axis0 || !axis1 || used < cfg.min_points_total) return FixStatus::kTooFewEdgePoints;
   out->edge_points_used = used;
 
-  // 2c. Heading: initial metric angle of side 0's normal from the pixel angle, then the
+  // 3c. Heading: initial metric angle of side 0's normal from the pixel angle, then the
   // (weighted) mean of the line angles.
   const CameraModel& mc = metric_cam();
   Vec2 a0, a1;
   mc.pixel_to_vehicle(c_px, &a0);
-  mc.pixel_to_vehicle({c_px.x + kAngleProbePx * std::cos(up), c_px.y + kAngleProbePx * std::sin(up)},
-                      &a1);
+  mc.pixel_to_vehicle(
+      {c_px.x + kAngleProbePx * std::cos(up), c_px.y + kAngleProbePx * std::sin(up)}, &a1);
   const double beta0 = std::atan2(a1.y - a0.y, a1.x - a0.x);
   SquareModel m;
   m.beta = line_heading(fits, beta0);
   m.c = {a0.x, a0.y};
 
-  // 2d. Centre by the configured method (the joint fit when a side is missing).
+  // 3d. Centre by the configured method (the joint fit when a side is missing).
   PoseMethod method = cfg.pose_method;
   if (out->sides_used != 4) method = PoseMethod::kJointSquareFit;
   if (method == PoseMethod::kPaperCornerA) {
@@ -101,7 +101,7 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
     if (!intersections_centre(fits, &m.c)) return FixStatus::kTooFewEdgePoints;
   }
 
-  // 2e. Joint fit (also used for the covariance of every method). Parameters: c_x, c_y, beta and,
+  // 3e. Joint fit (also used for the covariance of every method). Parameters: c_x, c_y, beta and,
   // when an axis has both sides, shared outer/inner half sizes.
   const bool free_size = (side_ok[0] && side_ok[2]) || (side_ok[1] && side_ok[3]);
   m.h_out = geom.outer_half_mm();
@@ -110,7 +110,7 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
   NormalEquations ne;
   if (!joint_fit(method, free_size, &m, &ne)) return FixStatus::kTooFewEdgePoints;
 
-  // 2f. Covariance, result, overlay geometry.
+  // 3f. Covariance, result, overlay geometry.
   *cov = fit_covariance(ne, free_size ? 5 : 3, cfg);
   out->residual_rms_mm = ne.sum_w > 0 ? std::sqrt(ne.ssr / ne.sum_w) : 0.0;
   *c_mm = m.c;
@@ -421,8 +421,8 @@ int LandmarkLocalizer::Impl::collect(const cv::Mat& img, Vec2 c, double up, doub
 }
 
 // One line of collect(): the line is at distance h (px) from c along normal nk.
-int LandmarkLocalizer::Impl::collect_line(const cv::Mat& img, Vec2 c, Vec2 nk, double h,
-                                          Vec2 g_dir, double band, int thr2_int, double tan_tol,
+int LandmarkLocalizer::Impl::collect_line(const cv::Mat& img, Vec2 c, Vec2 nk, double h, Vec2 g_dir,
+                                          double band, int thr2_int, double tan_tol,
                                           std::vector<Vec2>* dst) {
   const std::uint8_t* base = img.data;
   const std::ptrdiff_t step = static_cast<std::ptrdiff_t>(img.step[0]);

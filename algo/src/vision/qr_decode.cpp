@@ -1,6 +1,7 @@
-// Stage 4, QR decode: model-guided module sampling where the fitted pose puts the code (qr_grid),
-// zxing's own search on the image crop as the fallback, then the payload parser and the map
-// check. Also gives the QR code's orientation for the direction cross-check.
+// Stage 5 of the pipeline (docs/vision.md), QR decode: model-guided module sampling where the
+// fitted pose puts the code (qr_grid), zxing's own search on the image crop as the fallback, then
+// the payload parser and the map check. Also gives the QR code's orientation for the direction
+// cross-check.
 #define ZX_USE_UTF8 1
 #include <ZXing/ReadBarcode.h>
 
@@ -119,8 +120,8 @@ bool LandmarkLocalizer::Impl::read_qr_search(const cv::Mat& img, Vec2 c, double 
   const double module_px = geom.qr_side_mm() / kQrModulesV2 / mm_per_px;
   int d = 1;
   if (cfg.qr_target_module_px > 0) {
-    d = std::max(1, static_cast<int>(
-                        std::floor(module_px / cfg.qr_target_module_px + kDownscaleRoundUp)));
+    d = std::max(
+        1, static_cast<int>(std::floor(module_px / cfg.qr_target_module_px + kDownscaleRoundUp)));
   }
   ZXing::DecodeHints hints;
   hints.setFormats(ZXing::BarcodeFormat::QRCode)

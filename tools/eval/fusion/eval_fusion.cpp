@@ -14,6 +14,8 @@
 // misreads) and fixes are delivered late.
 //
 // Usage and measured numbers: docs/fusion.md.
+#include "eval_fusion.hpp"
+
 #include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
@@ -28,8 +30,6 @@
 #include "agv/common/geometry.hpp"
 #include "agv/fusion/ekf.hpp"
 #include "agv/fusion/motion_model.hpp"
-
-#include "eval_fusion.hpp"
 
 namespace {
 

@@ -114,7 +114,6 @@ inline const char* const kOutlierNames[] = {
     "none",           "wrong_landmark", "digit_100mm", "offset_20_100mm", "heading_90_180deg",
     "heading_3_20deg"};
 
-
 struct SimFix {
   std::int64_t t_exposure_ns;
   std::int64_t t_delivery_ns;
