@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
 # Installs dependencies, builds and runs every test:
 #   1. default preset (g++, warnings as errors): every test, VM tests included
-#   2. asan preset (clang ASan + UBSan, -O1): the unit, replay (golden) and fault tests, then
-#      every libFuzzer harness from the same build (fuzz/run.sh)
-#   3. tsan preset (clang TSan, -O1): the same tests plus the label tsan (threaded live loop)
+#   2. asan preset (clang ASan + UBSan, -O1): the tests labelled unit, replay, golden, faults and
+#      tsan (threaded live loop), then every libFuzzer harness from the same build (fuzz/run.sh)
+#   3. tsan preset (clang TSan, -O1): the same tests
 #   4. arm64 cross build, tests under qemu-aarch64, .deb package test
-# Any sanitizer report fails its test (docs/security.md, "Sanitizers"). Prints the wall time of
-# each step; about 50 min on a 2-core machine (docs/security.md).
+# Any sanitizer report fails its test. Prints the wall time of each step; about 34 min on an
+# idle 2-core machine (docs/security.md, "Sanitizers in CI").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 jobs="$(nproc)"
