@@ -5,7 +5,7 @@
 #      tsan (threaded live loop), then every libFuzzer harness from the same build (fuzz/run.sh)
 #   3. tsan preset (clang TSan, -O1): the same tests
 #   4. arm64 cross build, tests under qemu-aarch64, .deb package test
-# Any sanitizer report fails its test. Prints the wall time of each step; about 34 min on an
+# Any sanitizer report fails its test. Prints the wall time of each step; about 33 min on an
 # idle 2-core machine (docs/security.md, "Sanitizers in CI").
 set -euo pipefail
 cd "$(dirname "$0")/.."
