@@ -3,7 +3,7 @@
 #                              libFuzzer harnesses, so CI compiles the tree once for both
 #   thread                     TSan
 # Every report is fatal (-fno-sanitize-recover=all): a test that triggers one fails instead of
-# printing and passing. The runtime options that ctest passes are in tests/sanitizer-env.cmake.
+# printing and passing. The runtime options (halt_on_error, ...) are in the test presets.
 set(AGV_SANITIZE "OFF" CACHE STRING "Sanitizers: OFF, address,undefined (ON) or thread")
 set_property(CACHE AGV_SANITIZE PROPERTY STRINGS OFF "address,undefined" thread)
 
