@@ -17,7 +17,7 @@ PKGS=(
   # tests, benchmarks, comparison baseline
   libgtest-dev libgmock-dev libbenchmark-dev libapriltag-dev valgrind
   clang-format clang-tidy
-  # fuzzing (fuzz/, the fuzz preset): clang with libFuzzer and the sanitizer runtimes
+  # sanitizer presets asan (with the fuzz/ harnesses) and tsan: clang, libFuzzer, ASan/UBSan/TSan
   clang libclang-rt-14-dev
   # CAN tools and independent decoders
   can-utils python3-can iproute2
