@@ -2,6 +2,7 @@
 // latency does not reach the output period. The wait itself: tests/adapters/test_adapters.cpp.
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <string>
 #include <vector>
 
@@ -15,15 +16,28 @@ using namespace agv;
 
 namespace {
 
-// The real monotonic clock, but every sleep wakes 2 ms late: a deterministic stand-in for a
-// machine with a large wake-up latency.
+// A virtual clock on which every sleep wakes 2 ms late: a deterministic stand-in for a machine
+// with a large wake-up latency. Time moves only when a thread sleeps (to the target + 2 ms) or
+// reads the clock (1 us per read, so a busy-poll reaches its deadline). No real time passes, so
+// the result does not depend on how busy the machine is: a real clock here made the test fail
+// whenever the spinning thread was preempted (parallel ctest on 2 cores).
 class LateWakeClock final : public hal::Clock {
  public:
-  std::int64_t now_ns() const override { return mono_.now_ns(); }
-  int sleep_until_ns(std::int64_t t_ns) override { return mono_.sleep_until_ns(t_ns + kLateNs); }
+  std::int64_t now_ns() const override { return t_ns_.fetch_add(kReadStepNs) + kReadStepNs; }
+  int sleep_until_ns(std::int64_t t_ns) override {
+    std::int64_t cur = t_ns_.load();
+    while (cur < t_ns + kLateNs && !t_ns_.compare_exchange_weak(cur, t_ns + kLateNs)) {
+    }
+    return 0;
+  }
+  // Waits that need the monotonic clock (the fix wake-up) time out at once: the virtual
+  // deadline is always "now" for the kernel.
+  std::int64_t to_monotonic_ns(std::int64_t) const override { return mono_.now_ns(); }
   static constexpr std::int64_t kLateNs = 2'000'000;
+  static constexpr std::int64_t kReadStepNs = 1'000;
 
  private:
+  mutable std::atomic<std::int64_t> t_ns_{1'000'000'000};
   posix::PosixClock mono_;
 };
 
@@ -58,7 +72,7 @@ LatencyHistogram loop_jitter(int spin_us) {
 
 TEST(HybridWait, OutputLoopWakesAtTheDeadlineWithSpin) {
   // Without the spin every period is >= 2 ms late; with 3 ms of spin the loop polls to the
-  // deadline (a preempted poll can still be late, hence the median) and is never early.
+  // deadline and is never early.
   const LatencyHistogram plain = loop_jitter(0);
   EXPECT_GE(plain.percentile_ns(0.5), LateWakeClock::kLateNs);
   const LatencyHistogram spun = loop_jitter(3000);
