@@ -22,25 +22,6 @@ constexpr std::int64_t kMs = 1'000'000;
 // Fix-triggered poses are not waited for in the last part of a period (see the output thread).
 constexpr std::int64_t kFixWaitGuardNs = 200'000;
 
-void record_vision(const vision::LandmarkFix& fix, std::int64_t exposure_to_start_ns,
-                   std::int64_t vision_ns, VisionStats* vs) {
-  ++vs->frames_processed;
-  const int s = static_cast<int>(fix.status);
-  if (s >= 0 && s < kFixStatusCount) ++vs->by_status[s];
-  vs->exposure_to_start_ns.record_ns(exposure_to_start_ns);
-  vs->vision_ns.record_ns(vision_ns);
-  vs->detect_ns.record_ns(static_cast<std::int64_t>(fix.timings.detect_ms * 1e6));
-  if (fix.timings.decode_ms > 0) {
-    vs->decode_ns.record_ns(static_cast<std::int64_t>(fix.timings.decode_ms * 1e6));
-  }
-  if (fix.timings.direction_ms > 0) {
-    vs->direction_ns.record_ns(static_cast<std::int64_t>(fix.timings.direction_ms * 1e6));
-  }
-  if (fix.timings.pose_ms > 0) {
-    vs->pose_ns.record_ns(static_cast<std::int64_t>(fix.timings.pose_ms * 1e6));
-  }
-}
-
 vision::VisionConfig vision_config_with_clock(const config::Config& cfg, const hal::Clock* clock) {
   vision::VisionConfig v = cfg.vision;
   if (clock) {
@@ -155,7 +136,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
       rec.t_exposure_ns = f.t_exposure_ns;
       rec.t_done_ns = t1;
       io.camera->release(f);
-      record_vision(rec.fix, t0 - f.t_exposure_ns, t1 - t0, &vstats);
+      localizer::record_vision(rec.fix, t0 - f.t_exposure_ns, t1 - t0, &vstats);
       if (io.fixes && io.fixes->size() < io.fixes->capacity()) io.fixes->push_back(rec);
       if (rec.fix.status != vision::FixStatus::kNoLandmark && fix_queue.push(rec) && pose_on_fix &&
           rec.fix.status == vision::FixStatus::kOk) {
@@ -293,7 +274,7 @@ int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording:
       const std::int64_t w1 = posix::monotonic_now_ns();
       fr.t_exposure_ns = rec.frames[i].t_ns;
       fr.t_done_ns = fr.t_exposure_ns + delay_ns;
-      record_vision(fr.fix, 0, w1 - w0, &vstats);  // exposure->start is not simulated
+      localizer::record_vision(fr.fix, 0, w1 - w0, &vstats);  // exposure->start is not simulated
       if (fixes) fixes->push_back(fr);
       if (fr.fix.status != vision::FixStatus::kNoLandmark && pending.push(fr) &&
           fr.fix.status == vision::FixStatus::kOk) {
@@ -337,81 +318,6 @@ int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording:
     result->can_present = true;
   }
   return 0;
-}
-
-namespace {
-void line(std::string* s, const char* name, const LatencyHistogram& h) {
-  char buf[200];
-  if (h.count() == 0) {
-    std::snprintf(buf, sizeof buf, "  %-26s (no samples)\n", name);
-  } else {
-    std::snprintf(buf, sizeof buf,
-                  "  %-26s p50 %8.3f ms  p99 %8.3f ms  max %8.3f ms  (n=%" PRIu64 ")\n", name,
-                  static_cast<double>(h.percentile_ns(0.5)) / 1e6,
-                  static_cast<double>(h.percentile_ns(0.99)) / 1e6,
-                  static_cast<double>(h.max_ns()) / 1e6, h.count());
-  }
-  *s += buf;
-}
-}  // namespace
-
-std::string format_statistics(const RunResult& r) {
-  std::string s;
-  char buf[400];
-  const auto& o = r.output;
-  const auto& v = r.vision;
-  std::snprintf(buf, sizeof buf,
-                "statistics:\n  frames: delivered %" PRIu64 ", processed %" PRIu64
-                ", dropped (newest-wins) %" PRIu64 ", driver drops %" PRIu64 ", unreadable %" PRIu64
-                "\n",
-                r.camera.frames_delivered, v.frames_processed, r.frames_dropped_mailbox,
-                r.camera.frames_dropped, r.camera.errors);
-  s += buf;
-  s += "  vision results:";
-  for (int i = 0; i < kFixStatusCount; ++i) {
-    if (v.by_status[i] == 0) continue;
-    std::snprintf(buf, sizeof buf, " %s %" PRIu64,
-                  vision::to_string(static_cast<vision::FixStatus>(i)), v.by_status[i]);
-    s += buf;
-  }
-  s += "\n";
-  std::snprintf(buf, sizeof buf,
-                "  fusion: odometry %" PRIu64 " (rejected %" PRIu64 ", CAN E2E rejected %" PRIu64
-                "), fixes fused %" PRIu64 ", gated %" PRIu64 ", too old %" PRIu64
-                ", invalid %" PRIu64 ", re-initialisations %" PRIu64 "\n",
-                o.odom_samples, o.odom_rejected, r.odometry_rejected_can, o.fixes_fused,
-                o.fixes_rejected_gate, o.fixes_rejected_too_old, o.fixes_rejected_invalid,
-                o.reinitialisations);
-  s += buf;
-  std::snprintf(
-      buf, sizeof buf,
-      "  output: ticks %" PRIu64 ", missed periods %" PRIu64 ", fix-triggered poses %" PRIu64
-      ", CAN tx ok %" PRIu64 ", failed %" PRIu64 ", rx %" PRIu64 "\n",
-      o.ticks, o.missed_periods, o.fix_poses, o.can_tx_ok, o.can_tx_failed, o.can_rx_frames);
-  s += buf;
-  if (r.can_present) {
-    std::snprintf(buf, sizeof buf,
-                  "  CAN bus: tx ok %" PRIu64 ", queue full %" PRIu64 ", tx errors %" PRIu64
-                  ", rx %" PRIu64 ", error frames %" PRIu64 ", bus-off %" PRIu64
-                  ", restarts %" PRIu64 "\n",
-                  r.can.tx_ok, r.can.tx_dropped_queue_full, r.can.tx_errors, r.can.rx_frames,
-                  r.can.rx_error_frames, r.can.bus_off_count, r.can.restarts);
-    s += buf;
-  }
-  s += r.simulated_time ? " latency (fast replay: only the vision times are measured; the rest "
-                          "follow from replay.fix_delay_ms and the output period):\n"
-                        : " latency:\n";
-  line(&s, "exposure -> vision start", v.exposure_to_start_ns);
-  line(&s, "vision (total)", v.vision_ns);
-  line(&s, "  detect", v.detect_ns);
-  line(&s, "  decode", v.decode_ns);
-  line(&s, "  direction", v.direction_ns);
-  line(&s, "  pose", v.pose_ns);
-  line(&s, "fusion (per period)", o.fusion_ns);
-  line(&s, "CAN send (per period)", o.can_send_ns);
-  line(&s, "end to end (exposure->CAN)", o.end_to_end_ns);
-  line(&s, "output period jitter", o.period_jitter_ns);
-  return s;
 }
 
 }  // namespace agv::app

@@ -18,33 +18,13 @@
 #include "agv/recording/recording.hpp"
 #include "agv/vision/landmark_localizer.hpp"
 #include "config.hpp"
+#include "agv/localizer/run_statistics.hpp"
 #include "output_loop.hpp"
 
 namespace agv::app {
 
-inline constexpr int kFixStatusCount = 9;
-
-struct VisionStats {
-  std::uint64_t frames_processed = 0;
-  std::uint64_t by_status[kFixStatusCount] = {};
-  LatencyHistogram exposure_to_start_ns;  // frame exposure mid-time -> vision start
-  LatencyHistogram vision_ns;             // whole vision stage
-  LatencyHistogram detect_ns, decode_ns, direction_ns, pose_ns;
-};
-
-struct RunResult {
-  OutputStats output;
-  VisionStats vision;
-  hal::CameraStats camera;
-  std::uint64_t frames_dropped_mailbox = 0;  // newest-wins replacements
-  std::uint64_t fixes_dropped_queue = 0;
-  std::uint64_t odometry_rejected_can = 0;
-  hal::CanStats can;
-  bool can_present = false;
-  std::int64_t wall_ns = 0;
-  std::string camera_error;     // last camera error, if any
-  bool simulated_time = false;  // --fast: latencies other than the vision stage are simulated
-};
+using localizer::RunResult;
+using localizer::VisionStats;
 
 struct PipelineIo {
   hal::Camera* camera = nullptr;
@@ -74,7 +54,6 @@ int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording:
              std::vector<FixRecord>* fixes, std::atomic<bool>* stop, RunResult* result,
              bool show_progress);
 
-// Human-readable statistics block (printed at exit).
-std::string format_statistics(const RunResult& r);
+using localizer::format_statistics;
 
 }  // namespace agv::app
