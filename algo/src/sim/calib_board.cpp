@@ -200,9 +200,8 @@ cv::Mat render_board_view(const CalibBoard& board, const CameraIntrinsics& intri
   return out;
 }
 
-std::vector<BoardPose> calib_view_poses(const CalibBoard& board,
-                                        const CameraIntrinsics& intrinsics, int n,
-                                        std::uint64_t seed, const BoardPoseOptions& o) {
+std::vector<BoardPose> calib_view_poses(const CalibBoard& board, const CameraIntrinsics& intrinsics,
+                                        int n, std::uint64_t seed, const BoardPoseOptions& o) {
   std::vector<BoardPose> poses;
   CameraModel cam;
   cam.intrinsics = intrinsics;
@@ -210,8 +209,8 @@ std::vector<BoardPose> calib_view_poses(const CalibBoard& board,
   // Undistorted radius of the image corners: points beyond it are outside the image (the
   // distortion polynomial may fold far-away points back into it).
   double r_max = 0.0;
-  for (const Vec2 c : {Vec2{-0.5, -0.5}, Vec2{w - 0.5, -0.5}, Vec2{-0.5, h - 0.5},
-                       Vec2{w - 0.5, h - 0.5}}) {
+  for (const Vec2 c :
+       {Vec2{-0.5, -0.5}, Vec2{w - 0.5, -0.5}, Vec2{-0.5, h - 0.5}, Vec2{w - 0.5, h - 0.5}}) {
     Vec2 xn;
     if (!cam.undistort_pixel_to_normalized(c, &xn)) return {};
     r_max = std::max(r_max, std::hypot(xn.x, xn.y));

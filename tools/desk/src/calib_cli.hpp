@@ -23,8 +23,7 @@ inline void add_board_options(CLI::App& app, BoardSpec* spec, std::string* type)
   app.add_option("--square-mm", spec->square_mm,
                  "Printed square side (mm; measure it, printers scale)")
       ->capture_default_str();
-  app.add_option("--marker-mm", spec->marker_mm, "ChArUco marker side (mm)")
-      ->capture_default_str();
+  app.add_option("--marker-mm", spec->marker_mm, "ChArUco marker side (mm)")->capture_default_str();
   app.add_option("--dictionary", spec->dictionary, "ChArUco marker dictionary (OpenCV name)")
       ->capture_default_str();
 }

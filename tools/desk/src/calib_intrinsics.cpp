@@ -28,14 +28,22 @@ struct DictName {
   cv::aruco::PREDEFINED_DICTIONARY_NAME id;
 };
 const DictName kDicts[] = {
-    {"DICT_4X4_50", cv::aruco::DICT_4X4_50},       {"DICT_4X4_100", cv::aruco::DICT_4X4_100},
-    {"DICT_4X4_250", cv::aruco::DICT_4X4_250},     {"DICT_4X4_1000", cv::aruco::DICT_4X4_1000},
-    {"DICT_5X5_50", cv::aruco::DICT_5X5_50},       {"DICT_5X5_100", cv::aruco::DICT_5X5_100},
-    {"DICT_5X5_250", cv::aruco::DICT_5X5_250},     {"DICT_5X5_1000", cv::aruco::DICT_5X5_1000},
-    {"DICT_6X6_50", cv::aruco::DICT_6X6_50},       {"DICT_6X6_100", cv::aruco::DICT_6X6_100},
-    {"DICT_6X6_250", cv::aruco::DICT_6X6_250},     {"DICT_6X6_1000", cv::aruco::DICT_6X6_1000},
-    {"DICT_7X7_50", cv::aruco::DICT_7X7_50},       {"DICT_7X7_100", cv::aruco::DICT_7X7_100},
-    {"DICT_7X7_250", cv::aruco::DICT_7X7_250},     {"DICT_7X7_1000", cv::aruco::DICT_7X7_1000},
+    {"DICT_4X4_50", cv::aruco::DICT_4X4_50},
+    {"DICT_4X4_100", cv::aruco::DICT_4X4_100},
+    {"DICT_4X4_250", cv::aruco::DICT_4X4_250},
+    {"DICT_4X4_1000", cv::aruco::DICT_4X4_1000},
+    {"DICT_5X5_50", cv::aruco::DICT_5X5_50},
+    {"DICT_5X5_100", cv::aruco::DICT_5X5_100},
+    {"DICT_5X5_250", cv::aruco::DICT_5X5_250},
+    {"DICT_5X5_1000", cv::aruco::DICT_5X5_1000},
+    {"DICT_6X6_50", cv::aruco::DICT_6X6_50},
+    {"DICT_6X6_100", cv::aruco::DICT_6X6_100},
+    {"DICT_6X6_250", cv::aruco::DICT_6X6_250},
+    {"DICT_6X6_1000", cv::aruco::DICT_6X6_1000},
+    {"DICT_7X7_50", cv::aruco::DICT_7X7_50},
+    {"DICT_7X7_100", cv::aruco::DICT_7X7_100},
+    {"DICT_7X7_250", cv::aruco::DICT_7X7_250},
+    {"DICT_7X7_1000", cv::aruco::DICT_7X7_1000},
     {"DICT_ARUCO_ORIGINAL", cv::aruco::DICT_ARUCO_ORIGINAL},
     {"DICT_APRILTAG_16h5", cv::aruco::DICT_APRILTAG_16h5},
     {"DICT_APRILTAG_25h9", cv::aruco::DICT_APRILTAG_25h9},
@@ -174,8 +182,8 @@ bool have_charuco() { return AGV_HAVE_ARUCO != 0; }
 
 bool validate_board(const BoardSpec& s, std::string* error) {
   if (s.squares_x < 3 || s.squares_y < 3 || s.squares_x > 100 || s.squares_y > 100) {
-    *error = "board squares " + std::to_string(s.squares_x) + " x " +
-             std::to_string(s.squares_y) + ": each side needs 3..100 squares";
+    *error = "board squares " + std::to_string(s.squares_x) + " x " + std::to_string(s.squares_y) +
+             ": each side needs 3..100 squares";
     return false;
   }
   if (!(s.square_mm > 0.0 && s.square_mm < 1000.0)) {
@@ -231,8 +239,10 @@ bool make_sim_board(const BoardSpec& s, double margin_mm, sim::CalibBoard* out,
   // Squares holding a marker are white, the others black (the ChArUco layout).
   std::fill(b.square_black.begin(), b.square_black.end(), 1);
   for (const auto& mk : b.markers) {
-    const double mx = 0.25 * (mk.corners[0].x + mk.corners[1].x + mk.corners[2].x + mk.corners[3].x);
-    const double my = 0.25 * (mk.corners[0].y + mk.corners[1].y + mk.corners[2].y + mk.corners[3].y);
+    const double mx =
+        0.25 * (mk.corners[0].x + mk.corners[1].x + mk.corners[2].x + mk.corners[3].x);
+    const double my =
+        0.25 * (mk.corners[0].y + mk.corners[1].y + mk.corners[2].y + mk.corners[3].y);
     const int i = static_cast<int>(std::floor(mx / s.square_mm));
     const int j = static_cast<int>(std::floor(my / s.square_mm));
     if (i >= 0 && j >= 0 && i < s.squares_x && j < s.squares_y) {
@@ -311,13 +321,12 @@ View detect_view(const cv::Mat& gray, const std::string& name, const BoardSpec& 
   }
   // A failed view names blur first when the image is blurred: that is what to fix.
   auto blur_reason = [&](double blur) {
-    return "blurred: edge blur " + fmt("%.2f", blur) + " px > " +
-           fmt("%.2f", options.max_blur_px) + " px (--max-blur-px)";
+    return "blurred: edge blur " + fmt("%.2f", blur) + " px > " + fmt("%.2f", options.max_blur_px) +
+           " px (--max-blur-px)";
   };
   auto fail = [&](const std::string& what, const std::vector<cv::Point2f>& pts) {
     v.blur_px = edge_blur_px(gray, pts.size() >= 3 ? pts : std::vector<cv::Point2f>{});
-    v.reject_reason =
-        v.blur_px > options.max_blur_px ? blur_reason(v.blur_px) + "; " + what : what;
+    v.reject_reason = v.blur_px > options.max_blur_px ? blur_reason(v.blur_px) + "; " + what : what;
     return v;
   };
   if (spec.type == BoardType::kChessboard) {
@@ -349,16 +358,14 @@ View detect_view(const cv::Mat& gray, const std::string& name, const BoardSpec& 
     std::vector<std::vector<cv::Point2f>> marker_corners, rejected;
     std::vector<int> marker_ids;
     auto params = cv::aruco::DetectorParameters::create();
-    cv::aruco::detectMarkers(gray, board->dictionary, marker_corners, marker_ids, params,
-                             rejected);
+    cv::aruco::detectMarkers(gray, board->dictionary, marker_corners, marker_ids, params, rejected);
     if (!marker_ids.empty()) {
       cv::aruco::refineDetectedMarkers(gray, board, marker_corners, marker_ids, rejected);
     }
     std::vector<cv::Point2f> corners;
     std::vector<int> ids;
     if (!marker_ids.empty()) {
-      cv::aruco::interpolateCornersCharuco(marker_corners, marker_ids, gray, board, corners,
-                                           ids);
+      cv::aruco::interpolateCornersCharuco(marker_corners, marker_ids, gray, board, corners, ids);
     }
     if (ids.empty()) {
       return fail(marker_ids.empty() ? "no " + spec.dictionary + " marker found"
@@ -369,16 +376,14 @@ View detect_view(const cv::Mat& gray, const std::string& name, const BoardSpec& 
     if (ids.size() >= 2 && cv::aruco::testCharucoCornersCollinear(board, ids)) {
       v.ids = ids;
       v.image_points = corners;
-      return fail("the " + std::to_string(ids.size()) + " corners seen lie on one line",
-                  corners);
+      return fail("the " + std::to_string(ids.size()) + " corners seen lie on one line", corners);
     }
     // interpolateCornersCharuco's cornerSubPix leaves errors of ~0.05 px (pixel locking);
     // the saddle fit brings them to ~0.01 px on simulated views. Its window must stay inside the
     // white gap between a corner and the adjacent markers ((square - marker) / 2).
     if (corners.size() >= 2) {
       const double gap = 0.5 * (spec.square_mm - spec.marker_mm) / spec.square_mm;
-      refine_saddle(gray, &corners, saddle_radius(gap * min_neighbour_px(corners)),
-                    kSaddleSigma);
+      refine_saddle(gray, &corners, saddle_radius(gap * min_neighbour_px(corners)), kSaddleSigma);
     }
     for (size_t i = 0; i < ids.size(); ++i) {
       v.ids.push_back(ids[i]);
@@ -465,10 +470,9 @@ Result calibrate(std::vector<View> views, const BoardSpec& spec, const Options& 
     }
     if (size.area() == 0) size = v.size;
     if (v.size != size) {
-      r.error = v.name + ": " + std::to_string(v.size.width) + "x" +
-                std::to_string(v.size.height) + " differs from the first view's " +
-                std::to_string(size.width) + "x" + std::to_string(size.height) +
-                " (calibrate one resolution at a time)";
+      r.error = v.name + ": " + std::to_string(v.size.width) + "x" + std::to_string(v.size.height) +
+                " differs from the first view's " + std::to_string(size.width) + "x" +
+                std::to_string(size.height) + " (calibrate one resolution at a time)";
       return r;
     }
     v.used = true;
@@ -587,11 +591,11 @@ std::string coverage_svg(const Result& r) {
   const int pad = 30;
   std::ostringstream s;
   s << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w + 2 * pad << "\" height=\""
-    << h + 2 * pad + 20 << "\" viewBox=\"" << -pad << " " << -pad - 20 << " " << w + 2 * pad
-    << " " << h + 2 * pad + 20 << "\" font-family=\"sans-serif\" font-size=\"12\">\n";
+    << h + 2 * pad + 20 << "\" viewBox=\"" << -pad << " " << -pad - 20 << " " << w + 2 * pad << " "
+    << h + 2 * pad + 20 << "\" font-family=\"sans-serif\" font-size=\"12\">\n";
   s << "<text x=\"0\" y=\"-24\">Corners seen in " << r.usable << " used views (" << r.corners
-    << " corners), " << fmt("%.0f", 100.0 * c.covered) << " % of the " << c.cols << "x"
-    << c.rows << " cells</text>\n";
+    << " corners), " << fmt("%.0f", 100.0 * c.covered) << " % of the " << c.cols << "x" << c.rows
+    << " cells</text>\n";
   s << "<rect x=\"-0.5\" y=\"-0.5\" width=\"" << w << "\" height=\"" << h
     << "\" fill=\"white\" stroke=\"black\"/>\n";
   if (!c.counts.empty()) {
@@ -640,8 +644,7 @@ std::string report_text(const Result& r) {
   for (const auto& v : r.views) {
     char line[160];
     std::snprintf(line, sizeof line, "  %-30s %7zu  %7.2f  %6s  ", v.name.c_str(),
-                  v.image_points.size(), v.blur_px,
-                  v.used ? fmt("%.3f", v.rms_px).c_str() : "-");
+                  v.image_points.size(), v.blur_px, v.used ? fmt("%.3f", v.rms_px).c_str() : "-");
     s << line << (v.used ? "used" : "rejected: " + v.reject_reason) << "\n";
   }
   if (r.usable > 0 && r.rms_px > 0.0) {
@@ -652,11 +655,10 @@ std::string report_text(const Result& r) {
       << fmt("%.4f", k.fy) << " +- " << fmt("%.4f", r.stddev[1]) << "\n";
     s << "cx " << fmt("%.4f", k.cx) << " +- " << fmt("%.4f", r.stddev[2]) << "  cy "
       << fmt("%.4f", k.cy) << " +- " << fmt("%.4f", r.stddev[3]) << "\n";
-    s << "k1 " << fmt("%.6f", k.k1) << "  k2 " << fmt("%.6f", k.k2) << "  p1 "
-      << fmt("%.6f", k.p1) << "  p2 " << fmt("%.6f", k.p2) << "  k3 " << fmt("%.6f", k.k3)
-      << "\n";
-    s << "coverage: " << fmt("%.0f", 100.0 * r.coverage.covered) << " % of the "
-      << r.coverage.cols << "x" << r.coverage.rows << " image cells hold a corner\n";
+    s << "k1 " << fmt("%.6f", k.k1) << "  k2 " << fmt("%.6f", k.k2) << "  p1 " << fmt("%.6f", k.p1)
+      << "  p2 " << fmt("%.6f", k.p2) << "  k3 " << fmt("%.6f", k.k3) << "\n";
+    s << "coverage: " << fmt("%.0f", 100.0 * r.coverage.covered) << " % of the " << r.coverage.cols
+      << "x" << r.coverage.rows << " image cells hold a corner\n";
   }
   for (const auto& w : r.warnings) s << "warning: " << w << "\n";
   if (!r.ok && !r.error.empty()) s << "error: " << r.error << "\n";

@@ -44,10 +44,10 @@ bool make_sim_board(const BoardSpec& spec, double margin_mm, sim::CalibBoard* ou
 bool board_corner(const BoardSpec& spec, int id, cv::Point3f* out);
 
 struct Options {
-  int min_views = 10;           // fewer usable views: no result
-  int min_corners = 8;          // per view
-  double max_blur_px = 2.0;     // edge blur (Gaussian sigma estimate, px) above this: rejected
-  double max_rms_px = 0.5;      // overall RMS reprojection error above this: no result
+  int min_views = 10;                // fewer usable views: no result
+  int min_corners = 8;               // per view
+  double max_blur_px = 2.0;          // edge blur (Gaussian sigma estimate, px) above this: rejected
+  double max_rms_px = 0.5;           // overall RMS reprojection error above this: no result
   double view_outlier_factor = 3.0;  // a view with RMS > factor x median RMS is named
   // calibrateCamera model: the default is the five-coefficient model agv::CameraModel uses.
   bool fix_k3 = false;
@@ -70,9 +70,9 @@ struct View {
 };
 
 struct Coverage {
-  int cols = 8, rows = 6;    // counting grid over the image
-  std::vector<int> counts;   // rows x cols, corners of the used views per cell
-  double covered = 0.0;      // fraction of cells with at least one corner
+  int cols = 8, rows = 6;             // counting grid over the image
+  std::vector<int> counts;            // rows x cols, corners of the used views per cell
+  double covered = 0.0;               // fraction of cells with at least one corner
   std::vector<std::string> warnings;  // empty quadrants and border bands, by name
 };
 
@@ -99,8 +99,7 @@ double edge_blur_px(const cv::Mat& gray, const std::vector<cv::Point2f>& points)
 // of `sigma` px and a quadratic surface is fitted around each point over a (2 radius + 1)^2
 // window, moving the point to the saddle until it settles. Points where no saddle is found keep
 // their position; returns false when any did.
-bool refine_saddle(const cv::Mat& gray, std::vector<cv::Point2f>* points, int radius,
-                   double sigma);
+bool refine_saddle(const cv::Mat& gray, std::vector<cv::Point2f>* points, int radius, double sigma);
 
 // Finds the board in one 8-bit gray image and measures its sharpness. The view is marked
 // detected (points filled) or carries a reject_reason naming what failed.
@@ -143,8 +142,8 @@ struct SimView {
 // 640x480, fx 771.5, fy 768.2, cx 323.4, cy 236.8, k1 -0.12, k2 0.08, p1 0.0006, p2 -0.0004.
 SimBoardSet default_sim_board_set();
 // Renders the views; false with *error for a bad board or a board that cannot be kept in view.
-bool simulate_board_views(const BoardSpec& spec, const SimBoardSet& set,
-                          std::vector<SimView>* out, std::string* error);
+bool simulate_board_views(const BoardSpec& spec, const SimBoardSet& set, std::vector<SimView>* out,
+                          std::string* error);
 // truth.yaml: the true camera as a configuration file (camera + intrinsics sections), with the
 // blurred views named in a comment.
 std::string truth_yaml(const SimBoardSet& set, const std::vector<SimView>& views);

@@ -32,12 +32,12 @@ SimBoardSet default_sim_board_set() {
   return s;
 }
 
-bool simulate_board_views(const BoardSpec& spec, const SimBoardSet& set,
-                          std::vector<SimView>* out, std::string* error) {
+bool simulate_board_views(const BoardSpec& spec, const SimBoardSet& set, std::vector<SimView>* out,
+                          std::string* error) {
   sim::CalibBoard board;
-  const double margin =
-      set.margin_mm >= 0.0 ? set.margin_mm
-                           : (spec.type == BoardType::kChessboard ? 1.0 : 0.5) * spec.square_mm;
+  const double margin = set.margin_mm >= 0.0
+                            ? set.margin_mm
+                            : (spec.type == BoardType::kChessboard ? 1.0 : 0.5) * spec.square_mm;
   if (!make_sim_board(spec, margin, &board, error)) return false;
   sim::BoardPoseOptions po;
   po.max_tilt_deg = set.max_tilt_deg;
@@ -165,8 +165,7 @@ int sim_board(int argc, char** argv) {
   std::error_code ec;
   std::filesystem::create_directories(out_dir, ec);
   if (ec) {
-    std::fprintf(stderr, "%s: cannot create %s: %s\n", who, out_dir.c_str(),
-                 ec.message().c_str());
+    std::fprintf(stderr, "%s: cannot create %s: %s\n", who, out_dir.c_str(), ec.message().c_str());
     return 1;
   }
   for (const auto& v : views) {

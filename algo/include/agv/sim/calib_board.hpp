@@ -74,11 +74,11 @@ cv::Mat render_board_view(const CalibBoard& board, const CameraIntrinsics& intri
                           const BoardPose& pose, const BoardImageOptions& options);
 
 struct BoardPoseOptions {
-  double near_mm = 150.0;       // board centre distance range along the optical axis
+  double near_mm = 150.0;  // board centre distance range along the optical axis
   double far_mm = 300.0;
-  double max_tilt_deg = 35.0;   // tilt about the board's x and y axes, uniform in +-max
-  double min_visible = 1.0;     // fraction of inner corners that must be inside the image
-  double border_px = 4.0;       // "inside" = at least this far from the image edge
+  double max_tilt_deg = 35.0;  // tilt about the board's x and y axes, uniform in +-max
+  double min_visible = 1.0;    // fraction of inner corners that must be inside the image
+  double border_px = 4.0;      // "inside" = at least this far from the image edge
 };
 
 // n deterministic poses for a seed: the board centre is placed over a 3x3 grid of image
@@ -87,9 +87,8 @@ struct BoardPoseOptions {
 // kept when at least min_visible of the inner corners are imaged inside the image (with
 // min_visible = 1 also the whole paper, as a chessboard detector needs); empty when no such pose
 // is found for some view (board too large for the image at these distances).
-std::vector<BoardPose> calib_view_poses(const CalibBoard& board,
-                                        const CameraIntrinsics& intrinsics, int n,
-                                        std::uint64_t seed, const BoardPoseOptions& options);
+std::vector<BoardPose> calib_view_poses(const CalibBoard& board, const CameraIntrinsics& intrinsics,
+                                        int n, std::uint64_t seed, const BoardPoseOptions& options);
 
 // The inner (chessboard) corners of the board in the board frame, row by row (x fastest).
 std::vector<Vec2> board_inner_corners(const CalibBoard& board);
