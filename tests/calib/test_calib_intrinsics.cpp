@@ -165,6 +165,62 @@ TEST(CalibIntrinsics, EdgeBlurEstimateFollowsTheBlur) {
   EXPECT_LT(est[2], 4.0);
 }
 
+TEST(CalibIntrinsics, ADetectedButBlurredViewIsRejectedByName) {
+  BoardSpec spec;
+  spec.type = BoardType::kChessboard;  // findChessboardCorners still finds a 3 px blurred board
+  SimBoardSet set = default_sim_board_set();
+  set.views = 2;
+  set.blurred = 1;
+  std::vector<SimView> sim;
+  std::string error;
+  ASSERT_TRUE(simulate_board_views(spec, set, &sim, &error)) << error;
+  ASSERT_EQ(sim.size(), 3u);
+  for (const auto& s : sim) {
+    const View v = detect_view(s.image, s.name, spec, Options{});
+    EXPECT_TRUE(v.detected) << v.name << ": " << v.reject_reason;
+    EXPECT_EQ(v.image_points.size(), 70u);
+    if (s.blurred) {
+      EXPECT_EQ(v.reject_reason.rfind("blurred: edge blur ", 0), 0u) << v.reject_reason;
+      EXPECT_GT(v.blur_px, 2.5);
+    } else {
+      EXPECT_TRUE(v.reject_reason.empty()) << v.name << ": " << v.reject_reason;
+      EXPECT_LT(v.blur_px, 1.2);
+    }
+  }
+}
+
+// An X-junction at a sub-pixel position, drawn at 8x and area-averaged; optionally a dark blob
+// (a marker corner) inside the refinement window.
+cv::Mat x_junction(cv::Point2d c, bool blob) {
+  const int s = 8, w = 100, h = 80;
+  cv::Mat big(h * s, w * s, CV_8U);
+  for (int y = 0; y < h * s; ++y) {
+    for (int x = 0; x < w * s; ++x) {
+      const double px = (x + 0.5) / s - 0.5, py = (y + 0.5) / s - 0.5;
+      const bool dark = ((px < c.x) != (py < c.y));
+      const bool in_blob =
+          blob && px > c.x + 2.0 && px < c.x + 6.0 && py > c.y + 2.0 && py < c.y + 6.0;
+      big.at<uchar>(y, x) = (dark || in_blob) ? 30 : 215;
+    }
+  }
+  cv::Mat img;
+  cv::resize(big, img, cv::Size(w, h), 0, 0, cv::INTER_AREA);
+  return img;
+}
+
+TEST(CalibIntrinsics, SaddleRefinementIsSubPixelAndFlagsDisturbedCorners) {
+  const cv::Point2d truth(50.375, 40.625);  // on the 1/8 px drawing grid
+  std::vector<cv::Point2f> p{cv::Point2f(50.8f, 40.2f)};
+  std::vector<double> asym;
+  ASSERT_TRUE(refine_saddle(x_junction(truth, false), &p, 3, 1.0, &asym));
+  EXPECT_NEAR(p[0].x, truth.x, 0.01);
+  EXPECT_NEAR(p[0].y, truth.y, 0.01);
+  EXPECT_LT(asym[0], 0.01);
+  std::vector<cv::Point2f> q{cv::Point2f(50.8f, 40.2f)};
+  refine_saddle(x_junction(truth, true), &q, 3, 1.0, &asym);
+  EXPECT_GT(asym[0], 0.05);  // dropped by detect_view
+}
+
 View synthetic_view(const std::string& name, cv::Size size, double x0, double x1, double y0,
                     double y1) {
   View v;

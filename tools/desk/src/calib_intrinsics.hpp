@@ -63,6 +63,7 @@ struct View {
   bool used = false;
   std::string reject_reason;  // empty when used
   double blur_px = 0.0;       // edge blur estimate (Gaussian sigma, px); 0 when not measured
+  int dropped = 0;            // corners dropped as not clean X-junctions (refine_saddle)
   std::vector<int> ids;       // corner ids (ChArUco id or chessboard index)
   std::vector<cv::Point2f> image_points;
   std::vector<cv::Point3f> object_points;
@@ -98,8 +99,11 @@ double edge_blur_px(const cv::Mat& gray, const std::vector<cv::Point2f>& points)
 // Refines X-corners (chessboard saddle points) in place: the image is smoothed with a Gaussian
 // of `sigma` px and a quadratic surface is fitted around each point over a (2 radius + 1)^2
 // window, moving the point to the saddle until it settles. Points where no saddle is found keep
-// their position; returns false when any did.
-bool refine_saddle(const cv::Mat& gray, std::vector<cv::Point2f>* points, int radius, double sigma);
+// their position; returns false when any did. With `asymmetry`, each point's RMS
+// point-asymmetry of the smoothed image about the refined centre, relative to the local
+// contrast (near 0 for a clean X-junction; 1 when not refined).
+bool refine_saddle(const cv::Mat& gray, std::vector<cv::Point2f>* points, int radius, double sigma,
+                   std::vector<double>* asymmetry = nullptr);
 
 // Finds the board in one 8-bit gray image and measures its sharpness. The view is marked
 // detected (points filled) or carries a reject_reason naming what failed.
