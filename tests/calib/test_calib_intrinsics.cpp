@@ -12,6 +12,10 @@
 #include "agv/config/config.hpp"
 #include "calib_intrinsics.hpp"
 
+#if AGV_HAVE_ARUCO
+#include <opencv2/aruco/charuco.hpp>
+#endif
+
 namespace agv::desk::calib {
 namespace {
 
@@ -220,6 +224,39 @@ TEST(CalibIntrinsics, SaddleRefinementIsSubPixelAndFlagsDisturbedCorners) {
   refine_saddle(x_junction(truth, true), &q, 3, 1.0, &asym);
   EXPECT_GT(asym[0], 0.05);  // dropped by detect_view
 }
+
+#if AGV_HAVE_ARUCO
+// The simulator's (and --print-board's) board is the one OpenCV draws: same squares, same
+// marker bits, same orientation (only anti-aliasing pixels on cell edges differ).
+TEST(CalibIntrinsics, SimulatedBoardMatchesOpenCvsDrawing) {
+  const BoardSpec spec;
+  sim::CalibBoard b;
+  std::string error;
+  ASSERT_TRUE(make_sim_board(spec, 0.0, &b, &error)) << error;
+  EXPECT_EQ(b.markers.size(), 44u);
+  auto board = cv::aruco::CharucoBoard::create(
+      spec.squares_x, spec.squares_y, static_cast<float>(spec.square_mm),
+      static_cast<float>(spec.marker_mm),
+      cv::aruco::getPredefinedDictionary(cv::aruco::DICT_4X4_50));
+  const int ppm = 12;  // pixels per mm: 7.5 mm markers have 15 px cells
+  cv::Mat img;
+  board->draw(cv::Size(spec.squares_x * 10 * ppm, spec.squares_y * 10 * ppm), img, 0, 1);
+  long bad = 0, n = 0;
+  for (int y = 0; y < img.rows; ++y) {
+    for (int x = 0; x < img.cols; ++x) {
+      const bool dark = img.at<uchar>(y, x) < 128;
+      const bool sim_dark = b.at({(x + 0.5) / ppm, (y + 0.5) / ppm}) == sim::PageInk::kBlack;
+      bad += dark != sim_dark ? 1 : 0;
+      ++n;
+    }
+  }
+  std::printf("simulated vs OpenCV-drawn board: %.4f %% of pixels differ\n", 100.0 * bad / n);
+  EXPECT_LT(static_cast<double>(bad) / n, 0.002);
+  const std::string svg = board_svg(spec, b);
+  EXPECT_NE(svg.find("width=\"110mm\""), std::string::npos) << svg.substr(0, 200);  // no margin
+  EXPECT_EQ(svg.find("scale(1 -1)"), std::string::npos);  // Debian's 4.6 board frame has y down
+}
+#endif
 
 View synthetic_view(const std::string& name, cv::Size size, double x0, double x1, double y0,
                     double y1) {

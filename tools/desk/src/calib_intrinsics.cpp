@@ -708,6 +708,52 @@ std::string report_text(const Result& r) {
   return s.str();
 }
 
+std::string board_svg(const BoardSpec& spec, const sim::CalibBoard& b) {
+  const Vec2 lo = b.paper_min(), hi = b.paper_max();
+  const double w = hi.x - lo.x, h = hi.y - lo.y + 8.0;  // 8 mm for the caption
+  std::ostringstream s;
+  s << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "mm\" height=\"" << h
+    << "mm\" viewBox=\"" << lo.x << " " << lo.y << " " << w << " " << h << "\">\n";
+  s << "<rect x=\"" << lo.x << "\" y=\"" << lo.y << "\" width=\"" << w << "\" height=\"" << h
+    << "\" fill=\"white\"/>\n<g fill=\"black\" shape-rendering=\"crispEdges\"";
+  // A board frame with y up (OpenCV 4.6's CharucoBoard) is drawn flipped, or the printed markers
+  // would be mirror images the detector cannot read.
+  if (!b.y_down()) s << " transform=\"translate(0 " << lo.y + hi.y << ") scale(1 -1)\"";
+  s << ">\n";
+  for (int j = 0; j < b.squares_y; ++j) {
+    for (int i = 0; i < b.squares_x; ++i) {
+      if (!b.square_black[static_cast<size_t>(j * b.squares_x + i)]) continue;
+      s << "<rect x=\"" << i * b.square_mm << "\" y=\"" << j * b.square_mm << "\" width=\""
+        << b.square_mm << "\" height=\"" << b.square_mm << "\"/>\n";
+    }
+  }
+  // Marker cells as parallelograms from the corners (the board frame may have y up).
+  for (const auto& mk : b.markers) {
+    const Vec2 c0 = mk.corners[0];
+    const Vec2 e1{(mk.corners[1].x - c0.x) / mk.cells, (mk.corners[1].y - c0.y) / mk.cells};
+    const Vec2 e3{(mk.corners[3].x - c0.x) / mk.cells, (mk.corners[3].y - c0.y) / mk.cells};
+    for (int r = 0; r < mk.cells; ++r) {
+      for (int c = 0; c < mk.cells; ++c) {
+        if (!mk.black[static_cast<size_t>(r * mk.cells + c)]) continue;
+        s << "<polygon points=\"";
+        for (const auto& [u, v] : {std::pair{c, r}, {c + 1, r}, {c + 1, r + 1}, {c, r + 1}}) {
+          s << c0.x + u * e1.x + v * e3.x << "," << c0.y + u * e1.y + v * e3.y << " ";
+        }
+        s << "\"/>\n";
+      }
+    }
+  }
+  s << "</g>\n<text x=\"" << lo.x + 1 << "\" y=\"" << hi.y + 5 << "\" font-size=\"3\" "
+    << "font-family=\"sans-serif\">"
+    << (spec.type == BoardType::kChessboard ? "chessboard " : "ChArUco ") << spec.squares_x << " x "
+    << spec.squares_y << " squares of " << spec.square_mm << " mm";
+  if (spec.type == BoardType::kCharuco) {
+    s << ", markers " << spec.marker_mm << " mm " << spec.dictionary;
+  }
+  s << " (print at 100 %, measure the squares)</text>\n</svg>\n";
+  return s.str();
+}
+
 std::string config_snippet(const Result& r, const std::string& source) {
   const auto& k = r.intrinsics;
   std::ostringstream s;

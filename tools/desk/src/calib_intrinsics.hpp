@@ -126,6 +126,10 @@ std::string report_text(const Result& result);
 // section, with a comment header (source, views, RMS).
 std::string config_snippet(const Result& result, const std::string& source);
 
+// The board as SVG at exact physical scale (user units are millimetres; print at 100 %), with
+// a caption naming the spec outside the margin.
+std::string board_svg(const BoardSpec& spec, const sim::CalibBoard& board);
+
 // Simulated board views for tests (agvloc-desk sim-board; implemented in cmd_sim_board.cpp).
 struct SimBoardSet {
   CameraIntrinsics camera;        // the true camera (default_sim_board_set: with distortion)

@@ -106,8 +106,10 @@ int calibrate_intrinsics(int argc, char** argv) {
   std::string images, out, coverage, report, truth, board_type = "charuco";
   calib::BoardSpec spec;
   calib::Options opt;
-  app.add_option("--images", images, "Directory of PNG images (all *.png, sorted by name)")
-      ->required();
+  std::string print_board;
+  app.add_option("--images", images, "Directory of PNG images (all *.png, sorted by name)");
+  app.add_option("--print-board", print_board,
+                 "Write the board as SVG at physical scale (print at 100 %) and exit");
   calib::add_board_options(app, &spec, &board_type);
   app.add_option("--out", out, "Write the configuration snippet here (default: stdout)");
   app.add_option("--coverage", coverage, "Write the coverage picture (SVG) here");
@@ -144,6 +146,24 @@ int calibrate_intrinsics(int argc, char** argv) {
   std::string error;
   if (!calib::validate_board(spec, &error)) {
     std::fprintf(stderr, "%s: %s\n", who, error.c_str());
+    return 2;
+  }
+  if (!print_board.empty()) {
+    sim::CalibBoard board;
+    const double margin = (spec.type == calib::BoardType::kChessboard ? 1.0 : 0.5) * spec.square_mm;
+    if (!calib::make_sim_board(spec, margin, &board, &error)) {
+      std::fprintf(stderr, "%s: %s\n", who, error.c_str());
+      return 2;
+    }
+    if (!write_text(print_board, calib::board_svg(spec, board))) {
+      std::fprintf(stderr, "%s: cannot write %s\n", who, print_board.c_str());
+      return 1;
+    }
+    std::printf("%s: wrote %s\n", who, print_board.c_str());
+    return 0;
+  }
+  if (images.empty()) {
+    std::fprintf(stderr, "%s: --images DIR is required (or --print-board FILE.svg)\n", who);
     return 2;
   }
   std::error_code ec;
