@@ -716,8 +716,8 @@ std::string board_svg(const BoardSpec& spec, const sim::CalibBoard& b) {
     << "mm\" viewBox=\"" << lo.x << " " << lo.y << " " << w << " " << h << "\">\n";
   s << "<rect x=\"" << lo.x << "\" y=\"" << lo.y << "\" width=\"" << w << "\" height=\"" << h
     << "\" fill=\"white\"/>\n<g fill=\"black\" shape-rendering=\"crispEdges\"";
-  // A board frame with y up (not Debian's OpenCV 4.6, tests/calib checks) is drawn flipped, or the printed markers
-  // would be mirror images the detector cannot read.
+  // A board frame with y up (not Debian's OpenCV 4.6, tests/calib checks) is drawn flipped, or the
+  // printed markers would be mirror images the detector cannot read.
   if (!b.y_down()) s << " transform=\"translate(0 " << lo.y + hi.y << ") scale(1 -1)\"";
   s << ">\n";
   for (int j = 0; j < b.squares_y; ++j) {

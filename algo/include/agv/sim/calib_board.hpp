@@ -41,7 +41,8 @@ struct CalibBoard {
   }
   // True when the marker corners run clockwise in a frame with y down (seen non-mirrored by a
   // camera whose image axes follow the board's x and y), false when the board's y axis points up
-  // (a board library whose frame has y up; Debian's OpenCV 4.6 CharucoBoard has y down). Boards without markers: true.
+  // (a board library whose frame has y up; Debian's OpenCV 4.6 CharucoBoard has y down). Boards
+  // without markers: true.
   bool y_down() const;
 };
 
