@@ -12,6 +12,8 @@ PKGS=(
   build-essential cmake ninja-build pkg-config git ca-certificates
   # algo / drivers / firmware
   libopencv-dev
+  # agvloc-desk calibrate intrinsics: ChArUco boards (OpenCV aruco, contrib)
+  libopencv-contrib-dev
   libeigen3-dev libpng-dev libzxing-dev libyaml-cpp-dev libcli11-dev
   libcamera-dev libcamera-ipa udev
   # tests, benchmarks, comparison baseline

@@ -4,8 +4,11 @@
 
 namespace agv::desk {
 
-int sim(int argc, char** argv);       // write a simulated recording
-int landmark(int argc, char** argv);  // print landmarks as SVG/PNG
-int report(int argc, char** argv);    // accuracy against truth + trajectory plot of a replay
+int sim(int argc, char** argv);        // write a simulated recording
+int landmark(int argc, char** argv);   // print landmarks as SVG/PNG
+int report(int argc, char** argv);     // accuracy against truth + trajectory plot of a replay
+int calibrate(int argc, char** argv);  // dispatcher: calibrate intrinsics|vehicle|check
+int calibrate_intrinsics(int argc, char** argv);  // camera intrinsics from board images
+int sim_board(int argc, char** argv);             // simulated calibration-board views
 
 }  // namespace agv::desk

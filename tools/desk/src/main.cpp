@@ -14,6 +14,8 @@ void usage(FILE* f) {
                "  landmark           print landmarks (SVG at physical scale, PNG)\n"
                "  report OUT --recording REC   accuracy against truth + trajectory.svg of a "
                "replay\n"
+               "  calibrate intrinsics --images DIR   camera intrinsics from board images\n"
+               "  sim-board --out DIR   simulated calibration-board views (tests)\n"
                "  --version          version\n"
                "Each command takes --help. The vehicle commands (run, replay, record) are in "
                "agvloc.\n");
@@ -38,6 +40,8 @@ int main(int argc, char** argv) {
   if (!std::strcmp(c, "sim")) return agv::desk::sim(argc - 1, argv + 1);
   if (!std::strcmp(c, "landmark")) return agv::desk::landmark(argc - 1, argv + 1);
   if (!std::strcmp(c, "report")) return agv::desk::report(argc - 1, argv + 1);
+  if (!std::strcmp(c, "calibrate")) return agv::desk::calibrate(argc - 1, argv + 1);
+  if (!std::strcmp(c, "sim-board")) return agv::desk::sim_board(argc - 1, argv + 1);
   std::fprintf(stderr, "agvloc-desk: unknown command '%s'\n", c);
   usage(stderr);
   return 2;
