@@ -1217,6 +1217,10 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
   cv3(2, 2) += deg_to_rad(cfg.sigma_floor_deg) * deg_to_rad(cfg.sigma_floor_deg);
   *cov = cv3;
   out->residual_rms_mm = sw_all > 0 ? std::sqrt(ssr / sw_all) : 0.0;
+  if (joint && free_size) {
+    out->outer_half_mm = h_out;
+    out->inner_half_mm = h_in;
+  }
   *c_mm = c;
   *beta_out = beta;
 

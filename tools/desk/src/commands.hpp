@@ -7,5 +7,8 @@ namespace agv::desk {
 int sim(int argc, char** argv);       // write a simulated recording
 int landmark(int argc, char** argv);  // print landmarks as SVG/PNG
 int report(int argc, char** argv);    // accuracy against truth + trajectory plot of a replay
+// calibrate check: parked-vehicle check with a printed landmark at a taped pose. Exit 0 within
+// tolerance, 1 out of tolerance, 2 bad input.
+int calibrate_check(int argc, char** argv);
 
 }  // namespace agv::desk
