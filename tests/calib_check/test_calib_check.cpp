@@ -33,11 +33,12 @@ CameraModel nominal() {
 }
 
 // Frames of one landmark (full payload, id 7) at `landmark_in_vehicle` seen by `truth` from the
-// vehicle parked at the world origin.
+// vehicle parked at `vehicle_in_world`.
 std::vector<cv::Mat> render(const CameraModel& truth, const Pose2& landmark_in_vehicle, int n,
-                            std::uint64_t seed, sim::RenderOptions ro = sim::realistic_options()) {
+                            std::uint64_t seed, sim::RenderOptions ro = sim::realistic_options(),
+                            const Pose2& vehicle_in_world = {}) {
   LandmarkMap map;
-  map.entries[7] = {7, landmark_in_vehicle};
+  map.entries[7] = {7, compose(vehicle_in_world, landmark_in_vehicle)};
   sim::Scene scene;
   std::string err;
   EXPECT_TRUE(sim::make_scene(map, LandmarkGeometry{}, sim::PayloadMode::kFull, &scene, &err))
@@ -48,7 +49,7 @@ std::vector<cv::Mat> render(const CameraModel& truth, const Pose2& landmark_in_v
   const sim::FrameRenderer r(scene, truth);
   std::mt19937_64 rng(seed);
   std::vector<cv::Mat> out;
-  for (int i = 0; i < n; ++i) out.push_back(r.render(Pose2{}, ro, rng));
+  for (int i = 0; i < n; ++i) out.push_back(r.render(vehicle_in_world, ro, rng));
   return out;
 }
 
@@ -249,6 +250,41 @@ TEST(CalibCheck, SpreadOverFramesIsReported) {
   EXPECT_TRUE(failed(r, Cause::kFocus)) << failures(r);
   EXPECT_NEAR(r.placements[0].spread_mm, 0.15 * std::sqrt(4.0 / 3.0) / 2.0, 0.02);
   EXPECT_FALSE(failed(r, Cause::kOffset));
+}
+
+TEST(CalibCheck, VehicleTapedInTheWorldUsesTheMap) {
+  // The vehicle's world pose was taped instead; the landmark's comes from the map.
+  const CameraModel truth = nominal();
+  const Pose2 vehicle_in_world{1000.0, 2000.0, deg_to_rad(90.0)};
+  LandmarkMap map;
+  map.entries[7] = {7, compose(vehicle_in_world, kUnderCamera)};
+  const auto frames =
+      render(truth, kUnderCamera, 2, 13, sim::realistic_options(), vehicle_in_world);
+  std::vector<desk::calib::PlacementInput> in(1);
+  in[0].taped_is_vehicle_in_world = true;
+  in[0].taped = vehicle_in_world;
+  for (const auto& f : frames) in[0].frames.push_back({"f", &f});
+  desk::calib::CheckResult r;
+  std::string err;
+  ASSERT_TRUE(desk::calib::run_check(truth, vision::VisionConfig{}, 60.0, &map, in, {}, &r, &err))
+      << err;
+  EXPECT_NEAR(r.placements[0].taped_landmark_in_vehicle.x_mm, kUnderCamera.x_mm, 1e-9);
+  EXPECT_NEAR(r.placements[0].taped_landmark_in_vehicle.y_mm, kUnderCamera.y_mm, 1e-9);
+  EXPECT_TRUE(r.within_tolerance()) << failures(r);
+  // The vehicle taped 2 mm further along world +y (= vehicle +x): the landmark appears 2 mm
+  // behind the taped place.
+  in[0].taped.y_mm += 2.0;
+  ASSERT_TRUE(desk::calib::run_check(truth, vision::VisionConfig{}, 60.0, &map, in, {}, &r, &err))
+      << err;
+  EXPECT_NEAR(r.placements[0].dx_mm, 2.0, 0.05);
+  EXPECT_TRUE(failed(r, Cause::kOffset));
+  // Landmark not in the map (the vision stage already refuses it), or no map: bad input.
+  LandmarkMap other;
+  other.entries[8] = {8, Pose2{}};
+  EXPECT_FALSE(desk::calib::run_check(truth, vision::VisionConfig{}, 60.0, &other, in, {}, &r, &err));
+  EXPECT_NE(err.find("landmark not in the map"), std::string::npos) << err;
+  EXPECT_FALSE(desk::calib::run_check(truth, vision::VisionConfig{}, 60.0, nullptr, in, {}, &r, &err));
+  EXPECT_NE(err.find("none given"), std::string::npos) << err;
 }
 
 TEST(CalibCheck, NoLandmarkIsBadInput) {
