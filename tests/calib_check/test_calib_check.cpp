@@ -58,9 +58,8 @@ struct Placement {
   std::vector<cv::Mat> frames;
 };
 
-bool check(const CameraModel& config, const std::vector<Placement>& ps,
-           desk::calib::CheckResult* r, std::string* err,
-           const desk::calib::Tolerances& tol = {}) {
+bool check(const CameraModel& config, const std::vector<Placement>& ps, desk::calib::CheckResult* r,
+           std::string* err, const desk::calib::Tolerances& tol = {}) {
   std::vector<desk::calib::PlacementInput> in(ps.size());
   for (size_t i = 0; i < ps.size(); ++i) {
     in[i].taped = ps[i].taped;
@@ -196,11 +195,11 @@ TEST(CalibCheck, WrongDistortionIsPositionDependent) {
   // looks almost right, the placements towards the image corners disagree.
   CameraModel truth = nominal();
   truth.intrinsics.k1 = -0.25;
-  const std::vector<Pose2> taped = {{250.0, 0.0, 0.0},
-                                    {277.0, 48.0, deg_to_rad(90.0)},
-                                    {223.0, -48.0, deg_to_rad(-90.0)}};
+  const std::vector<Pose2> taped = {
+      {250.0, 0.0, 0.0}, {277.0, 48.0, deg_to_rad(90.0)}, {223.0, -48.0, deg_to_rad(-90.0)}};
   std::vector<Placement> ps;
-  for (size_t i = 0; i < taped.size(); ++i) ps.push_back({taped[i], render(truth, taped[i], 2, 6 + i)});
+  for (size_t i = 0; i < taped.size(); ++i)
+    ps.push_back({taped[i], render(truth, taped[i], 2, 6 + i)});
   desk::calib::CheckResult r;
   std::string err;
   ASSERT_TRUE(check(nominal(), ps, &r, &err)) << err;
@@ -281,9 +280,11 @@ TEST(CalibCheck, VehicleTapedInTheWorldUsesTheMap) {
   // Landmark not in the map (the vision stage already refuses it), or no map: bad input.
   LandmarkMap other;
   other.entries[8] = {8, Pose2{}};
-  EXPECT_FALSE(desk::calib::run_check(truth, vision::VisionConfig{}, 60.0, &other, in, {}, &r, &err));
+  EXPECT_FALSE(
+      desk::calib::run_check(truth, vision::VisionConfig{}, 60.0, &other, in, {}, &r, &err));
   EXPECT_NE(err.find("landmark not in the map"), std::string::npos) << err;
-  EXPECT_FALSE(desk::calib::run_check(truth, vision::VisionConfig{}, 60.0, nullptr, in, {}, &r, &err));
+  EXPECT_FALSE(
+      desk::calib::run_check(truth, vision::VisionConfig{}, 60.0, nullptr, in, {}, &r, &err));
   EXPECT_NE(err.find("none given"), std::string::npos) << err;
 }
 
@@ -309,8 +310,8 @@ TEST(CalibCheck, NoLandmarkIsBadInput) {
 namespace {
 
 fs::path tmpdir(const std::string& name) {
-  const fs::path d =
-      fs::temp_directory_path() / ("agv_test_calibcheck_" + std::to_string(::getpid()) + "_" + name);
+  const fs::path d = fs::temp_directory_path() /
+                     ("agv_test_calibcheck_" + std::to_string(::getpid()) + "_" + name);
   fs::remove_all(d);
   fs::create_directories(d);
   return d;
@@ -359,16 +360,16 @@ TEST(CalibCheckCommand, ExitCodes) {
   EXPECT_EQ(run(args("missing.yaml")), 2);
   {
     std::ofstream(d / "broken.png") << "not a png";
-    EXPECT_EQ(run({"--config", (d / "right.yaml").string(), "--pose", pose,
-                   (d / "broken.png").string()}),
-              2);
+    EXPECT_EQ(
+        run({"--config", (d / "right.yaml").string(), "--pose", pose, (d / "broken.png").string()}),
+        2);
   }
   EXPECT_EQ(run({"--config", (d / "right.yaml").string(), pngs[0]}), 2);
   const auto empty = render(truth, {250.0, 400.0, 0.0}, 1, 12);
   ASSERT_TRUE(png::write((d / "empty.png").string(), empty[0], &err)) << err;
-  EXPECT_EQ(run({"--config", (d / "right.yaml").string(), "--pose", pose,
-                 (d / "empty.png").string()}),
-            2);
+  EXPECT_EQ(
+      run({"--config", (d / "right.yaml").string(), "--pose", pose, (d / "empty.png").string()}),
+      2);
   // Several placements from a CSV (relative paths); world-taped pose without a map is refused.
   {
     std::ofstream f(d / "placements.csv");

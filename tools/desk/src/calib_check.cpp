@@ -98,9 +98,10 @@ bool run_check(const CameraModel& camera, const vision::VisionConfig& vision_con
       }
       if (st == vision::FixStatus::kOk) {
         if (!poses.empty() && fr.fix.landmark_id != pr.landmark_id) {
-          *error = fmt("%s: %s shows landmark %u, earlier frames landmark %u (one landmark per "
-                       "placement)",
-                       where.c_str(), f.name.c_str(), fr.fix.landmark_id, pr.landmark_id);
+          *error =
+              fmt("%s: %s shows landmark %u, earlier frames landmark %u (one landmark per "
+                  "placement)",
+                  where.c_str(), f.name.c_str(), fr.fix.landmark_id, pr.landmark_id);
           return false;
         }
         pr.landmark_id = fr.fix.landmark_id;
@@ -297,8 +298,8 @@ bool run_check(const CameraModel& camera, const vision::VisionConfig& vision_con
         }
       }
       add(Cause::kFocus, p.frames_total - p.frames_ok, 0,
-          fmt("placement %zu: %d of %d frames gave no fix (first %s) -> focus, blur, light",
-              i + 1, p.frames_total - p.frames_ok, p.frames_total, first.c_str()));
+          fmt("placement %zu: %d of %d frames gave no fix (first %s) -> focus, blur, light", i + 1,
+              p.frames_total - p.frames_ok, p.frames_total, first.c_str()));
     }
     if (p.frames_ok > 1) {
       add(Cause::kFocus, p.spread_mm, tol.spread_mm,
@@ -322,11 +323,12 @@ std::string format_report(const CameraModel& camera, const CheckResult& r) {
     const auto& p = r.placements[i];
     const auto& t = p.taped_landmark_in_vehicle;
     const auto& m = p.measured_landmark_in_vehicle;
-    s += fmt("%9zu  %8u  %3d/%-3d %8.2f,%8.2f,%7.2f  %8.3f,%8.3f,%8.3f  %+6.2f  %+6.2f  %+7.3f  "
-             "%8.3f  %9.3f  %9.3f  %8.3f\n",
-             i + 1, p.landmark_id, p.frames_ok, p.frames_total, t.x_mm, t.y_mm,
-             rad_to_deg(t.theta_rad), m.x_mm, m.y_mm, rad_to_deg(m.theta_rad), p.dx_mm, p.dy_mm,
-             p.dheading_deg, p.outer_side_mm, p.border_width_mm, p.spread_mm, p.residual_rms_mm);
+    s +=
+        fmt("%9zu  %8u  %3d/%-3d %8.2f,%8.2f,%7.2f  %8.3f,%8.3f,%8.3f  %+6.2f  %+6.2f  %+7.3f  "
+            "%8.3f  %9.3f  %9.3f  %8.3f\n",
+            i + 1, p.landmark_id, p.frames_ok, p.frames_total, t.x_mm, t.y_mm,
+            rad_to_deg(t.theta_rad), m.x_mm, m.y_mm, rad_to_deg(m.theta_rad), p.dx_mm, p.dy_mm,
+            p.dheading_deg, p.outer_side_mm, p.border_width_mm, p.spread_mm, p.residual_rms_mm);
   }
   s += "\nfindings:\n";
   for (const auto& f : r.findings) {
