@@ -12,6 +12,7 @@
 #include <random>
 
 #include "agv/recording/png_io.hpp"
+#include "agv/recording/recording.hpp"
 #include "agv/sim/render.hpp"
 #include "calib_check.hpp"
 #include "commands.hpp"
@@ -36,13 +37,14 @@ CameraModel nominal() {
 // vehicle parked at `vehicle_in_world`.
 std::vector<cv::Mat> render(const CameraModel& truth, const Pose2& landmark_in_vehicle, int n,
                             std::uint64_t seed, sim::RenderOptions ro = sim::realistic_options(),
-                            const Pose2& vehicle_in_world = {}) {
+                            const Pose2& vehicle_in_world = {}, double print_size_mm = 60.0) {
   LandmarkMap map;
   map.entries[7] = {7, compose(vehicle_in_world, landmark_in_vehicle)};
   sim::Scene scene;
   std::string err;
-  EXPECT_TRUE(sim::make_scene(map, LandmarkGeometry{}, sim::PayloadMode::kFull, &scene, &err))
-      << err;
+  LandmarkGeometry printed;
+  printed.size_mm = print_size_mm;
+  EXPECT_TRUE(sim::make_scene(map, printed, sim::PayloadMode::kFull, &scene, &err)) << err;
   scene.floor.seed = seed;
   ro.speed_mps = 0.0;  // parked
   ro.yaw_rate_radps = 0.0;
@@ -59,7 +61,8 @@ struct Placement {
 };
 
 bool check(const CameraModel& config, const std::vector<Placement>& ps, desk::calib::CheckResult* r,
-           std::string* err, const desk::calib::Tolerances& tol = {}) {
+           std::string* err, const desk::calib::Tolerances& tol = {},
+           double printed_size_mm = 60.0) {
   std::vector<desk::calib::PlacementInput> in(ps.size());
   for (size_t i = 0; i < ps.size(); ++i) {
     in[i].taped = ps[i].taped;
@@ -67,7 +70,8 @@ bool check(const CameraModel& config, const std::vector<Placement>& ps, desk::ca
       in[i].frames.push_back({"frame" + std::to_string(k), &ps[i].frames[k]});
     }
   }
-  return desk::calib::run_check(config, vision::VisionConfig{}, 60.0, nullptr, in, tol, r, err);
+  return desk::calib::run_check(config, vision::VisionConfig{}, printed_size_mm, nullptr, in, tol,
+                                r, err);
 }
 
 bool failed(const desk::calib::CheckResult& r, Cause c) {
@@ -251,6 +255,24 @@ TEST(CalibCheck, SpreadOverFramesIsReported) {
   EXPECT_FALSE(failed(r, Cause::kOffset));
 }
 
+TEST(CalibCheck, PrintScaleLooksLikeHeightUntilMeasured) {
+  // The printer scaled the landmark by +1 % (60.6 mm): with the nominal size the check reads a
+  // camera 1 % too low; told the caliper-measured size, it passes.
+  const CameraModel truth = nominal();
+  const auto frames = render(truth, kUnderCamera, 2, 14, sim::realistic_options(), {}, 60.6);
+  desk::calib::CheckResult r;
+  std::string err;
+  ASSERT_TRUE(check(truth, {{kUnderCamera, frames}}, &r, &err)) << err;
+  table("print 60.6", truth, r);
+  EXPECT_TRUE(failed(r, Cause::kHeight));
+  EXPECT_NEAR(r.height_mm, 200.0 / 1.01, 0.3);
+  EXPECT_NEAR(r.placements[0].outer_side_mm, 60.6, 0.05);
+  EXPECT_NEAR(r.placements[0].border_width_mm, 6.06, 0.02);
+  ASSERT_TRUE(check(truth, {{kUnderCamera, frames}}, &r, &err, {}, 60.6)) << err;
+  EXPECT_TRUE(r.within_tolerance()) << failures(r);
+  EXPECT_NEAR(r.height_mm, 200.0, 0.3);
+}
+
 TEST(CalibCheck, VehicleTapedInTheWorldUsesTheMap) {
   // The vehicle's world pose was taped instead; the landmark's comes from the map.
   const CameraModel truth = nominal();
@@ -370,6 +392,26 @@ TEST(CalibCheckCommand, ExitCodes) {
   EXPECT_EQ(
       run({"--config", (d / "right.yaml").string(), "--pose", pose, (d / "empty.png").string()}),
       2);
+  // A recording directory (as agvloc record writes it) instead of PNG files.
+  {
+    const fs::path rec = d / "park1";
+    recording::Meta meta;
+    meta.camera = truth;
+    ASSERT_TRUE(recording::write_meta(rec.string(), meta, &err)) << err;
+    std::vector<recording::FrameRow> rows;
+    for (size_t i = 0; i < frames.size(); ++i) {
+      const std::string name = "frames/" + std::to_string(i) + ".png";
+      ASSERT_TRUE(recording::write_frame_png(rec.string(), name, frames[i], &err)) << err;
+      rows.push_back({1'000'000'000LL + static_cast<std::int64_t>(i) * 33'000'000LL, name});
+    }
+    ASSERT_TRUE(recording::write_frames_csv(rec.string(), rows, &err)) << err;
+    ASSERT_TRUE(recording::write_odom_csv(
+        rec.string(), {{1'000'000'000LL, 0.0, 0.0}, {1'100'000'000LL, 0.0, 0.0}}, &err))
+        << err;
+    EXPECT_EQ(run({"--config", (d / "right.yaml").string(), "--pose", pose, rec.string()}), 0);
+    EXPECT_EQ(run({"--config", (d / "wrong.yaml").string(), "--pose", pose, rec.string()}), 1);
+    EXPECT_EQ(run({"--config", (d / "right.yaml").string(), "--pose", pose, d.string()}), 2);
+  }
   // Several placements from a CSV (relative paths); world-taped pose without a map is refused.
   {
     std::ofstream f(d / "placements.csv");
