@@ -113,6 +113,10 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
   // 3f. Covariance, result, overlay geometry.
   *cov = fit_covariance(ne, free_size ? 5 : 3, cfg);
   out->residual_rms_mm = ne.sum_w > 0 ? std::sqrt(ne.ssr / ne.sum_w) : 0.0;
+  if (method == PoseMethod::kJointSquareFit && free_size) {
+    out->outer_half_mm = m.h_out;
+    out->inner_half_mm = m.h_in;
+  }
   *c_mm = m.c;
   *beta_out = m.beta;
   keep_overlay_geometry(m);

@@ -30,6 +30,7 @@ struct Subcommand {
 const Subcommand kSubcommands[] = {
     {"intrinsics", calibrate_intrinsics,
      "camera intrinsics from images of a ChArUco board or chessboard"},
+    {"check", calibrate_check, "parked-vehicle check with a printed landmark at a taped pose"},
 };
 
 void calibrate_usage(FILE* f) {

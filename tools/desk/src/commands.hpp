@@ -10,5 +10,8 @@ int report(int argc, char** argv);     // accuracy against truth + trajectory pl
 int calibrate(int argc, char** argv);  // dispatcher: calibrate intrinsics|vehicle|check
 int calibrate_intrinsics(int argc, char** argv);  // camera intrinsics from board images
 int sim_board(int argc, char** argv);             // simulated calibration-board views
+// calibrate check: parked-vehicle check with a printed landmark at a taped pose. Exit 0 within
+// tolerance, 1 out of tolerance, 2 bad input.
+int calibrate_check(int argc, char** argv);
 
 }  // namespace agv::desk
