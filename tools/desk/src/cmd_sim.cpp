@@ -87,6 +87,28 @@ int sim(int argc, char** argv) {
   app.add_option("--dirt", dirt, "Mean dirt spots per landmark")
       ->check(CLI::Range(0.0, 100.0))
       ->capture_default_str();
+  // The camera mounting (docs/frames.md); defaults = the profile's centred, untilted camera.
+  double mount_x_mm = 0.0, mount_y_mm = 0.0, mount_yaw_deg = 0.0, roll_deg = 0.0, pitch_deg = 0.0;
+  double mount_height_mm = 0.0;
+  app.add_option("--mount-offset-x-mm", mount_x_mm, "Camera optical centre in the vehicle, x")
+      ->check(CLI::Range(-5000.0, 5000.0))
+      ->capture_default_str();
+  app.add_option("--mount-offset-y-mm", mount_y_mm, "Camera optical centre in the vehicle, y")
+      ->check(CLI::Range(-5000.0, 5000.0))
+      ->capture_default_str();
+  app.add_option("--mount-yaw-deg", mount_yaw_deg, "Camera yaw (image axes vs vehicle)")
+      ->check(CLI::Range(-180.0, 180.0))
+      ->capture_default_str();
+  app.add_option("--mount-height-mm", mount_height_mm,
+                 "Camera height above the floor; 0 = the profile's 200 mm")
+      ->check(CLI::Range(0.0, 5000.0))
+      ->capture_default_str();
+  app.add_option("--roll-deg", roll_deg, "Camera roll (docs/frames.md \"Camera tilt\")")
+      ->check(CLI::Range(-45.0, 45.0))
+      ->capture_default_str();
+  app.add_option("--pitch-deg", pitch_deg, "Camera pitch (docs/frames.md \"Camera tilt\")")
+      ->check(CLI::Range(-45.0, 45.0))
+      ->capture_default_str();
   app.add_flag("--force", force, "Overwrite an existing recording in --out");
   try {
     app.parse(argc, argv);
@@ -112,6 +134,15 @@ int sim(int argc, char** argv) {
   }
   cam.intrinsics.k1 = k1;
   cam.intrinsics.k2 = k2;
+  cam.mount.offset_x_mm = mount_x_mm;
+  cam.mount.offset_y_mm = mount_y_mm;
+  cam.mount.yaw_rad = deg_to_rad(mount_yaw_deg);
+  if (mount_height_mm > 0.0) {
+    if (mount_height_mm < 10.0) return usage_error("--mount-height-mm must be >= 10");
+    cam.mount.height_mm = mount_height_mm;
+  }
+  cam.mount.roll_rad = deg_to_rad(roll_deg);
+  cam.mount.pitch_rad = deg_to_rad(pitch_deg);
   sim::RenderOptions ro;
   if (degrade == "realistic") {
     ro = sim::realistic_options();
