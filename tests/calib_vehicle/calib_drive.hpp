@@ -15,7 +15,7 @@
 namespace agv::calibtest {
 
 struct DriveTruth {
-  desk::calib::VehicleParams p;  // true mounting, odometry errors, time offset
+  desk::vcal::VehicleParams p;  // true mounting, odometry errors, time offset
   double corner_noise_px = 0.05;
   double odom_v_noise_mps = 0.002, odom_w_noise_radps = 0.01;
   bool turns = true;       // false: straight passes in one direction only (degenerate)
@@ -26,8 +26,8 @@ struct DriveTruth {
 
 struct Drive {
   LandmarkMap map;
-  std::vector<desk::calib::OdomSample> odom;
-  std::vector<desk::calib::CornerObservation> obs;
+  std::vector<desk::vcal::OdomSample> odom;
+  std::vector<desk::vcal::CornerObservation> obs;
 };
 
 namespace detail {
@@ -122,7 +122,7 @@ inline Drive make_calibration_drive(const DriveTruth& tr) {
       sw += w_f[j];
     }
     const double v = sv / 10.0 / 1000.0, w = sw / 10.0;  // m/s, rad/s
-    desk::calib::OdomSample o;
+    desk::vcal::OdomSample o;
     o.t_ns = t0_ns + static_cast<std::int64_t>(std::llround((t_f[k] + tr.p.time_offset_s) * 1e9));
     o.v_mps = v / tr.p.speed_scale + tr.odom_v_noise_mps * n01(rng);
     o.omega_radps =
@@ -132,7 +132,7 @@ inline Drive make_calibration_drive(const DriveTruth& tr) {
   // Frames at 30 Hz.
   CameraModel cam = CameraModel::default_640x480();
   cam.mount = tr.p.mount;
-  const auto corners = desk::calib::landmark_corners(30.0, 24.0);
+  const auto corners = desk::vcal::landmark_corners(30.0, 24.0);
   for (double tc = 0.0; tc < std::min(t, tr.duration_s); tc += 1.0 / 30.0) {
     const size_t k = std::min(t_f.size() - 1, static_cast<size_t>(tc / dt_fine));
     const double f = (tc - t_f[k]) / dt_fine;
@@ -142,7 +142,7 @@ inline Drive make_calibration_drive(const DriveTruth& tr) {
     p.theta_rad += f * w_f[k] * dt_fine;
     const Pose2 v_from_w = inverse(p);
     for (const auto& [id, e] : d.map.entries) {
-      desk::calib::CornerObservation o;
+      desk::vcal::CornerObservation o;
       o.t_ns = t0_ns + static_cast<std::int64_t>(std::llround(tc * 1e9));
       o.landmark_id = id;
       bool all = true;

@@ -8,7 +8,7 @@
 #include "calib_drive.hpp"
 
 using namespace agv;
-using namespace agv::desk::calib;
+using namespace agv::desk::vcal;
 
 namespace {
 

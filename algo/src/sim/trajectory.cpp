@@ -273,7 +273,11 @@ OdometrySample odometry_sample(const OdometryParams& p, const std::vector<SlipEv
       }
     }
   }
-  return {0.5 * (rl + rr), b_m > 0.0 ? (rr - rl) / b_m : 0.0};
+  double omega = b_m > 0.0 ? (rr - rl) / b_m : 0.0;
+  // Only when set, so default recordings stay byte-identical.
+  if (p.yaw_rate_scale_error != 0.0) omega *= 1.0 + p.yaw_rate_scale_error;
+  if (p.yaw_rate_bias_radps != 0.0) omega += p.yaw_rate_bias_radps;
+  return {0.5 * (rl + rr), omega};
 }
 
 }  // namespace agv::sim

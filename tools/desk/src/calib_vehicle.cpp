@@ -10,7 +10,7 @@
 #include <limits>
 #include <memory>
 
-namespace agv::desk::calib {
+namespace agv::desk::vcal {
 
 namespace {
 
@@ -533,4 +533,4 @@ bool calibrate_vehicle(const std::vector<OdomSample>& odom,
   return true;
 }
 
-}  // namespace agv::desk::calib
+}  // namespace agv::desk::vcal

@@ -40,7 +40,7 @@
 #include "agv/common/camera_model.hpp"
 #include "agv/common/landmark.hpp"
 
-namespace agv::desk::calib {
+namespace agv::desk::vcal {
 
 struct OdomSample {
   std::int64_t t_ns = 0;  // odometry clock
@@ -121,4 +121,4 @@ bool calibrate_vehicle(const std::vector<OdomSample>& odom,
 // Corners of the landmark in its own frame (the order of CornerObservation::xn).
 std::array<Vec2, 8> landmark_corners(double outer_half_mm, double inner_half_mm);
 
-}  // namespace agv::desk::calib
+}  // namespace agv::desk::vcal

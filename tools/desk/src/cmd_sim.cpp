@@ -109,6 +109,33 @@ int sim(int argc, char** argv) {
   app.add_option("--pitch-deg", pitch_deg, "Camera pitch (docs/frames.md \"Camera tilt\")")
       ->check(CLI::Range(-45.0, 45.0))
       ->capture_default_str();
+  double odom_time_offset_ms = 0.0, yaw_bias_degps = 0.0;
+  bool nominal_meta = false;
+  app.add_option("--odom-scale-error", op.scale_error,
+                 "Both wheels report this fraction too much (speed scale error)")
+      ->check(CLI::Range(-0.5, 0.5))
+      ->capture_default_str();
+  app.add_option("--odom-asymmetry", op.scale_asymmetry,
+                 "Right minus left wheel scale error (curves straight runs)")
+      ->check(CLI::Range(-0.5, 0.5))
+      ->capture_default_str();
+  app.add_option("--odom-yaw-scale-error", op.yaw_rate_scale_error,
+                 "Reported yaw rate scaled by (1 + this) on top of the wheels")
+      ->check(CLI::Range(-0.5, 0.5))
+      ->capture_default_str();
+  app.add_option("--odom-yaw-bias-degps", yaw_bias_degps, "Added to the reported yaw rate")
+      ->check(CLI::Range(-10.0, 10.0))
+      ->capture_default_str();
+  app.add_option("--odom-noise-mps", op.noise_mps, "White noise per wheel speed sample (sigma)")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  app.add_option("--odom-time-offset-ms", odom_time_offset_ms,
+                 "Odometry timestamps late by this (camera-odometry clock offset)")
+      ->check(CLI::Range(-1000.0, 1000.0))
+      ->capture_default_str();
+  app.add_flag("--nominal-meta", nominal_meta,
+               "meta.yaml records the profile's nominal camera mounting instead of the simulated "
+               "one (a recording made with an uncalibrated configuration)");
   app.add_flag("--force", force, "Overwrite an existing recording in --out");
   try {
     app.parse(argc, argv);
@@ -225,6 +252,12 @@ int sim(int argc, char** argv) {
 
   recording::Meta meta;
   meta.camera = cam;
+  if (nominal_meta) {
+    meta.camera.mount =
+        (profile == "640x480" ? CameraModel::default_640x480() : CameraModel::default_1280x800())
+            .mount;
+  }
+  op.yaw_rate_bias_radps = deg_to_rad(yaw_bias_degps);
   meta.landmark_size_mm = scene.geometry.size_mm;
   std::string cmdline = "agvloc-desk sim";
   for (int i = 1; i < argc; ++i) cmdline += std::string(" ") + argv[i];
@@ -243,12 +276,14 @@ int sim(int argc, char** argv) {
   const auto odom_period_ns = static_cast<std::int64_t>(std::llround(1e9 / odom_hz));
   op.period_ns = odom_period_ns;
   const std::vector<sim::SlipEvent> slips = sim::make_slip_events(op, duration_ns);
+  const auto odom_time_offset_ns =
+      static_cast<std::int64_t>(std::llround(odom_time_offset_ms * 1e6));
 
   std::vector<recording::OdomRow> odom;
   std::vector<std::int64_t> truth_times;
   for (std::int64_t t = 0; t <= duration_ns; t += odom_period_ns) {
     const sim::OdometrySample o = sim::odometry_sample(op, slips, traj, t);
-    odom.push_back({kT0_ns + t, o.v_mps, o.omega_radps});
+    odom.push_back({kT0_ns + t + odom_time_offset_ns, o.v_mps, o.omega_radps});
     truth_times.push_back(t);
   }
 

@@ -7,5 +7,8 @@ namespace agv::desk {
 int sim(int argc, char** argv);       // write a simulated recording
 int landmark(int argc, char** argv);  // print landmarks as SVG/PNG
 int report(int argc, char** argv);    // accuracy against truth + trajectory plot of a replay
+// `calibrate vehicle`: mounting, odometry and time offset from a calibration drive
+// (cmd_calibrate_vehicle.cpp; registered in the `calibrate` dispatcher).
+int calibrate_vehicle(int argc, char** argv);
 
 }  // namespace agv::desk

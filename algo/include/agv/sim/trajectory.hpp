@@ -92,6 +92,10 @@ struct OdometryParams {
   double slip_rate_per_s = 0.02;        // mean slip events per second (Poisson)
   double slip_duration_s = 0.3;
   double slip_excess = 0.05;  // the slipping wheel reports this fraction more than it moved
+  // Yaw-rate errors beyond the wheels' (a gyro-fused controller; vehicle calibration tests):
+  // reported omega = (1 + yaw_rate_scale_error) * wheel omega + yaw_rate_bias_radps.
+  double yaw_rate_scale_error = 0.0;
+  double yaw_rate_bias_radps = 0.0;
   std::uint64_t seed = 1;
 };
 
