@@ -219,8 +219,9 @@ bool calibrate_vehicle(const std::vector<OdomSample>& odom,
   if (obs.empty()) {
     char b[200];
     std::snprintf(b, sizeof b,
-                  "no observation of a mapped landmark inside the odometry time span (%zu of "
-                  "unmapped landmarks: wrong map?, %zu outside the odometry span)",
+                  "no observation of a mapped landmark inside the odometry time span (%zu "
+                  "observations of landmarks not in the map: wrong map?, %zu outside the "
+                  "odometry span)",
                   unmapped, outside);
     return fail(b);
   }

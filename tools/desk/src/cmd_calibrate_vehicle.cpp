@@ -270,9 +270,11 @@ int calibrate_vehicle(int argc, char** argv) {
     if (corner_observation(loc, fix, cam, geom, f.t_ns, &o)) obs.push_back(o);
   }
   if (obs.empty()) {
-    return fail("no frame of " + std::to_string(rec.frames.size()) + " shows a mapped landmark (" +
-                    std::to_string(fixes) + " fixes, " + std::to_string(unmapped) +
-                    " of landmarks not in " + map_path + (unmapped > 0 ? ": wrong map?)" : ")"),
+    return fail("no frame of " + std::to_string(rec.frames.size()) + " shows a landmark of " +
+                    map_path + " (" + std::to_string(fixes) + " landmark fixes, " +
+                    std::to_string(unmapped) +
+                    " of them of landmarks not in the map): wrong map, or no mapped landmark "
+                    "in view",
                 1);
   }
   std::vector<vcal::OdomSample> odom;

@@ -36,7 +36,7 @@ int sim(int argc, char** argv) {
   app.add_option("--map", map_path,
                  "Landmark map (docs/landmark.md); default: built-in 5x5 grid at 1 m "
                  "(= tools/maps/default_grid.csv)");
-  app.add_option("--trajectory", trajectory, "line|square|circle|figure8|lawnmower")
+  app.add_option("--trajectory", trajectory, "line|square|circle|figure8|lawnmower|calibration")
       ->capture_default_str();
   app.add_option("--duration-s", duration_s, "Recording length in seconds")
       ->check(CLI::Range(0.1, 3600.0))
