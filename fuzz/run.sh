@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
-# Builds the fuzz preset and runs every libFuzzer harness for a bounded time on a copy of the
-# committed corpus (fuzz/corpus/<harness>/, so the tree stays clean) plus what it finds.
+# Builds the harnesses (build preset fuzz: target agv_fuzzers of the asan build in build/asan, a
+# no-op after tools/test.sh built that preset) and runs every libFuzzer harness for a bounded
+# time on a copy of the committed corpus (fuzz/corpus/<harness>/, so the tree stays clean) plus
+# what it finds.
 #   fuzz/run.sh [SECONDS_PER_HARNESS] [HARNESS...]      default 60 s, every harness
 # Fails on any crash, property violation, leak, timeout (> 1 s for one input), sanitizer report
 # or out-of-memory (> 2 GB RSS). The reproducer lands in $AGV_FUZZ_ARTIFACTS (default
-# build/fuzz/artifacts); rerun it with build/fuzz/fuzz/<harness> <file>.
+# build/asan/fuzz/artifacts); rerun it with build/asan/fuzz/<harness> <file>.
 # Environment: AGV_FUZZ_JOBS (build parallelism, default nproc); AGV_FUZZ_RUNS=N stops a harness
 # after N executions (SECONDS stays the cap); AGV_FUZZ_KEEP_CORPUS=DIR keeps the grown corpus per
 # harness under DIR (to continue a campaign or to minimise it into fuzz/corpus).
@@ -17,7 +19,7 @@ all=(fuzz_payload fuzz_map fuzz_recording_meta fuzz_recording_frames fuzz_record
 if [ "$#" -gt 0 ]; then harnesses=("$@"); else harnesses=("${all[@]}"); fi
 
 t0=$(date +%s)
-cmake --preset fuzz >/dev/null
+cmake --preset asan >/dev/null
 nice -n 10 cmake --build --preset fuzz -j "${AGV_FUZZ_JOBS:-$(nproc)}"
 echo "fuzz: build took $(( $(date +%s) - t0 )) s"
 
@@ -32,7 +34,7 @@ dict_of() {
   esac
 }
 
-artifacts="${AGV_FUZZ_ARTIFACTS:-build/fuzz/artifacts}"
+artifacts="${AGV_FUZZ_ARTIFACTS:-build/asan/fuzz/artifacts}"
 mkdir -p "$artifacts"
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
@@ -52,7 +54,7 @@ for h in "${harnesses[@]}"; do
   [ -n "$dict" ] && args+=(-dict="$dict")
   echo "fuzz: $h for $seconds s"
   rc=0
-  nice -n 10 "build/fuzz/fuzz/$h" "${args[@]}" "$corpus" >"$work/$h.log" 2>&1 || rc=$?
+  nice -n 10 "build/asan/fuzz/$h" "${args[@]}" "$corpus" >"$work/$h.log" 2>&1 || rc=$?
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$work/$h.log" | tail -1)
   rate=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$work/$h.log" | tail -1)
   secs=$(sed -n 's/^Done [0-9]* runs in \([0-9]*\) second.*/\1/p' "$work/$h.log" | tail -1)

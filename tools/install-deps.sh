@@ -12,6 +12,8 @@ PKGS=(
   build-essential cmake ninja-build pkg-config git ca-certificates
   # algo / drivers / firmware
   libopencv-dev
+  # agvloc-desk calibrate intrinsics: ChArUco boards (OpenCV aruco, contrib)
+  libopencv-contrib-dev
   libeigen3-dev libpng-dev libzxing-dev libyaml-cpp-dev libcli11-dev
   libcamera-dev libcamera-ipa udev
   # agvloc-desk calibrate vehicle: nonlinear least squares
@@ -19,7 +21,7 @@ PKGS=(
   # tests, benchmarks, comparison baseline
   libgtest-dev libgmock-dev libbenchmark-dev libapriltag-dev valgrind
   clang-format clang-tidy
-  # fuzzing (fuzz/, the fuzz preset): clang with libFuzzer and the sanitizer runtimes
+  # sanitizer presets asan (with the fuzz/ harnesses) and tsan: clang, libFuzzer, ASan/UBSan/TSan
   clang libclang-rt-14-dev
   # CAN tools and independent decoders
   can-utils python3-can iproute2

@@ -7,7 +7,6 @@
 #include <opencv2/core.hpp>
 #include <thread>
 
-#include "agv/can/frame_convert.hpp"
 #include "agv/can/socketcan.hpp"
 #include "agv/posix/posix_clock.hpp"
 #include "agv/protocol/codec.hpp"
@@ -116,7 +115,7 @@ int record(int argc, char** argv) {
   while (!stop_requested().load() && clock.now_ns() < t_end) {
     if (bus.receive(&cf, 20'000'000) != hal::CanStatus::kOk) continue;
     protocol::OdomSample s;
-    if (decoder.decode(can::from_hal(cf), &s) == protocol::DecodeResult::kOk &&
+    if (decoder.decode(cf, &s) == protocol::DecodeResult::kOk &&
         (odom.empty() || s.t_ns > odom.back().t_ns)) {
       odom.push_back({s.t_ns, s.v_mps, s.omega_radps});
     }

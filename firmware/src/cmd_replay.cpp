@@ -10,9 +10,10 @@
 #include <memory>
 #include <sstream>
 
-#include "adapters.hpp"
+#include "agv/adapters/scaled_clock.hpp"
+#include "agv/adapters/stepped_clock.hpp"
 #include "agv/can/candump_file.hpp"
-#include "agv/can/frame_convert.hpp"
+#include "agv/can/log_only_bus.hpp"
 #include "agv/can/socketcan.hpp"
 #include "agv/posix/posix_clock.hpp"
 #include "agv/posix/realtime.hpp"
@@ -70,7 +71,7 @@ std::int64_t wait_first_odometry(hal::CanBus& bus, const config::Config& cfg) {
     hal::CanFrame f;
     if (bus.receive(&f, 100'000'000) != hal::CanStatus::kOk) continue;
     protocol::OdomSample s;
-    if (decoder.decode(can::from_hal(f), &s) == protocol::DecodeResult::kOk) return f.t_ns;
+    if (decoder.decode(f, &s) == protocol::DecodeResult::kOk) return f.t_ns;
   }
   return -1;
 }
@@ -193,13 +194,13 @@ int replay(int argc, char** argv) {
       if (mono0 < 0) return 1;
       if (!rec.odom.empty()) t_first = rec.odom.front().t_ns;
     }
-    app::ScaledClock clock(mono, t_first, speed, mono0);
+    adapters::ScaledClock clock(mono, t_first, speed, mono0);
     recording::ReplayCamera camera(rec, &clock);
     std::unique_ptr<hal::CanBus> bus;
     if (socket_bus) {
-      bus = std::make_unique<app::TimeMappedBus>(*socket_bus, &clock);
+      bus = std::make_unique<adapters::TimeMappedBus>(*socket_bus, &clock);
     } else {
-      bus = std::make_unique<app::LogOnlyBus>(log, &clock, nullptr, "can0");
+      bus = std::make_unique<can::LogOnlyBus>(log, clock, "can0");
     }
     const double duration_s =
         static_cast<double>((rec.odom.empty() ? t_first : rec.odom.back().t_ns) - t_first) / 1e9;
@@ -225,10 +226,10 @@ int replay(int argc, char** argv) {
                                      rec.odom.empty() ? 0 : rec.odom.back().t_ns);
     if (t1 >= t0) ticks.reserve(static_cast<size_t>((t1 - t0) / period_ns) + 16);
     fixes.reserve(rec.frames.size());  // at most one record per frame
-    std::atomic<std::int64_t> loop_time{0};
-    app::LogOnlyBus bus(log, nullptr, &loop_time, "can0");
-    app::run_fast(cfg, map_ptr, rec, &bus, &ticks, &fixes, &stop_requested(), &result, !quiet,
-                  &loop_time);
+    adapters::SteppedClock clock;
+    can::LogOnlyBus bus(log, clock, "can0");
+    app::run_fast(cfg, map_ptr, rec, &bus, &clock, &ticks, &fixes, &stop_requested(), &result,
+                  !quiet);
   }
   if (can_iface.empty() && !log.close()) {
     std::fprintf(stderr, "replay: writing %s failed\n", can_log.c_str());

@@ -99,6 +99,13 @@ class SpscRing {
     tail_.store((t + 1) % N, std::memory_order_release);
     return true;
   }
+  // Consumer only: the oldest item without taking it.
+  bool front(T* out) const {
+    const std::size_t t = tail_.load(std::memory_order_relaxed);
+    if (t == head_.load(std::memory_order_acquire)) return false;
+    *out = buf_[t];
+    return true;
+  }
   std::uint64_t dropped() const { return dropped_.load(std::memory_order_relaxed); }
 
  private:

@@ -7,14 +7,14 @@
 namespace {
 
 void usage(FILE* f) {
-  std::fprintf(
-      f,
-      "usage: agvloc <command> [options]\n"
-      "  replay RECORDING   run the localizer on a recording (frames + odometry)\n"
-      "  run --config FILE  live: camera, vision, fusion, CAN output\n"
-      "  record --config FILE --out DIR   record the live camera and CAN odometry\n"
-      "  --version          version and build features\n"
-      "Each command takes --help. Desk tools (sim, landmark, report) are in agvloc-desk.\n");
+  std::fprintf(f,
+               "usage: agvloc <command> [options]\n"
+               "  replay RECORDING   run the localizer on a recording (frames + odometry)\n"
+               "  run --config FILE  live: camera, vision, fusion, CAN output\n"
+               "  record --config FILE --out DIR   record the live camera and CAN odometry\n"
+               "  --version          version and build features\n"
+               "Each command takes --help. Desk tools (sim, landmark, report, calibrate) are in "
+               "agvloc-desk.\n");
 }
 
 }  // namespace
@@ -37,7 +37,7 @@ int main(int argc, char** argv) {
     usage(stdout);
     return 0;
   }
-  for (const char* desk : {"sim", "landmark", "report"}) {
+  for (const char* desk : {"sim", "landmark", "report", "calibrate", "sim-board"}) {
     if (!std::strcmp(c, desk)) {
       std::fprintf(stderr,
                    "agvloc: '%s' is a desk command and not part of the vehicle binary: run "

@@ -8,36 +8,19 @@
 #include <opencv2/core.hpp>
 #include <thread>
 
-#include "agv/posix/pi_mutex.hpp"
+#include "agv/adapters/hybrid_wait_clock.hpp"
+#include "agv/posix/futex_wakeup.hpp"
 #include "agv/posix/posix_clock.hpp"
 #include "agv/posix/realtime.hpp"
 #include "handoff.hpp"
-#include "hybrid_wait_clock.hpp"
 
 namespace agv::app {
 
 namespace {
 
 constexpr std::int64_t kMs = 1'000'000;
-
-void record_vision(const vision::LandmarkFix& fix, std::int64_t exposure_to_start_ns,
-                   std::int64_t vision_ns, VisionStats* vs) {
-  ++vs->frames_processed;
-  const int s = static_cast<int>(fix.status);
-  if (s >= 0 && s < kFixStatusCount) ++vs->by_status[s];
-  vs->exposure_to_start_ns.record_ns(exposure_to_start_ns);
-  vs->vision_ns.record_ns(vision_ns);
-  vs->detect_ns.record_ns(static_cast<std::int64_t>(fix.timings.detect_ms * 1e6));
-  if (fix.timings.decode_ms > 0) {
-    vs->decode_ns.record_ns(static_cast<std::int64_t>(fix.timings.decode_ms * 1e6));
-  }
-  if (fix.timings.direction_ms > 0) {
-    vs->direction_ns.record_ns(static_cast<std::int64_t>(fix.timings.direction_ms * 1e6));
-  }
-  if (fix.timings.pose_ms > 0) {
-    vs->pose_ns.record_ns(static_cast<std::int64_t>(fix.timings.pose_ms * 1e6));
-  }
-}
+// Fix-triggered poses are not waited for in the last part of a period (see the output thread).
+constexpr std::int64_t kFixWaitGuardNs = 200'000;
 
 vision::VisionConfig vision_config_with_clock(const config::Config& cfg, const hal::Clock* clock) {
   vision::VisionConfig v = cfg.vision;
@@ -65,38 +48,27 @@ void apply_fifo_priority(int priority, const char* which) {
   }
 }
 
-void print_period_line(const OutputStats& o, std::uint64_t dropped) {
-  std::fprintf(stderr,
-               "agvloc: ticks %" PRIu64 " missed %" PRIu64 " | fixes fused %" PRIu64
-               " gated %" PRIu64
-               " | e2e p50 %.2f ms p99 %.2f ms | jitter p99 %.0f us | "
-               "frames dropped %" PRIu64 " | can tx ok %" PRIu64 " failed %" PRIu64 "\n",
-               o.ticks, o.missed_periods, o.fixes_fused, o.fixes_rejected_gate,
-               static_cast<double>(o.end_to_end_ns.percentile_ns(0.5)) / 1e6,
-               static_cast<double>(o.end_to_end_ns.percentile_ns(0.99)) / 1e6,
-               static_cast<double>(o.period_jitter_ns.percentile_ns(0.99)) / 1e3, dropped,
-               o.can_tx_ok, o.can_tx_failed);
-}
-
 }  // namespace
 
 int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& io,
                 RunResult* result) {
   hal::Clock& clock = *io.clock;
-  OutputStage out(cfg, io.bus);
-  // Guards `out` only when the vision worker sends fix-triggered poses (loop.pose_on_fix);
-  // priority inheritance keeps the real-time output thread's wait bounded.
-  posix::PiMutex out_mutex;
+  localizer::Localizer core(localizer_config(cfg));
+  FixRing fix_queue;
+  const std::int64_t log_period_ns =
+      io.quiet ? 0 : static_cast<std::int64_t>(cfg.loop.log_period_s * 1e9);
+  OutputLoop loop(core, io.bus, clock, io.odometry, fix_queue, log_period_ns);
+  // loop.pose_on_fix: the vision worker wakes the output thread, which fuses the fix and sends
+  // the pose pair at once; it stays the only CAN writer and shares no lock with vision.
+  posix::FutexWakeup wakeup(clock);
   const bool pose_on_fix = cfg.loop.pose_on_fix;
   FrameMailbox mailbox;
-  SpscRing<FixRecord, 16> fix_queue;
   std::atomic<bool> done{false};
   std::atomic<bool> camera_eos{false};
   std::atomic<bool> camera_error{false};
   std::atomic<std::int64_t> last_frame_ns{clock.now_ns()};
   std::atomic<std::uint64_t> vision_busy{0};
   VisionStats vstats;
-  std::string camera_error_text;
 
   if (io.camera->start() != hal::CameraStatus::kOk) {
     std::fprintf(stderr, "agvloc: camera did not start: %s (continuing: dead reckoning only)\n",
@@ -142,7 +114,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
     mailbox.close();
   });
 
-  // Vision worker: always the newest frame; results go to fusion through a fixed ring.
+  // Vision worker: always the newest frame; results go to the output thread through a fixed ring.
   std::thread worker([&] {
     posix::set_thread_name("agv-vision");
     apply_fifo_priority(cfg.loop.vision_priority, "vision, loop.vision_priority");
@@ -164,15 +136,11 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
       rec.t_exposure_ns = f.t_exposure_ns;
       rec.t_done_ns = t1;
       io.camera->release(f);
-      record_vision(rec.fix, t0 - f.t_exposure_ns, t1 - t0, &vstats);
+      localizer::record_vision(rec.fix, t0 - f.t_exposure_ns, t1 - t0, &vstats);
       if (io.fixes && io.fixes->size() < io.fixes->capacity()) io.fixes->push_back(rec);
-      if (pose_on_fix && rec.fix.status == vision::FixStatus::kOk) {
-        out_mutex.lock();
-        out.on_fix(rec.fix, rec.t_exposure_ns, rec.t_done_ns);
-        out.send_pose_now(clock.now_ns(), &clock);
-        out_mutex.unlock();
-      } else if (rec.fix.status != vision::FixStatus::kNoLandmark) {
-        fix_queue.push(rec);
+      if (rec.fix.status != vision::FixStatus::kNoLandmark && fix_queue.push(rec) && pose_on_fix &&
+          rec.fix.status == vision::FixStatus::kOk) {
+        wakeup.wake();
       }
       vision_busy = 0;
     }
@@ -180,54 +148,48 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
     if (mailbox.drain(&f)) io.camera->release(f);
   });
 
-  // Output: absolute-time periodic timer; odometry, fixes, fusion, CAN every period.
+  // Output: absolute-time periodic timer; between two periods, fix-triggered poses when woken.
   const std::int64_t period_ns = static_cast<std::int64_t>(1e9 / cfg.loop.output_rate_hz);
-  const std::int64_t camera_timeout_ns = static_cast<std::int64_t>(cfg.camera.timeout_ms * 1e6);
-  const std::int64_t log_period_ns = static_cast<std::int64_t>(cfg.loop.log_period_s * 1e9);
+  const std::int64_t spin_ns = std::int64_t{cfg.loop.spin_before_deadline_us} * 1000;
   std::thread output([&] {
     posix::set_thread_name("agv-output");
     apply_fifo_priority(cfg.loop.realtime_priority, "output, loop.realtime_priority");
-    HybridWaitClock wait(clock, std::int64_t{cfg.loop.spin_before_deadline_us} * 1000);
-    std::size_t odom_i = 0;
+    adapters::HybridWaitClock wait(clock, spin_ns);
     std::int64_t next_ns = clock.now_ns() + period_ns;
-    std::int64_t next_log_ns = next_ns + log_period_ns;
-    FixRecord rec;
     while (!done.load()) {
+      // A futex timeout carries the thread's timer slack (50 us by default, real-time threads
+      // included: +27 us of median jitter measured), the periodic wait none for a SCHED_FIFO
+      // thread. So wait for fixes only up to a guard before the deadline and end the period with
+      // the same wait as without pose_on_fix; a fix in the guard window goes out with the tick.
+      if (pose_on_fix && wakeup.wait_until_ns(next_ns - std::max(spin_ns, kFixWaitGuardNs)) ==
+                             hal::WaitResult::kWoken) {
+        loop.on_wake(clock.now_ns());
+        continue;
+      }
       wait.sleep_until_ns(next_ns);
       const std::int64_t now = clock.now_ns();
-      if (pose_on_fix) out_mutex.lock();
-      out.mutable_stats().period_jitter_ns.record_ns(now - next_ns);
+      core.mutable_stats().period_jitter_ns.record_ns(now - next_ns);
       if (now - next_ns > period_ns) {
-        out.note_missed_period();
+        core.note_missed_period();
         // Skip the missed periods instead of bursting to catch up.
         next_ns += ((now - next_ns) / period_ns) * period_ns;
       }
-      if (io.odometry) {
-        while (odom_i < io.odometry->size() && (*io.odometry)[odom_i].t_ns <= now) {
-          const auto& r = (*io.odometry)[odom_i++];
-          out.on_odometry(r.t_ns, r.v_mps, r.omega_radps);
-        }
-      }
-      out.poll_can();
-      while (fix_queue.pop(&rec)) out.on_fix(rec.fix, rec.t_exposure_ns, rec.t_done_ns);
-      out.set_camera_state(now - last_frame_ns.load() > camera_timeout_ns && !camera_eos.load(),
-                           camera_error.load());
+      CameraState cam;
+      cam.last_frame_ns = last_frame_ns.load();
+      cam.end_of_stream = camera_eos.load();
+      cam.error = camera_error.load();
+      cam.frames_dropped = mailbox.dropped();
       TickRecord* tr = nullptr;
       if (io.ticks && io.ticks->size() < io.ticks->capacity()) tr = &io.ticks->emplace_back();
-      out.tick(now, &clock, tr);
-      if (log_period_ns > 0 && now >= next_log_ns && !io.quiet) {
-        print_period_line(out.stats(), mailbox.dropped());
-        next_log_ns += log_period_ns;
-      }
+      loop.tick(now, cam, tr);
       next_ns += period_ns;
       if (io.stop && io.stop->load()) done = true;
       if (io.stop_at_end_of_stream && camera_eos.load() && vision_busy.load() == 0 &&
-          mailbox.closed() && (!io.odometry || odom_i >= io.odometry->size())) {
-        // Drain what the worker produced, then stop.
-        while (fix_queue.pop(&rec)) out.on_fix(rec.fix, rec.t_exposure_ns, rec.t_done_ns);
+          mailbox.closed() && loop.odometry_done()) {
+        // Hand over what the worker produced, then stop.
+        loop.take_inputs(INT64_MAX);
         done = true;
       }
-      if (pose_on_fix) out_mutex.unlock();
     }
   });
 
@@ -238,12 +200,12 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
   worker.join();
   io.camera->stop();
 
-  result->output = out.stats();
+  result->output = core.stats();
   result->vision = vstats;
   result->camera = io.camera->stats();
   result->frames_dropped_mailbox = mailbox.dropped();
   result->fixes_dropped_queue = fix_queue.dropped();
-  result->odometry_rejected_can = out.odometry_decoder().counters().rejected();
+  result->odometry_rejected_can = core.odometry_decoder().counters().rejected();
   if (io.bus) {
     result->can = io.bus->stats();
     result->can_present = true;
@@ -253,16 +215,19 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
 }
 
 int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording::Recording& rec,
-             hal::CanBus* bus, std::vector<TickRecord>* ticks, std::vector<FixRecord>* fixes,
-             std::atomic<bool>* stop, RunResult* result, bool show_progress,
-             std::atomic<std::int64_t>* loop_time_ns) {
-  OutputStage out(cfg, bus);
+             hal::CanBus* bus, adapters::SteppedClock* clock, std::vector<TickRecord>* ticks,
+             std::vector<FixRecord>* fixes, std::atomic<bool>* stop, RunResult* result,
+             bool show_progress) {
+  localizer::Localizer core(localizer_config(cfg));
+  // Fixes wait here for their simulated arrival.
+  FixRing pending;
+  OutputLoop loop(core, bus, *clock, &rec.odom, pending, 0);
   vision::LandmarkLocalizer loc(vision_config_with_clock(cfg, nullptr), cfg.camera_model,
                                 geometry_of(cfg), map);
   VisionStats vstats;
+  const bool pose_on_fix = cfg.loop.pose_on_fix;
   const std::int64_t period_ns = static_cast<std::int64_t>(1e9 / cfg.loop.output_rate_hz);
   const std::int64_t delay_ns = static_cast<std::int64_t>(cfg.replay_fix_delay_ms * 1e6);
-  const std::int64_t camera_timeout_ns = static_cast<std::int64_t>(cfg.camera.timeout_ms * 1e6);
   std::int64_t t_begin = INT64_MAX, t_end = INT64_MIN;
   if (!rec.frames.empty()) {
     t_begin = std::min(t_begin, rec.frames.front().t_ns);
@@ -275,160 +240,84 @@ int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording:
   if (t_begin > t_end) return 0;
   t_end += delay_ns;
 
-  // Pending fixes in arrival order (arrival = exposure + fixed delay, so FIFO is time order).
-  std::vector<FixRecord> pending;
-  pending.reserve(64);
-  std::size_t pending_head = 0;
-  std::size_t frame_i = 0, odom_i = 0;
-  std::int64_t last_frame_t = t_begin;
-  bool camera_error = false;
+  // Arrival times of the good fixes in `pending`, where the output step is woken (pose_on_fix);
+  // arrival = exposure + fixed delay, so FIFO is time order.
+  std::vector<std::int64_t> wakes;
+  wakes.reserve(64);
+  std::size_t wake_head = 0;
+  std::size_t frame_i = 0;
+  CameraState cam;
+  cam.last_frame_ns = t_begin;
   const std::int64_t wall0 = posix::monotonic_now_ns();
   cv::Mat img;
   std::string err;
   int last_pct = -1;
   const bool tty = show_progress && isatty(STDERR_FILENO);
+  clock->sleep_until_ns(t_begin);
   for (std::int64_t now = t_begin + period_ns; now <= t_end + period_ns; now += period_ns) {
     if (stop && stop->load()) break;
     // Frames exposed up to now are processed; their fixes arrive after the vision delay.
     while (frame_i < rec.frames.size() && rec.frames[frame_i].t_ns <= now) {
       const std::size_t i = frame_i++;
       if (!recording::load_frame(rec, i, &img, &err)) {
-        camera_error = true;
+        cam.error = true;
         result->camera_error = err;
         ++result->camera.errors;
         continue;
       }
-      camera_error = false;
+      cam.error = false;
       ++result->camera.frames_delivered;
-      last_frame_t = rec.frames[i].t_ns;
+      cam.last_frame_ns = rec.frames[i].t_ns;
       FixRecord fr;
       const std::int64_t w0 = posix::monotonic_now_ns();
       loc.process(img, &fr.fix);
       const std::int64_t w1 = posix::monotonic_now_ns();
       fr.t_exposure_ns = rec.frames[i].t_ns;
       fr.t_done_ns = fr.t_exposure_ns + delay_ns;
-      record_vision(fr.fix, 0, w1 - w0, &vstats);  // exposure->start is not simulated
+      localizer::record_vision(fr.fix, 0, w1 - w0, &vstats);  // exposure->start is not simulated
       if (fixes) fixes->push_back(fr);
-      if (fr.fix.status != vision::FixStatus::kNoLandmark) pending.push_back(fr);
-    }
-    // Odometry and fixes merged in time order up to now.
-    while (true) {
-      const bool have_odom = odom_i < rec.odom.size() && rec.odom[odom_i].t_ns <= now;
-      const bool have_fix = pending_head < pending.size() && pending[pending_head].t_done_ns <= now;
-      if (!have_odom && !have_fix) break;
-      if (have_odom && (!have_fix || rec.odom[odom_i].t_ns <= pending[pending_head].t_done_ns)) {
-        const auto& r = rec.odom[odom_i++];
-        out.on_odometry(r.t_ns, r.v_mps, r.omega_radps);
-      } else {
-        const FixRecord& fr = pending[pending_head++];
-        out.on_fix(fr.fix, fr.t_exposure_ns, fr.t_done_ns);
+      if (fr.fix.status != vision::FixStatus::kNoLandmark && pending.push(fr) &&
+          fr.fix.status == vision::FixStatus::kOk) {
+        if (wake_head == wakes.size()) {
+          wakes.clear();
+          wake_head = 0;
+        }
+        wakes.push_back(fr.t_done_ns);
       }
     }
-    if (pending_head == pending.size()) {
-      pending.clear();
-      pending_head = 0;
+    cam.end_of_stream = frame_i >= rec.frames.size();
+    // Fix arrivals up to now wake the output step as the vision worker does live.
+    while (pose_on_fix && wake_head < wakes.size() && wakes[wake_head] <= now) {
+      const std::int64_t t_wake = wakes[wake_head++];
+      clock->sleep_until_ns(t_wake);
+      loop.on_wake(clock->now_ns());
     }
-    out.set_camera_state(now - last_frame_t > camera_timeout_ns && frame_i < rec.frames.size(),
-                         camera_error);
+    clock->sleep_until_ns(now);
     TickRecord tr;
-    if (loop_time_ns) loop_time_ns->store(now);
-    out.tick(now, nullptr, &tr);
+    loop.tick(now, cam, &tr);
     if (ticks) ticks->push_back(tr);
     if (tty) {
       const int pct = static_cast<int>(100.0 * static_cast<double>(now - t_begin) /
                                        static_cast<double>(t_end - t_begin + 1));
       if (pct != last_pct) {
         std::fprintf(stderr, "\rreplay: %3d %%  frames %zu/%zu  fixes fused %" PRIu64, pct, frame_i,
-                     rec.frames.size(), out.stats().fixes_fused);
+                     rec.frames.size(), core.stats().fixes_fused);
         last_pct = pct;
       }
     }
   }
   if (tty) std::fprintf(stderr, "\n");
-  result->output = out.stats();
+  result->output = core.stats();
   result->vision = vstats;
   result->simulated_time = true;
-  result->odometry_rejected_can = out.odometry_decoder().counters().rejected();
+  result->fixes_dropped_queue = pending.dropped();
+  result->odometry_rejected_can = core.odometry_decoder().counters().rejected();
   result->wall_ns = posix::monotonic_now_ns() - wall0;
   if (bus) {
     result->can = bus->stats();
     result->can_present = true;
   }
   return 0;
-}
-
-namespace {
-void line(std::string* s, const char* name, const LatencyHistogram& h) {
-  char buf[200];
-  if (h.count() == 0) {
-    std::snprintf(buf, sizeof buf, "  %-26s (no samples)\n", name);
-  } else {
-    std::snprintf(buf, sizeof buf,
-                  "  %-26s p50 %8.3f ms  p99 %8.3f ms  max %8.3f ms  (n=%" PRIu64 ")\n", name,
-                  static_cast<double>(h.percentile_ns(0.5)) / 1e6,
-                  static_cast<double>(h.percentile_ns(0.99)) / 1e6,
-                  static_cast<double>(h.max_ns()) / 1e6, h.count());
-  }
-  *s += buf;
-}
-}  // namespace
-
-std::string format_statistics(const RunResult& r) {
-  std::string s;
-  char buf[400];
-  const auto& o = r.output;
-  const auto& v = r.vision;
-  std::snprintf(buf, sizeof buf,
-                "statistics:\n  frames: delivered %" PRIu64 ", processed %" PRIu64
-                ", dropped (newest-wins) %" PRIu64 ", driver drops %" PRIu64 ", unreadable %" PRIu64
-                "\n",
-                r.camera.frames_delivered, v.frames_processed, r.frames_dropped_mailbox,
-                r.camera.frames_dropped, r.camera.errors);
-  s += buf;
-  s += "  vision results:";
-  for (int i = 0; i < kFixStatusCount; ++i) {
-    if (v.by_status[i] == 0) continue;
-    std::snprintf(buf, sizeof buf, " %s %" PRIu64,
-                  vision::to_string(static_cast<vision::FixStatus>(i)), v.by_status[i]);
-    s += buf;
-  }
-  s += "\n";
-  std::snprintf(buf, sizeof buf,
-                "  fusion: odometry %" PRIu64 " (rejected %" PRIu64 ", CAN E2E rejected %" PRIu64
-                "), fixes fused %" PRIu64 ", gated %" PRIu64 ", too old %" PRIu64
-                ", invalid %" PRIu64 ", re-initialisations %" PRIu64 "\n",
-                o.odom_samples, o.odom_rejected, r.odometry_rejected_can, o.fixes_fused,
-                o.fixes_rejected_gate, o.fixes_rejected_too_old, o.fixes_rejected_invalid,
-                o.reinitialisations);
-  s += buf;
-  std::snprintf(buf, sizeof buf,
-                "  output: ticks %" PRIu64 ", missed periods %" PRIu64 ", CAN tx ok %" PRIu64
-                ", failed %" PRIu64 ", rx %" PRIu64 "\n",
-                o.ticks, o.missed_periods, o.can_tx_ok, o.can_tx_failed, o.can_rx_frames);
-  s += buf;
-  if (r.can_present) {
-    std::snprintf(buf, sizeof buf,
-                  "  CAN bus: tx ok %" PRIu64 ", queue full %" PRIu64 ", tx errors %" PRIu64
-                  ", rx %" PRIu64 ", error frames %" PRIu64 ", bus-off %" PRIu64
-                  ", restarts %" PRIu64 "\n",
-                  r.can.tx_ok, r.can.tx_dropped_queue_full, r.can.tx_errors, r.can.rx_frames,
-                  r.can.rx_error_frames, r.can.bus_off_count, r.can.restarts);
-    s += buf;
-  }
-  s += r.simulated_time ? " latency (fast replay: only the vision times are measured; the rest "
-                          "follow from replay.fix_delay_ms and the output period):\n"
-                        : " latency:\n";
-  line(&s, "exposure -> vision start", v.exposure_to_start_ns);
-  line(&s, "vision (total)", v.vision_ns);
-  line(&s, "  detect", v.detect_ns);
-  line(&s, "  decode", v.decode_ns);
-  line(&s, "  direction", v.direction_ns);
-  line(&s, "  pose", v.pose_ns);
-  line(&s, "fusion (per period)", o.fusion_ns);
-  line(&s, "CAN send (per period)", o.can_send_ns);
-  line(&s, "end to end (exposure->CAN)", o.end_to_end_ns);
-  line(&s, "output period jitter", o.period_jitter_ns);
-  return s;
 }
 
 }  // namespace agv::app

@@ -1,7 +1,7 @@
 // The localizer loop: capture -> vision worker -> fusion -> CAN output at a fixed rate.
 // `run_threads` is the live shape (three threads, absolute-time periodic output) used by
-// `agvloc run` and `agvloc replay --realtime`; `run_fast` drives the same stages from one
-// thread in recording time as fast as the CPU allows (`agvloc replay --fast`).
+// `agvloc run` and `agvloc replay --realtime`; `run_fast` drives the same output step
+// (OutputLoop) from one thread on a stepped clock in recording time (`agvloc replay --fast`).
 #pragma once
 
 #include <atomic>
@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "agv/adapters/stepped_clock.hpp"
 #include "agv/common/landmark.hpp"
 #include "agv/common/latency_histogram.hpp"
 #include "agv/hal/camera.hpp"
@@ -17,39 +18,13 @@
 #include "agv/recording/recording.hpp"
 #include "agv/vision/landmark_localizer.hpp"
 #include "config.hpp"
-#include "output_stage.hpp"
+#include "agv/localizer/run_statistics.hpp"
+#include "output_loop.hpp"
 
 namespace agv::app {
 
-inline constexpr int kFixStatusCount = 9;
-
-struct VisionStats {
-  std::uint64_t frames_processed = 0;
-  std::uint64_t by_status[kFixStatusCount] = {};
-  LatencyHistogram exposure_to_start_ns;  // frame exposure mid-time -> vision start
-  LatencyHistogram vision_ns;             // whole vision stage
-  LatencyHistogram detect_ns, decode_ns, direction_ns, pose_ns;
-};
-
-struct FixRecord {
-  std::int64_t t_exposure_ns = 0;
-  std::int64_t t_done_ns = 0;  // when the fix was handed to fusion
-  vision::LandmarkFix fix;
-};
-
-struct RunResult {
-  OutputStats output;
-  VisionStats vision;
-  hal::CameraStats camera;
-  std::uint64_t frames_dropped_mailbox = 0;  // newest-wins replacements
-  std::uint64_t fixes_dropped_queue = 0;
-  std::uint64_t odometry_rejected_can = 0;
-  hal::CanStats can;
-  bool can_present = false;
-  std::int64_t wall_ns = 0;
-  std::string camera_error;     // last camera error, if any
-  bool simulated_time = false;  // --fast: latencies other than the vision stage are simulated
-};
+using localizer::RunResult;
+using localizer::VisionStats;
 
 struct PipelineIo {
   hal::Camera* camera = nullptr;
@@ -70,14 +45,15 @@ struct PipelineIo {
 int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& io,
                 RunResult* result);
 
-// Fast replay: frames, odometry and output ticks interleaved in recording time; each fix reaches
-// fusion cfg.replay_fix_delay_ms after its exposure. Deterministic for a recording.
+// Fast replay on a stepped clock (*clock, which the bus may also read): time advances in
+// recording time; the vision stage runs inline for frames exposed up to now; each fix arrives
+// cfg.replay_fix_delay_ms after its exposure, where with loop.pose_on_fix the output step is
+// woken as live. Deterministic for a recording.
 int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording::Recording& rec,
-             hal::CanBus* bus, std::vector<TickRecord>* ticks, std::vector<FixRecord>* fixes,
-             std::atomic<bool>* stop, RunResult* result, bool show_progress,
-             std::atomic<std::int64_t>* loop_time_ns = nullptr);
+             hal::CanBus* bus, adapters::SteppedClock* clock, std::vector<TickRecord>* ticks,
+             std::vector<FixRecord>* fixes, std::atomic<bool>* stop, RunResult* result,
+             bool show_progress);
 
-// Human-readable statistics block (printed at exit).
-std::string format_statistics(const RunResult& r);
+using localizer::format_statistics;
 
 }  // namespace agv::app

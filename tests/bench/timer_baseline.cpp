@@ -9,10 +9,10 @@
 #include <cstdio>
 #include <cstdlib>
 
+#include "agv/adapters/hybrid_wait_clock.hpp"
 #include "agv/common/latency_histogram.hpp"
 #include "agv/posix/posix_clock.hpp"
 #include "agv/posix/realtime.hpp"
-#include "hybrid_wait_clock.hpp"
 
 int main(int argc, char** argv) {
   const double rate_hz = argc > 1 ? std::atof(argv[1]) : 100.0;
@@ -35,7 +35,7 @@ int main(int argc, char** argv) {
     }
   }
   agv::posix::PosixClock mono;
-  agv::app::HybridWaitClock clock(mono, std::int64_t{spin_us} * 1000);
+  agv::adapters::HybridWaitClock clock(mono, std::int64_t{spin_us} * 1000);
   agv::LatencyHistogram jitter;
   const auto period = static_cast<std::int64_t>(1e9 / rate_hz);
   std::int64_t next = clock.now_ns() + period;

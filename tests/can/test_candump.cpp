@@ -7,7 +7,6 @@
 #include <fstream>
 
 #include "agv/can/candump_file.hpp"
-#include "agv/can/frame_convert.hpp"
 #include "agv/protocol/candump.hpp"
 #include "agv/protocol/codec.hpp"
 
@@ -119,10 +118,10 @@ TEST(CandumpLine, FormatMatchesCandumpAndRoundTrips) {
 
   // Every encoder output survives format -> parse bit-exactly.
   p::Encoder enc({});
-  p::CanFrameData xy, hd;
+  agv::hal::CanFrame xy, hd;
   for (int i = 0; i < 20; ++i) {
     enc.encode_pose({i * 1000.5, -i * 77.7, i * 0.3, 1.0, true}, &xy, &hd);
-    for (const p::CanFrameData* f : {&xy, &hd}) {
+    for (const agv::hal::CanFrame* f : {&xy, &hd}) {
       p::CandumpRecord w;
       w.t_ns = 1'700'000'000'000'000'000 + i * 1'000'000;
       w.iface = "can0";
@@ -209,9 +208,9 @@ TEST(CandumpFile, ReplayBusRecordsSentFrames) {
   agv::hal::CanFrame r;
   ASSERT_EQ(bus.receive(&r, 0), agv::hal::CanStatus::kOk);
   p::Encoder enc({});
-  p::CanFrameData v;
+  agv::hal::CanFrame v;
   enc.encode_velocity({0.5, 0.1, true}, &v);
-  EXPECT_EQ(bus.send(agv::can::to_hal(v)), agv::hal::CanStatus::kOk);
+  EXPECT_EQ(bus.send(v), agv::hal::CanStatus::kOk);
   ASSERT_TRUE(w.close());
   std::vector<p::CandumpRecord> out;
   ASSERT_TRUE(agv::can::read_candump_file(path, &out, nullptr));

@@ -22,7 +22,7 @@ const p::SignalDef& sig(p::Msg m, const char* name) {
 }
 
 p::PoseOut roundtrip(p::Encoder& enc, const p::PoseOut& in, const p::ProtocolConfig& cfg = {}) {
-  p::CanFrameData xy, hd;
+  agv::hal::CanFrame xy, hd;
   enc.encode_pose(in, &xy, &hd);
   p::PoseOut out;
   EXPECT_TRUE(p::decode_pose(cfg, xy, hd, &out));
@@ -30,9 +30,9 @@ p::PoseOut roundtrip(p::Encoder& enc, const p::PoseOut& in, const p::ProtocolCon
 }
 
 // A frame for the odometry decoder, with E2E like a motor controller would send it.
-p::CanFrameData odom_frame(const p::ProtocolConfig& cfg, double a, double b, std::uint8_t counter,
-                           std::int64_t t_ns) {
-  p::CanFrameData f;
+agv::hal::CanFrame odom_frame(const p::ProtocolConfig& cfg, double a, double b,
+                              std::uint8_t counter, std::int64_t t_ns) {
+  agv::hal::CanFrame f;
   p::encode_odometry(cfg, a, b, counter, &f);
   f.t_ns = t_ns;
   return f;
@@ -152,7 +152,7 @@ TEST(Codec, HeadingIsWrappedBeforeEncoding) {
 
 TEST(Codec, PosePairSharesTheCounterAndCountersWrap) {
   p::Encoder enc({});
-  p::CanFrameData xy, hd;
+  agv::hal::CanFrame xy, hd;
   for (int i = 0; i < 40; ++i) {
     enc.encode_pose({1, 2, 0.1, 0, true}, &xy, &hd);
     EXPECT_EQ(xy.data[1] & 0x0F, i % 15);
@@ -161,11 +161,11 @@ TEST(Codec, PosePairSharesTheCounterAndCountersWrap) {
     EXPECT_EQ(hd.data[0], p::e2e_crc(p::message_def(p::Msg::kPoseHeading).data_id, hd.data));
   }
   // Counters are per message: the velocity frame starts at 0.
-  p::CanFrameData v;
+  agv::hal::CanFrame v;
   enc.encode_velocity({1, 1, true}, &v);
   EXPECT_EQ(v.data[1] & 0x0F, 0);
   // A mismatched pair (counters differ) decodes as invalid.
-  p::CanFrameData xy2, hd2;
+  agv::hal::CanFrame xy2, hd2;
   enc.encode_pose({1, 2, 0.1, 0, true}, &xy2, &hd2);
   p::PoseOut out;
   ASSERT_TRUE(p::decode_pose({}, xy, hd2, &out));
@@ -175,7 +175,7 @@ TEST(Codec, PosePairSharesTheCounterAndCountersWrap) {
 // The worked example of docs/can.md, byte for byte.
 TEST(Codec, DocumentedPoseExample) {
   p::Encoder enc({});
-  p::CanFrameData xy, hd;
+  agv::hal::CanFrame xy, hd;
   enc.encode_pose({1000.0, 2000.0, 0.0, 0.0, true}, &xy, &hd);
   const std::uint8_t expected[8] = {0xD3, 0x10, 0x10, 0x27, 0x00, 0x20, 0x4E, 0x00};
   EXPECT_EQ(xy.id, 0x300u);
@@ -185,7 +185,7 @@ TEST(Codec, DocumentedPoseExample) {
 TEST(Codec, IdsStandardAndExtended) {
   p::ProtocolConfig cfg;
   p::Encoder enc(cfg);
-  p::CanFrameData f, g;
+  agv::hal::CanFrame f, g;
   enc.encode_pose({}, &f, &g);
   EXPECT_EQ(f.id, 0x300u);
   EXPECT_EQ(g.id, 0x301u);
@@ -218,16 +218,13 @@ TEST(Codec, ValidateRejectsBadConfigs) {
   cfg.odometry.track_width_mm = 0.0;
   EXPECT_NE(p::validate(cfg), "");
   cfg = {};
-  cfg.odometry.timeout_ns = 0;
-  EXPECT_NE(p::validate(cfg), "");
-  cfg = {};
   cfg.odometry.max_delta_counter = 15;
   EXPECT_NE(p::validate(cfg), "");
 }
 
 TEST(Codec, VelocityQualityRoundTripAndSaturation) {
   p::Encoder enc({});
-  p::CanFrameData f;
+  agv::hal::CanFrame f;
   p::VelocityOut v;
   enc.encode_velocity({1.2345, -0.54321, true}, &f);
   ASSERT_TRUE(p::decode_velocity({}, f, &v));
@@ -262,7 +259,7 @@ TEST(Codec, VelocityQualityRoundTripAndSaturation) {
 
 TEST(Codec, StatusFlagsAndTimeSinceFix) {
   p::Encoder enc({});
-  p::CanFrameData f;
+  agv::hal::CanFrame f;
   p::StatusOut s;
   s.health = p::Health::kDegraded;
   s.last_landmark_id = 65535;
@@ -294,7 +291,7 @@ TEST(Codec, StatusFlagsAndTimeSinceFix) {
 
 TEST(Codec, HeartbeatCarriesVersions) {
   p::Encoder enc({});
-  p::CanFrameData f;
+  agv::hal::CanFrame f;
   enc.encode_heartbeat({1, 2, 3, 86400.9}, &f);
   p::HeartbeatOut h;
   int pv = -1;
@@ -311,7 +308,7 @@ TEST(Codec, HeartbeatCarriesVersions) {
 
 TEST(Codec, DecodersRejectOtherFrames) {
   p::Encoder enc({});
-  p::CanFrameData f;
+  agv::hal::CanFrame f;
   enc.encode_velocity({}, &f);
   p::QualityOut q;
   EXPECT_FALSE(p::decode_quality({}, f, &q));
@@ -349,7 +346,7 @@ TEST(Odometry, TwistModeWithScalesAndConfiguredId) {
   ASSERT_EQ(p::validate(cfg), "");
   p::OdometryDecoder dec(cfg);
   p::OdomSample s;
-  p::CanFrameData f = odom_frame(cfg, -1.5, 0.25, 0, 5);
+  agv::hal::CanFrame f = odom_frame(cfg, -1.5, 0.25, 0, 5);
   EXPECT_EQ(f.id, 0x1A0u);
   ASSERT_EQ(dec.decode(f, &s), p::DecodeResult::kOk);
   EXPECT_NEAR(s.v_mps, -1.5 * 1.02, 1e-9);
@@ -366,7 +363,7 @@ TEST(Odometry, MalformedFramesAreRejectedAndCounted) {
   s.v_mps = 42.0;
   ASSERT_EQ(dec.decode(odom_frame(cfg, 1, 1, 0, 10), &s), p::DecodeResult::kOk);
   s.v_mps = 42.0;
-  p::CanFrameData f = odom_frame(cfg, 2, 2, 1, 20);
+  agv::hal::CanFrame f = odom_frame(cfg, 2, 2, 1, 20);
   f.len = 6;
   EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kBadLength);
   f = odom_frame(cfg, 2, 2, 1, 20);
@@ -401,32 +398,13 @@ TEST(Odometry, UnprotectedModeIgnoresCrcAndCounter) {
   cfg.odometry.protected_e2e = false;
   p::OdometryDecoder dec(cfg);
   p::OdomSample s;
-  p::CanFrameData f = odom_frame(cfg, 0.5, 0.5, 3, 10);
+  agv::hal::CanFrame f = odom_frame(cfg, 0.5, 0.5, 3, 10);
   f.data[0] = 0;  // no CRC
   EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kOk);
   f.t_ns = 20;
   EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kOk);  // same counter: fine when unprotected
   f.len = 4;
   EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kBadLength);
-}
-
-TEST(Odometry, TimeoutIsAPureFunctionOfNow) {
-  p::ProtocolConfig cfg;
-  cfg.odometry.timeout_ns = 100'000'000;
-  p::OdometryDecoder dec(cfg);
-  EXPECT_TRUE(dec.timed_out(0));  // nothing received yet
-  p::OdomSample s;
-  ASSERT_EQ(dec.decode(odom_frame(cfg, 0, 0, 0, 1'000'000'000), &s), p::DecodeResult::kOk);
-  EXPECT_FALSE(dec.timed_out(1'000'000'000));
-  EXPECT_FALSE(dec.timed_out(1'100'000'000));
-  EXPECT_TRUE(dec.timed_out(1'100'000'001));
-  // Rejected frames do not keep it alive.
-  p::CanFrameData f = odom_frame(cfg, 0, 0, 1, 1'090'000'000);
-  f.data[0] ^= 1;
-  dec.decode(f, &s);
-  EXPECT_TRUE(dec.timed_out(1'150'000'000));
-  ASSERT_EQ(dec.decode(odom_frame(cfg, 0, 0, 1, 1'140'000'000), &s), p::DecodeResult::kOk);
-  EXPECT_FALSE(dec.timed_out(1'150'000'000));
 }
 
 TEST(Odometry, CustomDataIdIsUsedForTheCrc) {
@@ -436,6 +414,6 @@ TEST(Odometry, CustomDataIdIsUsedForTheCrc) {
   p::OdomSample s;
   EXPECT_EQ(dec.decode(odom_frame(cfg, 1, 1, 0, 1), &s), p::DecodeResult::kOk);
   p::ProtocolConfig other;  // default data ID: the CRC no longer matches
-  p::CanFrameData f = odom_frame(other, 1, 1, 1, 2);
+  agv::hal::CanFrame f = odom_frame(other, 1, 1, 1, 2);
   EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kBadCrc);
 }

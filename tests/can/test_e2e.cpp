@@ -12,8 +12,8 @@ std::uint8_t crc(const std::vector<std::uint8_t>& v) {
   return p::crc8_sae_j1850(v.data(), v.size());
 }
 
-p::CanFrameData protected_frame(std::uint16_t data_id, std::uint8_t counter, std::uint8_t fill) {
-  p::CanFrameData f;
+agv::hal::CanFrame protected_frame(std::uint16_t data_id, std::uint8_t counter, std::uint8_t fill) {
+  agv::hal::CanFrame f;
   f.len = 8;
   for (int i = 2; i < 8; ++i) f.data[i] = static_cast<std::uint8_t>(fill + i);
   p::e2e_protect(data_id, counter, f.data);
@@ -93,20 +93,20 @@ TEST(E2eChecker, MaxDeltaOneRejectsAnyLoss) {
 
 TEST(E2eChecker, CorruptionWrongDataIdLengthAndCounter15) {
   p::E2eChecker c({0x4C10, 3});
-  p::CanFrameData f = protected_frame(0x4C10, 0, 0);
+  agv::hal::CanFrame f = protected_frame(0x4C10, 0, 0);
   for (int byte = 0; byte < 8; ++byte) {
     for (int bit = 0; bit < 8; ++bit) {
-      p::CanFrameData g = f;
+      agv::hal::CanFrame g = f;
       g.data[byte] ^= static_cast<std::uint8_t>(1u << bit);
       EXPECT_EQ(c.check(g), p::E2eStatus::kBadCrc) << "byte " << byte << " bit " << bit;
     }
   }
   EXPECT_EQ(c.counters().bad_crc, 64u);
   EXPECT_EQ(c.check(protected_frame(0x4C11, 0, 0)), p::E2eStatus::kBadCrc);  // masquerade
-  p::CanFrameData s = f;
+  agv::hal::CanFrame s = f;
   s.len = 7;
   EXPECT_EQ(c.check(s), p::E2eStatus::kBadLength);
-  p::CanFrameData bad = f;
+  agv::hal::CanFrame bad = f;
   bad.data[1] = static_cast<std::uint8_t>((bad.data[1] & 0xF0) | 15);
   bad.data[0] = p::e2e_crc(0x4C10, bad.data);
   EXPECT_EQ(c.check(bad), p::E2eStatus::kBadCounter);

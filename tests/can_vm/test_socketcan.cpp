@@ -18,7 +18,6 @@
 #include <string>
 #include <vector>
 
-#include "agv/can/frame_convert.hpp"
 #include "agv/can/socketcan.hpp"
 #include "agv/protocol/codec.hpp"
 
@@ -412,16 +411,16 @@ void test_protocol_over_bus(SocketCanBus& a, SocketCanBus& b) {
   p::E2eChecker chk({p::message_def(p::Msg::kPoseXY).data_id, 1});
   for (int i = 0; i < 30; ++i) {
     p::PoseOut pose{1000.0 * i, -5.5 * i, 0.01 * i, 1.0, true};
-    p::CanFrameData xy, hd;
+    agv::hal::CanFrame xy, hd;
     enc.encode_pose(pose, &xy, &hd);
-    ok &= check(a.send(agv::can::to_hal(xy)) == CanStatus::kOk, t, "send xy");
-    ok &= check(a.send(agv::can::to_hal(hd)) == CanStatus::kOk, t, "send heading");
+    ok &= check(a.send(xy) == CanStatus::kOk, t, "send xy");
+    ok &= check(a.send(hd) == CanStatus::kOk, t, "send heading");
   }
   int checked = 0;
   CanFrame r;
   while (b.receive(&r, 100'000'000) == CanStatus::kOk) {
     if (r.id != pc.base_id) continue;
-    const p::E2eStatus s = chk.check(agv::can::from_hal(r));
+    const p::E2eStatus s = chk.check(r);
     ok &= check(p::e2e_accepted(s), t, "frame %d rejected: %s", checked, p::to_string(s));
     ++checked;
   }

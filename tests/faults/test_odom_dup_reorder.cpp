@@ -1,12 +1,12 @@
 // Fault class "duplicated and reordered odometry" of the fault-replay suite
 // (tests/faults/README.md). A recording cannot hold it (odom.csv must be strictly increasing), so
-// this drives OutputStage directly: the simulator's lawnmower odometry (1 m/s, default errors,
-// period means) goes over the fake CAN bus as E2E-protected frames, some duplicated and some pairs
-// swapped inside a fault window that contains a turn, with landmark fixes synthesized from the
-// truth (vision-like noise, handed over 30 ms after exposure as `replay --fast` does). The same
-// assertions as run_faults.py: no localized pose > 50 mm off the truth, recovery <= 0.5 s after the
-// window when a landmark is in view by then, >= 99 % of ticks within 3 sigma and normalised-error
-// RMS >= 0.2.
+// this drives the localizer core directly: the simulator's lawnmower odometry (1 m/s, default
+// errors, period means) goes over the fake CAN bus as E2E-protected frames, some duplicated and
+// some pairs swapped inside a fault window that contains a turn, with landmark fixes synthesized
+// from the truth (vision-like noise, handed over 30 ms after exposure as `replay --fast` does). The
+// same assertions as run_faults.py: no localized pose > 50 mm off the truth, recovery <= 0.5 s
+// after the window when a landmark is in view by then, >= 99 % of ticks within 3 sigma and
+// normalised-error RMS >= 0.2.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -16,12 +16,12 @@
 #include <vector>
 
 #include "agv/can/fake_can.hpp"
-#include "agv/can/frame_convert.hpp"
+#include "agv/localizer/localizer.hpp"
 #include "agv/protocol/codec.hpp"
 #include "agv/sim/render.hpp"
 #include "agv/sim/trajectory.hpp"
 #include "config.hpp"
-#include "output_stage.hpp"
+#include "output_loop.hpp"
 
 using namespace agv;
 
@@ -107,14 +107,15 @@ Result run(OdomFault fault) {
   can::FakeCanNetwork net;
   auto controller = net.create_endpoint(16);  // pose frames sent back to it are dropped: fine
   auto localizer = net.create_endpoint(256);
-  app::OutputStage out(cfg, localizer.get());
+  localizer::Localizer out(app::localizer_config(cfg));
+  localizer::OutFrames frames;
 
   auto frame_for = [&](std::int64_t k) {
     const std::int64_t t = k * kPeriodNs;
     const sim::OdometrySample o = sim::odometry_sample(op, slips, traj, t);
-    protocol::CanFrameData f;
+    agv::hal::CanFrame f;
     protocol::encode_odometry(pc, o.v_mps, o.omega_radps, static_cast<std::uint8_t>(k % 15), &f);
-    return can::to_hal(f);
+    return f;
   };
   auto send_at = [&](std::int64_t t_ns, const hal::CanFrame& f) {
     net.set_time_ns(t_ns);
@@ -141,13 +142,14 @@ Result run(OdomFault fault) {
     } else {
       send_at(rx_ns, frame_for(k));
     }
-    out.poll_can();
+    hal::CanFrame rx;
+    while (localizer->receive(&rx, 0) == hal::CanStatus::kOk) out.on_can_frame(rx);
     while (next_fix < fixes.size() && fixes[next_fix].t_ns + kFixDelayNs <= kT0Ns + t) {
       out.on_fix(fixes[next_fix].fix, fixes[next_fix].t_ns);
       ++next_fix;
     }
     app::TickRecord rec;
-    out.tick(kT0Ns + t, nullptr, &rec);
+    out.tick(kT0Ns + t, &frames, &rec);
     const fusion::PoseEstimate& e = rec.estimate;
     if (!e.valid) continue;
     const Pose2 truth = sim::trajectory_state(traj, t).pose;

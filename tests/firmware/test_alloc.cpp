@@ -1,15 +1,14 @@
-// Proves the steady-state output loop (CAN odometry in, fixes in, fusion, CAN out every period)
-// does not touch the heap once warmed up. Global operator new is replaced in this binary only.
+// Proves the steady-state output loop (CAN odometry in, fixes in, fusion, CAN out every period,
+// fix-triggered poses) does not touch the heap once warmed up. Global operator new is replaced
+// in this binary only.
 #include <gtest/gtest.h>
 
 #include <atomic>
 #include <cstdlib>
 #include <new>
 
-#include "agv/can/frame_convert.hpp"
 #include "agv/protocol/codec.hpp"
 #include "config.hpp"
-#include "output_stage.hpp"
 #include "test_loop_support.hpp"
 
 namespace {
@@ -48,17 +47,16 @@ TEST(SteadyStateLoop, NoHeapAllocationAfterWarmUp) {
   cfg.can.odometry_mode = "v_omega";
   const protocol::ProtocolConfig pc = config::protocol_config(cfg);
   test::StaticBus bus;
-  app::OutputStage out(cfg, &bus);
+  test::CoreHarness out(cfg, &bus);
 
   // Motor-controller odometry frames, encoded with the same protocol (twist mode, E2E).
   std::uint8_t counter = 0;
   auto odom_frame = [&](std::int64_t t_ns, double v, double w) {
-    protocol::CanFrameData f;
+    agv::hal::CanFrame f;
     protocol::encode_odometry(pc, v, w, counter, &f);
     counter = static_cast<std::uint8_t>((counter + 1) % 15);
-    hal::CanFrame h = can::to_hal(f);
-    h.t_ns = t_ns;
-    return h;
+    f.t_ns = t_ns;
+    return f;
   };
 
   vision::LandmarkFix fix;
@@ -77,10 +75,11 @@ TEST(SteadyStateLoop, NoHeapAllocationAfterWarmUp) {
       if (i % 30 == 0) {
         const double x_mm = static_cast<double>(t - 1'000'000'000) * 1e-6;  // 1 m/s along x
         fix.vehicle_in_world = {x_mm - 5.0, 0.0, 0.0};
-        out.on_fix(fix, t - 5'000'000);
+        // Through the vision -> output hand-off and the fix-triggered pose (pose_on_fix).
+        ASSERT_TRUE(out.fix_arrives(fix, t - 5'000'000, t - 500'000));
       }
       app::TickRecord rec;
-      out.tick(t, nullptr, &rec);
+      out.tick(t, &rec);
       if (bus.sent_n > 3000) bus.clear_sent();
       if (bus.rx_n > 3000) bus.rx_n = bus.rx_head = 0;
     }
@@ -94,6 +93,7 @@ TEST(SteadyStateLoop, NoHeapAllocationAfterWarmUp) {
   g_counting = false;
   EXPECT_EQ(g_allocs.load(), 0) << "heap allocations in 1000 steady-state periods";
   EXPECT_GT(out.stats().fixes_fused, 35u);
+  EXPECT_GT(out.stats().fix_poses, 35u);
   EXPECT_EQ(out.odometry_decoder().counters().rejected(), 0u);
 }
 

@@ -13,6 +13,7 @@
 
 #include "agv/config/keys.hpp"
 #include "config.hpp"
+#include "output_loop.hpp"
 
 using agv::config::Config;
 
@@ -499,7 +500,10 @@ TEST(Config, OneOdometryTimeout) {
   ASSERT_TRUE(agv::config::parse_config(
       std::string(kIntrinsics) + "can:\n  odometry:\n    timeout_ms: 250\n", "", &cfg, &errors));
   EXPECT_DOUBLE_EQ(cfg.can.odometry_timeout_ms, 250.0);
-  EXPECT_EQ(agv::config::protocol_config(cfg).odometry.timeout_ns, 250'000'000);
+  // The localizer's output policy and its filter both take the one key.
+  const auto lc = agv::app::localizer_config(cfg);
+  EXPECT_EQ(lc.odometry_timeout_ns, 250'000'000);
+  EXPECT_EQ(lc.fusion.odom_timeout_ns, 250'000'000);
   EXPECT_EQ(cfg.fusion.odom_timeout_ns, 250'000'000);  // the filter's flag follows the same key
   const auto e = errors_for(std::string(kIntrinsics) + "fusion:\n  odom_timeout_ms: 100\n");
   EXPECT_TRUE(mentions(e, "fusion.odom_timeout_ms: removed key; use can.odometry.timeout_ms"));

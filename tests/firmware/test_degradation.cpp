@@ -4,12 +4,10 @@
 
 #include <vector>
 
-#include "agv/can/frame_convert.hpp"
 #include "agv/fakecamera/fake_camera.hpp"
 #include "agv/posix/posix_clock.hpp"
 #include "agv/protocol/codec.hpp"
 #include "config.hpp"
-#include "output_stage.hpp"
 #include "pipeline.hpp"
 #include "test_loop_support.hpp"
 
@@ -29,7 +27,7 @@ config::Config test_config() {
 bool last_status(const config::Config& cfg, const test::StaticBus& bus, p::StatusOut* st) {
   const p::ProtocolConfig pc = config::protocol_config(cfg);
   for (std::size_t i = bus.sent_n; i-- > 0;) {
-    const p::CanFrameData f = can::from_hal(bus.sent[i]);
+    const agv::hal::CanFrame f = bus.sent[i];
     if (p::identify(pc, f) == p::Msg::kStatus) return p::decode_status(pc, f, st);
   }
   return false;
@@ -38,10 +36,10 @@ bool last_status(const config::Config& cfg, const test::StaticBus& bus, p::Statu
 bool last_pose_valid(const config::Config& cfg, const test::StaticBus& bus) {
   const p::ProtocolConfig pc = config::protocol_config(cfg);
   for (std::size_t i = bus.sent_n; i-- > 1;) {
-    const p::CanFrameData b = can::from_hal(bus.sent[i]);
+    const agv::hal::CanFrame b = bus.sent[i];
     if (p::identify(pc, b) != p::Msg::kPoseHeading) continue;
     p::PoseOut pose;
-    EXPECT_TRUE(p::decode_pose(pc, can::from_hal(bus.sent[i - 1]), b, &pose));
+    EXPECT_TRUE(p::decode_pose(pc, bus.sent[i - 1], b, &pose));
     return pose.valid;
   }
   ADD_FAILURE() << "no pose frame sent";
@@ -60,12 +58,11 @@ vision::LandmarkFix good_fix(double x_mm) {
 
 hal::CanFrame odom(const config::Config& cfg, std::int64_t t_ns, double v, std::uint8_t counter,
                    bool corrupt = false) {
-  p::CanFrameData f;
+  agv::hal::CanFrame f;
   p::encode_odometry(config::protocol_config(cfg), v, 0.0, counter, &f);
   if (corrupt) f.data[3] ^= 0x10;
-  hal::CanFrame h = can::to_hal(f);
-  h.t_ns = t_ns;
-  return h;
+  f.t_ns = t_ns;
+  return f;
 }
 
 }  // namespace
@@ -73,14 +70,14 @@ hal::CanFrame odom(const config::Config& cfg, std::int64_t t_ns, double v, std::
 TEST(Degradation, OdometryLossFlagsAndInvalidatesThePoseThenRecovers) {
   const config::Config cfg = test_config();
   test::StaticBus bus;
-  app::OutputStage out(cfg, &bus);
+  test::CoreHarness out(cfg, &bus);
   std::int64_t t = 1'000'000'000;
   std::uint8_t c = 0;
   auto tick = [&](bool with_odom) {
     t += 10'000'000;
     if (with_odom) bus.inject(odom(cfg, t - 1'000'000, 0.5, c++ % 15));
     out.poll_can();
-    out.tick(t, nullptr, nullptr);
+    out.tick(t, nullptr);
   };
   for (int i = 0; i < 20; ++i) tick(true);
   const std::int64_t t_fix0 = t;
@@ -113,14 +110,14 @@ TEST(Degradation, OdometryLossFlagsAndInvalidatesThePoseThenRecovers) {
 TEST(Degradation, GarbageOdometryFramesAreRejectedCountedAndFlagged) {
   const config::Config cfg = test_config();
   test::StaticBus bus;
-  app::OutputStage out(cfg, &bus);
+  test::CoreHarness out(cfg, &bus);
   std::int64_t t = 1'000'000'000;
   std::uint8_t c = 0;
   for (int i = 0; i < 10; ++i) {
     t += 10'000'000;
     bus.inject(odom(cfg, t, 0.5, c++ % 15));
     out.poll_can();
-    out.tick(t, nullptr, nullptr);
+    out.tick(t, nullptr);
   }
   t += 10'000'000;
   bus.inject(odom(cfg, t, 3.0, c % 15, /*corrupt=*/true));
@@ -128,7 +125,7 @@ TEST(Degradation, GarbageOdometryFramesAreRejectedCountedAndFlagged) {
   short_frame.len = 5;
   bus.inject(short_frame);
   out.poll_can();
-  out.tick(t, nullptr, nullptr);
+  out.tick(t, nullptr);
   EXPECT_EQ(out.odometry_decoder().counters().bad_crc, 1u);
   EXPECT_EQ(out.odometry_decoder().counters().bad_length, 1u);
   EXPECT_EQ(out.stats().odom_samples, 10u);  // neither reached fusion
@@ -140,15 +137,15 @@ TEST(Degradation, GarbageOdometryFramesAreRejectedCountedAndFlagged) {
 TEST(Degradation, CanSendFailureIsCountedAndTheLoopKeepsRunning) {
   const config::Config cfg = test_config();
   test::StaticBus bus;
-  app::OutputStage out(cfg, &bus);
+  test::CoreHarness out(cfg, &bus);
   std::int64_t t = 1'000'000'000;
   bus.fail_sends = true;
-  for (int i = 0; i < 50; ++i) out.tick(t += 10'000'000, nullptr, nullptr);
+  for (int i = 0; i < 50; ++i) out.tick(t += 10'000'000, nullptr);
   EXPECT_EQ(out.stats().ticks, 50u);
   EXPECT_GE(out.stats().can_tx_failed, 250u);  // 5 frames per period, heartbeat extra
   EXPECT_EQ(out.stats().can_tx_ok, 0u);
   bus.fail_sends = false;
-  out.tick(t += 10'000'000, nullptr, nullptr);
+  out.tick(t += 10'000'000, nullptr);
   EXPECT_GE(out.stats().can_tx_ok, 5u);
   p::StatusOut st;
   ASSERT_TRUE(last_status(cfg, bus, &st));
@@ -157,9 +154,9 @@ TEST(Degradation, CanSendFailureIsCountedAndTheLoopKeepsRunning) {
 TEST(Degradation, BusOffIsReportedInTheStatusFrame) {
   const config::Config cfg = test_config();
   test::StaticBus bus;
-  app::OutputStage out(cfg, &bus);
+  test::CoreHarness out(cfg, &bus);
   bus.bus_state = hal::CanBusState::kErrorPassive;
-  out.tick(1'000'000'000, nullptr, nullptr);
+  out.tick(1'000'000'000, nullptr);
   p::StatusOut st;
   ASSERT_TRUE(last_status(cfg, bus, &st));
   EXPECT_NE(st.faults & p::fault::kCanErrorPassive, 0);
@@ -212,20 +209,25 @@ TEST(Degradation, CameraStallIsFlaggedWhileTheLoopKeepsRunning) {
   EXPECT_GT(r.output.ticks, 100u);
 }
 
-TEST(OutputStage, PoseOnFixSendsThePoseWithoutWaitingForThePeriod) {
+TEST(OutputLoop, PoseOnFixSendsThePoseWithoutWaitingForThePeriod) {
   const config::Config cfg = test_config();
   test::StaticBus bus;
-  app::OutputStage out(cfg, &bus);
+  test::CoreHarness out(cfg, &bus);
   std::int64_t t = 1'000'000'000;
   for (int i = 0; i < 10; ++i) {
     out.on_odometry(t += 10'000'000, 0.5, 0.0);
-    out.tick(t, nullptr, nullptr);
+    out.tick(t, nullptr);
   }
   const std::size_t before = bus.sent_n;
   out.on_odometry(t + 2'000'000, 0.5, 0.0);
-  out.on_fix(good_fix(0.0), t + 1'000'000);
-  out.send_pose_now(t + 3'000'000, nullptr);
+  ASSERT_TRUE(out.fix_arrives(good_fix(0.0), t + 1'000'000, t + 3'000'000));
   ASSERT_EQ(bus.sent_n, before + 2);  // exactly the pose pair
+  EXPECT_EQ(out.stats().fix_poses, 1u);
+  // A failed fix wakes nothing and sends nothing.
+  vision::LandmarkFix bad = good_fix(0.0);
+  bad.status = vision::FixStatus::kQrUnreadable;
+  EXPECT_FALSE(out.fix_arrives(bad, t + 4'000'000, t + 5'000'000));
+  EXPECT_EQ(bus.sent_n, before + 2);
   EXPECT_TRUE(last_pose_valid(cfg, bus));
   ASSERT_EQ(out.stats().end_to_end_ns.count(), 1u);
   EXPECT_EQ(out.stats().end_to_end_ns.max_ns(), 2'000'000);  // exposure -> send
@@ -235,13 +237,13 @@ TEST(Degradation, FixExposedAfterItArrivedIsRejectedNotFused) {
   // A camera clock that jumped ahead stamps frames in the future of the loop's clock.
   const config::Config cfg = test_config();
   test::StaticBus bus;
-  app::OutputStage out(cfg, &bus);
+  test::CoreHarness out(cfg, &bus);
   std::int64_t t = 1'000'000'000;
   for (std::uint8_t c = 0; c < 10; ++c) {
     t += 10'000'000;
     bus.inject(odom(cfg, t, 0.5, c));
     out.poll_can();
-    out.tick(t, nullptr, nullptr);
+    out.tick(t, nullptr);
   }
   out.on_fix(good_fix(0.0), t + 5'000'000, t);
   EXPECT_EQ(out.stats().fixes_rejected_invalid, 1u);

@@ -1,10 +1,14 @@
-// Test doubles for the loop tests: a fixed-capacity CAN bus that never allocates.
+// Test doubles for the loop tests: a fixed-capacity CAN bus that never allocates, and the
+// localizer core driven through the firmware's output step on a stepped clock.
 #pragma once
 
 #include <array>
 #include <cstddef>
 
+#include "agv/adapters/stepped_clock.hpp"
 #include "agv/hal/can_bus.hpp"
+#include "config.hpp"
+#include "output_loop.hpp"
 
 namespace agv::test {
 
@@ -48,6 +52,45 @@ class StaticBus final : public hal::CanBus {
 
  private:
   hal::CanStats stats_;
+};
+
+// The core plus the output step (the one CAN writer) on a stepped clock: what every mode runs.
+class CoreHarness {
+ public:
+  CoreHarness(const config::Config& cfg, hal::CanBus* bus)
+      : core_(app::localizer_config(cfg)), loop_(core_, bus, clock_, nullptr, fixes_, 0) {}
+  void on_odometry(std::int64_t t_ns, double v, double w) { core_.on_odometry(t_ns, v, w); }
+  // Drains the bus into the core.
+  void poll_can() { loop_.take_inputs(INT64_MIN); }
+  void on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure_ns,
+              std::int64_t t_arrival_ns = INT64_MAX) {
+    core_.on_fix(fix, t_exposure_ns, t_arrival_ns);
+  }
+  // A fix handed over by the vision worker, ready at t_arrival_ns (pose_on_fix path).
+  bool fix_arrives(const vision::LandmarkFix& fix, std::int64_t t_exposure_ns,
+                   std::int64_t t_arrival_ns) {
+    app::FixRecord r;
+    r.fix = fix;
+    r.t_exposure_ns = t_exposure_ns;
+    r.t_done_ns = t_arrival_ns;
+    fixes_.push(r);
+    clock_.sleep_until_ns(t_arrival_ns);
+    return loop_.on_wake(t_arrival_ns);
+  }
+  void tick(std::int64_t t_ns, app::TickRecord* rec = nullptr,
+            const app::CameraState& cam = app::CameraState{}) {
+    clock_.sleep_until_ns(t_ns);
+    loop_.tick(t_ns, cam, rec);
+  }
+  const localizer::OutputStats& stats() const { return core_.stats(); }
+  const fusion::Ekf& ekf() const { return core_.ekf(); }
+  const protocol::OdometryDecoder& odometry_decoder() const { return core_.odometry_decoder(); }
+
+ private:
+  adapters::SteppedClock clock_;
+  localizer::Localizer core_;
+  app::FixRing fixes_;
+  app::OutputLoop loop_;
 };
 
 }  // namespace agv::test

@@ -181,7 +181,7 @@ TEST(Recording, MalformedCsvRejectedWithFileAndLine) {
       {"odom.csv", "t_ns,v_mps,omega_radps\n1, 0.5,0.1\n", "odom.csv:2:"},
       {"odom.csv", "t_ns,v_mps\n1,0.5\n", "odom.csv:1:"},
       {"odom.csv", "t_ns,v_mps,omega_radps\n99999999999999999999,0.5,0.1\n", "odom.csv:2:"},
-      {"odom.csv", std::string("t_ns,v_mps,omega_radps\n1,0.5,0.1\n2,0.\0,0.1\n", 46),
+      {"odom.csv", std::string("t_ns,v_mps,omega_radps\n1,0.5,0.1\n2,0.\0,0.1\n", 43),
        "odom.csv:3:"},
       {"truth.csv", "t_ns,x_mm,y_mm,theta_deg\n1,0,0,-180\n", "truth.csv:2:"},
       {"truth.csv", "t_ns,x_mm,y_mm,theta_deg\n1,0,0,0\n2,0,0,0\n0,0,0,0\n", "truth.csv:4:"},

@@ -14,7 +14,7 @@ rm -rf "$WORK"
 mkdir -p "$WORK"
 fail() { echo "FAIL: $*"; exit 1; }
 
-for c in sim landmark report; do
+for c in sim landmark report calibrate sim-board; do
   rc=0
   "${AGVLOC[@]}" "$c" --out "$WORK/x" > "$WORK/$c.out" 2> "$WORK/$c.err" || rc=$?
   [ "$rc" = 2 ] || fail "agvloc $c exited $rc, expected 2"

@@ -31,7 +31,7 @@ struct Expect {
 };
 
 struct Item {
-  p::CanFrameData frame;
+  agv::hal::CanFrame frame;
   std::vector<Expect> expect;
 };
 
@@ -49,7 +49,7 @@ Expect expect_phys(p::Msg m, const char* name, double phys) {
 }
 Expect exact(const char* name, double v) { return {name, v, 1e-9}; }
 
-std::string json_line(const p::CanFrameData& f, const std::vector<Expect>& ex) {
+std::string json_line(const agv::hal::CanFrame& f, const std::vector<Expect>& ex) {
   std::string s = "{\"id\":" + std::to_string(f.id) +
                   ",\"extended\":" + (f.extended ? "true" : "false") + ",\"signals\":{";
   char buf[128];
@@ -202,7 +202,7 @@ int same_frames(const char* a_path, const char* b_path) {
     return 1;
   }
   for (std::size_t i = 0; i < a.size(); ++i) {
-    const p::CanFrameData &x = a[i].frame, &y = b[i].frame;
+    const agv::hal::CanFrame &x = a[i].frame, &y = b[i].frame;
     if (x.id != y.id || x.extended != y.extended || x.len != y.len ||
         std::memcmp(x.data, y.data, x.len) != 0 || a[i].rtr != b[i].rtr) {
       std::fprintf(stderr, "frame %zu differs\n", i + 1);

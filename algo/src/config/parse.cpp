@@ -167,7 +167,6 @@ protocol::ProtocolConfig protocol_config(const Config& cfg) {
   p.odometry.protected_e2e = cfg.can.odometry_protected;
   p.odometry.track_width_mm = cfg.can.track_width_mm;
   p.odometry.speed_scale = cfg.can.wheel_speed_scale;
-  p.odometry.timeout_ns = static_cast<std::int64_t>(cfg.can.odometry_timeout_ms * 1e6);
   return p;
 }
 

@@ -58,7 +58,6 @@ std::string validate(const ProtocolConfig& cfg) {
       cfg.odometry.speed_scale == 0.0 || cfg.odometry.omega_scale == 0.0) {
     return "odometry speed_scale/omega_scale must be finite and non-zero";
   }
-  if (cfg.odometry.timeout_ns <= 0) return "odometry.timeout_ns must be > 0";
   if (cfg.odometry.max_delta_counter < 1 || cfg.odometry.max_delta_counter > 14) {
     return "odometry.max_delta_counter must be 1..14";
   }
@@ -82,20 +81,20 @@ bool is_extended(const ProtocolConfig& cfg, Msg m) {
 
 Encoder::Encoder(const ProtocolConfig& cfg) : cfg_(cfg) {}
 
-void Encoder::begin(Msg m, CanFrameData* out) const {
-  *out = CanFrameData{};
+void Encoder::begin(Msg m, hal::CanFrame* out) const {
+  *out = hal::CanFrame{};
   out->id = can_id_of(cfg_, m);
   out->extended = cfg_.extended_ids;
   out->len = message_def(m).dlc;
 }
 
-void Encoder::finish(Msg m, CanFrameData* out) {
+void Encoder::finish(Msg m, hal::CanFrame* out) {
   std::uint8_t& c = counters_[static_cast<int>(m)];
   e2e_protect(message_def(m).data_id, c, out->data);
   c = static_cast<std::uint8_t>((c + 1) % kE2eCounterModulo);
 }
 
-void Encoder::encode_pose(const PoseOut& p, CanFrameData* xy, CanFrameData* heading) {
+void Encoder::encode_pose(const PoseOut& p, hal::CanFrame* xy, hal::CanFrame* heading) {
   const bool valid = p.valid && finite(p.x_mm) && finite(p.y_mm) && finite(p.theta_rad);
   begin(Msg::kPoseXY, xy);
   put_raw(sig(Msg::kPoseXY, "PoseValid"), valid ? 1 : 0, xy->data);
@@ -114,7 +113,7 @@ void Encoder::encode_pose(const PoseOut& p, CanFrameData* xy, CanFrameData* head
   finish(Msg::kPoseHeading, heading);
 }
 
-void Encoder::encode_velocity(const VelocityOut& v, CanFrameData* out) {
+void Encoder::encode_velocity(const VelocityOut& v, hal::CanFrame* out) {
   begin(Msg::kVelocity, out);
   const bool valid = v.valid && finite(v.v_mps) && finite(v.omega_radps);
   put_raw(sig(Msg::kVelocity, "VelocityValid"), valid ? 1 : 0, out->data);
@@ -123,7 +122,7 @@ void Encoder::encode_velocity(const VelocityOut& v, CanFrameData* out) {
   finish(Msg::kVelocity, out);
 }
 
-void Encoder::encode_quality(const QualityOut& q, CanFrameData* out) {
+void Encoder::encode_quality(const QualityOut& q, hal::CanFrame* out) {
   begin(Msg::kQuality, out);
   // A NaN sigma is unknown: invalid. +inf is "very uncertain": saturates, stays valid.
   const bool valid = q.valid && !std::isnan(q.sigma_x_mm) && !std::isnan(q.sigma_y_mm) &&
@@ -135,7 +134,7 @@ void Encoder::encode_quality(const QualityOut& q, CanFrameData* out) {
   finish(Msg::kQuality, out);
 }
 
-void Encoder::encode_status(const StatusOut& s, CanFrameData* out) {
+void Encoder::encode_status(const StatusOut& s, hal::CanFrame* out) {
   begin(Msg::kStatus, out);
   put_raw(sig(Msg::kStatus, "Health"), static_cast<std::int64_t>(s.health) & 3, out->data);
   put_raw(sig(Msg::kStatus, "LastLandmarkId"), s.last_landmark_id, out->data);
@@ -156,7 +155,7 @@ void Encoder::encode_status(const StatusOut& s, CanFrameData* out) {
   finish(Msg::kStatus, out);
 }
 
-void Encoder::encode_heartbeat(const HeartbeatOut& h, CanFrameData* out) {
+void Encoder::encode_heartbeat(const HeartbeatOut& h, hal::CanFrame* out) {
   begin(Msg::kHeartbeat, out);
   put_raw(sig(Msg::kHeartbeat, "ProtocolVersion"), kProtocolVersion, out->data);
   put_raw(sig(Msg::kHeartbeat, "SwMajor"), h.sw_major, out->data);
@@ -170,7 +169,7 @@ void Encoder::encode_heartbeat(const HeartbeatOut& h, CanFrameData* out) {
 
 // ------------------------------------------------------------------------ output decoders
 
-Msg identify(const ProtocolConfig& cfg, const CanFrameData& f) {
+Msg identify(const ProtocolConfig& cfg, const hal::CanFrame& f) {
   for (const MessageDef& m : message_table()) {
     if (f.id == can_id_of(cfg, m.msg) && f.extended == is_extended(cfg, m.msg)) {
       if (m.dir == Direction::kRx && m.msg != odom_msg(cfg.odometry) && cfg.odometry.can_id != 0) {
@@ -183,13 +182,13 @@ Msg identify(const ProtocolConfig& cfg, const CanFrameData& f) {
 }
 
 namespace {
-bool is_msg(const ProtocolConfig& cfg, const CanFrameData& f, Msg m) {
+bool is_msg(const ProtocolConfig& cfg, const hal::CanFrame& f, Msg m) {
   return f.len == message_def(m).dlc && f.id == can_id_of(cfg, m) &&
          f.extended == is_extended(cfg, m);
 }
 }  // namespace
 
-bool decode_pose(const ProtocolConfig& cfg, const CanFrameData& xy, const CanFrameData& heading,
+bool decode_pose(const ProtocolConfig& cfg, const hal::CanFrame& xy, const hal::CanFrame& heading,
                  PoseOut* out) {
   if (!is_msg(cfg, xy, Msg::kPoseXY) || !is_msg(cfg, heading, Msg::kPoseHeading)) return false;
   out->x_mm = get_phys(sig(Msg::kPoseXY, "X"), xy.data);
@@ -202,7 +201,7 @@ bool decode_pose(const ProtocolConfig& cfg, const CanFrameData& xy, const CanFra
   return true;
 }
 
-bool decode_velocity(const ProtocolConfig& cfg, const CanFrameData& f, VelocityOut* out) {
+bool decode_velocity(const ProtocolConfig& cfg, const hal::CanFrame& f, VelocityOut* out) {
   if (!is_msg(cfg, f, Msg::kVelocity)) return false;
   out->valid = get_raw(sig(Msg::kVelocity, "VelocityValid"), f.data) == 1;
   out->v_mps = get_phys(sig(Msg::kVelocity, "V"), f.data);
@@ -210,7 +209,7 @@ bool decode_velocity(const ProtocolConfig& cfg, const CanFrameData& f, VelocityO
   return true;
 }
 
-bool decode_quality(const ProtocolConfig& cfg, const CanFrameData& f, QualityOut* out) {
+bool decode_quality(const ProtocolConfig& cfg, const hal::CanFrame& f, QualityOut* out) {
   if (!is_msg(cfg, f, Msg::kQuality)) return false;
   out->valid = get_raw(sig(Msg::kQuality, "QualityValid"), f.data) == 1;
   out->sigma_x_mm = get_phys(sig(Msg::kQuality, "SigmaX"), f.data);
@@ -219,7 +218,7 @@ bool decode_quality(const ProtocolConfig& cfg, const CanFrameData& f, QualityOut
   return true;
 }
 
-bool decode_status(const ProtocolConfig& cfg, const CanFrameData& f, StatusOut* out) {
+bool decode_status(const ProtocolConfig& cfg, const hal::CanFrame& f, StatusOut* out) {
   if (!is_msg(cfg, f, Msg::kStatus)) return false;
   out->health = static_cast<Health>(get_raw(sig(Msg::kStatus, "Health"), f.data));
   out->last_landmark_id =
@@ -231,7 +230,7 @@ bool decode_status(const ProtocolConfig& cfg, const CanFrameData& f, StatusOut* 
   return true;
 }
 
-bool decode_heartbeat(const ProtocolConfig& cfg, const CanFrameData& f, HeartbeatOut* out,
+bool decode_heartbeat(const ProtocolConfig& cfg, const hal::CanFrame& f, HeartbeatOut* out,
                       int* protocol_version) {
   if (!is_msg(cfg, f, Msg::kHeartbeat)) return false;
   out->sw_major = static_cast<std::uint8_t>(get_raw(sig(Msg::kHeartbeat, "SwMajor"), f.data));
@@ -275,7 +274,7 @@ OdometryDecoder::OdometryDecoder(const ProtocolConfig& cfg)
       checker_(E2eCheckerConfig{odom_data_id(cfg.odometry), cfg.odometry.max_delta_counter}),
       last_ok_ns_(INT64_MIN) {}
 
-DecodeResult OdometryDecoder::decode(const CanFrameData& f, OdomSample* out) {
+DecodeResult OdometryDecoder::decode(const hal::CanFrame& f, OdomSample* out) {
   if (f.id != id_ || f.extended != ext_) return DecodeResult::kNotOdometry;
   if (f.len != kE2eFrameLen) {
     ++counters_.bad_length;
@@ -333,16 +332,11 @@ DecodeResult OdometryDecoder::decode(const CanFrameData& f, OdomSample* out) {
   return DecodeResult::kOk;
 }
 
-bool OdometryDecoder::timed_out(std::int64_t now_ns) const {
-  if (last_ok_ns_ == INT64_MIN) return true;
-  return now_ns - last_ok_ns_ > cfg_.timeout_ns;
-}
-
 void encode_odometry(const ProtocolConfig& cfg, double a, double b, std::uint8_t counter,
-                     CanFrameData* out) {
+                     hal::CanFrame* out) {
   const Msg m = odom_msg(cfg.odometry);
   const MessageDef& d = message_def(m);
-  *out = CanFrameData{};
+  *out = hal::CanFrame{};
   out->id = can_id_of(cfg, m);
   out->extended = cfg.odometry.extended_id;
   out->len = 8;

@@ -55,7 +55,7 @@ const char* to_string(E2eStatus s) {
   return "?";
 }
 
-E2eStatus E2eChecker::check(const CanFrameData& frame) {
+E2eStatus E2eChecker::check(const hal::CanFrame& frame) {
   if (frame.len != kE2eFrameLen) {
     ++counters_.bad_length;
     return E2eStatus::kBadLength;

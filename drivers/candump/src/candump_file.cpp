@@ -4,8 +4,6 @@
 #include <filesystem>
 #include <fstream>
 
-#include "agv/can/frame_convert.hpp"
-
 namespace agv::can {
 
 bool read_candump_file(const std::string& path, std::vector<protocol::CandumpRecord>* out,
@@ -61,7 +59,7 @@ bool CandumpWriter::write(const hal::CanFrame& frame, const std::string& iface, 
   protocol::CandumpRecord r;
   r.t_ns = t_ns;
   r.iface = iface;
-  r.frame = from_hal(frame);
+  r.frame = frame;
   return write(r);
 }
 
@@ -99,7 +97,7 @@ hal::CanStatus CandumpReplayBus::receive(hal::CanFrame* frame, std::int64_t /*ti
     const protocol::CandumpRecord& r = records_[next_++];
     if (r.error_frame && (iface_.empty() || r.iface == iface_)) ++stats_.rx_error_frames;
     if (!wanted(r)) continue;
-    *frame = to_hal(r.frame);
+    *frame = r.frame;
     frame->t_ns = r.t_ns + offset_ns_;
     last_t_ns_ = r.t_ns;
     ++stats_.rx_frames;

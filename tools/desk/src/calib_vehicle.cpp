@@ -318,8 +318,15 @@ bool calibrate_vehicle(const std::vector<OdomSample>& odom,
       fc->valid = o.valid;
       fc->scale = scale;
       frame_blocks.push_back(problem.AddResidualBlock(
-          new ceres::AutoDiffCostFunction<FrameCost, 16, kMount, kOdo, 1, 3>(fc), nullptr, mount,
-          odo, dt, anchors[j].data()));
+          new ceres::AutoDiffCostFunction<FrameCost, 16, kMount, kOdo, 1, 3>(fc),
+          // Robust: a frame whose corners are off (blur, a mis-fitted edge) by much more than the
+          // noise counts linearly, not quadratically (squared norm of the block in sigma units).
+          opt.robust_sigmas > 0.0
+              ? new ceres::HuberLoss(opt.robust_sigmas *
+                                     std::sqrt(2.0 * static_cast<double>(std::count(
+                                                         o.valid.begin(), o.valid.end(), true))))
+              : nullptr,
+          mount, odo, dt, anchors[j].data()));
       frame_pass.push_back(subs[j].pass);
       frame_nvalid.push_back(static_cast<int>(std::count(o.valid.begin(), o.valid.end(), true)));
     }

@@ -67,8 +67,11 @@ struct VehicleParams {
 };
 
 struct Options {
-  double fx_px = 769.0;                  // to express residuals in pixels
-  double pixel_sigma_px = 0.1;           // corner noise
+  double fx_px = 769.0;         // to express residuals in pixels
+  double pixel_sigma_px = 0.1;  // corner noise
+  // Huber loss per frame beyond this many sigmas (RMS over the frame's corners); 0 = plain
+  // least squares.
+  double robust_sigmas = 3.0;
   double odom_v_sigma_mps = 0.002;       // per odometry sample (white)
   double odom_omega_sigma_radps = 0.01;  // per odometry sample (white)
   // Frames of one pass closer than this share one free pose (exact odometry in between).

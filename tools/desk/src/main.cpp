@@ -14,7 +14,8 @@ void usage(FILE* f) {
                "  landmark           print landmarks (SVG at physical scale, PNG)\n"
                "  report OUT --recording REC   accuracy against truth + trajectory.svg of a "
                "replay\n"
-               "  calibrate vehicle REC --map MAP   mounting, odometry, time offset\n"
+               "  calibrate intrinsics --images DIR   camera intrinsics from board images\n"
+               "  sim-board --out DIR   simulated calibration-board views (tests)\n"
                "  --version          version\n"
                "Each command takes --help. The vehicle commands (run, replay, record) are in "
                "agvloc.\n");
@@ -39,11 +40,8 @@ int main(int argc, char** argv) {
   if (!std::strcmp(c, "sim")) return agv::desk::sim(argc - 1, argv + 1);
   if (!std::strcmp(c, "landmark")) return agv::desk::landmark(argc - 1, argv + 1);
   if (!std::strcmp(c, "report")) return agv::desk::report(argc - 1, argv + 1);
-  // Until the `calibrate` dispatcher (cmd_calibrate.cpp, branch i16-intrinsics) is merged; then
-  // `vehicle` is one line of its subcommand table.
-  if (!std::strcmp(c, "calibrate") && argc >= 3 && !std::strcmp(argv[2], "vehicle")) {
-    return agv::desk::calibrate_vehicle(argc - 2, argv + 2);
-  }
+  if (!std::strcmp(c, "calibrate")) return agv::desk::calibrate(argc - 1, argv + 1);
+  if (!std::strcmp(c, "sim-board")) return agv::desk::sim_board(argc - 1, argv + 1);
   std::fprintf(stderr, "agvloc-desk: unknown command '%s'\n", c);
   usage(stderr);
   return 2;

@@ -21,7 +21,7 @@ namespace agv::protocol {
 struct CandumpRecord {
   std::int64_t t_ns = 0;  // log timestamp; also copied into frame.t_ns by the parser
   std::string iface;      // e.g. "can0"
-  CanFrameData frame;
+  hal::CanFrame frame;
   bool rtr = false;
   bool error_frame = false;  // frame.id then holds the error class bits (linux/can/error.h)
 };

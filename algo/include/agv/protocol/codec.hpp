@@ -33,9 +33,6 @@ struct OdometryConfig {
   // 1.0 = the DBC scaling is exact.
   double speed_scale = 1.0;
   double omega_scale = 1.0;
-  // No accepted frame for this long -> timed_out(). Trade-off: short reacts fast to a dead
-  // controller but trips on bus jitter; default 100 ms = 10 missed frames at 10 ms.
-  std::int64_t timeout_ns = 100'000'000;
 };
 
 struct ProtocolConfig {
@@ -113,32 +110,32 @@ class Encoder {
  public:
   explicit Encoder(const ProtocolConfig& cfg);
   // Writes the AGV_PoseXY / AGV_PoseHeading pair; both get the same counter value.
-  void encode_pose(const PoseOut& p, CanFrameData* xy, CanFrameData* heading);
-  void encode_velocity(const VelocityOut& v, CanFrameData* out);
-  void encode_quality(const QualityOut& q, CanFrameData* out);
-  void encode_status(const StatusOut& s, CanFrameData* out);
-  void encode_heartbeat(const HeartbeatOut& h, CanFrameData* out);
+  void encode_pose(const PoseOut& p, hal::CanFrame* xy, hal::CanFrame* heading);
+  void encode_velocity(const VelocityOut& v, hal::CanFrame* out);
+  void encode_quality(const QualityOut& q, hal::CanFrame* out);
+  void encode_status(const StatusOut& s, hal::CanFrame* out);
+  void encode_heartbeat(const HeartbeatOut& h, hal::CanFrame* out);
   // The counter the next frame of m will carry (tests, diagnostics).
   std::uint8_t next_counter(Msg m) const { return counters_[static_cast<int>(m)]; }
 
  private:
-  void begin(Msg m, CanFrameData* out) const;
-  void finish(Msg m, CanFrameData* out);
+  void begin(Msg m, hal::CanFrame* out) const;
+  void finish(Msg m, hal::CanFrame* out);
   ProtocolConfig cfg_;
   std::uint8_t counters_[static_cast<int>(Msg::kCount)] = {};
 };
 
 // Typed decoding of output frames (tests, HIL checks, log inspection). Returns false when the
 // frame is not the expected message (ID, length); the E2E check is separate (E2eChecker).
-bool decode_pose(const ProtocolConfig& cfg, const CanFrameData& xy, const CanFrameData& heading,
+bool decode_pose(const ProtocolConfig& cfg, const hal::CanFrame& xy, const hal::CanFrame& heading,
                  PoseOut* out);
-bool decode_velocity(const ProtocolConfig& cfg, const CanFrameData& f, VelocityOut* out);
-bool decode_quality(const ProtocolConfig& cfg, const CanFrameData& f, QualityOut* out);
-bool decode_status(const ProtocolConfig& cfg, const CanFrameData& f, StatusOut* out);
-bool decode_heartbeat(const ProtocolConfig& cfg, const CanFrameData& f, HeartbeatOut* out,
+bool decode_velocity(const ProtocolConfig& cfg, const hal::CanFrame& f, VelocityOut* out);
+bool decode_quality(const ProtocolConfig& cfg, const hal::CanFrame& f, QualityOut* out);
+bool decode_status(const ProtocolConfig& cfg, const hal::CanFrame& f, StatusOut* out);
+bool decode_heartbeat(const ProtocolConfig& cfg, const hal::CanFrame& f, HeartbeatOut* out,
                       int* protocol_version);
 // Which message a frame is under cfg; Msg::kCount when none.
-Msg identify(const ProtocolConfig& cfg, const CanFrameData& f);
+Msg identify(const ProtocolConfig& cfg, const hal::CanFrame& f);
 
 // One odometry measurement, in the units of docs/frames.md.
 struct OdomSample {
@@ -180,15 +177,13 @@ struct OdometryCounters {
 // describes it, E2E-protected with `counter` (0..14) whether or not the receiver checks it.
 // a, b = left and right wheel speeds in m/s (wheels mode) or v_mps and omega_radps (twist mode).
 void encode_odometry(const ProtocolConfig& cfg, double a, double b, std::uint8_t counter,
-                     CanFrameData* out);
+                     hal::CanFrame* out);
 
 class OdometryDecoder {
  public:
   explicit OdometryDecoder(const ProtocolConfig& cfg);
   // kOk fills *out; anything else leaves it untouched. Rejections are counted.
-  DecodeResult decode(const CanFrameData& f, OdomSample* out);
-  // True when no frame was accepted within timeout_ns before now_ns (or none ever).
-  bool timed_out(std::int64_t now_ns) const;
+  DecodeResult decode(const hal::CanFrame& f, OdomSample* out);
   // Receive time of the last accepted frame; INT64_MIN when none.
   std::int64_t last_accepted_ns() const { return last_ok_ns_; }
   const OdometryCounters& counters() const { return counters_; }

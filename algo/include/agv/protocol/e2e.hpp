@@ -67,7 +67,7 @@ struct E2eCounters {
 class E2eChecker {
  public:
   explicit E2eChecker(const E2eCheckerConfig& cfg) : cfg_(cfg) {}
-  E2eStatus check(const CanFrameData& frame);
+  E2eStatus check(const hal::CanFrame& frame);
   void reset() { have_ref_ = false; }
   const E2eCounters& counters() const { return counters_; }
 

@@ -217,6 +217,11 @@ struct LandmarkFix {
   int sides_used = 0;           // border sides with both edges fitted (4 when fully visible)
   bool partly_outside = false;  // some of the border is outside the image (pose still valid)
   double residual_rms_mm = 0.0;
+  // Measured half sides (mm, vehicle frame) of the outer and inner border squares from the joint
+  // square fit, when it could estimate them (some axis with both sides fitted); 0 otherwise. Their
+  // ratio to LandmarkGeometry's values is the image scale error (camera height, fx, or a print
+  // not at 100 %): agvloc-desk calibrate check.
+  double outer_half_mm = 0.0, inner_half_mm = 0.0;
   // How the QR code was read: 1 = model-guided module sampling, 2 = zxing's search on the crop.
   int qr_method = 0;
   // Detection estimate (before the edge fit), for diagnostics: landmark centre in pixels and the

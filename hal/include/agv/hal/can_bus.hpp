@@ -7,16 +7,10 @@
 #include <cstddef>
 #include <cstdint>
 
-namespace agv::hal {
+#include "agv/hal/can_frame.hpp"
+#include "agv/hal/can_types.hpp"
 
-// Same members as agv::protocol::CanFrameData (algo/); convert with agv::can::to_hal/from_hal.
-struct CanFrame {
-  std::uint32_t id = 0;   // 11- or 29-bit identifier, no flag bits
-  bool extended = false;  // 29-bit identifier
-  std::uint8_t len = 0;   // data length 0..8
-  std::uint8_t data[8] = {};
-  std::int64_t t_ns = 0;  // receive: kernel receive timestamp on CLOCK_MONOTONIC; send: ignored
-};
+namespace agv::hal {
 
 enum class CanStatus : int {
   kOk = 0,
@@ -31,41 +25,12 @@ enum class CanStatus : int {
 
 const char* to_string(CanStatus s);
 
-// ISO 11898 fault confinement states, plus "down" for a missing or administratively down link.
-enum class CanBusState : int {
-  kErrorActive = 0,
-  kErrorWarning = 1,  // an error counter >= 96
-  kErrorPassive = 2,  // an error counter >= 128
-  kBusOff = 3,        // transmit error counter > 255; controller offline until restarted
-  kDown = 4,
-};
-
 const char* to_string(CanBusState s);
-
-// Accept a frame when (frame.id & mask) == (id & mask) and its ID type equals `extended`.
-struct CanFilter {
-  std::uint32_t id = 0;
-  std::uint32_t mask = 0;
-  bool extended = false;
-};
 
 // Controller error counters as last reported (0 when the backend cannot know them).
 struct CanErrorCounters {
   std::uint16_t tx = 0;
   std::uint16_t rx = 0;
-};
-
-// Monotonic counts since the backend was created.
-struct CanStats {
-  std::uint64_t tx_ok = 0;
-  std::uint64_t tx_dropped_queue_full = 0;  // kWouldBlock returns
-  std::uint64_t tx_errors = 0;              // kBusOff / kDown / kError returns of send()
-  std::uint64_t rx_frames = 0;              // data frames delivered by receive()
-  std::uint64_t rx_error_frames = 0;        // error frames consumed (state/counters updated)
-  std::uint64_t rx_dropped = 0;             // frames lost in the receive queue (overflow)
-  std::uint64_t bus_off_count = 0;          // transitions into bus-off
-  std::uint64_t error_passive_count = 0;    // transitions into error-passive
-  std::uint64_t restarts = 0;               // successful reopen after the link went down
 };
 
 class CanBus {

@@ -13,6 +13,10 @@ class Clock {
   // Sleeps until the absolute monotonic time t_ns (returns at once if it has passed).
   // Returns 0, or an errno value when the sleep was interrupted (EINTR) or failed.
   virtual int sleep_until_ns(std::int64_t t_ns) = 0;
+  // The CLOCK_MONOTONIC time (ns) at which this clock reads t_ns, so a kernel wait on the
+  // monotonic clock can end at a time of this clock (hal::Wakeup). Identity for the monotonic
+  // clock; a scaled replay clock maps it.
+  virtual std::int64_t to_monotonic_ns(std::int64_t t_ns) const { return t_ns; }
 };
 
 }  // namespace agv::hal

@@ -1,15 +1,12 @@
-// Small hal adapters used by the entry points.
+// Replay-time adapters for `agvloc replay --realtime`.
 #pragma once
 
-#include <atomic>
 #include <cstdint>
-#include <string>
 
-#include "agv/can/candump_file.hpp"
 #include "agv/hal/can_bus.hpp"
 #include "agv/hal/clock.hpp"
 
-namespace agv::app {
+namespace agv::adapters {
 
 // Replay time for --realtime at a chosen pace: now = t_first + (mono - mono0) * speed, so every
 // timestamp the loop sees (frames, odometry, ticks) stays in recording time while the wall-clock
@@ -23,6 +20,9 @@ class ScaledClock final : public hal::Clock {
       : base_(base), t_first_ns_(t_first_ns), mono0_ns_(mono0_ns), speed_(speed) {}
   std::int64_t now_ns() const override { return to_scaled(base_.now_ns()); }
   int sleep_until_ns(std::int64_t t_ns) override { return base_.sleep_until_ns(to_base(t_ns)); }
+  std::int64_t to_monotonic_ns(std::int64_t t_ns) const override {
+    return base_.to_monotonic_ns(to_base(t_ns));
+  }
   std::int64_t to_scaled(std::int64_t mono_ns) const {
     return t_first_ns_ +
            static_cast<std::int64_t>(static_cast<double>(mono_ns - mono0_ns_) * speed_);
@@ -62,37 +62,4 @@ class TimeMappedBus final : public hal::CanBus {
   const ScaledClock* clock_;
 };
 
-// Output-only bus that writes every sent frame to a `candump -l` file (replay without a CAN
-// interface). The timestamp is the loop time of the send.
-class LogOnlyBus final : public hal::CanBus {
- public:
-  // Exactly one of clock / time_ns is used: the clock when not null.
-  LogOnlyBus(can::CandumpWriter& w, const hal::Clock* clock,
-             const std::atomic<std::int64_t>* time_ns, std::string iface)
-      : w_(w), clock_(clock), time_ns_(time_ns), iface_(std::move(iface)) {}
-  hal::CanStatus send(const hal::CanFrame& f) override {
-    if (!w_.write(f, iface_, clock_ ? clock_->now_ns() : time_ns_->load())) {
-      ++stats_.tx_errors;
-      return hal::CanStatus::kError;
-    }
-    ++stats_.tx_ok;
-    return hal::CanStatus::kOk;
-  }
-  hal::CanStatus receive(hal::CanFrame*, std::int64_t) override { return hal::CanStatus::kTimeout; }
-  hal::CanStatus set_filters(const hal::CanFilter*, std::size_t) override {
-    return hal::CanStatus::kOk;
-  }
-  hal::CanBusState state() const override { return hal::CanBusState::kErrorActive; }
-  hal::CanErrorCounters error_counters() const override { return {}; }
-  hal::CanStats stats() const override { return stats_; }
-  const char* last_error() const override { return ""; }
-
- private:
-  can::CandumpWriter& w_;
-  const hal::Clock* clock_;
-  const std::atomic<std::int64_t>* time_ns_;
-  std::string iface_;
-  hal::CanStats stats_;
-};
-
-}  // namespace agv::app
+}  // namespace agv::adapters

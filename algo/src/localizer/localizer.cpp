@@ -1,10 +1,11 @@
-#include "output_stage.hpp"
+#include "agv/localizer/localizer.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <stdexcept>
+#include <string>
 
-#include "agv/can/frame_convert.hpp"
-
-namespace agv::app {
+namespace agv::localizer {
 
 namespace {
 
@@ -21,27 +22,38 @@ protocol::Health to_protocol(fusion::HealthState h) {
   return protocol::Health::kLost;
 }
 
-}  // namespace
-
-OutputStage::OutputStage(const config::Config& cfg, hal::CanBus* bus)
-    : cfg_(cfg),
-      bus_(bus),
-      ekf_(cfg.fusion),
-      proto_(config::protocol_config(cfg)),
-      encoder_(proto_),
-      odom_(proto_),
-      heartbeat_period_ns_(static_cast<std::int64_t>(1e9 / cfg.loop.heartbeat_rate_hz)) {
-  if (bus_) {
-    // Only odometry reaches us; the kernel filters the rest.
-    hal::CanFilter f;
-    f.id = odom_.can_id();
-    f.mask = odom_.extended() ? protocol::kCanExtIdMask : protocol::kCanStdIdMask;
-    f.extended = odom_.extended();
-    bus_->set_filters(&f, 1);
-  }
+const protocol::ProtocolConfig& checked(const protocol::ProtocolConfig& p) {
+  const std::string err = protocol::validate(p);
+  if (!err.empty()) throw std::invalid_argument("protocol: " + err);
+  return p;
 }
 
-void OutputStage::on_odometry(std::int64_t t_ns, double v_mps, double omega_radps) {
+}  // namespace
+
+fusion::EkfConfig effective_fusion_config(const LocalizerConfig& cfg) {
+  fusion::EkfConfig f = cfg.fusion;
+  f.odom_timeout_ns = cfg.odometry_timeout_ns;
+  return f;
+}
+
+Localizer::Localizer(const LocalizerConfig& cfg)
+    : cfg_(cfg),
+      ekf_(effective_fusion_config(cfg)),
+      encoder_(checked(cfg.protocol)),
+      odom_(cfg.protocol) {
+  if (cfg_.heartbeat_period_ns <= 0) throw std::invalid_argument("heartbeat period must be > 0");
+  if (cfg_.odometry_timeout_ns <= 0) throw std::invalid_argument("odometry timeout must be > 0");
+}
+
+hal::CanFilter Localizer::odometry_filter() const {
+  hal::CanFilter f;
+  f.id = odom_.can_id();
+  f.mask = odom_.extended() ? protocol::kCanExtIdMask : protocol::kCanStdIdMask;
+  f.extended = odom_.extended();
+  return f;
+}
+
+void Localizer::on_odometry(std::int64_t t_ns, double v_mps, double omega_radps) {
   ++stats_.odom_samples;
   if (!ekf_.add_odometry(t_ns, v_mps, omega_radps)) {
     ++stats_.odom_rejected;
@@ -50,31 +62,24 @@ void OutputStage::on_odometry(std::int64_t t_ns, double v_mps, double omega_radp
   last_odom_ns_ = t_ns;
 }
 
-void OutputStage::poll_can() {
-  if (!bus_) return;
-  hal::CanFrame frame;
-  // Bounded: at 1 Mbit/s at most ~80 frames arrive in 10 ms.
-  for (int i = 0; i < 256; ++i) {
-    if (bus_->receive(&frame, 0) != hal::CanStatus::kOk) break;
-    ++stats_.can_rx_frames;
-    protocol::OdomSample s;
-    const protocol::DecodeResult r = odom_.decode(can::from_hal(frame), &s);
-    if (r == protocol::DecodeResult::kOk) {
-      on_odometry(s.t_ns, s.v_mps, s.omega_radps);
-    } else if (r == protocol::DecodeResult::kNotOdometry) {
-      ++stats_.can_rx_other;
-    }
+void Localizer::on_can_frame(const hal::CanFrame& frame) {
+  ++stats_.can_rx_frames;
+  protocol::OdomSample s;
+  const protocol::DecodeResult r = odom_.decode(frame, &s);
+  if (r == protocol::DecodeResult::kOk) {
+    on_odometry(s.t_ns, s.v_mps, s.omega_radps);
+  } else if (r == protocol::DecodeResult::kNotOdometry) {
+    ++stats_.can_rx_other;
   }
 }
 
-bool OutputStage::odometry_timed_out(std::int64_t now_ns) const {
+bool Localizer::odometry_timed_out(std::int64_t now_ns) const {
   // Whatever the source (CAN or a recording): the newest sample fusion accepted.
-  return last_odom_ns_ == INT64_MIN ||
-         now_ns - last_odom_ns_ > static_cast<std::int64_t>(cfg_.can.odometry_timeout_ms * 1e6);
+  return last_odom_ns_ == INT64_MIN || now_ns - last_odom_ns_ > cfg_.odometry_timeout_ns;
 }
 
-void OutputStage::on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure_ns,
-                         std::int64_t t_arrival_ns) {
+void Localizer::on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure_ns,
+                       std::int64_t t_arrival_ns) {
   using vision::FixStatus;
   switch (fix.status) {
     case FixStatus::kOk:
@@ -129,17 +134,8 @@ void OutputStage::on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure
   if (t_exposure_ns > pending_e2e_exposure_ns_) pending_e2e_exposure_ns_ = t_exposure_ns;
 }
 
-void OutputStage::send(const protocol::CanFrameData& f) {
-  if (!bus_) return;
-  if (bus_->send(can::to_hal(f)) == hal::CanStatus::kOk) {
-    ++stats_.can_tx_ok;
-  } else {
-    ++stats_.can_tx_failed;  // counted, never retried: the next period carries fresher data
-  }
-}
-
-protocol::PoseOut OutputStage::pose_out(const fusion::PoseEstimate& est, std::int64_t now_ns,
-                                        bool* odom_timeout) const {
+protocol::PoseOut Localizer::pose_out(const fusion::PoseEstimate& est, std::int64_t now_ns,
+                                      bool* odom_timeout) const {
   protocol::PoseOut pose;
   pose.valid = est.valid && est.health != fusion::HealthState::kLost;
   pose.x_mm = est.pose.x_mm;
@@ -152,26 +148,22 @@ protocol::PoseOut OutputStage::pose_out(const fusion::PoseEstimate& est, std::in
   return pose;
 }
 
-void OutputStage::send_pose(const protocol::PoseOut& pose, const hal::Clock* clock,
-                            std::int64_t now_ns) {
-  protocol::CanFrameData a, b;
-  encoder_.encode_pose(pose, &a, &b);
-  send(a);
-  send(b);
-  if (pending_e2e_exposure_ns_ != INT64_MIN) {
-    stats_.end_to_end_ns.record_ns((clock ? clock->now_ns() : now_ns) - pending_e2e_exposure_ns_);
-    pending_e2e_exposure_ns_ = INT64_MIN;
-  }
+void Localizer::add_pose(const protocol::PoseOut& pose, OutFrames* out) {
+  out->n = 0;
+  encoder_.encode_pose(pose, &out->frame[0], &out->frame[1]);
+  out->n = 2;
+  out->e2e_exposure_ns = pending_e2e_exposure_ns_;
+  pending_e2e_exposure_ns_ = INT64_MIN;
 }
 
-void OutputStage::send_pose_now(std::int64_t now_ns, const hal::Clock* clock) {
+void Localizer::pose_now(std::int64_t now_ns, OutFrames* out) {
   const fusion::PoseEstimate est = ekf_.estimate_at(now_ns);
   bool odom_timeout = false;
-  send_pose(pose_out(est, now_ns, &odom_timeout), clock, now_ns);
+  add_pose(pose_out(est, now_ns, &odom_timeout), out);
+  ++stats_.fix_poses;
 }
 
-void OutputStage::tick(std::int64_t now_ns, const hal::Clock* clock, TickRecord* rec) {
-  const std::int64_t t_start = clock ? clock->now_ns() : now_ns;
+void Localizer::tick(std::int64_t now_ns, OutFrames* out, TickRecord* rec) {
   ++stats_.ticks;
   if (first_tick_ns_ == INT64_MIN) first_tick_ns_ = now_ns;
 
@@ -195,7 +187,9 @@ void OutputStage::tick(std::int64_t now_ns, const hal::Clock* clock, TickRecord*
   st.last_landmark_id = last_landmark_id_;
   st.time_since_fix_ms =
       est.time_since_fix_ns < 0 ? -1.0 : static_cast<double>(est.time_since_fix_ns) / 1e6;
-  if (camera_stalled_) st.faults |= protocol::fault::kCameraStalled;
+  const bool camera_stalled = last_frame_ns_ != INT64_MIN && !camera_eos_ &&
+                              now_ns - last_frame_ns_ > cfg_.camera_timeout_ns;
+  if (camera_stalled) st.faults |= protocol::fault::kCameraStalled;
   if (camera_error_) st.faults |= protocol::fault::kCameraError;
   if (odom_timeout) st.faults |= protocol::fault::kOdomTimeout;
   const std::uint64_t odom_rej = odom_.counters().rejected();
@@ -203,7 +197,7 @@ void OutputStage::tick(std::int64_t now_ns, const hal::Clock* clock, TickRecord*
     st.faults |= protocol::fault::kOdomE2E;
     odom_rejected_seen_ = odom_rej;
   }
-  if (bus_) st.faults |= can_faults_.update(bus_->state(), bus_->stats());
+  if (have_can_state_) st.faults |= can_faults_.update(can_state_, can_stats_);
   if (overrun_) st.faults |= protocol::fault::kLoopOverrun;
   overrun_ = false;
   if (est.flags & fusion::flags::kRejectedGate) rejections_ |= protocol::reject::kGate;
@@ -211,30 +205,21 @@ void OutputStage::tick(std::int64_t now_ns, const hal::Clock* clock, TickRecord*
   st.rejections = rejections_;
   rejections_ = 0;
 
-  const std::int64_t t_fused = clock ? clock->now_ns() : now_ns;
-  stats_.fusion_ns.record_ns(t_fused - t_start);
-
-  send_pose(pose, clock, now_ns);
-  protocol::CanFrameData a;
-  encoder_.encode_velocity(vel, &a);
-  send(a);
-  encoder_.encode_quality(q, &a);
-  send(a);
-  encoder_.encode_status(st, &a);
-  send(a);
+  add_pose(pose, out);
+  encoder_.encode_velocity(vel, &out->frame[out->n++]);
+  encoder_.encode_quality(q, &out->frame[out->n++]);
+  encoder_.encode_status(st, &out->frame[out->n++]);
   if (now_ns >= next_heartbeat_ns_) {
     protocol::HeartbeatOut hb;
-    hb.sw_major = AGV_VERSION_MAJOR;
-    hb.sw_minor = AGV_VERSION_MINOR;
-    hb.sw_patch = AGV_VERSION_PATCH;
+    hb.sw_major = cfg_.sw_major;
+    hb.sw_minor = cfg_.sw_minor;
+    hb.sw_patch = cfg_.sw_patch;
     hb.uptime_s = static_cast<double>(now_ns - first_tick_ns_) / 1e9;
-    encoder_.encode_heartbeat(hb, &a);
-    send(a);
+    encoder_.encode_heartbeat(hb, &out->frame[out->n++]);
     next_heartbeat_ns_ =
-        (next_heartbeat_ns_ == INT64_MIN ? now_ns : next_heartbeat_ns_) + heartbeat_period_ns_;
-    if (next_heartbeat_ns_ <= now_ns) next_heartbeat_ns_ = now_ns + heartbeat_period_ns_;
+        (next_heartbeat_ns_ == INT64_MIN ? now_ns : next_heartbeat_ns_) + cfg_.heartbeat_period_ns;
+    if (next_heartbeat_ns_ <= now_ns) next_heartbeat_ns_ = now_ns + cfg_.heartbeat_period_ns;
   }
-  stats_.can_send_ns.record_ns((clock ? clock->now_ns() : now_ns) - t_fused);
 
   if (rec) {
     rec->t_ns = now_ns;
@@ -243,4 +228,4 @@ void OutputStage::tick(std::int64_t now_ns, const hal::Clock* clock, TickRecord*
   }
 }
 
-}  // namespace agv::app
+}  // namespace agv::localizer

@@ -1,8 +1,8 @@
-#include "agv/can/can_faults.hpp"
+#include "agv/localizer/can_fault_monitor.hpp"
 
 #include "agv/protocol/codec.hpp"
 
-namespace agv::can {
+namespace agv::localizer {
 
 std::uint8_t CanFaultMonitor::update(hal::CanBusState state, const hal::CanStats& s) {
   std::uint8_t f = 0;
@@ -19,4 +19,4 @@ std::uint8_t CanFaultMonitor::update(hal::CanBusState state, const hal::CanStats
   return f;
 }
 
-}  // namespace agv::can
+}  // namespace agv::localizer

@@ -1,13 +1,13 @@
 // Maps CAN bus health to the AGV_Status fault flags (agv::protocol::fault), once per status
 // frame. Events are latched between two calls so a short error-passive or a single dropped frame
-// still shows in the next status frame.
+// still shows in the next status frame. Pure: the caller reads the bus state and counters.
 #pragma once
 
 #include <cstdint>
 
-#include "agv/hal/can_bus.hpp"
+#include "agv/hal/can_types.hpp"
 
-namespace agv::can {
+namespace agv::localizer {
 
 class CanFaultMonitor {
  public:
@@ -20,4 +20,4 @@ class CanFaultMonitor {
   hal::CanStats last_;
 };
 
-}  // namespace agv::can
+}  // namespace agv::localizer

@@ -10,7 +10,7 @@
 
 #include "agv/hal/clock.hpp"
 
-namespace agv::app {
+namespace agv::adapters {
 
 class HybridWaitClock final : public hal::Clock {
  public:
@@ -18,6 +18,9 @@ class HybridWaitClock final : public hal::Clock {
   HybridWaitClock(hal::Clock& base, std::int64_t spin_ns) : base_(base), spin_ns_(spin_ns) {}
 
   std::int64_t now_ns() const override { return base_.now_ns(); }
+  std::int64_t to_monotonic_ns(std::int64_t t_ns) const override {
+    return base_.to_monotonic_ns(t_ns);
+  }
 
   // Never returns before t_ns (unless the wrapped sleep fails with an error other than EINTR).
   int sleep_until_ns(std::int64_t t_ns) override {
@@ -47,4 +50,4 @@ class HybridWaitClock final : public hal::Clock {
   std::int64_t spin_ns_;
 };
 
-}  // namespace agv::app
+}  // namespace agv::adapters

@@ -1,0 +1,150 @@
+// The localizer core: odometry, CAN frames and vision results in; the CAN frames to send out.
+// Owns fusion (fusion::Ekf) and the output policy: pose validity, health, fault latching,
+// rejection flags, heartbeat. Pure: no bus, no clock, no threads; the caller passes the time and
+// sends the frames (firmware/src/output_loop.*). After construction none of its methods
+// allocates (tests/firmware/test_alloc.cpp proves it).
+#pragma once
+
+#include <cstdint>
+
+#include "agv/common/latency_histogram.hpp"
+#include "agv/fusion/ekf.hpp"
+#include "agv/hal/can_frame.hpp"
+#include "agv/hal/can_types.hpp"
+#include "agv/localizer/can_fault_monitor.hpp"
+#include "agv/protocol/codec.hpp"
+#include "agv/vision/landmark_localizer.hpp"
+
+namespace agv::localizer {
+
+struct LocalizerConfig {
+  fusion::EkfConfig fusion;  // its odom_timeout_ns is replaced by odometry_timeout_ns
+  protocol::ProtocolConfig protocol;
+  // THE odometry timeout: no accepted sample (CAN or recording) for this long makes the pose
+  // invalid, sets FaultOdomTimeout and the EKF's kOdomTimeout flag. Trade-off: short stops a
+  // vehicle on bus jitter, long lets it drive on a stale prediction.
+  std::int64_t odometry_timeout_ns = 100'000'000;
+  std::int64_t heartbeat_period_ns = 1'000'000'000;
+  // No camera frame for this long (and the stream not at its end) -> FaultCameraStalled.
+  std::int64_t camera_timeout_ns = 500'000'000;
+  std::uint8_t sw_major = 0, sw_minor = 0, sw_patch = 0;  // sent in the heartbeat
+};
+
+struct OutputStats {
+  std::uint64_t ticks = 0;
+  std::uint64_t missed_periods = 0;  // wake-ups later than one full period
+  std::uint64_t odom_samples = 0;
+  std::uint64_t odom_rejected = 0;  // by the EKF (time or plausibility)
+  std::uint64_t fixes_received = 0;
+  std::uint64_t fixes_fused = 0;
+  std::uint64_t fixes_rejected_gate = 0;
+  std::uint64_t fixes_rejected_too_old = 0;
+  std::uint64_t fixes_rejected_invalid = 0;
+  std::uint64_t reinitialisations = 0;
+  std::uint64_t fix_poses = 0;  // pose pairs sent at once after a fix (pose_on_fix)
+  std::uint64_t can_tx_ok = 0;
+  std::uint64_t can_tx_failed = 0;
+  std::uint64_t can_rx_frames = 0;
+  std::uint64_t can_rx_other = 0;     // frames that are not odometry (ignored)
+  LatencyHistogram fusion_ns;         // tick(): estimate and policy for one period
+  LatencyHistogram can_send_ns;       // all sends of one tick
+  LatencyHistogram end_to_end_ns;     // first pose frame sent after a fix - that frame's exposure
+  LatencyHistogram period_jitter_ns;  // |actual wake-up - scheduled wake-up|
+};
+
+// What one tick produced (replay writes these to poses.csv).
+struct TickRecord {
+  std::int64_t t_ns = 0;
+  fusion::PoseEstimate estimate;
+  protocol::StatusOut status;
+};
+
+// Frames to send, in order, in a fixed buffer. The pose pair (xy, heading) always comes first.
+struct OutFrames {
+  static constexpr int kMax = 6;  // pose xy + heading, velocity, quality, status, heartbeat
+  hal::CanFrame frame[kMax];
+  int n = 0;
+  // Exposure of the newest fused fix this pose pair is the first to carry; INT64_MIN if none.
+  // The sender records end-to-end latency = (time the pose pair left) - this.
+  std::int64_t e2e_exposure_ns = INT64_MIN;
+};
+
+class Localizer {
+ public:
+  // Throws std::invalid_argument on an invalid fusion or protocol configuration.
+  explicit Localizer(const LocalizerConfig& cfg);
+
+  // Odometry from any source (recording, CAN). t_ns on the loop's clock.
+  void on_odometry(std::int64_t t_ns, double v_mps, double omega_radps);
+  // One received CAN frame: odometry is decoded, checked and fused, others counted and ignored.
+  void on_can_frame(const hal::CanFrame& f);
+  // The receive filter for the odometry frame (the kernel drops the rest).
+  hal::CanFilter odometry_filter() const;
+  // A vision result for a frame exposed at t_exposure_ns, ready at t_arrival_ns (same clock).
+  // Failed fixes only set status flags. An exposure after the arrival can only come from a
+  // camera clock that jumped ahead: rejected as invalid, never fused at a time it was not taken.
+  void on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure_ns,
+              std::int64_t t_arrival_ns = INT64_MAX);
+  // Camera health: receive time of the newest frame, the stream ended (replay), driver error.
+  void set_camera_state(std::int64_t last_frame_ns, bool end_of_stream, bool error) {
+    last_frame_ns_ = last_frame_ns;
+    camera_eos_ = end_of_stream;
+    camera_error_ = error;
+  }
+  // Bus health for the status frame's CAN faults; not called = no bus (no CAN faults).
+  void set_can_state(hal::CanBusState state, const hal::CanStats& stats) {
+    can_state_ = state;
+    can_stats_ = stats;
+    have_can_state_ = true;
+  }
+  void note_missed_period() {
+    ++stats_.missed_periods;
+    overrun_ = true;
+  }
+
+  // The periodic output at now_ns: pose pair, velocity, quality, status, heartbeat when due.
+  // Fills *rec when not null.
+  void tick(std::int64_t now_ns, OutFrames* out, TickRecord* rec);
+  // The pose pair alone, estimated at now_ns, outside the periodic schedule (loop.pose_on_fix:
+  // a fused fix reaches the bus without waiting up to one period).
+  void pose_now(std::int64_t now_ns, OutFrames* out);
+
+  const OutputStats& stats() const { return stats_; }
+  // The sender records transmit results and latencies here.
+  OutputStats& mutable_stats() { return stats_; }
+  const fusion::Ekf& ekf() const { return ekf_; }
+  const protocol::OdometryDecoder& odometry_decoder() const { return odom_; }
+  bool odometry_timed_out(std::int64_t now_ns) const;
+
+ private:
+  // Pose output for an estimate: invalid when uninitialised, lost or without odometry.
+  protocol::PoseOut pose_out(const fusion::PoseEstimate& est, std::int64_t now_ns,
+                             bool* odom_timeout) const;
+  void add_pose(const protocol::PoseOut& pose, OutFrames* out);
+
+  LocalizerConfig cfg_;
+  fusion::Ekf ekf_;
+  protocol::Encoder encoder_;
+  protocol::OdometryDecoder odom_;
+  std::int64_t last_odom_ns_ = INT64_MIN;
+  std::uint64_t odom_rejected_seen_ = 0;
+  std::int64_t next_heartbeat_ns_ = INT64_MIN;
+  std::int64_t first_tick_ns_ = INT64_MIN;
+  std::int64_t last_frame_ns_ = INT64_MIN;
+  std::uint16_t last_landmark_id_ = 0;
+  std::uint8_t rejections_ = 0;  // reject::* since the last status frame
+  bool camera_eos_ = false;
+  bool camera_error_ = false;
+  bool overrun_ = false;
+  bool have_can_state_ = false;
+  hal::CanBusState can_state_ = hal::CanBusState::kErrorActive;
+  hal::CanStats can_stats_;
+  std::int64_t pending_e2e_exposure_ns_ = INT64_MIN;  // newest fused fix not yet sent
+  CanFaultMonitor can_faults_;  // latches bus-off / passive / drops between status frames
+  OutputStats stats_;
+};
+
+// The EKF configuration the core runs with: cfg.fusion with THE odometry timeout.
+fusion::EkfConfig effective_fusion_config(const LocalizerConfig& cfg);
+
+}  // namespace agv::localizer

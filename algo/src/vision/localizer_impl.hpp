@@ -1,0 +1,247 @@
+// Private to algo/src/vision: the state LandmarkLocalizer keeps between frames and the stage
+// functions that share it. One file per stage (numbers: docs/vision.md "Pipeline"):
+//   detect.cpp      1-2 pyramid, adaptive binarization, corner templates, hypotheses, ring check
+//   pose.cpp        3   Prewitt edge bands and classes, robust line fits, centre and heading
+//   direction.cpp   4-5 logo template at the four turns, cross-check with the QR orientation
+//   qr_decode.cpp   5   guided module sampling, zxing fallback, payload and map check
+//   covariance.cpp  6   fit covariance from the normal equations, vehicle-in-world propagation
+//   landmark_localizer.cpp  run(): the stages in order, the public class, the debug overlay
+#pragma once
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "agv/common/camera_model.hpp"
+#include "agv/common/geometry.hpp"
+#include "agv/common/landmark.hpp"
+#include "agv/vision/edges.hpp"
+#include "agv/vision/landmark_localizer.hpp"
+#include "agv/vision/qr_grid.hpp"
+
+namespace agv::vision {
+
+constexpr int kNumLines = 8;       // line index = side * 2 + (inner ? 1 : 0)
+constexpr int kMaxTemplates = 32;  // upper bound of VisionConfig::corner_rotations
+
+// A version-2 code (38-character payload, ECC M) has 25 modules a side; a version-1 code (id-only
+// payloads) has 21. The guided reader tries the larger first because full payloads are the norm.
+constexpr int kQrModulesV2 = 25;
+constexpr int kQrModulesV1 = 21;
+
+// Image angles measured on the metric model are taken from the centre and a point this far along
+// the direction: far enough that pixel rounding in the camera model is negligible (< 0.05 deg),
+// near enough to stay inside the landmark's footprint for the distortion to be the local one.
+constexpr double kAngleProbePx = 20.0;
+
+struct CornerPeak {
+  double x = 0, y = 0;  // coarse pixels (template centre)
+  double score = 0;
+  int rot = 0;
+};
+
+struct Hypothesis {
+  double cx = 0, cy = 0;  // landmark centre, coarse pixels
+  double up_angle = 0;    // image angle of one border normal (mod 90 deg)
+  double score_sum = 0, score_max = 0;
+  double sum_w = 0;
+  double c4 = 0, s4 = 0;          // accumulated 4*angle vector
+  std::array<int, 8> peak_idx{};  // supporting corner peaks
+  int n_peaks = 0;
+};
+
+// Accepted detection: the hypothesis and the grey levels its ring check measured.
+struct Detection {
+  Hypothesis h;
+  double dark_grey = 0.0;   // mean grey of the dark border ring samples (coarse image)
+  double white_grey = 0.0;  // mean grey just outside the border
+};
+
+// The joint square model of pose.cpp: centre and outward normal angle of side 0 in the metric
+// (vehicle) frame, and the half sizes of the outer and inner border edges.
+struct SquareModel {
+  Vec2 c;
+  double beta = 0.0;
+  double h_out = 0.0, h_in = 0.0;
+};
+
+// Normal equations of the joint fit (c_x, c_y, beta, h_out, h_in) at the final iterate, with the
+// weighted sum of squared residuals and the sum of weights: what the covariance needs.
+struct NormalEquations {
+  Eigen::Matrix<double, 5, 5> jtj;
+  Eigen::Matrix<double, 5, 1> jtr;
+  double ssr = 0.0, sum_w = 0.0;
+};
+
+// Logo scores at the four 90-degree turns (turn q: forward axis = beta - q * 90 deg).
+struct LogoScores {
+  std::array<double, 4> ncc{};  // -1 at a turn where the logo leaves the image
+  int best_q = 0;
+  double best = 0.0, margin = 0.0;  // best NCC, best minus second best
+  bool clear = false;               // best above threshold and ahead of the second by the margin
+};
+
+// Shared helpers, inline: the logo and QR sampling call sample() thousands of times per frame
+// (kept inlinable as when they shared one file; out of line the direction stage took 8 % longer).
+inline Vec2 rot(Vec2 v, double a) {
+  const double c = std::cos(a), s = std::sin(a);
+  return {c * v.x - s * v.y, s * v.x + c * v.y};
+}
+
+// Bilinear sample of an 8-bit image; false outside.
+inline bool sample(const cv::Mat& img, double x, double y, double* v) {
+  if (!(x >= 0.0 && y >= 0.0 && x <= img.cols - 1.0 && y <= img.rows - 1.0)) return false;
+  const int x0 = std::min(static_cast<int>(x), img.cols - 2 < 0 ? 0 : img.cols - 2);
+  const int y0 = std::min(static_cast<int>(y), img.rows - 2 < 0 ? 0 : img.rows - 2);
+  const double fx = x - x0, fy = y - y0;
+  const std::uint8_t* r0 = img.ptr<std::uint8_t>(y0);
+  const std::uint8_t* r1 = img.ptr<std::uint8_t>(std::min(y0 + 1, img.rows - 1));
+  const int x1 = std::min(x0 + 1, img.cols - 1);
+  *v = (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x1]);
+  return true;
+}
+
+inline double ncc(const std::vector<double>& a, const std::vector<double>& b) {
+  const size_t n = std::min(a.size(), b.size());
+  if (n < 2) return 0.0;
+  double ma = 0, mb = 0;
+  for (size_t i = 0; i < n; ++i) {
+    ma += a[i];
+    mb += b[i];
+  }
+  ma /= static_cast<double>(n);
+  mb /= static_cast<double>(n);
+  double sab = 0, saa = 0, sbb = 0;
+  for (size_t i = 0; i < n; ++i) {
+    sab += (a[i] - ma) * (b[i] - mb);
+    saa += (a[i] - ma) * (a[i] - ma);
+    sbb += (b[i] - mb) * (b[i] - mb);
+  }
+  // A flat sample set (no contrast) correlates with nothing.
+  return saa > 1e-9 && sbb > 1e-9 ? sab / std::sqrt(saa * sbb) : 0.0;
+}
+
+// Fit covariance of (c_x, c_y, beta) from the joint fit's normal equations (covariance.cpp).
+Eigen::Matrix3d fit_covariance(const NormalEquations& ne, int n_params, const VisionConfig& cfg);
+
+struct LandmarkLocalizer::Impl {
+  VisionConfig cfg;
+  CameraModel cam;
+  CameraModel cam_linear;  // same mount, one mm/px ratio, no distortion (paper 001)
+  LandmarkGeometry geom;
+  const LandmarkMap* map = nullptr;
+
+  // Detection.
+  int coarse_factor = 8;
+  double coarse_w = 0, coarse_h = 0, coarse_anchor = 0;  // border width, outer half, anchor
+  std::vector<cv::Mat> templates;                        // CV_32F corner templates
+  std::vector<double> template_angles;
+  cv::Mat coarse, binary, isum, isq, best_score, best_rot;
+  std::vector<std::vector<float>> templates_zm;  // zero-mean, unit-norm
+  std::vector<float> templates_t;
+  int template_lanes = 16;
+  cv::Mat coarse_f;  // CV_32F copy of `coarse` for the NCC kernel
+  cv::Mat orient4;   // CV_32FC2 per coarse pixel: |g|^2-weighted (cos 4a, sin 4a) of the gradient
+  std::vector<std::uint32_t> row_sums;
+  std::vector<std::vector<float>> fine_templates;  // 1-degree steps
+  std::vector<CornerPeak> peaks;
+  std::vector<Hypothesis> hyps;
+
+  // QR.
+  cv::Mat qr_small, qr_blur, qr_sharp;
+  QrSamples qr_samples;
+  std::vector<float> qr_fill;
+  QrGridScratch qr_scratch;
+  std::string qr_text;
+
+  // Pose.
+  std::array<std::vector<Vec2>, kNumLines> pts_px, pts_mm;
+  std::array<std::vector<double>, kNumLines> weights;
+  std::vector<double> logo_template, logo_samples, residual_buf, scratch_buf;
+  std::vector<Vec2> logo_page_pts;
+  std::vector<int> strip_gx, strip_gy;
+  std::vector<double> strip_along;
+
+  // Kept for the overlay.
+  bool have_overlay = false;
+  std::array<bool, kNumLines> line_ok{};
+  std::array<Vec2, 8> corners_px{};  // outer 0..3, inner 4..7
+  Vec2 centre_px;
+  int quadrant = 0;
+  double up_angle_px = 0;
+
+  double mm_per_px = 0.26;
+
+  Impl(const VisionConfig& c, const CameraModel& m, const LandmarkGeometry& g,
+       const LandmarkMap* mp);
+
+  double now_ms() const { return cfg.now_ns ? static_cast<double>(cfg.now_ns()) * 1e-6 : 0.0; }
+  Vec2 coarse_to_full(Vec2 c) const {
+    const double f = coarse_factor;
+    return {(c.x + 0.5) * f - 0.5, (c.y + 0.5) * f - 0.5};
+  }
+  const CameraModel& metric_cam() const {
+    return cfg.metric == MetricMode::kCameraModel ? cam : cam_linear;
+  }
+
+  // run(): the stages in order (landmark_localizer.cpp).
+  FixStatus run(const cv::Mat& img, LandmarkFix* out);
+  bool partly_outside(const cv::Mat& img, Vec2 c_px, double up) const;
+  void fill_result(const Pose2& world_landmark, Vec2 c_mm, double beta, int q_final,
+                   const Eigen::Matrix3d& cov, LandmarkFix* out) const;
+
+  // Stages 1-2, binarization and detection (detect.cpp).
+  void build_templates();
+  void render_corner(double a, int r, cv::Mat* t) const;
+  double ncc_at(const std::vector<float>& tz, int tsz, int x, int y) const;
+  bool detect(const cv::Mat& img, Detection* best, bool* found_corner, double* corner_score);
+  bool make_coarse(const cv::Mat& img);
+  void score_corner_templates();
+  void find_corner_peaks();
+  void merge_peaks();
+  bool select_hypothesis(Detection* best, double* corner_score);
+  void refine_hypothesis(Hypothesis* h) const;
+  Vec2 rematch_corner(const CornerPeak& p, double a, double* weight) const;
+  void compute_orient4();
+  void refine_coarse_angle(Hypothesis* h) const;
+  bool ring_check(const Hypothesis& h, double* dark_level, double* white_level, int* n_dark);
+
+  // Stage 3, pose (pose.cpp; its covariance, stage 6, in covariance.cpp).
+  FixStatus pose(const cv::Mat& img, Vec2 centre_px, double up_angle, double contrast,
+                 LandmarkFix* out, Vec2* c_mm, double* beta, Eigen::Matrix3d* cov);
+  int collect(const cv::Mat& img, Vec2 centre_px, double up_angle, double band_px, double thr);
+  int collect_line(const cv::Mat& img, Vec2 c, Vec2 nk, double h, Vec2 g_dir, double band,
+                   int thr2_int, double tan_tol, std::vector<Vec2>* dst);
+  int fit_lines(std::array<LineFit, kNumLines>* fits);
+  double line_heading(const std::array<LineFit, kNumLines>& fits, double beta0) const;
+  Vec2 paper_corner_a_centre(double beta) const;
+  bool intersections_centre(const std::array<LineFit, kNumLines>& fits, Vec2* c) const;
+  Vec2 joint_start_centre(const std::array<LineFit, kNumLines>& fits, const SquareModel& m) const;
+  void reweight_joint(const SquareModel& m);
+  void accumulate_normal_equations(const SquareModel& m, NormalEquations* ne) const;
+  bool joint_fit(PoseMethod method, bool free_size, SquareModel* m, NormalEquations* ne);
+  void keep_overlay_geometry(const SquareModel& m);
+
+  // Stage 4, logo, and the direction decision of stage 5 (direction.cpp).
+  void build_logo();
+  LogoScores logo_scores(const cv::Mat& img, Vec2 c_mm, double beta);
+  int decide_direction(const LogoScores& logo, int qr_q) const;
+
+  // Stage 5, QR decode (qr_decode.cpp).
+  int decode_qr(const cv::Mat& img, Vec2 c_px, double up, Vec2 c_mm, double beta,
+                const LogoScores& logo, LandmarkFix* out);
+  int decode_guided(const cv::Mat& img, Vec2 c_mm, double beta, const LogoScores& logo);
+  int decode_search(const cv::Mat& img, Vec2 c_px, double up, double beta);
+  bool read_qr_search(const cv::Mat& img, Vec2 centre_px, double up_angle, std::string* text,
+                      double* qr_up_angle, bool* qr_ok);
+  bool sample_qr(const cv::Mat& img, Vec2 c_mm, double fwd, int n, QrSamples* s);
+  bool fill_missing_modules(QrSamples* s);
+  FixStatus check_payload(const std::string& text, LandmarkFix* out, Pose2* world_landmark);
+};
+
+}  // namespace agv::vision

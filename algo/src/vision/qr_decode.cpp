@@ -1,0 +1,304 @@
+// Stage 5 of the pipeline (docs/vision.md), QR decode: model-guided module sampling where the
+// fitted pose puts the code (qr_grid), zxing's own search on the image crop as the fallback, then
+// the payload parser and the map check. Also gives the QR code's orientation for the direction
+// cross-check.
+#define ZX_USE_UTF8 1
+#include <ZXing/ReadBarcode.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <opencv2/imgproc.hpp>
+
+#include "localizer_impl.hpp"
+
+namespace agv::vision {
+
+namespace {
+
+// zxing search attempts: the first only, or all six with VisionConfig::qr_retries (see
+// read_qr_search for what each does).
+constexpr int kQrSearchAttempts = 6;
+// Downscale factor = floor(module_px / target + 0.25): rounds up from 0.75 of a step, so a code
+// slightly above the target size is still reduced (zxing reads 3-5 px per module equally well).
+constexpr double kDownscaleRoundUp = 0.25;
+// The crop reaches this many pixels beyond the rotated square's bounding box: the detection
+// centre can be a few pixels off, and zxing needs a little quiet zone.
+constexpr double kQrCropMarginPx = 4.0;
+// Below this crop size (pixels) there is no readable code (a version-2 code needs >= 25 px).
+constexpr int kMinQrCropPx = 16;
+// Attempt 1: a light Gaussian blur (sigma in px after downscaling) erases thin bright scratches.
+constexpr double kScratchBlurSigmaPx = 1.0;
+// Attempts 4 and 5: unsharp masking, sigma about one module after downscaling, amount 1.
+constexpr double kUnsharpSigmaPx = 2.5;
+constexpr double kUnsharpAmount = 1.0;
+// Guided sampling: besides each module's centre, four samples a quarter module away along the
+// page axes (averaging them tolerates a pose error of a quarter module), and two modules of quiet
+// zone around the code (the local-mean thresholds need light surroundings).
+constexpr double kSampleOffsetModules = 0.25;
+constexpr int kSamplesPerModule = 5;
+constexpr int kQuietRingModules = 2;
+constexpr float kMissing = -1.0f;  // marks a module whose samples left the image
+// The QR orientation selects the turn whose forward axis lies within this angle: turns are 90
+// degrees apart, and a misread orientation is off by a multiple of 90.
+constexpr double kQrTurnTolDeg = 30.0;
+
+}  // namespace
+
+// Guided module sampling at the logo's turn (all four when the logo is unclear; the code sits
+// off-centre, so a wrong turn samples the wrong place and cannot decode), then zxing's search on
+// the crop. Returns the turn the code's own orientation points to (-1 when unknown) and sets
+// out->qr_method (0 = unread) and qr_text.
+int LandmarkLocalizer::Impl::decode_qr(const cv::Mat& img, Vec2 c_px, double up, Vec2 c_mm,
+                                       double beta, const LogoScores& logo, LandmarkFix* out) {
+  qr_text.clear();
+  if (cfg.qr_guided) {
+    const int q = decode_guided(img, c_mm, beta, logo);
+    if (q >= 0) {
+      out->qr_method = 1;
+      return q;
+    }
+  }
+  double qr_up = 0;
+  bool qr_ok = false;
+  if (!read_qr_search(img, c_px, up, &qr_text, &qr_up, &qr_ok)) return -1;
+  out->qr_method = 2;
+  // The code's orientation in the metric frame: which turn does it point to?
+  const CameraModel& mc = metric_cam();
+  Vec2 a0, a1;
+  int qr_q = -1;
+  if (qr_ok && mc.pixel_to_vehicle(c_px, &a0) &&
+      mc.pixel_to_vehicle(
+          {c_px.x + kAngleProbePx * std::cos(qr_up), c_px.y + kAngleProbePx * std::sin(qr_up)},
+          &a1)) {
+    const double b_qr = std::atan2(a1.y - a0.y, a1.x - a0.x);
+    for (int q = 0; q < 4; ++q) {
+      if (std::abs(wrap_angle_rad(b_qr - (beta - q * kPi / 2.0))) < deg_to_rad(kQrTurnTolDeg)) {
+        qr_q = q;
+      }
+    }
+  }
+  return qr_q;
+}
+
+// The turn at which the guided reader decoded, or -1.
+int LandmarkLocalizer::Impl::decode_guided(const cv::Mat& img, Vec2 c_mm, double beta,
+                                           const LogoScores& logo) {
+  std::array<int, 4> order{logo.best_q, -1, -1, -1};
+  if (!logo.clear) {
+    order = {0, 1, 2, 3};
+    std::sort(order.begin(), order.end(), [&](int x, int y) {
+      return logo.ncc[static_cast<size_t>(x)] > logo.ncc[static_cast<size_t>(y)];
+    });
+  }
+  // Order measured (qr_grid.hpp, docs/accuracy.md): strong sharpening reads the most codes;
+  // the others rescue a few more at no cost to frames that already decode.
+  constexpr QrThreshold kThresholds[] = {QrThreshold::kStronglySharpenedLocalMean,
+                                         QrThreshold::kSharpenedLocalMean, QrThreshold::kLocalMean,
+                                         QrThreshold::kMidpoint};
+  for (int q : order) {
+    if (q < 0) break;
+    for (int n : {kQrModulesV2, kQrModulesV1}) {
+      if (!sample_qr(img, c_mm, beta - q * kPi / 2.0, n, &qr_samples)) continue;
+      for (QrThreshold t : kThresholds) {
+        if (decode_qr_grid(qr_samples, t, &qr_text, &qr_scratch)) return q;
+      }
+    }
+  }
+  return -1;
+}
+
+// zxing's own search on a crop around the detected centre. Attempts: (0) the inner white square's
+// bounding box; only when that fails: (1) the same crop slightly blurred, which removes thin
+// scratches that break zxing's local binarizer; (2) a larger crop (zxing's block binarizer is
+// sensitive to where blocks fall on a blurred code); (3) zxing's global-histogram binarizer;
+// (4, 5) an unsharp-masked crop with either binarizer, which recovers codes smeared by defocus
+// plus motion blur. qr_up_angle: image angle of the code's "up"; qr_ok: not mirrored.
+bool LandmarkLocalizer::Impl::read_qr_search(const cv::Mat& img, Vec2 c, double up_angle,
+                                             std::string* text, double* qr_up_angle, bool* qr_ok) {
+  *qr_ok = false;
+  const double module_px = geom.qr_side_mm() / kQrModulesV2 / mm_per_px;
+  int d = 1;
+  if (cfg.qr_target_module_px > 0) {
+    d = std::max(
+        1, static_cast<int>(std::floor(module_px / cfg.qr_target_module_px + kDownscaleRoundUp)));
+  }
+  ZXing::DecodeHints hints;
+  hints.setFormats(ZXing::BarcodeFormat::QRCode)
+      .setTryHarder(cfg.qr_try_harder)
+      .setTryRotate(cfg.qr_try_harder)
+      .setTryDownscale(false)
+      .setMaxNumberOfSymbols(1);
+  ZXing::Result res;
+  cv::Rect r;
+  const int attempts = cfg.qr_retries ? kQrSearchAttempts : 1;
+  for (int attempt = 0; attempt < attempts; ++attempt) {
+    const double half = (attempt == 2 ? geom.outer_half_mm() : geom.inner_half_mm()) / mm_per_px *
+                            (std::abs(std::cos(up_angle)) + std::abs(std::sin(up_angle))) +
+                        kQrCropMarginPx;
+    r = cv::Rect(static_cast<int>(std::floor(c.x - half)), static_cast<int>(std::floor(c.y - half)),
+                 static_cast<int>(std::ceil(2 * half)) + 1,
+                 static_cast<int>(std::ceil(2 * half)) + 1);
+    r &= cv::Rect(0, 0, img.cols, img.rows);
+    if (r.width < kMinQrCropPx || r.height < kMinQrCropPx) return false;
+    cv::Mat roi = img(r);
+    const cv::Mat* src = &roi;
+    if (d > 1) {
+      cv::resize(roi, qr_small, cv::Size(r.width / d, r.height / d), 0, 0, cv::INTER_AREA);
+      src = &qr_small;
+    }
+    if (attempt == 1) {
+      cv::GaussianBlur(*src, qr_blur, cv::Size(0, 0), kScratchBlurSigmaPx);
+      src = &qr_blur;
+    } else if (attempt >= 4) {
+      cv::GaussianBlur(*src, qr_blur, cv::Size(0, 0), kUnsharpSigmaPx);
+      cv::addWeighted(*src, 1.0 + kUnsharpAmount, qr_blur, -kUnsharpAmount, 0.0, qr_sharp);
+      src = &qr_sharp;
+    }
+    hints.setBinarizer(attempt == 3 || attempt == 5 ? ZXing::Binarizer::GlobalHistogram
+                                                    : ZXing::Binarizer::LocalAverage);
+    ZXing::ImageView iv(src->data, src->cols, src->rows, ZXing::ImageFormat::Lum,
+                        static_cast<int>(src->step[0]));
+    res = ZXing::ReadBarcode(iv, hints);
+    if (res.isValid()) break;
+  }
+  if (!res.isValid()) return false;
+  *text = res.text();
+  const auto& pos = res.position();
+  auto to_full = [&](ZXing::PointI p) {
+    return Vec2{r.x + (p.x + 0.5) * d - 0.5, r.y + (p.y + 0.5) * d - 0.5};
+  };
+  const Vec2 tl = to_full(pos.topLeft()), tr = to_full(pos.topRight()),
+             br = to_full(pos.bottomRight()), bl = to_full(pos.bottomLeft());
+  *qr_up_angle = std::atan2((tl.y + tr.y) - (bl.y + br.y), (tl.x + tr.x) - (bl.x + br.x));
+  *qr_ok = !res.isMirrored();
+  return true;
+}
+
+// Samples every module of an n x n code (plus the quiet-zone ring) where the pose (c_mm, forward
+// angle fwd) puts it. False when the code cannot be sampled (too much of it outside the image).
+bool LandmarkLocalizer::Impl::sample_qr(const cv::Mat& img, Vec2 c_mm, double fwd, int n,
+                                        QrSamples* s) {
+  const CameraModel& mc = metric_cam();
+  const Pose2 l_in_v{c_mm.x, c_mm.y, fwd};
+  const double m = geom.qr_side_mm() / n;
+  auto to_px = [&](Vec2 uv, Vec2* px) {
+    return mc.vehicle_to_pixel(transform(l_in_v, page_to_landmark(uv)), px);
+  };
+  // The extra samples' pixel offsets are taken at the code's centre; distortion changes them by
+  // far less than a pixel over the code.
+  const Vec2 mid{geom.qr_u0_mm() + 0.5 * geom.qr_side_mm(),
+                 geom.qr_v0_mm() + 0.5 * geom.qr_side_mm()};
+  Vec2 p0, pu, pv;
+  if (!to_px(mid, &p0) || !to_px({mid.x + kSampleOffsetModules * m, mid.y}, &pu) ||
+      !to_px({mid.x, mid.y + kSampleOffsetModules * m}, &pv)) {
+    return false;
+  }
+  const Vec2 du{pu.x - p0.x, pu.y - p0.y}, dv{pv.x - p0.x, pv.y - p0.y};
+  s->n = n;
+  s->ring = kQuietRingModules;
+  const int side = s->side();
+  s->v.resize(static_cast<size_t>(side * side));
+  // Modules whose samples leave the image (a landmark cut by the image border) are filled in
+  // (fill_missing_modules); at most qr_max_missing_modules of them may be data modules.
+  int missing_data = 0, missing = 0;
+  const int max_missing_data = cfg.qr_max_missing_modules;
+  const double ou[kSamplesPerModule] = {0, 1, -1, 0, 0}, ov[kSamplesPerModule] = {0, 0, 0, 1, -1};
+  for (int r = 0; r < side; ++r) {
+    for (int c = 0; c < side; ++c) {
+      const Vec2 uv{geom.qr_u0_mm() + (c - s->ring + 0.5) * m,
+                    geom.qr_v0_mm() + (r - s->ring + 0.5) * m};
+      Vec2 px;
+      double acc = 0, v = 0;
+      bool inside = to_px(uv, &px);
+      for (int k = 0; k < kSamplesPerModule && inside; ++k) {
+        inside =
+            sample(img, px.x + ou[k] * du.x + ov[k] * dv.x, px.y + ou[k] * du.y + ov[k] * dv.y, &v);
+        acc += v;
+      }
+      if (!inside) {
+        ++missing;
+        const int rr = r - s->ring, cc = c - s->ring;
+        const bool in_code = rr >= 0 && cc >= 0 && rr < n && cc < n;
+        if (in_code && qr_fixed_module(n, rr, cc) < 0 && ++missing_data > max_missing_data) {
+          return false;
+        }
+      }
+      s->v[static_cast<size_t>(r * side + c)] =
+          inside ? static_cast<float>(acc / kSamplesPerModule) : kMissing;
+    }
+  }
+  return missing == 0 || fill_missing_modules(s);
+}
+
+// Fill-in of the modules outside the image: quiet-zone modules with the quiet zone's median,
+// fixed modules with their known value, and data modules with the code's mean (left to
+// Reed-Solomon to correct). Levels from the samples that were inside.
+bool LandmarkLocalizer::Impl::fill_missing_modules(QrSamples* s) {
+  const int n = s->n, side = s->side();
+  qr_fill.clear();
+  double code_sum = 0;
+  int code_n = 0;
+  for (int r = 0; r < side; ++r) {
+    for (int c = 0; c < side; ++c) {
+      const float v = s->v[static_cast<size_t>(r * side + c)];
+      if (v == kMissing) continue;
+      const int rr = r - s->ring, cc = c - s->ring;
+      if (rr >= 0 && cc >= 0 && rr < n && cc < n) {
+        code_sum += static_cast<double>(v);
+        ++code_n;
+      } else {
+        qr_fill.push_back(v);
+      }
+    }
+  }
+  if (qr_fill.empty() || code_n == 0) return false;
+  std::nth_element(qr_fill.begin(),
+                   qr_fill.begin() + static_cast<std::ptrdiff_t>(qr_fill.size() / 2),
+                   qr_fill.end());
+  const float light = qr_fill[qr_fill.size() / 2];
+  const float mean = static_cast<float>(code_sum / code_n);
+  // Dark level mirrored about the mean: modules are about half dark, half light.
+  const float dark = std::max(0.0f, 2.0f * mean - light);
+  for (int r = 0; r < side; ++r) {
+    for (int c = 0; c < side; ++c) {
+      float& v = s->v[static_cast<size_t>(r * side + c)];
+      if (v != kMissing) continue;
+      const int rr = r - s->ring, cc = c - s->ring;
+      const bool in_code = rr >= 0 && cc >= 0 && rr < n && cc < n;
+      const int f = in_code ? qr_fixed_module(n, rr, cc) : 0;
+      v = !in_code ? light : f == 1 ? dark : f == 0 ? light : mean;
+    }
+  }
+  return true;
+}
+
+// The payload must parse; its landmark must be in the map (an id-only payload takes its pose
+// from there) and a full payload must agree with the map entry within the tolerances.
+FixStatus LandmarkLocalizer::Impl::check_payload(const std::string& text, LandmarkFix* out,
+                                                 Pose2* world_landmark) {
+  std::snprintf(out->payload, sizeof out->payload, "%s", text.c_str());
+  LandmarkPayload p;
+  if (parse_payload(text, &p) != PayloadError::kOk) return FixStatus::kPayloadInvalid;
+  out->landmark_id = p.id;
+  const LandmarkMapEntry* e = map ? map->find(p.id) : nullptr;
+  if (!p.has_pose) {
+    if (!e) return FixStatus::kUnknownLandmark;
+    *world_landmark = e->pose;
+  } else {
+    const Pose2 pp = payload_pose(p);
+    if (map) {
+      if (!e) return FixStatus::kUnknownLandmark;
+      const double dpos = std::hypot(pp.x_mm - e->pose.x_mm, pp.y_mm - e->pose.y_mm);
+      const double dang = std::abs(rad_to_deg(wrap_angle_rad(pp.theta_rad - e->pose.theta_rad)));
+      if (!(dpos <= cfg.map_tolerance_mm) || !(dang <= cfg.map_tolerance_deg)) {
+        return FixStatus::kPayloadInvalid;
+      }
+    }
+    *world_landmark = pp;
+  }
+  out->map_verified = map != nullptr;
+  return FixStatus::kOk;
+}
+
+}  // namespace agv::vision

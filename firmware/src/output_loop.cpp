@@ -1,0 +1,126 @@
+#include "output_loop.hpp"
+
+#include <cinttypes>
+#include <cstdio>
+
+namespace agv::app {
+
+localizer::LocalizerConfig localizer_config(const config::Config& cfg) {
+  localizer::LocalizerConfig c;
+  c.fusion = cfg.fusion;
+  c.protocol = config::protocol_config(cfg);
+  // can.odometry.timeout_ms is THE odometry timeout (pose validity and the EKF's flag).
+  c.odometry_timeout_ns = static_cast<std::int64_t>(cfg.can.odometry_timeout_ms * 1e6);
+  c.heartbeat_period_ns = static_cast<std::int64_t>(1e9 / cfg.loop.heartbeat_rate_hz);
+  c.camera_timeout_ns = static_cast<std::int64_t>(cfg.camera.timeout_ms * 1e6);
+  c.sw_major = AGV_VERSION_MAJOR;
+  c.sw_minor = AGV_VERSION_MINOR;
+  c.sw_patch = AGV_VERSION_PATCH;
+  return c;
+}
+
+namespace {
+
+void print_period_line(const OutputStats& o, std::uint64_t dropped) {
+  std::fprintf(stderr,
+               "agvloc: ticks %" PRIu64 " missed %" PRIu64 " | fixes fused %" PRIu64
+               " gated %" PRIu64
+               " | e2e p50 %.2f ms p99 %.2f ms | jitter p99 %.0f us | "
+               "frames dropped %" PRIu64 " | can tx ok %" PRIu64 " failed %" PRIu64 "\n",
+               o.ticks, o.missed_periods, o.fixes_fused, o.fixes_rejected_gate,
+               static_cast<double>(o.end_to_end_ns.percentile_ns(0.5)) / 1e6,
+               static_cast<double>(o.end_to_end_ns.percentile_ns(0.99)) / 1e6,
+               static_cast<double>(o.period_jitter_ns.percentile_ns(0.99)) / 1e3, dropped,
+               o.can_tx_ok, o.can_tx_failed);
+}
+
+}  // namespace
+
+OutputLoop::OutputLoop(localizer::Localizer& core, hal::CanBus* bus, const hal::Clock& clock,
+                       const std::vector<recording::OdomRow>* odometry, FixRing& fixes,
+                       std::int64_t log_period_ns)
+    : core_(core),
+      bus_(bus),
+      clock_(clock),
+      odometry_(odometry),
+      fixes_(fixes),
+      log_period_ns_(log_period_ns) {
+  if (bus_) {
+    const hal::CanFilter f = core_.odometry_filter();
+    bus_->set_filters(&f, 1);
+  }
+}
+
+void OutputLoop::drain_odometry(std::int64_t up_to_ns) {
+  if (!odometry_) return;
+  while (odom_i_ < odometry_->size() && (*odometry_)[odom_i_].t_ns <= up_to_ns) {
+    const recording::OdomRow& r = (*odometry_)[odom_i_++];
+    core_.on_odometry(r.t_ns, r.v_mps, r.omega_radps);
+  }
+}
+
+int OutputLoop::take_inputs(std::int64_t now_ns) {
+  if (bus_) {
+    hal::CanFrame frame;
+    // Bounded: at 1 Mbit/s at most ~80 frames arrive in 10 ms.
+    for (int i = 0; i < 256; ++i) {
+      if (bus_->receive(&frame, 0) != hal::CanStatus::kOk) break;
+      core_.on_can_frame(frame);
+    }
+  }
+  int good = 0;
+  FixRecord rec;
+  while (fixes_.front(&rec) && rec.t_done_ns <= now_ns) {
+    fixes_.pop(&rec);
+    drain_odometry(rec.t_done_ns);
+    core_.on_fix(rec.fix, rec.t_exposure_ns, rec.t_done_ns);
+    if (rec.fix.status == vision::FixStatus::kOk) ++good;
+  }
+  drain_odometry(now_ns);
+  return good;
+}
+
+void OutputLoop::send(const localizer::OutFrames& out) {
+  OutputStats& st = core_.mutable_stats();
+  for (int i = 0; i < out.n; ++i) {
+    if (bus_) {
+      if (bus_->send(out.frame[i]) == hal::CanStatus::kOk) {
+        ++st.can_tx_ok;
+      } else {
+        ++st.can_tx_failed;  // counted, never retried: the next period carries fresher data
+      }
+    }
+    // The pose pair is first: end to end ends when it has left.
+    if (i == 1 && out.e2e_exposure_ns != INT64_MIN) {
+      st.end_to_end_ns.record_ns(clock_.now_ns() - out.e2e_exposure_ns);
+    }
+  }
+}
+
+void OutputLoop::tick(std::int64_t now_ns, const CameraState& camera, TickRecord* rec) {
+  take_inputs(now_ns);
+  core_.set_camera_state(camera.last_frame_ns, camera.end_of_stream, camera.error);
+  if (bus_) core_.set_can_state(bus_->state(), bus_->stats());
+  const std::int64_t t_start = clock_.now_ns();
+  core_.tick(now_ns, &frames_, rec);
+  const std::int64_t t_fused = clock_.now_ns();
+  core_.mutable_stats().fusion_ns.record_ns(t_fused - t_start);
+  send(frames_);
+  core_.mutable_stats().can_send_ns.record_ns(clock_.now_ns() - t_fused);
+  if (log_period_ns_ > 0) {
+    if (next_log_ns_ == INT64_MIN) next_log_ns_ = now_ns + log_period_ns_;
+    if (now_ns >= next_log_ns_) {
+      print_period_line(core_.stats(), camera.frames_dropped);
+      next_log_ns_ += log_period_ns_;
+    }
+  }
+}
+
+bool OutputLoop::on_wake(std::int64_t now_ns) {
+  if (take_inputs(now_ns) == 0) return false;
+  core_.pose_now(now_ns, &frames_);
+  send(frames_);
+  return true;
+}
+
+}  // namespace agv::app

@@ -1,0 +1,81 @@
+// The output thread's work, shared by every mode: `run` and `replay --realtime` call it from the
+// real-time thread on the monotonic (or scaled) clock, `replay --fast` from one thread on a
+// stepped clock in recording time. One CAN writer: only this sends.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "agv/hal/can_bus.hpp"
+#include "agv/hal/clock.hpp"
+#include "agv/localizer/localizer.hpp"
+#include "agv/recording/recording.hpp"
+#include "agv/vision/landmark_localizer.hpp"
+#include "config.hpp"
+#include "handoff.hpp"
+
+namespace agv::app {
+
+using localizer::OutputStats;
+using localizer::TickRecord;
+
+struct FixRecord {
+  std::int64_t t_exposure_ns = 0;
+  std::int64_t t_done_ns = 0;  // when the fix was handed to fusion (its arrival)
+  vision::LandmarkFix fix;
+};
+
+// Vision -> output. Sized for replay --fast too, where fixes wait for their simulated arrival
+// (replay.fix_delay_ms x frame rate of them at most).
+using FixRing = SpscRing<FixRecord, 64>;
+
+// The whole configuration of the localizer core, from the YAML tree: the one place that reads
+// config::Config for it.
+localizer::LocalizerConfig localizer_config(const config::Config& cfg);
+
+struct CameraState {
+  std::int64_t last_frame_ns = INT64_MIN;  // receive time of the newest frame
+  bool end_of_stream = false;
+  bool error = false;
+  std::uint64_t frames_dropped = 0;  // newest-wins replacements (periodic log line)
+};
+
+class OutputLoop {
+ public:
+  // bus: null = no CAN. odometry: replay odometry on the loop clock, null = from CAN.
+  // log_period_ns: periodic statistics line on stderr, 0 = none. Installs the odometry receive
+  // filter on the bus.
+  OutputLoop(localizer::Localizer& core, hal::CanBus* bus, const hal::Clock& clock,
+             const std::vector<recording::OdomRow>* odometry, FixRing& fixes,
+             std::int64_t log_period_ns);
+
+  // One output period at now_ns: odometry up to now, CAN receive, fixes that arrived, camera
+  // state, core tick, send, periodic log. Fills *rec when not null.
+  void tick(std::int64_t now_ns, const CameraState& camera, TickRecord* rec);
+  // Fix-triggered output (loop.pose_on_fix), outside the periodic schedule: the same inputs up
+  // to now_ns, then the pose pair at once if a good fix was taken. True when it sent.
+  bool on_wake(std::int64_t now_ns);
+  // Odometry and fixes merged in time order up to now_ns (odometry first on equal times), after
+  // the CAN receive queue; returns the number of good (FixStatus::kOk) fixes handed to the core.
+  int take_inputs(std::int64_t now_ns);
+
+  bool odometry_done() const { return !odometry_ || odom_i_ >= odometry_->size(); }
+  const localizer::Localizer& core() const { return core_; }
+  localizer::Localizer& core() { return core_; }
+
+ private:
+  void drain_odometry(std::int64_t up_to_ns);
+  void send(const localizer::OutFrames& out);
+
+  localizer::Localizer& core_;
+  hal::CanBus* bus_;
+  const hal::Clock& clock_;
+  const std::vector<recording::OdomRow>* odometry_;
+  std::size_t odom_i_ = 0;
+  FixRing& fixes_;
+  std::int64_t log_period_ns_;
+  std::int64_t next_log_ns_ = INT64_MIN;
+  localizer::OutFrames frames_;
+};
+
+}  // namespace agv::app

@@ -1,0 +1,110 @@
+// agvloc-desk sim-board -> agvloc-desk calibrate intrinsics end to end: the written snippet
+// loads as a configuration; too few views exit 1, name the minimum and write nothing.
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include "calib_intrinsics.hpp"
+#include "config.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Out {
+  int code = -1;
+  std::string text;  // stdout + stderr
+};
+
+Out run(const std::string& args) {
+  const std::string cmd = std::string(AGVLOC_DESK) + " " + args + " 2>&1";
+  Out o;
+  FILE* p = popen(cmd.c_str(), "r");
+  if (!p) return o;
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof buf, p)) > 0) o.text.append(buf, n);
+  const int status = pclose(p);
+  o.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return o;
+}
+
+std::string board_flags() {
+  return agv::desk::calib::have_charuco() ? "--board charuco" : "--board chessboard";
+}
+
+TEST(CalibCli, SimBoardThenCalibrateWritesALoadableSnippet) {
+  const fs::path dir = fs::path(testing::TempDir()) / "calib_cli_ok";
+  fs::remove_all(dir);
+  const Out sim = run("sim-board --out " + (dir / "views").string() + " " + board_flags() +
+                      " --views 12 --blurred 1 --seed 4");
+  ASSERT_EQ(sim.code, 0) << sim.text;
+  const std::string yaml = (dir / "camera.yaml").string();
+  const std::string svg = (dir / "coverage.svg").string();
+  const Out cal = run("calibrate intrinsics --images " + (dir / "views").string() + " " +
+                      board_flags() + " --min-views 10 --out " + yaml + " --coverage " + svg +
+                      " --truth " + (dir / "views" / "truth.yaml").string());
+  ASSERT_EQ(cal.code, 0) << cal.text;
+  std::printf("%s", cal.text.c_str());
+  // The blurred view (index 13 * 1 / 2 = 6) is named with the reason.
+  EXPECT_NE(cal.text.find("view_006.png"), std::string::npos);
+  EXPECT_NE(cal.text.find("rejected: blurred: edge blur"), std::string::npos) << cal.text;
+  EXPECT_NE(cal.text.find("RMS reprojection error"), std::string::npos);
+  EXPECT_NE(cal.text.find("recovered vs true"), std::string::npos);
+  agv::config::Config cfg, truth;
+  std::vector<std::string> errors;
+  ASSERT_TRUE(agv::config::load_config(yaml, &cfg, &errors)) << errors.front();
+  ASSERT_TRUE(agv::config::load_config((dir / "views" / "truth.yaml").string(), &truth, &errors));
+  const auto& e = cfg.camera_model.intrinsics;
+  const auto& t = truth.camera_model.intrinsics;
+  EXPECT_EQ(e.width_px, t.width_px);
+  EXPECT_EQ(e.height_px, t.height_px);
+  EXPECT_NEAR(e.fx, t.fx, 0.002 * t.fx);  // 12 views: a looser bound than the 30-view target
+  EXPECT_NEAR(e.fy, t.fy, 0.002 * t.fy);
+  EXPECT_NEAR(e.cx, t.cx, 1.0);
+  EXPECT_NEAR(e.cy, t.cy, 1.0);
+  std::ifstream f(svg);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  EXPECT_NE(ss.str().find("<svg"), std::string::npos);
+  EXPECT_NE(ss.str().find("<circle"), std::string::npos);
+}
+
+TEST(CalibCli, TooFewViewsExitsOneNamesTheMinimumAndWritesNothing) {
+  const fs::path dir = fs::path(testing::TempDir()) / "calib_cli_few";
+  fs::remove_all(dir);
+  const Out sim = run("sim-board --out " + (dir / "views").string() + " " + board_flags() +
+                      " --views 5 --blurred 1 --seed 5");
+  ASSERT_EQ(sim.code, 0) << sim.text;
+  const std::string yaml = (dir / "camera.yaml").string();
+  const Out cal = run("calibrate intrinsics --images " + (dir / "views").string() + " " +
+                      board_flags() + " --out " + yaml);
+  EXPECT_EQ(cal.code, 1) << cal.text;
+  EXPECT_NE(cal.text.find("only 5 usable view(s) of 6, at least 10 needed (--min-views)"),
+            std::string::npos)
+      << cal.text;
+  EXPECT_FALSE(fs::exists(yaml));
+}
+
+TEST(CalibCli, UsageErrorsAreNamed) {
+  const fs::path dir = fs::path(testing::TempDir()) / "calib_cli_empty";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  Out o = run("calibrate intrinsics --images " + dir.string());
+  EXPECT_EQ(o.code, 2);
+  EXPECT_NE(o.text.find("no .png images"), std::string::npos) << o.text;
+  o = run("calibrate intrinsics --images " + (dir / "missing").string());
+  EXPECT_EQ(o.code, 2);
+  EXPECT_NE(o.text.find("not a directory"), std::string::npos) << o.text;
+  o = run("calibrate nonsense");
+  EXPECT_EQ(o.code, 2);
+  EXPECT_NE(o.text.find("unknown subcommand 'nonsense'"), std::string::npos) << o.text;
+  EXPECT_NE(o.text.find("intrinsics"), std::string::npos) << o.text;
+}
+
+}  // namespace

@@ -1,0 +1,152 @@
+// The live loop (run_threads: capture, vision and output threads) with the shipped default
+// loop.pose_on_fix on: a fake camera delivers rendered frames WITH a landmark, the output goes to
+// a fake CAN bus. Checks that fixes are fused, that the vision worker's wake-up makes the output
+// thread send a pose pair between two periodic ticks, and that the pose frames on the bus are
+// valid and near the truth. Also run under TSan (label tsan).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <random>
+#include <vector>
+
+#include "agv/can/fake_can.hpp"
+#include "agv/fakecamera/fake_camera.hpp"
+#include "agv/posix/posix_clock.hpp"
+#include "agv/protocol/codec.hpp"
+#include "agv/sim/render.hpp"
+#include "config.hpp"
+#include "pipeline.hpp"
+
+using namespace agv;
+namespace p = agv::protocol;
+
+namespace {
+
+constexpr std::int64_t kMs = 1'000'000;
+constexpr std::uint32_t kId = 17;
+const Pose2 kLandmarkWorld{1000.0, -2000.0, deg_to_rad(90.0)};
+
+fakecamera::FakeImage landmark_frame(const Pose2& vehicle_world, const CameraModel& cam) {
+  LandmarkMap map;
+  map.entries[kId] = {kId, kLandmarkWorld};
+  sim::Scene scene;
+  std::string err;
+  EXPECT_TRUE(sim::make_scene(map, LandmarkGeometry{}, sim::PayloadMode::kFull, &scene, &err))
+      << err;
+  std::mt19937_64 rng(5);
+  const cv::Mat img = sim::render_frame(scene, cam, vehicle_world, {}, rng);
+  fakecamera::FakeImage f;
+  f.width_px = img.cols;
+  f.height_px = img.rows;
+  f.gray.resize(static_cast<std::size_t>(img.cols * img.rows));
+  for (int r = 0; r < img.rows; ++r) {
+    for (int c = 0; c < img.cols; ++c) {
+      f.gray[static_cast<std::size_t>(r * img.cols + c)] = img.at<std::uint8_t>(r, c);
+    }
+  }
+  return f;
+}
+
+}  // namespace
+
+TEST(LiveLoop, PoseOnFixWakesTheOutputThreadAndThePoseIsNearTheTruth) {
+  config::Config cfg;
+  ASSERT_TRUE(cfg.loop.pose_on_fix) << "the shipped default this test covers";
+  cfg.loop.log_period_s = 0.0;
+  cfg.camera_model = CameraModel::default_640x480();
+  cfg.landmark_size_mm = LandmarkGeometry{}.size_mm;
+  LandmarkMap map;
+  map.entries[kId] = {kId, kLandmarkWorld};
+  // Standing still a few millimetres from the landmark, turned a little.
+  const Pose2 truth = compose(kLandmarkWorld, Pose2{6.0, -4.0, deg_to_rad(7.0)});
+  const fakecamera::FakeImage img = landmark_frame(truth, cfg.camera_model);
+
+  posix::PosixClock clock;
+  fakecamera::FakeCamera::Options o;
+  o.clock = &clock;
+  o.end_of_stream_when_empty = true;
+  fakecamera::FakeCamera cam(o);
+  const std::int64_t t0 = clock.now_ns() + 50 * kMs;
+  constexpr int kFrames = 8;
+  cam.push_stall(50 * kMs);
+  for (int i = 0; i < kFrames; ++i) {
+    cam.push_frame(img, t0 + i * 100 * kMs);
+    cam.push_stall(100 * kMs);
+  }
+  cam.push_end_of_stream();
+  std::vector<recording::OdomRow> odo;
+  for (std::int64_t t = t0 - 100 * kMs; t < t0 + (kFrames + 3) * 100 * kMs; t += 10 * kMs) {
+    odo.push_back({t, 0.0, 0.0});
+  }
+  can::FakeCanNetwork net;
+  auto vehicle = net.create_endpoint(8192);  // the vehicle controller listening to our frames
+  auto ours = net.create_endpoint(256);
+  std::vector<app::FixRecord> fixes;
+  fixes.reserve(64);
+  app::PipelineIo io;
+  io.camera = &cam;
+  io.bus = ours.get();
+  io.clock = &clock;
+  io.odometry = &odo;
+  io.fixes = &fixes;
+  io.quiet = true;
+  app::RunResult r;
+  ASSERT_EQ(app::run_threads(cfg, &map, io, &r), 0);
+
+  EXPECT_EQ(r.vision.frames_processed + r.frames_dropped_mailbox, static_cast<unsigned>(kFrames));
+  int ok_fixes = 0;
+  for (const auto& f : fixes) ok_fixes += f.fix.status == vision::FixStatus::kOk;
+  ASSERT_GE(ok_fixes, 3) << "the rendered landmark must be found";
+  EXPECT_GE(r.output.fixes_fused, 3u);
+  EXPECT_GE(r.output.fix_poses, 3u);
+  EXPECT_EQ(r.output.can_tx_failed, 0u);
+
+  // The bus in send order: periodic blocks (pose xy, heading, velocity, quality, status
+  // [, heartbeat]) and, between two of them, fix-triggered pose pairs.
+  const p::ProtocolConfig pc = config::protocol_config(cfg);
+  std::vector<hal::CanFrame> bus;
+  hal::CanFrame f;
+  while (vehicle->receive(&f, 0) == hal::CanStatus::kOk) bus.push_back(f);
+  ASSERT_GT(bus.size(), 100u);
+  int between_ticks = 0, valid_near = 0, periodic_poses = 0, periodic_after_fix = 0;
+  bool seen_fix_pose = false;
+  for (std::size_t i = 0; i + 1 < bus.size(); ++i) {
+    if (p::identify(pc, bus[i]) != p::Msg::kPoseXY) continue;
+    ASSERT_EQ(p::identify(pc, bus[i + 1]), p::Msg::kPoseHeading) << "pose pair split at " << i;
+    p::PoseOut pose;
+    ASSERT_TRUE(p::decode_pose(pc, bus[i], bus[i + 1], &pose));
+    const bool periodic = i + 2 < bus.size() && p::identify(pc, bus[i + 2]) == p::Msg::kVelocity;
+    if (!periodic) {
+      // Sent between the status frame of one tick and the pose of the next: not on a tick.
+      ASSERT_GT(i, 0u);
+      const p::Msg before = p::identify(pc, bus[i - 1]);
+      EXPECT_TRUE(before == p::Msg::kStatus || before == p::Msg::kHeartbeat ||
+                  before == p::Msg::kPoseHeading);
+      ++between_ticks;
+      seen_fix_pose = true;
+      EXPECT_TRUE(pose.valid);
+      continue;
+    }
+    ++periodic_poses;
+    if (!seen_fix_pose) continue;
+    ++periodic_after_fix;
+    if (pose.valid && std::abs(pose.x_mm - truth.x_mm) < 10.0 &&
+        std::abs(pose.y_mm - truth.y_mm) < 10.0 &&
+        std::abs(wrap_angle_rad(pose.theta_rad - truth.theta_rad)) < deg_to_rad(2.0)) {
+      ++valid_near;
+    }
+  }
+  std::printf(
+      "fixes ok %d fused %llu, fix-triggered pose pairs %d, periodic %d (valid near the "
+      "truth after the first fix %d of %d), end to end p50 %.2f ms\n",
+      ok_fixes, static_cast<unsigned long long>(r.output.fixes_fused), between_ticks,
+      periodic_poses, valid_near, periodic_after_fix,
+      static_cast<double>(r.output.end_to_end_ns.percentile_ns(0.5)) / 1e6);
+  EXPECT_EQ(static_cast<std::uint64_t>(between_ticks), r.output.fix_poses);
+  EXPECT_GE(between_ticks, 3);
+  EXPECT_GT(periodic_poses, 50);
+  // The periodic poses after the first fix: valid and near the truth (the vehicle stands still).
+  EXPECT_GT(periodic_after_fix, 40);
+  EXPECT_EQ(valid_near, periodic_after_fix);
+}

@@ -1,0 +1,185 @@
+// The pure localizer core (algo/localizer): inputs and a time in, frames to send out. No bus,
+// no clock: every test drives it with plain values.
+#include <gtest/gtest.h>
+
+#include "agv/localizer/localizer.hpp"
+
+using namespace agv;
+namespace p = agv::protocol;
+
+namespace {
+
+constexpr std::int64_t kMs = 1'000'000;
+
+localizer::LocalizerConfig test_config() {
+  localizer::LocalizerConfig c;
+  c.fusion.odom_timeout_ns = 10'000 * kMs;  // overridden: the core has ONE odometry timeout
+  c.odometry_timeout_ns = 50 * kMs;
+  c.heartbeat_period_ns = 1000 * kMs;
+  c.camera_timeout_ns = 200 * kMs;
+  return c;
+}
+
+vision::LandmarkFix good_fix(double x_mm) {
+  vision::LandmarkFix fix;
+  fix.status = vision::FixStatus::kOk;
+  fix.landmark_id = 9;
+  fix.vehicle_in_world = {x_mm, 0.0, 0.0};
+  fix.cov_world = Eigen::Matrix3d::Identity() * 0.01;
+  fix.cov_world(2, 2) = 1e-6;
+  return fix;
+}
+
+p::Msg msg_of(const localizer::LocalizerConfig& c, const hal::CanFrame& f) {
+  return p::identify(c.protocol, f);
+}
+
+p::StatusOut status_of(const localizer::LocalizerConfig& c, const localizer::OutFrames& out) {
+  p::StatusOut st;
+  for (int i = 0; i < out.n; ++i) {
+    if (msg_of(c, out.frame[i]) == p::Msg::kStatus) {
+      EXPECT_TRUE(p::decode_status(c.protocol, out.frame[i], &st));
+      return st;
+    }
+  }
+  ADD_FAILURE() << "no status frame";
+  return st;
+}
+
+bool pose_valid(const localizer::LocalizerConfig& c, const localizer::OutFrames& out) {
+  p::PoseOut pose;
+  EXPECT_TRUE(p::decode_pose(c.protocol, out.frame[0], out.frame[1], &pose));
+  return pose.valid;
+}
+
+}  // namespace
+
+TEST(Localizer, TickProducesThePosePairFirstAndTheHeartbeatWhenDue) {
+  const auto c = test_config();
+  localizer::Localizer loc(c);
+  localizer::OutFrames out;
+  loc.tick(1000 * kMs, &out, nullptr);
+  ASSERT_EQ(out.n, 6);
+  const p::Msg order[] = {p::Msg::kPoseXY,  p::Msg::kPoseHeading, p::Msg::kVelocity,
+                          p::Msg::kQuality, p::Msg::kStatus,      p::Msg::kHeartbeat};
+  for (int i = 0; i < 6; ++i) EXPECT_EQ(msg_of(c, out.frame[i]), order[i]) << i;
+  loc.tick(1010 * kMs, &out, nullptr);
+  EXPECT_EQ(out.n, 5);  // heartbeat once per heartbeat period
+  loc.tick(2000 * kMs, &out, nullptr);
+  EXPECT_EQ(out.n, 6);
+  localizer::OutFrames pose;
+  loc.pose_now(2005 * kMs, &pose);
+  EXPECT_EQ(pose.n, 2);
+  EXPECT_EQ(msg_of(c, pose.frame[0]), p::Msg::kPoseXY);
+  EXPECT_EQ(loc.stats().fix_poses, 1u);
+}
+
+TEST(Localizer, OneOdometryTimeoutDrivesPoseValidityAndTheEkfFlag) {
+  const auto c = test_config();
+  EXPECT_EQ(localizer::effective_fusion_config(c).odom_timeout_ns, 50 * kMs);
+  localizer::Localizer loc(c);
+  localizer::OutFrames out;
+  localizer::TickRecord rec;
+  std::int64_t t = 1000 * kMs;
+  for (int i = 0; i < 10; ++i) {
+    loc.on_odometry(t, 0.5, 0.0);
+    loc.tick(t += 10 * kMs, &out, &rec);
+  }
+  loc.on_fix(good_fix(0.0), t - 5 * kMs, t);
+  loc.on_odometry(t, 0.5, 0.0);
+  loc.tick(t += 10 * kMs, &out, &rec);
+  EXPECT_TRUE(pose_valid(c, out));
+  EXPECT_EQ(status_of(c, out).faults & p::fault::kOdomTimeout, 0);
+  // 40 ms without odometry: within the 50 ms timeout.
+  loc.tick(t += 30 * kMs, &out, &rec);
+  EXPECT_TRUE(pose_valid(c, out));
+  // 60 ms: the pose is invalid, the status flags it, and the EKF says so too (not at 10 s).
+  loc.tick(t += 20 * kMs, &out, &rec);
+  EXPECT_FALSE(pose_valid(c, out));
+  EXPECT_NE(status_of(c, out).faults & p::fault::kOdomTimeout, 0);
+  EXPECT_NE(rec.estimate.flags & fusion::flags::kOdomTimeout, 0);
+  EXPECT_TRUE(loc.odometry_timed_out(t));
+}
+
+TEST(Localizer, FusedFixIsCarriedByTheNextPosePairOnlyForEndToEndLatency) {
+  const auto c = test_config();
+  localizer::Localizer loc(c);
+  localizer::OutFrames out;
+  std::int64_t t = 1000 * kMs;
+  for (int i = 0; i < 5; ++i) {
+    loc.on_odometry(t, 0.5, 0.0);
+    loc.tick(t += 10 * kMs, &out, nullptr);
+    EXPECT_EQ(out.e2e_exposure_ns, INT64_MIN);
+  }
+  loc.on_odometry(t, 0.5, 0.0);
+  loc.on_fix(good_fix(0.0), t - 3 * kMs, t);
+  EXPECT_EQ(loc.stats().fixes_fused, 1u);
+  loc.pose_now(t + 1 * kMs, &out);
+  EXPECT_EQ(out.e2e_exposure_ns, t - 3 * kMs);
+  loc.tick(t += 10 * kMs, &out, nullptr);
+  EXPECT_EQ(out.e2e_exposure_ns, INT64_MIN);  // already sent with the fix-triggered pose
+}
+
+TEST(Localizer, CanFaultsAreLatchedFromTheBusStateItIsGiven) {
+  const auto c = test_config();
+  localizer::Localizer loc(c);
+  localizer::OutFrames out;
+  loc.tick(1000 * kMs, &out, nullptr);
+  EXPECT_EQ(status_of(c, out).faults & (p::fault::kCanBusOff | p::fault::kCanErrorPassive), 0);
+  hal::CanStats s;
+  s.bus_off_count = 1;
+  s.restarts = 1;  // went bus-off and came back between two status frames
+  loc.set_can_state(hal::CanBusState::kErrorActive, s);
+  loc.tick(1010 * kMs, &out, nullptr);
+  EXPECT_NE(status_of(c, out).faults & p::fault::kCanBusOff, 0);
+  loc.tick(1020 * kMs, &out, nullptr);  // latched once, then clear
+  EXPECT_EQ(status_of(c, out).faults & p::fault::kCanBusOff, 0);
+  loc.set_can_state(hal::CanBusState::kErrorPassive, s);
+  loc.tick(1030 * kMs, &out, nullptr);
+  EXPECT_NE(status_of(c, out).faults & p::fault::kCanErrorPassive, 0);
+}
+
+TEST(Localizer, CameraStallNeedsTheTimeoutAndNotTheEndOfTheStream) {
+  const auto c = test_config();
+  localizer::Localizer loc(c);
+  localizer::OutFrames out;
+  loc.set_camera_state(1000 * kMs, false, false);
+  loc.tick(1200 * kMs, &out, nullptr);
+  EXPECT_EQ(status_of(c, out).faults & p::fault::kCameraStalled, 0);
+  loc.tick(1201 * kMs, &out, nullptr);
+  EXPECT_NE(status_of(c, out).faults & p::fault::kCameraStalled, 0);
+  loc.set_camera_state(1000 * kMs, true, false);  // replay ran out of frames: not a stall
+  loc.tick(1300 * kMs, &out, nullptr);
+  EXPECT_EQ(status_of(c, out).faults & p::fault::kCameraStalled, 0);
+  loc.set_camera_state(1000 * kMs, false, true);
+  loc.tick(1310 * kMs, &out, nullptr);
+  EXPECT_NE(status_of(c, out).faults & p::fault::kCameraError, 0);
+}
+
+TEST(Localizer, ReceivedFramesAreDecodedAsOdometryOrCounted) {
+  const auto c = test_config();
+  localizer::Localizer loc(c);
+  hal::CanFrame f;
+  p::encode_odometry(c.protocol, 0.5, 0.5, 0, &f);
+  f.t_ns = 1000 * kMs;
+  loc.on_can_frame(f);
+  hal::CanFrame other;
+  other.id = 0x123;
+  other.len = 8;
+  loc.on_can_frame(other);
+  EXPECT_EQ(loc.stats().can_rx_frames, 2u);
+  EXPECT_EQ(loc.stats().can_rx_other, 1u);
+  EXPECT_EQ(loc.stats().odom_samples, 1u);
+  const hal::CanFilter filt = loc.odometry_filter();
+  EXPECT_EQ(filt.id, loc.odometry_decoder().can_id());
+  EXPECT_EQ(filt.mask, p::kCanStdIdMask);
+}
+
+TEST(Localizer, InvalidConfigurationThrows) {
+  auto c = test_config();
+  c.odometry_timeout_ns = 0;
+  EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
+  c = test_config();
+  c.heartbeat_period_ns = 0;
+  EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
+}

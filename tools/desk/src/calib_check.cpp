@@ -1,0 +1,354 @@
+#include "calib_check.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdarg>
+#include <cstdio>
+#include <opencv2/core.hpp>
+
+namespace agv::desk::calib {
+
+namespace {
+
+std::string fmt(const char* f, ...) __attribute__((format(printf, 1, 2)));
+std::string fmt(const char* f, ...) {
+  char buf[1024];
+  va_list ap;
+  va_start(ap, f);
+  std::vsnprintf(buf, sizeof buf, f, ap);
+  va_end(ap);
+  return buf;
+}
+
+Vec2 rotate(Vec2 p, double a) {
+  const double c = std::cos(a), s = std::sin(a);
+  return {c * p.x - s * p.y, s * p.x + c * p.y};
+}
+
+}  // namespace
+
+const char* to_string(Cause c) {
+  switch (c) {
+    case Cause::kPose:
+      return "pose";
+    case Cause::kYaw:
+      return "mounting yaw";
+    case Cause::kHeight:
+      return "height";
+    case Cause::kOffset:
+      return "mounting offset";
+    case Cause::kDistortion:
+      return "distortion/intrinsics";
+    case Cause::kFocus:
+      return "focus/blur";
+  }
+  return "?";
+}
+
+bool CheckResult::within_tolerance() const {
+  return std::all_of(findings.begin(), findings.end(), [](const Finding& f) { return f.ok; });
+}
+
+bool run_check(const CameraModel& camera, const vision::VisionConfig& vision_config,
+               double printed_size_mm, const LandmarkMap* map,
+               const std::vector<PlacementInput>& placements, const Tolerances& tol,
+               CheckResult* out, std::string* error) {
+  *out = CheckResult{};
+  if (!(printed_size_mm > 0)) {
+    *error = "printed landmark size must be positive";
+    return false;
+  }
+  if (placements.empty()) {
+    *error = "no placement (taped pose with frames) given";
+    return false;
+  }
+  LandmarkGeometry geom;
+  geom.size_mm = printed_size_mm;
+  vision::LandmarkLocalizer loc(vision_config, camera, geom, map);
+  const double h_c = camera.mount.height_mm;
+  const Vec2 o_c{camera.mount.offset_x_mm, camera.mount.offset_y_mm};
+  const double printed_mid = geom.outer_half_mm() + geom.inner_half_mm();
+
+  for (size_t pi = 0; pi < placements.size(); ++pi) {
+    const PlacementInput& in = placements[pi];
+    const std::string where = "placement " + std::to_string(pi + 1);
+    if (in.frames.empty()) {
+      *error = where + ": no frames";
+      return false;
+    }
+    PlacementResult pr;
+    pr.frames_total = static_cast<int>(in.frames.size());
+    std::vector<Pose2> poses;
+    double sum_out = 0, sum_in = 0, sum_res = 0;
+    int n_size = 0;
+    std::string first_failure;
+    for (const FrameInput& f : in.frames) {
+      FrameResult fr;
+      fr.name = f.name;
+      if (!f.image || f.image->empty()) {
+        *error = f.name + ": empty image";
+        return false;
+      }
+      const vision::FixStatus st = loc.process(*f.image, &fr.fix);
+      if (st == vision::FixStatus::kBadInput) {
+        *error = fmt("%s: %dx%d image (%d channels) but the configured camera is %dx%d 8-bit gray",
+                     f.name.c_str(), f.image->cols, f.image->rows, f.image->channels(),
+                     camera.intrinsics.width_px, camera.intrinsics.height_px);
+        return false;
+      }
+      if (st == vision::FixStatus::kOk) {
+        if (!poses.empty() && fr.fix.landmark_id != pr.landmark_id) {
+          *error =
+              fmt("%s: %s shows landmark %u, earlier frames landmark %u (one landmark per "
+                  "placement)",
+                  where.c_str(), f.name.c_str(), fr.fix.landmark_id, pr.landmark_id);
+          return false;
+        }
+        pr.landmark_id = fr.fix.landmark_id;
+        poses.push_back(fr.fix.landmark_in_vehicle);
+        sum_res += fr.fix.residual_rms_mm;
+        if (fr.fix.outer_half_mm > 0 && fr.fix.inner_half_mm > 0) {
+          sum_out += fr.fix.outer_half_mm;
+          sum_in += fr.fix.inner_half_mm;
+          ++n_size;
+        }
+      } else if (first_failure.empty()) {
+        first_failure = f.name + ": " + vision::to_string(st);
+      }
+      pr.frames.push_back(std::move(fr));
+    }
+    pr.frames_ok = static_cast<int>(poses.size());
+    if (poses.empty()) {
+      *error = where + ": no landmark fix in any of its " + std::to_string(pr.frames_total) +
+               " frame(s) (first: " + first_failure +
+               "); is the whole landmark in the image, in focus, lit, and its id in the map?";
+      return false;
+    }
+    // Taped pose as V<-L.
+    if (in.taped_is_vehicle_in_world) {
+      const LandmarkMapEntry* e = map ? map->find(pr.landmark_id) : nullptr;
+      if (!e) {
+        *error = fmt("%s: the vehicle's world pose was taped, but landmark %u is not in %s",
+                     where.c_str(), pr.landmark_id, map ? "the map" : "a map (none given)");
+        return false;
+      }
+      pr.taped_landmark_in_vehicle = compose(inverse(in.taped), e->pose);
+    } else {
+      pr.taped_landmark_in_vehicle = in.taped;
+    }
+    // Mean pose (heading as the mean of the wrapped differences to the first frame).
+    const double n = static_cast<double>(poses.size());
+    double mx = 0, my = 0, mth = 0;
+    for (const Pose2& p : poses) {
+      mx += p.x_mm / n;
+      my += p.y_mm / n;
+      mth += wrap_angle_rad(p.theta_rad - poses[0].theta_rad) / n;
+    }
+    pr.measured_landmark_in_vehicle = {mx, my, wrap_angle_rad(poses[0].theta_rad + mth)};
+    if (poses.size() > 1) {
+      double vx = 0, vy = 0, vt = 0;
+      for (const Pose2& p : poses) {
+        vx += (p.x_mm - mx) * (p.x_mm - mx);
+        vy += (p.y_mm - my) * (p.y_mm - my);
+        const double dt = wrap_angle_rad(p.theta_rad - pr.measured_landmark_in_vehicle.theta_rad);
+        vt += dt * dt;
+      }
+      pr.spread_mm = std::sqrt((vx + vy) / (n - 1));
+      pr.spread_deg = rad_to_deg(std::sqrt(vt / (n - 1)));
+    }
+    pr.residual_rms_mm = sum_res / n;
+    const Pose2& m = pr.measured_landmark_in_vehicle;
+    const Pose2& t = pr.taped_landmark_in_vehicle;
+    pr.dx_mm = m.x_mm - t.x_mm;
+    pr.dy_mm = m.y_mm - t.y_mm;
+    const double dpsi = wrap_angle_rad(m.theta_rad - t.theta_rad);
+    pr.dheading_deg = rad_to_deg(dpsi);
+    double s = 1.0;
+    if (n_size > 0) {
+      const double ho = sum_out / n_size, hi = sum_in / n_size;
+      pr.outer_side_mm = 2 * ho;
+      pr.border_width_mm = ho - hi;
+      pr.scale = (ho + hi) / printed_mid;
+      pr.implied_height_mm = h_c / pr.scale;
+      s = pr.scale;
+    }
+    // o_t = p - R(-dpsi) (p' - o_c) / s.
+    const Vec2 back = rotate({m.x_mm - o_c.x, m.y_mm - o_c.y}, -dpsi);
+    pr.implied_offset_mm = {t.x_mm - back.x / s, t.y_mm - back.y / s};
+    out->placements.push_back(std::move(pr));
+  }
+
+  // Combine the placements.
+  const auto& P = out->placements;
+  const double np = static_cast<double>(P.size());
+  double dpsi_deg = 0, ox = 0, oy = 0, sc = 0;
+  int nsc = 0;
+  for (const auto& p : P) {
+    dpsi_deg += p.dheading_deg / np;
+    ox += p.implied_offset_mm.x / np;
+    oy += p.implied_offset_mm.y / np;
+    if (p.scale > 0) {
+      sc += p.scale;
+      ++nsc;
+    }
+  }
+  out->yaw_deg = wrap_angle_deg(rad_to_deg(camera.mount.yaw_rad) - dpsi_deg);
+  out->offset_x_mm = ox;
+  out->offset_y_mm = oy;
+  out->height_known = nsc > 0;
+  out->height_mm = nsc > 0 ? h_c / (sc / nsc) : h_c;
+
+  auto add = [&](Cause c, double value, double limit, std::string msg) {
+    out->findings.push_back({c, std::abs(value) <= limit, value, limit, std::move(msg)});
+  };
+  // 1. The raw comparison with the tape, per placement.
+  for (size_t i = 0; i < P.size(); ++i) {
+    const auto& p = P[i];
+    const double d = std::hypot(p.dx_mm, p.dy_mm);
+    add(Cause::kPose, d, tol.position_mm,
+        fmt("placement %zu: landmark %u measured %.2f mm from the taped position (dx %+.2f, "
+            "dy %+.2f mm in the vehicle frame)",
+            i + 1, p.landmark_id, d, p.dx_mm, p.dy_mm));
+  }
+  // 2. Heading -> mounting yaw.
+  add(Cause::kYaw, dpsi_deg, tol.heading_deg,
+      fmt("heading %+.3f deg from the tape -> mounting yaw: mounting.yaw_deg %.3f (configured "
+          "%.3f)",
+          dpsi_deg, out->yaw_deg, rad_to_deg(camera.mount.yaw_rad)));
+  // 3. Size -> height.
+  if (out->height_known) {
+    const double s = sc / nsc;
+    double ow = 0, bw = 0;
+    for (const auto& p : P) {
+      if (p.scale > 0) {
+        ow += p.outer_side_mm / nsc;
+        bw += p.border_width_mm / nsc;
+      }
+    }
+    add(Cause::kHeight, out->height_mm - h_c, tol.height_mm,
+        fmt("landmark measured %.3f %% too %s (outer side %.3f mm, border %.3f mm; printed %.3f "
+            "/ %.3f mm) -> height: mounting.height_mm %.2f (configured %.2f) -- or fx, or the "
+            "print is not at 100 %% (measure it with calipers: --printed-size-mm)",
+            std::abs(s - 1) * 100, s >= 1 ? "large" : "small", ow, bw, geom.size_mm,
+            geom.border_width_mm(), out->height_mm, h_c));
+  } else {
+    add(Cause::kHeight, 0, tol.height_mm,
+        "landmark size not measured (no border axis with both sides in the image): height not "
+        "checked; put the whole landmark in the image");
+  }
+  // 4. What is left -> offset.
+  const double doff = std::hypot(ox - o_c.x, oy - o_c.y);
+  add(Cause::kOffset, doff, tol.position_mm,
+      fmt("after yaw and height, a constant offset of %.2f mm -> mounting offset: "
+          "mounting.offset_x_mm %.2f, offset_y_mm %.2f (configured %.2f, %.2f)",
+          doff, ox, oy, o_c.x, o_c.y));
+  // 5. Position dependence -> distortion / intrinsics.
+  bool distortion = false;
+  if (P.size() > 1) {
+    double worst = 0, smin = 1e300, smax = -1e300;
+    for (const auto& p : P) {
+      worst = std::max(worst, std::hypot(p.implied_offset_mm.x - ox, p.implied_offset_mm.y - oy));
+      if (p.scale > 0) {
+        smin = std::min(smin, p.implied_height_mm);
+        smax = std::max(smax, p.implied_height_mm);
+      }
+    }
+    add(Cause::kDistortion, worst, tol.position_mm,
+        fmt("the offset implied by the %zu placements differs by up to %.2f mm between places in "
+            "the image -> %s",
+            P.size(), worst,
+            worst > tol.position_mm ? "position-dependent error: distortion/intrinsics "
+                                      "(recalibrate: agvloc-desk calibrate intrinsics)"
+                                    : "not position-dependent"));
+    if (smax >= smin) {
+      add(Cause::kDistortion, smax - smin, tol.height_mm,
+          fmt("the height implied by the landmark size varies by %.2f mm between places in the "
+              "image -> %s",
+              smax - smin,
+              smax - smin > tol.height_mm
+                  ? "distortion/intrinsics (a tilted camera does this too: mounting roll/pitch)"
+                  : "uniform scale"));
+    }
+    distortion = std::any_of(out->findings.begin(), out->findings.end(), [](const Finding& f) {
+      return f.cause == Cause::kDistortion && !f.ok;
+    });
+  } else {
+    add(Cause::kDistortion, 0, 0,
+        "not checked with one placement: repeat with the landmark near two opposite image "
+        "corners (--placements) to separate distortion from height and offset");
+  }
+  // 6. Edge quality and repeatability -> focus / blur / light (or distortion, which bends the
+  // edges too: attributed to it when the placements disagree).
+  double res = 0;
+  for (const auto& p : P) res = std::max(res, p.residual_rms_mm);
+  add(distortion ? Cause::kDistortion : Cause::kFocus, res, tol.residual_mm,
+      fmt("edge points lie %.3f mm rms from the fitted square (worst placement) -> %s", res,
+          res <= tol.residual_mm ? "sharp, straight edges"
+          : distortion           ? "edges bent by the uncorrected distortion"
+                                 : "blurred or noisy edges: focus, light/gain, dirt on the print "
+                                   "(or distortion: compare placements)"));
+  for (size_t i = 0; i < P.size(); ++i) {
+    const auto& p = P[i];
+    if (p.frames_ok < p.frames_total) {
+      std::string first;
+      for (const auto& f : p.frames) {
+        if (f.fix.status != vision::FixStatus::kOk) {
+          first = f.name + ": " + vision::to_string(f.fix.status);
+          break;
+        }
+      }
+      add(Cause::kFocus, p.frames_total - p.frames_ok, 0,
+          fmt("placement %zu: %d of %d frames gave no fix (first %s) -> focus, blur, light", i + 1,
+              p.frames_total - p.frames_ok, p.frames_total, first.c_str()));
+    }
+    if (p.frames_ok > 1) {
+      add(Cause::kFocus, p.spread_mm, tol.spread_mm,
+          fmt("placement %zu: position spread %.3f mm, heading %.4f deg (std over %d frames) -> "
+              "%s",
+              i + 1, p.spread_mm, p.spread_deg, p.frames_ok,
+              p.spread_mm > tol.spread_mm ? "not repeatable: vibration, the vehicle or landmark "
+                                            "moved, or focus/blur"
+                                          : "repeatable"));
+    }
+  }
+  out->lens_suspect = distortion;
+  return true;
+}
+
+std::string format_report(const CameraModel& camera, const CheckResult& r) {
+  std::string s;
+  s += "placement  landmark  frames  taped x,y,deg               measured x,y,deg            "
+       "dx_mm   dy_mm   dh_deg   outer_mm  border_mm  spread_mm  resid_mm\n";
+  for (size_t i = 0; i < r.placements.size(); ++i) {
+    const auto& p = r.placements[i];
+    const auto& t = p.taped_landmark_in_vehicle;
+    const auto& m = p.measured_landmark_in_vehicle;
+    s +=
+        fmt("%9zu  %8u  %3d/%-3d %8.2f,%8.2f,%7.2f  %8.3f,%8.3f,%8.3f  %+6.2f  %+6.2f  %+7.3f  "
+            "%8.3f  %9.3f  %9.3f  %8.3f\n",
+            i + 1, p.landmark_id, p.frames_ok, p.frames_total, t.x_mm, t.y_mm,
+            rad_to_deg(t.theta_rad), m.x_mm, m.y_mm, rad_to_deg(m.theta_rad), p.dx_mm, p.dy_mm,
+            p.dheading_deg, p.outer_side_mm, p.border_width_mm, p.spread_mm, p.residual_rms_mm);
+  }
+  s += "\nfindings:\n";
+  for (const auto& f : r.findings) {
+    s += fmt("  [%s] %-21s %s\n", f.ok ? " ok " : "FAIL", to_string(f.cause), f.message.c_str());
+  }
+  s += "\nmounting implied by the check (configuration keys, docs/config.md):\n";
+  s += fmt("mounting:\n  offset_x_mm: %.2f\n  offset_y_mm: %.2f\n  yaw_deg: %.3f\n", r.offset_x_mm,
+           r.offset_y_mm, r.yaw_deg);
+  if (r.height_known) {
+    s += fmt("  height_mm: %.2f\n", r.height_mm);
+  } else {
+    s += fmt("  # height_mm: not measured (configured %.2f)\n", camera.mount.height_mm);
+  }
+  if (r.lens_suspect) {
+    s += "  # the placements disagree: these values assume a correct lens model; recalibrate the\n"
+         "  # intrinsics first (agvloc-desk calibrate intrinsics), then repeat the check\n";
+  }
+  s += r.within_tolerance() ? "\nresult: within tolerance\n"
+                            : "\nresult: OUT OF TOLERANCE (see FAIL lines)\n";
+  return s;
+}
+
+}  // namespace agv::desk::calib

@@ -1,0 +1,235 @@
+// agvloc-desk calibrate: commissioning calibrations (docs/camera.md). `calibrate intrinsics`
+// estimates the camera intrinsics from board images; the other subcommands register below.
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+
+#include "agv/recording/png_io.hpp"
+#include "calib_cli.hpp"
+#include "calib_intrinsics.hpp"
+#include "commands.hpp"
+#include "config.hpp"
+
+namespace agv::desk {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Subcommand {
+  const char* name;
+  int (*run)(int argc, char** argv);
+  const char* help;
+};
+
+// One line per subcommand.
+const Subcommand kSubcommands[] = {
+    {"intrinsics", calibrate_intrinsics,
+     "camera intrinsics from images of a ChArUco board or chessboard"},
+    {"vehicle", calibrate_vehicle,
+     "mounting, odometry and time offset from a calibration drive over mapped landmarks"},
+    {"check", calibrate_check, "parked-vehicle check with a printed landmark at a taped pose"},
+};
+
+void calibrate_usage(FILE* f) {
+  std::fprintf(f, "usage: agvloc-desk calibrate <what> [options]\n");
+  for (const auto& s : kSubcommands) std::fprintf(f, "  %-12s %s\n", s.name, s.help);
+  std::fprintf(f, "Each takes --help.\n");
+}
+
+bool write_text(const std::string& path, const std::string& text) {
+  std::ofstream f(path, std::ios::binary | std::ios::trunc);
+  f << text;
+  return static_cast<bool>(f);
+}
+
+// Prints the recovered-vs-true table against a configuration file holding the true camera
+// (e.g. truth.yaml of agvloc-desk sim-board).
+bool print_truth_table(FILE* out, const std::string& path, const calib::Result& r) {
+  config::Config cfg;
+  std::vector<std::string> errors;
+  if (!config::load_config(path, &cfg, &errors)) {
+    for (const auto& e : errors) std::fprintf(stderr, "agvloc-desk calibrate: %s\n", e.c_str());
+    return false;
+  }
+  const auto& t = cfg.camera_model.intrinsics;
+  const auto& e = r.intrinsics;
+  std::fprintf(out, "recovered vs true (%s):\n", path.c_str());
+  std::fprintf(out, "  param      recovered         true        error\n");
+  auto row = [&](const char* n, double rec, double tru, bool rel) {
+    if (rel) {
+      std::fprintf(out, "  %-5s %14.6f %12.6f %+11.4f %%\n", n, rec, tru,
+                   100.0 * (rec - tru) / tru);
+    } else {
+      std::fprintf(out, "  %-5s %14.6f %12.6f %+11.4f\n", n, rec, tru, rec - tru);
+    }
+  };
+  row("fx", e.fx, t.fx, true);
+  row("fy", e.fy, t.fy, true);
+  row("cx", e.cx, t.cx, false);
+  row("cy", e.cy, t.cy, false);
+  row("k1", e.k1, t.k1, false);
+  row("k2", e.k2, t.k2, false);
+  row("p1", e.p1, t.p1, false);
+  row("p2", e.p2, t.p2, false);
+  row("k3", e.k3, t.k3, false);
+  return true;
+}
+
+}  // namespace
+
+int calibrate(int argc, char** argv) {
+  if (argc < 2) {
+    calibrate_usage(stderr);
+    return 2;
+  }
+  if (!std::strcmp(argv[1], "--help") || !std::strcmp(argv[1], "-h")) {
+    calibrate_usage(stdout);
+    return 0;
+  }
+  for (const auto& s : kSubcommands) {
+    if (!std::strcmp(argv[1], s.name)) return s.run(argc - 1, argv + 1);
+  }
+  std::fprintf(stderr, "agvloc-desk calibrate: unknown subcommand '%s'\n", argv[1]);
+  calibrate_usage(stderr);
+  return 2;
+}
+
+int calibrate_intrinsics(int argc, char** argv) {
+  CLI::App app{
+      "Camera intrinsics (fx fy cx cy k1 k2 p1 p2 k3) from PNG images of a ChArUco board or a "
+      "chessboard: rejects blurred views by name, reports the RMS reprojection error per view "
+      "and the image coverage, writes the camera section of the configuration "
+      "(docs/camera.md)",
+      "agvloc-desk calibrate intrinsics"};
+  std::string images, out, coverage, report, truth, board_type = "charuco";
+  calib::BoardSpec spec;
+  calib::Options opt;
+  std::string print_board;
+  app.add_option("--images", images, "Directory of PNG images (all *.png, sorted by name)");
+  app.add_option("--print-board", print_board,
+                 "Write the board as SVG at physical scale (print at 100 %) and exit");
+  calib::add_board_options(app, &spec, &board_type);
+  app.add_option("--out", out, "Write the configuration snippet here (default: stdout)");
+  app.add_option("--coverage", coverage, "Write the coverage picture (SVG) here");
+  app.add_option("--report", report, "Also write the text report here");
+  app.add_option("--min-views", opt.min_views, "Fewer usable views: no result")
+      ->check(CLI::Range(3, 10000))
+      ->capture_default_str();
+  app.add_option("--min-corners", opt.min_corners, "Fewer corners in a view: view not used")
+      ->check(CLI::Range(4, 100000))
+      ->capture_default_str();
+  app.add_option("--max-blur-px", opt.max_blur_px,
+                 "Reject views whose edge blur (Gaussian sigma estimate) is above this")
+      ->check(CLI::Range(0.1, 100.0))
+      ->capture_default_str();
+  app.add_option("--max-rms-px", opt.max_rms_px,
+                 "No result when the RMS reprojection error is above this")
+      ->check(CLI::Range(0.001, 100.0))
+      ->capture_default_str();
+  app.add_flag("--fix-k3", opt.fix_k3, "Keep k3 = 0 (narrow lenses)");
+  app.add_flag("--zero-tangent", opt.zero_tangent, "Keep p1 = p2 = 0");
+  app.add_flag("--fix-aspect", opt.fix_aspect, "Estimate one focal length (fx = fy)");
+  app.add_flag("--fix-principal-point", opt.fix_principal_point,
+               "Keep the principal point at the image centre");
+  app.add_option("--truth", truth,
+                 "Configuration file with the true intrinsics (simulated images, e.g. "
+                 "sim-board's truth.yaml): print recovered vs true");
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  calib::apply_board_type(board_type, &spec);
+  const char* who = "agvloc-desk calibrate intrinsics";
+  std::string error;
+  if (!calib::validate_board(spec, &error)) {
+    std::fprintf(stderr, "%s: %s\n", who, error.c_str());
+    return 2;
+  }
+  if (!print_board.empty()) {
+    sim::CalibBoard board;
+    const double margin = (spec.type == calib::BoardType::kChessboard ? 1.0 : 0.5) * spec.square_mm;
+    if (!calib::make_sim_board(spec, margin, &board, &error)) {
+      std::fprintf(stderr, "%s: %s\n", who, error.c_str());
+      return 2;
+    }
+    if (!write_text(print_board, calib::board_svg(spec, board))) {
+      std::fprintf(stderr, "%s: cannot write %s\n", who, print_board.c_str());
+      return 1;
+    }
+    std::printf("%s: wrote %s\n", who, print_board.c_str());
+    return 0;
+  }
+  if (images.empty()) {
+    std::fprintf(stderr, "%s: --images DIR is required (or --print-board FILE.svg)\n", who);
+    return 2;
+  }
+  std::error_code ec;
+  if (!fs::is_directory(images, ec)) {
+    std::fprintf(stderr, "%s: --images %s: not a directory\n", who, images.c_str());
+    return 2;
+  }
+  std::vector<fs::path> files;
+  for (const auto& e : fs::directory_iterator(images, ec)) {
+    std::string ext = e.path().extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
+    if (e.is_regular_file() && ext == ".png") files.push_back(e.path());
+  }
+  std::sort(files.begin(), files.end());
+  if (files.empty()) {
+    std::fprintf(stderr, "%s: %s: no .png images\n", who, images.c_str());
+    return 2;
+  }
+  std::vector<calib::View> views;
+  for (const auto& f : files) {
+    cv::Mat gray;
+    std::string err;
+    if (!png::read_gray(f.string(), &gray, &err)) {
+      calib::View v;
+      v.name = f.filename().string();
+      v.reject_reason = "cannot read: " + err;
+      views.push_back(v);
+      continue;
+    }
+    views.push_back(calib::detect_view(gray, f.filename().string(), spec, opt));
+  }
+  const calib::Result r = calib::calibrate(std::move(views), spec, opt);
+  // The report goes to stdout when the snippet goes to a file, else to stderr.
+  FILE* rep = out.empty() ? stderr : stdout;
+  const std::string text = calib::report_text(r);
+  std::fputs(text.c_str(), rep);
+  if (!report.empty() && !write_text(report, text)) {
+    std::fprintf(stderr, "%s: cannot write %s\n", who, report.c_str());
+    return 1;
+  }
+  if (!coverage.empty() && r.usable > 0) {
+    if (!write_text(coverage, calib::coverage_svg(r))) {
+      std::fprintf(stderr, "%s: cannot write %s\n", who, coverage.c_str());
+      return 1;
+    }
+    std::fprintf(rep, "coverage picture: %s\n", coverage.c_str());
+  }
+  if (!r.ok) {
+    if (rep != stderr) std::fprintf(stderr, "%s: %s\n", who, r.error.c_str());
+    return 1;
+  }
+  if (!truth.empty() && !print_truth_table(rep, truth, r)) return 1;
+  const std::string snippet = calib::config_snippet(r, images);
+  if (out.empty()) {
+    std::fputs(snippet.c_str(), stdout);
+  } else {
+    if (!write_text(out, snippet)) {
+      std::fprintf(stderr, "%s: cannot write %s\n", who, out.c_str());
+      return 1;
+    }
+    std::fprintf(rep, "wrote %s\n", out.c_str());
+  }
+  return 0;
+}
+
+}  // namespace agv::desk

@@ -1,0 +1,204 @@
+// agvloc-desk calibrate check: parked-vehicle check of the camera calibration with a printed
+// landmark at a taped pose (logic: calib_check.hpp; procedure: docs/commissioning.md).
+// Exit 0 within tolerance, 1 out of tolerance, 2 bad input.
+#include <CLI/CLI.hpp>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <sstream>
+
+#include "agv/recording/png_io.hpp"
+#include "agv/recording/recording.hpp"
+#include "calib_check.hpp"
+#include "commands.hpp"
+#include "config.hpp"
+
+namespace agv::desk {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+bool parse_pose(const std::string& text, Pose2* out) {
+  double x = 0, y = 0, h = 0;
+  char tail = 0;
+  if (std::sscanf(text.c_str(), "%lf,%lf,%lf%c", &x, &y, &h, &tail) != 3) return false;
+  if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(h)) return false;
+  *out = {x, y, deg_to_rad(h)};
+  return true;
+}
+
+// Frames of one path: a PNG, or a recording directory (all of its frames).
+bool load_frames(const std::string& path, std::vector<cv::Mat>* images,
+                 std::vector<std::string>* names, std::string* err) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) {
+    recording::Recording rec;
+    if (!recording::read_recording(path, &rec, err)) {
+      *err = path + ": not a readable recording: " + *err;
+      return false;
+    }
+    if (rec.frames.empty()) {
+      *err = path + ": recording has no frames";
+      return false;
+    }
+    for (size_t i = 0; i < rec.frames.size(); ++i) {
+      cv::Mat img;
+      if (!recording::load_frame(rec, i, &img, err)) return false;
+      images->push_back(img);
+      names->push_back((fs::path(path) / rec.frames[i].file).string());
+    }
+    return true;
+  }
+  cv::Mat img;
+  std::string e;
+  if (!png::read_gray(path, &img, &e)) {
+    *err = path + ": cannot read frame: " + e;
+    return false;
+  }
+  images->push_back(img);
+  names->push_back(path);
+  return true;
+}
+
+}  // namespace
+
+int calibrate_check(int argc, char** argv) {
+  CLI::App app{
+      "Parked-vehicle check of the camera calibration: one printed landmark at a taped pose "
+      "under the parked vehicle; prints the deviation of the measured from the taped pose and "
+      "what it points to (mounting offset, yaw, height, distortion, focus). Exit 0 within "
+      "tolerance, 1 out of tolerance, 2 bad input (docs/commissioning.md)",
+      "agvloc-desk calibrate check"};
+  std::string config_path, map_path, pose_text, pose_is = "landmark-in-vehicle", placements_csv;
+  std::vector<std::string> inputs;
+  double printed_size_mm = 0.0;
+  desk::calib::Tolerances tol;
+  app.add_option("--config", config_path, "agvloc configuration (camera intrinsics, mounting)")
+      ->required();
+  app.add_option("frames", inputs, "PNG frames or recording directories of one placement");
+  app.add_option("--pose", pose_text,
+                 "Taped pose X_MM,Y_MM,HEADING_DEG of the frames' placement (see --pose-is)");
+  app.add_option("--pose-is", pose_is,
+                 "landmark-in-vehicle (the landmark's pose in the vehicle frame: x forward from "
+                 "the reference point, y left) | vehicle-in-world (the vehicle's pose in the "
+                 "world; the landmark's from the map)")
+      ->capture_default_str();
+  app.add_option("--placements", placements_csv,
+                 "CSV 'frame,x_mm,y_mm,heading_deg' (header line first): several placements, "
+                 "one frame or recording per row, rows with equal poses form one placement; "
+                 "paths relative to the CSV");
+  app.add_option("--map", map_path, "Landmark map (default: the configuration's landmark.map)");
+  app.add_option("--printed-size-mm", printed_size_mm,
+                 "Outer side of the print as measured with calipers (default: landmark.size_mm)");
+  app.add_option("--tol-mm", tol.position_mm, "Position tolerance")->capture_default_str();
+  app.add_option("--tol-deg", tol.heading_deg, "Heading tolerance")->capture_default_str();
+  app.add_option("--tol-height-mm", tol.height_mm, "Height tolerance")->capture_default_str();
+  app.add_option("--tol-spread-mm", tol.spread_mm, "Spread over the frames of one placement")
+      ->capture_default_str();
+  app.add_option("--tol-residual-mm", tol.residual_mm, "Edge-point rms about the fitted square")
+      ->capture_default_str();
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  auto bad = [](const std::string& msg) {
+    std::fprintf(stderr, "agvloc-desk calibrate check: %s\n", msg.c_str());
+    return 2;
+  };
+  if (pose_is != "landmark-in-vehicle" && pose_is != "vehicle-in-world") {
+    return bad("--pose-is '" + pose_is + "': landmark-in-vehicle or vehicle-in-world");
+  }
+  const bool world = pose_is == "vehicle-in-world";
+  if (placements_csv.empty() == inputs.empty()) {
+    return bad("give the frames (with --pose) or --placements CSV, not both, not neither");
+  }
+  if (!inputs.empty() && pose_text.empty()) {
+    return bad("--pose X_MM,Y_MM,HEADING_DEG missing: the taped pose of the landmark");
+  }
+
+  std::error_code ec;
+  if (!fs::is_regular_file(config_path, ec)) return bad("config " + config_path + " not found");
+  config::Config cfg;
+  if (!config::load_config_or_report(config_path, "agvloc-desk calibrate check", &cfg)) return 2;
+  if (map_path.empty()) map_path = cfg.map_file;
+  LandmarkMap map;
+  std::string err;
+  if (!map_path.empty() && !config::load_map_file(map_path, &map, &err)) return bad(err);
+  if (world && map_path.empty()) {
+    return bad("--pose-is vehicle-in-world needs a map (--map or landmark.map in the config)");
+  }
+  if (printed_size_mm == 0.0) printed_size_mm = cfg.landmark_size_mm;
+  if (!(printed_size_mm > 0)) return bad("--printed-size-mm must be positive");
+
+  // (pose text, paths) per placement, in order of first appearance.
+  std::vector<std::pair<Pose2, std::vector<std::string>>> groups;
+  if (!inputs.empty()) {
+    Pose2 p;
+    if (!parse_pose(pose_text, &p)) return bad("--pose '" + pose_text + "': expected X,Y,DEG");
+    groups.push_back({p, inputs});
+  } else {
+    std::string text;
+    if (!recording::read_file_bounded(placements_csv, 1u << 20, &text, &err)) return bad(err);
+    std::istringstream is(text);
+    std::string line;
+    int ln = 0;
+    std::map<std::string, size_t> index;
+    bool header = false;
+    const fs::path base = fs::path(placements_csv).parent_path();
+    while (std::getline(is, line)) {
+      ++ln;
+      if (!line.empty() && line.back() == '\r') line.pop_back();
+      if (line.empty() || line[0] == '#') continue;
+      if (!header) {
+        if (line != "frame,x_mm,y_mm,heading_deg") {
+          return bad(placements_csv + ":" + std::to_string(ln) +
+                     ": header must be frame,x_mm,y_mm,heading_deg");
+        }
+        header = true;
+        continue;
+      }
+      const auto comma = line.find(',');
+      Pose2 p;
+      if (comma == std::string::npos || comma == 0 || !parse_pose(line.substr(comma + 1), &p)) {
+        return bad(placements_csv + ":" + std::to_string(ln) + ": expected FRAME,X,Y,DEG");
+      }
+      fs::path f = line.substr(0, comma);
+      if (f.is_relative()) f = base / f;
+      const std::string key = line.substr(comma + 1);
+      auto it = index.find(key);
+      if (it == index.end()) {
+        it = index.emplace(key, groups.size()).first;
+        groups.push_back({p, {}});
+      }
+      groups[it->second].second.push_back(f.string());
+    }
+    if (groups.empty()) return bad(placements_csv + ": no rows");
+  }
+
+  std::vector<std::vector<cv::Mat>> images(groups.size());
+  std::vector<std::vector<std::string>> names(groups.size());
+  std::vector<desk::calib::PlacementInput> placements(groups.size());
+  for (size_t g = 0; g < groups.size(); ++g) {
+    for (const std::string& path : groups[g].second) {
+      if (!load_frames(path, &images[g], &names[g], &err)) return bad(err);
+    }
+    placements[g].taped = groups[g].first;
+    placements[g].taped_is_vehicle_in_world = world;
+    for (size_t i = 0; i < images[g].size(); ++i) {
+      placements[g].frames.push_back({names[g][i], &images[g][i]});
+    }
+  }
+
+  desk::calib::CheckResult r;
+  if (!desk::calib::run_check(cfg.camera_model, cfg.vision, printed_size_mm,
+                              map_path.empty() ? nullptr : &map, placements, tol, &r, &err)) {
+    return bad(err);
+  }
+  std::fputs(desk::calib::format_report(cfg.camera_model, r).c_str(), stdout);
+  return r.within_tolerance() ? 0 : 1;
+}
+
+}  // namespace agv::desk
