@@ -3,7 +3,8 @@
 # the `calibration` trajectory), with a perturbed true camera and odometry; the recording states
 # the nominal mounting (--nominal-meta), has no use for truth.csv (deleted before calibrating).
 # Prints recovered vs true and checks the issue-16 targets. Then: a `square` drive (no turns on
-# the spot over a landmark) must refuse the offset; a wrong map must fail naming the map.
+# the spot over a landmark) must refuse the offset; a wrong map and a recording without odometry
+# must fail naming what is missing.
 #   calibrate_vehicle_e2e.sh AGVLOC-DESK WORKDIR
 set -euo pipefail
 DESK="$1"
@@ -63,4 +64,11 @@ if "$DESK" calibrate vehicle "$WORK/rec" --map "$WORK/wrong.csv" --out "$WORK/w"
   echo "FAIL: wrong map accepted"; exit 1
 fi
 grep -q "wrong map" "$WORK/w.log" || { cat "$WORK/w.log"; echo "FAIL: wrong map not named"; exit 1; }
+# A recording without odometry.
+cp -r "$WORK/rec" "$WORK/noodo"
+head -1 "$WORK/rec/odom.csv" > "$WORK/noodo/odom.csv"
+if "$DESK" calibrate vehicle "$WORK/noodo" --map "$MAP" --out "$WORK/n" > "$WORK/n.log" 2>&1; then
+  echo "FAIL: recording without odometry accepted"; exit 1
+fi
+grep -q "has no odometry" "$WORK/n.log" || { cat "$WORK/n.log"; echo "FAIL: missing odometry not named"; exit 1; }
 echo "calibrate vehicle end to end OK"
