@@ -16,6 +16,8 @@ PKGS=(
   libopencv-contrib-dev
   libeigen3-dev libpng-dev libzxing-dev libyaml-cpp-dev libcli11-dev
   libcamera-dev libcamera-ipa udev
+  # agvloc-desk calibrate vehicle: nonlinear least squares
+  libceres-dev
   # tests, benchmarks, comparison baseline
   libgtest-dev libgmock-dev libbenchmark-dev libapriltag-dev valgrind
   clang-format clang-tidy

@@ -1,5 +1,9 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
 #include "agv/common/camera_model.hpp"
 
 using namespace agv;
@@ -41,4 +45,86 @@ TEST(CameraModel, RejectsNonFiniteInput) {
   Vec2 out;
   EXPECT_FALSE(m.vehicle_to_pixel({std::nan(""), 0.0}, &out));
   EXPECT_FALSE(m.pixel_to_vehicle({0.0, std::numeric_limits<double>::infinity()}, &out));
+}
+
+// Tilt 0 keeps the untilted code path: these are the exact values of the perpendicular model
+// (no rounding difference allowed), and a vanishing tilt through the rotation path agrees.
+TEST(CameraModel, ZeroTiltIsTheUntiltedModelExactly) {
+  CameraModel m = CameraModel::default_640x480();
+  m.mount = {35.0, -12.0, deg_to_rad(3.0), 180.0};
+  EXPECT_FALSE(m.mount.tilted());
+  const Vec2 p{61.25, 7.5};
+  const double dx = p.x - 35.0, dy = p.y + 12.0;
+  const double c = std::cos(deg_to_rad(3.0)), s = std::sin(deg_to_rad(3.0));
+  const Vec2 expect =
+      m.distort_normalized_to_pixel({(dx * s - dy * c) / 180.0, -(dx * c + dy * s) / 180.0});
+  Vec2 px;
+  ASSERT_TRUE(m.vehicle_to_pixel(p, &px));
+  EXPECT_EQ(px.x, expect.x);
+  EXPECT_EQ(px.y, expect.y);
+  CameraModel t = m;
+  t.mount.roll_rad = 1e-15;
+  t.mount.pitch_rad = -1e-15;
+  ASSERT_TRUE(t.mount.tilted());
+  Vec2 pt, back, back_t;
+  ASSERT_TRUE(t.vehicle_to_pixel(p, &pt));
+  EXPECT_NEAR(pt.x, px.x, 1e-9);
+  EXPECT_NEAR(pt.y, px.y, 1e-9);
+  ASSERT_TRUE(m.pixel_to_vehicle({100.0, 400.0}, &back));
+  ASSERT_TRUE(t.pixel_to_vehicle({100.0, 400.0}, &back_t));
+  EXPECT_NEAR(back.x, back_t.x, 1e-9);
+  EXPECT_NEAR(back.y, back_t.y, 1e-9);
+}
+
+// docs/frames.md "Camera tilt": +roll turns the optical axis to image left, +pitch to image down.
+TEST(CameraModel, TiltSignsFollowFramesDoc) {
+  for (double yaw_deg : {0.0, 90.0, -30.0}) {
+    CameraModel m = CameraModel::default_640x480();
+    m.mount.yaw_rad = deg_to_rad(yaw_deg);
+    const double h = m.mount.height_mm, a = deg_to_rad(2.0);
+    const double cy = std::cos(m.mount.yaw_rad), sy = std::sin(m.mount.yaw_rad);
+    const Vec2 up{cy, sy}, left{-sy, cy};  // image up / image left in the vehicle frame
+    Vec2 q;
+    m.mount.roll_rad = a;
+    ASSERT_TRUE(m.pixel_to_vehicle({319.5, 239.5}, &q));
+    EXPECT_NEAR(q.x, h * std::tan(a) * left.x, 1e-9);
+    EXPECT_NEAR(q.y, h * std::tan(a) * left.y, 1e-9);
+    m.mount.roll_rad = 0.0;
+    m.mount.pitch_rad = a;
+    ASSERT_TRUE(m.pixel_to_vehicle({319.5, 239.5}, &q));
+    EXPECT_NEAR(q.x, -h * std::tan(a) * up.x, 1e-9);
+    EXPECT_NEAR(q.y, -h * std::tan(a) * up.y, 1e-9);
+  }
+}
+
+TEST(CameraModel, TiltedRoundTripWithDistortion) {
+  CameraModel m = CameraModel::default_640x480();
+  m.intrinsics.k1 = -0.21;
+  m.intrinsics.k2 = 0.05;
+  m.intrinsics.p1 = 0.001;
+  m.mount = {35.0, -12.0, deg_to_rad(3.0), 180.0, deg_to_rad(1.5), deg_to_rad(-1.2)};
+  double max_err = 0.0;
+  for (double x = -60; x <= 60; x += 15) {
+    for (double y = -80; y <= 80; y += 20) {
+      Vec2 px, back;
+      ASSERT_TRUE(m.vehicle_to_pixel({x + 35.0, y - 12.0}, &px));
+      ASSERT_TRUE(m.pixel_to_vehicle(px, &back));
+      max_err = std::max({max_err, std::abs(back.x - x - 35.0), std::abs(back.y - y + 12.0)});
+      // The tilt really moves the image: the untilted model puts the point elsewhere.
+      CameraModel flat = m;
+      flat.mount.roll_rad = flat.mount.pitch_rad = 0.0;
+      Vec2 px_flat;
+      ASSERT_TRUE(flat.vehicle_to_pixel({x + 35.0, y - 12.0}, &px_flat));
+      EXPECT_GT(std::hypot(px.x - px_flat.x, px.y - px_flat.y), 10.0);
+    }
+  }
+  EXPECT_LT(max_err, 1e-7);
+  // A floor point behind a strongly tilted camera cannot be imaged; a ray above the horizon
+  // does not reach the floor.
+  CameraModel steep = CameraModel::default_640x480();
+  steep.mount.pitch_rad = deg_to_rad(45.0);
+  Vec2 px, q;
+  EXPECT_FALSE(steep.vehicle_to_pixel({1000.0, 0.0}, &px));  // image up = behind
+  steep.intrinsics.fx = steep.intrinsics.fy = 100.0;
+  EXPECT_FALSE(steep.pixel_to_vehicle({319.5, 239.5 + 300.0}, &q));  // above the horizon
 }

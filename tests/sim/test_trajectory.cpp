@@ -279,3 +279,55 @@ TEST(DefaultMap, FileMatchesBuiltInGrid) {
     EXPECT_NEAR(wrap_angle_rad(o->pose.theta_rad - e.pose.theta_rad), 0.0, 1e-9);
   }
 }
+
+// The vehicle-calibration drive (docs/simulator.md): stops over landmarks 0..3 of row 0, turns on
+// the spot there, and period-mean odometry dead-reckons it (turns included) exactly.
+TEST(Trajectory, CalibrationDriveStopsAndTurnsOverLandmarks) {
+  TrajectoryParams tp;
+  tp.kind = TrajectoryKind::kCalibration;
+  Trajectory t;
+  ASSERT_TRUE(make_trajectory(tp, &t, nullptr));
+  ASSERT_GT(t.moves.size(), 5u);
+  EXPECT_LT(t.closure_error_mm, 1e-9);
+  double max_off_landmark_mm = 0.0, turned = 0.0;
+  int turns = 0;
+  for (size_t i = 1; i < t.moves.size(); ++i) {
+    // Every move starts standing over a landmark (20 mm lateral offset of the path).
+    const Pose2 p = t.move_start_pose[i];
+    const double lx = std::round(p.x_mm / 1000.0) * 1000.0;
+    max_off_landmark_mm = std::max(max_off_landmark_mm, std::hypot(p.x_mm - lx, p.y_mm - 20.0));
+    if (t.moves[i].rotate) {
+      ++turns;
+      turned += std::abs(t.moves[i].amount);
+      // On the spot: position constant through the turn, v = 0.
+      const auto t_mid =
+          static_cast<std::int64_t>((t.move_start_t_s[i] + 0.5 * t.moves[i].duration_s()) * 1e9);
+      const MotionState m = trajectory_state(t, t_mid);
+      EXPECT_NEAR(m.pose.x_mm, p.x_mm, 1e-9);
+      EXPECT_EQ(m.v_mps, 0.0);
+      EXPECT_GT(std::abs(m.omega_radps), 0.1);
+    }
+  }
+  EXPECT_LT(max_off_landmark_mm, 1e-6);
+  EXPECT_GE(turns, 6);
+  EXPECT_GT(turned, 4 * kPi);
+  // Period-mean odometry integrates to the route over two blocks.
+  const OdometryParams op = error_free(OdomSampleTiming::kPeriodMean);
+  const double dt_s = static_cast<double>(op.period_ns) * 1e-9;
+  Pose2 p = t.start;
+  double max_pos = 0.0, max_head = 0.0;
+  const auto end =
+      static_cast<std::int64_t>((t.moves[0].duration_s() + 2 * t.block_duration_s) * 1e9);
+  for (std::int64_t tn = op.period_ns; tn <= end; tn += op.period_ns) {
+    const OdometrySample o = odometry_sample(op, {}, t, tn);
+    const double ds = 1000.0 * o.v_mps * dt_s, dth = o.omega_radps * dt_s;
+    p.x_mm += ds * std::cos(p.theta_rad + 0.5 * dth);
+    p.y_mm += ds * std::sin(p.theta_rad + 0.5 * dth);
+    p.theta_rad = wrap_angle_rad(p.theta_rad + dth);
+    const Pose2 truth = trajectory_state(t, tn).pose;
+    max_pos = std::max(max_pos, std::hypot(p.x_mm - truth.x_mm, p.y_mm - truth.y_mm));
+    max_head = std::max(max_head, std::abs(wrap_angle_rad(p.theta_rad - truth.theta_rad)));
+  }
+  EXPECT_LT(max_head, 1e-9);
+  EXPECT_LT(max_pos, 1e-6);
+}

@@ -47,9 +47,43 @@ bool CameraModel::undistort_pixel_to_normalized(Vec2 pixel, Vec2* xn) const {
   return true;
 }
 
+void CameraMount::rotation_vehicle_from_camera(double r[9]) const {
+  const double cy = std::cos(yaw_rad), sy = std::sin(yaw_rad);
+  const double cp = std::cos(pitch_rad), sp = std::sin(pitch_rad);
+  const double cr = std::cos(roll_rad), sr = std::sin(roll_rad);
+  // R_VB = Rz(yaw) Ry(pitch) Rx(roll).
+  const double b[9] = {cy * cp,
+                       cy * sp * sr - sy * cr,
+                       cy * sp * cr + sy * sr,  //
+                       sy * cp,
+                       sy * sp * sr + cy * cr,
+                       sy * sp * cr - cy * sr,  //
+                       -sp,
+                       cp * sr,
+                       cp * cr};
+  // R_BC: x_C = -y_B, y_C = -x_B, z_C = -z_B, so R_VC = R_VB R_BC = [-b1, -b0, -b2] (columns).
+  for (int i = 0; i < 3; ++i) {
+    r[3 * i + 0] = -b[3 * i + 1];
+    r[3 * i + 1] = -b[3 * i + 0];
+    r[3 * i + 2] = -b[3 * i + 2];
+  }
+}
+
 bool CameraModel::vehicle_to_pixel(Vec2 p, Vec2* pixel) const {
   if (!std::isfinite(p.x) || !std::isfinite(p.y) || !(mount.height_mm > 0.0)) return false;
   const double dx = p.x - mount.offset_x_mm, dy = p.y - mount.offset_y_mm;
+  if (mount.tilted()) {
+    // Camera coordinates of the floor point: R_VC^T (p - c), c = (offset_x, offset_y, height).
+    double r[9];
+    mount.rotation_vehicle_from_camera(r);
+    const double dz = -mount.height_mm;
+    const double xc = r[0] * dx + r[3] * dy + r[6] * dz;
+    const double yc = r[1] * dx + r[4] * dy + r[7] * dz;
+    const double zc = r[2] * dx + r[5] * dy + r[8] * dz;
+    if (!(zc > 1e-9 * mount.height_mm)) return false;  // behind the camera
+    *pixel = distort_normalized_to_pixel({xc / zc, yc / zc});
+    return true;
+  }
   const double c = std::cos(mount.yaw_rad), s = std::sin(mount.yaw_rad);
   // image right = (sin, -cos), image up = (cos, sin) in the vehicle frame.
   const double xc = dx * s - dy * c;
@@ -61,6 +95,18 @@ bool CameraModel::vehicle_to_pixel(Vec2 p, Vec2* pixel) const {
 bool CameraModel::pixel_to_vehicle(Vec2 pixel, Vec2* p) const {
   Vec2 xn;
   if (!(mount.height_mm > 0.0) || !undistort_pixel_to_normalized(pixel, &xn)) return false;
+  if (mount.tilted()) {
+    // Ray (xn, 1) in C, rotated into V, intersected with the floor z = 0.
+    double r[9];
+    mount.rotation_vehicle_from_camera(r);
+    const double rx = r[0] * xn.x + r[1] * xn.y + r[2];
+    const double ry = r[3] * xn.x + r[4] * xn.y + r[5];
+    const double rz = r[6] * xn.x + r[7] * xn.y + r[8];
+    if (!(rz < -1e-9)) return false;  // the ray does not reach the floor
+    const double t = mount.height_mm / -rz;
+    *p = {mount.offset_x_mm + t * rx, mount.offset_y_mm + t * ry};
+    return true;
+  }
   const double xc = xn.x * mount.height_mm, yc = xn.y * mount.height_mm;
   const double c = std::cos(mount.yaw_rad), s = std::sin(mount.yaw_rad);
   // Inverse of the rotation in vehicle_to_pixel.

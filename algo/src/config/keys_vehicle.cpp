@@ -83,6 +83,12 @@ void add_mounting(std::vector<Key>* k) {
                           0.0, {"deg", "image axes relative to the vehicle, counter-clockwise"}));
   k->push_back(number("mounting.height_mm", AGV_AT(camera_model.mount.height_mm), 10.0, 5000.0,
                       200.0, {"mm", "optical centre above the floor; scales every measurement"}));
+  k->push_back(deg_as_rad("mounting.roll_deg", AGV_AT(camera_model.mount.roll_rad), -45.0, 45.0,
+                          0.0,
+                          {"deg", "camera tilt about image up; + = optical axis to image left"}));
+  k->push_back(deg_as_rad("mounting.pitch_deg", AGV_AT(camera_model.mount.pitch_rad), -45.0, 45.0,
+                          0.0,
+                          {"deg", "camera tilt about image left; + = optical axis to image down"}));
 }
 
 void add_landmark(std::vector<Key>* k) {

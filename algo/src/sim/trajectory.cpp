@@ -8,11 +8,9 @@ namespace agv::sim {
 
 bool parse_trajectory_kind(const std::string& name, TrajectoryKind* out) {
   static const std::pair<const char*, TrajectoryKind> kNames[] = {
-      {"line", TrajectoryKind::kLine},
-      {"square", TrajectoryKind::kSquare},
-      {"circle", TrajectoryKind::kCircle},
-      {"figure8", TrajectoryKind::kFigure8},
-      {"lawnmower", TrajectoryKind::kLawnmower}};
+      {"line", TrajectoryKind::kLine},       {"calibration", TrajectoryKind::kCalibration},
+      {"square", TrajectoryKind::kSquare},   {"circle", TrajectoryKind::kCircle},
+      {"figure8", TrajectoryKind::kFigure8}, {"lawnmower", TrajectoryKind::kLawnmower}};
   for (const auto& [n, k] : kNames) {
     if (name == n) {
       *out = k;
@@ -24,6 +22,8 @@ bool parse_trajectory_kind(const std::string& name, TrajectoryKind* out) {
 
 const char* to_string(TrajectoryKind k) {
   switch (k) {
+    case TrajectoryKind::kCalibration:
+      return "calibration";
     case TrajectoryKind::kLine:
       return "line";
     case TrajectoryKind::kSquare:
@@ -53,6 +53,56 @@ Pose2 advance(const Pose2& start, const Segment& seg, double s) {
 }
 
 Segment straight(double len) { return {len, 0.0}; }
+
+Move make_move(bool rotate, double amount, double peak, double accel, double pause_s) {
+  Move m;
+  m.rotate = rotate;
+  m.amount = amount;
+  m.accel = accel;
+  m.pause_s = pause_s;
+  const double a = std::abs(amount);
+  double tr = peak / accel;
+  if (accel * tr * tr > a) {
+    tr = std::sqrt(a / accel);
+    peak = accel * tr;
+    m.cruise_s = 0.0;
+  } else {
+    m.cruise_s = (a - accel * tr * tr) / peak;
+  }
+  m.peak = peak;
+  m.ramp_s = tr;
+  return m;
+}
+
+// Distance (or angle magnitude) covered and rate (>= 0) at time u into the move.
+void move_progress(const Move& m, double u, double* pos, double* rate) {
+  const double tr = m.ramp_s, tc = m.cruise_s, a = m.accel, total = std::abs(m.amount);
+  if (u <= 0.0) {
+    *pos = 0.0;
+    *rate = 0.0;
+  } else if (u < tr) {
+    *pos = 0.5 * a * u * u;
+    *rate = a * u;
+  } else if (u < tr + tc) {
+    *pos = 0.5 * a * tr * tr + m.peak * (u - tr);
+    *rate = m.peak;
+  } else if (u < 2 * tr + tc) {
+    const double r = 2 * tr + tc - u;
+    *pos = total - 0.5 * a * r * r;
+    *rate = a * r;
+  } else {
+    *pos = total;
+    *rate = 0.0;
+  }
+}
+
+Pose2 move_pose(const Pose2& start, const Move& m, double pos) {
+  if (m.rotate) {
+    return {start.x_mm, start.y_mm, wrap_angle_rad(start.theta_rad + (m.amount < 0 ? -pos : pos))};
+  }
+  return {start.x_mm + pos * std::cos(start.theta_rad),
+          start.y_mm + pos * std::sin(start.theta_rad), start.theta_rad};
+}
 // Arc turning by angle_rad (positive = left) with radius r.
 Segment arc(double r, double angle_rad) {
   return {r * std::abs(angle_rad), angle_rad > 0 ? 1.0 / r : -1.0 / r};
@@ -110,6 +160,48 @@ bool make_trajectory(const TrajectoryParams& p, Trajectory* out, std::string* er
       s = {arc(d, 2 * kPi), arc(d, -2 * kPi)};
       break;
     }
+    case TrajectoryKind::kCalibration: {
+      const int n = std::min(4, p.grid_columns);
+      const double acc_v = std::max(p.accel_mps2, 1.5) * 1000.0, v = p.speed_mps * 1000.0;
+      const double w_peak = 0.8, acc_w = 3.0, pause = 0.3;
+      auto go = [&](double mm) { tr.moves.push_back(make_move(false, mm, v, acc_v, pause)); };
+      auto turn = [&](double rad) {
+        tr.moves.push_back(make_move(true, rad, w_peak, acc_w, pause));
+      };
+      tr.start = {gx - a, gy + o, 0.0};
+      go(a);
+      turn(2 * kPi);
+      for (int i = 1; i < n; ++i) {
+        go(d);
+        turn(i % 2 ? -kPi / 2 : kPi / 2);
+        turn(i % 2 ? kPi / 2 : -kPi / 2);
+      }
+      turn(kPi);
+      for (int i = 1; i < n; ++i) go(d);
+      turn(-kPi);
+      double t = 0.0, sm = 0.0;
+      Pose2 pose = tr.start;
+      for (size_t i = 0; i < tr.moves.size(); ++i) {
+        if (i == 1) {
+          tr.block_duration_s = -t;
+          tr.block_length_mm = -sm;
+        }
+        tr.move_start_t_s.push_back(t);
+        tr.move_start_s_mm.push_back(sm);
+        tr.move_start_pose.push_back(pose);
+        const Move& m = tr.moves[i];
+        pose = move_pose(pose, m, std::abs(m.amount));
+        t += m.duration_s();
+        if (!m.rotate) sm += m.amount;
+      }
+      tr.block_duration_s += t;
+      tr.block_length_mm += sm;
+      tr.length_mm = sm;
+      tr.closure_error_mm = std::hypot(pose.x_mm - tr.move_start_pose[1].x_mm,
+                                       pose.y_mm - tr.move_start_pose[1].y_mm);
+      *out = std::move(tr);
+      return true;
+    }
     case TrajectoryKind::kLawnmower: {
       const int n = p.lawnmower_rows;
       if (n < 2 || n % 2 != 0 || n > p.grid_rows + 1) {
@@ -144,11 +236,32 @@ bool make_trajectory(const TrajectoryParams& p, Trajectory* out, std::string* er
 
 MotionState trajectory_state(const Trajectory& tr, std::int64_t t_ns) {
   MotionState m;
-  if (tr.segments.empty() || t_ns <= 0) {
+  if ((tr.segments.empty() && tr.moves.empty()) || t_ns <= 0) {
     m.pose = tr.start;
     return m;
   }
   const double t = static_cast<double>(t_ns) * 1e-9;
+  if (!tr.moves.empty()) {
+    // Timed program: lead-in, then the block repeated.
+    double u = t, s_base = 0.0;
+    size_t i = 0;
+    const double lead_t = tr.moves[0].duration_s();
+    if (u >= lead_t && tr.block_duration_s > 0.0) {
+      const double k = std::floor((u - lead_t) / tr.block_duration_s);
+      u -= k * tr.block_duration_s;
+      s_base = k * tr.block_length_mm;
+    }
+    auto it = std::upper_bound(tr.move_start_t_s.begin(), tr.move_start_t_s.end(), u);
+    i = static_cast<size_t>(std::max<std::ptrdiff_t>(0, it - tr.move_start_t_s.begin() - 1));
+    const Move& mv = tr.moves[i];
+    double pos = 0.0, rate = 0.0;
+    move_progress(mv, u - tr.move_start_t_s[i], &pos, &rate);
+    m.pose = move_pose(tr.move_start_pose[i], mv, pos);
+    m.s_mm = s_base + tr.move_start_s_mm[i] + (mv.rotate ? 0.0 : pos);
+    m.v_mps = mv.rotate ? 0.0 : rate * 1e-3;
+    m.omega_radps = mv.rotate ? (mv.amount < 0 ? -rate : rate) : 0.0;
+    return m;
+  }
   const double vmax = tr.params.speed_mps, acc = tr.params.accel_mps2;
   const double t_ramp = vmax / acc;
   double s_m = 0.0;
@@ -231,7 +344,10 @@ OdometrySample true_odometry(const OdometryParams& p, const Trajectory& tr, std:
   double k_max = 0.0;
   for (const Segment& seg : tr.segments) k_max = std::max(k_max, std::abs(seg.curvature_per_mm));
   const double period_s = static_cast<double>(p.period_ns) * 1e-9;
-  const double max_turn_rad = tr.params.speed_mps * 1000.0 * k_max * period_s;
+  double max_turn_rad = tr.params.speed_mps * 1000.0 * k_max * period_s;
+  for (const Move& mv : tr.moves) {
+    if (mv.rotate) max_turn_rad = std::max(max_turn_rad, mv.peak * period_s);
+  }
   const auto n = static_cast<std::int64_t>(std::ceil(max_turn_rad / (0.5 * kPi))) + 1;
   MotionState prev = trajectory_state(tr, t_ns - p.period_ns);
   const double s0_mm = prev.s_mm;
@@ -273,7 +389,11 @@ OdometrySample odometry_sample(const OdometryParams& p, const std::vector<SlipEv
       }
     }
   }
-  return {0.5 * (rl + rr), b_m > 0.0 ? (rr - rl) / b_m : 0.0};
+  double omega = b_m > 0.0 ? (rr - rl) / b_m : 0.0;
+  // Only when set, so default recordings stay byte-identical.
+  if (p.yaw_rate_scale_error != 0.0) omega *= 1.0 + p.yaw_rate_scale_error;
+  if (p.yaw_rate_bias_radps != 0.0) omega += p.yaw_rate_bias_radps;
+  return {0.5 * (rl + rr), omega};
 }
 
 }  // namespace agv::sim

@@ -178,6 +178,12 @@ LandmarkLocalizer::~LandmarkLocalizer() = default;
 
 const VisionConfig& LandmarkLocalizer::config() const { return impl_->cfg; }
 
+const std::vector<Vec2>& LandmarkLocalizer::edge_points_px(int line) const {
+  static const std::vector<Vec2> kNone;
+  if (line < 0 || line >= kNumLines) return kNone;
+  return impl_->pts_px[static_cast<size_t>(line)];
+}
+
 FixStatus LandmarkLocalizer::process(const cv::Mat& gray8, LandmarkFix* out) {
   if (!out) return FixStatus::kBadInput;
   *out = LandmarkFix{};

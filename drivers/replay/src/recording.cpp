@@ -410,8 +410,9 @@ bool parse_meta_yaml(const std::string& text, Meta* out, std::string* error,
         !p.number(di, "distortion", "k3", -100, 100, &k.k3)) {
       return false;
     }
-    double yaw_deg = 0.0;
-    if (!p.keys(mo, "mount", {"height_mm", "offset_x_mm", "offset_y_mm", "yaw_deg"}) ||
+    double yaw_deg = 0.0, roll_deg = 0.0, pitch_deg = 0.0;
+    if (!p.keys(mo, "mount", {"height_mm", "offset_x_mm", "offset_y_mm", "yaw_deg"},
+                {"roll_deg", "pitch_deg"}) ||
         !p.number(mo, "mount", "height_mm", 1.0, 10000.0, &mt.height_mm) ||
         !p.number(mo, "mount", "offset_x_mm", -10000.0, 10000.0, &mt.offset_x_mm) ||
         !p.number(mo, "mount", "offset_y_mm", -10000.0, 10000.0, &mt.offset_y_mm) ||
@@ -420,6 +421,12 @@ bool parse_meta_yaml(const std::string& text, Meta* out, std::string* error,
     }
     if (yaw_deg == -180.0) return p.fail(mo["yaw_deg"], "'mount.yaw_deg' must be in (-180, 180]");
     mt.yaw_rad = deg_to_rad(yaw_deg);
+    if ((mo["roll_deg"] && !p.number(mo, "mount", "roll_deg", -45.0, 45.0, &roll_deg)) ||
+        (mo["pitch_deg"] && !p.number(mo, "mount", "pitch_deg", -45.0, 45.0, &pitch_deg))) {
+      return false;
+    }
+    mt.roll_rad = deg_to_rad(roll_deg);
+    mt.pitch_rad = deg_to_rad(pitch_deg);
     if (!p.keys(lm, "landmark", {"size_mm"}) ||
         !p.number(lm, "landmark", "size_mm", 1.0, 1000.0, &m.landmark_size_mm)) {
       return false;

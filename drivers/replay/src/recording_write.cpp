@@ -63,8 +63,13 @@ std::string format_meta_yaml(const Meta& m) {
      << "mount:\n  height_mm: " << fmt_g17(mt.height_mm)
      << "\n  offset_x_mm: " << fmt_g17(mt.offset_x_mm)
      << "\n  offset_y_mm: " << fmt_g17(mt.offset_y_mm)
-     << "\n  yaw_deg: " << fmt_g17(rad_to_deg(wrap_angle_rad(mt.yaw_rad))) << "\n"
-     << "landmark:\n  size_mm: " << fmt_g17(m.landmark_size_mm) << "\n";
+     << "\n  yaw_deg: " << fmt_g17(rad_to_deg(wrap_angle_rad(mt.yaw_rad))) << "\n";
+  // Tilt only when there is one: untilted recordings stay byte-identical to older ones.
+  if (mt.tilted()) {
+    os << "  roll_deg: " << fmt_g17(rad_to_deg(mt.roll_rad))
+       << "\n  pitch_deg: " << fmt_g17(rad_to_deg(mt.pitch_rad)) << "\n";
+  }
+  os << "landmark:\n  size_mm: " << fmt_g17(m.landmark_size_mm) << "\n";
   return os.str();
 }
 

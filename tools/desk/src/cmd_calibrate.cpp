@@ -30,6 +30,8 @@ struct Subcommand {
 const Subcommand kSubcommands[] = {
     {"intrinsics", calibrate_intrinsics,
      "camera intrinsics from images of a ChArUco board or chessboard"},
+    {"vehicle", calibrate_vehicle,
+     "mounting, odometry and time offset from a calibration drive over mapped landmarks"},
     {"check", calibrate_check, "parked-vehicle check with a printed landmark at a taped pose"},
 };
 

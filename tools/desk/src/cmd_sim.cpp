@@ -36,7 +36,7 @@ int sim(int argc, char** argv) {
   app.add_option("--map", map_path,
                  "Landmark map (docs/landmark.md); default: built-in 5x5 grid at 1 m "
                  "(= tools/maps/default_grid.csv)");
-  app.add_option("--trajectory", trajectory, "line|square|circle|figure8|lawnmower")
+  app.add_option("--trajectory", trajectory, "line|square|circle|figure8|lawnmower|calibration")
       ->capture_default_str();
   app.add_option("--duration-s", duration_s, "Recording length in seconds")
       ->check(CLI::Range(0.1, 3600.0))
@@ -87,6 +87,55 @@ int sim(int argc, char** argv) {
   app.add_option("--dirt", dirt, "Mean dirt spots per landmark")
       ->check(CLI::Range(0.0, 100.0))
       ->capture_default_str();
+  // The camera mounting (docs/frames.md); defaults = the profile's centred, untilted camera.
+  double mount_x_mm = 0.0, mount_y_mm = 0.0, mount_yaw_deg = 0.0, roll_deg = 0.0, pitch_deg = 0.0;
+  double mount_height_mm = 0.0;
+  app.add_option("--mount-offset-x-mm", mount_x_mm, "Camera optical centre in the vehicle, x")
+      ->check(CLI::Range(-5000.0, 5000.0))
+      ->capture_default_str();
+  app.add_option("--mount-offset-y-mm", mount_y_mm, "Camera optical centre in the vehicle, y")
+      ->check(CLI::Range(-5000.0, 5000.0))
+      ->capture_default_str();
+  app.add_option("--mount-yaw-deg", mount_yaw_deg, "Camera yaw (image axes vs vehicle)")
+      ->check(CLI::Range(-180.0, 180.0))
+      ->capture_default_str();
+  app.add_option("--mount-height-mm", mount_height_mm,
+                 "Camera height above the floor; 0 = the profile's 200 mm")
+      ->check(CLI::Range(0.0, 5000.0))
+      ->capture_default_str();
+  app.add_option("--roll-deg", roll_deg, "Camera roll (docs/frames.md \"Camera tilt\")")
+      ->check(CLI::Range(-45.0, 45.0))
+      ->capture_default_str();
+  app.add_option("--pitch-deg", pitch_deg, "Camera pitch (docs/frames.md \"Camera tilt\")")
+      ->check(CLI::Range(-45.0, 45.0))
+      ->capture_default_str();
+  double odom_time_offset_ms = 0.0, yaw_bias_degps = 0.0;
+  bool nominal_meta = false;
+  app.add_option("--odom-scale-error", op.scale_error,
+                 "Both wheels report this fraction too much (speed scale error)")
+      ->check(CLI::Range(-0.5, 0.5))
+      ->capture_default_str();
+  app.add_option("--odom-asymmetry", op.scale_asymmetry,
+                 "Right minus left wheel scale error (curves straight runs)")
+      ->check(CLI::Range(-0.5, 0.5))
+      ->capture_default_str();
+  app.add_option("--odom-yaw-scale-error", op.yaw_rate_scale_error,
+                 "Reported yaw rate scaled by (1 + this) on top of the wheels")
+      ->check(CLI::Range(-0.5, 0.5))
+      ->capture_default_str();
+  app.add_option("--odom-yaw-bias-degps", yaw_bias_degps, "Added to the reported yaw rate")
+      ->check(CLI::Range(-10.0, 10.0))
+      ->capture_default_str();
+  app.add_option("--odom-noise-mps", op.noise_mps, "White noise per wheel speed sample (sigma)")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  app.add_option("--odom-time-offset-ms", odom_time_offset_ms,
+                 "Odometry timestamps late by this (camera-odometry clock offset)")
+      ->check(CLI::Range(-1000.0, 1000.0))
+      ->capture_default_str();
+  app.add_flag("--nominal-meta", nominal_meta,
+               "meta.yaml records the profile's nominal camera mounting instead of the simulated "
+               "one (a recording made with an uncalibrated configuration)");
   app.add_flag("--force", force, "Overwrite an existing recording in --out");
   try {
     app.parse(argc, argv);
@@ -112,6 +161,15 @@ int sim(int argc, char** argv) {
   }
   cam.intrinsics.k1 = k1;
   cam.intrinsics.k2 = k2;
+  cam.mount.offset_x_mm = mount_x_mm;
+  cam.mount.offset_y_mm = mount_y_mm;
+  cam.mount.yaw_rad = deg_to_rad(mount_yaw_deg);
+  if (mount_height_mm > 0.0) {
+    if (mount_height_mm < 10.0) return usage_error("--mount-height-mm must be >= 10");
+    cam.mount.height_mm = mount_height_mm;
+  }
+  cam.mount.roll_rad = deg_to_rad(roll_deg);
+  cam.mount.pitch_rad = deg_to_rad(pitch_deg);
   sim::RenderOptions ro;
   if (degrade == "realistic") {
     ro = sim::realistic_options();
@@ -194,6 +252,12 @@ int sim(int argc, char** argv) {
 
   recording::Meta meta;
   meta.camera = cam;
+  if (nominal_meta) {
+    meta.camera.mount =
+        (profile == "640x480" ? CameraModel::default_640x480() : CameraModel::default_1280x800())
+            .mount;
+  }
+  op.yaw_rate_bias_radps = deg_to_rad(yaw_bias_degps);
   meta.landmark_size_mm = scene.geometry.size_mm;
   std::string cmdline = "agvloc-desk sim";
   for (int i = 1; i < argc; ++i) cmdline += std::string(" ") + argv[i];
@@ -212,12 +276,14 @@ int sim(int argc, char** argv) {
   const auto odom_period_ns = static_cast<std::int64_t>(std::llround(1e9 / odom_hz));
   op.period_ns = odom_period_ns;
   const std::vector<sim::SlipEvent> slips = sim::make_slip_events(op, duration_ns);
+  const auto odom_time_offset_ns =
+      static_cast<std::int64_t>(std::llround(odom_time_offset_ms * 1e6));
 
   std::vector<recording::OdomRow> odom;
   std::vector<std::int64_t> truth_times;
   for (std::int64_t t = 0; t <= duration_ns; t += odom_period_ns) {
     const sim::OdometrySample o = sim::odometry_sample(op, slips, traj, t);
-    odom.push_back({kT0_ns + t, o.v_mps, o.omega_radps});
+    odom.push_back({kT0_ns + t + odom_time_offset_ns, o.v_mps, o.omega_radps});
     truth_times.push_back(t);
   }
 

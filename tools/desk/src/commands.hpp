@@ -9,7 +9,10 @@ int landmark(int argc, char** argv);   // print landmarks as SVG/PNG
 int report(int argc, char** argv);     // accuracy against truth + trajectory plot of a replay
 int calibrate(int argc, char** argv);  // dispatcher: calibrate intrinsics|vehicle|check
 int calibrate_intrinsics(int argc, char** argv);  // camera intrinsics from board images
-int sim_board(int argc, char** argv);             // simulated calibration-board views
+// calibrate vehicle: mounting, odometry and time offset from a calibration drive. Exit 0 all
+// determined, 1 some not determined (not written) or failure, 2 bad input.
+int calibrate_vehicle(int argc, char** argv);
+int sim_board(int argc, char** argv);  // simulated calibration-board views
 // calibrate check: parked-vehicle check with a printed landmark at a taped pose. Exit 0 within
 // tolerance, 1 out of tolerance, 2 bad input.
 int calibrate_check(int argc, char** argv);

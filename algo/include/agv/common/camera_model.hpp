@@ -1,5 +1,6 @@
-// Down-looking floor camera: OpenCV pinhole + Brown-Conrady distortion, optical axis
-// perpendicular to the floor at a known height, mounted on the vehicle with an offset and yaw.
+// Down-looking floor camera: OpenCV pinhole + Brown-Conrady distortion, optical axis nominally
+// perpendicular to the floor at a known height, mounted on the vehicle with an offset, a yaw and
+// a small tilt (roll, pitch).
 // Frames and sign conventions: docs/frames.md ("Camera frame" and "Mounting").
 #pragma once
 
@@ -24,6 +25,18 @@ struct CameraMount {
   // 0 means: image "up" (decreasing row) points along vehicle +x, image "right" along -y.
   double yaw_rad = 0.0;
   double height_mm = 200.0;  // optical centre above the floor
+  // Tilt of the camera (docs/frames.md, "Camera tilt"): the camera body frame B (x = image up,
+  // y = image left, z = against the optical axis) is R_VB = Rz(yaw) * Ry(pitch) * Rx(roll) in the
+  // vehicle frame (intrinsic z-y'-x''). Positive roll turns the optical axis towards image left,
+  // positive pitch towards image down. 0, 0 = optical axis perpendicular to the floor; exactly
+  // 0, 0 takes the untilted code path, bit for bit.
+  double roll_rad = 0.0;
+  double pitch_rad = 0.0;
+
+  bool tilted() const { return roll_rad != 0.0 || pitch_rad != 0.0; }
+  // Camera-to-vehicle rotation R_VC (row-major 3x3): columns are the camera axes x_C (image
+  // right), y_C (image down), z_C (optical axis) expressed in V.
+  void rotation_vehicle_from_camera(double r[9]) const;
 };
 
 struct CameraModel {
@@ -31,10 +44,11 @@ struct CameraModel {
   CameraMount mount;
 
   // Floor point in the vehicle frame (mm) -> distorted pixel. False when the point cannot be
-  // imaged (non-finite input). Does not check image bounds.
+  // imaged (non-finite input, or behind a tilted camera). Does not check image bounds.
   bool vehicle_to_pixel(Vec2 p_vehicle_mm, Vec2* pixel) const;
-  // Distorted pixel -> floor point in the vehicle frame (mm). False when undistortion does not
-  // converge (far outside the calibrated field).
+  // Distorted pixel -> floor point in the vehicle frame (mm): the pixel's ray intersected with
+  // the floor. False when undistortion does not converge (far outside the calibrated field) or
+  // the ray of a tilted camera does not reach the floor.
   bool pixel_to_vehicle(Vec2 pixel, Vec2* p_vehicle_mm) const;
 
   // Normalised undistorted image coordinates <-> distorted pixels.

@@ -18,9 +18,16 @@ enum class TrajectoryKind {
   kCircle,     // circle through grid landmarks
   kFigure8,    // two tangent circles; crosses the grid centre
   kLawnmower,  // boustrophedon over `rows` landmark rows, then back to the start
+  // Vehicle calibration drive (agvloc-desk calibrate vehicle, docs/simulator.md): over the first
+  // 2-4 landmarks of row 0, stop over each landmark; turn on the spot +360 deg at the first,
+  // +-90 and back at the others, 180 at the last, drive back stopping over each, 180 at the
+  // first, repeat. Trapezoid profiles (speed_mps, max(accel, 1.5 m/s^2); 0.8 rad/s, 3 rad/s^2)
+  // and a 0.3 s pause after every move, so speed changes happen with a landmark in view.
+  kCalibration,
 };
 
-// Parses "line", "square", "circle", "figure8", "lawnmower". False for anything else.
+// Parses "line", "square", "circle", "figure8", "lawnmower", "calibration". False for anything
+// else.
 bool parse_trajectory_kind(const std::string& name, TrajectoryKind* out);
 const char* to_string(TrajectoryKind k);
 
@@ -46,8 +53,22 @@ struct Segment {
   double curvature_per_mm = 0.0;  // 0 straight, +1/R left (counter-clockwise), -1/R right
 };
 
+// One move of a timed program (kCalibration): a straight drive or a turn on the spot with a
+// trapezoid rate profile, then a pause.
+struct Move {
+  bool rotate = false;
+  double amount = 0.0;  // mm (>= 0) or rad (signed)
+  double peak = 0.0, accel = 0.0, ramp_s = 0.0, cruise_s = 0.0, pause_s = 0.0;
+  double duration_s() const { return 2.0 * ramp_s + cruise_s + pause_s; }
+};
+
 struct Trajectory {
   TrajectoryParams params;
+  // kCalibration: moves[0] is the lead-in, moves[1..] the block repeated for ever.
+  std::vector<Move> moves;
+  std::vector<double> move_start_t_s, move_start_s_mm;
+  std::vector<Pose2> move_start_pose;
+  double block_duration_s = 0.0, block_length_mm = 0.0;
   Pose2 start;  // world pose at s = 0
   std::vector<Segment> segments;
   std::vector<double> seg_start_s_mm;
@@ -92,6 +113,10 @@ struct OdometryParams {
   double slip_rate_per_s = 0.02;        // mean slip events per second (Poisson)
   double slip_duration_s = 0.3;
   double slip_excess = 0.05;  // the slipping wheel reports this fraction more than it moved
+  // Yaw-rate errors beyond the wheels' (a gyro-fused controller; vehicle calibration tests):
+  // reported omega = (1 + yaw_rate_scale_error) * wheel omega + yaw_rate_bias_radps.
+  double yaw_rate_scale_error = 0.0;
+  double yaw_rate_bias_radps = 0.0;
   std::uint64_t seed = 1;
 };
 

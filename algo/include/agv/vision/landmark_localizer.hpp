@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <vector>
 
 #include "agv/common/camera_model.hpp"
 #include "agv/common/geometry.hpp"
@@ -248,6 +249,13 @@ class LandmarkLocalizer {
   void draw_overlay(const cv::Mat& gray8, const LandmarkFix& fix, cv::Mat* bgr_out) const;
 
   const VisionConfig& config() const;
+
+  // Raw border edge points (distorted pixels) found by the last process() call, per edge line
+  // 0..7 (outer and inner edge of each of the four border sides), before the pose fit: the
+  // per-frame observation for the vehicle calibration (agvloc-desk calibrate vehicle), which
+  // must not inherit the configured mounting. Empty for an out-of-range line.
+  static constexpr int kEdgeLines = 8;
+  const std::vector<agv::Vec2>& edge_points_px(int line) const;
 
   struct Impl;
 

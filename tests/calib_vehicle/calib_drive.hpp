@@ -1,0 +1,168 @@
+// Simulated calibration drive for the vehicle-calibration tests (simulated observations, not
+// rendered frames): the documented pattern over landmarks on a line 1 m apart — straight passes in
+// both directions that stop over each landmark, and turns on the spot over them — with a true
+// camera mounting and odometry errors (scales, yaw-rate bias, time offset, white noise), and the
+// landmark corners as the vision stage's raw observation (undistorted normalised coordinates with
+// pixel noise).
+#pragma once
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "calib_vehicle.hpp"
+
+namespace agv::calibtest {
+
+struct DriveTruth {
+  desk::vcal::VehicleParams p;  // true mounting, odometry errors, time offset
+  double corner_noise_px = 0.05;
+  double odom_v_noise_mps = 0.002, odom_w_noise_radps = 0.01;
+  bool turns = true;       // false: straight passes in one direction only (degenerate)
+  int landmarks = 3;       // on a line 1 m apart along x
+  double duration_s = 60;  // the pattern repeats until this time
+  unsigned seed = 1;
+};
+
+struct Drive {
+  LandmarkMap map;
+  std::vector<desk::vcal::OdomSample> odom;
+  std::vector<desk::vcal::CornerObservation> obs;
+};
+
+namespace detail {
+struct Move {
+  bool rotate;
+  double amount;  // mm or rad (signed)
+};
+// Trapezoid profile: peak rate, acceleration; returns rate at time t of a move of `amount`.
+inline double trapezoid(double amount, double peak, double acc, double t, double* duration) {
+  const double a = std::abs(amount), sgn = amount < 0 ? -1.0 : 1.0;
+  double tr = peak / acc, cruise;
+  if (acc * tr * tr > a) {
+    tr = std::sqrt(a / acc);
+    peak = acc * tr;
+    cruise = 0.0;
+  } else {
+    cruise = (a - acc * tr * tr) / peak;
+  }
+  *duration = 2 * tr + cruise;
+  if (t < 0 || t > *duration) return 0.0;
+  if (t < tr) return sgn * acc * t;
+  if (t < tr + cruise) return sgn * peak;
+  return sgn * acc * (*duration - t);
+}
+}  // namespace detail
+
+inline Drive make_calibration_drive(const DriveTruth& tr) {
+  using detail::Move;
+  Drive d;
+  for (int i = 0; i < tr.landmarks; ++i) {
+    d.map.entries[static_cast<std::uint32_t>(i + 1)] = {static_cast<std::uint32_t>(i + 1),
+                                                        {1000.0 * i, 0.0, 0.0}};
+  }
+  // Pattern: start 400 mm before landmark 1; drive to each landmark, stop, turn on the spot
+  // (+360, then -180 at the last one), come back the other way, turn, and repeat.
+  std::vector<Move> pattern;
+  pattern.push_back({false, 400.0});
+  const double span = 1000.0 * (tr.landmarks - 1);
+  for (int rep = 0; rep < 20; ++rep) {
+    if (tr.turns) {
+      pattern.push_back({true, 2 * kPi});
+      for (int i = 1; i < tr.landmarks; ++i) {
+        pattern.push_back({false, 1000.0});
+        pattern.push_back({true, i % 2 ? -kPi / 2 : kPi / 2});
+        pattern.push_back({true, i % 2 ? kPi / 2 : -kPi / 2});
+      }
+      pattern.push_back({true, kPi});
+      for (int i = 1; i < tr.landmarks; ++i) pattern.push_back({false, 1000.0});
+      pattern.push_back({true, -kPi});
+    } else {
+      for (int i = 1; i < tr.landmarks; ++i) pattern.push_back({false, 1000.0});
+      pattern.push_back({false, -span});  // reverse back (no turn)
+    }
+  }
+  // True motion at 1 kHz.
+  const double dt_fine = 1e-3, peak_v = 500.0, acc_v = 1500.0, peak_w = 0.8, acc_w = 3.0;
+  std::vector<double> t_f, v_f, w_f;
+  std::vector<Pose2> pose_f;
+  Pose2 pose{-400.0, 0.0, 0.0};
+  double t = 0.0;
+  // Stand still for 0.5 s at the start.
+  for (size_t mi = 0; mi < pattern.size() && t < tr.duration_s + 1.0; ++mi) {
+    const Move& m = pattern[mi];
+    double dur = 0;
+    detail::trapezoid(m.amount, m.rotate ? peak_w : peak_v, m.rotate ? acc_w : acc_v, 0, &dur);
+    const double pause = 0.3;
+    for (double u = 0; u < dur + pause; u += dt_fine) {
+      double dd = 0;
+      const double r = detail::trapezoid(m.amount, m.rotate ? peak_w : peak_v,
+                                         m.rotate ? acc_w : acc_v, u + 0.5 * dt_fine, &dd);
+      const double v = m.rotate ? 0.0 : r, w = m.rotate ? r : 0.0;
+      t_f.push_back(t);
+      pose_f.push_back(pose);
+      v_f.push_back(v);
+      w_f.push_back(w);
+      const double mid = pose.theta_rad + 0.5 * w * dt_fine;
+      pose.x_mm += v * dt_fine * std::cos(mid);
+      pose.y_mm += v * dt_fine * std::sin(mid);
+      pose.theta_rad += w * dt_fine;
+      t += dt_fine;
+    }
+  }
+  std::mt19937 rng(tr.seed);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  // Odometry every 10 ms: mean over the period, as reported with the errors, stamped late by
+  // the time offset (odometry clock = camera clock + time offset).
+  const std::int64_t t0_ns = 10'000'000'000LL;
+  for (size_t k = 10; k < t_f.size(); k += 10) {
+    double sv = 0, sw = 0;
+    for (size_t j = k - 10; j < k; ++j) {
+      sv += v_f[j];
+      sw += w_f[j];
+    }
+    const double v = sv / 10.0 / 1000.0, w = sw / 10.0;  // m/s, rad/s
+    desk::vcal::OdomSample o;
+    o.t_ns = t0_ns + static_cast<std::int64_t>(std::llround((t_f[k] + tr.p.time_offset_s) * 1e9));
+    o.v_mps = v / tr.p.speed_scale + tr.odom_v_noise_mps * n01(rng);
+    o.omega_radps =
+        (w - tr.p.yaw_rate_bias_radps) / tr.p.yaw_rate_scale + tr.odom_w_noise_radps * n01(rng);
+    d.odom.push_back(o);
+  }
+  // Frames at 30 Hz.
+  CameraModel cam = CameraModel::default_640x480();
+  cam.mount = tr.p.mount;
+  const auto corners = desk::vcal::landmark_corners(30.0, 24.0);
+  for (double tc = 0.0; tc < std::min(t, tr.duration_s); tc += 1.0 / 30.0) {
+    const size_t k = std::min(t_f.size() - 1, static_cast<size_t>(tc / dt_fine));
+    const double f = (tc - t_f[k]) / dt_fine;
+    Pose2 p = pose_f[k];
+    p.x_mm += f * v_f[k] * dt_fine * std::cos(p.theta_rad);
+    p.y_mm += f * v_f[k] * dt_fine * std::sin(p.theta_rad);
+    p.theta_rad += f * w_f[k] * dt_fine;
+    const Pose2 v_from_w = inverse(p);
+    for (const auto& [id, e] : d.map.entries) {
+      desk::vcal::CornerObservation o;
+      o.t_ns = t0_ns + static_cast<std::int64_t>(std::llround(tc * 1e9));
+      o.landmark_id = id;
+      bool all = true;
+      for (size_t c = 0; c < 8; ++c) {
+        Vec2 px;
+        if (!cam.vehicle_to_pixel(transform(v_from_w, transform(e.pose, corners[c])), &px) ||
+            px.x < 2 || px.y < 2 || px.x > 637 || px.y > 477) {
+          all = false;
+          break;
+        }
+        px.x += tr.corner_noise_px * n01(rng);
+        px.y += tr.corner_noise_px * n01(rng);
+        o.xn[c] = {(px.x - cam.intrinsics.cx) / cam.intrinsics.fx,
+                   (px.y - cam.intrinsics.cy) / cam.intrinsics.fy};
+        o.valid[c] = true;
+      }
+      if (all) d.obs.push_back(o);
+    }
+  }
+  return d;
+}
+
+}  // namespace agv::calibtest

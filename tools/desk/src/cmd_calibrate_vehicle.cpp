@@ -1,0 +1,372 @@
+// agvloc-desk calibrate vehicle RECORDING --map MAP [--config CFG] [--out DIR]: camera mounting
+// (offset, yaw, height, roll, pitch), odometry scales and bias, camera-odometry time offset from
+// a calibration drive over mapped landmarks. Model: calib_vehicle.hpp. Needs no truth.csv.
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "agv/recording/png_io.hpp"
+#include "agv/recording/recording.hpp"
+#include "agv/vision/landmark_localizer.hpp"
+#include "calib_vehicle.hpp"
+#include "commands.hpp"
+#include "config.hpp"
+
+namespace agv::desk {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Line {
+  double a = 0, b = 0, c = 0;  // a x + b y = c, (a, b) unit
+  int n = 0;
+};
+
+// Total least squares line with two rounds of 3-sigma outlier rejection.
+bool fit_line(const std::vector<Vec2>& pts, Line* out) {
+  std::vector<Vec2> p = pts;
+  for (int round = 0; round < 3; ++round) {
+    if (p.size() < 5) return false;
+    double mx = 0, my = 0;
+    for (const Vec2& q : p) {
+      mx += q.x;
+      my += q.y;
+    }
+    mx /= static_cast<double>(p.size());
+    my /= static_cast<double>(p.size());
+    double sxx = 0, sxy = 0, syy = 0;
+    for (const Vec2& q : p) {
+      sxx += (q.x - mx) * (q.x - mx);
+      sxy += (q.x - mx) * (q.y - my);
+      syy += (q.y - my) * (q.y - my);
+    }
+    // Normal = eigenvector of the smallest eigenvalue.
+    const double th = 0.5 * std::atan2(2 * sxy, sxx - syy);  // direction of the line
+    out->a = -std::sin(th);
+    out->b = std::cos(th);
+    out->c = out->a * mx + out->b * my;
+    out->n = static_cast<int>(p.size());
+    if (round == 2) break;
+    double ss = 0;
+    for (const Vec2& q : p) ss += std::pow(out->a * q.x + out->b * q.y - out->c, 2);
+    const double lim = 3.0 * std::sqrt(ss / static_cast<double>(p.size())) + 1e-12;
+    std::vector<Vec2> keep;
+    for (const Vec2& q : p) {
+      if (std::abs(out->a * q.x + out->b * q.y - out->c) <= lim) keep.push_back(q);
+    }
+    if (keep.size() == p.size()) break;
+    p.swap(keep);
+  }
+  return true;
+}
+
+bool intersect(const Line& l1, const Line& l2, Vec2* x) {
+  const double det = l1.a * l2.b - l1.b * l2.a;
+  if (std::abs(det) < 1e-9) return false;
+  *x = {(l1.c * l2.b - l1.b * l2.c) / det, (l1.a * l2.c - l1.c * l2.a) / det};
+  return true;
+}
+
+// Raw corner observation of one frame: the edge points of each border line, undistorted to
+// normalised coordinates (intrinsics only), fitted with straight lines (a floor line images to a
+// straight line through a pinhole, tilted or not) and intersected. Which landmark side a line
+// is comes from the fix under the configured camera model (only for labelling, a few mm of
+// mounting error cannot swap sides 6 mm apart).
+bool corner_observation(const vision::LandmarkLocalizer& loc, const vision::LandmarkFix& fix,
+                        const CameraModel& cam, const LandmarkGeometry& geom, std::int64_t t_ns,
+                        vcal::CornerObservation* out) {
+  const Pose2 l_from_v = inverse(fix.landmark_in_vehicle);
+  // side index: 0 = x = +h, 1 = y = +h, 2 = x = -h, 3 = y = -h; [inner][side]
+  Line lines[2][4];
+  bool have[2][4] = {};
+  for (int l = 0; l < vision::LandmarkLocalizer::kEdgeLines; ++l) {
+    const auto& px = loc.edge_points_px(l);
+    if (px.size() < 5) continue;
+    std::vector<Vec2> xn;
+    Vec2 mean{0, 0};
+    int nm = 0;
+    for (const Vec2& p : px) {
+      Vec2 n, v;
+      if (!cam.undistort_pixel_to_normalized(p, &n)) continue;
+      xn.push_back(n);
+      if (cam.pixel_to_vehicle(p, &v)) {
+        const Vec2 q = transform(l_from_v, v);
+        mean = {mean.x + q.x, mean.y + q.y};
+        ++nm;
+      }
+    }
+    if (nm < 5) continue;
+    mean = {mean.x / nm, mean.y / nm};
+    const double ho = geom.outer_half_mm(), hi = geom.inner_half_mm();
+    const bool on_x = std::abs(mean.x) > std::abs(mean.y);
+    const double r = on_x ? std::abs(mean.x) : std::abs(mean.y);
+    const int inner = std::abs(r - hi) < std::abs(r - ho) ? 1 : 0;
+    if (std::abs(r - (inner ? hi : ho)) > 0.4 * (ho - hi)) continue;  // not a border edge
+    const int side = on_x ? (mean.x > 0 ? 0 : 2) : (mean.y > 0 ? 1 : 3);
+    Line ln;
+    if (fit_line(xn, &ln)) {
+      lines[inner][side] = ln;
+      have[inner][side] = true;
+    }
+  }
+  // Corner k of landmark_corners: (+,+), (-,+), (-,-), (+,-) -> x-side and y-side.
+  const int xs[4] = {0, 2, 2, 0}, ys[4] = {1, 1, 3, 3};
+  int n = 0;
+  out->t_ns = t_ns;
+  out->landmark_id = fix.landmark_id;
+  for (int e = 0; e < 2; ++e) {
+    for (int k = 0; k < 4; ++k) {
+      const size_t i = static_cast<size_t>(e * 4 + k);
+      out->valid[i] = have[e][xs[k]] && have[e][ys[k]] &&
+                      intersect(lines[e][xs[k]], lines[e][ys[k]], &out->xn[i]);
+      n += out->valid[i] ? 1 : 0;
+    }
+  }
+  return n >= 3;
+}
+
+std::string fmt(const char* f, double v) {
+  char b[64];
+  std::snprintf(b, sizeof b, f, v);
+  return b;
+}
+
+// Bar chart of the per-pass RMS before/after (log scale), SVG.
+std::string residual_svg(const vcal::Result& r) {
+  const double w = 760, h = 360, l = 70, bottom = 40, top = 40;
+  const size_t n = std::max<size_t>(r.passes.size(), 1);
+  double vmax = 1e-3, vmin = 1e9;
+  for (const auto& p : r.passes) {
+    vmax = std::max({vmax, p.rms_before_px, p.rms_after_px});
+    vmin = std::min({vmin, std::max(p.rms_after_px, 1e-3), std::max(p.rms_before_px, 1e-3)});
+  }
+  const double lo = std::floor(std::log10(vmin)), hi = std::ceil(std::log10(vmax));
+  auto ypos = [&](double v) {
+    const double lv = std::log10(std::max(v, std::pow(10.0, lo)));
+    return top + (h - top - bottom) * (1.0 - (lv - lo) / std::max(hi - lo, 1.0));
+  };
+  std::ostringstream s;
+  s << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << w << "\" height=\"" << h
+    << "\" font-family=\"sans-serif\" font-size=\"11\">\n<rect width=\"100%\" height=\"100%\" "
+       "fill=\"white\"/>\n<text x=\""
+    << w / 2
+    << "\" y=\"18\" text-anchor=\"middle\" font-size=\"13\">Corner residual RMS per landmark pass "
+       "(px, log scale): before (grey) and after (blue) calibration</text>\n";
+  for (double d = lo; d <= hi; d += 1.0) {
+    const double y = ypos(std::pow(10.0, d));
+    s << "<line x1=\"" << l << "\" x2=\"" << w - 10 << "\" y1=\"" << y << "\" y2=\"" << y
+      << "\" stroke=\"#ddd\"/><text x=\"" << l - 5 << "\" y=\"" << y + 4
+      << "\" text-anchor=\"end\">" << fmt("%g", std::pow(10.0, d)) << "</text>\n";
+  }
+  const double bw = (w - l - 10) / static_cast<double>(n);
+  for (size_t i = 0; i < r.passes.size(); ++i) {
+    const auto& p = r.passes[i];
+    const double x = l + bw * static_cast<double>(i);
+    const double yb = ypos(p.rms_before_px), ya = ypos(p.rms_after_px), y0 = h - bottom;
+    s << "<rect x=\"" << x + bw * 0.1 << "\" y=\"" << yb << "\" width=\"" << bw * 0.38
+      << "\" height=\"" << y0 - yb << "\" fill=\"#999\"/>\n";
+    s << "<rect x=\"" << x + bw * 0.52 << "\" y=\"" << ya << "\" width=\"" << bw * 0.38
+      << "\" height=\"" << y0 - ya << "\" fill=\"#2060c0\"/>\n";
+    if (r.passes.size() <= 40 || i % 5 == 0) {
+      s << "<text x=\"" << x + bw / 2 << "\" y=\"" << h - bottom + 14
+        << "\" text-anchor=\"middle\">" << p.index << "</text>\n";
+    }
+  }
+  s << "<text x=\"" << w / 2 << "\" y=\"" << h - 8
+    << "\" text-anchor=\"middle\">landmark pass (report.txt lists id and time)</text>\n</svg>\n";
+  return s.str();
+}
+
+}  // namespace
+
+int calibrate_vehicle(int argc, char** argv) {
+  CLI::App app{
+      "Calibrate the camera mounting (offset, yaw, height, roll, pitch), the odometry (speed "
+      "scale, yaw-rate scale, yaw-rate bias) and the camera-odometry time offset from a "
+      "calibration drive over mapped landmarks (docs/commissioning.md)",
+      "agvloc-desk calibrate vehicle"};
+  std::string rec_dir, map_path, config_path, out_dir;
+  vcal::Options opt;
+  app.add_option("recording", rec_dir, "Recording of the calibration drive")->required();
+  app.add_option("--map", map_path, "Surveyed landmark map (docs/landmark.md)")->required();
+  app.add_option("--config", config_path,
+                 "Configuration with the current (nominal) camera and mounting; default: the "
+                 "recording's meta.yaml");
+  app.add_option("--out", out_dir,
+                 "Directory for vehicle_calibration.yaml, report.txt, "
+                 "residuals.svg; default: RECORDING/calibration");
+  app.add_option("--pixel-sigma-px", opt.pixel_sigma_px, "Corner noise (px)")
+      ->check(CLI::Range(0.001, 10.0))
+      ->capture_default_str();
+  app.add_option("--odom-v-sigma-mps", opt.odom_v_sigma_mps, "Odometry speed noise per sample")
+      ->check(CLI::Range(1e-6, 1.0))
+      ->capture_default_str();
+  app.add_option("--odom-omega-sigma-radps", opt.odom_omega_sigma_radps,
+                 "Odometry yaw-rate noise per sample")
+      ->check(CLI::Range(1e-7, 1.0))
+      ->capture_default_str();
+  app.add_option("--min-passes", opt.min_passes, "Fewest landmark passes accepted")
+      ->check(CLI::Range(2, 10000))
+      ->capture_default_str();
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  auto fail = [](const std::string& m, int code) {
+    std::fprintf(stderr, "agvloc-desk calibrate vehicle: %s\n", m.c_str());
+    return code;
+  };
+  recording::Recording rec;
+  std::string err;
+  if (!recording::read_recording(rec_dir, &rec, &err)) return fail(err, 1);
+  config::Config cfg;
+  CameraModel cam = rec.meta.camera;
+  LandmarkGeometry geom;
+  geom.size_mm = rec.meta.landmark_size_mm;
+  if (!config_path.empty()) {
+    if (!config::load_config_or_report(config_path, "calibrate vehicle", &cfg)) return 2;
+    cam = cfg.camera_model;
+    geom.size_mm = cfg.landmark_size_mm;
+    if (cam.intrinsics.width_px != rec.meta.camera.intrinsics.width_px ||
+        cam.intrinsics.height_px != rec.meta.camera.intrinsics.height_px) {
+      return fail("the configuration's image size differs from the recording's", 2);
+    }
+  }
+  LandmarkMap map;
+  if (!config::load_map_file(map_path, &map, &err)) return fail("map: " + err, 2);
+  if (map.entries.empty()) return fail("map " + map_path + " has no landmarks", 2);
+  if (rec.odom.empty()) {
+    return fail(rec_dir +
+                    " has no odometry (odom.csv is empty): record the drive with the "
+                    "motor controllers on the bus",
+                1);
+  }
+  if (out_dir.empty()) out_dir = (fs::path(rec_dir) / "calibration").string();
+
+  vision::LandmarkLocalizer loc(cfg.vision, cam, geom, &map);
+  std::vector<vcal::CornerObservation> obs;
+  int fixes = 0, unmapped = 0;
+  for (const auto& f : rec.frames) {
+    cv::Mat img;
+    if (!png::read_gray((fs::path(rec_dir) / f.file).string(), &img, &err, cam.intrinsics.width_px,
+                        cam.intrinsics.height_px)) {
+      return fail(err, 1);
+    }
+    vision::LandmarkFix fix;
+    const vision::FixStatus st = loc.process(img, &fix);
+    if (st != vision::FixStatus::kOk) continue;
+    ++fixes;
+    if (!map.find(fix.landmark_id)) {
+      ++unmapped;
+      continue;
+    }
+    vcal::CornerObservation o;
+    if (corner_observation(loc, fix, cam, geom, f.t_ns, &o)) obs.push_back(o);
+  }
+  if (obs.empty()) {
+    return fail("no frame of " + std::to_string(rec.frames.size()) + " shows a landmark of " +
+                    map_path + " (" + std::to_string(fixes) + " landmark fixes, " +
+                    std::to_string(unmapped) +
+                    " of them of landmarks not in the map): wrong map, or no mapped landmark "
+                    "in view",
+                1);
+  }
+  std::vector<vcal::OdomSample> odom;
+  for (const auto& o : rec.odom) odom.push_back({o.t_ns, o.v_mps, o.omega_radps});
+  vcal::VehicleParams initial;
+  initial.mount = cam.mount;
+  opt.fx_px = cam.intrinsics.fx;
+  vcal::Result r;
+  if (!vcal::calibrate_vehicle(odom, obs, map, geom.outer_half_mm(), geom.inner_half_mm(), initial,
+                               opt, &r, &err)) {
+    return fail(err, 1);
+  }
+
+  std::ostringstream rep;
+  rep << "agvloc-desk calibrate vehicle " << rec_dir << " --map " << map_path << "\n"
+      << "frames " << rec.frames.size() << ", landmark fixes " << fixes << ", corner observations "
+      << obs.size() << ", used " << r.frames_used << " in " << r.passes.size()
+      << " landmark passes; Ceres iterations " << r.iterations << "\n"
+      << "corner residual RMS " << fmt("%.3f", r.rms_before_px) << " px before, "
+      << fmt("%.3f", r.rms_after_px) << " px after\n\n";
+  rep << "parameter                       initial        estimate        sigma   status\n";
+  for (const auto& p : r.params) {
+    char b[200];
+    std::snprintf(b, sizeof b, "%-28s %12.5f %14.5f %12.5f   %s %s\n", p.name.c_str(), p.initial,
+                  p.value, p.sigma, p.determined ? "ok" : "NOT DETERMINED", p.unit.c_str());
+    rep << b;
+  }
+  rep << "\nper landmark pass (corner residual RMS, px):\n"
+      << "pass  landmark  t_start_s  t_end_s  frames   before    after\n";
+  for (const auto& p : r.passes) {
+    char b[160];
+    std::snprintf(b, sizeof b, "%4d  %8u  %9.2f  %7.2f  %6d  %7.3f  %7.3f\n", p.index,
+                  p.landmark_id, p.t_start_s, p.t_end_s, p.frames, p.rms_before_px, p.rms_after_px);
+    rep << b;
+  }
+  if (!r.warnings.empty()) rep << "\nwarnings:\n";
+  for (const auto& w : r.warnings) rep << "  - " << w << "\n";
+
+  // Snippet: only determined values; mounting keys of docs/config.md.
+  std::ostringstream snip;
+  snip << "# agvloc-desk calibrate vehicle " << rec_dir << " (docs/config.md keys)\n"
+       << "# Only parameters the drive determined are written; the others keep their value.\n";
+  bool any_mount = false;
+  std::ostringstream mount;
+  for (size_t i = 0; i < 6; ++i) {
+    const auto& p = r.params[i];
+    const std::string key = p.name.substr(std::string("mounting.").size());
+    if (p.determined) {
+      mount << "  " << key << ": " << fmt("%.4f", p.value) << "  # sigma " << fmt("%.4f", p.sigma)
+            << " " << p.unit << "\n";
+      any_mount = true;
+    } else {
+      mount << "  # " << key << ": not determined (" << p.why << ")\n";
+    }
+  }
+  if (any_mount) snip << "mounting:\n";
+  snip << mount.str();
+  snip << "# Odometry and timing (no configuration key in the (v, omega) odometry mode yet; apply\n"
+          "# them in the motor controller or the CAN gateway):\n";
+  for (size_t i = 6; i < r.params.size(); ++i) {
+    const auto& p = r.params[i];
+    if (p.determined) {
+      snip << "#   " << p.name << " = " << fmt("%.6f", p.value) << " " << p.unit << " (sigma "
+           << fmt("%.6f", p.sigma) << ")\n";
+    } else {
+      snip << "#   " << p.name << ": not determined (" << p.why << ")\n";
+    }
+  }
+
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  if (ec) return fail("cannot create " + out_dir + ": " + ec.message(), 1);
+  const std::pair<const char*, std::string> files[] = {{"vehicle_calibration.yaml", snip.str()},
+                                                       {"report.txt", rep.str()},
+                                                       {"residuals.svg", residual_svg(r)}};
+  for (const auto& [name, text] : files) {
+    std::ofstream f(fs::path(out_dir) / name, std::ios::binary | std::ios::trunc);
+    f << text;
+    if (!f) return fail("cannot write " + (fs::path(out_dir) / name).string(), 1);
+  }
+  std::fputs(rep.str().c_str(), stdout);
+  std::printf("\nwrote %s/{vehicle_calibration.yaml,report.txt,residuals.svg}\n", out_dir.c_str());
+  int undetermined = 0;
+  for (const auto& p : r.params) undetermined += p.determined ? 0 : 1;
+  if (undetermined > 0) {
+    std::fprintf(stderr,
+                 "agvloc-desk calibrate vehicle: %d parameter(s) not determined by this drive "
+                 "(not written; see the warnings)\n",
+                 undetermined);
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace agv::desk
