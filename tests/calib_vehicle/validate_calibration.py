@@ -108,18 +108,27 @@ def main():
     ap.add_argument("agvloc")
     ap.add_argument("work")
     ap.add_argument("--full", action="store_true")
+    ap.add_argument("--reuse", action="store_true",
+                    help="keep WORKDIR/cal_rec and WORKDIR/val if they exist (no re-rendering)")
     a = ap.parse_args()
     agvloc = os.path.abspath(a.agvloc)
     desk = os.path.join(os.path.dirname(agvloc), "agvloc-desk")
     w = os.path.abspath(a.work)
-    shutil.rmtree(w, ignore_errors=True)
-    os.makedirs(w)
+    reuse = a.reuse and os.path.isdir(f"{w}/cal_rec") and os.path.isdir(f"{w}/val")
+    if reuse:
+        for d in os.listdir(w):
+            if d not in ("cal_rec", "val"):
+                shutil.rmtree(f"{w}/{d}") if os.path.isdir(f"{w}/{d}") else os.remove(f"{w}/{d}")
+    else:
+        shutil.rmtree(w, ignore_errors=True)
+        os.makedirs(w)
     cal_s, val_s, val_fps = (60, 60, 20) if a.full else (40, 30, 15)
 
-    run([desk, "sim", "--out", f"{w}/cal_rec", "--trajectory", "calibration", "--duration-s",
-         str(cal_s), "--fps", "15", "--seed", "5", "--degrade", "clean"] + PERTURB,
-        f"{w}/cal_sim.log")
-    os.remove(f"{w}/cal_rec/truth.csv")
+    if not reuse:
+        run([desk, "sim", "--out", f"{w}/cal_rec", "--trajectory", "calibration", "--duration-s",
+             str(cal_s), "--fps", "15", "--seed", "5", "--degrade", "clean"] + PERTURB,
+            f"{w}/cal_sim.log")
+        os.remove(f"{w}/cal_rec/truth.csv")
     # Exit 1 = some parameter not determined (not written); the check below then fails on it.
     run([desk, "calibrate", "vehicle", f"{w}/cal_rec", "--map", MAP, "--out", f"{w}/cal"],
         f"{w}/cal.log", ok_codes=(0, 1))
@@ -130,10 +139,11 @@ def main():
         sys.stdout.write(open(f"{w}/cal.log").read())
         sys.exit("FAIL: the calibration did not determine " + ", ".join(missing))
 
-    run([desk, "sim", "--out", f"{w}/val", "--trajectory", "lawnmower", "--grid-spacing-mm",
-         "1000", "--speed-mps", "1.0", "--degrade", "realistic", "--profile", "640x480",
-         "--fps", str(val_fps), "--seed", "11", "--duration-s", str(val_s)] + PERTURB,
-        f"{w}/val_sim.log")
+    if not reuse:
+        run([desk, "sim", "--out", f"{w}/val", "--trajectory", "lawnmower", "--grid-spacing-mm",
+             "1000", "--speed-mps", "1.0", "--degrade", "realistic", "--profile", "640x480",
+             "--fps", str(val_fps), "--seed", "11", "--duration-s", str(val_s)] + PERTURB,
+            f"{w}/val_sim.log")
 
     configs = {
         "nominal": ({}, None),

@@ -359,8 +359,8 @@ int calibrate_vehicle(int argc, char** argv) {
     }
     const bool scale = key == "speed_scale" || key == "yaw_rate_scale";
     odo << "  " << key << ": " << (scale ? fmt("%.6f", p.value) : fmt("%.4f", p.value))
-        << "  # sigma " << (scale ? fmt("%.6f", p.sigma) : fmt("%.4f", p.sigma)) << " " << p.unit
-        << "\n";
+        << "  # sigma " << (scale ? fmt("%.6f", p.sigma) : fmt("%.4f", p.sigma))
+        << (p.unit.empty() ? "" : " ") << p.unit << "\n";
     any_odo = true;
   }
   if (any_odo) snip << "odometry:\n";
