@@ -1,6 +1,7 @@
 #include "output_loop.hpp"
 
 #include <cinttypes>
+#include <cmath>
 #include <cstdio>
 
 namespace agv::app {
@@ -9,6 +10,10 @@ localizer::LocalizerConfig localizer_config(const config::Config& cfg) {
   localizer::LocalizerConfig c;
   c.fusion = cfg.fusion;
   c.protocol = config::protocol_config(cfg);
+  c.odometry.speed_scale = cfg.odometry.speed_scale;
+  c.odometry.yaw_rate_scale = cfg.odometry.yaw_rate_scale;
+  c.odometry.yaw_rate_bias_radps = cfg.odometry.yaw_rate_bias_radps;
+  c.odometry.time_offset_ns = std::llround(cfg.odometry.time_offset_ms * 1e6);
   // can.odometry.timeout_ms is THE odometry timeout (pose validity and the EKF's flag).
   c.odometry_timeout_ns = static_cast<std::int64_t>(cfg.can.odometry_timeout_ms * 1e6);
   c.heartbeat_period_ns = static_cast<std::int64_t>(1e9 / cfg.loop.heartbeat_rate_hz);

@@ -50,6 +50,25 @@ for name, (t, tol) in truth.items():
           f"sigma {s:.5f} target {tol:.5f} {'ok' if ok else 'FAIL'}")
 sys.exit(1 if bad else 0)
 PY
+# The snippet carries the odometry keys (v_omega mode) ...
+for k in speed_scale yaw_rate_scale yaw_rate_bias_degps time_offset_ms; do
+  grep -q "^  $k: " "$WORK/cal/vehicle_calibration.yaml" || { echo "FAIL: odometry.$k not written"; exit 1; }
+done
+# ... and in wheels mode the yaw-rate scale as the track width the samples were decoded with
+# divided by the scale (here 640 mm / scale), odometry.yaw_rate_scale then 1.
+printf 'intrinsics: {fx: 769.23076923076917, fy: 769.23076923076917, cx: 319.5, cy: 239.5}\ncan:\n  odometry:\n    mode: wheels\n    track_width_mm: 640\n' > "$WORK/wheels.yaml"
+"$DESK" calibrate vehicle "$WORK/rec" --map "$MAP" --config "$WORK/wheels.yaml" --out "$WORK/calw" > "$WORK/calw.log" 2>&1 || {
+  cat "$WORK/calw.log"; echo "FAIL: calibrate vehicle (wheels) failed"; exit 1; }
+python3 - "$WORK/cal/report.txt" "$WORK/calw/vehicle_calibration.yaml" <<'PY'
+import re, sys
+scale = next(float(l.split()[2]) for l in open(sys.argv[1]) if l.startswith("odometry.yaw_rate_scale"))
+snip = open(sys.argv[2]).read()
+m = re.search(r"^can:\n  odometry:\n    track_width_mm: ([\d.]+)", snip, re.M)
+y = re.search(r"^  yaw_rate_scale: (\S+)", snip, re.M)
+if not m or not y or float(y.group(1)) != 1.0 or abs(float(m.group(1)) - 640 / scale) > 0.01:
+    sys.exit(f"FAIL: wheels snippet (scale {scale}):\n{snip}")
+print(f"wheels mode: track_width_mm {m.group(1)} = 640 / {scale}")
+PY
 # No turns on the spot over a landmark: the offset must be refused (exit 1, not written).
 "$DESK" sim --out "$WORK/sq" --trajectory square --duration-s 40 --fps 15 --seed 5 \
   --degrade clean "${PERTURB[@]}" > "$WORK/sq_sim.log"

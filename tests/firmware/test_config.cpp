@@ -509,3 +509,28 @@ TEST(Config, OneOdometryTimeout) {
   EXPECT_TRUE(mentions(e, "fusion.odom_timeout_ms: removed key; use can.odometry.timeout_ms"));
   EXPECT_EQ(agv::config::find_key("fusion.odom_timeout_ms"), nullptr);
 }
+
+TEST(Config, OdometryCorrectionKeysReachTheLocalizer) {
+  Config cfg;
+  std::vector<std::string> errors;
+  ASSERT_TRUE(agv::config::parse_config(std::string(kIntrinsics) +
+                                            "odometry:\n  speed_scale: 0.98\n  yaw_rate_scale: "
+                                            "1.015\n  yaw_rate_bias_degps: -0.3\n  "
+                                            "time_offset_ms: 20.5\n",
+                                        "", &cfg, &errors));
+  const auto lc = agv::app::localizer_config(cfg);
+  EXPECT_DOUBLE_EQ(lc.odometry.speed_scale, 0.98);
+  EXPECT_DOUBLE_EQ(lc.odometry.yaw_rate_scale, 1.015);
+  EXPECT_NEAR(lc.odometry.yaw_rate_bias_radps, -0.3 * M_PI / 180.0, 1e-15);
+  EXPECT_EQ(lc.odometry.time_offset_ns, 20'500'000);
+  // Defaults: no correction.
+  Config def;
+  ASSERT_TRUE(agv::config::parse_config(kIntrinsics, "", &def, &errors));
+  const auto ld = agv::app::localizer_config(def);
+  EXPECT_EQ(ld.odometry.speed_scale, 1.0);
+  EXPECT_EQ(ld.odometry.yaw_rate_scale, 1.0);
+  EXPECT_EQ(ld.odometry.yaw_rate_bias_radps, 0.0);
+  EXPECT_EQ(ld.odometry.time_offset_ns, 0);
+  EXPECT_TRUE(mentions(errors_for(std::string(kIntrinsics) + "odometry:\n  speed_scale: 0\n"),
+                       "odometry.speed_scale: value 0 outside the accepted range"));
+}

@@ -2,6 +2,10 @@
 // no clock: every test drives it with plain values.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <limits>
+#include <vector>
+
 #include "agv/localizer/localizer.hpp"
 
 using namespace agv;
@@ -181,5 +185,108 @@ TEST(Localizer, InvalidConfigurationThrows) {
   EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
   c = test_config();
   c.heartbeat_period_ns = 0;
+  EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
+}
+
+// --- Configured odometry correction (keys odometry.*, localizer::OdometryCorrection) ---
+
+namespace {
+
+struct Sample {
+  std::int64_t t_ns;
+  double v, w;
+};
+
+// One fix to initialise at camera time 1000 ms, then 3 s of dead reckoning on a curved drive.
+// `feed` maps the raw sample (odometry clock) to what is handed to on_odometry. Returns the
+// estimate of every tick.
+template <typename Feed>
+std::vector<fusion::PoseEstimate> drive(const localizer::LocalizerConfig& c, std::int64_t raw_dt,
+                                        Feed feed) {
+  localizer::Localizer loc(c);
+  localizer::OutFrames out;
+  localizer::TickRecord rec;
+  std::vector<fusion::PoseEstimate> est;
+  for (int i = 0; i < 320; ++i) {
+    const std::int64_t t = 900 * kMs + i * 10 * kMs;  // camera clock
+    const double w = 0.3 * std::sin(i * 0.02);
+    const Sample s = feed(Sample{t + raw_dt, 0.5 + 0.001 * i, w});
+    loc.on_odometry(s.t_ns, s.v, s.w);
+    if (t == 1000 * kMs) loc.on_fix(good_fix(100.0), t, t + 5 * kMs);
+    loc.tick(t + 5 * kMs, &out, &rec);
+    est.push_back(rec.estimate);
+  }
+  return est;
+}
+
+bool same(const std::vector<fusion::PoseEstimate>& a, const std::vector<fusion::PoseEstimate>& b) {
+  if (a.size() != b.size()) return false;
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (a[i].valid != b[i].valid || a[i].pose.x_mm != b[i].pose.x_mm ||
+        a[i].pose.y_mm != b[i].pose.y_mm || a[i].pose.theta_rad != b[i].pose.theta_rad) {
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+TEST(Localizer, EachOdometryCorrectionKeyChangesTheFusedInputAsStated) {
+  const auto plain = test_config();
+  const auto raw = [](Sample s) { return s; };
+  const auto base = drive(plain, 0, raw);
+  ASSERT_TRUE(base.back().valid);
+  struct Case {
+    const char* name;
+    localizer::OdometryCorrection corr;
+    std::int64_t raw_dt;  // odometry clock - camera clock in the fed samples
+  };
+  localizer::OdometryCorrection speed, yaw, bias, offset, all;
+  speed.speed_scale = 1.03;
+  yaw.yaw_rate_scale = 0.97;
+  bias.yaw_rate_bias_radps = -0.004;
+  offset.time_offset_ns = 20 * kMs;
+  all = {1.03, 0.97, -0.004, 20 * kMs};
+  for (const Case& k : {Case{"speed_scale", speed, 0}, Case{"yaw_rate_scale", yaw, 0},
+                        Case{"yaw_rate_bias", bias, 0}, Case{"time_offset", offset, 20 * kMs},
+                        Case{"all", all, 20 * kMs}}) {
+    auto c = plain;
+    c.odometry = k.corr;
+    // With the correction configured, raw samples give exactly what the plain localizer gives
+    // when fed v' = s_v v, w' = s_w w + b at t' = t - offset ...
+    const auto corrected = drive(c, k.raw_dt, raw);
+    const auto by_hand = drive(plain, k.raw_dt, [&](Sample s) {
+      return Sample{s.t_ns - k.corr.time_offset_ns, s.v * k.corr.speed_scale,
+                    s.w * k.corr.yaw_rate_scale + k.corr.yaw_rate_bias_radps};
+    });
+    EXPECT_TRUE(same(corrected, by_hand)) << k.name;
+    // ... and not what the plain localizer makes of the raw samples.
+    EXPECT_FALSE(same(corrected, drive(plain, k.raw_dt, raw))) << k.name;
+  }
+  // The stated size of the effect: 3 % more distance, 3 % less and then biased heading change.
+  auto c = plain;
+  c.odometry = speed;
+  const auto sp = drive(c, 0, raw);
+  const double d0 = base.back().pose.x_mm - base[10].pose.x_mm;
+  EXPECT_NEAR((sp.back().pose.x_mm - sp[10].pose.x_mm) / d0, 1.03, 2e-3);
+  c.odometry = yaw;
+  const double h0 = base.back().pose.theta_rad - base[10].pose.theta_rad;
+  const auto yw = drive(c, 0, raw);
+  EXPECT_NEAR((yw.back().pose.theta_rad - yw[10].pose.theta_rad) / h0, 0.97, 2e-3);
+  c.odometry = bias;
+  const auto bi = drive(c, 0, raw);
+  EXPECT_NEAR((bi.back().pose.theta_rad - bi[10].pose.theta_rad) - h0, -0.004 * 3.09, 1e-4);
+}
+
+TEST(Localizer, InvalidOdometryCorrectionThrows) {
+  auto c = test_config();
+  c.odometry.speed_scale = 0.0;
+  EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
+  c = test_config();
+  c.odometry.yaw_rate_scale = -1.0;
+  EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
+  c = test_config();
+  c.odometry.yaw_rate_bias_radps = std::numeric_limits<double>::quiet_NaN();
   EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
 }

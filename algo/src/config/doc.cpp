@@ -61,6 +61,15 @@ const std::vector<Section>& config_sections() {
       {"landmark", "", "", ""},
       {"can", "(docs/can.md)", "", ""},
       {"can.odometry", "", "", ""},
+      {"odometry", "(from `agvloc-desk calibrate vehicle`)",
+       "Correction of every odometry sample before fusion, the equations of the calibration's\n"
+       "model (tools/desk/src/calib_vehicle.hpp): v' = `speed_scale` · v,\n"
+       "ω' = `yaw_rate_scale` · ω + `yaw_rate_bias_degps`, t' = t − `time_offset_ms`. Applied to\n"
+       "both odometry modes, after `can.odometry.wheel_speed_scale` / `track_width_mm` (which a\n"
+       "wheels-mode calibration folds its yaw-rate scale into). With\n"
+       "`fusion.estimate_odometry_calibration` the filter's own scale and bias states still start\n"
+       "at 1 and 0 and learn only what this correction leaves. The defaults change nothing.\n",
+       ""},
       {"loop", "",
        "The built-in defaults below need no privileges. The shipped example sets the real-time\n"
        "keys for the vehicle (`realtime_priority: 50`, `vision_priority: 40`, `lock_memory: "

@@ -130,6 +130,33 @@ void add_can(std::vector<Key>* k) {
   k->push_back(std::move(timeout));
 }
 
+// The odometry correction (localizer::OdometryCorrection), the calibration model's equations.
+void add_odometry(std::vector<Key>* k) {
+  k->push_back(number("odometry.speed_scale", AGV_AT(odometry.speed_scale), 0.5, 2.0, 1.0,
+                      {"",
+                       "v' = speed_scale · v. From `calibrate vehicle`; a 1 % error is 10 mm "
+                       "per metre between landmarks. The filter's online scale state corrects "
+                       "the rest but needs fixes to learn it (worst right after a start)"}));
+  k->push_back(number("odometry.yaw_rate_scale", AGV_AT(odometry.yaw_rate_scale), 0.5, 2.0, 1.0,
+                      {"",
+                       "ω' = yaw_rate_scale · ω + bias. From `calibrate vehicle` (v_omega "
+                       "mode; in wheels mode it is folded into `can.odometry.track_width_mm`). "
+                       "Heading error grows with every turn: 1 % of a 90° turn is 0.9°"}));
+  k->push_back(deg_as_rad("odometry.yaw_rate_bias_degps", AGV_AT(odometry.yaw_rate_bias_radps),
+                          -30.0, 30.0, 0.0,
+                          {"deg/s",
+                           "added after the scale (the correction: minus the reported bias "
+                           "over the scale). A wrong value turns into heading drift the "
+                           "filter's bias state must first learn; 0.1 deg/s = 0.6° per "
+                           "minute without fixes"}));
+  k->push_back(number("odometry.time_offset_ms", AGV_AT(odometry.time_offset_ms), -500.0, 500.0,
+                      0.0,
+                      {"ms",
+                       "odometry clock = camera clock + offset (+ = odometry stamps late); "
+                       "fusion uses t − offset. At 1 m/s every ms is 1 mm along track at each "
+                       "fix; the filter has no state for it"}));
+}
+
 void add_loop(std::vector<Key>* k) {
   k->push_back(number("loop.output_rate_hz", AGV_AT(loop.output_rate_hz), 1.0, 1000.0, 100.0,
                       {"Hz", "pose, velocity, quality, status frames per second"}));
@@ -181,6 +208,7 @@ void add_vehicle_keys(std::vector<Key>* keys) {
   add_mounting(keys);
   add_landmark(keys);
   add_can(keys);
+  add_odometry(keys);
   add_loop(keys);
 }
 

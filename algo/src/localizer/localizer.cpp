@@ -43,6 +43,11 @@ Localizer::Localizer(const LocalizerConfig& cfg)
       odom_(cfg.protocol) {
   if (cfg_.heartbeat_period_ns <= 0) throw std::invalid_argument("heartbeat period must be > 0");
   if (cfg_.odometry_timeout_ns <= 0) throw std::invalid_argument("odometry timeout must be > 0");
+  const OdometryCorrection& o = cfg_.odometry;
+  if (!(o.speed_scale > 0.0) || !(o.yaw_rate_scale > 0.0) || !std::isfinite(o.speed_scale) ||
+      !std::isfinite(o.yaw_rate_scale) || !std::isfinite(o.yaw_rate_bias_radps)) {
+    throw std::invalid_argument("odometry correction: scales must be finite and > 0");
+  }
 }
 
 hal::CanFilter Localizer::odometry_filter() const {
@@ -55,6 +60,13 @@ hal::CanFilter Localizer::odometry_filter() const {
 
 void Localizer::on_odometry(std::int64_t t_ns, double v_mps, double omega_radps) {
   ++stats_.odom_samples;
+  // THE place the configured odometry correction is applied (OdometryCorrection). Multiplying
+  // by exactly 1.0 leaves a value bit-identical; a zero bias is skipped (-0.0 + 0.0 = +0.0).
+  const OdometryCorrection& c = cfg_.odometry;
+  t_ns -= c.time_offset_ns;
+  v_mps *= c.speed_scale;
+  omega_radps *= c.yaw_rate_scale;
+  if (c.yaw_rate_bias_radps != 0.0) omega_radps += c.yaw_rate_bias_radps;
   if (!ekf_.add_odometry(t_ns, v_mps, omega_radps)) {
     ++stats_.odom_rejected;
     return;

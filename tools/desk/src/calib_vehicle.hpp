@@ -5,9 +5,10 @@
 // Model (all in the world frame W of the map, docs/frames.md):
 //  - Odometry. Sample k, stamped T_k on the odometry clock, reports (v_k, omega_k) as the mean
 //    over (T_{k-1}, T_k]. The true rates are  v = speed_scale * v_k,
-//    omega = yaw_rate_scale * omega_k + yaw_rate_bias  (piecewise constant). Camera time t is
-//    odometry time t + time_offset (time_offset > 0: odometry stamps are late). The relative
-//    motion from camera time a to b is the unicycle integral of those rates over
+//    omega = yaw_rate_scale * omega_k + yaw_rate_bias  (piecewise constant). An instant at
+//    camera time t is stamped t + time_offset on the odometry clock (odometry clock = camera
+//    clock + time_offset; time_offset > 0: odometry stamps are late). The relative motion
+//    from camera time a to b is the unicycle integral of those rates over
 //    [a + time_offset, b + time_offset] (midpoint heading per piece).
 //  - Anchors. The drive is cut into landmark passes (consecutive frames seeing one landmark);
 //    each pass is cut into sub-passes of at most `max_subpass_s` (default: one frame each).
@@ -57,7 +58,8 @@ struct CornerObservation {
   std::array<bool, 8> valid{};
 };
 
-// The estimated quantities. time_offset_s: camera time t = odometry time t + time_offset_s.
+// The estimated quantities. time_offset_s: odometry clock = camera clock + time_offset_s. The
+// configuration keys `odometry.*` and localizer::OdometryCorrection apply exactly this model.
 struct VehicleParams {
   CameraMount mount;
   double speed_scale = 1.0;

@@ -196,7 +196,9 @@ int calibrate_vehicle(int argc, char** argv) {
   app.add_option("--map", map_path, "Surveyed landmark map (docs/landmark.md)")->required();
   app.add_option("--config", config_path,
                  "Configuration with the current (nominal) camera and mounting; default: the "
-                 "recording's meta.yaml");
+                 "recording's meta.yaml. In wheels odometry mode it must be the configuration "
+                 "the drive was recorded with: the yaw-rate scale is written as its "
+                 "can.odometry.track_width_mm divided by the scale");
   app.add_option("--out", out_dir,
                  "Directory for vehicle_calibration.yaml, report.txt, "
                  "residuals.svg; default: RECORDING/calibration");
@@ -332,16 +334,39 @@ int calibrate_vehicle(int argc, char** argv) {
   }
   if (any_mount) snip << "mounting:\n";
   snip << mount.str();
-  snip << "# Odometry and timing (no configuration key in the (v, omega) odometry mode yet; apply\n"
-          "# them in the motor controller or the CAN gateway):\n";
+  // Odometry and timing: keys `odometry.*` (applied to the decoded samples before fusion, the
+  // model's equations). Wheels mode: the yaw-rate scale becomes the track width the recording's
+  // samples were decoded with divided by the scale (omega = (r - l) / track).
+  const bool wheels = cfg.can.odometry_mode == "wheels";
+  std::ostringstream odo, can;
+  bool any_odo = false;
   for (size_t i = 6; i < r.params.size(); ++i) {
     const auto& p = r.params[i];
-    if (p.determined) {
-      snip << "#   " << p.name << " = " << fmt("%.6f", p.value) << " " << p.unit << " (sigma "
-           << fmt("%.6f", p.sigma) << ")\n";
-    } else {
-      snip << "#   " << p.name << ": not determined (" << p.why << ")\n";
+    const std::string key = p.name.substr(std::string("odometry.").size());
+    if (!p.determined) {
+      odo << "  # " << key << ": not determined (" << p.why << ")\n";
+      continue;
     }
+    if (wheels && key == "yaw_rate_scale") {
+      const double track = cfg.can.track_width_mm / p.value;
+      can << "can:\n  odometry:\n    track_width_mm: " << fmt("%.2f", track) << "  # was "
+          << fmt("%.2f", cfg.can.track_width_mm) << " / yaw-rate scale " << fmt("%.6f", p.value)
+          << " (sigma " << fmt("%.2f", cfg.can.track_width_mm * p.sigma / (p.value * p.value))
+          << " mm)\n";
+      odo << "  yaw_rate_scale: 1  # folded into can.odometry.track_width_mm\n";
+      any_odo = true;
+      continue;
+    }
+    const bool scale = key == "speed_scale" || key == "yaw_rate_scale";
+    odo << "  " << key << ": " << (scale ? fmt("%.6f", p.value) : fmt("%.4f", p.value))
+        << "  # sigma " << (scale ? fmt("%.6f", p.sigma) : fmt("%.4f", p.sigma))
+        << (p.unit.empty() ? "" : " ") << p.unit << "\n";
+    any_odo = true;
+  }
+  if (any_odo) snip << "odometry:\n";
+  snip << odo.str() << can.str();
+  if (wheels && !r.params[7].determined) {
+    snip << "# can.odometry.track_width_mm: not changed (yaw-rate scale not determined)\n";
   }
 
   std::error_code ec;

@@ -38,6 +38,14 @@ struct CanSection {
   double odometry_timeout_ms = 100.0;
 };
 
+// The odometry correction (localizer::OdometryCorrection; written by calibrate vehicle).
+struct OdometrySection {
+  double speed_scale = 1.0;
+  double yaw_rate_scale = 1.0;
+  double yaw_rate_bias_radps = 0.0;
+  double time_offset_ms = 0.0;
+};
+
 struct LoopSection {
   double output_rate_hz = 100.0;
   double heartbeat_rate_hz = 1.0;
@@ -55,6 +63,7 @@ struct Config {
   double landmark_size_mm = 60.0;
   std::string map_file;  // resolved relative to the config file; empty = payload poses only
   CanSection can;
+  OdometrySection odometry;
   LoopSection loop;
   vision::VisionConfig vision;
   fusion::EkfConfig fusion;

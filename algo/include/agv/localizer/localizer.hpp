@@ -17,9 +17,24 @@
 
 namespace agv::localizer {
 
+// Configured odometry correction (keys `odometry.*`, from `agvloc-desk calibrate vehicle`),
+// applied to every odometry sample before fusion, the same equations as the calibration's model
+// (tools/desk/src/calib_vehicle.hpp):
+//   v' = speed_scale * v,   omega' = yaw_rate_scale * omega + yaw_rate_bias_radps,
+//   t' = t - time_offset_ns   (odometry clock = camera clock + time_offset).
+// The EKF's own calibration states (fusion.estimate_odometry_calibration) start at 1 / 0 and
+// then estimate only what is left after this correction. All defaults = no change at all.
+struct OdometryCorrection {
+  double speed_scale = 1.0;
+  double yaw_rate_scale = 1.0;
+  double yaw_rate_bias_radps = 0.0;
+  std::int64_t time_offset_ns = 0;
+};
+
 struct LocalizerConfig {
   fusion::EkfConfig fusion;  // its odom_timeout_ns is replaced by odometry_timeout_ns
   protocol::ProtocolConfig protocol;
+  OdometryCorrection odometry;
   // THE odometry timeout: no accepted sample (CAN or recording) for this long makes the pose
   // invalid, sets FaultOdomTimeout and the EKF's kOdomTimeout flag. Trade-off: short stops a
   // vehicle on bus jitter, long lets it drive on a stale prediction.
