@@ -16,6 +16,16 @@
 
 namespace agv::desk {
 
+#if !AGV_HAVE_CERES
+// Built without Ceres (the arm64 cross build): the vehicle calibration is not in this binary.
+int calibrate_vehicle(int, char**) {
+  std::fprintf(stderr,
+               "agvloc-desk calibrate vehicle: not in this build (needs Ceres, Debian "
+               "libceres-dev); run it on the desk machine\n");
+  return 2;
+}
+#endif
+
 namespace {
 
 namespace fs = std::filesystem;
