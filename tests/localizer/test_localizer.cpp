@@ -219,11 +219,16 @@ std::vector<fusion::PoseEstimate> drive(const localizer::LocalizerConfig& c, std
   return est;
 }
 
+// Equal up to rounding: the compiler may fuse s*w + b into one FMA in one place and not in the
+// other (GCC does on aarch64), which changes the last bits. The effects checked below are
+// millimetres, 1e-9 is far below them.
 bool same(const std::vector<fusion::PoseEstimate>& a, const std::vector<fusion::PoseEstimate>& b) {
+  constexpr double kTol = 1e-9;
   if (a.size() != b.size()) return false;
   for (size_t i = 0; i < a.size(); ++i) {
-    if (a[i].valid != b[i].valid || a[i].pose.x_mm != b[i].pose.x_mm ||
-        a[i].pose.y_mm != b[i].pose.y_mm || a[i].pose.theta_rad != b[i].pose.theta_rad) {
+    if (a[i].valid != b[i].valid || std::abs(a[i].pose.x_mm - b[i].pose.x_mm) > kTol ||
+        std::abs(a[i].pose.y_mm - b[i].pose.y_mm) > kTol ||
+        std::abs(a[i].pose.theta_rad - b[i].pose.theta_rad) > kTol) {
       return false;
     }
   }
