@@ -269,8 +269,8 @@ int replay(int argc, char** argv) {
     summary += "truth.csv present: accuracy and trajectory.svg with `agvloc-desk report " +
                out_dir + " --recording " + rec_dir + "`\n";
   }
-  summary += "outputs: " + poses + ", " + fixes_csv +
-             (can_iface.empty() ? ", " + can_log : "") + "\n";
+  summary +=
+      "outputs: " + poses + ", " + fixes_csv + (can_iface.empty() ? ", " + can_log : "") + "\n";
   std::fputs(summary.c_str(), stdout);
   std::ofstream(std::filesystem::path(out_dir) / "summary.txt") << summary;
   return rc;

@@ -15,10 +15,10 @@
 #include "agv/hal/camera.hpp"
 #include "agv/hal/can_bus.hpp"
 #include "agv/hal/clock.hpp"
+#include "agv/localizer/run_statistics.hpp"
 #include "agv/recording/recording.hpp"
 #include "agv/vision/landmark_localizer.hpp"
 #include "config.hpp"
-#include "agv/localizer/run_statistics.hpp"
 #include "output_loop.hpp"
 
 namespace agv::app {
