@@ -47,6 +47,32 @@ const char* to_string(FixStatus s) {
   }
   return "unknown status";
 }
+const char* to_string(FixIdentity i) {
+  switch (i) {
+    case FixIdentity::kNone:
+      return "none";
+    case FixIdentity::kQrCode:
+      return "qr";
+    case FixIdentity::kMapGuided:
+      return "map";
+    case FixIdentity::kAprilTag:
+      return "tag";
+  }
+  return "unknown";
+}
+
+const char* to_string(SearchMode m) {
+  switch (m) {
+    case SearchMode::kFull:
+      return "full";
+    case SearchMode::kWindow:
+      return "window";
+    case SearchMode::kWindowThenFull:
+      return "window+full";
+  }
+  return "unknown";
+}
+
 LandmarkLocalizer::Impl::Impl(const VisionConfig& c, const CameraModel& m,
                               const LandmarkGeometry& g, const LandmarkMap* mp)
     : cfg(c), cam(m), cam_linear(m), geom(g), map(mp) {
@@ -71,7 +97,9 @@ LandmarkLocalizer::Impl::Impl(const VisionConfig& c, const CameraModel& m,
 // The stages in the order they run, numbered as in docs/vision.md "Pipeline". The pose comes before
 // the direction and the QR code: the guided QR reading and the logo are sampled where the fitted
 // pose puts them.
-FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, LandmarkFix* out) {
+FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pred,
+                                       LandmarkFix* out) {
+  (void)pred;  // search windows and map-guided identity: issue 17
   have_overlay = false;
   const double t0 = now_ms();
   auto finish = [&](FixStatus s) {
@@ -137,6 +165,7 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, LandmarkFix* out) {
 
   // 6. Result and its covariance.
   fill_result(world_landmark, c_mm, beta, q_final, cov, out);
+  out->identity = FixIdentity::kQrCode;
   return finish(FixStatus::kOk);
 }
 
@@ -185,10 +214,15 @@ const std::vector<Vec2>& LandmarkLocalizer::edge_points_px(int line) const {
 }
 
 FixStatus LandmarkLocalizer::process(const cv::Mat& gray8, LandmarkFix* out) {
+  return process(gray8, Prediction{}, out);
+}
+
+FixStatus LandmarkLocalizer::process(const cv::Mat& gray8, const Prediction& prediction,
+                                     LandmarkFix* out) {
   if (!out) return FixStatus::kBadInput;
   *out = LandmarkFix{};
   try {
-    return impl_->run(gray8, out);
+    return impl_->run(gray8, prediction, out);
   } catch (...) {
     // OpenCV and zxing report some malformed input by exceptions; never let them escape.
     impl_->have_overlay = false;

@@ -190,7 +190,7 @@ struct LandmarkLocalizer::Impl {
   }
 
   // run(): the stages in order (landmark_localizer.cpp).
-  FixStatus run(const cv::Mat& img, LandmarkFix* out);
+  FixStatus run(const cv::Mat& img, const Prediction& pred, LandmarkFix* out);
   bool partly_outside(const cv::Mat& img, Vec2 c_px, double up) const;
   void fill_result(const Pose2& world_landmark, Vec2 c_mm, double beta, int q_final,
                    const Eigen::Matrix3d& cov, LandmarkFix* out) const;

@@ -185,6 +185,33 @@ enum class FixStatus {
 
 const char* to_string(FixStatus s);
 
+// How a landmark's identity (and so its world pose) was established.
+enum class FixIdentity : std::uint8_t {
+  kNone,       // no identity (the fix failed)
+  kQrCode,     // the QR payload (Reed-Solomon checked, map-checked when a map is given)
+  kMapGuided,  // QR unreadable; the one mapped landmark the prediction allows (docs/tracking.md)
+  kAprilTag,   // a tag36h11 id through the map
+};
+const char* to_string(FixIdentity i);
+
+// Where the detection stage looked for the landmark.
+enum class SearchMode : std::uint8_t {
+  kFull,            // the whole frame (no trusted prediction)
+  kWindow,          // only the windows around the predicted landmarks, and found it there
+  kWindowThenFull,  // the windows found nothing, the whole frame was searched after them
+};
+const char* to_string(SearchMode m);
+
+// What the fused pose predicts for the frame being processed: the vehicle's pose in the world at
+// the frame's exposure and its covariance. It gives the search windows and the map-guided
+// identity of a landmark whose QR code cannot be read (docs/tracking.md). valid = false (the
+// default): full-frame search, identity from the code only.
+struct Prediction {
+  bool valid = false;
+  Pose2 vehicle_in_world;                         // W<-V at the exposure
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();  // of (x_mm, y_mm, theta_rad)
+};
+
 // Milliseconds per stage, filled only when VisionConfig::now_ns is set.
 struct StageTimings {
   double detect_ms = 0.0;     // pyramid + binarization + corner templates + ring check
@@ -224,6 +251,8 @@ struct LandmarkFix {
   double outer_half_mm = 0.0, inner_half_mm = 0.0;
   // How the QR code was read: 1 = model-guided module sampling, 2 = zxing's search on the crop.
   int qr_method = 0;
+  FixIdentity identity = FixIdentity::kNone;
+  SearchMode search = SearchMode::kFull;
   // Detection estimate (before the edge fit), for diagnostics: landmark centre in pixels and the
   // image angle of one border normal (modulo 90 deg).
   double detect_x_px = 0.0, detect_y_px = 0.0, detect_angle_deg = 0.0;
@@ -242,6 +271,8 @@ class LandmarkLocalizer {
   // gray8: CV_8UC1 image of the camera model's size. Never throws; the reason is in the status
   // (also written to out->status). Buffers are reused between calls.
   FixStatus process(const cv::Mat& gray8, LandmarkFix* out);
+  // The same with the filter's prediction for this frame (search windows, map-guided identity).
+  FixStatus process(const cv::Mat& gray8, const Prediction& prediction, LandmarkFix* out);
 
   // Debug overlay like paper 001 figures 5-9: edge points coloured by class, fitted lines,
   // corners, centre, the numbers. Uses the edge points kept from the last process() call, so
