@@ -30,11 +30,14 @@ export DEBIAN_FRONTEND=noninteractive
 HOST_PKGS=(crossbuild-essential-arm64 qemu-user file pkg-config cmake ninja-build
            libopencv-dev libyaml-cpp-dev libeigen3-dev libcli11-dev)
 # Libraries for the arm64 build: OpenCV core/imgproc/calib3d (imgcodecs: see EXTRACT), zxing,
-# yaml-cpp runtime (its -dev is not Multi-Arch), libpng, GoogleTest (static libs + CMake config).
+# yaml-cpp runtime (its -dev is not Multi-Arch), libpng, GoogleTest (static libs + CMake config),
+# libapriltag3 (tag36h11 landmarks; libapriltag-dev:arm64 says Multi-Arch: same but its CMake
+# targets file differs from the amd64 one, so dpkg refuses it: the amd64 headers serve and the
+# build links the runtime library by its file name, CMakeLists.txt).
 # A -dev package added to tools/install-deps.sh for the build needs its :arm64 twin here.
 ARM_PKGS=(libc6-dev libstdc++-12-dev
           libopencv-core-dev libopencv-imgproc-dev libopencv-calib3d406
-          libzxing-dev libyaml-cpp0.7 libpng-dev libgtest-dev libgmock-dev)
+          libzxing-dev libapriltag3 libyaml-cpp0.7 libpng-dev libgtest-dev libgmock-dev)
 if [ "${AGV_CROSS_NO_LIBCAMERA:-0}" != "1" ]; then ARM_PKGS+=(libcamera-dev); fi
 # Not co-installable with the amd64 versions (no Multi-Arch: same): unpacked into $EXTRA.
 EXTRACT=(libopencv-imgcodecs406 libgdal32 gdal-plugins libarmadillo11 libhdf4-0-alt libogdi4.1)

@@ -93,7 +93,18 @@ void add_mounting(std::vector<Key>* k) {
 
 void add_landmark(std::vector<Key>* k) {
   k->push_back(number("landmark.size_mm", AGV_AT(landmark_size_mm), 10.0, 1000.0, 60.0,
-                      {"mm", "outer border side, docs/landmark.md"}));
+                      {"mm",
+                       "outer side of the dark square: the QR landmark's border, the "
+                       "tag36h11 tag's black square (docs/landmark.md)"}));
+  k->push_back(enumeration(
+      "landmark.family", AGV_AT(vision.family),
+      std::vector<std::pair<std::string, LandmarkFamily>>{{"qr", LandmarkFamily::kQr},
+                                                          {"tag36h11", LandmarkFamily::kTag36h11}},
+      "qr",
+      "printed landmarks on this floor: the QR landmark (identity and pose in the code) or "
+      "AprilTag tag36h11 (libapriltag detection, same edge-fit pose; the id needs the map, so "
+      "without landmark.map every tag is \"not in the map\"). Tags: only the outer edge is "
+      "fitted"));
   k->push_back(text("landmark.map", AGV_AT(map_file), "",
                     "landmark map file, relative to the configuration file; empty = poses from "
                     "the QR payload only (id-only payloads are then rejected)"));

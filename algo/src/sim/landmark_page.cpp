@@ -121,6 +121,7 @@ bool LandmarkPattern::make(const LandmarkGeometry& geometry, const std::string& 
 }
 
 PageInk LandmarkPattern::at(Vec2 uv) const {
+  if (is_tag()) return tag_at(uv);
   const double au = std::abs(uv.x), av = std::abs(uv.y);
   const double oh = geometry_.outer_half_mm();
   // Half-open squares so that every point belongs to exactly one region.

@@ -302,12 +302,14 @@ cv::Mat FrameRenderer::render(const Pose2& pose, const RenderOptions& o,
   std::vector<ActiveLandmark> active;
   for (const SceneLandmark& l : scene.landmarks) {
     const Pose2 v_from_l = compose(v_from_w, l.world_pose);
-    const double r = reach * std::sqrt(2.0) + 1.0;
+    // Tags print a white margin beyond their black square.
+    const double reach_l = std::max(reach, l.pattern.reach_mm());
+    const double r = reach_l * std::sqrt(2.0) + 1.0;
     if (v_from_l.x_mm < bbox_min_.x - r || v_from_l.x_mm > bbox_max_.x + r ||
         v_from_l.y_mm < bbox_min_.y - r || v_from_l.y_mm > bbox_max_.y + r) {
       continue;
     }
-    active.push_back({&l, inverse(v_from_l), make_degradation(o, scene.geometry, l.id), reach});
+    active.push_back({&l, inverse(v_from_l), make_degradation(o, scene.geometry, l.id), reach_l});
   }
 
   const int n_sub = std::max(1, o.supersample);

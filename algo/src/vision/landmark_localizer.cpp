@@ -111,6 +111,7 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
       img.cols != cam.intrinsics.width_px || img.rows != cam.intrinsics.height_px) {
     return finish(FixStatus::kBadInput);
   }
+  if (cfg.family == LandmarkFamily::kTag36h11) return finish(run_tag(img, out));
   // 1-2. Binarization and detection.
   Detection det;
   bool found_corner = false;

@@ -4,6 +4,7 @@
 //   pose.cpp        3   Prewitt edge bands and classes, robust line fits, centre and heading
 //   direction.cpp   4-5 logo template at the four turns, cross-check with the QR orientation
 //   qr_decode.cpp   5   guided module sampling, zxing fallback, payload and map check
+//   apriltag.cpp    tag36h11 family: libapriltag detection and id, then the pose stage above
 //   covariance.cpp  6   fit covariance from the normal equations, vehicle-in-world propagation
 //   landmark_localizer.cpp  run(): the stages in order, the public class, the debug overlay
 #pragma once
@@ -13,6 +14,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <string>
 #include <vector>
@@ -129,6 +131,9 @@ inline double ncc(const std::vector<double>& a, const std::vector<double>& b) {
 // Fit covariance of (c_x, c_y, beta) from the joint fit's normal equations (covariance.cpp).
 Eigen::Matrix3d fit_covariance(const NormalEquations& ne, int n_params, const VisionConfig& cfg);
 
+// libapriltag's detector and family (apriltag.cpp), created on the first tag frame.
+struct TagDetector;
+
 struct LandmarkLocalizer::Impl {
   VisionConfig cfg;
   CameraModel cam;
@@ -176,6 +181,11 @@ struct LandmarkLocalizer::Impl {
   double up_angle_px = 0;
 
   double mm_per_px = 0.26;
+
+  // Tag family (apriltag.cpp): the pose stage fits only the outer edge of the border, whose inner
+  // edge is broken by the data cells.
+  bool outer_only = false;
+  std::shared_ptr<TagDetector> tag;
 
   Impl(const VisionConfig& c, const CameraModel& m, const LandmarkGeometry& g,
        const LandmarkMap* mp);
@@ -226,6 +236,9 @@ struct LandmarkLocalizer::Impl {
   void accumulate_normal_equations(const SquareModel& m, NormalEquations* ne) const;
   bool joint_fit(PoseMethod method, bool free_size, SquareModel* m, NormalEquations* ne);
   void keep_overlay_geometry(const SquareModel& m);
+
+  // Tag family: detection and id by libapriltag, pose by the stage above (apriltag.cpp).
+  FixStatus run_tag(const cv::Mat& img, LandmarkFix* out);
 
   // Stage 4, logo, and the direction decision of stage 5 (direction.cpp).
   void build_logo();

@@ -74,7 +74,7 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
   std::array<LineFit, kNumLines> fits;
   const int used = fit_lines(&fits);
   std::array<bool, 4> side_ok{};
-  for (int k = 0; k < 4; ++k) side_ok[k] = line_ok[k * 2] && line_ok[k * 2 + 1];
+  for (int k = 0; k < 4; ++k) side_ok[k] = line_ok[k * 2] && (outer_only || line_ok[k * 2 + 1]);
   out->sides_used = side_ok[0] + side_ok[1] + side_ok[2] + side_ok[3];
   const bool axis0 = side_ok[0] || side_ok[2], axis1 = side_ok[1] || side_ok[3];
   if (!axis0 || !axis1 || used < cfg.min_points_total) return FixStatus::kTooFewEdgePoints;
@@ -103,7 +103,8 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
 
   // 3e. Joint fit (also used for the covariance of every method). Parameters: c_x, c_y, beta and,
   // when an axis has both sides, shared outer/inner half sizes.
-  const bool free_size = (side_ok[0] && side_ok[2]) || (side_ok[1] && side_ok[3]);
+  // Outer-only (tag family): no inner edge to tie the border width, so the size stays known.
+  const bool free_size = !outer_only && ((side_ok[0] && side_ok[2]) || (side_ok[1] && side_ok[3]));
   m.h_out = geom.outer_half_mm();
   m.h_in = geom.inner_half_mm();
   if (method == PoseMethod::kJointSquareFit) m.c = joint_start_centre(fits, m);
@@ -413,7 +414,7 @@ int LandmarkLocalizer::Impl::collect(const cv::Mat& img, Vec2 c, double up, doub
   for (int k = 0; k < 4; ++k) {
     const double na = up + k * kPi / 2;
     const Vec2 nk{std::cos(na), std::sin(na)};
-    for (int e = 0; e < 2; ++e) {
+    for (int e = 0; e < (outer_only ? 1 : 2); ++e) {
       const double h = e == 0 ? h_out : h_in;
       // Expected gradient direction: outward on the outer edge, inward on the inner edge.
       const Vec2 g_dir = e == 0 ? nk : Vec2{-nk.x, -nk.y};

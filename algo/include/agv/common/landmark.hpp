@@ -45,6 +45,37 @@ struct LandmarkGeometry {
   std::vector<Vec2> outer_corners_landmark_mm() const;
 };
 
+// The two printed landmark families. Both are found by the same vision pipeline stages where
+// they share them (edge bands, robust line fits, joint square fit); the QR landmark carries its
+// identity (and optionally its pose) in the QR payload, the AprilTag only an id that the map
+// resolves (docs/landmark.md "AprilTag landmark").
+enum class LandmarkFamily : std::uint8_t {
+  kQr,        // the landmark above (border, QR code, logo)
+  kTag36h11,  // an AprilTag of family tag36h11 (ids 0..586)
+};
+
+// The printed tag36h11 landmark. LandmarkGeometry::size_mm is the side of the outer black square
+// for both families (the QR landmark's outer border, the tag's 8-module black square), so one
+// configuration key sizes either. Page coordinates and the landmark frame are those of the QR
+// landmark, with the tag drawn as libapriltag's apriltag_to_image() renders it (row 0 at the top
+// of the page): its forward axis x points to the page top.
+//
+//   black square   8 x 8 modules of module_mm = size_mm / 8, half-side outer_half_mm()
+//                  (a 1-module black border around 6 x 6 data modules)
+//   white margin   margin_mm of white paper around the black square (libapriltag needs at
+//                  least one module; two keep floor texture off the detector's quad fit)
+struct AprilTagGeometry {
+  double size_mm = 60.0;    // outer side of the black square
+  double margin_mm = 15.0;  // white around it (default 2 modules of the default size)
+  static constexpr int kModules = 8;
+  double module_mm() const { return size_mm / kModules; }
+  double outer_half_mm() const { return size_mm / 2.0; }
+  // Half-extent of the printed page area (black square plus white margin).
+  double page_half_mm() const { return outer_half_mm() + margin_mm; }
+};
+// Largest tag36h11 id (the family has 587 codes).
+constexpr std::uint32_t kTag36h11MaxId = 586;
+
 // Page (u right, v down) <-> landmark frame (x forward, y left).
 inline Vec2 page_to_landmark(Vec2 uv) { return {-uv.y, -uv.x}; }
 inline Vec2 landmark_to_page(Vec2 xy) { return {-xy.y, -xy.x}; }

@@ -36,6 +36,18 @@ class LandmarkPattern {
   static bool make(const LandmarkGeometry& geometry, const std::string& payload,
                    LandmarkPattern* out, std::string* error);
 
+  // A tag36h11 landmark (docs/landmark.md "AprilTag landmark"): libapriltag's
+  // apriltag_to_image() cells of the id (row 0 at the top of the page), cells of
+  // geometry.module_mm(), white margin_mm around the black square (apriltag_page.cpp). False with
+  // *error when the id is not a tag36h11 id or the size is not positive.
+  static bool make_tag(const AprilTagGeometry& geometry, std::uint32_t id, LandmarkPattern* out,
+                       std::string* error);
+  bool is_tag() const { return !tag_cells_.empty(); }
+  // Half-extent of the printed area (where the page differs from the bare floor).
+  double reach_mm() const {
+    return is_tag() ? tag_geometry_.page_half_mm() : geometry_.outer_half_mm();
+  }
+
   // Page point (u right, v down, mm, origin at the landmark centre).
   PageInk at(Vec2 uv_mm) const;
   const LandmarkGeometry& geometry() const { return geometry_; }
@@ -48,6 +60,11 @@ class LandmarkPattern {
   std::string payload_;
   QrModules qr_;
   double module_mm_ = 0.0;
+  // Tag landmarks only: the tag's cells (row-major, 1 = dark) and its printed geometry.
+  PageInk tag_at(Vec2 uv_mm) const;
+  std::vector<std::uint8_t> tag_cells_;
+  int tag_cells_n_ = 0;
+  AprilTagGeometry tag_geometry_;
 };
 
 // The printed landmark as an 8-bit image: black 0, white 255, landmark centred (its centre at
@@ -66,6 +83,13 @@ std::string landmark_svg(const LandmarkGeometry& geometry, const std::string& pa
 // (id and pose, outside the landmark's white margin). Empty string on an encoding error.
 std::string landmark_sheet_svg(const LandmarkGeometry& geometry, const LandmarkMap& map,
                                int columns = 3);
+
+// The same for tag36h11 landmarks (apriltag_page.cpp): one tag with its white margin, and a
+// sheet with one tag per map entry (tag id = map id; ids above kTag36h11MaxId are an error:
+// empty string). Black cells are rects (runs merged per row).
+std::string tag_svg(const AprilTagGeometry& geometry, std::uint32_t id);
+std::string tag_sheet_svg(const AprilTagGeometry& geometry, const LandmarkMap& map,
+                          int columns = 3);
 
 // Full payload text for a map entry (pose from the map).
 std::string full_payload(const LandmarkMapEntry& e);
@@ -105,6 +129,12 @@ LandmarkMap default_landmark_grid(int columns = 5, int rows = 5, double spacing_
 // Builds a scene with one landmark per map entry. False with *error on an encoding error.
 bool make_scene(const LandmarkMap& map, const LandmarkGeometry& geometry, PayloadMode mode,
                 Scene* out, std::string* error);
+
+// A floor of tag36h11 landmarks, one per map entry (tag id = map id). scene.geometry.size_mm is
+// the tag's black square side (the degradations scale with it). False with *error when an id is
+// not a tag36h11 id.
+bool make_tag_scene(const LandmarkMap& map, const AprilTagGeometry& geometry, Scene* out,
+                    std::string* error);
 
 // A misprinted landmark (fault-replay suite, tests/faults): landmark `id` stays where the map
 // says, but its QR code is re-rendered with a full payload claiming the pose shifted by

@@ -43,6 +43,11 @@ enum class HeadingMethod {
 };
 
 struct VisionConfig {
+  // Which printed landmark the frames show (one family per floor). kTag36h11: libapriltag finds
+  // and decodes the tag, this pipeline's edge fits on the tag's outer black square give the pose
+  // and the map gives the world pose of the id (apriltag.cpp, docs/landmark.md). Default kQr.
+  agv::LandmarkFamily family = agv::LandmarkFamily::kQr;
+
   // --- 1. binarization -------------------------------------------------------------------
   // Adaptive threshold on the coarse detection image: a pixel is dark when it is below the local
   // mean (box of adaptive_block_mm on the floor) minus adaptive_offset grey levels. A larger block

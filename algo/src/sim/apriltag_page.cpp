@@ -1,0 +1,201 @@
+// tag36h11 landmarks for the simulator and the generator (docs/landmark.md "AprilTag landmark"):
+// the cells come from libapriltag's own family table and renderer (apriltag_to_image), so the
+// printed and simulated tags are exactly what the detector decodes.
+#include <apriltag/apriltag.h>
+#include <apriltag/tag36h11.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <memory>
+#include <sstream>
+
+#include "agv/sim/render.hpp"
+
+namespace agv::sim {
+
+namespace {
+
+// apriltag_to_image() of tag36h11: 10 x 10 cells, a white ring of one cell around the 8 x 8
+// black square.
+constexpr int kTagCells = 10;
+constexpr int kWhiteRingCells = 1;
+
+// image_u8_destroy() is exported by libapriltag-utils only, not by libapriltag; the image of
+// apriltag_to_image() is two calloc blocks (image_u8_create_stride), freed here the same way.
+void free_image(image_u8_t* im) {
+  if (!im) return;
+  std::free(im->buf);
+  std::free(im);
+}
+
+bool tag_cells(std::uint32_t id, std::vector<std::uint8_t>* cells, std::string* error) {
+  std::unique_ptr<apriltag_family_t, void (*)(apriltag_family_t*)> fam(tag36h11_create(),
+                                                                       tag36h11_destroy);
+  if (id >= fam->ncodes) {
+    if (error) *error = "tag36h11 has ids 0.." + std::to_string(fam->ncodes - 1);
+    return false;
+  }
+  image_u8_t* im = apriltag_to_image(fam.get(), static_cast<int>(id));
+  if (!im || im->width != kTagCells || im->height != kTagCells) {
+    free_image(im);
+    if (error) *error = "unexpected tag36h11 image from libapriltag";
+    return false;
+  }
+  cells->assign(static_cast<size_t>(kTagCells * kTagCells), 0);
+  for (int r = 0; r < kTagCells; ++r) {
+    for (int c = 0; c < kTagCells; ++c) {
+      (*cells)[static_cast<size_t>(r * kTagCells + c)] = im->buf[r * im->stride + c] < 128 ? 1 : 0;
+    }
+  }
+  free_image(im);
+  return true;
+}
+
+std::string fmt(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.4f", v);
+  std::string s = buf;
+  while (!s.empty() && s.back() == '0') s.pop_back();
+  if (!s.empty() && s.back() == '.') s.pop_back();
+  if (s == "-0") s = "0";
+  return s;
+}
+
+// Black cells of one tag whose centre is at (cx, cy) in the SVG's mm coordinates (page
+// orientation: row 0 at the top).
+void append_tag_svg(std::ostringstream& os, const AprilTagGeometry& g,
+                    const std::vector<std::uint8_t>& cells, double cx, double cy) {
+  const double m = g.module_mm();
+  const double x0 = cx - kTagCells * m / 2.0, y0 = cy - kTagCells * m / 2.0;
+  os << "  <g fill=\"#000\">\n";
+  for (int r = 0; r < kTagCells; ++r) {
+    int c = 0;
+    while (c < kTagCells) {
+      if (!cells[static_cast<size_t>(r * kTagCells + c)]) {
+        ++c;
+        continue;
+      }
+      int e = c;
+      while (e < kTagCells && cells[static_cast<size_t>(r * kTagCells + e)]) ++e;
+      os << "    <rect x=\"" << fmt(x0 + c * m) << "\" y=\"" << fmt(y0 + r * m) << "\" width=\""
+         << fmt((e - c) * m) << "\" height=\"" << fmt(m) << "\"/>\n";
+      c = e;
+    }
+  }
+  os << "  </g>\n";
+}
+
+bool valid_size(const AprilTagGeometry& g, std::string* error) {
+  if (g.size_mm > 0.0 && std::isfinite(g.size_mm) && g.margin_mm >= 0.0 &&
+      std::isfinite(g.margin_mm)) {
+    return true;
+  }
+  if (error) *error = "tag size must be positive and the margin not negative";
+  return false;
+}
+
+}  // namespace
+
+bool LandmarkPattern::make_tag(const AprilTagGeometry& geometry, std::uint32_t id,
+                               LandmarkPattern* out, std::string* error) {
+  if (!valid_size(geometry, error)) return false;
+  LandmarkPattern p;
+  if (!tag_cells(id, &p.tag_cells_, error)) return false;
+  p.tag_cells_n_ = kTagCells;
+  p.tag_geometry_ = geometry;
+  p.geometry_.size_mm = geometry.size_mm;
+  p.module_mm_ = geometry.module_mm();
+  p.payload_ = "tag36h11/" + std::to_string(id);
+  *out = std::move(p);
+  return true;
+}
+
+PageInk LandmarkPattern::tag_at(Vec2 uv) const {
+  const double au = std::abs(uv.x), av = std::abs(uv.y);
+  if (!(au < tag_geometry_.page_half_mm() && av < tag_geometry_.page_half_mm())) {
+    return PageInk::kOutside;
+  }
+  const double oh = tag_geometry_.outer_half_mm();
+  if (!(au < oh && av < oh)) return PageInk::kWhite;
+  const int c =
+      std::min(AprilTagGeometry::kModules - 1, static_cast<int>((uv.x + oh) / module_mm_)) +
+      kWhiteRingCells;
+  const int r =
+      std::min(AprilTagGeometry::kModules - 1, static_cast<int>((uv.y + oh) / module_mm_)) +
+      kWhiteRingCells;
+  return tag_cells_[static_cast<size_t>(r * tag_cells_n_ + c)] ? PageInk::kBlack : PageInk::kWhite;
+}
+
+bool make_tag_scene(const LandmarkMap& map, const AprilTagGeometry& geometry, Scene* out,
+                    std::string* error) {
+  Scene s;
+  s.geometry.size_mm = geometry.size_mm;
+  for (const auto& [id, e] : map.entries) {
+    SceneLandmark l;
+    l.id = id;
+    l.world_pose = e.pose;
+    if (!LandmarkPattern::make_tag(geometry, id, &l.pattern, error)) {
+      if (error) *error = "landmark " + std::to_string(id) + ": " + *error;
+      return false;
+    }
+    s.landmarks.push_back(std::move(l));
+  }
+  *out = std::move(s);
+  return true;
+}
+
+std::string tag_svg(const AprilTagGeometry& geometry, std::uint32_t id) {
+  std::vector<std::uint8_t> cells;
+  if (!valid_size(geometry, nullptr) || !tag_cells(id, &cells, nullptr)) return {};
+  const double side = 2.0 * geometry.page_half_mm();
+  std::ostringstream os;
+  os << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+     << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << fmt(side) << "mm\" height=\""
+     << fmt(side) << "mm\" viewBox=\"0 0 " << fmt(side) << " " << fmt(side)
+     << "\" shape-rendering=\"crispEdges\">\n"
+     << "  <!-- agvloc landmark, tag36h11 id " << id << ", black square " << fmt(geometry.size_mm)
+     << " mm; print at 100% scale -->\n"
+     << "  <rect x=\"0\" y=\"0\" width=\"" << fmt(side) << "\" height=\"" << fmt(side)
+     << "\" fill=\"#fff\"/>\n";
+  append_tag_svg(os, geometry, cells, side / 2, side / 2);
+  os << "</svg>\n";
+  return os.str();
+}
+
+std::string tag_sheet_svg(const AprilTagGeometry& geometry, const LandmarkMap& map, int columns) {
+  if (columns < 1 || map.entries.empty() || !valid_size(geometry, nullptr)) return {};
+  const double cell_w = 2.0 * geometry.page_half_mm() + 10.0;
+  const double cell_h = cell_w + 8.0;  // caption line under each tag
+  const int n = static_cast<int>(map.entries.size());
+  const int cols = std::min(columns, n);
+  const int rows = (n + cols - 1) / cols;
+  const double w = cols * cell_w, h = rows * cell_h;
+  std::ostringstream os;
+  os << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+     << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << fmt(w) << "mm\" height=\"" << fmt(h)
+     << "mm\" viewBox=\"0 0 " << fmt(w) << " " << fmt(h) << "\" shape-rendering=\"crispEdges\">\n"
+     << "  <!-- agvloc tag36h11 sheet, black square " << fmt(geometry.size_mm)
+     << " mm; print at 100% scale -->\n"
+     << "  <rect x=\"0\" y=\"0\" width=\"" << fmt(w) << "\" height=\"" << fmt(h)
+     << "\" fill=\"#fff\"/>\n";
+  int i = 0;
+  std::vector<std::uint8_t> cells;
+  for (const auto& [id, e] : map.entries) {
+    if (!tag_cells(id, &cells, nullptr)) return {};
+    const double cx = (i % cols + 0.5) * cell_w, cy = (i / cols) * cell_h + cell_w / 2;
+    append_tag_svg(os, geometry, cells, cx, cy);
+    char cap[160];
+    std::snprintf(cap, sizeof cap, "tag36h11 id %u  x %.1f  y %.1f  heading %.2f deg",
+                  static_cast<unsigned>(id), e.pose.x_mm, e.pose.y_mm,
+                  rad_to_deg(wrap_angle_rad(e.pose.theta_rad)));
+    os << "  <text x=\"" << fmt(cx) << "\" y=\"" << fmt(cy + cell_w / 2 - 2.0)
+       << "\" font-family=\"sans-serif\" font-size=\"3\" text-anchor=\"middle\">" << cap
+       << "</text>\n";
+    ++i;
+  }
+  os << "</svg>\n";
+  return os.str();
+}
+
+}  // namespace agv::sim

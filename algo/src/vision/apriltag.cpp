@@ -1,0 +1,151 @@
+// Tag family (VisionConfig::family = kTag36h11): libapriltag finds and decodes the tag (Debian's
+// libapriltag 3.3, not rewritten), its homography gives the start of this project's pose stage
+// (pose.cpp, outer edge of the black square only: the inner edge is broken by the data cells),
+// the decoded rotation gives the heading quadrant and the map gives the id's world pose.
+#include <apriltag/apriltag.h>
+#include <apriltag/common/homography.h>
+#include <apriltag/tag36h11.h>
+
+#include <cmath>
+#include <cstdio>
+
+#include "localizer_impl.hpp"
+
+namespace agv::vision {
+
+namespace {
+
+// Detector settings. Decimation 2 keeps the quad search cheap: the pose does not come from the
+// detector's corners but from the edge fits, so its coarser quads cost no accuracy (the edge bands
+// are +-band_rel border widths wide, several pixels, and the detector's corners are within a
+// pixel or two). Two corrected bits: tag36h11's minimum Hamming distance is 11, so a 2-bit
+// correction cannot turn one printed id into another, and it keeps dirty or scratched data cells
+// readable.
+constexpr float kQuadDecimate = 2.0f;
+constexpr int kBitsCorrected = 2;
+constexpr float kDecodeSharpening = 0.25f;
+// Tag coordinates of the detector's homography: +-1 is the outer edge of the black square, the
+// border midline is one half module (1/8 of the half side) inside, the white margin one half
+// module outside; the contrast samples stay this far from the corners (tag units).
+constexpr double kBorderMid = 1.0 - 0.5 / 4.0;
+constexpr double kMarginMid = 1.0 + 0.5 / 4.0;
+constexpr double kContrastSpan = 0.75;
+constexpr int kContrastSamplesPerSide = 9;
+// Same floor as the QR family's detection (landmark_localizer.cpp): below it the edge threshold
+// sinks into the Prewitt noise of the evaluated read noise.
+constexpr double kMinContrastGrey = 15.0;
+// Tag coordinates of the point that gives the forward axis (page up = tag -y, the row order of
+// apriltag_to_image): far enough from the centre for a stable angle, inside the black square.
+constexpr double kForwardProbe = 0.5;
+
+Vec2 project(const matd_t* h, double x, double y) {
+  double px = 0, py = 0;
+  homography_project(h, x, y, &px, &py);
+  return {px, py};
+}
+
+}  // namespace
+
+struct TagDetector {
+  apriltag_family_t* family = nullptr;
+  apriltag_detector_t* detector = nullptr;
+  TagDetector() {
+    family = tag36h11_create();
+    detector = apriltag_detector_create();
+    apriltag_detector_add_family_bits(detector, family, kBitsCorrected);
+    detector->quad_decimate = kQuadDecimate;
+    detector->nthreads = 1;
+    detector->refine_edges = 1;
+    detector->decode_sharpening = kDecodeSharpening;
+  }
+  ~TagDetector() {
+    apriltag_detector_destroy(detector);
+    tag36h11_destroy(family);
+  }
+  TagDetector(const TagDetector&) = delete;
+  TagDetector& operator=(const TagDetector&) = delete;
+};
+
+FixStatus LandmarkLocalizer::Impl::run_tag(const cv::Mat& img, LandmarkFix* out) {
+  if (!tag) tag = std::make_shared<TagDetector>();
+  outer_only = true;
+  const double t0 = now_ms();
+  // libapriltag reads the caller's pixels through its own view type; it does not write them.
+  image_u8_t view{img.cols, img.rows, static_cast<std::int32_t>(img.step[0]),
+                  const_cast<std::uint8_t*>(img.ptr<std::uint8_t>(0))};
+  zarray_t* dets = apriltag_detector_detect(tag->detector, &view);
+  // The strongest decode (one tag per frame on a surveyed floor; a second one is a worse view).
+  apriltag_detection_t* best = nullptr;
+  for (int i = 0; i < zarray_size(dets); ++i) {
+    apriltag_detection_t* d = nullptr;
+    zarray_get(dets, i, &d);
+    if (!best || d->decision_margin > best->decision_margin) best = d;
+  }
+  if (!best) {
+    apriltag_detections_destroy(dets);
+    if (cfg.now_ns) out->timings.detect_ms = now_ms() - t0;
+    return FixStatus::kNoLandmark;
+  }
+  const std::uint32_t id = static_cast<std::uint32_t>(best->id);
+  const matd_t* hm = best->H;
+  const Vec2 c_px = project(hm, 0.0, 0.0);
+  const Vec2 side_px = project(hm, 1.0, 0.0);
+  const Vec2 fwd_px = project(hm, 0.0, -kForwardProbe);
+  const double up = std::atan2(side_px.y - c_px.y, side_px.x - c_px.x);
+  double dark = 0, white = 0;
+  int n_dark = 0, n_white = 0;
+  for (int k = 0; k < 4; ++k) {
+    for (int i = 0; i < kContrastSamplesPerSide; ++i) {
+      const double t = kContrastSpan * (2.0 * i / (kContrastSamplesPerSide - 1) - 1.0);
+      const double sx = (k == 0) - (k == 2), sy = (k == 1) - (k == 3);
+      double v;
+      const Vec2 pd = project(hm, sx * kBorderMid + sy * t, sy * kBorderMid + sx * t);
+      if (sample(img, pd.x, pd.y, &v)) dark += v, ++n_dark;
+      const Vec2 pw = project(hm, sx * kMarginMid + sy * t, sy * kMarginMid + sx * t);
+      if (sample(img, pw.x, pw.y, &v)) white += v, ++n_white;
+    }
+  }
+  apriltag_detections_destroy(dets);
+  const double t1 = now_ms();
+  if (cfg.now_ns) out->timings.detect_ms = t1 - t0;
+  if (n_dark == 0 || n_white == 0) return FixStatus::kNoLandmark;
+  const double contrast = white / n_white - dark / n_dark;
+  if (contrast < kMinContrastGrey) return FixStatus::kNoLandmark;
+  out->corner_score = contrast;
+  out->detect_x_px = c_px.x;
+  out->detect_y_px = c_px.y;
+  out->detect_angle_deg = rad_to_deg(up);
+  out->partly_outside = partly_outside(img, c_px, up);
+  if (out->partly_outside && !cfg.allow_partly_outside) return FixStatus::kPartlyOutside;
+  out->landmark_id = id;
+  std::snprintf(out->payload, sizeof out->payload, "tag36h11/%u", static_cast<unsigned>(id));
+
+  Vec2 c_mm;
+  double beta = 0;
+  Eigen::Matrix3d cov;
+  FixStatus st = pose(img, c_px, up, contrast, out, &c_mm, &beta, &cov);
+  if (cfg.now_ns) out->timings.pose_ms = now_ms() - t1;
+  if (st == FixStatus::kTooFewEdgePoints && out->partly_outside) st = FixStatus::kPartlyOutside;
+  if (st != FixStatus::kOk) return st;
+  have_overlay = true;
+
+  // Heading quadrant from the decoded rotation: the fitted border normal beta is only known modulo
+  // 90 degrees, the detector's homography says which side is the tag's top.
+  const CameraModel& mc = metric_cam();
+  Vec2 a0, a1;
+  if (!mc.pixel_to_vehicle(c_px, &a0) || !mc.pixel_to_vehicle(fwd_px, &a1)) {
+    return FixStatus::kDirectionAmbiguous;
+  }
+  const double fwd0 = std::atan2(a1.y - a0.y, a1.x - a0.x);
+  const int q = static_cast<int>(std::lround(wrap_angle_rad(beta - fwd0) / (kPi / 2.0)) + 4) % 4;
+  quadrant = q;
+
+  const LandmarkMapEntry* e = map ? map->find(id) : nullptr;
+  if (!e) return FixStatus::kUnknownLandmark;
+  out->map_verified = true;
+  fill_result(e->pose, c_mm, beta, q, cov, out);
+  out->identity = FixIdentity::kAprilTag;
+  return FixStatus::kOk;
+}
+
+}  // namespace agv::vision

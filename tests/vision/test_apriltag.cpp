@@ -1,0 +1,145 @@
+// tag36h11 landmark family (algo/src/vision/apriltag.cpp) on simulator frames: pose error bounds
+// at several headings, the heading quadrant from the decoded rotation, an id missing from the
+// map, the degradations, and the generator's tag pages.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <string>
+
+#include "agv/sim/render.hpp"
+#include "agv/vision/landmark_localizer.hpp"
+
+namespace {
+
+using namespace agv;
+using namespace agv::vision;
+
+const Pose2 kTagWorld{1000.0, -2000.0, deg_to_rad(90.0)};
+constexpr std::uint32_t kTagId = 17;
+
+LandmarkMap tag_map(std::uint32_t id = kTagId) {
+  LandmarkMap m;
+  m.entries[id] = {id, kTagWorld};
+  return m;
+}
+
+VisionConfig tag_config() {
+  VisionConfig c;
+  c.family = LandmarkFamily::kTag36h11;
+  return c;
+}
+
+// Frame with the vehicle at e (vehicle in the tag's landmark frame).
+cv::Mat tag_frame(const Pose2& e, const sim::RenderOptions& o = {}, std::uint32_t id = kTagId) {
+  sim::Scene scene;
+  std::string err;
+  EXPECT_TRUE(sim::make_tag_scene(tag_map(id), AprilTagGeometry{}, &scene, &err)) << err;
+  std::mt19937_64 rng(3);
+  return sim::render_frame(scene, CameraModel::default_640x480(), compose(kTagWorld, e), o, rng);
+}
+
+TEST(AprilTagFamily, PoseAtSeveralHeadingsWithinBounds) {
+  const LandmarkMap map = tag_map();
+  LandmarkLocalizer loc(tag_config(), CameraModel::default_640x480(), LandmarkGeometry{}, &map);
+  for (double deg : {-170.0, -95.0, -30.0, 0.0, 17.0, 44.0, 90.0, 133.0, 179.0}) {
+    const Pose2 e{4.0, -6.0, deg_to_rad(deg)};
+    LandmarkFix fix;
+    ASSERT_EQ(loc.process(tag_frame(e), &fix), FixStatus::kOk) << deg;
+    EXPECT_EQ(fix.identity, FixIdentity::kAprilTag);
+    EXPECT_EQ(fix.landmark_id, kTagId);
+    EXPECT_TRUE(fix.map_verified);
+    EXPECT_NEAR(fix.e_x_mm, e.x_mm, 0.1) << deg;
+    EXPECT_NEAR(fix.e_y_mm, e.y_mm, 0.1) << deg;
+    EXPECT_NEAR(wrap_angle_rad(deg_to_rad(fix.e_phi_deg) - e.theta_rad), 0.0, deg_to_rad(0.02))
+        << deg;
+    const Pose2 truth = compose(kTagWorld, e);
+    EXPECT_NEAR(fix.vehicle_in_world.x_mm, truth.x_mm, 0.1);
+    EXPECT_NEAR(fix.vehicle_in_world.y_mm, truth.y_mm, 0.1);
+    EXPECT_GT(fix.cov_world(0, 0), 0.0);
+    EXPECT_EQ(fix.sides_used, 4);
+  }
+}
+
+// The border alone is symmetric under quarter turns: only the decoded rotation can tell them
+// apart, so each of the four quadrants must come out as rendered.
+TEST(AprilTagFamily, QuarterTurnsGiveTheRightQuadrant) {
+  const LandmarkMap map = tag_map();
+  LandmarkLocalizer loc(tag_config(), CameraModel::default_640x480(), LandmarkGeometry{}, &map);
+  for (int q = 0; q < 4; ++q) {
+    const double deg = 10.0 + 90.0 * q;
+    LandmarkFix fix;
+    ASSERT_EQ(loc.process(tag_frame({0.0, 0.0, deg_to_rad(deg)}), &fix), FixStatus::kOk);
+    EXPECT_NEAR(rad_to_deg(wrap_angle_rad(deg_to_rad(fix.e_phi_deg - deg))), 0.0, 0.05) << q;
+  }
+}
+
+TEST(AprilTagFamily, IdNotInTheMapIsUnknown) {
+  const LandmarkMap map = tag_map(5);  // the frame shows tag 17
+  LandmarkLocalizer loc(tag_config(), CameraModel::default_640x480(), LandmarkGeometry{}, &map);
+  LandmarkFix fix;
+  EXPECT_EQ(loc.process(tag_frame({0.0, 0.0, 0.3}), &fix), FixStatus::kUnknownLandmark);
+  EXPECT_EQ(fix.landmark_id, kTagId);
+  EXPECT_FALSE(fix.map_verified);
+  LandmarkLocalizer no_map(tag_config(), CameraModel::default_640x480(), LandmarkGeometry{},
+                           nullptr);
+  EXPECT_EQ(no_map.process(tag_frame({0.0, 0.0, 0.3}), &fix), FixStatus::kUnknownLandmark);
+}
+
+TEST(AprilTagFamily, FloorWithoutTagAndQrFrameGiveNoLandmark) {
+  const LandmarkMap map = tag_map();
+  LandmarkLocalizer loc(tag_config(), CameraModel::default_640x480(), LandmarkGeometry{}, &map);
+  LandmarkFix fix;
+  EXPECT_EQ(loc.process(tag_frame({400.0, 0.0, 0.0}), &fix), FixStatus::kNoLandmark);
+  sim::Scene qr;
+  std::string err;
+  ASSERT_TRUE(sim::make_scene(map, LandmarkGeometry{}, sim::PayloadMode::kFull, &qr, &err));
+  std::mt19937_64 rng(1);
+  const cv::Mat img = sim::render_frame(qr, CameraModel::default_640x480(),
+                                        compose(kTagWorld, {0, 0, 0.2}), {}, rng);
+  EXPECT_EQ(loc.process(img, &fix), FixStatus::kNoLandmark);
+}
+
+TEST(AprilTagFamily, DegradedFrameStillGivesAFix) {
+  const LandmarkMap map = tag_map();
+  LandmarkLocalizer loc(tag_config(), CameraModel::default_640x480(), LandmarkGeometry{}, &map);
+  sim::RenderOptions o = sim::realistic_options();
+  o.read_noise_sigma = 4.0;
+  o.defocus_sigma_px = 1.5;
+  LandmarkFix fix;
+  ASSERT_EQ(loc.process(tag_frame({3.0, 2.0, 1.0}, o), &fix), FixStatus::kOk);
+  EXPECT_NEAR(fix.e_x_mm, 3.0, 0.5);
+  EXPECT_NEAR(fix.e_y_mm, 2.0, 0.5);
+}
+
+TEST(AprilTagFamily, QrFamilyIgnoresTags) {
+  const LandmarkMap map = tag_map();
+  LandmarkLocalizer loc(VisionConfig{}, CameraModel::default_640x480(), LandmarkGeometry{}, &map);
+  LandmarkFix fix;
+  EXPECT_NE(loc.process(tag_frame({0.0, 0.0, 0.2}), &fix), FixStatus::kOk);
+  EXPECT_NE(fix.identity, FixIdentity::kAprilTag);
+}
+
+TEST(AprilTagPage, SvgHasTheTagCellsAndRejectsBadIds) {
+  const std::string svg = sim::tag_svg(AprilTagGeometry{}, 17);
+  ASSERT_FALSE(svg.empty());
+  EXPECT_NE(svg.find("tag36h11 id 17"), std::string::npos);
+  // 60 mm black square + 2 x 15 mm margin.
+  EXPECT_NE(svg.find("width=\"90mm\""), std::string::npos);
+  EXPECT_NE(svg.find("<rect"), std::string::npos);
+  EXPECT_NE(svg, sim::tag_svg(AprilTagGeometry{}, 18));
+  EXPECT_TRUE(sim::tag_svg(AprilTagGeometry{}, kTag36h11MaxId + 1).empty());
+  const std::string sheet =
+      sim::tag_sheet_svg(AprilTagGeometry{}, sim::default_landmark_grid(2, 2));
+  EXPECT_NE(sheet.find("tag36h11 id 4"), std::string::npos);
+  sim::LandmarkPattern p;
+  std::string err;
+  EXPECT_FALSE(sim::LandmarkPattern::make_tag(AprilTagGeometry{}, 600, &p, &err));
+  ASSERT_TRUE(sim::LandmarkPattern::make_tag(AprilTagGeometry{}, 0, &p, &err));
+  // Black square, then white margin, then outside.
+  EXPECT_EQ(p.at({-29.0, -29.0}), sim::PageInk::kBlack);
+  EXPECT_EQ(p.at({-31.0, 0.0}), sim::PageInk::kWhite);
+  EXPECT_EQ(p.at({-46.0, 0.0}), sim::PageInk::kOutside);
+}
+
+}  // namespace
