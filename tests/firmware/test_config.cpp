@@ -100,6 +100,18 @@ TEST(Config, WrongTypesAndChoices) {
       mentions(errors_for("intrinsics:\n  fx: .nan\n"), "intrinsics.fx: expected a number"));
 }
 
+TEST(Config, LandmarkFamilyKey) {
+  Config cfg;
+  std::vector<std::string> errors;
+  ASSERT_TRUE(agv::config::parse_config(kIntrinsics, "", &cfg, &errors));
+  EXPECT_EQ(cfg.vision.family, agv::LandmarkFamily::kQr);
+  ASSERT_TRUE(agv::config::parse_config(
+      std::string(kIntrinsics) + "landmark:\n  family: tag36h11\n", "", &cfg, &errors));
+  EXPECT_EQ(cfg.vision.family, agv::LandmarkFamily::kTag36h11);
+  EXPECT_TRUE(mentions(errors_for("landmark:\n  family: aruco\n"),
+                       "landmark.family: 'aruco' is not one of"));
+}
+
 TEST(Config, SyntaxErrorAndNonMapping) {
   EXPECT_TRUE(mentions(errors_for("camera: [1, 2\n"), "YAML syntax error"));
   EXPECT_TRUE(mentions(errors_for("- a\n- b\n"), "top level"));
