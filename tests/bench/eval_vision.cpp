@@ -4,7 +4,9 @@
 // (tag36h11, decimate 2, one thread) on the same kind of frames in the same run.
 // Not a unit test. Usage and results: docs/accuracy.md.
 //   eval_vision [--profile 640|1280] [--frames N] [--floor-frames N] [--seed S] [--ablation]
-//               [--no-apriltag] [--dump DIR]
+//               [--no-apriltag] [--dump DIR] [--family qr|tag36h11] [--speed-compare]
+// --family tag36h11: the same conditions on a floor of tag36h11 landmarks (the tag family of the
+// localizer); --speed-compare: only the issue-17 speed comparison (eval_vision_tag.cpp).
 #include "eval_vision.hpp"
 
 #include <algorithm>
@@ -29,6 +31,8 @@ struct Args {
   std::string only;         // run only the fully-visible conditions whose name contains this
   int profile_reps = 0;     // --profile-loop: only process the clean frames this many times (perf)
   int qr_max_missing = -1;  // --qr-max-missing: VisionConfig::qr_max_missing_modules (-1 = default)
+  bool tag = false;         // --family tag36h11
+  bool speed_compare = false;
 };
 
 // The fully visible conditions; the second last ("all combined") is rendered through the
@@ -226,12 +230,16 @@ int run(const Args& a) {
   const LandmarkGeometry geom;
   LandmarkMap map;
   map.entries[kId] = {kId, kLandmarkWorld};
-  sim::Scene scene;
+  sim::Scene scene, tag_scene;
   std::string err;
-  if (!sim::make_scene(map, geom, sim::PayloadMode::kFull, &scene, &err)) {
+  AprilTagGeometry tag_geom;
+  tag_geom.size_mm = geom.size_mm;
+  if (!sim::make_scene(map, geom, sim::PayloadMode::kFull, &scene, &err) ||
+      !sim::make_tag_scene(map, tag_geom, &tag_scene, &err)) {
     std::fprintf(stderr, "scene: %s\n", err.c_str());
     return 1;
   }
+  if (a.tag) scene = tag_scene;
   const double mmpp = cam.mm_per_px();
   std::printf("# eval_vision: profile %dx%d (%.3f mm/px), %d frames per condition, seed %llu\n\n",
               cam.intrinsics.width_px, cam.intrinsics.height_px, mmpp, a.frames,
@@ -240,11 +248,20 @@ int run(const Args& a) {
   VisionConfig cfg;
   cfg.now_ns = now_ns;
   if (a.qr_max_missing >= 0) cfg.qr_max_missing_modules = a.qr_max_missing;
+  if (a.tag) cfg.family = LandmarkFamily::kTag36h11;
+  std::printf("landmark family: %s\n\n", a.tag ? "tag36h11" : "qr");
 
   Setup su{cam, cam_dist, geom, map, scene, cfg};
   const std::vector<Condition> conds = make_conditions(mmpp);
 
   std::vector<Frame> clean_frames, combined_frames;
+  if (a.speed_compare) {
+    Setup su_qr = su;
+    sim::make_scene(map, geom, sim::PayloadMode::kFull, &su_qr.scene, &err);
+    run_speed_compare(su_qr, render_set(su_qr.scene, cam, conds[0], a.frames, a.seed * 1000),
+                      tag_scene);
+    return 0;
+  }
   if (a.profile_reps > 0) {
     // For a sampling profiler: rendering would dominate a normal run.
     auto frames = render_set(scene, cam, conds[0], a.frames, a.seed * 1000);
@@ -296,13 +313,24 @@ int main(int argc, char** argv) {
       a.only = next();
     } else if (s == "--profile-loop") {
       a.profile_reps = std::atoi(next().c_str());
+    } else if (s == "--family") {
+      const std::string f = next();
+      if (f != "qr" && f != "tag36h11") {
+        std::fprintf(stderr, "--family must be qr or tag36h11\n");
+        return 2;
+      }
+      a.tag = f == "tag36h11";
+      if (a.tag) a.apriltag = false;  // the AprilTag comparison paints tags into QR frames
+    } else if (s == "--speed-compare") {
+      a.speed_compare = true;
     } else if (s == "--qr-max-missing") {
       a.qr_max_missing = std::atoi(next().c_str());
     } else {
       std::fprintf(stderr,
                    "usage: eval_vision [--profile 640|1280] [--frames N] [--floor-frames N] "
                    "[--seed S] [--ablation] [--no-apriltag] [--dump DIR] [--only NAME] "
-                   "[--profile-loop REPS] [--qr-max-missing N]\n");
+                   "[--profile-loop REPS] [--qr-max-missing N] [--family qr|tag36h11] "
+                   "[--speed-compare]\n");
       return 2;
     }
   }
