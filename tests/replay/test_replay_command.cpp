@@ -10,6 +10,7 @@
 #include <vector>
 
 #include "agv/recording/recording.hpp"
+#include "agv/sim/render.hpp"
 #include "commands.hpp"
 
 namespace fs = std::filesystem;
@@ -127,5 +128,70 @@ TEST(ReplayCommand, TimeSpanIsBoundedAndTheRowsNamed) {
             std::string::npos)
       << r.err;
   EXPECT_FALSE(fs::exists(d / "out" / "poses.csv"));
+  fs::remove_all(d);
+}
+
+// A short tag36h11 recording (vehicle standing over tag 7 at several headings): with
+// landmark.family: tag36h11 and the map, every frame gives an ok fix at the true pose; with the
+// default family none does.
+TEST(ReplayCommand, TagRecordingGivesFixes) {
+  const fs::path d = fresh_dir("tag");
+  recording::Meta m;
+  m.camera = CameraModel::default_640x480();
+  std::string err;
+  ASSERT_TRUE(recording::write_meta(d.string(), m, &err)) << err;
+  LandmarkMap map;
+  const Pose2 tag_world{2000.0, 1000.0, deg_to_rad(-90.0)};
+  map.entries[7] = {7, tag_world};
+  std::ofstream(d / "map.csv") << "id,x_mm,y_mm,heading_deg\n7,2000.0,1000.0,-90\n";
+  sim::Scene scene;
+  ASSERT_TRUE(sim::make_tag_scene(map, AprilTagGeometry{}, &scene, &err)) << err;
+  std::mt19937_64 rng(5);
+  const sim::FrameRenderer r(scene, m.camera);
+  const Pose2 vehicle = compose(tag_world, {5.0, -3.0, deg_to_rad(30.0)});
+  constexpr int kFrames = 5;
+  std::vector<recording::FrameRow> frames;
+  for (int i = 0; i < kFrames; ++i) {
+    const std::string f = "frames/" + std::to_string(i) + ".png";
+    ASSERT_TRUE(recording::write_frame_png(d.string(), f,
+                                           r.render(vehicle, sim::realistic_options(), rng), &err))
+        << err;
+    frames.push_back({1'000'000'000LL + i * 100'000'000LL, f});
+  }
+  ASSERT_TRUE(recording::write_frames_csv(d.string(), frames, &err)) << err;
+  std::vector<recording::OdomRow> odom;
+  for (int i = 0; i <= kFrames * 10; ++i)
+    odom.push_back({1'000'000'000LL + i * 10'000'000LL, 0, 0});
+  ASSERT_TRUE(recording::write_odom_csv(d.string(), odom, &err)) << err;
+  auto ok_fixes = [&](const std::string& family) -> int {
+    std::ofstream(d / "tag.yaml", std::ios::trunc) << "landmark:\n  family: " << family << "\n";
+    std::vector<std::string> args = {
+        "replay", d.string(), "--out", (d / "out").string(), "--config", (d / "tag.yaml").string(),
+        "--fast", "--quiet"};
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    testing::internal::CaptureStderr();
+    const int rc = agv::cmd::replay(static_cast<int>(argv.size()), argv.data());
+    const std::string e = testing::internal::GetCapturedStderr();
+    EXPECT_EQ(rc, 0) << e;
+    std::ifstream f(d / "out" / "fixes.csv");
+    std::string line;
+    int ok = 0;
+    while (std::getline(f, line)) {
+      if (line.find(",ok,7,") == std::string::npos) continue;
+      ++ok;
+      double t, ex, ey, ephi, x, y;
+      char st[8];
+      EXPECT_EQ(std::sscanf(line.c_str(), "%lf,%2s,7,%lf,%lf,%lf,%lf,%lf", &t, st, &ex, &ey, &ephi,
+                            &x, &y),
+                7)
+          << line;
+      EXPECT_NEAR(x, vehicle.x_mm, 0.5) << line;
+      EXPECT_NEAR(y, vehicle.y_mm, 0.5) << line;
+    }
+    return ok;
+  };
+  EXPECT_EQ(ok_fixes("tag36h11"), kFrames);
+  EXPECT_EQ(ok_fixes("qr"), 0);
   fs::remove_all(d);
 }

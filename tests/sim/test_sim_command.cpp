@@ -10,6 +10,8 @@
 #include <sstream>
 
 #include "agv/recording/recording.hpp"
+#include "agv/sim/render.hpp"
+#include "agv/vision/landmark_localizer.hpp"
 #include "commands.hpp"
 
 namespace fs = std::filesystem;
@@ -166,4 +168,57 @@ TEST(LandmarkCommand, PngDecodesAndSvgAndSheet) {
   EXPECT_EQ(run_landmark({"--map", "/nonexistent.csv", "--sheet", (d / "x.svg").string()}), 2);
   EXPECT_FALSE(fs::exists(d / "x.svg"));
   fs::remove_all(d);
+}
+
+TEST(LandmarkCommand, TagSvgAndSheet) {
+  const fs::path d = tmp("tag");
+  fs::create_directories(d);
+  ASSERT_EQ(run_landmark({"--family", "tag36h11", "--id", "17", "--svg", (d / "t.svg").string()}),
+            0);
+  const std::string svg = slurp(d / "t.svg");
+  EXPECT_NE(svg.find("tag36h11 id 17"), std::string::npos);
+  EXPECT_NE(svg.find("viewBox=\"0 0 90 90\""), std::string::npos);  // 60 + 2 x 2 cells of 7.5
+  ASSERT_EQ(run_landmark({"--family", "tag36h11", "--map",
+                          std::string(AGV_SOURCE_DIR) + "/tools/maps/default_grid.csv", "--sheet",
+                          (d / "sheet.svg").string()}),
+            0);
+  const std::string sheet = slurp(d / "sheet.svg");
+  size_t n = 0;
+  for (size_t p = sheet.find("tag36h11 id "); p != std::string::npos;
+       p = sheet.find("tag36h11 id ", p + 1))
+    ++n;
+  EXPECT_EQ(n, 25u);
+  EXPECT_EQ(run_landmark({"--family", "tag36h11", "--id", "587", "--svg", (d / "x.svg").string()}),
+            2);
+  EXPECT_EQ(run_landmark({"--family", "aruco", "--id", "5", "--svg", (d / "x.svg").string()}), 2);
+  EXPECT_FALSE(fs::exists(d / "x.svg"));
+  fs::remove_all(d);
+}
+
+TEST(SimCommand, TagFamilyRecordingShowsTags) {
+  const fs::path a = tmp("tagrec");
+  // Slow, so a few frames have a tag fully in view (landmarks are 1 m apart).
+  ASSERT_EQ(run_sim({"--out", a.string(), "--duration-s", "6.0", "--fps", "10", "--speed-mps",
+                     "0.2", "--family", "tag36h11", "--seed", "2"}),
+            0);
+  recording::Recording r;
+  std::string err;
+  ASSERT_TRUE(recording::read_recording(a.string(), &r, &err)) << err;
+  // The frames show tags of the default map that the tag family reads.
+  vision::VisionConfig vc;
+  vc.family = LandmarkFamily::kTag36h11;
+  const LandmarkMap map = sim::default_landmark_grid();
+  vision::LandmarkLocalizer loc(vc, r.meta.camera, LandmarkGeometry{}, &map);
+  int ok = 0;
+  for (const auto& f : r.frames) {
+    vision::LandmarkFix fix;
+    const cv::Mat img = cv::imread((a / f.file).string(), cv::IMREAD_GRAYSCALE);
+    if (loc.process(img, &fix) == vision::FixStatus::kOk) ++ok;
+  }
+  EXPECT_GT(ok, 0);
+  EXPECT_EQ(
+      run_sim({"--out", tmp("tagbad").string(), "--family", "tag36h11", "--misprint", "8:300:0"}),
+      2);
+  EXPECT_EQ(run_sim({"--out", tmp("tagbad").string(), "--family", "aruco"}), 2);
+  fs::remove_all(a);
 }

@@ -19,6 +19,39 @@ bool write_file(const std::string& path, const std::string& text) {
   return static_cast<bool>(f);
 }
 
+// --family tag36h11: one tag (SVG) or a sheet of the map's ids (tag id = map id).
+int print_tags(double size_mm, int id, const std::string& map_path, const std::string& sheet,
+               const std::string& svg, int columns) {
+  AprilTagGeometry g;
+  g.size_mm = size_mm;
+  g.margin_mm = 2.0 * g.module_mm();
+  std::string text, what, err;
+  if (!map_path.empty()) {
+    LandmarkMap map;
+    if (!config::load_map_file(map_path, &map, &err)) err = err.empty() ? "bad map" : err;
+    if (err.empty() && sheet.empty()) err = "--map needs --sheet FILE.svg";
+    if (err.empty()) text = sim::tag_sheet_svg(g, map, columns);
+    if (err.empty() && text.empty()) err = "a map id is not a tag36h11 id (0..586)";
+    what = sheet;
+  } else {
+    if (id < 0 || id > static_cast<int>(kTag36h11MaxId)) err = "--id must be in 0..586";
+    if (err.empty() && svg.empty()) err = "need --svg FILE (PNG: QR landmarks only)";
+    if (err.empty()) text = sim::tag_svg(g, static_cast<std::uint32_t>(id));
+    what = svg;
+  }
+  if (!err.empty()) {
+    std::fprintf(stderr, "agvloc-desk landmark: %s\n", err.c_str());
+    return 2;
+  }
+  if (!write_file(what, text)) {
+    std::fprintf(stderr, "agvloc-desk landmark: cannot write %s\n", what.c_str());
+    return 1;
+  }
+  std::printf("agvloc-desk landmark: tag36h11, black square %.1f mm -> %s\n", size_mm,
+              what.c_str());
+  return 0;
+}
+
 }  // namespace
 
 int landmark(int argc, char** argv) {
@@ -50,6 +83,11 @@ int landmark(int argc, char** argv) {
   app.add_option("--columns", columns, "Landmarks per sheet row")
       ->check(CLI::Range(1, 100))
       ->capture_default_str();
+  std::string family = "qr";
+  app.add_option("--family", family,
+                 "qr (QR landmark) | tag36h11 (AprilTag, id 0..586; --size-mm = black square "
+                 "side, white margin of two cells)")
+      ->capture_default_str();
   id_opt->excludes(map_opt);
   try {
     app.parse(argc, argv);
@@ -61,6 +99,9 @@ int landmark(int argc, char** argv) {
     return 2;
   };
   const LandmarkGeometry geometry{size_mm};
+  if (family == "tag36h11")
+    return print_tags(size_mm, id_opt->count() ? id : -1, map_path, sheet, svg, columns);
+  if (family != "qr") return usage_error("unknown --family '" + family + "' (qr or tag36h11)");
 
   if (!map_path.empty()) {
     if (sheet.empty()) return usage_error("--map needs --sheet FILE.svg");

@@ -26,7 +26,8 @@ int sim(int argc, char** argv) {
       "vehicle, odometry with errors, ground truth (docs/simulator.md)",
       "agvloc-desk sim"};
   std::string out_dir, map_path, trajectory = "line", profile = "640x480", degrade = "realistic",
-                                 payload_mode = "full", odom_sample = "period_mean", misprint;
+                                 payload_mode = "full", odom_sample = "period_mean", misprint,
+                                 family = "qr";
   double duration_s = 60.0, fps = 30.0, odom_hz = 100.0, speed_mps = 0.5, exposure_ms = 2.0;
   double grid_spacing_mm = 1000.0, k1 = 0.0, k2 = 0.0, occluder = 0.0, dirt = 0.0;
   int scratches = 0;
@@ -70,6 +71,10 @@ int sim(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--exposure-ms", exposure_ms, "Exposure time for motion blur (realistic only)")
       ->check(CLI::Range(0.0, 50.0))
+      ->capture_default_str();
+  app.add_option("--family", family,
+                 "qr (QR landmarks) | tag36h11 (AprilTags, tag id = map id; replay with "
+                 "landmark.family: tag36h11 and the map)")
       ->capture_default_str();
   app.add_option("--payload", payload_mode, "full (pose in the QR) | id (pose from the map)")
       ->capture_default_str();
@@ -231,7 +236,14 @@ int sim(int argc, char** argv) {
   if (!sim::make_trajectory(tp, &traj, &err)) return usage_error("trajectory: " + err);
 
   sim::Scene scene;
-  if (!sim::make_scene(map, LandmarkGeometry{}, pm, &scene, &err)) return usage_error(err);
+  if (family == "tag36h11") {
+    if (!misprint.empty()) return usage_error("--misprint needs --family qr");
+    if (!sim::make_tag_scene(map, AprilTagGeometry{}, &scene, &err)) return usage_error(err);
+  } else if (family != "qr") {
+    return usage_error("unknown --family '" + family + "' (qr or tag36h11)");
+  } else if (!sim::make_scene(map, LandmarkGeometry{}, pm, &scene, &err)) {
+    return usage_error(err);
+  }
   scene.floor.seed = seed;
   if (!misprint.empty() && !sim::misprint_landmark(&scene, static_cast<std::uint32_t>(misprint_id),
                                                    misprint_offset_mm, &err)) {
