@@ -112,6 +112,27 @@ TEST(AprilTagFamily, DegradedFrameStillGivesAFix) {
   EXPECT_NEAR(fix.e_y_mm, 2.0, 0.5);
 }
 
+// An occluder ending in the white margin puts an edge of the outer edge's polarity 3 mm outside
+// it over most of one side: without the side-consistency check that side's line fit followed it
+// and the fix was off by ~0.6 mm (eval_vision, before the check).
+TEST(AprilTagFamily, OccluderEdgeInTheMarginDoesNotBiasThePose) {
+  const LandmarkMap map = tag_map();
+  LandmarkLocalizer loc(tag_config(), CameraModel::default_640x480(), LandmarkGeometry{}, &map);
+  sim::RenderOptions o;
+  o.occluder_border_fraction = 0.15;
+  int ok = 0;
+  for (double deg : {0.0, 35.0, 100.0, -120.0}) {
+    const Pose2 e{2.0, 1.0, deg_to_rad(deg)};
+    LandmarkFix fix;
+    if (loc.process(tag_frame(e, o), &fix) != FixStatus::kOk) continue;
+    ++ok;
+    EXPECT_NEAR(fix.e_x_mm, e.x_mm, 0.1) << deg;
+    EXPECT_NEAR(fix.e_y_mm, e.y_mm, 0.1) << deg;
+    EXPECT_LE(fix.sides_used, 3) << deg;
+  }
+  EXPECT_GE(ok, 3);
+}
+
 TEST(AprilTagFamily, QrFamilyIgnoresTags) {
   const LandmarkMap map = tag_map();
   LandmarkLocalizer loc(VisionConfig{}, CameraModel::default_640x480(), LandmarkGeometry{}, &map);

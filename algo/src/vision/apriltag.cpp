@@ -6,6 +6,7 @@
 #include <apriltag/common/homography.h>
 #include <apriltag/tag36h11.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -37,6 +38,11 @@ constexpr double kMinContrastGrey = 15.0;
 // Tag coordinates of the point that gives the forward axis (page up = tag -y, the row order of
 // apriltag_to_image): far enough from the centre for a stable angle, inside the black square.
 constexpr double kForwardProbe = 0.5;
+// Side consistency of the outer-only fit: a side whose points sit, in the median, further than
+// this from the fitted square (mm; about one pixel at the default 0.26 mm/px, ten times the clean
+// edge noise) follows another edge of the same polarity, e.g. an occluder's end in the white
+// margin. Without the inner edge the per-line fit cannot tell them apart, the square can.
+constexpr double kMaxSideOffsetMm = 0.25;
 
 Vec2 project(const matd_t* h, double x, double y) {
   double px = 0, py = 0;
@@ -65,6 +71,60 @@ struct TagDetector {
   TagDetector(const TagDetector&) = delete;
   TagDetector& operator=(const TagDetector&) = delete;
 };
+
+// Median offset (mm) of the side's points from side k of the square (c, beta, half side h).
+double LandmarkLocalizer::Impl::side_offset_mm(int k, Vec2 c, double beta, double h) {
+  const double a = beta - k * kPi / 2.0;
+  const Vec2 n{std::cos(a), std::sin(a)};
+  scratch_buf.clear();
+  for (const Vec2& p : pts_mm[static_cast<size_t>(k * 2)]) {
+    scratch_buf.push_back(n.x * (p.x - c.x) + n.y * (p.y - c.y) - h);
+  }
+  if (scratch_buf.empty()) return 0.0;
+  const auto mid = scratch_buf.begin() + static_cast<std::ptrdiff_t>(scratch_buf.size() / 2);
+  std::nth_element(scratch_buf.begin(), mid, scratch_buf.end());
+  return std::abs(*mid);
+}
+
+// Outer-only fits: the worst side, when it disagrees with the square, is dropped and the square
+// refitted from the other three (each axis must keep a side); a square that still disagrees
+// with one of its sides gives no fix.
+FixStatus LandmarkLocalizer::Impl::drop_inconsistent_side(Vec2* c_mm, double* beta,
+                                                          Eigen::Matrix3d* cov, LandmarkFix* out) {
+  const double h = geom.outer_half_mm();
+  auto worst = [&](Vec2 c, double b, double* off) {
+    int wk = -1;
+    *off = 0.0;
+    for (int k = 0; k < 4; ++k) {
+      if (!line_ok[static_cast<size_t>(k * 2)]) continue;
+      const double o = side_offset_mm(k, c, b, h);
+      if (o > *off) *off = o, wk = k;
+    }
+    return wk;
+  };
+  double off = 0.0;
+  const int k = worst(*c_mm, *beta, &off);
+  if (off <= kMaxSideOffsetMm) return FixStatus::kOk;
+  line_ok[static_cast<size_t>(k * 2)] = false;
+  if (!line_ok[static_cast<size_t>(((k + 2) % 4) * 2)]) return FixStatus::kTooFewEdgePoints;
+  SquareModel m;
+  m.c = *c_mm;
+  m.beta = *beta;
+  m.h_out = h;
+  m.h_in = geom.inner_half_mm();
+  for (int l = 0; l < kNumLines; ++l) std::fill(weights[l].begin(), weights[l].end(), 1.0);
+  NormalEquations ne;
+  if (!joint_fit(PoseMethod::kJointSquareFit, false, &m, &ne)) return FixStatus::kTooFewEdgePoints;
+  worst(m.c, m.beta, &off);
+  if (off > kMaxSideOffsetMm) return FixStatus::kTooFewEdgePoints;
+  *cov = fit_covariance(ne, 3, cfg);
+  out->residual_rms_mm = ne.sum_w > 0 ? std::sqrt(ne.ssr / ne.sum_w) : 0.0;
+  out->sides_used -= 1;
+  *c_mm = m.c;
+  *beta = m.beta;
+  keep_overlay_geometry(m);
+  return FixStatus::kOk;
+}
 
 FixStatus LandmarkLocalizer::Impl::run_tag(const cv::Mat& img, LandmarkFix* out) {
   if (!tag) tag = std::make_shared<TagDetector>();
@@ -128,6 +188,9 @@ FixStatus LandmarkLocalizer::Impl::run_tag(const cv::Mat& img, LandmarkFix* out)
   if (st == FixStatus::kTooFewEdgePoints && out->partly_outside) st = FixStatus::kPartlyOutside;
   if (st != FixStatus::kOk) return st;
   have_overlay = true;
+
+  st = drop_inconsistent_side(&c_mm, &beta, &cov, out);
+  if (st != FixStatus::kOk) return st;
 
   // Heading quadrant from the decoded rotation: the fitted border normal beta is only known modulo
   // 90 degrees, the detector's homography says which side is the tag's top.

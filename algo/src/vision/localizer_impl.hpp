@@ -239,6 +239,9 @@ struct LandmarkLocalizer::Impl {
 
   // Tag family: detection and id by libapriltag, pose by the stage above (apriltag.cpp).
   FixStatus run_tag(const cv::Mat& img, LandmarkFix* out);
+  double side_offset_mm(int k, Vec2 c, double beta, double h);
+  FixStatus drop_inconsistent_side(Vec2* c_mm, double* beta, Eigen::Matrix3d* cov,
+                                   LandmarkFix* out);
 
   // Stage 4, logo, and the direction decision of stage 5 (direction.cpp).
   void build_logo();
