@@ -15,6 +15,7 @@
 
 #include "agv/sim/render.hpp"
 #include "agv/vision/landmark_localizer.hpp"
+#include "agv/vision/map_identity.hpp"
 
 using namespace agv;
 
@@ -42,6 +43,7 @@ struct Args {
 
 struct Counts {
   int frames = 0, qr_only_ok = 0, ok = 0, qr = 0, guided = 0, wrong = 0, wrong_qr_only = 0;
+  int gate_wrong = 0;  // frames where the pose gate alone would accept the wrong landmark
   double max_err_mm = 0.0;
 };
 
@@ -135,6 +137,16 @@ Counts run(const LandmarkMap& map, double spacing_mm, int kind, const Args& a) {
     loc.process(img, p, &fix);
     if (plain.status == vision::FixStatus::kOk) ++c.qr_only_ok;
     if (is_wrong(plain, truth)) ++c.wrong_qr_only;
+    // What the pose gate alone would decide with this prediction (the measured landmark taken as
+    // its true pose, the logo's turn known): how often the module check is the only protection.
+    const Pose2 l_true = compose(inverse(truth), e.pose);
+    Eigen::Matrix3d fit_cov = Eigen::Matrix3d::Zero();
+    fit_cov(0, 0) = fit_cov(1, 1) = 0.05 * 0.05;
+    fit_cov(2, 2) = std::pow(deg_to_rad(0.01), 2);
+    const vision::MapIdentityDecision g =
+        vision::gate_identity({l_true.x_mm, l_true.y_mm}, l_true.theta_rad, fit_cov,
+                              {true, false, false, false}, p, map, vision::MapIdentityConfig{});
+    if (g.result == vision::MapIdentityResult::kAccepted && g.id != e.id) ++c.gate_wrong;
     if (fix.status == vision::FixStatus::kOk) {
       ++c.ok;
       if (fix.identity == vision::FixIdentity::kMapGuided) ++c.guided;
@@ -187,16 +199,17 @@ int main(int argc, char** argv) {
                       {"kidnap_one_spacing_grid", 1000.0, false, 2}};
   std::printf("realistic_options + qr_cover_fraction %.3f, prediction sigma %.1f mm / %.1f deg\n",
               a.cover, kPredSigmaMm, kPredSigmaDeg);
-  std::printf("%-26s %6s %9s %9s %6s %6s %7s %6s %10s\n", "run", "frames", "qr_only%", "fix%", "qr",
-              "map", "wrong", "wrongQ", "max_err_mm");
+  std::printf("%-26s %6s %9s %9s %6s %6s %7s %6s %10s %10s\n", "run", "frames", "qr_only%", "fix%",
+              "qr", "map", "wrong", "wrongQ", "max_err_mm", "gate_wrong");
   bool fail = false;
   for (const Run& r : runs) {
     const LandmarkMap map = grid(5, r.spacing, r.one_heading);
     const Counts c = run(map, r.spacing, r.kind, a);
     const double rate = c.frames ? static_cast<double>(c.ok) / c.frames : 0.0;
-    std::printf("%-26s %6d %8.1f%% %8.1f%% %6d %6d %7d %6d %10.3f\n", r.name, c.frames,
+    std::printf("%-26s %6d %8.1f%% %8.1f%% %6d %6d %7d %6d %10.3f %10d\n", r.name, c.frames,
                 c.frames ? 100.0 * c.qr_only_ok / c.frames : 0.0, 100.0 * rate, c.qr, c.guided,
-                c.wrong, c.wrong_qr_only, c.max_err_mm);
+                c.wrong, c.wrong_qr_only, c.max_err_mm, c.gate_wrong);
+    std::fflush(stdout);
     if (c.wrong > 0 || c.wrong_qr_only > 0) fail = true;
     if (r.kind == 0 && r.spacing > 500.0 && rate < a.min_rate) {
       std::fprintf(stderr, "%s: fix rate %.3f below %.3f\n", r.name, rate, a.min_rate);

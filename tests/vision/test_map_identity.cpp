@@ -155,6 +155,44 @@ TEST(MapIdentityModules, RightCodeAgreesWrongCodeDoesNot) {
   EXPECT_EQ(v1.n, 21);
 }
 
+TEST(MapIdentityModules, FlatPatchIsLeftOutCleanModulesAreRead) {
+  QrBits code;
+  ASSERT_TRUE(encode_qr_bits("AGV1/00017/+001000.0/-002000.0/+090.00", &code));
+  QrSamples s;
+  s.n = code.n;
+  s.ring = 2;
+  const int side = s.side();
+  s.v.assign(static_cast<size_t>(side * side), 200.0f);  // paper
+  for (int r = 0; r < s.n; ++r) {
+    for (int c = 0; c < s.n; ++c) {
+      float v = code.dark[static_cast<size_t>(r * s.n + c)] ? 40.0f : 200.0f;
+      if (r >= 12 && r < 22 && c >= 12 && c < 22) v = 120.0f;  // a floor-grey patch, 10 x 10
+      s.v[static_cast<size_t>((r + s.ring) * side + c + s.ring)] = v;
+    }
+  }
+  std::vector<std::uint8_t> bits;
+  binarize_samples(s, &bits);
+  int unknown_inside = 0, wrong_outside = 0, inside = 0;
+  for (int r = 0; r < s.n; ++r) {
+    for (int c = 0; c < s.n; ++c) {
+      const size_t i = static_cast<size_t>(r * s.n + c);
+      // Two modules in from the patch edge its 5 x 5 neighbourhood is flat.
+      if (r >= 14 && r < 20 && c >= 14 && c < 20) {
+        ++inside;
+        unknown_inside += bits[i] == 2 ? 1 : 0;
+      } else if (!(r >= 12 && r < 22 && c >= 12 && c < 22) && bits[i] != 2) {
+        wrong_outside += bits[i] != code.dark[i] ? 1 : 0;
+      }
+    }
+  }
+  EXPECT_EQ(unknown_inside, inside);
+  EXPECT_EQ(wrong_outside, 0);
+  // A sample outside the image is unknown.
+  s.v[static_cast<size_t>((s.ring + 3) * side + s.ring + 10)] = -1.0f;
+  binarize_samples(s, &bits);
+  EXPECT_EQ(bits[static_cast<size_t>(3 * s.n + 10)], 2);
+}
+
 // ---- The whole localizer on rendered frames -------------------------------------------------
 
 namespace {

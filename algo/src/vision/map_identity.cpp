@@ -19,6 +19,12 @@ namespace {
 constexpr int kZxingEccLevelM = 4;
 constexpr std::uint8_t kUnknownBit = 2;
 constexpr int kLocalMeanRadius = 2;  // 5 x 5 modules
+// Relative to the print's contrast (paper minus ink): below this local range the 5 x 5
+// neighbourhood is flat (a cover), below this distance from the local mean a bit is undecided.
+// Blur keeps a clean code's local range near the full contrast; noise (sigma ~3 DN on a
+// ~180 DN contrast) stays far below both.
+constexpr double kMinLocalRangeRel = 0.35;
+constexpr double kMinMarginRel = 0.05;
 
 double mahalanobis2(const Eigen::Vector3d& r, const Eigen::Matrix3d& s) {
   const Eigen::LDLT<Eigen::Matrix3d> ldlt(s);
@@ -138,11 +144,35 @@ std::string map_id_payload(std::uint32_t id) {
 void binarize_samples(const QrSamples& s, std::vector<std::uint8_t>* bits) {
   const int side = s.side();
   bits->assign(static_cast<size_t>(s.n * s.n), kUnknownBit);
+  // Contrast of the print: the quiet zone's median (paper) against the code's darkest decile (ink).
+  std::vector<float> tmp;
+  for (int r = 0; r < side; ++r) {
+    for (int c = 0; c < side; ++c) {
+      const int rr = r - s.ring, cc = c - s.ring;
+      const float v = s.v[static_cast<size_t>(r * side + c)];
+      if (v >= 0.0f && (rr < 0 || cc < 0 || rr >= s.n || cc >= s.n)) tmp.push_back(v);
+    }
+  }
+  if (tmp.empty()) return;
+  std::nth_element(tmp.begin(), tmp.begin() + static_cast<std::ptrdiff_t>(tmp.size() / 2),
+                   tmp.end());
+  const double light = static_cast<double>(tmp[tmp.size() / 2]);
+  tmp.clear();
+  for (int r = 0; r < s.n; ++r) {
+    for (int c = 0; c < s.n; ++c) {
+      if (s.at(r, c) >= 0.0f) tmp.push_back(s.at(r, c));
+    }
+  }
+  if (tmp.empty()) return;
+  std::nth_element(tmp.begin(), tmp.begin() + static_cast<std::ptrdiff_t>(tmp.size() / 10),
+                   tmp.end());
+  const double contrast = light - static_cast<double>(tmp[tmp.size() / 10]);
+  if (!(contrast > 0.0)) return;
   for (int r = 0; r < s.n; ++r) {
     for (int c = 0; c < s.n; ++c) {
       const float v = s.at(r, c);
       if (v < 0.0f) continue;
-      double sum = 0;
+      double sum = 0, lo = static_cast<double>(v), hi = lo;
       int cnt = 0;
       const int gr = r + s.ring, gc = c + s.ring;
       for (int rr = std::max(0, gr - kLocalMeanRadius);
@@ -152,10 +182,19 @@ void binarize_samples(const QrSamples& s, std::vector<std::uint8_t>* bits) {
           const float w = s.v[static_cast<size_t>(rr * side + cc)];
           if (w < 0.0f) continue;
           sum += static_cast<double>(w);
+          lo = std::min(lo, static_cast<double>(w));
+          hi = std::max(hi, static_cast<double>(w));
           ++cnt;
         }
       }
-      (*bits)[static_cast<size_t>(r * s.n + c)] = static_cast<double>(v) < sum / cnt ? 1 : 0;
+      const double mean = sum / cnt;
+      // A flat neighbourhood is a patch over the code (printed data always mixes both inks
+      // within 5 x 5 modules), and a sample at its local mean is a coin flip: neither is evidence.
+      if (hi - lo < kMinLocalRangeRel * contrast ||
+          std::abs(static_cast<double>(v) - mean) < kMinMarginRel * contrast) {
+        continue;
+      }
+      (*bits)[static_cast<size_t>(r * s.n + c)] = static_cast<double>(v) < mean ? 1 : 0;
     }
   }
 }

@@ -35,20 +35,19 @@ struct MapIdentityConfig {
   // factor of ~2 in sigma (60 / 16.27 = 3.7 in variance). Between the two thresholds the
   // decision is "two plausible" and refused.
   double clear_chi2 = 60.0;
-  // Module check (docs/map_identity.md "Module levels"). Over the visible data modules, the
-  // candidate's code must agree with the sampled bits on at least min_agreement of them: the right
-  // code agrees on ~100 % of the clean modules and on about half of those under an opaque patch
-  // (a third of the code covered -> >= 83 %), a code the camera is not looking at on ~50-75 % (the
-  // payloads of neighbours share most characters, so with the same mask their codes share up to
-  // a quarter of the modules). 0.70 keeps the right code with margin and, alone, would not
-  // separate neighbours; the pairwise level does.
+  // Module check (docs/map_identity.md "Check 2"), over the visible data modules that are not
+  // flat (binarize_samples leaves a patch's inside out). The candidate's code must agree with the
+  // sampled bits on at least min_agreement of them: measured >= 0.82 for the right code with a
+  // third of the code covered. Alone this does not separate neighbours: their payloads share most
+  // characters, so with the same mask their codes share most modules (a wrong neighbour measured
+  // up to 0.84). It rejects a landmark that is not in the map, a wrong turn or a wrong version.
   double min_agreement = 0.70;
   // For every other mapped landmark (same code version), on the visible modules where its code
   // and the candidate's differ, the sampled bits must side with the candidate on at least this
-  // fraction. Right candidate: ~1 on clean modules, ~1/2 under a patch -> >= 0.83 with a third
-  // covered; wrong candidate (the camera sees the other landmark): ~0 clean, ~1/2 covered ->
-  // <= 0.17. 0.65 is in the middle of the gap, biased to the safe side.
-  double min_pair_agreement = 0.65;
+  // fraction. Measured (eval_identity, 1/3 covered, realistic imaging): right candidate >= 0.67
+  // (the cover can hide most of the modules that tell two similar codes apart; its edge modules
+  // are coin flips), wrong candidate <= 0.22. 0.55 leaves about twice the margin to the wrong side.
+  double min_pair_agreement = 0.55;
   // At least this many visible differing modules for a pairwise verdict; fewer and the pair
   // cannot be told apart, so the identity is refused (never seen: two payloads differing in the
   // id alone differ on ~100 modules).
@@ -101,8 +100,9 @@ std::string map_full_payload(const LandmarkMapEntry& e);
 std::string map_id_payload(std::uint32_t id);
 
 // Sampled modules as bits: dark when below the mean of the 5x5 modules around it (the guided
-// reader's kLocalMean rule; a uniform patch then gives noise-driven bits, ~half of them right).
-// Modules with a negative sample (outside the image) are marked 2 = unknown.
+// reader's kLocalMean rule). Marked 2 = unknown: modules outside the image (negative sample), in a
+// flat neighbourhood (local range below 0.35 of the print's contrast: the inside of a patch over
+// the code, whose bits would be noise) and within 0.05 of the contrast of their local mean.
 void binarize_samples(const QrSamples& s, std::vector<std::uint8_t>* bits);
 
 struct ModuleAgreement {
