@@ -85,11 +85,13 @@ bool is_wrong(const vision::LandmarkFix& f, const Pose2& truth) {
 
 // kind 0: prediction = truth + noise; 1: kidnapped by 200..500 mm in a random direction;
 // 2: kidnapped by exactly one grid spacing (+x or +y), same heading.
-Counts run(const LandmarkMap& map, double spacing_mm, int kind, const Args& a) {
+Counts run(const LandmarkMap& map, double spacing_mm, int kind, bool id_only, const Args& a) {
   const CameraModel cam = CameraModel::default_640x480();
   sim::Scene scene;
   std::string err;
-  if (!sim::make_scene(map, LandmarkGeometry{}, sim::PayloadMode::kFull, &scene, &err)) {
+  if (!sim::make_scene(map, LandmarkGeometry{},
+                       id_only ? sim::PayloadMode::kIdOnly : sim::PayloadMode::kFull, &scene,
+                       &err)) {
     std::fprintf(stderr, "scene: %s\n", err.c_str());
     std::exit(2);
   }
@@ -202,9 +204,11 @@ int main(int argc, char** argv) {
     double spacing;
     bool one_heading;
     int kind;
+    bool id_only = false;
   };
   const Run runs[] = {{"grid1000", 1000.0, false, 0},
                       {"close150", 150.0, true, 0},
+                      {"grid1000_id_only_payload", 1000.0, false, 0, true},
                       {"kidnap_200_500mm", 1000.0, false, 1},
                       {"kidnap_200_500mm_close", 150.0, true, 1},
                       {"kidnap_one_spacing_close", 150.0, true, 2},
@@ -216,7 +220,7 @@ int main(int argc, char** argv) {
   bool fail = false;
   for (const Run& r : runs) {
     const LandmarkMap map = grid(5, r.spacing, r.one_heading);
-    const Counts c = run(map, r.spacing, r.kind, a);
+    const Counts c = run(map, r.spacing, r.kind, r.id_only, a);
     const double rate = c.frames ? static_cast<double>(c.ok) / c.frames : 0.0;
     std::printf("%-26s %6d %8.1f%% %8.1f%% %6d %6d %7d %6d %10.3f %10d\n", r.name, c.frames,
                 c.frames ? 100.0 * c.qr_only_ok / c.frames : 0.0, 100.0 * rate, c.qr, c.guided,
@@ -233,7 +237,10 @@ int main(int argc, char** argv) {
     }
     std::fflush(stdout);
     if (c.wrong > 0 || c.wrong_qr_only > 0) fail = true;
-    if (r.kind == 0 && r.spacing > 500.0 && rate < a.min_rate) {
+    // The rate target is for the full payload (the generator's default); id-only codes are version
+    // 1, whose neighbours differ on fewer modules, so a cover more often leaves too few to compare
+    // (refused, never wrong): reported, not checked.
+    if (r.kind == 0 && r.spacing > 500.0 && !r.id_only && rate < a.min_rate) {
       std::fprintf(stderr, "%s: fix rate %.3f below %.3f\n", r.name, rate, a.min_rate);
       fail = true;
     }
