@@ -255,6 +255,26 @@ TEST(Codec, VelocityQualityRoundTripAndSaturation) {
   enc.encode_quality({1.0, kNaN, 0.1, true}, &f);
   ASSERT_TRUE(p::decode_quality({}, f, &q));
   EXPECT_FALSE(q.valid);
+  EXPECT_FALSE(q.map_guided_fix);
+}
+
+TEST(Codec, QualityMapGuidedFlagRoundTrip) {
+  p::Encoder enc({});
+  agv::hal::CanFrame f0, f1;
+  p::QualityOut in{0.84, 1.26, 0.0123, true, false}, q;
+  enc.encode_quality(in, &f0);
+  in.map_guided_fix = true;
+  enc.encode_quality(in, &f1);
+  ASSERT_TRUE(p::decode_quality({}, f1, &q));
+  EXPECT_TRUE(q.map_guided_fix);
+  EXPECT_TRUE(q.valid);
+  EXPECT_NEAR(q.sigma_x_mm, 0.84, 0.05 + 1e-12);
+  ASSERT_TRUE(p::decode_quality({}, f0, &q));
+  EXPECT_FALSE(q.map_guided_fix);
+  // Bit 13 of the payload (byte 1, bit 5), nothing else but the E2E counter and CRC differ.
+  EXPECT_EQ(f1.data[1] & 0x20, 0x20);
+  EXPECT_EQ(f0.data[1] & 0x20, 0x00);
+  for (int i = 2; i < 8; ++i) EXPECT_EQ(f0.data[i], f1.data[i]) << i;
 }
 
 TEST(Codec, StatusFlagsAndTimeSinceFix) {

@@ -295,3 +295,108 @@ TEST(Localizer, InvalidOdometryCorrectionThrows) {
   c.odometry.yaw_rate_bias_radps = std::numeric_limits<double>::quiet_NaN();
   EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
 }
+
+namespace {
+
+vision::LandmarkFix guided_fix(double x_mm) {
+  vision::LandmarkFix fix = good_fix(x_mm);
+  fix.identity = vision::FixIdentity::kMapGuided;
+  return fix;
+}
+
+p::QualityOut quality_of(const localizer::LocalizerConfig& c, const localizer::OutFrames& out) {
+  p::QualityOut q;
+  for (int i = 0; i < out.n; ++i) {
+    if (msg_of(c, out.frame[i]) == p::Msg::kQuality) {
+      EXPECT_TRUE(p::decode_quality(c.protocol, out.frame[i], &q));
+      return q;
+    }
+  }
+  ADD_FAILURE() << "no quality frame";
+  return q;
+}
+
+}  // namespace
+
+// docs/map_identity.md: a map-guided fix took its identity from the filter's own prediction, so
+// it can only refine a filter that is tracking; it never starts or restarts one.
+TEST(Localizer, MapGuidedFixNeverInitialisesTheFilter) {
+  const auto c = test_config();
+  localizer::Localizer loc(c);
+  localizer::OutFrames out;
+  std::int64_t t = 1000 * kMs;
+  for (int i = 0; i < 5; ++i) {
+    loc.on_odometry(t, 0.5, 0.0);
+    loc.tick(t += 10 * kMs, &out, nullptr);
+  }
+  loc.on_odometry(t, 0.5, 0.0);
+  vision::LandmarkFix g = guided_fix(0.0);
+  g.map_verified = true;  // even if a caller claims it: a map-guided fix is never verified
+  loc.on_fix(g, t - 3 * kMs, t);
+  EXPECT_FALSE(loc.ekf().initialised());
+  EXPECT_EQ(loc.stats().fixes_map_guided, 1u);
+  EXPECT_EQ(loc.stats().fixes_rejected_not_tracking, 1u);
+  EXPECT_EQ(loc.stats().fixes_fused, 0u);
+  loc.tick(t += 10 * kMs, &out, nullptr);
+  EXPECT_FALSE(quality_of(c, out).map_guided_fix);
+  // A QR fix initialises; then a map-guided fix is fused and flagged in the next quality frame
+  // (and only that one).
+  loc.on_odometry(t, 0.5, 0.0);
+  loc.on_fix(good_fix(0.0), t - 3 * kMs, t);
+  ASSERT_TRUE(loc.ekf().initialised());
+  loc.tick(t += 10 * kMs, &out, nullptr);
+  EXPECT_FALSE(quality_of(c, out).map_guided_fix);
+  loc.on_odometry(t, 0.5, 0.0);
+  loc.on_fix(guided_fix(loc.ekf().estimate_at(t - 3 * kMs).pose.x_mm), t - 3 * kMs, t);
+  EXPECT_EQ(loc.stats().fixes_map_guided_fused, 1u);
+  loc.tick(t += 10 * kMs, &out, nullptr);
+  EXPECT_TRUE(quality_of(c, out).map_guided_fix);
+  loc.tick(t += 10 * kMs, &out, nullptr);
+  EXPECT_FALSE(quality_of(c, out).map_guided_fix);
+}
+
+TEST(Localizer, MapGuidedFixesNeverReinitialiseAKidnappedFilter) {
+  const auto c = test_config();
+  localizer::Localizer loc(c);
+  std::int64_t t = 1000 * kMs;
+  loc.on_odometry(t, 0.5, 0.0);
+  loc.on_fix(good_fix(0.0), t - 1 * kMs, t);
+  ASSERT_TRUE(loc.ekf().initialised());
+  // The vehicle drives at 0.5 m/s; fixes put it 5 m further than the filter believes, every
+  // 100 ms for 8 s: the kidnap rule's evidence (agreeing, >= 300 mm apart, >= 3 s) when the fixes
+  // are QR fixes.
+  auto drive = [&](bool guided, int steps) {
+    for (int i = 0; i < steps && loc.stats().reinitialisations == 0; ++i) {
+      for (int k = 0; k < 10; ++k) loc.on_odometry(t += 10 * kMs, 0.5, 0.0);
+      const double x = 5000.0 + 0.5 * static_cast<double>(t - 1000 * kMs) / 1e6;
+      loc.on_fix(guided ? guided_fix(x) : good_fix(x), t - 1 * kMs, t);
+    }
+  };
+  drive(true, 80);
+  EXPECT_EQ(loc.stats().reinitialisations, 0u);
+  EXPECT_EQ(loc.stats().fixes_map_guided, 80u);
+  EXPECT_EQ(loc.stats().fixes_map_guided_fused, 0u);
+  EXPECT_LT(loc.ekf().estimate_at(t).pose.x_mm, 4500.0);
+  drive(false, 80);
+  EXPECT_GE(loc.stats().reinitialisations, 1u);
+}
+
+TEST(Localizer, MapGuidedFixIsRefusedByALostFilter) {
+  fusion::Ekf ekf(localizer::effective_fusion_config(test_config()));
+  std::int64_t t = 1000 * kMs;
+  ASSERT_TRUE(ekf.add_odometry(t, 0.0, 0.0));
+  // Initialised from a fix so uncertain that the prior is lost (sigma 200 mm > 50 mm).
+  Eigen::Matrix3d wide = Eigen::Matrix3d::Identity() * 200.0 * 200.0;
+  wide(2, 2) = 1e-4;
+  ASSERT_EQ(ekf.add_fix(t, {0.0, 0.0, 0.0}, wide), fusion::FixOutcome::kInitialised);
+  t += 10 * kMs;
+  ASSERT_TRUE(ekf.add_odometry(t, 0.0, 0.0));
+  const vision::LandmarkFix g = guided_fix(0.0);
+  EXPECT_EQ(ekf.add_fix(t, g.vehicle_in_world, g.cov_world, false, /*map_guided=*/true),
+            fusion::FixOutcome::kRejectedNotTracking);
+  EXPECT_EQ(ekf.counters().fixes_rejected_not_tracking, 1u);
+  // The same fix from a readable code is fused (or re-localises): only the identity differs.
+  const fusion::FixOutcome o = ekf.add_fix(t, g.vehicle_in_world, g.cov_world, true, false);
+  EXPECT_TRUE(o == fusion::FixOutcome::kFused || o == fusion::FixOutcome::kReinitialised)
+      << fusion::to_string(o);
+}

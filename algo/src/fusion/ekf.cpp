@@ -99,6 +99,8 @@ const char* to_string(FixOutcome o) {
       return "reinitialised";
     case FixOutcome::kHeld:
       return "held";
+    case FixOutcome::kRejectedNotTracking:
+      return "rejected_not_tracking";
   }
   return "?";
 }
@@ -156,14 +158,14 @@ bool Ekf::add_odometry(std::int64_t t_ns, double v_mps, double omega_radps) {
 }
 
 void Ekf::hold_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::Matrix3d& R_in,
-                   bool map_verified) {
+                   bool map_verified, bool map_guided) {
   if (held_count_ == held_.size()) {  // the newest fixes are worth more: drop the oldest
     std::move(held_.begin() + 1, held_.begin() + static_cast<long>(held_count_), held_.begin());
     --held_count_;
     ++counters_.fixes_held_dropped;
   }
   std::size_t i = held_count_++;
-  held_[i] = HeldFix{t_ns, z_world, R_in, map_verified};
+  held_[i] = HeldFix{t_ns, z_world, R_in, map_verified, map_guided};
   while (i > 0 && held_[i - 1].t_ns > held_[i].t_ns) {
     std::swap(held_[i - 1], held_[i]);
     --i;
@@ -175,7 +177,7 @@ void Ekf::release_held_before(std::int64_t t_ns) {
   std::size_t n = 0;
   while (n < held_count_ && held_[n].t_ns < t_ns) {
     const HeldFix h = held_[n++];
-    fuse_fix(h.t_ns, h.z, h.R, h.map_verified, /*from_hold=*/true);
+    fuse_fix(h.t_ns, h.z, h.R, h.map_verified, h.map_guided, /*from_hold=*/true);
   }
   std::move(held_.begin() + static_cast<long>(n), held_.begin() + static_cast<long>(held_count_),
             held_.begin());
@@ -193,7 +195,7 @@ void Ekf::settle_held_after(std::int64_t t_ns) {
       ++counters_.fixes_rejected_invalid;
       pending_flags_ |= flags::kInvalidInput;
     } else {
-      fuse_fix(h.t_ns, h.z, h.R, h.map_verified, /*from_hold=*/false);
+      fuse_fix(h.t_ns, h.z, h.R, h.map_verified, h.map_guided, /*from_hold=*/false);
     }
   }
 }
@@ -296,12 +298,12 @@ void Ekf::relocalize(std::int64_t t_ns, const Eigen::Vector3d& z, const Eigen::M
 }
 
 FixOutcome Ekf::add_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::Matrix3d& R_in,
-                        bool map_verified) {
-  return fuse_fix(t_ns, z_world, R_in, map_verified, /*from_hold=*/false);
+                        bool map_verified, bool map_guided) {
+  return fuse_fix(t_ns, z_world, R_in, map_verified, map_guided, /*from_hold=*/false);
 }
 
 FixOutcome Ekf::fuse_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::Matrix3d& R_in,
-                         bool map_verified, bool from_hold) {
+                         bool map_verified, bool map_guided, bool from_hold) {
   auto reject_invalid = [this]() {
     ++counters_.fixes_rejected_invalid;
     pending_flags_ |= flags::kInvalidInput;
@@ -333,7 +335,7 @@ FixOutcome Ekf::fuse_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::M
     have_newest = true;
   }
   if (!from_hold && have_odom_ && t_ns > last_odom_t_ns_ + config_.max_fix_lead_ns) {
-    hold_fix(t_ns, z_world, R_in, map_verified);
+    hold_fix(t_ns, z_world, R_in, map_verified, map_guided);
     return FixOutcome::kHeld;
   }
 
@@ -347,6 +349,12 @@ FixOutcome Ekf::fuse_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::M
   if (have_newest && newest_t - t_ns > config_.max_fix_delay_ns) return reject_old();
   if (initialised_ && t_ns < t_init_ns_) return reject_old();
   const long k = find_last_at_or_before(t_ns);
+
+  auto reject_not_tracking = [this]() {
+    ++counters_.fixes_rejected_not_tracking;
+    return FixOutcome::kRejectedNotTracking;
+  };
+  if (map_guided && !initialised_) return reject_not_tracking();
 
   // ---- Initialisation from the first valid fix ----
   if (!initialised_) {
@@ -388,6 +396,7 @@ FixOutcome Ekf::fuse_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::M
   FilterCov P = base.P;
   predict_span(&x, &P, base.t_ns, t_ns, odom_time_after(base));
   const double d2 = mahalanobis_sq(x, P, z, R);
+  if (map_guided && prior_lost(P)) return reject_not_tracking();
   last_fix_d2_ = d2;
   if (config_.relocalize_from_single_fix && map_verified && prior_lost(P) &&
       std::sqrt(R_in.topLeftCorner<2, 2>().diagonal().maxCoeff()) <=
@@ -399,7 +408,7 @@ FixOutcome Ekf::fuse_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::M
   if (!(d2 <= gate_threshold_)) {
     ++counters_.fixes_rejected_gate;
     pending_flags_ |= flags::kRejectedGate;
-    if (kidnap_candidate(t_ns, z, R, x, P)) return FixOutcome::kReinitialised;
+    if (!map_guided && kidnap_candidate(t_ns, z, R, x, P)) return FixOutcome::kReinitialised;
     return FixOutcome::kRejectedGate;
   }
 

@@ -118,13 +118,25 @@ void Localizer::on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure_n
     rejections_ |= protocol::reject::kGeometry;
     return;
   }
-  switch (ekf_.add_fix(t_exposure_ns, fix.vehicle_in_world, fix.cov_world, fix.map_verified)) {
+  const bool guided = fix.identity == vision::FixIdentity::kMapGuided;
+  if (guided) ++stats_.fixes_map_guided;
+  // A map-guided fix never vouches for itself: map_verified false whatever the fix says.
+  switch (ekf_.add_fix(t_exposure_ns, fix.vehicle_in_world, fix.cov_world,
+                       fix.map_verified && !guided, guided)) {
     case fusion::FixOutcome::kHeld:  // fused (or rejected) when odometry catches up
       return;
     case fusion::FixOutcome::kFused:
     case fusion::FixOutcome::kInitialised:
       ++stats_.fixes_fused;
+      if (guided) {
+        ++stats_.fixes_map_guided_fused;
+        map_guided_fused_ = true;
+      }
       break;
+    case fusion::FixOutcome::kRejectedNotTracking:
+      ++stats_.fixes_rejected_not_tracking;
+      rejections_ |= protocol::reject::kGate;
+      return;
     case fusion::FixOutcome::kReinitialised:
       ++stats_.fixes_fused;
       ++stats_.reinitialisations;
@@ -193,6 +205,8 @@ void Localizer::tick(std::int64_t now_ns, OutFrames* out, TickRecord* rec) {
   q.sigma_x_mm = std::sqrt(std::max(0.0, est.cov(0, 0)));
   q.sigma_y_mm = std::sqrt(std::max(0.0, est.cov(1, 1)));
   q.sigma_theta_rad = std::sqrt(std::max(0.0, est.cov(2, 2)));
+  q.map_guided_fix = map_guided_fused_;
+  map_guided_fused_ = false;
 
   protocol::StatusOut st;
   st.health = to_protocol(est.health);

@@ -68,6 +68,13 @@ std::string format_statistics(const RunResult& r) {
                 o.fixes_rejected_gate, o.fixes_rejected_too_old, o.fixes_rejected_invalid,
                 o.reinitialisations);
   s += buf;
+  if (o.fixes_map_guided > 0) {  // only with a prediction (docs/map_identity.md)
+    std::snprintf(buf, sizeof buf,
+                  "  map-guided fixes: %" PRIu64 " (fused %" PRIu64
+                  ", refused while uninitialised or lost %" PRIu64 ")\n",
+                  o.fixes_map_guided, o.fixes_map_guided_fused, o.fixes_rejected_not_tracking);
+    s += buf;
+  }
   std::snprintf(
       buf, sizeof buf,
       "  output: ticks %" PRIu64 ", missed periods %" PRIu64 ", fix-triggered poses %" PRIu64

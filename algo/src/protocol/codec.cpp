@@ -128,6 +128,7 @@ void Encoder::encode_quality(const QualityOut& q, hal::CanFrame* out) {
   const bool valid = q.valid && !std::isnan(q.sigma_x_mm) && !std::isnan(q.sigma_y_mm) &&
                      !std::isnan(q.sigma_theta_rad);
   put_raw(sig(Msg::kQuality, "QualityValid"), valid ? 1 : 0, out->data);
+  put_raw(sig(Msg::kQuality, "MapGuidedFix"), q.map_guided_fix ? 1 : 0, out->data);
   put_phys(sig(Msg::kQuality, "SigmaX"), q.sigma_x_mm, out->data);
   put_phys(sig(Msg::kQuality, "SigmaY"), q.sigma_y_mm, out->data);
   put_phys(sig(Msg::kQuality, "SigmaTheta"), q.sigma_theta_rad, out->data);
@@ -212,6 +213,7 @@ bool decode_velocity(const ProtocolConfig& cfg, const hal::CanFrame& f, Velocity
 bool decode_quality(const ProtocolConfig& cfg, const hal::CanFrame& f, QualityOut* out) {
   if (!is_msg(cfg, f, Msg::kQuality)) return false;
   out->valid = get_raw(sig(Msg::kQuality, "QualityValid"), f.data) == 1;
+  out->map_guided_fix = get_raw(sig(Msg::kQuality, "MapGuidedFix"), f.data) == 1;
   out->sigma_x_mm = get_phys(sig(Msg::kQuality, "SigmaX"), f.data);
   out->sigma_y_mm = get_phys(sig(Msg::kQuality, "SigmaY"), f.data);
   out->sigma_theta_rad = get_phys(sig(Msg::kQuality, "SigmaTheta"), f.data);

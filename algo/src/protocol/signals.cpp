@@ -47,6 +47,8 @@ constexpr SignalDef kQuality[] = {
     kCrcSignal,
     kCounterSignal,
     {"QualityValid", 12, 1, true, false, 1, 0, 0, 1, "", "1: the sigmas are meaningful"},
+    {"MapGuidedFix", 13, 1, true, false, 1, 0, 0, 1, "",
+     "1: a fix identified from the map (QR unreadable) was fused since the previous frame"},
     {"SigmaX", 16, 16, true, false, 0.1, 0, 0, 6553.5, "mm",
      "Standard deviation of X; saturates at 6553.5 mm (= at least that)"},
     {"SigmaY", 32, 16, true, false, 0.1, 0, 0, 6553.5, "mm",

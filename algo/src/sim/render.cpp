@@ -135,10 +135,56 @@ struct Spot {
   double radius;    // mm
   double darkness;  // 0..1 multiplier reduction at the centre
 };
+// An opaque patch over part of the QR code (page rectangle [u0, u1) x [v0, v1)).
+struct QrCover {
+  bool on = false;
+  double u0 = 0, v0 = 0, u1 = 0, v1 = 0;
+  double grey = 0;
+};
 struct LandmarkDegradation {
   std::vector<Scratch> scratches;
   std::vector<Spot> spots;
+  QrCover cover;
 };
+
+// Its own random stream, so the scratches and dirt of existing seeds stay where they were.
+// Shape: a square at one of the four corners, a strip along one of the four edges, or a square in
+// the middle (shifted by up to a module); colour: the floor, the ink or the paper.
+QrCover make_qr_cover(const RenderOptions& o, const Scene& scene, std::uint32_t id) {
+  QrCover c;
+  const double f = std::clamp(o.qr_cover_fraction, 0.0, 1.0 / 3.0);
+  if (!(f > 0.0)) return c;
+  const LandmarkGeometry& g = scene.geometry;
+  std::mt19937_64 r(
+      splitmix64(o.degradation_seed ^ 0x51c0'7e12ULL ^ (static_cast<std::uint64_t>(id) << 24)));
+  std::uniform_int_distribution<int> pick(0, 3), colour(0, 2);
+  const double s = g.qr_side_mm(), u = g.qr_u0_mm(), v = g.qr_v0_mm();
+  const int shape = pick(r) % 3, where = pick(r);
+  if (shape == 0) {
+    const double a = std::sqrt(f) * s;
+    c.u0 = where & 1 ? u + s - a : u;
+    c.v0 = where & 2 ? v + s - a : v;
+    c.u1 = c.u0 + a;
+    c.v1 = c.v0 + a;
+  } else if (shape == 1) {
+    const double d = f * s;
+    c.u0 = where == 1 ? u + s - d : u;
+    c.v0 = where == 3 ? v + s - d : v;
+    c.u1 = where == 0 ? u + d : u + s;
+    c.v1 = where == 2 ? v + d : v + s;
+  } else {
+    const double a = std::sqrt(f) * s;
+    std::uniform_real_distribution<double> shift(-s / 25.0, s / 25.0);
+    c.u0 = u + 0.5 * (s - a) + shift(r);
+    c.v0 = v + 0.5 * (s - a) + shift(r);
+    c.u1 = c.u0 + a;
+    c.v1 = c.v0 + a;
+  }
+  const int k = colour(r);
+  c.grey = k == 0 ? scene.floor.mean : k == 1 ? scene.ink_black : scene.paper_white;
+  c.on = true;
+  return c;
+}
 
 LandmarkDegradation make_degradation(const RenderOptions& o, const LandmarkGeometry& g,
                                      std::uint32_t id) {
@@ -210,6 +256,10 @@ class Evaluator {
     const double m = std::max(std::abs(uv.x), std::abs(uv.y));
     if (occ_len_ > 0.0 && m >= occ_band_lo_ && m < occ_band_hi_ && perimeter_param(uv) < occ_len_) {
       return {8, o_.occluder_grey};
+    }
+    const QrCover& qc = a.deg.cover;
+    if (qc.on && uv.x >= qc.u0 && uv.x < qc.u1 && uv.y >= qc.v0 && uv.y < qc.v1) {
+      return {32, qc.grey};
     }
     const PageInk ink = a.lm->pattern.at(uv);
     if (ink == PageInk::kOutside) return {0, -1.0};
@@ -310,6 +360,7 @@ cv::Mat FrameRenderer::render(const Pose2& pose, const RenderOptions& o,
       continue;
     }
     active.push_back({&l, inverse(v_from_l), make_degradation(o, scene.geometry, l.id), reach_l});
+    active.back().deg.cover = make_qr_cover(o, scene, l.id);
   }
 
   const int n_sub = std::max(1, o.supersample);

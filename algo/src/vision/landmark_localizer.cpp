@@ -155,6 +155,20 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
       out->qr_method == 0 ? FixStatus::kQrUnreadable : check_payload(qr_text, out, &world_landmark);
   const double t4 = now_ms();
   if (cfg.now_ns) out->timings.decode_ms = t4 - t3;
+  // 5c. Map-guided identity of an unread code (docs/map_identity.md): whole border only, and never
+  // a filter (re)initialisation (map_verified stays false).
+  if (st == FixStatus::kQrUnreadable && !out->partly_outside && out->sides_used == 4) {
+    int turn = 0;
+    std::uint32_t id = 0;
+    if (map_identity(img, pred, c_mm, beta, cov, logo, &world_landmark, &turn, &id)) {
+      quadrant = turn;
+      out->landmark_id = id;
+      fill_result(world_landmark, c_mm, beta, turn, cov, out);
+      out->identity = FixIdentity::kMapGuided;
+      if (cfg.now_ns) out->timings.decode_ms = now_ms() - t3;
+      return finish(FixStatus::kOk);
+    }
+  }
   if (st == FixStatus::kQrUnreadable && out->partly_outside) st = FixStatus::kPartlyOutside;
   if (st != FixStatus::kOk) return finish(st);
 

@@ -14,6 +14,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <opencv2/core.hpp>
 #include <string>
@@ -24,6 +25,7 @@
 #include "agv/common/landmark.hpp"
 #include "agv/vision/edges.hpp"
 #include "agv/vision/landmark_localizer.hpp"
+#include "agv/vision/map_identity.hpp"
 #include "agv/vision/qr_grid.hpp"
 
 namespace agv::vision {
@@ -258,6 +260,19 @@ struct LandmarkLocalizer::Impl {
   bool sample_qr(const cv::Mat& img, Vec2 c_mm, double fwd, int n, QrSamples* s);
   bool fill_missing_modules(QrSamples* s);
   FixStatus check_payload(const std::string& text, LandmarkFix* out, Pose2* world_landmark);
+
+  // Stage 5c, map-guided identity of an unread code (map_identity_stage.cpp).
+  MapIdentityConfig identity_cfg;
+  MapIdentityDecision last_identity;
+  ModuleAgreement last_modules;
+  bool map_codes_built = false;
+  std::map<std::uint32_t, std::array<QrBits, 2>> map_codes;  // [0] full, [1] id-only payload
+  std::vector<std::uint8_t> identity_bits;
+  std::vector<std::pair<std::uint32_t, const QrBits*>> identity_others;
+  void build_map_codes();
+  bool map_identity(const cv::Mat& img, const Prediction& pred, Vec2 c_mm, double beta,
+                    const Eigen::Matrix3d& cov, const LogoScores& logo, Pose2* world_landmark,
+                    int* turn, std::uint32_t* id);
 };
 
 }  // namespace agv::vision

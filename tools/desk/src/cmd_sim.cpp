@@ -30,6 +30,7 @@ int sim(int argc, char** argv) {
                                  family = "qr";
   double duration_s = 60.0, fps = 30.0, odom_hz = 100.0, speed_mps = 0.5, exposure_ms = 2.0;
   double grid_spacing_mm = 1000.0, k1 = 0.0, k2 = 0.0, occluder = 0.0, dirt = 0.0;
+  double qr_cover = 0.0;
   int scratches = 0;
   std::uint64_t seed = 1;
   bool force = false;
@@ -85,6 +86,10 @@ int sim(int argc, char** argv) {
   app.add_option("--k2", k2, "Radial distortion k2 of the simulated lens")->capture_default_str();
   app.add_option("--occluder-fraction", occluder, "Fraction of every landmark border covered")
       ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  app.add_option("--qr-cover-fraction", qr_cover,
+                 "Fraction of every landmark's QR code under an opaque patch (border intact)")
+      ->check(CLI::Range(0.0, 1.0 / 3.0))
       ->capture_default_str();
   app.add_option("--scratches", scratches, "Scratches per landmark")
       ->check(CLI::Range(0, 100))
@@ -184,6 +189,7 @@ int sim(int argc, char** argv) {
   }
   ro.occluder_border_fraction = occluder;
   ro.scratches_per_landmark = scratches;
+  ro.qr_cover_fraction = qr_cover;
   ro.dirt_spots_per_landmark = dirt;
   ro.degradation_seed = seed * 7919 + 3;
   sim::PayloadMode pm;

@@ -249,7 +249,10 @@ enum class FixOutcome {
   kRejectedTooOld,
   kRejectedInvalid,
   kReinitialised,
-  kHeld  // ahead of the newest odometry: kept and fused when odometry catches up
+  kHeld,  // ahead of the newest odometry: kept and fused when odometry catches up
+  // A map-guided fix (its identity came from the prediction itself) while the filter is
+  // uninitialised or lost: it cannot confirm the pose that chose it (docs/map_identity.md).
+  kRejectedNotTracking,
 };
 const char* to_string(FixOutcome o);
 
@@ -271,8 +274,11 @@ class Ekf {
   // its own time and later events are re-propagated.
   // map_verified: the landmark's pose was checked against (or taken from) the survey map, so a
   // misprinted code cannot be the source; only such fixes may re-localise a lost filter alone.
+  // map_guided: the landmark was identified from this filter's own prediction (QR unreadable):
+  // fused only through the normal gate of an initialised, not lost filter; never initialises,
+  // re-localises or counts towards a kidnap (else kRejectedNotTracking / kRejectedGate).
   FixOutcome add_fix(std::int64_t t_exposure_ns, const Pose2& z_world, const Eigen::Matrix3d& R,
-                     bool map_verified = false);
+                     bool map_verified = false, bool map_guided = false);
 
   // Estimate predicted (or, inside the history, interpolated by prediction from the last event
   // at or before t_ns) to t_ns; does not change the filter. valid only once initialised and when
@@ -297,6 +303,7 @@ class Ekf {
     std::uint64_t fixes_held = 0;          // ahead of the odometry when they came
     std::uint64_t fixes_held_dropped = 0;  // pushed out of the full hold
     std::uint64_t relocalisations = 0;     // of reinitialisations: from a single fix when lost
+    std::uint64_t fixes_rejected_not_tracking = 0;  // map-guided while uninitialised or lost
   };
   const Counters& counters() const { return counters_; }
 
@@ -342,6 +349,7 @@ class Ekf {
     Pose2 z;
     Eigen::Matrix3d R = Eigen::Matrix3d::Identity();  // as given (before scale and floor)
     bool map_verified = false;
+    bool map_guided = false;
   };
 
   // Ring buffer access in time order: 0 = oldest.
@@ -381,9 +389,9 @@ class Ekf {
     return i == 0 ? kNoOdom : odom_time_after(at(i - 1));
   }
   FixOutcome fuse_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::Matrix3d& R_in,
-                      bool map_verified, bool from_hold);
+                      bool map_verified, bool map_guided, bool from_hold);
   void hold_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::Matrix3d& R_in,
-                bool map_verified);
+                bool map_verified, bool map_guided);
   // Fuses held fixes older than t_ns (before the odometry sample at t_ns is inserted).
   void release_held_before(std::int64_t t_ns);
   // After odometry at t_ns: fuses held fixes within max_fix_lead_ns, rejects those still ahead.

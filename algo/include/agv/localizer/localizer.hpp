@@ -56,6 +56,11 @@ struct OutputStats {
   std::uint64_t fixes_rejected_too_old = 0;
   std::uint64_t fixes_rejected_invalid = 0;
   std::uint64_t reinitialisations = 0;
+  // Map-guided fixes (docs/map_identity.md): received (also counted in fixes_received), fused,
+  // and refused because the filter was uninitialised or lost.
+  std::uint64_t fixes_map_guided = 0;
+  std::uint64_t fixes_map_guided_fused = 0;
+  std::uint64_t fixes_rejected_not_tracking = 0;
   std::uint64_t fix_poses = 0;  // pose pairs sent at once after a fix (pose_on_fix)
   std::uint64_t can_tx_ok = 0;
   std::uint64_t can_tx_failed = 0;
@@ -147,7 +152,8 @@ class Localizer {
   std::int64_t first_tick_ns_ = INT64_MIN;
   std::int64_t last_frame_ns_ = INT64_MIN;
   std::uint16_t last_landmark_id_ = 0;
-  std::uint8_t rejections_ = 0;  // reject::* since the last status frame
+  std::uint8_t rejections_ = 0;    // reject::* since the last status frame
+  bool map_guided_fused_ = false;  // since the last quality frame
   bool camera_eos_ = false;
   bool camera_error_ = false;
   bool overrun_ = false;

@@ -66,6 +66,9 @@ struct QualityOut {
   double sigma_y_mm = 0.0;
   double sigma_theta_rad = 0.0;
   bool valid = false;
+  // A map-guided fix (identity from the prediction, QR unreadable; docs/map_identity.md) was
+  // fused since the previous quality frame: the sigmas rest partly on the filter's own belief.
+  bool map_guided_fix = false;
 };
 
 enum class Health : std::uint8_t { kOk = 0, kDegraded = 1, kLost = 2, kFault = 3 };

@@ -174,6 +174,11 @@ struct RenderOptions {
   int scratches_per_landmark = 0;      // thin bright scratches across the print
   double dirt_spots_per_landmark = 0;  // mean count of dark smudges on the print
   std::uint64_t degradation_seed = 7;
+  // Fraction [0, 1/3] of the QR code's area under an opaque patch (a pallet foot, tape, a torn
+  // corner), the border and logo left intact: per landmark id and seed, a square at a corner, a
+  // strip along an edge or a square in the middle, coloured like the floor, the ink or the paper.
+  // Map-guided identity evaluation (docs/map_identity.md). 0 = none.
+  double qr_cover_fraction = 0.0;
 };
 
 // A set of effects that looks like a real down-looking camera with LED ring light.

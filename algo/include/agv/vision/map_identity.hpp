@@ -1,0 +1,122 @@
+// Map-guided identity of a landmark whose QR code cannot be read (docs/map_identity.md): the
+// fused pose predicts where every mapped landmark should appear; the border fit measured where
+// one is. Two independent checks must both agree before the landmark gets an identity:
+//   1. the pose gate: exactly one (landmark, turn) inside a chi-square gate, every other one far
+//      outside it;
+//   2. the module check: the QR modules sampled where the code should be agree with the code the
+//      gate's candidate prints, and on the modules where it differs from any other mapped
+//      landmark's code they side with the candidate. This protects against a wrong prediction (a
+//      kidnapped vehicle, displaced by exactly one grid spacing, passes the gate with the wrong
+//      landmark).
+// Pure: no I/O, no clocks.
+#pragma once
+
+#include <Eigen/Core>
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "agv/common/geometry.hpp"
+#include "agv/common/landmark.hpp"
+#include "agv/vision/landmark_localizer.hpp"
+#include "agv/vision/qr_grid.hpp"
+
+namespace agv::vision {
+
+struct MapIdentityConfig {
+  // Gate: squared Mahalanobis distance (3 dof: x, y, heading) of the innovation between the
+  // predicted and the measured landmark-in-vehicle pose. chi2_3dof_quantile(0.999) = 16.27: a
+  // correct fix with a consistent covariance is refused once in a thousand frames (it then stays
+  // kQrUnreadable, which costs one fix, never a wrong one).
+  double gate_chi2 = 16.27;
+  // The runner-up must lie beyond this distance: chi2(3) exceeds 60 with probability ~1e-12, so a
+  // candidate that far out is not the landmark in view unless the covariance is wrong by a
+  // factor of ~2 in sigma (60 / 16.27 = 3.7 in variance). Between the two thresholds the
+  // decision is "two plausible" and refused.
+  double clear_chi2 = 60.0;
+  // Module check (docs/map_identity.md "Check 2"), over the visible data modules that are not
+  // flat (binarize_samples leaves a patch's inside out). The candidate's code must agree with the
+  // sampled bits on at least min_agreement of them: measured >= 0.82 for the right code with a
+  // third of the code covered. Alone this does not separate neighbours: their payloads share most
+  // characters, so with the same mask their codes share most modules (a wrong neighbour measured
+  // up to 0.84). It rejects a landmark that is not in the map, a wrong turn or a wrong version.
+  double min_agreement = 0.70;
+  // For every other mapped landmark (same code version), on the visible modules where its code
+  // and the candidate's differ, the sampled bits must side with the candidate on at least this
+  // fraction. Measured (eval_identity, 1/3 covered, realistic imaging): right candidate >= 0.67
+  // (the cover can hide most of the modules that tell two similar codes apart; its edge modules
+  // are coin flips), wrong candidate <= 0.22. 0.55 leaves about twice the margin to the wrong side.
+  double min_pair_agreement = 0.55;
+  // At least this many visible differing modules for a pairwise verdict; fewer and the pair
+  // cannot be told apart, so the identity is refused (never seen: two payloads differing in the
+  // id alone differ on ~100 modules).
+  int min_pair_modules = 24;
+};
+
+enum class MapIdentityResult {
+  kAccepted,
+  kNoPrediction,     // prediction invalid or no map
+  kNoneInGate,       // no (landmark, turn) inside gate_chi2
+  kTwoPlausible,     // the runner-up is inside clear_chi2
+  kModulesDisagree,  // the sampled modules do not show the candidate's code (or show another's)
+};
+const char* to_string(MapIdentityResult r);
+
+struct MapIdentityDecision {
+  MapIdentityResult result = MapIdentityResult::kNoPrediction;
+  std::uint32_t id = 0;  // the candidate (also set when the module check refuses it)
+  int turn = 0;          // forward axis = beta - turn * 90 deg
+  double d2_best = 0.0, d2_second = 0.0;  // squared Mahalanobis distances (second: +inf if none)
+};
+
+// The predicted landmark-in-vehicle pose of a map entry and its covariance, propagated from the
+// vehicle's predicted pose and covariance (first order).
+Pose2 predicted_landmark_in_vehicle(const Prediction& pred, const Pose2& landmark_in_world,
+                                    Eigen::Matrix3d* cov);
+
+// Stage 1, the pose gate. measured_c_mm, beta_rad: the fitted square's centre and the angle of its
+// side-0 normal in the vehicle frame (the landmark's forward axis is beta - turn * 90 deg);
+// meas_cov: covariance of (x_mm, y_mm, theta_rad) of the fit. allowed_turns: the turns the logo
+// allows (one when it is clear, all four otherwise).
+MapIdentityDecision gate_identity(Vec2 measured_c_mm, double beta_rad,
+                                  const Eigen::Matrix3d& meas_cov,
+                                  const std::array<bool, 4>& allowed_turns, const Prediction& pred,
+                                  const LandmarkMap& map, const MapIdentityConfig& cfg);
+
+// A code as bits: n x n, row-major, 1 = dark (row 0 at the page top, as QrSamples).
+struct QrBits {
+  int n = 0;
+  std::vector<std::uint8_t> dark;
+};
+
+// The code the landmark prints: zxing-cpp's writer at ECC level M without margin (exactly as the
+// simulator and the generator render it). False when the text cannot be encoded.
+bool encode_qr_bits(const std::string& payload, QrBits* out);
+
+// The two payload forms of a map entry: the full one (pose from the map, version 2) and the
+// id-only one (version 1). Empty string when the entry cannot be formatted.
+std::string map_full_payload(const LandmarkMapEntry& e);
+std::string map_id_payload(std::uint32_t id);
+
+// Sampled modules as bits: dark when below the mean of the 5x5 modules around it (the guided
+// reader's kLocalMean rule). Marked 2 = unknown: modules outside the image (negative sample), in a
+// flat neighbourhood (local range below 0.35 of the print's contrast: the inside of a patch over
+// the code, whose bits would be noise) and within 0.05 of the contrast of their local mean.
+void binarize_samples(const QrSamples& s, std::vector<std::uint8_t>* bits);
+
+struct ModuleAgreement {
+  int visible = 0;          // data modules compared
+  double agree = 0.0;       // fraction of them where the candidate matches
+  double worst_pair = 1.0;  // lowest pairwise side-with-candidate fraction
+  std::uint32_t worst_pair_id = 0;
+  bool ok = false;
+};
+
+// Stage 2, the module check of `candidate` against the bits sampled for its code version (bits
+// from binarize_samples, n = candidate.n) and against every code in `others` of the same n.
+ModuleAgreement check_modules(const std::vector<std::uint8_t>& bits, const QrBits& candidate,
+                              const std::vector<std::pair<std::uint32_t, const QrBits*>>& others,
+                              const MapIdentityConfig& cfg);
+
+}  // namespace agv::vision
