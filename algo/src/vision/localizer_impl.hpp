@@ -23,6 +23,7 @@
 #include "agv/vision/edges.hpp"
 #include "agv/vision/landmark_localizer.hpp"
 #include "agv/vision/qr_grid.hpp"
+#include "agv/vision/tracking.hpp"
 
 namespace agv::vision {
 
@@ -177,6 +178,10 @@ struct LandmarkLocalizer::Impl {
 
   double mm_per_px = 0.26;
 
+  // Tracking (docs/tracking.md): windows of the last frame's prediction.
+  WindowPlanner planner;
+  std::vector<SearchWindow> windows;
+
   Impl(const VisionConfig& c, const CameraModel& m, const LandmarkGeometry& g,
        const LandmarkMap* mp);
 
@@ -192,6 +197,8 @@ struct LandmarkLocalizer::Impl {
   // run(): the stages in order (landmark_localizer.cpp).
   FixStatus run(const cv::Mat& img, const Prediction& pred, LandmarkFix* out);
   bool partly_outside(const cv::Mat& img, Vec2 c_px, double up) const;
+  bool detect_in_windows(const cv::Mat& img, Detection* best, bool* found_corner,
+                         double* corner_score);
   void fill_result(const Pose2& world_landmark, Vec2 c_mm, double beta, int q_final,
                    const Eigen::Matrix3d& cov, LandmarkFix* out) const;
 
