@@ -117,12 +117,14 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
   double corner_score = 0;
   planner.plan(pred, &windows);
   bool found = false;
+  bool searched_all = false;
   if (!windows.empty()) {
-    found = detect_in_windows(img, &det, &found_corner, &corner_score) &&
+    found = detect_in_windows(img, &det, &found_corner, &corner_score, &searched_all) &&
             det.white_grey - det.dark_grey >= kMinContrastGrey;
     out->search = found ? SearchMode::kWindow : SearchMode::kWindowThenFull;
   }
-  if (!found) {
+  // Windows that cover the whole frame were the full search: not repeated.
+  if (!found && !searched_all) {
     det = Detection{};
     found = detect(img, &det, &found_corner, &corner_score);
   }
@@ -183,7 +185,8 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
 // are the full frame's (the windows' margin keeps the binarization block inside): the same
 // hypothesis as the full search, shifted back into frame coordinates.
 bool LandmarkLocalizer::Impl::detect_in_windows(const cv::Mat& img, Detection* best,
-                                                bool* found_corner, double* corner_score) {
+                                                bool* found_corner, double* corner_score,
+                                                bool* whole_frame) {
   int x0 = img.cols, y0 = img.rows, x1 = 0, y1 = 0;
   for (const SearchWindow& w : windows) {
     x0 = std::min(x0, w.x0);
@@ -197,7 +200,9 @@ bool LandmarkLocalizer::Impl::detect_in_windows(const cv::Mat& img, Detection* b
   // The full search covers only whole coarse pixels (make_coarse): so does the window.
   x1 = std::min((x1 + f - 1) / f * f, img.cols / f * f);
   y1 = std::min((y1 + f - 1) / f * f, img.rows / f * f);
+  *whole_frame = false;
   if (x1 <= x0 || y1 <= y0) return false;
+  *whole_frame = x0 == 0 && y0 == 0 && x1 == img.cols / f * f && y1 == img.rows / f * f;
   const cv::Mat roi = img(cv::Rect(x0, y0, x1 - x0, y1 - y0));
   if (!detect(roi, best, found_corner, corner_score)) return false;
   best->h.cx += x0 / f;

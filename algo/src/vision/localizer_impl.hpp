@@ -198,7 +198,7 @@ struct LandmarkLocalizer::Impl {
   FixStatus run(const cv::Mat& img, const Prediction& pred, LandmarkFix* out);
   bool partly_outside(const cv::Mat& img, Vec2 c_px, double up) const;
   bool detect_in_windows(const cv::Mat& img, Detection* best, bool* found_corner,
-                         double* corner_score);
+                         double* corner_score, bool* whole_frame);
   void fill_result(const Pose2& world_landmark, Vec2 c_mm, double beta, int q_final,
                    const Eigen::Matrix3d& cov, LandmarkFix* out) const;
 
