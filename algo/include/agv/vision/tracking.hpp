@@ -66,11 +66,8 @@ class WindowPlanner {
   double footprint_radius_mm_ = 0.0;  // farthest imaged floor point from the vehicle origin
 };
 
-// Constant-velocity extrapolation of a fused estimate from its time to a frame's exposure (the
-// vision worker of the threaded loop reads a snapshot a few milliseconds old): pose moved by
-// (v, omega) over dt, covariance propagated through the motion Jacobian and grown by
-// accel_sigma-style process noise: position variance + (pos_growth_mm_per_s * |dt|)^2, heading
-// variance + (heading_growth_rad_per_s * |dt|)^2.
+// A fused estimate with its velocities at t_ns: what the threaded loop's output thread publishes
+// for the vision worker (firmware/src/pipeline.cpp). valid = the pose output was valid.
 struct MotionSnapshot {
   bool valid = false;
   std::int64_t t_ns = 0;
@@ -79,6 +76,11 @@ struct MotionSnapshot {
   double v_mm_per_s = 0.0;
   double omega_rad_per_s = 0.0;
 };
+// Constant-velocity extrapolation of a snapshot to a frame's exposure t_ns (the snapshot is a few
+// milliseconds old, or newer than the exposure): the pose moved along the arc of (v, omega) over
+// dt, the covariance propagated through the motion Jacobian plus (pos_growth_mm_per_s * |dt|)^2 on
+// x and y and (heading_growth_rad_per_s * |dt|)^2 on theta for velocity changes the snapshot
+// cannot know. Invalid snapshot: invalid prediction.
 Prediction extrapolate(const MotionSnapshot& s, std::int64_t t_ns, double pos_growth_mm_per_s,
                        double heading_growth_rad_per_s);
 
