@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cinttypes>
 #include <cstdio>
+#include <mutex>
 #include <opencv2/core.hpp>
 #include <thread>
 
@@ -31,6 +32,33 @@ vision::VisionConfig vision_config_with_clock(const config::Config& cfg, const h
   }
   return v;
 }
+
+// The output thread's latest fused estimate for the vision worker (search windows,
+// docs/tracking.md). The output thread is SCHED_FIFO and must never wait: it publishes with
+// try_lock and skips a period when the worker is copying (the next period publishes). The worker
+// holds the lock only for a copy of ~140 bytes.
+class SnapshotSlot {
+ public:
+  void publish(const vision::MotionSnapshot& s) {
+    std::unique_lock<std::mutex> lock(m_, std::try_to_lock);
+    if (lock.owns_lock()) s_ = s;
+  }
+  vision::MotionSnapshot read() {
+    std::lock_guard<std::mutex> lock(m_);
+    return s_;
+  }
+
+ private:
+  std::mutex m_;
+  vision::MotionSnapshot s_;
+};
+
+// Growth of the snapshot's covariance while it is extrapolated to a frame's exposure (a few ms to
+// one output period, more when the output thread skipped a publication): the velocity may change
+// at up to ~1 m/s^2 and ~50 deg/s^2 in that span, i.e. 0.1 m/s and 5 deg/s over 100 ms, which
+// these rates cover at 1 sigma.
+constexpr double kSnapshotPosGrowthMmPerS = 100.0;
+constexpr double kSnapshotHeadingGrowthRadPerS = 5.0 * kPi / 180.0;
 
 LandmarkGeometry geometry_of(const config::Config& cfg) {
   LandmarkGeometry g;
@@ -69,6 +97,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
   std::atomic<std::int64_t> last_frame_ns{clock.now_ns()};
   std::atomic<std::uint64_t> vision_busy{0};
   VisionStats vstats;
+  SnapshotSlot snapshot;
 
   if (io.camera->start() != hal::CameraStatus::kOk) {
     std::fprintf(stderr, "agvloc: camera did not start: %s (continuing: dead reckoning only)\n",
@@ -131,7 +160,10 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
       const std::int64_t t0 = clock.now_ns();
       const cv::Mat img(f.height_px, f.width_px, CV_8UC1, const_cast<std::uint8_t*>(f.data),
                         static_cast<size_t>(f.stride_bytes));
-      loc.process(img, &rec.fix);
+      const vision::Prediction pred =
+          vision::extrapolate(snapshot.read(), f.t_exposure_ns, kSnapshotPosGrowthMmPerS,
+                              kSnapshotHeadingGrowthRadPerS);
+      loc.process(img, pred, &rec.fix);
       const std::int64_t t1 = clock.now_ns();
       rec.t_exposure_ns = f.t_exposure_ns;
       rec.t_done_ns = t1;
@@ -182,6 +214,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
       TickRecord* tr = nullptr;
       if (io.ticks && io.ticks->size() < io.ticks->capacity()) tr = &io.ticks->emplace_back();
       loop.tick(now, cam, tr);
+      snapshot.publish(core.snapshot_at(now));
       next_ns += period_ns;
       if (io.stop && io.stop->load()) done = true;
       if (io.stop_at_end_of_stream && camera_eos.load() && vision_busy.load() == 0 &&
@@ -270,7 +303,8 @@ int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording:
       cam.last_frame_ns = rec.frames[i].t_ns;
       FixRecord fr;
       const std::int64_t w0 = posix::monotonic_now_ns();
-      loc.process(img, &fr.fix);
+      // The core has the inputs up to the previous output step: its prediction to this exposure.
+      loc.process(img, core.prediction_at(rec.frames[i].t_ns), &fr.fix);
       const std::int64_t w1 = posix::monotonic_now_ns();
       fr.t_exposure_ns = rec.frames[i].t_ns;
       fr.t_done_ns = fr.t_exposure_ns + delay_ns;

@@ -41,18 +41,19 @@ bool write_fixes_csv(const std::string& path, const std::vector<FixRecord>& fixe
   }
   std::fprintf(f,
                "t_ns,status,landmark_id,e_x_mm,e_y_mm,e_phi_deg,x_mm,y_mm,theta_deg,sigma_x_mm,"
-               "sigma_y_mm,sigma_theta_deg,vision_ms\n");
+               "sigma_y_mm,sigma_theta_deg,vision_ms,search,identity\n");
   for (const auto& r : fixes) {
     const auto& x = r.fix;
     const bool ok = x.status == vision::FixStatus::kOk;
-    std::fprintf(
-        f, "%" PRId64 ",%s,%u,%.4f,%.4f,%.5f,%.4f,%.4f,%.5f,%.4f,%.4f,%.5f,%.3f\n", r.t_exposure_ns,
-        vision::to_string(x.status), static_cast<unsigned>(x.landmark_id), ok ? x.e_x_mm : 0.0,
-        ok ? x.e_y_mm : 0.0, ok ? x.e_phi_deg : 0.0, ok ? x.vehicle_in_world.x_mm : 0.0,
-        ok ? x.vehicle_in_world.y_mm : 0.0, ok ? rad_to_deg(x.vehicle_in_world.theta_rad) : 0.0,
-        ok ? std::sqrt(std::max(0.0, x.cov_world(0, 0))) : 0.0,
-        ok ? std::sqrt(std::max(0.0, x.cov_world(1, 1))) : 0.0,
-        ok ? rad_to_deg(std::sqrt(std::max(0.0, x.cov_world(2, 2)))) : 0.0, x.timings.total_ms);
+    std::fprintf(f, "%" PRId64 ",%s,%u,%.4f,%.4f,%.5f,%.4f,%.4f,%.5f,%.4f,%.4f,%.5f,%.3f,%s,%s\n",
+                 r.t_exposure_ns, vision::to_string(x.status), static_cast<unsigned>(x.landmark_id),
+                 ok ? x.e_x_mm : 0.0, ok ? x.e_y_mm : 0.0, ok ? x.e_phi_deg : 0.0,
+                 ok ? x.vehicle_in_world.x_mm : 0.0, ok ? x.vehicle_in_world.y_mm : 0.0,
+                 ok ? rad_to_deg(x.vehicle_in_world.theta_rad) : 0.0,
+                 ok ? std::sqrt(std::max(0.0, x.cov_world(0, 0))) : 0.0,
+                 ok ? std::sqrt(std::max(0.0, x.cov_world(1, 1))) : 0.0,
+                 ok ? rad_to_deg(std::sqrt(std::max(0.0, x.cov_world(2, 2)))) : 0.0,
+                 x.timings.total_ms, vision::to_string(x.search), vision::to_string(x.identity));
   }
   const bool ok = std::fclose(f) == 0;
   if (!ok) *error = path + ": write failed";

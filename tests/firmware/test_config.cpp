@@ -150,6 +150,23 @@ TEST(Config, FusionAndVisionSectionsReachTheAlgorithms) {
   EXPECT_TRUE(mentions(errors_for("vision:\n  colour: red\n"), "vision.colour: unknown key"));
 }
 
+TEST(Config, TrackingKeysReachTheVisionConfig) {
+  Config cfg;
+  std::vector<std::string> errors;
+  ASSERT_TRUE(agv::config::parse_config(
+      std::string(kIntrinsics) +
+          "vision:\n  tracking:\n    enabled: false\n    max_position_sigma_mm: 4.5\n"
+          "    max_heading_sigma_deg: 0.7\n    window_sigmas: 3\n",
+      "", &cfg, &errors))
+      << errors.front();
+  EXPECT_FALSE(cfg.vision.tracking.enabled);
+  EXPECT_DOUBLE_EQ(cfg.vision.tracking.max_position_sigma_mm, 4.5);
+  EXPECT_DOUBLE_EQ(cfg.vision.tracking.max_heading_sigma_deg, 0.7);
+  EXPECT_DOUBLE_EQ(cfg.vision.tracking.window_sigmas, 3.0);
+  EXPECT_TRUE(mentions(errors_for("vision:\n  tracking:\n    window_sigmas: 50\n"),
+                       "vision.tracking.window_sigmas"));
+}
+
 TEST(Config, LoopRealTimeKeysAndTheirRelations) {
   Config cfg;
   std::vector<std::string> errors;

@@ -296,6 +296,37 @@ TEST(Localizer, InvalidOdometryCorrectionThrows) {
   EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
 }
 
+TEST(Localizer, PredictionForAFrameIsValidOnlyWhenThePoseIs) {
+  const auto c = test_config();
+  localizer::Localizer loc(c);
+  localizer::OutFrames out;
+  std::int64_t t = 1000 * kMs;
+  // Not initialised: odometry alone gives no prediction.
+  for (int i = 0; i < 5; ++i) {
+    loc.on_odometry(t, 0.5, 0.0);
+    loc.tick(t += 10 * kMs, &out, nullptr);
+  }
+  EXPECT_FALSE(loc.prediction_at(t).valid);
+  EXPECT_FALSE(loc.snapshot_at(t).valid);
+  loc.on_fix(good_fix(100.0), t - 5 * kMs, t);
+  loc.on_odometry(t, 0.5, 0.0);
+  loc.tick(t += 10 * kMs, &out, nullptr);
+  ASSERT_TRUE(pose_valid(c, out));
+  // Initialised with odometry: the estimate at the exposure, moving at 0.5 m/s.
+  const vision::Prediction p = loc.prediction_at(t + 4 * kMs);
+  ASSERT_TRUE(p.valid);
+  const fusion::PoseEstimate e = loc.ekf().estimate_at(t + 4 * kMs);
+  EXPECT_EQ(p.vehicle_in_world.x_mm, e.pose.x_mm);
+  EXPECT_TRUE(p.cov == e.cov.topLeftCorner(3, 3));
+  EXPECT_GT(p.vehicle_in_world.x_mm, 100.0);
+  const vision::MotionSnapshot s = loc.snapshot_at(t);
+  ASSERT_TRUE(s.valid);
+  EXPECT_NEAR(s.v_mm_per_s, 500.0, 50.0);
+  // The same exposure but 60 ms after the last odometry: timed out, no prediction.
+  EXPECT_FALSE(loc.prediction_at(t + 60 * kMs).valid);
+  EXPECT_TRUE(loc.prediction_at(t + 40 * kMs).valid);
+}
+
 namespace {
 
 vision::LandmarkFix guided_fix(double x_mm) {

@@ -60,6 +60,10 @@ def main():
         errors.append("fixes.csv: frame statuses differ from golden: "
                       f"{[r['status'] for r in of]} vs {[r['status'] for r in gf]}")
     else:
+        # Columns added later (search, identity) are compared once the golden files carry them.
+        for col in ("search", "identity"):
+            if gf and col in gf[0] and [r[col] for r in gf] != [r.get(col) for r in of]:
+                errors.append(f"fixes.csv: column {col} differs from golden")
         for g, o in zip(gf, of):
             if o["status"] != "ok":
                 continue

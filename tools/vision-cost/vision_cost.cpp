@@ -1,4 +1,4 @@
-// vision_cost RECORDING [--frames N] [--class all|ok|none]
+// vision_cost RECORDING [--frames N] [--class all|ok|none] [--tracking SIGMA_MM --map FILE]
 // Instruction cost of the vision pipeline (agv::vision::LandmarkLocalizer::process) on the frames
 // of a recording, for docs/deployment.md. Frames are decoded first; one warm-up pass classifies
 // them (status ok or not); the measured pass then calls process() once per selected frame, each
@@ -9,13 +9,20 @@
 //     plugin insn_count_plugin.c, under qemu-aarch64.
 // Both count user-space instructions of the same calls. OpenCV runs single-threaded so that the
 // count is one core's work. measure.sh runs the whole comparison.
+// --tracking SIGMA_MM: every frame gets a prediction (docs/tracking.md) from the recording's truth
+// moved by a Gaussian error of SIGMA_MM and SIGMA_MM / 10 degrees (fixed seed), with that
+// covariance; the search windows need the landmark map (--map).
 #include <sys/prctl.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
 #include <opencv2/core.hpp>
 #include <opencv2/core/utility.hpp>
+#include <random>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -27,6 +34,24 @@ namespace {
 constexpr unsigned long kMarkerOn = 0x41475631UL;   // "AGV1"
 constexpr unsigned long kMarkerOff = 0x41475630UL;  // "AGV0"
 
+// Truth pose at t_ns, linearly interpolated (false outside the truth's span).
+bool truth_at(const std::vector<agv::recording::TruthRow>& truth, std::int64_t t_ns,
+              agv::Pose2* out) {
+  auto it = std::lower_bound(
+      truth.begin(), truth.end(), t_ns,
+      [](const agv::recording::TruthRow& r, std::int64_t t) { return r.t_ns < t; });
+  if (it == truth.end() || (it == truth.begin() && it->t_ns != t_ns)) return false;
+  const auto& b = *it;
+  const auto& a = it == truth.begin() ? b : *(it - 1);
+  const double f = b.t_ns == a.t_ns
+                       ? 0.0
+                       : static_cast<double>(t_ns - a.t_ns) / static_cast<double>(b.t_ns - a.t_ns);
+  const double ta = agv::deg_to_rad(a.theta_deg);
+  const double dth = agv::wrap_angle_rad(agv::deg_to_rad(b.theta_deg) - ta);
+  *out = {a.x_mm + f * (b.x_mm - a.x_mm), a.y_mm + f * (b.y_mm - a.y_mm), ta + f * dth};
+  return true;
+}
+
 }  // namespace
 
 extern "C" __attribute__((noinline)) int agv_cost_frame(agv::vision::LandmarkLocalizer* loc,
@@ -35,19 +60,33 @@ extern "C" __attribute__((noinline)) int agv_cost_frame(agv::vision::LandmarkLoc
   return static_cast<int>(loc->process(*gray, fix));
 }
 
+extern "C" __attribute__((noinline)) int agv_cost_frame_tracking(
+    agv::vision::LandmarkLocalizer* loc, const cv::Mat* gray, const agv::vision::Prediction* pred,
+    agv::vision::LandmarkFix* fix) {
+  return static_cast<int>(loc->process(*gray, *pred, fix));
+}
+
 int main(int argc, char** argv) {
   if (argc < 2 || argv[1][0] == '-') {
-    std::fprintf(stderr, "usage: vision_cost RECORDING [--frames N] [--class all|ok|none]\n");
+    std::fprintf(stderr,
+                 "usage: vision_cost RECORDING [--frames N] [--class all|ok|none] "
+                 "[--tracking SIGMA_MM --map FILE]\n");
     return 2;
   }
   const std::string dir = argv[1];
   size_t max_frames = 1000000;
   std::string cls = "all";
+  double tracking_sigma_mm = -1.0;  // < 0: no prediction
+  std::string map_file;
   for (int i = 2; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--frames")) {
       max_frames = static_cast<size_t>(std::strtoul(argv[i + 1], nullptr, 10));
     } else if (!std::strcmp(argv[i], "--class")) {
       cls = argv[i + 1];
+    } else if (!std::strcmp(argv[i], "--tracking")) {
+      tracking_sigma_mm = std::strtod(argv[i + 1], nullptr);
+    } else if (!std::strcmp(argv[i], "--map")) {
+      map_file = argv[i + 1];
     } else {
       std::fprintf(stderr, "vision_cost: unknown option %s\n", argv[i]);
       return 2;
@@ -77,27 +116,61 @@ int main(int argc, char** argv) {
   agv::LandmarkGeometry geometry;
   geometry.size_mm = rec.meta.landmark_size_mm;
   agv::vision::VisionConfig cfg;  // defaults, no clock: timings stay 0
-  agv::vision::LandmarkLocalizer loc(cfg, rec.meta.camera, geometry, nullptr);
+  agv::LandmarkMap map;
+  if (!map_file.empty()) {
+    std::ifstream in(map_file);
+    std::stringstream text;
+    text << in.rdbuf();
+    if (!in || !agv::parse_landmark_map(text.str(), &map, &err)) {
+      std::fprintf(stderr, "vision_cost: %s: %s\n", map_file.c_str(), err.c_str());
+      return 1;
+    }
+  }
+  const bool tracking = tracking_sigma_mm >= 0.0;
+  if (tracking && (map.entries.empty() || !rec.has_truth)) {
+    std::fprintf(stderr, "vision_cost: --tracking needs --map and the recording's truth.csv\n");
+    return 2;
+  }
+  std::vector<agv::vision::Prediction> preds(frames.size());
+  if (tracking) {
+    std::mt19937_64 rng(1);
+    std::normal_distribution<double> n01(0.0, 1.0);
+    const double s = tracking_sigma_mm, h = agv::deg_to_rad(tracking_sigma_mm / 10.0);
+    for (size_t i = 0; i < frames.size(); ++i) {
+      agv::Pose2 t;
+      if (!truth_at(rec.truth, rec.frames[i].t_ns, &t)) continue;
+      agv::vision::Prediction& p = preds[i];
+      p.valid = true;
+      p.vehicle_in_world = {t.x_mm + s * n01(rng), t.y_mm + s * n01(rng),
+                            t.theta_rad + h * n01(rng)};
+      p.cov = Eigen::Vector3d(s * s, s * s, h * h).asDiagonal();
+    }
+  }
+  agv::vision::LandmarkLocalizer loc(cfg, rec.meta.camera, geometry,
+                                     map.entries.empty() ? nullptr : &map);
 
   // Warm-up pass: first-call initialisation stays out of the measurement; classifies frames.
   std::vector<size_t> selected;
   size_t n_ok = 0;
   for (size_t i = 0; i < frames.size(); ++i) {
     agv::vision::LandmarkFix fix;
-    const bool ok = loc.process(frames[i], &fix) == agv::vision::FixStatus::kOk;
+    const bool ok = loc.process(frames[i], preds[i], &fix) == agv::vision::FixStatus::kOk;
     n_ok += ok ? 1 : 0;
     if (cls == "all" || (cls == "ok") == ok) selected.push_back(i);
   }
-  size_t n_ok_measured = 0;
+  size_t n_ok_measured = 0, n_window = 0;
   for (size_t i : selected) {
     agv::vision::LandmarkFix fix;
     prctl(static_cast<int>(kMarkerOn), 0UL, 0UL, 0UL, 0UL);
-    const int status = agv_cost_frame(&loc, &frames[i], &fix);
+    const int status = tracking ? agv_cost_frame_tracking(&loc, &frames[i], &preds[i], &fix)
+                                : agv_cost_frame(&loc, &frames[i], &fix);
     prctl(static_cast<int>(kMarkerOff), 0UL, 0UL, 0UL, 0UL);
     n_ok_measured += status == static_cast<int>(agv::vision::FixStatus::kOk) ? 1 : 0;
+    n_window += fix.search == agv::vision::SearchMode::kWindow ? 1 : 0;
   }
   std::printf("vision_cost: %zu frames loaded (%zu ok), class %s: %zu measured (%zu ok), %dx%d\n",
               frames.size(), n_ok, cls.c_str(), selected.size(), n_ok_measured,
               frames.empty() ? 0 : frames[0].cols, frames.empty() ? 0 : frames[0].rows);
+  if (tracking) std::printf("vision_cost: tracking, %zu found in the window\n", n_window);
   return selected.empty() ? 1 : 0;
 }

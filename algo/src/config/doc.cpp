@@ -86,6 +86,11 @@ const std::vector<Section>& config_sections() {
        "with the same names and defaults, in pipeline order; measurements behind the defaults:\n"
        "docs/accuracy.md.\n",
        ""},
+      {"vision.tracking", "(docs/tracking.md)",
+       "Search windows from the fused pose (`agv::vision::TrackingConfig`): used when the\n"
+       "prediction is valid and within both σ limits; the windows are the mapped landmarks'\n"
+       "outer squares grown by `window_sigmas` σ plus a fixed detection margin.\n",
+       ""},
       {"fusion", "(docs/fusion.md has the model)",
        "Fields of `agv::fusion::EkfConfig` (algo/include/agv/fusion/ekf.hpp) with the same\n"
        "defaults; angles in degrees and times in milliseconds here. The combination is checked by\n"

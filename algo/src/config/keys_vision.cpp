@@ -182,6 +182,28 @@ void add_covariance(std::vector<Key>* k) {
                       {"deg", "floor of the heading σ"}));
 }
 
+void add_tracking(std::vector<Key>* k) {
+  k->push_back(boolean("vision.tracking.enabled", AGV_AT(vision.tracking.enabled), true,
+                       "search only the windows around the mapped landmarks the fused pose "
+                       "predicts in view (full frame when they find nothing, docs/tracking.md). "
+                       "false: every frame searched in full"));
+  k->push_back(number("vision.tracking.max_position_sigma_mm",
+                      AGV_AT(vision.tracking.max_position_sigma_mm), 0.0, 1000.0, 10.0,
+                      {"mm",
+                       "largest position σ of the prediction for windows to be used. Larger "
+                       "trusts looser poses: bigger windows, less saved, more misses that pay "
+                       "window + full search"}));
+  k->push_back(number("vision.tracking.max_heading_sigma_deg",
+                      AGV_AT(vision.tracking.max_heading_sigma_deg), 0.0, 90.0, 2.0,
+                      {"deg", "largest heading σ of the prediction for windows to be used"}));
+  k->push_back(number("vision.tracking.window_sigmas", AGV_AT(vision.tracking.window_sigmas), 0.0,
+                      20.0, 4.0,
+                      {"σ",
+                       "window growth around each predicted corner, in σ of its position. "
+                       "Smaller = cheaper windows, more misses (a miss costs the window and "
+                       "the full search)"}));
+}
+
 }  // namespace
 
 void add_vision_keys(std::vector<Key>* keys) {
@@ -190,6 +212,7 @@ void add_vision_keys(std::vector<Key>* keys) {
   add_direction(keys);
   add_pose(keys);
   add_covariance(keys);
+  add_tracking(keys);
 }
 
 }  // namespace agv::config::detail

@@ -180,6 +180,29 @@ void Localizer::add_pose(const protocol::PoseOut& pose, OutFrames* out) {
   pending_e2e_exposure_ns_ = INT64_MIN;
 }
 
+vision::MotionSnapshot Localizer::snapshot_at(std::int64_t t_ns) const {
+  const fusion::PoseEstimate est = ekf_.estimate_at(t_ns);
+  bool odom_timeout = false;
+  vision::MotionSnapshot s;
+  s.valid = pose_out(est, t_ns, &odom_timeout).valid;
+  if (!s.valid) return s;
+  s.t_ns = t_ns;
+  s.vehicle_in_world = est.pose;
+  s.cov = est.cov.topLeftCorner<3, 3>();
+  s.v_mm_per_s = est.v_mps * 1000.0;
+  s.omega_rad_per_s = est.omega_radps;
+  return s;
+}
+
+vision::Prediction Localizer::prediction_at(std::int64_t t_exposure_ns) const {
+  const vision::MotionSnapshot s = snapshot_at(t_exposure_ns);
+  vision::Prediction p;
+  p.valid = s.valid;
+  p.vehicle_in_world = s.vehicle_in_world;
+  p.cov = s.cov;
+  return p;
+}
+
 void Localizer::pose_now(std::int64_t now_ns, OutFrames* out) {
   const fusion::PoseEstimate est = ekf_.estimate_at(now_ns);
   bool odom_timeout = false;

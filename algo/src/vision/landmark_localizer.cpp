@@ -75,7 +75,7 @@ const char* to_string(SearchMode m) {
 
 LandmarkLocalizer::Impl::Impl(const VisionConfig& c, const CameraModel& m,
                               const LandmarkGeometry& g, const LandmarkMap* mp)
-    : cfg(c), cam(m), cam_linear(m), geom(g), map(mp) {
+    : cfg(c), cam(m), cam_linear(m), geom(g), map(mp), planner(c, m, g, mp) {
   // 0.26 mm/px is the default camera's scale: a fallback for a degenerate model, which then
   // fails every frame's size check rather than dividing by zero here.
   mm_per_px = cam.mm_per_px();
@@ -99,7 +99,6 @@ LandmarkLocalizer::Impl::Impl(const VisionConfig& c, const CameraModel& m,
 // pose puts them.
 FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pred,
                                        LandmarkFix* out) {
-  (void)pred;  // search windows and map-guided identity: issue 17
   have_overlay = false;
   const double t0 = now_ms();
   auto finish = [&](FixStatus s) {
@@ -112,11 +111,24 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
     return finish(FixStatus::kBadInput);
   }
   if (cfg.family == LandmarkFamily::kTag36h11) return finish(run_tag(img, out));
-  // 1-2. Binarization and detection.
+  // 1-2. Binarization and detection: in the prediction's windows when it is trusted, the whole
+  // frame when there is none or they find nothing (docs/tracking.md).
   Detection det;
   bool found_corner = false;
   double corner_score = 0;
-  const bool found = detect(img, &det, &found_corner, &corner_score);
+  planner.plan(pred, &windows);
+  bool found = false;
+  bool searched_all = false;
+  if (!windows.empty()) {
+    found = detect_in_windows(img, &det, &found_corner, &corner_score, &searched_all) &&
+            det.white_grey - det.dark_grey >= kMinContrastGrey;
+    out->search = found ? SearchMode::kWindow : SearchMode::kWindowThenFull;
+  }
+  // Windows that cover the whole frame were the full search: not repeated.
+  if (!found && !searched_all) {
+    det = Detection{};
+    found = detect(img, &det, &found_corner, &corner_score);
+  }
   out->corner_score = corner_score;
   const double t1 = now_ms();
   if (cfg.now_ns) out->timings.detect_ms = t1 - t0;
@@ -182,6 +194,35 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
   fill_result(world_landmark, c_mm, beta, q_final, cov, out);
   out->identity = FixIdentity::kQrCode;
   return finish(FixStatus::kOk);
+}
+
+// Detection on the bounding box of the windows, aligned to the coarse grid so its coarse pixels
+// are the full frame's (the windows' margin keeps the binarization block inside): the same
+// hypothesis as the full search, shifted back into frame coordinates.
+bool LandmarkLocalizer::Impl::detect_in_windows(const cv::Mat& img, Detection* best,
+                                                bool* found_corner, double* corner_score,
+                                                bool* whole_frame) {
+  int x0 = img.cols, y0 = img.rows, x1 = 0, y1 = 0;
+  for (const SearchWindow& w : windows) {
+    x0 = std::min(x0, w.x0);
+    y0 = std::min(y0, w.y0);
+    x1 = std::max(x1, w.x1);
+    y1 = std::max(y1, w.y1);
+  }
+  const int f = coarse_factor;
+  x0 = x0 / f * f;
+  y0 = y0 / f * f;
+  // The full search covers only whole coarse pixels (make_coarse): so does the window.
+  x1 = std::min((x1 + f - 1) / f * f, img.cols / f * f);
+  y1 = std::min((y1 + f - 1) / f * f, img.rows / f * f);
+  *whole_frame = false;
+  if (x1 <= x0 || y1 <= y0) return false;
+  *whole_frame = x0 == 0 && y0 == 0 && x1 == img.cols / f * f && y1 == img.rows / f * f;
+  const cv::Mat roi = img(cv::Rect(x0, y0, x1 - x0, y1 - y0));
+  if (!detect(roi, best, found_corner, corner_score)) return false;
+  best->h.cx += x0 / f;
+  best->h.cy += y0 / f;
+  return true;
 }
 
 // Any predicted outer corner beyond the image (plus VisionConfig::outside_margin_mm).

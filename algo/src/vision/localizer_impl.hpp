@@ -27,6 +27,7 @@
 #include "agv/vision/landmark_localizer.hpp"
 #include "agv/vision/map_identity.hpp"
 #include "agv/vision/qr_grid.hpp"
+#include "agv/vision/tracking.hpp"
 
 namespace agv::vision {
 
@@ -189,6 +190,10 @@ struct LandmarkLocalizer::Impl {
   bool outer_only = false;
   std::shared_ptr<TagDetector> tag;
 
+  // Tracking (docs/tracking.md): windows of the last frame's prediction.
+  WindowPlanner planner;
+  std::vector<SearchWindow> windows;
+
   Impl(const VisionConfig& c, const CameraModel& m, const LandmarkGeometry& g,
        const LandmarkMap* mp);
 
@@ -204,6 +209,8 @@ struct LandmarkLocalizer::Impl {
   // run(): the stages in order (landmark_localizer.cpp).
   FixStatus run(const cv::Mat& img, const Prediction& pred, LandmarkFix* out);
   bool partly_outside(const cv::Mat& img, Vec2 c_px, double up) const;
+  bool detect_in_windows(const cv::Mat& img, Detection* best, bool* found_corner,
+                         double* corner_score, bool* whole_frame);
   void fill_result(const Pose2& world_landmark, Vec2 c_mm, double beta, int q_final,
                    const Eigen::Matrix3d& cov, LandmarkFix* out) const;
 

@@ -14,6 +14,7 @@
 #include "agv/localizer/can_fault_monitor.hpp"
 #include "agv/protocol/codec.hpp"
 #include "agv/vision/landmark_localizer.hpp"
+#include "agv/vision/tracking.hpp"
 
 namespace agv::localizer {
 
@@ -128,6 +129,14 @@ class Localizer {
   // The pose pair alone, estimated at now_ns, outside the periodic schedule (loop.pose_on_fix:
   // a fused fix reaches the bus without waiting up to one period).
   void pose_now(std::int64_t now_ns, OutFrames* out);
+
+  // The fused pose predicted to a camera frame's exposure, for its search windows
+  // (docs/tracking.md). Valid only when the pose output would be: initialised, not lost, odometry
+  // not timed out at t_exposure_ns. `replay --fast` asks this directly (vision runs inline).
+  vision::Prediction prediction_at(std::int64_t t_exposure_ns) const;
+  // The same at t_ns with the velocities, for a thread that must not call the core (the threaded
+  // loop's vision worker extrapolates it to each exposure with vision::extrapolate).
+  vision::MotionSnapshot snapshot_at(std::int64_t t_ns) const;
 
   const OutputStats& stats() const { return stats_; }
   // The sender records transmit results and latencies here.

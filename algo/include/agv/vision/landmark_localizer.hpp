@@ -42,6 +42,23 @@ enum class HeadingMethod {
   kInverseVariance,  // each line angle weighted by 1/var from its own residuals
 };
 
+// Search windows from the filter's prediction (docs/tracking.md).
+struct TrackingConfig {
+  // Search only the windows around the predicted landmarks when the prediction is trusted (full
+  // frame when they find nothing). false = every frame is searched in full, as before tracking.
+  bool enabled = true;
+  // Trust limits: the largest position standard deviation (sqrt of the largest eigenvalue of the
+  // x-y covariance) and the heading standard deviation. Larger trusts a looser pose: bigger
+  // windows, less saved, more window misses that pay window + full search. Defaults 10 mm, 2 deg
+  // (a window then stays under about half the 640x480 frame).
+  double max_position_sigma_mm = 10.0;
+  double max_heading_sigma_deg = 2.0;
+  // Window half growth in standard deviations of each corner's position. Smaller = cheaper windows
+  // and more misses (a miss costs the window plus the full search). Default 4 (a 2-D miss
+  // probability of at most exp(-8) ~ 3e-4 for a Gaussian error).
+  double window_sigmas = 4.0;
+};
+
 struct VisionConfig {
   // Which printed landmark the frames show (one family per floor). kTag36h11: libapriltag finds
   // and decodes the tag, this pipeline's edge fits on the tag's outer black square give the pose
@@ -169,6 +186,8 @@ struct VisionConfig {
   double cov_inflation = 4.0;
   double sigma_floor_mm = 0.05;
   double sigma_floor_deg = 0.01;
+
+  TrackingConfig tracking;
 
   // --- timings -----------------------------------------------------------------------------
   // Optional monotonic clock supplied by the caller (algo/ never reads a clock). When empty,

@@ -1,0 +1,138 @@
+// Evaluation program (not a test): cost of a landmark frame with the prediction's search windows
+// against the full-frame search, in the same run on the same frames (docs/tracking.md).
+// Frames: the simulator's realistic profile over the default 1 m grid, one landmark fully in view
+// at a random offset and heading. Prediction: the truth moved by a Gaussian error of the stated
+// sigma, with that covariance (what the filter reports between fixes).
+//   eval_tracking [--frames N] [--sigma-mm S] [--sigma-deg D] [--seed K]
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "agv/sim/render.hpp"
+#include "agv/vision/landmark_localizer.hpp"
+#include "agv/vision/tracking.hpp"
+
+using namespace agv;
+
+namespace {
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+std::int64_t now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::steady_clock::now().time_since_epoch())
+      .count();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int frames = 200;
+  double sigma_mm = 3.0, sigma_deg = 0.3;
+  unsigned seed = 1;
+  for (int i = 1; i + 1 < argc; i += 2) {
+    if (!std::strcmp(argv[i], "--frames")) frames = std::atoi(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--sigma-mm")) sigma_mm = std::atof(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--sigma-deg")) sigma_deg = std::atof(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--seed")) seed = static_cast<unsigned>(std::atoi(argv[i + 1]));
+  }
+  const LandmarkMap map = sim::default_landmark_grid();
+  const CameraModel cam = CameraModel::default_640x480();
+  const LandmarkGeometry geom;
+  sim::Scene scene;
+  std::string err;
+  if (!sim::make_scene(map, geom, sim::PayloadMode::kFull, &scene, &err)) {
+    std::fprintf(stderr, "%s\n", err.c_str());
+    return 1;
+  }
+  sim::FrameRenderer renderer(scene, cam);
+  vision::VisionConfig vc;
+  vc.now_ns = now_ns;
+  vision::LandmarkLocalizer loc(vc, cam, geom, &map);
+  vision::WindowPlanner planner(vc, cam, geom, &map);
+  std::vector<vision::SearchWindow> windows;
+  std::vector<double> area_frac;
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> ux(-15.0, 15.0), uy(-35.0, 35.0), uh(-kPi, kPi);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  std::vector<const LandmarkMapEntry*> entries;
+  for (const auto& [id, e] : map.entries) entries.push_back(&e);
+  std::vector<double> full_ms, win_ms, full_det, win_det;
+  int ok_full = 0, ok_win = 0, in_window = 0, then_full = 0, differ = 0;
+  double worst_mm = 0.0;
+  for (int i = 0; i < frames; ++i) {
+    const LandmarkMapEntry& e = *entries[rng() % entries.size()];
+    const Pose2 lm_in_v{ux(rng), uy(rng), uh(rng)};
+    const Pose2 truth = compose(e.pose, inverse(lm_in_v));
+    const cv::Mat img = renderer.render(truth, sim::realistic_options(), rng);
+    vision::Prediction pred;
+    pred.valid = true;
+    pred.vehicle_in_world = {truth.x_mm + sigma_mm * n01(rng), truth.y_mm + sigma_mm * n01(rng),
+                             truth.theta_rad + deg_to_rad(sigma_deg) * n01(rng)};
+    const double sh = deg_to_rad(sigma_deg);
+    pred.cov = Eigen::Vector3d(sigma_mm * sigma_mm, sigma_mm * sigma_mm, sh * sh).asDiagonal();
+    planner.plan(pred, &windows);
+    if (!windows.empty()) {
+      int x0 = cam.intrinsics.width_px, y0 = cam.intrinsics.height_px, x1 = 0, y1 = 0;
+      for (const auto& w : windows) {
+        x0 = std::min(x0, w.x0);
+        y0 = std::min(y0, w.y0);
+        x1 = std::max(x1, w.x1);
+        y1 = std::max(y1, w.y1);
+      }
+      area_frac.push_back(static_cast<double>((x1 - x0) * (y1 - y0)) /
+                          (cam.intrinsics.width_px * cam.intrinsics.height_px));
+    }
+    vision::LandmarkFix full, win;
+    // Alternate the order so neither mode always runs on a warm cache.
+    for (int k = 0; k < 2; ++k) {
+      if ((i + k) % 2 == 0) {
+        loc.process(img, vision::Prediction{}, &full);
+      } else {
+        loc.process(img, pred, &win);
+      }
+    }
+    if (full.status == vision::FixStatus::kOk) ++ok_full;
+    if (win.status == vision::FixStatus::kOk) ++ok_win;
+    if (win.search == vision::SearchMode::kWindow) ++in_window;
+    if (win.search == vision::SearchMode::kWindowThenFull) ++then_full;
+    if (full.status != vision::FixStatus::kOk) continue;
+    full_ms.push_back(full.timings.total_ms);
+    win_ms.push_back(win.timings.total_ms);
+    full_det.push_back(full.timings.detect_ms);
+    win_det.push_back(win.timings.detect_ms);
+    if (win.status != full.status) {
+      ++differ;
+      continue;
+    }
+    const double d = std::hypot(win.vehicle_in_world.x_mm - full.vehicle_in_world.x_mm,
+                                win.vehicle_in_world.y_mm - full.vehicle_in_world.y_mm);
+    worst_mm = std::max(worst_mm, d);
+    if (d > 1e-9) ++differ;
+  }
+  std::printf("eval_tracking: %d frames, prediction sigma %.1f mm / %.2f deg\n", frames, sigma_mm,
+              sigma_deg);
+  std::printf("  fixes: full %d, tracking %d; found in window %d, window then full %d\n", ok_full,
+              ok_win, in_window, then_full);
+  std::printf("  window: median %.0f %% of the frame (margin %.1f mm beyond the outer corners)\n",
+              100.0 * median(area_frac), planner.margin_mm());
+  std::printf("  same fix as full search: %d of %zu differ (worst %.2e mm)\n", differ,
+              full_ms.size(), worst_mm);
+  std::printf("  median per landmark frame  total: full %.3f ms, tracking %.3f ms (x%.2f)\n",
+              median(full_ms), median(win_ms), median(full_ms) / std::max(1e-9, median(win_ms)));
+  std::printf("  median per landmark frame detect: full %.3f ms, tracking %.3f ms (x%.2f)\n",
+              median(full_det), median(win_det),
+              median(full_det) / std::max(1e-9, median(win_det)));
+  return 0;
+}

@@ -1,0 +1,262 @@
+// Search windows from the prediction (docs/tracking.md): projection against the renderer, growth
+// with the covariance, the trust rule, windowed fixes equal to full-search fixes, the fallback to
+// the full frame, and the constant-velocity extrapolation of the threaded loop's snapshot.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <opencv2/core.hpp>
+#include <random>
+#include <string>
+
+#include "agv/sim/render.hpp"
+#include "agv/vision/landmark_localizer.hpp"
+#include "agv/vision/tracking.hpp"
+
+using namespace agv;
+using namespace agv::vision;
+
+namespace {
+
+const Pose2 kLandmarkWorld{1000.0, -2000.0, deg_to_rad(90.0)};
+constexpr std::uint32_t kId = 17;
+
+LandmarkMap one_map() {
+  LandmarkMap m;
+  m.entries[kId] = {kId, kLandmarkWorld};
+  return m;
+}
+
+cv::Mat render(const LandmarkMap& map, const Pose2& vehicle_in_world, const CameraModel& cam) {
+  sim::Scene scene;
+  std::string err;
+  EXPECT_TRUE(sim::make_scene(map, LandmarkGeometry{}, sim::PayloadMode::kFull, &scene, &err))
+      << err;
+  std::mt19937_64 rng(5);
+  return sim::render_frame(scene, cam, vehicle_in_world, sim::RenderOptions{}, rng);
+}
+
+Prediction predict(const Pose2& v, double sigma_mm, double sigma_deg) {
+  Prediction p;
+  p.valid = true;
+  p.vehicle_in_world = v;
+  p.cov = Eigen::Vector3d(sigma_mm * sigma_mm, sigma_mm * sigma_mm,
+                          deg_to_rad(sigma_deg) * deg_to_rad(sigma_deg))
+              .asDiagonal();
+  return p;
+}
+
+// Bounding box of the dark (printed) pixels.
+cv::Rect dark_box(const cv::Mat& img) {
+  int x0 = img.cols, y0 = img.rows, x1 = -1, y1 = -1;
+  for (int y = 0; y < img.rows; ++y) {
+    for (int x = 0; x < img.cols; ++x) {
+      if (img.at<std::uint8_t>(y, x) < 100) {
+        x0 = std::min(x0, x);
+        y0 = std::min(y0, y);
+        x1 = std::max(x1, x);
+        y1 = std::max(y1, y);
+      }
+    }
+  }
+  return x1 < 0 ? cv::Rect() : cv::Rect(x0, y0, x1 - x0 + 1, y1 - y0 + 1);
+}
+
+void expect_same_fix(const LandmarkFix& a, const LandmarkFix& b) {
+  EXPECT_EQ(a.status, b.status);
+  EXPECT_EQ(a.landmark_id, b.landmark_id);
+  EXPECT_STREQ(a.payload, b.payload);
+  EXPECT_EQ(a.identity, b.identity);
+  EXPECT_NEAR(a.e_x_mm, b.e_x_mm, 1e-9);
+  EXPECT_NEAR(a.e_y_mm, b.e_y_mm, 1e-9);
+  EXPECT_NEAR(a.e_phi_deg, b.e_phi_deg, 1e-9);
+  EXPECT_NEAR(a.vehicle_in_world.x_mm, b.vehicle_in_world.x_mm, 1e-9);
+  EXPECT_NEAR(a.vehicle_in_world.y_mm, b.vehicle_in_world.y_mm, 1e-9);
+  EXPECT_NEAR(a.vehicle_in_world.theta_rad, b.vehicle_in_world.theta_rad, 1e-11);
+  EXPECT_LT((a.cov_world - b.cov_world).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_EQ(a.edge_points_used, b.edge_points_used);
+  EXPECT_EQ(a.sides_used, b.sides_used);
+  EXPECT_EQ(a.partly_outside, b.partly_outside);
+  EXPECT_NEAR(a.detect_x_px, b.detect_x_px, 1e-9);
+  EXPECT_NEAR(a.detect_y_px, b.detect_y_px, 1e-9);
+  EXPECT_NEAR(a.corner_score, b.corner_score, 1e-9);
+}
+
+// Vehicle in the world with the landmark at (dx, dy, heading) from the optical centre.
+Pose2 over_landmark(const CameraModel& cam, double dx, double dy, double heading_rad) {
+  return compose(kLandmarkWorld, inverse(Pose2{cam.mount.offset_x_mm + dx,
+                                               cam.mount.offset_y_mm + dy, heading_rad}));
+}
+
+CameraModel tilted_camera() {
+  CameraModel cam = CameraModel::default_640x480();
+  cam.mount.pitch_rad = deg_to_rad(4.0);
+  cam.mount.roll_rad = deg_to_rad(-3.0);
+  cam.mount.yaw_rad = deg_to_rad(10.0);
+  cam.mount.offset_x_mm = 120.0;
+  return cam;
+}
+
+}  // namespace
+
+TEST(Tracking, WindowContainsTheRenderedLandmarkAndPredictsItsCentre) {
+  const LandmarkMap map = one_map();
+  for (const CameraModel& cam : {CameraModel::default_640x480(), tilted_camera()}) {
+    WindowPlanner planner(VisionConfig{}, cam, LandmarkGeometry{}, &map);
+    LandmarkLocalizer loc(VisionConfig{}, cam, LandmarkGeometry{}, &map);
+    for (const Pose2& e : {Pose2{-5.0, 8.0, deg_to_rad(17.0)}, Pose2{6.0, -10.0, 2.0}}) {
+      const Pose2 v = over_landmark(cam, e.x_mm, e.y_mm, e.theta_rad);
+      const cv::Mat img = render(map, v, cam);
+      std::vector<SearchWindow> w;
+      planner.plan(predict(v, 0.0, 0.0), &w);
+      ASSERT_EQ(w.size(), 1u);
+      EXPECT_EQ(w[0].landmark_id, kId);
+      const cv::Rect box = dark_box(img);
+      ASSERT_GT(box.area(), 0);
+      ASSERT_TRUE(box.x > 0 && box.y > 0 && box.x + box.width < img.cols &&
+                  box.y + box.height < img.rows);
+      // The printed square is inside the window, with at least part of the margin around it.
+      EXPECT_LE(w[0].x0, box.x);
+      EXPECT_LE(w[0].y0, box.y);
+      EXPECT_GE(w[0].x1, box.x + box.width);
+      EXPECT_GE(w[0].y1, box.y + box.height);
+      // The predicted centre is the printed square's (its bounding box's centre, to the
+      // perspective of the tilt), the predicted border angle the one detection measures (its
+      // coarse estimate is a few degrees off).
+      // Under the tilt the box's centre is not the square's (the near side images larger).
+      const double tol_px = cam.mount.tilted() ? 3.0 : 1.0;
+      EXPECT_NEAR(w[0].centre_px.x, box.x + (box.width - 1) / 2.0, tol_px);
+      EXPECT_NEAR(w[0].centre_px.y, box.y + (box.height - 1) / 2.0, tol_px);
+      LandmarkFix fix;
+      ASSERT_EQ(loc.process(img, &fix), FixStatus::kOk) << to_string(fix.status);
+      const double da = std::remainder(rad_to_deg(w[0].up_angle_rad) - fix.detect_angle_deg, 90.0);
+      EXPECT_LT(std::abs(da), 5.0);
+    }
+  }
+}
+
+TEST(Tracking, WindowsGrowWithSigmaAndVanishWhenUntrusted) {
+  const LandmarkMap map = one_map();
+  const CameraModel cam = CameraModel::default_640x480();
+  VisionConfig vc;
+  WindowPlanner planner(vc, cam, LandmarkGeometry{}, &map);
+  const Pose2 v = over_landmark(cam, 0.0, 0.0, 0.3);
+  int prev_area = 0;
+  for (double s : {0.0, 1.0, 3.0, 6.0}) {
+    std::vector<SearchWindow> w;
+    planner.plan(predict(v, s, s * 0.1), &w);
+    ASSERT_EQ(w.size(), 1u) << s;
+    const int area = (w[0].x1 - w[0].x0) * (w[0].y1 - w[0].y0);
+    EXPECT_GT(area, prev_area) << s;
+    prev_area = area;
+  }
+  // A larger heading sigma alone also grows the window (the corners are off the vehicle origin).
+  std::vector<SearchWindow> a, b;
+  planner.plan(predict(v, 1.0, 0.1), &a);
+  planner.plan(predict(v, 1.0, 1.5), &b);
+  ASSERT_EQ(a.size(), 1u);
+  ASSERT_EQ(b.size(), 1u);
+  EXPECT_GT(b[0].x1 - b[0].x0, a[0].x1 - a[0].x0);
+
+  std::vector<SearchWindow> w;
+  Prediction invalid = predict(v, 1.0, 0.1);
+  invalid.valid = false;
+  planner.plan(invalid, &w);
+  EXPECT_TRUE(w.empty());
+  planner.plan(predict(v, vc.tracking.max_position_sigma_mm * 1.01, 0.1), &w);
+  EXPECT_TRUE(w.empty());
+  planner.plan(predict(v, 1.0, vc.tracking.max_heading_sigma_deg * 1.01), &w);
+  EXPECT_TRUE(w.empty());
+  Prediction nan = predict(v, 1.0, 0.1);
+  nan.cov(0, 1) = std::numeric_limits<double>::quiet_NaN();
+  planner.plan(nan, &w);
+  EXPECT_TRUE(w.empty());
+  // Correlated x-y: the largest eigenvalue decides, not the diagonal.
+  Prediction corr = predict(v, 0.8 * vc.tracking.max_position_sigma_mm, 0.1);
+  corr.cov(0, 1) = corr.cov(1, 0) = 0.9 * corr.cov(0, 0);
+  EXPECT_FALSE(prediction_trusted(corr, vc.tracking));
+  vc.tracking.enabled = false;
+  WindowPlanner off(vc, cam, LandmarkGeometry{}, &map);
+  off.plan(predict(v, 1.0, 0.1), &w);
+  EXPECT_TRUE(w.empty());
+  // A landmark far outside the footprint gives no window.
+  planner.plan(predict(compose(kLandmarkWorld, Pose2{400.0, 0.0, 0.0}), 1.0, 0.1), &w);
+  EXPECT_TRUE(w.empty());
+}
+
+TEST(Tracking, WindowedFixEqualsFullSearchFix) {
+  const LandmarkMap map = one_map();
+  for (const CameraModel& cam : {CameraModel::default_640x480(), tilted_camera()}) {
+    LandmarkLocalizer loc(VisionConfig{}, cam, LandmarkGeometry{}, &map);
+    int n = 0;
+    for (double dx : {-40.0, 0.0, 25.0}) {
+      for (double deg : {3.0, 44.0, 151.0}) {
+        const Pose2 v = over_landmark(cam, dx, 0.6 * dx, deg_to_rad(deg));
+        const cv::Mat img = render(map, v, cam);
+        LandmarkFix full, win;
+        const FixStatus sf = loc.process(img, &full);
+        // A prediction a few sigma off, as the filter's would be.
+        const Pose2 pv{v.x_mm + 4.0, v.y_mm - 3.0, v.theta_rad + deg_to_rad(0.4)};
+        loc.process(img, predict(pv, 3.0, 0.3), &win);
+        EXPECT_EQ(full.search, SearchMode::kFull);
+        if (sf != FixStatus::kOk) continue;
+        ++n;
+        EXPECT_EQ(win.search, SearchMode::kWindow) << dx << " " << deg;
+        expect_same_fix(full, win);
+      }
+    }
+    EXPECT_GE(n, 6);
+  }
+}
+
+TEST(Tracking, WrongPredictionFallsBackToTheFullFrame) {
+  const LandmarkMap map = one_map();
+  const CameraModel cam = CameraModel::default_640x480();
+  LandmarkLocalizer loc(VisionConfig{}, cam, LandmarkGeometry{}, &map);
+  // The landmark in the left half of the image; the prediction puts it 100 mm to the right, so
+  // its window (with sigma 2 mm) lies in the right half.
+  const Pose2 v = over_landmark(cam, -10.0, 48.0, 0.05);
+  const cv::Mat img = render(map, v, cam);
+  LandmarkFix full, fb;
+  ASSERT_EQ(loc.process(img, &full), FixStatus::kOk);
+  const Pose2 wrong = compose(v, Pose2{0.0, 100.0, 0.0});
+  WindowPlanner planner(VisionConfig{}, cam, LandmarkGeometry{}, &map);
+  std::vector<SearchWindow> w;
+  planner.plan(predict(wrong, 2.0, 0.2), &w);
+  ASSERT_EQ(w.size(), 1u);
+  EXPECT_GT(w[0].x0, full.detect_x_px + 30.0 / cam.mm_per_px());
+  ASSERT_EQ(loc.process(img, predict(wrong, 2.0, 0.2), &fb), FixStatus::kOk);
+  EXPECT_EQ(fb.search, SearchMode::kWindowThenFull);
+  expect_same_fix(full, fb);
+  // Trusted, but no mapped landmark predicted in view: nothing to window, the full frame.
+  const Pose2 far = compose(v, Pose2{0.0, -1000.0, 0.0});
+  ASSERT_EQ(loc.process(img, predict(far, 2.0, 0.2), &fb), FixStatus::kOk);
+  EXPECT_EQ(fb.search, SearchMode::kFull);
+  expect_same_fix(full, fb);
+}
+
+TEST(Tracking, ExtrapolationMovesAlongTheArcAndGrowsTheCovariance) {
+  MotionSnapshot s;
+  EXPECT_FALSE(extrapolate(s, 0, 10.0, 0.01).valid);
+  s.valid = true;
+  s.t_ns = 1'000'000'000;
+  s.vehicle_in_world = {100.0, 50.0, 0.0};
+  s.cov = Eigen::Vector3d(4.0, 4.0, 1e-4).asDiagonal();
+  s.v_mm_per_s = 1000.0;
+  s.omega_rad_per_s = 0.5;
+  const Prediction p = extrapolate(s, s.t_ns + 20'000'000, 100.0, 0.05);
+  ASSERT_TRUE(p.valid);
+  // 20 ms at 1 m/s along the chord at the mid heading (0.005 rad).
+  EXPECT_NEAR(p.vehicle_in_world.x_mm, 100.0 + 20.0 * std::cos(0.005), 1e-9);
+  EXPECT_NEAR(p.vehicle_in_world.y_mm, 50.0 + 20.0 * std::sin(0.005), 1e-9);
+  EXPECT_NEAR(p.vehicle_in_world.theta_rad, 0.01, 1e-12);
+  // Heading uncertainty moves into the cross-track position; the growth terms add on top.
+  EXPECT_NEAR(p.cov(1, 1), 4.0 + 1e-4 * 20.0 * 20.0 * std::cos(0.005) * std::cos(0.005) + 4.0,
+              1e-9);
+  EXPECT_NEAR(p.cov(2, 2), 1e-4 + 0.001 * 0.001, 1e-12);
+  EXPECT_GT(p.cov(0, 0), 4.0);
+  // Same time: the snapshot itself.
+  const Prediction same = extrapolate(s, s.t_ns, 100.0, 0.05);
+  EXPECT_EQ(same.vehicle_in_world.x_mm, 100.0);
+  EXPECT_EQ(same.cov, s.cov);
+}
