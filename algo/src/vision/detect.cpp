@@ -7,6 +7,7 @@
 #include <cstring>
 #include <opencv2/imgproc.hpp>
 
+#include "agv/vision/box_downsample.hpp"
 #include "localizer_impl.hpp"
 
 namespace agv::vision {
@@ -93,31 +94,6 @@ int best_template(const float* patch, size_t stride, int tsz, const float* tp, i
   }
   *best_dot = out[best_i];
   return best_i;
-}
-
-// Mean of each f x f block (rounded), the coarse detection image: what cv::resize with INTER_AREA
-// computes for an integer factor, without its generic machinery (f rows summed into one row of
-// vectorised adds, then f columns at a time).
-void box_downsample(const cv::Mat& img, int f, cv::Size cs, cv::Mat* out,
-                    std::vector<std::uint32_t>* sums) {
-  out->create(cs, CV_8UC1);
-  const int w = cs.width * f;
-  sums->resize(static_cast<size_t>(w));
-  const std::uint32_t area = static_cast<std::uint32_t>(f * f);
-  for (int y = 0; y < cs.height; ++y) {
-    std::uint32_t* acc = sums->data();
-    std::fill(acc, acc + w, 0u);
-    for (int k = 0; k < f; ++k) {
-      const std::uint8_t* src = img.ptr<std::uint8_t>(y * f + k);
-      for (int x = 0; x < w; ++x) acc[x] += src[x];
-    }
-    std::uint8_t* dst = out->ptr<std::uint8_t>(y);
-    for (int x = 0; x < cs.width; ++x) {
-      std::uint32_t sum = 0;
-      for (int k = 0; k < f; ++k) sum += acc[x * f + k];
-      dst[x] = static_cast<std::uint8_t>((sum + area / 2) / area);
-    }
-  }
 }
 
 std::vector<float> zero_mean_unit(const cv::Mat& t) {

@@ -1,0 +1,130 @@
+// Box downsampling for the coarse detection level (agv/vision/box_downsample.hpp). The scalar
+// loop cost about 3 instructions per input pixel on aarch64, most of a landmark-free frame; the
+// vector path needs about half an instruction per pixel.
+#include "agv/vision/box_downsample.hpp"
+
+#include <algorithm>
+#include <cstring>
+#include <opencv2/core.hpp>
+
+namespace agv::vision {
+
+namespace {
+
+typedef std::uint8_t U8x16 __attribute__((vector_size(16)));
+typedef std::uint16_t U16x16 __attribute__((vector_size(32)));
+typedef std::uint16_t U16x8 __attribute__((vector_size(16)));
+typedef std::uint16_t U16x4 __attribute__((vector_size(8)));
+typedef std::uint16_t U16x2 __attribute__((vector_size(4)));
+
+// Sum of neighbouring lane pairs: lanes (0+1, 2+3, ...), half as many.
+inline U16x8 pair_sums(U16x16 v) {
+  return __builtin_shufflevector(v, v, 0, 2, 4, 6, 8, 10, 12, 14) +
+         __builtin_shufflevector(v, v, 1, 3, 5, 7, 9, 11, 13, 15);
+}
+inline U16x4 pair_sums(U16x8 v) {
+  return __builtin_shufflevector(v, v, 0, 2, 4, 6) + __builtin_shufflevector(v, v, 1, 3, 5, 7);
+}
+inline U16x2 pair_sums(U16x4 v) {
+  return __builtin_shufflevector(v, v, 0, 2) + __builtin_shufflevector(v, v, 1, 3);
+}
+inline std::uint16_t pair_sums(U16x2 v) { return static_cast<std::uint16_t>(v[0] + v[1]); }
+
+// Block sums of 16 columns (one column sum per lane) reduced to 16 / F outputs, rounded means
+// stored to dst. Sums stay below 2^16: at most 16 * 16 * 255.
+template <int F>
+inline void store_means(U16x16 col, std::uint8_t* dst) {
+  constexpr int kShift = F == 2 ? 2 : F == 4 ? 4 : F == 8 ? 6 : 8;  // log2(F * F)
+  constexpr std::uint16_t kHalf = static_cast<std::uint16_t>((F * F) / 2);
+  if constexpr (F == 2) {
+    const U16x8 s = (pair_sums(col) + kHalf) >> kShift;
+    for (int i = 0; i < 8; ++i) dst[i] = static_cast<std::uint8_t>(s[i]);
+  } else if constexpr (F == 4) {
+    const U16x4 s = (pair_sums(pair_sums(col)) + kHalf) >> kShift;
+    for (int i = 0; i < 4; ++i) dst[i] = static_cast<std::uint8_t>(s[i]);
+  } else if constexpr (F == 8) {
+    const U16x2 s = (pair_sums(pair_sums(pair_sums(col))) + kHalf) >> kShift;
+    dst[0] = static_cast<std::uint8_t>(s[0]);
+    dst[1] = static_cast<std::uint8_t>(s[1]);
+  } else {
+    const unsigned s = pair_sums(pair_sums(pair_sums(pair_sums(col))));
+    dst[0] = static_cast<std::uint8_t>((s + kHalf) >> kShift);
+  }
+}
+
+template <int F>
+void box_downsample_vec(const cv::Mat& img, cv::Size cs, cv::Mat* out) {
+  constexpr int kOutPerChunk = 16 / F;
+  const int chunks = cs.width / kOutPerChunk;  // whole 16-pixel chunks inside cs.width * F
+  for (int y = 0; y < cs.height; ++y) {
+    const std::uint8_t* rows[F];
+    for (int k = 0; k < F; ++k) rows[k] = img.ptr<std::uint8_t>(y * F + k);
+    std::uint8_t* dst = out->ptr<std::uint8_t>(y);
+    for (int c = 0; c < chunks; ++c) {
+      U16x16 col{};
+      for (int k = 0; k < F; ++k) {
+        U8x16 v;
+        std::memcpy(&v, rows[k] + c * 16, sizeof v);
+        col += __builtin_convertvector(v, U16x16);
+      }
+      store_means<F>(col, dst + c * kOutPerChunk);
+    }
+    // Columns after the last whole chunk.
+    constexpr unsigned kArea = F * F;
+    for (int x = chunks * kOutPerChunk; x < cs.width; ++x) {
+      unsigned sum = 0;
+      for (int k = 0; k < F; ++k) {
+        for (int i = 0; i < F; ++i) sum += rows[k][x * F + i];
+      }
+      dst[x] = static_cast<std::uint8_t>((sum + kArea / 2) / kArea);
+    }
+  }
+}
+
+}  // namespace
+
+// f rows summed into one row, then f columns at a time.
+void box_downsample_scalar(const cv::Mat& img, int f, cv::Size cs, cv::Mat* out,
+                           std::vector<std::uint32_t>* sums) {
+  out->create(cs, CV_8UC1);
+  const int w = cs.width * f;
+  sums->resize(static_cast<size_t>(w));
+  const std::uint32_t area = static_cast<std::uint32_t>(f * f);
+  for (int y = 0; y < cs.height; ++y) {
+    std::uint32_t* acc = sums->data();
+    std::fill(acc, acc + w, 0u);
+    for (int k = 0; k < f; ++k) {
+      const std::uint8_t* src = img.ptr<std::uint8_t>(y * f + k);
+      for (int x = 0; x < w; ++x) acc[x] += src[x];
+    }
+    std::uint8_t* dst = out->ptr<std::uint8_t>(y);
+    for (int x = 0; x < cs.width; ++x) {
+      std::uint32_t sum = 0;
+      for (int k = 0; k < f; ++k) sum += acc[x * f + k];
+      dst[x] = static_cast<std::uint8_t>((sum + area / 2) / area);
+    }
+  }
+}
+
+void box_downsample(const cv::Mat& img, int f, cv::Size cs, cv::Mat* out,
+                    std::vector<std::uint32_t>* row_sums) {
+  out->create(cs, CV_8UC1);
+  switch (f) {
+    case 2:
+      box_downsample_vec<2>(img, cs, out);
+      return;
+    case 4:
+      box_downsample_vec<4>(img, cs, out);
+      return;
+    case 8:
+      box_downsample_vec<8>(img, cs, out);
+      return;
+    case 16:
+      box_downsample_vec<16>(img, cs, out);
+      return;
+    default:
+      box_downsample_scalar(img, f, cs, out, row_sums);
+  }
+}
+
+}  // namespace agv::vision
