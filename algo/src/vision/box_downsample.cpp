@@ -18,7 +18,7 @@ typedef std::uint16_t U16x4 __attribute__((vector_size(8)));
 typedef std::uint16_t U16x2 __attribute__((vector_size(4)));
 
 // Sum of neighbouring lane pairs: lanes (0+1, 2+3, ...), half as many.
-inline U16x8 pair_sums(U16x16 v) {
+inline U16x8 pair_sums(const U16x16& v) {
   return __builtin_shufflevector(v, v, 0, 2, 4, 6, 8, 10, 12, 14) +
          __builtin_shufflevector(v, v, 1, 3, 5, 7, 9, 11, 13, 15);
 }
@@ -33,7 +33,7 @@ inline std::uint16_t pair_sums(U16x2 v) { return static_cast<std::uint16_t>(v[0]
 // Block sums of 16 columns (one column sum per lane) reduced to 16 / F outputs, rounded means
 // stored to dst. Sums stay below 2^16: at most 16 * 16 * 255.
 template <int F>
-inline void store_means(U16x16 col, std::uint8_t* dst) {
+inline void store_means(const U16x16& col, std::uint8_t* dst) {
   constexpr int kShift = F == 2 ? 2 : F == 4 ? 4 : F == 8 ? 6 : 8;  // log2(F * F)
   constexpr std::uint16_t kHalf = static_cast<std::uint16_t>((F * F) / 2);
   if constexpr (F == 2) {
