@@ -7,7 +7,7 @@
 #include <cstring>
 #include <opencv2/imgproc.hpp>
 
-#include "agv/vision/box_downsample.hpp"
+#include "agv/vision/coarse_level.hpp"
 #include "localizer_impl.hpp"
 
 namespace agv::vision {
@@ -222,8 +222,7 @@ bool LandmarkLocalizer::Impl::make_coarse(const cv::Mat& img) {
   box_downsample(img, f, cs, &coarse, &row_sums);
   int block = static_cast<int>(std::lround(cfg.adaptive_block_mm / (mm_per_px * f)));
   block = std::max(kMinAdaptiveBlockPx, block | 1);
-  cv::adaptiveThreshold(coarse, binary, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY_INV,
-                        block, cfg.adaptive_offset);
+  adaptive_threshold_mean_inv(coarse, block, cfg.adaptive_offset, &binary, &threshold_sums);
   return true;
 }
 
@@ -231,7 +230,7 @@ bool LandmarkLocalizer::Impl::make_coarse(const cv::Mat& img) {
 // middle of the corner's dark square) must be dark in the binary image and the patch must have
 // contrast. Keeps the best score and rotation per position.
 void LandmarkLocalizer::Impl::score_corner_templates() {
-  cv::integral(coarse, isum, isq, CV_32S, CV_64F);
+  integral_sum_sq(coarse, &isum, &isq);
   const int tsz = templates[0].cols, r = tsz / 2, n_pix = tsz * tsz;
   best_score.create(coarse.rows - tsz + 1, coarse.cols - tsz + 1, CV_32FC1);
   best_score.setTo(-1.0f);

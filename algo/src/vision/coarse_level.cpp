@@ -1,11 +1,13 @@
-// Box downsampling for the coarse detection level (agv/vision/box_downsample.hpp). The scalar
+// Box downsampling for the coarse detection level (agv/vision/coarse_level.hpp). The scalar
 // loop cost about 3 instructions per input pixel on aarch64, most of a landmark-free frame; the
 // vector path needs about half an instruction per pixel.
-#include "agv/vision/box_downsample.hpp"
+#include "agv/vision/coarse_level.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 
 namespace agv::vision {
 
@@ -124,6 +126,79 @@ void box_downsample(const cv::Mat& img, int f, cv::Size cs, cv::Mat* out,
       return;
     default:
       box_downsample_scalar(img, f, cs, out, row_sums);
+  }
+}
+
+void adaptive_threshold_mean_inv(const cv::Mat& src, int block, double offset, cv::Mat* dst,
+                                 std::vector<int>* scratch) {
+  if (block > kMaxOwnAdaptiveBlock || block < 3 || block % 2 == 0 || src.empty()) {
+    cv::adaptiveThreshold(src, *dst, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY_INV, block,
+                          offset);
+    return;
+  }
+  const int w = src.cols, h = src.rows, r = block / 2, area = block * block;
+  const int idelta = static_cast<int>(std::floor(offset));
+  dst->create(src.size(), CV_8UC1);
+  // Horizontal window sums (replicated border) of every row, then a running vertical sum.
+  scratch->resize(static_cast<size_t>(w) * static_cast<size_t>(h + 1));
+  int* hs = scratch->data();
+  for (int y = 0; y < h; ++y) {
+    const std::uint8_t* p = src.ptr<std::uint8_t>(y);
+    int* o = hs + static_cast<size_t>(y) * static_cast<size_t>(w);
+    int s = 0;
+    for (int dx = -r; dx <= r; ++dx) s += p[std::clamp(dx, 0, w - 1)];
+    o[0] = s;
+    for (int x = 1; x < w; ++x) {
+      s += p[std::min(x + r, w - 1)] - p[std::max(x - 1 - r, 0)];
+      o[x] = s;
+    }
+  }
+  int* col = hs + static_cast<size_t>(w) * static_cast<size_t>(h);
+  auto hrow = [&](int y) { return hs + static_cast<size_t>(std::clamp(y, 0, h - 1)) * w; };
+  std::fill(col, col + w, 0);
+  for (int dy = -r; dy <= r; ++dy) {
+    const int* hr = hrow(dy);
+    for (int x = 0; x < w; ++x) col[x] += hr[x];
+  }
+  for (int y = 0; y < h; ++y) {
+    const std::uint8_t* p = src.ptr<std::uint8_t>(y);
+    std::uint8_t* d = dst->ptr<std::uint8_t>(y);
+    for (int x = 0; x < w; ++x) {
+      // Rounded mean; area is odd, so there are no ties.
+      const int mean = (2 * col[x] + area) / (2 * area);
+      d[x] = p[x] - mean <= -idelta ? 255 : 0;
+    }
+    if (y + 1 < h) {
+      const int* add = hrow(y + 1 + r);
+      const int* sub = hrow(y - r);
+      for (int x = 0; x < w; ++x) col[x] += add[x] - sub[x];
+    }
+  }
+}
+
+void integral_sum_sq(const cv::Mat& src, cv::Mat* sum, cv::Mat* sq) {
+  const int w = src.cols, h = src.rows;
+  sum->create(h + 1, w + 1, CV_32SC1);
+  sq->create(h + 1, w + 1, CV_64FC1);
+  std::fill(sum->ptr<int>(0), sum->ptr<int>(0) + w + 1, 0);
+  std::fill(sq->ptr<double>(0), sq->ptr<double>(0) + w + 1, 0.0);
+  for (int y = 0; y < h; ++y) {
+    const std::uint8_t* p = src.ptr<std::uint8_t>(y);
+    const int* s0 = sum->ptr<int>(y);
+    int* s1 = sum->ptr<int>(y + 1);
+    const double* q0 = sq->ptr<double>(y);
+    double* q1 = sq->ptr<double>(y + 1);
+    s1[0] = 0;
+    q1[0] = 0.0;
+    int rs = 0;
+    std::int64_t rq = 0;
+    for (int x = 0; x < w; ++x) {
+      const int v = p[x];
+      rs += v;
+      rq += v * v;
+      s1[x + 1] = s0[x + 1] + rs;
+      q1[x + 1] = q0[x + 1] + static_cast<double>(rq);
+    }
   }
 }
 
