@@ -4,7 +4,9 @@
 #include <ZXing/ReadBarcode.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 
 namespace agv::vision {
@@ -99,11 +101,9 @@ void binarize(const QrSamples& s, QrThreshold t, QrGridScratch* sc) {
   }
 }
 
-}  // namespace
-
-int qr_fixed_module(int n, int r, int c) {
-  if (n != 21 && n != 25) return -1;
-  if (r < 0 || c < 0 || r >= n || c >= n) return -1;
+// The standard's fixed modules of a version-1 or -2 code, computed per module (qr_fixed_module
+// looks them up in a table built from this once).
+int fixed_module_of(int n, int r, int c) {
   // Finder patterns and separators.
   if (r < 7 && c < 7) return finder_value(r, c);
   if (r < 7 && c >= n - 7) return finder_value(r, c - (n - 7));
@@ -127,6 +127,33 @@ int qr_fixed_module(int n, int r, int c) {
     return d == 1 ? 0 : 1;
   }
   return -1;
+}
+
+// Fixed-module tables of both versions: sampling, fill-in and rendering ask for every module of
+// every grid they try, a few thousand times per frame.
+struct FixedModuleTables {
+  std::array<std::int8_t, 21 * 21> v1{};
+  std::array<std::int8_t, 25 * 25> v2{};
+  FixedModuleTables() {
+    for (int r = 0; r < 21; ++r) {
+      for (int c = 0; c < 21; ++c)
+        v1[static_cast<size_t>(r * 21 + c)] = static_cast<std::int8_t>(fixed_module_of(21, r, c));
+    }
+    for (int r = 0; r < 25; ++r) {
+      for (int c = 0; c < 25; ++c)
+        v2[static_cast<size_t>(r * 25 + c)] = static_cast<std::int8_t>(fixed_module_of(25, r, c));
+    }
+  }
+};
+
+}  // namespace
+
+int qr_fixed_module(int n, int r, int c) {
+  if (n != 21 && n != 25) return -1;
+  if (r < 0 || c < 0 || r >= n || c >= n) return -1;
+  static const FixedModuleTables tables;
+  return n == 21 ? tables.v1[static_cast<size_t>(r * 21 + c)]
+                 : tables.v2[static_cast<size_t>(r * 25 + c)];
 }
 
 int qr_fixed_module_errors(const QrSamples& s, QrThreshold t, QrGridScratch* sc) {
