@@ -78,7 +78,8 @@ TEST(CoarseLevel, AdaptiveThresholdEqualsOpenCv) {
   std::mt19937 rng(5);
   std::vector<int> scratch;
   int compared = 0;
-  for (cv::Size sz : {cv::Size(80, 60), cv::Size(160, 120), cv::Size(7, 5), cv::Size(1, 9)}) {
+  for (cv::Size sz :
+       {cv::Size(80, 60), cv::Size(160, 120), cv::Size(37, 23), cv::Size(7, 5), cv::Size(1, 9)}) {
     for (bool smooth : {false, true}) {
       const cv::Mat img = test_image(sz, smooth, &rng);
       for (int block = 3; block <= 17; block += 2) {
