@@ -69,7 +69,9 @@ void binarize(const QrSamples& s, QrThreshold t, QrGridScratch* sc) {
   } else {
     // Mean of the 5x5 modules around each module (clipped to the sampled grid), separable: the
     // sums of up to 5 modules along each row, then up to 5 of those along each column (a fifth
-    // of the additions of the direct 5x5 sum; the sums of these float values are exact in double).
+    // of the additions of the direct 5x5 sum). Sums of these floats in double are exact, so the
+    // order does not matter, unless a value is below about 1e-4 grey levels in magnitude (a
+    // rounding of 1e-16 relative then, where the direct sum rounded too).
     sc->row_sum.resize(nn);
     for (int r = 0; r < side; ++r) {
       const float* wr = sc->work.data() + static_cast<size_t>(r * side);
