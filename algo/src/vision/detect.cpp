@@ -7,6 +7,7 @@
 #include <cstring>
 #include <opencv2/imgproc.hpp>
 
+#include "agv/vision/coarse_level.hpp"
 #include "localizer_impl.hpp"
 
 namespace agv::vision {
@@ -63,8 +64,9 @@ constexpr double kWhiteGrey = 255.0;
 // Dot products of one coarse patch (row pointer, stride) with every corner template at once.
 // Templates are stored pixel-major with `Lanes` slots per pixel, so one pixel value multiplies
 // Lanes / 4 vectors of four templates (GCC/Clang vector extensions: SSE on x86-64, NEON on
-// aarch64; the auto-vectoriser interleaved this loop badly at 16 lanes). 16 lanes hold the
-// default 12 rotations, 32 the maximum.
+// aarch64; the auto-vectoriser interleaved this loop badly at 16 lanes). 12 lanes hold the
+// default 12 rotations exactly (no multiply of padding: a fifth fewer instructions than 16 lanes
+// per pixel on aarch64; the dot products of the real templates are the same), 16 and 32 the rest.
 template <int Lanes>
 int best_template(const float* patch, size_t stride, int tsz, const float* tp, int n_t,
                   float* best_dot) {
@@ -93,31 +95,6 @@ int best_template(const float* patch, size_t stride, int tsz, const float* tp, i
   }
   *best_dot = out[best_i];
   return best_i;
-}
-
-// Mean of each f x f block (rounded), the coarse detection image: what cv::resize with INTER_AREA
-// computes for an integer factor, without its generic machinery (f rows summed into one row of
-// vectorised adds, then f columns at a time).
-void box_downsample(const cv::Mat& img, int f, cv::Size cs, cv::Mat* out,
-                    std::vector<std::uint32_t>* sums) {
-  out->create(cs, CV_8UC1);
-  const int w = cs.width * f;
-  sums->resize(static_cast<size_t>(w));
-  const std::uint32_t area = static_cast<std::uint32_t>(f * f);
-  for (int y = 0; y < cs.height; ++y) {
-    std::uint32_t* acc = sums->data();
-    std::fill(acc, acc + w, 0u);
-    for (int k = 0; k < f; ++k) {
-      const std::uint8_t* src = img.ptr<std::uint8_t>(y * f + k);
-      for (int x = 0; x < w; ++x) acc[x] += src[x];
-    }
-    std::uint8_t* dst = out->ptr<std::uint8_t>(y);
-    for (int x = 0; x < cs.width; ++x) {
-      std::uint32_t sum = 0;
-      for (int k = 0; k < f; ++k) sum += acc[x * f + k];
-      dst[x] = static_cast<std::uint8_t>((sum + area / 2) / area);
-    }
-  }
 }
 
 std::vector<float> zero_mean_unit(const cv::Mat& t) {
@@ -182,7 +159,7 @@ void LandmarkLocalizer::Impl::build_templates() {
   // Transposed, padded to a fixed number of lanes (zeros) so the NCC inner loop has a fixed
   // trip count and vectorises.
   const size_t n_pix = templates_zm[0].size(), n_t = templates_zm.size();
-  template_lanes = n_t <= 16 ? 16 : kMaxTemplates;
+  template_lanes = n_t <= 12 ? 12 : n_t <= 16 ? 16 : kMaxTemplates;
   const size_t lanes = static_cast<size_t>(template_lanes);
   templates_t.assign(n_pix * lanes, 0.0f);
   for (size_t t = 0; t < n_t; ++t) {
@@ -246,8 +223,7 @@ bool LandmarkLocalizer::Impl::make_coarse(const cv::Mat& img) {
   box_downsample(img, f, cs, &coarse, &row_sums);
   int block = static_cast<int>(std::lround(cfg.adaptive_block_mm / (mm_per_px * f)));
   block = std::max(kMinAdaptiveBlockPx, block | 1);
-  cv::adaptiveThreshold(coarse, binary, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY_INV,
-                        block, cfg.adaptive_offset);
+  adaptive_threshold_mean_inv(coarse, block, cfg.adaptive_offset, &binary, &threshold_sums);
   return true;
 }
 
@@ -255,7 +231,7 @@ bool LandmarkLocalizer::Impl::make_coarse(const cv::Mat& img) {
 // middle of the corner's dark square) must be dark in the binary image and the patch must have
 // contrast. Keeps the best score and rotation per position.
 void LandmarkLocalizer::Impl::score_corner_templates() {
-  cv::integral(coarse, isum, isq, CV_32S, CV_64F);
+  integral_sum_sq(coarse, &isum, &isq);
   const int tsz = templates[0].cols, r = tsz / 2, n_pix = tsz * tsz;
   best_score.create(coarse.rows - tsz + 1, coarse.cols - tsz + 1, CV_32FC1);
   best_score.setTo(-1.0f);
@@ -277,11 +253,12 @@ void LandmarkLocalizer::Impl::score_corner_templates() {
       if (var < min_var) continue;
       const float* patch = coarse_f.ptr<float>(y) + x;
       float best_dot = 0.0f;
+      const float* tp = templates_t.data();
       const int best_i =
-          template_lanes == 16
-              ? best_template<16>(patch, fstride, tsz, templates_t.data(), n_t, &best_dot)
-              : best_template<kMaxTemplates>(patch, fstride, tsz, templates_t.data(), n_t,
-                                             &best_dot);
+          template_lanes == 12 ? best_template<12>(patch, fstride, tsz, tp, n_t, &best_dot)
+          : template_lanes == 16
+              ? best_template<16>(patch, fstride, tsz, tp, n_t, &best_dot)
+              : best_template<kMaxTemplates>(patch, fstride, tsz, tp, n_t, &best_dot);
       out_row[x] = static_cast<float>(static_cast<double>(best_dot) / std::sqrt(var * n_pix));
       best_rot.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(best_i);
     }

@@ -156,6 +156,7 @@ struct LandmarkLocalizer::Impl {
   cv::Mat coarse_f;  // CV_32F copy of `coarse` for the NCC kernel
   cv::Mat orient4;   // CV_32FC2 per coarse pixel: |g|^2-weighted (cos 4a, sin 4a) of the gradient
   std::vector<std::uint32_t> row_sums;
+  std::vector<int> threshold_sums;
   std::vector<std::vector<float>> fine_templates;  // 1-degree steps
   std::vector<CornerPeak> peaks;
   std::vector<Hypothesis> hyps;
@@ -172,8 +173,7 @@ struct LandmarkLocalizer::Impl {
   std::array<std::vector<double>, kNumLines> weights;
   std::vector<double> logo_template, logo_samples, residual_buf, scratch_buf;
   std::vector<Vec2> logo_page_pts;
-  std::vector<int> strip_gx, strip_gy;
-  std::vector<double> strip_along;
+  std::vector<int> strip_gx, strip_gy, strip_sd;
 
   // Kept for the overlay.
   bool have_overlay = false;

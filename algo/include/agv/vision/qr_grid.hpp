@@ -44,6 +44,7 @@ enum class QrThreshold {
 // Reusable buffers (no allocation after the first call of a given size, except inside zxing).
 struct QrGridScratch {
   std::vector<float> work, mean;
+  std::vector<double> row_sum;
   std::vector<unsigned char> bits, image;
 };
 
