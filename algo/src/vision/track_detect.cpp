@@ -25,9 +25,12 @@ constexpr double kAgreeBorderWidths = 1.5;
 // is left to the full search, which has the context of every other corner peak.
 constexpr int kMinTrackedCorners = 2;
 // The refined angle may differ from the prediction by window_sigmas heading sigmas plus this: the
-// gradient estimate of the coarse image's angle scatters by a fraction of a degree, and the
-// prediction's angle comes from a pinhole probe near the centre.
-constexpr double kAngleSlackDeg = 2.0;
+// prediction's angle is that of a probe along one axis at the centre, while the refinement
+// averages the gradients of all four sides, which a tilted camera's perspective turns by up to
+// ~2.5 degrees against each other (measured, tests/vision/test_tracking.cpp); the gradient
+// estimate on the coarse image scatters by a fraction of a degree more. A wrong prediction a
+// template step (30 degrees) off is still rejected.
+constexpr double kAngleSlackDeg = 5.0;
 // The orientation field is computed this far (coarse px) beyond what the angle refinement reads
 // around the first centre estimate: the re-match moves the centre by at most 2 px per pass.
 constexpr int kOrientGuardPx = 4;
