@@ -111,8 +111,8 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
     return finish(FixStatus::kBadInput);
   }
   if (cfg.family == LandmarkFamily::kTag36h11) return finish(run_tag(img, out));
-  // 1-2. Binarization and detection: in the prediction's windows when it is trusted, the whole
-  // frame when there is none or they find nothing (docs/tracking.md).
+  // 1-2. Binarization and detection: from the prediction when it is trusted (tracked, then the
+  // windows), the whole frame when there is none or they find nothing (docs/tracking.md).
   Detection det;
   bool found_corner = false;
   double corner_score = 0;
@@ -120,8 +120,15 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
   bool found = false;
   bool searched_all = false;
   if (!windows.empty()) {
-    found = detect_in_windows(img, &det, &found_corner, &corner_score, &searched_all) &&
+    // The prediction replaces the search (tracked detection); when it finds nothing trusted, the
+    // corner search over the windows.
+    found = detect_tracked(img, &det, &corner_score) &&
             det.white_grey - det.dark_grey >= kMinContrastGrey;
+    if (!found) {
+      det = Detection{};
+      found = detect_in_windows(img, &det, &found_corner, &corner_score, &searched_all) &&
+              det.white_grey - det.dark_grey >= kMinContrastGrey;
+    }
     out->search = found ? SearchMode::kWindow : SearchMode::kWindowThenFull;
   }
   // Windows that cover the whole frame were the full search: not repeated.

@@ -6,6 +6,7 @@
 //   qr_decode.cpp   5   guided module sampling, zxing fallback, payload and map check
 //   apriltag.cpp    tag36h11 family: libapriltag detection and id, then the pose stage above
 //   covariance.cpp  6   fit covariance from the normal equations, vehicle-in-world propagation
+//   track_detect.cpp    1-2 with a trusted prediction: the predicted landmark's corners only
 //   landmark_localizer.cpp  run(): the stages in order, the public class, the debug overlay
 #pragma once
 
@@ -211,6 +212,11 @@ struct LandmarkLocalizer::Impl {
   bool partly_outside(const cv::Mat& img, Vec2 c_px, double up) const;
   bool detect_in_windows(const cv::Mat& img, Detection* best, bool* found_corner,
                          double* corner_score, bool* whole_frame);
+  // Tracked detection from the windows' predicted centre and angle (track_detect.cpp).
+  bool detect_tracked(const cv::Mat& img, Detection* best, double* corner_score);
+  bool detect_tracked_in(const cv::Mat& img, const SearchWindow& w, Detection* best,
+                         double* corner_score, int* n_dark);
+  void compute_orient4_in(int x0, int y0, int x1, int y1);
   void fill_result(const Pose2& world_landmark, Vec2 c_mm, double beta, int q_final,
                    const Eigen::Matrix3d& cov, LandmarkFix* out) const;
 

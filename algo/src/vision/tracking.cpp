@@ -138,9 +138,12 @@ bool WindowPlanner::window_for(const Pose2& v, const Eigen::Matrix3d& cov_v,
   double min_x = HUGE_VAL, min_y = HUGE_VAL, max_x = -HUGE_VAL, max_y = -HUGE_VAL;
   const double poly = 1.0 / std::cos(kPi / kCirclePolygon);
   bool all_projected = true;
+  double corner_sigma_mm = 0.0;
   for (const Vec2& corner_l : geom_.outer_corners_landmark_mm()) {
     const Vec2 p = transform(landmark_in_vehicle, corner_l);
-    const double r = (cfg_.window_sigmas * point_sigma_mm(p, cov_v) + margin_mm_) * poly;
+    const double sigma_mm = point_sigma_mm(p, cov_v);
+    corner_sigma_mm = std::max(corner_sigma_mm, sigma_mm);
+    const double r = (cfg_.window_sigmas * sigma_mm + margin_mm_) * poly;
     for (int k = 0; k < kCirclePolygon; ++k) {
       const double a = 2.0 * kPi * k / kCirclePolygon;
       Vec2 px;
@@ -176,6 +179,7 @@ bool WindowPlanner::window_for(const Pose2& v, const Eigen::Matrix3d& cov_v,
     w->up_angle_rad = reduce_90(std::atan2(p_px.y - c_px.y, p_px.x - c_px.x));
   }
   w->up_angle_sigma_rad = std::sqrt(std::max(0.0, cov_v(2, 2)));
+  w->corner_sigma_px = corner_sigma_mm / cam_.mm_per_px();
   return true;
 }
 

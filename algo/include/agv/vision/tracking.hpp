@@ -23,6 +23,9 @@ struct SearchWindow {
   // Standard deviation of that angle (the heading sigma): detection may try only the corner
   // template rotations within a few of it.
   double up_angle_sigma_rad = 0.0;
+  // Largest standard deviation (pixels, at the camera's mean scale) of an outer corner's
+  // predicted position: the tracked detection searches each corner within window_sigmas of it.
+  double corner_sigma_px = 0.0;
 };
 
 // The trust rule: the prediction is valid and finite, the largest eigenvalue of its position
