@@ -129,10 +129,10 @@ int main(int argc, char** argv) {
       ++tracked;
     }
     const auto add_error = [&truth](const vision::LandmarkFix& f, std::vector<double>* mm,
-                              std::vector<double>* deg) {
+                                    std::vector<double>* deg) {
       if (f.status != vision::FixStatus::kOk) return;
-      mm->push_back(std::hypot(f.vehicle_in_world.x_mm - truth.x_mm,
-                               f.vehicle_in_world.y_mm - truth.y_mm));
+      mm->push_back(
+          std::hypot(f.vehicle_in_world.x_mm - truth.x_mm, f.vehicle_in_world.y_mm - truth.y_mm));
       deg->push_back(
           std::abs(rad_to_deg(wrap_angle_rad(f.vehicle_in_world.theta_rad - truth.theta_rad))));
     };
