@@ -1,6 +1,10 @@
 // LandmarkLocalizer::process on mutated real frames: the four golden frames of
 // tests/data/vision (640x480, landmark 17 in a one-landmark map). The first byte picks the frame;
 // every further 6 bytes paint (or XOR) one rectangle of up to 16x16 pixels, at most 32 of them.
+// Bits 2-3 of the first byte choose the prediction (docs/tracking.md): none, the unmutated fix's
+// pose with a tight covariance (tracked detection, windows, map-guided identity of a damaged code),
+// or that pose 40 mm and 30 degrees off with the same tight covariance (a wrong trusted
+// prediction: the fallbacks).
 // Property: the fix from a mutated frame is either absent (any status but kOk) or consistent with
 // the unmutated frame's fix: same landmark, finite pose and covariance, within 5 mm and 2 degrees
 // plus four of its own reported standard deviations.
@@ -42,6 +46,16 @@ World& world() {
       x->loc->process(b.image, &b.fix);
       FUZZ_CHECK(b.fix.status == vision::FixStatus::kOk, "%s: reference fix %s", name,
                  vision::to_string(b.fix.status));
+      // The prediction modes must reach the windowed paths on the unmutated frame.
+      vision::Prediction p;
+      p.valid = true;
+      p.vehicle_in_world = b.fix.vehicle_in_world;
+      p.cov = Eigen::Vector3d(9.0, 9.0, 1e-4).asDiagonal();
+      vision::LandmarkFix f;
+      x->loc->process(b.image, p, &f);
+      FUZZ_CHECK(f.status == vision::FixStatus::kOk && f.search == vision::SearchMode::kWindow,
+                 "%s: predicted fix %s, search %d", name, vision::to_string(f.status),
+                 static_cast<int>(f.search));
       x->bases.push_back(b);
     }
     return x;
@@ -55,6 +69,18 @@ extern "C" int LLVMFuzzerTestOneInput(const unsigned char* data, std::size_t siz
   if (size < 1) return 0;
   World& w = world();
   const Base& base = w.bases[data[0] % w.bases.size()];
+  vision::Prediction pred;
+  const int pred_mode = (data[0] >> 2) & 3;
+  if (pred_mode != 0) {
+    pred.valid = true;
+    pred.vehicle_in_world = base.fix.vehicle_in_world;
+    if (pred_mode == 3) {
+      pred.vehicle_in_world.x_mm += 40.0;
+      pred.vehicle_in_world.theta_rad += deg_to_rad(30.0);
+    }
+    const double s_rad = deg_to_rad(0.3);
+    pred.cov = Eigen::Vector3d(9.0, 9.0, s_rad * s_rad).asDiagonal();
+  }
   base.image.copyTo(w.work);
   int ops = 0;
   for (std::size_t at = 1; at + 6 <= size && ops < 32; at += 6, ++ops) {
@@ -71,7 +97,7 @@ extern "C" int LLVMFuzzerTestOneInput(const unsigned char* data, std::size_t siz
     }
   }
   vision::LandmarkFix fix;
-  const vision::FixStatus st = w.loc->process(w.work, &fix);
+  const vision::FixStatus st = w.loc->process(w.work, pred, &fix);
   FUZZ_CHECK(st == fix.status && vision::to_string(st) != nullptr, "status");
   if (st != vision::FixStatus::kOk) return 0;
   const Pose2& a = base.fix.vehicle_in_world;
