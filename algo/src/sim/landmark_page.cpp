@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "agv/sim/render.hpp"
+#include "agv/vision/map_identity.hpp"
 
 namespace agv::sim {
 
@@ -200,15 +201,8 @@ std::string landmark_svg(const LandmarkGeometry& geometry, const std::string& pa
   return os.str();
 }
 
-std::string full_payload(const LandmarkMapEntry& e) {
-  LandmarkPayload p;
-  p.id = e.id;
-  p.has_pose = true;
-  p.x_mm = e.pose.x_mm;
-  p.y_mm = e.pose.y_mm;
-  p.heading_deg = rad_to_deg(wrap_angle_rad(e.pose.theta_rad));
-  return format_payload(p);
-}
+// The payload the map-guided identity expects to see printed (one definition for both).
+std::string full_payload(const LandmarkMapEntry& e) { return vision::map_full_payload(e); }
 
 std::string landmark_sheet_svg(const LandmarkGeometry& geometry, const LandmarkMap& map,
                                int columns) {
