@@ -28,10 +28,9 @@ constexpr int kMinAdaptiveBlockPx = 3;
 // faint floor texture normalised to unit variance can look like a corner. The printed border is
 // 100+ grey levels darker than the paper; 12 keeps blurred, dim landmarks.
 constexpr double kMinCornerPatchSigmaGrey = 12.0;
-// Two corner peaks belong to the same landmark when their predicted centres are closer than this
-// (in border widths; neighbouring landmarks are a grid apart) and their square angles agree
-// within the tolerance (the 30-degree templates are at most 15 degrees off each).
-constexpr double kMergeDistanceBorderWidths = 1.5;
+// Two corner peaks belong to the same landmark when their predicted centres are closer than
+// kMergeDistanceBorderWidths (localizer_impl.hpp) and their square angles agree within this (the
+// 30-degree templates are at most 15 degrees off each).
 constexpr double kMergeAngleTolDeg = 25.0;
 // Angle refinement from the gradients and centre re-match, alternated at most this many times:
 // the second pass catches a whole-degree change of the angle; a third never changed the result.
@@ -422,11 +421,21 @@ Vec2 LandmarkLocalizer::Impl::rematch_corner(const CornerPeak& p, double a, doub
 // degrees, from the 4x angle weighted by |g|^2) inside the predicted square refines the angle.
 // The per-pixel 4x-angle vectors are computed once per frame (orient4), not per hypothesis.
 void LandmarkLocalizer::Impl::compute_orient4() {
+  compute_orient4_in(1, 1, coarse.cols - 2, coarse.rows - 2);
+}
+
+// compute_orient4 over [x0, x1] x [y0, y1] only (clipped to the pixels with a full Prewitt
+// neighbourhood); zero elsewhere. The tracked detection needs it only around its hypothesis.
+void LandmarkLocalizer::Impl::compute_orient4_in(int x0, int y0, int x1, int y1) {
   orient4.create(coarse.size(), CV_32FC2);
   orient4.setTo(cv::Scalar::all(0));
-  for (int y = 1; y + 1 < coarse.rows; ++y) {
+  x0 = std::max(x0, 1);
+  y0 = std::max(y0, 1);
+  x1 = std::min(x1, coarse.cols - 2);
+  y1 = std::min(y1, coarse.rows - 2);
+  for (int y = y0; y <= y1; ++y) {
     cv::Vec2f* o = orient4.ptr<cv::Vec2f>(y);
-    for (int x = 1; x + 1 < coarse.cols; ++x) {
+    for (int x = x0; x <= x1; ++x) {
       int gxi, gyi;
       prewitt_at(coarse.ptr<std::uint8_t>(y) + x, static_cast<std::ptrdiff_t>(coarse.step[0]), &gxi,
                  &gyi);

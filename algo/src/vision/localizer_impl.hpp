@@ -40,6 +40,11 @@ constexpr int kMaxTemplates = 32;  // upper bound of VisionConfig::corner_rotati
 constexpr int kQrModulesV2 = 25;
 constexpr int kQrModulesV1 = 21;
 
+// Corner peaks whose predicted landmark centres are closer than this (in border widths;
+// neighbouring landmarks are a grid apart) vote for the same landmark: the full search merges
+// them (detect.cpp), the tracked detection requires its corners to agree (track_detect.cpp).
+constexpr double kMergeDistanceBorderWidths = 1.5;
+
 // Image angles measured on the metric model are taken from the centre and a point this far along
 // the direction: far enough that pixel rounding in the camera model is negligible (< 0.05 deg),
 // near enough to stay inside the landmark's footprint for the distortion to be the local one.

@@ -19,9 +19,6 @@ namespace {
 // as wide as the border (2.5+ coarse px), so a grid point lies within one pixel of it and the
 // re-match of refine_hypothesis (+-2 px, subpixel) then finds the maximum.
 constexpr int kGridStepPx = 2;
-// Found corners vote for the centre; they must agree as the peaks merged into one hypothesis
-// of the full search do (detect.cpp kMergeDistanceBorderWidths).
-constexpr double kAgreeBorderWidths = 1.5;
 // Two corners fix centre and angle; a single one (landmark cut by the image border, or covered)
 // is left to the full search, which has the context of every other corner peak.
 constexpr int kMinTrackedCorners = 2;
@@ -35,8 +32,6 @@ constexpr double kAngleSlackDeg = 5.0;
 // The orientation field is computed this far (coarse px) beyond what the angle refinement reads
 // around the first centre estimate: the re-match moves the centre by at most 2 px per pass.
 constexpr int kOrientGuardPx = 4;
-// Gradients below this squared Prewitt magnitude carry no orientation (as compute_orient4).
-constexpr double kMinOrientGradient2 = 1.0;
 
 }  // namespace
 
@@ -126,7 +121,7 @@ bool LandmarkLocalizer::Impl::detect_tracked_in(const cv::Mat& img, const Search
     const Vec2 d = rot({coarse_h - coarse_anchor, coarse_h - coarse_anchor}, a_k);
     votes[i] = {peaks[i].x + d.x, peaks[i].y + d.y};
   }
-  const double agree = kAgreeBorderWidths * coarse_w;
+  const double agree = kMergeDistanceBorderWidths * coarse_w;
   int best_i = -1, best_count = 0;
   for (size_t i = 0; i < n; ++i) {
     int count = 0;
@@ -174,29 +169,6 @@ bool LandmarkLocalizer::Impl::detect_tracked_in(const cv::Mat& img, const Search
   best->white_grey = white;
   *corner_score = h.score_max;
   return true;
-}
-
-// compute_orient4 over [x0, x1] x [y0, y1] only (clipped); zero elsewhere.
-void LandmarkLocalizer::Impl::compute_orient4_in(int x0, int y0, int x1, int y1) {
-  orient4.create(coarse.size(), CV_32FC2);
-  orient4.setTo(cv::Scalar::all(0));
-  x0 = std::max(x0, 1);
-  y0 = std::max(y0, 1);
-  x1 = std::min(x1, coarse.cols - 2);
-  y1 = std::min(y1, coarse.rows - 2);
-  for (int y = y0; y <= y1; ++y) {
-    cv::Vec2f* o = orient4.ptr<cv::Vec2f>(y);
-    for (int x = x0; x <= x1; ++x) {
-      int gxi, gyi;
-      prewitt_at(coarse.ptr<std::uint8_t>(y) + x, static_cast<std::ptrdiff_t>(coarse.step[0]), &gxi,
-                 &gyi);
-      const double ex = gxi, ey = gyi, m2 = ex * ex + ey * ey;
-      if (m2 < kMinOrientGradient2) continue;
-      const double a = ex * ex - ey * ey, b = 2 * ex * ey;
-      o[x] =
-          cv::Vec2f(static_cast<float>((a * a - b * b) / m2), static_cast<float>(2 * a * b / m2));
-    }
-  }
 }
 
 }  // namespace agv::vision
