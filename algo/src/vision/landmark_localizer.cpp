@@ -168,7 +168,7 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
   const double t3 = now_ms();
 
   // 5a. QR decode, payload and map check.
-  const int qr_q = decode_qr(img, c_px, up, c_mm, beta, logo, out);
+  const int qr_q = decode_qr(img, pred, c_px, up, c_mm, beta, logo, out);
   Pose2 world_landmark;
   st =
       out->qr_method == 0 ? FixStatus::kQrUnreadable : check_payload(qr_text, out, &world_landmark);

@@ -173,6 +173,11 @@ struct LandmarkLocalizer::Impl {
   std::vector<float> qr_fill;
   QrGridScratch qr_scratch;
   std::string qr_text;
+  // Verified read (docs/tracking.md): the tracked landmark's codes and the turn its predicted
+  // heading points to; empty and -1 without a trusted prediction.
+  std::vector<QrExpected> qr_expected;
+  int predicted_turn = -1;
+  int qr_search_attempts = 0;  // zxing search attempts of this frame's decode_qr
 
   // Pose.
   std::array<std::vector<Vec2>, kNumLines> pts_px, pts_mm;
@@ -269,10 +274,14 @@ struct LandmarkLocalizer::Impl {
   int decide_direction(const LogoScores& logo, int qr_q) const;
 
   // Stage 5, QR decode (qr_decode.cpp).
-  int decode_qr(const cv::Mat& img, Vec2 c_px, double up, Vec2 c_mm, double beta,
+  int decode_qr(const cv::Mat& img, const Prediction& pred, Vec2 c_px, double up, Vec2 c_mm,
+                double beta, const LogoScores& logo, LandmarkFix* out);
+  int read_code(const cv::Mat& img, Vec2 c_px, double up, Vec2 c_mm, double beta,
                 const LogoScores& logo, LandmarkFix* out);
+  void expect_tracked_code(const Prediction& pred, Vec2 c_mm, double beta);
+  bool code_cut_at_every_turn(const cv::Mat& img, Vec2 c_mm, double beta,
+                              const LogoScores& logo) const;
   int decode_guided(const cv::Mat& img, Vec2 c_mm, double beta, const LogoScores& logo);
-  int decode_search(const cv::Mat& img, Vec2 c_px, double up, double beta);
   bool read_qr_search(const cv::Mat& img, Vec2 centre_px, double up_angle, std::string* text,
                       double* qr_up_angle, bool* qr_ok);
   bool sample_qr(const cv::Mat& img, Vec2 c_mm, double fwd, int n, QrSamples* s);
@@ -284,7 +293,16 @@ struct LandmarkLocalizer::Impl {
   MapIdentityDecision last_identity;
   ModuleAgreement last_modules;
   bool map_codes_built = false;
-  std::map<std::uint32_t, std::array<QrBits, 2>> map_codes;  // [0] full, [1] id-only payload
+  // Both forms of a mapped landmark's code: [0] the full payload, [1] the id-only one.
+  struct MapCodes {
+    std::array<QrBits, 2> bits;
+    std::array<std::string, 2> text;
+    // zxing decodes the bits back to the text (qr_bits_decode_to): 0 not yet checked, 1 yes,
+    // -1 no. Checked on first use as an expected code; only a 1 is offered to the verified read.
+    std::array<int, 2> reads_back{0, 0};
+  };
+  std::map<std::uint32_t, MapCodes> map_codes;
+  MapCodes* codes_of(std::uint32_t id);
   std::vector<std::uint8_t> identity_bits;
   std::vector<std::pair<std::uint32_t, const QrBits*>> identity_others;
   void build_map_codes();

@@ -9,16 +9,27 @@
 
 namespace agv::vision {
 
-// Both forms of every mapped landmark's code, encoded once: the map does not change while the
-// localizer lives (its constructor's contract).
+// Both forms of a mapped landmark's code, encoded on first use and kept: the map does not change
+// while the localizer lives (its constructor's contract). nullptr for an id not in the map.
+LandmarkLocalizer::Impl::MapCodes* LandmarkLocalizer::Impl::codes_of(std::uint32_t id) {
+  const LandmarkMapEntry* e = map ? map->find(id) : nullptr;
+  if (!e) return nullptr;
+  const auto [it, added] = map_codes.try_emplace(id);
+  MapCodes& codes = it->second;
+  if (added) {
+    codes.text = {map_full_payload(*e), map_id_payload(id)};
+    for (size_t form = 0; form < 2; ++form) {
+      if (!encode_qr_bits(codes.text[form], &codes.bits[form])) codes.bits[form] = QrBits{};
+    }
+  }
+  return &codes;
+}
+
+// Every mapped landmark's codes: the module check compares the candidate with all of them.
 void LandmarkLocalizer::Impl::build_map_codes() {
   if (map_codes_built || !map) return;
   map_codes_built = true;
-  for (const auto& [id, e] : map->entries) {
-    std::array<QrBits, 2>& codes = map_codes[id];
-    if (!encode_qr_bits(map_full_payload(e), &codes[0])) codes[0] = QrBits{};
-    if (!encode_qr_bits(map_id_payload(id), &codes[1])) codes[1] = QrBits{};
-  }
+  for (const auto& entry : map->entries) codes_of(entry.first);
 }
 
 bool LandmarkLocalizer::Impl::map_identity(const cv::Mat& img, const Prediction& pred, Vec2 c_mm,
@@ -40,12 +51,12 @@ bool LandmarkLocalizer::Impl::map_identity(const cv::Mat& img, const Prediction&
   const double fwd = beta - last_identity.turn * kPi / 2.0;
   bool ok = false;
   for (size_t form = 0; form < 2 && !ok; ++form) {
-    const QrBits& cand = it->second[form];
+    const QrBits& cand = it->second.bits[form];
     if (cand.n <= 0 || !sample_qr(img, c_mm, fwd, cand.n, &qr_samples)) continue;
     binarize_samples(qr_samples, &identity_bits);
     identity_others.clear();
     for (const auto& [oid, codes] : map_codes) {
-      if (oid != last_identity.id) identity_others.emplace_back(oid, &codes[form]);
+      if (oid != last_identity.id) identity_others.emplace_back(oid, &codes.bits[form]);
     }
     last_modules = check_modules(identity_bits, cand, identity_others, identity_cfg);
     ok = last_modules.ok;

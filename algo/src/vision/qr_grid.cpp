@@ -173,12 +173,57 @@ int qr_fixed_module_errors(const QrSamples& s, QrThreshold t, QrGridScratch* sc)
   return errors;
 }
 
-bool decode_qr_grid(const QrSamples& s, QrThreshold t, std::string* text, QrGridScratch* sc) {
+int qr_verified_max_data_errors(int n) { return n == 21 ? 4 : n == 25 ? 8 : 0; }
+
+bool qr_format_module(int n, int r, int c) {
+  if (qr_fixed_module(n, r, c) >= 0 || (n != 21 && n != 25) || r < 0 || c < 0 || r >= n || c >= n) {
+    return false;
+  }
+  return (r == 8 && c != 6 && (c <= 8 || c >= n - 8)) ||
+         (c == 8 && r != 6 && (r <= 8 || r >= n - 7));
+}
+
+namespace {
+
+// The binarized grid is the expected code up to what Reed-Solomon corrects (qr_grid.hpp).
+bool matches_expected(const QrSamples& s, const QrGridScratch& sc, const QrExpected& e) {
+  if (!e.bits || !e.text || e.bits->n != s.n ||
+      e.bits->dark.size() != static_cast<size_t>(s.n * s.n)) {
+    return false;
+  }
+  const int max_data = qr_verified_max_data_errors(s.n);
+  int data = 0, format = 0;
+  for (int r = 0; r < s.n; ++r) {
+    for (int c = 0; c < s.n; ++c) {
+      const size_t i = static_cast<size_t>(r * s.n + c);
+      if (sc.bits[i] == e.bits->dark[i] || qr_fixed_module(s.n, r, c) >= 0) continue;
+      if (qr_format_module(s.n, r, c)) {
+        if (++format > kQrVerifiedMaxFormatErrors) return false;
+      } else if (++data > max_data) {
+        return false;
+      }
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+bool decode_qr_grid(const QrSamples& s, QrThreshold t, std::string* text, QrGridScratch* sc,
+                    std::span<const QrExpected> expected) {
+  sc->verified = false;
   if ((s.n != 21 && s.n != 25) || s.ring < 1 ||
       s.v.size() != static_cast<size_t>(s.side() * s.side())) {
     return false;
   }
   binarize(s, t, sc);
+  for (const QrExpected& e : expected) {
+    if (matches_expected(s, *sc, e)) {
+      *text = *e.text;
+      sc->verified = true;
+      return true;
+    }
+  }
   const int dim = (s.n + 2 * kMargin) * kPxPerModule;
   sc->image.assign(static_cast<size_t>(dim) * static_cast<size_t>(dim), 255);
   for (int r = 0; r < s.n; ++r) {
@@ -203,10 +248,30 @@ bool decode_qr_grid(const QrSamples& s, QrThreshold t, std::string* text, QrGrid
       .setTryDownscale(false)
       .setMaxNumberOfSymbols(1);
   const ZXing::ImageView iv(sc->image.data(), dim, dim, ZXing::ImageFormat::Lum, dim);
+  ++sc->zxing_runs;
   const ZXing::Result res = ZXing::ReadBarcode(iv, hints);
   if (!res.isValid() || res.isMirrored()) return false;
   *text = res.text();
   return true;
+}
+
+bool qr_bits_decode_to(const QrBits& bits, const std::string& text, QrGridScratch* sc) {
+  if ((bits.n != 21 && bits.n != 25) || bits.dark.size() != static_cast<size_t>(bits.n * bits.n)) {
+    return false;
+  }
+  QrSamples s;
+  s.n = bits.n;
+  s.ring = 2;
+  s.v.assign(static_cast<size_t>(s.side() * s.side()), 220.0f);
+  for (int r = 0; r < s.n; ++r) {
+    for (int c = 0; c < s.n; ++c) {
+      if (bits.dark[static_cast<size_t>(r * s.n + c)]) {
+        s.v[static_cast<size_t>((r + s.ring) * s.side() + c + s.ring)] = 40.0f;
+      }
+    }
+  }
+  std::string decoded;
+  return decode_qr_grid(s, QrThreshold::kMidpoint, &decoded, sc) && decoded == text;
 }
 
 }  // namespace agv::vision

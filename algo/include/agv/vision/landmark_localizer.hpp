@@ -275,6 +275,14 @@ struct LandmarkFix {
   double outer_half_mm = 0.0, inner_half_mm = 0.0;
   // How the QR code was read: 1 = model-guided module sampling, 2 = zxing's search on the crop.
   int qr_method = 0;
+  // The guided read matched the tracked landmark's expected code within what Reed-Solomon
+  // corrects, so zxing did not run (the text is the one zxing would have returned).
+  bool qr_verified = false;
+  // zxing runs this frame, the QR stage's cost driver (diagnostics, cost tests): pure-code reads
+  // of sampled grids (about 0.1 M aarch64 instructions each) and search attempts on the crop
+  // (about 2 M each).
+  int qr_grid_decodes = 0;
+  int qr_search_attempts = 0;
   FixIdentity identity = FixIdentity::kNone;
   SearchMode search = SearchMode::kFull;
   // Detection estimate (before the edge fit), for diagnostics: landmark centre in pixels and the

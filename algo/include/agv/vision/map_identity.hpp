@@ -84,12 +84,6 @@ MapIdentityDecision gate_identity(Vec2 measured_c_mm, double beta_rad,
                                   const std::array<bool, 4>& allowed_turns, const Prediction& pred,
                                   const LandmarkMap& map, const MapIdentityConfig& cfg);
 
-// A code as bits: n x n, row-major, 1 = dark (row 0 at the page top, as QrSamples).
-struct QrBits {
-  int n = 0;
-  std::vector<std::uint8_t> dark;
-};
-
 // The code the landmark prints: zxing-cpp's writer at ECC level M without margin (exactly as the
 // simulator and the generator render it). False when the text cannot be encoded.
 bool encode_qr_bits(const std::string& payload, QrBits* out);

@@ -4,6 +4,8 @@
 // search, which are what fail on small (4.6 px) modules under blur, scratches and dirt.
 #pragma once
 
+#include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -41,16 +43,54 @@ enum class QrThreshold {
   kMidpoint,  // dark when below the midpoint of the quiet zone and the darkest decile
 };
 
+// A code as bits: n x n, row-major, 1 = dark (row 0 at the page top, as QrSamples).
+struct QrBits {
+  int n = 0;
+  std::vector<std::uint8_t> dark;
+};
+
+// A code the reader expects to see, with the text it encodes: the predicted landmark's, from the
+// map (docs/tracking.md "Verified read").
+struct QrExpected {
+  const QrBits* bits = nullptr;
+  const std::string* text = nullptr;
+};
+
+// Largest number of disagreeing data modules for which a grid is taken as the expected ECC-M
+// code without decoding: one module error corrupts at most one codeword, and Reed-Solomon corrects
+// up to (EC codewords - misdecode protection codewords) / 2 per block, so zxing would return
+// exactly the expected code at this count. Version 1-M: (10 - 2) / 2 = 4; version 2-M: 16 / 2 = 8
+// (ISO/IEC 18004 table 9; both have one block). 0 for other sizes.
+int qr_verified_max_data_errors(int n);
+// At most this many of the 30 format-information modules may disagree: the format BCH code
+// (distance 7) then still points to the expected format in both copies.
+constexpr int kQrVerifiedMaxFormatErrors = 1;
+
+// True for a module of the two format-information copies (n = 21 or 25).
+bool qr_format_module(int n, int row, int col);
+
 // Reusable buffers (no allocation after the first call of a given size, except inside zxing).
 struct QrGridScratch {
   std::vector<float> work, mean;
   std::vector<double> row_sum;
   std::vector<unsigned char> bits, image;
+  bool verified = false;  // the last successful decode_qr_grid matched an expected code
+  int zxing_runs = 0;     // zxing reads run so far (the caller resets it), for cost diagnostics
 };
 
 // Binarizes the samples, forces the fixed modules and decodes with zxing's pure-code reader
 // (Reed-Solomon checked). Returns true and the text on success.
-bool decode_qr_grid(const QrSamples& s, QrThreshold t, std::string* text, QrGridScratch* scratch);
+// expected: codes the caller predicts. When the binarized grid is within the bounds above of one
+// of them (same size), its text is returned without running zxing (scratch->verified): zxing would
+// decode exactly that text, so the result is the same and only the cost differs (zxing's pure
+// reader is about 60 % of a tracked frame's QR stage). Anything else is decoded as before.
+bool decode_qr_grid(const QrSamples& s, QrThreshold t, std::string* text, QrGridScratch* scratch,
+                    std::span<const QrExpected> expected = {});
+
+// True when zxing's pure reader (as decode_qr_grid runs it) decodes these bits to exactly `text`.
+// An expected code is offered to decode_qr_grid only after this check: the verified read then
+// returns what zxing returns by construction, whatever the payload's characters or encoding.
+bool qr_bits_decode_to(const QrBits& bits, const std::string& text, QrGridScratch* scratch);
 
 // Number of fixed modules (qr_fixed_module != -1) whose binarized value disagrees with the
 // standard, for diagnostics and tests; -1 for an unsupported n.
