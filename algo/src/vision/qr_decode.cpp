@@ -50,10 +50,8 @@ constexpr double kTrackedCodeReachRel = 1.0;
 
 }  // namespace
 
-// Guided module sampling at the logo's turn (all four when the logo is unclear; the code sits
-// off-centre, so a wrong turn samples the wrong place and cannot decode), then zxing's search on
-// the crop. Returns the turn the code's own orientation points to (-1 when unknown) and sets
-// out->qr_method (0 = unread) and qr_text.
+// Reads the code (read_code) expecting the tracked landmark's codes when there is a trusted
+// prediction, and records on the fix how often zxing ran.
 int LandmarkLocalizer::Impl::decode_qr(const cv::Mat& img, const Prediction& pred, Vec2 c_px,
                                        double up, Vec2 c_mm, double beta, const LogoScores& logo,
                                        LandmarkFix* out) {
@@ -67,6 +65,10 @@ int LandmarkLocalizer::Impl::decode_qr(const cv::Mat& img, const Prediction& pre
   return q;
 }
 
+// Guided module sampling at the logo's turn (all four when the logo is unclear; the code sits
+// off-centre, so a wrong turn samples the wrong place and cannot decode), then zxing's search on
+// the crop. Returns the turn the code's own orientation points to (-1 when unknown) and sets
+// out->qr_method (0 = unread), out->qr_verified and qr_text.
 int LandmarkLocalizer::Impl::read_code(const cv::Mat& img, Vec2 c_px, double up, Vec2 c_mm,
                                        double beta, const LogoScores& logo, LandmarkFix* out) {
   if (cfg.qr_guided) {
@@ -130,8 +132,9 @@ void LandmarkLocalizer::Impl::expect_tracked_code(const Prediction& pred, Vec2 c
   if (!codes) return;
   for (size_t form = 0; form < 2; ++form) {
     int& back = codes->reads_back[form];
-    if (back == 0)
+    if (back == 0) {
       back = qr_bits_decode_to(codes->bits[form], codes->text[form], &qr_scratch) ? 1 : -1;
+    }
     if (back == 1) qr_expected.push_back({&codes->bits[form], &codes->text[form]});
   }
   for (int q = 0; q < 4; ++q) {

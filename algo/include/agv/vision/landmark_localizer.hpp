@@ -279,8 +279,8 @@ struct LandmarkFix {
   // corrects, so zxing did not run (the text is the one zxing would have returned).
   bool qr_verified = false;
   // zxing runs this frame, the QR stage's cost driver (diagnostics, cost tests): pure-code reads
-  // of sampled grids (about 0.1 M aarch64 instructions each) and search attempts on the crop
-  // (about 2 M each).
+  // of sampled grids (about 0.1 M instructions each on x86-64) and search attempts on the crop
+  // (about 2 M aarch64 instructions each).
   int qr_grid_decodes = 0;
   int qr_search_attempts = 0;
   FixIdentity identity = FixIdentity::kNone;
