@@ -128,3 +128,39 @@ TEST(CameraModel, TiltedRoundTripWithDistortion) {
   steep.intrinsics.fx = steep.intrinsics.fy = 100.0;
   EXPECT_FALSE(steep.pixel_to_vehicle({319.5, 239.5 + 300.0}, &q));  // above the horizon
 }
+
+// The localizer's loops map through one FloorProjector built with the localizer: it must give
+// what the model gives, for tilted and untilted mounts, and keep the model it was built with.
+TEST(CameraModel, FloorProjectorKeepsItsModelAndMatchesItExactly) {
+  CameraModel tilted = CameraModel::default_640x480();
+  tilted.intrinsics.k1 = -0.21;
+  tilted.intrinsics.p2 = 0.002;
+  tilted.mount = {35.0, -12.0, deg_to_rad(3.0), 180.0, deg_to_rad(1.5), deg_to_rad(-1.2)};
+  CameraModel yawed = tilted;
+  yawed.mount.roll_rad = yawed.mount.pitch_rad = 0.0;
+  for (const CameraModel& m : {tilted, yawed}) {
+    const FloorProjector proj(m);
+    CameraModel changed = m;
+    changed.mount.yaw_rad += 0.1;
+    changed.mount.pitch_rad += 0.01;
+    for (double x = -60; x <= 60; x += 15) {
+      for (double y = -80; y <= 80; y += 20) {
+        Vec2 px_m, px_p, v_m, v_p, px_c;
+        ASSERT_TRUE(m.vehicle_to_pixel({x, y}, &px_m));
+        ASSERT_TRUE(proj.vehicle_to_pixel({x, y}, &px_p));
+        EXPECT_EQ(px_m.x, px_p.x);
+        EXPECT_EQ(px_m.y, px_p.y);
+        ASSERT_TRUE(m.pixel_to_vehicle(px_m, &v_m));
+        ASSERT_TRUE(proj.pixel_to_vehicle(px_m, &v_p));
+        EXPECT_EQ(v_m.x, v_p.x);
+        EXPECT_EQ(v_m.y, v_p.y);
+        ASSERT_TRUE(changed.vehicle_to_pixel({x, y}, &px_c));
+        EXPECT_GT(std::hypot(px_c.x - px_p.x, px_c.y - px_p.y), 1.0);
+      }
+    }
+    Vec2 out;
+    EXPECT_FALSE(proj.vehicle_to_pixel({std::numeric_limits<double>::quiet_NaN(), 0.0}, &out));
+    EXPECT_FALSE(proj.pixel_to_vehicle({std::numeric_limits<double>::infinity(), 0.0}, &out));
+    EXPECT_EQ(proj.model().mount.yaw_rad, m.mount.yaw_rad);
+  }
+}

@@ -69,36 +69,46 @@ void CameraMount::rotation_vehicle_from_camera(double r[9]) const {
   }
 }
 
-bool CameraModel::vehicle_to_pixel(Vec2 p, Vec2* pixel) const {
+FloorProjector::FloorProjector(const CameraModel& model)
+    : m_(model), tilted_(model.mount.tilted()) {
+  if (tilted_) {
+    m_.mount.rotation_vehicle_from_camera(r_);
+  } else {
+    cos_yaw_ = std::cos(m_.mount.yaw_rad);
+    sin_yaw_ = std::sin(m_.mount.yaw_rad);
+  }
+}
+
+bool FloorProjector::vehicle_to_pixel(Vec2 p, Vec2* pixel) const {
+  const CameraMount& mount = m_.mount;
   if (!std::isfinite(p.x) || !std::isfinite(p.y) || !(mount.height_mm > 0.0)) return false;
   const double dx = p.x - mount.offset_x_mm, dy = p.y - mount.offset_y_mm;
-  if (mount.tilted()) {
+  if (tilted_) {
     // Camera coordinates of the floor point: R_VC^T (p - c), c = (offset_x, offset_y, height).
-    double r[9];
-    mount.rotation_vehicle_from_camera(r);
+    const double* r = r_;
     const double dz = -mount.height_mm;
     const double xc = r[0] * dx + r[3] * dy + r[6] * dz;
     const double yc = r[1] * dx + r[4] * dy + r[7] * dz;
     const double zc = r[2] * dx + r[5] * dy + r[8] * dz;
     if (!(zc > 1e-9 * mount.height_mm)) return false;  // behind the camera
-    *pixel = distort_normalized_to_pixel({xc / zc, yc / zc});
+    *pixel = m_.distort_normalized_to_pixel({xc / zc, yc / zc});
     return true;
   }
-  const double c = std::cos(mount.yaw_rad), s = std::sin(mount.yaw_rad);
+  const double c = cos_yaw_, s = sin_yaw_;
   // image right = (sin, -cos), image up = (cos, sin) in the vehicle frame.
   const double xc = dx * s - dy * c;
   const double yc = -(dx * c + dy * s);
-  *pixel = distort_normalized_to_pixel({xc / mount.height_mm, yc / mount.height_mm});
+  *pixel = m_.distort_normalized_to_pixel({xc / mount.height_mm, yc / mount.height_mm});
   return true;
 }
 
-bool CameraModel::pixel_to_vehicle(Vec2 pixel, Vec2* p) const {
+bool FloorProjector::pixel_to_vehicle(Vec2 pixel, Vec2* p) const {
+  const CameraMount& mount = m_.mount;
   Vec2 xn;
-  if (!(mount.height_mm > 0.0) || !undistort_pixel_to_normalized(pixel, &xn)) return false;
-  if (mount.tilted()) {
+  if (!(mount.height_mm > 0.0) || !m_.undistort_pixel_to_normalized(pixel, &xn)) return false;
+  if (tilted_) {
     // Ray (xn, 1) in C, rotated into V, intersected with the floor z = 0.
-    double r[9];
-    mount.rotation_vehicle_from_camera(r);
+    const double* r = r_;
     const double rx = r[0] * xn.x + r[1] * xn.y + r[2];
     const double ry = r[3] * xn.x + r[4] * xn.y + r[5];
     const double rz = r[6] * xn.x + r[7] * xn.y + r[8];
@@ -108,12 +118,20 @@ bool CameraModel::pixel_to_vehicle(Vec2 pixel, Vec2* p) const {
     return true;
   }
   const double xc = xn.x * mount.height_mm, yc = xn.y * mount.height_mm;
-  const double c = std::cos(mount.yaw_rad), s = std::sin(mount.yaw_rad);
+  const double c = cos_yaw_, s = sin_yaw_;
   // Inverse of the rotation in vehicle_to_pixel.
   const double dx = xc * s - yc * c;
   const double dy = -xc * c - yc * s;
   *p = {dx + mount.offset_x_mm, dy + mount.offset_y_mm};
   return true;
+}
+
+bool CameraModel::vehicle_to_pixel(Vec2 p, Vec2* pixel) const {
+  return FloorProjector(*this).vehicle_to_pixel(p, pixel);
+}
+
+bool CameraModel::pixel_to_vehicle(Vec2 pixel, Vec2* p) const {
+  return FloorProjector(*this).pixel_to_vehicle(pixel, p);
 }
 
 double CameraModel::mm_per_px() const {

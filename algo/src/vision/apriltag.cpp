@@ -194,7 +194,7 @@ FixStatus LandmarkLocalizer::Impl::run_tag(const cv::Mat& img, LandmarkFix* out)
 
   // Heading quadrant from the decoded rotation: the fitted border normal beta is only known modulo
   // 90 degrees, the detector's homography says which side is the tag's top.
-  const CameraModel& mc = metric_cam();
+  const FloorProjector& mc = metric_floor;
   Vec2 a0, a1;
   if (!mc.pixel_to_vehicle(c_px, &a0) || !mc.pixel_to_vehicle(fwd_px, &a1)) {
     return FixStatus::kDirectionAmbiguous;

@@ -51,7 +51,7 @@ void LandmarkLocalizer::Impl::build_logo() {
 
 // Logo NCC at the four turns of the fitted square; turn q's forward axis is side q's normal.
 LogoScores LandmarkLocalizer::Impl::logo_scores(const cv::Mat& img, Vec2 c_mm, double beta) {
-  const CameraModel& mc = metric_cam();
+  const FloorProjector& mc = metric_floor;
   LogoScores r;
   for (int q = 0; q < 4; ++q) {
     const double fwd = beta - q * kPi / 2.0;

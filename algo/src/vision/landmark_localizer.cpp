@@ -83,6 +83,7 @@ LandmarkLocalizer::Impl::Impl(const VisionConfig& c, const CameraModel& m,
   auto& li = cam_linear.intrinsics;
   li.fx = li.fy = cam.mount.height_mm / mm_per_px;
   li.k1 = li.k2 = li.p1 = li.p2 = li.k3 = 0.0;
+  metric_floor = FloorProjector(metric_cam());
   // Coarse level: the largest power-of-two reduction that keeps coarse_border_px per border.
   const double border_px = geom.border_width_mm() / mm_per_px;
   coarse_factor = 1;

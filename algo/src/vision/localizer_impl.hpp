@@ -216,6 +216,8 @@ struct LandmarkLocalizer::Impl {
   const CameraModel& metric_cam() const {
     return cfg.metric == MetricMode::kCameraModel ? cam : cam_linear;
   }
+  // metric_cam()'s floor mapping for the per-point loops (set by the constructor).
+  FloorProjector metric_floor{CameraModel{}};
 
   // run(): the stages in order (landmark_localizer.cpp).
   FixStatus run(const cv::Mat& img, const Prediction& pred, LandmarkFix* out);

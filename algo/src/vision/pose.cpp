@@ -82,7 +82,7 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
 
   // 3c. Heading: initial metric angle of side 0's normal from the pixel angle, then the
   // (weighted) mean of the line angles.
-  const CameraModel& mc = metric_cam();
+  const FloorProjector& mc = metric_floor;
   Vec2 a0, a1;
   mc.pixel_to_vehicle(c_px, &a0);
   mc.pixel_to_vehicle(
@@ -128,7 +128,7 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
 // fits each line; a line counts when it has enough points and is long enough to carry an angle
 // (half the inner side). Returns the number of points on the lines that count.
 int LandmarkLocalizer::Impl::fit_lines(std::array<LineFit, kNumLines>* fits) {
-  const CameraModel& mc = metric_cam();
+  const FloorProjector& mc = metric_floor;
   line_ok.fill(false);
   int used = 0;
   for (int l = 0; l < kNumLines; ++l) {
@@ -383,7 +383,7 @@ void LandmarkLocalizer::Impl::accumulate_normal_equations(const SquareModel& m,
 
 // Corners and centre of the fitted square in pixels, for draw_overlay.
 void LandmarkLocalizer::Impl::keep_overlay_geometry(const SquareModel& m) {
-  const CameraModel& mc = metric_cam();
+  const FloorProjector& mc = metric_floor;
   for (int e = 0; e < 2; ++e) {
     const double h = e == 0 ? m.h_out : m.h_in;
     for (int k = 0; k < 4; ++k) {

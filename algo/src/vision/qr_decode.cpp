@@ -88,7 +88,7 @@ int LandmarkLocalizer::Impl::read_code(const cv::Mat& img, Vec2 c_px, double up,
   if (!read_qr_search(img, c_px, up, &qr_text, &qr_up, &qr_ok)) return -1;
   out->qr_method = 2;
   // The code's orientation in the metric frame: which turn does it point to?
-  const CameraModel& mc = metric_cam();
+  const FloorProjector& mc = metric_floor;
   Vec2 a0, a1;
   int qr_q = -1;
   if (qr_ok && mc.pixel_to_vehicle(c_px, &a0) &&
@@ -248,7 +248,7 @@ bool LandmarkLocalizer::Impl::read_qr_search(const cv::Mat& img, Vec2 c, double 
 // another), an unclear one all four.
 bool LandmarkLocalizer::Impl::code_cut_at_every_turn(const cv::Mat& img, Vec2 c_mm, double beta,
                                                      const LogoScores& logo) const {
-  const CameraModel& mc = metric_cam();
+  const FloorProjector& mc = metric_floor;
   const double side = geom.qr_side_mm();
   const double module_px = side / kQrModulesV2 / mm_per_px;
   const double lo = -0.5 - module_px;
@@ -272,7 +272,7 @@ bool LandmarkLocalizer::Impl::code_cut_at_every_turn(const cv::Mat& img, Vec2 c_
 // angle fwd) puts it. False when the code cannot be sampled (too much of it outside the image).
 bool LandmarkLocalizer::Impl::sample_qr(const cv::Mat& img, Vec2 c_mm, double fwd, int n,
                                         QrSamples* s) {
-  const CameraModel& mc = metric_cam();
+  const FloorProjector& mc = metric_floor;
   const Pose2 l_in_v{c_mm.x, c_mm.y, fwd};
   const double m = geom.qr_side_mm() / n;
   auto to_px = [&](Vec2 uv, Vec2* px) {

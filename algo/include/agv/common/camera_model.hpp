@@ -64,4 +64,25 @@ struct CameraModel {
   static CameraModel default_1280x800();
 };
 
+// CameraModel's floor mapping with the mount's trigonometry done once. A tilted mount's rotation
+// takes six sines and cosines per point, which was a fifth of a tracked frame's instructions
+// (edge points, QR modules and logo samples are mapped by the thousand); the localizer's loops
+// map through one of these, built with the localizer. CameraModel's own methods build one per
+// call, so both give the same result to the last bit. Keeps a copy of the model: later changes to
+// the original do not reach it.
+class FloorProjector {
+ public:
+  explicit FloorProjector(const CameraModel& model);
+  // As CameraModel::vehicle_to_pixel and pixel_to_vehicle.
+  bool vehicle_to_pixel(Vec2 p_vehicle_mm, Vec2* pixel) const;
+  bool pixel_to_vehicle(Vec2 pixel, Vec2* p_vehicle_mm) const;
+  const CameraModel& model() const { return m_; }
+
+ private:
+  CameraModel m_;
+  bool tilted_ = false;
+  double r_[9] = {};                      // R_VC, tilted mounts only
+  double cos_yaw_ = 1.0, sin_yaw_ = 0.0;  // untilted mounts only
+};
+
 }  // namespace agv

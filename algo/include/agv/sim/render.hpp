@@ -196,11 +196,11 @@ class FrameRenderer {
                  std::mt19937_64& rng) const;
   // Ids of landmarks whose outer square is (at least partly) inside the image.
   std::vector<std::uint32_t> visible_landmarks(const Pose2& vehicle_pose_world) const;
-  const CameraModel& camera() const { return camera_; }
+  const CameraModel& camera() const { return camera_.model(); }
 
  private:
   const Scene* scene_;
-  CameraModel camera_;
+  FloorProjector camera_;  // every pixel corner and centre is mapped through it
   int w_ = 0, h_ = 0;
   std::vector<Vec2> corner_v_;  // (w+1)*(h+1) pixel corners in the vehicle frame
   std::vector<Vec2> centre_v_;  // w*h pixel centres in the vehicle frame
