@@ -24,7 +24,7 @@ namespace {
 // readable.
 constexpr float kQuadDecimate = 2.0f;
 constexpr int kBitsCorrected = 2;
-constexpr float kDecodeSharpening = 0.25f;
+constexpr double kDecodeSharpening = 0.25;  // apriltag_detector_t::decode_sharpening is a double
 // Tag coordinates of the detector's homography: +-1 is the outer edge of the black square, the
 // border midline is one half module (1/8 of the half side) inside, the white margin one half
 // module outside; the contrast samples stay this far from the corners (tag units).
