@@ -11,6 +11,7 @@
 
 #include "agv/sim/render.hpp"
 #include "agv/vision/landmark_localizer.hpp"
+#include "agv/vision/map_identity.hpp"
 #include "agv/vision/qr_grid.hpp"
 
 using namespace agv;
@@ -179,13 +180,10 @@ TEST(QrGrid, WrongGridOrGarbageNeverDecodes) {
 
 namespace {
 
-QrBits bits_of(const ZXing::BitMatrix& bm) {
+// The code as the map identity encodes it (the same writer settings as encode()).
+QrBits bits_of(const std::string& text) {
   QrBits b;
-  b.n = bm.width();
-  b.dark.resize(static_cast<size_t>(b.n * b.n));
-  for (int r = 0; r < b.n; ++r) {
-    for (int c = 0; c < b.n; ++c) b.dark[static_cast<size_t>(r * b.n + c)] = bm.get(c, r) ? 1 : 0;
-  }
+  EXPECT_TRUE(encode_qr_bits(text, &b)) << text;
   return b;
 }
 
@@ -230,7 +228,7 @@ TEST(QrGrid, VerifiedReadAgreesWithZxingWithinTheBound) {
   std::mt19937_64 rng(21);
   for (const std::string text : {kFull, kIdOnly}) {
     const ZXing::BitMatrix bm = encode(text);
-    const QrBits bits = bits_of(bm);
+    const QrBits bits = bits_of(text);
     ASSERT_TRUE(qr_bits_decode_to(bits, text, &scratch)) << text;
     const QrExpected expected[] = {{&bits, &text}};
     const int bound = qr_verified_max_data_errors(bits.n);
@@ -284,7 +282,7 @@ TEST(QrGrid, VerifiedReadNeverTakesAnotherCode) {
   // other size: none is within the bound of landmark 17's grid, which zxing then reads.
   const std::string other_full = "AGV1/00018/+001150.0/-002000.0/+090.00";
   const std::string other_id = "AGV1/00018/MAP";
-  const QrBits b_full = bits_of(encode(other_full)), b_id = bits_of(encode(other_id));
+  const QrBits b_full = bits_of(other_full), b_id = bits_of(other_id);
   const QrExpected expected[] = {{&b_full, &other_full}, {&b_id, &other_id}};
   for (const std::string text : {kFull, kIdOnly}) {
     const QrSamples s = samples_of(encode(text), 0.0, 0.0, 1);
