@@ -104,18 +104,42 @@ TEST(CoarseLevel, AdaptiveThresholdEqualsOpenCv) {
   EXPECT_GT(compared, 100);
 }
 
-TEST(CoarseLevel, IntegralImagesEqualOpenCv) {
+// Every window's sum and sum of squares equals cv::integral's (64-bit doubles), including on an
+// image whose total sum of squares passes 2^32 (the 32-bit integral wraps; window differences must
+// not).
+TEST(CoarseLevel, IntegralWindowsEqualOpenCv) {
   std::mt19937 rng(9);
-  for (cv::Size sz : {cv::Size(80, 60), cv::Size(160, 120), cv::Size(1, 1), cv::Size(33, 2)}) {
+  for (cv::Size sz : {cv::Size(80, 60), cv::Size(160, 120), cv::Size(1, 1), cv::Size(33, 2),
+                      cv::Size(7, 5), cv::Size(420, 400)}) {
     cv::Mat img = test_image(sz, false, &rng);
     img.at<std::uint8_t>(0, 0) = 255;
+    if (sz.width == 420) img.rowRange(0, 300).setTo(255);
     cv::Mat ref_sum, ref_sq, sum, sq;
     cv::integral(img, ref_sum, ref_sq, CV_32S, CV_64F);
     integral_sum_sq(img, &sum, &sq);
     ASSERT_EQ(sum.type(), CV_32SC1);
-    ASSERT_EQ(sq.type(), CV_64FC1);
     EXPECT_EQ(cv::countNonZero(sum != ref_sum), 0);
-    EXPECT_EQ(cv::norm(sq, ref_sq, cv::NORM_INF), 0.0);
+    if (sz.width == 420) {
+      ASSERT_GT(ref_sq.at<double>(sz.height, sz.width), 4294967296.0);
+    }
+    int windows = 0;
+    for (int n : {1, 2, 5, 9, 16}) {
+      const int step = sz.width > 100 ? 7 : 1;
+      for (int y = 0; y + n <= sz.height; y += step) {
+        for (int x = 0; x + n <= sz.width; x += step) {
+          double s = 0.0, q = 0.0;
+          window_sum_sq(sum, sq, x, y, n, &s, &q);
+          const double rs = ref_sum.at<int>(y + n, x + n) - ref_sum.at<int>(y, x + n) -
+                            ref_sum.at<int>(y + n, x) + ref_sum.at<int>(y, x);
+          const double rq = ref_sq.at<double>(y + n, x + n) - ref_sq.at<double>(y, x + n) -
+                            ref_sq.at<double>(y + n, x) + ref_sq.at<double>(y, x);
+          ASSERT_EQ(s, rs) << sz << " n " << n << " at " << x << "," << y;
+          ASSERT_EQ(q, rq) << sz << " n " << n << " at " << x << "," << y;
+          ++windows;
+        }
+      }
+    }
+    EXPECT_GT(windows, 0) << sz;
   }
 }
 

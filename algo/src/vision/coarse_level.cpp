@@ -8,6 +8,9 @@
 #include <cstring>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
+#if defined(__aarch64__) && defined(__ARM_NEON)
+#include <arm_neon.h>
+#endif
 
 namespace agv::vision {
 
@@ -83,6 +86,55 @@ void box_downsample_vec(const cv::Mat& img, cv::Size cs, cv::Mat* out) {
   }
 }
 
+#if defined(__aarch64__) && defined(__ARM_NEON)
+// aarch64: UADALP adds the neighbouring pixel pairs of 16 bytes into eight 16-bit lanes, one
+// instruction per 16 pixels and row (the generic path widens and adds: three). A group of eight
+// outputs covers F / 2 such chunks; pairwise adds (ADDP) fold them into the eight F-column sums,
+// and RSHRN rounds half up and narrows, as the scalar loop's (sum + area / 2) / area.
+// Lane sums stay below 2^16: at most 16 * 16 * 255.
+template <int F>
+void box_downsample_neon(const cv::Mat& img, cv::Size cs, cv::Mat* out) {
+  constexpr int kChunks = F / 2;
+  constexpr int kShift = F == 2 ? 2 : F == 4 ? 4 : F == 8 ? 6 : 8;  // log2(F * F)
+  constexpr unsigned kArea = F * F;
+  const int groups = cs.width / 8;
+  for (int y = 0; y < cs.height; ++y) {
+    const std::uint8_t* rows[F];
+    for (int k = 0; k < F; ++k) rows[k] = img.ptr<std::uint8_t>(y * F + k);
+    std::uint8_t* dst = out->ptr<std::uint8_t>(y);
+    for (int g = 0; g < groups; ++g) {
+      const int x0 = g * 8 * F;
+      uint16x8_t acc[kChunks];
+      for (int c = 0; c < kChunks; ++c) acc[c] = vpaddlq_u8(vld1q_u8(rows[0] + x0 + 16 * c));
+      for (int k = 1; k < F; ++k) {
+        for (int c = 0; c < kChunks; ++c)
+          acc[c] = vpadalq_u8(acc[c], vld1q_u8(rows[k] + x0 + 16 * c));
+      }
+      for (int n = kChunks; n > 1; n /= 2) {
+        for (int i = 0; i < n / 2; ++i) acc[i] = vpaddq_u16(acc[2 * i], acc[2 * i + 1]);
+      }
+      vst1_u8(dst + g * 8, vrshrn_n_u16(acc[0], kShift));
+    }
+    for (int x = groups * 8; x < cs.width; ++x) {
+      unsigned sum = 0;
+      for (int k = 0; k < F; ++k) {
+        for (int i = 0; i < F; ++i) sum += rows[k][x * F + i];
+      }
+      dst[x] = static_cast<std::uint8_t>((sum + kArea / 2) / kArea);
+    }
+  }
+}
+#endif
+
+template <int F>
+void box_downsample_fast(const cv::Mat& img, cv::Size cs, cv::Mat* out) {
+#if defined(__aarch64__) && defined(__ARM_NEON)
+  box_downsample_neon<F>(img, cs, out);
+#else
+  box_downsample_vec<F>(img, cs, out);
+#endif
+}
+
 }  // namespace
 
 // f rows summed into one row, then f columns at a time.
@@ -113,16 +165,16 @@ void box_downsample(const cv::Mat& img, int f, cv::Size cs, cv::Mat* out,
   out->create(cs, CV_8UC1);
   switch (f) {
     case 2:
-      box_downsample_vec<2>(img, cs, out);
+      box_downsample_fast<2>(img, cs, out);
       return;
     case 4:
-      box_downsample_vec<4>(img, cs, out);
+      box_downsample_fast<4>(img, cs, out);
       return;
     case 8:
-      box_downsample_vec<8>(img, cs, out);
+      box_downsample_fast<8>(img, cs, out);
       return;
     case 16:
-      box_downsample_vec<16>(img, cs, out);
+      box_downsample_fast<16>(img, cs, out);
       return;
     default:
       box_downsample_scalar(img, f, cs, out, row_sums);
@@ -136,7 +188,8 @@ void adaptive_threshold_mean_inv(const cv::Mat& src, int block, double offset, c
                           offset);
     return;
   }
-  typedef std::int32_t I32x16 __attribute__((vector_size(64)));
+  typedef std::int32_t I32x4 __attribute__((vector_size(16)));
+  typedef std::uint8_t U8x4 __attribute__((vector_size(4)));
   const int w = src.cols, h = src.rows, r = block / 2, area = block * block;
   const int idelta = static_cast<int>(std::floor(offset));
   dst->create(src.size(), CV_8UC1);
@@ -174,19 +227,20 @@ void adaptive_threshold_mean_inv(const cv::Mat& src, int block, double offset, c
   }
   // The rounded mean m = (2 sum + area) / (2 area) (area odd: no ties) is compared without the
   // division: src - m <= -idelta  <=>  m >= src + idelta  <=>  2 sum + area >= 2 area (src +
-  // idelta). 16 pixels a step (vector extensions), then the rest.
+  // idelta). 4 pixels a step, then the rest: 128-bit vectors, which NEON and SSE2 hold in one
+  // register (GCC splits wider ones badly on aarch64: 21 instructions per pixel with 16 lanes).
   const int two_area = 2 * area;
   for (int y = 0; y < h; ++y) {
     const std::uint8_t* p = src.ptr<std::uint8_t>(y);
     std::uint8_t* d = dst->ptr<std::uint8_t>(y);
     int x = 0;
-    for (; x + 16 <= w; x += 16) {
-      I32x16 c;
+    for (; x + 4 <= w; x += 4) {
+      I32x4 c;
       std::memcpy(&c, col + x, sizeof c);
-      U8x16 pv;
+      U8x4 pv;
       std::memcpy(&pv, p + x, sizeof pv);
-      const I32x16 rhs = (__builtin_convertvector(pv, I32x16) + idelta) * two_area;
-      const U8x16 out = __builtin_convertvector(2 * c + area >= rhs, U8x16);
+      const I32x4 rhs = (__builtin_convertvector(pv, I32x4) + idelta) * two_area;
+      const U8x4 out = __builtin_convertvector(2 * c + area >= rhs, U8x4);
       std::memcpy(d + x, &out, sizeof out);
     }
     for (; x < w; ++x) d[x] = 2 * col[x] + area >= two_area * (p[x] + idelta) ? 255 : 0;
@@ -194,8 +248,8 @@ void adaptive_threshold_mean_inv(const cv::Mat& src, int block, double offset, c
       const int* add = hrow(y + 1 + r);
       const int* sub = hrow(y - r);
       int k = 0;
-      for (; k + 16 <= w; k += 16) {
-        I32x16 c, a, b;
+      for (; k + 4 <= w; k += 4) {
+        I32x4 c, a, b;
         std::memcpy(&c, col + k, sizeof c);
         std::memcpy(&a, add + k, sizeof a);
         std::memcpy(&b, sub + k, sizeof b);
@@ -210,25 +264,42 @@ void adaptive_threshold_mean_inv(const cv::Mat& src, int block, double offset, c
 void integral_sum_sq(const cv::Mat& src, cv::Mat* sum, cv::Mat* sq) {
   const int w = src.cols, h = src.rows;
   sum->create(h + 1, w + 1, CV_32SC1);
-  sq->create(h + 1, w + 1, CV_64FC1);
-  std::fill(sum->ptr<int>(0), sum->ptr<int>(0) + w + 1, 0);
-  std::fill(sq->ptr<double>(0), sq->ptr<double>(0) + w + 1, 0.0);
+  sq->create(h + 1, w + 1, CV_32SC1);
+  std::fill(sum->ptr<std::int32_t>(0), sum->ptr<std::int32_t>(0) + w + 1, 0);
+  std::fill(sq->ptr<std::uint32_t>(0), sq->ptr<std::uint32_t>(0) + w + 1, 0u);
+  // Row prefix sums first (the only serial part), then the row above added 4 columns a step.
+  typedef std::uint32_t U32x4 __attribute__((vector_size(16)));
   for (int y = 0; y < h; ++y) {
     const std::uint8_t* p = src.ptr<std::uint8_t>(y);
-    const int* s0 = sum->ptr<int>(y);
-    int* s1 = sum->ptr<int>(y + 1);
-    const double* q0 = sq->ptr<double>(y);
-    double* q1 = sq->ptr<double>(y + 1);
+    std::uint32_t* s1 = sum->ptr<std::uint32_t>(y + 1);
+    std::uint32_t* q1 = sq->ptr<std::uint32_t>(y + 1);
     s1[0] = 0;
-    q1[0] = 0.0;
-    int rs = 0;
-    std::int64_t rq = 0;
+    q1[0] = 0;
+    std::uint32_t rs = 0, rq = 0;
     for (int x = 0; x < w; ++x) {
-      const int v = p[x];
+      const std::uint32_t v = p[x];
       rs += v;
       rq += v * v;
-      s1[x + 1] = s0[x + 1] + rs;
-      q1[x + 1] = q0[x + 1] + static_cast<double>(rq);
+      s1[x + 1] = rs;
+      q1[x + 1] = rq;
+    }
+    const std::uint32_t* s0 = sum->ptr<std::uint32_t>(y);
+    const std::uint32_t* q0 = sq->ptr<std::uint32_t>(y);
+    int x = 1;
+    for (; x + 4 <= w + 1; x += 4) {
+      U32x4 a, b;
+      std::memcpy(&a, s1 + x, sizeof a);
+      std::memcpy(&b, s0 + x, sizeof b);
+      a += b;
+      std::memcpy(s1 + x, &a, sizeof a);
+      std::memcpy(&a, q1 + x, sizeof a);
+      std::memcpy(&b, q0 + x, sizeof b);
+      a += b;
+      std::memcpy(q1 + x, &a, sizeof a);
+    }
+    for (; x <= w; ++x) {
+      s1[x] += s0[x];
+      q1[x] += q0[x];
     }
   }
 }

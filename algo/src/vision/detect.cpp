@@ -176,10 +176,8 @@ void LandmarkLocalizer::Impl::build_templates() {
 // the window leaves the image or has no contrast. Window sums come from the integral images.
 double LandmarkLocalizer::Impl::ncc_at(const std::vector<float>& tz, int tsz, int x, int y) const {
   if (x < 0 || y < 0 || x + tsz > coarse.cols || y + tsz > coarse.rows) return -1.0;
-  const double sum = isum.at<int>(y + tsz, x + tsz) - isum.at<int>(y, x + tsz) -
-                     isum.at<int>(y + tsz, x) + isum.at<int>(y, x);
-  const double sq = isq.at<double>(y + tsz, x + tsz) - isq.at<double>(y, x + tsz) -
-                    isq.at<double>(y + tsz, x) + isq.at<double>(y, x);
+  double sum = 0.0, sq = 0.0;
+  window_sum_sq(isum, isq, x, y, tsz, &sum, &sq);
   const double n = tsz * tsz;
   const double var = sq / n - (sum / n) * (sum / n);
   if (!(var > kMinRematchWindowVar)) return -1.0;
@@ -244,10 +242,8 @@ void LandmarkLocalizer::Impl::score_corner_templates() {
     float* out_row = best_score.ptr<float>(y);
     for (int x = 0; x < best_score.cols; ++x) {
       if (!brow[x + r]) continue;
-      const double sum = isum.at<int>(y + tsz, x + tsz) - isum.at<int>(y, x + tsz) -
-                         isum.at<int>(y + tsz, x) + isum.at<int>(y, x);
-      const double sq = isq.at<double>(y + tsz, x + tsz) - isq.at<double>(y, x + tsz) -
-                        isq.at<double>(y + tsz, x) + isq.at<double>(y, x);
+      double sum = 0.0, sq = 0.0;
+      window_sum_sq(isum, isq, x, y, tsz, &sum, &sq);
       const double var = sq / n_pix - (sum / n_pix) * (sum / n_pix);
       if (var < min_var) continue;
       const float* patch = coarse_f.ptr<float>(y) + x;

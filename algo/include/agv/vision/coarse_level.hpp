@@ -10,14 +10,8 @@
 #pragma once
 
 #include <cstdint>
+#include <opencv2/core/mat.hpp>
 #include <vector>
-
-namespace cv {
-class Mat;
-template <typename T>
-class Size_;
-using Size = Size_<int>;
-}  // namespace cv
 
 namespace agv::vision {
 
@@ -39,8 +33,25 @@ constexpr int kMaxOwnAdaptiveBlock = 15;
 void adaptive_threshold_mean_inv(const cv::Mat& src, int block, double offset, cv::Mat* dst,
                                  std::vector<int>* scratch);
 
-// Integral images of an 8-bit src as cv::integral(src, sum, sq, CV_32S, CV_64F) gives them (the
-// squares summed exactly in 64-bit integers, so the doubles are the same).
+// Integral images of an 8-bit src: sum (CV_32SC1, (h + 1) x (w + 1)) as cv::integral gives it, and
+// sq, the integral of the squares, as 32-bit unsigned integers (stored in a CV_32SC1 Mat) that
+// wrap modulo 2^32. Read them only through window_sum_sq: a window's sum of squares is below 2^32
+// for any window under 66051 pixels, so its modular difference is exact however large the image,
+// and the results equal cv::integral(src, sum, sq, CV_32S, CV_64F)'s differences bit for bit.
+// Half the memory and a third of the instructions of 64-bit doubles on aarch64.
 void integral_sum_sq(const cv::Mat& src, cv::Mat* sum, cv::Mat* sq);
+
+// Sum and sum of squares of the n x n window whose top-left pixel is (x, y), from
+// integral_sum_sq's images; the window must lie inside the image and n * n < 66051.
+// Inline: the corner search calls it once per candidate pixel.
+inline void window_sum_sq(const cv::Mat& sum, const cv::Mat& sq, int x, int y, int n,
+                          double* window_sum, double* window_sq) {
+  const std::int32_t* s0 = sum.ptr<std::int32_t>(y);
+  const std::int32_t* s1 = sum.ptr<std::int32_t>(y + n);
+  const std::uint32_t* q0 = sq.ptr<std::uint32_t>(y);
+  const std::uint32_t* q1 = sq.ptr<std::uint32_t>(y + n);
+  *window_sum = s1[x + n] - s0[x + n] - s1[x] + s0[x];
+  *window_sq = static_cast<std::uint32_t>(q1[x + n] - q0[x + n] - q1[x] + q0[x]);
+}
 
 }  // namespace agv::vision
