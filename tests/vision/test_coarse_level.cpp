@@ -76,14 +76,14 @@ cv::Mat test_image(cv::Size sz, bool smooth, std::mt19937* rng) {
 
 TEST(CoarseLevel, AdaptiveThresholdEqualsOpenCv) {
   std::mt19937 rng(5);
-  std::vector<int> scratch;
+  std::vector<std::uint16_t> scratch;
   int compared = 0;
   for (cv::Size sz :
        {cv::Size(80, 60), cv::Size(160, 120), cv::Size(37, 23), cv::Size(7, 5), cv::Size(1, 9)}) {
     for (bool smooth : {false, true}) {
       const cv::Mat img = test_image(sz, smooth, &rng);
       for (int block = 3; block <= 17; block += 2) {
-        for (double offset : {6.0, 0.0, 2.5, -3.2, 20.0}) {
+        for (double offset : {6.0, 0.0, 2.5, -3.2, 20.0, -255.0, -300.5, 254.0, 400.0, 1e6}) {
           cv::Mat ref, own;
           cv::adaptiveThreshold(img, ref, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY_INV,
                                 block, offset);
@@ -97,6 +97,20 @@ TEST(CoarseLevel, AdaptiveThresholdEqualsOpenCv) {
                   ? 1
                   : 0;
         }
+      }
+    }
+  }
+  // Saturated images: the largest window sums, and offsets at the clamps of the 16-bit lanes.
+  for (int v : {0, 1, 254, 255}) {
+    const cv::Mat flat(cv::Size(45, 21), CV_8UC1, cv::Scalar(v));
+    for (int block : {3, 13, 15}) {
+      for (double offset : {0.0, -1.0, 1.0, -255.0, 255.0, -256.0, 256.0, 291.0, 292.0}) {
+        cv::Mat ref, own;
+        cv::adaptiveThreshold(flat, ref, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY_INV,
+                              block, offset);
+        adaptive_threshold_mean_inv(flat, block, offset, &own, &scratch);
+        EXPECT_EQ(cv::countNonZero(own != ref), 0)
+            << "flat " << v << " block " << block << " offset " << offset;
       }
     }
   }

@@ -4,6 +4,7 @@
 #include "agv/vision/coarse_level.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <opencv2/core.hpp>
@@ -21,6 +22,49 @@ typedef std::uint16_t U16x16 __attribute__((vector_size(32)));
 typedef std::uint16_t U16x8 __attribute__((vector_size(16)));
 typedef std::uint16_t U16x4 __attribute__((vector_size(8)));
 typedef std::uint16_t U16x2 __attribute__((vector_size(4)));
+typedef std::int16_t I16x8 __attribute__((vector_size(16)));
+typedef std::uint32_t U32x4 __attribute__((vector_size(16)));
+
+// Zero-extension of the low and high halves to lanes twice as wide, written as an interleave with
+// zeros (one ZIP or PUNPCK): GCC 12 turns __builtin_convertvector from an 8-byte vector into
+// lane-by-lane inserts on aarch64, 4 instructions per pixel.
+static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "widen_lo/hi interleave little-endian");
+inline U16x8 widen_lo(U8x16 v) {
+  const U8x16 z{};
+  const U8x16 r =
+      __builtin_shufflevector(v, z, 0, 16, 1, 17, 2, 18, 3, 19, 4, 20, 5, 21, 6, 22, 7, 23);
+  return std::bit_cast<U16x8>(r);
+}
+inline U16x8 widen_hi(U8x16 v) {
+  const U8x16 z{};
+  const U8x16 r =
+      __builtin_shufflevector(v, z, 8, 24, 9, 25, 10, 26, 11, 27, 12, 28, 13, 29, 14, 30, 15, 31);
+  return std::bit_cast<U16x8>(r);
+}
+inline U32x4 widen_lo(U16x8 v) {
+  const U16x8 z{};
+  return std::bit_cast<U32x4>(__builtin_shufflevector(v, z, 0, 8, 1, 9, 2, 10, 3, 11));
+}
+inline U32x4 widen_hi(U16x8 v) {
+  const U16x8 z{};
+  return std::bit_cast<U32x4>(__builtin_shufflevector(v, z, 4, 12, 5, 13, 6, 14, 7, 15));
+}
+// Running sums of the lanes (lane i = v[0] + ... + v[i], modulo 2^bits): v plus itself shifted up
+// by 1, 2 (and 4) lanes. Each shift takes consecutive lanes of (zeros, v), which GCC emits as one
+// EXT; any other order of indices became TBL plus register copies.
+inline U32x4 inclusive_prefix(U32x4 v) {
+  const U32x4 z{};
+  v += __builtin_shufflevector(z, v, 3, 4, 5, 6);
+  v += __builtin_shufflevector(z, v, 2, 3, 4, 5);
+  return v;
+}
+inline U16x8 inclusive_prefix(U16x8 v) {
+  const U16x8 z{};
+  v += __builtin_shufflevector(z, v, 7, 8, 9, 10, 11, 12, 13, 14);
+  v += __builtin_shufflevector(z, v, 6, 7, 8, 9, 10, 11, 12, 13);
+  v += __builtin_shufflevector(z, v, 4, 5, 6, 7, 8, 9, 10, 11);
+  return v;
+}
 
 // Sum of neighbouring lane pairs: lanes (0+1, 2+3, ...), half as many.
 inline U16x8 pair_sums(const U16x16& v) {
@@ -182,82 +226,98 @@ void box_downsample(const cv::Mat& img, int f, cv::Size cs, cv::Mat* out,
 }
 
 void adaptive_threshold_mean_inv(const cv::Mat& src, int block, double offset, cv::Mat* dst,
-                                 std::vector<int>* scratch) {
-  if (block > kMaxOwnAdaptiveBlock || block < 3 || block % 2 == 0 || src.empty()) {
+                                 std::vector<std::uint16_t>* scratch) {
+  if (block > kMaxOwnAdaptiveBlock || block < 3 || block % 2 == 0 || src.empty() ||
+      !std::isfinite(offset)) {
     cv::adaptiveThreshold(src, *dst, 255, cv::ADAPTIVE_THRESH_MEAN_C, cv::THRESH_BINARY_INV, block,
                           offset);
     return;
   }
-  typedef std::int32_t I32x4 __attribute__((vector_size(16)));
-  typedef std::uint8_t U8x4 __attribute__((vector_size(4)));
   const int w = src.cols, h = src.rows, r = block / 2, area = block * block;
-  const int idelta = static_cast<int>(std::floor(offset));
   dst->create(src.size(), CV_8UC1);
-  // Horizontal window sums (replicated border) of every row, then a running vertical sum.
-  scratch->resize(static_cast<size_t>(w) * static_cast<size_t>(h + 1));
-  int* hs = scratch->data();
+  // All in 16-bit lanes, 16 pixels a step: a column sum is at most 15 * 255, a window sum at most
+  // 225 * 255 = 57375. With the rounded mean m = (2 sum + area) / (2 area) (area odd: no ties),
+  //   src - m <= -idelta  <=>  m >= t = src + idelta  <=>  sum + (area - 1) / 2 >= area t,
+  // and both sides fit 16 bits once t is clamped to [0, tmax]: t < 0 holds for every sum, and
+  // t > tmax = 65535 / area for none (area (tmax + 1) > 65535 > the largest left side). idelta is
+  // clamped the same way first, so src + idelta fits the signed 16-bit lanes.
+  const int tmax = 65535 / area;
+  const double fo = std::floor(offset);
+  const int idelta = fo < -256.0 ? -256 : fo > tmax + 1.0 ? tmax + 1 : static_cast<int>(fo);
+  const std::uint16_t half = static_cast<std::uint16_t>((area - 1) / 2);
+  const std::uint16_t area16 = static_cast<std::uint16_t>(area);
+  const I16x8 zero{}, tmax_v = zero + static_cast<std::int16_t>(tmax);
+  // Column sums of the block's rows (border replicated), then the prefix sums of one row's
+  // column sums with the border replicated r times on each side: a window sum is the difference
+  // of two prefixes, modulo 2^16 and exact because it is below 2^16.
+  const size_t wpad = static_cast<size_t>(w + 2 * r + 1);
+  scratch->resize(static_cast<size_t>(w) + wpad);
+  std::uint16_t* col = scratch->data();
+  std::uint16_t* pre = col + w;
+  auto src_row = [&](int y) { return src.ptr<std::uint8_t>(std::clamp(y, 0, h - 1)); };
+  // col += add - sub (sub may be null).
+  auto update_col = [&](const std::uint8_t* add, const std::uint8_t* sub) {
+    int x = 0;
+    for (; x + 16 <= w; x += 16) {
+      U16x8 c0, c1;
+      U8x16 a, b{};
+      std::memcpy(&c0, col + x, sizeof c0);
+      std::memcpy(&c1, col + x + 8, sizeof c1);
+      std::memcpy(&a, add + x, sizeof a);
+      if (sub) std::memcpy(&b, sub + x, sizeof b);
+      c0 += widen_lo(a) - widen_lo(b);
+      c1 += widen_hi(a) - widen_hi(b);
+      std::memcpy(col + x, &c0, sizeof c0);
+      std::memcpy(col + x + 8, &c1, sizeof c1);
+    }
+    for (; x < w; ++x) col[x] = static_cast<std::uint16_t>(col[x] + add[x] - (sub ? sub[x] : 0));
+  };
+  // Lanes of 8 pixels whose mean reaches t: all ones (0xffff), else 0. lo: their prefixes.
+  auto passes = [&](const std::uint16_t* lo, U16x8 pix) {
+    U16x8 hi_v, lo_v;
+    std::memcpy(&hi_v, lo + block, sizeof hi_v);
+    std::memcpy(&lo_v, lo, sizeof lo_v);
+    I16x8 t = std::bit_cast<I16x8>(pix) + static_cast<std::int16_t>(idelta);
+    t &= ~(t < zero);
+    const I16x8 over = t > tmax_v;
+    t = (t & ~over) | (tmax_v & over);
+    const U16x8 rhs = std::bit_cast<U16x8>(t) * area16;
+    return static_cast<I16x8>(hi_v - lo_v + half >= rhs);
+  };
+  std::fill(col, col + w, std::uint16_t{0});
+  for (int dy = -r; dy <= r; ++dy) update_col(src_row(dy), nullptr);
   for (int y = 0; y < h; ++y) {
-    const std::uint8_t* p = src.ptr<std::uint8_t>(y);
-    int* o = hs + static_cast<size_t>(y) * static_cast<size_t>(w);
-    int s = 0;
-    for (int dx = -r; dx <= r; ++dx) s += p[std::clamp(dx, 0, w - 1)];
-    o[0] = s;
-    // Clamped indices only where the window reaches past an image border.
-    const int x_in0 = std::min(w, r + 1), x_in1 = std::max(x_in0, w - r);
-    int x = 1;
-    for (; x < x_in0; ++x) {
-      s += p[std::min(x + r, w - 1)] - p[0];
-      o[x] = s;
+    std::uint16_t acc = 0;
+    std::uint16_t* o = pre;
+    *o++ = 0;
+    for (int i = 0; i < r; ++i) *o++ = acc = static_cast<std::uint16_t>(acc + col[0]);
+    int xc = 0;
+    for (; xc + 8 <= w; xc += 8, o += 8) {
+      U16x8 v;
+      std::memcpy(&v, col + xc, sizeof v);
+      v = inclusive_prefix(v) + acc;
+      std::memcpy(o, &v, sizeof v);
+      acc = v[7];
     }
-    for (; x < x_in1; ++x) {
-      s += p[x + r] - p[x - 1 - r];
-      o[x] = s;
-    }
-    for (; x < w; ++x) {
-      s += p[w - 1] - p[std::max(x - 1 - r, 0)];
-      o[x] = s;
-    }
-  }
-  int* col = hs + static_cast<size_t>(w) * static_cast<size_t>(h);
-  auto hrow = [&](int y) { return hs + static_cast<size_t>(std::clamp(y, 0, h - 1)) * w; };
-  std::fill(col, col + w, 0);
-  for (int dy = -r; dy <= r; ++dy) {
-    const int* hr = hrow(dy);
-    for (int x = 0; x < w; ++x) col[x] += hr[x];
-  }
-  // The rounded mean m = (2 sum + area) / (2 area) (area odd: no ties) is compared without the
-  // division: src - m <= -idelta  <=>  m >= src + idelta  <=>  2 sum + area >= 2 area (src +
-  // idelta). 4 pixels a step, then the rest: 128-bit vectors, which NEON and SSE2 hold in one
-  // register (GCC splits wider ones badly on aarch64: 21 instructions per pixel with 16 lanes).
-  const int two_area = 2 * area;
-  for (int y = 0; y < h; ++y) {
+    for (; xc < w; ++xc) *o++ = acc = static_cast<std::uint16_t>(acc + col[xc]);
+    for (int i = 0; i < r; ++i) *o++ = acc = static_cast<std::uint16_t>(acc + col[w - 1]);
     const std::uint8_t* p = src.ptr<std::uint8_t>(y);
     std::uint8_t* d = dst->ptr<std::uint8_t>(y);
     int x = 0;
-    for (; x + 4 <= w; x += 4) {
-      I32x4 c;
-      std::memcpy(&c, col + x, sizeof c);
-      U8x4 pv;
+    for (; x + 16 <= w; x += 16) {
+      U8x16 pv;
       std::memcpy(&pv, p + x, sizeof pv);
-      const I32x4 rhs = (__builtin_convertvector(pv, I32x4) + idelta) * two_area;
-      const U8x4 out = __builtin_convertvector(2 * c + area >= rhs, U8x4);
+      const I16x8 m0 = passes(pre + x, widen_lo(pv)), m1 = passes(pre + x + 8, widen_hi(pv));
+      const U8x16 out =
+          __builtin_shufflevector(std::bit_cast<U8x16>(m0), std::bit_cast<U8x16>(m1), 0, 2, 4, 6, 8,
+                                  10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
       std::memcpy(d + x, &out, sizeof out);
     }
-    for (; x < w; ++x) d[x] = 2 * col[x] + area >= two_area * (p[x] + idelta) ? 255 : 0;
-    if (y + 1 < h) {
-      const int* add = hrow(y + 1 + r);
-      const int* sub = hrow(y - r);
-      int k = 0;
-      for (; k + 4 <= w; k += 4) {
-        I32x4 c, a, b;
-        std::memcpy(&c, col + k, sizeof c);
-        std::memcpy(&a, add + k, sizeof a);
-        std::memcpy(&b, sub + k, sizeof b);
-        c += a - b;
-        std::memcpy(col + k, &c, sizeof c);
-      }
-      for (; k < w; ++k) col[k] += add[k] - sub[k];
+    for (; x < w; ++x) {
+      const int sum = static_cast<std::uint16_t>(pre[x + block] - pre[x]);
+      d[x] = sum + half >= area * std::clamp(p[x] + idelta, 0, tmax) ? 255 : 0;
     }
+    if (y + 1 < h) update_col(src_row(y + 1 + r), src_row(y - r));
   }
 }
 
@@ -267,39 +327,48 @@ void integral_sum_sq(const cv::Mat& src, cv::Mat* sum, cv::Mat* sq) {
   sq->create(h + 1, w + 1, CV_32SC1);
   std::fill(sum->ptr<std::int32_t>(0), sum->ptr<std::int32_t>(0) + w + 1, 0);
   std::fill(sq->ptr<std::uint32_t>(0), sq->ptr<std::uint32_t>(0) + w + 1, 0u);
-  // Row prefix sums first (the only serial part), then the row above added 4 columns a step.
-  typedef std::uint32_t U32x4 __attribute__((vector_size(16)));
+  // Each row's running sums 16 pixels a step (squares in 16-bit lanes: 255^2 < 2^16), plus the
+  // row above. The sums are written as unsigned: they stay below 2^31 for any image under 8.4
+  // Mpixel, so the int32 values are the same.
   for (int y = 0; y < h; ++y) {
     const std::uint8_t* p = src.ptr<std::uint8_t>(y);
-    std::uint32_t* s1 = sum->ptr<std::uint32_t>(y + 1);
-    std::uint32_t* q1 = sq->ptr<std::uint32_t>(y + 1);
-    s1[0] = 0;
-    q1[0] = 0;
+    const std::uint32_t* s0 = sum->ptr<std::uint32_t>(y) + 1;
+    const std::uint32_t* q0 = sq->ptr<std::uint32_t>(y) + 1;
+    std::uint32_t* s1 = sum->ptr<std::uint32_t>(y + 1) + 1;
+    std::uint32_t* q1 = sq->ptr<std::uint32_t>(y + 1) + 1;
+    s1[-1] = 0;
+    q1[-1] = 0;
     std::uint32_t rs = 0, rq = 0;
-    for (int x = 0; x < w; ++x) {
+    // out[i] = above[i] + carry + (running sum of v)[i]; carry becomes the running total.
+    auto put = [](U32x4 v, std::uint32_t* carry, const std::uint32_t* above, std::uint32_t* out) {
+      v = inclusive_prefix(v) + *carry;
+      *carry = v[3];
+      U32x4 a;
+      std::memcpy(&a, above, sizeof a);
+      a += v;
+      std::memcpy(out, &a, sizeof a);
+    };
+    int x = 0;
+    for (; x + 16 <= w; x += 16) {
+      U8x16 pv;
+      std::memcpy(&pv, p + x, sizeof pv);
+      const U16x8 lo = widen_lo(pv), hi = widen_hi(pv);
+      const U16x8 lo2 = lo * lo, hi2 = hi * hi;
+      put(widen_lo(lo), &rs, s0 + x, s1 + x);
+      put(widen_hi(lo), &rs, s0 + x + 4, s1 + x + 4);
+      put(widen_lo(hi), &rs, s0 + x + 8, s1 + x + 8);
+      put(widen_hi(hi), &rs, s0 + x + 12, s1 + x + 12);
+      put(widen_lo(lo2), &rq, q0 + x, q1 + x);
+      put(widen_hi(lo2), &rq, q0 + x + 4, q1 + x + 4);
+      put(widen_lo(hi2), &rq, q0 + x + 8, q1 + x + 8);
+      put(widen_hi(hi2), &rq, q0 + x + 12, q1 + x + 12);
+    }
+    for (; x < w; ++x) {
       const std::uint32_t v = p[x];
       rs += v;
       rq += v * v;
-      s1[x + 1] = rs;
-      q1[x + 1] = rq;
-    }
-    const std::uint32_t* s0 = sum->ptr<std::uint32_t>(y);
-    const std::uint32_t* q0 = sq->ptr<std::uint32_t>(y);
-    int x = 1;
-    for (; x + 4 <= w + 1; x += 4) {
-      U32x4 a, b;
-      std::memcpy(&a, s1 + x, sizeof a);
-      std::memcpy(&b, s0 + x, sizeof b);
-      a += b;
-      std::memcpy(s1 + x, &a, sizeof a);
-      std::memcpy(&a, q1 + x, sizeof a);
-      std::memcpy(&b, q0 + x, sizeof b);
-      a += b;
-      std::memcpy(q1 + x, &a, sizeof a);
-    }
-    for (; x <= w; ++x) {
-      s1[x] += s0[x];
-      q1[x] += q0[x];
+      s1[x] = s0[x] + rs;
+      q1[x] = q0[x] + rq;
     }
   }
 }

@@ -162,7 +162,7 @@ struct LandmarkLocalizer::Impl {
   cv::Mat coarse_f;  // CV_32F copy of `coarse` for the NCC kernel
   cv::Mat orient4;   // CV_32FC2 per coarse pixel: |g|^2-weighted (cos 4a, sin 4a) of the gradient
   std::vector<std::uint32_t> row_sums;
-  std::vector<int> threshold_sums;
+  std::vector<std::uint16_t> threshold_sums;
   std::vector<std::vector<float>> fine_templates;  // 1-degree steps
   std::vector<CornerPeak> peaks;
   std::vector<Hypothesis> hyps;

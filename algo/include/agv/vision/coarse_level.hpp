@@ -31,7 +31,7 @@ constexpr int kMaxOwnAdaptiveBlock = 15;
 // offset) for an 8-bit src, bit for bit: 255 where src - round(mean of the block x block window,
 // border replicated) <= -floor(offset), else 0. block odd >= 3. scratch: row sums.
 void adaptive_threshold_mean_inv(const cv::Mat& src, int block, double offset, cv::Mat* dst,
-                                 std::vector<int>* scratch);
+                                 std::vector<std::uint16_t>* scratch);
 
 // Integral images of an 8-bit src: sum (CV_32SC1, (h + 1) x (w + 1)) as cv::integral gives it, and
 // sq, the integral of the squares, as 32-bit unsigned integers (stored in a CV_32SC1 Mat) that
