@@ -1,6 +1,8 @@
-// Box downsampling for the coarse detection level (agv/vision/coarse_level.hpp). The scalar
-// loop cost about 3 instructions per input pixel on aarch64, most of a landmark-free frame; the
-// vector path needs about half an instruction per pixel.
+// The coarse detection level's image operations (agv/vision/coarse_level.hpp): they are most of a
+// landmark-free frame. aarch64 instructions for a 640x480 frame at factor 8 (80x60 coarse, block
+// 13; tools/vision-cost), before -> now: box downsample 115.6k -> 42.4k (scalar loop: ~3 per input
+// pixel), adaptive threshold 99.6k -> 30.8k, integral images 63.6k -> 30.8k. The loops are 128-bit
+// GCC/Clang vectors (NEON or SSE2 registers), except the aarch64 box downsample (NEON intrinsics).
 #include "agv/vision/coarse_level.hpp"
 
 #include <algorithm>

@@ -4,9 +4,9 @@
 //
 // Box downsampling of an 8-bit image by an integer factor: each output pixel is the rounded mean of
 // an f x f block, what cv::resize with INTER_AREA computes for an integer factor. Two
-// implementations that must agree bit for bit: the scalar reference and the vector path (GCC/Clang
-// vector extensions, 16 pixels a step: NEON on aarch64, SSE2 on x86-64), which the detection uses
-// for f = 2, 4, 8 and 16 (tests/vision compares them, also under qemu-aarch64).
+// implementations that must agree bit for bit: the scalar reference and the vector path, which the
+// detection uses for f = 2, 4, 8 and 16 (NEON pairwise adds on aarch64, GCC/Clang vector
+// extensions elsewhere; tests/vision compares them, also under qemu-aarch64).
 #pragma once
 
 #include <cstdint>
