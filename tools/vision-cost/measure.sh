@@ -6,9 +6,9 @@
 # Without RECORDING it simulates one (agvloc-desk sim, 20 s at 10 fps, seed 7). Needs the cross
 # environment (toolchain/prepare-aarch64.sh) and valgrind. Build dirs: build/aarch64-cost-native
 # (x86-64) and build/aarch64 (the cross preset, with -DAGV_BUILD_VISION_COST=ON).
-# Prints, per frame class (ok = a landmark pose, none = no landmark found), the mean instructions
-# per frame for both architectures and their ratio; the aarch64 per-frame lists stay in
-# build/aarch64-cost-results/.
+# Prints, per frame class (ok = a landmark pose; none = no pose, split into free = no landmark
+# found and cut = a landmark partly outside the image), the mean instructions per frame for both
+# architectures and their ratio; the aarch64 per-frame lists stay in build/aarch64-cost-results/.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 src="$PWD"
@@ -37,7 +37,7 @@ extra="$(grep -o 'LD_LIBRARY_PATH=[^ ;]*' "$arm/CMakeCache.txt" | head -n 1 || t
 [ -n "$extra" ] || extra="LD_LIBRARY_PATH=/opt/agvloc-aarch64/usr/lib/aarch64-linux-gnu:/opt/agvloc-aarch64/usr/lib"
 
 printf '%-6s %8s %16s %16s %8s\n' class frames x86-64/frame aarch64/frame ratio
-for cls in ok none; do
+for cls in ok none free cut; do
   # x86-64: callgrind collects only inside agv_cost_frame (the measured calls).
   valgrind --tool=callgrind --collect-atstart=no --toggle-collect='agv_cost_frame*' \
            --callgrind-out-file="$res/callgrind.$cls.out" \

@@ -1,8 +1,11 @@
-// vision_cost RECORDING [--frames N] [--class all|ok|none] [--tracking SIGMA_MM --map FILE]
+// vision_cost RECORDING [--frames N] [--class all|ok|none|free|cut]
+//             [--tracking SIGMA_MM --map FILE]
 // Instruction cost of the vision pipeline (agv::vision::LandmarkLocalizer::process) on the frames
 // of a recording, for docs/deployment.md. Frames are decoded first; one warm-up pass classifies
-// them (status ok or not); the measured pass then calls process() once per selected frame, each
-// call bracketed twice:
+// them by status: ok, or none (any other status), which splits into free (no landmark found) and
+// cut (a landmark partly outside the image: not a landmark-free frame, and the costly part of
+// none). The measured pass then calls process() once per selected frame, each call bracketed
+// twice:
 //   - by agv_cost_frame() (never inlined) for `valgrind --tool=callgrind
 //     --toggle-collect=agv_cost_frame*`, natively;
 //   - by marker system calls (prctl with an invalid option; EINVAL, no effect) for the qemu
@@ -69,7 +72,7 @@ extern "C" __attribute__((noinline)) int agv_cost_frame_tracking(
 int main(int argc, char** argv) {
   if (argc < 2 || argv[1][0] == '-') {
     std::fprintf(stderr,
-                 "usage: vision_cost RECORDING [--frames N] [--class all|ok|none] "
+                 "usage: vision_cost RECORDING [--frames N] [--class all|ok|none|free|cut] "
                  "[--tracking SIGMA_MM --map FILE]\n");
     return 2;
   }
@@ -92,8 +95,8 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  if (cls != "all" && cls != "ok" && cls != "none") {
-    std::fprintf(stderr, "vision_cost: --class must be all, ok or none\n");
+  if (cls != "all" && cls != "ok" && cls != "none" && cls != "free" && cls != "cut") {
+    std::fprintf(stderr, "vision_cost: --class must be all, ok, none, free or cut\n");
     return 2;
   }
   cv::setNumThreads(0);
@@ -154,9 +157,14 @@ int main(int argc, char** argv) {
   size_t n_ok = 0;
   for (size_t i = 0; i < frames.size(); ++i) {
     agv::vision::LandmarkFix fix;
-    const bool ok = loc.process(frames[i], preds[i], &fix) == agv::vision::FixStatus::kOk;
+    using agv::vision::FixStatus;
+    const FixStatus st = loc.process(frames[i], preds[i], &fix);
+    const bool ok = st == FixStatus::kOk;
     n_ok += ok ? 1 : 0;
-    if (cls == "all" || (cls == "ok") == ok) selected.push_back(i);
+    const bool take = cls == "all" || (cls == "ok" && ok) || (cls == "none" && !ok) ||
+                      (cls == "free" && st == FixStatus::kNoLandmark) ||
+                      (cls == "cut" && st == FixStatus::kPartlyOutside);
+    if (take) selected.push_back(i);
   }
   size_t n_ok_measured = 0, n_window = 0;
   for (size_t i : selected) {
