@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <random>
 #include <string>
 
@@ -302,6 +303,102 @@ TEST(QrGrid, VerifiedReadNeverTakesAnotherCode) {
   // Bits that do not decode to the text they claim are refused by the round-trip check.
   EXPECT_FALSE(qr_bits_decode_to(b_full, other_id, &scratch));
   EXPECT_FALSE(qr_bits_decode_to(empty, text, &scratch));
+}
+
+// The code book (the verified read without a prediction) holds a whole map's codes, among them
+// landmark 17's neighbours one id apart: a grid of landmark 17 with errors within the bound is
+// read as landmark 17 without zxing, and zxing agrees; over the bound, or for a code not in the
+// book, zxing reads as before. No other code is ever taken.
+TEST(QrGrid, CodeBookReadsTheOneMappedCodeWithinTheBoundAsZxingDoes) {
+  std::vector<std::string> texts;
+  for (int id = 1; id <= 40; ++id) {
+    if (id == 17) continue;  // kFull and kIdOnly, added last
+    char full[64], short_id[32];
+    std::snprintf(full, sizeof full, "AGV1/%05d/+001000.0/-002000.0/+090.00", id);
+    std::snprintf(short_id, sizeof short_id, "AGV1/%05d/MAP", id);
+    texts.push_back(full);
+    texts.push_back(short_id);
+  }
+  texts.push_back(kFull);
+  texts.push_back(kIdOnly);
+  std::vector<QrBits> bits;
+  for (const std::string& t : texts) bits.push_back(bits_of(t));
+  QrCodeBook book;
+  for (size_t i = 0; i < texts.size(); ++i) book.add(&bits[i], &texts[i]);
+  const QrBits empty;
+  book.add(&empty, &texts[0]);  // malformed: ignored
+  book.add(nullptr, &texts[0]);
+  ASSERT_EQ(book.size(), texts.size());
+
+  QrGridScratch scratch;
+  std::mt19937_64 rng(33);
+  for (const std::string text : {kFull, kIdOnly}) {
+    const int n = encode(text).height();
+    const int bound = qr_verified_max_data_errors(n);
+    std::vector<std::pair<int, int>> data = data_modules(n);
+    int verified = 0;
+    for (int trial = 0; trial < 60; ++trial) {
+      QrSamples s = samples_of(encode(text), 0.0, 0.0, 1);
+      std::shuffle(data.begin(), data.end(), rng);
+      const bool over = trial % 3 == 2;
+      const int n_data = over ? bound + 1 + trial % 4 : bound - trial % 2;
+      for (int k = 0; k < n_data; ++k)
+        flip(&s, data[static_cast<size_t>(k)].first, data[static_cast<size_t>(k)].second);
+      std::string via_zxing, via_book;
+      scratch.zxing_runs = 0;
+      const bool z = decode_qr_grid(s, QrThreshold::kMidpoint, &via_zxing, &scratch);
+      const bool b = decode_qr_grid(s, QrThreshold::kMidpoint, &via_book, &scratch, {}, &book);
+      EXPECT_EQ(scratch.verified, !over) << text << " trial " << trial;
+      EXPECT_EQ(scratch.zxing_runs, over ? 2 : 1) << "the book's read ran zxing";
+      EXPECT_EQ(b, z) << text << " trial " << trial;
+      if (b) {
+        EXPECT_EQ(via_book, via_zxing);
+      }
+      if (!over) {
+        ++verified;
+        EXPECT_EQ(via_book, text);
+      }
+    }
+    EXPECT_EQ(verified, 40) << text;
+  }
+  // A mapped code that zxing does not read back to its text is never offered.
+  std::string wrong_text = texts[0] + "X";
+  QrCodeBook lying;
+  lying.add(&bits[0], &wrong_text);
+  const QrSamples s = samples_of(encode(texts[0]), 0.0, 0.0, 1);
+  std::string out;
+  ASSERT_TRUE(decode_qr_grid(s, QrThreshold::kMidpoint, &out, &scratch, {}, &lying));
+  EXPECT_FALSE(scratch.verified);
+  EXPECT_EQ(out, texts[0]);
+  // A code not in the book goes to zxing.
+  QrCodeBook others;
+  others.add(&bits[2], &texts[2]);
+  ASSERT_TRUE(decode_qr_grid(s, QrThreshold::kMidpoint, &out, &scratch, {}, &others));
+  EXPECT_FALSE(scratch.verified);
+  EXPECT_EQ(out, texts[0]);
+}
+
+// Full search (no prediction) with a map: the guided reader takes the code from the map's code
+// book, without zxing, and the fix is the one zxing's read gives without a map.
+TEST_F(QrGridScene, FullSearchReadsMappedCodesWithoutZxing) {
+  LandmarkLocalizer with_map(VisionConfig{}, cam, LandmarkGeometry{}, &map);
+  LandmarkLocalizer without_map(VisionConfig{}, cam, LandmarkGeometry{}, nullptr);
+  std::mt19937_64 rng(8);
+  for (int i = 0; i < 4; ++i) {
+    const Pose2 e{-6.0 + 4.0 * i, 3.0 - 2.0 * i, deg_to_rad(11.0 + 80.0 * i)};
+    const cv::Mat img = sim::render_frame(scene, cam, compose(lw, e), {}, rng);
+    LandmarkFix fm, fz;
+    ASSERT_EQ(with_map.process(img, &fm), FixStatus::kOk) << i;
+    ASSERT_EQ(without_map.process(img, &fz), FixStatus::kOk) << i;
+    EXPECT_TRUE(fm.qr_verified) << i;
+    EXPECT_EQ(fm.qr_grid_decodes, 0) << i;
+    EXPECT_FALSE(fz.qr_verified) << i;
+    EXPECT_GE(fz.qr_grid_decodes, 1) << i;
+    EXPECT_STREQ(fm.payload, fz.payload);
+    EXPECT_EQ(fm.e_x_mm, fz.e_x_mm);
+    EXPECT_EQ(fm.e_y_mm, fz.e_y_mm);
+    EXPECT_EQ(fm.e_phi_deg, fz.e_phi_deg);
+  }
 }
 
 TEST_F(QrGridScene, LocalizerReadsBlurredCodesByGuidedSampling) {

@@ -305,6 +305,11 @@ struct LandmarkLocalizer::Impl {
   };
   std::map<std::uint32_t, MapCodes> map_codes;
   MapCodes* codes_of(std::uint32_t id);
+  // Every mapped code for the verified read without a prediction (qr_grid.hpp QrCodeBook), built
+  // from map_codes on the first code read.
+  QrCodeBook map_book;
+  bool map_book_built = false;
+  QrCodeBook* code_book();
   std::vector<std::uint8_t> identity_bits;
   std::vector<std::pair<std::uint32_t, const QrBits*>> identity_others;
   void build_map_codes();

@@ -32,6 +32,18 @@ void LandmarkLocalizer::Impl::build_map_codes() {
   for (const auto& entry : map->entries) codes_of(entry.first);
 }
 
+QrCodeBook* LandmarkLocalizer::Impl::code_book() {
+  if (!map) return nullptr;
+  if (!map_book_built) {
+    map_book_built = true;
+    build_map_codes();
+    for (auto& [id, codes] : map_codes) {
+      for (size_t form = 0; form < 2; ++form) map_book.add(&codes.bits[form], &codes.text[form]);
+    }
+  }
+  return &map_book;
+}
+
 bool LandmarkLocalizer::Impl::map_identity(const cv::Mat& img, const Prediction& pred, Vec2 c_mm,
                                            double beta, const Eigen::Matrix3d& cov,
                                            const LogoScores& logo, Pose2* world_landmark, int* turn,

@@ -162,12 +162,13 @@ int LandmarkLocalizer::Impl::decode_guided(const cv::Mat& img, Vec2 c_mm, double
   constexpr QrThreshold kThresholds[] = {QrThreshold::kStronglySharpenedLocalMean,
                                          QrThreshold::kSharpenedLocalMean, QrThreshold::kLocalMean,
                                          QrThreshold::kMidpoint};
+  QrCodeBook* book = code_book();
   for (int q : order) {
     if (q < 0) break;
     for (int n : {kQrModulesV2, kQrModulesV1}) {
       if (!sample_qr(img, c_mm, beta - q * kPi / 2.0, n, &qr_samples)) continue;
       for (QrThreshold t : kThresholds) {
-        if (decode_qr_grid(qr_samples, t, &qr_text, &qr_scratch, qr_expected)) return q;
+        if (decode_qr_grid(qr_samples, t, &qr_text, &qr_scratch, qr_expected, book)) return q;
       }
     }
   }

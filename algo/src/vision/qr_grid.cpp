@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
@@ -209,8 +210,77 @@ bool matches_expected(const QrSamples& s, const QrGridScratch& sc, const QrExpec
 
 }  // namespace
 
+namespace {
+
+// Module i of an n x n grid is bit i % 64 of word i / 64.
+template <typename Dark>
+std::array<std::uint64_t, 10> pack_modules(int n, const Dark& dark) {
+  std::array<std::uint64_t, 10> w{};
+  for (int i = 0; i < n * n; ++i) {
+    if (dark[static_cast<size_t>(i)])
+      w[static_cast<size_t>(i / 64)] |= std::uint64_t{1} << (i % 64);
+  }
+  return w;
+}
+
+// The data modules (neither fixed nor format) and the format modules of a size, as bit masks.
+struct ModuleMasks {
+  std::array<std::uint64_t, 10> data{}, format{};
+  explicit ModuleMasks(int n) {
+    for (int r = 0; r < n; ++r) {
+      for (int c = 0; c < n; ++c) {
+        const int i = r * n + c;
+        const std::uint64_t bit = std::uint64_t{1} << (i % 64);
+        if (qr_format_module(n, r, c)) {
+          format[static_cast<size_t>(i / 64)] |= bit;
+        } else if (qr_fixed_module(n, r, c) < 0) {
+          data[static_cast<size_t>(i / 64)] |= bit;
+        }
+      }
+    }
+  }
+};
+
+}  // namespace
+
+void QrCodeBook::add(const QrBits* bits, const std::string* text) {
+  if (!bits || !text || (bits->n != 21 && bits->n != 25) ||
+      bits->dark.size() != static_cast<size_t>(bits->n * bits->n)) {
+    return;
+  }
+  Code c;
+  c.n = bits->n;
+  c.dark = pack_modules(bits->n, bits->dark);
+  c.expected = {bits, text};
+  codes_.push_back(c);
+}
+
+const QrExpected* QrCodeBook::match(int n, const std::vector<unsigned char>& grid) {
+  if ((n != 21 && n != 25) || grid.size() < static_cast<size_t>(n * n)) return nullptr;
+  static const ModuleMasks masks21(21), masks25(25);
+  const ModuleMasks& m = n == 21 ? masks21 : masks25;
+  const int max_data = qr_verified_max_data_errors(n);
+  const Words g = pack_modules(n, grid);
+  for (Code& c : codes_) {
+    if (c.n != n) continue;
+    int data = 0, format = 0;
+    for (int k = 0; k < kWords && data <= max_data; ++k) {
+      const std::uint64_t diff = g[static_cast<size_t>(k)] ^ c.dark[static_cast<size_t>(k)];
+      data += std::popcount(diff & m.data[static_cast<size_t>(k)]);
+      format += std::popcount(diff & m.format[static_cast<size_t>(k)]);
+    }
+    if (data > max_data || format > kQrVerifiedMaxFormatErrors) continue;
+    if (c.reads_back == 0) {
+      c.reads_back = qr_bits_decode_to(*c.expected.bits, *c.expected.text, &scratch_) ? 1 : -1;
+    }
+    // No other code can be within the bounds (qr_grid.hpp).
+    return c.reads_back == 1 ? &c.expected : nullptr;
+  }
+  return nullptr;
+}
+
 bool decode_qr_grid(const QrSamples& s, QrThreshold t, std::string* text, QrGridScratch* sc,
-                    std::span<const QrExpected> expected) {
+                    std::span<const QrExpected> expected, QrCodeBook* book) {
   sc->verified = false;
   if ((s.n != 21 && s.n != 25) || s.ring < 1 ||
       s.v.size() != static_cast<size_t>(s.side() * s.side())) {
@@ -223,6 +293,11 @@ bool decode_qr_grid(const QrSamples& s, QrThreshold t, std::string* text, QrGrid
       sc->verified = true;
       return true;
     }
+  }
+  if (const QrExpected* e = book ? book->match(s.n, sc->bits) : nullptr) {
+    *text = *e->text;
+    sc->verified = true;
+    return true;
   }
   const int dim = (s.n + 2 * kMargin) * kPxPerModule;
   sc->image.assign(static_cast<size_t>(dim) * static_cast<size_t>(dim), 255);

@@ -4,6 +4,7 @@
 // search, which are what fail on small (4.6 px) modules under blur, scratches and dirt.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -78,14 +79,46 @@ struct QrGridScratch {
   int zxing_runs = 0;     // zxing reads run so far (the caller resets it), for cost diagnostics
 };
 
+// Every code of a landmark map, packed as bits, for the verified read without a prediction
+// (docs/tracking.md "Verified read"): which code, if any, a binarized grid is within the bounds
+// above of. At most one can be: two valid codes of the same size differ in at least d = 2 t + 3
+// codewords (t the bound, plus the misdecode protection), hence in more than 2 t modules, or in at
+// least 14 format modules when their formats differ. So the answer is what zxing would decode,
+// and the order of the codes does not matter. A match costs an XOR and a popcount per 64 modules
+// and code, against about 0.8 M instructions for zxing's pure reader.
+class QrCodeBook {
+ public:
+  // Adds a code (n 21 or 25; others are ignored). The pointers must outlive the book.
+  void add(const QrBits* bits, const std::string* text);
+  size_t size() const { return codes_.size(); }
+  // The code the grid (n x n, 1 = dark, row-major) is within the bounds of, or nullptr. A code is
+  // returned only once zxing has decoded its clean bits back to its text (qr_bits_decode_to,
+  // checked on its first match with the book's own scratch), as for an expected code.
+  const QrExpected* match(int n, const std::vector<unsigned char>& grid);
+
+ private:
+  static constexpr int kWords = 10;  // 625 modules of a 25 x 25 code
+  using Words = std::array<std::uint64_t, kWords>;
+  struct Code {
+    int n = 0;
+    Words dark{};
+    QrExpected expected;
+    int reads_back = 0;  // 0 not checked yet, 1 zxing decodes it to its text, -1 not
+  };
+  std::vector<Code> codes_;
+  QrGridScratch scratch_;
+};
+
 // Binarizes the samples, forces the fixed modules and decodes with zxing's pure-code reader
 // (Reed-Solomon checked). Returns true and the text on success.
 // expected: codes the caller predicts. When the binarized grid is within the bounds above of one
 // of them (same size), its text is returned without running zxing (scratch->verified): zxing would
 // decode exactly that text, so the result is the same and only the cost differs (zxing's pure
 // reader is about 60 % of a tracked frame's QR stage). Anything else is decoded as before.
+// book: when no expected code matches, the map's code the grid is within the bounds of, read the
+// same way (scratch->verified); nullptr for none.
 bool decode_qr_grid(const QrSamples& s, QrThreshold t, std::string* text, QrGridScratch* scratch,
-                    std::span<const QrExpected> expected = {});
+                    std::span<const QrExpected> expected = {}, QrCodeBook* book = nullptr);
 
 // True when zxing's pure reader (as decode_qr_grid runs it) decodes these bits to exactly `text`.
 // An expected code is offered to decode_qr_grid only after this check: the verified read then
