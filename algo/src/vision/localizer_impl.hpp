@@ -306,7 +306,7 @@ struct LandmarkLocalizer::Impl {
   std::map<std::uint32_t, MapCodes> map_codes;
   MapCodes* codes_of(std::uint32_t id);
   // Every mapped code for the verified read without a prediction (qr_grid.hpp QrCodeBook), built
-  // from map_codes on the first code read.
+  // from map_codes by the constructor.
   QrCodeBook map_book;
   bool map_book_built = false;
   QrCodeBook* code_book();
