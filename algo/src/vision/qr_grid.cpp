@@ -208,10 +208,6 @@ bool matches_expected(const QrSamples& s, const QrGridScratch& sc, const QrExpec
   return true;
 }
 
-}  // namespace
-
-namespace {
-
 // Module i of an n x n grid is bit i % 64 of word i / 64.
 template <typename Dark>
 std::array<std::uint64_t, 10> pack_modules(int n, const Dark& dark) {
