@@ -186,28 +186,6 @@ bool qr_format_module(int n, int r, int c) {
 
 namespace {
 
-// The binarized grid is the expected code up to what Reed-Solomon corrects (qr_grid.hpp).
-bool matches_expected(const QrSamples& s, const QrGridScratch& sc, const QrExpected& e) {
-  if (!e.bits || !e.text || e.bits->n != s.n ||
-      e.bits->dark.size() != static_cast<size_t>(s.n * s.n)) {
-    return false;
-  }
-  const int max_data = qr_verified_max_data_errors(s.n);
-  int data = 0, format = 0;
-  for (int r = 0; r < s.n; ++r) {
-    for (int c = 0; c < s.n; ++c) {
-      const size_t i = static_cast<size_t>(r * s.n + c);
-      if (sc.bits[i] == e.bits->dark[i] || qr_fixed_module(s.n, r, c) >= 0) continue;
-      if (qr_format_module(s.n, r, c)) {
-        if (++format > kQrVerifiedMaxFormatErrors) return false;
-      } else if (++data > max_data) {
-        return false;
-      }
-    }
-  }
-  return true;
-}
-
 // Module i of an n x n grid is bit i % 64 of word i / 64.
 template <typename Dark>
 std::array<std::uint64_t, 10> pack_modules(int n, const Dark& dark) {
@@ -237,6 +215,32 @@ struct ModuleMasks {
   }
 };
 
+// True when the packed grid is within the verified-read bounds of the packed code of the same size
+// (qr_grid.hpp): at most qr_verified_max_data_errors data modules and kQrVerifiedMaxFormatErrors
+// format modules differ; fixed modules do not count.
+bool within_verified_bounds(int n, const std::array<std::uint64_t, 10>& grid,
+                            const std::array<std::uint64_t, 10>& code) {
+  static const ModuleMasks masks21(21), masks25(25);
+  const ModuleMasks& m = n == 21 ? masks21 : masks25;
+  const int max_data = qr_verified_max_data_errors(n);
+  int data = 0, format = 0;
+  for (size_t k = 0; k < grid.size() && data <= max_data; ++k) {
+    const std::uint64_t diff = grid[k] ^ code[k];
+    data += std::popcount(diff & m.data[k]);
+    format += std::popcount(diff & m.format[k]);
+  }
+  return data <= max_data && format <= kQrVerifiedMaxFormatErrors;
+}
+
+// The binarized grid is the expected code up to what Reed-Solomon corrects (qr_grid.hpp).
+bool matches_expected(const QrSamples& s, const QrGridScratch& sc, const QrExpected& e) {
+  if (!e.bits || !e.text || e.bits->n != s.n ||
+      e.bits->dark.size() != static_cast<size_t>(s.n * s.n)) {
+    return false;
+  }
+  return within_verified_bounds(s.n, pack_modules(s.n, sc.bits), pack_modules(s.n, e.bits->dark));
+}
+
 }  // namespace
 
 void QrCodeBook::add(const QrBits* bits, const std::string* text) {
@@ -253,19 +257,9 @@ void QrCodeBook::add(const QrBits* bits, const std::string* text) {
 
 const QrExpected* QrCodeBook::match(int n, const std::vector<unsigned char>& grid) {
   if ((n != 21 && n != 25) || grid.size() < static_cast<size_t>(n * n)) return nullptr;
-  static const ModuleMasks masks21(21), masks25(25);
-  const ModuleMasks& m = n == 21 ? masks21 : masks25;
-  const int max_data = qr_verified_max_data_errors(n);
   const Words g = pack_modules(n, grid);
   for (Code& c : codes_) {
-    if (c.n != n) continue;
-    int data = 0, format = 0;
-    for (int k = 0; k < kWords && data <= max_data; ++k) {
-      const std::uint64_t diff = g[static_cast<size_t>(k)] ^ c.dark[static_cast<size_t>(k)];
-      data += std::popcount(diff & m.data[static_cast<size_t>(k)]);
-      format += std::popcount(diff & m.format[static_cast<size_t>(k)]);
-    }
-    if (data > max_data || format > kQrVerifiedMaxFormatErrors) continue;
+    if (c.n != n || !within_verified_bounds(n, g, c.dark)) continue;
     if (c.reads_back == 0) {
       c.reads_back = qr_bits_decode_to(*c.expected.bits, *c.expected.text, &scratch_) ? 1 : -1;
     }
