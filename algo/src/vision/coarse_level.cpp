@@ -1,8 +1,9 @@
 // The coarse detection level's image operations (agv/vision/coarse_level.hpp): they are most of a
 // landmark-free frame. aarch64 instructions for a 640x480 frame at factor 8 (80x60 coarse, block
 // 13; tools/vision-cost), before -> now: box downsample 115.6k -> 42.4k (scalar loop: ~3 per input
-// pixel), adaptive threshold 99.6k -> 30.8k, integral images 63.6k -> 30.8k. The loops are 128-bit
-// GCC/Clang vectors (NEON or SSE2 registers), except the aarch64 box downsample (NEON intrinsics).
+// pixel), adaptive threshold 99.6k -> 30.8k, integral images 63.6k -> 30.8k. The threshold and
+// integral loops are 128-bit GCC/Clang vectors (one NEON or SSE2 register); the box downsample is
+// NEON intrinsics on aarch64 and generic vector extensions elsewhere.
 #include "agv/vision/coarse_level.hpp"
 
 #include <algorithm>

@@ -38,7 +38,7 @@ void adaptive_threshold_mean_inv(const cv::Mat& src, int block, double offset, c
 // wrap modulo 2^32. Read them only through window_sum_sq: a window's sum of squares is below 2^32
 // for any window under 66051 pixels, so its modular difference is exact however large the image,
 // and the results equal cv::integral(src, sum, sq, CV_32S, CV_64F)'s differences bit for bit.
-// Half the memory and a third of the instructions of 64-bit doubles on aarch64.
+// Half the memory of 64-bit doubles (aarch64 cost of the loop: coarse_level.cpp).
 void integral_sum_sq(const cv::Mat& src, cv::Mat* sum, cv::Mat* sq);
 
 // Sum and sum of squares of the n x n window whose top-left pixel is (x, y), from
