@@ -60,6 +60,64 @@ TEST(VisionPrewitt, MatchesEquations2And3) {
   EXPECT_EQ(gy2.at<std::int16_t>(1, 1), 72);
 }
 
+// The pose stage's strips (vectorised along rows) give prewitt_at's integers at every pixel and
+// screen exactly the pixels at or above the squared threshold: random images (full 0..255
+// range, so the largest gradients and squares occur), strips along rows and along columns, every
+// length from 1 to 70 (one to five vector chunks, every length of the last), with and without the
+// 16-byte chunked reads, thresholds at a pixel's own squared magnitude and one above it.
+TEST(VisionPrewitt, StripGradientsEqualPrewittAtAndScreenAtTheThreshold) {
+  std::mt19937 rng(17);
+  cv::Mat img(90, 97, CV_8UC1);
+  StripGradients s;
+  int checked = 0, strong_seen = 0;
+  for (int image = 0; image < 3; ++image) {
+    for (int y = 0; y < img.rows; ++y) {
+      for (int x = 0; x < img.cols; ++x) {
+        // Image 0 uniform noise; 1 only 0 and 255 (largest gradients); 2 a smooth ramp.
+        const int v = image == 0   ? static_cast<int>(rng() % 256)
+                      : image == 1 ? (rng() % 2 ? 255 : 0)
+                                   : (2 * x + y) % 256;
+        img.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(v);
+      }
+    }
+    const std::ptrdiff_t step = static_cast<std::ptrdiff_t>(img.step[0]);
+    for (int along_rows = 0; along_rows < 2; ++along_rows) {
+      for (int read_past_end = 0; read_past_end < 2; ++read_past_end) {
+        for (int n = 1; n <= 70; ++n) {
+          // Strip start (the pixel before the first gradient) at (x0, y0).
+          const int x0 = along_rows ? 1 + n % 7 : 1 + n % 90;
+          const int y0 = along_rows ? 1 + n % 85 : 1 + n % 5;
+          const std::ptrdiff_t dj = along_rows ? 1 : step, di = along_rows ? step : 1;
+          const std::uint8_t* p = img.ptr<std::uint8_t>(y0) + x0;
+          int gx_ref = 0, gy_ref = 0;
+          prewitt_at(p + (n / 2 + 1) * dj, step, &gx_ref, &gy_ref);
+          const int mid2 = gx_ref * gx_ref + gy_ref * gy_ref;
+          for (int thr2 : {mid2, mid2 + 1, 0, -5, 1170450, 1170451, 5000000}) {
+            strip_gradients(p, dj, di, n, thr2, read_past_end != 0, &s);
+            ASSERT_GE(s.g_j.size(), static_cast<size_t>(n));
+            ASSERT_GE(s.strong.size(), static_cast<size_t>(n));
+            for (int q = 0; q < n; ++q) {
+              int gx = 0, gy = 0;
+              prewitt_at(p + (q + 1) * dj, step, &gx, &gy);
+              const int gj = along_rows ? gx : gy, gi = along_rows ? gy : gx;
+              ASSERT_EQ(s.g_j[static_cast<size_t>(q)], gj)
+                  << image << " " << along_rows << " " << n;
+              ASSERT_EQ(s.g_i[static_cast<size_t>(q)], gi)
+                  << image << " " << along_rows << " " << n;
+              const bool strong = gx * gx + gy * gy >= thr2;
+              ASSERT_EQ(s.strong[static_cast<size_t>(q)] != 0, strong) << q << " thr2 " << thr2;
+              strong_seen += strong;
+              ++checked;
+            }
+          }
+        }
+      }
+    }
+  }
+  EXPECT_EQ(checked, 3 * 2 * 2 * 7 * (70 * 71 / 2));
+  EXPECT_GT(strong_seen, checked / 4);
+}
+
 TEST(VisionClassify, FourDirectionsAndTolerance) {
   const double up = -kPi / 2;  // page up = image up
   const double tol = deg_to_rad(20);

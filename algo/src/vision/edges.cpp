@@ -1,7 +1,9 @@
 #include "agv/vision/edges.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstring>
 #include <opencv2/core.hpp>
 #include <vector>
 
@@ -27,6 +29,92 @@ void prewitt(const cv::Mat& gray8, const cv::Rect& roi_in, cv::Mat* gx, cv::Mat*
       ox[x] = static_cast<std::int16_t>(g_x);
       oy[x] = static_cast<std::int16_t>(g_y);
     }
+  }
+}
+
+namespace {
+typedef std::uint8_t U8x16 __attribute__((vector_size(16)));
+typedef std::int16_t I16x16 __attribute__((vector_size(32)));
+typedef std::int16_t I16x8 __attribute__((vector_size(16)));
+typedef std::int32_t I32x4 __attribute__((vector_size(16)));
+typedef float F32x4 __attribute__((vector_size(16)));
+constexpr size_t kStripLanes = 16;
+// Above every reachable squared Prewitt magnitude (2 * 765^2) and exact in float (< 2^24).
+constexpr int kMaxExactThr2 = 1 << 22;
+
+// Sign extension of four 16-bit lanes interleaved with their signs (one ZIP or PUNPCK after the
+// shift; little-endian), then the exact conversion to float. The squares use 128-bit vectors: GCC
+// 12 turns 256-bit conversions and compares into lane-by-lane code on aarch64.
+static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "to_float interleaves little-endian");
+inline F32x4 to_float(I16x8 interleaved_with_sign) {
+  return __builtin_convertvector(std::bit_cast<I32x4>(interleaved_with_sign), F32x4);
+}
+
+template <typename V, typename T>
+V load_lanes(const T* p) {
+  V v;
+  std::memcpy(&v, p, sizeof v);
+  return v;
+}
+template <typename V, typename T>
+void store_lanes(T* p, const V& v) {
+  std::memcpy(p, &v, sizeof v);
+}
+}  // namespace
+
+void strip_gradients(const std::uint8_t* p, std::ptrdiff_t dj, std::ptrdiff_t di, int n, int thr2,
+                     bool read_past_end, StripGradients* s) {
+  const size_t m = static_cast<size_t>(std::max(n, 0));
+  // Whole chunks of 16 lanes: the lanes past n are computed and never read, so no loop has a
+  // scalar remainder (a band strip is ~15-30 pixels, and a remainder would be half the work).
+  const size_t chunks = (m + 2 + kStripLanes - 1) / kStripLanes;
+  const size_t padded = (chunks + 1) * kStripLanes;
+  if (s->sum.size() < padded) {
+    s->sum.resize(padded);
+    s->diff.resize(padded);
+    s->g_j.resize(padded);
+    s->g_i.resize(padded);
+    s->strong.resize(padded);
+  }
+  std::int16_t* __restrict sum = s->sum.data();
+  std::int16_t* __restrict diff = s->diff.data();
+  const std::uint8_t* a = p - di;  // one side of the strip
+  const std::uint8_t* c = p + di;  // the other side
+  if (dj == 1 && read_past_end) {
+    for (size_t k = 0; k < chunks * kStripLanes; k += kStripLanes) {
+      const I16x16 va = __builtin_convertvector(load_lanes<U8x16>(a + k), I16x16);
+      const I16x16 vb = __builtin_convertvector(load_lanes<U8x16>(p + k), I16x16);
+      const I16x16 vc = __builtin_convertvector(load_lanes<U8x16>(c + k), I16x16);
+      store_lanes(sum + k, va + vb + vc);
+      store_lanes(diff + k, vc - va);
+    }
+  } else {
+    for (size_t k = 0; k < m + 2; ++k) {
+      const std::ptrdiff_t o = static_cast<std::ptrdiff_t>(k) * dj;
+      sum[k] = static_cast<std::int16_t>(a[o] + p[o] + c[o]);
+      diff[k] = static_cast<std::int16_t>(c[o] - a[o]);
+    }
+  }
+  // |g| <= 3 * 255, so 16-bit lanes hold the gradients and 32-bit ones their squares.
+  std::int16_t* __restrict g_j = s->g_j.data();
+  std::int16_t* __restrict g_i = s->g_i.data();
+  std::int32_t* __restrict strong = s->strong.data();
+  const float thr2_f = static_cast<float>(std::clamp(thr2, 0, kMaxExactThr2));
+  for (size_t q = 0; q < m; q += kStripLanes / 2) {
+    const I16x8 gj = load_lanes<I16x8>(sum + q + 2) - load_lanes<I16x8>(sum + q);
+    const I16x8 gi = load_lanes<I16x8>(diff + q) + load_lanes<I16x8>(diff + q + 1) +
+                     load_lanes<I16x8>(diff + q + 2);
+    store_lanes(g_j + q, gj);
+    store_lanes(g_i + q, gi);
+    // The squares in float: every value is an integer below 2^24 (|g|^2 <= 585225, the sum
+    // <= 1.2e6, thr2 clamped to 2^22), so float is exact; SSE2 has no 32-bit multiply.
+    const I16x8 sj = gj >> 15, si = gi >> 15;
+    const F32x4 j_lo = to_float(__builtin_shufflevector(gj, sj, 0, 8, 1, 9, 2, 10, 3, 11));
+    const F32x4 j_hi = to_float(__builtin_shufflevector(gj, sj, 4, 12, 5, 13, 6, 14, 7, 15));
+    const F32x4 i_lo = to_float(__builtin_shufflevector(gi, si, 0, 8, 1, 9, 2, 10, 3, 11));
+    const F32x4 i_hi = to_float(__builtin_shufflevector(gi, si, 4, 12, 5, 13, 6, 14, 7, 15));
+    store_lanes(strong + q, j_lo * j_lo + i_lo * i_lo >= thr2_f);
+    store_lanes(strong + q + 4, j_hi * j_hi + i_hi * i_hi >= thr2_f);
   }
 }
 

@@ -184,7 +184,7 @@ struct LandmarkLocalizer::Impl {
   std::array<std::vector<double>, kNumLines> weights;
   std::vector<double> logo_template, logo_samples, residual_buf, scratch_buf;
   std::vector<Vec2> logo_page_pts;
-  std::vector<int> strip_gx, strip_gy, strip_sd;
+  StripGradients strip;
 
   // Kept for the overlay.
   bool have_overlay = false;

@@ -433,6 +433,9 @@ int LandmarkLocalizer::Impl::collect_line(const cv::Mat& img, Vec2 c, Vec2 nk, d
   const std::ptrdiff_t step = static_cast<std::ptrdiff_t>(img.step[0]);
   const int x_lo = kEdgeMarginPx, y_lo = kEdgeMarginPx;
   const int x_hi = img.cols - 1 - kEdgeMarginPx, y_hi = img.rows - 1 - kEdgeMarginPx;
+  // A strip along a row may be read up to 15 bytes past its end (strip_gradients): its last line
+  // is at most row rows - 2 (y_hi + 1), so that lands in the next row when a row has 16 bytes.
+  const bool read_past_end = img.cols >= 16;
   const Vec2 tk{-nk.y, nk.x};
   const double t_max = h - band;  // stay away from the corners
   if (t_max <= 0) return 0;
@@ -459,38 +462,20 @@ int LandmarkLocalizer::Impl::collect_line(const cv::Mat& img, Vec2 c, Vec2 nk, d
     if (j1 < j0) continue;
     // Gradients of the strip's pixels and of one more on each side (the non-maximum
     // suppression compares each pixel with its two neighbours along j, which is the pixel
-    // axis closest to the line's normal). Prewitt from per-pixel sums and differences across the
-    // strip (s, d), each shared by three neighbouring pixels along it: g_j = s(q+1) - s(q-1),
-    // g_i = d(q-1) + d(q) + d(q+1); the same integers as prewitt_at at half the loads.
+    // axis closest to the line's normal).
     const int n = j1 - j0 + 3;
-    strip_gx.resize(static_cast<size_t>(n));
-    strip_gy.resize(static_cast<size_t>(n));
-    strip_sd.resize(static_cast<size_t>(2 * (n + 2)));
-    int* sum_across = strip_sd.data();
-    int* diff_across = sum_across + (n + 2);
     const std::ptrdiff_t dj = by_rows ? 1 : step, di = by_rows ? step : 1;
     const std::uint8_t* p = base + (by_rows ? static_cast<std::ptrdiff_t>(i) * step + (j0 - 2)
                                             : static_cast<std::ptrdiff_t>(j0 - 2) * step + i);
-    for (int k = 0; k < n + 2; ++k, p += dj) {
-      sum_across[k] = p[-di] + p[0] + p[di];
-      diff_across[k] = p[di] - p[-di];
-    }
-    int* g_j = by_rows ? strip_gx.data() : strip_gy.data();
-    int* g_i = by_rows ? strip_gy.data() : strip_gx.data();
-    for (int q = 0; q < n; ++q) {
-      g_j[q] = sum_across[q + 2] - sum_across[q];
-      g_i[q] = diff_across[q] + diff_across[q + 1] + diff_across[q + 2];
-    }
+    strip_gradients(p, dj, di, n, thr2_int, read_past_end, &strip);
+    const std::int16_t* gx = by_rows ? strip.g_j.data() : strip.g_i.data();
+    const std::int16_t* gy = by_rows ? strip.g_i.data() : strip.g_j.data();
     // Gradient component along the expected direction, only where the non-maximum suppression
     // needs it.
-    auto along_at = [&](int q) {
-      return strip_gx[static_cast<size_t>(q)] * g_dir.x +
-             strip_gy[static_cast<size_t>(q)] * g_dir.y;
-    };
+    auto along_at = [&](int q) { return gx[q] * g_dir.x + gy[q] * g_dir.y; };
     for (int q = 1; q + 1 < n; ++q) {
-      const int gxi = strip_gx[static_cast<size_t>(q)], gyi = strip_gy[static_cast<size_t>(q)];
-      if (gxi * gxi + gyi * gyi < thr2_int) continue;
-      if (!gradient_within(gxi, gyi, g_dir, tan_tol)) continue;
+      if (strip.strong[static_cast<size_t>(q)] == 0) continue;
+      if (!gradient_within(gx[q], gy[q], g_dir, tan_tol)) continue;
       const double along = along_at(q);
       const double em = along_at(q - 1);
       const double ep = along_at(q + 1);

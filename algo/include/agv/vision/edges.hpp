@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <vector>
 
 #include "agv/common/geometry.hpp"
 
@@ -25,6 +26,25 @@ inline void prewitt_at(const std::uint8_t* p, std::ptrdiff_t step, int* gx, int*
   *gx = (p[1 - step] + p[1] + p[1 + step]) - (p[-1 - step] + p[-1] + p[-1 + step]);
   *gy = (p[step - 1] + p[step] + p[step + 1]) - (p[-step - 1] + p[-step] + p[-step + 1]);
 }
+
+// Prewitt gradients along one strip of pixels (the pose stage's edge bands, pose.cpp), with which
+// of them reach a squared magnitude. The strip's pixel q (0 <= q < n) is at p + (q + 1) * dj; its
+// neighbours across the strip are di away. g_j is the gradient along the strip (the pixel after
+// minus the pixel before, summed across), g_i the one across it: for a strip along a row (dj = 1,
+// di = step) g_j = gx and g_i = gy of prewitt_at, along a column (dj = step, di = 1) the reverse.
+// strong[q] is nonzero where g_j^2 + g_i^2 >= thr2, else 0. The same integers as prewitt_at, from
+// per-pixel sums and differences across the strip that three neighbouring pixels share, in
+// vectors of 16 lanes: most of a band's pixels are below the threshold, so this screen is most of
+// the band's work. Entries past n are scratch. With dj = 1 and read_past_end, each of the strip's
+// three lines is read in whole 16-byte chunks, up to 15 bytes past its end: the caller promises
+// those bytes are inside the image's buffer (a later row). The buffers only grow.
+struct StripGradients {
+  std::vector<std::int16_t> sum, diff;  // across the strip
+  std::vector<std::int16_t> g_j, g_i;
+  std::vector<std::int32_t> strong;
+};
+void strip_gradients(const std::uint8_t* p, std::ptrdiff_t dj, std::ptrdiff_t di, int n, int thr2,
+                     bool read_past_end, StripGradients* s);
 
 // Prewitt gradients (paper 001 eq. 1-3) of gray8 inside roi, written to CV_16SC1 images of the
 // roi's size: gx = right column minus left column, gy = bottom row minus top row (sums of three).
