@@ -205,6 +205,26 @@ TEST(VisionLineFit, RobustFitIgnoresOutliers) {
   for (size_t i = 200; i < pts.size(); ++i) EXPECT_EQ(w[i], 0.0);
 }
 
+// The robust fit's extent is the spread of the points it kept (the pose stage drops a line shorter
+// than half the inner side by it), for every iteration count: only the final fit computes it.
+TEST(VisionLineFit, RobustExtentIsTheSpreadOfTheKeptPoints) {
+  std::vector<Vec2> pts;
+  for (int i = 0; i < 120; ++i) pts.push_back({0.5 * i, 0.02 * std::sin(i * 0.9)});
+  for (int i = 0; i < 30; ++i) pts.push_back({100.0 + i, 8.0});  // outliers beyond the line's end
+  std::vector<double> w(pts.size());
+  for (int iterations : {0, 1, 4}) {
+    for (int ransac : {0, 24}) {
+      LineFit f, check;
+      ASSERT_TRUE(fit_line_robust(pts, 4.685, 0.01, iterations, w, &f, ransac, 0.5));
+      ASSERT_TRUE(fit_line_tls(pts, w, &check));
+      EXPECT_EQ(f.extent, check.extent) << iterations << " " << ransac;
+      if (ransac > 0) {
+        EXPECT_NEAR(f.extent, 59.5, 0.1) << iterations << " " << ransac;
+      }
+    }
+  }
+}
+
 TEST(VisionLineFit, DegenerateInputFails) {
   LineFit f;
   std::vector<Vec2> one{{1, 1}};

@@ -131,7 +131,12 @@ EdgeClass classify_gradient(double gx, double gy, double up_angle_rad, double to
 
 double Line2::angle_rad() const { return std::atan2(-nx, ny); }
 
-bool fit_line_tls(std::span<const Vec2> pts, std::span<const double> weights, LineFit* out) {
+namespace {
+
+// fit_line_tls; the extent (one more pass over the points) only when asked: the robust fit's
+// intermediate lines only feed the next residuals.
+bool fit_line_tls_impl(std::span<const Vec2> pts, std::span<const double> weights, bool with_extent,
+                       LineFit* out) {
   const size_t n = pts.size();
   if (n < 2 || (!weights.empty() && weights.size() != n)) return false;
   double sw = 0, sx = 0, sy = 0;
@@ -190,16 +195,24 @@ bool fit_line_tls(std::span<const Vec2> pts, std::span<const double> weights, Li
   // Along-line scatter l_big (weighted); angle variance = s2 / sum w t^2, offset var = s2 / sum w.
   f.var_angle = s2 / l_big;
   f.var_offset = s2 / sw;
-  double tmin = 1e300, tmax = -1e300;
-  for (size_t i = 0; i < n; ++i) {
-    if (!weights.empty() && !(weights[i] > 0.0)) continue;
-    const double t = (pts[i].x - mx) * dx + (pts[i].y - my) * dy;
-    tmin = std::min(tmin, t);
-    tmax = std::max(tmax, t);
+  if (with_extent) {
+    double tmin = 1e300, tmax = -1e300;
+    for (size_t i = 0; i < n; ++i) {
+      if (!weights.empty() && !(weights[i] > 0.0)) continue;
+      const double t = (pts[i].x - mx) * dx + (pts[i].y - my) * dy;
+      tmin = std::min(tmin, t);
+      tmax = std::max(tmax, t);
+    }
+    f.extent = tmax - tmin;
   }
-  f.extent = tmax - tmin;
   *out = f;
   return true;
+}
+
+}  // namespace
+
+bool fit_line_tls(std::span<const Vec2> pts, std::span<const double> weights, LineFit* out) {
+  return fit_line_tls_impl(pts, weights, true, out);
 }
 
 bool fit_line_ols(std::span<const Vec2> pts, double* k, double* b) {
@@ -267,7 +280,7 @@ bool fit_line_robust(std::span<const Vec2> pts, double tukey_c, double min_sigma
       }
     }
   }
-  if (!fit_line_tls(pts, w_out, &f)) return false;
+  if (!fit_line_tls_impl(pts, w_out, iterations <= 0, &f)) return false;
   thread_local std::vector<double> abs_r, tmp;
   for (int it = 0; it < iterations; ++it) {
     abs_r.resize(n);
@@ -287,7 +300,7 @@ bool fit_line_robust(std::span<const Vec2> pts, double tukey_c, double min_sigma
       w_out[i] = u < 1.0 ? (1.0 - u * u) * (1.0 - u * u) : 0.0;
     }
     LineFit g;
-    if (!fit_line_tls(pts, w_out, &g)) return false;
+    if (!fit_line_tls_impl(pts, w_out, it + 1 == iterations, &g)) return false;
     f = g;
   }
   *out = f;
