@@ -36,6 +36,7 @@ namespace {
 typedef std::uint8_t U8x16 __attribute__((vector_size(16)));
 typedef std::int16_t I16x16 __attribute__((vector_size(32)));
 typedef std::int16_t I16x8 __attribute__((vector_size(16)));
+typedef std::uint8_t U8x8 __attribute__((vector_size(8)));
 typedef std::int32_t I32x4 __attribute__((vector_size(16)));
 typedef float F32x4 __attribute__((vector_size(16)));
 constexpr size_t kStripLanes = 16;
@@ -98,7 +99,7 @@ void strip_gradients(const std::uint8_t* p, std::ptrdiff_t dj, std::ptrdiff_t di
   // |g| <= 3 * 255, so 16-bit lanes hold the gradients and 32-bit ones their squares.
   std::int16_t* __restrict g_j = s->g_j.data();
   std::int16_t* __restrict g_i = s->g_i.data();
-  std::int32_t* __restrict strong = s->strong.data();
+  std::uint8_t* __restrict strong = s->strong.data();
   const float thr2_f = static_cast<float>(std::clamp(thr2, 0, kMaxExactThr2));
   for (size_t q = 0; q < m; q += kStripLanes / 2) {
     const I16x8 gj = load_lanes<I16x8>(sum + q + 2) - load_lanes<I16x8>(sum + q);
@@ -113,8 +114,13 @@ void strip_gradients(const std::uint8_t* p, std::ptrdiff_t dj, std::ptrdiff_t di
     const F32x4 j_hi = to_float(__builtin_shufflevector(gj, sj, 4, 12, 5, 13, 6, 14, 7, 15));
     const F32x4 i_lo = to_float(__builtin_shufflevector(gi, si, 0, 8, 1, 9, 2, 10, 3, 11));
     const F32x4 i_hi = to_float(__builtin_shufflevector(gi, si, 4, 12, 5, 13, 6, 14, 7, 15));
-    store_lanes(strong + q, j_lo * j_lo + i_lo * i_lo >= thr2_f);
-    store_lanes(strong + q + 4, j_hi * j_hi + i_hi * i_hi >= thr2_f);
+    const I32x4 m_lo = j_lo * j_lo + i_lo * i_lo >= thr2_f;
+    const I32x4 m_hi = j_hi * j_hi + i_hi * i_hi >= thr2_f;
+    // One byte (0 or 1) per pixel, so the caller tests eight pixels with one 64-bit word.
+    const U8x16 m16 = std::bit_cast<U8x16>(__builtin_shufflevector(
+        std::bit_cast<I16x8>(m_lo), std::bit_cast<I16x8>(m_hi), 0, 2, 4, 6, 8, 10, 12, 14));
+    const U8x8 m8 = __builtin_shufflevector(m16, m16, 0, 2, 4, 6, 8, 10, 12, 14);
+    store_lanes(strong + q, m8 & 1);
   }
 }
 

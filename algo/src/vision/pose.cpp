@@ -4,7 +4,10 @@
 // joint square fit whose normal equations also give the covariance (covariance.cpp).
 #include <Eigen/Dense>
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstdint>
+#include <cstring>
 
 #include "localizer_impl.hpp"
 
@@ -473,21 +476,30 @@ int LandmarkLocalizer::Impl::collect_line(const cv::Mat& img, Vec2 c, Vec2 nk, d
     // Gradient component along the expected direction, only where the non-maximum suppression
     // needs it.
     auto along_at = [&](int q) { return gx[q] * g_dir.x + gy[q] * g_dir.y; };
-    for (int q = 1; q + 1 < n; ++q) {
-      if (strip.strong[static_cast<size_t>(q)] == 0) continue;
-      if (!gradient_within(gx[q], gy[q], g_dir, tan_tol)) continue;
-      const double along = along_at(q);
-      const double em = along_at(q - 1);
-      const double ep = along_at(q + 1);
-      if (!(along >= em && along > ep)) continue;
-      double off = 0;
-      if (cfg.subpixel) {
-        const double den = em - 2 * along + ep;
-        if (den < 0) off = std::clamp(0.5 * (em - ep) / den, -0.5, 0.5);
+    // Eight screened pixels per 64-bit word, visited in order (the same points in the same order
+    // as a pixel-by-pixel loop); q runs over 1 .. n - 2, which have both neighbours.
+    static_assert(std::endian::native == std::endian::little, "byte w0 + b is bits 8b .. 8b + 7");
+    for (int w0 = 0; w0 + 1 < n; w0 += 8) {
+      std::uint64_t word;
+      std::memcpy(&word, strip.strong.data() + w0, sizeof word);
+      if (w0 == 0) word &= ~std::uint64_t{0xff};
+      for (; word != 0; word &= word - 1) {
+        const int q = w0 + std::countr_zero(word) / 8;
+        if (q + 1 >= n) break;
+        if (!gradient_within(gx[q], gy[q], g_dir, tan_tol)) continue;
+        const double along = along_at(q);
+        const double em = along_at(q - 1);
+        const double ep = along_at(q + 1);
+        if (!(along >= em && along > ep)) continue;
+        double off = 0;
+        if (cfg.subpixel) {
+          const double den = em - 2 * along + ep;
+          if (den < 0) off = std::clamp(0.5 * (em - ep) / den, -0.5, 0.5);
+        }
+        const int j = j0 - 1 + q;
+        const int x = by_rows ? j : i, y = by_rows ? i : j;
+        dst->push_back({x + off * sx, y + off * sy});
       }
-      const int j = j0 - 1 + q;
-      const int x = by_rows ? j : i, y = by_rows ? i : j;
-      dst->push_back({x + off * sx, y + off * sy});
     }
   }
   return static_cast<int>(dst->size());

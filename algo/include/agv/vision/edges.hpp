@@ -32,7 +32,7 @@ inline void prewitt_at(const std::uint8_t* p, std::ptrdiff_t step, int* gx, int*
 // neighbours across the strip are di away. g_j is the gradient along the strip (the pixel after
 // minus the pixel before, summed across), g_i the one across it: for a strip along a row (dj = 1,
 // di = step) g_j = gx and g_i = gy of prewitt_at, along a column (dj = step, di = 1) the reverse.
-// strong[q] is nonzero where g_j^2 + g_i^2 >= thr2, else 0. The same integers as prewitt_at, from
+// strong[q] is 1 where g_j^2 + g_i^2 >= thr2, else 0. The same integers as prewitt_at, from
 // per-pixel sums and differences across the strip that three neighbouring pixels share, in
 // vectors of 16 lanes: most of a band's pixels are below the threshold, so this screen is most of
 // the band's work. Entries past n are scratch. With dj = 1 and read_past_end, each of the strip's
@@ -41,7 +41,7 @@ inline void prewitt_at(const std::uint8_t* p, std::ptrdiff_t step, int* gx, int*
 struct StripGradients {
   std::vector<std::int16_t> sum, diff;  // across the strip
   std::vector<std::int16_t> g_j, g_i;
-  std::vector<std::int32_t> strong;
+  std::vector<std::uint8_t> strong;  // 0 or 1, in whole groups of 8
 };
 void strip_gradients(const std::uint8_t* p, std::ptrdiff_t dj, std::ptrdiff_t di, int n, int thr2,
                      bool read_past_end, StripGradients* s);
