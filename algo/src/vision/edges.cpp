@@ -121,7 +121,7 @@ void strip_gradients(const std::uint8_t* p, std::ptrdiff_t dj, std::ptrdiff_t di
     const I32x4 m_hi = j_hi * j_hi + i_hi * i_hi >= thr2_f;
     // One byte (0 or 1) per pixel, so the caller tests eight pixels with one 64-bit word. The
     // masks are 0 or -1, so the saturating packs of SSE2 narrow them exactly; without SSSE3,
-    // GCC builds the generic byte shuffle on the stack (~35 instructions per 8 pixels).
+    // GCC builds the generic byte shuffle on the stack (40 instructions per 8 pixels).
 #if defined(__SSE2__)
     const __m128i m16 = _mm_packs_epi32(std::bit_cast<__m128i>(m_lo), std::bit_cast<__m128i>(m_hi));
     const __m128i m8 = _mm_and_si128(_mm_packs_epi16(m16, m16), _mm_set1_epi8(1));
