@@ -249,7 +249,8 @@ def scenario(a, res: str, rep: Report) -> int:
         for k, v in env.items():
             f.write(f"{k}={shlex.quote(v)}\n")
 
-    # The VM.
+    # The VM. vm_timeout bounds the scenario from its start in the guest; the boot has its own
+    # limit (run-in-vm.sh --boot-timeout, 300 s), so a boot slowed by a loaded host does not eat it.
     vm_timeout = a.vm_timeout or (90 + dur * 1.5 + int(env["LOCALIZER_LIMIT_S"]) +
                                   float(env["LINK_DOWN_S"]))
     t = time.monotonic()

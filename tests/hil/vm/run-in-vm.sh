@@ -8,7 +8,12 @@
 #                               their dependencies are loaded first (modinfo), in order.
 #     --share HOSTDIR           writable results directory, mounted in the guest at the SAME path
 #                               (default: a new /tmp/agvloc-vm.XXXXXX, removed on success).
-#     --timeout S               wall-clock limit for the whole VM run (default 300).
+#     --timeout S               wall-clock limit for COMMAND, counted from its start in the guest
+#                               (default 300).
+#     --boot-timeout S          wall-clock limit for the boot, up to COMMAND's start (default 300).
+#                               Apart from --timeout because TCG's boot time is what a loaded host
+#                               stretches most (6 s idle, 64-74 s beside two builds): a slow boot
+#                               must not eat the budget of a healthy command.
 #     --mem MB / --smp N        guest memory (default 1024) and CPUs (default 2).
 #     --keep                    keep the results dir even on success.
 #     --quiet                   do not stream the guest console to stdout (it is always logged).
@@ -31,12 +36,13 @@ here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 modules_extra=""
 share=""
 timeout_s=300
+boot_timeout_s=300
 mem_mb=1024
 smp=2
 keep=0
 quiet=0
 
-usage() { sed -n '2,27p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit 2; }
+usage() { sed -n '2,32p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//'; exit 2; }
 die() { echo "run-in-vm: ERROR: $*" >&2; exit 125; }
 
 while [ $# -gt 0 ]; do
@@ -44,6 +50,7 @@ while [ $# -gt 0 ]; do
     --modules) modules_extra="$2"; shift 2 ;;
     --share) share="$2"; shift 2 ;;
     --timeout) timeout_s="$2"; shift 2 ;;
+    --boot-timeout) boot_timeout_s="$2"; shift 2 ;;
     --mem) mem_mb="$2"; shift 2 ;;
     --smp) smp="$2"; shift 2 ;;
     --keep) keep=1; shift ;;
@@ -55,6 +62,7 @@ while [ $# -gt 0 ]; do
 done
 [ $# -gt 0 ] || { echo "run-in-vm: no COMMAND given" >&2; usage; }
 [[ "$timeout_s" =~ ^[0-9]+$ ]] || die "--timeout wants whole seconds, got '$timeout_s'"
+[[ "$boot_timeout_s" =~ ^[0-9]+$ ]] || die "--boot-timeout wants whole seconds, got '$boot_timeout_s'"
 
 for tool in qemu-system-x86_64 cpio gzip modinfo; do
   command -v "$tool" >/dev/null || die "$tool not found (run tools/install-deps.sh)"
@@ -263,7 +271,30 @@ printf '%q ' "${qemu[@]}" >"$vm/qemu.cmd"; echo >>"$vm/qemu.cmd"
 
 t0=$EPOCHREALTIME
 : >"$console"
-timeout -k 5 "$timeout_s" "${qemu[@]}" </dev/null 2>&1 | {
+# Watchdog: the boot and the command each have their own limit (the command's from the moment the
+# guest reports it started). It writes which one ran out, then stops qemu; `timeout` stays as the
+# hard cap in case the watchdog itself is starved.
+watchdog() {
+  local t_start=${t0%[.,]*} now ts pid
+  while [ ! -f "$vm/qemu_done" ]; do
+    sleep 1
+    now=${EPOCHREALTIME%[.,]*}
+    ts="$(cat "$vm/t_command_start" 2>/dev/null || true)"
+    if { [ -z "$ts" ] && [ $(( now - t_start )) -ge "$boot_timeout_s" ]; } ||
+       { [ -n "$ts" ] && [ $(( now - ${ts%[.,]*} )) -ge "$timeout_s" ]; }; then
+      if [ -n "$ts" ]; then echo command; else echo boot; fi >"$vm/timed_out"
+      pid="$(cat "$vm/qemu.pid" 2>/dev/null || true)"
+      [ -n "$pid" ] && kill "$pid" 2>/dev/null
+      sleep 5
+      [ -n "$pid" ] && kill -9 "$pid" 2>/dev/null
+      return
+    fi
+  done
+}
+watchdog &
+watchdog_pid=$!
+timeout -k 5 $(( boot_timeout_s + timeout_s + 30 )) "${qemu[@]}" -pidfile "$vm/qemu.pid" \
+  </dev/null 2>&1 | {
   while IFS= read -r line; do
     line="${line%$'\r'}"
     printf '%s\n' "$line" >>"$console"
@@ -276,6 +307,9 @@ timeout -k 5 "$timeout_s" "${qemu[@]}" </dev/null 2>&1 | {
 }
 qemu_rc=${PIPESTATUS[0]}
 t1=$EPOCHREALTIME
+touch "$vm/qemu_done"
+kill "$watchdog_pid" 2>/dev/null
+wait "$watchdog_pid" 2>/dev/null
 
 timing() {  # writes and prints seconds from qemu start to the command and the command's run time
   local ts te
@@ -295,11 +329,11 @@ explain() {
   tail -n 25 "$console" | sed 's/^/  | /' >&2
 }
 
-if [ "$qemu_rc" -eq 124 ] || [ "$qemu_rc" -eq 137 ]; then
+if [ -f "$vm/timed_out" ] || [ "$qemu_rc" -eq 124 ] || [ "$qemu_rc" -eq 137 ]; then
   if [ -f "$vm/t_command_start" ]; then
-    explain "TIMEOUT after ${timeout_s}s: the command was still running ($(grep command_s "$vm/timing"))"
+    explain "TIMEOUT: the command was still running after its ${timeout_s}s ($(tr '\n' ' ' <"$vm/timing"))"
   else
-    explain "TIMEOUT after ${timeout_s}s before the command started (boot hung)"
+    explain "TIMEOUT: the boot did not reach the command within ${boot_timeout_s}s"
   fi
   exit 124
 fi
