@@ -1,7 +1,7 @@
 // Map-guided identity evaluation (docs/map_identity.md): simulated frames where every landmark's QR
 // code is partly covered, with predictions = truth + noise, on a 1000 mm grid, on a 150 mm grid
 // of landmarks with one heading, and with wrong predictions (kidnapped vehicle).
-//   eval_identity [--frames N] [--cover F] [--seed S] [--min-rate R]
+//   eval_identity [--frames N] [--cover F] [--seed S] [--min-rate R] [--row-step N]
 // Prints one line per run; exit status 1 when a wrong identity occurs in any run or the fix rate of
 // the correct-prediction runs is below --min-rate (the ctest runs a small version).
 #include <Eigen/Core>
@@ -41,6 +41,7 @@ struct Args {
   double cover = 1.0 / 3.0;
   std::uint64_t seed = 1;
   double min_rate = 0.99;
+  int row_step = 0;  // --row-step: VisionConfig::edge_row_step (0 = default)
 };
 
 struct Counts {
@@ -96,7 +97,9 @@ Counts run(const LandmarkMap& map, double spacing_mm, int kind, bool id_only, co
     std::exit(2);
   }
   const sim::FrameRenderer renderer(scene, cam);
-  vision::LandmarkLocalizer loc(vision::VisionConfig{}, cam, LandmarkGeometry{}, &map);
+  vision::VisionConfig vc;
+  if (a.row_step > 0) vc.edge_row_step = a.row_step;
+  vision::LandmarkLocalizer loc(vc, cam, LandmarkGeometry{}, &map);
   sim::RenderOptions o = sim::realistic_options();
   o.qr_cover_fraction = a.cover;
   std::mt19937_64 rng(a.seed * 1000 + static_cast<std::uint64_t>(kind) * 17 +
@@ -193,9 +196,12 @@ int main(int argc, char** argv) {
       a.seed = std::strtoull(argv[i + 1], nullptr, 10);
     else if (k == "--min-rate")
       a.min_rate = std::atof(argv[i + 1]);
+    else if (k == "--row-step")
+      a.row_step = std::atoi(argv[i + 1]);
     else {
       std::fprintf(stderr,
-                   "usage: eval_identity [--frames N] [--cover F] [--seed S] [--min-rate R]\n");
+                   "usage: eval_identity [--frames N] [--cover F] [--seed S] [--min-rate R] "
+                   "[--row-step N]\n");
       return 2;
     }
   }

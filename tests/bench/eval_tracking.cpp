@@ -3,7 +3,7 @@
 // Frames: the simulator's realistic profile over the default 1 m grid, one landmark fully in view
 // at a random offset and heading. Prediction: the truth moved by a Gaussian error of the stated
 // sigma, with that covariance (what the filter reports between fixes).
-//   eval_tracking [--frames N] [--sigma-mm S] [--sigma-deg D] [--seed K]
+//   eval_tracking [--frames N] [--sigma-mm S] [--sigma-deg D] [--seed K] [--row-step N]
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -52,11 +52,13 @@ int main(int argc, char** argv) {
   int frames = 200;
   double sigma_mm = 3.0, sigma_deg = 0.3;
   unsigned seed = 1;
+  int row_step = 0;  // 0: VisionConfig's default
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--frames")) frames = std::atoi(argv[i + 1]);
     if (!std::strcmp(argv[i], "--sigma-mm")) sigma_mm = std::atof(argv[i + 1]);
     if (!std::strcmp(argv[i], "--sigma-deg")) sigma_deg = std::atof(argv[i + 1]);
     if (!std::strcmp(argv[i], "--seed")) seed = static_cast<unsigned>(std::atoi(argv[i + 1]));
+    if (!std::strcmp(argv[i], "--row-step")) row_step = std::atoi(argv[i + 1]);
   }
   const LandmarkMap map = sim::default_landmark_grid();
   const CameraModel cam = CameraModel::default_640x480();
@@ -70,6 +72,8 @@ int main(int argc, char** argv) {
   sim::FrameRenderer renderer(scene, cam);
   vision::VisionConfig vc;
   vc.now_ns = now_ns;
+  if (row_step > 0) vc.edge_row_step = row_step;
+  std::printf("edge row step: %d\n", vc.edge_row_step);
   vision::LandmarkLocalizer loc(vc, cam, geom, &map);
   vision::WindowPlanner planner(vc, cam, geom, &map);
   std::vector<vision::SearchWindow> windows;

@@ -5,6 +5,7 @@
 
 #include <Eigen/Dense>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -181,6 +182,48 @@ TEST(VisionLocalizer, LandmarkCutByTheImageBorder) {
   strict.allow_partly_outside = false;
   LandmarkLocalizer loc2(strict, CameraModel::default_640x480(), LandmarkGeometry{}, &map);
   EXPECT_EQ(loc2.process(render(e), &fix), FixStatus::kPartlyOutside);
+}
+
+// vision.edge_row_step: points only on rows (columns) that are multiples of the step, about
+// 1/step of them, the fix still at the truth; the point minimums count rows covered, so a
+// minimum that step 1 just meets is met at every step.
+TEST(VisionLocalizer, EdgeRowStepTakesEveryNthRowAndKeepsTheMinimumsInRows) {
+  const LandmarkMap map = one_map();
+  const Pose2 e{12.0, -8.0, deg_to_rad(33.0)};
+  const cv::Mat img = render(e, sim::PayloadMode::kFull, sim::realistic_options());
+  VisionConfig one;
+  one.edge_row_step = 1;
+  LandmarkLocalizer loc1(one, CameraModel::default_640x480(), LandmarkGeometry{}, &map);
+  LandmarkFix fix1;
+  ASSERT_EQ(loc1.process(img, &fix1), FixStatus::kOk);
+  std::array<size_t, LandmarkLocalizer::kEdgeLines> n1{};
+  for (int l = 0; l < LandmarkLocalizer::kEdgeLines; ++l) n1[l] = loc1.edge_points_px(l).size();
+  for (int step : {2, 3, 4}) {
+    VisionConfig c;
+    c.edge_row_step = step;
+    // Just met at step 1: without counting rows, step >= 2 would fall below both.
+    c.min_points_total = fix1.edge_points_used * 9 / 10;
+    c.min_points_per_line = static_cast<int>(*std::min_element(n1.begin(), n1.end())) * 9 / 10;
+    LandmarkLocalizer loc(c, CameraModel::default_640x480(), LandmarkGeometry{}, &map);
+    LandmarkFix fix;
+    ASSERT_EQ(loc.process(img, &fix), FixStatus::kOk) << step;
+    EXPECT_EQ(fix.sides_used, 4) << step;
+    for (int l = 0; l < LandmarkLocalizer::kEdgeLines; ++l) {
+      const auto& pts = loc.edge_points_px(l);
+      // Rows (or columns) on the step's grid: the subpixel offset is across the line only.
+      int on_rows = 0, on_cols = 0;
+      for (const Vec2& p : pts) {
+        on_rows += p.y == std::round(p.y) && static_cast<int>(p.y) % step == 0;
+        on_cols += p.x == std::round(p.x) && static_cast<int>(p.x) % step == 0;
+      }
+      EXPECT_EQ(std::max(on_rows, on_cols), static_cast<int>(pts.size())) << step << " " << l;
+      const double ratio = static_cast<double>(pts.size()) * step / static_cast<double>(n1[l]);
+      EXPECT_NEAR(ratio, 1.0, 0.15) << step << " " << l;
+    }
+    EXPECT_NEAR(fix.e_x_mm, e.x_mm, 0.02) << step;
+    EXPECT_NEAR(fix.e_y_mm, e.y_mm, 0.02) << step;
+    EXPECT_LT(heading_err_deg(fix.e_phi_deg, e.theta_rad), 0.01) << step;
+  }
 }
 
 TEST(VisionLocalizer, OverlayAndTimings) {

@@ -3,6 +3,8 @@
 # (qemu-aarch64 with insn_count_plugin.c), for the same frames, both RelWithDebInfo (-O2) with the
 # architectures' baseline instruction sets; docs/deployment.md reports it.
 #   bash tools/vision-cost/measure.sh [RECORDING] [FRAMES]
+# AGV_COST_ARGS adds vision_cost options to every run, e.g.
+#   AGV_COST_ARGS="--tracking 3 --map tools/maps/default_grid.csv --row-step 1"
 # Without RECORDING it simulates one (agvloc-desk sim, 20 s at 10 fps, seed 7). Needs the cross
 # environment (toolchain/prepare-aarch64.sh) and valgrind. Build dirs: build/aarch64-cost-native
 # (x86-64) and build/aarch64 (the cross preset, with -DAGV_BUILD_VISION_COST=ON).
@@ -41,13 +43,13 @@ for cls in ok none free cut; do
   # x86-64: callgrind collects only inside agv_cost_frame (the measured calls).
   valgrind --tool=callgrind --collect-atstart=no --toggle-collect='agv_cost_frame*' \
            --callgrind-out-file="$res/callgrind.$cls.out" \
-           "$nat/tools/vision-cost/vision_cost" "$rec" --frames "$frames" --class "$cls" \
+           "$nat/tools/vision-cost/vision_cost" "$rec" --frames "$frames" --class "$cls" ${AGV_COST_ARGS:-} \
            >"$res/native.$cls.log" 2>"$res/callgrind.$cls.log"
   n="$(sed -n 's/.*: \([0-9]*\) measured.*/\1/p' "$res/native.$cls.log")"
   ir="$(sed -n 's/^summary: *\([0-9]*\).*/\1/p' "$res/callgrind.$cls.out")"
   # aarch64: the plugin writes one count per measured frame.
   qemu-aarch64 -E "$extra" -plugin "$res/insn_count_plugin.so,out=$res/aarch64.$cls.txt" \
-               "$arm/tools/vision-cost/vision_cost" "$rec" --frames "$frames" --class "$cls" \
+               "$arm/tools/vision-cost/vision_cost" "$rec" --frames "$frames" --class "$cls" ${AGV_COST_ARGS:-} \
                >"$res/aarch64.$cls.log" 2>&1
   n_arm="$(wc -l <"$res/aarch64.$cls.txt")"
   if [ "$n" != "$n_arm" ]; then
@@ -58,7 +60,7 @@ for cls in ok none free cut; do
   # Check of the counting method: the plugin under qemu-x86_64 on the x86-64 binary must agree
   # with callgrind.
   qemu-x86_64 -plugin "$res/insn_count_plugin.so,out=$res/x86qemu.$cls.txt,nr=157" \
-              "$nat/tools/vision-cost/vision_cost" "$rec" --frames "$frames" --class "$cls" \
+              "$nat/tools/vision-cost/vision_cost" "$rec" --frames "$frames" --class "$cls" ${AGV_COST_ARGS:-} \
               >"$res/x86qemu.$cls.log" 2>&1
   awk -v x="$ir" '{s += $1} END {printf "  method check: qemu-x86_64 plugin / callgrind = %.5f\n", s / x}' \
       "$res/x86qemu.$cls.txt"

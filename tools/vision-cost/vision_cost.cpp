@@ -1,5 +1,5 @@
 // vision_cost RECORDING [--frames N] [--class all|ok|none|free|cut]
-//             [--tracking SIGMA_MM --map FILE]
+//             [--tracking SIGMA_MM --map FILE] [--row-step N]
 // Instruction cost of the vision pipeline (agv::vision::LandmarkLocalizer::process) on the frames
 // of a recording, for docs/deployment.md. Frames are decoded first; one warm-up pass classifies
 // them by status: ok, or none (any other status), which splits into free (no landmark found) and
@@ -15,6 +15,8 @@
 // --tracking SIGMA_MM: every frame gets a prediction (docs/tracking.md) from the recording's truth
 // moved by a Gaussian error of SIGMA_MM and SIGMA_MM / 10 degrees (fixed seed), with that
 // covariance; the search windows need the landmark map (--map).
+// --row-step N: VisionConfig::edge_row_step (default: the configuration's default), so two steps
+// can be compared with the same binary.
 #include <sys/prctl.h>
 
 #include <algorithm>
@@ -73,7 +75,7 @@ int main(int argc, char** argv) {
   if (argc < 2 || argv[1][0] == '-') {
     std::fprintf(stderr,
                  "usage: vision_cost RECORDING [--frames N] [--class all|ok|none|free|cut] "
-                 "[--tracking SIGMA_MM --map FILE]\n");
+                 "[--tracking SIGMA_MM --map FILE] [--row-step N]\n");
     return 2;
   }
   const std::string dir = argv[1];
@@ -81,6 +83,7 @@ int main(int argc, char** argv) {
   std::string cls = "all";
   double tracking_sigma_mm = -1.0;  // < 0: no prediction
   std::string map_file;
+  int row_step = 0;  // 0: the default
   for (int i = 2; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--frames")) {
       max_frames = static_cast<size_t>(std::strtoul(argv[i + 1], nullptr, 10));
@@ -88,6 +91,8 @@ int main(int argc, char** argv) {
       cls = argv[i + 1];
     } else if (!std::strcmp(argv[i], "--tracking")) {
       tracking_sigma_mm = std::strtod(argv[i + 1], nullptr);
+    } else if (!std::strcmp(argv[i], "--row-step")) {
+      row_step = std::atoi(argv[i + 1]);
     } else if (!std::strcmp(argv[i], "--map")) {
       map_file = argv[i + 1];
     } else {
@@ -119,6 +124,7 @@ int main(int argc, char** argv) {
   agv::LandmarkGeometry geometry;
   geometry.size_mm = rec.meta.landmark_size_mm;
   agv::vision::VisionConfig cfg;  // defaults, no clock: timings stay 0
+  if (row_step > 0) cfg.edge_row_step = row_step;
   agv::LandmarkMap map;
   if (!map_file.empty()) {
     std::ifstream in(map_file);

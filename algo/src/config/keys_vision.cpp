@@ -53,6 +53,11 @@ void add_qr(std::vector<Key>* k) {
                        "model-guided QR reading at the fitted pose before zxing's own search. "
                        "Off = the zxing search only (combined degradations 100 % → 91.3 % "
                        "read, twice the decode time: docs/accuracy.md)"));
+  k->push_back(boolean("vision.qr_centre_first", AGV_AT(vision.qr_centre_first), true,
+                       "a first guided read from each module's centre alone, taken only when "
+                       "it is within the Reed-Solomon bound of a mapped code; otherwise the "
+                       "five-sample read runs as before. Same reads, a fifth of the sampling "
+                       "on most frames (docs/tracking.md)"));
   k->push_back(
       integer("vision.qr_max_missing_modules", AGV_AT(vision.qr_max_missing_modules), 0, 625, 80,
               {"modules",
@@ -119,6 +124,14 @@ void add_pose(std::vector<Key>* k) {
                        "half-width of the search band around each predicted "
                        "edge (0.4 = 2.4 mm). Wider tolerates a worse "
                        "detection estimate and costs time"}));
+  k->push_back(integer("vision.edge_row_step", AGV_AT(vision.edge_row_step), 1, 8, 3,
+                       {"pixel rows",
+                        "edge points on every N-th pixel row along each border line. Larger "
+                        "costs less (pose stage about 1/N; tracked frame 3.09 → 1.72 M aarch64 "
+                        "instructions at 3) and is a little noisier (realistic frames p95 "
+                        "0.0028 → 0.0033 mm at 3; docs/vision.md). The point minimums and the "
+                        "covariance count rows covered, so N does not change which views have "
+                        "enough edge"}));
   k->push_back(boolean("vision.subpixel", AGV_AT(vision.subpixel), true,
                        "parabolic subpixel edge positions across the edge"));
   k->push_back(boolean("vision.robust", AGV_AT(vision.robust), true,
@@ -157,9 +170,11 @@ void add_pose(std::vector<Key>* k) {
       "inverse_variance",
       "line angles to one heading, for the non-joint pose methods: 1/variance weights, plain "
       "mean (paper 001 eq. 7) or paper 000 eq. 10-11 weights"));
-  k->push_back(integer("vision.min_points_per_line", AGV_AT(vision.min_points_per_line), 3, 10000,
-                       20,
-                       {"", "edge points a fitted line needs; fewer give `kTooFewEdgePoints`"}));
+  k->push_back(
+      integer("vision.min_points_per_line", AGV_AT(vision.min_points_per_line), 3, 10000, 20,
+              {"",
+               "edge points a fitted line needs, counted at row step 1 (`vision.edge_row_step`); "
+               "fewer give `kTooFewEdgePoints`"}));
   k->push_back(integer("vision.min_points_total", AGV_AT(vision.min_points_total), 8, 100000, 200,
                        {"", "edge points the landmark needs in total; same"}));
   k->push_back(number("vision.outside_margin_mm", AGV_AT(vision.outside_margin_mm), 0.0, 100.0, 0.0,

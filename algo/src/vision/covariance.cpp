@@ -22,10 +22,13 @@ constexpr double kJacobianStepRad = 1e-7;
 
 // The fit covariance assumes independent edge points: (J^T J)^-1 s^2 over (c_x, c_y, beta), with
 // the size parameters marginalised out when they were fitted (n_params == 5), inflated and floored
-// as VisionConfig says.
+// as VisionConfig says. Each point counts as the edge_row_step rows it stands for, as in the point
+// minimums: cov_inflation was measured at step 1, where it stands for the correlation of
+// neighbouring rows (shared blur), and the rows between the points taken are no less correlated
+// with them; measured (docs/vision.md "Row step"), the error grows by far less than sqrt(step).
 Eigen::Matrix3d fit_covariance(const NormalEquations& ne, int n_params, const VisionConfig& cfg) {
   const double dof = std::max(1.0, ne.sum_w - n_params);
-  const double s2 = ne.ssr / dof;
+  const double s2 = ne.ssr / dof / std::max(1, cfg.edge_row_step);
   Eigen::Matrix3d cv3;
   if (n_params == 5) {
     const Eigen::Matrix<double, 5, 5> inv =

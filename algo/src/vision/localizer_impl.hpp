@@ -177,7 +177,8 @@ struct LandmarkLocalizer::Impl {
   // heading points to; empty and -1 without a trusted prediction.
   std::vector<QrExpected> qr_expected;
   int predicted_turn = -1;
-  int qr_search_attempts = 0;  // zxing search attempts of this frame's decode_qr
+  int qr_search_attempts = 0;   // zxing search attempts of this frame's decode_qr
+  bool qr_centre_only = false;  // decode_guided's read came from the module centres alone
 
   // Pose.
   std::array<std::vector<Vec2>, kNumLines> pts_px, pts_mm;
@@ -252,6 +253,9 @@ struct LandmarkLocalizer::Impl {
   FixStatus pose(const cv::Mat& img, Vec2 centre_px, double up_angle, double contrast,
                  LandmarkFix* out, Vec2* c_mm, double* beta, Eigen::Matrix3d* cov);
   int collect(const cv::Mat& img, Vec2 centre_px, double up_angle, double band_px, double thr);
+  // Edge points as pixel rows covered (each collected point stands for edge_row_step rows): the
+  // unit of min_points_per_line and min_points_total.
+  int rows_covered(int points) const { return points * std::max(1, cfg.edge_row_step); }
   int collect_line(const cv::Mat& img, Vec2 c, Vec2 nk, double h, Vec2 g_dir, double band,
                    int thr2_int, double tan_tol, std::vector<Vec2>* dst);
   int fit_lines(std::array<LineFit, kNumLines>* fits);
@@ -286,7 +290,8 @@ struct LandmarkLocalizer::Impl {
   int decode_guided(const cv::Mat& img, Vec2 c_mm, double beta, const LogoScores& logo);
   bool read_qr_search(const cv::Mat& img, Vec2 centre_px, double up_angle, std::string* text,
                       double* qr_up_angle, bool* qr_ok);
-  bool sample_qr(const cv::Mat& img, Vec2 c_mm, double fwd, int n, QrSamples* s);
+  bool sample_qr(const cv::Mat& img, Vec2 c_mm, double fwd, int n, QrSamples* s,
+                 bool centre_only = false);
   bool fill_missing_modules(QrSamples* s);
   FixStatus check_payload(const std::string& text, LandmarkFix* out, Pose2* world_landmark);
 

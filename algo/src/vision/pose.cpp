@@ -71,7 +71,7 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
   const double thr = cfg.edge_threshold_rel * kPrewittStepGain * contrast;
   const int total = collect(img, c_px, up, cfg.band_rel * w_px, thr);
   up_angle_px = up;
-  if (total < cfg.min_points_total) return FixStatus::kTooFewEdgePoints;
+  if (rows_covered(total) < cfg.min_points_total) return FixStatus::kTooFewEdgePoints;
 
   // 3b. Metric points and one robust line per edge.
   std::array<LineFit, kNumLines> fits;
@@ -80,7 +80,9 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
   for (int k = 0; k < 4; ++k) side_ok[k] = line_ok[k * 2] && (outer_only || line_ok[k * 2 + 1]);
   out->sides_used = side_ok[0] + side_ok[1] + side_ok[2] + side_ok[3];
   const bool axis0 = side_ok[0] || side_ok[2], axis1 = side_ok[1] || side_ok[3];
-  if (!axis0 || !axis1 || used < cfg.min_points_total) return FixStatus::kTooFewEdgePoints;
+  if (!axis0 || !axis1 || rows_covered(used) < cfg.min_points_total) {
+    return FixStatus::kTooFewEdgePoints;
+  }
   out->edge_points_used = used;
 
   // 3c. Heading: initial metric angle of side 0's normal from the pixel angle, then the
@@ -149,7 +151,7 @@ int LandmarkLocalizer::Impl::fit_lines(std::array<LineFit, kNumLines>* fits) {
     src.resize(keep);
     auto& w = weights[static_cast<size_t>(l)];
     w.assign(dst.size(), 1.0);
-    if (static_cast<int>(dst.size()) < cfg.min_points_per_line) continue;
+    if (rows_covered(static_cast<int>(dst.size())) < cfg.min_points_per_line) continue;
     LineFit& fit = (*fits)[static_cast<size_t>(l)];
     bool ok;
     if (cfg.robust) {
@@ -451,11 +453,15 @@ int LandmarkLocalizer::Impl::collect_line(const cv::Mat& img, Vec2 c, Vec2 nk, d
   const double m_minor = by_rows ? m.x : m.y;
   const double t_minor = by_rows ? tk.x : tk.y;
   const double q0 = m_major - std::abs(ta) * t_max, q1 = m_major + std::abs(ta) * t_max;
-  const int i0 = std::max(static_cast<int>(std::ceil(q0)), by_rows ? y_lo : x_lo);
+  // Rows (columns) on the image's grid of the row step, so a slightly different detection
+  // (tracked or full search) samples the same rows.
+  const int row_step = std::max(1, cfg.edge_row_step);
+  int i0 = std::max(static_cast<int>(std::ceil(q0)), by_rows ? y_lo : x_lo);
+  i0 += (row_step - i0 % row_step) % row_step;  // i0 >= kEdgeMarginPx > 0
   const int i1 = std::min(static_cast<int>(std::floor(q1)), by_rows ? y_hi : x_hi);
   const double half_w = band / std::max(std::abs(na_major), kMinNormalComponent);
   const int sx = by_rows ? 1 : 0, sy = by_rows ? 0 : 1;  // step across the line
-  for (int i = i0; i <= i1; ++i) {
+  for (int i = i0; i <= i1; i += row_step) {
     const double tau = (i - m_major) / ta;
     const double centre_minor = m_minor + tau * t_minor;
     const int j0 =

@@ -269,14 +269,16 @@ const QrExpected* QrCodeBook::match(int n, const std::vector<unsigned char>& gri
   return nullptr;
 }
 
-bool decode_qr_grid(const QrSamples& s, QrThreshold t, std::string* text, QrGridScratch* sc,
-                    std::span<const QrExpected> expected, QrCodeBook* book) {
-  sc->verified = false;
-  if ((s.n != 21 && s.n != 25) || s.ring < 1 ||
-      s.v.size() != static_cast<size_t>(s.side() * s.side())) {
-    return false;
-  }
-  binarize(s, t, sc);
+namespace {
+
+bool valid_samples(const QrSamples& s) {
+  return (s.n == 21 || s.n == 25) && s.ring >= 1 &&
+         s.v.size() == static_cast<size_t>(s.side() * s.side());
+}
+
+// The binarized grid (sc->bits) against the expected codes, then the book.
+bool verify_binarized(const QrSamples& s, std::string* text, QrGridScratch* sc,
+                      std::span<const QrExpected> expected, QrCodeBook* book) {
   for (const QrExpected& e : expected) {
     if (matches_expected(s, *sc, e)) {
       *text = *e.text;
@@ -289,6 +291,25 @@ bool decode_qr_grid(const QrSamples& s, QrThreshold t, std::string* text, QrGrid
     sc->verified = true;
     return true;
   }
+  return false;
+}
+
+}  // namespace
+
+bool verify_qr_grid(const QrSamples& s, QrThreshold t, std::string* text, QrGridScratch* sc,
+                    std::span<const QrExpected> expected, QrCodeBook* book) {
+  sc->verified = false;
+  if (!valid_samples(s)) return false;
+  binarize(s, t, sc);
+  return verify_binarized(s, text, sc, expected, book);
+}
+
+bool decode_qr_grid(const QrSamples& s, QrThreshold t, std::string* text, QrGridScratch* sc,
+                    std::span<const QrExpected> expected, QrCodeBook* book) {
+  sc->verified = false;
+  if (!valid_samples(s)) return false;
+  binarize(s, t, sc);
+  if (verify_binarized(s, text, sc, expected, book)) return true;
   const int dim = (s.n + 2 * kMargin) * kPxPerModule;
   sc->image.assign(static_cast<size_t>(dim) * static_cast<size_t>(dim), 255);
   for (int r = 0; r < s.n; ++r) {

@@ -103,6 +103,13 @@ struct VisionConfig {
   // binarizer loses under blur and scratches (combined degradations 91.3 -> 100 %) in half the
   // decode time (0.155 -> 0.079 ms, docs/accuracy.md). Default true.
   bool qr_guided = true;
+  // When a verified read is possible (a mapped landmark's code is expected, or the map's code
+  // book), first sample only each module's centre and take the grid only if it is within the
+  // Reed-Solomon bound of a mapped code (the answer zxing would give); otherwise the five-sample
+  // read runs as without it. Reads the same codes as false, at a fifth of the sampling on most
+  // frames (docs/tracking.md "Centre-only first read"); a frame whose centre grid is not verified
+  // pays its cost on top. Default true.
+  bool qr_centre_first = true;
   // Guided reading of a code cut by the image border: at most this many data modules may lie
   // outside the image (they are filled with the code's mean grey and left to the Reed-Solomon
   // correction of ECC level M; quiet-zone and fixed modules outside are filled with their known
@@ -155,6 +162,16 @@ struct VisionConfig {
   // fraction of the border width (6 mm). Wider tolerates a worse detection estimate and costs
   // time; it must stay below half the distance to the QR code (4 mm). Default 0.4 (2.4 mm).
   double band_rel = 0.4;
+  // Edge points are taken on every edge_row_step-th pixel row (or column, for lines closer to
+  // horizontal) along each border line, on rows that are multiples of the step. The pose stage's
+  // cost (collection, undistortion, line and joint fits) falls about as 1/step; the error grows
+  // far less than sqrt(step), as neighbouring rows share blur (measured at 3: realistic frames'
+  // p95 0.0028 -> 0.0033 mm, every detection rate unchanged; docs/vision.md "Row step"), which is
+  // micrometres against the millimetres a vehicle needs. min_points_per_line, min_points_total and
+  // the fit covariance count rows covered (each point stands for step rows): the step does not
+  // change which views have enough edge, and the covariance keeps the scale cov_inflation was
+  // measured at (mean NEES on motion blur 2.4 at step 1, 2.5 at 3). Default 3.
+  int edge_row_step = 3;
   // Subpixel edge positions: parabola through the gradient magnitude across the edge. Default on.
   bool subpixel = true;
   // Robust fitting (Tukey biweight IRLS, scale from the MAD) against scratches, dirt and
@@ -169,8 +186,8 @@ struct VisionConfig {
   MetricMode metric = MetricMode::kCameraModel;
   PoseMethod pose_method = PoseMethod::kJointSquareFit;
   HeadingMethod heading_method = HeadingMethod::kInverseVariance;
-  // Minimal number of edge points on a fitted line, and minimal total; fewer gives
-  // kTooFewEdgePoints. Defaults 20 and 200.
+  // Minimal number of edge points on a fitted line, and minimal total, counted at row step 1
+  // (edge_row_step); fewer gives kTooFewEdgePoints. Defaults 20 and 200.
   int min_points_per_line = 20;
   int min_points_total = 200;
   // A landmark with a predicted corner more than this far (mm) outside the image is "partly
@@ -278,6 +295,9 @@ struct LandmarkFix {
   // The guided read matched the tracked landmark's expected code within what Reed-Solomon
   // corrects, so zxing did not run (the text is the one zxing would have returned).
   bool qr_verified = false;
+  // That verified read came from the module centres alone (the cheap first read, one sample per
+  // module instead of five; docs/tracking.md "Centre-only first read").
+  bool qr_centre_only = false;
   // zxing runs this frame, the QR stage's cost driver (diagnostics, cost tests): pure-code reads
   // of sampled grids (about 0.1 M instructions each on x86-64) and search attempts on the crop
   // (about 2 M aarch64 instructions each).

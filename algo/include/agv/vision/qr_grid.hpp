@@ -121,6 +121,11 @@ class QrCodeBook {
 bool decode_qr_grid(const QrSamples& s, QrThreshold t, std::string* text, QrGridScratch* scratch,
                     std::span<const QrExpected> expected = {}, QrCodeBook* book = nullptr);
 
+// The verified part of decode_qr_grid alone: true (and the text, scratch->verified) when the
+// binarized grid is within the bounds of an expected code or of the book's; never runs zxing.
+bool verify_qr_grid(const QrSamples& s, QrThreshold t, std::string* text, QrGridScratch* scratch,
+                    std::span<const QrExpected> expected, QrCodeBook* book);
+
 // True when zxing's pure reader (as decode_qr_grid runs it) decodes these bits to exactly `text`.
 // An expected code is offered to decode_qr_grid only after this check: the verified read then
 // returns what zxing returns by construction, whatever the payload's characters or encoding.
