@@ -56,8 +56,8 @@ void add_qr(std::vector<Key>* k) {
   k->push_back(boolean("vision.qr_centre_first", AGV_AT(vision.qr_centre_first), true,
                        "a first guided read from each module's centre alone, taken only when "
                        "it is within the Reed-Solomon bound of a mapped code; otherwise the "
-                       "five-sample read runs as before. Same reads, a fifth of the sampling "
-                       "on most frames (docs/tracking.md)"));
+                       "five-sample read runs as before. No read lost, a fifth of the "
+                       "sampling on most frames (docs/tracking.md)"));
   k->push_back(
       integer("vision.qr_max_missing_modules", AGV_AT(vision.qr_max_missing_modules), 0, 625, 80,
               {"modules",
