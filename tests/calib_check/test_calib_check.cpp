@@ -128,6 +128,32 @@ TEST(CalibCheck, CorrectConfigurationPasses) {
   EXPECT_EQ(r.placements[0].landmark_id, 7u);
 }
 
+// The check is desk work: it measures with every pixel row, whatever edge_row_step the vehicle's
+// configuration has (the same fix as a localizer at step 1).
+TEST(CalibCheck, MeasuresWithEveryPixelRow) {
+  const CameraModel truth = nominal();
+  const std::vector<cv::Mat> frames = render(truth, kUnderCamera, 1, 3);
+  std::vector<desk::calib::PlacementInput> in(1);
+  in[0].taped = kUnderCamera;
+  in[0].frames.push_back({"frame0", &frames[0]});
+  vision::VisionConfig vehicle;
+  vehicle.edge_row_step = 4;
+  desk::calib::CheckResult r;
+  std::string err;
+  ASSERT_TRUE(desk::calib::run_check(truth, vehicle, 60.0, nullptr, in, {}, &r, &err)) << err;
+  ASSERT_EQ(r.placements.size(), 1u);
+  ASSERT_EQ(r.placements[0].frames.size(), 1u);
+  vision::VisionConfig every_row;
+  every_row.edge_row_step = 1;
+  LandmarkGeometry geom;
+  geom.size_mm = 60.0;
+  vision::LandmarkLocalizer loc(every_row, truth, geom, nullptr);
+  vision::LandmarkFix fix;
+  ASSERT_EQ(loc.process(frames[0], &fix), vision::FixStatus::kOk);
+  EXPECT_EQ(r.placements[0].frames[0].fix.edge_points_used, fix.edge_points_used);
+  EXPECT_EQ(r.placements[0].frames[0].fix.e_x_mm, fix.e_x_mm);
+}
+
 TEST(CalibCheck, WrongOffsetNamesTheOffset) {
   CameraModel truth = nominal();
   truth.mount.offset_x_mm = 254.0;

@@ -64,7 +64,11 @@ bool run_check(const CameraModel& camera, const vision::VisionConfig& vision_con
   }
   LandmarkGeometry geom;
   geom.size_mm = printed_size_mm;
-  vision::LandmarkLocalizer loc(vision_config, camera, geom, map);
+  // Desk work takes every pixel row: the vehicle's edge_row_step trades a little precision for
+  // cost per frame, which a parked check on a few frames does not need.
+  vision::VisionConfig every_row = vision_config;
+  every_row.edge_row_step = 1;
+  vision::LandmarkLocalizer loc(every_row, camera, geom, map);
   const double h_c = camera.mount.height_mm;
   const Vec2 o_c{camera.mount.offset_x_mm, camera.mount.offset_y_mm};
   const double printed_mid = geom.outer_half_mm() + geom.inner_half_mm();

@@ -251,7 +251,11 @@ int calibrate_vehicle(int argc, char** argv) {
   }
   if (out_dir.empty()) out_dir = (fs::path(rec_dir) / "calibration").string();
 
-  vision::LandmarkLocalizer loc(cfg.vision, cam, geom, &map);
+  // Desk work takes every pixel row: the corner observations are fitted from the raw edge points
+  // (edge_points_px), and the vehicle's edge_row_step would leave out two of every three.
+  vision::VisionConfig every_row = cfg.vision;
+  every_row.edge_row_step = 1;
+  vision::LandmarkLocalizer loc(every_row, cam, geom, &map);
   std::vector<vcal::CornerObservation> obs;
   int fixes = 0, unmapped = 0;
   for (const auto& f : rec.frames) {
