@@ -119,26 +119,15 @@ def analyse(s: Setup, sc: dict, rep: Report) -> None:
 
     # XY / Heading pairing by counter.
     xy, hd = by_name["AGV_PoseXY"], by_name["AGV_PoseHeading"]
-    hd_times = [f.t for f in hd]
-    pairs, unpaired, worst = [], 0, 0.0
     pair_window = max(0.1, 5 * pose_period)
-    for f in xy:
-        i = bisect.bisect_left(hd_times, f.t - 0.001)
-        partner = None
-        for g in hd[i:i + 8]:
-            if g.t - f.t > pair_window:
-                break
-            if hil_dbc.alive_counter(g.data) == hil_dbc.alive_counter(f.data):
-                partner = g
-                break
-        if partner is None:
-            unpaired += 1
-        else:
-            pairs.append((f, partner))
-            worst = max(worst, partner.t - f.t)
+    pairs, unpaired, worst, cut_pair = pair_pose_frames(
+        xy, hd, pair_window, excluded, sc.get("link_down_done"))
     rep.check(unpaired == 0, "every AGV_PoseXY has its AGV_PoseHeading (same counter, within "
               f"{pair_window*1e3:.0f} ms)", f"{unpaired} unpaired of {len(xy)}; worst "
               f"XY->Heading delay {worst*1e3:.1f} ms")
+    if cut_pair is not None:
+        rep.info(f"one pair cut by the link going down: AGV_PoseXY at {cut_pair.t:.3f} (link down "
+                 f"requested {excluded[0]:.3f}) has no AGV_PoseHeading")
 
     # Heartbeat contents.
     hb = s.dbc.by_name("AGV_Heartbeat")
@@ -165,6 +154,40 @@ def analyse(s: Setup, sc: dict, rep: Report) -> None:
                   res_xy, res_th, "decoded poses agree with the offline replay", tick_time)
     analyse_status(s, sc, rep, by_name, xy, odom_frames_cap, t_cap0, odom_end, excluded,
                    status_period, frames)
+
+
+def pair_pose_frames(xy, hd, pair_window, outage=None, link_down_done=None):
+    """Pairs each AGV_PoseXY with the AGV_PoseHeading of the same alive counter that follows it
+    within pair_window seconds. Returns (pairs, unpaired count, worst XY->Heading delay, cut).
+
+    A link taken down between the two sends of one period cuts that pair: the XY frame left, the
+    Heading send failed (counted in can_tx_failed, never retried), and the receiver, which pairs
+    by counter, drops the half pair. So `cut` is the one XY frame allowed without a partner: the
+    last XY before the link went down (outage = (down requested, up), link_down_done = down),
+    no more than pair_window before the request. Any other unpaired XY counts."""
+    hd_times = [f.t for f in hd]
+    pairs, unpaired, worst, cut = [], 0, 0.0, None
+    for k, f in enumerate(xy):
+        i = bisect.bisect_left(hd_times, f.t - 0.001)
+        partner = None
+        for g in hd[i:i + 8]:
+            if g.t - f.t > pair_window:
+                break
+            if hil_dbc.alive_counter(g.data) == hil_dbc.alive_counter(f.data):
+                partner = g
+                break
+        if partner is not None:
+            pairs.append((f, partner))
+            worst = max(worst, partner.t - f.t)
+            continue
+        down = link_down_done if link_down_done is not None else (outage[0] if outage else None)
+        last_before_outage = outage is not None and (k + 1 == len(xy) or xy[k + 1].t > outage[1])
+        if (cut is None and last_before_outage and f.t <= down
+                and outage[0] - f.t <= pair_window):
+            cut = f
+        else:
+            unpaired += 1
+    return pairs, unpaired, worst, cut
 
 
 def match_own(s, rep, pairs, own_path, own, res_xy, res_th) -> dict:

@@ -1,0 +1,78 @@
+#!/usr/bin/env python3
+"""Unit tests of the HIL analysis's pose pairing on synthetic frames (no VM): a link flap may cut
+the one pose pair it falls into, and nothing else may go unpaired."""
+import os
+import sys
+import unittest
+
+sys.dont_write_bytecode = True  # no __pycache__ in the source tree
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from hil_analysis import pair_pose_frames  # noqa: E402
+from hil_common import Frame  # noqa: E402
+
+PERIOD = 0.02
+WINDOW = 0.1
+
+
+def frame(t, counter):
+    return Frame(t=t, can_id=0x300, ext=False, data=bytes([0, counter & 0x0F, 0, 0, 0, 0, 0, 0]))
+
+
+def bus(n, t0=0.0, drop_heading=(), skip=()):
+    """n periods; the Heading of each period index in drop_heading is missing; the periods in
+    skip send nothing (the link is down)."""
+    xy, hd = [], []
+    for k in range(n):
+        if k in skip:
+            continue
+        t = t0 + k * PERIOD
+        xy.append(frame(t, k))
+        if k not in drop_heading:
+            hd.append(frame(t + 0.0005, k))
+    return xy, hd
+
+
+class Pairing(unittest.TestCase):
+    def test_all_paired(self):
+        xy, hd = bus(50)
+        pairs, unpaired, worst, cut = pair_pose_frames(xy, hd, WINDOW)
+        self.assertEqual((len(pairs), unpaired, cut), (50, 0, None))
+        self.assertAlmostEqual(worst, 0.0005)
+
+    def test_missing_heading_without_outage_counts(self):
+        xy, hd = bus(50, drop_heading={20})
+        _, unpaired, _, cut = pair_pose_frames(xy, hd, WINDOW)
+        self.assertEqual((unpaired, cut), (1, None))
+
+    def test_pair_cut_by_the_link_going_down_is_allowed_once(self):
+        # The link goes down between period 20's two sends and comes back at period 40.
+        xy, hd = bus(60, drop_heading={20}, skip=set(range(21, 40)))
+        outage = (20 * PERIOD + 0.0002, 40 * PERIOD - 0.001)
+        pairs, unpaired, _, cut = pair_pose_frames(xy, hd, WINDOW, outage, outage[0] + 0.001)
+        self.assertEqual((len(pairs), unpaired), (40, 0))
+        self.assertIs(cut, xy[20])
+
+    def test_only_the_last_pair_before_the_outage_may_be_cut(self):
+        xy, hd = bus(60, drop_heading={19, 20}, skip=set(range(21, 40)))
+        outage = (20 * PERIOD + 0.0002, 40 * PERIOD - 0.001)
+        _, unpaired, _, cut = pair_pose_frames(xy, hd, WINDOW, outage, outage[0] + 0.001)
+        self.assertEqual(unpaired, 1)
+        self.assertIs(cut, xy[19 + 1])
+
+    def test_missing_heading_after_the_outage_counts(self):
+        xy, hd = bus(60, drop_heading={45}, skip=set(range(21, 40)))
+        outage = (20 * PERIOD + 0.0002, 40 * PERIOD - 0.001)
+        _, unpaired, _, cut = pair_pose_frames(xy, hd, WINDOW, outage, outage[0] + 0.001)
+        self.assertEqual((unpaired, cut), (1, None))
+
+    def test_missing_heading_long_before_the_outage_counts(self):
+        # The last XY before the outage, but sent more than a pair window before the link went
+        # down: that is a lost frame, not a cut pair.
+        xy, hd = bus(60, drop_heading={20}, skip=set(range(21, 40)))
+        outage = (20 * PERIOD + 0.5, 40 * PERIOD - 0.001)
+        _, unpaired, _, cut = pair_pose_frames(xy, hd, WINDOW, outage, outage[0] + 0.001)
+        self.assertEqual((unpaired, cut), (1, None))
+
+
+if __name__ == "__main__":
+    unittest.main()
