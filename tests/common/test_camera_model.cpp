@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "agv/common/camera_model.hpp"
+#include "agv/common/landmark.hpp"
 
 using namespace agv;
 
@@ -163,4 +164,52 @@ TEST(CameraModel, FloorProjectorKeepsItsModelAndMatchesItExactly) {
     EXPECT_FALSE(proj.pixel_to_vehicle({std::numeric_limits<double>::infinity(), 0.0}, &out));
     EXPECT_EQ(proj.model().mount.yaw_rad, m.mount.yaw_rad);
   }
+}
+
+// A plane at one pose (a landmark's page) maps through one folded matrix: the same pixels as the
+// rigid transform then vehicle_to_pixel, to rounding, on tilted, yawed and distorted cameras, and
+// the same refusals (behind a tilted camera, non-finite points, no height).
+TEST(CameraModel, PlaneProjectorMatchesVehicleToPixel) {
+  CameraModel tilted = CameraModel::default_640x480();
+  tilted.intrinsics.k1 = -0.21;
+  tilted.intrinsics.k2 = 0.05;
+  tilted.intrinsics.p1 = -0.001;
+  tilted.intrinsics.p2 = 0.002;
+  tilted.mount = {35.0, -12.0, deg_to_rad(3.0), 180.0, deg_to_rad(1.5), deg_to_rad(-1.2)};
+  CameraModel yawed = tilted;
+  yawed.mount.roll_rad = yawed.mount.pitch_rad = 0.0;
+  int compared = 0;
+  for (const CameraModel& m : {tilted, yawed, CameraModel::default_640x480()}) {
+    const FloorProjector proj(m);
+    for (const Pose2 pose : {Pose2{0, 0, 0}, Pose2{12.5, -30.0, 0.7}, Pose2{-40, 25, -2.9}}) {
+      const double co = std::cos(pose.theta_rad), si = std::sin(pose.theta_rad);
+      // Page axes u, v of a landmark: its (x, y) = (-v, -u), rotated by the pose.
+      const PlaneProjector plane = proj.plane({pose.x_mm, pose.y_mm}, {si, -co}, {-co, -si});
+      for (double u = -30; u <= 30; u += 7.5) {
+        for (double v = -30; v <= 30; v += 7.5) {
+          Vec2 want, got;
+          ASSERT_TRUE(proj.vehicle_to_pixel(transform(pose, page_to_landmark({u, v})), &want));
+          ASSERT_TRUE(plane.to_pixel({u, v}, &got));
+          EXPECT_NEAR(got.x, want.x, 1e-9);
+          EXPECT_NEAR(got.y, want.y, 1e-9);
+          ++compared;
+        }
+      }
+      Vec2 out{7.0, 7.0};
+      EXPECT_FALSE(plane.to_pixel({std::numeric_limits<double>::quiet_NaN(), 0.0}, &out));
+      EXPECT_FALSE(plane.to_pixel({0.0, std::numeric_limits<double>::infinity()}, &out));
+      EXPECT_EQ(out.x, 7.0);
+    }
+  }
+  EXPECT_EQ(compared, 3 * 3 * 81);
+  CameraModel steep = CameraModel::default_640x480();
+  steep.mount.pitch_rad = deg_to_rad(45.0);
+  Vec2 px;
+  const FloorProjector steep_proj(steep);
+  ASSERT_FALSE(steep_proj.vehicle_to_pixel({1000.0, 0.0}, &px));
+  EXPECT_FALSE(steep_proj.plane({1000.0, 0.0}, {1, 0}, {0, 1}).to_pixel({0, 0}, &px));
+  CameraModel flat = CameraModel::default_640x480();
+  flat.mount.height_mm = 0.0;
+  EXPECT_FALSE(FloorProjector(flat).plane({0, 0}, {1, 0}, {0, 1}).to_pixel({0, 0}, &px));
+  EXPECT_FALSE(PlaneProjector().to_pixel({0, 0}, &px));
 }

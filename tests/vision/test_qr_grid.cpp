@@ -493,3 +493,93 @@ TEST_F(QrGridScene, CodesCutByTheImageBorderAreReadWithFillIn) {
   EXPECT_GT(unread, 0);  // measured when written: 17
   EXPECT_EQ(cut_unsearched, unread);
 }
+
+namespace {
+
+// The binarization's definition, module by module (qr_grid.hpp QrThreshold): sharpen against the
+// mean of the 4 neighbours inside the grid, then dark where below the mean of the 5x5 modules
+// inside the grid.
+std::vector<int> direct_bits(const QrSamples& s, double gain) {
+  const int side = s.side();
+  std::vector<float> w(s.v);
+  if (gain > 0) {
+    for (int r = 0; r < side; ++r) {
+      for (int c = 0; c < side; ++c) {
+        double sum = 0;
+        int cnt = 0;
+        const int dr[4] = {-1, 1, 0, 0}, dc[4] = {0, 0, -1, 1};
+        for (int k = 0; k < 4; ++k) {
+          const int rr = r + dr[k], cc = c + dc[k];
+          if (rr < 0 || cc < 0 || rr >= side || cc >= side) continue;
+          sum += static_cast<double>(s.v[static_cast<size_t>(rr * side + cc)]);
+          ++cnt;
+        }
+        const double x = static_cast<double>(s.v[static_cast<size_t>(r * side + c)]);
+        w[static_cast<size_t>(r * side + c)] = static_cast<float>(x + gain * (x - sum / cnt));
+      }
+    }
+  }
+  std::vector<int> bits;
+  for (int r = s.ring; r < s.ring + s.n; ++r) {
+    for (int c = s.ring; c < s.ring + s.n; ++c) {
+      double sum = 0;
+      int cnt = 0;
+      for (int rr = std::max(0, r - 2); rr <= std::min(side - 1, r + 2); ++rr) {
+        double row = 0;
+        for (int cc = std::max(0, c - 2); cc <= std::min(side - 1, c + 2); ++cc) {
+          row += static_cast<double>(w[static_cast<size_t>(rr * side + cc)]);
+        }
+        sum += row;
+        cnt += std::min(side - 1, c + 2) - std::max(0, c - 2) + 1;
+      }
+      bits.push_back(w[static_cast<size_t>(r * side + c)] < static_cast<float>(sum / cnt) ? 1 : 0);
+    }
+  }
+  return bits;
+}
+
+}  // namespace
+
+// The binarization's fast loops (interior without bounds, local means of the code's modules only)
+// give the definition's bits exactly, for both sizes, rings 0 to 3 and the three local-mean
+// thresholds: compared through the fixed-module error count, which reads the binarized bits.
+TEST(QrGrid, BinarizationEqualsItsDefinitionBitForBit) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<float> grey(0.0f, 255.0f);
+  int grids = 0;
+  for (int n : {21, 25}) {
+    for (int ring = 0; ring <= 3; ++ring) {
+      for (int trial = 0; trial < 20; ++trial) {
+        QrSamples s;
+        s.n = n;
+        s.ring = ring;
+        s.v.resize(static_cast<size_t>(s.side() * s.side()));
+        // Half the trials: near-ties (few distinct levels), where a changed sum order would flip
+        // a module.
+        for (float& x : s.v)
+          x = trial % 2 ? grey(rng) : static_cast<float>(static_cast<int>(grey(rng)) % 3 * 100);
+        for (const auto& [t, gain] : {std::pair{QrThreshold::kStronglySharpenedLocalMean, 6.0},
+                                      std::pair{QrThreshold::kSharpenedLocalMean, 1.0},
+                                      std::pair{QrThreshold::kLocalMean, 0.0}}) {
+          const std::vector<int> want = direct_bits(s, gain);
+          int want_errors = 0;
+          for (int r = 0; r < n; ++r) {
+            for (int c = 0; c < n; ++c) {
+              const int f = qr_fixed_module(n, r, c);
+              if (f >= 0 && f != want[static_cast<size_t>(r * n + c)]) ++want_errors;
+            }
+          }
+          QrGridScratch sc;
+          EXPECT_EQ(qr_fixed_module_errors(s, t, &sc), want_errors);
+          ASSERT_EQ(sc.bits.size(), want.size());
+          for (size_t i = 0; i < want.size(); ++i) {
+            ASSERT_EQ(static_cast<int>(sc.bits[i]), want[i])
+                << "n " << n << " ring " << ring << " module " << i;
+          }
+          ++grids;
+        }
+      }
+    }
+  }
+  EXPECT_EQ(grids, 2 * 4 * 20 * 3);
+}

@@ -75,7 +75,7 @@ int main(int argc, char** argv) {
   if (argc < 2 || argv[1][0] == '-') {
     std::fprintf(stderr,
                  "usage: vision_cost RECORDING [--frames N] [--class all|ok|none|free|cut] "
-                 "[--tracking SIGMA_MM --map FILE] [--row-step N]\n");
+                 "[--tracking SIGMA_MM --map FILE] [--row-step N] [--list 1]\n");
     return 2;
   }
   const std::string dir = argv[1];
@@ -83,7 +83,8 @@ int main(int argc, char** argv) {
   std::string cls = "all";
   double tracking_sigma_mm = -1.0;  // < 0: no prediction
   std::string map_file;
-  int row_step = 0;  // 0: the default
+  int row_step = 0;   // 0: the default
+  bool list = false;  // one line per measured frame (how it was read), after the measurement
   for (int i = 2; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--frames")) {
       max_frames = static_cast<size_t>(std::strtoul(argv[i + 1], nullptr, 10));
@@ -93,6 +94,8 @@ int main(int argc, char** argv) {
       tracking_sigma_mm = std::strtod(argv[i + 1], nullptr);
     } else if (!std::strcmp(argv[i], "--row-step")) {
       row_step = std::atoi(argv[i + 1]);
+    } else if (!std::strcmp(argv[i], "--list")) {
+      list = std::atoi(argv[i + 1]) != 0;
     } else if (!std::strcmp(argv[i], "--map")) {
       map_file = argv[i + 1];
     } else {
@@ -181,6 +184,14 @@ int main(int argc, char** argv) {
     prctl(static_cast<int>(kMarkerOff), 0UL, 0UL, 0UL, 0UL);
     n_ok_measured += status == static_cast<int>(agv::vision::FixStatus::kOk) ? 1 : 0;
     n_window += fix.search == agv::vision::SearchMode::kWindow ? 1 : 0;
+    if (list) {
+      std::printf(
+          "frame %zu: status %d search %d id %u logo %.3f/%.3f qr_method %d verified %d "
+          "centre_only %d grid_decodes %d search_attempts %d\n",
+          i, status, static_cast<int>(fix.search), fix.landmark_id, fix.logo_score, fix.logo_margin,
+          fix.qr_method, fix.qr_verified ? 1 : 0, fix.qr_centre_only ? 1 : 0, fix.qr_grid_decodes,
+          fix.qr_search_attempts);
+    }
   }
   std::printf("vision_cost: %zu frames loaded (%zu ok), class %s: %zu measured (%zu ok), %dx%d\n",
               frames.size(), n_ok, cls.c_str(), selected.size(), n_ok_measured,

@@ -102,6 +102,40 @@ bool FloorProjector::vehicle_to_pixel(Vec2 p, Vec2* pixel) const {
   return true;
 }
 
+PlaneProjector FloorProjector::plane(Vec2 o, Vec2 eu, Vec2 ev) const {
+  PlaneProjector p;
+  const CameraMount& mount = m_.mount;
+  p.k_ = m_.intrinsics;
+  if (!(mount.height_mm > 0.0)) return p;
+  // Camera point = C * (floor point - camera position), C the 3x3 floor -> camera rotation
+  // (rows), then floor point - camera position = (o - offset) + u * eu + v * ev, z = -height.
+  double c[9];
+  if (tilted_) {
+    // Rows of R_VC^T are the columns of R_VC.
+    for (int i = 0; i < 3; ++i) {
+      c[3 * i + 0] = r_[i];
+      c[3 * i + 1] = r_[3 + i];
+      c[3 * i + 2] = r_[6 + i];
+    }
+    p.z_min_ = 1e-9 * mount.height_mm;
+  } else {
+    // As vehicle_to_pixel's untilted branch: xc = dx s - dy c, yc = -(dx c + dy s), and the
+    // normalised coordinates are those over the height (a camera point at depth height).
+    const double co = cos_yaw_, si = sin_yaw_;
+    const double rows[9] = {si, -co, 0.0, -co, -si, 0.0, 0.0, 0.0, -1.0};
+    for (int i = 0; i < 9; ++i) c[i] = rows[i];
+    p.z_min_ = 0.0;
+  }
+  const double d[3] = {o.x - mount.offset_x_mm, o.y - mount.offset_y_mm, -mount.height_mm};
+  for (int i = 0; i < 3; ++i) {
+    const double* ci = c + 3 * i;
+    p.a_[3 * i + 0] = ci[0] * eu.x + ci[1] * eu.y;
+    p.a_[3 * i + 1] = ci[0] * ev.x + ci[1] * ev.y;
+    p.a_[3 * i + 2] = ci[0] * d[0] + ci[1] * d[1] + ci[2] * d[2];
+  }
+  return p;
+}
+
 bool FloorProjector::pixel_to_vehicle(Vec2 pixel, Vec2* p) const {
   const CameraMount& mount = m_.mount;
   Vec2 xn;

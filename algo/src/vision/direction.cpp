@@ -51,18 +51,15 @@ void LandmarkLocalizer::Impl::build_logo() {
 
 // Logo NCC at the four turns of the fitted square; turn q's forward axis is side q's normal.
 LogoScores LandmarkLocalizer::Impl::logo_scores(const cv::Mat& img, Vec2 c_mm, double beta) {
-  const FloorProjector& mc = metric_floor;
   LogoScores r;
   for (int q = 0; q < 4; ++q) {
-    const double fwd = beta - q * kPi / 2.0;
+    const PlaneProjector page = page_projector(c_mm, beta - q * kPi / 2.0);
     logo_samples.clear();
     bool all_in = true;
     for (const Vec2& uv : logo_page_pts) {
-      const Vec2 l = page_to_landmark(uv);
-      const Vec2 v = transform({c_mm.x, c_mm.y, fwd}, l);
       Vec2 px;
       double val = 0;
-      if (!mc.vehicle_to_pixel(v, &px) || !sample(img, px.x, px.y, &val)) {
+      if (!page.to_pixel(uv, &px) || !sample(img, px.x, px.y, &val)) {
         all_in = false;
         break;
       }

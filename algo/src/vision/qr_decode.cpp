@@ -272,20 +272,18 @@ bool LandmarkLocalizer::Impl::read_qr_search(const cv::Mat& img, Vec2 c, double 
 // another), an unclear one all four.
 bool LandmarkLocalizer::Impl::code_cut_at_every_turn(const cv::Mat& img, Vec2 c_mm, double beta,
                                                      const LogoScores& logo) const {
-  const FloorProjector& mc = metric_floor;
   const double side = geom.qr_side_mm();
   const double module_px = side / kQrModulesV2 / mm_per_px;
   const double lo = -0.5 - module_px;
   const double hi_x = img.cols - 0.5 + module_px, hi_y = img.rows - 0.5 + module_px;
   for (int q = 0; q < 4; ++q) {
     if (logo.clear && q != logo.best_q) continue;
-    const Pose2 l_in_v{c_mm.x, c_mm.y, beta - q * kPi / 2.0};
+    const PlaneProjector page = page_projector(c_mm, beta - q * kPi / 2.0);
     bool cut = false;
     for (int k = 0; k < 4 && !cut; ++k) {
       const Vec2 uv{geom.qr_u0_mm() + (k & 1) * side, geom.qr_v0_mm() + (k >> 1) * side};
       Vec2 px;
-      cut = !mc.vehicle_to_pixel(transform(l_in_v, page_to_landmark(uv)), &px) || px.x < lo ||
-            px.y < lo || px.x > hi_x || px.y > hi_y;
+      cut = !page.to_pixel(uv, &px) || px.x < lo || px.y < lo || px.x > hi_x || px.y > hi_y;
     }
     if (!cut) return false;
   }
@@ -298,12 +296,9 @@ bool LandmarkLocalizer::Impl::code_cut_at_every_turn(const cv::Mat& img, Vec2 c_
 // module outside: a cut code goes to the five-sample read and its fill-in directly).
 bool LandmarkLocalizer::Impl::sample_qr(const cv::Mat& img, Vec2 c_mm, double fwd, int n,
                                         QrSamples* s, bool centre_only) {
-  const FloorProjector& mc = metric_floor;
-  const Pose2 l_in_v{c_mm.x, c_mm.y, fwd};
+  const PlaneProjector page = page_projector(c_mm, fwd);
   const double m = geom.qr_side_mm() / n;
-  auto to_px = [&](Vec2 uv, Vec2* px) {
-    return mc.vehicle_to_pixel(transform(l_in_v, page_to_landmark(uv)), px);
-  };
+  auto to_px = [&](Vec2 uv, Vec2* px) { return page.to_pixel(uv, px); };
   // The extra samples' pixel offsets are taken at the code's centre; distortion changes them by
   // far less than a pixel over the code.
   const Vec2 mid{geom.qr_u0_mm() + 0.5 * geom.qr_side_mm(),

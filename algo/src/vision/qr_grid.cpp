@@ -22,30 +22,46 @@ int finder_value(int r, int c) {  // r, c in 0..6 inside a finder pattern
   return d == 2 ? 0 : 1;
 }
 
+// Only the code's own modules are thresholded, so the local mean is computed for them alone; the
+// ring of quiet-zone modules enters their windows. The loops add in the same order as the plain
+// per-module sums they replace (up, down, left, right; then left to right and top to bottom), so
+// every value is the same to the last bit: a branch-free interior and the bounds only at the
+// edges cut binarize from about 170 to about 70 x86-64 instructions per module (tools/vision-cost).
 void binarize(const QrSamples& s, QrThreshold t, QrGridScratch* sc) {
   const int side = s.side();
   const size_t nn = static_cast<size_t>(side) * static_cast<size_t>(side);
+  const float* v = s.v.data();
   sc->work.assign(s.v.begin(), s.v.end());
   if (t == QrThreshold::kStronglySharpenedLocalMean || t == QrThreshold::kSharpenedLocalMean) {
     const double gain = t == QrThreshold::kStronglySharpenedLocalMean ? 6.0 : 1.0;
+    float* w = sc->work.data();
     for (int r = 0; r < side; ++r) {
+      const bool row_inside = r > 0 && r < side - 1;
       for (int c = 0; c < side; ++c) {
+        const size_t i = static_cast<size_t>(r * side + c);
+        const double x = static_cast<double>(v[i]);
+        if (row_inside && c > 0 && c < side - 1) {
+          const double sum = static_cast<double>(v[i - static_cast<size_t>(side)]) +
+                             static_cast<double>(v[i + static_cast<size_t>(side)]) +
+                             static_cast<double>(v[i - 1]) + static_cast<double>(v[i + 1]);
+          w[i] = static_cast<float>(x + gain * (x - sum / 4));
+          continue;
+        }
         double sum = 0;
         int cnt = 0;
         const int dr[4] = {-1, 1, 0, 0}, dc[4] = {0, 0, -1, 1};
         for (int k = 0; k < 4; ++k) {
           const int rr = r + dr[k], cc = c + dc[k];
           if (rr < 0 || cc < 0 || rr >= side || cc >= side) continue;
-          sum += static_cast<double>(s.v[static_cast<size_t>(rr * side + cc)]);
+          sum += static_cast<double>(v[static_cast<size_t>(rr * side + cc)]);
           ++cnt;
         }
-        const double v = static_cast<double>(s.v[static_cast<size_t>(r * side + c)]);
-        sc->work[static_cast<size_t>(r * side + c)] =
-            static_cast<float>(cnt ? v + gain * (v - sum / cnt) : v);
+        w[i] = static_cast<float>(cnt ? x + gain * (x - sum / cnt) : x);
       }
     }
   }
   sc->mean.assign(nn, 0.0f);
+  const int lo = s.ring, hi = s.ring + s.n;  // the code's rows and columns in the sampled grid
   if (t == QrThreshold::kMidpoint) {
     // Light level: median of the quiet zone; dark level: darkest decile of the code.
     std::vector<float>& tmp = sc->mean;
@@ -68,16 +84,23 @@ void binarize(const QrSamples& s, QrThreshold t, QrGridScratch* sc) {
     const float dark = tmp[dec];
     sc->mean.assign(nn, 0.5f * (light + dark));
   } else {
-    // Mean of the 5x5 modules around each module (clipped to the sampled grid), separable: the
-    // sums of up to 5 modules along each row, then up to 5 of those along each column (a fifth
-    // of the additions of the direct 5x5 sum). Sums of these floats in double are exact, so the
-    // order does not matter, unless a value is below about 1e-4 grey levels in magnitude (a
-    // rounding of 1e-16 relative then, where the direct sum rounded too).
+    // Mean of the 5x5 modules around each code module (clipped to the sampled grid), separable:
+    // the sums of up to 5 modules along each row, then up to 5 of those along each column. Sums
+    // of these floats in double are exact, so the order does not matter, unless a value is
+    // below about 1e-4 grey levels in magnitude (a rounding of 1e-16 relative then, where the
+    // direct sum rounded too).
     sc->row_sum.resize(nn);
+    const float* wk = sc->work.data();
     for (int r = 0; r < side; ++r) {
-      const float* wr = sc->work.data() + static_cast<size_t>(r * side);
+      const float* wr = wk + static_cast<size_t>(r * side);
       double* rs = sc->row_sum.data() + static_cast<size_t>(r * side);
-      for (int c = 0; c < side; ++c) {
+      for (int c = lo; c < hi; ++c) {
+        if (c >= 2 && c + 2 < side) {
+          rs[c] = static_cast<double>(wr[c - 2]) + static_cast<double>(wr[c - 1]) +
+                  static_cast<double>(wr[c]) + static_cast<double>(wr[c + 1]) +
+                  static_cast<double>(wr[c + 2]);
+          continue;
+        }
         double sum = 0;
         for (int cc = std::max(0, c - 2); cc <= std::min(side - 1, c + 2); ++cc) {
           sum += static_cast<double>(wr[cc]);
@@ -85,11 +108,12 @@ void binarize(const QrSamples& s, QrThreshold t, QrGridScratch* sc) {
         rs[c] = sum;
       }
     }
-    for (int r = 0; r < side; ++r) {
+    const double* rsum = sc->row_sum.data();
+    for (int r = lo; r < hi; ++r) {
       const int r0 = std::max(0, r - 2), r1 = std::min(side - 1, r + 2);
-      for (int c = 0; c < side; ++c) {
+      for (int c = lo; c < hi; ++c) {
         double sum = 0;
-        for (int rr = r0; rr <= r1; ++rr) sum += sc->row_sum[static_cast<size_t>(rr * side + c)];
+        for (int rr = r0; rr <= r1; ++rr) sum += rsum[static_cast<size_t>(rr * side + c)];
         const int cnt = (r1 - r0 + 1) * (std::min(side - 1, c + 2) - std::max(0, c - 2) + 1);
         sc->mean[static_cast<size_t>(r * side + c)] = static_cast<float>(sum / cnt);
       }
