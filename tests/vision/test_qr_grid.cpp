@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <random>
+#include <set>
 #include <string>
 
 #include "agv/sim/render.hpp"
@@ -247,11 +248,19 @@ TEST(QrGrid, VerifiedReadAgreesWithZxingWithinTheBound) {
       std::shuffle(format.begin(), format.end(), rng);
       // Up to the bound of data errors plus up to one format error; every fourth trial one more
       // data error or a second format error, which must not be verified.
+      // Over the bound means one more wrong codeword: bound + 1 modules of distinct codewords.
       const bool over = trial % 4 == 3;
       const int n_data = over && trial % 8 == 3 ? bound + 1 : bound - trial % 3;
       const int n_format = over && trial % 8 == 7 ? 2 : trial % 2;
-      for (int k = 0; k < n_data; ++k)
-        flip(&s, data[static_cast<size_t>(k)].first, data[static_cast<size_t>(k)].second);
+      std::set<int> codewords;
+      for (size_t k = 0, flipped = 0; k < data.size() && flipped < static_cast<size_t>(n_data);
+           ++k) {
+        const auto [r, c] = data[k];
+        const int cw = qr_codeword_of_module(bits.n, r, c);
+        if (n_data > bound && (cw < 0 || !codewords.insert(cw).second)) continue;
+        flip(&s, r, c);
+        ++flipped;
+      }
       for (int k = 0; k < n_format; ++k)
         flip(&s, format[static_cast<size_t>(k)].first, format[static_cast<size_t>(k)].second);
       std::string via_zxing, via_expected;
@@ -336,14 +345,21 @@ TEST(QrGrid, CodeBookReadsTheOneMappedCodeWithinTheBoundAsZxingDoes) {
     const int n = encode(text).height();
     const int bound = qr_verified_max_data_errors(n);
     std::vector<std::pair<int, int>> data = data_modules(n);
-    int verified = 0;
+    int verified = 0, n_over = 0;
     for (int trial = 0; trial < 60; ++trial) {
       QrSamples s = samples_of(encode(text), 0.0, 0.0, 1);
       std::shuffle(data.begin(), data.end(), rng);
-      const bool over = trial % 3 == 2;
-      const int n_data = over ? bound + 1 + trial % 4 : bound - trial % 2;
-      for (int k = 0; k < n_data; ++k)
-        flip(&s, data[static_cast<size_t>(k)].first, data[static_cast<size_t>(k)].second);
+      // Every third trial has more wrong modules than the bound; it is over the bound when they
+      // fall in more codewords than that (two in one codeword are one error).
+      const int n_data = trial % 3 == 2 ? bound + 1 + trial % 4 : bound - trial % 2;
+      std::set<int> codewords;
+      for (int k = 0; k < n_data; ++k) {
+        const auto [r, c] = data[static_cast<size_t>(k)];
+        flip(&s, r, c);
+        if (qr_codeword_of_module(n, r, c) >= 0) codewords.insert(qr_codeword_of_module(n, r, c));
+      }
+      const bool over = static_cast<int>(codewords.size()) > bound;
+      n_over += over;
       std::string via_zxing, via_book;
       scratch.zxing_runs = 0;
       const bool z = decode_qr_grid(s, QrThreshold::kMidpoint, &via_zxing, &scratch);
@@ -359,7 +375,8 @@ TEST(QrGrid, CodeBookReadsTheOneMappedCodeWithinTheBoundAsZxingDoes) {
         EXPECT_EQ(via_book, text);
       }
     }
-    EXPECT_EQ(verified, 40) << text;
+    EXPECT_EQ(verified + n_over, 60) << text;
+    EXPECT_GE(n_over, 10) << text;
   }
   // A mapped code that zxing does not read back to its text is never offered.
   std::string wrong_text = texts[0] + "X";
@@ -582,4 +599,90 @@ TEST(QrGrid, BinarizationEqualsItsDefinitionBitForBit) {
     }
   }
   EXPECT_EQ(grids, 2 * 4 * 20 * 3);
+}
+
+// The placement of the codewords (ISO/IEC 18004 7.7.3): 8 modules each, 26 codewords for version
+// 1 and 44 plus 7 remainder modules for version 2, nothing on function or format modules, and the
+// first codeword in the bottom-right 2 x 4 block (read upwards, right column first).
+TEST(QrGrid, CodewordPlacementCoversEveryDataModuleOnce) {
+  for (int n : {21, 25}) {
+    std::vector<int> per_codeword(n == 21 ? 26 : 44, 0);
+    int remainder = 0;
+    for (const auto& [r, c] : data_modules(n)) {
+      const int cw = qr_codeword_of_module(n, r, c);
+      if (cw < 0) {
+        ++remainder;
+        continue;
+      }
+      ASSERT_LT(cw, static_cast<int>(per_codeword.size()));
+      ++per_codeword[static_cast<size_t>(cw)];
+    }
+    for (int k : per_codeword) EXPECT_EQ(k, 8) << n;
+    EXPECT_EQ(remainder, n == 21 ? 0 : 7);
+    for (int r = n - 4; r < n; ++r) {
+      EXPECT_EQ(qr_codeword_of_module(n, r, n - 1), 0);
+      EXPECT_EQ(qr_codeword_of_module(n, r, n - 2), 0);
+    }
+    EXPECT_EQ(qr_codeword_of_module(n, 0, 0), -1);  // finder
+    EXPECT_EQ(qr_codeword_of_module(n, 8, 0), -1);  // format
+    EXPECT_EQ(qr_codeword_of_module(n, -1, 3), -1);
+  }
+  EXPECT_EQ(qr_codeword_of_module(29, 0, 0), -1);
+}
+
+// Clustered errors (a smear along one edge of the code): many wrong modules in few codewords. The
+// verified read counts codewords, so it takes up to the bound of wrong codewords however many of
+// their modules are wrong, and zxing reads the same text from the same grid; one more wrong
+// codeword is not verified.
+TEST(QrGrid, VerifiedReadCountsWrongCodewordsNotModules) {
+  QrGridScratch scratch;
+  std::mt19937_64 rng(5);
+  for (const std::string text : {kFull, kIdOnly}) {
+    const ZXing::BitMatrix bm = encode(text);
+    const QrBits bits = bits_of(text);
+    const QrExpected expected[] = {{&bits, &text}};
+    const int bound = qr_verified_max_data_errors(bits.n);
+    const int n_cw = bits.n == 21 ? 26 : 44;
+    std::vector<std::vector<std::pair<int, int>>> modules(static_cast<size_t>(n_cw));
+    for (const auto& [r, c] : data_modules(bits.n)) {
+      const int cw = qr_codeword_of_module(bits.n, r, c);
+      if (cw >= 0) modules[static_cast<size_t>(cw)].emplace_back(r, c);
+    }
+    std::vector<int> order(static_cast<size_t>(n_cw));
+    for (int k = 0; k < n_cw; ++k) order[static_cast<size_t>(k)] = k;
+    int verified_beyond_modules = 0;
+    for (int trial = 0; trial < 60; ++trial) {
+      const bool over = trial % 3 == 2;
+      const int wrong = over ? bound + 1 : bound - trial % 2;
+      std::shuffle(order.begin(), order.end(), rng);
+      QrSamples s = samples_of(bm, 0.0, 0.0, 1);
+      int flipped = 0;
+      for (int k = 0; k < wrong; ++k) {
+        auto& ms = modules[static_cast<size_t>(order[static_cast<size_t>(k)])];
+        std::shuffle(ms.begin(), ms.end(), rng);
+        const int m = 1 + static_cast<int>(rng() % 8);  // 1 to 8 of its modules
+        for (int j = 0; j < m; ++j)
+          flip(&s, ms[static_cast<size_t>(j)].first, ms[static_cast<size_t>(j)].second);
+        flipped += m;
+      }
+      std::string via_zxing, via_expected;
+      const bool z = decode_qr_grid(s, QrThreshold::kMidpoint, &via_zxing, &scratch);
+      const bool e = decode_qr_grid(s, QrThreshold::kMidpoint, &via_expected, &scratch, expected);
+      EXPECT_EQ(scratch.verified, !over) << text << " trial " << trial;
+      if (over) {
+        EXPECT_EQ(e, z);
+        if (e) {
+          EXPECT_EQ(via_expected, via_zxing);
+        }
+        continue;
+      }
+      verified_beyond_modules += flipped > bound;
+      ASSERT_TRUE(e);
+      EXPECT_EQ(via_expected, text);
+      ASSERT_TRUE(z) << text << " trial " << trial << ": zxing failed where the read was verified";
+      EXPECT_EQ(via_zxing, text);
+    }
+    // Most verified grids had more wrong modules than the bound: the module count refused them.
+    EXPECT_GE(verified_beyond_modules, 30) << text;
+  }
 }

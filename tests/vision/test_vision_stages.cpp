@@ -8,6 +8,7 @@
 #include <random>
 #include <vector>
 
+#include "agv/vision/bilinear.hpp"
 #include "agv/vision/edges.hpp"
 
 using namespace agv;
@@ -264,4 +265,40 @@ TEST(VisionLineFit, RansacStartRejectsParallelOccluderEdge) {
   EXPECT_NEAR(ransac.line.d / ransac.line.ny, 0.0, 0.01);
   EXPECT_LT(std::abs(rad_to_deg(reduce_angle_90(ransac.line.angle_rad(), 0.0))), 0.01);
   for (size_t i = 110; i < pts.size(); ++i) EXPECT_EQ(w[i], 0.0);
+}
+
+// The sampler of the logo and QR loops gives sample()'s value to the last bit, inside, on the
+// last row and column, and outside (refused), also on images too small for its fast path and on
+// a region of a larger image (row step larger than the width).
+TEST(Bilinear, GreySamplerEqualsSampleBitForBit) {
+  std::mt19937_64 rng(3);
+  cv::Mat big(60, 80, CV_8UC1);
+  cv::randu(big, 0, 256);
+  const cv::Mat images[] = {big, big(cv::Rect(7, 5, 33, 21)),
+                            cv::Mat(1, 9, CV_8UC1, cv::Scalar(77)),
+                            cv::Mat(9, 1, CV_8UC1, cv::Scalar(33)), big(cv::Rect(0, 0, 2, 2))};
+  int inside = 0;
+  for (const cv::Mat& img : images) {
+    const agv::vision::GreySampler grey(img);
+    std::uniform_real_distribution<double> ux(-1.0, img.cols), uy(-1.0, img.rows);
+    std::vector<std::pair<double, double>> pts = {{0, 0},
+                                                  {img.cols - 1.0, img.rows - 1.0},
+                                                  {img.cols - 1.0, 0},
+                                                  {0, img.rows - 1.0},
+                                                  {img.cols - 0.9999, 0},
+                                                  {-1e-9, 0},
+                                                  {std::nan(""), 0}};
+    for (int k = 0; k < 2000; ++k) pts.emplace_back(ux(rng), uy(rng));
+    for (const auto& [x, y] : pts) {
+      double a = -1, b = -1;
+      const bool ok_a = agv::vision::sample(img, x, y, &a);
+      const bool ok_b = grey(x, y, &b);
+      ASSERT_EQ(ok_a, ok_b) << x << ", " << y;
+      if (ok_a) {
+        ASSERT_EQ(a, b) << x << ", " << y;
+        ++inside;
+      }
+    }
+  }
+  EXPECT_GT(inside, 3000);  // most points of the three 2-D images
 }

@@ -52,6 +52,7 @@ void LandmarkLocalizer::Impl::build_logo() {
 // Logo NCC at the four turns of the fitted square; turn q's forward axis is side q's normal.
 LogoScores LandmarkLocalizer::Impl::logo_scores(const cv::Mat& img, Vec2 c_mm, double beta) {
   LogoScores r;
+  const GreySampler grey(img);
   for (int q = 0; q < 4; ++q) {
     const PlaneProjector page = page_projector(c_mm, beta - q * kPi / 2.0);
     logo_samples.clear();
@@ -59,7 +60,7 @@ LogoScores LandmarkLocalizer::Impl::logo_scores(const cv::Mat& img, Vec2 c_mm, d
     for (const Vec2& uv : logo_page_pts) {
       Vec2 px;
       double val = 0;
-      if (!page.to_pixel(uv, &px) || !sample(img, px.x, px.y, &val)) {
+      if (!page.to_pixel(uv, &px) || !grey(px.x, px.y, &val)) {
         all_in = false;
         break;
       }

@@ -24,6 +24,7 @@
 #include "agv/common/camera_model.hpp"
 #include "agv/common/geometry.hpp"
 #include "agv/common/landmark.hpp"
+#include "agv/vision/bilinear.hpp"
 #include "agv/vision/edges.hpp"
 #include "agv/vision/landmark_localizer.hpp"
 #include "agv/vision/map_identity.hpp"
@@ -102,19 +103,6 @@ struct LogoScores {
 inline Vec2 rot(Vec2 v, double a) {
   const double c = std::cos(a), s = std::sin(a);
   return {c * v.x - s * v.y, s * v.x + c * v.y};
-}
-
-// Bilinear sample of an 8-bit image; false outside.
-inline bool sample(const cv::Mat& img, double x, double y, double* v) {
-  if (!(x >= 0.0 && y >= 0.0 && x <= img.cols - 1.0 && y <= img.rows - 1.0)) return false;
-  const int x0 = std::min(static_cast<int>(x), img.cols - 2 < 0 ? 0 : img.cols - 2);
-  const int y0 = std::min(static_cast<int>(y), img.rows - 2 < 0 ? 0 : img.rows - 2);
-  const double fx = x - x0, fy = y - y0;
-  const std::uint8_t* r0 = img.ptr<std::uint8_t>(y0);
-  const std::uint8_t* r1 = img.ptr<std::uint8_t>(std::min(y0 + 1, img.rows - 1));
-  const int x1 = std::min(x0 + 1, img.cols - 1);
-  *v = (1 - fy) * ((1 - fx) * r0[x0] + fx * r0[x1]) + fy * ((1 - fx) * r1[x0] + fx * r1[x1]);
-  return true;
 }
 
 inline double ncc(const std::vector<double>& a, const std::vector<double>& b) {

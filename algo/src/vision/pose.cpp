@@ -36,10 +36,13 @@ constexpr double kRansacInlierPx = 0.5;
 // Floor of a line angle's variance (rad^2) so a perfect synthetic line gets a finite weight.
 constexpr double kMinLineAngleVar = 1e-14;
 // Joint fit: Gauss-Newton iterations per robust round, and the rounds (re-weightings) when
-// robust; the round ends early once a step is below kConvergedStep (mm and rad).
+// robust; the round ends early once a step is below kConvergedStep (mm and rad). Gauss-Newton
+// converges quadratically here: the steps of a round measure about 1e-3, 1e-7, 1e-15 on the cost
+// recording, so a step under 1e-6 (a nanometre) leaves an error of about 1e-13, and the round
+// ends after two steps instead of three (a third fewer normal-equation passes).
 constexpr int kJointIterationsPerRound = 5;
 constexpr int kJointRobustRounds = 3;
-constexpr double kConvergedStep = 1e-9;
+constexpr double kConvergedStep = 1e-6;
 // Joint re-weighting: robust sigma from the MAD (1.4826 = 1 / Phi^-1(3/4), consistent for
 // Gaussian residuals) with a floor in mm (a perfect frame would otherwise reject everything).
 constexpr double kMadToSigma = 1.4826;

@@ -319,6 +319,7 @@ bool LandmarkLocalizer::Impl::sample_qr(const cv::Mat& img, Vec2 c_mm, double fw
   const int max_missing_data = cfg.qr_max_missing_modules;
   const double ou[kSamplesPerModule] = {0, 1, -1, 0, 0}, ov[kSamplesPerModule] = {0, 0, 0, 1, -1};
   const int samples = centre_only ? 1 : kSamplesPerModule;
+  const GreySampler grey(img);
   for (int r = 0; r < side; ++r) {
     for (int c = 0; c < side; ++c) {
       const Vec2 uv{geom.qr_u0_mm() + (c - s->ring + 0.5) * m,
@@ -327,8 +328,7 @@ bool LandmarkLocalizer::Impl::sample_qr(const cv::Mat& img, Vec2 c_mm, double fw
       double acc = 0, v = 0;
       bool inside = to_px(uv, &px);
       for (int k = 0; k < samples && inside; ++k) {
-        inside =
-            sample(img, px.x + ou[k] * du.x + ov[k] * dv.x, px.y + ou[k] * du.y + ov[k] * dv.y, &v);
+        inside = grey(px.x + ou[k] * du.x + ov[k] * dv.x, px.y + ou[k] * du.y + ov[k] * dv.y, &v);
         acc += v;
       }
       if (!inside) {

@@ -239,21 +239,67 @@ struct ModuleMasks {
   }
 };
 
+// Codeword of each module of a size (qr_codeword_of_module), in the module order of the packed
+// grids: the standard's placement, pairs of columns from the right, upwards then downwards,
+// skipping the vertical timing column and every function and format module.
+struct CodewordTable {
+  std::array<std::int8_t, 25 * 25> of{};
+  explicit CodewordTable(int n) {
+    of.fill(-1);
+    const int codewords = n == 21 ? 26 : 44;  // version 1 and 2, every level
+    int bit = 0;
+    bool upward = true;
+    for (int right = n - 1; right > 0; right -= 2) {
+      if (right == 6) --right;
+      for (int k = 0; k < n; ++k) {
+        const int r = upward ? n - 1 - k : k;
+        for (int c = right; c > right - 2; --c) {
+          if (qr_fixed_module(n, r, c) >= 0 || qr_format_module(n, r, c)) continue;
+          if (bit / 8 < codewords)
+            of[static_cast<size_t>(r * n + c)] = static_cast<std::int8_t>(bit / 8);
+          ++bit;
+        }
+      }
+      upward = !upward;
+    }
+  }
+};
+
+const CodewordTable& codeword_table(int n) {
+  static const CodewordTable t21(21), t25(25);
+  return n == 21 ? t21 : t25;
+}
+
 // True when the packed grid is within the verified-read bounds of the packed code of the same size
-// (qr_grid.hpp): at most qr_verified_max_data_errors data modules and kQrVerifiedMaxFormatErrors
-// format modules differ; fixed modules do not count.
+// (qr_grid.hpp): data modules differ in at most qr_verified_max_data_errors codewords, and at most
+// kQrVerifiedMaxFormatErrors format modules differ; fixed modules do not count.
 bool within_verified_bounds(int n, const std::array<std::uint64_t, 10>& grid,
                             const std::array<std::uint64_t, 10>& code) {
   static const ModuleMasks masks21(21), masks25(25);
   const ModuleMasks& m = n == 21 ? masks21 : masks25;
-  const int max_data = qr_verified_max_data_errors(n);
+  const int max_cw = qr_verified_max_data_errors(n);
+  // More than 8 wrong modules per correctable codeword cannot be within the bound: the module
+  // count screens most non-matching codes with popcounts alone.
+  const int max_modules = 8 * max_cw;
+  std::array<std::uint64_t, 10> data_diff{};
   int data = 0, format = 0;
-  for (size_t k = 0; k < grid.size() && data <= max_data; ++k) {
+  for (size_t k = 0; k < grid.size() && data <= max_modules; ++k) {
     const std::uint64_t diff = grid[k] ^ code[k];
-    data += std::popcount(diff & m.data[k]);
+    data_diff[k] = diff & m.data[k];
+    data += std::popcount(data_diff[k]);
     format += std::popcount(diff & m.format[k]);
   }
-  return data <= max_data && format <= kQrVerifiedMaxFormatErrors;
+  if (data > max_modules || format > kQrVerifiedMaxFormatErrors) return false;
+  if (data <= max_cw) return true;  // each wrong module is at most one wrong codeword
+  const CodewordTable& t = codeword_table(n);
+  std::uint64_t wrong = 0;  // bit w: codeword w has a wrong module (44 codewords at most)
+  for (size_t k = 0; k < data_diff.size(); ++k) {
+    for (std::uint64_t d = data_diff[k]; d != 0; d &= d - 1) {
+      const int cw = t.of[k * 64 + static_cast<size_t>(std::countr_zero(d))];
+      if (cw >= 0) wrong |= std::uint64_t{1} << cw;
+    }
+  }
+  return std::popcount(wrong) <= max_cw;
 }
 
 // The binarized grid is the expected code up to what Reed-Solomon corrects (qr_grid.hpp).
@@ -266,6 +312,11 @@ bool matches_expected(const QrSamples& s, const QrGridScratch& sc, const QrExpec
 }
 
 }  // namespace
+
+int qr_codeword_of_module(int n, int r, int c) {
+  if ((n != 21 && n != 25) || r < 0 || c < 0 || r >= n || c >= n) return -1;
+  return codeword_table(n).of[static_cast<size_t>(r * n + c)];
+}
 
 void QrCodeBook::add(const QrBits* bits, const std::string* text) {
   if (!bits || !text || (bits->n != 21 && bits->n != 25) ||

@@ -57,12 +57,18 @@ struct QrExpected {
   const std::string* text = nullptr;
 };
 
-// Largest number of disagreeing data modules for which a grid is taken as the expected ECC-M
-// code without decoding: one module error corrupts at most one codeword, and Reed-Solomon corrects
-// up to (EC codewords - misdecode protection codewords) / 2 per block, so zxing would return
-// exactly the expected code at this count. Version 1-M: (10 - 2) / 2 = 4; version 2-M: 16 / 2 = 8
-// (ISO/IEC 18004 table 9; both have one block). 0 for other sizes.
+// Largest number of codewords with a disagreeing data module for which a grid is taken as the
+// expected ECC-M code without decoding: Reed-Solomon corrects up to (EC codewords - misdecode
+// protection codewords) / 2 wrong codewords per block, so zxing would return exactly the expected
+// code at this count. Version 1-M: (10 - 2) / 2 = 4; version 2-M: 16 / 2 = 8 (ISO/IEC 18004
+// table 9; both have one block). 0 for other sizes. Counting codewords rather than modules
+// matters for clustered errors (a smear or a shadow along one edge of the code): eight wrong
+// modules of one codeword are one error, and the version-2 remainder modules none.
 int qr_verified_max_data_errors(int n);
+// The codeword (0-based, in the standard's placement order) that data module (row, col) of an
+// n x n code carries a bit of; -1 for function, format and remainder modules, other sizes and
+// positions outside the code.
+int qr_codeword_of_module(int n, int row, int col);
 // At most this many of the 30 format-information modules may disagree: the format BCH code
 // (distance 7) then still points to the expected format in both copies.
 constexpr int kQrVerifiedMaxFormatErrors = 1;
