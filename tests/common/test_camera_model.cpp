@@ -178,8 +178,10 @@ TEST(CameraModel, PlaneProjectorMatchesVehicleToPixel) {
   tilted.mount = {35.0, -12.0, deg_to_rad(3.0), 180.0, deg_to_rad(1.5), deg_to_rad(-1.2)};
   CameraModel yawed = tilted;
   yawed.mount.roll_rad = yawed.mount.pitch_rad = 0.0;
+  CameraModel radial = yawed;  // the lens terms each projector keeps: all, radial only, none
+  radial.intrinsics.p1 = radial.intrinsics.p2 = 0.0;
   int compared = 0;
-  for (const CameraModel& m : {tilted, yawed, CameraModel::default_640x480()}) {
+  for (const CameraModel& m : {tilted, yawed, radial, CameraModel::default_640x480()}) {
     const FloorProjector proj(m);
     for (const Pose2 pose : {Pose2{0, 0, 0}, Pose2{12.5, -30.0, 0.7}, Pose2{-40, 25, -2.9}}) {
       const double co = std::cos(pose.theta_rad), si = std::sin(pose.theta_rad);
@@ -201,7 +203,7 @@ TEST(CameraModel, PlaneProjectorMatchesVehicleToPixel) {
       EXPECT_EQ(out.x, 7.0);
     }
   }
-  EXPECT_EQ(compared, 3 * 3 * 81);
+  EXPECT_EQ(compared, 4 * 3 * 81);
   CameraModel steep = CameraModel::default_640x480();
   steep.mount.pitch_rad = deg_to_rad(45.0);
   Vec2 px;

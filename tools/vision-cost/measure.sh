@@ -3,6 +3,7 @@
 # (qemu-aarch64 with insn_count_plugin.c), for the same frames, both RelWithDebInfo (-O2) with the
 # architectures' baseline instruction sets; docs/deployment.md reports it.
 #   bash tools/vision-cost/measure.sh [RECORDING] [FRAMES]
+# AGV_COST_PROFILE=1 also writes aarch64 instructions per function (insn_profile_plugin.c).
 # AGV_COST_ARGS adds vision_cost options to every run, e.g.
 #   AGV_COST_ARGS="--tracking 3 --map tools/maps/default_grid.csv --row-step 1"
 # Without RECORDING it simulates one (agvloc-desk sim, 20 s at 10 fps, seed 7). Needs the cross
@@ -28,6 +29,8 @@ cmake --preset aarch64 -DAGV_BUILD_VISION_COST=ON >/dev/null
 cmake --build "$arm" -j "$jobs" --target vision_cost
 gcc -O2 -shared -fPIC -Wall -Wextra -o "$res/insn_count_plugin.so" \
     tools/vision-cost/insn_count_plugin.c
+gcc -O2 -shared -fPIC -Wall -Wextra -o "$res/insn_profile_plugin.so" \
+    tools/vision-cost/insn_profile_plugin.c
 
 rec="${1:-}"
 frames="${2:-200}"
@@ -66,6 +69,14 @@ for cls in ok none free cut; do
       "$res/x86qemu.$cls.txt"
   awk -v c="$cls" -v n="$n" -v x="$ir" -v a="$arm_sum" \
       'BEGIN {printf "%-6s %8d %16.0f %16.0f %8.3f\n", c, n, x / n, a / n, a / x}'
+  # AGV_COST_PROFILE=1: where the aarch64 instructions go, per function (inlined code counts for
+  # its caller), as totals over the class's frames.
+  if [ "${AGV_COST_PROFILE:-0}" = 1 ]; then
+    qemu-aarch64 -E "$extra" -plugin "$res/insn_profile_plugin.so,out=$res/aarch64-profile.$cls.txt" \
+                 "$arm/tools/vision-cost/vision_cost" "$rec" --frames "$frames" --class "$cls" ${AGV_COST_ARGS:-} \
+                 >/dev/null 2>&1
+    echo "  aarch64 per function: $res/aarch64-profile.$cls.txt (c++filt for names)"
+  fi
   sort -n "$res/aarch64.$cls.txt" |
     awk -v c="$cls" '{v[NR] = $1} END {printf "  aarch64 %s: min %d median %d max %d\n", c, v[1], v[int((NR + 1) / 2)], v[NR]}'
 done

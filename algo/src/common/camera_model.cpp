@@ -106,6 +106,15 @@ PlaneProjector FloorProjector::plane(Vec2 o, Vec2 eu, Vec2 ev) const {
   PlaneProjector p;
   const CameraMount& mount = m_.mount;
   p.k_ = m_.intrinsics;
+  const CameraIntrinsics& k = p.k_;
+  const bool radial = k.k1 != 0.0 || k.k2 != 0.0 || k.k3 != 0.0;
+  const bool tangential = k.p1 != 0.0 || k.p2 != 0.0;
+  // Non-finite coefficients keep the full formula (its NaN) rather than a dropped term.
+  const bool finite = std::isfinite(k.k1) && std::isfinite(k.k2) && std::isfinite(k.k3) &&
+                      std::isfinite(k.p1) && std::isfinite(k.p2);
+  p.lens_ = !finite || tangential ? PlaneProjector::Lens::kFull
+            : radial              ? PlaneProjector::Lens::kRadial
+                                  : PlaneProjector::Lens::kNone;
   if (!(mount.height_mm > 0.0)) return p;
   // Camera point = C * (floor point - camera position), C the 3x3 floor -> camera rotation
   // (rows), then floor point - camera position = (o - offset) + u * eu + v * ev, z = -height.

@@ -112,16 +112,28 @@ class PlaneProjector {
     if (!(z > z_min_) || !std::isfinite(x) || !std::isfinite(y)) return false;
     const double xn = x / z, yn = y / z;
     const CameraIntrinsics& k = k_;
-    const double r2 = xn * xn + yn * yn;
-    const double radial = 1.0 + r2 * (k.k1 + r2 * (k.k2 + r2 * k.k3));
-    const double xd = xn * radial + 2.0 * k.p1 * xn * yn + k.p2 * (r2 + 2.0 * xn * xn);
-    const double yd = yn * radial + k.p1 * (r2 + 2.0 * yn * yn) + 2.0 * k.p2 * xn * yn;
+    double xd = xn, yd = yn;
+    // The terms of CameraModel::distort_normalized_to_pixel whose coefficients are all zero add
+    // exact zeros (every value here is finite), so leaving them out gives the same pixel.
+    if (lens_ != Lens::kNone) {
+      const double r2 = xn * xn + yn * yn;
+      const double radial = 1.0 + r2 * (k.k1 + r2 * (k.k2 + r2 * k.k3));
+      if (lens_ == Lens::kRadial) {
+        xd = xn * radial;
+        yd = yn * radial;
+      } else {
+        xd = xn * radial + 2.0 * k.p1 * xn * yn + k.p2 * (r2 + 2.0 * xn * xn);
+        yd = yn * radial + k.p1 * (r2 + 2.0 * yn * yn) + 2.0 * k.p2 * xn * yn;
+      }
+    }
     *pixel = {k.fx * xd + k.cx, k.fy * yd + k.cy};
     return true;
   }
 
  private:
   friend class FloorProjector;
+  enum class Lens { kNone, kRadial, kFull };  // which distortion terms are non-zero
+  Lens lens_ = Lens::kFull;
   CameraIntrinsics k_;
   double a_[9] = {};  // camera point (x, y, z) = a * (u, v, 1)
   double z_min_ = std::numeric_limits<double>::infinity();  // built invalid: every point fails
