@@ -209,7 +209,7 @@ struct LandmarkLocalizer::Impl {
   FloorProjector metric_floor{CameraModel{}};
   // Pixels of the landmark's page (LandmarkGeometry's u, v in mm) for the landmark at c_mm with
   // forward angle fwd: metric_floor.vehicle_to_pixel(transform({c_mm, fwd},
-  // page_to_landmark(uv))), to rounding, at half the cost per point (PlaneProjector).
+  // page_to_landmark(uv))), to rounding, with fewer operations per point (PlaneProjector).
   PlaneProjector page_projector(Vec2 c_mm, double fwd) const {
     const double co = std::cos(fwd), si = std::sin(fwd);
     // page_to_landmark(u, v) = (-v, -u), then the rotation by fwd.

@@ -26,7 +26,7 @@ int finder_value(int r, int c) {  // r, c in 0..6 inside a finder pattern
 // ring of quiet-zone modules enters their windows. The loops add in the same order as the plain
 // per-module sums they replace (up, down, left, right; then left to right and top to bottom), so
 // every value is the same to the last bit: a branch-free interior and the bounds only at the
-// edges cut binarize from about 170 to about 70 x86-64 instructions per module (tools/vision-cost).
+// edges cut binarize's instructions by a third (x86-64 callgrind, the tracked cost recording).
 void binarize(const QrSamples& s, QrThreshold t, QrGridScratch* sc) {
   const int side = s.side();
   const size_t nn = static_cast<size_t>(side) * static_cast<size_t>(side);

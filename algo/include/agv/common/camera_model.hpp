@@ -95,11 +95,11 @@ class FloorProjector {
 
 // FloorProjector::vehicle_to_pixel for the points of one plane at one pose. The floor point ->
 // camera point step is affine, and so is (u, v) -> floor point, so both fold into one 3x3
-// matrix built once per pose: a point then costs 9 multiply-adds, one division and the lens
-// model, instead of a rigid transform, the mount rotation and two calls. The logo and QR module
-// samples (about 2000 points a landmark frame) were a fifth of a tracked frame's instructions
-// (docs/performance.md). Equal to vehicle_to_pixel up to rounding (a few 1e-13 px; tested in
-// tests/common/test_camera_model.cpp). Keeps a copy of the intrinsics.
+// matrix built once per pose: a point then costs 9 multiply-adds, two divisions and the lens
+// model, instead of a rigid transform, the mount rotation and two calls. The projections of the
+// logo and QR module samples (about 2000 points a landmark frame) were about a fifth of a tracked
+// frame's instructions (docs/performance.md). Equal to vehicle_to_pixel up to rounding (within
+// 1e-9 px in tests/common/test_camera_model.cpp). Keeps a copy of the intrinsics.
 class PlaneProjector {
  public:
   // False (pixel untouched) where vehicle_to_pixel is false: behind a tilted camera, a

@@ -25,7 +25,7 @@ inline bool sample(const cv::Mat& img, double x, double y, double* v) {
 // sample() for many points of one image (logo and QR module samples): the image's geometry is
 // read once, and on an image of at least 2 x 2 pixels the clamps of the second row and column
 // fall away (the first ones are at most size - 2). The same arithmetic, so the same values to the
-// last bit; about a third fewer instructions per sample (tools/vision-cost).
+// last bit, with fewer instructions per sample.
 class GreySampler {
  public:
   explicit GreySampler(const cv::Mat& img)

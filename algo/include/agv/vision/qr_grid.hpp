@@ -89,10 +89,12 @@ struct QrGridScratch {
 // (docs/tracking.md "Verified read"): which code, if any, a binarized grid is within the bounds
 // above of. At most one can be. Two valid codes of the same size and format differ in at least
 // d = 2 t + 1 + p codewords (t the bound, p the misdecode protection: 2 for version 1-M, 0 for
-// 2-M), so in more than 2 t modules, and codes of different formats differ in at least 14 format
-// modules (BCH distance 7, two copies). So the answer is what zxing would decode, whatever the
-// order of the codes. A match costs an XOR and two popcounts per 64 modules and code, against a
-// zxing pure read (0.16 M aarch64 instructions per landmark frame saved, docs/tracking.md).
+// 2-M), so a grid within t wrong codewords of one is more than t from any other, and codes of
+// different formats differ in at least 14 format modules (BCH distance 7, two copies). So the
+// answer is what zxing would decode, whatever the order of the codes. A match costs an XOR and two
+// popcounts per 64 modules and code (plus a codeword count when more than t modules differ),
+// against a zxing pure read (0.16 M aarch64 instructions per landmark frame saved,
+// docs/tracking.md).
 class QrCodeBook {
  public:
   // Adds a code (n 21 or 25; others are ignored). The pointers must outlive the book.
