@@ -1,8 +1,11 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <limits>
+#include <vector>
 
 #include "agv/common/camera_model.hpp"
 #include "agv/common/landmark.hpp"
@@ -214,4 +217,59 @@ TEST(CameraModel, PlaneProjectorMatchesVehicleToPixel) {
   flat.mount.height_mm = 0.0;
   EXPECT_FALSE(FloorProjector(flat).plane({0, 0}, {1, 0}, {0, 1}).to_pixel({0, 0}, &px));
   EXPECT_FALSE(PlaneProjector().to_pixel({0, 0}, &px));
+}
+
+// FloorProjector::undistort skips the Newton iteration for a lens without distortion; it must give
+// CameraModel's answer to the last bit, including its refusals (non-finite input, a point whose
+// Newton terms overflow, a failed round trip, bad intrinsics), and delegate for a real lens.
+TEST(CameraModel, UndistortWithoutDistortionEqualsTheNewtonIterationBitForBit) {
+  const double inf = std::numeric_limits<double>::infinity();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const CameraModel plain = CameraModel::default_640x480();
+  CameraModel tiny_f = plain;  // normalised coordinates near overflow
+  tiny_f.intrinsics.fx = tiny_f.intrinsics.fy = 1e-300;
+  CameraModel bad_c = plain;
+  bad_c.intrinsics.cx = nan;
+  CameraModel no_f = plain;
+  no_f.intrinsics.fy = 0.0;
+  CameraModel lens = plain;
+  lens.intrinsics.k1 = -0.2;
+  // 62882254552920.35 and 4.728825993706969e+20 fail the round trip of the plain model.
+  std::vector<double> coords{-0.0,
+                             0.0,
+                             0.5,
+                             319.5,
+                             639.0,
+                             -250.25,
+                             62882254552920.35,
+                             4.728825993706969e+20,
+                             -1e15,
+                             1e150,
+                             1e154,
+                             -1e155,
+                             1e160,
+                             1e300,
+                             inf,
+                             nan};
+  for (int i = 0; i < 40; ++i) coords.push_back(-100.0 + 21.37 * i);
+  int compared = 0, refused = 0;
+  for (const CameraModel& m : {plain, tiny_f, bad_c, no_f, lens}) {
+    const FloorProjector proj(m);
+    for (const double x : coords) {
+      for (const double y : coords) {
+        Vec2 want{7.0, 7.0}, got{7.0, 7.0};
+        const bool ok_want = m.undistort_pixel_to_normalized({x, y}, &want);
+        const bool ok_got = proj.undistort({x, y}, &got);
+        ASSERT_EQ(ok_got, ok_want) << x << ", " << y;
+        EXPECT_EQ(std::bit_cast<std::uint64_t>(got.x), std::bit_cast<std::uint64_t>(want.x));
+        EXPECT_EQ(std::bit_cast<std::uint64_t>(got.y), std::bit_cast<std::uint64_t>(want.y));
+        ++compared;
+        refused += ok_want ? 0 : 1;
+      }
+    }
+  }
+  EXPECT_EQ(compared, 5 * 56 * 56);
+  // Every kind of refusal was exercised, and most plain pixels were mapped.
+  EXPECT_GT(refused, 3 * 56 * 56);
+  EXPECT_LT(refused, 4 * 56 * 56);
 }

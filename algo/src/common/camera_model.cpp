@@ -71,6 +71,8 @@ void CameraMount::rotation_vehicle_from_camera(double r[9]) const {
 
 FloorProjector::FloorProjector(const CameraModel& model)
     : m_(model), tilted_(model.mount.tilted()) {
+  const CameraIntrinsics& k = m_.intrinsics;
+  distortion_free_ = k.k1 == 0.0 && k.k2 == 0.0 && k.k3 == 0.0 && k.p1 == 0.0 && k.p2 == 0.0;
   if (tilted_) {
     m_.mount.rotation_vehicle_from_camera(r_);
   } else {
@@ -145,10 +147,29 @@ PlaneProjector FloorProjector::plane(Vec2 o, Vec2 eu, Vec2 ev) const {
   return p;
 }
 
+bool FloorProjector::undistort(Vec2 pixel, Vec2* xn) const {
+  if (!distortion_free_) return m_.undistort_pixel_to_normalized(pixel, xn);
+  const auto& k = m_.intrinsics;
+  if (!(k.fx > 0.0) || !(k.fy > 0.0) || !std::isfinite(pixel.x) || !std::isfinite(pixel.y)) {
+    return false;
+  }
+  const double x = (pixel.x - k.cx) / k.fx;
+  const double y = (pixel.y - k.cy) / k.fy;
+  // The Newton step's terms multiply zero coefficients by r2 and 3 r2: finite, they vanish and the
+  // step is exactly zero; infinite, they give NaN and the iteration refuses the point. So refuse
+  // it here too.
+  if (!std::isfinite(3.0 * (x * x + y * y))) return false;
+  // distort_normalized_to_pixel without its zero terms: the same round-trip check.
+  const double bx = k.fx * x + k.cx, by = k.fy * y + k.cy;
+  if (!(std::abs(bx - pixel.x) < 1e-6 && std::abs(by - pixel.y) < 1e-6)) return false;
+  *xn = {x, y};
+  return true;
+}
+
 bool FloorProjector::pixel_to_vehicle(Vec2 pixel, Vec2* p) const {
   const CameraMount& mount = m_.mount;
   Vec2 xn;
-  if (!(mount.height_mm > 0.0) || !m_.undistort_pixel_to_normalized(pixel, &xn)) return false;
+  if (!(mount.height_mm > 0.0) || !undistort(pixel, &xn)) return false;
   if (tilted_) {
     // Ray (xn, 1) in C, rotated into V, intersected with the floor z = 0.
     const double* r = r_;
