@@ -1,5 +1,6 @@
 #include "agv/common/camera_model.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 namespace agv {
@@ -69,10 +70,17 @@ void CameraMount::rotation_vehicle_from_camera(double r[9]) const {
   }
 }
 
+LensTerms lens_terms(const CameraIntrinsics& k) {
+  const bool radial = k.k1 != 0.0 || k.k2 != 0.0 || k.k3 != 0.0;
+  const bool tangential = k.p1 != 0.0 || k.p2 != 0.0;
+  const bool finite = std::isfinite(k.k1) && std::isfinite(k.k2) && std::isfinite(k.k3) &&
+                      std::isfinite(k.p1) && std::isfinite(k.p2);
+  return !finite || tangential ? LensTerms::kFull : radial ? LensTerms::kRadial : LensTerms::kNone;
+}
+
 FloorProjector::FloorProjector(const CameraModel& model)
     : m_(model), tilted_(model.mount.tilted()) {
-  const CameraIntrinsics& k = m_.intrinsics;
-  distortion_free_ = k.k1 == 0.0 && k.k2 == 0.0 && k.k3 == 0.0 && k.p1 == 0.0 && k.p2 == 0.0;
+  lens_ = lens_terms(m_.intrinsics);
   if (tilted_) {
     m_.mount.rotation_vehicle_from_camera(r_);
   } else {
@@ -108,15 +116,7 @@ PlaneProjector FloorProjector::plane(Vec2 o, Vec2 eu, Vec2 ev) const {
   PlaneProjector p;
   const CameraMount& mount = m_.mount;
   p.k_ = m_.intrinsics;
-  const CameraIntrinsics& k = p.k_;
-  const bool radial = k.k1 != 0.0 || k.k2 != 0.0 || k.k3 != 0.0;
-  const bool tangential = k.p1 != 0.0 || k.p2 != 0.0;
-  // Non-finite coefficients keep the full formula (its NaN) rather than a dropped term.
-  const bool finite = std::isfinite(k.k1) && std::isfinite(k.k2) && std::isfinite(k.k3) &&
-                      std::isfinite(k.p1) && std::isfinite(k.p2);
-  p.lens_ = !finite || tangential ? PlaneProjector::Lens::kFull
-            : radial              ? PlaneProjector::Lens::kRadial
-                                  : PlaneProjector::Lens::kNone;
+  p.lens_ = lens_;
   if (!(mount.height_mm > 0.0)) return p;
   // Camera point = C * (floor point - camera position), C the 3x3 floor -> camera rotation
   // (rows), then floor point - camera position = (o - offset) + u * eu + v * ev, z = -height.
@@ -148,20 +148,53 @@ PlaneProjector FloorProjector::plane(Vec2 o, Vec2 eu, Vec2 ev) const {
 }
 
 bool FloorProjector::undistort(Vec2 pixel, Vec2* xn) const {
-  if (!distortion_free_) return m_.undistort_pixel_to_normalized(pixel, xn);
+  if (lens_ == LensTerms::kFull) return m_.undistort_pixel_to_normalized(pixel, xn);
   const auto& k = m_.intrinsics;
   if (!(k.fx > 0.0) || !(k.fy > 0.0) || !std::isfinite(pixel.x) || !std::isfinite(pixel.y)) {
     return false;
   }
-  const double x = (pixel.x - k.cx) / k.fx;
-  const double y = (pixel.y - k.cy) / k.fy;
-  // The Newton step's terms multiply zero coefficients by r2 and 3 r2: finite, they vanish and the
-  // step is exactly zero; infinite, they give NaN and the iteration refuses the point. So refuse
-  // it here too.
-  if (!std::isfinite(3.0 * (x * x + y * y))) return false;
-  // distort_normalized_to_pixel without its zero terms: the same round-trip check.
-  const double bx = k.fx * x + k.cx, by = k.fy * y + k.cy;
-  if (!(std::abs(bx - pixel.x) < 1e-6 && std::abs(by - pixel.y) < 1e-6)) return false;
+  const double xd = (pixel.x - k.cx) / k.fx;
+  const double yd = (pixel.y - k.cy) / k.fy;
+  if (lens_ == LensTerms::kNone) {
+    // The Newton step's terms multiply zero coefficients by r2 and 3 r2: finite, they vanish and
+    // the step is exactly zero; infinite, they give NaN and the iteration refuses the point. So
+    // refuse it here too.
+    if (!std::isfinite(3.0 * (xd * xd + yd * yd))) return false;
+    // distort_normalized_to_pixel without its zero terms: the same round-trip check.
+    const double bx = k.fx * xd + k.cx, by = k.fy * yd + k.cy;
+    if (!(std::abs(bx - pixel.x) < 1e-6 && std::abs(by - pixel.y) < 1e-6)) return false;
+    *xn = {xd, yd};
+    return true;
+  }
+  return undistort_radial(pixel, xd, yd, xn);
+}
+
+bool FloorProjector::undistort_radial(Vec2 pixel, double xd, double yd, Vec2* xn) const {
+  const auto& k = m_.intrinsics;
+  // (x, y) = s (xd, yd) with s radial(s^2 rd2) = 1. The 2-D Jacobian has eigenvalues radial
+  // (across the ray) and g = radial + 2 r2 radial' (along it): its determinant is their product.
+  const double rd2 = xd * xd + yd * yd;
+  const double step_scale = std::max(std::abs(xd), std::abs(yd));
+  // Start from the inverted series r_u = r_d (1 - k1 r_d^2 + (3 k1^2 - k2) r_d^4 + ...): on a
+  // lens inside its fold that is one or two of the iteration's steps from the root. Where the
+  // series is far from 1 (far outside the image, a strong lens) it is no better than s = 1.
+  const double series = 1.0 + rd2 * (-k.k1 + rd2 * (3.0 * k.k1 * k.k1 - k.k2));
+  double s = std::abs(series - 1.0) < 0.1 ? series : 1.0;
+  for (int it = 0; it < 20; ++it) {
+    const double r2 = s * s * rd2;
+    const double radial = 1.0 + r2 * (k.k1 + r2 * (k.k2 + r2 * k.k3));
+    const double dradial_dr2 = k.k1 + r2 * (2.0 * k.k2 + 3.0 * r2 * k.k3);
+    const double g = radial + 2.0 * r2 * dradial_dr2;
+    if (!(std::abs(radial * g) > 1e-12)) return false;
+    const double ds = (s * radial - 1.0) / g;
+    s -= ds;
+    // Quadratic convergence: after a step of 1e-9 the error left is of order 1e-18 (the 2-D
+    // iteration takes one more step, to 1e-14, which changes nothing the tests can see).
+    if (std::abs(ds) * step_scale < 1e-9) break;
+  }
+  const double x = s * xd, y = s * yd;
+  const Vec2 back = m_.distort_normalized_to_pixel({x, y});
+  if (!(std::abs(back.x - pixel.x) < 1e-6 && std::abs(back.y - pixel.y) < 1e-6)) return false;
   *xn = {x, y};
   return true;
 }
