@@ -31,6 +31,7 @@ struct Args {
   std::string only;         // run only the fully-visible conditions whose name contains this
   int profile_reps = 0;     // --profile-loop: only process the clean frames this many times (perf)
   int qr_max_missing = -1;  // --qr-max-missing: VisionConfig::qr_max_missing_modules (-1 = default)
+  int qr_max_grid_decodes = -1;  // --qr-max-grid-decodes: VisionConfig's (-1 = default)
   int row_step = 0;         // --row-step: VisionConfig::edge_row_step (0 = default)
   bool tag = false;         // --family tag36h11
   bool speed_compare = false;
@@ -249,6 +250,7 @@ int run(const Args& a) {
   VisionConfig cfg;
   cfg.now_ns = now_ns;
   if (a.qr_max_missing >= 0) cfg.qr_max_missing_modules = a.qr_max_missing;
+  if (a.qr_max_grid_decodes >= 0) cfg.qr_max_grid_decodes = a.qr_max_grid_decodes;
   if (a.row_step > 0) cfg.edge_row_step = a.row_step;
   std::printf("edge row step: %d\n", cfg.edge_row_step);
   if (a.tag) cfg.family = LandmarkFamily::kTag36h11;
@@ -326,6 +328,8 @@ int main(int argc, char** argv) {
       if (a.tag) a.apriltag = false;  // the AprilTag comparison paints tags into QR frames
     } else if (s == "--speed-compare") {
       a.speed_compare = true;
+    } else if (s == "--qr-max-grid-decodes") {
+      a.qr_max_grid_decodes = std::atoi(next().c_str());
     } else if (s == "--qr-max-missing") {
       a.qr_max_missing = std::atoi(next().c_str());
     } else if (s == "--row-step") {
@@ -334,7 +338,7 @@ int main(int argc, char** argv) {
       std::fprintf(stderr,
                    "usage: eval_vision [--profile 640|1280] [--frames N] [--floor-frames N] "
                    "[--seed S] [--ablation] [--no-apriltag] [--dump DIR] [--only NAME] "
-                   "[--profile-loop REPS] [--qr-max-missing N] [--row-step N] "
+                   "[--profile-loop REPS] [--qr-max-missing N] [--qr-max-grid-decodes N] [--row-step N] "
                    "[--family qr|tag36h11] "
                    "[--speed-compare]\n");
       return 2;

@@ -399,11 +399,53 @@ TEST(Tracking, TrackedFramesReadTheExpectedCodeWithoutZxing) {
   }
   EXPECT_EQ(n, 8);
   // Without the prediction and the centre-only first read, an unreadable logo sends the reader
-  // through wrong turns first, each grid of which zxing tries (measured: up to 16 zxing grid
-  // decodes on one frame; 17 before the code book read the right turn's first grid).
+  // through wrong turns first. Each of their grids went to zxing (up to 16 reads on one frame);
+  // now every grid's verified read comes before the first zxing read, so none runs.
   std::printf("zxing grid decodes without the prediction, centre-only read off, worst frame: %d\n",
               worst_full_runs);
-  EXPECT_GT(worst_full_runs, 8);
+  EXPECT_EQ(worst_full_runs, 0);
+}
+
+// vision.qr_max_grid_decodes bounds the zxing reads of the guided grids on a frame. Without a map
+// (no verified read) and with an unreadable logo, the reader has four turns' grids for zxing:
+// unbounded it reads them until one decodes, bounded it stops and zxing's search of the crop
+// reads the code instead; with no grid reads at all the search alone reads it. Same fixes.
+TEST(Tracking, ZxingGridReadsStayWithinTheirBudget) {
+  const LandmarkMap map = one_map();
+  const CameraModel cam = CameraModel::default_640x480();
+  auto localizer = [&](int budget) {
+    VisionConfig c;
+    c.qr_centre_first = false;
+    c.qr_max_grid_decodes = budget;
+    return LandmarkLocalizer(c, cam, LandmarkGeometry{}, nullptr);
+  };
+  LandmarkLocalizer unbounded = localizer(32), bounded = localizer(2), none = localizer(0);
+  int worst_unbounded = 0, n = 0;
+  for (double deg : {3.0, 44.0, 151.0, 268.0}) {
+    const Pose2 v = over_landmark(cam, 6.0, -4.0, deg_to_rad(deg));
+    cv::Mat img = render(map, v, cam);
+    erase_logo(&img, cam,
+               Pose2{cam.mount.offset_x_mm + 6.0, cam.mount.offset_y_mm - 4.0, deg_to_rad(deg)});
+    LandmarkFix fu, fb, fn;
+    ASSERT_EQ(unbounded.process(img, &fu), FixStatus::kOk) << deg;
+    ASSERT_EQ(bounded.process(img, &fb), FixStatus::kOk) << deg;
+    ASSERT_EQ(none.process(img, &fn), FixStatus::kOk) << deg;
+    EXPECT_FALSE(fu.qr_verified);
+    worst_unbounded = std::max(worst_unbounded, fu.qr_grid_decodes);
+    EXPECT_LE(fb.qr_grid_decodes, 2) << deg;
+    EXPECT_EQ(fn.qr_grid_decodes, 0) << deg;
+    EXPECT_EQ(fn.qr_method, 2) << deg;  // zxing's search of the crop
+    for (const LandmarkFix* f : {&fb, &fn}) {
+      EXPECT_STREQ(f->payload, fu.payload) << deg;
+      EXPECT_NEAR(f->landmark_in_vehicle.x_mm, fu.landmark_in_vehicle.x_mm, 1e-9) << deg;
+      EXPECT_NEAR(f->landmark_in_vehicle.theta_rad, fu.landmark_in_vehicle.theta_rad, 1e-12);
+    }
+    ++n;
+  }
+  EXPECT_EQ(n, 4);
+  std::printf("zxing grid reads of an unreadable logo without a map, unbounded, worst: %d\n",
+              worst_unbounded);
+  EXPECT_GT(worst_unbounded, 2);  // the bound did bind
 }
 
 // vision.qr_centre_first: the centre-only first read gives exactly what the five-sample read

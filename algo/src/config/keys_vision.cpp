@@ -66,6 +66,13 @@ void add_qr(std::vector<Key>* k) {
                "read is still excluded by the RS and payload/map checks). Cut-landmark fixes "
                "56 % (0) → 72 % (80), no gain above 80 (docs/accuracy.md). 0 = the code must "
                "be whole"}));
+  k->push_back(
+      integer("vision.qr_max_grid_decodes", AGV_AT(vision.qr_max_grid_decodes), 0, 32, 4,
+              {"reads",
+               "zxing reads of the guided QR grids per frame, once every grid's verified read "
+               "has failed (about 0.19 M aarch64 instructions each): the bound on a frame's "
+               "zxing cost. Fewer loses codes the map's code book does not hold byte for byte "
+               "(docs/tracking.md \"zxing budget\")"}));
   k->push_back(boolean("vision.qr_try_harder", AGV_AT(vision.qr_try_harder), false,
                        "zxing TryHarder for the zxing search fallback: slower, reads a few more "
                        "damaged codes; no measurable effect since the guided reader reads every "

@@ -158,6 +158,9 @@ struct LandmarkLocalizer::Impl {
   // QR.
   cv::Mat qr_small, qr_blur, qr_sharp;
   QrSamples qr_samples;
+  // decode_guided's grids at an unclear logo: four turns, two sizes, and each grid's turn.
+  std::array<QrSamples, 8> qr_grids;
+  std::array<int, 8> qr_grid_turns{};
   std::vector<float> qr_fill;
   QrGridScratch qr_scratch;
   std::string qr_text;

@@ -186,13 +186,57 @@ int LandmarkLocalizer::Impl::decode_guided(const cv::Mat& img, Vec2 c_mm, double
       }
     }
   }
-  for (int q : order) {
-    if (q < 0) break;
+  // At most qr_max_grid_decodes zxing reads; past them, verified reads only. That bounds a frame's
+  // zxing cost: an unclear logo on a cut code took up to 24 reads (4.6 M aarch64 instructions).
+  const auto read = [&](const QrSamples& g, QrThreshold t) {
+    return qr_scratch.zxing_runs < cfg.qr_max_grid_decodes
+               ? decode_qr_grid(g, t, &qr_text, &qr_scratch, qr_expected, book)
+               : verify_qr_grid(g, t, &qr_text, &qr_scratch, qr_expected, book);
+  };
+  if (logo.clear) {
+    // One turn: each grid's thresholds in order, the verified read before zxing's at each.
     for (int n : {kQrModulesV2, kQrModulesV1}) {
-      if (!sample_qr(img, c_mm, beta - q * kPi / 2.0, n, &qr_samples)) continue;
+      if (!sample_qr(img, c_mm, beta - logo.best_q * kPi / 2.0, n, &qr_samples)) continue;
       for (QrThreshold t : kThresholds) {
-        if (decode_qr_grid(qr_samples, t, &qr_text, &qr_scratch, qr_expected, book)) return q;
+        if (read(qr_samples, t)) return logo.best_q;
       }
+    }
+    return -1;
+  }
+  // Four turns: every grid's verified reads (no zxing) come first, so the wrong turns cost no
+  // zxing reads when a later one is verified; then zxing. Measured in docs/tracking.md ("zxing
+  // budget").
+  const bool verifiable = !qr_expected.empty() || (book && book->size() > 0);
+  int n_grids = 0;
+  for (int q : order) {
+    for (int n : {kQrModulesV2, kQrModulesV1}) {
+      QrSamples& g = qr_grids[static_cast<size_t>(n_grids)];
+      if (!sample_qr(img, c_mm, beta - q * kPi / 2.0, n, &g)) continue;
+      qr_grid_turns[static_cast<size_t>(n_grids++)] = q;
+      for (QrThreshold t : kThresholds) {
+        if (verifiable && verify_qr_grid(g, t, &qr_text, &qr_scratch, qr_expected, book)) return q;
+      }
+    }
+  }
+  // zxing on the grids within the budget. No expected codes or book: their verified reads just
+  // failed on these grids.
+  const auto read_zxing = [&](int i, QrThreshold t) {
+    return qr_scratch.zxing_runs < cfg.qr_max_grid_decodes &&
+           decode_qr_grid(qr_grids[static_cast<size_t>(i)], t, &qr_text, &qr_scratch);
+  };
+  // The predicted turn's grids (tracking) get every threshold first ...
+  for (int i = 0; i < n_grids; ++i) {
+    if (qr_grid_turns[static_cast<size_t>(i)] != predicted_turn) continue;
+    for (QrThreshold t : kThresholds) {
+      if (read_zxing(i, t)) return predicted_turn;
+    }
+  }
+  // ... the others go threshold by threshold (the first reads the most), so the budget reaches
+  // every turn.
+  for (QrThreshold t : kThresholds) {
+    for (int i = 0; i < n_grids; ++i) {
+      const int q = qr_grid_turns[static_cast<size_t>(i)];
+      if (q != predicted_turn && read_zxing(i, t)) return q;
     }
   }
   return -1;

@@ -120,6 +120,13 @@ struct VisionConfig {
   // (docs/accuracy.md): fixes 52 % (before fill-in) -> 56 % (quiet zone only, 0) -> 63 % (20) ->
   // 68 % (40) -> 72 % (80, no gain above). Default 80.
   int qr_max_missing_modules = 80;
+  // zxing reads of the guided grids per frame, after every grid's verified read (no zxing) has
+  // failed. Each costs about 0.19 M aarch64 instructions; an unclear logo on a cut code could
+  // take 32 (4 turns, 2 sizes, 4 thresholds). They read codes the map's code book does not hold
+  // byte for byte, and codes beyond the verified read's bounds. Fewer bounds the frame's worst
+  // case more tightly and loses such reads (measured in docs/tracking.md "zxing budget").
+  // Default 4.
+  int qr_max_grid_decodes = 4;
   // zxing-cpp TryHarder: slower, reads a few more damaged codes. Default false (measured in
   // docs/accuracy.md).
   bool qr_try_harder = false;
