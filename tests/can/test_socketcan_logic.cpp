@@ -4,8 +4,10 @@
 #include <linux/can.h>
 #include <linux/can/error.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
+#include <cstdint>
 
 #include "agv/can/socketcan.hpp"
 #include "agv/can/socketcan_logic.hpp"
@@ -96,10 +98,43 @@ TEST(SocketCanLogic, ErrnoMapping) {
 TEST(SocketCanLogic, RealtimeStampToMonotonic) {
   // Realtime is 1e18 when monotonic is 5e9; a stamp 2 ms before "now" maps 2 ms before mono now.
   const std::int64_t rt_now = 1'000'000'000'000'000'000, mono_now = 5'000'000'000;
-  EXPECT_EQ(c::realtime_stamp_to_monotonic_ns(rt_now - 2'000'000, rt_now, mono_now),
+  c::RxStampClock clock;
+  EXPECT_EQ(clock.to_monotonic_ns(rt_now - 2'000'000, mono_now - 400, rt_now, mono_now + 400),
             mono_now - 2'000'000);
-  // A stamp "after now" (realtime stepped back) is clamped to now.
-  EXPECT_EQ(c::realtime_stamp_to_monotonic_ns(rt_now + 7, rt_now, mono_now), mono_now);
+  // A stamp "after now" (realtime stepped back) is clamped to the last monotonic read.
+  c::RxStampClock fresh;
+  EXPECT_EQ(fresh.to_monotonic_ns(rt_now + 1000, mono_now - 400, rt_now, mono_now + 400),
+            mono_now + 400);
+}
+
+// A burst of frames 50 us apart; the reads after the third are descheduled 6 ms between the first
+// monotonic read and the realtime one (a loaded machine). Converted with its own reads alone,
+// that frame lands 3 ms before the second one, and the odometry decoder dropped it as stale
+// (hil_link_flap under load). The clock holds it at the previous frame's time.
+TEST(SocketCanLogic, ReceiveStampsStayInOrderWhenTheClockReadsAreDescheduled) {
+  const std::int64_t offset = 5'000'000'000 - 1'000'000'000'000'000'000;  // mono - realtime
+  c::RxStampClock clock;
+  std::int64_t prev = INT64_MIN;
+  for (int i = 0; i < 6; ++i) {
+    const std::int64_t stamp_rt = 1'000'000'000'000'000'000 + i * 50'000;
+    const std::int64_t read_mono = stamp_rt + offset + 300'000;  // read 0.3 ms after the stamp
+    std::int64_t rt_now = read_mono - offset, mono_b = read_mono + 200;
+    if (i == 2) {  // descheduled 6 ms between the first and the realtime read
+      rt_now += 6'000'000;
+      mono_b += 6'000'000;
+    }
+    const std::int64_t per_frame =
+        std::min(stamp_rt + (read_mono + (mono_b - read_mono) / 2 - rt_now), mono_b);
+    const std::int64_t t = clock.to_monotonic_ns(stamp_rt, read_mono, rt_now, mono_b);
+    if (i == 2) {
+      EXPECT_LT(per_frame, prev);  // converted alone: out of order
+      EXPECT_EQ(t, prev);          // held
+    } else {
+      EXPECT_EQ(t, per_frame) << i;  // otherwise the plain conversion
+      EXPECT_GT(t, prev) << i;
+    }
+    prev = t;
+  }
 }
 
 TEST(SocketCanLogic, Backoff) {

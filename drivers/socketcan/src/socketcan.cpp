@@ -251,8 +251,7 @@ hal::CanStatus SocketCanBus::receive(hal::CanFrame* frame, std::int64_t timeout_
     const std::int64_t mono_a = clock_ns(CLOCK_MONOTONIC);
     const std::int64_t rt_now = clock_ns(CLOCK_REALTIME);
     const std::int64_t mono_b = clock_ns(CLOCK_MONOTONIC);
-    const std::int64_t mono_now = mono_a + (mono_b - mono_a) / 2;
-    std::int64_t t_ns = mono_now;
+    std::int64_t t_ns = mono_a + (mono_b - mono_a) / 2;
     for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c != nullptr; c = CMSG_NXTHDR(&msg, c)) {
       if (c->cmsg_level != SOL_SOCKET) continue;
       if (c->cmsg_type == SCM_TIMESTAMPNS) {
@@ -260,7 +259,7 @@ hal::CanStatus SocketCanBus::receive(hal::CanFrame* frame, std::int64_t timeout_
         std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
         const std::int64_t stamp =
             static_cast<std::int64_t>(ts.tv_sec) * 1'000'000'000 + ts.tv_nsec;
-        t_ns = realtime_stamp_to_monotonic_ns(stamp, rt_now, mono_now);
+        t_ns = rx_clock_.to_monotonic_ns(stamp, mono_a, rt_now, mono_b);
       } else if (c->cmsg_type == SO_RXQ_OVFL) {
         std::uint32_t dropped = 0;
         std::memcpy(&dropped, CMSG_DATA(c), sizeof dropped);

@@ -85,10 +85,14 @@ hal::CanStatus status_from_errno(int err) {
 
 bool is_link_gone_errno(int err) { return status_from_errno(err) == hal::CanStatus::kDown; }
 
-std::int64_t realtime_stamp_to_monotonic_ns(std::int64_t stamp_rt_ns, std::int64_t rt_now_ns,
-                                            std::int64_t mono_now_ns) {
-  const std::int64_t t = stamp_rt_ns + (mono_now_ns - rt_now_ns);
-  return std::min(t, mono_now_ns);
+std::int64_t RxStampClock::to_monotonic_ns(std::int64_t stamp_rt_ns, std::int64_t mono_a_ns,
+                                           std::int64_t rt_now_ns, std::int64_t mono_b_ns) {
+  const std::int64_t offset_ns = (mono_a_ns + (mono_b_ns - mono_a_ns) / 2) - rt_now_ns;
+  std::int64_t t = std::min(stamp_rt_ns + offset_ns, mono_b_ns);
+  if (have_last_) t = std::max(t, last_ns_);
+  have_last_ = true;
+  last_ns_ = t;
+  return t;
 }
 
 std::int64_t next_backoff_ns(std::int64_t current_ns, std::int64_t min_ns, std::int64_t max_ns) {

@@ -75,6 +75,7 @@ class SocketCanBus : public hal::CanBus {
   hal::CanStats stats_;
   std::uint64_t rx_dropped_base_ = 0;  // SO_RXQ_OVFL is per socket: carried over a reopen
   std::uint32_t rx_dropped_socket_ = 0;
+  RxStampClock rx_clock_;  // kept across reopens: receive times never go back
   std::string last_error_;
 };
 

@@ -60,12 +60,29 @@ hal::CanStatus status_from_errno(int err);
 bool is_link_gone_errno(int err);
 
 // SO_TIMESTAMPNS stamps are CLOCK_REALTIME. The driver reads both clocks right after recvmsg()
-// and shifts the stamp by their difference:  mono = stamp_rt + (mono_now - rt_now).
-// The result is clamped to mono_now (a receive cannot be in the future; guards against a
-// realtime step between the stamp and the clock reads). Error: the realtime slew/step between
-// the kernel stamp and the read, normally well below a microsecond.
-std::int64_t realtime_stamp_to_monotonic_ns(std::int64_t stamp_rt_ns, std::int64_t rt_now_ns,
-                                            std::int64_t mono_now_ns);
+// and shifts the stamp by their difference: mono = stamp_rt + (mono_now - rt_now), mono_now the
+// middle of the two monotonic reads around the realtime one. The result is clamped to the last
+// monotonic read (a receive cannot be in the future; guards against a realtime step between the
+// stamp and the clock reads). Error: the realtime slew/step between the kernel stamp and the
+// read, normally well below a microsecond.
+//
+// RxStampClock: the receive stamps of one socket on the monotonic clock, converted as above. The kernel queues a
+// socket's frames in the order it stamps them, so their times must not decrease; but the
+// conversion reads the two clocks per frame, and a thread descheduled between those reads
+// (milliseconds on a loaded machine or an emulated VM) shifts mono_now by half the delay. A frame
+// of a burst could then be stamped before the one received just before it, and the odometry
+// decoder rejected it as stale: a valid frame lost (seen once in hil_link_flap under load). So a
+// stamp is never below the previous frame's.
+class RxStampClock {
+ public:
+  // mono_a_ns, rt_now_ns, mono_b_ns: the clocks read in that order after recvmsg().
+  std::int64_t to_monotonic_ns(std::int64_t stamp_rt_ns, std::int64_t mono_a_ns,
+                               std::int64_t rt_now_ns, std::int64_t mono_b_ns);
+
+ private:
+  bool have_last_ = false;
+  std::int64_t last_ns_ = 0;
+};
 
 // Reopen backoff: doubles from min_ns up to max_ns.
 std::int64_t next_backoff_ns(std::int64_t current_ns, std::int64_t min_ns, std::int64_t max_ns);
