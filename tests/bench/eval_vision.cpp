@@ -32,8 +32,8 @@ struct Args {
   int profile_reps = 0;     // --profile-loop: only process the clean frames this many times (perf)
   int qr_max_missing = -1;  // --qr-max-missing: VisionConfig::qr_max_missing_modules (-1 = default)
   int qr_max_grid_decodes = -1;  // --qr-max-grid-decodes: VisionConfig's (-1 = default)
-  int row_step = 0;         // --row-step: VisionConfig::edge_row_step (0 = default)
-  bool tag = false;         // --family tag36h11
+  int row_step = 0;              // --row-step: VisionConfig::edge_row_step (0 = default)
+  bool tag = false;              // --family tag36h11
   bool speed_compare = false;
 };
 
@@ -335,12 +335,13 @@ int main(int argc, char** argv) {
     } else if (s == "--row-step") {
       a.row_step = std::atoi(next().c_str());
     } else {
-      std::fprintf(stderr,
-                   "usage: eval_vision [--profile 640|1280] [--frames N] [--floor-frames N] "
-                   "[--seed S] [--ablation] [--no-apriltag] [--dump DIR] [--only NAME] "
-                   "[--profile-loop REPS] [--qr-max-missing N] [--qr-max-grid-decodes N] [--row-step N] "
-                   "[--family qr|tag36h11] "
-                   "[--speed-compare]\n");
+      std::fprintf(
+          stderr,
+          "usage: eval_vision [--profile 640|1280] [--frames N] [--floor-frames N] "
+          "[--seed S] [--ablation] [--no-apriltag] [--dump DIR] [--only NAME] "
+          "[--profile-loop REPS] [--qr-max-missing N] [--qr-max-grid-decodes N] [--row-step N] "
+          "[--family qr|tag36h11] "
+          "[--speed-compare]\n");
       return 2;
     }
   }

@@ -66,9 +66,9 @@ bool is_link_gone_errno(int err);
 // stamp and the clock reads). Error: the realtime slew/step between the kernel stamp and the
 // read, normally well below a microsecond.
 //
-// RxStampClock: the receive stamps of one socket on the monotonic clock, converted as above. The kernel queues a
-// socket's frames in the order it stamps them, so their times must not decrease; but the
-// conversion reads the two clocks per frame, and a thread descheduled between those reads
+// RxStampClock: the receive stamps of one socket on the monotonic clock, converted as above. The
+// kernel queues a socket's frames in the order it stamps them, so their times must not decrease;
+// but the conversion reads the two clocks per frame, and a thread descheduled between those reads
 // (milliseconds on a loaded machine or an emulated VM) shifts mono_now by half the delay. A frame
 // of a burst could then be stamped before the one received just before it, and the odometry
 // decoder rejected it as stale: a valid frame lost (seen once in hil_link_flap under load). So a
