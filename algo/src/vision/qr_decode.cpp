@@ -188,10 +188,11 @@ int LandmarkLocalizer::Impl::decode_guided(const cv::Mat& img, Vec2 c_mm, double
   }
   // At most qr_max_grid_decodes zxing reads; past them, verified reads only. That bounds a frame's
   // zxing cost: an unclear logo on a cut code took up to 24 reads (4.6 M aarch64 instructions).
+  const bool verifiable = !qr_expected.empty() || (book && book->size() > 0);
   const auto read = [&](const QrSamples& g, QrThreshold t) {
     return qr_scratch.zxing_runs < cfg.qr_max_grid_decodes
                ? decode_qr_grid(g, t, &qr_text, &qr_scratch, qr_expected, book)
-               : verify_qr_grid(g, t, &qr_text, &qr_scratch, qr_expected, book);
+               : verifiable && verify_qr_grid(g, t, &qr_text, &qr_scratch, qr_expected, book);
   };
   if (logo.clear) {
     // One turn: each grid's thresholds in order, the verified read before zxing's at each.
@@ -206,7 +207,6 @@ int LandmarkLocalizer::Impl::decode_guided(const cv::Mat& img, Vec2 c_mm, double
   // Four turns: every grid's verified reads (no zxing) come first, so the wrong turns cost no
   // zxing reads when a later one is verified; then zxing. Measured in docs/tracking.md ("zxing
   // budget").
-  const bool verifiable = !qr_expected.empty() || (book && book->size() > 0);
   int n_grids = 0;
   for (int q : order) {
     for (int n : {kQrModulesV2, kQrModulesV1}) {
