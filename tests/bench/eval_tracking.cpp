@@ -84,6 +84,8 @@ int main(int argc, char** argv) {
   std::vector<const LandmarkMapEntry*> entries;
   for (const auto& [id, e] : map.entries) entries.push_back(&e);
   std::vector<double> full_ms, win_ms, full_det, win_det;
+  // The tracked frame's other stages: where the time goes once the corner search is skipped.
+  std::vector<double> win_decode, win_dir, win_pose;
   // Error of each fix against the rendered truth: the accuracy the tracked detection must keep.
   std::vector<double> full_err_mm, win_err_mm, full_err_deg, win_err_deg;
   int ok_full = 0, ok_win = 0, in_window = 0, then_full = 0, differ = 0, not_bitwise = 0,
@@ -147,6 +149,9 @@ int main(int argc, char** argv) {
     win_ms.push_back(win.timings.total_ms);
     full_det.push_back(full.timings.detect_ms);
     win_det.push_back(win.timings.detect_ms);
+    win_decode.push_back(win.timings.decode_ms);
+    win_dir.push_back(win.timings.direction_ms);
+    win_pose.push_back(win.timings.pose_ms);
     if (win.status != full.status || win.landmark_id != full.landmark_id ||
         win.identity != full.identity) {
       ++differ;
@@ -185,5 +190,8 @@ int main(int argc, char** argv) {
   std::printf("  median per landmark frame detect: full %.3f ms, tracking %.3f ms (x%.2f)\n",
               median(full_det), median(win_det),
               median(full_det) / std::max(1e-9, median(win_det)));
+  std::printf(
+      "  median per tracked landmark frame: decode %.3f ms, direction %.3f ms, pose %.3f ms\n",
+      median(win_decode), median(win_dir), median(win_pose));
   return 0;
 }

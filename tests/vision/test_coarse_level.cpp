@@ -43,6 +43,24 @@ TEST(BoxDownsample, VectorEqualsScalarOnRandomImages) {
   }
 }
 
+// The tracked detection downsamples a window of the frame: a region whose rows start at any
+// column and whose step is the frame's, so the vector loads are unaligned.
+TEST(BoxDownsample, VectorEqualsScalarOnARegionOfTheFrame) {
+  std::mt19937 rng(23);
+  std::uniform_int_distribution<int> grey(0, 255);
+  cv::Mat frame(480, 640, CV_8UC1);
+  for (int y = 0; y < frame.rows; ++y) {
+    for (int x = 0; x < frame.cols; ++x)
+      frame.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(grey(rng));
+  }
+  for (int f : {8, 16}) {
+    for (cv::Rect r : {cv::Rect(8, 16, 560, 400), cv::Rect(3, 5, 37 * f + 3, 9 * f),
+                       cv::Rect(640 - 17 * f, 480 - 2 * f, 17 * f, 2 * f)}) {
+      expect_same(frame(r), f);
+    }
+  }
+}
+
 TEST(BoxDownsample, ExtremesAndRounding) {
   for (int f : {2, 4, 8, 16}) {
     cv::Mat white(6 * f, 40 * f, CV_8UC1, cv::Scalar(255));

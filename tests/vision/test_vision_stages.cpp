@@ -3,6 +3,7 @@
 // 10-11).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <opencv2/core.hpp>
 #include <random>
@@ -224,6 +225,72 @@ TEST(VisionLineFit, RobustExtentIsTheSpreadOfTheKeptPoints) {
       }
     }
   }
+}
+
+// The robust fit skips the median selection when more than half of the residuals are at the scale
+// floor. Against the plain IRLS (sorted median every iteration), bit for bit: lines whose noise
+// puts the median below, at and above the floor, with few points (so that exactly half at the
+// floor, the boundary, occurs) and with many.
+TEST(VisionLineFit, RobustScaleFloorShortcutEqualsTheSortedMedian) {
+  const double tukey_c = 4.685, min_sigma = 0.02;
+  const auto reference = [&](const std::vector<Vec2>& pts, int iterations, std::vector<double>* w,
+                             LineFit* out) {
+    w->assign(pts.size(), 1.0);
+    LineFit f;
+    if (!fit_line_tls(pts, *w, &f)) return false;
+    for (int it = 0; it < iterations; ++it) {
+      std::vector<double> r(pts.size()), kept;
+      for (size_t i = 0; i < pts.size(); ++i) {
+        r[i] = std::abs(f.line.nx * pts[i].x + f.line.ny * pts[i].y - f.line.d);
+        if ((*w)[i] > 0) kept.push_back(r[i]);
+      }
+      if (kept.empty()) return false;
+      std::sort(kept.begin(), kept.end());
+      const double sigma = std::max(min_sigma, 1.4826 * kept[kept.size() / 2]);
+      for (size_t i = 0; i < pts.size(); ++i) {
+        const double u = r[i] / (tukey_c * sigma);
+        (*w)[i] = u < 1.0 ? (1.0 - u * u) * (1.0 - u * u) : 0.0;
+      }
+      if (!fit_line_tls(pts, *w, &f)) return false;
+    }
+    *out = f;
+    return true;
+  };
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> uni(-1.0, 1.0);
+  int floored = 0, selected = 0;
+  for (int trial = 0; trial < 3000; ++trial) {
+    const size_t n = trial % 3 == 0 ? 60 : 3 + trial % 9;
+    // Noise amplitudes around the floor's median residual (0.02 / 1.4826 = 0.0135).
+    const double amp = 0.005 + 0.04 * (trial % 17) / 16.0;
+    const double a = uni(rng), b = 10.0 * uni(rng);
+    std::vector<Vec2> pts;
+    for (size_t i = 0; i < n; ++i) {
+      const double x = static_cast<double>(i) + 0.3 * uni(rng);
+      pts.push_back({x, a * x + b + amp * uni(rng)});
+    }
+    for (int iterations : {1, 4}) {
+      std::vector<double> w(n), w_ref;
+      LineFit f, ref;
+      const bool ok = fit_line_robust(pts, tukey_c, min_sigma, iterations, w, &f);
+      ASSERT_EQ(ok, reference(pts, iterations, &w_ref, &ref)) << trial;
+      if (!ok) continue;
+      ASSERT_EQ(w, w_ref) << trial << " " << iterations;
+      EXPECT_EQ(f.line.nx, ref.line.nx) << trial;
+      EXPECT_EQ(f.line.ny, ref.line.ny) << trial;
+      EXPECT_EQ(f.line.d, ref.line.d) << trial;
+      EXPECT_EQ(f.rms, ref.rms) << trial;
+      EXPECT_EQ(f.extent, ref.extent) << trial;
+      // Both branches ran: count the fits whose final scale was the floor.
+      std::vector<double> r;
+      for (const Vec2& p : pts)
+        r.push_back(std::abs(ref.line.nx * p.x + ref.line.ny * p.y - ref.line.d));
+      std::sort(r.begin(), r.end());
+      (1.4826 * r[r.size() / 2] <= min_sigma ? floored : selected) += 1;
+    }
+  }
+  EXPECT_GT(floored, 500);
+  EXPECT_GT(selected, 500);
 }
 
 TEST(VisionLineFit, DegenerateInputFails) {

@@ -1,5 +1,5 @@
 // vision_cost RECORDING [--frames N] [--class all|ok|none|free|cut]
-//             [--tracking SIGMA_MM --map FILE] [--row-step N]
+//             [--tracking SIGMA_MM --map FILE] [--row-step N] [--repeat N]
 // Instruction cost of the vision pipeline (agv::vision::LandmarkLocalizer::process) on the frames
 // of a recording, for docs/deployment.md. Frames are decoded first; one warm-up pass classifies
 // them by status: ok, or none (any other status), which splits into free (no landmark found) and
@@ -17,6 +17,7 @@
 // covariance; the search windows need the landmark map (--map).
 // --row-step N: VisionConfig::edge_row_step (default: the configuration's default), so two steps
 // can be compared with the same binary.
+// --repeat N: N - 1 unmarked passes before the measured one, for a native sampling profiler.
 #include <sys/prctl.h>
 
 #include <algorithm>
@@ -85,6 +86,7 @@ int main(int argc, char** argv) {
   std::string map_file;
   int row_step = 0;   // 0: the default
   bool list = false;  // one line per measured frame (how it was read), after the measurement
+  int repeat = 1;     // measured passes: more samples for a native sampling profiler (perf)
   for (int i = 2; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--frames")) {
       max_frames = static_cast<size_t>(std::strtoul(argv[i + 1], nullptr, 10));
@@ -96,6 +98,8 @@ int main(int argc, char** argv) {
       row_step = std::atoi(argv[i + 1]);
     } else if (!std::strcmp(argv[i], "--list")) {
       list = std::atoi(argv[i + 1]) != 0;
+    } else if (!std::strcmp(argv[i], "--repeat")) {
+      repeat = std::max(1, std::atoi(argv[i + 1]));
     } else if (!std::strcmp(argv[i], "--map")) {
       map_file = argv[i + 1];
     } else {
@@ -176,6 +180,16 @@ int main(int argc, char** argv) {
     if (take) selected.push_back(i);
   }
   size_t n_ok_measured = 0, n_window = 0;
+  for (int pass = 1; pass < repeat; ++pass) {
+    for (size_t i : selected) {
+      agv::vision::LandmarkFix fix;
+      if (tracking) {
+        agv_cost_frame_tracking(&loc, &frames[i], &preds[i], &fix);
+      } else {
+        agv_cost_frame(&loc, &frames[i], &fix);
+      }
+    }
+  }
   for (size_t i : selected) {
     agv::vision::LandmarkFix fix;
     prctl(static_cast<int>(kMarkerOn), 0UL, 0UL, 0UL, 0UL);
@@ -187,10 +201,10 @@ int main(int argc, char** argv) {
     if (list) {
       std::printf(
           "frame %zu: status %d search %d id %u logo %.3f/%.3f qr_method %d verified %d "
-          "centre_only %d grid_decodes %d search_attempts %d\n",
+          "centre_only %d grid_decodes %d search_attempts %d pose %a %a %a\n",
           i, status, static_cast<int>(fix.search), fix.landmark_id, fix.logo_score, fix.logo_margin,
           fix.qr_method, fix.qr_verified ? 1 : 0, fix.qr_centre_only ? 1 : 0, fix.qr_grid_decodes,
-          fix.qr_search_attempts);
+          fix.qr_search_attempts, fix.e_x_mm, fix.e_y_mm, fix.e_phi_deg);
     }
   }
   std::printf("vision_cost: %zu frames loaded (%zu ok), class %s: %zu measured (%zu ok), %dx%d\n",

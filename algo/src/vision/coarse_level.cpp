@@ -3,7 +3,8 @@
 // 13; tools/vision-cost), before -> now: box downsample 115.6k -> 42.4k (scalar loop: ~3 per input
 // pixel), adaptive threshold 99.6k -> 30.8k, integral images 63.6k -> 30.8k. The threshold and
 // integral loops are 128-bit GCC/Clang vectors (one NEON or SSE2 register); the box downsample is
-// NEON intrinsics on aarch64 and generic vector extensions elsewhere.
+// NEON intrinsics on aarch64, SSE2 sums of absolute differences on x86-64 (factors 8 and 16) and
+// generic vector extensions elsewhere.
 #include "agv/vision/coarse_level.hpp"
 
 #include <algorithm>
@@ -14,6 +15,8 @@
 #include <opencv2/imgproc.hpp>
 #if defined(__aarch64__) && defined(__ARM_NEON)
 #include <arm_neon.h>
+#elif defined(__SSE2__)
+#include <emmintrin.h>
 #endif
 
 namespace agv::vision {
@@ -173,10 +176,59 @@ void box_downsample_neon(const cv::Mat& img, cv::Size cs, cv::Mat* out) {
 }
 #endif
 
+#if !(defined(__aarch64__) && defined(__ARM_NEON)) && defined(__SSE2__)
+// x86-64 (SSE2 is part of the base ISA): PSADBW against zero sums each half of 16 bytes into a
+// 64-bit lane, one instruction per 16 pixels and row, where the generic path widens to 16 bits,
+// adds and then folds the lanes in shuffles. At F = 8 a chunk gives two outputs' block sums, at
+// F = 16 one. It was an eighth of a tracked frame on x86-64 (docs/performance.md). The sums stay
+// below 2^16 (16 * 16 * 255), so the low 16 bits of each lane hold them.
+template <int F>
+void box_downsample_sse2(const cv::Mat& img, cv::Size cs, cv::Mat* out) {
+  static_assert(F == 8 || F == 16, "one 16-byte chunk holds whole blocks");
+  constexpr int kOutPerChunk = 16 / F;
+  constexpr unsigned kArea = F * F;
+  const int chunks = cs.width / kOutPerChunk;
+  const __m128i zero = _mm_setzero_si128();
+  for (int y = 0; y < cs.height; ++y) {
+    const std::uint8_t* rows[F];
+    for (int k = 0; k < F; ++k) rows[k] = img.ptr<std::uint8_t>(y * F + k);
+    std::uint8_t* dst = out->ptr<std::uint8_t>(y);
+    for (int c = 0; c < chunks; ++c) {
+      __m128i acc = zero;
+      for (int k = 0; k < F; ++k) {
+        const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(rows[k] + c * 16));
+        acc = _mm_add_epi64(acc, _mm_sad_epu8(v, zero));
+      }
+      const unsigned lo = static_cast<unsigned>(_mm_extract_epi16(acc, 0));
+      const unsigned hi = static_cast<unsigned>(_mm_extract_epi16(acc, 4));
+      if constexpr (F == 8) {
+        dst[c * 2] = static_cast<std::uint8_t>((lo + kArea / 2) / kArea);
+        dst[c * 2 + 1] = static_cast<std::uint8_t>((hi + kArea / 2) / kArea);
+      } else {
+        dst[c] = static_cast<std::uint8_t>((lo + hi + kArea / 2) / kArea);
+      }
+    }
+    for (int x = chunks * kOutPerChunk; x < cs.width; ++x) {
+      unsigned sum = 0;
+      for (int k = 0; k < F; ++k) {
+        for (int i = 0; i < F; ++i) sum += rows[k][x * F + i];
+      }
+      dst[x] = static_cast<std::uint8_t>((sum + kArea / 2) / kArea);
+    }
+  }
+}
+#endif
+
 template <int F>
 void box_downsample_fast(const cv::Mat& img, cv::Size cs, cv::Mat* out) {
 #if defined(__aarch64__) && defined(__ARM_NEON)
   box_downsample_neon<F>(img, cs, out);
+#elif defined(__SSE2__)
+  if constexpr (F >= 8) {
+    box_downsample_sse2<F>(img, cs, out);
+  } else {
+    box_downsample_vec<F>(img, cs, out);
+  }
 #else
   box_downsample_vec<F>(img, cs, out);
 #endif
