@@ -6,6 +6,8 @@
 #include <cstring>
 #include <opencv2/core.hpp>
 #include <vector>
+
+#include "agv/common/order_statistic.hpp"
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -324,8 +326,7 @@ bool fit_line_robust(std::span<const Vec2> pts, double tukey_c, double min_sigma
     // tracked frame on x86-64 (docs/performance.md).
     double sigma = min_sigma;
     if (at_floor <= mid) {
-      std::nth_element(tmp.begin(), tmp.begin() + static_cast<std::ptrdiff_t>(mid), tmp.end());
-      sigma = std::max(min_sigma, kMadToSigma * tmp[mid]);
+      sigma = std::max(min_sigma, kMadToSigma * select_kth(tmp, mid));
     }
     const double c = tukey_c * sigma;
     for (size_t i = 0; i < n; ++i) {

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <cstring>
 
+#include "agv/common/order_statistic.hpp"
 #include "localizer_impl.hpp"
 
 namespace agv::vision {
@@ -327,9 +328,7 @@ void LandmarkLocalizer::Impl::reweight_joint(const SquareModel& m) {
   }
   scratch_buf = residual_buf;
   const auto mid = scratch_buf.size() / 2;
-  std::nth_element(scratch_buf.begin(), scratch_buf.begin() + static_cast<std::ptrdiff_t>(mid),
-                   scratch_buf.end());
-  const double sigma = std::max(kMinJointSigmaMm, kMadToSigma * scratch_buf[mid]);
+  const double sigma = std::max(kMinJointSigmaMm, kMadToSigma * select_kth(scratch_buf, mid));
   const double cut = cfg.tukey_c * sigma;
   size_t idx = 0;
   for (int l = 0; l < kNumLines; ++l) {
