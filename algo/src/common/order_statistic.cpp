@@ -17,14 +17,22 @@ constexpr std::size_t kSmallRange = 16;
 // are all "after", so the swap keeps them there.
 template <class Pred>
 std::size_t partition_branchless(double* a, std::size_t lo, std::size_t hi, Pred before) {
-  std::size_t i = lo;
-  for (std::size_t j = lo; j < hi; ++j) {
+  std::size_t i = lo, j = lo;
+  const auto step = [&] {
     const double x = a[j];
     const bool front = before(x);
     a[j] = a[i];
     a[i] = x;
     i += front ? 1 : 0;
+    ++j;
+  };
+  // Two values per loop test: the loop's compare and branch were two of nine instructions per
+  // value on aarch64.
+  for (; j + 1 < hi;) {
+    step();
+    step();
   }
+  if (j < hi) step();
   return i;
 }
 
