@@ -1,14 +1,16 @@
 #!/usr/bin/env python3
-"""Unit tests of the HIL analysis's pose pairing on synthetic frames (no VM): a link flap may cut
-the one pose pair it falls into, and nothing else may go unpaired."""
+"""Unit tests of the HIL analysis on synthetic frames (no VM): a link flap may cut the one pose
+pair it falls into, and nothing else may go unpaired; the bus poses are found in the localizer's
+own record however many rows an outage skipped, and a pose it never wrote fails."""
 import os
 import sys
 import unittest
 
 sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from hil_analysis import pair_pose_frames  # noqa: E402
-from hil_common import Frame  # noqa: E402
+import hil_dbc  # noqa: E402
+from hil_analysis import match_own, pair_pose_frames  # noqa: E402
+from hil_common import Frame, Report  # noqa: E402
 
 PERIOD = 0.02
 WINDOW = 0.1
@@ -72,6 +74,53 @@ class Pairing(unittest.TestCase):
         outage = (20 * PERIOD + 0.5, 40 * PERIOD - 0.001)
         _, unpaired, _, cut = pair_pose_frames(xy, hd, WINDOW, outage, outage[0] + 0.001)
         self.assertEqual((unpaired, cut), (1, None))
+
+
+class OwnRecord(unittest.TestCase):
+    """match_own: each bus pose equals the next row(s) of the localizer's poses.csv."""
+
+    DBC = hil_dbc.Dbc(os.path.join(os.path.dirname(os.path.abspath(__file__)),
+                                   "..", "..", "can", "agvloc.dbc"))
+
+    def rows(self, n):
+        # A vehicle moving 1 mm per tick along x, turning slowly.
+        return [{"t_ns": k * 10_000_000, "x": 100.0 + k, "y": 20.0, "th": 0.001 * k, "valid": True}
+                for k in range(n)]
+
+    def pair(self, r, t):
+        mxy, mhd = self.DBC.by_name("AGV_PoseXY"), self.DBC.by_name("AGV_PoseHeading")
+        a, b = bytearray(8), bytearray(8)
+        for d, m in ((a, mxy), (b, mhd)):
+            m.signals["PoseValid"].encode(d, 1.0)
+        mxy.signals["X"].encode(a, r["x"])
+        mxy.signals["Y"].encode(a, r["y"])
+        mhd.signals["Theta"].encode(b, r["th"])
+        return (Frame(t=t, can_id=0x300, ext=False, data=bytes(a)),
+                Frame(t=t + 0.0005, can_id=0x301, ext=False, data=bytes(b)))
+
+    def run_match(self, own, sent):
+        rep = Report(os.devnull)
+        s = type("Setup", (), {"dbc": self.DBC})()
+        pairs = [self.pair(own[k], 0.02 * k) for k in sent]
+        out = match_own(s, rep, pairs, "poses.csv", own, 0.05 + 1e-4, 0.00005 + 1e-6)
+        return rep, out
+
+    def test_an_outage_of_any_length_skips_rows(self):
+        # 450 ticks not sent (the link down): more than the old 200-row look-ahead.
+        own = self.rows(700)
+        sent = list(range(0, 100)) + list(range(550, 700))
+        rep, out = self.run_match(own, sent)
+        self.assertEqual(rep.failed, [])
+        self.assertEqual(len(out), len(sent))
+
+    def test_a_pose_the_localizer_never_wrote_fails(self):
+        own = self.rows(300)
+        rep = Report(os.devnull)
+        s = type("Setup", (), {"dbc": self.DBC})()
+        pairs = [self.pair(own[k], 0.02 * k) for k in range(300)]
+        pairs[150] = self.pair({"x": 5000.0, "y": 20.0, "th": 0.0}, 3.0)
+        match_own(s, rep, pairs, "poses.csv", own, 0.05 + 1e-4, 0.00005 + 1e-6)
+        self.assertEqual(len(rep.failed), 1)
 
 
 if __name__ == "__main__":
