@@ -127,6 +127,18 @@ def prepare_config(args, results: str) -> tuple[str, dict]:
     for key, value in ((("loop", "pose_on_fix"), "false"), (("loop", "vision_priority"), "0")):
         if key in vals:
             patch[key] = value
+    # Under TCG emulation on a loaded host the guest's replay camera hands frames to vision
+    # seconds late (exposure -> vision start p50 1.5 s, max 4.8 s in the garbage scenario with a
+    # build beside it). The vehicle's 500 ms fusion.max_fix_delay_ms then dropped 10 of 12 fixes
+    # as too old, and the bus track no longer followed the offline reference, which fused them.
+    # That lateness is the emulator's, not behaviour under test (the fault replays check the
+    # too-old rule), so the HIL configuration accepts fixes up to the key's limit, with the
+    # history to re-propagate them (100 Hz odometry x 10 s plus the fixes, twice over).
+    fusion_keys = {("fusion", "max_fix_delay_ms"): "10000", ("fusion", "history_capacity"): "2048"}
+    if not any(k[0] == "fusion" for k in vals):
+        text += "\nfusion:\n" + "".join(f"  {k[1]}: {v}\n" for k, v in fusion_keys.items())
+    else:
+        patch.update({k: v for k, v in fusion_keys.items() if k in vals})
     if ("landmark", "map") in vals and not os.path.isabs(vals[("landmark", "map")]):
         patch[("landmark", "map")] = os.path.normpath(
             os.path.join(os.path.dirname(src), vals[("landmark", "map")]))

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Unit tests of the HIL analysis on synthetic frames (no VM): a link flap may cut the one pose
 pair it falls into, and nothing else may go unpaired; the bus poses are found in the localizer's
-own record however many rows an outage skipped, and a pose it never wrote fails."""
+own record however many rows an outage skipped, and a pose it never wrote fails; the generated
+configuration accepts late fixes."""
 import os
 import sys
 import unittest
@@ -10,7 +11,7 @@ sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import hil_dbc  # noqa: E402
 from hil_analysis import match_own, pair_pose_frames  # noqa: E402
-from hil_common import Frame, Report  # noqa: E402
+from hil_common import Frame, Report, prepare_config  # noqa: E402
 
 PERIOD = 0.02
 WINDOW = 0.1
@@ -121,6 +122,34 @@ class OwnRecord(unittest.TestCase):
         pairs[150] = self.pair({"x": 5000.0, "y": 20.0, "th": 0.0}, 3.0)
         match_own(s, rep, pairs, "poses.csv", own, 0.05 + 1e-4, 0.00005 + 1e-6)
         self.assertEqual(len(rep.failed), 1)
+
+
+class HilConfig(unittest.TestCase):
+    """The generated HIL configuration accepts fixes as late as the emulator delivers them."""
+
+    def generate(self, text):
+        import tempfile
+        with tempfile.TemporaryDirectory() as d:
+            src = os.path.join(d, "src.yaml")
+            with open(src, "w") as f:
+                f.write(text)
+            args = type("Args", (), {"config": src, "iface": "vcan0", "set": None})()
+            _, vals = prepare_config(args, d)
+            return vals
+
+    BASE = "camera:\n  driver: libcamera\ncan:\n  interface: can0\n"
+
+    def test_without_a_fusion_section(self):
+        vals = self.generate(self.BASE)
+        self.assertEqual(vals[("fusion", "max_fix_delay_ms")], "10000")
+        self.assertEqual(vals[("fusion", "history_capacity")], "2048")
+        self.assertEqual(vals[("camera", "driver")], "replay")
+
+    def test_with_a_fusion_section(self):
+        vals = self.generate(self.BASE +
+                             "fusion:\n  max_fix_delay_ms: 500\n  history_capacity: 256\n")
+        self.assertEqual(vals[("fusion", "max_fix_delay_ms")], "10000")
+        self.assertEqual(vals[("fusion", "history_capacity")], "2048")
 
 
 if __name__ == "__main__":
