@@ -32,6 +32,9 @@ namespace {
 // Output periods one replay simulates at most: 10^6 tick records (360 MB) and poses.csv lines
 // (~130 MB); 2.8 h of recording at the default 100 Hz (docs/replay.md).
 constexpr std::int64_t kMaxReplayTicks = 1'000'000;
+// Seconds a real-time replay's record runs past the recording: 6000 tick records (2.2 MB) at
+// 100 Hz, where 7 s were needed under load in the HIL VM.
+constexpr double kRealtimeRecordSlackS = 60.0;
 
 void write_overlays(const config::Config& cfg, const LandmarkMap* map,
                     const recording::Recording& rec, const std::vector<int>& frames,
@@ -204,7 +207,13 @@ int replay(int argc, char** argv) {
     }
     const double duration_s =
         static_cast<double>((rec.odom.empty() ? t_first : rec.odom.back().t_ns) - t_first) / 1e9;
-    ticks.reserve(static_cast<size_t>((duration_s + 5.0) * cfg.loop.output_rate_hz) + 16);
+    // A real-time run can outlast the recording: it ends when the last frame is processed and
+    // the odometry has stopped, and a loaded machine (or a VM) delivers frames late. With the
+    // record 5 s longer than the recording, a HIL run under load lost 206 ticks' rows (2 s past
+    // it). The record is allocated once; a run past it is reported
+    // (RunResult::ticks_not_recorded), not silently cut.
+    ticks.reserve(
+        static_cast<size_t>((duration_s + kRealtimeRecordSlackS) * cfg.loop.output_rate_hz) + 16);
     fixes.reserve(rec.frames.size() + 16);
     app::PipelineIo io;
     io.camera = &camera;
@@ -246,6 +255,13 @@ int replay(int argc, char** argv) {
     std::fprintf(stderr, "replay: no frame of %s could be read: the run used odometry only\n",
                  rec_dir.c_str());
     rc = 1;
+  }
+  if (result.ticks_not_recorded > 0 || result.fixes_not_recorded > 0) {
+    std::fprintf(stderr,
+                 "replay: the record was full: %llu output ticks and %llu vision results are not "
+                 "in %s\n",
+                 static_cast<unsigned long long>(result.ticks_not_recorded),
+                 static_cast<unsigned long long>(result.fixes_not_recorded), out_dir.c_str());
   }
   const std::string poses = (std::filesystem::path(out_dir) / "poses.csv").string();
   const std::string fixes_csv = (std::filesystem::path(out_dir) / "fixes.csv").string();

@@ -98,6 +98,8 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
   std::atomic<std::uint64_t> vision_busy{0};
   VisionStats vstats;
   SnapshotSlot snapshot;
+  // Written by one thread each (worker, output), read after both are joined.
+  std::uint64_t fixes_not_recorded = 0, ticks_not_recorded = 0;
 
   if (io.camera->start() != hal::CameraStatus::kOk) {
     std::fprintf(stderr, "agvloc: camera did not start: %s (continuing: dead reckoning only)\n",
@@ -169,7 +171,11 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
       rec.t_done_ns = t1;
       io.camera->release(f);
       localizer::record_vision(rec.fix, t0 - f.t_exposure_ns, t1 - t0, &vstats);
-      if (io.fixes && io.fixes->size() < io.fixes->capacity()) io.fixes->push_back(rec);
+      if (io.fixes && io.fixes->size() < io.fixes->capacity()) {
+        io.fixes->push_back(rec);
+      } else if (io.fixes) {
+        ++fixes_not_recorded;
+      }
       if (rec.fix.status != vision::FixStatus::kNoLandmark && fix_queue.push(rec) && pose_on_fix &&
           rec.fix.status == vision::FixStatus::kOk) {
         wakeup.wake();
@@ -212,7 +218,11 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
       cam.error = camera_error.load();
       cam.frames_dropped = mailbox.dropped();
       TickRecord* tr = nullptr;
-      if (io.ticks && io.ticks->size() < io.ticks->capacity()) tr = &io.ticks->emplace_back();
+      if (io.ticks && io.ticks->size() < io.ticks->capacity()) {
+        tr = &io.ticks->emplace_back();
+      } else if (io.ticks) {
+        ++ticks_not_recorded;
+      }
       loop.tick(now, cam, tr);
       snapshot.publish(core.snapshot_at(now));
       next_ns += period_ns;
@@ -239,6 +249,8 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
   result->frames_dropped_mailbox = mailbox.dropped();
   result->fixes_dropped_queue = fix_queue.dropped();
   result->odometry_rejected_can = core.odometry_decoder().counters().rejected();
+  result->ticks_not_recorded = ticks_not_recorded;
+  result->fixes_not_recorded = fixes_not_recorded;
   if (io.bus) {
     result->can = io.bus->stats();
     result->can_present = true;

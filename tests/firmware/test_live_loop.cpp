@@ -156,3 +156,59 @@ TEST(LiveLoop, PoseOnFixWakesTheOutputThreadAndThePoseIsNearTheTruth) {
   EXPECT_GT(periodic_after_fix, 40);
   EXPECT_EQ(valid_near, periodic_after_fix);
 }
+
+// The threaded run keeps its record (the --out CSVs) in vectors allocated before it starts and
+// never grown by the real-time threads: what does not fit is counted and reported, not silently
+// dropped (a HIL run under load lost 206 ticks' rows this way).
+TEST(LiveLoop, ARecordTooSmallForTheRunIsReported) {
+  config::Config cfg;
+  cfg.loop.log_period_s = 0.0;
+  cfg.camera_model = CameraModel::default_640x480();
+  cfg.landmark_size_mm = LandmarkGeometry{}.size_mm;
+  LandmarkMap map;
+  map.entries[kId] = {kId, kLandmarkWorld};
+  fakecamera::FakeImage blank;
+  blank.width_px = 640;
+  blank.height_px = 480;
+  blank.gray.assign(640u * 480u, 200);
+  posix::PosixClock clock;
+  fakecamera::FakeCamera::Options o;
+  o.clock = &clock;
+  o.end_of_stream_when_empty = true;
+  fakecamera::FakeCamera cam(o);
+  const std::int64_t t0 = clock.now_ns() + 20 * kMs;
+  constexpr int kFrames = 8;  // at least two are processed even if the mailbox drops some
+  for (int i = 0; i < kFrames; ++i) {
+    cam.push_frame(blank, t0 + i * 50 * kMs);
+    cam.push_stall(50 * kMs);
+  }
+  cam.push_end_of_stream();
+  std::vector<recording::OdomRow> odo;
+  for (std::int64_t t = t0 - 50 * kMs; t < t0 + (kFrames + 2) * 50 * kMs; t += 10 * kMs) {
+    odo.push_back({t, 0.0, 0.0});
+  }
+  can::FakeCanNetwork net;
+  auto vehicle = net.create_endpoint(8192);
+  auto ours = net.create_endpoint(256);
+  std::vector<app::TickRecord> ticks;
+  ticks.reserve(5);
+  std::vector<app::FixRecord> fixes;
+  fixes.reserve(1);
+  app::PipelineIo io;
+  io.camera = &cam;
+  io.bus = ours.get();
+  io.clock = &clock;
+  io.odometry = &odo;
+  io.ticks = &ticks;
+  io.fixes = &fixes;
+  io.quiet = true;
+  app::RunResult r;
+  ASSERT_EQ(app::run_threads(cfg, &map, io, &r), 0);
+  EXPECT_EQ(ticks.size(), 5u);
+  EXPECT_EQ(fixes.size(), 1u);
+  ASSERT_GT(r.output.ticks, 5u) << "the run must outlast the record";
+  EXPECT_EQ(r.ticks_not_recorded, r.output.ticks - ticks.size());
+  EXPECT_EQ(r.fixes_not_recorded, r.vision.frames_processed - fixes.size());
+  EXPECT_GE(r.fixes_not_recorded, 1u);
+  EXPECT_NE(localizer::format_statistics(r).find("record FULL"), std::string::npos);
+}

@@ -31,6 +31,11 @@ struct RunResult {
   std::uint64_t frames_dropped_mailbox = 0;  // newest-wins replacements
   std::uint64_t fixes_dropped_queue = 0;
   std::uint64_t odometry_rejected_can = 0;
+  // Output ticks and vision results the threaded run could not keep in its record (the --out
+  // CSVs): the record is allocated before the run and not grown by the real-time threads, so a
+  // run that outlasts it loses rows. Reported, never silent.
+  std::uint64_t ticks_not_recorded = 0;
+  std::uint64_t fixes_not_recorded = 0;
   hal::CanStats can;
   bool can_present = false;
   std::int64_t wall_ns = 0;
