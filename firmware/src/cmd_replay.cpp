@@ -35,6 +35,9 @@ constexpr std::int64_t kMaxReplayTicks = 1'000'000;
 // Seconds a real-time replay's record runs past the recording: 6000 tick records (2.2 MB) at
 // 100 Hz, where 7 s were needed under load in the HIL VM.
 constexpr double kRealtimeRecordSlackS = 60.0;
+// Odometry rate the record of received odometry (odom_received.csv) is sized for: 1 kHz, ten
+// times the default sender's; 1.7 MB for a 10 s recording plus the slack above.
+constexpr double kReceivedOdometryRecordHz = 1000.0;
 
 void write_overlays(const config::Config& cfg, const LandmarkMap* map,
                     const recording::Recording& rec, const std::vector<int>& frames,
@@ -63,18 +66,23 @@ void write_overlays(const config::Config& cfg, const LandmarkMap* map,
 }
 
 // Waits for the first valid odometry frame on the bus and returns its receive time (monotonic),
-// or -1 when stopped first. With --odom-from-can the sender plays the recording's odometry from
-// its first row: anchoring the replay clock there puts frames and odometry on one time line,
-// whatever the delay between our start and the sender's (it varies with load, and every 10 ms
-// of it would shift the camera against the odometry by 10 ms of travel).
-std::int64_t wait_first_odometry(hal::CanBus& bus, const config::Config& cfg) {
+// or -1 when stopped first; *first is that frame (the caller hands it on to fusion). With
+// --odom-from-can the sender plays the recording's odometry from its first row: anchoring the
+// replay clock there puts frames and odometry on one time line, whatever the delay between our
+// start and the sender's (it varies with load, and every 10 ms of it would shift the camera against
+// the odometry by 10 ms of travel).
+std::int64_t wait_first_odometry(hal::CanBus& bus, const config::Config& cfg,
+                                 hal::CanFrame* first) {
   protocol::OdometryDecoder decoder(config::protocol_config(cfg));
   std::fprintf(stderr, "replay: waiting for the first odometry frame on the bus\n");
   while (!stop_requested().load()) {
     hal::CanFrame f;
     if (bus.receive(&f, 100'000'000) != hal::CanStatus::kOk) continue;
     protocol::OdomSample s;
-    if (decoder.decode(f, &s) == protocol::DecodeResult::kOk) return f.t_ns;
+    if (decoder.decode(f, &s) == protocol::DecodeResult::kOk) {
+      *first = f;
+      return f.t_ns;
+    }
   }
   return -1;
 }
@@ -161,6 +169,10 @@ int replay(int argc, char** argv) {
   install_stop_signals();
   std::vector<app::TickRecord> ticks;
   std::vector<app::FixRecord> fixes;
+  // --odom-from-can: the odometry fusion got from the bus, on the replay clock. With the
+  // recording's frames it is a recording of this run's inputs: `agvloc replay` of it reproduces
+  // the run without the bus's timing (tests/hil compares against that).
+  std::vector<recording::OdomRow> odom_received;
   app::RunResult result;
   std::printf("replay: %s: %zu frames, %zu odometry samples%s, map %s, mode %s\n", rec_dir.c_str(),
               rec.frames.size(), rec.odom.size(), rec.has_truth ? ", truth" : "",
@@ -191,9 +203,10 @@ int replay(int argc, char** argv) {
     posix::PosixClock mono;
     std::int64_t t_first = rec.frames.empty() ? (rec.odom.empty() ? 0 : rec.odom.front().t_ns)
                                               : rec.frames.front().t_ns;
+    hal::CanFrame first_odometry{};
     std::int64_t mono0 = mono.now_ns();
     if (odom_from_can) {
-      mono0 = wait_first_odometry(*socket_bus, cfg);
+      mono0 = wait_first_odometry(*socket_bus, cfg, &first_odometry);
       if (mono0 < 0) return 1;
       if (!rec.odom.empty()) t_first = rec.odom.front().t_ns;
     }
@@ -201,7 +214,10 @@ int replay(int argc, char** argv) {
     recording::ReplayCamera camera(rec, &clock);
     std::unique_ptr<hal::CanBus> bus;
     if (socket_bus) {
-      bus = std::make_unique<adapters::TimeMappedBus>(*socket_bus, &clock);
+      auto mapped = std::make_unique<adapters::TimeMappedBus>(*socket_bus, &clock);
+      // The anchoring frame is odometry like the rest (the HIL found it missing from fusion).
+      if (odom_from_can) mapped->unread(first_odometry);
+      bus = std::move(mapped);
     } else {
       bus = std::make_unique<can::LogOnlyBus>(log, clock, "can0");
     }
@@ -215,6 +231,10 @@ int replay(int argc, char** argv) {
     ticks.reserve(
         static_cast<size_t>((duration_s + kRealtimeRecordSlackS) * cfg.loop.output_rate_hz) + 16);
     fixes.reserve(rec.frames.size() + 16);
+    if (odom_from_can) {
+      odom_received.reserve(
+          static_cast<size_t>((duration_s + kRealtimeRecordSlackS) * kReceivedOdometryRecordHz));
+    }
     app::PipelineIo io;
     io.camera = &camera;
     io.bus = bus.get();
@@ -222,6 +242,7 @@ int replay(int argc, char** argv) {
     io.odometry = odom_from_can ? nullptr : &rec.odom;
     io.ticks = &ticks;
     io.fixes = &fixes;
+    io.odometry_received = odom_from_can ? &odom_received : nullptr;
     io.stop = &stop_requested();
     io.quiet = quiet;
     const std::int64_t w0 = posix::monotonic_now_ns();
@@ -256,16 +277,20 @@ int replay(int argc, char** argv) {
                  rec_dir.c_str());
     rc = 1;
   }
-  if (result.ticks_not_recorded > 0 || result.fixes_not_recorded > 0) {
+  if (result.ticks_not_recorded > 0 || result.fixes_not_recorded > 0 ||
+      result.odometry_not_recorded > 0) {
     std::fprintf(stderr,
-                 "replay: the record was full: %llu output ticks and %llu vision results are not "
-                 "in %s\n",
+                 "replay: the record was full: %llu output ticks, %llu vision results and %llu "
+                 "received odometry samples are not in %s\n",
                  static_cast<unsigned long long>(result.ticks_not_recorded),
-                 static_cast<unsigned long long>(result.fixes_not_recorded), out_dir.c_str());
+                 static_cast<unsigned long long>(result.fixes_not_recorded),
+                 static_cast<unsigned long long>(result.odometry_not_recorded), out_dir.c_str());
   }
   const std::string poses = (std::filesystem::path(out_dir) / "poses.csv").string();
   const std::string fixes_csv = (std::filesystem::path(out_dir) / "fixes.csv").string();
-  if (!app::write_poses_csv(poses, ticks, &err) || !app::write_fixes_csv(fixes_csv, fixes, &err)) {
+  const std::string odom_csv = (std::filesystem::path(out_dir) / "odom_received.csv").string();
+  if (!app::write_poses_csv(poses, ticks, &err) || !app::write_fixes_csv(fixes_csv, fixes, &err) ||
+      (odom_from_can && !app::write_odometry_csv(odom_csv, odom_received, &err))) {
     std::fprintf(stderr, "replay: %s\n", err.c_str());
     rc = 1;
   }
@@ -285,8 +310,8 @@ int replay(int argc, char** argv) {
     summary += "truth.csv present: accuracy and trajectory.svg with `agvloc-desk report " +
                out_dir + " --recording " + rec_dir + "`\n";
   }
-  summary +=
-      "outputs: " + poses + ", " + fixes_csv + (can_iface.empty() ? ", " + can_log : "") + "\n";
+  summary += "outputs: " + poses + ", " + fixes_csv + (can_iface.empty() ? ", " + can_log : "") +
+             (odom_from_can ? ", " + odom_csv : "") + "\n";
   std::fputs(summary.c_str(), stdout);
   std::ofstream(std::filesystem::path(out_dir) / "summary.txt") << summary;
   return rc;

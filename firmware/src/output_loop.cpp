@@ -67,10 +67,16 @@ void OutputLoop::drain_odometry(std::int64_t up_to_ns) {
 int OutputLoop::take_inputs(std::int64_t now_ns) {
   if (bus_) {
     hal::CanFrame frame;
+    protocol::OdomSample s;
     // Bounded: at 1 Mbit/s at most ~80 frames arrive in 10 ms.
     for (int i = 0; i < 256; ++i) {
       if (bus_->receive(&frame, 0) != hal::CanStatus::kOk) break;
-      core_.on_can_frame(frame);
+      if (!core_.on_can_frame(frame, &s) || !received_) continue;
+      if (received_->size() < received_->capacity()) {
+        received_->push_back({s.t_ns, s.v_mps, s.omega_radps});
+      } else {
+        ++odometry_not_recorded_;
+      }
     }
   }
   int good = 0;

@@ -49,6 +49,12 @@ class OutputLoop {
              const std::vector<recording::OdomRow>* odometry, FixRing& fixes,
              std::int64_t log_period_ns);
 
+  // Keeps every odometry sample decoded from CAN (what fusion was given, on the loop clock) in
+  // *received, up to its reserved capacity; the rest are counted (odometry_not_recorded). Null:
+  // none kept. Called before the loop runs.
+  void keep_received_odometry(std::vector<recording::OdomRow>* received) { received_ = received; }
+  std::uint64_t odometry_not_recorded() const { return odometry_not_recorded_; }
+
   // One output period at now_ns: odometry up to now, CAN receive, fixes that arrived, camera
   // state, core tick, send, periodic log. Fills *rec when not null.
   void tick(std::int64_t now_ns, const CameraState& camera, TickRecord* rec);
@@ -72,6 +78,8 @@ class OutputLoop {
   const hal::Clock& clock_;
   const std::vector<recording::OdomRow>* odometry_;
   std::size_t odom_i_ = 0;
+  std::vector<recording::OdomRow>* received_ = nullptr;
+  std::uint64_t odometry_not_recorded_ = 0;
   FixRing& fixes_;
   std::int64_t log_period_ns_;
   std::int64_t next_log_ns_ = INT64_MIN;

@@ -86,6 +86,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
   const std::int64_t log_period_ns =
       io.quiet ? 0 : static_cast<std::int64_t>(cfg.loop.log_period_s * 1e9);
   OutputLoop loop(core, io.bus, clock, io.odometry, fix_queue, log_period_ns);
+  loop.keep_received_odometry(io.odometry_received);
   // loop.pose_on_fix: the vision worker wakes the output thread, which fuses the fix and sends
   // the pose pair at once; it stays the only CAN writer and shares no lock with vision.
   posix::FutexWakeup wakeup(clock);
@@ -251,6 +252,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
   result->odometry_rejected_can = core.odometry_decoder().counters().rejected();
   result->ticks_not_recorded = ticks_not_recorded;
   result->fixes_not_recorded = fixes_not_recorded;
+  result->odometry_not_recorded = loop.odometry_not_recorded();
   if (io.bus) {
     result->can = io.bus->stats();
     result->can_present = true;

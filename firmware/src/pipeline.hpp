@@ -35,6 +35,8 @@ struct PipelineIo {
   // Optional outputs, reserved by the caller (the loop never grows them past their capacity).
   std::vector<TickRecord>* ticks = nullptr;
   std::vector<FixRecord>* fixes = nullptr;
+  // Odometry decoded from CAN, as fusion got it (OutputLoop::keep_received_odometry).
+  std::vector<recording::OdomRow>* odometry_received = nullptr;
   std::atomic<bool>* stop = nullptr;  // set by signal handlers
   // Stop when the camera reports end of stream and replay odometry is used up.
   bool stop_at_end_of_stream = true;

@@ -60,4 +60,20 @@ bool write_fixes_csv(const std::string& path, const std::vector<FixRecord>& fixe
   return ok;
 }
 
+bool write_odometry_csv(const std::string& path, const std::vector<recording::OdomRow>& rows,
+                        std::string* error) {
+  FILE* f = std::fopen(path.c_str(), "w");
+  if (!f) {
+    *error = path + ": cannot open for writing";
+    return false;
+  }
+  std::fprintf(f, "t_ns,v_mps,omega_radps\n");
+  for (const auto& r : rows) {
+    std::fprintf(f, "%" PRId64 ",%.17g,%.17g\n", r.t_ns, r.v_mps, r.omega_radps);
+  }
+  const bool ok = std::fclose(f) == 0;
+  if (!ok) *error = path + ": write failed";
+  return ok;
+}
+
 }  // namespace agv::app

@@ -8,6 +8,7 @@
 #include "agv/adapters/hybrid_wait_clock.hpp"
 #include "agv/adapters/scaled_clock.hpp"
 #include "agv/adapters/stepped_clock.hpp"
+#include "agv/can/fake_can.hpp"
 
 using namespace agv;
 
@@ -120,4 +121,36 @@ TEST(ScaledClock, MapsItsTimeToTheMonotonicClock) {
   EXPECT_EQ(half.now_ns(), 1'001'000);
   adapters::HybridWaitClock wait(half, 0);
   EXPECT_EQ(wait.to_monotonic_ns(1'001'000), 12'000);
+}
+
+// replay --odom-from-can takes the first odometry frame from the bus to anchor its clock, then
+// hands it back: fusion gets it first, on the replay clock, then the bus's frames in order.
+TEST(TimeMappedBus, AnUnreadFrameComesFirstOnTheScaledClock) {
+  can::FakeCanNetwork net;
+  auto sender = net.create_endpoint(16);
+  auto inner = net.create_endpoint(16);
+  hal::CanFrame a, b, got;
+  a.id = 0x311;
+  a.len = 8;
+  b = a;
+  b.data[0] = 2;
+  net.set_time_ns(10'000);
+  ASSERT_EQ(sender->send(a), hal::CanStatus::kOk);
+  net.set_time_ns(14'000);
+  ASSERT_EQ(sender->send(b), hal::CanStatus::kOk);
+  hal::CanFrame anchor;
+  ASSERT_EQ(inner->receive(&anchor, 0), hal::CanStatus::kOk);
+  ASSERT_EQ(anchor.t_ns, 10'000);
+
+  adapters::SteppedClock base(10'000);
+  adapters::ScaledClock half(base, 1'000'000, 0.5, anchor.t_ns);
+  adapters::TimeMappedBus bus(*inner, &half);
+  bus.unread(anchor);
+  ASSERT_EQ(bus.receive(&got, 0), hal::CanStatus::kOk);
+  EXPECT_EQ(got.data[0], 0);
+  EXPECT_EQ(got.t_ns, 1'000'000);
+  ASSERT_EQ(bus.receive(&got, 0), hal::CanStatus::kOk);
+  EXPECT_EQ(got.data[0], 2);
+  EXPECT_EQ(got.t_ns, 1'002'000);
+  EXPECT_NE(bus.receive(&got, 0), hal::CanStatus::kOk);
 }

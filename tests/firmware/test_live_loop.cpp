@@ -10,6 +10,7 @@
 #include <random>
 #include <vector>
 
+#include "agv/adapters/stepped_clock.hpp"
 #include "agv/can/fake_can.hpp"
 #include "agv/fakecamera/fake_camera.hpp"
 #include "agv/posix/posix_clock.hpp"
@@ -211,4 +212,43 @@ TEST(LiveLoop, ARecordTooSmallForTheRunIsReported) {
   EXPECT_EQ(r.fixes_not_recorded, r.vision.frames_processed - fixes.size());
   EXPECT_GE(r.fixes_not_recorded, 1u);
   EXPECT_NE(localizer::format_statistics(r).find("record FULL"), std::string::npos);
+}
+
+// replay --odom-from-can keeps the odometry fusion got from the bus (odom_received.csv, the input
+// of the HIL's reference replay): every decoded sample in order with its receive time, nothing
+// else (foreign frames, frames the decoder rejects), and what does not fit is counted.
+TEST(LiveLoop, ReceivedOdometryIsKeptAsFusionGotIt) {
+  config::Config cfg;
+  localizer::Localizer core(app::localizer_config(cfg));
+  const p::ProtocolConfig pc = config::protocol_config(cfg);
+  can::FakeCanNetwork net;
+  auto controller = net.create_endpoint(256);
+  auto ours = net.create_endpoint(256);
+  adapters::SteppedClock clock(1000 * kMs);
+  app::FixRing fixes;
+  app::OutputLoop loop(core, ours.get(), clock, nullptr, fixes, 0);
+  std::vector<recording::OdomRow> received;
+  received.reserve(3);
+  loop.keep_received_odometry(&received);
+
+  hal::CanFrame f;
+  for (int i = 0; i < 5; ++i) {
+    net.set_time_ns((1000 + 10 * i) * kMs);
+    p::encode_odometry(pc, 0.1 * (i + 1), -0.01 * i, static_cast<std::uint8_t>(i), &f);
+    ASSERT_EQ(controller->send(f), hal::CanStatus::kOk);
+    if (i == 1) {
+      hal::CanFrame bad = f;
+      bad.data[0] ^= 0x55;  // same ID, payload corrupted: the decoder rejects it
+      ASSERT_EQ(controller->send(bad), hal::CanStatus::kOk);
+    }
+  }
+  loop.take_inputs(1050 * kMs);
+  EXPECT_EQ(core.stats().odom_samples, 5u);
+  ASSERT_EQ(received.size(), 3u);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(received[static_cast<size_t>(i)].t_ns, (1000 + 10 * i) * kMs);
+    EXPECT_NEAR(received[static_cast<size_t>(i)].v_mps, 0.1 * (i + 1), 1e-3);
+    EXPECT_NEAR(received[static_cast<size_t>(i)].omega_radps, -0.01 * i, 1e-4);
+  }
+  EXPECT_EQ(loop.odometry_not_recorded(), 2u);
 }

@@ -8,7 +8,8 @@ fails a broken one -- independently of the real localizer. It is NOT the localiz
                  [--speed S]]
 
 Offline: DIR/poses.csv, one row per odometry sample; on the bus DIR/poses.csv holds what was
-sent, one row per output tick. On the bus: the same poses, the replay
+sent, one row per output tick, and DIR/odom_received.csv the odometry it accepted (its row's
+time, the decoded values) as the localizer writes it. On the bus: the same poses, the replay
 clock slaved to the first accepted odometry frame (that frame = the first odom.csv row; each
 later accepted frame advances the row by its alive-counter step). Status: FaultOdomTimeout, FaultOdomE2E
 (latched), FaultCanBusOff (latched on a failed send). Prints counters at exit.
@@ -118,6 +119,7 @@ def bus(a, rows) -> int:
 
     state = {"busoff": False, "e2e": False, "n_pose": 0}
     ticks = []  # what was sent, like the localizer's own --out DIR/poses.csv
+    received = []  # accepted odometry, like its --out DIR/odom_received.csv
     last_ctr = None
     t_wall0 = None
     last_ok = None
@@ -168,6 +170,7 @@ def bus(a, rows) -> int:
                 y += v_prev * dt * math.sin(thm) * 1000.0
                 th = math.remainder(th + w_prev * dt, 2 * math.pi)
                 t_prev, v_prev, w_prev = t_row, v, w
+                received.append((t_row, v, w))
                 est = (t_row, x, y, th)
                 last_ok = now
         except socket.timeout:
@@ -247,6 +250,11 @@ def bus(a, rows) -> int:
         f.write("t_ns,x_mm,y_mm,theta_rad,valid\n")
         for t, x, y, th in ticks:
             f.write(f"{t},{x!r},{y!r},{th!r},1\n")
+    if a.odom_from_can:
+        with open(os.path.join(a.out, "odom_received.csv"), "w") as f:
+            f.write("t_ns,v_mps,omega_radps\n")
+            for t, v, w in received:
+                f.write(f"{t},{v!r},{w!r}\n")
     print("can: " + " ".join(f"{k}={v}" for k, v in stats.items()))
     return 0
 

@@ -150,10 +150,60 @@ def analyse(s: Setup, sc: dict, rep: Report) -> None:
     if own:
         tick_time = match_own(s, rep, pairs, own_path, own, res_xy, res_th)
     off_path, off = sc["offline"]
+    live = pending_windows(own or [])
+    if live:
+        lag = sorted((hi - lo) / 1e6 for lo, hi in live)
+        rep.info(f"{len(live)} fixes fused on the bus; exposure to fusion median "
+                 f"{statistics.median(lag):.0f} ms, max {lag[-1]:.0f} ms")
+    received = sc.get("received")
+    rep.check(received is not None, "the localizer wrote the odometry it received "
+              "(run/odom_received.csv) and its offline replay ran")
+    if received:
+        check_received_odometry(s, sc, rep)
+        rx_path, rx = received
+        # The whole run, the link flap's outage and what follows included: the reference got the
+        # same odometry.
+        compare_poses(s, sc, rep, pairs, rx_path, rx, rec_ns, t_cap0, odom_end, float("inf"),
+                      res_xy, res_th, "decoded poses agree with the offline replay of the "
+                      "odometry the localizer received", tick_time,
+                      live + pending_windows(rx))
+    # End to end, against the recording's own odometry times: the bus's timing is in the
+    # difference, so it is reported, not checked (checked when the localizer wrote no record of
+    # its input).
     compare_poses(s, sc, rep, pairs, off_path, off, rec_ns, t_cap0, odom_end, compare_until,
-                  res_xy, res_th, "decoded poses agree with the offline replay", tick_time)
+                  res_xy, res_th, "decoded poses agree with the offline replay of the recording",
+                  tick_time, live + pending_windows(off), strict=received is None)
     analyse_status(s, sc, rep, by_name, xy, odom_frames_cap, t_cap0, odom_end, excluded,
                    status_period, frames)
+
+
+def check_received_odometry(s, sc, rep) -> None:
+    """The odometry the localizer decoded is the odometry that was sent: the same values in the
+    same order, none invented (garbage on the odometry ID must all have been rejected) and, but
+    for a link outage, none lost. Receive times against the recording's are reported."""
+    rx = sc["odom_received"]
+    sent = s.odom
+    i, lost, extra, lag_ms = 0, 0, 0, []
+    for t, v, w in rx:
+        k = i
+        while k < len(sent) and (abs(sent[k][1] - v) > 1e-6 or abs(sent[k][2] - w) > 1e-6):
+            k += 1
+        if k == len(sent):
+            extra += 1
+            continue
+        lost += k - i
+        lag_ms.append((t - sent[k][0]) / 1e6)
+        i = k + 1
+    lost += len(sent) - i
+    may_lose = s.scenario == "link_flap"
+    detail = (f"{len(rx)} received, {len(sent)} sent; {extra} not sent, {lost} sent but not "
+              f"received" + (" (link outage)" if may_lose else ""))
+    if lag_ms:
+        lag = sorted(lag_ms)
+        detail += (f"; receive time - recording time median {statistics.median(lag):.1f} ms, "
+                   f"range {lag[0]:.1f} .. {lag[-1]:.1f} ms")
+    rep.check(extra == 0 and (lost == 0 or may_lose) and len(rx) > 0,
+              "the odometry the localizer received is the odometry sent", detail)
 
 
 def pair_pose_frames(xy, hd, pair_window, outage=None, link_down_done=None):
@@ -232,15 +282,43 @@ def match_own(s, rep, pairs, own_path, own, res_xy, res_th) -> dict:
     return out
 
 
+def pending_windows(rows) -> list[tuple[int, int]]:
+    """[exposure, fusion tick) of every fix a pose record fused, in t_ns: the ticks in between
+    do not have that fix's correction yet. A fusion is a row whose time_since_fix_ms fell (or
+    became known); the fix's exposure is that row's time minus its time_since_fix_ms. Rows
+    without the column give none."""
+    out, prev = [], None
+    for r in rows:
+        tsf = r.get("tsf_ms")
+        if tsf is None:
+            continue
+        # 0.5 ms: the CSV rounds time_since_fix_ms to 0.1 ms.
+        if tsf >= 0 and (prev is None or prev[1] < 0 or
+                         tsf < prev[1] + (r["t_ns"] - prev[0]) / 1e6 - 0.5):
+            out.append((r["t_ns"] - round(tsf * 1e6), r["t_ns"]))
+        prev = (r["t_ns"], tsf)
+    return out
+
+
+def in_pending(t_ns, windows) -> bool:
+    return any(lo <= t_ns < hi for lo, hi in windows)
+
+
 def compare_poses(s, sc, rep, pairs, off_path, off, rec_ns, t_cap0, odom_end, compare_until,
-                  res_xy, res_th, title, tick_time):
+                  res_xy, res_th, title, tick_time, pending=(), strict=True):
     """Each valid bus pose (XY + Heading pair) must equal, within res, a reference row whose
     time is within the window of the estimate time: the pose's tick time from the localizer's
-    own record when known, else capture time - Latency mapped to recording time."""
+    own record when known, else capture time - Latency mapped to recording time.
+
+    Poses whose estimate time lies in a fix's pending window (pending_windows of either record)
+    are left out: between a fix's exposure and its fusion one run has the fix's correction and
+    the other not yet. The offline replay fuses each fix a fixed delay after exposure; on the
+    bus the delay is the vision worker's, which under TCG on a loaded host reached seconds
+    (p50 2.6 s in one run: the median difference was then 2.5 mm, against 0.1 mm on time)."""
     mxy, mhd = s.dbc.by_name("AGV_PoseXY"), s.dbc.by_name("AGV_PoseHeading")
     off_t = [r["t_ns"] for r in off]
     window_ns = sc["match_window_ms"] * 1e6
-    compared = matched = 0
+    compared = matched = pending_skipped = 0
     mismatches, interp_err = [], []
     for f, g in pairs:
         if f.t > compare_until or f.t < t_cap0 or f.t > odom_end:
@@ -250,6 +328,9 @@ def compare_poses(s, sc, rep, pairs, off_path, off, rec_ns, t_cap0, odom_end, co
         if not dx["PoseValid"]:
             continue
         t_est = tick_time.get(id(f), rec_ns(f.t) - dh["Latency"] * 1e6 * s.speed)
+        if in_pending(t_est, pending):
+            pending_skipped += 1
+            continue
         lo = bisect.bisect_left(off_t, t_est - window_ns)
         hi = bisect.bisect_right(off_t, t_est + window_ns)
         compared += 1
@@ -283,14 +364,19 @@ def compare_poses(s, sc, rep, pairs, off_path, off, rec_ns, t_cap0, odom_end, co
     detail = f"{matched}/{compared} valid bus poses equal a reference pose within +-{res_xy:.4f}" \
              f" mm / {res_th:.6f} rad (window +-{sc['match_window_ms']} ms; {off_path}); " \
              f"interpolated position difference median {med:.3f} mm (limit {OFFLINE_MEDIAN_MM})," \
-             f" p90 {p90:.3f} mm (limit {OFFLINE_P90_MM})"
+             f" p90 {p90:.3f} mm (limit {OFFLINE_P90_MM}); {pending_skipped} pose(s) in fixes'" \
+             f" pending windows left out"
     if mismatches:
         t, te, x, y, th, best = mismatches[0]
         detail += (f"; first mismatch at capture {t:.6f} (recording {te/1e9:.3f} s): bus "
                    f"({x:.2f}, {y:.2f}, {th:.4f})" +
                    (f", nearest reference t={best[1]['t_ns']/1e9:.3f} s ({best[1]['x']:.2f}, "
                     f"{best[1]['y']:.2f}, {best[1]['th']:.4f})" if best else ", no reference row"))
-    rep.check(compared > 0 and med <= OFFLINE_MEDIAN_MM and p90 <= OFFLINE_P90_MM, title, detail)
+    ok = compared > 0 and med <= OFFLINE_MEDIAN_MM and p90 <= OFFLINE_P90_MM
+    if strict:
+        rep.check(ok, title, detail)
+    else:
+        rep.info(f"{title} ({'within' if ok else 'NOT within'} the limits, not checked): {detail}")
 
 
 def analyse_status(s, sc, rep, by_name, xy, odom_frames_cap, t_cap0, odom_end, excluded,

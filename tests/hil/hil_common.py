@@ -7,6 +7,7 @@ import math
 import os
 import re
 import shlex
+import shutil
 import statistics
 import subprocess
 import sys
@@ -163,6 +164,21 @@ def read_odom(rec: str) -> list[tuple[int, float, float]]:
     return rows
 
 
+def received_recording(rec: str, odom_received: str, out: str) -> str:
+    """The recording's frames (symlinks) with the odometry the localizer decoded from the bus
+    (its --out odom_received.csv, receive times on the replay clock) as odom.csv: replayed
+    offline it is what the localizer on the bus computed from what it actually received, apart
+    from when each fix arrived (compare_poses leaves those windows out)."""
+    if os.path.isdir(out):
+        shutil.rmtree(out)
+    os.makedirs(out)
+    for name in os.listdir(rec):
+        if name not in ("odom.csv", "truth.csv"):
+            os.symlink(os.path.realpath(os.path.join(rec, name)), os.path.join(out, name))
+    shutil.copyfile(odom_received, os.path.join(out, "odom.csv"))
+    return out
+
+
 def quantize_recording(s: Setup, out: str, drop: tuple[int, int] | None = None) -> str:
     """A copy of the recording (symlinks) whose odom.csv holds exactly the values the bus can
     carry (DBC resolution), so the offline replay and the localizer on the bus see identical
@@ -305,8 +321,10 @@ def read_pose_csv(out_dir: str) -> tuple[str, list[dict]]:
         for r in csv.DictReader(f):
             th = float(r["theta_rad"]) if "theta_rad" in r else math.radians(float(r["theta_deg"]))
             valid = (r.get("valid") or "1").strip().lower() not in ("0", "false")
+            tsf = r.get("time_since_fix_ms")
             rows.append({"t_ns": int(r["t_ns"]), "x": float(r["x_mm"]), "y": float(r["y_mm"]),
-                         "th": th, "valid": valid})
+                         "th": th, "valid": valid,
+                         "tsf_ms": float(tsf) if tsf not in (None, "") else None})
     rows.sort(key=lambda r: r["t_ns"])
     return cands[0], rows
 

@@ -10,7 +10,8 @@ import unittest
 sys.dont_write_bytecode = True  # no __pycache__ in the source tree
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import hil_dbc  # noqa: E402
-from hil_analysis import match_own, pair_pose_frames  # noqa: E402
+from hil_analysis import (  # noqa: E402
+    check_received_odometry, match_own, pair_pose_frames, pending_windows)
 from hil_common import Frame, Report, prepare_config  # noqa: E402
 
 PERIOD = 0.02
@@ -122,6 +123,52 @@ class OwnRecord(unittest.TestCase):
         pairs[150] = self.pair({"x": 5000.0, "y": 20.0, "th": 0.0}, 3.0)
         match_own(s, rep, pairs, "poses.csv", own, 0.05 + 1e-4, 0.00005 + 1e-6)
         self.assertEqual(len(rep.failed), 1)
+
+
+class PendingWindows(unittest.TestCase):
+    """pending_windows: [exposure, fusion tick) of each fix, read from time_since_fix_ms."""
+
+    def test_windows_from_the_record(self):
+        rows, tsf = [], -1.0
+        for k in range(100):
+            t = 10_000_000_000 + k * 10_000_000
+            if k == 30:
+                tsf = 250.0  # fused at 10.30 s a fix exposed at 10.05 s (the first)
+            elif k == 60:
+                tsf = 40.0  # fused at 10.60 s a fix exposed at 10.56 s
+            elif tsf >= 0:
+                tsf += 10.0
+            rows.append({"t_ns": t, "tsf_ms": tsf})
+        self.assertEqual(pending_windows(rows), [(10_050_000_000, 10_300_000_000),
+                                                 (10_560_000_000, 10_600_000_000)])
+
+    def test_without_the_column(self):
+        self.assertEqual(pending_windows([{"t_ns": 1, "tsf_ms": None}]), [])
+
+
+class ReceivedOdometry(unittest.TestCase):
+    """check_received_odometry: the decoded odometry is the sent odometry."""
+
+    SENT = [(10_000_000_000 + k * 10_000_000, 0.001 * k, 0.0) for k in range(50)]
+
+    def check(self, rx, scenario="nominal"):
+        rep = Report(os.devnull)
+        s = type("Setup", (), {"odom": self.SENT, "scenario": scenario})()
+        check_received_odometry(s, {"odom_received": rx}, rep)
+        return rep.failed
+
+    def test_all_received_late(self):
+        self.assertEqual(self.check([(t + 3_000_000, v, w) for t, v, w in self.SENT]), [])
+
+    def test_a_value_never_sent_fails(self):
+        rx = list(self.SENT)
+        rx[20] = (rx[20][0], 7.5, 0.0)  # garbage that passed the decoder
+        self.assertEqual(len(self.check(rx)), 1)
+
+    def test_a_lost_sample_fails_unless_the_link_was_down(self):
+        rx = self.SENT[:20] + self.SENT[30:]
+        self.assertEqual(len(self.check(rx)), 1)
+        self.assertEqual(self.check(rx, "link_flap"), [])
 
 
 class HilConfig(unittest.TestCase):

@@ -166,11 +166,15 @@ TEST(Localizer, ReceivedFramesAreDecodedAsOdometryOrCounted) {
   hal::CanFrame f;
   p::encode_odometry(c.protocol, 0.5, 0.5, 0, &f);
   f.t_ns = 1000 * kMs;
-  loc.on_can_frame(f);
+  p::OdomSample s;
+  EXPECT_TRUE(loc.on_can_frame(f, &s));
+  EXPECT_EQ(s.t_ns, f.t_ns);
+  EXPECT_DOUBLE_EQ(s.v_mps, 0.5);
+  EXPECT_DOUBLE_EQ(s.omega_radps, 0.0);  // test_config: wheel speeds, both 0.5 m/s
   hal::CanFrame other;
   other.id = 0x123;
   other.len = 8;
-  loc.on_can_frame(other);
+  EXPECT_FALSE(loc.on_can_frame(other, &s));
   EXPECT_EQ(loc.stats().can_rx_frames, 2u);
   EXPECT_EQ(loc.stats().can_rx_other, 1u);
   EXPECT_EQ(loc.stats().odom_samples, 1u);

@@ -74,15 +74,17 @@ void Localizer::on_odometry(std::int64_t t_ns, double v_mps, double omega_radps)
   last_odom_ns_ = t_ns;
 }
 
-void Localizer::on_can_frame(const hal::CanFrame& frame) {
+bool Localizer::on_can_frame(const hal::CanFrame& frame, protocol::OdomSample* sample) {
   ++stats_.can_rx_frames;
   protocol::OdomSample s;
   const protocol::DecodeResult r = odom_.decode(frame, &s);
   if (r == protocol::DecodeResult::kOk) {
     on_odometry(s.t_ns, s.v_mps, s.omega_radps);
-  } else if (r == protocol::DecodeResult::kNotOdometry) {
-    ++stats_.can_rx_other;
+    if (sample) *sample = s;
+    return true;
   }
+  if (r == protocol::DecodeResult::kNotOdometry) ++stats_.can_rx_other;
+  return false;
 }
 
 bool Localizer::odometry_timed_out(std::int64_t now_ns) const {

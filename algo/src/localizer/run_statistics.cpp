@@ -81,11 +81,11 @@ std::string format_statistics(const RunResult& r) {
       ", CAN tx ok %" PRIu64 ", failed %" PRIu64 ", rx %" PRIu64 "\n",
       o.ticks, o.missed_periods, o.fix_poses, o.can_tx_ok, o.can_tx_failed, o.can_rx_frames);
   s += buf;
-  if (r.ticks_not_recorded > 0 || r.fixes_not_recorded > 0) {
+  if (r.ticks_not_recorded > 0 || r.fixes_not_recorded > 0 || r.odometry_not_recorded > 0) {
     std::snprintf(buf, sizeof buf,
-                  "  record FULL: %" PRIu64 " output ticks and %" PRIu64
-                  " vision results were not written to the --out CSVs\n",
-                  r.ticks_not_recorded, r.fixes_not_recorded);
+                  "  record FULL: %" PRIu64 " output ticks, %" PRIu64 " vision results and %" PRIu64
+                  " received odometry samples were not written to the --out CSVs\n",
+                  r.ticks_not_recorded, r.fixes_not_recorded, r.odometry_not_recorded);
     s += buf;
   }
   if (r.can_present) {

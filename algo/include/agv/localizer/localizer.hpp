@@ -98,7 +98,10 @@ class Localizer {
   // Odometry from any source (recording, CAN). t_ns on the loop's clock.
   void on_odometry(std::int64_t t_ns, double v_mps, double omega_radps);
   // One received CAN frame: odometry is decoded, checked and fused, others counted and ignored.
-  void on_can_frame(const hal::CanFrame& f);
+  // Returns true when the frame was odometry that passed the decoder's checks; *sample (if not
+  // null) is then what was handed to on_odometry, so the caller can keep the run's input for a
+  // replay of exactly what fusion saw (replay --odom-from-can writes odom_received.csv).
+  bool on_can_frame(const hal::CanFrame& f, protocol::OdomSample* sample = nullptr);
   // The receive filter for the odometry frame (the kernel drops the rest).
   hal::CanFilter odometry_filter() const;
   // A vision result for a frame exposed at t_exposure_ns, ready at t_arrival_ns (same clock).

@@ -36,6 +36,7 @@ struct RunResult {
   // run that outlasts it loses rows. Reported, never silent.
   std::uint64_t ticks_not_recorded = 0;
   std::uint64_t fixes_not_recorded = 0;
+  std::uint64_t odometry_not_recorded = 0;  // odom_received.csv (replay --odom-from-can)
   hal::CanStats can;
   bool can_present = false;
   std::int64_t wall_ns = 0;

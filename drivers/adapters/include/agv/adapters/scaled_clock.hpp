@@ -43,9 +43,22 @@ class ScaledClock final : public hal::Clock {
 class TimeMappedBus final : public hal::CanBus {
  public:
   TimeMappedBus(hal::CanBus& inner, const ScaledClock* clock) : inner_(inner), clock_(clock) {}
+  // A frame already taken from the inner bus (its receive time on the inner clock), delivered
+  // by the next receive() before the inner bus's: replay --odom-from-can reads the first
+  // odometry frame to anchor the clock, and fusion must still get it.
+  void unread(const hal::CanFrame& f) {
+    held_ = f;
+    has_held_ = true;
+  }
   hal::CanStatus send(const hal::CanFrame& f) override { return inner_.send(f); }
   hal::CanStatus receive(hal::CanFrame* f, std::int64_t timeout_ns) override {
-    const hal::CanStatus s = inner_.receive(f, timeout_ns);
+    hal::CanStatus s = hal::CanStatus::kOk;
+    if (has_held_) {
+      *f = held_;
+      has_held_ = false;
+    } else {
+      s = inner_.receive(f, timeout_ns);
+    }
     if (s == hal::CanStatus::kOk && clock_) f->t_ns = clock_->to_scaled(f->t_ns);
     return s;
   }
@@ -60,6 +73,8 @@ class TimeMappedBus final : public hal::CanBus {
  private:
   hal::CanBus& inner_;
   const ScaledClock* clock_;
+  hal::CanFrame held_{};
+  bool has_held_ = false;
 };
 
 }  // namespace agv::adapters
