@@ -250,6 +250,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
   result->frames_dropped_mailbox = mailbox.dropped();
   result->fixes_dropped_queue = fix_queue.dropped();
   result->odometry_rejected_can = core.odometry_decoder().counters().rejected();
+  result->odometry_can = core.odometry_decoder().counters();
   result->ticks_not_recorded = ticks_not_recorded;
   result->fixes_not_recorded = fixes_not_recorded;
   result->odometry_not_recorded = loop.odometry_not_recorded();
@@ -360,6 +361,7 @@ int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording:
   result->simulated_time = true;
   result->fixes_dropped_queue = pending.dropped();
   result->odometry_rejected_can = core.odometry_decoder().counters().rejected();
+  result->odometry_can = core.odometry_decoder().counters();
   result->wall_ns = posix::monotonic_now_ns() - wall0;
   if (bus) {
     result->can = bus->stats();

@@ -251,4 +251,16 @@ TEST(LiveLoop, ReceivedOdometryIsKeptAsFusionGotIt) {
     EXPECT_NEAR(received[static_cast<size_t>(i)].omega_radps, -0.01 * i, 1e-4);
   }
   EXPECT_EQ(loop.odometry_not_recorded(), 2u);
+
+  // The decoder's rejections by reason reach the statistics as key=value pairs (the HIL harness
+  // reads them): here the one corrupted frame, a CRC failure.
+  localizer::RunResult r;
+  r.odometry_can = core.odometry_decoder().counters();
+  r.odometry_rejected_can = r.odometry_can.rejected();
+  r.odometry_not_recorded = loop.odometry_not_recorded();
+  const std::string text = localizer::format_statistics(r);
+  EXPECT_NE(text.find("odom_accepted=5 "), std::string::npos) << text;
+  EXPECT_NE(text.find("odom_bad_crc=1 "), std::string::npos) << text;
+  EXPECT_NE(text.find("odom_stale=0"), std::string::npos) << text;
+  EXPECT_NE(text.find("and 2 received odometry samples"), std::string::npos) << text;
 }

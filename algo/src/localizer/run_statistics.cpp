@@ -68,6 +68,18 @@ std::string format_statistics(const RunResult& r) {
                 o.fixes_rejected_gate, o.fixes_rejected_too_old, o.fixes_rejected_invalid,
                 o.reinitialisations);
   s += buf;
+  const protocol::OdometryCounters& oc = r.odometry_can;
+  if (oc.accepted + oc.rejected() > 0) {
+    // key=value: the HIL harness reads them (tests/hil, parse_counters).
+    std::snprintf(buf, sizeof buf,
+                  "  CAN odometry: odom_accepted=%" PRIu64 " odom_lost_frames=%" PRIu64
+                  " | rejected: odom_bad_length=%" PRIu64 " odom_bad_crc=%" PRIu64
+                  " odom_repeated=%" PRIu64 " odom_counter_jump=%" PRIu64
+                  " odom_bad_counter=%" PRIu64 " odom_stale=%" PRIu64 "\n",
+                  oc.accepted, oc.lost_frames, oc.bad_length, oc.bad_crc, oc.repeated,
+                  oc.counter_jump, oc.bad_counter, oc.stale);
+    s += buf;
+  }
   if (o.fixes_map_guided > 0) {  // only with a prediction (docs/map_identity.md)
     std::snprintf(buf, sizeof buf,
                   "  map-guided fixes: %" PRIu64 " (fused %" PRIu64

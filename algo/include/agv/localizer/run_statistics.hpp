@@ -31,6 +31,8 @@ struct RunResult {
   std::uint64_t frames_dropped_mailbox = 0;  // newest-wins replacements
   std::uint64_t fixes_dropped_queue = 0;
   std::uint64_t odometry_rejected_can = 0;
+  // The CAN odometry decoder's counters by reason (odometry_rejected_can is their sum).
+  protocol::OdometryCounters odometry_can;
   // Output ticks and vision results the threaded run could not keep in its record (the --out
   // CSVs): the record is allocated before the run and not grown by the real-time threads, so a
   // run that outlasts it loses rows. Reported, never silent.
