@@ -35,9 +35,10 @@ constexpr std::int64_t kMaxReplayTicks = 1'000'000;
 // Seconds a real-time replay's record runs past the recording: 6000 tick records (2.2 MB) at
 // 100 Hz, where 7 s were needed under load in the HIL VM.
 constexpr double kRealtimeRecordSlackS = 60.0;
-// Odometry rate the record of received odometry (odom_received.csv) is sized for: 1 kHz, ten
-// times the default sender's; 1.7 MB for a 10 s recording plus the slack above.
-constexpr double kReceivedOdometryRecordHz = 1000.0;
+// The record of received odometry (odom_received.csv) is sized for twice the recording's
+// odometry rate (the sender normally plays it), and at least this rate: 24 bytes a sample,
+// 340 kB for a 10 s recording at 100 Hz plus the slack above, 48 MB for 2.8 hours.
+constexpr double kMinReceivedOdometryRecordHz = 200.0;
 
 void write_overlays(const config::Config& cfg, const LandmarkMap* map,
                     const recording::Recording& rec, const std::vector<int>& frames,
@@ -232,8 +233,11 @@ int replay(int argc, char** argv) {
         static_cast<size_t>((duration_s + kRealtimeRecordSlackS) * cfg.loop.output_rate_hz) + 16);
     fixes.reserve(rec.frames.size() + 16);
     if (odom_from_can) {
+      const double rec_hz =
+          duration_s > 0.0 ? static_cast<double>(rec.odom.size()) / duration_s : 0.0;
       odom_received.reserve(
-          static_cast<size_t>((duration_s + kRealtimeRecordSlackS) * kReceivedOdometryRecordHz));
+          static_cast<size_t>((duration_s + kRealtimeRecordSlackS) *
+                              std::max(2.0 * rec_hz, kMinReceivedOdometryRecordHz)));
     }
     app::PipelineIo io;
     io.camera = &camera;
