@@ -4,6 +4,7 @@
 // at a random offset and heading. Prediction: the truth moved by a Gaussian error of the stated
 // sigma, with that covariance (what the filter reports between fixes).
 //   eval_tracking [--frames N] [--sigma-mm S] [--sigma-deg D] [--seed K] [--row-step N]
+//                 [--detect-from-prediction 0|1]
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -52,13 +53,17 @@ int main(int argc, char** argv) {
   int frames = 200;
   double sigma_mm = 3.0, sigma_deg = 0.3;
   unsigned seed = 1;
-  int row_step = 0;  // 0: VisionConfig's default
+  int row_step = 0;          // 0: VisionConfig's default
+  int from_prediction = -1;  // -1: TrackingConfig's default
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--frames")) frames = std::atoi(argv[i + 1]);
     if (!std::strcmp(argv[i], "--sigma-mm")) sigma_mm = std::atof(argv[i + 1]);
     if (!std::strcmp(argv[i], "--sigma-deg")) sigma_deg = std::atof(argv[i + 1]);
     if (!std::strcmp(argv[i], "--seed")) seed = static_cast<unsigned>(std::atoi(argv[i + 1]));
     if (!std::strcmp(argv[i], "--row-step")) row_step = std::atoi(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--detect-from-prediction")) {
+      from_prediction = std::atoi(argv[i + 1]);
+    }
   }
   const LandmarkMap map = sim::default_landmark_grid();
   const CameraModel cam = CameraModel::default_640x480();
@@ -73,6 +78,7 @@ int main(int argc, char** argv) {
   vision::VisionConfig vc;
   vc.now_ns = now_ns;
   if (row_step > 0) vc.edge_row_step = row_step;
+  if (from_prediction >= 0) vc.tracking.detect_from_prediction = from_prediction != 0;
   std::printf("edge row step: %d\n", vc.edge_row_step);
   vision::LandmarkLocalizer loc(vc, cam, geom, &map);
   vision::WindowPlanner planner(vc, cam, geom, &map);
@@ -89,7 +95,7 @@ int main(int argc, char** argv) {
   // Error of each fix against the rendered truth: the accuracy the tracked detection must keep.
   std::vector<double> full_err_mm, win_err_mm, full_err_deg, win_err_deg;
   int ok_full = 0, ok_win = 0, in_window = 0, then_full = 0, differ = 0, not_bitwise = 0,
-      tracked = 0;
+      tracked = 0, predicted = 0;
   double worst_deg = 0.0;
   double worst_mm = 0.0;
   for (int i = 0; i < frames; ++i) {
@@ -128,9 +134,10 @@ int main(int argc, char** argv) {
     if (win.status == vision::FixStatus::kOk) ++ok_win;
     if (win.search == vision::SearchMode::kWindow) ++in_window;
     if (win.search == vision::SearchMode::kWindowThenFull) ++then_full;
+    if (win.detection_predicted) ++predicted;
     // The windowed corner search reproduces the full search's detection exactly; the tracked
     // detection (track_detect.cpp) has its own.
-    if (win.search == vision::SearchMode::kWindow &&
+    if (win.search == vision::SearchMode::kWindow && !win.detection_predicted &&
         (win.detect_x_px != full.detect_x_px || win.detect_y_px != full.detect_y_px)) {
       ++tracked;
     }
@@ -173,6 +180,7 @@ int main(int argc, char** argv) {
   std::printf("  fixes: full %d, tracking %d; found in window %d, window then full %d\n", ok_full,
               ok_win, in_window, then_full);
   std::printf("  tracked detection (prediction replaced the corner search): %d\n", tracked);
+  std::printf("  detection from the prediction (no detection ran): %d\n", predicted);
   std::printf("  window: median %.0f %% of the frame (margin %.1f mm beyond the outer corners)\n",
               100.0 * median(area_frac), planner.margin_mm());
   std::printf(

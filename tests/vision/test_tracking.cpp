@@ -530,3 +530,94 @@ TEST(Tracking, ExtrapolationMovesAlongTheArcAndGrowsTheCovariance) {
   EXPECT_EQ(same.vehicle_in_world.x_mm, 100.0);
   EXPECT_EQ(same.cov, s.cov);
 }
+
+// Detection from the prediction (predicted_detect.cpp): a prediction whose corners are known to
+// within half the edge band places the bands itself; no detection runs, and the fix agrees with
+// the full search's as the tracked detection's does (the bands' ends follow the predicted centre
+// instead of the detection's, which moves the last edge points).
+constexpr double kPredictedPosTolMm = 0.01;
+constexpr double kPredictedHeadingTolDeg = 0.01;
+
+TEST(Tracking, PrecisePredictionPlacesTheBandsWithoutDetection) {
+  const LandmarkMap map = one_map();
+  double max_pos = 0.0, max_head = 0.0;
+  for (const CameraModel& cam : {CameraModel::default_640x480(), tilted_camera()}) {
+    VisionConfig off;
+    off.tracking.detect_from_prediction = false;
+    LandmarkLocalizer loc(VisionConfig{}, cam, LandmarkGeometry{}, &map);
+    LandmarkLocalizer loc_off(off, cam, LandmarkGeometry{}, &map);
+    int n = 0, n_predicted = 0;
+    for (double dx : {-40.0, 0.0, 25.0}) {
+      for (double deg : {3.0, 44.0, 151.0, 268.0}) {
+        const Pose2 v = over_landmark(cam, dx, 0.6 * dx, deg_to_rad(deg));
+        const cv::Mat img = render(map, v, cam);
+        LandmarkFix full, pr, tr;
+        if (loc.process(img, &full) != FixStatus::kOk) continue;
+        ++n;
+        const Pose2 pv{v.x_mm + 0.2, v.y_mm - 0.1, v.theta_rad + deg_to_rad(0.02)};
+        ASSERT_EQ(loc.process(img, predict(pv, 0.1, 0.02), &pr), FixStatus::kOk)
+            << dx << " " << deg;
+        EXPECT_EQ(pr.search, SearchMode::kWindow);
+        // A landmark cut by the image border keeps the detection (the predicted square is
+        // checked, so one just inside may too).
+        EXPECT_TRUE(!full.partly_outside || !pr.detection_predicted) << dx << " " << deg;
+        if (!pr.detection_predicted) continue;
+        ++n_predicted;
+        EXPECT_EQ(pr.corner_score, 0.0);
+        const FixDiff d = fix_diff(full, pr);
+        max_pos = std::max(max_pos, d.pos_mm);
+        max_head = std::max(max_head, d.heading_deg);
+        // Switched off: the tracked detection, as before.
+        ASSERT_EQ(loc_off.process(img, predict(pv, 0.1, 0.02), &tr), FixStatus::kOk);
+        EXPECT_FALSE(tr.detection_predicted);
+        EXPECT_GT(tr.corner_score, 0.0);
+        // A looser prediction (sigma 3 mm: 4 sigma is far more than half the band) detects.
+        ASSERT_EQ(loc.process(img, predict(pv, 3.0, 0.3), &tr), FixStatus::kOk);
+        EXPECT_FALSE(tr.detection_predicted);
+      }
+    }
+    EXPECT_GE(n, 8);
+    EXPECT_GE(n_predicted, 4);
+  }
+  std::printf("predicted bands vs full search: max position difference %.6f mm, heading %.6f deg\n",
+              max_pos, max_head);
+  EXPECT_LE(max_pos, kPredictedPosTolMm);
+  EXPECT_LE(max_head, kPredictedHeadingTolDeg);
+}
+
+// A prediction that claims to be precise but is wrong: the bands miss the edges (3 mm off, more
+// than the band) or the fit lands elsewhere than predicted (1.5 mm off, inside the band but
+// beyond the gate). Either way the frame falls back to the tracked detection and its fix.
+TEST(Tracking, WrongPrecisePredictionFallsBackToTheDetection) {
+  const LandmarkMap map = one_map();
+  const CameraModel cam = CameraModel::default_640x480();
+  VisionConfig off;
+  off.tracking.detect_from_prediction = false;
+  LandmarkLocalizer loc(VisionConfig{}, cam, LandmarkGeometry{}, &map);
+  LandmarkLocalizer loc_off(off, cam, LandmarkGeometry{}, &map);
+  for (double miss_mm : {1.5, 3.0, 6.0}) {
+    for (double deg : {12.0, 200.0}) {
+      const Pose2 v = over_landmark(cam, 8.0, -5.0, deg_to_rad(deg));
+      const cv::Mat img = render(map, v, cam);
+      const Pose2 wrong = compose(v, Pose2{miss_mm, 0.0, 0.0});
+      LandmarkFix fb, tr;
+      ASSERT_EQ(loc.process(img, predict(wrong, 0.1, 0.02), &fb), FixStatus::kOk) << miss_mm;
+      EXPECT_FALSE(fb.detection_predicted) << miss_mm << " " << deg;
+      ASSERT_EQ(loc_off.process(img, predict(wrong, 0.1, 0.02), &tr), FixStatus::kOk);
+      expect_same_fix(tr, fb);
+    }
+  }
+}
+
+// A precise prediction of a landmark that is not there (plain floor where the map says one is):
+// the full-image ring check finds no dark border, detection runs and finds nothing.
+TEST(Tracking, PrecisePredictionOfAMissingLandmarkGivesNoFix) {
+  const LandmarkMap map = one_map();
+  const CameraModel cam = CameraModel::default_640x480();
+  LandmarkLocalizer loc(VisionConfig{}, cam, LandmarkGeometry{}, &map);
+  const Pose2 v = over_landmark(cam, 0.0, 0.0, 0.3);
+  const cv::Mat blank = render(LandmarkMap{}, v, cam);
+  LandmarkFix fix;
+  EXPECT_EQ(loc.process(blank, predict(v, 0.1, 0.02), &fix), FixStatus::kNoLandmark);
+  EXPECT_FALSE(fix.detection_predicted);
+}

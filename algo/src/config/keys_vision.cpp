@@ -224,6 +224,12 @@ void add_tracking(std::vector<Key>* k) {
                        "window growth around each predicted corner, in σ of its position. "
                        "Smaller = cheaper windows, more misses (a miss costs the window and "
                        "the full search)"}));
+  k->push_back(boolean("vision.tracking.detect_from_prediction",
+                       AGV_AT(vision.tracking.detect_from_prediction), true,
+                       "skip detection when the prediction places every corner within half the "
+                       "pose stage's edge band (at window_sigmas σ) and the fit lands where "
+                       "predicted; otherwise the tracked detection (docs/tracking.md). false: "
+                       "detection on every frame"));
 }
 
 }  // namespace

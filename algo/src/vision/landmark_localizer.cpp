@@ -115,54 +115,61 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
     return finish(FixStatus::kBadInput);
   }
   if (cfg.family == LandmarkFamily::kTag36h11) return finish(run_tag(img, out));
-  // 1-2. Binarization and detection: from the prediction when it is trusted (tracked, then the
-  // windows), the whole frame when there is none or they find nothing (docs/tracking.md).
-  Detection det;
-  bool found_corner = false;
-  double corner_score = 0;
+  // 1-2. Binarization and detection: none when the prediction is precise enough to place the
+  // pose stage's edge bands itself and the fit then lands where it said; otherwise from the
+  // prediction when it is trusted (tracked, then the windows), the whole frame when there is none
+  // or they find nothing (docs/tracking.md).
   planner.plan(pred, &windows);
-  bool found = false;
-  bool searched_all = false;
-  if (!windows.empty()) {
-    // The prediction replaces the search (tracked detection); when it finds nothing trusted, the
-    // corner search over the windows.
-    found = detect_tracked(img, &det, &corner_score) &&
-            det.white_grey - det.dark_grey >= kMinContrastGrey;
-    if (!found) {
-      det = Detection{};
-      found = detect_in_windows(img, &det, &found_corner, &corner_score, &searched_all) &&
-              det.white_grey - det.dark_grey >= kMinContrastGrey;
-    }
-    out->search = found ? SearchMode::kWindow : SearchMode::kWindowThenFull;
-  }
-  // Windows that cover the whole frame were the full search: not repeated.
-  if (!found && !searched_all) {
-    det = Detection{};
-    found = detect(img, &det, &found_corner, &corner_score);
-  }
-  out->corner_score = corner_score;
-  const double t1 = now_ms();
-  if (cfg.now_ns) out->timings.detect_ms = t1 - t0;
-  if (!found) return finish(FixStatus::kNoLandmark);
-  const double contrast = det.white_grey - det.dark_grey;
-  if (contrast < kMinContrastGrey) return finish(FixStatus::kNoLandmark);
-  const Vec2 c_px = coarse_to_full({det.h.cx, det.h.cy});
-  const double up = det.h.up_angle;
-  out->detect_x_px = c_px.x;
-  out->detect_y_px = c_px.y;
-  out->detect_angle_deg = rad_to_deg(up);
-  out->partly_outside = partly_outside(img, c_px, up);
-  if (out->partly_outside && !cfg.allow_partly_outside) return finish(FixStatus::kPartlyOutside);
-
-  // 3. Pose.
+  Detection det;
   Vec2 c_mm;
   double beta = 0;
   Eigen::Matrix3d cov;
-  FixStatus st = pose(img, c_px, up, contrast, out, &c_mm, &beta, &cov);
+  bool posed = false;
+  FixStatus st = FixStatus::kNoLandmark;
+  Vec2 predicted_px;
+  if (cfg.tracking.detect_from_prediction && !windows.empty() &&
+      detect_predicted(img, &det, &predicted_px)) {
+    const LandmarkFix before = *out;
+    out->search = SearchMode::kWindow;
+    out->detection_predicted = true;
+    st = measure(img, det, 0.0, t0, out, &c_mm, &beta, &cov);
+    posed = st == FixStatus::kOk && fit_agrees_with_prediction(predicted_px);
+    if (!posed) *out = before;
+  }
+  if (!posed) {
+    bool found_corner = false;
+    double corner_score = 0;
+    bool found = false;
+    bool searched_all = false;
+    det = Detection{};
+    if (!windows.empty()) {
+      // The prediction replaces the search (tracked detection); when it finds nothing trusted,
+      // the corner search over the windows.
+      found = detect_tracked(img, &det, &corner_score) &&
+              det.white_grey - det.dark_grey >= kMinContrastGrey;
+      if (!found) {
+        det = Detection{};
+        found = detect_in_windows(img, &det, &found_corner, &corner_score, &searched_all) &&
+                det.white_grey - det.dark_grey >= kMinContrastGrey;
+      }
+      out->search = found ? SearchMode::kWindow : SearchMode::kWindowThenFull;
+    }
+    // Windows that cover the whole frame were the full search: not repeated.
+    if (!found && !searched_all) {
+      det = Detection{};
+      found = detect(img, &det, &found_corner, &corner_score);
+    }
+    if (!found) {
+      out->corner_score = corner_score;
+      if (cfg.now_ns) out->timings.detect_ms = now_ms() - t0;
+      return finish(FixStatus::kNoLandmark);
+    }
+    st = measure(img, det, corner_score, t0, out, &c_mm, &beta, &cov);
+    if (st != FixStatus::kOk) return finish(st);
+  }
+  const Vec2 c_px = coarse_to_full({det.h.cx, det.h.cy});
+  const double up = det.h.up_angle;
   const double t2 = now_ms();
-  if (cfg.now_ns) out->timings.pose_ms = t2 - t1;
-  if (st == FixStatus::kTooFewEdgePoints && out->partly_outside) st = FixStatus::kPartlyOutside;
-  if (st != FixStatus::kOk) return finish(st);
   have_overlay = true;
 
   // 4. Logo: NCC at the four turns of the fitted square.
@@ -205,6 +212,29 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
   fill_result(world_landmark, c_mm, beta, q_final, cov, out);
   out->identity = FixIdentity::kQrCode;
   return finish(FixStatus::kOk);
+}
+
+// Stage 3 from an accepted detection: its diagnostics, the image-border check and the pose. t0 is
+// the frame's start (the detection's time is up to now).
+FixStatus LandmarkLocalizer::Impl::measure(const cv::Mat& img, const Detection& det,
+                                           double corner_score, double t0, LandmarkFix* out,
+                                           Vec2* c_mm, double* beta, Eigen::Matrix3d* cov) {
+  out->corner_score = corner_score;
+  const double t1 = now_ms();
+  if (cfg.now_ns) out->timings.detect_ms = t1 - t0;
+  const double contrast = det.white_grey - det.dark_grey;
+  if (contrast < kMinContrastGrey) return FixStatus::kNoLandmark;
+  const Vec2 c_px = coarse_to_full({det.h.cx, det.h.cy});
+  const double up = det.h.up_angle;
+  out->detect_x_px = c_px.x;
+  out->detect_y_px = c_px.y;
+  out->detect_angle_deg = rad_to_deg(up);
+  out->partly_outside = partly_outside(img, c_px, up);
+  if (out->partly_outside && !cfg.allow_partly_outside) return FixStatus::kPartlyOutside;
+  FixStatus st = pose(img, c_px, up, contrast, out, c_mm, beta, cov);
+  if (cfg.now_ns) out->timings.pose_ms = now_ms() - t1;
+  if (st == FixStatus::kTooFewEdgePoints && out->partly_outside) st = FixStatus::kPartlyOutside;
+  return st;
 }
 
 // Detection on the bounding box of the windows, aligned to the coarse grid so its coarse pixels

@@ -7,6 +7,7 @@
 //   apriltag.cpp    tag36h11 family: libapriltag detection and id, then the pose stage above
 //   covariance.cpp  6   fit covariance from the normal equations, vehicle-in-world propagation
 //   track_detect.cpp    1-2 with a trusted prediction: the predicted landmark's corners only
+//   predicted_detect.cpp 1-2 with a precise prediction: none, the prediction places the bands
 //   landmark_localizer.cpp  run(): the stages in order, the public class, the debug overlay
 #pragma once
 
@@ -196,6 +197,8 @@ struct LandmarkLocalizer::Impl {
   // Tracking (docs/tracking.md): windows of the last frame's prediction.
   WindowPlanner planner;
   std::vector<SearchWindow> windows;
+  // Grey levels of the full-image ring check (predicted_detect.cpp), kept to reuse their storage.
+  std::vector<int> ring_grey, outside_grey;
 
   Impl(const VisionConfig& c, const CameraModel& m, const LandmarkGeometry& g,
        const LandmarkMap* mp);
@@ -204,6 +207,10 @@ struct LandmarkLocalizer::Impl {
   Vec2 coarse_to_full(Vec2 c) const {
     const double f = coarse_factor;
     return {(c.x + 0.5) * f - 0.5, (c.y + 0.5) * f - 0.5};
+  }
+  Vec2 full_to_coarse(Vec2 p) const {
+    const double f = coarse_factor;
+    return {(p.x + 0.5) / f - 0.5, (p.y + 0.5) / f - 0.5};
   }
   const CameraModel& metric_cam() const {
     return cfg.metric == MetricMode::kCameraModel ? cam : cam_linear;
@@ -221,6 +228,8 @@ struct LandmarkLocalizer::Impl {
 
   // run(): the stages in order (landmark_localizer.cpp).
   FixStatus run(const cv::Mat& img, const Prediction& pred, LandmarkFix* out);
+  FixStatus measure(const cv::Mat& img, const Detection& det, double corner_score, double t0,
+                    LandmarkFix* out, Vec2* c_mm, double* beta, Eigen::Matrix3d* cov);
   bool partly_outside(const cv::Mat& img, Vec2 c_px, double up) const;
   bool detect_in_windows(const cv::Mat& img, Detection* best, bool* found_corner,
                          double* corner_score, bool* whole_frame);
@@ -229,6 +238,12 @@ struct LandmarkLocalizer::Impl {
   bool detect_tracked_in(const cv::Mat& img, const SearchWindow& w, Detection* best,
                          double* corner_score, int* n_dark);
   void compute_orient4_in(int x0, int y0, int x1, int y1);
+  // Detection from a precise prediction (predicted_detect.cpp).
+  bool prediction_places_bands(const SearchWindow& w) const;
+  bool detect_predicted(const cv::Mat& img, Detection* best, Vec2* predicted_px);
+  bool ring_check_full(const cv::Mat& img, Vec2 c, double up, double* dark_level,
+                       double* white_level, int* n_dark);
+  bool fit_agrees_with_prediction(Vec2 predicted_px) const;
   void fill_result(const Pose2& world_landmark, Vec2 c_mm, double beta, int q_final,
                    const Eigen::Matrix3d& cov, LandmarkFix* out) const;
 

@@ -57,6 +57,13 @@ struct TrackingConfig {
   // and more misses (a miss costs the window plus the full search). Default 4 (a 2-D miss
   // probability of at most exp(-8) ~ 3e-4 for a Gaussian error).
   double window_sigmas = 4.0;
+  // Skip detection when the prediction alone places the pose stage's edge bands: every predicted
+  // outer corner within half the band (window_sigmas sigma), the landmark wholly in the image, the
+  // border ring dark on light paper in the full image; the fit must then land where predicted,
+  // otherwise the frame takes the tracked detection as before (docs/tracking.md "Detection from
+  // the prediction"). Saves the detection, a third of a tracked frame, on the frames that follow
+  // a fix closely. false = the tracked detection on every windowed frame. Default true.
+  bool detect_from_prediction = true;
 };
 
 struct VisionConfig {
@@ -312,6 +319,10 @@ struct LandmarkFix {
   int qr_search_attempts = 0;
   FixIdentity identity = FixIdentity::kNone;
   SearchMode search = SearchMode::kFull;
+  // The prediction placed the edge bands; no detection ran
+  // (TrackingConfig::detect_from_prediction). detect_x_px / detect_y_px / detect_angle_deg are then
+  // the prediction's, corner_score 0.
+  bool detection_predicted = false;
   // Detection estimate (before the edge fit), for diagnostics: landmark centre in pixels and the
   // image angle of one border normal (modulo 90 deg).
   double detect_x_px = 0.0, detect_y_px = 0.0, detect_angle_deg = 0.0;

@@ -1,0 +1,141 @@
+// Detection from a precise prediction (docs/tracking.md "Detection from the prediction"). The
+// pose stage only needs the landmark's centre and border angle to place its edge bands, which are
+// +-band_rel border widths wide (+-2.4 mm at the defaults); the tracked detection's own estimate
+// is up to 6.45 px (1.7 mm) off and the edge fit recovers from it. When the prediction already
+// puts every outer corner well inside the band, the coarse level, the corner search and the
+// refinement are skipped: the prediction places the bands. What the detection also gave is kept:
+// the ring check (a dark border on light paper, not a dark patch of floor), sampled on the full
+// image around the predicted square, and its grey levels, whose difference scales the edge
+// threshold. run() then requires the fitted centre to lie where the prediction said, and falls
+// back to the tracked detection when anything here or there declines.
+#include <algorithm>
+#include <cmath>
+
+#include "localizer_impl.hpp"
+
+namespace agv::vision {
+
+namespace {
+
+// The prediction replaces the detection when window_sigmas times its corner sigma is at most this
+// share of the edge band's half width: the edges then lie inside the bands with room for the edge
+// blur and the non-maximum suppression's neighbours. 0.5 at the defaults: 4 sigma within 4.6 px,
+// a corner sigma up to 0.3 mm at 0.26 mm/px. Larger takes looser predictions and moves more edge
+// points to the bands' ends.
+constexpr double kPredictedBandShare = 0.5;
+// Ring samples per pixel of side length (full image): about 50 a side at 0.26 mm/px, 4 a side at
+// least, as the coarse ring check.
+constexpr double kRingSamplesPerPx = 0.5;
+constexpr int kMinRingSamplesPerSide = 4;
+// The outside ring runs at 0.9 border widths beyond the outer edge, as the coarse ring check's:
+// on the paper margin, clear of the border's blurred edge.
+constexpr double kOutsideRingBorderWidths = 0.9;
+// Grey level assumed for the paper when no outside sample is in the image (as detect.cpp).
+constexpr double kWhiteGrey = 255.0;
+
+}  // namespace
+
+bool LandmarkLocalizer::Impl::prediction_places_bands(const SearchWindow& w) const {
+  const double band_px = cfg.band_rel * geom.border_width_mm() / mm_per_px;
+  return std::isfinite(w.centre_px.x) && std::isfinite(w.centre_px.y) &&
+         std::isfinite(w.up_angle_rad) && std::isfinite(w.corner_sigma_px) &&
+         cfg.tracking.window_sigmas * w.corner_sigma_px <= kPredictedBandShare * band_px;
+}
+
+bool LandmarkLocalizer::Impl::detect_predicted(const cv::Mat& img, Detection* best,
+                                               Vec2* predicted_px) {
+  int best_dark = 0;
+  for (const SearchWindow& w : windows) {
+    // A landmark cut by the image border keeps the detection, which weighs its corners.
+    if (!prediction_places_bands(w) || partly_outside(img, w.centre_px, w.up_angle_rad)) continue;
+    double dark = 0, white = 0;
+    int n_dark = 0;
+    if (ring_check_full(img, w.centre_px, w.up_angle_rad, &dark, &white, &n_dark) &&
+        n_dark > best_dark) {
+      best_dark = n_dark;
+      best->h = Hypothesis{};
+      const Vec2 c = full_to_coarse(w.centre_px);
+      best->h.cx = c.x;
+      best->h.cy = c.y;
+      best->h.up_angle = w.up_angle_rad;
+      best->dark_grey = dark;
+      best->white_grey = white;
+      *predicted_px = w.centre_px;
+    }
+  }
+  return best_dark > 0;
+}
+
+// ring_check on the full image: the middle of the border and a ring outside it, split at the
+// midpoint of their mean grey levels (the coarse check's adaptive binary image is not computed
+// here). The same acceptance: a quarter of the ring inside the image, ring_dark_fraction of it
+// dark, at most half of the outside ring dark.
+bool LandmarkLocalizer::Impl::ring_check_full(const cv::Mat& img, Vec2 c, double up,
+                                              double* dark_level, double* white_level,
+                                              int* n_dark) {
+  const double w_px = geom.border_width_mm() / mm_per_px;
+  const double h_px = geom.outer_half_mm() / mm_per_px;
+  const double len = h_px - w_px;
+  const int n = std::max(kMinRingSamplesPerSide, static_cast<int>(kRingSamplesPerPx * 2 * len));
+  ring_grey.clear();
+  outside_grey.clear();
+  int total = 0;
+  auto grey_at = [&](double x, double y, std::vector<int>* dst) {
+    const int ix = static_cast<int>(std::lround(x)), iy = static_cast<int>(std::lround(y));
+    if (ix >= 0 && iy >= 0 && ix < img.cols && iy < img.rows) {
+      dst->push_back(img.at<std::uint8_t>(iy, ix));
+    }
+  };
+  for (int k = 0; k < 4; ++k) {
+    const double a = up + k * kPi / 2.0;
+    const Vec2 nrm{std::cos(a), std::sin(a)}, tan{-nrm.y, nrm.x};
+    const double r_mid = h_px - w_px / 2, r_out = h_px + kOutsideRingBorderWidths * w_px;
+    for (int i = 0; i <= n; ++i) {
+      const double t = -len + 2.0 * len * i / n;
+      ++total;
+      grey_at(c.x + nrm.x * r_mid + tan.x * t, c.y + nrm.y * r_mid + tan.y * t, &ring_grey);
+      grey_at(c.x + nrm.x * r_out + tan.x * t, c.y + nrm.y * r_out + tan.y * t, &outside_grey);
+    }
+  }
+  const int ring_in = static_cast<int>(ring_grey.size());
+  const int out_in = static_cast<int>(outside_grey.size());
+  if (ring_in < total / 4 || ring_in == 0) return false;
+  double ring_sum = 0, out_sum = 0;
+  for (int v : ring_grey) ring_sum += v;
+  for (int v : outside_grey) out_sum += v;
+  const double mid = out_in > 0 ? 0.5 * (ring_sum / ring_in + out_sum / out_in) : kWhiteGrey / 2;
+  int ring_dark = 0, out_dark = 0;
+  double dark_sum = 0, white_sum = 0;
+  for (int v : ring_grey) {
+    if (v < mid) {
+      ++ring_dark;
+      dark_sum += v;
+    }
+  }
+  for (int v : outside_grey) {
+    if (v < mid) {
+      ++out_dark;
+    } else {
+      white_sum += v;
+    }
+  }
+  if (ring_dark == 0 || static_cast<double>(ring_dark) < cfg.ring_dark_fraction * ring_in) {
+    return false;
+  }
+  if (out_in > 0 && out_dark > out_in / 2) return false;
+  *dark_level = dark_sum / ring_dark;
+  *white_level = out_in > out_dark ? white_sum / (out_in - out_dark) : kWhiteGrey;
+  *n_dark = ring_dark;
+  return true;
+}
+
+// The fitted centre (keep_overlay_geometry's centre_px) where the prediction put it: within the
+// share of the band the prediction was admitted with. A fit further away found other edges than
+// the predicted landmark's, or the prediction was wrong after all.
+bool LandmarkLocalizer::Impl::fit_agrees_with_prediction(Vec2 predicted_px) const {
+  const double band_px = cfg.band_rel * geom.border_width_mm() / mm_per_px;
+  return std::hypot(centre_px.x - predicted_px.x, centre_px.y - predicted_px.y) <=
+         kPredictedBandShare * band_px;
+}
+
+}  // namespace agv::vision
