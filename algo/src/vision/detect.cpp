@@ -54,11 +54,6 @@ constexpr double kRefineReachMarginPx = 1.0;
 // Ring check: at least this many samples per side, two per coarse pixel of side length.
 constexpr int kMinRingSamplesPerSide = 4;
 constexpr double kRingSamplesPerPx = 2.0;
-// The outside ring runs at 0.9 border widths beyond the outer edge: on the paper margin, clear of
-// the border's blurred edge.
-constexpr double kOutsideRingBorderWidths = 0.9;
-// Grey level assumed for the paper when no outside sample is in the image.
-constexpr double kWhiteGrey = 255.0;
 
 // Dot products of one coarse patch (row pointer, stride) with every corner template at once.
 // Templates are stored pixel-major with `Lanes` slots per pixel, so one pixel value multiplies
@@ -505,14 +500,22 @@ bool LandmarkLocalizer::Impl::ring_check(const Hypothesis& h, double* dark_level
       }
     }
   }
-  // At least a quarter of the ring (one side's worth) must be inside the image.
-  if (ring_in < total / 4 || ring_dark == 0) return false;
-  if (static_cast<double>(ring_dark) < cfg.ring_dark_fraction * ring_in) return false;
-  if (out_in > 0 && out_dark > out_in / 2) return false;
+  if (!ring_accepted(total, ring_in, ring_dark, out_in, out_dark)) return false;
   *dark_level = dark_sum / ring_dark;
   *n_dark = ring_dark;
   *white_level = out_in > out_dark ? white_sum / (out_in - out_dark) : kWhiteGrey;
   return true;
+}
+
+// The ring check's acceptance, shared by the coarse check above and the full-image one
+// (predicted_detect.cpp): at least a quarter of the ring (one side's worth) inside the image,
+// ring_dark_fraction of it dark, and at most half of the outside ring dark (a dark area is not a
+// landmark).
+bool LandmarkLocalizer::Impl::ring_accepted(int total, int ring_in, int ring_dark, int out_in,
+                                            int out_dark) const {
+  if (ring_in < total / 4 || ring_dark == 0) return false;
+  if (static_cast<double>(ring_dark) < cfg.ring_dark_fraction * ring_in) return false;
+  return !(out_in > 0 && out_dark > out_in / 2);
 }
 
 }  // namespace agv::vision

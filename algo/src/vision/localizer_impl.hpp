@@ -52,6 +52,12 @@ constexpr double kMergeDistanceBorderWidths = 1.5;
 // near enough to stay inside the landmark's footprint for the distortion to be the local one.
 constexpr double kAngleProbePx = 20.0;
 
+// Ring check (detect.cpp, and on the full image predicted_detect.cpp): the outside ring runs at
+// 0.9 border widths beyond the outer edge, on the paper margin, clear of the border's blurred
+// edge; the paper is taken as white when no outside sample is in the image.
+constexpr double kOutsideRingBorderWidths = 0.9;
+constexpr double kWhiteGrey = 255.0;
+
 struct CornerPeak {
   double x = 0, y = 0;  // coarse pixels (template centre)
   double score = 0;
@@ -262,6 +268,7 @@ struct LandmarkLocalizer::Impl {
   void compute_orient4();
   void refine_coarse_angle(Hypothesis* h) const;
   bool ring_check(const Hypothesis& h, double* dark_level, double* white_level, int* n_dark);
+  bool ring_accepted(int total, int ring_in, int ring_dark, int out_in, int out_dark) const;
 
   // Stage 3, pose (pose.cpp; its covariance, stage 6, in covariance.cpp).
   FixStatus pose(const cv::Mat& img, Vec2 centre_px, double up_angle, double contrast,

@@ -27,11 +27,6 @@ constexpr double kPredictedBandShare = 0.5;
 // least, as the coarse ring check.
 constexpr double kRingSamplesPerPx = 0.5;
 constexpr int kMinRingSamplesPerSide = 4;
-// The outside ring runs at 0.9 border widths beyond the outer edge, as the coarse ring check's:
-// on the paper margin, clear of the border's blurred edge.
-constexpr double kOutsideRingBorderWidths = 0.9;
-// Grey level assumed for the paper when no outside sample is in the image (as detect.cpp).
-constexpr double kWhiteGrey = 255.0;
 
 }  // namespace
 
@@ -68,8 +63,7 @@ bool LandmarkLocalizer::Impl::detect_predicted(const cv::Mat& img, Detection* be
 
 // ring_check on the full image: the middle of the border and a ring outside it, split at the
 // midpoint of their mean grey levels (the coarse check's adaptive binary image is not computed
-// here). The same acceptance: a quarter of the ring inside the image, ring_dark_fraction of it
-// dark, at most half of the outside ring dark.
+// here), with the same acceptance (ring_accepted).
 bool LandmarkLocalizer::Impl::ring_check_full(const cv::Mat& img, Vec2 c, double up,
                                               double* dark_level, double* white_level,
                                               int* n_dark) {
@@ -99,7 +93,7 @@ bool LandmarkLocalizer::Impl::ring_check_full(const cv::Mat& img, Vec2 c, double
   }
   const int ring_in = static_cast<int>(ring_grey.size());
   const int out_in = static_cast<int>(outside_grey.size());
-  if (ring_in < total / 4 || ring_in == 0) return false;
+  if (ring_in == 0) return false;
   double ring_sum = 0, out_sum = 0;
   for (int v : ring_grey) ring_sum += v;
   for (int v : outside_grey) out_sum += v;
@@ -119,10 +113,7 @@ bool LandmarkLocalizer::Impl::ring_check_full(const cv::Mat& img, Vec2 c, double
       white_sum += v;
     }
   }
-  if (ring_dark == 0 || static_cast<double>(ring_dark) < cfg.ring_dark_fraction * ring_in) {
-    return false;
-  }
-  if (out_in > 0 && out_dark > out_in / 2) return false;
+  if (!ring_accepted(total, ring_in, ring_dark, out_in, out_dark)) return false;
   *dark_level = dark_sum / ring_dark;
   *white_level = out_in > out_dark ? white_sum / (out_in - out_dark) : kWhiteGrey;
   *n_dark = ring_dark;
