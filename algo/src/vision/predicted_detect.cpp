@@ -23,8 +23,8 @@ namespace {
 // a corner sigma up to 0.3 mm at 0.26 mm/px. Larger takes looser predictions and moves more edge
 // points to the bands' ends.
 constexpr double kPredictedBandShare = 0.5;
-// Ring samples per pixel of side length (full image): about 50 a side at 0.26 mm/px, 4 a side at
-// least, as the coarse ring check.
+// Ring samples per pixel of side length (full image): about 90 a side at 0.26 mm/px (the coarse
+// check takes about 23), 4 a side at least, as the coarse ring check.
 constexpr double kRingSamplesPerPx = 0.5;
 constexpr int kMinRingSamplesPerSide = 4;
 
