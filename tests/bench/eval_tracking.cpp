@@ -55,6 +55,7 @@ int main(int argc, char** argv) {
   unsigned seed = 1;
   int row_step = 0;          // 0: VisionConfig's default
   int from_prediction = -1;  // -1: TrackingConfig's default
+  int probe_edges = -1;      // likewise
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--frames")) frames = std::atoi(argv[i + 1]);
     if (!std::strcmp(argv[i], "--sigma-mm")) sigma_mm = std::atof(argv[i + 1]);
@@ -64,6 +65,7 @@ int main(int argc, char** argv) {
     if (!std::strcmp(argv[i], "--detect-from-prediction")) {
       from_prediction = std::atoi(argv[i + 1]);
     }
+    if (!std::strcmp(argv[i], "--probe-edges")) probe_edges = std::atoi(argv[i + 1]);
   }
   const LandmarkMap map = sim::default_landmark_grid();
   const CameraModel cam = CameraModel::default_640x480();
@@ -79,6 +81,7 @@ int main(int argc, char** argv) {
   vc.now_ns = now_ns;
   if (row_step > 0) vc.edge_row_step = row_step;
   if (from_prediction >= 0) vc.tracking.detect_from_prediction = from_prediction != 0;
+  if (probe_edges >= 0) vc.tracking.probe_edges = probe_edges != 0;
   std::printf("edge row step: %d\n", vc.edge_row_step);
   vision::LandmarkLocalizer loc(vc, cam, geom, &map);
   vision::WindowPlanner planner(vc, cam, geom, &map);
@@ -95,7 +98,7 @@ int main(int argc, char** argv) {
   // Error of each fix against the rendered truth: the accuracy the tracked detection must keep.
   std::vector<double> full_err_mm, win_err_mm, full_err_deg, win_err_deg;
   int ok_full = 0, ok_win = 0, in_window = 0, then_full = 0, differ = 0, not_bitwise = 0,
-      tracked = 0, predicted = 0;
+      tracked = 0, predicted = 0, probed = 0;
   double worst_deg = 0.0;
   double worst_mm = 0.0;
   for (int i = 0; i < frames; ++i) {
@@ -135,6 +138,7 @@ int main(int argc, char** argv) {
     if (win.search == vision::SearchMode::kWindow) ++in_window;
     if (win.search == vision::SearchMode::kWindowThenFull) ++then_full;
     if (win.detection_predicted) ++predicted;
+    if (win.detection_probed) ++probed;
     // The windowed corner search reproduces the full search's detection exactly; the tracked
     // detection (track_detect.cpp) has its own.
     if (win.search == vision::SearchMode::kWindow && !win.detection_predicted &&
@@ -180,7 +184,8 @@ int main(int argc, char** argv) {
   std::printf("  fixes: full %d, tracking %d; found in window %d, window then full %d\n", ok_full,
               ok_win, in_window, then_full);
   std::printf("  tracked detection (prediction replaced the corner search): %d\n", tracked);
-  std::printf("  detection from the prediction (no detection ran): %d\n", predicted);
+  std::printf("  detection from the prediction (no detection ran): %d, of which edge probes %d\n",
+              predicted, probed);
   std::printf("  window: median %.0f %% of the frame (margin %.1f mm beyond the outer corners)\n",
               100.0 * median(area_frac), planner.margin_mm());
   std::printf(

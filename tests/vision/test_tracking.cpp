@@ -220,8 +220,12 @@ FixDiff fix_diff(const LandmarkFix& a, const LandmarkFix& b) {
 TEST(Tracking, TrackedFixMatchesFullSearchFix) {
   const LandmarkMap map = one_map();
   double max_pos = 0.0, max_head = 0.0, max_det_full = 0.0, max_det_tr = 0.0;
+  // The tracked detection itself: the edge probes (edge_probe.cpp, tested below) would otherwise
+  // take these frames.
+  VisionConfig vc;
+  vc.tracking.probe_edges = false;
   for (const CameraModel& cam : {CameraModel::default_640x480(), tilted_camera()}) {
-    LandmarkLocalizer loc(VisionConfig{}, cam, LandmarkGeometry{}, &map);
+    LandmarkLocalizer loc(vc, cam, LandmarkGeometry{}, &map);
     int n = 0;
     for (double dx : {-40.0, 0.0, 25.0}) {
       for (double deg : {3.0, 44.0, 151.0, 268.0}) {
@@ -239,6 +243,7 @@ TEST(Tracking, TrackedFixMatchesFullSearchFix) {
           LandmarkFix tr;
           loc.process(img, predict(pv, 3.0, 0.3), &tr);
           EXPECT_EQ(tr.search, SearchMode::kWindow) << dx << " " << deg;
+          EXPECT_FALSE(tr.detection_predicted);
           // The windowed corner search would reproduce the full search's detection exactly: a
           // different one shows the tracked detection made it.
           EXPECT_TRUE(tr.detect_x_px != full.detect_x_px || tr.detect_y_px != full.detect_y_px)
@@ -571,8 +576,11 @@ TEST(Tracking, PrecisePredictionPlacesTheBandsWithoutDetection) {
         ASSERT_EQ(loc_off.process(img, predict(pv, 0.1, 0.02), &tr), FixStatus::kOk);
         EXPECT_FALSE(tr.detection_predicted);
         EXPECT_GT(tr.corner_score, 0.0);
-        // A looser prediction (sigma 3 mm: 4 sigma is far more than half the band) detects.
+        // A looser prediction (sigma 3 mm: 4 sigma is far more than half the band) does not
+        // place the bands itself: the edge probes do, or without them the tracked detection.
         ASSERT_EQ(loc.process(img, predict(pv, 3.0, 0.3), &tr), FixStatus::kOk);
+        EXPECT_TRUE(tr.detection_probed);
+        ASSERT_EQ(loc_off.process(img, predict(pv, 3.0, 0.3), &tr), FixStatus::kOk);
         EXPECT_FALSE(tr.detection_predicted);
       }
     }
@@ -620,5 +628,135 @@ TEST(Tracking, PrecisePredictionOfAMissingLandmarkGivesNoFix) {
   const cv::Mat blank = render(LandmarkMap{}, v, cam);
   LandmarkFix fix;
   EXPECT_EQ(loc.process(blank, predict(v, 0.1, 0.02), &fix), FixStatus::kNoLandmark);
+  EXPECT_FALSE(fix.detection_predicted);
+}
+
+// Edge probes (edge_probe.cpp): a trusted prediction too loose to place the bands itself (sigma 3
+// mm: 4 sigma is 46 px) is made precise by 1-D searches for the border's outer edge across each
+// predicted side. No detection runs, and the fix agrees with the full search's as closely as the
+// tracked detection's does; the probes' centre is nearer the fitted one than either detection's.
+TEST(Tracking, EdgeProbesMakeALoosePredictionPrecise) {
+  const LandmarkMap map = one_map();
+  double max_pos = 0.0, max_head = 0.0, max_probe_px = 0.0;
+  for (const CameraModel& cam : {CameraModel::default_640x480(), tilted_camera()}) {
+    LandmarkLocalizer loc(VisionConfig{}, cam, LandmarkGeometry{}, &map);
+    int n = 0, n_inside = 0, n_probed = 0;
+    for (double dx : {-40.0, 0.0, 25.0}) {
+      for (double deg : {3.0, 44.0, 151.0, 268.0}) {
+        const Pose2 v = over_landmark(cam, dx, 0.6 * dx, deg_to_rad(deg));
+        const cv::Mat img = render(map, v, cam);
+        LandmarkFix full;
+        if (loc.process(img, &full) != FixStatus::kOk) continue;
+        ++n;
+        if (!full.partly_outside) n_inside += 3;
+        for (const Pose2& off : {Pose2{4.0, -3.0, deg_to_rad(0.4)}, Pose2{-9.0, 5.0, -0.01},
+                                 Pose2{0.0, 10.0, deg_to_rad(1.0)}}) {
+          const Pose2 pv{v.x_mm + off.x_mm, v.y_mm + off.y_mm, v.theta_rad + off.theta_rad};
+          LandmarkFix pr;
+          ASSERT_EQ(loc.process(img, predict(pv, 3.0, 0.3), &pr), FixStatus::kOk)
+              << dx << " " << deg;
+          EXPECT_EQ(pr.search, SearchMode::kWindow);
+          EXPECT_EQ(pr.detection_probed, pr.detection_predicted);
+          // A landmark cut by the image border keeps the detection.
+          EXPECT_TRUE(!full.partly_outside || !pr.detection_probed) << dx << " " << deg;
+          if (!pr.detection_probed) continue;
+          ++n_probed;
+          EXPECT_EQ(pr.corner_score, 0.0);
+          const FixDiff d = fix_diff(full, pr);
+          max_pos = std::max(max_pos, d.pos_mm);
+          max_head = std::max(max_head, d.heading_deg);
+          Vec2 fit_px;
+          ASSERT_TRUE(cam.vehicle_to_pixel(
+              {full.landmark_in_vehicle.x_mm, full.landmark_in_vehicle.y_mm}, &fit_px));
+          max_probe_px = std::max(max_probe_px,
+                                  std::hypot(pr.detect_x_px - fit_px.x, pr.detect_y_px - fit_px.y));
+        }
+      }
+    }
+    EXPECT_GE(n, 8);
+    // Every landmark wholly in view, near the image border too (a probe starts where it enters
+    // the image).
+    EXPECT_GE(n_inside, 3 * 4);
+    EXPECT_EQ(n_probed, n_inside);
+  }
+  std::printf(
+      "edge probes vs full search: max position difference %.6f mm, heading %.6f deg; probes' "
+      "centre to fitted centre %.2f px\n",
+      max_pos, max_head, max_probe_px);
+  EXPECT_LE(max_pos, kPredictedPosTolMm);
+  EXPECT_LE(max_head, kPredictedHeadingTolDeg);
+  // The detections are up to 6.45 px off (TrackedFixMatchesFullSearchFix); the probes' lines
+  // through the outer edge are within a pixel or two (perspective and lens distortion bend the
+  // sides the lines are fitted to).
+  EXPECT_LE(max_probe_px, 2.0);
+}
+
+namespace {
+
+// Paints the middle of one border side (u in +-20 mm, the border and 10 mm of floor beyond it) in
+// the floor's grey: a pallet foot or a shoe over the side, where every probe of that side falls.
+void cover_side(cv::Mat* img, const CameraModel& cam, const Pose2& landmark_in_vehicle) {
+  const LandmarkGeometry g;
+  auto px_of = [&](Vec2 uv) {
+    Vec2 px;
+    EXPECT_TRUE(cam.vehicle_to_pixel(transform(landmark_in_vehicle, page_to_landmark(uv)), &px));
+    return cv::Point(static_cast<int>(std::lround(px.x)), static_cast<int>(std::lround(px.y)));
+  };
+  const cv::Point floor = px_of({0.0, 45.0 * g.k()});
+  const std::uint8_t grey = img->at<std::uint8_t>(floor.y, floor.x);
+  std::vector<cv::Point> poly;
+  for (const Vec2 uv : {Vec2{-20.0 * g.k(), 22.0 * g.k()}, Vec2{20.0 * g.k(), 22.0 * g.k()},
+                        Vec2{20.0 * g.k(), 40.0 * g.k()}, Vec2{-20.0 * g.k(), 40.0 * g.k()}}) {
+    poly.push_back(px_of(uv));
+  }
+  cv::fillConvexPoly(*img, poly, cv::Scalar(grey));
+}
+
+}  // namespace
+
+// What the probes decline, the tracked detection (and after it the windows and the full frame)
+// handles as before, bit for bit: a covered side (no border edge under that side's probes), a
+// loose prediction 25 mm off (beyond its 4 sigma: the lines, if any, are not where it said) and
+// plain floor where the map puts a landmark.
+TEST(Tracking, EdgeProbesDeclineWhatIsNotTheBorder) {
+  const LandmarkMap map = one_map();
+  const CameraModel cam = CameraModel::default_640x480();
+  VisionConfig off;
+  off.tracking.probe_edges = false;
+  LandmarkLocalizer loc(VisionConfig{}, cam, LandmarkGeometry{}, &map);
+  LandmarkLocalizer loc_off(off, cam, LandmarkGeometry{}, &map);
+  int n_covered = 0;
+  for (double deg : {12.0, 200.0}) {
+    const Pose2 v = over_landmark(cam, 8.0, -5.0, deg_to_rad(deg));
+    cv::Mat img = render(map, v, cam);
+    LandmarkFix full;
+    ASSERT_EQ(loc.process(img, &full), FixStatus::kOk);
+    // The probes take the clean frame.
+    LandmarkFix clean;
+    ASSERT_EQ(loc.process(img, predict(v, 3.0, 0.3), &clean), FixStatus::kOk);
+    EXPECT_TRUE(clean.detection_probed) << deg;
+    for (const Pose2& wrong :
+         {compose(v, Pose2{25.0, 0.0, 0.0}), compose(v, Pose2{0.0, -25.0, 0.0})}) {
+      LandmarkFix fb, tr;
+      loc.process(img, predict(wrong, 3.0, 0.3), &fb);
+      loc_off.process(img, predict(wrong, 3.0, 0.3), &tr);
+      EXPECT_FALSE(fb.detection_predicted) << deg;
+      expect_same_fix(tr, fb);
+    }
+    cover_side(&img, cam, full.landmark_in_vehicle);
+    LandmarkFix fb, tr;
+    const FixStatus st = loc.process(img, predict(v, 3.0, 0.3), &fb);
+    loc_off.process(img, predict(v, 3.0, 0.3), &tr);
+    EXPECT_FALSE(fb.detection_predicted) << deg;
+    expect_same_fix(tr, fb);
+    if (st == FixStatus::kOk) ++n_covered;
+  }
+  // The covered frames still give fixes (three sides and the rest of the fourth): the fallback
+  // was exercised, not a frame without a landmark.
+  EXPECT_GE(n_covered, 1);
+  const Pose2 v = over_landmark(cam, 0.0, 0.0, 0.3);
+  const cv::Mat blank = render(LandmarkMap{}, v, cam);
+  LandmarkFix fix;
+  EXPECT_EQ(loc.process(blank, predict(v, 3.0, 0.3), &fix), FixStatus::kNoLandmark);
   EXPECT_FALSE(fix.detection_predicted);
 }

@@ -230,6 +230,12 @@ void add_tracking(std::vector<Key>* k) {
                        "pose stage's edge band (at window_sigmas σ) and the fit lands where "
                        "predicted; otherwise the tracked detection (docs/tracking.md). false: "
                        "detection on every frame"));
+  k->push_back(boolean("vision.tracking.probe_edges", AGV_AT(vision.tracking.probe_edges), true,
+                       "when the prediction is too loose to place the bands itself, find the "
+                       "border's outer edge with 8 one-dimensional probes across each predicted "
+                       "side and place them from the lines through those (docs/tracking.md "
+                       "\"Edge probes\"); otherwise the tracked detection. Needs "
+                       "detect_from_prediction. false: the tracked detection"));
 }
 
 }  // namespace

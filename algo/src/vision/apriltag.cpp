@@ -32,9 +32,6 @@ constexpr double kBorderMid = 1.0 - 0.5 / 4.0;
 constexpr double kMarginMid = 1.0 + 0.5 / 4.0;
 constexpr double kContrastSpan = 0.75;
 constexpr int kContrastSamplesPerSide = 9;
-// Same floor as the QR family's detection (landmark_localizer.cpp): below it the edge threshold
-// sinks into the Prewitt noise of the evaluated read noise.
-constexpr double kMinContrastGrey = 15.0;
 // Tag coordinates of the point that gives the forward axis (page up = tag -y, the row order of
 // apriltag_to_image): far enough from the centre for a stable angle, inside the black square.
 constexpr double kForwardProbe = 0.5;

@@ -12,17 +12,7 @@
 
 namespace agv::vision {
 
-namespace {
-
-// Border-to-paper contrast (grey levels, coarse image) below which a detection is not measured:
-// the edge threshold (edge_threshold_rel * 3 * contrast = 11 at 15) would sink to the Prewitt
-// noise of the read noise the evaluation covers (sigma 4 -> 4 * sqrt(6) = 10), and a ring that
-// faint is more likely a shadow or stain than printed ink.
-constexpr double kMinContrastGrey = 15.0;
-// Pixel centres are at integer coordinates, so the image covers -0.5 .. size - 0.5.
-constexpr double kHalfPixel = 0.5;
-
-}  // namespace
+namespace {}  // namespace
 
 const char* to_string(FixStatus s) {
   switch (s) {
@@ -127,11 +117,13 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
   bool posed = false;
   FixStatus st = FixStatus::kNoLandmark;
   Vec2 predicted_px;
+  bool probed = false;
   if (cfg.tracking.detect_from_prediction && !windows.empty() &&
-      detect_predicted(img, &det, &predicted_px)) {
+      detect_predicted(img, &det, &predicted_px, &probed)) {
     const LandmarkFix before = *out;
     out->search = SearchMode::kWindow;
     out->detection_predicted = true;
+    out->detection_probed = probed;
     st = measure(img, det, 0.0, t0, out, &c_mm, &beta, &cov);
     posed = st == FixStatus::kOk && fit_agrees_with_prediction(predicted_px);
     if (!posed) *out = before;

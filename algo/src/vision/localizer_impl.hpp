@@ -8,6 +8,7 @@
 //   covariance.cpp  6   fit covariance from the normal equations, vehicle-in-world propagation
 //   track_detect.cpp    1-2 with a trusted prediction: the predicted landmark's corners only
 //   predicted_detect.cpp 1-2 with a precise prediction: none, the prediction places the bands
+//   edge_probe.cpp      1-2 with a looser one: 1-D edge searches across the predicted sides
 //   landmark_localizer.cpp  run(): the stages in order, the public class, the debug overlay
 #pragma once
 
@@ -57,6 +58,37 @@ constexpr double kAngleProbePx = 20.0;
 // edge; the paper is taken as white when no outside sample is in the image.
 constexpr double kOutsideRingBorderWidths = 0.9;
 constexpr double kWhiteGrey = 255.0;
+
+// Border-to-paper contrast (grey levels, coarse image) below which a detection is not measured:
+// the edge threshold (edge_threshold_rel * 3 * contrast = 11 at 15) would sink to the Prewitt
+// noise of the read noise the evaluation covers (sigma 4 -> 4 * sqrt(6) = 10), and a ring that
+// faint is more likely a shadow or stain than printed ink.
+constexpr double kMinContrastGrey = 15.0;
+// Pixel centres are at integer coordinates, so the image covers -0.5 .. size - 0.5.
+constexpr double kHalfPixel = 0.5;
+
+// The tracked detection's refined angle (track_detect.cpp) and the edge probes' (edge_probe.cpp)
+// may differ from the prediction by window_sigmas heading sigmas plus this: the prediction's angle
+// is that of a probe along one axis at the centre, while the refinement averages the gradients of
+// all four sides, which a tilted camera's perspective turns by up to ~2.5 degrees against each
+// other (measured, tests/vision/test_tracking.cpp); the gradient estimate on the coarse image
+// scatters by a fraction of a degree more. A wrong prediction a template step (30 degrees) off is
+// still rejected.
+constexpr double kTrackedAngleSlackDeg = 5.0;
+
+// Edge probes (edge_probe.cpp): one probe's border edge, and the square from all of them.
+struct ProbeEdge {
+  double s = 0;  // subpixel position of the outer edge along the probe
+  double light_grey = 0, dark_grey = 0;
+};
+struct ProbedSquare {
+  Vec2 centre_px;
+  double up_rad = 0;
+  // Mean grey levels outside the border and on it over the probes on the lines: the ring
+  // check's levels, which scale the edge threshold.
+  double dark_grey = 0, white_grey = 0;
+  double on_line_share = 0;  // probes on the four lines / probes
+};
 
 struct CornerPeak {
   double x = 0, y = 0;  // coarse pixels (template centre)
@@ -205,6 +237,11 @@ struct LandmarkLocalizer::Impl {
   std::vector<SearchWindow> windows;
   // Grey levels of the full-image ring check (predicted_detect.cpp), kept to reuse their storage.
   std::vector<int> ring_grey, outside_grey;
+  // The edge probes' grey levels, edge points and line weights (edge_probe.cpp), likewise.
+  std::vector<std::uint8_t> probe_grey;
+  std::vector<Vec2> probe_pts;
+  std::vector<ProbeEdge> probe_hits;
+  std::vector<double> probe_w;
 
   Impl(const VisionConfig& c, const CameraModel& m, const LandmarkGeometry& g,
        const LandmarkMap* mp);
@@ -246,10 +283,14 @@ struct LandmarkLocalizer::Impl {
   void compute_orient4_in(int x0, int y0, int x1, int y1);
   // Detection from a precise prediction (predicted_detect.cpp).
   bool prediction_places_bands(const SearchWindow& w) const;
-  bool detect_predicted(const cv::Mat& img, Detection* best, Vec2* predicted_px);
+  bool detect_predicted(const cv::Mat& img, Detection* best, Vec2* predicted_px, bool* probed);
   bool ring_check_full(const cv::Mat& img, Vec2 c, double up, double* dark_level,
-                       double* white_level, int* n_dark);
+                       double* white_level, int* n_dark, int* n_samples);
   bool fit_agrees_with_prediction(Vec2 predicted_px) const;
+  // Edge probes across the predicted sides (edge_probe.cpp).
+  bool probe_prediction(const cv::Mat& img, const SearchWindow& w, ProbedSquare* out);
+  bool probe_edge(const cv::Mat& img, Vec2 start, Vec2 step, int n, double border_px,
+                  ProbeEdge* edge);
   void fill_result(const Pose2& world_landmark, Vec2 c_mm, double beta, int q_final,
                    const Eigen::Matrix3d& cov, LandmarkFix* out) const;
 

@@ -38,35 +38,55 @@ bool LandmarkLocalizer::Impl::prediction_places_bands(const SearchWindow& w) con
 }
 
 bool LandmarkLocalizer::Impl::detect_predicted(const cv::Mat& img, Detection* best,
-                                               Vec2* predicted_px) {
-  int best_dark = 0;
+                                               Vec2* predicted_px, bool* probed) {
+  // Several landmarks in view: the one with the largest share of dark ring samples, or of probes
+  // on the border's lines.
+  double best_share = 0.0;
   for (const SearchWindow& w : windows) {
-    // A landmark cut by the image border keeps the detection, which weighs its corners.
-    if (!prediction_places_bands(w) || partly_outside(img, w.centre_px, w.up_angle_rad)) continue;
-    double dark = 0, white = 0;
-    int n_dark = 0;
-    if (ring_check_full(img, w.centre_px, w.up_angle_rad, &dark, &white, &n_dark) &&
-        n_dark > best_dark) {
-      best_dark = n_dark;
-      best->h = Hypothesis{};
-      const Vec2 c = full_to_coarse(w.centre_px);
-      best->h.cx = c.x;
-      best->h.cy = c.y;
-      best->h.up_angle = w.up_angle_rad;
-      best->dark_grey = dark;
-      best->white_grey = white;
-      *predicted_px = w.centre_px;
+    ProbedSquare sq;
+    bool from_probes = false;
+    if (prediction_places_bands(w)) {
+      // A landmark cut by the image border keeps the detection, which weighs its corners.
+      if (partly_outside(img, w.centre_px, w.up_angle_rad)) continue;
+      int n_dark = 0, n_samples = 0;
+      sq.centre_px = w.centre_px;
+      sq.up_rad = w.up_angle_rad;
+      if (!ring_check_full(img, w.centre_px, w.up_angle_rad, &sq.dark_grey, &sq.white_grey, &n_dark,
+                           &n_samples)) {
+        continue;
+      }
+      sq.on_line_share = static_cast<double>(n_dark) / n_samples;
+    } else {
+      // Too loose to place the bands itself: the edge probes may make it precise. They check
+      // more than the ring check (a dark run of the border's width between light on either
+      // side, on four lines of the landmark's size) and give its grey levels.
+      if (!cfg.tracking.probe_edges || !probe_prediction(img, w, &sq) ||
+          partly_outside(img, sq.centre_px, sq.up_rad)) {
+        continue;
+      }
+      from_probes = true;
     }
+    if (sq.on_line_share <= best_share) continue;
+    best_share = sq.on_line_share;
+    best->h = Hypothesis{};
+    const Vec2 cc = full_to_coarse(sq.centre_px);
+    best->h.cx = cc.x;
+    best->h.cy = cc.y;
+    best->h.up_angle = sq.up_rad;
+    best->dark_grey = sq.dark_grey;
+    best->white_grey = sq.white_grey;
+    *predicted_px = sq.centre_px;
+    *probed = from_probes;
   }
-  return best_dark > 0;
+  return best_share > 0.0;
 }
 
 // ring_check on the full image: the middle of the border and a ring outside it, split at the
 // midpoint of their mean grey levels (the coarse check's adaptive binary image is not computed
 // here), with the same acceptance (ring_accepted).
 bool LandmarkLocalizer::Impl::ring_check_full(const cv::Mat& img, Vec2 c, double up,
-                                              double* dark_level, double* white_level,
-                                              int* n_dark) {
+                                              double* dark_level, double* white_level, int* n_dark,
+                                              int* n_samples) {
   const double w_px = geom.border_width_mm() / mm_per_px;
   const double h_px = geom.outer_half_mm() / mm_per_px;
   const double len = h_px - w_px;
@@ -117,6 +137,7 @@ bool LandmarkLocalizer::Impl::ring_check_full(const cv::Mat& img, Vec2 c, double
   *dark_level = dark_sum / ring_dark;
   *white_level = out_in > out_dark ? white_sum / (out_in - out_dark) : kWhiteGrey;
   *n_dark = ring_dark;
+  *n_samples = total;
   return true;
 }
 

@@ -22,13 +22,6 @@ constexpr int kGridStepPx = 2;
 // Two corners fix centre and angle; a single one (landmark cut by the image border, or covered)
 // is left to the full search, which has the context of every other corner peak.
 constexpr int kMinTrackedCorners = 2;
-// The refined angle may differ from the prediction by window_sigmas heading sigmas plus this: the
-// prediction's angle is that of a probe along one axis at the centre, while the refinement
-// averages the gradients of all four sides, which a tilted camera's perspective turns by up to
-// ~2.5 degrees against each other (measured, tests/vision/test_tracking.cpp); the gradient
-// estimate on the coarse image scatters by a fraction of a degree more. A wrong prediction a
-// template step (30 degrees) off is still rejected.
-constexpr double kAngleSlackDeg = 5.0;
 // The orientation field is computed this far (coarse px) beyond what the angle refinement reads
 // around the first centre estimate: the re-match moves the centre by at most 2 px per pass.
 constexpr int kOrientGuardPx = 4;
@@ -155,7 +148,7 @@ bool LandmarkLocalizer::Impl::detect_tracked_in(const cv::Mat& img, const Search
                      static_cast<int>(h.cx) + reach, static_cast<int>(h.cy) + reach);
   refine_hypothesis(&h);
   const double angle_tol =
-      cfg.tracking.window_sigmas * w.up_angle_sigma_rad + deg_to_rad(kAngleSlackDeg);
+      cfg.tracking.window_sigmas * w.up_angle_sigma_rad + deg_to_rad(kTrackedAngleSlackDeg);
   if (std::abs(reduce_angle_90(h.up_angle, w.up_angle_rad) - w.up_angle_rad) > angle_tol) {
     return false;
   }

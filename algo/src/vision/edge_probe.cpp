@@ -1,0 +1,243 @@
+// Edge probes (docs/tracking.md "Edge probes"): a trusted prediction that is too loose to place the
+// pose stage's edge bands itself (predicted_detect.cpp) is made precise by a few 1-D searches
+// across each predicted side, instead of the tracked detection's coarse level and corner
+// templates over the window. Each probe walks inward along a side's normal from beyond the
+// prediction's reach and takes the outermost step from light to dark that is followed, one border
+// width further in, by the step back to light: the outer edge of the border, not a dark mark on
+// the floor, a module of the code or the logo. A robust line through each side's edge points,
+// the four corners where the lines meet, and a plausibility check against the prediction and the
+// landmark's size give the centre and border angle that place the bands. Anything doubtful
+// declines, and the frame takes the tracked detection.
+#include <algorithm>
+#include <cmath>
+
+#include "localizer_impl.hpp"
+
+namespace agv::vision {
+
+namespace {
+
+// Probes per side, spread over the side's length less the prediction's reach: enough for a
+// robust line with a quarter of them on a smudge or an occluder, few enough to cost a few
+// microseconds (each probe reads about 2 reach + 1.5 border widths pixels).
+constexpr int kProbesPerSide = 8;
+// A side needs this many probes on its line (after the robust fit): 5 of 8.
+constexpr int kMinProbesOnLine = 5;
+// The probes keep this many border widths away from the predicted corners beyond the reach, so
+// none of them runs past the corner into the neighbouring side or the paper margin.
+constexpr double kCornerClearBorderWidths = 0.5;
+// Below this share of the half side left for the probes (a very loose prediction), no probe.
+constexpr double kMinProbeSpanRel = 0.25;
+// The search runs this many border widths beyond the reach on each side of the predicted edge:
+// the perspective of a tilted camera moves the sides against the mean-scale prediction.
+constexpr double kSlackBorderWidths = 0.5;
+// The border's outer edge: a light-to-dark step (central difference of at least kMinStepGrey, a
+// local maximum) followed 0.7 to 1.3 border widths further in by the strongest dark-to-light
+// step there (blur and perspective change the printed width by far less), with a run between
+// them darker everywhere than halfway to the light on either side, and at least the detection's
+// contrast floor below both. A mark on the floor, a module of the code or the logo rarely has a
+// border's width and both contrasts; the outermost such pair on the probe is taken.
+constexpr int kMinStepGrey = 8;
+constexpr double kInnerEdgeMinRel = 0.7, kInnerEdgeMaxRel = 1.3;
+// The light and dark levels are read this many pixels away from either step, clear of its blur;
+// the light level outside over this many pixels more (5 samples against the floor's texture).
+constexpr int kLevelOffsetPx = 3;
+constexpr int kLightRunPx = 4;
+// Robust line through a side's edge points: Tukey c (the usual 95 % efficiency constant), the
+// scale floor (px, about the nearest-pixel sampling's scatter) and the RANSAC start (tolerance
+// px), so that an occluder's or a smudge's points on up to 3 of 8 probes do not pull the line; a
+// point further than kInlierPx from the line is off it.
+constexpr double kProbeTukeyC = 4.685;
+constexpr double kProbeMinSigmaPx = 0.5;
+constexpr int kProbeIrlsIterations = 2;
+constexpr int kProbeRansacIterations = 8;
+constexpr double kProbeRansacTolPx = 1.5;
+constexpr double kInlierPx = 2.0;
+// The distance between opposite sides may differ from the landmark's size at the camera's mean
+// scale by this share: the tilted-camera perspective changes it by a few percent.
+constexpr double kSizeTolRel = 0.12;
+
+// Neighbouring sides closer to parallel than this determinant (sine of their angle) meet nowhere
+// useful.
+constexpr double kParallelSine = 1e-3;
+
+// The point where two lines n . p = d meet; false when they are (nearly) parallel.
+bool intersect(const Line2& a, const Line2& b, Vec2* p) {
+  const double det = a.nx * b.ny - a.ny * b.nx;
+  if (std::abs(det) < kParallelSine) return false;
+  p->x = (a.d * b.ny - a.ny * b.d) / det;
+  p->y = (a.nx * b.d - a.d * b.nx) / det;
+  return true;
+}
+
+}  // namespace
+
+// One probe: the outer border edge along p(s) = start + step * s (s = 0 beyond the predicted edge,
+// increasing inward), s in [0, n). Returns false when the probe ends outside the image or finds no
+// edge pair; *edge is the subpixel s of the outer edge.
+bool LandmarkLocalizer::Impl::probe_edge(const cv::Mat& img, Vec2 start, Vec2 step, int n,
+                                         double border_px, ProbeEdge* edge) {
+  // The probe starts where it enters the image (a landmark near the image border); it must end
+  // inside. The bounds keep a margin for the fixed-point steps' rounding (below 0.01 px over a
+  // probe), so no read falls outside the image.
+  constexpr double kFixedPointSlackPx = 0.01;
+  const double lo = -kHalfPixel + kFixedPointSlackPx;
+  const double hi_x = img.cols - kHalfPixel - kFixedPointSlackPx;
+  const double hi_y = img.rows - kHalfPixel - kFixedPointSlackPx;
+  auto inside = [&](double s) {
+    const double x = start.x + step.x * s, y = start.y + step.y * s;
+    return x >= lo && y >= lo && x < hi_x && y < hi_y;
+  };
+  if (!inside(n - 1)) return false;
+  int s0 = 0;
+  while (!inside(s0)) ++s0;
+  probe_grey.resize(static_cast<size_t>(n));
+  // Nearest pixels in 16.16 fixed point: the probe is a few hundred reads, mostly one per row.
+  constexpr double kOne = 65536.0;
+  const std::uint8_t* base = img.ptr<std::uint8_t>(0);
+  const std::ptrdiff_t stride = static_cast<std::ptrdiff_t>(img.step[0]);
+  std::int64_t fx = std::llround((start.x + step.x * s0 + kHalfPixel) * kOne);
+  std::int64_t fy = std::llround((start.y + step.y * s0 + kHalfPixel) * kOne);
+  const std::int64_t dx = std::llround(step.x * kOne), dy = std::llround(step.y * kOne);
+  std::uint8_t* g = probe_grey.data();
+  for (int s = s0; s < n; ++s, fx += dx, fy += dy) g[s] = base[(fy >> 16) * stride + (fx >> 16)];
+  auto grey = [&](int s) { return static_cast<int>(probe_grey[static_cast<size_t>(s)]); };
+  // Central differences, positive from light (outside) to dark (inside).
+  auto diff = [&](int s) { return grey(s - 1) - grey(s + 1); };
+  const int inner_lo = static_cast<int>(std::floor(kInnerEdgeMinRel * border_px));
+  const int inner_hi = static_cast<int>(std::ceil(kInnerEdgeMaxRel * border_px));
+  for (int s = s0 + kLevelOffsetPx + kLightRunPx; s + inner_hi + kLevelOffsetPx < n; ++s) {
+    const int d = diff(s);
+    if (d < kMinStepGrey || d < diff(s - 1) || d < diff(s + 1)) continue;
+    // Not dark just inside: not the border (most candidates on a textured floor end here).
+    if (grey(s - kLevelOffsetPx) - grey(s + kLevelOffsetPx) < kMinContrastGrey) continue;
+    int j = s + inner_lo;
+    for (int i = j + 1; i <= s + inner_hi; ++i) {
+      if (diff(i) < diff(j)) j = i;
+    }
+    int light_sum = 0;
+    for (int i = s - kLevelOffsetPx - kLightRunPx; i <= s - kLevelOffsetPx; ++i)
+      light_sum += grey(i);
+    const double light = static_cast<double>(light_sum) / (kLightRunPx + 1);
+    const int after = grey(j + kLevelOffsetPx);
+    int dark_sum = 0, dark_max = 0, dark_n = 0;
+    for (int i = s + kLevelOffsetPx; i <= j - kLevelOffsetPx; ++i) {
+      dark_sum += grey(i);
+      dark_max = std::max(dark_max, grey(i));
+      ++dark_n;
+    }
+    if (dark_n == 0) continue;
+    const double dark = static_cast<double>(dark_sum) / dark_n;
+    if (light - dark < kMinContrastGrey || after - dark < kMinContrastGrey ||
+        dark_max > 0.5 * (light + dark) || dark_max > 0.5 * (after + dark)) {
+      continue;
+    }
+    // Parabola through the step and its neighbours.
+    const double dm = diff(s - 1), dp = diff(s + 1);
+    const double den = dm - 2.0 * d + dp;
+    edge->s = s + (den < 0 ? std::clamp(0.5 * (dm - dp) / den, -0.5, 0.5) : 0.0);
+    edge->light_grey = light;
+    edge->dark_grey = dark;
+    return true;
+  }
+  return false;
+}
+
+bool LandmarkLocalizer::Impl::probe_prediction(const cv::Mat& img, const SearchWindow& w,
+                                               ProbedSquare* out) {
+  if (!std::isfinite(w.centre_px.x) || !std::isfinite(w.centre_px.y) ||
+      !std::isfinite(w.up_angle_rad) || !std::isfinite(w.corner_sigma_px) ||
+      !std::isfinite(w.up_angle_sigma_rad)) {
+    return false;
+  }
+  const double border_px = geom.border_width_mm() / mm_per_px;
+  const double half_px = geom.outer_half_mm() / mm_per_px;
+  const double reach = cfg.tracking.window_sigmas * w.corner_sigma_px;
+  const double t_max = half_px - reach - kCornerClearBorderWidths * border_px;
+  if (t_max < kMinProbeSpanRel * half_px) return false;
+  const double angle_reach = cfg.tracking.window_sigmas * w.up_angle_sigma_rad;
+  if (angle_reach >= kPi / 8) return false;
+  // The side may lie this far either way of its predicted place along the probe.
+  const double range = reach + t_max * std::tan(angle_reach) + kSlackBorderWidths * border_px;
+  const int n = static_cast<int>(std::ceil(2.0 * range + kInnerEdgeMaxRel * border_px)) +
+                2 * kLevelOffsetPx + 3;
+  std::array<Line2, 4> lines;
+  double light_sum = 0, dark_sum = 0;
+  int n_on_line = 0;
+  for (int k = 0; k < 4; ++k) {
+    const double a = w.up_angle_rad + k * kPi / 2.0;
+    const Vec2 nrm{std::cos(a), std::sin(a)}, tan{-nrm.y, nrm.x};
+    probe_pts.clear();
+    probe_hits.clear();
+    for (int i = 0; i < kProbesPerSide; ++i) {
+      const double t = -t_max + 2.0 * t_max * i / (kProbesPerSide - 1);
+      const double r0 = half_px + range + 1.0 + kLevelOffsetPx;
+      const Vec2 start{w.centre_px.x + nrm.x * r0 + tan.x * t,
+                       w.centre_px.y + nrm.y * r0 + tan.y * t};
+      ProbeEdge e;
+      if (probe_edge(img, start, {-nrm.x, -nrm.y}, n, border_px, &e)) {
+        probe_pts.push_back({start.x - nrm.x * e.s, start.y - nrm.y * e.s});
+        probe_hits.push_back(e);
+      }
+    }
+    if (static_cast<int>(probe_pts.size()) < kMinProbesOnLine) return false;
+    probe_w.resize(probe_pts.size());
+    LineFit fit;
+    if (!fit_line_robust(probe_pts, kProbeTukeyC, kProbeMinSigmaPx, kProbeIrlsIterations, probe_w,
+                         &fit, kProbeRansacIterations, kProbeRansacTolPx)) {
+      return false;
+    }
+    int on_line = 0;
+    for (size_t i = 0; i < probe_pts.size(); ++i) {
+      const Vec2& p = probe_pts[i];
+      if (std::abs(fit.line.nx * p.x + fit.line.ny * p.y - fit.line.d) > kInlierPx) continue;
+      ++on_line;
+      light_sum += probe_hits[i].light_grey;
+      dark_sum += probe_hits[i].dark_grey;
+    }
+    if (on_line < kMinProbesOnLine) return false;
+    n_on_line += on_line;
+    lines[static_cast<size_t>(k)] = fit.line;
+  }
+  // Corners, centre and the mean border-normal angle (sides reduced to side 0's).
+  Vec2 c{0.0, 0.0};
+  for (int k = 0; k < 4; ++k) {
+    Vec2 p;
+    if (!intersect(lines[static_cast<size_t>(k)], lines[static_cast<size_t>((k + 1) % 4)], &p)) {
+      return false;
+    }
+    c.x += p.x / 4;
+    c.y += p.y / 4;
+  }
+  double sum_c = 0, sum_s = 0;
+  for (const Line2& l : lines) {
+    const double a4 = 4.0 * std::atan2(l.ny, l.nx);
+    sum_c += std::cos(a4);
+    sum_s += std::sin(a4);
+  }
+  const double up = reduce_angle_90(std::atan2(sum_s, sum_c) / 4.0, w.up_angle_rad);
+  // Opposite sides the landmark's size apart, measured through the centre.
+  for (int k = 0; k < 2; ++k) {
+    const Line2& a = lines[static_cast<size_t>(k)];
+    const Line2& b = lines[static_cast<size_t>(k + 2)];
+    const double dist =
+        std::abs(a.nx * c.x + a.ny * c.y - a.d) + std::abs(b.nx * c.x + b.ny * c.y - b.d);
+    if (std::abs(dist - 2.0 * half_px) > kSizeTolRel * 2.0 * half_px) return false;
+  }
+  // Where the tracked detection would accept it: within the reach (plus the corner votes'
+  // agreement distance) and the angle tolerance of the prediction.
+  const double angle_tol = angle_reach + deg_to_rad(kTrackedAngleSlackDeg);
+  if (std::abs(up - w.up_angle_rad) > angle_tol) return false;
+  if (std::hypot(c.x - w.centre_px.x, c.y - w.centre_px.y) >
+      reach + kMergeDistanceBorderWidths * border_px) {
+    return false;
+  }
+  out->centre_px = c;
+  out->up_rad = up;
+  out->dark_grey = dark_sum / n_on_line;
+  out->white_grey = light_sum / n_on_line;
+  out->on_line_share = static_cast<double>(n_on_line) / (4 * kProbesPerSide);
+  return true;
+}
+
+}  // namespace agv::vision
