@@ -179,7 +179,7 @@ int main(int argc, char** argv) {
                       (cls == "cut" && st == FixStatus::kPartlyOutside);
     if (take) selected.push_back(i);
   }
-  size_t n_ok_measured = 0, n_window = 0;
+  size_t n_ok_measured = 0, n_window = 0, n_probed = 0;
   for (int pass = 1; pass < repeat; ++pass) {
     for (size_t i : selected) {
       agv::vision::LandmarkFix fix;
@@ -198,18 +198,24 @@ int main(int argc, char** argv) {
     prctl(static_cast<int>(kMarkerOff), 0UL, 0UL, 0UL, 0UL);
     n_ok_measured += status == static_cast<int>(agv::vision::FixStatus::kOk) ? 1 : 0;
     n_window += fix.search == agv::vision::SearchMode::kWindow ? 1 : 0;
+    n_probed += fix.detection_probed ? 1 : 0;
     if (list) {
       std::printf(
           "frame %zu: status %d search %d id %u logo %.3f/%.3f qr_method %d verified %d "
-          "centre_only %d grid_decodes %d search_attempts %d pose %a %a %a\n",
+          "centre_only %d grid_decodes %d search_attempts %d predicted %d probed %d pose %a %a "
+          "%a\n",
           i, status, static_cast<int>(fix.search), fix.landmark_id, fix.logo_score, fix.logo_margin,
           fix.qr_method, fix.qr_verified ? 1 : 0, fix.qr_centre_only ? 1 : 0, fix.qr_grid_decodes,
-          fix.qr_search_attempts, fix.e_x_mm, fix.e_y_mm, fix.e_phi_deg);
+          fix.qr_search_attempts, fix.detection_predicted ? 1 : 0, fix.detection_probed ? 1 : 0,
+          fix.e_x_mm, fix.e_y_mm, fix.e_phi_deg);
     }
   }
   std::printf("vision_cost: %zu frames loaded (%zu ok), class %s: %zu measured (%zu ok), %dx%d\n",
               frames.size(), n_ok, cls.c_str(), selected.size(), n_ok_measured,
               frames.empty() ? 0 : frames[0].cols, frames.empty() ? 0 : frames[0].rows);
-  if (tracking) std::printf("vision_cost: tracking, %zu found in the window\n", n_window);
+  if (tracking) {
+    std::printf("vision_cost: tracking, %zu found in the window, %zu placed by the edge probes\n",
+                n_window, n_probed);
+  }
   return selected.empty() ? 1 : 0;
 }

@@ -56,6 +56,12 @@ constexpr double kInlierPx = 2.0;
 // The distance between opposite sides may differ from the landmark's size at the camera's mean
 // scale by this share: the tilted-camera perspective changes it by a few percent.
 constexpr double kSizeTolRel = 0.12;
+// Two probes' edges agree when they differ along the normal by at most the predicted heading's
+// reach over their distance plus this (px); the next probe then searches this far either way of
+// the line through them (nearest-pixel sampling scatters by half a pixel, extrapolated up to 7
+// probe spacings).
+constexpr double kNarrowConsistentPx = 2.0;
+constexpr double kNarrowPx = 4.0;
 
 // Neighbouring sides closer to parallel than this determinant (sine of their angle) meet nowhere
 // useful.
@@ -73,10 +79,15 @@ bool intersect(const Line2& a, const Line2& b, Vec2* p) {
 }  // namespace
 
 // One probe: the outer border edge along p(s) = start + step * s (s = 0 beyond the predicted edge,
-// increasing inward), s in [0, n). Returns false when the probe ends outside the image or finds no
-// edge pair; *edge is the subpixel s of the outer edge.
+// increasing inward), s in [0, n), the outer edge searched for in [s_lo, s_hi]. Returns false
+// when the probe ends outside the image or finds no edge pair there.
 bool LandmarkLocalizer::Impl::probe_edge(const cv::Mat& img, Vec2 start, Vec2 step, int n,
-                                         double border_px, ProbeEdge* edge) {
+                                         double border_px, int s_lo, int s_hi, ProbeEdge* edge) {
+  const int inner_lo = static_cast<int>(std::floor(kInnerEdgeMinRel * border_px));
+  const int inner_hi = static_cast<int>(std::ceil(kInnerEdgeMaxRel * border_px));
+  // Only the samples the search in [s_lo, s_hi] reads.
+  n = std::min(n, s_hi + inner_hi + kLevelOffsetPx + 2);
+  if (s_hi < s_lo || n < 2) return false;
   // The probe starts where it enters the image (a landmark near the image border); it must end
   // inside. The bounds keep a margin for the fixed-point steps' rounding (below 0.01 px over a
   // probe), so no read falls outside the image.
@@ -89,8 +100,8 @@ bool LandmarkLocalizer::Impl::probe_edge(const cv::Mat& img, Vec2 start, Vec2 st
     return x >= lo && y >= lo && x < hi_x && y < hi_y;
   };
   if (!inside(n - 1)) return false;
-  int s0 = 0;
-  while (!inside(s0)) ++s0;
+  int s0 = std::max(0, s_lo - kLevelOffsetPx - kLightRunPx);
+  while (s0 < n && !inside(s0)) ++s0;
   probe_grey.resize(static_cast<size_t>(n));
   // Nearest pixels in 16.16 fixed point: the probe is a few hundred reads, mostly one per row.
   constexpr double kOne = 65536.0;
@@ -104,9 +115,8 @@ bool LandmarkLocalizer::Impl::probe_edge(const cv::Mat& img, Vec2 start, Vec2 st
   auto grey = [&](int s) { return static_cast<int>(probe_grey[static_cast<size_t>(s)]); };
   // Central differences, positive from light (outside) to dark (inside).
   auto diff = [&](int s) { return grey(s - 1) - grey(s + 1); };
-  const int inner_lo = static_cast<int>(std::floor(kInnerEdgeMinRel * border_px));
-  const int inner_hi = static_cast<int>(std::ceil(kInnerEdgeMaxRel * border_px));
-  for (int s = s0 + kLevelOffsetPx + kLightRunPx; s + inner_hi + kLevelOffsetPx < n; ++s) {
+  for (int s = std::max(s_lo, s0 + kLevelOffsetPx + kLightRunPx);
+       s <= s_hi && s + inner_hi + kLevelOffsetPx < n; ++s) {
     const int d = diff(s);
     if (d < kMinStepGrey || d < diff(s - 1) || d < diff(s + 1)) continue;
     // Not dark just inside: not the border (most candidates on a textured floor end here).
@@ -157,6 +167,16 @@ bool LandmarkLocalizer::Impl::probe_prediction(const cv::Mat& img, const SearchW
   if (t_max < kMinProbeSpanRel * half_px) return false;
   const double angle_reach = cfg.tracking.window_sigmas * w.up_angle_sigma_rad;
   if (angle_reach >= kPi / 8) return false;
+  // A landmark certainly cut by the image border (a predicted outer corner outside by more than
+  // the reach) is not probed: it keeps the detection, which weighs its corners.
+  for (int k = 0; k < 4; ++k) {
+    const Vec2 d = rot({half_px, half_px}, w.up_angle_rad + k * kPi / 2.0);
+    const double x = w.centre_px.x + d.x, y = w.centre_px.y + d.y;
+    if (x < -kHalfPixel - reach || y < -kHalfPixel - reach || x > img.cols - kHalfPixel + reach ||
+        y > img.rows - kHalfPixel + reach) {
+      return false;
+    }
+  }
   // The side may lie this far either way of its predicted place along the probe.
   const double range = reach + t_max * std::tan(angle_reach) + kSlackBorderWidths * border_px;
   const int n = static_cast<int>(std::ceil(2.0 * range + kInnerEdgeMaxRel * border_px)) +
@@ -169,15 +189,35 @@ bool LandmarkLocalizer::Impl::probe_prediction(const cv::Mat& img, const SearchW
     const Vec2 nrm{std::cos(a), std::sin(a)}, tan{-nrm.y, nrm.x};
     probe_pts.clear();
     probe_hits.clear();
+    hit_s.clear();
+    hit_t.clear();
     for (int i = 0; i < kProbesPerSide; ++i) {
       const double t = -t_max + 2.0 * t_max * i / (kProbesPerSide - 1);
       const double r0 = half_px + range + 1.0 + kLevelOffsetPx;
       const Vec2 start{w.centre_px.x + nrm.x * r0 + tan.x * t,
                        w.centre_px.y + nrm.y * r0 + tan.y * t};
+      // Once two probes found the edge where the predicted heading allows, the others look near
+      // the line through the first and the last found; where they find nothing there (a
+      // smudge took one of the two), over the whole range.
       ProbeEdge e;
-      if (probe_edge(img, start, {-nrm.x, -nrm.y}, n, border_px, &e)) {
+      bool found = false;
+      if (probe_pts.size() >= 2) {
+        const double s_pred = hit_s.front() + (hit_s.back() - hit_s.front()) * (t - hit_t.front()) /
+                                                  (hit_t.back() - hit_t.front());
+        const double spread = std::abs(hit_s.back() - hit_s.front());
+        if (spread <=
+            std::abs(hit_t.back() - hit_t.front()) * std::tan(angle_reach) + kNarrowConsistentPx) {
+          found = probe_edge(img, start, {-nrm.x, -nrm.y}, n, border_px,
+                             static_cast<int>(std::floor(s_pred - kNarrowPx)),
+                             static_cast<int>(std::ceil(s_pred + kNarrowPx)), &e);
+        }
+      }
+      if (!found) found = probe_edge(img, start, {-nrm.x, -nrm.y}, n, border_px, 0, n, &e);
+      if (found) {
         probe_pts.push_back({start.x - nrm.x * e.s, start.y - nrm.y * e.s});
         probe_hits.push_back(e);
+        hit_s.push_back(e.s);
+        hit_t.push_back(t);
       }
     }
     if (static_cast<int>(probe_pts.size()) < kMinProbesOnLine) return false;

@@ -241,6 +241,7 @@ struct LandmarkLocalizer::Impl {
   std::vector<std::uint8_t> probe_grey;
   std::vector<Vec2> probe_pts;
   std::vector<ProbeEdge> probe_hits;
+  std::vector<double> hit_s, hit_t;
   std::vector<double> probe_w;
 
   Impl(const VisionConfig& c, const CameraModel& m, const LandmarkGeometry& g,
@@ -289,8 +290,8 @@ struct LandmarkLocalizer::Impl {
   bool fit_agrees_with_prediction(Vec2 predicted_px) const;
   // Edge probes across the predicted sides (edge_probe.cpp).
   bool probe_prediction(const cv::Mat& img, const SearchWindow& w, ProbedSquare* out);
-  bool probe_edge(const cv::Mat& img, Vec2 start, Vec2 step, int n, double border_px,
-                  ProbeEdge* edge);
+  bool probe_edge(const cv::Mat& img, Vec2 start, Vec2 step, int n, double border_px, int s_lo,
+                  int s_hi, ProbeEdge* edge);
   void fill_result(const Pose2& world_landmark, Vec2 c_mm, double beta, int q_final,
                    const Eigen::Matrix3d& cov, LandmarkFix* out) const;
 
