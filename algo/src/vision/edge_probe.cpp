@@ -79,12 +79,16 @@ bool intersect(const Line2& a, const Line2& b, Vec2* p) {
 }  // namespace
 
 // One probe: the outer border edge along p(s) = start + step * s (s = 0 beyond the predicted edge,
-// increasing inward), s in [0, n), the outer edge searched for in [s_lo, s_hi]. Returns false
-// when the probe ends outside the image or finds no edge pair there.
+// increasing inward), s in [0, n), the outer edge searched for in [s_lo, s_hi]. whole: the whole
+// pattern (the inner edge and the dark run between); otherwise the step and the dark over the
+// light run's length just inside it. Returns false when the probe ends outside the image or
+// finds no edge there.
 bool LandmarkLocalizer::Impl::probe_edge(const cv::Mat& img, Vec2 start, Vec2 step, int n,
-                                         double border_px, int s_lo, int s_hi, ProbeEdge* edge) {
-  const int inner_lo = static_cast<int>(std::floor(kInnerEdgeMinRel * border_px));
-  const int inner_hi = static_cast<int>(std::ceil(kInnerEdgeMaxRel * border_px));
+                                         double border_px, int s_lo, int s_hi, bool whole,
+                                         ProbeEdge* edge) {
+  const int inner_lo = whole ? static_cast<int>(std::floor(kInnerEdgeMinRel * border_px))
+                             : 2 * kLevelOffsetPx + kLightRunPx;
+  const int inner_hi = whole ? static_cast<int>(std::ceil(kInnerEdgeMaxRel * border_px)) : inner_lo;
   // Only the samples the search in [s_lo, s_hi] reads.
   n = std::min(n, s_hi + inner_hi + kLevelOffsetPx + 2);
   if (s_hi < s_lo || n < 2) return false;
@@ -121,6 +125,7 @@ bool LandmarkLocalizer::Impl::probe_edge(const cv::Mat& img, Vec2 start, Vec2 st
     if (d < kMinStepGrey || d < diff(s - 1) || d < diff(s + 1)) continue;
     // Not dark just inside: not the border (most candidates on a textured floor end here).
     if (grey(s - kLevelOffsetPx) - grey(s + kLevelOffsetPx) < kMinContrastGrey) continue;
+    // The inner edge (whole), or where the dark run's check ends.
     int j = s + inner_lo;
     for (int i = j + 1; i <= s + inner_hi; ++i) {
       if (diff(i) < diff(j)) j = i;
@@ -138,10 +143,8 @@ bool LandmarkLocalizer::Impl::probe_edge(const cv::Mat& img, Vec2 start, Vec2 st
     }
     if (dark_n == 0) continue;
     const double dark = static_cast<double>(dark_sum) / dark_n;
-    if (light - dark < kMinContrastGrey || after - dark < kMinContrastGrey ||
-        dark_max > 0.5 * (light + dark) || dark_max > 0.5 * (after + dark)) {
-      continue;
-    }
+    if (light - dark < kMinContrastGrey || dark_max > 0.5 * (light + dark)) continue;
+    if (whole && (after - dark < kMinContrastGrey || dark_max > 0.5 * (after + dark))) continue;
     // Parabola through the step and its neighbours.
     const double dm = diff(s - 1), dp = diff(s + 1);
     const double den = dm - 2.0 * d + dp;
@@ -196,23 +199,32 @@ bool LandmarkLocalizer::Impl::probe_prediction(const cv::Mat& img, const SearchW
       const double r0 = half_px + range + 1.0 + kLevelOffsetPx;
       const Vec2 start{w.centre_px.x + nrm.x * r0 + tan.x * t,
                        w.centre_px.y + nrm.y * r0 + tan.y * t};
-      // Once two probes found the edge where the predicted heading allows, the others look near
-      // the line through the first and the last found; where they find nothing there (a
-      // smudge took one of the two), over the whole range.
+      // After the first edge found on a side, the next probe looks near it (within the predicted
+      // heading's reach); after two that agree, near the line through the first and the last
+      // found. There only the outer step and the dark just inside it are checked: the pattern
+      // was found whole on the first probes, and the probe then reads a tenth of the pixels,
+      // mostly ones the pose stage's band reads next. Where it finds nothing there (a smudge
+      // took the first), the whole range and pattern.
       ProbeEdge e;
       bool found = false;
-      if (probe_pts.size() >= 2) {
-        const double s_pred = hit_s.front() + (hit_s.back() - hit_s.front()) * (t - hit_t.front()) /
-                                                  (hit_t.back() - hit_t.front());
-        const double spread = std::abs(hit_s.back() - hit_s.front());
-        if (spread <=
-            std::abs(hit_t.back() - hit_t.front()) * std::tan(angle_reach) + kNarrowConsistentPx) {
-          found = probe_edge(img, start, {-nrm.x, -nrm.y}, n, border_px,
-                             static_cast<int>(std::floor(s_pred - kNarrowPx)),
-                             static_cast<int>(std::ceil(s_pred + kNarrowPx)), &e);
-        }
+      double s_pred = 0, half = -1;
+      if (hit_s.size() == 1) {
+        s_pred = hit_s.front();
+        half = std::abs(t - hit_t.front()) * std::tan(angle_reach) + kNarrowPx;
+      } else if (hit_s.size() >= 2 &&
+                 std::abs(hit_s.back() - hit_s.front()) <=
+                     std::abs(hit_t.back() - hit_t.front()) * std::tan(angle_reach) +
+                         kNarrowConsistentPx) {
+        s_pred = hit_s.front() + (hit_s.back() - hit_s.front()) * (t - hit_t.front()) /
+                                     (hit_t.back() - hit_t.front());
+        half = kNarrowPx;
       }
-      if (!found) found = probe_edge(img, start, {-nrm.x, -nrm.y}, n, border_px, 0, n, &e);
+      if (half >= 0) {
+        found = probe_edge(img, start, {-nrm.x, -nrm.y}, n, border_px,
+                           static_cast<int>(std::floor(s_pred - half)),
+                           static_cast<int>(std::ceil(s_pred + half)), false, &e);
+      }
+      if (!found) found = probe_edge(img, start, {-nrm.x, -nrm.y}, n, border_px, 0, n, true, &e);
       if (found) {
         probe_pts.push_back({start.x - nrm.x * e.s, start.y - nrm.y * e.s});
         probe_hits.push_back(e);

@@ -291,7 +291,7 @@ struct LandmarkLocalizer::Impl {
   // Edge probes across the predicted sides (edge_probe.cpp).
   bool probe_prediction(const cv::Mat& img, const SearchWindow& w, ProbedSquare* out);
   bool probe_edge(const cv::Mat& img, Vec2 start, Vec2 step, int n, double border_px, int s_lo,
-                  int s_hi, ProbeEdge* edge);
+                  int s_hi, bool whole, ProbeEdge* edge);
   void fill_result(const Pose2& world_landmark, Vec2 c_mm, double beta, int q_final,
                    const Eigen::Matrix3d& cov, LandmarkFix* out) const;
 
