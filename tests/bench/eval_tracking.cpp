@@ -47,6 +47,44 @@ std::int64_t now_ns() {
 constexpr double kSameFixMm = 0.005;
 constexpr double kSameFixDeg = 0.002;
 
+// The degradations of eval_vision's conditions on top of the realistic rendering; false for an
+// unknown name.
+bool degrade(const std::string& name, double mm_per_px, std::mt19937_64& rng,
+             sim::RenderOptions* o) {
+  std::uniform_real_distribution<double> u(0, 1);
+  const auto blur = [&](double px) {
+    o->exposure_s = 0.001;
+    o->speed_mps = px * mm_per_px;  // px * mm/px per ms = m/s
+  };
+  if (name == "realistic") return true;
+  if (name == "motion7") {
+    blur(7.0);
+  } else if (name == "occluder15") {
+    o->occluder_border_fraction = 0.15;
+  } else if (name == "dirt") {
+    o->scratches_per_landmark = 3;
+    o->dirt_spots_per_landmark = 3;
+  } else if (name == "combined") {
+    o->defocus_sigma_px = 2.0 * u(rng);
+    blur(7.0 * u(rng));
+    o->read_noise_sigma = 4.0 * u(rng);
+    o->shot_noise_gain = 0.3 * u(rng);
+    o->illumination_ratio = 1.0 - 0.5 * u(rng);
+    o->illumination_direction_deg = 360 * u(rng);
+    o->scratches_per_landmark = static_cast<int>(4 * u(rng));
+    o->dirt_spots_per_landmark = 3 * u(rng);
+    o->occluder_border_fraction = 0.15 * u(rng);
+  } else if (name == "stress") {
+    o->defocus_sigma_px = 2.0;
+    blur(7.0);
+    o->read_noise_sigma = 4.0;
+    o->shot_noise_gain = 0.3;
+  } else {
+    return false;
+  }
+  return true;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -56,6 +94,9 @@ int main(int argc, char** argv) {
   int row_step = 0;          // 0: VisionConfig's default
   int from_prediction = -1;  // -1: TrackingConfig's default
   int probe_edges = -1;      // likewise
+  // Rendering on top of sim::realistic_options (the degradations of eval_vision's conditions):
+  // realistic, motion7, occluder15, dirt, combined (each at random up to those), stress.
+  std::string condition = "realistic";
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--frames")) frames = std::atoi(argv[i + 1]);
     if (!std::strcmp(argv[i], "--sigma-mm")) sigma_mm = std::atof(argv[i + 1]);
@@ -66,6 +107,7 @@ int main(int argc, char** argv) {
       from_prediction = std::atoi(argv[i + 1]);
     }
     if (!std::strcmp(argv[i], "--probe-edges")) probe_edges = std::atoi(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--condition")) condition = argv[i + 1];
   }
   const LandmarkMap map = sim::default_landmark_grid();
   const CameraModel cam = CameraModel::default_640x480();
@@ -105,7 +147,12 @@ int main(int argc, char** argv) {
     const LandmarkMapEntry& e = *entries[rng() % entries.size()];
     const Pose2 lm_in_v{ux(rng), uy(rng), uh(rng)};
     const Pose2 truth = compose(e.pose, inverse(lm_in_v));
-    const cv::Mat img = renderer.render(truth, sim::realistic_options(), rng);
+    sim::RenderOptions ro = sim::realistic_options();
+    if (!degrade(condition, cam.mm_per_px(), rng, &ro)) {
+      std::fprintf(stderr, "eval_tracking: unknown --condition %s\n", condition.c_str());
+      return 2;
+    }
+    const cv::Mat img = renderer.render(truth, ro, rng);
     vision::Prediction pred;
     pred.valid = true;
     pred.vehicle_in_world = {truth.x_mm + sigma_mm * n01(rng), truth.y_mm + sigma_mm * n01(rng),
@@ -179,8 +226,8 @@ int main(int argc, char** argv) {
     if (d > 1e-9 || dh > 1e-9) ++not_bitwise;
     if (d > kSameFixMm || dh > kSameFixDeg) ++differ;
   }
-  std::printf("eval_tracking: %d frames, prediction sigma %.1f mm / %.2f deg\n", frames, sigma_mm,
-              sigma_deg);
+  std::printf("eval_tracking: %d frames, prediction sigma %.1f mm / %.2f deg, condition %s\n",
+              frames, sigma_mm, sigma_deg, condition.c_str());
   std::printf("  fixes: full %d, tracking %d; found in window %d, window then full %d\n", ok_full,
               ok_win, in_window, then_full);
   std::printf("  tracked detection (prediction replaced the corner search): %d\n", tracked);

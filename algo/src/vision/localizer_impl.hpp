@@ -80,6 +80,7 @@ constexpr double kTrackedAngleSlackDeg = 5.0;
 struct ProbeEdge {
   double s = 0;  // subpixel position of the outer edge along the probe
   double light_grey = 0, dark_grey = 0;
+  double ramp_px = 0;  // from the step's start to the edge: half a blurred edge's width
 };
 struct ProbedSquare {
   Vec2 centre_px;
