@@ -4,7 +4,8 @@
 // templates over the window. Each probe walks inward along a side's normal from beyond the
 // prediction's reach and takes the outermost step from light to dark that is followed, one border
 // width further in, by the step back to light: the outer edge of the border, not a dark mark on
-// the floor, a module of the code or the logo. A robust line through each side's edge points,
+// the floor, a module of the code or the logo (the later probes of a side look near the edges
+// found, for the step alone). A robust line through each side's edge points,
 // the four corners where the lines meet, and a plausibility check against the prediction and the
 // landmark's size give the centre and border angle that place the bands. Anything doubtful
 // declines, and the frame takes the tracked detection.
@@ -19,7 +20,8 @@ namespace {
 
 // Probes per side, spread over the side's length less the prediction's reach: enough for a
 // robust line with a quarter of them on a smudge or an occluder, few enough to cost a few
-// microseconds (each probe reads about 2 reach + 1.5 border widths pixels).
+// microseconds (the first probes of a side read about 2 reach + 1.7 border widths pixels each,
+// the narrowed ones about 30).
 constexpr int kProbesPerSide = 8;
 // A side needs this many probes on its line (after the robust fit): 5 of 8.
 constexpr int kMinProbesOnLine = 5;
