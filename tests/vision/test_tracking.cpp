@@ -626,9 +626,12 @@ TEST(Tracking, PrecisePredictionOfAMissingLandmarkGivesNoFix) {
   LandmarkLocalizer loc(VisionConfig{}, cam, LandmarkGeometry{}, &map);
   const Pose2 v = over_landmark(cam, 0.0, 0.0, 0.3);
   const cv::Mat blank = render(LandmarkMap{}, v, cam);
-  LandmarkFix fix;
-  EXPECT_EQ(loc.process(blank, predict(v, 0.1, 0.02), &fix), FixStatus::kNoLandmark);
-  EXPECT_FALSE(fix.detection_predicted);
+  // Precise (the prediction places the bands) and loose (the edge probes would).
+  for (const double sigma_mm : {0.1, 3.0}) {
+    LandmarkFix fix;
+    EXPECT_EQ(loc.process(blank, predict(v, sigma_mm, 0.02), &fix), FixStatus::kNoLandmark);
+    EXPECT_FALSE(fix.detection_predicted) << sigma_mm;
+  }
 }
 
 // Edge probes (edge_probe.cpp): a trusted prediction too loose to place the bands itself (sigma 3
@@ -715,9 +718,9 @@ void cover_side(cv::Mat* img, const CameraModel& cam, const Pose2& landmark_in_v
 }  // namespace
 
 // What the probes decline, the tracked detection (and after it the windows and the full frame)
-// handles as before, bit for bit: a covered side (no border edge under that side's probes), a
-// loose prediction 25 mm off (beyond its 4 sigma: the lines, if any, are not where it said) and
-// plain floor where the map puts a landmark.
+// handles as before, bit for bit: a covered side (no border edge under that side's probes) and a
+// loose prediction 25 mm off (beyond its 4 sigma: the lines, if any, are not where it said).
+// Plain floor where the map puts a landmark: PrecisePredictionOfAMissingLandmarkGivesNoFix.
 TEST(Tracking, EdgeProbesDeclineWhatIsNotTheBorder) {
   const LandmarkMap map = one_map();
   const CameraModel cam = CameraModel::default_640x480();
@@ -754,11 +757,6 @@ TEST(Tracking, EdgeProbesDeclineWhatIsNotTheBorder) {
   // The covered frames still give fixes (three sides and the rest of the fourth): the fallback
   // was exercised, not a frame without a landmark.
   EXPECT_GE(n_covered, 1);
-  const Pose2 v = over_landmark(cam, 0.0, 0.0, 0.3);
-  const cv::Mat blank = render(LandmarkMap{}, v, cam);
-  LandmarkFix fix;
-  EXPECT_EQ(loc.process(blank, predict(v, 3.0, 0.3), &fix), FixStatus::kNoLandmark);
-  EXPECT_FALSE(fix.detection_predicted);
 }
 
 // A blurred landmark keeps the detection (edge_probe.cpp kMaxMeanRampPx): with defocus 2 px,
