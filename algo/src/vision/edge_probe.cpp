@@ -219,8 +219,6 @@ bool LandmarkLocalizer::Impl::probe_prediction(const cv::Mat& img, const SearchW
     const Vec2 nrm{std::cos(a), std::sin(a)}, tan{-nrm.y, nrm.x};
     probe_pts.clear();
     probe_hits.clear();
-    hit_s.clear();
-    hit_t.clear();
     for (int i = 0; i < kProbesPerSide; ++i) {
       const double t = -t_max + 2.0 * t_max * i / (kProbesPerSide - 1);
       const double r0 = half_px + range + 1.0 + kLevelOffsetPx;
@@ -235,16 +233,16 @@ bool LandmarkLocalizer::Impl::probe_prediction(const cv::Mat& img, const SearchW
       ProbeEdge e;
       bool found = false;
       double s_pred = 0, half = -1;
-      if (hit_s.size() == 1) {
-        s_pred = hit_s.front();
-        half = std::abs(t - hit_t.front()) * std::tan(angle_reach) + kNarrowPx;
-      } else if (hit_s.size() >= 2 &&
-                 std::abs(hit_s.back() - hit_s.front()) <=
-                     std::abs(hit_t.back() - hit_t.front()) * std::tan(angle_reach) +
-                         kNarrowConsistentPx) {
-        s_pred = hit_s.front() + (hit_s.back() - hit_s.front()) * (t - hit_t.front()) /
-                                     (hit_t.back() - hit_t.front());
-        half = kNarrowPx;
+      if (probe_hits.size() == 1) {
+        s_pred = probe_hits.front().s;
+        half = std::abs(t - probe_hits.front().t) * std::tan(angle_reach) + kNarrowPx;
+      } else if (probe_hits.size() >= 2) {
+        const ProbeEdge &first = probe_hits.front(), &last = probe_hits.back();
+        if (std::abs(last.s - first.s) <=
+            std::abs(last.t - first.t) * std::tan(angle_reach) + kNarrowConsistentPx) {
+          s_pred = first.s + (last.s - first.s) * (t - first.t) / (last.t - first.t);
+          half = kNarrowPx;
+        }
       }
       if (half >= 0) {
         found = probe_edge(img, start, {-nrm.x, -nrm.y}, n, border_px,
@@ -254,9 +252,8 @@ bool LandmarkLocalizer::Impl::probe_prediction(const cv::Mat& img, const SearchW
       if (!found) found = probe_edge(img, start, {-nrm.x, -nrm.y}, n, border_px, 0, n, true, &e);
       if (found) {
         probe_pts.push_back({start.x - nrm.x * e.s, start.y - nrm.y * e.s});
+        e.t = t;
         probe_hits.push_back(e);
-        hit_s.push_back(e.s);
-        hit_t.push_back(t);
       }
     }
     if (static_cast<int>(probe_pts.size()) < kMinProbesOnLine) return false;

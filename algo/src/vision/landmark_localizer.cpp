@@ -12,8 +12,6 @@
 
 namespace agv::vision {
 
-namespace {}  // namespace
-
 const char* to_string(FixStatus s) {
   switch (s) {
     case FixStatus::kOk:

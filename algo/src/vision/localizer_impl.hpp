@@ -79,6 +79,7 @@ constexpr double kTrackedAngleSlackDeg = 5.0;
 // Edge probes (edge_probe.cpp): one probe's border edge, and the square from all of them.
 struct ProbeEdge {
   double s = 0;  // subpixel position of the outer edge along the probe
+  double t = 0;  // the probe's place along the side (px from the predicted side's middle)
   double light_grey = 0, dark_grey = 0;
   double ramp_px = 0;  // from the step's start to the edge: half a blurred edge's width
 };
@@ -88,7 +89,8 @@ struct ProbedSquare {
   // Mean grey levels outside the border and on it over the probes on the lines: the ring
   // check's levels, which scale the edge threshold.
   double dark_grey = 0, white_grey = 0;
-  double on_line_share = 0;  // probes on the four lines / probes
+  // Probes on the four lines / probes (a precise prediction: dark ring samples / samples).
+  double on_line_share = 0;
 };
 
 struct CornerPeak {
@@ -242,7 +244,6 @@ struct LandmarkLocalizer::Impl {
   std::vector<std::uint8_t> probe_grey;
   std::vector<Vec2> probe_pts;
   std::vector<ProbeEdge> probe_hits;
-  std::vector<double> hit_s, hit_t;
   std::vector<double> probe_w;
 
   Impl(const VisionConfig& c, const CameraModel& m, const LandmarkGeometry& g,
