@@ -227,7 +227,7 @@ bool LandmarkLocalizer::Impl::probe_prediction(const cv::Mat& img, const SearchW
       // After the first edge found on a side, the next probe looks near it (within the predicted
       // heading's reach); after two that agree, near the line through the first and the last
       // found. There only the outer step and the dark just inside it are checked: the pattern
-      // was found whole on the first probes, and the probe then reads a tenth of the pixels,
+      // was found whole on the first, and the probe then reads a fifth of the pixels,
       // mostly ones the pose stage's band reads next. Where it finds nothing there (a smudge
       // took the first), the whole range and pattern.
       ProbeEdge e;
