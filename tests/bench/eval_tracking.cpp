@@ -4,7 +4,8 @@
 // at a random offset and heading. Prediction: the truth moved by a Gaussian error of the stated
 // sigma, with that covariance (what the filter reports between fixes).
 //   eval_tracking [--frames N] [--sigma-mm S] [--sigma-deg D] [--seed K] [--row-step N]
-//                 [--detect-from-prediction 0|1]
+//                 [--detect-from-prediction 0|1] [--probe-edges 0|1] [--logo-at-code-turn 0|1]
+//                 [--condition realistic|motion7|occluder15|dirt|combined|stress]
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -94,6 +95,7 @@ int main(int argc, char** argv) {
   int row_step = 0;          // 0: VisionConfig's default
   int from_prediction = -1;  // -1: TrackingConfig's default
   int probe_edges = -1;      // likewise
+  int logo_one_turn = -1;    // likewise (TrackingConfig::logo_at_code_turn)
   // Rendering on top of sim::realistic_options (the degradations of eval_vision's conditions):
   // realistic, motion7, occluder15, dirt, combined (each at random up to those), stress.
   std::string condition = "realistic";
@@ -107,6 +109,7 @@ int main(int argc, char** argv) {
       from_prediction = std::atoi(argv[i + 1]);
     }
     if (!std::strcmp(argv[i], "--probe-edges")) probe_edges = std::atoi(argv[i + 1]);
+    if (!std::strcmp(argv[i], "--logo-at-code-turn")) logo_one_turn = std::atoi(argv[i + 1]);
     if (!std::strcmp(argv[i], "--condition")) condition = argv[i + 1];
   }
   const LandmarkMap map = sim::default_landmark_grid();
@@ -124,6 +127,7 @@ int main(int argc, char** argv) {
   if (row_step > 0) vc.edge_row_step = row_step;
   if (from_prediction >= 0) vc.tracking.detect_from_prediction = from_prediction != 0;
   if (probe_edges >= 0) vc.tracking.probe_edges = probe_edges != 0;
+  if (logo_one_turn >= 0) vc.tracking.logo_at_code_turn = logo_one_turn != 0;
   std::printf("edge row step: %d\n", vc.edge_row_step);
   vision::LandmarkLocalizer loc(vc, cam, geom, &map);
   vision::WindowPlanner planner(vc, cam, geom, &map);

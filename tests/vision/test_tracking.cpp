@@ -351,6 +351,24 @@ void erase_logo(cv::Mat* img, const CameraModel& cam, const Pose2& landmark_in_v
   cv::fillConvexPoly(*img, poly, cv::Scalar(grey));
 }
 
+// Prints the logo a quarter turn away from its place (rotated by 90 degrees about the landmark's
+// centre), in the border's black: a landmark whose logo contradicts its code.
+void paint_logo_turned(cv::Mat* img, const CameraModel& cam, const Pose2& landmark_in_vehicle) {
+  const LandmarkGeometry g;
+  auto px_of = [&](Vec2 uv) {
+    Vec2 px;
+    EXPECT_TRUE(cam.vehicle_to_pixel(transform(landmark_in_vehicle, page_to_landmark(uv)), &px));
+    return cv::Point(static_cast<int>(std::lround(px.x)), static_cast<int>(std::lround(px.y)));
+  };
+  const cv::Point border = px_of({0.0, -27.0 * g.k()});
+  const std::uint8_t black = img->at<std::uint8_t>(border.y, border.x);
+  std::vector<cv::Point> tri;
+  for (const Vec2 uv : {g.logo_apex_uv_mm(), g.logo_base_left_uv_mm(), g.logo_base_right_uv_mm()}) {
+    tri.push_back(px_of({-uv.y, uv.x}));
+  }
+  cv::fillConvexPoly(*img, tri, cv::Scalar(black));
+}
+
 }  // namespace
 
 // Verified read (docs/tracking.md): the guided reader compares the sampled grid with the mapped
@@ -802,4 +820,56 @@ TEST(Tracking, EdgeProbesLeaveABlurredLandmarkToTheDetection) {
     }
   }
   EXPECT_GE(n_blurred, 2);
+}
+
+// Logo at the code's turn (docs/tracking.md): a tracked frame whose code verifies at the predicted
+// turn scores the logo at that turn only, and gives the four turns' fix. An erased logo, or one
+// printed a quarter turn away, takes the four turns; the latter is refused as before.
+TEST(Tracking, LogoIsScoredAtTheVerifiedCodesTurnOnly) {
+  const LandmarkMap map = one_map();
+  const CameraModel cam = CameraModel::default_640x480();
+  VisionConfig four;
+  four.tracking.logo_at_code_turn = false;
+  LandmarkLocalizer loc(VisionConfig{}, cam, LandmarkGeometry{}, &map);
+  LandmarkLocalizer loc4(four, cam, LandmarkGeometry{}, &map);
+  enum { kIntact, kErased, kTurned };
+  for (int logo : {kIntact, kErased, kTurned}) {
+    for (double deg : {3.0, 44.0, 151.0, 268.0}) {
+      const Pose2 v = over_landmark(cam, 6.0, -4.0, deg_to_rad(deg));
+      cv::Mat img = render(map, v, cam);
+      const Pose2 lm{cam.mount.offset_x_mm + 6.0, cam.mount.offset_y_mm - 4.0, deg_to_rad(deg)};
+      if (logo != kIntact) erase_logo(&img, cam, lm);
+      if (logo == kTurned) paint_logo_turned(&img, cam, lm);
+      const Prediction p = predict(compose(v, Pose2{3.0, -2.0, 0.004}), 3.0, 0.3);
+      LandmarkFix one, all;
+      loc.process(img, p, &one);
+      loc4.process(img, p, &all);
+      SCOPED_TRACE(testing::Message() << "logo case " << logo << ", heading " << deg);
+      expect_same_fix(one, all);
+      EXPECT_EQ(one.logo_one_turn, logo == kIntact);
+      EXPECT_FALSE(all.logo_one_turn);
+      EXPECT_EQ(one.search, SearchMode::kWindow);
+      if (logo == kIntact) {
+        EXPECT_EQ(one.status, FixStatus::kOk);
+        EXPECT_TRUE(one.qr_verified);
+        // The same NCC at the same turn; only the margin over the other turns is not measured.
+        EXPECT_EQ(one.logo_score, all.logo_score);
+        EXPECT_EQ(one.logo_margin, 0.0);
+        EXPECT_GT(all.logo_margin, four.logo_margin);
+      } else {
+        EXPECT_EQ(one.logo_score, all.logo_score);
+        EXPECT_EQ(one.logo_margin, all.logo_margin);
+      }
+      if (logo == kErased) {
+        EXPECT_EQ(one.status, FixStatus::kOk);
+      }
+      if (logo == kTurned) {
+        // Refused: the direction is ambiguous, or the turned logo (which overlaps two module
+        // columns of the code) left the code unread at every turn the reader tried.
+        EXPECT_TRUE(one.status == FixStatus::kDirectionAmbiguous ||
+                    one.status == FixStatus::kQrUnreadable)
+            << to_string(one.status);
+      }
+    }
+  }
 }

@@ -236,6 +236,13 @@ void add_tracking(std::vector<Key>* k) {
                        "side and place them from the lines through those (docs/tracking.md "
                        "\"Edge probes\"); otherwise the tracked detection. Needs "
                        "detect_from_prediction. false: the tracked detection"));
+  k->push_back(boolean("vision.tracking.logo_at_code_turn",
+                       AGV_AT(vision.tracking.logo_at_code_turn), true,
+                       "read the code first at the predicted turn; when its module centres match "
+                       "a mapped code, score the logo at that turn only (it must reach "
+                       "logo_threshold there) instead of at all four turns (docs/tracking.md "
+                       "\"Logo at the code's turn\"). Needs qr_guided and qr_centre_first. "
+                       "Otherwise, or false: four turns and the full read"));
 }
 
 }  // namespace

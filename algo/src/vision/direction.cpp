@@ -49,25 +49,25 @@ void LandmarkLocalizer::Impl::build_logo() {
   }
 }
 
-// Logo NCC at the four turns of the fitted square; turn q's forward axis is side q's normal.
+// Logo NCC at turn q of the fitted square (turn q's forward axis is side q's normal); -1 where
+// the logo leaves the image.
+double LandmarkLocalizer::Impl::logo_ncc(const cv::Mat& img, Vec2 c_mm, double beta, int q) {
+  const GreySampler grey(img);
+  const PlaneProjector page = page_projector(c_mm, beta - q * kPi / 2.0);
+  logo_samples.clear();
+  for (const Vec2& uv : logo_page_pts) {
+    Vec2 px;
+    double val = 0;
+    if (!page.to_pixel(uv, &px) || !grey(px.x, px.y, &val)) return -1.0;
+    logo_samples.push_back(val);
+  }
+  return ncc(logo_samples, logo_template);
+}
+
+// Logo NCC at the four turns.
 LogoScores LandmarkLocalizer::Impl::logo_scores(const cv::Mat& img, Vec2 c_mm, double beta) {
   LogoScores r;
-  const GreySampler grey(img);
-  for (int q = 0; q < 4; ++q) {
-    const PlaneProjector page = page_projector(c_mm, beta - q * kPi / 2.0);
-    logo_samples.clear();
-    bool all_in = true;
-    for (const Vec2& uv : logo_page_pts) {
-      Vec2 px;
-      double val = 0;
-      if (!page.to_pixel(uv, &px) || !grey(px.x, px.y, &val)) {
-        all_in = false;
-        break;
-      }
-      logo_samples.push_back(val);
-    }
-    r.ncc[static_cast<size_t>(q)] = all_in ? ncc(logo_samples, logo_template) : -1.0;
-  }
+  for (int q = 0; q < 4; ++q) r.ncc[static_cast<size_t>(q)] = logo_ncc(img, c_mm, beta, q);
   for (int q = 1; q < 4; ++q) {
     if (r.ncc[static_cast<size_t>(q)] > r.ncc[static_cast<size_t>(r.best_q)]) r.best_q = q;
   }
@@ -79,6 +79,46 @@ LogoScores LandmarkLocalizer::Impl::logo_scores(const cv::Mat& img, Vec2 c_mm, d
   r.margin = r.best - second;
   r.clear = r.best >= cfg.logo_threshold && r.margin >= cfg.logo_margin;
   return r;
+}
+
+// Stages 4 and 5a: the logo and the code, returning the code's turn (-1 unknown). With a trusted
+// prediction the code is read first at the predicted turn (TrackingConfig::logo_at_code_turn);
+// a verified read there fixes the direction by the code's own orientation (its finder patterns
+// verify at one turn only), and the logo need only confirm it: at least logo_threshold at that
+// turn. The margin over the other turns matters when the logo alone chooses the turn to read,
+// which it does not here. Otherwise the logo at four turns and the full read, whose decision
+// (decide_direction) refuses a clear logo at another turn than the code's; so does this path,
+// because that logo scores below the threshold at the code's turn and the frame falls back.
+// logo_ms: the logo's share of the time (timings.direction_ms).
+int LandmarkLocalizer::Impl::logo_and_code(const cv::Mat& img, const Prediction& pred, Vec2 c_px,
+                                           double up, Vec2 c_mm, double beta, LogoScores* logo,
+                                           double* logo_ms, LandmarkFix* out) {
+  *logo_ms = 0.0;
+  if (cfg.tracking.logo_at_code_turn && pred.valid && !windows.empty()) {
+    const int q = read_at_predicted_turn(img, pred, c_mm, beta, out);
+    if (q >= 0) {
+      const double t = now_ms();
+      const double s = logo_ncc(img, c_mm, beta, q);
+      *logo_ms = now_ms() - t;
+      if (s >= cfg.logo_threshold) {
+        *logo = LogoScores{};
+        logo->ncc.fill(-1.0);
+        logo->ncc[static_cast<size_t>(q)] = s;
+        logo->best_q = q;
+        logo->best = s;
+        logo->clear = true;
+        out->logo_one_turn = true;
+        return q;
+      }
+      out->qr_method = 0;
+      out->qr_verified = false;
+      out->qr_centre_only = false;
+    }
+  }
+  const double t = now_ms();
+  *logo = logo_scores(img, c_mm, beta);
+  *logo_ms += now_ms() - t;
+  return decode_qr(img, pred, c_px, up, c_mm, beta, *logo, out);
 }
 
 // The final turn, or -1 (kDirectionAmbiguous): a clear logo must agree with the QR orientation

@@ -162,19 +162,18 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
   const double t2 = now_ms();
   have_overlay = true;
 
-  // 4. Logo: NCC at the four turns of the fitted square.
-  const LogoScores logo = logo_scores(img, c_mm, beta);
+  // 4-5a. Logo (NCC at the turns of the fitted square) and QR decode, then payload and map
+  // check. Tracking reads the code first and scores the logo at its turn only (logo_and_code).
+  LogoScores logo;
+  double logo_ms = 0.0;
+  const int qr_q = logo_and_code(img, pred, c_px, up, c_mm, beta, &logo, &logo_ms, out);
   out->logo_score = logo.best;
   out->logo_margin = logo.margin;
-  const double t3 = now_ms();
-
-  // 5a. QR decode, payload and map check.
-  const int qr_q = decode_qr(img, pred, c_px, up, c_mm, beta, logo, out);
   Pose2 world_landmark;
   st =
       out->qr_method == 0 ? FixStatus::kQrUnreadable : check_payload(qr_text, out, &world_landmark);
   const double t4 = now_ms();
-  if (cfg.now_ns) out->timings.decode_ms = t4 - t3;
+  if (cfg.now_ns) out->timings.decode_ms = t4 - t2 - logo_ms;
   // 5c. Map-guided identity of an unread code (docs/map_identity.md): whole border only, and never
   // a filter (re)initialisation (map_verified stays false).
   if (st == FixStatus::kQrUnreadable && !out->partly_outside && out->sides_used == 4) {
@@ -185,7 +184,7 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
       out->landmark_id = id;
       fill_result(world_landmark, c_mm, beta, turn, cov, out);
       out->identity = FixIdentity::kMapGuided;
-      if (cfg.now_ns) out->timings.decode_ms = now_ms() - t3;
+      if (cfg.now_ns) out->timings.decode_ms = now_ms() - t2 - logo_ms;
       return finish(FixStatus::kOk);
     }
   }
@@ -194,7 +193,7 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
 
   // 5b. Direction: the logo against the QR code's orientation.
   const int q_final = decide_direction(logo, qr_q);
-  if (cfg.now_ns) out->timings.direction_ms = (t3 - t2) + (now_ms() - t4);
+  if (cfg.now_ns) out->timings.direction_ms = logo_ms + (now_ms() - t4);
   if (q_final < 0) return finish(FixStatus::kDirectionAmbiguous);
   quadrant = q_final;
 

@@ -134,7 +134,8 @@ struct NormalEquations {
 
 // Logo scores at the four 90-degree turns (turn q: forward axis = beta - q * 90 deg).
 struct LogoScores {
-  std::array<double, 4> ncc{};  // -1 at a turn where the logo leaves the image
+  // -1 at a turn where the logo leaves the image, and at the turns not scored (logo_one_turn)
+  std::array<double, 4> ncc{};
   int best_q = 0;
   double best = 0.0, margin = 0.0;  // best NCC, best minus second best
   bool clear = false;               // best above threshold and ahead of the second by the margin
@@ -342,6 +343,9 @@ struct LandmarkLocalizer::Impl {
   // Stage 4, logo, and the direction decision of stage 5 (direction.cpp).
   void build_logo();
   LogoScores logo_scores(const cv::Mat& img, Vec2 c_mm, double beta);
+  double logo_ncc(const cv::Mat& img, Vec2 c_mm, double beta, int q);
+  int logo_and_code(const cv::Mat& img, const Prediction& pred, Vec2 c_px, double up, Vec2 c_mm,
+                    double beta, LogoScores* logo, double* logo_ms, LandmarkFix* out);
   int decide_direction(const LogoScores& logo, int qr_q) const;
 
   // Stage 5, QR decode (qr_decode.cpp).
@@ -350,6 +354,8 @@ struct LandmarkLocalizer::Impl {
   int read_code(const cv::Mat& img, Vec2 c_px, double up, Vec2 c_mm, double beta,
                 const LogoScores& logo, LandmarkFix* out);
   void expect_tracked_code(const Prediction& pred, Vec2 c_mm, double beta);
+  int read_at_predicted_turn(const cv::Mat& img, const Prediction& pred, Vec2 c_mm, double beta,
+                             LandmarkFix* out);
   bool code_cut_at_every_turn(const cv::Mat& img, Vec2 c_mm, double beta,
                               const LogoScores& logo) const;
   int decode_guided(const cv::Mat& img, Vec2 c_mm, double beta, const LogoScores& logo);

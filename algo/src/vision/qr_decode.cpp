@@ -68,6 +68,34 @@ int LandmarkLocalizer::Impl::decode_qr(const cv::Mat& img, const Prediction& pre
   return q;
 }
 
+// Tracking's first read (TrackingConfig::logo_at_code_turn): the module centres at the predicted
+// turn, verified as decode_guided's centre-only read is (and, as that one, only with
+// qr_centre_first). The turn, or -1 with out's QR fields untouched when there is no predicted
+// turn, no expected code or no verified read.
+int LandmarkLocalizer::Impl::read_at_predicted_turn(const cv::Mat& img, const Prediction& pred,
+                                                    Vec2 c_mm, double beta, LandmarkFix* out) {
+  qr_text.clear();
+  expect_tracked_code(pred, c_mm, beta);
+  if (!cfg.qr_guided || !cfg.qr_centre_first || predicted_turn < 0 || qr_expected.empty()) {
+    return -1;
+  }
+  const double fwd = beta - predicted_turn * kPi / 2.0;
+  for (int n : {kQrModulesV2, kQrModulesV1}) {
+    if (sample_qr(img, c_mm, fwd, n, &qr_samples, true) &&
+        verify_qr_grid(qr_samples, kCentreOnlyThreshold, &qr_text, &qr_scratch, qr_expected,
+                       code_book())) {
+      out->qr_method = 1;
+      out->qr_verified = qr_scratch.verified;
+      out->qr_centre_only = true;
+      out->qr_grid_decodes = 0;
+      out->qr_search_attempts = 0;
+      return predicted_turn;
+    }
+  }
+  qr_text.clear();
+  return -1;
+}
+
 // Guided module sampling at the logo's turn (all four when the logo is unclear; the code sits
 // off-centre, so a wrong turn samples the wrong place and cannot decode), then zxing's search on
 // the crop. Returns the turn the code's own orientation points to (-1 when unknown) and sets

@@ -72,6 +72,16 @@ struct TrackingConfig {
   // border or too blurred declines, and the frame takes the tracked detection. false = the tracked
   // detection whenever the prediction alone does not place the bands. Default true.
   bool probe_edges = true;
+  // Read the code first at the predicted turn (the module centres, verified against the mapped
+  // codes); when that succeeds the logo is scored at that turn only and must reach logo_threshold
+  // there, instead of at all four turns with logo_margin over the second best (docs/tracking.md
+  // "Logo at the code's turn"). The direction is then the code's own orientation, confirmed by the
+  // prediction and the logo; a logo below the threshold there, or no such read, takes the four
+  // turns and the full read as before, so a logo that contradicts the code is still refused.
+  // Saves three quarters of the logo stage, about 0.009 ms of a 0.15 ms tracked frame on x86-64;
+  // logo_margin is then not measured (LandmarkFix::logo_one_turn). Needs qr_guided and
+  // qr_centre_first (that read is theirs). false = four turns on every frame. Default true.
+  bool logo_at_code_turn = true;
 };
 
 struct VisionConfig {
@@ -301,9 +311,11 @@ struct LandmarkFix {
   Eigen::Matrix3d cov_landmark_in_vehicle = Eigen::Matrix3d::Zero();
   StageTimings timings;
   int edge_points_used = 0;
-  double corner_score = 0.0;    // best corner-template NCC
-  double logo_score = 0.0;      // best logo NCC
-  double logo_margin = 0.0;     // best minus second-best logo NCC
+  double corner_score = 0.0;  // best corner-template NCC
+  double logo_score = 0.0;    // best logo NCC
+  double logo_margin = 0.0;   // best minus second-best logo NCC (0 when logo_one_turn)
+  // The logo was scored only at the verified code's turn (TrackingConfig::logo_at_code_turn).
+  bool logo_one_turn = false;
   int sides_used = 0;           // border sides with both edges fitted (4 when fully visible)
   bool partly_outside = false;  // some of the border is outside the image (pose still valid)
   double residual_rms_mm = 0.0;
