@@ -85,6 +85,7 @@ WindowPlanner::WindowPlanner(const VisionConfig& vision, const CameraModel& cam,
                              const LandmarkGeometry& geom, const LandmarkMap* map)
     : cfg_(vision.tracking),
       cam_(cam),
+      floor_(cam),
       geom_(geom),
       map_(map),
       margin_mm_(detection_margin_mm(vision, geom, cam)) {
@@ -137,6 +138,15 @@ bool WindowPlanner::window_for(const Pose2& v, const Eigen::Matrix3d& cov_v,
   const int width = cam_.intrinsics.width_px, height = cam_.intrinsics.height_px;
   double min_x = HUGE_VAL, min_y = HUGE_VAL, max_x = -HUGE_VAL, max_y = -HUGE_VAL;
   const double poly = 1.0 / std::cos(kPi / kCirclePolygon);
+  // The polygon's vertex directions, the same values as computed per vertex.
+  static const std::array<Vec2, kCirclePolygon> kUnitPolygon = [] {
+    std::array<Vec2, kCirclePolygon> u;
+    for (int k = 0; k < kCirclePolygon; ++k) {
+      const double a = 2.0 * kPi * k / kCirclePolygon;
+      u[static_cast<size_t>(k)] = {std::cos(a), std::sin(a)};
+    }
+    return u;
+  }();
   bool all_projected = true;
   double corner_sigma_mm = 0.0;
   for (const Vec2& corner_l : geom_.outer_corners_landmark_mm()) {
@@ -144,10 +154,9 @@ bool WindowPlanner::window_for(const Pose2& v, const Eigen::Matrix3d& cov_v,
     const double sigma_mm = point_sigma_mm(p, cov_v);
     corner_sigma_mm = std::max(corner_sigma_mm, sigma_mm);
     const double r = (cfg_.window_sigmas * sigma_mm + margin_mm_) * poly;
-    for (int k = 0; k < kCirclePolygon; ++k) {
-      const double a = 2.0 * kPi * k / kCirclePolygon;
+    for (const Vec2& u : kUnitPolygon) {
       Vec2 px;
-      if (!cam_.vehicle_to_pixel({p.x + r * std::cos(a), p.y + r * std::sin(a)}, &px)) {
+      if (!floor_.vehicle_to_pixel({p.x + r * u.x, p.y + r * u.y}, &px)) {
         all_projected = false;
         continue;
       }
@@ -174,7 +183,7 @@ bool WindowPlanner::window_for(const Pose2& v, const Eigen::Matrix3d& cov_v,
   const Vec2 centre{landmark_in_vehicle.x_mm, landmark_in_vehicle.y_mm};
   const Vec2 probe = transform(landmark_in_vehicle, {kAngleProbeMm, 0.0});
   Vec2 c_px, p_px;
-  if (cam_.vehicle_to_pixel(centre, &c_px) && cam_.vehicle_to_pixel(probe, &p_px)) {
+  if (floor_.vehicle_to_pixel(centre, &c_px) && floor_.vehicle_to_pixel(probe, &p_px)) {
     w->centre_px = c_px;
     w->up_angle_rad = reduce_90(std::atan2(p_px.y - c_px.y, p_px.x - c_px.x));
   }

@@ -63,6 +63,9 @@ class WindowPlanner {
 
   TrackingConfig cfg_;
   CameraModel cam_;
+  // cam_'s floor mapping, built once: CameraModel::vehicle_to_pixel builds one per point (the
+  // mount's trigonometry), 34 times per window.
+  FloorProjector floor_;
   LandmarkGeometry geom_;
   const LandmarkMap* map_;
   double margin_mm_ = 0.0;
