@@ -144,7 +144,7 @@ int main(int argc, char** argv) {
   // Error of each fix against the rendered truth: the accuracy the tracked detection must keep.
   std::vector<double> full_err_mm, win_err_mm, full_err_deg, win_err_deg;
   int ok_full = 0, ok_win = 0, in_window = 0, then_full = 0, differ = 0, not_bitwise = 0,
-      tracked = 0, predicted = 0, probed = 0;
+      tracked = 0, predicted = 0, probed = 0, one_turn = 0;
   double worst_deg = 0.0;
   double worst_mm = 0.0;
   for (int i = 0; i < frames; ++i) {
@@ -190,6 +190,7 @@ int main(int argc, char** argv) {
     if (win.search == vision::SearchMode::kWindowThenFull) ++then_full;
     if (win.detection_predicted) ++predicted;
     if (win.detection_probed) ++probed;
+    if (win.logo_one_turn) ++one_turn;
     // The windowed corner search reproduces the full search's detection exactly; the tracked
     // detection (track_detect.cpp) has its own.
     if (win.search == vision::SearchMode::kWindow && !win.detection_predicted &&
@@ -237,6 +238,7 @@ int main(int argc, char** argv) {
   std::printf("  tracked detection (prediction replaced the corner search): %d\n", tracked);
   std::printf("  detection from the prediction (no detection ran): %d, of which edge probes %d\n",
               predicted, probed);
+  std::printf("  logo scored at the verified code's turn only: %d\n", one_turn);
   std::printf("  window: median %.0f %% of the frame (margin %.1f mm beyond the outer corners)\n",
               100.0 * median(area_frac), planner.margin_mm());
   std::printf(
