@@ -147,7 +147,7 @@ PlaneProjector FloorProjector::plane(Vec2 o, Vec2 eu, Vec2 ev) const {
   return p;
 }
 
-bool FloorProjector::undistort(Vec2 pixel, Vec2* xn) const {
+bool FloorProjector::undistort_with_lens(Vec2 pixel, Vec2* xn) const {
   if (lens_ == LensTerms::kFull) return m_.undistort_pixel_to_normalized(pixel, xn);
   const auto& k = m_.intrinsics;
   if (!(k.fx > 0.0) || !(k.fy > 0.0) || !std::isfinite(pixel.x) || !std::isfinite(pixel.y)) {
@@ -155,17 +155,6 @@ bool FloorProjector::undistort(Vec2 pixel, Vec2* xn) const {
   }
   const double xd = (pixel.x - k.cx) / k.fx;
   const double yd = (pixel.y - k.cy) / k.fy;
-  if (lens_ == LensTerms::kNone) {
-    // The Newton step's terms multiply zero coefficients by r2 and 3 r2: finite, they vanish and
-    // the step is exactly zero; infinite, they give NaN and the iteration refuses the point. So
-    // refuse it here too.
-    if (!std::isfinite(3.0 * (xd * xd + yd * yd))) return false;
-    // distort_normalized_to_pixel without its zero terms: the same round-trip check.
-    const double bx = k.fx * xd + k.cx, by = k.fy * yd + k.cy;
-    if (!(std::abs(bx - pixel.x) < 1e-6 && std::abs(by - pixel.y) < 1e-6)) return false;
-    *xn = {xd, yd};
-    return true;
-  }
   return undistort_radial(pixel, xd, yd, xn);
 }
 
@@ -196,30 +185,6 @@ bool FloorProjector::undistort_radial(Vec2 pixel, double xd, double yd, Vec2* xn
   const Vec2 back = m_.distort_normalized_to_pixel({x, y});
   if (!(std::abs(back.x - pixel.x) < 1e-6 && std::abs(back.y - pixel.y) < 1e-6)) return false;
   *xn = {x, y};
-  return true;
-}
-
-bool FloorProjector::pixel_to_vehicle(Vec2 pixel, Vec2* p) const {
-  const CameraMount& mount = m_.mount;
-  Vec2 xn;
-  if (!(mount.height_mm > 0.0) || !undistort(pixel, &xn)) return false;
-  if (tilted_) {
-    // Ray (xn, 1) in C, rotated into V, intersected with the floor z = 0.
-    const double* r = r_;
-    const double rx = r[0] * xn.x + r[1] * xn.y + r[2];
-    const double ry = r[3] * xn.x + r[4] * xn.y + r[5];
-    const double rz = r[6] * xn.x + r[7] * xn.y + r[8];
-    if (!(rz < -1e-9)) return false;  // the ray does not reach the floor
-    const double t = mount.height_mm / -rz;
-    *p = {mount.offset_x_mm + t * rx, mount.offset_y_mm + t * ry};
-    return true;
-  }
-  const double xc = xn.x * mount.height_mm, yc = xn.y * mount.height_mm;
-  const double c = cos_yaw_, s = sin_yaw_;
-  // Inverse of the rotation in vehicle_to_pixel.
-  const double dx = xc * s - yc * c;
-  const double dy = -xc * c - yc * s;
-  *p = {dx + mount.offset_x_mm, dy + mount.offset_y_mm};
   return true;
 }
 

@@ -103,6 +103,9 @@ class FloorProjector {
   PlaneProjector plane(Vec2 origin_mm, Vec2 axis_u, Vec2 axis_v) const;
 
  private:
+  // undistort with distortion terms (out of line; the lens-free case is inline below, because
+  // every edge point of a frame goes through it).
+  bool undistort_with_lens(Vec2 pixel, Vec2* xn) const;
   // undistort's radial-only iteration from the distorted normalised point (xd, yd).
   bool undistort_radial(Vec2 pixel, double xd, double yd, Vec2* xn) const;
 
@@ -112,6 +115,49 @@ class FloorProjector {
   double r_[9] = {};                      // R_VC, tilted mounts only
   double cos_yaw_ = 1.0, sin_yaw_ = 0.0;  // untilted mounts only
 };
+
+inline bool FloorProjector::undistort(Vec2 pixel, Vec2* xn) const {
+  if (lens_ != LensTerms::kNone) return undistort_with_lens(pixel, xn);
+  const auto& k = m_.intrinsics;
+  if (!(k.fx > 0.0) || !(k.fy > 0.0) || !std::isfinite(pixel.x) || !std::isfinite(pixel.y)) {
+    return false;
+  }
+  const double xd = (pixel.x - k.cx) / k.fx;
+  const double yd = (pixel.y - k.cy) / k.fy;
+  // The Newton step's terms multiply zero coefficients by r2 and 3 r2: finite, they vanish and
+  // the step is exactly zero; infinite, they give NaN and the iteration refuses the point. So
+  // refuse it here too.
+  if (!std::isfinite(3.0 * (xd * xd + yd * yd))) return false;
+  // distort_normalized_to_pixel without its zero terms: the same round-trip check.
+  const double bx = k.fx * xd + k.cx, by = k.fy * yd + k.cy;
+  if (!(std::abs(bx - pixel.x) < 1e-6 && std::abs(by - pixel.y) < 1e-6)) return false;
+  *xn = {xd, yd};
+  return true;
+}
+
+inline bool FloorProjector::pixel_to_vehicle(Vec2 pixel, Vec2* p) const {
+  const CameraMount& mount = m_.mount;
+  Vec2 xn;
+  if (!(mount.height_mm > 0.0) || !undistort(pixel, &xn)) return false;
+  if (tilted_) {
+    // Ray (xn, 1) in C, rotated into V, intersected with the floor z = 0.
+    const double* r = r_;
+    const double rx = r[0] * xn.x + r[1] * xn.y + r[2];
+    const double ry = r[3] * xn.x + r[4] * xn.y + r[5];
+    const double rz = r[6] * xn.x + r[7] * xn.y + r[8];
+    if (!(rz < -1e-9)) return false;  // the ray does not reach the floor
+    const double t = mount.height_mm / -rz;
+    *p = {mount.offset_x_mm + t * rx, mount.offset_y_mm + t * ry};
+    return true;
+  }
+  const double xc = xn.x * mount.height_mm, yc = xn.y * mount.height_mm;
+  const double c = cos_yaw_, s = sin_yaw_;
+  // Inverse of the rotation in vehicle_to_pixel.
+  const double dx = xc * s - yc * c;
+  const double dy = -xc * c - yc * s;
+  *p = {dx + mount.offset_x_mm, dy + mount.offset_y_mm};
+  return true;
+}
 
 // FloorProjector::vehicle_to_pixel for the points of one plane at one pose. The floor point ->
 // camera point step is affine, and so is (u, v) -> floor point, so both fold into one 3x3
