@@ -356,6 +356,7 @@ struct LandmarkLocalizer::Impl {
   void expect_tracked_code(const Prediction& pred, Vec2 c_mm, double beta);
   int read_at_predicted_turn(const cv::Mat& img, const Prediction& pred, Vec2 c_mm, double beta,
                              LandmarkFix* out);
+  bool read_centres(const cv::Mat& img, Vec2 c_mm, double beta, int q, QrCodeBook* book);
   bool code_cut_at_every_turn(const cv::Mat& img, Vec2 c_mm, double beta,
                               const LogoScores& logo) const;
   int decode_guided(const cv::Mat& img, Vec2 c_mm, double beta, const LogoScores& logo);

@@ -79,21 +79,30 @@ int LandmarkLocalizer::Impl::read_at_predicted_turn(const cv::Mat& img, const Pr
   if (!cfg.qr_guided || !cfg.qr_centre_first || predicted_turn < 0 || qr_expected.empty()) {
     return -1;
   }
-  const double fwd = beta - predicted_turn * kPi / 2.0;
+  if (!read_centres(img, c_mm, beta, predicted_turn, code_book())) {
+    qr_text.clear();
+    return -1;
+  }
+  out->qr_method = 1;
+  out->qr_verified = qr_scratch.verified;
+  out->qr_centre_only = true;
+  out->qr_grid_decodes = 0;
+  out->qr_search_attempts = 0;
+  return predicted_turn;
+}
+
+// The centre-only read at turn q: the module centres of either grid size, verified against the
+// expected codes and the book (never zxing). Sets qr_text on success.
+bool LandmarkLocalizer::Impl::read_centres(const cv::Mat& img, Vec2 c_mm, double beta, int q,
+                                           QrCodeBook* book) {
   for (int n : {kQrModulesV2, kQrModulesV1}) {
-    if (sample_qr(img, c_mm, fwd, n, &qr_samples, true) &&
+    if (sample_qr(img, c_mm, beta - q * kPi / 2.0, n, &qr_samples, true) &&
         verify_qr_grid(qr_samples, kCentreOnlyThreshold, &qr_text, &qr_scratch, qr_expected,
-                       code_book())) {
-      out->qr_method = 1;
-      out->qr_verified = qr_scratch.verified;
-      out->qr_centre_only = true;
-      out->qr_grid_decodes = 0;
-      out->qr_search_attempts = 0;
-      return predicted_turn;
+                       book)) {
+      return true;
     }
   }
-  qr_text.clear();
-  return -1;
+  return false;
 }
 
 // Guided module sampling at the logo's turn (all four when the logo is unclear; the code sits
@@ -204,13 +213,9 @@ int LandmarkLocalizer::Impl::decode_guided(const cv::Mat& img, Vec2 c_mm, double
   if (cfg.qr_centre_first && (!qr_expected.empty() || (book && book->size() > 0))) {
     for (int q : order) {
       if (q < 0) break;
-      for (int n : {kQrModulesV2, kQrModulesV1}) {
-        if (sample_qr(img, c_mm, beta - q * kPi / 2.0, n, &qr_samples, true) &&
-            verify_qr_grid(qr_samples, kCentreOnlyThreshold, &qr_text, &qr_scratch, qr_expected,
-                           book)) {
-          qr_centre_only = true;
-          return q;
-        }
+      if (read_centres(img, c_mm, beta, q, book)) {
+        qr_centre_only = true;
+        return q;
       }
     }
   }
