@@ -157,6 +157,11 @@ bool Ekf::add_odometry(std::int64_t t_ns, double v_mps, double omega_radps) {
   return true;
 }
 
+bool Ekf::add_gyro(std::int64_t t_ns, double gyro_z_radps) {
+  (void)t_ns;
+  return std::isfinite(gyro_z_radps);
+}
+
 void Ekf::hold_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::Matrix3d& R_in,
                    bool map_verified, bool map_guided) {
   if (held_count_ == held_.size()) {  // the newest fixes are worth more: drop the oldest

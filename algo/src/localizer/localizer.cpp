@@ -74,6 +74,25 @@ void Localizer::on_odometry(std::int64_t t_ns, double v_mps, double omega_radps)
   last_odom_ns_ = t_ns;
 }
 
+bool Localizer::on_gyro(std::int64_t t_ns, double gyro_z_radps) {
+  ++stats_.gyro_samples;
+  const GyroCorrection& c = cfg_.gyro;
+  t_ns -= c.time_offset_ns;
+  gyro_z_radps *= c.scale;
+  if (c.bias_radps != 0.0) gyro_z_radps += c.bias_radps;
+  if (!ekf_.add_gyro(t_ns, gyro_z_radps)) {
+    ++stats_.gyro_rejected;
+    return false;
+  }
+  last_gyro_ns_ = t_ns;
+  return true;
+}
+
+bool Localizer::gyro_timed_out(std::int64_t now_ns) const {
+  return stats_.gyro_samples > 0 &&
+         (last_gyro_ns_ == INT64_MIN || now_ns - last_gyro_ns_ > cfg_.gyro_timeout_ns);
+}
+
 bool Localizer::on_can_frame(const hal::CanFrame& frame, protocol::OdomSample* sample) {
   ++stats_.can_rx_frames;
   protocol::OdomSample s;

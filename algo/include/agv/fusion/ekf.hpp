@@ -269,6 +269,13 @@ class Ekf {
   // non-increasing time.
   bool add_odometry(std::int64_t t_ns, double v_mps, double omega_radps);
 
+  // Gyro yaw-rate sample (rad/s, counter-clockwise positive) stamped t_ns on the odometry's clock
+  // (strictly increasing). The gyro then carries the heading over every odometry period it
+  // covers (docs/fusion.md, "Gyro"); the wheels keep the speed. Returns false, counts and flags
+  // for non-finite values, samples at or beyond gyro_saturation_radps, non-increasing time, or a
+  // stamp more than max_gyro_lead_ns ahead of the newest odometry.
+  bool add_gyro(std::int64_t t_ns, double gyro_z_radps);
+
   // Landmark fix: world pose of the vehicle at exposure time t_exposure_ns with covariance R of
   // (x_mm, y_mm, theta_rad). May be older than the newest odometry (delayed): it is fused at
   // its own time and later events are re-propagated.

@@ -32,10 +32,23 @@ struct OdometryCorrection {
   std::int64_t time_offset_ns = 0;
 };
 
+// Configured gyro correction (keys `imu.*`), applied to every gyro sample before fusion:
+//   rate' = scale * rate + bias_radps,  t' = t - time_offset_ns  (gyro clock = vehicle clock +
+// time_offset). The EKF estimates the gyro bias and scale left after this.
+struct GyroCorrection {
+  double scale = 1.0;
+  double bias_radps = 0.0;
+  std::int64_t time_offset_ns = 0;
+};
+
 struct LocalizerConfig {
   fusion::EkfConfig fusion;  // its odom_timeout_ns is replaced by odometry_timeout_ns
   protocol::ProtocolConfig protocol;
   OdometryCorrection odometry;
+  GyroCorrection gyro;
+  // No accepted gyro sample for this long while gyro samples were seen before sets FaultImu
+  // (the filter falls back to the wheels by itself; docs/fusion.md "Gyro").
+  std::int64_t gyro_timeout_ns = 100'000'000;
   // THE odometry timeout: no accepted sample (CAN or recording) for this long makes the pose
   // invalid, sets FaultOdomTimeout and the EKF's kOdomTimeout flag. Trade-off: short stops a
   // vehicle on bus jitter, long lets it drive on a stale prediction.
@@ -51,6 +64,8 @@ struct OutputStats {
   std::uint64_t missed_periods = 0;  // wake-ups later than one full period
   std::uint64_t odom_samples = 0;
   std::uint64_t odom_rejected = 0;  // by the EKF (time or plausibility)
+  std::uint64_t gyro_samples = 0;
+  std::uint64_t gyro_rejected = 0;  // by the EKF (time, plausibility, saturation)
   std::uint64_t fixes_received = 0;
   std::uint64_t fixes_fused = 0;
   std::uint64_t fixes_rejected_gate = 0;
@@ -97,6 +112,13 @@ class Localizer {
 
   // Odometry from any source (recording, CAN). t_ns on the loop's clock.
   void on_odometry(std::int64_t t_ns, double v_mps, double omega_radps);
+  // One yaw-rate sample of the gyro (vehicle z axis, counter-clockwise positive), stamped t_ns on
+  // the gyro's clock (GyroCorrection maps it onto the vehicle clock). From any source (CAN, IIO,
+  // recording). Returns false when the filter rejected it (non-finite, saturated, not after the
+  // previous sample, too far ahead).
+  bool on_gyro(std::int64_t t_ns, double gyro_z_radps);
+  // True when gyro samples were seen and none was accepted within gyro_timeout_ns of now_ns.
+  bool gyro_timed_out(std::int64_t now_ns) const;
   // One received CAN frame: odometry is decoded, checked and fused, others counted and ignored.
   // Returns true when the frame was odometry that passed the decoder's checks; *sample (if not
   // null) is then what was handed to on_odometry, so the caller can keep the run's input for a
@@ -159,6 +181,7 @@ class Localizer {
   protocol::Encoder encoder_;
   protocol::OdometryDecoder odom_;
   std::int64_t last_odom_ns_ = INT64_MIN;
+  std::int64_t last_gyro_ns_ = INT64_MIN;
   std::uint64_t odom_rejected_seen_ = 0;
   std::int64_t next_heartbeat_ns_ = INT64_MIN;
   std::int64_t first_tick_ns_ = INT64_MIN;
