@@ -78,6 +78,9 @@ fs::path write_sample(const std::string& name) {
   }
   EXPECT_TRUE(write_odom_csv(d.string(), odom, &err)) << err;
   EXPECT_TRUE(write_truth_csv(d.string(), truth, &err)) << err;
+  std::vector<ImuRow> imu;
+  for (int i = 0; i < 20; ++i) imu.push_back({1000000000LL + i * 5000000LL, 0.0123456789 * i});
+  EXPECT_TRUE(write_imu_csv(d.string(), imu, &err)) << err;
   return d;
 }
 
@@ -272,7 +275,8 @@ TEST(Recording, MalformedMetaRejectedNamingTheKey) {
 TEST(Recording, GarbageAndTruncationNeverCrash) {
   const fs::path d = write_sample("garbage");
   std::mt19937 rng(5);
-  const std::vector<std::string> files = {"meta.yaml", "frames.csv", "odom.csv", "truth.csv"};
+  const std::vector<std::string> files = {"meta.yaml", "frames.csv", "odom.csv", "truth.csv",
+                                          "imu.csv"};
   for (const std::string& f : files) {
     const std::string good = slurp(d / f);
     // Every truncation point: either accepted (cut exactly at a line end) or rejected.
@@ -290,6 +294,9 @@ TEST(Recording, GarbageAndTruncationNeverCrash) {
       } else if (f == "odom.csv") {
         std::vector<OdomRow> rows;
         ok = parse_odom_csv(part, &rows, &err);
+      } else if (f == "imu.csv") {
+        std::vector<ImuRow> rows;
+        ok = parse_imu_csv(part, &rows, &err);
       } else {
         std::vector<TruthRow> rows;
         ok = parse_truth_csv(part, &rows, &err);
@@ -443,4 +450,97 @@ TEST(Recording, FrameCountIsBounded) {
   text.resize(text.rfind("250000,a\n"));
   EXPECT_TRUE(parse_frames_csv(text, &rows, &err)) << err;
   EXPECT_EQ(rows.size(), 250000u);
+}
+
+// ---- imu.csv (optional gyro) ------------------------------------------------------------------
+
+TEST(Recording, ImuCsvRoundTripsAndIsOptional) {
+  const fs::path d = write_sample("imu");
+  Recording r;
+  std::string err;
+  ASSERT_TRUE(read_recording(d.string(), &r, &err)) << err;
+  ASSERT_TRUE(r.has_imu);
+  ASSERT_EQ(r.imu.size(), 20u);
+  EXPECT_EQ(r.imu[7].t_ns, 1035000000LL);
+  EXPECT_NEAR(r.imu[7].gyro_z_radps, 7 * 0.0123456789, 1e-9);  // 9 significant digits
+  EXPECT_EQ(slurp(d / "imu.csv").rfind("t_ns,gyro_z_radps\n1000000000,0\n", 0), 0u);
+  // Absent: no gyro, everything else as before.
+  fs::remove(d / "imu.csv");
+  ASSERT_TRUE(read_recording(d.string(), &r, &err)) << err;
+  EXPECT_FALSE(r.has_imu);
+  EXPECT_TRUE(r.imu.empty());
+  EXPECT_EQ(r.odom.size(), 10u);
+  fs::remove_all(d);
+}
+
+TEST(Recording, ImuCsvExtraColumnsOnlyWhenTheHeaderNamesThem) {
+  std::vector<ImuRow> rows;
+  std::string err;
+  ASSERT_TRUE(parse_imu_csv(
+      "t_ns,gyro_z_radps,gyro_x_radps,gyro_y_radps,accel_x_mps2,accel_y_mps2,accel_z_mps2\n"
+      "1,0.5,0.01,-0.02,0.1,-0.2,9.81\n2,-0.25,0,0,0,0,9.8\r\n",
+      &rows, &err))
+      << err;
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_EQ(rows[1].t_ns, 2);
+  EXPECT_EQ(rows[1].gyro_z_radps, -0.25);
+  struct Case {
+    std::string text;
+    std::string error;  // exact start of the message
+  };
+  const std::vector<Case> cases = {
+      // A field the header does not name.
+      {"t_ns,gyro_z_radps\n1,0.5,0.1\n", "imu.csv:2: expected 2 fields, got 3"},
+      {"t_ns,gyro_z_radps,gyro_x_radps\n1,0.5,0.1,7\n",
+       "imu.csv:2: expected 3 fields (as many as the header names), got 4"},
+      {"t_ns,gyro_z_radps,gyro_x_radps\n1,0.5\n", "imu.csv:2: expected 3 fields"},
+      // Extra columns are numbers too, finite like the rest.
+      {"t_ns,gyro_z_radps,accel_x_mps2\n1,0.5,nan\n",
+       "imu.csv:2: accel_x_mps2 'nan' is not a finite number"},
+      // Their names: words, distinct.
+      {"t_ns,gyro_z_radps,\n1,0.5,\n", "imu.csv:1: header column 3 '' is not a name"},
+      {"t_ns,gyro_z_radps,a b\n1,0.5,1\n", "imu.csv:1: header column 3 'a b' is not a name"},
+      {"t_ns,gyro_z_radps,ax,ax\n1,0.5,1,1\n", "imu.csv:1: header column 4 'ax' is a duplicate"},
+      {"t_ns,gyro_z_radps,t_ns\n1,0.5,1\n", "imu.csv:1: header column 3 't_ns' is a duplicate"},
+  };
+  for (const Case& c : cases) {
+    EXPECT_FALSE(parse_imu_csv(c.text, &rows, &err)) << c.text;
+    EXPECT_EQ(err.rfind(c.error, 0), 0u) << c.text << " -> " << err;
+  }
+}
+
+TEST(Recording, MalformedImuCsvRejectedWithFileAndLine) {
+  struct Case {
+    std::string text;
+    std::string error;  // exact start of the message from read_recording
+  };
+  const std::vector<Case> cases = {
+      {"t_ns,gyro_x_radps\n1,0.5\n",
+       "imu.csv:1: expected header 't_ns,gyro_z_radps[,more columns]', got 't_ns,gyro_x_radps'"},
+      {"t_ns,gyro_z_radpsX\n1,0.5\n", "imu.csv:1: expected header"},
+      {"gyro_z_radps,t_ns\n0.5,1\n", "imu.csv:1: expected header"},
+      {"", "imu.csv:1: empty file"},
+      {"t_ns,gyro_z_radps\n1,0.5\n1,0.5\n", "imu.csv:3: t_ns 1 is not after the previous row's 1"},
+      {"t_ns,gyro_z_radps\n5,0.5\n4,0.5\n", "imu.csv:3: t_ns 4 is not after the previous row's 5"},
+      {"t_ns,gyro_z_radps\n1,0.5\n2,nan\n", "imu.csv:3: gyro_z_radps 'nan' is not a finite number"},
+      {"t_ns,gyro_z_radps\n1,inf\n", "imu.csv:2: gyro_z_radps 'inf' is not a finite number"},
+      {"t_ns,gyro_z_radps\n1,0.5\n2,0.", "imu.csv:3: truncated: last line has no newline"},
+      {"t_ns,gyro_z_radps\n1,0.5\n\n", "imu.csv:3: empty line"},
+      {"t_ns,gyro_z_radps\n-1,0.5\n", "imu.csv:2: t_ns outside [0, 4611686018427387904]"},
+      {"t_ns,gyro_z_radps\n1,150\n", "imu.csv:2: gyro_z_radps outside [-100, 100]"},
+      {"t_ns,gyro_z_radps\n1,+0.5\n", "imu.csv:2: gyro_z_radps '+0.5' is not a finite number"},
+  };
+  for (const Case& c : cases) {
+    const fs::path d = write_sample("imubad");
+    spit(d / "imu.csv", c.text);
+    SCOPED_TRACE("<<" + c.text + ">>");
+    expect_rejected(d, c.error);
+    fs::remove_all(d);
+  }
+  // Not a regular file, or too large: like every other file.
+  fs::path d = write_sample("imudev");
+  fs::remove(d / "imu.csv");
+  fs::create_directories(d / "imu.csv");
+  expect_rejected(d, "imu.csv: not a regular file");
+  fs::remove_all(d);
 }

@@ -6,6 +6,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cmath>
 #include <cstdio>
@@ -29,7 +30,7 @@ namespace {
 
 // Per-file caps (docs/security.md): with them a hostile recording cannot make the reader hold
 // more than a few hundred MB (the longest legitimate files, odom.csv and truth.csv at 100 Hz, are
-// ~3 MB per hour).
+// ~3 MB per hour; imu.csv at 200 Hz with only t_ns,gyro_z_radps ~20 MB per hour).
 constexpr std::uintmax_t kMaxMetaBytes = 64u << 10;      // 64 KiB
 constexpr std::uintmax_t kMaxFramesCsvBytes = 8u << 20;  // 8 MiB: ~250k frames, 2.3 h at 30 fps
 constexpr std::uintmax_t kMaxTimedCsvBytes = 32u << 20;  // 32 MiB: ~10 h of 100 Hz odometry
@@ -179,10 +180,43 @@ struct CsvLine {
   std::string_view text;
 };
 
-// Splits into lines; the header must match exactly; every line must end with '\n' (a missing
-// final newline means the writer was interrupted). CRLF is accepted.
+std::vector<std::string_view> split_commas(std::string_view line);
+
+// The header columns after `header` ("" when there are none) must be distinct names of letters,
+// digits and '_' that repeat none of `header`'s: a row then has a field for each named column.
+bool extra_columns(std::string_view rest, const char* header, std::vector<std::string>* names,
+                   std::string* why) {
+  if (rest.empty()) return true;
+  const auto given = split_commas(header);
+  const auto extra = split_commas(rest.substr(1));  // after the leading ','
+  for (size_t i = 0; i < extra.size(); ++i) {
+    const std::string_view c = extra[i];
+    const std::string col = "header column " + std::to_string(given.size() + i + 1);
+    const bool word = !c.empty() && std::all_of(c.begin(), c.end(), [](char ch) {
+      return std::isalnum(static_cast<unsigned char>(ch)) || ch == '_';
+    });
+    if (!word || c.size() > 64) {
+      *why = col + " '" + std::string(c.substr(0, 40)) +
+             "' is not a name of up to 64 letters, digits and '_'";
+      return false;
+    }
+    if (std::find(given.begin(), given.end(), c) != given.end() ||
+        std::find(extra.begin(), extra.begin() + static_cast<std::ptrdiff_t>(i), c) !=
+            extra.begin() + static_cast<std::ptrdiff_t>(i)) {
+      *why = col + " '" + std::string(c) + "' is a duplicate";
+      return false;
+    }
+    names->emplace_back(c);
+  }
+  return true;
+}
+
+// Splits into lines; the header must match exactly, or, with `extra` not null, start with
+// `header` followed by further named columns (returned in *extra); every line must end with '\n'
+// (a missing final newline means the writer was interrupted). CRLF is accepted.
 bool csv_lines(const std::string& text, const std::string& name, const char* header,
-               std::vector<CsvLine>* rows, std::string* error) {
+               std::vector<CsvLine>* rows, std::string* error,
+               std::vector<std::string>* extra = nullptr) {
   auto fail = [&](size_t line, const std::string& why) {
     if (error) *error = name + ":" + std::to_string(line) + ": " + why;
     return false;
@@ -205,10 +239,15 @@ bool csv_lines(const std::string& text, const std::string& name, const char* hea
     pos = end + 1;
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
     if (line_no == 1) {
-      if (line != header) {
-        return fail(1, std::string("expected header '") + header + "', got '" +
-                           std::string(line.substr(0, 80)) + "'");
+      const std::string_view h(header);
+      const bool prefix = line.substr(0, h.size()) == h &&
+                          (line.size() == h.size() || line[h.size()] == ',');
+      if (extra ? !prefix : line != header) {
+        return fail(1, std::string("expected header '") + header + (extra ? "[,more columns]" : "") +
+                           "', got '" + std::string(line.substr(0, 80)) + "'");
       }
+      std::string why;
+      if (extra && !extra_columns(line.substr(h.size()), header, extra, &why)) return fail(1, why);
       continue;
     }
     if (line.empty()) return fail(line_no, "empty line");
@@ -242,11 +281,18 @@ bool parse_f64(std::string_view s, double* v) {
 }
 
 // Parses rows with a t_ns column first and `n` more numeric columns; checks strict time order.
+// With extra_columns_allowed the header may name more numeric columns after these; `fill` gets
+// their values after the named ones.
 template <typename Fill>
 bool parse_timed_csv(const std::string& text, const std::string& name, const char* header,
-                     const std::vector<std::string>& cols, Fill fill, std::string* error) {
+                     std::vector<std::string> cols, Fill fill, std::string* error,
+                     bool extra_columns_allowed = false) {
   std::vector<CsvLine> lines;
-  if (!csv_lines(text, name, header, &lines, error)) return false;
+  std::vector<std::string> extra;
+  if (!csv_lines(text, name, header, &lines, error, extra_columns_allowed ? &extra : nullptr)) {
+    return false;
+  }
+  cols.insert(cols.end(), extra.begin(), extra.end());
   std::int64_t prev = 0;
   bool have_prev = false;
   std::vector<double> vals(cols.size());
@@ -257,7 +303,8 @@ bool parse_timed_csv(const std::string& text, const std::string& name, const cha
     };
     const auto f = split_commas(l.text);
     if (f.size() != cols.size() + 1) {
-      return fail("expected " + std::to_string(cols.size() + 1) + " fields, got " +
+      return fail("expected " + std::to_string(cols.size() + 1) + " fields" +
+                  (extra.empty() ? "" : " (as many as the header names)") + ", got " +
                   std::to_string(f.size()));
     }
     std::int64_t t = 0;
@@ -528,6 +575,24 @@ bool parse_truth_csv(const std::string& text, std::vector<TruthRow>* out, std::s
   return ok;
 }
 
+bool parse_imu_csv(const std::string& text, std::vector<ImuRow>* out, std::string* error,
+                   const std::string& name) {
+  // 100 rad/s (5730 deg/s) is beyond the range of any MEMS gyro (at most 4000 deg/s): a larger
+  // value is a unit or encoding mistake, not a measurement.
+  constexpr double kMaxGyroRadps = 100.0;
+  std::vector<ImuRow> rows;
+  const bool ok = parse_timed_csv(
+      text, name, "t_ns,gyro_z_radps", {"gyro_z_radps"},
+      [&](std::int64_t t, const std::vector<double>& v, std::string* why) {
+        if (std::abs(v[0]) > kMaxGyroRadps) return *why = "gyro_z_radps outside [-100, 100]", false;
+        rows.push_back({t, v[0]});
+        return true;
+      },
+      error, /*extra_columns_allowed=*/true);
+  if (ok) *out = std::move(rows);
+  return ok;
+}
+
 bool read_recording(const std::string& dir, Recording* out, std::string* error) {
   std::string err;
   auto fail = [&](const std::string& why) {
@@ -565,6 +630,14 @@ bool read_recording(const std::string& dir, Recording* out, std::string* error) 
         return fail(err);
       }
       r.has_truth = true;
+    }
+    // Absent = a vehicle without a gyro (or a recording older than the gyro input).
+    if (fs::exists(d / "imu.csv", ec)) {
+      if (!read_text(d / "imu.csv", kMaxTimedCsvBytes, &text, &err) ||
+          !parse_imu_csv(text, &r.imu, &err)) {
+        return fail(err);
+      }
+      r.has_imu = true;
     }
     *out = std::move(r);
     return true;

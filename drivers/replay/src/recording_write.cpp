@@ -138,6 +138,21 @@ bool write_truth_csv(const std::string& dir, const std::vector<TruthRow>& rows,
   return write_text(fs::path(dir) / "truth.csv", format_truth_csv(rows), error);
 }
 
+std::string format_imu_csv(const std::vector<ImuRow>& rows) {
+  std::string s = "t_ns,gyro_z_radps\n";
+  char buf[64];
+  for (const ImuRow& r : rows) {
+    // 9 significant digits: 1e-9 of the rate, far below any gyro's noise.
+    std::snprintf(buf, sizeof buf, "%lld,%.9g\n", static_cast<long long>(r.t_ns), r.gyro_z_radps);
+    s += buf;
+  }
+  return s;
+}
+
+bool write_imu_csv(const std::string& dir, const std::vector<ImuRow>& rows, std::string* error) {
+  return write_text(fs::path(dir) / "imu.csv", format_imu_csv(rows), error);
+}
+
 bool write_frame_png(const std::string& dir, const std::string& relative_file, const cv::Mat& image,
                      std::string* error) {
   if (image.empty() || image.type() != CV_8UC1 || !safe_relative_path(relative_file)) {

@@ -1,5 +1,5 @@
 // The recording format (docs/recording.md): a directory with meta.yaml, frames.csv + PNGs,
-// odom.csv and an optional truth.csv. Used by replay, the simulator and the live recorder.
+// odom.csv and the optional truth.csv and imu.csv. Used by replay, the simulator and the live recorder.
 #pragma once
 
 #include <cstddef>
@@ -39,6 +39,12 @@ struct OdomRow {
   double omega_radps = 0.0;  // yaw rate, counter-clockwise positive
 };
 
+// One gyro sample of imu.csv (further columns of the file are checked, then dropped).
+struct ImuRow {
+  std::int64_t t_ns = 0;      // the gyro's own stamp (its latency / clock offset included)
+  double gyro_z_radps = 0.0;  // yaw rate about the vehicle's z axis, counter-clockwise positive
+};
+
 struct TruthRow {
   std::int64_t t_ns = 0;
   double x_mm = 0.0;  // world pose of the vehicle reference point
@@ -53,9 +59,11 @@ struct Recording {
   std::vector<OdomRow> odom;
   std::vector<TruthRow> truth;  // empty when truth.csv is absent
   bool has_truth = false;
+  std::vector<ImuRow> imu;  // empty when imu.csv is absent (no gyro: wheel odometry only)
+  bool has_imu = false;
 };
 
-// Reads meta.yaml, frames.csv, odom.csv and truth.csv (if present). Images are not loaded.
+// Reads meta.yaml, frames.csv, odom.csv, truth.csv and imu.csv (the last two if present). Images are not loaded.
 // On malformed input returns false with *error naming the file and line ("frames.csv:12: ...").
 // Timestamps must be strictly increasing within each file; referenced PNGs must exist.
 bool read_recording(const std::string& dir, Recording* out, std::string* error);
@@ -70,6 +78,10 @@ bool parse_odom_csv(const std::string& text, std::vector<OdomRow>* out, std::str
                     const std::string& name = "odom.csv");
 bool parse_truth_csv(const std::string& text, std::vector<TruthRow>* out, std::string* error,
                      const std::string& name = "truth.csv");
+// imu.csv: the header starts with t_ns,gyro_z_radps; further columns (gyro_x_radps, accel_*,
+// ...) are allowed when the header names them, their values must be finite and are dropped.
+bool parse_imu_csv(const std::string& text, std::vector<ImuRow>* out, std::string* error,
+                   const std::string& name = "imu.csv");
 
 // Loads frame i as 8-bit grey. False with *error when the file is missing or unreadable (with
 // the reason), not decodable (with libpng's message), or not of the size in meta.yaml (checked on
@@ -87,11 +99,12 @@ bool check_replay_span(const Recording& rec, std::int64_t period_ns, std::int64_
                        std::string* error);
 
 // The text the writers below write (docs/recording.md). Meta and frames round-trip exactly;
-// odom.csv keeps 9 significant digits, truth.csv 0.1 um and 1e-6 degrees.
+// odom.csv and imu.csv keep 9 significant digits, truth.csv 0.1 um and 1e-6 degrees.
 std::string format_meta_yaml(const Meta& meta);
 bool format_frames_csv(const std::vector<FrameRow>& rows, std::string* text, std::string* error);
 std::string format_odom_csv(const std::vector<OdomRow>& rows);
 std::string format_truth_csv(const std::vector<TruthRow>& rows);
+std::string format_imu_csv(const std::vector<ImuRow>& rows);  // t_ns,gyro_z_radps only
 
 // Writers create the directory if needed and overwrite the files.
 bool write_meta(const std::string& dir, const Meta& meta, std::string* error);
@@ -99,6 +112,7 @@ bool write_frames_csv(const std::string& dir, const std::vector<FrameRow>& rows,
                       std::string* error);
 bool write_odom_csv(const std::string& dir, const std::vector<OdomRow>& rows, std::string* error);
 bool write_truth_csv(const std::string& dir, const std::vector<TruthRow>& rows, std::string* error);
+bool write_imu_csv(const std::string& dir, const std::vector<ImuRow>& rows, std::string* error);
 // Writes an 8-bit grey image as PNG at dir/relative_file (creating sub-directories).
 bool write_frame_png(const std::string& dir, const std::string& relative_file, const cv::Mat& image,
                      std::string* error);
