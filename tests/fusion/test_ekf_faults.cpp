@@ -125,8 +125,12 @@ TEST(FusionEkfFaults, GapInATurnKeepsTheCovarianceHonestAndTheNextFixIsAccepted)
   EXPECT_LE(heading_error(e, tr), 3.0 * std::sqrt(e.cov(kItheta, kItheta)));
   EXPECT_GT(heading_error(e, tr), deg_to_rad(10.0));  // the gap really hid a turn
   EXPECT_EQ(e.health, HealthState::kLost);            // and the filter says so
-  // A good fix (not map-verified, so no re-localisation shortcut) passes the honest gate.
-  EXPECT_EQ(ekf.add_fix(3200 * kMs, tr.pose(), fix_cov()), FixOutcome::kFused);
+  // The position spans landmarks now (sigma > 4x the lost limit), so the gate says nothing: a
+  // fix that does not vouch for itself (no map) waits for a second agreeing one (issue 33), a
+  // map-confirmed one passes the honest gate and is fused.
+  EXPECT_EQ(ekf.add_fix(3200 * kMs, tr.pose(), fix_cov()), FixOutcome::kRejectedGate);
+  EXPECT_EQ(ekf.add_fix(3200 * kMs, tr.pose(), fix_cov(), /*map_verified=*/true),
+            FixOutcome::kFused);
   const PoseEstimate after = ekf.estimate_at(3200 * kMs);
   EXPECT_LT(std::hypot(after.pose.x_mm - tr.x(kIx), after.pose.y_mm - tr.x(kIy)), 1.0);
   EXPECT_LT(rad_to_deg(heading_error(after, tr)), 0.1);

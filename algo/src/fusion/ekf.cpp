@@ -66,6 +66,20 @@ std::string validate(const EkfConfig& c) {
     return "localized_timeout_ns and odom_timeout_ns must be > 0";
   if (!finite_pos(c.lost_position_sigma_mm) || !finite_pos(c.lost_heading_sigma_rad))
     return "lost sigma limits must be finite and > 0";
+  if (!finite_pos(c.gyro_noise_density_radps_per_sqrt_hz) ||
+      !finite_nonneg(c.init_gyro_bias_sigma_radps) ||
+      !finite_nonneg(c.gyro_bias_sigma_radps_per_sqrt_s) ||
+      !finite_nonneg(c.init_gyro_scale_sigma) || !finite_nonneg(c.gyro_scale_sigma_per_sqrt_s))
+    return "gyro noise density must be finite and > 0, gyro calibration sigmas finite and >= 0";
+  if (!finite_pos(c.gyro_saturation_radps)) return "gyro_saturation_radps must be finite and > 0";
+  if (c.gyro_gap_ns <= 0 || c.gyro_capacity < 8)
+    return "gyro_gap_ns must be > 0 and gyro_capacity >= 8";
+  if (!finite_nonneg(c.slip_yaw_rate_radps) || !finite_nonneg(c.slip_yaw_rate_fraction) ||
+      !finite_pos(c.wheel_track_mm) || c.slip_max_duration_ns < 0)
+    return "slip limits must be finite and >= 0, wheel_track_mm > 0";
+  if (!finite_nonneg(c.standstill_v_mps) || !finite_nonneg(c.standstill_omega_radps) ||
+      !finite_pos(c.standstill_omega_sigma_radps))
+    return "standstill limits must be finite and >= 0, standstill_omega_sigma_radps > 0";
   return {};
 }
 
@@ -110,8 +124,10 @@ Ekf::Ekf(const EkfConfig& config)
   const std::string err = validate(config_);
   if (!err.empty()) throw std::invalid_argument("EkfConfig: " + err);
   gate_threshold_ = chi2_3dof_quantile(config_.gate_probability);
+  gate_threshold_2d_ = -2.0 * std::log1p(-config_.gate_probability);  // chi-square, 2 dof
   history_.resize(config_.history_capacity);  // the only allocations; never resized later
   held_.resize(config_.held_fix_capacity);
+  gyro_.resize(config_.gyro_capacity);
 }
 
 std::uint16_t Ekf::take_flags() { return std::exchange(pending_flags_, std::uint16_t{0}); }
@@ -150,6 +166,7 @@ bool Ekf::add_odometry(std::int64_t t_ns, double v_mps, double omega_radps) {
   if (at(i).valid) {
     ++counters_.odom_fused;
     pending_flags_ |= flags::kFusedOdom;
+    if (at(i).slip) pending_flags_ |= flags::kWheelSlip;
   } else {
     ++counters_.odom_stored_uninitialised;
   }
@@ -158,8 +175,43 @@ bool Ekf::add_odometry(std::int64_t t_ns, double v_mps, double omega_radps) {
 }
 
 bool Ekf::add_gyro(std::int64_t t_ns, double gyro_z_radps) {
-  (void)t_ns;
-  return std::isfinite(gyro_z_radps);
+  if (!std::isfinite(gyro_z_radps)) {
+    ++counters_.gyro_rejected_invalid;
+    pending_flags_ |= flags::kGyroInvalid;
+    return false;
+  }
+  const bool have_prev = gyro_size_ > 0;
+  const std::int64_t prev_t = have_prev ? gyro_at(gyro_size_ - 1).t_ns : INT64_MIN;
+  if (have_prev && t_ns <= prev_t) {
+    ++counters_.gyro_rejected_time;
+    pending_flags_ |= flags::kGyroInvalid;
+    return false;
+  }
+  const bool saturated = std::abs(gyro_z_radps) >= config_.gyro_saturation_radps;
+  if (gyro_size_ == gyro_.size()) {  // drop the oldest
+    gyro_head_ = (gyro_head_ + 1) % gyro_.size();
+    --gyro_size_;
+  }
+  gyro_[(gyro_head_ + gyro_size_) % gyro_.size()] =
+      GyroSample{t_ns, saturated ? std::numeric_limits<double>::quiet_NaN() : gyro_z_radps};
+  ++gyro_size_;
+  // Odometry periods ending after the previous sample were processed without this one (or with
+  // the wheels): re-propagate them now that the gyro covers more.
+  if (size_ > 0) {
+    const long k = have_prev ? find_last_at_or_before(prev_t) : -1;
+    const std::size_t from = static_cast<std::size_t>(k + 1);
+    if (from < size_ && at(from).t_ns <= t_ns) {
+      replay_from(from);
+      counters_.events_replayed += size_ - from;
+    }
+  }
+  if (saturated) {
+    ++counters_.gyro_rejected_saturated;
+    pending_flags_ |= flags::kGyroInvalid;
+    return false;
+  }
+  ++counters_.gyro_accepted;
+  return true;
 }
 
 void Ekf::hold_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::Matrix3d& R_in,
@@ -225,7 +277,7 @@ void Ekf::initialise_at(std::int64_t t_ns, const FilterVec& x, const FilterCov& 
 }
 
 bool Ekf::kidnap_candidate(std::int64_t t_ns, const Eigen::Vector3d& z, const Eigen::Matrix3d& R,
-                           const FilterVec& prior_x, const FilterCov& prior_P) {
+                           const FilterVec& prior_x, const FilterCov& prior_P, bool prior_worthless) {
   bool extended = false;
   if (hyp_.count > 0 && t_ns >= hyp_.t_ns && size_ > 0 && hyp_.t_ns >= at(0).t_ns) {
     // Carry the candidate track forward with the same odometry the filter used, then test the
@@ -274,8 +326,14 @@ bool Ekf::kidnap_candidate(std::int64_t t_ns, const Eigen::Vector3d& z, const Ei
     hyp_.P.bottomRightCorner<kFilterDim - 3, kFilterDim - 3>() =
         prior_P.bottomRightCorner<kFilterDim - 3, kFilterDim - 3>();
   }
-  if (hyp_.count >= config_.kidnap_fixes &&
-      hyp_.t_ns - hyp_.t_first_ns >= config_.kidnap_min_duration_ns) {
+  // A filter whose position is unknown has no pose worth protecting: two consistent fixes of
+  // separate landmarks (what makes a tag, which carries no position, trustworthy) re-initialise
+  // it at once.
+  const bool enough =
+      prior_worthless ? hyp_.count >= 2
+                 : hyp_.count >= config_.kidnap_fixes &&
+                       hyp_.t_ns - hyp_.t_first_ns >= config_.kidnap_min_duration_ns;
+  if (enough) {
     const FilterVec x = hyp_.x;
     const FilterCov P = hyp_.P;
     initialise_at(t_ns, x, P);
@@ -387,6 +445,8 @@ FixOutcome Ekf::fuse_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::M
           config_.init_omega_per_v_sigma_radpm * config_.init_omega_per_v_sigma_radpm;
     }
     P(kIomega, kIomega) = config_.init_omega_sigma_radps * config_.init_omega_sigma_radps;
+    P(kIbg, kIbg) = config_.init_gyro_bias_sigma_radps * config_.init_gyro_bias_sigma_radps;
+    P(kIsg, kIsg) = config_.init_gyro_scale_sigma * config_.init_gyro_scale_sigma;
     initialise_at(t_ns, x, P);
     ++counters_.fixes_initialised;
     pending_flags_ |= flags::kInitialised;
@@ -401,19 +461,50 @@ FixOutcome Ekf::fuse_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::M
   FilterCov P = base.P;
   predict_span(&x, &P, base.t_ns, t_ns, odom_time_after(base));
   const double d2 = mahalanobis_sq(x, P, z, R);
-  if (map_guided && prior_lost(P)) return reject_not_tracking();
   last_fix_d2_ = d2;
-  if (config_.relocalize_from_single_fix && map_verified && prior_lost(P) &&
-      std::sqrt(R_in.topLeftCorner<2, 2>().diagonal().maxCoeff()) <=
-          config_.relocalize_max_fix_sigma_mm &&
-      std::sqrt(R_in(2, 2)) <= config_.relocalize_max_fix_sigma_rad) {
-    relocalize(t_ns, z, R, x, P);
-    return FixOutcome::kReinitialised;
-  }
-  if (!(d2 <= gate_threshold_)) {
+  double prior_pos_sigma_mm = 0.0;
+  prior_lost(P, &prior_pos_sigma_mm);
+  // A prior whose position spans landmarks (4x the lost limit) gates nothing: any fix passes.
+  // Only a fix that vouches for itself (a QR payload the map confirmed) may then be fused alone;
+  // others (a tag, whose map entry is its only truth; a payload without a map) need a second,
+  // agreeing fix of another landmark, and a map-guided fix cannot be chosen at all.
+  const bool worthless = prior_pos_sigma_mm > 4.0 * config_.lost_position_sigma_mm;
+  if (worthless && map_guided) return reject_not_tracking();
+  if (worthless && !map_verified) {
     ++counters_.fixes_rejected_gate;
     pending_flags_ |= flags::kRejectedGate;
-    if (!map_guided && kidnap_candidate(t_ns, z, R, x, P)) return FixOutcome::kReinitialised;
+    if (kidnap_candidate(t_ns, z, R, x, P, true)) return FixOutcome::kReinitialised;
+    return FixOutcome::kRejectedGate;
+  }
+  // A fix that agrees with the prior is fused, lost or not: fusing keeps the correlations that
+  // teach the odometry and gyro calibration, a re-initialisation would drop them. A map-guided
+  // fix needs only that (its identity was chosen by the covariance, docs/map_identity.md).
+  if (!(d2 <= gate_threshold_)) {
+    double pos_sigma_mm = 0.0;
+    const bool lost = prior_lost(P, &pos_sigma_mm);
+    if (map_guided) {
+      if (lost) return reject_not_tracking();
+      ++counters_.fixes_rejected_gate;
+      pending_flags_ |= flags::kRejectedGate;
+      return FixOutcome::kRejectedGate;
+    }
+    const bool precise = std::sqrt(R_in.topLeftCorner<2, 2>().diagonal().maxCoeff()) <=
+                             config_.relocalize_max_fix_sigma_mm &&
+                         std::sqrt(R_in(2, 2)) <= config_.relocalize_max_fix_sigma_rad;
+    if (config_.relocalize_from_single_fix && lost && precise) {
+      // Re-localisation from one fix: it must still agree with what is known of the position
+      // (a heading-only loss keeps a good position prior), unless the position is unknown too;
+      // then only a fix that vouches for itself (a QR payload the map confirmed) may do it.
+      const bool position_agrees = position_mahalanobis_sq(x, P, z, R) <= gate_threshold_2d_;
+      const bool position_unknown = pos_sigma_mm > config_.lost_position_sigma_mm;
+      if (position_agrees || (position_unknown && map_verified)) {
+        relocalize(t_ns, z, R, x, P);
+        return FixOutcome::kReinitialised;
+      }
+    }
+    ++counters_.fixes_rejected_gate;
+    pending_flags_ |= flags::kRejectedGate;
+    if (kidnap_candidate(t_ns, z, R, x, P, worthless)) return FixOutcome::kReinitialised;
     return FixOutcome::kRejectedGate;
   }
 
@@ -476,6 +567,9 @@ PoseEstimate Ekf::estimate_at(std::int64_t t_ns) const {
   e.odom_omega_scale_error = x(kIsomega);
   e.odom_omega_bias_radps = x(kIbomega);
   e.odom_omega_per_v_radpm = x(kIcomegav);
+  e.gyro_bias_radps = x(kIbg);
+  e.gyro_scale_error = x(kIsg);
+  e.gyro_heading = base.kind == EventKind::kOdom ? base.gyro : false;
   e.time_since_fix_ns = have_fix_ ? std::max<std::int64_t>(0, t_ns - last_fix_t_ns_) : -1;
   const bool cov_limit = prior_lost(P, &e.position_sigma_mm, &e.heading_sigma_rad);
   if (cov_limit) e.flags |= flags::kCovarianceLimit;

@@ -27,7 +27,8 @@ void Ekf::add_velocity_noise(FilterCov* P, double dt_s) const {
   (*P)(kIomega, kIomega) += config_.yaw_accel_sigma_radps2 * config_.yaw_accel_sigma_radps2 * adt;
 }
 
-void Ekf::predict(FilterVec* x, FilterCov* P, double dt_s, bool velocity_noise) const {
+void Ekf::predict(FilterVec* x, FilterCov* P, double dt_s, bool velocity_noise,
+                  bool gyro_heading) const {
   if (dt_s == 0.0) return;
   if (velocity_noise) add_velocity_noise(P, dt_s);
   // Motion (eq. 14) acts on the first five states; the calibration is constant.
@@ -52,7 +53,12 @@ void Ekf::predict(FilterVec* x, FilterCov* P, double dt_s, bool velocity_noise) 
   const double hd = config_.heading_sigma_rad_per_sqrt_m;
   const double hdr = config_.heading_drift_sigma_rad_per_sqrt_s;
   const double ht = config_.turn_heading_sigma_rad_per_sqrt_rad;
-  Q(kItheta, kItheta) = hd * hd * dist_m + hdr * hdr * adt + ht * ht * turn_rad;
+  // With the gyro the heading noise is the gyro's: its rate noise (set with omega) and its
+  // calibration states. The wheel terms model the wheels' heading errors.
+  if (!gyro_heading) Q(kItheta, kItheta) = hd * hd * dist_m + hdr * hdr * adt + ht * ht * turn_rad;
+  Q(kIbg, kIbg) =
+      config_.gyro_bias_sigma_radps_per_sqrt_s * config_.gyro_bias_sigma_radps_per_sqrt_s * adt;
+  Q(kIsg, kIsg) = config_.gyro_scale_sigma_per_sqrt_s * config_.gyro_scale_sigma_per_sqrt_s * adt;
   if (config_.estimate_odometry_calibration) {
     Q(kIsv, kIsv) = config_.v_scale_sigma_per_sqrt_s * config_.v_scale_sigma_per_sqrt_s * adt;
     Q(kIsomega, kIsomega) =
@@ -103,6 +109,90 @@ void Ekf::update_odometry(FilterVec* x, FilterCov* P, double v_mps, double omega
   (*x)(kIomega) = w;
 }
 
+void Ekf::set_gyro_rate(FilterVec* x, FilterCov* P, double gyro_radps, double dt_s) const {
+  // omega = (gyro - b_g) / (1 + s_g) replaces the yaw rate; the mean of white rate noise over
+  // dt has variance N^2 / dt, so the heading integrates to the angle random walk N^2 t.
+  const double bg = (*x)(kIbg), sg = (*x)(kIsg);
+  const double w = (gyro_radps - bg) / (1.0 + sg);
+  Eigen::Matrix<double, 1, kFilterDim> Jw = Eigen::Matrix<double, 1, kFilterDim>::Zero();
+  Jw(kIbg) = -1.0 / (1.0 + sg);
+  Jw(kIsg) = -w / (1.0 + sg);
+  FilterCov J = FilterCov::Identity();
+  J.row(kIomega) = Jw;
+  FilterCov Pn = J * (*P) * J.transpose();
+  const double n = config_.gyro_noise_density_radps_per_sqrt_hz / (1.0 + sg);
+  Pn(kIomega, kIomega) += n * n / std::max(dt_s, 1e-4);
+  *P = Pn;
+  symmetrize(P);
+  (*x)(kIomega) = w;
+}
+
+void Ekf::update_speed(FilterVec* x, FilterCov* P, double v_mps, double extra_v_var) const {
+  // v = v_odo / (1 + s_v) replaces the speed (as update_odometry, without the yaw rate).
+  const double sv = (*x)(kIsv);
+  const double v = v_mps / (1.0 + sv);
+  FilterCov J = FilterCov::Identity();
+  J(kIv, kIv) = 0.0;
+  J(kIv, kIsv) = -v / (1.0 + sv);
+  FilterCov Pn = J * (*P) * J.transpose();
+  const double jz = 1.0 / (1.0 + sv);
+  Pn(kIv, kIv) += jz * jz * (config_.odom_v_sigma_mps * config_.odom_v_sigma_mps + extra_v_var);
+  *P = Pn;
+  symmetrize(P);
+  (*x)(kIv) = v;
+}
+
+void Ekf::update_zero_rate(FilterVec* x, FilterCov* P) const {
+  // z = 0 = omega: through omega's correlation with b_g (set_gyro_rate) this is the gyro's
+  // reading of its own bias.
+  const double r = config_.standstill_omega_sigma_radps * config_.standstill_omega_sigma_radps;
+  const double S = (*P)(kIomega, kIomega) + r;
+  if (!(S > 0.0)) return;
+  const FilterVec K = P->col(kIomega) / S;
+  const double nu = -(*x)(kIomega);
+  *x += K * nu;
+  FilterCov IKH = FilterCov::Identity();
+  IKH.col(kIomega) -= K;
+  *P = IKH * (*P) * IKH.transpose() + K * r * K.transpose();
+  symmetrize(P);
+}
+
+bool Ekf::gyro_period(FilterVec* x, FilterCov* P, double dt_s, double v_mps, double omega_radps,
+                      double gyro_radps, bool distrust_gyro) const {
+  set_gyro_rate(x, P, gyro_radps, dt_s);
+  const double w_gyro = (*x)(kIomega);
+  // The wheels' yaw rate after their calibration, against the gyro's.
+  const double sv = (*x)(kIsv), sw = (*x)(kIsomega), bw = (*x)(kIbomega), cwv = (*x)(kIcomegav);
+  const double v_true = v_mps / (1.0 + sv);
+  const double w_wheels = (omega_radps - bw - cwv * v_true) / (1.0 + sw);
+  const double d = w_wheels - w_gyro;
+  const bool slip = std::abs(d) > config_.slip_yaw_rate_radps +
+                                      config_.slip_yaw_rate_fraction * std::abs(w_gyro);
+  // One wheel off by e turns the yaw rate by e / track and the speed by e / 2, whichever wheel
+  // it is. A wheel that loses grip while it drives spins (reads high); one that loses it while
+  // braking locks (reads low): the speed is corrected by that half and keeps half the correction
+  // as its sigma (the other case lands 4 sigma off, not unnoticed).
+  double v_corr = v_mps, v_var = 0.0;
+  if (slip) {
+    const double half_mps = 0.5 * std::abs(d) * config_.wheel_track_mm / kMmPerM;
+    const double v_prev = (*x)(kIv) * (1.0 + sv);  // the previous period, as the wheels read
+    const bool braking = std::abs(v_mps) < std::abs(v_prev);
+    const double away = v_mps >= 0.0 ? 1.0 : -1.0;  // towards a larger |v|
+    v_corr = v_mps + (braking ? away : -away) * half_mps;
+    v_var = 0.25 * half_mps * half_mps;
+  }
+  update_speed(x, P, v_corr, v_var);
+  if (distrust_gyro) (*P)(kIomega, kIomega) += d * d;
+  const bool still = std::abs(v_mps) < config_.standstill_v_mps &&
+                     std::abs(omega_radps) < config_.standstill_omega_radps;
+  if (still && !slip) {
+    update_zero_rate(x, P);
+    ++counters_.standstill_updates;
+  }
+  predict(x, P, dt_s, /*velocity_noise=*/false, /*gyro_heading=*/true);
+  return slip;
+}
+
 void Ekf::propagate_odometry(FilterVec* x, FilterCov* P, double dt_s, double v_mps,
                              double omega_radps) const {
   // A period-mean sample is the speed over the period ending at its time stamp (encoder ticks
@@ -132,7 +222,10 @@ void Ekf::predict_span(FilterVec* x, FilterCov* P, std::int64_t t0_ns, std::int6
   // limits. The mean stays the last known speed: the best guess, with a covariance that says so.
   const bool enters_unknown =
       odom_t_ns == kNoOdom ? false : t0_ns <= odom_t_ns + config_.odom_gap_ns;
-  if (enters_unknown) {
+  // A working gyro still knows the turn: only the speed is unknown then.
+  double g = 0.0;
+  const bool gyro_all = gyro_mean(known_end, t1_ns, &g);
+  if (enters_unknown && !gyro_all) {
     const double j = config_.gap_yaw_rate_change_sigma_radps;
     (*P)(kIomega, kIomega) += j * j;
   }
@@ -146,8 +239,13 @@ void Ekf::predict_span(FilterVec* x, FilterCov* P, std::int64_t t0_ns, std::int6
     const std::int64_t step = std::min(kSubstepNs, t1_ns - t);
     const double dt_s = static_cast<double>(step) * kNsToS;
     (*P)(kIv, kIv) += qa * dt_s;
-    (*P)(kIomega, kIomega) += qw * dt_s;
-    predict(x, P, dt_s, /*velocity_noise=*/false);
+    if (gyro_all && gyro_mean(t, t + step, &g)) {
+      set_gyro_rate(x, P, g, dt_s);
+      predict(x, P, dt_s, /*velocity_noise=*/false, /*gyro_heading=*/true);
+    } else {
+      (*P)(kIomega, kIomega) += qw * dt_s;
+      predict(x, P, dt_s, /*velocity_noise=*/false);
+    }
     t += step;
   }
   // The linearised covariance puts the travel along the predicted heading; once the heading is
@@ -163,8 +261,30 @@ void Ekf::predict_span(FilterVec* x, FilterCov* P, std::int64_t t0_ns, std::int6
 }
 
 void Ekf::apply_odometry(FilterVec* x, FilterCov* P, std::int64_t t_prev_ns, std::int64_t odom_t_ns,
-                         std::int64_t t_ns, double v_mps, double omega_radps) const {
+                         std::int64_t t_ns, double v_mps, double omega_radps, const Event* prev,
+                         Event* out) const {
   const bool instant = config_.odom_sample_timing == EkfConfig::OdomSampleTiming::kInstant;
+  if (out) {
+    out->gyro = false;
+    out->slip = false;
+    out->slip_since_ns = kNoOdom;
+  }
+  double g = 0.0;
+  if (!is_gap(odom_t_ns, t_ns) && t_ns > t_prev_ns && gyro_mean(t_prev_ns, t_ns, &g)) {
+    // The gyro carries the heading of this period, the wheels its speed. (Both timings: the
+    // gyro mean is over the period itself, the speed is the period's.)
+    const bool prev_slip = prev && prev->slip;
+    const std::int64_t since = prev_slip ? prev->slip_since_ns : t_prev_ns;
+    const bool distrust = prev_slip && t_ns - since > config_.slip_max_duration_ns;
+    const double dt_s = static_cast<double>(t_ns - t_prev_ns) * kNsToS;
+    const bool slip = gyro_period(x, P, dt_s, v_mps, omega_radps, g, distrust);
+    if (out) {
+      out->gyro = true;
+      out->slip = slip;
+      out->slip_since_ns = slip ? since : kNoOdom;
+    }
+    return;
+  }
   if (is_gap(odom_t_ns, t_ns)) {
     // After a gap the sample says how fast the vehicle goes now (over its own period), not how
     // it moved during the gap: the gap is predicted as unknown motion up to the sample's period.
@@ -217,6 +337,15 @@ double Ekf::mahalanobis_sq(const FilterVec& x, const FilterCov& P, const Eigen::
   return nu.dot(llt.solve(nu));
 }
 
+double Ekf::position_mahalanobis_sq(const FilterVec& x, const FilterCov& P,
+                                    const Eigen::Vector3d& z, const Eigen::Matrix3d& R) const {
+  const Eigen::Matrix2d S = P.topLeftCorner<2, 2>() + R.topLeftCorner<2, 2>();
+  const Eigen::Vector2d nu = z.head<2>() - x.head<2>();
+  const Eigen::LLT<Eigen::Matrix2d> llt(S);
+  if (llt.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
+  return nu.dot(llt.solve(nu));
+}
+
 bool Ekf::prior_lost(const FilterCov& P, double* position_sigma_mm,
                      double* heading_sigma_rad) const {
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(P.topLeftCorner<2, 2>(),
@@ -226,6 +355,45 @@ bool Ekf::prior_lost(const FilterCov& P, double* position_sigma_mm,
   if (position_sigma_mm) *position_sigma_mm = ps;
   if (heading_sigma_rad) *heading_sigma_rad = hs;
   return !(ps <= config_.lost_position_sigma_mm) || !(hs <= config_.lost_heading_sigma_rad);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Gyro samples
+
+std::size_t Ekf::gyro_lower_bound(std::int64_t t_ns) const {
+  std::size_t lo = 0, hi = gyro_size_;
+  while (lo < hi) {
+    const std::size_t mid = (lo + hi) / 2;
+    if (gyro_at(mid).t_ns < t_ns) {
+      lo = mid + 1;
+    } else {
+      hi = mid;
+    }
+  }
+  return lo;
+}
+
+bool Ekf::gyro_mean(std::int64_t t0_ns, std::int64_t t1_ns, double* mean_radps) const {
+  // Sample k is the mean rate over (t_{k-1}, t_k]: the interval is covered when a sample ends at
+  // or after t1, the kept sample before the first overlapping one starts at or before t0, and no
+  // two consecutive samples are further apart than gyro_gap_ns.
+  if (gyro_size_ < 2 || t1_ns <= t0_ns) return false;
+  std::size_t k = gyro_lower_bound(t0_ns + 1);  // first sample ending after t0
+  if (k == 0 || k >= gyro_size_) return false;
+  double integral = 0.0;
+  std::int64_t t = t0_ns;
+  for (; k < gyro_size_ && t < t1_ns; ++k) {
+    const GyroSample& a = gyro_at(k - 1);
+    const GyroSample& b = gyro_at(k);
+    // A saturated sample is kept as NaN: its interval is unknown, not the next sample's.
+    if (b.t_ns - a.t_ns > config_.gyro_gap_ns || std::isnan(b.rate_radps)) return false;
+    const std::int64_t end = std::min(b.t_ns, t1_ns);
+    integral += b.rate_radps * static_cast<double>(end - t);
+    t = end;
+  }
+  if (t < t1_ns) return false;
+  *mean_radps = integral / static_cast<double>(t1_ns - t0_ns);
+  return true;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -273,7 +441,18 @@ void Ekf::process_event(const Event& prev, Event* ev) const {
   FilterCov P = prev.P;
   const std::int64_t odom_t = odom_time_after(prev);
   if (ev->kind == EventKind::kOdom) {
-    apply_odometry(&x, &P, prev.t_ns, odom_t, ev->t_ns, ev->v_mps, ev->omega_radps);
+    const bool was_slip = ev->slip;
+    const bool was_start = was_slip && !prev.slip;
+    apply_odometry(&x, &P, prev.t_ns, odom_t, ev->t_ns, ev->v_mps, ev->omega_radps, &prev, ev);
+    // Counted once per period however often it is replayed (a later gyro sample or a delayed
+    // fix re-propagates it).
+    const bool is_start = ev->slip && !prev.slip;
+    if (ev->slip != was_slip) {
+      if (ev->slip) ++counters_.slip_periods; else --counters_.slip_periods;
+    }
+    if (is_start != was_start) {
+      if (is_start) ++counters_.slip_events; else --counters_.slip_events;
+    }
   } else {
     predict_span(&x, &P, prev.t_ns, ev->t_ns, odom_t);
     update_fix(&x, &P, ev->z, ev->R);

@@ -162,6 +162,7 @@ int main(int argc, char** argv) {
   double grid_mm = 1000.0;
   bool partial_window = false;
   int kidnap_fixes = EkfConfig{}.kidnap_fixes;
+  bool honesty = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> const char* {
@@ -201,6 +202,8 @@ int main(int argc, char** argv) {
       }
     } else if (a == "--lawnmower-out") {
       sp.lawnmower_out_m = std::atof(next());
+    } else if (a == "--honesty") {
+      honesty = true;
     } else if (a == "--quick") {
       sp.duration_s = 60.0;
     } else {
@@ -213,6 +216,7 @@ int main(int argc, char** argv) {
     return 2;
   }
 
+  if (honesty) return run_honesty_table(sp, grid_mm, 3);
   EkfConfig cfg;  // documented defaults
   cfg.kidnap_fixes = kidnap_fixes;
   if (!validate(cfg).empty()) {

@@ -43,9 +43,15 @@ struct OdomSample {
   double omega_radps;
 };
 
+struct GyroSample {
+  std::int64_t t_ns;
+  double rate_radps;  // mean over the interval since the previous sample
+};
+
 struct World {
   TruthTrack truth;
   std::vector<OdomSample> odom;
+  std::vector<GyroSample> gyro;  // empty: no gyro
   std::vector<std::int64_t> frames_ns;
   double camera_offset_x_mm = 0.0;
   double camera_offset_y_mm = 0.0;
@@ -72,6 +78,18 @@ struct SynthParams {
   // 1 m apart across grid_cells landmarks at v_max, leaving the grid at each end for a leg of
   // lawnmower_out_m straight, a half circle of radius 0.5 grid and the same straight back
   // (5.6 s at 1 m/s with 2 m: the long legs without a landmark), yaw rate stepping at each arc.
+  // Gyro (0 Hz: none): a MEMS part with white rate noise, a constant bias, a bias random walk,
+  // a scale error and a range; samples are means over their interval, stamped late by
+  // gyro_latency_ms. gyro_bias_step_degps is added from gyro_bias_step_s on.
+  double gyro_hz = 0.0;
+  double gyro_noise_degps_rthz = 0.01;
+  double gyro_bias_degps = 0.2;
+  double gyro_bias_walk_degps_rts = 0.002;
+  double gyro_scale_error = 0.003;
+  double gyro_range_degps = 250.0;
+  double gyro_latency_ms = 0.0;
+  double gyro_bias_step_degps = 0.0;
+  double gyro_bias_step_s = 0.0;
   std::string route = "grid";
   double lawnmower_out_m = 2.0;
   std::uint64_t seed = 1;
@@ -123,5 +141,9 @@ struct SimFix {
 };
 
 std::vector<SimFix> simulate_fixes(const World& w, const FixParams& p);
+
+// --honesty: sigma against error between landmarks (honesty.cpp). 0 when every row meets the
+// targets.
+int run_honesty_table(const SynthParams& base, double grid_mm, int seeds);
 
 }  // namespace eval_fusion

@@ -1,5 +1,6 @@
 // eval_fusion: the simulated drive (synthetic grid or lawnmower route) or a recording's truth and
 // odometry.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -55,6 +56,10 @@ World make_synthetic_world(const SynthParams& p, double grid_mm) {
   std::int64_t t = 0;
   long step = 0;
   double acc_dist_m = 0.0, acc_turn_rad = 0.0;
+  // Gyro: its own generator, so adding it leaves the odometry of a seed unchanged.
+  std::mt19937_64 grng(p.seed * 7919 + 3);
+  const int gyro_every = p.gyro_hz > 0.0 ? std::max(1, static_cast<int>(std::lround(1000.0 / p.gyro_hz))) : 0;
+  double gyro_turn_rad = 0.0, gyro_walk_radps = 0.0;
   auto advance = [&](double v, double om) {
     x(agv::fusion::kIv) = v;
     x(agv::fusion::kIomega) = om;
@@ -65,6 +70,21 @@ World make_synthetic_world(const SynthParams& p, double grid_mm) {
     ++step;
     w.truth.t_ns.push_back(t);
     w.truth.pose.push_back({x(0), x(1), x(2)});
+    gyro_turn_rad += om * dt;
+    if (gyro_every > 0 && step % gyro_every == 0) {
+      const double T = dt * gyro_every;
+      const double ts = static_cast<double>(t) * 1e-9;
+      gyro_walk_radps += agv::deg_to_rad(p.gyro_bias_walk_degps_rts) * std::sqrt(T) * n01(grng);
+      double bias = agv::deg_to_rad(p.gyro_bias_degps) + gyro_walk_radps;
+      if (p.gyro_bias_step_degps != 0.0 && ts >= p.gyro_bias_step_s)
+        bias += agv::deg_to_rad(p.gyro_bias_step_degps);
+      double g = (1.0 + p.gyro_scale_error) * gyro_turn_rad / T + bias +
+                 agv::deg_to_rad(p.gyro_noise_degps_rthz) / std::sqrt(T) * n01(grng);
+      const double range = agv::deg_to_rad(p.gyro_range_degps);
+      g = std::clamp(g, -range, range);
+      w.gyro.push_back({t + static_cast<std::int64_t>(p.gyro_latency_ms * 1e6), g});
+      gyro_turn_rad = 0.0;
+    }
     if (step % odom_every == 0) {
       const double T = dt * odom_every;
       const double v_mean = acc_dist_m / T, om_mean = acc_turn_rad / T;

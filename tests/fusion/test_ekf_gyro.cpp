@@ -1,0 +1,177 @@
+// The gyro input of the fusion EKF (docs/fusion.md, "Gyro"): heading through wheel slips, bias
+// learned standing still, odometry gaps, saturation, and the re-initialisation rules that
+// depend on the covariance (issue 33).
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "agv/common/geometry.hpp"
+#include "agv/fusion/ekf.hpp"
+
+using namespace agv;
+using namespace agv::fusion;
+
+namespace {
+
+constexpr std::int64_t kMs = 1'000'000;
+constexpr std::int64_t kS = 1'000'000'000;
+
+Eigen::Matrix3d fix_cov(double sigma_mm = 0.2, double sigma_deg = 0.03) {
+  Eigen::Matrix3d R = Eigen::Matrix3d::Zero();
+  R(0, 0) = R(1, 1) = sigma_mm * sigma_mm;
+  R(2, 2) = deg_to_rad(sigma_deg) * deg_to_rad(sigma_deg);
+  return R;
+}
+
+// Drives straight along +x at 1 m/s for `seconds` from t0 with 100 Hz odometry and a 200 Hz
+// gyro (true yaw rate 0 plus bias_degps). The wheels slip in [slip_from, slip_to): one wheel
+// reads 0.25 m/s high (v +0.125 m/s, yaw rate +0.5 rad/s with a 0.5 m track).
+std::int64_t drive(Ekf* ekf, std::int64_t t0, double seconds, bool gyro, double bias_degps = 0.0,
+                   std::int64_t slip_from = -1, std::int64_t slip_to = -1, double v_mps = 1.0) {
+  std::int64_t t = t0;
+  const int n = static_cast<int>(std::lround(seconds * 200.0));
+  for (int i = 1; i <= n; ++i) {
+    t = t0 + i * 5 * kMs;
+    if (gyro) ekf->add_gyro(t, deg_to_rad(bias_degps));
+    if (i % 2 == 0) {
+      const bool slip = t > slip_from && t <= slip_to;
+      ekf->add_odometry(t, v_mps + (slip ? 0.125 : 0.0), slip ? 0.5 : 0.0);
+    }
+  }
+  return t;
+}
+
+Ekf started(const EkfConfig& cfg, bool gyro) {
+  Ekf ekf(cfg);
+  if (gyro) {
+    ekf.add_gyro(-5 * kMs, 0.0);
+    ekf.add_gyro(0, 0.0);
+  }
+  ekf.add_odometry(0, 1.0, 0.0);
+  EXPECT_EQ(ekf.add_fix(0, {0.0, 0.0, 0.0}, fix_cov()), FixOutcome::kInitialised);
+  return ekf;
+}
+
+}  // namespace
+
+TEST(FusionGyro, GyroCarriesTheHeadingThroughAWheelSlip) {
+  const EkfConfig cfg;
+  Ekf with = started(cfg, true);
+  Ekf without = started(cfg, false);
+  const std::int64_t t = drive(&with, 0, 3.0, true, 0.0, 1 * kS, 1 * kS + 300 * kMs);
+  drive(&without, 0, 3.0, false, 0.0, 1 * kS, 1 * kS + 300 * kMs);
+  const PoseEstimate a = with.estimate_at(t), b = without.estimate_at(t);
+  // Without the gyro the slip turns the pose by 0.5 rad/s x 0.3 s = 8.6 deg.
+  EXPECT_GT(std::abs(rad_to_deg(b.pose.theta_rad)), 5.0);
+  EXPECT_LT(std::abs(rad_to_deg(a.pose.theta_rad)), 0.05);
+  // The slip's speed error (0.125 m/s x 0.3 s = 37.5 mm) is corrected: the wheel spun.
+  EXPECT_NEAR(a.pose.x_mm, 3000.0, 3.0);
+  EXPECT_NEAR(a.pose.y_mm, 0.0, 1.0);
+  EXPECT_EQ(with.counters().slip_events, 1u);
+  EXPECT_GE(with.counters().slip_periods, 25u);
+  EXPECT_EQ(without.counters().slip_events, 0u);
+  EXPECT_TRUE(with.take_flags() & flags::kWheelSlip);
+  EXPECT_TRUE(a.gyro_heading);
+  EXPECT_FALSE(b.gyro_heading);
+}
+
+TEST(FusionGyro, StandingStillTeachesTheGyroBias) {
+  const EkfConfig cfg;
+  Ekf ekf(cfg);
+  ekf.add_gyro(0, deg_to_rad(0.3));
+  ekf.add_odometry(0, 0.0, 0.0);
+  ASSERT_EQ(ekf.add_fix(0, {0.0, 0.0, 0.0}, fix_cov()), FixOutcome::kInitialised);
+  std::int64_t t = drive(&ekf, 0, 10.0, true, 0.3, -1, -1, /*v_mps=*/0.0);
+  const PoseEstimate still = ekf.estimate_at(t);
+  EXPECT_NEAR(rad_to_deg(still.gyro_bias_radps), 0.3, 0.01);
+  EXPECT_GT(ekf.counters().standstill_updates, 900u);
+  // Then 5 s of driving without a fix: the learned bias keeps the heading.
+  t = drive(&ekf, t, 5.0, true, 0.3);
+  const PoseEstimate e = ekf.estimate_at(t);
+  EXPECT_LT(std::abs(rad_to_deg(e.pose.theta_rad)), 0.05);
+  EXPECT_LT(rad_to_deg(e.heading_sigma_rad), 0.1);
+}
+
+TEST(FusionGyro, AnOdometryGapWithAWorkingGyroKeepsTheHeading) {
+  const EkfConfig cfg;
+  Ekf with = started(cfg, true);
+  Ekf without = started(cfg, false);
+  std::int64_t t = drive(&with, 0, 1.0, true);
+  drive(&without, 0, 1.0, false);
+  // 1 s without odometry; the gyro goes on (true yaw rate 0).
+  for (int i = 1; i <= 200; ++i) with.add_gyro(t + i * 5 * kMs, 0.0);
+  const std::int64_t t_end = t + kS;
+  const PoseEstimate a = with.estimate_at(t_end), b = without.estimate_at(t_end);
+  // With the gyro only its bias, not yet learned (0.5 deg/s prior), widens the heading.
+  EXPECT_LT(rad_to_deg(a.heading_sigma_rad), 1.5);
+  EXPECT_GT(rad_to_deg(b.heading_sigma_rad), 10.0);  // unknown turn rate over the gap
+  EXPECT_LT(std::abs(rad_to_deg(a.pose.theta_rad)), 0.05);
+}
+
+TEST(FusionGyro, SaturatedSamplesLeaveThePeriodToTheWheels) {
+  EkfConfig cfg;
+  cfg.gyro_saturation_radps = deg_to_rad(100.0);
+  Ekf ekf = started(cfg, true);
+  std::int64_t t = 0;
+  for (int i = 1; i <= 200; ++i) {
+    t = i * 5 * kMs;
+    // The gyro clips at its range in the middle second; wheels are right (yaw rate 0).
+    const bool clipped = t > 300 * kMs && t <= 600 * kMs;
+    EXPECT_EQ(ekf.add_gyro(t, clipped ? deg_to_rad(100.0) : 0.0), !clipped);
+    if (i % 2 == 0) ekf.add_odometry(t, 1.0, 0.0);
+  }
+  EXPECT_EQ(ekf.counters().gyro_rejected_saturated, 60u);
+  const PoseEstimate e = ekf.estimate_at(t);
+  EXPECT_LT(std::abs(rad_to_deg(e.pose.theta_rad)), 0.05);
+  EXPECT_TRUE(ekf.take_flags() & flags::kGyroInvalid);
+}
+
+TEST(FusionGyro, NonIncreasingAndNonFiniteSamplesAreRejected) {
+  Ekf ekf{EkfConfig{}};
+  EXPECT_TRUE(ekf.add_gyro(10 * kMs, 0.0));
+  EXPECT_FALSE(ekf.add_gyro(10 * kMs, 0.0));
+  EXPECT_FALSE(ekf.add_gyro(5 * kMs, 0.0));
+  EXPECT_FALSE(ekf.add_gyro(20 * kMs, std::nan("")));
+  EXPECT_EQ(ekf.counters().gyro_rejected_time, 2u);
+  EXPECT_EQ(ekf.counters().gyro_rejected_invalid, 1u);
+}
+
+// A filter lost only on its heading keeps a good position prior: a fix 1 m from it (a tag the
+// map puts at another tag's pose) must not re-initialise it; a fix where it is does.
+TEST(FusionGyro, HeadingOnlyLossStillGatesThePosition) {
+  EkfConfig cfg;
+  cfg.lost_heading_sigma_rad = deg_to_rad(0.2);  // lost on heading after a short drive
+  cfg.lost_position_sigma_mm = 150.0;            // (and not on position)
+  Ekf ekf = started(cfg, false);
+  const std::int64_t t = drive(&ekf, 0, 2.0, false);
+  const PoseEstimate e = ekf.estimate_at(t);
+  ASSERT_EQ(e.health, HealthState::kLost);
+  ASSERT_LT(e.position_sigma_mm, cfg.lost_position_sigma_mm);
+  // 1 m off across the travel, heading off by 5 deg (gate fails): refused.
+  EXPECT_EQ(ekf.add_fix(t, {2000.0, 1000.0, deg_to_rad(5.0)}, fix_cov(), /*map_verified=*/true),
+            FixOutcome::kRejectedGate);
+  // At the prior's position, heading 5 deg off: the position agrees, so one fix re-localises.
+  EXPECT_EQ(ekf.add_fix(t, {2000.0, 0.0, deg_to_rad(5.0)}, fix_cov(), /*map_verified=*/true),
+            FixOutcome::kReinitialised);
+}
+
+// With the position unknown too, one fix that does not vouch for itself (an AprilTag: the map
+// is its only truth) cannot re-initialise; two agreeing fixes of separate landmarks can.
+TEST(FusionGyro, UnknownPositionNeedsTwoTagFixes) {
+  EkfConfig cfg;
+  Ekf ekf = started(cfg, false);
+  std::int64_t t = 0;
+  for (int i = 1; i <= 500; ++i) {  // 5 s in an odometry-free gap: position unknown
+    t = i * 10 * kMs;
+  }
+  ekf.add_odometry(t, 1.0, 0.0);
+  const PoseEstimate e = ekf.estimate_at(t);
+  ASSERT_GT(e.position_sigma_mm, 4.0 * cfg.lost_position_sigma_mm);
+  EXPECT_EQ(ekf.add_fix(t, {9000.0, 9000.0, 0.0}, fix_cov(), /*map_verified=*/false),
+            FixOutcome::kRejectedGate);
+  const std::int64_t t2 = t + 500 * kMs;
+  for (std::int64_t tt = t + 10 * kMs; tt <= t2; tt += 10 * kMs) ekf.add_odometry(tt, 1.0, 0.0);
+  EXPECT_EQ(ekf.add_fix(t2, {9500.0, 9000.0, 0.0}, fix_cov(), /*map_verified=*/false),
+            FixOutcome::kReinitialised);
+  EXPECT_NEAR(ekf.estimate_at(t2).pose.x_mm, 9500.0, 1.0);
+}
