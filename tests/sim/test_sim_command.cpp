@@ -109,6 +109,53 @@ TEST(SimCommand, RecordsOdometrySampleTiming) {
   for (const auto& d : {a, b}) fs::remove_all(d);
 }
 
+// imu.csv: written by default (200 Hz industrial gyro, seeded), with the gyro's own rate and
+// stamps when set, and not at all with --no-gyro (also not left over by --force).
+TEST(SimCommand, WritesImuCsvUnlessNoGyro) {
+  const fs::path a = tmp("gyro_a"), b = tmp("gyro_b"), c = tmp("gyro_c");
+  const std::vector<std::string> common = {"--duration-s", "0.5",   "--fps", "5",
+                                           "--trajectory", "circle"};
+  auto with = [&](const fs::path& out, std::vector<std::string> extra) {
+    std::vector<std::string> v = common;
+    v.insert(v.end(), {"--out", out.string()});
+    v.insert(v.end(), extra.begin(), extra.end());
+    return v;
+  };
+  ASSERT_EQ(run_sim(with(a, {})), 0);
+  ASSERT_EQ(run_sim(with(b, {})), 0);
+  recording::Recording r;
+  std::string err;
+  ASSERT_TRUE(recording::read_recording(a.string(), &r, &err)) << err;
+  ASSERT_TRUE(r.has_imu);
+  ASSERT_EQ(r.imu.size(), 101u);                       // 200 Hz over 0.5 s, both ends
+  EXPECT_EQ(r.imu.front().t_ns, r.odom.front().t_ns);  // the same clock, no latency by default
+  EXPECT_EQ(r.imu[1].t_ns - r.imu[0].t_ns, 5'000'000);
+  // Standing at first: the 0.2 deg/s bias plus noise (sigma 0.14 deg/s per sample).
+  EXPECT_LT(std::abs(r.imu.front().gyro_z_radps), deg_to_rad(1.0));
+  EXPECT_EQ(slurp(a / "imu.csv"), slurp(b / "imu.csv"));  // seeded
+  // Own rate and latency; the other files do not change with the gyro's settings.
+  ASSERT_EQ(run_sim(with(c, {"--gyro-hz", "100", "--gyro-latency-ms", "3", "--gyro-range-dps", "1",
+                             "--gyro-bias-dps", "5"})),
+            0);
+  ASSERT_TRUE(recording::read_recording(c.string(), &r, &err)) << err;
+  ASSERT_EQ(r.imu.size(), 51u);
+  EXPECT_EQ(r.imu.front().t_ns, r.odom.front().t_ns + 3'000'000);
+  for (const auto& row : r.imu) EXPECT_NEAR(row.gyro_z_radps, deg_to_rad(1.0), 1e-10);  // clipped
+  for (const char* f : {"odom.csv", "truth.csv", "frames.csv", "frames/000002.png"}) {
+    EXPECT_EQ(slurp(a / f), slurp(c / f)) << f;
+  }
+  // --no-gyro: no imu.csv, and --force does not leave the old one behind.
+  ASSERT_EQ(run_sim(with(c, {"--no-gyro", "--force"})), 0);
+  EXPECT_FALSE(fs::exists(c / "imu.csv"));
+  ASSERT_TRUE(recording::read_recording(c.string(), &r, &err)) << err;
+  EXPECT_FALSE(r.has_imu);
+  EXPECT_EQ(slurp(a / "odom.csv"), slurp(c / "odom.csv"));
+  EXPECT_EQ(run_sim(with(tmp("gyro_bad"), {"--gyro-hz", "0"})), 2);
+  EXPECT_EQ(run_sim(with(tmp("gyro_bad"), {"--gyro-range-dps", "-5"})), 2);
+  EXPECT_FALSE(fs::exists(tmp("gyro_bad") / "meta.yaml"));
+  for (const auto& d : {a, b, c}) fs::remove_all(d);
+}
+
 TEST(SimCommand, RejectsBadArguments) {
   const fs::path d = tmp("bad");
   EXPECT_EQ(run_sim({"--out", d.string(), "--trajectory", "spiral"}), 2);

@@ -240,11 +240,12 @@ bool csv_lines(const std::string& text, const std::string& name, const char* hea
     if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
     if (line_no == 1) {
       const std::string_view h(header);
-      const bool prefix = line.substr(0, h.size()) == h &&
-                          (line.size() == h.size() || line[h.size()] == ',');
+      const bool prefix =
+          line.substr(0, h.size()) == h && (line.size() == h.size() || line[h.size()] == ',');
       if (extra ? !prefix : line != header) {
-        return fail(1, std::string("expected header '") + header + (extra ? "[,more columns]" : "") +
-                           "', got '" + std::string(line.substr(0, 80)) + "'");
+        return fail(1, std::string("expected header '") + header +
+                           (extra ? "[,more columns]" : "") + "', got '" +
+                           std::string(line.substr(0, 80)) + "'");
       }
       std::string why;
       if (extra && !extra_columns(line.substr(h.size()), header, extra, &why)) return fail(1, why);

@@ -7,6 +7,7 @@
 #include <filesystem>
 
 #include "agv/recording/recording.hpp"
+#include "agv/sim/imu_model.hpp"
 #include "agv/sim/render.hpp"
 #include "agv/sim/trajectory.hpp"
 #include "commands.hpp"
@@ -146,6 +147,48 @@ int sim(int argc, char** argv) {
   app.add_flag("--nominal-meta", nominal_meta,
                "meta.yaml records the profile's nominal camera mounting instead of the simulated "
                "one (a recording made with an uncalibrated configuration)");
+  // The gyro (imu.csv): a typical industrial MEMS gyro by default (docs/simulator.md "Gyro"). The
+  // CLI takes degrees, as data sheets state them; the model takes radians.
+  bool gyro = true;
+  sim::GyroParams gp;
+  double gyro_noise_dps_rthz = 0.01, gyro_bias_dps = 0.2, gyro_bias_instability_dps = 0.005,
+         gyro_bias_rw_dps_rts = 1e-4, gyro_range_dps = 250.0, gyro_latency_ms = 0.0;
+  app.add_flag("--gyro,!--no-gyro", gyro,
+               "Write imu.csv from a simulated MEMS gyro (default on; --no-gyro: no imu.csv)");
+  app.add_option("--gyro-hz", gp.rate_hz, "Gyro output data rate")
+      ->check(CLI::Range(1.0, 10000.0))
+      ->capture_default_str();
+  app.add_option("--gyro-noise-dps-rthz", gyro_noise_dps_rthz,
+                 "Gyro white rate noise density (angle random walk), deg/s/sqrt(Hz)")
+      ->check(CLI::Range(0.0, 10.0))
+      ->capture_default_str();
+  app.add_option("--gyro-bias-dps", gyro_bias_dps, "Gyro constant bias, deg/s")
+      ->check(CLI::Range(-100.0, 100.0))
+      ->capture_default_str();
+  app.add_option("--gyro-bias-instability-dps", gyro_bias_instability_dps,
+                 "Gyro bias instability: sigma of a Gauss-Markov bias, deg/s")
+      ->check(CLI::Range(0.0, 10.0))
+      ->capture_default_str();
+  app.add_option("--gyro-bias-corr-s", gp.bias_correlation_s,
+                 "Correlation time of the Gauss-Markov bias, s")
+      ->check(CLI::Range(0.01, 1e6))
+      ->capture_default_str();
+  app.add_option("--gyro-bias-rw-dps-rts", gyro_bias_rw_dps_rts,
+                 "Gyro bias random walk (rate random walk), deg/s/sqrt(s)")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  app.add_option("--gyro-scale-error", gp.scale_error,
+                 "Gyro scale error: reports (1 + this) x the true rate (0.003 = 0.3 %)")
+      ->check(CLI::Range(-0.4, 0.4))
+      ->capture_default_str();
+  app.add_option("--gyro-range-dps", gyro_range_dps,
+                 "Gyro full scale: samples are clipped to +-this, deg/s")
+      ->check(CLI::Range(1.0, 5000.0))
+      ->capture_default_str();
+  app.add_option("--gyro-latency-ms", gyro_latency_ms,
+                 "Gyro timestamps late by this (its latency / clock offset; negative: early)")
+      ->check(CLI::Range(-1000.0, 1000.0))
+      ->capture_default_str();
   app.add_flag("--force", force, "Overwrite an existing recording in --out");
   try {
     app.parse(argc, argv);
@@ -217,7 +260,16 @@ int sim(int argc, char** argv) {
     if (pm != sim::PayloadMode::kFull) return usage_error("--misprint needs --payload full");
   }
 
+  gp.noise_density_radps_rthz = deg_to_rad(gyro_noise_dps_rthz);
+  gp.bias_radps = deg_to_rad(gyro_bias_dps);
+  gp.bias_instability_radps = deg_to_rad(gyro_bias_instability_dps);
+  gp.bias_random_walk_radps_rts = deg_to_rad(gyro_bias_rw_dps_rts);
+  gp.range_radps = deg_to_rad(gyro_range_dps);
+  gp.latency_ns = std::llround(gyro_latency_ms * 1e6);
+  gp.seed = seed;
+
   std::string err;
+  if (gyro && !sim::check_gyro_params(gp, &err)) return usage_error(err);
   LandmarkMap map = sim::default_landmark_grid();
   if (!map_path.empty()) {
     if (!config::load_map_file(map_path, &map, &err)) return usage_error(err);
@@ -260,7 +312,10 @@ int sim(int argc, char** argv) {
   if (fs::exists(fs::path(out_dir) / "meta.yaml", ec) && !force) {
     return usage_error(out_dir + " already holds a recording (use --force to overwrite)");
   }
-  if (force) fs::remove_all(fs::path(out_dir) / "frames", ec);
+  if (force) {
+    fs::remove_all(fs::path(out_dir) / "frames", ec);
+    fs::remove(fs::path(out_dir) / "imu.csv", ec);  // a --no-gyro rewrite must not keep an old one
+  }
   fs::create_directories(out_dir, ec);
   if (ec) {
     std::fprintf(stderr, "agvloc-desk sim: cannot create %s: %s\n", out_dir.c_str(),
@@ -305,6 +360,14 @@ int sim(int argc, char** argv) {
     truth_times.push_back(t);
   }
 
+  // The gyro's own samples (own rate and stamps), on the same clock as odometry and frames.
+  std::vector<recording::ImuRow> imu;
+  if (gyro) {
+    for (const sim::ImuSample& g : sim::simulate_gyro(gp, traj, duration_ns)) {
+      imu.push_back({kT0_ns + g.t_ns, g.gyro_z_radps});
+    }
+  }
+
   const sim::FrameRenderer renderer(scene, cam);
   std::mt19937_64 noise_rng(seed * 0x2545F4914F6CDD1DULL + 1);
   std::vector<recording::FrameRow> frames;
@@ -343,15 +406,17 @@ int sim(int argc, char** argv) {
   }
   if (!recording::write_frames_csv(out_dir, frames, &err) ||
       !recording::write_odom_csv(out_dir, odom, &err) ||
-      !recording::write_truth_csv(out_dir, truth, &err)) {
+      !recording::write_truth_csv(out_dir, truth, &err) ||
+      (gyro && !recording::write_imu_csv(out_dir, imu, &err))) {
     std::fprintf(stderr, "agvloc-desk sim: %s\n", err.c_str());
     return 1;
   }
   std::printf(
       "agvloc-desk sim: wrote %s: %zu frames (%lld with a landmark in view), %zu odometry rows, "
-      "%zu truth rows; trajectory %s, lap %.1f m, %zu slip events; %.1f s to render\n",
+      "%zu truth rows, %s; trajectory %s, lap %.1f m, %zu slip events; %.1f s to render\n",
       out_dir.c_str(), frames.size(), static_cast<long long>(frames_with_landmark), odom.size(),
-      truth.size(), sim::to_string(tp.kind), traj.length_mm / 1000.0, slips.size(), render_s);
+      truth.size(), gyro ? (std::to_string(imu.size()) + " gyro rows").c_str() : "no gyro",
+      sim::to_string(tp.kind), traj.length_mm / 1000.0, slips.size(), render_s);
   return 0;
 }
 

@@ -1,5 +1,6 @@
 // The recording format (docs/recording.md): a directory with meta.yaml, frames.csv + PNGs,
-// odom.csv and the optional truth.csv and imu.csv. Used by replay, the simulator and the live recorder.
+// odom.csv and the optional truth.csv and imu.csv. Used by replay, the simulator and the live
+// recorder.
 #pragma once
 
 #include <cstddef>
@@ -63,9 +64,10 @@ struct Recording {
   bool has_imu = false;
 };
 
-// Reads meta.yaml, frames.csv, odom.csv, truth.csv and imu.csv (the last two if present). Images are not loaded.
-// On malformed input returns false with *error naming the file and line ("frames.csv:12: ...").
-// Timestamps must be strictly increasing within each file; referenced PNGs must exist.
+// Reads meta.yaml, frames.csv, odom.csv, truth.csv and imu.csv (the last two if present). Images
+// are not loaded. On malformed input returns false with *error naming the file and line
+// ("frames.csv:12: ..."). Timestamps must be strictly increasing within each file; referenced PNGs
+// must exist.
 bool read_recording(const std::string& dir, Recording* out, std::string* error);
 
 // Parts of read_recording, usable on their own. `name` is the file name used in messages.
