@@ -88,6 +88,26 @@ std::int64_t wait_first_odometry(hal::CanBus& bus, const config::Config& cfg,
   return -1;
 }
 
+// The summary's gyro line: what fusion was given (imu.csv, or AGV_Gyro on the bus) and refused.
+std::string gyro_summary(const localizer::OutputStats& o, const recording::Recording& rec,
+                         bool imu_fed) {
+  std::string source;
+  if (rec.has_imu && imu_fed) {
+    source = "imu.csv: " + std::to_string(rec.imu.size()) + " rows";
+  } else if (rec.has_imu) {
+    source = "imu.csv not used with --odom-from-can: the inputs come from the bus";
+  } else if (o.gyro_samples == 0) {
+    return "gyro: none (no imu.csv: wheel odometry only)\n";
+  } else {
+    source = "CAN";
+  }
+  char buf[200];
+  std::snprintf(buf, sizeof buf, "gyro: %llu samples fused, %llu rejected (%s)\n",
+                static_cast<unsigned long long>(o.gyro_samples - o.gyro_rejected),
+                static_cast<unsigned long long>(o.gyro_rejected), source.c_str());
+  return buf;
+}
+
 }  // namespace
 
 int replay(int argc, char** argv) {
@@ -175,9 +195,14 @@ int replay(int argc, char** argv) {
   // the run without the bus's timing (tests/hil compares against that).
   std::vector<recording::OdomRow> odom_received;
   app::RunResult result;
-  std::printf("replay: %s: %zu frames, %zu odometry samples%s, map %s, mode %s\n", rec_dir.c_str(),
-              rec.frames.size(), rec.odom.size(), rec.has_truth ? ", truth" : "",
-              map_ptr ? map_file.c_str() : "(payload poses only)", realtime ? "realtime" : "fast");
+  // With --odom-from-can the vehicle's inputs come from the bus, gyro included (a replay of
+  // odom_received.csv with the frames must reproduce the run), so imu.csv is not fed then.
+  const bool imu_fed = rec.has_imu && !odom_from_can;
+  std::printf("replay: %s: %zu frames, %zu odometry samples%s%s, map %s, mode %s\n",
+              rec_dir.c_str(), rec.frames.size(), rec.odom.size(),
+              rec.has_imu ? (", " + std::to_string(rec.imu.size()) + " gyro samples").c_str() : "",
+              rec.has_truth ? ", truth" : "", map_ptr ? map_file.c_str() : "(payload poses only)",
+              realtime ? "realtime" : "fast");
 
   can::CandumpWriter log;
   std::unique_ptr<can::SocketCanBus> socket_bus;
@@ -244,6 +269,7 @@ int replay(int argc, char** argv) {
     io.bus = bus.get();
     io.clock = &clock;
     io.odometry = odom_from_can ? nullptr : &rec.odom;
+    io.imu = imu_fed ? &rec.imu : nullptr;
     io.ticks = &ticks;
     io.fixes = &fixes;
     io.odometry_received = odom_from_can ? &odom_received : nullptr;
@@ -308,6 +334,7 @@ int replay(int argc, char** argv) {
       rec.frames.size(), static_cast<unsigned long long>(result.output.fixes_fused), ticks.size(),
       static_cast<double>(result.wall_ns) / 1e9);
   summary += buf;
+  summary += gyro_summary(result.output, rec, imu_fed);
   summary += app::format_statistics(result);
   // Accuracy against truth and the plot are desk tools, not in the vehicle binary.
   if (rec.has_truth) {

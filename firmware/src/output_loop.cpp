@@ -43,11 +43,12 @@ void print_period_line(const OutputStats& o, std::uint64_t dropped) {
 
 OutputLoop::OutputLoop(localizer::Localizer& core, hal::CanBus* bus, const hal::Clock& clock,
                        const std::vector<recording::OdomRow>* odometry, FixRing& fixes,
-                       std::int64_t log_period_ns)
+                       std::int64_t log_period_ns, const std::vector<recording::ImuRow>* imu)
     : core_(core),
       bus_(bus),
       clock_(clock),
       odometry_(odometry),
+      imu_(imu),
       fixes_(fixes),
       log_period_ns_(log_period_ns) {
   if (bus_) {
@@ -57,10 +58,20 @@ OutputLoop::OutputLoop(localizer::Localizer& core, hal::CanBus* bus, const hal::
 }
 
 void OutputLoop::drain_odometry(std::int64_t up_to_ns) {
-  if (!odometry_) return;
-  while (odom_i_ < odometry_->size() && (*odometry_)[odom_i_].t_ns <= up_to_ns) {
-    const recording::OdomRow& r = (*odometry_)[odom_i_++];
-    core_.on_odometry(r.t_ns, r.v_mps, r.omega_radps);
+  const std::size_t n_odom = odometry_ ? odometry_->size() : 0;
+  const std::size_t n_imu = imu_ ? imu_->size() : 0;
+  while (true) {
+    const bool odom_due = odom_i_ < n_odom && (*odometry_)[odom_i_].t_ns <= up_to_ns;
+    const bool imu_due = imu_i_ < n_imu && (*imu_)[imu_i_].t_ns <= up_to_ns;
+    if (odom_due && (!imu_due || (*odometry_)[odom_i_].t_ns <= (*imu_)[imu_i_].t_ns)) {
+      const recording::OdomRow& r = (*odometry_)[odom_i_++];
+      core_.on_odometry(r.t_ns, r.v_mps, r.omega_radps);
+    } else if (imu_due) {
+      const recording::ImuRow& r = (*imu_)[imu_i_++];
+      core_.on_gyro(r.t_ns, r.gyro_z_radps);  // counted in stats (gyro_samples / gyro_rejected)
+    } else {
+      break;
+    }
   }
 }
 

@@ -43,11 +43,12 @@ struct CameraState {
 class OutputLoop {
  public:
   // bus: null = no CAN. odometry: replay odometry on the loop clock, null = from CAN.
-  // log_period_ns: periodic statistics line on stderr, 0 = none. Installs the odometry receive
-  // filter on the bus.
+  // log_period_ns: periodic statistics line on stderr, 0 = none. imu: replay gyro samples
+  // (imu.csv) on the loop clock, null = none (or from CAN). Installs the receive filters on the
+  // bus.
   OutputLoop(localizer::Localizer& core, hal::CanBus* bus, const hal::Clock& clock,
              const std::vector<recording::OdomRow>* odometry, FixRing& fixes,
-             std::int64_t log_period_ns);
+             std::int64_t log_period_ns, const std::vector<recording::ImuRow>* imu = nullptr);
 
   // Keeps every odometry sample decoded from CAN (what fusion was given, on the loop clock) in
   // *received, up to its reserved capacity; the rest are counted (odometry_not_recorded). Null:
@@ -61,8 +62,9 @@ class OutputLoop {
   // Fix-triggered output (loop.pose_on_fix), outside the periodic schedule: the same inputs up
   // to now_ns, then the pose pair at once if a good fix was taken. True when it sent.
   bool on_wake(std::int64_t now_ns);
-  // Odometry and fixes merged in time order up to now_ns (odometry first on equal times), after
-  // the CAN receive queue; returns the number of good (FixStatus::kOk) fixes handed to the core.
+  // Odometry, gyro and fixes merged in time order up to now_ns (odometry, then gyro, then fixes
+  // on equal times), after the CAN receive queue; returns the number of good (FixStatus::kOk)
+  // fixes handed to the core.
   int take_inputs(std::int64_t now_ns);
 
   bool odometry_done() const { return !odometry_ || odom_i_ >= odometry_->size(); }
@@ -70,6 +72,8 @@ class OutputLoop {
   localizer::Localizer& core() { return core_; }
 
  private:
+  // Replay odometry and gyro rows up to up_to_ns, merged in time order (odometry first on equal
+  // times: the filter refuses gyro samples ahead of the newest odometry).
   void drain_odometry(std::int64_t up_to_ns);
   void send(const localizer::OutFrames& out);
 
@@ -78,6 +82,8 @@ class OutputLoop {
   const hal::Clock& clock_;
   const std::vector<recording::OdomRow>* odometry_;
   std::size_t odom_i_ = 0;
+  const std::vector<recording::ImuRow>* imu_;
+  std::size_t imu_i_ = 0;
   std::vector<recording::OdomRow>* received_ = nullptr;
   std::uint64_t odometry_not_recorded_ = 0;
   FixRing& fixes_;

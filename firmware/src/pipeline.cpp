@@ -85,7 +85,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
   FixRing fix_queue;
   const std::int64_t log_period_ns =
       io.quiet ? 0 : static_cast<std::int64_t>(cfg.loop.log_period_s * 1e9);
-  OutputLoop loop(core, io.bus, clock, io.odometry, fix_queue, log_period_ns);
+  OutputLoop loop(core, io.bus, clock, io.odometry, fix_queue, log_period_ns, io.imu);
   loop.keep_received_odometry(io.odometry_received);
   // loop.pose_on_fix: the vision worker wakes the output thread, which fuses the fix and sends
   // the pose pair at once; it stays the only CAN writer and shares no lock with vision.
@@ -269,7 +269,7 @@ int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording:
   localizer::Localizer core(localizer_config(cfg));
   // Fixes wait here for their simulated arrival.
   FixRing pending;
-  OutputLoop loop(core, bus, *clock, &rec.odom, pending, 0);
+  OutputLoop loop(core, bus, *clock, &rec.odom, pending, 0, &rec.imu);
   vision::LandmarkLocalizer loc(vision_config_with_clock(cfg, nullptr), cfg.camera_model,
                                 geometry_of(cfg), map);
   VisionStats vstats;

@@ -32,6 +32,8 @@ struct PipelineIo {
   hal::Clock* clock = nullptr;  // loop clock (monotonic, or scaled replay time)
   // Replay odometry (recording time == loop clock time); null: odometry comes from CAN.
   const std::vector<recording::OdomRow>* odometry = nullptr;
+  // Replay gyro samples (imu.csv, recording time == loop clock time); null: none.
+  const std::vector<recording::ImuRow>* imu = nullptr;
   // Optional outputs, reserved by the caller (the loop never grows them past their capacity).
   std::vector<TickRecord>* ticks = nullptr;
   std::vector<FixRecord>* fixes = nullptr;
@@ -50,7 +52,8 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
 // Fast replay on a stepped clock (*clock, which the bus may also read): time advances in
 // recording time; the vision stage runs inline for frames exposed up to now; each fix arrives
 // cfg.replay_fix_delay_ms after its exposure, where with loop.pose_on_fix the output step is
-// woken as live. Deterministic for a recording.
+// woken as live. The recording's gyro samples (imu.csv) are fused with its odometry.
+// Deterministic for a recording.
 int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording::Recording& rec,
              hal::CanBus* bus, adapters::SteppedClock* clock, std::vector<TickRecord>* ticks,
              std::vector<FixRecord>* fixes, std::atomic<bool>* stop, RunResult* result,

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <opencv2/core.hpp>
@@ -10,6 +11,7 @@
 #include <vector>
 
 #include "agv/recording/recording.hpp"
+#include "agv/sim/imu_model.hpp"
 #include "agv/sim/render.hpp"
 #include "commands.hpp"
 
@@ -193,5 +195,50 @@ TEST(ReplayCommand, TagRecordingGivesFixes) {
   };
   EXPECT_EQ(ok_fixes("tag36h11"), kFrames);
   EXPECT_EQ(ok_fixes("qr"), 0);
+  fs::remove_all(d);
+}
+
+// imu.csv reaches fusion: the summary counts every sample handed over, some fused. Without the
+// file it says so, and the run is otherwise the same (exit 0, the same output ticks).
+TEST(ReplayCommand, GyroSamplesOfImuCsvAreFusedAndCounted) {
+  const fs::path d = write_recording("gyro", 5);  // odometry 1.0 .. 1.5 s, 0.1 m/s straight
+  std::vector<recording::ImuRow> imu;
+  // The simulator's default gyro on a vehicle that does not turn (bias and noise only).
+  for (const sim::ImuSample& g :
+       sim::simulate_gyro(sim::GyroParams{}, sim::Trajectory{}, 500'000'000)) {
+    imu.push_back({1'000'000'000LL + g.t_ns, g.gyro_z_radps});
+  }
+  std::string err;
+  ASSERT_TRUE(recording::write_imu_csv(d.string(), imu, &err)) << err;
+  auto slurp = [](const fs::path& p) {
+    std::ifstream f(p, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(f), {});
+  };
+  ReplayRun r = replay(d);
+  ASSERT_EQ(r.rc, 0) << r.err;
+  std::string summary = slurp(d / "out" / "summary.txt");
+  unsigned long long fused = 0, rejected = 0, rows = 0;
+  const size_t at = summary.find("\ngyro: ");
+  ASSERT_NE(at, std::string::npos) << summary;
+  ASSERT_EQ(std::sscanf(summary.c_str() + at,
+                        "\ngyro: %llu samples fused, %llu rejected (imu.csv: "
+                        "%llu rows)",
+                        &fused, &rejected, &rows),
+            3)
+      << summary;
+  EXPECT_EQ(rows, 101u);  // 200 Hz over 0.5 s
+  EXPECT_EQ(fused + rejected, rows);
+  EXPECT_GT(fused, 0u);
+  const std::string poses_with = slurp(d / "out" / "poses.csv");
+
+  fs::remove(d / "imu.csv");
+  r = replay(d);
+  ASSERT_EQ(r.rc, 0) << r.err;
+  summary = slurp(d / "out" / "summary.txt");
+  EXPECT_NE(summary.find("\ngyro: none (no imu.csv: wheel odometry only)\n"), std::string::npos)
+      << summary;
+  const std::string poses_without = slurp(d / "out" / "poses.csv");
+  EXPECT_EQ(std::count(poses_with.begin(), poses_with.end(), '\n'),
+            std::count(poses_without.begin(), poses_without.end(), '\n'));
   fs::remove_all(d);
 }
