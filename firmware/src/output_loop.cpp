@@ -10,12 +10,17 @@ localizer::LocalizerConfig localizer_config(const config::Config& cfg) {
   localizer::LocalizerConfig c;
   c.fusion = cfg.fusion;
   c.protocol = config::protocol_config(cfg);
+  c.protocol.gyro = config::gyro_protocol_config(cfg);  // AGV_Gyro: can.gyro.*
   c.odometry.speed_scale = cfg.odometry.speed_scale;
   c.odometry.yaw_rate_scale = cfg.odometry.yaw_rate_scale;
   c.odometry.yaw_rate_bias_radps = cfg.odometry.yaw_rate_bias_radps;
   c.odometry.time_offset_ns = std::llround(cfg.odometry.time_offset_ms * 1e6);
   // can.odometry.timeout_ms is THE odometry timeout (pose validity and the EKF's flag).
   c.odometry_timeout_ns = static_cast<std::int64_t>(cfg.can.odometry_timeout_ms * 1e6);
+  c.gyro.scale = cfg.imu.scale;
+  c.gyro.bias_radps = cfg.imu.bias_radps;
+  c.gyro.time_offset_ns = std::llround(cfg.imu.time_offset_ms * 1e6);
+  c.gyro_timeout_ns = std::llround(cfg.can.gyro_timeout_ms * 1e6);
   c.heartbeat_period_ns = static_cast<std::int64_t>(1e9 / cfg.loop.heartbeat_rate_hz);
   c.camera_timeout_ns = static_cast<std::int64_t>(cfg.camera.timeout_ms * 1e6);
   c.sw_major = AGV_VERSION_MAJOR;
@@ -52,8 +57,11 @@ OutputLoop::OutputLoop(localizer::Localizer& core, hal::CanBus* bus, const hal::
       fixes_(fixes),
       log_period_ns_(log_period_ns) {
   if (bus_) {
-    const hal::CanFilter f = core_.odometry_filter();
-    bus_->set_filters(&f, 1);
+    // One filter per enabled input message (odometry, and AGV_Gyro when can.gyro.enabled).
+    constexpr int kMax = localizer::Localizer::kMaxReceiveFilters;
+    hal::CanFilter f[kMax];
+    const int n = core_.receive_filters(f, kMax);
+    bus_->set_filters(f, static_cast<std::size_t>(n < kMax ? n : kMax));
   }
 }
 

@@ -437,3 +437,202 @@ TEST(Odometry, CustomDataIdIsUsedForTheCrc) {
   agv::hal::CanFrame f = odom_frame(other, 1, 1, 1, 2);
   EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kBadCrc);
 }
+
+// ---------------------------------------------------------------------------- gyro input
+
+namespace {
+
+agv::hal::CanFrame gyro_frame(const p::ProtocolConfig& cfg, double z, std::uint8_t counter,
+                              std::int64_t t_ns, bool saturated = false) {
+  p::GyroSample in;
+  in.gyro_z_radps = z;
+  in.saturated = saturated;
+  agv::hal::CanFrame f;
+  p::encode_gyro(cfg, in, counter, &f);
+  f.t_ns = t_ns;
+  return f;
+}
+
+}  // namespace
+
+TEST(Gyro, MessageIsInTheTableAfterTheOdometry) {
+  // Appended: the indices before it are unchanged.
+  EXPECT_EQ(static_cast<int>(p::Msg::kOdomTwist), 7);
+  EXPECT_EQ(static_cast<int>(p::Msg::kGyro), 8);
+  const p::MessageDef& m = p::message_def(p::Msg::kGyro);
+  EXPECT_STREQ(m.name, "AGV_Gyro");
+  EXPECT_EQ(m.dir, p::Direction::kRx);
+  EXPECT_EQ(m.id_offset, 0x12u);
+  EXPECT_EQ(m.data_id, 0x4C12);
+  EXPECT_EQ(m.dlc, 8);
+  // Resolution at least 0.001 deg/s, range at least +-500 deg/s.
+  const p::SignalDef& z = sig(p::Msg::kGyro, "GyroZ");
+  EXPECT_TRUE(z.is_signed);
+  EXPECT_LE(z.scale, 0.001 * M_PI / 180.0);
+  EXPECT_GE(z.max, 500.0 * M_PI / 180.0);
+  EXPECT_LE(z.min, -500.0 * M_PI / 180.0);
+  EXPECT_EQ(sig(p::Msg::kGyro, "Saturated").length, 1);
+  p::ProtocolConfig cfg;
+  EXPECT_EQ(p::can_id_of(cfg, p::Msg::kGyro), 0x312u);
+  cfg.gyro.can_id = 0x0A5;
+  EXPECT_EQ(p::can_id_of(cfg, p::Msg::kGyro), 0x0A5u);
+  // Configuring the odometry ID does not hide the gyro from identify().
+  cfg.odometry.can_id = 0x0A0;
+  agv::hal::CanFrame f = gyro_frame(cfg, 0.1, 0, 1);
+  EXPECT_EQ(p::identify(cfg, f), p::Msg::kGyro);
+}
+
+TEST(Gyro, EncodeWithTheTableAndDecode) {
+  p::ProtocolConfig cfg;
+  p::GyroDecoder dec(cfg);
+  EXPECT_EQ(dec.can_id(), 0x312u);
+  EXPECT_FALSE(dec.extended());
+  p::GyroSample in;
+  in.gyro_z_radps = -1.2345678;
+  in.gyro_x_radps = 0.5;
+  in.gyro_y_radps = -0.25;
+  agv::hal::CanFrame f;
+  p::encode_gyro(cfg, in, 0, &f);
+  f.t_ns = 123456789;
+  EXPECT_EQ(f.id, 0x312u);
+  EXPECT_EQ(f.len, 8);
+  // The frame is what the table says: each signal where the DBC puts it, E2E as odometry's.
+  EXPECT_NEAR(p::get_phys(sig(p::Msg::kGyro, "GyroZ"), f.data), -1.2345678, 0.5e-5);
+  EXPECT_EQ(f.data[0], p::e2e_crc(0x4C12, f.data));
+  EXPECT_EQ(f.data[1] & 0x0F, 0);
+  p::GyroSample s;
+  ASSERT_EQ(dec.decode(f, &s), p::DecodeResult::kOk);
+  EXPECT_EQ(s.t_ns, 123456789);  // the frame's receive time
+  EXPECT_NEAR(s.gyro_z_radps, -1.2345678, 0.5e-5);
+  EXPECT_NEAR(s.gyro_x_radps, 0.5, 1e-3);
+  EXPECT_NEAR(s.gyro_y_radps, -0.25, 1e-3);
+  EXPECT_FALSE(s.saturated);
+  // 0.001 deg/s is resolved; beyond the range saturates instead of wrapping.
+  ASSERT_EQ(dec.decode(gyro_frame(cfg, 0.001 * M_PI / 180.0, 1, 200000000), &s),
+            p::DecodeResult::kOk);
+  EXPECT_NEAR(s.gyro_z_radps, 0.001 * M_PI / 180.0, 0.5e-5);
+  EXPECT_GT(s.gyro_z_radps, 0.0);
+  ASSERT_EQ(dec.decode(gyro_frame(cfg, -1e6, 2, 200000001), &s), p::DecodeResult::kOk);
+  EXPECT_DOUBLE_EQ(s.gyro_z_radps, sig(p::Msg::kGyro, "GyroZ").min);
+  ASSERT_EQ(dec.decode(gyro_frame(cfg, 8.7, 3, 200000002), &s), p::DecodeResult::kOk);
+  EXPECT_NEAR(s.gyro_z_radps, 8.7, 0.5e-5);
+  // The sensor's saturation bit is decoded (and counted), the rate kept.
+  ASSERT_EQ(dec.decode(gyro_frame(cfg, 9.5, 4, 200000003, true), &s), p::DecodeResult::kOk);
+  EXPECT_TRUE(s.saturated);
+  EXPECT_EQ(dec.counters().accepted, 5u);
+  EXPECT_EQ(dec.counters().saturated, 1u);
+  EXPECT_EQ(dec.last_accepted_ns(), 200000003);
+}
+
+TEST(Gyro, MalformedFramesAreRejectedAndCounted) {
+  p::ProtocolConfig cfg;
+  p::GyroDecoder dec(cfg);
+  p::GyroSample s;
+  ASSERT_EQ(dec.decode(gyro_frame(cfg, 0.1, 0, 10), &s), p::DecodeResult::kOk);
+  s.gyro_z_radps = 42.0;
+  agv::hal::CanFrame f = gyro_frame(cfg, 0.2, 1, 20);
+  f.len = 7;
+  EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kBadLength);
+  f = gyro_frame(cfg, 0.2, 1, 20);
+  f.data[4] ^= 0x01;
+  EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kBadCrc);
+  EXPECT_EQ(dec.decode(gyro_frame(cfg, 0.2, 0, 30), &s), p::DecodeResult::kRepeated);
+  EXPECT_EQ(dec.decode(gyro_frame(cfg, 0.2, 9, 40), &s), p::DecodeResult::kCounterJump);
+  f = gyro_frame(cfg, 0.2, 10, 45);
+  f.data[1] = static_cast<std::uint8_t>((f.data[1] & 0xF0) | 0x0F);  // counter 15
+  f.data[0] = p::e2e_crc(0x4C12, f.data);
+  EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kBadCounter);
+  EXPECT_EQ(s.gyro_z_radps, 42.0);  // untouched by rejected frames
+  EXPECT_EQ(dec.decode(gyro_frame(cfg, 0.2, 10, 50), &s), p::DecodeResult::kOk);
+  EXPECT_EQ(dec.decode(gyro_frame(cfg, 0.2, 13, 60), &s), p::DecodeResult::kOk);
+  EXPECT_EQ(s.lost_before, 2u);
+  EXPECT_EQ(dec.decode(gyro_frame(cfg, 0.2, 14, 55), &s), p::DecodeResult::kStale);
+  // An odometry frame, or the gyro's ID as a 29-bit ID, is not the gyro's.
+  EXPECT_EQ(dec.decode(odom_frame(cfg, 1, 1, 0, 70), &s), p::DecodeResult::kNotOdometry);
+  f = gyro_frame(cfg, 0.2, 14, 70);
+  f.extended = true;
+  EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kNotOdometry);
+  // A frame with the odometry's data ID under the gyro's CAN ID (a masquerade) fails the CRC.
+  f = odom_frame(cfg, 1, 1, 14, 80);
+  f.id = 0x312;
+  EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kBadCrc);
+  const p::GyroCounters& c = dec.counters();
+  EXPECT_EQ(c.accepted, 3u);
+  EXPECT_EQ(c.bad_length, 1u);
+  EXPECT_EQ(c.bad_crc, 2u);
+  EXPECT_EQ(c.repeated, 1u);
+  EXPECT_EQ(c.counter_jump, 1u);
+  EXPECT_EQ(c.bad_counter, 1u);
+  EXPECT_EQ(c.stale, 1u);
+  EXPECT_EQ(c.lost_frames, 2u);
+  EXPECT_EQ(c.rejected(), 7u);
+}
+
+TEST(Gyro, ConfiguredIdUnprotectedAndCustomDataId) {
+  p::ProtocolConfig cfg;
+  cfg.gyro.enabled = true;
+  cfg.gyro.can_id = 0x0B0;
+  cfg.gyro.protected_e2e = false;
+  ASSERT_EQ(p::validate(cfg), "");
+  p::GyroDecoder dec(cfg);
+  p::GyroSample s;
+  agv::hal::CanFrame f = gyro_frame(cfg, 0.3, 2, 10);
+  EXPECT_EQ(f.id, 0x0B0u);
+  f.data[0] = 0;  // no CRC
+  EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kOk);
+  f.t_ns = 20;
+  EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kOk);  // same counter: fine when unprotected
+  f.id = 0x312;                                        // the default ID is not ours any more
+  EXPECT_EQ(dec.decode(f, &s), p::DecodeResult::kNotOdometry);
+
+  p::ProtocolConfig own;
+  own.gyro.data_id = 0x1234;
+  p::GyroDecoder dec2(own);
+  EXPECT_EQ(dec2.decode(gyro_frame(own, 0.1, 0, 1), &s), p::DecodeResult::kOk);
+  EXPECT_EQ(dec2.decode(gyro_frame(p::ProtocolConfig{}, 0.1, 1, 2), &s),
+            p::DecodeResult::kBadCrc);
+}
+
+TEST(Gyro, ValidateChecksAnEnabledGyroId) {
+  p::ProtocolConfig cfg;
+  cfg.gyro.can_id = 0x302;  // collides with AGV_Velocity, but the gyro is off
+  EXPECT_EQ(p::validate(cfg), "");
+  cfg.gyro.enabled = true;
+  EXPECT_NE(p::validate(cfg), "");
+  cfg.gyro.can_id = 0x310;  // the (wheels) odometry's ID
+  EXPECT_NE(p::validate(cfg), "");
+  cfg.gyro.can_id = 0x800;  // does not fit 11 bits
+  EXPECT_NE(p::validate(cfg), "");
+  cfg.gyro.can_id = 0;
+  EXPECT_EQ(p::validate(cfg), "");
+  cfg.gyro.max_delta_counter = 0;
+  EXPECT_NE(p::validate(cfg), "");
+  // rx_enabled: the odometry variant of the mode, the gyro when enabled, never an output.
+  cfg = {};
+  EXPECT_TRUE(p::rx_enabled(cfg, p::Msg::kOdomWheels));
+  EXPECT_FALSE(p::rx_enabled(cfg, p::Msg::kOdomTwist));
+  EXPECT_FALSE(p::rx_enabled(cfg, p::Msg::kGyro));
+  EXPECT_FALSE(p::rx_enabled(cfg, p::Msg::kStatus));
+  cfg.gyro.enabled = true;
+  EXPECT_TRUE(p::rx_enabled(cfg, p::Msg::kGyro));
+}
+
+TEST(Gyro, StatusCarriesTheImuFaultBits) {
+  p::Encoder enc({});
+  agv::hal::CanFrame f;
+  p::StatusOut s;
+  s.faults = p::fault::kImuTimeout;
+  enc.encode_status(s, &f);
+  EXPECT_EQ(p::get_raw(sig(p::Msg::kStatus, "FaultImuTimeout"), f.data), 1);
+  EXPECT_EQ(p::get_raw(sig(p::Msg::kStatus, "FaultImuE2E"), f.data), 0);
+  EXPECT_EQ(f.data[6], 0);  // the eight older fault bits are untouched
+  p::StatusOut d;
+  ASSERT_TRUE(p::decode_status({}, f, &d));
+  EXPECT_EQ(d.faults, p::fault::kImuTimeout);
+  s.faults = p::fault::kImuE2E | p::fault::kOdomE2E;
+  enc.encode_status(s, &f);
+  ASSERT_TRUE(p::decode_status({}, f, &d));
+  EXPECT_EQ(d.faults, s.faults);
+  EXPECT_EQ(p::get_raw(sig(p::Msg::kStatus, "FaultImuE2E"), f.data), 1);
+  EXPECT_EQ(p::get_raw(sig(p::Msg::kStatus, "Health"), f.data), 2);  // kLost, beside them
+}

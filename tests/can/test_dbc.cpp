@@ -188,4 +188,8 @@ TEST(Dbc, FormatNumberIsShortestRoundTrip) {
   EXPECT_EQ(p::format_number(-838860.8), "-838860.8");
   EXPECT_EQ(p::format_number(16777215), "16777215");
   EXPECT_EQ(p::format_number(0.0001), "0.0001");
+  // No exponents: npm candied drops a signal whose factor reads "1e-05" (AGV_Gyro.GyroZ).
+  EXPECT_EQ(p::format_number(0.00001), "0.00001");
+  EXPECT_EQ(p::format_number(-2.5e-7), "-0.00000025");
+  EXPECT_EQ(p::format_number(1e20), "100000000000000000000");
 }

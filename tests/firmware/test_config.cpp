@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "agv/adapters/stepped_clock.hpp"
 #include "agv/config/keys.hpp"
 #include "config.hpp"
 #include "output_loop.hpp"
@@ -562,4 +563,76 @@ TEST(Config, OdometryCorrectionKeysReachTheLocalizer) {
   EXPECT_EQ(ld.odometry.time_offset_ns, 0);
   EXPECT_TRUE(mentions(errors_for(std::string(kIntrinsics) + "odometry:\n  speed_scale: 0\n"),
                        "odometry.speed_scale: value 0 outside the accepted range"));
+}
+
+namespace {
+
+// Keeps the receive filters the output loop installs.
+class FilterBus final : public agv::hal::CanBus {
+ public:
+  agv::hal::CanStatus send(const agv::hal::CanFrame&) override {
+    return agv::hal::CanStatus::kOk;
+  }
+  agv::hal::CanStatus receive(agv::hal::CanFrame*, std::int64_t) override {
+    return agv::hal::CanStatus::kTimeout;
+  }
+  agv::hal::CanStatus set_filters(const agv::hal::CanFilter* f, std::size_t n) override {
+    filters.assign(f, f + n);
+    return agv::hal::CanStatus::kOk;
+  }
+  agv::hal::CanBusState state() const override { return agv::hal::CanBusState::kErrorActive; }
+  agv::hal::CanErrorCounters error_counters() const override { return {}; }
+  agv::hal::CanStats stats() const override { return {}; }
+  const char* last_error() const override { return ""; }
+  std::vector<agv::hal::CanFilter> filters;
+};
+
+}  // namespace
+
+TEST(Config, GyroAndImuKeysReachTheLocalizerAndTheReceiveFilters) {
+  Config cfg;
+  std::vector<std::string> errors;
+  ASSERT_TRUE(agv::config::parse_config(std::string(kIntrinsics) +
+                                            "can:\n  gyro:\n    enabled: true\n    id: 0x2A0\n"
+                                            "    protected: false\n    timeout_ms: 40\n"
+                                            "imu:\n  scale: 1.01\n  bias_degps: 0.2\n"
+                                            "  time_offset_ms: -3.5\n",
+                                        "", &cfg, &errors))
+      << errors.front();
+  const auto lc = agv::app::localizer_config(cfg);
+  EXPECT_TRUE(lc.protocol.gyro.enabled);
+  EXPECT_EQ(lc.protocol.gyro.can_id, 0x2A0u);
+  EXPECT_FALSE(lc.protocol.gyro.protected_e2e);
+  EXPECT_EQ(lc.gyro_timeout_ns, 40'000'000);
+  EXPECT_DOUBLE_EQ(lc.gyro.scale, 1.01);
+  EXPECT_NEAR(lc.gyro.bias_radps, 0.2 * M_PI / 180.0, 1e-15);
+  EXPECT_EQ(lc.gyro.time_offset_ns, -3'500'000);
+  // The output loop installs one receive filter per enabled input: odometry and gyro.
+  agv::localizer::Localizer core(lc);
+  FilterBus bus;
+  agv::adapters::SteppedClock clock;
+  agv::app::FixRing fixes;
+  agv::app::OutputLoop loop(core, &bus, clock, nullptr, fixes, 0);
+  ASSERT_EQ(bus.filters.size(), 2u);
+  EXPECT_EQ(bus.filters[0].id, 0x311u);  // v_omega: MC_OdomTwist
+  EXPECT_EQ(bus.filters[1].id, 0x2A0u);
+
+  // Defaults: no gyro (one filter), no correction, 100 ms timeout.
+  Config def;
+  ASSERT_TRUE(agv::config::parse_config(kIntrinsics, "", &def, &errors));
+  const auto ld = agv::app::localizer_config(def);
+  EXPECT_FALSE(ld.protocol.gyro.enabled);
+  EXPECT_EQ(ld.protocol.gyro.can_id, 0u);
+  EXPECT_TRUE(ld.protocol.gyro.protected_e2e);
+  EXPECT_EQ(ld.gyro_timeout_ns, 100'000'000);
+  EXPECT_EQ(ld.gyro.scale, 1.0);
+  EXPECT_EQ(ld.gyro.bias_radps, 0.0);
+  EXPECT_EQ(ld.gyro.time_offset_ns, 0);
+  agv::localizer::Localizer core_def(ld);
+  FilterBus bus_def;
+  agv::app::OutputLoop loop_def(core_def, &bus_def, clock, nullptr, fixes, 0);
+  ASSERT_EQ(bus_def.filters.size(), 1u);
+  EXPECT_EQ(bus_def.filters[0].id, 0x311u);
+  EXPECT_TRUE(mentions(errors_for(std::string(kIntrinsics) + "imu:\n  scale: 3\n"),
+                       "imu.scale: value 3 outside the accepted range"));
 }

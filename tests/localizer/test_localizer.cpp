@@ -178,9 +178,213 @@ TEST(Localizer, ReceivedFramesAreDecodedAsOdometryOrCounted) {
   EXPECT_EQ(loc.stats().can_rx_frames, 2u);
   EXPECT_EQ(loc.stats().can_rx_other, 1u);
   EXPECT_EQ(loc.stats().odom_samples, 1u);
-  const hal::CanFilter filt = loc.odometry_filter();
-  EXPECT_EQ(filt.id, loc.odometry_decoder().can_id());
-  EXPECT_EQ(filt.mask, p::kCanStdIdMask);
+  hal::CanFilter filt[2];
+  ASSERT_EQ(loc.receive_filters(filt, 2), 1);  // gyro not enabled: odometry only
+  EXPECT_EQ(filt[0].id, loc.odometry_decoder().can_id());
+  EXPECT_EQ(filt[0].mask, p::kCanStdIdMask);
+  EXPECT_FALSE(filt[0].extended);
+}
+
+// --- Gyro over CAN (AGV_Gyro, protocol::GyroDecoder, can.gyro.*) ---
+
+namespace {
+
+localizer::LocalizerConfig gyro_config() {
+  auto c = test_config();
+  c.protocol.gyro.enabled = true;
+  c.gyro_timeout_ns = 50 * kMs;
+  return c;
+}
+
+hal::CanFrame gyro_can(const localizer::LocalizerConfig& c, double z, int counter,
+                       std::int64_t t_ns, bool saturated = false) {
+  p::GyroSample g;
+  g.gyro_z_radps = z;
+  g.saturated = saturated;
+  hal::CanFrame f;
+  p::encode_gyro(c.protocol, g, static_cast<std::uint8_t>(counter % 15), &f);
+  f.t_ns = t_ns;
+  return f;
+}
+
+hal::CanFrame odom_can(const localizer::LocalizerConfig& c, int counter, std::int64_t t_ns) {
+  hal::CanFrame f;
+  p::encode_odometry(c.protocol, 0.5, 0.5, static_cast<std::uint8_t>(counter % 15), &f);
+  f.t_ns = t_ns;
+  return f;
+}
+
+}  // namespace
+
+TEST(Localizer, CanFramesAreDispatchedByIdToOdometryAndGyro) {
+  const auto c = gyro_config();
+  localizer::Localizer loc(c);
+  p::OdomSample o;
+  p::GyroSample g;
+  EXPECT_EQ(loc.on_can_frame(odom_can(c, 0, 1000 * kMs), &o, &g), localizer::CanRx::kOdometry);
+  EXPECT_EQ(o.t_ns, 1000 * kMs);
+  EXPECT_EQ(loc.stats().odom_samples, 1u);
+  EXPECT_EQ(loc.on_can_frame(gyro_can(c, 0.25, 0, 1001 * kMs), &o, &g), localizer::CanRx::kGyro);
+  EXPECT_EQ(g.t_ns, 1001 * kMs);
+  EXPECT_NEAR(g.gyro_z_radps, 0.25, 1e-5);
+  EXPECT_EQ(loc.stats().gyro_samples, 1u);  // reached on_gyro
+  EXPECT_EQ(loc.stats().odom_samples, 1u);
+  // The two-argument form: true for odometry only, but a gyro frame still reaches on_gyro.
+  EXPECT_FALSE(loc.on_can_frame(gyro_can(c, 0.25, 1, 1002 * kMs), &o));
+  EXPECT_EQ(loc.stats().gyro_samples, 2u);
+  EXPECT_TRUE(loc.on_can_frame(odom_can(c, 1, 1010 * kMs), &o));
+  EXPECT_EQ(loc.stats().odom_samples, 2u);
+  // Other IDs, and the inactive odometry variant, are counted as other.
+  hal::CanFrame other;
+  other.id = 0x123;
+  other.len = 8;
+  EXPECT_EQ(loc.on_can_frame(other, &o, &g), localizer::CanRx::kOther);
+  other.id = p::can_id_of(c.protocol, p::Msg::kOdomTwist);  // test_config: wheels mode
+  EXPECT_EQ(loc.on_can_frame(other, &o, &g), localizer::CanRx::kOther);
+  EXPECT_EQ(loc.stats().can_rx_frames, 6u);
+  EXPECT_EQ(loc.stats().can_rx_other, 2u);
+  EXPECT_EQ(loc.gyro_decoder().counters().accepted, 2u);
+}
+
+TEST(Localizer, GyroFramesAreOtherFramesUnlessEnabled) {
+  const auto c = test_config();  // gyro not enabled
+  localizer::Localizer loc(c);
+  p::GyroSample g;
+  EXPECT_EQ(loc.on_can_frame(gyro_can(c, 0.25, 0, 1000 * kMs), nullptr, &g),
+            localizer::CanRx::kOther);
+  EXPECT_EQ(loc.stats().gyro_samples, 0u);
+  EXPECT_EQ(loc.stats().can_rx_other, 1u);
+  // Never received: no gyro fault whatever the time.
+  localizer::OutFrames out;
+  loc.tick(1000 * kMs, &out, nullptr);
+  loc.tick(5000 * kMs, &out, nullptr);
+  EXPECT_EQ(status_of(c, out).faults & (p::fault::kImuTimeout | p::fault::kImuE2E), 0);
+}
+
+TEST(Localizer, SaturatedGyroSamplesAreCountedNotFused) {
+  const auto c = gyro_config();
+  localizer::Localizer loc(c);
+  p::GyroSample g;
+  EXPECT_EQ(loc.on_can_frame(gyro_can(c, 5.0, 0, 1000 * kMs, true), nullptr, &g),
+            localizer::CanRx::kGyroSaturated);
+  EXPECT_TRUE(g.saturated);
+  EXPECT_EQ(loc.stats().gyro_saturated, 1u);
+  EXPECT_EQ(loc.stats().gyro_samples, 0u);  // on_gyro not called
+  EXPECT_EQ(loc.gyro_decoder().counters().saturated, 1u);
+  EXPECT_EQ(loc.on_can_frame(gyro_can(c, 0.1, 1, 1010 * kMs), nullptr, &g),
+            localizer::CanRx::kGyro);
+  EXPECT_EQ(loc.stats().gyro_samples, 1u);
+}
+
+TEST(Localizer, RejectedGyroFramesSetImuE2EForOneStatusFrame) {
+  const auto c = gyro_config();
+  localizer::Localizer loc(c);
+  localizer::OutFrames out;
+  std::int64_t t = 1000 * kMs;
+  loc.on_can_frame(odom_can(c, 0, t));
+  ASSERT_EQ(loc.on_can_frame(gyro_can(c, 0.1, 0, t), nullptr, nullptr), localizer::CanRx::kGyro);
+  loc.tick(t += 10 * kMs, &out, nullptr);
+  EXPECT_EQ(status_of(c, out).faults & p::fault::kImuE2E, 0);
+  hal::CanFrame bad = gyro_can(c, 0.1, 1, t);
+  bad.data[3] ^= 0x10;
+  EXPECT_EQ(loc.on_can_frame(bad, nullptr, nullptr), localizer::CanRx::kRejected);
+  EXPECT_EQ(loc.stats().gyro_samples, 1u);
+  EXPECT_EQ(loc.gyro_decoder().counters().bad_crc, 1u);
+  loc.on_can_frame(odom_can(c, 1, t));
+  loc.tick(t += 10 * kMs, &out, nullptr);
+  const auto faults = status_of(c, out).faults;
+  EXPECT_NE(faults & p::fault::kImuE2E, 0);
+  EXPECT_EQ(faults & p::fault::kOdomE2E, 0);  // the odometry's flag is its own
+  loc.on_can_frame(odom_can(c, 2, t));
+  loc.tick(t += 10 * kMs, &out, nullptr);
+  EXPECT_EQ(status_of(c, out).faults & p::fault::kImuE2E, 0);  // an event flag: latched once
+}
+
+TEST(Localizer, ImuTimeoutIsSetAfterTheGyroTimeoutAndClearWhileSamplesArrive) {
+  const auto c = gyro_config();  // gyro timeout 50 ms
+  localizer::Localizer loc(c);
+  localizer::OutFrames out;
+  std::int64_t t = 1000 * kMs;
+  int oc = 0, gc = 0;
+  // Enabled but silent since the first tick: flagged once the timeout has passed.
+  loc.on_can_frame(odom_can(c, oc++, t));
+  loc.tick(t, &out, nullptr);
+  EXPECT_EQ(status_of(c, out).faults & p::fault::kImuTimeout, 0);
+  for (int i = 0; i < 6; ++i) {
+    t += 10 * kMs;
+    loc.on_can_frame(odom_can(c, oc++, t));
+    loc.tick(t, &out, nullptr);
+  }
+  EXPECT_NE(status_of(c, out).faults & p::fault::kImuTimeout, 0);  // 60 ms, none yet
+  // Samples arriving every 10 ms: clear.
+  for (int i = 0; i < 20; ++i) {
+    t += 10 * kMs;
+    loc.on_can_frame(odom_can(c, oc++, t));
+    ASSERT_EQ(loc.on_can_frame(gyro_can(c, 0.05, gc++, t - 2 * kMs), nullptr, nullptr),
+              localizer::CanRx::kGyro);
+    loc.tick(t, &out, nullptr);
+    EXPECT_EQ(status_of(c, out).faults & p::fault::kImuTimeout, 0) << i;
+  }
+  const std::int64_t last_gyro = t - 2 * kMs;
+  // The gyro stops, the odometry goes on: clear up to the timeout, set after it.
+  for (int i = 0; i < 10; ++i) {
+    t += 10 * kMs;
+    loc.on_can_frame(odom_can(c, oc++, t));
+    loc.tick(t, &out, nullptr);
+    const bool expect = t - last_gyro > 50 * kMs;
+    EXPECT_EQ((status_of(c, out).faults & p::fault::kImuTimeout) != 0, expect) << i;
+    EXPECT_EQ(loc.gyro_timed_out(t), expect) << i;
+  }
+  // Only saturated samples: still no usable gyro, the fault stays.
+  t += 10 * kMs;
+  loc.on_can_frame(odom_can(c, oc++, t));
+  loc.on_can_frame(gyro_can(c, 9.0, gc++, t - 2 * kMs, true));
+  loc.tick(t, &out, nullptr);
+  EXPECT_NE(status_of(c, out).faults & p::fault::kImuTimeout, 0);
+  // Back: clear at once.
+  t += 10 * kMs;
+  loc.on_can_frame(odom_can(c, oc++, t));
+  loc.on_can_frame(gyro_can(c, 0.05, gc++, t - 2 * kMs));
+  loc.tick(t, &out, nullptr);
+  EXPECT_EQ(status_of(c, out).faults & p::fault::kImuTimeout, 0);
+  EXPECT_EQ(status_of(c, out).faults & p::fault::kImuE2E, 0);
+  EXPECT_EQ(status_of(c, out).faults & p::fault::kOdomTimeout, 0);
+}
+
+TEST(Localizer, ReceiveFiltersOnePerEnabledInput) {
+  auto c = test_config();
+  hal::CanFilter f[3];
+  {
+    localizer::Localizer loc(c);
+    ASSERT_EQ(loc.receive_filters(f, 3), 1);
+    EXPECT_EQ(f[0].id, 0x310u);
+  }
+  c.protocol.gyro.enabled = true;
+  {
+    localizer::Localizer loc(c);
+    ASSERT_EQ(loc.receive_filters(f, 3), 2);
+    EXPECT_EQ(f[0].id, 0x310u);  // table order: odometry first
+    EXPECT_EQ(f[1].id, 0x312u);
+    EXPECT_EQ(f[1].id, loc.gyro_decoder().can_id());
+    EXPECT_EQ(f[1].mask, p::kCanStdIdMask);
+    EXPECT_FALSE(f[1].extended);
+    hal::CanFilter one[1];
+    EXPECT_EQ(loc.receive_filters(one, 1), 2);  // needs two, wrote one
+    EXPECT_EQ(one[0].id, 0x310u);
+  }
+  // Configured IDs and 29-bit inputs.
+  c.protocol.base_id = 0x18FF1000;
+  c.protocol.extended_ids = true;
+  c.protocol.odometry.extended_id = true;
+  c.protocol.odometry.mode = p::OdometryMode::kTwist;
+  c.protocol.gyro.can_id = 0x18FF2000;
+  localizer::Localizer loc(c);
+  ASSERT_EQ(loc.receive_filters(f, 3), 2);
+  EXPECT_EQ(f[0].id, 0x18FF1011u);
+  EXPECT_EQ(f[1].id, 0x18FF2000u);
+  EXPECT_EQ(f[1].mask, p::kCanExtIdMask);
+  EXPECT_TRUE(f[0].extended);
+  EXPECT_TRUE(f[1].extended);
 }
 
 TEST(Localizer, InvalidConfigurationThrows) {
@@ -189,6 +393,13 @@ TEST(Localizer, InvalidConfigurationThrows) {
   EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
   c = test_config();
   c.heartbeat_period_ns = 0;
+  EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
+  c = test_config();
+  c.gyro_timeout_ns = 0;
+  EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
+  c = test_config();
+  c.protocol.gyro.enabled = true;
+  c.protocol.gyro.can_id = 0x304;  // AGV_Status
   EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
 }
 

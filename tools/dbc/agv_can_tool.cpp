@@ -108,7 +108,8 @@ int interop(const char* log_path, const char* expected_path) {
   }
   const char* fault_names[] = {"FaultCameraStalled", "FaultCameraError",     "FaultOdomTimeout",
                                "FaultOdomE2E",       "FaultCanErrorPassive", "FaultCanBusOff",
-                               "FaultNoMap",         "FaultLoopOverrun"};
+                               "FaultNoMap",         "FaultLoopOverrun",     "FaultImuTimeout",
+                               "FaultImuE2E"};
   const char* reject_names[] = {"RejectGate", "RejectUnknownLandmark", "RejectDecodeFailed",
                                 "RejectGeometry", "RejectFixTooOld"};
   for (int i = 0; i < 20; ++i) {
@@ -117,12 +118,12 @@ int interop(const char* log_path, const char* expected_path) {
     s.health = static_cast<p::Health>(i % 4);
     s.last_landmark_id = static_cast<std::uint16_t>(i * 3271);
     s.time_since_fix_ms = i == 0 ? -1.0 : i * 997.0;
-    s.faults = static_cast<std::uint8_t>(rng());
+    s.faults = static_cast<std::uint16_t>(rng() & 0x3FF);
     s.rejections = static_cast<std::uint8_t>(rng() & 0x1F);
     enc.encode_status(s, &it.frame);
     it.expect = {exact("Health", i % 4), exact("LastLandmarkId", s.last_landmark_id),
                  exact("TimeSinceFix", i == 0 ? 65535.0 : i * 997.0)};
-    for (int b = 0; b < 8; ++b) it.expect.push_back(exact(fault_names[b], (s.faults >> b) & 1));
+    for (int b = 0; b < 10; ++b) it.expect.push_back(exact(fault_names[b], (s.faults >> b) & 1));
     for (int b = 0; b < 5; ++b) {
       it.expect.push_back(exact(reject_names[b], (s.rejections >> b) & 1));
     }
@@ -150,6 +151,22 @@ int interop(const char* log_path, const char* expected_path) {
                    expect_phys(m, d.signals[3].name, b)};
       items.push_back(it);
     }
+  }
+  // Gyro input frames (AGV_Gyro) as an IMU would send them; yaw rates beyond the range saturate.
+  std::uniform_real_distribution<double> yaw(-100.0, 100.0), tilt(-5.0, 5.0);
+  for (int i = 0; i < 20; ++i) {
+    Item it;
+    p::GyroSample g;
+    g.gyro_z_radps = i == 0 ? 0.001 * 3.14159265358979 / 180.0 : yaw(rng);
+    g.gyro_x_radps = tilt(rng);
+    g.gyro_y_radps = tilt(rng);
+    g.saturated = (rng() & 3) == 0;
+    p::encode_gyro(cfg, g, static_cast<std::uint8_t>(i % 15), &it.frame);
+    it.expect = {exact("AliveCounter", i % 15), exact("Saturated", g.saturated ? 1 : 0),
+                 expect_phys(p::Msg::kGyro, "GyroZ", g.gyro_z_radps),
+                 expect_phys(p::Msg::kGyro, "GyroX", g.gyro_x_radps),
+                 expect_phys(p::Msg::kGyro, "GyroY", g.gyro_y_radps)};
+    items.push_back(it);
   }
 
   std::FILE* log = std::fopen(log_path, "w");

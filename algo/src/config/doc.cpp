@@ -61,6 +61,7 @@ const std::vector<Section>& config_sections() {
       {"landmark", "", "", ""},
       {"can", "(docs/can.md)", "", ""},
       {"can.odometry", "", "", ""},
+      {"can.gyro", "(`AGV_Gyro`, docs/can.md)", "", ""},
       {"odometry", "(from `agvloc-desk calibrate vehicle`)",
        "Correction of every odometry sample before fusion, the equations of the calibration's\n"
        "model (tools/desk/src/calib_vehicle.hpp): v' = `speed_scale` · v,\n"
@@ -69,6 +70,11 @@ const std::vector<Section>& config_sections() {
        "wheels-mode calibration folds its yaw-rate scale into). With\n"
        "`fusion.estimate_odometry_calibration` the filter's own scale and bias states still start\n"
        "at 1 and 0 and learn only what this correction leaves. The defaults change nothing.\n",
+       ""},
+      {"imu", "",
+       "Correction of every gyro sample before fusion (`agv::localizer::GyroCorrection`):\n"
+       "rate' = `scale` · rate + `bias_degps`, t' = t − `time_offset_ms`. The filter's own gyro\n"
+       "states learn only what this correction leaves. The defaults change nothing.\n",
        ""},
       {"loop", "",
        "The built-in defaults below need no privileges. The shipped example sets the real-time\n"

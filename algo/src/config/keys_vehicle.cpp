@@ -139,6 +139,49 @@ void add_can(std::vector<Key>* k) {
     c.fusion.odom_timeout_ns = std::llround(c.can.odometry_timeout_ms * 1e6);
   };
   k->push_back(std::move(timeout));
+  k->push_back(boolean(
+      "can.gyro.enabled", AGV_AT(can.gyro_enabled), false,
+      "receive the yaw rate from an IMU as `AGV_Gyro` (docs/can.md): it carries the heading "
+      "through wheel slip, which the wheels cannot see (1.7° in the demo's slipping turn). "
+      "Costs one more receive filter and a second input that can fail: silent, saturated or "
+      "rejected frames set `FaultImuTimeout` / `FaultImuE2E`, and the filter falls back to the "
+      "wheels. false = no gyro, the frame is ignored like any other ID"));
+  k->push_back(can_id("can.gyro.id", AGV_AT(can.gyro_id), 0,
+                      "0 = DBC default: base_id + 0x12; same ID type as the odometry "
+                      "(`can.extended_ids`); must not equal an output or the odometry ID"));
+  k->push_back(boolean("can.gyro.protected", AGV_AT(can.gyro_protected), true,
+                       "check CRC and alive counter of gyro frames; false only for a sender "
+                       "that cannot compute them (then a corrupted or repeated rate reaches the "
+                       "heading unnoticed; only ID and length are checked)"));
+  k->push_back(number("can.gyro.timeout_ms", AGV_AT(can.gyro_timeout_ms), 5.0, 10000.0, 100.0,
+                      {"ms",
+                       "no usable gyro sample this long → `FaultImuTimeout` (with "
+                       "`enabled` also when none arrived since the start); the filter uses "
+                       "the wheels' yaw rate meanwhile. Short reports a dead IMU sooner but "
+                       "trips on bus jitter; 100 ms = 10 missed frames at 100 Hz"}));
+}
+
+// The gyro correction (localizer::GyroCorrection), applied to every gyro sample before fusion.
+void add_imu(std::vector<Key>* k) {
+  k->push_back(number("imu.scale", AGV_AT(imu.scale), 0.5, 2.0, 1.0,
+                      {"",
+                       "rate' = scale · rate + bias. From the IMU's calibration (or a turn in "
+                       "place between two fixes); the filter's gyro scale state learns the rest "
+                       "but needs fixes. Heading error grows with every turn: 1 % of a 90° "
+                       "turn is 0.9°. A sensor mounted upside down is corrected by the sender "
+                       "(`GyroZ` is about the vehicle's z axis, up)"}));
+  k->push_back(deg_as_rad("imu.bias_degps", AGV_AT(imu.bias_radps), -30.0, 30.0, 0.0,
+                          {"deg/s",
+                           "added after the scale (the correction: minus the measured bias at "
+                           "standstill over the scale). A wrong value is heading drift the "
+                           "filter's gyro bias state must first learn; 0.1 deg/s = 0.6° per "
+                           "minute without fixes"}));
+  k->push_back(number("imu.time_offset_ms", AGV_AT(imu.time_offset_ms), -500.0, 500.0, 0.0,
+                      {"ms",
+                       "gyro clock = vehicle clock + offset (+ = gyro stamps late); fusion uses "
+                       "t − offset. CAN samples are stamped on receipt, so this is the sensor's "
+                       "filter delay plus its transmit latency; at 1 rad/s every ms is 0.057° "
+                       "of heading in a turn"}));
 }
 
 // The odometry correction (localizer::OdometryCorrection), the calibration model's equations.
@@ -220,6 +263,7 @@ void add_vehicle_keys(std::vector<Key>* keys) {
   add_landmark(keys);
   add_can(keys);
   add_odometry(keys);
+  add_imu(keys);
   add_loop(keys);
 }
 

@@ -40,9 +40,11 @@ Localizer::Localizer(const LocalizerConfig& cfg)
     : cfg_(cfg),
       ekf_(effective_fusion_config(cfg)),
       encoder_(checked(cfg.protocol)),
-      odom_(cfg.protocol) {
+      odom_(cfg.protocol),
+      gyro_(cfg.protocol) {
   if (cfg_.heartbeat_period_ns <= 0) throw std::invalid_argument("heartbeat period must be > 0");
   if (cfg_.odometry_timeout_ns <= 0) throw std::invalid_argument("odometry timeout must be > 0");
+  if (cfg_.gyro_timeout_ns <= 0) throw std::invalid_argument("gyro timeout must be > 0");
   const OdometryCorrection& o = cfg_.odometry;
   if (!(o.speed_scale > 0.0) || !(o.yaw_rate_scale > 0.0) || !std::isfinite(o.speed_scale) ||
       !std::isfinite(o.yaw_rate_scale) || !std::isfinite(o.yaw_rate_bias_radps)) {
@@ -50,12 +52,19 @@ Localizer::Localizer(const LocalizerConfig& cfg)
   }
 }
 
-hal::CanFilter Localizer::odometry_filter() const {
-  hal::CanFilter f;
-  f.id = odom_.can_id();
-  f.mask = odom_.extended() ? protocol::kCanExtIdMask : protocol::kCanStdIdMask;
-  f.extended = odom_.extended();
-  return f;
+int Localizer::receive_filters(hal::CanFilter* out, int max) const {
+  int n = 0;
+  for (const protocol::MessageDef& m : protocol::message_table()) {
+    if (m.dir != protocol::Direction::kRx || !protocol::rx_enabled(cfg_.protocol, m.msg)) continue;
+    if (n < max) {
+      const bool ext = protocol::is_extended(cfg_.protocol, m.msg);
+      out[n].id = protocol::can_id_of(cfg_.protocol, m.msg);
+      out[n].mask = ext ? protocol::kCanExtIdMask : protocol::kCanStdIdMask;
+      out[n].extended = ext;
+    }
+    ++n;
+  }
+  return n;
 }
 
 void Localizer::on_odometry(std::int64_t t_ns, double v_mps, double omega_radps) {
@@ -94,16 +103,43 @@ bool Localizer::gyro_timed_out(std::int64_t now_ns) const {
 }
 
 bool Localizer::on_can_frame(const hal::CanFrame& frame, protocol::OdomSample* sample) {
+  return on_can_frame(frame, sample, nullptr) == CanRx::kOdometry;
+}
+
+CanRx Localizer::on_can_frame(const hal::CanFrame& frame, protocol::OdomSample* odom,
+                              protocol::GyroSample* gyro) {
   ++stats_.can_rx_frames;
-  protocol::OdomSample s;
-  const protocol::DecodeResult r = odom_.decode(frame, &s);
-  if (r == protocol::DecodeResult::kOk) {
-    on_odometry(s.t_ns, s.v_mps, s.omega_radps);
-    if (sample) *sample = s;
-    return true;
+  // Dispatch by ID over the signal table's enabled inputs (the decoders hold the IDs).
+  for (const protocol::MessageDef& m : protocol::message_table()) {
+    if (m.dir != protocol::Direction::kRx || !protocol::rx_enabled(cfg_.protocol, m.msg)) continue;
+    switch (m.msg) {
+      case protocol::Msg::kOdomWheels:
+      case protocol::Msg::kOdomTwist: {  // the variant of the configured mode
+        if (frame.id != odom_.can_id() || frame.extended != odom_.extended()) continue;
+        protocol::OdomSample s;
+        if (odom_.decode(frame, &s) != protocol::DecodeResult::kOk) return CanRx::kRejected;
+        on_odometry(s.t_ns, s.v_mps, s.omega_radps);
+        if (odom) *odom = s;
+        return CanRx::kOdometry;
+      }
+      case protocol::Msg::kGyro: {
+        if (frame.id != gyro_.can_id() || frame.extended != gyro_.extended()) continue;
+        protocol::GyroSample s;
+        if (gyro_.decode(frame, &s) != protocol::DecodeResult::kOk) return CanRx::kRejected;
+        if (gyro) *gyro = s;
+        if (s.saturated) {  // the sensor says the rate is not usable: never fused
+          ++stats_.gyro_saturated;
+          return CanRx::kGyroSaturated;
+        }
+        on_gyro(s.t_ns, s.gyro_z_radps);
+        return CanRx::kGyro;
+      }
+      default:  // an input without a receiver here
+        continue;
+    }
   }
-  if (r == protocol::DecodeResult::kNotOdometry) ++stats_.can_rx_other;
-  return false;
+  ++stats_.can_rx_other;
+  return CanRx::kOther;
 }
 
 bool Localizer::odometry_timed_out(std::int64_t now_ns) const {
@@ -266,6 +302,16 @@ void Localizer::tick(std::int64_t now_ns, OutFrames* out, TickRecord* rec) {
   if (odom_rej != odom_rejected_seen_) {
     st.faults |= protocol::fault::kOdomE2E;
     odom_rejected_seen_ = odom_rej;
+  }
+  // Gyro: timed out after samples were seen (any source), or configured on CAN and silent (or
+  // only saturated) since the first tick for longer than the timeout.
+  const bool gyro_never = cfg_.protocol.gyro.enabled && stats_.gyro_samples == 0 &&
+                          now_ns - first_tick_ns_ > cfg_.gyro_timeout_ns;
+  if (gyro_timed_out(now_ns) || gyro_never) st.faults |= protocol::fault::kImuTimeout;
+  const std::uint64_t gyro_rej = gyro_.counters().rejected();
+  if (gyro_rej != gyro_rejected_seen_) {
+    st.faults |= protocol::fault::kImuE2E;
+    gyro_rejected_seen_ = gyro_rej;
   }
   if (have_can_state_) st.faults |= can_faults_.update(can_state_, can_stats_);
   if (overrun_) st.faults |= protocol::fault::kLoopOverrun;

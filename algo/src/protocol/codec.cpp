@@ -25,8 +25,21 @@ Msg odom_msg(const OdometryConfig& o) {
   return o.mode == OdometryMode::kWheels ? Msg::kOdomWheels : Msg::kOdomTwist;
 }
 
+std::uint16_t gyro_data_id(const GyroConfig& g) {
+  return g.data_id != 0 ? g.data_id : message_def(Msg::kGyro).data_id;
+}
+
 bool finite(double v) { return std::isfinite(v); }
 constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// AGV_Status flag signals: fault::* bit i is kFaultSignals[i], reject::* bit i kRejectSignals[i].
+constexpr const char* kFaultSignals[] = {
+    "FaultCameraStalled", "FaultCameraError", "FaultOdomTimeout", "FaultOdomE2E",
+    "FaultCanErrorPassive", "FaultCanBusOff", "FaultNoMap", "FaultLoopOverrun",
+    "FaultImuTimeout", "FaultImuE2E"};
+constexpr const char* kRejectSignals[] = {"RejectGate", "RejectUnknownLandmark",
+                                          "RejectDecodeFailed", "RejectGeometry",
+                                          "RejectFixTooOld"};
 
 }  // namespace
 
@@ -61,6 +74,23 @@ std::string validate(const ProtocolConfig& cfg) {
   if (cfg.odometry.max_delta_counter < 1 || cfg.odometry.max_delta_counter > 14) {
     return "odometry.max_delta_counter must be 1..14";
   }
+  if (cfg.gyro.enabled) {
+    const std::uint32_t gyro_id = can_id_of(cfg, Msg::kGyro);
+    if (gyro_id > (cfg.odometry.extended_id ? kCanExtIdMask : kCanStdIdMask)) {
+      return "gyro CAN ID does not fit its ID type";
+    }
+    if (gyro_id == odom_id) return "gyro CAN ID collides with the odometry CAN ID";
+    if (cfg.odometry.extended_id == cfg.extended_ids) {
+      for (const MessageDef& m : message_table()) {
+        if (m.dir == Direction::kTx && cfg.base_id + m.id_offset == gyro_id) {
+          return std::string("gyro CAN ID collides with ") + m.name;
+        }
+      }
+    }
+    if (cfg.gyro.max_delta_counter < 1 || cfg.gyro.max_delta_counter > 14) {
+      return "gyro.max_delta_counter must be 1..14";
+    }
+  }
   return {};
 }
 
@@ -68,13 +98,20 @@ std::uint32_t can_id_of(const ProtocolConfig& cfg, Msg m) {
   const MessageDef& d = message_def(m);
   if (d.dir == Direction::kRx) {
     if (m == odom_msg(cfg.odometry) && cfg.odometry.can_id != 0) return cfg.odometry.can_id;
+    if (m == Msg::kGyro && cfg.gyro.can_id != 0) return cfg.gyro.can_id;
     return cfg.base_id + d.id_offset;
   }
   return (cfg.base_id + d.id_offset) & (cfg.extended_ids ? kCanExtIdMask : kCanStdIdMask);
 }
 
 bool is_extended(const ProtocolConfig& cfg, Msg m) {
+  // Every input shares the odometry's ID type (GyroConfig has none of its own).
   return message_def(m).dir == Direction::kRx ? cfg.odometry.extended_id : cfg.extended_ids;
+}
+
+bool rx_enabled(const ProtocolConfig& cfg, Msg m) {
+  if (m == Msg::kGyro) return cfg.gyro.enabled;
+  return m == odom_msg(cfg.odometry);
 }
 
 // ---------------------------------------------------------------------------------- Encoder
@@ -141,17 +178,13 @@ void Encoder::encode_status(const StatusOut& s, hal::CanFrame* out) {
   put_raw(sig(Msg::kStatus, "LastLandmarkId"), s.last_landmark_id, out->data);
   const bool never = !(s.time_since_fix_ms >= 0.0);  // negative or NaN
   put_phys(sig(Msg::kStatus, "TimeSinceFix"), never ? kInf : s.time_since_fix_ms, out->data);
-  const SignalDef& f0 = sig(Msg::kStatus, "FaultCameraStalled");
-  const SignalDef& r0 = sig(Msg::kStatus, "RejectGate");
-  for (int i = 0; i < 8; ++i) {
-    SignalDef b = f0;
-    b.start_bit = static_cast<std::uint8_t>(f0.start_bit + i);
-    put_raw(b, (s.faults >> i) & 1, out->data);
+  int i = 0;
+  for (const char* name : kFaultSignals) {  // fault bits 10..15 have no signal and are not sent
+    put_raw(sig(Msg::kStatus, name), (s.faults >> i++) & 1, out->data);
   }
-  for (int i = 0; i < 5; ++i) {  // bits 5..7 are reserved and stay 0
-    SignalDef b = r0;
-    b.start_bit = static_cast<std::uint8_t>(r0.start_bit + i);
-    put_raw(b, (s.rejections >> i) & 1, out->data);
+  i = 0;
+  for (const char* name : kRejectSignals) {  // bits 5..7 are reserved and stay 0
+    put_raw(sig(Msg::kStatus, name), (s.rejections >> i++) & 1, out->data);
   }
   finish(Msg::kStatus, out);
 }
@@ -173,7 +206,8 @@ void Encoder::encode_heartbeat(const HeartbeatOut& h, hal::CanFrame* out) {
 Msg identify(const ProtocolConfig& cfg, const hal::CanFrame& f) {
   for (const MessageDef& m : message_table()) {
     if (f.id == can_id_of(cfg, m.msg) && f.extended == is_extended(cfg, m.msg)) {
-      if (m.dir == Direction::kRx && m.msg != odom_msg(cfg.odometry) && cfg.odometry.can_id != 0) {
+      if ((m.msg == Msg::kOdomWheels || m.msg == Msg::kOdomTwist) &&
+          m.msg != odom_msg(cfg.odometry) && cfg.odometry.can_id != 0) {
         continue;  // the inactive odometry variant has no configured ID
       }
       return m.msg;
@@ -227,7 +261,12 @@ bool decode_status(const ProtocolConfig& cfg, const hal::CanFrame& f, StatusOut*
       static_cast<std::uint16_t>(get_raw(sig(Msg::kStatus, "LastLandmarkId"), f.data));
   const std::int64_t t = get_raw(sig(Msg::kStatus, "TimeSinceFix"), f.data);
   out->time_since_fix_ms = t == 65535 ? -1.0 : static_cast<double>(t);
-  out->faults = f.data[6];
+  out->faults = 0;
+  int i = 0;
+  for (const char* name : kFaultSignals) {
+    out->faults = static_cast<std::uint16_t>(
+        out->faults | (get_raw(sig(Msg::kStatus, name), f.data) << i++));
+  }
   out->rejections = f.data[7];
   return true;
 }
@@ -269,6 +308,57 @@ const char* to_string(DecodeResult r) {
   return "?";
 }
 
+namespace {
+
+// The checks every input frame passes before its signals are read, in this order: ID and ID type,
+// length, receive time (stale before E2E, so a replayed old frame does not move the counter
+// reference), then CRC and alive counter when protected. C: OdometryCounters or GyroCounters.
+// On kOk *lost is the number of frames the E2E counter says were lost just before this one.
+template <typename C>
+DecodeResult check_input(const hal::CanFrame& f, std::uint32_t id, bool ext, bool protected_e2e,
+                         std::int64_t last_ok_ns, E2eChecker* checker, C* counters,
+                         std::uint32_t* lost) {
+  *lost = 0;
+  if (f.id != id || f.extended != ext) return DecodeResult::kNotOdometry;
+  if (f.len != kE2eFrameLen) {
+    ++counters->bad_length;
+    return DecodeResult::kBadLength;
+  }
+  if (last_ok_ns != INT64_MIN && f.t_ns < last_ok_ns) {
+    ++counters->stale;
+    return DecodeResult::kStale;
+  }
+  if (!protected_e2e) return DecodeResult::kOk;
+  const std::uint64_t lost_before = checker->counters().lost_frames;
+  switch (checker->check(f)) {
+    case E2eStatus::kOk:
+    case E2eStatus::kInitial:
+      return DecodeResult::kOk;
+    case E2eStatus::kOkSomeLost:
+      *lost = static_cast<std::uint32_t>(checker->counters().lost_frames - lost_before);
+      counters->lost_frames += *lost;
+      return DecodeResult::kOk;
+    case E2eStatus::kRepeated:
+      ++counters->repeated;
+      return DecodeResult::kRepeated;
+    case E2eStatus::kWrongSequence:
+      ++counters->counter_jump;
+      return DecodeResult::kCounterJump;
+    case E2eStatus::kBadCrc:
+      ++counters->bad_crc;
+      return DecodeResult::kBadCrc;
+    case E2eStatus::kBadLength:
+      ++counters->bad_length;
+      return DecodeResult::kBadLength;
+    case E2eStatus::kBadCounter:
+      ++counters->bad_counter;
+      return DecodeResult::kBadCounter;
+  }
+  return DecodeResult::kBadCrc;  // unreachable: every status is handled above
+}
+
+}  // namespace
+
 OdometryDecoder::OdometryDecoder(const ProtocolConfig& cfg)
     : cfg_(cfg.odometry),
       id_(can_id_of(cfg, odom_msg(cfg.odometry))),
@@ -277,44 +367,10 @@ OdometryDecoder::OdometryDecoder(const ProtocolConfig& cfg)
       last_ok_ns_(INT64_MIN) {}
 
 DecodeResult OdometryDecoder::decode(const hal::CanFrame& f, OdomSample* out) {
-  if (f.id != id_ || f.extended != ext_) return DecodeResult::kNotOdometry;
-  if (f.len != kE2eFrameLen) {
-    ++counters_.bad_length;
-    return DecodeResult::kBadLength;
-  }
-  // Stale before E2E, so a replayed old frame does not move the counter reference.
-  if (last_ok_ns_ != INT64_MIN && f.t_ns < last_ok_ns_) {
-    ++counters_.stale;
-    return DecodeResult::kStale;
-  }
   std::uint32_t lost = 0;
-  if (cfg_.protected_e2e) {
-    const std::uint64_t lost_before = checker_.counters().lost_frames;
-    switch (checker_.check(f)) {
-      case E2eStatus::kOk:
-      case E2eStatus::kInitial:
-        break;
-      case E2eStatus::kOkSomeLost:
-        lost = static_cast<std::uint32_t>(checker_.counters().lost_frames - lost_before);
-        counters_.lost_frames += lost;
-        break;
-      case E2eStatus::kRepeated:
-        ++counters_.repeated;
-        return DecodeResult::kRepeated;
-      case E2eStatus::kWrongSequence:
-        ++counters_.counter_jump;
-        return DecodeResult::kCounterJump;
-      case E2eStatus::kBadCrc:
-        ++counters_.bad_crc;
-        return DecodeResult::kBadCrc;
-      case E2eStatus::kBadLength:
-        ++counters_.bad_length;
-        return DecodeResult::kBadLength;
-      case E2eStatus::kBadCounter:
-        ++counters_.bad_counter;
-        return DecodeResult::kBadCounter;
-    }
-  }
+  const DecodeResult r =
+      check_input(f, id_, ext_, cfg_.protected_e2e, last_ok_ns_, &checker_, &counters_, &lost);
+  if (r != DecodeResult::kOk) return r;
   OdomSample s;
   s.t_ns = f.t_ns;
   s.lost_before = lost;
@@ -345,6 +401,48 @@ void encode_odometry(const ProtocolConfig& cfg, double a, double b, std::uint8_t
   put_phys(d.signals[2], a, out->data);
   put_phys(d.signals[3], b, out->data);
   e2e_protect(odom_data_id(cfg.odometry), static_cast<std::uint8_t>(counter % kE2eCounterModulo),
+              out->data);
+}
+
+// --------------------------------------------------------------------------- GyroDecoder
+
+GyroDecoder::GyroDecoder(const ProtocolConfig& cfg)
+    : cfg_(cfg.gyro),
+      id_(can_id_of(cfg, Msg::kGyro)),
+      ext_(is_extended(cfg, Msg::kGyro)),
+      checker_(E2eCheckerConfig{gyro_data_id(cfg.gyro), cfg.gyro.max_delta_counter}),
+      last_ok_ns_(INT64_MIN) {}
+
+DecodeResult GyroDecoder::decode(const hal::CanFrame& f, GyroSample* out) {
+  std::uint32_t lost = 0;
+  const DecodeResult r =
+      check_input(f, id_, ext_, cfg_.protected_e2e, last_ok_ns_, &checker_, &counters_, &lost);
+  if (r != DecodeResult::kOk) return r;
+  GyroSample s;
+  s.t_ns = f.t_ns;
+  s.lost_before = lost;
+  s.saturated = get_raw(sig(Msg::kGyro, "Saturated"), f.data) != 0;
+  s.gyro_z_radps = get_phys(sig(Msg::kGyro, "GyroZ"), f.data);
+  s.gyro_x_radps = get_phys(sig(Msg::kGyro, "GyroX"), f.data);
+  s.gyro_y_radps = get_phys(sig(Msg::kGyro, "GyroY"), f.data);
+  ++counters_.accepted;
+  if (s.saturated) ++counters_.saturated;
+  last_ok_ns_ = f.t_ns;
+  *out = s;
+  return DecodeResult::kOk;
+}
+
+void encode_gyro(const ProtocolConfig& cfg, const GyroSample& s, std::uint8_t counter,
+                 hal::CanFrame* out) {
+  *out = hal::CanFrame{};
+  out->id = can_id_of(cfg, Msg::kGyro);
+  out->extended = is_extended(cfg, Msg::kGyro);
+  out->len = message_def(Msg::kGyro).dlc;
+  put_raw(sig(Msg::kGyro, "Saturated"), s.saturated ? 1 : 0, out->data);
+  put_phys(sig(Msg::kGyro, "GyroZ"), s.gyro_z_radps, out->data);
+  put_phys(sig(Msg::kGyro, "GyroX"), s.gyro_x_radps, out->data);
+  put_phys(sig(Msg::kGyro, "GyroY"), s.gyro_y_radps, out->data);
+  e2e_protect(gyro_data_id(cfg.gyro), static_cast<std::uint8_t>(counter % kE2eCounterModulo),
               out->data);
 }
 

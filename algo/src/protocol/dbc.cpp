@@ -2,14 +2,23 @@
 
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 
 namespace agv::protocol {
 
 std::string format_number(double v) {
-  char buf[40];
+  char buf[400];  // fixed notation of any double fits
   for (int prec = 1; prec <= 17; ++prec) {
     std::snprintf(buf, sizeof buf, "%.*g", prec, v);
     if (std::strtod(buf, nullptr) == v) break;
+  }
+  // Not every DBC reader takes an exponent (npm candied silently drops a signal whose factor is
+  // "1e-05"): the shortest fixed notation that reads back the same instead.
+  if (std::strchr(buf, 'e') != nullptr) {
+    for (int decimals = 0; decimals <= 340; ++decimals) {
+      std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
+      if (std::strtod(buf, nullptr) == v) break;
+    }
   }
   return buf;
 }

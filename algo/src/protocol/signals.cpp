@@ -79,6 +79,12 @@ constexpr SignalDef kStatus[] = {
     {"FaultNoMap", 54, 1, true, false, 1, 0, 0, 1, "", "Landmark map missing or invalid"},
     {"FaultLoopOverrun", 55, 1, true, false, 1, 0, 0, 1, "",
      "The real-time loop missed its deadline since the last status frame"},
+    // The two gyro flags sit in the free upper bits of byte 1 (after Health): byte 6 is full and
+    // byte 7 keeps its reserved bits for further rejection flags.
+    {"FaultImuTimeout", 14, 1, true, false, 1, 0, 0, 1, "",
+     "No usable AGV_Gyro sample within the gyro timeout (silent, saturated or rejected gyro)"},
+    {"FaultImuE2E", 15, 1, true, false, 1, 0, 0, 1, "",
+     "AGV_Gyro frames rejected (length, CRC, counter) since the last status frame"},
     {"RejectGate", 56, 1, true, false, 1, 0, 0, 1, "",
      "A landmark fix failed the innovation (Mahalanobis) gate since the last status frame"},
     {"RejectUnknownLandmark", 57, 1, true, false, 1, 0, 0, 1, "",
@@ -118,6 +124,23 @@ constexpr SignalDef kOdomTwist[] = {
      "Yaw rate, counter-clockwise positive"},
 };
 
+constexpr SignalDef kGyro[] = {
+    kCrcSignal,
+    kCounterSignal,
+    {"Saturated", 12, 1, true, false, 1, 0, 0, 1, "",
+     "1: the sensor reports a rate beyond its range or otherwise invalid; the sample is not "
+     "fused"},
+    // 24 bits byte-aligned (readable in a raw candump): 1e-5 rad/s = 0.00057 deg/s, +-83.9 rad/s
+    // covers every MEMS range (+-2000 deg/s = 34.9 rad/s).
+    {"GyroZ", 16, 24, true, true, 0.00001, 0, -83.88608, 83.88607, "rad/s",
+     "Yaw rate about the vehicle z axis (up), counter-clockwise positive; the sender maps the "
+     "sensor's mounting onto the vehicle axes"},
+    {"GyroX", 40, 12, true, true, 0.002, 0, -4.096, 4.094, "rad/s",
+     "Roll rate about the vehicle x axis (forward); informational, not fused"},
+    {"GyroY", 52, 12, true, true, 0.002, 0, -4.096, 4.094, "rad/s",
+     "Pitch rate about the vehicle y axis (left); informational, not fused"},
+};
+
 const MessageDef kMessages[] = {
     {Msg::kPoseXY, "AGV_PoseXY", 0x00, 0x4C00, 8, Direction::kTx, 10,
      "Vehicle position. Sent together with AGV_PoseHeading from the same estimate; both carry "
@@ -143,6 +166,11 @@ const MessageDef kMessages[] = {
      "Odometry input, v/omega variant (config can.odometry.mode: v_omega). CRC and "
      "AliveCounter are checked only when can.odometry.protected is true.",
      kOdomTwist},
+    // id_offset 0x12: the first free input offset after the odometry frames (0x10, 0x11).
+    {Msg::kGyro, "AGV_Gyro", 0x12, 0x4C12, 8, Direction::kRx, 10,
+     "Gyro (IMU) rate input; received only with can.gyro.enabled. CRC and AliveCounter are "
+     "checked only when can.gyro.protected is true. Samples with Saturated = 1 are not fused.",
+     kGyro},
 };
 static_assert(sizeof kMessages / sizeof kMessages[0] == static_cast<std::size_t>(Msg::kCount));
 

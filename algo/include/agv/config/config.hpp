@@ -36,6 +36,11 @@ struct CanSection {
   // The one odometry timeout: pose validity and the filter's odometry flag (the key also sets
   // fusion.odom_timeout_ns).
   double odometry_timeout_ms = 100.0;
+  // The gyro input AGV_Gyro (protocol::GyroConfig; ID type = can.extended_ids).
+  bool gyro_enabled = false;
+  std::uint32_t gyro_id = 0;  // 0 = the DBC's ID: base_id + 0x12
+  bool gyro_protected = true;
+  double gyro_timeout_ms = 100.0;  // -> LocalizerConfig::gyro_timeout_ns
 };
 
 // The odometry correction (localizer::OdometryCorrection; written by calibrate vehicle).
@@ -43,6 +48,13 @@ struct OdometrySection {
   double speed_scale = 1.0;
   double yaw_rate_scale = 1.0;
   double yaw_rate_bias_radps = 0.0;
+  double time_offset_ms = 0.0;
+};
+
+// The gyro correction (localizer::GyroCorrection).
+struct ImuSection {
+  double scale = 1.0;
+  double bias_radps = 0.0;
   double time_offset_ms = 0.0;
 };
 
@@ -64,6 +76,7 @@ struct Config {
   std::string map_file;  // resolved relative to the config file; empty = payload poses only
   CanSection can;
   OdometrySection odometry;
+  ImuSection imu;
   LoopSection loop;
   vision::VisionConfig vision;
   fusion::EkfConfig fusion;
@@ -84,5 +97,14 @@ bool parse_config(const std::string& yaml_text, const std::string& base_dir, Con
                   std::vector<std::string>* errors, ConfigUse use = ConfigUse::kLive);
 // The CAN protocol configuration implied by the can section.
 protocol::ProtocolConfig protocol_config(const Config& cfg);
+// The gyro part of it (can.gyro.*): protocol_config(cfg).gyro is left at its defaults (disabled),
+// so whoever receives AGV_Gyro sets ProtocolConfig::gyro from this (firmware localizer_config).
+inline protocol::GyroConfig gyro_protocol_config(const Config& cfg) {
+  protocol::GyroConfig g;
+  g.enabled = cfg.can.gyro_enabled;
+  g.can_id = cfg.can.gyro_id;
+  g.protected_e2e = cfg.can.gyro_protected;
+  return g;
+}
 
 }  // namespace agv::config

@@ -1,4 +1,4 @@
-// The localizer core: odometry, CAN frames and vision results in; the CAN frames to send out.
+// The localizer core: odometry, gyro, CAN frames and vision results in; the CAN frames to send out.
 // Owns fusion (fusion::Ekf) and the output policy: pose validity, health, fault latching,
 // rejection flags, heartbeat. Pure: no bus, no clock, no threads; the caller passes the time and
 // sends the frames (firmware/src/output_loop.*). After construction none of its methods
@@ -46,8 +46,10 @@ struct LocalizerConfig {
   protocol::ProtocolConfig protocol;
   OdometryCorrection odometry;
   GyroCorrection gyro;
-  // No accepted gyro sample for this long while gyro samples were seen before sets FaultImu
-  // (the filter falls back to the wheels by itself; docs/fusion.md "Gyro").
+  // No accepted gyro sample for this long while gyro samples were seen before sets
+  // FaultImuTimeout (the filter falls back to the wheels by itself; docs/fusion.md "Gyro"). With
+  // the CAN gyro enabled (protocol.gyro.enabled) also when none has arrived this long after the
+  // first tick. Key can.gyro.timeout_ms.
   std::int64_t gyro_timeout_ns = 100'000'000;
   // THE odometry timeout: no accepted sample (CAN or recording) for this long makes the pose
   // invalid, sets FaultOdomTimeout and the EKF's kOdomTimeout flag. Trade-off: short stops a
@@ -66,6 +68,9 @@ struct OutputStats {
   std::uint64_t odom_rejected = 0;  // by the EKF (time or plausibility)
   std::uint64_t gyro_samples = 0;
   std::uint64_t gyro_rejected = 0;  // by the EKF (time, plausibility, saturation)
+  // CAN gyro frames that passed the decoder but carried the sensor's Saturated bit: not fused
+  // (not in gyro_samples).
+  std::uint64_t gyro_saturated = 0;
   std::uint64_t fixes_received = 0;
   std::uint64_t fixes_fused = 0;
   std::uint64_t fixes_rejected_gate = 0;
@@ -81,11 +86,21 @@ struct OutputStats {
   std::uint64_t can_tx_ok = 0;
   std::uint64_t can_tx_failed = 0;
   std::uint64_t can_rx_frames = 0;
-  std::uint64_t can_rx_other = 0;     // frames that are not odometry (ignored)
+  std::uint64_t can_rx_other = 0;     // frames of no enabled input message (ignored)
   LatencyHistogram fusion_ns;         // tick(): estimate and policy for one period
   LatencyHistogram can_send_ns;       // all sends of one tick
   LatencyHistogram end_to_end_ns;     // first pose frame sent after a fix - that frame's exposure
   LatencyHistogram period_jitter_ns;  // |actual wake-up - scheduled wake-up|
+};
+
+// What one received CAN frame was (Localizer::on_can_frame, three-argument form).
+enum class CanRx : std::uint8_t {
+  kOdometry,       // odometry that passed the decoder's checks, handed to on_odometry
+  kGyro,           // gyro sample that passed the decoder's checks, handed to on_gyro (which may
+                   // still reject it: stats().gyro_rejected)
+  kGyroSaturated,  // gyro frame that passed the checks with the Saturated bit: counted, not fused
+  kRejected,       // an enabled input message that failed its decoder's checks (counted there)
+  kOther,          // no enabled input message: counted in can_rx_other, ignored
 };
 
 // What one tick produced (replay writes these to poses.csv).
@@ -119,13 +134,22 @@ class Localizer {
   bool on_gyro(std::int64_t t_ns, double gyro_z_radps);
   // True when gyro samples were seen and none was accepted within gyro_timeout_ns of now_ns.
   bool gyro_timed_out(std::int64_t now_ns) const;
-  // One received CAN frame: odometry is decoded, checked and fused, others counted and ignored.
+  // One received CAN frame, dispatched by ID over the enabled input messages of the signal table
+  // (protocol::rx_enabled): odometry is decoded, checked and handed to on_odometry, AGV_Gyro
+  // (with protocol.gyro.enabled) decoded, checked and handed to on_gyro unless the sensor flagged
+  // it saturated (then counted in stats().gyro_saturated); other frames are counted and ignored.
   // Returns true when the frame was odometry that passed the decoder's checks; *sample (if not
   // null) is then what was handed to on_odometry, so the caller can keep the run's input for a
   // replay of exactly what fusion saw (replay --odom-from-can writes odom_received.csv).
   bool on_can_frame(const hal::CanFrame& f, protocol::OdomSample* sample = nullptr);
-  // The receive filter for the odometry frame (the kernel drops the rest).
-  hal::CanFilter odometry_filter() const;
+  // The same, telling what the frame was: *odom (if not null) is filled for kOdometry, *gyro (if
+  // not null) for kGyro and kGyroSaturated (the decoded sample, before GyroCorrection).
+  CanRx on_can_frame(const hal::CanFrame& f, protocol::OdomSample* odom, protocol::GyroSample* gyro);
+  // The receive filters, one per enabled input message in signal-table order (the odometry
+  // frame, then AGV_Gyro when enabled), so the kernel drops the rest. Writes at most max
+  // filters to out and returns how many the configuration needs (more than max: truncated).
+  int receive_filters(hal::CanFilter* out, int max) const;
+  static constexpr int kMaxReceiveFilters = 2;  // odometry + gyro
   // A vision result for a frame exposed at t_exposure_ns, ready at t_arrival_ns (same clock).
   // Failed fixes only set status flags. An exposure after the arrival can only come from a
   // camera clock that jumped ahead: rejected as invalid, never fused at a time it was not taken.
@@ -168,6 +192,7 @@ class Localizer {
   OutputStats& mutable_stats() { return stats_; }
   const fusion::Ekf& ekf() const { return ekf_; }
   const protocol::OdometryDecoder& odometry_decoder() const { return odom_; }
+  const protocol::GyroDecoder& gyro_decoder() const { return gyro_; }
   bool odometry_timed_out(std::int64_t now_ns) const;
 
  private:
@@ -180,9 +205,11 @@ class Localizer {
   fusion::Ekf ekf_;
   protocol::Encoder encoder_;
   protocol::OdometryDecoder odom_;
+  protocol::GyroDecoder gyro_;
   std::int64_t last_odom_ns_ = INT64_MIN;
   std::int64_t last_gyro_ns_ = INT64_MIN;
   std::uint64_t odom_rejected_seen_ = 0;
+  std::uint64_t gyro_rejected_seen_ = 0;  // gyro decoder rejections up to the last status frame
   std::int64_t next_heartbeat_ns_ = INT64_MIN;
   std::int64_t first_tick_ns_ = INT64_MIN;
   std::int64_t last_frame_ns_ = INT64_MIN;

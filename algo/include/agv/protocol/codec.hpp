@@ -1,4 +1,4 @@
-// Encoder for the localizer's output frames and decoder for the odometry input frames
+// Encoder for the localizer's output frames and decoders for the input frames (odometry, gyro)
 // (layout: signals.hpp, contract: can/agvloc.dbc, rules: docs/can.md). Pure: no I/O, no clocks,
 // no heap; time is an argument.
 #pragma once
@@ -35,19 +35,38 @@ struct OdometryConfig {
   double omega_scale = 1.0;
 };
 
+// The gyro input AGV_Gyro (Msg::kGyro). Its ID type is the odometry's
+// (OdometryConfig::extended_id): both inputs come from the vehicle side of the same bus.
+struct GyroConfig {
+  // Receive AGV_Gyro at all (Localizer: a receive filter, decoding, fusion, FaultImu* flags).
+  // GyroDecoder itself decodes whatever it is given.
+  bool enabled = false;
+  // CAN ID of the gyro frame. Default base_id + 0x12 (signals.cpp) when 0.
+  std::uint32_t can_id = 0;
+  // true: CRC and alive counter are checked; false: only ID and length (as for odometry).
+  bool protected_e2e = true;
+  std::uint16_t data_id = 0;           // 0 = the DBC's data ID (0x4C12)
+  std::uint8_t max_delta_counter = 3;  // see E2eCheckerConfig
+};
+
 struct ProtocolConfig {
   // CAN ID of AGV_PoseXY; the other output frames follow at +1..+5 (signals.hpp id_offset).
   std::uint32_t base_id = 0x300;
   bool extended_ids = false;  // 29-bit IDs for the output frames
   OdometryConfig odometry;
+  GyroConfig gyro;
 };
 
-// Empty string when valid; otherwise why not (ID does not fit 11/29 bits, track width <= 0, ...).
+// Empty string when valid; otherwise why not (ID does not fit 11/29 bits, track width <= 0, an
+// enabled gyro ID equal to an output or the odometry ID, ...).
 std::string validate(const ProtocolConfig& cfg);
 
-// CAN ID of message m under cfg (odometry IDs honour OdometryConfig::can_id).
+// CAN ID of message m under cfg (input IDs honour OdometryConfig::can_id / GyroConfig::can_id).
 std::uint32_t can_id_of(const ProtocolConfig& cfg, Msg m);
 bool is_extended(const ProtocolConfig& cfg, Msg m);
+// True for the input (kRx) messages the localizer receives under cfg: the odometry variant of
+// OdometryConfig::mode, and AGV_Gyro when GyroConfig::enabled. False for every output message.
+bool rx_enabled(const ProtocolConfig& cfg, Msg m);
 
 struct PoseOut {
   double x_mm = 0.0;
@@ -73,7 +92,8 @@ struct QualityOut {
 
 enum class Health : std::uint8_t { kOk = 0, kDegraded = 1, kLost = 2, kFault = 3 };
 
-// Fault and rejection flags: bit i = the i-th flag signal of AGV_Status (signals.cpp order).
+// Fault flags: bits 0..7 = the Fault* signals of AGV_Status in byte 6 (bits 48..55, signals.cpp
+// order); bits 8, 9 = FaultImuTimeout / FaultImuE2E (frame bits 14, 15: byte 6 is full).
 namespace fault {
 inline constexpr std::uint8_t kCameraStalled = 1u << 0;
 inline constexpr std::uint8_t kCameraError = 1u << 1;
@@ -83,6 +103,10 @@ inline constexpr std::uint8_t kCanErrorPassive = 1u << 4;
 inline constexpr std::uint8_t kCanBusOff = 1u << 5;
 inline constexpr std::uint8_t kNoMap = 1u << 6;
 inline constexpr std::uint8_t kLoopOverrun = 1u << 7;
+// No usable gyro sample within the gyro timeout (condition flag).
+inline constexpr std::uint16_t kImuTimeout = 1u << 8;
+// AGV_Gyro frames rejected by the decoder since the last status frame (event flag).
+inline constexpr std::uint16_t kImuE2E = 1u << 9;
 }  // namespace fault
 namespace reject {
 inline constexpr std::uint8_t kGate = 1u << 0;
@@ -96,7 +120,7 @@ struct StatusOut {
   Health health = Health::kLost;
   std::uint16_t last_landmark_id = 0;  // 0 = none
   double time_since_fix_ms = -1.0;     // negative or non-finite = never (sent as 65535)
-  std::uint8_t faults = 0;             // fault::*
+  std::uint16_t faults = 0;            // fault::* (bits 10..15 must be 0)
   std::uint8_t rejections = 0;         // reject::* (bits 5..7 must be 0)
 };
 struct HeartbeatOut {
@@ -137,7 +161,8 @@ bool decode_quality(const ProtocolConfig& cfg, const hal::CanFrame& f, QualityOu
 bool decode_status(const ProtocolConfig& cfg, const hal::CanFrame& f, StatusOut* out);
 bool decode_heartbeat(const ProtocolConfig& cfg, const hal::CanFrame& f, HeartbeatOut* out,
                       int* protocol_version);
-// Which message a frame is under cfg; Msg::kCount when none.
+// Which message a frame is under cfg (by ID and ID type; an input message whether enabled or
+// not); Msg::kCount when none.
 Msg identify(const ProtocolConfig& cfg, const hal::CanFrame& f);
 
 // One odometry measurement, in the units of docs/frames.md.
@@ -152,7 +177,7 @@ struct OdomSample {
 
 enum class DecodeResult : std::uint8_t {
   kOk = 0,
-  kNotOdometry,  // other ID or ID type: ignored, not counted as an error
+  kNotOdometry,  // other ID or ID type (not this decoder's message): ignored, not counted
   kBadLength,    // len != 8
   kBadCrc,
   kRepeated,     // alive counter did not advance
@@ -199,6 +224,60 @@ class OdometryDecoder {
   bool ext_;
   E2eChecker checker_;
   OdometryCounters counters_;
+  std::int64_t last_ok_ns_;
+};
+
+// One gyro measurement (AGV_Gyro), rates in rad/s about the vehicle axes (docs/frames.md).
+struct GyroSample {
+  std::int64_t t_ns = 0;      // frame receive timestamp
+  double gyro_z_radps = 0.0;  // yaw rate, counter-clockwise positive
+  bool saturated = false;     // the sensor's Saturated bit: the rates must not be fused
+  double gyro_x_radps = 0.0;  // roll rate (informational)
+  double gyro_y_radps = 0.0;  // pitch rate (informational)
+  std::uint32_t lost_before = 0;  // frames lost just before this one (E2E gap)
+};
+
+struct GyroCounters {
+  std::uint64_t accepted = 0;   // passed ID, length, E2E and time checks (saturated included)
+  std::uint64_t saturated = 0;  // accepted frames with Saturated = 1
+  std::uint64_t lost_frames = 0;
+  std::uint64_t bad_length = 0;
+  std::uint64_t bad_crc = 0;
+  std::uint64_t repeated = 0;
+  std::uint64_t counter_jump = 0;
+  std::uint64_t bad_counter = 0;
+  std::uint64_t stale = 0;
+  std::uint64_t rejected() const {
+    return bad_length + bad_crc + repeated + counter_jump + bad_counter + stale;
+  }
+};
+
+// Gyro side (simulators, tests, the HIL peer): one AGV_Gyro frame as the DBC describes it, with
+// s's rates and Saturated bit (s.t_ns and s.lost_before are ignored), E2E-protected with
+// `counter` (0..14) whether or not the receiver checks it. Rates saturate at the signal ranges.
+void encode_gyro(const ProtocolConfig& cfg, const GyroSample& s, std::uint8_t counter,
+                 hal::CanFrame* out);
+
+// AGV_Gyro decoder, the same checks and order as OdometryDecoder (ID, length, stale, E2E when
+// GyroConfig::protected_e2e). A frame with Saturated = 1 is kOk with sample.saturated set (and
+// counted): whether to fuse it is the caller's decision (the Localizer does not).
+class GyroDecoder {
+ public:
+  explicit GyroDecoder(const ProtocolConfig& cfg);
+  // kOk fills *out; anything else leaves it untouched. Rejections are counted.
+  DecodeResult decode(const hal::CanFrame& f, GyroSample* out);
+  // Receive time of the last accepted frame; INT64_MIN when none.
+  std::int64_t last_accepted_ns() const { return last_ok_ns_; }
+  const GyroCounters& counters() const { return counters_; }
+  std::uint32_t can_id() const { return id_; }
+  bool extended() const { return ext_; }
+
+ private:
+  GyroConfig cfg_;
+  std::uint32_t id_;
+  bool ext_;
+  E2eChecker checker_;
+  GyroCounters counters_;
   std::int64_t last_ok_ns_;
 };
 

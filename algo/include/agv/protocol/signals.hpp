@@ -41,13 +41,14 @@ enum class Msg : std::uint8_t {
   kHeartbeat,
   kOdomWheels,
   kOdomTwist,
+  kGyro,  // appended: the indices above stay stable
   kCount
 };
 
 struct MessageDef {
   Msg msg;
   const char* name;
-  std::uint32_t id_offset;  // CAN ID = base_id + id_offset (default; odometry IDs configurable)
+  std::uint32_t id_offset;  // CAN ID = base_id + id_offset (default; input IDs configurable)
   std::uint16_t data_id;    // E2E data ID (independent of the CAN ID)
   std::uint8_t dlc;
   Direction dir;
