@@ -417,7 +417,7 @@ struct Sample {
 // estimate of every tick.
 template <typename Feed>
 std::vector<fusion::PoseEstimate> drive(const localizer::LocalizerConfig& c, std::int64_t raw_dt,
-                                        Feed feed) {
+                                        Feed feed, std::int64_t fix_shift_ns = 0) {
   localizer::Localizer loc(c);
   localizer::OutFrames out;
   localizer::TickRecord rec;
@@ -427,7 +427,7 @@ std::vector<fusion::PoseEstimate> drive(const localizer::LocalizerConfig& c, std
     const double w = 0.3 * std::sin(i * 0.02);
     const Sample s = feed(Sample{t + raw_dt, 0.5 + 0.001 * i, w});
     loc.on_odometry(s.t_ns, s.v, s.w);
-    if (t == 1000 * kMs) loc.on_fix(good_fix(100.0), t, t + 5 * kMs);
+    if (t == 1000 * kMs) loc.on_fix(good_fix(100.0), t + fix_shift_ns, t + fix_shift_ns + 5 * kMs);
     loc.tick(t + 5 * kMs, &out, &rec);
     est.push_back(rec.estimate);
   }
@@ -474,12 +474,16 @@ TEST(Localizer, EachOdometryCorrectionKeyChangesTheFusedInputAsStated) {
     auto c = plain;
     c.odometry = k.corr;
     // With the correction configured, raw samples give exactly what the plain localizer gives
-    // when fed v' = s_v v, w' = s_w w + b at t' = t - offset ...
+    // when fed v' = s_v v, w' = s_w w + b, with the camera's exposure moved onto the odometry's
+    // (vehicle's) clock, t' = t + offset (the output stays on the vehicle's clock, issue 33) ...
     const auto corrected = drive(c, k.raw_dt, raw);
-    const auto by_hand = drive(plain, k.raw_dt, [&](Sample s) {
-      return Sample{s.t_ns - k.corr.time_offset_ns, s.v * k.corr.speed_scale,
-                    s.w * k.corr.yaw_rate_scale + k.corr.yaw_rate_bias_radps};
-    });
+    const auto by_hand = drive(
+        plain, k.raw_dt,
+        [&](Sample s) {
+          return Sample{s.t_ns, s.v * k.corr.speed_scale,
+                        s.w * k.corr.yaw_rate_scale + k.corr.yaw_rate_bias_radps};
+        },
+        k.corr.time_offset_ns);
     EXPECT_TRUE(same(corrected, by_hand)) << k.name;
     // ... and not what the plain localizer makes of the raw samples.
     EXPECT_FALSE(same(corrected, drive(plain, k.raw_dt, raw))) << k.name;

@@ -28,33 +28,35 @@ void add_process_noise(std::vector<Key>* k) {
   k->push_back(number("fusion.yaw_accel_sigma_radps2", AGV_AT(fusion.yaw_accel_sigma_radps2), 0.0,
                       100.0, 1.0, {"rad/s² per √s", "yaw-rate random walk; same role"}));
   k->push_back(number("fusion.along_track_sigma_mm_per_sqrt_m",
-                      AGV_AT(fusion.along_track_sigma_mm_per_sqrt_m), 0.0, 1000.0, 1.0,
+                      AGV_AT(fusion.along_track_sigma_mm_per_sqrt_m), 0.0, 1000.0, 0.6,
                       {"mm per √m",
                        "dead-reckoning position noise along the travel beyond the "
                        "calibration states (slip, floor). Too small: good fixes "
                        "fail the gate; too large: misreads pass and σ overstates "
                        "the error"}));
   k->push_back(number("fusion.cross_track_sigma_mm_per_sqrt_m",
-                      AGV_AT(fusion.cross_track_sigma_mm_per_sqrt_m), 0.0, 1000.0, 0.5,
+                      AGV_AT(fusion.cross_track_sigma_mm_per_sqrt_m), 0.0, 1000.0, 0.3,
                       {"mm per √m", "the same across the travel"}));
   k->push_back(deg_as_rad("fusion.heading_sigma_deg_per_sqrt_m",
-                          AGV_AT(fusion.heading_sigma_rad_per_sqrt_m), 0.0, 10.0, 0.05,
+                          AGV_AT(fusion.heading_sigma_rad_per_sqrt_m), 0.0, 10.0, 0.01,
                           {"deg per √m",
                            "heading noise per travelled distance (wheel slip). Too "
                            "small: fixes after long stretches fail the gate; too "
                            "large: heading misreads pass"}));
   k->push_back(deg_as_rad("fusion.heading_drift_sigma_deg_per_sqrt_s",
-                          AGV_AT(fusion.heading_drift_sigma_rad_per_sqrt_s), 0.0, 10.0, 0.15,
+                          AGV_AT(fusion.heading_drift_sigma_rad_per_sqrt_s), 0.0, 10.0, 0.03,
                           {"deg per √s",
-                           "heading drift with time beyond the estimated bias; 0.1 "
-                           "is 0.5–1 mm worse on the lawnmower route, 0.3 makes σ "
-                           "6x too large on the fault suite"}));
+                           "wheel heading drift with time beyond the estimated bias "
+                           "(not used where the gyro carries the heading). Sized with "
+                           "`eval_fusion --honesty` so σ tracks the error between "
+                           "landmarks: 0.15 made σθ 4x the error and the pose lost "
+                           "after 2.5 s"}));
   k->push_back(number("fusion.odom_v_sigma_mps", AGV_AT(fusion.odom_v_sigma_mps), 1e-6, 10.0, 0.005,
                       {"m/s",
                        "noise of one odometry speed sample (encoder quantisation ~0.0015 "
                        "m/s per 10 ms). Larger: σ overstates the error between landmarks"}));
   k->push_back(deg_as_rad("fusion.odom_omega_sigma_degps", AGV_AT(fusion.odom_omega_sigma_radps),
-                          1e-6, 100.0, 0.5,
+                          1e-6, 100.0, 0.2,
                           {"deg/s", "noise of one odometry yaw-rate sample; same role"}));
 }
 
@@ -114,11 +116,52 @@ void add_calibration(std::vector<Key>* k) {
                       AGV_AT(fusion.omega_scale_sigma_per_sqrt_s), 0.0, 1.0, 1e-4,
                       {"per √s", "random walk of the yaw-rate scale; same trade-off"}));
   k->push_back(deg_as_rad("fusion.omega_bias_sigma_degps_per_sqrt_s",
-                          AGV_AT(fusion.omega_bias_sigma_radps_per_sqrt_s), 0.0, 90.0, 0.1,
+                          AGV_AT(fusion.omega_bias_sigma_radps_per_sqrt_s), 0.0, 90.0, 0.004,
                           {"deg/s per √s",
-                           "random walk of the yaw-rate bias: follows a gyro "
-                           "bias swinging ±0.5 deg/s over 2 min (midway p95 1.3 "
-                           "instead of 6.6 mm with 0.005)"}));
+                           "random walk of the wheels' yaw-rate bias (wheel wear, "
+                           "load). 0.1 (the old default, sized for a drifting gyro "
+                           "before the gyro had states of its own) made the heading "
+                           "σ grow 1.2° over a 7 s leg; a gyro's bias is "
+                           "fusion.gyro_bias_walk_degps_per_sqrt_s"}));
+  k->push_back(deg_as_rad("fusion.gyro_noise_density_degps_per_sqrt_hz",
+                          AGV_AT(fusion.gyro_noise_density_radps_per_sqrt_hz), 1e-5, 10.0, 0.01,
+                          {"deg/s per √Hz",
+                           "white rate noise of the gyro (angle random walk; datasheet "
+                           "'noise density'). The heading σ grows by it × √t between "
+                           "landmarks. Too small: fixes after long legs fail the gate; "
+                           "too large: σ overstates the error"}));
+  k->push_back(deg_as_rad("fusion.gyro_init_bias_sigma_degps",
+                          AGV_AT(fusion.init_gyro_bias_sigma_radps), 0.0, 90.0, 0.5,
+                          {"deg/s",
+                           "what the gyro's bias may be after imu.bias_degps (turn-on "
+                           "bias). Learned while standing still and from fixes"}));
+  k->push_back(deg_as_rad("fusion.gyro_bias_walk_degps_per_sqrt_s",
+                          AGV_AT(fusion.gyro_bias_sigma_radps_per_sqrt_s), 0.0, 90.0, 0.002,
+                          {"deg/s per √s",
+                           "random walk of the gyro bias (bias instability, temperature). "
+                           "Larger follows a drifting bias faster and lets σ grow faster"}));
+  k->push_back(number("fusion.gyro_init_scale_sigma", AGV_AT(fusion.init_gyro_scale_sigma), 0.0,
+                      0.5, 0.01,
+                      {"", "what the gyro's scale may be off by after imu.scale (learned over "
+                           "turns between fixes)"}));
+  k->push_back(deg_as_rad("fusion.gyro_saturation_degps", AGV_AT(fusion.gyro_saturation_radps),
+                          1.0, 10000.0, 245.0,
+                          {"deg/s",
+                           "samples at or beyond this are clipped by the sensor and not "
+                           "used (the wheels carry those periods). Just below the "
+                           "configured range"}));
+  k->push_back(number("fusion.wheel_track_mm", AGV_AT(fusion.wheel_track_mm), 10.0, 10000.0,
+                      500.0,
+                      {"mm",
+                       "distance between the drive wheels: a slip's yaw-rate error times "
+                       "half of it is the slip's speed error (corrected while a gyro is "
+                       "fitted)"}));
+  k->push_back(deg_as_rad("fusion.slip_yaw_rate_degps", AGV_AT(fusion.slip_yaw_rate_radps), 0.0,
+                          1000.0, 3.0,
+                          {"deg/s",
+                           "wheels and gyro disagreeing by more than this (plus 10 % of the "
+                           "rate) is a slip. Smaller catches smaller slips and misfires on "
+                           "an uncalibrated track width in turns"}));
   k->push_back(deg_as_rad("fusion.omega_per_v_sigma_degpm_per_sqrt_s",
                           AGV_AT(fusion.omega_per_v_sigma_radpm_per_sqrt_s), 0.0, 90.0, 0.005,
                           {"deg/m per √s", "random walk of the yaw rate per speed"}));
@@ -165,11 +208,13 @@ void add_timing(std::vector<Key>* k) {
                       AGV_AT(fusion.gap_yaw_accel_sigma_radps2), 0.0, 100.0, 1.0,
                       {"rad/s² per √s", "yaw-rate random walk in a gap"}));
   k->push_back(number("fusion.gap_yaw_rate_change_sigma_radps",
-                      AGV_AT(fusion.gap_yaw_rate_change_sigma_radps), 0.0, 100.0, 0.7,
+                      AGV_AT(fusion.gap_yaw_rate_change_sigma_radps), 0.0, 100.0, 0.8,
                       {"rad/s",
                        "the yaw rate may change this much at once in a gap (3σ covers "
-                       "a 2 rad/s arc); heading σ grows 0.7 rad/s × (gap − odom_gap): "
-                       "lost (3°) after a 125 ms gap"}));
+                       "a 2 rad/s arc with 20 % to spare: at 0.7 a 5 s gap across an arc "
+                       "exit left 3σ coverage at 98.3 %); heading σ grows 0.8 rad/s × "
+                       "(gap − odom_gap): lost (3°) after a 115 ms gap. Not used while a "
+                       "gyro covers the gap"}));
 }
 
 void add_health(std::vector<Key>* k) {

@@ -224,10 +224,19 @@ void Ekf::predict_span(FilterVec* x, FilterCov* P, std::int64_t t0_ns, std::int6
       odom_t_ns == kNoOdom ? false : t0_ns <= odom_t_ns + config_.odom_gap_ns;
   // A working gyro still knows the turn: only the speed is unknown then.
   double g = 0.0;
-  const bool gyro_all = gyro_mean(known_end, t1_ns, &g);
+  const bool gyro_all = gyro_mean_hold(known_end, t1_ns, &g);
   if (enters_unknown && !gyro_all) {
+    // The change may have come right after the newest sample, not only once odom_gap_ns had
+    // passed: the heading then already turned by it for that long (gs). Added as one jump of
+    // (heading, yaw rate) = j (gs, 1), so the prediction carries the pair forward together
+    // (without the heading part an arc exit at the start of a gap stayed outside 3 sigma for
+    // 0.25 s: fault row odom_gap_5s_straight).
     const double j = config_.gap_yaw_rate_change_sigma_radps;
+    const double gs = odom_t_ns == kNoOdom ? 0.0 : static_cast<double>(known_end - odom_t_ns) * kNsToS;
     (*P)(kIomega, kIomega) += j * j;
+    (*P)(kItheta, kItheta) += j * j * gs * gs;
+    (*P)(kItheta, kIomega) += j * j * gs;
+    (*P)(kIomega, kItheta) += j * j * gs;
   }
   // Substeps, so the position variance grows as the integral of the speed's random walk
   // (sigma^2 T^3 / 3), not as one step's sigma^2 T^3.
@@ -239,7 +248,7 @@ void Ekf::predict_span(FilterVec* x, FilterCov* P, std::int64_t t0_ns, std::int6
     const std::int64_t step = std::min(kSubstepNs, t1_ns - t);
     const double dt_s = static_cast<double>(step) * kNsToS;
     (*P)(kIv, kIv) += qa * dt_s;
-    if (gyro_all && gyro_mean(t, t + step, &g)) {
+    if (gyro_all && gyro_mean_hold(t, t + step, &g)) {
       set_gyro_rate(x, P, g, dt_s);
       predict(x, P, dt_s, /*velocity_noise=*/false, /*gyro_heading=*/true);
     } else {
@@ -393,6 +402,24 @@ bool Ekf::gyro_mean(std::int64_t t0_ns, std::int64_t t1_ns, double* mean_radps) 
   }
   if (t < t1_ns) return false;
   *mean_radps = integral / static_cast<double>(t1_ns - t0_ns);
+  return true;
+}
+
+bool Ekf::gyro_mean_hold(std::int64_t t0_ns, std::int64_t t1_ns, double* mean_radps) const {
+  if (gyro_size_ == 0) return false;
+  const GyroSample& last = gyro_at(gyro_size_ - 1);
+  if (t1_ns <= last.t_ns) return gyro_mean(t0_ns, t1_ns, mean_radps);
+  // A query between samples (an output tick) holds the newest rate for at most gyro_gap_ns.
+  if (t1_ns - last.t_ns > config_.gyro_gap_ns || std::isnan(last.rate_radps)) return false;
+  if (t0_ns >= last.t_ns) {
+    *mean_radps = last.rate_radps;
+    return true;
+  }
+  double head = 0.0;
+  if (!gyro_mean(t0_ns, last.t_ns, &head)) return false;
+  *mean_radps = (head * static_cast<double>(last.t_ns - t0_ns) +
+                 last.rate_radps * static_cast<double>(t1_ns - last.t_ns)) /
+                static_cast<double>(t1_ns - t0_ns);
   return true;
 }
 

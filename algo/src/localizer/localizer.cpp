@@ -71,8 +71,9 @@ void Localizer::on_odometry(std::int64_t t_ns, double v_mps, double omega_radps)
   ++stats_.odom_samples;
   // THE place the configured odometry correction is applied (OdometryCorrection). Multiplying
   // by exactly 1.0 leaves a value bit-identical; a zero bias is skipped (-0.0 + 0.0 = +0.0).
+  // Its stamp stays: odometry is on the vehicle's clock, the one the output runs on. The
+  // calibrated offset moves the camera's stamps instead (on_fix, prediction_at).
   const OdometryCorrection& c = cfg_.odometry;
-  t_ns -= c.time_offset_ns;
   v_mps *= c.speed_scale;
   omega_radps *= c.yaw_rate_scale;
   if (c.yaw_rate_bias_radps != 0.0) omega_radps += c.yaw_rate_bias_radps;
@@ -175,11 +176,16 @@ void Localizer::on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure_n
     rejections_ |= protocol::reject::kGeometry;
     return;
   }
+  // The camera's clock onto the vehicle's (odometry clock = camera clock + time_offset).
+  t_exposure_ns += cfg_.odometry.time_offset_ns;
   const bool guided = fix.identity == vision::FixIdentity::kMapGuided;
   if (guided) ++stats_.fixes_map_guided;
-  // A map-guided fix never vouches for itself: map_verified false whatever the fix says.
-  switch (ekf_.add_fix(t_exposure_ns, fix.vehicle_in_world, fix.cov_world,
-                       fix.map_verified && !guided, guided)) {
+  // A map-guided fix never vouches for itself, and neither does a tag (the map entry is all it
+  // has: a map that puts it at another tag's pose cannot be caught by the tag): map_verified
+  // means a QR payload the map confirmed.
+  const bool vouches =
+      fix.map_verified && !guided && fix.identity != vision::FixIdentity::kAprilTag;
+  switch (ekf_.add_fix(t_exposure_ns, fix.vehicle_in_world, fix.cov_world, vouches, guided)) {
     case fusion::FixOutcome::kHeld:  // fused (or rejected) when odometry catches up
       return;
     case fusion::FixOutcome::kFused:
@@ -252,7 +258,8 @@ vision::MotionSnapshot Localizer::snapshot_at(std::int64_t t_ns) const {
 }
 
 vision::Prediction Localizer::prediction_at(std::int64_t t_exposure_ns) const {
-  const vision::MotionSnapshot s = snapshot_at(t_exposure_ns);
+  // Asked at a camera exposure: the pose at that moment on the vehicle's clock.
+  vision::MotionSnapshot s = snapshot_at(t_exposure_ns + cfg_.odometry.time_offset_ns);
   vision::Prediction p;
   p.valid = s.valid;
   p.vehicle_in_world = s.vehicle_in_world;

@@ -75,10 +75,10 @@ World make_synthetic_world(const SynthParams& p, double grid_mm) {
       const double T = dt * gyro_every;
       const double ts = static_cast<double>(t) * 1e-9;
       gyro_walk_radps += agv::deg_to_rad(p.gyro_bias_walk_degps_rts) * std::sqrt(T) * n01(grng);
-      double bias = agv::deg_to_rad(p.gyro_bias_degps) + gyro_walk_radps;
+      double gbias = agv::deg_to_rad(p.gyro_bias_degps) + gyro_walk_radps;
       if (p.gyro_bias_step_degps != 0.0 && ts >= p.gyro_bias_step_s)
-        bias += agv::deg_to_rad(p.gyro_bias_step_degps);
-      double g = (1.0 + p.gyro_scale_error) * gyro_turn_rad / T + bias +
+        gbias += agv::deg_to_rad(p.gyro_bias_step_degps);
+      double g = (1.0 + p.gyro_scale_error) * gyro_turn_rad / T + gbias +
                  agv::deg_to_rad(p.gyro_noise_degps_rthz) / std::sqrt(T) * n01(grng);
       const double range = agv::deg_to_rad(p.gyro_range_degps);
       g = std::clamp(g, -range, range);

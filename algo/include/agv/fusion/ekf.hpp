@@ -119,12 +119,13 @@ struct EkfConfig {
   // and the yaw rate may change by gap_yaw_rate_change_sigma_radps at once (arcs start and end
   // within one sample) and random-walks with gap_yaw_accel_sigma_radps2. Half the vehicle's
   // acceleration limits keeps 3 sigma above braking at the full limit for gaps up to 3 s, and
-  // 3 x 0.7 rad/s covers an arc of 2 rad/s (0.5 m radius at 1 m/s) starting or ending anywhere
-  // in the gap. Too small: fixes after a gap are gated although right; too large: the pose goes
-  // lost after shorter gaps (heading sigma 0.7 rad/s x (gap - odom_gap_ns): 3 deg after 125 ms).
+  // 3 x 0.8 rad/s covers an arc of 2 rad/s (0.5 m radius at 1 m/s) starting or ending anywhere
+  // in the gap, with 20 % to spare. Too small: fixes after a gap are gated although right; too
+  // large: the pose goes lost after shorter gaps (heading sigma 0.8 rad/s x (gap - odom_gap_ns)).
+  // A gyro that covers the gap replaces the yaw-rate terms.
   double gap_accel_sigma_mps2 = 0.5;
   double gap_yaw_accel_sigma_radps2 = 1.0;
-  double gap_yaw_rate_change_sigma_radps = 0.7;
+  double gap_yaw_rate_change_sigma_radps = 0.8;
 
   // ---- Fixes ----
   // The reported fix covariance is used as R = fix_cov_scale * R_reported + diag(floor^2).
@@ -459,6 +460,9 @@ class Ekf {
                       const Event* prev = nullptr, Event* out = nullptr) const;
   // Mean gyro rate over (t0_ns, t1_ns] when the kept samples cover it completely.
   bool gyro_mean(std::int64_t t0_ns, std::int64_t t1_ns, double* mean_radps) const;
+  // The same, holding the newest sample's rate up to gyro_gap_ns past it (output ticks between
+  // samples during an odometry gap).
+  bool gyro_mean_hold(std::int64_t t0_ns, std::int64_t t1_ns, double* mean_radps) const;
   // Sets omega from a gyro mean over dt_s (the gyro calibration states, the rate noise).
   void set_gyro_rate(FilterVec* x, FilterCov* P, double gyro_radps, double dt_s) const;
   // Speed-only odometry update (the gyro has the yaw rate); extra_v_var for a slip.

@@ -19,10 +19,13 @@
 namespace agv::localizer {
 
 // Configured odometry correction (keys `odometry.*`, from `agvloc-desk calibrate vehicle`),
-// applied to every odometry sample before fusion, the same equations as the calibration's model
+// applied to every odometry sample before fusion (scales, bias), the same equations as the
+// calibration's model
 // (tools/desk/src/calib_vehicle.hpp):
 //   v' = speed_scale * v,   omega' = yaw_rate_scale * omega + yaw_rate_bias_radps,
-//   t' = t - time_offset_ns   (odometry clock = camera clock + time_offset).
+// and, since issue 33, on the camera's stamps, not the odometry's: the output runs on the
+// vehicle's clock (the one that stamps odometry and CAN), so
+//   t_exposure' = t_exposure + time_offset_ns   (odometry clock = camera clock + time_offset).
 // The EKF's own calibration states (fusion.estimate_odometry_calibration) start at 1 / 0 and
 // then estimate only what is left after this correction. All defaults = no change at all.
 struct OdometryCorrection {
