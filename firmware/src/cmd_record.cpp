@@ -1,5 +1,5 @@
-// agvloc record --config FILE --out DIR: the live camera and CAN odometry, written in the
-// recording format (docs/recording.md) for later replay.
+// agvloc record --config FILE --out DIR: the live camera, CAN odometry and (with can.gyro.enabled)
+// the CAN gyro, written in the recording format (docs/recording.md) for later replay.
 #include <CLI/CLI.hpp>
 #include <cinttypes>
 #include <cstdio>
@@ -20,7 +20,8 @@
 namespace agv::cmd {
 
 int record(int argc, char** argv) {
-  CLI::App app{"Record the live camera and CAN odometry as a recording (docs/recording.md)"};
+  CLI::App app{
+      "Record the live camera, CAN odometry and CAN gyro as a recording (docs/recording.md)"};
   std::string config_file, out_dir;
   double duration_s = 0.0;
   app.add_option("--config", config_file, "configuration YAML")->required();
@@ -55,12 +56,16 @@ int record(int argc, char** argv) {
   can::SocketCanConfig sc;
   sc.iface = cfg.can.interface;
   can::SocketCanBus bus(sc);
-  const protocol::ProtocolConfig pc = config::protocol_config(cfg);
+  protocol::ProtocolConfig pc = config::protocol_config(cfg);
+  pc.gyro = config::gyro_protocol_config(cfg);  // AGV_Gyro is received only when enabled
   protocol::OdometryDecoder decoder(pc);
-  hal::CanFilter filter{decoder.can_id(),
-                        decoder.extended() ? protocol::kCanExtIdMask : protocol::kCanStdIdMask,
-                        decoder.extended()};
-  bus.set_filters(&filter, 1);
+  protocol::GyroDecoder gyro_decoder(pc);
+  auto filter_for = [](std::uint32_t id, bool ext) {
+    return hal::CanFilter{id, ext ? protocol::kCanExtIdMask : protocol::kCanStdIdMask, ext};
+  };
+  const hal::CanFilter filters[2] = {filter_for(decoder.can_id(), decoder.extended()),
+                                     filter_for(gyro_decoder.can_id(), gyro_decoder.extended())};
+  bus.set_filters(filters, pc.gyro.enabled ? 2 : 1);
 
   install_stop_signals();
   posix::PosixClock clock;
@@ -75,6 +80,8 @@ int record(int argc, char** argv) {
   app::FrameMailbox mailbox;
   std::vector<recording::FrameRow> frames;
   std::vector<recording::OdomRow> odom;
+  std::vector<recording::ImuRow> imu;
+  std::uint64_t gyro_saturated = 0;  // left out of imu.csv: the localizer does not fuse them
   std::atomic<bool> done{false};
   std::atomic<std::uint64_t> write_errors{0};
   std::thread writer([&] {
@@ -115,23 +122,34 @@ int record(int argc, char** argv) {
   while (!stop_requested().load() && clock.now_ns() < t_end) {
     if (bus.receive(&cf, 20'000'000) != hal::CanStatus::kOk) continue;
     protocol::OdomSample s;
+    protocol::GyroSample g;
     if (decoder.decode(cf, &s) == protocol::DecodeResult::kOk &&
         (odom.empty() || s.t_ns > odom.back().t_ns)) {
       odom.push_back({s.t_ns, s.v_mps, s.omega_radps});
+    } else if (pc.gyro.enabled && gyro_decoder.decode(cf, &g) == protocol::DecodeResult::kOk &&
+               (imu.empty() || g.t_ns > imu.back().t_ns)) {
+      if (g.saturated) {
+        ++gyro_saturated;
+      } else {
+        imu.push_back({g.t_ns, g.gyro_z_radps});
+      }
     }
   }
   done = true;
   capture.join();
   writer.join();
   camera->stop();
+  // imu.csv only when gyro samples arrived: an absent file is what "no gyro" means.
   bool ok = recording::write_frames_csv(out_dir, frames, &err) &&
-            recording::write_odom_csv(out_dir, odom, &err);
+            recording::write_odom_csv(out_dir, odom, &err) &&
+            (imu.empty() || recording::write_imu_csv(out_dir, imu, &err));
   if (!ok) std::fprintf(stderr, "agvloc record: %s\n", err.c_str());
   std::printf("agvloc record: %zu frames (%" PRIu64
               " dropped while encoding), %zu odometry samples "
-              "(%" PRIu64 " rejected) -> %s\n",
+              "(%" PRIu64 " rejected), %zu gyro samples (%" PRIu64 " rejected, %" PRIu64
+              " saturated left out) -> %s\n",
               frames.size(), mailbox.dropped(), odom.size(), decoder.counters().rejected(),
-              out_dir.c_str());
+              imu.size(), gyro_decoder.counters().rejected(), gyro_saturated, out_dir.c_str());
   return ok && write_errors.load() == 0 ? 0 : 1;
 }
 
