@@ -589,8 +589,7 @@ TEST(Gyro, ConfiguredIdUnprotectedAndCustomDataId) {
   own.gyro.data_id = 0x1234;
   p::GyroDecoder dec2(own);
   EXPECT_EQ(dec2.decode(gyro_frame(own, 0.1, 0, 1), &s), p::DecodeResult::kOk);
-  EXPECT_EQ(dec2.decode(gyro_frame(p::ProtocolConfig{}, 0.1, 1, 2), &s),
-            p::DecodeResult::kBadCrc);
+  EXPECT_EQ(dec2.decode(gyro_frame(p::ProtocolConfig{}, 0.1, 1, 2), &s), p::DecodeResult::kBadCrc);
 }
 
 TEST(Gyro, ValidateChecksAnEnabledGyroId) {

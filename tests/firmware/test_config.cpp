@@ -570,9 +570,7 @@ namespace {
 // Keeps the receive filters the output loop installs.
 class FilterBus final : public agv::hal::CanBus {
  public:
-  agv::hal::CanStatus send(const agv::hal::CanFrame&) override {
-    return agv::hal::CanStatus::kOk;
-  }
+  agv::hal::CanStatus send(const agv::hal::CanFrame&) override { return agv::hal::CanStatus::kOk; }
   agv::hal::CanStatus receive(agv::hal::CanFrame*, std::int64_t) override {
     return agv::hal::CanStatus::kTimeout;
   }

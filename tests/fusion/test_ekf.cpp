@@ -8,21 +8,13 @@
 
 #include "agv/common/geometry.hpp"
 #include "agv/fusion/ekf.hpp"
+#include "ekf_test_util.hpp"
 
 using namespace agv;
 using namespace agv::fusion;
+using namespace agv::fusion::test;
 
 namespace {
-
-constexpr std::int64_t kMs = 1'000'000;
-constexpr std::int64_t kS = 1'000'000'000;
-
-Eigen::Matrix3d fix_cov(double sigma_mm = 0.2, double sigma_deg = 0.03) {
-  Eigen::Matrix3d R = Eigen::Matrix3d::Zero();
-  R(0, 0) = R(1, 1) = sigma_mm * sigma_mm;
-  R(2, 2) = deg_to_rad(sigma_deg) * deg_to_rad(sigma_deg);
-  return R;
-}
 
 // Ground truth for a straight drive along +x at 1 m/s from the origin.
 Pose2 straight_truth(std::int64_t t_ns) {

@@ -9,19 +9,15 @@
 #include "agv/common/geometry.hpp"
 #include "agv/fusion/ekf.hpp"
 #include "agv/fusion/motion_model.hpp"
+#include "ekf_test_util.hpp"
 
 namespace agv::fusion {
 namespace {
 
-constexpr std::int64_t kMs = 1'000'000;
-constexpr std::int64_t kPeriod = 10 * kMs;
+using test::fix_cov;
+using test::kMs;
 
-Eigen::Matrix3d fix_cov(double sigma_mm = 0.2, double sigma_deg = 0.03) {
-  Eigen::Matrix3d R = Eigen::Matrix3d::Zero();
-  R(0, 0) = R(1, 1) = sigma_mm * sigma_mm;
-  R(2, 2) = deg_to_rad(sigma_deg) * deg_to_rad(sigma_deg);
-  return R;
-}
+constexpr std::int64_t kPeriod = 10 * kMs;
 
 // True motion from speed profiles (exact arcs over 1 ms steps) and the odometry a controller
 // reports: the mean over the period ending at t, or the value at t.

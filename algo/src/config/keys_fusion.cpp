@@ -142,16 +142,16 @@ void add_calibration(std::vector<Key>* k) {
                            "Larger follows a drifting bias faster and lets σ grow faster"}));
   k->push_back(number("fusion.gyro_init_scale_sigma", AGV_AT(fusion.init_gyro_scale_sigma), 0.0,
                       0.5, 0.01,
-                      {"", "what the gyro's scale may be off by after imu.scale (learned over "
-                           "turns between fixes)"}));
-  k->push_back(deg_as_rad("fusion.gyro_saturation_degps", AGV_AT(fusion.gyro_saturation_radps),
-                          1.0, 10000.0, 245.0,
+                      {"",
+                       "what the gyro's scale may be off by after imu.scale (learned over "
+                       "turns between fixes)"}));
+  k->push_back(deg_as_rad("fusion.gyro_saturation_degps", AGV_AT(fusion.gyro_saturation_radps), 1.0,
+                          10000.0, 245.0,
                           {"deg/s",
                            "samples at or beyond this are clipped by the sensor and not "
                            "used (the wheels carry those periods). Just below the "
                            "configured range"}));
-  k->push_back(number("fusion.wheel_track_mm", AGV_AT(fusion.wheel_track_mm), 10.0, 10000.0,
-                      500.0,
+  k->push_back(number("fusion.wheel_track_mm", AGV_AT(fusion.wheel_track_mm), 10.0, 10000.0, 500.0,
                       {"mm",
                        "distance between the drive wheels: a slip's yaw-rate error times "
                        "half of it is the slip's speed error (corrected while a gyro is "

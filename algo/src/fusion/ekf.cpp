@@ -277,7 +277,8 @@ void Ekf::initialise_at(std::int64_t t_ns, const FilterVec& x, const FilterCov& 
 }
 
 bool Ekf::kidnap_candidate(std::int64_t t_ns, const Eigen::Vector3d& z, const Eigen::Matrix3d& R,
-                           const FilterVec& prior_x, const FilterCov& prior_P, bool prior_worthless) {
+                           const FilterVec& prior_x, const FilterCov& prior_P,
+                           bool prior_worthless) {
   bool extended = false;
   if (hyp_.count > 0 && t_ns >= hyp_.t_ns && size_ > 0 && hyp_.t_ns >= at(0).t_ns) {
     // Carry the candidate track forward with the same odometry the filter used, then test the
@@ -329,10 +330,10 @@ bool Ekf::kidnap_candidate(std::int64_t t_ns, const Eigen::Vector3d& z, const Ei
   // A filter whose position is unknown has no pose worth protecting: two consistent fixes of
   // separate landmarks (what makes a tag, which carries no position, trustworthy) re-initialise
   // it at once.
-  const bool enough =
-      prior_worthless ? hyp_.count >= 2
-                 : hyp_.count >= config_.kidnap_fixes &&
-                       hyp_.t_ns - hyp_.t_first_ns >= config_.kidnap_min_duration_ns;
+  const bool enough = prior_worthless
+                          ? hyp_.count >= 2
+                          : hyp_.count >= config_.kidnap_fixes &&
+                                hyp_.t_ns - hyp_.t_first_ns >= config_.kidnap_min_duration_ns;
   if (enough) {
     const FilterVec x = hyp_.x;
     const FilterCov P = hyp_.P;
@@ -462,36 +463,31 @@ FixOutcome Ekf::fuse_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::M
   predict_span(&x, &P, base.t_ns, t_ns, odom_time_after(base));
   const double d2 = mahalanobis_sq(x, P, z, R);
   last_fix_d2_ = d2;
-  double prior_pos_sigma_mm = 0.0;
-  prior_lost(P, &prior_pos_sigma_mm);
+  double pos_sigma_mm = 0.0;
+  const bool lost = prior_lost(P, &pos_sigma_mm);
+  auto reject_gate = [&](bool worthless_prior) {
+    ++counters_.fixes_rejected_gate;
+    pending_flags_ |= flags::kRejectedGate;
+    if (!map_guided && kidnap_candidate(t_ns, z, R, x, P, worthless_prior))
+      return FixOutcome::kReinitialised;
+    return FixOutcome::kRejectedGate;
+  };
   // A prior whose position spans landmarks (4x the lost limit) gates nothing: any fix passes.
   // Only a fix that vouches for itself (a QR payload the map confirmed) may then be fused alone;
   // others (a tag, whose map entry is its only truth; a payload without a map) need a second,
   // agreeing fix of another landmark, and a map-guided fix cannot be chosen at all.
-  const bool worthless = prior_pos_sigma_mm > 4.0 * config_.lost_position_sigma_mm;
+  const bool worthless = pos_sigma_mm > 4.0 * config_.lost_position_sigma_mm;
   if (worthless && map_guided) return reject_not_tracking();
-  if (worthless && !map_verified) {
-    ++counters_.fixes_rejected_gate;
-    pending_flags_ |= flags::kRejectedGate;
-    if (kidnap_candidate(t_ns, z, R, x, P, true)) return FixOutcome::kReinitialised;
-    return FixOutcome::kRejectedGate;
-  }
+  if (worthless && !map_verified) return reject_gate(true);
   // A fix that agrees with the prior is fused, lost or not: fusing keeps the correlations that
   // teach the odometry and gyro calibration, a re-initialisation would drop them. A map-guided
   // fix needs only that (its identity was chosen by the covariance, docs/map_identity.md).
   if (!(d2 <= gate_threshold_)) {
-    double pos_sigma_mm = 0.0;
-    const bool lost = prior_lost(P, &pos_sigma_mm);
-    if (map_guided) {
-      if (lost) return reject_not_tracking();
-      ++counters_.fixes_rejected_gate;
-      pending_flags_ |= flags::kRejectedGate;
-      return FixOutcome::kRejectedGate;
-    }
+    if (map_guided && lost) return reject_not_tracking();
     const bool precise = std::sqrt(R_in.topLeftCorner<2, 2>().diagonal().maxCoeff()) <=
                              config_.relocalize_max_fix_sigma_mm &&
                          std::sqrt(R_in(2, 2)) <= config_.relocalize_max_fix_sigma_rad;
-    if (config_.relocalize_from_single_fix && lost && precise) {
+    if (config_.relocalize_from_single_fix && !map_guided && lost && precise) {
       // Re-localisation from one fix: it must still agree with what is known of the position
       // (a heading-only loss keeps a good position prior), unless the position is unknown too;
       // then only a fix that vouches for itself (a QR payload the map confirmed) may do it.
@@ -502,10 +498,7 @@ FixOutcome Ekf::fuse_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::M
         return FixOutcome::kReinitialised;
       }
     }
-    ++counters_.fixes_rejected_gate;
-    pending_flags_ |= flags::kRejectedGate;
-    if (kidnap_candidate(t_ns, z, R, x, P, worthless)) return FixOutcome::kReinitialised;
-    return FixOutcome::kRejectedGate;
+    return reject_gate(worthless);
   }
 
   // ---- Fuse at the exposure time and re-propagate newer events ----

@@ -166,8 +166,8 @@ bool Ekf::gyro_period(FilterVec* x, FilterCov* P, double dt_s, double v_mps, dou
   const double v_true = v_mps / (1.0 + sv);
   const double w_wheels = (omega_radps - bw - cwv * v_true) / (1.0 + sw);
   const double d = w_wheels - w_gyro;
-  const bool slip = std::abs(d) > config_.slip_yaw_rate_radps +
-                                      config_.slip_yaw_rate_fraction * std::abs(w_gyro);
+  const bool slip =
+      std::abs(d) > config_.slip_yaw_rate_radps + config_.slip_yaw_rate_fraction * std::abs(w_gyro);
   // One wheel off by e turns the yaw rate by e / track and the speed by e / 2, whichever wheel
   // it is. A wheel that loses grip while it drives spins (reads high); one that loses it while
   // braking locks (reads low): the speed is corrected by that half and keeps half the correction
@@ -232,7 +232,8 @@ void Ekf::predict_span(FilterVec* x, FilterCov* P, std::int64_t t0_ns, std::int6
     // (without the heading part an arc exit at the start of a gap stayed outside 3 sigma for
     // 0.25 s: fault row odom_gap_5s_straight).
     const double j = config_.gap_yaw_rate_change_sigma_radps;
-    const double gs = odom_t_ns == kNoOdom ? 0.0 : static_cast<double>(known_end - odom_t_ns) * kNsToS;
+    const double gs =
+        odom_t_ns == kNoOdom ? 0.0 : static_cast<double>(known_end - odom_t_ns) * kNsToS;
     (*P)(kIomega, kIomega) += j * j;
     (*P)(kItheta, kItheta) += j * j * gs * gs;
     (*P)(kItheta, kIomega) += j * j * gs;
@@ -475,10 +476,16 @@ void Ekf::process_event(const Event& prev, Event* ev) const {
     // fix re-propagates it).
     const bool is_start = ev->slip && !prev.slip;
     if (ev->slip != was_slip) {
-      if (ev->slip) ++counters_.slip_periods; else --counters_.slip_periods;
+      if (ev->slip)
+        ++counters_.slip_periods;
+      else
+        --counters_.slip_periods;
     }
     if (is_start != was_start) {
-      if (is_start) ++counters_.slip_events; else --counters_.slip_events;
+      if (is_start)
+        ++counters_.slip_events;
+      else
+        --counters_.slip_events;
     }
   } else {
     predict_span(&x, &P, prev.t_ns, ev->t_ns, odom_t);

@@ -34,9 +34,9 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 
 // AGV_Status flag signals: fault::* bit i is kFaultSignals[i], reject::* bit i kRejectSignals[i].
 constexpr const char* kFaultSignals[] = {
-    "FaultCameraStalled", "FaultCameraError", "FaultOdomTimeout", "FaultOdomE2E",
-    "FaultCanErrorPassive", "FaultCanBusOff", "FaultNoMap", "FaultLoopOverrun",
-    "FaultImuTimeout", "FaultImuE2E"};
+    "FaultCameraStalled",   "FaultCameraError", "FaultOdomTimeout", "FaultOdomE2E",
+    "FaultCanErrorPassive", "FaultCanBusOff",   "FaultNoMap",       "FaultLoopOverrun",
+    "FaultImuTimeout",      "FaultImuE2E"};
 constexpr const char* kRejectSignals[] = {"RejectGate", "RejectUnknownLandmark",
                                           "RejectDecodeFailed", "RejectGeometry",
                                           "RejectFixTooOld"};
@@ -264,8 +264,8 @@ bool decode_status(const ProtocolConfig& cfg, const hal::CanFrame& f, StatusOut*
   out->faults = 0;
   int i = 0;
   for (const char* name : kFaultSignals) {
-    out->faults = static_cast<std::uint16_t>(
-        out->faults | (get_raw(sig(Msg::kStatus, name), f.data) << i++));
+    out->faults =
+        static_cast<std::uint16_t>(out->faults | (get_raw(sig(Msg::kStatus, name), f.data) << i++));
   }
   out->rejections = f.data[7];
   return true;
@@ -312,11 +312,10 @@ namespace {
 
 // The checks every input frame passes before its signals are read, in this order: ID and ID type,
 // length, receive time (stale before E2E, so a replayed old frame does not move the counter
-// reference), then CRC and alive counter when protected. C: OdometryCounters or GyroCounters.
+// reference), then CRC and alive counter when protected.
 // On kOk *lost is the number of frames the E2E counter says were lost just before this one.
-template <typename C>
 DecodeResult check_input(const hal::CanFrame& f, std::uint32_t id, bool ext, bool protected_e2e,
-                         std::int64_t last_ok_ns, E2eChecker* checker, C* counters,
+                         std::int64_t last_ok_ns, E2eChecker* checker, InputCounters* counters,
                          std::uint32_t* lost) {
   *lost = 0;
   if (f.id != id || f.extended != ext) return DecodeResult::kNotOdometry;

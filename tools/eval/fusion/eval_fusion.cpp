@@ -43,14 +43,6 @@ using agv::fusion::validate;
 // ------------------------------------------------------------------------------------------
 // Run and metrics
 
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return std::nan("");
-  std::sort(v.begin(), v.end());
-  const std::size_t idx =
-      static_cast<std::size_t>(std::max(0.0, std::ceil(q * static_cast<double>(v.size())) - 1.0));
-  return v[std::min(idx, v.size() - 1)];
-}
-
 struct RunResult {
   std::vector<double> at_landmark_mm, at_landmark_deg;
   std::vector<double> midway_mm, all_mm, all_deg;
@@ -155,6 +147,18 @@ void usage() {
 }
 
 }  // namespace
+
+namespace eval_fusion {
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return std::nan("");
+  std::sort(v.begin(), v.end());
+  const std::size_t idx =
+      static_cast<std::size_t>(std::max(0.0, std::ceil(q * static_cast<double>(v.size())) - 1.0));
+  return v[std::min(idx, v.size() - 1)];
+}
+
+}  // namespace eval_fusion
 
 int main(int argc, char** argv) {
   std::string recording;

@@ -142,6 +142,9 @@ struct SimFix {
 
 std::vector<SimFix> simulate_fixes(const World& w, const FixParams& p);
 
+// q-quantile (0..1) of v (nearest rank); NaN when empty.
+double percentile(std::vector<double> v, double q);
+
 // --honesty: sigma against error between landmarks (honesty.cpp). 0 when every row meets the
 // targets.
 int run_honesty_table(const SynthParams& base, double grid_mm, int seeds);

@@ -19,13 +19,6 @@ namespace eval_fusion {
 
 namespace {
 
-double pct(std::vector<double> v, double q) {
-  if (v.empty()) return std::nan("");
-  std::sort(v.begin(), v.end());
-  const auto i = static_cast<std::size_t>(std::max(0.0, std::ceil(q * static_cast<double>(v.size())) - 1.0));
-  return v[std::min(i, v.size() - 1)];
-}
-
 struct Honesty {
   long ticks = 0, valid = 0, covered = 0;
   double sum_p2 = 0.0, sum_h2 = 0.0;
@@ -59,17 +52,7 @@ Honesty run_honesty(const World& w, const std::vector<SimFix>& fixes,
     const double eth = agv::wrap_angle_rad(e.pose.theta_rad - tr.theta_rad);
     const double sx = std::sqrt(e.cov(0, 0)), sy = std::sqrt(e.cov(1, 1));
     const double sth = std::sqrt(e.cov(2, 2));
-    if (std::getenv("EVAL_TRACE") && (o.t_ns / kMsNs) % 250 == 0)
-      std::printf("trace %d t %.2f h %d ex %.1f ey %.1f sx %.1f sy %.1f eth %.3f sth %.3f tsf %.1f bg %.3f sg %.4f\n", use_gyro ? 1 : 0,
-                  o.t_ns * 1e-9, static_cast<int>(e.health), ex, ey, sx, sy, agv::rad_to_deg(eth),
-                  agv::rad_to_deg(sth), e.time_since_fix_ns * 1e-9, agv::rad_to_deg(e.gyro_bias_radps), e.gyro_scale_error);
-    if (std::abs(ex) <= 3 * sx && std::abs(ey) <= 3 * sy && std::abs(eth) <= 3 * sth) {
-      ++h.covered;
-    } else if (std::getenv("EVAL_MISS")) {
-      std::printf("miss %d t %.2f h %d tsf %.2f ex/sx %.1f ey/sy %.1f eth/sth %.1f sth %.3f\n",
-                  use_gyro ? 1 : 0, o.t_ns * 1e-9, static_cast<int>(e.health),
-                  e.time_since_fix_ns * 1e-9, ex / sx, ey / sy, eth / sth, agv::rad_to_deg(sth));
-    }
+    if (std::abs(ex) <= 3 * sx && std::abs(ey) <= 3 * sy && std::abs(eth) <= 3 * sth) ++h.covered;
     h.sum_p2 += 0.5 * ((ex / sx) * (ex / sx) + (ey / sy) * (ey / sy));
     h.sum_h2 += (eth / sth) * (eth / sth);
     const double err = std::hypot(ex, ey);
@@ -79,9 +62,7 @@ Honesty run_honesty(const World& w, const std::vector<SimFix>& fixes,
       h.between_deg.push_back(std::abs(agv::rad_to_deg(eth)));
     }
   }
-#ifndef EVAL_OLD
   h.slips = ekf.counters().slip_events;
-#endif
   return h;
 }
 
@@ -112,10 +93,11 @@ agv::fusion::EkfConfig tuned_config() {
 
 int run_honesty_table(const SynthParams& base, double grid_mm, int seeds) {
   std::printf(
-      "honesty: lawnmower, legs off the grid, scale %+.1f %%, wheel yaw bias %.2f deg/s, %d seeds\n",
+      "honesty: lawnmower, legs off the grid, scale %+.1f %%, wheel yaw bias %.2f deg/s, %d "
+      "seeds\n",
       100.0 * base.scale_error, base.drift_degps, seeds);
-  std::printf("%-30s %7s %7s %6s %6s %8s %8s %8s %5s\n", "scenario", "valid%", "cov3s%",
-              "rmsP", "rmsH", "btwP95mm", "btwP95deg", "maxLocMm", "slips");
+  std::printf("%-30s %7s %7s %6s %6s %8s %8s %8s %5s\n", "scenario", "valid%", "cov3s%", "rmsP",
+              "rmsH", "btwP95mm", "btwP95deg", "maxLocMm", "slips");
   bool all_ok = true;
   for (const double out_m : {2.0, 3.0}) {
     for (const double slip_hz : {0.0, 0.05}) {
@@ -132,7 +114,7 @@ int run_honesty_table(const SynthParams& base, double grid_mm, int seeds) {
           FixParams fp;
           fp.grid_mm = grid_mm;
           fp.grid_max_x_mm = (p.grid_cells - 1) * grid_mm;
-          fp.vision_covariance = std::getenv("EVAL_DIAG_R") == nullptr;
+          fp.vision_covariance = true;
           fp.delay_ns = 30 * kMsNs;
           fp.seed = static_cast<std::uint64_t>(s) + 100;
           const Honesty h = run_honesty(w, simulate_fixes(w, fp), tuned_config(), gyro);
@@ -153,11 +135,11 @@ int run_honesty_table(const SynthParams& base, double grid_mm, int seeds) {
         char name[64];
         std::snprintf(name, sizeof name, "legs %.1f s%s, %s", 2.0 * out_m + 1.6,
                       slip_hz > 0 ? " slips" : "", gyro ? "gyro" : "wheels");
-        const bool ok = valid >= 99.0 && cov >= 99.0 && rp >= 0.5 && rp <= 1.5 && rh >= 0.5 &&
-                        rh <= 1.5;
+        const bool ok =
+            valid >= 99.0 && cov >= 99.0 && rp >= 0.5 && rp <= 1.5 && rh >= 0.5 && rh <= 1.5;
         all_ok = all_ok && ok;
         std::printf("%-30s %7.2f %7.2f %6.2f %6.2f %8.2f %8.3f %8.2f %5llu %s\n", name, valid, cov,
-                    rp, rh, pct(sum.between_mm, 0.95), pct(sum.between_deg, 0.95),
+                    rp, rh, percentile(sum.between_mm, 0.95), percentile(sum.between_deg, 0.95),
                     sum.max_localized_mm, static_cast<unsigned long long>(sum.slips),
                     ok ? "" : "<- target not met");
       }

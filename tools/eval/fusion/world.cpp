@@ -58,7 +58,8 @@ World make_synthetic_world(const SynthParams& p, double grid_mm) {
   double acc_dist_m = 0.0, acc_turn_rad = 0.0;
   // Gyro: its own generator, so adding it leaves the odometry of a seed unchanged.
   std::mt19937_64 grng(p.seed * 7919 + 3);
-  const int gyro_every = p.gyro_hz > 0.0 ? std::max(1, static_cast<int>(std::lround(1000.0 / p.gyro_hz))) : 0;
+  const int gyro_every =
+      p.gyro_hz > 0.0 ? std::max(1, static_cast<int>(std::lround(1000.0 / p.gyro_hz))) : 0;
   double gyro_turn_rad = 0.0, gyro_walk_radps = 0.0;
   auto advance = [&](double v, double om) {
     x(agv::fusion::kIv) = v;

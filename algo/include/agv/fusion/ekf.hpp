@@ -273,7 +273,7 @@ inline constexpr std::uint16_t kInitialised = 1u << 8;      // first fix initial
 inline constexpr std::uint16_t kDelayedFix = 1u << 9;       // a fix was fused behind newer data
 inline constexpr std::uint16_t kOdomGap = 1u
                                           << 10;  // odometry resumed after a gap (unknown motion)
-inline constexpr std::uint16_t kWheelSlip = 1u << 11;  // wheels and gyro disagreed (slip)
+inline constexpr std::uint16_t kWheelSlip = 1u << 11;    // wheels and gyro disagreed (slip)
 inline constexpr std::uint16_t kGyroInvalid = 1u << 12;  // a gyro sample was rejected
 }  // namespace flags
 
@@ -373,8 +373,8 @@ class Ekf {
     std::uint64_t gyro_rejected_invalid = 0;    // non-finite
     std::uint64_t gyro_rejected_saturated = 0;  // at or beyond gyro_saturation_radps
     std::uint64_t gyro_rejected_time = 0;       // not after the previous sample
-    std::uint64_t slip_periods = 0;   // odometry periods the wheels disagreed with the gyro
-    std::uint64_t slip_events = 0;    // of them: the first of a run
+    std::uint64_t slip_periods = 0;        // odometry periods the wheels disagreed with the gyro
+    std::uint64_t slip_events = 0;         // of them: the first of a run
     std::uint64_t standstill_updates = 0;  // zero-rate updates of the gyro bias
   };
   const Counters& counters() const { return counters_; }
@@ -514,7 +514,7 @@ class Ekf {
   EkfConfig config_;
   double gate_threshold_ = 0.0;
   double gate_threshold_2d_ = 0.0;  // same probability, position only
-  std::vector<Event> history_;  // sized in the constructor, never resized
+  std::vector<Event> history_;      // sized in the constructor, never resized
   std::size_t head_ = 0;
   std::size_t size_ = 0;
 

@@ -147,7 +147,8 @@ class Localizer {
   bool on_can_frame(const hal::CanFrame& f, protocol::OdomSample* sample = nullptr);
   // The same, telling what the frame was: *odom (if not null) is filled for kOdometry, *gyro (if
   // not null) for kGyro and kGyroSaturated (the decoded sample, before GyroCorrection).
-  CanRx on_can_frame(const hal::CanFrame& f, protocol::OdomSample* odom, protocol::GyroSample* gyro);
+  CanRx on_can_frame(const hal::CanFrame& f, protocol::OdomSample* odom,
+                     protocol::GyroSample* gyro);
   // The receive filters, one per enabled input message in signal-table order (the odometry
   // frame, then AGV_Gyro when enabled), so the kernel drops the rest. Writes at most max
   // filters to out and returns how many the configuration needs (more than max: truncated).

@@ -187,7 +187,9 @@ enum class DecodeResult : std::uint8_t {
 };
 const char* to_string(DecodeResult r);
 
-struct OdometryCounters {
+// What an E2E-protected input decoder (odometry, gyro) counted: one set of checks, one set of
+// counters (check_input in codec.cpp).
+struct InputCounters {
   std::uint64_t accepted = 0;
   std::uint64_t lost_frames = 0;  // gaps within max_delta_counter (accepted frames after a gap)
   std::uint64_t bad_length = 0;
@@ -200,6 +202,7 @@ struct OdometryCounters {
     return bad_length + bad_crc + repeated + counter_jump + bad_counter + stale;
   }
 };
+using OdometryCounters = InputCounters;
 
 // Motor-controller side (simulators, tests, the HIL peer): one odometry frame as the DBC
 // describes it, E2E-protected with `counter` (0..14) whether or not the receiver checks it.
@@ -229,27 +232,17 @@ class OdometryDecoder {
 
 // One gyro measurement (AGV_Gyro), rates in rad/s about the vehicle axes (docs/frames.md).
 struct GyroSample {
-  std::int64_t t_ns = 0;      // frame receive timestamp
-  double gyro_z_radps = 0.0;  // yaw rate, counter-clockwise positive
-  bool saturated = false;     // the sensor's Saturated bit: the rates must not be fused
-  double gyro_x_radps = 0.0;  // roll rate (informational)
-  double gyro_y_radps = 0.0;  // pitch rate (informational)
+  std::int64_t t_ns = 0;          // frame receive timestamp
+  double gyro_z_radps = 0.0;      // yaw rate, counter-clockwise positive
+  bool saturated = false;         // the sensor's Saturated bit: the rates must not be fused
+  double gyro_x_radps = 0.0;      // roll rate (informational)
+  double gyro_y_radps = 0.0;      // pitch rate (informational)
   std::uint32_t lost_before = 0;  // frames lost just before this one (E2E gap)
 };
 
-struct GyroCounters {
-  std::uint64_t accepted = 0;   // passed ID, length, E2E and time checks (saturated included)
+// accepted includes the saturated frames.
+struct GyroCounters : InputCounters {
   std::uint64_t saturated = 0;  // accepted frames with Saturated = 1
-  std::uint64_t lost_frames = 0;
-  std::uint64_t bad_length = 0;
-  std::uint64_t bad_crc = 0;
-  std::uint64_t repeated = 0;
-  std::uint64_t counter_jump = 0;
-  std::uint64_t bad_counter = 0;
-  std::uint64_t stale = 0;
-  std::uint64_t rejected() const {
-    return bad_length + bad_crc + repeated + counter_jump + bad_counter + stale;
-  }
 };
 
 // Gyro side (simulators, tests, the HIL peer): one AGV_Gyro frame as the DBC describes it, with
