@@ -635,8 +635,9 @@ TEST(Localizer, MapGuidedFixIsRefusedByALostFilter) {
   fusion::Ekf ekf(localizer::effective_fusion_config(test_config()));
   std::int64_t t = 1000 * kMs;
   ASSERT_TRUE(ekf.add_odometry(t, 0.0, 0.0));
-  // Initialised from a fix so uncertain that the prior is lost (sigma 200 mm > 50 mm).
-  Eigen::Matrix3d wide = Eigen::Matrix3d::Identity() * 200.0 * 200.0;
+  // Initialised from a fix so uncertain that the prior's position spans landmarks (sigma
+  // 400 mm > 4 x the 50 mm lost limit): the covariance cannot have chosen the identity.
+  Eigen::Matrix3d wide = Eigen::Matrix3d::Identity() * 400.0 * 400.0;
   wide(2, 2) = 1e-4;
   ASSERT_EQ(ekf.add_fix(t, {0.0, 0.0, 0.0}, wide), fusion::FixOutcome::kInitialised);
   t += 10 * kMs;
@@ -649,6 +650,31 @@ TEST(Localizer, MapGuidedFixIsRefusedByALostFilter) {
   const fusion::FixOutcome o = ekf.add_fix(t, g.vehicle_in_world, g.cov_world, true, false);
   EXPECT_TRUE(o == fusion::FixOutcome::kFused || o == fusion::FixOutcome::kReinitialised)
       << fusion::to_string(o);
+}
+
+// Issue 33: lost only on the heading, the position still separates mapped landmarks 1 m apart.
+// A map-guided fix that passes the gate is fused (it used to be refused by the health label), and
+// the prediction that map identity needs is given.
+TEST(Localizer, MapGuidedFixIsFusedByAHeadingLostFilterWhenItPassesTheGate) {
+  auto c = test_config();
+  c.fusion.lost_heading_sigma_rad = deg_to_rad(0.05);
+  localizer::Localizer loc(c);
+  localizer::OutFrames out;
+  localizer::TickRecord rec;
+  std::int64_t t = 1000 * kMs;
+  loc.on_odometry(t, 0.5, 0.0);
+  loc.on_fix(good_fix(0.0), t, t + kMs);
+  for (int i = 0; i < 200; ++i) {
+    t += 10 * kMs;
+    loc.on_odometry(t, 0.5, 0.0);
+  }
+  loc.tick(t, &out, &rec);
+  ASSERT_EQ(rec.estimate.health, fusion::HealthState::kLost);
+  ASSERT_LT(rec.estimate.position_sigma_mm, c.fusion.lost_position_sigma_mm);
+  EXPECT_TRUE(loc.prediction_at(t).valid);
+  EXPECT_FALSE(pose_valid(c, out));  // the output still says lost
+  loc.on_fix(guided_fix(rec.estimate.pose.x_mm), t, t + kMs);
+  EXPECT_EQ(loc.stats().fixes_map_guided_fused, 1u);
 }
 
 // Issue 33, time base: the output is on the vehicle's clock (the odometry's). A camera whose

@@ -246,8 +246,12 @@ void Localizer::add_pose(const protocol::PoseOut& pose, OutFrames* out) {
 vision::MotionSnapshot Localizer::snapshot_at(std::int64_t t_ns) const {
   const fusion::PoseEstimate est = ekf_.estimate_at(t_ns);
   bool odom_timeout = false;
+  pose_out(est, t_ns, &odom_timeout);
   vision::MotionSnapshot s;
-  s.valid = pose_out(est, t_ns, &odom_timeout).valid;
+  // Lost or not: what the prediction may be used for is decided by its covariance (tracking's
+  // sigma limits, map identity's gate against the nearest mapped neighbour; issue 33). Without
+  // odometry behind it there is no prediction.
+  s.valid = est.valid && !odom_timeout;
   if (!s.valid) return s;
   s.t_ns = t_ns;
   s.vehicle_in_world = est.pose;

@@ -184,8 +184,9 @@ class Localizer {
   void pose_now(std::int64_t now_ns, OutFrames* out);
 
   // The fused pose predicted to a camera frame's exposure, for its search windows
-  // (docs/tracking.md). Valid only when the pose output would be: initialised, not lost, odometry
-  // not timed out at t_exposure_ns. `replay --fast` asks this directly (vision runs inline).
+  // (docs/tracking.md) and map-guided identity (docs/map_identity.md). Valid when initialised and
+  // odometry not timed out at t_exposure_ns, also while lost: its users decide by the covariance.
+  // `replay --fast` asks this directly (vision runs inline).
   vision::Prediction prediction_at(std::int64_t t_exposure_ns) const;
   // The same at t_ns with the velocities, for a thread that must not call the core (the threaded
   // loop's vision worker extrapolates it to each exposure with vision::extrapolate).
