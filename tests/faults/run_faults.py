@@ -6,9 +6,12 @@ their CSV files, replays each with `agvloc replay --fast` and checks the fused p
 truth. Usage:
 
     run_faults.py "AGVLOC [EMULATOR...]" WORKDIR [--desk "AGVLOC-DESK ..."] [--only NAME_PREFIX ...]
-                  [--reuse] [--jobs N]
+                  [--reuse] [--jobs N] [--base-from OTHER_WORKDIR]
 
 --desk defaults to agvloc-desk beside the agvloc binary (where the build puts it).
+--base-from (or AGV_FAULTS_BASE_FROM) takes the base recordings another build of the same tree
+rendered: tools/test.sh points the sanitizer builds at the default build's, because rendering under
+ASan/TSan took most of their 190-225 s and the renderer is checked under them by the sim tests.
 
 Exit status 1 when any assertion fails. The table is printed and written to WORKDIR/faults.md.
 """
@@ -311,12 +314,37 @@ def run(cmd, log):
         raise RuntimeError(f"{' '.join(cmd)} exited with {p.returncode} (log {log})")
 
 
-def render(desk, out, extra, duration_s, reuse):
+def copy_rendered(src, out, args_line):
+    """Takes the recording SRC when it was rendered with the same simulator arguments (its
+    render.args); hard links where the file system allows. True when taken."""
+    try:
+        with open(os.path.join(src, "render.args")) as f:
+            if f.read() != args_line:
+                return False
+    except OSError:
+        return False
+    shutil.rmtree(out, ignore_errors=True)
+    try:
+        shutil.copytree(src, out, copy_function=os.link)
+    except OSError:
+        shutil.rmtree(out, ignore_errors=True)
+        shutil.copytree(src, out)
+    return True
+
+
+def render(desk, out, extra, duration_s, reuse, base_from=None):
+    """Renders a base recording into OUT; with --reuse keeps one already there; with base_from
+    (a work directory of another build of the same tree) takes its rendering instead."""
+    sim_args = ["--duration-s", str(duration_s)] + SIM_COMMON + extra
+    args_line = " ".join(sim_args) + "\n"
     if reuse and os.path.exists(os.path.join(out, "meta.yaml")):
         return 0.0
+    if base_from and copy_rendered(os.path.join(base_from, os.path.basename(out)), out, args_line):
+        return 0.0
     t0 = time.monotonic()
-    run(desk + ["sim", "--out", out, "--force", "--duration-s", str(duration_s)] + SIM_COMMON
-        + extra, out + ".log")
+    run(desk + ["sim", "--out", out, "--force"] + sim_args, out + ".log")
+    with open(os.path.join(out, "render.args"), "w") as f:
+        f.write(args_line)
     return time.monotonic() - t0
 
 
@@ -335,6 +363,10 @@ def main():
     ap.add_argument("--only", nargs="*", help="run only faults whose name starts with one of these")
     ap.add_argument("--reuse", action="store_true", help="keep already rendered base recordings")
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--base-from", default=os.environ.get("AGV_FAULTS_BASE_FROM"),
+                    help="work directory of another build of this tree (environment "
+                    "AGV_FAULTS_BASE_FROM): take its base recordings when they were rendered with "
+                    "the same simulator arguments, instead of rendering them again")
     a = ap.parse_args()
     agvloc = shlex.split(a.agvloc)
     if a.desk:
@@ -352,12 +384,12 @@ def main():
     base_mp = os.path.join(work, "base_misprint")
     renders = {}
     with concurrent.futures.ThreadPoolExecutor(max_workers=a.jobs) as ex:
-        jobs = {"base": ex.submit(render, desk, base, [], BASE_DURATION_S, a.reuse)}
+        jobs = {"base": ex.submit(render, desk, base, [], BASE_DURATION_S, a.reuse, a.base_from)}
         if wanted("misprint"):
             jobs["base_misprint"] = ex.submit(
                 render, desk, base_mp,
                 ["--misprint", f"{MISPRINT_ID}:{MISPRINT_DX_MM:g}:{MISPRINT_DY_MM:g}"],
-                MISPRINT_DURATION_S, a.reuse)
+                MISPRINT_DURATION_S, a.reuse, a.base_from)
         for k, j in jobs.items():
             renders[k] = j.result()
     t_rendered = time.monotonic()

@@ -135,5 +135,39 @@ class TruthAndEvaluation(unittest.TestCase):
         self.assertTrue(any("localized ticks" in e for e in r["errors"]))
 
 
+class BaseFrom(unittest.TestCase):
+    """A sanitizer build takes the default build's base recordings only when they were rendered
+    with the same simulator arguments; otherwise it renders its own."""
+
+    def _rendered(self, root, args_line):
+        d = os.path.join(root, "base")
+        os.makedirs(os.path.join(d, "frames"))
+        for name in ("meta.yaml", "frames.csv", "frames/000000.png"):
+            with open(os.path.join(d, name), "w") as f:
+                f.write(name)
+        with open(os.path.join(d, "render.args"), "w") as f:
+            f.write(args_line)
+        return d
+
+    def test_same_arguments_are_taken(self):
+        with tempfile.TemporaryDirectory() as src, tempfile.TemporaryDirectory() as dst:
+            self._rendered(src, "--duration-s 40 --seed 1\n")
+            out = os.path.join(dst, "base")
+            self.assertTrue(rf.copy_rendered(os.path.join(src, "base"), out,
+                                             "--duration-s 40 --seed 1\n"))
+            with open(os.path.join(out, "frames", "000000.png")) as f:
+                self.assertEqual(f.read(), "frames/000000.png")
+
+    def test_other_arguments_or_no_stamp_are_not_taken(self):
+        with tempfile.TemporaryDirectory() as src, tempfile.TemporaryDirectory() as dst:
+            d = self._rendered(src, "--duration-s 40 --seed 1\n")
+            out = os.path.join(dst, "base")
+            self.assertFalse(rf.copy_rendered(d, out, "--duration-s 40 --seed 2\n"))
+            self.assertFalse(os.path.exists(out))
+            os.remove(os.path.join(d, "render.args"))
+            self.assertFalse(rf.copy_rendered(d, out, "--duration-s 40 --seed 1\n"))
+            self.assertFalse(rf.copy_rendered(os.path.join(src, "none"), out, "x\n"))
+
+
 if __name__ == "__main__":
     unittest.main()
