@@ -81,9 +81,10 @@ LandmarkLocalizer::Impl::Impl(const VisionConfig& c, const CameraModel& m,
   coarse_anchor = coarse_w / 2.0;
   build_templates();
   build_logo();
-  // Every mapped code is encoded now, at start-up, rather than on the first landmark frame, which
-  // would be late by the encoding: 1000 landmarks (2000 codes) take 0.23 s on x86-64.
-  code_book();
+  // A small map's codes are encoded now, at start-up, rather than on the first landmark frame,
+  // which would be late by the encoding (1000 landmarks, 2000 codes, take 0.23 s on x86-64); a
+  // large map's book follows the prediction (map_identity_stage.cpp, docs/large_maps.md).
+  update_code_book(Prediction{});
 }
 
 // The stages in the order they run, numbered as in docs/vision.md "Pipeline". The pose comes before
@@ -107,6 +108,8 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
   // pose stage's edge bands itself and the fit then lands where it said; otherwise from the
   // prediction when it is trusted (tracked, then the windows), the whole frame when there is none
   // or they find nothing (docs/tracking.md).
+  prune_map_codes();
+  update_code_book(pred);
   planner.plan(pred, &windows);
   Detection det;
   Vec2 c_mm;

@@ -371,7 +371,6 @@ struct LandmarkLocalizer::Impl {
   MapIdentityConfig identity_cfg;
   MapIdentityDecision last_identity;
   ModuleAgreement last_modules;
-  bool map_codes_built = false;
   // Both forms of a mapped landmark's code: [0] the full payload, [1] the id-only one.
   struct MapCodes {
     std::array<QrBits, 2> bits;
@@ -380,16 +379,22 @@ struct LandmarkLocalizer::Impl {
     // -1 no. Checked on first use as an expected code; only a 1 is offered to the verified read.
     std::array<int, 2> reads_back{0, 0};
   };
+  // Encoded on first use (docs/large_maps.md): a site's map has tens of thousands of codes, of
+  // which a frame needs a few. Emptied between frames once it holds kMaxCachedCodes landmarks.
   std::map<std::uint32_t, MapCodes> map_codes;
   MapCodes* codes_of(std::uint32_t id);
-  // Every mapped code for the verified read without a prediction (qr_grid.hpp QrCodeBook), built
-  // from map_codes by the constructor.
+  // The mapped codes for the verified read (qr_grid.hpp QrCodeBook): every one of a small map
+  // (built by the constructor), else those of the landmarks nearest the predicted vehicle (none
+  // without a prediction; zxing reads those codes, to the same text). book_ids: whose codes.
   QrCodeBook map_book;
-  bool map_book_built = false;
-  QrCodeBook* code_book();
+  std::vector<std::uint32_t> book_ids;
+  bool full_book = false;
+  void update_code_book(const Prediction& pred);
+  QrCodeBook* code_book() { return map ? &map_book : nullptr; }
+  void prune_map_codes();
   std::vector<std::uint8_t> identity_bits;
   std::vector<std::pair<std::uint32_t, const QrBits*>> identity_others;
-  void build_map_codes();
+  std::vector<const LandmarkMapEntry*> near_entries;
   bool map_identity(const cv::Mat& img, const Prediction& pred, Vec2 c_mm, double beta,
                     const Eigen::Matrix3d& cov, const LogoScores& logo, Pose2* world_landmark,
                     int* turn, std::uint32_t* id);

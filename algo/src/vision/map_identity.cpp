@@ -26,6 +26,11 @@ constexpr int kLocalMeanRadius = 2;  // 5 x 5 modules
 constexpr double kMinLocalRangeRel = 0.35;
 constexpr double kMinMarginRel = 0.05;
 
+double largest_eigen2(double a, double b, double c) {
+  const double h = 0.5 * (a - c);
+  return 0.5 * (a + c) + std::sqrt(h * h + b * b);
+}
+
 double mahalanobis2(const Eigen::Vector3d& r, const Eigen::Matrix3d& s) {
   const Eigen::LDLT<Eigen::Matrix3d> ldlt(s);
   if (ldlt.info() != Eigen::Success || !ldlt.isPositive()) {
@@ -67,15 +72,37 @@ Pose2 predicted_landmark_in_vehicle(const Prediction& pred, const Pose2& lw, Eig
   return p;
 }
 
+double identity_search_radius_mm(Vec2 c_mm, const Eigen::Matrix3d& meas_cov, const Prediction& pred,
+                                 double chi2) {
+  const double inf = std::numeric_limits<double>::infinity();
+  const Eigen::Matrix3d& p = pred.cov;
+  if (!p.allFinite() || !meas_cov.allFinite() || !(chi2 >= 0.0) || !std::isfinite(chi2)) {
+    return inf;
+  }
+  const double pos_var = largest_eigen2(p(0, 0), p(0, 1), p(1, 1));
+  const double meas_var = largest_eigen2(meas_cov(0, 0), meas_cov(0, 1), meas_cov(1, 1));
+  if (!(pos_var >= 0.0) || !(meas_var >= 0.0) || !(p(2, 2) >= 0.0)) return inf;
+  const double k = std::sqrt(chi2);
+  const double sigma_heading = std::sqrt(p(2, 2));
+  if (!(k * sigma_heading < 1.0)) return inf;
+  // |p - c| <= k * sqrt((sp + sh |p|)^2 + m) <= k * (sp + sh (|c| + |p - c|) + sqrt(m)),
+  // solved for |p - c|.
+  const double a =
+      std::sqrt(pos_var) + sigma_heading * std::hypot(c_mm.x, c_mm.y) + std::sqrt(meas_var);
+  return k * a / (1.0 - k * sigma_heading);
+}
+
 MapIdentityDecision gate_identity(Vec2 c_mm, double beta, const Eigen::Matrix3d& meas_cov,
                                   const std::array<bool, 4>& allowed_turns, const Prediction& pred,
-                                  const LandmarkMap& map, const MapIdentityConfig& cfg) {
+                                  const LandmarkMap& map, const MapIdentityConfig& cfg,
+                                  const LandmarkIndex* index) {
   MapIdentityDecision d;
   if (!pred.valid || map.entries.empty()) return d;
   const double inf = std::numeric_limits<double>::infinity();
   d.d2_best = inf;
   d.d2_second = inf;
-  for (const auto& [id, e] : map.entries) {
+  const auto score = [&](const LandmarkMapEntry& e) {
+    const std::uint32_t id = e.id;
     Eigen::Matrix3d pc;
     const Pose2 p = predicted_landmark_in_vehicle(pred, e.pose, &pc);
     const Eigen::Matrix3d s = pc + meas_cov;
@@ -93,6 +120,21 @@ MapIdentityDecision gate_identity(Vec2 c_mm, double beta, const Eigen::Matrix3d&
         d.d2_second = d2;
       }
     }
+  };
+  // Landmarks beyond the radius cannot be within either threshold, so leaving them out changes
+  // neither the decision nor the candidate; the index returns the rest in the map's order.
+  const double radius_mm =
+      index
+          ? identity_search_radius_mm(c_mm, meas_cov, pred, std::max(cfg.gate_chi2, cfg.clear_chi2))
+          : std::numeric_limits<double>::infinity();
+  if (std::isfinite(radius_mm)) {
+    thread_local std::vector<const LandmarkMapEntry*> near;
+    const Vec2 c_world = transform(pred.vehicle_in_world, c_mm);
+    // The slack covers the rounding of the two distance computations at the disc's edge.
+    index->within(c_world, radius_mm * (1.0 + 1e-9) + 1e-6, &near);
+    for (const LandmarkMapEntry* e : near) score(*e);
+  } else {
+    for (const auto& [id, e] : map.entries) score(e);
   }
   if (!(d.d2_best <= cfg.gate_chi2)) {
     d.result = MapIdentityResult::kNoneInGate;

@@ -88,6 +88,7 @@ WindowPlanner::WindowPlanner(const VisionConfig& vision, const CameraModel& cam,
       floor_(cam),
       geom_(geom),
       map_(map),
+      index_(map ? std::make_shared<const LandmarkIndex>(*map) : nullptr),
       margin_mm_(detection_margin_mm(vision, geom, cam)) {
   const double w = cam.intrinsics.width_px, h = cam.intrinsics.height_px;
   const std::array<Vec2, 8> border = {Vec2{0, 0}, Vec2{w / 2, 0}, Vec2{w, 0}, Vec2{w, h / 2},
@@ -121,15 +122,29 @@ void WindowPlanner::plan(const Prediction& pred, std::vector<SearchWindow>* out)
   const double head_sigma = std::sqrt(std::max(0.0, cov_v(2, 2)));
   const double diag_mm = std::sqrt(2.0) * geom_.outer_half_mm();
   const Pose2 world_to_vehicle = inverse(v);
-  for (const auto& [id, e] : map_->entries) {
+  const auto consider = [&](const LandmarkMapEntry& e) {
     const Vec2 q = transform(world_to_vehicle, {e.pose.x_mm, e.pose.y_mm});
     const double d = std::hypot(q.x, q.y);
     const double reach = footprint_radius_mm_ + diag_mm + margin_mm_ +
                          cfg_.window_sigmas * (pos_sigma + head_sigma * (d + diag_mm));
-    if (d > reach) continue;
+    if (d > reach) return;
     SearchWindow w;
     if (window_for(v, cov_v, e, &w)) out->push_back(w);
+  };
+  // The reach test above, solved for d: d <= fixed / (1 - window_sigmas * head_sigma). Only the
+  // landmarks within that distance of the vehicle can pass it, so the index's disc holds every
+  // window (in the map's order, as the scan below gives them).
+  const double growth = cfg_.window_sigmas * head_sigma;
+  const double fixed = footprint_radius_mm_ + diag_mm + margin_mm_ +
+                       cfg_.window_sigmas * (pos_sigma + head_sigma * diag_mm);
+  if (index_ && growth < 1.0 && std::isfinite(fixed)) {
+    // The slack covers the two distance formulas' rounding at the disc's edge.
+    const double radius_mm = fixed / (1.0 - growth) * (1.0 + 1e-9) + 1e-6;
+    index_->within({v.x_mm, v.y_mm}, radius_mm, &near_);
+    for (const LandmarkMapEntry* e : near_) consider(*e);
+    return;
   }
+  for (const auto& [id, e] : map_->entries) consider(e);
 }
 
 bool WindowPlanner::window_for(const Pose2& v, const Eigen::Matrix3d& cov_v,

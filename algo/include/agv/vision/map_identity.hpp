@@ -19,6 +19,7 @@
 
 #include "agv/common/geometry.hpp"
 #include "agv/common/landmark.hpp"
+#include "agv/common/landmark_index.hpp"
 #include "agv/vision/landmark_localizer.hpp"
 #include "agv/vision/qr_grid.hpp"
 
@@ -52,6 +53,12 @@ struct MapIdentityConfig {
   // cannot be told apart, so the identity is refused (never seen: two payloads differing in the
   // id alone differ on ~100 modules).
   int min_pair_modules = 24;
+  // The module check compares the candidate's code with those of this many mapped landmarks
+  // nearest to it (docs/large_maps.md): the wrong landmark a misplaced prediction lets through
+  // the gate is a neighbour (a grid spacing away), and a bounded count keeps the check's cost and
+  // the codes it encodes independent of the map's size. 24 covers every other landmark of the
+  // maps up to 25 landmarks (the demo's) and, on a 1 m grid, every landmark within 2.5 m.
+  int pair_neighbours = 24;
 };
 
 enum class MapIdentityResult {
@@ -67,7 +74,9 @@ struct MapIdentityDecision {
   MapIdentityResult result = MapIdentityResult::kNoPrediction;
   std::uint32_t id = 0;  // the candidate (also set when the module check refuses it)
   int turn = 0;          // forward axis = beta - turn * 90 deg
-  double d2_best = 0.0, d2_second = 0.0;  // squared Mahalanobis distances (second: +inf if none)
+  // Squared Mahalanobis distances. d2_second is exact up to clear_chi2; beyond it, with an index,
+  // it is some larger value or +inf (the landmarks that far out are not visited).
+  double d2_best = 0.0, d2_second = 0.0;
 };
 
 // The predicted landmark-in-vehicle pose of a map entry and its covariance, propagated from the
@@ -78,11 +87,24 @@ Pose2 predicted_landmark_in_vehicle(const Prediction& pred, const Pose2& landmar
 // Stage 1, the pose gate. measured_c_mm, beta_rad: the fitted square's centre and the angle of its
 // side-0 normal in the vehicle frame (the landmark's forward axis is beta - turn * 90 deg);
 // meas_cov: covariance of (x_mm, y_mm, theta_rad) of the fit. allowed_turns: the turns the logo
-// allows (one when it is clear, all four otherwise).
+// allows (one when it is clear, all four otherwise). index: the map's spatial index (null: every
+// entry is scored). With it, only the landmarks that can lie within max(gate_chi2, clear_chi2) are
+// scored: the same decision at a cost set by the prediction's uncertainty, not the map's size
+// (docs/large_maps.md), unless the heading sigma is so large (above 1 / sqrt(clear_chi2) rad,
+// 7.4 deg) that no distance bounds the gate; every entry is scored then.
 MapIdentityDecision gate_identity(Vec2 measured_c_mm, double beta_rad,
                                   const Eigen::Matrix3d& meas_cov,
                                   const std::array<bool, 4>& allowed_turns, const Prediction& pred,
-                                  const LandmarkMap& map, const MapIdentityConfig& cfg);
+                                  const LandmarkMap& map, const MapIdentityConfig& cfg,
+                                  const LandmarkIndex* index = nullptr);
+
+// Radius (mm) around the measured centre beyond which no mapped landmark's squared Mahalanobis
+// distance can be at most chi2: the position block of the innovation covariance is at most
+// (sigma_pos + sigma_heading * |p|)^2 + the fit's largest position variance for a landmark at p
+// (vehicle frame). +inf when no radius bounds it (sigma_heading * sqrt(chi2) >= 1, or a
+// covariance that is not finite).
+double identity_search_radius_mm(Vec2 measured_c_mm, const Eigen::Matrix3d& meas_cov,
+                                 const Prediction& pred, double chi2);
 
 // The code the landmark prints: zxing-cpp's writer at ECC level M without margin (exactly as the
 // simulator and the generator render it). False when the text cannot be encoded.

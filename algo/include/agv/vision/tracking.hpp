@@ -5,11 +5,13 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "agv/common/camera_model.hpp"
 #include "agv/common/geometry.hpp"
 #include "agv/common/landmark.hpp"
+#include "agv/common/landmark_index.hpp"
 #include "agv/vision/landmark_localizer.hpp"
 
 namespace agv::vision {
@@ -56,6 +58,9 @@ class WindowPlanner {
   static double point_sigma_mm(Vec2 p_vehicle, const Eigen::Matrix3d& cov_vehicle_axes);
 
   double margin_mm() const { return margin_mm_; }
+  // The spatial index over the map's landmarks (null without a map), shared with the localizer's
+  // other map lookups so that a large map is indexed once.
+  const LandmarkIndex* index() const { return index_.get(); }
 
  private:
   bool window_for(const Pose2& vehicle_in_world, const Eigen::Matrix3d& cov,
@@ -68,6 +73,9 @@ class WindowPlanner {
   FloorProjector floor_;
   LandmarkGeometry geom_;
   const LandmarkMap* map_;
+  std::shared_ptr<const LandmarkIndex> index_;
+  // plan()'s candidates from the index, kept for their storage.
+  mutable std::vector<const LandmarkMapEntry*> near_;
   double margin_mm_ = 0.0;
   double footprint_radius_mm_ = 0.0;  // farthest imaged floor point from the vehicle origin
 };
