@@ -36,6 +36,11 @@ int run(int argc, char** argv) {
     }
     map_ptr = &map;
   }
+  std::vector<std::string> cannot;
+  if (!config::check_can_localize(cfg, map_ptr, &cannot)) {
+    for (const auto& e : cannot) std::fprintf(stderr, "agvloc: config: %s\n", e.c_str());
+    return 2;
+  }
   auto camera = app::make_live_camera(cfg, &err);
   if (!camera) {
     std::fprintf(stderr, "agvloc: %s\n", err.c_str());

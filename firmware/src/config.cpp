@@ -43,4 +43,30 @@ bool load_map_file(const std::string& path, LandmarkMap* map, std::string* error
   return true;
 }
 
+bool check_can_localize(const Config& cfg, const LandmarkMap* map,
+                        std::vector<std::string>* errors) {
+  const size_t before = errors->size();
+  if (cfg.vision.family == LandmarkFamily::kTag36h11) {
+    if (!map || map->entries.empty()) {
+      errors->push_back(
+          "landmark.family tag36h11 needs landmark.map: a tag carries only its id, the pose "
+          "comes from the map (without one every tag is \"not in the map\")");
+    } else {
+      std::string ids;
+      int n = 0;
+      for (const auto& [id, e] : map->entries) {
+        if (id <= kTag36h11MaxId) continue;
+        if (n++ < 5) ids += (ids.empty() ? "" : ", ") + std::to_string(id);
+      }
+      if (n > 0) {
+        errors->push_back("landmark.map " + cfg.map_file + ": " + std::to_string(n) +
+                          " id(s) above " + std::to_string(kTag36h11MaxId) + " (" + ids +
+                          (n > 5 ? ", ..." : "") +
+                          "), which tag36h11 does not have: those landmarks can never be seen");
+      }
+    }
+  }
+  return errors->size() == before;
+}
+
 }  // namespace agv::config

@@ -25,5 +25,10 @@ bool load_config_or_report(const std::string& path, const char* who, Config* out
 // Reads a landmark map file (docs/landmark.md; a regular file of at most kMaxMapBytes); false
 // with *error naming file and line.
 bool load_map_file(const std::string& path, LandmarkMap* map, std::string* error);
+// What the YAML alone cannot show but leaves a live run unable to localize: a tag36h11 floor
+// without landmark.map (a tag carries only its id), a map id the family does not have. False
+// with one line per problem in *errors. map is the configuration's landmark.map (null: none).
+bool check_can_localize(const Config& cfg, const LandmarkMap* map,
+                        std::vector<std::string>* errors);
 
 }  // namespace agv::config

@@ -11,28 +11,15 @@
 
 #include "calib_intrinsics.hpp"
 #include "config.hpp"
+#include "desk_run.hpp"
 
 namespace {
 
 namespace fs = std::filesystem;
 
-struct Out {
-  int code = -1;
-  std::string text;  // stdout + stderr
-};
+using Out = agv::test::DeskOut;
 
-Out run(const std::string& args) {
-  const std::string cmd = std::string(AGVLOC_DESK) + " " + args + " 2>&1";
-  Out o;
-  FILE* p = popen(cmd.c_str(), "r");
-  if (!p) return o;
-  char buf[4096];
-  size_t n;
-  while ((n = fread(buf, 1, sizeof buf, p)) > 0) o.text.append(buf, n);
-  const int status = pclose(p);
-  o.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return o;
-}
+Out run(const std::string& args) { return agv::test::run_desk(args); }
 
 std::string board_flags() {
   return agv::desk::calib::have_charuco() ? "--board charuco" : "--board chessboard";

@@ -103,7 +103,8 @@ void add_landmark(std::vector<Key>* k) {
       "qr",
       "printed landmarks on this floor: the QR landmark (identity and pose in the code) or "
       "AprilTag tag36h11 (libapriltag detection, same edge-fit pose; the id needs the map, so "
-      "without landmark.map every tag is \"not in the map\"). Tags: only the outer edge is "
+      "without landmark.map every tag is \"not in the map\": `agvloc run` refuses tag36h11 "
+      "without a map, and map ids above 586, the family's last). Tags: only the outer edge is "
       "fitted"));
   k->push_back(text("landmark.map", AGV_AT(map_file), "",
                     "landmark map file, relative to the configuration file; empty = poses from "
@@ -111,7 +112,10 @@ void add_landmark(std::vector<Key>* k) {
 }
 
 void add_can(std::vector<Key>* k) {
-  k->push_back(text("can.interface", AGV_AT(can.interface), "can0", "SocketCAN interface"));
+  k->push_back(text("can.interface", AGV_AT(can.interface), "can0",
+                    "SocketCAN interface: a Linux interface name, 1..15 characters without '/', "
+                    "':' or whitespace (checked: a name that can never open would be retried "
+                    "forever)"));
   k->push_back(boolean("can.extended_ids", AGV_AT(can.extended_ids), false,
                        "29-bit IDs for all frames (widens the ID ranges below)"));
   k->push_back(can_id("can.base_id", AGV_AT(can.base_id), 0x300,
@@ -271,7 +275,8 @@ void add_replay_keys(std::vector<Key>* keys) {
   keys->push_back(number("replay.fix_delay_ms", AGV_AT(replay_fix_delay_ms), 0.0, 1000.0, 30.0,
                          {"ms",
                           "`--fast` only: time from exposure to the fix reaching fusion "
-                          "(live, it is whatever the vision worker takes)"}));
+                          "(live, it is whatever the vision worker takes); at most "
+                          "`fusion.max_fix_delay_ms`, or every fix is dropped as too old"}));
 }
 
 }  // namespace agv::config::detail

@@ -1,5 +1,7 @@
 // parse_config: walks the key table (keys.hpp) over the YAML tree. Everything key-specific is in
 // the table; what is here is the walk, the relations between keys and the final validations.
+#include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <string>
 
@@ -78,6 +80,37 @@ void read_section(YamlChecker& c, const YAML::Node& parent, const Section& s, Co
   c.finish_map(n, s.path);
 }
 
+std::string ms_text(std::int64_t ns) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", static_cast<double>(ns) / 1e6);
+  return buf;
+}
+
+// A Linux network interface name (dev_valid_name): 1..15 bytes (IFNAMSIZ 16 with the NUL), no
+// '/', ':', whitespace or NUL, not "." or "..". Anything else never opens, and the live loop
+// would retry it forever.
+void check_can_interface(YamlChecker& c, const std::string& name) {
+  constexpr size_t kMaxIfName = 15;
+  std::string why;
+  if (name.empty() || name.size() > kMaxIfName) {
+    why = std::to_string(name.size()) + " characters, a Linux interface name has 1.." +
+          std::to_string(kMaxIfName);
+  } else if (name == "." || name == "..") {
+    why = "not an interface name";
+  } else {
+    for (const char ch : name) {
+      const auto u = static_cast<unsigned char>(ch);
+      if (ch == '/' || ch == ':' || u <= 0x20 || u == 0x7f) {
+        why =
+            "contains a character an interface name cannot have ('/', ':', a space or control "
+            "character)";
+        break;
+      }
+    }
+  }
+  if (!why.empty()) c.error("can.interface", why);
+}
+
 // Relations between keys (each value is already in its own range here).
 void check_relations(YamlChecker& c, const Config& cfg) {
   const LoopSection& s = cfg.loop;
@@ -94,6 +127,22 @@ void check_relations(YamlChecker& c, const Config& cfg) {
                 " exceeds half the output period (" +
                 std::to_string(static_cast<int>(half_period_us)) + " us at loop.output_rate_hz " +
                 std::to_string(static_cast<int>(s.output_rate_hz)) + ")");
+  }
+  const fusion::EkfConfig& f = cfg.fusion;
+  // Every replayed fix would arrive later than fusion accepts: all "too old", zero fixes fused.
+  if (cfg.replay_fix_delay_ms * 1e6 > static_cast<double>(f.max_fix_delay_ns)) {
+    c.error("replay.fix_delay_ms", "value " + ms_text(std::llround(cfg.replay_fix_delay_ms * 1e6)) +
+                                       " exceeds fusion.max_fix_delay_ms (" +
+                                       ms_text(f.max_fix_delay_ns) +
+                                       "): every replayed fix would be dropped as too old");
+  }
+  check_can_interface(c, cfg.can.interface);
+  // The configuration's own names for what fusion::validate would name by its struct fields.
+  if (f.odom_gap_ns < f.odom_period_ns) {
+    c.error("fusion.odom_gap_ms", "value " + ms_text(f.odom_gap_ns) +
+                                      " must be at least fusion.odom_period_ms (" +
+                                      ms_text(f.odom_period_ns) + ")");
+    return;  // fusion::validate would say it again by the struct's field names
   }
   const std::string err = fusion::validate(cfg.fusion);
   if (!err.empty()) c.error("fusion", err);

@@ -6,6 +6,8 @@
 #include <cstdio>
 #include <opencv2/core.hpp>
 
+#include "agv/config/keys.hpp"
+
 namespace agv::desk::calib {
 
 namespace {
@@ -54,8 +56,13 @@ bool run_check(const CameraModel& camera, const vision::VisionConfig& vision_con
                const std::vector<PlacementInput>& placements, const Tolerances& tol,
                CheckResult* out, std::string* error) {
   *out = CheckResult{};
-  if (!(printed_size_mm > 0)) {
-    *error = "printed landmark size must be positive";
+  // The configuration's range for the landmark size (keys.hpp): outside it the templates and
+  // windows of the vision stage are not meaningful (an infinite size reached the corner
+  // template as INT_MIN pixels).
+  const config::Key* size_key = config::find_key("landmark.size_mm");
+  if (!(printed_size_mm >= size_key->lo && printed_size_mm <= size_key->hi)) {
+    *error = fmt("printed landmark size %g mm: must be in %g..%g mm (landmark.size_mm)",
+                 printed_size_mm, size_key->lo, size_key->hi);
     return false;
   }
   if (placements.empty()) {
@@ -89,14 +96,24 @@ bool run_check(const CameraModel& camera, const vision::VisionConfig& vision_con
     for (const FrameInput& f : in.frames) {
       FrameResult fr;
       fr.name = f.name;
-      if (!f.image || f.image->empty()) {
+      cv::Mat loaded;
+      const cv::Mat* image = f.image;
+      if (!image && f.load) {
+        std::string e;
+        if (!f.load(&loaded, &e)) {
+          *error = e;
+          return false;
+        }
+        image = &loaded;
+      }
+      if (!image || image->empty()) {
         *error = f.name + ": empty image";
         return false;
       }
-      const vision::FixStatus st = loc.process(*f.image, &fr.fix);
+      const vision::FixStatus st = loc.process(*image, &fr.fix);
       if (st == vision::FixStatus::kBadInput) {
         *error = fmt("%s: %dx%d image (%d channels) but the configured camera is %dx%d 8-bit gray",
-                     f.name.c_str(), f.image->cols, f.image->rows, f.image->channels(),
+                     f.name.c_str(), image->cols, image->rows, image->channels(),
                      camera.intrinsics.width_px, camera.intrinsics.height_px);
         return false;
       }

@@ -12,6 +12,7 @@
 // intrinsics/distortion; a spread over frames of one placement to focus, blur or vibration.
 #pragma once
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -36,9 +37,12 @@ struct Tolerances {
   double residual_mm = 0.05;  // rms distance of the edge points from the fitted square
 };
 
+// A frame in memory (image), or one read when the check reaches it (load; the image is dropped
+// after its fix, so a check over thousands of frames holds one decoded frame at a time).
 struct FrameInput {
   std::string name;  // for messages (file name)
   const cv::Mat* image = nullptr;
+  std::function<bool(cv::Mat*, std::string*)> load = nullptr;  // used when image is null
 };
 
 // One placement of the landmark: its taped pose and the frames taken of it. The taped pose is

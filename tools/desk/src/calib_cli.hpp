@@ -2,8 +2,11 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <cmath>
+#include <cstdio>
 #include <string>
 
+#include "agv/config/keys.hpp"
 #include "calib_intrinsics.hpp"
 
 namespace agv::desk::calib {
@@ -26,6 +29,29 @@ inline void add_board_options(CLI::App& app, BoardSpec* spec, std::string* type)
   app.add_option("--marker-mm", spec->marker_mm, "ChArUco marker side (mm)")->capture_default_str();
   app.add_option("--dictionary", spec->dictionary, "ChArUco marker dictionary (OpenCV name)")
       ->capture_default_str();
+}
+
+// A number option must be finite and in [lo, hi]: an infinite or huge size reaches pixel
+// arithmetic as INT_MIN or a multi-gigabyte template (issue 36).
+inline CLI::Validator finite_in(double lo, double hi) {
+  return CLI::Validator(
+      [lo, hi](std::string& text) -> std::string {
+        double v = 0.0;
+        if (!CLI::detail::lexical_cast(text, v) || !std::isfinite(v) || v < lo || v > hi) {
+          char buf[128];
+          std::snprintf(buf, sizeof buf, "must be a finite number in %g..%g, got '", lo, hi);
+          return buf + text + "'";
+        }
+        return {};
+      },
+      "FINITE");
+}
+
+// finite_in the accepted range of a configuration key (the key table is the one source of the
+// ranges: a value the tool accepts is one the configuration accepts).
+inline CLI::Validator key_range(const char* key) {
+  const config::Key* k = config::find_key(key);
+  return k ? finite_in(k->lo, k->hi) : finite_in(0.0, 0.0);
 }
 
 inline void apply_board_type(const std::string& type, BoardSpec* spec) {

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
@@ -11,6 +12,8 @@
 #if AGV_HAVE_ARUCO
 #include <opencv2/aruco/charuco.hpp>
 #endif
+
+#include "key_ranges.hpp"
 
 namespace agv::desk::calib {
 
@@ -93,6 +96,35 @@ double min_neighbour_px(const std::vector<cv::Point2f>& pts) {
     }
   }
   return best;
+}
+
+// Two views whose common corners all lie within this many pixels of each other show the board
+// in the same pose (a still camera over a still board: corner noise is about 0.05 px).
+constexpr double kSameViewPx = 1.0;
+// An overall RMS above this is not blur or a bent board but corners matched to the wrong board
+// points (a wrong board description).
+constexpr double kWrongBoardRmsPx = 5.0;
+
+// The used view (indices `used` into views) showing the board where `v` does, or null.
+const View* same_view(const std::vector<View>& views, const std::vector<size_t>& used,
+                      const View& v) {
+  for (size_t j : used) {
+    const View& u = views[j];
+    size_t common = 0;
+    double worst = 0.0;
+    for (size_t a = 0; a < v.ids.size(); ++a) {
+      for (size_t b = 0; b < u.ids.size(); ++b) {
+        if (v.ids[a] != u.ids[b]) continue;
+        ++common;
+        worst =
+            std::max(worst, static_cast<double>(cv::norm(v.image_points[a] - u.image_points[b])));
+        break;
+      }
+    }
+    // Most corners in common (a partly hidden board still counts as the same pose).
+    if (2 * common >= std::max(v.ids.size(), u.ids.size()) && worst <= kSameViewPx) return &u;
+  }
+  return nullptr;
 }
 
 constexpr double kSaddleSigma = 1.0;
@@ -334,7 +366,9 @@ double edge_blur_px(const cv::Mat& gray, const std::vector<cv::Point2f>& points)
   double peak = 0.0;
   for (size_t i = 0; i < top; ++i) peak += static_cast<double>(grads[i]);
   peak /= static_cast<double>(top);
-  if (!(peak > 0.0) || !(contrast > 0.0)) return 1e9;  // flat: no edge at all
+  // Flat: no edge at all; infinite, so a flat view is never taken for a sharp one (callers name
+  // it as "no edge" rather than printing a number).
+  if (!(peak > 0.0) || !(contrast > 0.0)) return std::numeric_limits<double>::infinity();
   return contrast / (std::sqrt(2.0 * M_PI) * peak);
 }
 
@@ -359,6 +393,11 @@ View detect_view(const cv::Mat& gray, const std::string& name, const BoardSpec& 
   };
   auto fail = [&](const std::string& what, const std::vector<cv::Point2f>& pts) {
     v.blur_px = edge_blur_px(gray, pts.size() >= 3 ? pts : std::vector<cv::Point2f>{});
+    if (std::isinf(v.blur_px)) {
+      v.blur_px = 0.0;
+      v.reject_reason = "no edge in the image (uniform: lens cap, no light, or nothing in view)";
+      return v;
+    }
     v.reject_reason = v.blur_px > options.max_blur_px ? blur_reason(v.blur_px) + "; " + what : what;
     return v;
   };
@@ -512,10 +551,26 @@ Result calibrate(std::vector<View> views, const BoardSpec& spec, const Options& 
     }
     if (size.area() == 0) size = v.size;
     if (v.size != size) {
-      r.error = v.name + ": " + std::to_string(v.size.width) + "x" + std::to_string(v.size.height) +
-                " differs from the first view's " + std::to_string(size.width) + "x" +
-                std::to_string(size.height) + " (calibrate one resolution at a time)";
+      // No view is used then: the table must not say "used" beside "usable 0".
+      int same = 0, other = 0;
+      for (const View& w : r.views) {
+        if (!w.detected || !w.reject_reason.empty()) continue;
+        (w.size == size ? same : other) += 1;
+      }
+      for (View& w : r.views) w.used = false;
+      r.error = "the views differ in size: " + std::to_string(same) + " at " +
+                std::to_string(size.width) + "x" + std::to_string(size.height) + ", " +
+                std::to_string(other) + " at other sizes (first: " + v.name + " " +
+                std::to_string(v.size.width) + "x" + std::to_string(v.size.height) +
+                "); calibrate one resolution at a time; no intrinsics written";
       return r;
+    }
+    if (const View* twin = same_view(r.views, used, v)) {
+      // A repeated view adds no geometry but weighs as a new one: 30 copies of one view gave a
+      // "result" 26 % off with a tiny RMS. Counted once.
+      v.reject_reason = "same board pose as " + twin->name + " (corners within " +
+                        fmt("%.1f", kSameViewPx) + " px): move or tilt the board between views";
+      continue;
     }
     v.used = true;
     obj.push_back(v.object_points);
@@ -551,6 +606,16 @@ Result calibrate(std::vector<View> views, const BoardSpec& spec, const Options& 
   r.rms_px = cv::calibrateCamera(
       obj, img, size, k, d, rvecs, tvecs, sd_intr, sd_extr, per_view, flags,
       cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, 200, DBL_EPSILON));
+  // Pixels of error, not tenths: the corners were matched to the wrong board points. That is
+  // what an 11 x 8 board description of a 9 x 7 print gives (117 px); named with any error.
+  std::string board_hint;
+  if (r.rms_px > kWrongBoardRmsPx) {
+    board_hint = "; an RMS of " + fmt("%.1f", r.rms_px) +
+                 " px means the corners do not fit the board described: do --board, "
+                 "--squares-x/--squares-y (" +
+                 std::to_string(spec.squares_x) + " x " + std::to_string(spec.squares_y) +
+                 "), --square-mm, --marker-mm and --dictionary match the printed board?";
+  }
   auto& in = r.intrinsics;
   in.width_px = size.width;
   in.height_px = size.height;
@@ -598,8 +663,24 @@ Result calibrate(std::vector<View> views, const BoardSpec& spec, const Options& 
       in.cx > size.width - 0.5 || in.cy > size.height - 0.5) {
     r.error = "calibration did not converge to a camera (fx " + fmt("%.4g", in.fx) + ", fy " +
               fmt("%.4g", in.fy) + ", principal point (" + fmt("%.4g", in.cx) + ", " +
-              fmt("%.4g", in.cy) + ")): add tilted views covering the whole image";
+              fmt("%.4g", in.cy) + ")): add tilted views covering the whole image" + board_hint;
     return r;
+  }
+  {
+    const char* keys[9] = {"intrinsics.fx", "intrinsics.fy", "intrinsics.cx",
+                           "intrinsics.cy", "intrinsics.k1", "intrinsics.k2",
+                           "intrinsics.p1", "intrinsics.p2", "intrinsics.k3"};
+    const double got[9] = {in.fx, in.fy, in.cx, in.cy, in.k1, in.k2, in.p1, in.p2, in.k3};
+    std::string bad;
+    for (int i = 0; i < 9; ++i) {
+      const std::string why = outside_key_range(keys[i], got[i]);
+      if (!why.empty()) bad += (bad.empty() ? "" : "; ") + why;
+    }
+    if (!bad.empty()) {
+      r.error = "calibration result the configuration would reject: " + bad +
+                "; no intrinsics written" + board_hint;
+      return r;
+    }
   }
   for (int i = 0; i < 2; ++i) {
     const double rel = r.stddev[static_cast<size_t>(i)] / vals[i];
@@ -618,6 +699,7 @@ Result calibrate(std::vector<View> views, const BoardSpec& spec, const Options& 
     r.error = "RMS reprojection error " + fmt("%.3f", r.rms_px) + " px is above " +
               fmt("%.3f", o.max_rms_px) + " px (--max-rms-px); worst views: " + worst +
               "; no intrinsics written";
+    r.error += board_hint;
     return r;
   }
   r.ok = true;
@@ -694,10 +776,15 @@ std::string report_text(const Result& r) {
     const auto& k = r.intrinsics;
     s << "RMS reprojection error: " << fmt("%.4f", r.rms_px) << " px over " << r.corners
       << " corners\n";
-    s << "fx " << fmt("%.4f", k.fx) << " +- " << fmt("%.4f", r.stddev[0]) << "  fy "
-      << fmt("%.4f", k.fy) << " +- " << fmt("%.4f", r.stddev[1]) << "\n";
-    s << "cx " << fmt("%.4f", k.cx) << " +- " << fmt("%.4f", r.stddev[2]) << "  cy "
-      << fmt("%.4f", k.cy) << " +- " << fmt("%.4f", r.stddev[3]) << "\n";
+    // OpenCV's standard deviation is NaN when the problem is degenerate: say so, not "-nan".
+    auto sd = [&](int i) {
+      const double v = r.stddev[static_cast<size_t>(i)];
+      return std::isfinite(v) ? fmt("%.4f", v) : std::string("(undetermined)");
+    };
+    s << "fx " << fmt("%.4f", k.fx) << " +- " << sd(0) << "  fy " << fmt("%.4f", k.fy) << " +- "
+      << sd(1) << "\n";
+    s << "cx " << fmt("%.4f", k.cx) << " +- " << sd(2) << "  cy " << fmt("%.4f", k.cy) << " +- "
+      << sd(3) << "\n";
     s << "k1 " << fmt("%.6f", k.k1) << "  k2 " << fmt("%.6f", k.k2) << "  p1 " << fmt("%.6f", k.p1)
       << "  p2 " << fmt("%.6f", k.p2) << "  k3 " << fmt("%.6f", k.k3) << "\n";
     s << "coverage: " << fmt("%.0f", 100.0 * r.coverage.covered) << " % of the " << r.coverage.cols

@@ -8,11 +8,11 @@
 #include <filesystem>
 #include <fstream>
 
-#include "agv/recording/png_io.hpp"
 #include "calib_cli.hpp"
 #include "calib_intrinsics.hpp"
 #include "commands.hpp"
 #include "config.hpp"
+#include "desk_input.hpp"
 
 namespace agv::desk {
 
@@ -185,12 +185,17 @@ int calibrate_intrinsics(int argc, char** argv) {
     return 2;
   }
   std::vector<fs::path> files;
-  for (const auto& e : fs::directory_iterator(images, ec)) {
-    std::string ext = e.path().extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(), ::tolower);
-    if (e.is_regular_file() && ext == ".png") files.push_back(e.path());
+  std::vector<std::string> skipped;
+  if (!input::list_pngs(images, &files, &skipped, &error)) {
+    std::fprintf(stderr, "%s: --images %s\n", who, error.c_str());
+    return 2;
   }
-  std::sort(files.begin(), files.end());
+  // Not regular files (a symlink loop, a FIFO): skipped by name and counted, never read.
+  for (const auto& s : skipped) std::fprintf(stderr, "%s: warning: skipped %s\n", who, s.c_str());
+  if (!skipped.empty()) {
+    std::fprintf(stderr, "%s: warning: %zu .png entr%s of %s skipped (not regular files)\n", who,
+                 skipped.size(), skipped.size() == 1 ? "y" : "ies", images.c_str());
+  }
   if (files.empty()) {
     std::fprintf(stderr, "%s: %s: no .png images\n", who, images.c_str());
     return 2;
@@ -199,7 +204,7 @@ int calibrate_intrinsics(int argc, char** argv) {
   for (const auto& f : files) {
     cv::Mat gray;
     std::string err;
-    if (!png::read_gray(f.string(), &gray, &err)) {
+    if (!input::read_gray(f.string(), &gray, &err)) {
       calib::View v;
       v.name = f.filename().string();
       v.reject_reason = "cannot read: " + err;

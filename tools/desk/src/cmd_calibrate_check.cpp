@@ -8,11 +8,12 @@
 #include <map>
 #include <sstream>
 
-#include "agv/recording/png_io.hpp"
 #include "agv/recording/recording.hpp"
 #include "calib_check.hpp"
+#include "calib_cli.hpp"
 #include "commands.hpp"
 #include "config.hpp"
+#include "desk_input.hpp"
 
 namespace agv::desk {
 
@@ -29,9 +30,21 @@ bool parse_pose(const std::string& text, Pose2* out) {
   return true;
 }
 
-// Frames of one path: a PNG, or a recording directory (all of its frames).
-bool load_frames(const std::string& path, std::vector<cv::Mat>* images,
-                 std::vector<std::string>* names, std::string* err) {
+// Frames of one path: a PNG, or a recording directory (all of its frames). Only listed here:
+// each is read when the check reaches it and dropped after (calib::FrameInput::load), so memory
+// does not grow with the number of frames.
+bool list_frames(const std::string& path, std::vector<desk::calib::FrameInput>* frames,
+                 std::string* err) {
+  auto frame = [](const std::string& file) {
+    desk::calib::FrameInput f;
+    f.name = file;
+    f.load = [file](cv::Mat* img, std::string* e) {
+      if (input::read_gray(file, img, e)) return true;
+      *e = "cannot read frame: " + *e;
+      return false;
+    };
+    return f;
+  };
   std::error_code ec;
   if (fs::is_directory(path, ec)) {
     recording::Recording rec;
@@ -43,22 +56,16 @@ bool load_frames(const std::string& path, std::vector<cv::Mat>* images,
       *err = path + ": recording has no frames";
       return false;
     }
-    for (size_t i = 0; i < rec.frames.size(); ++i) {
-      cv::Mat img;
-      if (!recording::load_frame(rec, i, &img, err)) return false;
-      images->push_back(img);
-      names->push_back((fs::path(path) / rec.frames[i].file).string());
-    }
+    for (const auto& f : rec.frames) frames->push_back(frame((fs::path(path) / f.file).string()));
     return true;
   }
-  cv::Mat img;
-  std::string e;
-  if (!png::read_gray(path, &img, &e)) {
-    *err = path + ": cannot read frame: " + e;
+  // Checked now, not when the frame is reached: a FIFO or a missing file is a typo to report
+  // before minutes of work.
+  if (!input::regular_file(path, input::kMaxImageBytes, err)) {
+    *err = "cannot read frame: " + *err;
     return false;
   }
-  images->push_back(img);
-  names->push_back(path);
+  frames->push_back(frame(path));
   return true;
 }
 
@@ -91,13 +98,25 @@ int calibrate_check(int argc, char** argv) {
                  "paths relative to the CSV");
   app.add_option("--map", map_path, "Landmark map (default: the configuration's landmark.map)");
   app.add_option("--printed-size-mm", printed_size_mm,
-                 "Outer side of the print as measured with calipers (default: landmark.size_mm)");
-  app.add_option("--tol-mm", tol.position_mm, "Position tolerance")->capture_default_str();
-  app.add_option("--tol-deg", tol.heading_deg, "Heading tolerance")->capture_default_str();
-  app.add_option("--tol-height-mm", tol.height_mm, "Height tolerance")->capture_default_str();
+                 "Outer side of the print as measured with calipers (default: landmark.size_mm; "
+                 "the range of landmark.size_mm)")
+      ->check(calib::key_range("landmark.size_mm"));
+  // Tolerances: positive and finite (an infinite one would pass anything).
+  const auto tol_range = calib::finite_in(1e-6, 1e3);
+  app.add_option("--tol-mm", tol.position_mm, "Position tolerance")
+      ->check(tol_range)
+      ->capture_default_str();
+  app.add_option("--tol-deg", tol.heading_deg, "Heading tolerance")
+      ->check(tol_range)
+      ->capture_default_str();
+  app.add_option("--tol-height-mm", tol.height_mm, "Height tolerance")
+      ->check(tol_range)
+      ->capture_default_str();
   app.add_option("--tol-spread-mm", tol.spread_mm, "Spread over the frames of one placement")
+      ->check(tol_range)
       ->capture_default_str();
   app.add_option("--tol-residual-mm", tol.residual_mm, "Edge-point rms about the fitted square")
+      ->check(tol_range)
       ->capture_default_str();
   try {
     app.parse(argc, argv);
@@ -119,19 +138,19 @@ int calibrate_check(int argc, char** argv) {
     return bad("--pose X_MM,Y_MM,HEADING_DEG missing: the taped pose of the landmark");
   }
 
-  std::error_code ec;
-  if (!fs::is_regular_file(config_path, ec)) return bad("config " + config_path + " not found");
+  std::string err;
+  if (!input::regular_file(config_path, config::kMaxConfigBytes, &err)) {
+    return bad("config " + err);
+  }
   config::Config cfg;
   if (!config::load_config_or_report(config_path, "agvloc-desk calibrate check", &cfg)) return 2;
   if (map_path.empty()) map_path = cfg.map_file;
   LandmarkMap map;
-  std::string err;
   if (!map_path.empty() && !config::load_map_file(map_path, &map, &err)) return bad(err);
   if (world && map_path.empty()) {
     return bad("--pose-is vehicle-in-world needs a map (--map or landmark.map in the config)");
   }
   if (printed_size_mm == 0.0) printed_size_mm = cfg.landmark_size_mm;
-  if (!(printed_size_mm > 0)) return bad("--printed-size-mm must be positive");
 
   // (pose text, paths) per placement, in order of first appearance.
   std::vector<std::pair<Pose2, std::vector<std::string>>> groups;
@@ -178,18 +197,13 @@ int calibrate_check(int argc, char** argv) {
     if (groups.empty()) return bad(placements_csv + ": no rows");
   }
 
-  std::vector<std::vector<cv::Mat>> images(groups.size());
-  std::vector<std::vector<std::string>> names(groups.size());
   std::vector<desk::calib::PlacementInput> placements(groups.size());
   for (size_t g = 0; g < groups.size(); ++g) {
     for (const std::string& path : groups[g].second) {
-      if (!load_frames(path, &images[g], &names[g], &err)) return bad(err);
+      if (!list_frames(path, &placements[g].frames, &err)) return bad(err);
     }
     placements[g].taped = groups[g].first;
     placements[g].taped_is_vehicle_in_world = world;
-    for (size_t i = 0; i < images[g].size(); ++i) {
-      placements[g].frames.push_back({names[g][i], &images[g][i]});
-    }
   }
 
   desk::calib::CheckResult r;

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 
 #include "agv/recording/png_io.hpp"
@@ -15,6 +16,8 @@
 #include "calib_vehicle.hpp"
 #include "commands.hpp"
 #include "config.hpp"
+#include "desk_input.hpp"
+#include "key_ranges.hpp"
 
 namespace agv::desk {
 
@@ -257,31 +260,44 @@ int calibrate_vehicle(int argc, char** argv) {
   every_row.edge_row_step = 1;
   vision::LandmarkLocalizer loc(every_row, cam, geom, &map);
   std::vector<vcal::CornerObservation> obs;
-  int fixes = 0, unmapped = 0;
+  int fixes = 0;
+  // Frames without a fix, by reason: a landmark whose print disagrees with the map, or a family
+  // the floor does not have, must not vanish silently.
+  std::map<vision::FixStatus, int> failed;
   for (const auto& f : rec.frames) {
     cv::Mat img;
-    if (!png::read_gray((fs::path(rec_dir) / f.file).string(), &img, &err, cam.intrinsics.width_px,
-                        cam.intrinsics.height_px)) {
+    const std::string file = (fs::path(rec_dir) / f.file).string();
+    // A FIFO or device among the frames would block the read forever.
+    if (!input::regular_file(file, input::kMaxImageBytes, &err)) return fail(err, 1);
+    if (!png::read_gray(file, &img, &err, cam.intrinsics.width_px, cam.intrinsics.height_px)) {
       return fail(err, 1);
     }
     vision::LandmarkFix fix;
     const vision::FixStatus st = loc.process(img, &fix);
-    if (st != vision::FixStatus::kOk) continue;
-    ++fixes;
-    if (!map.find(fix.landmark_id)) {
-      ++unmapped;
+    if (st != vision::FixStatus::kOk) {
+      ++failed[st];
       continue;
     }
+    ++fixes;
     vcal::CornerObservation o;
     if (corner_observation(loc, fix, cam, geom, f.t_ns, &o)) obs.push_back(o);
   }
+  std::string failures;
+  for (const auto& [st, n] : failed) {
+    if (st == vision::FixStatus::kNoLandmark) continue;  // frames between landmarks: expected
+    failures += (failures.empty() ? "" : ", ") + std::to_string(n) + " " + vision::to_string(st);
+  }
   if (obs.empty()) {
-    return fail("no frame of " + std::to_string(rec.frames.size()) + " shows a landmark of " +
-                    map_path + " (" + std::to_string(fixes) + " landmark fixes, " +
-                    std::to_string(unmapped) +
-                    " of them of landmarks not in the map): wrong map, or no mapped landmark "
-                    "in view",
-                1);
+    // The localizer only fixes landmarks of the map (an unmapped id is a failed frame), so what
+    // failed and why is the hint.
+    return fail(
+        "no frame of " + std::to_string(rec.frames.size()) + " gave a fix on a landmark of " +
+            map_path + " (" + std::to_string(fixes) + " fixes without usable corners" +
+            (failures.empty() ? "" : "; frames with a landmark but no fix: " + failures) +
+            "): wrong map, landmark.family (" +
+            std::string(cfg.vision.family == LandmarkFamily::kTag36h11 ? "tag36h11" : "qr") +
+            ") not the printed family, or no mapped landmark in view",
+        1);
   }
   std::vector<vcal::OdomSample> odom;
   for (const auto& o : rec.odom) odom.push_back({o.t_ns, o.v_mps, o.omega_radps});
@@ -294,6 +310,21 @@ int calibrate_vehicle(int argc, char** argv) {
     return fail(err, 1);
   }
 
+  // Results the configuration would reject (the key table's ranges) are errors, not "ok": the
+  // snippet is not written, --check-config would refuse it anyway.
+  const bool wheels = cfg.can.odometry_mode == "wheels";
+  std::vector<std::string> out_of_range(r.params.size());
+  for (size_t i = 0; i < r.params.size(); ++i) {
+    const auto& p = r.params[i];
+    if (!p.determined) continue;
+    out_of_range[i] =
+        wheels && p.name == "odometry.yaw_rate_scale"
+            ? outside_key_range("can.odometry.track_width_mm", cfg.can.track_width_mm / p.value)
+            : outside_key_range(p.name, p.value);
+  }
+  const bool any_out_of_range = std::any_of(out_of_range.begin(), out_of_range.end(),
+                                            [](const auto& e) { return !e.empty(); });
+
   std::ostringstream rep;
   rep << "agvloc-desk calibrate vehicle " << rec_dir << " --map " << map_path << "\n"
       << "frames " << rec.frames.size() << ", landmark fixes " << fixes << ", corner observations "
@@ -301,12 +332,23 @@ int calibrate_vehicle(int argc, char** argv) {
       << " landmark passes; Ceres iterations " << r.iterations << "\n"
       << "corner residual RMS " << fmt("%.3f", r.rms_before_px) << " px before, "
       << fmt("%.3f", r.rms_after_px) << " px after\n\n";
+  if (!failures.empty()) {
+    rep << "frames with a landmark but no fix (not used): " << failures << "\n\n";
+  }
   rep << "parameter                       initial        estimate        sigma   status\n";
-  for (const auto& p : r.params) {
+  for (size_t i = 0; i < r.params.size(); ++i) {
+    const auto& p = r.params[i];
     char b[200];
     std::snprintf(b, sizeof b, "%-28s %12.5f %14.5f %12.5f   %s %s\n", p.name.c_str(), p.initial,
-                  p.value, p.sigma, p.determined ? "ok" : "NOT DETERMINED", p.unit.c_str());
+                  p.value, p.sigma,
+                  !out_of_range[i].empty() ? "OUT OF RANGE"
+                  : p.determined           ? "ok"
+                                           : "NOT DETERMINED",
+                  p.unit.c_str());
     rep << b;
+  }
+  for (const auto& e : out_of_range) {
+    if (!e.empty()) rep << "error: " << e << "\n";
   }
   rep << "\nper landmark pass (corner residual RMS, px):\n"
       << "pass  landmark  t_start_s  t_end_s  frames   before    after\n";
@@ -341,7 +383,6 @@ int calibrate_vehicle(int argc, char** argv) {
   // Odometry and timing: keys `odometry.*` (applied to the decoded samples before fusion, the
   // model's equations). Wheels mode: the yaw-rate scale becomes the track width the recording's
   // samples were decoded with divided by the scale (omega = (r - l) / track).
-  const bool wheels = cfg.can.odometry_mode == "wheels";
   std::ostringstream odo, can;
   bool any_odo = false;
   for (size_t i = 6; i < r.params.size(); ++i) {
@@ -379,6 +420,24 @@ int calibrate_vehicle(int argc, char** argv) {
   const std::pair<const char*, std::string> files[] = {{"vehicle_calibration.yaml", snip.str()},
                                                        {"report.txt", rep.str()},
                                                        {"residuals.svg", residual_svg(r)}};
+  if (any_out_of_range) {
+    // Not even a stale snippet of an earlier run may be left to merge.
+    fs::remove(fs::path(out_dir) / "vehicle_calibration.yaml", ec);
+    for (const auto& [name, text] : files) {
+      if (std::string(name) == "vehicle_calibration.yaml") continue;
+      std::ofstream f(fs::path(out_dir) / name, std::ios::binary | std::ios::trunc);
+      f << text;
+    }
+    std::fputs(rep.str().c_str(), stdout);
+    for (const auto& e : out_of_range) {
+      if (!e.empty()) std::fprintf(stderr, "agvloc-desk calibrate vehicle: %s\n", e.c_str());
+    }
+    return fail(
+        "result outside the configuration's accepted ranges (the drive, the odometry "
+        "decoding or the clocks are wrong): vehicle_calibration.yaml not written; " +
+            out_dir + "/report.txt has the details",
+        1);
+  }
   for (const auto& [name, text] : files) {
     std::ofstream f(fs::path(out_dir) / name, std::ios::binary | std::ios::trunc);
     f << text;

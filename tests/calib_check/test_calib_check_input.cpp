@@ -1,0 +1,79 @@
+// agvloc-desk calibrate check on careless input (issue 36): a printed size outside the
+// configuration's range is refused before the vision stage (inf reached the corner template as
+// INT_MIN pixels: segfault), and frames are decoded one at a time (all 1000 frames of a
+// recording were kept: 322 MB).
+#include <gtest/gtest.h>
+
+#include <limits>
+#include <opencv2/core.hpp>
+
+#include "calib_check.hpp"
+
+using namespace agv;
+
+namespace {
+
+cv::Mat blank() { return cv::Mat(480, 640, CV_8UC1, cv::Scalar(180)); }
+
+TEST(CalibCheckInput, PrintedSizeOutsideTheKeyRangeIsAnError) {
+  const cv::Mat frame = blank();
+  std::vector<desk::calib::PlacementInput> in(1);
+  in[0].frames.push_back({"f", &frame, {}});
+  for (double size : {std::numeric_limits<double>::infinity(), 1e308, 1e15, 1e12, 5.0,
+                      std::numeric_limits<double>::quiet_NaN()}) {
+    desk::calib::CheckResult r;
+    std::string err;
+    EXPECT_FALSE(desk::calib::run_check(CameraModel::default_640x480(), vision::VisionConfig{},
+                                        size, nullptr, in, {}, &r, &err))
+        << size;
+    EXPECT_NE(err.find("must be in 10..1000 mm (landmark.size_mm)"), std::string::npos)
+        << size << ": " << err;
+  }
+}
+
+// When frame k is loaded, the check holds no reference to frame k - 1 any more.
+TEST(CalibCheckInput, FramesAreStreamedOneAtATime) {
+  constexpr int kFrames = 6;
+  cv::Mat last;  // the test's own reference to the previous frame
+  int loads = 0, still_held = 0;
+  std::vector<desk::calib::PlacementInput> in(1);
+  for (int i = 0; i < kFrames; ++i) {
+    desk::calib::FrameInput f;
+    f.name = "frame" + std::to_string(i);
+    f.load = [&](cv::Mat* img, std::string*) {
+      if (!last.empty() && last.u->refcount > 1) ++still_held;
+      *img = blank();
+      last = *img;
+      ++loads;
+      return true;
+    };
+    in[0].frames.push_back(f);
+  }
+  desk::calib::CheckResult r;
+  std::string err;
+  // Blank frames: no fix, so an error, but only after every frame was looked at.
+  EXPECT_FALSE(desk::calib::run_check(CameraModel::default_640x480(), vision::VisionConfig{}, 60.0,
+                                      nullptr, in, {}, &r, &err));
+  EXPECT_NE(err.find("no landmark fix in any of its 6 frame(s)"), std::string::npos) << err;
+  EXPECT_EQ(loads, kFrames);
+  EXPECT_EQ(still_held, 0);
+}
+
+// A frame that cannot be read names itself and stops the check.
+TEST(CalibCheckInput, UnreadableFrameIsNamed) {
+  std::vector<desk::calib::PlacementInput> in(1);
+  desk::calib::FrameInput f;
+  f.name = "gone.png";
+  f.load = [](cv::Mat*, std::string* e) {
+    *e = "cannot read frame: gone.png: not found";
+    return false;
+  };
+  in[0].frames.push_back(f);
+  desk::calib::CheckResult r;
+  std::string err;
+  EXPECT_FALSE(desk::calib::run_check(CameraModel::default_640x480(), vision::VisionConfig{}, 60.0,
+                                      nullptr, in, {}, &r, &err));
+  EXPECT_EQ(err, "cannot read frame: gone.png: not found");
+}
+
+}  // namespace
