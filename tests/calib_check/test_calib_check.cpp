@@ -451,3 +451,23 @@ TEST(CalibCheckCommand, ExitCodes) {
             2);
   fs::remove_all(d);
 }
+
+namespace {
+
+// QR landmarks checked with a tag36h11 configuration: no fix, and the error names the family
+// (issue 36: a family mismatch gave 0 fixes with no hint).
+TEST(CalibCheck, FamilyMismatchNamesTheFamily) {
+  const CameraModel truth = nominal();
+  const std::vector<cv::Mat> frames = render(truth, kUnderCamera, 1, 3);
+  std::vector<desk::calib::PlacementInput> in(1);
+  in[0].taped = kUnderCamera;
+  in[0].frames.push_back({"frame0", &frames[0]});
+  vision::VisionConfig tags;
+  tags.family = LandmarkFamily::kTag36h11;
+  desk::calib::CheckResult r;
+  std::string err;
+  EXPECT_FALSE(desk::calib::run_check(truth, tags, 60.0, nullptr, in, {}, &r, &err));
+  EXPECT_NE(err.find("landmark.family (tag36h11) the family printed?"), std::string::npos) << err;
+}
+
+}  // namespace

@@ -142,7 +142,10 @@ bool run_check(const CameraModel& camera, const vision::VisionConfig& vision_con
     if (poses.empty()) {
       *error = where + ": no landmark fix in any of its " + std::to_string(pr.frames_total) +
                " frame(s) (first: " + first_failure +
-               "); is the whole landmark in the image, in focus, lit, and its id in the map?";
+               "); is the whole landmark in the image, in focus, lit, its id in the map, and " +
+               "landmark.family (" +
+               (vision_config.family == LandmarkFamily::kTag36h11 ? "tag36h11" : "qr") +
+               ") the family printed?";
       return false;
     }
     // Taped pose as V<-L.
