@@ -160,3 +160,29 @@ TEST(CalibHostileCli, CheckRefusesFifoFrameAndDirectoryConfig) {
 }
 
 }  // namespace
+
+namespace {
+
+// A landmark whose print disagrees with the map was dropped silently ("0 landmark fixes, 0 of
+// them of landmarks not in the map", a counter that could not be non-zero): the frames without
+// a fix are now counted by reason and the misprint is named.
+TEST(CalibHostileCli, VehicleNamesAMisprintedLandmark) {
+#if !AGV_HAVE_CERES
+  GTEST_SKIP() << "calibrate vehicle needs Ceres";
+#endif
+  const fs::path dir = fresh_dir("hostile_misprint");
+  // 1.6 s at 5 fps towards landmark 1, whose code claims a pose 8 mm off its map entry.
+  const auto sim = run_desk("sim --out " + (dir / "rec").string() +
+                            " --trajectory line --duration-s 1.6 --fps 5 --degrade clean "
+                            "--misprint 1:8:0");
+  ASSERT_EQ(sim.code, 0) << sim.text;
+  const auto o = run_desk("calibrate vehicle " + (dir / "rec").string() + " --map " +
+                              std::string(AGV_SOURCE_DIR) + "/tools/maps/default_grid.csv",
+                          60);
+  EXPECT_EQ(o.code, 1) << o.text;
+  EXPECT_NE(o.text.find("1 payload invalid"), std::string::npos) << o.text;
+  EXPECT_NE(o.text.find("disagrees with the map"), std::string::npos) << o.text;
+  EXPECT_EQ(o.text.find("0 of them"), std::string::npos) << o.text;
+}
+
+}  // namespace

@@ -287,16 +287,27 @@ int calibrate_vehicle(int argc, char** argv) {
     if (st == vision::FixStatus::kNoLandmark) continue;  // frames between landmarks: expected
     failures += (failures.empty() ? "" : ", ") + std::to_string(n) + " " + vision::to_string(st);
   }
+  // A print that disagrees with the map is a survey or printing error to fix, not noise.
+  const auto misprint = failed.find(vision::FixStatus::kPayloadInvalid);
+  const std::string misprint_warning =
+      misprint == failed.end()
+          ? std::string()
+          : std::to_string(misprint->second) +
+                " frames show a landmark whose code disagrees with the map (or is malformed): "
+                "check that landmark's print against the map";
   if (obs.empty()) {
     // The localizer only fixes landmarks of the map (an unmapped id is a failed frame), so what
     // failed and why is the hint.
     return fail(
-        "no frame of " + std::to_string(rec.frames.size()) + " gave a fix on a landmark of " +
-            map_path + " (" + std::to_string(fixes) + " fixes without usable corners" +
-            (failures.empty() ? "" : "; frames with a landmark but no fix: " + failures) +
+        "no frame of " + std::to_string(rec.frames.size()) +
+            " gave a usable fix on a landmark of " + map_path + " (" +
+            (fixes > 0 ? std::to_string(fixes) + " fixes with fewer than 3 border corners; " : "") +
+            (failures.empty() ? "no landmark seen"
+                              : "frames with a landmark but no fix: " + failures) +
             "): wrong map, landmark.family (" +
             std::string(cfg.vision.family == LandmarkFamily::kTag36h11 ? "tag36h11" : "qr") +
-            ") not the printed family, or no mapped landmark in view",
+            ") not the printed family, or no mapped landmark in view" +
+            (misprint_warning.empty() ? "" : "; " + misprint_warning),
         1);
   }
   std::vector<vcal::OdomSample> odom;
@@ -333,7 +344,9 @@ int calibrate_vehicle(int argc, char** argv) {
       << "corner residual RMS " << fmt("%.3f", r.rms_before_px) << " px before, "
       << fmt("%.3f", r.rms_after_px) << " px after\n\n";
   if (!failures.empty()) {
-    rep << "frames with a landmark but no fix (not used): " << failures << "\n\n";
+    rep << "frames with a landmark but no fix (not used): " << failures << "\n";
+    if (!misprint_warning.empty()) rep << "warning: " << misprint_warning << "\n";
+    rep << "\n";
   }
   rep << "parameter                       initial        estimate        sigma   status\n";
   for (size_t i = 0; i < r.params.size(); ++i) {
