@@ -186,3 +186,22 @@ TEST(CalibHostileCli, VehicleNamesAMisprintedLandmark) {
 }
 
 }  // namespace
+
+namespace {
+
+// CLI::Range let NaN through (it compares false both ways); the number options are checked finite.
+TEST(CalibHostileCli, NanOptionsAreRefusedAtTheParse) {
+  const fs::path dir = fresh_dir("hostile_nan");
+  auto o = run_desk(
+      "calibrate intrinsics --board chessboard --images " + dir.string() + " --max-blur-px nan",
+      20);
+  EXPECT_EQ(o.code, 2) << o.text;
+  EXPECT_NE(o.text.find("--max-blur-px: must be a finite number"), std::string::npos) << o.text;
+#if AGV_HAVE_CERES
+  o = run_desk("calibrate vehicle " + dir.string() + " --map m.csv --pixel-sigma-px nan", 20);
+  EXPECT_EQ(o.code, 2) << o.text;
+  EXPECT_NE(o.text.find("--pixel-sigma-px: must be a finite number"), std::string::npos) << o.text;
+#endif
+}
+
+}  // namespace

@@ -135,11 +135,11 @@ int calibrate_intrinsics(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--max-blur-px", opt.max_blur_px,
                  "Reject views whose edge blur (Gaussian sigma estimate) is above this")
-      ->check(CLI::Range(0.1, 100.0))
+      ->check(calib::finite_in(0.1, 100.0))
       ->capture_default_str();
   app.add_option("--max-rms-px", opt.max_rms_px,
                  "No result when the RMS reprojection error is above this")
-      ->check(CLI::Range(0.001, 100.0))
+      ->check(calib::finite_in(0.001, 100.0))
       ->capture_default_str();
   app.add_flag("--fix-k3", opt.fix_k3, "Keep k3 = 0 (narrow lenses)");
   app.add_flag("--zero-tangent", opt.zero_tangent, "Keep p1 = p2 = 0");

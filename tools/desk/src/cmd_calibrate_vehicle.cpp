@@ -13,6 +13,7 @@
 #include "agv/recording/png_io.hpp"
 #include "agv/recording/recording.hpp"
 #include "agv/vision/landmark_localizer.hpp"
+#include "calib_cli.hpp"
 #include "calib_vehicle.hpp"
 #include "commands.hpp"
 #include "config.hpp"
@@ -206,14 +207,14 @@ int calibrate_vehicle(int argc, char** argv) {
                  "Directory for vehicle_calibration.yaml, report.txt, "
                  "residuals.svg; default: RECORDING/calibration");
   app.add_option("--pixel-sigma-px", opt.pixel_sigma_px, "Corner noise (px)")
-      ->check(CLI::Range(0.001, 10.0))
+      ->check(calib::finite_in(0.001, 10.0))
       ->capture_default_str();
   app.add_option("--odom-v-sigma-mps", opt.odom_v_sigma_mps, "Odometry speed noise per sample")
-      ->check(CLI::Range(1e-6, 1.0))
+      ->check(calib::finite_in(1e-6, 1.0))
       ->capture_default_str();
   app.add_option("--odom-omega-sigma-radps", opt.odom_omega_sigma_radps,
                  "Odometry yaw-rate noise per sample")
-      ->check(CLI::Range(1e-7, 1.0))
+      ->check(calib::finite_in(1e-7, 1.0))
       ->capture_default_str();
   app.add_option("--min-passes", opt.min_passes, "Fewest landmark passes accepted")
       ->check(CLI::Range(2, 10000))
