@@ -35,6 +35,7 @@ LandmarkIndex::LandmarkIndex(const LandmarkMap& map, double cell_mm)
                    [](const auto& a, const auto& b) { return a.first < b.first; });
   std::vector<Point> sorted;
   sorted.reserve(points_.size());
+  cells_.reserve(points_.size());
   for (const auto& [k, i] : keyed) {
     auto [it, added] = cells_.try_emplace(k, static_cast<std::uint32_t>(sorted.size()),
                                           static_cast<std::uint32_t>(sorted.size()));
@@ -45,7 +46,10 @@ LandmarkIndex::LandmarkIndex(const LandmarkMap& map, double cell_mm)
 }
 
 std::int64_t LandmarkIndex::cell_of(double v_mm) const {
-  return static_cast<std::int64_t>(std::floor(v_mm / cell_mm_));
+  // Clamped so that a map built in code with a non-finite or absurd coordinate cannot make the
+  // conversion undefined; such a point fails every distance test wherever it is filed.
+  const double c = std::floor(v_mm / cell_mm_);
+  return std::isnan(c) ? 0 : static_cast<std::int64_t>(std::clamp(c, -1e9, 1e9));
 }
 
 std::uint64_t LandmarkIndex::key(std::int64_t cx, std::int64_t cy) {
