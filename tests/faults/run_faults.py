@@ -56,6 +56,17 @@ ODOM_GAPS_S = [0.2, 1.0, 2.0, 5.0]  # each once on a straight and once in a turn
 CAMERA_STALLS_S = [0.5, 2.0, 5.0]  # frames removed
 CLOCK_JUMP_MS = [300, -300]  # frame timestamps of a window shifted by this
 CLOCK_JUMP_WINDOW_S = 2.0
+# Gyro rows (imu.csv of the base kept): the wheel slip injected into odom.csv on a straight, as
+# the simulator models one (the right wheel over-reports by SLIP_EXCESS for SLIP_S; track
+# SLIP_TRACK_MM as the simulator's and fusion.wheel_track_mm's default). A wheels-only filter
+# cannot see it: that row is reported as a known limit, not asserted.
+SLIP_EXCESS = 0.05
+SLIP_S = 0.3
+SLIP_TRACK_MM = 500.0
+GYRO_DROPOUT_S = 2.0  # imu.csv rows removed, centred on a turn
+GYRO_RANGE_DEGPS = 90.0  # a sensor range below the 115 deg/s turns: samples clipped there
+GYRO_BIAS_STEP_DEGPS = 1.0  # added to every sample from the fault start (5x the sim's bias)
+IMU_CLOCK_JUMP_MS = 300  # imu.csv stamps of a window shifted by this
 FAULT_AFTER_S = 8.0  # faults start after the filter has settled (first turn is at about 6 s)
 TAIL_S = 8.0  # each variant is cut this long after its fault end (keeps the suite fast)
 TURN_OMEGA_RADPS = 0.5  # |omega| from successive truth headings above this = in a turn
@@ -136,17 +147,25 @@ class Variant:
         self.dir = None  # the variant recording
         self.out = None  # its replay output
         self.with_map = True
+        self.imu = False  # copy the base's imu.csv (a vehicle with a gyro)
+        self.replay_args = []  # extra `agvloc replay` arguments
+        self.known_limit = None  # why the row cannot pass: reported, not asserted
+        self.coverage_min = COVERAGE_MIN  # lower only for an abrupt, unmodelled fault (say why)
 
 
-def make_variant_dir(work, v, edit_frames=None, edit_odom=None, cut_ns=None):
+def make_variant_dir(work, v, edit_frames=None, edit_odom=None, cut_ns=None, edit_imu=None):
     """Copies the base's meta/csv files into WORK/variants/NAME (frames/ is a symlink to the
-    base's), applies the edits and cuts every file at cut_ns."""
+    base's; imu.csv only for a variant with a gyro), applies the edits and cuts every file at
+    cut_ns."""
     d = os.path.join(work, "variants", v.name)
     shutil.rmtree(d, ignore_errors=True)
     os.makedirs(d)
     shutil.copy(os.path.join(v.base, "meta.yaml"), d)
     os.symlink(os.path.abspath(os.path.join(v.base, "frames")), os.path.join(d, "frames"))
-    for name, edit in (("frames.csv", edit_frames), ("odom.csv", edit_odom), ("truth.csv", None)):
+    files = [("frames.csv", edit_frames), ("odom.csv", edit_odom), ("truth.csv", None)]
+    if v.imu:
+        files.append(("imu.csv", edit_imu))
+    for name, edit in files:
         header, lines = read_lines(os.path.join(v.base, name))
         if edit:
             lines = edit(lines)
@@ -159,6 +178,35 @@ def make_variant_dir(work, v, edit_frames=None, edit_odom=None, cut_ns=None):
         shutil.copy(os.path.join(SOURCE_DIR, MAP_FILE), os.path.join(d, "map.csv"))
     v.dir = d
     return d
+
+
+def slip_window(t0, t1, excess, track_mm):
+    """odom.csv rows (t_ns,v_mps,omega_radps) in [t0, t1): the right wheel reports `excess` more
+    than it moved, so v gains excess * v_right / 2 and omega excess * v_right / track."""
+    def edit(lines):
+        out = []
+        for ln in lines:
+            t, v, w = ln.split(",")[:3]
+            if t0 <= int(t) < t1:
+                v, w = float(v), float(w)
+                vr = v + w * track_mm * 1e-3 / 2
+                ln = f"{t},{v + excess * vr / 2:.9g},{w + excess * vr / (track_mm * 1e-3):.9g}"
+            out.append(ln)
+        return out
+    return edit
+
+
+def map_window(t0, t1, f):
+    """Rows t_ns,value in [t0, t1) get value f(value) (imu.csv: clipping, a bias step)."""
+    def edit(lines):
+        out = []
+        for ln in lines:
+            t, val = ln.split(",")[:2]
+            if t0 <= int(t) < t1:
+                ln = f"{t},{f(float(val)):.9g}"
+            out.append(ln)
+        return out
+    return edit
 
 
 def remove_window(t0, t1):
@@ -272,13 +320,14 @@ def evaluate(v, truth):
     if not sel:
         res["errors"].append("no valid ticks after the fault start")
     else:
-        if res["coverage"] < COVERAGE_MIN:
+        if res["coverage"] < v.coverage_min:
             res["errors"].append(f"3-sigma coverage {100 * res['coverage']:.1f} % "
-                                 f"< {100 * COVERAGE_MIN:.0f} %")
+                                 f"< {100 * v.coverage_min:.0f} %")
         if res["nees_rms"] < NEES_RMS_MIN:
             res["errors"].append(f"normalised-error RMS {res['nees_rms']:.3f} < {NEES_RMS_MIN}")
     res["n_ticks"] = len(sel)
-    res["pass"] = not res["errors"]
+    res["limit"] = v.known_limit
+    res["pass"] = not res["errors"] or v.known_limit is not None
     return res
 
 
@@ -293,6 +342,12 @@ def fmt_rec(r):
     return s
 
 
+def result_word(r):
+    if r.get("limit") and r["errors"]:
+        return "known limit"
+    return "pass" if r["pass"] else "FAIL"
+
+
 def table(results):
     head = ("| fault | max localized err mm | recovery s | 3σ coverage % | norm. err RMS | result |\n"
             "|---|---|---|---|---|---|\n")
@@ -300,8 +355,70 @@ def table(results):
     for r in results:
         rows.append(f"| {r['name']} | {r['max_loc_mm']:.1f} | {fmt_rec(r['recovery'])} | "
                     f"{100 * r['coverage']:.1f} | {r['nees_rms']:.2f} | "
-                    f"{'pass' if r['pass'] else 'FAIL'} |")
+                    f"{result_word(r)} |")
     return head + "\n".join(rows) + "\n"
+
+
+# --- Gyro rows ---------------------------------------------------------------------------------------
+def gyro_variants(work, base, straight, turn, t_first):
+    """The rows of a vehicle with a gyro (issue 33): [(Variant, make_variant_dir edits)]."""
+    out = []
+    whole = Variant("gyro_nominal", base, None, None, "no fault, with the gyro; whole run")
+    whole.imu = True
+    out.append((whole, {}))
+    mid = (straight[0] + straight[1]) // 2
+    s0, s1 = mid, mid + int(SLIP_S * 1e9)
+    slip = slip_window(s0, s1, SLIP_EXCESS, SLIP_TRACK_MM)
+    for with_gyro in (True, False):
+        v = Variant(f"wheel_slip_{'gyro' if with_gyro else 'wheels'}", base, s0, s1,
+                    f"right wheel over-reports {100 * SLIP_EXCESS:g} % for {SLIP_S:g} s on a "
+                    f"straight; {'with the gyro' if with_gyro else 'wheels only'}")
+        v.imu = with_gyro
+        if not with_gyro:
+            v.known_limit = "wheels only: a slip is indistinguishable from a turn"
+        out.append((v, {"edit_odom": slip}))
+    tmid = (turn[0] + turn[1]) // 2
+    g0, g1 = tmid - int(GYRO_DROPOUT_S * 5e8), tmid + int(GYRO_DROPOUT_S * 5e8)
+    v = Variant(f"gyro_dropout_{GYRO_DROPOUT_S:g}s_turn", base, g0, g1,
+                f"imu.csv rows in ({g0}, {g1}) removed, centred on a turn")
+    v.imu = True
+    out.append((v, {"edit_imu": remove_window(g0, g1)}))
+    lim = math.radians(GYRO_RANGE_DEGPS)
+    cfg = os.path.join(work, "gyro_range.yaml")
+    with open(cfg, "w") as f:
+        f.write(f"fusion:\n  gyro_saturation_degps: {GYRO_RANGE_DEGPS:g}\n")
+    v = Variant("gyro_saturation_turn", base, turn[0], turn[1],
+                f"a gyro of range {GYRO_RANGE_DEGPS:g} deg/s (fusion.gyro_saturation_degps): "
+                "samples clipped there through a 115 deg/s turn")
+    v.imu = True
+    v.replay_args = ["--config", cfg]
+    out.append((v, {"edit_imu": map_window(turn[0], turn[1],
+                                           lambda w: max(-lim, min(lim, w)))}))
+    step = math.radians(GYRO_BIAS_STEP_DEGPS)
+    b0 = t_first + int(FAULT_AFTER_S * 1e9)
+    v = Variant("gyro_bias_step", base, b0, b0 + int(4e9),
+                f"gyro bias steps by {GYRO_BIAS_STEP_DEGPS:g} deg/s at {FAULT_AFTER_S:g} s and "
+                "stays")
+    v.imu = True
+    # A step is outside the bias random walk the filter models: from the step until the kidnap
+    # track has re-initialised the filter from the rejected fixes (3 landmarks, >= 3 s) the error
+    # is outside 3 sigma by construction. Asserted: bounded error, recovery, and at least this
+    # coverage (1.1 % before the track learned the bias; the pose then ran metres off).
+    v.coverage_min = 0.6
+    out.append((v, {"edit_imu": map_window(b0, 2**62, lambda w: w + step)}))
+    w0 = mid - int(CLOCK_JUMP_WINDOW_S * 5e8)
+    w1 = w0 + int(CLOCK_JUMP_WINDOW_S * 1e9)
+    sh = IMU_CLOCK_JUMP_MS * 1_000_000
+    v = Variant(f"imu_clock_jump_{IMU_CLOCK_JUMP_MS:+d}ms", base, w0, w1 + sh,
+                f"imu.csv stamps in [{w0}, {w1}) shifted by {IMU_CLOCK_JUMP_MS} ms")
+    v.imu = True
+    out.append((v, {"edit_imu": shift_window(w0, w1, sh)}))
+    o0, o1 = tmid - int(1e9), tmid + int(1e9)
+    v = Variant("odom_gap_2s_turn_gyro", base, o0, o1,
+                f"odom.csv rows in ({o0}, {o1}) removed, centred on a turn; the gyro works")
+    v.imu = True
+    out.append((v, {"edit_odom": remove_window(o0, o1)}))
+    return out
 
 
 # --- Driver ------------------------------------------------------------------------------------------
@@ -351,7 +468,8 @@ def render(desk, out, extra, duration_s, reuse, base_from=None):
 def replay(agvloc, v):
     v.out = v.dir + "_out"
     shutil.rmtree(v.out, ignore_errors=True)
-    run(agvloc + ["replay", v.dir, "--out", v.out, "--fast", "--quiet"], v.out + ".log")
+    run(agvloc + ["replay", v.dir, "--out", v.out, "--fast", "--quiet"] + v.replay_args,
+        v.out + ".log")
     return v
 
 
@@ -430,6 +548,8 @@ def main():
                     f"frames in [{w0}, {w1}) shifted by {jump} ms")
         variants.append((v, {"edit_frames": shift_window(w0, w1, sh)}))
 
+    variants += gyro_variants(work, base, straight, turn, t0)
+
     misprint = []
     if wanted("misprint"):
         for with_map in (True, False):
@@ -470,8 +590,11 @@ def main():
     md = table(results)
     notes = []
     for r in results:
-        notes.append(f"- {r['name']}: {r['desc']}" +
-                     ("" if r["pass"] else "; FAIL: " + "; ".join(r["errors"])))
+        why = ""
+        if r["errors"]:
+            why = (f"; known limit ({r['limit']}): " if r.get("limit") else "; FAIL: ") + \
+                "; ".join(r["errors"])
+        notes.append(f"- {r['name']}: {r['desc']}{why}")
     timing = (f"render {renders.get('base', 0):.0f} s (base {BASE_DURATION_S:g} s) + "
               f"{renders.get('base_misprint', 0):.0f} s (misprint {MISPRINT_DURATION_S:g} s), "
               f"{len(runs)} replays {t_end - t_rendered:.0f} s, total {t_end - t_start:.0f} s "

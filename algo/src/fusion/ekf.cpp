@@ -326,6 +326,13 @@ bool Ekf::kidnap_candidate(std::int64_t t_ns, const Eigen::Vector3d& z, const Ei
     // is carried); their correlation with the old pose does not.
     hyp_.P.bottomRightCorner<kFilterDim - 3, kFilterDim - 3>() =
         prior_P.bottomRightCorner<kFilterDim - 3, kFilterDim - 3>();
+    // ... but not the filter's confidence in them: a filter that rejects fixes may be wrong
+    // because its calibration is (a gyro bias that stepped by 1 deg/s drifted the heading 1 deg
+    // per second with sigma 0.03 deg; every later fix was rejected, and a track inheriting that
+    // bias drifted away from each next fix too, so it never reached kidnap_fixes and the pose
+    // ran metres off: fault row gyro_bias_step). The track starts from the initial calibration
+    // sigmas and learns the calibration from its own fixes.
+    widen_calibration(&hyp_.P);
   }
   // A filter whose position is unknown has no pose worth protecting: two consistent fixes of
   // separate landmarks (what makes a tag, which carries no position, trustworthy) re-initialise
@@ -343,6 +350,21 @@ bool Ekf::kidnap_candidate(std::int64_t t_ns, const Eigen::Vector3d& z, const Ei
     return true;
   }
   return false;
+}
+
+void Ekf::widen_calibration(FilterCov* P) const {
+  auto at_least = [P](int i, double sigma) {
+    const double var = sigma * sigma;
+    if ((*P)(i, i) < var) (*P)(i, i) = var;  // adding to the diagonal keeps P positive
+  };
+  at_least(kIbg, config_.init_gyro_bias_sigma_radps);
+  at_least(kIsg, config_.init_gyro_scale_sigma);
+  if (config_.estimate_odometry_calibration) {
+    at_least(kIsv, config_.init_v_scale_sigma);
+    at_least(kIsomega, config_.init_omega_scale_sigma);
+    at_least(kIbomega, config_.init_omega_bias_sigma_radps);
+    at_least(kIcomegav, config_.init_omega_per_v_sigma_radpm);
+  }
 }
 
 void Ekf::relocalize(std::int64_t t_ns, const Eigen::Vector3d& z, const Eigen::Matrix3d& R,

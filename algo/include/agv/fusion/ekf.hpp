@@ -494,6 +494,9 @@ class Ekf {
   bool prior_lost(const FilterCov& P, double* position_sigma_mm = nullptr,
                   double* heading_sigma_rad = nullptr) const;
   // Re-initialises the pose from one fix, keeping speed and calibration of the prior.
+  // Raises the calibration variances (odometry when estimated, gyro bias and scale) to at least
+  // their initial values: for a kidnap track, which must not inherit a rejected filter's trust.
+  void widen_calibration(FilterCov* P) const;
   void relocalize(std::int64_t t_ns, const Eigen::Vector3d& z, const Eigen::Matrix3d& R,
                   const FilterVec& prior_x, const FilterCov& prior_P);
   void update_fix(FilterVec* x, FilterCov* P, const Eigen::Vector3d& z,
