@@ -7,7 +7,8 @@
 # Fails on any crash, property violation, leak, timeout (> 1 s for one input), sanitizer report
 # or out-of-memory (> 2 GB RSS). The reproducer lands in $AGV_FUZZ_ARTIFACTS (default
 # build/asan/fuzz/artifacts); rerun it with build/asan/fuzz/<harness> <file>.
-# Environment: AGV_FUZZ_JOBS (build parallelism, default nproc); AGV_FUZZ_RUNS=N stops a harness
+# Environment: AGV_FUZZ_JOBS (build parallelism, default nproc); AGV_FUZZ_PARALLEL (harnesses run
+# at once, default nproc); AGV_FUZZ_RUNS=N stops a harness
 # after N executions (SECONDS stays the cap); AGV_FUZZ_KEEP_CORPUS=DIR keeps the grown corpus per
 # harness under DIR (to continue a campaign or to minimise it into fuzz/corpus).
 set -euo pipefail
@@ -40,37 +41,58 @@ work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 export ASAN_OPTIONS="halt_on_error=1:abort_on_error=1:detect_leaks=1:allocator_may_return_null=1"
 export UBSAN_OPTIONS="halt_on_error=1:abort_on_error=1:print_stacktrace=1"
-failed=()
-printf '%-24s %10s %8s %8s %8s %s\n' harness executions seconds exec/s corpus result \
-  > "$work/summary"
-for h in "${harnesses[@]}"; do
-  corpus="$work/corpus_$h"
+# One harness: its summary line in $work/$h.row, and $work/$h.failed when it found something.
+fuzz_one() {
+  local h="$1" corpus="$work/corpus_$1" rc=0 execs rate secs files dict
   mkdir -p "$corpus"
   cp -r "fuzz/corpus/$h/." "$corpus/"
-  args=(-max_total_time="$seconds" -timeout=1 -rss_limit_mb=2048 -malloc_limit_mb=2048
-        -print_final_stats=1 -artifact_prefix="$artifacts/$h-")
+  local args=(-max_total_time="$seconds" -timeout=1 -rss_limit_mb=2048 -malloc_limit_mb=2048
+              -print_final_stats=1 -artifact_prefix="$artifacts/$h-")
   [ -n "${AGV_FUZZ_RUNS:-}" ] && args+=(-runs="$AGV_FUZZ_RUNS")
   dict="$(dict_of "$h")"
   [ -n "$dict" ] && args+=(-dict="$dict")
   echo "fuzz: $h for $seconds s"
-  rc=0
   nice -n 10 "build/asan/fuzz/$h" "${args[@]}" "$corpus" >"$work/$h.log" 2>&1 || rc=$?
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$work/$h.log" | tail -1)
   rate=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$work/$h.log" | tail -1)
   secs=$(sed -n 's/^Done [0-9]* runs in \([0-9]*\) second.*/\1/p' "$work/$h.log" | tail -1)
   files=$(find "$corpus" -type f | wc -l)
+  local result=ok
   if [ "$rc" -ne 0 ]; then
-    failed+=("$h")
-    echo "fuzz: $h FAILED (exit $rc); the end of its log:"
-    tail -40 "$work/$h.log"
-    printf '%-24s %10s %8s %8s %8s %s\n' "$h" "${execs:-?}" "${secs:-?}" "${rate:-?}" "$files" \
-      FAILED >> "$work/summary"
-  else
-    printf '%-24s %10s %8s %8s %8s %s\n' "$h" "${execs:-?}" "${secs:-?}" "${rate:-?}" "$files" \
-      ok >> "$work/summary"
+    result=FAILED
+    : >"$work/$h.failed"
+    { echo "fuzz: $h FAILED (exit $rc); the end of its log:"; tail -40 "$work/$h.log"; } \
+      >"$work/$h.failure"
   fi
+  printf '%-24s %10s %8s %8s %8s %s\n' "$h" "${execs:-?}" "${secs:-?}" "${rate:-?}" "$files" \
+    "$result" >"$work/$h.row"
   if [ -n "${AGV_FUZZ_KEEP_CORPUS:-}" ]; then
     mkdir -p "$AGV_FUZZ_KEEP_CORPUS/$h" && cp -r "$corpus/." "$AGV_FUZZ_KEEP_CORPUS/$h/"
+  fi
+}
+
+# Harnesses run AGV_FUZZ_PARALLEL at a time (default nproc): each libFuzzer process uses one
+# core, so one at a time left the second core idle for the whole step.
+parallel="${AGV_FUZZ_PARALLEL:-$(nproc)}"
+running=0
+for h in "${harnesses[@]}"; do
+  fuzz_one "$h" &
+  running=$((running + 1))
+  if [ "$running" -ge "$parallel" ]; then
+    wait -n || true
+    running=$((running - 1))
+  fi
+done
+wait || true
+failed=()
+printf '%-24s %10s %8s %8s %8s %s\n' harness executions seconds exec/s corpus result \
+  > "$work/summary"
+for h in "${harnesses[@]}"; do
+  cat "$work/$h.row" >> "$work/summary" 2>/dev/null ||
+    printf '%-24s %s\n' "$h" "no result" >> "$work/summary"
+  if [ -f "$work/$h.failed" ] || [ ! -f "$work/$h.row" ]; then
+    failed+=("$h")
+    cat "$work/$h.failure" 2>/dev/null || true
   fi
 done
 cat "$work/summary"
