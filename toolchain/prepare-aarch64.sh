@@ -28,7 +28,8 @@ EXTRA="${AGV_AARCH64_EXTRA:-/opt/agvloc-aarch64}"
 export DEBIAN_FRONTEND=noninteractive
 
 HOST_PKGS=(crossbuild-essential-arm64 qemu-user file pkg-config cmake ninja-build
-           libopencv-dev libyaml-cpp-dev libeigen3-dev libcli11-dev)
+           libopencv-dev libyaml-cpp-dev libeigen3-dev libcli11-dev
+           nlohmann-json3-dev)  # header-only, Architecture: all: serves the arm64 build
 # Libraries for the arm64 build: OpenCV core/imgproc/calib3d (imgcodecs: see EXTRACT), zxing,
 # yaml-cpp runtime (its -dev is not Multi-Arch), libpng, GoogleTest (static libs + CMake config),
 # libapriltag3 (tag36h11 landmarks; libapriltag-dev:arm64 says Multi-Arch: same but its CMake
@@ -39,6 +40,10 @@ ARM_PKGS=(libc6-dev libstdc++-12-dev
           libopencv-core-dev libopencv-imgproc-dev libopencv-calib3d406
           libzxing-dev libapriltag3 libyaml-cpp0.7 libpng-dev libgtest-dev libgmock-dev)
 if [ "${AGV_CROSS_NO_LIBCAMERA:-0}" != "1" ]; then ARM_PKGS+=(libcamera-dev); fi
+# imu.source iio (drivers/iio; optional in CMake: without it the cross build has no IIO gyro).
+ARM_PKGS+=(libiio-dev)
+# VDA 5050 over MQTT (firmware/src/mqtt_publisher.cpp).
+ARM_PKGS+=(libmosquitto-dev)
 # Not co-installable with the amd64 versions (no Multi-Arch: same): unpacked into $EXTRA.
 EXTRACT=(libopencv-imgcodecs406 libgdal32 gdal-plugins libarmadillo11 libhdf4-0-alt libogdi4.1)
 

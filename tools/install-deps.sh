@@ -16,6 +16,12 @@ PKGS=(
   libopencv-contrib-dev
   libeigen3-dev libpng-dev libzxing-dev libyaml-cpp-dev libcli11-dev
   libcamera-dev libcamera-ipa udev
+  # imu.source iio: gyro from a Linux IIO device (drivers/iio)
+  libiio-dev
+  # VDA 5050 position over MQTT (docs/vda5050.md): client library, JSON; broker, independent
+  # client and the official schemas' validator for the mqtt tests
+  libmosquitto-dev nlohmann-json3-dev mosquitto mosquitto-clients python3-paho-mqtt
+  python3-jsonschema
   # agvloc-desk calibrate vehicle: nonlinear least squares
   libceres-dev
   # tests, benchmarks, comparison baseline

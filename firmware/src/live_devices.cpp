@@ -5,6 +5,9 @@
 #ifdef AGV_HAVE_LIBCAMERA
 #include "agv/libcamera/libcamera_camera.hpp"
 #endif
+#ifdef AGV_HAVE_IIO
+#include "agv/iio/iio_imu.hpp"
+#endif
 
 namespace agv::app {
 
@@ -28,6 +31,23 @@ std::unique_ptr<hal::Camera> make_live_camera(const config::Config& cfg, std::st
   *error =
       "camera.driver: '" + cfg.camera.driver + "' is not a live driver (use libcamera or v4l2)";
   return nullptr;
+}
+
+std::unique_ptr<hal::Imu> make_live_imu(const config::Config& cfg, std::string* error) {
+#ifdef AGV_HAVE_IIO
+  (void)error;
+  hal::ImuConfig ic;
+  ic.device = cfg.imu.iio_device;
+  ic.trigger = cfg.imu.iio_trigger;
+  ic.rate_hz = cfg.imu.iio_rate_hz;
+  return std::make_unique<iio::IioImu>(ic);
+#else
+  (void)cfg;
+  *error =
+      "imu.source: iio is not available in this build (rebuild with libiio-dev installed, "
+      "tools/install-deps.sh)";
+  return nullptr;
+#endif
 }
 
 }  // namespace agv::app

@@ -186,6 +186,31 @@ void add_imu(std::vector<Key>* k) {
                        "t − offset. CAN samples are stamped on receipt, so this is the sensor's "
                        "filter delay plus its transmit latency; at 1 rad/s every ms is 0.057° "
                        "of heading in a turn"}));
+  k->push_back(choice(
+      "imu.source", AGV_AT(imu.source), {"can", "iio", "none"}, "can",
+      "where the yaw rate comes from. can: `AGV_Gyro` on the bus when `can.gyro.enabled` (the "
+      "IMU's own controller stamps and protects it). iio: an IMU on the vehicle computer's own "
+      "bus (I2C/SPI) through its Linux IIO driver (`imu.iio_*`, docs/fusion.md \"Gyro from a "
+      "Linux IIO device\"): stamped by the kernel on the loop clock, no CAN latency, but no E2E "
+      "protection and one more thread. none: wheels only. iio and none "
+      "refuse `can.gyro.enabled: true` (one gyro source). With iio, `can.gyro.timeout_ms` is "
+      "the IMU timeout"));
+  k->push_back(text("imu.iio_device", AGV_AT(imu.iio_device), "",
+                    "IIO device name as in /sys/bus/iio/devices/iio:deviceN/name (e.g. "
+                    "`bmi160`, `mpu6050`), or `iio:deviceN` (changes with probe order: prefer "
+                    "the name). Required with `source: iio`; must have a buffered `anglvel_z`"));
+  k->push_back(text("imu.iio_trigger", AGV_AT(imu.iio_trigger), "",
+                    "IIO trigger that clocks the samples (e.g. `bmi160-dev0`, the chip's "
+                    "data-ready interrupt, or an hrtimer trigger's name). Empty = the trigger the "
+                    "device already has; the chip's own data-ready trigger gives the steadiest "
+                    "sample times, a software trigger adds scheduling jitter to every stamp"));
+  k->push_back(number("imu.iio_rate_hz", AGV_AT(imu.iio_rate_hz), 0.0, 4000.0, 200.0,
+                      {"Hz",
+                       "`sampling_frequency` asked of the device (it rounds to what it supports; "
+                       "the log names the result). Higher follows turns more closely and "
+                       "averages noise if the chip filters, costs CPU (one wake-up per few "
+                       "samples); 200 Hz is 2 samples per 100 Hz output period. 0 = leave the "
+                       "device's rate (the trigger's frequency decides)"}));
 }
 
 // The odometry correction (localizer::OdometryCorrection), the calibration model's equations.

@@ -137,6 +137,15 @@ void check_relations(YamlChecker& c, const Config& cfg) {
                                        "): every replayed fix would be dropped as too old");
   }
   check_can_interface(c, cfg.can.interface);
+  // One gyro source: a CAN gyro enabled beside another source would be fused twice or not at all.
+  if (cfg.can.gyro_enabled && cfg.imu.source != "can") {
+    c.error("imu.source", "'" + cfg.imu.source +
+                              "' with can.gyro.enabled: true; choose one gyro source (imu.source: "
+                              "can for AGV_Gyro)");
+  }
+  if (cfg.imu.source == "iio" && cfg.imu.iio_device.empty()) {
+    c.error("imu.iio_device", "missing: imu.source iio needs the IIO device's name");
+  }
   // The configuration's own names for what fusion::validate would name by its struct fields.
   if (f.odom_gap_ns < f.odom_period_ns) {
     c.error("fusion.odom_gap_ms", "value " + ms_text(f.odom_gap_ns) +
@@ -165,6 +174,11 @@ bool parse_root(const YAML::Node& root, const std::string& base_dir, ConfigUse u
   if (!cfg.map_file.empty() && !base_dir.empty() &&
       std::filesystem::path(cfg.map_file).is_relative()) {
     cfg.map_file = (std::filesystem::path(base_dir) / cfg.map_file).lexically_normal().string();
+  }
+  for (std::string* f : {&cfg.vda5050.password_file, &cfg.vda5050.tls_ca_file}) {
+    if (!f->empty() && !base_dir.empty() && std::filesystem::path(*f).is_relative()) {
+      *f = (std::filesystem::path(base_dir) / *f).lexically_normal().string();
+    }
   }
   check_relations(c, cfg);
   if (c.errors().empty()) {

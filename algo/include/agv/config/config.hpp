@@ -56,6 +56,12 @@ struct ImuSection {
   double scale = 1.0;
   double bias_radps = 0.0;
   double time_offset_ms = 0.0;
+  // Where the gyro comes from: "can" (AGV_Gyro when can.gyro.enabled), "iio" (a Linux IIO
+  // device, drivers/iio), "none" (wheels only).
+  std::string source = "can";
+  std::string iio_device;      // IIO device name (e.g. "bmi160")
+  std::string iio_trigger;     // IIO trigger name; empty = the device's own
+  double iio_rate_hz = 200.0;  // 0 = leave the device's rate
 };
 
 struct LoopSection {
@@ -67,6 +73,22 @@ struct LoopSection {
   bool lock_memory = false;
   double log_period_s = 10.0;
   bool pose_on_fix = true;
+};
+
+// VDA 5050 position over MQTT (docs/vda5050.md); the firmware's MQTT publisher reads it.
+struct Vda5050Section {
+  bool enabled = false;
+  std::string broker_host = "localhost";
+  int broker_port = 1883;
+  std::string interface_name = "uagv";
+  std::string version = "2.1.0";  // 2.1.0 | 3.0.0
+  std::string manufacturer = "agvloc";
+  std::string serial_number = "agv-0001";
+  std::string map_id = "default";
+  double rate_hz = 10.0;  // visualization messages
+  std::string username;   // empty = anonymous
+  std::string password_file;  // resolved relative to the config file; empty = no password
+  std::string tls_ca_file;    // resolved relative to the config file; empty = plain TCP
 };
 
 struct Config {
@@ -81,6 +103,7 @@ struct Config {
   vision::VisionConfig vision;
   fusion::EkfConfig fusion;
   double replay_fix_delay_ms = 30.0;
+  Vda5050Section vda5050;
   std::string source;  // file name the config came from, for messages
 };
 
