@@ -31,12 +31,14 @@ VisionConfig tag_config() {
 }
 
 // Frame with the vehicle at e (vehicle in the tag's landmark frame).
-cv::Mat tag_frame(const Pose2& e, const sim::RenderOptions& o = {}, std::uint32_t id = kTagId) {
+cv::Mat tag_frame(const Pose2& e, const sim::RenderOptions& o = {}, std::uint32_t id = kTagId,
+                  const CameraModel& cam = CameraModel::default_640x480(),
+                  const AprilTagGeometry& tag = {}) {
   sim::Scene scene;
   std::string err;
-  EXPECT_TRUE(sim::make_tag_scene(tag_map(id), AprilTagGeometry{}, &scene, &err)) << err;
+  EXPECT_TRUE(sim::make_tag_scene(tag_map(id), tag, &scene, &err)) << err;
   std::mt19937_64 rng(3);
-  return sim::render_frame(scene, CameraModel::default_640x480(), compose(kTagWorld, e), o, rng);
+  return sim::render_frame(scene, cam, compose(kTagWorld, e), o, rng);
 }
 
 TEST(AprilTagFamily, PoseAtSeveralHeadingsWithinBounds) {
@@ -131,6 +133,57 @@ TEST(AprilTagFamily, OccluderEdgeInTheMarginDoesNotBiasThePose) {
     EXPECT_LE(fix.sides_used, 3) << deg;
   }
   EXPECT_GE(ok, 3);
+}
+
+// A camera height a few millimetres off (a tape-measured mount, issue 36 item 8) scales the
+// metric frame: the border looks that fraction smaller or larger. The fit follows with the
+// square's size and the fix is scaled as the QR landmark's is (configured / true height). With
+// the size fixed at the printed one every side sat off by the scale and a 2 mm error gave no fix
+// (0 of 267 simulated frames).
+TEST(AprilTagFamily, CameraHeightAFewMillimetresOffStillGivesTheQrFamilysFix) {
+  const LandmarkMap map = tag_map();
+  const CameraModel configured = CameraModel::default_640x480();
+  LandmarkLocalizer tag_loc(tag_config(), configured, LandmarkGeometry{}, &map);
+  LandmarkLocalizer qr_loc(VisionConfig{}, configured, LandmarkGeometry{}, &map);
+  sim::Scene qr_scene;
+  std::string err;
+  ASSERT_TRUE(sim::make_scene(map, LandmarkGeometry{}, sim::PayloadMode::kFull, &qr_scene, &err));
+  const Pose2 e{4.0, -6.0, deg_to_rad(30.0)};
+  for (double err_mm : {-3.0, 1.0, 2.0, 3.0, 5.0}) {
+    CameraModel truth = configured;
+    truth.mount.height_mm += err_mm;
+    const double scale = configured.mount.height_mm / truth.mount.height_mm;
+    LandmarkFix fix;
+    ASSERT_EQ(tag_loc.process(tag_frame(e, {}, kTagId, truth), &fix), FixStatus::kOk) << err_mm;
+    EXPECT_EQ(fix.sides_used, 4) << err_mm;
+    EXPECT_NEAR(fix.outer_half_mm, 30.0 * scale, 0.02) << err_mm;
+    EXPECT_NEAR(fix.e_x_mm, e.x_mm * scale, 0.02) << err_mm;
+    EXPECT_NEAR(fix.e_y_mm, e.y_mm * scale, 0.02) << err_mm;
+    EXPECT_NEAR(fix.e_phi_deg, rad_to_deg(e.theta_rad), 0.01) << err_mm;
+    std::mt19937_64 rng(3);
+    const cv::Mat qr_img = sim::render_frame(qr_scene, truth, compose(kTagWorld, e), {}, rng);
+    LandmarkFix qr;
+    ASSERT_EQ(qr_loc.process(qr_img, &qr), FixStatus::kOk) << err_mm;
+    EXPECT_NEAR(fix.e_x_mm, qr.e_x_mm, 0.02) << err_mm;
+    EXPECT_NEAR(fix.e_y_mm, qr.e_y_mm, 0.02) << err_mm;
+  }
+}
+
+// What the size gate keeps refusing: a tag printed at another size than landmark.size_mm (the map
+// cannot tell, a tag carries only its id), here 5 % and 10 % small at the right camera height.
+TEST(AprilTagFamily, TagPrintedAtAnotherSizeGivesNoFix) {
+  const LandmarkMap map = tag_map();
+  LandmarkLocalizer loc(tag_config(), CameraModel::default_640x480(), LandmarkGeometry{}, &map);
+  for (double size_mm : {57.0, 54.0, 66.0}) {
+    AprilTagGeometry printed;
+    printed.size_mm = size_mm;
+    LandmarkFix fix;
+    EXPECT_NE(
+        loc.process(
+            tag_frame({4.0, -6.0, 0.5}, {}, kTagId, CameraModel::default_640x480(), printed), &fix),
+        FixStatus::kOk)
+        << size_mm;
+  }
 }
 
 TEST(AprilTagFamily, QrFamilyIgnoresTags) {

@@ -40,6 +40,14 @@ constexpr double kForwardProbe = 0.5;
 // edge noise) follows another edge of the same polarity, e.g. an occluder's end in the white
 // margin. Without the inner edge the per-line fit cannot tell them apart, the square can.
 constexpr double kMaxSideOffsetMm = 0.25;
+// Size gate: the fitted outer half size (free when an axis has both sides, pose.cpp) against
+// landmark.size_mm. The metric frame's scale follows the configured camera height, so a height
+// off by dH of H shows the square dH / H larger or smaller (5 mm of 200 mm: 2.5 %) and moves the
+// fix by that fraction of the tag's distance from the optical axis, as for the QR landmark. 3 %
+// lets a tape-measured mount through (6 mm at 200 mm) and refuses a tag printed at another size,
+// which the map cannot catch (the id is all a tag says). With the size fixed, as before, a 2 mm
+// height error put every side 0.3 mm off and no tag gave a fix.
+constexpr double kMaxSizeErrorRel = 0.03;
 
 Vec2 project(const matd_t* h, double x, double y) {
   double px = 0, py = 0;
@@ -69,6 +77,8 @@ struct TagDetector {
   TagDetector& operator=(const TagDetector&) = delete;
 };
 
+std::shared_ptr<TagDetector> make_tag_detector() { return std::make_shared<TagDetector>(); }
+
 // Median offset (mm) of the side's points from side k of the square (c, beta, half side h).
 double LandmarkLocalizer::Impl::side_offset_mm(int k, Vec2 c, double beta, double h) {
   const double a = beta - k * kPi / 2.0;
@@ -85,11 +95,12 @@ double LandmarkLocalizer::Impl::side_offset_mm(int k, Vec2 c, double beta, doubl
 
 // Outer-only fits: the worst side, when it disagrees with the square, is dropped and the square
 // refitted from the other three (each axis must keep a side); a square that still disagrees
-// with one of its sides gives no fix.
+// with one of its sides gives no fix. The square has the size pose() fitted (out->outer_half_mm)
+// when it could, else the printed one.
 FixStatus LandmarkLocalizer::Impl::drop_inconsistent_side(Vec2* c_mm, double* beta,
                                                           Eigen::Matrix3d* cov, LandmarkFix* out) {
-  const double h = geom.outer_half_mm();
-  auto worst = [&](Vec2 c, double b, double* off) {
+  const double h_printed = geom.outer_half_mm();
+  auto worst = [&](Vec2 c, double b, double h, double* off) {
     int wk = -1;
     *off = 0.0;
     for (int k = 0; k < 4; ++k) {
@@ -99,24 +110,32 @@ FixStatus LandmarkLocalizer::Impl::drop_inconsistent_side(Vec2* c_mm, double* be
     }
     return wk;
   };
+  const double h = out->outer_half_mm > 0.0 ? out->outer_half_mm : h_printed;
   double off = 0.0;
-  const int k = worst(*c_mm, *beta, &off);
+  const int k = worst(*c_mm, *beta, h, &off);
   if (off <= kMaxSideOffsetMm) return FixStatus::kOk;
   line_ok[static_cast<size_t>(k * 2)] = false;
   if (!line_ok[static_cast<size_t>(((k + 2) % 4) * 2)]) return FixStatus::kTooFewEdgePoints;
+  // The size stays free while an axis keeps both sides; when the dropped side was half of the only
+  // opposite pair, the size it helped fit is not trusted and the printed one is used.
+  const bool pair = (line_ok[0] && line_ok[4]) || (line_ok[2] && line_ok[6]);
   SquareModel m;
   m.c = *c_mm;
   m.beta = *beta;
-  m.h_out = h;
+  m.h_out = pair ? h : h_printed;
   m.h_in = geom.inner_half_mm();
   for (int l = 0; l < kNumLines; ++l) std::fill(weights[l].begin(), weights[l].end(), 1.0);
   NormalEquations ne;
-  if (!joint_fit(PoseMethod::kJointSquareFit, false, &m, &ne)) return FixStatus::kTooFewEdgePoints;
-  worst(m.c, m.beta, &off);
+  const int n_params = pair ? 4 : 3;
+  if (!joint_fit(PoseMethod::kJointSquareFit, n_params, &m, &ne)) {
+    return FixStatus::kTooFewEdgePoints;
+  }
+  worst(m.c, m.beta, m.h_out, &off);
   if (off > kMaxSideOffsetMm) return FixStatus::kTooFewEdgePoints;
-  *cov = fit_covariance(ne, 3, cfg);
+  *cov = fit_covariance(ne, n_params, cfg);
   out->residual_rms_mm = ne.sum_w > 0 ? std::sqrt(ne.ssr / ne.sum_w) : 0.0;
   out->sides_used -= 1;
+  out->outer_half_mm = pair ? m.h_out : 0.0;
   *c_mm = m.c;
   *beta = m.beta;
   keep_overlay_geometry(m);
@@ -124,7 +143,7 @@ FixStatus LandmarkLocalizer::Impl::drop_inconsistent_side(Vec2* c_mm, double* be
 }
 
 FixStatus LandmarkLocalizer::Impl::run_tag(const cv::Mat& img, LandmarkFix* out) {
-  if (!tag) tag = std::make_shared<TagDetector>();
+  if (!tag) tag = make_tag_detector();  // made at start-up (Impl's constructor)
   outer_only = true;
   const double t0 = now_ms();
   // libapriltag reads the caller's pixels through its own view type; it does not write them.
@@ -188,6 +207,10 @@ FixStatus LandmarkLocalizer::Impl::run_tag(const cv::Mat& img, LandmarkFix* out)
 
   st = drop_inconsistent_side(&c_mm, &beta, &cov, out);
   if (st != FixStatus::kOk) return st;
+  if (out->outer_half_mm > 0.0 &&
+      std::abs(out->outer_half_mm / geom.outer_half_mm() - 1.0) > kMaxSizeErrorRel) {
+    return FixStatus::kTooFewEdgePoints;
+  }
 
   // Heading quadrant from the decoded rotation: the fitted border normal beta is only known modulo
   // 90 degrees, the detector's homography says which side is the tag's top.

@@ -21,9 +21,9 @@ constexpr double kJacobianStepRad = 1e-7;
 }  // namespace
 
 // The fit covariance assumes independent edge points: (J^T J)^-1 s^2 over (c_x, c_y, beta), with
-// the size parameters marginalised out when they were fitted (n_params == 5), inflated and floored
-// as VisionConfig says. Each point counts as the edge_row_step rows it stands for, as in the point
-// minimums: cov_inflation was measured at step 1, where it stands for the correlation of
+// the size parameters marginalised out when they were fitted (n_params 4 or 5), inflated and
+// floored as VisionConfig says. Each point counts as the edge_row_step rows it stands for, as in
+// the point minimums: cov_inflation was measured at step 1, where it stands for the correlation of
 // neighbouring rows (shared blur), and the rows between the points taken are no less correlated
 // with them; measured (docs/vision.md "Row step"), the error grows by far less than sqrt(step).
 Eigen::Matrix3d fit_covariance(const NormalEquations& ne, int n_params, const VisionConfig& cfg) {
@@ -33,6 +33,10 @@ Eigen::Matrix3d fit_covariance(const NormalEquations& ne, int n_params, const Vi
   if (n_params == 5) {
     const Eigen::Matrix<double, 5, 5> inv =
         ne.jtj.ldlt().solve(Eigen::Matrix<double, 5, 5>::Identity());
+    cv3 = inv.topLeftCorner<3, 3>() * s2 * cfg.cov_inflation;
+  } else if (n_params == 4) {
+    const Eigen::Matrix4d inv =
+        ne.jtj.topLeftCorner<4, 4>().ldlt().solve(Eigen::Matrix4d::Identity());
     cv3 = inv.topLeftCorner<3, 3>() * s2 * cfg.cov_inflation;
   } else {
     cv3 = ne.jtj.topLeftCorner<3, 3>().ldlt().solve(Eigen::Matrix3d::Identity()) * s2 *

@@ -85,6 +85,7 @@ LandmarkLocalizer::Impl::Impl(const VisionConfig& c, const CameraModel& m,
   // which would be late by the encoding (1000 landmarks, 2000 codes, take 0.23 s on x86-64); a
   // large map's book follows the prediction (map_identity_stage.cpp, docs/large_maps.md).
   update_code_book(Prediction{});
+  if (cfg.family == LandmarkFamily::kTag36h11) tag = make_tag_detector();
 }
 
 // The stages in the order they run, numbered as in docs/vision.md "Pipeline". The pose comes before

@@ -171,8 +171,10 @@ inline double ncc(const std::vector<double>& a, const std::vector<double>& b) {
 // Fit covariance of (c_x, c_y, beta) from the joint fit's normal equations (covariance.cpp).
 Eigen::Matrix3d fit_covariance(const NormalEquations& ne, int n_params, const VisionConfig& cfg);
 
-// libapriltag's detector and family (apriltag.cpp), created on the first tag frame.
+// libapriltag's detector and family (apriltag.cpp), created with the localizer when the family is
+// tag36h11: its tables take 0.1-0.35 s to build, which the first tag frame would otherwise pay.
 struct TagDetector;
+std::shared_ptr<TagDetector> make_tag_detector();
 
 struct LandmarkLocalizer::Impl {
   VisionConfig cfg;
@@ -331,7 +333,9 @@ struct LandmarkLocalizer::Impl {
   Vec2 joint_start_centre(const std::array<LineFit, kNumLines>& fits, const SquareModel& m) const;
   void reweight_joint(const SquareModel& m);
   void accumulate_normal_equations(const SquareModel& m, NormalEquations* ne) const;
-  bool joint_fit(PoseMethod method, bool free_size, SquareModel* m, NormalEquations* ne);
+  // n_params: 3 (centre and heading, sizes as printed), 4 (and the outer half size: the tag
+  // family's outer-only fit), 5 (and both half sizes).
+  bool joint_fit(PoseMethod method, int n_params, SquareModel* m, NormalEquations* ne);
   void keep_overlay_geometry(const SquareModel& m);
 
   // Tag family: detection and id by libapriltag, pose by the stage above (apriltag.cpp).

@@ -111,21 +111,24 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
   }
 
   // 3e. Joint fit (also used for the covariance of every method). Parameters: c_x, c_y, beta and,
-  // when an axis has both sides, shared outer/inner half sizes.
-  // Outer-only (tag family): no inner edge to tie the border width, so the size stays known.
-  const bool free_size = !outer_only && ((side_ok[0] && side_ok[2]) || (side_ok[1] && side_ok[3]));
+  // when an axis has both sides, the shared half sizes: the metric frame's scale follows the
+  // configured camera height, so a height error of a few millimetres makes the border look a
+  // percent smaller or larger, and a fixed size would put every side off by that much.
+  // Outer-only (tag family): no inner edge, so only the outer half size is free.
+  const bool free_size = (side_ok[0] && side_ok[2]) || (side_ok[1] && side_ok[3]);
+  const int n_params = !free_size ? 3 : outer_only ? 4 : 5;
   m.h_out = geom.outer_half_mm();
   m.h_in = geom.inner_half_mm();
   if (method == PoseMethod::kJointSquareFit) m.c = joint_start_centre(fits, m);
   NormalEquations ne;
-  if (!joint_fit(method, free_size, &m, &ne)) return FixStatus::kTooFewEdgePoints;
+  if (!joint_fit(method, n_params, &m, &ne)) return FixStatus::kTooFewEdgePoints;
 
   // 3f. Covariance, result, overlay geometry.
-  *cov = fit_covariance(ne, free_size ? 5 : 3, cfg);
+  *cov = fit_covariance(ne, n_params, cfg);
   out->residual_rms_mm = ne.sum_w > 0 ? std::sqrt(ne.ssr / ne.sum_w) : 0.0;
   if (method == PoseMethod::kJointSquareFit && free_size) {
     out->outer_half_mm = m.h_out;
-    out->inner_half_mm = m.h_in;
+    if (!outer_only) out->inner_half_mm = m.h_in;
   }
   *c_mm = m.c;
   *beta_out = m.beta;
@@ -283,7 +286,7 @@ Vec2 LandmarkLocalizer::Impl::joint_start_centre(const std::array<LineFit, kNumL
 // first round, every point of every fitted line (also those the per-line fit rejected) is
 // re-weighted (Tukey) by its residual to the joint model with one global scale, so an occluder
 // edge that won a single line's vote is rejected by the square. False when a step is not finite.
-bool LandmarkLocalizer::Impl::joint_fit(PoseMethod method, bool free_size, SquareModel* m,
+bool LandmarkLocalizer::Impl::joint_fit(PoseMethod method, int n_params, SquareModel* m,
                                         NormalEquations* ne) {
   const bool joint = method == PoseMethod::kJointSquareFit;
   const int rounds = joint && cfg.robust ? kJointRobustRounds : 1;
@@ -293,8 +296,10 @@ bool LandmarkLocalizer::Impl::joint_fit(PoseMethod method, bool free_size, Squar
     accumulate_normal_equations(*m, ne);
     if (!joint) break;
     Eigen::Matrix<double, 5, 1> delta = Eigen::Matrix<double, 5, 1>::Zero();
-    if (free_size) {
+    if (n_params == 5) {
       delta = ne->jtj.ldlt().solve(-ne->jtr);
+    } else if (n_params == 4) {
+      delta.head<4>() = ne->jtj.topLeftCorner<4, 4>().ldlt().solve(-ne->jtr.head<4>());
     } else {
       delta.head<3>() = ne->jtj.topLeftCorner<3, 3>().ldlt().solve(-ne->jtr.head<3>());
     }
@@ -302,10 +307,8 @@ bool LandmarkLocalizer::Impl::joint_fit(PoseMethod method, bool free_size, Squar
     m->c.x += delta(0);
     m->c.y += delta(1);
     m->beta += delta(2);
-    if (free_size) {
-      m->h_out += delta(3);
-      m->h_in += delta(4);
-    }
+    if (n_params >= 4) m->h_out += delta(3);
+    if (n_params == 5) m->h_in += delta(4);
     if (delta.head(3).norm() < kConvergedStep && (it + 1) % kJointIterationsPerRound != 0) {
       it += kJointIterationsPerRound - 1 - it % kJointIterationsPerRound;  // next round
     }

@@ -449,6 +449,9 @@ class Ekf {
   // Odometry step (period-mean sample): fuse the sample, then predict over the period it covers.
   void propagate_odometry(FilterVec* x, FilterCov* P, double dt_s, double v_mps,
                           double omega_radps) const;
+  // Prediction over [t0, t1] inside a known odometry period: the gyro's rate where it covers
+  // the span, the period's yaw rate otherwise.
+  void predict_known(FilterVec* x, FilterCov* P, std::int64_t t0_ns, std::int64_t t1_ns) const;
   // Prediction from t0_ns to t1_ns when the newest odometry is at odom_t_ns: the known motion
   // (predict()) up to odom_t_ns + odom_gap_ns, the unknown-motion model after it.
   void predict_span(FilterVec* x, FilterCov* P, std::int64_t t0_ns, std::int64_t t1_ns,

@@ -322,7 +322,7 @@ struct LandmarkFix {
   // Measured half sides (mm, vehicle frame) of the outer and inner border squares from the joint
   // square fit, when it could estimate them (some axis with both sides fitted); 0 otherwise. Their
   // ratio to LandmarkGeometry's values is the image scale error (camera height, fx, or a print
-  // not at 100 %): agvloc-desk calibrate check.
+  // not at 100 %): agvloc-desk calibrate check. Tag family: outer only (inner_half_mm stays 0).
   double outer_half_mm = 0.0, inner_half_mm = 0.0;
   // How the QR code was read: 1 = model-guided module sampling, 2 = zxing's search on the crop.
   int qr_method = 0;
