@@ -325,6 +325,9 @@ int replay(int argc, char** argv) {
     rc = 1;
   }
   if (!overlay_frames.empty()) write_overlays(cfg, map_ptr, rec, overlay_frames, out_dir);
+  // Frames but no fix at all: the likely cause, beside the other diagnostics (exit code unchanged:
+  // an odometry-only replay is still a replay).
+  std::fputs(app::no_fix_hint(result, cfg.vision.family, !config_file.empty()).c_str(), stderr);
 
   std::string summary;
   char buf[256];

@@ -76,4 +76,26 @@ bool write_odometry_csv(const std::string& path, const std::vector<recording::Od
   return ok;
 }
 
+std::string no_fix_hint(const localizer::RunResult& r, LandmarkFamily family,
+                        bool family_configured) {
+  const localizer::VisionStats& v = r.vision;
+  if (v.frames_processed == 0 || v.by_status[static_cast<int>(vision::FixStatus::kOk)] > 0) {
+    return {};
+  }
+  std::string said;
+  for (int i = 0; i < localizer::kFixStatusCount; ++i) {
+    if (v.by_status[i] == 0) continue;
+    said += (said.empty() ? "" : ", ") + std::to_string(v.by_status[i]) + " " +
+            vision::to_string(static_cast<vision::FixStatus>(i));
+  }
+  const bool tag = family == LandmarkFamily::kTag36h11;
+  return "replay: no landmark fix in " + std::to_string(v.frames_processed) + " frames (" + said +
+         "): is landmark.family (" + (tag ? "tag36h11" : "qr") +
+         (family_configured ? ", from --config" : ", the default: no --config") +
+         ") the family printed on the floor? " +
+         (tag ? "A QR floor needs landmark.family: qr"
+              : "A tag36h11 floor needs --config with landmark.family: tag36h11 and the map") +
+         "; otherwise check the map and that the drive passes over landmarks\n";
+}
+
 }  // namespace agv::app

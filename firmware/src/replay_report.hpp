@@ -18,4 +18,12 @@ bool write_fixes_csv(const std::string& path, const std::vector<FixRecord>& fixe
 bool write_odometry_csv(const std::string& path, const std::vector<recording::OdomRow>& rows,
                         std::string* error);
 
+// The hint `agvloc replay` prints when no frame gave a landmark fix: what the frames gave and the
+// usual cause, landmark.family against the printed family (a tag floor replayed with the QR family
+// or the reverse finds nothing, and the run is otherwise a valid odometry-only replay, exit 0).
+// family_configured: the family came from --config (else the default). Empty when a frame gave a
+// fix or no frame was processed.
+std::string no_fix_hint(const localizer::RunResult& r, LandmarkFamily family,
+                        bool family_configured);
+
 }  // namespace agv::app

@@ -135,7 +135,8 @@ TEST(ReplayCommand, TimeSpanIsBoundedAndTheRowsNamed) {
 
 // A short tag36h11 recording (vehicle standing over tag 7 at several headings): with
 // landmark.family: tag36h11 and the map, every frame gives an ok fix at the true pose; with the
-// default family none does.
+// default family none does, and replay names landmark.family as the likely cause (it exited 0
+// with 0 fixes and no hint, issue 36).
 TEST(ReplayCommand, TagRecordingGivesFixes) {
   const fs::path d = fresh_dir("tag");
   recording::Meta m;
@@ -165,6 +166,7 @@ TEST(ReplayCommand, TagRecordingGivesFixes) {
   for (int i = 0; i <= kFrames * 10; ++i)
     odom.push_back({1'000'000'000LL + i * 10'000'000LL, 0, 0});
   ASSERT_TRUE(recording::write_odom_csv(d.string(), odom, &err)) << err;
+  std::string err_text;
   auto ok_fixes = [&](const std::string& family) -> int {
     std::ofstream(d / "tag.yaml", std::ios::trunc) << "landmark:\n  family: " << family << "\n";
     std::vector<std::string> args = {
@@ -175,6 +177,7 @@ TEST(ReplayCommand, TagRecordingGivesFixes) {
     testing::internal::CaptureStderr();
     const int rc = agv::cmd::replay(static_cast<int>(argv.size()), argv.data());
     const std::string e = testing::internal::GetCapturedStderr();
+    err_text = e;
     EXPECT_EQ(rc, 0) << e;
     std::ifstream f(d / "out" / "fixes.csv");
     std::string line;
@@ -194,7 +197,13 @@ TEST(ReplayCommand, TagRecordingGivesFixes) {
     return ok;
   };
   EXPECT_EQ(ok_fixes("tag36h11"), kFrames);
+  EXPECT_EQ(err_text.find("landmark.family"), std::string::npos) << err_text;
   EXPECT_EQ(ok_fixes("qr"), 0);
+  EXPECT_NE(err_text.find("no landmark fix in 5 frames ("), std::string::npos) << err_text;
+  EXPECT_NE(err_text.find("is landmark.family (qr, from --config) the family printed"),
+            std::string::npos)
+      << err_text;
+  EXPECT_NE(err_text.find("landmark.family: tag36h11"), std::string::npos) << err_text;
   fs::remove_all(d);
 }
 
