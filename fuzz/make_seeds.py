@@ -135,6 +135,22 @@ landmark:
         put("fuzz_vision", f"base{i}", bytes([i]))
         put("fuzz_vision", f"paint{i}", bytes([i, 0x40, 0x01, 0xF0, 0x00, 0xFF, 0x00,
                                                0x30, 0x81, 0x10, 0x01, 0x77, 0x80]))
+    # VDA 5050 instantActions: initPosition for both versions (a leading tab, odd, picks 3.0.0 in
+    # the harness), another map, another action, a truncated message.
+    def vda(version, action, params):
+        import json
+        return json.dumps({"headerId": 1, "timestamp": "2026-01-01T00:00:00.000Z",
+                           "version": version, "manufacturer": "acme", "serialNumber": "agv-7",
+                           "actions": [{"actionId": "a1", "actionType": action,
+                                        "blockingType": "NONE", "actionParameters": params}]})
+    good = [{"key": "x", "value": 1.5}, {"key": "y", "value": -2}, {"key": "theta", "value": 0.5},
+            {"key": "mapId", "value": "hall-1"}, {"key": "lastNodeId", "value": "n1"}]
+    put("fuzz_vda_action", "init_v2", vda("2.1.0", "initPosition", good))
+    put("fuzz_vda_action", "init_v3", "\t" + vda("3.0.0", "initializePosition", good))
+    put("fuzz_vda_action", "other_map",
+        vda("2.1.0", "initPosition", good[:3] + [{"key": "mapId", "value": "x"}]))
+    put("fuzz_vda_action", "other_action", vda("2.1.0", "startPause", []))
+    put("fuzz_vda_action", "truncated", '{"headerId": [[[')
 
 
 if __name__ == "__main__":

@@ -21,6 +21,7 @@
 #include "agv/recording/replay_camera.hpp"
 #include "commands.hpp"
 #include "config.hpp"
+#include "mqtt_publisher.hpp"
 #include "pipeline.hpp"
 #include "replay_report.hpp"
 #include "signals.hpp"
@@ -219,6 +220,18 @@ int replay(int argc, char** argv) {
     return 1;
   }
 
+  // VDA 5050 (vda5050.enabled): stamped in recording time, so a message matches poses.csv.
+  app::MqttHandoff mqtt_handoff;
+  std::unique_ptr<app::MqttPublisher> mqtt;
+  if (cfg.vda5050.enabled) {
+    mqtt = std::make_unique<app::MqttPublisher>(cfg.vda5050, mqtt_handoff, 0);
+    if (!mqtt->start(&err)) {
+      std::fprintf(stderr, "replay: %s\n", err.c_str());
+      return 2;
+    }
+  }
+  app::MqttHandoff* mqtt_io = mqtt ? &mqtt_handoff : nullptr;
+
   if (realtime) {
     // Same real-time setup as `agvloc run` (threads get their priorities in run_threads).
     if (cfg.loop.lock_memory) {
@@ -275,6 +288,7 @@ int replay(int argc, char** argv) {
     io.odometry_received = odom_from_can ? &odom_received : nullptr;
     io.stop = &stop_requested();
     io.quiet = quiet;
+    io.mqtt = mqtt_io;
     const std::int64_t w0 = posix::monotonic_now_ns();
     app::run_threads(cfg, map_ptr, io, &result);
     result.wall_ns = posix::monotonic_now_ns() - w0;
@@ -289,10 +303,16 @@ int replay(int argc, char** argv) {
     adapters::SteppedClock clock;
     can::LogOnlyBus bus(log, clock, "can0");
     app::run_fast(cfg, map_ptr, rec, &bus, &clock, &ticks, &fixes, &stop_requested(), &result,
-                  !quiet);
+                  !quiet, mqtt_io);
   }
   if (can_iface.empty() && !log.close()) {
     std::fprintf(stderr, "replay: writing %s failed\n", can_log.c_str());
+  }
+
+  std::string mqtt_line;
+  if (mqtt) {
+    mqtt->stop();
+    mqtt_line = app::format_mqtt_counters(mqtt->counters(), mqtt_handoff);
   }
 
   int rc = 0;
@@ -339,6 +359,7 @@ int replay(int argc, char** argv) {
   summary += buf;
   summary += gyro_summary(result.output, rec, imu_fed);
   summary += app::format_statistics(result);
+  summary += mqtt_line;
   // Accuracy against truth and the plot are desk tools, not in the vehicle binary.
   if (rec.has_truth) {
     summary += "truth.csv present: accuracy and trajectory.svg with `agvloc-desk report " +

@@ -1,13 +1,17 @@
 // agvloc run --config FILE: live camera, vision, fusion, CAN output; odometry from CAN.
 #include <CLI/CLI.hpp>
+#include <chrono>
 #include <cstdio>
+#include <memory>
 
 #include "agv/can/socketcan.hpp"
 #include "agv/posix/posix_clock.hpp"
 #include "agv/posix/realtime.hpp"
 #include "commands.hpp"
 #include "config.hpp"
+#include "gyro_reader.hpp"
 #include "live_devices.hpp"
+#include "mqtt_publisher.hpp"
 #include "pipeline.hpp"
 #include "signals.hpp"
 
@@ -46,6 +50,14 @@ int run(int argc, char** argv) {
     std::fprintf(stderr, "agvloc: %s\n", err.c_str());
     return 2;
   }
+  std::unique_ptr<hal::Imu> imu;  // imu.source iio (docs/fusion.md "Gyro from a Linux IIO device")
+  if (cfg.imu.source == "iio") {
+    imu = app::make_live_imu(cfg, &err);
+    if (!imu) {
+      std::fprintf(stderr, "agvloc: %s\n", err.c_str());
+      return 2;
+    }
+  }
   if (check_only) {
     std::printf("agvloc: configuration %s is valid\n", config_file.c_str());
     return 0;
@@ -70,14 +82,50 @@ int run(int argc, char** argv) {
   io.clock = &clock;
   io.stop = &stop_requested();
   io.stop_at_end_of_stream = false;
+  app::GyroRing gyro_ring;
+  app::GyroReader gyro_reader(std::move(imu), gyro_ring);
+  if (cfg.imu.source == "iio") {
+    if (!gyro_reader.start(&err)) {
+      std::fprintf(stderr, "agvloc: %s\n", err.c_str());
+      return 2;
+    }
+    std::printf("agvloc: gyro from IIO device %s at %.1f Hz\n", cfg.imu.iio_device.c_str(),
+                gyro_reader.rate_hz());
+    io.live_gyro = &gyro_ring;
+  }
+  // VDA 5050 wants wall-clock stamps; the loop runs on the monotonic clock.
+  app::MqttHandoff mqtt_handoff;
+  std::unique_ptr<app::MqttPublisher> mqtt;
+  if (cfg.vda5050.enabled) {
+    const std::int64_t wall_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                     std::chrono::system_clock::now().time_since_epoch())
+                                     .count();
+    mqtt =
+        std::make_unique<app::MqttPublisher>(cfg.vda5050, mqtt_handoff, wall_ns - clock.now_ns());
+    if (!mqtt->start(&err)) {
+      std::fprintf(stderr, "agvloc: %s\n", err.c_str());
+      return 2;
+    }
+    io.mqtt = &mqtt_handoff;
+  }
   std::printf("agvloc %s: running (camera %s, CAN %s, %.0f Hz); Ctrl-C to stop\n", AGV_VERSION,
               cfg.camera.driver.c_str(), sc.iface.c_str(), cfg.loop.output_rate_hz);
   app::RunResult result;
   const std::int64_t t0 = clock.now_ns();
   app::run_threads(cfg, map_ptr, io, &result);
   result.wall_ns = clock.now_ns() - t0;
-  std::printf("agvloc: stopped after %.1f s\n%s", static_cast<double>(result.wall_ns) / 1e9,
-              app::format_statistics(result).c_str());
+  gyro_reader.stop();
+  if (io.live_gyro) {
+    std::fputs(app::format_gyro_counters(gyro_reader.counters(), gyro_ring.dropped()).c_str(),
+               stdout);
+  }
+  std::string mqtt_line;
+  if (mqtt) {
+    mqtt->stop();
+    mqtt_line = app::format_mqtt_counters(mqtt->counters(), mqtt_handoff);
+  }
+  std::printf("agvloc: stopped after %.1f s\n%s%s", static_cast<double>(result.wall_ns) / 1e9,
+              app::format_statistics(result).c_str(), mqtt_line.c_str());
   return 0;
 }
 

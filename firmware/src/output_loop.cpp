@@ -21,6 +21,7 @@ localizer::LocalizerConfig localizer_config(const config::Config& cfg) {
   c.gyro.bias_radps = cfg.imu.bias_radps;
   c.gyro.time_offset_ns = std::llround(cfg.imu.time_offset_ms * 1e6);
   c.gyro_timeout_ns = std::llround(cfg.can.gyro_timeout_ms * 1e6);
+  c.gyro_expected = cfg.imu.source == "iio";  // the IIO gyro's timeout is can.gyro.timeout_ms
   c.heartbeat_period_ns = static_cast<std::int64_t>(1e9 / cfg.loop.heartbeat_rate_hz);
   c.camera_timeout_ns = static_cast<std::int64_t>(cfg.camera.timeout_ms * 1e6);
   c.sw_major = AGV_VERSION_MAJOR;
@@ -30,6 +31,11 @@ localizer::LocalizerConfig localizer_config(const config::Config& cfg) {
 }
 
 namespace {
+
+// The pose an operator sets (VDA 5050 initPosition) is as good as the placement: 50 mm, 2 degrees
+// (1 sigma); the next landmark fix narrows it.
+constexpr double kInitPoseSigmaMm = 50.0;
+constexpr double kInitPoseSigmaRad = 2.0 * M_PI / 180.0;
 
 void print_period_line(const OutputStats& o, std::uint64_t dropped) {
   std::fprintf(stderr,
@@ -98,6 +104,11 @@ int OutputLoop::take_inputs(std::int64_t now_ns) {
       }
     }
   }
+  if (live_gyro_) {
+    GyroRow g;
+    // Bounded like the CAN receive: 256 samples are > 1 s at 200 Hz.
+    for (int i = 0; i < 256 && live_gyro_->pop(&g); ++i) core_.on_gyro(g.t_ns, g.gyro_z_radps);
+  }
   int good = 0;
   FixRecord rec;
   while (fixes_.front(&rec) && rec.t_done_ns <= now_ns) {
@@ -131,12 +142,20 @@ void OutputLoop::tick(std::int64_t now_ns, const CameraState& camera, TickRecord
   take_inputs(now_ns);
   core_.set_camera_state(camera.last_frame_ns, camera.end_of_stream, camera.error);
   if (bus_) core_.set_can_state(bus_->state(), bus_->stats());
+  InitPoseCommand cmd;
+  if (mqtt_ && mqtt_->take_command(&cmd)) {
+    mqtt_->report(cmd.seq, core_.set_pose(now_ns, {cmd.x_mm, cmd.y_mm, cmd.theta_rad},
+                                          kInitPoseSigmaMm, kInitPoseSigmaRad));
+  }
+  TickRecord local;
+  if (mqtt_ && !rec) rec = &local;
   const std::int64_t t_start = clock_.now_ns();
   core_.tick(now_ns, &frames_, rec);
   const std::int64_t t_fused = clock_.now_ns();
   core_.mutable_stats().fusion_ns.record_ns(t_fused - t_start);
   send(frames_);
   core_.mutable_stats().can_send_ns.record_ns(clock_.now_ns() - t_fused);
+  if (mqtt_) mqtt_->offer(*rec);
   if (log_period_ns_ > 0) {
     if (next_log_ns_ == INT64_MIN) next_log_ns_ = now_ns + log_period_ns_;
     if (now_ns >= next_log_ns_) {

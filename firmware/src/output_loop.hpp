@@ -12,7 +12,9 @@
 #include "agv/recording/recording.hpp"
 #include "agv/vision/landmark_localizer.hpp"
 #include "config.hpp"
+#include "gyro_reader.hpp"
 #include "handoff.hpp"
+#include "mqtt_handoff.hpp"
 
 namespace agv::app {
 
@@ -55,6 +57,12 @@ class OutputLoop {
   // none kept. Called before the loop runs.
   void keep_received_odometry(std::vector<recording::OdomRow>* received) { received_ = received; }
   std::uint64_t odometry_not_recorded() const { return odometry_not_recorded_; }
+  // imu.source iio: gyro samples from the reader thread (gyro_reader.hpp), fused in take_inputs
+  // after the CAN frames. Null (default): none. Called before the loop runs.
+  void set_live_gyro(GyroRing* ring) { live_gyro_ = ring; }
+  // VDA 5050 (docs/vda5050.md): each tick is offered to the MQTT thread and a pending
+  // initPosition applied before the tick. Null (default): none. Called before the loop runs.
+  void set_mqtt(MqttHandoff* mqtt) { mqtt_ = mqtt; }
 
   // One output period at now_ns: odometry up to now, CAN receive, fixes that arrived, camera
   // state, core tick, send, periodic log. Fills *rec when not null.
@@ -85,6 +93,8 @@ class OutputLoop {
   const std::vector<recording::ImuRow>* imu_;
   std::size_t imu_i_ = 0;
   std::vector<recording::OdomRow>* received_ = nullptr;
+  GyroRing* live_gyro_ = nullptr;
+  MqttHandoff* mqtt_ = nullptr;
   std::uint64_t odometry_not_recorded_ = 0;
   FixRing& fixes_;
   std::int64_t log_period_ns_;

@@ -124,6 +124,8 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
       io.quiet ? 0 : static_cast<std::int64_t>(cfg.loop.log_period_s * 1e9);
   OutputLoop loop(core, io.bus, clock, io.odometry, fix_queue, log_period_ns, io.imu);
   loop.keep_received_odometry(io.odometry_received);
+  loop.set_live_gyro(io.live_gyro);
+  loop.set_mqtt(io.mqtt);
   // loop.pose_on_fix: the vision worker wakes the output thread, which fuses the fix and sends
   // the pose pair at once; it stays the only CAN writer and shares no lock with vision.
   posix::FutexWakeup wakeup(clock);
@@ -301,11 +303,12 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
 int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording::Recording& rec,
              hal::CanBus* bus, adapters::SteppedClock* clock, std::vector<TickRecord>* ticks,
              std::vector<FixRecord>* fixes, std::atomic<bool>* stop, RunResult* result,
-             bool show_progress) {
+             bool show_progress, MqttHandoff* mqtt) {
   localizer::Localizer core(localizer_config(cfg));
   // Fixes wait here for their simulated arrival.
   FixRing pending;
   OutputLoop loop(core, bus, *clock, &rec.odom, pending, 0, &rec.imu);
+  loop.set_mqtt(mqtt);
   vision::LandmarkLocalizer loc(vision_config_with_clock(cfg, nullptr), cfg.camera_model,
                                 geometry_of(cfg), map);
   VisionStats vstats;

@@ -40,6 +40,8 @@ struct PipelineIo {
   // Odometry decoded from CAN, as fusion got it (OutputLoop::keep_received_odometry).
   std::vector<recording::OdomRow>* odometry_received = nullptr;
   std::atomic<bool>* stop = nullptr;  // set by signal handlers
+  GyroRing* live_gyro = nullptr;      // imu.source iio: the reader thread's samples; null: none
+  MqttHandoff* mqtt = nullptr;        // VDA 5050 publisher's hand-off; null: none
   // Stop when the camera reports end of stream and replay odometry is used up.
   bool stop_at_end_of_stream = true;
   bool quiet = false;  // no periodic log lines
@@ -57,7 +59,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
 int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording::Recording& rec,
              hal::CanBus* bus, adapters::SteppedClock* clock, std::vector<TickRecord>* ticks,
              std::vector<FixRecord>* fixes, std::atomic<bool>* stop, RunResult* result,
-             bool show_progress);
+             bool show_progress, MqttHandoff* mqtt = nullptr);
 
 using localizer::format_statistics;
 

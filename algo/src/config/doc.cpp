@@ -108,6 +108,11 @@ const std::vector<Section>& config_sections() {
        "keys given in the file still win. The odometry timeout is `can.odometry.timeout_ms`.\n",
        ""},
       {"replay", "", "", ""},
+      {"vda5050", "(VDA 5050 position over MQTT, docs/vda5050.md)",
+       "The position provider for a fleet control: `visualization` at `rate_hz`, `connection`\n"
+       "with a last will, `initPosition` accepted. Off by default; MQTT runs in its own thread\n"
+       "and never delays the output loop. `agvloc replay` publishes too (recording time).\n",
+       ""},
   };
   return sections;
 }

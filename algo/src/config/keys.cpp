@@ -17,6 +17,7 @@ const std::vector<Key>& config_keys() {
     detail::add_vision_keys(&k);
     detail::add_fusion_keys(&k);
     detail::add_replay_keys(&k);
+    detail::add_vda5050_keys(&k);
     return k;
   }();
   return keys;

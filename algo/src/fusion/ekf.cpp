@@ -383,6 +383,23 @@ void Ekf::relocalize(std::int64_t t_ns, const Eigen::Vector3d& z, const Eigen::M
   pending_flags_ |= flags::kReinitialised;
 }
 
+bool Ekf::set_pose(std::int64_t t_ns, const Pose2& z_world, const Eigen::Matrix3d& R) {
+  if (!std::isfinite(z_world.x_mm) || !std::isfinite(z_world.y_mm) ||
+      !std::isfinite(z_world.theta_rad) || !R.allFinite() || !R.isApprox(R.transpose())) {
+    return false;
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(R, Eigen::EigenvaluesOnly);
+  if (eig.info() != Eigen::Success || !(eig.eigenvalues()(0) > 0.0)) return false;
+  if (!initialised_ || size_ == 0 || !at(size_ - 1).valid) {
+    const FixOutcome o = add_fix(t_ns, z_world, R, /*map_verified=*/true);
+    return o == FixOutcome::kInitialised || o == FixOutcome::kHeld;
+  }
+  const Event& newest = at(size_ - 1);
+  relocalize(t_ns, Eigen::Vector3d(z_world.x_mm, z_world.y_mm, z_world.theta_rad), R, newest.x,
+             newest.P);
+  return true;
+}
+
 FixOutcome Ekf::add_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::Matrix3d& R_in,
                         bool map_verified, bool map_guided) {
   return fuse_fix(t_ns, z_world, R_in, map_verified, map_guided, /*from_hold=*/false);

@@ -67,6 +67,14 @@ int Localizer::receive_filters(hal::CanFilter* out, int max) const {
   return n;
 }
 
+bool Localizer::set_pose(std::int64_t now_ns, const Pose2& pose, double sigma_mm,
+                         double sigma_rad) {
+  Eigen::Matrix3d R = Eigen::Matrix3d::Zero();
+  R(0, 0) = R(1, 1) = sigma_mm * sigma_mm;
+  R(2, 2) = sigma_rad * sigma_rad;
+  return ekf_.set_pose(now_ns, pose, R);
+}
+
 void Localizer::on_odometry(std::int64_t t_ns, double v_mps, double omega_radps) {
   ++stats_.odom_samples;
   // THE place the configured odometry correction is applied (OdometryCorrection). Multiplying
@@ -316,7 +324,8 @@ void Localizer::tick(std::int64_t now_ns, OutFrames* out, TickRecord* rec) {
   }
   // Gyro: timed out after samples were seen (any source), or configured on CAN and silent (or
   // only saturated) since the first tick for longer than the timeout.
-  const bool gyro_never = cfg_.protocol.gyro.enabled && stats_.gyro_samples == 0 &&
+  const bool gyro_never = (cfg_.protocol.gyro.enabled || cfg_.gyro_expected) &&
+                          stats_.gyro_samples == 0 &&
                           now_ns - first_tick_ns_ > cfg_.gyro_timeout_ns;
   if (gyro_timed_out(now_ns) || gyro_never) st.faults |= protocol::fault::kImuTimeout;
   const std::uint64_t gyro_rej = gyro_.counters().rejected();

@@ -344,6 +344,11 @@ class Ekf {
   // re-localises or counts towards a kidnap (else kRejectedNotTracking / kRejectedGate).
   FixOutcome add_fix(std::int64_t t_exposure_ns, const Pose2& z_world, const Eigen::Matrix3d& R,
                      bool map_verified = false, bool map_guided = false);
+  // An external pose (the VDA 5050 initPosition action, docs/vda5050.md): re-initialises the
+  // filter at t_ns to z_world with position/heading covariance R, keeping speed and calibration;
+  // uninitialised, it initialises as from a first fix. No gate: the operator overrides the
+  // filter. False (state untouched) for a non-finite pose or R not positive definite.
+  bool set_pose(std::int64_t t_ns, const Pose2& z_world, const Eigen::Matrix3d& R);
 
   // Estimate predicted (or, inside the history, interpolated by prediction from the last event
   // at or before t_ns) to t_ns; does not change the filter. valid only once initialised and when

@@ -54,6 +54,9 @@ struct LocalizerConfig {
   // the CAN gyro enabled (protocol.gyro.enabled) also when none has arrived this long after the
   // first tick. Key can.gyro.timeout_ms.
   std::int64_t gyro_timeout_ns = 100'000'000;
+  // A gyro source outside CAN is configured (imu.source iio): silence since the first tick is
+  // FaultImuTimeout as with the CAN gyro enabled.
+  bool gyro_expected = false;
   // THE odometry timeout: no accepted sample (CAN or recording) for this long makes the pose
   // invalid, sets FaultOdomTimeout and the EKF's kOdomTimeout flag. Trade-off: short stops a
   // vehicle on bus jitter, long lets it drive on a stale prediction.
@@ -159,6 +162,9 @@ class Localizer {
   // camera clock that jumped ahead: rejected as invalid, never fused at a time it was not taken.
   void on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure_ns,
               std::int64_t t_arrival_ns = INT64_MAX);
+  // An external pose (VDA 5050 initPosition, docs/vda5050.md) at now_ns, in mm / rad with its
+  // 1-sigma position and heading uncertainty. False when the filter refused it (non-finite).
+  bool set_pose(std::int64_t now_ns, const Pose2& pose, double sigma_mm, double sigma_rad);
   // Camera health: receive time of the newest frame, the stream ended (replay), driver error.
   void set_camera_state(std::int64_t last_frame_ns, bool end_of_stream, bool error) {
     last_frame_ns_ = last_frame_ns;

@@ -1,0 +1,169 @@
+// The VDA 5050 encoder and the health / sigma mapping (docs/vda5050.md "Field mapping").
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <nlohmann/json.hpp>
+
+#include "agv/vda5050/vda5050.hpp"
+
+namespace agv::vda5050 {
+namespace {
+
+using nlohmann::json;
+
+localizer::TickRecord tick(fusion::HealthState h, protocol::Health s, double sigma_mm) {
+  localizer::TickRecord t;
+  t.t_ns = 1'795'810'219'123'456'789;
+  t.estimate.valid = h != fusion::HealthState::kUninitialized;
+  t.estimate.health = h;
+  t.estimate.pose = {1234.5, -678.9, 3.0};
+  t.estimate.v_mps = 0.75;
+  t.estimate.omega_radps = -0.125;
+  t.estimate.position_sigma_mm = sigma_mm;
+  t.status.health = s;
+  return t;
+}
+
+Identity ident(Version v) {
+  Identity id;
+  id.version = v;
+  id.manufacturer = "acme";
+  id.serial_number = "agv-7";
+  id.map_id = "hall-1";
+  return id;
+}
+
+TEST(Vda5050Mapping, LocalizedMapsSigmaToDeviationAndScore) {
+  const Position p = map_tick(tick(fusion::HealthState::kLocalized, protocol::Health::kOk, 2.0));
+  EXPECT_TRUE(p.initialized);
+  EXPECT_DOUBLE_EQ(p.x_m, 1.2345);
+  EXPECT_DOUBLE_EQ(p.y_m, -0.6789);
+  EXPECT_DOUBLE_EQ(p.deviation_range_m, 0.006);  // 3 sigma in m
+  EXPECT_NEAR(p.localization_score, 1.0 - 6.0 / kScoreZeroAtDeviationMm, 1e-12);
+  EXPECT_DOUBLE_EQ(p.vx_mps, 0.75);
+  EXPECT_DOUBLE_EQ(p.vy_mps, 0.0);
+  EXPECT_DOUBLE_EQ(p.omega_radps, -0.125);
+}
+
+TEST(Vda5050Mapping, ScoreFallsToZeroAtTheLimitAndIsCappedWhenDeadReckoning) {
+  EXPECT_DOUBLE_EQ(map_tick(tick(fusion::HealthState::kLocalized, protocol::Health::kOk, 40.0))
+                       .localization_score,
+                   0.0);
+  const Position dr =
+      map_tick(tick(fusion::HealthState::kDeadReckoning, protocol::Health::kDegraded, 1.0));
+  EXPECT_TRUE(dr.initialized);
+  EXPECT_DOUBLE_EQ(dr.localization_score, kDeadReckoningScoreCap);
+}
+
+TEST(Vda5050Mapping, LostUninitialisedOrFaultIsNotInitialized) {
+  for (const auto& t : {tick(fusion::HealthState::kLost, protocol::Health::kLost, 5.0),
+                        tick(fusion::HealthState::kUninitialized, protocol::Health::kLost, 0.0),
+                        tick(fusion::HealthState::kLocalized, protocol::Health::kFault, 1.0),
+                        tick(fusion::HealthState::kLocalized, protocol::Health::kOk, NAN)}) {
+    const Position p = map_tick(t);
+    EXPECT_FALSE(p.initialized);
+    EXPECT_EQ(p.localization_score, 0.0);
+    EXPECT_LT(p.deviation_range_m, 0.0);  // omitted
+  }
+}
+
+TEST(Vda5050Mapping, ThetaWrappedIntoTheSchemaRange) {
+  auto t = tick(fusion::HealthState::kLocalized, protocol::Health::kOk, 1.0);
+  t.estimate.pose.theta_rad = 3.0 * M_PI / 2.0;
+  EXPECT_NEAR(map_tick(t).theta_rad, -M_PI / 2.0, 1e-12);
+}
+
+TEST(Vda5050Time, Iso8601UtcWithMilliseconds) {
+  EXPECT_EQ(iso8601_utc_ms(0), "1970-01-01T00:00:00.000Z");
+  EXPECT_EQ(iso8601_utc_ms(1'795'810'219'123'456'789), "2026-11-27T20:10:19.123Z");
+  EXPECT_EQ(iso8601_utc_ms(951'782'400'999'999'999), "2000-02-29T00:00:00.999Z");  // leap day
+  EXPECT_EQ(iso8601_utc_ms(-5), "1970-01-01T00:00:00.000Z");
+}
+
+TEST(Vda5050Topic, LayoutOfTheSpecification) {
+  EXPECT_EQ(topic(ident(Version::k2_1_0), "visualization"), "uagv/v2/acme/agv-7/visualization");
+  EXPECT_EQ(topic(ident(Version::k3_0_0), "connection"), "uagv/v3/acme/agv-7/connection");
+}
+
+TEST(Vda5050Encode, Visualization21) {
+  const Identity id = ident(Version::k2_1_0);
+  const Position p = map_tick(tick(fusion::HealthState::kLocalized, protocol::Health::kOk, 2.0));
+  const json m = json::parse(encode_visualization(id, 41, 1'795'810'219'123'456'789, p, 0));
+  EXPECT_EQ(m["headerId"], 41);
+  EXPECT_EQ(m["timestamp"], "2026-11-27T20:10:19.123Z");
+  EXPECT_EQ(m["version"], "2.1.0");
+  EXPECT_EQ(m["manufacturer"], "acme");
+  EXPECT_EQ(m["serialNumber"], "agv-7");
+  EXPECT_FALSE(m.contains("referenceStateHeaderId"));
+  const json& a = m["agvPosition"];
+  EXPECT_EQ(a["mapId"], "hall-1");
+  EXPECT_EQ(a["positionInitialized"], true);
+  EXPECT_DOUBLE_EQ(a["x"].get<double>(), 1.2345);
+  EXPECT_DOUBLE_EQ(a["deviationRange"].get<double>(), 0.006);
+  EXPECT_DOUBLE_EQ(m["velocity"]["vx"].get<double>(), 0.75);
+}
+
+TEST(Vda5050Encode, Visualization30RenamesAndReferencesState) {
+  const Identity id = ident(Version::k3_0_0);
+  const Position p = map_tick(tick(fusion::HealthState::kLost, protocol::Health::kLost, 2.0));
+  const json m = json::parse(encode_visualization(id, 0, 0, p, 7));
+  EXPECT_EQ(m["version"], "3.0.0");
+  EXPECT_EQ(m["referenceStateHeaderId"], 7);
+  EXPECT_FALSE(m.contains("agvPosition"));
+  EXPECT_EQ(m["mobileRobotPosition"]["localized"], false);
+  EXPECT_FALSE(m["mobileRobotPosition"].contains("deviationRange"));
+}
+
+TEST(Vda5050Encode, NonFiniteNumbersNeverReachTheJson) {
+  Position p;
+  p.x_m = NAN;
+  p.y_m = INFINITY;
+  p.theta_rad = NAN;
+  p.vx_mps = NAN;
+  p.localization_score = NAN;
+  p.deviation_range_m = NAN;
+  const json m = json::parse(encode_visualization(ident(Version::k2_1_0), 0, 0, p, 0));
+  EXPECT_EQ(m["agvPosition"]["x"], 0.0);
+  EXPECT_EQ(m["agvPosition"]["y"], 0.0);
+  EXPECT_EQ(m["velocity"]["vx"], 0.0);
+  EXPECT_FALSE(m["agvPosition"].contains("deviationRange"));
+}
+
+TEST(Vda5050Encode, ConnectionStatesPerVersion) {
+  EXPECT_EQ(json::parse(encode_connection(ident(Version::k2_1_0), 3, 0,
+                                          ConnectionState::kConnectionBroken))["connectionState"],
+            "CONNECTIONBROKEN");
+  EXPECT_EQ(json::parse(encode_connection(ident(Version::k3_0_0), 3, 0,
+                                          ConnectionState::kConnectionBroken))["connectionState"],
+            "CONNECTION_BROKEN");
+  EXPECT_EQ(json::parse(encode_connection(ident(Version::k2_1_0), 3, 0,
+                                          ConnectionState::kOnline))["connectionState"],
+            "ONLINE");
+  EXPECT_EQ(json::parse(encode_connection(ident(Version::k2_1_0), 3, 0,
+                                          ConnectionState::kOffline))["connectionState"],
+            "OFFLINE");
+}
+
+TEST(Vda5050Encode, StateAnswersInstantActionsWhereEachVersionWantsThem) {
+  const std::vector<ActionResult> r = {
+      {"a1", "initPosition", ActionStatus::kFinished, ""},
+      {"a2", "initPosition", ActionStatus::kFailed, "unknown_map"}};
+  const json s21 = json::parse(encode_state(ident(Version::k2_1_0), 0, 0, Position{}, r));
+  ASSERT_EQ(s21["actionStates"].size(), 2u);
+  EXPECT_EQ(s21["actionStates"][0]["actionStatus"], "FINISHED");
+  EXPECT_EQ(s21["actionStates"][1]["resultDescription"], "unknown_map");
+  const json s30 = json::parse(encode_state(ident(Version::k3_0_0), 0, 0, Position{}, r));
+  EXPECT_TRUE(s30["actionStates"].empty());
+  EXPECT_EQ(s30["instantActionStates"][1]["actionStatus"], "FAILED");
+}
+
+TEST(Vda5050Version, OnlyTheTwoReleases) {
+  Version v;
+  EXPECT_TRUE(parse_version("3.0.0", &v));
+  EXPECT_EQ(v, Version::k3_0_0);
+  EXPECT_FALSE(parse_version("2.0.0", &v));
+  EXPECT_STREQ(version_string(Version::k2_1_0), "2.1.0");
+}
+
+}  // namespace
+}  // namespace agv::vda5050
