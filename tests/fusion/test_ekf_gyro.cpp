@@ -3,6 +3,7 @@
 // depend on the covariance (issue 33).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "agv/common/geometry.hpp"
@@ -189,4 +190,47 @@ TEST(FusionGyro, AGyroBiasStepIsRecoveredFromTheRejectedFixes) {
   EXPECT_LT(std::abs(rad_to_deg(e.pose.theta_rad)), 0.1);
   EXPECT_NEAR(e.pose.y_mm, 0.0, 2.0);
   EXPECT_NEAR(e.pose.x_mm, static_cast<double>(t) * 1e-6, 5.0);
+}
+
+TEST(FusionGyro, AFixJustAfterATurnEndsUsesTheGyroForItsPartOfThePeriod) {
+  // A 2 rad/s turn ends at 1.003 s, inside the odometry period (1.000, 1.010]; a landmark is
+  // seen at 1.008 s. The period's mean yaw rate says the turn went on until the exposure: the
+  // prior would be 2 rad/s x 5 ms = 0.57 deg past the truth, at a sigma of hundredths of a degree
+  // (calibrated gyro). The gyro's 5 ms samples say where the turn stopped.
+  EkfConfig cfg;
+  cfg.init_gyro_scale_sigma = 1e-4;
+  cfg.init_gyro_bias_sigma_radps = deg_to_rad(0.001);
+  Ekf ekf(cfg);
+  constexpr double kW = 2.0, kV = 1.0;
+  constexpr std::int64_t kTurnEnd = 1003 * kMs;
+  auto truth = [&](std::int64_t t) {
+    const double tt = static_cast<double>(std::min(t, kTurnEnd)) * 1e-9;
+    const double th = kW * tt;
+    Pose2 p{1000.0 * kV / kW * std::sin(th), 1000.0 * kV / kW * (1.0 - std::cos(th)), th};
+    const double straight_m =
+        kV * static_cast<double>(std::max<std::int64_t>(0, t - kTurnEnd)) * 1e-9;
+    p.x_mm += 1000.0 * straight_m * std::cos(th);
+    p.y_mm += 1000.0 * straight_m * std::sin(th);
+    return p;
+  };
+  // Mean yaw rate over (t - period, t].
+  auto mean_rate = [&](std::int64_t t, std::int64_t period) {
+    const std::int64_t turning = std::clamp<std::int64_t>(kTurnEnd - (t - period), 0, period);
+    return kW * static_cast<double>(turning) / static_cast<double>(period);
+  };
+  ekf.add_gyro(-5 * kMs, kW);
+  ekf.add_gyro(0, kW);
+  ekf.add_odometry(0, kV, kW);
+  ASSERT_EQ(ekf.add_fix(0, truth(0), fix_cov()), FixOutcome::kInitialised);
+  std::int64_t t = 0;
+  for (int i = 1; i <= 220; ++i) {  // to 1.1 s
+    t = i * 5 * kMs;
+    ekf.add_gyro(t, mean_rate(t, 5 * kMs));
+    if (i % 2 == 0) ekf.add_odometry(t, kV, mean_rate(t, 10 * kMs));
+  }
+  const std::int64_t exposure = 1008 * kMs;
+  EXPECT_EQ(ekf.add_fix(exposure, truth(exposure), fix_cov()), FixOutcome::kFused);
+  const PoseEstimate e = ekf.estimate_at(t);
+  EXPECT_LT(std::abs(rad_to_deg(wrap_angle_rad(e.pose.theta_rad - truth(t).theta_rad))), 0.02);
+  EXPECT_LT(std::hypot(e.pose.x_mm - truth(t).x_mm, e.pose.y_mm - truth(t).y_mm), 0.5);
 }

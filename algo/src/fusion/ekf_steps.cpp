@@ -204,6 +204,22 @@ void Ekf::propagate_odometry(FilterVec* x, FilterCov* P, double dt_s, double v_m
   predict(x, P, dt_s, /*velocity_noise=*/false);
 }
 
+void Ekf::predict_known(FilterVec* x, FilterCov* P, std::int64_t t0_ns, std::int64_t t1_ns) const {
+  // Part of an odometry period (a fix's exposure, an output tick): the period's yaw rate is its
+  // mean, which is wrong by the rate's change where a turn starts or ends inside the period
+  // (0.3 deg at 115 deg/s in 10 ms). The gyro's samples over the part itself, where they cover
+  // it, say how much of the turn falls before the split: without them a fix just after a turn
+  // ended pulled the heading 0.3 deg off at sigma 0.04 deg (eval_fusion --honesty).
+  double g = 0.0;
+  const double dt_s = static_cast<double>(t1_ns - t0_ns) * kNsToS;
+  if (gyro_mean(t0_ns, t1_ns, &g)) {
+    set_gyro_rate(x, P, g, dt_s);
+    predict(x, P, dt_s, /*velocity_noise=*/false, /*gyro_heading=*/true);
+  } else {
+    predict(x, P, dt_s);
+  }
+}
+
 void Ekf::predict_span(FilterVec* x, FilterCov* P, std::int64_t t0_ns, std::int64_t t1_ns,
                        std::int64_t odom_t_ns) const {
   if (t1_ns <= t0_ns) {
@@ -213,10 +229,10 @@ void Ekf::predict_span(FilterVec* x, FilterCov* P, std::int64_t t0_ns, std::int6
   const std::int64_t known_end =
       odom_t_ns == kNoOdom ? t0_ns : std::max(t0_ns, odom_t_ns + config_.odom_gap_ns);
   if (t1_ns <= known_end) {
-    predict(x, P, static_cast<double>(t1_ns - t0_ns) * kNsToS);
+    predict_known(x, P, t0_ns, t1_ns);
     return;
   }
-  if (known_end > t0_ns) predict(x, P, static_cast<double>(known_end - t0_ns) * kNsToS);
+  if (known_end > t0_ns) predict_known(x, P, t0_ns, known_end);
   // Unknown motion: the vehicle may have turned into or out of an arc at once (the yaw rate
   // jumps; added once, where the span enters the unknown part) and accelerated within its
   // limits. The mean stays the last known speed: the best guess, with a covariance that says so.

@@ -89,6 +89,17 @@ agv::fusion::EkfConfig tuned_config() {
   return c;
 }
 
+// Simulated-gyro overrides for sweeps: EVAL_SIM_GYRO_<NAME>=value.
+void sim_overrides(SynthParams* p) {
+  auto env = [](const char* name, double* v) {
+    if (const char* s = std::getenv(name)) *v = std::atof(s);
+  };
+  env("EVAL_SIM_GYRO_SCALE", &p->gyro_scale_error);
+  env("EVAL_SIM_GYRO_NOISE", &p->gyro_noise_degps_rthz);
+  env("EVAL_SIM_GYRO_BIAS", &p->gyro_bias_degps);
+  env("EVAL_SIM_GYRO_BIAS_WALK", &p->gyro_bias_walk_degps_rts);
+}
+
 }  // namespace
 
 int run_honesty_table(const SynthParams& base, double grid_mm, int seeds) {
@@ -109,6 +120,7 @@ int run_honesty_table(const SynthParams& base, double grid_mm, int seeds) {
           p.lawnmower_out_m = out_m;
           p.slip_rate_hz = slip_hz;
           p.gyro_hz = 200.0;
+          sim_overrides(&p);
           p.seed = static_cast<std::uint64_t>(s);
           const World w = make_synthetic_world(p, grid_mm);
           FixParams fp;
