@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# The output loop with VDA 5050 on (docs/vda5050.md): period jitter and end to end of
+# `agvloc replay --realtime` with MQTT off, broker up, broker down (nothing listening), broker up
+# with instantActions flooded by garbage; 3 runs per mode, interleaved; one line per run.
+#   tools/bench/mqtt_jitter.sh AGVLOC RECORDING WORKDIR
+# Needs mosquitto and mosquitto_pub (tools/install-deps.sh). Port 18877 must be free.
+set -u
+BIN="$(realpath "$1")"
+REC="$(realpath "$2")"
+mkdir -p "$3" && cd "$3"
+PORT=18877
+printf 'listener %d 127.0.0.1\nallow_anonymous true\npersistence false\n' $PORT > m.conf
+printf 'vda5050:\n  enabled: true\n  broker_port: %d\n  manufacturer: acme\n  serial_number: agv-7\n' $PORT > on.yaml
+printf 'loop:\n  output_rate_hz: 100\n' > off.yaml
+run() {  # mode i
+  local mode=$1 i=$2 cfg=on.yaml bp= fp=
+  [ "$mode" = off ] && cfg=off.yaml
+  if [ "$mode" = up ] || [ "$mode" = flood ]; then mosquitto -c m.conf >/dev/null 2>&1 & bp=$!; sleep 0.3; fi
+  if [ "$mode" = flood ]; then mosquitto_pub -p $PORT -l -t uagv/v2/acme/agv-7/instantActions < <(yes '{"headerId": [[[ not json') >/dev/null 2>&1 & fp=$!; sleep 0.3; fi
+  $BIN replay $REC --out out_$mode$i --config $cfg --realtime --quiet > log_$mode$i.txt 2>&1
+  [ -n "$fp" ] && kill $fp
+  [ -n "$bp" ] && kill $bp
+  wait 2>/dev/null
+  echo "$mode $i $(grep 'output period jitter' log_$mode$i.txt | sed 's/  */ /g') | $(grep 'end to end' log_$mode$i.txt | sed 's/  */ /g') | $(grep '^vda5050' log_$mode$i.txt | cut -c1-160)"
+}
+for i in 1 2 3; do for m in off up down flood; do run $m $i; done; done
