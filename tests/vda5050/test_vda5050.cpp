@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <nlohmann/json.hpp>
 
 #include "agv/vda5050/vda5050.hpp"
@@ -10,6 +11,9 @@ namespace agv::vda5050 {
 namespace {
 
 using nlohmann::json;
+
+constexpr double kNan = std::numeric_limits<double>::quiet_NaN();
+constexpr double kInf = std::numeric_limits<double>::infinity();
 
 localizer::TickRecord tick(fusion::HealthState h, protocol::Health s, double sigma_mm) {
   localizer::TickRecord t;
@@ -59,7 +63,7 @@ TEST(Vda5050Mapping, LostUninitialisedOrFaultIsNotInitialized) {
   for (const auto& t : {tick(fusion::HealthState::kLost, protocol::Health::kLost, 5.0),
                         tick(fusion::HealthState::kUninitialized, protocol::Health::kLost, 0.0),
                         tick(fusion::HealthState::kLocalized, protocol::Health::kFault, 1.0),
-                        tick(fusion::HealthState::kLocalized, protocol::Health::kOk, NAN)}) {
+                        tick(fusion::HealthState::kLocalized, protocol::Health::kOk, kNan)}) {
     const Position p = map_tick(t);
     EXPECT_FALSE(p.initialized);
     EXPECT_EQ(p.localization_score, 0.0);
@@ -116,12 +120,12 @@ TEST(Vda5050Encode, Visualization30RenamesAndReferencesState) {
 
 TEST(Vda5050Encode, NonFiniteNumbersNeverReachTheJson) {
   Position p;
-  p.x_m = NAN;
-  p.y_m = INFINITY;
-  p.theta_rad = NAN;
-  p.vx_mps = NAN;
-  p.localization_score = NAN;
-  p.deviation_range_m = NAN;
+  p.x_m = kNan;
+  p.y_m = kInf;
+  p.theta_rad = kNan;
+  p.vx_mps = kNan;
+  p.localization_score = kNan;
+  p.deviation_range_m = kNan;
   const json m = json::parse(encode_visualization(ident(Version::k2_1_0), 0, 0, p, 0));
   EXPECT_EQ(m["agvPosition"]["x"], 0.0);
   EXPECT_EQ(m["agvPosition"]["y"], 0.0);
