@@ -59,6 +59,7 @@ def main():
 
     def start_broker():
         p = subprocess.Popen(["mosquitto", "-c", conf], stdout=broker_log, stderr=broker_log)
+        CHILDREN.append(p)
         for _ in range(100):  # up to 5 s on a loaded machine
             try:
                 socket.create_connection(("127.0.0.1", port), 0.2).close()
@@ -102,6 +103,7 @@ def main():
     log = open(os.path.join(work, "replay.log"), "w")
     replay = subprocess.Popen([agvloc, "replay", rec, "--out", out, "--config", cfg, "--realtime",
                                "--quiet"], stdout=log, stderr=subprocess.STDOUT)
+    CHILDREN.append(replay)
 
     def wait_for(pred, timeout_s):
         t_end = time.monotonic() + timeout_s
@@ -248,5 +250,14 @@ def main():
     print("PASS")
 
 
+CHILDREN = []  # broker and replay: ended on every exit, pass or fail
+
+
 if __name__ == "__main__":
-    main()
+    try:
+        main()
+    finally:
+        for child in CHILDREN:
+            if child.poll() is None:
+                child.kill()
+                child.wait()
