@@ -229,7 +229,7 @@ def main():
     # Only messages published while the broker was down may be missing. The publisher does not
     # send (nor number) samples while it knows it is offline, so the loss shows as one stretch of
     # missing stamps around the restart; a message written to a connection not yet known dead
-    # shows as a headerId gap. Both at most once, and no longer than the down time + 1 s.
+    # shows as a headerId gap. Both at most once, and no longer than the down time + 2 s.
     ids = [m[2]["headerId"] for m in vis]
     id_gaps = [(a, b) for a, b in zip(ids, ids[1:]) if b != a + 1]
     if any(b <= a for a, b in id_gaps) or len(id_gaps) > 1:
@@ -241,7 +241,9 @@ def main():
     if len(holes) > 1:
         fail("visualization stamps have %d holes, expected at most one (the restart): %s" % (len(holes), holes))
     hole_s = (holes[0][1] - holes[0][0]) / 1000 if holes else 0.0
-    if hole_s > down_s + 1.0:
+    # The publisher's backoff is capped at 1 s: back within 2 s of the broker (the target),
+    # so at most down + 2 s missing, however slowly the broker restarted on a loaded machine.
+    if hole_s > down_s + 2.0:
         fail("%.2f s of visualization missing for a broker down %.2f s" % (hole_s, down_s))
     print("broker restart: down %.2f s, visualization missing for %.2f s, publisher back %.2f s after the broker" % (
         down_s, hole_s, t_back))
