@@ -10,7 +10,7 @@ import statistics
 import hil_dbc
 from hil_common import (
     CAN_RESTART_S, EMULATION_SLACK_S, Frame, HilError, MAX_POSE_GAP_S, OFFLINE_MEDIAN_MM,
-    OFFLINE_P90_MM, Report, Setup, fmt_ms, parse_counters, period_stats, read_cangen_logs,
+    OFFLINE_P90_MM, RX_LAG_LIMIT_MS, Report, Setup, fmt_ms, parse_counters, period_stats, read_cangen_logs,
     read_capture, read_pose_csv, t0_plus, wrap,
 )
 
@@ -163,10 +163,21 @@ def analyse(s: Setup, sc: dict, rep: Report) -> None:
         rx_path, rx = received
         # The whole run, the link flap's outage and what follows included: the reference got the
         # same odometry.
+        # The reference replays the recording's frames, on the recording's clock, with the
+        # odometry on the guest's receive clock. When the guest fell behind by more than the
+        # comparison window (TCG on a loaded host: 3.9 s in one CI run, 1.6 ms in a quiet one),
+        # the two clocks no longer line up, so the reference fuses other fixes (7 against the
+        # bus's 10 in that run) and is not like for like: reported, not checked, and said so.
+        rx_lag_ms = sc.get("rx_lag_median_ms", 0.0)
+        kept_up = rx_lag_ms <= RX_LAG_LIMIT_MS
+        if not kept_up:
+            rep.info(f"the guest received the odometry {rx_lag_ms:.0f} ms after its recording "
+                     f"time (median; limit {RX_LAG_LIMIT_MS:.0f} ms): the next comparison is "
+                     "reported, not checked")
         compare_poses(s, sc, rep, pairs, rx_path, rx, rec_ns, t_cap0, odom_end, float("inf"),
                       res_xy, res_th, "decoded poses agree with the offline replay of the "
                       "odometry the localizer received", tick_time,
-                      live + pending_windows(rx))
+                      live + pending_windows(rx), strict=kept_up)
     # End to end, against the recording's own odometry times: the bus's timing is in the
     # difference, so it is reported, not checked (checked when the localizer wrote no record of
     # its input).
@@ -200,6 +211,7 @@ def check_received_odometry(s, sc, rep) -> None:
               f"received" + (" (link outage)" if may_lose else ""))
     if lag_ms:
         lag = sorted(lag_ms)
+        sc["rx_lag_median_ms"] = statistics.median(lag)
         detail += (f"; receive time - recording time median {statistics.median(lag):.1f} ms, "
                    f"range {lag[0]:.1f} .. {lag[-1]:.1f} ms")
     rep.check(extra == 0 and (lost == 0 or may_lose) and len(rx) > 0,

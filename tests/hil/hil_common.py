@@ -23,6 +23,9 @@ import hil_dbc  # noqa: E402
 SKIP = 77
 OFFLINE_MEDIAN_MM = 2.0  # bus vs offline replay, see compare_poses
 OFFLINE_P90_MM = 10.0
+# The received-odometry reference is like for like only while the guest keeps up with real time:
+# beyond the comparison window (+-250 ms) its frames and odometry sit on clocks that drifted apart.
+RX_LAG_LIMIT_MS = 250.0
 MAX_POSE_GAP_S = 0.5  # longest tolerated pose-frame gap while nothing is injected
 # The SocketCAN driver's restart time: its reopen backoff is capped at 100 ms
 # (SocketCanConfig::reopen_backoff_max_ns, docs/can.md), so the first pose after the link comes

@@ -170,6 +170,13 @@ class ReceivedOdometry(unittest.TestCase):
         self.assertEqual(len(self.check(rx)), 1)
         self.assertEqual(self.check(rx, "link_flap"), [])
 
+    def test_the_receive_lag_is_kept_for_the_reference_comparison(self):
+        # analyse() checks the received-odometry reference only while the guest kept up.
+        sc = {"odom_received": [(t + 3_900_000_000, v, w) for t, v, w in self.SENT]}
+        s = type("Setup", (), {"odom": self.SENT, "scenario": "nominal"})()
+        check_received_odometry(s, sc, Report(os.devnull))
+        self.assertAlmostEqual(sc["rx_lag_median_ms"], 3900.0)
+
 
 class HilConfig(unittest.TestCase):
     """The generated HIL configuration accepts fixes as late as the emulator delivers them."""
