@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "agv/vda5050/vda5050.hpp"
+#include "vda_test_util.hpp"
 
 namespace agv::vda5050 {
 namespace {
@@ -28,14 +29,7 @@ localizer::TickRecord tick(fusion::HealthState h, protocol::Health s, double sig
   return t;
 }
 
-Identity ident(Version v) {
-  Identity id;
-  id.version = v;
-  id.manufacturer = "acme";
-  id.serial_number = "agv-7";
-  id.map_id = "hall-1";
-  return id;
-}
+using test::ident;
 
 TEST(Vda5050Mapping, LocalizedMapsSigmaToDeviationAndScore) {
   const Position p = map_tick(tick(fusion::HealthState::kLocalized, protocol::Health::kOk, 2.0));

@@ -5,18 +5,12 @@
 #include <string>
 
 #include "agv/vda5050/vda5050.hpp"
+#include "vda_test_util.hpp"
 
 namespace agv::vda5050 {
 namespace {
 
-Identity ident(Version v = Version::k2_1_0) {
-  Identity id;
-  id.version = v;
-  id.manufacturer = "acme";
-  id.serial_number = "agv-7";
-  id.map_id = "hall-1";
-  return id;
-}
+using test::ident;
 
 std::string header(const std::string& version = "2.1.0", const std::string& serial = "agv-7") {
   return R"("headerId": 5, "timestamp": "2026-01-01T00:00:00.000Z", "version": ")" + version +

@@ -85,8 +85,8 @@ struct Vda5050Section {
   std::string manufacturer = "agvloc";
   std::string serial_number = "agv-0001";
   std::string map_id = "default";
-  double rate_hz = 10.0;  // visualization messages
-  std::string username;   // empty = anonymous
+  double rate_hz = 10.0;      // visualization messages
+  std::string username;       // empty = anonymous
   std::string password_file;  // resolved relative to the config file; empty = no password
   std::string tls_ca_file;    // resolved relative to the config file; empty = plain TCP
 };
