@@ -19,12 +19,19 @@ class LatencyHistogram {
       v_ns = 0;
     }
     if (v_ns > max_ns_) max_ns_ = v_ns;
+    sum_ns_ += v_ns;
     ++buckets_[static_cast<size_t>(bucket_of(v_ns))];
   }
 
   std::uint64_t count() const { return count_; }
   std::uint64_t negative_count() const { return negative_; }
   std::int64_t max_ns() const { return max_ns_; }
+  // Sum of the recorded values (negative ones as 0): the Prometheus histogram's _sum.
+  std::int64_t sum_ns() const { return sum_ns_; }
+  // Raw bucket b's count and its upper edge (b < kBuckets - 1; the last bucket is open), for
+  // exporters that re-bin at other bounds (algo/src/diag/metrics.cpp).
+  std::uint64_t bucket_count(int b) const { return buckets_[static_cast<size_t>(b)]; }
+  static std::int64_t bucket_upper_edge_ns(int b) { return upper_edge_ns(b); }
 
   // Upper edge of the bucket holding the p-quantile (0 < p <= 1); 0 when empty.
   std::int64_t percentile_ns(double p) const {
@@ -60,6 +67,7 @@ class LatencyHistogram {
   std::uint64_t count_ = 0;
   std::uint64_t negative_ = 0;
   std::int64_t max_ns_ = 0;
+  std::int64_t sum_ns_ = 0;
 };
 
 }  // namespace agv
