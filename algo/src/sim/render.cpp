@@ -141,11 +141,65 @@ struct QrCover {
   double u0 = 0, v0 = 0, u1 = 0, v1 = 0;
   double grey = 0;
 };
+// Ink rubbed off along one border edge: side k (0..3 as perimeter order below), outer or inner
+// edge, along-edge interval [t0, t1] (mm), depth into the ink (mm).
+struct Scuff {
+  int side = 0;
+  bool inner = false;
+  double t0 = 0, t1 = 0, depth = 0;
+};
 struct LandmarkDegradation {
   std::vector<Scratch> scratches;
   std::vector<Spot> spots;
   QrCover cover;
+  std::vector<Scuff> scuffs;
+  bool occluded = false;  // under the occluder of occluder_border_fraction
+  // Ink grey = ink_black + ink_lift * (paper - ink) * (1 + ramp . uv / outer_half) / 2.
+  double ink_lift = 0.0, paper_factor = 1.0;
+  Vec2 ramp{0, 0};
 };
+
+bool is_worn(const RenderOptions& o, std::uint32_t id) {
+  return o.worn_ids.empty() ||
+         std::find(o.worn_ids.begin(), o.worn_ids.end(), id) != o.worn_ids.end();
+}
+
+// Scuffs and ink variation, from their own stream.
+void add_print_wear(const RenderOptions& o, const LandmarkGeometry& g, std::uint32_t id,
+                    LandmarkDegradation* d) {
+  std::mt19937_64 r(
+      splitmix64(o.degradation_seed ^ 0x5c0f'f5a1ULL ^ (static_cast<std::uint64_t>(id) << 28)));
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  std::uniform_int_distribution<int> side(0, 3);
+  const double h = g.inner_half_mm();
+  for (int i = 0; i < o.edge_scuffs_per_landmark; ++i) {
+    Scuff s;
+    s.side = side(r);
+    s.inner = u01(r) < 0.5;
+    const double len = g.k() * (1.5 + 4.5 * u01(r));
+    s.t0 = -h + (2.0 * h - len) * u01(r);
+    s.t1 = s.t0 + len;
+    s.depth = g.k() * (0.05 + 0.25 * u01(r));
+    d->scuffs.push_back(s);
+  }
+  const double f = std::clamp(o.ink_variation, 0.0, 1.0);
+  if (f > 0.0) {
+    d->ink_lift = f * u01(r);
+    d->paper_factor = 1.0 - 0.5 * f * u01(r);
+    const double a = 2.0 * kPi * u01(r);
+    d->ramp = {std::cos(a), std::sin(a)};
+  }
+}
+
+// Page point inside a scuff: within its depth of the edge, on the ink side.
+bool in_scuff(const Scuff& s, const LandmarkGeometry& g, Vec2 uv) {
+  // Side k: across coordinate (outward positive) and along coordinate on the page.
+  const double across = s.side == 0 ? -uv.x : s.side == 1 ? uv.y : s.side == 2 ? uv.x : -uv.y;
+  const double along = s.side == 0 || s.side == 2 ? uv.y : uv.x;
+  if (along < s.t0 || along > s.t1) return false;
+  if (s.inner) return across >= g.inner_half_mm() && across < g.inner_half_mm() + s.depth;
+  return across <= g.outer_half_mm() && across > g.outer_half_mm() - s.depth;
+}
 
 // Its own random stream, so the scratches and dirt of existing seeds stay where they were.
 // Shape: a square at one of the four corners, a strip along one of the four edges, or a square in
@@ -254,7 +308,8 @@ class Evaluator {
 
   Sample eval(const ActiveLandmark& a, Vec2 uv) const {
     const double m = std::max(std::abs(uv.x), std::abs(uv.y));
-    if (occ_len_ > 0.0 && m >= occ_band_lo_ && m < occ_band_hi_ && perimeter_param(uv) < occ_len_) {
+    if (occ_len_ > 0.0 && a.deg.occluded && m >= occ_band_lo_ && m < occ_band_hi_ &&
+        perimeter_param(uv) < occ_len_) {
       return {8, o_.occluder_grey};
     }
     const QrCover& qc = a.deg.cover;
@@ -265,6 +320,24 @@ class Evaluator {
     if (ink == PageInk::kOutside) return {0, -1.0};
     int key = static_cast<int>(ink);
     double v = ink == PageInk::kBlack ? scene_.ink_black : scene_.paper_white;
+    if (ink == PageInk::kBlack) {
+      for (const Scuff& sc : a.deg.scuffs) {
+        if (in_scuff(sc, scene_.geometry, uv)) {
+          key = 24;
+          v = scene_.paper_white;
+          break;
+        }
+      }
+    }
+    if (a.deg.ink_lift > 0.0) {
+      if (v == scene_.ink_black) {
+        const double t = 0.5 * (1.0 + (a.deg.ramp.x * uv.x + a.deg.ramp.y * uv.y) /
+                                          scene_.geometry.outer_half_mm());
+        v += a.deg.ink_lift * (scene_.paper_white - scene_.ink_black) * std::clamp(t, 0.0, 1.0);
+      } else {
+        v *= a.deg.paper_factor;
+      }
+    }
     for (const Scratch& s : a.deg.scratches) {
       if (seg_dist(uv, s.a, s.b) < s.half_width) {
         key = 16;
@@ -359,8 +432,14 @@ cv::Mat FrameRenderer::render(const Pose2& pose, const RenderOptions& o,
         v_from_l.y_mm < bbox_min_.y - r || v_from_l.y_mm > bbox_max_.y + r) {
       continue;
     }
-    active.push_back({&l, inverse(v_from_l), make_degradation(o, scene.geometry, l.id), reach_l});
-    active.back().deg.cover = make_qr_cover(o, scene, l.id);
+    if (is_worn(o, l.id)) {
+      active.push_back({&l, inverse(v_from_l), make_degradation(o, scene.geometry, l.id), reach_l});
+      active.back().deg.cover = make_qr_cover(o, scene, l.id);
+      add_print_wear(o, scene.geometry, l.id, &active.back().deg);
+      active.back().deg.occluded = true;
+    } else {
+      active.push_back({&l, inverse(v_from_l), LandmarkDegradation{}, reach_l});
+    }
   }
 
   const int n_sub = std::max(1, o.supersample);

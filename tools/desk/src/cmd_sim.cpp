@@ -3,8 +3,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
+#include <vector>
 
 #include "agv/recording/recording.hpp"
 #include "agv/sim/imu_model.hpp"
@@ -98,6 +100,21 @@ int sim(int argc, char** argv) {
   app.add_option("--dirt", dirt, "Mean dirt spots per landmark")
       ->check(CLI::Range(0.0, 100.0))
       ->capture_default_str();
+  int scuffs = 0;
+  double ink_variation = 0.0;
+  std::vector<std::uint32_t> worn_ids;
+  app.add_option("--scuffs", scuffs,
+                 "Patches of ink rubbed off along the border edges, per landmark")
+      ->check(CLI::Range(0, 100))
+      ->capture_default_str();
+  app.add_option("--ink-variation", ink_variation,
+                 "Ink lighter (fading across the print) and paper darker by up to this fraction")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  app.add_option("--wear-landmarks", worn_ids,
+                 "Landmark ids the degradations (occluder, QR cover, scratches, dirt, scuffs, ink "
+                 "variation) apply to, comma-separated; default: all")
+      ->delimiter(',');
   // The camera mounting (docs/frames.md); defaults = the profile's centred, untilted camera.
   double mount_x_mm = 0.0, mount_y_mm = 0.0, mount_yaw_deg = 0.0, roll_deg = 0.0, pitch_deg = 0.0;
   double mount_height_mm = 0.0;
@@ -235,6 +252,9 @@ int sim(int argc, char** argv) {
   ro.qr_cover_fraction = qr_cover;
   ro.dirt_spots_per_landmark = dirt;
   ro.degradation_seed = seed * 7919 + 3;
+  ro.edge_scuffs_per_landmark = scuffs;
+  ro.ink_variation = ink_variation;
+  ro.worn_ids = worn_ids;
   sim::PayloadMode pm;
   if (payload_mode == "full") {
     pm = sim::PayloadMode::kFull;
@@ -274,6 +294,12 @@ int sim(int argc, char** argv) {
   if (!map_path.empty()) {
     if (!config::load_map_file(map_path, &map, &err)) return usage_error(err);
     if (map.entries.empty()) return usage_error(map_path + ": no landmarks");
+  }
+  // A worn id the floor does not have would silently leave every landmark clean.
+  for (std::uint32_t id : worn_ids) {
+    if (!map.find(id)) {
+      return usage_error("--wear-landmarks: landmark " + std::to_string(id) + " is not in the map");
+    }
   }
 
   // Lay the path over the map's bounding box.

@@ -179,6 +179,17 @@ struct RenderOptions {
   // strip along an edge or a square in the middle, coloured like the floor, the ink or the paper.
   // Map-guided identity evaluation (docs/map_identity.md). 0 = none.
   double qr_cover_fraction = 0.0;
+  // Print wear (issue 36), per landmark id and seed like the above, each from its own random
+  // stream (existing seeds render as before): edge_scuffs_per_landmark patches where the ink is
+  // rubbed off along a border edge (1.5k..6k mm long, 0.05k..0.3k mm deep: the edge itself
+  // moves there, which biases a plain line fit), and ink_variation in [0, 1]: the ink lighter by
+  // up to that fraction of the paper-ink contrast, fading across the print in a random
+  // direction (worn toner), the paper darker by up to half of it (soiled).
+  int edge_scuffs_per_landmark = 0;
+  double ink_variation = 0.0;
+  // The landmarks every degradation above applies to; empty = all of them. A floor wears
+  // unevenly: the vehicle calibration must tell worn landmarks from clean ones.
+  std::vector<std::uint32_t> worn_ids;
 };
 
 // A set of effects that looks like a real down-looking camera with LED ring light.
