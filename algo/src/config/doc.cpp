@@ -113,6 +113,11 @@ const std::vector<Section>& config_sections() {
        "with a last will, `initPosition` accepted. Off by default; MQTT runs in its own thread\n"
        "and never delays the output loop. `agvloc replay` publishes too (recording time).\n",
        ""},
+      {"diag", "(live diagnostics page and /metrics, docs/diagnostics.md)",
+       "A read-only web page (pose, health, faults, the camera frame with the detection overlay,\n"
+       "the map and trajectory) and Prometheus metrics, served by `agvloc run` when `enabled` and\n"
+       "by `agvloc replay --serve`. Its threads are not real-time and never hold up the loop.\n",
+       ""},
   };
   return sections;
 }

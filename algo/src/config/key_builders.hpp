@@ -131,5 +131,6 @@ void add_vision_keys(std::vector<Key>* keys);
 void add_fusion_keys(std::vector<Key>* keys);
 void add_replay_keys(std::vector<Key>* keys);
 void add_vda5050_keys(std::vector<Key>* keys);  // keys_vda5050.cpp
+void add_diag_keys(std::vector<Key>* keys);     // keys_diag.cpp
 
 }  // namespace agv::config::detail

@@ -18,6 +18,7 @@ const std::vector<Key>& config_keys() {
     detail::add_fusion_keys(&k);
     detail::add_replay_keys(&k);
     detail::add_vda5050_keys(&k);
+    detail::add_diag_keys(&k);
     return k;
   }();
   return keys;

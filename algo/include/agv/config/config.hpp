@@ -91,6 +91,18 @@ struct Vda5050Section {
   std::string tls_ca_file;    // resolved relative to the config file; empty = plain TCP
 };
 
+// Live diagnostics page and /metrics (docs/diagnostics.md); the firmware's diagnostics server
+// reads it.
+struct DiagSection {
+  bool enabled = false;
+  std::string bind_address = "127.0.0.1";
+  int port = 8088;  // 0 = any free port (printed at start)
+  bool allow_remote = false;
+  int max_clients = 16;
+  int threads = 2;
+  double frame_interval_ms = 500.0;
+};
+
 struct Config {
   CameraSection camera;
   CameraModel camera_model;  // intrinsics + mounting
@@ -104,6 +116,7 @@ struct Config {
   fusion::EkfConfig fusion;
   double replay_fix_delay_ms = 30.0;
   Vda5050Section vda5050;
+  DiagSection diag;
   std::string source;  // file name the config came from, for messages
 };
 
