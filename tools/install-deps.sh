@@ -22,6 +22,8 @@ PKGS=(
   # client and the official schemas' validator for the mqtt tests
   libmosquitto-dev nlohmann-json3-dev mosquitto mosquitto-clients python3-paho-mqtt
   python3-jsonschema
+  # diagnostics page and /metrics (docs/diagnostics.md): HTTP server; the page test's browser
+  libcpp-httplib-dev chromium
   # agvloc-desk calibrate vehicle: nonlinear least squares
   libceres-dev
   # tests, benchmarks, comparison baseline

@@ -1,14 +1,17 @@
 // agvloc replay RECORDING [--out DIR] [--config FILE] [--map FILE] [--can IFACE]
 //                         [--odom-from-can] [--realtime [--speed X] | --fast] [--overlay LIST]
+//                         [--serve]
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <memory>
 #include <sstream>
+#include <thread>
 
 #include "agv/adapters/scaled_clock.hpp"
 #include "agv/adapters/stepped_clock.hpp"
@@ -21,6 +24,7 @@
 #include "agv/recording/replay_camera.hpp"
 #include "commands.hpp"
 #include "config.hpp"
+#include "diag_server.hpp"
 #include "mqtt_publisher.hpp"
 #include "pipeline.hpp"
 #include "replay_report.hpp"
@@ -114,7 +118,7 @@ std::string gyro_summary(const localizer::OutputStats& o, const recording::Recor
 int replay(int argc, char** argv) {
   CLI::App app{"Run the localizer on a recording (frames + odometry), docs/replay.md"};
   std::string rec_dir, out_dir = "replay_out", config_file, map_file, can_iface, can_log;
-  bool realtime = false, fast = false, odom_from_can = false, quiet = false;
+  bool realtime = false, fast = false, odom_from_can = false, quiet = false, serve = false;
   double speed = 1.0;
   std::vector<int> overlay_frames;
   app.add_option("recording", rec_dir, "recording directory (docs/recording.md)")->required();
@@ -135,6 +139,9 @@ int replay(int argc, char** argv) {
       ->check(CLI::Range(0.01, 100.0));
   app.add_option("--overlay", overlay_frames, "frame indices to write debug overlays for");
   app.add_flag("--quiet", quiet, "no progress or periodic lines");
+  app.add_flag("--serve", serve,
+               "serve the diagnostics page and /metrics during the replay and after it until "
+               "SIGINT / SIGTERM (address and port: diag.* keys; docs/diagnostics.md)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -232,6 +239,19 @@ int replay(int argc, char** argv) {
   }
   app::MqttHandoff* mqtt_io = mqtt ? &mqtt_handoff : nullptr;
 
+  // Diagnostics page (--serve): the same page as `agvloc run`, in recording time.
+  app::DiagHandoff diag_handoff;
+  app::FrameTap diag_frames;
+  std::unique_ptr<app::DiagServer> diag;
+  if (serve) {
+    cfg.diag.enabled = true;
+    diag = std::make_unique<app::DiagServer>(cfg, map_ptr, diag_handoff, diag_frames, "replay");
+    if (!diag->start(&err)) {
+      std::fprintf(stderr, "replay: %s\n", err.c_str());
+      return 2;
+    }
+  }
+
   if (realtime) {
     // Same real-time setup as `agvloc run` (threads get their priorities in run_threads).
     if (cfg.loop.lock_memory) {
@@ -289,6 +309,8 @@ int replay(int argc, char** argv) {
     io.stop = &stop_requested();
     io.quiet = quiet;
     io.mqtt = mqtt_io;
+    io.diag = diag ? &diag_handoff : nullptr;
+    io.diag_frames = diag ? &diag_frames : nullptr;
     const std::int64_t w0 = posix::monotonic_now_ns();
     app::run_threads(cfg, map_ptr, io, &result);
     result.wall_ns = posix::monotonic_now_ns() - w0;
@@ -303,7 +325,7 @@ int replay(int argc, char** argv) {
     adapters::SteppedClock clock;
     can::LogOnlyBus bus(log, clock, "can0");
     app::run_fast(cfg, map_ptr, rec, &bus, &clock, &ticks, &fixes, &stop_requested(), &result,
-                  !quiet, mqtt_io);
+                  !quiet, mqtt_io, diag ? &diag_handoff : nullptr, diag ? &diag_frames : nullptr);
   }
   if (can_iface.empty() && !log.close()) {
     std::fprintf(stderr, "replay: writing %s failed\n", can_log.c_str());
@@ -369,6 +391,18 @@ int replay(int argc, char** argv) {
              (odom_from_can ? ", " + odom_csv : "") + "\n";
   std::fputs(summary.c_str(), stdout);
   std::ofstream(std::filesystem::path(out_dir) / "summary.txt") << summary;
+  if (diag) {
+    // The page keeps the replay's final state (pose, statistics, trajectory, newest frame) until
+    // the user is done with it.
+    std::printf(
+        "diag: replay finished; serving its final state on port %d until SIGINT / "
+        "SIGTERM\n",
+        diag->port());
+    std::fflush(stdout);
+    while (!stop_requested().load()) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    diag->stop();
+    std::fputs(app::format_diag_counters(diag->stats()).c_str(), stdout);
+  }
   return rc;
 }
 

@@ -9,6 +9,7 @@
 #include "agv/posix/realtime.hpp"
 #include "commands.hpp"
 #include "config.hpp"
+#include "diag_server.hpp"
 #include "gyro_reader.hpp"
 #include "live_devices.hpp"
 #include "mqtt_publisher.hpp"
@@ -108,6 +109,19 @@ int run(int argc, char** argv) {
     }
     io.mqtt = &mqtt_handoff;
   }
+  // Diagnostics page (diag.enabled, docs/diagnostics.md): its own threads, never the loop's.
+  app::DiagHandoff diag_handoff;
+  app::FrameTap diag_frames;
+  std::unique_ptr<app::DiagServer> diag;
+  if (cfg.diag.enabled) {
+    diag = std::make_unique<app::DiagServer>(cfg, map_ptr, diag_handoff, diag_frames, "run");
+    if (!diag->start(&err)) {
+      std::fprintf(stderr, "agvloc: %s\n", err.c_str());
+      return 2;
+    }
+    io.diag = &diag_handoff;
+    io.diag_frames = &diag_frames;
+  }
   std::printf("agvloc %s: running (camera %s, CAN %s, %.0f Hz); Ctrl-C to stop\n", AGV_VERSION,
               cfg.camera.driver.c_str(), sc.iface.c_str(), cfg.loop.output_rate_hz);
   app::RunResult result;
@@ -124,8 +138,13 @@ int run(int argc, char** argv) {
     mqtt->stop();
     mqtt_line = app::format_mqtt_counters(mqtt->counters(), mqtt_handoff);
   }
-  std::printf("agvloc: stopped after %.1f s\n%s%s", static_cast<double>(result.wall_ns) / 1e9,
-              app::format_statistics(result).c_str(), mqtt_line.c_str());
+  std::string diag_line;
+  if (diag) {
+    diag->stop();
+    diag_line = app::format_diag_counters(diag->stats());
+  }
+  std::printf("agvloc: stopped after %.1f s\n%s%s%s", static_cast<double>(result.wall_ns) / 1e9,
+              app::format_statistics(result).c_str(), mqtt_line.c_str(), diag_line.c_str());
   return 0;
 }
 

@@ -115,6 +115,7 @@ int OutputLoop::take_inputs(std::int64_t now_ns) {
     fixes_.pop(&rec);
     drain_odometry(rec.t_done_ns);
     core_.on_fix(rec.fix, rec.t_exposure_ns, rec.t_done_ns);
+    if (diag_) diag_->record_fix(rec.fix, rec.t_exposure_ns, rec.t_done_ns);
     if (rec.fix.status == vision::FixStatus::kOk) ++good;
   }
   drain_odometry(now_ns);
@@ -148,7 +149,7 @@ void OutputLoop::tick(std::int64_t now_ns, const CameraState& camera, TickRecord
                                           kInitPoseSigmaMm, kInitPoseSigmaRad));
   }
   TickRecord local;
-  if (mqtt_ && !rec) rec = &local;
+  if ((mqtt_ || diag_) && !rec) rec = &local;
   const std::int64_t t_start = clock_.now_ns();
   core_.tick(now_ns, &frames_, rec);
   const std::int64_t t_fused = clock_.now_ns();
@@ -156,6 +157,11 @@ void OutputLoop::tick(std::int64_t now_ns, const CameraState& camera, TickRecord
   send(frames_);
   core_.mutable_stats().can_send_ns.record_ns(clock_.now_ns() - t_fused);
   if (mqtt_) mqtt_->offer(*rec);
+  if (diag_) {
+    diag_->offer(*rec, core_.stats(), bus_, camera.frames_dropped);
+    last_tick_ = *rec;
+    have_tick_ = true;
+  }
   if (log_period_ns_ > 0) {
     if (next_log_ns_ == INT64_MIN) next_log_ns_ = now_ns + log_period_ns_;
     if (now_ns >= next_log_ns_) {
@@ -163,6 +169,10 @@ void OutputLoop::tick(std::int64_t now_ns, const CameraState& camera, TickRecord
       next_log_ns_ += log_period_ns_;
     }
   }
+}
+
+void OutputLoop::finish_diag(std::uint64_t frames_dropped) {
+  if (diag_) diag_->finish(have_tick_ ? &last_tick_ : nullptr, core_.stats(), bus_, frames_dropped);
 }
 
 bool OutputLoop::on_wake(std::int64_t now_ns) {

@@ -12,6 +12,7 @@
 #include "agv/recording/recording.hpp"
 #include "agv/vision/landmark_localizer.hpp"
 #include "config.hpp"
+#include "diag_handoff.hpp"
 #include "gyro_reader.hpp"
 #include "handoff.hpp"
 #include "mqtt_handoff.hpp"
@@ -63,6 +64,11 @@ class OutputLoop {
   // VDA 5050 (docs/vda5050.md): each tick is offered to the MQTT thread and a pending
   // initPosition applied before the tick. Null (default): none. Called before the loop runs.
   void set_mqtt(MqttHandoff* mqtt) { mqtt_ = mqtt; }
+  // Diagnostics page (docs/diagnostics.md): fixes and ticks are recorded and handed off at its
+  // rate. Null (default): none. Called before the loop runs.
+  void set_diag(DiagHandoff* diag) { diag_ = diag; }
+  // The run is over: hands the final state to the diagnostics page (waits for its slot).
+  void finish_diag(std::uint64_t frames_dropped);
 
   // One output period at now_ns: odometry up to now, CAN receive, fixes that arrived, camera
   // state, core tick, send, periodic log. Fills *rec when not null.
@@ -95,6 +101,9 @@ class OutputLoop {
   std::vector<recording::OdomRow>* received_ = nullptr;
   GyroRing* live_gyro_ = nullptr;
   MqttHandoff* mqtt_ = nullptr;
+  DiagHandoff* diag_ = nullptr;
+  TickRecord last_tick_;
+  bool have_tick_ = false;
   std::uint64_t odometry_not_recorded_ = 0;
   FixRing& fixes_;
   std::int64_t log_period_ns_;

@@ -126,6 +126,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
   loop.keep_received_odometry(io.odometry_received);
   loop.set_live_gyro(io.live_gyro);
   loop.set_mqtt(io.mqtt);
+  loop.set_diag(io.diag);
   // loop.pose_on_fix: the vision worker wakes the output thread, which fuses the fix and sends
   // the pose pair at once; it stays the only CAN writer and shares no lock with vision.
   posix::FutexWakeup wakeup(clock);
@@ -206,6 +207,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
                                                        kSnapshotHeadingGrowthRadPerS);
       loc.process(img, pred, &rec.fix);
       const std::int64_t t1 = clock.now_ns();
+      if (io.diag_frames) io.diag_frames->offer(img, f.t_exposure_ns);
       rec.t_exposure_ns = f.t_exposure_ns;
       rec.t_done_ns = t1;
       io.camera->release(f);
@@ -281,6 +283,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
   capture.join();
   worker.join();
   io.camera->stop();
+  loop.finish_diag(mailbox.dropped());
 
   result->output = core.stats();
   result->vision = vstats;
@@ -303,12 +306,13 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
 int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording::Recording& rec,
              hal::CanBus* bus, adapters::SteppedClock* clock, std::vector<TickRecord>* ticks,
              std::vector<FixRecord>* fixes, std::atomic<bool>* stop, RunResult* result,
-             bool show_progress, MqttHandoff* mqtt) {
+             bool show_progress, MqttHandoff* mqtt, DiagHandoff* diag, FrameTap* diag_frames) {
   localizer::Localizer core(localizer_config(cfg));
   // Fixes wait here for their simulated arrival.
   FixRing pending;
   OutputLoop loop(core, bus, *clock, &rec.odom, pending, 0, &rec.imu);
   loop.set_mqtt(mqtt);
+  loop.set_diag(diag);
   vision::LandmarkLocalizer loc(vision_config_with_clock(cfg, nullptr), cfg.camera_model,
                                 geometry_of(cfg), map);
   VisionStats vstats;
@@ -360,6 +364,7 @@ int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording:
       // The core has the inputs up to the previous output step: its prediction to this exposure.
       loc.process(img, core.prediction_at(rec.frames[i].t_ns), &fr.fix);
       const std::int64_t w1 = posix::monotonic_now_ns();
+      if (diag_frames) diag_frames->offer(img, rec.frames[i].t_ns);
       fr.t_exposure_ns = rec.frames[i].t_ns;
       fr.t_done_ns = fr.t_exposure_ns + delay_ns;
       localizer::record_vision(fr.fix, 0, w1 - w0, &vstats);  // exposure->start is not simulated
@@ -395,6 +400,7 @@ int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording:
     }
   }
   if (tty) std::fprintf(stderr, "\n");
+  loop.finish_diag(0);
   result->output = core.stats();
   result->vision = vstats;
   result->simulated_time = true;

@@ -42,6 +42,8 @@ struct PipelineIo {
   std::atomic<bool>* stop = nullptr;  // set by signal handlers
   GyroRing* live_gyro = nullptr;      // imu.source iio: the reader thread's samples; null: none
   MqttHandoff* mqtt = nullptr;        // VDA 5050 publisher's hand-off; null: none
+  DiagHandoff* diag = nullptr;        // diagnostics page's hand-off; null: none
+  FrameTap* diag_frames = nullptr;    // camera frames for the page (vision thread); null: none
   // Stop when the camera reports end of stream and replay odometry is used up.
   bool stop_at_end_of_stream = true;
   bool quiet = false;  // no periodic log lines
@@ -59,7 +61,8 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
 int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording::Recording& rec,
              hal::CanBus* bus, adapters::SteppedClock* clock, std::vector<TickRecord>* ticks,
              std::vector<FixRecord>* fixes, std::atomic<bool>* stop, RunResult* result,
-             bool show_progress, MqttHandoff* mqtt = nullptr);
+             bool show_progress, MqttHandoff* mqtt = nullptr, DiagHandoff* diag = nullptr,
+             FrameTap* diag_frames = nullptr);
 
 using localizer::format_statistics;
 

@@ -1,0 +1,60 @@
+// The live diagnostics page and /metrics (docs/diagnostics.md): an HTTP server (cpp-httplib) on a
+// fixed pool of ordinary (not real-time) threads. It reads the loop only through DiagHandoff and
+// FrameTap (diag_handoff.hpp); pure encodings are algo/src/diag. Bounded however many clients
+// connect: diag.threads workers, diag.max_clients connections served or waiting (more answered
+// 503 at once), one request per connection, read and write timeouts, the camera image encoded at
+// most once per diag.frame_interval_ms and shared.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <opencv2/core.hpp>
+#include <string>
+#include <thread>
+
+#include "agv/common/landmark.hpp"
+#include "agv/config/config.hpp"
+#include "agv/diag/diag.hpp"
+#include "diag_handoff.hpp"
+
+namespace httplib {
+class Server;
+}
+
+namespace agv::app {
+
+// True for an address the page may listen on without diag.allow_remote (loopback).
+bool is_loopback_address(const std::string& address);
+
+class DiagServer {
+ public:
+  // mode: "run" or "replay" (shown on the page). map: the landmarks to draw (null: none); must
+  // outlive the server.
+  DiagServer(const config::Config& cfg, const LandmarkMap* map, DiagHandoff& handoff,
+             FrameTap& frames, const char* mode);
+  ~DiagServer();
+  DiagServer(const DiagServer&) = delete;
+  DiagServer& operator=(const DiagServer&) = delete;
+
+  // Binds and starts serving. False with *error for a non-loopback address without
+  // diag.allow_remote, or an address / port that cannot be bound.
+  bool start(std::string* error);
+  void stop();
+  int port() const { return port_; }
+  diag::ServerStats stats() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  int port_ = 0;
+};
+
+// One summary line: "diag: N requests, ...".
+std::string format_diag_counters(const diag::ServerStats& s);
+
+// Encodes CV_8UC3 (BGR) or CV_8UC1 as PNG into *out (libpng, in memory). False on error.
+bool encode_png(const cv::Mat& image, std::string* out, int compression = 1);
+
+}  // namespace agv::app

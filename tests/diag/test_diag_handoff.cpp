@@ -1,0 +1,136 @@
+// The loop side of the diagnostics hand-off (firmware/src/diag_handoff.hpp): rate limit in loop
+// time, never waiting on a busy slot, the final state; the frame tap's copies on request.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <thread>
+
+#include "diag_handoff.hpp"
+#include "diag_server.hpp"
+
+namespace agv::app {
+namespace {
+
+localizer::TickRecord tick_at(std::int64_t t_ns, double x_mm) {
+  localizer::TickRecord t;
+  t.t_ns = t_ns;
+  t.estimate.valid = true;
+  t.estimate.pose.x_mm = x_mm;
+  return t;
+}
+
+TEST(DiagHandoff, OffersAtTheHandoffRateInLoopTime) {
+  DiagHandoff h;
+  localizer::OutputStats st;
+  diag::Snapshot s;
+  std::uint64_t seq = 0;
+  EXPECT_FALSE(h.take(&s, &seq));
+  // 10 ms ticks for 1 s: 10 hand-offs at 100 ms.
+  for (int i = 0; i < 100; ++i) {
+    st.ticks = static_cast<std::uint64_t>(i + 1);
+    h.offer(tick_at(i * 10'000'000LL, i), st, nullptr, 0);
+  }
+  ASSERT_TRUE(h.take(&s, &seq));
+  EXPECT_EQ(seq, 10u);
+  EXPECT_EQ(s.track.size(), 10u);
+  EXPECT_EQ(s.tick.t_ns, 900'000'000);
+  EXPECT_EQ(s.stats.ticks, 91u);
+  EXPECT_FALSE(s.can_present);
+  EXPECT_FALSE(s.finished);
+  EXPECT_FALSE(h.take(&s, &seq));  // nothing newer
+}
+
+TEST(DiagHandoff, BusySlotIsSkippedNotWaitedFor) {
+  DiagHandoff h;
+  localizer::OutputStats st;
+  std::atomic<bool> holding{false}, release{false};
+  // The server side holds the slot (take copies under its lock) from another thread: simulate by
+  // taking in a loop while the loop side offers; every offer must return, skips are counted.
+  std::thread server([&] {
+    diag::Snapshot s;
+    std::uint64_t seq = 0;
+    holding = true;
+    while (!release.load()) h.take(&s, &seq);
+  });
+  while (!holding.load()) std::this_thread::yield();
+  for (int i = 0; i < 2000; ++i) h.offer(tick_at(i * 100'000'000LL, i), st, nullptr, 0);
+  release = true;
+  server.join();
+  diag::Snapshot s;
+  std::uint64_t seq = 0;
+  h.take(&s, &seq);
+  EXPECT_EQ(seq + h.busy_skips(), 2000u);
+}
+
+TEST(DiagHandoff, FinishHandsTheFinalState) {
+  DiagHandoff h;
+  localizer::OutputStats st;
+  h.offer(tick_at(0, 1.0), st, nullptr, 0);
+  h.offer(tick_at(10'000'000, 2.0), st, nullptr, 0);  // not due
+  vision::LandmarkFix fix;
+  fix.status = vision::FixStatus::kOk;
+  fix.landmark_id = 42;
+  h.record_fix(fix, 5'000'000, 35'000'000);
+  st.fixes_fused = 1;
+  const localizer::TickRecord last = tick_at(20'000'000, 3.0);
+  h.finish(&last, st, nullptr, 4);
+  diag::Snapshot s;
+  std::uint64_t seq = 0;
+  ASSERT_TRUE(h.take(&s, &seq));
+  EXPECT_TRUE(h.finished());
+  EXPECT_TRUE(s.finished);
+  EXPECT_EQ(s.tick.t_ns, 20'000'000);
+  EXPECT_EQ(s.stats.fixes_fused, 1u);
+  EXPECT_EQ(s.frames_dropped, 4u);
+  ASSERT_EQ(s.fixes.size(), 1u);
+  EXPECT_EQ(s.fixes.at(0).landmark_id, 42u);
+  EXPECT_EQ(s.track.size(), 2u);
+}
+
+TEST(FrameTap, CopiesOnRequestOrWhenStale) {
+  FrameTap tap;
+  cv::Mat img(4, 6, CV_8UC1, cv::Scalar(7));
+  tap.offer(img, 0);  // nothing kept yet: copied
+  EXPECT_EQ(tap.seq(), 1u);
+  tap.offer(img, 100'000'000);  // fresh enough, not asked for
+  EXPECT_EQ(tap.seq(), 1u);
+  tap.request();
+  img.setTo(9);
+  tap.offer(img, 200'000'000);
+  EXPECT_EQ(tap.seq(), 2u);
+  tap.offer(img, 300'000'000);  // request served
+  EXPECT_EQ(tap.seq(), 2u);
+  tap.offer(img, FrameTap::kRefreshNs + 200'000'000);  // stale: refreshed
+  EXPECT_EQ(tap.seq(), 3u);
+  cv::Mat out;
+  std::int64_t t = 0;
+  ASSERT_TRUE(tap.take(&out, &t));
+  EXPECT_EQ(t, FrameTap::kRefreshNs + 200'000'000);
+  EXPECT_EQ(out.at<std::uint8_t>(3, 5), 9);
+}
+
+TEST(DiagServer, LoopbackAddresses) {
+  EXPECT_TRUE(is_loopback_address("127.0.0.1"));
+  EXPECT_TRUE(is_loopback_address("127.1.2.3"));
+  EXPECT_TRUE(is_loopback_address("::1"));
+  EXPECT_TRUE(is_loopback_address("localhost"));
+  EXPECT_FALSE(is_loopback_address("0.0.0.0"));
+  EXPECT_FALSE(is_loopback_address("::"));
+  EXPECT_FALSE(is_loopback_address("192.168.1.10"));
+  EXPECT_FALSE(is_loopback_address("127example.com"));
+  EXPECT_FALSE(is_loopback_address("127.evil.example"));
+  EXPECT_FALSE(is_loopback_address("::ffff:10.0.0.1"));
+}
+
+TEST(DiagServer, PngEncodes) {
+  cv::Mat bgr(3, 5, CV_8UC3, cv::Scalar(1, 2, 3));
+  std::string png;
+  ASSERT_TRUE(encode_png(bgr, &png));
+  ASSERT_GT(png.size(), 8u);
+  EXPECT_EQ(png.substr(1, 3), "PNG");
+  EXPECT_FALSE(encode_png(cv::Mat(), &png));
+  EXPECT_FALSE(encode_png(cv::Mat(2, 2, CV_16UC1), &png));
+}
+
+}  // namespace
+}  // namespace agv::app
