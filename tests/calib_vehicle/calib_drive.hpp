@@ -6,7 +6,10 @@
 // pixel noise).
 #pragma once
 
+#include <array>
 #include <cmath>
+#include <cstdint>
+#include <map>
 #include <random>
 #include <vector>
 
@@ -22,6 +25,13 @@ struct DriveTruth {
   int landmarks = 3;       // on a line 1 m apart along x
   double duration_s = 60;  // the pattern repeats until this time
   unsigned seed = 1;
+  // Worn landmarks (issue 36): every corner of these carries its own fixed offset in the landmark
+  // frame (a scuffed edge, faded ink, dirt that the robust edge fit leaves: the same in every
+  // frame, so it does not average out), N(0, wear_mm) per axis, and wear_noise_px more white
+  // noise. Their own random streams, so the other landmarks see what they saw before.
+  std::vector<std::uint32_t> worn;
+  double wear_mm = 0.1;
+  double wear_noise_px = 0.2;
 };
 
 struct Drive {
@@ -133,6 +143,12 @@ inline Drive make_calibration_drive(const DriveTruth& tr) {
   CameraModel cam = CameraModel::default_640x480();
   cam.mount = tr.p.mount;
   const auto corners = desk::vcal::landmark_corners(30.0, 24.0);
+  std::map<std::uint32_t, std::array<Vec2, 8>> wear;
+  for (std::uint32_t id : tr.worn) {
+    std::mt19937 wr(tr.seed * 7919u + id);
+    for (Vec2& b : wear[id]) b = {tr.wear_mm * n01(wr), tr.wear_mm * n01(wr)};
+  }
+  std::mt19937 wear_rng(tr.seed * 104729u + 17u);
   for (double tc = 0.0; tc < std::min(t, tr.duration_s); tc += 1.0 / 30.0) {
     const size_t k = std::min(t_f.size() - 1, static_cast<size_t>(tc / dt_fine));
     const double f = (tc - t_f[k]) / dt_fine;
@@ -146,15 +162,22 @@ inline Drive make_calibration_drive(const DriveTruth& tr) {
       o.t_ns = t0_ns + static_cast<std::int64_t>(std::llround(tc * 1e9));
       o.landmark_id = id;
       bool all = true;
+      const auto worn = wear.find(id);
       for (size_t c = 0; c < 8; ++c) {
+        Vec2 q = corners[c];
+        if (worn != wear.end()) q = {q.x + worn->second[c].x, q.y + worn->second[c].y};
         Vec2 px;
-        if (!cam.vehicle_to_pixel(transform(v_from_w, transform(e.pose, corners[c])), &px) ||
-            px.x < 2 || px.y < 2 || px.x > 637 || px.y > 477) {
+        if (!cam.vehicle_to_pixel(transform(v_from_w, transform(e.pose, q)), &px) || px.x < 2 ||
+            px.y < 2 || px.x > 637 || px.y > 477) {
           all = false;
           break;
         }
         px.x += tr.corner_noise_px * n01(rng);
         px.y += tr.corner_noise_px * n01(rng);
+        if (worn != wear.end()) {
+          px.x += tr.wear_noise_px * n01(wear_rng);
+          px.y += tr.wear_noise_px * n01(wear_rng);
+        }
         o.xn[c] = {(px.x - cam.intrinsics.cx) / cam.intrinsics.fx,
                    (px.y - cam.intrinsics.cy) / cam.intrinsics.fy};
         o.valid[c] = true;

@@ -8,7 +8,10 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <map>
 #include <memory>
+
+#include "agv/vision/edges.hpp"
 
 namespace agv::desk::vcal {
 
@@ -83,13 +86,16 @@ void rotation_vc(const T* m, T r[9]) {
 struct FrameCost {
   const OdomTable* od;
   double t_anchor_s, t_frame_s;
-  std::array<Vec2, 8> world;  // corner world positions
+  Pose2 landmark;             // world <- landmark
+  std::array<Vec2, 8> local;  // printed corners in the landmark frame
   std::array<Vec2, 8> xn;
   std::array<bool, 8> valid;
-  double scale;  // fx / sigma
+  double scale;  // fx / sigma; the landmark's sigma after the first solve
 
+  // off: the landmark's corner offsets (x, y per corner, landmark frame, mm).
   template <typename T>
-  bool operator()(const T* mount, const T* odo, const T* dt, const T* anchor, T* res) const {
+  bool operator()(const T* mount, const T* odo, const T* dt, const T* anchor, const T* off,
+                  T* res) const {
     T rel[3];
     integrate(*od, t_anchor_s, t_frame_s, odo, dt, rel);
     const T ca = cos(anchor[2]), sa = sin(anchor[2]);
@@ -99,14 +105,17 @@ struct FrameCost {
     const T c = cos(th), s = sin(th);
     T r[9];
     rotation_vc(mount, r);
+    const double cl = std::cos(landmark.theta_rad), sl = std::sin(landmark.theta_rad);
     for (int i = 0; i < 8; ++i) {
       if (!valid[static_cast<size_t>(i)]) {
         res[2 * i] = T(0.0);
         res[2 * i + 1] = T(0.0);
         continue;
       }
-      const T wx = T(world[static_cast<size_t>(i)].x) - px,
-              wy = T(world[static_cast<size_t>(i)].y) - py;
+      const T lx = T(local[static_cast<size_t>(i)].x) + off[2 * i],
+              ly = T(local[static_cast<size_t>(i)].y) + off[2 * i + 1];
+      const T wx = T(landmark.x_mm) + cl * lx - sl * ly - px,
+              wy = T(landmark.y_mm) + sl * lx + cl * ly - py;
       const T vx = c * wx + s * wy - mount[0], vy = -s * wx + c * wy - mount[1], vz = -mount[3];
       const T xc = r[0] * vx + r[3] * vy + r[6] * vz;
       const T yc = r[1] * vx + r[4] * vy + r[7] * vz;
@@ -142,6 +151,16 @@ struct LinkCost {
   }
 };
 
+// The N(0, tau^2) prior of one landmark's corner offsets; tau is set after the first solve.
+struct OffsetPrior {
+  const double* inv_tau;
+  template <typename T>
+  bool operator()(const T* off, T* res) const {
+    for (int i = 0; i < 16; ++i) res[i] = off[i] * *inv_tau;
+    return true;
+  }
+};
+
 struct SubPass {
   int pass = 0;
   std::vector<size_t> frames;  // indices into obs
@@ -170,6 +189,88 @@ bool fit_rigid(const std::vector<Vec2>& l, const std::vector<Vec2>& v, Pose2* v_
 }
 
 double deg(double rad) { return rad * 180.0 / kPi; }
+
+struct WearStats {
+  double sigma_px = 0.0;  // corner noise about the per-corner means (at least pixel_sigma_px)
+  double tau_mm = 0.0;    // RMS of the per-corner means (at least min_print_offset_mm)
+  std::array<double, 16> mean_offset_mm{};
+};
+
+// After the first solve (printed geometry): every corner residual is mapped to the landmark
+// plane through the frame's own image of the landmark (the affine map its outer corners give,
+// exact enough over 60 mm) and averaged per landmark corner over all frames. The mean is what is
+// the same in every frame (the print's deviation from the square), the scatter about it the
+// noise; parameters that absorbed part of the deviation leave it out of both.
+void measure_wear(ceres::Problem& problem, const std::vector<ceres::ResidualBlockId>& blocks,
+                  const std::vector<FrameCost*>& costs, const std::vector<size_t>& lm,
+                  const Options& opt, std::vector<WearStats>* out) {
+  const size_t n_lm = out->size();
+  std::vector<std::array<double, 16>> sum(n_lm), sum2(n_lm);
+  std::vector<std::array<int, 8>> cnt(n_lm);
+  std::vector<double> px_per_mm(n_lm, 0.0), n_res(n_lm, 0.0), n_dof(n_lm, 0.0);
+  std::vector<int> frames(n_lm, 0);
+  for (size_t l = 0; l < n_lm; ++l) {
+    sum[l].fill(0.0);
+    sum2[l].fill(0.0);
+    cnt[l].fill(0);
+  }
+  for (size_t b = 0; b < blocks.size(); ++b) {
+    const FrameCost& f = *costs[b];
+    if (!(f.valid[0] && f.valid[1] && f.valid[3])) continue;
+    double res[16], cost = 0.0;
+    problem.EvaluateResidualBlock(blocks[b], false, &cost, res, nullptr);
+    // Landmark mm -> normalised image: corner 1 - corner 0 is (-2h, 0), corner 3 - corner 0 is
+    // (0, -2h) on the print.
+    const double two_h = f.local[0].x - f.local[1].x;
+    const double a = (f.xn[0].x - f.xn[1].x) / two_h, c = (f.xn[0].y - f.xn[1].y) / two_h;
+    const double bx = (f.xn[0].x - f.xn[3].x) / two_h, d = (f.xn[0].y - f.xn[3].y) / two_h;
+    const double det = a * d - bx * c;
+    if (!(std::abs(det) > 1e-12)) continue;
+    const size_t l = lm[b];
+    px_per_mm[l] += opt.fx_px * std::sqrt(std::abs(det));
+    ++frames[l];
+    // The frame's own pose takes 3 of its residuals' degrees of freedom: the scatter about the
+    // fit is that much smaller than the noise.
+    const double nv = 2.0 * static_cast<double>(std::count(f.valid.begin(), f.valid.end(), true));
+    n_res[l] += nv;
+    n_dof[l] += std::max(1.0, nv - 3.0);
+    for (size_t i = 0; i < 8; ++i) {
+      if (!f.valid[i]) continue;
+      // residual = (predicted - observed) * scale; a corner printed off by delta is observed
+      // M delta away from the prediction.
+      const double rx = res[2 * i] / f.scale, ry = res[2 * i + 1] / f.scale;
+      const double dx = -(d * rx - bx * ry) / det, dy = -(-c * rx + a * ry) / det;
+      sum[l][2 * i] += dx;
+      sum[l][2 * i + 1] += dy;
+      sum2[l][2 * i] += dx * dx;
+      sum2[l][2 * i + 1] += dy * dy;
+      ++cnt[l][i];
+    }
+  }
+  for (size_t l = 0; l < n_lm; ++l) {
+    WearStats& w = (*out)[l];
+    w.mean_offset_mm.fill(0.0);
+    double mean2 = 0.0, var = 0.0;
+    int corners = 0;
+    for (size_t i = 0; i < 8; ++i) {
+      if (cnt[l][i] < 2) continue;
+      const double n = cnt[l][i];
+      for (size_t k = 2 * i; k < 2 * i + 2; ++k) {
+        const double m = sum[l][k] / n;
+        w.mean_offset_mm[k] = m;
+        mean2 += m * m;
+        var += std::max(0.0, sum2[l][k] / n - m * m);
+      }
+      ++corners;
+    }
+    const double scale_px = frames[l] > 0 ? px_per_mm[l] / frames[l] : 0.0;
+    if (n_dof[l] > 0) var *= n_res[l] / n_dof[l];
+    w.tau_mm =
+        std::max(opt.min_print_offset_mm, corners > 0 ? std::sqrt(mean2 / (2 * corners)) : 0.0);
+    w.sigma_px =
+        std::max(opt.pixel_sigma_px, corners > 0 ? std::sqrt(var / (2 * corners)) * scale_px : 0.0);
+  }
+}
 
 }  // namespace
 
@@ -301,8 +402,21 @@ bool calibrate_vehicle(const std::vector<OdomSample>& odom,
 
   ceres::Problem problem;
   std::vector<ceres::ResidualBlockId> frame_blocks;
+  std::vector<FrameCost*> frame_costs;  // owned by the problem
   std::vector<int> frame_pass, frame_nvalid;
-  std::vector<std::unique_ptr<FrameCost>> keep;
+  std::vector<size_t> frame_lm;
+  // Landmarks in id order, each with its 16 corner offsets and the inverse of their prior sigma.
+  std::map<std::uint32_t, size_t> lm_index;
+  for (const SubPass& sp : subs) {
+    for (size_t i : sp.frames) lm_index.emplace(obs[i].landmark_id, 0);
+  }
+  {
+    size_t k = 0;
+    for (auto& [id, i] : lm_index) i = k++;
+  }
+  std::vector<std::array<double, 16>> offsets(lm_index.size());
+  for (auto& a : offsets) a.fill(0.0);
+  std::vector<double> inv_tau(lm_index.size(), 1.0 / std::max(opt.min_print_offset_mm, 1e-6));
   const double scale = opt.fx_px / opt.pixel_sigma_px;
   for (size_t j = 0; j < subs.size(); ++j) {
     const double ta = static_cast<double>(obs[subs[j].frames.front()].t_ns - t_ref) * 1e-9;
@@ -312,13 +426,14 @@ bool calibrate_vehicle(const std::vector<OdomSample>& odom,
       fc->od = &od;
       fc->t_anchor_s = ta;
       fc->t_frame_s = static_cast<double>(o.t_ns - t_ref) * 1e-9;
-      const Pose2& lp = map.find(o.landmark_id)->pose;
-      for (size_t c = 0; c < 8; ++c) fc->world[c] = transform(lp, lc[c]);
+      fc->landmark = map.find(o.landmark_id)->pose;
+      fc->local = lc;
       fc->xn = o.xn;
       fc->valid = o.valid;
       fc->scale = scale;
+      const size_t li = lm_index.at(o.landmark_id);
       frame_blocks.push_back(problem.AddResidualBlock(
-          new ceres::AutoDiffCostFunction<FrameCost, 16, kMount, kOdo, 1, 3>(fc),
+          new ceres::AutoDiffCostFunction<FrameCost, 16, kMount, kOdo, 1, 3, 16>(fc),
           // Robust: a frame whose corners are off (blur, a mis-fitted edge) by much more than the
           // noise counts linearly, not quadratically (squared norm of the block in sigma units).
           opt.robust_sigmas > 0.0
@@ -326,10 +441,19 @@ bool calibrate_vehicle(const std::vector<OdomSample>& odom,
                                      std::sqrt(2.0 * static_cast<double>(std::count(
                                                          o.valid.begin(), o.valid.end(), true))))
               : nullptr,
-          mount, odo, dt, anchors[j].data()));
+          mount, odo, dt, anchors[j].data(), offsets[li].data()));
+      frame_costs.push_back(fc);
       frame_pass.push_back(subs[j].pass);
+      frame_lm.push_back(li);
       frame_nvalid.push_back(static_cast<int>(std::count(o.valid.begin(), o.valid.end(), true)));
     }
+  }
+  // The printed geometry is exact until the first solve has measured each landmark's wear.
+  for (size_t li = 0; li < offsets.size(); ++li) {
+    problem.AddResidualBlock(
+        new ceres::AutoDiffCostFunction<OffsetPrior, 16, 16>(new OffsetPrior{&inv_tau[li]}),
+        nullptr, offsets[li].data());
+    problem.SetParameterBlockConstant(offsets[li].data());
   }
   const double period = od.t.size() > 1 ? (od.t.back() - od.t.front()) / (od.t.size() - 1) : 0.01;
   double total_turn = 0.0;
@@ -363,30 +487,42 @@ bool calibrate_vehicle(const std::vector<OdomSample>& odom,
   }
   problem.SetParameterLowerBound(mount, 3, 10.0);
 
-  auto rms_per_pass = [&](std::vector<double>* per_pass, double* all) {
-    std::vector<double> ss(passes.size(), 0.0);
-    std::vector<int> cnt(passes.size(), 0);
+  // RMS corner residual (px) per pass, per landmark and overall, with the printed geometry (the
+  // corner offsets set to zero for the evaluation): what the print and the calibration explain.
+  auto rms_px = [&](std::vector<double>* per_pass, std::vector<double>* per_lm, double* all) {
+    const auto saved = offsets;
+    for (auto& a : offsets) a.fill(0.0);
+    std::vector<double> ss(passes.size(), 0.0), sl(offsets.size(), 0.0);
+    std::vector<int> cnt(passes.size(), 0), cl(offsets.size(), 0);
     double sa = 0;
     int ca = 0;
     for (size_t b = 0; b < frame_blocks.size(); ++b) {
       double cost = 0;
       problem.EvaluateResidualBlock(frame_blocks[b], false, &cost, nullptr, nullptr);
-      // cost = 0.5 |r|^2, r in units of sigma: back to pixels.
-      const double sq = 2.0 * cost * opt.pixel_sigma_px * opt.pixel_sigma_px;
+      // cost = 0.5 |r|^2, r in units of the block's sigma: back to pixels.
+      const double px_per_unit = opt.fx_px / frame_costs[b]->scale;
+      const double sq = 2.0 * cost * px_per_unit * px_per_unit;
       const int nv = std::max(frame_nvalid[b], 1);
       ss[static_cast<size_t>(frame_pass[b])] += sq;
       cnt[static_cast<size_t>(frame_pass[b])] += nv;
+      sl[frame_lm[b]] += sq;
+      cl[frame_lm[b]] += nv;
       sa += sq;
       ca += nv;
     }
+    offsets = saved;
     per_pass->resize(passes.size());
     for (size_t p = 0; p < passes.size(); ++p) {
       (*per_pass)[p] = cnt[p] > 0 ? std::sqrt(ss[p] / cnt[p]) : 0.0;
     }
+    per_lm->resize(offsets.size());
+    for (size_t l = 0; l < offsets.size(); ++l) {
+      (*per_lm)[l] = cl[l] > 0 ? std::sqrt(sl[l] / cl[l]) : 0.0;
+    }
     *all = ca > 0 ? std::sqrt(sa / ca) : 0.0;
   };
-  std::vector<double> before, after;
-  rms_per_pass(&before, &out->rms_before_px);
+  std::vector<double> before, after, lm_before, lm_after;
+  rms_px(&before, &lm_before, &out->rms_before_px);
 
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::SPARSE_SCHUR;
@@ -399,7 +535,38 @@ bool calibrate_vehicle(const std::vector<OdomSample>& odom,
   ceres::Solve(so, &problem, &summary);
   if (!summary.IsSolutionUsable()) return fail("the solver failed: " + summary.message);
   out->iterations = static_cast<int>(summary.iterations.size());
-  rms_per_pass(&after, &out->rms_after_px);
+  std::vector<WearStats> wear(offsets.size());
+  if (opt.model_wear) {
+    measure_wear(problem, frame_blocks, frame_costs, frame_lm, opt, &wear);
+    for (size_t b = 0; b < frame_costs.size(); ++b) {
+      frame_costs[b]->scale = opt.fx_px / wear[frame_lm[b]].sigma_px;
+    }
+    for (size_t li = 0; li < offsets.size(); ++li) {
+      inv_tau[li] = 1.0 / wear[li].tau_mm;
+      offsets[li] = wear[li].mean_offset_mm;
+      problem.SetParameterBlockVariable(offsets[li].data());
+    }
+    ceres::Solve(so, &problem, &summary);
+    if (!summary.IsSolutionUsable()) return fail("the solver failed: " + summary.message);
+    out->iterations += static_cast<int>(summary.iterations.size());
+  }
+  rms_px(&after, &lm_after, &out->rms_after_px);
+  // Whatever the per-landmark model leaves: the covariance grows with the reduced chi-square of
+  // the corner residuals (never shrinks below the stated pixel noise).
+  double chi2_scale = 1.0;
+  if (opt.model_wear) {
+    double chi2 = 0.0;
+    double n_res = 0.0;
+    for (size_t b = 0; b < frame_blocks.size(); ++b) {
+      double cost = 0;
+      problem.EvaluateResidualBlock(frame_blocks[b], false, &cost, nullptr, nullptr);
+      chi2 += 2.0 * cost;
+      n_res += 2.0 * frame_nvalid[b];
+    }
+    const double dof =
+        n_res - 3.0 * static_cast<double>(subs.size()) - 16.0 * offsets.size() - kNumGlobal;
+    if (dof > 0) chi2_scale = std::max(1.0, chi2 / dof);
+  }
 
   // Covariance of the global parameters (anchors marginalised).
   ceres::Covariance::Options co;
@@ -416,6 +583,9 @@ bool calibrate_vehicle(const std::vector<OdomSample>& odom,
     cov_ok = cov.GetCovarianceBlock(mount, mount, cm) &&
              cov.GetCovarianceBlock(odo, odo, cov_odo) && cov.GetCovarianceBlock(dt, dt, &cdt);
   }
+  for (double& v : cm) v *= chi2_scale;
+  for (double& v : cov_odo) v *= chi2_scale;
+  cdt *= chi2_scale;
   // Trade-offs: the information matrix of the global parameters with the anchors eliminated,
   // scaled to the reporting limits; its weakest eigenvectors name the parameters that trade off.
   std::vector<std::string> names = {
@@ -455,7 +625,9 @@ bool calibrate_vehicle(const std::vector<OdomSample>& odom,
       double x[kMount * kOdo];
       if (cov.GetCovarianceBlock(mount, odo, x)) {
         for (int i = 0; i < kMount; ++i)
-          for (int j = 0; j < kOdo; ++j) c(i, kMount + j) = c(kMount + j, i) = x[i * kOdo + j];
+          for (int j = 0; j < kOdo; ++j) {
+            c(i, kMount + j) = c(kMount + j, i) = chi2_scale * x[i * kOdo + j];
+          }
       }
     }
     for (int i = 0; i < kNumGlobal; ++i) {
@@ -536,6 +708,22 @@ bool calibrate_vehicle(const std::vector<OdomSample>& odom,
     pr.rms_after_px = after[p];
     out->passes.push_back(pr);
   }
+  out->landmarks.clear();
+  for (const auto& [id, li] : lm_index) {
+    LandmarkReport lr;
+    lr.landmark_id = id;
+    for (const PassReport& pr : out->passes) {
+      if (pr.landmark_id != id) continue;
+      ++lr.passes;
+      lr.frames += pr.frames;
+    }
+    lr.rms_before_px = lm_before[li];
+    lr.rms_after_px = lm_after[li];
+    lr.sigma_px = opt.model_wear ? wear[li].sigma_px : opt.pixel_sigma_px;
+    lr.print_offset_mm = opt.model_wear ? wear[li].tau_mm : 0.0;
+    out->landmarks.push_back(lr);
+  }
+  flag_standing_out(opt, &out->landmarks, &out->warnings);
   out->frames_used = static_cast<int>(frame_blocks.size());
   out->subpasses = static_cast<int>(subs.size());
   return true;

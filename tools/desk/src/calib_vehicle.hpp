@@ -27,9 +27,26 @@
 // image, scales and bias from odometry vs vision over turns and straights, the time offset from
 // speed changes with a landmark in view.
 //
+// Worn landmarks (issue 36): scratches, dirt and faded ink move a landmark's corners by an amount
+// that is the same in every frame of that landmark, so more frames do not average it out and a
+// covariance that assumes independent pixel noise is far too optimistic. Two measures:
+//  - the corners come from robust line fits (corners_from_edges: the vision stage's RANSAC +
+//    Tukey fit), so a scratch or a smudge on part of an edge does not move the line;
+//  - what remains is modelled: after a first solve with the printed geometry, each landmark gets
+//    its own corner noise sigma_L (the RMS of its residuals about their per-corner means, at
+//    least pixel_sigma_px) and its own print deviation tau_L (the RMS of those means, mapped to
+//    the landmark plane, mm); the second solve weights the landmark's frames by 1/sigma_L and
+//    gives each of its corners a free offset in the landmark frame with a N(0, tau_L^2) prior.
+//    The offsets are shared by all frames of the landmark, so the covariance carries the
+//    systematic part exactly where it acts, and a worn landmark counts less than a clean one.
+//    Per landmark, not one global factor: wear is a property of one print; a global reduced
+//    chi-square would weight the clean landmarks down with the worn ones, and, applied to
+//    independent-noise sigmas, still shrink as 1/sqrt(frames) an error that does not. The
+//    global reduced chi-square of the second solve still scales the covariance when it
+//    exceeds 1 (what the per-landmark model leaves); it never shrinks it.
 // Observability: the standard deviation of every global parameter comes from Ceres' covariance
-// (anchors marginalised). A parameter whose sigma exceeds its limit, or that lies in a
-// (near-)null space of the problem, is reported as not determined, with the parameters it
+// (anchors and corner offsets marginalised). A parameter whose sigma exceeds its limit, or that
+// lies in a (near-)null space of the problem, is reported as not determined, with the parameters it
 // trades off against, and is never written to the configuration snippet.
 #pragma once
 
@@ -88,7 +105,30 @@ struct Options {
   double max_sigma_mm = 0.25, max_sigma_yaw_deg = 0.05, max_sigma_tilt_deg = 0.05;
   double max_sigma_scale = 0.001, max_sigma_bias_degps = 0.02, max_sigma_time_ms = 1.0;
   int max_iterations = 200;
+  // Per-landmark noise and print deviation (top of this file); false = one solve with
+  // pixel_sigma_px for every corner and the printed geometry taken as exact (before issue 36).
+  bool model_wear = true;
+  // Floor of tau_L, mm: a clean print still deviates by a few micrometres, and a zero prior
+  // would make the offsets' information matrix singular.
+  double min_print_offset_mm = 0.002;
+  // A landmark's residual stands out (warning) above residual_warn_ratio times the median of
+  // the other landmarks' and above residual_warn_floor_px, or above residual_warn_px in any
+  // case (the issue's worn prints: 0.59-0.92 px with a plain line fit, clean 0.09-0.14).
+  double residual_warn_ratio = 2.5, residual_warn_floor_px = 0.1, residual_warn_px = 0.5;
 };
+
+// One frame's border edge points in undistorted normalised coordinates, per edge: [0] outer,
+// [1] inner; side 0 is x = +h, 1 y = +h, 2 x = -h, 3 y = -h in the landmark frame.
+struct BorderEdges {
+  std::array<std::array<std::vector<Vec2>, 4>, 2> xn;
+};
+
+// The border corners of one frame (CornerObservation::xn, t_ns and landmark_id left as they are)
+// from its edge points: one robust line per edge (vision::fit_line_robust with the vision
+// stage's constants: RANSAC start, Tukey IRLS, scale floor), intersected. A scratch, a smudge or
+// an occluder on part of an edge then gets weight 0 instead of pulling the line. fx_px turns the
+// pixel-sized constants into normalised units. False when fewer than 3 corners result.
+bool corners_from_edges(const BorderEdges& edges, double fx_px, CornerObservation* out);
 
 struct ParamReport {
   std::string name;  // configuration-style name
@@ -106,10 +146,22 @@ struct PassReport {
   double rms_before_px = 0.0, rms_after_px = 0.0;
 };
 
+// Per landmark: the corner residual after calibration with the printed geometry, the noise and
+// print deviation the second solve modelled (see the top of this file).
+struct LandmarkReport {
+  std::uint32_t landmark_id = 0;
+  int passes = 0, frames = 0;
+  double rms_before_px = 0.0, rms_after_px = 0.0;
+  double sigma_px = 0.0;         // corner noise used for its frames
+  double print_offset_mm = 0.0;  // tau_L: RMS deviation of its corners from the printed square
+  bool stands_out = false;       // named in a warning
+};
+
 struct Result {
   VehicleParams estimate;
   std::vector<ParamReport> params;  // ordered: mounting (6), odometry (3), time offset
   std::vector<PassReport> passes;
+  std::vector<LandmarkReport> landmarks;  // by id
   std::vector<std::string> warnings;
   int frames_used = 0, subpasses = 0, iterations = 0;
   double rms_before_px = 0.0, rms_after_px = 0.0;
@@ -122,6 +174,14 @@ bool calibrate_vehicle(const std::vector<OdomSample>& odom,
                        const std::vector<CornerObservation>& obs, const LandmarkMap& map,
                        double outer_half_mm, double inner_half_mm, const VehicleParams& initial,
                        const Options& opt, Result* out, std::string* error);
+
+// Marks the landmarks whose rms_after_px stands out (Options::residual_warn_*: against the
+// median of the other landmarks, or the absolute limit) and adds a warning naming each.
+void flag_standing_out(const Options& opt, std::vector<LandmarkReport>* landmarks,
+                       std::vector<std::string>* warnings);
+
+// The per-landmark table of report.txt (Result::landmarks).
+std::string landmark_table(const Result& r);
 
 // Corners of the landmark in its own frame (the order of CornerObservation::xn).
 std::array<Vec2, 8> landmark_corners(double outer_half_mm, double inner_half_mm);

@@ -26,68 +26,17 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct Line {
-  double a = 0, b = 0, c = 0;  // a x + b y = c, (a, b) unit
-  int n = 0;
-};
-
-// Total least squares line with two rounds of 3-sigma outlier rejection.
-bool fit_line(const std::vector<Vec2>& pts, Line* out) {
-  std::vector<Vec2> p = pts;
-  for (int round = 0; round < 3; ++round) {
-    if (p.size() < 5) return false;
-    double mx = 0, my = 0;
-    for (const Vec2& q : p) {
-      mx += q.x;
-      my += q.y;
-    }
-    mx /= static_cast<double>(p.size());
-    my /= static_cast<double>(p.size());
-    double sxx = 0, sxy = 0, syy = 0;
-    for (const Vec2& q : p) {
-      sxx += (q.x - mx) * (q.x - mx);
-      sxy += (q.x - mx) * (q.y - my);
-      syy += (q.y - my) * (q.y - my);
-    }
-    // Normal = eigenvector of the smallest eigenvalue.
-    const double th = 0.5 * std::atan2(2 * sxy, sxx - syy);  // direction of the line
-    out->a = -std::sin(th);
-    out->b = std::cos(th);
-    out->c = out->a * mx + out->b * my;
-    out->n = static_cast<int>(p.size());
-    if (round == 2) break;
-    double ss = 0;
-    for (const Vec2& q : p) ss += std::pow(out->a * q.x + out->b * q.y - out->c, 2);
-    const double lim = 3.0 * std::sqrt(ss / static_cast<double>(p.size())) + 1e-12;
-    std::vector<Vec2> keep;
-    for (const Vec2& q : p) {
-      if (std::abs(out->a * q.x + out->b * q.y - out->c) <= lim) keep.push_back(q);
-    }
-    if (keep.size() == p.size()) break;
-    p.swap(keep);
-  }
-  return true;
-}
-
-bool intersect(const Line& l1, const Line& l2, Vec2* x) {
-  const double det = l1.a * l2.b - l1.b * l2.a;
-  if (std::abs(det) < 1e-9) return false;
-  *x = {(l1.c * l2.b - l1.b * l2.c) / det, (l1.a * l2.c - l1.c * l2.a) / det};
-  return true;
-}
-
-// Raw corner observation of one frame: the edge points of each border line, undistorted to
-// normalised coordinates (intrinsics only), fitted with straight lines (a floor line images to a
-// straight line through a pinhole, tilted or not) and intersected. Which landmark side a line
-// is comes from the fix under the configured camera model (only for labelling, a few mm of
-// mounting error cannot swap sides 6 mm apart).
+// Corner observation of one frame: the edge points of each border line, undistorted to
+// normalised coordinates (intrinsics only), fitted with robust straight lines (a floor line
+// images to a straight line through a pinhole, tilted or not; the vision stage's robust fit, so
+// wear on part of an edge does not move it) and intersected (vcal::corners_from_edges). Which
+// landmark side a line is comes from the fix under the configured camera model (only for
+// labelling, a few mm of mounting error cannot swap sides 6 mm apart).
 bool corner_observation(const vision::LandmarkLocalizer& loc, const vision::LandmarkFix& fix,
                         const CameraModel& cam, const LandmarkGeometry& geom, std::int64_t t_ns,
                         vcal::CornerObservation* out) {
   const Pose2 l_from_v = inverse(fix.landmark_in_vehicle);
-  // side index: 0 = x = +h, 1 = y = +h, 2 = x = -h, 3 = y = -h; [inner][side]
-  Line lines[2][4];
-  bool have[2][4] = {};
+  vcal::BorderEdges edges;
   for (int l = 0; l < vision::LandmarkLocalizer::kEdgeLines; ++l) {
     const auto& px = loc.edge_points_px(l);
     if (px.size() < 5) continue;
@@ -112,26 +61,11 @@ bool corner_observation(const vision::LandmarkLocalizer& loc, const vision::Land
     const int inner = std::abs(r - hi) < std::abs(r - ho) ? 1 : 0;
     if (std::abs(r - (inner ? hi : ho)) > 0.4 * (ho - hi)) continue;  // not a border edge
     const int side = on_x ? (mean.x > 0 ? 0 : 2) : (mean.y > 0 ? 1 : 3);
-    Line ln;
-    if (fit_line(xn, &ln)) {
-      lines[inner][side] = ln;
-      have[inner][side] = true;
-    }
+    edges.xn[static_cast<size_t>(inner)][static_cast<size_t>(side)] = std::move(xn);
   }
-  // Corner k of landmark_corners: (+,+), (-,+), (-,-), (+,-) -> x-side and y-side.
-  const int xs[4] = {0, 2, 2, 0}, ys[4] = {1, 1, 3, 3};
-  int n = 0;
   out->t_ns = t_ns;
   out->landmark_id = fix.landmark_id;
-  for (int e = 0; e < 2; ++e) {
-    for (int k = 0; k < 4; ++k) {
-      const size_t i = static_cast<size_t>(e * 4 + k);
-      out->valid[i] = have[e][xs[k]] && have[e][ys[k]] &&
-                      intersect(lines[e][xs[k]], lines[e][ys[k]], &out->xn[i]);
-      n += out->valid[i] ? 1 : 0;
-    }
-  }
-  return n >= 3;
+  return vcal::corners_from_edges(edges, cam.intrinsics.fx, out);
 }
 
 std::string fmt(const char* f, double v) {
@@ -364,6 +298,7 @@ int calibrate_vehicle(int argc, char** argv) {
   for (const auto& e : out_of_range) {
     if (!e.empty()) rep << "error: " << e << "\n";
   }
+  rep << "\n" << vcal::landmark_table(r);
   rep << "\nper landmark pass (corner residual RMS, px):\n"
       << "pass  landmark  t_start_s  t_end_s  frames   before    after\n";
   for (const auto& p : r.passes) {
