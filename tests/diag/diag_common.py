@@ -1,7 +1,7 @@
 """Helpers of the diagnostics page tests (docs/diagnostics.md): the recording, a served replay,
 HTTP requests with deadlines. Every wait polls a condition against a generous deadline: the tests
 run on a loaded 2-core machine."""
-import http.client, os, re, shutil, signal, subprocess, sys, threading, time
+import atexit, http.client, os, re, shutil, signal, subprocess, sys, threading, time
 
 
 def fail(msg):
@@ -35,6 +35,8 @@ class Served:
         self.proc = subprocess.Popen([agvloc, "replay", rec, "--out", out, "--config", self.config,
                                       "--quiet", "--serve"] + list(extra),
                                      stdout=self.log, stderr=subprocess.STDOUT)
+        # A failing check exits at once: the served replay must not outlive the test.
+        atexit.register(self._kill)
         self.port = None
         end = time.monotonic() + deadline_s
         while time.monotonic() < end:
@@ -45,6 +47,11 @@ class Served:
             if self.proc.poll() is not None:
                 return
             time.sleep(0.05)
+
+    def _kill(self):
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
 
     def output(self):
         return open(self.log_path).read()
