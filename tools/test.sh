@@ -8,8 +8,9 @@
 #      script.
 #   2. asan preset (clang ASan + UBSan, -O1): the tests labelled unit, replay, golden, faults and
 #      tsan (threaded live loop), then every libFuzzer harness from the same build (fuzz/run.sh)
-#   3. tsan preset (clang TSan, -O1): the same tests without the single-threaded desk and vision
-#      evaluations (labels calib, sim, vision)
+#   3. tsan preset (clang TSan, -O1): the code that starts threads: test programs linking
+#      firmware/ or drivers/posix (or labelled tsan), and the replay, golden and fault tests that
+#      run agvloc; single-threaded test programs are not even built there (tests/CMakeLists.txt)
 #   4. arm64 cross build, tests under qemu-aarch64, .deb package test
 # The sanitizer fault suites replay the base recordings the default build rendered
 # (AGV_FAULTS_BASE_FROM, tests/faults/run_faults.py --base-from) instead of rendering them again
