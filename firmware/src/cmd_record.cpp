@@ -1,6 +1,7 @@
 // agvloc record --config FILE --out DIR: the live camera, CAN odometry and (with can.gyro.enabled)
 // the CAN gyro, written in the recording format (docs/recording.md) for later replay.
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <cinttypes>
 #include <cstdio>
 #include <filesystem>
@@ -8,6 +9,7 @@
 #include <thread>
 
 #include "agv/can/socketcan.hpp"
+#include "agv/localizer/localizer.hpp"
 #include "agv/posix/posix_clock.hpp"
 #include "agv/protocol/codec.hpp"
 #include "agv/recording/recording.hpp"
@@ -60,12 +62,12 @@ int record(int argc, char** argv) {
   pc.gyro = config::gyro_protocol_config(cfg);  // AGV_Gyro is received only when enabled
   protocol::OdometryDecoder decoder(pc);
   protocol::GyroDecoder gyro_decoder(pc);
-  auto filter_for = [](std::uint32_t id, bool ext) {
-    return hal::CanFilter{id, ext ? protocol::kCanExtIdMask : protocol::kCanStdIdMask, ext};
-  };
-  const hal::CanFilter filters[2] = {filter_for(decoder.can_id(), decoder.extended()),
-                                     filter_for(gyro_decoder.can_id(), gyro_decoder.extended())};
-  bus.set_filters(filters, pc.gyro.enabled ? 2 : 1);
+  // The same filters as `agvloc run`: one per enabled input of the signal table.
+  hal::CanFilter filters[localizer::Localizer::kMaxReceiveFilters];
+  const int n_filters =
+      localizer::receive_filters(pc, filters, localizer::Localizer::kMaxReceiveFilters);
+  bus.set_filters(filters, static_cast<std::size_t>(
+                               std::min(n_filters, localizer::Localizer::kMaxReceiveFilters)));
 
   install_stop_signals();
   posix::PosixClock clock;

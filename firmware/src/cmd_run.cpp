@@ -7,6 +7,7 @@
 #include "agv/can/socketcan.hpp"
 #include "agv/posix/posix_clock.hpp"
 #include "agv/posix/realtime.hpp"
+#include "agv/protocol/dbc.hpp"
 #include "commands.hpp"
 #include "config.hpp"
 #include "diag_server.hpp"
@@ -21,9 +22,12 @@ namespace agv::cmd {
 int run(int argc, char** argv) {
   CLI::App app{"Live localization: camera -> vision -> fusion -> CAN (docs/config.md)"};
   std::string config_file;
-  bool check_only = false;
+  bool check_only = false, print_dbc = false;
   app.add_option("--config", config_file, "configuration YAML")->required();
   app.add_flag("--check-config", check_only, "validate the configuration and exit");
+  app.add_flag("--print-dbc", print_dbc,
+               "print the DBC of this configuration (IDs, ID types, cycle times from "
+               "loop.output_rate_hz) and exit");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -31,6 +35,12 @@ int run(int argc, char** argv) {
   }
   config::Config cfg;
   if (!config::load_config_or_report(config_file, "agvloc", &cfg)) return 2;
+  if (print_dbc) {
+    protocol::ProtocolConfig pc = config::protocol_config(cfg);
+    pc.gyro = config::gyro_protocol_config(cfg);
+    std::fputs(protocol::render_dbc(pc).c_str(), stdout);
+    return 0;
+  }
   LandmarkMap map;
   const LandmarkMap* map_ptr = nullptr;
   std::string err;

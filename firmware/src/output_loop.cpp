@@ -15,8 +15,6 @@ localizer::LocalizerConfig localizer_config(const config::Config& cfg) {
   c.odometry.yaw_rate_scale = cfg.odometry.yaw_rate_scale;
   c.odometry.yaw_rate_bias_radps = cfg.odometry.yaw_rate_bias_radps;
   c.odometry.time_offset_ns = std::llround(cfg.odometry.time_offset_ms * 1e6);
-  // can.odometry.timeout_ms is THE odometry timeout (pose validity and the EKF's flag).
-  c.odometry_timeout_ns = static_cast<std::int64_t>(cfg.can.odometry_timeout_ms * 1e6);
   c.gyro.scale = cfg.imu.scale;
   c.gyro.bias_radps = cfg.imu.bias_radps;
   c.gyro.time_offset_ns = std::llround(cfg.imu.time_offset_ms * 1e6);

@@ -9,7 +9,9 @@
 #include <sstream>
 #include <string>
 
+#include "agv/protocol/codec.hpp"
 #include "agv/protocol/dbc.hpp"
+#include "agv/protocol/signals.hpp"
 
 namespace p = agv::protocol;
 
@@ -174,6 +176,32 @@ TEST(Dbc, RenderHonoursBaseIdAndExtendedIds) {
   ASSERT_EQ(dbc.error, "");
   EXPECT_EQ(dbc.by_name.at("AGV_PoseXY").id, 0x18FF1000u | 0x80000000u);
   EXPECT_EQ(dbc.by_name.at("MC_OdomWheels").id, 0x18FF2000u | 0x80000000u);
+}
+
+// The DBC states the rates the vehicle is configured to send at, not a fixed 100 Hz; the signal
+// table's nominal periods are the configuration's defaults.
+TEST(Dbc, CycleTimesFollowTheConfiguredRates) {
+  const p::ProtocolConfig nominal;
+  for (const p::MessageDef& m : p::message_table()) {
+    EXPECT_EQ(p::cycle_ms_of(nominal, m.msg), m.cycle_ms) << m.name;
+  }
+  p::ProtocolConfig cfg;
+  cfg.output_period_ms = 20.0;      // loop.output_rate_hz 50
+  cfg.heartbeat_period_ms = 500.0;  // loop.heartbeat_rate_hz 2
+  ASSERT_EQ(p::validate(cfg), "");
+  const std::string dbc = p::render_dbc(cfg);
+  const auto cycle_of = [&](p::Msg m) {
+    const std::regex re("BA_ \"GenMsgCycleTime\" BO_ " + std::to_string(p::can_id_of(cfg, m)) +
+                        " ([0-9]+);");
+    std::smatch match;
+    return std::regex_search(dbc, match, re) ? std::stoi(match[1]) : -1;
+  };
+  EXPECT_EQ(cycle_of(p::Msg::kPoseXY), 20);
+  EXPECT_EQ(cycle_of(p::Msg::kStatus), 20);
+  EXPECT_EQ(cycle_of(p::Msg::kHeartbeat), 500);
+  EXPECT_EQ(cycle_of(p::Msg::kOdomWheels), 10);  // what the motor controller sends: nominal
+  cfg.output_period_ms = 0.0;
+  EXPECT_NE(p::validate(cfg), "");
 }
 
 TEST(Dbc, DocsFrameTableIsCurrent) {

@@ -13,6 +13,7 @@
 
 #include "agv/adapters/stepped_clock.hpp"
 #include "agv/config/keys.hpp"
+#include "agv/protocol/dbc.hpp"
 #include "config.hpp"
 #include "output_loop.hpp"
 
@@ -524,17 +525,51 @@ TEST(Config, VisionFieldsOnceRejectedAreKeys) {
                        "weighted_000"));
 }
 
+// `agvloc run --print-dbc`: the contract of the configured vehicle states its rates.
+TEST(Config, DbcCycleTimesFromTheConfiguredRates) {
+  Config cfg;
+  std::vector<std::string> errors;
+  ASSERT_TRUE(agv::config::parse_config(
+      std::string(kIntrinsics) + "loop:\n  output_rate_hz: 50\n  heartbeat_rate_hz: 2\n", "",
+      &cfg, &errors));
+  const auto pc = agv::config::protocol_config(cfg);
+  EXPECT_DOUBLE_EQ(pc.output_period_ms, 20.0);
+  EXPECT_DOUBLE_EQ(pc.heartbeat_period_ms, 500.0);
+  const std::string dbc = agv::protocol::render_dbc(pc);
+  EXPECT_NE(dbc.find("BA_ \"GenMsgCycleTime\" BO_ 768 20;"), std::string::npos);  // AGV_PoseXY
+  EXPECT_NE(dbc.find("BA_ \"GenMsgCycleTime\" BO_ 773 500;"), std::string::npos);  // heartbeat
+}
+
+TEST(Config, MapIdentityGateFromTheConfiguration) {
+  Config cfg;
+  std::vector<std::string> errors;
+  ASSERT_TRUE(agv::config::parse_config(std::string(kIntrinsics) +
+                                            "vision:\n  identity:\n    gate_chi2: 11.34\n"
+                                            "    clear_chi2: 40\n    min_pair_modules: 30\n",
+                                        "", &cfg, &errors));
+  EXPECT_DOUBLE_EQ(cfg.vision.identity.gate_chi2, 11.34);
+  EXPECT_DOUBLE_EQ(cfg.vision.identity.clear_chi2, 40.0);
+  EXPECT_EQ(cfg.vision.identity.min_pair_modules, 30);
+  EXPECT_DOUBLE_EQ(cfg.vision.identity.min_agreement, 0.70);  // default kept
+  // A runner-up inside the gate cannot be "clear".
+  EXPECT_TRUE(mentions(errors_for(std::string(kIntrinsics) +
+                                  "vision:\n  identity:\n    gate_chi2: 30\n    clear_chi2: 20\n"),
+                       "vision.identity.clear_chi2: value 20 must exceed "
+                       "vision.identity.gate_chi2"));
+}
+
 TEST(Config, OneOdometryTimeout) {
   Config cfg;
   std::vector<std::string> errors;
   ASSERT_TRUE(agv::config::parse_config(
       std::string(kIntrinsics) + "can:\n  odometry:\n    timeout_ms: 250\n", "", &cfg, &errors));
-  EXPECT_DOUBLE_EQ(cfg.can.odometry_timeout_ms, 250.0);
-  // The localizer's output policy and its filter both take the one key.
-  const auto lc = agv::app::localizer_config(cfg);
-  EXPECT_EQ(lc.odometry_timeout_ns, 250'000'000);
-  EXPECT_EQ(lc.fusion.odom_timeout_ns, 250'000'000);
-  EXPECT_EQ(cfg.fusion.odom_timeout_ns, 250'000'000);  // the filter's flag follows the same key
+  // One field from the YAML to its users (the core's pose validity and the filter's flag).
+  EXPECT_EQ(cfg.fusion.odom_timeout_ns, 250'000'000);
+  EXPECT_EQ(agv::app::localizer_config(cfg).fusion.odom_timeout_ns, 250'000'000);
+  // The key reads back the value it was given.
+  const auto* key = agv::config::find_key("can.odometry.timeout_ms");
+  ASSERT_NE(key, nullptr);
+  EXPECT_DOUBLE_EQ(std::get<double>(key->get(cfg)), 250.0);
   const auto e = errors_for(std::string(kIntrinsics) + "fusion:\n  odom_timeout_ms: 100\n");
   EXPECT_TRUE(mentions(e, "fusion.odom_timeout_ms: removed key; use can.odometry.timeout_ms"));
   EXPECT_EQ(agv::config::find_key("fusion.odom_timeout_ms"), nullptr);

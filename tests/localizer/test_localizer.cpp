@@ -2,6 +2,7 @@
 // no clock: every test drives it with plain values.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <vector>
@@ -17,8 +18,7 @@ constexpr std::int64_t kMs = 1'000'000;
 
 localizer::LocalizerConfig test_config() {
   localizer::LocalizerConfig c;
-  c.fusion.odom_timeout_ns = 10'000 * kMs;  // overridden: the core has ONE odometry timeout
-  c.odometry_timeout_ns = 50 * kMs;
+  c.fusion.odom_timeout_ns = 50 * kMs;  // the core's ONE odometry timeout
   c.heartbeat_period_ns = 1000 * kMs;
   c.camera_timeout_ns = 200 * kMs;
   return c;
@@ -80,7 +80,6 @@ TEST(Localizer, TickProducesThePosePairFirstAndTheHeartbeatWhenDue) {
 
 TEST(Localizer, OneOdometryTimeoutDrivesPoseValidityAndTheEkfFlag) {
   const auto c = test_config();
-  EXPECT_EQ(localizer::effective_fusion_config(c).odom_timeout_ns, 50 * kMs);
   localizer::Localizer loc(c);
   localizer::OutFrames out;
   localizer::TickRecord rec;
@@ -351,6 +350,26 @@ TEST(Localizer, ImuTimeoutIsSetAfterTheGyroTimeoutAndClearWhileSamplesArrive) {
   EXPECT_EQ(status_of(c, out).faults & p::fault::kOdomTimeout, 0);
 }
 
+// The hand-written capacities follow the signal table: a message added to it must grow them.
+TEST(Localizer, FrameCapacitiesFollowTheSignalTable) {
+  int tx = 0;
+  for (const p::MessageDef& m : p::message_table()) tx += m.dir == p::Direction::kTx ? 1 : 0;
+  EXPECT_EQ(localizer::OutFrames::kMax, tx);
+  // Every configuration of the inputs fits the receive filters the firmware reserves.
+  int most = 0;
+  for (const auto mode : {p::OdometryMode::kWheels, p::OdometryMode::kTwist}) {
+    for (const bool gyro : {false, true}) {
+      p::ProtocolConfig pc;
+      pc.odometry.mode = mode;
+      pc.gyro.enabled = gyro;
+      const int n = localizer::receive_filters(pc, nullptr, 0);
+      EXPECT_GE(n, 1);
+      most = std::max(most, n);
+    }
+  }
+  EXPECT_EQ(localizer::Localizer::kMaxReceiveFilters, most);
+}
+
 TEST(Localizer, ReceiveFiltersOnePerEnabledInput) {
   auto c = test_config();
   hal::CanFilter f[3];
@@ -389,7 +408,7 @@ TEST(Localizer, ReceiveFiltersOnePerEnabledInput) {
 
 TEST(Localizer, InvalidConfigurationThrows) {
   auto c = test_config();
-  c.odometry_timeout_ns = 0;
+  c.fusion.odom_timeout_ns = 0;
   EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
   c = test_config();
   c.heartbeat_period_ns = 0;
@@ -632,7 +651,7 @@ TEST(Localizer, MapGuidedFixesNeverReinitialiseAKidnappedFilter) {
 }
 
 TEST(Localizer, MapGuidedFixIsRefusedByALostFilter) {
-  fusion::Ekf ekf(localizer::effective_fusion_config(test_config()));
+  fusion::Ekf ekf(test_config().fusion);
   std::int64_t t = 1000 * kMs;
   ASSERT_TRUE(ekf.add_odometry(t, 0.0, 0.0));
   // Initialised from a fix so uncertain that the prior's position spans landmarks (sigma

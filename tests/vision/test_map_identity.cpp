@@ -261,6 +261,17 @@ TEST(MapIdentityLocalizer, CoveredCodeIdentifiedFromTheMap) {
   EXPECT_EQ(again.status, FixStatus::kQrUnreadable);
   EXPECT_EQ(again.landmark_id, plain.landmark_id);
   EXPECT_EQ(again.e_x_mm, plain.e_x_mm);
+
+  // The configured gate (keys vision.identity.*) is the one the stage applies: the same
+  // prediction (~1 in chi2) outside a gate of 0.01 gives no identity.
+  VisionConfig strict;
+  strict.identity.gate_chi2 = 0.01;
+  strict.identity.clear_chi2 = 0.02;
+  LandmarkLocalizer strict_loc(strict, cam, LandmarkGeometry{}, &s.map);
+  LandmarkFix refused;
+  strict_loc.process(img, p, &refused);
+  EXPECT_EQ(refused.status, FixStatus::kQrUnreadable);
+  EXPECT_EQ(refused.identity, FixIdentity::kNone);
 }
 
 TEST(MapIdentityLocalizer, ReadableCodeIsUnchangedByThePrediction) {

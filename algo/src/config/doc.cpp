@@ -97,6 +97,12 @@ const std::vector<Section>& config_sections() {
        "prediction is valid and within both σ limits; the windows are the mapped landmarks'\n"
        "outer squares grown by `window_sigmas` σ plus a fixed detection margin.\n",
        ""},
+      {"vision.identity", "(docs/map_identity.md)",
+       "Map-guided identity of a landmark whose code cannot be read "
+       "(`agv::vision::MapIdentityConfig`):\n"
+       "the fused pose's covariance must single out one mapped landmark (the gate), and the "
+       "code's\nvisible modules must agree with that landmark's code (the module check).\n",
+       ""},
       {"fusion", "(docs/fusion.md has the model)",
        "Fields of `agv::fusion::EkfConfig` (algo/include/agv/fusion/ekf.hpp) with the same\n"
        "defaults; angles in degrees and times in milliseconds here. The combination is checked by\n"

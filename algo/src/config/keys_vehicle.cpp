@@ -132,17 +132,13 @@ void add_can(std::vector<Key>* k) {
                       500.0, {"mm", "wheels mode: converts wheel speeds to v, ω"}));
   k->push_back(number("can.odometry.wheel_speed_scale", AGV_AT(can.wheel_speed_scale), 0.5, 2.0,
                       1.0, {"", "wheels mode: calibrates wheel radius error"}));
-  Key timeout =
-      number("can.odometry.timeout_ms", AGV_AT(can.odometry_timeout_ms), 5.0, 10000.0, 100.0,
-             {"ms",
-              "the one odometry timeout: no valid odometry this long → `OdomTimeout`, pose "
-              "flagged invalid and the filter lost. Short reacts fast to a dead controller but "
-              "trips on bus jitter; 100 ms = 10 missed frames at 100 Hz"});
-  timeout.set = [](Config& c, const Value& v) {
-    c.can.odometry_timeout_ms = std::get<double>(v);
-    c.fusion.odom_timeout_ns = std::llround(c.can.odometry_timeout_ms * 1e6);
-  };
-  k->push_back(std::move(timeout));
+  // Stored once, where it is used (the filter's flag and the core's pose validity both read
+  // fusion.odom_timeout_ns); the key keeps its CAN name because the odometry comes over CAN.
+  k->push_back(ms_as_ns(
+      "can.odometry.timeout_ms", AGV_AT(fusion.odom_timeout_ns), 5.0, 10000.0, 100.0,
+      "the one odometry timeout: no valid odometry this long → `OdomTimeout`, pose "
+      "flagged invalid and the filter lost. Short reacts fast to a dead controller but "
+      "trips on bus jitter; 100 ms = 10 missed frames at 100 Hz"));
   k->push_back(boolean(
       "can.gyro.enabled", AGV_AT(can.gyro_enabled), false,
       "receive the yaw rate from an IMU as `AGV_Gyro` (docs/can.md): it carries the heading "

@@ -245,6 +245,46 @@ void add_tracking(std::vector<Key>* k) {
                        "Otherwise, or false: four turns and the full read"));
 }
 
+// vision::MapIdentityConfig (map_identity_config.hpp; docs/map_identity.md has the measurements).
+void add_identity(std::vector<Key>* k) {
+  k->push_back(number("vision.identity.gate_chi2", AGV_AT(vision.identity.gate_chi2), 1.0, 100.0,
+                      16.27,
+                      {"",
+                       "squared Mahalanobis distance (x, y, heading) within which a mapped "
+                       "landmark is a candidate for an unread code. 16.27 = chi2(3) at 0.999: a "
+                       "right landmark is refused once in a thousand frames (one fix lost, never "
+                       "a wrong one). Must be below clear_chi2"}));
+  k->push_back(number("vision.identity.clear_chi2", AGV_AT(vision.identity.clear_chi2), 1.0,
+                      1000.0, 60.0,
+                      {"",
+                       "the runner-up must lie beyond this distance, or the identity is refused "
+                       "as two plausible. Lower gives identities on a looser prediction, and "
+                       "trusts the covariance more (60 tolerates a sigma ~2x too small)"}));
+  k->push_back(number("vision.identity.min_agreement", AGV_AT(vision.identity.min_agreement), 0.5,
+                      1.0, 0.70,
+                      {"",
+                       "share of the visible code modules that must agree with the candidate's "
+                       "code (right code >= 0.82 with a third covered). Rejects a landmark not in "
+                       "the map, not a neighbour"}));
+  k->push_back(number("vision.identity.min_pair_agreement",
+                      AGV_AT(vision.identity.min_pair_agreement), 0.5, 1.0, 0.55,
+                      {"",
+                       "on the modules where another mapped code differs, the share that must "
+                       "side with the candidate (right >= 0.67, wrong <= 0.22 measured). Higher "
+                       "refuses more covered codes"}));
+  k->push_back(integer("vision.identity.min_pair_modules", AGV_AT(vision.identity.min_pair_modules),
+                       1, 1000, 24,
+                       {"",
+                        "visible differing modules needed for a pairwise verdict; fewer and the "
+                        "identity is refused (payloads differing in the id alone differ on ~100)"}));
+  k->push_back(integer("vision.identity.pair_neighbours", AGV_AT(vision.identity.pair_neighbours),
+                       1, 1000, 24,
+                       {"",
+                        "mapped landmarks nearest the candidate whose codes the module check "
+                        "compares with; bounds its cost on large maps (24: every landmark within "
+                        "2.5 m on a 1 m grid)"}));
+}
+
 }  // namespace
 
 void add_vision_keys(std::vector<Key>* keys) {
@@ -254,6 +294,7 @@ void add_vision_keys(std::vector<Key>* keys) {
   add_pose(keys);
   add_covariance(keys);
   add_tracking(keys);
+  add_identity(keys);
 }
 
 }  // namespace agv::config::detail

@@ -80,6 +80,12 @@ void read_section(YamlChecker& c, const YAML::Node& parent, const Section& s, Co
   c.finish_map(n, s.path);
 }
 
+std::string num_text(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%g", v);
+  return b;
+}
+
 std::string ms_text(std::int64_t ns) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%g", static_cast<double>(ns) / 1e6);
@@ -135,6 +141,13 @@ void check_relations(YamlChecker& c, const Config& cfg) {
                                        " exceeds fusion.max_fix_delay_ms (" +
                                        ms_text(f.max_fix_delay_ns) +
                                        "): every replayed fix would be dropped as too old");
+  }
+  const vision::MapIdentityConfig& id = cfg.vision.identity;
+  if (!(id.clear_chi2 > id.gate_chi2)) {
+    c.error("vision.identity.clear_chi2",
+            "value " + num_text(id.clear_chi2) + " must exceed vision.identity.gate_chi2 (" +
+                num_text(id.gate_chi2) +
+                "): a runner-up inside the gate would count as clear");
   }
   check_can_interface(c, cfg.can.interface);
   // One gyro source: a CAN gyro enabled beside another source would be fused twice or not at all.
@@ -230,6 +243,8 @@ protocol::ProtocolConfig protocol_config(const Config& cfg) {
   p.odometry.protected_e2e = cfg.can.odometry_protected;
   p.odometry.track_width_mm = cfg.can.track_width_mm;
   p.odometry.speed_scale = cfg.can.wheel_speed_scale;
+  p.output_period_ms = 1000.0 / cfg.loop.output_rate_hz;
+  p.heartbeat_period_ms = 1000.0 / cfg.loop.heartbeat_rate_hz;
   return p;
 }
 

@@ -30,20 +30,14 @@ const protocol::ProtocolConfig& checked(const protocol::ProtocolConfig& p) {
 
 }  // namespace
 
-fusion::EkfConfig effective_fusion_config(const LocalizerConfig& cfg) {
-  fusion::EkfConfig f = cfg.fusion;
-  f.odom_timeout_ns = cfg.odometry_timeout_ns;
-  return f;
-}
-
 Localizer::Localizer(const LocalizerConfig& cfg)
     : cfg_(cfg),
-      ekf_(effective_fusion_config(cfg)),
+      ekf_(cfg.fusion),
       encoder_(checked(cfg.protocol)),
       odom_(cfg.protocol),
       gyro_(cfg.protocol) {
   if (cfg_.heartbeat_period_ns <= 0) throw std::invalid_argument("heartbeat period must be > 0");
-  if (cfg_.odometry_timeout_ns <= 0) throw std::invalid_argument("odometry timeout must be > 0");
+  if (cfg_.fusion.odom_timeout_ns <= 0) throw std::invalid_argument("odometry timeout must be > 0");
   if (cfg_.gyro_timeout_ns <= 0) throw std::invalid_argument("gyro timeout must be > 0");
   const OdometryCorrection& o = cfg_.odometry;
   if (!(o.speed_scale > 0.0) || !(o.yaw_rate_scale > 0.0) || !std::isfinite(o.speed_scale) ||
@@ -52,19 +46,23 @@ Localizer::Localizer(const LocalizerConfig& cfg)
   }
 }
 
-int Localizer::receive_filters(hal::CanFilter* out, int max) const {
+int receive_filters(const protocol::ProtocolConfig& cfg, hal::CanFilter* out, int max) {
   int n = 0;
   for (const protocol::MessageDef& m : protocol::message_table()) {
-    if (m.dir != protocol::Direction::kRx || !protocol::rx_enabled(cfg_.protocol, m.msg)) continue;
+    if (m.dir != protocol::Direction::kRx || !protocol::rx_enabled(cfg, m.msg)) continue;
     if (n < max) {
-      const bool ext = protocol::is_extended(cfg_.protocol, m.msg);
-      out[n].id = protocol::can_id_of(cfg_.protocol, m.msg);
+      const bool ext = protocol::is_extended(cfg, m.msg);
+      out[n].id = protocol::can_id_of(cfg, m.msg);
       out[n].mask = ext ? protocol::kCanExtIdMask : protocol::kCanStdIdMask;
       out[n].extended = ext;
     }
     ++n;
   }
   return n;
+}
+
+int Localizer::receive_filters(hal::CanFilter* out, int max) const {
+  return localizer::receive_filters(cfg_.protocol, out, max);
 }
 
 bool Localizer::set_pose(std::int64_t now_ns, const Pose2& pose, double sigma_mm,
@@ -153,7 +151,7 @@ CanRx Localizer::on_can_frame(const hal::CanFrame& frame, protocol::OdomSample* 
 
 bool Localizer::odometry_timed_out(std::int64_t now_ns) const {
   // Whatever the source (CAN or a recording): the newest sample fusion accepted.
-  return last_odom_ns_ == INT64_MIN || now_ns - last_odom_ns_ > cfg_.odometry_timeout_ns;
+  return last_odom_ns_ == INT64_MIN || now_ns - last_odom_ns_ > cfg_.fusion.odom_timeout_ns;
 }
 
 void Localizer::on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure_ns,

@@ -67,6 +67,12 @@ std::string validate(const ProtocolConfig& cfg) {
   if (!(cfg.odometry.track_width_mm > 0.0) || !finite(cfg.odometry.track_width_mm)) {
     return "odometry.track_width_mm must be > 0";
   }
+  // 65535 ms: the DBC's GenMsgCycleTime range.
+  for (const double period_ms : {cfg.output_period_ms, cfg.heartbeat_period_ms}) {
+    if (!(period_ms >= 0.5) || !(period_ms <= 65535.0)) {
+      return "output and heartbeat periods must be 0.5..65535 ms";
+    }
+  }
   if (!finite(cfg.odometry.speed_scale) || !finite(cfg.odometry.omega_scale) ||
       cfg.odometry.speed_scale == 0.0 || cfg.odometry.omega_scale == 0.0) {
     return "odometry speed_scale/omega_scale must be finite and non-zero";
@@ -112,6 +118,14 @@ bool is_extended(const ProtocolConfig& cfg, Msg m) {
 bool rx_enabled(const ProtocolConfig& cfg, Msg m) {
   if (m == Msg::kGyro) return cfg.gyro.enabled;
   return m == odom_msg(cfg.odometry);
+}
+
+std::uint32_t cycle_ms_of(const ProtocolConfig& cfg, Msg m) {
+  const MessageDef& d = message_def(m);
+  if (d.dir != Direction::kTx) return d.cycle_ms;
+  const double period_ms = m == Msg::kHeartbeat ? cfg.heartbeat_period_ms : cfg.output_period_ms;
+  // validate() keeps the periods finite and positive; the DBC attribute is an integer.
+  return static_cast<std::uint32_t>(std::llround(period_ms));
 }
 
 // ---------------------------------------------------------------------------------- Encoder

@@ -75,7 +75,7 @@ std::string render_dbc(const ProtocolConfig& cfg) {
   s += "BA_ \"ProtocolVersion\" " + std::to_string(kProtocolVersion) + ";\n";
   for (const MessageDef& m : message_table()) {
     s += "BA_ \"GenMsgCycleTime\" BO_ " + std::to_string(dbc_id(cfg, m.msg)) + " " +
-         std::to_string(m.cycle_ms) + ";\n";
+         std::to_string(cycle_ms_of(cfg, m.msg)) + ";\n";
     s += "BA_ \"E2EDataID\" BO_ " + std::to_string(dbc_id(cfg, m.msg)) + " " +
          std::to_string(m.data_id) + ";\n";
   }
@@ -94,7 +94,7 @@ std::string render_markdown_table(const ProtocolConfig& cfg) {
     std::snprintf(buf, sizeof buf, "0x%03X", can_id_of(cfg, m.msg));
     std::string head = std::string("| ") + m.name + " | " + buf + " | " +
                        (m.dir == Direction::kTx ? "out" : "in") + " | " +
-                       (m.cycle_ms ? std::to_string(m.cycle_ms) + " ms" : "event") + " | ";
+                       std::to_string(cycle_ms_of(cfg, m.msg)) + " ms | ";
     std::snprintf(buf, sizeof buf, "0x%04X", m.data_id);
     head += std::string(buf) + " | ";
     bool first = true;

@@ -372,7 +372,6 @@ struct LandmarkLocalizer::Impl {
   FixStatus check_payload(const std::string& text, LandmarkFix* out, Pose2* world_landmark);
 
   // Stage 5c, map-guided identity of an unread code (map_identity_stage.cpp).
-  MapIdentityConfig identity_cfg;
   MapIdentityDecision last_identity;
   ModuleAgreement last_modules;
   // Both forms of a mapped landmark's code: [0] the full payload, [1] the id-only one.

@@ -94,7 +94,7 @@ bool LandmarkLocalizer::Impl::map_identity(const cv::Mat& img, const Prediction&
     turns = {false, false, false, false};
     turns[static_cast<size_t>(logo.best_q)] = true;
   }
-  last_identity = gate_identity(c_mm, beta, cov, turns, pred, *map, identity_cfg, planner.index());
+  last_identity = gate_identity(c_mm, beta, cov, turns, pred, *map, cfg.identity, planner.index());
   if (last_identity.result != MapIdentityResult::kAccepted) return false;
   const LandmarkMapEntry* e = map->find(last_identity.id);
   MapCodes* cand_codes = e ? codes_of(last_identity.id) : nullptr;
@@ -104,7 +104,7 @@ bool LandmarkLocalizer::Impl::map_identity(const cv::Mat& img, const Prediction&
   near_entries.clear();
   if (const LandmarkIndex* index = planner.index()) {
     index->nearest({e->pose.x_mm, e->pose.y_mm},
-                   static_cast<size_t>(std::max(0, identity_cfg.pair_neighbours)) + 1,
+                   static_cast<size_t>(std::max(0, cfg.identity.pair_neighbours)) + 1,
                    &near_entries);
   }
   std::sort(near_entries.begin(), near_entries.end(),
@@ -121,7 +121,7 @@ bool LandmarkLocalizer::Impl::map_identity(const cv::Mat& img, const Prediction&
       if (o->id != last_identity.id)
         identity_others.emplace_back(o->id, &codes_of(o->id)->bits[form]);
     }
-    last_modules = check_modules(identity_bits, cand, identity_others, identity_cfg);
+    last_modules = check_modules(identity_bits, cand, identity_others, cfg.identity);
     ok = last_modules.ok;
   }
   if (!ok) {

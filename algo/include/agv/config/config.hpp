@@ -33,9 +33,7 @@ struct CanSection {
   bool odometry_protected = true;
   double track_width_mm = 500.0;
   double wheel_speed_scale = 1.0;
-  // The one odometry timeout: pose validity and the filter's odometry flag (the key also sets
-  // fusion.odom_timeout_ns).
-  double odometry_timeout_ms = 100.0;
+  // The odometry timeout (key can.odometry.timeout_ms) lives in fusion.odom_timeout_ns only.
   // The gyro input AGV_Gyro (protocol::GyroConfig; ID type = can.extended_ids).
   bool gyro_enabled = false;
   std::uint32_t gyro_id = 0;  // 0 = the DBC's ID: base_id + 0x12

@@ -45,7 +45,10 @@ struct GyroCorrection {
 };
 
 struct LocalizerConfig {
-  fusion::EkfConfig fusion;  // its odom_timeout_ns is replaced by odometry_timeout_ns
+  // fusion.odom_timeout_ns is THE odometry timeout: no accepted sample (CAN or recording) for
+  // this long makes the pose invalid, sets FaultOdomTimeout and the EKF's kOdomTimeout flag.
+  // Trade-off: short stops a vehicle on bus jitter, long lets it drive on a stale prediction.
+  fusion::EkfConfig fusion;
   protocol::ProtocolConfig protocol;
   OdometryCorrection odometry;
   GyroCorrection gyro;
@@ -57,10 +60,6 @@ struct LocalizerConfig {
   // A gyro source outside CAN is configured (imu.source iio): silence since the first tick is
   // FaultImuTimeout as with the CAN gyro enabled.
   bool gyro_expected = false;
-  // THE odometry timeout: no accepted sample (CAN or recording) for this long makes the pose
-  // invalid, sets FaultOdomTimeout and the EKF's kOdomTimeout flag. Trade-off: short stops a
-  // vehicle on bus jitter, long lets it drive on a stale prediction.
-  std::int64_t odometry_timeout_ns = 100'000'000;
   std::int64_t heartbeat_period_ns = 1'000'000'000;
   // No camera frame for this long (and the stream not at its end) -> FaultCameraStalled.
   std::int64_t camera_timeout_ns = 500'000'000;
@@ -118,7 +117,9 @@ struct TickRecord {
 
 // Frames to send, in order, in a fixed buffer. The pose pair (xy, heading) always comes first.
 struct OutFrames {
-  static constexpr int kMax = 6;  // pose xy + heading, velocity, quality, status, heartbeat
+  // One per transmitted message of the signal table (pose xy + heading, velocity, quality,
+  // status, heartbeat); the localizer test checks it against the table.
+  static constexpr int kMax = 6;
   hal::CanFrame frame[kMax];
   int n = 0;
   // Exposure of the newest fused fix this pose pair is the first to carry; INT64_MIN if none.
@@ -156,7 +157,9 @@ class Localizer {
   // frame, then AGV_Gyro when enabled), so the kernel drops the rest. Writes at most max
   // filters to out and returns how many the configuration needs (more than max: truncated).
   int receive_filters(hal::CanFilter* out, int max) const;
-  static constexpr int kMaxReceiveFilters = 2;  // odometry + gyro
+  // One odometry message (wheels or twist) + AGV_Gyro; the localizer test checks it against
+  // every configuration of the signal table.
+  static constexpr int kMaxReceiveFilters = 2;
   // A vision result for a frame exposed at t_exposure_ns, ready at t_arrival_ns (same clock).
   // Failed fixes only set status flags. An exposure after the arrival can only come from a
   // camera clock that jumped ahead: rejected as invalid, never fused at a time it was not taken.
@@ -238,7 +241,8 @@ class Localizer {
   OutputStats stats_;
 };
 
-// The EKF configuration the core runs with: cfg.fusion with THE odometry timeout.
-fusion::EkfConfig effective_fusion_config(const LocalizerConfig& cfg);
+// The receive filters a configuration needs (Localizer::receive_filters; `agvloc record` sets
+// the same ones without a localizer): one per enabled input message of the signal table.
+int receive_filters(const protocol::ProtocolConfig& cfg, hal::CanFilter* out, int max);
 
 }  // namespace agv::localizer

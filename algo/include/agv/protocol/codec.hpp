@@ -55,6 +55,12 @@ struct ProtocolConfig {
   bool extended_ids = false;  // 29-bit IDs for the output frames
   OdometryConfig odometry;
   GyroConfig gyro;
+  // The periods the output messages are sent at (keys loop.output_rate_hz and
+  // loop.heartbeat_rate_hz): the DBC's GenMsgCycleTime of the output messages comes from here,
+  // so a vehicle configured at another rate gets a DBC that says so. The signal table's
+  // cycle_ms are these defaults (checked by a test).
+  double output_period_ms = 10.0;
+  double heartbeat_period_ms = 1000.0;
 };
 
 // Empty string when valid; otherwise why not (ID does not fit 11/29 bits, track width <= 0, an
@@ -67,6 +73,10 @@ bool is_extended(const ProtocolConfig& cfg, Msg m);
 // True for the input (kRx) messages the localizer receives under cfg: the odometry variant of
 // OdometryConfig::mode, and AGV_Gyro when GyroConfig::enabled. False for every output message.
 bool rx_enabled(const ProtocolConfig& cfg, Msg m);
+// GenMsgCycleTime of message m under cfg, in whole ms: the configured periods for the output
+// messages (the heartbeat its own), the signal table's nominal period for the inputs (what the
+// motor controller is expected to send).
+std::uint32_t cycle_ms_of(const ProtocolConfig& cfg, Msg m);
 
 struct PoseOut {
   double x_mm = 0.0;

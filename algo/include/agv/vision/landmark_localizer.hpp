@@ -14,6 +14,7 @@
 #include "agv/common/camera_model.hpp"
 #include "agv/common/geometry.hpp"
 #include "agv/common/landmark.hpp"
+#include "agv/vision/map_identity_config.hpp"
 
 namespace cv {
 class Mat;
@@ -237,6 +238,8 @@ struct VisionConfig {
   double sigma_floor_deg = 0.01;
 
   TrackingConfig tracking;
+  // Map-guided identity of a landmark whose code cannot be read (keys vision.identity.*).
+  MapIdentityConfig identity;
 
   // --- timings -----------------------------------------------------------------------------
   // Optional monotonic clock supplied by the caller (algo/ never reads a clock). When empty,
