@@ -22,6 +22,14 @@ for c in sim landmark report calibrate sim-board; do
   [ ! -e "$WORK/x" ] || fail "agvloc $c wrote output"
 done
 
+# Every desk command and calibrate subcommand is in the top-level help (issue 36: it listed only
+# calibrate intrinsics).
+"${DESK[@]}" --help > "$WORK/desk_help.txt"
+for want in "sim " "landmark" "report" "sim-board" "calibrate intrinsics" "calibrate vehicle" \
+            "calibrate check"; do
+  grep -q -- "$want" "$WORK/desk_help.txt" || fail "agvloc-desk --help does not list '$want'"
+done
+
 bin_of() { local a=("$@"); echo "${a[-1]}"; }
 vehicle_syms="$("$NM" -C --defined-only "$(bin_of "${AGVLOC[@]}")")"
 desk_syms="$("$NM" -C --defined-only "$(bin_of "${DESK[@]}")")"

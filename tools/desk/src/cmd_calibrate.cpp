@@ -51,6 +51,15 @@ void calibrate_usage(FILE* f) {
   std::fprintf(f, "Each takes --help.\n");
 }
 
+}  // namespace
+
+// The top-level usage lists the subcommands from the same table, so none can be left out.
+void print_calibrate_subcommands(FILE* f) {
+  for (const auto& s : kSubcommands) std::fprintf(f, "  calibrate %-11s %s\n", s.name, s.help);
+}
+
+namespace {
+
 bool write_text(const std::string& path, const std::string& text) {
   std::ofstream f(path, std::ios::binary | std::ios::trunc);
   f << text;

@@ -2,12 +2,15 @@
 // process exit code: 0 success, 1 runtime failure (message on stderr), 2 usage error.
 #pragma once
 
+#include <cstdio>
+
 namespace agv::desk {
 
 int sim(int argc, char** argv);        // write a simulated recording
 int landmark(int argc, char** argv);   // print landmarks as SVG/PNG
 int report(int argc, char** argv);     // accuracy against truth + trajectory plot of a replay
 int calibrate(int argc, char** argv);  // dispatcher: calibrate intrinsics|vehicle|check
+void print_calibrate_subcommands(FILE* f);  // one usage line per calibrate subcommand
 int calibrate_intrinsics(int argc, char** argv);  // camera intrinsics from board images
 // calibrate vehicle: mounting, odometry and time offset from a calibration drive. Exit 0 all
 // determined, 1 some not determined (not written) or failure, 2 bad input.

@@ -14,8 +14,9 @@ void usage(FILE* f) {
                "  landmark           print landmarks (SVG at physical scale, PNG)\n"
                "  report OUT --recording REC   accuracy against truth + trajectory.svg of a "
                "replay\n"
-               "  calibrate intrinsics --images DIR   camera intrinsics from board images\n"
-               "  sim-board --out DIR   simulated calibration-board views (tests)\n"
+               "  sim-board --out DIR   simulated calibration-board views (tests)\n");
+  agv::desk::print_calibrate_subcommands(f);
+  std::fprintf(f,
                "  --version          version\n"
                "Each command takes --help. The vehicle commands (run, replay, record) are in "
                "agvloc.\n");
