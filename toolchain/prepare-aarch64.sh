@@ -44,6 +44,9 @@ if [ "${AGV_CROSS_NO_LIBCAMERA:-0}" != "1" ]; then ARM_PKGS+=(libcamera-dev); fi
 ARM_PKGS+=(libiio-dev)
 # VDA 5050 over MQTT (firmware/src/mqtt_publisher.cpp).
 ARM_PKGS+=(libmosquitto-dev)
+# The diagnostics page on the vehicle (firmware/src/diag_server.cpp; optional in CMake). Multi-Arch:
+# same; pulls the arm64 libssl-dev, libbrotli-dev and zlib1g-dev.
+ARM_PKGS+=(libcpp-httplib-dev)
 # Not co-installable with the amd64 versions (no Multi-Arch: same): unpacked into $EXTRA.
 EXTRACT=(libopencv-imgcodecs406 libgdal32 gdal-plugins libarmadillo11 libhdf4-0-alt libogdi4.1)
 
