@@ -530,13 +530,13 @@ TEST(Config, DbcCycleTimesFromTheConfiguredRates) {
   Config cfg;
   std::vector<std::string> errors;
   ASSERT_TRUE(agv::config::parse_config(
-      std::string(kIntrinsics) + "loop:\n  output_rate_hz: 50\n  heartbeat_rate_hz: 2\n", "",
-      &cfg, &errors));
+      std::string(kIntrinsics) + "loop:\n  output_rate_hz: 50\n  heartbeat_rate_hz: 2\n", "", &cfg,
+      &errors));
   const auto pc = agv::config::protocol_config(cfg);
   EXPECT_DOUBLE_EQ(pc.output_period_ms, 20.0);
   EXPECT_DOUBLE_EQ(pc.heartbeat_period_ms, 500.0);
   const std::string dbc = agv::protocol::render_dbc(pc);
-  EXPECT_NE(dbc.find("BA_ \"GenMsgCycleTime\" BO_ 768 20;"), std::string::npos);  // AGV_PoseXY
+  EXPECT_NE(dbc.find("BA_ \"GenMsgCycleTime\" BO_ 768 20;"), std::string::npos);   // AGV_PoseXY
   EXPECT_NE(dbc.find("BA_ \"GenMsgCycleTime\" BO_ 773 500;"), std::string::npos);  // heartbeat
 }
 

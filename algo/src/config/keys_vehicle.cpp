@@ -134,11 +134,11 @@ void add_can(std::vector<Key>* k) {
                       1.0, {"", "wheels mode: calibrates wheel radius error"}));
   // Stored once, where it is used (the filter's flag and the core's pose validity both read
   // fusion.odom_timeout_ns); the key keeps its CAN name because the odometry comes over CAN.
-  k->push_back(ms_as_ns(
-      "can.odometry.timeout_ms", AGV_AT(fusion.odom_timeout_ns), 5.0, 10000.0, 100.0,
-      "the one odometry timeout: no valid odometry this long → `OdomTimeout`, pose "
-      "flagged invalid and the filter lost. Short reacts fast to a dead controller but "
-      "trips on bus jitter; 100 ms = 10 missed frames at 100 Hz"));
+  k->push_back(
+      ms_as_ns("can.odometry.timeout_ms", AGV_AT(fusion.odom_timeout_ns), 5.0, 10000.0, 100.0,
+               "the one odometry timeout: no valid odometry this long → `OdomTimeout`, pose "
+               "flagged invalid and the filter lost. Short reacts fast to a dead controller but "
+               "trips on bus jitter; 100 ms = 10 missed frames at 100 Hz"));
   k->push_back(boolean(
       "can.gyro.enabled", AGV_AT(can.gyro_enabled), false,
       "receive the yaw rate from an IMU as `AGV_Gyro` (docs/can.md): it carries the heading "

@@ -254,8 +254,8 @@ void add_identity(std::vector<Key>* k) {
                        "landmark is a candidate for an unread code. 16.27 = chi2(3) at 0.999: a "
                        "right landmark is refused once in a thousand frames (one fix lost, never "
                        "a wrong one). Must be below clear_chi2"}));
-  k->push_back(number("vision.identity.clear_chi2", AGV_AT(vision.identity.clear_chi2), 1.0,
-                      1000.0, 60.0,
+  k->push_back(number("vision.identity.clear_chi2", AGV_AT(vision.identity.clear_chi2), 1.0, 1000.0,
+                      60.0,
                       {"",
                        "the runner-up must lie beyond this distance, or the identity is refused "
                        "as two plausible. Lower gives identities on a looser prediction, and "
@@ -272,11 +272,11 @@ void add_identity(std::vector<Key>* k) {
                        "on the modules where another mapped code differs, the share that must "
                        "side with the candidate (right >= 0.67, wrong <= 0.22 measured). Higher "
                        "refuses more covered codes"}));
-  k->push_back(integer("vision.identity.min_pair_modules", AGV_AT(vision.identity.min_pair_modules),
-                       1, 1000, 24,
-                       {"",
-                        "visible differing modules needed for a pairwise verdict; fewer and the "
-                        "identity is refused (payloads differing in the id alone differ on ~100)"}));
+  k->push_back(integer(
+      "vision.identity.min_pair_modules", AGV_AT(vision.identity.min_pair_modules), 1, 1000, 24,
+      {"",
+       "visible differing modules needed for a pairwise verdict; fewer and the "
+       "identity is refused (payloads differing in the id alone differ on ~100)"}));
   k->push_back(integer("vision.identity.pair_neighbours", AGV_AT(vision.identity.pair_neighbours),
                        1, 1000, 24,
                        {"",

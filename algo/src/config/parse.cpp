@@ -146,8 +146,7 @@ void check_relations(YamlChecker& c, const Config& cfg) {
   if (!(id.clear_chi2 > id.gate_chi2)) {
     c.error("vision.identity.clear_chi2",
             "value " + num_text(id.clear_chi2) + " must exceed vision.identity.gate_chi2 (" +
-                num_text(id.gate_chi2) +
-                "): a runner-up inside the gate would count as clear");
+                num_text(id.gate_chi2) + "): a runner-up inside the gate would count as clear");
   }
   check_can_interface(c, cfg.can.interface);
   // One gyro source: a CAN gyro enabled beside another source would be fused twice or not at all.

@@ -6,10 +6,10 @@
 
 namespace agv::desk {
 
-int sim(int argc, char** argv);        // write a simulated recording
-int landmark(int argc, char** argv);   // print landmarks as SVG/PNG
-int report(int argc, char** argv);     // accuracy against truth + trajectory plot of a replay
-int calibrate(int argc, char** argv);  // dispatcher: calibrate intrinsics|vehicle|check
+int sim(int argc, char** argv);             // write a simulated recording
+int landmark(int argc, char** argv);        // print landmarks as SVG/PNG
+int report(int argc, char** argv);          // accuracy against truth + trajectory plot of a replay
+int calibrate(int argc, char** argv);       // dispatcher: calibrate intrinsics|vehicle|check
 void print_calibrate_subcommands(FILE* f);  // one usage line per calibrate subcommand
 int calibrate_intrinsics(int argc, char** argv);  // camera intrinsics from board images
 // calibrate vehicle: mounting, odometry and time offset from a calibration drive. Exit 0 all
