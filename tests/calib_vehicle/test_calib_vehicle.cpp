@@ -12,21 +12,7 @@ using namespace agv::desk::vcal;
 
 namespace {
 
-calibtest::DriveTruth perturbed() {
-  calibtest::DriveTruth t;
-  t.p.mount = CameraModel::default_640x480().mount;
-  t.p.mount.offset_x_mm = 8.0;
-  t.p.mount.offset_y_mm = -6.0;
-  t.p.mount.yaw_rad = deg_to_rad(1.8);
-  t.p.mount.height_mm = 204.5;
-  t.p.mount.roll_rad = deg_to_rad(1.2);
-  t.p.mount.pitch_rad = deg_to_rad(-1.4);
-  t.p.speed_scale = 1.028;
-  t.p.yaw_rate_scale = 0.972;
-  t.p.yaw_rate_bias_radps = deg_to_rad(0.45);
-  t.p.time_offset_s = 0.027;
-  return t;
-}
+calibtest::DriveTruth perturbed() { return calibtest::perturbed_drive(); }
 
 Options options() {
   Options o;
