@@ -1,29 +1,25 @@
-// agvloc record --config FILE --out DIR: the live camera, CAN odometry and (with can.gyro.enabled)
-// the CAN gyro, written in the recording format (docs/recording.md) for later replay.
+// agvloc record --config FILE --out DIR: the live camera, CAN odometry and the gyro (AGV_Gyro
+// with can.gyro.enabled, the IIO device with imu.source iio), streamed in the recording format
+// (docs/recording.md) for later replay. The recording itself is app::Recorder.
 #include <CLI/CLI.hpp>
-#include <algorithm>
-#include <cinttypes>
 #include <cstdio>
 #include <filesystem>
-#include <opencv2/core.hpp>
-#include <thread>
+#include <memory>
 
 #include "agv/can/socketcan.hpp"
-#include "agv/localizer/localizer.hpp"
 #include "agv/posix/posix_clock.hpp"
-#include "agv/protocol/codec.hpp"
 #include "agv/recording/recording.hpp"
 #include "commands.hpp"
 #include "config.hpp"
-#include "handoff.hpp"
 #include "live_devices.hpp"
+#include "recorder.hpp"
 #include "signals.hpp"
 
 namespace agv::cmd {
 
 int record(int argc, char** argv) {
   CLI::App app{
-      "Record the live camera, CAN odometry and CAN gyro as a recording (docs/recording.md)"};
+      "Record the live camera, CAN odometry and the gyro as a recording (docs/recording.md)"};
   std::string config_file, out_dir;
   double duration_s = 0.0;
   app.add_option("--config", config_file, "configuration YAML")->required();
@@ -47,6 +43,14 @@ int record(int argc, char** argv) {
     std::fprintf(stderr, "agvloc record: %s\n", err.c_str());
     return 2;
   }
+  std::unique_ptr<hal::Imu> imu;  // imu.source iio: the same device and reader as `agvloc run`
+  if (cfg.imu.source == "iio") {
+    imu = app::make_live_imu(cfg, &err);
+    if (!imu) {
+      std::fprintf(stderr, "agvloc record: %s\n", err.c_str());
+      return 2;
+    }
+  }
   recording::Meta meta;
   meta.camera = cfg.camera_model;
   meta.landmark_size_mm = cfg.landmark_size_mm;
@@ -60,99 +64,20 @@ int record(int argc, char** argv) {
   can::SocketCanBus bus(sc);
   protocol::ProtocolConfig pc = config::protocol_config(cfg);
   pc.gyro = config::gyro_protocol_config(cfg);  // AGV_Gyro is received only when enabled
-  protocol::OdometryDecoder decoder(pc);
-  protocol::GyroDecoder gyro_decoder(pc);
-  // The same filters as `agvloc run`: one per enabled input of the signal table.
-  hal::CanFilter filters[localizer::Localizer::kMaxReceiveFilters];
-  const int n_filters =
-      localizer::receive_filters(pc, filters, localizer::Localizer::kMaxReceiveFilters);
-  bus.set_filters(filters, static_cast<std::size_t>(
-                               std::min(n_filters, localizer::Localizer::kMaxReceiveFilters)));
 
   install_stop_signals();
   posix::PosixClock clock;
   const std::int64_t t_end =
       duration_s > 0 ? clock.now_ns() + static_cast<std::int64_t>(duration_s * 1e9) : INT64_MAX;
-  if (camera->start() != hal::CameraStatus::kOk) {
-    std::fprintf(stderr, "agvloc record: camera did not start: %s\n", camera->last_error());
+  app::Recorder recorder(out_dir, pc, *camera, bus, std::move(imu), clock);
+  if (!recorder.start(&err)) {
+    std::fprintf(stderr, "agvloc record: %s\n", err.c_str());
     return 1;
   }
-  // Capture thread -> writer (this thread's helper): PNG encoding is slow, so the newest frame
-  // wins and drops are counted rather than stalling the camera.
-  app::FrameMailbox mailbox;
-  std::vector<recording::FrameRow> frames;
-  std::vector<recording::OdomRow> odom;
-  std::vector<recording::ImuRow> imu;
-  std::uint64_t gyro_saturated = 0;  // left out of imu.csv: the localizer does not fuse them
-  std::atomic<bool> done{false};
-  std::atomic<std::uint64_t> write_errors{0};
-  std::thread writer([&] {
-    hal::FrameView f;
-    while (mailbox.take(100'000'000, &f) || !mailbox.closed()) {
-      if (!f.data) continue;
-      char name[64];
-      std::snprintf(name, sizeof name, "frames/%08zu.png", frames.size());
-      const cv::Mat img(f.height_px, f.width_px, CV_8UC1, const_cast<std::uint8_t*>(f.data),
-                        static_cast<size_t>(f.stride_bytes));
-      std::string e;
-      if (recording::write_frame_png(out_dir, name, img, &e)) {
-        frames.push_back({f.t_exposure_ns, name});
-      } else {
-        ++write_errors;
-        std::fprintf(stderr, "agvloc record: %s\n", e.c_str());
-      }
-      camera->release(f);
-      f = hal::FrameView{};
-    }
-  });
-  std::thread capture([&] {
-    while (!done.load()) {
-      hal::FrameView f;
-      const auto s = camera->next_frame(50'000'000, &f);
-      if (s == hal::CameraStatus::kOk) {
-        hal::FrameView old;
-        if (mailbox.put(f, &old)) camera->release(old);
-      } else if (s != hal::CameraStatus::kTimeout) {
-        std::fprintf(stderr, "agvloc record: camera: %s (%s)\n", hal::to_string(s),
-                     camera->last_error());
-        break;
-      }
-    }
-    mailbox.close();
-  });
-  hal::CanFrame cf;
-  while (!stop_requested().load() && clock.now_ns() < t_end) {
-    if (bus.receive(&cf, 20'000'000) != hal::CanStatus::kOk) continue;
-    protocol::OdomSample s;
-    protocol::GyroSample g;
-    if (decoder.decode(cf, &s) == protocol::DecodeResult::kOk &&
-        (odom.empty() || s.t_ns > odom.back().t_ns)) {
-      odom.push_back({s.t_ns, s.v_mps, s.omega_radps});
-    } else if (pc.gyro.enabled && gyro_decoder.decode(cf, &g) == protocol::DecodeResult::kOk &&
-               (imu.empty() || g.t_ns > imu.back().t_ns)) {
-      if (g.saturated) {
-        ++gyro_saturated;
-      } else {
-        imu.push_back({g.t_ns, g.gyro_z_radps});
-      }
-    }
-  }
-  done = true;
-  capture.join();
-  writer.join();
-  camera->stop();
-  // imu.csv only when gyro samples arrived: an absent file is what "no gyro" means.
-  bool ok = recording::write_frames_csv(out_dir, frames, &err) &&
-            recording::write_odom_csv(out_dir, odom, &err) &&
-            (imu.empty() || recording::write_imu_csv(out_dir, imu, &err));
-  if (!ok) std::fprintf(stderr, "agvloc record: %s\n", err.c_str());
-  std::printf("agvloc record: %zu frames (%" PRIu64
-              " dropped while encoding), %zu odometry samples "
-              "(%" PRIu64 " rejected), %zu gyro samples (%" PRIu64 " rejected, %" PRIu64
-              " saturated left out) -> %s\n",
-              frames.size(), mailbox.dropped(), odom.size(), decoder.counters().rejected(),
-              imu.size(), gyro_decoder.counters().rejected(), gyro_saturated, out_dir.c_str());
-  return ok && write_errors.load() == 0 ? 0 : 1;
+  while (!stop_requested().load() && clock.now_ns() < t_end) recorder.step(20'000'000);
+  const bool ok = recorder.stop();
+  std::fputs(recorder.summary().c_str(), stdout);
+  return ok ? 0 : 1;
 }
 
 }  // namespace agv::cmd
