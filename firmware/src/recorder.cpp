@@ -27,11 +27,23 @@ Recorder::Recorder(std::string dir, const protocol::ProtocolConfig& pc, hal::Cam
 Recorder::~Recorder() { stop(); }
 
 bool Recorder::start(std::string* error) {
+  // The devices first: a camera that does not start leaves no frames.csv behind, so the same
+  // command can be run again on the same directory.
+  if (camera_.start() != hal::CameraStatus::kOk) {
+    *error = std::string("camera did not start: ") + camera_.last_error();
+    return false;
+  }
+  if (gyro_reader_ && !gyro_reader_->start(error)) {
+    camera_.stop();
+    return false;
+  }
   std::error_code ec;
   std::filesystem::create_directories(dir_, ec);
   if (!frames_csv_.open(dir_ + "/frames.csv", recording::frames_csv_header(), error) ||
       !odom_csv_.open(dir_ + "/odom.csv", recording::odom_csv_header(), error)) {
     frames_csv_.close(nullptr);
+    if (gyro_reader_) gyro_reader_->stop();
+    camera_.stop();
     return false;
   }
   // The same filters as `agvloc run`: one per enabled input of the signal table.
@@ -39,18 +51,6 @@ bool Recorder::start(std::string* error) {
   const int n = localizer::receive_filters(pc_, filters, localizer::Localizer::kMaxReceiveFilters);
   bus_.set_filters(filters, static_cast<std::size_t>(
                                 std::clamp(n, 0, localizer::Localizer::kMaxReceiveFilters)));
-  if (camera_.start() != hal::CameraStatus::kOk) {
-    *error = std::string("camera did not start: ") + camera_.last_error();
-    frames_csv_.close(nullptr);
-    odom_csv_.close(nullptr);
-    return false;
-  }
-  if (gyro_reader_ && !gyro_reader_->start(error)) {
-    camera_.stop();
-    frames_csv_.close(nullptr);
-    odom_csv_.close(nullptr);
-    return false;
-  }
   flushed_ns_ = synced_ns_ = frames_synced_ns_ = clock_.now_ns();
   done_ = false;
   running_ = true;

@@ -57,8 +57,9 @@ class Recorder {
   Recorder(const Recorder&) = delete;
   Recorder& operator=(const Recorder&) = delete;
 
-  // Creates frames.csv and odom.csv (refusing existing ones) in `dir`, sets the CAN filters,
-  // starts the camera, the IIO gyro and the threads. False with *error, nothing left running.
+  // Starts the camera and the IIO gyro, creates frames.csv and odom.csv (refusing existing ones)
+  // in `dir`, sets the CAN filters and starts the threads. False with *error, nothing left
+  // running.
   bool start(std::string* error);
   // Waits up to timeout_ns for one CAN frame and records it, takes the IIO gyro's samples and
   // flushes what is due.
