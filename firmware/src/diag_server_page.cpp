@@ -62,7 +62,7 @@ function showStatus(s){
   $("mode").textContent = s.mode + (s.finished ? " (finished)" : "");
   $("t").textContent = "t = " + f(s.t_ns/1e9, 2) + " s";
   const p = s.pose;
-  $("pose").textContent = p.valid ? ("x " + f(p.x_mm,1) + " mm  y " + f(p.y_mm,1) + " mm  θ " + f(p.theta_deg,2) + "°") : "pose not valid";
+  $("pose").textContent = p.initialised ? ("x " + f(p.x_mm,1) + " mm  y " + f(p.y_mm,1) + " mm  θ " + f(p.theta_deg,2) + "°" + (p.valid ? "" : "  (PoseValid 0: not for control)")) : "no pose yet";
   $("posetab").innerHTML =
     row(["σ position (largest axis)", f(p.position_sigma_mm,2)+" mm"]) +
     row(["σ x / σ y", f(p.sigma_x_mm,2)+" / "+f(p.sigma_y_mm,2)+" mm"]) +

@@ -127,8 +127,14 @@ def main():
                           ("sigma_x_mm", float(last["sigma_x_mm"]), 1e-4)):
         if abs(p[k] - ref_v) > res:
             fail("status %s %r, poses.csv %r" % (k, p[k], ref_v))
-    if p["valid"] != (last["valid"] == "1"):
-        fail("status valid differs from poses.csv")
+    # poses.csv's valid is "initialised"; the page's pose.valid is the CAN PoseValid: initialised,
+    # fusion state neither uninitialised (0) nor lost (3), no FaultOdomTimeout (fault bit 2).
+    if p["initialised"] != (last["valid"] == "1"):
+        fail("status initialised differs from poses.csv's valid")
+    can_valid = (last["valid"] == "1" and int(last["health"]) not in (0, 3)
+                 and int(last["faults"]) & (1 << 2) == 0)
+    if p["valid"] != can_valid:
+        fail("status valid %r, PoseValid from poses.csv %r" % (p["valid"], can_valid))
     if final["counters"]["fixes_fused"] != fused or final["counters"]["ticks"] != n_ticks:
         fail("status counters %r, summary: %d fused, %d ticks" % (final["counters"], fused, n_ticks))
     if fused == 0 or not final["fixes"]:
@@ -143,6 +149,9 @@ def main():
     if status != 200 or not headers.get("Content-Type", "").startswith("text/plain; version=0.0.4"):
         fail("/metrics: %d %r" % (status, headers))
     samples = check_metrics(body.decode())
+    if samples["agvloc_pose_valid"] != int(can_valid):
+        fail("/metrics agvloc_pose_valid %r, PoseValid from poses.csv %r" % (
+            samples["agvloc_pose_valid"], can_valid))
     if samples["agvloc_fixes_fused_total"] != fused or samples["agvloc_ticks_total"] != n_ticks:
         fail("/metrics fixes %r ticks %r, summary %d / %d" % (
             samples["agvloc_fixes_fused_total"], samples["agvloc_ticks_total"], fused, n_ticks))

@@ -25,6 +25,7 @@ Snapshot sample_snapshot() {
   s.has_tick = true;
   s.tick.t_ns = 2'500'000'000;
   s.tick.estimate.valid = true;
+  s.tick.pose_valid = true;
   s.tick.estimate.pose = {1234.5, -678.25, 0.5};
   s.tick.estimate.cov(0, 0) = 4.0;
   s.tick.estimate.cov(1, 1) = 9.0;
@@ -232,6 +233,72 @@ TEST(DiagJson, StatusFields) {
   EXPECT_DOUBLE_EQ(j["fixes"][0]["x_mm"].get<double>(), 200.0);
   EXPECT_DOUBLE_EQ(j["fixes"][0]["sigma_mm"].get<double>(), 0.5);
   EXPECT_DOUBLE_EQ(j["fixes"][0]["latency_ms"].get<double>(), 30.0);
+}
+
+// The page's pose.valid and /metrics' agvloc_pose_valid are the PoseValid the CAN pose frames of
+// the same tick carry; "initialised" (the filter has a pose) is separate: true while LOST too.
+TEST(DiagPoseValid, IsTheCanPoseValid) {
+  constexpr std::int64_t kMs = 1'000'000;
+  localizer::LocalizerConfig c;
+  c.fusion.odom_timeout_ns = 50 * kMs;
+  c.heartbeat_period_ns = 1000 * kMs;
+  localizer::Localizer loc(c);
+  localizer::OutFrames out;
+  struct Seen {
+    bool can = false, page = false, initialised = false;
+    double metric = -1.0, metric_initialised = -1.0;
+    protocol::Health health = protocol::Health::kOk;
+  };
+  auto tick = [&](std::int64_t t) {
+    Snapshot s;
+    s.has_tick = true;
+    loc.tick(t, &out, &s.tick);
+    protocol::PoseOut pose;
+    EXPECT_TRUE(protocol::decode_pose(c.protocol, out.frame[0], out.frame[1], &pose));
+    const auto j = nlohmann::json::parse(status_json(s, {}, "run"));
+    std::map<std::string, double> samples;
+    check_prometheus(metrics_text(s, {}), &samples);
+    return Seen{pose.valid,
+                j["pose"]["valid"].get<bool>(),
+                j["pose"]["initialised"].get<bool>(),
+                samples["agvloc_pose_valid"],
+                samples["agvloc_pose_initialised"],
+                s.tick.status.health};
+  };
+  std::int64_t t = 1000 * kMs;
+  // Uninitialised: nothing valid.
+  loc.on_odometry(t, 0.5, 0.0);
+  Seen seen = tick(t += 10 * kMs);
+  EXPECT_FALSE(seen.can);
+  EXPECT_FALSE(seen.page);
+  EXPECT_FALSE(seen.initialised);
+  EXPECT_EQ(seen.metric, 0.0);
+  // Placed with a sigma beyond the lost limit: initialised, but LOST, so PoseValid 0.
+  const double sigma_mm = 2.0 * c.fusion.lost_position_sigma_mm;
+  ASSERT_TRUE(loc.set_pose(t, {100.0, 0.0, 0.0}, sigma_mm, 0.01));
+  for (int i = 0; i < 3; ++i) {
+    loc.on_odometry(t, 0.5, 0.0);
+    seen = tick(t += 10 * kMs);
+  }
+  EXPECT_EQ(seen.health, protocol::Health::kLost);
+  EXPECT_FALSE(seen.can);
+  EXPECT_FALSE(seen.page);
+  EXPECT_EQ(seen.metric, 0.0);
+  EXPECT_TRUE(seen.initialised);
+  EXPECT_EQ(seen.metric_initialised, 1.0);
+  // Placed well within the limits with odometry flowing: valid everywhere.
+  ASSERT_TRUE(loc.set_pose(t, {100.0, 0.0, 0.0}, 1.0, 0.001));
+  loc.on_odometry(t, 0.5, 0.0);
+  seen = tick(t += 10 * kMs);
+  EXPECT_TRUE(seen.can);
+  EXPECT_TRUE(seen.page);
+  EXPECT_EQ(seen.metric, 1.0);
+  // Odometry stops: PoseValid 0 (FaultOdomTimeout) while the filter stays initialised.
+  seen = tick(t += 60 * kMs);
+  EXPECT_FALSE(seen.can);
+  EXPECT_FALSE(seen.page);
+  EXPECT_EQ(seen.metric, 0.0);
+  EXPECT_TRUE(seen.initialised);
 }
 
 TEST(DiagJson, NonFiniteIsNull) {

@@ -160,8 +160,10 @@ std::string status_json(const Snapshot& s, const ServerStats& server, const char
   o += std::to_string(s.tick.t_ns);
   key(&o, "pose");
   o += '{';
+  // valid: the CAN PoseValid of this tick; initialised: the filter has a pose at all (also LOST).
   key(&o, "valid", true);
-  o += e.valid ? "true" : "false";
+  o += s.tick.pose_valid ? "true" : "false";
+  boolean(&o, "initialised", e.valid);
   num(&o, "x_mm", e.pose.x_mm);
   num(&o, "y_mm", e.pose.y_mm);
   num(&o, "theta_deg", e.pose.theta_rad * 180.0 / kPi);

@@ -124,8 +124,12 @@ std::string metrics_text(const Snapshot& s, const ServerStats& server) {
           "Camera frames replaced by a newer one before vision took them.", s.frames_dropped);
 
   const fusion::PoseEstimate& e = s.tick.estimate;
-  header(&o, "agvloc_pose_valid", "gauge", "1 when the newest output pose is valid.");
-  sample_u(&o, "agvloc_pose_valid", nullptr, e.valid ? 1 : 0);
+  header(&o, "agvloc_pose_valid", "gauge",
+         "PoseValid of the newest CAN pose frames (0 while LOST or without odometry).");
+  sample_u(&o, "agvloc_pose_valid", nullptr, s.tick.pose_valid ? 1 : 0);
+  header(&o, "agvloc_pose_initialised", "gauge",
+         "1 when the filter has a pose (since the first fix; also while LOST).");
+  sample_u(&o, "agvloc_pose_initialised", nullptr, e.valid ? 1 : 0);
   header(&o, "agvloc_health", "gauge", "The CAN status health of the newest tick (one-hot).");
   const protocol::Health h = s.tick.status.health;
   sample_u(&o, "agvloc_health", "state=\"ok\"", h == protocol::Health::kOk ? 1 : 0);

@@ -359,6 +359,7 @@ void Localizer::tick(std::int64_t now_ns, OutFrames* out, TickRecord* rec) {
     rec->t_ns = now_ns;
     rec->estimate = est;
     rec->status = st;
+    rec->pose_valid = protocol::pose_valid_on_can(pose);
   }
 }
 

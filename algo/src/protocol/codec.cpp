@@ -145,8 +145,12 @@ void Encoder::finish(Msg m, hal::CanFrame* out) {
   c = static_cast<std::uint8_t>((c + 1) % kE2eCounterModulo);
 }
 
+bool pose_valid_on_can(const PoseOut& p) {
+  return p.valid && finite(p.x_mm) && finite(p.y_mm) && finite(p.theta_rad);
+}
+
 void Encoder::encode_pose(const PoseOut& p, hal::CanFrame* xy, hal::CanFrame* heading) {
-  const bool valid = p.valid && finite(p.x_mm) && finite(p.y_mm) && finite(p.theta_rad);
+  const bool valid = pose_valid_on_can(p);
   begin(Msg::kPoseXY, xy);
   put_raw(sig(Msg::kPoseXY, "PoseValid"), valid ? 1 : 0, xy->data);
   put_phys(sig(Msg::kPoseXY, "X"), p.x_mm, xy->data);

@@ -113,6 +113,9 @@ struct TickRecord {
   std::int64_t t_ns = 0;
   fusion::PoseEstimate estimate;
   protocol::StatusOut status;
+  // PoseValid of the pose frames this tick sent (protocol::pose_valid_on_can). Not the same as
+  // estimate.valid, which means only "the filter is initialised" (true while LOST too).
+  bool pose_valid = false;
 };
 
 // Frames to send, in order, in a fixed buffer. The pose pair (xy, heading) always comes first.

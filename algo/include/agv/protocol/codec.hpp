@@ -85,6 +85,10 @@ struct PoseOut {
   double latency_ms = 0.0;  // age of the estimate at encoding time
   bool valid = false;
 };
+// PoseValid of AGV_PoseXY / AGV_PoseHeading for p: p.valid (set by the localizer: initialised, not
+// lost, odometry flowing) and a finite pose. The one definition: the encoder sends it, the
+// diagnostics page and /metrics show it (localizer::TickRecord::pose_valid).
+bool pose_valid_on_can(const PoseOut& p);
 struct VelocityOut {
   double v_mps = 0.0;
   double omega_radps = 0.0;
