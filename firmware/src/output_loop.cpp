@@ -30,11 +30,6 @@ localizer::LocalizerConfig localizer_config(const config::Config& cfg) {
 
 namespace {
 
-// The pose an operator sets (VDA 5050 initPosition) is as good as the placement: 50 mm, 2 degrees
-// (1 sigma); the next landmark fix narrows it.
-constexpr double kInitPoseSigmaMm = 50.0;
-constexpr double kInitPoseSigmaRad = 2.0 * M_PI / 180.0;
-
 void print_period_line(const OutputStats& o, std::uint64_t dropped) {
   std::fprintf(stderr,
                "agvloc: ticks %" PRIu64 " missed %" PRIu64 " | fixes fused %" PRIu64
@@ -143,8 +138,9 @@ void OutputLoop::tick(std::int64_t now_ns, const CameraState& camera, TickRecord
   if (bus_) core_.set_can_state(bus_->state(), bus_->stats());
   InitPoseCommand cmd;
   if (mqtt_ && mqtt_->take_command(&cmd)) {
-    mqtt_->report(cmd.seq, core_.set_pose(now_ns, {cmd.x_mm, cmd.y_mm, cmd.theta_rad},
-                                          kInitPoseSigmaMm, kInitPoseSigmaRad));
+    // The pose an operator sets gets half the lost limits as sigma
+    // (localizer::init_position_sigma).
+    mqtt_->report(cmd.seq, core_.init_position(now_ns, {cmd.x_mm, cmd.y_mm, cmd.theta_rad}));
   }
   TickRecord local;
   if ((mqtt_ || diag_) && !rec) rec = &local;

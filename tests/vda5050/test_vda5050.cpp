@@ -5,6 +5,7 @@
 #include <limits>
 #include <nlohmann/json.hpp>
 
+#include "agv/localizer/localizer.hpp"
 #include "agv/vda5050/vda5050.hpp"
 #include "vda_test_util.hpp"
 
@@ -69,6 +70,56 @@ TEST(Vda5050Mapping, ThetaWrappedIntoTheSchemaRange) {
   auto t = tick(fusion::HealthState::kLocalized, protocol::Health::kOk, 1.0);
   t.estimate.pose.theta_rad = 3.0 * M_PI / 2.0;
   EXPECT_NEAR(map_tick(t).theta_rad, -M_PI / 2.0, 1e-12);
+}
+
+// initPosition's sigma comes from the configured lost limits (half of them), not a constant.
+TEST(Vda5050InitPosition, SigmaIsHalfTheConfiguredLostLimits) {
+  fusion::EkfConfig f;
+  const localizer::InitPositionSigma d = localizer::init_position_sigma(f);
+  EXPECT_DOUBLE_EQ(d.position_mm, 0.5 * f.lost_position_sigma_mm);
+  EXPECT_DOUBLE_EQ(d.heading_rad, 0.5 * f.lost_heading_sigma_rad);
+  f.lost_position_sigma_mm = 80.0;
+  f.lost_heading_sigma_rad = 0.1;
+  const localizer::InitPositionSigma c = localizer::init_position_sigma(f);
+  EXPECT_DOUBLE_EQ(c.position_mm, 40.0);
+  EXPECT_DOUBLE_EQ(c.heading_rad, 0.05);
+}
+
+// Drives 1 m/s straight with odometry at 100 Hz after placing the pose at t = 0; returns the
+// number of 10 ms ticks with PoseValid before the first LOST one (n_ticks if none).
+int valid_ticks_after_placing(bool init_position, double sigma_mm, double sigma_rad, int n_ticks) {
+  constexpr std::int64_t kMs = 1'000'000;
+  localizer::LocalizerConfig c;
+  localizer::Localizer loc(c);
+  localizer::OutFrames out;
+  localizer::TickRecord rec;
+  std::int64_t t = 1000 * kMs;
+  for (int i = 0; i < 20; ++i) {
+    loc.on_odometry(t, 1.0, 0.0);
+    loc.tick(t += 10 * kMs, &out, &rec);
+  }
+  const Pose2 placed{1000.0, 2000.0, 0.5};
+  const bool ok =
+      init_position ? loc.init_position(t, placed) : loc.set_pose(t, placed, sigma_mm, sigma_rad);
+  EXPECT_TRUE(ok);
+  for (int i = 0; i < n_ticks; ++i) {
+    loc.on_odometry(t, 1.0, 0.0);
+    loc.tick(t += 10 * kMs, &out, &rec);
+    if (!rec.pose_valid) {
+      EXPECT_EQ(rec.status.health, protocol::Health::kLost);
+      return i;
+    }
+  }
+  return n_ticks;
+}
+
+TEST(Vda5050InitPosition, PoseStaysValidWhileDrivingUntilSigmaGrowsPastTheLimit) {
+  const fusion::EkfConfig f;
+  // The old constant, the default limit itself: LOST on the first ticks of driving.
+  EXPECT_LT(
+      valid_ticks_after_placing(false, f.lost_position_sigma_mm, f.lost_heading_sigma_rad, 100), 5);
+  // initPosition: valid for at least 1 s of driving at 1 m/s without a landmark.
+  EXPECT_EQ(valid_ticks_after_placing(true, 0.0, 0.0, 100), 100);
 }
 
 TEST(Vda5050Time, Iso8601UtcWithMilliseconds) {

@@ -65,6 +65,16 @@ int Localizer::receive_filters(hal::CanFilter* out, int max) const {
   return localizer::receive_filters(cfg_.protocol, out, max);
 }
 
+InitPositionSigma init_position_sigma(const fusion::EkfConfig& fusion) {
+  return {kInitPositionSigmaOfLostLimit * fusion.lost_position_sigma_mm,
+          kInitPositionSigmaOfLostLimit * fusion.lost_heading_sigma_rad};
+}
+
+bool Localizer::init_position(std::int64_t now_ns, const Pose2& pose) {
+  const InitPositionSigma s = init_position_sigma(cfg_.fusion);
+  return set_pose(now_ns, pose, s.position_mm, s.heading_rad);
+}
+
 bool Localizer::set_pose(std::int64_t now_ns, const Pose2& pose, double sigma_mm,
                          double sigma_rad) {
   Eigen::Matrix3d R = Eigen::Matrix3d::Zero();

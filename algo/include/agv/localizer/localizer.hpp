@@ -130,6 +130,17 @@ struct OutFrames {
   std::int64_t e2e_exposure_ns = INT64_MIN;
 };
 
+// The 1-sigma uncertainty an operator-set pose (VDA 5050 initPosition) gets: half the configured
+// lost limits (fusion.lost_position_sigma_mm, fusion.lost_heading_sigma_deg). The pose is then
+// valid (not LOST) until its sigma has doubled while dead reckoning, and the next landmark fix
+// narrows it; at the limits themselves it would turn LOST as soon as the vehicle moved.
+struct InitPositionSigma {
+  double position_mm = 0.0;
+  double heading_rad = 0.0;
+};
+inline constexpr double kInitPositionSigmaOfLostLimit = 0.5;
+InitPositionSigma init_position_sigma(const fusion::EkfConfig& fusion);
+
 class Localizer {
  public:
   // Throws std::invalid_argument on an invalid fusion or protocol configuration.
@@ -171,6 +182,8 @@ class Localizer {
   // An external pose (VDA 5050 initPosition, docs/vda5050.md) at now_ns, in mm / rad with its
   // 1-sigma position and heading uncertainty. False when the filter refused it (non-finite).
   bool set_pose(std::int64_t now_ns, const Pose2& pose, double sigma_mm, double sigma_rad);
+  // VDA 5050 initPosition: set_pose with init_position_sigma(config().fusion).
+  bool init_position(std::int64_t now_ns, const Pose2& pose);
   // Camera health: receive time of the newest frame, the stream ended (replay), driver error.
   void set_camera_state(std::int64_t last_frame_ns, bool end_of_stream, bool error) {
     last_frame_ns_ = last_frame_ns;
