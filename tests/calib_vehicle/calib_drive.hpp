@@ -13,6 +13,7 @@
 #include <random>
 #include <vector>
 
+#include "calib_gyro.hpp"
 #include "calib_vehicle.hpp"
 
 namespace agv::calibtest {
@@ -32,6 +33,13 @@ struct DriveTruth {
   std::vector<std::uint32_t> worn;
   double wear_mm = 0.1;
   double wear_noise_px = 0.2;
+  // Gyro (Drive::gyro, issue 33): reported = (1 + gyro_scale_error) * true mean rate over the
+  // sample period + gyro_bias_radps + white noise, stamped late by gyro_latency_s. Its own random
+  // stream, so the odometry and the corners are what they were without it.
+  double gyro_scale_error = 0.0, gyro_bias_radps = 0.0;
+  double gyro_noise_radps_rthz = 0.01 * kPi / 180.0;
+  double gyro_latency_s = 0.0;
+  int gyro_period_ms = 5;
 };
 
 // The perturbed vehicle the calibration tests start from (mount, odometry and clock all off).
@@ -55,6 +63,7 @@ struct Drive {
   LandmarkMap map;
   std::vector<desk::vcal::OdomSample> odom;
   std::vector<desk::vcal::CornerObservation> obs;
+  std::vector<desk::vcal::GyroSample> gyro;
 };
 
 namespace detail {
@@ -155,6 +164,21 @@ inline Drive make_calibration_drive(const DriveTruth& tr) {
     o.omega_radps =
         (w - tr.p.yaw_rate_bias_radps) / tr.p.yaw_rate_scale + tr.odom_w_noise_radps * n01(rng);
     d.odom.push_back(o);
+  }
+  // Gyro samples: the mean true rate over the period, with the errors.
+  {
+    std::mt19937 grng(tr.seed * 15485863u + 3u);
+    const size_t per = static_cast<size_t>(tr.gyro_period_ms);
+    const double white = tr.gyro_noise_radps_rthz / std::sqrt(1e-3 * tr.gyro_period_ms);
+    for (size_t k = per; k < t_f.size(); k += per) {
+      double sw = 0;
+      for (size_t j = k - per; j < k; ++j) sw += w_f[j];
+      const double w = sw / static_cast<double>(per);
+      desk::vcal::GyroSample g;
+      g.t_ns = t0_ns + static_cast<std::int64_t>(std::llround((t_f[k] + tr.gyro_latency_s) * 1e9));
+      g.rate_radps = (1.0 + tr.gyro_scale_error) * w + tr.gyro_bias_radps + white * n01(grng);
+      d.gyro.push_back(g);
+    }
   }
   // Frames at 30 Hz.
   CameraModel cam = CameraModel::default_640x480();
