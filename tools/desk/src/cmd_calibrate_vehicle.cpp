@@ -1,6 +1,7 @@
 // agvloc-desk calibrate vehicle RECORDING --map MAP [--config CFG] [--out DIR]: camera mounting
 // (offset, yaw, height, roll, pitch), odometry scales and bias, camera-odometry time offset from
-// a calibration drive over mapped landmarks. Model: calib_vehicle.hpp. Needs no truth.csv.
+// a calibration drive over mapped landmarks. Model: calib_vehicle.hpp. Needs no truth.csv. With
+// an imu.csv also the gyro's scale, bias and clock offset (calib_gyro.hpp, issue 33).
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cmath>
@@ -14,6 +15,7 @@
 #include "agv/recording/recording.hpp"
 #include "agv/vision/landmark_localizer.hpp"
 #include "calib_cli.hpp"
+#include "calib_gyro.hpp"
 #include "calib_vehicle.hpp"
 #include "commands.hpp"
 #include "config.hpp"
@@ -256,6 +258,37 @@ int calibrate_vehicle(int argc, char** argv) {
     return fail(err, 1);
   }
 
+  // The gyro (issue 33): from the fix headings under the calibrated mounting. The clock offset is
+  // solved as gyro clock - camera clock = odometry.time_offset + imu.time_offset.
+  const bool have_gyro = !rec.imu.empty();
+  vcal::GyroResult gyro;
+  std::string gyro_error;
+  bool gyro_ok = false;
+  const double odo_offset_s =
+      r.params[9].determined ? r.estimate.time_offset_s : cfg.odometry.time_offset_ms * 1e-3;
+  if (have_gyro) {
+    std::vector<vcal::GyroSample> samples;
+    samples.reserve(rec.imu.size());
+    for (const auto& s : rec.imu) samples.push_back({s.t_ns, s.gyro_z_radps});
+    vcal::GyroOptions gopt;
+    gopt.noise_density_radps_rthz = cfg.fusion.gyro_noise_density_radps_per_sqrt_hz;
+    gyro_ok = vcal::calibrate_gyro(
+        samples, obs, map, geom.outer_half_mm(), geom.inner_half_mm(), r.estimate.mount,
+        cfg.imu.scale, odo_offset_s + cfg.imu.time_offset_ms * 1e-3, gopt, &gyro, &gyro_error);
+  }
+  const double gyro_offset_ms = (gyro.clock_offset_s - odo_offset_s) * 1e3;
+  std::vector<std::string> gyro_out_of_range;
+  if (gyro_ok) {
+    if (gyro.scale_determined)
+      gyro_out_of_range.push_back(outside_key_range("imu.scale", gyro.scale));
+    if (gyro.bias_determined) {
+      gyro_out_of_range.push_back(outside_key_range("imu.bias_degps", rad_to_deg(gyro.bias_radps)));
+    }
+    if (gyro.clock_offset_determined) {
+      gyro_out_of_range.push_back(outside_key_range("imu.time_offset_ms", gyro_offset_ms));
+    }
+  }
+
   // Results the configuration would reject (the key table's ranges) are errors, not "ok": the
   // snippet is not written, --check-config would refuse it anyway.
   const bool wheels = cfg.can.odometry_mode == "wheels";
@@ -268,6 +301,7 @@ int calibrate_vehicle(int argc, char** argv) {
             ? outside_key_range("can.odometry.track_width_mm", cfg.can.track_width_mm / p.value)
             : outside_key_range(p.name, p.value);
   }
+  for (const auto& e : gyro_out_of_range) out_of_range.push_back(e);
   const bool any_out_of_range = std::any_of(out_of_range.begin(), out_of_range.end(),
                                             [](const auto& e) { return !e.empty(); });
 
@@ -295,8 +329,53 @@ int calibrate_vehicle(int argc, char** argv) {
                   p.unit.c_str());
     rep << b;
   }
+  if (have_gyro && gyro_ok) {
+    auto row = [&](const char* name, double init, double v, double sg, bool det,
+                   const std::string& range_err, const char* unit) {
+      char b[200];
+      std::snprintf(b, sizeof b, "%-28s %12.5f %14.5f %12.5f   %s %s\n", name, init, v, sg,
+                    !range_err.empty() ? "OUT OF RANGE"
+                    : det              ? "ok"
+                                       : "NOT DETERMINED",
+                    unit);
+      rep << b;
+    };
+    row("imu.scale", cfg.imu.scale, gyro.scale, gyro.scale_sigma, gyro.scale_determined,
+        gyro.scale_determined ? gyro_out_of_range[0] : std::string(), "");
+    const size_t bi = gyro.scale_determined ? 1 : 0;
+    row("imu.bias_degps", rad_to_deg(cfg.imu.bias_radps), rad_to_deg(gyro.bias_radps),
+        rad_to_deg(gyro.bias_sigma_radps), gyro.bias_determined,
+        gyro.bias_determined ? gyro_out_of_range[bi] : std::string(), "deg/s");
+    row("imu.time_offset_ms", cfg.imu.time_offset_ms, gyro_offset_ms,
+        gyro.clock_offset_sigma_s * 1e3, gyro.clock_offset_determined,
+        gyro.clock_offset_determined ? gyro_out_of_range.back() : std::string(), "ms");
+  }
   for (const auto& e : out_of_range) {
     if (!e.empty()) rep << "error: " << e << "\n";
+  }
+  if (have_gyro) {
+    rep << "\ngyro (imu.csv, " << rec.imu.size() << " samples): ";
+    if (!gyro_ok) {
+      rep << "not calibrated: " << gyro_error << "\n";
+    } else {
+      rep << gyro.frames_used << " of " << gyro.frames
+          << " landmark frames used, fix heading noise " << fmt("%.4f", gyro.heading_sigma_deg)
+          << " deg, heading change seen " << fmt("%.0f", gyro.turned_deg) << " deg, chi2/frame "
+          << fmt("%.2f", gyro.chi2_per_frame) << "\n";
+      if (!gyro.scale_determined) rep << "  imu.scale not determined: " << gyro.why_scale << "\n";
+      if (gyro.scale_fixed) {
+        rep << "  imu.bias_degps solved with imu.scale fixed at " << fmt("%.6f", cfg.imu.scale)
+            << "\n";
+      }
+      if (!gyro.bias_determined)
+        rep << "  imu.bias_degps not determined: " << gyro.why_bias << "\n";
+      if (!gyro.clock_offset_determined) {
+        rep << "  imu.time_offset_ms not determined: " << gyro.why_clock_offset << "\n";
+      }
+      rep << "  filter priors written: fusion.gyro_init_scale_sigma "
+          << fmt("%.4f", gyro.prior_scale_sigma) << ", fusion.gyro_init_bias_sigma_degps "
+          << fmt("%.3f", gyro.prior_bias_sigma_degps) << " (3 sigma, at least 0.0005 and 0.05)\n";
+    }
   }
   rep << "\n" << vcal::landmark_table(r);
   rep << "\nper landmark pass (corner residual RMS, px):\n"
@@ -309,6 +388,8 @@ int calibrate_vehicle(int argc, char** argv) {
   }
   if (!r.warnings.empty()) rep << "\nwarnings:\n";
   for (const auto& w : r.warnings) rep << "  - " << w << "\n";
+  if (gyro_ok && r.warnings.empty() && !gyro.warnings.empty()) rep << "\nwarnings:\n";
+  for (const auto& w : gyro.warnings) rep << "  - " << w << "\n";
 
   // Snippet: only determined values; mounting keys of docs/config.md.
   std::ostringstream snip;
@@ -363,6 +444,49 @@ int calibrate_vehicle(int argc, char** argv) {
     snip << "# can.odometry.track_width_mm: not changed (yaw-rate scale not determined)\n";
   }
 
+  // The gyro: keys imu.* (localizer::GyroCorrection: rate' = scale * rate + bias, gyro clock =
+  // vehicle clock + time_offset) and the filter's priors for what is left after them.
+  if (have_gyro && gyro_ok) {
+    std::ostringstream imu;
+    bool any_imu = false;
+    if (gyro.scale_determined) {
+      imu << "  scale: " << fmt("%.6f", gyro.scale) << "  # sigma " << fmt("%.6f", gyro.scale_sigma)
+          << "\n";
+      any_imu = true;
+    } else {
+      imu << "  # scale: not determined (" << gyro.why_scale << ")\n";
+    }
+    if (gyro.bias_determined) {
+      imu << "  bias_degps: " << fmt("%.4f", rad_to_deg(gyro.bias_radps)) << "  # sigma "
+          << fmt("%.4f", rad_to_deg(gyro.bias_sigma_radps)) << " deg/s"
+          << (gyro.scale_fixed ? " (with the configured scale)" : "") << "\n";
+      any_imu = true;
+    } else {
+      imu << "  # bias_degps: not determined (" << gyro.why_bias << ")\n";
+    }
+    if (gyro.clock_offset_determined) {
+      imu << "  time_offset_ms: " << fmt("%.2f", gyro_offset_ms) << "  # sigma "
+          << fmt("%.2f", gyro.clock_offset_sigma_s * 1e3) << " ms\n";
+      any_imu = true;
+    } else {
+      imu << "  # time_offset_ms: not determined (" << gyro.why_clock_offset << ")\n";
+    }
+    if (any_imu) snip << "imu:\n";
+    snip << imu.str();
+    std::ostringstream fus;
+    if (gyro.scale_determined) {
+      fus << "  gyro_init_scale_sigma: " << fmt("%.4f", gyro.prior_scale_sigma)
+          << "  # 3 x the calibration's sigma, at least 0.0005\n";
+    }
+    if (gyro.bias_determined) {
+      fus << "  gyro_init_bias_sigma_degps: " << fmt("%.3f", gyro.prior_bias_sigma_degps)
+          << "  # 3 x the calibration's sigma, at least 0.05 (turn-on bias repeatability)\n";
+    }
+    if (!fus.str().empty()) snip << "fusion:\n" << fus.str();
+  } else if (have_gyro) {
+    snip << "# imu.*: not calibrated (" << gyro_error << ")\n";
+  }
+
   std::error_code ec;
   fs::create_directories(out_dir, ec);
   if (ec) return fail("cannot create " + out_dir + ": " + ec.message(), 1);
@@ -396,6 +520,11 @@ int calibrate_vehicle(int argc, char** argv) {
   std::printf("\nwrote %s/{vehicle_calibration.yaml,report.txt,residuals.svg}\n", out_dir.c_str());
   int undetermined = 0;
   for (const auto& p : r.params) undetermined += p.determined ? 0 : 1;
+  if (have_gyro) {
+    // The gyro's clock offset is written when determined but not required (the fusion is
+    // much less sensitive to it than to the scale).
+    undetermined += !gyro_ok ? 1 : (gyro.scale_determined ? 0 : 1) + (gyro.bias_determined ? 0 : 1);
+  }
   if (undetermined > 0) {
     std::fprintf(stderr,
                  "agvloc-desk calibrate vehicle: %d parameter(s) not determined by this drive "
