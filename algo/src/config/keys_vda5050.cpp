@@ -7,9 +7,10 @@ void add_vda5050_keys(std::vector<Key>* k) {
   k->push_back(boolean("vda5050.enabled", AGV_AT(vda5050.enabled), false,
                        "publish the pose to a VDA 5050 fleet broker. Off: no MQTT thread, no "
                        "socket; the CAN output is the same either way"));
-  k->push_back(text("vda5050.broker_host", AGV_AT(vda5050.broker_host), "localhost",
-                    "MQTT broker (host name or address). Unreachable: the publisher retries "
-                    "with backoff (0.1 s doubling to 1.6 s) and the loop runs on"));
+  k->push_back(
+      text("vda5050.broker_host", AGV_AT(vda5050.broker_host), "localhost",
+           "MQTT broker (host name or address). Unreachable: the publisher retries "
+           "with backoff (0.1 s, doubling up to 1 s between attempts) and the loop runs on"));
   k->push_back(integer("vda5050.broker_port", AGV_AT(vda5050.broker_port), 1, 65535, 1883,
                        {"", "broker TCP port; 8883 is the usual TLS port"}));
   k->push_back(text("vda5050.interface_name", AGV_AT(vda5050.interface_name), "uagv",

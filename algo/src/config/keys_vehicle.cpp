@@ -232,8 +232,11 @@ void add_odometry(std::vector<Key>* k) {
                       0.0,
                       {"ms",
                        "odometry clock = camera clock + offset (+ = odometry stamps late); "
-                       "fusion uses t − offset. At 1 m/s every ms is 1 mm along track at each "
-                       "fix; the filter has no state for it"}));
+                       "applied to the camera, not to odometry: each fix's exposure stamp (and "
+                       "the prediction vision asks for at an exposure) is moved onto the vehicle's "
+                       "clock as t + offset, while odometry and the output keep their stamps. At "
+                       "1 m/s every ms is 1 mm along track at each fix; the filter has no state "
+                       "for it"}));
 }
 
 void add_loop(std::vector<Key>* k) {

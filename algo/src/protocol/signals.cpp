@@ -60,8 +60,9 @@ constexpr SignalDef kStatus[] = {
     kCrcSignal,
     kCounterSignal,
     {"Health", 12, 2, true, false, 1, 0, 0, 3, "",
-     "0 OK, 1 DEGRADED (dead reckoning, fix too old or sigma too large), 2 LOST (no usable "
-     "pose), 3 FAULT (a fault flag stops localisation)"},
+     "0 OK, 1 DEGRADED (dead reckoning: no fix fused for longer than the localized timeout, "
+     "sigma within the lost limits), 2 LOST (no usable pose: sigma above the lost limits, no "
+     "odometry, or not initialised), 3 FAULT (reserved: not sent by this version)"},
     {"LastLandmarkId", 16, 16, true, false, 1, 0, 0, 65535, "",
      "Id of the landmark of the last accepted fix; 0 = none yet"},
     {"TimeSinceFix", 32, 16, true, false, 1, 0, 0, 65535, "ms",
@@ -76,7 +77,8 @@ constexpr SignalDef kStatus[] = {
      "CAN controller error-passive (or warning) since the last status frame"},
     {"FaultCanBusOff", 53, 1, true, false, 1, 0, 0, 1, "",
      "CAN bus-off, interface down or frames dropped on a full queue since the last status"},
-    {"FaultNoMap", 54, 1, true, false, 1, 0, 0, 1, "", "Landmark map missing or invalid"},
+    {"FaultNoMap", 54, 1, true, false, 1, 0, 0, 1, "",
+     "Reserved: never set by this version (a missing or invalid map stops agvloc at start)"},
     {"FaultLoopOverrun", 55, 1, true, false, 1, 0, 0, 1, "",
      "The real-time loop missed its deadline since the last status frame"},
     // The two gyro flags sit in the free upper bits of byte 1 (after Health): byte 6 is full and
