@@ -1,12 +1,17 @@
 #include "diag_server.hpp"
 
 #include <arpa/inet.h>
+#include <netdb.h>
 #include <netinet/in.h>
 #include <png.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
+#include <cerrno>
 #include <chrono>
 #include <condition_variable>
 #include <cstdio>
+#include <cstring>
 #include <deque>
 #include <functional>
 #include <vector>
@@ -116,6 +121,78 @@ bool is_loopback_address(const std::string& a) {
   if (inet_pton(AF_INET, a.c_str(), &v4) == 1) return (ntohl(v4.s_addr) >> 24) == 127;
   in6_addr v6{};
   return inet_pton(AF_INET6, a.c_str(), &v6) == 1 && IN6_IS_ADDR_LOOPBACK(&v6);
+}
+
+namespace {
+
+std::string errno_text(int e) {
+  std::string t = std::strerror(e);
+  const char* name = nullptr;
+  const char* hint = "";
+  switch (e) {
+    case EAFNOSUPPORT:
+      name = "EAFNOSUPPORT";
+      hint =
+          ": IPv4/IPv6 sockets not permitted here, e.g. by the service's "
+          "RestrictAddressFamilies= without AF_INET AF_INET6";
+      break;
+    case EADDRINUSE:
+      name = "EADDRINUSE";
+      hint = ": another process listens on this port";
+      break;
+    case EADDRNOTAVAIL:
+      name = "EADDRNOTAVAIL";
+      hint = ": not an address of this host";
+      break;
+    case EACCES:
+      name = "EACCES";
+      break;
+    case EPERM:
+      name = "EPERM";
+      break;
+    default:
+      break;
+  }
+  if (name) t += std::string(" (") + name + hint + ")";
+  return t;
+}
+
+}  // namespace
+
+std::string listen_failure_reason(const std::string& address, int port) {
+  addrinfo hints{};
+  hints.ai_family = AF_UNSPEC;
+  hints.ai_socktype = SOCK_STREAM;
+  hints.ai_flags = AI_PASSIVE;
+  addrinfo* res = nullptr;
+  const std::string service = std::to_string(port);
+  const int rc =
+      getaddrinfo(address.empty() ? nullptr : address.c_str(), service.c_str(), &hints, &res);
+  if (rc != 0) return std::string("address ") + address + ": " + gai_strerror(rc);
+  std::string reason;
+  for (const addrinfo* a = res; a; a = a->ai_next) {
+    const int fd = ::socket(a->ai_family, a->ai_socktype, a->ai_protocol);
+    if (fd < 0) {
+      const int e = errno;
+      reason = std::string("socket(") + (a->ai_family == AF_INET6 ? "AF_INET6" : "AF_INET") +
+               "): " + errno_text(e);
+      continue;
+    }
+    const int one = 1;  // as the HTTP library: a port in TIME_WAIT is not "in use"
+    ::setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+    const bool bound = ::bind(fd, a->ai_addr, a->ai_addrlen) == 0;
+    const int e = errno;
+    const bool listening = bound && ::listen(fd, 1) == 0;
+    const int le = errno;
+    ::close(fd);
+    if (listening) {
+      reason.clear();
+      break;
+    }
+    reason = bound ? "listen: " + errno_text(le) : "bind: " + errno_text(e);
+  }
+  freeaddrinfo(res);
+  return reason;
 }
 
 bool encode_png(const cv::Mat& image, std::string* out, int compression) {
@@ -323,8 +400,10 @@ bool DiagServer::start(std::string* error) {
     port_ = s.bind_to_port(m.cfg.bind_address, m.cfg.port) ? m.cfg.port : -1;
   }
   if (port_ <= 0) {
+    std::string why = listen_failure_reason(m.cfg.bind_address, m.cfg.port);
+    if (why.empty()) why = "the HTTP server could not bind (no error on a second attempt)";
     *error = "diag: cannot listen on " + m.cfg.bind_address + ":" + std::to_string(m.cfg.port) +
-             " (in use, or not an address of this host)";
+             ": " + why;
     port_ = 0;
     return false;
   }

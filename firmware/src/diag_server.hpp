@@ -27,6 +27,11 @@ namespace agv::app {
 
 // True for an address the page may listen on without diag.allow_remote (loopback).
 bool is_loopback_address(const std::string& address);
+// Why a TCP listening socket on address:port cannot be opened now, naming the failing call and
+// its errno, e.g. "socket(AF_INET): Address family not supported by protocol (EAFNOSUPPORT: ...)"
+// or "bind: Address already in use (EADDRINUSE)"; "" when it can. The HTTP library reports only
+// that binding failed; DiagServer::start asks this for the reason.
+std::string listen_failure_reason(const std::string& address, int port);
 
 class DiagServer {
  public:

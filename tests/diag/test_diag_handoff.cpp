@@ -1,8 +1,13 @@
 // The loop side of the diagnostics hand-off (firmware/src/diag_handoff.hpp): rate limit in loop
 // time, never waiting on a busy slot, the final state; the frame tap's copies on request.
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <atomic>
+#include <string>
 #include <thread>
 
 #include "diag_handoff.hpp"
@@ -120,6 +125,31 @@ TEST(DiagServer, LoopbackAddresses) {
   EXPECT_FALSE(is_loopback_address("127example.com"));
   EXPECT_FALSE(is_loopback_address("127.evil.example"));
   EXPECT_FALSE(is_loopback_address("::ffff:10.0.0.1"));
+}
+
+// The start-up error names the real reason (the errno of the failing call), not a guess.
+TEST(DiagServer, ListenFailureNamesTheErrno) {
+  // A port taken by a listening socket of this process.
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  ASSERT_GE(fd, 0);
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = 0;
+  ASSERT_EQ(::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a), 0);
+  ASSERT_EQ(::listen(fd, 1), 0);
+  socklen_t len = sizeof a;
+  ASSERT_EQ(::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &len), 0);
+  const int port = ntohs(a.sin_port);
+  const std::string in_use = listen_failure_reason("127.0.0.1", port);
+  EXPECT_NE(in_use.find("bind: "), std::string::npos) << in_use;
+  EXPECT_NE(in_use.find("EADDRINUSE"), std::string::npos) << in_use;
+  ::close(fd);
+  // Free again: nothing to report.
+  EXPECT_EQ(listen_failure_reason("127.0.0.1", port), "");
+  // TEST-NET-1 is no address of this host.
+  const std::string foreign = listen_failure_reason("192.0.2.1", 8088);
+  EXPECT_NE(foreign.find("EADDRNOTAVAIL"), std::string::npos) << foreign;
 }
 
 TEST(DiagServer, PngEncodes) {

@@ -50,6 +50,26 @@ for line in "User=agvloc" "SupplementaryGroups=video" "Restart=on-failure" "Limi
             "LimitMEMLOCK=infinity" "ExecStart=/usr/bin/agvloc run --config /etc/agvloc/agvloc.yaml"; do
   check "unit has $line" grep -qx "$line" "$unit"
 done
+# Address families: what each network feature needs that the configuration can enable, and the
+# key that enables it (the key must exist: docs/config.md is generated from the key table). A
+# RestrictAddressFamilies= without them makes the feature fail only on the vehicle.
+families=" $(sed -n 's/^RestrictAddressFamilies=//p' "$unit" | tr '\n' ' ') "
+check "unit restricts address families" test -n "${families// /}"
+check "unit's address families are an allow-list" bash -c "! grep -q '~' <<<'$families'"
+for need in "always:AF_CAN:CAN pose output and odometry" \
+            "always:AF_UNIX:journald" \
+            "always:AF_NETLINK:libcamera's udev monitor" \
+            "diag.enabled:AF_INET AF_INET6:diagnostics page" \
+            "vda5050.enabled:AF_INET AF_INET6:VDA 5050 MQTT client"; do
+  key="${need%%:*}" rest="${need#*:}"
+  fams="${rest%%:*}" what="${rest#*:}"
+  if [ "$key" != always ] && [ -f "$src/docs/config.md" ]; then
+    check "$key is a configuration key" grep -qF "\`$key\`" "$src/docs/config.md"
+  fi
+  for fam in $fams; do
+    check "unit allows $fam ($what, $key)" grep -q " $fam " <<<"$families"
+  done
+done
 if command -v systemd-analyze >/dev/null 2>&1; then
   # verify checks keys, values and that ExecStart exists: point it at the unpacked binary. It
   # exits 0 even for unknown keys, so any output fails the check.
