@@ -70,7 +70,8 @@ int run(int argc, char** argv) {
     }
   }
   if (check_only) {
-    std::printf("agvloc: configuration %s is valid\n", config_file.c_str());
+    std::printf("agvloc: configuration %s is valid; checked:\n%s", config_file.c_str(),
+                config::config_summary(cfg, map_ptr).c_str());
     return 0;
   }
   if (cfg.loop.lock_memory) {

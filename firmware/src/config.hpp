@@ -30,5 +30,9 @@ bool load_map_file(const std::string& path, LandmarkMap* map, std::string* error
 // with one line per problem in *errors. map is the configuration's landmark.map (null: none).
 bool check_can_localize(const Config& cfg, const LandmarkMap* map,
                         std::vector<std::string>* errors);
+// What `agvloc run --check-config` checked, a few lines for the integrator to compare with the
+// vehicle: camera and its calibration, landmark family and map, CAN, gyro source, odometry
+// correction. map is the loaded landmark.map (null: none). Values as written in YAML.
+std::string config_summary(const Config& cfg, const LandmarkMap* map);
 
 }  // namespace agv::config
