@@ -18,6 +18,7 @@
 #include "agv/can/candump_file.hpp"
 #include "agv/can/log_only_bus.hpp"
 #include "agv/can/socketcan.hpp"
+#include "agv/config/yaml_keys.hpp"
 #include "agv/posix/posix_clock.hpp"
 #include "agv/posix/realtime.hpp"
 #include "agv/recording/png_io.hpp"
@@ -27,6 +28,7 @@
 #include "diag_server.hpp"
 #include "mqtt_publisher.hpp"
 #include "pipeline.hpp"
+#include "replay_meta.hpp"
 #include "replay_report.hpp"
 #include "signals.hpp"
 
@@ -124,7 +126,8 @@ int replay(int argc, char** argv) {
   app.add_option("recording", rec_dir, "recording directory (docs/recording.md)")->required();
   app.add_option("--out", out_dir, "output directory (poses.csv, fixes.csv, summary.txt, ...)");
   app.add_option("--config", config_file,
-                 "configuration YAML (camera/mounting come from meta.yaml)");
+                 "configuration YAML; a camera, mounting or landmark.size_mm key it sets is used "
+                 "instead of meta.yaml's (each difference printed)");
   app.add_option("--map", map_file, "landmark map (default: RECORDING/map.csv if present)");
   app.add_option("--can", can_iface, "send output frames on this SocketCAN interface");
   app.add_flag("--odom-from-can", odom_from_can,
@@ -171,9 +174,26 @@ int replay(int argc, char** argv) {
     std::fprintf(stderr, "replay: %s: %s\n", rec_dir.c_str(), err.c_str());
     return 2;
   }
-  // The recording describes its own camera.
-  cfg.camera_model = rec.meta.camera;
-  cfg.landmark_size_mm = rec.meta.landmark_size_mm;
+  // One rule for meta.yaml against --config (docs/replay.md): what --config sets is used (a
+  // calibrated mounting is replayed as calibrated, as calibrate vehicle --config does), the
+  // recording gives the rest; each value that differs is printed.
+  std::vector<std::string> config_keys;
+  if (!config_file.empty()) {
+    std::string text;
+    std::vector<config::YamlEntry> entries;
+    if (!recording::read_file_bounded(config_file, config::kMaxConfigBytes, &text, &err) ||
+        !config::yaml_entries(text, &entries, &err)) {
+      std::fprintf(stderr, "replay: config: %s: %s\n", config_file.c_str(), err.c_str());
+      return 2;
+    }
+    for (const auto& e : entries) config_keys.push_back(e.key);
+  }
+  std::vector<std::string> differ;
+  if (!app::apply_recording_meta(rec.meta, config_keys, config_file, &cfg, &differ, &err)) {
+    std::fprintf(stderr, "replay: %s\n", err.c_str());
+    return 2;
+  }
+  for (const auto& d : differ) std::fprintf(stderr, "replay: %s\n", d.c_str());
   if (map_file.empty() && std::filesystem::exists(std::filesystem::path(rec_dir) / "map.csv")) {
     map_file = (std::filesystem::path(rec_dir) / "map.csv").string();
   }
@@ -380,6 +400,7 @@ int replay(int argc, char** argv) {
       static_cast<double>(result.wall_ns) / 1e9);
   summary += buf;
   summary += gyro_summary(result.output, rec, imu_fed);
+  for (const auto& d : differ) summary += "camera from --config over meta.yaml: " + d + "\n";
   summary += app::format_statistics(result);
   summary += mqtt_line;
   // Accuracy against truth and the plot are desk tools, not in the vehicle binary.

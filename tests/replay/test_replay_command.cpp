@@ -10,10 +10,12 @@
 #include <string>
 #include <vector>
 
+#include "agv/config/keys.hpp"
 #include "agv/recording/recording.hpp"
 #include "agv/sim/imu_model.hpp"
 #include "agv/sim/render.hpp"
 #include "commands.hpp"
+#include "replay_meta.hpp"
 
 namespace fs = std::filesystem;
 using namespace agv;
@@ -249,5 +251,85 @@ TEST(ReplayCommand, GyroSamplesOfImuCsvAreFusedAndCounted) {
   const std::string poses_without = slurp(d / "out" / "poses.csv");
   EXPECT_EQ(std::count(poses_with.begin(), poses_with.end(), '\n'),
             std::count(poses_without.begin(), poses_without.end(), '\n'));
+  fs::remove_all(d);
+}
+
+// Issue 36: replay took the camera from meta.yaml and silently ignored a calibrated mounting in
+// --config (70 fused / 652 gated, no warning). Now what --config sets is used, meta.yaml gives
+// the rest, and every value that differs is printed with both values.
+TEST(ReplayCommand, ConfigOverMetaYamlIsOneRuleAndEachDifferenceIsPrinted) {
+  for (const auto& k : app::meta_keys()) EXPECT_NE(config::find_key(k), nullptr) << k;
+
+  recording::Meta meta;
+  meta.camera = CameraModel::default_640x480();
+  meta.camera.mount.yaw_rad = deg_to_rad(1.0);
+  meta.camera.mount.offset_x_mm = 250.0;
+  meta.landmark_size_mm = 60.0;
+  config::Config cfg;
+  std::vector<std::string> errors;
+  ASSERT_TRUE(
+      config::parse_config("mounting: {yaw_deg: 1.2057, height_mm: 200}\n"
+                           "landmark: {size_mm: 60.6}\n",
+                           "", &cfg, &errors, config::ConfigUse::kReplay));
+  std::vector<std::string> lines;
+  std::string err;
+  ASSERT_TRUE(app::apply_recording_meta(
+      meta, {"mounting.yaw_deg", "mounting.height_mm", "landmark.size_mm"}, "c.yaml", &cfg, &lines,
+      &err))
+      << err;
+  EXPECT_NEAR(rad_to_deg(cfg.camera_model.mount.yaw_rad), 1.2057, 1e-12);  // --config's
+  EXPECT_EQ(cfg.landmark_size_mm, 60.6);
+  EXPECT_EQ(cfg.camera_model.mount.offset_x_mm, 250.0);  // not in --config: meta.yaml's
+  EXPECT_EQ(cfg.camera_model.intrinsics.fx, meta.camera.intrinsics.fx);
+  ASSERT_EQ(lines.size(), 2u);  // height_mm is the same in both: no line
+  EXPECT_EQ(lines[0], "mounting.yaw_deg: --config 1.2057 (used), meta.yaml 1");
+  EXPECT_EQ(lines[1], "landmark.size_mm: --config 60.6 (used), meta.yaml 60");
+
+  // Without --config the recording describes its own camera.
+  config::Config none;
+  lines.clear();
+  ASSERT_TRUE(app::apply_recording_meta(meta, {}, "", &none, &lines, &err));
+  EXPECT_TRUE(lines.empty());
+  EXPECT_EQ(none.camera_model.mount.yaw_rad, meta.camera.mount.yaw_rad);
+  EXPECT_EQ(none.camera_model.intrinsics.width_px, 640);
+
+  // The command: the lines on stderr and in summary.txt; another image size is refused.
+  const fs::path d = write_recording("precedence", 3);  // meta: 64x48, fx 769.23, height 200
+  auto run = [&](const std::string& yaml) {
+    std::ofstream(d / "c.yaml", std::ios::trunc) << yaml;
+    std::vector<std::string> args = {
+        "replay", d.string(), "--out", (d / "out").string(), "--config", (d / "c.yaml").string(),
+        "--fast", "--quiet"};
+    std::vector<char*> argv;
+    for (auto& a : args) argv.push_back(a.data());
+    testing::internal::CaptureStderr();
+    const int rc = agv::cmd::replay(static_cast<int>(argv.size()), argv.data());
+    return ReplayRun{rc, testing::internal::GetCapturedStderr()};
+  };
+  ReplayRun r = run("intrinsics: {fx: 150, cx: 31.5}\nmounting: {offset_x_mm: 5}\n");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_NE(r.err.find("replay: intrinsics.fx: --config 150 (used), meta.yaml 769.230769\n"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("replay: mounting.offset_x_mm: --config 5 (used), meta.yaml 0\n"),
+            std::string::npos)
+      << r.err;
+  EXPECT_EQ(r.err.find("intrinsics.cx"), std::string::npos) << r.err;  // equal: no line
+  std::ifstream f(d / "out" / "summary.txt");
+  const std::string summary((std::istreambuf_iterator<char>(f)), {});
+  EXPECT_NE(summary.find("camera from --config over meta.yaml: intrinsics.fx: --config 150"),
+            std::string::npos)
+      << summary;
+
+  r = run("loop: {output_rate_hz: 50}\n");  // no camera key: nothing to say
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_EQ(r.err.find("(used)"), std::string::npos) << r.err;
+
+  r = run("camera: {width: 640, height: 48}\n");
+  EXPECT_EQ(r.rc, 2);
+  EXPECT_NE(r.err.find("replay: camera.width: " + (d / "c.yaml").string() +
+                       " sets 640, the recording's meta.yaml 64: the frames are 64x48 px"),
+            std::string::npos)
+      << r.err;
   fs::remove_all(d);
 }
