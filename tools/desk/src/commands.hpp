@@ -19,5 +19,10 @@ int sim_board(int argc, char** argv);  // simulated calibration-board views
 // calibrate check: parked-vehicle check with a printed landmark at a taped pose. Exit 0 within
 // tolerance, 1 out of tolerance, 2 bad input.
 int calibrate_check(int argc, char** argv);
+int config_command(int argc, char** argv);  // dispatcher: config apply
+void print_config_subcommands(FILE* f);     // one usage line per config subcommand
+// config apply: calibration snippets merged into a configuration. Exit 0 written, 1 write
+// failure, 2 refused (conflict, unknown key, fails the checker; nothing written).
+int config_apply_command(int argc, char** argv);
 
 }  // namespace agv::desk

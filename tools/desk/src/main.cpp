@@ -16,6 +16,7 @@ void usage(FILE* f) {
                "replay\n"
                "  sim-board --out DIR   simulated calibration-board views (tests)\n");
   agv::desk::print_calibrate_subcommands(f);
+  agv::desk::print_config_subcommands(f);
   std::fprintf(f,
                "  --version          version\n"
                "Each command takes --help. The vehicle commands (run, replay, record) are in "
@@ -43,6 +44,7 @@ int main(int argc, char** argv) {
   if (!std::strcmp(c, "report")) return agv::desk::report(argc - 1, argv + 1);
   if (!std::strcmp(c, "calibrate")) return agv::desk::calibrate(argc - 1, argv + 1);
   if (!std::strcmp(c, "sim-board")) return agv::desk::sim_board(argc - 1, argv + 1);
+  if (!std::strcmp(c, "config")) return agv::desk::config_command(argc - 1, argv + 1);
   std::fprintf(stderr, "agvloc-desk: unknown command '%s'\n", c);
   usage(stderr);
   return 2;
