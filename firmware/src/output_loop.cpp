@@ -43,6 +43,19 @@ void print_period_line(const OutputStats& o, std::uint64_t dropped) {
                o.can_tx_ok, o.can_tx_failed);
 }
 
+void print_fault_transitions(const localizer::FaultTransitions& ft) {
+  for (int i = 0; i < ft.n; ++i) {
+    const localizer::FaultTransition& t = ft.items[static_cast<std::size_t>(i)];
+    if (t.changes > 1) {
+      std::fprintf(stderr, "agvloc: fault %s (%s) %s (%" PRIu32 " changes since its last line)\n",
+                   t.signal, t.name, t.set ? "set" : "cleared", t.changes);
+    } else {
+      std::fprintf(stderr, "agvloc: fault %s (%s) %s\n", t.signal, t.name,
+                   t.set ? "set" : "cleared");
+    }
+  }
+}
+
 }  // namespace
 
 OutputLoop::OutputLoop(localizer::Localizer& core, hal::CanBus* bus, const hal::Clock& clock,
@@ -143,7 +156,7 @@ void OutputLoop::tick(std::int64_t now_ns, const CameraState& camera, TickRecord
     mqtt_->report(cmd.seq, core_.init_position(now_ns, {cmd.x_mm, cmd.y_mm, cmd.theta_rad}));
   }
   TickRecord local;
-  if ((mqtt_ || diag_) && !rec) rec = &local;
+  if ((mqtt_ || diag_ || log_faults_) && !rec) rec = &local;
   const std::int64_t t_start = clock_.now_ns();
   core_.tick(now_ns, &frames_, rec);
   const std::int64_t t_fused = clock_.now_ns();
@@ -156,6 +169,7 @@ void OutputLoop::tick(std::int64_t now_ns, const CameraState& camera, TickRecord
     last_tick_ = *rec;
     have_tick_ = true;
   }
+  if (log_faults_) print_fault_transitions(fault_log_.update(rec->status.faults, now_ns));
   if (log_period_ns_ > 0) {
     if (next_log_ns_ == INT64_MIN) next_log_ns_ = now_ns + log_period_ns_;
     if (now_ns >= next_log_ns_) {

@@ -8,6 +8,7 @@
 
 #include "agv/hal/can_bus.hpp"
 #include "agv/hal/clock.hpp"
+#include "agv/localizer/fault_transitions.hpp"
 #include "agv/localizer/localizer.hpp"
 #include "agv/recording/recording.hpp"
 #include "agv/vision/landmark_localizer.hpp"
@@ -67,6 +68,9 @@ class OutputLoop {
   // Diagnostics page (docs/diagnostics.md): fixes and ticks are recorded and handed off at its
   // rate. Null (default): none. Called before the loop runs.
   void set_diag(DiagHandoff* diag) { diag_ = diag; }
+  // Log each set / clear of a status fault bit on stderr (the journal), rate-limited per bit
+  // (localizer::FaultTransitionLog). Off (default) in tests and quiet replays.
+  void set_log_faults(bool on) { log_faults_ = on; }
   // The run is over: hands the final state to the diagnostics page (waits for its slot).
   void finish_diag(std::uint64_t frames_dropped);
 
@@ -108,6 +112,8 @@ class OutputLoop {
   FixRing& fixes_;
   std::int64_t log_period_ns_;
   std::int64_t next_log_ns_ = INT64_MIN;
+  bool log_faults_ = false;
+  localizer::FaultTransitionLog fault_log_;
   localizer::OutFrames frames_;
 };
 

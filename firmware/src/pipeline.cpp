@@ -127,6 +127,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
   loop.set_live_gyro(io.live_gyro);
   loop.set_mqtt(io.mqtt);
   loop.set_diag(io.diag);
+  loop.set_log_faults(!io.quiet);
   // loop.pose_on_fix: the vision worker wakes the output thread, which fuses the fix and sends
   // the pose pair at once; it stays the only CAN writer and shares no lock with vision.
   posix::FutexWakeup wakeup(clock);

@@ -7,6 +7,7 @@
 #include <limits>
 #include <vector>
 
+#include "agv/localizer/fault_transitions.hpp"
 #include "agv/localizer/localizer.hpp"
 
 using namespace agv;
@@ -725,4 +726,95 @@ TEST(Localizer, CalibratedCameraOffsetKeepsTheOutputOnTheVehicleClock) {
   };
   EXPECT_LT(run(-12 * kMs), 1.0);
   EXPECT_GT(run(0), 5.0);
+}
+
+// ---- Fault transitions for the log (localizer/fault_transitions.hpp) ----
+
+TEST(FaultTransitionLog, EachSetAndClearOnceWithTheBitsName) {
+  localizer::FaultTransitionLog log;
+  std::int64_t t = 1000 * kMs;
+  EXPECT_EQ(log.update(0, t).n, 0);
+  auto ft = log.update(p::fault::kCameraStalled | p::fault::kCanBusOff, t += 10 * kMs);
+  ASSERT_EQ(ft.n, 2);
+  EXPECT_EQ(ft.items[0].bit, p::fault::kCameraStalled);
+  EXPECT_STREQ(ft.items[0].signal, "FaultCameraStalled");
+  EXPECT_STREQ(ft.items[0].name, "camera_stalled");
+  EXPECT_TRUE(ft.items[0].set);
+  EXPECT_EQ(ft.items[0].changes, 1u);
+  EXPECT_STREQ(ft.items[1].signal, "FaultCanBusOff");
+  // Still set: nothing more.
+  for (int i = 0; i < 100; ++i) {
+    EXPECT_EQ(log.update(p::fault::kCameraStalled | p::fault::kCanBusOff, t += 10 * kMs).n, 0);
+  }
+  // Bus-off clears: reported at once.
+  ft = log.update(p::fault::kCameraStalled, t += 10 * kMs);
+  ASSERT_EQ(ft.n, 1);
+  EXPECT_STREQ(ft.items[0].name, "can_bus_off");
+  EXPECT_FALSE(ft.items[0].set);
+  EXPECT_EQ(ft.items[0].changes, 1u);
+  // The 16-bit word: the gyro bits are named too.
+  ft = log.update(p::fault::kCameraStalled | p::fault::kImuTimeout, t += 10 * kMs);
+  ASSERT_EQ(ft.n, 1);
+  EXPECT_STREQ(ft.items[0].signal, "FaultImuTimeout");
+}
+
+TEST(FaultTransitionLog, EveryFaultBitHasANameInBitOrder) {
+  const auto& names = localizer::fault_bit_names();
+  std::uint16_t all = 0;
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    if (i > 0) {
+      EXPECT_LT(names[i - 1].bit, names[i].bit);
+    }
+    EXPECT_EQ(names[i].bit & (names[i].bit - 1), 0) << "one bit each";
+    all = static_cast<std::uint16_t>(all | names[i].bit);
+  }
+  EXPECT_EQ(all, 0x3FF);  // the eight bits of byte 6 and the two gyro bits
+}
+
+// Odometry timeout from the first tick until odometry flows 30 ms later: both lines at once.
+TEST(FaultTransitionLog, SetAndClearAreReportedWhenTheyHappen) {
+  localizer::FaultTransitionLog log;
+  std::int64_t t = 1000 * kMs;
+  auto ft = log.update(p::fault::kOdomTimeout, t);
+  ASSERT_EQ(ft.n, 1);
+  EXPECT_TRUE(ft.items[0].set);
+  EXPECT_EQ(log.update(p::fault::kOdomTimeout, t += 10 * kMs).n, 0);
+  ft = log.update(0, t += 20 * kMs);
+  ASSERT_EQ(ft.n, 1);
+  EXPECT_STREQ(ft.items[0].name, "odometry_timeout");
+  EXPECT_FALSE(ft.items[0].set);
+  EXPECT_EQ(ft.items[0].changes, 1u);
+}
+
+TEST(FaultTransitionLog, FlappingFaultIsRateLimitedAndItsFinalStateReported) {
+  const std::int64_t hold = localizer::FaultTransitionLog::kDefaultWindowNs;
+  localizer::FaultTransitionLog log;
+  std::int64_t t = 1000 * kMs;
+  // Toggles every 10 ms tick for 60 s: 6000 changes.
+  int lines = 0;
+  std::uint32_t changes = 0;
+  bool last_reported = false;
+  for (int i = 0; i < 6000; ++i) {
+    const auto ft = log.update((i % 2 == 0) ? p::fault::kOdomTimeout : 0, t += 10 * kMs);
+    for (int k = 0; k < ft.n; ++k) {
+      ++lines;
+      changes += ft.items[k].changes;
+      last_reported = ft.items[k].set;
+    }
+  }
+  // At most kBurst lines per window.
+  const int burst = localizer::FaultTransitionLog::kBurst;
+  EXPECT_LE(lines, burst * static_cast<int>(60'000'000'000 / hold + 1));
+  EXPECT_GE(lines, burst);
+  // Settles set (the last update was i = 5999: clear; make it set and hold still).
+  auto ft = log.update(p::fault::kOdomTimeout, t += 10 * kMs);
+  for (int k = 0; k < ft.n; ++k) last_reported = ft.items[k].set, changes += ft.items[k].changes;
+  for (int j = 0; j < 2; ++j) {
+    ft = log.update(p::fault::kOdomTimeout, t += hold);
+    for (int k = 0; k < ft.n; ++k) last_reported = ft.items[k].set, changes += ft.items[k].changes;
+  }
+  EXPECT_TRUE(last_reported) << "the log ends in the bit's real state";
+  EXPECT_EQ(changes, 6001u) << "every change is counted in some line";
+  // Settled: quiet.
+  EXPECT_EQ(log.update(p::fault::kOdomTimeout, t += hold).n, 0);
 }
