@@ -162,6 +162,15 @@ void add_calibration(std::vector<Key>* k) {
                            "wheels and gyro disagreeing by more than this (plus 10 % of the "
                            "rate) is a slip. Smaller catches smaller slips and misfires on "
                            "an uncalibrated track width in turns"}));
+  k->push_back(number("fusion.slip_noise_sigmas", AGV_AT(fusion.slip_noise_sigmas), 1.0, 1000.0,
+                      3.0,
+                      {"σ",
+                       "with a gyro, a wheel/gyro yaw-rate difference under the slip "
+                       "threshold within this many σ of the sample noise and the wheel "
+                       "calibration teaches the calibration; the part beyond it widens "
+                       "the speed σ by its speed equivalent (difference × track / 2) "
+                       "over the run. Larger: fewer small slips widen σ and the next "
+                       "fixes may be gated; smaller: noise widens σ"}));
   k->push_back(deg_as_rad("fusion.omega_per_v_sigma_degpm_per_sqrt_s",
                           AGV_AT(fusion.omega_per_v_sigma_radpm_per_sqrt_s), 0.0, 90.0, 0.005,
                           {"deg/m per √s", "random walk of the yaw rate per speed"}));

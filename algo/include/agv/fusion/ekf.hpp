@@ -219,6 +219,16 @@ struct EkfConfig {
   // A disagreement that lasts longer than this is no slip but a doubtful gyro (time stamps off,
   // a failing sensor): the heading then also takes the disagreement as uncertainty.
   std::int64_t slip_max_duration_ns = 500'000'000;
+  // Below the slip threshold: the wheels' yaw rate is a measurement of their calibration
+  // (s_omega, b_omega, c_omega_v) given the gyro's rate, fused into those states only, with the
+  // odometry yaw-rate noise. A difference within slip_noise_sigmas of what that noise and the
+  // calibration's uncertainty explain teaches the calibration; the part beyond it is unexplained
+  // (one wheel off by e: yaw rate e / track, speed e / 2) and its speed equivalent widens the
+  // speed sigma, correlated over a run of such periods (a slip's speed error adds up, it does not
+  // average out). A 5 % slip of the outer wheel in a 2 rad/s arc (8.6 deg/s, under the 14.5 deg/s
+  // slip threshold) then widens the along-track sigma by its 11 mm instead of gating the next
+  // fixes. Larger: fewer sub-threshold slips widen sigma; smaller: sample noise widens it.
+  double slip_noise_sigmas = 3.0;
   // Standstill: wheels below these (|v|, |omega|) over a period mean the vehicle does not turn;
   // the gyro's reading is then its bias (zero-rate update, sigma standstill_omega_sigma_radps).
   double standstill_v_mps = 0.005;
@@ -407,6 +417,9 @@ class Ekf {
     bool gyro = false;   // the period ending here took its heading from the gyro
     bool slip = false;   // the wheels disagreed with the gyro in that period
     std::int64_t slip_since_ns = kNoOdom;  // start of the current run of slip periods
+    // Speed error (m) the current run of unexplained wheel/gyro differences may have integrated
+    // (slip_noise_sigmas); 0 outside a run and after a fix.
+    double slip_run_m = 0.0;
     // Newest odometry sample at or before this event (kNoOdom: none kept): where the known
     // motion ends (odom_gap_ns after it).
     std::int64_t odom_t_ns = kNoOdom;
@@ -478,8 +491,13 @@ class Ekf {
   // Zero-rate pseudo-measurement omega = 0 (standing still): teaches the gyro bias.
   void update_zero_rate(FilterVec* x, FilterCov* P) const;
   // The odometry step of a period whose yaw the gyro covers; returns whether wheels slipped.
+  // run_m: the unexplained speed error of the run so far, updated for this period.
   bool gyro_period(FilterVec* x, FilterCov* P, double dt_s, double v_mps, double omega_radps,
-                   double gyro_radps, bool distrust_gyro) const;
+                   double gyro_radps, bool distrust_gyro, double* run_m) const;
+  // Fuses the wheels' yaw rate into their calibration states only (the gyro keeps the heading);
+  // returns the part of the difference beyond slip_noise_sigmas, rad/s of wheel yaw rate.
+  double learn_wheel_yaw(FilterVec* x, FilterCov* P, double v_mps, double omega_radps,
+                         bool learn) const;
   bool is_gap(std::int64_t odom_t_ns, std::int64_t t_ns) const {
     return odom_t_ns == kNoOdom || t_ns - odom_t_ns > config_.odom_gap_ns;
   }
