@@ -31,6 +31,8 @@ PKGS=(
   clang-format clang-tidy
   # sanitizer presets asan (with the fuzz/ harnesses) and tsan: clang, libFuzzer, ASan/UBSan/TSan
   clang libclang-rt-14-dev
+  # lld: the faster linker (cmake/Linker.cmake; gold, in binutils, where lld cannot be used)
+  lld
   # CAN tools and independent decoders
   can-utils python3-can iproute2
   # hardware-in-the-loop virtual machine

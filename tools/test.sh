@@ -11,7 +11,8 @@
 #   3. tsan preset (clang TSan, -O1): the code that starts threads: test programs linking
 #      firmware/ or drivers/posix (or labelled tsan), and the replay, golden and fault tests that
 #      run agvloc; single-threaded test programs are not even built there (tests/CMakeLists.txt)
-#   4. arm64 cross build, tests under qemu-aarch64, .deb package test
+#   4. arm64 cross build, tests under qemu-aarch64, .deb package test (the cross environment's apt
+#      work runs in the background from the start)
 # The sanitizer fault suites replay the base recordings the default build rendered
 # (AGV_FAULTS_BASE_FROM, tests/faults/run_faults.py --base-from) instead of rendering them again
 # under the sanitizers. Any sanitizer report fails its test. Prints the wall time of each step
@@ -33,6 +34,13 @@ trap 'printf "%s\n" "${times[@]}"' EXIT
 
 bash tools/install-deps.sh
 step "install-deps"
+# The arm64 cross environment (toolchain/prepare-aarch64.sh) is apt work, downloading and unpacking
+# (~3 min on a fresh machine), not compiling: it runs beside the default build and is waited for
+# before the cross build, where cross-test.sh runs it again (a no-op once prepared).
+mkdir -p build
+prep_log=build/prepare-aarch64.log
+( bash toolchain/prepare-aarch64.sh >"$prep_log" 2>&1; echo $? >"$prep_log.rc" ) &
+prep_pid=$!
 cmake --preset default
 cmake --build --preset default -j "$jobs"
 step "default: build"
@@ -45,8 +53,15 @@ vm_pid=$!
 trap 'printf "%s\n" "${times[@]}"; pkill -TERM -P "$vm_pid" 2>/dev/null || true' EXIT
 export AGV_FAULTS_BASE_FROM="$PWD/build/default/tests/faults/work"
 
+# The TSan build tests no desk tool (it starts no threads): it renders its test recordings with the
+# default build's (AGV_HOST_DESK, CMakeLists.txt) instead of building its own.
+host_desk="$PWD/build/default/firmware/agvloc-desk"
 for preset in asan tsan; do
-  cmake --preset "$preset"
+  if [ "$preset" = tsan ]; then
+    cmake --preset "$preset" -DAGV_HOST_DESK="$host_desk"
+  else
+    cmake --preset "$preset"
+  fi
   cmake --build --preset "$preset" -j "$jobs"
   step "$preset: build"
   # The test presets select the labels (unit, replay, golden, faults, tsan) and set the
@@ -61,6 +76,13 @@ for preset in asan tsan; do
 done
 
 # arm64: cross build, tests under qemu-aarch64, .deb package test (docs/deployment.md)
+wait "$prep_pid" || true
+cat "$prep_log"
+if [ "$(cat "$prep_log.rc" 2>/dev/null || echo 1)" != 0 ]; then
+  echo "test.sh: preparing the arm64 cross environment failed (log above)" >&2
+  exit 1
+fi
+step "aarch64: prepare (in the background), waited for"
 bash tools/cross-test.sh
 step "aarch64: cross-test.sh"
 

@@ -100,7 +100,9 @@ check "packaged agvloc sim exits 2 and names agvloc-desk" \
 # the build tree, replayed by the packaged binary with the shipped /etc configuration.
 rec="$work/rec"
 out="$work/out"
-if $emu "$build/firmware/agvloc-desk" sim --out "$rec" --duration-s 2 --fps 10 --seed 7 \
+# AGV_DESK: the simulator command (a native one in the cross build: AGV_HOST_DESK).
+read -r -a desk <<< "${AGV_DESK:-$emu $build/firmware/agvloc-desk}"
+if "${desk[@]}" sim --out "$rec" --duration-s 2 --fps 10 --seed 7 \
      >"$work/sim.log" 2>&1; then
   echo "PASS sim wrote $(($(wc -l <"$rec/frames.csv") - 1)) frames"
 else

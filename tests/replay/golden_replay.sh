@@ -7,6 +7,7 @@ set -euo pipefail
 read -r -a AGVLOC <<< "$1"  # may be "EMULATOR ARGS... BINARY"
 DESK=("${AGVLOC[@]}")
 DESK[-1]="$(dirname "${AGVLOC[-1]}")/agvloc-desk"
+if [ -n "${AGV_DESK:-}" ]; then read -r -a DESK <<< "$AGV_DESK"; fi  # a native desk (AGV_HOST_DESK)
 WORK="$2"
 UPDATE="${3:-}"
 HERE="$(cd "$(dirname "$0")" && pwd)"
