@@ -26,7 +26,7 @@ done
 # calibrate intrinsics).
 "${DESK[@]}" --help > "$WORK/desk_help.txt"
 for want in "sim " "landmark" "report" "sim-board" "calibrate intrinsics" "calibrate vehicle" \
-            "calibrate check"; do
+            "calibrate check" "config apply"; do
   grep -q -- "$want" "$WORK/desk_help.txt" || fail "agvloc-desk --help does not list '$want'"
 done
 
