@@ -1,4 +1,4 @@
-// Map-guided identity evaluation (docs/map_identity.md): simulated frames where every landmark's QR
+// Map-guided identity evaluation (docs/design/map_identity.md): simulated frames where every landmark's QR
 // code is partly covered, with predictions = truth + noise, on a 1000 mm grid, on a 150 mm grid
 // of landmarks with one heading, and with wrong predictions (kidnapped vehicle).
 //   eval_identity [--frames N] [--cover F] [--seed S] [--min-rate R] [--row-step N]

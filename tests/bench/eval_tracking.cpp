@@ -1,5 +1,5 @@
 // Evaluation program (not a test): cost of a landmark frame with the prediction's search windows
-// against the full-frame search, in the same run on the same frames (docs/tracking.md).
+// against the full-frame search, in the same run on the same frames (docs/design/tracking.md).
 // Frames: the simulator's realistic profile over the default 1 m grid, one landmark fully in view
 // at a random offset and heading. Prediction: the truth moved by a Gaussian error of the stated
 // sigma, with that covariance (what the filter reports between fixes).

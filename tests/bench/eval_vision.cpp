@@ -2,7 +2,7 @@
 // accuracy on clean and degraded frames, the part of the range where the landmark is cut by the
 // image border, false detections on landmark-free floor, per-stage speed, and AprilTag 3
 // (tag36h11, decimate 2, one thread) on the same kind of frames in the same run.
-// Not a unit test. Usage and results: docs/accuracy.md.
+// Not a unit test. Usage and results: docs/design/accuracy.md.
 //   eval_vision [--profile 640|1280] [--frames N] [--floor-frames N] [--seed S] [--ablation]
 //               [--no-apriltag] [--dump DIR] [--family qr|tag36h11] [--speed-compare]
 // --family tag36h11: the same conditions on a floor of tag36h11 landmarks (the tag family of the

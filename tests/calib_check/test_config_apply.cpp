@@ -64,7 +64,7 @@ std::string intrinsics_snippet(double fx) {
 
 // What `calibrate vehicle` writes (format of cmd_calibrate_vehicle.cpp).
 const std::string kVehicleSnippet =
-    "# agvloc-desk calibrate vehicle calib1 (docs/config.md keys)\n"
+    "# agvloc-desk calibrate vehicle calib1 (docs/guide/config.md keys)\n"
     "# Only parameters the drive determined are written; the others keep their value.\n"
     "mounting:\n"
     "  offset_x_mm: 253.6981  # sigma 0.0061 mm\n"

@@ -18,7 +18,7 @@ namespace {
 calibtest::DriveTruth gyro_drive(unsigned seed) {
   calibtest::DriveTruth t = calibtest::perturbed_drive();
   t.seed = seed;
-  // The simulator's default gyro (docs/simulator.md "Gyro"), other signs for even seeds.
+  // The simulator's default gyro (docs/design/simulator.md "Gyro"), other signs for even seeds.
   const double sgn = seed % 2 == 0 ? -1.0 : 1.0;
   t.gyro_scale_error = 0.003 * sgn;
   t.gyro_bias_radps = deg_to_rad(0.2) * sgn;

@@ -172,7 +172,7 @@ TEST(Codec, PosePairSharesTheCounterAndCountersWrap) {
   EXPECT_FALSE(out.valid);
 }
 
-// The worked example of docs/can.md, byte for byte.
+// The worked example of docs/guide/can.md, byte for byte.
 TEST(Codec, DocumentedPoseExample) {
   p::Encoder enc({});
   agv::hal::CanFrame xy, hd;

@@ -205,10 +205,10 @@ TEST(Dbc, CycleTimesFollowTheConfiguredRates) {
 }
 
 TEST(Dbc, DocsFrameTableIsCurrent) {
-  const std::string doc = read_text(std::string(AGV_SOURCE_DIR) + "/docs/can.md");
+  const std::string doc = read_text(std::string(AGV_SOURCE_DIR) + "/docs/guide/can.md");
   ASSERT_FALSE(doc.empty());
   EXPECT_NE(doc.find(p::render_markdown_table(p::ProtocolConfig{})), std::string::npos)
-      << "docs/can.md frame table is stale; regenerate with: agv_can_tool doc-table";
+      << "docs/guide/can.md frame table is stale; regenerate with: agv_can_tool doc-table";
 }
 
 TEST(Dbc, FormatNumberIsShortestRoundTrip) {

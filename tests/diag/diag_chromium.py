@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The diagnostics page in a real browser (docs/diagnostics.md): headless Chromium loads the page
+"""The diagnostics page in a real browser (docs/guide/diagnostics.md): headless Chromium loads the page
 of `agvloc replay --serve`, the test waits until the page says it has drawn the live camera frame
 and the map (body data-frame="ok" and data-map="ok", set by the page's own JS after an image
 loaded and a map with landmarks was drawn), then keeps a screenshot as a test artefact:

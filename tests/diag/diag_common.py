@@ -1,4 +1,4 @@
-"""Helpers of the diagnostics page tests (docs/diagnostics.md): the recording, a served replay,
+"""Helpers of the diagnostics page tests (docs/guide/diagnostics.md): the recording, a served replay,
 HTTP requests with deadlines. Every wait polls a condition against a generous deadline: the tests
 run on a loaded 2-core machine."""
 import atexit, http.client, os, re, shutil, signal, subprocess, sys, threading, time

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The output loop with the diagnostics page (docs/diagnostics.md): period jitter and end to end of
+# The output loop with the diagnostics page (docs/guide/diagnostics.md): period jitter and end to end of
 # `agvloc replay --realtime` with the page off, served with no client, with 50 clients polling at
 # the page's own rate, and with 50 clients requesting as fast as answered (stress); 3 runs per
 # mode, interleaved; one line per run. The same measurement as tools/bench/mqtt_jitter.sh (same

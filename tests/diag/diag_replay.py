@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The diagnostics page served by a replay (docs/diagnostics.md), with the real server:
+"""The diagnostics page served by a replay (docs/guide/diagnostics.md), with the real server:
   - `agvloc replay --serve` of a simulated recording, while clients poll it: the replay's poses.csv
     equals that of the same replay without the page (the page costs the loop nothing it could see);
   - the final state on /api/status.json, /api/map.json and /metrics equals poses.csv and the run

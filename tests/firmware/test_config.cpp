@@ -47,7 +47,7 @@ TEST(Config, ShippedExampleLoads) {
   EXPECT_EQ(cfg.can.base_id, 0x300u);
   EXPECT_NEAR(cfg.camera_model.mm_per_px(), 0.26, 1e-6);
   EXPECT_NE(cfg.map_file.find("tools/maps/default_grid.csv"), std::string::npos);
-  // The vehicle configuration runs real time (docs/config.md, loop section).
+  // The vehicle configuration runs real time (docs/guide/config.md, loop section).
   EXPECT_EQ(cfg.loop.realtime_priority, 50);
   EXPECT_EQ(cfg.loop.vision_priority, 40);
   EXPECT_TRUE(cfg.loop.lock_memory);
@@ -312,7 +312,7 @@ TEST(Config, OnlyBoundedRegularFilesAreRead) {
   std::filesystem::remove_all(dir);
 }
 
-// ---- Issue 14: one key table for the checker, the defaults and docs/config.md ---------------
+// ---- Issue 14: one key table for the checker, the defaults and docs/guide/config.md ---------------
 
 namespace {
 
@@ -411,17 +411,17 @@ std::vector<Value> other_values(const Key& k) {
 }  // namespace
 
 TEST(Config, DocsMatchTheKeyTable) {
-  std::ifstream f(std::string(AGV_SOURCE_DIR) + "/docs/config.md", std::ios::binary);
-  ASSERT_TRUE(f) << "docs/config.md missing";
+  std::ifstream f(std::string(AGV_SOURCE_DIR) + "/docs/guide/config.md", std::ios::binary);
+  ASSERT_TRUE(f) << "docs/guide/config.md missing";
   std::stringstream committed;
   committed << f.rdbuf();
   EXPECT_TRUE(committed.str() == agv::config::config_doc())
-      << "docs/config.md differs from the key table; regenerate it with\n"
-         "  build/default/tools/config-doc/agvloc-config-doc > docs/config.md";
+      << "docs/guide/config.md differs from the key table; regenerate it with\n"
+         "  build/default/tools/config-doc/agvloc-config-doc > docs/guide/config.md";
 }
 
 TEST(Config, EveryDocumentedKeyIsInTheTableAndBack) {
-  std::ifstream f(std::string(AGV_SOURCE_DIR) + "/docs/config.md");
+  std::ifstream f(std::string(AGV_SOURCE_DIR) + "/docs/guide/config.md");
   std::set<std::string> documented;
   for (std::string line; std::getline(f, line);) {
     if (line.rfind("| `", 0) != 0) continue;
@@ -499,7 +499,7 @@ TEST(Config, EveryKeyChecksItsType) {
 }
 
 TEST(Config, VisionFieldsOnceRejectedAreKeys) {
-  // docs/vision.md listed these as settings while the reader rejected them (issue 14).
+  // docs/design/vision.md listed these as settings while the reader rejected them (issue 14).
   for (const char* name :
        {"coarse_border_px", "corner_rotations", "ring_dark_fraction", "max_corner_peaks",
         "qr_retries", "qr_target_module_px", "direction_from_qr_when_logo_weak", "band_rel",

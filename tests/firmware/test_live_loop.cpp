@@ -101,7 +101,7 @@ void check_live_loop(std::int64_t camera_latency_ns) {
   for (const auto& f : fixes) ok_fixes += f.fix.status == vision::FixStatus::kOk;
   ASSERT_GE(ok_fixes, 3) << "the rendered landmark must be found";
   // The output thread's snapshot reaches the vision worker: after the first fix initialised the
-  // filter, the landmark is found in its search window (docs/tracking.md).
+  // filter, the landmark is found in its search window (docs/design/tracking.md).
   int windowed = 0;
   for (const auto& f : fixes) windowed += f.fix.search == vision::SearchMode::kWindow;
   EXPECT_GE(windowed, 1);

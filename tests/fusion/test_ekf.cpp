@@ -557,7 +557,7 @@ Ekf drive_with_biased_odometry(const EkfConfig& c, double scale, double bias_rad
 
 TEST(FusionEkf, LearnsOdometryScaleAndYawRateBias) {
   // Within what the plain 5-state filter's default gate tolerates (it has to fuse every fix for
-  // the comparison); the calibrated filter handles far more (docs/fusion.md, eval_fusion).
+  // the comparison); the calibrated filter handles far more (docs/design/fusion.md, eval_fusion).
   const double scale = 0.01, bias = deg_to_rad(0.5);
   double err_cal = 0.0, err_plain = 0.0;
   const Ekf cal = drive_with_biased_odometry(EkfConfig{}, scale, bias, 30, &err_cal);

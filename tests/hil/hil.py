@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Hardware-in-the-loop scenarios on a real kernel CAN bus (vcan0 in the VM), see docs/hil.md.
+"""Hardware-in-the-loop scenarios on a real kernel CAN bus (vcan0 in the VM), see docs/design/hil.md.
 
   hil.py SCENARIO --agvloc BIN --results DIR [--recording REC | --sim-args "..."]
          [--agvloc-desk BIN] [--config CFG] [--speed S] [--dbc can/agvloc.dbc]
@@ -51,7 +51,7 @@ def main() -> int:
     ap.add_argument("--set", action="append", help="extra config override key.sub=value")
     ap.add_argument("--dbc", default=os.path.join(SOURCE_DIR, "can/agvloc.dbc"))
     ap.add_argument("--speed", type=float, default=float(os.environ.get("AGV_HIL_SPEED", "0.5")),
-                    help="replay pace (1 = real time); the TCG VM is slow (docs/hil.md)")
+                    help="replay pace (1 = real time); the TCG VM is slow (docs/design/hil.md)")
     ap.add_argument("--iface", default="vcan0", help="bus interface (can0 with --no-vm)")
     ap.add_argument("--no-vm", action="store_true",
                     help="run on this machine's own interface (a real bench bus; needs root)")
@@ -125,7 +125,7 @@ def scenario(a, res: str, rep: Report) -> int:
                if f not in help_text]
     if missing:
         raise HilError(f"`agvloc replay --help` does not mention {' '.join(missing)}: the HIL "
-                       f"harness needs them (docs/hil.md, 'What the localizer must provide')")
+                       f"harness needs them (docs/design/hil.md, 'What the localizer must provide')")
 
     # Recording.
     rec = a.recording
@@ -259,7 +259,7 @@ def scenario(a, res: str, rep: Report) -> int:
     if a.analyse_only:
         vm_rc = 0
     elif a.no_vm:
-        # A real bus (docs/hil.md, "On a real bus"): the same guest script, on this machine.
+        # A real bus (docs/design/hil.md, "On a real bus"): the same guest script, on this machine.
         try:
             vm_rc = subprocess.run(guest, timeout=vm_timeout).returncode
         except subprocess.TimeoutExpired:

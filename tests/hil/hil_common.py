@@ -28,7 +28,7 @@ OFFLINE_P90_MM = 10.0
 RX_LAG_LIMIT_MS = 250.0
 MAX_POSE_GAP_S = 0.5  # longest tolerated pose-frame gap while nothing is injected
 # The SocketCAN driver's restart time: its reopen backoff is capped at 100 ms
-# (SocketCanConfig::reopen_backoff_max_ns, docs/can.md), so the first pose after the link comes
+# (SocketCanConfig::reopen_backoff_max_ns, docs/guide/can.md), so the first pose after the link comes
 # back must be on the bus within that plus one output period. The guest logs "link up" after
 # `ip link set up` returned; emulation adds scheduling delay on top, bounded here.
 CAN_RESTART_S = 0.1

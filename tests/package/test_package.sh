@@ -35,7 +35,7 @@ done
 root="$work/root"
 dpkg-deb -x "$deb" "$root"
 for f in usr/bin/agvloc etc/agvloc/agvloc.yaml etc/agvloc/map.csv lib/systemd/system/agvloc.service \
-         usr/lib/sysusers.d/agvloc.conf usr/share/doc/agvloc/frames.md; do
+         usr/lib/sysusers.d/agvloc.conf usr/share/doc/agvloc/design/frames.md usr/share/doc/agvloc/guide/operation.md; do
   check "contains /$f" test -s "$root/$f"
 done
 if [ -f "$src/can/agvloc.dbc" ]; then
@@ -51,7 +51,7 @@ for line in "User=agvloc" "SupplementaryGroups=video" "Restart=on-failure" "Limi
   check "unit has $line" grep -qx "$line" "$unit"
 done
 # Address families: what each network feature needs that the configuration can enable, and the
-# key that enables it (the key must exist: docs/config.md is generated from the key table). A
+# key that enables it (the key must exist: docs/guide/config.md is generated from the key table). A
 # RestrictAddressFamilies= without them makes the feature fail only on the vehicle.
 families=" $(sed -n 's/^RestrictAddressFamilies=//p' "$unit" | tr '\n' ' ') "
 check "unit restricts address families" test -n "${families// /}"
@@ -63,8 +63,8 @@ for need in "always:AF_CAN:CAN pose output and odometry" \
             "vda5050.enabled:AF_INET AF_INET6:VDA 5050 MQTT client"; do
   key="${need%%:*}" rest="${need#*:}"
   fams="${rest%%:*}" what="${rest#*:}"
-  if [ "$key" != always ] && [ -f "$src/docs/config.md" ]; then
-    check "$key is a configuration key" grep -qF "\`$key\`" "$src/docs/config.md"
+  if [ "$key" != always ] && [ -f "$src/docs/guide/config.md" ]; then
+    check "$key is a configuration key" grep -qF "\`$key\`" "$src/docs/guide/config.md"
   fi
   for fam in $fams; do
     check "unit allows $fam ($what, $key)" grep -q " $fam " <<<"$families"

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The fused pose reaches the vision stage (docs/tracking.md): simulate a run over the mapped grid,
+# The fused pose reaches the vision stage (docs/design/tracking.md): simulate a run over the mapped grid,
 # replay it (--fast) with the map, and require that most landmark fixes were found in the
 # prediction's search window (fixes.csv column `search`).
 #   tracking_replay.sh AGVLOC WORKDIR MAP

@@ -1,4 +1,4 @@
-// Rendering speed of the simulator (not a ctest; docs/simulator.md gives the command).
+// Rendering speed of the simulator (not a ctest; docs/design/simulator.md gives the command).
 // Prints the median CPU time per frame for a few configurations and ratios against the floor-only
 // frame measured in the same run.
 #include <algorithm>

@@ -1,4 +1,4 @@
-// The simulated MEMS gyro (docs/simulator.md "Gyro"): each error term has the statistics its
+// The simulated MEMS gyro (docs/design/simulator.md "Gyro"): each error term has the statistics its
 // parameter states, and the samples are the true mean yaw rate over their period.
 #include <gtest/gtest.h>
 

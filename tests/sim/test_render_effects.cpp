@@ -1,4 +1,4 @@
-// Imaging effects and degradations do what docs/simulator.md says, and only that.
+// Imaging effects and degradations do what docs/design/simulator.md says, and only that.
 #include <gtest/gtest.h>
 
 #include <cmath>

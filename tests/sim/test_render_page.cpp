@@ -1,4 +1,4 @@
-// The printed landmark: geometry of the PNG raster and SVG as docs/landmark.md says, and the QR
+// The printed landmark: geometry of the PNG raster and SVG as docs/design/landmark.md says, and the QR
 // decodes to the payload at the documented version and ECC level.
 #include <ZXing/ReadBarcode.h>
 #include <gtest/gtest.h>

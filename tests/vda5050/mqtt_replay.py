@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""VDA 5050 over a real broker (docs/vda5050.md): starts mosquitto on a free local port, runs
+"""VDA 5050 over a real broker (docs/guide/vda5050.md): starts mosquitto on a free local port, runs
 `agvloc replay --realtime` of a short simulated recording publishing to it, and checks with an
 independent client (paho-mqtt) that
   - every message validates against the official JSON schema of the configured version,

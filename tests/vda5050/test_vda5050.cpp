@@ -1,4 +1,4 @@
-// The VDA 5050 encoder and the health / sigma mapping (docs/vda5050.md "Field mapping").
+// The VDA 5050 encoder and the health / sigma mapping (docs/guide/vda5050.md "Field mapping").
 #include <gtest/gtest.h>
 
 #include <cmath>

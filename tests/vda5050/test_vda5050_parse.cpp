@@ -1,5 +1,5 @@
 // The instantActions parser: initPosition accepted, every malformed or hostile case refused with
-// its named reason (docs/vda5050.md "initPosition"; fuzzed by fuzz/fuzz_vda_action.cpp).
+// its named reason (docs/guide/vda5050.md "initPosition"; fuzzed by fuzz/fuzz_vda_action.cpp).
 #include <gtest/gtest.h>
 
 #include <string>

@@ -21,7 +21,7 @@ using namespace agv::vision;
 
 namespace {
 
-// The landmark's QR settings (docs/landmark.md): ECC level M, no margin.
+// The landmark's QR settings (docs/design/landmark.md): ECC level M, no margin.
 ZXing::BitMatrix encode(const std::string& text) {
   return ZXing::MultiFormatWriter(ZXing::BarcodeFormat::QRCode)
       .setEccLevel(4)

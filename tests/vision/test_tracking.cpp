@@ -1,4 +1,4 @@
-// Search windows from the prediction (docs/tracking.md): projection against the renderer, growth
+// Search windows from the prediction (docs/design/tracking.md): projection against the renderer, growth
 // with the covariance, the trust rule, windowed fixes equal to full-search fixes, the fallback to
 // the full frame, and the constant-velocity extrapolation of the threaded loop's snapshot.
 #include <gtest/gtest.h>
@@ -91,7 +91,7 @@ Pose2 over_landmark(const CameraModel& cam, double dx, double dy, double heading
                                                cam.mount.offset_y_mm + dy, heading_rad}));
 }
 
-// Tracked fix against the full search's (measured: docs/tracking.md).
+// Tracked fix against the full search's (measured: docs/design/tracking.md).
 // Measured max over the cases below: 0.0068 mm, 0.0031 deg at the default edge_row_step 3 (0.0014
 // mm, 0.00086 deg at step 1: with a third of the points, the band's ends, which follow the
 // detection, move the fit more). The detection's centre moves by up to a coarse pixel (4 px)
@@ -371,7 +371,7 @@ void paint_logo_turned(cv::Mat* img, const CameraModel& cam, const Pose2& landma
 
 }  // namespace
 
-// Verified read (docs/tracking.md): the guided reader compares the sampled grid with the mapped
+// Verified read (docs/design/tracking.md): the guided reader compares the sampled grid with the mapped
 // codes and skips zxing, with or without a prediction; the predicted heading gives the turn to read
 // first when the logo is unreadable, where the full search samples wrong turns first and zxing
 // runs on each of their grids. Same fixes, fewer zxing runs.
@@ -822,7 +822,7 @@ TEST(Tracking, EdgeProbesLeaveABlurredLandmarkToTheDetection) {
   EXPECT_GE(n_blurred, 2);
 }
 
-// Logo at the code's turn (docs/tracking.md): a tracked frame whose code verifies at the predicted
+// Logo at the code's turn (docs/design/tracking.md): a tracked frame whose code verifies at the predicted
 // turn scores the logo at that turn only, and gives the four turns' fix. An erased logo, or one
 // printed a quarter turn away, takes the four turns; the latter is refused as before.
 TEST(Tracking, LogoIsScoredAtTheVerifiedCodesTurnOnly) {

@@ -328,7 +328,7 @@ TEST(VisionGolden, StoredFramesGiveStoredResults) {
   EXPECT_EQ(n, 4);
 }
 
-// Camera tilt (docs/frames.md "Camera tilt"): frames rendered by a tilted camera give sub-0.1 mm
+// Camera tilt (docs/design/frames.md "Camera tilt"): frames rendered by a tilted camera give sub-0.1 mm
 // deviations when the localizer knows the tilt, and a clear bias (about height * tan(tilt))
 // when it assumes a perpendicular camera.
 TEST(VisionLocalizer, TiltedCameraNeedsTheTiltInTheModel) {

@@ -18,7 +18,7 @@
 #     --keep                    keep the results dir even on success.
 #     --quiet                   do not stream the guest console to stdout (it is always logged).
 #
-# How it works (docs/hil.md): an initramfs with busybox-static as /init insmods virtio + 9p (+ CAN
+# How it works (docs/design/hil.md): an initramfs with busybox-static as /init insmods virtio + 9p (+ CAN
 # and the extra modules), mounts the host's / read-only over virtio-9p, mounts proc, sys,
 # devtmpfs, devpts and tmpfs on /tmp, /run, /var/tmp, mounts the results share at HOSTDIR,
 # bind-mounts the unpacked kernel modules on /lib/modules/<kver> (so modprobe works), chroots and
