@@ -1,4 +1,4 @@
-# AGV_SANITIZE selects the sanitizer build (presets asan, tsan; docs/security.md "Sanitizers in CI"):
+# AGV_SANITIZE selects the sanitizer build (presets asan, tsan; docs/design/security.md "Sanitizers in CI"):
 #   address,undefined (or ON)  ASan + UBSan; with AGV_BUILD_FUZZERS the same build also links the
 #                              libFuzzer harnesses, so CI compiles the tree once for both
 #   thread                     TSan

@@ -1,4 +1,4 @@
-// The configuration YAML (docs/config.md), read as `agvloc run` reads it. Properties: nothing
+// The configuration YAML (docs/guide/config.md), read as `agvloc run` reads it. Properties: nothing
 // throws or aborts (this build rethrows from parse_config's last-resort catch, so an exception
 // is a finding); it is accepted exactly when no error is reported, every error names a key path;
 // an accepted live configuration has a usable camera model (finite mm/px) and a valid CAN

@@ -1,4 +1,4 @@
-// Landmark map CSV (docs/landmark.md). Property: an accepted map has non-zero ids that match
+// Landmark map CSV (docs/design/landmark.md). Property: an accepted map has non-zero ids that match
 // their entries and finite poses.
 #include <cmath>
 

@@ -1,4 +1,4 @@
-// One file of a recording (docs/recording.md), chosen at compile time by AGV_FUZZ_FILE:
+// One file of a recording (docs/guide/recording.md), chosen at compile time by AGV_FUZZ_FILE:
 // 0 meta.yaml, 1 frames.csv, 2 odom.csv, 3 truth.csv. Properties: a rejected file names itself
 // and a line; an accepted one has strictly increasing times in [0, kMaxTimeNs], values in the
 // documented ranges, frame paths that cannot escape the recording directory, and the writer's

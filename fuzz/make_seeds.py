@@ -46,8 +46,8 @@ def main():
     put("fuzz_map", "small", "# c\n\nid,x_mm,y_mm,heading_deg\r\n17, +1000.5 ,-2000,90\n18,0,0,-179.996\n")
     put("fuzz_map", "dup", "id,x_mm,y_mm,heading_deg\n1,0,0,0\n1,0,0,0\n")
     put("fuzz_map", "range", "id,x_mm,y_mm,heading_deg\n65535,999999.9,-999999.9,180\n")
-    # Recording files (docs/recording.md).
-    meta = """# agvloc recording metadata, docs/recording.md
+    # Recording files (docs/guide/recording.md).
+    meta = """# agvloc recording metadata, docs/guide/recording.md
 format_version: 1
 source: "agvloc-desk sim --out rec \\"q\\""
 image:

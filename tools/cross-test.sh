@@ -6,7 +6,7 @@
 #      hil, vm (they boot an x86-64 VM), interop (needs npm tooling), and calib and sim: the desk
 #      tool's commissioning and simulator tests (agvloc-desk is not shipped to the vehicle; they
 #      run natively and under the sanitizers, and took ~240 s of the emulated run), and mqtt
-#      (a mosquitto broker and python clients on the host: docs/vda5050.md),
+#      (a mosquitto broker and python clients on the host: docs/guide/vda5050.md),
 #   4. the package test (label package) builds the arm64 .deb and runs its binary emulated.
 # Prints the time of each step. Environment: AGV_CROSS_JOBS (default nproc).
 set -euo pipefail

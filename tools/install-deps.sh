@@ -18,11 +18,11 @@ PKGS=(
   libcamera-dev libcamera-ipa udev
   # imu.source iio: gyro from a Linux IIO device (drivers/iio)
   libiio-dev
-  # VDA 5050 position over MQTT (docs/vda5050.md): client library, JSON; broker, independent
+  # VDA 5050 position over MQTT (docs/guide/vda5050.md): client library, JSON; broker, independent
   # client and the official schemas' validator for the mqtt tests
   libmosquitto-dev nlohmann-json3-dev mosquitto mosquitto-clients python3-paho-mqtt
   python3-jsonschema
-  # diagnostics page and /metrics (docs/diagnostics.md): HTTP server; the page test's browser
+  # diagnostics page and /metrics (docs/guide/diagnostics.md): HTTP server; the page test's browser
   libcpp-httplib-dev chromium
   # agvloc-desk calibrate vehicle: nonlinear least squares
   libceres-dev

@@ -3,7 +3,7 @@
 #   1. default preset (g++, warnings as errors): every test. The VM tests (labels hil and vm: one
 #      emulated machine at a time, one core, ~430 s in all) run in the background from here on,
 #      beside the sanitizer jobs, instead of alone at the end of the default ctest with the second
-#      core idle; they are built to pass on a loaded machine (docs/hil.md). Their log is printed
+#      core idle; they are built to pass on a loaded machine (docs/design/hil.md). Their log is printed
 #      when they end; a test that failed there runs again alone, and a failure alone fails the
 #      script.
 #   2. asan preset (clang ASan + UBSan, -O1): the tests labelled unit, replay, golden, faults and
@@ -16,7 +16,7 @@
 # The sanitizer fault suites replay the base recordings the default build rendered
 # (AGV_FAULTS_BASE_FROM, tests/faults/run_faults.py --base-from) instead of rendering them again
 # under the sanitizers. Any sanitizer report fails its test. Prints the wall time of each step
-# (docs/testing.md, "Time budget").
+# (docs/guide/testing.md, "Time budget").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 jobs="$(nproc)"
@@ -69,13 +69,13 @@ for preset in asan tsan; do
   ctest --preset "$preset" -j "$jobs"
   step "$preset: ctest"
   if [ "$preset" = asan ]; then
-    # Fuzzing (docs/security.md): every harness, built above, on the committed corpus, 20 s each.
+    # Fuzzing (docs/design/security.md): every harness, built above, on the committed corpus, 20 s each.
     bash fuzz/run.sh "${AGV_FUZZ_SECONDS:-20}"
     step "asan: fuzz/run.sh"
   fi
 done
 
-# arm64: cross build, tests under qemu-aarch64, .deb package test (docs/deployment.md)
+# arm64: cross build, tests under qemu-aarch64, .deb package test (docs/guide/deployment.md)
 wait "$prep_pid" || true
 cat "$prep_log"
 if [ "$(cat "$prep_log.rc" 2>/dev/null || echo 1)" != 0 ]; then

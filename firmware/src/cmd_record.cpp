@@ -1,6 +1,6 @@
 // agvloc record --config FILE --out DIR: the live camera, CAN odometry and the gyro (AGV_Gyro
 // with can.gyro.enabled, the IIO device with imu.source iio), streamed in the recording format
-// (docs/recording.md) for later replay. The recording itself is app::Recorder.
+// (docs/guide/recording.md) for later replay. The recording itself is app::Recorder.
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <filesystem>
@@ -19,7 +19,7 @@ namespace agv::cmd {
 
 int record(int argc, char** argv) {
   CLI::App app{
-      "Record the live camera, CAN odometry and the gyro as a recording (docs/recording.md)"};
+      "Record the live camera, CAN odometry and the gyro as a recording (docs/guide/recording.md)"};
   std::string config_file, out_dir;
   double duration_s = 0.0;
   app.add_option("--config", config_file, "configuration YAML")->required();

@@ -37,7 +37,7 @@ namespace agv::cmd {
 namespace {
 
 // Output periods one replay simulates at most: 10^6 tick records (360 MB) and poses.csv lines
-// (~130 MB); 2.8 h of recording at the default 100 Hz (docs/replay.md).
+// (~130 MB); 2.8 h of recording at the default 100 Hz (docs/guide/replay.md).
 constexpr std::int64_t kMaxReplayTicks = 1'000'000;
 // Seconds a real-time replay's record runs past the recording: 6000 tick records (2.2 MB) at
 // 100 Hz, where 7 s were needed under load in the HIL VM.
@@ -118,12 +118,12 @@ std::string gyro_summary(const localizer::OutputStats& o, const recording::Recor
 }  // namespace
 
 int replay(int argc, char** argv) {
-  CLI::App app{"Run the localizer on a recording (frames + odometry), docs/replay.md"};
+  CLI::App app{"Run the localizer on a recording (frames + odometry), docs/guide/replay.md"};
   std::string rec_dir, out_dir = "replay_out", config_file, map_file, can_iface, can_log;
   bool realtime = false, fast = false, odom_from_can = false, quiet = false, serve = false;
   double speed = 1.0;
   std::vector<int> overlay_frames;
-  app.add_option("recording", rec_dir, "recording directory (docs/recording.md)")->required();
+  app.add_option("recording", rec_dir, "recording directory (docs/guide/recording.md)")->required();
   app.add_option("--out", out_dir, "output directory (poses.csv, fixes.csv, summary.txt, ...)");
   app.add_option("--config", config_file,
                  "configuration YAML; a camera, mounting or landmark.size_mm key it sets is used "
@@ -144,7 +144,7 @@ int replay(int argc, char** argv) {
   app.add_flag("--quiet", quiet, "no progress or periodic lines");
   app.add_flag("--serve", serve,
                "serve the diagnostics page and /metrics during the replay and after it until "
-               "SIGINT / SIGTERM (address and port: diag.* keys; docs/diagnostics.md)");
+               "SIGINT / SIGTERM (address and port: diag.* keys; docs/guide/diagnostics.md)");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -174,7 +174,7 @@ int replay(int argc, char** argv) {
     std::fprintf(stderr, "replay: %s: %s\n", rec_dir.c_str(), err.c_str());
     return 2;
   }
-  // One rule for meta.yaml against --config (docs/replay.md): what --config sets is used (a
+  // One rule for meta.yaml against --config (docs/guide/replay.md): what --config sets is used (a
   // calibrated mounting is replayed as calibrated, as calibrate vehicle --config does), the
   // recording gives the rest; each value that differs is printed.
   std::vector<std::string> config_keys;

@@ -20,7 +20,7 @@
 namespace agv::cmd {
 
 int run(int argc, char** argv) {
-  CLI::App app{"Live localization: camera -> vision -> fusion -> CAN (docs/config.md)"};
+  CLI::App app{"Live localization: camera -> vision -> fusion -> CAN (docs/guide/config.md)"};
   std::string config_file;
   bool check_only = false, print_dbc = false;
   app.add_option("--config", config_file, "configuration YAML")->required();
@@ -61,7 +61,7 @@ int run(int argc, char** argv) {
     std::fprintf(stderr, "agvloc: %s\n", err.c_str());
     return 2;
   }
-  std::unique_ptr<hal::Imu> imu;  // imu.source iio (docs/fusion.md "Gyro from a Linux IIO device")
+  std::unique_ptr<hal::Imu> imu;  // imu.source iio (docs/design/fusion.md "Gyro from a Linux IIO device")
   if (cfg.imu.source == "iio") {
     imu = app::make_live_imu(cfg, &err);
     if (!imu) {
@@ -120,7 +120,7 @@ int run(int argc, char** argv) {
     }
     io.mqtt = &mqtt_handoff;
   }
-  // Diagnostics page (diag.enabled, docs/diagnostics.md): its own threads, never the loop's.
+  // Diagnostics page (diag.enabled, docs/guide/diagnostics.md): its own threads, never the loop's.
   app::DiagHandoff diag_handoff;
   app::FrameTap diag_frames;
   std::unique_ptr<app::DiagServer> diag;

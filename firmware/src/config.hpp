@@ -1,5 +1,5 @@
 // Reading the configuration and map files (size caps, regular files only). The configuration
-// itself (Config, parse_config, the key table): agv/config/config.hpp; every key: docs/config.md.
+// itself (Config, parse_config, the key table): agv/config/config.hpp; every key: docs/guide/config.md.
 #pragma once
 
 #include <cstdint>
@@ -11,7 +11,7 @@
 
 namespace agv::config {
 
-// Size caps of the files the localizer reads (docs/security.md); larger files are errors.
+// Size caps of the files the localizer reads (docs/design/security.md); larger files are errors.
 inline constexpr std::uintmax_t kMaxConfigBytes = 1u << 20;  // 1 MiB
 inline constexpr std::uintmax_t kMaxMapBytes = 4u << 20;     // 4 MiB (65535 landmarks ~ 2.6 MB)
 
@@ -22,7 +22,7 @@ bool load_config(const std::string& path, Config* out, std::vector<std::string>*
 // load_config for the entry points: prints every error as "<who>: config: <error>".
 bool load_config_or_report(const std::string& path, const char* who, Config* out,
                            ConfigUse use = ConfigUse::kLive);
-// Reads a landmark map file (docs/landmark.md; a regular file of at most kMaxMapBytes); false
+// Reads a landmark map file (docs/design/landmark.md; a regular file of at most kMaxMapBytes); false
 // with *error naming file and line.
 bool load_map_file(const std::string& path, LandmarkMap* map, std::string* error);
 // What the YAML alone cannot show but leaves a live run unable to localize: a tag36h11 floor

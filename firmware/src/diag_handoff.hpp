@@ -1,4 +1,4 @@
-// Hand-off between the real-time threads and the diagnostics server (docs/diagnostics.md),
+// Hand-off between the real-time threads and the diagnostics server (docs/guide/diagnostics.md),
 // shaped like the MQTT one (mqtt_handoff.hpp): the loop side never blocks and never allocates.
 // The output loop records fixes and trajectory points into fixed rings it alone owns, and at the
 // hand-off rate (loop time) copies them with the tick and the statistics into a slot it only

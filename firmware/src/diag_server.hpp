@@ -1,4 +1,4 @@
-// The live diagnostics page and /metrics (docs/diagnostics.md): an HTTP server (cpp-httplib) on a
+// The live diagnostics page and /metrics (docs/guide/diagnostics.md): an HTTP server (cpp-httplib) on a
 // fixed pool of ordinary (not real-time) threads. It reads the loop only through DiagHandoff and
 // FrameTap (diag_handoff.hpp); pure encodings are algo/src/diag. Bounded however many clients
 // connect: diag.threads workers, diag.max_clients connections served or waiting (more answered

@@ -1,4 +1,4 @@
-// Hand-off between the output loop and the MQTT thread (docs/vda5050.md "Threads"). The loop
+// Hand-off between the output loop and the MQTT thread (docs/guide/vda5050.md "Threads"). The loop
 // side never blocks and never allocates: each slot is guarded by a mutex the loop only try-locks
 // (the MQTT thread holds it for one copy of a few hundred bytes); a busy slot skips this tick's
 // sample or this tick's look at the mailbox (counted), the next tick retries.

@@ -62,10 +62,10 @@ class OutputLoop {
   // imu.source iio: gyro samples from the reader thread (gyro_reader.hpp), fused in take_inputs
   // after the CAN frames. Null (default): none. Called before the loop runs.
   void set_live_gyro(GyroRing* ring) { live_gyro_ = ring; }
-  // VDA 5050 (docs/vda5050.md): each tick is offered to the MQTT thread and a pending
+  // VDA 5050 (docs/guide/vda5050.md): each tick is offered to the MQTT thread and a pending
   // initPosition applied before the tick. Null (default): none. Called before the loop runs.
   void set_mqtt(MqttHandoff* mqtt) { mqtt_ = mqtt; }
-  // Diagnostics page (docs/diagnostics.md): fixes and ticks are recorded and handed off at its
+  // Diagnostics page (docs/guide/diagnostics.md): fixes and ticks are recorded and handed off at its
   // rate. Null (default): none. Called before the loop runs.
   void set_diag(DiagHandoff* diag) { diag_ = diag; }
   // Log each set / clear of a status fault bit on stderr (the journal), rate-limited per bit

@@ -1,4 +1,4 @@
-// The recording behind `agvloc record` (docs/recording.md): the camera's frames as PNGs, CAN
+// The recording behind `agvloc record` (docs/guide/recording.md): the camera's frames as PNGs, CAN
 // odometry, and the gyro (AGV_Gyro on CAN, or a hal::Imu for imu.source iio), each row appended
 // to its CSV as it arrives. Rows reach the file at least every flush_period_ns, so a crash loses
 // at most that much; a power loss at most sync_period_ns of rows.

@@ -1,4 +1,4 @@
-// The one rule for a recording's meta.yaml against `agvloc replay --config` (docs/replay.md):
+// The one rule for a recording's meta.yaml against `agvloc replay --config` (docs/guide/replay.md):
 // a camera key the --config file sets is used, meta.yaml gives the rest; the image size is the
 // recording's (its frames have that size).
 #pragma once

@@ -1,4 +1,4 @@
-// Replay outputs: CSV files with documented columns (docs/replay.md). Accuracy against truth.csv
+// Replay outputs: CSV files with documented columns (docs/guide/replay.md). Accuracy against truth.csv
 // and the trajectory plot are desk work (`agvloc-desk report`, tools/desk) over these files.
 #pragma once
 
@@ -13,7 +13,7 @@ bool write_poses_csv(const std::string& path, const std::vector<TickRecord>& tic
                      std::string* error);
 bool write_fixes_csv(const std::string& path, const std::vector<FixRecord>& fixes,
                      std::string* error);
-// odom.csv's columns (docs/recording.md) with every digit of the doubles, so a replay of the
+// odom.csv's columns (docs/guide/recording.md) with every digit of the doubles, so a replay of the
 // file gives fusion the same samples to the bit.
 bool write_odometry_csv(const std::string& path, const std::vector<recording::OdomRow>& rows,
                         std::string* error);

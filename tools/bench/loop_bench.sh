@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Loop benchmark (docs/performance.md): a 60 s simulated run replayed at real-time pace through
+# Loop benchmark (docs/design/performance.md): a 60 s simulated run replayed at real-time pace through
 # the threaded loop; prints end-to-end latency, output period jitter, CPU use and peak RSS, and
 # the jitter of a bare periodic timer measured at the same time (the machine's own baseline).
 #   tools/bench/loop_bench.sh [BUILD_DIR] [WORK_DIR]

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The output loop with VDA 5050 on (docs/vda5050.md): period jitter and end to end of
+# The output loop with VDA 5050 on (docs/guide/vda5050.md): period jitter and end to end of
 # `agvloc replay --realtime` with MQTT off, broker up, broker down (nothing listening), broker up
 # with instantActions flooded by garbage; 3 runs per mode, interleaved; one line per run.
 #   tools/bench/mqtt_jitter.sh AGVLOC RECORDING WORKDIR

@@ -1,5 +1,5 @@
-// Prints docs/config.md as generated from the configuration key table:
-//   build/default/tools/config-doc/agvloc-config-doc > docs/config.md
+// Prints docs/guide/config.md as generated from the configuration key table:
+//   build/default/tools/config-doc/agvloc-config-doc > docs/guide/config.md
 #include <cstdio>
 #include <string>
 

@@ -1,6 +1,6 @@
 // agv_can_tool: renders the CAN contract and writes the interop test data.
 //   agv_can_tool dbc [base_id [ext]]        DBC for a base ID (default 0x300, 11-bit) to stdout
-//   agv_can_tool doc-table                  Markdown frame table of docs/can.md to stdout
+//   agv_can_tool doc-table                  Markdown frame table of docs/guide/can.md to stdout
 //   agv_can_tool interop LOG EXPECTED       frames the codec wrote (candump -l) + the physical
 //                                           values each must decode to (JSON lines), for
 //                                           tools/dbc/check_candied.cjs

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Instructions per frame of the vision pipeline on x86-64 (valgrind callgrind) and on aarch64
 # (qemu-aarch64 with insn_count_plugin.c), for the same frames, both RelWithDebInfo (-O2) with the
-# architectures' baseline instruction sets; docs/deployment.md reports it.
+# architectures' baseline instruction sets; docs/guide/deployment.md reports it.
 #   bash tools/vision-cost/measure.sh [RECORDING] [FRAMES]
 # AGV_COST_PROFILE=1 also writes aarch64 instructions per function (insn_profile_plugin.c).
 # AGV_COST_ARGS adds vision_cost options to every run, e.g.

@@ -1,7 +1,7 @@
 // vision_cost RECORDING [--frames N] [--class all|ok|none|free|cut]
 //             [--tracking SIGMA_MM --map FILE] [--row-step N] [--repeat N]
 // Instruction cost of the vision pipeline (agv::vision::LandmarkLocalizer::process) on the frames
-// of a recording, for docs/deployment.md. Frames are decoded first; one warm-up pass classifies
+// of a recording, for docs/guide/deployment.md. Frames are decoded first; one warm-up pass classifies
 // them by status: ok, or none (any other status), which splits into free (no landmark found) and
 // cut (a landmark partly outside the image: not a landmark-free frame, and the costly part of
 // none). The measured pass then calls process() once per selected frame, each call bracketed
@@ -12,7 +12,7 @@
 //     plugin insn_count_plugin.c, under qemu-aarch64.
 // Both count user-space instructions of the same calls. OpenCV runs single-threaded so that the
 // count is one core's work. measure.sh runs the whole comparison.
-// --tracking SIGMA_MM: every frame gets a prediction (docs/tracking.md) from the recording's truth
+// --tracking SIGMA_MM: every frame gets a prediction (docs/design/tracking.md) from the recording's truth
 // moved by a Gaussian error of SIGMA_MM and SIGMA_MM / 10 degrees (fixed seed), with that
 // covariance; the search windows need the landmark map (--map).
 // --row-step N: VisionConfig::edge_row_step (default: the configuration's default), so two steps

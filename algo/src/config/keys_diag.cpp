@@ -1,4 +1,4 @@
-// Key table rows of the diag section (docs/diagnostics.md).
+// Key table rows of the diag section (docs/guide/diagnostics.md).
 #include "key_builders.hpp"
 
 namespace agv::config::detail {

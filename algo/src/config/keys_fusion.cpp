@@ -1,6 +1,6 @@
 // Key table rows of the fusion section: fields of agv::fusion::EkfConfig
 // (algo/include/agv/fusion/ekf.hpp), same names with angles in degrees and times in ms.
-// The texts condense the header comments; measurements: docs/fusion.md.
+// The texts condense the header comments; measurements: docs/design/fusion.md.
 #include "key_builders.hpp"
 
 namespace agv::config::detail {

@@ -1,4 +1,4 @@
-// Key table rows of the vda5050 section (docs/vda5050.md).
+// Key table rows of the vda5050 section (docs/guide/vda5050.md).
 #include "key_builders.hpp"
 
 namespace agv::config::detail {

@@ -1,5 +1,5 @@
 // Key table rows of the vehicle sections: camera, intrinsics, mounting, landmark, can, loop,
-// replay. Trade-off texts are the documentation (docs/config.md is generated from them).
+// replay. Trade-off texts are the documentation (docs/guide/config.md is generated from them).
 #include "key_builders.hpp"
 
 namespace agv::config::detail {
@@ -27,7 +27,7 @@ void add_camera(std::vector<Key>* k) {
   k->push_back(integer("camera.exposure_us", AGV_AT(camera.camera.exposure_us), 10, 100000, 500,
                        {"µs",
                         "short exposure = less motion blur (blur_px = v·t_exp / mm_per_px, "
-                        "docs/camera.md) but a darker image; 500 µs = 1 mm blur at 2 m/s"}));
+                        "docs/guide/camera.md) but a darker image; 500 µs = 1 mm blur at 2 m/s"}));
   k->push_back(number("camera.analogue_gain", AGV_AT(camera.camera.analogue_gain), 1.0, 64.0, 1.0,
                       {"", "brighter but noisier"}));
   k->push_back(enumeration("camera.pixel_format", AGV_AT(camera.camera.pixel_format),
@@ -95,7 +95,7 @@ void add_landmark(std::vector<Key>* k) {
   k->push_back(number("landmark.size_mm", AGV_AT(landmark_size_mm), 10.0, 1000.0, 60.0,
                       {"mm",
                        "outer side of the dark square: the QR landmark's border, the "
-                       "tag36h11 tag's black square (docs/landmark.md)"}));
+                       "tag36h11 tag's black square (docs/design/landmark.md)"}));
   k->push_back(enumeration(
       "landmark.family", AGV_AT(vision.family),
       std::vector<std::pair<std::string, LandmarkFamily>>{{"qr", LandmarkFamily::kQr},
@@ -141,7 +141,7 @@ void add_can(std::vector<Key>* k) {
                "trips on bus jitter; 100 ms = 10 missed frames at 100 Hz"));
   k->push_back(boolean(
       "can.gyro.enabled", AGV_AT(can.gyro_enabled), false,
-      "receive the yaw rate from an IMU as `AGV_Gyro` (docs/can.md): it carries the heading "
+      "receive the yaw rate from an IMU as `AGV_Gyro` (docs/guide/can.md): it carries the heading "
       "through wheel slip, which the wheels cannot see (1.7° in the demo's slipping turn). "
       "Costs one more receive filter and a second input that can fail: silent, saturated or "
       "rejected frames set `FaultImuTimeout` / `FaultImuE2E`, and the filter falls back to the "
@@ -186,7 +186,7 @@ void add_imu(std::vector<Key>* k) {
       "imu.source", AGV_AT(imu.source), {"can", "iio", "none"}, "can",
       "where the yaw rate comes from. can: `AGV_Gyro` on the bus when `can.gyro.enabled` (the "
       "IMU's own controller stamps and protects it). iio: an IMU on the vehicle computer's own "
-      "bus (I2C/SPI) through its Linux IIO driver (`imu.iio_*`, docs/fusion.md \"Gyro from a "
+      "bus (I2C/SPI) through its Linux IIO driver (`imu.iio_*`, docs/design/fusion.md \"Gyro from a "
       "Linux IIO device\"): stamped by the kernel on the loop clock, no CAN latency, but no E2E "
       "protection and one more thread. none: wheels only. iio and none "
       "refuse `can.gyro.enabled: true` (one gyro source). With iio, `can.gyro.timeout_ms` is "
@@ -254,7 +254,7 @@ void add_loop(std::vector<Key>* k) {
        "exposure → vision start and the vision time itself (the end-to-end tail with "
        "`pose_on_fix`). Cost: while a frame is processed, normal tasks on that core wait "
        "(vision p99 1.1–1.4 ms per frame; the whole process used 8 % of a core at 30 fps, "
-       "docs/performance.md). Must be below `realtime_priority` so the output never waits "
+       "docs/design/performance.md). Must be below `realtime_priority` so the output never waits "
        "for vision (rejected at start otherwise)"}));
   k->push_back(
       integer("loop.spin_before_deadline_us", AGV_AT(loop.spin_before_deadline_us), 0, 2000, 0,
@@ -276,7 +276,7 @@ void add_loop(std::vector<Key>* k) {
       "loop.pose_on_fix", AGV_AT(loop.pose_on_fix), true,
       "also send the pose pair right after each fused fix: the correction reaches the bus one "
       "vision time after exposure instead of up to one period later (with the shipped real-time "
-      "settings end to end p99 1.5–2.6 ms instead of 12–14 ms, docs/performance.md); the extra "
+      "settings end to end p99 1.5–2.6 ms instead of 12–14 ms, docs/design/performance.md); the extra "
       "pose pairs make pose frames irregularly spaced (receivers must not derive speed from "
       "pose-frame intervals). The fixed-rate stream (pose, velocity, quality, status every "
       "period) runs either way. false = fixed-rate stream only"));

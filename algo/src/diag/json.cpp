@@ -1,4 +1,4 @@
-// JSON of the diagnostics page (docs/diagnostics.md). Written by hand, not with nlohmann-json: the
+// JSON of the diagnostics page (docs/guide/diagnostics.md). Written by hand, not with nlohmann-json: the
 // documents are flat and fixed, and agv_algo stays free of that dependency.
 #include <charconv>
 #include <cmath>
@@ -16,7 +16,7 @@ struct FlagName {
   const char* name;
 };
 
-// docs/can.md names of AGV_Status's Fault* and Rej* signals.
+// docs/guide/can.md names of AGV_Status's Fault* and Rej* signals.
 constexpr FlagName kFaults[] = {
     {protocol::fault::kCameraStalled, "camera_stalled"},
     {protocol::fault::kCameraError, "camera_error"},

@@ -521,7 +521,7 @@ FixOutcome Ekf::fuse_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::M
   if (worthless && !map_verified) return reject_gate(true);
   // A fix that agrees with the prior is fused, lost or not: fusing keeps the correlations that
   // teach the odometry and gyro calibration, a re-initialisation would drop them. A map-guided
-  // fix needs only that (its identity was chosen by the covariance, docs/map_identity.md).
+  // fix needs only that (its identity was chosen by the covariance, docs/design/map_identity.md).
   if (!(d2 <= gate_threshold_)) {
     if (map_guided && lost) return reject_not_tracking();
     const bool precise = std::sqrt(R_in.topLeftCorner<2, 2>().diagonal().maxCoeff()) <=

@@ -80,7 +80,7 @@ std::string format_statistics(const RunResult& r) {
                   oc.counter_jump, oc.bad_counter, oc.stale);
     s += buf;
   }
-  if (o.fixes_map_guided > 0) {  // only with a prediction (docs/map_identity.md)
+  if (o.fixes_map_guided > 0) {  // only with a prediction (docs/design/map_identity.md)
     std::snprintf(buf, sizeof buf,
                   "  map-guided fixes: %" PRIu64 " (fused %" PRIu64
                   ", refused while uninitialised or lost %" PRIu64 ")\n",

@@ -36,7 +36,7 @@ const char* kGeneralComment =
     "0..3 of byte 1 are the alive counter 0..14 (+1 per frame of the same ID, 14 wraps to 0, 15 "
     "invalid). Receivers reject frames with wrong length, bad CRC, or repeated or jumping "
     "counter. Output frames use CAN ID base_id + offset (default base 0x300, 11-bit; 29-bit "
-    "optional). Signals saturate at their min/max, they never wrap. Docs: docs/can.md.";
+    "optional). Signals saturate at their min/max, they never wrap. Docs: docs/guide/can.md.";
 
 }  // namespace
 

@@ -10,7 +10,7 @@ namespace {
 // Bytes 0 and the low nibble of byte 1 of every frame (e2e.hpp).
 // clang-format off
 constexpr SignalDef kCrcSignal{"CRC", 0, 8, true, false, 1, 0, 0, 255, "",
-    "CRC-8 SAE J1850 over data ID (low, high byte) and bytes 1..7 (docs/can.md)"};
+    "CRC-8 SAE J1850 over data ID (low, high byte) and bytes 1..7 (docs/guide/can.md)"};
 constexpr SignalDef kCounterSignal{"AliveCounter", 8, 4, true, false, 1, 0, 0, 14, "",
     "E2E alive counter 0..14, +1 per frame of this ID, wraps 14->0; 15 is invalid"};
 // clang-format on

@@ -1,4 +1,4 @@
-// tag36h11 landmarks for the simulator and the generator (docs/landmark.md "AprilTag landmark"):
+// tag36h11 landmarks for the simulator and the generator (docs/design/landmark.md "AprilTag landmark"):
 // the cells come from libapriltag's own family table and renderer (apriltag_to_image), so the
 // printed and simulated tags are exactly what the detector decodes.
 #include <apriltag/apriltag.h>

@@ -1,5 +1,5 @@
 // Printable landmarks: QR encoding, the landmark pattern, page rasters, SVG and sheets
-// (docs/landmark.md). The floor and camera rendering is in render.cpp.
+// (docs/design/landmark.md). The floor and camera rendering is in render.cpp.
 #include <ZXing/BitMatrix.h>
 #include <ZXing/MultiFormatWriter.h>
 

@@ -1,5 +1,5 @@
 // Floor scenes and camera frames: floor texture, landmark placement, degradations and the
-// frame renderer (docs/simulator.md). Printable landmarks are in landmark_page.cpp.
+// frame renderer (docs/design/simulator.md). Printable landmarks are in landmark_page.cpp.
 #include "agv/sim/render.hpp"
 
 #include <algorithm>

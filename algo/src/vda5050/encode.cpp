@@ -165,7 +165,7 @@ std::string encode_state(const Identity& id, std::uint32_t header_id, std::int64
     if (!a.result_description.empty()) s["resultDescription"] = a.result_description;
     states.push_back(std::move(s));
   }
-  // Neutral values for what the vehicle controller owns (docs/vda5050.md).
+  // Neutral values for what the vehicle controller owns (docs/guide/vda5050.md).
   m["orderId"] = "";
   m["orderUpdateId"] = 0;
   m["lastNodeId"] = "";

@@ -1,4 +1,4 @@
-// Edge probes (docs/tracking.md "Edge probes"): a trusted prediction that is too loose to place the
+// Edge probes (docs/design/tracking.md "Edge probes"): a trusted prediction that is too loose to place the
 // pose stage's edge bands itself (predicted_detect.cpp) is made precise by a few 1-D searches
 // across each predicted side, instead of the tracked detection's coarse level and corner
 // templates over the window. Each probe walks inward along a side's normal from beyond the
@@ -309,7 +309,7 @@ bool LandmarkLocalizer::Impl::probe_prediction(const cv::Mat& img, const SearchW
       reach + kMergeDistanceBorderWidths * border_px) {
     return false;
   }
-  // A blurred landmark keeps the detection (measured, docs/tracking.md "Edge probes").
+  // A blurred landmark keeps the detection (measured, docs/design/tracking.md "Edge probes").
   if (ramp_sum / n_on_line > kMaxMeanRampPx) return false;
   out->centre_px = c;
   out->up_rad = up;

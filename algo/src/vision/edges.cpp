@@ -323,7 +323,7 @@ bool fit_line_robust(std::span<const Vec2> pts, double tukey_c, double min_sigma
     // it, so does their median (a product with a positive constant is monotone, rounding
     // included), and the selection can be skipped: the same sigma to the bit. About half of the
     // line fits on the cost recording are at the floor, where the selection was a tenth of a
-    // tracked frame on x86-64 (docs/performance.md).
+    // tracked frame on x86-64 (docs/design/performance.md).
     double sigma = min_sigma;
     if (at_floor <= mid) {
       sigma = std::max(min_sigma, kMadToSigma * select_kth(tmp, mid));

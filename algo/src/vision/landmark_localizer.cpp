@@ -83,12 +83,12 @@ LandmarkLocalizer::Impl::Impl(const VisionConfig& c, const CameraModel& m,
   build_logo();
   // A small map's codes are encoded now, at start-up, rather than on the first landmark frame,
   // which would be late by the encoding (1000 landmarks, 2000 codes, take 0.23 s on x86-64); a
-  // large map's book follows the prediction (map_identity_stage.cpp, docs/large_maps.md).
+  // large map's book follows the prediction (map_identity_stage.cpp, docs/design/large_maps.md).
   update_code_book(Prediction{});
   if (cfg.family == LandmarkFamily::kTag36h11) tag = make_tag_detector();
 }
 
-// The stages in the order they run, numbered as in docs/vision.md "Pipeline". The pose comes before
+// The stages in the order they run, numbered as in docs/design/vision.md "Pipeline". The pose comes before
 // the direction and the QR code: the guided QR reading and the logo are sampled where the fitted
 // pose puts them.
 FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pred,
@@ -108,7 +108,7 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
   // 1-2. Binarization and detection: none when the prediction is precise enough to place the
   // pose stage's edge bands itself and the fit then lands where it said; otherwise from the
   // prediction when it is trusted (tracked, then the windows), the whole frame when there is none
-  // or they find nothing (docs/tracking.md).
+  // or they find nothing (docs/design/tracking.md).
   prune_map_codes();
   update_code_book(pred);
   planner.plan(pred, &windows);
@@ -178,7 +178,7 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
       out->qr_method == 0 ? FixStatus::kQrUnreadable : check_payload(qr_text, out, &world_landmark);
   const double t4 = now_ms();
   if (cfg.now_ns) out->timings.decode_ms = t4 - t2 - logo_ms;
-  // 5c. Map-guided identity of an unread code (docs/map_identity.md): whole border only, and never
+  // 5c. Map-guided identity of an unread code (docs/design/map_identity.md): whole border only, and never
   // a filter (re)initialisation (map_verified stays false).
   if (st == FixStatus::kQrUnreadable && !out->partly_outside && out->sides_used == 4) {
     int turn = 0;

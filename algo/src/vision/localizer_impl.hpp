@@ -1,5 +1,5 @@
 // Private to algo/src/vision: the state LandmarkLocalizer keeps between frames and the stage
-// functions that share it. One file per stage (numbers: docs/vision.md "Pipeline"):
+// functions that share it. One file per stage (numbers: docs/design/vision.md "Pipeline"):
 //   detect.cpp      1-2 pyramid, adaptive binarization, corner templates, hypotheses, ring check
 //   pose.cpp        3   Prewitt edge bands and classes, robust line fits, centre and heading
 //   direction.cpp   4-5 logo template at the four turns, cross-check with the QR orientation
@@ -209,7 +209,7 @@ struct LandmarkLocalizer::Impl {
   std::vector<float> qr_fill;
   QrGridScratch qr_scratch;
   std::string qr_text;
-  // Verified read (docs/tracking.md): the tracked landmark's codes and the turn its predicted
+  // Verified read (docs/design/tracking.md): the tracked landmark's codes and the turn its predicted
   // heading points to; empty and -1 without a trusted prediction.
   std::vector<QrExpected> qr_expected;
   int predicted_turn = -1;
@@ -238,7 +238,7 @@ struct LandmarkLocalizer::Impl {
   bool outer_only = false;
   std::shared_ptr<TagDetector> tag;
 
-  // Tracking (docs/tracking.md): windows of the last frame's prediction.
+  // Tracking (docs/design/tracking.md): windows of the last frame's prediction.
   WindowPlanner planner;
   std::vector<SearchWindow> windows;
   // Grey levels of the full-image ring check (predicted_detect.cpp), kept to reuse their storage.
@@ -382,7 +382,7 @@ struct LandmarkLocalizer::Impl {
     // -1 no. Checked on first use as an expected code; only a 1 is offered to the verified read.
     std::array<int, 2> reads_back{0, 0};
   };
-  // Encoded on first use (docs/large_maps.md): a site's map has tens of thousands of codes, of
+  // Encoded on first use (docs/design/large_maps.md): a site's map has tens of thousands of codes, of
   // which a frame needs a few. Emptied between frames once it holds kMaxCachedCodes landmarks.
   std::map<std::uint32_t, MapCodes> map_codes;
   MapCodes* codes_of(std::uint32_t id);

@@ -1,5 +1,5 @@
 // Map-guided identity: the pose gate and the module check (map_identity.hpp,
-// docs/map_identity.md).
+// docs/design/map_identity.md).
 #include "agv/vision/map_identity.hpp"
 
 #include <ZXing/BitMatrix.h>

@@ -1,4 +1,4 @@
-// Stage 3 of the pipeline (docs/vision.md), pose: edge points of the eight border lines (Prewitt
+// Stage 3 of the pipeline (docs/design/vision.md), pose: edge points of the eight border lines (Prewitt
 // gradients in bands around the detected square, classified by gradient direction, paper 001 fig.
 // 7), robust line fits in the metric frame, heading and centre by the configured method, then the
 // joint square fit whose normal equations also give the covariance (covariance.cpp).
@@ -30,7 +30,7 @@ constexpr int kEdgeMarginPx = 2;
 constexpr double kMinNormalComponent = 1e-6;
 // Per-line robust fit: scale floor (mm; the subpixel edge noise on a sharp frame is ~0.02 mm, a
 // smaller MAD would reject good points), IRLS iterations (converged after 3-4 in every frame of
-// docs/accuracy.md), RANSAC inlier band (pixels).
+// docs/design/accuracy.md), RANSAC inlier band (pixels).
 constexpr double kLineMinSigmaMm = 0.02;
 constexpr int kLineIrlsIterations = 4;
 constexpr double kRansacInlierPx = 0.5;

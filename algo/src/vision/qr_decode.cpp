@@ -1,4 +1,4 @@
-// Stage 5 of the pipeline (docs/vision.md), QR decode: model-guided module sampling where the
+// Stage 5 of the pipeline (docs/design/vision.md), QR decode: model-guided module sampling where the
 // fitted pose puts the code (qr_grid), zxing's own search on the image crop as the fallback, then
 // the payload parser and the map check. Also gives the QR code's orientation for the direction
 // cross-check.
@@ -122,7 +122,7 @@ int LandmarkLocalizer::Impl::read_code(const cv::Mat& img, Vec2 c_px, double up,
   }
   // zxing reads only a code that lies wholly in the image (it samples every module). On a
   // landmark cut by the image border this saves its six attempts, the worst case of a
-  // landmark-free frame (about 12 M aarch64 instructions, docs/tracking.md).
+  // landmark-free frame (about 12 M aarch64 instructions, docs/design/tracking.md).
   if (out->partly_outside && code_cut_at_every_turn(img, c_mm, beta, logo)) return -1;
   double qr_up = 0;
   bool qr_ok = false;
@@ -198,7 +198,7 @@ int LandmarkLocalizer::Impl::decode_guided(const cv::Mat& img, Vec2 c_mm, double
       return logo.ncc[static_cast<size_t>(x)] > logo.ncc[static_cast<size_t>(y)];
     });
   }
-  // Order measured (qr_grid.hpp, docs/accuracy.md): strong sharpening reads the most codes;
+  // Order measured (qr_grid.hpp, docs/design/accuracy.md): strong sharpening reads the most codes;
   // the others rescue a few more at no cost to frames that already decode.
   constexpr QrThreshold kThresholds[] = {QrThreshold::kStronglySharpenedLocalMean,
                                          QrThreshold::kSharpenedLocalMean, QrThreshold::kLocalMean,
@@ -209,7 +209,7 @@ int LandmarkLocalizer::Impl::decode_guided(const cv::Mat& img, Vec2 c_mm, double
   // the module centres only, and no zxing. Its answer is, as every verified read's, the code
   // zxing would decode from that grid; when it finds none, the full read below runs unchanged, so
   // it can cost a frame a fifth of the sampling but never a read. Whole codes only (sample_qr).
-  // Measured in docs/tracking.md ("Centre-only first read").
+  // Measured in docs/design/tracking.md ("Centre-only first read").
   if (cfg.qr_centre_first && (!qr_expected.empty() || (book && book->size() > 0))) {
     for (int q : order) {
       if (q < 0) break;
@@ -238,7 +238,7 @@ int LandmarkLocalizer::Impl::decode_guided(const cv::Mat& img, Vec2 c_mm, double
     return -1;
   }
   // Four turns: every grid's verified reads (no zxing) come first, so the wrong turns cost no
-  // zxing reads when a later one is verified; then zxing. Measured in docs/tracking.md ("zxing
+  // zxing reads when a later one is verified; then zxing. Measured in docs/design/tracking.md ("zxing
   // budget").
   int n_grids = 0;
   for (int q : order) {

@@ -1,4 +1,4 @@
-// Tracked detection (docs/tracking.md "Tracked detection"): when the prediction is trusted, the
+// Tracked detection (docs/design/tracking.md "Tracked detection"): when the prediction is trusted, the
 // landmark's hypothesis comes from the predicted centre and border angle instead of the corner
 // template search over every dark pixel. Only the four outer corners are searched, each with the
 // one fine template at its predicted rotation and within window_sigmas of its predicted position;

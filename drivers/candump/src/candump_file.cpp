@@ -8,7 +8,7 @@ namespace agv::can {
 
 bool read_candump_file(const std::string& path, std::vector<protocol::CandumpRecord>* out,
                        std::string* error) {
-  // A regular file of bounded size only (docs/security.md): never /dev/zero or a FIFO.
+  // A regular file of bounded size only (docs/design/security.md): never /dev/zero or a FIFO.
   constexpr std::uintmax_t kMaxBytes = 256u << 20;
   std::error_code ec;
   if (!std::filesystem::is_regular_file(path, ec) ||

@@ -1,4 +1,4 @@
-// Recording format readers (docs/recording.md). Strict: anything unexpected is an error that
+// Recording format readers (docs/guide/recording.md). Strict: anything unexpected is an error that
 // names the file and line; nothing here throws or crashes on malformed input. Writers:
 // recording_write.cpp.
 #include "agv/recording/recording.hpp"
@@ -28,7 +28,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// Per-file caps (docs/security.md): with them a hostile recording cannot make the reader hold
+// Per-file caps (docs/design/security.md): with them a hostile recording cannot make the reader hold
 // more than a few hundred MB (the longest legitimate files, odom.csv and truth.csv at 100 Hz, are
 // ~3 MB per hour; imu.csv at 200 Hz with only t_ns,gyro_z_radps ~20 MB per hour).
 constexpr std::uintmax_t kMaxMetaBytes = 64u << 10;      // 64 KiB

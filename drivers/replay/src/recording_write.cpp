@@ -1,4 +1,4 @@
-// Recording format writers (docs/recording.md): meta.yaml, the CSV files and frame PNGs, as
+// Recording format writers (docs/guide/recording.md): meta.yaml, the CSV files and frame PNGs, as
 // the simulator and `agvloc record` write them. The strict readers are in recording.cpp.
 #include <cstdio>
 #include <filesystem>
@@ -39,7 +39,7 @@ std::string format_meta_yaml(const Meta& m) {
   const auto& k = m.camera.intrinsics;
   const auto& mt = m.camera.mount;
   std::ostringstream os;
-  os << "# agvloc recording metadata, docs/recording.md\n"
+  os << "# agvloc recording metadata, docs/guide/recording.md\n"
      << "format_version: " << m.format_version << "\n";
   if (!m.source.empty()) {
     // Double-quoted YAML scalar with escapes, so any text round-trips.

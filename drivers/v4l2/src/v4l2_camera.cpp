@@ -218,7 +218,7 @@ CameraStatus V4l2Camera::Impl::configure_format() {
 
 void V4l2Camera::Impl::configure_controls() {
   // Manual exposure in units of 100 us (V4L2_CID_EXPOSURE_ABSOLUTE). Gain units are
-  // sensor-specific in V4L2, so gain stays as the device default (docs/camera.md).
+  // sensor-specific in V4L2, so gain stays as the device default (docs/guide/camera.md).
   bool ok_mode = false, ok_exp = false;
   set_control(V4L2_CID_EXPOSURE_AUTO, V4L2_EXPOSURE_MANUAL, &ok_mode);
   const std::int32_t units = std::max(1, static_cast<int>(std::lround(cfg.exposure_us / 100.0)));

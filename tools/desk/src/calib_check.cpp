@@ -358,7 +358,7 @@ std::string format_report(const CameraModel& camera, const CheckResult& r) {
   for (const auto& f : r.findings) {
     s += fmt("  [%s] %-21s %s\n", f.ok ? " ok " : "FAIL", to_string(f.cause), f.message.c_str());
   }
-  s += "\nmounting implied by the check (configuration keys, docs/config.md):\n";
+  s += "\nmounting implied by the check (configuration keys, docs/guide/config.md):\n";
   s += fmt("mounting:\n  offset_x_mm: %.2f\n  offset_y_mm: %.2f\n  yaw_deg: %.3f\n", r.offset_x_mm,
            r.offset_y_mm, r.yaw_deg);
   if (r.height_known) {

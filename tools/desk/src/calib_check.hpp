@@ -1,8 +1,8 @@
 // agvloc-desk calibrate check: the parked-vehicle check of the camera calibration with one printed
-// landmark at a taped pose (docs/commissioning.md, docs/camera.md). Pure: frames, taped poses and
+// landmark at a taped pose (docs/guide/commissioning.md, docs/guide/camera.md). Pure: frames, taped poses and
 // the configuration in, deviations and findings out (file handling: cmd_calibrate_check.cpp).
 //
-// Model (docs/frames.md): with the configured mounting (offset o_c, yaw psi_c, height h_c) and the
+// Model (docs/design/frames.md): with the configured mounting (offset o_c, yaw psi_c, height h_c) and the
 // true one (o_t, psi_t, h_t), the vision stage measures a floor point p of the vehicle frame at
 //   p' = o_c + s R(dpsi) (p - o_t),   s = h_c / h_t,   dpsi = psi_c - psi_t,
 // and the landmark's heading dpsi too large and its size s times the printed size. So the heading
@@ -26,9 +26,9 @@ class Mat;
 
 namespace agv::desk::calib {
 
-// Acceptance limits. Defaults: docs/camera.md's "agreement within ~1 mm and ~0.2 deg" for the
+// Acceptance limits. Defaults: docs/guide/camera.md's "agreement within ~1 mm and ~0.2 deg" for the
 // taped pose (a tape gives about +-1 mm / +-0.5 deg, so tighter limits test the tape), the
-// others from simulated frames of a correct calibration (docs/commissioning.md).
+// others from simulated frames of a correct calibration (docs/guide/commissioning.md).
 struct Tolerances {
   double position_mm = 1.0;   // measured vs taped landmark position, and the implied offset
   double heading_deg = 0.2;   // measured vs taped landmark heading (= mounting yaw error)

@@ -847,7 +847,7 @@ std::string config_snippet(const Result& r, const std::string& source) {
   s << "# Camera calibration by agvloc-desk calibrate intrinsics from " << source << ":\n";
   s << "# " << r.usable << " of " << r.views.size() << " views, " << r.corners
     << " corners, RMS reprojection error " << fmt("%.4f", r.rms_px) << " px.\n";
-  s << "# Merge into the configuration (docs/config.md); camera.width/height are the\n";
+  s << "# Merge into the configuration (docs/guide/config.md); camera.width/height are the\n";
   s << "# calibrated resolution and must stay so.\n";
   s << "camera:\n";
   s << "  width: " << k.width_px << "\n";

@@ -1,5 +1,5 @@
 // Camera intrinsics calibration from views of a ChArUco board or a chessboard (agvloc-desk
-// calibrate intrinsics; docs/camera.md). Detection and estimation are OpenCV's (aruco
+// calibrate intrinsics; docs/guide/camera.md). Detection and estimation are OpenCV's (aruco
 // detectMarkers + interpolateCornersCharuco, findChessboardCorners + cornerSubPix,
 // calibrateCamera); this file adds what a commissioning tool needs around them: blurred views
 // are rejected by name, the reprojection error is reported per view, the image coverage is
@@ -122,7 +122,7 @@ Coverage measure_coverage(const std::vector<View>& views, cv::Size size);
 std::string coverage_svg(const Result& result);
 // Human-readable report: per-view table (corners, blur, RMS or reason), totals, warnings.
 std::string report_text(const Result& result);
-// The configuration snippet (docs/config.md): `camera:` width/height and the `intrinsics:`
+// The configuration snippet (docs/guide/config.md): `camera:` width/height and the `intrinsics:`
 // section, with a comment header (source, views, RMS).
 std::string config_snippet(const Result& result, const std::string& source);
 

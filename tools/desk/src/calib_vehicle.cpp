@@ -349,7 +349,7 @@ bool calibrate_vehicle(const std::vector<OdomSample>& odom,
     return fail("too few landmark passes: " + std::to_string(passes.size()) + " with at least " +
                 std::to_string(opt.min_frames_per_pass) + " frames (need " +
                 std::to_string(opt.min_passes) +
-                "; drive the calibration pattern of docs/commissioning.md)");
+                "; drive the calibration pattern of docs/guide/commissioning.md)");
   }
   for (size_t p = 0; p < passes.size(); ++p) {
     SubPass cur;

@@ -2,7 +2,7 @@
 // (speed scale, yaw-rate scale, yaw-rate bias) and the camera-odometry time offset, estimated
 // jointly by nonlinear least squares (Ceres) from a calibration drive over mapped landmarks.
 //
-// Model (all in the world frame W of the map, docs/frames.md):
+// Model (all in the world frame W of the map, docs/design/frames.md):
 //  - Odometry. Sample k, stamped T_k on the odometry clock, reports (v_k, omega_k) as the mean
 //    over (T_{k-1}, T_k]. The true rates are  v = speed_scale * v_k,
 //    omega = yaw_rate_scale * omega_k + yaw_rate_bias  (piecewise constant). An instant at

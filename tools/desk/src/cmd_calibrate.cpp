@@ -1,4 +1,4 @@
-// agvloc-desk calibrate: commissioning calibrations (docs/camera.md). `calibrate intrinsics`
+// agvloc-desk calibrate: commissioning calibrations (docs/guide/camera.md). `calibrate intrinsics`
 // estimates the camera intrinsics from board images; the other subcommands register below.
 #include <CLI/CLI.hpp>
 #include <algorithm>
@@ -123,7 +123,7 @@ int calibrate_intrinsics(int argc, char** argv) {
       "Camera intrinsics (fx fy cx cy k1 k2 p1 p2 k3) from PNG images of a ChArUco board or a "
       "chessboard: rejects blurred views by name, reports the RMS reprojection error per view "
       "and the image coverage, writes the camera section of the configuration "
-      "(docs/camera.md)",
+      "(docs/guide/camera.md)",
       "agvloc-desk calibrate intrinsics"};
   std::string images, out, coverage, report, truth, board_type = "charuco";
   calib::BoardSpec spec;

@@ -1,5 +1,5 @@
 // agvloc-desk calibrate check: parked-vehicle check of the camera calibration with a printed
-// landmark at a taped pose (logic: calib_check.hpp; procedure: docs/commissioning.md).
+// landmark at a taped pose (logic: calib_check.hpp; procedure: docs/guide/commissioning.md).
 // Exit 0 within tolerance, 1 out of tolerance, 2 bad input.
 #include <CLI/CLI.hpp>
 #include <cmath>
@@ -76,7 +76,7 @@ int calibrate_check(int argc, char** argv) {
       "Parked-vehicle check of the camera calibration: one printed landmark at a taped pose "
       "under the parked vehicle; prints the deviation of the measured from the taped pose and "
       "what it points to (mounting offset, yaw, height, distortion, focus). Exit 0 within "
-      "tolerance, 1 out of tolerance, 2 bad input (docs/commissioning.md)",
+      "tolerance, 1 out of tolerance, 2 bad input (docs/guide/commissioning.md)",
       "agvloc-desk calibrate check"};
   std::string config_path, map_path, pose_text, pose_is = "landmark-in-vehicle", placements_csv;
   std::vector<std::string> inputs;

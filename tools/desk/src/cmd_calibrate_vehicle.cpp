@@ -128,12 +128,12 @@ int calibrate_vehicle(int argc, char** argv) {
   CLI::App app{
       "Calibrate the camera mounting (offset, yaw, height, roll, pitch), the odometry (speed "
       "scale, yaw-rate scale, yaw-rate bias) and the camera-odometry time offset from a "
-      "calibration drive over mapped landmarks (docs/commissioning.md)",
+      "calibration drive over mapped landmarks (docs/guide/commissioning.md)",
       "agvloc-desk calibrate vehicle"};
   std::string rec_dir, map_path, config_path, out_dir;
   vcal::Options opt;
   app.add_option("recording", rec_dir, "Recording of the calibration drive")->required();
-  app.add_option("--map", map_path, "Surveyed landmark map (docs/landmark.md)")->required();
+  app.add_option("--map", map_path, "Surveyed landmark map (docs/design/landmark.md)")->required();
   app.add_option("--config", config_path,
                  "Configuration with the current (nominal) camera and mounting; default: the "
                  "recording's meta.yaml. In wheels odometry mode it must be the configuration "
@@ -391,9 +391,9 @@ int calibrate_vehicle(int argc, char** argv) {
   if (gyro_ok && r.warnings.empty() && !gyro.warnings.empty()) rep << "\nwarnings:\n";
   for (const auto& w : gyro.warnings) rep << "  - " << w << "\n";
 
-  // Snippet: only determined values; mounting keys of docs/config.md.
+  // Snippet: only determined values; mounting keys of docs/guide/config.md.
   std::ostringstream snip;
-  snip << "# agvloc-desk calibrate vehicle " << rec_dir << " (docs/config.md keys)\n"
+  snip << "# agvloc-desk calibrate vehicle " << rec_dir << " (docs/guide/config.md keys)\n"
        << "# Only parameters the drive determined are written; the others keep their value.\n";
   bool any_mount = false;
   std::ostringstream mount;

@@ -89,7 +89,7 @@ int config_apply_command(int argc, char** argv) {
       "(vehicle_calibration.yaml) into a vehicle configuration and write the result to --out, "
       "keeping the configuration's comments and layout. Refused, naming the key: a snippet key "
       "the configuration does not have, two snippets setting one key to different values, a "
-      "result that `agvloc run --check-config` would refuse (docs/commissioning.md)",
+      "result that `agvloc run --check-config` would refuse (docs/guide/commissioning.md)",
       "agvloc-desk config apply"};
   std::string base_path, out_path;
   std::vector<std::string> snippet_paths;

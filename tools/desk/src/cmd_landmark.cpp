@@ -1,5 +1,5 @@
 // agvloc-desk landmark: one landmark as SVG (exact physical scale) and/or PNG, or a printable sheet
-// of every landmark in a map (docs/landmark.md).
+// of every landmark in a map (docs/design/landmark.md).
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <fstream>
@@ -57,7 +57,7 @@ int print_tags(double size_mm, int id, const std::string& map_path, const std::s
 int landmark(int argc, char** argv) {
   CLI::App app{
       "Print landmarks: one landmark as SVG at exact physical scale and/or PNG, or a "
-      "sheet of every landmark of a map (geometry: docs/landmark.md)",
+      "sheet of every landmark of a map (geometry: docs/design/landmark.md)",
       "agvloc-desk landmark"};
   int id = 0;
   double x_mm = 0.0, y_mm = 0.0, heading_deg = 0.0, size_mm = 60.0, mm_per_px = 0.1;

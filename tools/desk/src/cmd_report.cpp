@@ -12,7 +12,7 @@ namespace agv::desk {
 int report(int argc, char** argv) {
   CLI::App app{
       "Accuracy of a replay against the recording's truth.csv and the trajectory plot, from "
-      "the replay's poses.csv and fixes.csv (docs/replay.md)",
+      "the replay's poses.csv and fixes.csv (docs/guide/replay.md)",
       "agvloc-desk report"};
   std::string out_dir, rec_dir, map_file, plot;
   app.add_option("replay_out", out_dir, "output directory of `agvloc replay --out`")->required();

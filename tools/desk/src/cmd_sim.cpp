@@ -1,4 +1,4 @@
-// agvloc-desk sim: writes a simulated recording (docs/simulator.md, docs/recording.md).
+// agvloc-desk sim: writes a simulated recording (docs/design/simulator.md, docs/guide/recording.md).
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
@@ -26,7 +26,7 @@ namespace fs = std::filesystem;
 int sim(int argc, char** argv) {
   CLI::App app{
       "Write a simulated recording: textured floor with landmarks, a differential-drive "
-      "vehicle, odometry with errors, ground truth (docs/simulator.md)",
+      "vehicle, odometry with errors, ground truth (docs/design/simulator.md)",
       "agvloc-desk sim"};
   std::string out_dir, map_path, trajectory = "line", profile = "640x480", degrade = "realistic",
                                  payload_mode = "full", odom_sample = "period_mean", misprint,
@@ -39,7 +39,7 @@ int sim(int argc, char** argv) {
   bool force = false;
   app.add_option("--out", out_dir, "Recording directory to write")->required();
   app.add_option("--map", map_path,
-                 "Landmark map (docs/landmark.md); default: built-in 5x5 grid at 1 m "
+                 "Landmark map (docs/design/landmark.md); default: built-in 5x5 grid at 1 m "
                  "(= tools/maps/default_grid.csv)");
   app.add_option("--trajectory", trajectory, "line|square|circle|figure8|lawnmower|calibration")
       ->capture_default_str();
@@ -115,7 +115,7 @@ int sim(int argc, char** argv) {
                  "Landmark ids the degradations (occluder, QR cover, scratches, dirt, scuffs, ink "
                  "variation) apply to, comma-separated; default: all")
       ->delimiter(',');
-  // The camera mounting (docs/frames.md); defaults = the profile's centred, untilted camera.
+  // The camera mounting (docs/design/frames.md); defaults = the profile's centred, untilted camera.
   double mount_x_mm = 0.0, mount_y_mm = 0.0, mount_yaw_deg = 0.0, roll_deg = 0.0, pitch_deg = 0.0;
   double mount_height_mm = 0.0;
   app.add_option("--mount-offset-x-mm", mount_x_mm, "Camera optical centre in the vehicle, x")
@@ -131,10 +131,10 @@ int sim(int argc, char** argv) {
                  "Camera height above the floor; 0 = the profile's 200 mm")
       ->check(CLI::Range(0.0, 5000.0))
       ->capture_default_str();
-  app.add_option("--roll-deg", roll_deg, "Camera roll (docs/frames.md \"Camera tilt\")")
+  app.add_option("--roll-deg", roll_deg, "Camera roll (docs/design/frames.md \"Camera tilt\")")
       ->check(CLI::Range(-45.0, 45.0))
       ->capture_default_str();
-  app.add_option("--pitch-deg", pitch_deg, "Camera pitch (docs/frames.md \"Camera tilt\")")
+  app.add_option("--pitch-deg", pitch_deg, "Camera pitch (docs/design/frames.md \"Camera tilt\")")
       ->check(CLI::Range(-45.0, 45.0))
       ->capture_default_str();
   double odom_time_offset_ms = 0.0, yaw_bias_degps = 0.0;
@@ -164,7 +164,7 @@ int sim(int argc, char** argv) {
   app.add_flag("--nominal-meta", nominal_meta,
                "meta.yaml records the profile's nominal camera mounting instead of the simulated "
                "one (a recording made with an uncalibrated configuration)");
-  // The gyro (imu.csv): a typical industrial MEMS gyro by default (docs/simulator.md "Gyro"). The
+  // The gyro (imu.csv): a typical industrial MEMS gyro by default (docs/design/simulator.md "Gyro"). The
   // CLI takes degrees, as data sheets state them; the model takes radians.
   bool gyro = true;
   sim::GyroParams gp;
@@ -361,7 +361,7 @@ int sim(int argc, char** argv) {
   std::string cmdline = "agvloc-desk sim";
   for (int i = 1; i < argc; ++i) cmdline += std::string(" ") + argv[i];
   // The sample timing is part of what the recording means (the replay's fusion must agree), so
-  // it is stated even when it is the default. meta.yaml has no key for it (docs/recording.md).
+  // it is stated even when it is the default. meta.yaml has no key for it (docs/guide/recording.md).
   meta.source = cmdline + " (odometry samples: " + sim::to_string(op.timing) + ")";
   if (!recording::write_meta(out_dir, meta, &err)) {
     std::fprintf(stderr, "agvloc-desk sim: %s\n", err.c_str());

@@ -253,7 +253,7 @@ bool merge(const Text& base, const std::vector<Text>& snippets, Merged* out,
       const std::string where = s.name + ":" + std::to_string(e.line);
       const config::Key* k = config::find_key(e.key);
       if (!k) {
-        std::string hint = "not a configuration key (docs/config.md)";
+        std::string hint = "not a configuration key (docs/guide/config.md)";
         for (const auto& r : config::removed_keys()) {
           if (r.name == e.key) hint = "removed; " + r.replacement;
         }

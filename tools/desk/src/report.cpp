@@ -13,7 +13,7 @@ namespace agv::desk {
 
 namespace {
 
-// poses.csv of a 2.8 h replay is ~130 MB (docs/replay.md); fixes.csv is smaller.
+// poses.csv of a 2.8 h replay is ~130 MB (docs/guide/replay.md); fixes.csv is smaller.
 constexpr std::uintmax_t kMaxOutputCsvBytes = 512ull << 20;
 
 bool parse_number(const std::string& s, double* out) {

@@ -1,5 +1,5 @@
 // `agvloc-desk report`: accuracy of a replay against the recording's truth.csv and the
-// trajectory plot, computed from the replay's output files (poses.csv, fixes.csv, docs/replay.md)
+// trajectory plot, computed from the replay's output files (poses.csv, fixes.csv, docs/guide/replay.md)
 // so that the vehicle binary carries neither.
 #pragma once
 

@@ -13,7 +13,7 @@
 // stage does. Optionally a fraction of fixes is corrupted (wrong coordinates, offsets, heading
 // misreads) and fixes are delivered late.
 //
-// Usage and measured numbers: docs/fusion.md.
+// Usage and measured numbers: docs/design/fusion.md.
 #include "eval_fusion.hpp"
 
 #include <Eigen/Core>

@@ -1,7 +1,7 @@
 // Down-looking floor camera: OpenCV pinhole + Brown-Conrady distortion, optical axis nominally
 // perpendicular to the floor at a known height, mounted on the vehicle with an offset, a yaw and
 // a small tilt (roll, pitch).
-// Frames and sign conventions: docs/frames.md ("Camera frame" and "Mounting").
+// Frames and sign conventions: docs/design/frames.md ("Camera frame" and "Mounting").
 #pragma once
 
 #include <cmath>
@@ -28,7 +28,7 @@ struct CameraMount {
   // 0 means: image "up" (decreasing row) points along vehicle +x, image "right" along -y.
   double yaw_rad = 0.0;
   double height_mm = 200.0;  // optical centre above the floor
-  // Tilt of the camera (docs/frames.md, "Camera tilt"): the camera body frame B (x = image up,
+  // Tilt of the camera (docs/design/frames.md, "Camera tilt"): the camera body frame B (x = image up,
   // y = image left, z = against the optical axis) is R_VB = Rz(yaw) * Ry(pitch) * Rx(roll) in the
   // vehicle frame (intrinsic z-y'-x''). Positive roll turns the optical axis towards image left,
   // positive pitch towards image down. 0, 0 = optical axis perpendicular to the floor; exactly
@@ -88,7 +88,7 @@ class FloorProjector {
   bool pixel_to_vehicle(Vec2 pixel, Vec2* p_vehicle_mm) const;
   // As CameraModel::undistort_pixel_to_normalized, with the same round-trip check; every edge
   // point goes through it, and that Newton iteration was 5 % of a tracked frame's instructions
-  // without distortion and 7 % with a radial lens (docs/performance.md).
+  // without distortion and 7 % with a radial lens (docs/design/performance.md).
   // - No distortion: that iteration takes one step of exactly zero, so the same point comes
   //   without it, to the last bit (including its refusals).
   // - Radial terms only: the undistorted point lies on the ray through the distorted one, so the
@@ -164,7 +164,7 @@ inline bool FloorProjector::pixel_to_vehicle(Vec2 pixel, Vec2* p) const {
 // matrix built once per pose: a point then costs 9 multiply-adds, two divisions and the lens
 // model, instead of a rigid transform, the mount rotation and two calls. The projections of the
 // logo and QR module samples (about 2000 points a landmark frame) were about a fifth of a tracked
-// frame's instructions (docs/performance.md). Equal to vehicle_to_pixel up to rounding (within
+// frame's instructions (docs/design/performance.md). Equal to vehicle_to_pixel up to rounding (within
 // 1e-9 px in tests/common/test_camera_model.cpp). Keeps a copy of the intrinsics.
 class PlaneProjector {
  public:

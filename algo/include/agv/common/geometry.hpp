@@ -1,4 +1,4 @@
-// Planar geometry shared by every component. Conventions: docs/frames.md.
+// Planar geometry shared by every component. Conventions: docs/design/frames.md.
 #pragma once
 
 #include <cmath>

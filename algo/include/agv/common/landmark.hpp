@@ -1,5 +1,5 @@
 // The floor landmark: geometry as a function of one size parameter, the QR payload and the
-// landmark map. Exact definitions, with figures: docs/landmark.md.
+// landmark map. Exact definitions, with figures: docs/design/landmark.md.
 #pragma once
 
 #include <cstdint>
@@ -23,7 +23,7 @@ namespace agv {
 //   direction logo   filled triangle, apex (0, -21k), base (-5k, -13k) .. (5k, -13k)
 //   quiet zones      QR to border >= 4k; QR to logo 3k (2.5 modules of a version-2 code)
 //
-// Landmark frame (docs/frames.md): x forward = page up (-v), y left = page left (-u).
+// Landmark frame (docs/design/frames.md): x forward = page up (-v), y left = page left (-u).
 struct LandmarkGeometry {
   double size_mm = 60.0;
 
@@ -48,7 +48,7 @@ struct LandmarkGeometry {
 // The two printed landmark families. Both are found by the same vision pipeline stages where
 // they share them (edge bands, robust line fits, joint square fit); the QR landmark carries its
 // identity (and optionally its pose) in the QR payload, the AprilTag only an id that the map
-// resolves (docs/landmark.md "AprilTag landmark").
+// resolves (docs/design/landmark.md "AprilTag landmark").
 enum class LandmarkFamily : std::uint8_t {
   kQr,        // the landmark above (border, QR code, logo)
   kTag36h11,  // an AprilTag of family tag36h11 (ids 0..586)
@@ -115,7 +115,7 @@ PayloadError parse_payload(std::string_view text, LandmarkPayload* out);
 // error: returns an empty string.
 std::string format_payload(const LandmarkPayload& p);
 
-// Landmark map: landmark id -> world pose of the landmark frame. Text format (docs/landmark.md):
+// Landmark map: landmark id -> world pose of the landmark frame. Text format (docs/design/landmark.md):
 //   # comment lines and blank lines are ignored
 //   id,x_mm,y_mm,heading_deg          <- this exact header line first
 //   17,1000.0,-2000.0,90

@@ -1,7 +1,7 @@
 // The k-th smallest of a set of doubles, for the robust scales of the line and square fits (the
 // median absolute residual). std::nth_element gives the same value; it was a tenth of a tracked
 // frame on x86-64, most of it mispredicted branches of its partition on residuals in random
-// order (docs/performance.md).
+// order (docs/design/performance.md).
 #pragma once
 
 #include <cstddef>

@@ -1,6 +1,6 @@
 // The localizer's configuration: one YAML text, validated completely. Every key, its type,
 // default, accepted range and trade-off is one record of the key table (agv/config/keys.hpp);
-// the checker, the defaults test and docs/config.md are all produced from that table. Pure: YAML
+// the checker, the defaults test and docs/guide/config.md are all produced from that table. Pure: YAML
 // text in, structs and error lines out (file reading: firmware/src/config.hpp).
 #pragma once
 
@@ -17,7 +17,7 @@
 namespace agv::config {
 
 // Defaults here must equal the key table's (test_config: DefaultsEqualTheTable); the meaning of
-// each field is documented once, in the table (docs/config.md).
+// each field is documented once, in the table (docs/guide/config.md).
 struct CameraSection {
   std::string driver = "libcamera";  // libcamera | v4l2 | replay
   hal::CameraConfig camera;
@@ -73,7 +73,7 @@ struct LoopSection {
   bool pose_on_fix = true;
 };
 
-// VDA 5050 position over MQTT (docs/vda5050.md); the firmware's MQTT publisher reads it.
+// VDA 5050 position over MQTT (docs/guide/vda5050.md); the firmware's MQTT publisher reads it.
 struct Vda5050Section {
   bool enabled = false;
   std::string broker_host = "localhost";
@@ -89,7 +89,7 @@ struct Vda5050Section {
   std::string tls_ca_file;    // resolved relative to the config file; empty = plain TCP
 };
 
-// Live diagnostics page and /metrics (docs/diagnostics.md); the firmware's diagnostics server
+// Live diagnostics page and /metrics (docs/guide/diagnostics.md); the firmware's diagnostics server
 // reads it.
 struct DiagSection {
   bool enabled = false;

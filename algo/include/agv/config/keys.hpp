@@ -1,6 +1,6 @@
 // The configuration key table: one record per key, the single source of truth for the checker
 // (parse_config), the defaults (test_config proves the struct defaults equal the table) and
-// docs/config.md (config_doc(); `agvloc-config-doc > docs/config.md` regenerates it, and
+// docs/guide/config.md (config_doc(); `agvloc-config-doc > docs/guide/config.md` regenerates it, and
 // test_config fails when the committed file differs). A key the code does not read does not
 // exist: every record stores into the Config.
 #pragma once
@@ -51,7 +51,7 @@ struct Key {
 
 struct Section {
   std::string path;   // "can.odometry"
-  std::string title;  // heading text after the path, e.g. "(docs/can.md)"
+  std::string title;  // heading text after the path, e.g. "(docs/guide/can.md)"
   std::string intro;  // prose before the table (verbatim, may be empty)
   // For sections with required_live keys: why they are required, named in the error.
   std::string required_why;
@@ -75,7 +75,7 @@ std::string format_value(const Key& key, const Value& v);
 // The accepted range as documented ("5..10000", "v_omega, wheels").
 std::string format_range(const Key& key);
 
-// docs/config.md, byte for byte.
+// docs/guide/config.md, byte for byte.
 std::string config_doc();
 
 }  // namespace agv::config

@@ -1,4 +1,4 @@
-// Diagnostics of a running localizer (docs/diagnostics.md): what the output loop hands to the
+// Diagnostics of a running localizer (docs/guide/diagnostics.md): what the output loop hands to the
 // diagnostics page, and its encodings (JSON for the page, Prometheus text for /metrics). Pure: the
 // server thread (firmware/src/diag_server.*) owns the sockets, threads and clocks.
 #pragma once
@@ -86,7 +86,7 @@ FixEntry fix_entry(const vision::LandmarkFix& fix, std::int64_t t_exposure_ns,
                    std::int64_t t_arrival_ns);
 TrackPoint track_point(const localizer::TickRecord& tick);
 
-// Names of the set bits of protocol::fault / protocol::reject (docs/can.md), for the page.
+// Names of the set bits of protocol::fault / protocol::reject (docs/guide/can.md), for the page.
 std::string fault_names_json(std::uint16_t faults);
 std::string rejection_names_json(std::uint8_t rejections);
 

@@ -1,7 +1,7 @@
 // Fusion EKF: wheel odometry (v, omega) and landmark fixes (world pose of the vehicle) into a
 // pose at any requested time, with delayed fixes, chi-square gating, kidnap recovery and health.
 // Model: paper 000 eq. 14-19 (state x, y, theta, v, omega); details and measured accuracy in
-// docs/fusion.md. Conventions: docs/frames.md (mm, rad wrapped to (-pi, pi], ns).
+// docs/design/fusion.md. Conventions: docs/design/frames.md (mm, rad wrapped to (-pi, pi], ns).
 //
 // Real-time use: construct once (all memory is allocated in the constructor); afterwards
 // add_odometry, add_fix, estimate_at and take_flags never allocate. Not thread-safe: call from
@@ -20,7 +20,7 @@
 namespace agv::fusion {
 
 // The filter state is the paper's (x, y, theta, v, omega) followed by four odometry
-// calibration states (docs/fusion.md, "Odometry calibration"):
+// calibration states (docs/design/fusion.md, "Odometry calibration"):
 //   odometry v     = (1 + s_v) v
 //   odometry omega = (1 + s_omega) omega + b_omega + c_omega_v v
 // s_v: speed scale error (mean wheel radius); s_omega: yaw-rate scale error (track width);
@@ -30,7 +30,7 @@ inline constexpr int kIsv = 5;
 inline constexpr int kIsomega = 6;
 inline constexpr int kIbomega = 7;
 inline constexpr int kIcomegav = 8;
-// Gyro calibration (docs/fusion.md, "Gyro"): gyro = (1 + s_g) omega + b_g.
+// Gyro calibration (docs/design/fusion.md, "Gyro"): gyro = (1 + s_g) omega + b_g.
 inline constexpr int kIbg = 9;
 inline constexpr int kIsg = 10;
 inline constexpr int kFilterDim = 11;
@@ -91,7 +91,7 @@ struct EkfConfig {
   double omega_bias_sigma_radps_per_sqrt_s = deg_to_rad(0.004);
   double omega_per_v_sigma_radpm_per_sqrt_s = deg_to_rad(0.005);
 
-  // ---- Odometry sample noise (the samples drive the motion; docs/fusion.md, "Model") ----
+  // ---- Odometry sample noise (the samples drive the motion; docs/design/fusion.md, "Model") ----
   // Noise of one sample: the pose sigma grows by it per period (0.005 m/s over 10 ms = 0.05 mm,
   // a random walk). A real encoder's tick quantisation is about 0.0015 m/s per 10 ms; the
   // simulator's noise is 0.002 m/s. Larger: sigma overstates the error between landmarks.
@@ -101,7 +101,7 @@ struct EkfConfig {
   double max_abs_v_mps = 5.0;
   double max_abs_omega_radps = 10.0;
 
-  // ---- Odometry timing and gaps (docs/fusion.md, "Odometry gaps") ----
+  // ---- Odometry timing and gaps (docs/design/fusion.md, "Odometry gaps") ----
   // What one odometry sample means. kPeriodMean: the mean speed over the odom_period_ns ending at
   // its stamp (encoder ticks per period, what most motor controllers send); kInstant: the speed
   // at its stamp (a controller that reports its speed loop's current value). A filter set for the
@@ -180,7 +180,7 @@ struct EkfConfig {
   std::int64_t max_fix_lead_ns = 200'000'000;
   std::size_t held_fix_capacity = 8;
 
-  // ---- Gyro (docs/fusion.md, "Gyro"; inputs through add_gyro) ----
+  // ---- Gyro (docs/design/fusion.md, "Gyro"; inputs through add_gyro) ----
   // Each gyro sample is the mean yaw rate over the interval since the previous sample (what a
   // gyro's digital low-pass and an integrating read-out give). Where the samples cover an
   // odometry period, the gyro carries the heading and the wheels only the speed.
@@ -319,7 +319,7 @@ enum class FixOutcome {
   kReinitialised,
   kHeld,  // ahead of the newest odometry: kept and fused when odometry catches up
   // A map-guided fix (its identity came from the prediction itself) while the filter is
-  // uninitialised or lost: it cannot confirm the pose that chose it (docs/map_identity.md).
+  // uninitialised or lost: it cannot confirm the pose that chose it (docs/design/map_identity.md).
   kRejectedNotTracking,
 };
 const char* to_string(FixOutcome o);
@@ -339,7 +339,7 @@ class Ekf {
 
   // Gyro yaw-rate sample (rad/s, counter-clockwise positive) stamped t_ns on the odometry's clock
   // (strictly increasing). The gyro then carries the heading over every odometry period it
-  // covers (docs/fusion.md, "Gyro"); the wheels keep the speed. Returns false, counts and flags
+  // covers (docs/design/fusion.md, "Gyro"); the wheels keep the speed. Returns false, counts and flags
   // for non-finite values, samples at or beyond gyro_saturation_radps, non-increasing time, or a
   // stamp more than max_gyro_lead_ns ahead of the newest odometry.
   bool add_gyro(std::int64_t t_ns, double gyro_z_radps);
@@ -354,7 +354,7 @@ class Ekf {
   // re-localises or counts towards a kidnap (else kRejectedNotTracking / kRejectedGate).
   FixOutcome add_fix(std::int64_t t_exposure_ns, const Pose2& z_world, const Eigen::Matrix3d& R,
                      bool map_verified = false, bool map_guided = false);
-  // An external pose (the VDA 5050 initPosition action, docs/vda5050.md): re-initialises the
+  // An external pose (the VDA 5050 initPosition action, docs/guide/vda5050.md): re-initialises the
   // filter at t_ns to z_world with position/heading covariance R, keeping speed and calibration;
   // uninitialised, it initialises as from a first fix. No gate: the operator overrides the
   // filter. False (state untouched) for a non-finite pose or R not positive definite.

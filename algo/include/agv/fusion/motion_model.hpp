@@ -1,6 +1,6 @@
 // Motion model of the fusion EKF: state (x_mm, y_mm, theta_rad, v_mps, omega_radps), paper 000
-// eq. 14 generalised to the exact constant-turn-rate arc. Conventions: docs/frames.md,
-// docs/fusion.md.
+// eq. 14 generalised to the exact constant-turn-rate arc. Conventions: docs/design/frames.md,
+// docs/design/fusion.md.
 #pragma once
 
 #include <Eigen/Core>

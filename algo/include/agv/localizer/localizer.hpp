@@ -53,7 +53,7 @@ struct LocalizerConfig {
   OdometryCorrection odometry;
   GyroCorrection gyro;
   // No accepted gyro sample for this long while gyro samples were seen before sets
-  // FaultImuTimeout (the filter falls back to the wheels by itself; docs/fusion.md "Gyro"). With
+  // FaultImuTimeout (the filter falls back to the wheels by itself; docs/design/fusion.md "Gyro"). With
   // the CAN gyro enabled (protocol.gyro.enabled) also when none has arrived this long after the
   // first tick. Key can.gyro.timeout_ms.
   std::int64_t gyro_timeout_ns = 100'000'000;
@@ -82,7 +82,7 @@ struct OutputStats {
   std::uint64_t fixes_rejected_too_old = 0;
   std::uint64_t fixes_rejected_invalid = 0;
   std::uint64_t reinitialisations = 0;
-  // Map-guided fixes (docs/map_identity.md): received (also counted in fixes_received), fused,
+  // Map-guided fixes (docs/design/map_identity.md): received (also counted in fixes_received), fused,
   // and refused because the filter was uninitialised or lost.
   std::uint64_t fixes_map_guided = 0;
   std::uint64_t fixes_map_guided_fused = 0;
@@ -179,7 +179,7 @@ class Localizer {
   // camera clock that jumped ahead: rejected as invalid, never fused at a time it was not taken.
   void on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure_ns,
               std::int64_t t_arrival_ns = INT64_MAX);
-  // An external pose (VDA 5050 initPosition, docs/vda5050.md) at now_ns, in mm / rad with its
+  // An external pose (VDA 5050 initPosition, docs/guide/vda5050.md) at now_ns, in mm / rad with its
   // 1-sigma position and heading uncertainty. False when the filter refused it (non-finite).
   bool set_pose(std::int64_t now_ns, const Pose2& pose, double sigma_mm, double sigma_rad);
   // VDA 5050 initPosition: set_pose with init_position_sigma(config().fusion).
@@ -209,7 +209,7 @@ class Localizer {
   void pose_now(std::int64_t now_ns, OutFrames* out);
 
   // The fused pose predicted to a camera frame's exposure, for its search windows
-  // (docs/tracking.md) and map-guided identity (docs/map_identity.md). Valid when initialised and
+  // (docs/design/tracking.md) and map-guided identity (docs/design/map_identity.md). Valid when initialised and
   // odometry not timed out at t_exposure_ns, also while lost: its users decide by the covariance.
   // `replay --fast` asks this directly (vision runs inline).
   vision::Prediction prediction_at(std::int64_t t_exposure_ns) const;

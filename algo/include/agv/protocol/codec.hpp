@@ -1,5 +1,5 @@
 // Encoder for the localizer's output frames and decoders for the input frames (odometry, gyro)
-// (layout: signals.hpp, contract: can/agvloc.dbc, rules: docs/can.md). Pure: no I/O, no clocks,
+// (layout: signals.hpp, contract: can/agvloc.dbc, rules: docs/guide/can.md). Pure: no I/O, no clocks,
 // no heap; time is an argument.
 #pragma once
 
@@ -99,7 +99,7 @@ struct QualityOut {
   double sigma_y_mm = 0.0;
   double sigma_theta_rad = 0.0;
   bool valid = false;
-  // A map-guided fix (identity from the prediction, QR unreadable; docs/map_identity.md) was
+  // A map-guided fix (identity from the prediction, QR unreadable; docs/design/map_identity.md) was
   // fused since the previous quality frame: the sigmas rest partly on the filter's own belief.
   bool map_guided_fix = false;
 };
@@ -179,7 +179,7 @@ bool decode_heartbeat(const ProtocolConfig& cfg, const hal::CanFrame& f, Heartbe
 // not); Msg::kCount when none.
 Msg identify(const ProtocolConfig& cfg, const hal::CanFrame& f);
 
-// One odometry measurement, in the units of docs/frames.md.
+// One odometry measurement, in the units of docs/design/frames.md.
 struct OdomSample {
   std::int64_t t_ns = 0;  // frame receive timestamp
   double v_mps = 0.0;
@@ -244,7 +244,7 @@ class OdometryDecoder {
   std::int64_t last_ok_ns_;
 };
 
-// One gyro measurement (AGV_Gyro), rates in rad/s about the vehicle axes (docs/frames.md).
+// One gyro measurement (AGV_Gyro), rates in rad/s about the vehicle axes (docs/design/frames.md).
 struct GyroSample {
   std::int64_t t_ns = 0;          // frame receive timestamp
   double gyro_z_radps = 0.0;      // yaw rate, counter-clockwise positive

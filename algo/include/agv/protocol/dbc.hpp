@@ -1,6 +1,6 @@
 // Renders the contract from the signal table: the DBC file (can/agvloc.dbc is
 // render_dbc(ProtocolConfig{}); integrators with another base ID render their own) and the
-// Markdown frame table of docs/can.md. Pure string generation.
+// Markdown frame table of docs/guide/can.md. Pure string generation.
 #pragma once
 
 #include <string>

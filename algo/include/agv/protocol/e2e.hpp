@@ -1,4 +1,4 @@
-// End-to-end protection in the style of AUTOSAR E2E profile 1 (docs/can.md, "E2E"):
+// End-to-end protection in the style of AUTOSAR E2E profile 1 (docs/guide/can.md, "E2E"):
 //   byte 0       CRC-8 SAE J1850 (poly 0x1D, init 0xFF, xor-out 0xFF)
 //   byte 1 0..3  alive counter 0..14 (15 is never sent and is rejected), +1 per frame, wraps 14->0
 //   CRC input    data-ID low byte, data-ID high byte, then frame bytes 1..7, in this order

@@ -1,5 +1,5 @@
 // The signal table: the single source of the CAN frame layout in code. can/agvloc.dbc is checked
-// against it by tests/can (field by field) and docs/can.md's frame table is rendered from it.
+// against it by tests/can (field by field) and docs/guide/can.md's frame table is rendered from it.
 // All signals are Intel (little-endian) byte order; start bit = least significant bit, counted
 // from bit 0 of byte 0 (DBC "@1" convention). raw = round((phys - offset) / scale), clamped to
 // [raw_min, raw_max] = the raw values of [min, max]: signals saturate, they never wrap.

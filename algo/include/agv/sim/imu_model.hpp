@@ -1,5 +1,5 @@
 // Simulated MEMS yaw-rate gyro: a pure function of the true trajectory, the error parameters and
-// a seed (no I/O, no clock). Model and defaults: docs/simulator.md "Gyro".
+// a seed (no I/O, no clock). Model and defaults: docs/design/simulator.md "Gyro".
 #pragma once
 
 #include <cstdint>

@@ -1,5 +1,5 @@
 // Pure rendering of landmarks and simulated floor-camera frames (no file I/O, no clocks).
-// Geometry: docs/landmark.md; frames: docs/frames.md; models and defaults: docs/simulator.md.
+// Geometry: docs/design/landmark.md; frames: docs/design/frames.md; models and defaults: docs/design/simulator.md.
 #pragma once
 
 #include <cstdint>
@@ -36,7 +36,7 @@ class LandmarkPattern {
   static bool make(const LandmarkGeometry& geometry, const std::string& payload,
                    LandmarkPattern* out, std::string* error);
 
-  // A tag36h11 landmark (docs/landmark.md "AprilTag landmark"): libapriltag's
+  // A tag36h11 landmark (docs/design/landmark.md "AprilTag landmark"): libapriltag's
   // apriltag_to_image() cells of the id (row 0 at the top of the page), cells of
   // geometry.module_mm(), white margin_mm around the black square (apriltag_page.cpp). False with
   // *error when the id is not a tag36h11 id or the size is not positive.
@@ -177,7 +177,7 @@ struct RenderOptions {
   // Fraction [0, 1/3] of the QR code's area under an opaque patch (a pallet foot, tape, a torn
   // corner), the border and logo left intact: per landmark id and seed, a square at a corner, a
   // strip along an edge or a square in the middle, coloured like the floor, the ink or the paper.
-  // Map-guided identity evaluation (docs/map_identity.md). 0 = none.
+  // Map-guided identity evaluation (docs/design/map_identity.md). 0 = none.
   double qr_cover_fraction = 0.0;
   // Print wear (issue 36), per landmark id and seed like the above, each from its own random
   // stream (existing seeds render as before): edge_scuffs_per_landmark patches where the ink is
@@ -197,7 +197,7 @@ RenderOptions realistic_options();
 
 // Renders frames for one camera. Precomputes the floor point of every pixel corner once, so
 // per-frame cost is dominated by the texture evaluation (about 20 ms for 640x480 without a
-// landmark, see docs/simulator.md). Thread-compatible: const methods may run concurrently.
+// landmark, see docs/design/simulator.md). Thread-compatible: const methods may run concurrently.
 class FrameRenderer {
  public:
   // Keeps a pointer to `scene`, which must outlive the renderer.

@@ -1,5 +1,5 @@
 // Simulated vehicle motion and odometry: pure functions of time (t_ns since the trajectory
-// start). Models and defaults: docs/simulator.md.
+// start). Models and defaults: docs/design/simulator.md.
 #pragma once
 
 #include <cstdint>
@@ -18,7 +18,7 @@ enum class TrajectoryKind {
   kCircle,     // circle through grid landmarks
   kFigure8,    // two tangent circles; crosses the grid centre
   kLawnmower,  // boustrophedon over `rows` landmark rows, then back to the start
-  // Vehicle calibration drive (agvloc-desk calibrate vehicle, docs/simulator.md): over the first
+  // Vehicle calibration drive (agvloc-desk calibrate vehicle, docs/design/simulator.md): over the first
   // 2-4 landmarks of row 0, stop over each landmark; turn on the spot +360 deg at the first,
   // +-90 and back at the others, 180 at the last, drive back stopping over each, 180 at the
   // first, repeat. Trapezoid profiles (speed_mps, max(accel, 1.5 m/s^2); 0.8 rad/s, 3 rad/s^2)

@@ -1,4 +1,4 @@
-// VDA 5050 messages of a position provider (docs/vda5050.md): the localizer's tick mapped onto
+// VDA 5050 messages of a position provider (docs/guide/vda5050.md): the localizer's tick mapped onto
 // agvPosition / mobileRobotPosition and velocity, the visualization, connection and state
 // messages, and the initPosition / initializePosition instant action parsed and checked. Pure:
 // text in, text out; time is an argument (ns since the Unix epoch), so the same tick always gives
@@ -49,7 +49,7 @@ inline constexpr double kScoreZeroAtDeviationMm = 100.0;
 // Dead reckoning (no landmark fused lately) caps the score: the pose is extrapolated, not seen.
 inline constexpr double kDeadReckoningScoreCap = 0.5;
 
-// The mapping (docs/vda5050.md "Field mapping"): initialized when the filter is initialised, not
+// The mapping (docs/guide/vda5050.md "Field mapping"): initialized when the filter is initialised, not
 // lost, and the status frame's health is OK or DEGRADED; deviationRange = 3 sigma_position in m;
 // localizationScore = clamp(1 - 3 sigma / kScoreZeroAtDeviationMm, 0, 1), capped at
 // kDeadReckoningScoreCap when dead reckoning, 0 when not initialized.
@@ -76,7 +76,7 @@ struct ActionResult {
   std::string result_description;  // the named reason when failed
 };
 // A state message answering instant actions: the position fields agvloc owns and actionStates;
-// the fields of the vehicle controller (order, nodes, battery, safety) neutral (docs/vda5050.md
+// the fields of the vehicle controller (order, nodes, battery, safety) neutral (docs/guide/vda5050.md
 // "Answering initPosition").
 std::string encode_state(const Identity& id, std::uint32_t header_id, std::int64_t t_ns,
                          const Position& p, const std::vector<ActionResult>& actions);

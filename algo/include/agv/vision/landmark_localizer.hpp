@@ -1,7 +1,7 @@
 // Landmark pose from one floor image: paper 001's pipeline (adaptive threshold, NCC corner
 // templates, QR decode, logo direction, Prewitt edge classes, least-squares edge lines) plus the
-// improvements measured in docs/accuracy.md. Tunables and their trade-offs: docs/vision.md.
-// Frames: docs/frames.md. Pure: no I/O, no threads, no clocks (time comes from an injected
+// improvements measured in docs/design/accuracy.md. Tunables and their trade-offs: docs/design/vision.md.
+// Frames: docs/design/frames.md. Pure: no I/O, no threads, no clocks (time comes from an injected
 // function only to fill the per-stage timings).
 #pragma once
 
@@ -43,7 +43,7 @@ enum class HeadingMethod {
   kInverseVariance,  // each line angle weighted by 1/var from its own residuals
 };
 
-// Search windows from the filter's prediction (docs/tracking.md).
+// Search windows from the filter's prediction (docs/design/tracking.md).
 struct TrackingConfig {
   // Search only the windows around the predicted landmarks when the prediction is trusted (full
   // frame when they find nothing). false = every frame is searched in full, as before tracking.
@@ -61,13 +61,13 @@ struct TrackingConfig {
   // Skip detection when the prediction alone places the pose stage's edge bands: every predicted
   // outer corner within half the band (window_sigmas sigma), the landmark wholly in the image, the
   // border ring dark on light paper in the full image; the fit must then land where predicted,
-  // otherwise the frame takes the tracked detection as before (docs/tracking.md "Detection from
+  // otherwise the frame takes the tracked detection as before (docs/design/tracking.md "Detection from
   // the prediction"). Saves the detection, a third of a tracked frame, on the frames that follow
   // a fix closely. false = the tracked detection on every windowed frame. Default true.
   bool detect_from_prediction = true;
   // With detect_from_prediction: a prediction too loose for that (but trusted) is made precise by
   // 1-D searches for the border's outer edge, 8 across each predicted side, and robust lines
-  // through them (docs/tracking.md "Edge probes"); the fit must then land where the lines put the
+  // through them (docs/design/tracking.md "Edge probes"); the fit must then land where the lines put the
   // landmark. Replaces the tracked detection's coarse level and corner templates over the window,
   // about 0.06 ms of a 0.2 ms tracked frame on x86-64. A side that is covered, cut by the image
   // border or too blurred declines, and the frame takes the tracked detection. false = the tracked
@@ -75,7 +75,7 @@ struct TrackingConfig {
   bool probe_edges = true;
   // Read the code first at the predicted turn (the module centres, verified against the mapped
   // codes); when that succeeds the logo is scored at that turn only and must reach logo_threshold
-  // there, instead of at all four turns with logo_margin over the second best (docs/tracking.md
+  // there, instead of at all four turns with logo_margin over the second best (docs/design/tracking.md
   // "Logo at the code's turn"). The direction is then the code's own orientation, confirmed by the
   // prediction and the logo; a logo below the threshold there, or no such read, takes the four
   // turns and the full read as before, so a logo that contradicts the code is still refused.
@@ -88,7 +88,7 @@ struct TrackingConfig {
 struct VisionConfig {
   // Which printed landmark the frames show (one family per floor). kTag36h11: libapriltag finds
   // and decodes the tag, this pipeline's edge fits on the tag's outer black square give the pose
-  // and the map gives the world pose of the id (apriltag.cpp, docs/landmark.md). Default kQr.
+  // and the map gives the world pose of the id (apriltag.cpp, docs/design/landmark.md). Default kQr.
   agv::LandmarkFamily family = agv::LandmarkFamily::kQr;
 
   // --- 1. binarization -------------------------------------------------------------------
@@ -127,13 +127,13 @@ struct VisionConfig {
   // code with zxing's pure-code reader (Reed-Solomon checked, so a wrong grid cannot give a
   // payload). zxing's own search on the image crop remains as the fallback. Reads codes zxing's
   // binarizer loses under blur and scratches (combined degradations 91.3 -> 100 %) in half the
-  // decode time (0.155 -> 0.079 ms, docs/accuracy.md). Default true.
+  // decode time (0.155 -> 0.079 ms, docs/design/accuracy.md). Default true.
   bool qr_guided = true;
   // When a verified read is possible (a mapped landmark's code is expected, or the map's code
   // book), first sample only each module's centre and take the grid only if it is within the
   // Reed-Solomon bound of a mapped code (the answer zxing would give); otherwise the five-sample
   // read runs as without it, so no read is lost (one stress frame gained one), at a fifth of the
-  // sampling on most frames and without zxing on unclear logos (docs/tracking.md "Centre-only
+  // sampling on most frames and without zxing on unclear logos (docs/design/tracking.md "Centre-only
   // first read"); a frame whose centre grid is not verified pays its cost on top. Default true.
   bool qr_centre_first = true;
   // Guided reading of a code cut by the image border: at most this many data modules may lie
@@ -143,18 +143,18 @@ struct VisionConfig {
   // whole ones; a wrong read is still excluded by the Reed-Solomon check (estimated, not
   // measured: a random word lands within the 8 correctable symbols of a version-2-M codeword
   // with probability ~1e-11) and the payload/map check. Measured on 300 cut frames
-  // (docs/accuracy.md): fixes 52 % (before fill-in) -> 56 % (quiet zone only, 0) -> 63 % (20) ->
+  // (docs/design/accuracy.md): fixes 52 % (before fill-in) -> 56 % (quiet zone only, 0) -> 63 % (20) ->
   // 68 % (40) -> 72 % (80, no gain above). Default 80.
   int qr_max_missing_modules = 80;
   // zxing reads of the guided grids per frame, after every grid's verified read (no zxing) has
   // failed. Each costs about 0.19 M aarch64 instructions; an unclear logo on a cut code could
   // take 32 (4 turns, 2 sizes, 4 thresholds). They read codes the map's code book does not hold
   // byte for byte, and codes beyond the verified read's bounds. Fewer bounds the frame's worst
-  // case more tightly and loses such reads (measured in docs/tracking.md "zxing budget").
+  // case more tightly and loses such reads (measured in docs/design/tracking.md "zxing budget").
   // Default 4.
   int qr_max_grid_decodes = 4;
   // zxing-cpp TryHarder: slower, reads a few more damaged codes. Default false (measured in
-  // docs/accuracy.md).
+  // docs/design/accuracy.md).
   bool qr_try_harder = false;
   // When the first zxing attempt fails, retry on a slightly blurred crop (thin bright scratches
   // break zxing's local binarizer), a larger crop, zxing's global-histogram binarizer and an
@@ -199,7 +199,7 @@ struct VisionConfig {
   // horizontal) along each border line, on rows that are multiples of the step. The pose stage's
   // cost (collection, undistortion, line and joint fits) falls about as 1/step; the error grows
   // far less than sqrt(step), as neighbouring rows share blur (measured at 3: realistic frames'
-  // p95 0.0028 -> 0.0033 mm, every detection rate unchanged; docs/vision.md "Row step"), which is
+  // p95 0.0028 -> 0.0033 mm, every detection rate unchanged; docs/design/vision.md "Row step"), which is
   // micrometres against the millimetres a vehicle needs. min_points_per_line, min_points_total and
   // the fit covariance count rows covered (each point stands for step rows): the step does not
   // change which views have enough edge, and the covariance keeps the scale cov_inflation was
@@ -265,7 +265,7 @@ const char* to_string(FixStatus s);
 enum class FixIdentity : std::uint8_t {
   kNone,       // no identity (the fix failed)
   kQrCode,     // the QR payload (Reed-Solomon checked, map-checked when a map is given)
-  kMapGuided,  // QR unreadable; the one mapped landmark the prediction allows (docs/tracking.md)
+  kMapGuided,  // QR unreadable; the one mapped landmark the prediction allows (docs/design/tracking.md)
   kAprilTag,   // a tag36h11 id through the map
 };
 const char* to_string(FixIdentity i);
@@ -280,7 +280,7 @@ const char* to_string(SearchMode m);
 
 // What the fused pose predicts for the frame being processed: the vehicle's pose in the world at
 // the frame's exposure and its covariance. It gives the search windows and the map-guided
-// identity of a landmark whose QR code cannot be read (docs/tracking.md). valid = false (the
+// identity of a landmark whose QR code cannot be read (docs/design/tracking.md). valid = false (the
 // default): full-frame search, identity from the code only.
 struct Prediction {
   bool valid = false;
@@ -301,7 +301,7 @@ struct LandmarkFix {
   FixStatus status = FixStatus::kNoLandmark;
   std::uint32_t landmark_id = 0;
   char payload[48] = {};  // NUL-terminated QR text (truncated if longer; valid payloads are 38)
-  // Pose of the vehicle in the landmark frame (docs/frames.md "Vision output").
+  // Pose of the vehicle in the landmark frame (docs/design/frames.md "Vision output").
   double e_x_mm = 0.0, e_y_mm = 0.0, e_phi_deg = 0.0;
   Pose2 landmark_in_vehicle;  // V<-L
   Pose2 vehicle_in_world;     // W<-V, valid only when status == kOk
@@ -333,7 +333,7 @@ struct LandmarkFix {
   // corrects, so zxing did not run (the text is the one zxing would have returned).
   bool qr_verified = false;
   // That verified read came from the module centres alone (the cheap first read, one sample per
-  // module instead of five; docs/tracking.md "Centre-only first read").
+  // module instead of five; docs/design/tracking.md "Centre-only first read").
   bool qr_centre_only = false;
   // zxing runs this frame, the QR stage's cost driver (diagnostics, cost tests): pure-code reads
   // of sampled grids (about 0.1 M instructions each on x86-64) and search attempts on the crop

@@ -1,4 +1,4 @@
-// Map-guided identity of a landmark whose QR code cannot be read (docs/map_identity.md): the
+// Map-guided identity of a landmark whose QR code cannot be read (docs/design/map_identity.md): the
 // fused pose predicts where every mapped landmark should appear; the border fit measured where
 // one is. Two independent checks must both agree before the landmark gets an identity:
 //   1. the pose gate: exactly one (landmark, turn) inside a chi-square gate, every other one far
@@ -55,7 +55,7 @@ Pose2 predicted_landmark_in_vehicle(const Prediction& pred, const Pose2& landmar
 // allows (one when it is clear, all four otherwise). index: the map's spatial index (null: every
 // entry is scored). With it, only the landmarks that can lie within max(gate_chi2, clear_chi2) are
 // scored: the same decision at a cost set by the prediction's uncertainty, not the map's size
-// (docs/large_maps.md), unless the heading sigma is so large (above 1 / sqrt(clear_chi2) rad,
+// (docs/design/large_maps.md), unless the heading sigma is so large (above 1 / sqrt(clear_chi2) rad,
 // 7.4 deg) that no distance bounds the gate; every entry is scored then.
 MapIdentityDecision gate_identity(Vec2 measured_c_mm, double beta_rad,
                                   const Eigen::Matrix3d& meas_cov,

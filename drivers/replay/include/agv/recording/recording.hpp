@@ -1,4 +1,4 @@
-// The recording format (docs/recording.md): a directory with meta.yaml, frames.csv + PNGs,
+// The recording format (docs/guide/recording.md): a directory with meta.yaml, frames.csv + PNGs,
 // odom.csv and the optional truth.csv and imu.csv. Used by replay, the simulator and the live
 // recorder.
 #pragma once
@@ -100,7 +100,7 @@ bool read_file_bounded(const std::string& path, std::uintmax_t max_bytes, std::s
 bool check_replay_span(const Recording& rec, std::int64_t period_ns, std::int64_t max_ticks,
                        std::string* error);
 
-// The text the writers below write (docs/recording.md). Meta and frames round-trip exactly;
+// The text the writers below write (docs/guide/recording.md). Meta and frames round-trip exactly;
 // odom.csv and imu.csv keep 9 significant digits, truth.csv 0.1 um and 1e-6 degrees.
 std::string format_meta_yaml(const Meta& meta);
 bool format_frames_csv(const std::vector<FrameRow>& rows, std::string* text, std::string* error);

@@ -1,4 +1,4 @@
-// Linux SocketCAN backend of agv::hal::CanBus (docs/can.md, "SocketCAN driver").
+// Linux SocketCAN backend of agv::hal::CanBus (docs/guide/can.md, "SocketCAN driver").
 //  - raw socket (PF_CAN, SOCK_RAW, CAN_RAW), non-blocking: send() never waits; a full queue
 //    (EAGAIN/ENOBUFS) drops the frame and counts it (stale localisation data is worthless).
 //  - receive filters with CAN_RAW_FILTER (ID type and no-RTR are part of every filter).
