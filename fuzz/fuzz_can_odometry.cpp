@@ -1,6 +1,6 @@
-// CAN frames into the odometry decoder and the E2E check (docs/guide/can.md). The first byte picks the
-// configuration (mode, E2E on/off, 11/29-bit ID, max_delta_counter), then every 12 bytes are one
-// frame: flags, a signed time step, two speed words and 8 data bytes. Flag bit 0 makes it a
+// CAN frames into the odometry decoder and the E2E check (docs/guide/can.md). The first byte picks
+// the configuration (mode, E2E on/off, 11/29-bit ID, max_delta_counter), then every 12 bytes are
+// one frame: flags, a signed time step, two speed words and 8 data bytes. Flag bit 0 makes it a
 // correctly protected odometry frame (encode_odometry with the given counter) so the fuzzer gets
 // past the CRC; other bits pick the ID, the length and mutations of the encoded bytes.
 // Properties: the counters add up (accepted + rejections = odometry frames seen; E2E ok + lost +

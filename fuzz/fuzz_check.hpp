@@ -1,5 +1,6 @@
 // Property checks for the libFuzzer harnesses: a violated property prints what was expected and
-// aborts, which libFuzzer reports as a crash with the input that caused it (docs/design/security.md).
+// aborts, which libFuzzer reports as a crash with the input that caused it
+// (docs/design/security.md).
 #pragma once
 
 #include <cstdio>

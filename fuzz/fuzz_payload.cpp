@@ -1,6 +1,6 @@
-// QR payload text (docs/design/landmark.md). Property: whatever parse_payload accepts, format_payload
-// writes back as the same text (the format is canonical and fixed width; only a negative zero
-// comes back with '+'), and that re-parses to the same fields.
+// QR payload text (docs/design/landmark.md). Property: whatever parse_payload accepts,
+// format_payload writes back as the same text (the format is canonical and fixed width; only a
+// negative zero comes back with '+'), and that re-parses to the same fields.
 #include <cstdint>
 #include <string>
 

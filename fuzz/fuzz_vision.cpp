@@ -1,9 +1,9 @@
 // LandmarkLocalizer::process on mutated real frames: the four golden frames of
 // tests/data/vision (640x480, landmark 17 in a one-landmark map). The first byte picks the frame;
 // every further 6 bytes paint (or XOR) one rectangle of up to 16x16 pixels, at most 32 of them.
-// Bits 2-3 of the first byte choose the prediction (docs/design/tracking.md): none, the unmutated fix's
-// pose with a tight covariance (tracked detection, windows, map-guided identity of a damaged code),
-// or that pose 40 mm and 30 degrees off with the same tight covariance (a wrong trusted
+// Bits 2-3 of the first byte choose the prediction (docs/design/tracking.md): none, the unmutated
+// fix's pose with a tight covariance (tracked detection, windows, map-guided identity of a damaged
+// code), or that pose 40 mm and 30 degrees off with the same tight covariance (a wrong trusted
 // prediction: the fallbacks).
 // Property: the fix from a mutated frame is either absent (any status but kOk) or consistent with
 // the unmutated frame's fix: same landmark, finite pose and covariance, within 5 mm and 2 degrees

@@ -61,7 +61,8 @@ int run(int argc, char** argv) {
     std::fprintf(stderr, "agvloc: %s\n", err.c_str());
     return 2;
   }
-  std::unique_ptr<hal::Imu> imu;  // imu.source iio (docs/design/fusion.md "Gyro from a Linux IIO device")
+  std::unique_ptr<hal::Imu>
+      imu;  // imu.source iio (docs/design/fusion.md "Gyro from a Linux IIO device")
   if (cfg.imu.source == "iio") {
     imu = app::make_live_imu(cfg, &err);
     if (!imu) {

@@ -1,5 +1,6 @@
 // Reading the configuration and map files (size caps, regular files only). The configuration
-// itself (Config, parse_config, the key table): agv/config/config.hpp; every key: docs/guide/config.md.
+// itself (Config, parse_config, the key table): agv/config/config.hpp; every key:
+// docs/guide/config.md.
 #pragma once
 
 #include <cstdint>
@@ -22,8 +23,8 @@ bool load_config(const std::string& path, Config* out, std::vector<std::string>*
 // load_config for the entry points: prints every error as "<who>: config: <error>".
 bool load_config_or_report(const std::string& path, const char* who, Config* out,
                            ConfigUse use = ConfigUse::kLive);
-// Reads a landmark map file (docs/design/landmark.md; a regular file of at most kMaxMapBytes); false
-// with *error naming file and line.
+// Reads a landmark map file (docs/design/landmark.md; a regular file of at most kMaxMapBytes);
+// false with *error naming file and line.
 bool load_map_file(const std::string& path, LandmarkMap* map, std::string* error);
 // What the YAML alone cannot show but leaves a live run unable to localize: a tag36h11 floor
 // without landmark.map (a tag carries only its id), a map id the family does not have. False

@@ -1,6 +1,6 @@
-// The live diagnostics page and /metrics (docs/guide/diagnostics.md): an HTTP server (cpp-httplib) on a
-// fixed pool of ordinary (not real-time) threads. It reads the loop only through DiagHandoff and
-// FrameTap (diag_handoff.hpp); pure encodings are algo/src/diag. Bounded however many clients
+// The live diagnostics page and /metrics (docs/guide/diagnostics.md): an HTTP server (cpp-httplib)
+// on a fixed pool of ordinary (not real-time) threads. It reads the loop only through DiagHandoff
+// and FrameTap (diag_handoff.hpp); pure encodings are algo/src/diag. Bounded however many clients
 // connect: diag.threads workers, diag.max_clients connections served or waiting (more answered
 // 503 at once), one request per connection, read and write timeouts, the camera image encoded at
 // most once per diag.frame_interval_ms and shared.

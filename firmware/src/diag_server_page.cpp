@@ -1,5 +1,5 @@
-// The diagnostics page (docs/guide/diagnostics.md): one self-contained HTML file, inline CSS and JS, no
-// external resource (a vehicle's network has no CDN). It polls /api/status.json (2 Hz),
+// The diagnostics page (docs/guide/diagnostics.md): one self-contained HTML file, inline CSS and
+// JS, no external resource (a vehicle's network has no CDN). It polls /api/status.json (2 Hz),
 // /api/map.json (1 Hz) and /frame.png (1 Hz); everything it shows comes from those. The body's
 // data-frame / data-map attributes say when the frame and the map were first drawn (the headless
 // browser test waits for them).

@@ -1,5 +1,5 @@
-// VDA 5050 over MQTT (libmosquitto), in its own thread (docs/guide/vda5050.md): visualization from the
-// output loop's newest tick, connection ONLINE / OFFLINE with a CONNECTIONBROKEN last will,
+// VDA 5050 over MQTT (libmosquitto), in its own thread (docs/guide/vda5050.md): visualization from
+// the output loop's newest tick, connection ONLINE / OFFLINE with a CONNECTIONBROKEN last will,
 // instantActions subscribed and initPosition handed to the loop, answered in a state message.
 // The loop talks to it only through MqttHandoff; a broker that is down, slow or hostile costs the
 // loop nothing.

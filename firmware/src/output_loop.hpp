@@ -65,8 +65,8 @@ class OutputLoop {
   // VDA 5050 (docs/guide/vda5050.md): each tick is offered to the MQTT thread and a pending
   // initPosition applied before the tick. Null (default): none. Called before the loop runs.
   void set_mqtt(MqttHandoff* mqtt) { mqtt_ = mqtt; }
-  // Diagnostics page (docs/guide/diagnostics.md): fixes and ticks are recorded and handed off at its
-  // rate. Null (default): none. Called before the loop runs.
+  // Diagnostics page (docs/guide/diagnostics.md): fixes and ticks are recorded and handed off at
+  // its rate. Null (default): none. Called before the loop runs.
   void set_diag(DiagHandoff* diag) { diag_ = diag; }
   // Log each set / clear of a status fault bit on stderr (the journal), rate-limited per bit
   // (localizer::FaultTransitionLog). Off (default) in tests and quiet replays.

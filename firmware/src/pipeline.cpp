@@ -35,10 +35,10 @@ vision::VisionConfig vision_config_with_clock(const config::Config& cfg, const h
   return v;
 }
 
-// The output thread's fused estimates for the vision worker (search windows, docs/design/tracking.md).
-// The output thread is SCHED_FIFO and must never wait: it publishes with try_lock and skips a
-// period when the worker is reading (the next period publishes). The worker holds the lock for a
-// scan of the timestamps and a copy of ~140 bytes.
+// The output thread's fused estimates for the vision worker (search windows,
+// docs/design/tracking.md). The output thread is SCHED_FIFO and must never wait: it publishes with
+// try_lock and skips a period when the worker is reading (the next period publishes). The worker
+// holds the lock for a scan of the timestamps and a copy of ~140 bytes.
 //
 // A history, not only the latest: when the worker lags (a loaded CPU, a camera that delivers
 // 150 ms after the exposure), the latest snapshot is that much newer than the frame, and the

@@ -1,5 +1,6 @@
-// Replay outputs: CSV files with documented columns (docs/guide/replay.md). Accuracy against truth.csv
-// and the trajectory plot are desk work (`agvloc-desk report`, tools/desk) over these files.
+// Replay outputs: CSV files with documented columns (docs/guide/replay.md). Accuracy against
+// truth.csv and the trajectory plot are desk work (`agvloc-desk report`, tools/desk) over these
+// files.
 #pragma once
 
 #include <string>

@@ -1,6 +1,6 @@
-// Map-guided identity evaluation (docs/design/map_identity.md): simulated frames where every landmark's QR
-// code is partly covered, with predictions = truth + noise, on a 1000 mm grid, on a 150 mm grid
-// of landmarks with one heading, and with wrong predictions (kidnapped vehicle).
+// Map-guided identity evaluation (docs/design/map_identity.md): simulated frames where every
+// landmark's QR code is partly covered, with predictions = truth + noise, on a 1000 mm grid, on a
+// 150 mm grid of landmarks with one heading, and with wrong predictions (kidnapped vehicle).
 //   eval_identity [--frames N] [--cover F] [--seed S] [--min-rate R] [--row-step N]
 // Prints one line per run; exit status 1 when a wrong identity occurs in any run or the fix rate of
 // the correct-prediction runs is below --min-rate (the ctest runs a small version).

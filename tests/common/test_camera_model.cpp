@@ -80,7 +80,8 @@ TEST(CameraModel, ZeroTiltIsTheUntiltedModelExactly) {
   EXPECT_NEAR(back.y, back_t.y, 1e-9);
 }
 
-// docs/design/frames.md "Camera tilt": +roll turns the optical axis to image left, +pitch to image down.
+// docs/design/frames.md "Camera tilt": +roll turns the optical axis to image left, +pitch to image
+// down.
 TEST(CameraModel, TiltSignsFollowFramesDoc) {
   for (double yaw_deg : {0.0, 90.0, -30.0}) {
     CameraModel m = CameraModel::default_640x480();

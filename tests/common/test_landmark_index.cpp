@@ -1,6 +1,7 @@
-// The spatial index over landmark positions (docs/design/large_maps.md): the same answers as a scan of
-// the whole map on random maps, and, on a 60 000-landmark grid, a number of landmarks visited per
-// query that does not grow with the map (no timing: a regression to a per-frame scan fails here).
+// The spatial index over landmark positions (docs/design/large_maps.md): the same answers as a scan
+// of the whole map on random maps, and, on a 60 000-landmark grid, a number of landmarks visited
+// per query that does not grow with the map (no timing: a regression to a per-frame scan fails
+// here).
 #include <gtest/gtest.h>
 
 #include <algorithm>

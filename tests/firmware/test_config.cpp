@@ -312,7 +312,8 @@ TEST(Config, OnlyBoundedRegularFilesAreRead) {
   std::filesystem::remove_all(dir);
 }
 
-// ---- Issue 14: one key table for the checker, the defaults and docs/guide/config.md ---------------
+// ---- Issue 14: one key table for the checker, the defaults and docs/guide/config.md
+// ---------------
 
 namespace {
 

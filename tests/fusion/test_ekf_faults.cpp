@@ -1,6 +1,7 @@
 // EKF under input faults: odometry gaps (unknown motion, honest covariance, the speed after the
 // gap), fixes ahead of the odometry (held, not dropped), re-localisation from one map-verified
-// fix, and yaw-rate steps for both odometry sample timings (docs/design/fusion.md, "Odometry gaps").
+// fix, and yaw-rate steps for both odometry sample timings (docs/design/fusion.md, "Odometry
+// gaps").
 #include <gtest/gtest.h>
 
 #include <cmath>

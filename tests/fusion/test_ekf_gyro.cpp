@@ -1,5 +1,5 @@
-// The gyro input of the fusion EKF (docs/design/fusion.md, "Gyro"): heading through wheel slips, bias
-// learned standing still, odometry gaps, saturation, and the re-initialisation rules that
+// The gyro input of the fusion EKF (docs/design/fusion.md, "Gyro"): heading through wheel slips,
+// bias learned standing still, odometry gaps, saturation, and the re-initialisation rules that
 // depend on the covariance (issue 33).
 #include <gtest/gtest.h>
 

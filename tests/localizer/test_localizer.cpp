@@ -588,8 +588,8 @@ p::QualityOut quality_of(const localizer::LocalizerConfig& c, const localizer::O
 
 }  // namespace
 
-// docs/design/map_identity.md: a map-guided fix took its identity from the filter's own prediction, so
-// it can only refine a filter that is tracking; it never starts or restarts one.
+// docs/design/map_identity.md: a map-guided fix took its identity from the filter's own prediction,
+// so it can only refine a filter that is tracking; it never starts or restarts one.
 TEST(Localizer, MapGuidedFixNeverInitialisesTheFilter) {
   const auto c = test_config();
   localizer::Localizer loc(c);

@@ -1,5 +1,5 @@
-// The printed landmark: geometry of the PNG raster and SVG as docs/design/landmark.md says, and the QR
-// decodes to the payload at the documented version and ECC level.
+// The printed landmark: geometry of the PNG raster and SVG as docs/design/landmark.md says, and the
+// QR decodes to the payload at the documented version and ECC level.
 #include <ZXing/ReadBarcode.h>
 #include <gtest/gtest.h>
 

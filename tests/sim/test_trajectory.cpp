@@ -280,8 +280,8 @@ TEST(DefaultMap, FileMatchesBuiltInGrid) {
   }
 }
 
-// The vehicle-calibration drive (docs/design/simulator.md): stops over landmarks 0..3 of row 0, turns on
-// the spot there, and period-mean odometry dead-reckons it (turns included) exactly.
+// The vehicle-calibration drive (docs/design/simulator.md): stops over landmarks 0..3 of row 0,
+// turns on the spot there, and period-mean odometry dead-reckons it (turns included) exactly.
 TEST(Trajectory, CalibrationDriveStopsAndTurnsOverLandmarks) {
   TrajectoryParams tp;
   tp.kind = TrajectoryKind::kCalibration;

@@ -1,5 +1,6 @@
 // The loop side of the MQTT hand-off never waits: a held slot skips the sample (counted), newest
-// wins, the rate limit runs in loop time, a pose command is taken once (docs/guide/vda5050.md "Threads").
+// wins, the rate limit runs in loop time, a pose command is taken once (docs/guide/vda5050.md
+// "Threads").
 #include <gtest/gtest.h>
 
 #include <atomic>

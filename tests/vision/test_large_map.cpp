@@ -1,5 +1,5 @@
-// Large maps (docs/design/large_maps.md): with the spatial index the identity gate decides as the scan of
-// the whole map does, and the tracking windows of a 60 000-landmark map visit a handful of
+// Large maps (docs/design/large_maps.md): with the spatial index the identity gate decides as the
+// scan of the whole map does, and the tracking windows of a 60 000-landmark map visit a handful of
 // landmarks per frame (counted, not timed: a regression to a per-frame scan of the map fails).
 #include <gtest/gtest.h>
 

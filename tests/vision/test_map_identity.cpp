@@ -286,8 +286,8 @@ TEST(MapIdentityLocalizer, ReadableCodeIsUnchangedByThePrediction) {
   ASSERT_EQ(loc.process(img, predict(truth, 3.0, 0.3), &b), FixStatus::kOk);
   EXPECT_EQ(a.identity, FixIdentity::kQrCode);
   EXPECT_EQ(b.identity, FixIdentity::kQrCode);
-  // The prediction places the pose stage's bands (edge probes, docs/design/tracking.md), the full search
-  // its detection: the fits agree within the tracking tests' tolerance, not bit for bit.
+  // The prediction places the pose stage's bands (edge probes, docs/design/tracking.md), the full
+  // search its detection: the fits agree within the tracking tests' tolerance, not bit for bit.
   EXPECT_NEAR(a.vehicle_in_world.x_mm, b.vehicle_in_world.x_mm, 0.01);
   EXPECT_NEAR(a.vehicle_in_world.y_mm, b.vehicle_in_world.y_mm, 0.01);
   EXPECT_TRUE(b.map_verified);

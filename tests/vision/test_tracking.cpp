@@ -1,6 +1,7 @@
-// Search windows from the prediction (docs/design/tracking.md): projection against the renderer, growth
-// with the covariance, the trust rule, windowed fixes equal to full-search fixes, the fallback to
-// the full frame, and the constant-velocity extrapolation of the threaded loop's snapshot.
+// Search windows from the prediction (docs/design/tracking.md): projection against the renderer,
+// growth with the covariance, the trust rule, windowed fixes equal to full-search fixes, the
+// fallback to the full frame, and the constant-velocity extrapolation of the threaded loop's
+// snapshot.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -371,10 +372,10 @@ void paint_logo_turned(cv::Mat* img, const CameraModel& cam, const Pose2& landma
 
 }  // namespace
 
-// Verified read (docs/design/tracking.md): the guided reader compares the sampled grid with the mapped
-// codes and skips zxing, with or without a prediction; the predicted heading gives the turn to read
-// first when the logo is unreadable, where the full search samples wrong turns first and zxing
-// runs on each of their grids. Same fixes, fewer zxing runs.
+// Verified read (docs/design/tracking.md): the guided reader compares the sampled grid with the
+// mapped codes and skips zxing, with or without a prediction; the predicted heading gives the turn
+// to read first when the logo is unreadable, where the full search samples wrong turns first and
+// zxing runs on each of their grids. Same fixes, fewer zxing runs.
 TEST(Tracking, TrackedFramesReadTheExpectedCodeWithoutZxing) {
   const LandmarkMap map = one_map();
   const CameraModel cam = CameraModel::default_640x480();
@@ -822,9 +823,9 @@ TEST(Tracking, EdgeProbesLeaveABlurredLandmarkToTheDetection) {
   EXPECT_GE(n_blurred, 2);
 }
 
-// Logo at the code's turn (docs/design/tracking.md): a tracked frame whose code verifies at the predicted
-// turn scores the logo at that turn only, and gives the four turns' fix. An erased logo, or one
-// printed a quarter turn away, takes the four turns; the latter is refused as before.
+// Logo at the code's turn (docs/design/tracking.md): a tracked frame whose code verifies at the
+// predicted turn scores the logo at that turn only, and gives the four turns' fix. An erased logo,
+// or one printed a quarter turn away, takes the four turns; the latter is refused as before.
 TEST(Tracking, LogoIsScoredAtTheVerifiedCodesTurnOnly) {
   const LandmarkMap map = one_map();
   const CameraModel cam = CameraModel::default_640x480();

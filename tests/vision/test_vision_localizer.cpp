@@ -328,9 +328,9 @@ TEST(VisionGolden, StoredFramesGiveStoredResults) {
   EXPECT_EQ(n, 4);
 }
 
-// Camera tilt (docs/design/frames.md "Camera tilt"): frames rendered by a tilted camera give sub-0.1 mm
-// deviations when the localizer knows the tilt, and a clear bias (about height * tan(tilt))
-// when it assumes a perpendicular camera.
+// Camera tilt (docs/design/frames.md "Camera tilt"): frames rendered by a tilted camera give
+// sub-0.1 mm deviations when the localizer knows the tilt, and a clear bias (about height *
+// tan(tilt)) when it assumes a perpendicular camera.
 TEST(VisionLocalizer, TiltedCameraNeedsTheTiltInTheModel) {
   const LandmarkMap map = one_map();
   CameraModel tilted = CameraModel::default_640x480();

@@ -1,19 +1,19 @@
 // vision_cost RECORDING [--frames N] [--class all|ok|none|free|cut]
 //             [--tracking SIGMA_MM --map FILE] [--row-step N] [--repeat N]
 // Instruction cost of the vision pipeline (agv::vision::LandmarkLocalizer::process) on the frames
-// of a recording, for docs/guide/deployment.md. Frames are decoded first; one warm-up pass classifies
-// them by status: ok, or none (any other status), which splits into free (no landmark found) and
-// cut (a landmark partly outside the image: not a landmark-free frame, and the costly part of
-// none). The measured pass then calls process() once per selected frame, each call bracketed
-// twice:
+// of a recording, for docs/guide/deployment.md. Frames are decoded first; one warm-up pass
+// classifies them by status: ok, or none (any other status), which splits into free (no landmark
+// found) and cut (a landmark partly outside the image: not a landmark-free frame, and the costly
+// part of none). The measured pass then calls process() once per selected frame, each call
+// bracketed twice:
 //   - by agv_cost_frame() (never inlined) for `valgrind --tool=callgrind
 //     --toggle-collect=agv_cost_frame*`, natively;
 //   - by marker system calls (prctl with an invalid option; EINVAL, no effect) for the qemu
 //     plugin insn_count_plugin.c, under qemu-aarch64.
 // Both count user-space instructions of the same calls. OpenCV runs single-threaded so that the
 // count is one core's work. measure.sh runs the whole comparison.
-// --tracking SIGMA_MM: every frame gets a prediction (docs/design/tracking.md) from the recording's truth
-// moved by a Gaussian error of SIGMA_MM and SIGMA_MM / 10 degrees (fixed seed), with that
+// --tracking SIGMA_MM: every frame gets a prediction (docs/design/tracking.md) from the recording's
+// truth moved by a Gaussian error of SIGMA_MM and SIGMA_MM / 10 degrees (fixed seed), with that
 // covariance; the search windows need the landmark map (--map).
 // --row-step N: VisionConfig::edge_row_step (default: the configuration's default), so two steps
 // can be compared with the same binary.

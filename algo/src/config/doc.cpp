@@ -1,5 +1,5 @@
-// docs/guide/config.md, generated from the key table. The prose here (header, section introductions)
-// is emitted verbatim; everything about a single key comes from its record.
+// docs/guide/config.md, generated from the key table. The prose here (header, section
+// introductions) is emitted verbatim; everything about a single key comes from its record.
 #include <string>
 
 #include "agv/config/keys.hpp"
@@ -51,7 +51,8 @@ const std::vector<Section>& config_sections() {
        "The OpenCV model, pixel centres at integer coordinates. `fx`, `fy`, `cx` and `cy` have no\n"
        "default: `agvloc run`, `agvloc record` and `--check-config` reject a configuration\n"
        "without them (`intrinsics: missing section (fx, fy, cx, cy are required: the camera\n"
-       "calibration, docs/guide/camera.md)`, or `intrinsics.fy: missing (required: ...)` for one key),\n"
+       "calibration, docs/guide/camera.md)`, or `intrinsics.fy: missing (required: ...)` for one "
+       "key),\n"
        "because a guessed focal length silently scales every fix. The shipped example carries the\n"
        "simulator's camera: fx = fy = 769.23 (0.26 mm/px at 200 mm), cx = 319.5, cy = 239.5.\n"
        "`agvloc replay --config` takes the camera from the recording's `meta.yaml` and does not\n"
@@ -82,7 +83,8 @@ const std::vector<Section>& config_sections() {
        "true`;\n"
        "the service unit's `LimitRTPRIO=80` / `LimitMEMLOCK=infinity` permit them): on a shared\n"
        "2-core machine they took the output jitter p99 from 0.8–2.4 ms to 0.06–0.15 ms and, with\n"
-       "`pose_on_fix`, the end to end p99 from 3.7–4.2 ms to 1.5–2.6 ms (docs/design/performance.md,\n"
+       "`pose_on_fix`, the end to end p99 from 3.7–4.2 ms to 1.5–2.6 ms "
+       "(docs/design/performance.md,\n"
        "second-session runs). When not permitted, the loop prints which capability or limit is\n"
        "missing and runs without them.\n",
        ""},
@@ -110,7 +112,8 @@ const std::vector<Section>& config_sections() {
        "`estimate_odometry_calibration: false` the defaults of\n"
        "`along_track_sigma_mm_per_sqrt_m`, `cross_track_sigma_mm_per_sqrt_m`,\n"
        "`heading_sigma_deg_per_sqrt_m` and `heading_drift_sigma_deg_per_sqrt_s` become 5, 2, 0.1\n"
-       "and 0.3 (the process noise must then cover the uncalibrated odometry; docs/design/fusion.md);\n"
+       "and 0.3 (the process noise must then cover the uncalibrated odometry; "
+       "docs/design/fusion.md);\n"
        "keys given in the file still win. The odometry timeout is `can.odometry.timeout_ms`.\n",
        ""},
       {"replay", "", "", ""},

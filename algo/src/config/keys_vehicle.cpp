@@ -186,7 +186,8 @@ void add_imu(std::vector<Key>* k) {
       "imu.source", AGV_AT(imu.source), {"can", "iio", "none"}, "can",
       "where the yaw rate comes from. can: `AGV_Gyro` on the bus when `can.gyro.enabled` (the "
       "IMU's own controller stamps and protects it). iio: an IMU on the vehicle computer's own "
-      "bus (I2C/SPI) through its Linux IIO driver (`imu.iio_*`, docs/design/fusion.md \"Gyro from a "
+      "bus (I2C/SPI) through its Linux IIO driver (`imu.iio_*`, docs/design/fusion.md \"Gyro from "
+      "a "
       "Linux IIO device\"): stamped by the kernel on the loop clock, no CAN latency, but no E2E "
       "protection and one more thread. none: wheels only. iio and none "
       "refuse `can.gyro.enabled: true` (one gyro source). With iio, `can.gyro.timeout_ms` is "
@@ -276,7 +277,8 @@ void add_loop(std::vector<Key>* k) {
       "loop.pose_on_fix", AGV_AT(loop.pose_on_fix), true,
       "also send the pose pair right after each fused fix: the correction reaches the bus one "
       "vision time after exposure instead of up to one period later (with the shipped real-time "
-      "settings end to end p99 1.5–2.6 ms instead of 12–14 ms, docs/design/performance.md); the extra "
+      "settings end to end p99 1.5–2.6 ms instead of 12–14 ms, docs/design/performance.md); the "
+      "extra "
       "pose pairs make pose frames irregularly spaced (receivers must not derive speed from "
       "pose-frame intervals). The fixed-rate stream (pose, velocity, quality, status every "
       "period) runs either way. false = fixed-rate stream only"));

@@ -1,6 +1,7 @@
 // Key table rows of the vision section: the fields of agv::vision::VisionConfig
 // (algo/include/agv/vision/landmark_localizer.hpp), same names and defaults, in pipeline order.
-// The texts condense the header comments and docs/design/vision.md; measurements: docs/design/accuracy.md.
+// The texts condense the header comments and docs/design/vision.md; measurements:
+// docs/design/accuracy.md.
 #include "key_builders.hpp"
 
 namespace agv::config::detail {
@@ -58,14 +59,14 @@ void add_qr(std::vector<Key>* k) {
                        "it is within the Reed-Solomon bound of a mapped code; otherwise the "
                        "five-sample read runs as before. No read lost, a fifth of the "
                        "sampling on most frames (docs/design/tracking.md)"));
-  k->push_back(
-      integer("vision.qr_max_missing_modules", AGV_AT(vision.qr_max_missing_modules), 0, 625, 80,
-              {"modules",
-               "data modules of a code cut by the image border that may be missing (filled "
-               "with the code's mean grey and left to the Reed-Solomon correction; a wrong "
-               "read is still excluded by the RS and payload/map checks). Cut-landmark fixes "
-               "56 % (0) → 72 % (80), no gain above 80 (docs/design/accuracy.md). 0 = the code must "
-               "be whole"}));
+  k->push_back(integer(
+      "vision.qr_max_missing_modules", AGV_AT(vision.qr_max_missing_modules), 0, 625, 80,
+      {"modules",
+       "data modules of a code cut by the image border that may be missing (filled "
+       "with the code's mean grey and left to the Reed-Solomon correction; a wrong "
+       "read is still excluded by the RS and payload/map checks). Cut-landmark fixes "
+       "56 % (0) → 72 % (80), no gain above 80 (docs/design/accuracy.md). 0 = the code must "
+       "be whole"}));
   k->push_back(
       integer("vision.qr_max_grid_decodes", AGV_AT(vision.qr_max_grid_decodes), 0, 32, 4,
               {"reads",
@@ -131,14 +132,15 @@ void add_pose(std::vector<Key>* k) {
                        "half-width of the search band around each predicted "
                        "edge (0.4 = 2.4 mm). Wider tolerates a worse "
                        "detection estimate and costs time"}));
-  k->push_back(integer("vision.edge_row_step", AGV_AT(vision.edge_row_step), 1, 8, 3,
-                       {"pixel rows",
-                        "edge points on every N-th pixel row along each border line. Larger "
-                        "costs less (pose stage about 1/N; tracked frame 3.09 → 1.72 M aarch64 "
-                        "instructions at 3) and is a little noisier (realistic frames p95 "
-                        "0.0028 → 0.0033 mm at 3; docs/design/vision.md). The point minimums and the "
-                        "covariance count rows covered, so N does not change which views have "
-                        "enough edge"}));
+  k->push_back(
+      integer("vision.edge_row_step", AGV_AT(vision.edge_row_step), 1, 8, 3,
+              {"pixel rows",
+               "edge points on every N-th pixel row along each border line. Larger "
+               "costs less (pose stage about 1/N; tracked frame 3.09 → 1.72 M aarch64 "
+               "instructions at 3) and is a little noisier (realistic frames p95 "
+               "0.0028 → 0.0033 mm at 3; docs/design/vision.md). The point minimums and the "
+               "covariance count rows covered, so N does not change which views have "
+               "enough edge"}));
   k->push_back(boolean("vision.subpixel", AGV_AT(vision.subpixel), true,
                        "parabolic subpixel edge positions across the edge"));
   k->push_back(boolean("vision.robust", AGV_AT(vision.robust), true,
@@ -205,10 +207,11 @@ void add_covariance(std::vector<Key>* k) {
 }
 
 void add_tracking(std::vector<Key>* k) {
-  k->push_back(boolean("vision.tracking.enabled", AGV_AT(vision.tracking.enabled), true,
-                       "search only the windows around the mapped landmarks the fused pose "
-                       "predicts in view (full frame when they find nothing, docs/design/tracking.md). "
-                       "false: every frame searched in full"));
+  k->push_back(
+      boolean("vision.tracking.enabled", AGV_AT(vision.tracking.enabled), true,
+              "search only the windows around the mapped landmarks the fused pose "
+              "predicts in view (full frame when they find nothing, docs/design/tracking.md). "
+              "false: every frame searched in full"));
   k->push_back(number("vision.tracking.max_position_sigma_mm",
                       AGV_AT(vision.tracking.max_position_sigma_mm), 0.0, 1000.0, 10.0,
                       {"mm",
@@ -224,28 +227,30 @@ void add_tracking(std::vector<Key>* k) {
                        "window growth around each predicted corner, in σ of its position. "
                        "Smaller = cheaper windows, more misses (a miss costs the window and "
                        "the full search)"}));
-  k->push_back(boolean("vision.tracking.detect_from_prediction",
-                       AGV_AT(vision.tracking.detect_from_prediction), true,
-                       "skip detection when the prediction places every corner within half the "
-                       "pose stage's edge band (at window_sigmas σ) and the fit lands where "
-                       "predicted; otherwise the tracked detection (docs/design/tracking.md). false: "
-                       "detection on every frame"));
+  k->push_back(
+      boolean("vision.tracking.detect_from_prediction",
+              AGV_AT(vision.tracking.detect_from_prediction), true,
+              "skip detection when the prediction places every corner within half the "
+              "pose stage's edge band (at window_sigmas σ) and the fit lands where "
+              "predicted; otherwise the tracked detection (docs/design/tracking.md). false: "
+              "detection on every frame"));
   k->push_back(boolean("vision.tracking.probe_edges", AGV_AT(vision.tracking.probe_edges), true,
                        "when the prediction is too loose to place the bands itself, find the "
                        "border's outer edge with 8 one-dimensional probes across each predicted "
                        "side and place them from the lines through those (docs/design/tracking.md "
                        "\"Edge probes\"); otherwise the tracked detection. Needs "
                        "detect_from_prediction. false: the tracked detection"));
-  k->push_back(boolean("vision.tracking.logo_at_code_turn",
-                       AGV_AT(vision.tracking.logo_at_code_turn), true,
-                       "read the code first at the predicted turn; when its module centres match "
-                       "a mapped code, score the logo at that turn only (it must reach "
-                       "logo_threshold there) instead of at all four turns (docs/design/tracking.md "
-                       "\"Logo at the code's turn\"). Needs qr_guided and qr_centre_first. "
-                       "Otherwise, or false: four turns and the full read"));
+  k->push_back(
+      boolean("vision.tracking.logo_at_code_turn", AGV_AT(vision.tracking.logo_at_code_turn), true,
+              "read the code first at the predicted turn; when its module centres match "
+              "a mapped code, score the logo at that turn only (it must reach "
+              "logo_threshold there) instead of at all four turns (docs/design/tracking.md "
+              "\"Logo at the code's turn\"). Needs qr_guided and qr_centre_first. "
+              "Otherwise, or false: four turns and the full read"));
 }
 
-// vision::MapIdentityConfig (map_identity_config.hpp; docs/design/map_identity.md has the measurements).
+// vision::MapIdentityConfig (map_identity_config.hpp; docs/design/map_identity.md has the
+// measurements).
 void add_identity(std::vector<Key>* k) {
   k->push_back(number("vision.identity.gate_chi2", AGV_AT(vision.identity.gate_chi2), 1.0, 100.0,
                       16.27,

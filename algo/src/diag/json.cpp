@@ -1,5 +1,5 @@
-// JSON of the diagnostics page (docs/guide/diagnostics.md). Written by hand, not with nlohmann-json: the
-// documents are flat and fixed, and agv_algo stays free of that dependency.
+// JSON of the diagnostics page (docs/guide/diagnostics.md). Written by hand, not with
+// nlohmann-json: the documents are flat and fixed, and agv_algo stays free of that dependency.
 #include <charconv>
 #include <cmath>
 #include <cstdio>

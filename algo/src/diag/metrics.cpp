@@ -145,7 +145,8 @@ std::string metrics_text(const Snapshot& s, const ServerStats& server) {
          "Time since the newest fused fix; -1 when none was fused.");
   sample(&o, "agvloc_time_since_fix_seconds", nullptr,
          e.time_since_fix_ns < 0 ? -1.0 : static_cast<double>(e.time_since_fix_ns) / 1e9);
-  header(&o, "agvloc_faults", "gauge", "Fault bits of the newest CAN status frame (docs/guide/can.md).");
+  header(&o, "agvloc_faults", "gauge",
+         "Fault bits of the newest CAN status frame (docs/guide/can.md).");
   sample_u(&o, "agvloc_faults", nullptr, s.tick.status.faults);
   header(&o, "agvloc_rejections", "gauge", "Rejection bits of the newest CAN status frame.");
   sample_u(&o, "agvloc_rejections", nullptr, s.tick.status.rejections);

@@ -1,6 +1,6 @@
-// tag36h11 landmarks for the simulator and the generator (docs/design/landmark.md "AprilTag landmark"):
-// the cells come from libapriltag's own family table and renderer (apriltag_to_image), so the
-// printed and simulated tags are exactly what the detector decodes.
+// tag36h11 landmarks for the simulator and the generator (docs/design/landmark.md "AprilTag
+// landmark"): the cells come from libapriltag's own family table and renderer (apriltag_to_image),
+// so the printed and simulated tags are exactly what the detector decodes.
 #include <apriltag/apriltag.h>
 #include <apriltag/tag36h11.h>
 

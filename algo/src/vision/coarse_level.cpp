@@ -180,8 +180,8 @@ void box_downsample_neon(const cv::Mat& img, cv::Size cs, cv::Mat* out) {
 // x86-64 (SSE2 is part of the base ISA): PSADBW against zero sums each half of 16 bytes into a
 // 64-bit lane, one instruction per 16 pixels and row, where the generic path widens to 16 bits,
 // adds and then folds the lanes in shuffles. At F = 8 a chunk gives two outputs' block sums, at
-// F = 16 one. It was an eighth of a tracked frame on x86-64 (docs/design/performance.md). The sums stay
-// below 2^16 (16 * 16 * 255), so the low 16 bits of each lane hold them.
+// F = 16 one. It was an eighth of a tracked frame on x86-64 (docs/design/performance.md). The sums
+// stay below 2^16 (16 * 16 * 255), so the low 16 bits of each lane hold them.
 template <int F>
 void box_downsample_sse2(const cv::Mat& img, cv::Size cs, cv::Mat* out) {
   static_assert(F == 8 || F == 16, "one 16-byte chunk holds whole blocks");

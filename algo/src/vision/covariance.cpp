@@ -1,6 +1,6 @@
-// Stage 6 of the pipeline (docs/design/vision.md), the covariance of the result: of the landmark in the
-// vehicle frame from the joint fit's normal equations, and of the vehicle in the world from that
-// (pose_covariance.hpp).
+// Stage 6 of the pipeline (docs/design/vision.md), the covariance of the result: of the landmark in
+// the vehicle frame from the joint fit's normal equations, and of the vehicle in the world from
+// that (pose_covariance.hpp).
 #include <Eigen/Dense>
 #include <algorithm>
 
@@ -25,7 +25,8 @@ constexpr double kJacobianStepRad = 1e-7;
 // floored as VisionConfig says. Each point counts as the edge_row_step rows it stands for, as in
 // the point minimums: cov_inflation was measured at step 1, where it stands for the correlation of
 // neighbouring rows (shared blur), and the rows between the points taken are no less correlated
-// with them; measured (docs/design/vision.md "Row step"), the error grows by far less than sqrt(step).
+// with them; measured (docs/design/vision.md "Row step"), the error grows by far less than
+// sqrt(step).
 Eigen::Matrix3d fit_covariance(const NormalEquations& ne, int n_params, const VisionConfig& cfg) {
   const double dof = std::max(1.0, ne.sum_w - n_params);
   const double s2 = ne.ssr / dof / std::max(1, cfg.edge_row_step);

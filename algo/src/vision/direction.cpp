@@ -1,7 +1,7 @@
-// Stage 4 of the pipeline (docs/design/vision.md), logo, and the direction decision that closes stage 5:
-// which of the four 90-degree turns of the fitted square is the landmark's
-// forward axis. The logo (a filled triangle beside the QR code) is correlated at each turn; the
-// result is cross-checked with the QR code's own orientation after the decode stage.
+// Stage 4 of the pipeline (docs/design/vision.md), logo, and the direction decision that closes
+// stage 5: which of the four 90-degree turns of the fitted square is the landmark's forward axis.
+// The logo (a filled triangle beside the QR code) is correlated at each turn; the result is
+// cross-checked with the QR code's own orientation after the decode stage.
 #include <algorithm>
 #include <cmath>
 

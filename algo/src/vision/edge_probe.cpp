@@ -1,6 +1,6 @@
-// Edge probes (docs/design/tracking.md "Edge probes"): a trusted prediction that is too loose to place the
-// pose stage's edge bands itself (predicted_detect.cpp) is made precise by a few 1-D searches
-// across each predicted side, instead of the tracked detection's coarse level and corner
+// Edge probes (docs/design/tracking.md "Edge probes"): a trusted prediction that is too loose to
+// place the pose stage's edge bands itself (predicted_detect.cpp) is made precise by a few 1-D
+// searches across each predicted side, instead of the tracked detection's coarse level and corner
 // templates over the window. Each probe walks inward along a side's normal from beyond the
 // prediction's reach and takes the outermost step from light to dark that is followed, one border
 // width further in, by the step back to light: the outer edge of the border, not a dark mark on

@@ -88,9 +88,9 @@ LandmarkLocalizer::Impl::Impl(const VisionConfig& c, const CameraModel& m,
   if (cfg.family == LandmarkFamily::kTag36h11) tag = make_tag_detector();
 }
 
-// The stages in the order they run, numbered as in docs/design/vision.md "Pipeline". The pose comes before
-// the direction and the QR code: the guided QR reading and the logo are sampled where the fitted
-// pose puts them.
+// The stages in the order they run, numbered as in docs/design/vision.md "Pipeline". The pose comes
+// before the direction and the QR code: the guided QR reading and the logo are sampled where the
+// fitted pose puts them.
 FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pred,
                                        LandmarkFix* out) {
   have_overlay = false;
@@ -178,8 +178,8 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
       out->qr_method == 0 ? FixStatus::kQrUnreadable : check_payload(qr_text, out, &world_landmark);
   const double t4 = now_ms();
   if (cfg.now_ns) out->timings.decode_ms = t4 - t2 - logo_ms;
-  // 5c. Map-guided identity of an unread code (docs/design/map_identity.md): whole border only, and never
-  // a filter (re)initialisation (map_verified stays false).
+  // 5c. Map-guided identity of an unread code (docs/design/map_identity.md): whole border only, and
+  // never a filter (re)initialisation (map_verified stays false).
   if (st == FixStatus::kQrUnreadable && !out->partly_outside && out->sides_used == 4) {
     int turn = 0;
     std::uint32_t id = 0;

@@ -209,8 +209,8 @@ struct LandmarkLocalizer::Impl {
   std::vector<float> qr_fill;
   QrGridScratch qr_scratch;
   std::string qr_text;
-  // Verified read (docs/design/tracking.md): the tracked landmark's codes and the turn its predicted
-  // heading points to; empty and -1 without a trusted prediction.
+  // Verified read (docs/design/tracking.md): the tracked landmark's codes and the turn its
+  // predicted heading points to; empty and -1 without a trusted prediction.
   std::vector<QrExpected> qr_expected;
   int predicted_turn = -1;
   int qr_search_attempts = 0;   // zxing search attempts of this frame's decode_qr
@@ -382,8 +382,8 @@ struct LandmarkLocalizer::Impl {
     // -1 no. Checked on first use as an expected code; only a 1 is offered to the verified read.
     std::array<int, 2> reads_back{0, 0};
   };
-  // Encoded on first use (docs/design/large_maps.md): a site's map has tens of thousands of codes, of
-  // which a frame needs a few. Emptied between frames once it holds kMaxCachedCodes landmarks.
+  // Encoded on first use (docs/design/large_maps.md): a site's map has tens of thousands of codes,
+  // of which a frame needs a few. Emptied between frames once it holds kMaxCachedCodes landmarks.
   std::map<std::uint32_t, MapCodes> map_codes;
   MapCodes* codes_of(std::uint32_t id);
   // The mapped codes for the verified read (qr_grid.hpp QrCodeBook): every one of a small map

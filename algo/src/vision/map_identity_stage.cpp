@@ -1,6 +1,6 @@
-// Stage 5c of the pipeline (docs/design/map_identity.md): the identity of a landmark whose QR code was not
-// read, from the prediction and the map (pose gate), confirmed by the QR modules sampled where the
-// candidate's code must be (module check). The decisions themselves are pure functions in
+// Stage 5c of the pipeline (docs/design/map_identity.md): the identity of a landmark whose QR code
+// was not read, from the prediction and the map (pose gate), confirmed by the QR modules sampled
+// where the candidate's code must be (module check). The decisions themselves are pure functions in
 // map_identity.cpp; this file samples the image for them.
 #include <algorithm>
 #include <cmath>

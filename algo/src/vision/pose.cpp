@@ -1,7 +1,7 @@
-// Stage 3 of the pipeline (docs/design/vision.md), pose: edge points of the eight border lines (Prewitt
-// gradients in bands around the detected square, classified by gradient direction, paper 001 fig.
-// 7), robust line fits in the metric frame, heading and centre by the configured method, then the
-// joint square fit whose normal equations also give the covariance (covariance.cpp).
+// Stage 3 of the pipeline (docs/design/vision.md), pose: edge points of the eight border lines
+// (Prewitt gradients in bands around the detected square, classified by gradient direction, paper
+// 001 fig. 7), robust line fits in the metric frame, heading and centre by the configured method,
+// then the joint square fit whose normal equations also give the covariance (covariance.cpp).
 #include <Eigen/Dense>
 #include <algorithm>
 #include <bit>

@@ -1,5 +1,6 @@
-// Detection from a precise prediction (docs/design/tracking.md "Detection from the prediction"). The
-// pose stage only needs the landmark's centre and border angle to place its edge bands, which are
+// Detection from a precise prediction (docs/design/tracking.md "Detection from the prediction").
+// The pose stage only needs the landmark's centre and border angle to place its edge bands, which
+// are
 // +-band_rel border widths wide (+-2.4 mm at the defaults); the tracked detection's own estimate
 // is up to 6.45 px (1.7 mm) off and the edge fit recovers from it. When the prediction already
 // puts every outer corner well inside the band, the coarse level, the corner search and the

@@ -1,6 +1,6 @@
-// Stage 5 of the pipeline (docs/design/vision.md), QR decode: model-guided module sampling where the
-// fitted pose puts the code (qr_grid), zxing's own search on the image crop as the fallback, then
-// the payload parser and the map check. Also gives the QR code's orientation for the direction
+// Stage 5 of the pipeline (docs/design/vision.md), QR decode: model-guided module sampling where
+// the fitted pose puts the code (qr_grid), zxing's own search on the image crop as the fallback,
+// then the payload parser and the map check. Also gives the QR code's orientation for the direction
 // cross-check.
 #define ZX_USE_UTF8 1
 #include <ZXing/ReadBarcode.h>
@@ -238,8 +238,8 @@ int LandmarkLocalizer::Impl::decode_guided(const cv::Mat& img, Vec2 c_mm, double
     return -1;
   }
   // Four turns: every grid's verified reads (no zxing) come first, so the wrong turns cost no
-  // zxing reads when a later one is verified; then zxing. Measured in docs/design/tracking.md ("zxing
-  // budget").
+  // zxing reads when a later one is verified; then zxing. Measured in docs/design/tracking.md
+  // ("zxing budget").
   int n_grids = 0;
   for (int q : order) {
     for (int n : {kQrModulesV2, kQrModulesV1}) {

@@ -1,5 +1,5 @@
-// Tracked detection (docs/design/tracking.md "Tracked detection"): when the prediction is trusted, the
-// landmark's hypothesis comes from the predicted centre and border angle instead of the corner
+// Tracked detection (docs/design/tracking.md "Tracked detection"): when the prediction is trusted,
+// the landmark's hypothesis comes from the predicted centre and border angle instead of the corner
 // template search over every dark pixel. Only the four outer corners are searched, each with the
 // one fine template at its predicted rotation and within window_sigmas of its predicted position;
 // then the full path's angle and centre refinement and ring check decide. Anything doubtful

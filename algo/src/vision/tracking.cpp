@@ -1,5 +1,5 @@
-// Search windows from the prediction (docs/design/tracking.md): the trust rule, the projection of each
-// mapped landmark's outer square grown by its position uncertainty, and the extrapolation of a
+// Search windows from the prediction (docs/design/tracking.md): the trust rule, the projection of
+// each mapped landmark's outer square grown by its position uncertainty, and the extrapolation of a
 // fused estimate to a frame's exposure.
 #include "agv/vision/tracking.hpp"
 

@@ -28,9 +28,9 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// Per-file caps (docs/design/security.md): with them a hostile recording cannot make the reader hold
-// more than a few hundred MB (the longest legitimate files, odom.csv and truth.csv at 100 Hz, are
-// ~3 MB per hour; imu.csv at 200 Hz with only t_ns,gyro_z_radps ~20 MB per hour).
+// Per-file caps (docs/design/security.md): with them a hostile recording cannot make the reader
+// hold more than a few hundred MB (the longest legitimate files, odom.csv and truth.csv at 100 Hz,
+// are ~3 MB per hour; imu.csv at 200 Hz with only t_ns,gyro_z_radps ~20 MB per hour).
 constexpr std::uintmax_t kMaxMetaBytes = 64u << 10;      // 64 KiB
 constexpr std::uintmax_t kMaxFramesCsvBytes = 8u << 20;  // 8 MiB: ~250k frames, 2.3 h at 30 fps
 constexpr std::uintmax_t kMaxTimedCsvBytes = 32u << 20;  // 32 MiB: ~10 h of 100 Hz odometry

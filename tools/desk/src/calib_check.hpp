@@ -1,9 +1,11 @@
 // agvloc-desk calibrate check: the parked-vehicle check of the camera calibration with one printed
-// landmark at a taped pose (docs/guide/commissioning.md, docs/guide/camera.md). Pure: frames, taped poses and
-// the configuration in, deviations and findings out (file handling: cmd_calibrate_check.cpp).
+// landmark at a taped pose (docs/guide/commissioning.md, docs/guide/camera.md). Pure: frames, taped
+// poses and the configuration in, deviations and findings out (file handling:
+// cmd_calibrate_check.cpp).
 //
-// Model (docs/design/frames.md): with the configured mounting (offset o_c, yaw psi_c, height h_c) and the
-// true one (o_t, psi_t, h_t), the vision stage measures a floor point p of the vehicle frame at
+// Model (docs/design/frames.md): with the configured mounting (offset o_c, yaw psi_c, height h_c)
+// and the true one (o_t, psi_t, h_t), the vision stage measures a floor point p of the vehicle
+// frame at
 //   p' = o_c + s R(dpsi) (p - o_t),   s = h_c / h_t,   dpsi = psi_c - psi_t,
 // and the landmark's heading dpsi too large and its size s times the printed size. So the heading
 // difference gives the yaw, the measured size the height (or fx, or a print not at 100 %), and

@@ -1,4 +1,5 @@
-// agvloc-desk sim: writes a simulated recording (docs/design/simulator.md, docs/guide/recording.md).
+// agvloc-desk sim: writes a simulated recording (docs/design/simulator.md,
+// docs/guide/recording.md).
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <chrono>
@@ -164,8 +165,8 @@ int sim(int argc, char** argv) {
   app.add_flag("--nominal-meta", nominal_meta,
                "meta.yaml records the profile's nominal camera mounting instead of the simulated "
                "one (a recording made with an uncalibrated configuration)");
-  // The gyro (imu.csv): a typical industrial MEMS gyro by default (docs/design/simulator.md "Gyro"). The
-  // CLI takes degrees, as data sheets state them; the model takes radians.
+  // The gyro (imu.csv): a typical industrial MEMS gyro by default (docs/design/simulator.md
+  // "Gyro"). The CLI takes degrees, as data sheets state them; the model takes radians.
   bool gyro = true;
   sim::GyroParams gp;
   double gyro_noise_dps_rthz = 0.01, gyro_bias_dps = 0.2, gyro_bias_instability_dps = 0.005,
@@ -361,7 +362,8 @@ int sim(int argc, char** argv) {
   std::string cmdline = "agvloc-desk sim";
   for (int i = 1; i < argc; ++i) cmdline += std::string(" ") + argv[i];
   // The sample timing is part of what the recording means (the replay's fusion must agree), so
-  // it is stated even when it is the default. meta.yaml has no key for it (docs/guide/recording.md).
+  // it is stated even when it is the default. meta.yaml has no key for it
+  // (docs/guide/recording.md).
   meta.source = cmdline + " (odometry samples: " + sim::to_string(op.timing) + ")";
   if (!recording::write_meta(out_dir, meta, &err)) {
     std::fprintf(stderr, "agvloc-desk sim: %s\n", err.c_str());

@@ -1,6 +1,6 @@
 // agvloc-desk config apply: the snippets `calibrate intrinsics` and `calibrate vehicle` write,
-// merged into a vehicle configuration as one text edit of it (docs/guide/commissioning.md). Pure: texts
-// in, text out; the command (cmd_config.cpp) reads and writes the files and runs the checker.
+// merged into a vehicle configuration as one text edit of it (docs/guide/commissioning.md). Pure:
+// texts in, text out; the command (cmd_config.cpp) reads and writes the files and runs the checker.
 #pragma once
 
 #include <string>

@@ -1,6 +1,6 @@
 // `agvloc-desk report`: accuracy of a replay against the recording's truth.csv and the
-// trajectory plot, computed from the replay's output files (poses.csv, fixes.csv, docs/guide/replay.md)
-// so that the vehicle binary carries neither.
+// trajectory plot, computed from the replay's output files (poses.csv, fixes.csv,
+// docs/guide/replay.md) so that the vehicle binary carries neither.
 #pragma once
 
 #include <cstdint>

@@ -28,11 +28,11 @@ struct CameraMount {
   // 0 means: image "up" (decreasing row) points along vehicle +x, image "right" along -y.
   double yaw_rad = 0.0;
   double height_mm = 200.0;  // optical centre above the floor
-  // Tilt of the camera (docs/design/frames.md, "Camera tilt"): the camera body frame B (x = image up,
-  // y = image left, z = against the optical axis) is R_VB = Rz(yaw) * Ry(pitch) * Rx(roll) in the
-  // vehicle frame (intrinsic z-y'-x''). Positive roll turns the optical axis towards image left,
-  // positive pitch towards image down. 0, 0 = optical axis perpendicular to the floor; exactly
-  // 0, 0 takes the untilted code path, bit for bit.
+  // Tilt of the camera (docs/design/frames.md, "Camera tilt"): the camera body frame B (x = image
+  // up, y = image left, z = against the optical axis) is R_VB = Rz(yaw) * Ry(pitch) * Rx(roll) in
+  // the vehicle frame (intrinsic z-y'-x''). Positive roll turns the optical axis towards image
+  // left, positive pitch towards image down. 0, 0 = optical axis perpendicular to the floor;
+  // exactly 0, 0 takes the untilted code path, bit for bit.
   double roll_rad = 0.0;
   double pitch_rad = 0.0;
 
@@ -164,8 +164,8 @@ inline bool FloorProjector::pixel_to_vehicle(Vec2 pixel, Vec2* p) const {
 // matrix built once per pose: a point then costs 9 multiply-adds, two divisions and the lens
 // model, instead of a rigid transform, the mount rotation and two calls. The projections of the
 // logo and QR module samples (about 2000 points a landmark frame) were about a fifth of a tracked
-// frame's instructions (docs/design/performance.md). Equal to vehicle_to_pixel up to rounding (within
-// 1e-9 px in tests/common/test_camera_model.cpp). Keeps a copy of the intrinsics.
+// frame's instructions (docs/design/performance.md). Equal to vehicle_to_pixel up to rounding
+// (within 1e-9 px in tests/common/test_camera_model.cpp). Keeps a copy of the intrinsics.
 class PlaneProjector {
  public:
   // False (pixel untouched) where vehicle_to_pixel is false: behind a tilted camera, a

@@ -115,7 +115,8 @@ PayloadError parse_payload(std::string_view text, LandmarkPayload* out);
 // error: returns an empty string.
 std::string format_payload(const LandmarkPayload& p);
 
-// Landmark map: landmark id -> world pose of the landmark frame. Text format (docs/design/landmark.md):
+// Landmark map: landmark id -> world pose of the landmark frame. Text format
+// (docs/design/landmark.md):
 //   # comment lines and blank lines are ignored
 //   id,x_mm,y_mm,heading_deg          <- this exact header line first
 //   17,1000.0,-2000.0,90

@@ -1,7 +1,7 @@
-// Spatial index over a landmark map's positions (docs/design/large_maps.md): a uniform grid of square
-// cells hashed by cell coordinates, so the within-radius and nearest queries of every frame visit
-// the landmarks near the query point only, whatever the size of the map. Pure; built once from a
-// map that must not change while the index lives (the localizer's contract for its map).
+// Spatial index over a landmark map's positions (docs/design/large_maps.md): a uniform grid of
+// square cells hashed by cell coordinates, so the within-radius and nearest queries of every frame
+// visit the landmarks near the query point only, whatever the size of the map. Pure; built once
+// from a map that must not change while the index lives (the localizer's contract for its map).
 #pragma once
 
 #include <cstddef>

@@ -1,7 +1,7 @@
 // The localizer's configuration: one YAML text, validated completely. Every key, its type,
 // default, accepted range and trade-off is one record of the key table (agv/config/keys.hpp);
-// the checker, the defaults test and docs/guide/config.md are all produced from that table. Pure: YAML
-// text in, structs and error lines out (file reading: firmware/src/config.hpp).
+// the checker, the defaults test and docs/guide/config.md are all produced from that table. Pure:
+// YAML text in, structs and error lines out (file reading: firmware/src/config.hpp).
 #pragma once
 
 #include <cstdint>

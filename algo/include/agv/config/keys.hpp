@@ -1,7 +1,7 @@
 // The configuration key table: one record per key, the single source of truth for the checker
 // (parse_config), the defaults (test_config proves the struct defaults equal the table) and
-// docs/guide/config.md (config_doc(); `agvloc-config-doc > docs/guide/config.md` regenerates it, and
-// test_config fails when the committed file differs). A key the code does not read does not
+// docs/guide/config.md (config_doc(); `agvloc-config-doc > docs/guide/config.md` regenerates it,
+// and test_config fails when the committed file differs). A key the code does not read does not
 // exist: every record stores into the Config.
 #pragma once
 

@@ -339,9 +339,9 @@ class Ekf {
 
   // Gyro yaw-rate sample (rad/s, counter-clockwise positive) stamped t_ns on the odometry's clock
   // (strictly increasing). The gyro then carries the heading over every odometry period it
-  // covers (docs/design/fusion.md, "Gyro"); the wheels keep the speed. Returns false, counts and flags
-  // for non-finite values, samples at or beyond gyro_saturation_radps, non-increasing time, or a
-  // stamp more than max_gyro_lead_ns ahead of the newest odometry.
+  // covers (docs/design/fusion.md, "Gyro"); the wheels keep the speed. Returns false, counts and
+  // flags for non-finite values, samples at or beyond gyro_saturation_radps, non-increasing time,
+  // or a stamp more than max_gyro_lead_ns ahead of the newest odometry.
   bool add_gyro(std::int64_t t_ns, double gyro_z_radps);
 
   // Landmark fix: world pose of the vehicle at exposure time t_exposure_ns with covariance R of

@@ -1,5 +1,5 @@
-// Transitions of the status frame's fault bits, for the log (docs/guide/operation.md "Log lines"): which
-// bit set or cleared, rate-limited per bit so that a flapping fault cannot flood the journal.
+// Transitions of the status frame's fault bits, for the log (docs/guide/operation.md "Log lines"):
+// which bit set or cleared, rate-limited per bit so that a flapping fault cannot flood the journal.
 // Pure: the caller passes each status frame's faults and its time and prints what comes back
 // (firmware/src/output_loop.cpp).
 #pragma once

@@ -53,9 +53,9 @@ struct LocalizerConfig {
   OdometryCorrection odometry;
   GyroCorrection gyro;
   // No accepted gyro sample for this long while gyro samples were seen before sets
-  // FaultImuTimeout (the filter falls back to the wheels by itself; docs/design/fusion.md "Gyro"). With
-  // the CAN gyro enabled (protocol.gyro.enabled) also when none has arrived this long after the
-  // first tick. Key can.gyro.timeout_ms.
+  // FaultImuTimeout (the filter falls back to the wheels by itself; docs/design/fusion.md "Gyro").
+  // With the CAN gyro enabled (protocol.gyro.enabled) also when none has arrived this long after
+  // the first tick. Key can.gyro.timeout_ms.
   std::int64_t gyro_timeout_ns = 100'000'000;
   // A gyro source outside CAN is configured (imu.source iio): silence since the first tick is
   // FaultImuTimeout as with the CAN gyro enabled.
@@ -82,8 +82,8 @@ struct OutputStats {
   std::uint64_t fixes_rejected_too_old = 0;
   std::uint64_t fixes_rejected_invalid = 0;
   std::uint64_t reinitialisations = 0;
-  // Map-guided fixes (docs/design/map_identity.md): received (also counted in fixes_received), fused,
-  // and refused because the filter was uninitialised or lost.
+  // Map-guided fixes (docs/design/map_identity.md): received (also counted in fixes_received),
+  // fused, and refused because the filter was uninitialised or lost.
   std::uint64_t fixes_map_guided = 0;
   std::uint64_t fixes_map_guided_fused = 0;
   std::uint64_t fixes_rejected_not_tracking = 0;
@@ -209,9 +209,9 @@ class Localizer {
   void pose_now(std::int64_t now_ns, OutFrames* out);
 
   // The fused pose predicted to a camera frame's exposure, for its search windows
-  // (docs/design/tracking.md) and map-guided identity (docs/design/map_identity.md). Valid when initialised and
-  // odometry not timed out at t_exposure_ns, also while lost: its users decide by the covariance.
-  // `replay --fast` asks this directly (vision runs inline).
+  // (docs/design/tracking.md) and map-guided identity (docs/design/map_identity.md). Valid when
+  // initialised and odometry not timed out at t_exposure_ns, also while lost: its users decide by
+  // the covariance. `replay --fast` asks this directly (vision runs inline).
   vision::Prediction prediction_at(std::int64_t t_exposure_ns) const;
   // The same at t_ns with the velocities, for a thread that must not call the core (the threaded
   // loop's vision worker extrapolates it to each exposure with vision::extrapolate).

@@ -1,6 +1,6 @@
 // Encoder for the localizer's output frames and decoders for the input frames (odometry, gyro)
-// (layout: signals.hpp, contract: can/agvloc.dbc, rules: docs/guide/can.md). Pure: no I/O, no clocks,
-// no heap; time is an argument.
+// (layout: signals.hpp, contract: can/agvloc.dbc, rules: docs/guide/can.md). Pure: no I/O, no
+// clocks, no heap; time is an argument.
 #pragma once
 
 #include <cstdint>

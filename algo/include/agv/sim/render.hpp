@@ -1,5 +1,6 @@
 // Pure rendering of landmarks and simulated floor-camera frames (no file I/O, no clocks).
-// Geometry: docs/design/landmark.md; frames: docs/design/frames.md; models and defaults: docs/design/simulator.md.
+// Geometry: docs/design/landmark.md; frames: docs/design/frames.md; models and defaults:
+// docs/design/simulator.md.
 #pragma once
 
 #include <cstdint>

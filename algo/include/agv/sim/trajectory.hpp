@@ -18,8 +18,8 @@ enum class TrajectoryKind {
   kCircle,     // circle through grid landmarks
   kFigure8,    // two tangent circles; crosses the grid centre
   kLawnmower,  // boustrophedon over `rows` landmark rows, then back to the start
-  // Vehicle calibration drive (agvloc-desk calibrate vehicle, docs/design/simulator.md): over the first
-  // 2-4 landmarks of row 0, stop over each landmark; turn on the spot +360 deg at the first,
+  // Vehicle calibration drive (agvloc-desk calibrate vehicle, docs/design/simulator.md): over the
+  // first 2-4 landmarks of row 0, stop over each landmark; turn on the spot +360 deg at the first,
   // +-90 and back at the others, 180 at the last, drive back stopping over each, 180 at the
   // first, repeat. Trapezoid profiles (speed_mps, max(accel, 1.5 m/s^2); 0.8 rad/s, 3 rad/s^2)
   // and a 0.3 s pause after every move, so speed changes happen with a landmark in view.

@@ -1,5 +1,5 @@
-// VDA 5050 messages of a position provider (docs/guide/vda5050.md): the localizer's tick mapped onto
-// agvPosition / mobileRobotPosition and velocity, the visualization, connection and state
+// VDA 5050 messages of a position provider (docs/guide/vda5050.md): the localizer's tick mapped
+// onto agvPosition / mobileRobotPosition and velocity, the visualization, connection and state
 // messages, and the initPosition / initializePosition instant action parsed and checked. Pure:
 // text in, text out; time is an argument (ns since the Unix epoch), so the same tick always gives
 // the same bytes. Versions 2.1.0 and 3.0.0; their differences are in one place (encode.cpp).
@@ -49,9 +49,9 @@ inline constexpr double kScoreZeroAtDeviationMm = 100.0;
 // Dead reckoning (no landmark fused lately) caps the score: the pose is extrapolated, not seen.
 inline constexpr double kDeadReckoningScoreCap = 0.5;
 
-// The mapping (docs/guide/vda5050.md "Field mapping"): initialized when the filter is initialised, not
-// lost, and the status frame's health is OK or DEGRADED; deviationRange = 3 sigma_position in m;
-// localizationScore = clamp(1 - 3 sigma / kScoreZeroAtDeviationMm, 0, 1), capped at
+// The mapping (docs/guide/vda5050.md "Field mapping"): initialized when the filter is initialised,
+// not lost, and the status frame's health is OK or DEGRADED; deviationRange = 3 sigma_position in
+// m; localizationScore = clamp(1 - 3 sigma / kScoreZeroAtDeviationMm, 0, 1), capped at
 // kDeadReckoningScoreCap when dead reckoning, 0 when not initialized.
 Position map_tick(const localizer::TickRecord& tick);
 
@@ -76,8 +76,8 @@ struct ActionResult {
   std::string result_description;  // the named reason when failed
 };
 // A state message answering instant actions: the position fields agvloc owns and actionStates;
-// the fields of the vehicle controller (order, nodes, battery, safety) neutral (docs/guide/vda5050.md
-// "Answering initPosition").
+// the fields of the vehicle controller (order, nodes, battery, safety) neutral
+// (docs/guide/vda5050.md "Answering initPosition").
 std::string encode_state(const Identity& id, std::uint32_t header_id, std::int64_t t_ns,
                          const Position& p, const std::vector<ActionResult>& actions);
 

@@ -1,8 +1,8 @@
 // Landmark pose from one floor image: paper 001's pipeline (adaptive threshold, NCC corner
 // templates, QR decode, logo direction, Prewitt edge classes, least-squares edge lines) plus the
-// improvements measured in docs/design/accuracy.md. Tunables and their trade-offs: docs/design/vision.md.
-// Frames: docs/design/frames.md. Pure: no I/O, no threads, no clocks (time comes from an injected
-// function only to fill the per-stage timings).
+// improvements measured in docs/design/accuracy.md. Tunables and their trade-offs:
+// docs/design/vision.md. Frames: docs/design/frames.md. Pure: no I/O, no threads, no clocks (time
+// comes from an injected function only to fill the per-stage timings).
 #pragma once
 
 #include <Eigen/Core>
@@ -61,34 +61,36 @@ struct TrackingConfig {
   // Skip detection when the prediction alone places the pose stage's edge bands: every predicted
   // outer corner within half the band (window_sigmas sigma), the landmark wholly in the image, the
   // border ring dark on light paper in the full image; the fit must then land where predicted,
-  // otherwise the frame takes the tracked detection as before (docs/design/tracking.md "Detection from
-  // the prediction"). Saves the detection, a third of a tracked frame, on the frames that follow
-  // a fix closely. false = the tracked detection on every windowed frame. Default true.
+  // otherwise the frame takes the tracked detection as before (docs/design/tracking.md "Detection
+  // from the prediction"). Saves the detection, a third of a tracked frame, on the frames that
+  // follow a fix closely. false = the tracked detection on every windowed frame. Default true.
   bool detect_from_prediction = true;
   // With detect_from_prediction: a prediction too loose for that (but trusted) is made precise by
   // 1-D searches for the border's outer edge, 8 across each predicted side, and robust lines
-  // through them (docs/design/tracking.md "Edge probes"); the fit must then land where the lines put the
-  // landmark. Replaces the tracked detection's coarse level and corner templates over the window,
-  // about 0.06 ms of a 0.2 ms tracked frame on x86-64. A side that is covered, cut by the image
-  // border or too blurred declines, and the frame takes the tracked detection. false = the tracked
-  // detection whenever the prediction alone does not place the bands. Default true.
+  // through them (docs/design/tracking.md "Edge probes"); the fit must then land where the lines
+  // put the landmark. Replaces the tracked detection's coarse level and corner templates over the
+  // window, about 0.06 ms of a 0.2 ms tracked frame on x86-64. A side that is covered, cut by the
+  // image border or too blurred declines, and the frame takes the tracked detection. false = the
+  // tracked detection whenever the prediction alone does not place the bands. Default true.
   bool probe_edges = true;
   // Read the code first at the predicted turn (the module centres, verified against the mapped
   // codes); when that succeeds the logo is scored at that turn only and must reach logo_threshold
-  // there, instead of at all four turns with logo_margin over the second best (docs/design/tracking.md
-  // "Logo at the code's turn"). The direction is then the code's own orientation, confirmed by the
-  // prediction and the logo; a logo below the threshold there, or no such read, takes the four
-  // turns and the full read as before, so a logo that contradicts the code is still refused.
-  // Saves three quarters of the logo stage, about 0.009 ms of a 0.15 ms tracked frame on x86-64;
-  // logo_margin is then not measured (LandmarkFix::logo_one_turn). Needs qr_guided and
-  // qr_centre_first (that read is theirs). false = four turns on every frame. Default true.
+  // there, instead of at all four turns with logo_margin over the second best
+  // (docs/design/tracking.md "Logo at the code's turn"). The direction is then the code's own
+  // orientation, confirmed by the prediction and the logo; a logo below the threshold there, or no
+  // such read, takes the four turns and the full read as before, so a logo that contradicts the
+  // code is still refused. Saves three quarters of the logo stage, about 0.009 ms of a 0.15 ms
+  // tracked frame on x86-64; logo_margin is then not measured (LandmarkFix::logo_one_turn). Needs
+  // qr_guided and qr_centre_first (that read is theirs). false = four turns on every frame. Default
+  // true.
   bool logo_at_code_turn = true;
 };
 
 struct VisionConfig {
   // Which printed landmark the frames show (one family per floor). kTag36h11: libapriltag finds
   // and decodes the tag, this pipeline's edge fits on the tag's outer black square give the pose
-  // and the map gives the world pose of the id (apriltag.cpp, docs/design/landmark.md). Default kQr.
+  // and the map gives the world pose of the id (apriltag.cpp, docs/design/landmark.md). Default
+  // kQr.
   agv::LandmarkFamily family = agv::LandmarkFamily::kQr;
 
   // --- 1. binarization -------------------------------------------------------------------
@@ -133,8 +135,9 @@ struct VisionConfig {
   // book), first sample only each module's centre and take the grid only if it is within the
   // Reed-Solomon bound of a mapped code (the answer zxing would give); otherwise the five-sample
   // read runs as without it, so no read is lost (one stress frame gained one), at a fifth of the
-  // sampling on most frames and without zxing on unclear logos (docs/design/tracking.md "Centre-only
-  // first read"); a frame whose centre grid is not verified pays its cost on top. Default true.
+  // sampling on most frames and without zxing on unclear logos (docs/design/tracking.md
+  // "Centre-only first read"); a frame whose centre grid is not verified pays its cost on top.
+  // Default true.
   bool qr_centre_first = true;
   // Guided reading of a code cut by the image border: at most this many data modules may lie
   // outside the image (they are filled with the code's mean grey and left to the Reed-Solomon
@@ -143,8 +146,8 @@ struct VisionConfig {
   // whole ones; a wrong read is still excluded by the Reed-Solomon check (estimated, not
   // measured: a random word lands within the 8 correctable symbols of a version-2-M codeword
   // with probability ~1e-11) and the payload/map check. Measured on 300 cut frames
-  // (docs/design/accuracy.md): fixes 52 % (before fill-in) -> 56 % (quiet zone only, 0) -> 63 % (20) ->
-  // 68 % (40) -> 72 % (80, no gain above). Default 80.
+  // (docs/design/accuracy.md): fixes 52 % (before fill-in) -> 56 % (quiet zone only, 0) -> 63 %
+  // (20) -> 68 % (40) -> 72 % (80, no gain above). Default 80.
   int qr_max_missing_modules = 80;
   // zxing reads of the guided grids per frame, after every grid's verified read (no zxing) has
   // failed. Each costs about 0.19 M aarch64 instructions; an unclear logo on a cut code could
@@ -199,11 +202,11 @@ struct VisionConfig {
   // horizontal) along each border line, on rows that are multiples of the step. The pose stage's
   // cost (collection, undistortion, line and joint fits) falls about as 1/step; the error grows
   // far less than sqrt(step), as neighbouring rows share blur (measured at 3: realistic frames'
-  // p95 0.0028 -> 0.0033 mm, every detection rate unchanged; docs/design/vision.md "Row step"), which is
-  // micrometres against the millimetres a vehicle needs. min_points_per_line, min_points_total and
-  // the fit covariance count rows covered (each point stands for step rows): the step does not
-  // change which views have enough edge, and the covariance keeps the scale cov_inflation was
-  // measured at (mean NEES on motion blur 2.4 at step 1, 2.5 at 3). Default 3.
+  // p95 0.0028 -> 0.0033 mm, every detection rate unchanged; docs/design/vision.md "Row step"),
+  // which is micrometres against the millimetres a vehicle needs. min_points_per_line,
+  // min_points_total and the fit covariance count rows covered (each point stands for step rows):
+  // the step does not change which views have enough edge, and the covariance keeps the scale
+  // cov_inflation was measured at (mean NEES on motion blur 2.4 at step 1, 2.5 at 3). Default 3.
   int edge_row_step = 3;
   // Subpixel edge positions: parabola through the gradient magnitude across the edge. Default on.
   bool subpixel = true;
@@ -265,7 +268,8 @@ const char* to_string(FixStatus s);
 enum class FixIdentity : std::uint8_t {
   kNone,       // no identity (the fix failed)
   kQrCode,     // the QR payload (Reed-Solomon checked, map-checked when a map is given)
-  kMapGuided,  // QR unreadable; the one mapped landmark the prediction allows (docs/design/tracking.md)
+  kMapGuided,  // QR unreadable; the one mapped landmark the prediction allows
+               // (docs/design/tracking.md)
   kAprilTag,   // a tag36h11 id through the map
 };
 const char* to_string(FixIdentity i);

@@ -55,8 +55,8 @@ Pose2 predicted_landmark_in_vehicle(const Prediction& pred, const Pose2& landmar
 // allows (one when it is clear, all four otherwise). index: the map's spatial index (null: every
 // entry is scored). With it, only the landmarks that can lie within max(gate_chi2, clear_chi2) are
 // scored: the same decision at a cost set by the prediction's uncertainty, not the map's size
-// (docs/design/large_maps.md), unless the heading sigma is so large (above 1 / sqrt(clear_chi2) rad,
-// 7.4 deg) that no distance bounds the gate; every entry is scored then.
+// (docs/design/large_maps.md), unless the heading sigma is so large (above 1 / sqrt(clear_chi2)
+// rad, 7.4 deg) that no distance bounds the gate; every entry is scored then.
 MapIdentityDecision gate_identity(Vec2 measured_c_mm, double beta_rad,
                                   const Eigen::Matrix3d& meas_cov,
                                   const std::array<bool, 4>& allowed_turns, const Prediction& pred,

@@ -1,5 +1,5 @@
-// The map-guided identity's gate and module-check thresholds (docs/design/map_identity.md), apart from
-// map_identity.hpp so that VisionConfig can hold them (configuration keys vision.identity.*)
+// The map-guided identity's gate and module-check thresholds (docs/design/map_identity.md), apart
+// from map_identity.hpp so that VisionConfig can hold them (configuration keys vision.identity.*)
 // without the identity's code. Pure data.
 #pragma once
 
@@ -16,9 +16,9 @@ struct MapIdentityConfig {
   // factor of ~2 in sigma (60 / 16.27 = 3.7 in variance). Between the two thresholds the
   // decision is "two plausible" and refused.
   double clear_chi2 = 60.0;
-  // Module check (docs/design/map_identity.md "Check 2"), over the visible data modules that are not
-  // flat (binarize_samples leaves a patch's inside out). The candidate's code must agree with the
-  // sampled bits on at least min_agreement of them: measured >= 0.82 for the right code with a
+  // Module check (docs/design/map_identity.md "Check 2"), over the visible data modules that are
+  // not flat (binarize_samples leaves a patch's inside out). The candidate's code must agree with
+  // the sampled bits on at least min_agreement of them: measured >= 0.82 for the right code with a
   // third of the code covered. Alone this does not separate neighbours: their payloads share most
   // characters, so with the same mask their codes share most modules (a wrong neighbour measured
   // up to 0.84). It rejects a landmark that is not in the map, a wrong turn or a wrong version.
@@ -34,10 +34,10 @@ struct MapIdentityConfig {
   // id alone differ on ~100 modules).
   int min_pair_modules = 24;
   // The module check compares the candidate's code with those of this many mapped landmarks
-  // nearest to it (docs/design/large_maps.md): the wrong landmark a misplaced prediction lets through
-  // the gate is a neighbour (a grid spacing away), and a bounded count keeps the check's cost and
-  // the codes it encodes independent of the map's size. 24 covers every other landmark of the
-  // maps up to 25 landmarks (the demo's) and, on a 1 m grid, every landmark within 2.5 m.
+  // nearest to it (docs/design/large_maps.md): the wrong landmark a misplaced prediction lets
+  // through the gate is a neighbour (a grid spacing away), and a bounded count keeps the check's
+  // cost and the codes it encodes independent of the map's size. 24 covers every other landmark of
+  // the maps up to 25 landmarks (the demo's) and, on a 1 m grid, every landmark within 2.5 m.
   int pair_neighbours = 24;
 };
 

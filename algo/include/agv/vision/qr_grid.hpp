@@ -32,8 +32,8 @@ struct QrSamples {
 
 // How module samples become dark/light. Blur pulls a module towards its neighbours; comparing
 // with the local mean (a module-scale high-pass) undoes part of it, sharpening first undoes more.
-// Measured on 300 frames each (docs/design/accuracy.md): defocus 2 px + motion 7 px + noise all at the
-// limits is read in 62 % of frames with gain 1, 88 % with 2, 99 % with 4, 99.7 % with 6 (the
+// Measured on 300 frames each (docs/design/accuracy.md): defocus 2 px + motion 7 px + noise all at
+// the limits is read in 62 % of frames with gain 1, 88 % with 2, 99 % with 4, 99.7 % with 6 (the
 // same with 10); the combined degradations in 100 % with 4 or 6, and scratches + dirt in 100 % with
 // every gain. The localizer tries them in this order (each later one costs time only when the
 // earlier ones failed).
@@ -86,10 +86,10 @@ struct QrGridScratch {
 };
 
 // Every code of a landmark map, packed as bits, for the verified read without a prediction
-// (docs/design/tracking.md "Verified read"): which code, if any, a binarized grid is within the bounds
-// above of. At most one can be. Two valid codes of the same size and format differ in at least
-// d = 2 t + 1 + p codewords (t the bound, p the misdecode protection: 2 for version 1-M, 0 for
-// 2-M), so a grid within t wrong codewords of one is more than t from any other, and codes of
+// (docs/design/tracking.md "Verified read"): which code, if any, a binarized grid is within the
+// bounds above of. At most one can be. Two valid codes of the same size and format differ in at
+// least d = 2 t + 1 + p codewords (t the bound, p the misdecode protection: 2 for version 1-M, 0
+// for 2-M), so a grid within t wrong codewords of one is more than t from any other, and codes of
 // different formats differ in at least 14 format modules (BCH distance 7, two copies). So the
 // answer is what zxing would decode, whatever the order of the codes. A match costs an XOR and two
 // popcounts per 64 modules and code (plus a codeword count when more than t modules differ),

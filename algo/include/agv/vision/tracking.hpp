@@ -1,5 +1,5 @@
-// Search windows from the fused pose's prediction (docs/design/tracking.md): which image rectangles can
-// hold a mapped landmark, given the predicted vehicle pose and its covariance, so detection can
+// Search windows from the fused pose's prediction (docs/design/tracking.md): which image rectangles
+// can hold a mapped landmark, given the predicted vehicle pose and its covariance, so detection can
 // skip the rest of the frame. Pure: camera model, landmark geometry and map in, rectangles out.
 #pragma once
 

@@ -48,7 +48,8 @@ enum class PixelFormatPreference : int {
 };
 
 // Configuration shared by the live camera drivers (drivers/libcamera, drivers/v4l2).
-// Validated by agv::camera::validate_config (drivers/camera_common). Trade-offs: docs/guide/camera.md.
+// Validated by agv::camera::validate_config (drivers/camera_common). Trade-offs:
+// docs/guide/camera.md.
 struct CameraConfig {
   // libcamera: camera id (e.g. "/base/soc/i2c0mux/i2c@1/imx296@1a") or empty for "first camera
   // that matches `model`". V4L2: device node, e.g. "/dev/video0" (required).

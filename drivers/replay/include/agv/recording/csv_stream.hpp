@@ -1,6 +1,6 @@
-// Append-only writer of one recording CSV (docs/guide/recording.md) for the live recorder: the header
-// at open, then rows as they arrive. Each flush is one write() of whole rows, and a failed or
-// short write is cut back to the last whole row, so a killed process leaves a file that ends on
+// Append-only writer of one recording CSV (docs/guide/recording.md) for the live recorder: the
+// header at open, then rows as they arrive. Each flush is one write() of whole rows, and a failed
+// or short write is cut back to the last whole row, so a killed process leaves a file that ends on
 // a row boundary and whatever reached the file replays.
 #pragma once
 
