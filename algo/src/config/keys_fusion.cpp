@@ -167,10 +167,12 @@ void add_calibration(std::vector<Key>* k) {
                       {"σ",
                        "with a gyro, a wheel/gyro yaw-rate difference under the slip "
                        "threshold within this many σ of the sample noise and the wheel "
-                       "calibration teaches the calibration; the part beyond it widens "
-                       "the speed σ by its speed equivalent (difference × track / 2) "
-                       "over the run. Larger: fewer small slips widen σ and the next "
-                       "fixes may be gated; smaller: noise widens σ"}));
+                       "calibration teaches the calibration; a larger one is a slip: the "
+                       "speed is corrected by its speed equivalent (difference × track / 2), "
+                       "spin or lock as the speed reading's step says, and keeps the rest "
+                       "of the doubt as σ over the run. Larger: fewer small slips are "
+                       "corrected and the next fixes may be gated; smaller: noise is taken "
+                       "for slips more often"}));
   k->push_back(deg_as_rad("fusion.omega_per_v_sigma_degpm_per_sqrt_s",
                           AGV_AT(fusion.omega_per_v_sigma_radpm_per_sqrt_s), 0.0, 90.0, 0.005,
                           {"deg/m per √s", "random walk of the yaw rate per speed"}));

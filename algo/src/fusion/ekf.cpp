@@ -76,8 +76,9 @@ std::string validate(const EkfConfig& c) {
     return "gyro_gap_ns must be > 0 and gyro_capacity >= 8";
   if (!finite_nonneg(c.slip_yaw_rate_radps) || !finite_nonneg(c.slip_yaw_rate_fraction) ||
       !finite_pos(c.wheel_track_mm) || c.slip_max_duration_ns < 0 ||
-      !finite_pos(c.slip_noise_sigmas))
-    return "slip limits must be finite and >= 0, wheel_track_mm and slip_noise_sigmas > 0";
+      !finite_pos(c.slip_noise_sigmas) || !finite_nonneg(c.max_accel_mps2))
+    return "slip limits and max_accel_mps2 must be finite and >= 0, wheel_track_mm and "
+           "slip_noise_sigmas > 0";
   if (!finite_nonneg(c.standstill_v_mps) || !finite_nonneg(c.standstill_omega_radps) ||
       !finite_pos(c.standstill_omega_sigma_radps))
     return "standstill limits must be finite and >= 0, standstill_omega_sigma_radps > 0";

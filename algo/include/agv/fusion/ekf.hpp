@@ -11,6 +11,7 @@
 #include <Eigen/Core>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -222,13 +223,19 @@ struct EkfConfig {
   // Below the slip threshold: the wheels' yaw rate is a measurement of their calibration
   // (s_omega, b_omega, c_omega_v) given the gyro's rate, fused into those states only, with the
   // odometry yaw-rate noise. A difference within slip_noise_sigmas of what that noise and the
-  // calibration's uncertainty explain teaches the calibration; the part beyond it is unexplained
-  // (one wheel off by e: yaw rate e / track, speed e / 2) and its speed equivalent widens the
-  // speed sigma, correlated over a run of such periods (a slip's speed error adds up, it does not
-  // average out). A 5 % slip of the outer wheel in a 2 rad/s arc (8.6 deg/s, under the 14.5 deg/s
-  // slip threshold) then widens the along-track sigma by its 11 mm instead of gating the next
-  // fixes. Larger: fewer sub-threshold slips widen sigma; smaller: sample noise widens it.
+  // calibration's uncertainty explain teaches the calibration; a larger one is a slip (one wheel
+  // off by e: yaw rate e / track, speed e / 2): the speed is corrected by its speed equivalent,
+  // spin or lock as the speed reading's step says, with the rest of the doubt as speed sigma,
+  // correlated over a run of such periods (a slip's speed error adds up, it does not average
+  // out). A 5 % slip of the outer wheel in a 2 rad/s arc (8.6 deg/s, under the 14.5 deg/s slip
+  // threshold) is then corrected instead of gating the next fixes. Larger: fewer small slips are
+  // corrected; smaller: sample noise is taken for slips more often (each costs a little sigma).
   double slip_noise_sigmas = 3.0;
+  // The vehicle's acceleration (and braking) limit: between two odometry samples the speed
+  // changes by about this times the period. A speed reading that steps by more at the start of a
+  // wheel/gyro disagreement tells a spinning wheel (up) from a locked one (down). Larger: the
+  // sign of a slip is believed only for larger steps (more sigma, same mean for big slips).
+  double max_accel_mps2 = 1.0;
   // Standstill: wheels below these (|v|, |omega|) over a period mean the vehicle does not turn;
   // the gyro's reading is then its bias (zero-rate update, sigma standstill_omega_sigma_radps).
   double standstill_v_mps = 0.005;
@@ -407,6 +414,13 @@ class Ekf {
  private:
   static constexpr std::int64_t kNoOdom = INT64_MIN;
   enum class EventKind : std::uint8_t { kOdom, kFix, kInit };
+  // A run of odometry periods whose wheel/gyro yaw-rate difference is a slip under the flag
+  // threshold (slip_noise_sigmas): what it may have integrated and which way it went.
+  struct SlipRun {
+    double sigma_m = 0.0;  // speed-error sigma integrated since the run began or the last fix
+    double llr = 0.0;      // log likelihood ratio spin : lock from the speed reading's steps
+    double u_mps = 0.0;    // speed equivalent of the difference in the run's newest period
+  };
   struct Event {
     std::int64_t t_ns = 0;
     EventKind kind = EventKind::kOdom;
@@ -417,9 +431,10 @@ class Ekf {
     bool gyro = false;   // the period ending here took its heading from the gyro
     bool slip = false;   // the wheels disagreed with the gyro in that period
     std::int64_t slip_since_ns = kNoOdom;  // start of the current run of slip periods
-    // Speed error (m) the current run of unexplained wheel/gyro differences may have integrated
-    // (slip_noise_sigmas); 0 outside a run and after a fix.
-    double slip_run_m = 0.0;
+    // The current run of wheel/gyro differences beyond slip_noise_sigmas (kept over a fix).
+    SlipRun slip_run;
+    // Newest raw odometry speed at or before this event (NaN: none since the initialisation).
+    double v_read_mps = std::numeric_limits<double>::quiet_NaN();
     // Newest odometry sample at or before this event (kNoOdom: none kept): where the known
     // motion ends (odom_gap_ns after it).
     std::int64_t odom_t_ns = kNoOdom;
@@ -491,13 +506,16 @@ class Ekf {
   // Zero-rate pseudo-measurement omega = 0 (standing still): teaches the gyro bias.
   void update_zero_rate(FilterVec* x, FilterCov* P) const;
   // The odometry step of a period whose yaw the gyro covers; returns whether wheels slipped.
-  // run_m: the unexplained speed error of the run so far, updated for this period.
+  // v_read_prev_mps: the previous raw speed reading (NaN: none); run: the sub-threshold slip run
+  // so far, updated for this period.
   bool gyro_period(FilterVec* x, FilterCov* P, double dt_s, double v_mps, double omega_radps,
-                   double gyro_radps, bool distrust_gyro, double* run_m) const;
+                   double gyro_radps, bool distrust_gyro, double v_read_prev_mps,
+                   SlipRun* run) const;
   // Fuses the wheels' yaw rate into their calibration states only (the gyro keeps the heading);
-  // returns the part of the difference beyond slip_noise_sigmas, rad/s of wheel yaw rate.
-  double learn_wheel_yaw(FilterVec* x, FilterCov* P, double v_mps, double omega_radps,
-                         bool learn) const;
+  // returns the wheels' yaw rate minus the gyro's, rad/s, and its sigma from the sample noise
+  // and the calibration's uncertainty.
+  double learn_wheel_yaw(FilterVec* x, FilterCov* P, double v_mps, double omega_radps, bool learn,
+                         double* sigma_radps) const;
   bool is_gap(std::int64_t odom_t_ns, std::int64_t t_ns) const {
     return odom_t_ns == kNoOdom || t_ns - odom_t_ns > config_.odom_gap_ns;
   }
