@@ -66,6 +66,11 @@ bool check_can_localize(const Config& cfg, const LandmarkMap* map,
                           "), which tag36h11 does not have: those landmarks can never be seen");
       }
     }
+  } else if (map && map->entries.count(0) > 0) {
+    // The map format takes id 0 for the tag family's first tag; a QR payload's ids start at 1.
+    errors->push_back("landmark.map " + cfg.map_file +
+                      ": id 0, which no QR landmark carries (payload ids are 1..65535; id 0 is "
+                      "for landmark.family tag36h11 only): that entry can never be seen");
   }
   return errors->size() == before;
 }

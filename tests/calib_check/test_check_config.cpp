@@ -90,6 +90,33 @@ TEST(CheckConfig, TagFamilyNeedsAMapWithTagIds) {
   EXPECT_TRUE(agv::config::check_can_localize(cfg, &map, &errors));
 }
 
+// Id 0 is the first tag every generator prints: the map format takes it (it refused it, issue 36)
+// and the tag family may use it; a QR payload cannot carry it, so the QR family refuses it by name.
+TEST(CheckConfig, MapIdZeroIsATagIdOnly) {
+  agv::LandmarkMap map;
+  std::string err;
+  ASSERT_TRUE(
+      agv::parse_landmark_map("id,x_mm,y_mm,heading_deg\n0,1000,-2000,90\n7,0,0,0\n", &map, &err))
+      << err;
+  ASSERT_EQ(map.entries.count(0), 1u);
+  EXPECT_EQ(map.find(0)->pose.x_mm, 1000.0);
+  EXPECT_FALSE(agv::parse_landmark_map("id,x_mm,y_mm,heading_deg\n-1,0,0,0\n", &map, &err));
+  EXPECT_NE(err.find("0..65535"), std::string::npos) << err;
+
+  Config cfg;
+  cfg.vision.family = agv::LandmarkFamily::kTag36h11;
+  std::vector<std::string> errors;
+  EXPECT_TRUE(agv::config::check_can_localize(cfg, &map, &errors));
+  EXPECT_TRUE(errors.empty());
+  cfg.vision.family = agv::LandmarkFamily::kQr;
+  cfg.map_file = "map.csv";
+  EXPECT_FALSE(agv::config::check_can_localize(cfg, &map, &errors));
+  ASSERT_EQ(errors.size(), 1u);
+  EXPECT_NE(errors[0].find("landmark.map map.csv: id 0, which no QR landmark carries"),
+            std::string::npos)
+      << errors[0];
+}
+
 struct CheckRun {
   int rc;
   std::string out, err;

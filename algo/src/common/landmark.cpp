@@ -192,8 +192,10 @@ bool parse_landmark_map(std::string_view text, LandmarkMap* out, std::string* er
     if (f.size() != 4)
       return fail("expected 4 comma-separated fields, got " + std::to_string(f.size()));
     double id_d = 0, x = 0, y = 0, h = 0;
-    if (!parse_double(f[0], &id_d) || id_d != std::floor(id_d) || id_d < 1 || id_d > 65535) {
-      return fail("id must be an integer in 1..65535");
+    // Id 0 is the first tag every AprilTag generator prints; a QR payload cannot carry it, which
+    // the configuration check (firmware/src/config.cpp) refuses for the QR family.
+    if (!parse_double(f[0], &id_d) || id_d != std::floor(id_d) || id_d < 0 || id_d > 65535) {
+      return fail("id must be an integer in 0..65535");
     }
     if (!parse_double(f[1], &x) || !parse_double(f[2], &y) || std::abs(x) > kMaxCoord_mm ||
         std::abs(y) > kMaxCoord_mm) {
