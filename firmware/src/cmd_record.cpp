@@ -54,6 +54,8 @@ int record(int argc, char** argv) {
   recording::Meta meta;
   meta.camera = cfg.camera_model;
   meta.landmark_size_mm = cfg.landmark_size_mm;
+  // The configured family is what the floor was taken to carry: replay runs it without --config.
+  meta.landmark_family = cfg.vision.family == LandmarkFamily::kTag36h11 ? "tag36h11" : "qr";
   meta.source = "agvloc record --config " + config_file;
   if (!recording::write_meta(out_dir, meta, &err)) {
     std::fprintf(stderr, "agvloc record: %s\n", err.c_str());

@@ -389,7 +389,17 @@ int replay(int argc, char** argv) {
   if (!overlay_frames.empty()) write_overlays(cfg, map_ptr, rec, overlay_frames, out_dir);
   // Frames but no fix at all: the likely cause, beside the other diagnostics (exit code unchanged:
   // an odometry-only replay is still a replay).
-  std::fputs(app::no_fix_hint(result, cfg.vision.family, !config_file.empty()).c_str(), stderr);
+  app::NoFixContext why;
+  why.family = cfg.vision.family;
+  if (std::find(config_keys.begin(), config_keys.end(), "landmark.family") != config_keys.end()) {
+    why.family_source = "--config";
+  } else if (!rec.meta.landmark_family.empty()) {
+    why.family_source = "meta.yaml";
+  }
+  why.have_map = map_ptr != nullptr;
+  why.height_mm = cfg.camera_model.mount.height_mm;
+  why.size_mm = cfg.landmark_size_mm;
+  std::fputs(app::no_fix_hint(result, fixes, why).c_str(), stderr);
 
   std::string summary;
   char buf[256];

@@ -30,7 +30,7 @@ const std::vector<std::string>& meta_keys() {
       "intrinsics.cx",        "intrinsics.cy",    "intrinsics.k1",      "intrinsics.k2",
       "intrinsics.p1",        "intrinsics.p2",    "intrinsics.k3",      "mounting.offset_x_mm",
       "mounting.offset_y_mm", "mounting.yaw_deg", "mounting.height_mm", "mounting.roll_deg",
-      "mounting.pitch_deg",   "landmark.size_mm"};
+      "mounting.pitch_deg",   "landmark.size_mm", "landmark.family"};
   return keys;
 }
 
@@ -42,9 +42,13 @@ bool apply_recording_meta(const recording::Meta& meta, const std::vector<std::st
   from_meta.camera.camera.width_px = meta.camera.intrinsics.width_px;
   from_meta.camera.camera.height_px = meta.camera.intrinsics.height_px;
   from_meta.landmark_size_mm = meta.landmark_size_mm;
+  from_meta.vision.family =
+      meta.landmark_family == "tag36h11" ? LandmarkFamily::kTag36h11 : LandmarkFamily::kQr;
   for (const std::string& name : meta_keys()) {
     const config::Key* k = config::find_key(name);
     if (!k) continue;  // the list above names table keys only (test_replay_command checks it)
+    // A recording older than the family key says nothing about it: the configuration's stands.
+    if (name == "landmark.family" && meta.landmark_family.empty()) continue;
     const config::Value mv = k->get(from_meta);
     const bool given = std::find(config_keys.begin(), config_keys.end(), name) != config_keys.end();
     if (!given) {

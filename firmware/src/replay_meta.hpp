@@ -11,7 +11,8 @@
 
 namespace agv::app {
 
-// The configuration keys meta.yaml carries (image size, intrinsics, mounting, landmark size).
+// The configuration keys meta.yaml carries (image size, intrinsics, mounting, landmark size and,
+// in recordings that have it, the landmark family).
 const std::vector<std::string>& meta_keys();
 
 // Puts meta's value into *cfg for every meta key that config_keys (the dotted keys the --config

@@ -272,6 +272,36 @@ TEST(Recording, MalformedMetaRejectedNamingTheKey) {
   fs::remove_all(d);
 }
 
+// The landmark family is recorded (issue 36: a tag recording replayed without --config ran the QR
+// pipeline); a recording without it, as made before the key existed, still reads, family empty.
+TEST(Recording, LandmarkFamilyRoundTripsAndIsOptional) {
+  const fs::path d = fresh_dir("family");
+  std::string err;
+  for (const std::string family : {"tag36h11", "qr"}) {
+    Meta m = sample_meta();
+    m.landmark_family = family;
+    ASSERT_TRUE(write_meta(d.string(), m, &err)) << err;
+    EXPECT_NE(slurp(d / "meta.yaml").find("landmark:\n  size_mm: 60\n  family: " + family + "\n"),
+              std::string::npos)
+        << slurp(d / "meta.yaml");
+    Meta back;
+    ASSERT_TRUE(read_meta(d.string(), &back, &err)) << err;
+    EXPECT_EQ(back.landmark_family, family);
+  }
+  Meta older = sample_meta();
+  ASSERT_TRUE(write_meta(d.string(), older, &err)) << err;
+  EXPECT_EQ(slurp(d / "meta.yaml").find("family"), std::string::npos);
+  Meta back;
+  ASSERT_TRUE(read_meta(d.string(), &back, &err)) << err;
+  EXPECT_TRUE(back.landmark_family.empty());
+  std::string text = slurp(d / "meta.yaml");
+  text.replace(text.find("  size_mm: 60\n"), 14, "  size_mm: 60\n  family: apriltag\n");
+  spit(d / "meta.yaml", text);
+  EXPECT_FALSE(read_meta(d.string(), &back, &err));
+  EXPECT_NE(err.find("'landmark.family' must be qr or tag36h11"), std::string::npos) << err;
+  fs::remove_all(d);
+}
+
 TEST(Recording, GarbageAndTruncationNeverCrash) {
   const fs::path d = write_sample("garbage");
   std::mt19937 rng(5);

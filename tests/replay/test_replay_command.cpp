@@ -209,6 +209,124 @@ TEST(ReplayCommand, TagRecordingGivesFixes) {
   fs::remove_all(d);
 }
 
+// A tag recording of kTagFrames frames over tag 7 with meta m, the frames taken by `truth_camera`
+// (another camera height than meta's: a mis-measured mount) and map.csv holding `map_csv`.
+constexpr int kTagFrames = 5;
+void write_tag_recording(const fs::path& d, const recording::Meta& m,
+                         const CameraModel& truth_camera, const std::string& map_csv) {
+  std::string err;
+  ASSERT_TRUE(recording::write_meta(d.string(), m, &err)) << err;
+  LandmarkMap map;
+  const Pose2 tag_world{2000.0, 1000.0, deg_to_rad(-90.0)};
+  map.entries[7] = {7, tag_world};
+  std::ofstream(d / "map.csv", std::ios::trunc) << map_csv;
+  sim::Scene scene;
+  ASSERT_TRUE(sim::make_tag_scene(map, AprilTagGeometry{}, &scene, &err)) << err;
+  std::mt19937_64 rng(5);
+  const sim::FrameRenderer r(scene, truth_camera);
+  const Pose2 vehicle = compose(tag_world, {5.0, -3.0, deg_to_rad(30.0)});
+  std::vector<recording::FrameRow> frames;
+  for (int i = 0; i < kTagFrames; ++i) {
+    const std::string f = "frames/" + std::to_string(i) + ".png";
+    ASSERT_TRUE(recording::write_frame_png(d.string(), f,
+                                           r.render(vehicle, sim::realistic_options(), rng), &err))
+        << err;
+    frames.push_back({1'000'000'000LL + i * 100'000'000LL, f});
+  }
+  ASSERT_TRUE(recording::write_frames_csv(d.string(), frames, &err)) << err;
+  std::vector<recording::OdomRow> odom;
+  for (int i = 0; i <= kTagFrames * 10; ++i)
+    odom.push_back({1'000'000'000LL + i * 10'000'000LL, 0, 0});
+  ASSERT_TRUE(recording::write_odom_csv(d.string(), odom, &err)) << err;
+}
+
+struct TagReplay {
+  int ok = 0;
+  std::string err;
+};
+// Replays d, with --config holding `config_yaml` unless it is empty; counts the ok fixes.
+TagReplay replay_tags(const fs::path& d, const std::string& config_yaml) {
+  std::vector<std::string> args = {"replay", d.string(), "--out", (d / "out").string(),
+                                   "--fast", "--quiet"};
+  if (!config_yaml.empty()) {
+    std::ofstream(d / "c.yaml", std::ios::trunc) << config_yaml;
+    args.push_back("--config");
+    args.push_back((d / "c.yaml").string());
+  }
+  std::vector<char*> argv;
+  for (auto& a : args) argv.push_back(a.data());
+  testing::internal::CaptureStderr();
+  const int rc = agv::cmd::replay(static_cast<int>(argv.size()), argv.data());
+  TagReplay r;
+  r.err = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(rc, 0) << r.err;
+  std::ifstream f(d / "out" / "fixes.csv");
+  std::string line;
+  while (std::getline(f, line)) r.ok += line.find(",ok,") != std::string::npos;
+  return r;
+}
+
+// meta.yaml records the family (issue 36: a tag recording replayed without --config ran the QR
+// pipeline, every frame "QR code unreadable", exit 0): replay runs it without --config, and a
+// --config that sets another family wins, the difference printed as for the other meta keys.
+TEST(ReplayCommand, TagFamilyOfMetaYamlIsUsedAndConfigWins) {
+  const fs::path d = fresh_dir("tagmeta");
+  recording::Meta m;
+  m.camera = CameraModel::default_640x480();
+  m.landmark_family = "tag36h11";
+  write_tag_recording(d, m, m.camera, "id,x_mm,y_mm,heading_deg\n7,2000.0,1000.0,-90\n");
+  TagReplay r = replay_tags(d, "");
+  EXPECT_EQ(r.ok, kTagFrames) << r.err;
+  EXPECT_EQ(r.err.find("no landmark fix"), std::string::npos) << r.err;
+  r = replay_tags(d, "landmark:\n  family: qr\n");
+  EXPECT_EQ(r.ok, 0) << r.err;
+  EXPECT_NE(r.err.find("landmark.family: --config qr (used), meta.yaml tag36h11"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("likely cause: the family: is landmark.family (qr, from --config)"),
+            std::string::npos)
+      << r.err;
+  // An older recording without the key: the default family, said to be the default.
+  m.landmark_family.clear();
+  write_tag_recording(d, m, m.camera, "id,x_mm,y_mm,heading_deg\n7,2000.0,1000.0,-90\n");
+  r = replay_tags(d, "");
+  EXPECT_EQ(r.ok, 0) << r.err;
+  EXPECT_NE(r.err.find("landmark.family (qr, the default: neither --config nor meta.yaml sets it)"),
+            std::string::npos)
+      << r.err;
+  fs::remove_all(d);
+}
+
+// No fix at all on a tag floor: the message names the likely cause from what the frames gave
+// (issue 36: "a message that names the likely cause when nothing is found"): the camera height
+// (tags found, their square 6 % small: the camera is 12 mm higher than configured) or the map (tag
+// 7 read, not in the map).
+TEST(ReplayCommand, NoFixNamesHeightOrMapAsTheLikelyCause) {
+  const fs::path d = fresh_dir("tagwhy");
+  recording::Meta m;
+  m.camera = CameraModel::default_640x480();
+  m.landmark_family = "tag36h11";
+  CameraModel higher = m.camera;
+  higher.mount.height_mm += 12.0;
+  write_tag_recording(d, m, higher, "id,x_mm,y_mm,heading_deg\n7,2000.0,1000.0,-90\n");
+  TagReplay r = replay_tags(d, "");
+  EXPECT_EQ(r.ok, 0) << r.err;
+  EXPECT_NE(r.err.find("likely cause: the camera height or the print size: 5 landmarks were found "
+                       "but their square measures 5.7 % smaller than landmark.size_mm 60"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("the camera is about 212 mm above the floor, not mounting.height_mm 200"),
+            std::string::npos)
+      << r.err;
+  write_tag_recording(d, m, m.camera, "id,x_mm,y_mm,heading_deg\n8,2000.0,1000.0,-90\n");
+  r = replay_tags(d, "");
+  EXPECT_EQ(r.ok, 0) << r.err;
+  EXPECT_NE(r.err.find("likely cause: the map: landmarks 7 were read but are not in the map"),
+            std::string::npos)
+      << r.err;
+  fs::remove_all(d);
+}
+
 // imu.csv reaches fusion: the summary counts every sample handed over, some fused. Without the
 // file it says so, and the run is otherwise the same (exit 0, the same output ticks).
 TEST(ReplayCommand, GyroSamplesOfImuCsvAreFusedAndCounted) {

@@ -475,9 +475,16 @@ bool parse_meta_yaml(const std::string& text, Meta* out, std::string* error,
     }
     mt.roll_rad = deg_to_rad(roll_deg);
     mt.pitch_rad = deg_to_rad(pitch_deg);
-    if (!p.keys(lm, "landmark", {"size_mm"}) ||
+    if (!p.keys(lm, "landmark", {"size_mm"}, {"family"}) ||
         !p.number(lm, "landmark", "size_mm", 1.0, 1000.0, &m.landmark_size_mm)) {
       return false;
+    }
+    if (lm["family"]) {
+      const YAML::Node f = lm["family"];
+      if (!f.IsScalar() || (f.Scalar() != "qr" && f.Scalar() != "tag36h11")) {
+        return p.fail(f, "'landmark.family' must be qr or tag36h11");
+      }
+      m.landmark_family = f.Scalar();
     }
     if (root["source"]) {
       if (!root["source"].IsScalar()) return p.fail(root["source"], "'source' must be a string");

@@ -70,6 +70,7 @@ std::string format_meta_yaml(const Meta& m) {
        << "\n  pitch_deg: " << fmt_g17(rad_to_deg(mt.pitch_rad)) << "\n";
   }
   os << "landmark:\n  size_mm: " << fmt_g17(m.landmark_size_mm) << "\n";
+  if (!m.landmark_family.empty()) os << "  family: " << m.landmark_family << "\n";
   return os.str();
 }
 

@@ -26,7 +26,10 @@ struct Meta {
   int format_version = kFormatVersion;
   CameraModel camera;              // image size, intrinsics, distortion, height, mounting
   double landmark_size_mm = 60.0;  // outer border side
-  std::string source;              // optional free text (e.g. the command that made it)
+  // The printed landmark family, as landmark.family names it ("qr" or "tag36h11"); empty in a
+  // recording made before the key existed (replay then takes the configuration's, by default qr).
+  std::string landmark_family;
+  std::string source;  // optional free text (e.g. the command that made it)
 };
 
 struct FrameRow {
