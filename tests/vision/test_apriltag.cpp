@@ -88,6 +88,23 @@ TEST(AprilTagFamily, IdNotInTheMapIsUnknown) {
   EXPECT_EQ(no_map.process(tag_frame({0.0, 0.0, 0.3}), &fix), FixStatus::kUnknownLandmark);
 }
 
+// Tag 0, the first every generator prints, is mappable (the map format's ids started at 1): a map
+// file with id 0 gives its fix, id 0 in the fix.
+TEST(AprilTagFamily, TagIdZeroIsMappable) {
+  LandmarkMap map;
+  std::string err;
+  ASSERT_TRUE(parse_landmark_map("id,x_mm,y_mm,heading_deg\n0,1000,-2000,90\n", &map, &err)) << err;
+  LandmarkLocalizer loc(tag_config(), CameraModel::default_640x480(), LandmarkGeometry{}, &map);
+  const Pose2 e{4.0, -6.0, 0.4};
+  LandmarkFix fix;
+  ASSERT_EQ(loc.process(tag_frame(e, {}, 0), &fix), FixStatus::kOk);
+  EXPECT_EQ(fix.landmark_id, 0u);
+  EXPECT_STREQ(fix.payload, "tag36h11/0");
+  const Pose2 truth = compose(kTagWorld, e);
+  EXPECT_NEAR(fix.vehicle_in_world.x_mm, truth.x_mm, 0.1);
+  EXPECT_NEAR(fix.vehicle_in_world.y_mm, truth.y_mm, 0.1);
+}
+
 TEST(AprilTagFamily, FloorWithoutTagAndQrFrameGiveNoLandmark) {
   const LandmarkMap map = tag_map();
   LandmarkLocalizer loc(tag_config(), CameraModel::default_640x480(), LandmarkGeometry{}, &map);
@@ -183,6 +200,107 @@ TEST(AprilTagFamily, TagPrintedAtAnotherSizeGivesNoFix) {
             tag_frame({4.0, -6.0, 0.5}, {}, kTagId, CameraModel::default_640x480(), printed), &fix),
         FixStatus::kOk)
         << size_mm;
+  }
+}
+
+// The fused pose as the localizer would give it: truth plus an error of the given sigma, with
+// that covariance.
+Prediction predicted(const Pose2& truth, double sigma_mm, double sigma_deg, std::mt19937_64* rng) {
+  std::normal_distribution<double> n(0.0, 1.0);
+  Prediction p;
+  p.valid = true;
+  p.vehicle_in_world = {truth.x_mm + sigma_mm * n(*rng), truth.y_mm + sigma_mm * n(*rng),
+                        truth.theta_rad + deg_to_rad(sigma_deg) * n(*rng)};
+  p.cov =
+      Eigen::Vector3d(sigma_mm * sigma_mm, sigma_mm * sigma_mm, std::pow(deg_to_rad(sigma_deg), 2))
+          .asDiagonal();
+  return p;
+}
+
+// An occluder over the border that reaches past the white margin onto the floor (a foot, a pallet
+// edge) joins the black square to the floor and libapriltag finds no quad. The QR path finds such
+// a landmark from the prediction and the map; the tag path did not use them (issue 36: 6 of 20
+// frames on independently rendered frames). Now the predicted tag's square is placed by the
+// prediction (precise) or the edge probes (looser, one side lost), fitted, and its code read there.
+TEST(AprilTagFamily, BrokenQuadFoundFromThePredictionAndTheMap) {
+  const LandmarkMap map = tag_map();
+  LandmarkLocalizer loc(tag_config(), CameraModel::default_640x480(), LandmarkGeometry{}, &map);
+  sim::RenderOptions o = sim::realistic_options();
+  o.occluder_border_fraction = 0.15;
+  o.occluder_overhang_mm = 25.0;
+  std::mt19937_64 rng(7);
+  int broken = 0;
+  for (double sigma_mm : {0.05, 2.0}) {
+    for (int i = 0; i < 8; ++i) {
+      const Pose2 e{-12.0 + 3.0 * i, 8.0 - 2.0 * i, deg_to_rad(-100.0 + 27.0 * i)};
+      const Pose2 truth = compose(kTagWorld, e);
+      const cv::Mat img = tag_frame(e, o);
+      LandmarkFix fix;
+      if (loc.process(img, &fix) == FixStatus::kOk) continue;  // libapriltag alone
+      ++broken;
+      ASSERT_EQ(loc.process(img, predicted(truth, sigma_mm, 0.1, &rng), &fix), FixStatus::kOk)
+          << sigma_mm << " " << i;
+      EXPECT_EQ(fix.landmark_id, kTagId);
+      EXPECT_EQ(fix.identity, FixIdentity::kAprilTag);
+      EXPECT_TRUE(fix.map_verified);
+      EXPECT_TRUE(fix.detection_predicted);
+      EXPECT_EQ(fix.detection_probed, sigma_mm > 1.0) << sigma_mm << " " << i;
+      EXPECT_NEAR(fix.vehicle_in_world.x_mm, truth.x_mm, 0.1) << sigma_mm << " " << i;
+      EXPECT_NEAR(fix.vehicle_in_world.y_mm, truth.y_mm, 0.1) << sigma_mm << " " << i;
+      EXPECT_NEAR(rad_to_deg(wrap_angle_rad(fix.vehicle_in_world.theta_rad - truth.theta_rad)), 0.0,
+                  0.05)
+          << sigma_mm << " " << i;
+    }
+  }
+  EXPECT_GE(broken, 12);  // the occluder does break libapriltag's quad on these frames
+}
+
+// The code read at the fitted square must be the predicted tag's: another tag where the map and
+// the prediction put tag 17 (a wrong map, or a swapped print) gives no fix, and neither does a
+// prediction of a tag that is not in view.
+TEST(AprilTagFamily, PredictedPathReadsTheCodeItDoesNotAssumeIt) {
+  const LandmarkMap map = tag_map();
+  LandmarkLocalizer loc(tag_config(), CameraModel::default_640x480(), LandmarkGeometry{}, &map);
+  sim::RenderOptions o;
+  o.occluder_border_fraction = 0.15;
+  o.occluder_overhang_mm = 25.0;
+  std::mt19937_64 rng(9);
+  for (int i = 0; i < 4; ++i) {
+    const Pose2 e{2.0 * i, -3.0, deg_to_rad(20.0 + 80.0 * i)};
+    const Pose2 truth = compose(kTagWorld, e);
+    LandmarkFix fix;
+    EXPECT_NE(loc.process(tag_frame(e, o, 5), predicted(truth, 0.5, 0.1, &rng), &fix),
+              FixStatus::kOk)
+        << i;
+  }
+  LandmarkFix fix;
+  const Pose2 away = compose(kTagWorld, {400.0, 0.0, 0.0});
+  EXPECT_EQ(loc.process(tag_frame({400.0, 0.0, 0.0}, o), predicted(away, 0.5, 0.1, &rng), &fix),
+            FixStatus::kNoLandmark);
+}
+
+// A tag wholly in view a few millimetres from the image edge (its white margin cut by it):
+// libapriltag decodes it, and the fix must follow (issue 36 saw "too few edge points" at 4-5 mm on
+// independently rendered frames; this project's frames give the fix, before and after the
+// predicted path, so this guards it rather than reproducing that report).
+TEST(AprilTagFamily, TagNearTheImageEdgeGivesAFix) {
+  const LandmarkMap map = tag_map();
+  LandmarkLocalizer loc(tag_config(), CameraModel::default_640x480(), LandmarkGeometry{}, &map);
+  // Image left edge at vehicle y = 320 px * 0.26 mm/px (image right = -y at yaw 0).
+  const double half_width_mm = 320.0 * 0.26;
+  for (double gap_mm : {2.0, 4.0, 5.0}) {
+    for (double deg : {0.0, -3.0, 90.0}) {
+      // The tag's left side gap_mm from the image's left edge (sides axis-aligned at these turns
+      // up to the few degrees, which move the nearest corner by under a millimetre).
+      const Pose2 tag_in_vehicle{-5.0, half_width_mm - 30.0 - gap_mm, deg_to_rad(deg)};
+      const Pose2 v_in_tag = inverse(tag_in_vehicle);
+      LandmarkFix fix;
+      const FixStatus st = loc.process(tag_frame(v_in_tag, sim::realistic_options()), &fix);
+      EXPECT_EQ(st, FixStatus::kOk) << gap_mm << " mm, " << deg << " deg: " << to_string(st);
+      if (st != FixStatus::kOk) continue;
+      EXPECT_NEAR(fix.e_x_mm, v_in_tag.x_mm, 0.1) << gap_mm << " " << deg;
+      EXPECT_NEAR(fix.e_y_mm, v_in_tag.y_mm, 0.1) << gap_mm << " " << deg;
+    }
   }
 }
 

@@ -283,7 +283,8 @@ class Evaluator {
   Evaluator(const Scene& scene, const RenderOptions& o) : scene_(scene), o_(o) {
     const LandmarkGeometry& g = scene.geometry;
     occ_band_lo_ = g.inner_half_mm();
-    occ_band_hi_ = g.outer_half_mm() + 3.0 * g.k();
+    occ_band_hi_ =
+        g.outer_half_mm() + (o.occluder_overhang_mm >= 0.0 ? o.occluder_overhang_mm : 3.0 * g.k());
     // Border midline square: perimeter parameter runs over 8 * mid half-sides.
     mid_half_ = 0.5 * (g.inner_half_mm() + g.outer_half_mm());
     occ_len_ = std::clamp(o.occluder_border_fraction, 0.0, 1.0) * 8.0 * mid_half_;

@@ -7,8 +7,11 @@
 #include <apriltag/tag36h11.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <unordered_map>
 
 #include "localizer_impl.hpp"
 
@@ -48,6 +51,21 @@ constexpr double kMaxSideOffsetMm = 0.25;
 // which the map cannot catch (the id is all a tag says). With the size fixed, as before, a 2 mm
 // height error put every side 0.3 mm off and no tag gave a fix.
 constexpr double kMaxSizeErrorRel = 0.03;
+// apriltag_to_image() of tag36h11: 10 x 10 cells (a white ring, the black border ring, 6 x 6 data
+// cells); the data cells start two cells in. In the black square's 8 x 8 cells they are 1..6.
+constexpr int kTagImageCells = 10;
+constexpr int kFirstDataCell = 2;
+constexpr int kDataCells = 6;
+constexpr int kSquareCells = 8;
+// Predicted path: a cell's grey is the mean of its centre and four points this share of a cell
+// away (inside it under a pixel of blur), and the code read there may differ from the predicted
+// tag's in at most kBitsCorrected cells, as libapriltag's decode: with tag36h11's distance of 11
+// between codes (and their turns) a neighbour's tag cannot pass, and noise matching 34 of 36
+// cells by chance is a 1e-8 event.
+constexpr double kCellSampleOffset = 0.25;
+// The fitted centre must lie within this share of the pose stage's band of where the square was
+// placed: a fit further away found other edges.
+constexpr double kPlacedCentreBandShare = 1.0;
 
 Vec2 project(const matd_t* h, double x, double y) {
   double px = 0, py = 0;
@@ -60,6 +78,29 @@ Vec2 project(const matd_t* h, double x, double y) {
 struct TagDetector {
   apriltag_family_t* family = nullptr;
   apriltag_detector_t* detector = nullptr;
+  // Data cells (6 x 6, row-major, 1 = black) of the ids the predicted path has read, from
+  // libapriltag's own renderer as the simulator and the generator print them.
+  std::unordered_map<std::uint32_t, std::array<std::uint8_t, kDataCells * kDataCells>> cells;
+  const std::array<std::uint8_t, kDataCells * kDataCells>* data_cells(std::uint32_t id) {
+    if (id >= family->ncodes) return nullptr;
+    const auto it = cells.find(id);
+    if (it != cells.end()) return &it->second;
+    image_u8_t* im = apriltag_to_image(family, static_cast<int>(id));
+    if (!im) return nullptr;
+    std::array<std::uint8_t, kDataCells * kDataCells> c{};
+    const bool ok = im->width == kTagImageCells && im->height == kTagImageCells;
+    for (int r = 0; ok && r < kDataCells; ++r) {
+      for (int k = 0; k < kDataCells; ++k) {
+        const int ir = r + kFirstDataCell, ik = k + kFirstDataCell;
+        c[static_cast<size_t>(r * kDataCells + k)] = im->buf[ir * im->stride + ik] < 128 ? 1 : 0;
+      }
+    }
+    // image_u8_destroy() is exported by libapriltag-utils only: the image is two calloc blocks.
+    std::free(im->buf);
+    std::free(im);
+    if (!ok) return nullptr;
+    return &cells.emplace(id, c).first->second;
+  }
   TagDetector() {
     family = tag36h11_create();
     detector = apriltag_detector_create();
@@ -142,9 +183,26 @@ FixStatus LandmarkLocalizer::Impl::drop_inconsistent_side(Vec2* c_mm, double* be
   return FixStatus::kOk;
 }
 
-FixStatus LandmarkLocalizer::Impl::run_tag(const cv::Mat& img, LandmarkFix* out) {
+// libapriltag first; when it finds no tag, or its quad gives no fix, the prediction and the map
+// place the predicted tag's square as the QR family's tracking does, and the tag's code is read
+// at the fitted square (docs/design/landmark.md "AprilTag landmark"). libapriltag needs the whole
+// quad with white around it: an occluder over the border, or floor dirt joining it, breaks it.
+FixStatus LandmarkLocalizer::Impl::run_tag(const cv::Mat& img, const Prediction& pred,
+                                           LandmarkFix* out) {
   if (!tag) tag = make_tag_detector();  // made at start-up (Impl's constructor)
   outer_only = true;
+  const FixStatus st = tag_from_detector(img, out);
+  if (st == FixStatus::kOk || !map || !cfg.tracking.detect_from_prediction) return st;
+  planner.plan(pred, &windows);
+  if (windows.empty()) return st;
+  LandmarkFix tried;
+  if (tag_from_prediction(img, &tried) != FixStatus::kOk) return st;
+  tried.timings = out->timings;
+  *out = tried;
+  return FixStatus::kOk;
+}
+
+FixStatus LandmarkLocalizer::Impl::tag_from_detector(const cv::Mat& img, LandmarkFix* out) {
   const double t0 = now_ms();
   // libapriltag reads the caller's pixels through its own view type; it does not write them.
   image_u8_t view{img.cols, img.rows, static_cast<std::int32_t>(img.step[0]),
@@ -205,12 +263,8 @@ FixStatus LandmarkLocalizer::Impl::run_tag(const cv::Mat& img, LandmarkFix* out)
   if (st != FixStatus::kOk) return st;
   have_overlay = true;
 
-  st = drop_inconsistent_side(&c_mm, &beta, &cov, out);
+  st = consistent_square(&c_mm, &beta, &cov, out);
   if (st != FixStatus::kOk) return st;
-  if (out->outer_half_mm > 0.0 &&
-      std::abs(out->outer_half_mm / geom.outer_half_mm() - 1.0) > kMaxSizeErrorRel) {
-    return FixStatus::kTooFewEdgePoints;
-  }
 
   // Heading quadrant from the decoded rotation: the fitted border normal beta is only known modulo
   // 90 degrees, the detector's homography says which side is the tag's top.
@@ -229,6 +283,155 @@ FixStatus LandmarkLocalizer::Impl::run_tag(const cv::Mat& img, LandmarkFix* out)
   fill_result(e->pose, c_mm, beta, q, cov, out);
   out->identity = FixIdentity::kAprilTag;
   return FixStatus::kOk;
+}
+
+// The outer-only square's checks after the pose stage: sides that disagree, and the size gate.
+FixStatus LandmarkLocalizer::Impl::consistent_square(Vec2* c_mm, double* beta, Eigen::Matrix3d* cov,
+                                                     LandmarkFix* out) {
+  const FixStatus st = drop_inconsistent_side(c_mm, beta, cov, out);
+  if (st != FixStatus::kOk) return st;
+  if (out->outer_half_mm > 0.0 &&
+      std::abs(out->outer_half_mm / geom.outer_half_mm() - 1.0) > kMaxSizeErrorRel) {
+    return FixStatus::kTooFewEdgePoints;
+  }
+  return FixStatus::kOk;
+}
+
+// Cells of the black square (row r, column k of 8, page orientation: row 0 at the top) that
+// differ from tag id's code at turn q of the fitted square; -1 when a cell leaves the image. The
+// threshold is halfway between the border ring's and the white margin's medians, so an occluder
+// over part of the border or the margin does not move it.
+int LandmarkLocalizer::Impl::tag_code_distance(const cv::Mat& img, Vec2 c_mm, double beta, int q,
+                                               double half_mm, std::uint32_t id) {
+  const auto* want = tag->data_cells(id);
+  if (!want) return -1;
+  const PlaneProjector pp = page_projector(c_mm, wrap_angle_rad(beta - q * kPi / 2.0));
+  const double m = 2.0 * half_mm / kSquareCells;
+  auto cell_grey = [&](int r, int k, double* g) {
+    double sum = 0;
+    int n = 0;
+    const double u = -half_mm + (k + 0.5) * m, v = -half_mm + (r + 0.5) * m;
+    const double o = kCellSampleOffset * m;
+    for (const Vec2& d : {Vec2{0, 0}, Vec2{o, 0}, Vec2{-o, 0}, Vec2{0, o}, Vec2{0, -o}}) {
+      Vec2 px;
+      double val;
+      if (!pp.to_pixel({u + d.x, v + d.y}, &px) || !sample(img, px.x, px.y, &val)) return false;
+      sum += val;
+      ++n;
+    }
+    *g = sum / n;
+    return true;
+  };
+  auto median = [](std::vector<double>* v) {
+    const auto mid = v->begin() + static_cast<std::ptrdiff_t>(v->size() / 2);
+    std::nth_element(v->begin(), mid, v->end());
+    return *mid;
+  };
+  std::vector<double>& ring = scratch_buf;
+  ring.clear();
+  tag_margin.clear();
+  double g = 0;
+  for (int i = 0; i < kSquareCells; ++i) {
+    for (const auto& [r, k] : {std::pair{0, i}, std::pair{kSquareCells - 1, i}, std::pair{i, 0},
+                               std::pair{i, kSquareCells - 1}}) {
+      if (cell_grey(r, k, &g)) ring.push_back(g);
+    }
+    for (const auto& [r, k] : {std::pair{-1, i}, std::pair{kSquareCells, i}, std::pair{i, -1},
+                               std::pair{i, kSquareCells}}) {
+      if (cell_grey(r, k, &g)) tag_margin.push_back(g);
+    }
+  }
+  if (ring.empty() || tag_margin.empty()) return -1;
+  const double threshold = 0.5 * (median(&ring) + median(&tag_margin));
+  int differ = 0;
+  for (int r = 0; r < kDataCells; ++r) {
+    for (int k = 0; k < kDataCells; ++k) {
+      if (!cell_grey(r + 1, k + 1, &g)) return -1;
+      const std::uint8_t black = g < threshold ? 1 : 0;
+      differ += black != (*want)[static_cast<size_t>(r * kDataCells + k)];
+    }
+  }
+  return differ;
+}
+
+// The QR family's tracking for a tag (landmark_localizer.cpp, predicted_detect.cpp,
+// edge_probe.cpp): each predicted mapped tag in view is placed by the prediction itself when it is
+// precise enough, else by the edge probes (outer edge only; one side may be lost to an occluder),
+// its outer square fitted by the pose stage, and accepted when its code, read at the fitted
+// square, is the predicted tag's at one of the four turns. The id is read, not assumed: the fix
+// is the detector's (identity tag, map-verified), found where libapriltag's quad search was not.
+FixStatus LandmarkLocalizer::Impl::tag_from_prediction(const cv::Mat& img, LandmarkFix* out) {
+  FixStatus best_st = FixStatus::kNoLandmark;
+  for (const SearchWindow& w : windows) {
+    const LandmarkMapEntry* e = map->find(w.landmark_id);
+    if (!e || w.landmark_id > kTag36h11MaxId) continue;
+    Vec2 c_px;
+    double up = 0, dark = 0, white = 0;
+    bool placed = false, probed = false;
+    if (prediction_places_bands(w)) {
+      int n_dark = 0, n_samples = 0;
+      placed =
+          ring_check_full(img, w.centre_px, w.up_angle_rad, &dark, &white, &n_dark, &n_samples);
+      c_px = w.centre_px;
+      up = w.up_angle_rad;
+    }
+    if (!placed && cfg.tracking.probe_edges) {
+      ProbedSquare sq;
+      placed = probed = probe_prediction(img, w, &sq);
+      c_px = sq.centre_px;
+      up = sq.up_rad;
+      dark = sq.dark_grey;
+      white = sq.white_grey;
+    }
+    if (!placed) continue;
+    const double contrast = white - dark;
+    if (contrast < kMinContrastGrey) continue;
+    LandmarkFix f;
+    f.corner_score = contrast;
+    f.detect_x_px = c_px.x;
+    f.detect_y_px = c_px.y;
+    f.detect_angle_deg = rad_to_deg(up);
+    f.search = SearchMode::kWindow;
+    f.detection_predicted = true;
+    f.detection_probed = probed;
+    f.partly_outside = partly_outside(img, c_px, up);
+    if (f.partly_outside && !cfg.allow_partly_outside) continue;
+    Vec2 c_mm;
+    double beta = 0;
+    Eigen::Matrix3d cov;
+    FixStatus st = pose(img, c_px, up, contrast, &f, &c_mm, &beta, &cov);
+    const double band_px = cfg.band_rel * geom.border_width_mm() / mm_per_px;
+    if (st == FixStatus::kOk &&
+        std::hypot(centre_px.x - c_px.x, centre_px.y - c_px.y) > kPlacedCentreBandShare * band_px) {
+      st = FixStatus::kNoLandmark;
+    }
+    if (st == FixStatus::kOk) st = consistent_square(&c_mm, &beta, &cov, &f);
+    if (st != FixStatus::kOk) {
+      best_st = st;
+      continue;
+    }
+    const double half = f.outer_half_mm > 0.0 ? f.outer_half_mm : geom.outer_half_mm();
+    int best_q = -1, best_d = kDataCells * kDataCells + 1;
+    for (int q = 0; q < 4; ++q) {
+      const int d = tag_code_distance(img, c_mm, beta, q, half, w.landmark_id);
+      if (d >= 0 && d < best_d) best_d = d, best_q = q;
+    }
+    if (best_q < 0 || best_d > kBitsCorrected) {
+      best_st = FixStatus::kUnknownLandmark;
+      continue;
+    }
+    have_overlay = true;
+    quadrant = best_q;
+    f.landmark_id = w.landmark_id;
+    std::snprintf(f.payload, sizeof f.payload, "tag36h11/%u", static_cast<unsigned>(w.landmark_id));
+    f.map_verified = true;
+    fill_result(e->pose, c_mm, beta, best_q, cov, &f);
+    f.identity = FixIdentity::kAprilTag;
+    f.status = FixStatus::kOk;
+    *out = f;
+    return FixStatus::kOk;
+  }
+  return best_st;
 }
 
 }  // namespace agv::vision

@@ -212,6 +212,7 @@ bool LandmarkLocalizer::Impl::probe_prediction(const cv::Mat& img, const SearchW
       static_cast<int>(std::ceil(2.0 * range + (kDarkFromRel + kInnerEdgeMaxRel) * border_px)) +
       2 * kLevelOffsetPx + 3;
   std::array<Line2, 4> lines;
+  std::array<bool, 4> have{true, true, true, true};
   double light_sum = 0, dark_sum = 0, ramp_sum = 0;
   int n_on_line = 0;
   for (int k = 0; k < 4; ++k) {
@@ -249,18 +250,32 @@ bool LandmarkLocalizer::Impl::probe_prediction(const cv::Mat& img, const SearchW
                            static_cast<int>(std::floor(s_pred - half - kRampHalfPx)),
                            static_cast<int>(std::ceil(s_pred + half)), false, &e);
       }
-      if (!found) found = probe_edge(img, start, {-nrm.x, -nrm.y}, n, border_px, 0, n, true, &e);
+      // A tag's border has no reliable inner edge (black data cells touch it), but its white
+      // margin puts paper before the outer edge: the step and the dark just inside suffice.
+      if (!found) {
+        found = probe_edge(img, start, {-nrm.x, -nrm.y}, n, border_px, 0, n, !outer_only, &e);
+      }
       if (found) {
         probe_pts.push_back({start.x - nrm.x * e.s, start.y - nrm.y * e.s});
         e.t = t;
         probe_hits.push_back(e);
       }
     }
-    if (static_cast<int>(probe_pts.size()) < kMinProbesOnLine) return false;
+    // The tag family may lose one side (an occluder over the border: the side the detector's quad
+    // broke on); the square is then placed from the other three and the known size.
+    const auto lose_side = [&] {
+      have[static_cast<size_t>(k)] = false;
+      return outer_only;
+    };
+    if (static_cast<int>(probe_pts.size()) < kMinProbesOnLine) {
+      if (lose_side()) continue;
+      return false;
+    }
     probe_w.resize(probe_pts.size());
     LineFit fit;
     if (!fit_line_robust(probe_pts, kProbeTukeyC, kProbeMinSigmaPx, kProbeIrlsIterations, probe_w,
                          &fit, kProbeRansacIterations, kProbeRansacTolPx)) {
+      if (lose_side()) continue;
       return false;
     }
     int on_line = 0;
@@ -272,29 +287,78 @@ bool LandmarkLocalizer::Impl::probe_prediction(const cv::Mat& img, const SearchW
       ramp_sum += probe_hits[i].ramp_px;
       dark_sum += probe_hits[i].dark_grey;
     }
-    if (on_line < kMinProbesOnLine) return false;
+    if (on_line < kMinProbesOnLine) {
+      // Points already summed belong to a side that is dropped: take them back out.
+      for (size_t i = 0; i < probe_pts.size(); ++i) {
+        const Vec2& p = probe_pts[i];
+        if (std::abs(fit.line.nx * p.x + fit.line.ny * p.y - fit.line.d) > kInlierPx) continue;
+        light_sum -= probe_hits[i].light_grey;
+        ramp_sum -= probe_hits[i].ramp_px;
+        dark_sum -= probe_hits[i].dark_grey;
+      }
+      if (lose_side()) continue;
+      return false;
+    }
     n_on_line += on_line;
     lines[static_cast<size_t>(k)] = fit.line;
   }
-  // Corners, centre and the mean border-normal angle (sides reduced to side 0's).
-  Vec2 c{0.0, 0.0};
-  for (int k = 0; k < 4; ++k) {
-    Vec2 p;
-    if (!intersect(lines[static_cast<size_t>(k)], lines[static_cast<size_t>((k + 1) % 4)], &p)) {
-      return false;
-    }
-    c.x += p.x / 4;
-    c.y += p.y / 4;
-  }
+  const int n_sides = static_cast<int>(std::count(have.begin(), have.end(), true));
+  if (n_sides < 3 || n_on_line == 0) return false;
   double sum_c = 0, sum_s = 0;
-  for (const Line2& l : lines) {
+  for (int k = 0; k < 4; ++k) {
+    if (!have[static_cast<size_t>(k)]) continue;
+    const Line2& l = lines[static_cast<size_t>(k)];
     const double a4 = 4.0 * std::atan2(l.ny, l.nx);
     sum_c += std::cos(a4);
     sum_s += std::sin(a4);
   }
   const double up = reduce_angle_90(std::atan2(sum_s, sum_c) / 4.0, w.up_angle_rad);
+  Vec2 c{0.0, 0.0};
+  if (n_sides == 4) {
+    // Corners, centre and the mean border-normal angle (sides reduced to side 0's).
+    for (int k = 0; k < 4; ++k) {
+      Vec2 p;
+      if (!intersect(lines[static_cast<size_t>(k)], lines[static_cast<size_t>((k + 1) % 4)], &p)) {
+        return false;
+      }
+      c.x += p.x / 4;
+      c.y += p.y / 4;
+    }
+  } else {
+    // Three sides: along the axis with both, their middle; along the other, the one side moved
+    // in by the half size at the camera's mean scale (a tilted camera's perspective leaves the
+    // pose stage's band to take up the few percent).
+    c = w.centre_px;
+    for (int axis = 0; axis < 2; ++axis) {
+      const double a = up + axis * kPi / 2.0;
+      const Vec2 u{std::cos(a), std::sin(a)};
+      // Edge position along u (from c) of side k, outward positive for side k = axis.
+      auto edge_along = [&](int k, double* e) {
+        const Line2& l = lines[static_cast<size_t>(k)];
+        const double nu = l.nx * u.x + l.ny * u.y;
+        if (std::abs(nu) < kParallelSine) return false;
+        *e = (l.d - (l.nx * c.x + l.ny * c.y)) / nu;
+        return true;
+      };
+      const int k0 = axis, k1 = axis + 2;
+      double e0 = 0, e1 = 0, shift = 0;
+      if (have[static_cast<size_t>(k0)] && have[static_cast<size_t>(k1)]) {
+        if (!edge_along(k0, &e0) || !edge_along(k1, &e1)) return false;
+        if (std::abs((e0 - e1) - 2.0 * half_px) > kSizeTolRel * 2.0 * half_px) return false;
+        shift = 0.5 * (e0 + e1);
+      } else if (have[static_cast<size_t>(k0)]) {
+        if (!edge_along(k0, &e0)) return false;
+        shift = e0 - half_px;
+      } else {
+        if (!edge_along(k1, &e1)) return false;
+        shift = e1 + half_px;
+      }
+      c.x += shift * u.x;
+      c.y += shift * u.y;
+    }
+  }
   // Opposite sides the landmark's size apart, measured through the centre.
-  for (int k = 0; k < 2; ++k) {
+  for (int k = 0; k < 2 && n_sides == 4; ++k) {
     const Line2& a = lines[static_cast<size_t>(k)];
     const Line2& b = lines[static_cast<size_t>(k + 2)];
     const double dist =

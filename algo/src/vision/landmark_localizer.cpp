@@ -84,8 +84,12 @@ LandmarkLocalizer::Impl::Impl(const VisionConfig& c, const CameraModel& m,
   // A small map's codes are encoded now, at start-up, rather than on the first landmark frame,
   // which would be late by the encoding (1000 landmarks, 2000 codes, take 0.23 s on x86-64); a
   // large map's book follows the prediction (map_identity_stage.cpp, docs/design/large_maps.md).
-  update_code_book(Prediction{});
-  if (cfg.family == LandmarkFamily::kTag36h11) tag = make_tag_detector();
+  // A tag floor has no QR codes to encode; its start-up work is libapriltag's tables.
+  if (cfg.family == LandmarkFamily::kTag36h11) {
+    tag = make_tag_detector();
+  } else {
+    update_code_book(Prediction{});
+  }
 }
 
 // The stages in the order they run, numbered as in docs/design/vision.md "Pipeline". The pose comes
@@ -104,7 +108,7 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
       img.cols != cam.intrinsics.width_px || img.rows != cam.intrinsics.height_px) {
     return finish(FixStatus::kBadInput);
   }
-  if (cfg.family == LandmarkFamily::kTag36h11) return finish(run_tag(img, out));
+  if (cfg.family == LandmarkFamily::kTag36h11) return finish(run_tag(img, pred, out));
   // 1-2. Binarization and detection: none when the prediction is precise enough to place the
   // pose stage's edge bands itself and the fit then lands where it said; otherwise from the
   // prediction when it is trusted (tracked, then the windows), the whole frame when there is none

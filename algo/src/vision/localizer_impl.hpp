@@ -339,7 +339,13 @@ struct LandmarkLocalizer::Impl {
   void keep_overlay_geometry(const SquareModel& m);
 
   // Tag family: detection and id by libapriltag, pose by the stage above (apriltag.cpp).
-  FixStatus run_tag(const cv::Mat& img, LandmarkFix* out);
+  FixStatus run_tag(const cv::Mat& img, const Prediction& pred, LandmarkFix* out);
+  FixStatus tag_from_detector(const cv::Mat& img, LandmarkFix* out);
+  FixStatus tag_from_prediction(const cv::Mat& img, LandmarkFix* out);
+  FixStatus consistent_square(Vec2* c_mm, double* beta, Eigen::Matrix3d* cov, LandmarkFix* out);
+  int tag_code_distance(const cv::Mat& img, Vec2 c_mm, double beta, int q, double half_mm,
+                        std::uint32_t id);
+  std::vector<double> tag_margin;  // tag_code_distance's margin samples, kept for their storage
   double side_offset_mm(int k, Vec2 c, double beta, double h);
   FixStatus drop_inconsistent_side(Vec2* c_mm, double* beta, Eigen::Matrix3d* cov,
                                    LandmarkFix* out);

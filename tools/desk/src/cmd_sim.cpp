@@ -34,6 +34,7 @@ int sim(int argc, char** argv) {
                                  family = "qr";
   double duration_s = 60.0, fps = 30.0, odom_hz = 100.0, speed_mps = 0.5, exposure_ms = 2.0;
   double grid_spacing_mm = 1000.0, k1 = 0.0, k2 = 0.0, occluder = 0.0, dirt = 0.0;
+  double occluder_overhang_mm = -1.0;
   double qr_cover = 0.0;
   int scratches = 0;
   std::uint64_t seed = 1;
@@ -91,6 +92,10 @@ int sim(int argc, char** argv) {
   app.add_option("--occluder-fraction", occluder, "Fraction of every landmark border covered")
       ->check(CLI::Range(0.0, 1.0))
       ->capture_default_str();
+  app.add_option("--occluder-overhang-mm", occluder_overhang_mm,
+                 "How far the occluder reaches beyond the border (mm; default 3 border-width "
+                 "units; past a tag's 15 mm margin it breaks libapriltag's quad)")
+      ->check(CLI::Range(0.0, 1000.0));
   app.add_option("--qr-cover-fraction", qr_cover,
                  "Fraction of every landmark's QR code under an opaque patch (border intact)")
       ->check(CLI::Range(0.0, 1.0 / 3.0))
@@ -249,6 +254,7 @@ int sim(int argc, char** argv) {
     return usage_error("unknown --degrade '" + degrade + "' (clean or realistic)");
   }
   ro.occluder_border_fraction = occluder;
+  ro.occluder_overhang_mm = occluder_overhang_mm;
   ro.scratches_per_landmark = scratches;
   ro.qr_cover_fraction = qr_cover;
   ro.dirt_spots_per_landmark = dirt;
@@ -359,6 +365,7 @@ int sim(int argc, char** argv) {
   }
   op.yaw_rate_bias_radps = deg_to_rad(yaw_bias_degps);
   meta.landmark_size_mm = scene.geometry.size_mm;
+  meta.landmark_family = family;  // replay runs the printed family without a --config saying so
   std::string cmdline = "agvloc-desk sim";
   for (int i = 1; i < argc; ++i) cmdline += std::string(" ") + argv[i];
   // The sample timing is part of what the recording means (the replay's fusion must agree), so

@@ -172,6 +172,10 @@ struct RenderOptions {
   // seen on the page (down the left edge first).
   double occluder_border_fraction = 0.0;
   double occluder_grey = 90.0;
+  // How far the occluder reaches beyond the border's outer edge (mm); negative: 3 border-width
+  // units (3 mm at the default size), inside a tag's white margin. Past the margin (a tag's 15 mm)
+  // it joins the floor, as a foot or a pallet edge does, and breaks the tag detector's quad.
+  double occluder_overhang_mm = -1.0;
   int scratches_per_landmark = 0;      // thin bright scratches across the print
   double dirt_spots_per_landmark = 0;  // mean count of dark smudges on the print
   std::uint64_t degradation_seed = 7;
