@@ -211,7 +211,10 @@ void add_tracking(std::vector<Key>* k) {
       boolean("vision.tracking.enabled", AGV_AT(vision.tracking.enabled), true,
               "search only the windows around the mapped landmarks the fused pose "
               "predicts in view (full frame when they find nothing, docs/design/tracking.md). "
-              "false: every frame searched in full"));
+              "landmark.family tag36h11: a predicted tag libapriltag does not find (an "
+              "occluder broke its quad) is placed there and its code read "
+              "(docs/design/landmark.md). false: every frame searched in full, tags by "
+              "libapriltag only"));
   k->push_back(number("vision.tracking.max_position_sigma_mm",
                       AGV_AT(vision.tracking.max_position_sigma_mm), 0.0, 1000.0, 10.0,
                       {"mm",
