@@ -17,9 +17,10 @@ step() { echo "cross-test: $1 done after $(( $(date +%s) - t0 )) s"; }
 
 bash toolchain/prepare-aarch64.sh
 step "prepare"
-# AGV_HOST_DESK (a native agvloc-desk, e.g. build/default/firmware/agvloc-desk) renders the test
-# recordings natively instead of under qemu and skips building the desk tool for arm64
-# (CMakeLists.txt). Not the default yet: CI has not run the cross build that way.
+# AGV_HOST_DESK (a native agvloc-desk, e.g. build/default/firmware/agvloc-desk; tools/test.sh sets
+# it) renders the test recordings natively instead of under qemu and skips building the desk tool
+# for arm64 (CMakeLists.txt): a recording is the same on every architecture, and the desk tool is
+# not shipped. Without it the desk tool is cross-built and runs emulated.
 host_desk_arg=()
 if [ -n "${AGV_HOST_DESK:-}" ]; then host_desk_arg=(-DAGV_HOST_DESK="$AGV_HOST_DESK"); fi
 cmake --preset aarch64 -DAGV_BUILD_HIL=OFF -DAGV_BUILD_CAMERA_VM=OFF "${host_desk_arg[@]}"

@@ -11,8 +11,9 @@
 #   3. tsan preset (clang TSan, -O1): the code that starts threads: test programs linking
 #      firmware/ or drivers/posix (or labelled tsan), and the replay, golden and fault tests that
 #      run agvloc; single-threaded test programs are not even built there (tests/CMakeLists.txt)
-#   4. arm64 cross build, tests under qemu-aarch64, .deb package test (the cross environment's apt
-#      work runs in the background from the start)
+#   4. arm64 cross build (gold, -g1, no desk tool: the default build's renders the recordings),
+#      tests under qemu-aarch64, .deb package test (the cross environment's apt work runs in the
+#      background from the start)
 # The sanitizer fault suites replay the base recordings the default build rendered
 # (AGV_FAULTS_BASE_FROM, tests/faults/run_faults.py --base-from) instead of rendering them again
 # under the sanitizers. Any sanitizer report fails its test. Prints the wall time of each step
@@ -83,7 +84,8 @@ if [ "$(cat "$prep_log.rc" 2>/dev/null || echo 1)" != 0 ]; then
   exit 1
 fi
 step "aarch64: prepare (in the background), waited for"
-bash tools/cross-test.sh
+# The default build's desk tool renders the arm64 tests' recordings natively (as for TSan above).
+AGV_HOST_DESK="$host_desk" bash tools/cross-test.sh
 step "aarch64: cross-test.sh"
 
 wait "$vm_pid" || true
