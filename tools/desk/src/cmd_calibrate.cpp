@@ -4,15 +4,16 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 
 #include "calib_cli.hpp"
 #include "calib_intrinsics.hpp"
 #include "commands.hpp"
 #include "config.hpp"
 #include "desk_input.hpp"
+#include "subcommands.hpp"
 
 namespace agv::desk {
 
@@ -30,12 +31,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct Subcommand {
-  const char* name;
-  int (*run)(int argc, char** argv);
-  const char* help;
-};
-
 // One line per subcommand.
 const Subcommand kSubcommands[] = {
     {"intrinsics", calibrate_intrinsics,
@@ -44,19 +39,12 @@ const Subcommand kSubcommands[] = {
      "mounting, odometry and time offset from a calibration drive over mapped landmarks"},
     {"check", calibrate_check, "parked-vehicle check with a printed landmark at a taped pose"},
 };
-
-void calibrate_usage(FILE* f) {
-  std::fprintf(f, "usage: agvloc-desk calibrate <what> [options]\n");
-  for (const auto& s : kSubcommands) std::fprintf(f, "  %-12s %s\n", s.name, s.help);
-  std::fprintf(f, "Each takes --help.\n");
-}
+const CommandGroup kCalibrate{"calibrate", kSubcommands, std::size(kSubcommands)};
 
 }  // namespace
 
 // The top-level usage lists the subcommands from the same table, so none can be left out.
-void print_calibrate_subcommands(FILE* f) {
-  for (const auto& s : kSubcommands) std::fprintf(f, "  calibrate %-11s %s\n", s.name, s.help);
-}
+void print_calibrate_subcommands(FILE* f) { print_group_lines(f, kCalibrate); }
 
 namespace {
 
@@ -101,22 +89,7 @@ bool print_truth_table(FILE* out, const std::string& path, const calib::Result& 
 
 }  // namespace
 
-int calibrate(int argc, char** argv) {
-  if (argc < 2) {
-    calibrate_usage(stderr);
-    return 2;
-  }
-  if (!std::strcmp(argv[1], "--help") || !std::strcmp(argv[1], "-h")) {
-    calibrate_usage(stdout);
-    return 0;
-  }
-  for (const auto& s : kSubcommands) {
-    if (!std::strcmp(argv[1], s.name)) return s.run(argc - 1, argv + 1);
-  }
-  std::fprintf(stderr, "agvloc-desk calibrate: unknown subcommand '%s'\n", argv[1]);
-  calibrate_usage(stderr);
-  return 2;
-}
+int calibrate(int argc, char** argv) { return dispatch_group(kCalibrate, argc, argv); }
 
 int calibrate_intrinsics(int argc, char** argv) {
   CLI::App app{

@@ -2,15 +2,16 @@
 // calibration snippets into it and checks the result as `agvloc run --check-config` does.
 #include <CLI/CLI.hpp>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 
 #include "agv/config/config.hpp"
 #include "agv/recording/recording.hpp"
 #include "commands.hpp"
 #include "config.hpp"
 #include "config_apply.hpp"
+#include "subcommands.hpp"
 
 namespace agv::desk {
 
@@ -18,22 +19,11 @@ namespace {
 
 namespace fs = std::filesystem;
 
-struct Subcommand {
-  const char* name;
-  int (*run)(int argc, char** argv);
-  const char* help;
-};
-
 const Subcommand kSubcommands[] = {
     {"apply", config_apply_command,
      "merge calibration snippets into a configuration (--config BASE SNIPPET... --out FILE)"},
 };
-
-void config_usage(FILE* f) {
-  std::fprintf(f, "usage: agvloc-desk config <what> [options]\n");
-  for (const auto& s : kSubcommands) std::fprintf(f, "  %-12s %s\n", s.name, s.help);
-  std::fprintf(f, "Each takes --help.\n");
-}
+const CommandGroup kConfig{"config", kSubcommands, std::size(kSubcommands)};
 
 // The output appears whole or not at all: a check that fails, or a full disk, leaves no
 // half-written configuration to deploy.
@@ -62,26 +52,9 @@ bool write_atomically(const std::string& path, const std::string& text, std::str
 
 }  // namespace
 
-void print_config_subcommands(FILE* f) {
-  for (const auto& s : kSubcommands) std::fprintf(f, "  config %-14s %s\n", s.name, s.help);
-}
+void print_config_subcommands(FILE* f) { print_group_lines(f, kConfig); }
 
-int config_command(int argc, char** argv) {
-  if (argc < 2) {
-    config_usage(stderr);
-    return 2;
-  }
-  if (!std::strcmp(argv[1], "--help") || !std::strcmp(argv[1], "-h")) {
-    config_usage(stdout);
-    return 0;
-  }
-  for (const auto& s : kSubcommands) {
-    if (!std::strcmp(argv[1], s.name)) return s.run(argc - 1, argv + 1);
-  }
-  std::fprintf(stderr, "agvloc-desk config: unknown subcommand '%s'\n", argv[1]);
-  config_usage(stderr);
-  return 2;
-}
+int config_command(int argc, char** argv) { return dispatch_group(kConfig, argc, argv); }
 
 int config_apply_command(int argc, char** argv) {
   CLI::App app{
