@@ -161,6 +161,7 @@ int replay(int argc, char** argv) {
     std::fprintf(stderr, "replay: %s\n", err.c_str());
     return 1;
   }
+  for (const auto& w : rec.warnings) std::fprintf(stderr, "replay: warning: %s\n", w.c_str());
   config::Config cfg;
   if (!config_file.empty()) {
     if (!config::load_config_or_report(config_file, "replay", &cfg, config::ConfigUse::kReplay)) {

@@ -601,6 +601,26 @@ bool parse_imu_csv(const std::string& text, std::vector<ImuRow>* out, std::strin
   return ok;
 }
 
+namespace {
+
+// A recording cut by a power loss or a kill ends in a partial row: the recorder writes whole
+// rows, so a last line without its newline is the one cut short. read_recording drops it and
+// says so (Recording::warnings) rather than refusing everything before it; the parse_* functions
+// on their own still refuse it. A file whose header is cut keeps the parser's error.
+void drop_cut_last_line(std::string* text, const std::string& name,
+                        std::vector<std::string>* warnings) {
+  if (text->empty() || text->back() == '\n') return;
+  const size_t last_nl = text->rfind('\n');
+  if (last_nl == std::string::npos) return;
+  const size_t line_no =
+      2 + static_cast<size_t>(std::count(text->begin(), text->begin() + last_nl, '\n'));
+  warnings->push_back(name + ":" + std::to_string(line_no) +
+                      ": last line cut (no newline: interrupted write), ignored");
+  text->resize(last_nl + 1);
+}
+
+}  // namespace
+
 bool read_recording(const std::string& dir, Recording* out, std::string* error) {
   std::string err;
   auto fail = [&](const std::string& why) {
@@ -614,35 +634,58 @@ bool read_recording(const std::string& dir, Recording* out, std::string* error) 
     Recording r;
     r.dir = dir;
     if (!read_meta(dir, &r.meta, &err)) return fail(err);
-    std::string text;
-    if (!read_text(d / "frames.csv", kMaxFramesCsvBytes, &text, &err) ||
-        !parse_frames_csv(text, &r.frames, &err)) {
+    // Reads one CSV, drops a cut last line (with its warning), then parses strictly.
+    auto read_csv = [&](const char* name, size_t max_bytes, auto parse) {
+      std::string text;
+      if (!read_text(d / name, max_bytes, &text, &err)) return false;
+      drop_cut_last_line(&text, name, &r.warnings);
+      return parse(text);
+    };
+    if (!read_csv("frames.csv", kMaxFramesCsvBytes,
+                  [&](const std::string& t) { return parse_frames_csv(t, &r.frames, &err); })) {
       return fail(err);
     }
-    // Every referenced image must be a readable regular file that carries the PNG signature.
-    size_t line = 1;
-    for (const FrameRow& f : r.frames) {
-      ++line;
+    // Every referenced image must be a readable regular file that carries the PNG signature,
+    // except at the very end: a power loss can leave the last second's rows naming PNGs that
+    // never reached the medium. Up to kMaxLostTailFrames such rows at the end (not all of them)
+    // are dropped and named; a bad image anywhere before them is an error.
+    constexpr size_t kMaxLostTailFrames = 64;
+    size_t first_bad = r.frames.size();
+    std::string first_bad_why;
+    for (size_t i = r.frames.size(); i-- > 0;) {
       std::string why;
-      if (!check_png_file(d / f.file, &why)) {
-        return fail("frames.csv:" + std::to_string(line) + ": image '" + f.file + "': " + why);
+      if (check_png_file(d / r.frames[i].file, &why)) continue;
+      const size_t from_end = r.frames.size() - i;
+      if (first_bad != i + 1 || from_end > kMaxLostTailFrames || i == 0) {
+        return fail("frames.csv:" + std::to_string(i + 2) + ": image '" + r.frames[i].file +
+                    "': " + why);
       }
+      first_bad = i;
+      first_bad_why = why;
     }
-    if (!read_text(d / "odom.csv", kMaxTimedCsvBytes, &text, &err) ||
-        !parse_odom_csv(text, &r.odom, &err)) {
+    if (first_bad < r.frames.size()) {
+      r.warnings.push_back("frames.csv:" + std::to_string(first_bad + 2) + "-" +
+                           std::to_string(r.frames.size() + 1) + ": the last " +
+                           std::to_string(r.frames.size() - first_bad) +
+                           " frame(s) name unreadable images (" + first_bad_why +
+                           "; interrupted recording?), ignored");
+      r.frames.resize(first_bad);
+    }
+    if (!read_csv("odom.csv", kMaxTimedCsvBytes,
+                  [&](const std::string& t) { return parse_odom_csv(t, &r.odom, &err); })) {
       return fail(err);
     }
     if (fs::exists(d / "truth.csv", ec)) {
-      if (!read_text(d / "truth.csv", kMaxTimedCsvBytes, &text, &err) ||
-          !parse_truth_csv(text, &r.truth, &err)) {
+      if (!read_csv("truth.csv", kMaxTimedCsvBytes,
+                    [&](const std::string& t) { return parse_truth_csv(t, &r.truth, &err); })) {
         return fail(err);
       }
       r.has_truth = true;
     }
     // Absent = a vehicle without a gyro (or a recording older than the gyro input).
     if (fs::exists(d / "imu.csv", ec)) {
-      if (!read_text(d / "imu.csv", kMaxTimedCsvBytes, &text, &err) ||
-          !parse_imu_csv(text, &r.imu, &err)) {
+      if (!read_csv("imu.csv", kMaxTimedCsvBytes,
+                    [&](const std::string& t) { return parse_imu_csv(t, &r.imu, &err); })) {
         return fail(err);
       }
       r.has_imu = true;

@@ -167,6 +167,9 @@ int calibrate_vehicle(int argc, char** argv) {
   recording::Recording rec;
   std::string err;
   if (!recording::read_recording(rec_dir, &rec, &err)) return fail(err, 1);
+  for (const auto& w : rec.warnings) {
+    std::fprintf(stderr, "agvloc-desk calibrate vehicle: warning: %s\n", w.c_str());
+  }
   config::Config cfg;
   CameraModel cam = rec.meta.camera;
   LandmarkGeometry geom;

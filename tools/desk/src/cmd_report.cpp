@@ -31,6 +31,9 @@ int report(int argc, char** argv) {
     std::fprintf(stderr, "agvloc-desk report: %s\n", err.c_str());
     return 2;
   }
+  for (const auto& w : rec.warnings) {
+    std::fprintf(stderr, "agvloc-desk report: warning: %s\n", w.c_str());
+  }
   if (map_file.empty() && fs::exists(fs::path(rec_dir) / "map.csv")) {
     map_file = (fs::path(rec_dir) / "map.csv").string();
   }

@@ -65,12 +65,15 @@ struct Recording {
   bool has_truth = false;
   std::vector<ImuRow> imu;  // empty when imu.csv is absent (no gyro: wheel odometry only)
   bool has_imu = false;
+  // What read_recording accepted with a loss, one line each ("odom.csv:1234: last line cut ...").
+  std::vector<std::string> warnings;
 };
 
 // Reads meta.yaml, frames.csv, odom.csv, truth.csv and imu.csv (the last two if present). Images
 // are not loaded. On malformed input returns false with *error naming the file and line
 // ("frames.csv:12: ..."). Timestamps must be strictly increasing within each file; referenced PNGs
-// must exist.
+// must exist. A CSV's last line without its newline (a recording cut by a power loss) is dropped
+// and named in out->warnings; every other defect is an error.
 bool read_recording(const std::string& dir, Recording* out, std::string* error);
 
 // Parts of read_recording, usable on their own. `name` is the file name used in messages.
