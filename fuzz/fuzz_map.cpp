@@ -1,5 +1,5 @@
-// Landmark map CSV (docs/design/landmark.md). Property: an accepted map has non-zero ids that match
-// their entries and finite poses.
+// Landmark map CSV (docs/design/landmark.md). Property: an accepted map has ids (0..65535: 0 is
+// tag36h11's first tag) that match their entries, and finite poses.
 #include <cmath>
 
 #include "agv/common/landmark.hpp"
@@ -13,7 +13,7 @@ extern "C" int LLVMFuzzerTestOneInput(const unsigned char* data, std::size_t siz
     return 0;
   }
   for (const auto& [id, e] : map.entries) {
-    FUZZ_CHECK(id == e.id && id != 0, "id %u", id);
+    FUZZ_CHECK(id == e.id && id <= 65535u, "id %u", id);
     FUZZ_CHECK(
         std::isfinite(e.pose.x_mm) && std::isfinite(e.pose.y_mm) && std::isfinite(e.pose.theta_rad),
         "landmark %u has a non-finite pose", id);
