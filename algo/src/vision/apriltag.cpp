@@ -11,7 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <unordered_map>
+#include <vector>
 
 #include "localizer_impl.hpp"
 
@@ -78,28 +78,36 @@ Vec2 project(const matd_t* h, double x, double y) {
 struct TagDetector {
   apriltag_family_t* family = nullptr;
   apriltag_detector_t* detector = nullptr;
-  // Data cells (6 x 6, row-major, 1 = black) of the ids the predicted path has read, from
-  // libapriltag's own renderer as the simulator and the generator print them.
-  std::unordered_map<std::uint32_t, std::array<std::uint8_t, kDataCells * kDataCells>> cells;
-  const std::array<std::uint8_t, kDataCells * kDataCells>* data_cells(std::uint32_t id) {
-    if (id >= family->ncodes) return nullptr;
-    const auto it = cells.find(id);
-    if (it != cells.end()) return &it->second;
-    image_u8_t* im = apriltag_to_image(family, static_cast<int>(id));
-    if (!im) return nullptr;
-    std::array<std::uint8_t, kDataCells * kDataCells> c{};
-    const bool ok = im->width == kTagImageCells && im->height == kTagImageCells;
-    for (int r = 0; ok && r < kDataCells; ++r) {
-      for (int k = 0; k < kDataCells; ++k) {
-        const int ir = r + kFirstDataCell, ik = k + kFirstDataCell;
-        c[static_cast<size_t>(r * kDataCells + k)] = im->buf[ir * im->stride + ik] < 128 ? 1 : 0;
+  // Data cells of every tag36h11 id (6 x 6, row-major, 1 = black), from libapriltag's own
+  // renderer as the simulator and the generator print them. Made once with the detector (587 ids,
+  // 21 kB, well under a millisecond): the predicted path then neither allocates nor writes on a
+  // frame. Empty when the renderer does not give the expected 10 x 10 cells.
+  std::vector<std::array<std::uint8_t, kDataCells * kDataCells>> cells;
+  const std::array<std::uint8_t, kDataCells * kDataCells>* data_cells(std::uint32_t id) const {
+    return id < cells.size() ? &cells[id] : nullptr;
+  }
+  void render_cells() {
+    cells.resize(family->ncodes);
+    for (std::uint32_t id = 0; id < family->ncodes; ++id) {
+      image_u8_t* im = apriltag_to_image(family, static_cast<int>(id));
+      const bool ok = im && im->width == kTagImageCells && im->height == kTagImageCells;
+      for (int r = 0; ok && r < kDataCells; ++r) {
+        for (int k = 0; k < kDataCells; ++k) {
+          const int ir = r + kFirstDataCell, ik = k + kFirstDataCell;
+          cells[id][static_cast<size_t>(r * kDataCells + k)] =
+              im->buf[ir * im->stride + ik] < 128 ? 1 : 0;
+        }
+      }
+      // image_u8_destroy() is exported by libapriltag-utils only: the image is two calloc blocks.
+      if (im) {
+        std::free(im->buf);
+        std::free(im);
+      }
+      if (!ok) {
+        cells.clear();
+        return;
       }
     }
-    // image_u8_destroy() is exported by libapriltag-utils only: the image is two calloc blocks.
-    std::free(im->buf);
-    std::free(im);
-    if (!ok) return nullptr;
-    return &cells.emplace(id, c).first->second;
   }
   TagDetector() {
     family = tag36h11_create();
@@ -109,6 +117,7 @@ struct TagDetector {
     detector->nthreads = 1;
     detector->refine_edges = 1;
     detector->decode_sharpening = kDecodeSharpening;
+    render_cells();
   }
   ~TagDetector() {
     apriltag_detector_destroy(detector);
