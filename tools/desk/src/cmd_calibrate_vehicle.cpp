@@ -11,6 +11,8 @@
 #include <map>
 #include <sstream>
 
+#include "agv/config/yaml_keys.hpp"
+#include "agv/localizer/no_fix_diagnosis.hpp"
 #include "agv/recording/png_io.hpp"
 #include "agv/recording/recording.hpp"
 #include "agv/vision/landmark_localizer.hpp"
@@ -174,8 +176,29 @@ int calibrate_vehicle(int argc, char** argv) {
   CameraModel cam = rec.meta.camera;
   LandmarkGeometry geom;
   geom.size_mm = rec.meta.landmark_size_mm;
+  // The family follows replay's rule (docs/guide/replay.md): a --config that sets it wins, else
+  // the recording's meta.yaml; a tag drive calibrated as QR gives no fix at all.
+  std::string family_source;
+  if (!rec.meta.landmark_family.empty()) {
+    cfg.vision.family =
+        rec.meta.landmark_family == "tag36h11" ? LandmarkFamily::kTag36h11 : LandmarkFamily::kQr;
+    family_source = "meta.yaml";
+  }
   if (!config_path.empty()) {
+    const LandmarkFamily meta_family = cfg.vision.family;
     if (!config::load_config_or_report(config_path, "calibrate vehicle", &cfg)) return 2;
+    std::string text;
+    std::vector<config::YamlEntry> entries;
+    if (!recording::read_file_bounded(config_path, config::kMaxConfigBytes, &text, &err) ||
+        !config::yaml_entries(text, &entries, &err)) {
+      return fail("config: " + config_path + ": " + err, 2);
+    }
+    if (std::any_of(entries.begin(), entries.end(),
+                    [](const config::YamlEntry& e) { return e.key == "landmark.family"; })) {
+      family_source = "--config";
+    } else {
+      cfg.vision.family = meta_family;
+    }
     cam = cfg.camera_model;
     geom.size_mm = cfg.landmark_size_mm;
     if (cam.intrinsics.width_px != rec.meta.camera.intrinsics.width_px ||
@@ -204,6 +227,10 @@ int calibrate_vehicle(int argc, char** argv) {
   // Frames without a fix, by reason: a landmark whose print disagrees with the map, or a family
   // the floor does not have, must not vanish silently.
   std::map<vision::FixStatus, int> failed;
+  // What they gave, for the likely cause when the drive gives no (or too few) fixes: replay's
+  // diagnosis (localizer/no_fix_diagnosis.hpp), not a second one.
+  std::uint64_t by_status[localizer::kFixStatusCount] = {};
+  std::vector<localizer::FrameOutcome> outcomes;
   for (const auto& f : rec.frames) {
     cv::Mat img;
     const std::string file = (fs::path(rec_dir) / f.file).string();
@@ -216,12 +243,26 @@ int calibrate_vehicle(int argc, char** argv) {
     const vision::FixStatus st = loc.process(img, &fix);
     if (st != vision::FixStatus::kOk) {
       ++failed[st];
+      ++by_status[static_cast<int>(st)];
+      if (st != vision::FixStatus::kNoLandmark) outcomes.push_back(localizer::frame_outcome(fix));
       continue;
     }
     ++fixes;
     vcal::CornerObservation o;
     if (corner_observation(loc, fix, cam, geom, f.t_ns, &o)) obs.push_back(o);
   }
+  localizer::NoFixContext why;
+  why.family = cfg.vision.family;
+  why.family_source = family_source;
+  why.have_map = true;
+  why.height_mm = cam.mount.height_mm;
+  why.size_mm = geom.size_mm;
+  why.calibrating = true;
+  // Over the frames without a fix only: with some fixes, the family is right, but the map or the
+  // height may still lose most landmarks (a height 1 mm off loses tag frames, issue 36 item 8).
+  const std::uint64_t no_fix_frames = rec.frames.size() - static_cast<std::uint64_t>(fixes);
+  const localizer::NoFixDiagnosis diagnosis =
+      localizer::diagnose_no_fix(no_fix_frames, by_status, outcomes, why);
   std::string failures;
   for (const auto& [st, n] : failed) {
     if (st == vision::FixStatus::kNoLandmark) continue;  // frames between landmarks: expected
@@ -238,17 +279,20 @@ int calibrate_vehicle(int argc, char** argv) {
   if (obs.empty()) {
     // The localizer only fixes landmarks of the map (an unmapped id is a failed frame), so what
     // failed and why is the hint.
-    return fail(
-        "no frame of " + std::to_string(rec.frames.size()) +
-            " gave a usable fix on a landmark of " + map_path + " (" +
-            (fixes > 0 ? std::to_string(fixes) + " fixes with fewer than 3 border corners; " : "") +
-            (failures.empty() ? "no landmark seen"
-                              : "frames with a landmark but no fix: " + failures) +
-            "): wrong map, landmark.family (" +
-            std::string(cfg.vision.family == LandmarkFamily::kTag36h11 ? "tag36h11" : "qr") +
-            ") not the printed family, or no mapped landmark in view" +
-            (misprint_warning.empty() ? "" : "; " + misprint_warning),
-        1);
+    std::string cause;
+    if (fixes == 0 && diagnosis.cause != localizer::NoFixCause::kNone) {
+      cause = diagnosis.statuses + "): likely cause: " + diagnosis.text;
+    } else if (fixes > 0) {
+      cause = std::to_string(fixes) + " fixes with fewer than 3 border corners" +
+              (failures.empty() ? "" : "; frames with a landmark but no fix: " + failures) +
+              "): the landmarks were never wholly in view: drive over their centres";
+    } else {
+      cause = "no frame read)";
+    }
+    return fail("no frame of " + std::to_string(rec.frames.size()) +
+                    " gave a usable fix on a landmark of " + map_path + " (" + cause +
+                    (misprint_warning.empty() ? "" : "; " + misprint_warning),
+                1);
   }
   std::vector<vcal::OdomSample> odom;
   for (const auto& o : rec.odom) odom.push_back({o.t_ns, o.v_mps, o.omega_radps});
@@ -258,6 +302,13 @@ int calibrate_vehicle(int argc, char** argv) {
   vcal::Result r;
   if (!vcal::calibrate_vehicle(odom, obs, map, geom.outer_half_mm(), geom.inner_half_mm(), initial,
                                opt, &r, &err)) {
+    // Too few fixes: the frames that gave none may say why (the map or the height; not the family,
+    // which the fixes that were given show to be right).
+    if (diagnosis.cause == localizer::NoFixCause::kMap ||
+        diagnosis.cause == localizer::NoFixCause::kScale) {
+      err += "; " + std::to_string(no_fix_frames) + " frames gave no fix (" + diagnosis.statuses +
+             "): likely cause: " + diagnosis.text;
+    }
     return fail(err, 1);
   }
 
