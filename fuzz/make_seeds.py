@@ -151,6 +151,29 @@ landmark:
         vda("2.1.0", "initPosition", good[:3] + [{"key": "mapId", "value": "x"}]))
     put("fuzz_vda_action", "other_action", vda("2.1.0", "startPause", []))
     put("fuzz_vda_action", "truncated", '{"headerId": [[[')
+    # calibrate check --placements CSV (docs/guide/commissioning.md): placements of several
+    # frames, recording directories, comments and CRLF, and near misses.
+    put("fuzz_placements", "three", "frame,x_mm,y_mm,heading_deg\nc1.png,300,0,0\nc2.png,300,0,0\n"
+        "c3.png,250,-60,90.5\n/abs/rec,250,-60,90.5\n")
+    put("fuzz_placements", "comments_crlf", "# taped 2026-11-28\r\n\r\nframe,x_mm,y_mm,heading_deg\r\n"
+        "rec1,-1e3,+2.5e1,-179.9\r\n")
+    put("fuzz_placements", "bad_header", "frame,x,y,heading\nc1.png,1,2,3\n")
+    put("fuzz_placements", "bad_row", "frame,x_mm,y_mm,heading_deg\nc1.png,1,2\n,1,2,3\nc,1,2,3x\n")
+    put("fuzz_placements", "nonfinite", "frame,x_mm,y_mm,heading_deg\nc1.png,inf,0,0\nc2.png,nan,0,0\n")
+    # config apply: a configuration, then snippets after "---snippet---" lines (fuzz_config_apply).
+    sep = "\n---snippet---\n"
+    base = ("# vehicle 7\ncamera:\n  device: /dev/video0\nintrinsics:\n  fx: 700  # old\n  fy: 700\n"
+            "  cx: 319.5\n  cy: 239.5\nmounting:\n  offset_x_mm: 250\n  height_mm: 200\n"
+            "odometry: {speed_scale: 1.0}\n")
+    intr = "intrinsics:\n  fx: 769.2\n  fy: 769.3\n  cx: 320.1\n  cy: 240.2\n  k1: -0.12\n"
+    veh = ("mounting:\n  offset_x_mm: 253.7\n  offset_y_mm: -4.2\n  yaw_deg: 1.29\n  height_mm: 121.5\n"
+           "odometry:\n  speed_scale: 1.02\n  time_offset_ms: 12.0\n")
+    put("fuzz_config_apply", "both", base + sep + intr + sep + veh)
+    put("fuzz_config_apply", "empty_base", sep + veh)
+    put("fuzz_config_apply", "flow", "mounting: {offset_x_mm: 1, height_mm: 2}\n" + sep + veh)
+    put("fuzz_config_apply", "conflict", base + sep + veh + sep + veh.replace("1.02", "1.03"))
+    put("fuzz_config_apply", "unknown_key", base + sep + "mounting:\n  offset_z_mm: 3\n")
+    put("fuzz_config_apply", "twice", base + sep + "mounting:\n  height_mm: 1\n  height_mm: 2\n")
 
 
 if __name__ == "__main__":

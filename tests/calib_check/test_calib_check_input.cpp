@@ -6,6 +6,8 @@
 
 #include <limits>
 #include <opencv2/core.hpp>
+#include <string>
+#include <vector>
 
 #include "calib_check.hpp"
 
@@ -77,3 +79,42 @@ TEST(CalibCheckInput, UnreadableFrameIsNamed) {
 }
 
 }  // namespace
+
+// The --placements CSV reader (fuzz_placements): rows group by pose in order of first appearance;
+// a NUL byte (accepted before, the frame path cut at the NUL: "c\0\01.png" read as frame "c") or a
+// control character in a path is an error naming the line, as are a bad header, a short row and
+// a non-finite pose.
+TEST(CalibCheckInput, PlacementsCsvIsParsedStrictly) {
+  using agv::desk::calib::PlacementRows;
+  std::vector<PlacementRows> rows;
+  std::string err;
+  ASSERT_TRUE(agv::desk::calib::parse_placements_csv(
+      "# "
+      "taped\r\nframe,x_mm,y_mm,heading_deg\r\na.png,300,0,0\r\nrec,250,-60,90\r\nb.png,300,0,0\n",
+      "p.csv", &rows, &err))
+      << err;
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_EQ(rows[0].frames, (std::vector<std::string>{"a.png", "b.png"}));
+  EXPECT_EQ(rows[1].frames, (std::vector<std::string>{"rec"}));
+  EXPECT_DOUBLE_EQ(rows[1].taped.y_mm, -60.0);
+  const std::string header = "frame,x_mm,y_mm,heading_deg\n";
+  const std::string nul_path = header + std::string("c\0\0", 3) + "1.png,304,0,0\n";
+  EXPECT_FALSE(agv::desk::calib::parse_placements_csv(nul_path, "p.csv", &rows, &err));
+  EXPECT_EQ(err, "p.csv:2: NUL byte (not a text file?)");
+  EXPECT_FALSE(agv::desk::calib::parse_placements_csv(
+      header + std::string("c.png,304,0,0\0junk\n", 19), "p.csv", &rows, &err));
+  EXPECT_EQ(err, "p.csv:2: NUL byte (not a text file?)");
+  // A CR inside a line (not its end) was kept in the path.
+  EXPECT_FALSE(agv::desk::calib::parse_placements_csv(header + "/a\rb.png,58,-60,90.5\n", "p.csv",
+                                                      &rows, &err));
+  EXPECT_EQ(err, "p.csv:2: control character in the frame path");
+  EXPECT_FALSE(agv::desk::calib::parse_placements_csv("frame,x,y,h\n", "p.csv", &rows, &err));
+  EXPECT_EQ(err, "p.csv:1: header must be frame,x_mm,y_mm,heading_deg");
+  EXPECT_FALSE(
+      agv::desk::calib::parse_placements_csv(header + "c.png,1,2\n", "p.csv", &rows, &err));
+  EXPECT_EQ(err, "p.csv:2: expected FRAME,X,Y,DEG");
+  EXPECT_FALSE(
+      agv::desk::calib::parse_placements_csv(header + "c.png,inf,0,0\n", "p.csv", &rows, &err));
+  EXPECT_FALSE(agv::desk::calib::parse_placements_csv(header, "p.csv", &rows, &err));
+  EXPECT_EQ(err, "p.csv: no rows");
+}

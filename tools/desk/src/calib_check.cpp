@@ -4,7 +4,9 @@
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
+#include <map>
 #include <opencv2/core.hpp>
+#include <sstream>
 
 #include "agv/config/keys.hpp"
 
@@ -336,6 +338,69 @@ bool run_check(const CameraModel& camera, const vision::VisionConfig& vision_con
     }
   }
   out->lens_suspect = distortion;
+  return true;
+}
+
+bool parse_pose(const std::string& text, Pose2* out) {
+  double x = 0, y = 0, h = 0;
+  char tail = 0;
+  if (std::sscanf(text.c_str(), "%lf,%lf,%lf%c", &x, &y, &h, &tail) != 3) return false;
+  if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(h)) return false;
+  *out = {x, y, deg_to_rad(h)};
+  return true;
+}
+
+bool parse_placements_csv(const std::string& text, const std::string& name,
+                          std::vector<PlacementRows>* out, std::string* error) {
+  out->clear();
+  std::istringstream is(text);
+  std::string line;
+  int ln = 0;
+  std::map<std::string, size_t> index;
+  bool header = false;
+  while (std::getline(is, line)) {
+    ++ln;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (line.empty() || line[0] == '#') continue;
+    // A NUL would cut the frame path where the file is opened and the pose where it is parsed
+    // (fuzz_placements found "c\0\01.png" read as frame "c").
+    if (line.find('\0') != std::string::npos) {
+      *error = name + ":" + std::to_string(ln) + ": NUL byte (not a text file?)";
+      return false;
+    }
+    if (!header) {
+      if (line != "frame,x_mm,y_mm,heading_deg") {
+        *error = name + ":" + std::to_string(ln) + ": header must be frame,x_mm,y_mm,heading_deg";
+        return false;
+      }
+      header = true;
+      continue;
+    }
+    const auto comma = line.find(',');
+    Pose2 p;
+    if (comma == std::string::npos || comma == 0 || !parse_pose(line.substr(comma + 1), &p)) {
+      *error = name + ":" + std::to_string(ln) + ": expected FRAME,X,Y,DEG";
+      return false;
+    }
+    // A lone CR (old Mac line ends) or another control character in a path is a damaged file,
+    // not a file name to open (fuzz_placements; frames.csv refuses them the same way).
+    if (std::any_of(line.begin(), line.begin() + static_cast<std::ptrdiff_t>(comma),
+                    [](char ch) { return static_cast<unsigned char>(ch) < 0x20 || ch == 0x7f; })) {
+      *error = name + ":" + std::to_string(ln) + ": control character in the frame path";
+      return false;
+    }
+    const std::string key = line.substr(comma + 1);
+    auto it = index.find(key);
+    if (it == index.end()) {
+      it = index.emplace(key, out->size()).first;
+      out->push_back({p, {}});
+    }
+    (*out)[it->second].frames.push_back(line.substr(0, comma));
+  }
+  if (out->empty()) {
+    *error = name + ": no rows";
+    return false;
+  }
   return true;
 }
 

@@ -109,6 +109,25 @@ bool run_check(const CameraModel& camera, const vision::VisionConfig& vision_con
                const std::vector<PlacementInput>& placements, const Tolerances& tol,
                CheckResult* out, std::string* error);
 
+// A taped pose as written on the command line or in a placements CSV: X_MM,Y_MM,HEADING_DEG,
+// finite. False on anything else (a trailing character, a missing field).
+bool parse_pose(const std::string& text, Pose2* out);
+
+// The placements of a --placements CSV: one per distinct pose text, in order of first appearance,
+// with the frame paths as written (a relative path is relative to the CSV: the caller resolves
+// it).
+struct PlacementRows {
+  Pose2 taped;
+  std::vector<std::string> frames;
+};
+// Parses a --placements CSV text: the header `frame,x_mm,y_mm,heading_deg` first, then one
+// `FRAME,X,Y,DEG` row per frame; blank and '#' lines skipped, CRLF accepted. False with *error
+// "name:line: what" on a bad header or row, a NUL byte, a control character in a frame path,
+// or no row. Pure (text in): the fuzzed
+// surface (fuzz/fuzz_placements.cpp).
+bool parse_placements_csv(const std::string& text, const std::string& name,
+                          std::vector<PlacementRows>* out, std::string* error);
+
 // Human-readable report (deviations per placement, findings, the suggested mounting lines).
 std::string format_report(const CameraModel& camera, const CheckResult& r);
 

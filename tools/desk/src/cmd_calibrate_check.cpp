@@ -5,7 +5,6 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <map>
 #include <sstream>
 
 #include "agv/recording/recording.hpp"
@@ -20,15 +19,6 @@ namespace agv::desk {
 namespace {
 
 namespace fs = std::filesystem;
-
-bool parse_pose(const std::string& text, Pose2* out) {
-  double x = 0, y = 0, h = 0;
-  char tail = 0;
-  if (std::sscanf(text.c_str(), "%lf,%lf,%lf%c", &x, &y, &h, &tail) != 3) return false;
-  if (!std::isfinite(x) || !std::isfinite(y) || !std::isfinite(h)) return false;
-  *out = {x, y, deg_to_rad(h)};
-  return true;
-}
 
 // Frames of one path: a PNG, or a recording directory (all of its frames). Only listed here:
 // each is read when the check reaches it and dropped after (calib::FrameInput::load), so memory
@@ -156,45 +146,21 @@ int calibrate_check(int argc, char** argv) {
   std::vector<std::pair<Pose2, std::vector<std::string>>> groups;
   if (!inputs.empty()) {
     Pose2 p;
-    if (!parse_pose(pose_text, &p)) return bad("--pose '" + pose_text + "': expected X,Y,DEG");
+    if (!desk::calib::parse_pose(pose_text, &p))
+      return bad("--pose '" + pose_text + "': expected X,Y,DEG");
     groups.push_back({p, inputs});
   } else {
     std::string text;
     if (!recording::read_file_bounded(placements_csv, 1u << 20, &text, &err)) return bad(err);
-    std::istringstream is(text);
-    std::string line;
-    int ln = 0;
-    std::map<std::string, size_t> index;
-    bool header = false;
+    std::vector<desk::calib::PlacementRows> rows;
+    if (!desk::calib::parse_placements_csv(text, placements_csv, &rows, &err)) return bad(err);
     const fs::path base = fs::path(placements_csv).parent_path();
-    while (std::getline(is, line)) {
-      ++ln;
-      if (!line.empty() && line.back() == '\r') line.pop_back();
-      if (line.empty() || line[0] == '#') continue;
-      if (!header) {
-        if (line != "frame,x_mm,y_mm,heading_deg") {
-          return bad(placements_csv + ":" + std::to_string(ln) +
-                     ": header must be frame,x_mm,y_mm,heading_deg");
-        }
-        header = true;
-        continue;
+    for (auto& r : rows) {
+      for (std::string& f : r.frames) {
+        if (fs::path(f).is_relative()) f = (base / f).string();
       }
-      const auto comma = line.find(',');
-      Pose2 p;
-      if (comma == std::string::npos || comma == 0 || !parse_pose(line.substr(comma + 1), &p)) {
-        return bad(placements_csv + ":" + std::to_string(ln) + ": expected FRAME,X,Y,DEG");
-      }
-      fs::path f = line.substr(0, comma);
-      if (f.is_relative()) f = base / f;
-      const std::string key = line.substr(comma + 1);
-      auto it = index.find(key);
-      if (it == index.end()) {
-        it = index.emplace(key, groups.size()).first;
-        groups.push_back({p, {}});
-      }
-      groups[it->second].second.push_back(f.string());
+      groups.push_back({r.taped, std::move(r.frames)});
     }
-    if (groups.empty()) return bad(placements_csv + ": no rows");
   }
 
   std::vector<desk::calib::PlacementInput> placements(groups.size());
