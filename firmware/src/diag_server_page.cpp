@@ -69,7 +69,7 @@ function showStatus(s){
     row(["σ θ", f(p.sigma_theta_deg,3)+"°"]) +
     row(["speed / yaw rate", f(p.v_mps,3)+" m/s / "+f(p.omega_radps,3)+" rad/s"]) +
     row(["time since fix", p.time_since_fix_ms < 0 ? "never" : f(p.time_since_fix_ms,0)+" ms"]) +
-    row(["last landmark", s.last_landmark_id || "—"]);
+    row(["last landmark", s.last_landmark_valid ? s.last_landmark_id : "—"]);
   const fl = s.faults.map(n=>"<span class=flag>fault: "+esc(n)+"</span>")
     .concat(s.rejections.map(n=>"<span class=flag>rejected: "+esc(n)+"</span>"));
   $("flags").innerHTML = fl.length ? fl.join("") : "<span class=none>none</span>";

@@ -635,3 +635,28 @@ TEST(Gyro, StatusCarriesTheImuFaultBits) {
   EXPECT_EQ(p::get_raw(sig(p::Msg::kStatus, "FaultImuE2E"), f.data), 1);
   EXPECT_EQ(p::get_raw(sig(p::Msg::kStatus, "Health"), f.data), 2);  // kLost, beside them
 }
+
+// LastLandmarkId 0 is tag36h11's first tag (issue 36), so "none yet" is its own bit: a fix on
+// landmark 0 and no fix at all differ on the bus only by LastLandmarkValid (bit 63).
+TEST(Codec, LastLandmarkValidTellsTagZeroFromNoFix) {
+  p::Encoder enc({});
+  agv::hal::CanFrame none, tag0;
+  p::StatusOut s;  // before any fix: id 0, not valid
+  s.rejections = p::reject::kGate | p::reject::kFixTooOld;
+  enc.encode_status(s, &none);
+  s.last_landmark_valid = true;  // a fix accepted on landmark 0
+  enc.encode_status(s, &tag0);
+  EXPECT_EQ(p::get_raw(sig(p::Msg::kStatus, "LastLandmarkValid"), none.data), 0);
+  EXPECT_EQ(p::get_raw(sig(p::Msg::kStatus, "LastLandmarkValid"), tag0.data), 1);
+  EXPECT_EQ(tag0.data[7] & 0x80, 0x80);
+  EXPECT_EQ(none.data[7] & 0x80, 0x00);
+  p::StatusOut d;
+  ASSERT_TRUE(p::decode_status({}, none, &d));
+  EXPECT_FALSE(d.last_landmark_valid);
+  EXPECT_EQ(d.last_landmark_id, 0);
+  ASSERT_TRUE(p::decode_status({}, tag0, &d));
+  EXPECT_TRUE(d.last_landmark_valid);
+  EXPECT_EQ(d.last_landmark_id, 0);
+  // The bit shares byte 7 with the rejection flags, which decode as before.
+  EXPECT_EQ(d.rejections, p::reject::kGate | p::reject::kFixTooOld);
+}

@@ -124,6 +124,36 @@ TEST(Localizer, FusedFixIsCarriedByTheNextPosePairOnlyForEndToEndLatency) {
   EXPECT_EQ(out.e2e_exposure_ns, INT64_MIN);  // already sent with the fix-triggered pose
 }
 
+// A fix on tag36h11's tag 0 (issue 36): the status says "a landmark, id 0", not "none yet", by
+// LastLandmarkValid, which stays 1 from the first accepted fix on.
+TEST(Localizer, StatusTellsAFixOnLandmarkZeroFromNoFixYet) {
+  const auto c = test_config();
+  localizer::Localizer loc(c);
+  localizer::OutFrames out;
+  std::int64_t t = 1000 * kMs;
+  loc.on_odometry(t, 0.5, 0.0);
+  loc.tick(t += 10 * kMs, &out, nullptr);
+  p::StatusOut st = status_of(c, out);
+  EXPECT_FALSE(st.last_landmark_valid);
+  EXPECT_EQ(st.last_landmark_id, 0);
+  vision::LandmarkFix tag0 = good_fix(0.0);
+  tag0.landmark_id = 0;
+  loc.on_odometry(t, 0.5, 0.0);
+  loc.on_fix(tag0, t - 3 * kMs, t);
+  ASSERT_EQ(loc.stats().fixes_fused, 1u);
+  loc.tick(t += 10 * kMs, &out, nullptr);
+  st = status_of(c, out);
+  EXPECT_TRUE(st.last_landmark_valid);
+  EXPECT_EQ(st.last_landmark_id, 0);
+  for (int i = 0; i < 5; ++i) {  // no further fix: still valid, still landmark 0
+    loc.on_odometry(t, 0.5, 0.0);
+    loc.tick(t += 10 * kMs, &out, nullptr);
+  }
+  st = status_of(c, out);
+  EXPECT_TRUE(st.last_landmark_valid);
+  EXPECT_EQ(st.last_landmark_id, 0);
+}
+
 TEST(Localizer, CanFaultsAreLatchedFromTheBusStateItIsGiven) {
   const auto c = test_config();
   localizer::Localizer loc(c);

@@ -117,11 +117,13 @@ int interop(const char* log_path, const char* expected_path) {
     p::StatusOut s;
     s.health = static_cast<p::Health>(i % 4);
     s.last_landmark_id = static_cast<std::uint16_t>(i * 3271);
+    s.last_landmark_valid = i % 3 != 0;  // also id 0 (i == 0) both ways: none yet and tag 0
     s.time_since_fix_ms = i == 0 ? -1.0 : i * 997.0;
     s.faults = static_cast<std::uint16_t>(rng() & 0x3FF);
     s.rejections = static_cast<std::uint8_t>(rng() & 0x1F);
     enc.encode_status(s, &it.frame);
     it.expect = {exact("Health", i % 4), exact("LastLandmarkId", s.last_landmark_id),
+                 exact("LastLandmarkValid", s.last_landmark_valid ? 1 : 0),
                  exact("TimeSinceFix", i == 0 ? 65535.0 : i * 997.0)};
     for (int b = 0; b < 10; ++b) it.expect.push_back(exact(fault_names[b], (s.faults >> b) & 1));
     for (int b = 0; b < 5; ++b) {

@@ -186,6 +186,7 @@ std::string status_json(const Snapshot& s, const ServerStats& server, const char
   key(&o, "rejections");
   o += rejection_names_json(s.tick.status.rejections);
   integer(&o, "last_landmark_id", s.tick.status.last_landmark_id);
+  boolean(&o, "last_landmark_valid", s.tick.status.last_landmark_valid);
 
   const localizer::OutputStats& st = s.stats;
   key(&o, "counters");

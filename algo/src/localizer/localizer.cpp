@@ -234,6 +234,7 @@ void Localizer::on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure_n
       return;
   }
   last_landmark_id_ = static_cast<std::uint16_t>(fix.landmark_id);
+  last_landmark_valid_ = true;
   if (t_exposure_ns > pending_e2e_exposure_ns_) pending_e2e_exposure_ns_ = t_exposure_ns;
 }
 
@@ -318,6 +319,7 @@ void Localizer::tick(std::int64_t now_ns, OutFrames* out, TickRecord* rec) {
   protocol::StatusOut st;
   st.health = to_protocol(est.health);
   st.last_landmark_id = last_landmark_id_;
+  st.last_landmark_valid = last_landmark_valid_;
   st.time_since_fix_ms =
       est.time_since_fix_ns < 0 ? -1.0 : static_cast<double>(est.time_since_fix_ns) / 1e6;
   const bool camera_stalled = last_frame_ns_ != INT64_MIN && !camera_eos_ &&

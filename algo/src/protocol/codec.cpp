@@ -194,6 +194,7 @@ void Encoder::encode_status(const StatusOut& s, hal::CanFrame* out) {
   begin(Msg::kStatus, out);
   put_raw(sig(Msg::kStatus, "Health"), static_cast<std::int64_t>(s.health) & 3, out->data);
   put_raw(sig(Msg::kStatus, "LastLandmarkId"), s.last_landmark_id, out->data);
+  put_raw(sig(Msg::kStatus, "LastLandmarkValid"), s.last_landmark_valid ? 1 : 0, out->data);
   const bool never = !(s.time_since_fix_ms >= 0.0);  // negative or NaN
   put_phys(sig(Msg::kStatus, "TimeSinceFix"), never ? kInf : s.time_since_fix_ms, out->data);
   int i = 0;
@@ -285,7 +286,14 @@ bool decode_status(const ProtocolConfig& cfg, const hal::CanFrame& f, StatusOut*
     out->faults =
         static_cast<std::uint16_t>(out->faults | (get_raw(sig(Msg::kStatus, name), f.data) << i++));
   }
-  out->rejections = f.data[7];
+  out->last_landmark_valid = get_raw(sig(Msg::kStatus, "LastLandmarkValid"), f.data) == 1;
+  // The rejection flags by their signals: byte 7 also holds LastLandmarkValid.
+  out->rejections = 0;
+  i = 0;
+  for (const char* name : kRejectSignals) {
+    out->rejections = static_cast<std::uint8_t>(out->rejections |
+                                                (get_raw(sig(Msg::kStatus, name), f.data) << i++));
+  }
   return true;
 }
 

@@ -64,7 +64,8 @@ constexpr SignalDef kStatus[] = {
      "sigma within the lost limits), 2 LOST (no usable pose: sigma above the lost limits, no "
      "odometry, or not initialised), 3 FAULT (reserved: not sent by this version)"},
     {"LastLandmarkId", 16, 16, true, false, 1, 0, 0, 65535, "",
-     "Id of the landmark of the last accepted fix; 0 = none yet"},
+     "Id of the landmark of the last accepted fix; valid only when LastLandmarkValid is 1 (0 is "
+     "a landmark id: tag36h11's first tag)"},
     {"TimeSinceFix", 32, 16, true, false, 1, 0, 0, 65535, "ms",
      "Time since the last accepted landmark fix; 65535 = at least 65.535 s, or never"},
     {"FaultCameraStalled", 48, 1, true, false, 1, 0, 0, 1, "", "No camera frame within timeout"},
@@ -97,6 +98,11 @@ constexpr SignalDef kStatus[] = {
      "A landmark pose measurement was inconsistent or ambiguous"},
     {"RejectFixTooOld", 60, 1, true, false, 1, 0, 0, 1, "",
      "A fix arrived later than the fusion history covers"},
+    // The top bit of byte 7: bits 61..62 stay next to the rejection flags for further ones. Id 0
+    // is a mappable tag36h11 landmark, so LastLandmarkId 0 alone cannot mean "none yet".
+    {"LastLandmarkValid", 63, 1, true, false, 1, 0, 0, 1, "",
+     "1: a landmark fix has been accepted since start and LastLandmarkId is its landmark; 0: none "
+     "yet, LastLandmarkId must be ignored"},
 };
 constexpr SignalDef kHeartbeat[] = {
     kCrcSignal,

@@ -244,8 +244,9 @@ class Localizer {
   std::int64_t first_tick_ns_ = INT64_MIN;
   std::int64_t last_frame_ns_ = INT64_MIN;
   std::uint16_t last_landmark_id_ = 0;
-  std::uint8_t rejections_ = 0;    // reject::* since the last status frame
-  bool map_guided_fused_ = false;  // since the last quality frame
+  bool last_landmark_valid_ = false;  // a fix accepted since start: id 0 is a tag, not "none"
+  std::uint8_t rejections_ = 0;       // reject::* since the last status frame
+  bool map_guided_fused_ = false;     // since the last quality frame
   bool camera_eos_ = false;
   bool camera_error_ = false;
   bool overrun_ = false;

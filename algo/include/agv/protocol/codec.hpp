@@ -132,10 +132,12 @@ inline constexpr std::uint8_t kFixTooOld = 1u << 4;
 
 struct StatusOut {
   Health health = Health::kLost;
-  std::uint16_t last_landmark_id = 0;  // 0 = none
-  double time_since_fix_ms = -1.0;     // negative or non-finite = never (sent as 65535)
-  std::uint16_t faults = 0;            // fault::* (bits 10..15 must be 0)
-  std::uint8_t rejections = 0;         // reject::* (bits 5..7 must be 0)
+  std::uint16_t last_landmark_id = 0;  // meaningful only when last_landmark_valid
+  // A fix has been accepted since start (id 0 is tag36h11's first tag, not "none").
+  bool last_landmark_valid = false;
+  double time_since_fix_ms = -1.0;  // negative or non-finite = never (sent as 65535)
+  std::uint16_t faults = 0;         // fault::* (bits 10..15 must be 0)
+  std::uint8_t rejections = 0;      // reject::* (bits 5..7 must be 0)
 };
 struct HeartbeatOut {
   std::uint8_t sw_major = 0;
