@@ -174,6 +174,20 @@ landmark:
     put("fuzz_config_apply", "conflict", base + sep + veh + sep + veh.replace("1.02", "1.03"))
     put("fuzz_config_apply", "unknown_key", base + sep + "mounting:\n  offset_z_mm: 3\n")
     put("fuzz_config_apply", "twice", base + sep + "mounting:\n  height_mm: 1\n  height_mm: 2\n")
+    # report's replay CSVs: the first byte picks the file (even poses.csv, odd fixes.csv).
+    poses_h = ("t_ns,valid,health,x_mm,y_mm,theta_deg,v_mps,omega_radps,sigma_x_mm,sigma_y_mm,"
+               "sigma_theta_deg,time_since_fix_ms,faults,rejections\n")
+    put("fuzz_report_csv", "poses", b"\x00" + (poses_h +
+        "1000000000,0,2,0.0000,0.0000,0.00000,0.00000,0.000000,1000.0000,1000.0000,57.29578,-1.0,0,0\n"
+        "1010000000,1,0,1000.5000,-2000.2500,90.00000,0.50000,0.010000,0.5000,0.6000,0.01000,12.5,4,1\n"
+        ).encode())
+    put("fuzz_report_csv", "fixes", b"\x01" + (
+        "t_ns,status,landmark_id,e_x_mm,e_y_mm,e_phi_deg,x_mm,y_mm,theta_deg,sigma_x_mm,sigma_y_mm,"
+        "sigma_theta_deg,vision_ms,search,identity\n"
+        "1000000000,ok,7,1.0000,-2.0000,0.50000,1000.0000,2000.0000,-90.00000,0.0100,0.0100,0.00100,"
+        "0.310,full,payload\n1100000000,no landmark,0,0,0,0,0,0,0,0,0,0,0.200,full,none\n").encode())
+    put("fuzz_report_csv", "poses_bad", b"\x02" + b"t_ns,valid,health,x_mm,y_mm,theta_deg\n"
+        b"1,1,0,nan,0,0,0,0,0,0,0,1e300,0,0\n")
 
 
 if __name__ == "__main__":

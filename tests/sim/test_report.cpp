@@ -57,6 +57,12 @@ TEST(Report, RejectsMalformedFiles) {
   EXPECT_FALSE(desk::read_poses_csv(
       temp_file("nan.csv", std::string(kPosesHeader) + "1,1,1,nan,0,0,0,0,0,0,0,1,0,0\n").string(),
       &rows, &err));
+  // A time since fix beyond int64 nanoseconds was read as a large negative time (fuzz_report_csv).
+  EXPECT_FALSE(desk::read_poses_csv(
+      temp_file("since.csv", std::string(kPosesHeader) + "1,1,0,0,0,0,0,0,0,0,0,1e300,0,0\n")
+          .string(),
+      &rows, &err));
+  EXPECT_NE(err.find("since.csv:2: malformed row"), std::string::npos) << err;
   EXPECT_FALSE(desk::read_poses_csv("/nonexistent/poses.csv", &rows, &err));
 }
 

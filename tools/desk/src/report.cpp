@@ -84,6 +84,9 @@ bool read_poses_csv(const std::string& path, std::vector<PoseRow>* out, std::str
                         !parse_number(f[5], &th) || !parse_number(f[11], &since_ms)) {
                       return false;
                     }
+                    // Beyond int64 nanoseconds llround gives a negative value (fuzz_report_csv:
+                    // 1e300 read as a time since fix of -9.2e18 ns, not "no fix yet").
+                    if (since_ms > 9.2e12) return false;
                     PoseRow r;
                     r.t_ns = t;
                     r.valid = valid != 0.0;
