@@ -59,7 +59,8 @@ TEST(LargeMap, IdentityGateWithTheIndexDecidesAsTheFullScan) {
   const double sigmas_mm[] = {0.5, 3.0, 20.0, 150.0, 800.0};
   const double sigmas_deg[] = {0.05, 0.5, 2.0, 6.0, 10.0};
   int accepted = 0;
-  for (int t = 0; t < 2000; ++t) {
+  // 500 trials: every sigma pair 20 times (2000 took 40-58 s under ASan+UBSan).
+  for (int t = 0; t < 500; ++t) {
     const double s_mm = sigmas_mm[t % 5], s_deg = sigmas_deg[(t / 5) % 5];
     const LandmarkMapEntry& e = map.entries.at(pick(rng));
     const Pose2 v_true{e.pose.x_mm + 100.0 * n(rng), e.pose.y_mm + 100.0 * n(rng), a(rng)};
@@ -81,7 +82,7 @@ TEST(LargeMap, IdentityGateWithTheIndexDecidesAsTheFullScan) {
     }
     accepted += full.result == MapIdentityResult::kAccepted;
   }
-  EXPECT_GT(accepted, 200);  // the comparison covers accepted decisions, not only refusals
+  EXPECT_GT(accepted, 50);  // the comparison covers accepted decisions, not only refusals
 }
 
 TEST(LargeMap, IdentitySearchRadiusGrowsWithTheUncertaintyAndIsUnboundedWhenLost) {

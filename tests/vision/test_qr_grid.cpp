@@ -475,11 +475,12 @@ TEST_F(QrGridScene, CodesCutByTheImageBorderAreReadWithFillIn) {
   whole.qr_max_missing_modules = 0;
   LandmarkLocalizer loc_fill(fill, cam, LandmarkGeometry{}, &map);
   LandmarkLocalizer loc_whole(whole, cam, LandmarkGeometry{}, &map);
-  // Slide the landmark out of the image in 2.5 mm steps at four headings and a diagonal one.
+  // Slide the landmark out of the image in 5 mm steps at four headings and a diagonal one (2.5 mm
+  // steps were twice the frames, 62 s under qemu-aarch64, for the same checks).
   std::mt19937_64 rng(11);
   int ok_fill = 0, ok_whole = 0, cut_reads = 0, unread = 0, cut_unsearched = 0;
   for (double heading_deg : {3.0, 93.0, 181.0, 272.0, 45.0}) {
-    for (double y = 30.0; y <= 70.0; y += 2.5) {
+    for (double y = 30.0; y <= 70.0; y += 5.0) {
       // The diagonal landmark leaves the image corner first, where its code is cut soonest.
       const Pose2 e{heading_deg == 45.0 ? 20.0 : 0.0, y, deg_to_rad(heading_deg)};
       const cv::Mat img = sim::render_frame(scene, cam, compose(lw, e), {}, rng);
@@ -505,9 +506,9 @@ TEST_F(QrGridScene, CodesCutByTheImageBorderAreReadWithFillIn) {
       "cut sweep: fixes with fill-in %d, whole codes only %d (guided reads of cut codes %d); "
       "fitted but unread %d, of which without zxing's search %d\n",
       ok_fill, ok_whole, cut_reads, unread, cut_unsearched);
-  EXPECT_GE(ok_fill, ok_whole + 3);  // measured when written: 60 vs 50
+  EXPECT_GE(ok_fill, ok_whole + 3);  // measured: 32 vs 25
   EXPECT_GT(cut_reads, 0);
-  EXPECT_GT(unread, 0);  // measured when written: 17
+  EXPECT_GT(unread, 0);  // measured: 8
   EXPECT_EQ(cut_unsearched, unread);
 }
 
