@@ -173,6 +173,15 @@ void add_calibration(std::vector<Key>* k) {
                        "of the doubt as σ over the run. Larger: fewer small slips are "
                        "corrected and the next fixes may be gated; smaller: noise is taken "
                        "for slips more often"}));
+  k->push_back(number("fusion.wheel_step_min_mps", AGV_AT(fusion.wheel_step_min_mps), 0.001, 10.0,
+                      0.05,
+                      {"m/s",
+                       "wheels only: one wheel's reading stepping between two periods by "
+                       "more than this plus the acceleration limit while the other wheel "
+                       "stays is a slip; the wheel is read less the step until it steps "
+                       "back (docs/design/fusion.md \"Wheel slip without a gyro\"). Keep "
+                       "it above one encoder count per odometry period: smaller lets "
+                       "quantisation start holds; larger leaves smaller slips uncorrected"}));
   k->push_back(deg_as_rad("fusion.omega_per_v_sigma_degpm_per_sqrt_s",
                           AGV_AT(fusion.omega_per_v_sigma_radpm_per_sqrt_s), 0.0, 90.0, 0.005,
                           {"deg/m per √s", "random walk of the yaw rate per speed"}));

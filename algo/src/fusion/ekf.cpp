@@ -76,9 +76,10 @@ std::string validate(const EkfConfig& c) {
     return "gyro_gap_ns must be > 0 and gyro_capacity >= 8";
   if (!finite_nonneg(c.slip_yaw_rate_radps) || !finite_nonneg(c.slip_yaw_rate_fraction) ||
       !finite_pos(c.wheel_track_mm) || c.slip_max_duration_ns < 0 ||
-      !finite_pos(c.slip_noise_sigmas) || !finite_nonneg(c.max_accel_mps2))
-    return "slip limits and max_accel_mps2 must be finite and >= 0, wheel_track_mm and "
-           "slip_noise_sigmas > 0";
+      !finite_pos(c.slip_noise_sigmas) || !finite_nonneg(c.max_accel_mps2) ||
+      !finite_pos(c.wheel_step_min_mps) || !finite_nonneg(c.slip_hold_sigma_fraction))
+    return "slip limits and max_accel_mps2 must be finite and >= 0, wheel_track_mm, "
+           "slip_noise_sigmas and wheel_step_min_mps > 0";
   if (!finite_nonneg(c.standstill_v_mps) || !finite_nonneg(c.standstill_omega_radps) ||
       !finite_pos(c.standstill_omega_sigma_radps))
     return "standstill limits must be finite and >= 0, standstill_omega_sigma_radps > 0";
@@ -554,6 +555,7 @@ FixOutcome Ekf::fuse_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::M
   ev.x = x;
   ev.P = P;
   ev.odom_t_ns = odom_time_after(base);
+  carry_over_fix(base, &ev);
   const std::size_t i = insert_event(ev);
   const bool delayed = i + 1 < size_;
   replay_from(i + 1);

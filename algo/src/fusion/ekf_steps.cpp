@@ -388,6 +388,8 @@ void Ekf::apply_odometry(FilterVec* x, FilterCov* P, std::int64_t t_prev_ns, std
     out->slip_since_ns = kNoOdom;
     out->slip_run = SlipRun{};
     out->v_read_mps = v_mps;
+    out->omega_read_radps = omega_radps;
+    out->hold = WheelHold{};
   }
   double g = 0.0;
   if (!is_gap(odom_t_ns, t_ns) && t_ns > t_prev_ns && gyro_mean(t_prev_ns, t_ns, &g)) {
@@ -422,6 +424,17 @@ void Ekf::apply_odometry(FilterVec* x, FilterCov* P, std::int64_t t_prev_ns, std
     return;
   }
   const double dt_s = static_cast<double>(t_ns - t_prev_ns) * kNsToS;
+  if (prev) {
+    double add_theta_var = 0.0;
+    const WheelHold h =
+        hold_wheel(*prev, t_ns, dt_s, v_mps, omega_radps, &v_mps, &omega_radps, &add_theta_var);
+    (*P)(kItheta, kItheta) += add_theta_var;
+    if (out) {
+      out->hold = h;
+      out->slip = h.wheel >= 0;
+      out->slip_since_ns = h.wheel >= 0 ? h.since_ns : kNoOdom;
+    }
+  }
   if (instant) {
     // Speeds at both ends of the period: the motion over it is their mean (trapezoid), so a
     // step in the yaw rate turns the heading by half the step times the period, as it did.
@@ -537,6 +550,59 @@ bool Ekf::gyro_mean_hold(std::int64_t t0_ns, std::int64_t t1_ns, double* mean_ra
   return true;
 }
 
+Ekf::WheelHold Ekf::hold_wheel(const Event& prev, std::int64_t t_ns, double dt_s, double v_mps,
+                               double omega_radps, double* v_use_mps, double* omega_use_radps,
+                               double* add_theta_var) const {
+  *add_theta_var = 0.0;
+  if (std::isnan(prev.v_read_mps) || std::isnan(prev.omega_read_radps)) return WheelHold{};
+  const double half_m = 0.5 * config_.wheel_track_mm / kMmPerM;
+  const double now[2] = {v_mps - omega_radps * half_m, v_mps + omega_radps * half_m};
+  const double before[2] = {prev.v_read_mps - prev.omega_read_radps * half_m,
+                            prev.v_read_mps + prev.omega_read_radps * half_m};
+  const double step[2] = {now[0] - before[0], now[1] - before[1]};
+  const double limit = config_.max_accel_mps2 * dt_s + config_.wheel_step_min_mps;
+  WheelHold h = prev.hold;
+  if (h.wheel >= 0) {
+    const int i = h.wheel, o = 1 - i;
+    // Stepped back (by about the held step, the other wheel steady): the slip is over and this
+    // reading is the wheel's own again.
+    const bool back = std::abs(step[i] + h.offset_mps) <= 0.5 * std::abs(h.offset_mps) &&
+                      std::abs(step[o]) <= limit;
+    if (back) return WheelHold{};
+    if (t_ns - h.since_ns > config_.slip_max_duration_ns) {
+      // Held too long for a slip: the readings are taken as they are from here. The hold may
+      // have been wrong all along (a real change the wheel made alone): half its yaw-rate step
+      // over the hold, as sigma.
+      const double amb =
+          0.5 * h.offset_mps / (2.0 * half_m) * static_cast<double>(t_ns - h.since_ns) * kNsToS;
+      *add_theta_var = amb * amb;
+      return WheelHold{};
+    }
+  } else {
+    for (int i = 0; i < 2; ++i) {
+      // The other wheel steady: within the limit and a quarter of this step (a turn's start or
+      // end inside a period steps both wheels by about as much, opposite).
+      if (std::abs(step[i]) > limit &&
+          std::abs(step[1 - i]) <= std::min(limit, 0.25 * std::abs(step[i]))) {
+        h = WheelHold{i, step[i], prev.t_ns, 0.0};
+        break;
+      }
+    }
+    if (h.wheel < 0) return h;
+  }
+  // The held wheel without its step; the slip's size may vary while it lasts: the heading
+  // sigma it adds grows with the hold's time (a run's error adds up, it does not average out).
+  double w[2] = {now[0], now[1]};
+  w[h.wheel] -= h.offset_mps;
+  *v_use_mps = 0.5 * (w[0] + w[1]);
+  *omega_use_radps = (w[1] - w[0]) / (2.0 * half_m);
+  const double sigma = config_.slip_hold_sigma_fraction * std::abs(h.offset_mps) / (2.0 * half_m) *
+                       static_cast<double>(t_ns - h.since_ns) * kNsToS;
+  *add_theta_var = sigma * sigma - h.sigma_rad * h.sigma_rad;
+  h.sigma_rad = sigma;
+  return h;
+}
+
 // ---------------------------------------------------------------------------------------------
 // History
 
@@ -603,16 +669,22 @@ void Ekf::process_event(const Event& prev, Event* ev) const {
   } else {
     predict_span(&x, &P, prev.t_ns, ev->t_ns, odom_t);
     update_fix(&x, &P, ev->z, ev->R);
-    // A fix measured what a slip run had integrated so far; the slip itself (its sign, its
-    // last speed equivalent) goes on.
-    ev->slip_run = prev.slip_run;
-    ev->slip_run.sigma_m = 0.0;
-    ev->v_read_mps = prev.v_read_mps;
+    carry_over_fix(prev, ev);
   }
   ev->odom_t_ns = odom_t;
   ev->x = x;
   ev->P = P;
   ev->valid = true;
+}
+
+void Ekf::carry_over_fix(const Event& prev, Event* fix) {
+  // A fix measured what a slip run had integrated so far; the slip itself (its sign, its last
+  // speed equivalent, a held wheel) and the newest readings go on to the next period.
+  fix->slip_run = prev.slip_run;
+  fix->slip_run.sigma_m = 0.0;
+  fix->v_read_mps = prev.v_read_mps;
+  fix->omega_read_radps = prev.omega_read_radps;
+  fix->hold = prev.hold;
 }
 
 void Ekf::replay_from(std::size_t from) {

@@ -236,6 +236,18 @@ struct EkfConfig {
   // wheel/gyro disagreement tells a spinning wheel (up) from a locked one (down). Larger: the
   // sign of a slip is believed only for larger steps (more sigma, same mean for big slips).
   double max_accel_mps2 = 1.0;
+  // Wheels only (no gyro): a slip shows as one wheel's speed reading stepping between two
+  // periods by more than the vehicle can change a wheel's speed (max_accel_mps2 times the period)
+  // plus wheel_step_min_mps, while the other wheel's reading stays within that. Such a step is not
+  // the vehicle's motion (a spinning or locked wheel, a glitch): that wheel is read less the step
+  // until it steps back, for at most slip_max_duration_ns, flagged and counted as a slip, and the
+  // heading sigma grows by slip_hold_sigma_fraction of the held step's yaw rate over the hold (a
+  // slip's size varies while it lasts). A turn into or out of an arc steps both wheels, an
+  // acceleration moves both within the limit: neither starts a hold. Larger wheel_step_min_mps:
+  // smaller slips go uncorrected (a 25 % slip at 1 m/s steps 0.25 m/s); smaller: encoder
+  // quantisation starts holds (keep it above one encoder count per odometry period).
+  double wheel_step_min_mps = 0.05;
+  double slip_hold_sigma_fraction = 0.1;
   // Standstill: wheels below these (|v|, |omega|) over a period mean the vehicle does not turn;
   // the gyro's reading is then its bias (zero-rate update, sigma standstill_omega_sigma_radps).
   double standstill_v_mps = 0.005;
@@ -290,7 +302,7 @@ inline constexpr std::uint16_t kInitialised = 1u << 8;      // first fix initial
 inline constexpr std::uint16_t kDelayedFix = 1u << 9;       // a fix was fused behind newer data
 inline constexpr std::uint16_t kOdomGap = 1u
                                           << 10;  // odometry resumed after a gap (unknown motion)
-inline constexpr std::uint16_t kWheelSlip = 1u << 11;    // wheels and gyro disagreed (slip)
+inline constexpr std::uint16_t kWheelSlip = 1u << 11;    // slip: wheels vs gyro, or one wheel held
 inline constexpr std::uint16_t kGyroInvalid = 1u << 12;  // a gyro sample was rejected
 }  // namespace flags
 
@@ -421,6 +433,14 @@ class Ekf {
     double llr = 0.0;      // log likelihood ratio spin : lock from the speed reading's steps
     double u_mps = 0.0;    // speed equivalent of the difference in the run's newest period
   };
+  // Wheels only: a wheel whose reading stepped beyond the vehicle's limits (a slip), read less
+  // the step until it steps back (EkfConfig::wheel_step_min_mps).
+  struct WheelHold {
+    int wheel = -1;           // -1 none, 0 left, 1 right
+    double offset_mps = 0.0;  // the step, taken off the wheel's readings while held
+    std::int64_t since_ns = INT64_MIN;
+    double sigma_rad = 0.0;  // heading sigma the hold has added so far
+  };
   struct Event {
     std::int64_t t_ns = 0;
     EventKind kind = EventKind::kOdom;
@@ -435,6 +455,8 @@ class Ekf {
     SlipRun slip_run;
     // Newest raw odometry speed at or before this event (NaN: none since the initialisation).
     double v_read_mps = std::numeric_limits<double>::quiet_NaN();
+    double omega_read_radps = std::numeric_limits<double>::quiet_NaN();  // the same, yaw rate
+    WheelHold hold;  // wheels only: the slipping wheel held at this event
     // Newest odometry sample at or before this event (kNoOdom: none kept): where the known
     // motion ends (odom_gap_ns after it).
     std::int64_t odom_t_ns = kNoOdom;
@@ -460,6 +482,8 @@ class Ekf {
     bool map_guided = false;
   };
 
+  // What a fix event takes over from the event before it (slip state, newest readings).
+  static void carry_over_fix(const Event& prev, Event* fix);
   // Ring buffer access in time order: 0 = oldest.
   Event& at(std::size_t i) { return history_[(head_ + i) % history_.size()]; }
   const Event& at(std::size_t i) const { return history_[(head_ + i) % history_.size()]; }
@@ -494,6 +518,11 @@ class Ekf {
   void apply_odometry(FilterVec* x, FilterCov* P, std::int64_t t_prev_ns, std::int64_t odom_t_ns,
                       std::int64_t t_ns, double v_mps, double omega_radps,
                       const Event* prev = nullptr, Event* out = nullptr) const;
+  // Wheels only: the hold after this period's readings (EkfConfig::wheel_step_min_mps); sets the
+  // readings to use and the heading variance the hold adds in this period.
+  WheelHold hold_wheel(const Event& prev, std::int64_t t_ns, double dt_s, double v_mps,
+                       double omega_radps, double* v_use_mps, double* omega_use_radps,
+                       double* add_theta_var) const;
   // Mean gyro rate over (t0_ns, t1_ns] when the kept samples cover it completely.
   bool gyro_mean(std::int64_t t0_ns, std::int64_t t1_ns, double* mean_radps) const;
   // The same, holding the newest sample's rate up to gyro_gap_ns past it (output ticks between
