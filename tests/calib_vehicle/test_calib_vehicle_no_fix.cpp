@@ -7,12 +7,11 @@
 
 #include <filesystem>
 #include <fstream>
-#include <random>
 #include <string>
 #include <vector>
 
+#include "../support/tag_recording.hpp"
 #include "agv/recording/recording.hpp"
-#include "agv/sim/render.hpp"
 #include "commands.hpp"
 
 namespace fs = std::filesystem;
@@ -20,10 +19,8 @@ using namespace agv;
 
 namespace {
 
-constexpr int kFrames = 5;
-
-// A tag36h11 recording over tag 7 with meta m (family recorded as `meta_family`), the frames taken
-// by `truth_camera`, and map.csv holding `map_csv`.
+// A tag36h11 recording over tag 7 (tests/support/tag_recording.hpp) with the family recorded
+// as `meta_family`.
 fs::path write_tag_drive(const std::string& name, const std::string& meta_family,
                          const CameraModel& truth_camera, const std::string& map_csv) {
   const fs::path d =
@@ -34,29 +31,7 @@ fs::path write_tag_drive(const std::string& name, const std::string& meta_family
   m.camera = CameraModel::default_640x480();
   m.landmark_family = meta_family;
   std::string err;
-  EXPECT_TRUE(recording::write_meta(d.string(), m, &err)) << err;
-  LandmarkMap map;
-  const Pose2 tag_world{2000.0, 1000.0, deg_to_rad(-90.0)};
-  map.entries[7] = {7, tag_world};
-  std::ofstream(d / "map.csv") << map_csv;
-  sim::Scene scene;
-  EXPECT_TRUE(sim::make_tag_scene(map, AprilTagGeometry{}, &scene, &err)) << err;
-  std::mt19937_64 rng(5);
-  const sim::FrameRenderer r(scene, truth_camera);
-  const Pose2 vehicle = compose(tag_world, {5.0, -3.0, deg_to_rad(30.0)});
-  std::vector<recording::FrameRow> frames;
-  for (int i = 0; i < kFrames; ++i) {
-    const std::string f = "frames/" + std::to_string(i) + ".png";
-    EXPECT_TRUE(recording::write_frame_png(d.string(), f,
-                                           r.render(vehicle, sim::realistic_options(), rng), &err))
-        << err;
-    frames.push_back({1'000'000'000LL + i * 100'000'000LL, f});
-  }
-  EXPECT_TRUE(recording::write_frames_csv(d.string(), frames, &err)) << err;
-  std::vector<recording::OdomRow> odom;
-  for (int i = 0; i <= kFrames * 10; ++i)
-    odom.push_back({1'000'000'000LL + i * 10'000'000LL, 0, 0});
-  EXPECT_TRUE(recording::write_odom_csv(d.string(), odom, &err)) << err;
+  EXPECT_TRUE(testsupport::write_tag_recording(d, m, truth_camera, map_csv, &err)) << err;
   return d;
 }
 

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "../support/tag_recording.hpp"
 #include "agv/config/keys.hpp"
 #include "agv/recording/recording.hpp"
 #include "agv/sim/imu_model.hpp"
@@ -144,30 +145,11 @@ TEST(ReplayCommand, TagRecordingGivesFixes) {
   recording::Meta m;
   m.camera = CameraModel::default_640x480();
   std::string err;
-  ASSERT_TRUE(recording::write_meta(d.string(), m, &err)) << err;
-  LandmarkMap map;
-  const Pose2 tag_world{2000.0, 1000.0, deg_to_rad(-90.0)};
-  map.entries[7] = {7, tag_world};
-  std::ofstream(d / "map.csv") << "id,x_mm,y_mm,heading_deg\n7,2000.0,1000.0,-90\n";
-  sim::Scene scene;
-  ASSERT_TRUE(sim::make_tag_scene(map, AprilTagGeometry{}, &scene, &err)) << err;
-  std::mt19937_64 rng(5);
-  const sim::FrameRenderer r(scene, m.camera);
-  const Pose2 vehicle = compose(tag_world, {5.0, -3.0, deg_to_rad(30.0)});
-  constexpr int kFrames = 5;
-  std::vector<recording::FrameRow> frames;
-  for (int i = 0; i < kFrames; ++i) {
-    const std::string f = "frames/" + std::to_string(i) + ".png";
-    ASSERT_TRUE(recording::write_frame_png(d.string(), f,
-                                           r.render(vehicle, sim::realistic_options(), rng), &err))
-        << err;
-    frames.push_back({1'000'000'000LL + i * 100'000'000LL, f});
-  }
-  ASSERT_TRUE(recording::write_frames_csv(d.string(), frames, &err)) << err;
-  std::vector<recording::OdomRow> odom;
-  for (int i = 0; i <= kFrames * 10; ++i)
-    odom.push_back({1'000'000'000LL + i * 10'000'000LL, 0, 0});
-  ASSERT_TRUE(recording::write_odom_csv(d.string(), odom, &err)) << err;
+  ASSERT_TRUE(testsupport::write_tag_recording(
+      d, m, m.camera, "id,x_mm,y_mm,heading_deg\n7,2000.0,1000.0,-90\n", &err))
+      << err;
+  constexpr int kFrames = testsupport::kTagFrames;
+  const Pose2 vehicle = testsupport::tag_recording_vehicle();
   std::string err_text;
   auto ok_fixes = [&](const std::string& family) -> int {
     std::ofstream(d / "tag.yaml", std::ios::trunc) << "landmark:\n  family: " << family << "\n";
@@ -209,35 +191,12 @@ TEST(ReplayCommand, TagRecordingGivesFixes) {
   fs::remove_all(d);
 }
 
-// A tag recording of kTagFrames frames over tag 7 with meta m, the frames taken by `truth_camera`
-// (another camera height than meta's: a mis-measured mount) and map.csv holding `map_csv`.
-constexpr int kTagFrames = 5;
+// A tag recording over tag 7 (tests/support/tag_recording.hpp).
+constexpr int kTagFrames = testsupport::kTagFrames;
 void write_tag_recording(const fs::path& d, const recording::Meta& m,
                          const CameraModel& truth_camera, const std::string& map_csv) {
   std::string err;
-  ASSERT_TRUE(recording::write_meta(d.string(), m, &err)) << err;
-  LandmarkMap map;
-  const Pose2 tag_world{2000.0, 1000.0, deg_to_rad(-90.0)};
-  map.entries[7] = {7, tag_world};
-  std::ofstream(d / "map.csv", std::ios::trunc) << map_csv;
-  sim::Scene scene;
-  ASSERT_TRUE(sim::make_tag_scene(map, AprilTagGeometry{}, &scene, &err)) << err;
-  std::mt19937_64 rng(5);
-  const sim::FrameRenderer r(scene, truth_camera);
-  const Pose2 vehicle = compose(tag_world, {5.0, -3.0, deg_to_rad(30.0)});
-  std::vector<recording::FrameRow> frames;
-  for (int i = 0; i < kTagFrames; ++i) {
-    const std::string f = "frames/" + std::to_string(i) + ".png";
-    ASSERT_TRUE(recording::write_frame_png(d.string(), f,
-                                           r.render(vehicle, sim::realistic_options(), rng), &err))
-        << err;
-    frames.push_back({1'000'000'000LL + i * 100'000'000LL, f});
-  }
-  ASSERT_TRUE(recording::write_frames_csv(d.string(), frames, &err)) << err;
-  std::vector<recording::OdomRow> odom;
-  for (int i = 0; i <= kTagFrames * 10; ++i)
-    odom.push_back({1'000'000'000LL + i * 10'000'000LL, 0, 0});
-  ASSERT_TRUE(recording::write_odom_csv(d.string(), odom, &err)) << err;
+  ASSERT_TRUE(testsupport::write_tag_recording(d, m, truth_camera, map_csv, &err)) << err;
 }
 
 struct TagReplay {
