@@ -213,8 +213,8 @@ TEST(FusionEkfFaults, AVerifiedFixFarOffDoesNotRelocaliseAFilterThatIsNotLost) {
 // patch: v + 0.125 m/s, omega + 0.5 rad/s on a 500 mm track), with a fix in the middle of it.
 // One wheel's reading stepping 0.25 m/s in 10 ms is no motion the vehicle can make: the wheel
 // is held less the step until it steps back. Before, the slip turned the heading by 8.6 deg
-// (0.15 rad) with sigma 0.2 deg; and a fix during the slip dropped the hold, so the wheel's
-// step back started a second, wrong one.
+// (0.15 rad), 3.06 sigma at its worst, and the fix during it was gated; and (with the hold) a
+// fix during the slip dropped the hold, so the wheel's step back started a second, wrong one.
 TEST(FusionEkfFaults, OneWheelSlipWithoutAGyroIsHeldAndTheHeadingKept) {
   Truth tr{[](std::int64_t) { return 1.0; }, [](std::int64_t) { return 0.0; }};
   Ekf ekf{EkfConfig{}};
