@@ -182,6 +182,16 @@ void add_calibration(std::vector<Key>* k) {
                        "back (docs/design/fusion.md \"Wheel slip without a gyro\"). Keep "
                        "it above one encoder count per odometry period: smaller lets "
                        "quantisation start holds; larger leaves smaller slips uncorrected"}));
+  k->push_back(deg_as_rad("fusion.unseen_slip_max_deg", AGV_AT(fusion.unseen_slip_max_rad), 0.0,
+                          90.0, 20.0,
+                          {"deg",
+                           "a fix whose payload the map confirmed, gate-rejected with a heading "
+                           "change up to this that one turn at a point of the path driven "
+                           "since the last fix explains (position too), is fused as a slip the "
+                           "wheels did not show (docs/design/fusion.md \"Slips the wheels did "
+                           "not show\"). 0: off (such a fix waits for kidnap_fixes). Larger: "
+                           "larger unseen turns recover at the next landmark; a landmark's map "
+                           "error is more often taken for one"}));
   k->push_back(deg_as_rad("fusion.omega_per_v_sigma_degpm_per_sqrt_s",
                           AGV_AT(fusion.omega_per_v_sigma_radpm_per_sqrt_s), 0.0, 90.0, 0.005,
                           {"deg/m per √s", "random walk of the yaw rate per speed"}));

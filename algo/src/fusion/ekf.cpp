@@ -173,6 +173,7 @@ bool Ekf::add_odometry(std::int64_t t_ns, double v_mps, double omega_radps) {
   } else {
     ++counters_.odom_stored_uninitialised;
   }
+  track_odometry();
   settle_held_after(t_ns);
   return true;
 }
@@ -273,6 +274,7 @@ void Ekf::initialise_at(std::int64_t t_ns, const FilterVec& x, const FilterCov& 
   replay_from(i + 1);
   counters_.events_replayed += size_ - i - 1;
   initialised_ = true;
+  track_restart(i);
   t_init_ns_ = t_ns;
   have_fix_ = true;
   last_fix_t_ns_ = t_ns;
@@ -540,7 +542,15 @@ FixOutcome Ekf::fuse_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::M
         return FixOutcome::kReinitialised;
       }
     }
-    return reject_gate(worthless);
+    // A slip the wheels did not show explains the whole innovation: fused with that turn's
+    // uncertainty added, so the calibration learnt so far is kept.
+    FilterCov P_slip = P;
+    if (!(map_verified && !map_guided && precise && explain_unseen_slip(t_ns, z, R, x, &P_slip) &&
+          mahalanobis_sq(x, P_slip, z, R) <= gate_threshold_))
+      return reject_gate(worthless);
+    P = P_slip;
+    ++counters_.unseen_slips;
+    pending_flags_ |= flags::kWheelSlip;
   }
 
   // ---- Fuse at the exposure time and re-propagate newer events ----
@@ -560,6 +570,7 @@ FixOutcome Ekf::fuse_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::M
   const bool delayed = i + 1 < size_;
   replay_from(i + 1);
   counters_.events_replayed += size_ - i - 1;
+  track_restart(i);
   ++counters_.fixes_fused;
   pending_flags_ |= flags::kFusedFix;
   if (delayed) {

@@ -562,45 +562,95 @@ Ekf::WheelHold Ekf::hold_wheel(const Event& prev, std::int64_t t_ns, double dt_s
   const double step[2] = {now[0] - before[0], now[1] - before[1]};
   const double limit = config_.max_accel_mps2 * dt_s + config_.wheel_step_min_mps;
   WheelHold h = prev.hold;
+  const double track_m = 2.0 * half_m;
+  auto done = [&step](WheelHold r) {
+    r.step_mps[0] = step[0];
+    r.step_mps[1] = step[1];
+    return r;
+  };
   if (h.wheel >= 0) {
     const int i = h.wheel, o = 1 - i;
-    // Stepped back (by about the held step, the other wheel steady): the slip is over and this
-    // reading is the wheel's own again.
-    const bool back = std::abs(step[i] + h.offset_mps) <= 0.5 * std::abs(h.offset_mps) &&
-                      std::abs(step[o]) <= limit;
-    if (back) return WheelHold{};
     if (t_ns - h.since_ns > config_.slip_max_duration_ns) {
       // Held too long for a slip: the readings are taken as they are from here. The hold may
       // have been wrong all along (a real change the wheel made alone): half its yaw-rate step
       // over the hold, as sigma.
       const double amb =
-          0.5 * h.offset_mps / (2.0 * half_m) * static_cast<double>(t_ns - h.since_ns) * kNsToS;
+          0.5 * h.offset_mps / track_m * static_cast<double>(t_ns - h.since_ns) * kNsToS;
       *add_theta_var = amb * amb;
-      return WheelHold{};
+      return done(WheelHold{});
+    }
+    // Another step of the held wheel alone. Back by at least half the held step, or to within
+    // half of what the slip had grown or shrunk to: the slip is over (one ending inside a period
+    // steps back over two: the rest is not a new slip), and this reading is the wheel's own again.
+    // The same way: the slip began inside the previous period, whose mean reading showed only part
+    // of it; the rest is added to the step.
+    if (std::abs(step[i]) > limit &&
+        std::abs(step[o]) <= std::min(limit, 0.25 * std::abs(step[i]))) {
+      // (The slip's size now, if it changed while held, is the step plus the drift below.)
+      const double slip_now = h.offset_mps + h.drift_mps;
+      if ((step[i] > 0.0) != (h.offset_mps > 0.0) &&
+          (std::abs(step[i]) >= 0.5 * std::abs(h.offset_mps) ||
+           std::abs(step[i] + slip_now) <= 0.5 * std::abs(slip_now))) {
+        WheelHold released;
+        released.released_ns = t_ns;
+        released.released_wheel = i;
+        released.released_step_mps = step[i];
+        return done(released);
+      }
+      h.offset_mps += step[i];
     }
   } else {
+    const bool releasing = h.released_ns == prev.t_ns;
     for (int i = 0; i < 2; ++i) {
       // The other wheel steady: within the limit and a quarter of this step (a turn's start or
       // end inside a period steps both wheels by about as much, opposite).
+      if (releasing && i == h.released_wheel && (step[i] > 0.0) == (h.released_step_mps > 0.0))
+        continue;
       if (std::abs(step[i]) > limit &&
           std::abs(step[1 - i]) <= std::min(limit, 0.25 * std::abs(step[i]))) {
-        h = WheelHold{i, step[i], prev.t_ns, 0.0};
+        const double pre = prev.hold.step_mps[i], pre_other = prev.hold.step_mps[1 - i];
+        h = WheelHold{};
+        h.wheel = i;
+        h.offset_mps = step[i];
+        h.since_ns = prev.t_ns;
+        h.diff0_mps = (now[i] - step[i]) - now[1 - i];
+        // Begun inside the previous period: that period's step of this wheel, the same way and
+        // beyond what the vehicle's acceleration explains (the other wheel steady), is the
+        // slip's first part. The heading already took it: its yaw rate over the period as sigma.
+        if ((pre > 0.0) == (step[i] > 0.0) &&
+            std::abs(pre) > config_.max_accel_mps2 * dt_s + 0.5 * config_.wheel_step_min_mps &&
+            std::abs(pre_other) <= 0.25 * std::abs(pre)) {
+          h.offset_mps += pre;
+          h.diff0_mps -= pre;
+          const double missed_rad = pre / track_m * dt_s;
+          h.sigma_rad = std::abs(missed_rad);
+          *add_theta_var += missed_rad * missed_rad;
+        }
         break;
       }
     }
-    if (h.wheel < 0) return h;
+    if (h.wheel < 0) return done(WheelHold{});
   }
-  // The held wheel without its step; the slip's size may vary while it lasts: the heading
-  // sigma it adds grows with the hold's time (a run's error adds up, it does not average out).
+  // Two readings of the held wheel: less the step (the slip kept its size) and the other wheel
+  // plus the difference at the onset (the yaw rate kept its value). While they agree either is
+  // right; where they part, the slip's size or the yaw rate changed and the wheels cannot say
+  // which: the mean of the two is used, half their difference is the yaw-rate doubt, and the
+  // heading sigma adds it up over the hold (a run's error adds up, it does not average out),
+  // with slip_hold_sigma_fraction of the step as a floor.
+  const int i = h.wheel, o = 1 - i;
   double w[2] = {now[0], now[1]};
-  w[h.wheel] -= h.offset_mps;
+  w[i] -= h.offset_mps;
+  h.drift_mps = (w[i] - w[o]) - h.diff0_mps;
+  w[i] -= 0.5 * h.drift_mps;
   *v_use_mps = 0.5 * (w[0] + w[1]);
-  *omega_use_radps = (w[1] - w[0]) / (2.0 * half_m);
-  const double sigma = config_.slip_hold_sigma_fraction * std::abs(h.offset_mps) / (2.0 * half_m) *
-                       static_cast<double>(t_ns - h.since_ns) * kNsToS;
-  *add_theta_var = sigma * sigma - h.sigma_rad * h.sigma_rad;
+  *omega_use_radps = (w[1] - w[0]) / track_m;
+  const double doubt_radps =
+      (0.5 * std::abs(h.drift_mps) + config_.slip_hold_sigma_fraction * std::abs(h.offset_mps)) /
+      track_m;
+  const double sigma = h.sigma_rad + doubt_radps * dt_s;
+  *add_theta_var += sigma * sigma - h.sigma_rad * h.sigma_rad;
   h.sigma_rad = sigma;
-  return h;
+  return done(h);
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -70,6 +70,10 @@ struct SynthParams {
   double drift_degpm = 0.0;      // yaw-rate error per speed (left/right wheel mismatch), deg/m
   double drift_variation = 0.0;  // bias varies by this fraction, sinusoid with a 120 s period
   double slip_rate_hz = 0.0;     // slip events: one wheel reports 25 % more for 0.3 s
+  // Slips as a floor makes them, not as the simulator found them easiest: starting and ending
+  // anywhere inside an odometry period, lasting 0.15-0.5 s, 10-40 % over at the start and
+  // random-walking (0.3 per sqrt(s)) while they last.
+  bool slip_varying = false;
   double wheelbase_mm = 500.0;
   double v_noise_mps = 0.003;  // per 10 ms sample
   double omega_noise_radps = 0.002;

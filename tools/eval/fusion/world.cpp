@@ -47,6 +47,9 @@ World make_synthetic_world(const SynthParams& p, double grid_mm) {
   std::uniform_real_distribution<double> u01(0.0, 1.0);
   std::int64_t slip_end_ns = -1;
   double slip_sign = 1.0;
+  // Varying slips (p.slip_varying): their own generator, decided per 1 ms truth step.
+  std::mt19937_64 srng(p.seed * 104729 + 11);
+  double slip_frac = 0.0, slip_acc_m = 0.0;
   const double dt = 1e-3;  // truth integration step
   const std::int64_t dt_ns = 1'000'000;
   const int odom_every = 10;  // 100 Hz
@@ -72,6 +75,16 @@ World make_synthetic_world(const SynthParams& p, double grid_mm) {
     w.truth.t_ns.push_back(t);
     w.truth.pose.push_back({x(0), x(1), x(2)});
     gyro_turn_rad += om * dt;
+    if (p.slip_varying) {
+      if (t < slip_end_ns) {
+        slip_frac = std::clamp(slip_frac + 0.3 * std::sqrt(dt) * n01(srng), 0.0, 0.6);
+        slip_acc_m += slip_frac * std::abs(v) * dt;
+      } else if (u01(srng) < p.slip_rate_hz * dt) {
+        slip_end_ns = t + static_cast<std::int64_t>((0.15 + 0.35 * u01(srng)) * 1e9);
+        slip_frac = 0.1 + 0.3 * u01(srng);
+        slip_sign = (srng() % 2 == 0) ? 1.0 : -1.0;
+      }
+    }
     if (gyro_every > 0 && step % gyro_every == 0) {
       const double T = dt * gyro_every;
       const double ts = static_cast<double>(t) * 1e-9;
@@ -94,7 +107,12 @@ World make_synthetic_world(const SynthParams& p, double grid_mm) {
                        agv::deg_to_rad(p.drift_degpm) * v_mean;
       double v_meas = v_mean * (1.0 + p.scale_error) + p.v_noise_mps * n01(rng);
       double om_meas = om_mean * (1.0 + p.scale_error) + b + p.omega_noise_radps * n01(rng);
-      if (t < slip_end_ns) {  // one wheel over-reports: half of it in v, all of it in omega
+      if (p.slip_varying) {
+        const double extra_mps = slip_acc_m / T;
+        v_meas += 0.5 * extra_mps;
+        om_meas += slip_sign * extra_mps / (p.wheelbase_mm / 1000.0);
+        slip_acc_m = 0.0;
+      } else if (t < slip_end_ns) {  // one wheel over-reports: half of it in v, all of it in omega
         const double extra_mps = 0.25 * std::abs(v_mean);
         v_meas += 0.5 * extra_mps;
         om_meas += slip_sign * extra_mps / (p.wheelbase_mm / 1000.0);

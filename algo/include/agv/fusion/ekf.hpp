@@ -9,6 +9,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
@@ -248,6 +249,19 @@ struct EkfConfig {
   // quantisation starts holds (keep it above one encoder count per odometry period).
   double wheel_step_min_mps = 0.05;
   double slip_hold_sigma_fraction = 0.1;
+  // Wheels only (no gyro sample since the last fix). A slip the wheels did not show (its onset
+  // spread over periods, each step within the limits; a wheel on a wet patch): the heading turns by
+  // some degrees the filter did not see, and the next landmark fails the gate. When a fix that
+  // vouches for itself (its QR payload agreed with the map) fails the gate and its heading differs
+  // from the prior's by more than 3 sigma and at most unseen_slip_max_rad, the filter tests whether
+  // one heading change of that size at a point of the path driven since the last fused fix explains
+  // the fix's position too (the path after it turned about it, plus the along-track error of one
+  // wheel's extra distance). If one does, the heading change is added to the covariance there (its
+  // own size as sigma) and the fix is fused: the pose recovers at the first landmark instead of
+  // after kidnap_fixes. A misread or a wrong map entry rarely matches a turn about a point of the
+  // driven path, and is refused as before. 0 turns the test off. Larger: larger unseen turns are
+  // recovered; a map error of a landmark is more often taken for one.
+  double unseen_slip_max_rad = deg_to_rad(20.0);
   // Standstill: wheels below these (|v|, |omega|) over a period mean the vehicle does not turn;
   // the gyro's reading is then its bias (zero-rate update, sigma standstill_omega_sigma_radps).
   double standstill_v_mps = 0.005;
@@ -410,6 +424,7 @@ class Ekf {
     std::uint64_t slip_periods = 0;        // odometry periods the wheels disagreed with the gyro
     std::uint64_t slip_events = 0;         // of them: the first of a run
     std::uint64_t standstill_updates = 0;  // zero-rate updates of the gyro bias
+    std::uint64_t unseen_slips = 0;  // gate-rejected fixes explained by an unseen heading change
   };
   const Counters& counters() const { return counters_; }
 
@@ -440,6 +455,18 @@ class Ekf {
     double offset_mps = 0.0;  // the step, taken off the wheel's readings while held
     std::int64_t since_ns = INT64_MIN;
     double sigma_rad = 0.0;  // heading sigma the hold has added so far
+    // Held wheel less the step, minus the other wheel, at the onset; and its change since
+    // (what the slip's size or the yaw rate changed by while held: which, the wheels cannot say).
+    double diff0_mps = 0.0;
+    double drift_mps = 0.0;
+    // After a hold ended by the wheel stepping back: that period's time, wheel and step. A slip
+    // that ends inside a period steps back over two; the second step is not a new slip.
+    std::int64_t released_ns = INT64_MIN;
+    int released_wheel = -1;
+    double released_step_mps = 0.0;
+    // Both wheels' steps in this period (a slip that began inside the previous period showed
+    // part of itself there, under the limit).
+    double step_mps[2] = {0.0, 0.0};
   };
   struct Event {
     std::int64_t t_ns = 0;
@@ -586,11 +613,26 @@ class Ekf {
   double position_mahalanobis_sq(const FilterVec& x, const FilterCov& P, const Eigen::Vector3d& z,
                                  const Eigen::Matrix3d& R) const;
   void initialise_at(std::int64_t t_ns, const FilterVec& x, const FilterCov& P);
+  // The path driven since the last fused fix (unseen_slip_max_rad), thinned as it fills.
+  void track_odometry();
+  void track_restart(std::size_t fix_index);
+  // True when one heading change on that path explains the fix's innovation (z against x, P at
+  // t_ns); then adds it to *P (heading, and position through the lever arm to the fix).
+  bool explain_unseen_slip(std::int64_t t_ns, const Eigen::Vector3d& z, const Eigen::Matrix3d& R,
+                           const FilterVec& x, FilterCov* P) const;
 
   EkfConfig config_;
   double gate_threshold_ = 0.0;
   double gate_threshold_2d_ = 0.0;  // same probability, position only
   std::vector<Event> history_;      // sized in the constructor, never resized
+  struct TrackPoint {
+    std::int64_t t_ns = 0;
+    double x_mm = 0.0, y_mm = 0.0, theta_rad = 0.0, v_mps = 0.0;
+  };
+  static constexpr std::size_t kTrackPoints = 128;
+  std::array<TrackPoint, kTrackPoints> track_{};
+  std::size_t track_size_ = 0;
+  std::int64_t track_spacing_ns_ = 50'000'000;  // doubles each time the track is thinned
   std::size_t head_ = 0;
   std::size_t size_ = 0;
 
