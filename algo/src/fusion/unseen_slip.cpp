@@ -70,8 +70,13 @@ bool Ekf::explain_unseen_slip(std::int64_t t_ns, const Eigen::Vector3d& z, const
                             std::abs(tp.v_mps) * 1000.0;
     const Eigen::Matrix2d S = S0 + along_mm * along_mm * u * u.transpose() +
                               smear_mm * smear_mm * Eigen::Matrix2d::Identity();
+    // The turn's own displacement must be beyond what the prior and the hypothesis' own slack
+    // explain: a heading change with the position where the prior has it (a turn right at the
+    // landmark) cannot be told from a heading misread of the landmark, and stays refused.
+    const auto S_ldlt = S.ldlt();
+    if (!(q.dot(S_ldlt.solve(q)) > gate_threshold_2d_)) continue;
     const Eigen::Vector2d r = nu - q;
-    const double d2 = r.dot(S.ldlt().solve(r));
+    const double d2 = r.dot(S_ldlt.solve(r));
     if (d2 < best_d2) {
       best_d2 = d2;
       best_q = q;

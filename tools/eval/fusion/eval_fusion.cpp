@@ -67,7 +67,11 @@ RunResult run(const World& w, const std::vector<SimFix>& fixes, const EkfConfig&
     while (next_fix < fixes.size() && fixes[next_fix].t_delivery_ns <= o.t_ns) {
       const SimFix& f = fixes[next_fix++];
       if (!use_fixes && ekf.initialised()) continue;
-      const FixOutcome out = ekf.add_fix(f.t_exposure_ns, f.z, f.R);
+      // As the localizer passes them: the payload agreed with the map, except for a digit error
+      // (a wrong landmark's valid payload agrees with that landmark's entry; vision misreads
+      // come with a good payload).
+      const FixOutcome out =
+          ekf.add_fix(f.t_exposure_ns, f.z, f.R, /*map_verified=*/f.outlier != kDigitError);
       const bool accepted = out == FixOutcome::kFused || out == FixOutcome::kInitialised ||
                             out == FixOutcome::kReinitialised;
       if (f.outlier != kNone) {
