@@ -240,13 +240,15 @@ struct EkfConfig {
   // Wheels only (no gyro): a slip shows as one wheel's speed reading stepping between two
   // periods by more than the vehicle can change a wheel's speed (max_accel_mps2 times the period)
   // plus wheel_step_min_mps, while the other wheel's reading stays within that. Such a step is not
-  // the vehicle's motion (a spinning or locked wheel, a glitch): that wheel is read less the step
-  // until it steps back, for at most slip_max_duration_ns, flagged and counted as a slip, and the
-  // heading sigma grows by slip_hold_sigma_fraction of the held step's yaw rate over the hold (a
-  // slip's size varies while it lasts). A turn into or out of an arc steps both wheels, an
-  // acceleration moves both within the limit: neither starts a hold. Larger wheel_step_min_mps:
-  // smaller slips go uncorrected (a 25 % slip at 1 m/s steps 0.25 m/s); smaller: encoder
-  // quantisation starts holds (keep it above one encoder count per odometry period).
+  // the vehicle's motion (a spinning or locked wheel, a glitch): that wheel is held, flagged and
+  // counted as a slip, until it steps back (over one or two periods) or for at most
+  // slip_max_duration_ns. While held it is read as the mean of "less the step" and "the other
+  // wheel plus their difference at the onset"; half their difference is yaw-rate doubt that the
+  // heading sigma adds up, with slip_hold_sigma_fraction of the held step's yaw rate as a floor
+  // (docs/design/fusion.md "Wheel slip without a gyro"). A turn into or out of an arc steps both
+  // wheels, an acceleration moves both within the limit: neither starts a hold. Larger
+  // wheel_step_min_mps: smaller slips go unheld (a 25 % slip at 1 m/s steps 0.25 m/s); smaller:
+  // encoder quantisation starts holds (keep it above one encoder count per odometry period).
   double wheel_step_min_mps = 0.05;
   double slip_hold_sigma_fraction = 0.1;
   // Wheels only (no gyro sample since the last fix). A slip the wheels did not show (its onset
@@ -256,11 +258,12 @@ struct EkfConfig {
   // from the prior's by more than 3 sigma and at most unseen_slip_max_rad, the filter tests whether
   // one heading change of that size at a point of the path driven since the last fused fix explains
   // the fix's position too (the path after it turned about it, plus the along-track error of one
-  // wheel's extra distance). If one does, the heading change is added to the covariance there (its
-  // own size as sigma) and the fix is fused: the pose recovers at the first landmark instead of
-  // after kidnap_fixes. A misread or a wrong map entry rarely matches a turn about a point of the
-  // driven path, and is refused as before. 0 turns the test off. Larger: larger unseen turns are
-  // recovered; a map error of a landmark is more often taken for one.
+  // wheel's extra distance), with a displacement the prior cannot explain (a turn right at the
+  // landmark cannot be told from a heading misread of it). If one does, the heading change is added
+  // to the covariance there (its own size as sigma) and the fix is fused: the pose recovers at the
+  // first landmark instead of after kidnap_fixes. A misread or a wrong map entry rarely matches a
+  // turn about a point of the driven path, and is refused as before. 0 turns the test off. Larger:
+  // larger unseen turns are recovered; a map error of a landmark is more often taken for one.
   double unseen_slip_max_rad = deg_to_rad(20.0);
   // Standstill: wheels below these (|v|, |omega|) over a period mean the vehicle does not turn;
   // the gyro's reading is then its bias (zero-rate update, sigma standstill_omega_sigma_radps).
