@@ -110,7 +110,9 @@ TEST(SocketCanLogic, RealtimeStampToMonotonic) {
 // A burst of frames 50 us apart; the reads after the third are descheduled 6 ms between the first
 // monotonic read and the realtime one (a loaded machine). Converted with its own reads alone,
 // that frame lands 3 ms before the second one, and the odometry decoder dropped it as stale
-// (hil_link_flap under load). The clock holds it at the previous frame's time.
+// (hil_link_flap under load). The clock holds it 1 ns after the previous frame: held at the
+// same time, it was still dropped by the filter and made replay refuse the recording
+// (hil_garbage under load).
 TEST(SocketCanLogic, ReceiveStampsStayInOrderWhenTheClockReadsAreDescheduled) {
   const std::int64_t offset = 5'000'000'000 - 1'000'000'000'000'000'000;  // mono - realtime
   c::RxStampClock clock;
@@ -128,13 +130,23 @@ TEST(SocketCanLogic, ReceiveStampsStayInOrderWhenTheClockReadsAreDescheduled) {
     const std::int64_t t = clock.to_monotonic_ns(stamp_rt, read_mono, rt_now, mono_b);
     if (i == 2) {
       EXPECT_LT(per_frame, prev);  // converted alone: out of order
-      EXPECT_EQ(t, prev);          // held
+      EXPECT_EQ(t, prev + 1);      // held just after the previous frame
     } else {
       EXPECT_EQ(t, per_frame) << i;  // otherwise the plain conversion
       EXPECT_GT(t, prev) << i;
     }
     prev = t;
   }
+}
+
+// Two frames whose conversions come out equal (the second's clock reads descheduled by just the
+// gap between them): the second is 1 ns later, never the same time.
+TEST(SocketCanLogic, TwoFramesNeverShareAReceiveStamp) {
+  const std::int64_t rt = 1'000'000'000'000'000'000, mono = 5'000'000'000;
+  c::RxStampClock clock;
+  const std::int64_t a = clock.to_monotonic_ns(rt, mono - 100, rt + 100, mono + 100);
+  const std::int64_t b = clock.to_monotonic_ns(rt + 50'000, mono - 100, rt + 50'100, mono + 100);
+  EXPECT_EQ(b, a + 1);
 }
 
 TEST(SocketCanLogic, Backoff) {

@@ -89,7 +89,7 @@ std::int64_t RxStampClock::to_monotonic_ns(std::int64_t stamp_rt_ns, std::int64_
                                            std::int64_t rt_now_ns, std::int64_t mono_b_ns) {
   const std::int64_t offset_ns = (mono_a_ns + (mono_b_ns - mono_a_ns) / 2) - rt_now_ns;
   std::int64_t t = std::min(stamp_rt_ns + offset_ns, mono_b_ns);
-  if (have_last_) t = std::max(t, last_ns_);
+  if (have_last_) t = std::max(t, last_ns_ + 1);
   have_last_ = true;
   last_ns_ = t;
   return t;

@@ -72,7 +72,10 @@ bool is_link_gone_errno(int err);
 // (milliseconds on a loaded machine or an emulated VM) shifts mono_now by half the delay. A frame
 // of a burst could then be stamped before the one received just before it, and the odometry
 // decoder rejected it as stale: a valid frame lost (seen once in hil_link_flap under load). So a
-// stamp is never below the previous frame's.
+// stamp is always after the previous frame's, by at least 1 ns: two frames are two events, and
+// a stamp equal to the previous one was still a lost sample (the filter takes odometry only
+// strictly after its newest) and a recording that replay refused (hil_garbage under load: two
+// odometry rows with the same t_ns).
 class RxStampClock {
  public:
   // mono_a_ns, rt_now_ns, mono_b_ns: the clocks read in that order after recvmsg().
