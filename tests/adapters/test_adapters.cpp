@@ -154,3 +154,31 @@ TEST(TimeMappedBus, AnUnreadFrameComesFirstOnTheScaledClock) {
   EXPECT_EQ(got.t_ns, 1'002'000);
   EXPECT_NE(bus.receive(&got, 0), hal::CanStatus::kOk);
 }
+
+// At half speed two frames received 1 ns apart (the least the SocketCAN driver leaves between
+// them) map onto one nanosecond of the replay clock; fusion would drop the second as not after
+// the first (hil_garbage under load). Delivered 1 ns apart instead, and in order.
+TEST(TimeMappedBus, FramesAFewNanosecondsApartStayStrictlyInOrderAtHalfSpeed) {
+  can::FakeCanNetwork net;
+  auto sender = net.create_endpoint(16);
+  auto inner = net.create_endpoint(16);
+  hal::CanFrame a;
+  a.id = 0x311;
+  a.len = 8;
+  for (std::int64_t t : {10'000, 10'001, 10'002, 10'004}) {
+    net.set_time_ns(t);
+    ASSERT_EQ(sender->send(a), hal::CanStatus::kOk);
+  }
+  adapters::SteppedClock base(10'000);
+  adapters::ScaledClock half(base, 1'000'000, 0.5, 10'000);
+  adapters::TimeMappedBus bus(*inner, &half);
+  std::int64_t prev = INT64_MIN;
+  hal::CanFrame got;
+  for (int i = 0; i < 4; ++i) {
+    ASSERT_EQ(bus.receive(&got, 0), hal::CanStatus::kOk);
+    EXPECT_GT(got.t_ns, prev) << i;
+    prev = got.t_ns;
+  }
+  // 10'001, 10'002 and 10'004 map onto or before the frame before them: each 1 ns later.
+  EXPECT_EQ(prev, 1'000'003);
+}

@@ -59,7 +59,16 @@ class TimeMappedBus final : public hal::CanBus {
     } else {
       s = inner_.receive(f, timeout_ns);
     }
-    if (s == hal::CanStatus::kOk && clock_) f->t_ns = clock_->to_scaled(f->t_ns);
+    if (s == hal::CanStatus::kOk && clock_) {
+      // The inner bus's receive times increase (by 1 ns at the least, can::RxStampClock); at a
+      // speed below 1 the scaling can map two of them onto one nanosecond, and fusion takes
+      // odometry only strictly after its newest (hil_garbage at speed 0.5 under load: two rows
+      // of the received odometry with the same t_ns). Kept strictly increasing here too.
+      f->t_ns = clock_->to_scaled(f->t_ns);
+      if (has_last_ && f->t_ns <= last_t_ns_) f->t_ns = last_t_ns_ + 1;
+      has_last_ = true;
+      last_t_ns_ = f->t_ns;
+    }
     return s;
   }
   hal::CanStatus set_filters(const hal::CanFilter* f, std::size_t n) override {
@@ -75,6 +84,8 @@ class TimeMappedBus final : public hal::CanBus {
   const ScaledClock* clock_;
   hal::CanFrame held_{};
   bool has_held_ = false;
+  bool has_last_ = false;
+  std::int64_t last_t_ns_ = 0;  // the last delivered frame's time on the scaled clock
 };
 
 }  // namespace agv::adapters
