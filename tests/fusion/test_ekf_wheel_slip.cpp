@@ -70,8 +70,8 @@ Ekf started() {
 // A slip read by period means: one starting or ending 0, 4 or 7 ms into a 10 ms period shows
 // partly in two readings, and one whose size changes while it lasts (by 0.6 m/s per second, up
 // or down) is not the step it began with. The filter used to hold only the first partial step
-// (up to 19 deg off at 25 sigma); it now adds the rest, ends the hold when the wheel steps back
-// over two periods, and takes the wheels' drift apart as heading doubt.
+// (up to 19 deg off, 34 sigma at the worst); it now adds the rest, ends the hold when the wheel
+// steps back over two periods, and takes the wheels' drift apart as heading doubt.
 TEST(FusionWheelSlip, SlipsInsidePeriodsOrChangingWhileHeldStayWithinThreeSigma) {
   for (const double frac : {0.2, 0.3}) {
     for (const int phase_ms : {0, 4, 7}) {
@@ -94,9 +94,9 @@ TEST(FusionWheelSlip, SlipsInsidePeriodsOrChangingWhileHeldStayWithinThreeSigma)
 
 // A slip whose onset is too gradual for any wheel to step (0 to 0.3 m/s over 0.3 s, and back):
 // the wheels cannot see it, and the vehicle turns ~10 deg unseen. The next landmark's fix (its
-// payload agreed with the map) is 5 sigma off in heading and ~0.3 m off in position: it used to
-// be gate-rejected until kidnap_fixes separate landmarks agreed. One heading change at a point
-// of the driven path explains it, so it is fused at once, flagged and counted.
+// payload agreed with the map) is 10.3 deg off in heading (96 sigma) and 309 mm in position: it
+// used to be gate-rejected until kidnap_fixes separate landmarks agreed. One heading change at a
+// point of the driven path explains it, so it is fused at once, flagged and counted.
 TEST(FusionWheelSlip, ASlipTheWheelsDidNotShowIsRecoveredAtTheNextLandmark) {
   const auto ramp = [](std::int64_t t) {
     const double s = static_cast<double>(t - 1000 * kMs) * 1e-9;
