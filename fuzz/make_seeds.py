@@ -2,18 +2,27 @@
 """Writes the seed corpus of every harness (fuzz/corpus/<harness>/) deterministically.
 
 Seeds are small valid inputs of each surface plus a few near misses; libFuzzer grows the corpus
-from them. Rerun after changing a format: python3 fuzz/make_seeds.py
+from them. Rerun after changing a format: python3 fuzz/make_seeds.py [CORPUS_DIR]
+
+The corpus also holds inputs this script does not write: minimised finds of past campaigns
+(fuzz_vision's hashes) and regression inputs (regress_*). Those are kept. The script owns only
+the files listed in CORPUS_DIR/seeds.manifest (harness/name per line, written on every run): a
+seed it no longer writes is removed, every other file is left alone. Removing a minimised input
+is a decision for a person (git rm), not a side effect of regenerating the seeds.
 """
 import os
-import shutil
+import sys
 import struct
 import zlib
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 CORPUS = os.path.join(ROOT, "fuzz", "corpus")
+MANIFEST = "seeds.manifest"
+_written = []
 
 
 def put(harness, name, data):
+    _written.append(f"{harness}/{name}")
     d = os.path.join(CORPUS, harness)
     os.makedirs(d, exist_ok=True)
     if isinstance(data, str):
@@ -32,8 +41,39 @@ def png(width, height, color_type, bit_depth, rows, interlace=0, extra=b""):
             chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b""))
 
 
+def read_manifest(corpus):
+    try:
+        with open(os.path.join(corpus, MANIFEST), encoding="utf-8") as f:
+            return [line.strip() for line in f if line.strip() and not line.startswith("#")]
+    except FileNotFoundError:
+        return []
+
+
 def main():
-    shutil.rmtree(CORPUS, ignore_errors=True)
+    global CORPUS
+    if len(sys.argv) > 1:
+        CORPUS = os.path.abspath(sys.argv[1])
+    owned_before = read_manifest(CORPUS)
+    _written.clear()
+    write_seeds()
+    if len(set(_written)) != len(_written):
+        sys.exit("make_seeds.py: a seed name is written twice")
+    for rel in sorted(set(owned_before) - set(_written)):
+        # Only a plain harness/name under the corpus: a manifest edited by hand must not reach out.
+        parts = rel.split("/")
+        if len(parts) == 2 and all(p and p not in (".", "..") for p in parts):
+            path = os.path.join(CORPUS, *parts)
+            if os.path.isfile(path):
+                os.remove(path)
+                print(f"make_seeds.py: removed the stale seed {rel}")
+    with open(os.path.join(CORPUS, MANIFEST), "w", encoding="utf-8") as f:
+        f.write("# Written by fuzz/make_seeds.py: the seeds it owns (it removes one it no longer\n"
+                "# writes). Every other file under fuzz/corpus/ is a kept input (minimised finds,\n"
+                "# regressions) that the script never touches.\n")
+        f.writelines(f"{rel}\n" for rel in sorted(_written))
+
+
+def write_seeds():
     # QR payload: both forms, the extremes of every field, near misses.
     for i, s in enumerate(["AGV1/00017/+001000.0/-002000.0/+090.00", "AGV1/65535/MAP",
                            "AGV1/00001/-999999.9/+999999.9/+180.00",
