@@ -2,7 +2,7 @@
 """Unit tests of the HIL analysis on synthetic frames (no VM): a link flap may cut the one pose
 pair it falls into, and nothing else may go unpaired; the bus poses are found in the localizer's
 own record however many rows an outage skipped, and a pose it never wrote fails; the generated
-configuration accepts late fixes."""
+configuration accepts late fixes; the offline reference gets no gyro the bus does not carry."""
 import os
 import sys
 import unittest
@@ -12,7 +12,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import hil_dbc  # noqa: E402
 from hil_analysis import (  # noqa: E402
     check_received_odometry, match_own, pair_pose_frames, pending_windows)
-from hil_common import Frame, Report, prepare_config  # noqa: E402
+from hil_common import Frame, Report, Setup, prepare_config, quantize_recording  # noqa: E402
 
 PERIOD = 0.02
 WINDOW = 0.1
@@ -204,6 +204,29 @@ class HilConfig(unittest.TestCase):
                              "fusion:\n  max_fix_delay_ms: 500\n  history_capacity: 256\n")
         self.assertEqual(vals[("fusion", "max_fix_delay_ms")], "10000")
         self.assertEqual(vals[("fusion", "history_capacity")], "2048")
+
+
+class QuantizedRecording(unittest.TestCase):
+    """The offline reference replays what the localizer on the bus has: the bus's odometry and
+    no gyro (the HIL sends none; the localizer on the bus ignores imu.csv)."""
+
+    def test_the_gyro_is_left_out_and_the_frames_kept(self):
+        import tempfile
+        with tempfile.TemporaryDirectory() as d:
+            rec = os.path.join(d, "rec")
+            os.makedirs(os.path.join(rec, "frames"))
+            for name, text in (("odom.csv", "t_ns,v_mps,omega_radps\n0,0.5,0.01\n"),
+                               ("imu.csv", "t_ns,gyro_z_radps\n0,0.01\n"),
+                               ("frames.csv", "t_ns,file\n"), ("meta.yaml", "format_version: 1\n")):
+                with open(os.path.join(rec, name), "w") as f:
+                    f.write(text)
+            dbc = hil_dbc.Dbc(os.path.join(os.path.dirname(os.path.abspath(__file__)),
+                                                "..", "..", "can", "agvloc.dbc"))
+            s = Setup(scenario="nominal", results=d, agvloc="", recording=rec, config="",
+                      speed=1.0, dbc=dbc, odom=[(0, 0.5, 0.01)])
+            out = quantize_recording(s, os.path.join(d, "q"))
+            self.assertEqual(sorted(os.listdir(out)), ["frames", "frames.csv", "meta.yaml",
+                                                       "odom.csv"])
 
 
 if __name__ == "__main__":
