@@ -9,8 +9,9 @@
 #   2. asan preset (clang ASan + UBSan, -O1): the tests labelled unit, replay, golden, faults and
 #      tsan (threaded live loop), then every libFuzzer harness from the same build (fuzz/run.sh)
 #   3. tsan preset (clang TSan, -O1): the code that starts threads: test programs linking
-#      firmware/ or drivers/posix (or labelled tsan), and the replay, golden and fault tests that
-#      run agvloc; single-threaded test programs are not even built there (tests/CMakeLists.txt)
+#      firmware/ or drivers/posix (or labelled tsan); single-threaded test programs are not even
+#      built there (tests/CMakeLists.txt), and the replay, golden and fault tests are not run
+#      there: they replay with --fast, on one thread, where TSan has nothing to find
 #   4. arm64 cross build (gold, -g1, no desk tool: the default build's renders the recordings),
 #      tests under qemu-aarch64, .deb package test (the cross environment's apt work runs in the
 #      background from the start)
@@ -65,8 +66,8 @@ for preset in asan tsan; do
   fi
   cmake --build --preset "$preset" -j "$jobs"
   step "$preset: build"
-  # The test presets select the labels (unit, replay, golden, faults, tsan) and set the
-  # sanitizer runtime options.
+  # The test presets select the labels (asan: unit, replay, golden, faults, tsan; tsan: unit,
+  # tsan) and set the sanitizer runtime options.
   ctest --preset "$preset" -j "$jobs"
   step "$preset: ctest"
   if [ "$preset" = asan ]; then
