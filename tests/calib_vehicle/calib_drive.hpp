@@ -55,6 +55,9 @@ inline DriveTruth perturbed_drive() {
   t.p.speed_scale = 1.028;
   t.p.yaw_rate_scale = 0.972;
   t.p.yaw_rate_bias_radps = deg_to_rad(0.45);
+  // Unequal wheels: the right one reads 0.4 % more on a 0.5 m track (the simulator's default
+  // --odom-asymmetry), so a straight run curves 0.46 deg/m.
+  t.p.yaw_per_metre_rad = -0.004 / 0.5;
   t.p.time_offset_s = 0.027;
   return t;
 }
@@ -160,9 +163,14 @@ inline Drive make_calibration_drive(const DriveTruth& tr) {
     const double v = sv / 10.0 / 1000.0, w = sw / 10.0;  // m/s, rad/s
     desk::vcal::OdomSample o;
     o.t_ns = t0_ns + static_cast<std::int64_t>(std::llround((t_f[k] + tr.p.time_offset_s) * 1e9));
-    o.v_mps = v / tr.p.speed_scale + tr.odom_v_noise_mps * n01(rng);
-    o.omega_radps =
-        (w - tr.p.yaw_rate_bias_radps) / tr.p.yaw_rate_scale + tr.odom_w_noise_radps * n01(rng);
+    // The inverse of the model (calib_vehicle.hpp, track 500 mm: Options' default):
+    //   v = s_v v_k + c q omega_k,  omega = s_w omega_k + b + c v_k,  q = track^2 / 4.
+    const double c = tr.p.yaw_per_metre_rad, q = 0.25 * 0.5 * 0.5;
+    const double s_v = tr.p.speed_scale, s_w = tr.p.yaw_rate_scale, b = tr.p.yaw_rate_bias_radps;
+    const double v_k = (v - c * q * (w - b) / s_w) / (s_v - c * c * q / s_w);
+    const double w_k = (w - b - c * v_k) / s_w;
+    o.v_mps = v_k + tr.odom_v_noise_mps * n01(rng);
+    o.omega_radps = w_k + tr.odom_w_noise_radps * n01(rng);
     d.odom.push_back(o);
   }
   // Gyro samples: the mean true rate over the period, with the errors.

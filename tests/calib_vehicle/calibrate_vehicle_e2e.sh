@@ -12,7 +12,9 @@ WORK="$2"
 MAP="$(cd "$(dirname "$0")/../.." && pwd)/tools/maps/default_grid.csv"
 rm -rf "$WORK"
 mkdir -p "$WORK"
-PERTURB=(--slip-rate-per-s 0 --odom-asymmetry 0 --odom-scale-error 0.02 --odom-yaw-scale-error
+# Unequal wheels at the simulator's default (--odom-asymmetry 0.004: the right wheel reads 0.4 %
+# more on the 500 mm track): the yaw_per_metre term must take them, not the mounting.
+PERTURB=(--slip-rate-per-s 0 --odom-asymmetry 0.004 --odom-scale-error 0.02 --odom-yaw-scale-error
   -0.015 --odom-yaw-bias-degps 0.3 --odom-time-offset-ms 20 --mount-offset-x-mm 6
   --mount-offset-y-mm -4 --mount-yaw-deg 1.2 --mount-height-mm 203 --roll-deg 0.8
   --pitch-deg -1.0 --nominal-meta)
@@ -26,14 +28,21 @@ for f in vehicle_calibration.yaml report.txt residuals.svg; do
 done
 python3 - "$WORK/cal/report.txt" <<'PY'
 import sys
-# true values; odometry: reported v = 1.02 v, omega = 1.02 * 0.985 * omega + 0.3 deg/s
+# true values; odometry: reported v = 1.02 v + a b / 4 omega,
+# omega = 0.985 (1.02 omega + a / b v) + 0.3 deg/s with unequal wheels a = 0.004, track b = 0.5 m;
+# the correction inverts that (calib_vehicle.hpp: its speed term is yaw_per_metre b^2 / 4).
+import math
 k = 1.02 * 0.985
+a, b = 0.004, 0.5
+det = 0.985 * (1.02 ** 2 - a * a / 4)
+yaw_per_metre_deg = math.degrees(-0.985 * (a / b) / det)
 truth = {"mounting.offset_x_mm": (6, 0.2), "mounting.offset_y_mm": (-4, 0.2),
          "mounting.yaw_deg": (1.2, 0.02), "mounting.height_mm": (203, 0.2),
          "mounting.roll_deg": (0.8, 0.05), "mounting.pitch_deg": (-1.0, 0.05),
          "odometry.speed_scale": (1 / 1.02, 0.0005 / 1.02),
          "odometry.yaw_rate_scale": (1 / k, 0.0005 / k),
          "odometry.yaw_rate_bias_degps": (-0.3 / k, 0.01),
+         "odometry.yaw_per_metre_deg": (yaw_per_metre_deg, 0.12),
          "odometry.time_offset_ms": (20, 0.5)}
 got = {}
 for line in open(sys.argv[1]):
@@ -51,7 +60,7 @@ for name, (t, tol) in truth.items():
 sys.exit(1 if bad else 0)
 PY
 # The snippet carries the odometry keys (v_omega mode) ...
-for k in speed_scale yaw_rate_scale yaw_rate_bias_degps time_offset_ms; do
+for k in speed_scale yaw_rate_scale yaw_rate_bias_degps yaw_per_metre_deg time_offset_ms; do
   grep -q "^  $k: " "$WORK/cal/vehicle_calibration.yaml" || { echo "FAIL: odometry.$k not written"; exit 1; }
 done
 # ... and in wheels mode the yaw-rate scale as the track width the samples were decoded with

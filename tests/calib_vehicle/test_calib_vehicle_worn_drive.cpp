@@ -49,11 +49,12 @@ TEST_P(CalibVehicleWornDrive, SigmaCoversTheError) {
                        truth.p.speed_scale,
                        truth.p.yaw_rate_scale,
                        rad_to_deg(truth.p.yaw_rate_bias_radps),
+                       rad_to_deg(truth.p.yaw_per_metre_rad),
                        truth.p.time_offset_s * 1e3};
-  ASSERT_EQ(r.params.size(), 10u);
+  ASSERT_EQ(r.params.size(), 11u);
   std::printf("worn landmark 2, seed %u: RMS %.3f -> %.3f px\n", GetParam(), r.rms_before_px,
               r.rms_after_px);
-  for (size_t i = 0; i < 10; ++i) {
+  for (size_t i = 0; i < 11; ++i) {
     const ParamReport& p = r.params[i];
     const double z = std::abs(p.value - tv[i]) / p.sigma;
     std::printf("%-30s error %+11.5f sigma %10.5f  %5.2f sigma\n", p.name.c_str(), p.value - tv[i],

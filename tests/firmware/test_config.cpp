@@ -582,12 +582,14 @@ TEST(Config, OdometryCorrectionKeysReachTheLocalizer) {
   ASSERT_TRUE(agv::config::parse_config(std::string(kIntrinsics) +
                                             "odometry:\n  speed_scale: 0.98\n  yaw_rate_scale: "
                                             "1.015\n  yaw_rate_bias_degps: -0.3\n  "
-                                            "time_offset_ms: 20.5\n",
+                                            "yaw_per_metre_deg: 0.46\n  time_offset_ms: 20.5\n",
                                         "", &cfg, &errors));
   const auto lc = agv::app::localizer_config(cfg);
   EXPECT_DOUBLE_EQ(lc.odometry.speed_scale, 0.98);
   EXPECT_DOUBLE_EQ(lc.odometry.yaw_rate_scale, 1.015);
   EXPECT_NEAR(lc.odometry.yaw_rate_bias_radps, -0.3 * M_PI / 180.0, 1e-15);
+  EXPECT_NEAR(lc.odometry.yaw_per_metre_rad, 0.46 * M_PI / 180.0, 1e-15);
+  EXPECT_DOUBLE_EQ(lc.odometry.track_width_m, 0.5);  // can.odometry.track_width_mm's default
   EXPECT_EQ(lc.odometry.time_offset_ns, 20'500'000);
   // Defaults: no correction.
   Config def;
@@ -596,6 +598,7 @@ TEST(Config, OdometryCorrectionKeysReachTheLocalizer) {
   EXPECT_EQ(ld.odometry.speed_scale, 1.0);
   EXPECT_EQ(ld.odometry.yaw_rate_scale, 1.0);
   EXPECT_EQ(ld.odometry.yaw_rate_bias_radps, 0.0);
+  EXPECT_EQ(ld.odometry.yaw_per_metre_rad, 0.0);
   EXPECT_EQ(ld.odometry.time_offset_ns, 0);
   EXPECT_TRUE(mentions(errors_for(std::string(kIntrinsics) + "odometry:\n  speed_scale: 0\n"),
                        "odometry.speed_scale: value 0 outside the accepted range"));

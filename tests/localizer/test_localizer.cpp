@@ -512,26 +512,30 @@ TEST(Localizer, EachOdometryCorrectionKeyChangesTheFusedInputAsStated) {
     localizer::OdometryCorrection corr;
     std::int64_t raw_dt;  // odometry clock - camera clock in the fed samples
   };
-  localizer::OdometryCorrection speed, yaw, bias, offset, all;
+  localizer::OdometryCorrection speed, yaw, bias, curve, offset, all;
   speed.speed_scale = 1.03;
   yaw.yaw_rate_scale = 0.97;
   bias.yaw_rate_bias_radps = -0.004;
+  curve.yaw_per_metre_rad = 0.008;
   offset.time_offset_ns = 20 * kMs;
-  all = {1.03, 0.97, -0.004, 20 * kMs};
+  all = {1.03, 0.97, -0.004, 0.008, 20 * kMs};
   for (const Case& k : {Case{"speed_scale", speed, 0}, Case{"yaw_rate_scale", yaw, 0},
-                        Case{"yaw_rate_bias", bias, 0}, Case{"time_offset", offset, 20 * kMs},
-                        Case{"all", all, 20 * kMs}}) {
+                        Case{"yaw_rate_bias", bias, 0}, Case{"yaw_per_metre", curve, 0},
+                        Case{"time_offset", offset, 20 * kMs}, Case{"all", all, 20 * kMs}}) {
     auto c = plain;
     c.odometry = k.corr;
     // With the correction configured, raw samples give exactly what the plain localizer gives
-    // when fed v' = s_v v, w' = s_w w + b, with the camera's exposure moved onto the odometry's
-    // (vehicle's) clock, t' = t + offset (the output stays on the vehicle's clock, issue 33) ...
+    // when fed v' = s_v v + c q w, w' = s_w w + b + c v, with the exposure moved onto the
+    // odometry's (vehicle's) clock, t' = t + offset (the output stays on the vehicle's clock, issue
+    // 33) ...
     const auto corrected = drive(c, k.raw_dt, raw);
     const auto by_hand = drive(
         plain, k.raw_dt,
         [&](Sample s) {
-          return Sample{s.t_ns, s.v * k.corr.speed_scale,
-                        s.w * k.corr.yaw_rate_scale + k.corr.yaw_rate_bias_radps};
+          const double q = 0.25 * k.corr.track_width_m * k.corr.track_width_m;
+          return Sample{s.t_ns, s.v * k.corr.speed_scale + k.corr.yaw_per_metre_rad * q * s.w,
+                        s.w * k.corr.yaw_rate_scale + k.corr.yaw_rate_bias_radps +
+                            k.corr.yaw_per_metre_rad * s.v};
         },
         k.corr.time_offset_ns);
     EXPECT_TRUE(same(corrected, by_hand)) << k.name;
@@ -551,6 +555,12 @@ TEST(Localizer, EachOdometryCorrectionKeyChangesTheFusedInputAsStated) {
   c.odometry = bias;
   const auto bi = drive(c, 0, raw);
   EXPECT_NEAR((bi.back().pose.theta_rad - bi[10].pose.theta_rad) - h0, -0.004 * 3.09, 1e-4);
+  // Unequal wheels: 0.008 rad per metre of the distance read (drive's speeds, 10 ms apart).
+  c.odometry = curve;
+  const auto cu = drive(c, 0, raw);
+  double read_m = 0.0;
+  for (int i = 11; i < 320; ++i) read_m += (0.5 + 0.001 * i) * 0.01;
+  EXPECT_NEAR((cu.back().pose.theta_rad - cu[10].pose.theta_rad) - h0, 0.008 * read_m, 1e-4);
 }
 
 TEST(Localizer, InvalidOdometryCorrectionThrows) {
@@ -562,6 +572,12 @@ TEST(Localizer, InvalidOdometryCorrectionThrows) {
   EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
   c = test_config();
   c.odometry.yaw_rate_bias_radps = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
+  c = test_config();
+  c.odometry.yaw_per_metre_rad = std::numeric_limits<double>::infinity();
+  EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
+  c = test_config();
+  c.odometry.track_width_m = 0.0;
   EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
 }
 

@@ -129,7 +129,11 @@ void add_can(std::vector<Key>* k) {
                        "controllers that cannot compute them (then only ID and length are "
                        "checked)"));
   k->push_back(number("can.odometry.track_width_mm", AGV_AT(can.track_width_mm), 50.0, 5000.0,
-                      500.0, {"mm", "wheels mode: converts wheel speeds to v, ω"}));
+                      500.0,
+                      {"mm",
+                       "wheels mode: converts wheel speeds to v, ω. In both modes the lever of "
+                       "`odometry.yaw_per_metre_deg`'s speed term (unequal wheels creep a turn "
+                       "on the spot by yaw_per_metre · track² / 4 per radian)"}));
   k->push_back(number("can.odometry.wheel_speed_scale", AGV_AT(can.wheel_speed_scale), 0.5, 2.0,
                       1.0, {"", "wheels mode: calibrates wheel radius error"}));
   // Stored once, where it is used (the filter's flag and the core's pose validity both read
@@ -229,6 +233,16 @@ void add_odometry(std::vector<Key>* k) {
                            "over the scale). A wrong value turns into heading drift the "
                            "filter's bias state must first learn; 0.1 deg/s = 0.6° per "
                            "minute without fixes"}));
+  k->push_back(deg_as_rad("odometry.yaw_per_metre_deg", AGV_AT(odometry.yaw_per_metre_rad), -10.0,
+                          10.0, 0.0,
+                          {"deg/m",
+                           "unequal wheels: ω' += this · v and v' += this · track² / 4 · ω (v, "
+                           "ω as read; track `can.odometry.track_width_mm`). A right wheel "
+                           "reading 0.4 % more than the left on a 0.5 m track curves a straight "
+                           "run by −0.46° per metre and creeps a turn on the spot by 0.5 mm per "
+                           "radian. From `calibrate vehicle`, which otherwise puts the curvature "
+                           "into the camera yaw and the creep into the lateral offset; the "
+                           "filter's bias state cannot follow it, since it changes with speed"}));
   k->push_back(number("odometry.time_offset_ms", AGV_AT(odometry.time_offset_ms), -500.0, 500.0,
                       0.0,
                       {"ms",

@@ -41,7 +41,9 @@ Localizer::Localizer(const LocalizerConfig& cfg)
   if (cfg_.gyro_timeout_ns <= 0) throw std::invalid_argument("gyro timeout must be > 0");
   const OdometryCorrection& o = cfg_.odometry;
   if (!(o.speed_scale > 0.0) || !(o.yaw_rate_scale > 0.0) || !std::isfinite(o.speed_scale) ||
-      !std::isfinite(o.yaw_rate_scale) || !std::isfinite(o.yaw_rate_bias_radps)) {
+      !std::isfinite(o.yaw_rate_scale) || !std::isfinite(o.yaw_rate_bias_radps) ||
+      !std::isfinite(o.yaw_per_metre_rad) || !(o.track_width_m > 0.0) ||
+      !std::isfinite(o.track_width_m)) {
     throw std::invalid_argument("odometry correction: scales must be finite and > 0");
   }
 }
@@ -90,9 +92,14 @@ void Localizer::on_odometry(std::int64_t t_ns, double v_mps, double omega_radps)
   // Its stamp stays: odometry is on the vehicle's clock, the one the output runs on. The
   // calibrated offset moves the camera's stamps instead (on_fix, prediction_at).
   const OdometryCorrection& c = cfg_.odometry;
+  const double v_read_mps = v_mps, omega_read_radps = omega_radps;
   v_mps *= c.speed_scale;
   omega_radps *= c.yaw_rate_scale;
   if (c.yaw_rate_bias_radps != 0.0) omega_radps += c.yaw_rate_bias_radps;
+  if (c.yaw_per_metre_rad != 0.0) {
+    omega_radps += c.yaw_per_metre_rad * v_read_mps;
+    v_mps += c.yaw_per_metre_rad * 0.25 * c.track_width_m * c.track_width_m * omega_read_radps;
+  }
   if (!ekf_.add_odometry(t_ns, v_mps, omega_radps)) {
     ++stats_.odom_rejected;
     return;

@@ -18,7 +18,7 @@ namespace agv::desk::vcal {
 namespace {
 
 constexpr int kMount = 6;  // offset_x_mm, offset_y_mm, yaw_rad, height_mm, roll_rad, pitch_rad
-constexpr int kOdo = 3;    // speed_scale, yaw_rate_scale, yaw_rate_bias_radps
+constexpr int kOdo = 4;    // speed_scale, yaw_rate_scale, yaw_rate_bias_radps, yaw_per_metre_rad
 constexpr int kNumGlobal = kMount + kOdo + 1;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
@@ -32,6 +32,7 @@ double as_double(const ceres::Jet<T, N>& j) {
 struct OdomTable {
   std::vector<double> t;  // stamps T_k, s
   std::vector<double> v_mmps, w;
+  double quarter_track_sq_mm2 = 0.0;  // track^2 / 4: the unequal wheels' speed term
 };
 
 // Relative motion (dx, dy, dtheta) in the frame at camera time a, from a to b (b >= a), with
@@ -51,9 +52,9 @@ void integrate(const OdomTable& od, double a_s, double b_s, const T* odo, const 
     const T hi = b < hi_k ? b : hi_k;
     if (!(hi > lo)) continue;
     const T h = hi - lo;
-    const T dth = (odo[1] * od.w[k] + odo[2]) * h;
+    const T dth = (odo[1] * od.w[k] + odo[2] + odo[3] * (1e-3 * od.v_mmps[k])) * h;
     const T mid = th + 0.5 * dth;
-    const T ds = odo[0] * od.v_mmps[k] * h;
+    const T ds = (odo[0] * od.v_mmps[k] + odo[3] * (1e-3 * od.quarter_track_sq_mm2) * od.w[k]) * h;
     x += ds * cos(mid);
     y += ds * sin(mid);
     th += dth;
@@ -295,6 +296,7 @@ bool calibrate_vehicle(const std::vector<OdomSample>& odom,
   // Observations of mapped landmarks inside the odometry span (with a margin for the offset).
   const std::int64_t t_ref = obs_in.front().t_ns;
   OdomTable od;
+  od.quarter_track_sq_mm2 = 0.25 * opt.track_width_mm * opt.track_width_mm;
   for (const OdomSample& o : odom) {
     od.t.push_back(static_cast<double>(o.t_ns - t_ref) * 1e-9);
     od.v_mmps.push_back(o.v_mps * 1000.0);
@@ -370,7 +372,8 @@ bool calibrate_vehicle(const std::vector<OdomSample>& odom,
   double mount[kMount] = {initial.mount.offset_x_mm, initial.mount.offset_y_mm,
                           initial.mount.yaw_rad,     initial.mount.height_mm,
                           initial.mount.roll_rad,    initial.mount.pitch_rad};
-  double odo[kOdo] = {initial.speed_scale, initial.yaw_rate_scale, initial.yaw_rate_bias_radps};
+  double odo[kOdo] = {initial.speed_scale, initial.yaw_rate_scale, initial.yaw_rate_bias_radps,
+                      initial.yaw_per_metre_rad};
   double dt[1] = {initial.time_offset_s};
   const std::array<Vec2, 8> lc = landmark_corners(outer_half_mm, inner_half_mm);
   CameraModel nominal;
@@ -589,10 +592,10 @@ bool calibrate_vehicle(const std::vector<OdomSample>& odom,
   // Trade-offs: the information matrix of the global parameters with the anchors eliminated,
   // scaled to the reporting limits; its weakest eigenvectors name the parameters that trade off.
   std::vector<std::string> names = {
-      "mounting.offset_x_mm",   "mounting.offset_y_mm",    "mounting.yaw_deg",
-      "mounting.height_mm",     "mounting.roll_deg",       "mounting.pitch_deg",
-      "odometry.speed_scale",   "odometry.yaw_rate_scale", "odometry.yaw_rate_bias_degps",
-      "odometry.time_offset_ms"};
+      "mounting.offset_x_mm",       "mounting.offset_y_mm",    "mounting.yaw_deg",
+      "mounting.height_mm",         "mounting.roll_deg",       "mounting.pitch_deg",
+      "odometry.speed_scale",       "odometry.yaw_rate_scale", "odometry.yaw_rate_bias_degps",
+      "odometry.yaw_per_metre_deg", "odometry.time_offset_ms"};
   const double limit[kNumGlobal] = {opt.max_sigma_mm,
                                     opt.max_sigma_mm,
                                     opt.max_sigma_yaw_deg * kPi / 180.0,
@@ -602,6 +605,7 @@ bool calibrate_vehicle(const std::vector<OdomSample>& odom,
                                     opt.max_sigma_scale,
                                     opt.max_sigma_scale,
                                     opt.max_sigma_bias_degps * kPi / 180.0,
+                                    opt.max_sigma_yaw_per_metre_deg * kPi / 180.0,
                                     opt.max_sigma_time_ms * 1e-3};
   double sigma[kNumGlobal];
   for (int i = 0; i < kMount; ++i)
@@ -659,17 +663,19 @@ bool calibrate_vehicle(const std::vector<OdomSample>& odom,
   e.speed_scale = odo[0];
   e.yaw_rate_scale = odo[1];
   e.yaw_rate_bias_radps = odo[2];
+  e.yaw_per_metre_rad = odo[3];
   e.time_offset_s = dt[0];
-  const double init[kNumGlobal] = {initial.mount.offset_x_mm,   initial.mount.offset_y_mm,
-                                   initial.mount.yaw_rad,       initial.mount.height_mm,
-                                   initial.mount.roll_rad,      initial.mount.pitch_rad,
-                                   initial.speed_scale,         initial.yaw_rate_scale,
-                                   initial.yaw_rate_bias_radps, initial.time_offset_s};
-  const double val[kNumGlobal] = {mount[0], mount[1], mount[2], mount[3], mount[4],
-                                  mount[5], odo[0],   odo[1],   odo[2],   dt[0]};
-  const double to_unit[kNumGlobal] = {1,         1, 180 / kPi, 1,         180 / kPi,
-                                      180 / kPi, 1, 1,         180 / kPi, 1e3};
-  const char* units[kNumGlobal] = {"mm", "mm", "deg", "mm", "deg", "deg", "", "", "deg/s", "ms"};
+  const double init[kNumGlobal] = {
+      initial.mount.offset_x_mm, initial.mount.offset_y_mm, initial.mount.yaw_rad,
+      initial.mount.height_mm,   initial.mount.roll_rad,    initial.mount.pitch_rad,
+      initial.speed_scale,       initial.yaw_rate_scale,    initial.yaw_rate_bias_radps,
+      initial.yaw_per_metre_rad, initial.time_offset_s};
+  const double val[kNumGlobal] = {mount[0], mount[1], mount[2], mount[3], mount[4], mount[5],
+                                  odo[0],   odo[1],   odo[2],   odo[3],   dt[0]};
+  const double to_unit[kNumGlobal] = {1, 1, 180 / kPi, 1,         180 / kPi, 180 / kPi,
+                                      1, 1, 180 / kPi, 180 / kPi, 1e3};
+  const char* units[kNumGlobal] = {"mm", "mm", "deg",   "mm",    "deg", "deg",
+                                   "",   "",   "deg/s", "deg/m", "ms"};
   out->params.clear();
   for (int i = 0; i < kNumGlobal; ++i) {
     ParamReport r;

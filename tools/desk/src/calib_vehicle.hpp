@@ -1,11 +1,23 @@
 // Vehicle calibration (issue 16): camera mounting (offset, yaw, height, roll, pitch), odometry
-// (speed scale, yaw-rate scale, yaw-rate bias) and the camera-odometry time offset, estimated
-// jointly by nonlinear least squares (Ceres) from a calibration drive over mapped landmarks.
+// (speed scale, yaw-rate scale, yaw-rate bias, yaw per metre) and the camera-odometry time
+// offset, estimated jointly by nonlinear least squares (Ceres) from a calibration drive over
+// mapped landmarks.
 //
 // Model (all in the world frame W of the map, docs/design/frames.md):
 //  - Odometry. Sample k, stamped T_k on the odometry clock, reports (v_k, omega_k) as the mean
 //    over (T_{k-1}, T_k]. The true rates are  v = speed_scale * v_k,
-//    omega = yaw_rate_scale * omega_k + yaw_rate_bias  (piecewise constant). An instant at
+//    v = speed_scale * v_k + yaw_per_metre * track^2 / 4 * omega_k,
+//    omega = yaw_rate_scale * omega_k + yaw_rate_bias + yaw_per_metre * v_k  (piecewise
+//    constant). The yaw_per_metre terms are unequal wheels (UMBmark's type A error): a right
+//    wheel that reads a fraction a more than the left adds a * v / track to the reported yaw
+//    rate, so a straight run curves by a / track radians per metre (0.46 deg/m for 0.4 % on a
+//    0.5 m track), and a * track / 4 * omega to the reported speed, so a turn on the spot
+//    creeps (0.5 mm per radian). Both come from the one wheel ratio: inverting the wheels'
+//    equations gives the speed term as exactly track^2 / 4 times the yaw term (track:
+//    Options::track_width_mm). Without the yaw term the straight passes put the curvature
+//    into the camera yaw (0.11 deg on a clean 60 s simulated drive, 6 sigma); without the
+//    speed term the creep of the turns on the spot, which has exactly the form of a lever arm,
+//    goes into the lateral offset (0.53 mm, 12 sigma). An instant at
 //    camera time t is stamped t + time_offset on the odometry clock (odometry clock = camera
 //    clock + time_offset; time_offset > 0: odometry stamps are late). The relative motion
 //    from camera time a to b is the unicycle integral of those rates over
@@ -52,6 +64,7 @@
 
 #include <array>
 #include <cstdint>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -82,6 +95,7 @@ struct VehicleParams {
   double speed_scale = 1.0;
   double yaw_rate_scale = 1.0;
   double yaw_rate_bias_radps = 0.0;
+  double yaw_per_metre_rad = 0.0;  // rad of heading per metre of reported travel
   double time_offset_s = 0.0;
 };
 
@@ -104,6 +118,15 @@ struct Options {
   // offset/height mm, angles deg, scales relative, bias deg/s, time offset ms.
   double max_sigma_mm = 0.25, max_sigma_yaw_deg = 0.05, max_sigma_tilt_deg = 0.05;
   double max_sigma_scale = 0.001, max_sigma_bias_degps = 0.02, max_sigma_time_ms = 1.0;
+  // The wheels' track (`can.odometry.track_width_mm`, also in v_omega mode): the lever of the
+  // unequal wheels' speed term. 10 % off moves the lateral offset by 20 % of that term (0.1 mm
+  // for 0.4 % unequal wheels on a 0.5 m track).
+  double track_width_mm = 500.0;
+  // deg/m. 0.05 deg/m is 0.25 deg of heading over a 5 m leg between landmarks; at a steady
+  // speed the filter's yaw-rate bias state takes up what is left. The simulated drives of
+  // tests/calib_vehicle determine it to 0.04 deg/m (the odometry's yaw-rate noise over the
+  // straight passes limits it).
+  double max_sigma_yaw_per_metre_deg = 0.05;
   int max_iterations = 200;
   // Per-landmark noise and print deviation (top of this file); false = one solve with
   // pixel_sigma_px for every corner and the printed geometry taken as exact (before issue 36).
@@ -159,13 +182,21 @@ struct LandmarkReport {
 
 struct Result {
   VehicleParams estimate;
-  std::vector<ParamReport> params;  // ordered: mounting (6), odometry (3), time offset
+  std::vector<ParamReport> params;  // ordered: mounting (6), odometry (4), time offset
   std::vector<PassReport> passes;
   std::vector<LandmarkReport> landmarks;  // by id
   std::vector<std::string> warnings;
   int frames_used = 0, subpasses = 0, iterations = 0;
   double rms_before_px = 0.0, rms_after_px = 0.0;
   bool turns_seen = false;
+
+  // The report of the parameter named `name` (a key of docs/guide/config.md); throws
+  // std::out_of_range for a name the calibration does not estimate.
+  const ParamReport& param(const std::string& name) const {
+    for (const ParamReport& p : params)
+      if (p.name == name) return p;
+    throw std::out_of_range("calibrate vehicle: no parameter " + name);
+  }
 };
 
 // False with *error naming what is missing (no odometry, no observation of a mapped landmark,

@@ -299,6 +299,7 @@ int calibrate_vehicle(int argc, char** argv) {
   vcal::VehicleParams initial;
   initial.mount = cam.mount;
   opt.fx_px = cam.intrinsics.fx;
+  opt.track_width_mm = cfg.can.track_width_mm;
   vcal::Result r;
   if (!vcal::calibrate_vehicle(odom, obs, map, geom.outer_half_mm(), geom.inner_half_mm(), initial,
                                opt, &r, &err)) {
@@ -318,8 +319,9 @@ int calibrate_vehicle(int argc, char** argv) {
   vcal::GyroResult gyro;
   std::string gyro_error;
   bool gyro_ok = false;
-  const double odo_offset_s =
-      r.params[9].determined ? r.estimate.time_offset_s : cfg.odometry.time_offset_ms * 1e-3;
+  const double odo_offset_s = r.param("odometry.time_offset_ms").determined
+                                  ? r.estimate.time_offset_s
+                                  : cfg.odometry.time_offset_ms * 1e-3;
   if (have_gyro) {
     std::vector<vcal::GyroSample> samples;
     samples.reserve(rec.imu.size());
@@ -494,7 +496,7 @@ int calibrate_vehicle(int argc, char** argv) {
   }
   if (any_odo) snip << "odometry:\n";
   snip << odo.str() << can.str();
-  if (wheels && !r.params[7].determined) {
+  if (wheels && !r.param("odometry.yaw_rate_scale").determined) {
     snip << "# can.odometry.track_width_mm: not changed (yaw-rate scale not determined)\n";
   }
 

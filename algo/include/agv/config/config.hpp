@@ -46,6 +46,7 @@ struct OdometrySection {
   double speed_scale = 1.0;
   double yaw_rate_scale = 1.0;
   double yaw_rate_bias_radps = 0.0;
+  double yaw_per_metre_rad = 0.0;
   double time_offset_ms = 0.0;
 };
 

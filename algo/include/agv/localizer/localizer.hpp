@@ -22,7 +22,9 @@ namespace agv::localizer {
 // applied to every odometry sample before fusion (scales, bias), the same equations as the
 // calibration's model
 // (tools/desk/src/calib_vehicle.hpp):
-//   v' = speed_scale * v,   omega' = yaw_rate_scale * omega + yaw_rate_bias_radps,
+//   v' = speed_scale * v + yaw_per_metre_rad * track_width_m^2 / 4 * omega,
+//   omega' = yaw_rate_scale * omega + yaw_rate_bias_radps + yaw_per_metre_rad * v
+//   (v and omega as read; the yaw_per_metre terms are unequal wheels, calib_vehicle.hpp),
 // and, since issue 33, on the camera's stamps, not the odometry's: the output runs on the
 // vehicle's clock (the one that stamps odometry and CAN), so
 //   t_exposure' = t_exposure + time_offset_ns   (odometry clock = camera clock + time_offset).
@@ -32,7 +34,9 @@ struct OdometryCorrection {
   double speed_scale = 1.0;
   double yaw_rate_scale = 1.0;
   double yaw_rate_bias_radps = 0.0;
+  double yaw_per_metre_rad = 0.0;  // unequal wheels: a straight run's curvature, rad/m
   std::int64_t time_offset_ns = 0;
+  double track_width_m = 0.5;  // the lever of the unequal wheels' speed term
 };
 
 // Configured gyro correction (keys `imu.*`), applied to every gyro sample before fusion:
