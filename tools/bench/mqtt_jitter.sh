@@ -2,7 +2,9 @@
 # The output loop with VDA 5050 on (docs/guide/vda5050.md): period jitter and end to end of
 # `agvloc replay --realtime` with MQTT off, broker up, broker down (nothing listening), broker up
 # with instantActions flooded by garbage; 3 runs per mode, interleaved; one line per run.
-#   tools/bench/mqtt_jitter.sh AGVLOC RECORDING WORKDIR
+#   tools/bench/mqtt_jitter.sh AGVLOC RECORDING WORKDIR [LOOP_EXTRA]
+# LOOP_EXTRA: YAML lines added to every mode's loop section, e.g. the shipped real-time settings
+# "  realtime_priority: 50\n  vision_priority: 40\n  lock_memory: true\n" (as tests/diag/diag_jitter.sh).
 # Needs mosquitto and mosquitto_pub (tools/install-deps.sh). Port 18877 must be free.
 set -u
 BIN="$(realpath "$1")"
@@ -10,8 +12,11 @@ REC="$(realpath "$2")"
 mkdir -p "$3" && cd "$3"
 PORT=18877
 printf 'listener %d 127.0.0.1\nallow_anonymous true\npersistence false\n' $PORT > m.conf
-printf 'vda5050:\n  enabled: true\n  broker_port: %d\n  manufacturer: acme\n  serial_number: agv-7\n' $PORT > on.yaml
-printf 'loop:\n  output_rate_hz: 100\n' > off.yaml
+EXTRA="$(printf "${4:-}")"
+[ -n "$EXTRA" ] && EXTRA="$EXTRA
+"
+printf 'loop:\n  output_rate_hz: 100\n%svda5050:\n  enabled: true\n  broker_port: %d\n  manufacturer: acme\n  serial_number: agv-7\n' "$EXTRA" $PORT > on.yaml
+printf 'loop:\n  output_rate_hz: 100\n%s' "$EXTRA" > off.yaml
 run() {  # mode i
   local mode=$1 i=$2 cfg=on.yaml bp= fp=
   [ "$mode" = off ] && cfg=off.yaml
