@@ -238,9 +238,10 @@ void add_odometry(std::vector<Key>* k) {
                           {"deg/m",
                            "unequal wheels: ω' += this · v and v' += this · track² / 4 · ω (v, "
                            "ω as read; track `can.odometry.track_width_mm`). A right wheel "
-                           "reading 0.4 % more than the left on a 0.5 m track curves a straight "
-                           "run by −0.46° per metre and creeps a turn on the spot by 0.5 mm per "
-                           "radian. From `calibrate vehicle`, which otherwise puts the curvature "
+                           "reading 0.4 % more than the left on a 0.5 m track bends a straight "
+                           "run 0.46° per metre to the left and creeps a turn on the spot 0.5 mm "
+                           "per radian forward: c = −0.46. From `calibrate vehicle`, which "
+                           "otherwise puts the curvature "
                            "into the camera yaw and the creep into the lateral offset; the "
                            "filter's bias state cannot follow it, since it changes with speed"}));
   k->push_back(number("odometry.time_offset_ms", AGV_AT(odometry.time_offset_ms), -500.0, 500.0,
