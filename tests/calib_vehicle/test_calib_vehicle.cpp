@@ -23,13 +23,6 @@ Options options() {
   return o;
 }
 
-const ParamReport& param(const Result& r, const std::string& name) {
-  for (const auto& p : r.params) {
-    if (p.name == name) return p;
-  }
-  throw std::runtime_error("no parameter " + name);
-}
-
 }  // namespace
 
 class CalibVehicleSeeds : public ::testing::TestWithParam<unsigned> {};
@@ -103,8 +96,8 @@ TEST(CalibVehicle, NoTurnsRefusesYawRateScaleAndOffset) {
   ASSERT_TRUE(calibrate_vehicle(d.odom, d.obs, d.map, 30.0, 24.0, nominal, options(), &r, &err))
       << err;
   EXPECT_FALSE(r.turns_seen);
-  EXPECT_FALSE(param(r, "odometry.yaw_rate_scale").determined);
-  EXPECT_FALSE(param(r, "mounting.offset_x_mm").determined);
+  EXPECT_FALSE(r.param("odometry.yaw_rate_scale").determined);
+  EXPECT_FALSE(r.param("mounting.offset_x_mm").determined);
   bool warned = false;
   for (const auto& w : r.warnings) {
     std::printf("warning: %s\n", w.c_str());
