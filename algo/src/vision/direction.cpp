@@ -92,10 +92,10 @@ LogoScores LandmarkLocalizer::Impl::logo_scores(const cv::Mat& img, Vec2 c_mm, d
 // logo_ms: the logo's share of the time (timings.direction_ms).
 int LandmarkLocalizer::Impl::logo_and_code(const cv::Mat& img, const Prediction& pred, Vec2 c_px,
                                            double up, Vec2 c_mm, double beta, LogoScores* logo,
-                                           double* logo_ms, LandmarkFix* out) {
+                                           double* logo_ms, QrRead* rd, LandmarkFix* out) {
   *logo_ms = 0.0;
   if (cfg.tracking.logo_at_code_turn && pred.valid && !windows.empty()) {
-    const int q = read_at_predicted_turn(img, pred, c_mm, beta, out);
+    const int q = read_at_predicted_turn(img, pred, c_mm, beta, rd, out);
     if (q >= 0) {
       const double t = now_ms();
       const double s = logo_ncc(img, c_mm, beta, q);
@@ -118,7 +118,7 @@ int LandmarkLocalizer::Impl::logo_and_code(const cv::Mat& img, const Prediction&
   const double t = now_ms();
   *logo = logo_scores(img, c_mm, beta);
   *logo_ms += now_ms() - t;
-  return decode_qr(img, pred, c_px, up, c_mm, beta, *logo, out);
+  return decode_qr(img, pred, c_px, up, c_mm, beta, *logo, rd, out);
 }
 
 // The final turn, or -1 (kDirectionAmbiguous): a clear logo must agree with the QR orientation

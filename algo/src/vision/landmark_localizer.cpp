@@ -174,12 +174,13 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
   // check. Tracking reads the code first and scores the logo at its turn only (logo_and_code).
   LogoScores logo;
   double logo_ms = 0.0;
-  const int qr_q = logo_and_code(img, pred, c_px, up, c_mm, beta, &logo, &logo_ms, out);
+  QrRead* const rd = &qr_read;
+  const int qr_q = logo_and_code(img, pred, c_px, up, c_mm, beta, &logo, &logo_ms, rd, out);
   out->logo_score = logo.best;
   out->logo_margin = logo.margin;
   Pose2 world_landmark;
-  st =
-      out->qr_method == 0 ? FixStatus::kQrUnreadable : check_payload(qr_text, out, &world_landmark);
+  st = out->qr_method == 0 ? FixStatus::kQrUnreadable
+                           : check_payload(rd->text, out, &world_landmark);
   const double t4 = now_ms();
   if (cfg.now_ns) out->timings.decode_ms = t4 - t2 - logo_ms;
   // 5c. Map-guided identity of an unread code (docs/design/map_identity.md): whole border only, and

@@ -10,6 +10,11 @@
 //   predicted_detect.cpp 1-2 with a precise prediction: none, the prediction places the bands
 //   edge_probe.cpp      1-2 with a looser one: 1-D edge searches across the predicted sides
 //   landmark_localizer.cpp  run(): the stages in order, the public class, the debug overlay
+// What Impl's members are: the configuration and the models it was built with, storage reused from
+// frame to frame (a frame allocates nothing), the tracking windows planned for the frame, and the
+// last frame's geometry for the overlay. A stage's result is its return value or an argument:
+// the fitted square, the logo scores, the code read (QrRead) and the map-guided identity are not
+// members, so what each stage reads and writes shows in its signature.
 #pragma once
 
 #include <Eigen/Core>
@@ -132,6 +137,19 @@ struct NormalEquations {
   double ssr = 0.0, sum_w = 0.0;
 };
 
+// One frame's code read (qr_decode.cpp): what the read expects from the tracking and what it
+// read. The stage's functions take it as an argument; run() keeps one (LandmarkLocalizer::Impl::
+// qr_read) only for its storage, so that a frame allocates nothing, and every read resets it.
+struct QrRead {
+  // The tracked landmark's codes (pointing into the localizer's map_codes) and the turn its
+  // predicted heading points to: empty and -1 without a trusted prediction.
+  std::vector<QrExpected> expected;
+  int predicted_turn = -1;
+  std::string text;          // the payload read; empty when none was
+  int search_attempts = 0;   // zxing search attempts (read_qr_search)
+  bool centre_only = false;  // decode_guided's read came from the module centres alone
+};
+
 // Logo scores at the four 90-degree turns (turn q: forward axis = beta - q * 90 deg).
 struct LogoScores {
   // -1 at a turn where the logo leaves the image, and at the turns not scored (logo_one_turn)
@@ -208,13 +226,7 @@ struct LandmarkLocalizer::Impl {
   std::array<int, 8> qr_grid_turns{};
   std::vector<float> qr_fill;
   QrGridScratch qr_scratch;
-  std::string qr_text;
-  // Verified read (docs/design/tracking.md): the tracked landmark's codes and the turn its
-  // predicted heading points to; empty and -1 without a trusted prediction.
-  std::vector<QrExpected> qr_expected;
-  int predicted_turn = -1;
-  int qr_search_attempts = 0;   // zxing search attempts of this frame's decode_qr
-  bool qr_centre_only = false;  // decode_guided's read came from the module centres alone
+  QrRead qr_read;  // storage only: the stages take it as an argument (QrRead)
 
   // Pose.
   std::array<std::vector<Vec2>, kNumLines> pts_px, pts_mm;
@@ -355,31 +367,30 @@ struct LandmarkLocalizer::Impl {
   LogoScores logo_scores(const cv::Mat& img, Vec2 c_mm, double beta);
   double logo_ncc(const cv::Mat& img, Vec2 c_mm, double beta, int q);
   int logo_and_code(const cv::Mat& img, const Prediction& pred, Vec2 c_px, double up, Vec2 c_mm,
-                    double beta, LogoScores* logo, double* logo_ms, LandmarkFix* out);
+                    double beta, LogoScores* logo, double* logo_ms, QrRead* rd, LandmarkFix* out);
   int decide_direction(const LogoScores& logo, int qr_q) const;
 
   // Stage 5, QR decode (qr_decode.cpp).
   int decode_qr(const cv::Mat& img, const Prediction& pred, Vec2 c_px, double up, Vec2 c_mm,
-                double beta, const LogoScores& logo, LandmarkFix* out);
+                double beta, const LogoScores& logo, QrRead* rd, LandmarkFix* out);
   int read_code(const cv::Mat& img, Vec2 c_px, double up, Vec2 c_mm, double beta,
-                const LogoScores& logo, LandmarkFix* out);
-  void expect_tracked_code(const Prediction& pred, Vec2 c_mm, double beta);
+                const LogoScores& logo, QrRead* rd, LandmarkFix* out);
+  void expect_tracked_code(const Prediction& pred, Vec2 c_mm, double beta, QrRead* rd);
   int read_at_predicted_turn(const cv::Mat& img, const Prediction& pred, Vec2 c_mm, double beta,
-                             LandmarkFix* out);
-  bool read_centres(const cv::Mat& img, Vec2 c_mm, double beta, int q, QrCodeBook* book);
+                             QrRead* rd, LandmarkFix* out);
+  bool read_centres(const cv::Mat& img, Vec2 c_mm, double beta, int q, QrCodeBook* book,
+                    QrRead* rd);
   bool code_cut_at_every_turn(const cv::Mat& img, Vec2 c_mm, double beta,
                               const LogoScores& logo) const;
-  int decode_guided(const cv::Mat& img, Vec2 c_mm, double beta, const LogoScores& logo);
+  int decode_guided(const cv::Mat& img, Vec2 c_mm, double beta, const LogoScores& logo, QrRead* rd);
   bool read_qr_search(const cv::Mat& img, Vec2 centre_px, double up_angle, std::string* text,
-                      double* qr_up_angle, bool* qr_ok);
+                      double* qr_up_angle, bool* qr_ok, int* attempts_made);
   bool sample_qr(const cv::Mat& img, Vec2 c_mm, double fwd, int n, QrSamples* s,
                  bool centre_only = false);
   bool fill_missing_modules(QrSamples* s);
   FixStatus check_payload(const std::string& text, LandmarkFix* out, Pose2* world_landmark);
 
   // Stage 5c, map-guided identity of an unread code (map_identity_stage.cpp).
-  MapIdentityDecision last_identity;
-  ModuleAgreement last_modules;
   // Both forms of a mapped landmark's code: [0] the full payload, [1] the id-only one.
   struct MapCodes {
     std::array<QrBits, 2> bits;

@@ -47,7 +47,7 @@ void LandmarkLocalizer::Impl::prune_map_codes() {
   map_codes.clear();
   map_book = QrCodeBook{};
   book_ids.clear();
-  qr_expected.clear();
+  qr_read.expected.clear();
 }
 
 void LandmarkLocalizer::Impl::update_code_book(const Prediction& pred) {
@@ -94,10 +94,11 @@ bool LandmarkLocalizer::Impl::map_identity(const cv::Mat& img, const Prediction&
     turns = {false, false, false, false};
     turns[static_cast<size_t>(logo.best_q)] = true;
   }
-  last_identity = gate_identity(c_mm, beta, cov, turns, pred, *map, cfg.identity, planner.index());
-  if (last_identity.result != MapIdentityResult::kAccepted) return false;
-  const LandmarkMapEntry* e = map->find(last_identity.id);
-  MapCodes* cand_codes = e ? codes_of(last_identity.id) : nullptr;
+  MapIdentityDecision identity =
+      gate_identity(c_mm, beta, cov, turns, pred, *map, cfg.identity, planner.index());
+  if (identity.result != MapIdentityResult::kAccepted) return false;
+  const LandmarkMapEntry* e = map->find(identity.id);
+  MapCodes* cand_codes = e ? codes_of(identity.id) : nullptr;
   if (!cand_codes) return false;
   // The neighbours whose codes the module check compares with (MapIdentityConfig::
   // pair_neighbours), in id order as a scan of the map gives them.
@@ -110,7 +111,7 @@ bool LandmarkLocalizer::Impl::map_identity(const cv::Mat& img, const Prediction&
   std::sort(near_entries.begin(), near_entries.end(),
             [](const LandmarkMapEntry* a, const LandmarkMapEntry* b) { return a->id < b->id; });
   for (const LandmarkMapEntry* o : near_entries) codes_of(o->id);
-  const double fwd = beta - last_identity.turn * kPi / 2.0;
+  const double fwd = beta - identity.turn * kPi / 2.0;
   bool ok = false;
   for (size_t form = 0; form < 2 && !ok; ++form) {
     const QrBits& cand = cand_codes->bits[form];
@@ -118,19 +119,16 @@ bool LandmarkLocalizer::Impl::map_identity(const cv::Mat& img, const Prediction&
     binarize_samples(qr_samples, &identity_bits);
     identity_others.clear();
     for (const LandmarkMapEntry* o : near_entries) {
-      if (o->id != last_identity.id)
-        identity_others.emplace_back(o->id, &codes_of(o->id)->bits[form]);
+      if (o->id != identity.id) identity_others.emplace_back(o->id, &codes_of(o->id)->bits[form]);
     }
-    last_modules = check_modules(identity_bits, cand, identity_others, cfg.identity);
-    ok = last_modules.ok;
+    ok = check_modules(identity_bits, cand, identity_others, cfg.identity).ok;
   }
   if (!ok) {
-    last_identity.result = MapIdentityResult::kModulesDisagree;
     return false;
   }
   *world_landmark = e->pose;
-  *turn = last_identity.turn;
-  *id = last_identity.id;
+  *turn = identity.turn;
+  *id = identity.id;
   return true;
 }
 

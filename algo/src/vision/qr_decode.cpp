@@ -57,14 +57,14 @@ constexpr double kTrackedCodeReachRel = 1.0;
 // prediction, and records on the fix how often zxing ran.
 int LandmarkLocalizer::Impl::decode_qr(const cv::Mat& img, const Prediction& pred, Vec2 c_px,
                                        double up, Vec2 c_mm, double beta, const LogoScores& logo,
-                                       LandmarkFix* out) {
-  qr_text.clear();
-  expect_tracked_code(pred, c_mm, beta);
+                                       QrRead* rd, LandmarkFix* out) {
+  rd->text.clear();
+  expect_tracked_code(pred, c_mm, beta, rd);
   qr_scratch.zxing_runs = 0;
-  qr_search_attempts = 0;
-  const int q = read_code(img, c_px, up, c_mm, beta, logo, out);
+  rd->search_attempts = 0;
+  const int q = read_code(img, c_px, up, c_mm, beta, logo, rd, out);
   out->qr_grid_decodes = qr_scratch.zxing_runs;
-  out->qr_search_attempts = qr_search_attempts;
+  out->qr_search_attempts = rd->search_attempts;
   return q;
 }
 
@@ -73,31 +73,35 @@ int LandmarkLocalizer::Impl::decode_qr(const cv::Mat& img, const Prediction& pre
 // qr_centre_first). The turn, or -1 with out's QR fields untouched when there is no predicted
 // turn, no expected code or no verified read.
 int LandmarkLocalizer::Impl::read_at_predicted_turn(const cv::Mat& img, const Prediction& pred,
-                                                    Vec2 c_mm, double beta, LandmarkFix* out) {
-  qr_text.clear();
-  expect_tracked_code(pred, c_mm, beta);
-  if (!cfg.qr_guided || !cfg.qr_centre_first || predicted_turn < 0 || qr_expected.empty()) {
+                                                    Vec2 c_mm, double beta, QrRead* rd,
+                                                    LandmarkFix* out) {
+  rd->text.clear();
+  rd->search_attempts = 0;
+  rd->centre_only = false;
+  expect_tracked_code(pred, c_mm, beta, rd);
+  if (!cfg.qr_guided || !cfg.qr_centre_first || rd->predicted_turn < 0 || rd->expected.empty()) {
     return -1;
   }
-  if (!read_centres(img, c_mm, beta, predicted_turn, code_book())) {
-    qr_text.clear();
+  if (!read_centres(img, c_mm, beta, rd->predicted_turn, code_book(), rd)) {
+    rd->text.clear();
     return -1;
   }
+  rd->centre_only = true;
   out->qr_method = 1;
   out->qr_verified = qr_scratch.verified;
   out->qr_centre_only = true;
   out->qr_grid_decodes = 0;
   out->qr_search_attempts = 0;
-  return predicted_turn;
+  return rd->predicted_turn;
 }
 
 // The centre-only read at turn q: the module centres of either grid size, verified against the
-// expected codes and the book (never zxing). Sets qr_text on success.
+// expected codes and the book (never zxing). Sets rd->text on success.
 bool LandmarkLocalizer::Impl::read_centres(const cv::Mat& img, Vec2 c_mm, double beta, int q,
-                                           QrCodeBook* book) {
+                                           QrCodeBook* book, QrRead* rd) {
   for (int n : {kQrModulesV2, kQrModulesV1}) {
     if (sample_qr(img, c_mm, beta - q * kPi / 2.0, n, &qr_samples, true) &&
-        verify_qr_grid(qr_samples, kCentreOnlyThreshold, &qr_text, &qr_scratch, qr_expected,
+        verify_qr_grid(qr_samples, kCentreOnlyThreshold, &rd->text, &qr_scratch, rd->expected,
                        book)) {
       return true;
     }
@@ -108,15 +112,16 @@ bool LandmarkLocalizer::Impl::read_centres(const cv::Mat& img, Vec2 c_mm, double
 // Guided module sampling at the logo's turn (all four when the logo is unclear; the code sits
 // off-centre, so a wrong turn samples the wrong place and cannot decode), then zxing's search on
 // the crop. Returns the turn the code's own orientation points to (-1 when unknown) and sets
-// out->qr_method (0 = unread), out->qr_verified and qr_text.
+// out->qr_method (0 = unread), out->qr_verified and rd->text.
 int LandmarkLocalizer::Impl::read_code(const cv::Mat& img, Vec2 c_px, double up, Vec2 c_mm,
-                                       double beta, const LogoScores& logo, LandmarkFix* out) {
+                                       double beta, const LogoScores& logo, QrRead* rd,
+                                       LandmarkFix* out) {
   if (cfg.qr_guided) {
-    const int q = decode_guided(img, c_mm, beta, logo);
+    const int q = decode_guided(img, c_mm, beta, logo, rd);
     if (q >= 0) {
       out->qr_method = 1;
       out->qr_verified = qr_scratch.verified;
-      out->qr_centre_only = qr_centre_only;
+      out->qr_centre_only = rd->centre_only;
       return q;
     }
   }
@@ -126,7 +131,7 @@ int LandmarkLocalizer::Impl::read_code(const cv::Mat& img, Vec2 c_px, double up,
   if (out->partly_outside && code_cut_at_every_turn(img, c_mm, beta, logo)) return -1;
   double qr_up = 0;
   bool qr_ok = false;
-  if (!read_qr_search(img, c_px, up, &qr_text, &qr_up, &qr_ok)) return -1;
+  if (!read_qr_search(img, c_px, up, &rd->text, &qr_up, &qr_ok, &rd->search_attempts)) return -1;
   out->qr_method = 2;
   // The code's orientation in the metric frame: which turn does it point to?
   const FloorProjector& mc = metric_floor;
@@ -148,12 +153,13 @@ int LandmarkLocalizer::Impl::read_code(const cv::Mat& img, Vec2 c_px, double up,
 
 // With a trusted prediction (the tracking windows are planned), the mapped landmark predicted
 // within kTrackedCodeReachRel outer half sizes of the fitted centre gives the codes the guided
-// reader expects (qr_expected) and, when the predicted heading is within kQrTurnTolDeg of a turn,
-// the turn to read first (predicted_turn). Neither can change what is read: an expected code is
-// taken only where zxing would decode it too (qr_grid.hpp), and a wrong turn decodes nothing.
-void LandmarkLocalizer::Impl::expect_tracked_code(const Prediction& pred, Vec2 c_mm, double beta) {
-  qr_expected.clear();
-  predicted_turn = -1;
+// reader expects (rd->expected) and, when the predicted heading is within kQrTurnTolDeg of a turn,
+// the turn to read first (rd->predicted_turn). Neither can change what is read: an expected code
+// is taken only where zxing would decode it too (qr_grid.hpp), and a wrong turn decodes nothing.
+void LandmarkLocalizer::Impl::expect_tracked_code(const Prediction& pred, Vec2 c_mm, double beta,
+                                                  QrRead* rd) {
+  rd->expected.clear();
+  rd->predicted_turn = -1;
   if (windows.empty() || !map || !pred.valid) return;
   const LandmarkMapEntry* best = nullptr;
   Pose2 best_p;
@@ -176,12 +182,12 @@ void LandmarkLocalizer::Impl::expect_tracked_code(const Prediction& pred, Vec2 c
     if (back == 0) {
       back = qr_bits_decode_to(codes->bits[form], codes->text[form], &qr_scratch) ? 1 : -1;
     }
-    if (back == 1) qr_expected.push_back({&codes->bits[form], &codes->text[form]});
+    if (back == 1) rd->expected.push_back({&codes->bits[form], &codes->text[form]});
   }
   for (int q = 0; q < 4; ++q) {
     if (std::abs(wrap_angle_rad(best_p.theta_rad - (beta - q * kPi / 2.0))) <
         deg_to_rad(kQrTurnTolDeg)) {
-      predicted_turn = q;
+      rd->predicted_turn = q;
     }
   }
 }
@@ -189,7 +195,9 @@ void LandmarkLocalizer::Impl::expect_tracked_code(const Prediction& pred, Vec2 c
 // The turn at which the guided reader decoded, or -1. Turns in the logo's order (only its best
 // when it is clear); an unclear logo's order starts at the predicted turn when there is one.
 int LandmarkLocalizer::Impl::decode_guided(const cv::Mat& img, Vec2 c_mm, double beta,
-                                           const LogoScores& logo) {
+                                           const LogoScores& logo, QrRead* rd) {
+  const int predicted_turn = rd->predicted_turn;
+  const std::vector<QrExpected>& expected = rd->expected;
   std::array<int, 4> order{logo.best_q, -1, -1, -1};
   if (!logo.clear) {
     order = {0, 1, 2, 3};
@@ -204,28 +212,28 @@ int LandmarkLocalizer::Impl::decode_guided(const cv::Mat& img, Vec2 c_mm, double
                                          QrThreshold::kSharpenedLocalMean, QrThreshold::kLocalMean,
                                          QrThreshold::kMidpoint};
   QrCodeBook* book = code_book();
-  qr_centre_only = false;
+  rd->centre_only = false;
   // A cheap first read when a verified read is possible (an expected code or the map's book):
   // the module centres only, and no zxing. Its answer is, as every verified read's, the code
   // zxing would decode from that grid; when it finds none, the full read below runs unchanged, so
   // it can cost a frame a fifth of the sampling but never a read. Whole codes only (sample_qr).
   // Measured in docs/design/tracking.md ("Centre-only first read").
-  if (cfg.qr_centre_first && (!qr_expected.empty() || (book && book->size() > 0))) {
+  if (cfg.qr_centre_first && (!expected.empty() || (book && book->size() > 0))) {
     for (int q : order) {
       if (q < 0) break;
-      if (read_centres(img, c_mm, beta, q, book)) {
-        qr_centre_only = true;
+      if (read_centres(img, c_mm, beta, q, book, rd)) {
+        rd->centre_only = true;
         return q;
       }
     }
   }
   // At most qr_max_grid_decodes zxing reads; past them, verified reads only. That bounds a frame's
   // zxing cost: an unclear logo on a cut code took up to 24 reads (4.6 M aarch64 instructions).
-  const bool verifiable = !qr_expected.empty() || (book && book->size() > 0);
+  const bool verifiable = !expected.empty() || (book && book->size() > 0);
   const auto read = [&](const QrSamples& g, QrThreshold t) {
     return qr_scratch.zxing_runs < cfg.qr_max_grid_decodes
-               ? decode_qr_grid(g, t, &qr_text, &qr_scratch, qr_expected, book)
-               : verifiable && verify_qr_grid(g, t, &qr_text, &qr_scratch, qr_expected, book);
+               ? decode_qr_grid(g, t, &rd->text, &qr_scratch, expected, book)
+               : verifiable && verify_qr_grid(g, t, &rd->text, &qr_scratch, expected, book);
   };
   if (logo.clear) {
     // One turn: each grid's thresholds in order, the verified read before zxing's at each.
@@ -247,7 +255,7 @@ int LandmarkLocalizer::Impl::decode_guided(const cv::Mat& img, Vec2 c_mm, double
       if (!sample_qr(img, c_mm, beta - q * kPi / 2.0, n, &g)) continue;
       qr_grid_turns[static_cast<size_t>(n_grids++)] = q;
       for (QrThreshold t : kThresholds) {
-        if (verifiable && verify_qr_grid(g, t, &qr_text, &qr_scratch, qr_expected, book)) return q;
+        if (verifiable && verify_qr_grid(g, t, &rd->text, &qr_scratch, expected, book)) return q;
       }
     }
   }
@@ -255,7 +263,7 @@ int LandmarkLocalizer::Impl::decode_guided(const cv::Mat& img, Vec2 c_mm, double
   // failed on these grids.
   const auto read_zxing = [&](int i, QrThreshold t) {
     return qr_scratch.zxing_runs < cfg.qr_max_grid_decodes &&
-           decode_qr_grid(qr_grids[static_cast<size_t>(i)], t, &qr_text, &qr_scratch);
+           decode_qr_grid(qr_grids[static_cast<size_t>(i)], t, &rd->text, &qr_scratch);
   };
   // The predicted turn's grids (tracking) get every threshold first ...
   for (int i = 0; i < n_grids; ++i) {
@@ -280,9 +288,11 @@ int LandmarkLocalizer::Impl::decode_guided(const cv::Mat& img, Vec2 c_mm, double
 // scratches that break zxing's local binarizer; (2) a larger crop (zxing's block binarizer is
 // sensitive to where blocks fall on a blurred code); (3) zxing's global-histogram binarizer;
 // (4, 5) an unsharp-masked crop with either binarizer, which recovers codes smeared by defocus
-// plus motion blur. qr_up_angle: image angle of the code's "up"; qr_ok: not mirrored.
+// plus motion blur. qr_up_angle: image angle of the code's "up"; qr_ok: not mirrored;
+// attempts_made: counts the attempts zxing ran.
 bool LandmarkLocalizer::Impl::read_qr_search(const cv::Mat& img, Vec2 c, double up_angle,
-                                             std::string* text, double* qr_up_angle, bool* qr_ok) {
+                                             std::string* text, double* qr_up_angle, bool* qr_ok,
+                                             int* attempts_made) {
   *qr_ok = false;
   const double module_px = geom.qr_side_mm() / kQrModulesV2 / mm_per_px;
   int d = 1;
@@ -326,7 +336,7 @@ bool LandmarkLocalizer::Impl::read_qr_search(const cv::Mat& img, Vec2 c, double 
                                                     : ZXing::Binarizer::LocalAverage);
     ZXing::ImageView iv(src->data, src->cols, src->rows, ZXing::ImageFormat::Lum,
                         static_cast<int>(src->step[0]));
-    ++qr_search_attempts;
+    ++*attempts_made;
     res = ZXing::ReadBarcode(iv, hints);
     if (res.isValid()) break;
   }
