@@ -1,18 +1,20 @@
 #!/usr/bin/env python3
-"""Vehicle calibration on worn landmarks (issue 36), simulated: N calibration drives (60 s,
-15 fps, realistic imaging) over landmarks 1-3 of the default grid, landmarks 1 and 2 worn
+"""Vehicle calibration on worn landmarks (issue 36), simulated: N calibration drives (60 s by
+default, 15 fps, realistic imaging) over landmarks 1-3 of the default grid, landmarks 1 and 2 worn
 (scratches, dirt, scuffed edges, faded ink, a small occluder), each drive with its own seed and
 mount / odometry perturbation; `agvloc-desk calibrate vehicle` on each, every parameter's error
 and error / sigma against the issue's targets. Not run by CI (about 3 min per drive and
 calibrating binary on a loaded 2-core machine).
 
   eval_worn_calibration.py WORKDIR DESK [DESK_BEFORE] [--drives 5] [--clean] [--equal-wheels]
+                           [--duration-s 60] [--only SEED]
 
 DESK renders the drives (needs --wear-landmarks) and calibrates; DESK_BEFORE, when given, also
 calibrates the same recordings (e.g. a build of the code before issue 36). --clean: no wear.
 Every drive has unequal wheels (ASYM below: the right wheel reads that fraction more than the
 left, as the simulator's default vehicle does); --equal-wheels drives them equal, as this
-evaluation did before `odometry.yaw_per_metre_deg` existed."""
+evaluation did before `odometry.yaw_per_metre_deg` existed. A WORKDIR keeps its recordings:
+use a new one for other wheels or another duration."""
 import argparse
 import math
 import os
@@ -40,9 +42,9 @@ TARGETS = {"mounting.offset_x_mm": 0.2, "mounting.offset_y_mm": 0.2, "mounting.y
            "mounting.height_mm": 0.2, "mounting.roll_deg": 0.02, "mounting.pitch_deg": 0.02,
            "odometry.speed_scale": 0.0005, "odometry.yaw_rate_scale": 0.0005,
            "odometry.yaw_rate_bias_degps": 0.01, "odometry.time_offset_ms": 0.5,
-           # not an issue-36 target: the calibration's determination limit
-           # (max_sigma_yaw_per_metre_deg), a heading drift of 0.05 deg per metre driven
-           "odometry.yaw_per_metre_deg": 0.05}
+           # no issue-36 target: scored by error / sigma only (the calibration calls it determined
+           # at sigma <= 0.05 deg/m, max_sigma_yaw_per_metre_deg)
+           "odometry.yaw_per_metre_deg": None}
 WEAR = ["--wear-landmarks", "1,2", "--scratches", "2", "--dirt", "2", "--scuffs", "3",
         "--ink-variation", "0.3", "--occluder-fraction", "0.04"]
 
@@ -64,11 +66,11 @@ def truth(d, a):
             "odometry.yaw_rate_bias_degps": -bias / k, "odometry.time_offset_ms": dt}
 
 
-def simulate(desk, d, out, clean, a):
+def simulate(desk, d, out, clean, a, duration_s):
     seed, x, y, yaw, h, roll, pitch, se, yse, bias, dt = d
     if os.path.exists(os.path.join(out, "meta.yaml")):
         return
-    cmd = [desk, "sim", "--out", out, "--trajectory", "calibration", "--duration-s", "60",
+    cmd = [desk, "sim", "--out", out, "--trajectory", "calibration", "--duration-s", str(duration_s),
            "--fps", "15", "--seed", str(seed), "--degrade", "realistic", "--slip-rate-per-s", "0",
            "--odom-asymmetry", str(a), "--odom-scale-error", str(se), "--odom-yaw-scale-error",
            str(yse), "--odom-yaw-bias-degps", str(bias), "--odom-time-offset-ms", str(dt),
@@ -99,13 +101,16 @@ def main():
     ap.add_argument("--drives", type=int, default=5)
     ap.add_argument("--clean", action="store_true")
     ap.add_argument("--equal-wheels", action="store_true")
+    ap.add_argument("--duration-s", type=float, default=60.0)
+    ap.add_argument("--only", type=int, help="this drive (seed) only")
     a = ap.parse_args()
     os.makedirs(a.work, exist_ok=True)
     binaries = [("after", a.desk)] + ([("before", a.desk_before)] if a.desk_before else [])
     rows = {name: [] for name, _ in binaries}
-    for d in DRIVES[:a.drives]:
+    drives = [d for d in DRIVES if d[0] == a.only] if a.only else DRIVES[:a.drives]
+    for d in drives:
         rec = os.path.join(a.work, f"rec{d[0]}")
-        simulate(a.desk, d, rec, a.clean, asym(d, a.equal_wheels))
+        simulate(a.desk, d, rec, a.clean, asym(d, a.equal_wheels), a.duration_s)
         t = truth(d, asym(d, a.equal_wheels))
         for name, desk in binaries:
             code, got = calibrate(desk, rec, os.path.join(a.work, f"cal{d[0]}_{name}"))
@@ -114,23 +119,25 @@ def main():
                 err = v - t[p]
                 rows[name].append((d[0], p, err, s, abs(err) / s if s > 0 else float("inf"), tol,
                                    st, code))
+                verdict = "no target" if tol is None else "ok" if abs(err) <= tol else "OVER TARGET"
                 print(f"{name:6s} drive {d[0]} {p:30s} error {err:+.5f} sigma {s:.5f} "
                       f"|e|/s {abs(err) / s if s > 0 else float('inf'):6.2f} "
-                      f"{'ok' if abs(err) <= tol else 'OVER TARGET'} {st} exit {code}",
-                      flush=True)
+                      f"{verdict} {st} exit {code}", flush=True)
     for name, r in rows.items():
-        print(f"\n== {name}: per parameter over {a.drives} drives: max |error| (target), "
+        print(f"\n== {name}: per parameter over {len(drives)} drives: max |error| (target), "
               f"max |error|/sigma, share within 2 sigma")
         for p, tol in TARGETS.items():
             e = [x for x in r if x[1] == p]
             me = max(abs(x[2]) for x in e)
             mz = max(x[4] for x in e)
             w2 = sum(x[4] <= 2 for x in e)
-            print(f"  {p:30s} {me:.5f} ({tol}) {'met' if me <= tol else 'NOT MET'}  "
-                  f"{mz:6.2f}  {w2}/{len(e)}")
+            verdict = "" if tol is None else "met" if me <= tol else "NOT MET"
+            print(f"  {p:30s} {me:.5f} ({tol}) {verdict}  {mz:6.2f}  {w2}/{len(e)}")
         n = len(r)
+        tr = [x for x in r if x[5] is not None]
         print(f"  all: within 3 sigma {sum(x[4] <= 3 for x in r)}/{n}, within 2 sigma "
-              f"{sum(x[4] <= 2 for x in r)}/{n}, within target {sum(abs(x[2]) <= x[5] for x in r)}/{n}")
+              f"{sum(x[4] <= 2 for x in r)}/{n}, within target "
+              f"{sum(abs(x[2]) <= x[5] for x in tr)}/{len(tr)}")
 
 
 if __name__ == "__main__":
