@@ -16,10 +16,11 @@ left, as the simulator's default vehicle does); --equal-wheels drives them equal
 evaluation did before `odometry.yaw_per_metre_deg` existed. A WORKDIR keeps its recordings:
 use a new one for other wheels or another duration."""
 import argparse
-import math
 import os
 import subprocess
 import sys
+
+from validate_calibration import true_yaw_per_metre_deg
 
 MAP = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "tools", "maps",
                    "default_grid.csv")
@@ -56,10 +57,7 @@ def asym(d, equal_wheels):
 def truth(d, a):
     _, x, y, yaw, h, roll, pitch, se, yse, bias, dt = d
     k = (1 + se) * (1 + yse)
-    # reported v = (1 + se) v + a b / 4 omega, omega = (1 + yse)((1 + se) omega + a / b v) + bias;
-    # the correction's yaw term (calib_vehicle.hpp; tests/calib_vehicle/validate_calibration.py)
-    det = (1 + yse) * ((1 + se) ** 2 - a * a / 4)
-    return {"odometry.yaw_per_metre_deg": math.degrees(-(1 + yse) * a / TRACK_M / det),
+    return {"odometry.yaw_per_metre_deg": true_yaw_per_metre_deg(a, TRACK_M, se, yse),
             "mounting.offset_x_mm": x, "mounting.offset_y_mm": y, "mounting.yaw_deg": yaw,
             "mounting.height_mm": h, "mounting.roll_deg": roll, "mounting.pitch_deg": pitch,
             "odometry.speed_scale": 1 / (1 + se), "odometry.yaw_rate_scale": 1 / k,

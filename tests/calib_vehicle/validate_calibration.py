@@ -52,10 +52,18 @@ PERTURB = ["--slip-rate-per-s", "0", "--odom-asymmetry", str(ASYM),
 # =>  the correction (the keys; calib_vehicle.hpp's model, whose speed term is
 # yaw_per_metre b^2 / 4: exact up to 1 + e_w).
 K = (1 + SCALE_ERR) * (1 + YAW_SCALE_ERR)
-_DET = (1 + YAW_SCALE_ERR) * ((1 + SCALE_ERR) ** 2 - ASYM * ASYM / 4)
+
+
+def true_yaw_per_metre_deg(asym, track_m, scale_err, yaw_scale_err):
+    """The correction's yaw per metre for wheels reading asym apart (right minus left) on track_m,
+    inverting the reported v and omega above (also used by eval_worn_calibration.py)."""
+    det = (1 + yaw_scale_err) * ((1 + scale_err) ** 2 - asym * asym / 4)
+    return -(1 + yaw_scale_err) * asym / track_m / det * 180 / 3.141592653589793
+
+
 TRUE_ODOM = {"speed_scale": 1 / (1 + SCALE_ERR), "yaw_rate_scale": 1 / K,
              "yaw_rate_bias_degps": -YAW_BIAS_DEGPS / K,
-             "yaw_per_metre_deg": -(1 + YAW_SCALE_ERR) * ASYM / TRACK_M / _DET * 180 / 3.141592653589793,
+             "yaw_per_metre_deg": true_yaw_per_metre_deg(ASYM, TRACK_M, SCALE_ERR, YAW_SCALE_ERR),
              "time_offset_ms": TIME_OFFSET_MS}
 # The simulator's default gyro (0.3 % scale error, +0.2 deg/s bias): its true correction, with
 # the priors `calibrate vehicle` writes for a determined gyro (their floors), so "true" and

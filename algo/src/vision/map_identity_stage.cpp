@@ -94,7 +94,7 @@ bool LandmarkLocalizer::Impl::map_identity(const cv::Mat& img, const Prediction&
     turns = {false, false, false, false};
     turns[static_cast<size_t>(logo.best_q)] = true;
   }
-  MapIdentityDecision identity =
+  const MapIdentityDecision identity =
       gate_identity(c_mm, beta, cov, turns, pred, *map, cfg.identity, planner.index());
   if (identity.result != MapIdentityResult::kAccepted) return false;
   const LandmarkMapEntry* e = map->find(identity.id);
@@ -123,9 +123,7 @@ bool LandmarkLocalizer::Impl::map_identity(const cv::Mat& img, const Prediction&
     }
     ok = check_modules(identity_bits, cand, identity_others, cfg.identity).ok;
   }
-  if (!ok) {
-    return false;
-  }
+  if (!ok) return false;
   *world_landmark = e->pose;
   *turn = identity.turn;
   *id = identity.id;

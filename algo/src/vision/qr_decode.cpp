@@ -76,8 +76,6 @@ int LandmarkLocalizer::Impl::read_at_predicted_turn(const cv::Mat& img, const Pr
                                                     Vec2 c_mm, double beta, QrRead* rd,
                                                     LandmarkFix* out) {
   rd->text.clear();
-  rd->search_attempts = 0;
-  rd->centre_only = false;
   expect_tracked_code(pred, c_mm, beta, rd);
   if (!cfg.qr_guided || !cfg.qr_centre_first || rd->predicted_turn < 0 || rd->expected.empty()) {
     return -1;
@@ -86,7 +84,6 @@ int LandmarkLocalizer::Impl::read_at_predicted_turn(const cv::Mat& img, const Pr
     rd->text.clear();
     return -1;
   }
-  rd->centre_only = true;
   out->qr_method = 1;
   out->qr_verified = qr_scratch.verified;
   out->qr_centre_only = true;
