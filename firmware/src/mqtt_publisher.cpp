@@ -7,20 +7,21 @@
 #include <cstdio>
 #include <fstream>
 
+#include "agv/hal/clock.hpp"
+
 namespace agv::app {
 
 namespace {
 
-constexpr std::int64_t kMs = 1'000'000;
 // Reconnection backoff: the first retry soon (a restarting broker is back in well under a second),
 // doubling to a cap that finds a returned broker within 2 s even when its start is slow: with a
 // 1.6 s cap a broker up 0.5 s late (a loaded machine) was found only 2.6 s after the drop's next
 // retry. One attempt a second against a broker that is down costs nothing.
-constexpr std::int64_t kBackoffMinNs = 100 * kMs;
-constexpr std::int64_t kBackoffMaxNs = 1000 * kMs;
+constexpr std::int64_t kBackoffMinNs = 100 * hal::kNsPerMs;
+constexpr std::int64_t kBackoffMaxNs = 1000 * hal::kNsPerMs;
 constexpr int kKeepaliveS = 10;
 // A broker that accepted the TCP connection but sent no CONNACK within this is tried again.
-constexpr std::int64_t kConnackTimeoutNs = 3000 * kMs;
+constexpr std::int64_t kConnackTimeoutNs = 3000 * hal::kNsPerMs;
 // Refusal log lines: the first ones, then every 100th (a flood must not flood the journal).
 constexpr std::uint64_t kLogFirstRefusals = 10;
 

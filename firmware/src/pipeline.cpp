@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "agv/adapters/hybrid_wait_clock.hpp"
+#include "agv/hal/clock.hpp"
 #include "agv/posix/futex_wakeup.hpp"
 #include "agv/posix/posix_clock.hpp"
 #include "agv/posix/realtime.hpp"
@@ -21,7 +22,6 @@ namespace agv::app {
 
 namespace {
 
-constexpr std::int64_t kMs = 1'000'000;
 // Fix-triggered poses are not waited for in the last part of a period (see the output thread).
 constexpr std::int64_t kFixWaitGuardNs = 200'000;
 
@@ -158,19 +158,19 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
       if (camera_error.load()) {
         // Reopen a vanished camera once a second; fusion dead-reckons meanwhile.
         if (clock.now_ns() < retry_at_ns) {
-          clock.sleep_until_ns(std::min(retry_at_ns, clock.now_ns() + 50 * kMs));
+          clock.sleep_until_ns(std::min(retry_at_ns, clock.now_ns() + 50 * hal::kNsPerMs));
           continue;
         }
         io.camera->stop();
         if (io.camera->start() == hal::CameraStatus::kOk) {
           camera_error = false;
         } else {
-          retry_at_ns = clock.now_ns() + 1000 * kMs;
+          retry_at_ns = clock.now_ns() + 1000 * hal::kNsPerMs;
           continue;
         }
       }
       hal::FrameView f;
-      const hal::CameraStatus s = io.camera->next_frame(50 * kMs, &f);
+      const hal::CameraStatus s = io.camera->next_frame(50 * hal::kNsPerMs, &f);
       if (s == hal::CameraStatus::kOk) {
         last_frame_ns = clock.now_ns();
         hal::FrameView old;
@@ -181,7 +181,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
       } else if (s == hal::CameraStatus::kDisconnected || s == hal::CameraStatus::kDeviceError ||
                  s == hal::CameraStatus::kNotStarted) {
         camera_error = true;
-        retry_at_ns = clock.now_ns() + 1000 * kMs;
+        retry_at_ns = clock.now_ns() + 1000 * hal::kNsPerMs;
       }
     }
     mailbox.close();
@@ -196,7 +196,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
     FixRecord rec;
     while (true) {
       hal::FrameView f;
-      if (!mailbox.take(100 * kMs, &f)) {
+      if (!mailbox.take(100 * hal::kNsPerMs, &f)) {
         if (mailbox.closed() || done.load()) break;
         continue;
       }

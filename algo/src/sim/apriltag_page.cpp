@@ -11,10 +11,13 @@
 #include <sstream>
 
 #include "agv/sim/render.hpp"
+#include "svg_number.hpp"
 
 namespace agv::sim {
 
 namespace {
+
+using detail::svg_number;
 
 // apriltag_to_image() of tag36h11: 10 x 10 cells, a white ring of one cell around the 8 x 8
 // black square.
@@ -52,16 +55,6 @@ bool tag_cells(std::uint32_t id, std::vector<std::uint8_t>* cells, std::string* 
   return true;
 }
 
-std::string fmt(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.4f", v);
-  std::string s = buf;
-  while (!s.empty() && s.back() == '0') s.pop_back();
-  if (!s.empty() && s.back() == '.') s.pop_back();
-  if (s == "-0") s = "0";
-  return s;
-}
-
 // Black cells of one tag whose centre is at (cx, cy) in the SVG's mm coordinates (page
 // orientation: row 0 at the top).
 void append_tag_svg(std::ostringstream& os, const AprilTagGeometry& g,
@@ -78,8 +71,8 @@ void append_tag_svg(std::ostringstream& os, const AprilTagGeometry& g,
       }
       int e = c;
       while (e < kTagCells && cells[static_cast<size_t>(r * kTagCells + e)]) ++e;
-      os << "    <rect x=\"" << fmt(x0 + c * m) << "\" y=\"" << fmt(y0 + r * m) << "\" width=\""
-         << fmt((e - c) * m) << "\" height=\"" << fmt(m) << "\"/>\n";
+      os << "    <rect x=\"" << svg_number(x0 + c * m) << "\" y=\"" << svg_number(y0 + r * m)
+         << "\" width=\"" << svg_number((e - c) * m) << "\" height=\"" << svg_number(m) << "\"/>\n";
       c = e;
     }
   }
@@ -151,12 +144,12 @@ std::string tag_svg(const AprilTagGeometry& geometry, std::uint32_t id) {
   const double side = 2.0 * geometry.page_half_mm();
   std::ostringstream os;
   os << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-     << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << fmt(side) << "mm\" height=\""
-     << fmt(side) << "mm\" viewBox=\"0 0 " << fmt(side) << " " << fmt(side)
+     << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << svg_number(side) << "mm\" height=\""
+     << svg_number(side) << "mm\" viewBox=\"0 0 " << svg_number(side) << " " << svg_number(side)
      << "\" shape-rendering=\"crispEdges\">\n"
-     << "  <!-- agvloc landmark, tag36h11 id " << id << ", black square " << fmt(geometry.size_mm)
-     << " mm; print at 100% scale -->\n"
-     << "  <rect x=\"0\" y=\"0\" width=\"" << fmt(side) << "\" height=\"" << fmt(side)
+     << "  <!-- agvloc landmark, tag36h11 id " << id << ", black square "
+     << svg_number(geometry.size_mm) << " mm; print at 100% scale -->\n"
+     << "  <rect x=\"0\" y=\"0\" width=\"" << svg_number(side) << "\" height=\"" << svg_number(side)
      << "\" fill=\"#fff\"/>\n";
   append_tag_svg(os, geometry, cells, side / 2, side / 2);
   os << "</svg>\n";
@@ -173,11 +166,12 @@ std::string tag_sheet_svg(const AprilTagGeometry& geometry, const LandmarkMap& m
   const double w = cols * cell_w, h = rows * cell_h;
   std::ostringstream os;
   os << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-     << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << fmt(w) << "mm\" height=\"" << fmt(h)
-     << "mm\" viewBox=\"0 0 " << fmt(w) << " " << fmt(h) << "\" shape-rendering=\"crispEdges\">\n"
-     << "  <!-- agvloc tag36h11 sheet, black square " << fmt(geometry.size_mm)
+     << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << svg_number(w) << "mm\" height=\""
+     << svg_number(h) << "mm\" viewBox=\"0 0 " << svg_number(w) << " " << svg_number(h)
+     << "\" shape-rendering=\"crispEdges\">\n"
+     << "  <!-- agvloc tag36h11 sheet, black square " << svg_number(geometry.size_mm)
      << " mm; print at 100% scale -->\n"
-     << "  <rect x=\"0\" y=\"0\" width=\"" << fmt(w) << "\" height=\"" << fmt(h)
+     << "  <rect x=\"0\" y=\"0\" width=\"" << svg_number(w) << "\" height=\"" << svg_number(h)
      << "\" fill=\"#fff\"/>\n";
   int i = 0;
   std::vector<std::uint8_t> cells;
@@ -189,7 +183,7 @@ std::string tag_sheet_svg(const AprilTagGeometry& geometry, const LandmarkMap& m
     std::snprintf(cap, sizeof cap, "tag36h11 id %u  x %.1f  y %.1f  heading %.2f deg",
                   static_cast<unsigned>(id), e.pose.x_mm, e.pose.y_mm,
                   rad_to_deg(wrap_angle_rad(e.pose.theta_rad)));
-    os << "  <text x=\"" << fmt(cx) << "\" y=\"" << fmt(cy + cell_w / 2 - 2.0)
+    os << "  <text x=\"" << svg_number(cx) << "\" y=\"" << svg_number(cy + cell_w / 2 - 2.0)
        << "\" font-family=\"sans-serif\" font-size=\"3\" text-anchor=\"middle\">" << cap
        << "</text>\n";
     ++i;

@@ -11,10 +11,13 @@
 
 #include "agv/sim/render.hpp"
 #include "agv/vision/map_identity.hpp"
+#include "svg_number.hpp"
 
 namespace agv::sim {
 
 namespace {
+
+using detail::svg_number;
 
 // zxing-cpp 1.4 maps setEccLevel(0..8) to QR levels L,L,L,M,M,Q,Q,H,H (level = (e-1)/2);
 // 4 is M. Confirmed by decoding the generated codes in tests/sim.
@@ -31,24 +34,14 @@ bool in_triangle(Vec2 p, Vec2 a, Vec2 b, Vec2 c) {
   return !(has_neg && has_pos);
 }
 
-std::string fmt(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.4f", v);
-  std::string s = buf;
-  while (!s.empty() && s.back() == '0') s.pop_back();
-  if (!s.empty() && s.back() == '.') s.pop_back();
-  if (s == "-0") s = "0";
-  return s;
-}
-
 // SVG elements of one landmark whose page origin is at (cx, cy) in the SVG's mm coordinates.
 void append_landmark_svg(std::ostringstream& os, const LandmarkPattern& pat, double cx, double cy) {
   const LandmarkGeometry& g = pat.geometry();
   const double oh = g.outer_half_mm(), ih = g.inner_half_mm();
-  os << "  <rect x=\"" << fmt(cx - oh) << "\" y=\"" << fmt(cy - oh) << "\" width=\"" << fmt(2 * oh)
-     << "\" height=\"" << fmt(2 * oh) << "\" fill=\"#000\"/>\n";
-  os << "  <rect x=\"" << fmt(cx - ih) << "\" y=\"" << fmt(cy - ih) << "\" width=\"" << fmt(2 * ih)
-     << "\" height=\"" << fmt(2 * ih) << "\" fill=\"#fff\"/>\n";
+  os << "  <rect x=\"" << svg_number(cx - oh) << "\" y=\"" << svg_number(cy - oh) << "\" width=\""
+     << svg_number(2 * oh) << "\" height=\"" << svg_number(2 * oh) << "\" fill=\"#000\"/>\n";
+  os << "  <rect x=\"" << svg_number(cx - ih) << "\" y=\"" << svg_number(cy - ih) << "\" width=\""
+     << svg_number(2 * ih) << "\" height=\"" << svg_number(2 * ih) << "\" fill=\"#fff\"/>\n";
   const QrModules& q = pat.qr();
   const double m = pat.module_mm();
   os << "  <g fill=\"#000\">\n";
@@ -63,17 +56,17 @@ void append_landmark_svg(std::ostringstream& os, const LandmarkPattern& pat, dou
       while (e < q.n && q.at(e, r)) ++e;
       // Runs are merged per row; rows overlap by nothing, so printers show no hairlines between
       // modules of one row and exact module boundaries between rows.
-      os << "    <rect x=\"" << fmt(cx + g.qr_u0_mm() + c * m) << "\" y=\""
-         << fmt(cy + g.qr_v0_mm() + r * m) << "\" width=\"" << fmt((e - c) * m) << "\" height=\""
-         << fmt(m) << "\"/>\n";
+      os << "    <rect x=\"" << svg_number(cx + g.qr_u0_mm() + c * m) << "\" y=\""
+         << svg_number(cy + g.qr_v0_mm() + r * m) << "\" width=\"" << svg_number((e - c) * m)
+         << "\" height=\"" << svg_number(m) << "\"/>\n";
       c = e;
     }
   }
   os << "  </g>\n";
   const Vec2 a = g.logo_apex_uv_mm(), b = g.logo_base_left_uv_mm(), c = g.logo_base_right_uv_mm();
-  os << "  <polygon points=\"" << fmt(cx + a.x) << "," << fmt(cy + a.y) << " " << fmt(cx + b.x)
-     << "," << fmt(cy + b.y) << " " << fmt(cx + c.x) << "," << fmt(cy + c.y)
-     << "\" fill=\"#000\"/>\n";
+  os << "  <polygon points=\"" << svg_number(cx + a.x) << "," << svg_number(cy + a.y) << " "
+     << svg_number(cx + b.x) << "," << svg_number(cy + b.y) << " " << svg_number(cx + c.x) << ","
+     << svg_number(cy + c.y) << "\" fill=\"#000\"/>\n";
 }
 
 }  // namespace
@@ -189,12 +182,12 @@ std::string landmark_svg(const LandmarkGeometry& geometry, const std::string& pa
   const double side = 2.0 * (geometry.outer_half_mm() + margin_mm);
   std::ostringstream os;
   os << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-     << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << fmt(side) << "mm\" height=\""
-     << fmt(side) << "mm\" viewBox=\"0 0 " << fmt(side) << " " << fmt(side)
+     << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << svg_number(side) << "mm\" height=\""
+     << svg_number(side) << "mm\" viewBox=\"0 0 " << svg_number(side) << " " << svg_number(side)
      << "\" shape-rendering=\"crispEdges\">\n"
-     << "  <!-- agvloc landmark, payload " << payload << ", size " << fmt(geometry.size_mm)
+     << "  <!-- agvloc landmark, payload " << payload << ", size " << svg_number(geometry.size_mm)
      << " mm; print at 100% scale -->\n"
-     << "  <rect x=\"0\" y=\"0\" width=\"" << fmt(side) << "\" height=\"" << fmt(side)
+     << "  <rect x=\"0\" y=\"0\" width=\"" << svg_number(side) << "\" height=\"" << svg_number(side)
      << "\" fill=\"#fff\"/>\n";
   append_landmark_svg(os, pat, side / 2, side / 2);
   os << "</svg>\n";
@@ -215,11 +208,12 @@ std::string landmark_sheet_svg(const LandmarkGeometry& geometry, const LandmarkM
   const double w = cols * cell_w, h = rows * cell_h;
   std::ostringstream os;
   os << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-     << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << fmt(w) << "mm\" height=\"" << fmt(h)
-     << "mm\" viewBox=\"0 0 " << fmt(w) << " " << fmt(h) << "\" shape-rendering=\"crispEdges\">\n"
-     << "  <!-- agvloc landmark sheet, size " << fmt(geometry.size_mm)
+     << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << svg_number(w) << "mm\" height=\""
+     << svg_number(h) << "mm\" viewBox=\"0 0 " << svg_number(w) << " " << svg_number(h)
+     << "\" shape-rendering=\"crispEdges\">\n"
+     << "  <!-- agvloc landmark sheet, size " << svg_number(geometry.size_mm)
      << " mm; print at 100% scale -->\n"
-     << "  <rect x=\"0\" y=\"0\" width=\"" << fmt(w) << "\" height=\"" << fmt(h)
+     << "  <rect x=\"0\" y=\"0\" width=\"" << svg_number(w) << "\" height=\"" << svg_number(h)
      << "\" fill=\"#fff\"/>\n";
   int i = 0;
   for (const auto& [id, e] : map.entries) {
@@ -232,7 +226,7 @@ std::string landmark_sheet_svg(const LandmarkGeometry& geometry, const LandmarkM
     std::snprintf(cap, sizeof cap, "id %u  x %.1f  y %.1f  heading %.2f deg",
                   static_cast<unsigned>(id), e.pose.x_mm, e.pose.y_mm,
                   rad_to_deg(wrap_angle_rad(e.pose.theta_rad)));
-    os << "  <text x=\"" << fmt(cx) << "\" y=\"" << fmt(cy + cell_w / 2 + 3.0)
+    os << "  <text x=\"" << svg_number(cx) << "\" y=\"" << svg_number(cy + cell_w / 2 + 3.0)
        << "\" font-family=\"sans-serif\" font-size=\"3\" text-anchor=\"middle\">" << cap
        << "</text>\n";
     ++i;

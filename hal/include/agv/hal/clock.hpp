@@ -5,6 +5,9 @@
 
 namespace agv::hal {
 
+// Nanoseconds per millisecond, for the `_ms` quantities of configurations and timeouts.
+inline constexpr std::int64_t kNsPerMs = 1'000'000;
+
 class Clock {
  public:
   virtual ~Clock() = default;
