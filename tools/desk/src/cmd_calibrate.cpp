@@ -32,14 +32,14 @@ namespace {
 namespace fs = std::filesystem;
 
 // One line per subcommand.
-const Subcommand kSubcommands[] = {
+const Subcommand kCalibrateSubcommands[] = {
     {"intrinsics", calibrate_intrinsics,
      "camera intrinsics from images of a ChArUco board or chessboard"},
     {"vehicle", calibrate_vehicle,
      "mounting, odometry and time offset from a calibration drive over mapped landmarks"},
     {"check", calibrate_check, "parked-vehicle check with a printed landmark at a taped pose"},
 };
-const CommandGroup kCalibrate{"calibrate", kSubcommands, std::size(kSubcommands)};
+const CommandGroup kCalibrate{"calibrate", kCalibrateSubcommands, std::size(kCalibrateSubcommands)};
 
 }  // namespace
 

@@ -19,11 +19,11 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const Subcommand kSubcommands[] = {
+const Subcommand kConfigSubcommands[] = {
     {"apply", config_apply_command,
      "merge calibration snippets into a configuration (--config BASE SNIPPET... --out FILE)"},
 };
-const CommandGroup kConfig{"config", kSubcommands, std::size(kSubcommands)};
+const CommandGroup kConfig{"config", kConfigSubcommands, std::size(kConfigSubcommands)};
 
 // The output appears whole or not at all: a check that fails, or a full disk, leaves no
 // half-written configuration to deploy.
