@@ -130,11 +130,12 @@ struct TagDetector {
 std::shared_ptr<TagDetector> make_tag_detector() { return std::make_shared<TagDetector>(); }
 
 // Median offset (mm) of the side's points from side k of the square (c, beta, half side h).
-double LandmarkLocalizer::Impl::side_offset_mm(int k, Vec2 c, double beta, double h) {
+double LandmarkLocalizer::Impl::side_offset_mm(const EdgePoints& pts, int k, Vec2 c, double beta,
+                                               double h) {
   const double a = beta - k * kPi / 2.0;
   const Vec2 n{std::cos(a), std::sin(a)};
   scratch_buf.clear();
-  for (const Vec2& p : pts_mm[static_cast<size_t>(k * 2)]) {
+  for (const Vec2& p : pts.mm[static_cast<size_t>(k * 2)]) {
     scratch_buf.push_back(n.x * (p.x - c.x) + n.y * (p.y - c.y) - h);
   }
   if (scratch_buf.empty()) return 0.0;
@@ -147,15 +148,16 @@ double LandmarkLocalizer::Impl::side_offset_mm(int k, Vec2 c, double beta, doubl
 // refitted from the other three (each axis must keep a side); a square that still disagrees
 // with one of its sides gives no fix. The square has the size pose() fitted (out->outer_half_mm)
 // when it could, else the printed one.
-FixStatus LandmarkLocalizer::Impl::drop_inconsistent_side(Vec2* c_mm, double* beta,
+FixStatus LandmarkLocalizer::Impl::drop_inconsistent_side(EdgePoints* pts, Vec2* c_mm, double* beta,
                                                           Eigen::Matrix3d* cov, LandmarkFix* out) {
   const double h_printed = geom.outer_half_mm();
+  auto& line_ok = pts->line_ok;
   auto worst = [&](Vec2 c, double b, double h, double* off) {
     int wk = -1;
     *off = 0.0;
     for (int k = 0; k < 4; ++k) {
       if (!line_ok[static_cast<size_t>(k * 2)]) continue;
-      const double o = side_offset_mm(k, c, b, h);
+      const double o = side_offset_mm(*pts, k, c, b, h);
       if (o > *off) *off = o, wk = k;
     }
     return wk;
@@ -174,10 +176,10 @@ FixStatus LandmarkLocalizer::Impl::drop_inconsistent_side(Vec2* c_mm, double* be
   m.beta = *beta;
   m.h_out = pair ? h : h_printed;
   m.h_in = geom.inner_half_mm();
-  for (int l = 0; l < kNumLines; ++l) std::fill(weights[l].begin(), weights[l].end(), 1.0);
+  for (auto& w : pts->weights) std::fill(w.begin(), w.end(), 1.0);
   NormalEquations ne;
   const int n_params = pair ? 4 : 3;
-  if (!joint_fit(PoseMethod::kJointSquareFit, n_params, &m, &ne)) {
+  if (!joint_fit(PoseMethod::kJointSquareFit, n_params, pts, &m, &ne)) {
     return FixStatus::kTooFewEdgePoints;
   }
   worst(m.c, m.beta, m.h_out, &off);
@@ -266,13 +268,13 @@ FixStatus LandmarkLocalizer::Impl::tag_from_detector(const cv::Mat& img, Landmar
   Vec2 c_mm;
   double beta = 0;
   Eigen::Matrix3d cov;
-  FixStatus st = pose(img, c_px, up, contrast, out, &c_mm, &beta, &cov);
+  FixStatus st = pose(img, c_px, up, contrast, &edge_points, out, &c_mm, &beta, &cov);
   if (cfg.now_ns) out->timings.pose_ms = now_ms() - t1;
   if (st == FixStatus::kTooFewEdgePoints && out->partly_outside) st = FixStatus::kPartlyOutside;
   if (st != FixStatus::kOk) return st;
   have_overlay = true;
 
-  st = consistent_square(&c_mm, &beta, &cov, out);
+  st = consistent_square(&edge_points, &c_mm, &beta, &cov, out);
   if (st != FixStatus::kOk) return st;
 
   // Heading quadrant from the decoded rotation: the fitted border normal beta is only known modulo
@@ -295,9 +297,9 @@ FixStatus LandmarkLocalizer::Impl::tag_from_detector(const cv::Mat& img, Landmar
 }
 
 // The outer-only square's checks after the pose stage: sides that disagree, and the size gate.
-FixStatus LandmarkLocalizer::Impl::consistent_square(Vec2* c_mm, double* beta, Eigen::Matrix3d* cov,
-                                                     LandmarkFix* out) {
-  const FixStatus st = drop_inconsistent_side(c_mm, beta, cov, out);
+FixStatus LandmarkLocalizer::Impl::consistent_square(EdgePoints* pts, Vec2* c_mm, double* beta,
+                                                     Eigen::Matrix3d* cov, LandmarkFix* out) {
+  const FixStatus st = drop_inconsistent_side(pts, c_mm, beta, cov, out);
   if (st != FixStatus::kOk) return st;
   if (out->outer_half_mm > 0.0 &&
       std::abs(out->outer_half_mm / geom.outer_half_mm() - 1.0) > kMaxSizeErrorRel) {
@@ -408,13 +410,13 @@ FixStatus LandmarkLocalizer::Impl::tag_from_prediction(const cv::Mat& img, Landm
     Vec2 c_mm;
     double beta = 0;
     Eigen::Matrix3d cov;
-    FixStatus st = pose(img, c_px, up, contrast, &f, &c_mm, &beta, &cov);
+    FixStatus st = pose(img, c_px, up, contrast, &edge_points, &f, &c_mm, &beta, &cov);
     const double band_px = cfg.band_rel * geom.border_width_mm() / mm_per_px;
     if (st == FixStatus::kOk &&
         std::hypot(centre_px.x - c_px.x, centre_px.y - c_px.y) > kPlacedCentreBandShare * band_px) {
       st = FixStatus::kNoLandmark;
     }
-    if (st == FixStatus::kOk) st = consistent_square(&c_mm, &beta, &cov, &f);
+    if (st == FixStatus::kOk) st = consistent_square(&edge_points, &c_mm, &beta, &cov, &f);
     if (st != FixStatus::kOk) {
       best_st = st;
       continue;

@@ -229,7 +229,7 @@ FixStatus LandmarkLocalizer::Impl::measure(const cv::Mat& img, const Detection& 
   out->detect_angle_deg = rad_to_deg(up);
   out->partly_outside = partly_outside(img, c_px, up);
   if (out->partly_outside && !cfg.allow_partly_outside) return FixStatus::kPartlyOutside;
-  FixStatus st = pose(img, c_px, up, contrast, out, c_mm, beta, cov);
+  FixStatus st = pose(img, c_px, up, contrast, &edge_points, out, c_mm, beta, cov);
   if (cfg.now_ns) out->timings.pose_ms = now_ms() - t1;
   if (st == FixStatus::kTooFewEdgePoints && out->partly_outside) st = FixStatus::kPartlyOutside;
   return st;
@@ -305,7 +305,7 @@ const VisionConfig& LandmarkLocalizer::config() const { return impl_->cfg; }
 const std::vector<Vec2>& LandmarkLocalizer::edge_points_px(int line) const {
   static const std::vector<Vec2> kNone;
   if (line < 0 || line >= kNumLines) return kNone;
-  return impl_->pts_px[static_cast<size_t>(line)];
+  return impl_->edge_points.px[static_cast<size_t>(line)];
 }
 
 FixStatus LandmarkLocalizer::process(const cv::Mat& gray8, LandmarkFix* out) {

@@ -13,8 +13,9 @@
 // What Impl's members are: the configuration and the models it was built with, storage reused from
 // frame to frame (a frame allocates nothing), the tracking windows planned for the frame, and the
 // last frame's geometry for the overlay. A stage's result is its return value or an argument:
-// the fitted square, the logo scores, the code read (QrRead) and the map-guided identity are not
-// members, so what each stage reads and writes shows in its signature.
+// the fitted square, the logo scores, the code read (QrRead), the edge points (EdgePoints) and the
+// map-guided identity are not members, so what each stage reads and writes shows in its signature.
+// QrRead and EdgePoints have one instance in Impl only to keep their buffers' storage.
 #pragma once
 
 #include <Eigen/Core>
@@ -129,6 +130,16 @@ struct SquareModel {
   double h_out = 0.0, h_in = 0.0;
 };
 
+// Stage 3's edge points of one square (pose.cpp): collected in pixels (collect), projected to the
+// metric frame with a weight each (fit_lines; the joint fit re-weights them), and which of the
+// eight lines count (line_ok; the tag family's side check drops one). Stage 3 and the tag family's
+// square check take it as an argument; the overlay draws the last frame's pixels.
+struct EdgePoints {
+  std::array<std::vector<Vec2>, kNumLines> px, mm;
+  std::array<std::vector<double>, kNumLines> weights;
+  std::array<bool, kNumLines> line_ok{};
+};
+
 // Normal equations of the joint fit (c_x, c_y, beta, h_out, h_in) at the final iterate, with the
 // weighted sum of squared residuals and the sum of weights: what the covariance needs.
 struct NormalEquations {
@@ -230,15 +241,13 @@ struct LandmarkLocalizer::Impl {
   QrRead qr_read;  // storage only: the stages take it as an argument (QrRead)
 
   // Pose.
-  std::array<std::vector<Vec2>, kNumLines> pts_px, pts_mm;
-  std::array<std::vector<double>, kNumLines> weights;
+  EdgePoints edge_points;  // storage only: stage 3 takes it as an argument (EdgePoints)
   std::vector<double> logo_template, logo_samples, residual_buf, scratch_buf;
   std::vector<Vec2> logo_page_pts;
   StripGradients strip;
 
   // Kept for the overlay.
   bool have_overlay = false;
-  std::array<bool, kNumLines> line_ok{};
   std::array<Vec2, 8> corners_px{};  // outer 0..3, inner 4..7
   Vec2 centre_px;
   int quadrant = 0;
@@ -332,35 +341,41 @@ struct LandmarkLocalizer::Impl {
 
   // Stage 3, pose (pose.cpp; its covariance, stage 6, in covariance.cpp).
   FixStatus pose(const cv::Mat& img, Vec2 centre_px, double up_angle, double contrast,
-                 LandmarkFix* out, Vec2* c_mm, double* beta, Eigen::Matrix3d* cov);
-  int collect(const cv::Mat& img, Vec2 centre_px, double up_angle, double band_px, double thr);
+                 EdgePoints* pts, LandmarkFix* out, Vec2* c_mm, double* beta, Eigen::Matrix3d* cov);
+  int collect(const cv::Mat& img, Vec2 centre_px, double up_angle, double band_px, double thr,
+              EdgePoints* pts);
   // Edge points as pixel rows covered (each collected point stands for edge_row_step rows): the
   // unit of min_points_per_line and min_points_total.
   int rows_covered(int points) const { return points * std::max(1, cfg.edge_row_step); }
   int collect_line(const cv::Mat& img, Vec2 c, Vec2 nk, double h, Vec2 g_dir, double band,
                    int thr2_int, double tan_tol, std::vector<Vec2>* dst);
-  int fit_lines(std::array<LineFit, kNumLines>* fits);
-  double line_heading(const std::array<LineFit, kNumLines>& fits, double beta0) const;
-  Vec2 paper_corner_a_centre(double beta) const;
+  int fit_lines(EdgePoints* pts, std::array<LineFit, kNumLines>* fits);
+  double line_heading(const EdgePoints& pts, const std::array<LineFit, kNumLines>& fits,
+                      double beta0) const;
+  Vec2 paper_corner_a_centre(const EdgePoints& pts, double beta) const;
   bool intersections_centre(const std::array<LineFit, kNumLines>& fits, Vec2* c) const;
-  Vec2 joint_start_centre(const std::array<LineFit, kNumLines>& fits, const SquareModel& m) const;
-  void reweight_joint(const SquareModel& m);
-  void accumulate_normal_equations(const SquareModel& m, NormalEquations* ne) const;
+  Vec2 joint_start_centre(const EdgePoints& pts, const std::array<LineFit, kNumLines>& fits,
+                          const SquareModel& m) const;
+  void reweight_joint(const SquareModel& m, EdgePoints* pts);
+  void accumulate_normal_equations(const EdgePoints& pts, const SquareModel& m,
+                                   NormalEquations* ne) const;
   // n_params: 3 (centre and heading, sizes as printed), 4 (and the outer half size: the tag
   // family's outer-only fit), 5 (and both half sizes).
-  bool joint_fit(PoseMethod method, int n_params, SquareModel* m, NormalEquations* ne);
+  bool joint_fit(PoseMethod method, int n_params, EdgePoints* pts, SquareModel* m,
+                 NormalEquations* ne);
   void keep_overlay_geometry(const SquareModel& m);
 
   // Tag family: detection and id by libapriltag, pose by the stage above (apriltag.cpp).
   FixStatus run_tag(const cv::Mat& img, const Prediction& pred, LandmarkFix* out);
   FixStatus tag_from_detector(const cv::Mat& img, LandmarkFix* out);
   FixStatus tag_from_prediction(const cv::Mat& img, LandmarkFix* out);
-  FixStatus consistent_square(Vec2* c_mm, double* beta, Eigen::Matrix3d* cov, LandmarkFix* out);
+  FixStatus consistent_square(EdgePoints* pts, Vec2* c_mm, double* beta, Eigen::Matrix3d* cov,
+                              LandmarkFix* out);
   int tag_code_distance(const cv::Mat& img, Vec2 c_mm, double beta, int q, double half_mm,
                         std::uint32_t id);
   std::vector<double> tag_margin;  // tag_code_distance's margin samples, kept for their storage
-  double side_offset_mm(int k, Vec2 c, double beta, double h);
-  FixStatus drop_inconsistent_side(Vec2* c_mm, double* beta, Eigen::Matrix3d* cov,
+  double side_offset_mm(const EdgePoints& pts, int k, Vec2 c, double beta, double h);
+  FixStatus drop_inconsistent_side(EdgePoints* pts, Vec2* c_mm, double* beta, Eigen::Matrix3d* cov,
                                    LandmarkFix* out);
 
   // Stage 4, logo, and the direction decision of stage 5 (direction.cpp).

@@ -24,7 +24,7 @@ void LandmarkLocalizer::draw_overlay(const cv::Mat& gray8, const LandmarkFix& fi
       const int side = l / 2;
       const int cls_img = (l % 2 == 0) ? side : (side + 2) % 4;  // gradient class
       const int cls = ((cls_img - m.quadrant) % 4 + 4) % 4;
-      for (const Vec2& p : m.pts_px[static_cast<size_t>(l)]) {
+      for (const Vec2& p : m.edge_points.px[static_cast<size_t>(l)]) {
         const int x = static_cast<int>(std::lround(p.x)), y = static_cast<int>(std::lround(p.y));
         if (x >= 0 && y >= 0 && x < bgr_out->cols && y < bgr_out->rows) {
           bgr_out->at<cv::Vec3b>(y, x) = cv::Vec3b(static_cast<std::uint8_t>(colours[cls][0]),

@@ -68,18 +68,19 @@ Vec2 intersect(const Line2& a, const Line2& b, bool* ok) {
 }  // namespace
 
 FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up, double contrast,
-                                        LandmarkFix* out, Vec2* c_mm, double* beta_out,
-                                        Eigen::Matrix3d* cov) {
+                                        EdgePoints* pts, LandmarkFix* out, Vec2* c_mm,
+                                        double* beta_out, Eigen::Matrix3d* cov) {
   // 3a. Classified edge points in bands around the detected square.
   const double w_px = geom.border_width_mm() / mm_per_px;
   const double thr = cfg.edge_threshold_rel * kPrewittStepGain * contrast;
-  const int total = collect(img, c_px, up, cfg.band_rel * w_px, thr);
+  const int total = collect(img, c_px, up, cfg.band_rel * w_px, thr, pts);
   up_angle_px = up;
   if (rows_covered(total) < cfg.min_points_total) return FixStatus::kTooFewEdgePoints;
 
   // 3b. Metric points and one robust line per edge.
   std::array<LineFit, kNumLines> fits;
-  const int used = fit_lines(&fits);
+  const int used = fit_lines(pts, &fits);
+  const auto& line_ok = pts->line_ok;
   std::array<bool, 4> side_ok{};
   for (int k = 0; k < 4; ++k) side_ok[k] = line_ok[k * 2] && (outer_only || line_ok[k * 2 + 1]);
   out->sides_used = side_ok[0] + side_ok[1] + side_ok[2] + side_ok[3];
@@ -98,14 +99,14 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
       {c_px.x + kAngleProbePx * std::cos(up), c_px.y + kAngleProbePx * std::sin(up)}, &a1);
   const double beta0 = std::atan2(a1.y - a0.y, a1.x - a0.x);
   SquareModel m;
-  m.beta = line_heading(fits, beta0);
+  m.beta = line_heading(*pts, fits, beta0);
   m.c = {a0.x, a0.y};
 
   // 3d. Centre by the configured method (the joint fit when a side is missing).
   PoseMethod method = cfg.pose_method;
   if (out->sides_used != 4) method = PoseMethod::kJointSquareFit;
   if (method == PoseMethod::kPaperCornerA) {
-    m.c = paper_corner_a_centre(m.beta);
+    m.c = paper_corner_a_centre(*pts, m.beta);
   } else if (method == PoseMethod::kLineIntersections) {
     if (!intersections_centre(fits, &m.c)) return FixStatus::kTooFewEdgePoints;
   }
@@ -119,9 +120,9 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
   const int n_params = !free_size ? 3 : outer_only ? 4 : 5;
   m.h_out = geom.outer_half_mm();
   m.h_in = geom.inner_half_mm();
-  if (method == PoseMethod::kJointSquareFit) m.c = joint_start_centre(fits, m);
+  if (method == PoseMethod::kJointSquareFit) m.c = joint_start_centre(*pts, fits, m);
   NormalEquations ne;
-  if (!joint_fit(method, n_params, &m, &ne)) return FixStatus::kTooFewEdgePoints;
+  if (!joint_fit(method, n_params, pts, &m, &ne)) return FixStatus::kTooFewEdgePoints;
 
   // 3f. Covariance, result, overlay geometry.
   *cov = fit_covariance(ne, n_params, cfg);
@@ -139,13 +140,13 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
 // Converts every edge point to the metric frame (dropping those the camera model cannot map) and
 // fits each line; a line counts when it has enough points and is long enough to carry an angle
 // (half the inner side). Returns the number of points on the lines that count.
-int LandmarkLocalizer::Impl::fit_lines(std::array<LineFit, kNumLines>* fits) {
+int LandmarkLocalizer::Impl::fit_lines(EdgePoints* pts, std::array<LineFit, kNumLines>* fits) {
   const FloorProjector& mc = metric_floor;
-  line_ok.fill(false);
+  pts->line_ok.fill(false);
   int used = 0;
   for (int l = 0; l < kNumLines; ++l) {
-    auto& src = pts_px[static_cast<size_t>(l)];
-    auto& dst = pts_mm[static_cast<size_t>(l)];
+    auto& src = pts->px[static_cast<size_t>(l)];
+    auto& dst = pts->mm[static_cast<size_t>(l)];
     dst.clear();
     size_t keep = 0;
     for (size_t i = 0; i < src.size(); ++i) {
@@ -156,7 +157,7 @@ int LandmarkLocalizer::Impl::fit_lines(std::array<LineFit, kNumLines>* fits) {
       }
     }
     src.resize(keep);
-    auto& w = weights[static_cast<size_t>(l)];
+    auto& w = pts->weights[static_cast<size_t>(l)];
     w.assign(dst.size(), 1.0);
     if (rows_covered(static_cast<int>(dst.size())) < cfg.min_points_per_line) continue;
     LineFit& fit = (*fits)[static_cast<size_t>(l)];
@@ -168,7 +169,7 @@ int LandmarkLocalizer::Impl::fit_lines(std::array<LineFit, kNumLines>* fits) {
       ok = fit_line_tls(dst, {}, &fit);
     }
     if (ok && fit.extent >= geom.inner_half_mm()) {
-      line_ok[static_cast<size_t>(l)] = true;
+      pts->line_ok[static_cast<size_t>(l)] = true;
       used += fit.n;
     }
   }
@@ -176,8 +177,10 @@ int LandmarkLocalizer::Impl::fit_lines(std::array<LineFit, kNumLines>* fits) {
 }
 
 // Line angles reduced to side 0's normal direction, averaged by the configured heading method.
-double LandmarkLocalizer::Impl::line_heading(const std::array<LineFit, kNumLines>& fits,
+double LandmarkLocalizer::Impl::line_heading(const EdgePoints& pts,
+                                             const std::array<LineFit, kNumLines>& fits,
                                              double beta0) const {
+  const auto& line_ok = pts.line_ok;
   std::array<double, kNumLines> ang{}, var_ang{}, k000{};
   for (int l = 0; l < kNumLines; ++l) {
     if (!line_ok[static_cast<size_t>(l)]) continue;
@@ -187,7 +190,7 @@ double LandmarkLocalizer::Impl::line_heading(const std::array<LineFit, kNumLines
     var_ang[static_cast<size_t>(l)] = std::max(f.var_angle, kMinLineAngleVar);
     // Paper 000 eq. 11 with raw coordinates across the line.
     double sy2 = 0;
-    for (const Vec2& p : pts_mm[static_cast<size_t>(l)]) {
+    for (const Vec2& p : pts.mm[static_cast<size_t>(l)]) {
       const double y = f.line.nx * p.x + f.line.ny * p.y;
       sy2 += y * y;
     }
@@ -209,12 +212,12 @@ double LandmarkLocalizer::Impl::line_heading(const std::array<LineFit, kNumLines
 
 // Paper 001 eq. 8-11 in the frame aligned with the fine heading: corner A of the border's midline
 // square from the extreme edge points of the left (side 3) and top (side 0) sides.
-Vec2 LandmarkLocalizer::Impl::paper_corner_a_centre(double beta) const {
+Vec2 LandmarkLocalizer::Impl::paper_corner_a_centre(const EdgePoints& pts, double beta) const {
   const double cb = std::cos(beta), sb = std::sin(beta);
   auto to_al = [&](Vec2 p) { return Vec2{cb * p.x + sb * p.y, -sb * p.x + cb * p.y}; };
   // Aligned frame: side 0 normal = +x, side 3 normal = beta + 90 deg = +y.
   auto extreme = [&](int line, bool along_y, double* coord) {
-    const auto& v = pts_mm[static_cast<size_t>(line)];
+    const auto& v = pts.mm[static_cast<size_t>(line)];
     double best = -1e300;
     for (const Vec2& p : v) {
       const Vec2 q = to_al(p);
@@ -260,7 +263,8 @@ bool LandmarkLocalizer::Impl::intersections_centre(const std::array<LineFit, kNu
 
 // Start of the joint fit: the centre's coordinate along each axis from the line centroids,
 // n_k . c = n_k . centroid - h (side k's normal is +-n_(k%2)); an axis without lines keeps m.c.
-Vec2 LandmarkLocalizer::Impl::joint_start_centre(const std::array<LineFit, kNumLines>& fits,
+Vec2 LandmarkLocalizer::Impl::joint_start_centre(const EdgePoints& pts,
+                                                 const std::array<LineFit, kNumLines>& fits,
                                                  const SquareModel& m) const {
   double num[2] = {0, 0};
   int cnt[2] = {0, 0};
@@ -269,7 +273,7 @@ Vec2 LandmarkLocalizer::Impl::joint_start_centre(const std::array<LineFit, kNumL
     const double sgn = k < 2 ? 1.0 : -1.0;
     for (int e = 0; e < 2; ++e) {
       const int l = k * 2 + e;
-      if (!line_ok[static_cast<size_t>(l)]) continue;
+      if (!pts.line_ok[static_cast<size_t>(l)]) continue;
       const Vec2 ctr = fits[static_cast<size_t>(l)].centroid;
       num[k % 2] += sgn * (ctr.x * n.x + ctr.y * n.y - (e == 0 ? m.h_out : m.h_in));
       ++cnt[k % 2];
@@ -286,14 +290,15 @@ Vec2 LandmarkLocalizer::Impl::joint_start_centre(const std::array<LineFit, kNumL
 // first round, every point of every fitted line (also those the per-line fit rejected) is
 // re-weighted (Tukey) by its residual to the joint model with one global scale, so an occluder
 // edge that won a single line's vote is rejected by the square. False when a step is not finite.
-bool LandmarkLocalizer::Impl::joint_fit(PoseMethod method, int n_params, SquareModel* m,
-                                        NormalEquations* ne) {
+bool LandmarkLocalizer::Impl::joint_fit(PoseMethod method, int n_params, EdgePoints* pts,
+                                        SquareModel* m, NormalEquations* ne) {
   const bool joint = method == PoseMethod::kJointSquareFit;
   const int rounds = joint && cfg.robust ? kJointRobustRounds : 1;
   const int iters = joint ? kJointIterationsPerRound * rounds : 1;
   for (int it = 0; it < iters; ++it) {
-    if (joint && cfg.robust && it > 0 && it % kJointIterationsPerRound == 0) reweight_joint(*m);
-    accumulate_normal_equations(*m, ne);
+    if (joint && cfg.robust && it > 0 && it % kJointIterationsPerRound == 0)
+      reweight_joint(*m, pts);
+    accumulate_normal_equations(*pts, *m, ne);
     if (!joint) break;
     Eigen::Matrix<double, 5, 1> delta = Eigen::Matrix<double, 5, 1>::Zero();
     if (n_params == 5) {
@@ -316,14 +321,15 @@ bool LandmarkLocalizer::Impl::joint_fit(PoseMethod method, int n_params, SquareM
   return true;
 }
 
-void LandmarkLocalizer::Impl::reweight_joint(const SquareModel& m) {
+void LandmarkLocalizer::Impl::reweight_joint(const SquareModel& m, EdgePoints* pts) {
+  const auto& line_ok = pts->line_ok;
   residual_buf.clear();
   for (int k = 0; k < 4; ++k) {
     const Vec2 n = side_normal_mm(m.beta, k);
     for (int e = 0; e < 2; ++e) {
       const int l = k * 2 + e;
       if (!line_ok[static_cast<size_t>(l)]) continue;
-      for (const Vec2& p : pts_mm[static_cast<size_t>(l)]) {
+      for (const Vec2& p : pts->mm[static_cast<size_t>(l)]) {
         residual_buf.push_back(
             std::abs(n.x * (p.x - m.c.x) + n.y * (p.y - m.c.y) - (e == 0 ? m.h_out : m.h_in)));
       }
@@ -336,7 +342,7 @@ void LandmarkLocalizer::Impl::reweight_joint(const SquareModel& m) {
   size_t idx = 0;
   for (int l = 0; l < kNumLines; ++l) {
     if (!line_ok[static_cast<size_t>(l)]) continue;
-    for (double& wi : weights[static_cast<size_t>(l)]) {
+    for (double& wi : pts->weights[static_cast<size_t>(l)]) {
       const double u = residual_buf[idx++] / cut;
       wi = u < 1.0 ? (1.0 - u * u) * (1.0 - u * u) : 0.0;
     }
@@ -345,7 +351,8 @@ void LandmarkLocalizer::Impl::reweight_joint(const SquareModel& m) {
 
 // Normal equations of all five parameters. Fixed size: no heap, and the per-point work is six
 // sums per line (the Jacobian row is constant along a line except for its angle term).
-void LandmarkLocalizer::Impl::accumulate_normal_equations(const SquareModel& m,
+void LandmarkLocalizer::Impl::accumulate_normal_equations(const EdgePoints& pts,
+                                                          const SquareModel& m,
                                                           NormalEquations* ne) const {
   ne->jtj.setZero();
   ne->jtr.setZero();
@@ -356,9 +363,9 @@ void LandmarkLocalizer::Impl::accumulate_normal_equations(const SquareModel& m,
     const Vec2 dn{-n.y, n.x};  // d n / d beta
     for (int e = 0; e < 2; ++e) {
       const int l = k * 2 + e;
-      if (!line_ok[static_cast<size_t>(l)]) continue;
-      const auto& v = pts_mm[static_cast<size_t>(l)];
-      const auto& w = weights[static_cast<size_t>(l)];
+      if (!pts.line_ok[static_cast<size_t>(l)]) continue;
+      const auto& v = pts.mm[static_cast<size_t>(l)];
+      const auto& w = pts.weights[static_cast<size_t>(l)];
       const double h = e == 0 ? m.h_out : m.h_in;
       // Row of point i: (-n.x, -n.y, a_i, -[outer], -[inner]) with a_i = dn . (p_i - c).
       double s_w = 0, s_a = 0, s_aa = 0, s_r = 0, s_ar = 0, s_rr = 0;
@@ -411,8 +418,8 @@ void LandmarkLocalizer::Impl::keep_overlay_geometry(const SquareModel& m) {
 // predicted line are visited (rasterised strip), and a pixel is kept for a line only when its
 // gradient class (paper 001 fig. 7: direction within the tolerance of the line's normal, outward
 // on outer edges, inward on inner edges) is that line's class.
-int LandmarkLocalizer::Impl::collect(const cv::Mat& img, Vec2 c, double up, double band,
-                                     double thr) {
+int LandmarkLocalizer::Impl::collect(const cv::Mat& img, Vec2 c, double up, double band, double thr,
+                                     EdgePoints* pts) {
   const double h_out = geom.outer_half_mm() / mm_per_px;
   const double h_in = geom.inner_half_mm() / mm_per_px;
   const double tan_tol = std::tan(deg_to_rad(cfg.edge_direction_tol_deg));
@@ -420,7 +427,7 @@ int LandmarkLocalizer::Impl::collect(const cv::Mat& img, Vec2 c, double up, doub
   // gx^2 + gy^2 >= thr^2.
   const int thr2_int = static_cast<int>(std::ceil(std::min(thr * thr, kMaxGradientThreshold2)));
   int total = 0;
-  for (auto& v : pts_px) v.clear();
+  for (auto& v : pts->px) v.clear();
   for (int k = 0; k < 4; ++k) {
     const double na = up + k * kPi / 2;
     const Vec2 nk{std::cos(na), std::sin(na)};
@@ -429,7 +436,7 @@ int LandmarkLocalizer::Impl::collect(const cv::Mat& img, Vec2 c, double up, doub
       // Expected gradient direction: outward on the outer edge, inward on the inner edge.
       const Vec2 g_dir = e == 0 ? nk : Vec2{-nk.x, -nk.y};
       total += collect_line(img, c, nk, h, g_dir, band, thr2_int, tan_tol,
-                            &pts_px[static_cast<size_t>(k * 2 + e)]);
+                            &pts->px[static_cast<size_t>(k * 2 + e)]);
     }
   }
   return total;
