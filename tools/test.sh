@@ -100,6 +100,10 @@ if [ "$vm_rc" != 0 ]; then
   # --rerun-failed: the background run was the last ctest of this build); both logs are printed
   # and only a failure alone fails the script.
   echo "test.sh: VM tests failed beside the sanitizer jobs (exit $vm_rc); running the failed ones again alone" >&2
+  # The re-run writes the same results directories: keep the failing run's for diagnosis.
+  rm -rf build/default/hil-results-beside-load
+  cp -a build/default/hil-results build/default/hil-results-beside-load
+  echo "test.sh: the failing run's results are kept in build/default/hil-results-beside-load" >&2
   vm_rc=0
   ctest --preset default -L '^(hil|vm)$' --rerun-failed --output-on-failure || vm_rc=$?
   step "default: failed VM tests again, alone"

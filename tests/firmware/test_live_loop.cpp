@@ -322,3 +322,14 @@ TEST(LiveLoop, ReceivedOdometryIsKeptAsFusionGotIt) {
   EXPECT_NE(text.find("odom_stale=0"), std::string::npos) << text;
   EXPECT_NE(text.find("and 2 received odometry samples"), std::string::npos) << text;
 }
+
+// Frames the kernel dropped because our receive queue was full (SO_RXQ_OVFL) are named in the
+// summary: without it a lost odometry frame on the bus shows only as an E2E counter jump.
+TEST(LiveLoop, SummaryNamesCanReceiveQueueDrops) {
+  localizer::RunResult r;
+  r.can_present = true;
+  r.can.rx_frames = 1000;
+  r.can.rx_dropped = 3;
+  const std::string text = localizer::format_statistics(r);
+  EXPECT_NE(text.find("rx 1000, rx dropped (receive queue full) 3,"), std::string::npos) << text;
+}

@@ -103,10 +103,10 @@ std::string format_statistics(const RunResult& r) {
   if (r.can_present) {
     std::snprintf(buf, sizeof buf,
                   "  CAN bus: tx ok %" PRIu64 ", queue full %" PRIu64 ", tx errors %" PRIu64
-                  ", rx %" PRIu64 ", error frames %" PRIu64 ", bus-off %" PRIu64
-                  ", restarts %" PRIu64 "\n",
+                  ", rx %" PRIu64 ", rx dropped (receive queue full) %" PRIu64
+                  ", error frames %" PRIu64 ", bus-off %" PRIu64 ", restarts %" PRIu64 "\n",
                   r.can.tx_ok, r.can.tx_dropped_queue_full, r.can.tx_errors, r.can.rx_frames,
-                  r.can.rx_error_frames, r.can.bus_off_count, r.can.restarts);
+                  r.can.rx_dropped, r.can.rx_error_frames, r.can.bus_off_count, r.can.restarts);
     s += buf;
   }
   s += r.simulated_time ? " latency (fast replay: only the vision times are measured; the rest "

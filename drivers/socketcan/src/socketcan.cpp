@@ -90,6 +90,15 @@ bool SocketCanBus::open_socket() {
   }
   // Best effort: older kernels may lack SO_RXQ_OVFL; drops are then not counted.
   (void)::setsockopt(fd, SOL_SOCKET, SO_RXQ_OVFL, &one, sizeof one);
+  if (cfg_.rcvbuf_bytes > 0 && ::setsockopt(fd, SOL_SOCKET, SO_RCVBUFFORCE, &cfg_.rcvbuf_bytes,
+                                            sizeof cfg_.rcvbuf_bytes) < 0) {
+    // Without CAP_NET_ADMIN: as much as net.core.rmem_max allows (best effort, as above).
+    (void)::setsockopt(fd, SOL_SOCKET, SO_RCVBUF, &cfg_.rcvbuf_bytes, sizeof cfg_.rcvbuf_bytes);
+  }
+  int granted = 0;
+  socklen_t granted_len = sizeof granted;
+  rcvbuf_granted_bytes_ =
+      ::getsockopt(fd, SOL_SOCKET, SO_RCVBUF, &granted, &granted_len) == 0 ? granted : 0;
   if (cfg_.sndbuf_bytes > 0 &&
       ::setsockopt(fd, SOL_SOCKET, SO_SNDBUF, &cfg_.sndbuf_bytes, sizeof cfg_.sndbuf_bytes) < 0) {
     fail("SO_SNDBUF", errno);

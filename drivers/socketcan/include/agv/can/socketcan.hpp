@@ -26,6 +26,14 @@ struct SocketCanConfig {
   // SO_SNDBUF in bytes; 0 keeps the kernel default. Smaller: fewer frames wait in the socket
   // (lower worst-case latency of what does get out) but earlier kWouldBlock under bursts.
   int sndbuf_bytes = 0;
+  // Receive buffer requested in bytes (SO_RCVBUFFORCE, which needs CAP_NET_ADMIN, else
+  // SO_RCVBUF, which the kernel caps at net.core.rmem_max); 0 keeps the kernel default. The
+  // kernel charges ~0.75 kB per queued CAN frame, so its default (208 kB) holds 278 frames
+  // (measured in the VM): a loop starved for a second at a few hundred input frames per second
+  // would lose odometry. 1 MiB (the kernel doubles it) holds seconds of every input agvloc takes;
+  // the memory is used only while frames wait. Past it frames are still dropped, and counted
+  // (stats.rx_dropped, learned from the next frame received).
+  int rcvbuf_bytes = 1 << 20;
   // Reopen backoff after the link went down: doubles from min to max. The max is the driver's
   // restart time: the first pose after the link returns leaves at most this plus one output
   // period later. An attempt is a socket() and two ioctl()s (microseconds), so polling at 10 Hz
@@ -55,6 +63,8 @@ class SocketCanBus : public hal::CanBus {
   const char* last_error() const override { return last_error_.c_str(); }
 
   bool is_open() const { return fd_ >= 0; }
+  // The receive buffer the kernel granted at the last open (SO_RCVBUF read back), 0 if never open.
+  int receive_buffer_bytes() const { return rcvbuf_granted_bytes_; }
   const SocketCanConfig& config() const { return cfg_; }
 
  private:
@@ -75,6 +85,7 @@ class SocketCanBus : public hal::CanBus {
   hal::CanStats stats_;
   std::uint64_t rx_dropped_base_ = 0;  // SO_RXQ_OVFL is per socket: carried over a reopen
   std::uint32_t rx_dropped_socket_ = 0;
+  int rcvbuf_granted_bytes_ = 0;
   RxStampClock rx_clock_;  // kept across reopens: receive times never go back
   std::string last_error_;
 };
