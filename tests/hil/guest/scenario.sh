@@ -20,6 +20,22 @@ now() { date +%s.%N; }  # CLOCK_REALTIME, as candump's timestamps
 event() { echo "$(now) $*" >>"$OUT/events.log"; hil_log "$*"; }
 : >"$OUT/events.log"
 
+# The inputs read while the bus runs (the recording's frames, the canplayer logs) are copied to
+# the guest's tmpfs first: the 9p share is served by the emulator's I/O thread, and on a loaded
+# host a read there took seconds (frames reached vision 2.6 s late beside two busy processes,
+# and canplayer's odometry stalled with them).
+in_dir=/tmp/hil-inputs
+rm -rf "$in_dir"; mkdir -p "$in_dir"
+cp -rL "$RECORDING" "$in_dir/recording" || hil_die "copying $RECORDING to $in_dir failed"
+RECORDING="$in_dir/recording"
+for v in ODOM_LOG_1 ODOM_LOG_2 GARBAGE_LOG; do
+  eval "f=\${$v:-}"
+  [ -n "$f" ] || continue
+  cp "$f" "$in_dir/" || hil_die "copying $f to $in_dir failed"
+  eval "$v=\$in_dir/\$(basename \"\$f\")"
+done
+event "inputs copied to $in_dir ($(du -sm "$in_dir" | cut -f1) MB)"
+
 hil_vcan_up "$IFACE"
 # Keep the interface's tx queue as the real CAN drivers have it.
 ip link set "$IFACE" txqueuelen 10 2>/dev/null || true
