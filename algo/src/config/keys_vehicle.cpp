@@ -106,6 +106,13 @@ void add_landmark(std::vector<Key>* k) {
       "without landmark.map every tag is \"not in the map\": `agvloc run` refuses tag36h11 "
       "without a map, and map ids above 586, the family's last). Tags: only the outer edge is "
       "fitted"));
+  k->push_back(boolean(
+      "landmark.tag_corner_search", AGV_AT(vision.tag_corner_search), true,
+      "tag36h11: when libapriltag finds no quad and no trusted prediction places a tag, find the "
+      "black square from its outer corners as the QR family does and read the tag's code there "
+      "(an occluder joining the border to the floor breaks libapriltag's quad, not three "
+      "corners; docs/design/landmark.md). Costs the corner search on frames without a tag. "
+      "false: libapriltag and the prediction only"));
   k->push_back(text("landmark.map", AGV_AT(map_file), "",
                     "landmark map file, relative to the configuration file; empty = poses from "
                     "the QR payload only (id-only payloads are then rejected)"));

@@ -214,7 +214,7 @@ void add_tracking(std::vector<Key>* k) {
               "landmark.family tag36h11: a predicted tag libapriltag does not find (an "
               "occluder broke its quad) is placed there and its code read "
               "(docs/design/landmark.md). false: every frame searched in full, tags by "
-              "libapriltag only"));
+              "libapriltag and landmark.tag_corner_search only"));
   k->push_back(number("vision.tracking.max_position_sigma_mm",
                       AGV_AT(vision.tracking.max_position_sigma_mm), 0.0, 1000.0, 10.0,
                       {"mm",

@@ -57,6 +57,7 @@ constexpr int kTagImageCells = 10;
 constexpr int kFirstDataCell = 2;
 constexpr int kDataCells = 6;
 constexpr int kSquareCells = 8;
+static_assert(kDataCells * kDataCells == 36, "localizer_impl.hpp's read_tag_cells array");
 // Predicted path: a cell's grey is the mean of its centre and four points this share of a cell
 // away (inside it under a pixel of blur), and the code read there may differ from the predicted
 // tag's in at most kBitsCorrected cells, as libapriltag's decode: with tag36h11's distance of 11
@@ -202,15 +203,25 @@ FixStatus LandmarkLocalizer::Impl::run_tag(const cv::Mat& img, const Prediction&
                                            LandmarkFix* out) {
   if (!tag) tag = make_tag_detector();  // made at start-up (Impl's constructor)
   outer_only = true;
+  const double t0 = now_ms();
   const FixStatus st = tag_from_detector(img, out);
-  if (st == FixStatus::kOk || !map || !cfg.tracking.detect_from_prediction) return st;
-  planner.plan(pred, &windows);
-  if (windows.empty()) return st;
-  LandmarkFix tried;
-  if (tag_from_prediction(img, &tried) != FixStatus::kOk) return st;
-  tried.timings = out->timings;
-  *out = tried;
-  return FixStatus::kOk;
+  if (st == FixStatus::kOk || !map) return st;
+  if (cfg.tracking.detect_from_prediction) {
+    planner.plan(pred, &windows);
+    LandmarkFix tried;
+    if (!windows.empty() && tag_from_prediction(img, &tried) == FixStatus::kOk) {
+      tried.timings = out->timings;
+      *out = tried;
+      return FixStatus::kOk;
+    }
+  }
+  if (st != FixStatus::kNoLandmark || !cfg.tag_corner_search) return st;
+  LandmarkFix found;
+  found.timings = out->timings;
+  const FixStatus cs = tag_from_corners(img, t0, &found);
+  if (cs == FixStatus::kNoLandmark) return st;
+  *out = found;
+  return cs;
 }
 
 FixStatus LandmarkLocalizer::Impl::tag_from_detector(const cv::Mat& img, LandmarkFix* out) {
@@ -312,10 +323,8 @@ FixStatus LandmarkLocalizer::Impl::consistent_square(EdgePoints* pts, Vec2* c_mm
 // differ from tag id's code at turn q of the fitted square; -1 when a cell leaves the image. The
 // threshold is halfway between the border ring's and the white margin's medians, so an occluder
 // over part of the border or the margin does not move it.
-int LandmarkLocalizer::Impl::tag_code_distance(const cv::Mat& img, Vec2 c_mm, double beta, int q,
-                                               double half_mm, std::uint32_t id) {
-  const auto* want = tag->data_cells(id);
-  if (!want) return -1;
+bool LandmarkLocalizer::Impl::read_tag_cells(const cv::Mat& img, Vec2 c_mm, double beta, int q,
+                                             double half_mm, std::array<std::uint8_t, 36>* cells) {
   const PlaneProjector pp = page_projector(c_mm, wrap_angle_rad(beta - q * kPi / 2.0));
   const double m = 2.0 * half_mm / kSquareCells;
   auto cell_grey = [&](int r, int k, double* g) {
@@ -352,17 +361,73 @@ int LandmarkLocalizer::Impl::tag_code_distance(const cv::Mat& img, Vec2 c_mm, do
       if (cell_grey(r, k, &g)) tag_margin.push_back(g);
     }
   }
-  if (ring.empty() || tag_margin.empty()) return -1;
+  if (ring.empty() || tag_margin.empty()) return false;
   const double threshold = 0.5 * (median(&ring) + median(&tag_margin));
-  int differ = 0;
   for (int r = 0; r < kDataCells; ++r) {
     for (int k = 0; k < kDataCells; ++k) {
-      if (!cell_grey(r + 1, k + 1, &g)) return -1;
-      const std::uint8_t black = g < threshold ? 1 : 0;
-      differ += black != (*want)[static_cast<size_t>(r * kDataCells + k)];
+      if (!cell_grey(r + 1, k + 1, &g)) return false;
+      (*cells)[static_cast<size_t>(r * kDataCells + k)] = g < threshold ? 1 : 0;
     }
   }
+  return true;
+}
+
+int LandmarkLocalizer::Impl::tag_code_distance(const cv::Mat& img, Vec2 c_mm, double beta, int q,
+                                               double half_mm, std::uint32_t id) {
+  const auto* want = tag->data_cells(id);
+  std::array<std::uint8_t, kDataCells * kDataCells> got{};
+  if (!want || !read_tag_cells(img, c_mm, beta, q, half_mm, &got)) return -1;
+  int differ = 0;
+  for (size_t i = 0; i < got.size(); ++i) differ += got[i] != (*want)[i];
   return differ;
+}
+
+// No quad from libapriltag and none placed by the prediction (none trusted: the first fix, or
+// after a long leg): the QR family's full search (detect.cpp) finds the black square from its
+// outer corners, which a border broken on one side keeps three of, the pose stage fits the outer
+// square, and the code read at the fitted square is looked up among all tag36h11 codes at the
+// four turns, accepted within kBitsCorrected cells as libapriltag's decode. Only the full search
+// costs anything on a frame without a tag (the QR family's every frame does the same).
+FixStatus LandmarkLocalizer::Impl::tag_from_corners(const cv::Mat& img, double t0_ms,
+                                                    LandmarkFix* out) {
+  Detection det;
+  bool found_corner = false;
+  double corner_score = 0;
+  if (!detect(img, &det, &found_corner, &corner_score)) return FixStatus::kNoLandmark;
+  Vec2 c_mm;
+  double beta = 0;
+  Eigen::Matrix3d cov;
+  FixStatus st = measure(img, det, corner_score, t0_ms, out, &c_mm, &beta, &cov);
+  if (st == FixStatus::kOk) st = consistent_square(&edge_points, &c_mm, &beta, &cov, out);
+  if (st != FixStatus::kOk) return st;
+  have_overlay = true;
+  const double half = out->outer_half_mm > 0.0 ? out->outer_half_mm : geom.outer_half_mm();
+  std::array<std::array<std::uint8_t, kDataCells * kDataCells>, 4> read{};
+  bool readable[4] = {};
+  for (int q = 0; q < 4; ++q) readable[q] = read_tag_cells(img, c_mm, beta, q, half, &read[q]);
+  int best_q = -1, best_d = kDataCells * kDataCells + 1;
+  std::uint32_t best_id = 0;
+  for (std::uint32_t id = 0; id < tag->cells.size(); ++id) {
+    const auto& want = tag->cells[id];
+    for (int q = 0; q < 4; ++q) {
+      if (!readable[q]) continue;
+      int d = 0;
+      for (size_t i = 0; i < want.size(); ++i) d += read[q][i] != want[i];
+      if (d < best_d) best_d = d, best_q = q, best_id = id;
+    }
+  }
+  // A dark square without a tag's code (a floor feature, another print) is not a tag.
+  if (best_q < 0 || best_d > kBitsCorrected) return FixStatus::kNoLandmark;
+  quadrant = best_q;
+  out->landmark_id = best_id;
+  std::snprintf(out->payload, sizeof out->payload, "tag36h11/%u", static_cast<unsigned>(best_id));
+  out->search = SearchMode::kFull;
+  const LandmarkMapEntry* e = map->find(best_id);
+  if (!e) return FixStatus::kUnknownLandmark;
+  out->map_verified = true;
+  fill_result(e->pose, c_mm, beta, best_q, cov, out);
+  out->identity = FixIdentity::kAprilTag;
+  return FixStatus::kOk;
 }
 
 // The QR family's tracking for a tag (landmark_localizer.cpp, predicted_detect.cpp,

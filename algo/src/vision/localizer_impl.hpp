@@ -369,11 +369,16 @@ struct LandmarkLocalizer::Impl {
   FixStatus run_tag(const cv::Mat& img, const Prediction& pred, LandmarkFix* out);
   FixStatus tag_from_detector(const cv::Mat& img, LandmarkFix* out);
   FixStatus tag_from_prediction(const cv::Mat& img, LandmarkFix* out);
+  FixStatus tag_from_corners(const cv::Mat& img, double t0_ms, LandmarkFix* out);
   FixStatus consistent_square(EdgePoints* pts, Vec2* c_mm, double* beta, Eigen::Matrix3d* cov,
                               LandmarkFix* out);
+  // The 6 x 6 data cells read at turn q of the fitted square (row-major, 1 = black); false when
+  // a cell leaves the image.
+  bool read_tag_cells(const cv::Mat& img, Vec2 c_mm, double beta, int q, double half_mm,
+                      std::array<std::uint8_t, 36>* cells);
   int tag_code_distance(const cv::Mat& img, Vec2 c_mm, double beta, int q, double half_mm,
                         std::uint32_t id);
-  std::vector<double> tag_margin;  // tag_code_distance's margin samples, kept for their storage
+  std::vector<double> tag_margin;  // read_tag_cells' margin samples, kept for their storage
   double side_offset_mm(const EdgePoints& pts, int k, Vec2 c, double beta, double h);
   FixStatus drop_inconsistent_side(EdgePoints* pts, Vec2* c_mm, double* beta, Eigen::Matrix3d* cov,
                                    LandmarkFix* out);

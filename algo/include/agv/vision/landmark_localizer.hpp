@@ -92,6 +92,12 @@ struct VisionConfig {
   // and the map gives the world pose of the id (apriltag.cpp, docs/design/landmark.md). Default
   // kQr.
   agv::LandmarkFamily family = agv::LandmarkFamily::kQr;
+  // kTag36h11 only: when libapriltag finds no quad and no trusted prediction places a tag, search
+  // the frame for the black square's outer corners as the QR family does and read the tag's code
+  // at the fitted square. An occluder that joins the border to the floor breaks libapriltag's
+  // quad but leaves three corners. Costs the corner search on every tag-floor frame without a
+  // tag (what the QR family pays on every frame). Default true.
+  bool tag_corner_search = true;
 
   // --- 1. binarization -------------------------------------------------------------------
   // Adaptive threshold on the coarse detection image: a pixel is dark when it is below the local
