@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The output loop with the diagnostics page (docs/guide/diagnostics.md): period jitter and end to end of
 # `agvloc replay --realtime` with the page off, served with no client, with 50 clients polling at
-# the page's own rate, and with 50 clients requesting as fast as answered (stress); 3 runs per
-# mode, interleaved; one line per run. The same measurement as tools/bench/mqtt_jitter.sh (same
+# the page's own rate, and with 50 clients requesting as fast as answered (stress);
+# AGV_BENCH_RUNS (3) runs per mode, interleaved; one line per run. The same measurement as tools/bench/mqtt_jitter.sh (same
 # recording, the same summary lines).
 #   tests/diag/diag_jitter.sh AGVLOC RECORDING WORKDIR [LOOP_EXTRA]
 # LOOP_EXTRA: YAML lines added to every mode's loop section, e.g. the shipped real-time settings
@@ -40,4 +40,5 @@ run() {  # mode i
   fi
   echo "$mode $i $(grep 'output period jitter' $log | sed 's/  */ /g') | $(grep 'end to end' $log | sed 's/  */ /g') | $(grep '^diag: [0-9]' $log) $(cat load_$mode$i.txt 2>/dev/null)"
 }
-for i in 1 2 3; do for m in off idle page50 flood50; do run $m $i; done; done
+# AGV_BENCH_RUNS (default 3) runs per mode; tools/bench/jitter_compare.py compares the modes.
+for i in $(seq 1 "${AGV_BENCH_RUNS:-3}"); do for m in off idle page50 flood50; do run $m $i; done; done

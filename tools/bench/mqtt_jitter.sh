@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The output loop with VDA 5050 on (docs/guide/vda5050.md): period jitter and end to end of
 # `agvloc replay --realtime` with MQTT off, broker up, broker down (nothing listening), broker up
-# with instantActions flooded by garbage; 3 runs per mode, interleaved; one line per run.
+# with instantActions flooded by garbage; AGV_BENCH_RUNS (3) runs per mode, interleaved; one line per run.
 #   tools/bench/mqtt_jitter.sh AGVLOC RECORDING WORKDIR [LOOP_EXTRA]
 # LOOP_EXTRA: YAML lines added to every mode's loop section, e.g. the shipped real-time settings
 # "  realtime_priority: 50\n  vision_priority: 40\n  lock_memory: true\n" (as tests/diag/diag_jitter.sh).
@@ -28,4 +28,5 @@ run() {  # mode i
   wait 2>/dev/null
   echo "$mode $i $(grep 'output period jitter' log_$mode$i.txt | sed 's/  */ /g') | $(grep 'end to end' log_$mode$i.txt | sed 's/  */ /g') | $(grep '^vda5050' log_$mode$i.txt | cut -c1-160)"
 }
-for i in 1 2 3; do for m in off up down flood; do run $m $i; done; done
+# AGV_BENCH_RUNS (default 3) runs per mode; tools/bench/jitter_compare.py compares the modes.
+for i in $(seq 1 "${AGV_BENCH_RUNS:-3}"); do for m in off up down flood; do run $m $i; done; done
