@@ -22,8 +22,8 @@ event() { echo "$(now) $*" >>"$OUT/events.log"; hil_log "$*"; }
 
 # The inputs read while the bus runs (the recording's frames, the canplayer logs) are copied to
 # the guest's tmpfs first: the 9p share is served by the emulator's I/O thread, and on a loaded
-# host a read there took seconds (frames reached vision 2.6 s late beside two busy processes,
-# and canplayer's odometry stalled with them).
+# host a read there took seconds (beside two busy processes frames reached vision 3.3 s late,
+# median, and the pose was never valid; from tmpfs 16-33 ms).
 in_dir=/tmp/hil-inputs
 rm -rf "$in_dir"; mkdir -p "$in_dir"
 cp -rL "$RECORDING" "$in_dir/recording" || hil_die "copying $RECORDING to $in_dir failed"
