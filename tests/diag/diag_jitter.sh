@@ -2,8 +2,8 @@
 # The output loop with the diagnostics page (docs/guide/diagnostics.md): period jitter and end to end of
 # `agvloc replay --realtime` with the page off, served with no client, with 50 clients polling at
 # the page's own rate, and with 50 clients requesting as fast as answered (stress);
-# AGV_BENCH_RUNS (3) runs per mode, interleaved; one line per run. The same measurement as tools/bench/mqtt_jitter.sh (same
-# recording, the same summary lines).
+# AGV_BENCH_RUNS (3) runs per mode, interleaved; one line per run. The same measurement as
+# tools/bench/mqtt_jitter.sh (same recording, the same summary lines).
 #   tests/diag/diag_jitter.sh AGVLOC RECORDING WORKDIR [LOOP_EXTRA]
 # LOOP_EXTRA: YAML lines added to every mode's loop section, e.g. the shipped real-time settings
 # "  realtime_priority: 50\n  vision_priority: 40\n  lock_memory: true\n".

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The output loop with VDA 5050 on (docs/guide/vda5050.md): period jitter and end to end of
 # `agvloc replay --realtime` with MQTT off, broker up, broker down (nothing listening), broker up
-# with instantActions flooded by garbage; AGV_BENCH_RUNS (3) runs per mode, interleaved; one line per run.
+# with instantActions flooded by garbage; AGV_BENCH_RUNS (3) runs per mode, interleaved; one line
+# per run.
 #   tools/bench/mqtt_jitter.sh AGVLOC RECORDING WORKDIR [LOOP_EXTRA]
 # LOOP_EXTRA: YAML lines added to every mode's loop section, e.g. the shipped real-time settings
 # "  realtime_priority: 50\n  vision_priority: 40\n  lock_memory: true\n" (as tests/diag/diag_jitter.sh).
