@@ -113,8 +113,8 @@ int run(int argc, char** argv) {
     const std::int64_t wall_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
                                      std::chrono::system_clock::now().time_since_epoch())
                                      .count();
-    mqtt =
-        std::make_unique<app::MqttPublisher>(cfg.vda5050, mqtt_handoff, wall_ns - clock.now_ns());
+    mqtt = std::make_unique<app::MqttPublisher>(cfg.vda5050, mqtt_handoff, wall_ns - clock.now_ns(),
+                                                cfg.loop.service_cpus);
     if (!mqtt->start(&err)) {
       std::fprintf(stderr, "agvloc: %s\n", err.c_str());
       return 2;

@@ -19,6 +19,8 @@
 #include <httplib.h>
 #endif
 
+#include "affinity.hpp"
+#include "agv/posix/realtime.hpp"
 #include "agv/vision/landmark_localizer.hpp"
 
 namespace agv::app {
@@ -231,7 +233,7 @@ bool encode_png(const cv::Mat& image, std::string* out, int compression) {
 #ifdef AGV_HAVE_HTTPLIB
 struct DiagServer::Impl {
   Impl(const config::Config& c, const LandmarkMap* m, DiagHandoff& h, FrameTap& f, const char* md)
-      : cfg(c.diag), map(m), handoff(h), frames(f), mode(md) {
+      : cfg(c.diag), cpus(c.loop.service_cpus), map(m), handoff(h), frames(f), mode(md) {
     LandmarkGeometry g;
     g.size_mm = c.landmark_size_mm;
     vision::VisionConfig v = c.vision;
@@ -293,6 +295,7 @@ struct DiagServer::Impl {
   }
 
   config::DiagSection cfg;
+  std::string cpus;  // loop.service_cpus
   const LandmarkMap* map;
   DiagHandoff& handoff;
   FrameTap& frames;
@@ -407,7 +410,13 @@ bool DiagServer::start(std::string* error) {
     port_ = 0;
     return false;
   }
-  m.listener = std::thread([&s] { s.listen_after_bind(); });
+  // The workers are created by the listener (cpp-httplib's task queue), so they inherit its name
+  // and CPU set.
+  m.listener = std::thread([&s, cpus = m.cpus] {
+    posix::set_thread_name("agv-diag");
+    pin_this_thread(cpus, "diagnostics page, loop.service_cpus");
+    s.listen_after_bind();
+  });
   const bool v6 = m.cfg.bind_address.find(':') != std::string::npos;
   std::printf("diag: serving http://%s%s%s:%d/ (%s)\n", v6 ? "[" : "", m.cfg.bind_address.c_str(),
               v6 ? "]" : "", port_, m.mode);

@@ -6,8 +6,11 @@
 #include <cinttypes>
 #include <cstdio>
 #include <fstream>
+#include <utility>
 
+#include "affinity.hpp"
 #include "agv/hal/clock.hpp"
+#include "agv/posix/realtime.hpp"
 
 namespace agv::app {
 
@@ -34,8 +37,8 @@ std::int64_t steady_ns() {
 }  // namespace
 
 MqttPublisher::MqttPublisher(const config::Vda5050Section& cfg, MqttHandoff& handoff,
-                             std::int64_t stamp_offset_ns)
-    : cfg_(cfg), handoff_(handoff), stamp_offset_ns_(stamp_offset_ns) {
+                             std::int64_t stamp_offset_ns, std::string cpus)
+    : cfg_(cfg), cpus_(std::move(cpus)), handoff_(handoff), stamp_offset_ns_(stamp_offset_ns) {
   id_.interface_name = cfg.interface_name;
   id_.manufacturer = cfg.manufacturer;
   id_.serial_number = cfg.serial_number;
@@ -270,6 +273,8 @@ void MqttPublisher::answer_actions() {
 }
 
 void MqttPublisher::run() {
+  posix::set_thread_name("agv-mqtt");
+  pin_this_thread(cpus_, "MQTT, loop.service_cpus");
   while (!stop_.load()) {
     if (!connected_) try_connect();
     // Network I/O for up to 10 ms: the visualization sample waits at most this long.

@@ -34,9 +34,9 @@ struct MqttCounters {
 class MqttPublisher {
  public:
   // stamp_offset_ns: added to the loop's time for message timestamps (live: realtime minus
-  // monotonic; replay: 0, recording time).
+  // monotonic; replay: 0, recording time). cpus: loop.service_cpus, where the MQTT thread runs.
   MqttPublisher(const config::Vda5050Section& cfg, MqttHandoff& handoff,
-                std::int64_t stamp_offset_ns);
+                std::int64_t stamp_offset_ns, std::string cpus = {});
   ~MqttPublisher();
   MqttPublisher(const MqttPublisher&) = delete;
   MqttPublisher& operator=(const MqttPublisher&) = delete;
@@ -60,6 +60,7 @@ class MqttPublisher {
   static void message_cb(mosquitto* m, void* self, const mosquitto_message* msg);
 
   config::Vda5050Section cfg_;
+  std::string cpus_;
   vda5050::Identity id_;
   MqttHandoff& handoff_;
   std::int64_t stamp_offset_ns_;

@@ -11,6 +11,7 @@
 #include <opencv2/core.hpp>
 #include <thread>
 
+#include "affinity.hpp"
 #include "agv/adapters/hybrid_wait_clock.hpp"
 #include "agv/hal/clock.hpp"
 #include "agv/posix/futex_wakeup.hpp"
@@ -152,6 +153,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
   // Capture: never blocks on processing; the mailbox keeps only the newest frame.
   std::thread capture([&] {
     posix::set_thread_name("agv-capture");
+    pin_this_thread(cfg.loop.vision_cpus, "capture, loop.vision_cpus");
     apply_fifo_priority(cfg.loop.vision_priority, "capture, loop.vision_priority");
     std::int64_t retry_at_ns = 0;
     while (!done.load()) {
@@ -190,6 +192,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
   // Vision worker: always the newest frame; results go to the output thread through a fixed ring.
   std::thread worker([&] {
     posix::set_thread_name("agv-vision");
+    pin_this_thread(cfg.loop.vision_cpus, "vision, loop.vision_cpus");
     apply_fifo_priority(cfg.loop.vision_priority, "vision, loop.vision_priority");
     vision::LandmarkLocalizer loc(vision_config_with_clock(cfg, &clock), cfg.camera_model,
                                   geometry_of(cfg), map);
@@ -233,6 +236,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
   const std::int64_t spin_ns = std::int64_t{cfg.loop.spin_before_deadline_us} * 1000;
   std::thread output([&] {
     posix::set_thread_name("agv-output");
+    pin_this_thread(cfg.loop.realtime_cpus, "output, loop.realtime_cpus");
     apply_fifo_priority(cfg.loop.realtime_priority, "output, loop.realtime_priority");
     adapters::HybridWaitClock wait(clock, spin_ns);
     std::int64_t next_ns = clock.now_ns() + period_ns;

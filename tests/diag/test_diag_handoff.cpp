@@ -7,9 +7,12 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <chrono>
 #include <string>
 #include <thread>
+#include <vector>
 
+#include "../support/thread_cpus.hpp"
 #include "diag_handoff.hpp"
 #include "diag_server.hpp"
 
@@ -160,6 +163,29 @@ TEST(DiagServer, PngEncodes) {
   EXPECT_EQ(png.substr(1, 3), "PNG");
   EXPECT_FALSE(encode_png(cv::Mat(), &png));
   EXPECT_FALSE(encode_png(cv::Mat(2, 2, CV_16UC1), &png));
+}
+
+// loop.service_cpus: the page's listener and every worker it starts run on the service CPUs.
+TEST(DiagServer, ServiceCpusPinTheListenerAndItsWorkers) {
+  const int target = test::lowest_allowed_cpu();
+  ASSERT_GE(target, 0);
+  config::Config cfg;
+  cfg.diag.port = 0;
+  cfg.diag.threads = 3;
+  cfg.loop.service_cpus = std::to_string(target);
+  DiagHandoff handoff;
+  FrameTap frames;
+  DiagServer server(cfg, nullptr, handoff, frames, "test");
+  std::string error;
+  if (!server.start(&error)) GTEST_SKIP() << error;  // built without cpp-httplib
+  std::vector<std::string> cpus;
+  for (int i = 0; i < 500 && cpus.size() < 4; ++i) {  // the listener starts its 3 workers
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    cpus = test::cpus_of_threads_named("agv-diag");
+  }
+  server.stop();
+  ASSERT_EQ(cpus.size(), 4u) << "listener and 3 workers";
+  for (const auto& c : cpus) EXPECT_EQ(c, std::to_string(target));
 }
 
 }  // namespace

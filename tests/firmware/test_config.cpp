@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "agv/adapters/stepped_clock.hpp"
+#include "agv/config/cpu_list.hpp"
 #include "agv/config/keys.hpp"
 #include "agv/protocol/dbc.hpp"
 #include "config.hpp"
@@ -50,8 +51,11 @@ TEST(Config, ShippedExampleLoads) {
   // The vehicle configuration runs real time (docs/guide/config.md, loop section).
   EXPECT_EQ(cfg.loop.realtime_priority, 50);
   EXPECT_EQ(cfg.loop.vision_priority, 40);
+  // The hybrid wait: the period stays steady with the page or MQTT loading the computer.
+  EXPECT_EQ(cfg.loop.spin_before_deadline_us, 1000);
   EXPECT_TRUE(cfg.loop.lock_memory);
   EXPECT_TRUE(cfg.loop.pose_on_fix);
+  EXPECT_EQ(cfg.loop.realtime_cpus, "");  // CPU numbers depend on the board
 }
 
 // The camera calibration every live configuration must carry (issue 15, finding 3).
@@ -167,6 +171,56 @@ TEST(Config, TrackingKeysReachTheVisionConfig) {
   EXPECT_DOUBLE_EQ(cfg.vision.tracking.window_sigmas, 3.0);
   EXPECT_TRUE(mentions(errors_for("vision:\n  tracking:\n    window_sigmas: 50\n"),
                        "vision.tracking.window_sigmas"));
+}
+
+TEST(Config, CpuListsInTheKernelSyntax) {
+  using agv::config::format_cpu_list;
+  using agv::config::parse_cpu_list;
+  std::vector<int> cpus;
+  std::string why;
+  ASSERT_TRUE(parse_cpu_list("", &cpus, &why));
+  EXPECT_TRUE(cpus.empty());
+  ASSERT_TRUE(parse_cpu_list("  ", &cpus, &why));
+  EXPECT_TRUE(cpus.empty());
+  ASSERT_TRUE(parse_cpu_list("3", &cpus, &why));
+  EXPECT_EQ(cpus, std::vector<int>({3}));
+  ASSERT_TRUE(parse_cpu_list("2-3, 0", &cpus, &why)) << why;
+  EXPECT_EQ(cpus, std::vector<int>({0, 2, 3}));  // sorted
+  ASSERT_TRUE(parse_cpu_list("1,1-2,2", &cpus, &why));
+  EXPECT_EQ(cpus, std::vector<int>({1, 2}));  // distinct
+  EXPECT_EQ(format_cpu_list({0, 2, 3, 4, 7}), "0,2-4,7");
+  EXPECT_EQ(format_cpu_list({}), "");
+  ASSERT_TRUE(parse_cpu_list("1023", &cpus, &why));
+  for (const char* bad :
+       {"1024", "-1", "3-2", "a", "1,,2", "1,", "1-", "0x1", "1 2", "+1", "99999999999"}) {
+    EXPECT_FALSE(parse_cpu_list(bad, &cpus, &why)) << bad;
+    EXPECT_TRUE(cpus.empty()) << bad;
+    EXPECT_NE(why.find("is not a CPU"), std::string::npos) << why;
+  }
+}
+
+TEST(Config, LoopCpuKeys) {
+  Config cfg;
+  std::vector<std::string> errors;
+  ASSERT_TRUE(agv::config::parse_config(
+      std::string(kIntrinsics) +
+          "loop:\n  realtime_cpus: \"1\"\n  vision_cpus: \"1-2\"\n  service_cpus: \"0,2-3\"\n",
+      "", &cfg, &errors))
+      << (errors.empty() ? "" : errors.front());
+  EXPECT_EQ(cfg.loop.realtime_cpus, "1");
+  EXPECT_EQ(cfg.loop.vision_cpus, "1-2");  // vision may share either
+  EXPECT_EQ(cfg.loop.service_cpus, "0,2-3");
+  EXPECT_TRUE(mentions(errors_for("loop:\n  realtime_cpus: \"1-\"\n"),
+                       "loop.realtime_cpus: \"1-\" in \"1-\" is not a CPU"));
+  EXPECT_TRUE(mentions(errors_for("loop:\n  service_cpus: \"x\"\n"), "loop.service_cpus"));
+  EXPECT_TRUE(mentions(errors_for("loop:\n  vision_cpus: \"0-1-2\"\n"), "loop.vision_cpus"));
+  // The point of the two lists is that they are apart.
+  EXPECT_TRUE(mentions(errors_for("loop:\n  realtime_cpus: \"1-2\"\n  service_cpus: \"0,2\"\n"),
+                       "loop.service_cpus: CPU 2 is also in loop.realtime_cpus"));
+  // A YAML number is taken as its text.
+  ASSERT_TRUE(agv::config::parse_config(std::string(kIntrinsics) + "loop:\n  realtime_cpus: 1\n",
+                                        "", &cfg, &errors));
+  EXPECT_EQ(cfg.loop.realtime_cpus, "1");
 }
 
 TEST(Config, LoopRealTimeKeysAndTheirRelations) {
@@ -403,7 +457,8 @@ std::vector<Value> other_values(const Key& k) {
       }
       break;
     case KeyType::kString:
-      out.emplace_back(std::string("test_value"));
+      // CPU lists (loop.*_cpus) are checked for their syntax.
+      out.emplace_back(std::string(k.name.find("_cpus") != std::string::npos ? "0" : "test_value"));
       break;
   }
   return out;

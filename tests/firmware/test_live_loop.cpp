@@ -4,14 +4,19 @@
 // thread send a pose pair between two periodic ticks, and that the pose frames on the bus are
 // valid and near the truth. Also run under TSan (label tsan).
 #include <gtest/gtest.h>
+#include <pthread.h>
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <map>
+#include <mutex>
 #include <opencv2/core.hpp>
 #include <random>
+#include <string>
 #include <vector>
 
+#include "../support/thread_cpus.hpp"
 #include "agv/adapters/stepped_clock.hpp"
 #include "agv/can/fake_can.hpp"
 #include "agv/fakecamera/fake_camera.hpp"
@@ -332,4 +337,80 @@ TEST(LiveLoop, SummaryNamesCanReceiveQueueDrops) {
   r.can.rx_dropped = 3;
   const std::string text = localizer::format_statistics(r);
   EXPECT_NE(text.find("rx 1000, rx dropped (receive queue full) 3,"), std::string::npos) << text;
+}
+
+namespace {
+
+// A PosixClock that notes, for each named thread that reads it, the CPUs that thread may run on.
+class AffinityNotingClock : public hal::Clock {
+ public:
+  std::int64_t now_ns() const override {
+    char name[16] = {};
+    pthread_getname_np(pthread_self(), name, sizeof name);
+    const std::vector<int> cpus = test::allowed_cpus();
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      seen_[name] = cpus;
+    }
+    return real_.now_ns();
+  }
+  int sleep_until_ns(std::int64_t t_ns) override { return real_.sleep_until_ns(t_ns); }
+  std::map<std::string, std::vector<int>> seen() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return seen_;
+  }
+
+ private:
+  posix::PosixClock real_;
+  mutable std::mutex mutex_;
+  mutable std::map<std::string, std::vector<int>> seen_;
+};
+
+}  // namespace
+
+// loop.realtime_cpus and loop.vision_cpus: the output thread and the capture and vision threads
+// pin themselves to their lists, whatever the thread that started them may use.
+TEST(LiveLoop, RealtimeAndVisionCpusPinTheLoopThreads) {
+  const std::vector<int> allowed = test::allowed_cpus();
+  ASSERT_FALSE(allowed.empty());
+  const int target = allowed.back();  // the highest CPU this process may use
+  config::Config cfg;
+  cfg.loop.log_period_s = 0.0;
+  cfg.loop.realtime_cpus = std::to_string(target);
+  cfg.loop.vision_cpus = std::to_string(target);
+  cfg.camera_model = CameraModel::default_640x480();
+  LandmarkMap map;
+  fakecamera::FakeImage blank;
+  blank.width_px = 640;
+  blank.height_px = 480;
+  blank.gray.assign(640u * 480u, 200);
+  AffinityNotingClock clock;
+  fakecamera::FakeCamera::Options o;
+  o.clock = &clock;
+  o.end_of_stream_when_empty = true;
+  fakecamera::FakeCamera cam(o);
+  const std::int64_t t0 = clock.now_ns() + 20 * kMs;
+  for (int i = 0; i < 3; ++i) {
+    cam.push_frame(blank, t0 + i * 50 * kMs);
+    cam.push_stall(50 * kMs);
+  }
+  cam.push_end_of_stream();
+  std::vector<recording::OdomRow> odo;
+  for (std::int64_t t = t0 - 50 * kMs; t < t0 + 250 * kMs; t += 10 * kMs) odo.push_back({t, 0, 0});
+  can::FakeCanNetwork net;
+  auto ours = net.create_endpoint(256);
+  app::PipelineIo io;
+  io.camera = &cam;
+  io.bus = ours.get();
+  io.clock = &clock;
+  io.odometry = &odo;
+  io.quiet = true;
+  app::RunResult r;
+  ASSERT_EQ(app::run_threads(cfg, &map, io, &r), 0);
+  const auto seen = clock.seen();
+  for (const char* name : {"agv-output", "agv-capture", "agv-vision"}) {
+    const auto it = seen.find(name);
+    ASSERT_NE(it, seen.end()) << name << " never read the clock";
+    EXPECT_EQ(it->second, std::vector<int>({target})) << name;
+  }
 }

@@ -5,7 +5,9 @@
 #include <fstream>
 #include <string>
 #include <thread>
+#include <vector>
 
+#include "../support/thread_cpus.hpp"
 #include "agv/posix/realtime.hpp"
 
 // The sanitizer runtimes intercept mlockall and return 0 without locking anything (their shadow
@@ -47,4 +49,43 @@ TEST(PosixRealtime, LockAllMemoryDoesNotPrefaultNewThreadStacks) {
   std::thread t([&] { rss_in_thread_kb = status_kb("VmRSS"); });
   t.join();
   EXPECT_LT(rss_in_thread_kb - rss_before_kb, 2048) << "RSS grew by the thread's whole stack";
+}
+
+using agv::test::allowed_cpus;
+
+TEST(PosixRealtime, CpuAffinityPinsTheCallingThreadOnly) {
+  const std::vector<int> process_cpus = allowed_cpus();
+  ASSERT_FALSE(process_cpus.empty());
+  const int target = process_cpus.back();
+  std::vector<int> in_thread, in_child;
+  int err = -1;
+  std::thread t([&] {
+    err = agv::posix::set_cpu_affinity({target});
+    in_thread = allowed_cpus();
+    std::thread child([&] { in_child = allowed_cpus(); });  // inherits the set
+    child.join();
+  });
+  t.join();
+  EXPECT_EQ(err, 0);
+  EXPECT_EQ(in_thread, std::vector<int>({target}));
+  EXPECT_EQ(in_child, std::vector<int>({target}));
+  EXPECT_EQ(allowed_cpus(), process_cpus);  // the caller's thread is untouched
+}
+
+TEST(PosixRealtime, CpuAffinityEmptyListAndAbsentCpu) {
+  const std::vector<int> before = allowed_cpus();
+  EXPECT_EQ(agv::posix::set_cpu_affinity({}), 0);
+  EXPECT_EQ(allowed_cpus(), before);
+  // CPU 1023 is not online on any machine this runs on; the set stays as it was.
+  std::vector<int> after;
+  int err = 0;
+  std::thread t([&] {
+    err = agv::posix::set_cpu_affinity({1023});
+    after = allowed_cpus();
+  });
+  t.join();
+  EXPECT_EQ(err, EINVAL);
+  EXPECT_EQ(after, before);
+  EXPECT_EQ(agv::posix::set_cpu_affinity({-1}), EINVAL);
+  EXPECT_EQ(agv::posix::set_cpu_affinity({CPU_SETSIZE}), EINVAL);
 }

@@ -4,9 +4,14 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
+#include <string>
 #include <thread>
+#include <vector>
 
+#include "../support/thread_cpus.hpp"
 #include "mqtt_handoff.hpp"
+#include "mqtt_publisher.hpp"
 
 namespace agv::app {
 namespace {
@@ -66,6 +71,29 @@ TEST(MqttHandoff, CommandTakenOnceAndAnswered) {
   bool ok = false;
   EXPECT_EQ(h.applied_seq(&ok), 2u);
   EXPECT_TRUE(ok);
+}
+
+// loop.service_cpus: the MQTT thread runs on the service CPUs, connected or not (here no broker
+// listens on the port: the thread keeps retrying with backoff).
+TEST(MqttPublisher, ServiceCpusPinTheMqttThread) {
+  const int target = test::lowest_allowed_cpu();
+  ASSERT_GE(target, 0);
+  config::Vda5050Section cfg;
+  cfg.enabled = true;
+  cfg.broker_host = "127.0.0.1";
+  cfg.broker_port = 9;  // discard: nothing listens there in a test environment
+  MqttHandoff handoff;
+  MqttPublisher pub(cfg, handoff, 0, std::to_string(target));
+  std::string error;
+  ASSERT_TRUE(pub.start(&error)) << error;
+  std::vector<std::string> cpus;
+  for (int i = 0; i < 500 && cpus.empty(); ++i) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    cpus = test::cpus_of_threads_named("agv-mqtt");
+  }
+  pub.stop();
+  ASSERT_EQ(cpus.size(), 1u);
+  EXPECT_EQ(cpus[0], std::to_string(target));
 }
 
 }  // namespace

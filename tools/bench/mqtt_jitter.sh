@@ -7,11 +7,16 @@
 # LOOP_EXTRA: YAML lines added to every mode's loop section, e.g. the shipped real-time settings
 # "  realtime_priority: 50\n  vision_priority: 40\n  lock_memory: true\n" (as tests/diag/diag_jitter.sh).
 # Needs mosquitto and mosquitto_pub (tools/install-deps.sh). Port 18877 must be free.
+# AGV_LOAD_CPUS: a CPU list the broker and the flooding client are pinned to (taskset -c): they
+# stand for the fleet's machines, so with loop.service_cpus set this keeps off the loop's cores
+# only what a vehicle's own cores would do.
 set -u
 BIN="$(realpath "$1")"
 REC="$(realpath "$2")"
 mkdir -p "$3" && cd "$3"
 PORT=18877
+PIN=
+[ -n "${AGV_LOAD_CPUS:-}" ] && PIN="taskset -c $AGV_LOAD_CPUS"
 printf 'listener %d 127.0.0.1\nallow_anonymous true\npersistence false\n' $PORT > m.conf
 EXTRA="$(printf "${4:-}")"
 [ -n "$EXTRA" ] && EXTRA="$EXTRA
@@ -21,8 +26,8 @@ printf 'loop:\n  output_rate_hz: 100\n%s' "$EXTRA" > off.yaml
 run() {  # mode i
   local mode=$1 i=$2 cfg=on.yaml bp= fp=
   [ "$mode" = off ] && cfg=off.yaml
-  if [ "$mode" = up ] || [ "$mode" = flood ]; then mosquitto -c m.conf >/dev/null 2>&1 & bp=$!; sleep 0.3; fi
-  if [ "$mode" = flood ]; then mosquitto_pub -p $PORT -l -t uagv/v2/acme/agv-7/instantActions < <(yes '{"headerId": [[[ not json') >/dev/null 2>&1 & fp=$!; sleep 0.3; fi
+  if [ "$mode" = up ] || [ "$mode" = flood ]; then $PIN mosquitto -c m.conf >/dev/null 2>&1 & bp=$!; sleep 0.3; fi
+  if [ "$mode" = flood ]; then $PIN mosquitto_pub -p $PORT -l -t uagv/v2/acme/agv-7/instantActions < <($PIN yes '{"headerId": [[[ not json') >/dev/null 2>&1 & fp=$!; sleep 0.3; fi
   $BIN replay $REC --out out_$mode$i --config $cfg --realtime --quiet > log_$mode$i.txt 2>&1
   [ -n "$fp" ] && kill $fp
   [ -n "$bp" ] && kill $bp

@@ -288,6 +288,23 @@ void add_loop(std::vector<Key>* k) {
                "to this much busy CPU per period at the output thread's priority (100 µs at "
                "100 Hz = 1 % of a core); a wake-up later than the spin window is not hidden. At "
                "most half the output period (rejected otherwise). 0 = plain absolute sleep"}));
+  k->push_back(text(
+      "loop.realtime_cpus", AGV_AT(loop.realtime_cpus), "",
+      "CPUs (kernel list syntax: \"3\", \"2-3\", \"0,2\") the output thread runs on; empty = "
+      "any. With `loop.service_cpus` on other cores, the MQTT publisher and the diagnostics page "
+      "(and the kernel work their sockets cause) no longer share a core with it. A CPU the kernel "
+      "refuses is reported at start and left unpinned. Strongest with the core isolated from the "
+      "scheduler as well (`isolcpus=`, docs/guide/deployment.md)"));
+  k->push_back(text(
+      "loop.vision_cpus", AGV_AT(loop.vision_cpus), "",
+      "CPUs the capture and vision threads run on, with the OpenCV workers vision starts; empty "
+      "= any. May overlap the other two lists: vision runs below the output thread's priority. "
+      "Trade-off: a single CPU serialises OpenCV's parallel stages (end to end p50 3.5 ms "
+      "instead of 1.5 ms on the 2-core bench machine, docs/guide/diagnostics.md)"));
+  k->push_back(text("loop.service_cpus", AGV_AT(loop.service_cpus), "",
+                    "CPUs the network services run on: the MQTT publisher and the diagnostics "
+                    "page's listener and workers; empty = any. Must not overlap "
+                    "`loop.realtime_cpus` (rejected at start)"));
   k->push_back(boolean("loop.lock_memory", AGV_AT(loop.lock_memory), false,
                        "mlockall at start (needs CAP_IPC_LOCK or LimitMEMLOCK); also applied by "
                        "`replay --realtime`. Pages are locked as they are first touched "

@@ -1,10 +1,12 @@
 // parse_config: walks the key table (keys.hpp) over the YAML tree. Everything key-specific is in
 // the table; what is here is the walk, the relations between keys and the final validations.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <string>
 
+#include "agv/config/cpu_list.hpp"
 #include "agv/config/keys.hpp"
 #include "yaml_checker.hpp"
 
@@ -125,6 +127,19 @@ void check_relations(YamlChecker& c, const Config& cfg) {
                                         " must be below loop.realtime_priority (" +
                                         std::to_string(s.realtime_priority) +
                                         ") so vision can never delay the fixed-rate output");
+  }
+  std::vector<int> rt_cpus, vision_cpus, service_cpus;
+  std::string why;
+  if (!parse_cpu_list(s.realtime_cpus, &rt_cpus, &why)) c.error("loop.realtime_cpus", why);
+  if (!parse_cpu_list(s.vision_cpus, &vision_cpus, &why)) c.error("loop.vision_cpus", why);
+  if (!parse_cpu_list(s.service_cpus, &service_cpus, &why)) c.error("loop.service_cpus", why);
+  for (const int cpu : service_cpus) {
+    if (std::find(rt_cpus.begin(), rt_cpus.end(), cpu) != rt_cpus.end()) {
+      c.error("loop.service_cpus", "CPU " + std::to_string(cpu) +
+                                       " is also in loop.realtime_cpus; the services would share "
+                                       "a core with the output thread");
+      break;
+    }
   }
   const double half_period_us = 0.5e6 / s.output_rate_hz;
   if (static_cast<double>(s.spin_before_deadline_us) > half_period_us) {

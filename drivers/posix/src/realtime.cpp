@@ -38,6 +38,17 @@ std::string explain_realtime_error(const char* what, int err) {
   return s;
 }
 
+int set_cpu_affinity(const std::vector<int>& cpus) {
+  if (cpus.empty()) return 0;
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  for (const int c : cpus) {
+    if (c < 0 || c >= CPU_SETSIZE) return EINVAL;
+    CPU_SET(c, &set);
+  }
+  return pthread_setaffinity_np(pthread_self(), sizeof set, &set);
+}
+
 void set_thread_name(const char* name) {
   char buf[16];
   std::strncpy(buf, name, sizeof buf - 1);

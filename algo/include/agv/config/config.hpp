@@ -69,6 +69,9 @@ struct LoopSection {
   int realtime_priority = 0;
   int vision_priority = 0;
   int spin_before_deadline_us = 0;
+  std::string realtime_cpus;  // CPU list (config/cpu_list.hpp); empty = not pinned
+  std::string vision_cpus;    // CPU list; empty = not pinned
+  std::string service_cpus;   // CPU list; empty = not pinned
   bool lock_memory = false;
   double log_period_s = 10.0;
   bool pose_on_fix = true;

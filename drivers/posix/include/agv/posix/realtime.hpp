@@ -3,6 +3,7 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 namespace agv::posix {
 
@@ -12,6 +13,10 @@ int set_fifo_priority(int priority);
 // reclaimed and fault again; falls back to MCL_CURRENT | MCL_FUTURE (prefaults everything mapped)
 // on kernels without MCL_ONFAULT.
 int lock_all_memory();
+// Restricts the calling thread to `cpus` (CPU numbers, as config::parse_cpu_list gives them);
+// an empty list leaves it as it is and returns 0. EINVAL when none of them is online here.
+// Threads the caller creates afterwards inherit the set.
+int set_cpu_affinity(const std::vector<int>& cpus);
 // A one-line explanation of a failure above, naming the capability or limit to change.
 std::string explain_realtime_error(const char* what, int err);
 // Names the calling thread (visible in top -H, gdb). Truncated to 15 characters.
