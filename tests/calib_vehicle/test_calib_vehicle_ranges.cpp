@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "agv/config/keys.hpp"
+#include "calib_vehicle.hpp"
 #include "key_ranges.hpp"
 
 namespace {
@@ -32,3 +33,41 @@ TEST(CalibVehicleRanges, ResultsTheConfigurationRejectsAreNamed) {
 }
 
 }  // namespace
+
+// What commissioning determined narrows the filter's priors (issue 33: "what the calibration has
+// learned must shrink the uncertainty it causes"); every written key exists in the key table and
+// accepts its value; what was not determined keeps the default prior.
+TEST(CalibVehiclePriors, DeterminedOdometryNarrowsTheFilterPriors) {
+  namespace vcal = agv::desk::vcal;
+  vcal::Result r;
+  auto add = [&r](const char* name, double value, double sigma, bool determined) {
+    vcal::ParamReport p;
+    p.name = name;
+    p.value = value;
+    p.sigma = sigma;
+    p.determined = determined;
+    r.params.push_back(p);
+  };
+  add("odometry.speed_scale", 1.02, 0.0003, true);       // 3 sigma 0.00088: the floor
+  add("odometry.yaw_rate_scale", 0.5, 0.002, true);      // relative 0.004, 3 sigma 0.012
+  add("odometry.yaw_rate_bias_degps", 0.3, 0.04, true);  // 3 sigma 0.12 deg/s
+  add("odometry.yaw_per_metre_deg", 0.1, 0.01, false);   // not determined: not written
+  add("odometry.time_offset_ms", 12.0, 0.1, true);       // no filter state
+  const std::vector<vcal::FilterPrior> priors = vcal::odometry_priors(r);
+  ASSERT_EQ(priors.size(), 3u);
+  EXPECT_EQ(priors[0].key, "init_v_scale_sigma");
+  EXPECT_DOUBLE_EQ(priors[0].value, vcal::kMinPriorScale);
+  EXPECT_EQ(priors[1].key, "init_omega_scale_sigma");
+  EXPECT_NEAR(priors[1].value, 0.012, 1e-12);
+  EXPECT_EQ(priors[2].key, "init_omega_bias_sigma_degps");
+  EXPECT_NEAR(priors[2].value, 0.12, 1e-12);
+  for (const auto& p : priors) {
+    const agv::config::Key* k = agv::config::find_key("fusion." + p.key);
+    ASSERT_NE(k, nullptr) << p.key;
+    EXPECT_TRUE(agv::desk::outside_key_range(k->name, p.value).empty()) << p.key;
+    // Narrower than the default prior of a vehicle nobody measured.
+    EXPECT_LT(p.value, std::get<double>(k->def)) << p.key;
+  }
+  r.params[3].determined = true;  // a tiny sigma still gets the floor
+  EXPECT_DOUBLE_EQ(vcal::odometry_priors(r)[3].value, vcal::kMinPriorDegpm);
+}

@@ -71,7 +71,10 @@ TRUE_ODOM = {"speed_scale": 1 / (1 + SCALE_ERR), "yaw_rate_scale": 1 / K,
 # The simulator stamps the gyro on the camera's clock, the odometry TIME_OFFSET_MS later: gyro
 # clock = vehicle (odometry) clock - TIME_OFFSET_MS.
 TRUE_IMU = {"scale": 1 / 1.003, "bias_degps": -0.2 / 1.003, "time_offset_ms": -TIME_OFFSET_MS}
-TRUE_FUSION = {"gyro_init_scale_sigma": 0.0005, "gyro_init_bias_sigma_degps": 0.05}
+# The filter priors a perfect calibration writes (its floors: calib_vehicle.hpp kMinPrior*).
+TRUE_FUSION = {"gyro_init_scale_sigma": 0.0005, "gyro_init_bias_sigma_degps": 0.05,
+               "init_v_scale_sigma": 0.002, "init_omega_scale_sigma": 0.002,
+               "init_omega_bias_sigma_degps": 0.05, "init_omega_per_v_sigma_degpm": 0.05}
 TOLERANCE = 1.10
 # ... or this close in absolute terms (mm): the calibration's limit for a determined offset
 # (max_sigma_mm). With the truth on the right clock the between-landmark p95 with the true

@@ -211,6 +211,26 @@ bool calibrate_vehicle(const std::vector<OdomSample>& odom,
 void flag_standing_out(const Options& opt, std::vector<LandmarkReport>* landmarks,
                        std::vector<std::string>* warnings);
 
+// The filter's prior for one odometry calibration state after commissioning (a fusion.init_*
+// key and its value in the key's unit).
+struct FilterPrior {
+  std::string key;
+  double value = 0.0;
+};
+// Minimum prior per state: what can change between commissioning and a later start (tyre wear
+// and load change a wheel's rolling radius by tenths of a percent; the yaw-rate bias and the
+// per-metre term by a few hundredths of a degree). Below these the filter would refuse the
+// fixes that show such a change.
+inline constexpr double kMinPriorScale = 0.002;
+inline constexpr double kMinPriorDegps = 0.05;
+inline constexpr double kMinPriorDegpm = 0.05;
+// fusion.init_{v_scale,omega_scale,omega_bias,omega_per_v}_sigma* for the odometry parameters
+// the drive determined: `sigma_factor` times the calibration's sigma, at least the minimum
+// above. Their defaults (3 %, 3 %, 1.5 deg/s, 1.5 deg/m) describe a vehicle nobody measured: on
+// a commissioned one they make the heading sigma outgrow the error on the first leg after every
+// start (lost while good, docs/guide/commissioning.md).
+std::vector<FilterPrior> odometry_priors(const Result& r, double sigma_factor = 3.0);
+
 // The per-landmark table of report.txt (Result::landmarks).
 std::string landmark_table(const Result& r);
 

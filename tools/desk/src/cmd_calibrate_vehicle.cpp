@@ -433,6 +433,15 @@ int calibrate_vehicle(int argc, char** argv) {
           << fmt("%.3f", gyro.prior_bias_sigma_degps) << " (3 sigma, at least 0.0005 and 0.05)\n";
     }
   }
+  const std::vector<vcal::FilterPrior> wheel_priors = vcal::odometry_priors(r);
+  if (!wheel_priors.empty()) {
+    rep << "\nodometry filter priors written:";
+    for (const vcal::FilterPrior& p : wheel_priors)
+      rep << " fusion." << p.key << " " << fmt("%.4f", p.value);
+    rep << " (3 sigma, at least " << fmt("%.3f", vcal::kMinPriorScale) << " for the scales, "
+        << fmt("%.2f", vcal::kMinPriorDegps) << " deg/s, " << fmt("%.2f", vcal::kMinPriorDegpm)
+        << " deg/m)\n";
+  }
   rep << "\n" << vcal::landmark_table(r);
   rep << "\nper landmark pass (corner residual RMS, px):\n"
       << "pass  landmark  t_start_s  t_end_s  frames   before    after\n";
@@ -496,6 +505,13 @@ int calibrate_vehicle(int argc, char** argv) {
   }
   if (any_odo) snip << "odometry:\n";
   snip << odo.str() << can.str();
+  // The filter's priors for what the calibration leaves, written with the gyro's below in one
+  // fusion: mapping.
+  std::ostringstream fus;
+  for (const vcal::FilterPrior& p : wheel_priors) {
+    fus << "  " << p.key << ": " << fmt("%.4f", p.value)
+        << "  # 3 x the calibration's sigma, at least what may change before the next start\n";
+  }
   if (wheels && !r.param("odometry.yaw_rate_scale").determined) {
     snip << "# can.odometry.track_width_mm: not changed (yaw-rate scale not determined)\n";
   }
@@ -529,7 +545,6 @@ int calibrate_vehicle(int argc, char** argv) {
     }
     if (any_imu) snip << "imu:\n";
     snip << imu.str();
-    std::ostringstream fus;
     if (gyro.scale_determined) {
       fus << "  gyro_init_scale_sigma: " << fmt("%.4f", gyro.prior_scale_sigma)
           << "  # 3 x the calibration's sigma, at least 0.0005\n";
@@ -538,10 +553,10 @@ int calibrate_vehicle(int argc, char** argv) {
       fus << "  gyro_init_bias_sigma_degps: " << fmt("%.3f", gyro.prior_bias_sigma_degps)
           << "  # 3 x the calibration's sigma, at least 0.05 (turn-on bias repeatability)\n";
     }
-    if (!fus.str().empty()) snip << "fusion:\n" << fus.str();
   } else if (have_gyro) {
     snip << "# imu.*: not calibrated (" << gyro_error << ")\n";
   }
+  if (!fus.str().empty()) snip << "fusion:\n" << fus.str();
 
   std::error_code ec;
   fs::create_directories(out_dir, ec);
