@@ -25,9 +25,11 @@ printf 'loop:\n  output_rate_hz: 100\n%svda5050:\n  enabled: true\n  broker_port
 printf 'loop:\n  output_rate_hz: 100\n%s' "$EXTRA" > off.yaml
 run() {  # mode i
   local mode=$1 i=$2 cfg=on.yaml bp= fp=
-  [ "$mode" = off ] && cfg=off.yaml
-  if [ "$mode" = up ] || [ "$mode" = flood ]; then $PIN mosquitto -c m.conf >/dev/null 2>&1 & bp=$!; sleep 0.3; fi
-  if [ "$mode" = flood ]; then $PIN mosquitto_pub -p $PORT -l -t uagv/v2/acme/agv-7/instantActions < <($PIN yes '{"headerId": [[[ not json') >/dev/null 2>&1 & fp=$!; sleep 0.3; fi
+  # foreign: the control: broker up and flooded as in `flood`, agvloc with MQTT off. What it adds
+  # over `off` is the machine's share of the flood; what `flood` adds over it is agvloc's.
+  case $mode in off | foreign) cfg=off.yaml ;; esac
+  if [ "$mode" = up ] || [ "$mode" = flood ] || [ "$mode" = foreign ]; then $PIN mosquitto -c m.conf >/dev/null 2>&1 & bp=$!; sleep 0.3; fi
+  if [ "$mode" = flood ] || [ "$mode" = foreign ]; then $PIN mosquitto_pub -p $PORT -l -t uagv/v2/acme/agv-7/instantActions < <($PIN yes '{"headerId": [[[ not json') >/dev/null 2>&1 & fp=$!; sleep 0.3; fi
   $BIN replay $REC --out out_$mode$i --config $cfg --realtime --quiet > log_$mode$i.txt 2>&1
   [ -n "$fp" ] && kill $fp
   [ -n "$bp" ] && kill $bp
@@ -35,4 +37,7 @@ run() {  # mode i
   echo "$mode $i $(grep 'output period jitter' log_$mode$i.txt | sed 's/  */ /g') | $(grep 'end to end' log_$mode$i.txt | sed 's/  */ /g') | $(grep '^vda5050' log_$mode$i.txt | cut -c1-160)"
 }
 # AGV_BENCH_RUNS (default 3) runs per mode; tools/bench/jitter_compare.py compares the modes.
-for i in $(seq 1 "${AGV_BENCH_RUNS:-3}"); do for m in off up down flood; do run $m $i; done; done
+# AGV_BENCH_MODES: the modes, in order (default "off up down flood"; foreign is the control).
+for i in $(seq 1 "${AGV_BENCH_RUNS:-3}"); do
+  for m in ${AGV_BENCH_MODES:-off up down flood}; do run $m $i; done
+done
