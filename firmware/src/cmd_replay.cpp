@@ -328,6 +328,7 @@ int replay(int argc, char** argv) {
     io.ticks = &ticks;
     io.fixes = &fixes;
     io.odometry_received = odom_from_can ? &odom_received : nullptr;
+    if (odom_from_can && !rec.odom.empty()) io.can_odometry_end_ns = rec.odom.back().t_ns;
     io.stop = &stop_requested();
     io.quiet = quiet;
     io.mqtt = mqtt_io;

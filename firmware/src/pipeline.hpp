@@ -46,6 +46,12 @@ struct PipelineIo {
   FrameTap* diag_frames = nullptr;    // camera frames for the page (vision thread); null: none
   // Stop when the camera reports end of stream and replay odometry is used up.
   bool stop_at_end_of_stream = true;
+  // Odometry from CAN (`replay --odom-from-can`): the last odometry time of the recording being
+  // played onto the bus. The run then also lasts until that time plus the odometry timeout
+  // (fusion.odom_timeout_ns), so the bus's last frames are received, not cut off when the camera's
+  // last frame is done (HIL: "1 sent but not received", the recording's last row). INT64_MIN:
+  // no such wait.
+  std::int64_t can_odometry_end_ns = INT64_MIN;
   bool quiet = false;  // no periodic log lines
 };
 
