@@ -1,6 +1,7 @@
 #pragma once
-// Thread placement from loop.realtime_cpus / loop.service_cpus (docs/guide/deployment.md, "Real
-// time"): each thread pins itself as it starts, so no thread inherits another's set by accident.
+// Thread placement from loop.realtime_cpus / vision_cpus / service_cpus (docs/guide/deployment.md,
+// "Real time"): each thread pins itself as it starts, so no thread inherits another's set by
+// accident.
 #include <string>
 
 namespace agv::app {

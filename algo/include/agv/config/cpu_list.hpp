@@ -1,8 +1,8 @@
 #pragma once
 // CPU lists in the kernel's own syntax (the one of /sys/devices/system/cpu/online, taskset -c and
-// systemd's CPUAffinity=): "2", "2-3", "0,2-3". Used by loop.realtime_cpus and loop.service_cpus,
-// which keep the real-time threads and the network services (MQTT, diagnostics page) on
-// separate cores (docs/guide/realtime.md).
+// systemd's CPUAffinity=): "2", "2-3", "0,2-3". Used by loop.realtime_cpus, loop.vision_cpus and
+// loop.service_cpus, which keep the output thread and the network services (MQTT, diagnostics
+// page) on separate cores (docs/guide/deployment.md, "Real time").
 #include <string>
 #include <vector>
 
