@@ -57,6 +57,25 @@ fakecamera::FakeImage landmark_frame(const Pose2& vehicle_world, const CameraMod
   return f;
 }
 
+// A 640x480 frame of bare floor: quick to search, no landmark.
+fakecamera::FakeImage blank_frame() {
+  fakecamera::FakeImage f;
+  f.width_px = 640;
+  f.height_px = 480;
+  f.gray.assign(640u * 480u, 200);
+  return f;
+}
+
+// `n` frames `spacing_ns` apart from t0_ns, then the end of the stream.
+void push_frames(fakecamera::FakeCamera& cam, const fakecamera::FakeImage& img, int n,
+                 std::int64_t t0_ns, std::int64_t spacing_ns) {
+  for (int i = 0; i < n; ++i) {
+    cam.push_frame(img, t0_ns + i * spacing_ns);
+    cam.push_stall(spacing_ns);
+  }
+  cam.push_end_of_stream();
+}
+
 // How far apart to deliver frames on this machine: the worst of three full-search runs of the
 // vision stage on `img`, times `factor`, and at least `floor_ns`. The same test runs natively,
 // under the sanitizers and under qemu-aarch64, on a quiet or a loaded machine; at 10 Hz a frame
@@ -226,10 +245,7 @@ TEST(LiveLoop, ARecordTooSmallForTheRunIsReported) {
   cfg.landmark_size_mm = LandmarkGeometry{}.size_mm;
   LandmarkMap map;
   map.entries[kId] = {kId, kLandmarkWorld};
-  fakecamera::FakeImage blank;
-  blank.width_px = 640;
-  blank.height_px = 480;
-  blank.gray.assign(640u * 480u, 200);
+  const fakecamera::FakeImage blank = blank_frame();
   // Frames 50 ms apart, or further where the vision stage is slower (qemu, a loaded machine), so
   // that at least two are processed even if the mailbox drops some. A blank frame is quick to
   // search, so one scheduling stall is large against it: ten times its cost (under qemu beside two
@@ -242,11 +258,7 @@ TEST(LiveLoop, ARecordTooSmallForTheRunIsReported) {
   fakecamera::FakeCamera cam(o);
   const std::int64_t t0 = clock.now_ns() + 20 * kMs;
   constexpr int kFrames = 8;
-  for (int i = 0; i < kFrames; ++i) {
-    cam.push_frame(blank, t0 + i * spacing_ns);
-    cam.push_stall(spacing_ns);
-  }
-  cam.push_end_of_stream();
+  push_frames(cam, blank, kFrames, t0, spacing_ns);
   std::vector<recording::OdomRow> odo;
   for (std::int64_t t = t0 - 50 * kMs; t < t0 + (kFrames + 2) * spacing_ns; t += 10 * kMs) {
     odo.push_back({t, 0.0, 0.0});
@@ -380,21 +392,14 @@ TEST(LiveLoop, RealtimeAndVisionCpusPinTheLoopThreads) {
   cfg.loop.vision_cpus = std::to_string(target);
   cfg.camera_model = CameraModel::default_640x480();
   LandmarkMap map;
-  fakecamera::FakeImage blank;
-  blank.width_px = 640;
-  blank.height_px = 480;
-  blank.gray.assign(640u * 480u, 200);
+  const fakecamera::FakeImage blank = blank_frame();
   AffinityNotingClock clock;
   fakecamera::FakeCamera::Options o;
   o.clock = &clock;
   o.end_of_stream_when_empty = true;
   fakecamera::FakeCamera cam(o);
   const std::int64_t t0 = clock.now_ns() + 20 * kMs;
-  for (int i = 0; i < 3; ++i) {
-    cam.push_frame(blank, t0 + i * 50 * kMs);
-    cam.push_stall(50 * kMs);
-  }
-  cam.push_end_of_stream();
+  push_frames(cam, blank, 3, t0, 50 * kMs);
   std::vector<recording::OdomRow> odo;
   for (std::int64_t t = t0 - 50 * kMs; t < t0 + 250 * kMs; t += 10 * kMs) odo.push_back({t, 0, 0});
   can::FakeCanNetwork net;
@@ -424,21 +429,14 @@ TEST(LiveLoop, OdometryFromCanRunsPastTheLastFrameToTheLastOdometry) {
   cfg.loop.log_period_s = 0.0;
   cfg.camera_model = CameraModel::default_640x480();
   LandmarkMap map;
-  fakecamera::FakeImage blank;
-  blank.width_px = 640;
-  blank.height_px = 480;
-  blank.gray.assign(640u * 480u, 200);
+  const fakecamera::FakeImage blank = blank_frame();
   posix::PosixClock clock;
   fakecamera::FakeCamera::Options o;
   o.clock = &clock;
   o.end_of_stream_when_empty = true;
   fakecamera::FakeCamera cam(o);
   const std::int64_t t0 = clock.now_ns() + 20 * kMs;
-  for (int i = 0; i < 2; ++i) {
-    cam.push_frame(blank, t0 + i * 20 * kMs);
-    cam.push_stall(20 * kMs);
-  }
-  cam.push_end_of_stream();
+  push_frames(cam, blank, 2, t0, 20 * kMs);
   can::FakeCanNetwork net;
   auto ours = net.create_endpoint(256);
   std::vector<app::TickRecord> ticks;
