@@ -56,17 +56,4 @@ bool parse_cpu_list(const std::string& text, std::vector<int>* cpus, std::string
   return true;
 }
 
-std::string format_cpu_list(const std::vector<int>& cpus) {
-  std::string s;
-  for (std::size_t i = 0; i < cpus.size();) {
-    std::size_t j = i;
-    while (j + 1 < cpus.size() && cpus[j + 1] == cpus[j] + 1) ++j;
-    if (!s.empty()) s += ',';
-    s += std::to_string(cpus[i]);
-    if (j > i) s += '-' + std::to_string(cpus[j]);
-    i = j + 1;
-  }
-  return s;
-}
-
 }  // namespace agv::config

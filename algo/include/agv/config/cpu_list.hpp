@@ -16,7 +16,4 @@ inline constexpr int kMaxCpu = 1023;
 // on anything else that is not a list of N or N-M items with 0 <= N <= M <= kMaxCpu.
 bool parse_cpu_list(const std::string& text, std::vector<int>* cpus, std::string* error);
 
-// "0,2-3" for {0, 2, 3}; "" for an empty list.
-std::string format_cpu_list(const std::vector<int>& cpus);
-
 }  // namespace agv::config
