@@ -26,6 +26,8 @@ PKGS=(
   libcpp-httplib-dev chromium
   # agvloc-desk calibrate vehicle: nonlinear least squares
   libceres-dev
+  # site model and route planner (algo/site): Boost.Geometry predicates, Boost.Graph Dijkstra
+  libboost-dev
   # tests, benchmarks, comparison baseline
   libgtest-dev libgmock-dev libbenchmark-dev libapriltag-dev valgrind
   clang-format clang-tidy

@@ -24,5 +24,10 @@ void print_config_subcommands(FILE* f);     // one usage line per config subcomm
 // config apply: calibration snippets merged into a configuration. Exit 0 written, 1 write
 // failure, 2 refused (conflict, unknown key, fails the checker; nothing written).
 int config_apply_command(int argc, char** argv);
+// The site (docs/guide/site.md). Exit 0 success, 1 failure, 2 bad input.
+int site_command(int argc, char** argv);         // site check|draw
+int plan_command(int argc, char** argv);         // route between two points of a site
+int fleet_command(int argc, char** argv);        // fleet simulation on a site
+int render_site_command(int argc, char** argv);  // frames of a site's cameras
 
 }  // namespace agv::desk
