@@ -21,6 +21,10 @@ struct SiteLimits {
   std::size_t max_cameras = 256;
   std::size_t max_fleet = 4096;
   double max_extent_mm = 1e7;  // 10 km: any coordinate beyond is an error
+  // Over every polygon of the file (YAML aliases can repeat one polygon many times).
+  std::size_t max_total_vertices = 1000000;
+  // Errors reported; one more line then says that there were more.
+  std::size_t max_errors = 200;
 };
 
 // One problem with a site file: "<key path> (line N): <what is wrong>".
@@ -40,6 +44,10 @@ bool parse_site(std::string_view yaml_text, std::string_view floor_map_text, Sit
 // The floor_map.file entry of a site text, or "" (so the caller knows what to read before
 // parse_site). False with *error when the text is not YAML.
 bool site_floor_map_file(std::string_view yaml_text, std::string* file, std::string* error);
+
+// Findings about a valid site that are allowed but worth a look (docs/guide/site.md,
+// "Warnings"): "<key path>: <what>" each. No line numbers: the site may not come from a file.
+std::vector<std::string> site_warnings(const Site& site);
 
 // Writes a site as site-file YAML (round trip: parse_site(write_site(s)) == s).
 std::string write_site(const Site& site);
