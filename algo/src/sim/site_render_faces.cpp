@@ -6,6 +6,21 @@
 
 #include "site_render_internal.hpp"
 
+namespace agv::sim {
+
+Pose2 advance_agv_pose(const AgvState& s, double dt) {
+  const double v = s.v_mps * 1000.0, w = s.omega_radps, th = s.pose.theta_rad;
+  if (dt == 0.0) return s.pose;
+  if (std::abs(w) < 1e-9) {
+    return {s.pose.x_mm + v * dt * std::cos(th), s.pose.y_mm + v * dt * std::sin(th), th};
+  }
+  const double th1 = th + w * dt;
+  return {s.pose.x_mm + v / w * (std::sin(th1) - std::sin(th)),
+          s.pose.y_mm - v / w * (std::cos(th1) - std::cos(th)), wrap_angle_rad(th1)};
+}
+
+}  // namespace agv::sim
+
 namespace agv::sim::site_render_detail {
 
 Pages make_pages(const SiteScene& scene) {
@@ -48,17 +63,6 @@ Pages make_pages(const SiteScene& scene) {
     }
   }
   return p;
-}
-
-Pose2 advance_pose(const AgvState& s, double dt) {
-  const double v = s.v_mps * 1000.0, w = s.omega_radps, th = s.pose.theta_rad;
-  if (dt == 0.0) return s.pose;
-  if (std::abs(w) < 1e-9) {
-    return {s.pose.x_mm + v * dt * std::cos(th), s.pose.y_mm + v * dt * std::sin(th), th};
-  }
-  const double th1 = th + w * dt;
-  return {s.pose.x_mm + v / w * (std::sin(th1) - std::sin(th)),
-          s.pose.y_mm - v / w * (std::cos(th1) - std::cos(th)), wrap_angle_rad(th1)};
 }
 
 double face_shade(Vec3 n) {
@@ -211,7 +215,7 @@ void build_faces(const SiteScene& s, const Pages& pages, double dt, std::vector<
                 c.height_mm, c.grey, false, true, out);
   }
   for (size_t i = 0; i < s.site.fleet.size() && i < s.agvs.size(); ++i) {
-    add_vehicle(s, pages, i, advance_pose(s.agvs[i], dt), out, index);
+    add_vehicle(s, pages, i, advance_agv_pose(s.agvs[i], dt), out, index);
   }
   for (size_t k = 0; k < s.site.wall_landmarks.size(); ++k) {
     const site::WallLandmark& w = s.site.wall_landmarks[k];

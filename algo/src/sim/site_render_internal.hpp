@@ -73,8 +73,6 @@ struct Pages {
 };
 Pages make_pages(const SiteScene& scene);
 
-// The vehicle's pose dt seconds after the frame time (circular arc at constant v, omega).
-Pose2 advance_pose(const AgvState& s, double dt_s);
 // Every face of the scene with the vehicles (and their parcels) dt_s after the frame time.
 void build_faces(const SiteScene& scene, const Pages& pages, double dt_s, std::vector<Face>* out,
                  FaceIndex* index);

@@ -59,6 +59,9 @@ struct AgvState {
   double omega_radps = 0.0;
 };
 
+// The vehicle's pose dt_s seconds later (circular arc at constant v and omega).
+Pose2 advance_agv_pose(const AgvState& s, double dt_s);
+
 // A box on a tray, in the vehicle frame (it moves with the vehicle).
 struct Parcel {
   std::size_t agv = 0;             // index into the fleet
