@@ -162,6 +162,38 @@ struct Instant {
   }
 };
 
+// Faces per tile: every face whose normalised box (over all instants) meets the tile's.
+void bin_faces(const std::vector<std::array<float, 4>>& tile_box, const Instant& mid,
+               const std::vector<Instant>& inst, std::vector<std::vector<int>>* tile_faces,
+               std::vector<std::uint8_t>* tile_moving) {
+  const size_t n_tiles = tile_box.size();
+  tile_faces->assign(n_tiles, {});
+  tile_moving->assign(n_tiles, 0);
+  for (size_t fi = 0; fi < mid.faces.size(); ++fi) {
+    float b[4] = {std::numeric_limits<float>::max(), std::numeric_limits<float>::max(),
+                  -std::numeric_limits<float>::max(), -std::numeric_limits<float>::max()};
+    auto grow = [&](const CamFace& cf) {
+      if (!cf.visible) return;
+      b[0] = std::min(b[0], cf.box[0]);
+      b[1] = std::min(b[1], cf.box[1]);
+      b[2] = std::max(b[2], cf.box[2]);
+      b[3] = std::max(b[3], cf.box[3]);
+    };
+    grow(mid.cam[fi]);
+    const bool moving = mid.faces[fi].moving && !inst.empty();
+    if (moving) {
+      for (const Instant& in : inst) grow(in.cam[fi]);
+    }
+    if (b[0] > b[2]) continue;
+    for (size_t ti = 0; ti < n_tiles; ++ti) {
+      const std::array<float, 4>& tb = tile_box[ti];
+      if (b[2] < tb[0] || b[0] > tb[2] || b[3] < tb[1] || b[1] > tb[3]) continue;
+      (*tile_faces)[ti].push_back(static_cast<int>(fi));
+      if (moving) (*tile_moving)[ti] = 1;
+    }
+  }
+}
+
 }  // namespace
 
 RenderResult SiteFrameRenderer::render(const SiteScene& scene, const RenderCamera& cam,
@@ -188,33 +220,9 @@ RenderResult SiteFrameRenderer::render(const SiteScene& scene, const RenderCamer
     inst[static_cast<size_t>(k)].prepare(scene, cam);
   }
 
-  // Faces per tile: every face whose normalised box (over all instants) meets the tile's.
-  const size_t n_tiles = static_cast<size_t>(tiles_x_ * tiles_y_);
-  std::vector<std::vector<int>> tile_faces(n_tiles);
-  std::vector<std::uint8_t> tile_moving(n_tiles, 0);
-  for (size_t fi = 0; fi < mid.faces.size(); ++fi) {
-    float b[4] = {std::numeric_limits<float>::max(), std::numeric_limits<float>::max(),
-                  -std::numeric_limits<float>::max(), -std::numeric_limits<float>::max()};
-    auto grow = [&](const CamFace& cf) {
-      if (!cf.visible) return;
-      b[0] = std::min(b[0], cf.box[0]);
-      b[1] = std::min(b[1], cf.box[1]);
-      b[2] = std::max(b[2], cf.box[2]);
-      b[3] = std::max(b[3], cf.box[3]);
-    };
-    grow(mid.cam[fi]);
-    const bool moving = mid.faces[fi].moving && n_inst > 0;
-    if (moving) {
-      for (const Instant& in : inst) grow(in.cam[fi]);
-    }
-    if (b[0] > b[2]) continue;
-    for (size_t ti = 0; ti < n_tiles; ++ti) {
-      const std::array<float, 4>& tb = tile_box_[ti];
-      if (b[2] < tb[0] || b[0] > tb[2] || b[3] < tb[1] || b[1] > tb[3]) continue;
-      tile_faces[ti].push_back(static_cast<int>(fi));
-      if (moving) tile_moving[ti] = 1;
-    }
-  }
+  std::vector<std::vector<int>> tile_faces;
+  std::vector<std::uint8_t> tile_moving;
+  bin_faces(tile_box_, mid, inst, &tile_faces, &tile_moving);
 
   cv::Mat radiance(h, w, CV_32FC1);
   std::vector<int> keys(static_cast<size_t>(w) * static_cast<size_t>(h), -1);
