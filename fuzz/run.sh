@@ -17,7 +17,7 @@ seconds="${1:-60}"
 shift || true
 all=(fuzz_payload fuzz_map fuzz_recording_meta fuzz_recording_frames fuzz_recording_odom
      fuzz_recording_truth fuzz_config fuzz_candump fuzz_can_odometry fuzz_png fuzz_vision
-     fuzz_vda_action fuzz_placements fuzz_config_apply fuzz_report_csv)
+     fuzz_vda_action fuzz_placements fuzz_config_apply fuzz_report_csv fuzz_site)
 if [ "$#" -gt 0 ]; then harnesses=("$@"); else harnesses=("${all[@]}"); fi
 
 t0=$(date +%s)
@@ -32,6 +32,7 @@ dict_of() {
     fuzz_recording_meta) echo fuzz/dict/meta.dict ;;
     fuzz_recording_*) echo fuzz/dict/csv.dict ;;
     fuzz_config | fuzz_config_apply) echo fuzz/dict/config.dict ;;
+    fuzz_site) echo fuzz/dict/site.dict ;;
     fuzz_placements | fuzz_report_csv) echo fuzz/dict/csv.dict ;;
     fuzz_candump) echo fuzz/dict/candump.dict ;;
     fuzz_vda_action) echo fuzz/dict/vda5050.dict ;;

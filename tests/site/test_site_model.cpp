@@ -64,6 +64,14 @@ TEST(SiteFile, ExampleSiteParses) {
   std::string map_file, error;
   ASSERT_TRUE(site_floor_map_file(text, &map_file, &error)) << error;
   EXPECT_EQ(map_file, "default_grid.csv");
+  // A site without a floor map, or a text that is not a mapping, names none.
+  std::string none = "x";
+  ASSERT_TRUE(site_floor_map_file(kHead, &none, &error));
+  EXPECT_EQ(none, "");
+  ASSERT_TRUE(site_floor_map_file("- a\n- b\n", &none, &error));
+  EXPECT_EQ(none, "");
+  EXPECT_FALSE(site_floor_map_file("a: [\n", &none, &error));
+  EXPECT_NE(error.find("line"), std::string::npos);
   const Result r = parse(text, read_file(dir + map_file));
   ASSERT_TRUE(r.ok) << r.all;
   EXPECT_EQ(r.site.name, "example warehouse");

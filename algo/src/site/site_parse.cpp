@@ -314,12 +314,19 @@ bool parse_site(std::string_view yaml_text, std::string_view floor_map_text, Sit
 bool site_floor_map_file(std::string_view yaml_text, std::string* file, std::string* error) {
   file->clear();
   try {
+    // The entries are walked, not looked up: a lookup of an absent key on a const node gives a
+    // node that throws on use. The first of a twice-given key, as Fields reads it.
     const YAML::Node root = YAML::Load(std::string(yaml_text));
-    if (!root.IsMap()) return true;
-    const YAML::Node fm = root["floor_map"];
-    if (!fm.IsMap()) return true;
-    const YAML::Node f = fm["file"];
-    if (f.IsScalar()) *file = f.Scalar();
+    auto first = [](const YAML::Node& map, const char* key) {
+      if (map.IsMap()) {
+        for (const auto& kv : map) {
+          if (kv.first.IsScalar() && kv.first.Scalar() == key) return YAML::Node(kv.second);
+        }
+      }
+      return YAML::Node(YAML::NodeType::Undefined);
+    };
+    const YAML::Node f = first(first(root, "floor_map"), "file");
+    if (f.IsDefined() && f.IsScalar()) *file = f.Scalar();
     return true;
   } catch (const YAML::Exception& e) {
     *error = "YAML syntax error at line " + std::to_string(e.mark.line + 1) + ": " + e.msg;

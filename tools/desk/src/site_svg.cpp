@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <iterator>
 #include <opencv2/imgproc.hpp>
 #include <sstream>
@@ -27,12 +28,14 @@ struct SitePrim {
   double fill_opacity = 1.0;
   double stroke_px = 1.0;
   bool dashed = false;
+  bool clip_to_outline = false;  // drawn only inside the site outline
   std::string text;
   double text_px = 12.0;
 };
 
 struct SiteScene {
   double width_px = 0.0, height_px = 0.0;
+  std::vector<Vec2> outline_px;
   std::vector<SitePrim> prims;
 };
 
@@ -121,12 +124,13 @@ void add_landmarks(const Site& s, const SiteView& v, SiteScene* sc) {
         {v(c), v(tip), v({tip.x - head * (n.x - 0.5 * t.x), tip.y - head * (n.y - 0.5 * t.y)}),
          v(tip), v({tip.x - head * (n.x + 0.5 * t.x), tip.y - head * (n.y + 0.5 * t.y)})},
         "none", "#d62728", 1.5));
-    sc->prims.push_back(site_text(v({tip.x + 50 * n.x, tip.y + 50 * n.y}),
-                                  std::string(w.family == agv::site::LandmarkFamily::kTag36h11
-                                                  ? "tag "
-                                                  : "qr ") +
-                                      std::to_string(w.id),
-                                  10, "#d62728"));
+    const std::string label =
+        std::string(w.family == agv::site::LandmarkFamily::kTag36h11 ? "tag " : "qr ") +
+        std::to_string(w.id);
+    Vec2 at = v({tip.x + 50 * n.x, tip.y + 50 * n.y});
+    // Text runs to the right: a label of a landmark facing -x ends at the arrow's tip instead.
+    if (n.x < -0.3) at.x -= 0.7 * 10 * label.size();
+    sc->prims.push_back(site_text(at, label, 10, "#d62728"));
   }
 }
 
@@ -138,6 +142,7 @@ void add_camera_views(const Site& s, const SiteView& v, double range_mm, SiteSce
     SitePrim p = site_shape(SitePrim::kPolygon, site_to_px(v, foot), "#2ca02c", "#2ca02c", 1);
     p.fill_opacity = 0.12;
     p.dashed = true;
+    p.clip_to_outline = true;  // the floor beyond the walls is not the site's
     sc->prims.push_back(p);
   }
 }
@@ -165,6 +170,8 @@ void add_legend(const Site& s, const SiteView& v, double bottom_px, SiteScene* s
                   a.tag_id, a.tag_size_mm, a.tray_length_mm, a.tray_width_mm, a.tray_height_mm,
                   a.radius_mm);
     sc->prims.push_back(site_text({x, y}, a.id + line, 11));
+    // Hershey glyphs (the PNG) are about 0.8 em wide; the canvas grows to hold the line.
+    sc->width_px = std::max(sc->width_px, x + 0.8 * 11 * (a.id.size() + std::strlen(line)) + v.margin);
   }
   y += 22;
   double kx = x;
@@ -208,6 +215,7 @@ SiteScene build_site_scene(const Site& s, const std::vector<std::vector<Vec2>>& 
   sc.width_px = 2 * v.margin + (max_x - min_x) * v.scale;
   const double bottom = v.margin + (max_y - min_y) * v.scale;
   sc.prims.push_back(site_text({v.margin, v.margin - 14}, s.name, 16));
+  sc.outline_px = site_to_px(v, s.outline.vertices_mm);
   sc.prims.push_back(site_shape(SitePrim::kPolygon, site_to_px(v, s.outline.vertices_mm),
                                 "#f7f7f2", "#000000", 2.5));
   add_camera_views(s, v, 2.0 * std::hypot(max_x - min_x, max_y - min_y) + 1000.0, &sc);
@@ -286,8 +294,20 @@ std::vector<cv::Point> site_cv_points(const std::vector<Vec2>& px) {
   return out;
 }
 
-void site_raster(const SitePrim& p, cv::Mat* img) {
+void site_raster(const SitePrim& p, const std::vector<Vec2>& outline_px, cv::Mat* img) {
   const auto pts = site_cv_points(p.px);
+  if (p.clip_to_outline && outline_px.size() >= 3 && pts.size() >= 3) {
+    // Drawn on a copy, then copied back only inside the outline.
+    SitePrim unclipped = p;
+    unclipped.clip_to_outline = false;
+    cv::Mat layer = img->clone();
+    site_raster(unclipped, outline_px, &layer);
+    cv::Mat mask = cv::Mat::zeros(img->size(), CV_8UC1);
+    cv::fillPoly(mask, std::vector<std::vector<cv::Point>>{site_cv_points(outline_px)},
+                 cv::Scalar(255));
+    layer.copyTo(*img, mask);
+    return;
+  }
   const int thick = std::max(1, static_cast<int>(std::lround(p.stroke_px)));
   switch (p.kind) {
     case SitePrim::kPolygon:
@@ -329,14 +349,17 @@ std::string site_svg(const agv::site::Site& site, const std::vector<std::vector<
                 "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"%.0f\" height=\"%.0f\" "
                 "viewBox=\"0 0 %.2f %.2f\" font-family=\"sans-serif\">\n",
                 std::ceil(sc.width_px), std::ceil(sc.height_px), sc.width_px, sc.height_px);
-  os << head << "<rect width=\"100%\" height=\"100%\" fill=\"#ffffff\"/>\n";
+  os << head << "<rect width=\"100%\" height=\"100%\" fill=\"#ffffff\"/>\n"
+     << "<clipPath id=\"site-outline\"><polygon points=\"" << site_draw::site_points(sc.outline_px)
+     << "\"/></clipPath>\n";
   for (const site_draw::SitePrim& p : sc.prims) {
     const std::string style = "fill=\"" + p.fill + "\" stroke=\"" + p.stroke +
                               "\" stroke-width=\"" + std::to_string(p.stroke_px) + "\"" +
                               (p.fill_opacity < 1.0
                                    ? " fill-opacity=\"" + std::to_string(p.fill_opacity) + "\""
                                    : "") +
-                              (p.dashed ? " stroke-dasharray=\"6,4\"" : "");
+                              (p.dashed ? " stroke-dasharray=\"6,4\"" : "") +
+                              (p.clip_to_outline ? " clip-path=\"url(#site-outline)\"" : "");
     switch (p.kind) {
       case site_draw::SitePrim::kPolygon:
         os << "<polygon points=\"" << site_draw::site_points(p.px) << "\" " << style << "/>\n";
@@ -374,7 +397,7 @@ bool site_png(const agv::site::Site& site, const std::vector<std::vector<Vec2>>&
     return false;
   }
   cv::Mat img(static_cast<int>(h), static_cast<int>(w), CV_8UC3, cv::Scalar(255, 255, 255));
-  for (const site_draw::SitePrim& p : sc.prims) site_draw::site_raster(p, &img);
+  for (const site_draw::SitePrim& p : sc.prims) site_draw::site_raster(p, sc.outline_px, &img);
   *out = img;
   return true;
 }
