@@ -58,6 +58,9 @@ class RoutePlanner {
   bool segment_free(Vec2 a_mm, Vec2 b_mm) const;
   // The inflated obstacles, counter-clockwise (drawing, tests).
   const std::vector<Polygon>& inflated() const;
+  // The free space's boundary: closed rings with the free side on the left of every edge
+  // (outer boundaries counter-clockwise, enclosed obstacles clockwise). Independent checks.
+  std::vector<std::vector<Vec2>> free_boundary() const;
   std::size_t vertex_count() const;
   std::size_t edge_count() const;
 
