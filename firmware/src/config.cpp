@@ -145,8 +145,8 @@ std::string config_summary(const Config& cfg, const LandmarkMap* map) {
   s += "  odometry: speed_scale " + val(cfg, "odometry.speed_scale") + ", yaw_rate_scale " +
        val(cfg, "odometry.yaw_rate_scale") + ", yaw_rate_bias_degps " +
        val(cfg, "odometry.yaw_rate_bias_degps") + ", yaw_per_metre_deg " +
-       val(cfg, "odometry.yaw_per_metre_deg") + ", time_offset_ms " +
-       val(cfg, "odometry.time_offset_ms") + "\n";
+       val(cfg, "odometry.yaw_per_metre_deg") + "; camera.time_offset_ms " +
+       val(cfg, "camera.time_offset_ms") + "\n";
   s +=
       "  output: " + val(cfg, "loop.output_rate_hz") + " Hz; vda5050 " +
       (cfg.vda5050.enabled ? "on (" + cfg.vda5050.broker_host + ")" : std::string("off")) +

@@ -16,10 +16,9 @@ localizer::LocalizerConfig localizer_config(const config::Config& cfg) {
   c.odometry.yaw_rate_bias_radps = cfg.odometry.yaw_rate_bias_radps;
   c.odometry.yaw_per_metre_rad = cfg.odometry.yaw_per_metre_rad;
   c.odometry.track_width_m = cfg.can.track_width_mm * 1e-3;
-  c.odometry.time_offset_ns = std::llround(cfg.odometry.time_offset_ms * 1e6);
   c.gyro.scale = cfg.imu.scale;
   c.gyro.bias_radps = cfg.imu.bias_radps;
-  c.gyro.time_offset_ns = std::llround(cfg.imu.time_offset_ms * 1e6);
+  c.time_base = config::time_base(cfg);
   c.gyro_timeout_ns = std::llround(cfg.can.gyro_timeout_ms * 1e6);
   c.gyro_expected = cfg.imu.source == "iio";  // the IIO gyro's timeout is can.gyro.timeout_ms
   c.heartbeat_period_ns = static_cast<std::int64_t>(1e9 / cfg.loop.heartbeat_rate_hz);

@@ -3,7 +3,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <array>
 #include <cinttypes>
 #include <cstdio>
 #include <cstdlib>
@@ -18,6 +17,7 @@
 #include "agv/posix/posix_clock.hpp"
 #include "agv/posix/realtime.hpp"
 #include "handoff.hpp"
+#include "snapshot_slot.hpp"
 
 namespace agv::app {
 
@@ -35,68 +35,6 @@ vision::VisionConfig vision_config_with_clock(const config::Config& cfg, const h
   }
   return v;
 }
-
-// The output thread's fused estimates for the vision worker (search windows,
-// docs/design/tracking.md). The output thread is SCHED_FIFO and must never wait: it publishes with
-// try_lock and skips a period when the worker is reading (the next period publishes). The worker
-// holds the lock for a scan of the timestamps and a copy of ~140 bytes.
-//
-// A history, not only the latest: when the worker lags (a loaded CPU, a camera that delivers
-// 150 ms after the exposure), the latest snapshot is that much newer than the frame, and the
-// extrapolation over the lag grows the covariance past the tracking limits (10 mm at 100 mm/s
-// over 100 ms): every frame fell back to the full search. The snapshot published nearest the
-// exposure needs almost no extrapolation. 64 periods cover 640 ms at 100 Hz.
-class SnapshotSlot {
- public:
-  void publish(const vision::MotionSnapshot& s) {
-    std::unique_lock<std::mutex> lock(m_, std::try_to_lock);
-    if (!lock.owns_lock()) return;
-    ring_[next_ % kHistory] = s;
-    ++next_;
-  }
-  // The extrapolation to t_exposure_ns with the smaller position variance of the two candidates:
-  // the snapshot nearest the exposure, and the latest (it may hold a fix fused after the
-  // exposure). No snapshot yet: an invalid prediction.
-  vision::Prediction predict(std::int64_t t_exposure_ns, double pos_growth_mm_per_s,
-                             double heading_growth_rad_per_s) {
-    vision::MotionSnapshot nearest, latest;
-    {
-      std::lock_guard<std::mutex> lock(m_);
-      if (next_ == 0) return {};
-      const std::size_t n = std::min<std::size_t>(next_, kHistory);
-      latest = ring_[(next_ - 1) % kHistory];
-      std::size_t best = (next_ - 1) % kHistory;
-      for (std::size_t k = 0; k < n; ++k) {
-        const std::size_t i = (next_ - 1 - k) % kHistory;
-        if (std::llabs(ring_[i].t_ns - t_exposure_ns) <
-            std::llabs(ring_[best].t_ns - t_exposure_ns)) {
-          best = i;
-        }
-      }
-      nearest = ring_[best];
-    }
-    const vision::Prediction a =
-        vision::extrapolate(nearest, t_exposure_ns, pos_growth_mm_per_s, heading_growth_rad_per_s);
-    const vision::Prediction b =
-        vision::extrapolate(latest, t_exposure_ns, pos_growth_mm_per_s, heading_growth_rad_per_s);
-    if (!a.valid) return b;
-    if (!b.valid) return a;
-    return a.cov(0, 0) + a.cov(1, 1) <= b.cov(0, 0) + b.cov(1, 1) ? a : b;
-  }
-
- private:
-  static constexpr std::size_t kHistory = 64;
-  std::mutex m_;
-  std::array<vision::MotionSnapshot, kHistory> ring_{};
-  std::size_t next_ = 0;
-};
-
-// Growth of the snapshot's covariance while it is extrapolated to a frame's exposure (a few ms to
-// one output period, more when the output thread skipped a publication): the velocity may change
-// at up to ~1 m/s^2 and ~50 deg/s^2 in that span, i.e. 0.1 m/s and 5 deg/s over 100 ms, which
-// these rates cover at 1 sigma.
-constexpr double kSnapshotPosGrowthMmPerS = 100.0;
-constexpr double kSnapshotHeadingGrowthRadPerS = 5.0 * kPi / 180.0;
 
 LandmarkGeometry geometry_of(const config::Config& cfg) {
   LandmarkGeometry g;
@@ -140,7 +78,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
   std::atomic<std::int64_t> last_frame_ns{clock.now_ns()};
   std::atomic<std::uint64_t> vision_busy{0};
   VisionStats vstats;
-  SnapshotSlot snapshot;
+  SnapshotSlot snapshot(core.time_base());
   // Written by one thread each (worker, output), read after both are joined.
   std::uint64_t fixes_not_recorded = 0, ticks_not_recorded = 0;
 
@@ -207,8 +145,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
       const std::int64_t t0 = clock.now_ns();
       const cv::Mat img(f.height_px, f.width_px, CV_8UC1, const_cast<std::uint8_t*>(f.data),
                         static_cast<size_t>(f.stride_bytes));
-      const vision::Prediction pred = snapshot.predict(f.t_exposure_ns, kSnapshotPosGrowthMmPerS,
-                                                       kSnapshotHeadingGrowthRadPerS);
+      const vision::Prediction pred = snapshot.predict_exposure(f.t_exposure_ns);
       loc.process(img, pred, &rec.fix);
       const std::int64_t t1 = clock.now_ns();
       if (io.diag_frames) io.diag_frames->offer(img, f.t_exposure_ns);

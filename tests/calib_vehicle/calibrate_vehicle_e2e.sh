@@ -43,7 +43,7 @@ truth = {"mounting.offset_x_mm": (6, 0.2), "mounting.offset_y_mm": (-4, 0.2),
          "odometry.yaw_rate_scale": (1 / k, 0.0005 / k),
          "odometry.yaw_rate_bias_degps": (-0.3 / k, 0.01),
          "odometry.yaw_per_metre_deg": (yaw_per_metre_deg, 0.12),
-         "odometry.time_offset_ms": (20, 0.5)}
+         "camera.time_offset_ms": (20, 0.5)}
 got = {}
 for line in open(sys.argv[1]):
     f = line.split()
@@ -60,9 +60,11 @@ for name, (t, tol) in truth.items():
 sys.exit(1 if bad else 0)
 PY
 # The snippet carries the odometry keys (v_omega mode) ...
-for k in speed_scale yaw_rate_scale yaw_rate_bias_degps yaw_per_metre_deg time_offset_ms; do
+for k in speed_scale yaw_rate_scale yaw_rate_bias_degps yaw_per_metre_deg; do
   grep -q "^  $k: " "$WORK/cal/vehicle_calibration.yaml" || { echo "FAIL: odometry.$k not written"; exit 1; }
 done
+# ... the camera's clock offset in the camera section ...
+grep -Pzq '\ncamera:\n  time_offset_ms: ' "$WORK/cal/vehicle_calibration.yaml" || { echo "FAIL: camera.time_offset_ms not written"; exit 1; }
 # ... and in wheels mode the yaw-rate scale as the track width the samples were decoded with
 # divided by the scale (here 640 mm / scale), odometry.yaw_rate_scale then 1.
 printf 'intrinsics: {fx: 769.23076923076917, fy: 769.23076923076917, cx: 319.5, cy: 239.5}\ncan:\n  odometry:\n    mode: wheels\n    track_width_mm: 640\n' > "$WORK/wheels.yaml"

@@ -12,17 +12,17 @@
 namespace {
 
 TEST(CalibVehicleRanges, ResultsTheConfigurationRejectsAreNamed) {
-  const std::string t = agv::desk::outside_key_range("odometry.time_offset_ms", 719.94);
-  EXPECT_NE(t.find("odometry.time_offset_ms 719.94 is outside the accepted -500..500 ms"),
+  const std::string t = agv::desk::outside_key_range("camera.time_offset_ms", 719.94);
+  EXPECT_NE(t.find("camera.time_offset_ms 719.94 is outside the accepted -500..500 ms"),
             std::string::npos)
       << t;
   const std::string s = agv::desk::outside_key_range("odometry.speed_scale", 0.327);
   EXPECT_NE(s.find("odometry.speed_scale 0.327 is outside"), std::string::npos) << s;
   EXPECT_FALSE(agv::desk::outside_key_range("mounting.height_mm", std::nan("")).empty());
-  EXPECT_TRUE(agv::desk::outside_key_range("odometry.time_offset_ms", 12.0).empty());
+  EXPECT_TRUE(agv::desk::outside_key_range("camera.time_offset_ms", 12.0).empty());
   EXPECT_TRUE(agv::desk::outside_key_range("odometry.speed_scale", 1.02).empty());
   // The limits follow the table: its edges are accepted, one step beyond is not.
-  for (const char* name : {"odometry.time_offset_ms", "odometry.speed_scale",
+  for (const char* name : {"camera.time_offset_ms", "odometry.speed_scale",
                            "odometry.yaw_rate_scale", "mounting.height_mm", "mounting.roll_deg"}) {
     const agv::config::Key* k = agv::config::find_key(name);
     ASSERT_NE(k, nullptr) << name;
@@ -52,7 +52,7 @@ TEST(CalibVehiclePriors, DeterminedOdometryNarrowsTheFilterPriors) {
   add("odometry.yaw_rate_scale", 0.5, 0.002, true);      // relative 0.004, 3 sigma 0.012
   add("odometry.yaw_rate_bias_degps", 0.3, 0.04, true);  // 3 sigma 0.12 deg/s
   add("odometry.yaw_per_metre_deg", 0.1, 0.01, false);   // not determined: not written
-  add("odometry.time_offset_ms", 12.0, 0.1, true);       // no filter state
+  add("camera.time_offset_ms", 12.0, 0.1, true);       // no filter state
   const std::vector<vcal::FilterPrior> priors = vcal::odometry_priors(r);
   ASSERT_EQ(priors.size(), 3u);
   EXPECT_EQ(priors[0].key, "init_v_scale_sigma");

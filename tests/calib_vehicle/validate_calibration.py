@@ -63,8 +63,8 @@ def true_yaw_per_metre_deg(asym, track_m, scale_err, yaw_scale_err):
 
 TRUE_ODOM = {"speed_scale": 1 / (1 + SCALE_ERR), "yaw_rate_scale": 1 / K,
              "yaw_rate_bias_degps": -YAW_BIAS_DEGPS / K,
-             "yaw_per_metre_deg": true_yaw_per_metre_deg(ASYM, TRACK_M, SCALE_ERR, YAW_SCALE_ERR),
-             "time_offset_ms": TIME_OFFSET_MS}
+             "yaw_per_metre_deg": true_yaw_per_metre_deg(ASYM, TRACK_M, SCALE_ERR, YAW_SCALE_ERR)}
+TRUE_CAMERA = {"time_offset_ms": TIME_OFFSET_MS}
 # The simulator's default gyro (0.3 % scale error, +0.2 deg/s bias): its true correction, with
 # the priors `calibrate vehicle` writes for a determined gyro (their floors), so "true" and
 # "calibrated" differ only by what the calibration estimated.
@@ -107,7 +107,7 @@ def run(cmd, log, ok_codes=(0,)):
 
 
 def read_snippet(path):
-    """The calibration snippet: {section: {key: value}} (two levels: mounting, odometry)."""
+    """The calibration snippet: {section: {key: value}} (two levels: mounting, odometry, camera)."""
     out, section = {}, None
     for line in open(path):
         line = line.split("#", 1)[0].rstrip()
@@ -181,7 +181,8 @@ def main():
         f"{w}/cal.log", ok_codes=(0, 1))
     snippet = read_snippet(f"{w}/cal/vehicle_calibration.yaml")
     missing = [f"mounting.{k}" for k in TRUE_MOUNT if k not in snippet.get("mounting", {})] + \
-        [f"odometry.{k}" for k in TRUE_ODOM if k not in snippet.get("odometry", {})]
+        [f"odometry.{k}" for k in TRUE_ODOM if k not in snippet.get("odometry", {})] + \
+        [f"camera.{k}" for k in TRUE_CAMERA if k not in snippet.get("camera", {})]
     if missing:
         sys.stdout.write(open(f"{w}/cal.log").read())
         sys.exit("FAIL: the calibration did not determine " + ", ".join(missing))
@@ -210,6 +211,7 @@ def main():
                 f.write(open(f"{w}/cal/vehicle_calibration.yaml").read())
             elif odom:
                 f.write("odometry:\n" + "".join(f"  {k}: {v!r}\n" for k, v in odom.items()))
+                f.write("camera:\n" + "".join(f"  {k}: {v!r}\n" for k, v in TRUE_CAMERA.items()))
                 f.write("imu:\n" + "".join(f"  {k}: {v!r}\n" for k, v in TRUE_IMU.items()))
                 f.write("fusion:\n" + "".join(f"  {k}: {v!r}\n" for k, v in TRUE_FUSION.items()))
             else:
@@ -227,6 +229,8 @@ def main():
         lines.append(f"  mounting.{k:22s} true {t:11.5f} calibrated {snippet['mounting'][k]:11.5f}")
     for k, t in TRUE_ODOM.items():
         lines.append(f"  odometry.{k:22s} true {t:11.5f} calibrated {snippet['odometry'][k]:11.5f}")
+    for k, t in TRUE_CAMERA.items():
+        lines.append(f"  camera.{k:24s} true {t:11.5f} calibrated {snippet['camera'][k]:11.5f}")
     lines.append("fused between-landmark error (>= 200 ms from a fix), position mm:")
     lines.append("  configuration      n      p50       p95       max")
     for name, n, p50, p95, mx in rows:

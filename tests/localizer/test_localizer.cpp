@@ -511,19 +511,21 @@ TEST(Localizer, EachOdometryCorrectionKeyChangesTheFusedInputAsStated) {
     const char* name;
     localizer::OdometryCorrection corr;
     std::int64_t raw_dt;  // odometry clock - camera clock in the fed samples
+    std::int64_t camera_offset_ns;  // TimeBase::camera_offset_ns configured
   };
-  localizer::OdometryCorrection speed, yaw, bias, curve, offset, all;
+  localizer::OdometryCorrection speed, yaw, bias, curve, none, all;
   speed.speed_scale = 1.03;
   yaw.yaw_rate_scale = 0.97;
   bias.yaw_rate_bias_radps = -0.004;
   curve.yaw_per_metre_rad = 0.008;
-  offset.time_offset_ns = 20 * kMs;
-  all = {1.03, 0.97, -0.004, 0.008, 20 * kMs};
-  for (const Case& k : {Case{"speed_scale", speed, 0}, Case{"yaw_rate_scale", yaw, 0},
-                        Case{"yaw_rate_bias", bias, 0}, Case{"yaw_per_metre", curve, 0},
-                        Case{"time_offset", offset, 20 * kMs}, Case{"all", all, 20 * kMs}}) {
+  all = {1.03, 0.97, -0.004, 0.008};
+  for (const Case& k :
+       {Case{"speed_scale", speed, 0, 0}, Case{"yaw_rate_scale", yaw, 0, 0},
+        Case{"yaw_rate_bias", bias, 0, 0}, Case{"yaw_per_metre", curve, 0, 0},
+        Case{"camera_time_offset", none, 20 * kMs, 20 * kMs}, Case{"all", all, 20 * kMs, 20 * kMs}}) {
     auto c = plain;
     c.odometry = k.corr;
+    c.time_base.camera_offset_ns = k.camera_offset_ns;
     // With the correction configured, raw samples give exactly what the plain localizer gives
     // when fed v' = s_v v + c q w, w' = s_w w + b + c v, with the exposure moved onto the
     // odometry's (vehicle's) clock, t' = t + offset (the output stays on the vehicle's clock, issue
@@ -537,7 +539,7 @@ TEST(Localizer, EachOdometryCorrectionKeyChangesTheFusedInputAsStated) {
                         s.w * k.corr.yaw_rate_scale + k.corr.yaw_rate_bias_radps +
                             k.corr.yaw_per_metre_rad * s.v};
         },
-        k.corr.time_offset_ns);
+        k.camera_offset_ns);
     EXPECT_TRUE(same(corrected, by_hand)) << k.name;
     // ... and not what the plain localizer makes of the raw samples.
     EXPECT_FALSE(same(corrected, drive(plain, k.raw_dt, raw))) << k.name;
@@ -744,13 +746,13 @@ TEST(Localizer, MapGuidedFixIsFusedByAHeadingLostFilterWhenItPassesTheGate) {
 }
 
 // Issue 33, time base: the output is on the vehicle's clock (the odometry's). A camera whose
-// stamps are 12 ms late (odometry clock = camera clock - 12 ms, odometry.time_offset_ms = -12)
+// stamps are 12 ms late (vehicle clock = camera clock - 12 ms, camera.time_offset_ms = -12)
 // gives, with the offset configured, the pose of the vehicle at the tick's own time; without
 // it the fixes pull the pose 12 mm back (at 1 m/s).
 TEST(Localizer, CalibratedCameraOffsetKeepsTheOutputOnTheVehicleClock) {
   auto run = [](std::int64_t configured_offset_ns) {
     auto c = test_config();
-    c.odometry.time_offset_ns = configured_offset_ns;
+    c.time_base.camera_offset_ns = configured_offset_ns;
     localizer::Localizer loc(c);
     localizer::OutFrames out;
     localizer::TickRecord rec;

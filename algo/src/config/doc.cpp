@@ -66,7 +66,8 @@ const std::vector<Section>& config_sections() {
       {"odometry", "(from `agvloc-desk calibrate vehicle`)",
        "Correction of every odometry sample before fusion, the equations of the calibration's\n"
        "model (tools/desk/src/calib_vehicle.hpp): v' = `speed_scale` · v,\n"
-       "ω' = `yaw_rate_scale` · ω + `yaw_rate_bias_degps`, t' = t − `time_offset_ms`. Applied to\n"
+       "ω' = `yaw_rate_scale` · ω + `yaw_rate_bias_degps`; stamps unchanged (odometry is the\n"
+       "vehicle's clock; the camera's offset is `camera.time_offset_ms`). Applied to\n"
        "both odometry modes, after `can.odometry.wheel_speed_scale` / `track_width_mm` (which a\n"
        "wheels-mode calibration folds its yaw-rate scale into). With\n"
        "`fusion.estimate_odometry_calibration` the filter's own scale and bias states still start\n"

@@ -27,8 +27,10 @@ const std::vector<Key>& config_keys() {
 const std::vector<RemovedKey>& removed_keys() {
   // One odometry timeout (issue 14): the filter's odometry flag and the pose validity used to
   // have separate timeouts that could disagree.
+  // The camera's clock offset is the camera's (one time base): the same value and sign.
   static const std::vector<RemovedKey> removed = {
       {"fusion.odom_timeout_ms", "can.odometry.timeout_ms"},
+      {"odometry.time_offset_ms", "camera.time_offset_ms"},
   };
   return removed;
 }

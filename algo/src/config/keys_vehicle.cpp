@@ -47,6 +47,15 @@ void add_camera(std::vector<Key>* k) {
                        "no frame this long → `CameraStalled` in the status frame; fusion "
                        "keeps dead-reckoning. Shorter reports a dead camera sooner, longer "
                        "tolerates exposure and scheduling hiccups"}));
+  k->push_back(number("camera.time_offset_ms", AGV_AT(camera.time_offset_ms), -500.0, 500.0, 0.0,
+                      {"ms",
+                       "vehicle clock = camera clock + offset (the vehicle's clock stamps "
+                       "odometry and CAN; + = the camera's stamps are early, − = late): every "
+                       "exposure stamp is moved onto the vehicle's clock as t + offset, for the "
+                       "fix and for the search windows' prediction, on every loop (`run`, "
+                       "`replay --realtime`, `replay --fast`). At 1 m/s every ms is 1 mm along "
+                       "track at each fix; the filter has no state for it. From `calibrate "
+                       "vehicle`"}));
 }
 
 void add_intrinsics(std::vector<Key>* k) {
@@ -251,15 +260,6 @@ void add_odometry(std::vector<Key>* k) {
                            "otherwise puts the curvature "
                            "into the camera yaw and the creep into the lateral offset; the "
                            "filter's bias state cannot follow it, since it changes with speed"}));
-  k->push_back(number("odometry.time_offset_ms", AGV_AT(odometry.time_offset_ms), -500.0, 500.0,
-                      0.0,
-                      {"ms",
-                       "odometry clock = camera clock + offset (+ = odometry stamps late); "
-                       "applied to the camera, not to odometry: each fix's exposure stamp (and "
-                       "the prediction vision asks for at an exposure) is moved onto the vehicle's "
-                       "clock as t + offset, while odometry and the output keep their stamps. At "
-                       "1 m/s every ms is 1 mm along track at each fix; the filter has no state "
-                       "for it"}));
 }
 
 void add_loop(std::vector<Key>* k) {

@@ -89,8 +89,7 @@ void Localizer::on_odometry(std::int64_t t_ns, double v_mps, double omega_radps)
   ++stats_.odom_samples;
   // THE place the configured odometry correction is applied (OdometryCorrection). Multiplying
   // by exactly 1.0 leaves a value bit-identical; a zero bias is skipped (-0.0 + 0.0 = +0.0).
-  // Its stamp stays: odometry is on the vehicle's clock, the one the output runs on. The
-  // calibrated offset moves the camera's stamps instead (on_fix, prediction_at).
+  t_ns = cfg_.time_base.odometry_to_vehicle_ns(t_ns);
   const OdometryCorrection& c = cfg_.odometry;
   const double v_read_mps = v_mps, omega_read_radps = omega_radps;
   v_mps *= c.speed_scale;
@@ -110,7 +109,7 @@ void Localizer::on_odometry(std::int64_t t_ns, double v_mps, double omega_radps)
 bool Localizer::on_gyro(std::int64_t t_ns, double gyro_z_radps) {
   ++stats_.gyro_samples;
   const GyroCorrection& c = cfg_.gyro;
-  t_ns -= c.time_offset_ns;
+  t_ns = cfg_.time_base.gyro_to_vehicle_ns(t_ns);
   gyro_z_radps *= c.scale;
   if (c.bias_radps != 0.0) gyro_z_radps += c.bias_radps;
   if (!ekf_.add_gyro(t_ns, gyro_z_radps)) {
@@ -199,8 +198,7 @@ void Localizer::on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure_n
     rejections_ |= protocol::reject::kGeometry;
     return;
   }
-  // The camera's clock onto the vehicle's (odometry clock = camera clock + time_offset).
-  t_exposure_ns += cfg_.odometry.time_offset_ns;
+  t_exposure_ns = cfg_.time_base.camera_to_vehicle_ns(t_exposure_ns);
   const bool guided = fix.identity == vision::FixIdentity::kMapGuided;
   if (guided) ++stats_.fixes_map_guided;
   // A map-guided fix never vouches for itself, and neither does a tag (the map entry is all it
@@ -273,7 +271,7 @@ vision::MotionSnapshot Localizer::snapshot_at(std::int64_t t_ns) const {
   pose_out(est, t_ns, &odom_timeout);
   vision::MotionSnapshot s;
   // Lost or not: what the prediction may be used for is decided by its covariance (tracking's
-  // sigma limits, map identity's gate against the nearest mapped neighbour; issue 33). Without
+  // sigma limits, map identity's gate against the nearest mapped neighbour). Without
   // odometry behind it there is no prediction.
   s.valid = est.valid && !odom_timeout;
   if (!s.valid) return s;
@@ -286,8 +284,7 @@ vision::MotionSnapshot Localizer::snapshot_at(std::int64_t t_ns) const {
 }
 
 vision::Prediction Localizer::prediction_at(std::int64_t t_exposure_ns) const {
-  // Asked at a camera exposure: the pose at that moment on the vehicle's clock.
-  vision::MotionSnapshot s = snapshot_at(t_exposure_ns + cfg_.odometry.time_offset_ns);
+  vision::MotionSnapshot s = snapshot_at(cfg_.time_base.camera_to_vehicle_ns(t_exposure_ns));
   vision::Prediction p;
   p.valid = s.valid;
   p.vehicle_in_world = s.vehicle_in_world;

@@ -82,7 +82,7 @@ bool frame_heading(const CornerObservation& o, const LandmarkMap& map, double ou
                    double inner_half_mm, const CameraMount& mount, double* heading_rad);
 
 // initial_scale: the configured imu.scale (kept when the drive does not determine the scale);
-// initial_clock_offset_s: gyro clock - camera clock expected (odometry.time_offset +
+// initial_clock_offset_s: gyro clock - camera clock expected (camera.time_offset +
 // imu.time_offset). False with *error when there is nothing to estimate from (no gyro samples,
 // fewer than 10 frames with a heading inside the gyro's span).
 bool calibrate_gyro(const std::vector<GyroSample>& gyro, const std::vector<CornerObservation>& obs,

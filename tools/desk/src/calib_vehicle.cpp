@@ -595,7 +595,7 @@ bool calibrate_vehicle(const std::vector<OdomSample>& odom,
       "mounting.offset_x_mm",       "mounting.offset_y_mm",    "mounting.yaw_deg",
       "mounting.height_mm",         "mounting.roll_deg",       "mounting.pitch_deg",
       "odometry.speed_scale",       "odometry.yaw_rate_scale", "odometry.yaw_rate_bias_degps",
-      "odometry.yaw_per_metre_deg", "odometry.time_offset_ms"};
+      "odometry.yaw_per_metre_deg", "camera.time_offset_ms"};
   const double limit[kNumGlobal] = {opt.max_sigma_mm,
                                     opt.max_sigma_mm,
                                     opt.max_sigma_yaw_deg * kPi / 180.0,

@@ -314,14 +314,14 @@ int calibrate_vehicle(int argc, char** argv) {
   }
 
   // The gyro (issue 33): from the fix headings under the calibrated mounting. The clock offset is
-  // solved as gyro clock - camera clock = odometry.time_offset + imu.time_offset.
+  // solved as gyro clock - camera clock = camera.time_offset + imu.time_offset.
   const bool have_gyro = !rec.imu.empty();
   vcal::GyroResult gyro;
   std::string gyro_error;
   bool gyro_ok = false;
-  const double odo_offset_s = r.param("odometry.time_offset_ms").determined
+  const double odo_offset_s = r.param("camera.time_offset_ms").determined
                                   ? r.estimate.time_offset_s
-                                  : cfg.odometry.time_offset_ms * 1e-3;
+                                  : cfg.camera.time_offset_ms * 1e-3;
   if (have_gyro) {
     std::vector<vcal::GyroSample> samples;
     samples.reserve(rec.imu.size());
@@ -478,10 +478,19 @@ int calibrate_vehicle(int argc, char** argv) {
   // Odometry and timing: keys `odometry.*` (applied to the decoded samples before fusion, the
   // model's equations). Wheels mode: the yaw-rate scale becomes the track width the recording's
   // samples were decoded with divided by the scale (omega = (r - l) / track).
-  std::ostringstream odo, can;
+  std::ostringstream odo, can, clock;
   bool any_odo = false;
   for (size_t i = 6; i < r.params.size(); ++i) {
     const auto& p = r.params[i];
+    if (p.name == "camera.time_offset_ms") {  // the camera's clock onto the vehicle's
+      if (p.determined) {
+        clock << "camera:\n  time_offset_ms: " << fmt("%.4f", p.value) << "  # sigma "
+            << fmt("%.4f", p.sigma) << " " << p.unit << "\n";
+      } else {
+        clock << "# camera.time_offset_ms: not determined (" << p.why << ")\n";
+      }
+      continue;
+    }
     const std::string key = p.name.substr(std::string("odometry.").size());
     if (!p.determined) {
       odo << "  # " << key << ": not determined (" << p.why << ")\n";
@@ -504,7 +513,7 @@ int calibrate_vehicle(int argc, char** argv) {
     any_odo = true;
   }
   if (any_odo) snip << "odometry:\n";
-  snip << odo.str() << can.str();
+  snip << odo.str() << can.str() << clock.str();
   // The filter's priors for what the calibration leaves, written with the gyro's below in one
   // fusion: mapping.
   std::ostringstream fus;

@@ -4,6 +4,7 @@
 // YAML text in, structs and error lines out (file reading: firmware/src/config.hpp).
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -11,6 +12,7 @@
 #include "agv/common/camera_model.hpp"
 #include "agv/fusion/ekf.hpp"
 #include "agv/hal/camera.hpp"
+#include "agv/localizer/time_base.hpp"
 #include "agv/protocol/codec.hpp"
 #include "agv/vision/landmark_localizer.hpp"
 
@@ -22,6 +24,7 @@ struct CameraSection {
   std::string driver = "libcamera";  // libcamera | v4l2 | replay
   hal::CameraConfig camera;
   double timeout_ms = 500.0;
+  double time_offset_ms = 0.0;  // -> localizer::TimeBase::camera_offset_ns
 };
 
 struct CanSection {
@@ -47,14 +50,13 @@ struct OdometrySection {
   double yaw_rate_scale = 1.0;
   double yaw_rate_bias_radps = 0.0;
   double yaw_per_metre_rad = 0.0;
-  double time_offset_ms = 0.0;
 };
 
 // The gyro correction (localizer::GyroCorrection).
 struct ImuSection {
   double scale = 1.0;
   double bias_radps = 0.0;
-  double time_offset_ms = 0.0;
+  double time_offset_ms = 0.0;  // -> localizer::TimeBase::gyro_offset_ns
   // Where the gyro comes from: "can" (AGV_Gyro when can.gyro.enabled), "iio" (a Linux IIO
   // device, drivers/iio), "none" (wheels only).
   std::string source = "can";
@@ -143,6 +145,15 @@ inline protocol::GyroConfig gyro_protocol_config(const Config& cfg) {
   g.can_id = cfg.can.gyro_id;
   g.protected_e2e = cfg.can.gyro_protected;
   return g;
+}
+
+// The time base the camera and gyro offsets (camera.time_offset_ms, imu.time_offset_ms) imply,
+// built here once for the core and the threaded loop alike.
+inline localizer::TimeBase time_base(const Config& cfg) {
+  localizer::TimeBase t;
+  t.camera_offset_ns = std::llround(cfg.camera.time_offset_ms * 1e6);
+  t.gyro_offset_ns = std::llround(cfg.imu.time_offset_ms * 1e6);
+  return t;
 }
 
 }  // namespace agv::config

@@ -12,6 +12,7 @@
 #include "agv/hal/can_frame.hpp"
 #include "agv/hal/can_types.hpp"
 #include "agv/localizer/can_fault_monitor.hpp"
+#include "agv/localizer/time_base.hpp"
 #include "agv/protocol/codec.hpp"
 #include "agv/vision/landmark_localizer.hpp"
 #include "agv/vision/tracking.hpp"
@@ -25,9 +26,7 @@ namespace agv::localizer {
 //   v' = speed_scale * v + yaw_per_metre_rad * track_width_m^2 / 4 * omega,
 //   omega' = yaw_rate_scale * omega + yaw_rate_bias_radps + yaw_per_metre_rad * v
 //   (v and omega as read; the yaw_per_metre terms are unequal wheels, calib_vehicle.hpp),
-// and, since issue 33, on the camera's stamps, not the odometry's: the output runs on the
-// vehicle's clock (the one that stamps odometry and CAN), so
-//   t_exposure' = t_exposure + time_offset_ns   (odometry clock = camera clock + time_offset).
+// The stamps are the time base's (TimeBase): odometry defines the vehicle's clock.
 // The EKF's own calibration states (fusion.estimate_odometry_calibration) start at 1 / 0 and
 // then estimate only what is left after this correction. All defaults = no change at all.
 struct OdometryCorrection {
@@ -35,17 +34,15 @@ struct OdometryCorrection {
   double yaw_rate_scale = 1.0;
   double yaw_rate_bias_radps = 0.0;
   double yaw_per_metre_rad = 0.0;  // unequal wheels: a straight run's curvature, rad/m
-  std::int64_t time_offset_ns = 0;
   double track_width_m = 0.5;  // the lever of the unequal wheels' speed term
 };
 
 // Configured gyro correction (keys `imu.*`), applied to every gyro sample before fusion:
-//   rate' = scale * rate + bias_radps,  t' = t - time_offset_ns  (gyro clock = vehicle clock +
-// time_offset). The EKF estimates the gyro bias and scale left after this.
+//   rate' = scale * rate + bias_radps (its stamp: TimeBase). The EKF estimates the gyro bias and
+// scale left after this.
 struct GyroCorrection {
   double scale = 1.0;
   double bias_radps = 0.0;
-  std::int64_t time_offset_ns = 0;
 };
 
 struct LocalizerConfig {
@@ -56,6 +53,10 @@ struct LocalizerConfig {
   protocol::ProtocolConfig protocol;
   OdometryCorrection odometry;
   GyroCorrection gyro;
+  // Every sensor stamp onto the vehicle's clock, applied where it enters the core (on_odometry,
+  // on_gyro, on_fix, prediction_at); the threaded loop's vision worker takes the same value
+  // (time_base()) for its predictions.
+  TimeBase time_base;
   // No accepted gyro sample for this long while gyro samples were seen before sets
   // FaultImuTimeout (the filter falls back to the wheels by itself; docs/design/fusion.md "Gyro").
   // With the CAN gyro enabled (protocol.gyro.enabled) also when none has arrived this long after
@@ -150,10 +151,11 @@ class Localizer {
   // Throws std::invalid_argument on an invalid fusion or protocol configuration.
   explicit Localizer(const LocalizerConfig& cfg);
 
-  // Odometry from any source (recording, CAN). t_ns on the loop's clock.
+  // Odometry from any source (recording, CAN), stamped t_ns on the odometry's clock (the
+  // vehicle's: TimeBase).
   void on_odometry(std::int64_t t_ns, double v_mps, double omega_radps);
   // One yaw-rate sample of the gyro (vehicle z axis, counter-clockwise positive), stamped t_ns on
-  // the gyro's clock (GyroCorrection maps it onto the vehicle clock). From any source (CAN, IIO,
+  // the gyro's clock (TimeBase maps it onto the vehicle clock). From any source (CAN, IIO,
   // recording). Returns false when the filter rejected it (non-finite, saturated, not after the
   // previous sample, too far ahead).
   bool on_gyro(std::int64_t t_ns, double gyro_z_radps);
@@ -178,7 +180,8 @@ class Localizer {
   // One odometry message (wheels or twist) + AGV_Gyro; the localizer test checks it against
   // every configuration of the signal table.
   static constexpr int kMaxReceiveFilters = 2;
-  // A vision result for a frame exposed at t_exposure_ns, ready at t_arrival_ns (same clock).
+  // A vision result for a frame exposed at t_exposure_ns (the camera's clock: TimeBase moves it
+  // onto the vehicle's), ready at t_arrival_ns.
   // Failed fixes only set status flags. An exposure after the arrival can only come from a
   // camera clock that jumped ahead: rejected as invalid, never fused at a time it was not taken.
   void on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure_ns,
@@ -212,14 +215,17 @@ class Localizer {
   // a fused fix reaches the bus without waiting up to one period).
   void pose_now(std::int64_t now_ns, OutFrames* out);
 
-  // The fused pose predicted to a camera frame's exposure, for its search windows
+  // The fused pose predicted to a camera frame's exposure (the camera's clock), for its search
+  // windows
   // (docs/design/tracking.md) and map-guided identity (docs/design/map_identity.md). Valid when
   // initialised and odometry not timed out at t_exposure_ns, also while lost: its users decide by
   // the covariance. `replay --fast` asks this directly (vision runs inline).
   vision::Prediction prediction_at(std::int64_t t_exposure_ns) const;
-  // The same at t_ns with the velocities, for a thread that must not call the core (the threaded
-  // loop's vision worker extrapolates it to each exposure with vision::extrapolate).
+  // The same at t_ns on the vehicle's clock with the velocities, for a thread that must not call
+  // the core: the threaded loop's vision worker extrapolates it to each exposure, moved onto the
+  // vehicle's clock by time_base().
   vision::MotionSnapshot snapshot_at(std::int64_t t_ns) const;
+  const TimeBase& time_base() const { return cfg_.time_base; }
 
   const OutputStats& stats() const { return stats_; }
   // The sender records transmit results and latencies here.
