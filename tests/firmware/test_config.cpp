@@ -626,6 +626,10 @@ TEST(Config, OneOdometryTimeout) {
   const auto e = errors_for(std::string(kIntrinsics) + "fusion:\n  odom_timeout_ms: 100\n");
   EXPECT_TRUE(mentions(e, "fusion.odom_timeout_ms: removed key; use can.odometry.timeout_ms"));
   EXPECT_EQ(agv::config::find_key("fusion.odom_timeout_ms"), nullptr);
+  // The camera's clock offset moved to the camera's section, same value and sign.
+  const auto t = errors_for(std::string(kIntrinsics) + "odometry:\n  time_offset_ms: 12\n");
+  EXPECT_TRUE(mentions(t, "odometry.time_offset_ms: removed key; use camera.time_offset_ms"));
+  EXPECT_EQ(agv::config::find_key("odometry.time_offset_ms"), nullptr);
 }
 
 TEST(Config, OdometryCorrectionKeysReachTheLocalizer) {
@@ -634,7 +638,8 @@ TEST(Config, OdometryCorrectionKeysReachTheLocalizer) {
   ASSERT_TRUE(agv::config::parse_config(std::string(kIntrinsics) +
                                             "odometry:\n  speed_scale: 0.98\n  yaw_rate_scale: "
                                             "1.015\n  yaw_rate_bias_degps: -0.3\n  "
-                                            "yaw_per_metre_deg: 0.46\n  time_offset_ms: 20.5\n",
+                                            "yaw_per_metre_deg: 0.46\ncamera:\n  "
+                                            "time_offset_ms: 20.5\n",
                                         "", &cfg, &errors));
   const auto lc = agv::app::localizer_config(cfg);
   EXPECT_DOUBLE_EQ(lc.odometry.speed_scale, 0.98);
@@ -642,7 +647,7 @@ TEST(Config, OdometryCorrectionKeysReachTheLocalizer) {
   EXPECT_NEAR(lc.odometry.yaw_rate_bias_radps, -0.3 * M_PI / 180.0, 1e-15);
   EXPECT_NEAR(lc.odometry.yaw_per_metre_rad, 0.46 * M_PI / 180.0, 1e-15);
   EXPECT_DOUBLE_EQ(lc.odometry.track_width_m, 0.5);  // can.odometry.track_width_mm's default
-  EXPECT_EQ(lc.odometry.time_offset_ns, 20'500'000);
+  EXPECT_EQ(lc.time_base.camera_offset_ns, 20'500'000);
   // Defaults: no correction.
   Config def;
   ASSERT_TRUE(agv::config::parse_config(kIntrinsics, "", &def, &errors));
@@ -651,7 +656,7 @@ TEST(Config, OdometryCorrectionKeysReachTheLocalizer) {
   EXPECT_EQ(ld.odometry.yaw_rate_scale, 1.0);
   EXPECT_EQ(ld.odometry.yaw_rate_bias_radps, 0.0);
   EXPECT_EQ(ld.odometry.yaw_per_metre_rad, 0.0);
-  EXPECT_EQ(ld.odometry.time_offset_ns, 0);
+  EXPECT_EQ(ld.time_base.camera_offset_ns, 0);
   EXPECT_TRUE(mentions(errors_for(std::string(kIntrinsics) + "odometry:\n  speed_scale: 0\n"),
                        "odometry.speed_scale: value 0 outside the accepted range"));
 }
@@ -695,7 +700,7 @@ TEST(Config, GyroAndImuKeysReachTheLocalizerAndTheReceiveFilters) {
   EXPECT_EQ(lc.gyro_timeout_ns, 40'000'000);
   EXPECT_DOUBLE_EQ(lc.gyro.scale, 1.01);
   EXPECT_NEAR(lc.gyro.bias_radps, 0.2 * M_PI / 180.0, 1e-15);
-  EXPECT_EQ(lc.gyro.time_offset_ns, -3'500'000);
+  EXPECT_EQ(lc.time_base.gyro_offset_ns, -3'500'000);
   // The output loop installs one receive filter per enabled input: odometry and gyro.
   agv::localizer::Localizer core(lc);
   FilterBus bus;
@@ -716,7 +721,7 @@ TEST(Config, GyroAndImuKeysReachTheLocalizerAndTheReceiveFilters) {
   EXPECT_EQ(ld.gyro_timeout_ns, 100'000'000);
   EXPECT_EQ(ld.gyro.scale, 1.0);
   EXPECT_EQ(ld.gyro.bias_radps, 0.0);
-  EXPECT_EQ(ld.gyro.time_offset_ns, 0);
+  EXPECT_EQ(ld.time_base.gyro_offset_ns, 0);
   agv::localizer::Localizer core_def(ld);
   FilterBus bus_def;
   agv::app::OutputLoop loop_def(core_def, &bus_def, clock, nullptr, fixes, 0);
