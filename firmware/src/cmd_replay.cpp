@@ -252,8 +252,8 @@ int replay(int argc, char** argv) {
   app::MqttHandoff mqtt_handoff;
   std::unique_ptr<app::MqttPublisher> mqtt;
   if (cfg.vda5050.enabled) {
-    mqtt =
-        std::make_unique<app::MqttPublisher>(cfg.vda5050, mqtt_handoff, 0, cfg.loop.service_cpus);
+    mqtt = std::make_unique<app::MqttPublisher>(cfg.vda5050, mqtt_handoff, app::StampClock::kLoop,
+                                                cfg.loop.service_cpus);
     if (!mqtt->start(&err)) {
       std::fprintf(stderr, "replay: %s\n", err.c_str());
       return 2;

@@ -35,6 +35,11 @@ int run(int argc, char** argv) {
   }
   config::Config cfg;
   if (!config::load_config_or_report(config_file, "agvloc", &cfg)) return 2;
+  std::vector<std::string> file_errors;
+  if (cfg.vda5050.enabled && !app::check_vda5050_files(cfg.vda5050, &file_errors)) {
+    for (const auto& e : file_errors) std::fprintf(stderr, "agvloc: config: %s\n", e.c_str());
+    return 2;
+  }
   if (print_dbc) {
     protocol::ProtocolConfig pc = config::protocol_config(cfg);
     pc.gyro = config::gyro_protocol_config(cfg);
@@ -110,10 +115,7 @@ int run(int argc, char** argv) {
   app::MqttHandoff mqtt_handoff;
   std::unique_ptr<app::MqttPublisher> mqtt;
   if (cfg.vda5050.enabled) {
-    const std::int64_t wall_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                     std::chrono::system_clock::now().time_since_epoch())
-                                     .count();
-    mqtt = std::make_unique<app::MqttPublisher>(cfg.vda5050, mqtt_handoff, wall_ns - clock.now_ns(),
+    mqtt = std::make_unique<app::MqttPublisher>(cfg.vda5050, mqtt_handoff, app::StampClock::kWall,
                                                 cfg.loop.service_cpus);
     if (!mqtt->start(&err)) {
       std::fprintf(stderr, "agvloc: %s\n", err.c_str());

@@ -42,6 +42,20 @@ constexpr std::size_t kMaxPayloadBytes = 1024;
 // newest one it has (a stalled camera, a finished replay).
 constexpr auto kFrameWait = std::chrono::milliseconds(300);
 
+// A body beyond kMaxPayloadBytes, or one whose length is not given in advance (chunked), or a
+// Content-Length that is not a number: the page needs no body at all.
+bool request_body_too_large(const std::string& content_length, bool has_transfer_encoding) {
+  if (has_transfer_encoding) return true;
+  if (content_length.empty()) return false;
+  if (content_length.size() > 19) return true;
+  std::uint64_t n = 0;
+  for (const char c : content_length) {
+    if (c < '0' || c > '9') return true;
+    n = n * 10 + static_cast<std::uint64_t>(c - '0');
+  }
+  return n > kMaxPayloadBytes;
+}
+
 // Set while the accept thread answers a connection over the limit itself: the pre-routing
 // handler refuses it (503) without routing.
 thread_local bool tl_refuse = false;
@@ -342,12 +356,28 @@ bool DiagServer::start(std::string* error) {
   s.set_read_timeout(kReadTimeoutS, 0);
   s.set_write_timeout(kWriteTimeoutS, 0);
   s.set_payload_max_length(kMaxPayloadBytes);
-  s.set_pre_routing_handler([](const httplib::Request&, httplib::Response& res) {
-    if (!tl_refuse) return httplib::Server::HandlerResponse::Unhandled;
-    res.status = 503;
-    res.set_header("Retry-After", "1");
-    res.set_content("busy: too many diagnostics clients\n", "text/plain");
-    return httplib::Server::HandlerResponse::Handled;
+  s.set_pre_routing_handler([](const httplib::Request& req, httplib::Response& res) {
+    if (tl_refuse) {
+      res.status = 503;
+      res.set_header("Retry-After", "1");
+      res.set_content("busy: too many diagnostics clients\n", "text/plain");
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    // Decided on the headers, before any body is read: the library reads a body only for the
+    // methods that usually carry one, and a GET's not at all (its limit would not apply).
+    if (req.method != "GET" && req.method != "HEAD") {
+      res.status = 405;
+      res.set_header("Allow", "GET, HEAD");
+      res.set_content("only GET and HEAD\n", "text/plain");
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    if (request_body_too_large(req.get_header_value("Content-Length"),
+                               req.has_header("Transfer-Encoding"))) {
+      res.status = 413;
+      res.set_content("a request body is at most 1024 bytes\n", "text/plain");
+      return httplib::Server::HandlerResponse::Handled;
+    }
+    return httplib::Server::HandlerResponse::Unhandled;
   });
   s.set_logger([&m](const httplib::Request&, const httplib::Response& res) {
     if (res.status >= 200 && res.status < 300) {

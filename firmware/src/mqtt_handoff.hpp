@@ -18,21 +18,35 @@ struct InitPoseCommand {
   double x_mm = 0.0, y_mm = 0.0, theta_rad = 0.0;
 };
 
+// The loop's answer to a command: applied (ok) or refused by the filter.
+struct CommandAnswer {
+  std::uint64_t seq = 0;  // 0: none
+  bool ok = false;
+};
+
 class MqttHandoff {
  public:
   // Loop side. offer: the tick at t_ns, taken when the visualization period is due (rate limit in
   // loop time, so a fast replay publishes at recording rate, not at wall rate).
   void set_period_ns(std::int64_t period_ns) { period_ns_ = period_ns; }
   void offer(const localizer::TickRecord& tick) {
-    if (next_due_ns_ != INT64_MIN && tick.t_ns < next_due_ns_) return;
+    // A reported command makes its tick due at once (the answer must carry the pose after it)
+    // without moving the schedule.
+    const bool due = next_due_ns_ == INT64_MIN || tick.t_ns >= next_due_ns_;
+    if (!due && !report_pending_) return;
     std::unique_lock<std::mutex> lock(sample_mutex_, std::try_to_lock);
     if (!lock.owns_lock()) {
       busy_skips_.fetch_add(1, std::memory_order_relaxed);
-      return;
+      return;  // a pending report stays pending: the next tick offers again
     }
     if (has_sample_) superseded_.fetch_add(1, std::memory_order_relaxed);
     sample_ = tick;
     has_sample_ = true;
+    if (report_pending_) {
+      sample_answer_ = report_;
+      report_pending_ = false;
+    }
+    if (!due) return;
     next_due_ns_ = (next_due_ns_ == INT64_MIN ? tick.t_ns : next_due_ns_) + period_ns_;
     if (next_due_ns_ <= tick.t_ns) next_due_ns_ = tick.t_ns + period_ns_;  // after a gap
   }
@@ -45,18 +59,23 @@ class MqttHandoff {
     command_pending_.store(false, std::memory_order_release);
     return true;
   }
-  // The loop applied (ok) or refused command seq.
+  // The loop applied (ok) or refused command seq, before this tick's offer: the answer travels
+  // with that tick's sample, so that it carries the pose after the command.
   void report(std::uint64_t seq, bool ok) {
-    applied_ok_.store(ok, std::memory_order_relaxed);
-    applied_seq_.store(seq, std::memory_order_release);
+    report_ = {seq, ok};
+    report_pending_ = true;
   }
 
   // MQTT side (may block briefly).
-  bool take_sample(localizer::TickRecord* out) {
+  // The newest sample; *answer (if given) the command answered at or before its tick (seq 0: none
+  // since the last take).
+  bool take_sample(localizer::TickRecord* out, CommandAnswer* answer = nullptr) {
     std::lock_guard<std::mutex> lock(sample_mutex_);
     if (!has_sample_) return false;
     *out = sample_;
     has_sample_ = false;
+    if (answer) *answer = sample_answer_;
+    sample_answer_ = {};
     return true;
   }
   // Replaces a command the loop has not taken yet: returns its seq (0 if none) so it can be
@@ -67,12 +86,6 @@ class MqttHandoff {
     command_ = c;
     command_pending_.store(true, std::memory_order_release);
     return replaced;
-  }
-  // The newest command the loop answered (seq 0: none yet).
-  std::uint64_t applied_seq(bool* ok) const {
-    const std::uint64_t s = applied_seq_.load(std::memory_order_acquire);
-    *ok = applied_ok_.load(std::memory_order_relaxed);
-    return s;
   }
   std::uint64_t busy_skips() const { return busy_skips_.load(std::memory_order_relaxed); }
   std::uint64_t superseded() const { return superseded_.load(std::memory_order_relaxed); }
@@ -86,8 +99,9 @@ class MqttHandoff {
   std::mutex command_mutex_;
   InitPoseCommand command_;
   std::atomic<bool> command_pending_{false};
-  std::atomic<std::uint64_t> applied_seq_{0};
-  std::atomic<bool> applied_ok_{false};
+  CommandAnswer report_;         // loop thread only
+  bool report_pending_ = false;  // loop thread only
+  CommandAnswer sample_answer_;  // sample_mutex_
   std::atomic<std::uint64_t> busy_skips_{0};
   std::atomic<std::uint64_t> superseded_{0};
 };

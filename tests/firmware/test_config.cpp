@@ -511,6 +511,8 @@ TEST(Config, EveryKeyRoundTrips) {
       auto keys = live_base();
       // vision_priority must stay below realtime_priority.
       if (k.name == "loop.vision_priority") keys["loop.realtime_priority"] = "99";
+      // An address that is not loopback needs allow_remote.
+      if (k.name == "diag.bind_address") keys["diag.allow_remote"] = "true";
       keys[k.name] = yaml_scalar(k, v);
       Config cfg;
       std::vector<std::string> errors;

@@ -237,6 +237,13 @@ def main():
     st = states()
     if st["init-2"]["actionStatus"] != "FINISHED":
         fail("init-2: %s" % st["init-2"])
+    # The state answering it carries the position after the action (the commanded one, moved by
+    # at most one tick of odometry), not the sample from before it.
+    answer = [m[2] for m in msgs if m[1] == "state" and any(
+        s["actionId"] == "init-2" for s in m[2].get("actionStates", []) + m[2].get("instantActionStates", []))][0]
+    pos = answer["agvPosition" if major == "2" else "mobileRobotPosition"]
+    if math.hypot(pos["x"] - 5.0, pos["y"] + 3.0) > 0.05:
+        fail("the state answering init-2 is at (%.3f, %.3f), not at the pose set (5, -3)" % (pos["x"], pos["y"]))
     if st["bad-1"]["actionStatus"] != "FAILED" or "unknown_map" not in st["bad-1"].get("resultDescription", ""):
         fail("bad-1: %s" % st["bad-1"])
     # The pose after the answer starts at the commanded one (5, -3) and then follows odometry

@@ -1,4 +1,8 @@
 // Key table rows of the diag section (docs/guide/diagnostics.md).
+#include <arpa/inet.h>
+#include <netinet/in.h>
+
+#include "agv/common/log_escape.hpp"
 #include "key_builders.hpp"
 
 namespace agv::config::detail {
@@ -30,6 +34,31 @@ void add_diag_keys(std::vector<Key>* k) {
                        "the camera image with the detection overlay is encoded at most "
                        "once per interval (all clients share it): ~10-20 ms of one core "
                        "per image"}));
+}
+
+namespace {
+
+// The same rule as the server's (firmware diag_server.cpp is_loopback_address): 127/8, ::1 and
+// "localhost". inet_pton parses text only (no lookup).
+bool loopback(const std::string& a) {
+  if (a == "localhost") return true;
+  in_addr v4{};
+  if (inet_pton(AF_INET, a.c_str(), &v4) == 1) return (ntohl(v4.s_addr) >> 24) == 127;
+  in6_addr v6{};
+  return inet_pton(AF_INET6, a.c_str(), &v6) == 1 && IN6_IS_ADDR_LOOPBACK(&v6);
+}
+
+}  // namespace
+
+void check_diag_values(const Config& cfg, const KeyError& error) {
+  // Refused here and not only when the page starts: `agvloc replay --serve` turns the page on
+  // whatever diag.enabled says, and --check-config must not pass what the start refuses.
+  if (!loopback(cfg.diag.bind_address) && !cfg.diag.allow_remote) {
+    error("diag.bind_address",
+          "'" + escape_for_log(cfg.diag.bind_address) +
+              "' is not loopback and the page has no authentication; set diag.allow_remote: "
+              "true to serve it on that network");
+  }
 }
 
 }  // namespace agv::config::detail

@@ -1,4 +1,7 @@
 // Key table rows of the vda5050 section (docs/guide/vda5050.md).
+#include <string_view>
+
+#include "agv/common/log_escape.hpp"
 #include "key_builders.hpp"
 
 namespace agv::config::detail {
@@ -43,6 +46,86 @@ void add_vda5050_keys(std::vector<Key>* k) {
                     "CA certificate (PEM) that signed the broker's: set = TLS with the broker's "
                     "certificate and host name verified; relative to the configuration file; "
                     "empty = plain TCP"));
+}
+
+namespace {
+
+// Ids compared with an instantAction's header are refused there beyond this many bytes
+// (vda5050::kMaxIdChars): a longer one could never be matched.
+constexpr std::size_t kMaxIdBytes = 256;
+// A DNS name is at most 253 characters; 255 leaves room for a trailing dot and an IPv6 literal.
+constexpr std::size_t kMaxHostBytes = 255;
+
+bool has_control(std::string_view s) {
+  for (const char ch : s) {
+    const auto u = static_cast<unsigned char>(ch);
+    if (u < 0x20 || u == 0x7F) return true;
+  }
+  return false;
+}
+
+// A string carried in a JSON message (nlohmann-json refuses to write one that is not UTF-8).
+bool json_text(const KeyError& error, const std::string& key, const std::string& v) {
+  if (!is_valid_utf8(v)) {
+    error(key, "'" + escape_for_log(v) +
+                   "' is not valid UTF-8 (VDA 5050 messages are JSON; save the file as UTF-8)");
+    return false;
+  }
+  if (v.size() > kMaxIdBytes) {
+    error(key, std::to_string(v.size()) + " bytes; at most " + std::to_string(kMaxIdBytes) +
+                   " (a longer id in an instantAction is refused as string_too_long)");
+    return false;
+  }
+  return true;
+}
+
+// One level of interfaceName/vN/manufacturer/serialNumber/topic: MQTT forbids the wildcards in a
+// topic that is published to, '/' would add a level, NUL ends the string in the client library.
+void topic_level(const KeyError& error, const std::string& key, const std::string& v) {
+  if (v.empty()) {
+    error(key, "empty: it is a topic level (interfaceName/vN/manufacturer/serialNumber/topic)");
+    return;
+  }
+  if (!json_text(error, key, v)) return;
+  if (v.find_first_of(std::string_view("+#/\0", 4)) != std::string::npos || has_control(v)) {
+    error(key, "'" + escape_for_log(v) +
+                   "' contains '+', '#', '/' or a control character, which an MQTT topic level "
+                   "cannot carry (wildcards, level separator)");
+  }
+}
+
+}  // namespace
+
+void check_vda5050_values(const Config& cfg, const KeyError& error) {
+  const Vda5050Section& v = cfg.vda5050;
+  topic_level(error, "vda5050.interface_name", v.interface_name);
+  topic_level(error, "vda5050.manufacturer", v.manufacturer);
+  topic_level(error, "vda5050.serial_number", v.serial_number);
+  json_text(error, "vda5050.map_id", v.map_id);
+  if (v.broker_host.empty()) {
+    error("vda5050.broker_host", "empty: a host name or address is needed");
+  } else if (v.broker_host.size() > kMaxHostBytes) {
+    error("vda5050.broker_host", std::to_string(v.broker_host.size()) +
+                                     " bytes; a host name has at most " +
+                                     std::to_string(kMaxHostBytes));
+  } else {
+    for (const char ch : v.broker_host) {
+      const auto u = static_cast<unsigned char>(ch);
+      if (u <= 0x20 || u >= 0x7F) {
+        error("vda5050.broker_host",
+              "'" + escape_for_log(v.broker_host) +
+                  "' is not a host name or address (ASCII without spaces or control characters; "
+                  "an international name in its xn-- form)");
+        break;
+      }
+    }
+  }
+  // MQTT strings are UTF-8 without U+0000 (MQTT 3.1.1, section 1.5.3).
+  if (!is_valid_utf8(v.username) || has_control(v.username)) {
+    error("vda5050.username", "'" + escape_for_log(v.username) +
+                                  "' is not valid UTF-8 without control characters (MQTT "
+                                  "strings are UTF-8)");
+  }
 }
 
 }  // namespace agv::config::detail

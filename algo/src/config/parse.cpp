@@ -8,6 +8,7 @@
 
 #include "agv/config/cpu_list.hpp"
 #include "agv/config/keys.hpp"
+#include "key_builders.hpp"
 #include "yaml_checker.hpp"
 
 namespace agv::config {
@@ -164,6 +165,11 @@ void check_relations(YamlChecker& c, const Config& cfg) {
                 num_text(id.gate_chi2) + "): a runner-up inside the gate would count as clear");
   }
   check_can_interface(c, cfg.can.interface);
+  const detail::KeyError key_error = [&c](const std::string& key, const std::string& what) {
+    c.error(key, what);
+  };
+  detail::check_vda5050_values(cfg, key_error);
+  detail::check_diag_values(cfg, key_error);
   // One gyro source: a CAN gyro enabled beside another source would be fused twice or not at all.
   if (cfg.can.gyro_enabled && cfg.imu.source != "can") {
     c.error("imu.source", "'" + cfg.imu.source +

@@ -52,6 +52,11 @@ json header(const Identity& id, std::uint32_t header_id, std::int64_t t_ns) {
               {"serialNumber", id.serial_number}};
 }
 
+// The configuration checker refuses strings that are not UTF-8; should one reach here all the same
+// (a caller that skipped the checker), a replaced byte beats an exception that would end the
+// process and take the CAN output with it.
+std::string dump(const json& m) { return m.dump(-1, ' ', false, json::error_handler_t::replace); }
+
 // Non-finite numbers cannot be JSON: 0 (the flag beside them says the value is not trusted).
 double finite_or_zero(double v) { return std::isfinite(v) ? v : 0.0; }
 
@@ -133,7 +138,7 @@ std::string encode_visualization(const Identity& id, std::uint32_t header_id, st
   if (id.version == Version::k3_0_0) m["referenceStateHeaderId"] = reference_state_header_id;
   m[position_key(id)] = position_object(id, p);
   m["velocity"] = velocity_object(p);
-  return m.dump();
+  return dump(m);
 }
 
 std::string encode_connection(const Identity& id, std::uint32_t header_id, std::int64_t t_ns,
@@ -151,7 +156,7 @@ std::string encode_connection(const Identity& id, std::uint32_t header_id, std::
           id.version == Version::k3_0_0 ? "CONNECTION_BROKEN" : "CONNECTIONBROKEN";
       break;
   }
-  return m.dump();
+  return dump(m);
 }
 
 std::string encode_state(const Identity& id, std::uint32_t header_id, std::int64_t t_ns,
@@ -188,7 +193,7 @@ std::string encode_state(const Identity& id, std::uint32_t header_id, std::int64
   }
   m[position_key(id)] = position_object(id, p);
   m["velocity"] = velocity_object(p);
-  return m.dump();
+  return dump(m);
 }
 
 }  // namespace agv::vda5050
