@@ -48,7 +48,26 @@ struct Shapes {
   bool outline_ok = false;
   std::vector<BgPolygon> obstacles;
   std::vector<bool> obstacle_ok;
+  std::vector<BgBox> envelopes;  // of the valid obstacles
 };
+
+BgBox envelope_of(const Polygon& p) {
+  BgBox b(BgPoint(p.vertices_mm[0].x, p.vertices_mm[0].y),
+          BgPoint(p.vertices_mm[0].x, p.vertices_mm[0].y));
+  for (const Vec2& v : p.vertices_mm) {
+    b.min_corner().x(std::min(b.min_corner().x(), v.x));
+    b.min_corner().y(std::min(b.min_corner().y(), v.y));
+    b.max_corner().x(std::max(b.max_corner().x(), v.x));
+    b.max_corner().y(std::max(b.max_corner().y(), v.y));
+  }
+  return b;
+}
+
+// Whether p lies within the box grown by margin_mm: a cheap test before the exact ones.
+bool near_box(const BgBox& b, Vec2 p, double margin_mm) {
+  return p.x >= b.min_corner().x() - margin_mm && p.x <= b.max_corner().x() + margin_mm &&
+         p.y >= b.min_corner().y() - margin_mm && p.y <= b.max_corner().y() + margin_mm;
+}
 
 void check_obstacles(const SiteLines& lines, Site* s, Shapes* sh, ErrorList* errors) {
   const std::size_t n = s->obstacles.size();
@@ -56,7 +75,8 @@ void check_obstacles(const SiteLines& lines, Site* s, Shapes* sh, ErrorList* err
   sh->obstacle_ok.assign(n, false);
   check_unique(s->obstacles, "obstacles", "id", lines.obstacles,
                [](const Obstacle& o) { return o.id; }, errors);
-  std::vector<BgBox> env(n);
+  std::vector<BgBox>& env = sh->envelopes;
+  env.assign(n, BgBox());
   for (std::size_t i = 0; i < n && !errors->full(); ++i) {
     Obstacle& o = s->obstacles[i];
     const std::string why = normalise_polygon(&o.outline);
@@ -67,7 +87,7 @@ void check_obstacles(const SiteLines& lines, Site* s, Shapes* sh, ErrorList* err
     }
     sh->obstacles[i] = to_bg(o.outline);
     sh->obstacle_ok[i] = true;
-    env[i] = bg::return_envelope<BgBox>(sh->obstacles[i]);
+    env[i] = envelope_of(o.outline);
     if (sh->outline_ok && !bg::covered_by(sh->obstacles[i], sh->outline)) {
       errors->add(indexed("obstacles", i) + ".outline_mm", at(lines.obstacle_outlines, i),
                   "obstacle '" + o.id + "' is not inside the site outline");
@@ -123,7 +143,7 @@ void check_wall_landmarks(const SiteLines& lines, const Site& s, const Shapes& s
       }
     }
     for (std::size_t k = 0; k < sh.obstacles.size() && !errors->full(); ++k) {
-      if (!sh.obstacle_ok[k]) continue;
+      if (!sh.obstacle_ok[k] || !near_box(sh.envelopes[k], c, 2 * kFacingProbeMm)) continue;
       const std::string obstacle = "obstacle '" + s.obstacles[k].id + "'";
       const double d = boundary_distance_mm(sh.obstacles[k], c);
       if (d > kFaceToleranceMm) {
