@@ -18,8 +18,8 @@ void add_diag_keys(std::vector<Key>* k) {
                        {"", "TCP port of the page; 0 = any free port (printed at start)"}));
   k->push_back(boolean("diag.allow_remote", AGV_AT(diag.allow_remote), false,
                        "allow a `bind_address` that is not loopback: anyone on that network sees "
-                       "the camera and the pose (read only). Off: such an address is refused at "
-                       "start"));
+                       "the camera and the pose (read only). Off: such an address is refused by "
+                       "the configuration checker"));
   k->push_back(integer("diag.max_clients", AGV_AT(diag.max_clients), 1, 256, 16,
                        {"",
                         "connections served or waiting at once; more are answered 503 at "
