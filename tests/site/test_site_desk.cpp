@@ -70,7 +70,7 @@ TEST(SiteDesk, SvgShowsEveryPartAndTheRoutes) {
   // 1 extra + 5 legend keys.
   EXPECT_EQ(count_of(svg, "<polygon"), 2u + 5 + 25 + 2 + 1 + 5);
   EXPECT_EQ(count_of(svg, "clip-path=\"url(#site-outline)\""), 2u);  // the camera views
-  EXPECT_EQ(count_of(svg, "stroke=\"#ff7f0e\""), 1u);  // the extra polygon
+  EXPECT_EQ(count_of(svg, "stroke=\"#ff7f0e\""), 1u);                // the extra polygon
   for (const auto& o : site.obstacles) EXPECT_NE(svg.find(">" + o.id + "<"), std::string::npos);
   for (const auto& a : site.fleet) EXPECT_NE(svg.find(">" + a.id + " tag36h11"), std::string::npos);
   EXPECT_NE(svg.find(">ceiling-west (6.0 m)<"), std::string::npos);

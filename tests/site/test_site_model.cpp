@@ -175,8 +175,9 @@ TEST(SiteFile, UnknownKeyNamesLineAndSuggests) {
   const Result r = parse(kHead + "obstacle:\n" + kRack);
   EXPECT_FALSE(r.ok);
   EXPECT_TRUE(has_error(r, "obstacle", 3, "did you mean 'obstacles'")) << r.all;
-  const Result s = parse(kHead + "obstacles:\n  - {id: r1, kind: rack, heigth_mm: 2, "
-                                 "box_mm: {x_min: 1, y_min: 1, x_max: 5, y_max: 2}}\n");
+  const Result s = parse(kHead +
+                         "obstacles:\n  - {id: r1, kind: rack, heigth_mm: 2, "
+                         "box_mm: {x_min: 1, y_min: 1, x_max: 5, y_max: 2}}\n");
   EXPECT_TRUE(has_error(s, "obstacles[0].heigth_mm", 4, "did you mean 'height_mm'")) << s.all;
   const Result t = parse(kHead + "zzz_unrelated: 1\n");
   EXPECT_TRUE(has_error(t, "zzz_unrelated", 3, "unknown key")) << t.all;
@@ -186,14 +187,14 @@ TEST(SiteFile, UnknownKeyNamesLineAndSuggests) {
 TEST(SiteFile, ReportsEveryErrorWithKeyAndLine) {
   const Result r = parse(
       "name: test\n"
-      "clearance_mm: lots\n"                                        // 2: not a number
+      "clearance_mm: lots\n"                                          // 2: not a number
       "outline_mm: [[0, 0], [.nan, 0], [10000, 10000], [0, 1e99]]\n"  // 3: NaN, out of range
       "obstacles:\n"
       "  - {id: r1, kind: shelf, height_mm: -5, box_mm: {x_min: 0, y_min: 0, x_max: 1, "
-      "y_max: 1}}\n"                                                 // 5: kind, height
+      "y_max: 1}}\n"  // 5: kind, height
       "fleet:\n"
-      "  - {id: a1, tag_id: 587}\n"                                  // 7: tag id range
-      "  - {id: a2, tag_id: [1]}\n");                                // 8: type
+      "  - {id: a1, tag_id: 587}\n"    // 7: tag id range
+      "  - {id: a2, tag_id: [1]}\n");  // 8: type
   EXPECT_FALSE(r.ok);
   EXPECT_TRUE(has_error(r, "clearance_mm", 2, "expected a number")) << r.all;
   EXPECT_TRUE(has_error(r, "outline_mm[1].x", 3, "not a finite number")) << r.all;
@@ -241,8 +242,9 @@ TEST(SiteFile, LimitsBoundSizes) {
   // Aliases repeat one polygon without repeating its text: the total is bounded too.
   lim = {};
   lim.max_total_vertices = 10;
-  std::string text = kHead + "fleet:\n  - {id: a0, tag_id: 0, footprint_mm: &fp [[-1, -1], "
-                             "[1, -1], [1, 1], [-1, 1]]}\n";
+  std::string text = kHead +
+                     "fleet:\n  - {id: a0, tag_id: 0, footprint_mm: &fp [[-1, -1], "
+                     "[1, -1], [1, 1], [-1, 1]]}\n";
   for (int i = 1; i < 5; ++i) {
     text += "  - {id: a" + std::to_string(i) + ", tag_id: " + std::to_string(i) +
             ", footprint_mm: *fp}\n";
@@ -259,18 +261,20 @@ TEST(SiteFile, LimitsBoundSizes) {
 
 TEST(SiteFile, PolygonChecks) {
   // A bow tie crosses itself.
-  const Result r = parse(kHead + "obstacles:\n  - id: bow\n    kind: other\n"
-                                 "    outline_mm: [[1000, 1000], [3000, 2000], [3000, 1000], "
-                                 "[1000, 3000]]\n");
+  const Result r = parse(kHead +
+                         "obstacles:\n  - id: bow\n    kind: other\n"
+                         "    outline_mm: [[1000, 1000], [3000, 2000], [3000, 1000], "
+                         "[1000, 3000]]\n");
   EXPECT_TRUE(has_error(r, "obstacles[0].outline_mm", 6, "self-intersecting")) << r.all;
   // A symmetric one: its lobes' areas cancel.
-  const Result q = parse(kHead + "obstacles:\n  - {id: bow, kind: other, outline_mm: [[1000, "
-                                 "1000], [2000, 2000], [2000, 1000], [1000, 2000]]}\n");
+  const Result q = parse(kHead +
+                         "obstacles:\n  - {id: bow, kind: other, outline_mm: [[1000, "
+                         "1000], [2000, 2000], [2000, 1000], [1000, 2000]]}\n");
   EXPECT_TRUE(has_error(q, "obstacles[0].outline_mm", 4, "self-intersecting")) << q.all;
-  const Result s = parse(kHead + "obstacles:\n  - {id: two, kind: other, outline_mm: "
-                                 "[[1000, 1000], [2000, 2000], [1000, 1000]]}\n");
-  EXPECT_TRUE(has_error(s, "obstacles[0].outline_mm", 4, "at least 3 distinct vertices"))
-      << s.all;
+  const Result s = parse(kHead +
+                         "obstacles:\n  - {id: two, kind: other, outline_mm: "
+                         "[[1000, 1000], [2000, 2000], [1000, 1000]]}\n");
+  EXPECT_TRUE(has_error(s, "obstacles[0].outline_mm", 4, "at least 3 distinct vertices")) << s.all;
   const Result t = parse("name: t\noutline_mm: [[0, 0], [5000, 0], [10000, 0]]\n");
   EXPECT_TRUE(has_error(t, "outline_mm", 2, "zero area")) << t.all;
 }
@@ -292,8 +296,7 @@ TEST(SiteFile, OverlappingObstaclesNameBothTouchingOnesAreFine) {
   const std::string other =
       "  - {id: r2, kind: rack, box_mm: {x_min: 4000, y_min: 1500, x_max: 6000, y_max: 3000}}\n";
   const Result r = parse(kHead + "obstacles:\n" + kRack + other);
-  EXPECT_TRUE(has_error(r, "obstacles[1].outline_mm", 5, "'r2' overlaps obstacle 'r1'"))
-      << r.all;
+  EXPECT_TRUE(has_error(r, "obstacles[1].outline_mm", 5, "'r2' overlaps obstacle 'r1'")) << r.all;
   EXPECT_NE(r.all.find("line 4"), std::string::npos) << r.all;
   const std::string touching =
       "  - {id: r2, kind: rack, box_mm: {x_min: 5000, y_min: 1000, x_max: 6000, y_max: 3000}}\n"
@@ -303,15 +306,15 @@ TEST(SiteFile, OverlappingObstaclesNameBothTouchingOnesAreFine) {
   // One inside the other: interiors intersect too.
   const std::string inside =
       "  - {id: r2, kind: pillar, box_mm: {x_min: 2000, y_min: 1200, x_max: 2500, y_max: 1800}}\n";
-  EXPECT_TRUE(has_error(parse(kHead + "obstacles:\n" + kRack + inside),
-                        "obstacles[1].outline_mm", 5, "overlaps obstacle 'r1'"));
+  EXPECT_TRUE(has_error(parse(kHead + "obstacles:\n" + kRack + inside), "obstacles[1].outline_mm",
+                        5, "overlaps obstacle 'r1'"));
 }
 
 TEST(SiteFile, ObstacleOutsideOutlineAndDuplicateIds) {
   const std::string out =
       "  - {id: r1, kind: rack, box_mm: {x_min: 9000, y_min: 1000, x_max: 11000, y_max: 2000}}\n";
-  EXPECT_TRUE(has_error(parse(kHead + "obstacles:\n" + kRack + out), "obstacles[1].outline_mm",
-                        5, "not inside the site outline"));
+  EXPECT_TRUE(has_error(parse(kHead + "obstacles:\n" + kRack + out), "obstacles[1].outline_mm", 5,
+                        "not inside the site outline"));
   const Result r = parse(kHead + "obstacles:\n" + kRack +
                          "  - {id: r1, kind: rack, box_mm: {x_min: 6000, y_min: 1000, x_max: "
                          "7000, y_max: 2000}}\n");
@@ -332,11 +335,11 @@ TEST(SiteFile, WallLandmarkChecks) {
                    "facing_deg: 180}\n  - {id: 2, family: tag36h11, x_mm: 1000.5, y_mm: 1400, "
                    "z_mm: 1000, facing_deg: 180}\n")
                   .ok);
-  const Result deep = site(
-      "  - {id: 1, family: tag36h11, x_mm: 1100, y_mm: 1500, z_mm: 1000, facing_deg: 180}\n");
+  const Result deep =
+      site("  - {id: 1, family: tag36h11, x_mm: 1100, y_mm: 1500, z_mm: 1000, facing_deg: 180}\n");
   EXPECT_TRUE(has_error(deep, "wall_landmarks[0]", 6, "is inside obstacle 'r1'")) << deep.all;
-  const Result into = site(
-      "  - {id: 1, family: tag36h11, x_mm: 1000, y_mm: 1500, z_mm: 1000, facing_deg: 0}\n");
+  const Result into =
+      site("  - {id: 1, family: tag36h11, x_mm: 1000, y_mm: 1500, z_mm: 1000, facing_deg: 0}\n");
   EXPECT_TRUE(has_error(into, "wall_landmarks[0].facing_deg", 6, "faces into obstacle 'r1'"))
       << into.all;
   const Result dup = site(
@@ -346,15 +349,15 @@ TEST(SiteFile, WallLandmarkChecks) {
   EXPECT_TRUE(has_error(dup, "wall_landmarks[2].id", 8, "duplicate id (also wall_landmarks[0]"))
       << dup.all;
   EXPECT_EQ(dup.errors.size(), 1u) << dup.all;  // the same id in another family is another tag
-  const Result range = site(
-      "  - {id: 0, family: agvloc, x_mm: 1000, y_mm: 1500, z_mm: 1000, facing_deg: 180}\n");
+  const Result range =
+      site("  - {id: 0, family: agvloc, x_mm: 1000, y_mm: 1500, z_mm: 1000, facing_deg: 180}\n");
   EXPECT_TRUE(has_error(range, "wall_landmarks[0].id", 6, "outside [1, 65535]")) << range.all;
-  const Result outside = site(
-      "  - {id: 1, family: tag36h11, x_mm: -100, y_mm: 1500, z_mm: 1000, facing_deg: 180}\n");
+  const Result outside =
+      site("  - {id: 1, family: tag36h11, x_mm: -100, y_mm: 1500, z_mm: 1000, facing_deg: 180}\n");
   EXPECT_TRUE(has_error(outside, "wall_landmarks[0]", 6, "outside the site outline"))
       << outside.all;
-  const Result wall = site(
-      "  - {id: 1, family: tag36h11, x_mm: 0, y_mm: 1500, z_mm: 1000, facing_deg: 180}\n");
+  const Result wall =
+      site("  - {id: 1, family: tag36h11, x_mm: 0, y_mm: 1500, z_mm: 1000, facing_deg: 180}\n");
   EXPECT_TRUE(has_error(wall, "wall_landmarks[0].facing_deg", 6, "faces out of the site"))
       << wall.all;
   EXPECT_TRUE(site("  - {id: 1, family: tag36h11, x_mm: 0, y_mm: 1500, z_mm: 1000, "
@@ -368,8 +371,8 @@ TEST(SiteFile, CameraChecks) {
   EXPECT_TRUE(has_error(dup, "cameras[1].id", 7, "duplicate id (also cameras[0], line 4)"))
       << dup.all;
   // Tilted 85 degrees: looks at the walls, not the floor.
-  const Result tilted = parse(kHead + "cameras:\n" + kCamera.substr(0, kCamera.rfind('}')) +
-                              ", pitch_deg: 85}\n");
+  const Result tilted =
+      parse(kHead + "cameras:\n" + kCamera.substr(0, kCamera.rfind('}')) + ", pitch_deg: 85}\n");
   EXPECT_TRUE(has_error(tilted, "cameras[0].pose", 4, "does not look down enough")) << tilted.all;
   // Above a point 100 m away from the site: sees only floor outside the outline.
   std::string far = kCamera;
@@ -389,9 +392,10 @@ TEST(SiteFile, CameraChecks) {
   const Result both = parse(kHead + "cameras:\n" + kCamera.substr(0, kCamera.rfind('}')) +
                             ", yaw_deg: 3, r_site_cam: [1, 0, 0, 0, -1, 0, 0, 0, -1]}\n");
   EXPECT_TRUE(has_error(both, "cameras[0].pose.r_site_cam", 6, "not both")) << both.all;
-  const Result cx = parse(kHead + "cameras:\n  - id: c\n    intrinsics: {width_px: 640, "
-                                  "height_px: 480, fx: 400, fy: 400, cx: 900, cy: 239.5}\n"
-                                  "    pose: {x_mm: 1, y_mm: 1, z_mm: 5000}\n");
+  const Result cx = parse(kHead +
+                          "cameras:\n  - id: c\n    intrinsics: {width_px: 640, "
+                          "height_px: 480, fx: 400, fy: 400, cx: 900, cy: 239.5}\n"
+                          "    pose: {x_mm: 1, y_mm: 1, z_mm: 5000}\n");
   EXPECT_TRUE(has_error(cx, "cameras[0].intrinsics.cx", 5, "outside [0, 640]")) << cx.all;
 }
 
@@ -400,8 +404,9 @@ TEST(SiteFile, FleetChecks) {
   EXPECT_TRUE(has_error(dup, "fleet[1].id", 5, "duplicate id")) << dup.all;
   EXPECT_TRUE(has_error(dup, "fleet[1].tag_id", 5, "duplicate tag_id (also fleet[0], line 4)"))
       << dup.all;
-  const Result centre = parse(kHead + "fleet:\n  - {id: a, tag_id: 1, footprint_mm: [[100, -300], "
-                                      "[500, -300], [500, 300], [100, 300]], radius_mm: 600}\n");
+  const Result centre = parse(kHead +
+                              "fleet:\n  - {id: a, tag_id: 1, footprint_mm: [[100, -300], "
+                              "[500, -300], [500, 300], [100, 300]], radius_mm: 600}\n");
   EXPECT_TRUE(has_error(centre, "fleet[0].footprint_mm", 4, "does not contain")) << centre.all;
   const Result radius = parse(kHead + "fleet:\n  - {id: a, tag_id: 1, radius_mm: 300}\n");
   EXPECT_TRUE(has_error(radius, "fleet[0].radius_mm", 4, "beyond radius_mm 300")) << radius.all;
@@ -443,8 +448,9 @@ TEST(SiteFile, FloorMapIsParsedAndItsErrorsNamed) {
 TEST(SiteFile, ObstacleNeedsOneShape) {
   const Result r = parse(kHead + "obstacles:\n  - {id: r, kind: rack}\n");
   EXPECT_TRUE(has_error(r, "obstacles[0]", 4, "exactly one of outline_mm and box_mm")) << r.all;
-  const Result s = parse(kHead + "obstacles:\n  - {id: r, kind: rack, box_mm: {x_min: 5, "
-                                 "y_min: 1, x_max: 2, y_max: 3}}\n");
+  const Result s = parse(kHead +
+                         "obstacles:\n  - {id: r, kind: rack, box_mm: {x_min: 5, "
+                         "y_min: 1, x_max: 2, y_max: 3}}\n");
   EXPECT_TRUE(has_error(s, "obstacles[0].box_mm", 4, "x_max > x_min")) << s.all;
 }
 
@@ -472,8 +478,8 @@ TEST(SiteGeometry, CameraAnglesConvention) {
   EXPECT_NEAR(f.x, 1000, 1e-6);
   EXPECT_NEAR(f.y, 2000 + 4000 * 319.5 / 400, 1e-6);
   // Angles back from the matrix.
-  for (const auto& [y, p, r] : {std::array<double, 3>{0.3, 0.2, -0.1}, {-2.5, -1.2, 0.7},
-                                {3.0, 0.0, 1.5}}) {
+  for (const auto& [y, p, r] :
+       {std::array<double, 3>{0.3, 0.2, -0.1}, {-2.5, -1.2, 0.7}, {3.0, 0.0, 1.5}}) {
     double y2 = 0, p2 = 0, r2 = 0;
     camera_angles_from_rotation(camera_rotation_from_angles(y, p, r), &y2, &p2, &r2);
     EXPECT_NEAR(y2, y, 1e-12);

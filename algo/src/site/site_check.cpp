@@ -73,8 +73,9 @@ void check_obstacles(const SiteLines& lines, Site* s, Shapes* sh, ErrorList* err
   const std::size_t n = s->obstacles.size();
   sh->obstacles.resize(n);
   sh->obstacle_ok.assign(n, false);
-  check_unique(s->obstacles, "obstacles", "id", lines.obstacles,
-               [](const Obstacle& o) { return o.id; }, errors);
+  check_unique(
+      s->obstacles, "obstacles", "id", lines.obstacles, [](const Obstacle& o) { return o.id; },
+      errors);
   std::vector<BgBox>& env = sh->envelopes;
   env.assign(n, BgBox());
   for (std::size_t i = 0; i < n && !errors->full(); ++i) {
@@ -113,8 +114,8 @@ void check_obstacles(const SiteLines& lines, Site* s, Shapes* sh, ErrorList* err
       if (!interiors_intersect(sh->obstacles[a], sh->obstacles[b])) continue;
       const auto [i, j] = std::minmax(a, b);
       errors->add(indexed("obstacles", j) + ".outline_mm", at(lines.obstacle_outlines, j),
-                  "obstacle '" + s->obstacles[j].id + "' overlaps obstacle '" +
-                      s->obstacles[i].id + "' (" + indexed("obstacles", i) + ", line " +
+                  "obstacle '" + s->obstacles[j].id + "' overlaps obstacle '" + s->obstacles[i].id +
+                      "' (" + indexed("obstacles", i) + ", line " +
                       std::to_string(at(lines.obstacles, i)) + ")");
     }
   }
@@ -122,8 +123,9 @@ void check_obstacles(const SiteLines& lines, Site* s, Shapes* sh, ErrorList* err
 
 void check_wall_landmarks(const SiteLines& lines, const Site& s, const Shapes& sh,
                           ErrorList* errors) {
-  check_unique(s.wall_landmarks, "wall_landmarks", "id", lines.wall_landmarks,
-               [](const WallLandmark& w) { return std::make_pair(w.family, w.id); }, errors);
+  check_unique(
+      s.wall_landmarks, "wall_landmarks", "id", lines.wall_landmarks,
+      [](const WallLandmark& w) { return std::make_pair(w.family, w.id); }, errors);
   for (std::size_t i = 0; i < s.wall_landmarks.size() && !errors->full(); ++i) {
     const WallLandmark& w = s.wall_landmarks[i];
     const std::string key = indexed("wall_landmarks", i);
@@ -161,8 +163,9 @@ void check_wall_landmarks(const SiteLines& lines, const Site& s, const Shapes& s
 }
 
 void check_cameras(const SiteLines& lines, const Site& s, const Shapes& sh, ErrorList* errors) {
-  check_unique(s.cameras, "cameras", "id", lines.cameras,
-               [](const CeilingCamera& c) { return c.id; }, errors);
+  check_unique(
+      s.cameras, "cameras", "id", lines.cameras, [](const CeilingCamera& c) { return c.id; },
+      errors);
   const FleetAgv* tallest = nullptr;
   for (const FleetAgv& a : s.fleet) {
     if (!tallest || a.tray_height_mm > tallest->tray_height_mm) tallest = &a;
@@ -181,8 +184,8 @@ void check_cameras(const SiteLines& lines, const Site& s, const Shapes& sh, Erro
     if (tilt_deg > kMaxCameraTiltDeg) {
       errors->add(key + ".pose", line,
                   "camera '" + cam.id + "' does not look down enough: optical axis " +
-                      fmt_number(std::round(tilt_deg * 10) / 10) + " deg from straight down, at most " +
-                      fmt_number(kMaxCameraTiltDeg));
+                      fmt_number(std::round(tilt_deg * 10) / 10) +
+                      " deg from straight down, at most " + fmt_number(kMaxCameraTiltDeg));
       continue;
     }
     if (!sh.outline_ok) continue;
@@ -206,10 +209,10 @@ void check_cameras(const SiteLines& lines, const Site& s, const Shapes& sh, Erro
 }
 
 void check_fleet(const SiteLines& lines, Site* s, ErrorList* errors) {
-  check_unique(s->fleet, "fleet", "id", lines.fleet, [](const FleetAgv& a) { return a.id; },
-               errors);
-  check_unique(s->fleet, "fleet", "tag_id", lines.fleet,
-               [](const FleetAgv& a) { return a.tag_id; }, errors);
+  check_unique(
+      s->fleet, "fleet", "id", lines.fleet, [](const FleetAgv& a) { return a.id; }, errors);
+  check_unique(
+      s->fleet, "fleet", "tag_id", lines.fleet, [](const FleetAgv& a) { return a.tag_id; }, errors);
   for (std::size_t i = 0; i < s->fleet.size() && !errors->full(); ++i) {
     FleetAgv& a = s->fleet[i];
     const std::string key = indexed("fleet", i);
@@ -222,13 +225,15 @@ void check_fleet(const SiteLines& lines, Site* s, ErrorList* errors) {
     }
     const std::string why = normalise_polygon(&a.footprint);
     if (!why.empty()) {
-      errors->add(key + ".footprint_mm", at(lines.fleet_footprints, i), "AGV '" + a.id + "': " + why);
+      errors->add(key + ".footprint_mm", at(lines.fleet_footprints, i),
+                  "AGV '" + a.id + "': " + why);
       continue;
     }
     if (!bg::covered_by(BgPoint(0.0, 0.0), to_bg(a.footprint))) {
       errors->add(key + ".footprint_mm", at(lines.fleet_footprints, i),
-                  "AGV '" + a.id + "': the footprint does not contain the vehicle's reference "
-                                   "point (0, 0)");
+                  "AGV '" + a.id +
+                      "': the footprint does not contain the vehicle's reference "
+                      "point (0, 0)");
     }
     double r = 0.0;
     for (const Vec2& v : a.footprint.vertices_mm) r = std::max(r, std::hypot(v.x, v.y));
@@ -242,8 +247,7 @@ void check_fleet(const SiteLines& lines, Site* s, ErrorList* errors) {
 
 }  // namespace
 
-void check_site(const SiteLimits& /*limits*/, const SiteLines& lines, Site* s,
-                ErrorList* errors) {
+void check_site(const SiteLimits& /*limits*/, const SiteLines& lines, Site* s, ErrorList* errors) {
   Shapes sh;
   const std::string why = normalise_polygon(&s->outline);
   if (why.empty()) {

@@ -36,8 +36,8 @@ std::array<double, 9> camera_rotation_from_angles(double yaw_rad, double pitch_r
   return detail::mat_mul(detail::mat_mul(rz, down), detail::mat_mul(rx, ry));
 }
 
-void camera_angles_from_rotation(const std::array<double, 9>& r, double* yaw_rad,
-                                 double* pitch_rad, double* roll_rad) {
+void camera_angles_from_rotation(const std::array<double, 9>& r, double* yaw_rad, double* pitch_rad,
+                                 double* roll_rad) {
   // M = R_down * Rz(-yaw) * R... : undo the fixed part first. Rz(yaw) * R_down = R_down *
   // Rz(-yaw) (R_down flips y and z), so R_down * R = Rz(-yaw) * Rx(pitch) * Ry(roll) =: M.
   const detail::Mat3 down{1, 0, 0, 0, -1, 0, 0, 0, -1};

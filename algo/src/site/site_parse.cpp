@@ -114,8 +114,7 @@ void read_intrinsics(ReadContext* c, const YAML::Node& n, const std::string& pat
 // pose: x_mm, y_mm, z_mm and either yaw/pitch/roll_deg or r_site_cam (9 numbers, row-major).
 void read_camera_pose(ReadContext* c, const YAML::Node& n, const std::string& path,
                       CeilingCamera* cam) {
-  Fields f(c, n, path,
-           {"x_mm", "y_mm", "z_mm", "yaw_deg", "pitch_deg", "roll_deg", "r_site_cam"});
+  Fields f(c, n, path, {"x_mm", "y_mm", "z_mm", "yaw_deg", "pitch_deg", "roll_deg", "r_site_cam"});
   if (!f.is_map()) return;
   for (const char* key : {"x_mm", "y_mm", "z_mm"}) f.require(key);
   const double e = c->limits->max_extent_mm;
@@ -128,8 +127,8 @@ void read_camera_pose(ReadContext* c, const YAML::Node& n, const std::string& pa
     f.number("yaw_deg", -360.0, 360.0, &yaw);
     f.number("pitch_deg", -90.0, 90.0, &pitch);
     f.number("roll_deg", -90.0, 90.0, &roll);
-    cam->r_site_cam = camera_rotation_from_angles(yaw * kDegToRad, pitch * kDegToRad,
-                                                  roll * kDegToRad);
+    cam->r_site_cam =
+        camera_rotation_from_angles(yaw * kDegToRad, pitch * kDegToRad, roll * kDegToRad);
     return;
   }
   const std::string rp = f.path("r_site_cam");
@@ -165,13 +164,13 @@ void read_camera_pose(ReadContext* c, const YAML::Node& n, const std::string& pa
   cam->r_site_cam = m;
 }
 
-void read_camera(ReadContext* c, const YAML::Node& n, const std::string& path,
-                 CeilingCamera* cam) {
+void read_camera(ReadContext* c, const YAML::Node& n, const std::string& path, CeilingCamera* cam) {
   Fields f(c, n, path, {"id", "intrinsics", "pose"});
   if (!f.is_map()) return;
   for (const char* key : {"id", "intrinsics", "pose"}) f.require(key);
   f.text("id", &cam->id);
-  if (f.has("intrinsics")) read_intrinsics(c, f.get("intrinsics"), f.path("intrinsics"), &cam->intrinsics);
+  if (f.has("intrinsics"))
+    read_intrinsics(c, f.get("intrinsics"), f.path("intrinsics"), &cam->intrinsics);
   if (f.has("pose")) read_camera_pose(c, f.get("pose"), f.path("pose"), cam);
 }
 
@@ -240,8 +239,9 @@ void read_site_yaml(std::string_view yaml_text, std::string_view floor_map_text,
                     const SiteLimits& limits, Site* s, SiteLines* lines, ErrorList* errors) {
   ReadContext c{errors, &limits, 0};
   if (yaml_text.size() > limits.max_text_bytes) {
-    errors->add("site", 0, "file of " + std::to_string(yaml_text.size()) + " bytes, at most " +
-                               std::to_string(limits.max_text_bytes));
+    errors->add("site", 0,
+                "file of " + std::to_string(yaml_text.size()) + " bytes, at most " +
+                    std::to_string(limits.max_text_bytes));
     return;
   }
   YAML::Node root;

@@ -58,11 +58,10 @@ void write_camera(std::ostringstream& os, const CeilingCamera& c) {
   const CameraIntrinsics& k = c.intrinsics;
   os << "  - id: " << quoted(c.id) << "\n"
      << "    intrinsics: {width_px: " << k.width_px << ", height_px: " << k.height_px
-     << ", fx: " << fmt_number(k.fx) << ", fy: " << fmt_number(k.fy)
-     << ", cx: " << fmt_number(k.cx) << ", cy: " << fmt_number(k.cy)
-     << ", k1: " << fmt_number(k.k1) << ", k2: " << fmt_number(k.k2)
-     << ", p1: " << fmt_number(k.p1) << ", p2: " << fmt_number(k.p2)
-     << ", k3: " << fmt_number(k.k3) << "}\n"
+     << ", fx: " << fmt_number(k.fx) << ", fy: " << fmt_number(k.fy) << ", cx: " << fmt_number(k.cx)
+     << ", cy: " << fmt_number(k.cy) << ", k1: " << fmt_number(k.k1) << ", k2: " << fmt_number(k.k2)
+     << ", p1: " << fmt_number(k.p1) << ", p2: " << fmt_number(k.p2) << ", k3: " << fmt_number(k.k3)
+     << "}\n"
      << "    pose:\n"
      << "      x_mm: " << fmt_number(c.t_site_cam_mm[0]) << "\n"
      << "      y_mm: " << fmt_number(c.t_site_cam_mm[1]) << "\n"

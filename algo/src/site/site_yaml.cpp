@@ -56,8 +56,7 @@ Fields::Fields(ReadContext* ctx, const YAML::Node& node, std::string path,
     : ctx_(ctx), path_(std::move(path)), line_(line_of(node)) {
   if (!node.IsMap()) {
     ctx_->errors->add(path_.empty() ? "top level" : path_, line_,
-                      std::string("expected a mapping (key: value lines), found ") +
-                          kind_of(node));
+                      std::string("expected a mapping (key: value lines), found ") + kind_of(node));
     return;
   }
   is_map_ = true;
@@ -69,8 +68,8 @@ Fields::Fields(ReadContext* ctx, const YAML::Node& node, std::string path,
       continue;
     }
     const std::string& k = kv.first.Scalar();
-    const auto known = std::find_if(allowed.begin(), allowed.end(),
-                                    [&](const char* a) { return k == a; });
+    const auto known =
+        std::find_if(allowed.begin(), allowed.end(), [&](const char* a) { return k == a; });
     if (known == allowed.end()) {
       const std::string hint = did_you_mean(k, allowed);
       ctx_->errors->add(join(path_, k), line,
@@ -79,9 +78,9 @@ Fields::Fields(ReadContext* ctx, const YAML::Node& node, std::string path,
     }
     const auto [it, inserted] = entries_.emplace(k, kv.second);
     if (!inserted) {
-      ctx_->errors->add(join(path_, k), line,
-                        "duplicate key (first at line " + std::to_string(line_of(it->second)) +
-                            ")");
+      ctx_->errors->add(
+          join(path_, k), line,
+          "duplicate key (first at line " + std::to_string(line_of(it->second)) + ")");
     }
   }
 }
@@ -140,8 +139,7 @@ bool Fields::integer(const char* key, std::int64_t lo, std::int64_t hi, std::int
     return false;
   }
   if (i < lo || i > hi) {
-    ctx_->errors->add(path(key), line_of(n),
-                      "value " + std::to_string(i) + " outside " + range);
+    ctx_->errors->add(path(key), line_of(n), "value " + std::to_string(i) + " outside " + range);
     return false;
   }
   *out = i;
@@ -161,9 +159,8 @@ bool Fields::text(const char* key, std::string* out) {
     ctx_->errors->add(path(key), line_of(n), "expected 1 to 256 characters");
     return false;
   }
-  if (std::any_of(s.begin(), s.end(), [](char c) {
-        return static_cast<unsigned char>(c) < 0x20 || c == 0x7f;
-      })) {
+  if (std::any_of(s.begin(), s.end(),
+                  [](char c) { return static_cast<unsigned char>(c) < 0x20 || c == 0x7f; })) {
     ctx_->errors->add(path(key), line_of(n), "contains a control character");
     return false;
   }
@@ -189,9 +186,9 @@ bool read_list(ReadContext* ctx, const YAML::Node& n, const std::string& path, s
 bool read_polygon(ReadContext* ctx, const YAML::Node& n, const std::string& path, Polygon* out) {
   const SiteLimits& lim = *ctx->limits;
   if (!n.IsSequence()) {
-    ctx->errors->add(path, line_of(n),
-                     std::string("expected a sequence of [x_mm, y_mm] vertices, found ") +
-                         kind_of(n));
+    ctx->errors->add(
+        path, line_of(n),
+        std::string("expected a sequence of [x_mm, y_mm] vertices, found ") + kind_of(n));
     return false;
   }
   if (n.size() > lim.max_vertices_per_polygon) {
@@ -202,9 +199,9 @@ bool read_polygon(ReadContext* ctx, const YAML::Node& n, const std::string& path
   }
   ctx->vertices_read += n.size();
   if (ctx->vertices_read > lim.max_total_vertices) {
-    ctx->errors->add(path, line_of(n),
-                     "more than " + std::to_string(lim.max_total_vertices) +
-                         " polygon vertices in the file");
+    ctx->errors->add(
+        path, line_of(n),
+        "more than " + std::to_string(lim.max_total_vertices) + " polygon vertices in the file");
     return false;
   }
   Polygon p;

@@ -20,9 +20,10 @@ namespace site_cmd {
 namespace {
 
 int check(int argc, char** argv) {
-  CLI::App app{"Check a site file: every key, range and geometric rule of docs/guide/site.md. "
-               "Prints each error (key path and line) and exits 2, or prints a summary",
-               "agvloc-desk site check"};
+  CLI::App app{
+      "Check a site file: every key, range and geometric rule of docs/guide/site.md. "
+      "Prints each error (key path and line) and exits 2, or prints a summary",
+      "agvloc-desk site check"};
   std::string path;
   app.add_option("site", path, "The site file (site.yaml)")->required();
   try {
@@ -39,17 +40,19 @@ int check(int argc, char** argv) {
   for (const std::string& w : agv::site::site_warnings(site)) {
     std::printf("warning: %s: %s\n", path.c_str(), w.c_str());
   }
-  std::printf("site OK: %zu obstacles, %zu wall landmarks, %zu cameras, %zu AGVs, floor map %zu "
-              "landmarks\n",
-              site.obstacles.size(), site.wall_landmarks.size(), site.cameras.size(),
-              site.fleet.size(), site.floor_map.entries.size());
+  std::printf(
+      "site OK: %zu obstacles, %zu wall landmarks, %zu cameras, %zu AGVs, floor map %zu "
+      "landmarks\n",
+      site.obstacles.size(), site.wall_landmarks.size(), site.cameras.size(), site.fleet.size(),
+      site.floor_map.entries.size());
   return 0;
 }
 
 int draw(int argc, char** argv) {
-  CLI::App app{"Draw a site: outline, obstacles by kind, floor and wall landmarks, the floor "
-               "each ceiling camera sees, the fleet",
-               "agvloc-desk site draw"};
+  CLI::App app{
+      "Draw a site: outline, obstacles by kind, floor and wall landmarks, the floor "
+      "each ceiling camera sees, the fleet",
+      "agvloc-desk site draw"};
   std::string path, svg_path, png_path;
   double px_per_m = kSiteDrawDefaultPxPerM;
   app.add_option("site", path, "The site file (site.yaml)")->required();

@@ -14,7 +14,7 @@ namespace agv::desk {
 namespace {
 
 bool read_bounded_site_text(const std::string& path, std::uintmax_t max_bytes, std::string* text,
-               std::string* error) {
+                            std::string* error) {
   if (!input::regular_file(path, max_bytes, error)) return false;
   std::ifstream f(path, std::ios::binary);
   std::ostringstream os;
@@ -49,8 +49,8 @@ bool load_site(const std::string& path, agv::site::Site* out, std::string* error
   if (!map_name.empty()) {
     std::filesystem::path map_path(map_name);
     if (map_path.is_relative()) map_path = std::filesystem::path(path).parent_path() / map_path;
-    if (!read_bounded_site_text(map_path.lexically_normal().string(), limits.max_text_bytes, &map_text,
-                   &error)) {
+    if (!read_bounded_site_text(map_path.lexically_normal().string(), limits.max_text_bytes,
+                                &map_text, &error)) {
       *error_lines = path + ": floor_map.file: " + error + "\n";
       return false;
     }

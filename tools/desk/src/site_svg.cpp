@@ -105,18 +105,18 @@ void add_landmarks(const Site& s, const SiteView& v, SiteScene* sc) {
       sq.push_back(v({e.pose.x_mm + c * d.x - sn * d.y, e.pose.y_mm + sn * d.x + c * d.y}));
     }
     sc->prims.push_back(site_shape(SitePrim::kPolygon, sq, "#222222", "none", 0));
-    sc->prims.push_back(site_text(v({e.pose.x_mm + 2 * h, e.pose.y_mm - 2 * h}),
-                                  std::to_string(id), 9, "#555555"));
+    sc->prims.push_back(
+        site_text(v({e.pose.x_mm + 2 * h, e.pose.y_mm - 2 * h}), std::to_string(id), 9, "#555555"));
   }
   for (const auto& w : s.wall_landmarks) {
     const Vec2 n{std::cos(w.facing_rad), std::sin(w.facing_rad)};
     const Vec2 t{-n.y, n.x};  // along the face
     const double half = w.size_mm / 2, len = std::max(400.0, 2.0 * w.size_mm);
     const Vec2 c{w.x_mm, w.y_mm};
-    sc->prims.push_back(site_shape(SitePrim::kPolyline,
-                                   {v({c.x - half * t.x, c.y - half * t.y}),
-                                    v({c.x + half * t.x, c.y + half * t.y})},
-                                   "none", "#d62728", 4));
+    sc->prims.push_back(site_shape(
+        SitePrim::kPolyline,
+        {v({c.x - half * t.x, c.y - half * t.y}), v({c.x + half * t.x, c.y + half * t.y})}, "none",
+        "#d62728", 4));
     const Vec2 tip{c.x + len * n.x, c.y + len * n.y};
     const double head = len * 0.3;
     sc->prims.push_back(site_shape(
@@ -166,12 +166,13 @@ void add_legend(const Site& s, const SiteView& v, double bottom_px, SiteScene* s
   for (const auto& a : s.fleet) {
     y += 16;
     char line[160];
-    std::snprintf(line, sizeof line, " tag36h11 %u (%.0f mm), tray %.0f x %.0f mm at %.0f mm, radius %.0f mm",
-                  a.tag_id, a.tag_size_mm, a.tray_length_mm, a.tray_width_mm, a.tray_height_mm,
-                  a.radius_mm);
+    std::snprintf(
+        line, sizeof line, " tag36h11 %u (%.0f mm), tray %.0f x %.0f mm at %.0f mm, radius %.0f mm",
+        a.tag_id, a.tag_size_mm, a.tray_length_mm, a.tray_width_mm, a.tray_height_mm, a.radius_mm);
     sc->prims.push_back(site_text({x, y}, a.id + line, 11));
     // Hershey glyphs (the PNG) are about 0.8 em wide; the canvas grows to hold the line.
-    sc->width_px = std::max(sc->width_px, x + 0.8 * 11 * (a.id.size() + std::strlen(line)) + v.margin);
+    sc->width_px =
+        std::max(sc->width_px, x + 0.8 * 11 * (a.id.size() + std::strlen(line)) + v.margin);
   }
   y += 22;
   double kx = x;
@@ -216,8 +217,8 @@ SiteScene build_site_scene(const Site& s, const std::vector<std::vector<Vec2>>& 
   const double bottom = v.margin + (max_y - min_y) * v.scale;
   sc.prims.push_back(site_text({v.margin, v.margin - 14}, s.name, 16));
   sc.outline_px = site_to_px(v, s.outline.vertices_mm);
-  sc.prims.push_back(site_shape(SitePrim::kPolygon, site_to_px(v, s.outline.vertices_mm),
-                                "#f7f7f2", "#000000", 2.5));
+  sc.prims.push_back(site_shape(SitePrim::kPolygon, site_to_px(v, s.outline.vertices_mm), "#f7f7f2",
+                                "#000000", 2.5));
   add_camera_views(s, v, 2.0 * std::hypot(max_x - min_x, max_y - min_y) + 1000.0, &sc);
   for (const auto& o : s.obstacles) {
     sc.prims.push_back(site_shape(SitePrim::kPolygon, site_to_px(v, o.outline.vertices_mm),
@@ -228,7 +229,8 @@ SiteScene build_site_scene(const Site& s, const std::vector<std::vector<Vec2>>& 
     sc.prims.push_back(site_text(v({c.x / n, c.y / n}), o.id, 10, "#ffffff"));
   }
   for (const auto& p : extra) {
-    SitePrim e = site_shape(SitePrim::kPolygon, site_to_px(v, p.vertices_mm), "none", "#ff7f0e", 1.2);
+    SitePrim e =
+        site_shape(SitePrim::kPolygon, site_to_px(v, p.vertices_mm), "none", "#ff7f0e", 1.2);
     e.dashed = true;
     sc.prims.push_back(e);
   }
@@ -236,7 +238,8 @@ SiteScene build_site_scene(const Site& s, const std::vector<std::vector<Vec2>>& 
   add_camera_marks(s, v, &sc);
   for (std::size_t i = 0; i < routes.size(); ++i) {
     const char* colour = kRouteColours[i % std::size(kRouteColours)];
-    sc.prims.push_back(site_shape(SitePrim::kPolyline, site_to_px(v, routes[i]), "none", colour, 2.5));
+    sc.prims.push_back(
+        site_shape(SitePrim::kPolyline, site_to_px(v, routes[i]), "none", colour, 2.5));
     if (routes[i].empty()) continue;
     for (const Vec2& end : {routes[i].front(), routes[i].back()}) {
       SitePrim d = site_shape(SitePrim::kCircle, {v(end)}, colour, "none", 0);
@@ -248,8 +251,8 @@ SiteScene build_site_scene(const Site& s, const std::vector<std::vector<Vec2>>& 
   double bar_m = 1;
   while (bar_m * px_per_m < 40 && bar_m < 1e6) bar_m *= bar_m == 1 ? 5 : 2;
   const Vec2 b0{sc.width_px - v.margin - bar_m * px_per_m, v.margin - 18};
-  sc.prims.push_back(site_shape(SitePrim::kPolyline, {b0, {b0.x + bar_m * px_per_m, b0.y}}, "none",
-                                "#000000", 3));
+  sc.prims.push_back(
+      site_shape(SitePrim::kPolyline, {b0, {b0.x + bar_m * px_per_m, b0.y}}, "none", "#000000", 3));
   char bar[32];
   std::snprintf(bar, sizeof bar, "%g m", bar_m);
   sc.prims.push_back(site_text({b0.x, b0.y - 6}, bar, 11));
@@ -261,11 +264,20 @@ std::string site_xml_escape(const std::string& s) {
   std::string out;
   for (char c : s) {
     switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += c;
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      default:
+        out += c;
     }
   }
   return out;
@@ -314,14 +326,17 @@ void site_raster(const SitePrim& p, const std::vector<Vec2>& outline_px, cv::Mat
       if (pts.size() < 3) return;
       if (p.fill != "none") {
         if (p.fill_opacity >= 1.0) {
-          cv::fillPoly(*img, std::vector<std::vector<cv::Point>>{pts}, site_bgr(p.fill), cv::LINE_AA);
+          cv::fillPoly(*img, std::vector<std::vector<cv::Point>>{pts}, site_bgr(p.fill),
+                       cv::LINE_AA);
         } else {
           cv::Mat layer = img->clone();
-          cv::fillPoly(layer, std::vector<std::vector<cv::Point>>{pts}, site_bgr(p.fill), cv::LINE_AA);
+          cv::fillPoly(layer, std::vector<std::vector<cv::Point>>{pts}, site_bgr(p.fill),
+                       cv::LINE_AA);
           cv::addWeighted(layer, p.fill_opacity, *img, 1.0 - p.fill_opacity, 0.0, *img);
         }
       }
-      if (p.stroke != "none") cv::polylines(*img, pts, true, site_bgr(p.stroke), thick, cv::LINE_AA);
+      if (p.stroke != "none")
+        cv::polylines(*img, pts, true, site_bgr(p.stroke), thick, cv::LINE_AA);
       return;
     case SitePrim::kPolyline:
       if (pts.size() >= 2) cv::polylines(*img, pts, false, site_bgr(p.stroke), thick, cv::LINE_AA);
@@ -342,7 +357,8 @@ void site_raster(const SitePrim& p, const std::vector<Vec2>& outline_px, cv::Mat
 
 std::string site_svg(const agv::site::Site& site, const std::vector<std::vector<Vec2>>& routes,
                      const std::vector<agv::site::Polygon>& extra_polygons, double px_per_m) {
-  const site_draw::SiteScene sc = site_draw::build_site_scene(site, routes, extra_polygons, px_per_m);
+  const site_draw::SiteScene sc =
+      site_draw::build_site_scene(site, routes, extra_polygons, px_per_m);
   std::ostringstream os;
   char head[256];
   std::snprintf(head, sizeof head,
@@ -353,13 +369,12 @@ std::string site_svg(const agv::site::Site& site, const std::vector<std::vector<
      << "<clipPath id=\"site-outline\"><polygon points=\"" << site_draw::site_points(sc.outline_px)
      << "\"/></clipPath>\n";
   for (const site_draw::SitePrim& p : sc.prims) {
-    const std::string style = "fill=\"" + p.fill + "\" stroke=\"" + p.stroke +
-                              "\" stroke-width=\"" + std::to_string(p.stroke_px) + "\"" +
-                              (p.fill_opacity < 1.0
-                                   ? " fill-opacity=\"" + std::to_string(p.fill_opacity) + "\""
-                                   : "") +
-                              (p.dashed ? " stroke-dasharray=\"6,4\"" : "") +
-                              (p.clip_to_outline ? " clip-path=\"url(#site-outline)\"" : "");
+    const std::string style =
+        "fill=\"" + p.fill + "\" stroke=\"" + p.stroke + "\" stroke-width=\"" +
+        std::to_string(p.stroke_px) + "\"" +
+        (p.fill_opacity < 1.0 ? " fill-opacity=\"" + std::to_string(p.fill_opacity) + "\"" : "") +
+        (p.dashed ? " stroke-dasharray=\"6,4\"" : "") +
+        (p.clip_to_outline ? " clip-path=\"url(#site-outline)\"" : "");
     switch (p.kind) {
       case site_draw::SitePrim::kPolygon:
         os << "<polygon points=\"" << site_draw::site_points(p.px) << "\" " << style << "/>\n";
@@ -373,9 +388,8 @@ std::string site_svg(const agv::site::Site& site, const std::vector<std::vector<
            << "\" " << style << "/>\n";
         break;
       case site_draw::SitePrim::kText:
-        os << "<text x=\"" << p.px[0].x << "\" y=\"" << p.px[0].y << "\" font-size=\""
-           << p.text_px << "\" fill=\"" << p.fill << "\">" << site_draw::site_xml_escape(p.text)
-           << "</text>\n";
+        os << "<text x=\"" << p.px[0].x << "\" y=\"" << p.px[0].y << "\" font-size=\"" << p.text_px
+           << "\" fill=\"" << p.fill << "\">" << site_draw::site_xml_escape(p.text) << "</text>\n";
         break;
     }
   }
@@ -384,15 +398,16 @@ std::string site_svg(const agv::site::Site& site, const std::vector<std::vector<
 }
 
 bool site_png(const agv::site::Site& site, const std::vector<std::vector<Vec2>>& routes,
-              const std::vector<agv::site::Polygon>& extra_polygons, double px_per_m,
-              cv::Mat* out, std::string* error) {
-  const site_draw::SiteScene sc = site_draw::build_site_scene(site, routes, extra_polygons, px_per_m);
+              const std::vector<agv::site::Polygon>& extra_polygons, double px_per_m, cv::Mat* out,
+              std::string* error) {
+  const site_draw::SiteScene sc =
+      site_draw::build_site_scene(site, routes, extra_polygons, px_per_m);
   const double w = std::ceil(sc.width_px), h = std::ceil(sc.height_px);
   if (!(w <= kSiteDrawMaxPngSidePx && h <= kSiteDrawMaxPngSidePx)) {
     char buf[160];
     std::snprintf(buf, sizeof buf,
-                  "the image would be %.0f x %.0f px, more than %d on a side; lower --px-per-m",
-                  w, h, kSiteDrawMaxPngSidePx);
+                  "the image would be %.0f x %.0f px, more than %d on a side; lower --px-per-m", w,
+                  h, kSiteDrawMaxPngSidePx);
     *error = buf;
     return false;
   }

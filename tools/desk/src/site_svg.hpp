@@ -27,7 +27,7 @@ std::string site_svg(const agv::site::Site& site, const std::vector<std::vector<
 // The drawing rasterised into *out (8-bit BGR). False with *error when it would be larger than
 // kSiteDrawMaxPngSidePx on a side.
 bool site_png(const agv::site::Site& site, const std::vector<std::vector<Vec2>>& routes,
-              const std::vector<agv::site::Polygon>& extra_polygons, double px_per_m,
-              cv::Mat* out, std::string* error);
+              const std::vector<agv::site::Polygon>& extra_polygons, double px_per_m, cv::Mat* out,
+              std::string* error);
 
 }  // namespace agv::desk
