@@ -13,6 +13,10 @@
 #include "agv/common/geometry.hpp"
 #include "agv/site/site.hpp"
 
+namespace agv::vda5050 {
+struct Order;
+}
+
 namespace agv::site {
 
 struct PlannerParams {
@@ -69,6 +73,11 @@ class RoutePlanner {
   std::unique_ptr<Impl> impl_;
 };
 
+// The route through a decoded VDA 5050 order's nodes: planned leg by leg between consecutive
+// nodes (positions in metres). On failure the status of the failing leg and an error naming
+// the node (id and index) that is blocked or cannot be reached.
+Route route_from_order(const RoutePlanner& planner, const vda5050::Order& order);
+
 // A drivable, time-parametrised trajectory along a route.
 struct DriveLimits {
   double speed_mps = 1.0;
@@ -93,7 +102,16 @@ class RouteTrajectory {
   // limits given (then a tighter max_curvature or shorter clothoids are needed).
   static bool make(const Route& route, const DriveLimits& limits, RouteTrajectory* out,
                    std::string* error);
+  // As make, then the path checked every check_step_mm against `collision`, a planner built for
+  // the vehicle radius with no clearance: the blends cut inside the polyline's corners, into the
+  // clearance margin but never past it. A blend that leaves the collision-free space is redone
+  // as a plain arc at max curvature (the smallest cut); if that also leaves it, false, *error.
+  static bool make_checked(const Route& route, const DriveLimits& limits,
+                           const RoutePlanner& collision, RouteTrajectory* out, std::string* error,
+                           double check_step_mm = 20.0);
   double duration_s() const { return duration_s_; }
+  // The largest distance from a corner of the route to its blend (how far a blend cuts in).
+  double max_corner_deviation_mm() const { return max_deviation_mm_; }
   double length_mm() const { return length_mm_; }
   // State at t_s (clamped to [0, duration]): at rest at the ends.
   TrajectorySample at(double t_s) const;
@@ -112,6 +130,7 @@ class RouteTrajectory {
  private:
   double duration_s_ = 0.0;
   double length_mm_ = 0.0;
+  double max_deviation_mm_ = 0.0;
   friend struct RouteTrajectoryBuilder;
 };
 
