@@ -15,7 +15,6 @@ localizer::LocalizerConfig localizer_config(const config::Config& cfg) {
   c.odometry.yaw_rate_scale = cfg.odometry.yaw_rate_scale;
   c.odometry.yaw_rate_bias_radps = cfg.odometry.yaw_rate_bias_radps;
   c.odometry.yaw_per_metre_rad = cfg.odometry.yaw_per_metre_rad;
-  c.odometry.track_width_m = cfg.can.track_width_mm * 1e-3;
   c.gyro.scale = cfg.imu.scale;
   c.gyro.bias_radps = cfg.imu.bias_radps;
   c.time_base = config::time_base(cfg);

@@ -58,7 +58,7 @@ CLOCK_JUMP_MS = [300, -300]  # frame timestamps of a window shifted by this
 CLOCK_JUMP_WINDOW_S = 2.0
 # Gyro rows (imu.csv of the base kept): the wheel slip injected into odom.csv on a straight, as
 # the simulator models one (the right wheel over-reports by SLIP_EXCESS for SLIP_S; track
-# SLIP_TRACK_MM as the simulator's and fusion.wheel_track_mm's default). A wheels-only filter
+# SLIP_TRACK_MM as the simulator's and can.odometry.track_width_mm's default). A wheels-only filter
 # cannot see it: that row is reported as a known limit, not asserted.
 SLIP_EXCESS = 0.05
 SLIP_S = 0.3

@@ -648,7 +648,7 @@ TEST(Config, OdometryCorrectionKeysReachTheLocalizer) {
   EXPECT_DOUBLE_EQ(lc.odometry.yaw_rate_scale, 1.015);
   EXPECT_NEAR(lc.odometry.yaw_rate_bias_radps, -0.3 * M_PI / 180.0, 1e-15);
   EXPECT_NEAR(lc.odometry.yaw_per_metre_rad, 0.46 * M_PI / 180.0, 1e-15);
-  EXPECT_DOUBLE_EQ(lc.odometry.track_width_m, 0.5);  // can.odometry.track_width_mm's default
+  EXPECT_DOUBLE_EQ(lc.fusion.wheel_track_mm, 500.0);  // can.odometry.track_width_mm's default
   EXPECT_EQ(lc.time_base.camera_offset_ns, 20'500'000);
   // Defaults: no correction.
   Config def;

@@ -534,7 +534,8 @@ TEST(Localizer, EachOdometryCorrectionKeyChangesTheFusedInputAsStated) {
     const auto by_hand = drive(
         plain, k.raw_dt,
         [&](Sample s) {
-          const double q = 0.25 * k.corr.track_width_m * k.corr.track_width_m;
+          const double track_m = plain.fusion.wheel_track_mm * 1e-3;  // the one track width
+          const double q = 0.25 * track_m * track_m;
           return Sample{s.t_ns, s.v * k.corr.speed_scale + k.corr.yaw_per_metre_rad * q * s.w,
                         s.w * k.corr.yaw_rate_scale + k.corr.yaw_rate_bias_radps +
                             k.corr.yaw_per_metre_rad * s.v};
@@ -579,7 +580,7 @@ TEST(Localizer, InvalidOdometryCorrectionThrows) {
   c.odometry.yaw_per_metre_rad = std::numeric_limits<double>::infinity();
   EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
   c = test_config();
-  c.odometry.track_width_m = 0.0;
+  c.fusion.wheel_track_mm = 0.0;  // the one track width (the fusion refuses it)
   EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
 }
 

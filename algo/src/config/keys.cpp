@@ -27,10 +27,12 @@ const std::vector<Key>& config_keys() {
 const std::vector<RemovedKey>& removed_keys() {
   // One odometry timeout (issue 14): the filter's odometry flag and the pose validity used to
   // have separate timeouts that could disagree.
-  // The camera's clock offset is the camera's (one time base): the same value and sign.
+  // The camera's clock offset is the camera's (one time base): the same value and sign. One
+  // track width for the CAN decoding and the fusion's slip lever arm.
   static const std::vector<RemovedKey> removed = {
       {"fusion.odom_timeout_ms", "can.odometry.timeout_ms"},
       {"odometry.time_offset_ms", "camera.time_offset_ms"},
+      {"fusion.wheel_track_mm", "can.odometry.track_width_mm"},
   };
   return removed;
 }

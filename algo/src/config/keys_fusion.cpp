@@ -151,11 +151,6 @@ void add_calibration(std::vector<Key>* k) {
                            "samples at or beyond this are clipped by the sensor and not "
                            "used (the wheels carry those periods). Just below the "
                            "configured range"}));
-  k->push_back(number("fusion.wheel_track_mm", AGV_AT(fusion.wheel_track_mm), 10.0, 10000.0, 500.0,
-                      {"mm",
-                       "distance between the drive wheels: a slip's yaw-rate error times "
-                       "half of it is the slip's speed error (corrected while a gyro is "
-                       "fitted)"}));
   k->push_back(deg_as_rad("fusion.slip_yaw_rate_degps", AGV_AT(fusion.slip_yaw_rate_radps), 0.0,
                           1000.0, 3.0,
                           {"deg/s",

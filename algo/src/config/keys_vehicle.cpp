@@ -144,12 +144,17 @@ void add_can(std::vector<Key>* k) {
                        "check CRC and alive counter of odometry frames; false only for motor "
                        "controllers that cannot compute them (then only ID and length are "
                        "checked)"));
-  k->push_back(number("can.odometry.track_width_mm", AGV_AT(can.track_width_mm), 50.0, 5000.0,
-                      500.0,
+  // Stored once, where fusion reads it; the decoder and the odometry correction take it from
+  // there (protocol_config, the firmware's localizer_config).
+  k->push_back(number("can.odometry.track_width_mm", AGV_AT(fusion.wheel_track_mm), 50.0, 5000.0,
+                      kDefaultTrackWidthMm,
                       {"mm",
-                       "wheels mode: converts wheel speeds to v, ω. In both modes the lever of "
+                       "distance between the drive wheels, in both odometry modes. Wheels mode: "
+                       "converts wheel speeds to v, ω. The lever of "
                        "`odometry.yaw_per_metre_deg`'s speed term (unequal wheels creep a turn "
-                       "on the spot by yaw_per_metre · track² / 4 per radian)"}));
+                       "on the spot by yaw_per_metre · track² / 4 per radian) and of the "
+                       "fusion's slip correction (a slip's yaw-rate error times half of it is "
+                       "the slip's speed error, while a gyro is fitted)"}));
   k->push_back(number("can.odometry.wheel_speed_scale", AGV_AT(can.wheel_speed_scale), 0.5, 2.0,
                       1.0, {"", "wheels mode: calibrates wheel radius error"}));
   // Stored once, where it is used (the filter's flag and the core's pose validity both read

@@ -261,7 +261,7 @@ protocol::ProtocolConfig protocol_config(const Config& cfg) {
   p.odometry.can_id = cfg.can.odometry_id;
   p.odometry.extended_id = cfg.can.extended_ids;
   p.odometry.protected_e2e = cfg.can.odometry_protected;
-  p.odometry.track_width_mm = cfg.can.track_width_mm;
+  p.odometry.track_width_mm = cfg.fusion.wheel_track_mm;
   p.odometry.speed_scale = cfg.can.wheel_speed_scale;
   p.output_period_ms = 1000.0 / cfg.loop.output_rate_hz;
   p.heartbeat_period_ms = 1000.0 / cfg.loop.heartbeat_rate_hz;

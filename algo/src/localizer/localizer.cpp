@@ -42,8 +42,7 @@ Localizer::Localizer(const LocalizerConfig& cfg)
   const OdometryCorrection& o = cfg_.odometry;
   if (!(o.speed_scale > 0.0) || !(o.yaw_rate_scale > 0.0) || !std::isfinite(o.speed_scale) ||
       !std::isfinite(o.yaw_rate_scale) || !std::isfinite(o.yaw_rate_bias_radps) ||
-      !std::isfinite(o.yaw_per_metre_rad) || !(o.track_width_m > 0.0) ||
-      !std::isfinite(o.track_width_m)) {
+      !std::isfinite(o.yaw_per_metre_rad)) {
     throw std::invalid_argument("odometry correction: scales must be finite and > 0");
   }
 }
@@ -97,7 +96,8 @@ void Localizer::on_odometry(std::int64_t t_ns, double v_mps, double omega_radps)
   if (c.yaw_rate_bias_radps != 0.0) omega_radps += c.yaw_rate_bias_radps;
   if (c.yaw_per_metre_rad != 0.0) {
     omega_radps += c.yaw_per_metre_rad * v_read_mps;
-    v_mps += c.yaw_per_metre_rad * 0.25 * c.track_width_m * c.track_width_m * omega_read_radps;
+    const double track_width_m = cfg_.fusion.wheel_track_mm * 1e-3;
+    v_mps += c.yaw_per_metre_rad * 0.25 * track_width_m * track_width_m * omega_read_radps;
   }
   if (!ekf_.add_odometry(t_ns, v_mps, omega_radps)) {
     ++stats_.odom_rejected;

@@ -69,6 +69,7 @@
 #include <vector>
 
 #include "agv/common/camera_model.hpp"
+#include "agv/common/track_width.hpp"
 #include "agv/common/landmark.hpp"
 
 namespace agv::desk::vcal {
@@ -121,7 +122,7 @@ struct Options {
   // The wheels' track (`can.odometry.track_width_mm`, also in v_omega mode): the lever of the
   // unequal wheels' speed term. 10 % off moves the lateral offset by 20 % of that term (0.1 mm
   // for 0.4 % unequal wheels on a 0.5 m track).
-  double track_width_mm = 500.0;
+  double track_width_mm = kDefaultTrackWidthMm;
   // deg/m. 0.05 deg/m is 0.25 deg of heading over a 5 m leg between landmarks; at a steady
   // speed the filter's yaw-rate bias state takes up what is left. The simulated drives of
   // tests/calib_vehicle determine it to 0.04 deg/m (the odometry's yaw-rate noise over the

@@ -299,7 +299,7 @@ int calibrate_vehicle(int argc, char** argv) {
   vcal::VehicleParams initial;
   initial.mount = cam.mount;
   opt.fx_px = cam.intrinsics.fx;
-  opt.track_width_mm = cfg.can.track_width_mm;
+  opt.track_width_mm = cfg.fusion.wheel_track_mm;
   vcal::Result r;
   if (!vcal::calibrate_vehicle(odom, obs, map, geom.outer_half_mm(), geom.inner_half_mm(), initial,
                                opt, &r, &err)) {
@@ -354,7 +354,7 @@ int calibrate_vehicle(int argc, char** argv) {
     if (!p.determined) continue;
     out_of_range[i] =
         wheels && p.name == "odometry.yaw_rate_scale"
-            ? outside_key_range("can.odometry.track_width_mm", cfg.can.track_width_mm / p.value)
+            ? outside_key_range("can.odometry.track_width_mm", cfg.fusion.wheel_track_mm / p.value)
             : outside_key_range(p.name, p.value);
   }
   for (const auto& e : gyro_out_of_range) out_of_range.push_back(e);
@@ -497,10 +497,10 @@ int calibrate_vehicle(int argc, char** argv) {
       continue;
     }
     if (wheels && key == "yaw_rate_scale") {
-      const double track = cfg.can.track_width_mm / p.value;
+      const double track = cfg.fusion.wheel_track_mm / p.value;
       can << "can:\n  odometry:\n    track_width_mm: " << fmt("%.2f", track) << "  # was "
-          << fmt("%.2f", cfg.can.track_width_mm) << " / yaw-rate scale " << fmt("%.6f", p.value)
-          << " (sigma " << fmt("%.2f", cfg.can.track_width_mm * p.sigma / (p.value * p.value))
+          << fmt("%.2f", cfg.fusion.wheel_track_mm) << " / yaw-rate scale " << fmt("%.6f", p.value)
+          << " (sigma " << fmt("%.2f", cfg.fusion.wheel_track_mm * p.sigma / (p.value * p.value))
           << " mm)\n";
       odo << "  yaw_rate_scale: 1  # folded into can.odometry.track_width_mm\n";
       any_odo = true;

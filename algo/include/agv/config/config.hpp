@@ -34,7 +34,7 @@ struct CanSection {
   std::string odometry_mode = "v_omega";  // v_omega | wheels
   std::uint32_t odometry_id = 0;          // 0 = the DBC's ID: base_id + 0x10 (wheels) / 0x11
   bool odometry_protected = true;
-  double track_width_mm = 500.0;
+  // The track width (key can.odometry.track_width_mm) lives in fusion.wheel_track_mm only.
   double wheel_speed_scale = 1.0;
   // The odometry timeout (key can.odometry.timeout_ms) lives in fusion.odom_timeout_ns only.
   // The gyro input AGV_Gyro (protocol::GyroConfig; ID type = can.extended_ids).

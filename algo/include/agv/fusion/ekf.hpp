@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "agv/common/geometry.hpp"
+#include "agv/common/track_width.hpp"
 #include "agv/fusion/motion_model.hpp"
 
 namespace agv::fusion {
@@ -217,7 +218,9 @@ struct EkfConfig {
   // misfires on an uncalibrated track width in turns (3 % scale = 0.06 rad/s at 2 rad/s).
   double slip_yaw_rate_radps = deg_to_rad(3.0);
   double slip_yaw_rate_fraction = 0.1;
-  double wheel_track_mm = 500.0;
+  // The drive wheels' track, the slip's lever arm: key can.odometry.track_width_mm, the same value
+  // the CAN decoding converts wheel speeds with.
+  double wheel_track_mm = kDefaultTrackWidthMm;
   // A disagreement that lasts longer than this is no slip but a doubtful gyro (time stamps off,
   // a failing sensor): the heading then also takes the disagreement as uncertainty.
   std::int64_t slip_max_duration_ns = 500'000'000;

@@ -23,7 +23,8 @@ namespace agv::localizer {
 // applied to every odometry sample before fusion (scales, bias), the same equations as the
 // calibration's model
 // (tools/desk/src/calib_vehicle.hpp):
-//   v' = speed_scale * v + yaw_per_metre_rad * track_width_m^2 / 4 * omega,
+//   v' = speed_scale * v + yaw_per_metre_rad * track_width_m^2 / 4 * omega
+//   (track_width_m: fusion.wheel_track_mm, the one track width),
 //   omega' = yaw_rate_scale * omega + yaw_rate_bias_radps + yaw_per_metre_rad * v
 //   (v and omega as read; the yaw_per_metre terms are unequal wheels, calib_vehicle.hpp),
 // The stamps are the time base's (TimeBase): odometry defines the vehicle's clock.
@@ -34,7 +35,6 @@ struct OdometryCorrection {
   double yaw_rate_scale = 1.0;
   double yaw_rate_bias_radps = 0.0;
   double yaw_per_metre_rad = 0.0;  // unequal wheels: a straight run's curvature, rad/m
-  double track_width_m = 0.5;  // the lever of the unequal wheels' speed term
 };
 
 // Configured gyro correction (keys `imu.*`), applied to every gyro sample before fusion:

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <string>
 
+#include "agv/common/track_width.hpp"
 #include "agv/protocol/can_frame.hpp"
 #include "agv/protocol/e2e.hpp"
 #include "agv/protocol/signals.hpp"
@@ -27,8 +28,8 @@ struct OdometryConfig {
   bool protected_e2e = true;
   std::uint16_t data_id = 0;           // 0 = the DBC's data ID for the selected mode
   std::uint8_t max_delta_counter = 3;  // see E2eCheckerConfig
-  // Distance between the wheel contact points (wheels mode only). Default for a small AGV.
-  double track_width_mm = 500.0;
+  // Distance between the wheel contact points (wheels mode only; key can.odometry.track_width_mm).
+  double track_width_mm = kDefaultTrackWidthMm;
   // Multiplies decoded speeds (wheel speeds, or v) / omega: calibrates wheel radius errors.
   // 1.0 = the DBC scaling is exact.
   double speed_scale = 1.0;
