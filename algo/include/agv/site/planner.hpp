@@ -2,7 +2,7 @@
 // visibility graph over the inflated polygons, Dijkstra's algorithm with the start and goal
 // inserted per query; then a drivable trajectory (corners rounded by clothoid-arc-clothoid
 // blends, speed limited by lateral and longitudinal acceleration, time-parametrised).
-// Method and what differs from the paper: docs/design/site.md.
+// Method and what differs from the paper: docs/design/site_planner.md.
 #pragma once
 
 #include <cstdint>
