@@ -207,7 +207,7 @@ landmark:
             "odometry: {speed_scale: 1.0}\n")
     intr = "intrinsics:\n  fx: 769.2\n  fy: 769.3\n  cx: 320.1\n  cy: 240.2\n  k1: -0.12\n"
     veh = ("mounting:\n  offset_x_mm: 253.7\n  offset_y_mm: -4.2\n  yaw_deg: 1.29\n  height_mm: 121.5\n"
-           "odometry:\n  speed_scale: 1.02\n  time_offset_ms: 12.0\n")
+           "odometry:\n  speed_scale: 1.02\ncamera:\n  time_offset_ms: 12.0\n")
     put("fuzz_config_apply", "both", base + sep + intr + sep + veh)
     put("fuzz_config_apply", "empty_base", sep + veh)
     put("fuzz_config_apply", "flow", "mounting: {offset_x_mm: 1, height_mm: 2}\n" + sep + veh)
