@@ -60,7 +60,8 @@ void BM_Query(benchmark::State& state) {
   std::uniform_real_distribution<double> ux(1000, 99000), uy(1000, 59000);
   while (queries.size() < 64) {
     const Vec2 a{ux(rng), uy(rng)}, b{ux(rng), uy(rng)};
-    if (p.point_free(a) && p.point_free(b) && std::abs(a.x - b.x) > 40000) queries.push_back({a, b});
+    if (p.point_free(a) && p.point_free(b) && std::abs(a.x - b.x) > 40000)
+      queries.push_back({a, b});
   }
   std::size_t i = 0, ok = 0;
   double length = 0.0;

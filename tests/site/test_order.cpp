@@ -87,7 +87,8 @@ TEST(Order, MalformedOrdersAreRefusedNamingTheField) {
     EXPECT_FALSE(vda5050::parse_order(text, &o, &error)) << field;
     EXPECT_NE(error.find(field), std::string::npos) << error;
   }
-  const std::string no_edges = R"({"headerId":1,"timestamp":"t","version":"2.1.0","manufacturer":"m",
+  const std::string no_edges =
+      R"({"headerId":1,"timestamp":"t","version":"2.1.0","manufacturer":"m",
     "serialNumber":"s","orderId":"o","orderUpdateId":0,"nodes":[],"edges":[]})";
   vda5050::Order o;
   std::string error;
@@ -100,7 +101,8 @@ TEST(Order, RouteThroughTheNodes) {
   site::RoutePlanner p;
   std::string error;
   ASSERT_TRUE(site::RoutePlanner::build(s, {}, &p, &error)) << error;
-  vda5050::Order o = vda5050::order_from_waypoints({{2000, 5000}, {15000, 5000}, {15000, 2000}}, "m", header());
+  vda5050::Order o =
+      vda5050::order_from_waypoints({{2000, 5000}, {15000, 5000}, {15000, 2000}}, "m", header());
   const site::Route r = site::route_from_order(p, o);
   ASSERT_EQ(r.status, site::PlanStatus::kOk) << r.error;
   EXPECT_GT(r.length_mm, 13000.0 + 3000.0);

@@ -67,7 +67,7 @@ TEST(Planner, DetourAroundRackWrapsItsInflatedCorners) {
 TEST(Planner, CollinearVerticesAndAlignedRacks) {
   Site s = room();
   Obstacle o = rack("c", 6000, 3000, 14000, 7000);
-  o.outline.vertices_mm = {{6000, 3000}, {8000, 3000}, {10000, 3000}, {14000, 3000},
+  o.outline.vertices_mm = {{6000, 3000},  {8000, 3000},  {10000, 3000}, {14000, 3000},
                            {14000, 7000}, {10000, 7000}, {6000, 7000}};
   s.obstacles.push_back(o);
   // Two more racks in line: the route slides along their common inflated edge.
@@ -168,7 +168,8 @@ TEST(Planner, EnclosedGoalHasNoRoute) {
 
 TEST(Planner, LShapedSiteAndConcaveRack) {
   Site s;
-  s.outline.vertices_mm = {{0, 0}, {20000, 0}, {20000, 8000}, {8000, 8000}, {8000, 20000}, {0, 20000}};
+  s.outline.vertices_mm = {{0, 0},       {20000, 0},    {20000, 8000},
+                           {8000, 8000}, {8000, 20000}, {0, 20000}};
   Obstacle u;  // a U open to the east
   u.id = "u";
   u.outline.vertices_mm = {{2000, 2000}, {6000, 2000}, {6000, 3000}, {3000, 3000},

@@ -19,7 +19,9 @@ namespace {
 
 constexpr double kR = 500.0;
 
-double cross(Vec2 o, Vec2 a, Vec2 b) { return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x); }
+double cross(Vec2 o, Vec2 a, Vec2 b) {
+  return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
+}
 
 struct FreeRings {
   std::vector<std::vector<Vec2>> rings;
@@ -46,7 +48,8 @@ struct FreeRings {
         const double o1 = cross(a, b, c) / l, o2 = cross(a, b, d) / l;
         const double o3 = cross(c, d, a) / lcd, o4 = cross(c, d, b) / lcd;
         const double e = 1e-6;
-        if (((o1 > e && o2 < -e) || (o1 < -e && o2 > e)) && ((o3 > e && o4 < -e) || (o3 < -e && o4 > e))) {
+        if (((o1 > e && o2 < -e) || (o1 < -e && o2 > e)) &&
+            ((o3 > e && o4 < -e) || (o3 < -e && o4 > e))) {
           return false;
         }
         if (std::abs(o1) <= e) {
@@ -74,7 +77,8 @@ double floyd_warshall(const FreeRings& f, Vec2 start, Vec2 goal) {
   for (std::size_t i = 0; i < n; ++i) {
     d[i * n + i] = 0.0;
     for (std::size_t j = i + 1; j < n; ++j) {
-      if (f.visible(v[i], v[j])) d[i * n + j] = d[j * n + i] = std::hypot(v[j].x - v[i].x, v[j].y - v[i].y);
+      if (f.visible(v[i], v[j]))
+        d[i * n + j] = d[j * n + i] = std::hypot(v[j].x - v[i].x, v[j].y - v[i].y);
     }
   }
   for (std::size_t k = 0; k < n; ++k) {
@@ -126,7 +130,8 @@ TEST(PlannerRandom, RoutesAreClearAndShortest) {
       if (r.status == PlanStatus::kStartBlocked || r.status == PlanStatus::kGoalBlocked) {
         const Vec2 bad = r.status == PlanStatus::kStartBlocked ? a : b;
         EXPECT_FALSE(f.point_free(bad));
-        EXPECT_LT(test::clearance_mm(s, bad), kR / std::cos(0.5 * PlannerParams{}.arc_step_rad) + 1e-6);
+        EXPECT_LT(test::clearance_mm(s, bad),
+                  kR / std::cos(0.5 * PlannerParams{}.arc_step_rad) + 1e-6);
         ++blocked;
         continue;
       }
@@ -149,7 +154,8 @@ TEST(PlannerRandom, RoutesAreClearAndShortest) {
     }
   }
   EXPECT_GT(routes, sites / 2);
-  std::printf("%d sites: %d routes, %d no route, %d blocked ends\n", sites, routes, no_route, blocked);
+  std::printf("%d sites: %d routes, %d no route, %d blocked ends\n", sites, routes, no_route,
+              blocked);
 }
 
 }  // namespace

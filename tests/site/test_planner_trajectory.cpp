@@ -31,11 +31,14 @@ void check_limits(const RouteTrajectory& tr, const DriveLimits& lim) {
     travelled_mm += step;
     EXPECT_LE(step, lim.speed_mps * 1e3 * dt * 1.001 + 1e-6) << "t " << t;
     EXPECT_LE(std::abs(wrap_angle_rad(s.pose.theta_rad - prev.pose.theta_rad)),
-              lim.max_curvature_per_mm * step * 1.01 + 1e-9) << "t " << t;
+              lim.max_curvature_per_mm * step * 1.01 + 1e-9)
+        << "t " << t;
     EXPECT_LE(std::abs(s.curvature_per_mm), lim.max_curvature_per_mm * (1 + 1e-9));
-    EXPECT_LE(s.v_mps * s.v_mps * std::abs(s.curvature_per_mm) * 1e3, lim.lateral_accel_mps2 * (1 + 1e-9));
+    EXPECT_LE(s.v_mps * s.v_mps * std::abs(s.curvature_per_mm) * 1e3,
+              lim.lateral_accel_mps2 * (1 + 1e-9));
     EXPECT_LE(s.v_mps, lim.speed_mps + 1e-12);
-    EXPECT_LE(std::abs(s.v_mps - prev.v_mps), lim.accel_mps2 * (s.t_s - prev.t_s) + 1e-9) << "t " << t;
+    EXPECT_LE(std::abs(s.v_mps - prev.v_mps), lim.accel_mps2 * (s.t_s - prev.t_s) + 1e-9)
+        << "t " << t;
     EXPECT_NEAR(s.omega_radps, s.v_mps * s.curvature_per_mm * 1e3, 1e-12);
     prev = s;
   }
@@ -50,7 +53,9 @@ TEST(Trajectory, RightAngleCorner) {
   const DriveLimits lim;
   RouteTrajectory tr;
   std::string error;
-  ASSERT_TRUE(RouteTrajectory::make(polyline_route({{0, 0}, {5000, 0}, {5000, 5000}}), lim, &tr, &error)) << error;
+  ASSERT_TRUE(
+      RouteTrajectory::make(polyline_route({{0, 0}, {5000, 0}, {5000, 5000}}), lim, &tr, &error))
+      << error;
   ASSERT_EQ(tr.pieces.size(), 5u);  // line, clothoid, arc, clothoid, line
   for (std::size_t i = 0; i + 1 < tr.pieces.size(); ++i) {
     EXPECT_NEAR(tr.pieces[i].k1_per_mm, tr.pieces[i + 1].k0_per_mm, 1e-12);  // curvature continuous
@@ -88,7 +93,8 @@ TEST(Trajectory, ShortSegmentsShrinkTheClothoidsOrAreRefused) {
   ASSERT_TRUE(RouteTrajectory::make(polyline_route(w), lim, &tr, &error)) << error;
   check_limits(tr, lim);
   // A right angle with 50 mm legs cannot be turned at a 300 mm radius.
-  EXPECT_FALSE(RouteTrajectory::make(polyline_route({{0, 0}, {50, 0}, {50, 50}, {3000, 50}}), lim, &tr, &error));
+  EXPECT_FALSE(RouteTrajectory::make(polyline_route({{0, 0}, {50, 0}, {50, 50}, {3000, 50}}), lim,
+                                     &tr, &error));
   EXPECT_NE(error.find("corner"), std::string::npos) << error;
   Route bad;
   bad.status = PlanStatus::kNoRoute;

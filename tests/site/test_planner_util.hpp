@@ -43,7 +43,8 @@ inline bool inside_ring(const std::vector<Vec2>& v, Vec2 p) {
 
 inline double boundary_dist(const std::vector<Vec2>& v, Vec2 p) {
   double d = std::numeric_limits<double>::infinity();
-  for (std::size_t i = 0; i < v.size(); ++i) d = std::min(d, seg_dist(p, v[i], v[(i + 1) % v.size()]));
+  for (std::size_t i = 0; i < v.size(); ++i)
+    d = std::min(d, seg_dist(p, v[i], v[(i + 1) % v.size()]));
   return d;
 }
 

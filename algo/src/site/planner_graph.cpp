@@ -131,8 +131,10 @@ bool RoutePlanner::Impl::segment_clear(Vec2 a, Vec2 b) const {
   };
   // Columns of cells from a towards b; in each, the rows the segment spans (widened by the
   // tolerance, so a segment through a cell corner sees the edges of all four cells).
-  const int ia = std::clamp(static_cast<int>(std::floor((a.x - grid_x0) / cell_mm)), 0, grid_nx - 1);
-  const int ib = std::clamp(static_cast<int>(std::floor((b.x - grid_x0) / cell_mm)), 0, grid_nx - 1);
+  const int ia =
+      std::clamp(static_cast<int>(std::floor((a.x - grid_x0) / cell_mm)), 0, grid_nx - 1);
+  const int ib =
+      std::clamp(static_cast<int>(std::floor((b.x - grid_x0) / cell_mm)), 0, grid_nx - 1);
   const int di = ib >= ia ? 1 : -1;
   for (int i = ia;; i += di) {
     double xl = grid_x0 + i * cell_mm - kOnLineMm, xr = xl + cell_mm + 2 * kOnLineMm;
@@ -144,8 +146,10 @@ bool RoutePlanner::Impl::segment_clear(Vec2 a, Vec2 b) const {
       yl = a.y + ab.y * (xl - a.x) / ab.x, yr = a.y + ab.y * (xr - a.x) / ab.x;
     }
     const double ylo = std::min(yl, yr) - kOnLineMm, yhi = std::max(yl, yr) + kOnLineMm;
-    const int j0 = std::clamp(static_cast<int>(std::floor((ylo - grid_y0) / cell_mm)), 0, grid_ny - 1);
-    const int j1 = std::clamp(static_cast<int>(std::floor((yhi - grid_y0) / cell_mm)), 0, grid_ny - 1);
+    const int j0 =
+        std::clamp(static_cast<int>(std::floor((ylo - grid_y0) / cell_mm)), 0, grid_ny - 1);
+    const int j1 =
+        std::clamp(static_cast<int>(std::floor((yhi - grid_y0) / cell_mm)), 0, grid_ny - 1);
     for (int jj = 0; jj <= j1 - j0; ++jj) {
       const int j = ab.y >= 0 ? j0 + jj : j1 - jj;
       const std::size_t c = static_cast<std::size_t>(j) * grid_nx + i;
@@ -187,7 +191,8 @@ void RoutePlanner::Impl::build_graph() {
   std::vector<Vec2> pos(n), to_prev(n), to_next(n);
   for (std::size_t k = 0; k < n; ++k) {
     const std::uint32_t i = node_vertex[k];
-    pos[k] = pts[i], to_prev[k] = pd_sub(pts[prev[i]], pts[i]), to_next[k] = pd_sub(pts[next[i]], pts[i]);
+    pos[k] = pts[i], to_prev[k] = pd_sub(pts[prev[i]], pts[i]),
+    to_next[k] = pd_sub(pts[next[i]], pts[i]);
   }
   auto tangent = [&](std::size_t k, Vec2 v, double tol) {
     const double sp = pd_cross(v, to_prev[k]), sn = pd_cross(v, to_next[k]);
@@ -200,7 +205,8 @@ void RoutePlanner::Impl::build_graph() {
       const Vec2 v = pd_sub(pos[w], pos[u]);
       const double l = pd_norm(v), tol = kOnLineMm * l;
       if (!tangent(u, v, tol) || !tangent(w, v, tol)) continue;
-      if (enters_obstacle(node_vertex[u], v) || enters_obstacle(node_vertex[w], {-v.x, -v.y})) continue;
+      if (enters_obstacle(node_vertex[u], v) || enters_obstacle(node_vertex[w], {-v.x, -v.y}))
+        continue;
       if (!segment_clear(pos[u], pos[w])) continue;
       edges.emplace_back(static_cast<std::uint32_t>(u), static_cast<std::uint32_t>(w));
       edges.emplace_back(static_cast<std::uint32_t>(w), static_cast<std::uint32_t>(u));

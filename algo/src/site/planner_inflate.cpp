@@ -176,7 +176,8 @@ bool make_free_space(const Site& site, const PlannerParams& params, FreeSpace* o
   const std::size_t obstacle_pieces = pieces.size();
   const std::vector<Vec2>& w = site.outline.vertices_mm;
   for (std::size_t i = 0; r > 0.0 && i < w.size(); ++i) {  // walls: a capsule per edge
-    pieces.push_back(to_bpoly(inflate_convex({w[i], w[(i + 1) % w.size()]}, r, params.arc_step_rad)));
+    pieces.push_back(
+        to_bpoly(inflate_convex({w[i], w[(i + 1) % w.size()]}, r, params.arc_step_rad)));
   }
   const BMulti obstacles_only =
       merge_pieces(std::vector<BPoly>(pieces.begin(), pieces.begin() + obstacle_pieces));

@@ -45,7 +45,8 @@ Route route_from_order(const RoutePlanner& planner, const vda5050::Order& order)
       }
       return out;
     }
-    out.waypoints_mm.insert(out.waypoints_mm.end(), leg.waypoints_mm.begin() + 1, leg.waypoints_mm.end());
+    out.waypoints_mm.insert(out.waypoints_mm.end(), leg.waypoints_mm.begin() + 1,
+                            leg.waypoints_mm.end());
     out.length_mm += leg.length_mm;
     if (pts.size() == 1) break;
   }

@@ -113,7 +113,8 @@ std::string RoutePlanner::Impl::blocked_reason(Vec2 p) const {
   bool inside = false;
   const double dw = distance_to_boundary_mm(outline, p, &inside);
   if (!inside) return format_point(p) + " is outside the site's outline";
-  std::snprintf(buf, sizeof buf, " is %.0f mm from the outline (walls), closer than %.0f mm", dw, r);
+  std::snprintf(buf, sizeof buf, " is %.0f mm from the outline (walls), closer than %.0f mm", dw,
+                r);
   return format_point(p) + buf;
 }
 
@@ -168,11 +169,13 @@ Route RoutePlanner::plan(Vec2 start_mm, Vec2 goal_mm) const {
   vis.dist = &dist, vis.to_goal = &to_goal, vis.best = &best, vis.best_node = &best_node;
   try {
     const auto index = boost::get(boost::vertex_index, m.graph);
-    boost::dijkstra_shortest_paths_no_init(
-        m.graph, sources.begin(), sources.end(), boost::make_iterator_property_map(pred.data(), index),
-        boost::make_iterator_property_map(dist.data(), index),
-        boost::get(&plan_detail::EdgeWeight::w, m.graph), index, std::less<double>(),
-        boost::closed_plus<double>(kInf), 0.0, vis, boost::make_iterator_property_map(color.data(), index));
+    boost::dijkstra_shortest_paths_no_init(m.graph, sources.begin(), sources.end(),
+                                           boost::make_iterator_property_map(pred.data(), index),
+                                           boost::make_iterator_property_map(dist.data(), index),
+                                           boost::get(&plan_detail::EdgeWeight::w, m.graph), index,
+                                           std::less<double>(), boost::closed_plus<double>(kInf),
+                                           0.0, vis,
+                                           boost::make_iterator_property_map(color.data(), index));
   } catch (const StopSearch&) {
   }
   if (!std::isfinite(best)) {

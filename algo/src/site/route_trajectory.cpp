@@ -42,7 +42,8 @@ Pose2 piece_pose(const Piece& p, double s) {
 }
 
 double piece_curvature(const Piece& p, double s) {
-  return p.length_mm > 0 ? p.k0_per_mm + (p.k1_per_mm - p.k0_per_mm) * s / p.length_mm : p.k0_per_mm;
+  return p.length_mm > 0 ? p.k0_per_mm + (p.k1_per_mm - p.k0_per_mm) * s / p.length_mm
+                         : p.k0_per_mm;
 }
 
 // A blend turning by delta (signed) from heading 0 at the origin: its pieces (relative), and the
@@ -110,7 +111,8 @@ bool RouteTrajectoryBuilder::build(const std::vector<Vec2>& w, const DriveLimits
       return false;
     }
     // Room on each side: all of an end segment, half of a segment shared with another corner.
-    const double room = std::min(i == 1 ? seg[0] : 0.5 * seg[i - 1], i + 2 == n ? seg[i] : 0.5 * seg[i]);
+    const double room =
+        std::min(i == 1 ? seg[0] : 0.5 * seg[i - 1], i + 2 == n ? seg[i] : 0.5 * seg[i]);
     double lc = pure_arc[i] ? 0.0 : lim.clothoid_length_mm;
     Blend b = make_blend(delta, lim.max_curvature_per_mm, lc);
     for (int it = 0; it < 40 && b.tangent_mm > room && lc > 1e-3; ++it) {
@@ -140,7 +142,8 @@ bool RouteTrajectoryBuilder::build(const std::vector<Vec2>& w, const DriveLimits
     p.start = {w[i].x + c * tan_len[i], w[i].y + sn * tan_len[i], head[i]};
     if (p.length_mm > 0.0 || (i == 0 && n == 2)) out->pieces.push_back(p), s += p.length_mm;
     if (i + 2 < n && !blends[i + 1].pieces.empty()) {
-      const Pose2 origin{w[i + 1].x - c * tan_len[i + 1], w[i + 1].y - sn * tan_len[i + 1], head[i]};
+      const Pose2 origin{w[i + 1].x - c * tan_len[i + 1], w[i + 1].y - sn * tan_len[i + 1],
+                         head[i]};
       for (Piece q : blends[i + 1].pieces) {
         q.start = compose(origin, q.start), q.s0_mm = s;
         out->pieces.push_back(q), s += q.length_mm;
@@ -171,8 +174,10 @@ void RouteTrajectoryBuilder::profile(const DriveLimits& lim, RouteTrajectory* ou
     double k = 0.0;
     for (const Piece& p : out->pieces) {
       if (s >= p.s0_mm - 1e-9 && s <= p.s0_mm + p.length_mm + 1e-9) {
-        const bool starts = std::abs(s - p.s0_mm) < 1e-9, ends = std::abs(s - p.s0_mm - p.length_mm) < 1e-9;
-        if ((side < 0 && starts && p.length_mm > 0) || (side > 0 && ends && p.length_mm > 0)) continue;
+        const bool starts = std::abs(s - p.s0_mm) < 1e-9,
+                   ends = std::abs(s - p.s0_mm - p.length_mm) < 1e-9;
+        if ((side < 0 && starts && p.length_mm > 0) || (side > 0 && ends && p.length_mm > 0))
+          continue;
         k = std::max(k, std::abs(piece_curvature(p, s - p.s0_mm)));
       }
     }
@@ -189,10 +194,12 @@ void RouteTrajectoryBuilder::profile(const DriveLimits& lim, RouteTrajectory* ou
   }
   v.front() = 0.0, v.back() = 0.0;
   for (std::size_t i = 1; i < n; ++i) {
-    v[i] = std::min(v[i], std::sqrt(v[i - 1] * v[i - 1] + 2e-3 * lim.accel_mps2 * (ss[i] - ss[i - 1])));
+    v[i] = std::min(v[i],
+                    std::sqrt(v[i - 1] * v[i - 1] + 2e-3 * lim.accel_mps2 * (ss[i] - ss[i - 1])));
   }
   for (std::size_t i = n - 1; i-- > 0;) {
-    v[i] = std::min(v[i], std::sqrt(v[i + 1] * v[i + 1] + 2e-3 * lim.accel_mps2 * (ss[i + 1] - ss[i])));
+    v[i] = std::min(v[i],
+                    std::sqrt(v[i + 1] * v[i + 1] + 2e-3 * lim.accel_mps2 * (ss[i + 1] - ss[i])));
   }
   std::vector<double> t(n, 0.0);
   for (std::size_t i = 1; i < n; ++i) {
@@ -206,7 +213,8 @@ void RouteTrajectoryBuilder::profile(const DriveLimits& lim, RouteTrajectory* ou
 bool RouteTrajectory::make(const Route& route, const DriveLimits& limits, RouteTrajectory* out,
                            std::string* error) {
   if (route.status != PlanStatus::kOk || route.waypoints_mm.empty()) {
-    *error = "trajectory: the route has no waypoints (" + std::string(to_string(route.status)) + ")";
+    *error =
+        "trajectory: the route has no waypoints (" + std::string(to_string(route.status)) + ")";
     return false;
   }
   if (!(limits.speed_mps > 0) || !(limits.accel_mps2 > 0) || !(limits.lateral_accel_mps2 > 0) ||
@@ -258,9 +266,10 @@ bool RouteTrajectory::make_checked(const Route& route, const DriveLimits& limits
     }
     if (!RouteTrajectoryBuilder::build(w, limits, pure_arc, out, error)) return false;
   }
-  *error = "trajectory: a rounded corner leaves the collision-free space even as a plain arc "
-           "at max curvature (max deviation " +
-           std::to_string(static_cast<int>(out->max_deviation_mm_)) + " mm)";
+  *error =
+      "trajectory: a rounded corner leaves the collision-free space even as a plain arc "
+      "at max curvature (max deviation " +
+      std::to_string(static_cast<int>(out->max_deviation_mm_)) + " mm)";
   return false;
 }
 
@@ -281,7 +290,8 @@ TrajectorySample RouteTrajectory::at(double t_s) const {
   }
   std::size_t k = static_cast<std::size_t>(
       std::upper_bound(pieces.begin(), pieces.end(), s,
-                       [](double x, const Piece& p) { return x < p.s0_mm; }) - pieces.begin());
+                       [](double x, const Piece& p) { return x < p.s0_mm; }) -
+      pieces.begin());
   k = k == 0 ? 0 : k - 1;
   const Piece& p = pieces[k];
   const double u = std::clamp(s - p.s0_mm, 0.0, p.length_mm);

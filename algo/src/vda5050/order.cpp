@@ -129,7 +129,8 @@ bool order_sequence_ok(const Order& o, std::string* error) {
   const std::uint32_t base = o.nodes[0].sequence_id;
   for (std::size_t i = 0; i < o.nodes.size(); ++i) {
     if (o.nodes[i].sequence_id != base + 2 * i || o.nodes[i].sequence_id % 2 != 0) {
-      *error = "nodes[" + std::to_string(i) + "].sequenceId: expected " + std::to_string(base + 2 * i);
+      *error =
+          "nodes[" + std::to_string(i) + "].sequenceId: expected " + std::to_string(base + 2 * i);
       return false;
     }
   }
@@ -182,13 +183,18 @@ Order order_from_waypoints(const std::vector<Vec2>& w, const std::string& map_id
 }
 
 std::string encode_order(const Order& o) {
-  json j = {{"headerId", o.header_id},     {"timestamp", o.timestamp},
-            {"version", o.version},        {"manufacturer", o.manufacturer},
-            {"serialNumber", o.serial_number}, {"orderId", o.order_id},
+  json j = {{"headerId", o.header_id},
+            {"timestamp", o.timestamp},
+            {"version", o.version},
+            {"manufacturer", o.manufacturer},
+            {"serialNumber", o.serial_number},
+            {"orderId", o.order_id},
             {"orderUpdateId", o.order_update_id}};
   json nodes = json::array(), edges = json::array();
   for (const OrderNode& n : o.nodes) {
-    json jn = {{"nodeId", n.node_id}, {"sequenceId", n.sequence_id}, {"released", n.released},
+    json jn = {{"nodeId", n.node_id},
+               {"sequenceId", n.sequence_id},
+               {"released", n.released},
                {"actions", json::array()}};
     if (n.has_position) {
       jn["nodePosition"] = {{"x", n.x_m}, {"y", n.y_m}, {"mapId", n.map_id}};
@@ -197,8 +203,11 @@ std::string encode_order(const Order& o) {
     nodes.push_back(jn);
   }
   for (const OrderEdge& e : o.edges) {
-    edges.push_back({{"edgeId", e.edge_id}, {"sequenceId", e.sequence_id}, {"released", e.released},
-                     {"startNodeId", e.start_node_id}, {"endNodeId", e.end_node_id},
+    edges.push_back({{"edgeId", e.edge_id},
+                     {"sequenceId", e.sequence_id},
+                     {"released", e.released},
+                     {"startNodeId", e.start_node_id},
+                     {"endNodeId", e.end_node_id},
                      {"actions", json::array()}});
   }
   j["nodes"] = nodes;

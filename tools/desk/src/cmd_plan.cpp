@@ -53,9 +53,10 @@ std::string trajectory_csv(const site::RouteTrajectory& tr, double dt_s) {
 }  // namespace
 
 int plan_command(int argc, char** argv) {
-  CLI::App app{"Plan a route around a site's obstacles (visibility graph, Dijkstra) and the "
-               "drivable trajectory along it. Prints length and time",
-               "agvloc-desk plan"};
+  CLI::App app{
+      "Plan a route around a site's obstacles (visibility graph, Dijkstra) and the "
+      "drivable trajectory along it. Prints length and time",
+      "agvloc-desk plan"};
   std::string site_path, from_text, to_text, csv_path, wp_path, svg_path, order_path;
   std::string order_id = "route-1", map_id, manufacturer = "agvloc", serial = "agv-1";
   double radius_mm = -1, clearance_mm = -1, dt_s = 0.1;
@@ -63,10 +64,12 @@ int plan_command(int argc, char** argv) {
   app.add_option("--site", site_path, "The site file (site.yaml)")->required();
   app.add_option("--from", from_text, "Start X,Y in mm (site frame)")->required();
   app.add_option("--to", to_text, "Goal X,Y in mm")->required();
-  app.add_option("--radius-mm", radius_mm, "Vehicle radius (default: the fleet's first AGV, else 400)");
+  app.add_option("--radius-mm", radius_mm,
+                 "Vehicle radius (default: the fleet's first AGV, else 400)");
   app.add_option("--clearance-mm", clearance_mm, "Kept beyond the radius (default: the site's)");
   app.add_option("--speed", lim.speed_mps, "Top speed, m/s")->capture_default_str();
-  app.add_option("--accel", lim.accel_mps2, "Longitudinal acceleration, m/s^2")->capture_default_str();
+  app.add_option("--accel", lim.accel_mps2, "Longitudinal acceleration, m/s^2")
+      ->capture_default_str();
   app.add_option("--lateral-accel", lim.lateral_accel_mps2, "Lateral acceleration, m/s^2")
       ->capture_default_str();
   app.add_option("--min-radius-mm", lim.max_curvature_per_mm, "Tightest blend radius, mm")
@@ -78,7 +81,8 @@ int plan_command(int argc, char** argv) {
   app.add_option("--order", order_path, "Write the route as a VDA 5050 2.1.0 order (JSON)");
   app.add_option("--order-id", order_id, "orderId of the order")->capture_default_str();
   app.add_option("--map-id", map_id, "mapId of the order's nodes (default: the site's name)");
-  app.add_option("--manufacturer", manufacturer, "manufacturer of the order")->capture_default_str();
+  app.add_option("--manufacturer", manufacturer, "manufacturer of the order")
+      ->capture_default_str();
   app.add_option("--serial", serial, "serialNumber of the order")->capture_default_str();
   try {
     app.parse(argc, argv);
@@ -101,7 +105,8 @@ int plan_command(int argc, char** argv) {
     return 2;
   }
   site::PlannerParams params;
-  params.vehicle_radius_mm = radius_mm >= 0 ? radius_mm : (site.fleet.empty() ? 400.0 : site.fleet[0].radius_mm);
+  params.vehicle_radius_mm =
+      radius_mm >= 0 ? radius_mm : (site.fleet.empty() ? 400.0 : site.fleet[0].radius_mm);
   params.clearance_mm = clearance_mm >= 0 ? clearance_mm : site.clearance_mm;
   site::RoutePlanner planner, collision;
   std::string error;
@@ -111,7 +116,8 @@ int plan_command(int argc, char** argv) {
   }
   const site::Route route = planner.plan(from, to);
   if (route.status != site::PlanStatus::kOk) {
-    std::fprintf(stderr, "agvloc-desk plan: %s: %s\n", site::to_string(route.status), route.error.c_str());
+    std::fprintf(stderr, "agvloc-desk plan: %s: %s\n", site::to_string(route.status),
+                 route.error.c_str());
     return 2;
   }
   site::PlannerParams bare = params;
@@ -123,10 +129,11 @@ int plan_command(int argc, char** argv) {
                  route.length_mm * 1e-3, error.c_str());
     return 1;
   }
-  std::printf("route: %.3f m, %zu waypoints; drivable path %.3f m in %.2f s (corners cut in by "
-              "at most %.0f mm of the %.0f mm clearance)\n",
-              route.length_mm * 1e-3, route.waypoints_mm.size(), tr.length_mm() * 1e-3,
-              tr.duration_s(), tr.max_corner_deviation_mm(), params.clearance_mm);
+  std::printf(
+      "route: %.3f m, %zu waypoints; drivable path %.3f m in %.2f s (corners cut in by "
+      "at most %.0f mm of the %.0f mm clearance)\n",
+      route.length_mm * 1e-3, route.waypoints_mm.size(), tr.length_mm() * 1e-3, tr.duration_s(),
+      tr.max_corner_deviation_mm(), params.clearance_mm);
   bool ok = true;
   if (!csv_path.empty()) ok &= write_text(csv_path, trajectory_csv(tr, dt_s));
   if (!wp_path.empty()) {
@@ -138,12 +145,14 @@ int plan_command(int argc, char** argv) {
     }
     ok &= write_text(wp_path, text);
   }
-  if (!svg_path.empty()) ok &= write_text(svg_path, site_svg(site, {tr.polyline(50.0)}, planner.inflated()));
+  if (!svg_path.empty())
+    ok &= write_text(svg_path, site_svg(site, {tr.polyline(50.0)}, planner.inflated()));
   if (!order_path.empty()) {
     vda5050::Order header;
-    header.timestamp = vda5050::iso8601_utc_ms(std::chrono::duration_cast<std::chrono::nanoseconds>(
-                                                   std::chrono::system_clock::now().time_since_epoch())
-                                                   .count());
+    header.timestamp =
+        vda5050::iso8601_utc_ms(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                    std::chrono::system_clock::now().time_since_epoch())
+                                    .count());
     header.manufacturer = manufacturer, header.serial_number = serial, header.order_id = order_id;
     const vda5050::Order order = vda5050::order_from_waypoints(
         route.waypoints_mm, map_id.empty() ? site.name : map_id, header);

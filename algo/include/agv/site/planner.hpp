@@ -81,8 +81,8 @@ Route route_from_order(const RoutePlanner& planner, const vda5050::Order& order)
 // A drivable, time-parametrised trajectory along a route.
 struct DriveLimits {
   double speed_mps = 1.0;
-  double accel_mps2 = 0.5;         // longitudinal, also braking
-  double lateral_accel_mps2 = 0.5;  // limits the speed in blends
+  double accel_mps2 = 0.5;                    // longitudinal, also braking
+  double lateral_accel_mps2 = 0.5;            // limits the speed in blends
   double max_curvature_per_mm = 1.0 / 300.0;  // tightest blend radius the vehicle drives
   double clothoid_length_mm = 200.0;          // each transition of a clothoid-arc-clothoid blend
 };
