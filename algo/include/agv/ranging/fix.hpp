@@ -1,0 +1,149 @@
+// Vehicle pose from landmarks seen at a distance, without a prior: two landmarks by intersecting
+// two range circles (the solution chosen by the image left/right order or by the bearing
+// difference), three or more by linear trilateration (Cramer's rule on the differenced circle
+// equations), then a Gauss-Newton weighted least squares over ranges and bearings that gives the
+// covariance and a chi-square consistency check. Derivations and measured figures:
+// docs/design/ranging.md.
+#pragma once
+
+#include <Eigen/Dense>
+#include <limits>
+#include <span>
+
+#include "agv/common/geometry.hpp"
+
+namespace agv::ranging {
+
+// One landmark seen from the vehicle: its surveyed floor position in W, and the measured
+// horizontal range and bearing from the vehicle reference point in V (RangeBearing), with their
+// 2x2 covariance over (range_mm, bearing_rad).
+struct Observation {
+  Vec2 landmark_mm;
+  double range_mm = 0.0;
+  double bearing_rad = 0.0;
+  Eigen::Matrix2d cov = Eigen::Matrix2d::Identity();
+};
+
+enum class FixStatus {
+  kOk,
+  kTooFew,            // fewer than two landmarks: one never fixes a pose
+  kNoIntersection,    // two range circles miss each other by more than the noise allows
+  kShallowGeometry,   // the circles cross (or the rays meet) at too small an angle
+  kCollinear,         // three or more landmarks on (nearly) one line: the linear system is singular
+  kAmbiguous,         // the two circle solutions cannot be told apart
+  kInconsistent,      // the measurements do not fit any pose (chi-square over the gate): a wrong
+                      // map entry or a misidentified landmark
+  kUnverifiable,      // consistent, but a wrong map entry could hide in it: one landmark's map
+                      // error that keeps chi-square under the gate could move the pose further
+                      // than max_hidden_map_shift_sigma of its own covariance
+};
+const char* fix_status_name(FixStatus status);
+
+struct FixOptions {
+  // Smallest angle between the two range circles at the solution (equal to the angle the two
+  // landmarks subtend there, or its supplement). The position error across the bisector grows as
+  // 1 / sin(angle): 15 degrees amplifies the range noise about 3.9 times.
+  double min_crossing_angle_rad = deg_to_rad(15.0);
+  // Circles that miss each other by less than this many standard deviations of the range sum
+  // (or difference) are taken as touching: their one solution is the closest point.
+  double intersection_gate_sigma = 3.0;
+  // Landmarks are collinear when the normalised trilateration determinant (the sine of the angle
+  // between the baselines, for three) is below this.
+  double min_baseline_sine = 0.05;
+  // A bearing-difference choice needs the runner-up to be this many sigma worse than the winner.
+  double ambiguity_gate_sigma = 3.0;
+  // Consistency gate: chi-square above its (Wilson-Hilferty) quantile for the standard normal
+  // quantile chi2_gate_z (3.09: probability 0.999) refuses the fix.
+  double chi2_gate_z = 3.09;
+  int max_iterations = 20;
+  // Map check (refine_fix): the largest pose shift, in sigmas of the fix's own covariance, that a
+  // wrong map position of any one landmark could cause while chi-square stays under its gate.
+  // Fixes above it are kUnverifiable. Off by default: two landmarks (one degree of freedom) can
+  // never check the map (the figure is then 1e4 and more), three or more give 10 to 200 on
+  // ordinary geometry; a finite value such as 1000 therefore means "never from two landmarks".
+  double max_hidden_map_shift_sigma = std::numeric_limits<double>::infinity();
+};
+
+struct FixResult {
+  FixStatus status = FixStatus::kTooFew;
+  Pose2 pose;                                         // V in W
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();      // over (x_mm, y_mm, theta_rad)
+  double chi2 = 0.0;                                  // weighted squared residuals at pose
+  int dof = 0;                                        // 2 * landmarks - 3
+  int iterations = 0;                                 // Gauss-Newton iterations taken
+  bool touching = false;                              // two circles taken as touching
+  double hidden_map_shift_sigma = 0.0;                // see FixOptions::max_hidden_map_shift_sigma
+};
+
+// Two circles: the solutions (up to two) of |p - c0| = r0, |p - c1| = r1. solutions[0] lies to
+// the left of the directed line c0 -> c1, solutions[1] to its right. Circles missing each other
+// by at most tolerance_mm are taken as touching (count 1, the closest point, touching true).
+struct CircleCrossing {
+  int count = 0;
+  Vec2 solutions[2];
+  bool touching = false;
+};
+CircleCrossing intersect_circles(Vec2 c0, double r0_mm, Vec2 c1, double r1_mm, double tolerance_mm);
+
+// The image left/right rule for two landmarks seen in one forward image: if the landmark with the
+// smaller x appears left of the other, the vehicle is at the lower (smaller y) solution, else the
+// upper; for landmarks with equal x, the landmark with the larger y appearing on the left puts the
+// vehicle at the left (smaller x) solution. Returns the index into crossing.solutions, or -1
+// when the crossing has fewer than two solutions or the two are at the same height and column.
+int choose_by_left_right(Vec2 l0, Vec2 l1, bool l0_left_of_l1, const CircleCrossing& crossing);
+
+// The bearing-difference rule: each solution predicts the bearing difference bearing1 - bearing0
+// (the mirror solution predicts its negative); the one nearer the observed difference wins if the
+// other is ambiguity_gate_sigma sigmas worse. Bearings in V are comparable across cameras, which
+// image columns are not. Returns the index, or -1 (ambiguous).
+int choose_by_bearing_difference(Vec2 l0, Vec2 l1, double bearing_difference_rad,
+                                 double sigma_difference_rad, const CircleCrossing& crossing,
+                                 double gate_sigma);
+
+// Heading from the bearing to one landmark seen from a known position: the direction to the
+// landmark in W minus the bearing in V.
+double heading_from_bearing_rad(Vec2 position_mm, Vec2 landmark_mm, double bearing_rad);
+// From all: circular mean of the per-landmark headings, each weighted by the inverse of its
+// variance (bearing variance plus the position uncertainty across the line of sight,
+// position_sigma_mm / range).
+double heading_from_bearings_rad(Vec2 position_mm, std::span<const Observation> obs,
+                                 double position_sigma_mm);
+
+// Linear trilateration from three or more ranges: subtract the first circle equation from the
+// others and solve the 2x2 normal equations by determinants (exactly the three-landmark formula
+// for three). kCollinear when the normalised determinant is below min_baseline_sine.
+FixStatus trilaterate(std::span<const Observation> obs, const FixOptions& opt, Vec2* position_mm);
+
+// Gauss-Newton weighted least squares over all ranges and bearings from init; fills pose, the
+// covariance (J^T W J)^-1, chi2, dof and iterations, and checks the chi-square gate.
+FixResult refine_fix(std::span<const Observation> obs, const Pose2& init, const FixOptions& opt);
+
+// The map check's figure for a pose with information matrix J^T W J and chi-square gate: the
+// largest sqrt(pose NEES) over single-landmark map errors whose chi-square rise is the gate
+// (Baarda's external reliability, per landmark, worst direction). Infinite when some map error
+// raises chi-square not at all.
+double hidden_map_shift_sigma(std::span<const Observation> obs, const Pose2& pose,
+                              const Eigen::Matrix3d& information, double gate);
+
+// Chi-square at a given pose and its gate for dof degrees of freedom.
+double fix_chi2(std::span<const Observation> obs, const Pose2& pose);
+double chi2_gate(int dof, double z);
+
+enum class TwoLandmarkRule { kLeftRight, kBearingDifference };
+
+// Two landmarks without refinement: circle intersection, the rule's choice, heading from both
+// bearings; cov by first-order propagation of the measurement covariance through that
+// computation. l0_left_of_l1 is used by kLeftRight only.
+FixResult fix_two_circles(const Observation& o0, const Observation& o1, TwoLandmarkRule rule,
+                          bool l0_left_of_l1, const FixOptions& opt);
+
+// The three-or-more-landmark fix without refinement: trilateration, heading from all bearings,
+// cov by first-order propagation.
+FixResult fix_trilateration(std::span<const Observation> obs, const FixOptions& opt);
+
+// The fix to initialise from: one landmark: kTooFew; two: circles with the bearing-difference
+// rule; three or more: trilateration; then refine_fix. Geometry and consistency refusals keep the
+// status and leave the pose unset.
+FixResult fix_from_landmarks(std::span<const Observation> obs, const FixOptions& opt);
+
+}  // namespace agv::ranging

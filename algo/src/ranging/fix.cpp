@@ -1,0 +1,262 @@
+// Three-or-more-landmark fixes (linear trilateration), the Gauss-Newton refinement over ranges and
+// bearings, the chi-square check, and the fix to initialise from.
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <vector>
+
+#include "agv/ranging/fix.hpp"
+
+namespace agv::ranging {
+
+namespace {
+
+// Predicted (range, bearing) of a landmark from pose, with the 2x3 Jacobian over (x, y, theta).
+bool fix_predict(const Observation& o, const Eigen::Vector3d& s, Eigen::Vector2d* h,
+                 Eigen::Matrix<double, 2, 3>* J) {
+  const double dx = o.landmark_mm.x - s.x(), dy = o.landmark_mm.y - s.y();
+  const double r2 = dx * dx + dy * dy;
+  if (!(r2 > 0.0)) return false;
+  const double r = std::sqrt(r2);
+  *h = Eigen::Vector2d(r, std::atan2(dy, dx) - s.z());
+  if (J) *J << -dx / r, -dy / r, 0.0, dy / r2, -dx / r2, -1.0;
+  return true;
+}
+
+Eigen::Vector2d fix_residual(const Observation& o, const Eigen::Vector2d& h) {
+  return {o.range_mm - h.x(), wrap_angle_rad(o.bearing_rad - h.y())};
+}
+
+// The three-or-more-landmark pose as a function of the measurements (r_i, b_i), for the numeric
+// Jacobian of fix_trilateration.
+bool fix_trilateration_pose(std::span<const Observation> obs, const std::vector<double>& z,
+                            const FixOptions& opt, Eigen::Vector3d* pose) {
+  std::vector<Observation> o(obs.begin(), obs.end());
+  for (std::size_t i = 0; i < o.size(); ++i) {
+    o[i].range_mm = z[2 * i];
+    o[i].bearing_rad = z[2 * i + 1];
+  }
+  Vec2 p;
+  if (trilaterate(o, opt, &p) != FixStatus::kOk) return false;
+  *pose = Eigen::Vector3d(p.x, p.y, heading_from_bearings_rad(p, o, 0.0));
+  return true;
+}
+
+}  // namespace
+
+double hidden_map_shift_sigma(std::span<const Observation> obs, const Pose2& pose,
+                              const Eigen::Matrix3d& information, double gate) {
+  const Eigen::Vector3d s(pose.x_mm, pose.y_mm, pose.theta_rad);
+  const Eigen::Matrix3d H_inv = information.inverse();
+  double worst = 0.0;
+  for (const Observation& o : obs) {
+    Eigen::Vector2d h;
+    Eigen::Matrix<double, 2, 3> J;
+    if (!fix_predict(o, s, &h, &J)) continue;
+    const Eigen::Matrix2d W = o.cov.inverse();
+    // Moving the landmark moves its (range, bearing) as moving the vehicle the other way does.
+    const Eigen::Matrix2d A = -J.leftCols<2>();
+    const Eigen::Matrix<double, 3, 2> G = J.transpose() * W * A;
+    const Eigen::Matrix2d shift = G.transpose() * H_inv * G;           // pose NEES per map error
+    const Eigen::Matrix2d seen = A.transpose() * W * A - shift;        // chi-square per map error
+    // Largest shift / seen over map-error directions: a 2x2 generalised eigenvalue.
+    Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::Matrix2d> eig;
+    const Eigen::Matrix2d seen_reg = seen + 1e-12 * seen.trace() * Eigen::Matrix2d::Identity();
+    eig.compute(shift, seen_reg);
+    if (eig.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
+    worst = std::max(worst, eig.eigenvalues().maxCoeff());
+  }
+  return std::sqrt(worst * gate);
+}
+
+const char* fix_status_name(FixStatus status) {
+  switch (status) {
+    case FixStatus::kOk: return "ok";
+    case FixStatus::kTooFew: return "too_few";
+    case FixStatus::kNoIntersection: return "no_intersection";
+    case FixStatus::kShallowGeometry: return "shallow_geometry";
+    case FixStatus::kCollinear: return "collinear";
+    case FixStatus::kAmbiguous: return "ambiguous";
+    case FixStatus::kInconsistent: return "inconsistent";
+    case FixStatus::kUnverifiable: return "unverifiable";
+  }
+  return "?";
+}
+
+double chi2_gate(int dof, double z) {
+  if (dof <= 0) return 0.0;
+  const double k = dof;
+  const double c = 1.0 - 2.0 / (9.0 * k) + z * std::sqrt(2.0 / (9.0 * k));
+  return k * c * c * c;
+}
+
+double fix_chi2(std::span<const Observation> obs, const Pose2& pose) {
+  const Eigen::Vector3d s(pose.x_mm, pose.y_mm, pose.theta_rad);
+  double chi2 = 0.0;
+  for (const Observation& o : obs) {
+    Eigen::Vector2d h;
+    if (!fix_predict(o, s, &h, nullptr)) continue;
+    const Eigen::Vector2d r = fix_residual(o, h);
+    chi2 += r.dot(o.cov.ldlt().solve(r));
+  }
+  return chi2;
+}
+
+FixStatus trilaterate(std::span<const Observation> obs, const FixOptions& opt, Vec2* position_mm) {
+  if (obs.size() < 3) return FixStatus::kTooFew;
+  // Coordinates relative to the first landmark: the same equations, without squaring the large
+  // absolute coordinates (which would cost about eight digits at warehouse scale).
+  const Vec2 o = obs[0].landmark_mm;
+  const double d0 = obs[0].range_mm;
+  auto row = [&](std::size_t i, double* a, double* b, double* c) {
+    const double xi = obs[i].landmark_mm.x - o.x, yi = obs[i].landmark_mm.y - o.y;
+    const double di = obs[i].range_mm;
+    *a = 2.0 * xi;
+    *b = 2.0 * yi;
+    *c = d0 * d0 - di * di + xi * xi + yi * yi;
+  };
+  double x = 0.0, y = 0.0;
+  if (obs.size() == 3) {
+    double a1, b1, c1, a2, b2, c2;
+    row(1, &a1, &b1, &c1);
+    row(2, &a2, &b2, &c2);
+    const double D = a1 * b2 - a2 * b1;
+    const double norm = std::hypot(a1, b1) * std::hypot(a2, b2);
+    if (!(norm > 0.0) || std::abs(D) < opt.min_baseline_sine * norm) return FixStatus::kCollinear;
+    x = (c1 * b2 - c2 * b1) / D;
+    y = (a1 * c2 - a2 * c1) / D;
+  } else {
+    // Normal equations of the over-determined system, solved by the same determinants.
+    double saa = 0, sab = 0, sbb = 0, sac = 0, sbc = 0;
+    for (std::size_t i = 1; i < obs.size(); ++i) {
+      double a, b, c;
+      row(i, &a, &b, &c);
+      saa += a * a;
+      sab += a * b;
+      sbb += b * b;
+      sac += a * c;
+      sbc += b * c;
+    }
+    const double D = saa * sbb - sab * sab;
+    const double half_trace = 0.5 * (saa + sbb);
+    if (!(half_trace > 0.0) || std::sqrt(std::max(0.0, D)) < opt.min_baseline_sine * half_trace) {
+      return FixStatus::kCollinear;
+    }
+    x = (sac * sbb - sbc * sab) / D;
+    y = (saa * sbc - sab * sac) / D;
+  }
+  *position_mm = {o.x + x, o.y + y};
+  return FixStatus::kOk;
+}
+
+FixResult fix_trilateration(std::span<const Observation> obs, const FixOptions& opt) {
+  FixResult out;
+  out.dof = 2 * static_cast<int>(obs.size()) - 3;
+  Vec2 p;
+  out.status = trilaterate(obs, opt, &p);
+  if (out.status != FixStatus::kOk) return out;
+  const std::size_t m = 2 * obs.size();
+  std::vector<double> z(m);
+  Eigen::MatrixXd R = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(m), static_cast<Eigen::Index>(m));
+  for (std::size_t i = 0; i < obs.size(); ++i) {
+    z[2 * i] = obs[i].range_mm;
+    z[2 * i + 1] = obs[i].bearing_rad;
+    R.block<2, 2>(static_cast<Eigen::Index>(2 * i), static_cast<Eigen::Index>(2 * i)) = obs[i].cov;
+  }
+  Eigen::Vector3d pose;
+  fix_trilateration_pose(obs, z, opt, &pose);
+  out.pose = {pose.x(), pose.y(), pose.z()};
+  out.chi2 = fix_chi2(obs, out.pose);
+  Eigen::MatrixXd J(3, static_cast<Eigen::Index>(m));
+  for (std::size_t k = 0; k < m; ++k) {
+    const double step = (k % 2 == 0) ? 1e-6 * std::max(1.0, z[k]) : 1e-7;
+    std::vector<double> zp = z, zm = z;
+    zp[k] += step;
+    zm[k] -= step;
+    Eigen::Vector3d fp, fm;
+    if (!fix_trilateration_pose(obs, zp, opt, &fp) || !fix_trilateration_pose(obs, zm, opt, &fm)) {
+      out.status = FixStatus::kCollinear;
+      return out;
+    }
+    Eigen::Vector3d d = fp - fm;
+    d.z() = wrap_angle_rad(d.z());
+    J.col(static_cast<Eigen::Index>(k)) = d / (2.0 * step);
+  }
+  out.cov = J * R * J.transpose();
+  return out;
+}
+
+FixResult refine_fix(std::span<const Observation> obs, const Pose2& init, const FixOptions& opt) {
+  FixResult out;
+  out.dof = 2 * static_cast<int>(obs.size()) - 3;
+  if (obs.size() < 2) return out;
+  Eigen::Vector3d s(init.x_mm, init.y_mm, init.theta_rad);
+  Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+  bool converged = false;
+  for (int it = 0; it <= opt.max_iterations; ++it) {
+    H.setZero();
+    Eigen::Vector3d g = Eigen::Vector3d::Zero();
+    for (const Observation& o : obs) {
+      Eigen::Vector2d h;
+      Eigen::Matrix<double, 2, 3> J;
+      if (!fix_predict(o, s, &h, &J)) {
+        out.status = FixStatus::kShallowGeometry;
+        return out;
+      }
+      const Eigen::Matrix2d W = o.cov.inverse();
+      H += J.transpose() * W * J;
+      g += J.transpose() * W * fix_residual(o, h);
+    }
+    if (converged || it == opt.max_iterations) break;
+    const Eigen::Vector3d step = H.ldlt().solve(g);
+    if (!step.allFinite()) break;
+    s += step;
+    s.z() = wrap_angle_rad(s.z());
+    out.iterations = it + 1;
+    // One more pass after a negligible step so that H is evaluated at the final state.
+    converged = std::hypot(step.x(), step.y()) < 1e-10 && std::abs(step.z()) < 1e-13;
+  }
+  out.pose = {s.x(), s.y(), s.z()};
+  out.chi2 = fix_chi2(obs, out.pose);
+  // A rank-deficient information matrix (the landmarks and the vehicle on one line, ranges only
+  // informative along it) has no covariance to report.
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(H);
+  if (eig.info() != Eigen::Success || !(eig.eigenvalues().minCoeff() > 1e-12 * eig.eigenvalues().maxCoeff())) {
+    out.status = FixStatus::kShallowGeometry;
+    return out;
+  }
+  out.cov = H.inverse();
+  const double gate = chi2_gate(out.dof, opt.chi2_gate_z);
+  out.hidden_map_shift_sigma = hidden_map_shift_sigma(obs, out.pose, H, gate);
+  if (out.dof > 0 && out.chi2 > gate) {
+    out.status = FixStatus::kInconsistent;
+  } else if (out.hidden_map_shift_sigma > opt.max_hidden_map_shift_sigma) {
+    out.status = FixStatus::kUnverifiable;
+  } else {
+    out.status = FixStatus::kOk;
+  }
+  return out;
+}
+
+FixResult fix_from_landmarks(std::span<const Observation> obs, const FixOptions& opt) {
+  FixResult seed;
+  if (obs.size() < 2) {
+    seed.status = FixStatus::kTooFew;
+    return seed;
+  }
+  if (obs.size() == 2) {
+    seed = fix_two_circles(obs[0], obs[1], TwoLandmarkRule::kBearingDifference, false, opt);
+  } else {
+    Vec2 p;
+    seed.status = trilaterate(obs, opt, &p);
+    if (seed.status == FixStatus::kOk) {
+      seed.pose = {p.x, p.y, heading_from_bearings_rad(p, obs, 0.0)};
+    }
+  }
+  if (seed.status != FixStatus::kOk) return seed;
+  FixResult out = refine_fix(obs, seed.pose, opt);
+  out.touching = seed.touching;
+  return out;
+}
+
+}  // namespace agv::ranging
