@@ -64,6 +64,17 @@ if ! command -v npm >/dev/null 2>&1; then
   $SUDO apt-get install -y -q --no-install-recommends nodejs npm
 fi
 
+# The VDA 5050 2.0.0 interop test's master control (tests/vda5050/interop): vda-5050-lib as pinned
+# in its package-lock.json, into its ignored node_modules; as the invoking user under sudo, so that
+# the test can refresh it.
+interop="$(cd "$(dirname "$0")/../tests/vda5050/interop" && pwd)"
+if [ ! -f "$interop/node_modules/.package-lock.json" ] ||
+   [ "$interop/package-lock.json" -nt "$interop/node_modules/.package-lock.json" ]; then
+  as_user=()
+  if [ "$(id -u)" -eq 0 ] && [ -n "${SUDO_USER:-}" ]; then as_user=(sudo -u "$SUDO_USER"); fi
+  (cd "$interop" && "${as_user[@]}" npm ci --no-audit --no-fund --loglevel=error)
+fi
+
 if [ "${1:-}" = "--cross" ]; then
   "$(dirname "$0")/../toolchain/prepare-aarch64.sh"
 fi

@@ -107,7 +107,7 @@ MqttPublisher::~MqttPublisher() { stop(); }
 
 bool MqttPublisher::start(std::string* error) {
   if (!vda5050::parse_version(cfg_.version, &id_.version)) {
-    *error = "vda5050.version: " + cfg_.version + " is not 2.1.0 or 3.0.0";
+    *error = "vda5050.version: " + cfg_.version + " is not 2.0.0, 2.1.0 or 3.0.0";
     return false;
   }
   if (!cfg_.password_file.empty() && !read_password(cfg_.password_file, &password_, error)) {

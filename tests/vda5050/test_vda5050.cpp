@@ -206,12 +206,40 @@ TEST(Vda5050Encode, StateAnswersInstantActionsWhereEachVersionWantsThem) {
   EXPECT_EQ(s30["instantActionStates"][1]["actionStatus"], "FAILED");
 }
 
-TEST(Vda5050Version, OnlyTheTwoReleases) {
+TEST(Vda5050Version, OnlyTheThreeReleases) {
   Version v;
   EXPECT_TRUE(parse_version("3.0.0", &v));
   EXPECT_EQ(v, Version::k3_0_0);
-  EXPECT_FALSE(parse_version("2.0.0", &v));
+  EXPECT_TRUE(parse_version("2.0.0", &v));
+  EXPECT_EQ(v, Version::k2_0_0);
+  EXPECT_FALSE(parse_version("2.0", &v));
+  EXPECT_FALSE(parse_version("1.1.0", &v));
+  EXPECT_FALSE(parse_version("2.2.0", &v));
   EXPECT_STREQ(version_string(Version::k2_1_0), "2.1.0");
+  EXPECT_STREQ(version_string(Version::k2_0_0), "2.0.0");
+}
+
+// 2.0.0's schemas have every field agvloc sends (the 2.0 / 2.1 differences are in fields it does
+// not send), so the messages are 2.1.0's with the other version and the same v2 topics.
+TEST(Vda5050Encode, Version2_0_0IsVersion2_1_0WithItsVersionString) {
+  Position p;
+  p.x_m = 1.5;
+  p.initialized = true;
+  const std::vector<ActionResult> r = {{"a1", "initPosition", ActionStatus::kFinished, ""}};
+  const Identity a = ident(Version::k2_0_0), b = ident(Version::k2_1_0);
+  const json pairs[][2] = {
+      {json::parse(encode_visualization(a, 4, 0, p, 0)),
+       json::parse(encode_visualization(b, 4, 0, p, 0))},
+      {json::parse(encode_connection(a, 4, 0, ConnectionState::kConnectionBroken)),
+       json::parse(encode_connection(b, 4, 0, ConnectionState::kConnectionBroken))},
+      {json::parse(encode_state(a, 4, 0, p, r)), json::parse(encode_state(b, 4, 0, p, r))}};
+  for (const auto& pair : pairs) {
+    EXPECT_EQ(pair[0]["version"], "2.0.0");
+    json same = pair[0];
+    same["version"] = "2.1.0";
+    EXPECT_EQ(same, pair[1]);
+  }
+  EXPECT_EQ(topic(a, "state"), "uagv/v2/acme/agv-7/state");
 }
 
 }  // namespace

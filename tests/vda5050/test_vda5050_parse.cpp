@@ -53,6 +53,23 @@ TEST(Vda5050Parse, Version3UsesInitializePosition) {
   EXPECT_EQ(q.not_ours, 1u);
 }
 
+// vda-5050-lib 1.4.0's master control sends 2.0.0 instant actions under `instantActions`.
+TEST(Vda5050Parse, Version2_0_0AlsoReadsTheInstantActionsKey) {
+  const std::string lib = "{" + header("2.0.0") + R"(, "instantActions": [)" + init(kGood) + "]}";
+  const ParsedActions p = parse_instant_actions(ident(Version::k2_0_0), lib);
+  ASSERT_EQ(p.message_reason, Reason::kNone);
+  ASSERT_EQ(p.accepted.size(), 1u);
+  EXPECT_DOUBLE_EQ(p.accepted[0].x_m, 5.0);
+  EXPECT_EQ(parse_instant_actions(ident(Version::k2_0_0), message(init(kGood), header("2.0.0")))
+                .accepted.size(),
+            1u);
+  // The key of the document wins where both are there; other versions read only `actions`.
+  const std::string both =
+      "{" + header("2.0.0") + R"(, "actions": [], "instantActions": [)" + init(kGood) + "]}";
+  EXPECT_TRUE(parse_instant_actions(ident(Version::k2_0_0), both).accepted.empty());
+  EXPECT_EQ(parse_instant_actions(ident(), lib).message_reason, Reason::kMissingField);
+}
+
 TEST(Vda5050Parse, OtherActionsAreTheVehicleControllers) {
   const ParsedActions p = parse_instant_actions(
       ident(), message(R"({"actionId": "p", "actionType": "startPause", "blockingType": "HARD"},)" +

@@ -19,10 +19,12 @@ void add_vda5050_keys(std::vector<Key>* k) {
   k->push_back(text("vda5050.interface_name", AGV_AT(vda5050.interface_name), "uagv",
                     "first topic level (`interfaceName/v2/manufacturer/serialNumber/topic`); "
                     "the fleet control's choice, `uagv` in the specification's examples"));
-  k->push_back(choice("vda5050.version", AGV_AT(vda5050.version), {"2.1.0", "3.0.0"}, "2.1.0",
+  k->push_back(choice("vda5050.version", AGV_AT(vda5050.version), {"2.0.0", "2.1.0", "3.0.0"},
+                      "2.1.0",
                       "protocol version of every message and the topics' `v2` / `v3`; must be "
-                      "the fleet control's (3.0.0 renames agvPosition to mobileRobotPosition and "
-                      "initPosition to initializePosition)"));
+                      "the fleet control's (2.0.0's messages are 2.1.0's with another version; "
+                      "3.0.0 renames agvPosition to mobileRobotPosition and initPosition to "
+                      "initializePosition)"));
   k->push_back(text("vda5050.manufacturer", AGV_AT(vda5050.manufacturer), "agvloc",
                     "the vehicle's manufacturer as the fleet control knows it (topic level and "
                     "header); instant actions for another manufacturer are refused"));

@@ -1,6 +1,8 @@
 // Mapping and encoding (vda5050.hpp). Versions differ in: the position object's name
 // (agvPosition / mobileRobotPosition) and its flag (positionInitialized / localized), the
 // connection state CONNECTIONBROKEN / CONNECTION_BROKEN, and 3.0.0's referenceStateHeaderId.
+// 2.0.0 and 2.1.0 differ only in the version string here: what 2.1.0 added to these messages
+// (state.maps, errors[].errorHint, wider batteryState.reach / batteryHealth types) is not sent.
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -13,7 +15,9 @@ namespace agv::vda5050 {
 using nlohmann::json;
 
 bool parse_version(std::string_view text, Version* out) {
-  if (text == "2.1.0") {
+  if (text == "2.0.0") {
+    *out = Version::k2_0_0;
+  } else if (text == "2.1.0") {
     *out = Version::k2_1_0;
   } else if (text == "3.0.0") {
     *out = Version::k3_0_0;
@@ -23,7 +27,17 @@ bool parse_version(std::string_view text, Version* out) {
   return true;
 }
 
-const char* version_string(Version v) { return v == Version::k3_0_0 ? "3.0.0" : "2.1.0"; }
+const char* version_string(Version v) {
+  switch (v) {
+    case Version::k2_0_0:
+      return "2.0.0";
+    case Version::k2_1_0:
+      return "2.1.0";
+    case Version::k3_0_0:
+      return "3.0.0";
+  }
+  return "2.1.0";
+}
 
 std::string topic(const Identity& id, std::string_view leaf) {
   std::string t = id.interface_name;

@@ -178,7 +178,10 @@ ParsedActions parse_instant_actions(const Identity& id, std::string_view text) {
     out.message_reason = r;
     return out;
   }
-  const auto actions = m.find("actions");
+  auto actions = m.find("actions");
+  // 2.0.0's document names the array `actions`, but vda-5050-lib 1.4.0 (a master control library
+  // for 2.0.0) still sends it under 1.1's key `instantActions`: both are read for 2.0.0.
+  if (actions == m.end() && id.version == Version::k2_0_0) actions = m.find("instantActions");
   if (actions == m.end()) {
     out.message_reason = Reason::kMissingField;
     return out;

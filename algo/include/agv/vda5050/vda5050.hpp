@@ -2,7 +2,8 @@
 // onto agvPosition / mobileRobotPosition and velocity, the visualization, connection and state
 // messages, and the initPosition / initializePosition instant action parsed and checked. Pure:
 // text in, text out; time is an argument (ns since the Unix epoch), so the same tick always gives
-// the same bytes. Versions 2.1.0 and 3.0.0; their differences are in one place (encode.cpp).
+// the same bytes. Versions 2.0.0, 2.1.0 and 3.0.0; their differences are in one place
+// (encode.cpp), and the instantActions key of 2.0.0 masters in parse.cpp.
 #pragma once
 
 #include <cstdint>
@@ -14,8 +15,8 @@
 
 namespace agv::vda5050 {
 
-enum class Version : std::uint8_t { k2_1_0, k3_0_0 };
-// "2.1.0" / "3.0.0"; false for anything else.
+enum class Version : std::uint8_t { k2_0_0, k2_1_0, k3_0_0 };
+// "2.0.0" / "2.1.0" / "3.0.0"; false for anything else.
 bool parse_version(std::string_view text, Version* out);
 const char* version_string(Version v);
 
@@ -125,9 +126,11 @@ struct ParsedActions {
   std::size_t not_ours = 0;               // other action types: the vehicle controller's
 };
 
-// Parses an instantActions message for id's version: accepts initPosition (2.1.0) or
+// Parses an instantActions message for id's version: accepts initPosition (2.x) or
 // initializePosition (3.0.0) with finite x, y, theta in range and mapId == id.map_id; every other
-// action type is left to the vehicle controller (counted in not_ours). Never throws.
+// action type is left to the vehicle controller (counted in not_ours). The actions are read from
+// `actions`; for 2.0.0 from `instantActions` when `actions` is absent (docs/guide/vda5050.md).
+// Never throws.
 ParsedActions parse_instant_actions(const Identity& id, std::string_view text);
 
 }  // namespace agv::vda5050
