@@ -130,18 +130,18 @@ int OutputLoop::take_inputs(std::int64_t now_ns) {
 
 void OutputLoop::send(const localizer::OutFrames& out) {
   OutputStats& st = core_.mutable_stats();
-  for (int i = 0; i < out.n; ++i) {
-    if (bus_) {
-      if (bus_->send(out.frame[i]) == hal::CanStatus::kOk) {
-        ++st.can_tx_ok;
-      } else {
-        ++st.can_tx_failed;  // counted, never retried: the next period carries fresher data
-      }
-    }
-    // The pose pair is first: end to end ends when it has left.
-    if (i == 1 && out.e2e_exposure_ns != INT64_MIN) {
-      st.end_to_end_ns.record_ns(clock_.now_ns() - out.e2e_exposure_ns);
-    }
+  // The period's frames in one hand-over (one sendmmsg on SocketCAN): a preemption between
+  // two writes once held a pose's heading 262 ms behind its position.
+  if (bus_ && out.n > 0) {
+    hal::CanStatus status[localizer::OutFrames::kMax];
+    const std::size_t n = static_cast<std::size_t>(out.n);
+    const std::size_t ok = bus_->send_batch(out.frame, n, status);
+    st.can_tx_ok += ok;
+    st.can_tx_failed += n - ok;  // counted, never retried: the next period carries fresher data
+  }
+  // End to end ends when the pose pair (first in the batch) has left, i.e. with the batch.
+  if (out.n >= 2 && out.e2e_exposure_ns != INT64_MIN) {
+    st.end_to_end_ns.record_ns(clock_.now_ns() - out.e2e_exposure_ns);
   }
 }
 

@@ -37,6 +37,12 @@ bool valid_frame(const hal::CanFrame& f) {
 }
 }  // namespace
 
+std::size_t FakeCanEndpoint::send_batch(const hal::CanFrame* frames, std::size_t count,
+                                        hal::CanStatus* status) {
+  batches_.push_back(count);
+  return hal::CanBus::send_batch(frames, count, status);
+}
+
 hal::CanStatus FakeCanEndpoint::send(const hal::CanFrame& frame) {
   if (!valid_frame(frame)) {
     last_error_ = "invalid frame (len > 8 or ID out of range)";

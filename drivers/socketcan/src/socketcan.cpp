@@ -169,6 +169,50 @@ bool SocketCanBus::ensure_open() {
   return false;
 }
 
+std::size_t SocketCanBus::send_batch(const hal::CanFrame* frames, std::size_t count,
+                                     hal::CanStatus* status) {
+  // Eight frames: more than an output period has (6); longer batches go in several calls.
+  constexpr std::size_t kMaxBatch = 8;
+  std::size_t ok = 0, i = 0;
+  while (i < count) {
+    const std::size_t n = std::min(count - i, kMaxBatch);
+    bool valid = ensure_open() && tracker_.state() != hal::CanBusState::kBusOff;
+    can_frame cf[kMaxBatch] = {};
+    iovec iov[kMaxBatch];
+    mmsghdr msg[kMaxBatch] = {};
+    for (std::size_t k = 0; valid && k < n; ++k) {
+      const hal::CanFrame& f = frames[i + k];
+      valid = f.len <= 8 && f.id <= (f.extended ? CAN_EFF_MASK : CAN_SFF_MASK);
+      cf[k].can_id = f.id | (f.extended ? CAN_EFF_FLAG : 0u);
+      cf[k].len = f.len;
+      std::memcpy(cf[k].data, f.data, std::min<std::size_t>(f.len, 8));
+      iov[k] = {&cf[k], sizeof cf[k]};
+      msg[k].msg_hdr.msg_iov = &iov[k];
+      msg[k].msg_hdr.msg_iovlen = 1;
+    }
+    int sent = 0;
+    if (valid) {  // otherwise send() below reports each frame's reason
+      do {
+        sent = ::sendmmsg(fd_, msg, static_cast<unsigned>(n), MSG_DONTWAIT);
+      } while (sent < 0 && errno == EINTR);
+      sent = std::max(sent, 0);
+    }
+    for (int k = 0; k < sent; ++k) {
+      const bool whole = msg[k].msg_len == sizeof cf[k];
+      status[i + static_cast<std::size_t>(k)] =
+          whole ? hal::CanStatus::kOk : hal::CanStatus::kError;
+      ++(whole ? stats_.tx_ok : stats_.tx_errors);
+      if (whole) ++ok;
+    }
+    for (std::size_t k = static_cast<std::size_t>(sent); k < n; ++k) {
+      status[i + k] = send(frames[i + k]);
+      if (status[i + k] == hal::CanStatus::kOk) ++ok;
+    }
+    i += n;
+  }
+  return ok;
+}
+
 hal::CanStatus SocketCanBus::send(const hal::CanFrame& frame) {
   if (frame.len > 8 || frame.id > (frame.extended ? CAN_EFF_MASK : CAN_SFF_MASK)) {
     last_error_ = "invalid frame (len > 8 or ID out of range)";

@@ -43,6 +43,19 @@ class CanBus {
   // kInvalidArgument (len > 8 or ID too large for its type), kError.
   virtual CanStatus send(const CanFrame& frame) = 0;
 
+  // Queues frames[0, count) in order, each as send() would, with its result in status[i]; returns
+  // how many were kOk. A backend that can hands them to the driver in one system call, so that a
+  // preemption cannot separate frames a receiver pairs (one output period's). Default: send()
+  // for each (fakes, replay and log backends).
+  virtual std::size_t send_batch(const CanFrame* frames, std::size_t count, CanStatus* status) {
+    std::size_t ok = 0;
+    for (std::size_t i = 0; i < count; ++i) {
+      status[i] = send(frames[i]);
+      if (status[i] == CanStatus::kOk) ++ok;
+    }
+    return ok;
+  }
+
   // Waits up to timeout_ns (0 = poll) for the next data frame passing the filters and fills
   // *frame (t_ns = receive time on CLOCK_MONOTONIC). Error frames are consumed internally and
   // update state(), error_counters() and stats(); they are never returned.

@@ -51,6 +51,9 @@ class TimeMappedBus final : public hal::CanBus {
     has_held_ = true;
   }
   hal::CanStatus send(const hal::CanFrame& f) override { return inner_.send(f); }
+  std::size_t send_batch(const hal::CanFrame* f, std::size_t n, hal::CanStatus* s) override {
+    return inner_.send_batch(f, n, s);
+  }
   hal::CanStatus receive(hal::CanFrame* f, std::int64_t timeout_ns) override {
     hal::CanStatus s = hal::CanStatus::kOk;
     if (has_held_) {

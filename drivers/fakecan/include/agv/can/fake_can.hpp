@@ -48,6 +48,11 @@ class FakeCanEndpoint : public hal::CanBus {
   ~FakeCanEndpoint() override;
 
   hal::CanStatus send(const hal::CanFrame& frame) override;
+  // send() for each; the batch's size is kept (batch_sizes) so tests see how frames were handed
+  // over.
+  std::size_t send_batch(const hal::CanFrame* frames, std::size_t count,
+                         hal::CanStatus* status) override;
+  const std::vector<std::size_t>& batch_sizes() const { return batches_; }
   hal::CanStatus receive(hal::CanFrame* frame, std::int64_t timeout_ns) override;
   hal::CanStatus set_filters(const hal::CanFilter* filters, std::size_t count) override;
   hal::CanBusState state() const override;
@@ -83,6 +88,7 @@ class FakeCanEndpoint : public hal::CanBus {
   hal::CanStats stats_;
   hal::CanErrorCounters counters_;
   std::string last_error_;
+  std::vector<std::size_t> batches_;
   int drop_tx_ = 0;
   bool tx_full_ = false;
   bool bus_off_ = false;

@@ -55,6 +55,10 @@ class SocketCanBus : public hal::CanBus {
   SocketCanBus& operator=(const SocketCanBus&) = delete;
 
   hal::CanStatus send(const hal::CanFrame& frame) override;
+  // One sendmmsg for the frames; after a partial one, the rest frame by frame (send()), which
+  // gives each its own status.
+  std::size_t send_batch(const hal::CanFrame* frames, std::size_t count,
+                         hal::CanStatus* status) override;
   hal::CanStatus receive(hal::CanFrame* frame, std::int64_t timeout_ns) override;
   hal::CanStatus set_filters(const hal::CanFilter* filters, std::size_t count) override;
   hal::CanBusState state() const override { return tracker_.state(); }
