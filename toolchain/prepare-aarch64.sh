@@ -45,8 +45,8 @@ ARM_PKGS+=(libiio-dev)
 # VDA 5050 over MQTT (firmware/src/mqtt_publisher.cpp).
 ARM_PKGS+=(libmosquitto-dev)
 # The diagnostics page on the vehicle (firmware/src/diag_server.cpp; optional in CMake). Multi-Arch:
-# same; pulls the arm64 libssl-dev, libbrotli-dev and zlib1g-dev.
-ARM_PKGS+=(libcpp-httplib-dev)
+# same (libmicrohttpd-dev 0.9.75; pulls the arm64 libgnutls28-dev).
+ARM_PKGS+=(libmicrohttpd-dev)
 # Not co-installable with the amd64 versions (no Multi-Arch: same): unpacked into $EXTRA.
 EXTRACT=(libopencv-imgcodecs406 libgdal32 gdal-plugins libarmadillo11 libhdf4-0-alt libogdi4.1)
 

@@ -23,7 +23,7 @@ PKGS=(
   libmosquitto-dev nlohmann-json3-dev mosquitto mosquitto-clients python3-paho-mqtt
   python3-jsonschema
   # diagnostics page and /metrics (docs/guide/diagnostics.md): HTTP server; the page test's browser
-  libcpp-httplib-dev chromium
+  libmicrohttpd-dev chromium
   # agvloc-desk calibrate vehicle: nonlinear least squares
   libceres-dev
   # site model and route planner (algo/site): Boost.Geometry predicates, Boost.Graph Dijkstra

@@ -7,121 +7,53 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <condition_variable>
 #include <cstdio>
 #include <cstring>
-#include <deque>
-#include <functional>
+#include <string_view>
+#include <utility>
 #include <vector>
-#ifdef AGV_HAVE_HTTPLIB
-#include <httplib.h>
+#ifdef AGV_HAVE_MHD
+#include <microhttpd.h>
 #endif
 
 #include "affinity.hpp"
 #include "agv/posix/realtime.hpp"
 #include "agv/vision/landmark_localizer.hpp"
+#include "diag_server_conns.hpp"
+#include "diag_server_route.hpp"
 
 namespace agv::app {
 
-#ifdef AGV_HAVE_HTTPLIB
+#ifdef AGV_HAVE_MHD
 const char* diag_page_html();  // diag_server_page.cpp
 #endif
 
 namespace {
 
-#ifdef AGV_HAVE_HTTPLIB
-// A slow or silent client holds a worker at most this long per read or write (a slowloris that
-// trickles its headers holds one up to the header limit; diag.max_clients bounds how many).
-constexpr time_t kReadTimeoutS = 2;
-constexpr time_t kWriteTimeoutS = 2;
-// GET only: any request body beyond this is refused (413).
-constexpr std::size_t kMaxPayloadBytes = 1024;
+#ifdef AGV_HAVE_MHD
+// An idle connection is closed after this long without a byte (the library's idle timeout); its
+// request must be complete this long after accept whatever it trickles (DiagConnections).
+constexpr unsigned kIdleTimeoutS = 2;
+constexpr auto kHeaderDeadline = std::chrono::milliseconds(2000);
+// The whole connection (one request, its answer written): a frame to a slow browser fits.
+constexpr auto kLifetime = std::chrono::milliseconds(10000);
+// Per connection, everything the library keeps for it: the request line, every header, the answer's
+// headers. A request whose line or headers do not fit is answered 414 / 431 and closed, so header
+// count and size are bounded by this before any more memory is spent.
+constexpr std::size_t kConnectionMemory = 16 * 1024;
+// Connections open beyond diag.max_clients: idle ones are cheap (a socket and kConnectionMemory,
+// touched only as far as used) and dropped oldest first near the library's hard limit.
+constexpr std::size_t kIdleHeadroom = 64;
+constexpr std::size_t kHardHeadroom = 64;
+constexpr std::size_t kMaxConnections = 512;
 // How long a frame request waits for the vision thread to copy a fresh frame before it encodes the
 // newest one it has (a stalled camera, a finished replay).
 constexpr auto kFrameWait = std::chrono::milliseconds(300);
-
-// A body beyond kMaxPayloadBytes, or one whose length is not given in advance (chunked), or a
-// Content-Length that is not a number: the page needs no body at all.
-bool request_body_too_large(const std::string& content_length, bool has_transfer_encoding) {
-  if (has_transfer_encoding) return true;
-  if (content_length.empty()) return false;
-  if (content_length.size() > 19) return true;
-  std::uint64_t n = 0;
-  for (const char c : content_length) {
-    if (c < '0' || c > '9') return true;
-    n = n * 10 + static_cast<std::uint64_t>(c - '0');
-  }
-  return n > kMaxPayloadBytes;
-}
-
-// Set while the accept thread answers a connection over the limit itself: the pre-routing
-// handler refuses it (503) without routing.
-thread_local bool tl_refuse = false;
-
-// httplib's task queue with a fixed worker count and a bounded backlog. A connection over the
-// bound is answered 503 by the accept thread itself (it cannot be dropped: the task owns the
-// socket); while it does, further connections wait in the kernel's listen backlog, so memory
-// stays bounded whatever the number of clients.
-class BoundedQueue : public httplib::TaskQueue {
- public:
-  BoundedQueue(std::size_t threads, std::size_t max_pending) : max_pending_(max_pending) {
-    for (std::size_t i = 0; i < threads; ++i) {
-      workers_.emplace_back([this] { work(); });
-    }
-  }
-  ~BoundedQueue() override { shutdown(); }
-
-  void enqueue(std::function<void()> fn) override {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      if (!stopping_ && pending_.size() < max_pending_) {
-        pending_.push_back(std::move(fn));
-        cv_.notify_one();
-        return;
-      }
-    }
-    tl_refuse = true;
-    fn();
-    tl_refuse = false;
-  }
-
-  void shutdown() override {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      if (stopping_ && workers_.empty()) return;
-      stopping_ = true;
-    }
-    cv_.notify_all();
-    for (auto& t : workers_) t.join();
-    workers_.clear();
-  }
-
- private:
-  void work() {
-    while (true) {
-      std::function<void()> fn;
-      {
-        std::unique_lock<std::mutex> lock(mutex_);
-        cv_.wait(lock, [this] { return stopping_ || !pending_.empty(); });
-        if (pending_.empty()) return;  // stopping and drained: every socket was closed
-        fn = std::move(pending_.front());
-        pending_.pop_front();
-      }
-      fn();
-    }
-  }
-
-  const std::size_t max_pending_;
-  std::mutex mutex_;
-  std::condition_variable cv_;
-  std::deque<std::function<void()>> pending_;
-  std::vector<std::thread> workers_;
-  bool stopping_ = false;
-};
-
-#endif  // AGV_HAVE_HTTPLIB
+#endif  // AGV_HAVE_MHD
 
 void write_png_data(png_structp png, png_bytep data, png_size_t length) {
   auto* out = static_cast<std::string*>(png_get_io_ptr(png));
@@ -244,10 +176,18 @@ bool encode_png(const cv::Mat& image, std::string* out, int compression) {
   return true;
 }
 
-#ifdef AGV_HAVE_HTTPLIB
+#ifdef AGV_HAVE_MHD
 struct DiagServer::Impl {
   Impl(const config::Config& c, const LandmarkMap* m, DiagHandoff& h, FrameTap& f, const char* md)
-      : cfg(c.diag), cpus(c.loop.service_cpus), map(m), handoff(h), frames(f), mode(md) {
+      : cfg(c.diag),
+        cpus(c.loop.service_cpus),
+        map(m),
+        handoff(h),
+        frames(f),
+        mode(md),
+        conns(DiagConnLimits{static_cast<std::size_t>(c.diag.max_clients),
+                             static_cast<std::size_t>(c.diag.max_clients) + kIdleHeadroom,
+                             kHeaderDeadline, kLifetime}) {
     LandmarkGeometry g;
     g.size_mm = c.landmark_size_mm;
     vision::VisionConfig v = c.vision;
@@ -308,6 +248,9 @@ struct DiagServer::Impl {
     return true;
   }
 
+  MHD_Result answer(MHD_Connection* connection, const char* url, const char* method);
+  void reap_loop();
+
   config::DiagSection cfg;
   std::string cpus;  // loop.service_cpus
   const LandmarkMap* map;
@@ -315,8 +258,12 @@ struct DiagServer::Impl {
   FrameTap& frames;
   const char* mode;
   std::unique_ptr<vision::LandmarkLocalizer> localizer;  // frame_mutex
-  httplib::Server server;
-  std::thread listener;
+  MHD_Daemon* daemon = nullptr;
+  DiagConnections conns;
+  std::thread reaper;
+  std::mutex reaper_mutex;
+  std::condition_variable reaper_cv;
+  bool stopping = false;
 
   std::mutex snap_mutex;
   diag::Snapshot snap;
@@ -330,6 +277,161 @@ struct DiagServer::Impl {
   std::atomic<std::uint64_t> requests{0}, refused_busy{0}, refused_bad{0}, frames_encoded{0},
       snapshots_taken{0};
 };
+
+namespace {
+
+std::string_view header(MHD_Connection* c, const char* name) {
+  const char* v = MHD_lookup_connection_value(c, MHD_HEADER_KIND, name);
+  return v ? std::string_view(v) : std::string_view();
+}
+
+DiagConnections::Conn* conn_of(MHD_Connection* c) {
+  const MHD_ConnectionInfo* info = MHD_get_connection_info(c, MHD_CONNECTION_INFO_SOCKET_CONTEXT);
+  return info ? static_cast<DiagConnections::Conn*>(info->socket_context) : nullptr;
+}
+
+void notify_connection(void* cls, MHD_Connection* c, void** socket_context,
+                       MHD_ConnectionNotificationCode toe) {
+  auto& conns = *static_cast<DiagConnections*>(cls);
+  if (toe == MHD_CONNECTION_NOTIFY_STARTED) {
+    const MHD_ConnectionInfo* info = MHD_get_connection_info(c, MHD_CONNECTION_INFO_CONNECTION_FD);
+    *socket_context =
+        info ? conns.opened(info->connect_fd, DiagConnections::Clock::now()) : nullptr;
+  } else {
+    conns.closed(static_cast<DiagConnections::Conn*>(*socket_context));
+    *socket_context = nullptr;
+  }
+}
+
+void request_completed(void* cls, MHD_Connection* c, void**, MHD_RequestTerminationCode) {
+  static_cast<DiagConnections*>(cls)->end_request(conn_of(c));
+}
+
+// The request line is in: the connection is talking, not idle.
+void* uri_seen(void* cls, const char*, MHD_Connection* c) {
+  static_cast<DiagConnections*>(cls)->line_seen(conn_of(c));
+  return nullptr;
+}
+
+MHD_Result access_handler(void* cls, MHD_Connection* c, const char* url, const char* method,
+                          const char*, const char*, size_t*, void**) {
+  return static_cast<DiagServer::Impl*>(cls)->answer(c, url, method);
+}
+
+bool resolve_bind(const std::string& address, int port, sockaddr_storage* out, socklen_t* len) {
+  addrinfo hints{};
+  hints.ai_family = AF_UNSPEC;
+  hints.ai_socktype = SOCK_STREAM;
+  hints.ai_flags = AI_PASSIVE;
+  addrinfo* res = nullptr;
+  const std::string service = std::to_string(port);
+  if (getaddrinfo(address.empty() ? nullptr : address.c_str(), service.c_str(), &hints, &res) !=
+      0) {
+    return false;
+  }
+  std::memcpy(out, res->ai_addr, res->ai_addrlen);
+  *len = res->ai_addrlen;
+  freeaddrinfo(res);
+  return true;
+}
+
+}  // namespace
+
+// Called once per request, its headers in and no body read: every answer is decided here (the
+// page reads no body; one left unread closes the connection after the answer).
+MHD_Result DiagServer::Impl::answer(MHD_Connection* c, const char* url, const char* method) {
+  DiagRequestHead head;
+  head.method = method;
+  head.path = url;
+  head.content_length = header(c, MHD_HTTP_HEADER_CONTENT_LENGTH);
+  head.has_transfer_encoding =
+      MHD_lookup_connection_value(c, MHD_HEADER_KIND, MHD_HTTP_HEADER_TRANSFER_ENCODING);
+  head.busy = !conns.begin_request(conn_of(c));
+  const DiagRoute route = route_diag_request(head);
+  int status = diag_route_status(route);
+  std::string body, type = "text/plain";
+  std::vector<std::pair<const char*, std::string>> extra;
+  const auto snapshot = [this](auto fn) { return with_snapshot(fn); };
+  switch (route) {
+    case DiagRoute::kPage:
+      body = diag_page_html();
+      type = "text/html; charset=utf-8";
+      extra.emplace_back("Content-Security-Policy",
+                         "default-src 'none'; script-src 'unsafe-inline'; style-src "
+                         "'unsafe-inline'; img-src 'self'; connect-src 'self'");
+      break;
+    case DiagRoute::kStatus:
+      body = snapshot([this](const diag::Snapshot& s, const diag::ServerStats& st) {
+        return diag::status_json(s, st, mode);
+      });
+      type = "application/json";
+      break;
+    case DiagRoute::kMap:
+      body = snapshot([this](const diag::Snapshot& s, const diag::ServerStats&) {
+        return diag::map_json(map, s);
+      });
+      type = "application/json";
+      break;
+    case DiagRoute::kMetrics:
+      body = snapshot([](const diag::Snapshot& s, const diag::ServerStats& st) {
+        return diag::metrics_text(s, st);
+      });
+      type = "text/plain; version=0.0.4; charset=utf-8";
+      break;
+    case DiagRoute::kFrame: {
+      std::int64_t t = 0;
+      if (frame_png(&body, &t)) {
+        type = "image/png";
+        extra.emplace_back("X-Frame-Exposure-Ns", std::to_string(t));
+      } else {
+        status = 503;
+        body = "no camera frame yet\n";
+        extra.emplace_back("Retry-After", "1");
+      }
+      break;
+    }
+    case DiagRoute::kNotFound:
+      body = "not found\n";
+      break;
+    case DiagRoute::kMethodNotAllowed:
+      body = "only GET and HEAD\n";
+      extra.emplace_back("Allow", "GET, HEAD");
+      break;
+    case DiagRoute::kBodyTooLarge:
+      body = "a request body is at most 1024 bytes\n";
+      break;
+    case DiagRoute::kBusy:
+      body = "busy: too many diagnostics clients\n";
+      extra.emplace_back("Retry-After", "1");
+      break;
+  }
+  if (status >= 200 && status < 300) {
+    ++requests;
+  } else if (status == 503 && route == DiagRoute::kBusy) {
+    ++refused_busy;
+  } else if (status >= 400 && status != 503) {
+    ++refused_bad;
+  }
+  MHD_Response* r =
+      MHD_create_response_from_buffer(body.size(), body.data(), MHD_RESPMEM_MUST_COPY);
+  if (!r) return MHD_NO;
+  MHD_add_response_header(r, MHD_HTTP_HEADER_CONTENT_TYPE, type.c_str());
+  MHD_add_response_header(r, MHD_HTTP_HEADER_CACHE_CONTROL, "no-store");
+  MHD_add_response_header(r, "X-Content-Type-Options", "nosniff");
+  // One request per connection: no client holds a connection between requests.
+  MHD_add_response_header(r, MHD_HTTP_HEADER_CONNECTION, "close");
+  for (const auto& [name, value] : extra) MHD_add_response_header(r, name, value.c_str());
+  const MHD_Result ok = MHD_queue_response(c, static_cast<unsigned>(status), r);
+  MHD_destroy_response(r);
+  return ok;
+}
+
+void DiagServer::Impl::reap_loop() {
+  std::unique_lock<std::mutex> lock(reaper_mutex);
+  while (!reaper_cv.wait_for(lock, std::chrono::milliseconds(100), [this] { return stopping; })) {
+    conns.reap(DiagConnections::Clock::now());
+  }
+}
 
 DiagServer::DiagServer(const config::Config& cfg, const LandmarkMap* map, DiagHandoff& handoff,
                        FrameTap& frames, const char* mode)
@@ -347,105 +449,48 @@ bool DiagServer::start(std::string* error) {
              "serve it on that network";
     return false;
   }
-  httplib::Server& s = m.server;
-  const auto threads = static_cast<std::size_t>(m.cfg.threads);
-  const auto max_clients = static_cast<std::size_t>(m.cfg.max_clients);
-  const std::size_t max_pending = max_clients > threads ? max_clients - threads : 1;
-  s.new_task_queue = [threads, max_pending] { return new BoundedQueue(threads, max_pending); };
-  s.set_keep_alive_max_count(1);  // one request per connection: no idle client holds a worker
-  s.set_read_timeout(kReadTimeoutS, 0);
-  s.set_write_timeout(kWriteTimeoutS, 0);
-  s.set_payload_max_length(kMaxPayloadBytes);
-  s.set_pre_routing_handler([](const httplib::Request& req, httplib::Response& res) {
-    if (tl_refuse) {
-      res.status = 503;
-      res.set_header("Retry-After", "1");
-      res.set_content("busy: too many diagnostics clients\n", "text/plain");
-      return httplib::Server::HandlerResponse::Handled;
-    }
-    // Decided on the headers, before any body is read: the library reads a body only for the
-    // methods that usually carry one, and a GET's not at all (its limit would not apply).
-    if (req.method != "GET" && req.method != "HEAD") {
-      res.status = 405;
-      res.set_header("Allow", "GET, HEAD");
-      res.set_content("only GET and HEAD\n", "text/plain");
-      return httplib::Server::HandlerResponse::Handled;
-    }
-    if (request_body_too_large(req.get_header_value("Content-Length"),
-                               req.has_header("Transfer-Encoding"))) {
-      res.status = 413;
-      res.set_content("a request body is at most 1024 bytes\n", "text/plain");
-      return httplib::Server::HandlerResponse::Handled;
-    }
-    return httplib::Server::HandlerResponse::Unhandled;
-  });
-  s.set_logger([&m](const httplib::Request&, const httplib::Response& res) {
-    if (res.status >= 200 && res.status < 300) {
-      ++m.requests;
-    } else if (res.status == 503) {
-      ++m.refused_busy;
-    } else if (res.status >= 400) {
-      ++m.refused_bad;
-    }
-  });
-  s.set_default_headers({{"Cache-Control", "no-store"}, {"X-Content-Type-Options", "nosniff"}});
-
-  s.Get("/", [](const httplib::Request&, httplib::Response& res) {
-    res.set_header("Content-Security-Policy",
-                   "default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; "
-                   "img-src 'self'; connect-src 'self'");
-    res.set_content(diag_page_html(), "text/html; charset=utf-8");
-  });
-  s.Get("/api/status.json", [&m](const httplib::Request&, httplib::Response& res) {
-    res.set_content(m.with_snapshot([&m](const diag::Snapshot& snap, const diag::ServerStats& st) {
-      return diag::status_json(snap, st, m.mode);
-    }),
-                    "application/json");
-  });
-  s.Get("/api/map.json", [&m](const httplib::Request&, httplib::Response& res) {
-    res.set_content(m.with_snapshot([&m](const diag::Snapshot& snap, const diag::ServerStats&) {
-      return diag::map_json(m.map, snap);
-    }),
-                    "application/json");
-  });
-  s.Get("/metrics", [&m](const httplib::Request&, httplib::Response& res) {
-    res.set_content(m.with_snapshot([](const diag::Snapshot& snap, const diag::ServerStats& st) {
-      return diag::metrics_text(snap, st);
-    }),
-                    "text/plain; version=0.0.4; charset=utf-8");
-  });
-  s.Get("/frame.png", [&m](const httplib::Request&, httplib::Response& res) {
-    std::string png;
-    std::int64_t t = 0;
-    if (!m.frame_png(&png, &t)) {
-      res.status = 503;
-      res.set_header("Retry-After", "1");
-      res.set_content("no camera frame yet\n", "text/plain");
-      return;
-    }
-    res.set_header("X-Frame-Exposure-Ns", std::to_string(t));
-    res.set_content(png, "image/png");
-  });
-
-  if (m.cfg.port == 0) {
-    port_ = s.bind_to_any_port(m.cfg.bind_address);
-  } else {
-    port_ = s.bind_to_port(m.cfg.bind_address, m.cfg.port) ? m.cfg.port : -1;
-  }
-  if (port_ <= 0) {
-    std::string why = listen_failure_reason(m.cfg.bind_address, m.cfg.port);
-    if (why.empty()) why = "the HTTP server could not bind (no error on a second attempt)";
+  sockaddr_storage addr{};
+  socklen_t addr_len = 0;
+  const std::string why_not = listen_failure_reason(m.cfg.bind_address, m.cfg.port);
+  if (!why_not.empty() || !resolve_bind(m.cfg.bind_address, m.cfg.port, &addr, &addr_len)) {
     *error = "diag: cannot listen on " + m.cfg.bind_address + ":" + std::to_string(m.cfg.port) +
-             ": " + why;
-    port_ = 0;
+             ": " + (why_not.empty() ? std::string("address not resolved") : why_not);
     return false;
   }
-  // The workers are created by the listener (cpp-httplib's task queue), so they inherit its name
-  // and CPU set.
-  m.listener = std::thread([&s, cpus = m.cpus] {
+  unsigned flags = MHD_USE_INTERNAL_POLLING_THREAD | MHD_USE_EPOLL;
+  if (addr.ss_family == AF_INET6) flags |= MHD_USE_IPv6;
+  // The library splits its limit evenly between its threads, and one thread at its share stops
+  // accepting: each share must be above the level at which idle connections are dropped, or a
+  // normal client could wait behind idle ones. Capped well below the process's file limit.
+  const auto threads = static_cast<std::size_t>(m.cfg.threads);
+  const auto hard_limit = static_cast<unsigned>(std::min<std::size_t>(
+      kMaxConnections,
+      (static_cast<std::size_t>(m.cfg.max_clients) + kIdleHeadroom) * threads + kHardHeadroom));
+  // The library's threads inherit the creating thread's name and CPU set.
+  std::thread starter([&] {
     posix::set_thread_name("agv-diag");
-    pin_this_thread(cpus, "diagnostics page, loop.service_cpus");
-    s.listen_after_bind();
+    pin_this_thread(m.cpus, "diagnostics page, loop.service_cpus");
+    m.daemon = MHD_start_daemon(
+        flags, 0, nullptr, nullptr, &access_handler, &m, MHD_OPTION_SOCK_ADDR, &addr,
+        MHD_OPTION_CONNECTION_LIMIT, hard_limit, MHD_OPTION_CONNECTION_TIMEOUT, kIdleTimeoutS,
+        MHD_OPTION_CONNECTION_MEMORY_LIMIT, kConnectionMemory, MHD_OPTION_THREAD_POOL_SIZE,
+        static_cast<unsigned>(m.cfg.threads), MHD_OPTION_NOTIFY_CONNECTION, &notify_connection,
+        &m.conns, MHD_OPTION_NOTIFY_COMPLETED, &request_completed, &m.conns,
+        MHD_OPTION_URI_LOG_CALLBACK, &uri_seen, &m.conns, MHD_OPTION_END);
+  });
+  starter.join();
+  if (!m.daemon) {
+    *error = "diag: cannot listen on " + m.cfg.bind_address + ":" + std::to_string(m.cfg.port) +
+             ": the HTTP server did not start";
+    return false;
+  }
+  const MHD_DaemonInfo* info = MHD_get_daemon_info(m.daemon, MHD_DAEMON_INFO_BIND_PORT);
+  port_ = info ? info->port : 0;
+  m.stopping = false;
+  m.reaper = std::thread([&m] {
+    posix::set_thread_name("agv-diag");
+    pin_this_thread(m.cpus, "diagnostics page, loop.service_cpus");
+    m.reap_loop();
   });
   const bool v6 = m.cfg.bind_address.find(':') != std::string::npos;
   std::printf("diag: serving http://%s%s%s:%d/ (%s)\n", v6 ? "[" : "", m.cfg.bind_address.c_str(),
@@ -455,12 +500,19 @@ bool DiagServer::start(std::string* error) {
 }
 
 void DiagServer::stop() {
-  if (!impl_->listener.joinable()) return;
-  impl_->server.stop();
-  impl_->listener.join();
+  Impl& m = *impl_;
+  if (!m.daemon) return;
+  {
+    std::lock_guard<std::mutex> lock(m.reaper_mutex);
+    m.stopping = true;
+  }
+  m.reaper_cv.notify_all();
+  if (m.reaper.joinable()) m.reaper.join();
+  MHD_stop_daemon(m.daemon);
+  m.daemon = nullptr;
 }
 
-#else  // !AGV_HAVE_HTTPLIB
+#else  // !AGV_HAVE_MHD
 
 struct DiagServer::Impl {};
 DiagServer::DiagServer(const config::Config&, const LandmarkMap*, DiagHandoff&, FrameTap&,
@@ -469,13 +521,13 @@ DiagServer::~DiagServer() = default;
 diag::ServerStats DiagServer::stats() const { return {}; }
 bool DiagServer::start(std::string* error) {
   *error =
-      "diag: this agvloc was built without cpp-httplib (libcpp-httplib-dev): no "
+      "diag: this agvloc was built without GNU libmicrohttpd (libmicrohttpd-dev): no "
       "diagnostics page";
   return false;
 }
 void DiagServer::stop() {}
 
-#endif  // AGV_HAVE_HTTPLIB
+#endif  // AGV_HAVE_MHD
 
 std::string format_diag_counters(const diag::ServerStats& s) {
   char buf[256];

@@ -1,9 +1,10 @@
-// The live diagnostics page and /metrics (docs/guide/diagnostics.md): an HTTP server (cpp-httplib)
-// on a fixed pool of ordinary (not real-time) threads. It reads the loop only through DiagHandoff
-// and FrameTap (diag_handoff.hpp); pure encodings are algo/src/diag. Bounded however many clients
-// connect: diag.threads workers, diag.max_clients connections served or waiting (more answered
-// 503 at once), one request per connection, read and write timeouts, the camera image encoded at
-// most once per diag.frame_interval_ms and shared.
+// The live diagnostics page and /metrics (docs/guide/diagnostics.md): an HTTP server (GNU
+// libmicrohttpd, event-driven) on a fixed pool of ordinary (not real-time) threads. It reads the
+// loop only through DiagHandoff and FrameTap (diag_handoff.hpp); pure encodings are algo/src/diag.
+// Bounded however many clients connect (docs/design/security.md): diag.threads polling threads,
+// diag.max_clients requests in progress (more answered 503 at once), a fixed memory budget per
+// connection, a deadline for a request's headers and for the whole connection, one request per
+// connection, the camera image encoded at most once per diag.frame_interval_ms and shared.
 #pragma once
 
 #include <atomic>
@@ -18,10 +19,6 @@
 #include "agv/config/config.hpp"
 #include "agv/diag/diag.hpp"
 #include "diag_handoff.hpp"
-
-namespace httplib {
-class Server;
-}
 
 namespace agv::app {
 
@@ -50,8 +47,9 @@ class DiagServer {
   int port() const { return port_; }
   diag::ServerStats stats() const;
 
- private:
   struct Impl;
+
+ private:
   std::unique_ptr<Impl> impl_;
   int port_ = 0;
 };

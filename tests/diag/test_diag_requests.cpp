@@ -63,7 +63,7 @@ class DiagRequests : public ::testing::Test {
     cfg_.diag.port = 0;
     server_ = std::make_unique<DiagServer>(cfg_, nullptr, handoff_, frames_, "test");
     std::string error;
-    if (!server_->start(&error)) GTEST_SKIP() << error;  // built without cpp-httplib
+    if (!server_->start(&error)) GTEST_SKIP() << error;  // built without libmicrohttpd
   }
   void TearDown() override {
     if (server_) server_->stop();
@@ -97,8 +97,10 @@ TEST_F(DiagRequests, GetWithABodyOverOneKilobyteIs413) {
                                "GET / HTTP/1.1\r\nHost: x\r\nContent-Length: "
                                "104857600\r\n\r\n")),
             413);
-  EXPECT_EQ(status_of(exchange(port(), "GET / HTTP/1.1\r\nHost: x\r\nContent-Length: 1x\r\n\r\n")),
-            413);
+  // A length that is not a number is malformed before it is large: the HTTP library answers 400.
+  const int bad_length =
+      status_of(exchange(port(), "GET / HTTP/1.1\r\nHost: x\r\nContent-Length: 1x\r\n\r\n"));
+  EXPECT_TRUE(bad_length == 400 || bad_length == 413) << bad_length;
   EXPECT_EQ(status_of(exchange(port(),
                                "GET / HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: "
                                "chunked\r\n\r\n5\r\nhello\r\n0\r\n\r\n")),
