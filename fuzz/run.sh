@@ -17,7 +17,7 @@ seconds="${1:-60}"
 shift || true
 all=(fuzz_payload fuzz_map fuzz_recording_meta fuzz_recording_frames fuzz_recording_odom
      fuzz_recording_truth fuzz_config fuzz_candump fuzz_can_odometry fuzz_png fuzz_vision
-     fuzz_vda_action fuzz_placements fuzz_config_apply fuzz_report_csv fuzz_site)
+     fuzz_vda_action fuzz_placements fuzz_config_apply fuzz_report_csv fuzz_site fuzz_http_request)
 if [ "$#" -gt 0 ]; then harnesses=("$@"); else harnesses=("${all[@]}"); fi
 
 t0=$(date +%s)
