@@ -2,6 +2,7 @@
 // to segments that slide along edges or pass through vertices) over a uniform grid of the free
 // space's edges, and the visibility graph over the vertices where the free space is reflex.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <utility>
@@ -99,36 +100,38 @@ double param_on(Vec2 a, Vec2 b, Vec2 p) {
 
 }  // namespace
 
-bool RoutePlanner::Impl::segment_clear(Vec2 a, Vec2 b) const {
+bool RoutePlanner::Impl::edge_blocks(Vec2 a, Vec2 b, double lab, std::uint32_t e) const {
+  const Vec2 ab = pd_sub(b, a);
+  const double tol_ab = kOnLineMm * lab, t_eps = kOnLineMm / lab;
+  const Vec2 c = pts[e], d = pts[next[e]];
+  const int s1 = sign_tol(pd_cross(ab, pd_sub(c, a)), tol_ab);
+  const int s2 = sign_tol(pd_cross(ab, pd_sub(d, a)), tol_ab);
+  if (s1 * s2 > 0) return false;
+  const Vec2 cd = pd_sub(d, c);
+  const double lcd = pd_norm(cd);
+  if (lcd <= 0.0) return false;
+  const double tol_cd = kOnLineMm * lcd;
+  const int s3 = sign_tol(pd_cross(cd, pd_sub(a, c)), tol_cd);
+  const int s4 = sign_tol(pd_cross(cd, pd_sub(b, c)), tol_cd);
+  if (s1 * s2 < 0 && s3 * s4 < 0) return true;  // proper crossing
+  if (s1 == 0) {  // the vertex c touches the segment: leave and arrive through its free cone
+    const double t = param_on(a, b, c);
+    if (t >= -t_eps && t <= 1.0 + t_eps) {
+      if (t > t_eps && enters_obstacle(e, pd_sub(a, c))) return true;
+      if (t < 1.0 - t_eps && enters_obstacle(e, ab)) return true;
+    }
+  }
+  // An endpoint inside the edge (not at a vertex): the segment must leave to the free side.
+  const double ta = param_on(c, d, a), tb = param_on(c, d, b), te = kOnLineMm / lcd;
+  if (s3 == 0 && ta > te && ta < 1.0 - te && s4 < 0) return true;
+  if (s4 == 0 && tb > te && tb < 1.0 - te && s3 < 0) return true;
+  return false;
+}
+
+bool RoutePlanner::Impl::segment_clear(Vec2 a, Vec2 b, std::uint32_t* blocker) const {
   const Vec2 ab = pd_sub(b, a);
   const double lab = pd_norm(ab);
   if (lab <= kOnLineMm) return true;
-  const double tol_ab = kOnLineMm * lab, t_eps = kOnLineMm / lab;
-  auto edge_blocks = [&](std::uint32_t e) {
-    const Vec2 c = pts[e], d = pts[next[e]];
-    const int s1 = sign_tol(pd_cross(ab, pd_sub(c, a)), tol_ab);
-    const int s2 = sign_tol(pd_cross(ab, pd_sub(d, a)), tol_ab);
-    if (s1 * s2 > 0) return false;
-    const Vec2 cd = pd_sub(d, c);
-    const double lcd = pd_norm(cd);
-    if (lcd <= 0.0) return false;
-    const double tol_cd = kOnLineMm * lcd;
-    const int s3 = sign_tol(pd_cross(cd, pd_sub(a, c)), tol_cd);
-    const int s4 = sign_tol(pd_cross(cd, pd_sub(b, c)), tol_cd);
-    if (s1 * s2 < 0 && s3 * s4 < 0) return true;  // proper crossing
-    if (s1 == 0) {  // the vertex c touches the segment: leave and arrive through its free cone
-      const double t = param_on(a, b, c);
-      if (t >= -t_eps && t <= 1.0 + t_eps) {
-        if (t > t_eps && enters_obstacle(e, pd_sub(a, c))) return true;
-        if (t < 1.0 - t_eps && enters_obstacle(e, ab)) return true;
-      }
-    }
-    // An endpoint inside the edge (not at a vertex): the segment must leave to the free side.
-    const double ta = param_on(c, d, a), tb = param_on(c, d, b), te = kOnLineMm / lcd;
-    if (s3 == 0 && ta > te && ta < 1.0 - te && s4 < 0) return true;
-    if (s4 == 0 && tb > te && tb < 1.0 - te && s3 < 0) return true;
-    return false;
-  };
   // Columns of cells from a towards b; in each, the rows the segment spans (widened by the
   // tolerance, so a segment through a cell corner sees the edges of all four cells).
   const int ia =
@@ -154,7 +157,10 @@ bool RoutePlanner::Impl::segment_clear(Vec2 a, Vec2 b) const {
       const int j = ab.y >= 0 ? j0 + jj : j1 - jj;
       const std::size_t c = static_cast<std::size_t>(j) * grid_nx + i;
       for (std::uint32_t k = cell_start[c]; k < cell_start[c + 1]; ++k) {
-        if (edge_blocks(cell_edges[k])) return false;
+        if (edge_blocks(a, b, lab, cell_edges[k])) {
+          if (blocker) *blocker = cell_edges[k];
+          return false;
+        }
       }
     }
     if (i == ib) break;
@@ -180,6 +186,48 @@ bool RoutePlanner::Impl::segment_free(Vec2 a, Vec2 b) const {
   return point_free(a) && point_free(b) && segment_clear(a, b);
 }
 
+namespace {
+
+// Nodes bucketed by a coarse grid (CSR), so that a node's candidate partners can be taken cell by
+// cell, skipping the cells that lie wholly inside the node's non-tangent double cone.
+struct NodeCells {
+  double x0 = 0.0, y0 = 0.0, size = 1.0;
+  int nx = 1, ny = 1;
+  std::vector<std::uint32_t> start, nodes;
+};
+
+NodeCells bucket_nodes(const std::vector<Vec2>& pos) {
+  NodeCells g;
+  double x1 = -std::numeric_limits<double>::max(), y1 = x1;
+  g.x0 = g.y0 = std::numeric_limits<double>::max();
+  for (const Vec2& p : pos) {
+    g.x0 = std::min(g.x0, p.x), g.y0 = std::min(g.y0, p.y);
+    x1 = std::max(x1, p.x), y1 = std::max(y1, p.y);
+  }
+  if (pos.empty()) g.x0 = g.y0 = x1 = y1 = 0.0;
+  // About 24 nodes per cell: the cone test per cell then costs less than the pairs it skips.
+  const double area = std::max(1.0, (x1 - g.x0) * (y1 - g.y0));
+  g.size = std::max(1.0, std::sqrt(24.0 * area / std::max<std::size_t>(1, pos.size())));
+  g.nx = std::max(1, static_cast<int>((x1 - g.x0) / g.size) + 1);
+  g.ny = std::max(1, static_cast<int>((y1 - g.y0) / g.size) + 1);
+  std::vector<std::uint32_t> cell(pos.size());
+  g.start.assign(static_cast<std::size_t>(g.nx) * g.ny + 1, 0);
+  for (std::size_t k = 0; k < pos.size(); ++k) {
+    const int i = std::min(g.nx - 1, static_cast<int>((pos[k].x - g.x0) / g.size));
+    const int j = std::min(g.ny - 1, static_cast<int>((pos[k].y - g.y0) / g.size));
+    cell[k] = static_cast<std::uint32_t>(j * g.nx + i);
+    ++g.start[cell[k] + 1];
+  }
+  for (std::size_t c = 0; c + 1 < g.start.size(); ++c) g.start[c + 1] += g.start[c];
+  g.nodes.resize(pos.size());
+  std::vector<std::uint32_t> fill(g.start.begin(), g.start.end() - 1);
+  for (std::size_t k = 0; k < pos.size(); ++k)
+    g.nodes[fill[cell[k]]++] = static_cast<std::uint32_t>(k);
+  return g;
+}
+
+}  // namespace
+
 void RoutePlanner::Impl::build_graph() {
   for (std::uint32_t i = 0; i < pts.size(); ++i) {
     const Vec2 e_in = pd_sub(pts[i], pts[prev[i]]), e_out = pd_sub(pts[next[i]], pts[i]);
@@ -187,31 +235,83 @@ void RoutePlanner::Impl::build_graph() {
     if (l > 0.0 && pd_cross(e_in, e_out) < -1e-9 * l) node_vertex.push_back(i);
   }
   const std::size_t n = node_vertex.size();
-  // Neighbour offsets side by side: the pair loop below runs n^2 / 2 times.
   std::vector<Vec2> pos(n), to_prev(n), to_next(n);
   for (std::size_t k = 0; k < n; ++k) {
     const std::uint32_t i = node_vertex[k];
     pos[k] = pts[i], to_prev[k] = pd_sub(pts[prev[i]], pts[i]),
     to_next[k] = pd_sub(pts[next[i]], pts[i]);
   }
-  auto tangent = [&](std::size_t k, Vec2 v, double tol) {
-    const double sp = pd_cross(v, to_prev[k]), sn = pd_cross(v, to_next[k]);
-    return !((sp > tol && sn < -tol) || (sp < -tol && sn > tol));
+  // Outside the tangent filter when sp and sn have strictly opposite signs beyond the tolerance
+  // kOnLineMm * |v| (compared squared: no square root per pair).
+  auto tangent = [](Vec2 v, Vec2 tp, Vec2 tn, double tol2) {
+    const double sp = pd_cross(v, tp), sn = pd_cross(v, tn);
+    const bool sp_big = sp * sp > tol2, sn_big = sn * sn > tol2;
+    return !(sp_big && sn_big && ((sp > 0.0) != (sn > 0.0)));
+  };
+  const NodeCells cells = bucket_nodes(pos);
+  // The nodes' data in cell order, side by side, for the pair loop.
+  std::vector<Vec2> cpos(n), cprev(n), cnext(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::uint32_t w = cells.nodes[k];
+    cpos[k] = pos[w], cprev[k] = to_prev[w], cnext[k] = to_next[w];
+  }
+  // Per node, the last edges that blocked a segment from it: segments from one node in nearby
+  // directions are mostly blocked by the same few edges, and any edge that blocks is proof.
+  constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
+  std::vector<std::array<std::uint32_t, 2>> recent(n, {kNone, kNone});
+  auto remember = [&](std::uint32_t k, std::uint32_t e) {
+    if (recent[k][0] != e) recent[k][1] = recent[k][0], recent[k][0] = e;
   };
   std::vector<std::pair<std::uint32_t, std::uint32_t>> edges;
   std::vector<plan_detail::EdgeWeight> weights;
-  for (std::size_t u = 0; u < n; ++u) {
-    for (std::size_t w = u + 1; w < n; ++w) {
-      const Vec2 v = pd_sub(pos[w], pos[u]);
-      const double l = pd_norm(v), tol = kOnLineMm * l;
-      if (!tangent(u, v, tol) || !tangent(w, v, tol)) continue;
-      if (enters_obstacle(node_vertex[u], v) || enters_obstacle(node_vertex[w], {-v.x, -v.y}))
-        continue;
-      if (!segment_clear(pos[u], pos[w])) continue;
-      edges.emplace_back(static_cast<std::uint32_t>(u), static_cast<std::uint32_t>(w));
-      edges.emplace_back(static_cast<std::uint32_t>(w), static_cast<std::uint32_t>(u));
-      weights.push_back({l});
-      weights.push_back({l});
+  for (std::uint32_t u = 0; u < n; ++u) {
+    const Vec2 p = pos[u], tp = to_prev[u], tn = to_next[u];
+    const double tnorm = pd_norm(tp) + pd_norm(tn) + 1.0;
+    for (int cj = 0; cj < cells.ny; ++cj) {
+      for (int ci = 0; ci < cells.nx; ++ci) {
+        // A cell wholly inside one open half of the double cone where the line through u cuts
+        // between its ring neighbours holds no tangent partner (the cell is convex, the cone
+        // too; the margin covers the tangent test's tolerance and rounding).
+        const double xl = cells.x0 + ci * cells.size - 1.0 - p.x, xh = xl + cells.size + 2.0;
+        const double yl = cells.y0 + cj * cells.size - 1.0 - p.y, yh = yl + cells.size + 2.0;
+        const Vec2 corner[4] = {{xl, yl}, {xh, yl}, {xl, yh}, {xh, yh}};
+        const double reach =
+            std::max(std::abs(xl), std::abs(xh)) + std::max(std::abs(yl), std::abs(yh));
+        const double tol = 4.0 * kOnLineMm * reach * tnorm;
+        int pos_side = 0, neg_side = 0;
+        for (const Vec2& c : corner) {
+          const double sp = pd_cross(c, tp), sn = pd_cross(c, tn);
+          pos_side += sp > tol && sn < -tol;
+          neg_side += sp < -tol && sn > tol;
+        }
+        if (pos_side == 4 || neg_side == 4) continue;
+        const std::size_t c = static_cast<std::size_t>(cj) * cells.nx + ci;
+        for (std::uint32_t k = cells.start[c]; k < cells.start[c + 1]; ++k) {
+          if (cells.nodes[k] <= u) continue;
+          const Vec2 v = pd_sub(cpos[k], p);
+          const double tol2 = kOnLineMm * kOnLineMm * pd_dot(v, v);
+          if (!tangent(v, tp, tn, tol2) || !tangent(v, cprev[k], cnext[k], tol2)) continue;
+          const std::uint32_t w = cells.nodes[k];
+          if (enters_obstacle(node_vertex[u], v) || enters_obstacle(node_vertex[w], {-v.x, -v.y}))
+            continue;
+          const double l = pd_norm(v);
+          const auto cached = [&](std::uint32_t e) {
+            return e != kNone && edge_blocks(p, cpos[k], l, e);
+          };
+          if (cached(recent[u][0]) || cached(recent[w][0]) || cached(recent[u][1]) ||
+              cached(recent[w][1]))
+            continue;
+          std::uint32_t e = kNone;
+          if (!segment_clear(p, cpos[k], &e)) {
+            remember(u, e), remember(w, e);
+            continue;
+          }
+          edges.emplace_back(u, w);
+          edges.emplace_back(w, u);
+          weights.push_back({l});
+          weights.push_back({l});
+        }
+      }
     }
   }
   edge_count = edges.size() / 2;

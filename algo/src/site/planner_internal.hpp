@@ -65,7 +65,10 @@ struct RoutePlanner::Impl {
   bool point_free(Vec2 p) const;
   bool segment_free(Vec2 a, Vec2 b) const;
   // segment_free without the endpoint checks (the endpoints are known to be free).
-  bool segment_clear(Vec2 a, Vec2 b) const;
+  // With blocker, the edge that blocked a refused segment.
+  bool segment_clear(Vec2 a, Vec2 b, std::uint32_t* blocker = nullptr) const;
+  // Whether edge e alone makes a->b (of length lab > kOnLineMm) not free.
+  bool edge_blocks(Vec2 a, Vec2 b, double lab, std::uint32_t e) const;
   void build_graph();
   // Whether the direction v leaving boundary vertex i enters the obstacle side at once.
   bool enters_obstacle(std::uint32_t i, Vec2 v) const;

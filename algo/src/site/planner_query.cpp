@@ -3,7 +3,7 @@
 // distances, and stops once no unexplored node can improve the best arrival at the goal. The
 // built graph is never modified, so queries are const and may run concurrently.
 #include <algorithm>
-#include <boost/graph/dijkstra_shortest_paths.hpp>
+#include <boost/range/iterator_range.hpp>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -75,20 +75,13 @@ std::string format_point(Vec2 p) {
   return buf;
 }
 
-struct StopSearch {};
-
-// Stops Dijkstra's algorithm once the node it settles is no closer than the best arrival.
-struct ArrivalVisitor : boost::default_dijkstra_visitor {
-  const std::vector<double>* dist;
-  const std::vector<double>* to_goal;
-  double* best;
-  std::uint32_t* best_node;
-  template <class G>
-  void examine_vertex(std::uint32_t u, const G&) {
-    const double d = (*dist)[u];
-    if (d >= *best) throw StopSearch{};
-    if (d + (*to_goal)[u] < *best) *best = d + (*to_goal)[u], *best_node = u;
-  }
+// A search entry: f = g + |node - goal|. A start entry's segment from the start is not yet
+// tested: it is tested only when the entry comes first, and most never do.
+struct Entry {
+  double f, g;
+  std::uint32_t node;
+  bool from_start;
+  bool operator<(const Entry& o) const { return f > o.f; }  // min-heap
 };
 
 }  // namespace
@@ -148,35 +141,50 @@ Route RoutePlanner::plan(Vec2 start_mm, Vec2 goal_mm) const {
     return route;
   }
   const std::size_t n = m.node_vertex.size();
-  std::vector<double> dist(n, kInf), to_goal(n, kInf);
-  std::vector<std::uint32_t> pred(n), sources;
+  std::vector<double> dist(n, kInf);
+  std::vector<std::uint32_t> pred(n);
+  std::vector<Entry> heap;
+  auto h = [&](std::uint32_t k) { return pd_norm(pd_sub(goal_mm, m.pts[m.node_vertex[k]])); };
+  auto useful = [&](std::uint32_t i, Vec2 v) {
+    return m.tangent_at(i, v) && !m.enters_obstacle(i, v);
+  };
   for (std::uint32_t k = 0; k < n; ++k) {
-    pred[k] = k;
     const std::uint32_t i = m.node_vertex[k];
-    const Vec2 q = m.pts[i];
-    for (int end = 0; end < 2; ++end) {
-      const Vec2 p = end == 0 ? start_mm : goal_mm;
-      const Vec2 v = pd_sub(p, q);
-      if (!m.tangent_at(i, v) || m.enters_obstacle(i, v) || !m.segment_clear(p, q)) continue;
-      (end == 0 ? dist : to_goal)[k] = pd_norm(v);
-      if (end == 0) sources.push_back(k);
-    }
+    const Vec2 v = pd_sub(start_mm, m.pts[i]);
+    if (!useful(i, v)) continue;
+    const double g = pd_norm(v);
+    heap.push_back({g + h(k), g, k, true});
   }
+  std::make_heap(heap.begin(), heap.end());
   double best = kInf;
   std::uint32_t best_node = 0;
-  std::vector<boost::default_color_type> color(n, boost::white_color);
-  ArrivalVisitor vis;
-  vis.dist = &dist, vis.to_goal = &to_goal, vis.best = &best, vis.best_node = &best_node;
-  try {
-    const auto index = boost::get(boost::vertex_index, m.graph);
-    boost::dijkstra_shortest_paths_no_init(m.graph, sources.begin(), sources.end(),
-                                           boost::make_iterator_property_map(pred.data(), index),
-                                           boost::make_iterator_property_map(dist.data(), index),
-                                           boost::get(&plan_detail::EdgeWeight::w, m.graph), index,
-                                           std::less<double>(), boost::closed_plus<double>(kInf),
-                                           0.0, vis,
-                                           boost::make_iterator_property_map(color.data(), index));
-  } catch (const StopSearch&) {
+  while (!heap.empty() && heap.front().f < best) {
+    std::pop_heap(heap.begin(), heap.end());
+    const Entry top = heap.back();
+    heap.pop_back();
+    const std::uint32_t k = top.node, i = m.node_vertex[k];
+    const Vec2 q = m.pts[i];
+    if (top.from_start) {
+      if (top.g >= dist[k] || !m.segment_clear(start_mm, q)) continue;
+      dist[k] = top.g, pred[k] = k;
+    } else if (top.g != dist[k]) {
+      continue;  // superseded by a shorter arrival
+    }
+    // The arrival through k costs exactly top.f, the least key left: if k sees the goal, done.
+    const Vec2 to_goal = pd_sub(goal_mm, q);
+    if (useful(i, to_goal) && m.segment_clear(q, goal_mm)) {
+      best = top.g + pd_norm(to_goal), best_node = k;
+      break;
+    }
+    for (const auto e : boost::make_iterator_range(boost::out_edges(k, m.graph))) {
+      const std::uint32_t j = static_cast<std::uint32_t>(boost::target(e, m.graph));
+      const double g = top.g + m.graph[e].w;
+      if (g < dist[j]) {
+        dist[j] = g, pred[j] = k;
+        heap.push_back({g + h(j), g, j, false});
+        std::push_heap(heap.begin(), heap.end());
+      }
+    }
   }
   if (!std::isfinite(best)) {
     route.status = PlanStatus::kNoRoute;
