@@ -46,7 +46,7 @@ agv::site::Site warehouse() {
 }  // namespace
 
 int main(int argc, char** argv) {
-  int agvs = 20, tasks = 4;
+  int agvs = 20, tasks = 3;
   double duration_s = 600.0, min_ratio = 20.0, horizon_mm = -1.0, cell_mm = -1.0;
   unsigned long long seed = 1;
   for (int i = 1; i + 1 < argc; i += 2) {

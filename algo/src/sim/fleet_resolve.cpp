@@ -71,6 +71,8 @@ void FleetSim::resolve_blockages() {
 void FleetSim::handle_blockage(const std::vector<int>& members, bool cycle) {
   Vehicle& first = vehicles_[static_cast<std::size_t>(members.front())];
   const bool new_episode = !first.reported;
+  // Several vehicles queued behind one blockage lead to it: one attempt per retry period.
+  if (!new_episode && t_s_ < first.retry_s) return;
   if (new_episode) {
     if (cycle) {
       ++out_->deadlocks;
@@ -137,6 +139,7 @@ bool FleetSim::try_evade(Vehicle& y, const Vehicle* x) {
     if (plan_total_[c] > own[c]) mark_[c] = 1;
   }
   const Vec2 here{y.pose.x_mm, y.pose.y_mm};
+  if (!planner_.point_free(here)) return false;  // no route can start here (mid-corner)
   std::mt19937_64 rng(p_.seed * 0x2545F4914F6CDD1DULL +
                       static_cast<std::uint64_t>(std::llround(t_s_ * 1000.0)) * 131 +
                       static_cast<std::uint64_t>(y.index));
