@@ -169,17 +169,24 @@ TEST_F(RenderCommand, BadInputExitsTwoWithTheReason) {
   EXPECT_EQ(run({"--site", kSite, "--out", fresh, "--vehicle-camera", "agv-9"}, &err), 2);
   EXPECT_NE(err.find("no AGV 'agv-9'"), std::string::npos) << err;
   EXPECT_EQ(run({"--site", kSite, "--out", fresh, "--vehicle-camera", "agv-1", "--mount",
-                 "300,0,1000,0,0"}, &err), 2);
+                 "300,0,1000,0,0"},
+                &err),
+            2);
   EXPECT_NE(err.find("--mount '300,0,1000,0,0'"), std::string::npos) << err;
   EXPECT_EQ(run({"--site", kSite, "--out", fresh, "--vehicle-camera", "agv-1", "--mount",
-                 "300,0,abc,0,0,0"}, &err), 2);
+                 "300,0,abc,0,0,0"},
+                &err),
+            2);
   EXPECT_EQ(run({"--site", kSite, "--out", fresh, "--vehicle-camera", "agv-1", "--intrinsics",
-                 "320,200,100,100,160,100"}, &err), 2);
+                 "320,200,100,100,160,100"},
+                &err),
+            2);
   EXPECT_NE(err.find("--intrinsics"), std::string::npos) << err;
   EXPECT_FALSE(fs::exists(fresh)) << "nothing written for bad input";
   EXPECT_EQ(run({"--site", kSite, "--out", dir_.string(), "--scale", "0.25"}, &err), 2);
   EXPECT_NE(err.find("is not empty"), std::string::npos) << err;
-  EXPECT_EQ(run({"--site", AGV_SOURCE_DIR "/tests/site/data/no_such.yaml", "--out", fresh}, &err), 2);
+  EXPECT_EQ(run({"--site", AGV_SOURCE_DIR "/tests/site/data/no_such.yaml", "--out", fresh}, &err),
+            2);
 }
 
 }  // namespace

@@ -60,8 +60,8 @@ int io_failure(const std::string& msg) {
 
 void write_intrinsics(std::ofstream& f, const CameraIntrinsics& k) {
   f << "width_px: " << k.width_px << "\nheight_px: " << k.height_px << "\nfx: " << k.fx
-    << "\nfy: " << k.fy << "\ncx: " << k.cx << "\ncy: " << k.cy << "\ndistortion: [" << k.k1
-    << ", " << k.k2 << ", " << k.p1 << ", " << k.p2 << ", " << k.k3 << "]\n";
+    << "\nfy: " << k.fy << "\ncx: " << k.cx << "\ncy: " << k.cy << "\ndistortion: [" << k.k1 << ", "
+    << k.k2 << ", " << k.p1 << ", " << k.p2 << ", " << k.k3 << "]\n";
 }
 
 bool write_camera_yaml(const std::string& dir, const View& v, const site::Site& site,
@@ -98,7 +98,8 @@ void truth_row(std::FILE* f, std::int64_t t_ns, const char* object, const std::s
                y, theta);
   for (int i = 0; i < 4; ++i) {
     const bool ok = corners && projected;
-    std::fprintf(f, ",%.4f,%.4f", ok ? corners[i].x : std::nan(""), ok ? corners[i].y : std::nan(""));
+    std::fprintf(f, ",%.4f,%.4f", ok ? corners[i].x : std::nan(""),
+                 ok ? corners[i].y : std::nan(""));
   }
   std::fprintf(f, ",%.4f\n", visible);
 }
@@ -178,9 +179,11 @@ int render_view(const RenderSiteArgs& a, const View& v, const FleetMotion& m,
     files.poses = std::fopen((fs::path(dir) / "camera_poses.csv").string().c_str(), "w");
   }
   if (!files.truth || (v.on_vehicle && !files.poses)) return io_failure("cannot write in " + dir);
-  std::fprintf(files.truth, "t_ns,object,id,x_mm,y_mm,theta_rad,c0_x,c0_y,c1_x,c1_y,c2_x,c2_y,"
-                            "c3_x,c3_y,visible_fraction\n");
-  if (files.poses) std::fprintf(files.poses, "t_ns,r00,r01,r02,r10,r11,r12,r20,r21,r22,x_mm,y_mm,z_mm\n");
+  std::fprintf(files.truth,
+               "t_ns,object,id,x_mm,y_mm,theta_rad,c0_x,c0_y,c1_x,c1_y,c2_x,c2_y,"
+               "c3_x,c3_y,visible_fraction\n");
+  if (files.poses)
+    std::fprintf(files.poses, "t_ns,r00,r01,r02,r10,r11,r12,r20,r21,r22,x_mm,y_mm,z_mm\n");
   const sim::SiteRenderParams params =
       a.clean ? sim::SiteRenderParams{} : sim::realistic_site_params();
   const sim::SiteFrameRenderer renderer(v.k);
@@ -192,8 +195,8 @@ int render_view(const RenderSiteArgs& a, const View& v, const FleetMotion& m,
     const sim::RenderCamera rc =
         v.on_vehicle ? sim::RenderCamera::on_vehicle(v.k, scene.agvs[v.agv].pose, v.mount)
                      : sim::RenderCamera::from_ceiling(v.fixed);
-    const sim::RenderResult r =
-        renderer.render(scene, rc, params, a.seed * 0x2545F4914F6CDD1DULL + static_cast<unsigned>(k));
+    const sim::RenderResult r = renderer.render(
+        scene, rc, params, a.seed * 0x2545F4914F6CDD1DULL + static_cast<unsigned>(k));
     if (r.image.empty()) return io_failure("the scene could not be rendered for " + v.name);
     const std::int64_t t_ns = kT0Ns + t_fleet;
     char name[40];
@@ -265,8 +268,11 @@ bool select_views(const RenderSiteArgs& a, const site::Site& site, std::vector<V
   CameraIntrinsics k{1280, 800, 700.0, 700.0, 639.5, 399.5};
   if (!a.intrinsics_text.empty() && !parse_intrinsics(a.intrinsics_text, &k, error)) return false;
   v.k = scale_intrinsics(k, a.scale);
+  for (const View& o : *views) {
+    if (o.name == v.name)
+      return (*error = "camera id '" + v.name + "' is the vehicle camera's folder", false);
+  }
   views->push_back(v);
-  if (views->empty()) return (*error = "no camera to render", false);
   return true;
 }
 
@@ -284,7 +290,8 @@ bool prepare_out(const RenderSiteArgs& a, const std::vector<View>& views, std::s
   for (const View& v : views) {
     if (a.force) fs::remove_all(out / v.name, ec);
     fs::create_directories(out / v.name, ec);
-    if (ec) return (*error = "cannot create " + (out / v.name).string() + ": " + ec.message(), false);
+    if (ec)
+      return (*error = "cannot create " + (out / v.name).string() + ": " + ec.message(), false);
   }
   return true;
 }
@@ -321,7 +328,8 @@ bool write_view_meta(const RenderSiteArgs& a, const View& v, const site::Site& s
 
 void add_options(CLI::App& app, RenderSiteArgs& a) {
   app.add_option("--site", a.site_path, "The site file (site.yaml)")->required();
-  app.add_option("--out", a.out_dir, "Folder to write: one recording folder per camera")->required();
+  app.add_option("--out", a.out_dir, "Folder to write: one recording folder per camera")
+      ->required();
   app.add_option("--camera", a.camera_id, "Render only this ceiling camera");
   app.add_option("--cameras", a.cameras, "'all' ceiling cameras (default) or 'none'");
   app.add_option("--vehicle-camera", a.vehicle_agv,
@@ -332,17 +340,22 @@ void add_options(CLI::App& app, RenderSiteArgs& a) {
   app.add_option("--intrinsics", a.intrinsics_text,
                  "Vehicle camera: WxH,fx,fy,cx,cy (default 1280x800,700,700,639.5,399.5)");
   app.add_option("--scale", a.scale, "Scale every camera's image size and focal lengths")
-      ->check(CLI::Range(0.01, 8.0))->capture_default_str();
+      ->check(CLI::Range(0.01, 8.0))
+      ->capture_default_str();
   app.add_option("--frames", a.frames, "Frames to render")->check(CLI::Range(1, 100000));
   app.add_option("--fps", a.fps, "Frame rate")->check(CLI::Range(0.1, 200.0));
   app.add_option("--start-s", a.start_s, "Fleet time of the first frame (vehicles start at rest)")
-      ->check(CLI::Range(0.0, 86400.0))->capture_default_str();
+      ->check(CLI::Range(0.0, 86400.0))
+      ->capture_default_str();
   app.add_option("--speed-mps", a.speed_mps, "The fleet's cruise speed")
-      ->check(CLI::Range(0.05, 5.0))->capture_default_str();
+      ->check(CLI::Range(0.05, 5.0))
+      ->capture_default_str();
   app.add_option("--parcel-fraction", a.parcel_fraction, "Share of trays carrying parcels")
-      ->check(CLI::Range(0.0, 1.0))->capture_default_str();
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
   app.add_option("--clutter", a.clutter, "People and pallets on free floor, off the fleet's paths")
-      ->check(CLI::Range(0, 1000))->capture_default_str();
+      ->check(CLI::Range(0, 1000))
+      ->capture_default_str();
   app.add_option("--seed", a.seed, "Seed of tasks, parcels, clutter and noise");
   app.add_flag("--clean", a.clean, "No motion blur, noise, vignetting or light gradient");
   app.add_flag("--force", a.force, "Write into a non-empty --out, replacing the camera folders");
@@ -351,9 +364,10 @@ void add_options(CLI::App& app, RenderSiteArgs& a) {
 }  // namespace
 
 int render_site_command(int argc, char** argv) {
-  CLI::App app{"Render frames of a site's cameras (ceiling cameras and one on a vehicle) with the "
-               "fleet driving its tasks, parcels and clutter (docs/design/site_render.md)",
-               "agvloc-desk render-site"};
+  CLI::App app{
+      "Render frames of a site's cameras (ceiling cameras and one on a vehicle) with the "
+      "fleet driving its tasks, parcels and clutter (docs/design/site_render.md)",
+      "agvloc-desk render-site"};
   RenderSiteArgs a;
   add_options(app, a);
   try {
@@ -383,10 +397,10 @@ int render_site_command(int argc, char** argv) {
     if (!write_view_meta(a, v, site, source, &err)) return io_failure(err);
     if (const int rc = render_view(a, v, motion, scene); rc != 0) return rc;
   }
-  std::printf("agvloc-desk render-site: %zu cameras, %d frames each, %zu vehicles, %zu parcels, "
-              "%zu clutter objects\n",
-              views.size(), a.frames, scene.agvs.size(), scene.parcels.size(),
-              scene.clutter.size());
+  std::printf(
+      "agvloc-desk render-site: %zu cameras, %d frames each, %zu vehicles, %zu parcels, "
+      "%zu clutter objects\n",
+      views.size(), a.frames, scene.agvs.size(), scene.parcels.size(), scene.clutter.size());
   return 0;
 }
 

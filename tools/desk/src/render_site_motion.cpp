@@ -36,9 +36,9 @@ bool simulate_site_fleet(const site::Site& site, double duration_s, double speed
 std::vector<sim::AgvState> fleet_states_at(const FleetMotion& m, std::int64_t t_ns) {
   std::vector<sim::AgvState> s;
   for (const sim::FleetVehicleOutput& v : m.result.vehicles) {
-    const auto it = std::lower_bound(
-        v.truth.begin(), v.truth.end(), t_ns,
-        [](const sim::FleetTruthSample& a, std::int64_t t) { return a.t_ns < t; });
+    const auto it =
+        std::lower_bound(v.truth.begin(), v.truth.end(), t_ns,
+                         [](const sim::FleetTruthSample& a, std::int64_t t) { return a.t_ns < t; });
     auto best = it == v.truth.end() ? std::prev(it) : it;
     if (it != v.truth.begin() && it != v.truth.end() &&
         t_ns - std::prev(it)->t_ns < it->t_ns - t_ns) {
@@ -97,7 +97,8 @@ bool parse_mount(const std::string& text, sim::VehicleCameraMount* out, std::str
   }
   if (std::abs(v[0]) > 1e5 || std::abs(v[1]) > 1e5 || v[2] <= 0.0 || v[2] > 1e5 ||
       std::abs(v[4]) >= 90.0) {
-    *error = "--mount '" + text + "': z must be in (0, 100000] mm, |x|, |y| <= 100000 mm and "
+    *error = "--mount '" + text +
+             "': z must be in (0, 100000] mm, |x|, |y| <= 100000 mm and "
              "|pitch| < 90 deg";
     return false;
   }
@@ -112,8 +113,8 @@ bool parse_intrinsics(const std::string& text, CameraIntrinsics* out, std::strin
   std::vector<double> v;
   const bool shape = x != std::string::npos && comma != std::string::npos && x < comma &&
                      parse_numbers(text.substr(0, x) + "," + text.substr(x + 1), 6, &v);
-  if (!shape || v[0] != std::floor(v[0]) || v[1] != std::floor(v[1]) || v[0] < 16 ||
-      v[1] < 16 || v[0] > 16384 || v[1] > 16384 || v[2] <= 0.0 || v[3] <= 0.0) {
+  if (!shape || v[0] != std::floor(v[0]) || v[1] != std::floor(v[1]) || v[0] < 16 || v[1] < 16 ||
+      v[0] > 16384 || v[1] > 16384 || v[2] <= 0.0 || v[3] <= 0.0) {
     *error = "--intrinsics '" + text + "': expected WxH,fx,fy,cx,cy (16..16384 px, fx, fy > 0)";
     return false;
   }
