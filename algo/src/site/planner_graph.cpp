@@ -132,6 +132,7 @@ bool RoutePlanner::Impl::segment_clear(Vec2 a, Vec2 b, std::uint32_t* blocker) c
   const Vec2 ab = pd_sub(b, a);
   const double lab = pd_norm(ab);
   if (lab <= kOnLineMm) return true;
+  const double tol_ab = kOnLineMm * lab;
   // Columns of cells from a towards b; in each, the rows the segment spans (widened by the
   // tolerance, so a segment through a cell corner sees the edges of all four cells).
   const int ia =
@@ -157,8 +158,9 @@ bool RoutePlanner::Impl::segment_clear(Vec2 a, Vec2 b, std::uint32_t* blocker) c
       const int j = ab.y >= 0 ? j0 + jj : j1 - jj;
       const std::size_t c = static_cast<std::size_t>(j) * grid_nx + i;
       for (std::uint32_t k = cell_start[c]; k < cell_start[c + 1]; ++k) {
-        if (edge_blocks(a, b, lab, cell_edges[k])) {
-          if (blocker) *blocker = cell_edges[k];
+        const std::uint32_t e = cell_edges[k];
+        if (may_block(a, ab, tol_ab, e) && edge_blocks(a, b, lab, e)) {
+          if (blocker) *blocker = e;
           return false;
         }
       }
@@ -205,9 +207,9 @@ NodeCells bucket_nodes(const std::vector<Vec2>& pos) {
     x1 = std::max(x1, p.x), y1 = std::max(y1, p.y);
   }
   if (pos.empty()) g.x0 = g.y0 = x1 = y1 = 0.0;
-  // About 24 nodes per cell: the cone test per cell then costs less than the pairs it skips.
+  // About 16 nodes per cell: the cone test per cell then costs less than the pairs it skips.
   const double area = std::max(1.0, (x1 - g.x0) * (y1 - g.y0));
-  g.size = std::max(1.0, std::sqrt(24.0 * area / std::max<std::size_t>(1, pos.size())));
+  g.size = std::max(1.0, std::sqrt(16.0 * area / std::max<std::size_t>(1, pos.size())));
   g.nx = std::max(1, static_cast<int>((x1 - g.x0) / g.size) + 1);
   g.ny = std::max(1, static_cast<int>((y1 - g.y0) / g.size) + 1);
   std::vector<std::uint32_t> cell(pos.size());
@@ -226,6 +228,86 @@ NodeCells bucket_nodes(const std::vector<Vec2>& pos) {
   return g;
 }
 
+// The x-extent of wedge {s a + t b : s, t >= 0} (a to b counter-clockwise, under 180 deg) within
+// the strip ya <= y <= yb; false when they do not meet. Infinite ends where the wedge holds +-x.
+bool wedge_strip_extent(Vec2 a, Vec2 b, double ya, double yb, double* lo, double* hi) {
+  double x0 = std::numeric_limits<double>::infinity(), x1 = -x0;
+  if (ya <= 0.0 && yb >= 0.0) x0 = x1 = 0.0;
+  for (const Vec2 r : {a, b}) {
+    for (const double y : {ya, yb}) {
+      if (r.y == 0.0) continue;
+      const double t = y / r.y;
+      if (t > 0.0) x0 = std::min(x0, t * r.x), x1 = std::max(x1, t * r.x);
+    }
+  }
+  const double inf = std::numeric_limits<double>::infinity();
+  if (pd_cross(a, {1.0, 0.0}) >= 0.0 && pd_cross({1.0, 0.0}, b) >= 0.0) x1 = inf;
+  if (pd_cross(a, {-1.0, 0.0}) >= 0.0 && pd_cross({-1.0, 0.0}, b) >= 0.0) x0 = -inf;
+  if (x0 > x1) return false;
+  *lo = x0, *hi = x1;
+  return true;
+}
+
+// Rotates v by angle (counter-clockwise).
+Vec2 rotate(Vec2 v, double angle) {
+  const double c = std::cos(angle), s = std::sin(angle);
+  return {c * v.x - s * v.y, s * v.x + c * v.y};
+}
+
+// The tangent directions at a node (ring offsets tp, tn): two wedges, bounded by the ring edges
+// and their extensions, widened by the tangent test's tolerance (as an angle) and a margin for
+// rounding. columns() gives, per row of cells, the column spans that the wedges reach.
+struct TangentWedges {
+  std::array<std::pair<Vec2, Vec2>, 2> w;
+  bool usable = false;  // false: every cell of every row
+
+  static TangentWedges make(Vec2 tp, Vec2 tn) {
+    TangentWedges t;
+    const double lmin = std::min(pd_norm(tp), pd_norm(tn));
+    const double widen = lmin > 0.0 ? 4.0 * kOnLineMm / lmin + 1e-9 : 1.0;
+    t.w = {std::pair{tn, Vec2{-tp.x, -tp.y}}, std::pair{tp, Vec2{-tn.x, -tn.y}}};
+    t.usable = widen < 0.01;
+    for (auto& [a, b] : t.w) {
+      if (pd_cross(a, b) < 0.0) std::swap(a, b);
+      a = rotate(a, -widen), b = rotate(b, widen);
+      if (pd_cross(a, b) <= 0.0) t.usable = false;  // a half-plane or more: no use
+    }
+    return t;
+  }
+
+  // Up to two column spans {first, last} of row cj (an empty span has first > last), disjoint.
+  std::array<std::pair<int, int>, 2> columns(const NodeCells& cells, Vec2 p, int cj) const {
+    std::array<std::pair<int, int>, 2> cols{std::pair{0, cells.nx - 1}, std::pair{1, 0}};
+    if (!usable) return cols;
+    const double ya = cells.y0 + cj * cells.size - 1.0 - p.y, yb = ya + cells.size + 2.0;
+    for (int k = 0; k < 2; ++k) {
+      double lo, hi;
+      cols[k] = {1, 0};
+      if (!wedge_strip_extent(w[k].first, w[k].second, ya, yb, &lo, &hi)) continue;
+      const double fl = std::floor((lo - 1.0 + p.x - cells.x0) / cells.size);
+      const double fh = std::floor((hi + 1.0 + p.x - cells.x0) / cells.size);
+      if (fh < 0.0 || fl > cells.nx - 1) continue;
+      cols[k] = {static_cast<int>(std::max(0.0, fl)),
+                 static_cast<int>(std::min<double>(cells.nx - 1, fh))};
+    }
+    if (cols[0].first > cols[0].second) std::swap(cols[0], cols[1]);
+    if (cols[1].first <= cols[1].second && cols[1].first <= cols[0].second + 1 &&
+        cols[0].first <= cols[1].second + 1) {  // overlapping: visit each cell once
+      cols[0] = {std::min(cols[0].first, cols[1].first), std::max(cols[0].second, cols[1].second)};
+      cols[1] = {1, 0};
+    }
+    return cols;
+  }
+};
+
+// Outside the tangent filter when sp and sn have strictly opposite signs beyond the tolerance
+// kOnLineMm * |v| (tol2 its square: no square root per pair).
+bool tangent(Vec2 v, Vec2 tp, Vec2 tn, double tol2) {
+  const double sp = pd_cross(v, tp), sn = pd_cross(v, tn);
+  const bool sp_big = sp * sp > tol2, sn_big = sn * sn > tol2;
+  return !(sp_big && sn_big && ((sp > 0.0) != (sn > 0.0)));
+}
+
 }  // namespace
 
 void RoutePlanner::Impl::build_graph() {
@@ -241,13 +323,6 @@ void RoutePlanner::Impl::build_graph() {
     pos[k] = pts[i], to_prev[k] = pd_sub(pts[prev[i]], pts[i]),
     to_next[k] = pd_sub(pts[next[i]], pts[i]);
   }
-  // Outside the tangent filter when sp and sn have strictly opposite signs beyond the tolerance
-  // kOnLineMm * |v| (compared squared: no square root per pair).
-  auto tangent = [](Vec2 v, Vec2 tp, Vec2 tn, double tol2) {
-    const double sp = pd_cross(v, tp), sn = pd_cross(v, tn);
-    const bool sp_big = sp * sp > tol2, sn_big = sn * sn > tol2;
-    return !(sp_big && sn_big && ((sp > 0.0) != (sn > 0.0)));
-  };
   const NodeCells cells = bucket_nodes(pos);
   // The nodes' data in cell order, side by side, for the pair loop.
   std::vector<Vec2> cpos(n), cprev(n), cnext(n);
@@ -266,9 +341,16 @@ void RoutePlanner::Impl::build_graph() {
   std::vector<plan_detail::EdgeWeight> weights;
   for (std::uint32_t u = 0; u < n; ++u) {
     const Vec2 p = pos[u], tp = to_prev[u], tn = to_next[u];
-    const double tnorm = pd_norm(tp) + pd_norm(tn) + 1.0;
+    const double tnorm = pd_norm(tp) + pd_norm(tn) + 1.0;  // scales the cell test's margin
+    const TangentWedges wedges = TangentWedges::make(tp, tn);
     for (int cj = 0; cj < cells.ny; ++cj) {
-      for (int ci = 0; ci < cells.nx; ++ci) {
+      const auto cols = wedges.columns(cells, p, cj);
+      for (int ci = cols[0].first, span = 0; span < 2; ++ci) {
+        if (ci > cols[span].second) {
+          if (++span == 2) break;
+          ci = cols[span].first - 1;
+          continue;
+        }
         // A cell wholly inside one open half of the double cone where the line through u cuts
         // between its ring neighbours holds no tangent partner (the cell is convex, the cone
         // too; the margin covers the tangent test's tolerance and rounding).
@@ -296,7 +378,7 @@ void RoutePlanner::Impl::build_graph() {
             continue;
           const double l = pd_norm(v);
           const auto cached = [&](std::uint32_t e) {
-            return e != kNone && edge_blocks(p, cpos[k], l, e);
+            return e != kNone && may_block(p, v, kOnLineMm * l, e) && edge_blocks(p, cpos[k], l, e);
           };
           if (cached(recent[u][0]) || cached(recent[w][0]) || cached(recent[u][1]) ||
               cached(recent[w][1]))
@@ -335,6 +417,7 @@ bool RoutePlanner::build(const Site& site, const PlannerParams& params, RoutePla
       impl->next.push_back(base + (k + 1) % m);
     }
   }
+  for (const std::uint32_t j : impl->next) impl->pts_next.push_back(impl->pts[j]);
   impl->build_grid();
   impl->build_graph();
   out->impl_ = std::move(impl);

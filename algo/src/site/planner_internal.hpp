@@ -52,6 +52,7 @@ struct RoutePlanner::Impl {
   // Every boundary vertex, flattened: its ring neighbours (F on the left of prev->v->next).
   std::vector<Vec2> pts;
   std::vector<std::uint32_t> prev, next;
+  std::vector<Vec2> pts_next;  // pts[next[i]], side by side for the segment test's first filter
   // Graph nodes: the boundary vertices where F's interior angle exceeds 180 degrees.
   std::vector<std::uint32_t> node_vertex;
   plan_detail::Graph graph;
@@ -69,6 +70,13 @@ struct RoutePlanner::Impl {
   bool segment_clear(Vec2 a, Vec2 b, std::uint32_t* blocker = nullptr) const;
   // Whether edge e alone makes a->b (of length lab > kOnLineMm) not free.
   bool edge_blocks(Vec2 a, Vec2 b, double lab, std::uint32_t e) const;
+  // edge_blocks' first test, inline: false when edge e lies wholly on one side of the line
+  // a + s ab beyond tol_ab (then it cannot block).
+  bool may_block(Vec2 a, Vec2 ab, double tol_ab, std::uint32_t e) const {
+    const double s1 = plan_detail::pd_cross(ab, plan_detail::pd_sub(pts[e], a));
+    const double s2 = plan_detail::pd_cross(ab, plan_detail::pd_sub(pts_next[e], a));
+    return !((s1 > tol_ab && s2 > tol_ab) || (s1 < -tol_ab && s2 < -tol_ab));
+  }
   void build_graph();
   // Whether the direction v leaving boundary vertex i enters the obstacle side at once.
   bool enters_obstacle(std::uint32_t i, Vec2 v) const;
