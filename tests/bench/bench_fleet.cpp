@@ -1,10 +1,10 @@
 // Fleet simulator benchmark (docs/design/fleet_sim.md "Performance"): by default 20 vehicles
-// for 10 simulated minutes on a 40 m x 25 m warehouse built here, every sample kept as for
+// for 10 simulated minutes on the 40 m x 25 m warehouse of tests/site/fleet_warehouse.hpp, every sample kept as for
 // recordings. Prints the wall time and the simulated/real-time ratio; exits 1 when two vehicles
 // came closer than r_i + r_j + clearance, a task was not finished, or the ratio is below
 // --min-ratio.
 //   bench_fleet [--agvs N] [--duration-s T] [--tasks M] [--seed K] [--min-ratio R]
-//               [--plan-horizon-mm H] [--cell-mm C]
+//               [--plan-horizon-mm H] [--cell-mm C] [--events 1]
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -12,43 +12,14 @@
 #include <cstring>
 #include <string>
 
+#include "../site/fleet_warehouse.hpp"
 #include "agv/sim/fleet.hpp"
 
-namespace {
-
-agv::site::Polygon box(double x0, double y0, double x1, double y1) {
-  return {{{x0, y0}, {x1, y0}, {x1, y1}, {x0, y1}}};
-}
-
-// Four rack rows of 24 m x 1.2 m with 3.5 m aisles, cross aisles at both ends, two pillars.
-agv::site::Site warehouse() {
-  agv::site::Site s;
-  s.name = "bench warehouse";
-  s.outline = box(0, 0, 40000, 25000);
-  s.clearance_mm = 100.0;
-  for (int row = 0; row < 4; ++row) {
-    agv::site::Obstacle o;
-    o.id = "rack-" + std::to_string(row);
-    const double y = 4000.0 + row * 4700.0;
-    o.outline = box(8000, y, 32000, y + 1200);
-    s.obstacles.push_back(o);
-  }
-  for (int i = 0; i < 2; ++i) {
-    agv::site::Obstacle o;
-    o.id = "pillar-" + std::to_string(i);
-    o.kind = agv::site::ObstacleKind::kPillar;
-    o.outline = box(3500, 8000 + i * 8000.0, 4000, 8500 + i * 8000.0);
-    s.obstacles.push_back(o);
-  }
-  return s;
-}
-
-}  // namespace
-
 int main(int argc, char** argv) {
-  int agvs = 20, tasks = 3;
+  int agvs = 20, tasks = 2;
   double duration_s = 600.0, min_ratio = 20.0, horizon_mm = -1.0, cell_mm = -1.0;
   unsigned long long seed = 1;
+  bool events = false;
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--agvs")) {
       agvs = std::atoi(argv[i + 1]);
@@ -62,6 +33,8 @@ int main(int argc, char** argv) {
       horizon_mm = std::atof(argv[i + 1]);
     } else if (!std::strcmp(argv[i], "--cell-mm")) {
       cell_mm = std::atof(argv[i + 1]);
+    } else if (!std::strcmp(argv[i], "--events")) {
+      events = std::atoi(argv[i + 1]) != 0;
     } else if (!std::strcmp(argv[i], "--min-ratio")) {
       min_ratio = std::atof(argv[i + 1]);
     } else {
@@ -73,7 +46,7 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "bench_fleet: --agvs 1..200, --tasks >= 0, --duration-s > 0\n");
     return 2;
   }
-  const agv::site::Site site = warehouse();
+  const agv::site::Site site = agv::fleet_bench::warehouse();
   // Every fourth vehicle is a larger one (radius 550 mm).
   std::vector<double> radii;
   for (int i = 0; i < agvs; ++i) radii.push_back(i % 4 == 3 ? 550.0 : 400.0);
@@ -104,6 +77,9 @@ int main(int argc, char** argv) {
   }
   const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const double ratio = r.simulated_s / wall_s;
+  if (events) {  // the blockages and how they were resolved
+    for (const auto& e : r.events) std::printf("  %.1f %s: %s\n", e.t_s, agv::sim::to_string(e.kind), e.text.c_str());
+  }
   int waits = 0;
   double wait_s = 0.0, km = 0.0;
   std::size_t samples = 0;

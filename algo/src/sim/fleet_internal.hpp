@@ -145,8 +145,11 @@ class FleetSim {
   void resolve_blockages();
   bool waiting(const Vehicle& v) const;
   bool idle(const Vehicle& v) const { return v.stage == Stage::kDone && v.phase == Phase::kParked; }
-  void handle_blockage(const std::vector<int>& members, bool cycle);
+  // False when no member could drive aside.
+  bool handle_blockage(const std::vector<int>& members, bool cycle);
   bool try_evade(Vehicle& y, const Vehicle* x);
+  // Drives y to the nearest refuge (distance, point) whose cells are free and unmarked in mark_.
+  bool evade_to_refuge(Vehicle& y, const std::vector<std::pair<double, Vec2>>& refuges);
   void remaining_cells(const Vehicle& x, std::vector<std::uint8_t>* mark) const;
 
   const site::Site& site_;

@@ -43,7 +43,19 @@ void FleetSim::resolve_blockages() {
     for (std::size_t guard = 0; guard <= vehicles_.size() && j >= 0; ++guard) {
       const auto it = std::find(chain.begin(), chain.end(), j);
       if (it != chain.end()) {
-        handle_blockage(std::vector<int>(it, chain.end()), true);
+        if (!handle_blockage(std::vector<int>(it, chain.end()), true)) {
+          // A cycle packed in by its queue: the vehicles queued behind it make room instead,
+          // nearest the cycle first, so that a member can then back out.
+          for (auto q = it; q != chain.begin(); --q) {
+            Vehicle& y = vehicles_[static_cast<std::size_t>(*(q - 1))];
+            if (try_evade(y, &vehicles_[static_cast<std::size_t>(*q)])) {
+              event(FleetEventKind::kEvade, {y.index, *q},
+                    "vehicle " + std::to_string(y.index) + " drives aside to make room for vehicle " +
+                        std::to_string(*q));
+              break;
+            }
+          }
+        }
         handled = true;
         break;
       }
@@ -68,11 +80,11 @@ void FleetSim::resolve_blockages() {
   }
 }
 
-void FleetSim::handle_blockage(const std::vector<int>& members, bool cycle) {
+bool FleetSim::handle_blockage(const std::vector<int>& members, bool cycle) {
   Vehicle& first = vehicles_[static_cast<std::size_t>(members.front())];
   const bool new_episode = !first.reported;
   // Several vehicles queued behind one blockage lead to it: one attempt per retry period.
-  if (!new_episode && t_s_ < first.retry_s) return;
+  if (!new_episode && t_s_ < first.retry_s) return true;
   if (new_episode) {
     if (cycle) {
       ++out_->deadlocks;
@@ -109,7 +121,7 @@ void FleetSim::handle_blockage(const std::vector<int>& members, bool cycle) {
       event(FleetEventKind::kEvade, {y.index, x.index},
             "vehicle " + std::to_string(y.index) + " drives aside for vehicle " +
                 std::to_string(x.index));
-      return;
+      return true;
     }
   }
   if (new_episode) {
@@ -118,6 +130,7 @@ void FleetSim::handle_blockage(const std::vector<int>& members, bool cycle) {
           "no vehicle of " + fleet_member_list(members, ", ") +
               " found a free place to drive aside to; they keep waiting");
   }
+  return false;
 }
 
 void FleetSim::remaining_cells(const Vehicle& x, std::vector<std::uint8_t>* mark) const {
@@ -131,13 +144,6 @@ void FleetSim::remaining_cells(const Vehicle& x, std::vector<std::uint8_t>* mark
 }
 
 bool FleetSim::try_evade(Vehicle& y, const Vehicle* x) {
-  std::fill(mark_.begin(), mark_.end(), std::uint8_t{0});
-  if (x) remaining_cells(*x, &mark_);
-  // A refuge on nobody's way, so that it does not start the next blockage.
-  const std::uint16_t* own = plan_own_.data() + static_cast<std::size_t>(y.index) * grid_.size();
-  for (std::size_t c = 0; c < mark_.size(); ++c) {
-    if (plan_total_[c] > own[c]) mark_[c] = 1;
-  }
   const Vec2 here{y.pose.x_mm, y.pose.y_mm};
   if (!planner_.point_free(here)) return false;  // no route can start here (mid-corner)
   std::mt19937_64 rng(p_.seed * 0x2545F4914F6CDD1DULL +
@@ -152,6 +158,24 @@ bool FleetSim::try_evade(Vehicle& y, const Vehicle* x) {
   }
   std::sort(refuges.begin(), refuges.end(),
             [](const auto& a, const auto& b) { return a.first < b.first; });
+  // First a refuge on nobody's way, so that it does not start the next blockage; in a busy
+  // aisle every free point can be on someone's plan, and then one on others' plans (but never on
+  // the remaining route of the vehicle to let through) is better than standing in a jam.
+  for (int pass = 0; pass < 2; ++pass) {
+    std::fill(mark_.begin(), mark_.end(), std::uint8_t{0});
+    if (x) remaining_cells(*x, &mark_);
+    if (pass == 0) {
+      const std::uint16_t* own = plan_own_.data() + static_cast<std::size_t>(y.index) * grid_.size();
+      for (std::size_t c = 0; c < mark_.size(); ++c) {
+        if (plan_total_[c] > own[c]) mark_[c] = 1;
+      }
+    }
+    if (evade_to_refuge(y, refuges)) return true;
+  }
+  return false;
+}
+
+bool FleetSim::evade_to_refuge(Vehicle& y, const std::vector<std::pair<double, Vec2>>& refuges) {
   int tries = 0;
   for (const auto& [d, q] : refuges) {
     scratch_.clear();
