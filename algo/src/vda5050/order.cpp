@@ -5,6 +5,8 @@
 #include <cmath>
 #include <nlohmann/json.hpp>
 
+#include "json_nesting.hpp"
+
 namespace agv::vda5050 {
 
 using nlohmann::json;
@@ -13,28 +15,7 @@ namespace {
 
 constexpr int kOrderMaxDepth = 8;
 
-bool order_depth_ok(std::string_view text) {
-  int depth = 0;
-  bool in_string = false, escaped = false;
-  for (const char c : text) {
-    if (in_string) {
-      if (escaped) {
-        escaped = false;
-      } else if (c == '\\') {
-        escaped = true;
-      } else if (c == '"') {
-        in_string = false;
-      }
-    } else if (c == '"') {
-      in_string = true;
-    } else if (c == '{' || c == '[') {
-      if (++depth > kOrderMaxDepth) return false;
-    } else if (c == '}' || c == ']') {
-      --depth;
-    }
-  }
-  return true;
-}
+bool order_depth_ok(std::string_view text) { return detail::nesting_within(text, kOrderMaxDepth); }
 
 struct OrderReader {
   std::string* error;

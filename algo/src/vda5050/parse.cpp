@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "agv/vda5050/vda5050.hpp"
+#include "json_nesting.hpp"
 
 namespace agv::vda5050 {
 
@@ -50,29 +51,7 @@ const char* reason_name(Reason r) {
 
 namespace {
 
-// Deepest nesting of arrays and objects outside strings; stops counting past the limit.
-bool nesting_within(std::string_view text, int limit) {
-  int depth = 0;
-  bool in_string = false, escaped = false;
-  for (const char c : text) {
-    if (in_string) {
-      if (escaped) {
-        escaped = false;
-      } else if (c == '\\') {
-        escaped = true;
-      } else if (c == '"') {
-        in_string = false;
-      }
-    } else if (c == '"') {
-      in_string = true;
-    } else if (c == '{' || c == '[') {
-      if (++depth > limit) return false;
-    } else if (c == '}' || c == ']') {
-      --depth;
-    }
-  }
-  return true;
-}
+using detail::nesting_within;
 
 // A required string member: kMissingField, kWrongType or kStringTooLong.
 Reason get_string(const json& o, const char* key, std::string* out) {
