@@ -29,7 +29,7 @@ bool parse_xy(const std::string& text, Vec2* out) {
   return true;
 }
 
-bool write_text(const std::string& path, const std::string& text) {
+bool write_plan_output(const std::string& path, const std::string& text) {
   std::ofstream f(path, std::ios::binary);
   f << text;
   f.close();
@@ -135,7 +135,7 @@ int plan_command(int argc, char** argv) {
       route.length_mm * 1e-3, route.waypoints_mm.size(), tr.length_mm() * 1e-3, tr.duration_s(),
       tr.max_corner_deviation_mm(), params.clearance_mm);
   bool ok = true;
-  if (!csv_path.empty()) ok &= write_text(csv_path, trajectory_csv(tr, dt_s));
+  if (!csv_path.empty()) ok &= write_plan_output(csv_path, trajectory_csv(tr, dt_s));
   if (!wp_path.empty()) {
     std::string text = "x_mm,y_mm\n";
     char line[80];
@@ -143,10 +143,10 @@ int plan_command(int argc, char** argv) {
       std::snprintf(line, sizeof line, "%.1f,%.1f\n", p.x, p.y);
       text += line;
     }
-    ok &= write_text(wp_path, text);
+    ok &= write_plan_output(wp_path, text);
   }
   if (!svg_path.empty())
-    ok &= write_text(svg_path, site_svg(site, {tr.polyline(50.0)}, planner.inflated()));
+    ok &= write_plan_output(svg_path, site_svg(site, {tr.polyline(50.0)}, planner.inflated()));
   if (!order_path.empty()) {
     vda5050::Order header;
     header.timestamp =
@@ -156,7 +156,7 @@ int plan_command(int argc, char** argv) {
     header.manufacturer = manufacturer, header.serial_number = serial, header.order_id = order_id;
     const vda5050::Order order = vda5050::order_from_waypoints(
         route.waypoints_mm, map_id.empty() ? site.name : map_id, header);
-    ok &= write_text(order_path, vda5050::encode_order(order) + "\n");
+    ok &= write_plan_output(order_path, vda5050::encode_order(order) + "\n");
   }
   return ok ? 0 : 1;
 }
