@@ -1,7 +1,8 @@
 // Fleet simulator benchmark (docs/design/fleet_sim.md "Performance"): by default 20 vehicles
-// for 10 simulated minutes on the 40 m x 25 m warehouse of tests/site/fleet_warehouse.hpp, every sample kept as for
-// recordings. Prints the wall time and the simulated/real-time ratio; exits 1 when two vehicles
-// came closer than r_i + r_j + clearance, a task was not finished, or the ratio is below
+// for 10 simulated minutes on the 40 m x 25 m warehouse of tests/site/fleet_warehouse.hpp, every
+// sample kept as for recordings. Prints the wall time and the simulated/real-time ratio; exits 1
+// when two vehicles came closer than r_i + r_j + clearance, a task was not finished, or the ratio
+// is below
 // --min-ratio.
 //   bench_fleet [--agvs N] [--duration-s T] [--tasks M] [--seed K] [--min-ratio R]
 //               [--plan-horizon-mm H] [--cell-mm C] [--events 1]
@@ -75,10 +76,12 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "bench_fleet: %s\n", err.c_str());
     return 1;
   }
-  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const double ratio = r.simulated_s / wall_s;
   if (events) {  // the blockages and how they were resolved
-    for (const auto& e : r.events) std::printf("  %.1f %s: %s\n", e.t_s, agv::sim::to_string(e.kind), e.text.c_str());
+    for (const auto& e : r.events)
+      std::printf("  %.1f %s: %s\n", e.t_s, agv::sim::to_string(e.kind), e.text.c_str());
   }
   int waits = 0;
   double wait_s = 0.0, km = 0.0;
@@ -89,8 +92,10 @@ int main(int argc, char** argv) {
     km += v.distance_mm * 1e-6;
     samples += v.truth.size() + v.odom.size() + v.gyro.size();
   }
-  std::printf("bench_fleet: %d vehicles, %.0f s simulated, %zu tasks (%d finished), %.2f km "
-              "driven\n", agvs, r.simulated_s, r.tasks.size(), r.tasks_finished, km);
+  std::printf(
+      "bench_fleet: %d vehicles, %.0f s simulated, %zu tasks (%d finished), %.2f km "
+      "driven\n",
+      agvs, r.simulated_s, r.tasks.size(), r.tasks_finished, km);
   std::printf("  min pair distance %.0f mm, min margin over r_i + r_j + %.0f mm: %.1f mm\n",
               r.min_pair_distance_mm, r.clearance_mm, r.min_pair_margin_mm);
   std::printf("  waits %d (%.0f vehicle-s), deadlocks %d, blocked by idle %d, unresolved %d\n",
@@ -99,6 +104,7 @@ int main(int argc, char** argv) {
               setup_s, wall_s, samples, ratio);
   const bool ok = r.min_pair_margin_mm >= 0.0 &&
                   r.tasks_finished == static_cast<int>(r.tasks.size()) && ratio >= min_ratio;
-  if (!ok) std::printf("bench_fleet: FAILED (clearance, unfinished tasks or below %.0fx)\n", min_ratio);
+  if (!ok)
+    std::printf("bench_fleet: FAILED (clearance, unfinished tasks or below %.0fx)\n", min_ratio);
   return ok ? 0 : 1;
 }

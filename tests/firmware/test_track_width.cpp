@@ -37,9 +37,9 @@ TEST(TrackWidth, OneKeyGivesTheDecoderAndTheFusionTheSameLeverArm) {
 TEST(TrackWidth, TheFusionsOwnKeyIsRemovedNamingTheOne) {
   agv::config::Config cfg;
   std::vector<std::string> errors;
-  EXPECT_FALSE(agv::config::parse_config(std::string(kIntrinsics) +
-                                             "fusion:\n  wheel_track_mm: 700\n",
-                                         "", &cfg, &errors));
-  EXPECT_TRUE(mentions(errors, "fusion.wheel_track_mm: removed key; use can.odometry.track_width_mm"));
+  EXPECT_FALSE(agv::config::parse_config(
+      std::string(kIntrinsics) + "fusion:\n  wheel_track_mm: 700\n", "", &cfg, &errors));
+  EXPECT_TRUE(
+      mentions(errors, "fusion.wheel_track_mm: removed key; use can.odometry.track_width_mm"));
   EXPECT_EQ(agv::config::find_key("fusion.wheel_track_mm"), nullptr);
 }

@@ -13,13 +13,15 @@
 namespace agv::ranging {
 namespace {
 
-Observation observe(const Pose2& truth, Vec2 landmark, double sigma_range_mm, double sigma_bearing_rad) {
+Observation observe(const Pose2& truth, Vec2 landmark, double sigma_range_mm,
+                    double sigma_bearing_rad) {
   Observation o;
   o.landmark_mm = landmark;
   const double dx = landmark.x - truth.x_mm, dy = landmark.y - truth.y_mm;
   o.range_mm = std::hypot(dx, dy);
   o.bearing_rad = wrap_angle_rad(std::atan2(dy, dx) - truth.theta_rad);
-  o.cov = Eigen::Vector2d(sigma_range_mm * sigma_range_mm, sigma_bearing_rad * sigma_bearing_rad).asDiagonal();
+  o.cov = Eigen::Vector2d(sigma_range_mm * sigma_range_mm, sigma_bearing_rad * sigma_bearing_rad)
+              .asDiagonal();
   return o;
 }
 
@@ -36,8 +38,8 @@ TEST(RangingFix, CirclesGiveBothSolutionsLeftThenRight) {
   EXPECT_NEAR(c.solutions[0].y, 3.0, 1e-15);
   EXPECT_NEAR(c.solutions[1].x, 4.0, 1e-15);
   EXPECT_NEAR(c.solutions[1].y, -3.0, 1e-15);
-  EXPECT_EQ(intersect_circles({0, 0}, 3.0, {8, 0}, 4.0, 0.5).count, 0);   // apart
-  EXPECT_EQ(intersect_circles({0, 0}, 10.0, {1, 0}, 2.0, 0.5).count, 0);  // one inside
+  EXPECT_EQ(intersect_circles({0, 0}, 3.0, {8, 0}, 4.0, 0.5).count, 0);       // apart
+  EXPECT_EQ(intersect_circles({0, 0}, 10.0, {1, 0}, 2.0, 0.5).count, 0);      // one inside
   const CircleCrossing t = intersect_circles({0, 0}, 3.0, {8, 0}, 4.5, 1.0);  // misses by 0.5
   ASSERT_EQ(t.count, 1);
   EXPECT_TRUE(t.touching);
@@ -51,7 +53,8 @@ TEST(RangingFix, TwoCirclesAreExactOnNoiseFreeInputWithEitherRule) {
     const Observation o0 = observe(truth, l0, 20.0, 1e-3), o1 = observe(truth, l1, 20.0, 1e-3);
     // Seen in one forward image: l0 is left of l1 when its bearing is larger.
     const bool l0_left = o0.bearing_rad > o1.bearing_rad;
-    for (TwoLandmarkRule rule : {TwoLandmarkRule::kLeftRight, TwoLandmarkRule::kBearingDifference}) {
+    for (TwoLandmarkRule rule :
+         {TwoLandmarkRule::kLeftRight, TwoLandmarkRule::kBearingDifference}) {
       const FixResult f = fix_two_circles(o0, o1, rule, l0_left, FixOptions{});
       ASSERT_EQ(f.status, FixStatus::kOk) << fix_status_name(f.status);
       expect_pose(f.pose, truth, 1e-9, 1e-12);
@@ -84,13 +87,15 @@ TEST(RangingFix, LeftRightRuleFailsAcrossTwoCamerasWhereTheBearingDifferenceDoes
   const Pose2 truth{0.0, 0.0, 0.0};
   const Vec2 l0{5000.0, 1000.0}, l1{1000.0, 5000.0};
   const Observation o0 = observe(truth, l0, 20.0, 1e-3), o1 = observe(truth, l1, 20.0, 1e-3);
-  const double u0_from_centre = -std::tan(o0.bearing_rad);          // left of centre: negative
+  const double u0_from_centre = -std::tan(o0.bearing_rad);            // left of centre: negative
   const double u1_from_centre = -std::tan(o1.bearing_rad - kPi / 2);  // right of centre: positive
   ASSERT_LT(u0_from_centre, 0.0);
   ASSERT_GT(u1_from_centre, 0.0);
   const bool columns_say_l0_left = u0_from_centre < u1_from_centre;
-  const FixResult lr = fix_two_circles(o0, o1, TwoLandmarkRule::kLeftRight, columns_say_l0_left, FixOptions{});
-  const FixResult bd = fix_two_circles(o0, o1, TwoLandmarkRule::kBearingDifference, false, FixOptions{});
+  const FixResult lr =
+      fix_two_circles(o0, o1, TwoLandmarkRule::kLeftRight, columns_say_l0_left, FixOptions{});
+  const FixResult bd =
+      fix_two_circles(o0, o1, TwoLandmarkRule::kBearingDifference, false, FixOptions{});
   ASSERT_EQ(lr.status, FixStatus::kOk);
   ASSERT_EQ(bd.status, FixStatus::kOk);
   expect_pose(bd.pose, truth, 1e-9, 1e-12);
@@ -105,11 +110,13 @@ TEST(RangingFix, BearingDifferenceIsAmbiguousWhenTheBearingsCannotTellTheSidesAp
   const Pose2 truth{0.0, 0.0, 0.3};
   const Vec2 l0{6000.0, -800.0}, l1{5000.0, 2200.0};
   const Observation o0 = observe(truth, l0, 20.0, 0.3), o1 = observe(truth, l1, 20.0, 0.3);
-  EXPECT_EQ(fix_two_circles(o0, o1, TwoLandmarkRule::kBearingDifference, false, FixOptions{}).status,
-            FixStatus::kAmbiguous);
+  EXPECT_EQ(
+      fix_two_circles(o0, o1, TwoLandmarkRule::kBearingDifference, false, FixOptions{}).status,
+      FixStatus::kAmbiguous);
   const Observation p0 = observe(truth, l0, 20.0, 0.01), p1 = observe(truth, l1, 20.0, 0.01);
-  EXPECT_EQ(fix_two_circles(p0, p1, TwoLandmarkRule::kBearingDifference, false, FixOptions{}).status,
-            FixStatus::kOk);
+  EXPECT_EQ(
+      fix_two_circles(p0, p1, TwoLandmarkRule::kBearingDifference, false, FixOptions{}).status,
+      FixStatus::kOk);
 }
 
 TEST(RangingFix, CirclesThatMissAreRefusedAndNearMissesAreShallow) {
@@ -122,7 +129,8 @@ TEST(RangingFix, CirclesThatMissAreRefusedAndNearMissesAreShallow) {
   EXPECT_EQ(fix_from_landmarks(miss, FixOptions{}).status, FixStatus::kNoIntersection);
   o0.range_mm = 2990.0;  // short by 20 mm: within 3 sigma of the range sum -> touching
   o1.range_mm = 2990.0;
-  const FixResult near = fix_two_circles(o0, o1, TwoLandmarkRule::kBearingDifference, false, FixOptions{});
+  const FixResult near =
+      fix_two_circles(o0, o1, TwoLandmarkRule::kBearingDifference, false, FixOptions{});
   EXPECT_TRUE(near.touching);
   EXPECT_EQ(near.status, FixStatus::kShallowGeometry);
 }
@@ -140,14 +148,18 @@ TEST(RangingFix, ShallowCrossingIsRefused) {
 
 TEST(RangingFix, OneLandmarkNeverFixes) {
   const Observation o = observe({0, 0, 0}, {3000.0, 0.0}, 10.0, 1e-3);
-  EXPECT_EQ(fix_from_landmarks(std::span<const Observation>(&o, 1), FixOptions{}).status, FixStatus::kTooFew);
+  EXPECT_EQ(fix_from_landmarks(std::span<const Observation>(&o, 1), FixOptions{}).status,
+            FixStatus::kTooFew);
   EXPECT_EQ(fix_from_landmarks({}, FixOptions{}).status, FixStatus::kTooFew);
 }
 
 TEST(RangingFix, TrilaterationIsExactOnNoiseFreeInput) {
   const Pose2 truth{52345.6, -18765.4, 2.5};
-  const std::vector<Vec2> lms = {{55000.0, -15000.0}, {49000.0, -14000.0}, {50000.0, -23000.0},
-                                 {57000.0, -21000.0}, {53000.0, -12500.0}};
+  const std::vector<Vec2> lms = {{55000.0, -15000.0},
+                                 {49000.0, -14000.0},
+                                 {50000.0, -23000.0},
+                                 {57000.0, -21000.0},
+                                 {53000.0, -12500.0}};
   for (std::size_t n = 3; n <= lms.size(); ++n) {
     std::vector<Observation> obs;
     for (std::size_t i = 0; i < n; ++i) obs.push_back(observe(truth, lms[i], 30.0, 1e-3));
@@ -203,7 +215,8 @@ Trial noisy_trial(std::mt19937_64& rng, int n, double map_error_mm) {
   t.truth = {20000.0 * uni(rng), 20000.0 * uni(rng), kPi * (2 * uni(rng) - 1)};
   // Landmarks spread over a 140-degree field ahead, so no two are nearly in one direction.
   for (int i = 0; i < n; ++i) {
-    const double dir = t.truth.theta_rad + deg_to_rad(-70.0 + 140.0 * (i + 0.2 + 0.6 * uni(rng)) / n);
+    const double dir =
+        t.truth.theta_rad + deg_to_rad(-70.0 + 140.0 * (i + 0.2 + 0.6 * uni(rng)) / n);
     const double range = 2000.0 + 6000.0 * uni(rng);
     const Vec2 lm{t.truth.x_mm + range * std::cos(dir), t.truth.y_mm + range * std::sin(dir)};
     const double sr = 10.0 * (range / 2000.0) * (range / 2000.0), sb = 5e-4;

@@ -176,9 +176,11 @@ TEST(RangingModels, TagTranslationCovarianceMatchesTheCornerFisherInformation) {
     const Matrix3d model = tag_translation_covariance(900.0, 150.0, t, 0.3);
     const Matrix3d fisher = corner_fisher_translation_cov(900.0, 150.0, t, 0.3);
     for (int i = 0; i < 3; ++i) {
-      EXPECT_NEAR(std::sqrt(model(i, i)) / std::sqrt(fisher(i, i)), 1.0, 0.02) << "z " << z << " axis " << i;
+      EXPECT_NEAR(std::sqrt(model(i, i)) / std::sqrt(fisher(i, i)), 1.0, 0.02)
+          << "z " << z << " axis " << i;
     }
-    const Matrix3d library = tag_pose_covariance(900.0, 150.0, t, Matrix3d::Identity(), 0.3).bottomRightCorner<3, 3>();
+    const Matrix3d library =
+        tag_pose_covariance(900.0, 150.0, t, Matrix3d::Identity(), 0.3).bottomRightCorner<3, 3>();
     EXPECT_NEAR((library - fisher).norm() / fisher.norm(), 0.0, 1e-4);
   }
 }

@@ -34,9 +34,9 @@ site::Site small_site() {
 site::Site corridor_site() {
   site::Site s;
   s.name = "corridor";
-  s.outline.vertices_mm = {{0, 0},         {6000, 0},     {6000, 2200}, {14000, 2200},
-                           {14000, 0},     {20000, 0},    {20000, 6000}, {14000, 6000},
-                           {14000, 3800},  {6000, 3800},  {6000, 6000}, {0, 6000}};
+  s.outline.vertices_mm = {{0, 0},        {6000, 0},    {6000, 2200},  {14000, 2200},
+                           {14000, 0},    {20000, 0},   {20000, 6000}, {14000, 6000},
+                           {14000, 3800}, {6000, 3800}, {6000, 6000},  {0, 6000}};
   s.clearance_mm = 100.0;
   return s;
 }
@@ -199,8 +199,7 @@ TEST(Fleet, IdleVehicleInTheWayDrivesAside) {
   const site::Site s = corridor_site();
   const site::RoutePlanner planner = planner_for(s);
   const std::vector<FleetVehicleSpec> specs = {
-      vehicle(2000, 3000, 0.0, {{{18000, 3000}, {18000, 1000}}}),
-      vehicle(10000, 3000, 0.0, {})};
+      vehicle(2000, 3000, 0.0, {{{18000, 3000}, {18000, 1000}}}), vehicle(10000, 3000, 0.0, {})};
   FleetParams p;
   p.duration_s = 80.0;
   const FleetResult r = run_checked(s, planner, specs, p);
@@ -235,8 +234,8 @@ TEST(Fleet, SensorsFollowTheTruth) {
     dr.x_mm += 1000.0 * v.odom[k].v_mps * dt * std::cos(th_mid);
     dr.y_mm += 1000.0 * v.odom[k].v_mps * dt * std::sin(th_mid);
     dr.theta_rad += v.odom[k].omega_radps * dt;
-    worst_mm = std::max(worst_mm, std::hypot(dr.x_mm - v.truth[k].pose.x_mm,
-                                             dr.y_mm - v.truth[k].pose.y_mm));
+    worst_mm = std::max(worst_mm,
+                        std::hypot(dr.x_mm - v.truth[k].pose.x_mm, dr.y_mm - v.truth[k].pose.y_mm));
   }
   EXPECT_LT(worst_mm, 30.0);
   // The error-free gyro integrates to the heading turned.
@@ -267,12 +266,11 @@ TEST(Fleet, BadInputIsRefused) {
   EXPECT_NE(err.find("no vehicles"), std::string::npos) << err;
   EXPECT_FALSE(simulate_fleet(s, planner, {vehicle(8000, 3000, 0, {})}, p, &r, &err));
   EXPECT_NE(err.find("start"), std::string::npos) << err;
-  EXPECT_FALSE(simulate_fleet(
-      s, planner, {vehicle(1500, 1500, 0, {}), vehicle(2000, 1500, 0, {})}, p, &r, &err));
+  EXPECT_FALSE(simulate_fleet(s, planner, {vehicle(1500, 1500, 0, {}), vehicle(2000, 1500, 0, {})},
+                              p, &r, &err));
   EXPECT_NE(err.find("too close"), std::string::npos) << err;
-  EXPECT_FALSE(simulate_fleet(s, planner,
-                              {vehicle(1500, 1500, 0, {{{8000, 3000}, {1500, 8000}}})}, p, &r,
-                              &err));
+  EXPECT_FALSE(simulate_fleet(s, planner, {vehicle(1500, 1500, 0, {{{8000, 3000}, {1500, 8000}}})},
+                              p, &r, &err));
   EXPECT_NE(err.find("task 0"), std::string::npos) << err;
   FleetParams bad = p;
   bad.step_ns = 0;

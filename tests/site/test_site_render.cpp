@@ -168,8 +168,10 @@ TEST(SiteRender, ImageMatchesProjection) {
   int checked = 0;
   for (int side = 0; side < 4; ++side) {
     const double sx = side == 0 ? -1 : side == 1 ? 1 : 0, sy = side == 2 ? -1 : side == 3 ? 1 : 0;
-    const Vec3 black = tray_page_point(pose, 400.0, sx * (h - 0.5 * module), sy * (h - 0.5 * module));
-    const Vec3 white = tray_page_point(pose, 400.0, sx * (h + 0.5 * margin), sy * (h + 0.5 * margin));
+    const Vec3 black =
+        tray_page_point(pose, 400.0, sx * (h - 0.5 * module), sy * (h - 0.5 * module));
+    const Vec3 white =
+        tray_page_point(pose, 400.0, sx * (h + 0.5 * margin), sy * (h + 0.5 * margin));
     const std::vector<Vec2> px = project_points(cam, {black, white});
     if (px[0].x < 2 || px[0].y < 2 || px[0].x > k.width_px - 3 || px[0].y > k.height_px - 3) {
       continue;

@@ -1,7 +1,7 @@
 // Two-landmark fixes: the intersection of two range circles and the two rules that pick one of
 // its two solutions; headings from bearings.
-#include <array>
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "agv/ranging/fix.hpp"
@@ -24,7 +24,8 @@ double circles_subtended_rad(Vec2 p, Vec2 l0, Vec2 l1) {
 // index held fixed so that the function is smooth for the numeric Jacobian.
 bool circles_pose(const Observation& o0, const Observation& o1, const double z[4], int index,
                   double tolerance_mm, Eigen::Vector3d* pose) {
-  const CircleCrossing c = intersect_circles(o0.landmark_mm, z[0], o1.landmark_mm, z[2], tolerance_mm);
+  const CircleCrossing c =
+      intersect_circles(o0.landmark_mm, z[0], o1.landmark_mm, z[2], tolerance_mm);
   if (c.count == 0) return false;
   const Vec2 p = c.solutions[c.count == 1 ? 0 : index];
   Observation obs[2] = {o0, o1};
@@ -132,7 +133,8 @@ FixResult fix_two_circles(const Observation& o0, const Observation& o1, TwoLandm
   out.touching = c.touching;
   int index = 0;
   if (rule == TwoLandmarkRule::kLeftRight) {
-    index = c.count == 1 ? 0 : choose_by_left_right(o0.landmark_mm, o1.landmark_mm, l0_left_of_l1, c);
+    index =
+        c.count == 1 ? 0 : choose_by_left_right(o0.landmark_mm, o1.landmark_mm, l0_left_of_l1, c);
   } else {
     const double diff = wrap_angle_rad(o1.bearing_rad - o0.bearing_rad);
     const double sigma = std::sqrt(std::max(0.0, o0.cov(1, 1) + o1.cov(1, 1)));
@@ -149,8 +151,8 @@ FixResult fix_two_circles(const Observation& o0, const Observation& o1, TwoLandm
   out.pose = {pose.x(), pose.y(), pose.z()};
   const Observation both[2] = {o0, o1};
   out.chi2 = fix_chi2(both, out.pose);
-  const double crossing = std::abs(circles_subtended_rad({pose.x(), pose.y()}, o0.landmark_mm,
-                                                         o1.landmark_mm));
+  const double crossing =
+      std::abs(circles_subtended_rad({pose.x(), pose.y()}, o0.landmark_mm, o1.landmark_mm));
   if (c.touching || std::sin(crossing) < std::sin(opt.min_crossing_angle_rad)) {
     out.status = FixStatus::kShallowGeometry;
     return out;

@@ -1,11 +1,11 @@
 // Three-or-more-landmark fixes (linear trilateration), the Gauss-Newton refinement over ranges and
 // bearings, the chi-square check, and the fix to initialise from.
+#include "agv/ranging/fix.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <vector>
-
-#include "agv/ranging/fix.hpp"
 
 namespace agv::ranging {
 
@@ -57,8 +57,8 @@ double hidden_map_shift_sigma(std::span<const Observation> obs, const Pose2& pos
     // Moving the landmark moves its (range, bearing) as moving the vehicle the other way does.
     const Eigen::Matrix2d A = -J.leftCols<2>();
     const Eigen::Matrix<double, 3, 2> G = J.transpose() * W * A;
-    const Eigen::Matrix2d shift = G.transpose() * H_inv * G;           // pose NEES per map error
-    const Eigen::Matrix2d seen = A.transpose() * W * A - shift;        // chi-square per map error
+    const Eigen::Matrix2d shift = G.transpose() * H_inv * G;     // pose NEES per map error
+    const Eigen::Matrix2d seen = A.transpose() * W * A - shift;  // chi-square per map error
     // Largest shift / seen over map-error directions: a 2x2 generalised eigenvalue.
     Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::Matrix2d> eig;
     const Eigen::Matrix2d seen_reg = seen + 1e-12 * seen.trace() * Eigen::Matrix2d::Identity();
@@ -71,14 +71,22 @@ double hidden_map_shift_sigma(std::span<const Observation> obs, const Pose2& pos
 
 const char* fix_status_name(FixStatus status) {
   switch (status) {
-    case FixStatus::kOk: return "ok";
-    case FixStatus::kTooFew: return "too_few";
-    case FixStatus::kNoIntersection: return "no_intersection";
-    case FixStatus::kShallowGeometry: return "shallow_geometry";
-    case FixStatus::kCollinear: return "collinear";
-    case FixStatus::kAmbiguous: return "ambiguous";
-    case FixStatus::kInconsistent: return "inconsistent";
-    case FixStatus::kUnverifiable: return "unverifiable";
+    case FixStatus::kOk:
+      return "ok";
+    case FixStatus::kTooFew:
+      return "too_few";
+    case FixStatus::kNoIntersection:
+      return "no_intersection";
+    case FixStatus::kShallowGeometry:
+      return "shallow_geometry";
+    case FixStatus::kCollinear:
+      return "collinear";
+    case FixStatus::kAmbiguous:
+      return "ambiguous";
+    case FixStatus::kInconsistent:
+      return "inconsistent";
+    case FixStatus::kUnverifiable:
+      return "unverifiable";
   }
   return "?";
 }
@@ -157,7 +165,8 @@ FixResult fix_trilateration(std::span<const Observation> obs, const FixOptions& 
   if (out.status != FixStatus::kOk) return out;
   const std::size_t m = 2 * obs.size();
   std::vector<double> z(m);
-  Eigen::MatrixXd R = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(m), static_cast<Eigen::Index>(m));
+  Eigen::MatrixXd R =
+      Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(m), static_cast<Eigen::Index>(m));
   for (std::size_t i = 0; i < obs.size(); ++i) {
     z[2 * i] = obs[i].range_mm;
     z[2 * i + 1] = obs[i].bearing_rad;
@@ -221,7 +230,8 @@ FixResult refine_fix(std::span<const Observation> obs, const Pose2& init, const 
   // A rank-deficient information matrix (the landmarks and the vehicle on one line, ranges only
   // informative along it) has no covariance to report.
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(H);
-  if (eig.info() != Eigen::Success || !(eig.eigenvalues().minCoeff() > 1e-12 * eig.eigenvalues().maxCoeff())) {
+  if (eig.info() != Eigen::Success ||
+      !(eig.eigenvalues().minCoeff() > 1e-12 * eig.eigenvalues().maxCoeff())) {
     out.status = FixStatus::kShallowGeometry;
     return out;
   }

@@ -32,10 +32,10 @@ Vec3 ranging_mount_offset(const RangingMount& m) { return Vec3(m.x_mm, m.y_mm, m
 }  // namespace
 
 Mat3 rotation_vehicle_from_camera(const RangingMount& m) {
-  const Mat3 R_VB = (Eigen::AngleAxisd(m.yaw_rad, Vec3::UnitZ()) *
-                     Eigen::AngleAxisd(m.pitch_rad, Vec3::UnitY()) *
-                     Eigen::AngleAxisd(m.roll_rad, Vec3::UnitX()))
-                        .toRotationMatrix();
+  const Mat3 R_VB =
+      (Eigen::AngleAxisd(m.yaw_rad, Vec3::UnitZ()) * Eigen::AngleAxisd(m.pitch_rad, Vec3::UnitY()) *
+       Eigen::AngleAxisd(m.roll_rad, Vec3::UnitX()))
+          .toRotationMatrix();
   // Columns: x_C = -y_B, y_C = -z_B, z_C = x_B, each expressed in B.
   Mat3 R_BC;
   R_BC << 0.0, 0.0, 1.0, -1.0, 0.0, 0.0, 0.0, -1.0, 0.0;
@@ -140,7 +140,8 @@ Eigen::Matrix<double, 6, 6> tag_pose_covariance(double focal_px, double side_mm,
   auto project = [&](const Vec6& d) {
     Vec8 uv;
     const double a = d.head<3>().norm();
-    const Mat3 dR = a > 0.0 ? Eigen::AngleAxisd(a, d.head<3>() / a).toRotationMatrix() : Mat3::Identity();
+    const Mat3 dR =
+        a > 0.0 ? Eigen::AngleAxisd(a, d.head<3>() / a).toRotationMatrix() : Mat3::Identity();
     for (int i = 0; i < 4; ++i) {
       const Vec3 X = dR * R_CT * Vec3(corners[i][0], corners[i][1], 0.0) + t_C_mm + d.tail<3>();
       uv[2 * i] = focal_px * X.x() / X.z();

@@ -67,8 +67,8 @@ bool fleet_check_params(const FleetParams& p, std::string* error) {
     return fail("turn_rate_radps must be in (0, 20]");
   }
   if (!fleet_positive(p.drive.speed_mps) || !fleet_positive(p.drive.accel_mps2) ||
-      !fleet_positive(p.drive.lateral_accel_mps2) || !fleet_positive(p.drive.max_curvature_per_mm) ||
-      !(p.drive.clothoid_length_mm >= 0.0)) {
+      !fleet_positive(p.drive.lateral_accel_mps2) ||
+      !fleet_positive(p.drive.max_curvature_per_mm) || !(p.drive.clothoid_length_mm >= 0.0)) {
     return fail("drive limits must be positive and finite");
   }
   if (!fleet_positive(p.deadlock_after_s)) return fail("deadlock_after_s must be > 0");
@@ -99,31 +99,36 @@ bool FleetSim::init(std::string* error) {
   }
   for (std::size_t i = 0; i < specs_.size(); ++i) {
     const FleetVehicleSpec& s = specs_[i];
-    const std::string name = "vehicle " + std::to_string(i) + (s.id.empty() ? "" : " (" + s.id + ")");
+    const std::string name =
+        "vehicle " + std::to_string(i) + (s.id.empty() ? "" : " (" + s.id + ")");
     if (!(fleet_positive(s.radius_mm) && s.radius_mm < 1e5)) {
       return (*error = name + ": radius_mm must be positive", false);
     }
     const Vec2 start{s.start.x_mm, s.start.y_mm};
     if (!std::isfinite(s.start.theta_rad) || !planner_.point_free(start)) {
       return (*error = name + ": start (" + std::to_string(start.x) + ", " +
-                       std::to_string(start.y) + ") mm is not free for the planner", false);
+                       std::to_string(start.y) + ") mm is not free for the planner",
+              false);
     }
     for (std::size_t k = 0; k < s.tasks.size(); ++k) {
       if (!planner_.point_free(s.tasks[k].pick_mm) || !planner_.point_free(s.tasks[k].drop_mm)) {
         return (*error = name + ": task " + std::to_string(k) +
-                         ": a pick or drop point is not free for the planner", false);
+                         ": a pick or drop point is not free for the planner",
+                false);
       }
     }
     max_reserve = std::max(max_reserve, s.radius_mm + 0.5 * p_.clearance_mm + p_.path_step_mm);
   }
   const double m = max_reserve + 2.0 * p_.cell_mm;
   if ((hi_x - lo_x) / p_.cell_mm * (hi_y - lo_y) / p_.cell_mm > 5e7) {
-    return (*error = "the site is too large for cells of " + std::to_string(p_.cell_mm) + " mm", false);
+    return (*error = "the site is too large for cells of " + std::to_string(p_.cell_mm) + " mm",
+            false);
   }
   grid_.init(lo_x - m, lo_y - m, hi_x + m, hi_y + m, p_.cell_mm);
   if (static_cast<double>(grid_.size()) * static_cast<double>(specs_.size()) > 2e8) {
     return (*error = "too many vehicles for a site this large with cells of " +
-                     std::to_string(p_.cell_mm) + " mm", false);
+                     std::to_string(p_.cell_mm) + " mm",
+            false);
   }
   mark_.assign(grid_.size(), 0);
   plan_own_.assign(grid_.size() * specs_.size(), 0);
@@ -150,7 +155,8 @@ bool FleetSim::init(std::string* error) {
     const int b = grid_.blocker(v.index, v.base_cells.data(), v.base_cells.size());
     if (b >= 0) {
       return (*error = "vehicles " + std::to_string(b) + " and " + std::to_string(i) +
-                       " start too close together (their reserved cells overlap)", false);
+                       " start too close together (their reserved cells overlap)",
+              false);
     }
     grid_.acquire(v.index, v.base_cells.data(), v.base_cells.size());
     v.stage = s.tasks.empty() ? Stage::kDone : Stage::kToPick;
@@ -174,7 +180,8 @@ bool FleetSim::init(std::string* error) {
       const auto n = static_cast<std::size_t>(duration_ns_ / odom_period_ns) + 2;
       out_->vehicles[i].truth.reserve(n);
       out_->vehicles[i].odom.reserve(n);
-      if (p_.gyro_enabled) out_->vehicles[i].gyro.reserve(n * static_cast<std::size_t>(p_.odom_every_steps));
+      if (p_.gyro_enabled)
+        out_->vehicles[i].gyro.reserve(n * static_cast<std::size_t>(p_.odom_every_steps));
     }
   }
   poses_.resize(vehicles_.size());

@@ -48,7 +48,9 @@ struct Leg {
   double s_mm = 0.0;    // path length reached
   double alpha = 0.0;   // rate of trajectory time per simulated time (0 stopped .. 1 as planned)
   std::size_t samples() const { return sample_s_mm.size(); }
-  const int* cells_of(int k) const { return cells.data() + cell_begin[static_cast<std::size_t>(k)]; }
+  const int* cells_of(int k) const {
+    return cells.data() + cell_begin[static_cast<std::size_t>(k)];
+  }
   std::size_t count_of(int k) const {
     const auto i = static_cast<std::size_t>(k);
     return cell_begin[i + 1] - cell_begin[i];
@@ -86,8 +88,8 @@ struct Vehicle {
   double gyro_theta_rad = 0.0;                         // at the previous step
   Phase phase = Phase::kParked;
   Stage stage = Stage::kDone;
-  int task = 0;            // index into its queue
-  int task_record = -1;    // index into FleetResult::tasks of the current task
+  int task = 0;          // index into its queue
+  int task_record = -1;  // index into FleetResult::tasks of the current task
   double dwell_end_s = 0.0;
   std::vector<int> base_cells;  // held while not on a leg
   bool has_leg = false;
@@ -112,8 +114,7 @@ struct Vehicle {
 class FleetSim {
  public:
   FleetSim(const site::Site& site, const site::RoutePlanner& planner,
-           const std::vector<FleetVehicleSpec>& specs, const FleetParams& params,
-           FleetResult* out);
+           const std::vector<FleetVehicleSpec>& specs, const FleetParams& params, FleetResult* out);
   bool init(std::string* error);
   void run(const FleetStepObserver& observer);
 
@@ -161,8 +162,8 @@ class FleetSim {
   std::vector<Vehicle> vehicles_;
   std::vector<int> scratch_;
   std::vector<std::uint8_t> mark_;
-  std::vector<std::uint16_t> plan_own_;  // per vehicle and cell
-  std::vector<std::uint8_t> plan_dir_;   // per vehicle and cell: heading there, 256 steps a turn
+  std::vector<std::uint16_t> plan_own_;   // per vehicle and cell
+  std::vector<std::uint8_t> plan_dir_;    // per vehicle and cell: heading there, 256 steps a turn
   std::vector<std::int32_t> plan_total_;  // per cell
   std::vector<int> request_;              // per cell: the vehicle with the first claim, or -1
   std::vector<Pose2> poses_;

@@ -12,7 +12,7 @@ namespace agv::sim::fleet_internal {
 
 namespace {
 
-constexpr double kFleetRetryS = 2.0;        // between attempts on a blockage not yet resolved
+constexpr double kFleetRetryS = 2.0;         // between attempts on a blockage not yet resolved
 constexpr double kFleetEvadeBoxMm = 8000.0;  // half side of the square searched for a refuge
 constexpr int kFleetEvadeDraws = 200;
 constexpr int kFleetEvadeTries = 12;
@@ -50,8 +50,8 @@ void FleetSim::resolve_blockages() {
             Vehicle& y = vehicles_[static_cast<std::size_t>(*(q - 1))];
             if (try_evade(y, &vehicles_[static_cast<std::size_t>(*q)])) {
               event(FleetEventKind::kEvade, {y.index, *q},
-                    "vehicle " + std::to_string(y.index) + " drives aside to make room for vehicle " +
-                        std::to_string(*q));
+                    "vehicle " + std::to_string(y.index) +
+                        " drives aside to make room for vehicle " + std::to_string(*q));
               break;
             }
           }
@@ -137,7 +137,8 @@ void FleetSim::remaining_cells(const Vehicle& x, std::vector<std::uint8_t>* mark
   if (x.has_leg) {
     for (int k = std::max(0, x.leg.lo); k < static_cast<int>(x.leg.samples()); ++k) {
       const int* c = x.leg.cells_of(k);
-      for (std::size_t i = 0; i < x.leg.count_of(k); ++i) (*mark)[static_cast<std::size_t>(c[i])] = 1;
+      for (std::size_t i = 0; i < x.leg.count_of(k); ++i)
+        (*mark)[static_cast<std::size_t>(c[i])] = 1;
     }
   }
   for (int c : x.base_cells) (*mark)[static_cast<std::size_t>(c)] = 1;
@@ -165,7 +166,8 @@ bool FleetSim::try_evade(Vehicle& y, const Vehicle* x) {
     std::fill(mark_.begin(), mark_.end(), std::uint8_t{0});
     if (x) remaining_cells(*x, &mark_);
     if (pass == 0) {
-      const std::uint16_t* own = plan_own_.data() + static_cast<std::size_t>(y.index) * grid_.size();
+      const std::uint16_t* own =
+          plan_own_.data() + static_cast<std::size_t>(y.index) * grid_.size();
       for (std::size_t c = 0; c < mark_.size(); ++c) {
         if (plan_total_[c] > own[c]) mark_[c] = 1;
       }
@@ -181,7 +183,8 @@ bool FleetSim::evade_to_refuge(Vehicle& y, const std::vector<std::pair<double, V
     scratch_.clear();
     grid_.cells_near(q, y.reserve_mm, &scratch_);
     bool ok = grid_.blocker(y.index, scratch_.data(), scratch_.size()) < 0;
-    for (std::size_t i = 0; ok && i < scratch_.size(); ++i) ok = mark_[static_cast<std::size_t>(scratch_[i])] == 0;
+    for (std::size_t i = 0; ok && i < scratch_.size(); ++i)
+      ok = mark_[static_cast<std::size_t>(scratch_[i])] == 0;
     if (!ok) continue;
     if (++tries > kFleetEvadeTries) break;
     Leg leg;

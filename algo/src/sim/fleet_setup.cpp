@@ -115,7 +115,8 @@ bool make_random_fleet(const site::RoutePlanner& planner, const site::Site& site
     }
     if (!placed) {
       return (*error = "no free room for vehicle " + std::to_string(i) + " of " +
-                       std::to_string(radii_mm.size()) + " on the site", false);
+                       std::to_string(radii_mm.size()) + " on the site",
+              false);
     }
     if (i == 0) anchor = {v.start.x_mm, v.start.y_mm};
     out->push_back(v);
@@ -131,8 +132,10 @@ bool make_random_fleet(const site::RoutePlanner& planner, const site::Site& site
         }
         ok = std::hypot(t.pick_mm.x - t.drop_mm.x, t.pick_mm.y - t.drop_mm.y) >= min_leg_mm;
       }
-      if (!ok) return (*error = "no two free points " + std::to_string(min_leg_mm) +
-                                " mm apart for a task on the site", false);
+      if (!ok)
+        return (*error = "no two free points " + std::to_string(min_leg_mm) +
+                         " mm apart for a task on the site",
+                false);
       v.tasks.push_back(t);
     }
   }

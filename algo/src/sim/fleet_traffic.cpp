@@ -129,7 +129,8 @@ bool FleetSim::build_leg(const Vehicle& v, Vec2 goal_mm, Leg* leg, std::string* 
 }
 
 void FleetSim::start_task_leg(Vehicle& v) {
-  const FleetTask& task = specs_[static_cast<std::size_t>(v.index)].tasks[static_cast<std::size_t>(v.task)];
+  const FleetTask& task =
+      specs_[static_cast<std::size_t>(v.index)].tasks[static_cast<std::size_t>(v.task)];
   FleetTaskRecord& rec = out_->tasks[static_cast<std::size_t>(v.task_record)];
   if (rec.start_s < 0.0) rec.start_s = t_s_;
   const Vec2 goal = v.stage == Stage::kToPick ? task.pick_mm : task.drop_mm;
@@ -158,7 +159,8 @@ void FleetSim::release_holdings(Vehicle& v) {
   if (v.has_leg) {
     plan_change(v, v.leg, v.leg.hi + 1, v.leg.plan_hi, -1);
     v.leg.plan_hi = -1;
-    for (int k = v.leg.lo; k <= v.leg.hi; ++k) grid_.release(v.index, v.leg.cells_of(k), v.leg.count_of(k));
+    for (int k = v.leg.lo; k <= v.leg.hi; ++k)
+      grid_.release(v.index, v.leg.cells_of(k), v.leg.count_of(k));
     v.leg.lo = 0;
     v.leg.hi = -1;
   }
@@ -212,7 +214,8 @@ bool FleetSim::on_others_plan(const Vehicle& v, const Leg& leg, int k) const {
     // makes it queue behind; crossing or oncoming, it can make a cycle.
     for (std::size_t w = 0; w < vehicles_.size(); ++w) {
       if (static_cast<int>(w) == v.index || plan_own_[w * cells + ci] == 0) continue;
-      const int d = std::abs(static_cast<std::int8_t>(static_cast<std::uint8_t>(plan_dir_[w * cells + ci] - mine)));
+      const int d = std::abs(
+          static_cast<std::int8_t>(static_cast<std::uint8_t>(plan_dir_[w * cells + ci] - mine)));
       if (d > 32) return true;  // more than 45 degrees apart
     }
   }
@@ -226,7 +229,8 @@ int FleetSim::run_blocker(const Vehicle& v, const Leg& leg, int k, int m) const 
       const int o = grid_.owner(c[i]);
       if (o >= 0 && o != v.index) return o;
       const int r = request_[static_cast<std::size_t>(c[i])];
-      if (r >= 0 && r != v.index && vehicles_[static_cast<std::size_t>(r)].wait_since_s < v.wait_since_s) {
+      if (r >= 0 && r != v.index &&
+          vehicles_[static_cast<std::size_t>(r)].wait_since_s < v.wait_since_s) {
         return r;
       }
     }
@@ -236,7 +240,8 @@ int FleetSim::run_blocker(const Vehicle& v, const Leg& leg, int k, int m) const 
 
 void FleetSim::clear_requests(Vehicle& v) {
   for (int c : v.requested) {
-    if (request_[static_cast<std::size_t>(c)] == v.index) request_[static_cast<std::size_t>(c)] = -1;
+    if (request_[static_cast<std::size_t>(c)] == v.index)
+      request_[static_cast<std::size_t>(c)] = -1;
   }
   v.requested.clear();
 }
@@ -262,7 +267,8 @@ void FleetSim::extend_reservation(Vehicle& v) {
                        vmax_mmps * dt_s_ + p_.lookahead_mm;
   v.blocked = false;
   const int n = static_cast<int>(leg.samples());
-  while (leg.hi + 1 < n && (leg.hi < 0 || leg.sample_s_mm[static_cast<std::size_t>(leg.hi + 1)] <= reach)) {
+  while (leg.hi + 1 < n &&
+         (leg.hi < 0 || leg.sample_s_mm[static_cast<std::size_t>(leg.hi + 1)] <= reach)) {
     // Reserve through to the first point off every other vehicle's way, all or nothing: a
     // vehicle that has to stop then stands where nobody else needs to pass.
     const int k = leg.hi + 1;
@@ -329,7 +335,8 @@ void FleetSim::drive_step(Vehicle& v) {
   const double options[3] = {std::min(1.0, a + beta * dt_s_), a, std::max(0.0, a - beta * dt_s_)};
   double alpha = options[2];
   for (double c : options) {
-    if (end_held || leg.s_mm + vmax_mmps * c * dt_s_ + vmax_mmps * c * c / (2.0 * beta) <= s_hi + 1e-6) {
+    if (end_held ||
+        leg.s_mm + vmax_mmps * c * dt_s_ + vmax_mmps * c * c / (2.0 * beta) <= s_hi + 1e-6) {
       alpha = c;
       break;
     }

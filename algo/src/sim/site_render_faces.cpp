@@ -144,11 +144,16 @@ std::vector<Vec2> footprint_shape(Vec2 c, double yaw, double length, double widt
 
 double obstacle_grey(site::ObstacleKind k) {
   switch (k) {
-    case site::ObstacleKind::kRack: return 120.0;
-    case site::ObstacleKind::kPillar: return 175.0;
-    case site::ObstacleKind::kConveyor: return 95.0;
-    case site::ObstacleKind::kWall: return 185.0;
-    case site::ObstacleKind::kOther: return 140.0;
+    case site::ObstacleKind::kRack:
+      return 120.0;
+    case site::ObstacleKind::kPillar:
+      return 175.0;
+    case site::ObstacleKind::kConveyor:
+      return 95.0;
+    case site::ObstacleKind::kWall:
+      return 185.0;
+    case site::ObstacleKind::kOther:
+      return 140.0;
   }
   return 140.0;
 }
@@ -166,8 +171,8 @@ void add_vehicle(const SiteScene& s, const Pages& pages, size_t i, const Pose2& 
     body = footprint_shape(c, pose.theta_rad, 0.9 * a.tray_length_mm, 0.9 * a.tray_width_mm, 4);
   }
   extrude(body, 0.0, th - plate, s.body_grey, true, true, out);
-  extrude(footprint_shape(c, pose.theta_rad, a.tray_length_mm, a.tray_width_mm, 4), th - plate,
-          th, s.tray_grey, true, false, out);
+  extrude(footprint_shape(c, pose.theta_rad, a.tray_length_mm, a.tray_width_mm, 4), th - plate, th,
+          s.tray_grey, true, false, out);
   const double cs = std::cos(pose.theta_rad), sn = std::sin(pose.theta_rad);
   Face tray;
   tray.o = {c.x, c.y, th};
@@ -277,7 +282,8 @@ CamFace cam_face(const Face& f, const RenderCamera& cam) {
     y1 = std::max(y1, y);
   }
   // Float rounding of the box must never drop a pixel on its edge.
-  const float pad = 1e-5f * (1.0f + std::max(std::abs(x0) + std::abs(x1), std::abs(y0) + std::abs(y1)));
+  const float pad =
+      1e-5f * (1.0f + std::max(std::abs(x0) + std::abs(x1), std::abs(y0) + std::abs(y1)));
   cf.box[0] = x0 - pad;
   cf.box[1] = y0 - pad;
   cf.box[2] = x1 + pad;

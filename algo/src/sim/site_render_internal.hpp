@@ -59,8 +59,8 @@ struct Face {
 
 // Where the truth finds an object's faces in a face list.
 struct FaceIndex {
-  std::vector<int> agv_tag_face;   // per vehicle
-  std::vector<int> wall_face;      // per wall landmark
+  std::vector<int> agv_tag_face;  // per vehicle
+  std::vector<int> wall_face;     // per wall landmark
   std::vector<int> parcel_top_face;
   std::vector<int> clutter_top_face;
 };

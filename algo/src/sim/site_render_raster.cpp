@@ -215,8 +215,7 @@ RenderResult SiteFrameRenderer::render(const SiteScene& scene, const RenderCamer
   std::vector<Instant> inst(static_cast<size_t>(n_inst));
   for (int k = 0; k < n_inst; ++k) {
     const double dt = ((k + 0.5) / n_inst - 0.5) * p.exposure_s;
-    site_render_detail::build_faces(scene, pages, dt, &inst[static_cast<size_t>(k)].faces,
-                                    &unused);
+    site_render_detail::build_faces(scene, pages, dt, &inst[static_cast<size_t>(k)].faces, &unused);
     inst[static_cast<size_t>(k)].prepare(scene, cam);
   }
 

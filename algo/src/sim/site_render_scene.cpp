@@ -198,8 +198,8 @@ void add_random_clutter(SiteScene* scene, int people, int pallets, std::uint64_t
   std::uniform_real_distribution<double> u01(0.0, 1.0);
   std::vector<Vec3> taken;
   for (size_t i = 0; i < scene->agvs.size() && i < scene->site.fleet.size(); ++i) {
-    taken.push_back({scene->agvs[i].pose.x_mm, scene->agvs[i].pose.y_mm,
-                     scene->site.fleet[i].radius_mm});
+    taken.push_back(
+        {scene->agvs[i].pose.x_mm, scene->agvs[i].pose.y_mm, scene->site.fleet[i].radius_mm});
   }
   for (int k = 0; k < people + pallets; ++k) {
     Clutter c;

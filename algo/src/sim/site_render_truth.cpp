@@ -26,14 +26,16 @@ double visible_fraction(const RenderCamera& cam, const std::vector<Face>& faces,
   std::vector<Vec3> pts;
   for (int j = 0; j < grid; ++j) {
     for (int i = 0; i < grid; ++i) {
-      pts.push_back(face_point(f, -h + 2.0 * h * (i + 0.5) / grid, -h + 2.0 * h * (j + 0.5) / grid));
+      pts.push_back(
+          face_point(f, -h + 2.0 * h * (i + 0.5) / grid, -h + 2.0 * h * (j + 0.5) / grid));
     }
   }
   std::vector<std::uint8_t> ok;
   const std::vector<Vec2> px = project_points(cam, pts, &ok);
   int seen = 0;
   for (size_t k = 0; k < pts.size(); ++k) {
-    if (!ok[k] || !(px[k].x >= -0.5 && px[k].y >= -0.5 && px[k].x < w - 0.5 && px[k].y < hh - 0.5)) {
+    if (!ok[k] ||
+        !(px[k].x >= -0.5 && px[k].y >= -0.5 && px[k].x < w - 0.5 && px[k].y < hh - 0.5)) {
       continue;
     }
     if (!(dot3(sub3(pts[k], c), f.n) > 0.0)) continue;  // the back of the print
@@ -103,14 +105,14 @@ void fill_truth(const SiteScene& scene, const RenderCamera& cam, const SiteRende
     const int fi = index.agv_tag_face[i];
     const Face& f = faces[static_cast<size_t>(fi)];
     const double h = 0.5 * a.tag_size_mm;
-    const std::vector<Vec3> tag = {face_point(f, -h, -h), face_point(f, h, -h),
-                                   face_point(f, h, h), face_point(f, -h, h)};
+    const std::vector<Vec3> tag = {face_point(f, -h, -h), face_point(f, h, -h), face_point(f, h, h),
+                                   face_point(f, -h, h)};
     // Tray page axes: u = vehicle -y, v = vehicle -x.
     const double hl = 0.5 * a.tray_length_mm, hw = 0.5 * a.tray_width_mm;
     const std::vector<Vec3> tray = {face_point(f, -hw, -hl), face_point(f, hw, -hl),
                                     face_point(f, hw, hl), face_point(f, -hw, hl)};
-    t.projected = project_all(cam, tag, &t.tag_corners_px) &&
-                  project_all(cam, tray, &t.tray_corners_px);
+    t.projected =
+        project_all(cam, tag, &t.tag_corners_px) && project_all(cam, tray, &t.tray_corners_px);
     t.tag_visible_fraction = f.page ? visible_fraction(cam, faces, cfs, fi, h, grid) : 0.0;
     out->agvs.push_back(t);
   }
@@ -122,10 +124,10 @@ void fill_truth(const SiteScene& scene, const RenderCamera& cam, const SiteRende
     if (fi >= 0) {
       const Face& f = faces[static_cast<size_t>(fi)];
       const double h = 0.5 * wl.size_mm;
-      t.projected = project_all(cam,
-                                {face_point(f, -h, -h), face_point(f, h, -h), face_point(f, h, h),
-                                 face_point(f, -h, h)},
-                                &t.corners_px);
+      t.projected = project_all(
+          cam,
+          {face_point(f, -h, -h), face_point(f, h, -h), face_point(f, h, h), face_point(f, -h, h)},
+          &t.corners_px);
       t.visible_fraction = visible_fraction(cam, faces, cfs, fi, h, grid);
     }
     out->wall_landmarks.push_back(t);
@@ -163,8 +165,8 @@ cv::Mat finish_image(const cv::Mat& radiance, const SiteRenderParams& p, std::ui
       for (int x = 0; x < w; ++x) {
         const double t = (x * dx + y * dy - tmin) / span;
         const double r2 = ((x - mx) * (x - mx) + (y - my) * (y - my)) / r2c;
-        row[x] = static_cast<float>(static_cast<double>(row[x]) * gain *
-                                    (1.0 + (ratio - 1.0) * t) * (1.0 - vig * r2));
+        row[x] = static_cast<float>(static_cast<double>(row[x]) * gain * (1.0 + (ratio - 1.0) * t) *
+                                    (1.0 - vig * r2));
       }
     }
   }

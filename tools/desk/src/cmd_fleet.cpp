@@ -57,15 +57,15 @@ bool write_vehicle(const std::string& dir, const sim::FleetVehicleOutput& v, boo
   std::vector<recording::ImuRow> imu;
   odom.reserve(v.odom.size());
   truth.reserve(v.truth.size());
-  for (const sim::FleetOdomSample& o : v.odom) odom.push_back({kFleetT0Ns + o.t_ns, o.v_mps, o.omega_radps});
+  for (const sim::FleetOdomSample& o : v.odom)
+    odom.push_back({kFleetT0Ns + o.t_ns, o.v_mps, o.omega_radps});
   for (const sim::FleetTruthSample& t : v.truth) {
     truth.push_back({kFleetT0Ns + t.t_ns, t.pose.x_mm, t.pose.y_mm, rad_to_deg(t.pose.theta_rad)});
   }
   for (const sim::ImuSample& g : v.gyro) imu.push_back({kFleetT0Ns + g.t_ns, g.gyro_z_radps});
   std::error_code ec;
   fs::remove(fs::path(dir) / "imu.csv", ec);  // a --no-gyro rewrite must not keep an old one
-  return recording::write_meta(dir, meta, error) &&
-         recording::write_frames_csv(dir, {}, error) &&
+  return recording::write_meta(dir, meta, error) && recording::write_frames_csv(dir, {}, error) &&
          recording::write_odom_csv(dir, odom, error) &&
          recording::write_truth_csv(dir, truth, error) &&
          (!gyro || recording::write_imu_csv(dir, imu, error));
@@ -88,7 +88,8 @@ std::string fleet_csv(const sim::FleetResult& r, const std::vector<std::string>&
 }
 
 std::string tasks_csv(const sim::FleetResult& r, const std::vector<std::string>& names) {
-  std::string s = "agv,task,pick_x_mm,pick_y_mm,drop_x_mm,drop_y_mm,start_s,picked_s,finish_s,error\n";
+  std::string s =
+      "agv,task,pick_x_mm,pick_y_mm,drop_x_mm,drop_y_mm,start_s,picked_s,finish_s,error\n";
   char line[512];
   for (const sim::FleetTaskRecord& t : r.tasks) {
     std::string err = t.error;
@@ -108,7 +109,8 @@ std::string events_csv(const sim::FleetResult& r) {
   for (const sim::FleetEvent& e : r.events) {
     std::snprintf(head, sizeof head, "%.3f,%s,", e.t_s, sim::to_string(e.kind));
     std::string ids;
-    for (std::size_t i = 0; i < e.vehicles.size(); ++i) ids += (i ? ";" : "") + std::to_string(e.vehicles[i]);
+    for (std::size_t i = 0; i < e.vehicles.size(); ++i)
+      ids += (i ? ";" : "") + std::to_string(e.vehicles[i]);
     std::string text = e.text;
     for (char& c : text) c = (c == ',' || c == '\n' || c == '\r') ? ';' : c;
     s += head + ids + "," + text + "\n";
@@ -119,9 +121,10 @@ std::string events_csv(const sim::FleetResult& r) {
 }  // namespace
 
 int fleet_command(int argc, char** argv) {
-  CLI::App app{"Simulate a fleet working random tasks on a site: per-vehicle recordings (truth, "
-               "odometry, gyro), fleet.csv, tasks.csv (docs/design/fleet_sim.md)",
-               "agvloc-desk fleet"};
+  CLI::App app{
+      "Simulate a fleet working random tasks on a site: per-vehicle recordings (truth, "
+      "odometry, gyro), fleet.csv, tasks.csv (docs/design/fleet_sim.md)",
+      "agvloc-desk fleet"};
   std::string site_path, out_dir;
   int agvs = 0, tasks_per_agv = 5;
   double duration_s = 600.0, radius_mm = 400.0;
@@ -129,20 +132,28 @@ int fleet_command(int argc, char** argv) {
   bool force = false, gyro = true;
   sim::FleetParams fp;
   app.add_option("--site", site_path, "Site file (docs/guide/site.md)")->required();
-  app.add_option("--out", out_dir, "Folder to write (one recording folder per vehicle)")->required();
+  app.add_option("--out", out_dir, "Folder to write (one recording folder per vehicle)")
+      ->required();
   app.add_option("--agvs", agvs, "Number of vehicles; 0 = the site's fleet")
-      ->check(CLI::Range(0, 500))->capture_default_str();
+      ->check(CLI::Range(0, 500))
+      ->capture_default_str();
   app.add_option("--duration-s", duration_s, "Simulated time")
-      ->check(CLI::Range(1.0, 86400.0))->capture_default_str();
-  app.add_option("--seed", seed, "Seed for start points, tasks and sensor errors")->capture_default_str();
+      ->check(CLI::Range(1.0, 86400.0))
+      ->capture_default_str();
+  app.add_option("--seed", seed, "Seed for start points, tasks and sensor errors")
+      ->capture_default_str();
   app.add_option("--tasks-per-agv", tasks_per_agv, "Random pick-and-drop tasks per vehicle")
-      ->check(CLI::Range(0, 100000))->capture_default_str();
+      ->check(CLI::Range(0, 100000))
+      ->capture_default_str();
   app.add_option("--radius-mm", radius_mm, "Radius of vehicles beyond the site's fleet")
-      ->check(CLI::Range(50.0, 5000.0))->capture_default_str();
+      ->check(CLI::Range(50.0, 5000.0))
+      ->capture_default_str();
   app.add_option("--dwell-s", fp.dwell_s, "Standing time at each pick and drop point")
-      ->check(CLI::Range(0.0, 3600.0))->capture_default_str();
+      ->check(CLI::Range(0.0, 3600.0))
+      ->capture_default_str();
   app.add_option("--speed-mps", fp.drive.speed_mps, "Cruise speed")
-      ->check(CLI::Range(0.05, 5.0))->capture_default_str();
+      ->check(CLI::Range(0.05, 5.0))
+      ->capture_default_str();
   app.add_flag("--gyro,!--no-gyro", gyro, "Write imu.csv per vehicle (default on)");
   app.add_flag("--force", force, "Overwrite recordings already in --out");
   try {
@@ -182,7 +193,8 @@ int fleet_command(int argc, char** argv) {
   if (!force) {
     for (const std::string& name : names) {
       if (fs::exists(fs::path(out_dir) / name / "meta.yaml", ec)) {
-        return usage(out_dir + "/" + name + " already holds a recording (use --force to overwrite)");
+        return usage(out_dir + "/" + name +
+                     " already holds a recording (use --force to overwrite)");
       }
     }
   }
@@ -192,7 +204,8 @@ int fleet_command(int argc, char** argv) {
   sim::FleetResult r;
   const auto t0 = std::chrono::steady_clock::now();
   if (!sim::simulate_fleet(site, planner, specs, fp, &r, &err)) return usage(err);
-  const double wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double wall_s =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
   std::string cmdline = "agvloc-desk fleet";
   for (int i = 1; i < argc; ++i) cmdline += std::string(" ") + argv[i];

@@ -7,8 +7,8 @@
 // against weighted least squares. Figures: docs/design/ranging.md.
 #include <Eigen/Dense>
 #include <algorithm>
-#include <cstdint>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <map>
 #include <opencv2/calib3d.hpp>
@@ -61,7 +61,9 @@ struct Measured {
   double column_px = 0.0;
 };
 
-Vec2 world_of(const Pose2& vehicle, const Vector3d& p_V) { return transform(vehicle, {p_V.x(), p_V.y()}); }
+Vec2 world_of(const Pose2& vehicle, const Vector3d& p_V) {
+  return transform(vehicle, {p_V.x(), p_V.y()});
+}
 
 std::vector<cv::Point3d> tag_object_points() {
   const double h = kTagMm / 2;
@@ -93,7 +95,8 @@ Measured measure(const Truth& t, const RangingMount& mount, std::mt19937_64& rng
   for (const cv::Point3d& c : tag_object_points()) {
     const Vector3d X = R_CT * Vector3d(c.x, c.y, c.z) + t_C;
     if (X.z() <= 0.0) return out;
-    const double u = k.fx * X.x() / X.z() + k.cx + noise(rng), v = k.fy * X.y() / X.z() + k.cy + noise(rng);
+    const double u = k.fx * X.x() / X.z() + k.cx + noise(rng),
+                 v = k.fy * X.y() / X.z() + k.cy + noise(rng);
     if (u < 0 || v < 0 || u > k.width_px - 1 || v > k.height_px - 1) return out;
     px.push_back({u, v});
   }
@@ -112,7 +115,8 @@ Measured measure(const Truth& t, const RangingMount& mount, std::mt19937_64& rng
   // Full pose from the same corners.
   cv::Mat rvec, tvec;
   const cv::Matx33d K(k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1);
-  if (!cv::solvePnP(tag_object_points(), px, K, cv::noArray(), rvec, tvec, false, cv::SOLVEPNP_IPPE_SQUARE)) {
+  if (!cv::solvePnP(tag_object_points(), px, K, cv::noArray(), rvec, tvec, false,
+                    cv::SOLVEPNP_IPPE_SQUARE)) {
     return out;
   }
   const Vector3d t_est(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
@@ -133,13 +137,16 @@ Measured measure(const Truth& t, const RangingMount& mount, std::mt19937_64& rng
 }
 
 const Observation& pick(const Measured& m, Method method) {
-  return method == Method::kPose ? m.pose : method == Method::kSizeDepth ? m.size_depth : m.size_literal;
+  return method == Method::kPose        ? m.pose
+         : method == Method::kSizeDepth ? m.size_depth
+                                        : m.size_literal;
 }
 
 // Percentiles of a sample, in place.
 double percentile(std::vector<double>& v, double p) {
   if (v.empty()) return NAN;
-  const std::size_t i = std::min(v.size() - 1, static_cast<std::size_t>(p * static_cast<double>(v.size())));
+  const std::size_t i =
+      std::min(v.size() - 1, static_cast<std::size_t>(p * static_cast<double>(v.size())));
   std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(i), v.end());
   return v[i];
 }
@@ -151,7 +158,8 @@ Truth sample_landmark(const RangingMount& mount, int camera, double bearing_lo, 
   const double range = 2000.0 + 6000.0 * uni(rng);
   const double b = mount.yaw_rad + bearing_lo + (bearing_hi - bearing_lo) * uni(rng);
   Truth t;
-  t.p_V = Vector3d(mount.x_mm + range * std::cos(b), mount.y_mm + range * std::sin(b), 700.0 + 900.0 * uni(rng));
+  t.p_V = Vector3d(mount.x_mm + range * std::cos(b), mount.y_mm + range * std::sin(b),
+                   700.0 + 900.0 * uni(rng));
   // Faces the camera within +-30 degrees.
   t.facing_V_rad = b + kPi + deg_to_rad(60.0 * uni(rng) - 30.0);
   t.camera = camera;
@@ -160,11 +168,11 @@ Truth sample_landmark(const RangingMount& mount, int camera, double bearing_lo, 
 
 void range_table(std::mt19937_64& rng) {
   const RangingMount mount{300.0, 0.0, 1000.0, 0.0, 0.0, 0.0};
-  const char* names[4] = {"size, paper (range = f H / h)", "size, as depth along the axis", "tag pose, Fisher cov",
-                          "tag pose, closed-form cov"};
+  const char* names[4] = {"size, paper (range = f H / h)", "size, as depth along the axis",
+                          "tag pose, Fisher cov", "tag pose, closed-form cov"};
   std::printf("\n== Range and bearing per landmark (10000 landmarks, simulated geometry) ==\n");
-  std::printf("%-32s %-8s %8s %8s %8s %9s %9s %10s\n", "method", "range m", "bias mm", "p50 mm", "p95 mm",
-              "sd mm", "model sd", "brg p95 mr");
+  std::printf("%-32s %-8s %8s %8s %8s %9s %9s %10s\n", "method", "range m", "bias mm", "p50 mm",
+              "p95 mm", "sd mm", "model sd", "brg p95 mr");
   const std::uint64_t seed = rng();
   for (int method = 0; method < 4; ++method) {
     std::mt19937_64 r(seed);  // the same landmarks and corner noise for every method
@@ -179,7 +187,8 @@ void range_table(std::mt19937_64& rng) {
       const double truth_bearing = std::atan2(t.p_V.y(), t.p_V.x());
       const double cam_range = std::hypot(t.p_V.x() - mount.x_mm, t.p_V.y() - mount.y_mm);
       bins[static_cast<int>(cam_range / 2000.0)].push_back(
-          {o.range_mm - truth_range, std::sqrt(o.cov(0, 0)), wrap_angle_rad(o.bearing_rad - truth_bearing)});
+          {o.range_mm - truth_range, std::sqrt(o.cov(0, 0)),
+           wrap_angle_rad(o.bearing_rad - truth_bearing)});
     }
     pose_cov_closed_form = false;
     for (auto& [bin, v] : bins) {
@@ -193,9 +202,9 @@ void range_table(std::mt19937_64& rng) {
         abs_e.push_back(std::abs(e.x()));
         abs_b.push_back(std::abs(e.z()) * 1e3);
       }
-      std::printf("%-32s %d-%d     %8.1f %8.1f %8.1f %9.1f %9.1f %10.3f\n", names[method], 2 * bin, 2 * bin + 2,
-                  mean, percentile(abs_e, 0.5), percentile(abs_e, 0.95), std::sqrt(var), std::sqrt(model),
-                  percentile(abs_b, 0.95));
+      std::printf("%-32s %d-%d     %8.1f %8.1f %8.1f %9.1f %9.1f %10.3f\n", names[method], 2 * bin,
+                  2 * bin + 2, mean, percentile(abs_e, 0.5), percentile(abs_e, 0.95),
+                  std::sqrt(var), std::sqrt(model), percentile(abs_b, 0.95));
     }
   }
 }
@@ -222,16 +231,17 @@ struct Tally {
   void print(const char* name) {
     std::string refused;
     for (const auto& [k, n] : refusals) refused += " " + k + "=" + std::to_string(n);
-    std::printf("%-46s %5d/%-5d %7.1f %7.1f %6.2f %6.2f %6.1f%% %5d %s\n", name, ok, trials, percentile(pos_mm, 0.5),
-                percentile(pos_mm, 0.95), percentile(heading_deg, 0.5), percentile(heading_deg, 0.95),
-                ok ? 100.0 * covered / ok : 0.0, wrong_side, refused.c_str());
+    std::printf("%-46s %5d/%-5d %7.1f %7.1f %6.2f %6.2f %6.1f%% %5d %s\n", name, ok, trials,
+                percentile(pos_mm, 0.5), percentile(pos_mm, 0.95), percentile(heading_deg, 0.5),
+                percentile(heading_deg, 0.95), ok ? 100.0 * covered / ok : 0.0, wrong_side,
+                refused.c_str());
   }
 };
 
 void print_fix_header(const char* title) {
   std::printf("\n== %s ==\n", title);
-  std::printf("%-46s %11s %7s %7s %6s %6s %7s %5s %s\n", "fix", "ok/trials", "p50 mm", "p95 mm", "p50 deg",
-              "p95 deg", "3sig cov", "wrong", "refusals");
+  std::printf("%-46s %11s %7s %7s %6s %6s %7s %5s %s\n", "fix", "ok/trials", "p50 mm", "p95 mm",
+              "p50 deg", "p95 deg", "3sig cov", "wrong", "refusals");
 }
 
 Pose2 random_pose(std::mt19937_64& rng) {
@@ -239,7 +249,8 @@ Pose2 random_pose(std::mt19937_64& rng) {
   return {50000.0 * uni(rng), 30000.0 * uni(rng), kPi * (2 * uni(rng) - 1)};
 }
 
-const RangingMount kMounts[2] = {{300.0, 0.0, 1000.0, 0.0, 0.0, 0.0}, {0.0, 250.0, 1000.0, 0.0, 0.0, kPi / 2}};
+const RangingMount kMounts[2] = {{300.0, 0.0, 1000.0, 0.0, 0.0, 0.0},
+                                 {0.0, 250.0, 1000.0, 0.0, 0.0, kPi / 2}};
 
 // One trial: the vehicle somewhere, landmarks in the given cameras' views, measured.
 struct Scene {
@@ -280,12 +291,16 @@ void two_landmark_table(const char* title, const std::vector<int>& cameras, std:
     if (!make_scene(cameras, rng, &s)) continue;
     // Left in the image: the smaller column, compared across images when there are two cameras.
     const bool l0_left = s.measured[0].column_px < s.measured[1].column_px;
-    const auto lit = observations(s, Method::kSizeLiteral), dep = observations(s, Method::kSizeDepth),
-               pos = observations(s, Method::kPose);
-    paper.add(fix_two_circles(lit[0], lit[1], TwoLandmarkRule::kLeftRight, l0_left, paper_opt), s.truth);
-    lr_size.add(fix_two_circles(dep[0], dep[1], TwoLandmarkRule::kLeftRight, l0_left, opt), s.truth);
-    lr_pose.add(fix_two_circles(pos[0], pos[1], TwoLandmarkRule::kLeftRight, l0_left, opt), s.truth);
-    bd_pose.add(fix_two_circles(pos[0], pos[1], TwoLandmarkRule::kBearingDifference, false, opt), s.truth);
+    const auto lit = observations(s, Method::kSizeLiteral),
+               dep = observations(s, Method::kSizeDepth), pos = observations(s, Method::kPose);
+    paper.add(fix_two_circles(lit[0], lit[1], TwoLandmarkRule::kLeftRight, l0_left, paper_opt),
+              s.truth);
+    lr_size.add(fix_two_circles(dep[0], dep[1], TwoLandmarkRule::kLeftRight, l0_left, opt),
+                s.truth);
+    lr_pose.add(fix_two_circles(pos[0], pos[1], TwoLandmarkRule::kLeftRight, l0_left, opt),
+                s.truth);
+    bd_pose.add(fix_two_circles(pos[0], pos[1], TwoLandmarkRule::kBearingDifference, false, opt),
+                s.truth);
     wls_size.add(fix_from_landmarks(dep, opt), s.truth);
     wls_pose.add(fix_from_landmarks(pos, opt), s.truth);
   }
@@ -319,7 +334,8 @@ void many_landmark_table(const char* title, const std::vector<int>& cameras, std
 void wrong_map_table(std::mt19937_64& rng) {
   std::printf("\n== One landmark's map entry 0.5 m off (tag pose + WLS) ==\n");
   std::printf("%-28s %8s %9s %16s\n", "landmarks", "trials", "refused", "confident+wrong");
-  for (const std::vector<int>& cams : {std::vector<int>{0, 1}, std::vector<int>{0, 0, 1}, std::vector<int>{0, 0, 1, 1}}) {
+  for (const std::vector<int>& cams :
+       {std::vector<int>{0, 1}, std::vector<int>{0, 0, 1}, std::vector<int>{0, 0, 1, 1}}) {
     int trials = 0, refused = 0, wrong = 0;
     Scene s;
     std::uniform_real_distribution<double> uni(0.0, 1.0);
@@ -327,7 +343,8 @@ void wrong_map_table(std::mt19937_64& rng) {
       if (!make_scene(cams, rng, &s)) continue;
       auto pos = observations(s, Method::kPose);
       const double a = 2 * kPi * uni(rng);
-      pos[0].landmark_mm = {pos[0].landmark_mm.x + 500.0 * std::cos(a), pos[0].landmark_mm.y + 500.0 * std::sin(a)};
+      pos[0].landmark_mm = {pos[0].landmark_mm.x + 500.0 * std::cos(a),
+                            pos[0].landmark_mm.y + 500.0 * std::sin(a)};
       const FixResult f = fix_from_landmarks(pos, FixOptions{});
       ++trials;
       if (f.status != FixStatus::kOk) {
@@ -338,7 +355,8 @@ void wrong_map_table(std::mt19937_64& rng) {
                               wrap_angle_rad(f.pose.theta_rad - s.truth.theta_rad));
       wrong += e.dot(f.cov.ldlt().solve(e)) > kNees3Sigma;
     }
-    std::printf("%-28zu %8d %8.1f%% %15.1f%%\n", cams.size(), trials, 100.0 * refused / trials, 100.0 * wrong / trials);
+    std::printf("%-28zu %8d %8.1f%% %15.1f%%\n", cams.size(), trials, 100.0 * refused / trials,
+                100.0 * wrong / trials);
   }
 }
 
@@ -346,11 +364,16 @@ void wrong_map_table(std::mt19937_64& rng) {
 
 int main() {
   std::mt19937_64 rng(20240613);
-  std::printf("eval_ranging: SIMULATED geometry (no rendered images). Camera 1280x800, f = 1000 px, corner sigma\n"
-              "%.1f px, tags %.0f mm at 2-8 m facing the camera within 30 deg; forward camera at (300, 0, 1000) mm,\n"
-              "left camera at (0, 250, 1000) mm yaw 90 deg. 3sig cov: share of ok fixes whose pose error is inside\n"
-              "the 3-sigma ellipsoid of the reported covariance (NEES <= 14.16). wrong: ok fixes more than 1 m off.\n",
-              kCornerSigmaPx, kTagMm);
+  std::printf(
+      "eval_ranging: SIMULATED geometry (no rendered images). Camera 1280x800, f = 1000 px, corner "
+      "sigma\n"
+      "%.1f px, tags %.0f mm at 2-8 m facing the camera within 30 deg; forward camera at (300, 0, "
+      "1000) mm,\n"
+      "left camera at (0, 250, 1000) mm yaw 90 deg. 3sig cov: share of ok fixes whose pose error "
+      "is inside\n"
+      "the 3-sigma ellipsoid of the reported covariance (NEES <= 14.16). wrong: ok fixes more than "
+      "1 m off.\n",
+      kCornerSigmaPx, kTagMm);
   range_table(rng);
   two_landmark_table("Two landmarks, one forward camera", {0, 0}, rng);
   two_landmark_table("Two landmarks, forward and left camera (one each)", {0, 1}, rng);

@@ -26,16 +26,16 @@ struct Observation {
 
 enum class FixStatus {
   kOk,
-  kTooFew,            // fewer than two landmarks: one never fixes a pose
-  kNoIntersection,    // two range circles miss each other by more than the noise allows
-  kShallowGeometry,   // the circles cross (or the rays meet) at too small an angle
-  kCollinear,         // three or more landmarks on (nearly) one line: the linear system is singular
-  kAmbiguous,         // the two circle solutions cannot be told apart
-  kInconsistent,      // the measurements do not fit any pose (chi-square over the gate): a wrong
-                      // map entry or a misidentified landmark
-  kUnverifiable,      // consistent, but a wrong map entry could hide in it: one landmark's map
-                      // error that keeps chi-square under the gate could move the pose further
-                      // than max_hidden_map_shift_sigma of its own covariance
+  kTooFew,           // fewer than two landmarks: one never fixes a pose
+  kNoIntersection,   // two range circles miss each other by more than the noise allows
+  kShallowGeometry,  // the circles cross (or the rays meet) at too small an angle
+  kCollinear,        // three or more landmarks on (nearly) one line: the linear system is singular
+  kAmbiguous,        // the two circle solutions cannot be told apart
+  kInconsistent,     // the measurements do not fit any pose (chi-square over the gate): a wrong
+                     // map entry or a misidentified landmark
+  kUnverifiable,     // consistent, but a wrong map entry could hide in it: one landmark's map
+                     // error that keeps chi-square under the gate could move the pose further
+                     // than max_hidden_map_shift_sigma of its own covariance
 };
 const char* fix_status_name(FixStatus status);
 
@@ -66,13 +66,13 @@ struct FixOptions {
 
 struct FixResult {
   FixStatus status = FixStatus::kTooFew;
-  Pose2 pose;                                         // V in W
-  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();      // over (x_mm, y_mm, theta_rad)
-  double chi2 = 0.0;                                  // weighted squared residuals at pose
-  int dof = 0;                                        // 2 * landmarks - 3
-  int iterations = 0;                                 // Gauss-Newton iterations taken
-  bool touching = false;                              // two circles taken as touching
-  double hidden_map_shift_sigma = 0.0;                // see FixOptions::max_hidden_map_shift_sigma
+  Pose2 pose;                                     // V in W
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();  // over (x_mm, y_mm, theta_rad)
+  double chi2 = 0.0;                              // weighted squared residuals at pose
+  int dof = 0;                                    // 2 * landmarks - 3
+  int iterations = 0;                             // Gauss-Newton iterations taken
+  bool touching = false;                          // two circles taken as touching
+  double hidden_map_shift_sigma = 0.0;            // see FixOptions::max_hidden_map_shift_sigma
 };
 
 // Two circles: the solutions (up to two) of |p - c0| = r0, |p - c1| = r1. solutions[0] lies to

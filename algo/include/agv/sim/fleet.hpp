@@ -26,8 +26,8 @@ struct FleetTask {
 
 struct FleetVehicleSpec {
   std::string id;
-  double radius_mm = 400.0;  // bounds the footprint; the clearance is kept beyond it
-  Pose2 start;               // site <- vehicle at t = 0, at rest
+  double radius_mm = 400.0;      // bounds the footprint; the clearance is kept beyond it
+  Pose2 start;                   // site <- vehicle at t = 0, at rest
   std::vector<FleetTask> tasks;  // worked in order
 };
 
@@ -45,7 +45,7 @@ struct FleetParams {
   // How far beyond its reserved run a vehicle's way counts as needed (no other vehicle stops on
   // it): longer avoids more deadlocks, but makes vehicles reserve longer runs.
   double plan_horizon_mm = 6000.0;
-  double dwell_s = 2.0;         // standing at a pick or drop point
+  double dwell_s = 2.0;          // standing at a pick or drop point
   double turn_rate_radps = 0.8;  // turning on the spot before a route starts
   site::DriveLimits drive;
   // A vehicle stopped for longer than this on a wait that leads back to itself (a cycle) or to a
@@ -94,11 +94,11 @@ struct FleetTaskRecord {
 };
 
 enum class FleetEventKind : std::uint8_t {
-  kDeadlock,         // vehicles waiting on each other in a cycle
-  kBlockedByIdle,    // waiting on a vehicle that has nothing left to do
-  kEvade,            // a vehicle drives aside to resolve one of the above
-  kUnresolved,       // no vehicle of the blockage found a place to drive aside to
-  kTaskDropped,      // a leg could not be routed or driven
+  kDeadlock,       // vehicles waiting on each other in a cycle
+  kBlockedByIdle,  // waiting on a vehicle that has nothing left to do
+  kEvade,          // a vehicle drives aside to resolve one of the above
+  kUnresolved,     // no vehicle of the blockage found a place to drive aside to
+  kTaskDropped,    // a leg could not be routed or driven
 };
 const char* to_string(FleetEventKind k);
 

@@ -64,11 +64,11 @@ Pose2 advance_agv_pose(const AgvState& s, double dt_s);
 
 // A box on a tray, in the vehicle frame (it moves with the vehicle).
 struct Parcel {
-  std::size_t agv = 0;             // index into the fleet
-  double x_mm = 0.0, y_mm = 0.0;   // centre on the tray, vehicle frame
-  double yaw_rad = 0.0;            // relative to the vehicle
+  std::size_t agv = 0;            // index into the fleet
+  double x_mm = 0.0, y_mm = 0.0;  // centre on the tray, vehicle frame
+  double yaw_rad = 0.0;           // relative to the vehicle
   double length_mm = 300.0, width_mm = 300.0, height_mm = 200.0;
-  double grey = 150.0;             // reflectance, 8-bit units at full illumination
+  double grey = 150.0;  // reflectance, 8-bit units at full illumination
 };
 
 enum class ClutterKind : std::uint8_t { kPerson, kPallet };
@@ -89,8 +89,8 @@ struct SiteScene {
   FloorTexture floor;
   double paper_white = 215.0;  // printed white at full illumination (8-bit)
   double ink_black = 30.0;
-  double tray_grey = 95.0;     // tray outside the tag's page
-  double body_grey = 70.0;     // vehicle body
+  double tray_grey = 95.0;        // tray outside the tag's page
+  double body_grey = 70.0;        // vehicle body
   double background_grey = 40.0;  // rays that meet nothing (above the horizon)
 };
 
@@ -140,7 +140,7 @@ struct AgvTruth {
   // "up" is the vehicle's +x; seen from above, "right" is the vehicle's -y).
   std::array<Vec2, 4> tag_corners_px{};
   std::array<Vec2, 4> tray_corners_px{};  // front-left, front-right, rear-right, rear-left
-  bool projected = false;  // every corner in front of the camera (pixels valid)
+  bool projected = false;                 // every corner in front of the camera (pixels valid)
   // Fraction of the black square's sample points inside the image, facing the camera and not
   // hidden by anything nearer along their ray.
   double tag_visible_fraction = 0.0;
@@ -155,7 +155,7 @@ struct WallLandmarkTruth {
 
 struct BoxTruth {
   std::size_t index = 0;  // into scene.parcels / scene.clutter
-  Vec3 centre_site;        // centre of the top face at the frame time
+  Vec3 centre_site;       // centre of the top face at the frame time
   Vec2 centre_px{};
   bool projected = false;
 };

@@ -76,7 +76,7 @@ struct Site {
   std::string name;
   Polygon outline;  // the drivable area's boundary (walls), counter-clockwise
   std::vector<Obstacle> obstacles;
-  LandmarkMap floor_map;   // floor landmarks (the vehicle map file's entries)
+  LandmarkMap floor_map;       // floor landmarks (the vehicle map file's entries)
   std::string floor_map_file;  // as written in the site file (resolved by the caller)
   std::vector<WallLandmark> wall_landmarks;
   std::vector<CeilingCamera> cameras;
