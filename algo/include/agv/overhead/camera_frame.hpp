@@ -1,0 +1,64 @@
+// One ceiling camera's frame through the tracker (paper 000 Algorithm 1): plan the search windows
+// (search.hpp), read each tracked vehicle's tag on the predicted path against its area's ids,
+// search the area and whole-image windows with the global decode, turn every tag into a fix on
+// its vehicle's tray plane (tag_fix.hpp) and hand the fixes to the tracker. A tag id not in the
+// fleet is ignored and counted; a fix the tracker gates is counted, never applied. Pure.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <opencv2/core.hpp>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "agv/overhead/search.hpp"
+#include "agv/overhead/tag_detect.hpp"
+#include "agv/overhead/tag_fix.hpp"
+#include "agv/overhead/tracker.hpp"
+#include "agv/site/site.hpp"
+
+namespace agv::overhead {
+
+// One tag seen in one frame, as replay writes it to detections.csv.
+struct Detection {
+  std::size_t camera = 0;
+  std::int64_t t_ns = 0;  // exposure time (host clock)
+  TagObservation tag;
+  SearchLevel level = SearchLevel::kFull;
+  bool in_fleet = false;     // tag id belongs to a vehicle of the fleet
+  std::size_t agv = 0;       // fleet index when in_fleet
+  bool has_fix = false;      // the tray-plane fit succeeded
+  TagFix fix;
+  FixResult result = FixResult::kInvalid;  // what the tracker did with it
+};
+
+struct FrameCounters {
+  std::uint64_t frames = 0, windows_track = 0, windows_area = 0, windows_full = 0;
+  std::uint64_t predicted_reads = 0, searched_tags = 0, unknown_ids = 0, no_fix = 0;
+};
+
+class CameraFrameProcessor {
+ public:
+  // fleet and cameras as in the site; two vehicles with one tag id are refused by the site
+  // checker before this is built.
+  CameraFrameProcessor(const std::vector<site::CeilingCamera>& cameras,
+                       const std::vector<site::FleetAgv>& fleet, const TagDetectParams& detect,
+                       const SearchParams& search);
+  // Processes one frame of camera `camera` exposed at t_ns and feeds the tracker; returns every
+  // tag seen (appended to *out when not null).
+  void process(std::size_t camera, std::int64_t t_ns, const cv::Mat& gray, FleetTracker* tracker,
+               std::vector<Detection>* out);
+  const FrameCounters& counters() const { return counters_; }
+
+ private:
+  std::vector<site::CeilingCamera> cameras_;
+  std::vector<site::FleetAgv> fleet_;
+  std::unordered_map<std::uint32_t, std::size_t> agv_of_tag_;
+  TagDetector detector_;
+  SearchParams search_;
+  std::vector<CameraSearchState> state_;
+  FrameCounters counters_;
+};
+
+}  // namespace agv::overhead

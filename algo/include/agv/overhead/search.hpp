@@ -1,0 +1,60 @@
+// Where each ceiling camera looks for which vehicle (paper 000 Algorithm 1, lines 11-18, made
+// exact): a window around every track's predicted tag (its 3-sigma ellipse on the tray plane
+// projected into the image, plus the tag), the camera's area for a track that missed its window,
+// and the whole image at a fixed interval for vehicles not yet tracked. Also which ids an area
+// may hold (the vehicles whose predicted position, widened by their sigma, lies in it): the set
+// the predicted path decodes against (tag_code.hpp). Pure; docs/design/overhead.md.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "agv/overhead/tracker.hpp"
+#include "agv/site/site.hpp"
+
+namespace agv::overhead {
+
+struct SearchParams {
+  double window_sigmas = 3.0;     // the window covers this many sigmas of the prediction
+  double window_margin_px = 12.0;  // beyond the predicted tag's corners
+  int max_window_px = 512;         // a wider window falls back to the area search
+  int full_sweep_every_frames = 15;  // whole image every this many frames of the camera
+  // Area of a camera: its image divided into area_cols x area_rows tiles (paper: regions of the
+  // site); a track that missed its window is looked for in the tile of its prediction and the
+  // eight around it.
+  int area_cols = 4, area_rows = 3;
+};
+
+enum class SearchLevel : std::uint8_t { kTrack, kArea, kFull };
+
+struct SearchWindow {
+  SearchLevel level = SearchLevel::kTrack;
+  cv::Rect rect;                    // clipped to the image
+  std::vector<std::size_t> agvs;    // the vehicles expected in it (empty for kFull)
+  // The tag's predicted corners (page order, distorted pixels) for kTrack windows.
+  std::array<Vec2, 4> predicted_corners_px{};
+};
+
+struct CameraSearchState {
+  std::int64_t frames = 0;                // frames seen by this camera
+  std::vector<std::uint8_t> missed;       // per vehicle: its window found nothing last frame
+};
+
+// The windows for one frame of camera `cam` exposed at t_ns.
+std::vector<SearchWindow> plan_search(const site::CeilingCamera& cam,
+                                      const std::vector<site::FleetAgv>& fleet,
+                                      const FleetTracker& tracker, std::int64_t t_ns,
+                                      const SearchParams& params, const CameraSearchState& state);
+
+// The fleet's tag ids a window may hold: the vehicles whose predicted tray-plane position,
+// widened by 3 sigma, projects into rect (tracks not valid are in every set; a vehicle
+// without a track can be anywhere).
+std::vector<std::uint32_t> ids_in_area(const site::CeilingCamera& cam,
+                                       const std::vector<site::FleetAgv>& fleet,
+                                       const FleetTracker& tracker, std::int64_t t_ns,
+                                       const cv::Rect& rect);
+
+}  // namespace agv::overhead

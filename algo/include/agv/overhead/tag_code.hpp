@@ -1,0 +1,43 @@
+// tag36h11 codes and the area-restricted decoding of paper 000 section 2.4: a code read from a
+// tag is compared only with the codes (in all four turns) of the vehicles the tracker believes to
+// be in the area, so the bits that can be corrected grow from the family's 5 to
+// (d_min(area) - 1) / 2, where d_min(area) is the smallest Hamming distance among those codes.
+// Pure; docs/design/overhead.md.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+namespace agv::overhead {
+
+inline constexpr int kTag36h11Bits = 36;
+inline constexpr std::uint32_t kTag36h11Count = 587;
+
+// The family's code of `id` (bit 35 first, row-major from the page's top-left data cell, as
+// libapriltag's tag36h11 table). 0 for an id outside the family.
+std::uint64_t tag36h11_code(std::uint32_t id);
+// The code of the same tag turned a quarter turn (libapriltag's rotate90 on a 6 x 6 grid).
+std::uint64_t rotate90(std::uint64_t code);
+int hamming36(std::uint64_t a, std::uint64_t b);
+
+struct DecodeResult {
+  bool ok = false;
+  std::uint32_t id = 0;
+  int rotation = 0;  // quarter turns of the read code from the id's code (page orientation)
+  int hamming = 0;   // bits that differ from the id's code in that turn
+  // Bits the decode could correct: (d_min - 1) / 2 for the candidate set it used.
+  int correctable_bits = 0;
+  // Second-nearest candidate's distance minus `hamming` (> 0 when unambiguous).
+  int margin = 0;
+};
+
+// Decodes `code` against allowed ids only (every turn of each). ok when the nearest candidate is
+// within max_bits and strictly nearer than the second; max_bits < 0 means the set's own
+// (d_min - 1) / 2, capped at 9. An empty set or an id outside the family decodes nothing.
+DecodeResult decode_restricted(std::uint64_t code, const std::vector<std::uint32_t>& allowed_ids,
+                               int max_bits = -1);
+// Smallest Hamming distance between any two codes of the set, over every turn of each (a
+// code's own turns included); 36 for a set of one id whose turns are all far apart.
+int min_distance(const std::vector<std::uint32_t>& ids);
+
+}  // namespace agv::overhead

@@ -1,0 +1,35 @@
+// From a tag's corner pixels in a ceiling camera to the vehicle's pose on the floor
+// (docs/design/overhead.md): every corner's ray meets the tray plane (known height above the
+// floor); the square of known size fitted to the four points gives the centre and heading (paper
+// 000 eq. 9-12 in the image; here in the site frame, free of perspective), and the corners'
+// pixel sigma, carried through the rays, its covariance. Pure.
+#pragma once
+
+#include <array>
+
+#include "agv/common/geometry.hpp"
+#include "agv/site/site.hpp"
+
+namespace agv::overhead {
+
+struct TagFix {
+  Pose2 pose;  // the tag's centre and page-up direction in the site frame = the vehicle's pose
+  // Covariance of (x_mm, y_mm, theta_rad), row-major.
+  std::array<double, 9> cov{};
+  double size_error_rel = 0.0;  // fitted side / tag_size_mm - 1 (calibration or height error)
+  double residual_mm = 0.0;     // RMS distance of the four corners from the fitted square
+};
+
+// False when a corner's ray does not meet the plane in front of the camera, the intrinsics are
+// invalid, or the fitted square is more than max_size_error_rel off tag_size_mm.
+bool tag_fix_on_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>& corners_px,
+                      double corner_sigma_px, double plane_height_mm, double tag_size_mm,
+                      TagFix* out, double max_size_error_rel = 0.08);
+
+// Site-frame point -> distorted pixel of the camera; false behind it or for non-finite input.
+bool site_to_pixel(const site::CeilingCamera& cam, double x_mm, double y_mm, double z_mm,
+                   Vec2* px);
+// Distorted pixel -> the point where its ray meets the plane z = plane_height_mm.
+bool pixel_to_plane(const site::CeilingCamera& cam, Vec2 px, double plane_height_mm, Vec2* xy_mm);
+
+}  // namespace agv::overhead

@@ -1,0 +1,91 @@
+// One EKF per vehicle of the fleet (paper 000 eq. 14-19: x, y, theta, v, omega; constant speed
+// and turn rate), fed with tag fixes from every ceiling camera, each stamped with its exposure
+// time and arriving after its latency: a fix older than the filter's newest is applied where it
+// belongs (the filter rewinds to a stored state and replays the newer fixes). Every fix is gated
+// by the track's covariance (chi-square, 3 dof), so a wrong id cannot move another vehicle's
+// track. Track states: tentative (first fixes), confirmed, coasting (no fix for a while: sigma
+// grows), lost (sigma beyond a limit or too long unseen: never reported confident). Identity is
+// the fleet index: a vehicle has one track, so a hand-over between cameras cannot duplicate it.
+// Pure: time is an argument; docs/design/overhead.md.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "agv/common/geometry.hpp"
+#include "agv/overhead/tag_fix.hpp"
+
+namespace agv::overhead {
+
+enum class TrackState : std::uint8_t { kNone, kTentative, kConfirmed, kCoasting, kLost };
+const char* to_string(TrackState s);
+
+struct TrackerParams {
+  // Process noise: white acceleration and turn-rate acceleration spectral densities.
+  double accel_noise_mps2 = 1.0;
+  double alpha_noise_radps2 = 2.0;
+  // A fix whose squared Mahalanobis distance exceeds this (chi2, 3 dof, 0.999) is refused.
+  double gate_chi2 = 16.27;
+  int confirm_fixes = 3;           // fixes within confirm_window_ms to confirm a track
+  double confirm_window_ms = 1000.0;
+  double coast_after_ms = 300.0;   // no fix for this long: coasting
+  double lost_after_ms = 3000.0;   // no fix for this long, or:
+  double lost_sigma_mm = 500.0;    // position sigma beyond this: lost
+  double max_fix_age_ms = 500.0;   // older fixes are refused (counted), not replayed
+  // States kept for delayed fixes; also bounds the fixes replayed.
+  int history = 64;
+  // A track starts from a fix with this velocity sigma (at rest unknown).
+  double initial_speed_sigma_mps = 1.0;
+  double initial_turn_sigma_radps = 1.0;
+};
+
+enum class FixResult : std::uint8_t { kApplied, kStarted, kGated, kTooOld, kInvalid };
+const char* to_string(FixResult r);
+
+struct TrackOutput {
+  std::size_t agv = 0;
+  TrackState state = TrackState::kNone;
+  std::int64_t t_ns = 0;  // the time the state was extrapolated to
+  Pose2 pose;
+  double v_mps = 0.0, omega_radps = 0.0;
+  std::array<double, 9> cov{};  // (x_mm, y_mm, theta_rad)
+  double sigma_xy_mm = 0.0;     // sqrt of the larger eigenvalue of the position covariance
+  double sigma_theta_rad = 0.0;
+  std::int64_t last_fix_t_ns = 0;
+  bool valid() const { return state == TrackState::kConfirmed || state == TrackState::kCoasting; }
+};
+
+struct TrackerCounters {
+  std::uint64_t applied = 0, started = 0, gated = 0, too_old = 0, invalid = 0, replays = 0;
+  std::uint64_t lost = 0;
+};
+
+class FleetTracker {
+ public:
+  FleetTracker(std::size_t fleet_size, const TrackerParams& params = {});
+
+  // A fix of vehicle `agv` exposed at t_ns. A vehicle without a track (none or lost) starts one
+  // from it (tentative). Fixes may come out of time order.
+  FixResult add_fix(std::size_t agv, std::int64_t t_ns, const TagFix& fix);
+  // Track states at now_ns (coasting, lost); call before outputs at every publish tick.
+  void update_states(std::int64_t now_ns);
+  // Vehicle `agv` extrapolated to t_ns (the filter is not changed).
+  TrackOutput output(std::size_t agv, std::int64_t t_ns) const;
+  std::vector<TrackOutput> outputs(std::int64_t t_ns) const;
+  // Forget a track (operator command; a vehicle taken off the floor).
+  void reset(std::size_t agv);
+
+  std::size_t size() const { return tracks_.size(); }
+  const TrackerCounters& counters() const { return counters_; }
+  const TrackerParams& params() const { return p_; }
+
+ private:
+  struct Track;
+  TrackerParams p_;
+  std::vector<Track> tracks_;
+  TrackerCounters counters_;
+};
+
+}  // namespace agv::overhead
