@@ -16,6 +16,10 @@ PKGS=(
   libopencv-contrib-dev
   libeigen3-dev libpng-dev libzxing-dev libyaml-cpp-dev libcli11-dev
   libcamera-dev libcamera-ipa udev
+  # GigE Vision / USB3 Vision cameras (drivers/aravis) and the simulated GigE camera its tests run
+  # (arv-fake-gv-camera-0.8). aravis-0.8.pc names libusb-1.0 and zlib, which libaravis-dev does not
+  # pull in: without their -dev packages pkg-config does not find aravis at all.
+  libaravis-dev aravis-tools libusb-1.0-0-dev zlib1g-dev
   # imu.source iio: gyro from a Linux IIO device (drivers/iio)
   libiio-dev
   # VDA 5050 position over MQTT (docs/guide/vda5050.md): client library, JSON; broker, independent
