@@ -12,11 +12,16 @@ namespace agv::overhead {
 
 inline constexpr int kTag36h11Bits = 36;
 inline constexpr std::uint32_t kTag36h11Count = 587;
+// Smallest Hamming distance between any two codes of the family, turns included.
+inline constexpr int kTag36h11MinDistance = 11;
 
-// The family's code of `id` (bit 35 first, row-major from the page's top-left data cell, as
-// libapriltag's tag36h11 table). 0 for an id outside the family.
+// The family's code of `id`: bit 35 first, row-major from the page's top-left data cell, a set
+// bit for a white cell. libapriltag 3 keeps the same codes in another bit order (its bit_x/bit_y
+// spiral); this is its table re-expressed row-major, the order paper 000 quotes (the paper's
+// 1-based "code numbered 1", d5d628584, is id 0 here). 0 for an id outside the family.
 std::uint64_t tag36h11_code(std::uint32_t id);
-// The code of the same tag turned a quarter turn (libapriltag's rotate90 on a 6 x 6 grid).
+// The code of the same tag turned a quarter turn: libapriltag's rotate90, in row-major order
+// (cell (r, c) moves to (5 - c, r)).
 std::uint64_t rotate90(std::uint64_t code);
 int hamming36(std::uint64_t a, std::uint64_t b);
 
@@ -36,8 +41,12 @@ struct DecodeResult {
 // (d_min - 1) / 2, capped at 9. An empty set or an id outside the family decodes nothing.
 DecodeResult decode_restricted(std::uint64_t code, const std::vector<std::uint32_t>& allowed_ids,
                                int max_bits = -1);
+// decode_restricted against the whole family with at most max_bits corrected (max_bits < 0: none),
+// without recomputing the family's distance (correctable_bits from kTag36h11MinDistance).
+DecodeResult decode_global(std::uint64_t code, int max_bits);
 // Smallest Hamming distance between any two codes of the set, over every turn of each (a
-// code's own turns included); 36 for a set of one id whose turns are all far apart.
+// code's own turns included, so a set of one id gives its nearest own turn); 36 for an empty
+// set, 0 when an id is outside the family.
 int min_distance(const std::vector<std::uint32_t>& ids);
 
 }  // namespace agv::overhead

@@ -1,0 +1,4 @@
+# Tag detection on the ceiling cameras' images (tag_code, tag_detect, tag_fix): unit tests on
+# frames of the site renderer.
+agv_add_test(test_overhead_tag_code SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_tag_code.cpp
+             LIBS agv_overhead LABELS unit)
