@@ -36,6 +36,7 @@ struct Detection {
 struct FrameCounters {
   std::uint64_t frames = 0, windows_track = 0, windows_area = 0, windows_full = 0;
   std::uint64_t predicted_reads = 0, searched_tags = 0, unknown_ids = 0, no_fix = 0;
+  std::uint64_t rejected_frames = 0;  // bad input to process(), nothing done
 };
 
 class CameraFrameProcessor {
@@ -45,13 +46,22 @@ class CameraFrameProcessor {
   CameraFrameProcessor(const std::vector<site::CeilingCamera>& cameras,
                        const std::vector<site::FleetAgv>& fleet, const TagDetectParams& detect,
                        const SearchParams& search);
-  // Processes one frame of camera `camera` exposed at t_ns and feeds the tracker; returns every
-  // tag seen (appended to *out when not null).
-  void process(std::size_t camera, std::int64_t t_ns, const cv::Mat& gray, FleetTracker* tracker,
-               std::vector<Detection>* out);
+  // Processes one frame of camera `camera` exposed at t_ns and feeds the tracker; every tag seen
+  // is appended to *out when not null. False with *error, and nothing done, for a camera index
+  // out of range, a tracker not sized for the fleet, or a frame that is not 8-bit gray of the
+  // camera's size.
+  bool process(std::size_t camera, std::int64_t t_ns, const cv::Mat& gray, FleetTracker* tracker,
+               std::vector<Detection>* out, std::string* error = nullptr);
   const FrameCounters& counters() const { return counters_; }
+  // The search state of camera `camera` (frames seen, vehicles whose window missed).
+  const CameraSearchState& search_state(std::size_t camera) const { return state_.at(camera); }
 
  private:
+  struct FrameWork;
+  void track_window(const SearchWindow& win, const cv::Mat& gray, FrameWork* w);
+  void search_window(const SearchWindow& win, const cv::Mat& gray, FrameWork* w);
+  void handle_tag(const TagObservation& obs, SearchLevel level, FrameWork* w);
+
   std::vector<site::CeilingCamera> cameras_;
   std::vector<site::FleetAgv> fleet_;
   std::unordered_map<std::uint32_t, std::size_t> agv_of_tag_;

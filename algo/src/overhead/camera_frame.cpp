@@ -1,0 +1,168 @@
+// The per-frame pipeline of one ceiling camera (paper 000 Algorithm 1): search windows from the
+// tracker's predictions, the predicted path with the area's ids first, the global search where it
+// fails or where no track leads, then tray-plane fixes into the tracker. docs/design/overhead.md.
+#include "agv/overhead/camera_frame.hpp"
+
+#include <algorithm>
+#include <string>
+#include <unordered_set>
+
+namespace agv::overhead {
+
+CameraFrameProcessor::CameraFrameProcessor(const std::vector<site::CeilingCamera>& cameras,
+                                           const std::vector<site::FleetAgv>& fleet,
+                                           const TagDetectParams& detect,
+                                           const SearchParams& search)
+    : cameras_(cameras), fleet_(fleet), detector_(detect), search_(search), state_(cameras.size()) {
+  for (std::size_t i = 0; i < fleet_.size(); ++i) agv_of_tag_.emplace(fleet_[i].tag_id, i);
+  for (CameraSearchState& s : state_) s.missed.assign(fleet_.size(), 0);
+}
+
+namespace {
+
+// Kind of window first: the predicted reads are cheap and decode against the area's ids, so a tag
+// they find is not decoded again (more strictly) by an area or full-image search of the frame.
+std::vector<const SearchWindow*> in_level_order(const std::vector<SearchWindow>& windows) {
+  std::vector<const SearchWindow*> order;
+  order.reserve(windows.size());
+  for (const SearchWindow& w : windows) order.push_back(&w);
+  std::stable_sort(order.begin(), order.end(), [](const SearchWindow* a, const SearchWindow* b) {
+    return static_cast<int>(a->level) < static_cast<int>(b->level);
+  });
+  return order;
+}
+
+}  // namespace
+
+// State of one call, so that the steps below stay short.
+struct CameraFrameProcessor::FrameWork {
+  std::size_t camera = 0;
+  std::int64_t t_ns = 0;
+  FleetTracker* tracker = nullptr;
+  std::vector<Detection>* out = nullptr;
+  std::unordered_set<std::uint32_t> ids_seen;  // tags handled this frame (any window)
+  std::vector<std::uint8_t> found;             // per vehicle: its tag was read this frame
+  std::vector<std::uint8_t> looked_for;        // per vehicle: a window expected it
+};
+
+bool CameraFrameProcessor::process(std::size_t camera, std::int64_t t_ns, const cv::Mat& gray,
+                                   FleetTracker* tracker, std::vector<Detection>* out,
+                                   std::string* error) {
+  auto fail = [&](const std::string& why) {
+    ++counters_.rejected_frames;
+    if (error) *error = why;
+    return false;
+  };
+  if (camera >= cameras_.size()) {
+    return fail("camera " + std::to_string(camera) + " out of range (" +
+                std::to_string(cameras_.size()) + " cameras)");
+  }
+  if (tracker == nullptr || tracker->size() != fleet_.size()) {
+    return fail("the tracker is missing or not sized for the fleet");
+  }
+  const CameraIntrinsics& k = cameras_[camera].intrinsics;
+  if (gray.empty() || gray.type() != CV_8UC1 || gray.cols != k.width_px ||
+      gray.rows != k.height_px) {
+    return fail("camera " + cameras_[camera].id + ": frame is not 8-bit gray of " +
+                std::to_string(k.width_px) + "x" + std::to_string(k.height_px));
+  }
+  ++counters_.frames;
+  CameraSearchState& state = state_[camera];
+  const std::vector<SearchWindow> windows =
+      plan_search(cameras_[camera], fleet_, *tracker, t_ns, search_, state);
+  ++state.frames;
+
+  FrameWork w;
+  w.camera = camera;
+  w.t_ns = t_ns;
+  w.tracker = tracker;
+  w.out = out;
+  w.found.assign(fleet_.size(), 0);
+  w.looked_for.assign(fleet_.size(), 0);
+  for (const SearchWindow* win : in_level_order(windows)) {
+    for (std::size_t agv : win->agvs) {
+      if (agv < fleet_.size()) w.looked_for[agv] = 1;
+    }
+    switch (win->level) {
+      case SearchLevel::kTrack:
+        ++counters_.windows_track;
+        track_window(*win, gray, &w);
+        break;
+      case SearchLevel::kArea:
+        ++counters_.windows_area;
+        search_window(*win, gray, &w);
+        break;
+      case SearchLevel::kFull:
+        ++counters_.windows_full;
+        search_window(*win, gray, &w);
+        break;
+    }
+  }
+  // A vehicle found by any window is back on its track window next frame; one that a window
+  // expected and that none found widens its search; the others (not in this view) keep theirs.
+  for (std::size_t i = 0; i < fleet_.size(); ++i) {
+    if (w.found[i]) {
+      state.missed[i] = 0;
+    } else if (w.looked_for[i]) {
+      state.missed[i] = 1;
+    }
+  }
+  return true;
+}
+
+void CameraFrameProcessor::track_window(const SearchWindow& win, const cv::Mat& gray,
+                                        FrameWork* w) {
+  bool pending = false;
+  for (std::size_t agv : win.agvs) pending = pending || (agv < fleet_.size() && !w->found[agv]);
+  if (!pending) return;
+  const std::vector<std::uint32_t> allowed =
+      ids_in_area(cameras_[w->camera], fleet_, *w->tracker, w->t_ns, win.rect);
+  TagObservation obs;
+  if (detector_.detect_predicted(gray, win.predicted_corners_px, allowed, &obs) &&
+      w->ids_seen.count(obs.id) == 0) {
+    ++counters_.predicted_reads;
+    handle_tag(obs, SearchLevel::kTrack, w);
+  }
+  // The square at the prediction was not the expected vehicle's (or not readable): search the
+  // window as a whole with the strict global decode.
+  bool still = false;
+  for (std::size_t agv : win.agvs) still = still || (agv < fleet_.size() && !w->found[agv]);
+  if (still) search_window(win, gray, w);
+}
+
+void CameraFrameProcessor::search_window(const SearchWindow& win, const cv::Mat& gray,
+                                         FrameWork* w) {
+  for (const TagObservation& obs : detector_.detect(gray, win.rect)) {
+    if (w->ids_seen.count(obs.id) != 0) continue;
+    ++counters_.searched_tags;
+    handle_tag(obs, win.level, w);
+  }
+}
+
+void CameraFrameProcessor::handle_tag(const TagObservation& obs, SearchLevel level, FrameWork* w) {
+  w->ids_seen.insert(obs.id);
+  Detection d;
+  d.camera = w->camera;
+  d.t_ns = w->t_ns;
+  d.tag = obs;
+  d.level = level;
+  const auto it = agv_of_tag_.find(obs.id);
+  if (it == agv_of_tag_.end()) {
+    ++counters_.unknown_ids;
+  } else {
+    d.in_fleet = true;
+    d.agv = it->second;
+    const site::FleetAgv& agv = fleet_[d.agv];
+    w->found[d.agv] = 1;
+    d.has_fix = tag_fix_on_plane(cameras_[w->camera], obs.corners_px, obs.corner_sigma_px,
+                                 agv.tray_height_mm, agv.tag_size_mm, &d.fix);
+    if (d.has_fix) {
+      d.result = w->tracker->add_fix(d.agv, w->t_ns, d.fix);
+    } else {
+      ++counters_.no_fix;
+    }
+  }
+  if (w->out) w->out->push_back(d);
+}
+
+}  // namespace agv::overhead
