@@ -38,6 +38,9 @@ const Subcommand kCalibrateSubcommands[] = {
     {"vehicle", calibrate_vehicle,
      "mounting, odometry and time offset from a calibration drive over mapped landmarks"},
     {"check", calibrate_check, "parked-vehicle check with a printed landmark at a taped pose"},
+    {"ceiling", calibrate_ceiling, "a ceiling camera's pose from tags at surveyed positions"},
+    {"ceiling-check", calibrate_ceiling_check,
+     "the site file's ceiling camera pose checked against tags at surveyed positions"},
 };
 const CommandGroup kCalibrate{"calibrate", kCalibrateSubcommands, std::size(kCalibrateSubcommands)};
 

@@ -19,6 +19,11 @@ int sim_board(int argc, char** argv);  // simulated calibration-board views
 // calibrate check: parked-vehicle check with a printed landmark at a taped pose. Exit 0 within
 // tolerance, 1 out of tolerance, 2 bad input.
 int calibrate_check(int argc, char** argv);
+// calibrate ceiling: a ceiling camera's pose from tags at surveyed positions. Exit 0 solved,
+// 1 no pose or write failure, 2 bad input. ceiling-check: the site file's pose against such
+// frames. Exit 0 pass, 1 fail, 2 bad input.
+int calibrate_ceiling(int argc, char** argv);
+int calibrate_ceiling_check(int argc, char** argv);
 int config_command(int argc, char** argv);  // dispatcher: config apply
 void print_config_subcommands(FILE* f);     // one usage line per config subcommand
 // config apply: calibration snippets merged into a configuration. Exit 0 written, 1 write

@@ -1,0 +1,570 @@
+// Ceiling camera pose from surveyed tags. Model and conventions: calib_ceiling.hpp.
+#include "calib_ceiling.hpp"
+
+#include <apriltag/apriltag.h>
+#include <apriltag/common/homography.h>
+#include <apriltag/tag36h11.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <limits>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgproc.hpp>
+#include <set>
+#include <sstream>
+
+#include "agv/site/site_geometry.hpp"
+
+#if AGV_HAVE_CERES
+#include <ceres/ceres.h>
+#endif
+
+namespace agv::desk::ccal {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr std::uint32_t kMaxTagId = 586;
+constexpr double kMaxCoordMm = 1e7;
+// A black square under this many pixels a side has modules under 1.5 px: its corners are
+// smeared over the neighbouring cells and bias the pose more than they add.
+constexpr double kMinTagSidePx = 12.0;
+// cornerSubPix moving a corner further than this found another edge (data cells, an occluder).
+constexpr double kMaxRefineShiftPx = 1.0;
+
+// R_site_cam of the site file's angles (site_geometry.hpp), generic for automatic
+// differentiation.
+template <typename T>
+void rotation(const T& yaw, const T& pitch, const T& roll, T r[9]) {
+  using std::cos;
+  using std::sin;
+  const T cy = cos(yaw), sy = sin(yaw), cp = cos(pitch), sp = sin(pitch), cr = cos(roll),
+          sr = sin(roll);
+  // diag(1, -1, -1) * Rx(pitch) * Ry(roll)
+  const T m[9] = {cr, T(0), sr, -sp * sr, -cp, sp * cr, cp * sr, -sp, -cp * cr};
+  for (int c = 0; c < 3; ++c) {
+    r[c] = cy * m[c] - sy * m[3 + c];
+    r[3 + c] = sy * m[c] + cy * m[3 + c];
+    r[6 + c] = m[6 + c];
+  }
+}
+
+// Site point -> distorted pixel; q = {x, y, z, yaw, pitch, roll}. False behind the camera.
+template <typename T>
+bool project_generic(const CameraIntrinsics& k, const T* q, const double p[3], T* u, T* v) {
+  T r[9];
+  rotation(q[3], q[4], q[5], r);
+  const T d[3] = {T(p[0]) - q[0], T(p[1]) - q[1], T(p[2]) - q[2]};
+  const T x = r[0] * d[0] + r[3] * d[1] + r[6] * d[2];
+  const T y = r[1] * d[0] + r[4] * d[1] + r[7] * d[2];
+  const T z = r[2] * d[0] + r[5] * d[1] + r[8] * d[2];
+  if (!(z > T(1.0))) return false;
+  const T xn = x / z, yn = y / z;
+  const T r2 = xn * xn + yn * yn;
+  const T radial = T(1) + r2 * (T(k.k1) + r2 * (T(k.k2) + r2 * T(k.k3)));
+  const T xd = xn * radial + T(2 * k.p1) * xn * yn + T(k.p2) * (r2 + T(2) * xn * xn);
+  const T yd = yn * radial + T(k.p1) * (r2 + T(2) * yn * yn) + T(2 * k.p2) * xn * yn;
+  *u = T(k.fx) * xd + T(k.cx);
+  *v = T(k.fy) * yd + T(k.cy);
+  return true;
+}
+
+std::array<double, 6> params_of(const CameraPose& p) {
+  return {p.x_mm, p.y_mm, p.z_mm, p.yaw_rad, p.pitch_rad, p.roll_rad};
+}
+
+CameraPose pose_from_params(const double* q) {
+  CameraPose p{q[0], q[1], q[2], q[3], q[4], q[5]};
+  // Back to the site file's ranges (the same rotation).
+  site::CeilingCamera c;
+  set_pose(p, &c);
+  return pose_of(c);
+}
+
+bool split_csv(const std::string& line, std::vector<std::string>* f) {
+  f->clear();
+  std::stringstream ss(line);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    const auto b = item.find_first_not_of(" \t\r");
+    const auto e = item.find_last_not_of(" \t\r");
+    f->push_back(b == std::string::npos ? "" : item.substr(b, e - b + 1));
+  }
+  return true;
+}
+
+bool to_number(const std::string& s, double* v) {
+  if (s.empty()) return false;
+  char* end = nullptr;
+  *v = std::strtod(s.c_str(), &end);
+  return end == s.c_str() + s.size() && std::isfinite(*v);
+}
+
+cv::Mat camera_matrix(const CameraIntrinsics& k) {
+  return (cv::Mat_<double>(3, 3) << k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1);
+}
+cv::Mat dist_coeffs(const CameraIntrinsics& k) {
+  return (cv::Mat_<double>(1, 5) << k.k1, k.k2, k.p1, k.p2, k.k3);
+}
+
+// Observed centre of a sighting: the undistorted diagonals' intersection (the image of the
+// square's centre under a pinhole), normalised coordinates. False for a degenerate quad.
+bool observed_centre(const CameraIntrinsics& k, const TagSighting& s, Vec2* n) {
+  std::vector<cv::Point2d> px, un;
+  for (const Vec2& c : s.corners_px) px.emplace_back(c.x, c.y);
+  cv::undistortPoints(px, un, camera_matrix(k), dist_coeffs(k), cv::noArray(), cv::noArray(),
+                      cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 50, 1e-14));
+  const cv::Point2d a = un[0], b = un[2], c = un[1], d = un[3];
+  const cv::Point2d ab = b - a, cd = d - c, ac = c - a;
+  const double den = ab.x * cd.y - ab.y * cd.x;
+  if (std::abs(den) < 1e-15) return false;
+  const double s_ab = (ac.x * cd.y - ac.y * cd.x) / den;
+  *n = {a.x + s_ab * ab.x, a.y + s_ab * ab.y};
+  return true;
+}
+
+// Sightings of surveyed tags only.
+std::vector<const TagSighting*> surveyed(const std::map<std::uint32_t, SurveyedTag>& survey,
+                                         const std::vector<TagSighting>& sightings) {
+  std::vector<const TagSighting*> out;
+  for (const TagSighting& s : sightings) {
+    if (survey.count(s.id)) out.push_back(&s);
+  }
+  return out;
+}
+
+// Why the used tags fix the pose poorly, or "" when they do not.
+std::string degeneracy(const std::map<std::uint32_t, SurveyedTag>& survey,
+                       const std::set<std::uint32_t>& ids, double min_cross_spread) {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  std::vector<double> sizes;
+  for (std::uint32_t id : ids) {
+    const SurveyedTag& t = survey.at(id);
+    mean += Eigen::Vector3d(t.x_mm, t.y_mm, t.z_mm);
+    sizes.push_back(t.size_mm);
+  }
+  mean /= static_cast<double>(ids.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (std::uint32_t id : ids) {
+    const SurveyedTag& t = survey.at(id);
+    const Eigen::Vector3d d = Eigen::Vector3d(t.x_mm, t.y_mm, t.z_mm) - mean;
+    cov += d * d.transpose();
+  }
+  cov /= static_cast<double>(ids.size());
+  const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvalues();
+  const double along = std::sqrt(std::max(ev(2), 0.0));
+  const double across = std::sqrt(std::max(ev(1), 0.0));
+  std::nth_element(sizes.begin(), sizes.begin() + static_cast<long>(sizes.size() / 2),
+                   sizes.end());
+  const double limit = std::max(min_cross_spread * along, sizes[sizes.size() / 2]);
+  if (across >= limit) return "";
+  std::ostringstream m;
+  m.precision(4);
+  m << "the " << ids.size() << " tags' centres lie nearly on one line (spread across it "
+    << across << " mm RMS, along it " << along << " mm; needs at least " << limit
+    << " mm across): place tags off that line";
+  return m.str();
+}
+
+// PnP on every corner (SQPnP, which handles the planar case; the iterative solver as fallback).
+bool pnp_start(const CameraIntrinsics& k, const std::map<std::uint32_t, SurveyedTag>& survey,
+               const std::vector<const TagSighting*>& used, CameraPose* out) {
+  std::vector<cv::Point3d> obj;
+  std::vector<cv::Point2d> img;
+  for (const TagSighting* s : used) {
+    const auto corners = tag_corners_site(survey.at(s->id));
+    for (int c = 0; c < 4; ++c) {
+      obj.emplace_back(corners[c][0], corners[c][1], corners[c][2]);
+      img.emplace_back(s->corners_px[c].x, s->corners_px[c].y);
+    }
+  }
+  cv::Mat rvec, tvec;
+  bool ok = false;
+  for (int method : {cv::SOLVEPNP_SQPNP, cv::SOLVEPNP_ITERATIVE}) {
+    try {
+      ok = cv::solvePnP(obj, img, camera_matrix(k), dist_coeffs(k), rvec, tvec, false, method);
+    } catch (const cv::Exception&) {
+      ok = false;
+    }
+    if (ok && cv::checkRange(rvec) && cv::checkRange(tvec)) break;
+    ok = false;
+  }
+  if (!ok) return false;
+  cv::Mat r_cam_site;
+  cv::Rodrigues(rvec, r_cam_site);
+  const cv::Mat r = r_cam_site.t();
+  const cv::Mat t = -r * tvec;
+  site::CeilingCamera c;
+  for (int i = 0; i < 9; ++i) c.r_site_cam[static_cast<std::size_t>(i)] = r.at<double>(i / 3, i % 3);
+  for (int i = 0; i < 3; ++i) c.t_site_cam_mm[static_cast<std::size_t>(i)] = t.at<double>(i);
+  *out = pose_of(c);
+  return true;
+}
+
+}  // namespace
+
+std::array<std::array<double, 3>, 4> tag_corners_site(const SurveyedTag& t) {
+  const double h = t.size_mm / 2.0;
+  const double ux = std::cos(t.yaw_rad), uy = std::sin(t.yaw_rad);  // page up
+  const double rx = uy, ry = -ux;                                    // page right
+  auto at = [&](double up, double right) {
+    return std::array<double, 3>{t.x_mm + h * (up * ux + right * rx),
+                                 t.y_mm + h * (up * uy + right * ry), t.z_mm};
+  };
+  return {at(1, -1), at(1, 1), at(-1, 1), at(-1, -1)};
+}
+
+bool parse_survey_csv(std::string_view text, std::map<std::uint32_t, SurveyedTag>* out,
+                      std::string* error) {
+  out->clear();
+  std::stringstream in{std::string(text)};
+  std::string line;
+  std::vector<std::string> f;
+  int n = 0;
+  bool header = false;
+  auto fail = [&](const std::string& why) {
+    *error = "line " + std::to_string(n) + ": " + why;
+    out->clear();
+    return false;
+  };
+  while (std::getline(in, line)) {
+    ++n;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    const auto first = line.find_first_not_of(" \t");
+    if (first == std::string::npos || line[first] == '#') continue;
+    split_csv(line, &f);
+    if (!header) {
+      const std::vector<std::string> want = {"id", "x_mm", "y_mm", "z_mm", "yaw_deg", "size_mm"};
+      if (f != want) return fail("the header must be id,x_mm,y_mm,z_mm,yaw_deg,size_mm");
+      header = true;
+      continue;
+    }
+    if (f.size() != 6) return fail("expected 6 fields, got " + std::to_string(f.size()));
+    double v[6];
+    for (int i = 0; i < 6; ++i) {
+      if (!to_number(f[static_cast<std::size_t>(i)], &v[i])) {
+        return fail("field " + std::to_string(i + 1) + " '" + f[static_cast<std::size_t>(i)] +
+                    "' is not a finite number");
+      }
+    }
+    if (v[0] < 0 || v[0] > kMaxTagId || v[0] != std::floor(v[0])) {
+      return fail("id must be a tag36h11 id 0..586");
+    }
+    for (int i = 1; i <= 3; ++i) {
+      if (std::abs(v[i]) > kMaxCoordMm) return fail("coordinate beyond 10 km");
+    }
+    if (std::abs(v[4]) > 360.0) return fail("yaw_deg must be in -360..360");
+    if (v[5] < 10.0 || v[5] > 5000.0) return fail("size_mm must be in 10..5000");
+    const auto id = static_cast<std::uint32_t>(v[0]);
+    if (out->count(id)) return fail("tag " + std::to_string(id) + " listed twice");
+    (*out)[id] = SurveyedTag{id, v[1], v[2], v[3], v[4] * kPi / 180.0, v[5]};
+  }
+  if (!header) {
+    n = 0;
+    return fail("no header line (id,x_mm,y_mm,z_mm,yaw_deg,size_mm)");
+  }
+  return true;
+}
+
+std::map<std::uint32_t, SurveyedTag> survey_from_floor_map(const LandmarkMap& map,
+                                                          double size_mm) {
+  std::map<std::uint32_t, SurveyedTag> out;
+  for (const auto& [id, e] : map.entries) {
+    if (id > kMaxTagId) continue;
+    out[id] = SurveyedTag{id, e.pose.x_mm, e.pose.y_mm, 0.0, e.pose.theta_rad, size_mm};
+  }
+  return out;
+}
+
+std::vector<TagSighting> detect_tags(const cv::Mat& gray, int frame) {
+  std::vector<TagSighting> out;
+  if (gray.empty() || gray.type() != CV_8UC1) return out;
+  const cv::Mat img = gray.isContinuous() ? gray : gray.clone();
+  apriltag_family_t* fam = tag36h11_create();
+  apriltag_detector_t* det = apriltag_detector_create();
+  apriltag_detector_add_family_bits(det, fam, 1);
+  det->quad_decimate = 1.0f;
+  det->nthreads = 1;
+  det->refine_edges = true;
+  image_u8_t view{img.cols, img.rows, static_cast<std::int32_t>(img.step), img.data};
+  zarray_t* dets = apriltag_detector_detect(det, &view);
+  for (int i = 0; i < zarray_size(dets); ++i) {
+    apriltag_detection_t* d = nullptr;
+    zarray_get(dets, i, &d);
+    TagSighting s;
+    s.frame = frame;
+    s.id = static_cast<std::uint32_t>(d->id);
+    s.decision_margin = d->decision_margin;
+    // Tag coordinates: +-1 the black square's outer edge, page up = -y.
+    const double tc[4][2] = {{-1, -1}, {1, -1}, {1, 1}, {-1, 1}};
+    for (int c = 0; c < 4; ++c) {
+      homography_project(d->H, tc[c][0], tc[c][1], &s.corners_px[c].x, &s.corners_px[c].y);
+    }
+    double side = std::numeric_limits<double>::infinity();
+    for (int c = 0; c < 4; ++c) {
+      const Vec2 a = s.corners_px[c], b = s.corners_px[(c + 1) % 4];
+      side = std::min(side, std::hypot(b.x - a.x, b.y - a.y));
+    }
+    if (!(side >= kMinTagSidePx)) continue;
+    // Window inside the border module (a module is side / 8): the data cells' edges beyond it
+    // would pull the corner.
+    const int half = std::clamp(static_cast<int>(0.7 * side / 8.0), 2, 6);
+    std::vector<cv::Point2f> pts;
+    for (const Vec2& c : s.corners_px) pts.emplace_back(static_cast<float>(c.x), static_cast<float>(c.y));
+    const std::vector<cv::Point2f> before = pts;
+    bool inside = true;
+    for (const auto& p : pts) {
+      inside = inside && p.x >= half + 1 && p.y >= half + 1 && p.x < img.cols - half - 2 &&
+               p.y < img.rows - half - 2;
+    }
+    if (inside) {
+      cv::cornerSubPix(img, pts, cv::Size(half, half), cv::Size(-1, -1),
+                       cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 40, 1e-3));
+      for (int c = 0; c < 4; ++c) {
+        if (cv::norm(pts[c] - before[c]) <= kMaxRefineShiftPx) {
+          s.corners_px[c] = {pts[c].x, pts[c].y};
+        }
+      }
+    }
+    out.push_back(s);
+  }
+  apriltag_detections_destroy(dets);
+  apriltag_detector_destroy(det);
+  tag36h11_destroy(fam);
+  std::sort(out.begin(), out.end(),
+            [](const TagSighting& a, const TagSighting& b) { return a.id < b.id; });
+  return out;
+}
+
+CameraPose pose_of(const site::CeilingCamera& cam) {
+  CameraPose p;
+  p.x_mm = cam.t_site_cam_mm[0];
+  p.y_mm = cam.t_site_cam_mm[1];
+  p.z_mm = cam.t_site_cam_mm[2];
+  site::camera_angles_from_rotation(cam.r_site_cam, &p.yaw_rad, &p.pitch_rad, &p.roll_rad);
+  return p;
+}
+
+void set_pose(const CameraPose& p, site::CeilingCamera* cam) {
+  cam->r_site_cam = site::camera_rotation_from_angles(p.yaw_rad, p.pitch_rad, p.roll_rad);
+  cam->t_site_cam_mm = {p.x_mm, p.y_mm, p.z_mm};
+}
+
+bool project(const CameraIntrinsics& k, const CameraPose& pose, const std::array<double, 3>& p,
+             Vec2* px) {
+  const auto q = params_of(pose);
+  return project_generic(k, q.data(), p.data(), &px->x, &px->y);
+}
+
+Evaluation evaluate(const CameraIntrinsics& k, const std::map<std::uint32_t, SurveyedTag>& survey,
+                    const std::vector<TagSighting>& sightings, const CameraPose& pose) {
+  Evaluation ev;
+  site::CeilingCamera cam;
+  set_pose(pose, &cam);
+  const auto& r = cam.r_site_cam;
+  struct Acc {
+    int n = 0, centres = 0;
+    double se = 0.0, sx = 0.0, sy = 0.0;
+    bool miss = false;
+  };
+  std::map<std::uint32_t, Acc> acc;
+  double se_all = 0.0;
+  for (const TagSighting* s : surveyed(survey, sightings)) {
+    const SurveyedTag& t = survey.at(s->id);
+    Acc& a = acc[s->id];
+    ++a.n;
+    const auto corners = tag_corners_site(t);
+    for (int c = 0; c < 4; ++c) {
+      Vec2 px;
+      double e2 = std::numeric_limits<double>::infinity();
+      if (project(k, pose, corners[c], &px)) {
+        e2 = std::pow(px.x - s->corners_px[c].x, 2) + std::pow(px.y - s->corners_px[c].y, 2);
+      }
+      a.se += e2;
+      se_all += e2;
+      ev.max_px = std::max(ev.max_px, std::sqrt(e2));
+      ++ev.corners;
+    }
+    Vec2 n;
+    if (!observed_centre(k, *s, &n)) {
+      a.miss = true;
+      continue;
+    }
+    const double d[3] = {r[0] * n.x + r[1] * n.y + r[2], r[3] * n.x + r[4] * n.y + r[5],
+                         r[6] * n.x + r[7] * n.y + r[8]};
+    const double along = (t.z_mm - pose.z_mm) / d[2];
+    if (!(along > 0.0) || !std::isfinite(along)) {
+      a.miss = true;
+      continue;
+    }
+    a.sx += pose.x_mm + along * d[0];
+    a.sy += pose.y_mm + along * d[1];
+    ++a.centres;
+  }
+  ev.rms_px = ev.corners ? std::sqrt(se_all / ev.corners) : 0.0;
+  for (const auto& [id, a] : acc) {
+    TagResidual tr;
+    tr.id = id;
+    tr.sightings = a.n;
+    tr.rms_px = std::sqrt(a.se / (4.0 * a.n));
+    if (a.miss || a.centres == 0) {
+      tr.floor_dx_mm = tr.floor_dy_mm = tr.floor_mm = std::numeric_limits<double>::quiet_NaN();
+    } else {
+      tr.floor_dx_mm = a.sx / a.centres - survey.at(id).x_mm;
+      tr.floor_dy_mm = a.sy / a.centres - survey.at(id).y_mm;
+      tr.floor_mm = std::hypot(tr.floor_dx_mm, tr.floor_dy_mm);
+    }
+    ev.max_floor_mm = std::isnan(tr.floor_mm) || std::isnan(ev.max_floor_mm)
+                          ? std::numeric_limits<double>::quiet_NaN()
+                          : std::max(ev.max_floor_mm, tr.floor_mm);
+    ev.tags.push_back(tr);
+  }
+  return ev;
+}
+
+const char* to_string(Error e) {
+  switch (e) {
+    case Error::kNone:
+      return "none";
+    case Error::kTooFewTags:
+      return "too-few-tags";
+    case Error::kDegenerate:
+      return "degenerate-geometry";
+    case Error::kSolveFailed:
+      return "solve-failed";
+  }
+  return "unknown";
+}
+
+#if AGV_HAVE_CERES
+namespace {
+
+struct CornerCost {
+  CornerCost(const CameraIntrinsics& k, const std::array<double, 3>& p, Vec2 obs)
+      : k_(k), p_(p), obs_(obs) {}
+  template <typename T>
+  bool operator()(const T* q, T* res) const {
+    T u, v;
+    if (!project_generic(k_, q, p_.data(), &u, &v)) return false;
+    res[0] = u - T(obs_.x);
+    res[1] = v - T(obs_.y);
+    return true;
+  }
+  CameraIntrinsics k_;
+  std::array<double, 3> p_;
+  Vec2 obs_;
+};
+
+// Robust refinement from *q; the sigmas from the covariance scaled by the residual variance.
+bool refine(const CameraIntrinsics& k, const std::map<std::uint32_t, SurveyedTag>& survey,
+            const std::vector<const TagSighting*>& used, const Options& opt, double q[6],
+            Result* res) {
+  ceres::Problem problem;
+  std::vector<ceres::ResidualBlockId> blocks;
+  for (const TagSighting* s : used) {
+    const auto corners = tag_corners_site(survey.at(s->id));
+    for (int c = 0; c < 4; ++c) {
+      blocks.push_back(problem.AddResidualBlock(
+          new ceres::AutoDiffCostFunction<CornerCost, 2, 6>(
+              new CornerCost(k, corners[c], s->corners_px[c])),
+          new ceres::HuberLoss(opt.robust_px), q));
+    }
+  }
+  ceres::Solver::Options so;
+  so.linear_solver_type = ceres::DENSE_QR;
+  so.max_num_iterations = 100;
+  so.function_tolerance = 1e-12;
+  so.parameter_tolerance = 1e-12;
+  so.num_threads = 1;
+  ceres::Solver::Summary summary;
+  ceres::Solve(so, &problem, &summary);
+  if (!summary.IsSolutionUsable()) {
+    res->message = "the refinement failed: " + summary.message;
+    return false;
+  }
+  // Residual variance per coordinate without the robust loss.
+  ceres::Problem::EvaluateOptions eo;
+  eo.apply_loss_function = false;
+  eo.residual_blocks = blocks;
+  std::vector<double> r;
+  double cost = 0.0;
+  problem.Evaluate(eo, &cost, &r, nullptr, nullptr);
+  double ss = 0.0;
+  for (double v : r) ss += v * v;
+  const double dof = static_cast<double>(r.size()) - 6.0;
+  const double var = dof > 0 ? ss / dof : std::numeric_limits<double>::quiet_NaN();
+  res->residual_sigma_px = std::sqrt(var);
+  ceres::Covariance::Options co;
+  co.algorithm_type = ceres::DENSE_SVD;
+  co.null_space_rank = 0;
+  ceres::Covariance cov(co);
+  double c[36];
+  const std::vector<std::pair<const double*, const double*>> want = {{q, q}};
+  const bool cov_ok = cov.Compute(want, &problem) && cov.GetCovarianceBlock(q, q, c);
+  // Result order: x, y, z, roll, pitch, yaw; parameter order x, y, z, yaw, pitch, roll.
+  const int order[6] = {0, 1, 2, 5, 4, 3};
+  for (int i = 0; i < 6; ++i) {
+    const int p = order[i];
+    res->sigma[static_cast<std::size_t>(i)] =
+        cov_ok ? std::sqrt(std::max(c[p * 6 + p], 0.0) * var)
+               : std::numeric_limits<double>::quiet_NaN();
+  }
+  return true;
+}
+
+}  // namespace
+#endif
+
+Result solve_camera_pose(const CameraIntrinsics& k,
+                         const std::map<std::uint32_t, SurveyedTag>& survey,
+                         const std::vector<TagSighting>& sightings, const Options& opt) {
+  Result res;
+  const std::vector<const TagSighting*> used = surveyed(survey, sightings);
+  std::set<std::uint32_t> ids, unsurveyed;
+  for (const TagSighting* s : used) ids.insert(s->id);
+  for (const TagSighting& s : sightings) {
+    if (!survey.count(s.id)) unsurveyed.insert(s.id);
+  }
+  res.unsurveyed_ids.assign(unsurveyed.begin(), unsurveyed.end());
+  res.tags_used = static_cast<int>(ids.size());
+  res.corners_used = 4 * static_cast<int>(used.size());
+  if (res.tags_used < opt.min_tags) {
+    res.error = Error::kTooFewTags;
+    res.message = std::to_string(res.tags_used) + " surveyed tag(s) seen (" +
+                  std::to_string(res.unsurveyed_ids.size()) +
+                  " more not in the survey); needs at least " + std::to_string(opt.min_tags) +
+                  " not on one line";
+    return res;
+  }
+  if (std::string why = degeneracy(survey, ids, opt.min_cross_spread); !why.empty()) {
+    res.error = Error::kDegenerate;
+    res.message = why;
+    return res;
+  }
+  CameraPose start;
+  if (opt.initial) {
+    start = *opt.initial;
+  } else if (!pnp_start(k, survey, used, &start)) {
+    res.error = Error::kSolveFailed;
+    res.message = "PnP found no pose for the tags' corners";
+    return res;
+  }
+#if AGV_HAVE_CERES
+  auto q = params_of(start);
+  if (!refine(k, survey, used, opt, q.data(), &res)) {
+    res.error = Error::kSolveFailed;
+    return res;
+  }
+  res.pose = pose_from_params(q.data());
+  res.eval = evaluate(k, survey, sightings, res.pose);
+  return res;
+#else
+  res.error = Error::kSolveFailed;
+  res.message = "this build has no Ceres (Debian libceres-dev): the pose is not refined";
+  return res;
+#endif
+}
+
+}  // namespace agv::desk::ccal
