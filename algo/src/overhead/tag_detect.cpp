@@ -1,0 +1,181 @@
+// TagDetector (tag_detect.hpp): libapriltag on a window for the search path, the outer-edge
+// refinement and cell reading of tag_detect_geometry.cpp for both paths.
+#include "agv/overhead/tag_detect.hpp"
+
+#include <apriltag/apriltag.h>
+#include <apriltag/common/homography.h>
+#include <apriltag/tag36h11.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "agv/overhead/tag_code.hpp"
+#include "tag_detect_internal.hpp"
+
+namespace agv::overhead {
+
+namespace {
+
+using detect_detail::Cells;
+using detect_detail::Square;
+
+// libapriltag's decode sharpening (its default): blur costs the data cells more contrast than
+// the border, sharpening gives some back.
+constexpr double kDecodeSharpening = 0.25;
+// libapriltag needs a few cells of pixels to find a quad: smaller windows are not searched.
+constexpr int kMinWindowPx = 16;
+// An edge step counts when it is this share of min_contrast (the blurred step of one profile is
+// smaller than the median contrast of the cells).
+constexpr double kMinStepShare = 0.5;
+// Refinement passes on the search path: the second starts from the first's corners, so its
+// samples stay clear of the true corners.
+constexpr int kSearchPasses = 2;
+
+bool usable_image(const cv::Mat& gray) {
+  return !gray.empty() && gray.dims == 2 && gray.type() == CV_8UC1 && gray.cols >= kMinWindowPx &&
+         gray.rows >= kMinWindowPx;
+}
+
+bool finite_corners(const std::array<Vec2, 4>& c) {
+  return std::all_of(c.begin(), c.end(),
+                     [](const Vec2& p) { return std::isfinite(p.x) && std::isfinite(p.y); });
+}
+
+// Corners of the page turned by q quarter turns: the read code is the id's code turned q times
+// (rotate90 moves the content a quarter turn counter-clockwise on the page), so the true
+// top-left is the guessed corner 3q further on.
+std::array<Vec2, 4> turn_corners(const std::array<Vec2, 4>& c, int q) {
+  std::array<Vec2, 4> out{};
+  for (int k = 0; k < 4; ++k) {
+    out[static_cast<std::size_t>(k)] = c[static_cast<std::size_t>((k + 3 * q) % 4)];
+  }
+  return out;
+}
+
+}  // namespace
+
+struct TagDetector::Impl {
+  apriltag_family_t* family = nullptr;
+  apriltag_detector_t* td = nullptr;
+
+  explicit Impl(const TagDetectParams& p) {
+    family = tag36h11_create();
+    td = apriltag_detector_create();
+    apriltag_detector_add_family_bits(td, family, std::clamp(p.global_bits_corrected, 0, 3));
+    td->quad_decimate = static_cast<float>(std::max(1.0, p.quad_decimate));
+    td->nthreads = 1;
+    td->refine_edges = 1;
+    td->decode_sharpening = kDecodeSharpening;
+  }
+  ~Impl() {
+    apriltag_detector_destroy(td);
+    tag36h11_destroy(family);
+  }
+  Impl(const Impl&) = delete;
+  Impl& operator=(const Impl&) = delete;
+};
+
+TagDetector::TagDetector(const TagDetectParams& params)
+    : p_(params), impl_(std::make_unique<Impl>(params)) {}
+
+TagDetector::~TagDetector() = default;
+
+std::vector<TagObservation> TagDetector::detect(const cv::Mat& gray, const cv::Rect& window) const {
+  std::vector<TagObservation> found;
+  if (!usable_image(gray)) return found;
+  const cv::Rect w = window & cv::Rect(0, 0, gray.cols, gray.rows);
+  if (w.width < kMinWindowPx || w.height < kMinWindowPx) return found;
+  // libapriltag reads the window in place through its own view type; it does not write it.
+  image_u8_t view{w.width, w.height, static_cast<std::int32_t>(gray.step[0]),
+                  const_cast<std::uint8_t*>(gray.ptr<std::uint8_t>(w.y) + w.x)};
+  zarray_t* dets = apriltag_detector_detect(impl_->td, &view);
+  const double min_step = kMinStepShare * p_.min_contrast;
+  for (int i = 0; i < zarray_size(dets); ++i) {
+    apriltag_detection_t* d = nullptr;
+    zarray_get(dets, i, &d);
+    // The detection's homography maps page coordinates (x right, y down, +-1 at the black
+    // square's outer edge) into the window, already turned to the decoded orientation.
+    std::array<Vec2, 4> guess{};
+    const double pu[4][2] = {{-1, -1}, {1, -1}, {1, 1}, {-1, 1}};
+    for (std::size_t k = 0; k < 4; ++k) {
+      double x = 0, y = 0;
+      homography_project(d->H, pu[k][0], pu[k][1], &x, &y);
+      guess[k] = {x + w.x, y + w.y};
+    }
+    Square sq;
+    bool ok = true;
+    for (int pass = 0; pass < kSearchPasses && ok; ++pass) {
+      ok = detect_detail::refine_square(gray, guess, p_.edge_band_px, min_step, p_.max_edge_rms_px,
+                                        &sq);
+      guess = sq.corners;
+    }
+    Cells cells;
+    if (!ok || !detect_detail::read_cells(gray, sq.corners, &cells) ||
+        cells.contrast < p_.min_contrast) {
+      continue;
+    }
+    // Our own reading must agree with libapriltag's decode (same id, page orientation): a
+    // refinement that followed another edge reads another code.
+    const DecodeResult r = decode_global(cells.code, p_.global_bits_corrected);
+    if (!r.ok || r.id != static_cast<std::uint32_t>(d->id) || r.rotation != 0) continue;
+    TagObservation o;
+    o.corners_px = sq.corners;
+    o.corner_sigma_px = sq.corner_sigma_px;
+    o.code = cells.code;
+    o.id = r.id;
+    o.hamming = r.hamming;
+    o.margin = r.margin;
+    o.restricted = false;
+    o.contrast = cells.contrast;
+    found.push_back(o);
+  }
+  apriltag_detections_destroy(dets);
+  return found;
+}
+
+bool TagDetector::detect_predicted(const cv::Mat& gray,
+                                   const std::array<Vec2, 4>& predicted_corners_px,
+                                   const std::vector<std::uint32_t>& allowed_ids,
+                                   TagObservation* out) const {
+  if (!out || !usable_image(gray) || allowed_ids.empty() || !finite_corners(predicted_corners_px)) {
+    return false;
+  }
+  const double min_step = kMinStepShare * p_.min_contrast;
+  Square wide, sq;
+  // The wide pass finds the square within predicted_search_px, the narrow one refines it with
+  // samples placed along the found sides.
+  if (!detect_detail::refine_square(gray, predicted_corners_px, p_.predicted_search_px, min_step,
+                                    p_.max_edge_rms_px, &wide) ||
+      !detect_detail::refine_square(gray, wide.corners, p_.edge_band_px, min_step,
+                                    p_.max_edge_rms_px, &sq)) {
+    return false;
+  }
+  for (std::size_t k = 0; k < 4; ++k) {
+    if (std::hypot(sq.corners[k].x - predicted_corners_px[k].x,
+                   sq.corners[k].y - predicted_corners_px[k].y) > 2.0 * p_.predicted_search_px) {
+      return false;
+    }
+  }
+  Cells cells;
+  if (!detect_detail::read_cells(gray, sq.corners, &cells) || cells.contrast < p_.min_contrast) {
+    return false;
+  }
+  const DecodeResult r = decode_restricted(cells.code, allowed_ids);
+  if (!r.ok) return false;
+  TagObservation o;
+  o.corners_px = turn_corners(sq.corners, r.rotation);
+  o.corner_sigma_px = sq.corner_sigma_px;
+  // The code in the tag's own page orientation: turned back by the decoded quarter turns.
+  std::uint64_t code = cells.code;
+  for (int q = r.rotation; q % 4 != 0; ++q) code = rotate90(code);
+  o.code = code;
+  o.id = r.id;
+  o.hamming = r.hamming;
+  o.margin = r.margin;
+  o.restricted = true;
+  o.contrast = cells.contrast;
+  *out = o;
+  return true;
+}
+
+}  // namespace agv::overhead
