@@ -1,0 +1,12 @@
+# The per-frame pipeline (algo/src/overhead/camera_frame.cpp): rendered frames of one camera over
+# three vehicles and a stranger's tag; and the smoke run of eval_overhead (tools/eval/overhead) on
+# tiny settings, where the evaluation programs are built.
+agv_add_test(test_camera_frame SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_camera_frame.cpp
+             LIBS agv_overhead agv_sim LABELS unit overhead TIMEOUT 120)
+if(TARGET eval_overhead)
+  add_test(NAME eval_overhead_smoke
+           COMMAND eval_overhead --site-mm 5000 --cameras 1 --width 960 --height 540 --tag-px 24
+                   --agvs 3 --duration-s 2 --fps 10 --seed 2)
+  set_tests_properties(eval_overhead_smoke PROPERTIES LABELS "overhead" TIMEOUT 20
+                       PASS_REGULAR_EXPRESSION "identity: wrong-id fixes 0 ")
+endif()

@@ -1,0 +1,288 @@
+// eval_overhead: the overhead tracker (agv_overhead) on a simulated fleet under ceiling cameras.
+// The fleet simulator drives the vehicles, every camera's frames are rendered (tiles around the
+// vehicles over a background rendered once), CameraFrameProcessor + FleetTracker run on them in
+// arrival order (exposure + each camera's latency), and the outputs at a fixed rate are scored
+// against the simulator's truth. Figures: docs/design/overhead.md ("Evaluation").
+#include <apriltag/apriltag.h>
+#include <apriltag/tag36h11.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "agv/overhead/camera_frame.hpp"
+#include "metrics.hpp"
+#include "world.hpp"
+
+namespace {
+
+using agv::eval::World;
+using agv::eval::WorldOptions;
+
+struct Options {
+  WorldOptions world;
+  double fps = 10.0, output_hz = 30.0;
+  double calib_error_mm = 0.0, calib_error_deg = 0.0;
+  int bit_errors = 0;
+  double bit_errors_from_s = 3.0;
+  double latency_ms = 30.0, latency_spread_ms = 20.0;
+  int apriltag_every = 0;
+  int full_sweep_every = agv::overhead::SearchParams{}.full_sweep_every_frames;
+  bool clean = false;
+};
+
+const char* kUsage =
+    "usage: eval_overhead [--cameras-height-mm H] [--width W --height H] [--tag-px P]\n"
+    "  [--cameras 1|4] [--site-mm L] [--agvs N] [--duration-s S] [--fps F] [--output-hz F]\n"
+    "  [--seed S] [--parcels FRACTION] [--clutter N] [--calib-error-mm E] [--calib-error-deg E]\n"
+    "  [--bit-errors N] [--bit-errors-from-s S] [--latency-ms L] [--latency-spread-ms L]\n"
+    "  [--full-sweep-every N] [--apriltag-every N] [--no-distortion] [--clean]\n";
+
+bool parse(int argc, char** argv, Options* o, std::string* error) {
+  std::map<std::string, double*> num{
+      {"--cameras-height-mm", &o->world.camera_height_mm}, {"--tag-px", &o->world.tag_px},
+      {"--site-mm", &o->world.site_mm}, {"--duration-s", &o->world.duration_s},
+      {"--fps", &o->fps}, {"--output-hz", &o->output_hz}, {"--parcels", &o->world.parcels},
+      {"--calib-error-mm", &o->calib_error_mm}, {"--calib-error-deg", &o->calib_error_deg},
+      {"--bit-errors-from-s", &o->bit_errors_from_s}, {"--latency-ms", &o->latency_ms},
+      {"--latency-spread-ms", &o->latency_spread_ms}};
+  std::map<std::string, int*> ints{
+      {"--width", &o->world.width_px}, {"--height", &o->world.height_px},
+      {"--cameras", &o->world.cameras}, {"--agvs", &o->world.agvs},
+      {"--clutter", &o->world.clutter}, {"--bit-errors", &o->bit_errors},
+      {"--apriltag-every", &o->apriltag_every}, {"--full-sweep-every", &o->full_sweep_every}};
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--clean") {
+      o->clean = true;
+      continue;
+    }
+    if (a == "--no-distortion") {
+      o->world.k1 = o->world.k2 = 0.0;
+      continue;
+    }
+    if (i + 1 >= argc) return *error = a + ": unknown option or missing value", false;
+    char* end = nullptr;
+    const std::string v = argv[++i];
+    if (a == "--seed") {
+      o->world.seed = std::strtoull(v.c_str(), &end, 10);
+    } else if (num.count(a)) {
+      *num[a] = std::strtod(v.c_str(), &end);
+    } else if (ints.count(a)) {
+      *ints[a] = static_cast<int>(std::strtol(v.c_str(), &end, 10));
+    } else {
+      return *error = a + ": unknown option", false;
+    }
+    if (end == v.c_str() || *end != '\0') return *error = a + ": not a number: " + v, false;
+  }
+  const WorldOptions& w = o->world;
+  if (w.camera_height_mm < 1500 || w.width_px < 64 || w.height_px < 64 || w.tag_px < 8 ||
+      (w.cameras != 1 && w.cameras != 4) || w.site_mm < 3000 || w.agvs < 1 || w.agvs > 500 ||
+      w.duration_s <= 0 || o->fps <= 0 || o->fps > 120 || o->output_hz <= 0 || w.parcels < 0 ||
+      w.parcels > 1 || w.clutter < 0 || o->bit_errors < 0 || o->bit_errors > 36 ||
+      o->latency_ms < 0 || o->latency_spread_ms < 0 || o->full_sweep_every < 1) {
+    return *error = "an option is out of range", false;
+  }
+  return true;
+}
+
+double apriltag_full_frame_ms(const cv::Mat& gray) {
+  apriltag_family_t* tf = tag36h11_create();
+  apriltag_detector_t* td = apriltag_detector_create();
+  apriltag_detector_add_family_bits(td, tf, 2);
+  td->quad_decimate = 1.0f;
+  td->nthreads = 1;
+  image_u8_t im{gray.cols, gray.rows, static_cast<int>(gray.step), gray.data};
+  const auto t0 = std::chrono::steady_clock::now();
+  zarray_t* dets = apriltag_detector_detect(td, &im);
+  const auto t1 = std::chrono::steady_clock::now();
+  apriltag_detections_destroy(dets);
+  apriltag_detector_destroy(td);
+  tag36h11_destroy(tf);
+  return std::chrono::duration<double, std::milli>(t1 - t0).count();
+}
+
+struct FrameEvent {
+  std::int64_t arrival_ns = 0, exposure_ns = 0;
+  std::size_t camera = 0;
+};
+
+std::vector<FrameEvent> frame_events(const Options& o, std::size_t cameras) {
+  std::vector<FrameEvent> ev;
+  const double period_ns = 1e9 / o.fps;
+  const auto end_ns = static_cast<std::int64_t>(o.world.duration_s * 1e9);
+  for (std::size_t c = 0; c < cameras; ++c) {
+    // Free-running cameras: exposures staggered across the period, latencies spread over the
+    // cameras, so fixes reach the tracker out of exposure order.
+    const double offset = period_ns * static_cast<double>(c) / static_cast<double>(cameras);
+    const double lat = o.latency_ms + (cameras > 1 ? o.latency_spread_ms * static_cast<double>(c) /
+                                                         static_cast<double>(cameras - 1)
+                                                   : 0.0);
+    for (int k = 0;; ++k) {
+      const auto t = static_cast<std::int64_t>(offset + k * period_ns);
+      if (t > end_ns) break;
+      ev.push_back({t + static_cast<std::int64_t>(lat * 1e6), t, c});
+    }
+  }
+  std::sort(ev.begin(), ev.end(), [](const FrameEvent& a, const FrameEvent& b) {
+    return a.arrival_ns != b.arrival_ns ? a.arrival_ns < b.arrival_ns : a.camera < b.camera;
+  });
+  return ev;
+}
+
+// Tags wholly inside the image (2 px in).
+std::vector<std::uint8_t> inside(const std::vector<std::array<agv::Vec2, 4>>& corners,
+                                 const std::vector<std::uint8_t>& ok, int w, int h) {
+  std::vector<std::uint8_t> in(corners.size(), 0);
+  for (std::size_t i = 0; i < corners.size(); ++i) {
+    bool all = ok[i] != 0;
+    for (const agv::Vec2& c : corners[i]) all = all && c.x >= 2 && c.y >= 2 && c.x < w - 2 && c.y < h - 2;
+    in[i] = all ? 1 : 0;
+  }
+  return in;
+}
+
+int run(const Options& o) {
+  const auto wall0 = std::chrono::steady_clock::now();
+  World world;
+  std::string error;
+  if (!world.build(o.world, &error)) {
+    std::fprintf(stderr, "eval_overhead: %s\n", error.c_str());
+    return 2;
+  }
+  const agv::site::Site& site = world.site();
+  const agv::CameraIntrinsics& k = site.cameras[0].intrinsics;
+  std::printf("eval_overhead (simulated, rendered frames): site %.0f x %.0f mm, %zu camera(s) at "
+              "%.0f mm, %dx%d, fx %.1f px (tag %.0f px at tray height), %d AGVs, %.1f s at %.1f fps, "
+              "seed %llu, parcels %.2f, clutter %d, calibration error %.1f mm / %.2f deg, bit "
+              "errors %d from %.1f s, latency %.0f..%.0f ms, full sweep every %d frames%s\n",
+              o.world.site_mm, o.world.site_mm, site.cameras.size(), o.world.camera_height_mm,
+              k.width_px, k.height_px, k.fx, o.world.tag_px, o.world.agvs, o.world.duration_s, o.fps,
+              static_cast<unsigned long long>(o.world.seed), o.world.parcels, o.world.clutter,
+              o.calib_error_mm, o.calib_error_deg, o.bit_errors, o.bit_errors_from_s, o.latency_ms,
+              o.latency_ms + o.latency_spread_ms, o.full_sweep_every, o.clean ? ", clean" : "");
+  for (const auto& c : site.cameras) {
+    std::printf("  camera %s at (%.0f, %.0f, %.0f) mm\n", c.id.c_str(), c.t_site_cam_mm[0],
+                c.t_site_cam_mm[1], c.t_site_cam_mm[2]);
+  }
+  // The tracker's idea of the cameras: the rendered ones moved by the calibration error.
+  std::mt19937_64 rng(o.world.seed * 7919 + 3);
+  std::vector<agv::site::CeilingCamera> believed;
+  for (const auto& c : site.cameras) {
+    believed.push_back(agv::eval::perturbed(c, o.calib_error_mm, o.calib_error_deg, &rng));
+  }
+  agv::overhead::SearchParams sp;
+  sp.full_sweep_every_frames = o.full_sweep_every;
+  agv::overhead::CameraFrameProcessor proc(believed, site.fleet, {}, sp);
+  agv::overhead::FleetTracker tracker(site.fleet.size());
+
+  const agv::sim::SiteRenderParams rp = o.clean ? agv::sim::SiteRenderParams{}
+                                                : agv::sim::realistic_site_params();
+  agv::eval::TiledCameraRenderer renderer(k, rp);
+  agv::sim::SiteScene empty = world.scene_at(0);
+  empty.site.fleet.clear();
+  empty.agvs.clear();
+  empty.parcels.clear();
+  for (std::size_t c = 0; c < site.cameras.size(); ++c) {
+    renderer.set_background(c, empty, agv::sim::RenderCamera::from_ceiling(site.cameras[c]),
+                            o.world.seed + c);
+  }
+  const auto wall_bg = std::chrono::steady_clock::now();
+
+  agv::eval::Score score;
+  std::vector<std::string> ids;
+  for (const auto& a : site.fleet) ids.push_back(a.id);
+  const auto tick_ns = static_cast<std::int64_t>(1e9 / o.output_hz);
+  const auto end_ns = static_cast<std::int64_t>(o.world.duration_s * 1e9);
+  std::int64_t next_tick = tick_ns;
+  auto do_tick = [&](std::int64_t t) {
+    tracker.update_states(t);
+    const std::vector<agv::sim::AgvState> truth = world.states_at(t);
+    std::vector<std::uint8_t> in_view(truth.size(), 0);
+    for (const auto& c : site.cameras) {
+      std::vector<std::uint8_t> ok;
+      const auto corners = world.tag_corners(agv::sim::RenderCamera::from_ceiling(c), truth, &ok);
+      const auto in = inside(corners, ok, k.width_px, k.height_px);
+      for (std::size_t i = 0; i < in.size(); ++i) in_view[i] = in_view[i] || in[i];
+    }
+    agv::eval::score_tick(tracker.outputs(t), truth, in_view, &score);
+  };
+  double render_s = 0.0;
+  std::size_t frame_index = 0;
+  std::vector<agv::overhead::Detection> dets;
+  for (const FrameEvent& fe : frame_events(o, site.cameras.size())) {
+    while (next_tick <= fe.arrival_ns && next_tick <= end_ns) {
+      do_tick(next_tick);
+      next_tick += tick_ns;
+    }
+    const auto r0 = std::chrono::steady_clock::now();
+    const agv::sim::SiteScene scene = world.scene_at(fe.exposure_ns);
+    const agv::sim::RenderCamera rc = agv::sim::RenderCamera::from_ceiling(site.cameras[fe.camera]);
+    cv::Mat img = renderer.render(fe.camera, scene, rc, o.world.seed * 100003 + frame_index);
+    std::vector<std::uint8_t> ok;
+    const auto corners = world.tag_corners(rc, scene.agvs, &ok);
+    const auto in_image = inside(corners, ok, k.width_px, k.height_px);
+    std::vector<std::uint8_t> flipped(corners.size(), 0);
+    if (o.bit_errors > 0 && fe.exposure_ns >= static_cast<std::int64_t>(o.bit_errors_from_s * 1e9)) {
+      for (std::size_t i = 0; i < corners.size(); ++i) {
+        if (in_image[i] && agv::eval::flip_tag_cells(&img, corners[i], o.bit_errors, &rng) > 0) {
+          flipped[i] = 1;
+        }
+      }
+    }
+    render_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - r0).count();
+    dets.clear();
+    const std::uint64_t full_before = proc.counters().windows_full;
+    const auto t0 = std::chrono::steady_clock::now();
+    if (!proc.process(fe.camera, fe.exposure_ns, img, &tracker, &dets, &error)) {
+      std::fprintf(stderr, "eval_overhead: %s\n", error.c_str());
+      return 2;
+    }
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    score.frame_ms.push_back(ms);
+    if (proc.counters().windows_full > full_before) score.frame_full_ms.push_back(ms);
+    if (o.apriltag_every > 0 && frame_index % static_cast<std::size_t>(o.apriltag_every) == 0) {
+      score.apriltag_ms.push_back(apriltag_full_frame_ms(img));
+    }
+    agv::eval::score_detections(dets, corners, in_image, flipped, &score);
+    ++frame_index;
+  }
+  while (next_tick <= end_ns) {
+    do_tick(next_tick);
+    next_tick += tick_ns;
+  }
+  std::fputs(agv::eval::report(score, ids).c_str(), stdout);
+  const auto& fc = proc.counters();
+  const auto& tc = tracker.counters();
+  std::printf("pipeline: frames %llu, windows track/area/full %llu/%llu/%llu, predicted reads %llu, "
+              "searched tags %llu, unknown ids %llu, no fix %llu; tracker: applied %llu, started "
+              "%llu, gated %llu, too old %llu, replays %llu, lost %llu\n",
+              static_cast<unsigned long long>(fc.frames), static_cast<unsigned long long>(fc.windows_track),
+              static_cast<unsigned long long>(fc.windows_area), static_cast<unsigned long long>(fc.windows_full),
+              static_cast<unsigned long long>(fc.predicted_reads), static_cast<unsigned long long>(fc.searched_tags),
+              static_cast<unsigned long long>(fc.unknown_ids), static_cast<unsigned long long>(fc.no_fix),
+              static_cast<unsigned long long>(tc.applied), static_cast<unsigned long long>(tc.started),
+              static_cast<unsigned long long>(tc.gated), static_cast<unsigned long long>(tc.too_old),
+              static_cast<unsigned long long>(tc.replays), static_cast<unsigned long long>(tc.lost));
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  std::printf("wall %.1f s (backgrounds %.1f s, frames rendered %.1f s, %zu tiles)\n", wall,
+              std::chrono::duration<double>(wall_bg - wall0).count(), render_s,
+              renderer.tiles_rendered());
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  std::string error;
+  if (!parse(argc, argv, &o, &error)) {
+    std::fprintf(stderr, "eval_overhead: %s\n%s", error.c_str(), kUsage);
+    return 2;
+  }
+  return run(o);
+}

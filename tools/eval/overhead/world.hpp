@@ -1,0 +1,90 @@
+// The simulated site of eval_overhead: a square floor under a 2 x 2 grid of ceiling cameras, a
+// fleet driven by the fleet simulator, and the cameras' frames rendered tile by tile around the
+// vehicles over a background rendered once (docs/design/overhead.md, "Evaluation").
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <random>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "agv/sim/fleet.hpp"
+#include "agv/sim/site_render.hpp"
+#include "agv/site/site.hpp"
+
+namespace agv::eval {
+
+struct WorldOptions {
+  double site_mm = 12000.0;
+  double camera_height_mm = 6000.0;
+  int width_px = 3840, height_px = 2160;
+  double tag_px = 60.0;  // side of a 160 mm tag seen straight below at tray height
+  int cameras = 4;       // 1 (centred) or 4 (2 x 2)
+  double k1 = -0.05, k2 = 0.01;  // barrel distortion of every lens
+  int agvs = 20;
+  double duration_s = 60.0;
+  double parcels = 0.0;  // fraction of loaded trays
+  int clutter = 0;       // people and pallets on the floor
+  std::uint64_t seed = 1;
+};
+
+// Rendering of a camera's frame as a background (floor, clutter: rendered once) plus tiles
+// around the vehicles rendered anew every frame. Vignetting and the light gradient are applied
+// here as one gain map over the whole image: the renderer would apply them per tile.
+class TiledCameraRenderer {
+ public:
+  static constexpr int kTile = 128, kMargin = 8;
+  TiledCameraRenderer(const CameraIntrinsics& k, const sim::SiteRenderParams& params);
+  // Renders camera `camera`'s background (a scene without vehicles) once.
+  void set_background(std::size_t camera, const sim::SiteScene& empty_scene,
+                      const sim::RenderCamera& cam, std::uint64_t seed);
+  // The frame with every vehicle whose footprint projects into it rendered on its tiles.
+  cv::Mat render(std::size_t camera, const sim::SiteScene& scene, const sim::RenderCamera& cam,
+                 std::uint64_t seed);
+  std::size_t tiles_rendered() const { return tiles_rendered_; }
+
+ private:
+  const sim::SiteFrameRenderer& tile_renderer(int tx, int ty);
+  CameraIntrinsics k_;
+  sim::SiteRenderParams params_;  // without the image-wide effects
+  cv::Mat gain_;                  // CV_32F
+  std::vector<cv::Mat> background_;  // per camera
+  std::map<std::pair<int, int>, std::unique_ptr<sim::SiteFrameRenderer>> tiles_;
+  std::size_t tiles_rendered_ = 0;
+};
+
+class World {
+ public:
+  // False with *error when the fleet cannot be placed or simulated.
+  bool build(const WorldOptions& o, std::string* error);
+  const site::Site& site() const { return site_; }
+  const sim::FleetResult& fleet() const { return fleet_; }
+  // Every vehicle's truth at t_ns (interpolated between the simulator's 10 ms samples).
+  std::vector<sim::AgvState> states_at(std::int64_t t_ns) const;
+  sim::SiteScene scene_at(std::int64_t t_ns) const;
+  // Tag corners of every vehicle in camera `cam` (page order); ok = all in front of it.
+  std::vector<std::array<Vec2, 4>> tag_corners(const sim::RenderCamera& cam,
+                                               const std::vector<sim::AgvState>& states,
+                                               std::vector<std::uint8_t>* ok) const;
+  std::vector<sim::Parcel> parcels;
+  std::vector<sim::Clutter> clutter;
+
+ private:
+  site::Site site_;
+  sim::FleetResult fleet_;
+};
+
+// Overwrites n data cells of the tag at corners_px (page order, outer black square) with the
+// opposite shade, read from the image itself. Returns the cells flipped.
+int flip_tag_cells(cv::Mat* gray, const std::array<Vec2, 4>& corners_px, int n, std::mt19937_64* rng);
+
+// A site camera moved by a calibration error: translation of error_mm in a random direction and
+// a rotation of error_deg about a random axis.
+site::CeilingCamera perturbed(const site::CeilingCamera& cam, double error_mm, double error_deg,
+                              std::mt19937_64* rng);
+
+}  // namespace agv::eval
