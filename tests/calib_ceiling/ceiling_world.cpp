@@ -1,0 +1,90 @@
+#include "ceiling_world.hpp"
+
+#include <string>
+
+namespace agv::desk::test {
+
+
+// The true pose: 4.5 m up, turned and tilted a little, so no angle is a special value.
+ccal::CameraPose true_pose() { return {1000.0, 500.0, 4500.0, 20.0 * kDeg, 3.0 * kDeg, -2.0 * kDeg}; }
+
+CameraIntrinsics intrinsics() {
+  CameraIntrinsics k;
+  k.width_px = 1280;
+  k.height_px = 720;
+  k.fx = 1000.0;
+  k.fy = 1002.0;
+  k.cx = 641.0;
+  k.cy = 358.0;
+  k.k1 = -0.06;
+  k.k2 = 0.012;
+  k.p1 = 0.0004;
+  k.p2 = -0.0003;
+  return k;
+}
+
+// Where the ray through an undistorted pixel meets the plane z = z_mm under the true pose.
+static Vec2 on_plane(const site::CeilingCamera& cam, double u, double v, double z_mm) {
+  const auto& k = cam.intrinsics;
+  const double n[3] = {(u - k.cx) / k.fx, (v - k.cy) / k.fy, 1.0};
+  const auto& r = cam.r_site_cam;
+  double d[3];
+  for (int i = 0; i < 3; ++i) d[i] = r[3 * i] * n[0] + r[3 * i + 1] * n[1] + r[3 * i + 2] * n[2];
+  const double s = (z_mm - cam.t_site_cam_mm[2]) / d[2];
+  return {cam.t_site_cam_mm[0] + s * d[0], cam.t_site_cam_mm[1] + s * d[1]};
+}
+
+// Seven vehicles standing in view: the top row's three (tags 1..3) on one image row at one tray
+// height, so on one line of the site; the others at other heights, turned every way.
+static World make_world() {
+  World w;
+  site::Site& s = w.site;
+  s.name = "calib-ceiling-test";
+  s.outline.vertices_mm = {{-6000, -6000}, {8000, -6000}, {8000, 7000}, {-6000, 7000}};
+  site::CeilingCamera cam;
+  cam.id = "cam-1";
+  cam.intrinsics = intrinsics();
+  ccal::set_pose(true_pose(), &cam);
+  s.cameras.push_back(cam);
+  const double px[7][2] = {{260, 170}, {640, 165}, {1020, 175}, {300, 540},
+                           {700, 560}, {1040, 520}, {470, 360}};
+  const double tray_mm[7] = {400, 400, 400, 350, 450, 380, 420};
+  for (int i = 0; i < 7; ++i) {
+    site::FleetAgv a;
+    a.id = "agv-" + std::to_string(i + 1);
+    a.tag_id = static_cast<std::uint32_t>(i + 1);
+    a.tag_size_mm = 200.0;
+    a.tray_height_mm = tray_mm[i];
+    a.footprint.vertices_mm = {{300, 200}, {-300, 200}, {-300, -200}, {300, -200}};
+    a.radius_mm = 400.0;
+    s.fleet.push_back(a);
+    const Vec2 p = on_plane(cam, px[i][0], px[i][1], tray_mm[i]);
+    w.scene.agvs.push_back({{p.x, p.y, -2.5 + 0.9 * i}, 0.0, 0.0});
+  }
+  w.scene.site = s;
+  w.scene.floor.amplitude = 30.0;
+  const sim::SiteFrameRenderer renderer(cam.intrinsics);
+  const sim::SiteRenderParams params = sim::realistic_site_params();
+  for (std::uint64_t seed : {11u, 12u}) {
+    w.truth.push_back(renderer.render(w.scene, sim::RenderCamera::from_ceiling(cam), params, seed));
+    w.frames.push_back(w.truth.back().image);
+  }
+  return w;
+}
+
+const World& world() {
+  static const World w = make_world();
+  return w;
+}
+
+std::map<std::uint32_t, ccal::SurveyedTag> survey_of(const World& w, int first, int n) {
+  std::map<std::uint32_t, ccal::SurveyedTag> out;
+  for (int i = first; i < first + n; ++i) {
+    const auto& a = w.site.fleet[static_cast<std::size_t>(i)];
+    const Pose2& p = w.scene.agvs[static_cast<std::size_t>(i)].pose;
+    out[a.tag_id] = {a.tag_id, p.x_mm, p.y_mm, a.tray_height_mm, p.theta_rad, a.tag_size_mm};
+  }
+  return out;
+}
+
+}  // namespace agv::desk::test

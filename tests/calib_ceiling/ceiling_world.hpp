@@ -1,0 +1,30 @@
+// The rendered scene the ceiling calibration tests share: one ceiling camera at a known pose over
+// seven fleet vehicles standing still (their tray tags are the surveyed tags), two frames.
+#pragma once
+
+#include <map>
+#include <vector>
+
+#include "agv/sim/site_render.hpp"
+#include "calib_ceiling.hpp"
+
+namespace agv::desk::test {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kDeg = kPi / 180.0;
+
+ccal::CameraPose true_pose();
+CameraIntrinsics intrinsics();
+
+struct World {
+  site::Site site;  // the camera at true_pose()
+  sim::SiteScene scene;
+  std::vector<cv::Mat> frames;
+  std::vector<sim::RenderResult> truth;
+};
+// Rendered once per test program.
+const World& world();
+// Fleet tags first .. first + n - 1 as surveyed tags (tags 1..3 lie on one line).
+std::map<std::uint32_t, ccal::SurveyedTag> survey_of(const World& w, int first = 0, int n = 7);
+
+}  // namespace agv::desk::test
