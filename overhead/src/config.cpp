@@ -1,0 +1,214 @@
+// The configuration checker: the text's scalars (agv::config::yaml_entries, with their lines)
+// checked one by one against the key table.
+#include "config.hpp"
+
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <system_error>
+
+#include "agv/config/yaml_keys.hpp"
+#include "agv/recording/recording.hpp"
+
+namespace agv::overhead_app {
+
+namespace {
+
+constexpr std::uintmax_t kMaxConfigBytes = 1u << 20;
+
+std::string fmt_number(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.10g", v);
+  return buf;
+}
+
+bool parse_double(const std::string& s, double* out) {
+  const char* end = s.data() + s.size();
+  const auto r = std::from_chars(s.data(), end, *out);
+  return r.ec == std::errc() && r.ptr == end && std::isfinite(*out);
+}
+
+bool parse_int(const std::string& s, std::int64_t* out) {
+  const char* end = s.data() + s.size();
+  const auto r = std::from_chars(s.data(), end, *out);
+  return r.ec == std::errc() && r.ptr == end;
+}
+
+// The scalar as the key's type; "" on success, else what is wrong.
+std::string convert(const Key& k, const std::string& s, Value* v) {
+  switch (k.type) {
+    case KeyType::kNumber: {
+      double d = 0.0;
+      if (!parse_double(s, &d)) return "expected a number in " + format_range(k);
+      if (d < k.lo || d > k.hi) {
+        return "value " + s + " outside the accepted range " + format_range(k);
+      }
+      *v = d;
+      return "";
+    }
+    case KeyType::kInteger: {
+      std::int64_t i = 0;
+      if (!parse_int(s, &i)) return "expected an integer in " + format_range(k);
+      if (static_cast<double>(i) < k.lo || static_cast<double>(i) > k.hi) {
+        return "value " + s + " outside the accepted range " + format_range(k);
+      }
+      *v = i;
+      return "";
+    }
+    case KeyType::kBool:
+      if (s != "true" && s != "false") return "expected true or false";
+      *v = (s == "true");
+      return "";
+    case KeyType::kChoice:
+      for (const std::string& c : k.choices) {
+        if (c == s) return (*v = s, "");
+      }
+      return "'" + s + "' is not one of: " + format_range(k);
+    case KeyType::kString:
+      *v = s;
+      return "";
+  }
+  return "unsupported key type";
+}
+
+// cameras.<id>.latency_ms: "" when `key` is not of that shape, else the camera id.
+std::string latency_camera(const std::string& key) {
+  static const std::string head = "cameras.", tail = ".latency_ms";
+  if (key.size() <= head.size() + tail.size() || key.compare(0, head.size(), head) != 0 ||
+      key.compare(key.size() - tail.size(), tail.size(), tail) != 0) {
+    return "";
+  }
+  return key.substr(head.size(), key.size() - head.size() - tail.size());
+}
+
+const Key* find_key(const std::string& name) {
+  for (const Key& k : config_keys()) {
+    if (k.name == name) return &k;
+  }
+  return nullptr;
+}
+
+std::string check_mqtt_names(const OverheadConfig& c) {
+  if (!topic_level_ok(c.mqtt.interface_name)) return "output.mqtt.interface_name";
+  if (!topic_level_ok(c.mqtt.manufacturer)) return "output.mqtt.manufacturer";
+  return "";
+}
+
+}  // namespace
+
+bool topic_level_ok(const std::string& s) {
+  if (s.empty()) return false;
+  for (const char ch : s) {
+    const auto u = static_cast<unsigned char>(ch);
+    if (ch == '/' || ch == '+' || ch == '#' || u < 0x20 || u == 0x7F) return false;
+  }
+  return true;
+}
+
+bool parse_config(const std::string& text, OverheadConfig* out, std::vector<std::string>* errors) {
+  std::vector<config::YamlEntry> entries;
+  std::string err;
+  if (!config::yaml_entries(text, &entries, &err)) {
+    errors->push_back(err);
+    return false;
+  }
+  OverheadConfig cfg;
+  std::map<std::string, int> first_line;
+  const std::size_t before = errors->size();
+  for (const config::YamlEntry& e : entries) {
+    const std::string where = "line " + std::to_string(e.line) + ": " + e.key + ": ";
+    const auto [it, fresh] = first_line.emplace(e.key, e.line);
+    if (!fresh) {
+      errors->push_back(where + "duplicate key (first at line " + std::to_string(it->second) + ")");
+      continue;
+    }
+    const std::string cam = latency_camera(e.key);
+    if (!cam.empty() && cam.find('.') == std::string::npos) {
+      double ms = 0.0;
+      if (!parse_double(e.value, &ms) || ms < 0.0 || ms > kMaxCameraLatencyMs) {
+        errors->push_back(where + "expected a number in 0.." + fmt_number(kMaxCameraLatencyMs) +
+                          " (ms)");
+      } else {
+        cfg.camera_latency_ms[cam] = ms;
+      }
+      continue;
+    }
+    const Key* k = find_key(e.key);
+    if (!k) {
+      errors->push_back(where + "unknown key");
+      continue;
+    }
+    Value v;
+    const std::string what = convert(*k, e.value, &v);
+    if (!what.empty()) {
+      errors->push_back(where + what);
+      continue;
+    }
+    k->set(cfg, v);
+  }
+  if (errors->size() == before) {
+    const std::string bad = check_mqtt_names(cfg);
+    if (!bad.empty()) {
+      errors->push_back(bad + ": must be one MQTT topic level (not empty, no '/', '+', '#' or "
+                              "control characters)");
+    }
+  }
+  if (errors->size() != before) return false;
+  *out = cfg;
+  return true;
+}
+
+bool load_config(const std::string& path, OverheadConfig* out, std::vector<std::string>* errors) {
+  std::string text, err;
+  if (!recording::read_file_bounded(path, kMaxConfigBytes, &text, &err)) {
+    errors->push_back(err);
+    return false;
+  }
+  std::vector<std::string> found;
+  if (parse_config(text, out, &found)) return true;
+  for (const std::string& f : found) errors->push_back(path + ": " + f);
+  return false;
+}
+
+std::string format_value(const Key& key, const Value& v) {
+  if (const auto* d = std::get_if<double>(&v)) return fmt_number(*d);
+  if (const auto* i = std::get_if<std::int64_t>(&v)) return std::to_string(*i);
+  if (const auto* b = std::get_if<bool>(&v)) return *b ? "true" : "false";
+  (void)key;
+  const std::string& s = std::get<std::string>(v);
+  return s.empty() ? "\"\"" : s;
+}
+
+std::string format_range(const Key& key) {
+  switch (key.type) {
+    case KeyType::kNumber:
+    case KeyType::kInteger:
+      return fmt_number(key.lo) + ".." + fmt_number(key.hi);
+    case KeyType::kBool:
+      return "true, false";
+    case KeyType::kString:
+      return "string";
+    case KeyType::kChoice: {
+      std::string s;
+      for (const std::string& c : key.choices) s += (s.empty() ? "" : ", ") + c;
+      return s;
+    }
+  }
+  return "";
+}
+
+std::string config_keys_doc() {
+  std::string out =
+      "| key | default | range | unit | meaning / trade-off |\n|---|---|---|---|---|\n";
+  for (const Key& k : config_keys()) {
+    out += "| `" + k.name + "` | " + format_value(k, k.def) + " | " + format_range(k) + " | " +
+           k.unit + " | " + k.doc + " |\n";
+  }
+  out += "| `cameras.<id>.latency_ms` | 0 | 0.." + fmt_number(kMaxCameraLatencyMs) +
+         " | ms | Exposure to the frame's arrival at the tracker for the site camera `<id>` "
+         "(fixes keep their exposure time; the tracker applies them where they belong) |\n";
+  return out;
+}
+
+}  // namespace agv::overhead_app

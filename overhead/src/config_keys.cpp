@@ -1,0 +1,172 @@
+// The key table of agvloc-overhead's configuration. Defaults are the library structs' own
+// (TrackerParams, SearchParams, TagDetectParams): test_overhead_config proves the table equals
+// them, so a default changed in the library shows up here and in the guide.
+#include <cmath>
+#include <cstdint>
+#include <type_traits>
+#include <utility>
+
+#include "config.hpp"
+
+#define AGV_OH_AT(member) \
+  [](auto& cfg_) -> auto& { return cfg_.member; }
+
+namespace agv::overhead_app {
+
+namespace {
+
+Key base(const char* name, KeyType type, double lo, double hi, Value def, const char* unit,
+         const char* doc) {
+  Key k;
+  k.name = name;
+  k.type = type;
+  k.lo = lo;
+  k.hi = hi;
+  k.def = std::move(def);
+  k.unit = unit;
+  k.doc = doc;
+  return k;
+}
+
+template <typename Ref>
+Key number(const char* name, Ref ref, double lo, double hi, double def, const char* unit,
+           const char* doc) {
+  Key k = base(name, KeyType::kNumber, lo, hi, def, unit, doc);
+  k.get = [ref](const OverheadConfig& c) { return Value{static_cast<double>(ref(c))}; };
+  k.set = [ref](OverheadConfig& c, const Value& v) { ref(c) = std::get<double>(v); };
+  return k;
+}
+
+template <typename Ref>
+Key integer(const char* name, Ref ref, std::int64_t lo, std::int64_t hi, std::int64_t def,
+            const char* unit, const char* doc) {
+  Key k = base(name, KeyType::kInteger, static_cast<double>(lo), static_cast<double>(hi), def, unit,
+               doc);
+  k.get = [ref](const OverheadConfig& c) { return Value{static_cast<std::int64_t>(ref(c))}; };
+  k.set = [ref](OverheadConfig& c, const Value& v) {
+    using T = std::remove_reference_t<decltype(ref(c))>;
+    ref(c) = static_cast<T>(std::get<std::int64_t>(v));
+  };
+  return k;
+}
+
+template <typename Ref>
+Key boolean(const char* name, Ref ref, bool def, const char* doc) {
+  Key k = base(name, KeyType::kBool, 0, 0, def, "", doc);
+  k.get = [ref](const OverheadConfig& c) { return Value{static_cast<bool>(ref(c))}; };
+  k.set = [ref](OverheadConfig& c, const Value& v) { ref(c) = std::get<bool>(v); };
+  return k;
+}
+
+template <typename Ref>
+Key string(const char* name, Ref ref, const char* def, const char* doc,
+           std::vector<std::string> choices = {}) {
+  Key k = base(name, choices.empty() ? KeyType::kString : KeyType::kChoice, 0, 0,
+               std::string(def), "", doc);
+  k.choices = std::move(choices);
+  k.get = [ref](const OverheadConfig& c) { return Value{std::string(ref(c))}; };
+  k.set = [ref](OverheadConfig& c, const Value& v) { ref(c) = std::get<std::string>(v); };
+  return k;
+}
+
+std::vector<Key> tracker_keys() {
+  return {
+      number("tracker.accel_noise_mps2", AGV_OH_AT(tracker.accel_noise_mps2), 0.01, 100, 1.0,
+             "m/s²", "White acceleration density of the constant-speed model: higher follows "
+                     "sharper speed changes, smooths less"),
+      number("tracker.alpha_noise_radps2", AGV_OH_AT(tracker.alpha_noise_radps2), 0.01, 100, 2.0,
+             "rad/s²", "White turn-rate acceleration density: higher follows sharper turns"),
+      number("tracker.gate_chi2", AGV_OH_AT(tracker.gate_chi2), 1, 1000, 16.27, "",
+             "A fix farther than this squared Mahalanobis distance (3 dof) is refused; 16.27 is "
+             "chi2 0.999, so a wrong id cannot move another vehicle's track"),
+      integer("tracker.confirm_fixes", AGV_OH_AT(tracker.confirm_fixes), 1, 100, 3, "",
+              "Fixes within confirm_window_ms that turn a tentative track confirmed"),
+      number("tracker.confirm_window_ms", AGV_OH_AT(tracker.confirm_window_ms), 1, 60000, 1000,
+             "ms", "Window of the confirm_fixes"),
+      number("tracker.coast_after_ms", AGV_OH_AT(tracker.coast_after_ms), 1, 60000, 300, "ms",
+             "No fix for this long: the track is coasting (extrapolated, sigma growing)"),
+      number("tracker.lost_after_ms", AGV_OH_AT(tracker.lost_after_ms), 1, 600000, 3000, "ms",
+             "No fix for this long: the track is lost (never reported confident)"),
+      number("tracker.lost_sigma_mm", AGV_OH_AT(tracker.lost_sigma_mm), 1, 100000, 500, "mm",
+             "Position sigma beyond this: the track is lost"),
+      number("tracker.max_fix_age_ms", AGV_OH_AT(tracker.max_fix_age_ms), 0, 60000, 500, "ms",
+             "A fix older than the filter's newest by more than this is refused (counted), not "
+             "replayed; bounds the cost of a camera's latency"),
+      integer("tracker.history", AGV_OH_AT(tracker.history), 1, 1024, 64, "",
+              "Filter states kept per vehicle for delayed fixes (also bounds the fixes replayed)"),
+      number("tracker.initial_speed_sigma_mps", AGV_OH_AT(tracker.initial_speed_sigma_mps), 0.001,
+             20, 1.0, "m/s", "Speed sigma of a track started from one fix"),
+      number("tracker.initial_turn_sigma_radps", AGV_OH_AT(tracker.initial_turn_sigma_radps),
+             0.001, 20, 1.0, "rad/s", "Turn-rate sigma of a track started from one fix"),
+  };
+}
+
+std::vector<Key> search_detect_keys() {
+  return {
+      number("search.window_sigmas", AGV_OH_AT(search.window_sigmas), 0.5, 20, 3.0, "",
+             "A track's search window covers this many sigmas of its prediction"),
+      number("search.window_margin_px", AGV_OH_AT(search.window_margin_px), 0, 1000, 12.0, "px",
+             "Margin of a track's window beyond the predicted tag's corners"),
+      integer("search.max_window_px", AGV_OH_AT(search.max_window_px), 16, 16384, 512, "px",
+              "A track window wider than this falls back to the area search"),
+      integer("search.full_sweep_every_frames", AGV_OH_AT(search.full_sweep_every_frames), 1,
+              100000, 15, "frames",
+              "Whole-image search every this many frames of a camera (vehicles not yet tracked); "
+              "1 searches every frame whole"),
+      integer("search.area_cols", AGV_OH_AT(search.area_cols), 1, 64, 4, "",
+              "A camera's image is cut into area_cols x area_rows areas for the area search and "
+              "the restricted decoding"),
+      integer("search.area_rows", AGV_OH_AT(search.area_rows), 1, 64, 3, "", "See area_cols"),
+      number("detect.quad_decimate", AGV_OH_AT(detect.quad_decimate), 1, 8, 1.0, "",
+             "libapriltag's quad_decimate: 1 keeps 40 px tags findable, 2 halves the search cost "
+             "for large tags"),
+      integer("detect.global_bits_corrected", AGV_OH_AT(detect.global_bits_corrected), 0, 3, 2,
+              "bits", "Bits the whole-family decode (new tracks) may correct: few keep a wrong id "
+                      "out"),
+      number("detect.edge_band_px", AGV_OH_AT(detect.edge_band_px), 0.5, 20, 3.0, "px",
+             "Half width of the band searched for each edge of the tag's square"),
+      number("detect.predicted_search_px", AGV_OH_AT(detect.predicted_search_px), 0, 100, 8.0,
+             "px", "How far from its predicted corners a tracked tag may be found"),
+      number("detect.min_contrast", AGV_OH_AT(detect.min_contrast), 0, 255, 20.0, "8-bit",
+             "Smallest black-to-white border contrast for a square to count"),
+      number("detect.max_edge_rms_px", AGV_OH_AT(detect.max_edge_rms_px), 0.01, 10, 0.8, "px",
+             "Largest RMS distance of edge points from their fitted line"),
+  };
+}
+
+std::vector<Key> output_keys() {
+  return {
+      number("output.rate_hz", AGV_OH_AT(output_rate_hz), 1, 200, 30.0, "Hz",
+             "Every vehicle's state is published at this fixed rate, extrapolated to the publish "
+             "time (a scheduler wants 30 Hz or more)"),
+      boolean("output.mqtt.enabled", AGV_OH_AT(mqtt.enabled), false,
+              "Publish VDA 5050 visualization messages per vehicle (replay too)"),
+      string("output.mqtt.broker_host", AGV_OH_AT(mqtt.broker_host), "localhost",
+             "The MQTT broker's host name or address"),
+      integer("output.mqtt.port", AGV_OH_AT(mqtt.port), 1, 65535, 1883, "", "The broker's port"),
+      string("output.mqtt.interface_name", AGV_OH_AT(mqtt.interface_name), "agvloc-overhead",
+             "First topic level: an interface of its own, so these messages never mix with the "
+             "vehicles' own uagv topics"),
+      string("output.mqtt.manufacturer", AGV_OH_AT(mqtt.manufacturer), "agvloc",
+             "Third topic level and the messages' manufacturer"),
+      string("output.mqtt.version", AGV_OH_AT(mqtt.version), "2.1.0",
+             "VDA 5050 version of the messages (topic v2 or v3)", {"2.0.0", "2.1.0", "3.0.0"}),
+      string("output.mqtt.map_id", AGV_OH_AT(mqtt.map_id), "",
+             "agvPosition.mapId; empty: the site's name"),
+  };
+}
+
+}  // namespace
+
+const std::vector<Key>& config_keys() {
+  static const std::vector<Key> keys = [] {
+    std::vector<Key> all = tracker_keys();
+    for (auto* part : {search_detect_keys, output_keys}) {
+      for (Key& k : part()) all.push_back(std::move(k));
+    }
+    return all;
+  }();
+  return keys;
+}
+
+}  // namespace agv::overhead_app

@@ -1,0 +1,133 @@
+#include "inputs.hpp"
+
+#include <yaml-cpp/yaml.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "agv/site/site_file.hpp"
+
+namespace agv::overhead_app {
+
+namespace {
+
+namespace fs = std::filesystem;
+constexpr std::uintmax_t kMaxCameraYamlBytes = 64u << 10;
+
+std::string camera_ids(const site::Site& site) {
+  std::string ids;
+  for (const site::CeilingCamera& c : site.cameras) ids += (ids.empty() ? "" : ", ") + c.id;
+  return ids.empty() ? "none" : ids;
+}
+
+}  // namespace
+
+bool load_site_file(const std::string& path, site::Site* out, std::vector<std::string>* errors) {
+  const site::SiteLimits limits;
+  std::string text, err;
+  if (!recording::read_file_bounded(path, limits.max_text_bytes, &text, &err)) {
+    errors->push_back("site: " + err);
+    return false;
+  }
+  std::string map_name, map_text;
+  if (!site::site_floor_map_file(text, &map_name, &err)) {
+    errors->push_back(path + ": " + err);
+    return false;
+  }
+  if (!map_name.empty()) {
+    fs::path map_path(map_name);
+    if (map_path.is_relative()) map_path = fs::path(path).parent_path() / map_path;
+    if (!recording::read_file_bounded(map_path.lexically_normal().string(), limits.max_text_bytes,
+                                      &map_text, &err)) {
+      errors->push_back(path + ": floor_map.file: " + err);
+      return false;
+    }
+  }
+  std::vector<site::SiteError> found;
+  if (site::parse_site(text, map_text, out, &found, limits)) {
+    if (out->cameras.empty()) errors->push_back(path + ": cameras: the site has no ceiling camera");
+    if (out->fleet.empty()) errors->push_back(path + ": fleet: the site has no vehicle");
+    return errors->empty();
+  }
+  for (const site::SiteError& e : found) errors->push_back(path + ": " + e.to_string());
+  return false;
+}
+
+bool read_camera_id(const std::string& dir, std::string* id, std::string* error) {
+  const std::string path = (fs::path(dir) / "camera.yaml").string();
+  std::string text;
+  if (!recording::read_file_bounded(path, kMaxCameraYamlBytes, &text, error)) return false;
+  try {
+    const YAML::Node root = YAML::Load(text);
+    if (!root.IsMap() || !root["id"] || !root["id"].IsScalar() || root["id"].Scalar().empty()) {
+      *error = path + ": no camera id (id: ...)";
+      return false;
+    }
+    if (root["vehicle"]) {
+      *error = path + ": a camera on vehicle '" + root["vehicle"].as<std::string>("?") +
+               "', not a ceiling camera";
+      return false;
+    }
+    *id = root["id"].Scalar();
+    return true;
+  } catch (const YAML::Exception& e) {
+    *error = path + ": line " + std::to_string(e.mark.line + 1) + ": " + e.msg;
+    return false;
+  }
+}
+
+bool open_recordings(const std::vector<std::string>& dirs, const site::Site& site,
+                     const OverheadConfig& cfg, std::vector<CameraRecording>* out,
+                     std::vector<std::string>* warnings, std::string* error) {
+  out->clear();
+  for (const std::string& dir : dirs) {
+    CameraRecording c;
+    if (!read_camera_id(dir, &c.id, error)) return false;
+    bool found = false;
+    for (std::size_t i = 0; i < site.cameras.size(); ++i) {
+      if (site.cameras[i].id == c.id) c.site_camera = i, found = true;
+    }
+    if (!found) {
+      *error = dir + ": camera '" + c.id + "' is not in the site (its cameras: " +
+               camera_ids(site) + ")";
+      return false;
+    }
+    for (const CameraRecording& o : *out) {
+      if (o.id == c.id) return (*error = dir + ": camera '" + c.id + "' given twice", false);
+    }
+    std::string err;
+    if (!recording::read_recording(dir, &c.rec, &err)) return (*error = dir + ": " + err, false);
+    const CameraIntrinsics& k = site.cameras[c.site_camera].intrinsics;
+    const CameraIntrinsics& m = c.rec.meta.camera.intrinsics;
+    if (m.width_px != k.width_px || m.height_px != k.height_px) {
+      *error = dir + ": frames are " + std::to_string(m.width_px) + "x" +
+               std::to_string(m.height_px) + " but the site's camera '" + c.id + "' is " +
+               std::to_string(k.width_px) + "x" + std::to_string(k.height_px) +
+               " (a recording rendered with --scale needs a site with the scaled intrinsics)";
+      return false;
+    }
+    if (c.rec.frames.empty()) return (*error = dir + ": frames.csv has no frame", false);
+    const auto lat = cfg.camera_latency_ms.find(c.id);
+    if (lat != cfg.camera_latency_ms.end()) c.latency_ns = std::llround(lat->second * 1e6);
+    for (const std::string& w : c.rec.warnings) warnings->push_back(dir + ": " + w);
+    out->push_back(std::move(c));
+  }
+  return true;
+}
+
+bool check_config_against_site(const OverheadConfig& cfg, const site::Site& site,
+                               std::string* error) {
+  for (const auto& entry : cfg.camera_latency_ms) {
+    const std::string& id = entry.first;
+    bool found = false;
+    for (const site::CeilingCamera& c : site.cameras) found = found || c.id == id;
+    if (!found) {
+      *error = "cameras." + id + ".latency_ms: no camera '" + id + "' in the site (its cameras: " +
+               camera_ids(site) + ")";
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace agv::overhead_app

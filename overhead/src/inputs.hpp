@@ -1,0 +1,42 @@
+// agvloc-overhead's inputs: the site file (fleet and ceiling cameras) and one recording folder per
+// ceiling camera in the format `agvloc-desk render-site` writes (docs/guide/recording.md, plus
+// camera.yaml naming the camera), matched to the site's cameras by id.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "agv/recording/recording.hpp"
+#include "agv/site/site.hpp"
+#include "config.hpp"
+
+namespace agv::overhead_app {
+
+// Reads and checks a site file and the floor map it names (relative to its folder). False with
+// one line per problem ("SITE: key (line N): message").
+bool load_site_file(const std::string& path, site::Site* out, std::vector<std::string>* errors);
+
+struct CameraRecording {
+  std::size_t site_camera = 0;  // index into site.cameras
+  std::string id;
+  std::int64_t latency_ns = 0;
+  recording::Recording rec;
+};
+
+// The id in DIR/camera.yaml; false with *error when the file is missing, malformed, has no id, or
+// describes a camera on a vehicle.
+bool read_camera_id(const std::string& dir, std::string* id, std::string* error);
+
+// Opens every recording folder, matches it to a site camera (its intrinsics and pose are the
+// site's: the recording's image size must equal them) and applies the configured latency. False
+// with *error naming the folder and what is wrong; warnings (a cut last line) in *warnings.
+bool open_recordings(const std::vector<std::string>& dirs, const site::Site& site,
+                     const OverheadConfig& cfg, std::vector<CameraRecording>* out,
+                     std::vector<std::string>* warnings, std::string* error);
+
+// Every configured cameras.<id>.latency_ms names a camera of the site; else false with *error.
+bool check_config_against_site(const OverheadConfig& cfg, const site::Site& site,
+                               std::string* error);
+
+}  // namespace agv::overhead_app
