@@ -6,12 +6,16 @@
 // track. Track states: tentative (first fixes), confirmed, coasting (no fix for a while: sigma
 // grows), lost (sigma beyond a limit or too long unseen: never reported confident). Identity is
 // the fleet index: a vehicle has one track, so a hand-over between cameras cannot duplicate it.
-// Pure: time is an argument; docs/design/overhead.md.
+// The first fix of a new or lost track has nothing to be gated by: the caller gives such fixes
+// only from a strict global decode (never from a decode restricted to an area's ids).
+// Pure: time is an argument; no allocation per fix (every buffer is sized by the constructor);
+// docs/design/overhead.md.
 #pragma once
 
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "agv/common/geometry.hpp"
@@ -23,23 +27,30 @@ enum class TrackState : std::uint8_t { kNone, kTentative, kConfirmed, kCoasting,
 const char* to_string(TrackState s);
 
 struct TrackerParams {
-  // Process noise: white acceleration and turn-rate acceleration spectral densities.
+  // Process noise: square roots of the spectral densities of the white linear and angular
+  // accelerations (over one second the speed random-walks by accel_noise_mps2, the turn rate by
+  // alpha_noise_radps2), integrated over each prediction step through the motion model.
   double accel_noise_mps2 = 1.0;
   double alpha_noise_radps2 = 2.0;
   // A fix whose squared Mahalanobis distance exceeds this (chi2, 3 dof, 0.999) is refused.
   double gate_chi2 = 16.27;
-  int confirm_fixes = 3;           // fixes within confirm_window_ms to confirm a track
+  int confirm_fixes = 3;  // fixes within confirm_window_ms to confirm a track
   double confirm_window_ms = 1000.0;
-  double coast_after_ms = 300.0;   // no fix for this long: coasting
-  double lost_after_ms = 3000.0;   // no fix for this long, or:
-  double lost_sigma_mm = 500.0;    // position sigma beyond this: lost
-  double max_fix_age_ms = 500.0;   // older fixes are refused (counted), not replayed
-  // States kept for delayed fixes; also bounds the fixes replayed.
+  double coast_after_ms = 300.0;  // no fix for this long: coasting
+  double lost_after_ms = 3000.0;  // no fix for this long, or:
+  double lost_sigma_mm = 500.0;   // position sigma beyond this: lost
+  // A fix older than the track's newest by more than this, or older than the oldest state kept,
+  // is refused (kTooOld, counted), not replayed.
+  double max_fix_age_ms = 500.0;
+  // States kept for delayed fixes; also bounds the fixes replayed (>= confirm_fixes).
   int history = 64;
   // A track starts from a fix with this velocity sigma (at rest unknown).
   double initial_speed_sigma_mps = 1.0;
   double initial_turn_sigma_radps = 1.0;
 };
+
+// Empty string when the parameters are usable, otherwise what is wrong (names the field).
+std::string validate(const TrackerParams& params);
 
 enum class FixResult : std::uint8_t { kApplied, kStarted, kGated, kTooOld, kInvalid };
 const char* to_string(FixResult r);
@@ -64,20 +75,33 @@ struct TrackerCounters {
 
 class FleetTracker {
  public:
+  // Throws std::invalid_argument when validate(params) is not empty.
   FleetTracker(std::size_t fleet_size, const TrackerParams& params = {});
+  ~FleetTracker();
+  FleetTracker(const FleetTracker&);
+  FleetTracker& operator=(const FleetTracker&);
+  FleetTracker(FleetTracker&&) noexcept;
+  FleetTracker& operator=(FleetTracker&&) noexcept;
 
-  // A fix of vehicle `agv` exposed at t_ns. A vehicle without a track (none or lost) starts one
-  // from it (tentative). Fixes may come out of time order.
+  // A fix of vehicle `agv` exposed at t_ns. A vehicle without a track (none, lost, or a
+  // tentative track that missed) starts one from it (kStarted, not gated). Fixes may come out of
+  // time order: one older than the newest is gated against the state at its time, inserted, and
+  // the newer fixes are replayed after it (without a new gate: each passed one on arrival).
+  // kInvalid for an index outside the fleet, a non-finite pose, or a covariance that is not
+  // finite, symmetric and positive definite.
   FixResult add_fix(std::size_t agv, std::int64_t t_ns, const TagFix& fix);
-  // Track states at now_ns (coasting, lost); call before outputs at every publish tick.
+  // Track states at now_ns (coasting, lost; a tentative track without a fix for coast_after_ms
+  // is dropped); call before outputs at every publish tick. output() applies the same rules to
+  // its own time, so it never reports a track valid that update_states would have lost.
   void update_states(std::int64_t now_ns);
-  // Vehicle `agv` extrapolated to t_ns (the filter is not changed).
+  // Vehicle `agv` extrapolated to t_ns (the filter is not changed); state kNone for an index
+  // outside the fleet.
   TrackOutput output(std::size_t agv, std::int64_t t_ns) const;
   std::vector<TrackOutput> outputs(std::int64_t t_ns) const;
   // Forget a track (operator command; a vehicle taken off the floor).
   void reset(std::size_t agv);
 
-  std::size_t size() const { return tracks_.size(); }
+  std::size_t size() const;
   const TrackerCounters& counters() const { return counters_; }
   const TrackerParams& params() const { return p_; }
 

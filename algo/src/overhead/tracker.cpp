@@ -1,0 +1,279 @@
+// The fleet's tracks: one filter per vehicle (tracker_model.hpp), a ring of its posteriors for
+// delayed fixes, and the track states (docs/design/overhead.md).
+#include "agv/overhead/tracker.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <utility>
+
+#include "tracker_model.hpp"
+
+namespace agv::overhead {
+
+namespace tracker_detail {
+
+// One accepted fix and the posterior after it.
+struct TrackEntry {
+  std::int64_t t_ns = 0;
+  Belief belief;
+  Measurement fix;
+};
+
+// The posteriors of one track in time order, oldest first, in a ring sized once.
+struct TrackCore {
+  TrackState state = TrackState::kNone;
+  std::vector<TrackEntry> ring;
+  std::size_t head = 0, count = 0;
+
+  TrackEntry& at(std::size_t i) { return ring[(head + i) % ring.size()]; }
+  const TrackEntry& at(std::size_t i) const { return ring[(head + i) % ring.size()]; }
+  const TrackEntry& newest() const { return at(count - 1); }
+  void clear() { head = count = 0; }
+};
+
+}  // namespace tracker_detail
+
+struct FleetTracker::Track : tracker_detail::TrackCore {};
+
+// Helpers in a namespace of their own: the library may be built as a unity batch.
+namespace tracker_detail {
+namespace {
+
+// a - b, saturated: a clock jump in the input must not overflow.
+std::int64_t diff_ns(std::int64_t a, std::int64_t b) {
+  std::int64_t d = 0;
+  if (__builtin_sub_overflow(a, b, &d)) {
+    return a > b ? std::numeric_limits<std::int64_t>::max()
+                 : std::numeric_limits<std::int64_t>::min();
+  }
+  return d;
+}
+
+double seconds(std::int64_t dt_ns) { return static_cast<double>(dt_ns) * 1e-9; }
+double ms_as_ns(double ms) { return ms * 1e6; }
+
+tracker_detail::ProcessNoise noise_of(const TrackerParams& p) {
+  const double a = 1000.0 * p.accel_noise_mps2;  // the state's speed is in mm/s
+  return {a * a, p.alpha_noise_radps2 * p.alpha_noise_radps2};
+}
+
+// The newest entry at or before t (the oldest when t precedes them all), predicted to t.
+Belief belief_at(const TrackCore& tr, std::int64_t t_ns, const tracker_detail::ProcessNoise& q) {
+  std::size_t j = tr.count - 1;
+  while (j > 0 && tr.at(j).t_ns > t_ns) --j;
+  const TrackEntry& e = tr.at(j);
+  return tracker_detail::predict(e.belief, seconds(diff_ns(t_ns, e.t_ns)), q);
+}
+
+// The state the track is in at t, given its position sigma then: the stored state aged by the
+// time since its newest fix. Never better than the stored one (only a fix confirms).
+TrackState state_at(const TrackCore& tr, std::int64_t t_ns, double sigma_xy_mm,
+                    const TrackerParams& p) {
+  if (tr.state == TrackState::kNone || tr.state == TrackState::kLost || tr.count == 0) {
+    return tr.state == TrackState::kLost ? TrackState::kLost : TrackState::kNone;
+  }
+  const double age_ns = static_cast<double>(diff_ns(t_ns, tr.newest().t_ns));
+  if (tr.state == TrackState::kTentative) {
+    // Its sigma is wide by construction (the speed is unknown); only a miss drops it.
+    return age_ns > ms_as_ns(p.coast_after_ms) ? TrackState::kNone : TrackState::kTentative;
+  }
+  if (age_ns > ms_as_ns(p.lost_after_ms) || !(sigma_xy_mm <= p.lost_sigma_mm)) {
+    return TrackState::kLost;
+  }
+  if (age_ns > ms_as_ns(p.coast_after_ms)) return TrackState::kCoasting;
+  return TrackState::kConfirmed;
+}
+
+// Index at which a fix at t goes: after every entry at or before t.
+std::size_t insertion_index(const TrackCore& tr, std::int64_t t_ns) {
+  std::size_t k = tr.count;
+  while (k > 0 && tr.at(k - 1).t_ns > t_ns) --k;
+  return k;
+}
+
+// Puts e at index k (0 < k <= count), dropping the oldest entry when the ring is full, and
+// replays the entries after it. Returns the number of entries replayed.
+std::size_t insert_and_replay(TrackCore* tr, std::size_t k, const TrackEntry& e,
+                              const tracker_detail::ProcessNoise& q) {
+  if (tr->count == tr->ring.size()) {
+    tr->head = (tr->head + 1) % tr->ring.size();
+    --tr->count;
+    --k;
+  }
+  ++tr->count;
+  for (std::size_t j = tr->count - 1; j > k; --j) tr->at(j) = tr->at(j - 1);
+  tr->at(k) = e;
+  for (std::size_t j = k + 1; j < tr->count; ++j) {
+    const TrackEntry& prev = tr->at(j - 1);
+    TrackEntry& cur = tr->at(j);
+    cur.belief = tracker_detail::update(
+        tracker_detail::predict(prev.belief, seconds(diff_ns(cur.t_ns, prev.t_ns)), q), cur.fix);
+  }
+  return tr->count - 1 - k;
+}
+
+// Fixes of the track within the confirmation window ending at its newest.
+int recent_fixes(const TrackCore& tr, double window_ms) {
+  int n = 0;
+  const std::int64_t newest = tr.newest().t_ns;
+  for (std::size_t j = tr.count; j > 0; --j) {
+    if (static_cast<double>(diff_ns(newest, tr.at(j - 1).t_ns)) > ms_as_ns(window_ms)) break;
+    ++n;
+  }
+  return n;
+}
+
+bool finite_positive(double v) { return std::isfinite(v) && v > 0.0; }
+// Durations become nanoseconds in 64 bits; an hour is far beyond any use.
+bool duration_ok(double ms) { return finite_positive(ms) && ms <= 3.6e6; }
+
+}  // namespace
+}  // namespace tracker_detail
+
+namespace td = tracker_detail;
+
+std::string validate(const TrackerParams& p) {
+  if (!(std::isfinite(p.accel_noise_mps2) && p.accel_noise_mps2 >= 0.0)) {
+    return "accel_noise_mps2 must be finite and >= 0";
+  }
+  if (!(std::isfinite(p.alpha_noise_radps2) && p.alpha_noise_radps2 >= 0.0)) {
+    return "alpha_noise_radps2 must be finite and >= 0";
+  }
+  if (!td::finite_positive(p.gate_chi2)) return "gate_chi2 must be finite and > 0";
+  if (p.confirm_fixes < 1) return "confirm_fixes must be >= 1";
+  if (!td::duration_ok(p.confirm_window_ms)) return "confirm_window_ms must be in (0, 3.6e6]";
+  if (!td::duration_ok(p.coast_after_ms)) return "coast_after_ms must be in (0, 3.6e6]";
+  if (!td::duration_ok(p.lost_after_ms) || p.lost_after_ms < p.coast_after_ms) {
+    return "lost_after_ms must be in [coast_after_ms, 3.6e6]";
+  }
+  if (!td::finite_positive(p.lost_sigma_mm)) return "lost_sigma_mm must be finite and > 0";
+  if (!(std::isfinite(p.max_fix_age_ms) && p.max_fix_age_ms >= 0.0 && p.max_fix_age_ms <= 3.6e6)) {
+    return "max_fix_age_ms must be in [0, 3.6e6]";
+  }
+  if (p.history < 2 || p.history < p.confirm_fixes || p.history > 100000) {
+    return "history must be in [max(2, confirm_fixes), 100000]";
+  }
+  if (!td::finite_positive(p.initial_speed_sigma_mps)) {
+    return "initial_speed_sigma_mps must be finite and > 0";
+  }
+  if (!td::finite_positive(p.initial_turn_sigma_radps)) {
+    return "initial_turn_sigma_radps must be finite and > 0";
+  }
+  return {};
+}
+
+FleetTracker::FleetTracker(std::size_t fleet_size, const TrackerParams& params) : p_(params) {
+  const std::string err = validate(p_);
+  if (!err.empty()) throw std::invalid_argument("TrackerParams: " + err);
+  tracks_.resize(fleet_size);
+  for (Track& t : tracks_) t.ring.resize(static_cast<std::size_t>(p_.history));
+}
+
+FleetTracker::~FleetTracker() = default;
+FleetTracker::FleetTracker(const FleetTracker&) = default;
+FleetTracker& FleetTracker::operator=(const FleetTracker&) = default;
+FleetTracker::FleetTracker(FleetTracker&&) noexcept = default;
+FleetTracker& FleetTracker::operator=(FleetTracker&&) noexcept = default;
+
+std::size_t FleetTracker::size() const { return tracks_.size(); }
+
+FixResult FleetTracker::add_fix(std::size_t agv, std::int64_t t_ns, const TagFix& fix) {
+  td::Measurement m;
+  if (agv >= tracks_.size() || !td::make_measurement(fix, &m)) {
+    ++counters_.invalid;
+    return FixResult::kInvalid;
+  }
+  Track& tr = tracks_[agv];
+  const td::ProcessNoise q = td::noise_of(p_);
+  std::size_t k = 0;
+  td::Belief prior;
+  bool restart = tr.state == TrackState::kNone || tr.state == TrackState::kLost || tr.count == 0;
+  if (!restart) {
+    k = td::insertion_index(tr, t_ns);
+    if (k == tr.count) {
+      prior = td::predict(tr.newest().belief, td::seconds(td::diff_ns(t_ns, tr.newest().t_ns)), q);
+      const TrackState now = td::state_at(tr, t_ns, td::position_sigma_mm(prior.p), p_);
+      if (now == TrackState::kLost) ++counters_.lost;
+      restart = now == TrackState::kNone || now == TrackState::kLost;
+    } else if (k == 0 || static_cast<double>(td::diff_ns(tr.newest().t_ns, t_ns)) >
+                             td::ms_as_ns(p_.max_fix_age_ms)) {
+      ++counters_.too_old;
+      return FixResult::kTooOld;
+    } else {
+      const td::TrackEntry& before = tr.at(k - 1);
+      prior = td::predict(before.belief, td::seconds(td::diff_ns(t_ns, before.t_ns)), q);
+    }
+  }
+  if (restart) {
+    tr.clear();
+    tr.ring[0] = {
+        t_ns, td::start(m, 1000.0 * p_.initial_speed_sigma_mps, p_.initial_turn_sigma_radps), m};
+    tr.count = 1;
+    tr.state = p_.confirm_fixes <= 1 ? TrackState::kConfirmed : TrackState::kTentative;
+    ++counters_.started;
+    return FixResult::kStarted;
+  }
+  if (!(td::distance2(prior, m) <= p_.gate_chi2)) {
+    ++counters_.gated;
+    return FixResult::kGated;
+  }
+  if (td::insert_and_replay(&tr, k, {t_ns, td::update(prior, m), m}, q) > 0) ++counters_.replays;
+  ++counters_.applied;
+  if (tr.state == TrackState::kCoasting ||
+      (tr.state == TrackState::kTentative &&
+       td::recent_fixes(tr, p_.confirm_window_ms) >= p_.confirm_fixes)) {
+    tr.state = TrackState::kConfirmed;
+  }
+  return FixResult::kApplied;
+}
+
+void FleetTracker::update_states(std::int64_t now_ns) {
+  const td::ProcessNoise q = td::noise_of(p_);
+  for (Track& tr : tracks_) {
+    if (tr.count == 0 || tr.state == TrackState::kNone || tr.state == TrackState::kLost) continue;
+    const td::Belief b = td::belief_at(tr, now_ns, q);
+    const TrackState s = td::state_at(tr, now_ns, td::position_sigma_mm(b.p), p_);
+    if (s == tr.state) continue;
+    if (s == TrackState::kLost) ++counters_.lost;
+    if (s == TrackState::kNone) tr.clear();
+    tr.state = s;
+  }
+}
+
+TrackOutput FleetTracker::output(std::size_t agv, std::int64_t t_ns) const {
+  TrackOutput o;
+  o.agv = agv;
+  o.t_ns = t_ns;
+  if (agv >= tracks_.size()) return o;
+  const Track& tr = tracks_[agv];
+  if (tr.count == 0 || tr.state == TrackState::kNone) return o;
+  const td::Belief b = td::belief_at(tr, t_ns, td::noise_of(p_));
+  o.pose = {b.x(0), b.x(1), b.x(2)};
+  o.v_mps = b.x(3) / 1000.0;
+  o.omega_radps = b.x(4);
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) o.cov[static_cast<std::size_t>(3 * i + j)] = b.p(i, j);
+  }
+  o.sigma_xy_mm = td::position_sigma_mm(b.p);
+  o.sigma_theta_rad = std::sqrt(std::max(0.0, b.p(2, 2)));
+  o.last_fix_t_ns = tr.newest().t_ns;
+  o.state = td::state_at(tr, t_ns, o.sigma_xy_mm, p_);
+  return o;
+}
+
+std::vector<TrackOutput> FleetTracker::outputs(std::int64_t t_ns) const {
+  std::vector<TrackOutput> out;
+  out.reserve(tracks_.size());
+  for (std::size_t i = 0; i < tracks_.size(); ++i) out.push_back(output(i, t_ns));
+  return out;
+}
+
+void FleetTracker::reset(std::size_t agv) {
+  if (agv >= tracks_.size()) return;
+  tracks_[agv].clear();
+  tracks_[agv].state = TrackState::kNone;
+}
+
+}  // namespace agv::overhead

@@ -1,0 +1,55 @@
+// The per-vehicle filter's mathematics (paper 000 eq. 14-19), apart from the track bookkeeping of
+// tracker.cpp. State (x_mm, y_mm, theta_rad, v_mmps, omega_radps): speed in mm/s inside, so that
+// every covariance entry is in millimetres and radians; the public outputs convert to m/s.
+#pragma once
+
+#include <Eigen/Core>
+
+#include "agv/overhead/tag_fix.hpp"
+
+namespace agv::overhead::tracker_detail {
+
+using Vec5 = Eigen::Matrix<double, 5, 1>;
+using Mat5 = Eigen::Matrix<double, 5, 5>;
+using Vec3 = Eigen::Matrix<double, 3, 1>;
+using Mat3 = Eigen::Matrix<double, 3, 3>;
+
+struct Belief {
+  Vec5 x = Vec5::Zero();
+  Mat5 p = Mat5::Zero();
+};
+
+// Continuous white-noise densities in the filter's units: (mm/s^2)^2 s and (rad/s^2)^2 s.
+struct ProcessNoise {
+  double accel = 0.0;
+  double alpha = 0.0;
+};
+
+// Constant speed and turn rate over dt_s (eq. 14 with the arc integrated exactly, so a vehicle
+// on a circle stays on it; for omega -> 0 it is eq. 14) and its Jacobian (eq. 15-16). The noise
+// is the accelerations' density integrated over |dt_s| through the linearised motion.
+Belief predict(const Belief& b, double dt_s, const ProcessNoise& q);
+
+// A fix as the filter uses it: z = (x_mm, y_mm, theta_rad) and its covariance R.
+struct Measurement {
+  Vec3 z = Vec3::Zero();
+  Mat3 r = Mat3::Identity();
+};
+
+// False when the pose is not finite or the covariance is not finite, symmetric and positive
+// definite.
+bool make_measurement(const TagFix& fix, Measurement* m);
+
+// Squared Mahalanobis distance of the fix from the belief (heading innovation wrapped).
+double distance2(const Belief& b, const Measurement& m);
+
+// Eq. 17-19 with the covariance in Joseph form (stays symmetric positive definite).
+Belief update(const Belief& b, const Measurement& m);
+
+// A new track's belief: the fix's pose and covariance, at rest with the given sigmas.
+Belief start(const Measurement& m, double speed_sigma_mmps, double turn_sigma_radps);
+
+// sqrt of the larger eigenvalue of the 2 x 2 position covariance.
+double position_sigma_mm(const Mat5& p);
+
+}  // namespace agv::overhead::tracker_detail
