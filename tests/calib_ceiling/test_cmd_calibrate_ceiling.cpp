@@ -100,6 +100,7 @@ TEST_F(CalibrateCeilingCommand, CheckFailsOff30MmAndPassesAfterTheCalibrationWri
               args("ceiling-check", site, at("frames"), at("survey.csv")));
   EXPECT_EQ(r.rc, 1) << r.out << r.err;
   EXPECT_NE(r.out.find("FAIL"), std::string::npos) << r.out;
+  std::printf("%s", r.out.substr(r.out.find("reprojection RMS")).c_str());
 
   auto cal = args("ceiling", site, at("frames"), at("survey.csv"));
   cal.push_back("--write");

@@ -11,7 +11,6 @@
 #include <cstdlib>
 #include <limits>
 #include <opencv2/calib3d.hpp>
-#include <opencv2/imgproc.hpp>
 #include <set>
 #include <sstream>
 
@@ -31,8 +30,10 @@ constexpr double kMaxCoordMm = 1e7;
 // A black square under this many pixels a side has modules under 1.5 px: its corners are
 // smeared over the neighbouring cells and bias the pose more than they add.
 constexpr double kMinTagSidePx = 12.0;
-// cornerSubPix moving a corner further than this found another edge (data cells, an occluder).
-constexpr double kMaxRefineShiftPx = 1.0;
+// libapriltag puts pixel centres at +0.5 (its coordinates count from the first pixel's corner);
+// the intrinsics and OpenCV count from its centre. Uncorrected, every corner sat 0.71 px off the
+// renderer's truth and the pose 2.5 mm off (tests/calib_ceiling).
+constexpr double kApriltagPixelOffset = 0.5;
 
 // R_site_cam of the site file's angles (site_geometry.hpp), generic for automatic
 // differentiation.
@@ -301,6 +302,8 @@ std::vector<TagSighting> detect_tags(const cv::Mat& gray, int frame) {
     const double tc[4][2] = {{-1, -1}, {1, -1}, {1, 1}, {-1, 1}};
     for (int c = 0; c < 4; ++c) {
       homography_project(d->H, tc[c][0], tc[c][1], &s.corners_px[c].x, &s.corners_px[c].y);
+      s.corners_px[c].x -= kApriltagPixelOffset;
+      s.corners_px[c].y -= kApriltagPixelOffset;
     }
     double side = std::numeric_limits<double>::infinity();
     for (int c = 0; c < 4; ++c) {
@@ -308,26 +311,6 @@ std::vector<TagSighting> detect_tags(const cv::Mat& gray, int frame) {
       side = std::min(side, std::hypot(b.x - a.x, b.y - a.y));
     }
     if (!(side >= kMinTagSidePx)) continue;
-    // Window inside the border module (a module is side / 8): the data cells' edges beyond it
-    // would pull the corner.
-    const int half = std::clamp(static_cast<int>(0.7 * side / 8.0), 2, 6);
-    std::vector<cv::Point2f> pts;
-    for (const Vec2& c : s.corners_px) pts.emplace_back(static_cast<float>(c.x), static_cast<float>(c.y));
-    const std::vector<cv::Point2f> before = pts;
-    bool inside = true;
-    for (const auto& p : pts) {
-      inside = inside && p.x >= half + 1 && p.y >= half + 1 && p.x < img.cols - half - 2 &&
-               p.y < img.rows - half - 2;
-    }
-    if (inside) {
-      cv::cornerSubPix(img, pts, cv::Size(half, half), cv::Size(-1, -1),
-                       cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 40, 1e-3));
-      for (int c = 0; c < 4; ++c) {
-        if (cv::norm(pts[c] - before[c]) <= kMaxRefineShiftPx) {
-          s.corners_px[c] = {pts[c].x, pts[c].y};
-        }
-      }
-    }
     out.push_back(s);
   }
   apriltag_detections_destroy(dets);
