@@ -2,3 +2,7 @@
 # frames of the site renderer.
 agv_add_test(test_overhead_tag_code SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_tag_code.cpp
              LIBS agv_overhead LABELS unit)
+agv_add_test(test_overhead_tag_detect SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_tag_detect.cpp
+             LIBS agv_overhead agv_sim LABELS unit)
+agv_add_test(test_overhead_tag_fix SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_tag_fix.cpp
+             LIBS agv_overhead agv_sim LABELS unit)

@@ -14,7 +14,8 @@
 
 namespace agv::overhead {
 
-namespace {
+// Named, not anonymous: the library is built as one unity source.
+namespace tag_code_detail {
 
 constexpr int kSide = 6;
 constexpr std::uint64_t kMask36 = (std::uint64_t{1} << kTag36h11Bits) - 1;
@@ -114,13 +115,16 @@ DecodeResult nearest(std::uint64_t code, const std::vector<Candidate>& c, int d_
   return r;
 }
 
-}  // namespace
+}  // namespace tag_code_detail
 
-std::uint64_t tag36h11_code(std::uint32_t id) { return id < kTag36h11Count ? table()[id] : 0; }
+std::uint64_t tag36h11_code(std::uint32_t id) {
+  return id < kTag36h11Count ? tag_code_detail::table()[id] : 0;
+}
 
 // libapriltag's rotate90 (a 9-bit cyclic shift of its spiral order) is, in row-major order, the
 // grid turned so that cell (r, c) moves to (5 - c, r).
 std::uint64_t rotate90(std::uint64_t code) {
+  using namespace tag_code_detail;
   std::uint64_t out = 0;
   for (int r = 0; r < kSide; ++r) {
     for (int c = 0; c < kSide; ++c) {
@@ -130,16 +134,20 @@ std::uint64_t rotate90(std::uint64_t code) {
   return out;
 }
 
-int hamming36(std::uint64_t a, std::uint64_t b) { return std::popcount((a ^ b) & kMask36); }
+int hamming36(std::uint64_t a, std::uint64_t b) {
+  return std::popcount((a ^ b) & tag_code_detail::kMask36);
+}
 
 DecodeResult decode_restricted(std::uint64_t code, const std::vector<std::uint32_t>& allowed_ids,
                                int max_bits) {
+  using namespace tag_code_detail;
   if (allowed_ids.empty() || !all_in_family(allowed_ids)) return {};
   const std::vector<Candidate> c = candidates(allowed_ids);
   return nearest(code, c, min_distance_of(c), max_bits);
 }
 
 DecodeResult decode_global(std::uint64_t code, int max_bits) {
+  using namespace tag_code_detail;
   static const std::vector<Candidate> all = [] {
     std::vector<std::uint32_t> ids(kTag36h11Count);
     for (std::uint32_t i = 0; i < kTag36h11Count; ++i) ids[i] = i;
@@ -149,6 +157,7 @@ DecodeResult decode_global(std::uint64_t code, int max_bits) {
 }
 
 int min_distance(const std::vector<std::uint32_t>& ids) {
+  using namespace tag_code_detail;
   if (!all_in_family(ids)) return 0;
   return min_distance_of(candidates(ids));
 }

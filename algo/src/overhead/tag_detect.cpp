@@ -14,10 +14,8 @@
 
 namespace agv::overhead {
 
-namespace {
-
-using detect_detail::Cells;
-using detect_detail::Square;
+// Named, not anonymous: the library is built as one unity source.
+namespace detector_detail {
 
 // libapriltag's decode sharpening (its default): blur costs the data cells more contrast than
 // the border, sharpening gives some back.
@@ -52,7 +50,7 @@ std::array<Vec2, 4> turn_corners(const std::array<Vec2, 4>& c, int q) {
   return out;
 }
 
-}  // namespace
+}  // namespace detector_detail
 
 struct TagDetector::Impl {
   apriltag_family_t* family = nullptr;
@@ -65,7 +63,7 @@ struct TagDetector::Impl {
     td->quad_decimate = static_cast<float>(std::max(1.0, p.quad_decimate));
     td->nthreads = 1;
     td->refine_edges = 1;
-    td->decode_sharpening = kDecodeSharpening;
+    td->decode_sharpening = detector_detail::kDecodeSharpening;
   }
   ~Impl() {
     apriltag_detector_destroy(td);
@@ -81,6 +79,7 @@ TagDetector::TagDetector(const TagDetectParams& params)
 TagDetector::~TagDetector() = default;
 
 std::vector<TagObservation> TagDetector::detect(const cv::Mat& gray, const cv::Rect& window) const {
+  using namespace detector_detail;
   std::vector<TagObservation> found;
   if (!usable_image(gray)) return found;
   const cv::Rect w = window & cv::Rect(0, 0, gray.cols, gray.rows);
@@ -102,14 +101,14 @@ std::vector<TagObservation> TagDetector::detect(const cv::Mat& gray, const cv::R
       homography_project(d->H, pu[k][0], pu[k][1], &x, &y);
       guess[k] = {x + w.x, y + w.y};
     }
-    Square sq;
+    detect_detail::Square sq;
     bool ok = true;
     for (int pass = 0; pass < kSearchPasses && ok; ++pass) {
       ok = detect_detail::refine_square(gray, guess, p_.edge_band_px, min_step, p_.max_edge_rms_px,
                                         &sq);
       guess = sq.corners;
     }
-    Cells cells;
+    detect_detail::Cells cells;
     if (!ok || !detect_detail::read_cells(gray, sq.corners, &cells) ||
         cells.contrast < p_.min_contrast) {
       continue;
@@ -137,11 +136,12 @@ bool TagDetector::detect_predicted(const cv::Mat& gray,
                                    const std::array<Vec2, 4>& predicted_corners_px,
                                    const std::vector<std::uint32_t>& allowed_ids,
                                    TagObservation* out) const {
+  using namespace detector_detail;
   if (!out || !usable_image(gray) || allowed_ids.empty() || !finite_corners(predicted_corners_px)) {
     return false;
   }
   const double min_step = kMinStepShare * p_.min_contrast;
-  Square wide, sq;
+  detect_detail::Square wide, sq;
   // The wide pass finds the square within predicted_search_px, the narrow one refines it with
   // samples placed along the found sides.
   if (!detect_detail::refine_square(gray, predicted_corners_px, p_.predicted_search_px, min_step,
@@ -156,7 +156,7 @@ bool TagDetector::detect_predicted(const cv::Mat& gray,
       return false;
     }
   }
-  Cells cells;
+  detect_detail::Cells cells;
   if (!detect_detail::read_cells(gray, sq.corners, &cells) || cells.contrast < p_.min_contrast) {
     return false;
   }

@@ -1,0 +1,159 @@
+// Tray-plane fixes from a tag's corners (tag_fix.hpp).
+#include "agv/overhead/tag_fix.hpp"
+
+#include <cmath>
+
+#include "agv/common/camera_model.hpp"
+
+namespace agv::overhead {
+
+// Named, not anonymous: the library is built as one unity source.
+namespace tag_fix_detail {
+
+// Numerical Jacobian step on the corner pixels (px): small against the corner sigma, large
+// against the undistortion's 1e-6 px round trip.
+constexpr double kJacobianStepPx = 1e-3;
+// A ray must reach the plane at least this far in front of the camera (mm).
+constexpr double kMinRangeMm = 1.0;
+
+bool valid_intrinsics(const CameraIntrinsics& k) {
+  return k.fx > 0.0 && k.fy > 0.0 && std::isfinite(k.fx) && std::isfinite(k.fy) &&
+         std::isfinite(k.cx) && std::isfinite(k.cy) && std::isfinite(k.k1) && std::isfinite(k.k2) &&
+         std::isfinite(k.p1) && std::isfinite(k.p2) && std::isfinite(k.k3) && k.width_px > 0 &&
+         k.height_px > 0;
+}
+
+CameraModel lens_of(const site::CeilingCamera& cam) {
+  CameraModel m;
+  m.intrinsics = cam.intrinsics;
+  return m;
+}
+
+struct PlaneSquare {
+  Vec2 c;
+  double theta = 0.0;
+  double scale = 0.0;  // fitted side / model side
+  double rms = 0.0;
+};
+
+// The four corners of a tag of half side h in its own frame (x = page up, y = page left), page
+// order TL, TR, BR, BL seen from above.
+std::array<Vec2, 4> model_corners(double h) { return {{{h, h}, {h, -h}, {-h, -h}, {-h, h}}}; }
+
+// Least-squares similarity (Procrustes) of the model square onto the points: the centre is the
+// points' mean, the angle and scale closed form.
+PlaneSquare fit_square(const std::array<Vec2, 4>& p, double h) {
+  const std::array<Vec2, 4> q = model_corners(h);
+  PlaneSquare s;
+  for (const Vec2& v : p) s.c.x += 0.25 * v.x, s.c.y += 0.25 * v.y;
+  double a = 0, b = 0, qq = 0;
+  for (std::size_t i = 0; i < 4; ++i) {
+    const double dx = p[i].x - s.c.x, dy = p[i].y - s.c.y;
+    a += q[i].x * dx + q[i].y * dy;
+    b += q[i].x * dy - q[i].y * dx;
+    qq += q[i].x * q[i].x + q[i].y * q[i].y;
+  }
+  s.theta = std::atan2(b, a);
+  s.scale = std::hypot(a, b) / qq;
+  const double c = std::cos(s.theta), sn = std::sin(s.theta);
+  double ss = 0;
+  for (std::size_t i = 0; i < 4; ++i) {
+    const double mx = s.c.x + s.scale * (c * q[i].x - sn * q[i].y);
+    const double my = s.c.y + s.scale * (sn * q[i].x + c * q[i].y);
+    ss += (p[i].x - mx) * (p[i].x - mx) + (p[i].y - my) * (p[i].y - my);
+  }
+  s.rms = std::sqrt(ss / 4.0);
+  return s;
+}
+
+bool corners_on_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>& px, double h_mm,
+                      std::array<Vec2, 4>* xy) {
+  for (std::size_t i = 0; i < 4; ++i) {
+    if (!pixel_to_plane(cam, px[i], h_mm, &(*xy)[i])) return false;
+  }
+  return true;
+}
+
+}  // namespace tag_fix_detail
+
+bool pixel_to_plane(const site::CeilingCamera& cam, Vec2 px, double plane_height_mm, Vec2* xy_mm) {
+  using namespace tag_fix_detail;
+  if (!xy_mm || !valid_intrinsics(cam.intrinsics) || !std::isfinite(plane_height_mm)) return false;
+  Vec2 xn;
+  if (!lens_of(cam).undistort_pixel_to_normalized(px, &xn)) return false;
+  const auto& r = cam.r_site_cam;
+  const auto& t = cam.t_site_cam_mm;
+  const double d[3] = {r[0] * xn.x + r[1] * xn.y + r[2], r[3] * xn.x + r[4] * xn.y + r[5],
+                       r[6] * xn.x + r[7] * xn.y + r[8]};
+  if (!(std::abs(d[2]) > 1e-12)) return false;
+  const double s = (plane_height_mm - t[2]) / d[2];  // camera-frame depth along the ray (z = 1)
+  if (!(s >= kMinRangeMm) || !std::isfinite(s)) return false;
+  *xy_mm = {t[0] + s * d[0], t[1] + s * d[1]};
+  return true;
+}
+
+bool site_to_pixel(const site::CeilingCamera& cam, double x_mm, double y_mm, double z_mm,
+                   Vec2* px) {
+  using namespace tag_fix_detail;
+  if (!px || !valid_intrinsics(cam.intrinsics) || !std::isfinite(x_mm) || !std::isfinite(y_mm) ||
+      !std::isfinite(z_mm)) {
+    return false;
+  }
+  const auto& r = cam.r_site_cam;
+  const auto& t = cam.t_site_cam_mm;
+  const double v[3] = {x_mm - t[0], y_mm - t[1], z_mm - t[2]};
+  // p_cam = R^T (p_site - t).
+  const double xc = r[0] * v[0] + r[3] * v[1] + r[6] * v[2];
+  const double yc = r[1] * v[0] + r[4] * v[1] + r[7] * v[2];
+  const double zc = r[2] * v[0] + r[5] * v[1] + r[8] * v[2];
+  if (!(zc > kMinRangeMm)) return false;
+  *px = lens_of(cam).distort_normalized_to_pixel({xc / zc, yc / zc});
+  return std::isfinite(px->x) && std::isfinite(px->y);
+}
+
+bool tag_fix_on_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>& corners_px,
+                      double corner_sigma_px, double plane_height_mm, double tag_size_mm,
+                      TagFix* out, double max_size_error_rel) {
+  using namespace tag_fix_detail;
+  if (!out || !(tag_size_mm > 0.0) || !std::isfinite(tag_size_mm) || !(corner_sigma_px >= 0.0) ||
+      !std::isfinite(corner_sigma_px)) {
+    return false;
+  }
+  const double h = 0.5 * tag_size_mm;
+  std::array<Vec2, 4> xy{};
+  if (!corners_on_plane(cam, corners_px, plane_height_mm, &xy)) return false;
+  const PlaneSquare s = fit_square(xy, h);
+  if (!(std::abs(s.scale - 1.0) <= max_size_error_rel)) return false;
+  // Covariance: J (3 x 8, numerical, central differences) times sigma^2 I times J^T.
+  double jac[3][8] = {};
+  for (std::size_t i = 0; i < 8; ++i) {
+    std::array<Vec2, 4> plus = corners_px, minus = corners_px;
+    double* pp = (i % 2 == 0) ? &plus[i / 2].x : &plus[i / 2].y;
+    double* pm = (i % 2 == 0) ? &minus[i / 2].x : &minus[i / 2].y;
+    *pp += kJacobianStepPx;
+    *pm -= kJacobianStepPx;
+    std::array<Vec2, 4> xp{}, xm{};
+    if (!corners_on_plane(cam, plus, plane_height_mm, &xp) ||
+        !corners_on_plane(cam, minus, plane_height_mm, &xm)) {
+      return false;
+    }
+    const PlaneSquare a = fit_square(xp, h), b = fit_square(xm, h);
+    jac[0][i] = (a.c.x - b.c.x) / (2.0 * kJacobianStepPx);
+    jac[1][i] = (a.c.y - b.c.y) / (2.0 * kJacobianStepPx);
+    jac[2][i] = std::remainder(a.theta - b.theta, 2.0 * kPi) / (2.0 * kJacobianStepPx);
+  }
+  const double var = corner_sigma_px * corner_sigma_px;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) {
+      double sum = 0;
+      for (int i = 0; i < 8; ++i) sum += jac[r][i] * jac[c][i];
+      out->cov[static_cast<std::size_t>(r * 3 + c)] = var * sum;
+    }
+  }
+  out->pose = {s.c.x, s.c.y, s.theta};
+  out->size_error_rel = s.scale - 1.0;
+  out->residual_mm = s.rms;
+  return true;
+}
+
+}  // namespace agv::overhead

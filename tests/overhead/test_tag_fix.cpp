@@ -1,0 +1,189 @@
+// Tray-plane fixes (algo/src/overhead/tag_fix.cpp): the camera model against the renderer's
+// projection, fixes from the renderer's truth corners and from detected corners on rendered
+// frames against the truth poses, the covariance against a Monte-Carlo spread, and bad input.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+#include "agv/overhead/tag_detect.hpp"
+#include "agv/overhead/tag_fix.hpp"
+#include "tag_test_scene.hpp"
+
+namespace agv::overhead {
+namespace {
+
+constexpr double kTrayMm = 400.0;
+constexpr double kTagMm = 160.0;
+
+double angle_err_deg(double a, double b) {
+  return std::abs(rad_to_deg(std::remainder(a - b, 2 * kPi)));
+}
+
+TEST(TagFixGeometry, SiteToPixelMatchesRendererAndPixelToPlaneInverts) {
+  const site::CeilingCamera cam = test::ceiling_camera(50.0);
+  const sim::RenderCamera rc = sim::RenderCamera::from_ceiling(cam);
+  std::vector<sim::Vec3> pts;
+  for (double x = -2000; x <= 2000; x += 500) {
+    for (double y = -1000; y <= 1000; y += 500) pts.push_back({x, y, kTrayMm});
+  }
+  const std::vector<Vec2> want = sim::project_points(rc, pts);
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    Vec2 px, back;
+    ASSERT_TRUE(site_to_pixel(cam, pts[i].x, pts[i].y, pts[i].z, &px));
+    EXPECT_NEAR(px.x, want[i].x, 1e-6);
+    EXPECT_NEAR(px.y, want[i].y, 1e-6);
+    ASSERT_TRUE(pixel_to_plane(cam, px, kTrayMm, &back));
+    EXPECT_NEAR(back.x, pts[i].x, 1e-4);
+    EXPECT_NEAR(back.y, pts[i].y, 1e-4);
+  }
+  Vec2 px;
+  EXPECT_FALSE(site_to_pixel(cam, 0, 0, 7000, &px));  // above the camera
+  EXPECT_FALSE(site_to_pixel(cam, std::nan(""), 0, 0, &px));
+  EXPECT_FALSE(pixel_to_plane(cam, {640, 360}, 7000, &px));  // plane behind the camera
+  EXPECT_FALSE(pixel_to_plane(cam, {std::nan(""), 360}, kTrayMm, &px));
+}
+
+// Truth corners give the truth pose to numerical precision, at every heading: the page-up
+// direction is the vehicle's +x.
+TEST(TagFixGeometry, TruthCornersGiveTruthPose) {
+  sim::SiteScene s = test::tag_scene(50.0, 8, 1);
+  const site::CeilingCamera& cam = s.site.cameras[0];
+  // Headings in every quadrant, and the axes themselves.
+  const double headings[8] = {0.0, 0.5 * kPi, kPi, -0.5 * kPi, 0.3, -2.5, 2.0, -1.0};
+  for (std::size_t i = 0; i < s.agvs.size(); ++i) s.agvs[i].pose.theta_rad = headings[i];
+  const sim::RenderResult r =
+      sim::render_site_frame(s, sim::RenderCamera::from_ceiling(cam), {}, 1);
+  ASSERT_EQ(r.agvs.size(), 8U);
+  for (const sim::AgvTruth& t : r.agvs) {
+    TagFix fix;
+    ASSERT_TRUE(tag_fix_on_plane(cam, t.tag_corners_px, 0.1, kTrayMm, kTagMm, &fix));
+    EXPECT_NEAR(fix.pose.x_mm, t.pose.x_mm, 1e-3);
+    EXPECT_NEAR(fix.pose.y_mm, t.pose.y_mm, 1e-3);
+    EXPECT_LT(angle_err_deg(fix.pose.theta_rad, t.pose.theta_rad), 1e-4) << t.pose.theta_rad;
+    EXPECT_NEAR(fix.size_error_rel, 0.0, 1e-6);
+    EXPECT_LT(fix.residual_mm, 1e-3);
+  }
+}
+
+// A tag's corners by the renderer's own projection (no image): page order TL, TR, BR, BL with
+// page up along the heading, seen from above.
+std::array<Vec2, 4> projected_corners(const site::CeilingCamera& cam, Pose2 p) {
+  const double h = 0.5 * kTagMm, c = std::cos(p.theta_rad), s = std::sin(p.theta_rad);
+  std::vector<sim::Vec3> pts;
+  for (const Vec2 q : {Vec2{h, h}, Vec2{h, -h}, Vec2{-h, -h}, Vec2{-h, h}}) {
+    pts.push_back({p.x_mm + c * q.x - s * q.y, p.y_mm + s * q.x + c * q.y, kTrayMm});
+  }
+  const std::vector<Vec2> px = sim::project_points(sim::RenderCamera::from_ceiling(cam), pts);
+  return {px[0], px[1], px[2], px[3]};
+}
+
+// The covariance against the spread of fixes from corners with Gaussian pixel noise.
+TEST(TagFixGeometry, CovarianceMatchesMonteCarlo) {
+  const site::CeilingCamera cam = test::ceiling_camera(40.0);
+  const std::array<Vec2, 4> corners = projected_corners(cam, {1200.0, -700.0, 0.7});
+  const double sigma = 0.3;
+  TagFix fix;
+  ASSERT_TRUE(tag_fix_on_plane(cam, corners, sigma, kTrayMm, kTagMm, &fix));
+  TagFix half;
+  ASSERT_TRUE(tag_fix_on_plane(cam, corners, 0.5 * sigma, kTrayMm, kTagMm, &half));
+  EXPECT_NEAR(half.cov[0], 0.25 * fix.cov[0], 1e-9 + 1e-6 * fix.cov[0]);
+  std::mt19937 rng(11);
+  std::normal_distribution<double> n(0.0, sigma);
+  const int trials = 400;
+  double sxx = 0, syy = 0, stt = 0;
+  for (int i = 0; i < trials; ++i) {
+    std::array<Vec2, 4> c = corners;
+    for (Vec2& p : c) p.x += n(rng), p.y += n(rng);
+    TagFix f;
+    ASSERT_TRUE(tag_fix_on_plane(cam, c, sigma, kTrayMm, kTagMm, &f));
+    sxx += std::pow(f.pose.x_mm - fix.pose.x_mm, 2);
+    syy += std::pow(f.pose.y_mm - fix.pose.y_mm, 2);
+    stt += std::pow(std::remainder(f.pose.theta_rad - fix.pose.theta_rad, 2 * kPi), 2);
+  }
+  EXPECT_NEAR(std::sqrt(sxx / trials), std::sqrt(fix.cov[0]), 0.15 * std::sqrt(fix.cov[0]));
+  EXPECT_NEAR(std::sqrt(syy / trials), std::sqrt(fix.cov[4]), 0.15 * std::sqrt(fix.cov[4]));
+  EXPECT_NEAR(std::sqrt(stt / trials), std::sqrt(fix.cov[8]), 0.15 * std::sqrt(fix.cov[8]));
+  EXPECT_GT(fix.cov[0] * fix.cov[4] - fix.cov[1] * fix.cov[3], 0.0);
+  EXPECT_DOUBLE_EQ(fix.cov[1], fix.cov[3]);
+}
+
+TEST(TagFixGeometry, BadInputRefused) {
+  const site::CeilingCamera cam = test::ceiling_camera(50.0);
+  const std::array<Vec2, 4> c = projected_corners(cam, {-300.0, 400.0, -2.0});
+  TagFix fix;
+  ASSERT_TRUE(tag_fix_on_plane(cam, c, 0.1, kTrayMm, kTagMm, &fix));
+  // A tag printed at another size (or a wrong tray height) is refused by the size gate.
+  EXPECT_FALSE(tag_fix_on_plane(cam, c, 0.1, kTrayMm, 200.0, &fix));
+  EXPECT_FALSE(tag_fix_on_plane(cam, c, 0.1, 1500.0, kTagMm, &fix));
+  TagFix loose;
+  ASSERT_TRUE(tag_fix_on_plane(cam, c, 0.1, 1500.0, kTagMm, &loose, 0.5));
+  EXPECT_LT(loose.size_error_rel, -0.15);
+  EXPECT_FALSE(tag_fix_on_plane(cam, c, 0.1, 7000.0, kTagMm, &fix, 10.0));
+  EXPECT_FALSE(tag_fix_on_plane(cam, c, -1.0, kTrayMm, kTagMm, &fix));
+  EXPECT_FALSE(tag_fix_on_plane(cam, c, 0.1, kTrayMm, 0.0, &fix));
+  EXPECT_FALSE(tag_fix_on_plane(cam, c, 0.1, kTrayMm, kTagMm, nullptr));
+  std::array<Vec2, 4> nan = c;
+  nan[1].y = std::nan("");
+  EXPECT_FALSE(tag_fix_on_plane(cam, nan, 0.1, kTrayMm, kTagMm, &fix));
+  site::CeilingCamera bad = cam;
+  bad.intrinsics.fx = 0.0;
+  EXPECT_FALSE(tag_fix_on_plane(bad, c, 0.1, kTrayMm, kTagMm, &fix));
+  Vec2 px;
+  EXPECT_FALSE(site_to_pixel(bad, 0, 0, 0, &px));
+  EXPECT_FALSE(pixel_to_plane(bad, {1, 1}, 0, &px));
+  // Mirrored corner order (a tag seen from below) does not fit the square.
+  const std::array<Vec2, 4> mirrored{c[1], c[0], c[3], c[2]};
+  EXPECT_FALSE(tag_fix_on_plane(cam, mirrored, 0.1, kTrayMm, kTagMm, &fix));
+}
+
+double p95(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[static_cast<std::size_t>(std::ceil(0.95 * static_cast<double>(v.size()))) - 1];
+}
+
+// Detected corners on rendered frames (blur, noise, lens) against the truth poses.
+class TagFixRendered : public ::testing::TestWithParam<double> {};
+
+TEST_P(TagFixRendered, DetectedFixesNearTruth) {
+  const TagDetector det;
+  std::vector<double> pos, head;
+  int sigma_ok = 0, n = 0;
+  for (std::uint64_t seed = 1; seed <= 2; ++seed) {
+    const sim::SiteScene s = test::tag_scene(GetParam(), 6, seed);
+    const site::CeilingCamera& cam = s.site.cameras[0];
+    const sim::RenderResult r = sim::render_site_frame(s, sim::RenderCamera::from_ceiling(cam),
+                                                       sim::realistic_site_params(), seed);
+    const auto obs = det.detect(r.image, cv::Rect(0, 0, r.image.cols, r.image.rows));
+    for (const TagObservation& o : obs) {
+      const sim::AgvTruth* t = nullptr;
+      for (const auto& a : r.agvs) {
+        if (a.tag_id == o.id) t = &a;
+      }
+      ASSERT_NE(t, nullptr);
+      TagFix fix;
+      ASSERT_TRUE(tag_fix_on_plane(cam, o.corners_px, o.corner_sigma_px, kTrayMm, kTagMm, &fix));
+      const double e = std::hypot(fix.pose.x_mm - t->pose.x_mm, fix.pose.y_mm - t->pose.y_mm);
+      pos.push_back(e);
+      head.push_back(angle_err_deg(fix.pose.theta_rad, t->pose.theta_rad));
+      // Within 3 sigma of its own covariance (position, the larger axis bound).
+      sigma_ok += e <= 3.0 * std::sqrt(fix.cov[0] + fix.cov[4]) ? 1 : 0;
+      ++n;
+    }
+  }
+  ASSERT_GE(n, 10);
+  std::printf(
+      "[ measured ] %.0f px tags, %d fixes: position p95 %.2f mm, heading p95 %.3f deg, "
+      "%d within 3 sigma of their covariance\n",
+      GetParam(), n, p95(pos), p95(head), sigma_ok);
+  EXPECT_LT(p95(pos), 1.0);
+  EXPECT_LT(p95(head), 0.2);
+  EXPECT_GE(sigma_ok, n * 3 / 4);
+}
+
+INSTANTIATE_TEST_SUITE_P(Sides, TagFixRendered, ::testing::Values(40.0, 60.0));
+
+}  // namespace
+}  // namespace agv::overhead
