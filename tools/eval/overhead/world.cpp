@@ -98,13 +98,19 @@ cv::Mat TiledCameraRenderer::render(std::size_t camera, const sim::SiteScene& sc
   for (std::size_t i = 0; i < scene.agvs.size() && i < scene.site.fleet.size(); ++i) {
     const site::FleetAgv& a = scene.site.fleet[i];
     const Pose2& p = scene.agvs[i].pose;
-    // Body, tray and whatever a parcel may overhang, up to a tall parcel's top.
-    const double r = std::max(a.radius_mm, 0.5 * std::hypot(a.tray_length_mm, a.tray_width_mm)) +
-                     250.0;
+    // Body and tray (and the parcels on it, which may overhang it, up to their tops).
+    double r = std::max(a.radius_mm, 0.5 * std::hypot(a.tray_length_mm, a.tray_width_mm));
+    double top = a.tray_height_mm;
+    for (const sim::Parcel& pc : scene.parcels) {
+      if (pc.agv != i) continue;
+      r = std::max(r, std::hypot(pc.x_mm, pc.y_mm) + 0.5 * std::hypot(pc.length_mm, pc.width_mm));
+      top = std::max(top, a.tray_height_mm + pc.height_mm);
+    }
+    r += 60.0;
     std::vector<sim::Vec3> pts;
     for (int k = 0; k < 8; ++k) {
       const double ang = k * kPi / 4;
-      for (double z : {0.0, a.tray_height_mm + 450.0}) {
+      for (double z : {0.0, top + 20.0}) {
         pts.push_back({p.x_mm + r * std::cos(ang), p.y_mm + r * std::sin(ang), z});
       }
     }
