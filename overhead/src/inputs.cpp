@@ -82,6 +82,10 @@ bool open_recordings(const std::vector<std::string>& dirs, const site::Site& sit
   out->clear();
   for (const std::string& dir : dirs) {
     CameraRecording c;
+    std::error_code ec;
+    if (!fs::is_directory(dir, ec)) {
+      return (*error = dir + ": no such recording folder", false);
+    }
     if (!read_camera_id(dir, &c.id, error)) return false;
     bool found = false;
     for (std::size_t i = 0; i < site.cameras.size(); ++i) {

@@ -51,7 +51,8 @@ def main():
     expect(overhead, replay("--bogus"), 2, "unknown option '--bogus'")
 
     # Recordings.
-    expect(overhead, replay(recordings=[os.path.join(work, "no_such_rec")]), 2, "no_such_rec")
+    expect(overhead, replay(recordings=[os.path.join(work, "no_such_rec")]), 2,
+           "no_such_rec: no such recording folder")
     bad = os.path.join(work, "bad_rec")
 
     def fresh():

@@ -289,6 +289,9 @@ TEST_F(OverheadInputs, RecordingMustNameASiteCamera) {
   std::string err;
   const OverheadConfig cfg;
   EXPECT_FALSE(open_recordings({(dir_ / "rec").string()}, s, cfg, &cams, &warnings, &err));
+  EXPECT_NE(err.find("no such recording folder"), std::string::npos) << err;
+  fs::create_directories(dir_ / "rec");
+  EXPECT_FALSE(open_recordings({(dir_ / "rec").string()}, s, cfg, &cams, &warnings, &err));
   EXPECT_NE(err.find("camera.yaml"), std::string::npos) << err;
   write("rec/camera.yaml", "id: cam-z\n");
   EXPECT_FALSE(open_recordings({(dir_ / "rec").string()}, s, cfg, &cams, &warnings, &err));
