@@ -2,3 +2,7 @@
 # counts heap allocations (it replaces the global operator new).
 agv_add_test(test_tracker SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_tracker.cpp LIBS agv_overhead
              LABELS unit overhead)
+# The search windows (algo/src/overhead/search.cpp): synthetic tracks; one tiny rendered frame
+# checks the predicted corners against the renderer's truth.
+agv_add_test(test_search SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_search.cpp
+             LIBS agv_overhead agv_sim LABELS unit overhead)

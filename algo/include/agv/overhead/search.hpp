@@ -4,12 +4,17 @@
 // and the whole image at a fixed interval for vehicles not yet tracked. Also which ids an area
 // may hold (the vehicles whose predicted position, widened by their sigma, lies in it): the set
 // the predicted path decodes against (tag_code.hpp). Pure; docs/design/overhead.md.
+// Tag geometry: the tag's centre is the vehicle's pose on the plane z = tray_height_mm, its page
+// "up" the vehicle's +x; corners in page order TL, TR, BR, BL are, in the vehicle frame (x
+// forward, y left), (+s/2, +s/2), (+s/2, -s/2), (-s/2, -s/2), (-s/2, +s/2): the renderer's
+// AgvTruth::tag_corners_px (sim/site_render.hpp).
 #pragma once
 
 #include <array>
 #include <cstddef>
 #include <cstdint>
 #include <opencv2/core.hpp>
+#include <string>
 #include <vector>
 
 #include "agv/overhead/tracker.hpp"
@@ -18,40 +23,57 @@
 namespace agv::overhead {
 
 struct SearchParams {
-  double window_sigmas = 3.0;     // the window covers this many sigmas of the prediction
+  // The window covers this many sigmas of the prediction's position and heading.
+  double window_sigmas = 3.0;
   double window_margin_px = 12.0;  // beyond the predicted tag's corners
-  int max_window_px = 512;         // a wider window falls back to the area search
-  int full_sweep_every_frames = 15;  // whole image every this many frames of the camera
+  int max_window_px = 512;         // a wider or taller window falls back to the area search
+  // Whole image every this many frames of the camera while some vehicle of the fleet has no
+  // track (none or lost), and on the camera's first frame; 0: the first frame only.
+  int full_sweep_every_frames = 15;
   // Area of a camera: its image divided into area_cols x area_rows tiles (paper: regions of the
   // site); a track that missed its window is looked for in the tile of its prediction and the
   // eight around it.
   int area_cols = 4, area_rows = 3;
 };
 
+// Empty string when the parameters are usable, otherwise what is wrong (names the field).
+std::string validate(const SearchParams& params);
+
 enum class SearchLevel : std::uint8_t { kTrack, kArea, kFull };
 
 struct SearchWindow {
   SearchLevel level = SearchLevel::kTrack;
-  cv::Rect rect;                    // clipped to the image
-  std::vector<std::size_t> agvs;    // the vehicles expected in it (empty for kFull)
+  cv::Rect rect;                  // clipped to the image
+  std::vector<std::size_t> agvs;  // the vehicles expected in it (empty for kFull)
   // The tag's predicted corners (page order, distorted pixels) for kTrack windows.
   std::array<Vec2, 4> predicted_corners_px{};
 };
 
 struct CameraSearchState {
-  std::int64_t frames = 0;                // frames seen by this camera
-  std::vector<std::uint8_t> missed;       // per vehicle: its window found nothing last frame
+  std::int64_t frames = 0;           // frames seen by this camera
+  std::vector<std::uint8_t> missed;  // per vehicle: its window found nothing last frame
 };
 
-// The windows for one frame of camera `cam` exposed at t_ns.
+// The windows for one frame of camera `cam` exposed at t_ns (the camera's frames so far and
+// last frame's misses in `state`; fleet[i] is the tracker's vehicle i):
+// - a kTrack window per vehicle with a track (tentative, confirmed or coasting) whose predicted
+//   tag lies in the view: the predicted corners' box widened by window_sigmas of the position
+//   and heading (projected through the lens at the prediction) and window_margin_px, clipped to
+//   the image;
+// - instead a kArea window (the tiles around the prediction's, identical ones merged) for a
+//   vehicle whose window missed last frame or came out larger than max_window_px;
+// - no window for a vehicle predicted behind the camera or whose widened box misses the image;
+// - a kFull window (the whole image, no vehicles) last, when the sweep is due (SearchParams).
+// Invalid params (validate) give one kFull window; invalid intrinsics, none.
 std::vector<SearchWindow> plan_search(const site::CeilingCamera& cam,
                                       const std::vector<site::FleetAgv>& fleet,
                                       const FleetTracker& tracker, std::int64_t t_ns,
                                       const SearchParams& params, const CameraSearchState& state);
 
 // The fleet's tag ids a window may hold: the vehicles whose predicted tray-plane position,
-// widened by 3 sigma, projects into rect (tracks not valid are in every set; a vehicle
-// without a track can be anywhere).
+// widened by 3 sigma and the tag's half diagonal, projects into rect (tracks not valid are in
+// every set; a vehicle without a track can be anywhere; a valid one predicted behind the camera
+// is in none). In fleet order.
 std::vector<std::uint32_t> ids_in_area(const site::CeilingCamera& cam,
                                        const std::vector<site::FleetAgv>& fleet,
                                        const FleetTracker& tracker, std::int64_t t_ns,

@@ -1,0 +1,231 @@
+// Search windows of a ceiling camera's frame from the tracker's predictions (paper 000
+// Algorithm 1, lines 11-18: the track's box, then the area, then the whole image).
+#include "agv/overhead/search.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "agv/overhead/tag_fix.hpp"
+
+namespace agv::overhead {
+
+// Helpers in a namespace of their own: the library may be built as a unity batch.
+namespace search_detail {
+namespace {
+
+// A vehicle's predicted tag in one camera's image.
+struct TagPrediction {
+  Vec2 centre_px{};
+  std::array<Vec2, 4> corners_px{};  // page order
+  // Half extents (u, v) in pixels of the position's n-sigma ellipse, and of the corners' swing
+  // by n sigma of heading.
+  double pos_u_px = 0.0, pos_v_px = 0.0, turn_u_px = 0.0, turn_v_px = 0.0;
+};
+
+// Projects the point and checks that its pixel maps back to it: far outside the calibrated field
+// a lens polynomial folds back, and a point there would seem to be in the image.
+bool project_checked(const site::CeilingCamera& cam, Vec2 xy_mm, double z_mm, Vec2* px) {
+  Vec2 back;
+  return site_to_pixel(cam, xy_mm.x, xy_mm.y, z_mm, px) && pixel_to_plane(cam, *px, z_mm, &back) &&
+         std::hypot(back.x - xy_mm.x, back.y - xy_mm.y) <=
+             1.0 + 1e-3 * std::hypot(xy_mm.x, xy_mm.y);
+}
+
+// The output's prediction of the vehicle's tag seen by cam; false when it is behind the camera
+// or beyond the lens model. `sigmas` scales the uncertainty terms.
+bool predict_tag(const site::CeilingCamera& cam, const site::FleetAgv& agv, const TrackOutput& o,
+                 double sigmas, TagPrediction* out) {
+  const double z = agv.tray_height_mm;
+  const Vec2 c{o.pose.x_mm, o.pose.y_mm};
+  const double h = std::isfinite(agv.tag_size_mm) ? 0.5 * std::max(0.0, agv.tag_size_mm) : 0.0;
+  if (!project_checked(cam, c, z, &out->centre_px)) return false;
+  // Pixels per millimetre on the plane at the prediction (the lens's local scale).
+  constexpr double kStepMm = 10.0;
+  Vec2 pu, pv;
+  if (!site_to_pixel(cam, c.x + kStepMm, c.y, z, &pu) ||
+      !site_to_pixel(cam, c.x, c.y + kStepMm, z, &pv)) {
+    return false;
+  }
+  const double j[4] = {(pu.x - out->centre_px.x) / kStepMm, (pv.x - out->centre_px.x) / kStepMm,
+                       (pu.y - out->centre_px.y) / kStepMm, (pv.y - out->centre_px.y) / kStepMm};
+  const std::array<Vec2, 4> page = {Vec2{h, h}, Vec2{h, -h}, Vec2{-h, -h}, Vec2{-h, h}};
+  for (std::size_t i = 0; i < 4; ++i) {
+    const Vec2 p = transform(o.pose, page[i]);
+    if (!site_to_pixel(cam, p.x, p.y, z, &out->corners_px[i])) return false;
+  }
+  // Position: J P J^T's diagonal. Heading: a corner at h*sqrt(2) from the centre moves by that
+  // times the angle, in any direction on the plane.
+  const double pxx = o.cov[0], pxy = 0.5 * (o.cov[1] + o.cov[3]), pyy = o.cov[4];
+  const double var_u = j[0] * j[0] * pxx + 2.0 * j[0] * j[1] * pxy + j[1] * j[1] * pyy;
+  const double var_v = j[2] * j[2] * pxx + 2.0 * j[2] * j[3] * pxy + j[3] * j[3] * pyy;
+  out->pos_u_px = sigmas * std::sqrt(std::max(0.0, var_u));
+  out->pos_v_px = sigmas * std::sqrt(std::max(0.0, var_v));
+  const double swing_mm = sigmas * o.sigma_theta_rad * h * std::sqrt(2.0);
+  out->turn_u_px = swing_mm * std::hypot(j[0], j[1]);
+  out->turn_v_px = swing_mm * std::hypot(j[2], j[3]);
+  return std::isfinite(out->pos_u_px + out->pos_v_px + out->turn_u_px + out->turn_v_px);
+}
+
+// Smallest integer rectangle holding [x0, x1] x [y0, y1] (pixel centres at integers), clipped
+// to the image; empty when it misses it.
+cv::Rect clipped_box(double x0, double y0, double x1, double y1, const cv::Rect& image) {
+  // Far beyond the image the doubles would overflow int: clamp first.
+  const auto clamp = [](double v, int lo, int hi) {
+    return static_cast<int>(std::clamp(v, static_cast<double>(lo), static_cast<double>(hi)));
+  };
+  const int l = clamp(std::floor(x0), -1, image.width + 1);
+  const int t = clamp(std::floor(y0), -1, image.height + 1);
+  const int r = clamp(std::ceil(x1) + 1, -1, image.width + 1);
+  const int b = clamp(std::ceil(y1) + 1, -1, image.height + 1);
+  return cv::Rect(l, t, std::max(0, r - l), std::max(0, b - t)) & image;
+}
+
+// The kTrack window's rectangle: the corners' box widened by the uncertainty and the margin.
+cv::Rect track_rect(const TagPrediction& p, double margin_px, const cv::Rect& image) {
+  double x0 = p.corners_px[0].x, x1 = x0, y0 = p.corners_px[0].y, y1 = y0;
+  for (const Vec2& q : p.corners_px) {
+    x0 = std::min(x0, q.x);
+    x1 = std::max(x1, q.x);
+    y0 = std::min(y0, q.y);
+    y1 = std::max(y1, q.y);
+  }
+  const double wu = p.pos_u_px + p.turn_u_px + margin_px;
+  const double wv = p.pos_v_px + p.turn_v_px + margin_px;
+  return clipped_box(x0 - wu, y0 - wv, x1 + wu, y1 + wv, image);
+}
+
+// Tile boundary i of n over a side of `size` pixels.
+int tile_edge(int i, int n, int size) {
+  return static_cast<int>(static_cast<long long>(i) * size / n);
+}
+
+// The tile holding the pixel (clamped into the grid: a prediction just off the image is searched
+// in the border tiles) and the eight around it, clipped to the grid.
+cv::Rect area_rect(Vec2 px, const SearchParams& sp, const cv::Rect& image) {
+  const auto tile_of = [](double v, int n, int size) {
+    const double f = std::floor(v * n / size);
+    return static_cast<int>(std::clamp(f, 0.0, static_cast<double>(n - 1)));
+  };
+  const int c = tile_of(px.x, sp.area_cols, image.width);
+  const int r = tile_of(px.y, sp.area_rows, image.height);
+  const int c0 = std::max(0, c - 1), c1 = std::min(sp.area_cols, c + 2);
+  const int r0 = std::max(0, r - 1), r1 = std::min(sp.area_rows, r + 2);
+  const int x0 = tile_edge(c0, sp.area_cols, image.width);
+  const int y0 = tile_edge(r0, sp.area_rows, image.height);
+  return cv::Rect(x0, y0, tile_edge(c1, sp.area_cols, image.width) - x0,
+                  tile_edge(r1, sp.area_rows, image.height) - y0);
+}
+
+bool has_track(TrackState s) {
+  return s == TrackState::kTentative || s == TrackState::kConfirmed || s == TrackState::kCoasting;
+}
+
+void add_area(std::size_t agv, const cv::Rect& rect, std::vector<SearchWindow>* out) {
+  for (SearchWindow& w : *out) {
+    if (w.level == SearchLevel::kArea && w.rect == rect) {
+      w.agvs.push_back(agv);
+      return;
+    }
+  }
+  SearchWindow w;
+  w.level = SearchLevel::kArea;
+  w.rect = rect;
+  w.agvs.push_back(agv);
+  out->push_back(std::move(w));
+}
+
+}  // namespace
+}  // namespace search_detail
+
+namespace sd = search_detail;
+
+std::string validate(const SearchParams& p) {
+  if (!(std::isfinite(p.window_sigmas) && p.window_sigmas >= 0.0 && p.window_sigmas <= 100.0)) {
+    return "window_sigmas must be in [0, 100]";
+  }
+  if (!(std::isfinite(p.window_margin_px) && p.window_margin_px >= 0.0 &&
+        p.window_margin_px <= 10000.0)) {
+    return "window_margin_px must be in [0, 10000]";
+  }
+  if (p.max_window_px < 1) return "max_window_px must be >= 1";
+  if (p.full_sweep_every_frames < 0) return "full_sweep_every_frames must be >= 0";
+  if (p.area_cols < 1 || p.area_cols > 64) return "area_cols must be in [1, 64]";
+  if (p.area_rows < 1 || p.area_rows > 64) return "area_rows must be in [1, 64]";
+  return {};
+}
+
+std::vector<SearchWindow> plan_search(const site::CeilingCamera& cam,
+                                      const std::vector<site::FleetAgv>& fleet,
+                                      const FleetTracker& tracker, std::int64_t t_ns,
+                                      const SearchParams& params, const CameraSearchState& state) {
+  std::vector<SearchWindow> out;
+  const cv::Rect image(0, 0, cam.intrinsics.width_px, cam.intrinsics.height_px);
+  if (image.width <= 0 || image.height <= 0) return out;
+  SearchWindow full;
+  full.level = SearchLevel::kFull;
+  full.rect = image;
+  if (!validate(params).empty()) {
+    out.push_back(full);
+    return out;
+  }
+  const std::size_t tracked = std::min(fleet.size(), tracker.size());
+  bool untracked = fleet.size() > tracked;
+  for (std::size_t i = 0; i < tracked; ++i) {
+    const TrackOutput o = tracker.output(i, t_ns);
+    if (!sd::has_track(o.state)) {
+      untracked = true;
+      continue;
+    }
+    sd::TagPrediction p;
+    if (!sd::predict_tag(cam, fleet[i], o, params.window_sigmas, &p)) continue;
+    const cv::Rect rect = sd::track_rect(p, params.window_margin_px, image);
+    if (rect.empty()) continue;  // not in this camera's view
+    const bool missed = i < state.missed.size() && state.missed[i] != 0;
+    if (missed || rect.width > params.max_window_px || rect.height > params.max_window_px) {
+      sd::add_area(i, sd::area_rect(p.centre_px, params, image), &out);
+      continue;
+    }
+    SearchWindow w;
+    w.level = SearchLevel::kTrack;
+    w.rect = rect;
+    w.agvs.push_back(i);
+    w.predicted_corners_px = p.corners_px;
+    out.push_back(std::move(w));
+  }
+  const int every = params.full_sweep_every_frames;
+  if (state.frames == 0 || (untracked && every > 0 && state.frames % every == 0)) {
+    out.push_back(full);
+  }
+  return out;
+}
+
+std::vector<std::uint32_t> ids_in_area(const site::CeilingCamera& cam,
+                                       const std::vector<site::FleetAgv>& fleet,
+                                       const FleetTracker& tracker, std::int64_t t_ns,
+                                       const cv::Rect& rect) {
+  std::vector<std::uint32_t> ids;
+  const cv::Rect image(0, 0, std::max(0, cam.intrinsics.width_px),
+                       std::max(0, cam.intrinsics.height_px));
+  for (std::size_t i = 0; i < fleet.size(); ++i) {
+    const TrackOutput o = i < tracker.size() ? tracker.output(i, t_ns) : TrackOutput{};
+    if (!o.valid()) {
+      ids.push_back(fleet[i].tag_id);
+      continue;
+    }
+    sd::TagPrediction p;
+    if (!sd::predict_tag(cam, fleet[i], o, 3.0, &p)) continue;
+    // The centre's reach: the position's 3-sigma box and the tag's half diagonal in pixels, at
+    // any heading (a window holding any part of the tag may hold its id).
+    double diag = 0.0;
+    for (const Vec2& q : p.corners_px) {
+      diag = std::max(diag, std::hypot(q.x - p.centre_px.x, q.y - p.centre_px.y));
+    }
+    const double wu = p.pos_u_px + diag, wv = p.pos_v_px + diag;
+    const cv::Rect box = sd::clipped_box(p.centre_px.x - wu, p.centre_px.y - wv, p.centre_px.x + wu,
+                                         p.centre_px.y + wv, image);
+    if (!(box & rect).empty()) ids.push_back(fleet[i].tag_id);
+  }
+  return ids;
+}
+
+}  // namespace agv::overhead
