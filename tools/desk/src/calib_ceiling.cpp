@@ -76,14 +76,6 @@ std::array<double, 6> params_of(const CameraPose& p) {
   return {p.x_mm, p.y_mm, p.z_mm, p.yaw_rad, p.pitch_rad, p.roll_rad};
 }
 
-CameraPose pose_from_params(const double* q) {
-  CameraPose p{q[0], q[1], q[2], q[3], q[4], q[5]};
-  // Back to the site file's ranges (the same rotation).
-  site::CeilingCamera c;
-  set_pose(p, &c);
-  return pose_of(c);
-}
-
 bool split_csv(const std::string& line, std::vector<std::string>* f) {
   f->clear();
   std::stringstream ss(line);
@@ -297,7 +289,7 @@ std::vector<TagSighting> detect_tags(const cv::Mat& gray, int frame) {
     TagSighting s;
     s.frame = frame;
     s.id = static_cast<std::uint32_t>(d->id);
-    s.decision_margin = d->decision_margin;
+    s.decision_margin = static_cast<double>(d->decision_margin);
     // Tag coordinates: +-1 the black square's outer edge, page up = -y.
     const double tc[4][2] = {{-1, -1}, {1, -1}, {1, 1}, {-1, 1}};
     for (int c = 0; c < 4; ++c) {
@@ -423,6 +415,14 @@ const char* to_string(Error e) {
 
 #if AGV_HAVE_CERES
 namespace {
+
+CameraPose pose_from_params(const double* q) {
+  CameraPose p{q[0], q[1], q[2], q[3], q[4], q[5]};
+  // Back to the site file's ranges (the same rotation).
+  site::CeilingCamera c;
+  set_pose(p, &c);
+  return pose_of(c);
+}
 
 struct CornerCost {
   CornerCost(const CameraIntrinsics& k, const std::array<double, 3>& p, Vec2 obs)
