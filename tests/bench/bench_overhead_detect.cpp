@@ -3,7 +3,8 @@
 // rendered with the realistic effects. Side by side in one run, on one core:
 //  - TagDetector::detect on a 256 x 256 window around each visible tag (the tracker's window);
 //  - TagDetector::detect_predicted at each tag's corners moved 3 px (the predicted path);
-//  - libapriltag (tag36h11, 2 bits, one thread) on the whole frame, decimation 1 and 2.
+//  - libapriltag (tag36h11, 2 bits, one thread) on the whole frame, decimation 1 and 2, with its
+//    default min_white_black_diff (5) and with the detector's (40).
 // Run with --benchmark_repetitions=5 --benchmark_report_aggregates_only=true for medians.
 #include <apriltag/apriltag.h>
 #include <apriltag/tag36h11.h>
@@ -109,6 +110,7 @@ void BM_LibapriltagFullFrame(benchmark::State& state) {
   apriltag_detector_t* td = apriltag_detector_create();
   apriltag_detector_add_family_bits(td, f, 2);
   td->quad_decimate = static_cast<float>(state.range(0));
+  td->qtp.min_white_black_diff = static_cast<int>(state.range(1));
   td->nthreads = 1;
   const cv::Mat& img = b.frame.image;
   image_u8_t view{img.cols, img.rows, static_cast<std::int32_t>(img.step[0]),
@@ -128,5 +130,10 @@ void BM_LibapriltagFullFrame(benchmark::State& state) {
 
 BENCHMARK(BM_DetectWindow256)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DetectPredicted)->Unit(benchmark::kMillisecond);
-BENCHMARK(BM_LibapriltagFullFrame)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_LibapriltagFullFrame)
+    ->Args({1, 5})
+    ->Args({1, 40})
+    ->Args({2, 5})
+    ->Args({2, 40})
+    ->Unit(benchmark::kMillisecond);
 BENCHMARK_MAIN();

@@ -101,6 +101,19 @@ TEST_P(TagDetectSizes, EveryVisibleTagFoundWithRightIdAndSubpixelCorners) {
 
 INSTANTIATE_TEST_SUITE_P(Sides, TagDetectSizes, ::testing::Values(40.0, 60.0));
 
+// libapriltag's tile contrast floor is the detector's: a faint tag (a fifth of the contrast) is
+// skipped at the default floor of 40 and found at libapriltag's own default of 5.
+TEST(TagDetectParamsTest, QuadContrastFloorReachesLibapriltag) {
+  const Frame& f = frame(60.0);
+  cv::Mat faint;
+  f.r.image.convertTo(faint, CV_8UC1, 0.2, 100.0);
+  const cv::Rect full(0, 0, faint.cols, faint.rows);
+  EXPECT_TRUE(TagDetector().detect(faint, full).empty());
+  TagDetectParams p;
+  p.quad_min_white_black_diff = 5;
+  EXPECT_FALSE(TagDetector(p).detect(faint, full).empty());
+}
+
 const sim::AgvTruth& first_visible(const Frame& f) {
   for (const sim::AgvTruth& t : f.r.agvs) {
     if (inside(t, f.r.image, 30.0)) return t;

@@ -64,6 +64,7 @@ struct TagDetector::Impl {
     td->nthreads = 1;
     td->refine_edges = 1;
     td->decode_sharpening = detector_detail::kDecodeSharpening;
+    td->qtp.min_white_black_diff = std::clamp(p.quad_min_white_black_diff, 1, 255);
   }
   ~Impl() {
     apriltag_detector_destroy(td);

@@ -22,6 +22,11 @@ struct TagDetectParams {
   // libapriltag's quad_decimate: 1 keeps 40 px tags findable; 2 halves the search cost when tags
   // are large.
   double quad_decimate = 1.0;
+  // libapriltag's min_white_black_diff (8-bit units): its 4 x 4 tiles with less spread are not
+  // searched. A printed tag under a ceiling camera spans 100 and more; at libapriltag's default
+  // (5) the floor's texture was clustered too, most of a window's cost (5x on 256 x 256 windows
+  // of rendered 60 px tags, the same tags found).
+  int quad_min_white_black_diff = 40;
   // Bits libapriltag may correct on the search path (global decode, new tracks): 2 keeps a wrong
   // id out (tag36h11's distance of 11 leaves 9 bits between a corrected code and any other id).
   int global_bits_corrected = 2;
