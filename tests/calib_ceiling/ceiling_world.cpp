@@ -36,7 +36,11 @@ static Vec2 on_plane(const site::CeilingCamera& cam, double u, double v, double 
 
 // Seven vehicles standing in view: the top row's three (tags 1..3) on one image row at one tray
 // height, so on one line of the site; the others at other heights, turned every way.
-static World make_world() {
+// A tray exactly at the floor ties with it along every ray and the floor is drawn; 1 mm above it
+// the tag shows (and sits 1 mm above its surveyed floor position).
+constexpr double kOnFloorTrayMm = 1.0;
+
+static World make_world(bool on_floor, int frames) {
   World w;
   site::Site& s = w.site;
   s.name = "calib-ceiling-test";
@@ -54,18 +58,19 @@ static World make_world() {
     a.id = "agv-" + std::to_string(i + 1);
     a.tag_id = static_cast<std::uint32_t>(i + 1);
     a.tag_size_mm = 200.0;
-    a.tray_height_mm = tray_mm[i];
+    a.tray_height_mm = on_floor ? kOnFloorTrayMm : tray_mm[i];
     a.footprint.vertices_mm = {{300, 200}, {-300, 200}, {-300, -200}, {300, -200}};
     a.radius_mm = 400.0;
     s.fleet.push_back(a);
-    const Vec2 p = on_plane(cam, px[i][0], px[i][1], tray_mm[i]);
+    const Vec2 p = on_plane(cam, px[i][0], px[i][1], a.tray_height_mm);
     w.scene.agvs.push_back({{p.x, p.y, -2.5 + 0.9 * i}, 0.0, 0.0});
   }
   w.scene.site = s;
   w.scene.floor.amplitude = 30.0;
   const sim::SiteFrameRenderer renderer(cam.intrinsics);
   const sim::SiteRenderParams params = sim::realistic_site_params();
-  for (std::uint64_t seed : {11u, 12u}) {
+  for (int f = 0; f < frames; ++f) {
+    const std::uint64_t seed = 11u + static_cast<std::uint64_t>(f);
     w.truth.push_back(renderer.render(w.scene, sim::RenderCamera::from_ceiling(cam), params, seed));
     w.frames.push_back(w.truth.back().image);
   }
@@ -73,7 +78,7 @@ static World make_world() {
 }
 
 const World& world() {
-  static const World w = make_world();
+  static const World w = make_world(false, 2);
   return w;
 }
 
@@ -85,6 +90,15 @@ std::map<std::uint32_t, ccal::SurveyedTag> survey_of(const World& w, int first, 
     out[a.tag_id] = {a.tag_id, p.x_mm, p.y_mm, a.tray_height_mm, p.theta_rad, a.tag_size_mm};
   }
   return out;
+}
+
+}  // namespace agv::desk::test
+
+namespace agv::desk::test {
+
+const World& floor_world() {
+  static const World w = make_world(true, 1);
+  return w;
 }
 
 }  // namespace agv::desk::test

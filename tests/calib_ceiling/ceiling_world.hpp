@@ -24,6 +24,9 @@ struct World {
 };
 // Rendered once per test program.
 const World& world();
+// The same vehicles with their trays 1 mm up: tags lying on the floor, as floor landmarks
+// would (the renderer draws no floor-map landmarks). One frame.
+const World& floor_world();
 // Fleet tags first .. first + n - 1 as surveyed tags (tags 1..3 lie on one line).
 std::map<std::uint32_t, ccal::SurveyedTag> survey_of(const World& w, int first = 0, int n = 7);
 

@@ -169,5 +169,46 @@ TEST_F(CalibrateCeilingCommand, NamedErrors) {
          1, "too-few-tags");
 }
 
+TEST_F(CalibrateCeilingCommand, FloorMapTagsAsTheSurvey) {
+  // Trays 1 mm up: the tags lie on the floor where the site's floor map puts them.
+  const World& w = floor_world();
+  std::string err;
+  fs::create_directories(dir_ / "floor");
+  ASSERT_TRUE(png::write((dir_ / "floor" / "000000.png").string(), w.frames[0], &err)) << err;
+  std::string map = "id,x_mm,y_mm,heading_deg\n";
+  for (std::size_t i = 0; i < w.site.fleet.size(); ++i) {
+    const Pose2& p = w.scene.agvs[i].pose;
+    char line[128];
+    std::snprintf(line, sizeof line, "%u,%.6f,%.6f,%.6f\n", w.site.fleet[i].tag_id, p.x_mm, p.y_mm,
+                  p.theta_rad / kDeg);
+    map += line;
+  }
+  write_file(dir_ / "floor_map.csv", map);
+  site::Site s = w.site;
+  s.floor_map_file = "floor_map.csv";
+  ASSERT_TRUE(parse_landmark_map(map, &s.floor_map, &err)) << err;
+  s.cameras[0].t_site_cam_mm[1] += 40.0;
+  write_file(dir_ / "site_floor.yaml", site::write_site(s));
+  const std::vector<std::string> a = {"ceiling",        "--site",   at("site_floor.yaml"),
+                                      "--camera",       "cam-1",    "--frames",
+                                      at("floor"),      "--floor-tag-size-mm", "200",
+                                      "--write"};
+  const CmdRun r = run(calibrate_ceiling, a);
+  ASSERT_EQ(r.rc, 0) << r.out << r.err;
+  site::Site back;
+  ASSERT_TRUE(load_site(at("site_floor.yaml"), &back, &err)) << err;
+  EXPECT_NEAR(back.cameras[0].t_site_cam_mm[0], true_pose().x_mm, 5.0);
+  EXPECT_NEAR(back.cameras[0].t_site_cam_mm[1], true_pose().y_mm, 5.0);
+  EXPECT_NEAR(back.cameras[0].t_site_cam_mm[2], true_pose().z_mm, 10.0);
+  EXPECT_EQ(back.floor_map.entries.size(), 7u);  // the floor map is still named
+  // A site without a floor map cannot be the survey.
+  const std::vector<std::string> b = {"ceiling",   "--site",          at("site_true.yaml"),
+                                      "--camera",  "cam-1",           "--frames",
+                                      at("floor"), "--floor-tag-size-mm", "200"};
+  const CmdRun none = run(calibrate_ceiling, b);
+  EXPECT_EQ(none.rc, 2);
+  EXPECT_NE(none.err.find("error no-survey"), std::string::npos) << none.err;
+}
+
 }  // namespace
 }  // namespace agv::desk
