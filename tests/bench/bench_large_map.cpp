@@ -1,4 +1,4 @@
-// Large maps (issue 35, docs/design/large_maps.md): start-up and per-frame cost of the localizer
+// Large maps (docs/design/large_maps.md): start-up and per-frame cost of the localizer
 // with a 1 m grid of 1 000, 10 000 and 60 000 landmarks (Google Benchmark). The start-up is the map
 // text parsed and the vision localizer built (what `agvloc` does before its first frame); the
 // frame costs are a tracked landmark frame, a landmark frame without a trusted prediction and the

@@ -1,4 +1,4 @@
-// Evaluation of the landmark pose pipeline (issue 3) on simulator frames with ground truth:
+// Evaluation of the landmark pose pipeline on simulator frames with ground truth:
 // accuracy on clean and degraded frames, the part of the range where the landmark is cut by the
 // image border, false detections on landmark-free floor, per-stage speed, and AprilTag 3
 // (tag36h11, decimate 2, one thread) on the same kind of frames in the same run.
@@ -6,7 +6,7 @@
 //   eval_vision [--profile 640|1280] [--frames N] [--floor-frames N] [--seed S] [--ablation]
 //               [--no-apriltag] [--dump DIR] [--family qr|tag36h11] [--speed-compare]
 // --family tag36h11: the same conditions on a floor of tag36h11 landmarks (the tag family of the
-// localizer); --speed-compare: only the issue-17 speed comparison (eval_vision_tag.cpp).
+// localizer); --speed-compare: only the speed comparison (eval_vision_tag.cpp).
 #include "eval_vision.hpp"
 
 #include <algorithm>
@@ -86,8 +86,8 @@ std::vector<Condition> make_conditions(double mmpp) {
          o->occluder_border_fraction = 0.15 * u(r);
        },
        true, true},
-      // Stress, beyond the issue's "up to" limits: defocus, motion blur and noise all at their
-      // limits in the same frame.
+      // Stress, beyond the degraded set's "up to" limits: defocus, motion blur and noise all at
+      // their limits in the same frame.
       {"stress: defocus 2 + motion 7 px + noise, all at the limits",
        [=](std::mt19937_64&, sim::RenderOptions* o) {
          o->defocus_sigma_px = 2.0;

@@ -1,4 +1,4 @@
-// eval_vision --speed-compare: the issue-17 speed target on one set of simulated frames in one
+// eval_vision --speed-compare: the speed target (5x AprilTag) on one set of simulated frames in one
 // run: LandmarkLocalizer::process (QR family, full search, no prediction) against libapriltag's
 // apriltag_detector_detect (tag36h11, quad_decimate 2, one thread), both on the identical QR
 // frames (same pixels) and on tag36h11 frames rendered at the same vehicle poses (what AprilTag

@@ -1,4 +1,4 @@
-// calibrate intrinsics on degenerate view sets (issue 36): messages that say what is wrong.
+// calibrate intrinsics on degenerate view sets: messages that say what is wrong.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -60,7 +60,7 @@ TEST(CalibHostile, UndeterminedStdDevIsNamedNotNan) {
 }
 
 // An 11 x 8 board description of a 9 x 7 print: the corner ids index the wrong board points, the
-// RMS is pixels (117.7 px in the issue) and the error now names the board options.
+// RMS is pixels (117.7 px in the reported case) and the error now names the board options.
 TEST(CalibHostile, WrongBoardDescriptionIsNamed) {
   BoardSpec printed, described;
   printed.type = described.type = BoardType::kChessboard;

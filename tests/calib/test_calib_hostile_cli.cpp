@@ -1,4 +1,4 @@
-// Hostile and careless input on agvloc-desk calibrate intrinsics / check (issue 36): each case
+// Hostile and careless input on agvloc-desk calibrate intrinsics / check: each case
 // ends with a named error and a non-zero exit, within seconds, never a crash, a hang or gigabytes.
 #include <gtest/gtest.h>
 #include <sys/stat.h>

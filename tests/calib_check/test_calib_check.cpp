@@ -455,7 +455,7 @@ TEST(CalibCheckCommand, ExitCodes) {
 namespace {
 
 // QR landmarks checked with a tag36h11 configuration: no fix, and the error names the family
-// (issue 36: a family mismatch gave 0 fixes with no hint).
+// (a family mismatch gave 0 fixes with no hint).
 TEST(CalibCheck, FamilyMismatchNamesTheFamily) {
   const CameraModel truth = nominal();
   const std::vector<cv::Mat> frames = render(truth, kUnderCamera, 1, 3);

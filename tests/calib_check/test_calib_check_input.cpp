@@ -1,4 +1,4 @@
-// agvloc-desk calibrate check on careless input (issue 36): a printed size outside the
+// agvloc-desk calibrate check on careless input: a printed size outside the
 // configuration's range is refused before the vision stage (inf reached the corner template as
 // INT_MIN pixels: segfault), and frames are decoded one at a time (all 1000 frames of a
 // recording were kept: 322 MB).

@@ -1,4 +1,4 @@
-// --check-config refuses configurations that can never localize (issue 36, item 9), naming the
+// --check-config refuses configurations that can never localize, naming the
 // key, and names fusion's relations by their configuration keys (not the struct's _ns fields).
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -90,7 +90,7 @@ TEST(CheckConfig, TagFamilyNeedsAMapWithTagIds) {
   EXPECT_TRUE(agv::config::check_can_localize(cfg, &map, &errors));
 }
 
-// Id 0 is the first tag every generator prints: the map format takes it (it refused it, issue 36)
+// Id 0 is the first tag every generator prints: the map format takes it (it once refused it)
 // and the tag family may use it; a QR payload cannot carry it, so the QR family refuses it by name.
 TEST(CheckConfig, MapIdZeroIsATagIdOnly) {
   agv::LandmarkMap map;
@@ -140,7 +140,7 @@ CheckRun check_config(const std::string& yaml, const std::string& map_csv) {
   return r;
 }
 
-// Issue 36: --check-config said only "is valid"; it now says what it checked, so a wrong
+// --check-config said only "is valid"; it now says what it checked, so a wrong
 // camera, family, map or bus is visible before the service starts.
 TEST(CheckConfig, SuccessPrintsWhatWasChecked) {
   const std::string cam = "camera: {driver: v4l2, id: /dev/video7, width: 1280, height: 800}\n";

@@ -1,4 +1,4 @@
-// agvloc-desk config apply (issue 36): the intrinsics and vehicle snippets were merged by hand
+// agvloc-desk config apply: the intrinsics and vehicle snippets were merged by hand
 // (a second `camera:` or `mounting:` section is a duplicate key). Now one command merges them
 // into the configuration, keeps its comments, refuses conflicts and unknown keys by name, and
 // writes only a result the configuration checker accepts.
@@ -254,8 +254,8 @@ TEST(ConfigApply, CommandWritesOnlyWhatTheCheckerAcceptsAndNeverOverwritesSilent
   r = apply({"--config", base, (d / "vc.yaml").string(), "--out", out, "--force"});
   EXPECT_EQ(r.rc, 0) << r.err;
 
-  // A result --check-config would refuse (calibrate vehicle's 0.327 of issue 36, hand-edited):
-  // named with the snippet that set it, nothing written.
+  // A result --check-config would refuse (a speed scale of 0.327, as calibrate vehicle once
+  // wrote, here by hand): named with the snippet that set it, nothing written.
   std::ofstream(d / "bad.yaml") << "odometry:\n  speed_scale: 0.327\n";
   const std::string out2 = (d / "merged2.yaml").string();
   r = apply({"--config", base, (d / "bad.yaml").string(), "--out", out2});

@@ -26,14 +26,14 @@ struct DriveTruth {
   int landmarks = 3;       // on a line 1 m apart along x
   double duration_s = 60;  // the pattern repeats until this time
   unsigned seed = 1;
-  // Worn landmarks (issue 36): every corner of these carries its own fixed offset in the landmark
+  // Worn landmarks: every corner of these carries its own fixed offset in the landmark
   // frame (a scuffed edge, faded ink, dirt that the robust edge fit leaves: the same in every
   // frame, so it does not average out), N(0, wear_mm) per axis, and wear_noise_px more white
   // noise. Their own random streams, so the other landmarks see what they saw before.
   std::vector<std::uint32_t> worn;
   double wear_mm = 0.1;
   double wear_noise_px = 0.2;
-  // Gyro (Drive::gyro, issue 33): reported = (1 + gyro_scale_error) * true mean rate over the
+  // Gyro (Drive::gyro): reported = (1 + gyro_scale_error) * true mean rate over the
   // sample period + gyro_bias_radps + white noise, stamped late by gyro_latency_s. Its own random
   // stream, so the odometry and the corners are what they were without it.
   double gyro_scale_error = 0.0, gyro_bias_radps = 0.0;

@@ -2,7 +2,7 @@
 # agvloc-desk calibrate vehicle end to end on rendered simulated frames (clean, 15 fps, 60 s of
 # the `calibration` trajectory), with a perturbed true camera and odometry; the recording states
 # the nominal mounting (--nominal-meta), has no use for truth.csv (deleted before calibrating).
-# Prints recovered vs true and checks the issue-16 targets. Then: a `square` drive (no turns on
+# Prints recovered vs true and checks the commissioning targets. Then: a `square` drive (no turns on
 # the spot over a landmark) must refuse the offset; a wrong map and a recording without odometry
 # must fail naming what is missing.
 #   calibrate_vehicle_e2e.sh AGVLOC-DESK WORKDIR

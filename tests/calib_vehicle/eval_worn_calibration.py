@@ -1,16 +1,16 @@
 #!/usr/bin/env python3
-"""Vehicle calibration on worn landmarks (issue 36), simulated: N calibration drives (60 s by
+"""Vehicle calibration on worn landmarks, simulated: N calibration drives (60 s by
 default, 15 fps, realistic imaging) over landmarks 1-3 of the default grid, landmarks 1 and 2 worn
 (scratches, dirt, scuffed edges, faded ink, a small occluder), each drive with its own seed and
 mount / odometry perturbation; `agvloc-desk calibrate vehicle` on each, every parameter's error
-and error / sigma against the issue's targets. Not run by CI (about 3 min per drive and
+and error / sigma against the commissioning targets. Not run by CI (about 3 min per drive and
 calibrating binary on a loaded 2-core machine).
 
   eval_worn_calibration.py WORKDIR DESK [DESK_BEFORE] [--drives 5] [--clean] [--equal-wheels]
                            [--duration-s 60] [--only SEED]
 
 DESK renders the drives (needs --wear-landmarks) and calibrates; DESK_BEFORE, when given, also
-calibrates the same recordings (e.g. a build of the code before issue 36). --clean: no wear.
+calibrates the same recordings (e.g. a build without the wear model). --clean: no wear.
 Every drive has unequal wheels (ASYM below: the right wheel reads that fraction more than the
 left, as the simulator's default vehicle does); --equal-wheels drives them equal, as this
 evaluation did before `odometry.yaw_per_metre_deg` existed. A WORKDIR keeps its recordings:
@@ -38,12 +38,12 @@ DRIVES = [
 # per drive (same order): right minus left wheel scale error, on the simulator's 500 mm track
 ASYM = [0.004, -0.003, 0.005, -0.006, 0.002, 0.0045, -0.0035]
 TRACK_M = 0.5
-# name -> target (issue 36)
+# name -> target (the commissioning targets)
 TARGETS = {"mounting.offset_x_mm": 0.2, "mounting.offset_y_mm": 0.2, "mounting.yaw_deg": 0.02,
            "mounting.height_mm": 0.2, "mounting.roll_deg": 0.02, "mounting.pitch_deg": 0.02,
            "odometry.speed_scale": 0.0005, "odometry.yaw_rate_scale": 0.0005,
            "odometry.yaw_rate_bias_degps": 0.01, "camera.time_offset_ms": 0.5,
-           # no issue-36 target: scored by error / sigma only (the calibration calls it determined
+           # no target: scored by error / sigma only (the calibration calls it determined
            # at sigma <= 0.05 deg/m, max_sigma_yaw_per_metre_deg)
            "odometry.yaw_per_metre_deg": None}
 WEAR = ["--wear-landmarks", "1,2", "--scratches", "2", "--dirt", "2", "--scuffs", "3",

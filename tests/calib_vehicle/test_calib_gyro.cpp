@@ -1,4 +1,4 @@
-// Gyro calibration (tools/desk/src/calib_gyro.*, issue 33) on the simulated calibration drive of
+// Gyro calibration (tools/desk/src/calib_gyro.*) on the simulated calibration drive of
 // calib_drive.hpp with a gyro of known scale error, bias and latency: imu.scale, imu.bias_degps
 // and the clock offset recovered within 3 sigma, under the mounting the vehicle calibration found;
 // a bad fix does not move them; a drive without turns refuses the scale and names why.

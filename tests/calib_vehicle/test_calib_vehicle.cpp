@@ -62,7 +62,7 @@ TEST_P(CalibVehicleSeeds, RecoversPerturbedMountingOdometryAndTimeOffset) {
                        rad_to_deg(truth.p.yaw_rate_bias_radps),
                        rad_to_deg(truth.p.yaw_per_metre_rad),
                        truth.p.time_offset_s * 1e3};
-  // Targets of issue 16 (scales: 0.05 % relative); yaw per metre: 3 sigma of this drive (its
+  // The commissioning targets (scales: 0.05 % relative); yaw per metre: 3 sigma of this drive (its
   // straight passes determine it to 0.04 deg/m).
   const double tol[] = {0.2, 0.2, 0.02, 0.2, 0.05, 0.05, 0.0005, 0.0005, 0.01, 0.12, 0.5};
   std::printf(

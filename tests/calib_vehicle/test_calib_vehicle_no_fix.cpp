@@ -1,5 +1,5 @@
 // calibrate vehicle on a drive that gives no fix names the likely cause as `agvloc replay` does
-// (issue 36: "a family mismatch gives exit 0 and 0 fixes with no hint"; calibrate vehicle said
+// ("a family mismatch gives exit 0 and 0 fixes with no hint"; calibrate vehicle said
 // "wrong map, landmark.family (qr) not the printed family, or no mapped landmark in view" whatever
 // the frames gave). A short rendered tag36h11 drive: the vehicle standing over tag 7.
 #include <gtest/gtest.h>
@@ -87,7 +87,7 @@ TEST(CalibVehicleNoFix, MapWithoutTheTagNamesTheMapAndTheId) {
   fs::remove_all(d);
 }
 
-// The camera 12 mm higher than configured (issue 36 item 8 blamed the map): the height it implies,
+// The camera 12 mm higher than configured (once blamed on the map): the height it implies,
 // and that it is set by hand before calibrating.
 TEST(CalibVehicleNoFix, HeightOffNamesTheImpliedHeight) {
   CameraModel higher = CameraModel::default_640x480();

@@ -1,4 +1,4 @@
-// calibrate vehicle results against the configuration's ranges (issue 36): time_offset_ms 719.94
+// calibrate vehicle results against the configuration's ranges: time_offset_ms 719.94
 // and speed_scale 0.327 were written as "ok", and --check-config then rejected both. The ranges
 // are the key table's (key_ranges.hpp), not copies.
 #include <gtest/gtest.h>
@@ -34,8 +34,8 @@ TEST(CalibVehicleRanges, ResultsTheConfigurationRejectsAreNamed) {
 
 }  // namespace
 
-// What commissioning determined narrows the filter's priors (issue 33: "what the calibration has
-// learned must shrink the uncertainty it causes"); every written key exists in the key table and
+// What commissioning determined narrows the filter's priors ("what the calibration has learned
+// must shrink the uncertainty it causes"); every written key exists in the key table and
 // accepts its value; what was not determined keeps the default prior.
 TEST(CalibVehiclePriors, DeterminedOdometryNarrowsTheFilterPriors) {
   namespace vcal = agv::desk::vcal;

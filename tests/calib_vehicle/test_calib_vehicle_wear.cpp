@@ -1,4 +1,4 @@
-// Vehicle calibration on worn landmarks (issue 36): robust corners from edge points with a
+// Vehicle calibration on worn landmarks: robust corners from edge points with a
 // scuff and a scratch, reported sigmas that cover the error when one landmark is worn, and the
 // per-landmark residual table and warning.
 #include <gtest/gtest.h>
@@ -81,7 +81,7 @@ TEST(CalibVehicleWear, RobustCornersIgnoreAScuffAndAScratch) {
     std::printf("corner %zu: error %.4f px\n", i, e);
     worst = std::max(worst, e);
   }
-  // The plain line fit with 3-sigma rejection that calibrate vehicle used before issue 36 puts
+  // The plain line fit with 3-sigma rejection (calibrate vehicle's clean-floor fit) puts
   // four of these corners 0.13-0.66 px off (measured on these points); the robust fit keeps
   // every corner at the noise level of a clean edge (0.013 px at most).
   EXPECT_LT(worst, 0.03);

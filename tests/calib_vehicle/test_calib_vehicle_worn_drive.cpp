@@ -1,8 +1,8 @@
-// Issue 36 regression: on a calibration drive where one of three landmarks is worn (its corners
+// Worn-floor regression: on a calibration drive where one of three landmarks is worn (its corners
 // off the printed square by about 0.1 mm, the same in every frame, plus more noise), the
-// reported sigmas must cover the error. Before issue 36 they assumed independent pixel noise on
-// printed-exact corners: pitch 18 sigma, height 32 sigma off on a worn floor. Uses only the
-// interface that existed then, so it builds and fails on the old code.
+// reported sigmas must cover the error. Without the wear model they assume independent pixel
+// noise on printed-exact corners: pitch 18 sigma, height 32 sigma off on a worn floor. Uses only
+// the interface the clean-floor calibration also had, so it builds and fails without the model.
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Camera tilt end to end (issue 16, docs/design/frames.md "Camera tilt"): simulate a tilted camera
+# Camera tilt end to end (docs/design/frames.md "Camera tilt"): simulate a tilted camera
 # (realistic degradations), replay it with the tilt in the recording's camera model (sub-0.1 mm
 # fixes vs truth) and with the tilt removed (a clear bias, about height * tan(tilt) = 5 mm).
 #   tilt_replay.sh AGVLOC WORKDIR     (agvloc-desk is beside AGVLOC)

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Issue 16 target: "after calibration, the fused between-landmark error on a separate validation
+"""Calibration target: "after calibration, the fused between-landmark error on a separate validation
 run is within 10 % of the error with the true parameters" (simulated frames).
 
 1. Renders a calibration drive (`calibration` trajectory) with a perturbed true camera mounting

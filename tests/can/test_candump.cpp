@@ -84,7 +84,7 @@ TEST(CandumpLine, RejectsMalformedLines) {
   EXPECT_NE(parse_err("(1.5) vcan0 123#1122_"), "");
 }
 
-// Issue 15, finding 2: 12 digits of seconds overflowed int64 nanoseconds (UB; the timestamp
+// Hostile input: 12 digits of seconds overflowed int64 nanoseconds (UB; the timestamp
 // wrapped to a negative value without sanitizers).
 TEST(CandumpLine, TimestampBeyondInt64NanosecondsIsAnError) {
   EXPECT_NE(parse_err("(9223372037.0) can0 123#"), "");

@@ -636,7 +636,7 @@ TEST(Gyro, StatusCarriesTheImuFaultBits) {
   EXPECT_EQ(p::get_raw(sig(p::Msg::kStatus, "Health"), f.data), 2);  // kLost, beside them
 }
 
-// LastLandmarkId 0 is tag36h11's first tag (issue 36), so "none yet" is its own bit: a fix on
+// LastLandmarkId 0 is tag36h11's first tag, so "none yet" is its own bit: a fix on
 // landmark 0 and no fix at all differ on the bus only by LastLandmarkValid (bit 63).
 TEST(Codec, LastLandmarkValidTellsTagZeroFromNoFix) {
   p::Encoder enc({});

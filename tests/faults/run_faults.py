@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Fault-replay suite (issue 13 item 5, tests/faults/README.md).
+"""Fault-replay suite (tests/faults/README.md).
 
 Renders simulated base recordings with `agvloc-desk sim`, derives fault variants by editing copies of
 their CSV files, replays each with `agvloc replay --fast` and checks the fused poses against the
@@ -27,7 +27,7 @@ import subprocess
 import sys
 import time
 
-# --- Assertions (exactly as issue 13 states them) ------------------------------------------------
+# --- Assertions (the availability targets of tests/faults/README.md) ------------------------------
 MAX_LOCALIZED_ERR_MM = 50.0  # no tick with health == 1 farther than this from the truth
 RECOVERY_OK_MM = 20.0  # "recovered" = localized and within this of the truth
 RECOVERY_MAX_S = 0.5  # ... within this time of the fault end, when a landmark is in view by then
@@ -286,7 +286,7 @@ def evaluate(v, truth):
             worst = (key, rec, in_view, rec_view)
     res["recovery"] = worst  # None for the nominal run
     if v.steps:
-        # Issue 13: a step in omega must not jump the heading by more than the step integrates
+        # A step in omega must not jump the heading by more than the step integrates
         # to. Reported (not asserted): largest change of the heading error between the last tick
         # before a step and the ticks up to 0.1 s after it, stopping at the first fused fix
         # (time_since_fix drops), so a landmark's correction is not counted as a jump.
@@ -361,7 +361,7 @@ def table(results):
 
 # --- Gyro rows ---------------------------------------------------------------------------------------
 def gyro_variants(work, base, straight, turn, t_first):
-    """The rows of a vehicle with a gyro (issue 33): [(Variant, make_variant_dir edits)]."""
+    """The rows of a vehicle with a gyro: [(Variant, make_variant_dir edits)]."""
     out = []
     whole = Variant("gyro_nominal", base, None, None, "no fault, with the gyro; whole run")
     whole.imu = True

@@ -27,7 +27,7 @@ using namespace agv;
 
 namespace {
 
-// Assertions (issue 13), as in run_faults.py.
+// Assertions of the fault suite, as in run_faults.py.
 constexpr double kMaxLocalizedErrMm = 50.0;
 constexpr double kRecoveryOkMm = 20.0;
 constexpr double kRecoveryMaxS = 0.5;

@@ -58,7 +58,7 @@ TEST(Config, ShippedExampleLoads) {
   EXPECT_EQ(cfg.loop.realtime_cpus, "");  // CPU numbers depend on the board
 }
 
-// The camera calibration every live configuration must carry (issue 15, finding 3).
+// The camera calibration every live configuration must carry.
 const char* kIntrinsics = "intrinsics: {fx: 769.23, fy: 769.23, cx: 319.5, cy: 239.5}\n";
 
 TEST(Config, EmptyMappingGivesDefaults) {
@@ -285,7 +285,7 @@ TEST(Config, FusionOdometryTimingAndGapKeys) {
   EXPECT_TRUE(mentions(errors_for("fusion:\n  odom_period_ms: 20\n  odom_gap_ms: 10\n"), "fusion"));
 }
 
-// ---- Issue 15: hostile configurations ------------------------------------------------------
+// ---- Hostile configurations ------------------------------------------------------------------
 
 std::string tmp_path(const std::string& name) {
   return (std::filesystem::temp_directory_path() /
@@ -293,7 +293,7 @@ std::string tmp_path(const std::string& name) {
       .string();
 }
 
-// Finding 1: a non-scalar key threw YAML::TypedBadConversion out of finish_map (abort, exit 134).
+// A non-scalar key threw YAML::TypedBadConversion out of finish_map (abort, exit 134).
 TEST(Config, NonScalarKeyIsANamedError) {
   EXPECT_TRUE(mentions(errors_for("[a]: 1"), "top level: key at line 1 is not a plain name"));
   EXPECT_TRUE(mentions(errors_for("camera:\n  {x: 1}: 2"),
@@ -302,7 +302,7 @@ TEST(Config, NonScalarKeyIsANamedError) {
                        "can.odometry: key at line 4 is not a plain name"));
 }
 
-// Finding 3: without intrinsics, --check-config passed and the loop ran with fx = fy = 0.
+// Without intrinsics, --check-config passed and the loop ran with fx = fy = 0.
 TEST(Config, MissingIntrinsicsIsAnError) {
   EXPECT_TRUE(
       mentions(errors_for("{}"), "intrinsics: missing section (fx, fy, cx, cy are required"));
@@ -328,7 +328,7 @@ TEST(Config, ReplayNeedsNoIntrinsics) {
                                          agv::config::ConfigUse::kReplay));
 }
 
-// Finding 4: duplicate keys and sections were accepted silently (the first one won).
+// Duplicate keys and sections were accepted silently (the first one won).
 TEST(Config, DuplicateKeysAndSectionsAreErrors) {
   EXPECT_TRUE(mentions(errors_for(std::string(kIntrinsics) + "loop:\n  output_rate_hz: 50\n"
                                                              "  output_rate_hz: 200\n"),
@@ -340,7 +340,7 @@ TEST(Config, DuplicateKeysAndSectionsAreErrors) {
       mentions(errors_for(std::string(kIntrinsics) + kIntrinsics), "intrinsics: duplicate key"));
 }
 
-// Finding 5: `--config /dev/zero` and `landmark.map: /dev/zero` grew memory without limit.
+// `--config /dev/zero` and `landmark.map: /dev/zero` grew memory without limit.
 TEST(Config, OnlyBoundedRegularFilesAreRead) {
   Config cfg;
   std::vector<std::string> errors;
@@ -363,8 +363,7 @@ TEST(Config, OnlyBoundedRegularFilesAreRead) {
   std::filesystem::remove_all(dir);
 }
 
-// ---- Issue 14: one key table for the checker, the defaults and docs/guide/config.md
-// ---------------
+// ---- One key table for the checker, the defaults and docs/guide/config.md -------------------
 
 namespace {
 
@@ -554,7 +553,7 @@ TEST(Config, EveryKeyChecksItsType) {
 }
 
 TEST(Config, VisionFieldsOnceRejectedAreKeys) {
-  // docs/design/vision.md listed these as settings while the reader rejected them (issue 14).
+  // docs/design/vision.md listed these as settings while the reader rejected them.
   for (const char* name :
        {"coarse_border_px", "corner_rotations", "ring_dark_fraction", "max_corner_peaks",
         "qr_retries", "qr_target_module_px", "direction_from_qr_when_logo_weak", "band_rel",

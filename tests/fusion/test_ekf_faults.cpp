@@ -123,7 +123,7 @@ TEST(FusionEkfFaults, GapInATurnKeepsTheCovarianceHonestAndTheNextFixIsAccepted)
   EXPECT_GT(heading_error(e, tr), deg_to_rad(10.0));  // the gap really hid a turn
   EXPECT_EQ(e.health, HealthState::kLost);            // and the filter says so
   // The position spans landmarks now (sigma > 4x the lost limit), so the gate says nothing: a
-  // fix that does not vouch for itself (no map) waits for a second agreeing one (issue 33), a
+  // fix that does not vouch for itself (no map) waits for a second agreeing one, a
   // map-confirmed one passes the honest gate and is fused.
   EXPECT_EQ(ekf.add_fix(3200 * kMs, tr.pose(), fix_cov()), FixOutcome::kRejectedGate);
   EXPECT_EQ(ekf.add_fix(3200 * kMs, tr.pose(), fix_cov(), /*map_verified=*/true),

@@ -1,6 +1,6 @@
 // The gyro input of the fusion EKF (docs/design/fusion.md, "Gyro"): heading through wheel slips,
 // bias learned standing still, odometry gaps, saturation, and the re-initialisation rules that
-// depend on the covariance (issue 33).
+// depend on the covariance.
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>

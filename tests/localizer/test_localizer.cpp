@@ -124,7 +124,7 @@ TEST(Localizer, FusedFixIsCarriedByTheNextPosePairOnlyForEndToEndLatency) {
   EXPECT_EQ(out.e2e_exposure_ns, INT64_MIN);  // already sent with the fix-triggered pose
 }
 
-// A fix on tag36h11's tag 0 (issue 36): the status says "a landmark, id 0", not "none yet", by
+// A fix on tag36h11's tag 0: the status says "a landmark, id 0", not "none yet", by
 // LastLandmarkValid, which stays 1 from the first accepted fix on.
 TEST(Localizer, StatusTellsAFixOnLandmarkZeroFromNoFixYet) {
   const auto c = test_config();
@@ -528,8 +528,7 @@ TEST(Localizer, EachOdometryCorrectionKeyChangesTheFusedInputAsStated) {
     c.time_base.camera_offset_ns = k.camera_offset_ns;
     // With the correction configured, raw samples give exactly what the plain localizer gives
     // when fed v' = s_v v + c q w, w' = s_w w + b + c v, with the exposure moved onto the
-    // odometry's (vehicle's) clock, t' = t + offset (the output stays on the vehicle's clock, issue
-    // 33) ...
+    // odometry's (vehicle's) clock, t' = t + offset (the output stays on the vehicle's clock) ...
     const auto corrected = drive(c, k.raw_dt, raw);
     const auto by_hand = drive(
         plain, k.raw_dt,
@@ -721,7 +720,7 @@ TEST(Localizer, MapGuidedFixIsRefusedByALostFilter) {
       << fusion::to_string(o);
 }
 
-// Issue 33: lost only on the heading, the position still separates mapped landmarks 1 m apart.
+// Lost only on the heading, the position still separates mapped landmarks 1 m apart.
 // A map-guided fix that passes the gate is fused (it used to be refused by the health label), and
 // the prediction that map identity needs is given.
 TEST(Localizer, MapGuidedFixIsFusedByAHeadingLostFilterWhenItPassesTheGate) {
@@ -746,7 +745,7 @@ TEST(Localizer, MapGuidedFixIsFusedByAHeadingLostFilterWhenItPassesTheGate) {
   EXPECT_EQ(loc.stats().fixes_map_guided_fused, 1u);
 }
 
-// Issue 33, time base: the output is on the vehicle's clock (the odometry's). A camera whose
+// Time base: the output is on the vehicle's clock (the odometry's). A camera whose
 // stamps are 12 ms late (vehicle clock = camera clock - 12 ms, camera.time_offset_ms = -12)
 // gives, with the offset configured, the pose of the vehicle at the tick's own time; without
 // it the fixes pull the pose 12 mm back (at 1 m/s).

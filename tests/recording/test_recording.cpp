@@ -316,7 +316,7 @@ TEST(Recording, MalformedMetaRejectedNamingTheKey) {
   fs::remove_all(d);
 }
 
-// The landmark family is recorded (issue 36: a tag recording replayed without --config ran the QR
+// The landmark family is recorded (a tag recording replayed without --config ran the QR
 // pipeline); a recording without it, as made before the key existed, still reads, family empty.
 TEST(Recording, LandmarkFamilyRoundTripsAndIsOptional) {
   const fs::path d = fresh_dir("family");
@@ -413,9 +413,9 @@ TEST(Recording, GarbageAndTruncationNeverCrash) {
   fs::remove_all(d);
 }
 
-// ---- Issue 15: hostile recordings -----------------------------------------------------------
+// ---- Hostile recordings ----------------------------------------------------------------------
 
-// Finding 6: a frame that is a symlink to itself was reported as "missing".
+// A frame that is a symlink to itself was reported as "missing".
 TEST(Recording, UnreadableImageSaysWhy) {
   const fs::path d = write_sample("symloop");
   fs::remove(d / "frames" / "000001.png");
@@ -431,7 +431,7 @@ TEST(Recording, UnreadableImageSaysWhy) {
   fs::remove_all(d);
 }
 
-// Finding 5: every file of a recording is a bounded regular file; a device is never read.
+// Every file of a recording is a bounded regular file; a device is never read.
 TEST(Recording, DevicesAndOversizedFilesAreRejected) {
   fs::path d = write_sample("devzero");
   fs::remove(d / "odom.csv");
@@ -453,7 +453,7 @@ TEST(Recording, ReadFileBoundedRefusesDevices) {
   EXPECT_EQ(err, "/dev/zero: not a regular file");
 }
 
-// Finding 5: times near INT64_MAX are rejected, so later time arithmetic cannot overflow.
+// Times near INT64_MAX are rejected, so later time arithmetic cannot overflow.
 TEST(Recording, TimesAreBounded) {
   std::vector<OdomRow> rows;
   std::string err;
@@ -462,7 +462,7 @@ TEST(Recording, TimesAreBounded) {
   EXPECT_TRUE(parse_odom_csv("t_ns,v_mps,omega_radps\n4611686018427387904,0,0\n", &rows, &err));
 }
 
-// Finding 5: a PNG whose header declares 16384x16384 was decoded (268 MB) before its size was
+// A PNG whose header declares 16384x16384 was decoded (268 MB) before its size was
 // compared with meta.yaml. The header alone is now enough to reject it.
 TEST(Recording, ImageHeaderIsCheckedBeforeDecoding) {
   const fs::path d = write_sample("hugeheader");
@@ -496,7 +496,7 @@ TEST(Recording, ImageHeaderIsCheckedBeforeDecoding) {
   fs::remove_all(d);
 }
 
-// Finding 5: replay bounds the time it simulates; the error names the rows.
+// Replay bounds the time it simulates; the error names the rows.
 TEST(Recording, ReplaySpanIsBounded) {
   Recording r;
   r.odom = {{10'000'000'000, 0, 0}, {9'000'000'000'000'000'000, 0, 0}};
@@ -513,7 +513,7 @@ TEST(Recording, ReplaySpanIsBounded) {
   EXPECT_NE(err.find("frames.csv:2 (t_ns 10000000000000)"), std::string::npos) << err;
 }
 
-// Found by fuzz_recording_frames (issue 15): "." named the recording directory itself.
+// Found by fuzz_recording_frames: "." named the recording directory itself.
 TEST(Recording, FramePathsNameFilesBelowTheRecording) {
   std::vector<FrameRow> rows;
   std::string err;
@@ -524,7 +524,7 @@ TEST(Recording, FramePathsNameFilesBelowTheRecording) {
   EXPECT_TRUE(parse_frames_csv("t_ns,file\n1,frames/.hidden.png\n", &rows, &err)) << err;
 }
 
-// Issue 15, finding 5: the number of frames (one fix record each in replay) is bounded.
+// Hostile input: the number of frames (one fix record each in replay) is bounded.
 TEST(Recording, FrameCountIsBounded) {
   std::string text = "t_ns,file\n";
   for (int i = 0; i <= kMaxFrames; ++i) text += std::to_string(i) + ",a\n";

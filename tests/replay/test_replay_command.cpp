@@ -1,4 +1,4 @@
-// `agvloc replay` on hostile recordings (issue 15): frames that cannot be read are reported with
+// `agvloc replay` on hostile recordings: frames that cannot be read are reported with
 // their reason, a replay that read no frame fails, and the simulated time span is bounded.
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -86,7 +86,7 @@ ReplayRun replay(const fs::path& rec) {
 
 }  // namespace
 
-// Finding 6: all frames unreadable replayed with exit 0 and without libpng's reason.
+// All frames unreadable replayed with exit 0 and without libpng's reason.
 TEST(ReplayCommand, NoReadableFrameIsAFailureAndSaysWhy) {
   const fs::path d = write_recording("allbad", 3);
   for (int i = 0; i < 3; ++i) corrupt(d / "frames" / (std::to_string(i) + ".png"));
@@ -112,7 +112,7 @@ TEST(ReplayCommand, SomeUnreadableFramesAreReportedButTheRunSucceeds) {
   fs::remove_all(d);
 }
 
-// Finding 5: odometry rows at t = 1e10 and 9e18 made replay write output without end.
+// Odometry rows at t = 1e10 and 9e18 made replay write output without end.
 TEST(ReplayCommand, TimeSpanIsBoundedAndTheRowsNamed) {
   const fs::path d = write_recording("span", 1);
   std::ofstream(d / "odom.csv", std::ios::trunc)
@@ -139,7 +139,7 @@ TEST(ReplayCommand, TimeSpanIsBoundedAndTheRowsNamed) {
 // A short tag36h11 recording (vehicle standing over tag 7 at several headings): with
 // landmark.family: tag36h11 and the map, every frame gives an ok fix at the true pose; with the
 // default family none does, and replay names landmark.family as the likely cause (it exited 0
-// with 0 fixes and no hint, issue 36).
+// with 0 fixes and no hint).
 TEST(ReplayCommand, TagRecordingGivesFixes) {
   const fs::path d = fresh_dir("tag");
   recording::Meta m;
@@ -225,7 +225,7 @@ TagReplay replay_tags(const fs::path& d, const std::string& config_yaml) {
   return r;
 }
 
-// meta.yaml records the family (issue 36: a tag recording replayed without --config ran the QR
+// meta.yaml records the family (a tag recording replayed without --config ran the QR
 // pipeline, every frame "QR code unreadable", exit 0): replay runs it without --config, and a
 // --config that sets another family wins, the difference printed as for the other meta keys.
 TEST(ReplayCommand, TagFamilyOfMetaYamlIsUsedAndConfigWins) {
@@ -257,7 +257,7 @@ TEST(ReplayCommand, TagFamilyOfMetaYamlIsUsedAndConfigWins) {
 }
 
 // No fix at all on a tag floor: the message names the likely cause from what the frames gave
-// (issue 36: "a message that names the likely cause when nothing is found"): the camera height
+// ("a message that names the likely cause when nothing is found"): the camera height
 // (tags found, their square 6 % small: the camera is 12 mm higher than configured) or the map (tag
 // 7 read, not in the map).
 TEST(ReplayCommand, NoFixNamesHeightOrMapAsTheLikelyCause) {
@@ -331,7 +331,7 @@ TEST(ReplayCommand, GyroSamplesOfImuCsvAreFusedAndCounted) {
   fs::remove_all(d);
 }
 
-// Issue 36: replay took the camera from meta.yaml and silently ignored a calibrated mounting in
+// Replay took the camera from meta.yaml and silently ignored a calibrated mounting in
 // --config (70 fused / 652 gated, no warning). Now what --config sets is used, meta.yaml gives
 // the rest, and every value that differs is printed with both values.
 TEST(ReplayCommand, ConfigOverMetaYamlIsOneRuleAndEachDifferenceIsPrinted) {

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The desk tools live in agvloc-desk, not in the vehicle binary (issue 14 item 6):
+# The desk tools live in agvloc-desk, not in the vehicle binary:
 #   desk_split.sh "EMULATOR... AGVLOC" "EMULATOR... AGVLOC-DESK" NM WORKDIR
 # 1. `agvloc sim|landmark|report` exit 2 and name agvloc-desk;
 # 2. agvloc defines no simulator or desk symbol, agvloc-desk does (so a stripped or renamed
@@ -22,7 +22,7 @@ for c in sim landmark report calibrate sim-board; do
   [ ! -e "$WORK/x" ] || fail "agvloc $c wrote output"
 done
 
-# Every desk command and calibrate subcommand is in the top-level help (issue 36: it listed only
+# Every desk command and calibrate subcommand is in the top-level help (it once listed only
 # calibrate intrinsics).
 "${DESK[@]}" --help > "$WORK/desk_help.txt"
 for want in "sim " "landmark" "report" "sim-board" "calibrate intrinsics" "calibrate vehicle" \

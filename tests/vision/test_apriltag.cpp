@@ -152,7 +152,7 @@ TEST(AprilTagFamily, OccluderEdgeInTheMarginDoesNotBiasThePose) {
   EXPECT_GE(ok, 3);
 }
 
-// A camera height a few millimetres off (a tape-measured mount, issue 36 item 8) scales the
+// A camera height a few millimetres off (a tape-measured mount) scales the
 // metric frame: the border looks that fraction smaller or larger. The fit follows with the
 // square's size and the fix is scaled as the QR landmark's is (configured / true height). With
 // the size fixed at the printed one every side sat off by the scale and a 2 mm error gave no fix
@@ -219,7 +219,7 @@ Prediction predicted(const Pose2& truth, double sigma_mm, double sigma_deg, std:
 
 // An occluder over the border that reaches past the white margin onto the floor (a foot, a pallet
 // edge) joins the black square to the floor and libapriltag finds no quad. The QR path finds such
-// a landmark from the prediction and the map; the tag path did not use them (issue 36: 6 of 20
+// a landmark from the prediction and the map; the tag path did not use them (6 of 20
 // frames on independently rendered frames). Now the predicted tag's square is placed by the
 // prediction (precise) or the edge probes (looser, one side lost), fitted, and its code read there.
 TEST(AprilTagFamily, BrokenQuadFoundFromThePredictionAndTheMap) {
@@ -259,7 +259,7 @@ TEST(AprilTagFamily, BrokenQuadFoundFromThePredictionAndTheMap) {
 
 // Without a trusted prediction (the first fix, after a long leg) the broken quad is found as the
 // QR family finds its landmark: the corner search, three corners of the black square are enough,
-// and the code read at the fitted square gives the id (issue 36: on a rendered drive the QR
+// and the code read at the fitted square gives the id (on a rendered drive the QR
 // family fixed 70 of the 78 frames with an occluded border, the tag family 3 without a prediction).
 TEST(AprilTagFamily, BrokenQuadFoundWithoutAPredictionFromItsCorners) {
   const LandmarkMap map = tag_map();
@@ -347,7 +347,7 @@ TEST(AprilTagFamily, PredictedPathReadsTheCodeItDoesNotAssumeIt) {
 }
 
 // A tag wholly in view a few millimetres from the image edge (its white margin cut by it):
-// libapriltag decodes it, and the fix must follow (issue 36 saw "too few edge points" at 4-5 mm on
+// libapriltag decodes it, and the fix must follow (a report saw "too few edge points" at 4-5 mm on
 // independently rendered frames; this project's frames give the fix, before and after the
 // predicted path, so this guards it rather than reproducing that report).
 TEST(AprilTagFamily, TagNearTheImageEdgeGivesAFix) {

@@ -443,10 +443,10 @@ TEST_F(QrGridScene, LocalizerReadsBlurredCodesByGuidedSampling) {
     EXPECT_EQ(fg.qr_method, 1);
     EXPECT_STREQ(fg.payload, "AGV1/00017/MAP");
   }
-  // Defocus and motion blur both at the limits of issue 3 at once (harsher than any frame of the
-  // evaluation's combined set, whose strengths are random up to the limits): count the frames
-  // each reads. Measured when written: guided 12 (8 before the strong sharpening), zxing search
-  // 2 of 12.
+  // Defocus and motion blur both at the degraded evaluation's limits at once (harsher than any
+  // frame of the evaluation's combined set, whose strengths are random up to the limits): count
+  // the frames each reads. Measured when written: guided 12 (8 before the strong sharpening),
+  // zxing search 2 of 12.
   int read_g = 0, read_s = 0;
   const int n = 12;
   for (int i = 0; i < n; ++i) {

@@ -25,7 +25,7 @@ const std::vector<Key>& config_keys() {
 }
 
 const std::vector<RemovedKey>& removed_keys() {
-  // One odometry timeout (issue 14): the filter's odometry flag and the pose validity used to
+  // One odometry timeout: the filter's odometry flag and the pose validity used to
   // have separate timeouts that could disagree.
   // The camera's clock offset is the camera's (one time base): the same value and sign. One
   // track width for the CAN decoding and the fusion's slip lever arm.

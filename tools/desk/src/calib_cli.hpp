@@ -32,7 +32,7 @@ inline void add_board_options(CLI::App& app, BoardSpec* spec, std::string* type)
 }
 
 // A number option must be finite and in [lo, hi]: an infinite or huge size reaches pixel
-// arithmetic as INT_MIN or a multi-gigabyte template (issue 36). CLI::Range is not enough for
+// arithmetic as INT_MIN or a multi-gigabyte template. CLI::Range is not enough for
 // doubles: NaN compares false both ways and passes it.
 inline CLI::Validator finite_in(double lo, double hi) {
   return CLI::Validator(

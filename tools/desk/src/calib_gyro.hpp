@@ -1,4 +1,4 @@
-// Gyro calibration from a vehicle calibration drive (issue 33): the gyro's scale and bias (keys
+// Gyro calibration from a vehicle calibration drive: the gyro's scale and bias (keys
 // imu.scale, imu.bias_degps, applied by localizer::GyroCorrection as
 // rate' = scale * rate + bias) and its clock offset, with standard deviations, from the gyro
 // samples of imu.csv and the landmark fixes of the drive.

@@ -1,4 +1,4 @@
-// Vehicle calibration (issue 16): camera mounting (offset, yaw, height, roll, pitch), odometry
+// Vehicle calibration (commissioning): camera mounting (offset, yaw, height, roll, pitch), odometry
 // (speed scale, yaw-rate scale, yaw-rate bias, yaw per metre) and the camera-odometry time
 // offset, estimated jointly by nonlinear least squares (Ceres) from a calibration drive over
 // mapped landmarks.
@@ -39,7 +39,7 @@
 // image, scales and bias from odometry vs vision over turns and straights, the time offset from
 // speed changes with a landmark in view.
 //
-// Worn landmarks (issue 36): scratches, dirt and faded ink move a landmark's corners by an amount
+// Worn landmarks: scratches, dirt and faded ink move a landmark's corners by an amount
 // that is the same in every frame of that landmark, so more frames do not average it out and a
 // covariance that assumes independent pixel noise is far too optimistic. Two measures:
 //  - the corners come from robust line fits (corners_from_edges: the vision stage's RANSAC +
@@ -130,14 +130,14 @@ struct Options {
   double max_sigma_yaw_per_metre_deg = 0.05;
   int max_iterations = 200;
   // Per-landmark noise and print deviation (top of this file); false = one solve with
-  // pixel_sigma_px for every corner and the printed geometry taken as exact (before issue 36).
+  // pixel_sigma_px for every corner and the printed geometry taken as exact (clean floor).
   bool model_wear = true;
   // Floor of tau_L, mm: a clean print still deviates by a few micrometres, and a zero prior
   // would make the offsets' information matrix singular.
   double min_print_offset_mm = 0.002;
   // A landmark's residual stands out (warning) above residual_warn_ratio times the median of
   // the other landmarks' and above residual_warn_floor_px, or above residual_warn_px in any
-  // case (the issue's worn prints: 0.59-0.92 px with a plain line fit, clean 0.09-0.14).
+  // case (reported worn prints: 0.59-0.92 px with a plain line fit, clean 0.09-0.14).
   double residual_warn_ratio = 2.5, residual_warn_floor_px = 0.1, residual_warn_px = 0.5;
 };
 

@@ -1,4 +1,4 @@
-// Vehicle calibration on worn prints (issue 36): robust corners from a frame's edge points, and
+// Vehicle calibration on worn prints: robust corners from a frame's edge points, and
 // the per-landmark residual table and warning. No Ceres here (model: calib_vehicle.hpp).
 #include <algorithm>
 #include <cmath>

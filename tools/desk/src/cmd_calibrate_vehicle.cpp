@@ -1,7 +1,7 @@
 // agvloc-desk calibrate vehicle RECORDING --map MAP [--config CFG] [--out DIR]: camera mounting
 // (offset, yaw, height, roll, pitch), odometry scales and bias, camera-odometry time offset from
 // a calibration drive over mapped landmarks. Model: calib_vehicle.hpp. Needs no truth.csv. With
-// an imu.csv also the gyro's scale, bias and clock offset (calib_gyro.hpp, issue 33).
+// an imu.csv also the gyro's scale, bias and clock offset (calib_gyro.hpp).
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cmath>
@@ -259,7 +259,7 @@ int calibrate_vehicle(int argc, char** argv) {
   why.size_mm = geom.size_mm;
   why.calibrating = true;
   // Over the frames without a fix only: with some fixes, the family is right, but the map or the
-  // height may still lose most landmarks (a height 1 mm off loses tag frames, issue 36 item 8).
+  // height may still lose most landmarks (a height 1 mm off loses tag frames).
   const std::uint64_t no_fix_frames = rec.frames.size() - static_cast<std::uint64_t>(fixes);
   const localizer::NoFixDiagnosis diagnosis =
       localizer::diagnose_no_fix(no_fix_frames, by_status, outcomes, why);
@@ -313,7 +313,7 @@ int calibrate_vehicle(int argc, char** argv) {
     return fail(err, 1);
   }
 
-  // The gyro (issue 33): from the fix headings under the calibrated mounting. The clock offset is
+  // The gyro: from the fix headings under the calibrated mounting. The clock offset is
   // solved as gyro clock - camera clock = camera.time_offset + imu.time_offset.
   const bool have_gyro = !rec.imu.empty();
   vcal::GyroResult gyro;

@@ -8,7 +8,7 @@
 // 58-85 mm off at the median and up to 206 mm, and rightly lost), 3-sigma coverage (x, y and
 // heading all within 3 sigma), RMS of error/sigma (position pooled over x and y, heading),
 // between-landmark p95 (ticks >= 200 ms after the last fused fix) and the largest error of a
-// localized tick. Targets (issue 33): valid >= 99 %, coverage >= 99 %, RMS e/sigma in [0.5, 1.5].
+// localized tick. Targets (fusion.md): valid >= 99 %, coverage >= 99 %, RMS e/sigma in [0.5, 1.5].
 #include <algorithm>
 #include <cmath>
 #include <cstdio>

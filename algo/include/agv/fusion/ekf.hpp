@@ -65,10 +65,10 @@ struct EkfConfig {
   // Too large: heading misreads of a few degrees pass the gate. 0.15 deg/sqrt(s): lawnmower
   // between-landmark p95 4.8-6.0 mm (eval_fusion --route lawnmower, 3 seeds); 0.1 is 0.5-1 mm
   // worse there, 0.3 makes sigma 6x too large on the fault suite.
-  // Re-sized for issue 33 with `eval_fusion --honesty` (sigma against error on 5-7 s legs off the
-  // grid): the old 0.05 deg/sqrt(m), 0.15 deg/sqrt(s), 0.0125 rad/sqrt(rad) made the heading sigma
-  // 4x the error and the pose lost 2.5 s after a fix. None applies where the gyro carries the
-  // heading.
+  // Re-sized for an honest sigma by `eval_fusion --honesty` (sigma against error on 5-7 s legs
+  // off the grid): the old 0.05 deg/sqrt(m), 0.15 deg/sqrt(s), 0.0125 rad/sqrt(rad) made the
+  // heading sigma 4x the error and the pose lost 2.5 s after a fix. None applies where the gyro
+  // carries the heading.
   double heading_sigma_rad_per_sqrt_m = deg_to_rad(0.01);
   double heading_drift_sigma_rad_per_sqrt_s = deg_to_rad(0.03);
   double turn_heading_sigma_rad_per_sqrt_rad = 0.003;

@@ -1,5 +1,5 @@
-// Why a run of frames gave no landmark fix, named from what the frames gave (issue 36: "a message
-// that names the likely cause when nothing is found"). One diagnosis for `agvloc replay` and
+// Why a run of frames gave no landmark fix, named from what the frames gave ("a message that
+// names the likely cause when nothing is found"). One diagnosis for `agvloc replay` and
 // `agvloc-desk calibrate vehicle`: the family (nothing of it read, or QR borders without a code: a
 // tag floor read as QR), the camera height or print size (tags found, their fitted square off
 // landmark.size_mm: the metric frame's scale is the configured height's), or the map (landmarks

@@ -165,7 +165,7 @@ struct RenderOptions {
   // shot_noise_gain * signal.
   double read_noise_sigma = 0.0;
   double shot_noise_gain = 0.0;
-  // Degradations on every landmark (issue 3's degraded evaluation), deterministic per landmark
+  // Degradations on every landmark (eval_vision's degraded frames), deterministic per landmark
   // id and seed so consecutive frames agree.
   // Fraction [0, 1] of the border's perimeter covered by an opaque occluder (a floor-coloured
   // patch, e.g. a pallet foot), starting at the front-left corner and going counter-clockwise
@@ -184,7 +184,7 @@ struct RenderOptions {
   // strip along an edge or a square in the middle, coloured like the floor, the ink or the paper.
   // Map-guided identity evaluation (docs/design/map_identity.md). 0 = none.
   double qr_cover_fraction = 0.0;
-  // Print wear (issue 36), per landmark id and seed like the above, each from its own random
+  // Print wear (worn landmarks), per landmark id and seed like the above, each from its own random
   // stream (existing seeds render as before): edge_scuffs_per_landmark patches where the ink is
   // rubbed off along a border edge (1.5k..6k mm long, 0.05k..0.3k mm deep: the edge itself
   // moves there, which biases a plain line fit), and ink_variation in [0, 1]: the ink lighter by

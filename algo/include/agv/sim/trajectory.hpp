@@ -93,7 +93,7 @@ MotionState trajectory_state(const Trajectory& tr, std::int64_t t_ns);
 // What one odometry sample at t_ns stands for. Motor controllers count encoder ticks per period,
 // so a sample is the mean speed over the period ending at t_ns (kPeriodMean, the default and what
 // the fusion assumes); kInstant is the true speed at t_ns (a controller that differentiates a
-// filtered position, or the simulator before issue 13). They differ only where v or omega
+// filtered position, or the simulator's first odometry model). They differ only where v or omega
 // changes within a period: at the start ramp and at every arc entry/exit (an omega step).
 enum class OdomSampleTiming { kPeriodMean, kInstant };
 
