@@ -68,6 +68,8 @@ struct TrackOutput {
   bool valid() const { return state == TrackState::kConfirmed || state == TrackState::kCoasting; }
 };
 
+// Fixes by result; replays: fixes applied before newer ones (which were replayed after them);
+// lost: transitions of a reported track (confirmed or coasting) to lost.
 struct TrackerCounters {
   std::uint64_t applied = 0, started = 0, gated = 0, too_old = 0, invalid = 0, replays = 0;
   std::uint64_t lost = 0;
