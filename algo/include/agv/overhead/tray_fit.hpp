@@ -1,0 +1,72 @@
+// A vehicle's pose from its tray's outline when a parcel hides its tag (paper 000 eq. 5-8: the
+// tray's oriented box; here the box is fitted, not learned). In the window around the predicted
+// tray, edge pixels (Prewitt, thinned along the gradient, sub-pixel) are carried onto the tray
+// plane, where the tray is an exact rectangle of known length and width; the edges' direction
+// classes and a vote of both sides of each axis find it, a robust least-squares fit of the
+// rectangle's centre and heading refines it, with a covariance from the fit's residuals and a
+// per-side offset term. Parcels crossing an edge only remove that edge's points: two adjacent
+// sides are enough with the known size. A rectangle looks the same turned half a turn, so the
+// heading is taken nearest the prediction, and the fit is refused when the prediction's heading
+// sigma cannot tell the two apart. Pure.
+#pragma once
+
+#include <array>
+#include <opencv2/core.hpp>
+#include <string>
+
+#include "agv/common/geometry.hpp"
+#include "agv/overhead/tag_fix.hpp"
+#include "agv/site/site.hpp"
+
+namespace agv::overhead {
+
+struct TrayFitParams {
+  // Edge pixels: squared-magnitude floor of the Prewitt gradient (sums of three, 8-bit units).
+  double min_gradient = 24.0;
+  // The window covers the predicted tray widened by sigma_window times the prediction's sigma
+  // plus margin_mm.
+  double sigma_window = 3.0;
+  double margin_mm = 40.0;
+  // Refused when the prediction's position sigma exceeds this (the window would hold
+  // neighbours), or its heading's sigma_window-sigma exceeds a third of the rectangle's symmetry
+  // period (180 degrees, 90 for a square tray): the prediction could not resolve the ambiguity.
+  double max_position_sigma_mm = 250.0;
+  // An edge point joins a side when its gradient is within this of the side's normal.
+  double class_tol_rad = 0.17;
+  // A side counts as seen when its points cover this fraction of its length.
+  double min_side_coverage = 0.3;
+  // Refused when two opposite seen sides are further from the known size than this (mm, or
+  // pixels on the plane when larger): parcel edges taken for the tray's.
+  double max_size_error_mm = 12.0;
+  double max_size_error_px = 1.5;
+  // Covariance: each residual counts as one of edge_correlation neighbours (the gradient kernel
+  // and the blur smear one step over a few pixels), and each side's line has an offset error of
+  // side_offset_sigma_px (edge model, plate face, shading) on top.
+  double edge_correlation = 3.0;
+  double side_offset_sigma_px = 0.25;
+  int iterations = 8;
+};
+
+struct TrayFix {
+  TagFix fix;  // centre and heading in the site frame with their covariance: the tracker's input
+  int sides_seen = 0;                  // sides with enough support (2..4)
+  std::array<double, 4> coverage{};    // front, left, rear, right: fraction of the side covered
+  std::array<int, 4> points{};         // edge points kept per side
+  double residual_mm = 0.0;            // weighted RMS of the edge points' distances
+  double size_error_mm[2] = {0.0, 0.0};  // length, width: fitted minus known (0 when unseen)
+  double heading_from_prediction_rad = 0.0;  // |fitted - predicted|, after resolving
+};
+
+// Empty string when the parameters are usable, otherwise what is wrong (names the field).
+std::string validate(const TrayFitParams& p);
+
+// Fits vehicle `agv`'s tray in camera `cam`'s 8-bit gray frame around the predicted pose
+// (predicted_cov: x_mm, y_mm, theta_rad, row-major). True with *out; false with the reason in
+// *why (when not null) for bad input (image not 8-bit gray of the camera's size, non-finite or
+// non-positive-definite prediction, bad sizes or parameters), a prediction too uncertain, a tray
+// outside the image, too few sides seen, or a size that does not match the known tray.
+bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::FleetAgv& agv,
+              const Pose2& predicted, const std::array<double, 9>& predicted_cov,
+              const TrayFitParams& p, TrayFix* out, std::string* why = nullptr);
+
+}  // namespace agv::overhead

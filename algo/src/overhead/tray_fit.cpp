@@ -1,0 +1,432 @@
+// The tray's oriented box on the tray plane (tray_fit.hpp).
+#include "agv/overhead/tray_fit.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <vector>
+
+#include "tray_fit_internal.hpp"
+
+namespace agv::overhead {
+
+namespace tray_fit_detail {
+
+// Sides in the vehicle's frame, counter-clockwise from the front: outward normal at heading +
+// k quarter turns; the front and rear are the length's ends.
+constexpr int kSides = 4;
+constexpr double kMadToSigma = 1.4826;
+constexpr double kTukeyC = 4.685;
+// Orientation histogram of the edges (modulo a quarter turn) and its peaks.
+constexpr double kAngleBinRad = 0.5 * kPi / 180.0;
+constexpr int kMaxOrientations = 3;
+constexpr int kMinPeakPoints = 5;
+
+struct Box {
+  Vec2 c;  // relative to the predicted centre, mm
+  double theta = 0.0;
+};
+
+Vec2 side_normal(int k, double theta) {
+  const double a = theta + 0.5 * kPi * k;
+  return {std::cos(a), std::sin(a)};
+}
+double half_across(int k, const site::FleetAgv& agv) {
+  return 0.5 * (k % 2 == 0 ? agv.tray_length_mm : agv.tray_width_mm);
+}
+double half_along(int k, const site::FleetAgv& agv) {
+  return 0.5 * (k % 2 == 0 ? agv.tray_width_mm : agv.tray_length_mm);
+}
+// Distance between two axes (angles modulo pi), in [0, pi/2].
+double axis_distance(double a, double b) { return std::abs(std::remainder(a - b, kPi)); }
+
+// Candidate orientations of the rectangle (modulo pi): the strongest directions of the edges
+// modulo a quarter turn, each as either axis, within `allowed` of the prediction.
+std::vector<double> orientations(const std::vector<PlaneEdge>& edges, double theta_pred,
+                                 double allowed) {
+  const int n = static_cast<int>(std::lround(0.5 * kPi / kAngleBinRad));
+  std::vector<double> hist(static_cast<std::size_t>(n), 0.0), smooth(hist.size(), 0.0);
+  for (const PlaneEdge& e : edges) {
+    const double a = std::fmod(e.axis_rad, 0.5 * kPi);
+    hist[static_cast<std::size_t>(std::min(n - 1, static_cast<int>(a / kAngleBinRad)))] += 1.0;
+  }
+  static constexpr double kKernel[5] = {1, 2, 3, 2, 1};
+  for (int i = 0; i < n; ++i) {
+    for (int k = -2; k <= 2; ++k) {
+      smooth[static_cast<std::size_t>(i)] +=
+          kKernel[k + 2] * hist[static_cast<std::size_t>((i + k + n) % n)] / 9.0;
+    }
+  }
+  std::vector<std::pair<double, double>> peaks;  // (height, angle)
+  for (int i = 0; i < n; ++i) {
+    const double v = smooth[static_cast<std::size_t>(i)];
+    if (v < kMinPeakPoints / 3.0 || v < smooth[static_cast<std::size_t>((i + 1) % n)] ||
+        v <= smooth[static_cast<std::size_t>((i + n - 1) % n)]) {
+      continue;
+    }
+    const double a = (i + 0.5) * kAngleBinRad;
+    for (const double theta : {a, a + 0.5 * kPi}) {
+      if (axis_distance(theta, theta_pred) <= allowed) peaks.push_back({v, theta});
+    }
+  }
+  std::sort(peaks.begin(), peaks.end(), [](const auto& x, const auto& y) { return x > y; });
+  std::vector<double> out;
+  for (std::size_t i = 0; i < peaks.size() && out.size() < 2 * kMaxOrientations; ++i) {
+    out.push_back(peaks[i].second);
+  }
+  return out;
+}
+
+// The centre along each axis at orientation theta: every edge point of that axis votes for the
+// centre half the tray's size behind it and in front of it; where both sides agree the vote
+// peaks. Returns the sum of the two peaks' heights.
+double vote_centre(const std::vector<PlaneEdge>& edges, const site::FleetAgv& agv, double theta,
+                   double reach_mm, double bin_mm, double tol_rad, Vec2* centre) {
+  const int n = 2 * static_cast<int>(std::ceil(reach_mm / bin_mm)) + 1;
+  const double lo = -0.5 * n * bin_mm;
+  std::vector<double> h[2] = {std::vector<double>(static_cast<std::size_t>(n), 0.0),
+                              std::vector<double>(static_cast<std::size_t>(n), 0.0)};
+  for (const PlaneEdge& e : edges) {
+    for (int axis = 0; axis < 2; ++axis) {
+      if (axis_distance(e.axis_rad, theta + 0.5 * kPi * axis) > tol_rad) continue;
+      const Vec2 nrm = side_normal(axis, theta);
+      const double u = e.q.x * nrm.x + e.q.y * nrm.y, half = half_across(axis, agv);
+      for (const double v : {u - half, u + half}) {
+        const int b = static_cast<int>(std::floor((v - lo) / bin_mm));
+        if (b >= 0 && b < n) h[axis][static_cast<std::size_t>(b)] += 1.0;
+      }
+    }
+  }
+  double score = 0.0, at[2] = {0.0, 0.0};
+  for (int axis = 0; axis < 2; ++axis) {
+    double best = 0.0;
+    for (int b = 0; b < n; ++b) {
+      double s = 0.0;
+      for (int k = -1; k <= 1; ++k) {
+        if (b + k >= 0 && b + k < n) s += (k == 0 ? 2.0 : 1.0) * h[axis][static_cast<std::size_t>(b + k)];
+      }
+      if (s > best) best = s, at[axis] = lo + (b + 0.5) * bin_mm;
+    }
+    score += best;
+  }
+  const Vec2 nx = side_normal(0, theta), ny = side_normal(1, theta);
+  *centre = {at[0] * nx.x + at[1] * ny.x, at[0] * nx.y + at[1] * ny.y};
+  return score;
+}
+
+// An edge point's side of the box and its signed distance beyond it; false when it belongs to
+// none (direction or distance).
+bool side_of(const PlaneEdge& e, const Box& b, const site::FleetAgv& agv, double tol_rad,
+             double band_mm, int* side, double* r, double* along) {
+  for (int axis = 0; axis < 2; ++axis) {
+    if (axis_distance(e.axis_rad, b.theta + 0.5 * kPi * axis) > tol_rad) continue;
+    const Vec2 nrm = side_normal(axis, b.theta);
+    const Vec2 d{e.q.x - b.c.x, e.q.y - b.c.y};
+    const double u = d.x * nrm.x + d.y * nrm.y, v = -d.x * nrm.y + d.y * nrm.x;
+    const int k = u >= 0.0 ? axis : axis + 2;
+    *side = k;
+    *r = std::abs(u) - half_across(k, agv);
+    *along = u >= 0.0 ? v : -v;
+    return std::abs(*r) <= band_mm && std::abs(v) <= half_along(k, agv) + band_mm;
+  }
+  return false;
+}
+
+struct Fitted {
+  Box box;
+  std::vector<int> side;      // per edge, -1 when none
+  std::vector<double> w, r;   // Tukey weight and residual per edge
+  double h[9] = {};           // sum of w J J^T
+  double s2 = 0.0;            // weighted residual variance, mm^2
+};
+
+bool invert3(const double* a, double* inv) {
+  const double c00 = a[4] * a[8] - a[5] * a[7], c01 = a[5] * a[6] - a[3] * a[8],
+               c02 = a[3] * a[7] - a[4] * a[6];
+  const double det = a[0] * c00 + a[1] * c01 + a[2] * c02;
+  if (!(std::abs(det) > 1e-300) || !std::isfinite(det)) return false;
+  inv[0] = c00 / det;
+  inv[1] = (a[2] * a[7] - a[1] * a[8]) / det;
+  inv[2] = (a[1] * a[5] - a[2] * a[4]) / det;
+  inv[3] = c01 / det;
+  inv[4] = (a[0] * a[8] - a[2] * a[6]) / det;
+  inv[5] = (a[2] * a[3] - a[0] * a[5]) / det;
+  inv[6] = c02 / det;
+  inv[7] = (a[1] * a[6] - a[0] * a[7]) / det;
+  inv[8] = (a[0] * a[4] - a[1] * a[3]) / det;
+  return true;
+}
+
+// The Jacobian of an edge's residual on side k with respect to (cx, cy, theta).
+void jacobian(const PlaneEdge& e, const Box& b, int k, double* j) {
+  const Vec2 n = side_normal(k, b.theta);
+  j[0] = -n.x;
+  j[1] = -n.y;
+  j[2] = -n.y * (e.q.x - b.c.x) + n.x * (e.q.y - b.c.y);
+}
+
+// Robust Gauss-Newton of the box's centre and heading (known size): Tukey weights from the
+// residuals' median scale, the points re-assigned to sides at every step.
+bool refine(const std::vector<PlaneEdge>& edges, const site::FleetAgv& agv, double band_mm,
+            double min_sigma_mm, double tol_rad, int iterations, Fitted* f) {
+  const std::size_t n = edges.size();
+  f->side.assign(n, -1);
+  f->w.assign(n, 0.0);
+  f->r.assign(n, 0.0);
+  std::vector<double> abs_r;
+  for (int it = 0; it <= iterations; ++it) {
+    abs_r.clear();
+    for (std::size_t i = 0; i < n; ++i) {
+      double along = 0.0;
+      if (!side_of(edges[i], f->box, agv, tol_rad, band_mm, &f->side[i], &f->r[i], &along)) {
+        f->side[i] = -1;
+        continue;
+      }
+      abs_r.push_back(std::abs(f->r[i]));
+    }
+    if (abs_r.size() < 6) return false;
+    std::nth_element(abs_r.begin(), abs_r.begin() + static_cast<std::ptrdiff_t>(abs_r.size() / 2),
+                     abs_r.end());
+    const double sigma = std::max(min_sigma_mm, kMadToSigma * abs_r[abs_r.size() / 2]);
+    double h[9] = {}, g[3] = {}, swr2 = 0.0, sw = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+      f->w[i] = 0.0;
+      if (f->side[i] < 0) continue;
+      const double u = f->r[i] / (kTukeyC * sigma);
+      if (!(std::abs(u) < 1.0)) continue;
+      const double w = (1.0 - u * u) * (1.0 - u * u);
+      f->w[i] = w;
+      double j[3];
+      jacobian(edges[i], f->box, f->side[i], j);
+      for (int a = 0; a < 3; ++a) {
+        g[a] += w * j[a] * f->r[i];
+        for (int b = 0; b < 3; ++b) h[3 * a + b] += w * j[a] * j[b];
+      }
+      swr2 += w * f->r[i] * f->r[i];
+      sw += w;
+    }
+    double inv[9];
+    if (!(sw > 3.0) || !invert3(h, inv)) return false;
+    std::copy(h, h + 9, f->h);
+    f->s2 = swr2 / (sw - 3.0);
+    if (it == iterations) break;  // weights and information of the final box
+    f->box.c.x -= inv[0] * g[0] + inv[1] * g[1] + inv[2] * g[2];
+    f->box.c.y -= inv[3] * g[0] + inv[4] * g[1] + inv[5] * g[2];
+    f->box.theta -= inv[6] * g[0] + inv[7] * g[1] + inv[8] * g[2];
+  }
+  return true;
+}
+
+bool fail(std::string* why, const std::string& msg) {
+  if (why) *why = msg;
+  return false;
+}
+
+std::string fmt(const char* f, double a, double b = 0.0) {
+  char buf[160];
+  std::snprintf(buf, sizeof buf, f, a, b);
+  return buf;
+}
+
+}  // namespace tray_fit_detail
+
+std::string validate(const TrayFitParams& p) {
+  if (!(p.min_gradient > 0.0) || !std::isfinite(p.min_gradient)) return "min_gradient must be > 0";
+  if (!(p.sigma_window >= 1.0) || !std::isfinite(p.sigma_window)) return "sigma_window must be >= 1";
+  if (!(p.margin_mm >= 0.0) || !std::isfinite(p.margin_mm)) return "margin_mm must be >= 0";
+  if (!(p.max_position_sigma_mm > 0.0) || !std::isfinite(p.max_position_sigma_mm)) {
+    return "max_position_sigma_mm must be > 0";
+  }
+  if (!(p.class_tol_rad > 0.0 && p.class_tol_rad < 0.25 * kPi)) {
+    return "class_tol_rad must be in (0, pi/4)";
+  }
+  if (!(p.min_side_coverage > 0.0 && p.min_side_coverage <= 1.0)) {
+    return "min_side_coverage must be in (0, 1]";
+  }
+  if (!(p.max_size_error_mm > 0.0) || !(p.max_size_error_px > 0.0) ||
+      !std::isfinite(p.max_size_error_mm) || !std::isfinite(p.max_size_error_px)) {
+    return "max_size_error_mm and max_size_error_px must be > 0";
+  }
+  if (!(p.edge_correlation >= 1.0) || !std::isfinite(p.edge_correlation)) {
+    return "edge_correlation must be >= 1";
+  }
+  if (!(p.side_offset_sigma_px >= 0.0) || !std::isfinite(p.side_offset_sigma_px)) {
+    return "side_offset_sigma_px must be >= 0";
+  }
+  if (p.iterations < 1 || p.iterations > 100) return "iterations must be in 1..100";
+  return "";
+}
+
+namespace tray_fit_detail {
+
+bool check_input(const cv::Mat& gray, const site::CeilingCamera& cam, const site::FleetAgv& agv,
+                 const Pose2& predicted, const std::array<double, 9>& cov, const TrayFitParams& p,
+                 std::string* why) {
+  if (const std::string e = validate(p); !e.empty()) return fail(why, "tray fit parameters: " + e);
+  if (gray.empty() || gray.type() != CV_8UC1 || gray.cols != cam.intrinsics.width_px ||
+      gray.rows != cam.intrinsics.height_px || gray.cols < 3 || gray.rows < 3) {
+    return fail(why, "image is not 8-bit gray of the camera's size");
+  }
+  const double sizes[3] = {agv.tray_length_mm, agv.tray_width_mm, agv.tray_height_mm};
+  if (!(sizes[0] > 0.0 && sizes[1] > 0.0) || !std::isfinite(sizes[0]) ||
+      !std::isfinite(sizes[1]) || !std::isfinite(sizes[2])) {
+    return fail(why, "vehicle " + agv.id + ": tray size is not positive and finite");
+  }
+  if (!std::isfinite(predicted.x_mm) || !std::isfinite(predicted.y_mm) ||
+      !std::isfinite(predicted.theta_rad)) {
+    return fail(why, "predicted pose is not finite");
+  }
+  for (const double v : cov) {
+    if (!std::isfinite(v)) return fail(why, "predicted covariance is not finite");
+  }
+  if (!(cov[0] > 0.0 && cov[4] > 0.0 && cov[8] > 0.0 && cov[0] * cov[4] > cov[1] * cov[3])) {
+    return fail(why, "predicted covariance is not positive definite");
+  }
+  return true;
+}
+
+// Fraction of side k's length covered by its kept points (one bin per pixel on the plane), and
+// the mean of their residuals.
+void side_stats(const std::vector<PlaneEdge>& edges, const Fitted& f, const site::FleetAgv& agv,
+                double mm_per_px, TrayFix* out, double mean_r[kSides]) {
+  for (int k = 0; k < kSides; ++k) {
+    const double half = half_along(k, agv);
+    const int bins = std::max(1, static_cast<int>(std::lround(2.0 * half / mm_per_px)));
+    std::vector<char> hit(static_cast<std::size_t>(bins), 0);
+    const Vec2 n = side_normal(k, f.box.theta);
+    double sw = 0.0, swr = 0.0;
+    int count = 0;
+    for (std::size_t i = 0; i < edges.size(); ++i) {
+      if (f.side[i] != k || !(f.w[i] > 0.0)) continue;
+      ++count;
+      sw += f.w[i];
+      swr += f.w[i] * f.r[i];
+      const Vec2 d{edges[i].q.x - f.box.c.x, edges[i].q.y - f.box.c.y};
+      const double along = -d.x * n.y + d.y * n.x;
+      const int b = static_cast<int>(std::floor((along + half) / (2.0 * half) * bins));
+      if (b >= 0 && b < bins) hit[static_cast<std::size_t>(b)] = 1;
+    }
+    double covered = 0.0;
+    for (const char h : hit) covered += h;
+    out->coverage[static_cast<std::size_t>(k)] = covered / bins;
+    out->points[static_cast<std::size_t>(k)] = count;
+    mean_r[k] = sw > 0.0 ? swr / sw : 0.0;
+  }
+}
+
+// Covariance of (cx, cy, theta): the residuals' scatter, each counted once per `correlation`
+// neighbours, plus an offset error of every side's line carried through the fit.
+void box_covariance(const std::vector<PlaneEdge>& edges, const Fitted& f, double correlation,
+                    double side_sigma_mm, std::array<double, 9>* cov) {
+  double inv[9];
+  invert3(f.h, inv);  // succeeded in refine
+  for (int i = 0; i < 9; ++i) (*cov)[static_cast<std::size_t>(i)] = f.s2 * correlation * inv[i];
+  for (int k = 0; k < kSides; ++k) {
+    double s[3] = {0.0, 0.0, 0.0};
+    for (std::size_t i = 0; i < edges.size(); ++i) {
+      if (f.side[i] != k || !(f.w[i] > 0.0)) continue;
+      double j[3];
+      jacobian(edges[i], f.box, k, j);
+      for (int a = 0; a < 3; ++a) s[a] += f.w[i] * j[a];
+    }
+    double g[3];
+    for (int a = 0; a < 3; ++a) g[a] = inv[3 * a] * s[0] + inv[3 * a + 1] * s[1] + inv[3 * a + 2] * s[2];
+    for (int a = 0; a < 3; ++a) {
+      for (int b = 0; b < 3; ++b) {
+        (*cov)[static_cast<std::size_t>(3 * a + b)] += side_sigma_mm * side_sigma_mm * g[a] * g[b];
+      }
+    }
+  }
+}
+
+}  // namespace tray_fit_detail
+
+bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::FleetAgv& agv,
+              const Pose2& predicted, const std::array<double, 9>& predicted_cov,
+              const TrayFitParams& p, TrayFix* out, std::string* why) {
+  using namespace tray_fit_detail;
+  if (!out) return fail(why, "no output");
+  if (!check_input(gray, cam, agv, predicted, predicted_cov, p, why)) return false;
+  const double pxx = predicted_cov[0], pyy = predicted_cov[4];
+  const double pxy = 0.5 * (predicted_cov[1] + predicted_cov[3]);
+  const double sigma_pos =
+      std::sqrt(0.5 * (pxx + pyy) + std::sqrt(0.25 * (pxx - pyy) * (pxx - pyy) + pxy * pxy));
+  const double sigma_theta = std::sqrt(predicted_cov[8]);
+  if (sigma_pos > p.max_position_sigma_mm) {
+    return fail(why, fmt("prediction's position sigma %.0f mm is beyond %.0f mm", sigma_pos,
+                         p.max_position_sigma_mm));
+  }
+  // A square tray repeats every quarter turn, an oblong one every half turn.
+  const bool square = std::abs(agv.tray_length_mm - agv.tray_width_mm) < 2.0 * p.max_size_error_mm;
+  const double period = square ? 0.5 * kPi : kPi;
+  if (p.sigma_window * sigma_theta > period / 3.0) {
+    return fail(why, fmt("prediction's heading 3-sigma %.0f deg cannot resolve the tray's %.0f deg "
+                         "symmetry",
+                         rad_to_deg(p.sigma_window * sigma_theta), rad_to_deg(period)));
+  }
+  TrayWindow win;
+  if (!tray_window(cam, agv, predicted, sigma_pos, sigma_theta, p, &win, why)) return false;
+  thread_local std::vector<PlaneEdge> edges;
+  plane_edges(gray, cam, agv, predicted, win, p, &edges);
+
+  const double allowed = std::min(p.sigma_window * sigma_theta + p.class_tol_rad, 0.5 * kPi);
+  const double bin_mm = std::max(1.0, 0.5 * win.mm_per_px);
+  Fitted f;
+  double best = 0.0;
+  for (const double theta : orientations(edges, predicted.theta_rad, allowed)) {
+    Vec2 c;
+    const double score = vote_centre(edges, agv, theta, win.reach_mm, bin_mm, p.class_tol_rad, &c);
+    if (score > best) best = score, f.box = {c, theta};
+  }
+  if (!(best > 0.0)) return fail(why, "no tray edges in the window");
+  const double band_mm = std::max(2.0 * win.mm_per_px, 4.0 * bin_mm);
+  if (!refine(edges, agv, band_mm, 0.05 * win.mm_per_px, p.class_tol_rad, p.iterations, &f)) {
+    return fail(why, "too few tray edge points to fit");
+  }
+  TrayFix r;
+  double mean_r[kSides];
+  side_stats(edges, f, agv, win.mm_per_px, &r, mean_r);
+  bool seen[kSides];
+  for (int k = 0; k < kSides; ++k) {
+    seen[k] = r.coverage[static_cast<std::size_t>(k)] >= p.min_side_coverage;
+    r.sides_seen += seen[k] ? 1 : 0;
+  }
+  if (!(seen[0] || seen[2]) || !(seen[1] || seen[3])) {
+    return fail(why, fmt("too few tray sides seen (front/rear %.0f%%, left/right %.0f%% covered)",
+                         100.0 * std::max(r.coverage[0], r.coverage[2]),
+                         100.0 * std::max(r.coverage[1], r.coverage[3])));
+  }
+  const double max_size_err = std::max(p.max_size_error_mm, p.max_size_error_px * win.mm_per_px);
+  for (int axis = 0; axis < 2; ++axis) {
+    if (!seen[axis] || !seen[axis + 2]) continue;
+    r.size_error_mm[axis] = mean_r[axis] + mean_r[axis + 2];
+    if (std::abs(r.size_error_mm[axis]) > max_size_err) {
+      return fail(why, fmt(axis == 0 ? "tray length off by %.1f mm (limit %.1f)"
+                                     : "tray width off by %.1f mm (limit %.1f)",
+                           r.size_error_mm[axis], max_size_err));
+    }
+  }
+  // The half-turn (quarter-turn for a square) nearest the prediction.
+  const double theta = f.box.theta +
+                       period * std::round((predicted.theta_rad - f.box.theta) / period);
+  r.heading_from_prediction_rad = std::abs(wrap_angle_rad(theta - predicted.theta_rad));
+  if (r.heading_from_prediction_rad > period / 3.0) {
+    return fail(why, fmt("tray heading %.0f deg from the prediction: ambiguous",
+                         rad_to_deg(r.heading_from_prediction_rad)));
+  }
+  box_covariance(edges, f, p.edge_correlation, p.side_offset_sigma_px * win.mm_per_px, &r.fix.cov);
+  r.fix.pose = {predicted.x_mm + f.box.c.x, predicted.y_mm + f.box.c.y, wrap_angle_rad(theta)};
+  r.residual_mm = std::sqrt(f.s2);
+  r.fix.residual_mm = r.residual_mm;
+  r.fix.size_error_rel = 0.0;
+  for (int axis = 0; axis < 2; ++axis) {
+    const double len = axis == 0 ? agv.tray_length_mm : agv.tray_width_mm;
+    if (std::abs(r.size_error_mm[axis] / len) > std::abs(r.fix.size_error_rel)) {
+      r.fix.size_error_rel = r.size_error_mm[axis] / len;
+    }
+  }
+  *out = r;
+  return true;
+}
+
+}  // namespace agv::overhead
