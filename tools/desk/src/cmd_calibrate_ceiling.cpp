@@ -264,7 +264,7 @@ int calibrate_ceiling_check(int argc, char** argv) {
       "2 bad input (docs/guide/site.md)",
       "agvloc-desk calibrate ceiling-check"};
   CeilingArgs a;
-  double max_rms_px = 1.0, max_floor_mm = 10.0;
+  double max_rms_px = 1.0, max_floor_mm = 5.0;
   add_common_options(app, &a);
   app.add_option("--max-rms-px", max_rms_px, "Pass: corner reprojection RMS at most this (px)")
       ->check(calib::finite_in(0.01, 100.0))
