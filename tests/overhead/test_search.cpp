@@ -209,6 +209,17 @@ TEST(OverheadSearch, MissedWindowFallsBackToTheArea) {
   const std::vector<SearchWindow> ws2 = plan_search(cam, fleet, tr, kNow, SearchParams{}, st);
   EXPECT_EQ(windows_of(ws2, 2).at(0)->rect, cv::Rect(320, 0, 960, 720));
   EXPECT_EQ(windows_of(ws2, 0).at(0)->level, SearchLevel::kTrack);
+  EXPECT_EQ(count_level(ws2, SearchLevel::kFull), 0);
+  // Missed in its area too: the whole image as well once no camera sees it (coasting), not
+  // while another camera keeps its track fresh. The area stays (searched first).
+  st.missed = {0, 0, 2};
+  EXPECT_EQ(count_level(plan_search(cam, fleet, tr, kNow, SearchParams{}, st), SearchLevel::kFull),
+            0);
+  const std::int64_t later = kNow + 400 * kMs;
+  ASSERT_EQ(tr.output(2, later).state, TrackState::kCoasting);
+  const std::vector<SearchWindow> ws3 = plan_search(cam, fleet, tr, later, SearchParams{}, st);
+  EXPECT_EQ(windows_of(ws3, 2).at(0)->level, SearchLevel::kArea);
+  EXPECT_EQ(count_level(ws3, SearchLevel::kFull), 1);
 }
 
 TEST(OverheadSearch, WideWindowFallsBackToTheArea) {

@@ -169,7 +169,7 @@ std::vector<SearchWindow> plan_search(const site::CeilingCamera& cam,
     return out;
   }
   const std::size_t tracked = std::min(fleet.size(), tracker.size());
-  bool untracked = fleet.size() > tracked;
+  bool untracked = fleet.size() > tracked, lost_in_area = false;
   for (std::size_t i = 0; i < tracked; ++i) {
     const TrackOutput o = tracker.output(i, t_ns);
     if (!sd::has_track(o.state)) {
@@ -180,8 +180,11 @@ std::vector<SearchWindow> plan_search(const site::CeilingCamera& cam,
     if (!sd::predict_tag(cam, fleet[i], o, params.window_sigmas, &p)) continue;
     const cv::Rect rect = sd::track_rect(p, params.window_margin_px, image);
     if (rect.empty()) continue;  // not in this camera's view
-    const bool missed = i < state.missed.size() && state.missed[i] != 0;
-    if (missed || rect.width > params.max_window_px || rect.height > params.max_window_px) {
+    const int missed = i < state.missed.size() ? state.missed[i] : 0;
+    // The whole image only for a vehicle no camera has seen for a while: one that another camera
+    // sees (at this one's border, in a hand-over) keeps its track fresh.
+    lost_in_area = lost_in_area || (missed >= 2 && o.state == TrackState::kCoasting);
+    if (missed > 0 || rect.width > params.max_window_px || rect.height > params.max_window_px) {
       sd::add_area(i, sd::area_rect(p.centre_px, params, image), &out);
       continue;
     }
@@ -193,7 +196,7 @@ std::vector<SearchWindow> plan_search(const site::CeilingCamera& cam,
     out.push_back(std::move(w));
   }
   const int every = params.full_sweep_every_frames;
-  if (state.frames == 0 || (untracked && every > 0 && state.frames % every == 0)) {
+  if (state.frames == 0 || lost_in_area || (untracked && every > 0 && state.frames % every == 0)) {
     out.push_back(full);
   }
   return out;

@@ -50,8 +50,10 @@ struct SearchWindow {
 };
 
 struct CameraSearchState {
-  std::int64_t frames = 0;           // frames seen by this camera
-  std::vector<std::uint8_t> missed;  // per vehicle: its window found nothing last frame
+  std::int64_t frames = 0;  // frames seen by this camera
+  // Per vehicle: frames in a row its window found nothing (1: the area next; 2 or more: the
+  // whole image too, as the paper's second emergency level). Saturate, do not wrap.
+  std::vector<std::uint8_t> missed;
 };
 
 // The windows for one frame of camera `cam` exposed at t_ns (the camera's frames so far and
@@ -63,7 +65,8 @@ struct CameraSearchState {
 // - instead a kArea window (the tiles around the prediction's, identical ones merged) for a
 //   vehicle whose window missed last frame or came out larger than max_window_px;
 // - no window for a vehicle predicted behind the camera or whose widened box misses the image;
-// - a kFull window (the whole image, no vehicles) last, when the sweep is due (SearchParams).
+// - a kFull window (the whole image, no vehicles) last, when the sweep is due (SearchParams) or
+//   a coasting vehicle in view missed its area too (missed >= 2).
 // Invalid params (validate) give one kFull window; invalid intrinsics, none.
 std::vector<SearchWindow> plan_search(const site::CeilingCamera& cam,
                                       const std::vector<site::FleetAgv>& fleet,
