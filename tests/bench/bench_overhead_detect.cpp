@@ -1,7 +1,8 @@
 // Overhead tag detection speed (hand-run, not a ctest; docs/design/overhead.md gives the figures):
 // one 3840x2160 frame of a ceiling camera 6 m up over 20 vehicles (160 mm tags, about 60 px),
 // rendered with the realistic effects. Side by side in one run, on one core:
-//  - TagDetector::detect on a 256 x 256 window around each visible tag (the tracker's window);
+//  - TagDetector::detect on a 256 x 256 window around each visible tag (the tracker's window),
+//    decimation 1 and 2;
 //  - TagDetector::detect_predicted at each tag's corners moved 3 px (the predicted path);
 //  - libapriltag (tag36h11, 2 bits, one thread) on the whole frame, decimation 1 and 2, with its
 //    default min_white_black_diff (5) and with the detector's (40).
@@ -78,7 +79,9 @@ const Bench& bench() {
 
 void BM_DetectWindow256(benchmark::State& state) {
   const Bench& b = bench();
-  const overhead::TagDetector det;
+  overhead::TagDetectParams p;
+  p.quad_decimate = static_cast<double>(state.range(0));
+  const overhead::TagDetector det(p);
   std::size_t i = 0, found = 0, calls = 0;
   for (auto _ : state) {
     const auto obs = det.detect(b.frame.image, b.windows[i]);
@@ -128,7 +131,7 @@ void BM_LibapriltagFullFrame(benchmark::State& state) {
 
 }  // namespace
 
-BENCHMARK(BM_DetectWindow256)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DetectWindow256)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DetectPredicted)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_LibapriltagFullFrame)
     ->Args({1, 5})

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <opencv2/imgproc.hpp>
+#include <random>
 
 #include "agv/overhead/tag_code.hpp"
 #include "agv/overhead/tag_detect.hpp"
@@ -99,8 +100,6 @@ TEST_P(TagDetectSizes, EveryVisibleTagFoundWithRightIdAndSubpixelCorners) {
   EXPECT_GT(max_sigma, 0.0);
 }
 
-INSTANTIATE_TEST_SUITE_P(Sides, TagDetectSizes, ::testing::Values(40.0, 60.0));
-
 // libapriltag's tile contrast floor is the detector's: a faint tag (a fifth of the contrast) is
 // skipped at the default floor of 40 and found at libapriltag's own default of 5.
 TEST(TagDetectParamsTest, QuadContrastFloorReachesLibapriltag) {
@@ -171,31 +170,89 @@ TEST(TagDetectPredicted, QuarterTurnedPredictionGivesPageOrder) {
   }
 }
 
-// Paints 6 data cells of the tag in the opposite colour through the truth corners' homography.
-cv::Mat corrupt_six_cells(const cv::Mat& img, const sim::AgvTruth& t) {
-  cv::Mat out = img.clone();
+// Paints the given data cells (row, column) of the tag in the opposite colour through the truth
+// corners' homography.
+void corrupt_cells(cv::Mat* img, const std::array<Vec2, 4>& corners, std::uint32_t id,
+                   const std::vector<std::pair<int, int>>& cells) {
   const std::array<cv::Point2f, 4> src{cv::Point2f(0, 0), cv::Point2f(8, 0), cv::Point2f(8, 8),
                                        cv::Point2f(0, 8)};
   std::array<cv::Point2f, 4> dst;
   for (std::size_t k = 0; k < 4; ++k) {
-    dst[k] = cv::Point2f(static_cast<float>(t.tag_corners_px[k].x),
-                         static_cast<float>(t.tag_corners_px[k].y));
+    dst[k] = cv::Point2f(static_cast<float>(corners[k].x), static_cast<float>(corners[k].y));
   }
   const cv::Matx33d h = cv::getPerspectiveTransform(src.data(), dst.data());
-  const std::uint64_t code = tag36h11_code(t.tag_id);
-  const int cells[6][2] = {{0, 0}, {1, 4}, {2, 2}, {3, 5}, {4, 1}, {5, 3}};
-  for (const auto& rc : cells) {
+  const std::uint64_t code = tag36h11_code(id);
+  for (const auto& [row, col] : cells) {
     std::vector<cv::Point> poly;
     for (const auto& uv : {std::pair{0, 0}, std::pair{1, 0}, std::pair{1, 1}, std::pair{0, 1}}) {
-      const double u = rc[1] + 1 + uv.first, v = rc[0] + 1 + uv.second;
+      const double u = col + 1 + uv.first, v = row + 1 + uv.second;
       const double w = h(2, 0) * u + h(2, 1) * v + h(2, 2);
       poly.emplace_back(static_cast<int>(std::lround((h(0, 0) * u + h(0, 1) * v + h(0, 2)) / w)),
                         static_cast<int>(std::lround((h(1, 0) * u + h(1, 1) * v + h(1, 2)) / w)));
     }
-    const bool white = (code >> (35 - (rc[0] * 6 + rc[1]))) & 1U;
-    cv::fillConvexPoly(out, poly, cv::Scalar(white ? 35 : 190));
+    const bool white = (code >> (35 - (row * 6 + col))) & 1U;
+    cv::fillConvexPoly(*img, poly, cv::Scalar(white ? 35 : 190));
   }
+}
+
+cv::Mat corrupt_six_cells(const cv::Mat& img, const sim::AgvTruth& t) {
+  cv::Mat out = img.clone();
+  corrupt_cells(&out, t.tag_corners_px, t.tag_id, {{0, 0}, {1, 4}, {2, 2}, {3, 5}, {4, 1}, {5, 3}});
   return out;
+}
+
+// An area of four ids around `id` whose codes (every turn) are at least 13 apart, so 6 bits are
+// correctable; empty when none is found among the first ids.
+std::vector<std::uint32_t> spread_area(std::uint32_t id) {
+  std::vector<std::uint32_t> area{id};
+  for (std::uint32_t c = 0; c < 200 && area.size() < 4; ++c) {
+    std::vector<std::uint32_t> t = area;
+    t.push_back(c);
+    if (c != id && min_distance(t) >= 13) area = t;
+  }
+  return area.size() == 4 ? area : std::vector<std::uint32_t>{};
+}
+
+// Random 6-cell corruptions of every visible tag, read on the predicted path against its area:
+// the rate of right reads, and never a wrong id.
+TEST_P(TagDetectSizes, RandomSixCellCorruptionsReadInSpreadArea) {
+  const Frame& f = frame(GetParam());
+  const TagDetector det;
+  std::mt19937 rng(17);
+  int tried = 0, right = 0, wrong = 0;
+  for (const sim::AgvTruth& t : f.r.agvs) {
+    if (!inside(t, f.r.image, 40.0)) continue;
+    const std::vector<std::uint32_t> area = spread_area(t.tag_id);
+    if (area.empty()) continue;
+    // A crop around the tag keeps each trial's copy small.
+    Vec2 c{0, 0};
+    for (const Vec2& p : t.tag_corners_px) c.x += 0.25 * p.x, c.y += 0.25 * p.y;
+    const cv::Rect roi(static_cast<int>(c.x) - 80, static_cast<int>(c.y) - 80, 160, 160);
+    std::array<Vec2, 4> local = t.tag_corners_px;
+    for (Vec2& p : local) p.x -= roi.x, p.y -= roi.y;
+    for (int trial = 0; trial < 20; ++trial) {
+      std::vector<int> idx(36);
+      for (int i = 0; i < 36; ++i) idx[static_cast<std::size_t>(i)] = i;
+      std::shuffle(idx.begin(), idx.end(), rng);
+      std::vector<std::pair<int, int>> cells;
+      for (int i = 0; i < 6; ++i)
+        cells.emplace_back(idx[static_cast<std::size_t>(i)] / 6,
+                           idx[static_cast<std::size_t>(i)] % 6);
+      cv::Mat img = f.r.image(roi).clone();
+      corrupt_cells(&img, local, t.tag_id, cells);
+      TagObservation o;
+      ++tried;
+      if (det.detect_predicted(img, local, area, &o)) {
+        right += o.id == t.tag_id ? 1 : 0;
+        wrong += o.id != t.tag_id ? 1 : 0;
+      }
+    }
+  }
+  ASSERT_GE(tried, 60);
+  std::printf("[ measured ] %.0f px tags: %d of %d six-cell corruptions read right, %d wrong\n",
+              GetParam(), right, tried, wrong);
+  EXPECT_EQ(wrong, 0);
+  EXPECT_GE(right, tried * 99 / 100);
 }
 
 TEST(TagDetectPredicted, SixCorruptedCellsReadInSmallAreaRefusedGlobally) {
@@ -268,6 +325,8 @@ TEST(TagDetectBadInput, NoDetectionNoCrash) {
   const cv::Mat roi = f.r.image(cv::Rect(0, 0, 1280, 720));
   EXPECT_EQ(det.detect(roi, full).size(), det.detect(f.r.image, full).size());
 }
+
+INSTANTIATE_TEST_SUITE_P(Sides, TagDetectSizes, ::testing::Values(40.0, 60.0));
 
 }  // namespace
 }  // namespace agv::overhead
