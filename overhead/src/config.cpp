@@ -36,7 +36,8 @@ bool parse_int(const std::string& s, std::int64_t* out) {
 }
 
 // The scalar as the key's type; "" on success, else what is wrong.
-std::string convert(const Key& k, const std::string& s, Value* v) {
+template <typename Cfg>
+std::string convert(const KeyOf<Cfg>& k, const std::string& s, Value* v) {
   switch (k.type) {
     case KeyType::kNumber: {
       double d = 0.0;
@@ -72,21 +73,30 @@ std::string convert(const Key& k, const std::string& s, Value* v) {
   return "unsupported key type";
 }
 
-// cameras.<id>.latency_ms: "" when `key` is not of that shape, else the camera id.
-std::string latency_camera(const std::string& key) {
-  static const std::string head = "cameras.", tail = ".latency_ms";
-  if (key.size() <= head.size() + tail.size() || key.compare(0, head.size(), head) != 0 ||
-      key.compare(key.size() - tail.size(), tail.size(), tail) != 0) {
-    return "";
-  }
-  return key.substr(head.size(), key.size() - head.size() - tail.size());
-}
-
-const Key* find_key(const std::string& name) {
-  for (const Key& k : config_keys()) {
+template <typename Cfg>
+const KeyOf<Cfg>* find_in(const std::vector<KeyOf<Cfg>>& keys, const std::string& name) {
+  for (const KeyOf<Cfg>& k : keys) {
     if (k.name == name) return &k;
   }
   return nullptr;
+}
+
+// cameras.<id>.<leaf>: sets the camera's key; "" on success, else what is wrong. *is_camera is
+// false when `key` is not of that shape (then nothing is done).
+std::string set_camera_key(const std::string& key, const std::string& scalar, OverheadConfig* cfg,
+                           bool* is_camera) {
+  static const std::string head = "cameras.";
+  const std::size_t dot = key.rfind('.');
+  *is_camera = key.compare(0, head.size(), head) == 0 && dot > head.size();
+  if (!*is_camera) return "";
+  const std::string id = key.substr(head.size(), dot - head.size());
+  if (id.find('.') != std::string::npos) return "unknown key";
+  const CameraKey* k = find_in(camera_keys(), key.substr(dot + 1));
+  if (!k) return "unknown key";
+  Value v;
+  const std::string what = convert(*k, scalar, &v);
+  if (what.empty()) k->set(cfg->cameras[id], v);
+  return what;
 }
 
 std::string check_mqtt_names(const OverheadConfig& c) {
@@ -123,18 +133,13 @@ bool parse_config(const std::string& text, OverheadConfig* out, std::vector<std:
       errors->push_back(where + "duplicate key (first at line " + std::to_string(it->second) + ")");
       continue;
     }
-    const std::string cam = latency_camera(e.key);
-    if (!cam.empty() && cam.find('.') == std::string::npos) {
-      double ms = 0.0;
-      if (!parse_double(e.value, &ms) || ms < 0.0 || ms > kMaxCameraLatencyMs) {
-        errors->push_back(where + "expected a number in 0.." + fmt_number(kMaxCameraLatencyMs) +
-                          " (ms)");
-      } else {
-        cfg.camera_latency_ms[cam] = ms;
-      }
+    bool is_camera = false;
+    const std::string cam_error = set_camera_key(e.key, e.value, &cfg, &is_camera);
+    if (is_camera) {
+      if (!cam_error.empty()) errors->push_back(where + cam_error);
       continue;
     }
-    const Key* k = find_key(e.key);
+    const Key* k = find_in(config_keys(), e.key);
     if (!k) {
       errors->push_back(where + "unknown key");
       continue;
@@ -171,16 +176,16 @@ bool load_config(const std::string& path, OverheadConfig* out, std::vector<std::
   return false;
 }
 
-std::string format_value(const Key& key, const Value& v) {
+std::string format_value(const Value& v) {
   if (const auto* d = std::get_if<double>(&v)) return fmt_number(*d);
   if (const auto* i = std::get_if<std::int64_t>(&v)) return std::to_string(*i);
   if (const auto* b = std::get_if<bool>(&v)) return *b ? "true" : "false";
-  (void)key;
   const std::string& s = std::get<std::string>(v);
   return s.empty() ? "\"\"" : s;
 }
 
-std::string format_range(const Key& key) {
+template <typename Cfg>
+std::string format_range(const KeyOf<Cfg>& key) {
   switch (key.type) {
     case KeyType::kNumber:
     case KeyType::kInteger:
@@ -197,17 +202,24 @@ std::string format_range(const Key& key) {
   }
   return "";
 }
+template std::string format_range(const Key& key);
+template std::string format_range(const CameraKey& key);
+
+namespace {
+
+template <typename Cfg>
+std::string doc_row(const std::string& name, const KeyOf<Cfg>& k) {
+  return "| `" + name + "` | " + format_value(k.def) + " | " + format_range(k) + " | " + k.unit +
+         " | " + k.doc + " |\n";
+}
+
+}  // namespace
 
 std::string config_keys_doc() {
   std::string out =
       "| key | default | range | unit | meaning / trade-off |\n|---|---|---|---|---|\n";
-  for (const Key& k : config_keys()) {
-    out += "| `" + k.name + "` | " + format_value(k, k.def) + " | " + format_range(k) + " | " +
-           k.unit + " | " + k.doc + " |\n";
-  }
-  out += "| `cameras.<id>.latency_ms` | 0 | 0.." + fmt_number(kMaxCameraLatencyMs) +
-         " | ms | Exposure to the frame's arrival at the tracker for the site camera `<id>` "
-         "(fixes keep their exposure time; the tracker applies them where they belong) |\n";
+  for (const Key& k : config_keys()) out += doc_row(k.name, k);
+  for (const CameraKey& k : camera_keys()) out += doc_row("cameras.<id>." + k.name, k);
   return out;
 }
 

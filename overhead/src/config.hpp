@@ -28,35 +28,48 @@ struct MqttOutput {
   std::string map_id;  // empty: the site's name
 };
 
+// cameras.<id>.*: one ceiling camera of the site (matched by id). The live settings are used by
+// `run` only, latency_ms by `replay` only (live frames are processed as they really arrive).
+struct CameraSettings {
+  double latency_ms = 0.0;
+  std::string driver = "v4l2";
+  std::string device;  // empty: `run` does not open this camera
+  double fps = 30.0;
+  std::int64_t exposure_us = 500;
+  double analogue_gain = 1.0;
+};
+
 struct OverheadConfig {
   overhead::TrackerParams tracker;
   overhead::SearchParams search;
   overhead::TagDetectParams detect;
   double output_rate_hz = 30.0;
   MqttOutput mqtt;
-  // cameras.<id>.latency_ms: exposure to the frame's arrival at the tracker, by camera id.
-  std::map<std::string, double> camera_latency_ms;
+  std::map<std::string, CameraSettings> cameras;  // by camera id
 };
 
 enum class KeyType { kNumber, kInteger, kBool, kString, kChoice };
 using Value = std::variant<bool, std::int64_t, double, std::string>;
 
-struct Key {
-  std::string name;  // "tracker.gate_chi2"
+// One key of a table whose values are stored in a Cfg.
+template <typename Cfg>
+struct KeyOf {
+  std::string name;  // "tracker.gate_chi2"; for a camera key the leaf ("latency_ms")
   KeyType type = KeyType::kNumber;
   double lo = 0.0, hi = 0.0;
   std::vector<std::string> choices;
   std::string unit;
   Value def;
   std::string doc;
-  std::function<Value(const OverheadConfig&)> get;
-  std::function<void(OverheadConfig&, const Value&)> set;
+  std::function<Value(const Cfg&)> get;
+  std::function<void(Cfg&, const Value&)> set;
 };
+using Key = KeyOf<OverheadConfig>;
+using CameraKey = KeyOf<CameraSettings>;
 
 const std::vector<Key>& config_keys();
-
-// cameras.<id>.latency_ms (not in the table: one per camera id).
-inline constexpr double kMaxCameraLatencyMs = 1000.0;
+// cameras.<id>.<leaf>, for every camera id of the site.
+const std::vector<CameraKey>& camera_keys();
 
 // Parses a configuration text. False with one line per problem in *errors ("line 4:
 // tracker.gate_chi2: value 0 outside the accepted range 1..1000"). Keys missing from the text keep
@@ -69,8 +82,9 @@ bool load_config(const std::string& path, OverheadConfig* out, std::vector<std::
 // A name usable as one MQTT topic level (not empty, no '/', '+', '#', NUL or control character).
 bool topic_level_ok(const std::string& s);
 
-std::string format_value(const Key& key, const Value& v);
-std::string format_range(const Key& key);
+std::string format_value(const Value& v);
+template <typename Cfg>
+std::string format_range(const KeyOf<Cfg>& key);
 // The key table as Markdown, the part of docs/guide/overhead.md between its
 // "<!-- keys: begin -->" and "<!-- keys: end -->" markers.
 std::string config_keys_doc();

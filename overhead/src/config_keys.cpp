@@ -15,9 +15,10 @@ namespace agv::overhead_app {
 
 namespace {
 
-Key base(const char* name, KeyType type, double lo, double hi, Value def, const char* unit,
-         const char* doc) {
-  Key k;
+template <typename Cfg>
+KeyOf<Cfg> base(const char* name, KeyType type, double lo, double hi, Value def, const char* unit,
+                const char* doc) {
+  KeyOf<Cfg> k;
   k.name = name;
   k.type = type;
   k.lo = lo;
@@ -28,44 +29,44 @@ Key base(const char* name, KeyType type, double lo, double hi, Value def, const 
   return k;
 }
 
-template <typename Ref>
-Key number(const char* name, Ref ref, double lo, double hi, double def, const char* unit,
+template <typename Cfg = OverheadConfig, typename Ref>
+KeyOf<Cfg> number(const char* name, Ref ref, double lo, double hi, double def, const char* unit,
            const char* doc) {
-  Key k = base(name, KeyType::kNumber, lo, hi, def, unit, doc);
-  k.get = [ref](const OverheadConfig& c) { return Value{static_cast<double>(ref(c))}; };
-  k.set = [ref](OverheadConfig& c, const Value& v) { ref(c) = std::get<double>(v); };
+  KeyOf<Cfg> k = base<Cfg>(name, KeyType::kNumber, lo, hi, def, unit, doc);
+  k.get = [ref](const Cfg& c) { return Value{static_cast<double>(ref(c))}; };
+  k.set = [ref](Cfg& c, const Value& v) { ref(c) = std::get<double>(v); };
   return k;
 }
 
-template <typename Ref>
-Key integer(const char* name, Ref ref, std::int64_t lo, std::int64_t hi, std::int64_t def,
+template <typename Cfg = OverheadConfig, typename Ref>
+KeyOf<Cfg> integer(const char* name, Ref ref, std::int64_t lo, std::int64_t hi, std::int64_t def,
             const char* unit, const char* doc) {
-  Key k = base(name, KeyType::kInteger, static_cast<double>(lo), static_cast<double>(hi), def, unit,
+  KeyOf<Cfg> k = base<Cfg>(name, KeyType::kInteger, static_cast<double>(lo), static_cast<double>(hi), def, unit,
                doc);
-  k.get = [ref](const OverheadConfig& c) { return Value{static_cast<std::int64_t>(ref(c))}; };
-  k.set = [ref](OverheadConfig& c, const Value& v) {
+  k.get = [ref](const Cfg& c) { return Value{static_cast<std::int64_t>(ref(c))}; };
+  k.set = [ref](Cfg& c, const Value& v) {
     using T = std::remove_reference_t<decltype(ref(c))>;
     ref(c) = static_cast<T>(std::get<std::int64_t>(v));
   };
   return k;
 }
 
-template <typename Ref>
-Key boolean(const char* name, Ref ref, bool def, const char* doc) {
-  Key k = base(name, KeyType::kBool, 0, 0, def, "", doc);
-  k.get = [ref](const OverheadConfig& c) { return Value{static_cast<bool>(ref(c))}; };
-  k.set = [ref](OverheadConfig& c, const Value& v) { ref(c) = std::get<bool>(v); };
+template <typename Cfg = OverheadConfig, typename Ref>
+KeyOf<Cfg> boolean(const char* name, Ref ref, bool def, const char* doc) {
+  KeyOf<Cfg> k = base<Cfg>(name, KeyType::kBool, 0, 0, def, "", doc);
+  k.get = [ref](const Cfg& c) { return Value{static_cast<bool>(ref(c))}; };
+  k.set = [ref](Cfg& c, const Value& v) { ref(c) = std::get<bool>(v); };
   return k;
 }
 
-template <typename Ref>
-Key string(const char* name, Ref ref, const char* def, const char* doc,
+template <typename Cfg = OverheadConfig, typename Ref>
+KeyOf<Cfg> string(const char* name, Ref ref, const char* def, const char* doc,
            std::vector<std::string> choices = {}) {
-  Key k = base(name, choices.empty() ? KeyType::kString : KeyType::kChoice, 0, 0,
+  KeyOf<Cfg> k = base<Cfg>(name, choices.empty() ? KeyType::kString : KeyType::kChoice, 0, 0,
                std::string(def), "", doc);
   k.choices = std::move(choices);
-  k.get = [ref](const OverheadConfig& c) { return Value{std::string(ref(c))}; };
-  k.set = [ref](OverheadConfig& c, const Value& v) { ref(c) = std::get<std::string>(v); };
+  k.get = [ref](const Cfg& c) { return Value{std::string(ref(c))}; };
+  k.set = [ref](Cfg& c, const Value& v) { ref(c) = std::get<std::string>(v); };
   return k;
 }
 
@@ -157,6 +158,26 @@ std::vector<Key> output_keys() {
 }
 
 }  // namespace
+
+const std::vector<CameraKey>& camera_keys() {
+  using C = CameraSettings;
+  static const std::vector<CameraKey> keys = {
+      number<C>("latency_ms", AGV_OH_AT(latency_ms), 0, 1000, 0.0, "ms",
+                "replay: exposure to the frame's arrival at the tracker (fixes keep their "
+                "exposure time; the tracker applies a late fix where it belongs)"),
+      string<C>("driver", AGV_OH_AT(driver), "v4l2",
+                "run: the live driver, as on the vehicle (docs/guide/camera.md)",
+                {"v4l2", "libcamera"}),
+      string<C>("device", AGV_OH_AT(device), "",
+                "run: V4L2 device node (/dev/video0) or libcamera camera id; empty: not opened"),
+      number<C>("fps", AGV_OH_AT(fps), 1, 240, 30.0, "Hz", "run: the camera's frame rate"),
+      integer<C>("exposure_us", AGV_OH_AT(exposure_us), 10, 1000000, 500, "µs",
+                 "run: fixed exposure; blur = speed x exposure (1 mm at 2 m/s for 500 µs)"),
+      number<C>("analogue_gain", AGV_OH_AT(analogue_gain), 1, 64, 1.0, "",
+                "run: fixed analogue gain (brightens, adds noise)"),
+  };
+  return keys;
+}
 
 const std::vector<Key>& config_keys() {
   static const std::vector<Key> keys = [] {

@@ -111,8 +111,8 @@ bool open_recordings(const std::vector<std::string>& dirs, const site::Site& sit
       return false;
     }
     if (c.rec.frames.empty()) return (*error = dir + ": frames.csv has no frame", false);
-    const auto lat = cfg.camera_latency_ms.find(c.id);
-    if (lat != cfg.camera_latency_ms.end()) c.latency_ns = std::llround(lat->second * 1e6);
+    const auto cam = cfg.cameras.find(c.id);
+    if (cam != cfg.cameras.end()) c.latency_ns = std::llround(cam->second.latency_ms * 1e6);
     for (const std::string& w : c.rec.warnings) warnings->push_back(dir + ": " + w);
     out->push_back(std::move(c));
   }
@@ -121,12 +121,12 @@ bool open_recordings(const std::vector<std::string>& dirs, const site::Site& sit
 
 bool check_config_against_site(const OverheadConfig& cfg, const site::Site& site,
                                std::string* error) {
-  for (const auto& entry : cfg.camera_latency_ms) {
+  for (const auto& entry : cfg.cameras) {
     const std::string& id = entry.first;
     bool found = false;
     for (const site::CeilingCamera& c : site.cameras) found = found || c.id == id;
     if (!found) {
-      *error = "cameras." + id + ".latency_ms: no camera '" + id + "' in the site (its cameras: " +
+      *error = "cameras." + id + ": no camera '" + id + "' in the site (its cameras: " +
                camera_ids(site) + ")";
       return false;
     }

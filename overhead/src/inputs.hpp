@@ -35,7 +35,7 @@ bool open_recordings(const std::vector<std::string>& dirs, const site::Site& sit
                      const OverheadConfig& cfg, std::vector<CameraRecording>* out,
                      std::vector<std::string>* warnings, std::string* error);
 
-// Every configured cameras.<id>.latency_ms names a camera of the site; else false with *error.
+// Every configured cameras.<id> names a camera of the site; else false with *error.
 bool check_config_against_site(const OverheadConfig& cfg, const site::Site& site,
                                std::string* error);
 

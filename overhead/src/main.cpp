@@ -1,6 +1,7 @@
 // agvloc-overhead: the site's fleet tracked from ceiling cameras (docs/guide/overhead.md).
 // Subcommands: check-config, replay, run, config-doc.
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -8,6 +9,7 @@
 #include "config.hpp"
 #include "inputs.hpp"
 #include "replay.hpp"
+#include "run.hpp"
 
 namespace {
 
@@ -18,7 +20,8 @@ constexpr const char* kUsage =
     "  check-config CONFIG [--site SITE]   check a configuration (and its cameras against a site)\n"
     "  replay --config C --site SITE --recordings DIR... [--out OUT] [--fast]\n"
     "                                      track the fleet in recorded frames of ceiling cameras\n"
-    "  run --config C --site SITE          live cameras (not built in this version)\n"
+    "  run --config C --site SITE [--out OUT] [--duration-s S]\n"
+    "                                      live ceiling cameras (V4L2, libcamera) until SIGTERM\n"
     "  config-doc                          print the configuration key table (Markdown)\n"
     "Exit codes: 0 done, 1 failure while running, 2 bad input. docs/guide/overhead.md\n";
 
@@ -54,6 +57,33 @@ bool parse_replay(int argc, char** argv, ReplayArgs* a, std::string* error) {
   }
   if (a->site_path.empty()) return (*error = "--site is required", false);
   if (a->recordings.empty()) return (*error = "--recordings needs at least one folder", false);
+  return true;
+}
+
+// Options of run; false with *error on an unknown, incomplete or out-of-range option.
+bool parse_run(int argc, char** argv, agv::overhead_app::RunArgs* a, std::string* error) {
+  for (int i = 0; i < argc; ++i) {
+    const std::string o = argv[i];
+    if (i + 1 >= argc || is_option(argv[i + 1])) return (*error = o + " needs a value", false);
+    const std::string v = argv[++i];
+    if (o == "--config") {
+      a->config_path = v;
+    } else if (o == "--site") {
+      a->site_path = v;
+    } else if (o == "--out") {
+      a->out_dir = v;
+    } else if (o == "--duration-s") {
+      char* end = nullptr;
+      a->duration_s = std::strtod(v.c_str(), &end);
+      if (end == v.c_str() || *end != '\0' || !(a->duration_s > 0.0 && a->duration_s <= 1e7)) {
+        return (*error = "--duration-s takes seconds in (0, 1e7]", false);
+      }
+    } else {
+      return (*error = "unknown option '" + o + "'", false);
+    }
+  }
+  if (a->config_path.empty()) return (*error = "--config is required (the cameras' devices)", false);
+  if (a->site_path.empty()) return (*error = "--site is required", false);
   return true;
 }
 
@@ -105,10 +135,10 @@ int main(int argc, char** argv) {
     return agv::overhead_app::run_replay(a);
   }
   if (cmd == "run") {
-    std::fprintf(stderr,
-                 "agvloc-overhead run: live cameras are not built in this version; track recorded "
-                 "frames with `agvloc-overhead replay`\n");
-    return 2;
+    agv::overhead_app::RunArgs a;
+    std::string err;
+    if (!parse_run(argc - 2, argv + 2, &a, &err)) return usage_error("run: " + err);
+    return agv::overhead_app::run_live_command(a);
   }
   return usage_error("unknown command '" + cmd + "'");
 }

@@ -44,7 +44,7 @@ def main():
     write(os.path.join(work, "lat.yml"), "cameras:\n  cam-north:\n    latency_ms: 20\n")
     expect(overhead, ["check-config", os.path.join(work, "lat.yml")], 0, "OK")
     expect(overhead, ["check-config", os.path.join(work, "lat.yml"), "--site", site], 2,
-           "cameras.cam-north.latency_ms", "no camera 'cam-north'")
+           "cameras.cam-north: no camera 'cam-north'")
     expect(overhead, replay("--config", os.path.join(work, "lat.yml")), 2, "cam-north")
     expect(overhead, ["run", "--config", os.path.join(work, "lat.yml")], 2, "not built")
     expect(overhead, ["replay", "--site", site], 2, "--recordings")

@@ -43,7 +43,7 @@ std::string read_text(const fs::path& p) {
 TEST(OverheadConfig, TableDefaultsAreTheLibraryDefaults) {
   const OverheadConfig defaults;
   for (const Key& k : config_keys()) {
-    EXPECT_EQ(format_value(k, k.get(defaults)), format_value(k, k.def)) << k.name;
+    EXPECT_EQ(format_value(k.get(defaults)), format_value(k.def)) << k.name;
     EXPECT_FALSE(k.doc.empty()) << k.name;
   }
   const overhead::TrackerParams t;
@@ -67,11 +67,30 @@ TEST(OverheadConfig, EveryKeyIsReadAndStoredWhereTheTableSays) {
       text += indent + k.name.substr(pos, dot - pos) + ":\n";
       indent += "  ";
     }
-    text += indent + leaf + ": " + format_value(k, v) + "\n";
+    text += indent + leaf + ": " + format_value(v) + "\n";
     OverheadConfig cfg;
     std::vector<std::string> errors;
     ASSERT_TRUE(parse_config(text, &cfg, &errors)) << text << (errors.empty() ? "" : errors[0]);
-    EXPECT_EQ(format_value(k, k.get(cfg)), format_value(k, v)) << k.name;
+    EXPECT_EQ(format_value(k.get(cfg)), format_value(v)) << k.name;
+  }
+}
+
+TEST(OverheadConfig, EveryCameraKeyIsReadAndStoredPerCamera) {
+  const CameraSettings defaults;
+  for (const CameraKey& k : camera_keys()) {
+    EXPECT_EQ(format_value(k.get(defaults)), format_value(k.def)) << k.name;
+    Value v = k.def;
+    if (k.type == KeyType::kNumber) v = k.hi;
+    if (k.type == KeyType::kInteger) v = static_cast<std::int64_t>(k.hi);
+    if (k.type == KeyType::kString) v = std::string("/dev/video9");
+    if (k.type == KeyType::kChoice) v = k.choices.back();
+    OverheadConfig cfg;
+    std::vector<std::string> errors;
+    ASSERT_TRUE(parse_config("cameras:\n  cam-b:\n    " + k.name + ": " + format_value(v) + "\n",
+                             &cfg, &errors))
+        << k.name << (errors.empty() ? "" : errors[0]);
+    ASSERT_EQ(cfg.cameras.size(), 1u);
+    EXPECT_EQ(format_value(k.get(cfg.cameras.at("cam-b"))), format_value(v)) << k.name;
   }
 }
 
@@ -97,8 +116,9 @@ TEST(OverheadConfig, ValuesAndCameraLatencies) {
   EXPECT_EQ(cfg.output_rate_hz, 60.0);
   EXPECT_TRUE(cfg.mqtt.enabled);
   EXPECT_EQ(cfg.mqtt.port, 1884);
-  ASSERT_EQ(cfg.camera_latency_ms.count("cam-a"), 1u);
-  EXPECT_EQ(cfg.camera_latency_ms.at("cam-a"), 35.5);
+  ASSERT_EQ(cfg.cameras.count("cam-a"), 1u);
+  EXPECT_EQ(cfg.cameras.at("cam-a").latency_ms, 35.5);
+  EXPECT_EQ(cfg.cameras.at("cam-a").driver, "v4l2");
 }
 
 TEST(OverheadConfig, ErrorsNameTheKeyAndTheLine) {
@@ -118,6 +138,9 @@ TEST(OverheadConfig, ErrorsNameTheKeyAndTheLine) {
                {"output.mqtt.interface_name", "topic level"});
   expect_error("cameras:\n  cam-a:\n    latency_ms: 5000\n",
                {"line 3", "cameras.cam-a.latency_ms", "0..1000"});
+  expect_error("cameras:\n  cam-a:\n    driver: gige\n",
+               {"line 3", "cameras.cam-a.driver", "not one of: v4l2, libcamera"});
+  expect_error("cameras:\n  cam-a: 5\n", {"line 2", "cameras.cam-a", "unknown key"});
   expect_error("cameras:\n  cam-a:\n    exposure_ms: 5\n", {"cameras.cam-a.exposure_ms", "unknown"});
   expect_error("tracker: [1, 2]\n", {"line 1", "tracker", "list"});
   expect_error("tracker:\n  gate_chi2: [1\n", {"line", "YAML syntax error"});
@@ -313,9 +336,9 @@ TEST_F(OverheadInputs, LatencyOfACameraNotInTheSiteIsRefused) {
   OverheadConfig cfg;
   std::string err;
   EXPECT_TRUE(check_config_against_site(cfg, s, &err));
-  cfg.camera_latency_ms["cam-b"] = 10.0;
+  cfg.cameras["cam-b"].latency_ms = 10.0;
   EXPECT_FALSE(check_config_against_site(cfg, s, &err));
-  EXPECT_NE(err.find("cameras.cam-b.latency_ms"), std::string::npos) << err;
+  EXPECT_NE(err.find("cameras.cam-b: no camera 'cam-b'"), std::string::npos) << err;
 }
 
 }  // namespace

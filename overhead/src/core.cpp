@@ -1,0 +1,107 @@
+#include "core.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+
+namespace agv::overhead_app {
+
+namespace {
+
+constexpr int kMqttConnectTimeoutMs = 5000;
+constexpr int kMqttFlushTimeoutMs = 3000;
+constexpr std::uint64_t kFrameWarningsShown = 5;
+
+std::int64_t epoch_now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+unsigned long long ull(std::uint64_t v) { return static_cast<unsigned long long>(v); }
+
+}  // namespace
+
+TrackerCore::TrackerCore(const OverheadConfig& cfg, const site::Site& site)
+    : cfg_(cfg),
+      site_(site),
+      processor_(site.cameras, site.fleet, cfg.detect, cfg.search),
+      tracker_(site.fleet.size(), cfg.tracker),
+      header_ids_(site.fleet.size(), 0) {}
+
+std::int64_t TrackerCore::period_ns() const {
+  return static_cast<std::int64_t>(std::llround(1e9 / cfg_.output_rate_hz));
+}
+
+bool TrackerCore::open_outputs(const std::string& out_dir, std::string* error) {
+  if (!out_dir.empty() && !csv_.open(out_dir, error)) return false;
+  if (!cfg_.mqtt.enabled) return true;
+  const std::string map_id = cfg_.mqtt.map_id.empty() ? site_.name : cfg_.mqtt.map_id;
+  for (const site::FleetAgv& a : site_.fleet) {
+    if (!topic_level_ok(a.id)) {
+      *error = "fleet: AGV id '" + a.id + "' cannot be an MQTT topic level";
+      return false;
+    }
+    ids_.push_back(identity_of(cfg_.mqtt, map_id, a.id));
+  }
+  mqtt_ = std::make_unique<MqttOut>();
+  return mqtt_->start(cfg_.mqtt, kMqttConnectTimeoutMs, error);
+}
+
+void TrackerCore::process(std::size_t camera, std::int64_t t_ns, const cv::Mat& gray) {
+  detections_.clear();
+  processor_.process(camera, t_ns, gray, &tracker_, &detections_);
+  ++frames_;
+  for (const overhead::Detection& d : detections_) {
+    ++detections_total_;
+    if (csv_.is_open()) csv_.detection(detection_row(site_, d));
+  }
+}
+
+void TrackerCore::frame_unreadable(const std::string& what) {
+  if (++bad_frames_ <= kFrameWarningsShown) {
+    std::fprintf(stderr, "agvloc-overhead: frame skipped: %s\n", what.c_str());
+  }
+}
+
+void TrackerCore::publish(std::int64_t t_ns) {
+  tracker_.update_states(t_ns);
+  const std::int64_t epoch_ns = mqtt_ ? epoch_now_ns() : 0;
+  for (std::size_t i = 0; i < site_.fleet.size(); ++i) {
+    const overhead::TrackOutput t = tracker_.output(i, t_ns);
+    if (t.state == overhead::TrackState::kNone) continue;
+    if (csv_.is_open()) csv_.track(track_row(site_.fleet[i].id, t));
+    if (mqtt_) {
+      mqtt_->publish(vda5050::topic(ids_[i], "visualization"),
+                     visualization_json(ids_[i], header_ids_[i]++, epoch_ns, t));
+    }
+  }
+}
+
+bool TrackerCore::finish(const std::string& prefix, std::size_t cameras, std::string* error) {
+  if (mqtt_) mqtt_->stop(kMqttFlushTimeoutMs);
+  print_summary(prefix, cameras);
+  return !csv_.is_open() || csv_.close(error);
+}
+
+void TrackerCore::print_summary(const std::string& prefix, std::size_t cameras) const {
+  const overhead::FrameCounters& f = processor_.counters();
+  const overhead::TrackerCounters& c = tracker_.counters();
+  const char* p = prefix.c_str();
+  std::printf(
+      "%s: %zu cameras, %llu frames (%llu unreadable, skipped), %llu detections (%llu unknown "
+      "ids, %llu without fix)\n",
+      p, cameras, ull(frames_), ull(bad_frames_), ull(detections_total_), ull(f.unknown_ids),
+      ull(f.no_fix));
+  std::printf(
+      "%s: fixes applied %llu, tracks started %llu, gated %llu, too old %llu, invalid %llu, lost "
+      "%llu\n",
+      p, ull(c.applied), ull(c.started), ull(c.gated), ull(c.too_old), ull(c.invalid),
+      ull(c.lost));
+  if (mqtt_) {
+    std::printf("%s: mqtt: %llu messages sent, %llu dropped\n", p, ull(mqtt_->sent()),
+                ull(mqtt_->dropped()));
+  }
+}
+
+}  // namespace agv::overhead_app

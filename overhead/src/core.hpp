@@ -1,0 +1,54 @@
+// What replay and run share: the per-frame pipeline (CameraFrameProcessor) and the fleet's
+// tracks, the fixed-rate publication of every vehicle's state (tracks.csv, MQTT), detections.csv
+// and the counters of the summary.
+#pragma once
+
+#include <opencv2/core.hpp>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "agv/overhead/camera_frame.hpp"
+#include "config.hpp"
+#include "outputs.hpp"
+#include "visualization.hpp"
+
+namespace agv::overhead_app {
+
+class TrackerCore {
+ public:
+  TrackerCore(const OverheadConfig& cfg, const site::Site& site);
+
+  // --out (empty: none) and MQTT when configured; false with *error.
+  bool open_outputs(const std::string& out_dir, std::string* error);
+  // One frame of site camera `camera` exposed at t_ns.
+  void process(std::size_t camera, std::int64_t t_ns, const cv::Mat& gray);
+  // A frame that could not be read: counted, the first few named on stderr.
+  void frame_unreadable(const std::string& what);
+  // Every tracked vehicle's state extrapolated to t_ns, to tracks.csv and MQTT.
+  void publish(std::int64_t t_ns);
+  // Flushes MQTT, prints the summary (prefix: "agvloc-overhead replay"), closes the CSV files.
+  bool finish(const std::string& prefix, std::size_t cameras, std::string* error);
+
+  std::int64_t period_ns() const;
+  std::uint64_t frames() const { return frames_; }
+  std::uint64_t unreadable_frames() const { return bad_frames_; }
+
+ private:
+  void print_summary(const std::string& prefix, std::size_t cameras) const;
+
+  const OverheadConfig& cfg_;
+  const site::Site& site_;
+  overhead::CameraFrameProcessor processor_;
+  overhead::FleetTracker tracker_;
+  std::vector<overhead::Detection> detections_;
+  CsvOut csv_;
+  std::unique_ptr<MqttOut> mqtt_;
+  std::vector<vda5050::Identity> ids_;
+  std::vector<std::uint32_t> header_ids_;
+  std::uint64_t frames_ = 0, bad_frames_ = 0, detections_total_ = 0;
+};
+
+}  // namespace agv::overhead_app

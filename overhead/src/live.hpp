@@ -1,0 +1,48 @@
+// agvloc-overhead run: live ceiling cameras through the vehicle's camera drivers (V4L2,
+// libcamera; drivers/v4l2, drivers/libcamera). One thread per camera takes its frames (copied out
+// of the driver's buffer at once) into a bounded queue; the calling thread runs the pipeline on
+// them in arrival order and publishes every vehicle's state at output.rate_hz on CLOCK_MONOTONIC,
+// the clock of the drivers' exposure stamps. A camera that fails or disconnects is reopened every
+// second while its vehicles coast on the others.
+#pragma once
+
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "agv/hal/camera.hpp"
+#include "agv/site/site.hpp"
+#include "config.hpp"
+#include "core.hpp"
+
+namespace agv::overhead_app {
+
+struct LiveCamera {
+  std::string id;
+  std::size_t site_camera = 0;  // index into site.cameras
+  std::unique_ptr<hal::Camera> camera;
+};
+
+// The driver's settings for a site camera: its image size from the site's intrinsics, the rest
+// from cameras.<id>.
+hal::CameraConfig driver_config(const CameraSettings& s, const site::CeilingCamera& cam);
+
+// Every site camera with a cameras.<id>.device, as a (not started) driver. False with *error
+// when none has a device, a driver is not in this build, or the settings are refused.
+bool make_live_cameras(const OverheadConfig& cfg, const site::Site& site,
+                       std::vector<LiveCamera>* out, std::string* error);
+
+struct LiveCounters {
+  std::uint64_t ticks = 0, ticks_skipped = 0, frames_dropped = 0, reopens = 0;
+};
+
+// Runs until `stop` is set, duration_ns has passed (0: no limit) or every camera has ended
+// (kEndOfStream, a scripted camera). Status lines go to stderr.
+LiveCounters run_live(std::vector<LiveCamera>* cams, TrackerCore* core,
+                      const std::atomic<bool>& stop, std::int64_t duration_ns);
+
+std::int64_t monotonic_ns();
+
+}  // namespace agv::overhead_app
