@@ -1,11 +1,11 @@
 // ClockMap: camera clock -> host clock from (camera stamp, receive time) pairs.
-#include "agv/common/clock_map.hpp"
-
 #include <gtest/gtest.h>
 
 #include <cstdint>
 #include <limits>
 #include <random>
+
+#include "agv/common/clock_map.hpp"
 
 namespace {
 

@@ -127,7 +127,8 @@ void ClockMap::refit() {
   const Pair& newest = window_.back();
   ref_device_ns_ = newest.device_ns;
   std::int64_t span = 0;
-  const bool span_fits = !__builtin_sub_overflow(newest.device_ns, window_.front().device_ns, &span);
+  const bool span_fits =
+      !__builtin_sub_overflow(newest.device_ns, window_.front().device_ns, &span);
   std::int64_t min_diff = std::numeric_limits<std::int64_t>::max();
   for (const Pair& q : window_) min_diff = std::min(min_diff, q.diff_ns);
   ref_diff_ns_ = min_diff;

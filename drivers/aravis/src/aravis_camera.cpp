@@ -81,7 +81,7 @@ struct AravisCamera::Impl {
   bool have_id = false;
   std::uint64_t last_id = 0;
   std::uint64_t sequence = 0;
-  std::int64_t last_alive_ns = 0;    // last frame or answered probe
+  std::int64_t last_alive_ns = 0;  // last frame or answered probe
   std::int64_t last_probe_ns = 0;
   FrameStamps stamps;
 
@@ -157,8 +157,8 @@ CameraStatus AravisCamera::Impl::open_camera() {
   GError* e = nullptr;
   camera = arv_camera_new(cfg.id.empty() ? nullptr : cfg.id.c_str(), &e);
   if (camera == nullptr) {
-    std::string msg = cfg.id.empty() ? std::string("no camera found")
-                                     : "no camera with id '" + cfg.id + "'";
+    std::string msg =
+        cfg.id.empty() ? std::string("no camera found") : "no camera with id '" + cfg.id + "'";
     const std::string why = take_error(&e);
     if (!why.empty()) msg += " (" + why + ")";
     std::string seen;
@@ -181,7 +181,8 @@ CameraStatus AravisCamera::Impl::open_camera() {
   model = m != nullptr ? m : "";
   g_clear_error(&e);
   if (ArvDevice* dev = arv_camera_get_device(camera); dev != nullptr) {
-    lost_handler = g_signal_connect(dev, "control-lost", G_CALLBACK(on_control_lost), &control_lost);
+    lost_handler =
+        g_signal_connect(dev, "control-lost", G_CALLBACK(on_control_lost), &control_lost);
   }
   return CameraStatus::kOk;
 }
@@ -193,8 +194,8 @@ CameraStatus AravisCamera::Impl::configure_format() {
   if (formats == nullptr) {
     return fail(CameraStatus::kDeviceError, "cannot list pixel formats: " + take_error(&e));
   }
-  const bool has_mono8 = std::find(formats, formats + n, static_cast<gint64>(
-                                       ARV_PIXEL_FORMAT_MONO_8)) != formats + n;
+  const bool has_mono8 =
+      std::find(formats, formats + n, static_cast<gint64>(ARV_PIXEL_FORMAT_MONO_8)) != formats + n;
   g_free(formats);
   if (!has_mono8) {
     const char** names = arv_camera_dup_available_pixel_formats_as_strings(camera, &n, &e);
@@ -211,11 +212,10 @@ CameraStatus AravisCamera::Impl::configure_format() {
   arv_camera_get_width_bounds(camera, &wmin, &wmax, &e);
   if (e == nullptr) arv_camera_get_height_bounds(camera, &hmin, &hmax, &e);
   if (e != nullptr) return fail(CameraStatus::kDeviceError, "size bounds: " + take_error(&e));
-  if (cfg.width_px < wmin || cfg.width_px > wmax || cfg.height_px < hmin ||
-      cfg.height_px > hmax) {
+  if (cfg.width_px < wmin || cfg.width_px > wmax || cfg.height_px < hmin || cfg.height_px > hmax) {
     std::ostringstream s;
-    s << "size " << cfg.width_px << "x" << cfg.height_px << " outside the camera's " << wmin
-      << ".." << wmax << " x " << hmin << ".." << hmax;
+    s << "size " << cfg.width_px << "x" << cfg.height_px << " outside the camera's " << wmin << ".."
+      << wmax << " x " << hmin << ".." << hmax;
     return fail(CameraStatus::kInvalidArgument, s.str());
   }
   arv_camera_set_region(camera, 0, 0, cfg.width_px, cfg.height_px, &e);
@@ -373,7 +373,8 @@ void AravisCamera::Impl::deliver(ArvBuffer* b, hal::FrameView* frame) {
   st.receive_ns = std::min(st.receive_ns, mono_now);
   st.mapped_ns = st.receive_ns;
   camera::TimestampRef ref = camera::TimestampRef::kEndOfFrame;
-  if (st.camera_ns != 0 && st.camera_ns <= static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max())) {
+  if (st.camera_ns != 0 &&
+      st.camera_ns <= static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max())) {
     const auto cam_ns = static_cast<std::int64_t>(st.camera_ns);
     st.clock_sample = clock.add(cam_ns, st.receive_ns);
     std::int64_t mapped = 0;
@@ -403,9 +404,8 @@ void AravisCamera::Impl::deliver(ArvBuffer* b, hal::FrameView* frame) {
   frame->width_px = cfg.width_px;
   frame->height_px = cfg.height_px;
   frame->stride_bytes = cfg.width_px + pad_x;
-  frame->t_exposure_ns = camera::exposure_mid_ns(st.mapped_ns, ref, exposure_ns,
-                                                 static_cast<std::int64_t>(cfg.readout_us) *
-                                                     kNsPerUs);
+  frame->t_exposure_ns = camera::exposure_mid_ns(
+      st.mapped_ns, ref, exposure_ns, static_cast<std::int64_t>(cfg.readout_us) * kNsPerUs);
   frame->sequence = sequence;
   Buffer* slot = find(b);
   slot->outstanding = true;
@@ -464,9 +464,9 @@ CameraStatus AravisCamera::next_frame(std::int64_t timeout_ns, hal::FrameView* f
   for (;;) {
     const std::int64_t now = camera::monotonic_now_ns();
     const std::int64_t wait_ns = std::clamp<std::int64_t>(deadline - now, 0, kWaitSliceNs);
-    ArvBuffer* b = got == nullptr
-                       ? arv_stream_timeout_pop_buffer(m.stream, static_cast<guint64>(wait_ns / 1000))
-                       : arv_stream_try_pop_buffer(m.stream);
+    ArvBuffer* b = got == nullptr ? arv_stream_timeout_pop_buffer(
+                                        m.stream, static_cast<guint64>(wait_ns / 1000))
+                                  : arv_stream_try_pop_buffer(m.stream);
     if (b != nullptr) {
       if (m.find(b) == nullptr) {
         m.count_error();  // not one of ours; leave it to the stream
@@ -489,7 +489,8 @@ CameraStatus AravisCamera::next_frame(std::int64_t timeout_ns, hal::FrameView* f
     if (camera::monotonic_now_ns() >= deadline) {
       const bool all_held = std::all_of(m.buffers.begin(), m.buffers.end(),
                                         [](const Impl::Buffer& x) { return x.outstanding; });
-      if (all_held) m.fail(CameraStatus::kTimeout, "all buffers held by the consumer; release frames");
+      if (all_held)
+        m.fail(CameraStatus::kTimeout, "all buffers held by the consumer; release frames");
       return CameraStatus::kTimeout;
     }
   }

@@ -41,8 +41,9 @@ struct ClockMapConfig {
   // A sample received more than this after its mapped time is a latency spike or a backward step
   // of the device clock; held back until the next samples say which.
   std::int64_t late_threshold_ns = 50'000'000;
-  // Consecutive held-back samples agreeing on a new offset needed to accept a jump. Until the window
-  // holds this many samples, early samples are taken as a lower latency floor, not as a jump.
+  // Consecutive held-back samples agreeing on a new offset needed to accept a jump. Until the
+  // window holds this many samples, early samples are taken as a lower latency floor, not as a
+  // jump.
   int relock_samples = 4;
   // How closely the held-back samples must agree (host - device spread). A genuine step keeps the
   // link's jitter; frames queued behind a host stall arrive together, their host - device falling
@@ -57,10 +58,10 @@ struct ClockMapConfig {
 std::string validate_clock_map_config(const ClockMapConfig& config);
 
 enum class ClockSample {
-  kAccepted = 0,   // used in the fit
-  kJump = 1,       // completed a jump: the mapping restarted from the new offset
-  kHeldBack = 2,   // inconsistent with the lock; a jump candidate, not used (yet)
-  kRefused = 3,    // unusable: host time not increasing, or a time difference overflows
+  kAccepted = 0,  // used in the fit
+  kJump = 1,      // completed a jump: the mapping restarted from the new offset
+  kHeldBack = 2,  // inconsistent with the lock; a jump candidate, not used (yet)
+  kRefused = 3,   // unusable: host time not increasing, or a time difference overflows
 };
 
 const char* to_string(ClockSample s);

@@ -9,8 +9,8 @@
 //   agv::aravis::AravisCamera cam(cfg);
 //
 // A GigE camera opened by device id is reached through the interface of whichever discovery answer
-// Aravis kept; one reachable through several interfaces (only the loopback fake camera, in practice) is
-// opened by IP address instead, which picks the interface by subnet.
+// Aravis kept; one reachable through several interfaces (only the loopback fake camera, in
+// practice) is opened by IP address instead, which picks the interface by subnet.
 //   if (cam.start() != agv::hal::CameraStatus::kOk) fail(cam.last_error());
 //
 // A camera that stops answering is reported as kDisconnected: Aravis's heartbeat reports lost
@@ -49,9 +49,9 @@ struct AravisOptions {
 // The last frame's stamps, for logs and the clock's diagnostics.
 struct FrameStamps {
   std::uint64_t frame_id = 0;
-  std::uint64_t camera_ns = 0;    // arv_buffer_get_timestamp: the camera's clock (0: none)
-  std::int64_t receive_ns = 0;    // host receive time of the first packet, CLOCK_MONOTONIC
-  std::int64_t mapped_ns = 0;     // camera_ns on CLOCK_MONOTONIC (receive_ns without a clock)
+  std::uint64_t camera_ns = 0;  // arv_buffer_get_timestamp: the camera's clock (0: none)
+  std::int64_t receive_ns = 0;  // host receive time of the first packet, CLOCK_MONOTONIC
+  std::int64_t mapped_ns = 0;   // camera_ns on CLOCK_MONOTONIC (receive_ns without a clock)
   ClockSample clock_sample = ClockSample::kRefused;
 };
 
@@ -72,9 +72,9 @@ class AravisCamera : public hal::Camera {
   // After start(): the camera's serial number and model, and what it accepted.
   std::string serial() const;
   std::string model() const;
-  double frame_rate_hz() const;   // 0: the camera has no rate control
-  double exposure_us() const;     // 0: no exposure control
-  double gain_db() const;         // as the camera took it (some step in whole dB); NaN: none
+  double frame_rate_hz() const;  // 0: the camera has no rate control
+  double exposure_us() const;    // 0: no exposure control
+  double gain_db() const;        // as the camera took it (some step in whole dB); NaN: none
   int buffers() const;
   int frames_outstanding() const;
   FrameStamps last_stamps() const;
