@@ -46,7 +46,14 @@ def main():
     expect(overhead, ["check-config", os.path.join(work, "lat.yml"), "--site", site], 2,
            "cameras.cam-north: no camera 'cam-north'")
     expect(overhead, replay("--config", os.path.join(work, "lat.yml")), 2, "cam-north")
-    expect(overhead, ["run", "--config", os.path.join(work, "lat.yml")], 2, "not built")
+    expect(overhead, ["run", "--config", os.path.join(work, "lat.yml")], 2, "--site is required")
+    expect(overhead, ["run", "--config", os.path.join(work, "lat.yml"), "--site", site], 2,
+           "no camera 'cam-north'")
+    write(os.path.join(work, "nodev.yml"), "cameras:\n  cam-west:\n    fps: 25\n")
+    expect(overhead, ["run", "--config", os.path.join(work, "nodev.yml"), "--site", site], 2,
+           "no camera to open")
+    expect(overhead, ["run", "--config", os.path.join(work, "nodev.yml"), "--site", site,
+                      "--duration-s", "-1"], 2, "--duration-s")
     expect(overhead, ["replay", "--site", site], 2, "--recordings")
     expect(overhead, replay("--bogus"), 2, "unknown option '--bogus'")
 
