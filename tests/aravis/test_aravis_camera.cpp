@@ -232,9 +232,12 @@ TEST(AravisCamera, StreamsFromTheFakeGigECameraAndReportsItsDeath) {
   EXPECT_EQ(stats.frames_delivered, static_cast<std::uint64_t>(kFrames));
   EXPECT_EQ(stats.frames_dropped, seq.back() - seq.front() - (kFrames - 1));
   EXPECT_EQ(cam.frames_outstanding(), 0);
-  std::printf("fake GigE camera: %d frames, period %.2f ms, %llu dropped, offset %lld ns\n",
-              kFrames, period_ms, static_cast<unsigned long long>(stats.frames_dropped),
-              static_cast<long long>(cam.clock().offset_ns()));
+  std::printf(
+      "fake GigE camera: %d frames, period %.2f ms, %llu dropped, mapped offset %+.1f us "
+      "from wall - monotonic, receive - mapped %.1f us\n",
+      kFrames, period_ms, static_cast<unsigned long long>(stats.frames_dropped),
+      static_cast<double>(cam.clock().offset_ns() + (real - mono)) / 1e3,
+      static_cast<double>(cam.last_stamps().receive_ns - cam.last_stamps().mapped_ns) / 1e3);
 
   // Kill the camera mid-stream: queued frames, then timeouts, then kDisconnected; no crash.
   fake.stop();
