@@ -28,6 +28,10 @@ constexpr double kMinStepShare = 0.5;
 // Refinement passes on the search path: the second starts from the first's corners, so its
 // samples stay clear of the true corners.
 constexpr int kSearchPasses = 2;
+// Share of a side that may lack edge points at either end (a hidden corner is refused, not
+// extrapolated); the predicted path's wide first pass has none, its samples may overhang.
+constexpr double kMaxEndGap = 0.1;
+constexpr double kNoEndCheck = 1.0;
 
 bool usable_image(const cv::Mat& gray) {
   return !gray.empty() && gray.dims == 2 && gray.type() == CV_8UC1 && gray.cols >= kMinWindowPx &&
@@ -106,7 +110,7 @@ std::vector<TagObservation> TagDetector::detect(const cv::Mat& gray, const cv::R
     bool ok = true;
     for (int pass = 0; pass < kSearchPasses && ok; ++pass) {
       ok = detect_detail::refine_square(gray, guess, p_.edge_band_px, min_step, p_.max_edge_rms_px,
-                                        &sq);
+                                        kMaxEndGap, &sq);
       guess = sq.corners;
     }
     detect_detail::Cells cells;
@@ -146,9 +150,9 @@ bool TagDetector::detect_predicted(const cv::Mat& gray,
   // The wide pass finds the square within predicted_search_px, the narrow one refines it with
   // samples placed along the found sides.
   if (!detect_detail::refine_square(gray, predicted_corners_px, p_.predicted_search_px, min_step,
-                                    p_.max_edge_rms_px, &wide) ||
+                                    p_.max_edge_rms_px, kNoEndCheck, &wide) ||
       !detect_detail::refine_square(gray, wide.corners, p_.edge_band_px, min_step,
-                                    p_.max_edge_rms_px, &sq)) {
+                                    p_.max_edge_rms_px, kMaxEndGap, &sq)) {
     return false;
   }
   for (std::size_t k = 0; k < 4; ++k) {

@@ -31,6 +31,10 @@ constexpr double kOutlierFloorPx = 0.3;
 // a prediction's turn moves the true edge by less than this along a side.
 constexpr double kMedianGatePx = 2.5;
 constexpr int kFitPasses = 4;
+// Along one side the black border and the white margin keep their levels; a point whose dark or
+// bright level is further than this share of the side's contrast from the side's medians is on
+// something else (a box over the corner, the box's outline against the margin).
+constexpr double kLevelTolerance = 0.15;
 // Cells: samples at the centre and four points this share of a cell from it.
 constexpr double kCellOffset = 0.2;
 
@@ -47,8 +51,13 @@ double cross(Vec2 a, Vec2 b) { return a.x * b.y - a.y * b.x; }
 // Position (relative to 0, along the normal) of the outer edge between -band and +band: the
 // strongest dark-to-bright step, located by the area method (the integral of the profile between
 // two flat levels fixes the step's position without pixel locking).
+struct EdgeHit {
+  double s = 0.0;                   // position along the normal (px)
+  double dark = 0.0, bright = 0.0;  // the levels either side
+};
+
 bool edge_along(const cv::Mat& g, Vec2 p, Vec2 n, double band, double min_step,
-                std::vector<double>* profile, double* s_out) {
+                std::vector<double>* profile, EdgeHit* hit) {
   const double reach = band + kAreaHalfPx + kProfileStep;
   const int m = static_cast<int>(std::ceil(reach / kProfileStep));
   std::vector<double>& prof = *profile;
@@ -88,7 +97,7 @@ bool edge_along(const cv::Mat& g, Vec2 p, Vec2 n, double band, double min_step,
   const double a = i0 * kProfileStep, b = i1 * kProfileStep;
   const double e = (bright * b - dark * a - area) / (bright - dark);
   if (!(e > a && e < b) || std::abs(e) > band) return false;
-  *s_out = e;
+  *hit = {e, dark, bright};
   return true;
 }
 
@@ -135,15 +144,30 @@ bool fit_line(std::vector<Vec2>* pts, std::size_t min_pts, Line* out) {
   return false;
 }
 
-// Keeps the points whose offset along the normal is near the median offset.
-void gate_by_median(std::vector<Vec2>* pts, std::vector<double>* offsets) {
-  if (offsets->empty()) return;
-  std::vector<double> sorted(*offsets);
-  const auto mid = sorted.begin() + static_cast<std::ptrdiff_t>(sorted.size() / 2);
-  std::nth_element(sorted.begin(), mid, sorted.end());
+double median_of(std::vector<double>* v) {
+  const auto mid = v->begin() + static_cast<std::ptrdiff_t>(v->size() / 2);
+  std::nth_element(v->begin(), mid, v->end());
+  return *mid;
+}
+
+// Keeps the points whose levels match the side's and whose offset along the normal is near the
+// side's median offset.
+void gate_by_levels(std::vector<Vec2>* pts, std::vector<EdgeHit>* hits) {
+  if (hits->empty()) return;
+  std::vector<double> v(hits->size());
+  auto med = [&](double EdgeHit::*f) {
+    for (std::size_t i = 0; i < hits->size(); ++i) v[i] = (*hits)[i].*f;
+    return median_of(&v);
+  };
+  const double dark = med(&EdgeHit::dark), bright = med(&EdgeHit::bright), s = med(&EdgeHit::s);
+  const double tol = kLevelTolerance * (bright - dark);
   std::size_t keep = 0;
   for (std::size_t i = 0; i < pts->size(); ++i) {
-    if (std::abs((*offsets)[i] - *mid) <= kMedianGatePx) (*pts)[keep++] = (*pts)[i];
+    const EdgeHit& h = (*hits)[i];
+    if (std::abs(h.dark - dark) <= tol && std::abs(h.bright - bright) <= tol &&
+        std::abs(h.s - s) <= kMedianGatePx) {
+      (*pts)[keep++] = (*pts)[i];
+    }
   }
   pts->resize(keep);
 }
@@ -181,13 +205,14 @@ bool sample_bilinear(const cv::Mat& g, double x, double y, double* v) {
 }
 
 bool refine_square(const cv::Mat& gray, const std::array<Vec2, 4>& guess, double band_px,
-                   double min_step, double max_rms_px, Square* out) {
+                   double min_step, double max_rms_px, double max_end_gap, Square* out) {
   Vec2 centre{0, 0};
   for (const Vec2& c : guess) centre.x += 0.25 * c.x, centre.y += 0.25 * c.y;
   std::array<Line, 4> lines{};
   double worst_rms = 0.0;
   std::vector<Vec2> pts;
-  std::vector<double> profile, offsets;
+  std::vector<double> profile;
+  std::vector<EdgeHit> hits;
   for (std::size_t k = 0; k < 4; ++k) {
     const Vec2 a = guess[k], b = guess[(k + 1) % 4];
     const double len = std::hypot(b.x - a.x, b.y - a.y);
@@ -198,20 +223,28 @@ bool refine_square(const cv::Mat& gray, const std::array<Vec2, 4>& guess, double
     if (n.x * (mid.x - centre.x) + n.y * (mid.y - centre.y) < 0) n = {-n.x, -n.y};
     const int count = std::max(kMinPoints, static_cast<int>(len * (1.0 - 2.0 * kSideMargin)));
     pts.clear();
-    offsets.clear();
+    hits.clear();
     for (int i = 0; i < count; ++i) {
       const double t = kSideMargin + (1.0 - 2.0 * kSideMargin) * (i + 0.5) / count;
       const Vec2 p{a.x + t * (b.x - a.x), a.y + t * (b.y - a.y)};
-      double s = 0;
-      if (edge_along(gray, p, n, band_px, min_step, &profile, &s)) {
-        pts.push_back({p.x + s * n.x, p.y + s * n.y});
-        offsets.push_back(s);
+      EdgeHit h;
+      if (edge_along(gray, p, n, band_px, min_step, &profile, &h)) {
+        pts.push_back({p.x + h.s * n.x, p.y + h.s * n.y});
+        hits.push_back(h);
       }
     }
-    gate_by_median(&pts, &offsets);
+    gate_by_levels(&pts, &hits);
     const auto need = static_cast<std::size_t>(
         std::max(kMinPoints, static_cast<int>(std::ceil(kMinInlierShare * count))));
     if (!fit_line(&pts, need, &lines[k]) || lines[k].rms > max_rms_px) return false;
+    // Edge points must reach both ends of the sampled span: a corner hidden by a box is otherwise
+    // extrapolated from what is left of its sides, and the box's own outline can pass as a side.
+    double lo = 1.0, hi = 0.0;
+    for (const Vec2& p : pts) {
+      const double u = (d.x * (p.x - a.x) + d.y * (p.y - a.y)) / len;
+      lo = std::min(lo, u), hi = std::max(hi, u);
+    }
+    if (lo > kSideMargin + max_end_gap || hi < 1.0 - kSideMargin - max_end_gap) return false;
     worst_rms = std::max(worst_rms, lines[k].rms);
   }
   double var_sum = 0.0;

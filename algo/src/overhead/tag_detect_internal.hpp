@@ -19,10 +19,11 @@ struct Square {
 
 // Refines `guess` (page order, distorted pixels): each side's outer edge (dark inside, bright
 // outside) searched within +-band_px along the side's normal, a line fitted to it, the corners
-// where neighbouring lines meet. False when a side keeps too few edge points, a line's RMS
+// where neighbouring lines meet. False when a side keeps too few edge points, its points leave
+// more than max_end_gap of the side (a share) without an edge at either end, a line's RMS
 // exceeds max_rms_px or the corners leave the image.
 bool refine_square(const cv::Mat& gray, const std::array<Vec2, 4>& guess, double band_px,
-                   double min_step, double max_rms_px, Square* out);
+                   double min_step, double max_rms_px, double max_end_gap, Square* out);
 
 struct Cells {
   std::uint64_t code = 0;  // row-major from the page's top-left data cell, 1 = white
