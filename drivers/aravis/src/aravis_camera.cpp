@@ -468,8 +468,9 @@ CameraStatus AravisCamera::next_frame(std::int64_t timeout_ns, hal::FrameView* f
                                         m.stream, static_cast<guint64>(wait_ns / 1000))
                                   : arv_stream_try_pop_buffer(m.stream);
     if (b != nullptr) {
-      if (m.find(b) == nullptr) {
-        m.count_error();  // not one of ours; leave it to the stream
+      if (m.find(b) == nullptr) {  // not one of ours (never pushed here): give it back
+        m.count_error();
+        arv_stream_push_buffer(m.stream, b);
         continue;
       }
       if (!m.usable(b)) {

@@ -78,7 +78,7 @@ class AravisCamera : public hal::Camera {
   int buffers() const;
   int frames_outstanding() const;
   FrameStamps last_stamps() const;
-  // The camera-to-host clock mapping (offset, drift, jumps).
+  // The camera-to-host clock mapping (offset, drift, jumps). From the consumer thread only.
   const ClockMap& clock() const;
 
  private:
