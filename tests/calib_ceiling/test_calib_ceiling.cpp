@@ -127,6 +127,40 @@ TEST(CalibCeiling, RecoversFromAStartOff50MmAndOneDegree) {
   for (int i = 3; i < 6; ++i) EXPECT_NEAR(e.d[i], 0.0, 1e-5);
 }
 
+TEST(CalibCeiling, AMisSurveyedTagIsRejected) {
+  const World& w = world();
+  const auto sightings = all_sightings(w);
+  auto survey = survey_of(w);
+  survey.at(5).x_mm += 50.0;
+  // Kept, the robust loss only lessens its pull.
+  ccal::Options keep;
+  keep.reject_min_px = 1e9;
+  ccal::Result r = ccal::solve_camera_pose(intrinsics(), survey, sightings, keep);
+  ASSERT_EQ(r.error, ccal::Error::kNone) << r.message;
+  PoseError e = pose_error(r.pose, true_pose());
+  const double kept_mm = std::hypot(e.d[0], e.d[1]);
+  EXPECT_TRUE(r.rejected_ids.empty());
+  // Rejected, the pose is as good as without it; its residuals show why.
+  r = ccal::solve_camera_pose(intrinsics(), survey, sightings);
+  ASSERT_EQ(r.error, ccal::Error::kNone) << r.message;
+  ASSERT_EQ(r.rejected_ids, std::vector<std::uint32_t>{5});
+  EXPECT_EQ(r.tags_used, 6);
+  e = pose_error(r.pose, true_pose());
+  std::printf("tag 5 surveyed 50 mm off: pose off by %.2f mm kept, %.2f mm rejected\n", kept_mm,
+              std::hypot(e.d[0], e.d[1]));
+  EXPECT_GT(kept_mm, 5.0);
+  EXPECT_LT(std::hypot(e.d[0], e.d[1]), 2.0);
+  EXPECT_LT(r.eval.rms_px, 0.2);  // over the tags used
+  EXPECT_EQ(r.eval.tags.size(), 7u);
+  for (const auto& t : r.eval.tags) {
+    if (t.id == 5) {
+      EXPECT_NEAR(t.floor_mm, 50.0, 2.0);
+    } else {
+      EXPECT_LT(t.floor_mm, 1.5);
+    }
+  }
+}
+
 TEST(CalibCeiling, NamedErrorsOfTheSolver) {
   const World& w = world();
   const auto sightings = all_sightings(w);

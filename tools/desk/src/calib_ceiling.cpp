@@ -24,9 +24,6 @@ namespace agv::desk::ccal {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-constexpr std::uint32_t kMaxTagId = 586;
-constexpr double kMaxCoordMm = 1e7;
 // A black square under this many pixels a side has modules under 1.5 px: its corners are
 // smeared over the neighbouring cells and bias the pose more than they add.
 constexpr double kMinTagSidePx = 12.0;
@@ -74,25 +71,6 @@ bool project_generic(const CameraIntrinsics& k, const T* q, const double p[3], T
 
 std::array<double, 6> params_of(const CameraPose& p) {
   return {p.x_mm, p.y_mm, p.z_mm, p.yaw_rad, p.pitch_rad, p.roll_rad};
-}
-
-bool split_csv(const std::string& line, std::vector<std::string>* f) {
-  f->clear();
-  std::stringstream ss(line);
-  std::string item;
-  while (std::getline(ss, item, ',')) {
-    const auto b = item.find_first_not_of(" \t\r");
-    const auto e = item.find_last_not_of(" \t\r");
-    f->push_back(b == std::string::npos ? "" : item.substr(b, e - b + 1));
-  }
-  return true;
-}
-
-bool to_number(const std::string& s, double* v) {
-  if (s.empty()) return false;
-  char* end = nullptr;
-  *v = std::strtod(s.c_str(), &end);
-  return end == s.c_str() + s.size() && std::isfinite(*v);
 }
 
 cv::Mat camera_matrix(const CameraIntrinsics& k) {
@@ -207,68 +185,6 @@ std::array<std::array<double, 3>, 4> tag_corners_site(const SurveyedTag& t) {
                                  t.y_mm + h * (up * uy + right * ry), t.z_mm};
   };
   return {at(1, -1), at(1, 1), at(-1, 1), at(-1, -1)};
-}
-
-bool parse_survey_csv(std::string_view text, std::map<std::uint32_t, SurveyedTag>* out,
-                      std::string* error) {
-  out->clear();
-  std::stringstream in{std::string(text)};
-  std::string line;
-  std::vector<std::string> f;
-  int n = 0;
-  bool header = false;
-  auto fail = [&](const std::string& why) {
-    *error = "line " + std::to_string(n) + ": " + why;
-    out->clear();
-    return false;
-  };
-  while (std::getline(in, line)) {
-    ++n;
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    const auto first = line.find_first_not_of(" \t");
-    if (first == std::string::npos || line[first] == '#') continue;
-    split_csv(line, &f);
-    if (!header) {
-      const std::vector<std::string> want = {"id", "x_mm", "y_mm", "z_mm", "yaw_deg", "size_mm"};
-      if (f != want) return fail("the header must be id,x_mm,y_mm,z_mm,yaw_deg,size_mm");
-      header = true;
-      continue;
-    }
-    if (f.size() != 6) return fail("expected 6 fields, got " + std::to_string(f.size()));
-    double v[6];
-    for (int i = 0; i < 6; ++i) {
-      if (!to_number(f[static_cast<std::size_t>(i)], &v[i])) {
-        return fail("field " + std::to_string(i + 1) + " '" + f[static_cast<std::size_t>(i)] +
-                    "' is not a finite number");
-      }
-    }
-    if (v[0] < 0 || v[0] > kMaxTagId || v[0] != std::floor(v[0])) {
-      return fail("id must be a tag36h11 id 0..586");
-    }
-    for (int i = 1; i <= 3; ++i) {
-      if (std::abs(v[i]) > kMaxCoordMm) return fail("coordinate beyond 10 km");
-    }
-    if (std::abs(v[4]) > 360.0) return fail("yaw_deg must be in -360..360");
-    if (v[5] < 10.0 || v[5] > 5000.0) return fail("size_mm must be in 10..5000");
-    const auto id = static_cast<std::uint32_t>(v[0]);
-    if (out->count(id)) return fail("tag " + std::to_string(id) + " listed twice");
-    (*out)[id] = SurveyedTag{id, v[1], v[2], v[3], v[4] * kPi / 180.0, v[5]};
-  }
-  if (!header) {
-    n = 0;
-    return fail("no header line (id,x_mm,y_mm,z_mm,yaw_deg,size_mm)");
-  }
-  return true;
-}
-
-std::map<std::uint32_t, SurveyedTag> survey_from_floor_map(const LandmarkMap& map,
-                                                          double size_mm) {
-  std::map<std::uint32_t, SurveyedTag> out;
-  for (const auto& [id, e] : map.entries) {
-    if (id > kMaxTagId) continue;
-    out[id] = SurveyedTag{id, e.pose.x_mm, e.pose.y_mm, 0.0, e.pose.theta_rad, size_mm};
-  }
-  return out;
 }
 
 std::vector<TagSighting> detect_tags(const cv::Mat& gray, int frame) {
@@ -500,9 +416,11 @@ bool refine(const CameraIntrinsics& k, const std::map<std::uint32_t, SurveyedTag
 }  // namespace
 #endif
 
-Result solve_camera_pose(const CameraIntrinsics& k,
-                         const std::map<std::uint32_t, SurveyedTag>& survey,
-                         const std::vector<TagSighting>& sightings, const Options& opt) {
+namespace {
+
+// One solve on every surveyed tag seen.
+Result solve_once(const CameraIntrinsics& k, const std::map<std::uint32_t, SurveyedTag>& survey,
+                  const std::vector<TagSighting>& sightings, const Options& opt) {
   Result res;
   const std::vector<const TagSighting*> used = surveyed(survey, sightings);
   std::set<std::uint32_t> ids, unsurveyed;
@@ -548,6 +466,58 @@ Result solve_camera_pose(const CameraIntrinsics& k,
   res.message = "this build has no Ceres (Debian libceres-dev): the pose is not refined";
   return res;
 #endif
+}
+
+}  // namespace
+
+Result solve_camera_pose(const CameraIntrinsics& k,
+                         const std::map<std::uint32_t, SurveyedTag>& survey,
+                         const std::vector<TagSighting>& sightings, const Options& opt) {
+  std::map<std::uint32_t, SurveyedTag> active = survey;
+  std::vector<std::uint32_t> rejected;
+  Options o = opt;
+  CameraPose last;
+  Result res = solve_once(k, active, sightings, o);
+  // A tag far off the others' pose was surveyed wrong or has moved: the robust loss only
+  // lessens its pull (50 mm off moved the pose by 13 mm in the tests), so it is left out and the
+  // pose solved again, while the rest still fix it.
+  while (res.error == Error::kNone && !res.eval.tags.empty()) {
+    std::vector<double> rms;
+    const TagResidual* worst = &res.eval.tags.front();
+    for (const TagResidual& t : res.eval.tags) {
+      rms.push_back(t.rms_px);
+      if (t.rms_px > worst->rms_px) worst = &t;
+    }
+    std::nth_element(rms.begin(), rms.begin() + static_cast<long>(rms.size() / 2), rms.end());
+    const double limit = std::max(opt.reject_min_px, opt.reject_ratio * rms[rms.size() / 2]);
+    if (worst->rms_px <= limit || static_cast<int>(res.eval.tags.size()) <= opt.min_tags) break;
+    std::set<std::uint32_t> rest;
+    for (const TagResidual& t : res.eval.tags) {
+      if (t.id != worst->id) rest.insert(t.id);
+    }
+    if (!degeneracy(active, rest, opt.min_cross_spread).empty()) break;
+    rejected.push_back(worst->id);
+    active.erase(worst->id);
+    last = res.pose;
+    o.initial = &last;
+    res = solve_once(k, active, sightings, o);
+  }
+  if (res.error != Error::kNone) return res;
+  std::sort(rejected.begin(), rejected.end());
+  res.rejected_ids = rejected;
+  std::set<std::uint32_t> unsurveyed;
+  for (const TagSighting& s : sightings) {
+    if (!survey.count(s.id)) unsurveyed.insert(s.id);
+  }
+  res.unsurveyed_ids.assign(unsurveyed.begin(), unsurveyed.end());
+  // The summary over the tags used; the table lists the rejected ones too.
+  const Evaluation used = evaluate(k, active, sightings, res.pose);
+  res.eval = evaluate(k, survey, sightings, res.pose);
+  res.eval.corners = used.corners;
+  res.eval.rms_px = used.rms_px;
+  res.eval.max_px = used.max_px;
+  res.eval.max_floor_mm = used.max_floor_mm;
+  return res;
 }
 
 }  // namespace agv::desk::ccal

@@ -110,6 +110,11 @@ struct Options {
   // Degenerate when the centres' spread across their main line (RMS) is under this share of the
   // spread along it, or under one tag side.
   double min_cross_spread = 0.05;
+  // A tag whose corner RMS exceeds both reject_min_px and reject_ratio times the median tag's
+  // is left out and the pose solved again (one at a time, while at least min_tags not on one
+  // line remain): surveyed wrong, or moved since.
+  double reject_min_px = 1.0;
+  double reject_ratio = 5.0;
   // Start of the refinement; null: PnP on every corner (SQPnP).
   const CameraPose* initial = nullptr;
 };
@@ -125,7 +130,10 @@ struct Result {
   int tags_used = 0;
   int corners_used = 0;
   std::vector<std::uint32_t> unsurveyed_ids;  // seen but not in the survey (ignored)
-  Evaluation eval;                            // at the solved pose
+  std::vector<std::uint32_t> rejected_ids;    // surveyed, seen, left out (Options::reject_*)
+  // At the solved pose: corners, rms_px, max_px and max_floor_mm over the tags used; tags lists
+  // every surveyed tag seen, the rejected ones too.
+  Evaluation eval;
 };
 Result solve_camera_pose(const CameraIntrinsics& k,
                          const std::map<std::uint32_t, SurveyedTag>& survey,

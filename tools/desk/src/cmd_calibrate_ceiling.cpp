@@ -25,7 +25,7 @@ namespace agv::desk {
 namespace {
 
 namespace fs = std::filesystem;
-constexpr double kRadToDeg = 180.0 / 3.14159265358979323846;
+constexpr double kRadToDeg = 180.0 / kPi;
 
 struct CeilingArgs {
   std::string site_path, camera_id, frames_dir, survey_path;
@@ -239,6 +239,14 @@ int calibrate_ceiling(int argc, char** argv) {
   print_ignored(in.sightings, in.survey);
   if (r.error != ccal::Error::kNone) {
     return named_error(cmd, ccal::to_string(r.error), r.message, 1);
+  }
+  for (std::uint32_t id : r.rejected_ids) {
+    for (const ccal::TagResidual& t : r.eval.tags) {
+      if (t.id != id) continue;
+      std::printf("rejected tag %u: RMS %.2f px, floor residual %.1f mm against the others' pose "
+                  "(surveyed wrong, or moved?)\n",
+                  id, t.rms_px, t.floor_mm);
+    }
   }
   std::printf("camera %s: %d tags, %d corners in %d frames\n", cam.id.c_str(), r.tags_used,
               r.corners_used, in.frames);
