@@ -1,7 +1,7 @@
 // CameraFrameProcessor (algo/src/overhead/camera_frame.cpp) on rendered frames of one 1280 x 720
 // ceiling camera 4 m up: three vehicles of the fleet (a fourth is away) and a vehicle whose tag
-// is not the fleet's. The first frame sweeps the whole image; later frames read the tracked tags on their
-// windows; a stranger's tag is counted, never a fix; a parcel over one tag leaves that track
+// is not the fleet's. The first frame sweeps the whole image; later frames read the tracked tags on
+// their windows; a stranger's tag is counted, never a fix; a parcel over one tag leaves that track
 // coasting; bad input is refused with a reason.
 #include <gtest/gtest.h>
 
@@ -41,8 +41,8 @@ site::FleetAgv agv(const std::string& id, std::uint32_t tag) {
 }
 
 struct Sequence {
-  std::vector<std::vector<Detection>> dets;  // per frame
-  std::vector<FrameCounters> counters;       // after each frame
+  std::vector<std::vector<Detection>> dets;    // per frame
+  std::vector<FrameCounters> counters;         // after each frame
   std::vector<std::vector<TrackOutput>> outs;  // at each frame's time, after it
   std::vector<std::vector<sim::AgvState>> truth;
   std::vector<std::vector<std::uint8_t>> missed;
@@ -223,7 +223,8 @@ TEST(CameraFrame, BadInputIsRefusedWithAReason) {
   EXPECT_NE(error.find("out of range"), std::string::npos) << error;
   EXPECT_FALSE(proc.process(0, 0, ok, &wrong_size, nullptr, &error));
   EXPECT_FALSE(proc.process(0, 0, ok, nullptr, nullptr, &error));
-  EXPECT_FALSE(proc.process(0, 0, cv::Mat(360, 640, CV_8UC1, cv::Scalar(0)), &tracker, nullptr, &error));
+  EXPECT_FALSE(
+      proc.process(0, 0, cv::Mat(360, 640, CV_8UC1, cv::Scalar(0)), &tracker, nullptr, &error));
   EXPECT_NE(error.find("1280x720"), std::string::npos) << error;
   EXPECT_FALSE(proc.process(0, 0, cv::Mat(720, 1280, CV_8UC3), &tracker, nullptr, &error));
   EXPECT_FALSE(proc.process(0, 0, cv::Mat(), &tracker, nullptr, &error));

@@ -11,7 +11,8 @@ namespace agv::eval {
 
 double percentile(std::vector<double> v, double q) {
   if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
-  const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())));
+  const std::size_t k =
+      std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())));
   std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
   return v[k];
 }
@@ -94,7 +95,8 @@ void score_detections(const std::vector<overhead::Detection>& dets,
                       const std::vector<std::uint8_t>& in_image,
                       const std::vector<std::uint8_t>& flipped, Score* s) {
   auto centre = [](const std::array<Vec2, 4>& c) {
-    return Vec2{0.25 * (c[0].x + c[1].x + c[2].x + c[3].x), 0.25 * (c[0].y + c[1].y + c[2].y + c[3].y)};
+    return Vec2{0.25 * (c[0].x + c[1].x + c[2].x + c[3].x),
+                0.25 * (c[0].y + c[1].y + c[2].y + c[3].y)};
   };
   std::vector<std::uint8_t> read(truth_corners.size(), 0), right(truth_corners.size(), 0);
   for (const overhead::Detection& d : dets) {
@@ -150,25 +152,26 @@ std::string report(const Score& s, const std::vector<std::string>& ids) {
     ticks += v.ticks, valid += v.valid, in_view += v.in_view, valid_in_view += v.valid_in_view;
     confident_wrong += v.confident_wrong;
     const double mx = max_of(v.pos_err_mm);
-    std::snprintf(line, sizeof line, "%-8s %7zu %8.2f %8.2f %8.2f %9.3f %7.1f %9.1f %6llu\n",
-                  i < ids.size() ? ids[i].c_str() : "?", v.pos_err_mm.size(),
-                  percentile(v.pos_err_mm, 0.5), percentile(v.pos_err_mm, 0.95), mx,
-                  percentile(v.head_err_deg, 0.95),
-                  v.ticks ? 100.0 * static_cast<double>(v.valid) / static_cast<double>(v.ticks) : 0.0,
-                  v.in_view ? 100.0 * static_cast<double>(v.valid_in_view) / static_cast<double>(v.in_view) : 0.0,
-                  static_cast<unsigned long long>(v.confident_wrong));
+    std::snprintf(
+        line, sizeof line, "%-8s %7zu %8.2f %8.2f %8.2f %9.3f %7.1f %9.1f %6llu\n",
+        i < ids.size() ? ids[i].c_str() : "?", v.pos_err_mm.size(), percentile(v.pos_err_mm, 0.5),
+        percentile(v.pos_err_mm, 0.95), mx, percentile(v.head_err_deg, 0.95),
+        v.ticks ? 100.0 * static_cast<double>(v.valid) / static_cast<double>(v.ticks) : 0.0,
+        v.in_view ? 100.0 * static_cast<double>(v.valid_in_view) / static_cast<double>(v.in_view)
+                  : 0.0,
+        static_cast<unsigned long long>(v.confident_wrong));
     out += line;
   }
   const double mx = max_of(all_p);
   auto pct = [](std::uint64_t a, std::uint64_t b) {
     return b ? 100.0 * static_cast<double>(a) / static_cast<double>(b) : 0.0;
   };
-  std::snprintf(line, sizeof line,
-                "overall position error p50 %.2f mm, p95 %.2f mm, max %.2f mm; heading p50 %.3f deg, "
-                "p95 %.3f deg, max %.3f deg (%zu outputs)\n",
-                percentile(all_p, 0.5), percentile(all_p, 0.95), mx, percentile(all_h, 0.5),
-                percentile(all_h, 0.95),
-                max_of(all_h), all_p.size());
+  std::snprintf(
+      line, sizeof line,
+      "overall position error p50 %.2f mm, p95 %.2f mm, max %.2f mm; heading p50 %.3f deg, "
+      "p95 %.3f deg, max %.3f deg (%zu outputs)\n",
+      percentile(all_p, 0.5), percentile(all_p, 0.95), mx, percentile(all_h, 0.5),
+      percentile(all_h, 0.95), max_of(all_h), all_p.size());
   out += line;
   std::snprintf(line, sizeof line,
                 "valid ticks %.2f %% of all, %.2f %% of those with the tag in some image; "
@@ -176,42 +179,51 @@ std::string report(const Score& s, const std::vector<std::string>& ids) {
                 pct(valid, ticks), pct(valid_in_view, in_view),
                 static_cast<unsigned long long>(confident_wrong));
   out += line;
-  std::snprintf(line, sizeof line,
-                "identity: wrong-id fixes %llu (wrong-id reads %llu, phantom reads %llu, phantom "
-                "fixes %llu), id switches %llu, duplicate tracks %llu; reads %llu, right %llu, "
-                "gated %llu\n",
-                static_cast<unsigned long long>(s.wrong_fixes), static_cast<unsigned long long>(s.wrong_reads),
-                static_cast<unsigned long long>(s.phantom_reads), static_cast<unsigned long long>(s.phantom_fixes),
-                static_cast<unsigned long long>(s.id_switches), static_cast<unsigned long long>(s.duplicates),
-                static_cast<unsigned long long>(s.reads), static_cast<unsigned long long>(s.right_reads),
-                static_cast<unsigned long long>(s.gated));
+  std::snprintf(
+      line, sizeof line,
+      "identity: wrong-id fixes %llu (wrong-id reads %llu, phantom reads %llu, phantom "
+      "fixes %llu), id switches %llu, duplicate tracks %llu; reads %llu, right %llu, "
+      "gated %llu\n",
+      static_cast<unsigned long long>(s.wrong_fixes),
+      static_cast<unsigned long long>(s.wrong_reads),
+      static_cast<unsigned long long>(s.phantom_reads),
+      static_cast<unsigned long long>(s.phantom_fixes),
+      static_cast<unsigned long long>(s.id_switches), static_cast<unsigned long long>(s.duplicates),
+      static_cast<unsigned long long>(s.reads), static_cast<unsigned long long>(s.right_reads),
+      static_cast<unsigned long long>(s.gated));
   out += line;
   std::snprintf(line, sizeof line,
                 "sigma: NEES mean %.2f (3 dof: 3 if honest), within chi2 95%% %.1f %%, position "
                 "within 3 sigma %.1f %%\n",
-                s.nees_n ? s.nees_sum / static_cast<double>(s.nees_n) : kNaN, pct(s.nees_in95, s.nees_n),
-                pct(s.within3, all_p.size()));
+                s.nees_n ? s.nees_sum / static_cast<double>(s.nees_n) : kNaN,
+                pct(s.nees_in95, s.nees_n), pct(s.within3, all_p.size()));
   out += line;
   std::snprintf(line, sizeof line,
-                "frame time (one core): median %.2f ms, p99 %.2f ms, max %.2f ms over %zu frames; "
-                "frames with a full sweep (%zu): median %.2f ms\n",
-                percentile(s.frame_ms, 0.5), percentile(s.frame_ms, 0.99),
-                max_of(s.frame_ms),
-                s.frame_ms.size(), s.frame_full_ms.size(), percentile(s.frame_full_ms, 0.5));
+                "frame time (thread CPU time, one core): median %.2f ms, p99 %.2f ms, max %.2f ms "
+                "over %zu frames; "
+                "without a full sweep (%zu): median %.2f ms, p99 %.2f ms, max %.2f ms; with one "
+                "(%zu): median %.2f ms\n",
+                percentile(s.frame_ms, 0.5), percentile(s.frame_ms, 0.99), max_of(s.frame_ms),
+                s.frame_ms.size(), s.frame_windows_ms.size(), percentile(s.frame_windows_ms, 0.5),
+                percentile(s.frame_windows_ms, 0.99), max_of(s.frame_windows_ms),
+                s.frame_full_ms.size(), percentile(s.frame_full_ms, 0.5));
   out += line;
   if (!s.apriltag_ms.empty()) {
     std::snprintf(line, sizeof line,
-                  "libapriltag on the whole frame (decimate 1, one thread): median %.1f ms over %zu "
+                  "libapriltag on the whole frame (decimate 1, one thread, CPU time): median %.1f "
+                  "ms over %zu "
                   "frames (%.1fx the pipeline's median)\n",
                   percentile(s.apriltag_ms, 0.5), s.apriltag_ms.size(),
                   percentile(s.apriltag_ms, 0.5) / percentile(s.frame_ms, 0.5));
     out += line;
   }
   if (s.flipped > 0) {
-    std::snprintf(line, sizeof line,
-                  "bit errors: %llu tags flipped in view, read right %llu (%.2f %%), read wrong %llu\n",
-                  static_cast<unsigned long long>(s.flipped), static_cast<unsigned long long>(s.flipped_right),
-                  pct(s.flipped_right, s.flipped), static_cast<unsigned long long>(s.flipped_wrong));
+    std::snprintf(
+        line, sizeof line,
+        "bit errors: %llu tags flipped in view, read right %llu (%.2f %%), read wrong %llu\n",
+        static_cast<unsigned long long>(s.flipped),
+        static_cast<unsigned long long>(s.flipped_right), pct(s.flipped_right, s.flipped),
+        static_cast<unsigned long long>(s.flipped_wrong));
     out += line;
   }
   return out;

@@ -34,7 +34,7 @@ struct Score {
   // Tags with injected bit errors (visible, flipped) and what became of them.
   std::uint64_t flipped = 0, flipped_right = 0, flipped_wrong = 0;
   // Per-frame processing time (ms), all frames and those that swept the whole image.
-  std::vector<double> frame_ms, frame_full_ms, apriltag_ms;
+  std::vector<double> frame_ms, frame_full_ms, frame_windows_ms, apriltag_ms;
 };
 
 // One output tick: every vehicle's output against its truth (in_view: its tag lies inside some

@@ -57,8 +57,7 @@ void apply_gain(cv::Mat* img, const cv::Mat& gain, const cv::Rect& r) {
 
 }  // namespace
 
-TiledCameraRenderer::TiledCameraRenderer(const CameraIntrinsics& k,
-                                         const sim::SiteRenderParams& params)
+RegionRenderer::RegionRenderer(const CameraIntrinsics& k, const sim::SiteRenderParams& params)
     : k_(k), params_(params) {
   gain_ = gain_map(k.width_px, k.height_px, params);
   params_.illumination_ratio = 1.0;
@@ -66,8 +65,8 @@ TiledCameraRenderer::TiledCameraRenderer(const CameraIntrinsics& k,
   params_.exposure_gain = 1.0;
 }
 
-void TiledCameraRenderer::set_background(std::size_t camera, const sim::SiteScene& empty_scene,
-                                         const sim::RenderCamera& cam, std::uint64_t seed) {
+void RegionRenderer::set_background(std::size_t camera, const sim::SiteScene& empty_scene,
+                                    const sim::RenderCamera& cam, std::uint64_t seed) {
   if (background_.size() <= camera) background_.resize(camera + 1);
   sim::SiteFrameRenderer full(k_);
   cv::Mat& bg = background_[camera];
@@ -75,79 +74,85 @@ void TiledCameraRenderer::set_background(std::size_t camera, const sim::SiteScen
   if (!bg.empty()) apply_gain(&bg, gain_, {0, 0, k_.width_px, k_.height_px});
 }
 
-const sim::SiteFrameRenderer& TiledCameraRenderer::tile_renderer(int tx, int ty) {
-  auto& slot = tiles_[{tx, ty}];
-  if (!slot) {
-    CameraIntrinsics t = k_;
-    t.width_px = kTile + 2 * kMargin;
-    t.height_px = kTile + 2 * kMargin;
-    t.cx = k_.cx - (tx * kTile - kMargin);
-    t.cy = k_.cy - (ty * kTile - kMargin);
-    slot = std::make_unique<sim::SiteFrameRenderer>(t);
-  }
-  return *slot;
-}
-
-cv::Mat TiledCameraRenderer::render(std::size_t camera, const sim::SiteScene& scene,
-                                    const sim::RenderCamera& cam, std::uint64_t seed) {
+cv::Mat RegionRenderer::render(std::size_t camera, const sim::SiteScene& scene,
+                               const sim::RenderCamera& cam, std::uint64_t seed) {
   if (camera >= background_.size() || background_[camera].empty()) return {};
   cv::Mat img = background_[camera].clone();
-  const int w = k_.width_px, h = k_.height_px;
-  const int ntx = (w + kTile - 1) / kTile, nty = (h + kTile - 1) / kTile;
-  std::vector<std::uint8_t> want(static_cast<std::size_t>(ntx * nty), 0);
+  std::vector<cv::Rect> boxes;
   for (std::size_t i = 0; i < scene.agvs.size() && i < scene.site.fleet.size(); ++i) {
-    const site::FleetAgv& a = scene.site.fleet[i];
-    const Pose2& p = scene.agvs[i].pose;
-    // Body and tray (and the parcels on it, which may overhang it, up to their tops).
-    double r = std::max(a.radius_mm, 0.5 * std::hypot(a.tray_length_mm, a.tray_width_mm));
-    double top = a.tray_height_mm;
-    for (const sim::Parcel& pc : scene.parcels) {
-      if (pc.agv != i) continue;
-      r = std::max(r, std::hypot(pc.x_mm, pc.y_mm) + 0.5 * std::hypot(pc.length_mm, pc.width_mm));
-      top = std::max(top, a.tray_height_mm + pc.height_mm);
-    }
-    r += 60.0;
-    std::vector<sim::Vec3> pts;
-    for (int k = 0; k < 8; ++k) {
-      const double ang = k * kPi / 4;
-      for (double z : {0.0, top + 20.0}) {
-        pts.push_back({p.x_mm + r * std::cos(ang), p.y_mm + r * std::sin(ang), z});
+    const cv::Rect b = vehicle_box(scene, i, cam);
+    if (b.area() > 0) boxes.push_back(b);
+  }
+  // Overlapping boxes are merged (a region is rendered once, with every vehicle in it).
+  for (bool merged = true; merged;) {
+    merged = false;
+    for (std::size_t a = 0; a < boxes.size() && !merged; ++a) {
+      for (std::size_t b = a + 1; b < boxes.size() && !merged; ++b) {
+        if ((boxes[a] & boxes[b]).area() > 0) {
+          boxes[a] |= boxes[b];
+          boxes.erase(boxes.begin() + static_cast<std::ptrdiff_t>(b));
+          merged = true;
+        }
       }
     }
-    std::vector<std::uint8_t> ok;
-    const std::vector<Vec2> px = sim::project_points(cam, pts, &ok);
-    double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
-    for (std::size_t j = 0; j < px.size(); ++j) {
-      if (!ok[j]) continue;
-      x0 = std::min(x0, px[j].x), x1 = std::max(x1, px[j].x);
-      y0 = std::min(y0, px[j].y), y1 = std::max(y1, px[j].y);
-    }
-    if (x1 < 0 || y1 < 0 || x0 >= w || y0 >= h) continue;
-    const int tx0 = std::max(0, static_cast<int>(x0) / kTile);
-    const int ty0 = std::max(0, static_cast<int>(y0) / kTile);
-    const int tx1 = std::min(ntx - 1, static_cast<int>(x1) / kTile);
-    const int ty1 = std::min(nty - 1, static_cast<int>(y1) / kTile);
-    for (int ty = ty0; ty <= ty1; ++ty) {
-      for (int tx = tx0; tx <= tx1; ++tx) want[static_cast<std::size_t>(ty * ntx + tx)] = 1;
-    }
   }
-  for (int ty = 0; ty < nty; ++ty) {
-    for (int tx = 0; tx < ntx; ++tx) {
-      if (!want[static_cast<std::size_t>(ty * ntx + tx)]) continue;
-      const sim::SiteFrameRenderer& tr = tile_renderer(tx, ty);
-      sim::RenderCamera tc = cam;
-      tc.intrinsics = tr.intrinsics();
-      const std::uint64_t s = seed * 1000003ULL + static_cast<std::uint64_t>(ty * ntx + tx);
-      const cv::Mat tile = tr.render(scene, tc, params_, s).image;
-      if (tile.empty()) continue;
-      const cv::Rect dst(tx * kTile, ty * kTile, std::min(kTile, w - tx * kTile),
-                         std::min(kTile, h - ty * kTile));
-      tile(cv::Rect(kMargin, kMargin, dst.width, dst.height)).copyTo(img(dst));
-      apply_gain(&img, gain_, dst);
-      ++tiles_rendered_;
-    }
+  std::uint64_t n = 0;
+  for (const cv::Rect& dst : boxes) {
+    // The region's own camera: the same lens and pose, the principal point moved; rendered with
+    // a margin so the defocus filter sees real neighbours at the region's edge.
+    CameraIntrinsics t = k_;
+    t.width_px = dst.width + 2 * kMargin;
+    t.height_px = dst.height + 2 * kMargin;
+    t.cx = k_.cx - (dst.x - kMargin);
+    t.cy = k_.cy - (dst.y - kMargin);
+    const sim::SiteFrameRenderer rr(t);
+    sim::RenderCamera rc = cam;
+    rc.intrinsics = t;
+    const cv::Mat part = rr.render(scene, rc, params_, seed * 1000003ULL + n++).image;
+    if (part.empty()) continue;
+    part(cv::Rect(kMargin, kMargin, dst.width, dst.height)).copyTo(img(dst));
+    apply_gain(&img, gain_, dst);
+    pixels_rendered_ += static_cast<std::size_t>(dst.area());
   }
   return img;
+}
+
+cv::Rect RegionRenderer::vehicle_box(const sim::SiteScene& scene, std::size_t i,
+                                     const sim::RenderCamera& cam) const {
+  const site::FleetAgv& a = scene.site.fleet[i];
+  const Pose2& p = scene.agvs[i].pose;
+  // Body and tray (and the parcels on it, which may overhang it, up to their tops).
+  double r = std::max(a.radius_mm, 0.5 * std::hypot(a.tray_length_mm, a.tray_width_mm));
+  double top = a.tray_height_mm;
+  for (const sim::Parcel& pc : scene.parcels) {
+    if (pc.agv != i) continue;
+    r = std::max(r, std::hypot(pc.x_mm, pc.y_mm) + 0.5 * std::hypot(pc.length_mm, pc.width_mm));
+    top = std::max(top, a.tray_height_mm + pc.height_mm);
+  }
+  r += 60.0;
+  std::vector<sim::Vec3> pts;
+  for (int k = 0; k < 8; ++k) {
+    const double ang = k * kPi / 4;
+    for (double z : {0.0, top + 20.0}) {
+      pts.push_back({p.x_mm + r * std::cos(ang), p.y_mm + r * std::sin(ang), z});
+    }
+  }
+  std::vector<std::uint8_t> ok;
+  const std::vector<Vec2> px = sim::project_points(cam, pts, &ok);
+  double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
+  for (std::size_t j = 0; j < px.size(); ++j) {
+    if (!ok[j]) continue;
+    x0 = std::min(x0, px[j].x), x1 = std::max(x1, px[j].x);
+    y0 = std::min(y0, px[j].y), y1 = std::max(y1, px[j].y);
+  }
+  if (!(x0 < x1 && y0 < y1) || x1 < 0 || y1 < 0 || x0 >= k_.width_px || y0 >= k_.height_px) {
+    return {};
+  }
+  const cv::Rect b(static_cast<int>(std::floor(std::max(0.0, x0))),
+                   static_cast<int>(std::floor(std::max(0.0, y0))), 0, 0);
+  const int xe = static_cast<int>(std::ceil(std::min<double>(k_.width_px, x1)));
+  const int ye = static_cast<int>(std::ceil(std::min<double>(k_.height_px, y1)));
+  return {b.x, b.y, xe - b.x, ye - b.y};
 }
 
 bool World::build(const WorldOptions& o, std::string* error) {
@@ -173,8 +178,10 @@ bool World::build(const WorldOptions& o, std::string* error) {
   k.k1 = o.k1;
   k.k2 = o.k2;
   const int per_axis = o.cameras == 1 ? 1 : 2;
-  const std::vector<double> xs = camera_centres(o.site_mm, 0.5 * o.width_px / f * depth_mm, per_axis);
-  const std::vector<double> ys = camera_centres(o.site_mm, 0.5 * o.height_px / f * depth_mm, per_axis);
+  const std::vector<double> xs =
+      camera_centres(o.site_mm, 0.5 * o.width_px / f * depth_mm, per_axis);
+  const std::vector<double> ys =
+      camera_centres(o.site_mm, 0.5 * o.height_px / f * depth_mm, per_axis);
   for (double y : ys) {
     for (double x : xs) {
       site::CeilingCamera c;
@@ -214,9 +221,9 @@ std::vector<sim::AgvState> World::states_at(std::int64_t t_ns) const {
     sim::AgvState st;
     if (!v.truth.empty()) {
       const std::int64_t period = v.truth.size() > 1 ? v.truth[1].t_ns - v.truth[0].t_ns : 1;
-      const std::int64_t idx = std::clamp<std::int64_t>(
-          (t_ns - v.truth[0].t_ns + period / 2) / period, 0,
-          static_cast<std::int64_t>(v.truth.size()) - 1);
+      const std::int64_t idx =
+          std::clamp<std::int64_t>((t_ns - v.truth[0].t_ns + period / 2) / period, 0,
+                                   static_cast<std::int64_t>(v.truth.size()) - 1);
       const sim::FleetTruthSample& s = v.truth[static_cast<std::size_t>(idx)];
       st.v_mps = s.v_mps;
       st.omega_radps = s.omega_radps;
@@ -267,7 +274,8 @@ int flip_tag_cells(cv::Mat* gray, const std::array<Vec2, 4>& corners_px, int n,
                    std::mt19937_64* rng) {
   // Grid units: the black square spans 0..8 (a border cell, 6 data cells, a border cell).
   std::vector<cv::Point2f> grid{{0, 0}, {8, 0}, {8, 8}, {0, 8}}, img;
-  for (const Vec2& c : corners_px) img.emplace_back(static_cast<float>(c.x), static_cast<float>(c.y));
+  for (const Vec2& c : corners_px)
+    img.emplace_back(static_cast<float>(c.x), static_cast<float>(c.y));
   const cv::Matx33d hm = cv::getPerspectiveTransform(grid, img);
   auto map = [&](double u, double v) {
     const cv::Vec3d q = hm * cv::Vec3d(u, v, 1.0);
@@ -309,7 +317,8 @@ int flip_tag_cells(cv::Mat* gray, const std::array<Vec2, 4>& corners_px, int n,
     for (const auto& uv : {cv::Point2d(u, v), cv::Point2d(u + 1, v), cv::Point2d(u + 1, v + 1),
                            cv::Point2d(u, v + 1)}) {
       const cv::Point2d p = map(uv.x, uv.y);
-      poly.emplace_back(static_cast<int>(std::lround(p.x * 16)), static_cast<int>(std::lround(p.y * 16)));
+      poly.emplace_back(static_cast<int>(std::lround(p.x * 16)),
+                        static_cast<int>(std::lround(p.y * 16)));
     }
     cv::fillConvexPoly(*gray, poly, cv::Scalar(is_white ? black : white), cv::LINE_AA, 4);
   }
@@ -331,9 +340,9 @@ site::CeilingCamera perturbed(const site::CeilingCamera& cam, double error_mm, d
   // Rodrigues: R' = Rot(axis, a) * R (a rotation in the site frame).
   const double c = std::cos(a), s = std::sin(a), t = 1.0 - c;
   const double x = axis[0], y = axis[1], z = axis[2];
-  const cv::Matx33d rot(t * x * x + c, t * x * y - s * z, t * x * z + s * y,
-                        t * x * y + s * z, t * y * y + c, t * y * z - s * x,
-                        t * x * z - s * y, t * y * z + s * x, t * z * z + c);
+  const cv::Matx33d rot(t * x * x + c, t * x * y - s * z, t * x * z + s * y, t * x * y + s * z,
+                        t * y * y + c, t * y * z - s * x, t * x * z - s * y, t * y * z + s * x,
+                        t * z * z + c);
   const auto& r = cam.r_site_cam;
   const cv::Matx33d rm(r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8]);
   const cv::Matx33d rn = rot * rm;

@@ -1,15 +1,12 @@
 // The simulated site of eval_overhead: a square floor under a 2 x 2 grid of ceiling cameras, a
-// fleet driven by the fleet simulator, and the cameras' frames rendered tile by tile around the
-// vehicles over a background rendered once (docs/design/overhead.md, "Evaluation").
+// fleet driven by the fleet simulator, and the cameras' frames rendered region by region around
+// the vehicles over a background rendered once (docs/design/overhead.md, "Evaluation").
 #pragma once
 
 #include <array>
 #include <cstdint>
-#include <map>
-#include <memory>
 #include <random>
 #include <string>
-#include <utility>
 #include <vector>
 
 #include "agv/sim/fleet.hpp"
@@ -22,8 +19,8 @@ struct WorldOptions {
   double site_mm = 12000.0;
   double camera_height_mm = 6000.0;
   int width_px = 3840, height_px = 2160;
-  double tag_px = 60.0;  // side of a 160 mm tag seen straight below at tray height
-  int cameras = 4;       // 1 (centred) or 4 (2 x 2)
+  double tag_px = 60.0;          // side of a 160 mm tag seen straight below at tray height
+  int cameras = 4;               // 1 (centred) or 4 (2 x 2)
   double k1 = -0.05, k2 = 0.01;  // barrel distortion of every lens
   int agvs = 20;
   double duration_s = 60.0;
@@ -32,29 +29,31 @@ struct WorldOptions {
   std::uint64_t seed = 1;
 };
 
-// Rendering of a camera's frame as a background (floor, clutter: rendered once) plus tiles
-// around the vehicles rendered anew every frame. Vignetting and the light gradient are applied
-// here as one gain map over the whole image: the renderer would apply them per tile.
-class TiledCameraRenderer {
+// Rendering of a camera's frame as a background (floor, clutter: rendered once) plus the region
+// around each vehicle rendered anew every frame (through a camera of the region's size whose
+// principal point is moved: the same rays). Vignetting and the light gradient are applied here
+// as one gain map over the whole image: the renderer would apply them per region.
+class RegionRenderer {
  public:
-  static constexpr int kTile = 128, kMargin = 8;
-  TiledCameraRenderer(const CameraIntrinsics& k, const sim::SiteRenderParams& params);
+  static constexpr int kMargin = 8;
+  RegionRenderer(const CameraIntrinsics& k, const sim::SiteRenderParams& params);
   // Renders camera `camera`'s background (a scene without vehicles) once.
   void set_background(std::size_t camera, const sim::SiteScene& empty_scene,
                       const sim::RenderCamera& cam, std::uint64_t seed);
-  // The frame with every vehicle whose footprint projects into it rendered on its tiles.
+  // The frame with the region of every vehicle that projects into it rendered anew.
   cv::Mat render(std::size_t camera, const sim::SiteScene& scene, const sim::RenderCamera& cam,
                  std::uint64_t seed);
-  std::size_t tiles_rendered() const { return tiles_rendered_; }
+  std::size_t pixels_rendered() const { return pixels_rendered_; }
 
  private:
-  const sim::SiteFrameRenderer& tile_renderer(int tx, int ty);
+  // Pixel box of vehicle i's body, tray and parcels; empty outside the image.
+  cv::Rect vehicle_box(const sim::SiteScene& scene, std::size_t i,
+                       const sim::RenderCamera& cam) const;
   CameraIntrinsics k_;
-  sim::SiteRenderParams params_;  // without the image-wide effects
-  cv::Mat gain_;                  // CV_32F
+  sim::SiteRenderParams params_;     // without the image-wide effects
+  cv::Mat gain_;                     // CV_32F
   std::vector<cv::Mat> background_;  // per camera
-  std::map<std::pair<int, int>, std::unique_ptr<sim::SiteFrameRenderer>> tiles_;
-  std::size_t tiles_rendered_ = 0;
+  std::size_t pixels_rendered_ = 0;
 };
 
 class World {
@@ -80,7 +79,8 @@ class World {
 
 // Overwrites n data cells of the tag at corners_px (page order, outer black square) with the
 // opposite shade, read from the image itself. Returns the cells flipped.
-int flip_tag_cells(cv::Mat* gray, const std::array<Vec2, 4>& corners_px, int n, std::mt19937_64* rng);
+int flip_tag_cells(cv::Mat* gray, const std::array<Vec2, 4>& corners_px, int n,
+                   std::mt19937_64* rng);
 
 // A site camera moved by a calibration error: translation of error_mm in a random direction and
 // a rotation of error_deg about a random axis.

@@ -26,9 +26,9 @@ struct Detection {
   std::int64_t t_ns = 0;  // exposure time (host clock)
   TagObservation tag;
   SearchLevel level = SearchLevel::kFull;
-  bool in_fleet = false;     // tag id belongs to a vehicle of the fleet
-  std::size_t agv = 0;       // fleet index when in_fleet
-  bool has_fix = false;      // the tray-plane fit succeeded
+  bool in_fleet = false;  // tag id belongs to a vehicle of the fleet
+  std::size_t agv = 0;    // fleet index when in_fleet
+  bool has_fix = false;   // the tray-plane fit succeeded
   TagFix fix;
   FixResult result = FixResult::kInvalid;  // what the tracker did with it
 };
