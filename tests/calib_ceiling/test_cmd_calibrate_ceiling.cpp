@@ -2,6 +2,7 @@
 // whose pose is 30 mm off fails the check, the calibration writes a pose that passes it, and
 // every named error with its exit code.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <filesystem>
@@ -163,6 +164,16 @@ TEST_F(CalibrateCeilingCommand, NamedErrors) {
   a = args("ceiling", site, at("one"), at("survey.csv"));
   a.resize(7);
   expect(run(calibrate_ceiling, a), 2, "no-survey");
+  // Careless input: a survey that is a folder, a frames folder holding only a FIFO, a NaN.
+  expect(run(calibrate_ceiling, args("ceiling", site, at("one"), at("frames"))), 2, "bad-survey");
+  fs::create_directories(dir_ / "fifo");
+  ASSERT_EQ(::mkfifo((dir_ / "fifo" / "000000.png").c_str(), 0600), 0);
+  expect(run(calibrate_ceiling, args("ceiling", site, at("fifo"), at("survey.csv"))), 2,
+         "unreadable-frames");
+  a = args("ceiling", site, at("one"), at("survey.csv"));
+  a.push_back("--robust-px");
+  a.push_back("nan");
+  EXPECT_NE(run(calibrate_ceiling, a).rc, 0);
   // The check with one surveyed tag in view.
   write_file(dir_ / "survey_one.csv", survey_csv(world(), 4, 1));
   expect(run(calibrate_ceiling_check, args("ceiling-check", site, at("one"), at("survey_one.csv"))),
