@@ -175,6 +175,14 @@ TEST(CalibCeiling, NamedErrorsOfTheSolver) {
   r = ccal::solve_camera_pose(intrinsics(), survey_of(w, 0, 4), sightings);
   EXPECT_EQ(r.error, ccal::Error::kNone) << r.message;
   EXPECT_STREQ(ccal::to_string(ccal::Error::kDegenerate), "degenerate-geometry");
+  // A start with every tag behind the camera: no residual can be evaluated.
+  ccal::CameraPose below = true_pose();
+  below.z_mm = -4500.0;
+  ccal::Options opt;
+  opt.initial = &below;
+  r = ccal::solve_camera_pose(intrinsics(), survey_of(w), sightings, opt);
+  EXPECT_EQ(r.error, ccal::Error::kSolveFailed);
+  EXPECT_FALSE(r.message.empty());
 }
 
 TEST(CalibCeiling, SurveyCsvIsCheckedLineByLine) {
