@@ -2,8 +2,8 @@
 // libcamera; drivers/v4l2, drivers/libcamera). One thread per camera takes its frames (copied out
 // of the driver's buffer at once) into a bounded queue; the calling thread runs the pipeline on
 // them in arrival order and publishes every vehicle's state at output.rate_hz on CLOCK_MONOTONIC,
-// the clock of the drivers' exposure stamps. A camera that fails or disconnects is reopened every
-// second while its vehicles coast on the others.
+// the clock of the drivers' exposure stamps. A camera that fails or disconnects is reopened at
+// once, then every second while it fails; its vehicles coast on the others meanwhile.
 #pragma once
 
 #include <atomic>

@@ -23,7 +23,7 @@ if(AGV_DESK_CMD)
   set_tests_properties(overhead_mqtt PROPERTIES LABELS "overhead;mqtt")
 endif()
 
-# The live loop on scripted cameras (threads: label tsan too). About 2 s (a camera reopened after 1 s).
+# The live loop on scripted cameras (threads: label tsan too). About 2 s.
 agv_add_test(test_overhead_live SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_overhead_live.cpp
              LIBS agv_overhead_app agv_sim agv_fakecamera agv_posix LABELS unit overhead tsan
              TIMEOUT 60)
