@@ -4,9 +4,10 @@
 
 namespace agv::desk::test {
 
-
 // The true pose: 4.5 m up, turned and tilted a little, so no angle is a special value.
-ccal::CameraPose true_pose() { return {1000.0, 500.0, 4500.0, 20.0 * kDeg, 3.0 * kDeg, -2.0 * kDeg}; }
+ccal::CameraPose true_pose() {
+  return {1000.0, 500.0, 4500.0, 20.0 * kDeg, 3.0 * kDeg, -2.0 * kDeg};
+}
 
 CameraIntrinsics intrinsics() {
   CameraIntrinsics k;
@@ -50,7 +51,7 @@ static World make_world(bool on_floor, int frames) {
   cam.intrinsics = intrinsics();
   ccal::set_pose(true_pose(), &cam);
   s.cameras.push_back(cam);
-  const double px[7][2] = {{260, 170}, {640, 165}, {1020, 175}, {300, 540},
+  const double px[7][2] = {{260, 170}, {640, 165},  {1020, 175}, {300, 540},
                            {700, 560}, {1040, 520}, {470, 360}};
   const double tray_mm[7] = {400, 400, 400, 350, 450, 380, 420};
   for (int i = 0; i < 7; ++i) {

@@ -30,16 +30,26 @@ bool parse(int argc, char** argv, Args* a) {
   for (int i = 1; i + 1 < argc; i += 2) {
     const std::string k = argv[i];
     const double v = std::atof(argv[i + 1]);
-    if (k == "--width") a->width = static_cast<int>(v);
-    else if (k == "--height") a->height = static_cast<int>(v);
-    else if (k == "--f") a->f = v;
-    else if (k == "--z") a->z_mm = v;
-    else if (k == "--tag") a->tag_mm = v;
-    else if (k == "--tags") a->tags = static_cast<int>(v);
-    else if (k == "--frames") a->frames = static_cast<int>(v);
-    else if (k == "--trials") a->trials = static_cast<int>(v);
-    else if (k == "--seed") a->seed = static_cast<unsigned>(v);
-    else return false;
+    if (k == "--width")
+      a->width = static_cast<int>(v);
+    else if (k == "--height")
+      a->height = static_cast<int>(v);
+    else if (k == "--f")
+      a->f = v;
+    else if (k == "--z")
+      a->z_mm = v;
+    else if (k == "--tag")
+      a->tag_mm = v;
+    else if (k == "--tags")
+      a->tags = static_cast<int>(v);
+    else if (k == "--frames")
+      a->frames = static_cast<int>(v);
+    else if (k == "--trials")
+      a->trials = static_cast<int>(v);
+    else if (k == "--seed")
+      a->seed = static_cast<unsigned>(v);
+    else
+      return false;
   }
   return argc % 2 == 1 && a->width > 0 && a->height > 0 && a->tags >= 3 && a->frames > 0;
 }
@@ -79,15 +89,19 @@ int main(int argc, char** argv) {
   int n_par = 0, solved = 0;
   double worst_rms = 0.0, worst_floor = 0.0;
   for (int t = 0; t < a.trials; ++t) {
-    const desk::ccal::CameraPose truth{uni(rng) * 1000.0,    uni(rng) * 1000.0,
-                                       a.z_mm,               (uni(rng) * 360.0 - 180.0) * kDeg,
-                                       (uni(rng) * 10.0 - 5.0) * kDeg, (uni(rng) * 10.0 - 5.0) * kDeg};
+    const desk::ccal::CameraPose truth{uni(rng) * 1000.0,
+                                       uni(rng) * 1000.0,
+                                       a.z_mm,
+                                       (uni(rng) * 360.0 - 180.0) * kDeg,
+                                       (uni(rng) * 10.0 - 5.0) * kDeg,
+                                       (uni(rng) * 10.0 - 5.0) * kDeg};
     sim::SiteScene scene;
     site::CeilingCamera cam;
     cam.id = "cam";
     cam.intrinsics = k;
     desk::ccal::set_pose(truth, &cam);
-    scene.site.outline.vertices_mm = {{-20000, -20000}, {20000, -20000}, {20000, 20000}, {-20000, 20000}};
+    scene.site.outline.vertices_mm = {
+        {-20000, -20000}, {20000, -20000}, {20000, 20000}, {-20000, 20000}};
     scene.site.cameras.push_back(cam);
     std::map<std::uint32_t, desk::ccal::SurveyedTag> survey;
     // Vehicles on a jittered grid over the view (apart by more than a vehicle), trays 350..450 mm.
@@ -109,9 +123,9 @@ int main(int argc, char** argv) {
     scene.floor.amplitude = 30.0;
     std::vector<desk::ccal::TagSighting> sightings;
     for (int f = 0; f < a.frames; ++f) {
-      const sim::RenderResult r = renderer.render(scene, sim::RenderCamera::from_ceiling(cam),
-                                                  sim::realistic_site_params(),
-                                                  a.seed * 1000u + static_cast<unsigned>(t * 16 + f));
+      const sim::RenderResult r =
+          renderer.render(scene, sim::RenderCamera::from_ceiling(cam), sim::realistic_site_params(),
+                          a.seed * 1000u + static_cast<unsigned>(t * 16 + f));
       const auto s = desk::ccal::detect_tags(r.image, f);
       sightings.insert(sightings.end(), s.begin(), s.end());
     }
@@ -141,8 +155,9 @@ int main(int argc, char** argv) {
     worst_rms = std::max(worst_rms, res.eval.rms_px);
     worst_floor = std::max(worst_floor, res.eval.max_floor_mm);
   }
-  std::printf("\n%dx%d f=%.0f px, camera %.0f mm up, %d tags of %.0f mm, %d frame(s): %d/%d solved\n",
-              a.width, a.height, a.f, a.z_mm, a.tags, a.tag_mm, a.frames, solved, a.trials);
+  std::printf(
+      "\n%dx%d f=%.0f px, camera %.0f mm up, %d tags of %.0f mm, %d frame(s): %d/%d solved\n",
+      a.width, a.height, a.f, a.z_mm, a.tags, a.tag_mm, a.frames, solved, a.trials);
   std::printf("largest |error|:");
   for (int i = 0; i < 6; ++i) std::printf(" %s %.3f", names[i], worst[i]);
   std::printf("\nlargest reprojection RMS %.3f px, largest floor residual %.2f mm\n", worst_rms,

@@ -195,14 +195,14 @@ TEST(CalibCeiling, SurveyCsvIsCheckedLineByLine) {
   EXPECT_NEAR(s.at(4).yaw_rad, kPi / 2, 1e-12);
   EXPECT_FALSE(ccal::parse_survey_csv("id,x,y\n", &s, &err));
   EXPECT_NE(err.find("header"), std::string::npos);
-  EXPECT_FALSE(ccal::parse_survey_csv("id,x_mm,y_mm,z_mm,yaw_deg,size_mm\n9,1,2,3,nan,160\n", &s,
-                                      &err));
+  EXPECT_FALSE(
+      ccal::parse_survey_csv("id,x_mm,y_mm,z_mm,yaw_deg,size_mm\n9,1,2,3,nan,160\n", &s, &err));
   EXPECT_EQ(err.rfind("line 2:", 0), 0u) << err;
   EXPECT_FALSE(ccal::parse_survey_csv(
       "id,x_mm,y_mm,z_mm,yaw_deg,size_mm\n9,1,2,3,0,160\n9,1,2,3,0,160\n", &s, &err));
   EXPECT_NE(err.find("twice"), std::string::npos);
-  EXPECT_FALSE(ccal::parse_survey_csv("id,x_mm,y_mm,z_mm,yaw_deg,size_mm\n600,1,2,3,0,160\n", &s,
-                                      &err));
+  EXPECT_FALSE(
+      ccal::parse_survey_csv("id,x_mm,y_mm,z_mm,yaw_deg,size_mm\n600,1,2,3,0,160\n", &s, &err));
   EXPECT_TRUE(s.empty());
 }
 

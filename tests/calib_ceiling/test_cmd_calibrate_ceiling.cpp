@@ -97,8 +97,8 @@ fs::path CalibrateCeilingCommand::dir_;
 
 TEST_F(CalibrateCeilingCommand, CheckFailsOff30MmAndPassesAfterTheCalibrationWrites) {
   const std::string site = site_off(30.0);
-  CmdRun r = run(calibrate_ceiling_check,
-              args("ceiling-check", site, at("frames"), at("survey.csv")));
+  CmdRun r =
+      run(calibrate_ceiling_check, args("ceiling-check", site, at("frames"), at("survey.csv")));
   EXPECT_EQ(r.rc, 1) << r.out << r.err;
   EXPECT_NE(r.out.find("FAIL"), std::string::npos) << r.out;
   std::printf("%s", r.out.substr(r.out.find("reprojection RMS")).c_str());
@@ -200,10 +200,9 @@ TEST_F(CalibrateCeilingCommand, FloorMapTagsAsTheSurvey) {
   ASSERT_TRUE(parse_landmark_map(map, &s.floor_map, &err)) << err;
   s.cameras[0].t_site_cam_mm[1] += 40.0;
   write_file(dir_ / "site_floor.yaml", site::write_site(s));
-  const std::vector<std::string> a = {"ceiling",        "--site",   at("site_floor.yaml"),
-                                      "--camera",       "cam-1",    "--frames",
-                                      at("floor"),      "--floor-tag-size-mm", "200",
-                                      "--write"};
+  const std::vector<std::string> a = {
+      "ceiling",  "--site",    at("site_floor.yaml"), "--camera", "cam-1",
+      "--frames", at("floor"), "--floor-tag-size-mm", "200",      "--write"};
   const CmdRun r = run(calibrate_ceiling, a);
   ASSERT_EQ(r.rc, 0) << r.out << r.err;
   site::Site back;
@@ -213,9 +212,9 @@ TEST_F(CalibrateCeilingCommand, FloorMapTagsAsTheSurvey) {
   EXPECT_NEAR(back.cameras[0].t_site_cam_mm[2], true_pose().z_mm, 10.0);
   EXPECT_EQ(back.floor_map.entries.size(), 7u);  // the floor map is still named
   // A site without a floor map cannot be the survey.
-  const std::vector<std::string> b = {"ceiling",   "--site",          at("site_true.yaml"),
-                                      "--camera",  "cam-1",           "--frames",
-                                      at("floor"), "--floor-tag-size-mm", "200"};
+  const std::vector<std::string> b = {
+      "ceiling",  "--site",    at("site_true.yaml"),  "--camera", "cam-1",
+      "--frames", at("floor"), "--floor-tag-size-mm", "200"};
   const CmdRun none = run(calibrate_ceiling, b);
   EXPECT_EQ(none.rc, 2);
   EXPECT_NE(none.err.find("error no-survey"), std::string::npos) << none.err;

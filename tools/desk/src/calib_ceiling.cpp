@@ -127,14 +127,13 @@ std::string degeneracy(const std::map<std::uint32_t, SurveyedTag>& survey,
   const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvalues();
   const double along = std::sqrt(std::max(ev(2), 0.0));
   const double across = std::sqrt(std::max(ev(1), 0.0));
-  std::nth_element(sizes.begin(), sizes.begin() + static_cast<long>(sizes.size() / 2),
-                   sizes.end());
+  std::nth_element(sizes.begin(), sizes.begin() + static_cast<long>(sizes.size() / 2), sizes.end());
   const double limit = std::max(min_cross_spread * along, sizes[sizes.size() / 2]);
   if (across >= limit) return "";
   std::ostringstream m;
   m.precision(4);
-  m << "the " << ids.size() << " tags' centres lie nearly on one line (spread across it "
-    << across << " mm RMS, along it " << along << " mm; needs at least " << limit
+  m << "the " << ids.size() << " tags' centres lie nearly on one line (spread across it " << across
+    << " mm RMS, along it " << along << " mm; needs at least " << limit
     << " mm across): place tags off that line";
   return m.str();
 }
@@ -168,7 +167,8 @@ bool pnp_start(const CameraIntrinsics& k, const std::map<std::uint32_t, Surveyed
   const cv::Mat r = r_cam_site.t();
   const cv::Mat t = -r * tvec;
   site::CeilingCamera c;
-  for (int i = 0; i < 9; ++i) c.r_site_cam[static_cast<std::size_t>(i)] = r.at<double>(i / 3, i % 3);
+  for (int i = 0; i < 9; ++i)
+    c.r_site_cam[static_cast<std::size_t>(i)] = r.at<double>(i / 3, i % 3);
   for (int i = 0; i < 3; ++i) c.t_site_cam_mm[static_cast<std::size_t>(i)] = t.at<double>(i);
   *out = pose_of(c);
   return true;
@@ -179,7 +179,7 @@ bool pnp_start(const CameraIntrinsics& k, const std::map<std::uint32_t, Surveyed
 std::array<std::array<double, 3>, 4> tag_corners_site(const SurveyedTag& t) {
   const double h = t.size_mm / 2.0;
   const double ux = std::cos(t.yaw_rad), uy = std::sin(t.yaw_rad);  // page up
-  const double rx = uy, ry = -ux;                                    // page right
+  const double rx = uy, ry = -ux;                                   // page right
   auto at = [&](double up, double right) {
     return std::array<double, 3>{t.x_mm + h * (up * ux + right * rx),
                                  t.y_mm + h * (up * uy + right * ry), t.z_mm};
@@ -365,10 +365,10 @@ bool refine(const CameraIntrinsics& k, const std::map<std::uint32_t, SurveyedTag
   for (const TagSighting* s : used) {
     const auto corners = tag_corners_site(survey.at(s->id));
     for (int c = 0; c < 4; ++c) {
-      blocks.push_back(problem.AddResidualBlock(
-          new ceres::AutoDiffCostFunction<CornerCost, 2, 6>(
-              new CornerCost(k, corners[c], s->corners_px[c])),
-          new ceres::HuberLoss(opt.robust_px), q));
+      blocks.push_back(
+          problem.AddResidualBlock(new ceres::AutoDiffCostFunction<CornerCost, 2, 6>(
+                                       new CornerCost(k, corners[c], s->corners_px[c])),
+                                   new ceres::HuberLoss(opt.robust_px), q));
     }
   }
   ceres::Solver::Options so;
@@ -406,9 +406,8 @@ bool refine(const CameraIntrinsics& k, const std::map<std::uint32_t, SurveyedTag
   const int order[6] = {0, 1, 2, 5, 4, 3};
   for (int i = 0; i < 6; ++i) {
     const int p = order[i];
-    res->sigma[static_cast<std::size_t>(i)] =
-        cov_ok ? std::sqrt(std::max(c[p * 6 + p], 0.0) * var)
-               : std::numeric_limits<double>::quiet_NaN();
+    res->sigma[static_cast<std::size_t>(i)] = cov_ok ? std::sqrt(std::max(c[p * 6 + p], 0.0) * var)
+                                                     : std::numeric_limits<double>::quiet_NaN();
   }
   return true;
 }

@@ -87,7 +87,7 @@ struct Evaluation {
   int corners = 0;
   double rms_px = 0.0;  // over every corner of every surveyed sighting
   double max_px = 0.0;
-  double max_floor_mm = 0.0;  // NaN when a tag's centre ray misses its plane
+  double max_floor_mm = 0.0;      // NaN when a tag's centre ray misses its plane
   std::vector<TagResidual> tags;  // by id
 };
 Evaluation evaluate(const CameraIntrinsics& k, const std::map<std::uint32_t, SurveyedTag>& survey,

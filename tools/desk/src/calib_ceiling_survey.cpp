@@ -86,8 +86,7 @@ bool parse_survey_csv(std::string_view text, std::map<std::uint32_t, SurveyedTag
   return true;
 }
 
-std::map<std::uint32_t, SurveyedTag> survey_from_floor_map(const LandmarkMap& map,
-                                                          double size_mm) {
+std::map<std::uint32_t, SurveyedTag> survey_from_floor_map(const LandmarkMap& map, double size_mm) {
   std::map<std::uint32_t, SurveyedTag> out;
   for (const auto& [id, e] : map.entries) {
     if (id > kMaxTagId) continue;

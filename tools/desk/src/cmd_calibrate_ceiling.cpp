@@ -92,8 +92,8 @@ int load_input(const char* cmd, const CeilingArgs& a, CeilingInput* in) {
   }
   if (!found) {
     return named_error(cmd, "unknown-camera",
-                       "no camera '" + a.camera_id + "' in " + a.site_path + " (cameras: " +
-                           (ids.empty() ? "none" : ids) + ")",
+                       "no camera '" + a.camera_id + "' in " + a.site_path +
+                           " (cameras: " + (ids.empty() ? "none" : ids) + ")",
                        2);
   }
   if (a.survey_path.empty() == (a.floor_tag_size_mm <= 0.0)) {
@@ -243,9 +243,10 @@ int calibrate_ceiling(int argc, char** argv) {
   for (std::uint32_t id : r.rejected_ids) {
     for (const ccal::TagResidual& t : r.eval.tags) {
       if (t.id != id) continue;
-      std::printf("rejected tag %u: RMS %.2f px, floor residual %.1f mm against the others' pose "
-                  "(surveyed wrong, or moved?)\n",
-                  id, t.rms_px, t.floor_mm);
+      std::printf(
+          "rejected tag %u: RMS %.2f px, floor residual %.1f mm against the others' pose "
+          "(surveyed wrong, or moved?)\n",
+          id, t.rms_px, t.floor_mm);
     }
   }
   std::printf("camera %s: %d tags, %d corners in %d frames\n", cam.id.c_str(), r.tags_used,
@@ -290,10 +291,9 @@ int calibrate_ceiling_check(int argc, char** argv) {
       ccal::evaluate(cam.intrinsics, in.survey, in.sightings, ccal::pose_of(cam));
   print_ignored(in.sightings, in.survey);
   if (ev.tags.size() < 2) {
-    return named_error(cmd, "too-few-tags",
-                       std::to_string(ev.tags.size()) +
-                           " surveyed tag(s) seen; the check needs at least 2",
-                       1);
+    return named_error(
+        cmd, "too-few-tags",
+        std::to_string(ev.tags.size()) + " surveyed tag(s) seen; the check needs at least 2", 1);
   }
   std::printf("camera %s, the site file's pose:\n", cam.id.c_str());
   print_pose(ccal::pose_of(cam), nullptr);
