@@ -32,6 +32,9 @@ constexpr int kSearchPasses = 2;
 // extrapolated); the predicted path's wide first pass has none, its samples may overhang.
 constexpr double kMaxEndGap = 0.1;
 constexpr double kNoEndCheck = 1.0;
+// Edge points every pixel for the fits; the predicted path's wide pass only finds the square.
+constexpr double kFitSpacingPx = 1.0;
+constexpr double kWideSpacingPx = 2.0;
 
 bool usable_image(const cv::Mat& gray) {
   return !gray.empty() && gray.dims == 2 && gray.type() == CV_8UC1 && gray.cols >= kMinWindowPx &&
@@ -93,7 +96,8 @@ std::vector<TagObservation> TagDetector::detect(const cv::Mat& gray, const cv::R
   image_u8_t view{w.width, w.height, static_cast<std::int32_t>(gray.step[0]),
                   const_cast<std::uint8_t*>(gray.ptr<std::uint8_t>(w.y) + w.x)};
   zarray_t* dets = apriltag_detector_detect(impl_->td, &view);
-  const double min_step = kMinStepShare * p_.min_contrast;
+  const detect_detail::RefineParams narrow{p_.edge_band_px, kMinStepShare * p_.min_contrast,
+                                           p_.max_edge_rms_px, kMaxEndGap, kFitSpacingPx};
   for (int i = 0; i < zarray_size(dets); ++i) {
     apriltag_detection_t* d = nullptr;
     zarray_get(dets, i, &d);
@@ -109,8 +113,7 @@ std::vector<TagObservation> TagDetector::detect(const cv::Mat& gray, const cv::R
     detect_detail::Square sq;
     bool ok = true;
     for (int pass = 0; pass < kSearchPasses && ok; ++pass) {
-      ok = detect_detail::refine_square(gray, guess, p_.edge_band_px, min_step, p_.max_edge_rms_px,
-                                        kMaxEndGap, &sq);
+      ok = detect_detail::refine_square(gray, guess, narrow, &sq);
       guess = sq.corners;
     }
     detect_detail::Cells cells;
@@ -146,13 +149,15 @@ bool TagDetector::detect_predicted(const cv::Mat& gray,
     return false;
   }
   const double min_step = kMinStepShare * p_.min_contrast;
+  const detect_detail::RefineParams wide_rp{p_.predicted_search_px, min_step, p_.max_edge_rms_px,
+                                            kNoEndCheck, kWideSpacingPx};
+  const detect_detail::RefineParams narrow{p_.edge_band_px, min_step, p_.max_edge_rms_px,
+                                           kMaxEndGap, kFitSpacingPx};
   detect_detail::Square wide, sq;
   // The wide pass finds the square within predicted_search_px, the narrow one refines it with
   // samples placed along the found sides.
-  if (!detect_detail::refine_square(gray, predicted_corners_px, p_.predicted_search_px, min_step,
-                                    p_.max_edge_rms_px, kNoEndCheck, &wide) ||
-      !detect_detail::refine_square(gray, wide.corners, p_.edge_band_px, min_step,
-                                    p_.max_edge_rms_px, kMaxEndGap, &sq)) {
+  if (!detect_detail::refine_square(gray, predicted_corners_px, wide_rp, &wide) ||
+      !detect_detail::refine_square(gray, wide.corners, narrow, &sq)) {
     return false;
   }
   for (std::size_t k = 0; k < 4; ++k) {

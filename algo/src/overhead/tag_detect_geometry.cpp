@@ -18,6 +18,7 @@ constexpr double kSideMargin = 0.12;
 // strongest step (px): the window must reach the flat black border and white margin on each side,
 // inside a cell (5 px on a 40 px tag).
 constexpr double kProfileStep = 0.25;
+constexpr double kSearchStep = 0.5;  // the coarse profile that finds the step
 constexpr double kAreaHalfPx = 2.0;
 constexpr double kLevelPx = 0.5;  // the levels are the means over this much at each end
 // A side needs this share of its sampled points on its line.
@@ -58,43 +59,45 @@ struct EdgeHit {
 
 bool edge_along(const cv::Mat& g, Vec2 p, Vec2 n, double band, double min_step,
                 std::vector<double>* profile, EdgeHit* hit) {
-  const double reach = band + kAreaHalfPx + kProfileStep;
-  const int m = static_cast<int>(std::ceil(reach / kProfileStep));
+  auto at = [&](double s, double* v) {
+    return sample_bilinear(g, p.x + s * n.x, p.y + s * n.y, v);
+  };
+  // Coarse profile for the strongest step (1 px differences), fine profile for its position.
   std::vector<double>& prof = *profile;
+  const int m = static_cast<int>(std::ceil((band + 0.5) / kSearchStep));
   prof.assign(static_cast<std::size_t>(2 * m + 1), 0.0);
   for (int i = -m; i <= m; ++i) {
-    const double s = i * kProfileStep;
-    if (!sample_bilinear(g, p.x + s * n.x, p.y + s * n.y, &prof[static_cast<std::size_t>(i + m)])) {
-      return false;
-    }
+    if (!at(i * kSearchStep, &prof[static_cast<std::size_t>(i + m)])) return false;
   }
-  const int lim = static_cast<int>(std::floor(band / kProfileStep));
-  const int half = static_cast<int>(std::lround(1.0 / kProfileStep));  // 1 px difference
+  const int lim = static_cast<int>(std::floor(band / kSearchStep));
   int best = 0;
   double best_g = -1e9;
   for (int i = -lim; i <= lim; ++i) {
-    const int a = std::max(i - half / 2, -m), b = std::min(i + half / 2, m);
+    const int a = std::max(i - 1, -m), b = std::min(i + 1, m);
     const double gi = prof[static_cast<std::size_t>(b + m)] - prof[static_cast<std::size_t>(a + m)];
     if (gi > best_g) best_g = gi, best = i;
   }
+  const double centre = best * kSearchStep;
   const int w = static_cast<int>(std::lround(kAreaHalfPx / kProfileStep));
   const int lv = static_cast<int>(std::lround(kLevelPx / kProfileStep));
-  const int i0 = std::max(best - w, -m), i1 = std::min(best + w, m);
-  if (i1 - i0 < 2 * lv + 2) return false;
+  std::array<double, 64> fine{};
+  static_assert(2 * kAreaHalfPx / kProfileStep + 1 <= 64, "fine profile buffer");
+  for (int i = -w; i <= w; ++i) {
+    if (!at(centre + i * kProfileStep, &fine[static_cast<std::size_t>(i + w)])) return false;
+  }
   double dark = 0, bright = 0, area = 0;
   for (int k = 0; k <= lv; ++k) {
-    dark += prof[static_cast<std::size_t>(i0 + k + m)];
-    bright += prof[static_cast<std::size_t>(i1 - k + m)];
+    dark += fine[static_cast<std::size_t>(k)];
+    bright += fine[static_cast<std::size_t>(2 * w - k)];
   }
   dark /= lv + 1;
   bright /= lv + 1;
   if (!(bright - dark >= min_step)) return false;
-  for (int i = i0; i < i1; ++i) {
-    area += 0.5 *
-            (prof[static_cast<std::size_t>(i + m)] + prof[static_cast<std::size_t>(i + 1 + m)]) *
-            kProfileStep;
+  for (int i = 0; i < 2 * w; ++i) {
+    area += 0.5 * (fine[static_cast<std::size_t>(i)] + fine[static_cast<std::size_t>(i + 1)]);
   }
-  const double a = i0 * kProfileStep, b = i1 * kProfileStep;
+  area *= kProfileStep;
+  const double a = centre - w * kProfileStep, b = centre + w * kProfileStep;
   const double e = (bright * b - dark * a - area) / (bright - dark);
   if (!(e > a && e < b) || std::abs(e) > band) return false;
   *hit = {e, dark, bright};
@@ -204,8 +207,8 @@ bool sample_bilinear(const cv::Mat& g, double x, double y, double* v) {
   return true;
 }
 
-bool refine_square(const cv::Mat& gray, const std::array<Vec2, 4>& guess, double band_px,
-                   double min_step, double max_rms_px, double max_end_gap, Square* out) {
+bool refine_square(const cv::Mat& gray, const std::array<Vec2, 4>& guess, const RefineParams& rp,
+                   Square* out) {
   Vec2 centre{0, 0};
   for (const Vec2& c : guess) centre.x += 0.25 * c.x, centre.y += 0.25 * c.y;
   std::array<Line, 4> lines{};
@@ -221,14 +224,15 @@ bool refine_square(const cv::Mat& gray, const std::array<Vec2, 4>& guess, double
     Vec2 n{d.y, -d.x};
     const Vec2 mid{0.5 * (a.x + b.x), 0.5 * (a.y + b.y)};
     if (n.x * (mid.x - centre.x) + n.y * (mid.y - centre.y) < 0) n = {-n.x, -n.y};
-    const int count = std::max(kMinPoints, static_cast<int>(len * (1.0 - 2.0 * kSideMargin)));
+    const int count = std::max(kMinPoints, static_cast<int>(len * (1.0 - 2.0 * kSideMargin) /
+                                                            std::max(rp.spacing_px, 0.25)));
     pts.clear();
     hits.clear();
     for (int i = 0; i < count; ++i) {
       const double t = kSideMargin + (1.0 - 2.0 * kSideMargin) * (i + 0.5) / count;
       const Vec2 p{a.x + t * (b.x - a.x), a.y + t * (b.y - a.y)};
       EdgeHit h;
-      if (edge_along(gray, p, n, band_px, min_step, &profile, &h)) {
+      if (edge_along(gray, p, n, rp.band_px, rp.min_step, &profile, &h)) {
         pts.push_back({p.x + h.s * n.x, p.y + h.s * n.y});
         hits.push_back(h);
       }
@@ -236,7 +240,7 @@ bool refine_square(const cv::Mat& gray, const std::array<Vec2, 4>& guess, double
     gate_by_levels(&pts, &hits);
     const auto need = static_cast<std::size_t>(
         std::max(kMinPoints, static_cast<int>(std::ceil(kMinInlierShare * count))));
-    if (!fit_line(&pts, need, &lines[k]) || lines[k].rms > max_rms_px) return false;
+    if (!fit_line(&pts, need, &lines[k]) || lines[k].rms > rp.max_rms_px) return false;
     // Edge points must reach both ends of the sampled span: a corner hidden by a box is otherwise
     // extrapolated from what is left of its sides, and the box's own outline can pass as a side.
     double lo = 1.0, hi = 0.0;
@@ -244,7 +248,7 @@ bool refine_square(const cv::Mat& gray, const std::array<Vec2, 4>& guess, double
       const double u = (d.x * (p.x - a.x) + d.y * (p.y - a.y)) / len;
       lo = std::min(lo, u), hi = std::max(hi, u);
     }
-    if (lo > kSideMargin + max_end_gap || hi < 1.0 - kSideMargin - max_end_gap) return false;
+    if (lo > kSideMargin + rp.max_end_gap || hi < 1.0 - kSideMargin - rp.max_end_gap) return false;
     worst_rms = std::max(worst_rms, lines[k].rms);
   }
   double var_sum = 0.0;

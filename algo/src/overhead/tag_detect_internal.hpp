@@ -17,13 +17,21 @@ struct Square {
   double edge_rms_px = 0.0;  // worst side's RMS distance of its edge points from its line
 };
 
+struct RefineParams {
+  double band_px = 3.0;      // the edge is searched within +-band_px of the guessed side
+  double min_step = 10.0;    // smallest dark-to-bright step of one edge point (8-bit units)
+  double max_rms_px = 0.8;   // largest RMS of a side's points from its line
+  double max_end_gap = 0.1;  // share of a side that may lack edge points at either end
+  double spacing_px = 1.0;   // between edge points along a side
+};
+
 // Refines `guess` (page order, distorted pixels): each side's outer edge (dark inside, bright
-// outside) searched within +-band_px along the side's normal, a line fitted to it, the corners
-// where neighbouring lines meet. False when a side keeps too few edge points, its points leave
-// more than max_end_gap of the side (a share) without an edge at either end, a line's RMS
-// exceeds max_rms_px or the corners leave the image.
-bool refine_square(const cv::Mat& gray, const std::array<Vec2, 4>& guess, double band_px,
-                   double min_step, double max_rms_px, double max_end_gap, Square* out);
+// outside) searched along the side's normal, a line fitted to it, the corners where
+// neighbouring lines meet. False when a side keeps too few edge points, they leave more than
+// max_end_gap of the side without an edge at either end, a line's RMS exceeds max_rms_px or the
+// corners leave the image.
+bool refine_square(const cv::Mat& gray, const std::array<Vec2, 4>& guess, const RefineParams& rp,
+                   Square* out);
 
 struct Cells {
   std::uint64_t code = 0;  // row-major from the page's top-left data cell, 1 = white
