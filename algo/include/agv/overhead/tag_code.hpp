@@ -28,8 +28,10 @@ int hamming36(std::uint64_t a, std::uint64_t b);
 struct DecodeResult {
   bool ok = false;
   std::uint32_t id = 0;
-  int rotation = 0;  // quarter turns of the read code from the id's code (page orientation)
-  int hamming = 0;   // bits that differ from the id's code in that turn
+  // The read code is the id's code after `rotation` rotate90 turns (0 when read in the page's
+  // own orientation).
+  int rotation = 0;
+  int hamming = 0;  // bits that differ from the id's code in that turn
   // Bits the decode could correct: (d_min - 1) / 2 for the candidate set it used.
   int correctable_bits = 0;
   // Second-nearest candidate's distance minus `hamming` (> 0 when unambiguous).
@@ -39,6 +41,8 @@ struct DecodeResult {
 // Decodes `code` against allowed ids only (every turn of each). ok when the nearest candidate is
 // within max_bits and strictly nearer than the second; max_bits < 0 means the set's own
 // (d_min - 1) / 2, capped at 9. An empty set or an id outside the family decodes nothing.
+// d_min costs 16 n^2 distances: meant for an area's few ids (about 4 ms for the whole family;
+// decode_global is the family's decode).
 DecodeResult decode_restricted(std::uint64_t code, const std::vector<std::uint32_t>& allowed_ids,
                                int max_bits = -1);
 // decode_restricted against the whole family with at most max_bits corrected (max_bits < 0: none),
