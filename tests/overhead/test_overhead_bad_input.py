@@ -46,6 +46,9 @@ def main():
     expect(overhead, ["check-config", os.path.join(work, "lat.yml"), "--site", site], 2,
            "cameras.cam-north: no camera 'cam-north'")
     expect(overhead, replay("--config", os.path.join(work, "lat.yml")), 2, "cam-north")
+    write(os.path.join(work, "nobroker.yml"), "output:\n  mqtt: {enabled: true, broker_host: 127.0.0.1, port: 1}\n")
+    expect(overhead, replay("--config", os.path.join(work, "nobroker.yml")), 1,
+           "output.mqtt: broker 127.0.0.1:1: ")
     expect(overhead, ["run", "--config", os.path.join(work, "lat.yml")], 2, "--site is required")
     expect(overhead, ["run", "--config", os.path.join(work, "lat.yml"), "--site", site], 2,
            "no camera 'cam-north'")
