@@ -21,6 +21,15 @@ constexpr double kTukeyC = 4.685;
 constexpr double kAngleBinRad = 0.5 * kPi / 180.0;
 constexpr int kMaxOrientations = 3;
 constexpr int kMinPeakPoints = 5;
+// Centre hypotheses per axis and orientation; each is refined briefly and scored by how much of
+// the tray's outline it explains.
+constexpr std::size_t kPeaksPerAxis = 3;
+constexpr int kSharpenSteps = 6;
+constexpr double kSharpenStepRad = 0.4 * kPi / 180.0;
+constexpr int kScoringIterations = 3;
+// Score (fraction of a side's length) lost per unit of the hypothesis' squared Mahalanobis
+// distance from the predicted centre.
+constexpr double kPriorWeight = 0.05;
 
 struct Box {
   Vec2 c;  // relative to the predicted centre, mm
@@ -79,9 +88,9 @@ std::vector<double> orientations(const std::vector<PlaneEdge>& edges, double the
 
 // The centre along each axis at orientation theta: every edge point of that axis votes for the
 // centre half the tray's size behind it and in front of it; where both sides agree the vote
-// peaks. Returns the sum of the two peaks' heights.
+// peaks. The highest peaks of each axis (offsets along the axis from the prediction).
 double vote_centre(const std::vector<PlaneEdge>& edges, const site::FleetAgv& agv, double theta,
-                   double reach_mm, double bin_mm, double tol_rad, Vec2* centre) {
+                   double reach_mm, double bin_mm, double tol_rad, std::vector<double> peaks[2]) {
   const int n = 2 * static_cast<int>(std::ceil(reach_mm / bin_mm)) + 1;
   const double lo = -0.5 * n * bin_mm;
   std::vector<double> h[2] = {std::vector<double>(static_cast<std::size_t>(n), 0.0),
@@ -97,21 +106,42 @@ double vote_centre(const std::vector<PlaneEdge>& edges, const site::FleetAgv& ag
       }
     }
   }
-  double score = 0.0, at[2] = {0.0, 0.0};
+  std::vector<double> sm(static_cast<std::size_t>(n));
+  double height = 0.0;
   for (int axis = 0; axis < 2; ++axis) {
-    double best = 0.0;
+    const auto at = [&](int b) { return b >= 0 && b < n ? h[axis][static_cast<std::size_t>(b)] : 0.0; };
+    for (int b = 0; b < n; ++b) sm[static_cast<std::size_t>(b)] = at(b - 1) + 2.0 * at(b) + at(b + 1);
+    std::vector<std::pair<double, int>> top;
     for (int b = 0; b < n; ++b) {
-      double s = 0.0;
-      for (int k = -1; k <= 1; ++k) {
-        if (b + k >= 0 && b + k < n) s += (k == 0 ? 2.0 : 1.0) * h[axis][static_cast<std::size_t>(b + k)];
+      const double v = sm[static_cast<std::size_t>(b)];
+      if (v > 0.0 && (b == 0 || v > sm[static_cast<std::size_t>(b - 1)]) &&
+          (b + 1 == n || v >= sm[static_cast<std::size_t>(b + 1)])) {
+        top.push_back({v, b});
       }
-      if (s > best) best = s, at[axis] = lo + (b + 0.5) * bin_mm;
     }
-    score += best;
+    std::sort(top.begin(), top.end(), [](const auto& x, const auto& y) { return x > y; });
+    if (!top.empty()) height += top[0].first;
+    peaks[axis].clear();
+    for (std::size_t i = 0; i < top.size() && i < kPeaksPerAxis; ++i) {
+      peaks[axis].push_back(lo + (top[i].second + 0.5) * bin_mm);
+    }
   }
-  const Vec2 nx = side_normal(0, theta), ny = side_normal(1, theta);
-  *centre = {at[0] * nx.x + at[1] * ny.x, at[0] * nx.y + at[1] * ny.y};
-  return score;
+  return height;
+}
+
+// The histogram's direction is a degree or so off (the gradient kernel's bias on diagonal
+// edges), which smears the votes along a side: the orientation whose votes peak highest within
+// a few degrees of it.
+double sharpen(const std::vector<PlaneEdge>& edges, const site::FleetAgv& agv, double theta,
+               double reach_mm, double bin_mm, double tol_rad, std::vector<double> peaks[2]) {
+  double best = -1.0, best_theta = theta;
+  std::vector<double> trial[2];
+  for (int k = -kSharpenSteps; k <= kSharpenSteps; ++k) {
+    const double t = theta + k * kSharpenStepRad;
+    const double h = vote_centre(edges, agv, t, reach_mm, bin_mm, tol_rad, trial);
+    if (h > best) best = h, best_theta = t, peaks[0] = trial[0], peaks[1] = trial[1];
+  }
+  return best_theta;
 }
 
 // An edge point's side of the box and its signed distance beyond it; false when it belongs to
@@ -243,6 +273,7 @@ std::string validate(const TrayFitParams& p) {
   if (!(p.min_side_coverage > 0.0 && p.min_side_coverage <= 1.0)) {
     return "min_side_coverage must be in (0, 1]";
   }
+  if (!(p.on_line_px > 0.0) || !std::isfinite(p.on_line_px)) return "on_line_px must be > 0";
   if (!(p.max_size_error_mm > 0.0) || !(p.max_size_error_px > 0.0) ||
       !std::isfinite(p.max_size_error_mm) || !std::isfinite(p.max_size_error_px)) {
     return "max_size_error_mm and max_size_error_px must be > 0";
@@ -285,13 +316,15 @@ bool check_input(const cv::Mat& gray, const site::CeilingCamera& cam, const site
   return true;
 }
 
-// Fraction of side k's length covered by its kept points (one bin per pixel on the plane), and
+// Fraction of side k's length covered by its kept points within on_line_mm of its line (one bin
+// per two pixels on the plane: a diagonal edge's thinned points are up to sqrt 2 pixels apart),
+// and
 // the mean of their residuals.
 void side_stats(const std::vector<PlaneEdge>& edges, const Fitted& f, const site::FleetAgv& agv,
-                double mm_per_px, TrayFix* out, double mean_r[kSides]) {
+                double mm_per_px, double on_line_mm, TrayFix* out, double mean_r[kSides]) {
   for (int k = 0; k < kSides; ++k) {
     const double half = half_along(k, agv);
-    const int bins = std::max(1, static_cast<int>(std::lround(2.0 * half / mm_per_px)));
+    const int bins = std::max(1, static_cast<int>(std::lround(half / mm_per_px)));
     std::vector<char> hit(static_cast<std::size_t>(bins), 0);
     const Vec2 n = side_normal(k, f.box.theta);
     double sw = 0.0, swr = 0.0;
@@ -304,7 +337,7 @@ void side_stats(const std::vector<PlaneEdge>& edges, const Fitted& f, const site
       const Vec2 d{edges[i].q.x - f.box.c.x, edges[i].q.y - f.box.c.y};
       const double along = -d.x * n.y + d.y * n.x;
       const int b = static_cast<int>(std::floor((along + half) / (2.0 * half) * bins));
-      if (b >= 0 && b < bins) hit[static_cast<std::size_t>(b)] = 1;
+      if (b >= 0 && b < bins && std::abs(f.r[i]) <= on_line_mm) hit[static_cast<std::size_t>(b)] = 1;
     }
     double covered = 0.0;
     for (const char h : hit) covered += h;
@@ -371,21 +404,56 @@ bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::F
 
   const double allowed = std::min(p.sigma_window * sigma_theta + p.class_tol_rad, 0.5 * kPi);
   const double bin_mm = std::max(1.0, 0.5 * win.mm_per_px);
-  Fitted f;
-  double best = 0.0;
-  for (const double theta : orientations(edges, predicted.theta_rad, allowed)) {
-    Vec2 c;
-    const double score = vote_centre(edges, agv, theta, win.reach_mm, bin_mm, p.class_tol_rad, &c);
-    if (score > best) best = score, f.box = {c, theta};
-  }
-  if (!(best > 0.0)) return fail(why, "no tray edges in the window");
   const double band_mm = std::max(2.0 * win.mm_per_px, 4.0 * bin_mm);
-  if (!refine(edges, agv, band_mm, 0.05 * win.mm_per_px, p.class_tol_rad, p.iterations, &f)) {
-    return fail(why, "too few tray edge points to fit");
-  }
+  const double min_sigma_mm = 0.05 * win.mm_per_px;
+  const double max_size_err = std::max(p.max_size_error_mm, p.max_size_error_px * win.mm_per_px);
+  const double on_line_mm = p.on_line_px * win.mm_per_px;
+  // Every hypothesis refined a little and scored by the outline it explains: a parcel's edge
+  // can out-vote a tray side it hides, but not the whole outline.
+  const double det = pxx * pyy - pxy * pxy;
+  const double ipxx = pyy / det, ipyy = pxx / det, ipxy = -pxy / det;
+  Fitted f, trial;
+  double best = -1.0;
+  std::vector<double> peaks[2];
   TrayFix r;
   double mean_r[kSides];
-  side_stats(edges, f, agv, win.mm_per_px, &r, mean_r);
+  for (const double coarse : orientations(edges, predicted.theta_rad, allowed)) {
+    const double theta =
+        sharpen(edges, agv, coarse, win.reach_mm, bin_mm, p.class_tol_rad, peaks);
+    const Vec2 nx = side_normal(0, theta), ny = side_normal(1, theta);
+    for (const double a : peaks[0]) {
+      for (const double b : peaks[1]) {
+        trial.box = {{a * nx.x + b * ny.x, a * nx.y + b * ny.y}, theta};
+        if (!refine(edges, agv, band_mm, min_sigma_mm, p.class_tol_rad, kScoringIterations,
+                    &trial)) {
+          continue;
+        }
+        side_stats(edges, trial, agv, win.mm_per_px, on_line_mm, &r, mean_r);
+        const auto seen_k = [&](int k) {
+          return r.coverage[static_cast<std::size_t>(k)] >= p.min_side_coverage;
+        };
+        double score = 0.0;
+        for (int k = 0; k < kSides; ++k) {
+          score += seen_k(k) ? r.coverage[static_cast<std::size_t>(k)] : 0.0;
+        }
+        for (int axis = 0; axis < 2; ++axis) {
+          const bool both = seen_k(axis) && seen_k(axis + 2);
+          if (both && std::abs(mean_r[axis] + mean_r[axis + 2]) > max_size_err) score -= 1.0;
+        }
+        // Among outlines that explain about as much, the one nearer the prediction: a parcel's
+        // lifted outline can stand in for a side it hides.
+        const Vec2 d = trial.box.c;
+        score -= kPriorWeight * (ipxx * d.x * d.x + 2.0 * ipxy * d.x * d.y + ipyy * d.y * d.y);
+        if (score > best) best = score, f = trial;
+      }
+    }
+  }
+  if (!(best > 0.0)) return fail(why, "no tray edges in the window");
+  if (!refine(edges, agv, band_mm, min_sigma_mm, p.class_tol_rad, p.iterations, &f)) {
+    return fail(why, "too few tray edge points to fit");
+  }
+  r = TrayFix{};
+  side_stats(edges, f, agv, win.mm_per_px, on_line_mm, &r, mean_r);
   bool seen[kSides];
   for (int k = 0; k < kSides; ++k) {
     seen[k] = r.coverage[static_cast<std::size_t>(k)] >= p.min_side_coverage;
@@ -396,7 +464,6 @@ bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::F
                          100.0 * std::max(r.coverage[0], r.coverage[2]),
                          100.0 * std::max(r.coverage[1], r.coverage[3])));
   }
-  const double max_size_err = std::max(p.max_size_error_mm, p.max_size_error_px * win.mm_per_px);
   for (int axis = 0; axis < 2; ++axis) {
     if (!seen[axis] || !seen[axis + 2]) continue;
     r.size_error_mm[axis] = mean_r[axis] + mean_r[axis + 2];

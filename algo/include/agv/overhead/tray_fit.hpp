@@ -21,7 +21,7 @@
 namespace agv::overhead {
 
 struct TrayFitParams {
-  // Edge pixels: squared-magnitude floor of the Prewitt gradient (sums of three, 8-bit units).
+  // Edge pixels: magnitude floor of the Prewitt gradient (sums of three, 8-bit units).
   double min_gradient = 24.0;
   // The window covers the predicted tray widened by sigma_window times the prediction's sigma
   // plus margin_mm.
@@ -33,8 +33,11 @@ struct TrayFitParams {
   double max_position_sigma_mm = 250.0;
   // An edge point joins a side when its gradient is within this of the side's normal.
   double class_tol_rad = 0.17;
-  // A side counts as seen when its points cover this fraction of its length.
+  // A side counts as seen when its points within on_line_px of its line cover this fraction of
+  // its length (a real edge's thinned points lie within a few tenths of a pixel of it; texture
+  // or noise scatters over the band around it).
   double min_side_coverage = 0.3;
+  double on_line_px = 0.5;
   // Refused when two opposite seen sides are further from the known size than this (mm, or
   // pixels on the plane when larger): parcel edges taken for the tray's.
   double max_size_error_mm = 12.0;
