@@ -1,7 +1,12 @@
 """agvloc-overhead replay publishing VDA 5050 visualization per vehicle to a mosquitto broker of
 its own (tests/overhead/binary.cmake, label mqtt; skipped without mosquitto). Usage:
 test_overhead_mqtt.py OVERHEAD_CMD DESK_CMD SITE WORK"""
-import json, os, shutil, socket, subprocess, sys, time
+import json, os, re, shutil, socket, subprocess, sys, time
+
+try:
+    import jsonschema
+except ImportError:  # the messages' fields are still checked below
+    jsonschema = None
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from test_overhead_util import SKIP, fail, read_csv, render, run
@@ -24,6 +29,15 @@ def wait_port(port, timeout_s=5.0):
         except OSError:
             time.sleep(0.05)
     return False
+
+
+def visualization_schema():
+    """VDA 5050 2.1.0's visualization schema (tests/vda5050/schemas), or None without jsonschema."""
+    if jsonschema is None:
+        return None
+    here = os.path.dirname(os.path.abspath(__file__))
+    path = os.path.join(here, "..", "vda5050", "schemas", "2.1.0", "visualization.schema")
+    return json.loads(re.sub(r",(\s*[}\]])", r"\1", open(path).read()))
 
 
 def main():
@@ -64,6 +78,7 @@ def main():
     want = {}
     for r in tracks:
         want[r[1]] = want.get(r[1], 0) + 1
+    schema = visualization_schema()
     got, last = {}, {}
     for line in open(os.path.join(work, "messages.txt")):
         topic, payload = line.split(" ", 1)
@@ -71,6 +86,8 @@ def main():
         if parts[:3] != ["agvloc-overhead", "v2", "acme"] or parts[4] != "visualization":
             fail("topic " + topic)
         msg = json.loads(payload)
+        if schema is not None:
+            jsonschema.validate(msg, schema)
         if msg["serialNumber"] != parts[3] or msg["headerId"] != got.get(parts[3], 0):
             fail("%s: serialNumber / headerId out of order: %s" % (topic, payload))
         got[parts[3]] = got.get(parts[3], 0) + 1
@@ -85,7 +102,8 @@ def main():
             fail("%s: last message %s, last tracks.csv row %s" % (agv, msg, r))
         if p["positionInitialized"] != (r[9] in ("confirmed", "coasting")):
             fail("%s: positionInitialized %s with state %s" % (agv, p["positionInitialized"], r[9]))
-    print("PASS: %s messages per vehicle, as tracks.csv" % got)
+    print("PASS: %s messages per vehicle, as tracks.csv%s" %
+          (got, ", valid against VDA 5050 2.1.0's schema" if schema else ""))
 
 
 if __name__ == "__main__":
