@@ -155,8 +155,9 @@ bool parse_config(const std::string& text, OverheadConfig* out, std::vector<std:
   if (errors->size() == before) {
     const std::string bad = check_mqtt_names(cfg);
     if (!bad.empty()) {
-      errors->push_back(bad + ": must be one MQTT topic level (not empty, no '/', '+', '#' or "
-                              "control characters)");
+      errors->push_back(bad +
+                        ": must be one MQTT topic level (not empty, no '/', '+', '#' or "
+                        "control characters)");
     }
   }
   if (errors->size() != before) return false;

@@ -31,7 +31,7 @@ KeyOf<Cfg> base(const char* name, KeyType type, double lo, double hi, Value def,
 
 template <typename Cfg = OverheadConfig, typename Ref>
 KeyOf<Cfg> number(const char* name, Ref ref, double lo, double hi, double def, const char* unit,
-           const char* doc) {
+                  const char* doc) {
   KeyOf<Cfg> k = base<Cfg>(name, KeyType::kNumber, lo, hi, def, unit, doc);
   k.get = [ref](const Cfg& c) { return Value{static_cast<double>(ref(c))}; };
   k.set = [ref](Cfg& c, const Value& v) { ref(c) = std::get<double>(v); };
@@ -40,9 +40,9 @@ KeyOf<Cfg> number(const char* name, Ref ref, double lo, double hi, double def, c
 
 template <typename Cfg = OverheadConfig, typename Ref>
 KeyOf<Cfg> integer(const char* name, Ref ref, std::int64_t lo, std::int64_t hi, std::int64_t def,
-            const char* unit, const char* doc) {
-  KeyOf<Cfg> k = base<Cfg>(name, KeyType::kInteger, static_cast<double>(lo), static_cast<double>(hi), def, unit,
-               doc);
+                   const char* unit, const char* doc) {
+  KeyOf<Cfg> k = base<Cfg>(name, KeyType::kInteger, static_cast<double>(lo),
+                           static_cast<double>(hi), def, unit, doc);
   k.get = [ref](const Cfg& c) { return Value{static_cast<std::int64_t>(ref(c))}; };
   k.set = [ref](Cfg& c, const Value& v) {
     using T = std::remove_reference_t<decltype(ref(c))>;
@@ -61,9 +61,9 @@ KeyOf<Cfg> boolean(const char* name, Ref ref, bool def, const char* doc) {
 
 template <typename Cfg = OverheadConfig, typename Ref>
 KeyOf<Cfg> string(const char* name, Ref ref, const char* def, const char* doc,
-           std::vector<std::string> choices = {}) {
+                  std::vector<std::string> choices = {}) {
   KeyOf<Cfg> k = base<Cfg>(name, choices.empty() ? KeyType::kString : KeyType::kChoice, 0, 0,
-               std::string(def), "", doc);
+                           std::string(def), "", doc);
   k.choices = std::move(choices);
   k.get = [ref](const Cfg& c) { return Value{std::string(ref(c))}; };
   k.set = [ref](Cfg& c, const Value& v) { ref(c) = std::get<std::string>(v); };
@@ -73,8 +73,9 @@ KeyOf<Cfg> string(const char* name, Ref ref, const char* def, const char* doc,
 std::vector<Key> tracker_keys() {
   return {
       number("tracker.accel_noise_mps2", AGV_OH_AT(tracker.accel_noise_mps2), 0.01, 100, 1.0,
-             "m/s²", "White acceleration density of the constant-speed model: higher follows "
-                     "sharper speed changes, smooths less"),
+             "m/s²",
+             "White acceleration density of the constant-speed model: higher follows "
+             "sharper speed changes, smooths less"),
       number("tracker.alpha_noise_radps2", AGV_OH_AT(tracker.alpha_noise_radps2), 0.01, 100, 2.0,
              "rad/s²", "White turn-rate acceleration density: higher follows sharper turns"),
       number("tracker.gate_chi2", AGV_OH_AT(tracker.gate_chi2), 1, 1000, 16.27, "",
@@ -97,8 +98,8 @@ std::vector<Key> tracker_keys() {
               "Filter states kept per vehicle for delayed fixes (also bounds the fixes replayed)"),
       number("tracker.initial_speed_sigma_mps", AGV_OH_AT(tracker.initial_speed_sigma_mps), 0.001,
              20, 1.0, "m/s", "Speed sigma of a track started from one fix"),
-      number("tracker.initial_turn_sigma_radps", AGV_OH_AT(tracker.initial_turn_sigma_radps),
-             0.001, 20, 1.0, "rad/s", "Turn-rate sigma of a track started from one fix"),
+      number("tracker.initial_turn_sigma_radps", AGV_OH_AT(tracker.initial_turn_sigma_radps), 0.001,
+             20, 1.0, "rad/s", "Turn-rate sigma of a track started from one fix"),
   };
 }
 
@@ -122,12 +123,13 @@ std::vector<Key> search_detect_keys() {
              "libapriltag's quad_decimate: 1 keeps 40 px tags findable, 2 halves the search cost "
              "for large tags"),
       integer("detect.global_bits_corrected", AGV_OH_AT(detect.global_bits_corrected), 0, 3, 2,
-              "bits", "Bits the whole-family decode (new tracks) may correct: few keep a wrong id "
-                      "out"),
+              "bits",
+              "Bits the whole-family decode (new tracks) may correct: few keep a wrong id "
+              "out"),
       number("detect.edge_band_px", AGV_OH_AT(detect.edge_band_px), 0.5, 20, 3.0, "px",
              "Half width of the band searched for each edge of the tag's square"),
-      number("detect.predicted_search_px", AGV_OH_AT(detect.predicted_search_px), 0, 100, 8.0,
-             "px", "How far from its predicted corners a tracked tag may be found"),
+      number("detect.predicted_search_px", AGV_OH_AT(detect.predicted_search_px), 0, 100, 8.0, "px",
+             "How far from its predicted corners a tracked tag may be found"),
       number("detect.min_contrast", AGV_OH_AT(detect.min_contrast), 0, 255, 20.0, "8-bit",
              "Smallest black-to-white border contrast for a square to count"),
       number("detect.max_edge_rms_px", AGV_OH_AT(detect.max_edge_rms_px), 0.01, 10, 0.8, "px",

@@ -96,8 +96,7 @@ void TrackerCore::print_summary(const std::string& prefix, std::size_t cameras) 
   std::printf(
       "%s: fixes applied %llu, tracks started %llu, gated %llu, too old %llu, invalid %llu, lost "
       "%llu\n",
-      p, ull(c.applied), ull(c.started), ull(c.gated), ull(c.too_old), ull(c.invalid),
-      ull(c.lost));
+      p, ull(c.applied), ull(c.started), ull(c.gated), ull(c.too_old), ull(c.invalid), ull(c.lost));
   if (mqtt_) {
     std::printf("%s: mqtt: %llu messages sent, %llu dropped\n", p, ull(mqtt_->sent()),
                 ull(mqtt_->dropped()));

@@ -3,10 +3,9 @@
 // and the counters of the summary.
 #pragma once
 
-#include <opencv2/core.hpp>
-
 #include <cstdint>
 #include <memory>
+#include <opencv2/core.hpp>
 #include <string>
 #include <vector>
 

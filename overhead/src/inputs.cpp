@@ -92,8 +92,8 @@ bool open_recordings(const std::vector<std::string>& dirs, const site::Site& sit
       if (site.cameras[i].id == c.id) c.site_camera = i, found = true;
     }
     if (!found) {
-      *error = dir + ": camera '" + c.id + "' is not in the site (its cameras: " +
-               camera_ids(site) + ")";
+      *error = dir + ": camera '" + c.id +
+               "' is not in the site (its cameras: " + camera_ids(site) + ")";
       return false;
     }
     for (const CameraRecording& o : *out) {
@@ -126,8 +126,8 @@ bool check_config_against_site(const OverheadConfig& cfg, const site::Site& site
     bool found = false;
     for (const site::CeilingCamera& c : site.cameras) found = found || c.id == id;
     if (!found) {
-      *error = "cameras." + id + ": no camera '" + id + "' in the site (its cameras: " +
-               camera_ids(site) + ")";
+      *error = "cameras." + id + ": no camera '" + id +
+               "' in the site (its cameras: " + camera_ids(site) + ")";
       return false;
     }
   }

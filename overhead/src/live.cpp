@@ -102,8 +102,9 @@ void camera_loop(LiveCamera* c, FrameQueue* q, const std::atomic<bool>& stop,
     if (!started) {
       const hal::CameraStatus st = c->camera->start();
       if (st != hal::CameraStatus::kOk) {
-        if (!failing) log_camera(*c, std::string("cannot start (") + hal::to_string(st) + ": " +
-                                         c->camera->last_error() + "); retrying every second");
+        if (!failing)
+          log_camera(*c, std::string("cannot start (") + hal::to_string(st) + ": " +
+                             c->camera->last_error() + "); retrying every second");
         failing = true;
         c->camera->stop();
         wait_reopen(stop);
@@ -122,8 +123,8 @@ void camera_loop(LiveCamera* c, FrameQueue* q, const std::atomic<bool>& stop,
     } else if (st == hal::CameraStatus::kEndOfStream) {
       break;
     } else if (st != hal::CameraStatus::kTimeout) {
-      log_camera(*c, std::string(hal::to_string(st)) + " (" + c->camera->last_error() +
-                         "); reopening");
+      log_camera(*c,
+                 std::string(hal::to_string(st)) + " (" + c->camera->last_error() + "); reopening");
       c->camera->stop();
       started = false;
       ++*reopens;
@@ -168,8 +169,9 @@ bool make_live_cameras(const OverheadConfig& cfg, const site::Site& site,
 #ifdef AGV_HAVE_LIBCAMERA
       lc.camera = std::make_unique<libcam::LibcameraCamera>(dc);
 #else
-      return (*error = key + ".driver: libcamera is not available in this build (use v4l2 or "
-                             "rebuild with libcamera-dev installed)",
+      return (*error = key +
+                       ".driver: libcamera is not available in this build (use v4l2 or "
+                       "rebuild with libcamera-dev installed)",
               false);
 #endif
     }
@@ -197,7 +199,8 @@ LiveCounters run_live(std::vector<LiveCamera>* cams, TrackerCore* core,
   std::int64_t next_tick = monotonic_ns();
   LiveFrame f;
   while (!stop.load() && !q.finished() && monotonic_ns() < t_end) {
-    const auto deadline = std::chrono::steady_clock::time_point(std::chrono::nanoseconds(next_tick));
+    const auto deadline =
+        std::chrono::steady_clock::time_point(std::chrono::nanoseconds(next_tick));
     if (q.pop_until(deadline, &f)) {
       core->process(f.camera, f.t_ns, f.gray);
       continue;

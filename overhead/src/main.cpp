@@ -82,7 +82,8 @@ bool parse_run(int argc, char** argv, agv::overhead_app::RunArgs* a, std::string
       return (*error = "unknown option '" + o + "'", false);
     }
   }
-  if (a->config_path.empty()) return (*error = "--config is required (the cameras' devices)", false);
+  if (a->config_path.empty())
+    return (*error = "--config is required (the cameras' devices)", false);
   if (a->site_path.empty()) return (*error = "--site is required", false);
   return true;
 }
@@ -106,7 +107,8 @@ int check_config(int argc, char** argv) {
   bool ok = agv::overhead_app::load_config(path, &cfg, &errors);
   if (ok && !site_path.empty() && agv::overhead_app::load_site_file(site_path, &site, &errors)) {
     std::string err;
-    if (!agv::overhead_app::check_config_against_site(cfg, site, &err)) errors.push_back(path + ": " + err);
+    if (!agv::overhead_app::check_config_against_site(cfg, site, &err))
+      errors.push_back(path + ": " + err);
   }
   for (const std::string& e : errors) std::fprintf(stderr, "agvloc-overhead: %s\n", e.c_str());
   if (!errors.empty()) return 2;

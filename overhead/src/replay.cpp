@@ -3,11 +3,10 @@
 // published at output.rate_hz on a clock of its own, extrapolated to the tick.
 #include "replay.hpp"
 
-#include <opencv2/core.hpp>
-
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <opencv2/core.hpp>
 #include <thread>
 
 #include "core.hpp"
@@ -84,10 +83,12 @@ int run_replay(const ReplayArgs& args) {
     return 2;
   }
   std::string err;
-  if (!check_config_against_site(cfg, site, &err)) return replay_fail(2, args.config_path + ": " + err);
+  if (!check_config_against_site(cfg, site, &err))
+    return replay_fail(2, args.config_path + ": " + err);
   std::vector<CameraRecording> cams;
   std::vector<std::string> warnings;
-  if (!open_recordings(args.recordings, site, cfg, &cams, &warnings, &err)) return replay_fail(2, err);
+  if (!open_recordings(args.recordings, site, cfg, &cams, &warnings, &err))
+    return replay_fail(2, err);
   for (const std::string& w : warnings) replay_fail(0, "warning: " + w);
   TrackerCore core(cfg, site);
   if (!core.open_outputs(args.out_dir, &err)) return replay_fail(1, err);

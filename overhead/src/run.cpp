@@ -36,7 +36,8 @@ int run_live_command(const RunArgs& args) {
     return 2;
   }
   std::string err;
-  if (!check_config_against_site(cfg, site, &err)) return run_fail(2, args.config_path + ": " + err);
+  if (!check_config_against_site(cfg, site, &err))
+    return run_fail(2, args.config_path + ": " + err);
   std::vector<LiveCamera> cams;
   if (!make_live_cameras(cfg, site, &cams, &err)) return run_fail(2, args.config_path + ": " + err);
   TrackerCore core(cfg, site);
@@ -50,12 +51,12 @@ int run_live_command(const RunArgs& args) {
                cams.size(), site.fleet.size(), cfg.output_rate_hz);
   const LiveCounters n = run_live(&cams, &core, g_stop,
                                   static_cast<std::int64_t>(std::llround(args.duration_s * 1e9)));
-  std::printf("agvloc-overhead run: %llu ticks (%llu skipped), %llu frames dropped behind, %llu "
-              "camera reopens\n",
-              static_cast<unsigned long long>(n.ticks),
-              static_cast<unsigned long long>(n.ticks_skipped),
-              static_cast<unsigned long long>(n.frames_dropped),
-              static_cast<unsigned long long>(n.reopens));
+  std::printf(
+      "agvloc-overhead run: %llu ticks (%llu skipped), %llu frames dropped behind, %llu "
+      "camera reopens\n",
+      static_cast<unsigned long long>(n.ticks), static_cast<unsigned long long>(n.ticks_skipped),
+      static_cast<unsigned long long>(n.frames_dropped),
+      static_cast<unsigned long long>(n.reopens));
   if (!core.finish("agvloc-overhead run", cams.size(), &err)) return run_fail(1, err);
   return 0;
 }

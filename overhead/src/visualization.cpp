@@ -81,8 +81,7 @@ bool MqttOut::start(const MqttOutput& cfg, int connect_timeout_ms, std::string* 
   }
   const int ack = connack_.load();
   if (ack != 0) {
-    *error = where + (ack < 0 ? "no connection within " + std::to_string(connect_timeout_ms) +
-                                    " ms"
+    *error = where + (ack < 0 ? "no connection within " + std::to_string(connect_timeout_ms) + " ms"
                               : std::string(mosquitto_connack_string(ack)));
     stop(0);
     return false;
@@ -103,8 +102,7 @@ void MqttOut::publish(const std::string& topic, const std::string& payload) {
 
 void MqttOut::stop(int flush_timeout_ms) {
   if (!mosq_) return;
-  const auto until =
-      std::chrono::steady_clock::now() + std::chrono::milliseconds(flush_timeout_ms);
+  const auto until = std::chrono::steady_clock::now() + std::chrono::milliseconds(flush_timeout_ms);
   while (sent_.load() < queued_ && std::chrono::steady_clock::now() < until) {
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   }

@@ -107,10 +107,11 @@ TEST(OverheadConfig, EmptyTextAndTheShippedFileAreValid) {
 TEST(OverheadConfig, ValuesAndCameraLatencies) {
   OverheadConfig cfg;
   std::vector<std::string> errors;
-  ASSERT_TRUE(parse_config("tracker:\n  gate_chi2: 20\n  confirm_fixes: 5\noutput:\n  rate_hz: 60\n"
-                           "  mqtt: {enabled: true, port: 1884}\ncameras:\n  cam-a:\n"
-                           "    latency_ms: 35.5\n",
-                           &cfg, &errors));
+  ASSERT_TRUE(
+      parse_config("tracker:\n  gate_chi2: 20\n  confirm_fixes: 5\noutput:\n  rate_hz: 60\n"
+                   "  mqtt: {enabled: true, port: 1884}\ncameras:\n  cam-a:\n"
+                   "    latency_ms: 35.5\n",
+                   &cfg, &errors));
   EXPECT_EQ(cfg.tracker.gate_chi2, 20.0);
   EXPECT_EQ(cfg.tracker.confirm_fixes, 5);
   EXPECT_EQ(cfg.output_rate_hz, 60.0);
@@ -141,15 +142,17 @@ TEST(OverheadConfig, ErrorsNameTheKeyAndTheLine) {
   expect_error("cameras:\n  cam-a:\n    driver: gige\n",
                {"line 3", "cameras.cam-a.driver", "not one of: v4l2, libcamera"});
   expect_error("cameras:\n  cam-a: 5\n", {"line 2", "cameras.cam-a", "unknown key"});
-  expect_error("cameras:\n  cam-a:\n    exposure_ms: 5\n", {"cameras.cam-a.exposure_ms", "unknown"});
+  expect_error("cameras:\n  cam-a:\n    exposure_ms: 5\n",
+               {"cameras.cam-a.exposure_ms", "unknown"});
   expect_error("tracker: [1, 2]\n", {"line 1", "tracker", "list"});
   expect_error("tracker:\n  gate_chi2: [1\n", {"line", "YAML syntax error"});
   expect_error("- a\n", {"top level"});
 }
 
 TEST(OverheadConfig, EveryErrorOfTheFileIsReported) {
-  EXPECT_EQ(errors_of("tracker:\n  nope: 1\nsearch:\n  area_cols: 0\noutput:\n  rate_hz: x\n").size(),
-            3u);
+  EXPECT_EQ(
+      errors_of("tracker:\n  nope: 1\nsearch:\n  area_cols: 0\noutput:\n  rate_hz: x\n").size(),
+      3u);
 }
 
 TEST(OverheadConfig, MissingOrNonRegularFileIsRefused) {
@@ -193,8 +196,8 @@ TEST(OverheadMqtt, VisualizationPerVehicle) {
   cfg.manufacturer = "acme";
   const vda5050::Identity id = identity_of(cfg, "hall-1", "agv-7");
   EXPECT_EQ(vda5050::topic(id, "visualization"), "agvloc-overhead/v2/acme/agv-7/visualization");
-  const auto j = nlohmann::json::parse(
-      visualization_json(id, 4, 1'795'810'219'123'456'789, track(overhead::TrackState::kConfirmed, 2.0)));
+  const auto j = nlohmann::json::parse(visualization_json(
+      id, 4, 1'795'810'219'123'456'789, track(overhead::TrackState::kConfirmed, 2.0)));
   EXPECT_EQ(j["headerId"], 4);
   EXPECT_EQ(j["serialNumber"], "agv-7");
   EXPECT_EQ(j["manufacturer"], "acme");
@@ -229,7 +232,8 @@ std::size_t fields(const std::string& row) {
 TEST(OverheadCsv, RowsHaveTheHeadersColumns) {
   const std::string t = track_row("agv-1", track(overhead::TrackState::kCoasting, 3.0));
   EXPECT_EQ(fields(t), fields(kTracksHeader));
-  EXPECT_EQ(t, "12000000000,agv-1,2500.000,-1250.000,0.500000,0.8000,-0.10000,3.000,0.010000,coasting");
+  EXPECT_EQ(
+      t, "12000000000,agv-1,2500.000,-1250.000,0.500000,0.8000,-0.10000,3.000,0.010000,coasting");
   site::Site s;
   s.cameras.resize(1);
   s.cameras[0].id = "cam-a";
@@ -238,8 +242,9 @@ TEST(OverheadCsv, RowsHaveTheHeadersColumns) {
   overhead::Detection d;
   d.t_ns = 5;
   d.tag.id = 300;
-  EXPECT_EQ(detection_row(s, d),
-            "cam-a,5,300,,,,,0.000,0.000,0.000,0.000,0.000,0.000,0.000,0.000,0,0,0,full,unknown_id");
+  EXPECT_EQ(
+      detection_row(s, d),
+      "cam-a,5,300,,,,,0.000,0.000,0.000,0.000,0.000,0.000,0.000,0.000,0,0,0,full,unknown_id");
   d.in_fleet = true;
   d.has_fix = true;
   d.fix.pose = {1.0, 2.0, 0.25};
@@ -277,7 +282,8 @@ constexpr const char* kSiteHead =
     "cy: 23.5}\n    pose: {x_mm: 2000, y_mm: 1500, z_mm: 3000}\nfleet:\n";
 
 TEST_F(OverheadInputs, SiteWithTwoVehiclesOnOneTagIsRefused) {
-  write("site.yaml", std::string(kSiteHead) + "  - {id: agv-1, tag_id: 5}\n  - {id: agv-2, tag_id: 5}\n");
+  write("site.yaml",
+        std::string(kSiteHead) + "  - {id: agv-1, tag_id: 5}\n  - {id: agv-2, tag_id: 5}\n");
   site::Site s;
   std::vector<std::string> errors;
   EXPECT_FALSE(load_site_file((dir_ / "site.yaml").string(), &s, &errors));

@@ -31,8 +31,8 @@ constexpr int kFrames = 12;
 site::Site test_site() {
   site::Site s;
   std::vector<std::string> errors;
-  EXPECT_TRUE(load_site_file(AGV_SOURCE_DIR "/tests/overhead/data/two_camera_site.yaml", &s,
-                             &errors));
+  EXPECT_TRUE(
+      load_site_file(AGV_SOURCE_DIR "/tests/overhead/data/two_camera_site.yaml", &s, &errors));
   return s;
 }
 
@@ -67,7 +67,8 @@ std::map<std::string, std::vector<Row>> read_tracks(const fs::path& p) {
     std::vector<std::string> v;
     for (std::string cell; std::getline(ss, cell, ',');) v.push_back(cell);
     if (v.size() != 10) continue;
-    out[v[1]].push_back({std::stoll(v[0]), std::stod(v[2]), std::stod(v[3]), std::stod(v[4]), v[9]});
+    out[v[1]].push_back(
+        {std::stoll(v[0]), std::stod(v[2]), std::stod(v[3]), std::stod(v[4]), v[9]});
   }
   return out;
 }
@@ -76,9 +77,8 @@ class OverheadLive : public ::testing::Test {
  protected:
   void SetUp() override {
     out_ = fs::temp_directory_path() /
-           ("overhead_live_" + std::string(::testing::UnitTest::GetInstance()
-                                               ->current_test_info()
-                                               ->name()));
+           ("overhead_live_" +
+            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
     fs::remove_all(out_);
   }
   void TearDown() override { fs::remove_all(out_); }
