@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <utility>
 #include <vector>
 
 #include "tray_fit_internal.hpp"
@@ -48,6 +49,36 @@ double half_along(int k, const site::FleetAgv& agv) {
 }
 // Distance between two axes (angles modulo pi), in [0, pi/2].
 double axis_distance(double a, double b) { return std::abs(std::remainder(a - b, kPi)); }
+
+// The box's axes at heading theta, for the per-point tests: an edge's axis is within tol of the
+// length axis when the cosine of twice the angle between them is at least cos(2 tol), of the
+// width axis when it is at most -cos(2 tol).
+struct Axes {
+  Vec2 n0;     // outward normal of the front
+  Vec2 twice;  // (cos, sin) of 2 theta
+  double cos2tol = 1.0;
+  Axes(double theta, double tol_rad)
+      : n0{std::cos(theta), std::sin(theta)},
+        twice{std::cos(2.0 * theta), std::sin(2.0 * theta)},
+        cos2tol(std::cos(2.0 * tol_rad)) {}
+  // 0 (front/rear), 1 (left/right) or -1.
+  int group(const PlaneEdge& e) const {
+    const double c = e.axis2.x * twice.x + e.axis2.y * twice.y;
+    return c >= cos2tol ? 0 : (c <= -cos2tol ? 1 : -1);
+  }
+  Vec2 normal(int k) const {
+    switch (k & 3) {
+      case 0:
+        return n0;
+      case 1:
+        return {-n0.y, n0.x};
+      case 2:
+        return {-n0.x, -n0.y};
+      default:
+        return {n0.y, -n0.x};
+    }
+  }
+};
 
 // Candidate orientations of the rectangle (modulo pi): the strongest directions of the edges
 // modulo a quarter turn, each as either axis, within `allowed` of the prediction.
@@ -95,15 +126,15 @@ double vote_centre(const std::vector<PlaneEdge>& edges, const site::FleetAgv& ag
   const double lo = -0.5 * n * bin_mm;
   std::vector<double> h[2] = {std::vector<double>(static_cast<std::size_t>(n), 0.0),
                               std::vector<double>(static_cast<std::size_t>(n), 0.0)};
+  const Axes ax(theta, tol_rad);
+  const Vec2 nrm[2] = {ax.normal(0), ax.normal(1)};
   for (const PlaneEdge& e : edges) {
-    for (int axis = 0; axis < 2; ++axis) {
-      if (axis_distance(e.axis_rad, theta + 0.5 * kPi * axis) > tol_rad) continue;
-      const Vec2 nrm = side_normal(axis, theta);
-      const double u = e.q.x * nrm.x + e.q.y * nrm.y, half = half_across(axis, agv);
-      for (const double v : {u - half, u + half}) {
-        const int b = static_cast<int>(std::floor((v - lo) / bin_mm));
-        if (b >= 0 && b < n) h[axis][static_cast<std::size_t>(b)] += 1.0;
-      }
+    const int axis = ax.group(e);
+    if (axis < 0) continue;
+    const double u = e.q.x * nrm[axis].x + e.q.y * nrm[axis].y, half = half_across(axis, agv);
+    for (const double v : {u - half, u + half}) {
+      const int b = static_cast<int>(std::floor((v - lo) / bin_mm));
+      if (b >= 0 && b < n) h[axis][static_cast<std::size_t>(b)] += 1.0;
     }
   }
   std::vector<double> sm(static_cast<std::size_t>(n));
@@ -146,20 +177,17 @@ double sharpen(const std::vector<PlaneEdge>& edges, const site::FleetAgv& agv, d
 
 // An edge point's side of the box and its signed distance beyond it; false when it belongs to
 // none (direction or distance).
-bool side_of(const PlaneEdge& e, const Box& b, const site::FleetAgv& agv, double tol_rad,
-             double band_mm, int* side, double* r, double* along) {
-  for (int axis = 0; axis < 2; ++axis) {
-    if (axis_distance(e.axis_rad, b.theta + 0.5 * kPi * axis) > tol_rad) continue;
-    const Vec2 nrm = side_normal(axis, b.theta);
-    const Vec2 d{e.q.x - b.c.x, e.q.y - b.c.y};
-    const double u = d.x * nrm.x + d.y * nrm.y, v = -d.x * nrm.y + d.y * nrm.x;
-    const int k = u >= 0.0 ? axis : axis + 2;
-    *side = k;
-    *r = std::abs(u) - half_across(k, agv);
-    *along = u >= 0.0 ? v : -v;
-    return std::abs(*r) <= band_mm && std::abs(v) <= half_along(k, agv) + band_mm;
-  }
-  return false;
+bool side_of(const PlaneEdge& e, const Box& b, const Axes& ax, const site::FleetAgv& agv,
+             double band_mm, int* side, double* r) {
+  const int axis = ax.group(e);
+  if (axis < 0) return false;
+  const Vec2 nrm = ax.normal(axis);
+  const Vec2 d{e.q.x - b.c.x, e.q.y - b.c.y};
+  const double u = d.x * nrm.x + d.y * nrm.y, v = -d.x * nrm.y + d.y * nrm.x;
+  const int k = u >= 0.0 ? axis : axis + 2;
+  *side = k;
+  *r = std::abs(u) - half_across(k, agv);
+  return std::abs(*r) <= band_mm && std::abs(v) <= half_along(k, agv) + band_mm;
 }
 
 struct Fitted {
@@ -188,8 +216,8 @@ bool invert3(const double* a, double* inv) {
 }
 
 // The Jacobian of an edge's residual on side k with respect to (cx, cy, theta).
-void jacobian(const PlaneEdge& e, const Box& b, int k, double* j) {
-  const Vec2 n = side_normal(k, b.theta);
+void jacobian(const PlaneEdge& e, const Box& b, const Axes& ax, int k, double* j) {
+  const Vec2 n = ax.normal(k);
   j[0] = -n.x;
   j[1] = -n.y;
   j[2] = -n.y * (e.q.x - b.c.x) + n.x * (e.q.y - b.c.y);
@@ -206,9 +234,9 @@ bool refine(const std::vector<PlaneEdge>& edges, const site::FleetAgv& agv, doub
   std::vector<double> abs_r;
   for (int it = 0; it <= iterations; ++it) {
     abs_r.clear();
+    const Axes ax(f->box.theta, tol_rad);
     for (std::size_t i = 0; i < n; ++i) {
-      double along = 0.0;
-      if (!side_of(edges[i], f->box, agv, tol_rad, band_mm, &f->side[i], &f->r[i], &along)) {
+      if (!side_of(edges[i], f->box, ax, agv, band_mm, &f->side[i], &f->r[i])) {
         f->side[i] = -1;
         continue;
       }
@@ -227,7 +255,7 @@ bool refine(const std::vector<PlaneEdge>& edges, const site::FleetAgv& agv, doub
       const double w = (1.0 - u * u) * (1.0 - u * u);
       f->w[i] = w;
       double j[3];
-      jacobian(edges[i], f->box, f->side[i], j);
+      jacobian(edges[i], f->box, ax, f->side[i], j);
       for (int a = 0; a < 3; ++a) {
         g[a] += w * j[a] * f->r[i];
         for (int b = 0; b < 3; ++b) h[3 * a + b] += w * j[a] * j[b];
@@ -354,12 +382,13 @@ void box_covariance(const std::vector<PlaneEdge>& edges, const Fitted& f, double
   double inv[9];
   invert3(f.h, inv);  // succeeded in refine
   for (int i = 0; i < 9; ++i) (*cov)[static_cast<std::size_t>(i)] = f.s2 * correlation * inv[i];
+  const Axes ax(f.box.theta, 0.25 * kPi);
   for (int k = 0; k < kSides; ++k) {
     double s[3] = {0.0, 0.0, 0.0};
     for (std::size_t i = 0; i < edges.size(); ++i) {
       if (f.side[i] != k || !(f.w[i] > 0.0)) continue;
       double j[3];
-      jacobian(edges[i], f.box, k, j);
+      jacobian(edges[i], f.box, ax, k, j);
       for (int a = 0; a < 3; ++a) s[a] += f.w[i] * j[a];
     }
     double g[3];

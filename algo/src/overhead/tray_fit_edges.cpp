@@ -1,6 +1,7 @@
 // The tray fit's window and edge points (tray_fit_internal.hpp).
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 
 #include "agv/vision/edges.hpp"
 #include "tray_fit_internal.hpp"
@@ -97,12 +98,12 @@ void plane_edges(const cv::Mat& gray, const site::CeilingCamera& cam, const site
     const std::int16_t* ay = gy.ptr<std::int16_t>(y);
     const float* m = mag.ptr<float>(y);
     for (int x = 1; x + 1 < mag.cols; ++x) {
-      const double g = m[x];
+      const double g = static_cast<double>(m[x]);
       if (!(g >= p.min_gradient)) continue;
       const double ux = ax[x] / g, uy = ay[x] / g;
       // Thinned along the gradient: a maximum of the magnitude one pixel either way.
-      const double before = bilinear(mag, x - ux, y - uy);
-      const double after = bilinear(mag, x + ux, y + uy);
+      const double before = static_cast<double>(bilinear(mag, x - ux, y - uy));
+      const double after = static_cast<double>(bilinear(mag, x + ux, y + uy));
       if (!(g > before && g >= after)) continue;
       const double curvature = before - 2.0 * g + after;
       const double t = curvature < 0.0 ? std::clamp(0.5 * (before - after) / curvature, -0.5, 0.5)
@@ -117,7 +118,9 @@ void plane_edges(const cv::Mat& gray, const site::CeilingCamera& cam, const site
       double axis = std::atan2(b.y - a.y, b.x - a.x) + 0.5 * kPi;
       axis = std::fmod(axis, kPi);
       if (axis < 0.0) axis += kPi;
-      out->push_back({{a.x - predicted.x_mm, a.y - predicted.y_mm}, axis});
+      out->push_back({{a.x - predicted.x_mm, a.y - predicted.y_mm},
+                      axis,
+                      {std::cos(2.0 * axis), std::sin(2.0 * axis)}});
     }
   }
 }

@@ -15,6 +15,7 @@ namespace agv::overhead::tray_fit_detail {
 struct PlaneEdge {
   Vec2 q;
   double axis_rad = 0.0;
+  Vec2 axis2;  // (cos, sin) of twice axis_rad: axes compared without wrapping angles
 };
 
 struct TrayWindow {
