@@ -261,6 +261,11 @@ int run(const Options& o) {
       }
     }
     render_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - r0).count();
+    std::vector<std::uint8_t> tracked(corners.size(), 0);
+    for (std::size_t i = 0; i < tracked.size(); ++i) {
+      const agv::overhead::TrackState st = tracker.output(i, fe.exposure_ns).state;
+      tracked[i] = st != agv::overhead::TrackState::kNone && st != agv::overhead::TrackState::kLost;
+    }
     dets.clear();
     const std::uint64_t full_before = proc.counters().windows_full;
     const double t0 = thread_cpu_ms();
@@ -282,7 +287,7 @@ int run(const Options& o) {
     if (o.apriltag_every > 0 && frame_index % static_cast<std::size_t>(o.apriltag_every) == 0) {
       score.apriltag_ms.push_back(apriltag_full_frame_ms(img));
     }
-    agv::eval::score_detections(dets, corners, in_image, flipped, &score);
+    agv::eval::score_detections(dets, corners, in_image, flipped, tracked, &score);
     ++frame_index;
   }
   while (next_tick <= end_ns) {

@@ -93,7 +93,8 @@ void score_tick(const std::vector<overhead::TrackOutput>& outs,
 void score_detections(const std::vector<overhead::Detection>& dets,
                       const std::vector<std::array<Vec2, 4>>& truth_corners,
                       const std::vector<std::uint8_t>& in_image,
-                      const std::vector<std::uint8_t>& flipped, Score* s) {
+                      const std::vector<std::uint8_t>& flipped,
+                      const std::vector<std::uint8_t>& tracked, Score* s) {
   auto centre = [](const std::array<Vec2, 4>& c) {
     return Vec2{0.25 * (c[0].x + c[1].x + c[2].x + c[3].x),
                 0.25 * (c[0].y + c[1].y + c[2].y + c[3].y)};
@@ -131,9 +132,14 @@ void score_detections(const std::vector<overhead::Detection>& dets,
   }
   for (std::size_t j = 0; j < flipped.size() && j < read.size(); ++j) {
     if (!flipped[j]) continue;
-    ++s->flipped;
-    if (right[j]) ++s->flipped_right;
     if (read[j] && !right[j]) ++s->flipped_wrong;
+    if (j < tracked.size() && tracked[j]) {
+      ++s->flipped;
+      if (right[j]) ++s->flipped_right;
+    } else {
+      ++s->flipped_untracked;
+      if (right[j]) ++s->flipped_untracked_right;
+    }
   }
 }
 
@@ -217,13 +223,15 @@ std::string report(const Score& s, const std::vector<std::string>& ids) {
                   percentile(s.apriltag_ms, 0.5) / percentile(s.frame_ms, 0.5));
     out += line;
   }
-  if (s.flipped > 0) {
-    std::snprintf(
-        line, sizeof line,
-        "bit errors: %llu tags flipped in view, read right %llu (%.2f %%), read wrong %llu\n",
-        static_cast<unsigned long long>(s.flipped),
-        static_cast<unsigned long long>(s.flipped_right), pct(s.flipped_right, s.flipped),
-        static_cast<unsigned long long>(s.flipped_wrong));
+  if (s.flipped + s.flipped_untracked > 0) {
+    std::snprintf(line, sizeof line,
+                  "bit errors: tags of tracked vehicles flipped in view %llu, read right %llu "
+                  "(%.2f %%); of vehicles without a track %llu, read right %llu; read wrong %llu\n",
+                  static_cast<unsigned long long>(s.flipped),
+                  static_cast<unsigned long long>(s.flipped_right), pct(s.flipped_right, s.flipped),
+                  static_cast<unsigned long long>(s.flipped_untracked),
+                  static_cast<unsigned long long>(s.flipped_untracked_right),
+                  static_cast<unsigned long long>(s.flipped_wrong));
     out += line;
   }
   return out;

@@ -31,8 +31,11 @@ struct Score {
   // Detections.
   std::uint64_t reads = 0, right_reads = 0, wrong_reads = 0, wrong_fixes = 0, phantom_reads = 0;
   std::uint64_t phantom_fixes = 0, gated = 0;
-  // Tags with injected bit errors (visible, flipped) and what became of them.
+  // Tags with injected bit errors (wholly in the image) and what became of them: of vehicles
+  // with a track (read on the predicted path against the area's ids) and without (only the
+  // strict global decode can start a track).
   std::uint64_t flipped = 0, flipped_right = 0, flipped_wrong = 0;
+  std::uint64_t flipped_untracked = 0, flipped_untracked_right = 0;
   // Per-frame processing time (ms), all frames and those that swept the whole image.
   std::vector<double> frame_ms, frame_full_ms, frame_windows_ms, apriltag_ms;
 };
@@ -44,11 +47,13 @@ void score_tick(const std::vector<overhead::TrackOutput>& outs,
                 Score* s);
 
 // One frame's detections against its rendered tags (corners page order, ok = projected inside
-// the image); flipped marks the vehicles whose tag had cells overwritten in this frame.
+// the image); flipped marks the vehicles whose tag had cells overwritten in this frame, tracked
+// those that had a track (tentative, confirmed or coasting) when the frame was processed.
 void score_detections(const std::vector<overhead::Detection>& dets,
                       const std::vector<std::array<Vec2, 4>>& truth_corners,
                       const std::vector<std::uint8_t>& in_image,
-                      const std::vector<std::uint8_t>& flipped, Score* s);
+                      const std::vector<std::uint8_t>& flipped,
+                      const std::vector<std::uint8_t>& tracked, Score* s);
 
 std::string report(const Score& s, const std::vector<std::string>& ids);
 
