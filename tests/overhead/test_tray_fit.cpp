@@ -319,10 +319,12 @@ TEST(TrayFit, RandomParcels) {
       pos.push_back(std::hypot(fix.fix.pose.x_mm - t.pose.x_mm, fix.fix.pose.y_mm - t.pose.y_mm));
       wrong += nees(fix.fix, t.pose) > 16.27 ? 1 : 0;
       if (nees(fix.fix, t.pose) > 16.27) {
-        std::printf("  outside: seed %d agv %zu err %.1f mm %.2f deg, sides %d coverage %.2f %.2f "
-                    "%.2f %.2f\n",
+        std::printf("  outside: seed %d agv %zu err %.1f mm %.2f deg (sigma %.1f mm %.2f deg), "
+                    "sides %d coverage %.2f %.2f %.2f %.2f\n",
                     static_cast<int>(seed), t.index, pos.back(),
-                    heading_err_deg(fix.fix.pose.theta_rad, t.pose.theta_rad), fix.sides_seen,
+                    heading_err_deg(fix.fix.pose.theta_rad, t.pose.theta_rad),
+                    std::sqrt(fix.fix.cov[0] + fix.fix.cov[4]), rad_to_deg(std::sqrt(fix.fix.cov[8])),
+                    fix.sides_seen,
                     fix.coverage[0], fix.coverage[1], fix.coverage[2], fix.coverage[3]);
       }
     }

@@ -376,26 +376,41 @@ void side_stats(const std::vector<PlaneEdge>& edges, const Fitted& f, const site
 }
 
 // Covariance of (cx, cy, theta): the residuals' scatter, each counted once per `correlation`
-// neighbours, plus an offset error of every side's line carried through the fit.
-void box_covariance(const std::vector<PlaneEdge>& edges, const Fitted& f, double correlation,
-                    double side_sigma_mm, std::array<double, 9>* cov) {
+// neighbours, plus an error of every side's line (an offset and a turn: the edge model, the
+// plate's face, a parcel's edge along part of it) carried through the fit.
+void box_covariance(const std::vector<PlaneEdge>& edges, const Fitted& f,
+                    const site::FleetAgv& agv, double correlation, double side_sigma_mm,
+                    std::array<double, 9>* cov) {
   double inv[9];
   invert3(f.h, inv);  // succeeded in refine
   for (int i = 0; i < 9; ++i) (*cov)[static_cast<std::size_t>(i)] = f.s2 * correlation * inv[i];
   const Axes ax(f.box.theta, 0.25 * kPi);
   for (int k = 0; k < kSides; ++k) {
-    double s[3] = {0.0, 0.0, 0.0};
+    // Two modes per side: the line shifted, and turned about the side's middle (its ends moved
+    // by the same sigma in opposite directions).
+    double s[2][3] = {{0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}};
+    const Vec2 n = ax.normal(k);
+    const double half = half_along(k, agv);
     for (std::size_t i = 0; i < edges.size(); ++i) {
       if (f.side[i] != k || !(f.w[i] > 0.0)) continue;
       double j[3];
       jacobian(edges[i], f.box, ax, k, j);
-      for (int a = 0; a < 3; ++a) s[a] += f.w[i] * j[a];
+      const Vec2 d{edges[i].q.x - f.box.c.x, edges[i].q.y - f.box.c.y};
+      const double along = (-d.x * n.y + d.y * n.x) / half;
+      for (int a = 0; a < 3; ++a) {
+        s[0][a] += f.w[i] * j[a];
+        s[1][a] += f.w[i] * j[a] * along;
+      }
     }
-    double g[3];
-    for (int a = 0; a < 3; ++a) g[a] = inv[3 * a] * s[0] + inv[3 * a + 1] * s[1] + inv[3 * a + 2] * s[2];
-    for (int a = 0; a < 3; ++a) {
-      for (int b = 0; b < 3; ++b) {
-        (*cov)[static_cast<std::size_t>(3 * a + b)] += side_sigma_mm * side_sigma_mm * g[a] * g[b];
+    for (int mode = 0; mode < 2; ++mode) {
+      double g[3];
+      for (int a = 0; a < 3; ++a) {
+        g[a] = inv[3 * a] * s[mode][0] + inv[3 * a + 1] * s[mode][1] + inv[3 * a + 2] * s[mode][2];
+      }
+      for (int a = 0; a < 3; ++a) {
+        for (int b = 0; b < 3; ++b) {
+          (*cov)[static_cast<std::size_t>(3 * a + b)] += side_sigma_mm * side_sigma_mm * g[a] * g[b];
+        }
       }
     }
   }
@@ -510,7 +525,7 @@ bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::F
     return fail(why, fmt("tray heading %.0f deg from the prediction: ambiguous",
                          rad_to_deg(r.heading_from_prediction_rad)));
   }
-  box_covariance(edges, f, p.edge_correlation, p.side_offset_sigma_px * win.mm_per_px, &r.fix.cov);
+  box_covariance(edges, f, agv, p.edge_correlation, p.side_offset_sigma_px * win.mm_per_px, &r.fix.cov);
   r.fix.pose = {predicted.x_mm + f.box.c.x, predicted.y_mm + f.box.c.y, wrap_angle_rad(theta)};
   r.residual_mm = std::sqrt(f.s2);
   r.fix.residual_mm = r.residual_mm;

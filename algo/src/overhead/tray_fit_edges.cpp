@@ -93,6 +93,15 @@ void plane_edges(const cv::Mat& gray, const site::CeilingCamera& cam, const site
     }
   }
   const double z = agv.tray_height_mm;
+  // The lens and the perspective change little across a window: one Jacobian (plane mm per
+  // pixel) at its centre carries every edge's direction onto the plane.
+  const Vec2 mid{win.roi.x + 0.5 * win.roi.width, win.roi.y + 0.5 * win.roi.height};
+  Vec2 p0, px_step, py_step;
+  if (!pixel_to_plane(cam, mid, z, &p0) || !pixel_to_plane(cam, {mid.x + 1.0, mid.y}, z, &px_step) ||
+      !pixel_to_plane(cam, {mid.x, mid.y + 1.0}, z, &py_step)) {
+    return;
+  }
+  const double j[4] = {px_step.x - p0.x, py_step.x - p0.x, px_step.y - p0.y, py_step.y - p0.y};
   for (int y = 1; y + 1 < mag.rows; ++y) {
     const std::int16_t* ax = gx.ptr<std::int16_t>(y);
     const std::int16_t* ay = gy.ptr<std::int16_t>(y);
@@ -109,13 +118,11 @@ void plane_edges(const cv::Mat& gray, const site::CeilingCamera& cam, const site
       const double t = curvature < 0.0 ? std::clamp(0.5 * (before - after) / curvature, -0.5, 0.5)
                                        : 0.0;
       const Vec2 px{win.roi.x + x + t * ux, win.roi.y + y + t * uy};
-      Vec2 a, b;
-      // The gradient's axis on the plane: the edge's tangent mapped through the lens, turned.
-      if (!pixel_to_plane(cam, px, z, &a) ||
-          !pixel_to_plane(cam, {px.x - uy, px.y + ux}, z, &b)) {
-        continue;
-      }
-      double axis = std::atan2(b.y - a.y, b.x - a.x) + 0.5 * kPi;
+      Vec2 a;
+      if (!pixel_to_plane(cam, px, z, &a)) continue;
+      // The gradient's axis on the plane: the edge's tangent (-uy, ux) carried over, turned.
+      const double tx = -j[0] * uy + j[1] * ux, ty = -j[2] * uy + j[3] * ux;
+      double axis = std::atan2(ty, tx) + 0.5 * kPi;
       axis = std::fmod(axis, kPi);
       if (axis < 0.0) axis += kPi;
       out->push_back({{a.x - predicted.x_mm, a.y - predicted.y_mm},

@@ -44,7 +44,8 @@ struct TrayFitParams {
   double max_size_error_px = 1.5;
   // Covariance: each residual counts as one of edge_correlation neighbours (the gradient kernel
   // and the blur smear one step over a few pixels), and each side's line has an offset error of
-  // side_offset_sigma_px (edge model, plate face, shading) on top.
+  // side_offset_sigma_px (edge model, plate face, shading) and a turn that moves its ends by as
+  // much, on top.
   double edge_correlation = 3.0;
   double side_offset_sigma_px = 0.25;
   int iterations = 8;
