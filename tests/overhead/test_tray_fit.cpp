@@ -133,6 +133,12 @@ FitRun accuracy_run(int scale, int frames) {
       run.pos_mm.push_back(std::hypot(fix.fix.pose.x_mm - t.pose.x_mm, fix.fix.pose.y_mm - t.pose.y_mm));
       run.head_deg.push_back(heading_err_deg(fix.fix.pose.theta_rad, t.pose.theta_rad));
       run.nees.push_back(nees(fix.fix, t.pose));
+      if (run.nees.back() > 16.27) {
+        std::printf("  outside: frame %d agv %zu err %.1f mm %.2f deg, sides %d coverage %.2f %.2f "
+                    "%.2f %.2f\n",
+                    f, t.index, run.pos_mm.back(), run.head_deg.back(), fix.sides_seen,
+                    fix.coverage[0], fix.coverage[1], fix.coverage[2], fix.coverage[3]);
+      }
     }
   }
   std::printf("tray fit %dx%d: %zu fits, %d refused (%s); position p50 %.2f p95 %.2f max %.2f mm, "
@@ -388,6 +394,7 @@ TEST(TrayFitParams, Validate) {
   named([](TrayFitParams* p) { p->max_position_sigma_mm = std::nan(""); }, "max_position_sigma");
   named([](TrayFitParams* p) { p->min_side_coverage = 0.0; }, "min_side_coverage");
   named([](TrayFitParams* p) { p->on_line_px = 0.0; }, "on_line_px");
+  named([](TrayFitParams* p) { p->rim_depth_mm = -1.0; }, "rim_depth_mm");
   named([](TrayFitParams* p) { p->max_size_error_px = 0.0; }, "max_size_error");
   named([](TrayFitParams* p) { p->edge_correlation = 0.5; }, "edge_correlation");
   named([](TrayFitParams* p) { p->side_offset_sigma_px = -1.0; }, "side_offset_sigma_px");

@@ -25,12 +25,12 @@ constexpr int kMinPeakPoints = 5;
 // Centre hypotheses per axis and orientation; each is refined briefly and scored by how much of
 // the tray's outline it explains.
 constexpr std::size_t kPeaksPerAxis = 3;
+constexpr int kPeakSeparationBins = 4;
 constexpr int kSharpenSteps = 6;
 constexpr double kSharpenStepRad = 0.4 * kPi / 180.0;
 constexpr int kScoringIterations = 3;
-// Score (fraction of a side's length) lost per unit of the hypothesis' squared Mahalanobis
-// distance from the predicted centre.
-constexpr double kPriorWeight = 0.05;
+// A rim line seen where the tray's side face should end counts this much of a side.
+constexpr double kRimWeight = 0.5;
 
 struct Box {
   Vec2 c;  // relative to the predicted centre, mm
@@ -153,7 +153,13 @@ double vote_centre(const std::vector<PlaneEdge>& edges, const site::FleetAgv& ag
     std::sort(top.begin(), top.end(), [](const auto& x, const auto& y) { return x > y; });
     if (!top.empty()) height += top[0].first;
     peaks[axis].clear();
-    for (std::size_t i = 0; i < top.size() && i < kPeaksPerAxis; ++i) {
+    // Distinct peaks: a side's votes spread over a few bins, whose ripples are no hypotheses.
+    std::vector<int> taken;
+    for (std::size_t i = 0; i < top.size() && taken.size() < kPeaksPerAxis; ++i) {
+      bool near = false;
+      for (const int b : taken) near = near || std::abs(b - top[i].second) < kPeakSeparationBins;
+      if (near) continue;
+      taken.push_back(top[i].second);
       peaks[axis].push_back(lo + (top[i].second + 0.5) * bin_mm);
     }
   }
@@ -302,6 +308,7 @@ std::string validate(const TrayFitParams& p) {
     return "min_side_coverage must be in (0, 1]";
   }
   if (!(p.on_line_px > 0.0) || !std::isfinite(p.on_line_px)) return "on_line_px must be > 0";
+  if (!(p.rim_depth_mm >= 0.0) || !std::isfinite(p.rim_depth_mm)) return "rim_depth_mm must be >= 0";
   if (!(p.max_size_error_mm > 0.0) || !(p.max_size_error_px > 0.0) ||
       !std::isfinite(p.max_size_error_mm) || !std::isfinite(p.max_size_error_px)) {
     return "max_size_error_mm and max_size_error_px must be > 0";
@@ -373,6 +380,50 @@ void side_stats(const std::vector<PlaneEdge>& edges, const Fitted& f, const site
     out->points[static_cast<std::size_t>(k)] = count;
     mean_r[k] = sw > 0.0 ? swr / sw : 0.0;
   }
+}
+
+// Where the tray's side faces are seen: the camera's foot on the plane relative to the predicted
+// centre, the camera's height above the plane and the face's depth below the top edge.
+struct RimView {
+  Vec2 foot;
+  double height_mm = 0.0;
+  double depth_mm = 0.0;
+};
+
+// A side facing the camera shows its face beside the top edge, ending in a second line further
+// out (a point below the plane is seen nearer the camera's foot). A box put on that second line
+// explains the same side, but leaves the first one inside it unexplained; the right box explains
+// both. Sum over the sides facing the camera of the coverage of their face's far line.
+double rim_coverage(const std::vector<PlaneEdge>& edges, const Box& box, const site::FleetAgv& agv,
+                    const RimView& rim, double on_line_mm, double mm_per_px, double tol_rad) {
+  if (!(rim.depth_mm > 0.0)) return 0.0;
+  const Axes ax(box.theta, tol_rad);
+  double sum = 0.0;
+  std::vector<char> hit;
+  for (int k = 0; k < kSides; ++k) {
+    const Vec2 n = ax.normal(k);
+    const double h = half_across(k, agv), half = half_along(k, agv);
+    const Vec2 mid{box.c.x + h * n.x, box.c.y + h * n.y};
+    const double out =
+        (n.x * (rim.foot.x - mid.x) + n.y * (rim.foot.y - mid.y)) * rim.depth_mm /
+        (rim.height_mm + rim.depth_mm);
+    if (!(out > 2.0 * on_line_mm)) continue;  // not facing the camera, or the lines merge
+    const int bins = std::max(1, static_cast<int>(std::lround(half / mm_per_px)));
+    hit.assign(static_cast<std::size_t>(bins), 0);
+    for (const PlaneEdge& e : edges) {
+      if (ax.group(e) != k % 2) continue;
+      const Vec2 d{e.q.x - box.c.x, e.q.y - box.c.y};
+      const double r = d.x * n.x + d.y * n.y - h - out;
+      if (!(std::abs(r) <= on_line_mm)) continue;
+      const double along = -d.x * n.y + d.y * n.x;
+      const int b = static_cast<int>(std::floor((along + half) / (2.0 * half) * bins));
+      if (b >= 0 && b < bins) hit[static_cast<std::size_t>(b)] = 1;
+    }
+    double covered = 0.0;
+    for (const char c : hit) covered += c;
+    sum += covered / bins;
+  }
+  return sum;
 }
 
 // Covariance of (cx, cy, theta): the residuals' scatter, each counted once per `correlation`
@@ -452,10 +503,10 @@ bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::F
   const double min_sigma_mm = 0.05 * win.mm_per_px;
   const double max_size_err = std::max(p.max_size_error_mm, p.max_size_error_px * win.mm_per_px);
   const double on_line_mm = p.on_line_px * win.mm_per_px;
+  const RimView rim{{cam.t_site_cam_mm[0] - predicted.x_mm, cam.t_site_cam_mm[1] - predicted.y_mm},
+                    cam.t_site_cam_mm[2] - agv.tray_height_mm, p.rim_depth_mm};
   // Every hypothesis refined a little and scored by the outline it explains: a parcel's edge
   // can out-vote a tray side it hides, but not the whole outline.
-  const double det = pxx * pyy - pxy * pxy;
-  const double ipxx = pyy / det, ipyy = pxx / det, ipxy = -pxy / det;
   Fitted f, trial;
   double best = -1.0;
   std::vector<double> peaks[2];
@@ -484,10 +535,8 @@ bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::F
           const bool both = seen_k(axis) && seen_k(axis + 2);
           if (both && std::abs(mean_r[axis] + mean_r[axis + 2]) > max_size_err) score -= 1.0;
         }
-        // Among outlines that explain about as much, the one nearer the prediction: a parcel's
-        // lifted outline can stand in for a side it hides.
-        const Vec2 d = trial.box.c;
-        score -= kPriorWeight * (ipxx * d.x * d.x + 2.0 * ipxy * d.x * d.y + ipyy * d.y * d.y);
+        score += kRimWeight * rim_coverage(edges, trial.box, agv, rim, on_line_mm,
+                                           win.mm_per_px, p.class_tol_rad);
         if (score > best) best = score, f = trial;
       }
     }

@@ -38,6 +38,10 @@ struct TrayFitParams {
   // or noise scatters over the band around it).
   double min_side_coverage = 0.3;
   double on_line_px = 0.5;
+  // Depth of the tray's side face below its top edge (the plate or rim; 0: none): on the sides
+  // facing the camera the face ends in a second, parallel line further out, which a box fitted
+  // to it would leave the real edge inside; the box that explains both lines wins.
+  double rim_depth_mm = 30.0;
   // Refused when two opposite seen sides are further from the known size than this (mm, or
   // pixels on the plane when larger): parcel edges taken for the tray's.
   double max_size_error_mm = 12.0;
