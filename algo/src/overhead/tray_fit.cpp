@@ -28,7 +28,7 @@ constexpr std::size_t kPeaksPerAxis = 3;
 constexpr int kPeakSeparationBins = 4;
 constexpr int kSharpenSteps = 6;
 constexpr double kSharpenStepRad = 0.4 * kPi / 180.0;
-constexpr int kScoringIterations = 3;
+constexpr int kScoringIterations = 2;
 // A rim line seen where the tray's side face should end counts this much of a side.
 constexpr double kRimWeight = 0.5;
 
@@ -512,9 +512,15 @@ bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::F
   std::vector<double> peaks[2];
   TrayFix r;
   double mean_r[kSides];
+  std::vector<double> done;
   for (const double coarse : orientations(edges, predicted.theta_rad, allowed)) {
     const double theta =
         sharpen(edges, agv, coarse, win.reach_mm, bin_mm, p.class_tol_rad, peaks);
+    // Neighbouring histogram peaks often sharpen to the same orientation: its hypotheses once.
+    bool again = false;
+    for (const double t : done) again = again || axis_distance(t, theta) < 0.5 * kSharpenStepRad;
+    if (again) continue;
+    done.push_back(theta);
     const Vec2 nx = side_normal(0, theta), ny = side_normal(1, theta);
     for (const double a : peaks[0]) {
       for (const double b : peaks[1]) {
