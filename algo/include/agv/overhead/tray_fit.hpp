@@ -22,7 +22,7 @@ namespace agv::overhead {
 
 struct TrayFitParams {
   // Edge pixels: magnitude floor of the Prewitt gradient (sums of three, 8-bit units).
-  double min_gradient = 24.0;
+  double min_gradient = 40.0;
   // The window covers the predicted tray widened by sigma_window times the prediction's sigma
   // plus margin_mm.
   double sigma_window = 3.0;
