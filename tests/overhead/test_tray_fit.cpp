@@ -77,7 +77,8 @@ double nees(const TagFix& f, const Pose2& t) {
   const double a00 = c[4] * c[8] - c[5] * c[7], a01 = c[2] * c[7] - c[1] * c[8],
                a02 = c[1] * c[5] - c[2] * c[4], a11 = c[0] * c[8] - c[2] * c[6],
                a12 = c[2] * c[3] - c[0] * c[5], a22 = c[0] * c[4] - c[1] * c[3];
-  const double det = c[0] * a00 + c[1] * (c[5] * c[6] - c[3] * c[8]) + c[2] * (c[3] * c[7] - c[4] * c[6]);
+  const double det =
+      c[0] * a00 + c[1] * (c[5] * c[6] - c[3] * c[8]) + c[2] * (c[3] * c[7] - c[4] * c[6]);
   const double q = e[0] * (a00 * e[0] + a01 * e[1] + a02 * e[2]) +
                    e[1] * (a01 * e[0] + a11 * e[1] + a12 * e[2]) +
                    e[2] * (a02 * e[0] + a12 * e[1] + a22 * e[2]);
@@ -124,30 +125,33 @@ FitRun accuracy_run(int scale, int frames) {
       const auto t0 = std::chrono::steady_clock::now();
       const bool ok =
           fit_tray(r.image, cam, s.site.fleet[t.index], pred, diag_cov(sp, st), {}, &fix, &why);
-      run.fit_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+      run.fit_ms +=
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
       if (!ok) {
         ++run.refused;
         run.last_why = why;
         continue;
       }
-      run.pos_mm.push_back(std::hypot(fix.fix.pose.x_mm - t.pose.x_mm, fix.fix.pose.y_mm - t.pose.y_mm));
+      run.pos_mm.push_back(
+          std::hypot(fix.fix.pose.x_mm - t.pose.x_mm, fix.fix.pose.y_mm - t.pose.y_mm));
       run.head_deg.push_back(heading_err_deg(fix.fix.pose.theta_rad, t.pose.theta_rad));
       run.nees.push_back(nees(fix.fix, t.pose));
       if (run.nees.back() > 16.27) {
-        std::printf("  outside: frame %d agv %zu err %.1f mm %.2f deg, sides %d coverage %.2f %.2f "
-                    "%.2f %.2f\n",
-                    f, t.index, run.pos_mm.back(), run.head_deg.back(), fix.sides_seen,
-                    fix.coverage[0], fix.coverage[1], fix.coverage[2], fix.coverage[3]);
+        std::printf(
+            "  outside: frame %d agv %zu err %.1f mm %.2f deg, sides %d coverage %.2f %.2f "
+            "%.2f %.2f\n",
+            f, t.index, run.pos_mm.back(), run.head_deg.back(), fix.sides_seen, fix.coverage[0],
+            fix.coverage[1], fix.coverage[2], fix.coverage[3]);
       }
     }
   }
-  std::printf("tray fit %dx%d: %zu fits, %d refused (%s); position p50 %.2f p95 %.2f max %.2f mm, "
-              "heading p50 %.3f p95 %.3f max %.3f deg, NEES mean %.2f p95 %.2f; %.2f ms per fit\n",
-              1280 * scale, 720 * scale, run.pos_mm.size(), run.refused, run.last_why.c_str(),
-              percentile(run.pos_mm, 0.5), percentile(run.pos_mm, 0.95),
-              percentile(run.pos_mm, 1.0), percentile(run.head_deg, 0.5),
-              percentile(run.head_deg, 0.95), percentile(run.head_deg, 1.0),
-              mean(run.nees), percentile(run.nees, 0.95), run.fit_ms / (4.0 * frames));
+  std::printf(
+      "tray fit %dx%d: %zu fits, %d refused (%s); position p50 %.2f p95 %.2f max %.2f mm, "
+      "heading p50 %.3f p95 %.3f max %.3f deg, NEES mean %.2f p95 %.2f; %.2f ms per fit\n",
+      1280 * scale, 720 * scale, run.pos_mm.size(), run.refused, run.last_why.c_str(),
+      percentile(run.pos_mm, 0.5), percentile(run.pos_mm, 0.95), percentile(run.pos_mm, 1.0),
+      percentile(run.head_deg, 0.5), percentile(run.head_deg, 0.95), percentile(run.head_deg, 1.0),
+      mean(run.nees), percentile(run.nees, 0.95), run.fit_ms / (4.0 * frames));
   return run;
 }
 
@@ -209,10 +213,8 @@ TEST(TrayFit, HalfTurnResolvedByThePrediction) {
       // The fit follows the prediction's half-turn: the truth, or the truth turned round.
       const double want = std::abs(off_deg) < 90.0 ? t.theta_rad : t.theta_rad + kPi;
       EXPECT_LT(heading_err_deg(fix.fix.pose.theta_rad, want), 1.0) << off_deg;
-      EXPECT_NEAR(rad_to_deg(fix.heading_from_prediction_rad), std::abs(off_deg) < 90.0
-                                                                   ? std::abs(off_deg)
-                                                                   : 180.0 - std::abs(off_deg),
-                  1.0);
+      EXPECT_NEAR(rad_to_deg(fix.heading_from_prediction_rad),
+                  std::abs(off_deg) < 90.0 ? std::abs(off_deg) : 180.0 - std::abs(off_deg), 1.0);
     }
     TrayFix fix;
     std::string why;
@@ -246,8 +248,8 @@ TEST(TrayFit, UncoveredTraysFitToo) {
     TrayFix fix;
     std::string why;
     const Pose2 t = f.r.agvs[i].pose;
-    ASSERT_TRUE(f.fit(i, {t.x_mm - 30.0, t.y_mm + 20.0, t.theta_rad + 0.05},
-                      diag_cov(20.0, 0.05), &fix, &why))
+    ASSERT_TRUE(f.fit(i, {t.x_mm - 30.0, t.y_mm + 20.0, t.theta_rad + 0.05}, diag_cov(20.0, 0.05),
+                      &fix, &why))
         << why;
     EXPECT_LT(std::hypot(fix.fix.pose.x_mm - t.x_mm, fix.fix.pose.y_mm - t.y_mm), 8.0);
     EXPECT_LT(heading_err_deg(fix.fix.pose.theta_rad, t.theta_rad), 0.8);
@@ -289,9 +291,9 @@ TEST(TrayFit, ParcelsCrossingEdges) {
         << i << ": " << why;
     EXPECT_LT(std::hypot(fix.fix.pose.x_mm - t.x_mm, fix.fix.pose.y_mm - t.y_mm), 10.0)
         << i << " cov " << fix.coverage[0] << " " << fix.coverage[1] << " " << fix.coverage[2]
-        << " " << fix.coverage[3] << " size " << fix.size_error_mm[0] << " "
-        << fix.size_error_mm[1] << " err " << fix.fix.pose.x_mm - t.x_mm << ","
-        << fix.fix.pose.y_mm - t.y_mm << " th " << t.theta_rad;
+        << " " << fix.coverage[3] << " size " << fix.size_error_mm[0] << " " << fix.size_error_mm[1]
+        << " err " << fix.fix.pose.x_mm - t.x_mm << "," << fix.fix.pose.y_mm - t.y_mm << " th "
+        << t.theta_rad;
     EXPECT_LT(heading_err_deg(fix.fix.pose.theta_rad, t.theta_rad), 1.0) << i;
     EXPECT_LT(fix.coverage[i == 0 ? 1 : 0], 0.6) << i;  // the side under the parcel
     EXPECT_LT(nees(fix.fix, t), 16.3) << i;
@@ -310,8 +312,8 @@ TEST(TrayFit, RandomParcels) {
   for (std::uint64_t seed = 40; seed < 45; ++seed) {
     sim::SiteScene s = covered_scene(cam, seed);
     sim::add_random_parcels(&s, 1.0, seed);
-    const sim::RenderResult r =
-        renderer.render(s, sim::RenderCamera::from_ceiling(cam), sim::realistic_site_params(), seed);
+    const sim::RenderResult r = renderer.render(s, sim::RenderCamera::from_ceiling(cam),
+                                                sim::realistic_site_params(), seed);
     for (const sim::AgvTruth& t : r.agvs) {
       TrayFix fix;
       std::string why;
@@ -325,19 +327,20 @@ TEST(TrayFit, RandomParcels) {
       pos.push_back(std::hypot(fix.fix.pose.x_mm - t.pose.x_mm, fix.fix.pose.y_mm - t.pose.y_mm));
       wrong += nees(fix.fix, t.pose) > 16.27 ? 1 : 0;
       if (nees(fix.fix, t.pose) > 16.27) {
-        std::printf("  outside: seed %d agv %zu err %.1f mm %.2f deg (sigma %.1f mm %.2f deg), "
-                    "sides %d coverage %.2f %.2f %.2f %.2f\n",
-                    static_cast<int>(seed), t.index, pos.back(),
-                    heading_err_deg(fix.fix.pose.theta_rad, t.pose.theta_rad),
-                    std::sqrt(fix.fix.cov[0] + fix.fix.cov[4]), rad_to_deg(std::sqrt(fix.fix.cov[8])),
-                    fix.sides_seen,
-                    fix.coverage[0], fix.coverage[1], fix.coverage[2], fix.coverage[3]);
+        std::printf(
+            "  outside: seed %d agv %zu err %.1f mm %.2f deg (sigma %.1f mm %.2f deg), "
+            "sides %d coverage %.2f %.2f %.2f %.2f\n",
+            static_cast<int>(seed), t.index, pos.back(),
+            heading_err_deg(fix.fix.pose.theta_rad, t.pose.theta_rad),
+            std::sqrt(fix.fix.cov[0] + fix.fix.cov[4]), rad_to_deg(std::sqrt(fix.fix.cov[8])),
+            fix.sides_seen, fix.coverage[0], fix.coverage[1], fix.coverage[2], fix.coverage[3]);
       }
     }
   }
-  std::printf("random parcels: %d fits, %d refused, %d outside their covariance (chi2 0.999); "
-              "position p50 %.1f p95 %.1f mm\n",
-              fits, refused, wrong, percentile(pos, 0.5), percentile(pos, 0.95));
+  std::printf(
+      "random parcels: %d fits, %d refused, %d outside their covariance (chi2 0.999); "
+      "position p50 %.1f p95 %.1f mm\n",
+      fits, refused, wrong, percentile(pos, 0.5), percentile(pos, 0.95));
   EXPECT_GE(fits, 12);
   EXPECT_LE(wrong, 2);
 }
@@ -354,8 +357,8 @@ TEST(TrayFit, BadInput) {
   EXPECT_NE(why.find("8-bit gray"), std::string::npos) << why;
   EXPECT_FALSE(fit_tray(cv::Mat(720, 1280, CV_8UC3, cv::Scalar::all(100)), f.cam, agv, t, cov, {},
                         &fix, &why));
-  EXPECT_FALSE(fit_tray(cv::Mat(360, 640, CV_8UC1, cv::Scalar(100)), f.cam, agv, t, cov, {}, &fix,
-                        &why));
+  EXPECT_FALSE(
+      fit_tray(cv::Mat(360, 640, CV_8UC1, cv::Scalar(100)), f.cam, agv, t, cov, {}, &fix, &why));
   EXPECT_FALSE(fit_tray(f.r.image, f.cam, agv, t, cov, {}, nullptr, &why));
   EXPECT_FALSE(f.fit(0, {std::nan(""), t.y_mm, 0.0}, cov, &fix, &why));
   EXPECT_NE(why.find("not finite"), std::string::npos) << why;
@@ -371,8 +374,8 @@ TEST(TrayFit, BadInput) {
   EXPECT_FALSE(fit_tray(f.r.image, f.cam, no_tray, t, cov, {}, &fix, &why));
   EXPECT_NE(why.find("tray size"), std::string::npos) << why;
   // Flat and noise frames: no tray, no crash.
-  EXPECT_FALSE(fit_tray(cv::Mat(720, 1280, CV_8UC1, cv::Scalar(0)), f.cam, agv, t, cov, {}, &fix,
-                        &why));
+  EXPECT_FALSE(
+      fit_tray(cv::Mat(720, 1280, CV_8UC1, cv::Scalar(0)), f.cam, agv, t, cov, {}, &fix, &why));
   cv::Mat noise(720, 1280, CV_8UC1);
   cv::randu(noise, 0, 256);
   std::string noise_why;

@@ -140,8 +140,11 @@ double vote_centre(const std::vector<PlaneEdge>& edges, const site::FleetAgv& ag
   std::vector<double> sm(static_cast<std::size_t>(n));
   double height = 0.0;
   for (int axis = 0; axis < 2; ++axis) {
-    const auto at = [&](int b) { return b >= 0 && b < n ? h[axis][static_cast<std::size_t>(b)] : 0.0; };
-    for (int b = 0; b < n; ++b) sm[static_cast<std::size_t>(b)] = at(b - 1) + 2.0 * at(b) + at(b + 1);
+    const auto at = [&](int b) {
+      return b >= 0 && b < n ? h[axis][static_cast<std::size_t>(b)] : 0.0;
+    };
+    for (int b = 0; b < n; ++b)
+      sm[static_cast<std::size_t>(b)] = at(b - 1) + 2.0 * at(b) + at(b + 1);
     std::vector<std::pair<double, int>> top;
     for (int b = 0; b < n; ++b) {
       const double v = sm[static_cast<std::size_t>(b)];
@@ -198,10 +201,10 @@ bool side_of(const PlaneEdge& e, const Box& b, const Axes& ax, const site::Fleet
 
 struct Fitted {
   Box box;
-  std::vector<int> side;      // per edge, -1 when none
-  std::vector<double> w, r;   // Tukey weight and residual per edge
-  double h[9] = {};           // sum of w J J^T
-  double s2 = 0.0;            // weighted residual variance, mm^2
+  std::vector<int> side;     // per edge, -1 when none
+  std::vector<double> w, r;  // Tukey weight and residual per edge
+  double h[9] = {};          // sum of w J J^T
+  double s2 = 0.0;           // weighted residual variance, mm^2
 };
 
 bool invert3(const double* a, double* inv) {
@@ -292,39 +295,6 @@ std::string fmt(const char* f, double a, double b = 0.0) {
   return buf;
 }
 
-}  // namespace tray_fit_detail
-
-std::string validate(const TrayFitParams& p) {
-  if (!(p.min_gradient > 0.0) || !std::isfinite(p.min_gradient)) return "min_gradient must be > 0";
-  if (!(p.sigma_window >= 1.0) || !std::isfinite(p.sigma_window)) return "sigma_window must be >= 1";
-  if (!(p.margin_mm >= 0.0) || !std::isfinite(p.margin_mm)) return "margin_mm must be >= 0";
-  if (!(p.max_position_sigma_mm > 0.0) || !std::isfinite(p.max_position_sigma_mm)) {
-    return "max_position_sigma_mm must be > 0";
-  }
-  if (!(p.class_tol_rad > 0.0 && p.class_tol_rad < 0.25 * kPi)) {
-    return "class_tol_rad must be in (0, pi/4)";
-  }
-  if (!(p.min_side_coverage > 0.0 && p.min_side_coverage <= 1.0)) {
-    return "min_side_coverage must be in (0, 1]";
-  }
-  if (!(p.on_line_px > 0.0) || !std::isfinite(p.on_line_px)) return "on_line_px must be > 0";
-  if (!(p.rim_depth_mm >= 0.0) || !std::isfinite(p.rim_depth_mm)) return "rim_depth_mm must be >= 0";
-  if (!(p.max_size_error_mm > 0.0) || !(p.max_size_error_px > 0.0) ||
-      !std::isfinite(p.max_size_error_mm) || !std::isfinite(p.max_size_error_px)) {
-    return "max_size_error_mm and max_size_error_px must be > 0";
-  }
-  if (!(p.edge_correlation >= 1.0) || !std::isfinite(p.edge_correlation)) {
-    return "edge_correlation must be >= 1";
-  }
-  if (!(p.side_offset_sigma_px >= 0.0) || !std::isfinite(p.side_offset_sigma_px)) {
-    return "side_offset_sigma_px must be >= 0";
-  }
-  if (p.iterations < 1 || p.iterations > 100) return "iterations must be in 1..100";
-  return "";
-}
-
-namespace tray_fit_detail {
-
 bool check_input(const cv::Mat& gray, const site::CeilingCamera& cam, const site::FleetAgv& agv,
                  const Pose2& predicted, const std::array<double, 9>& cov, const TrayFitParams& p,
                  std::string* why) {
@@ -334,8 +304,8 @@ bool check_input(const cv::Mat& gray, const site::CeilingCamera& cam, const site
     return fail(why, "image is not 8-bit gray of the camera's size");
   }
   const double sizes[3] = {agv.tray_length_mm, agv.tray_width_mm, agv.tray_height_mm};
-  if (!(sizes[0] > 0.0 && sizes[1] > 0.0) || !std::isfinite(sizes[0]) ||
-      !std::isfinite(sizes[1]) || !std::isfinite(sizes[2])) {
+  if (!(sizes[0] > 0.0 && sizes[1] > 0.0) || !std::isfinite(sizes[0]) || !std::isfinite(sizes[1]) ||
+      !std::isfinite(sizes[2])) {
     return fail(why, "vehicle " + agv.id + ": tray size is not positive and finite");
   }
   if (!std::isfinite(predicted.x_mm) || !std::isfinite(predicted.y_mm) ||
@@ -372,7 +342,8 @@ void side_stats(const std::vector<PlaneEdge>& edges, const Fitted& f, const site
       const Vec2 d{edges[i].q.x - f.box.c.x, edges[i].q.y - f.box.c.y};
       const double along = -d.x * n.y + d.y * n.x;
       const int b = static_cast<int>(std::floor((along + half) / (2.0 * half) * bins));
-      if (b >= 0 && b < bins && std::abs(f.r[i]) <= on_line_mm) hit[static_cast<std::size_t>(b)] = 1;
+      if (b >= 0 && b < bins && std::abs(f.r[i]) <= on_line_mm)
+        hit[static_cast<std::size_t>(b)] = 1;
     }
     double covered = 0.0;
     for (const char h : hit) covered += h;
@@ -404,9 +375,8 @@ double rim_coverage(const std::vector<PlaneEdge>& edges, const Box& box, const s
     const Vec2 n = ax.normal(k);
     const double h = half_across(k, agv), half = half_along(k, agv);
     const Vec2 mid{box.c.x + h * n.x, box.c.y + h * n.y};
-    const double out =
-        (n.x * (rim.foot.x - mid.x) + n.y * (rim.foot.y - mid.y)) * rim.depth_mm /
-        (rim.height_mm + rim.depth_mm);
+    const double out = (n.x * (rim.foot.x - mid.x) + n.y * (rim.foot.y - mid.y)) * rim.depth_mm /
+                       (rim.height_mm + rim.depth_mm);
     if (!(out > 2.0 * on_line_mm)) continue;  // not facing the camera, or the lines merge
     const int bins = std::max(1, static_cast<int>(std::lround(half / mm_per_px)));
     hit.assign(static_cast<std::size_t>(bins), 0);
@@ -429,9 +399,8 @@ double rim_coverage(const std::vector<PlaneEdge>& edges, const Box& box, const s
 // Covariance of (cx, cy, theta): the residuals' scatter, each counted once per `correlation`
 // neighbours, plus an error of every side's line (an offset and a turn: the edge model, the
 // plate's face, a parcel's edge along part of it) carried through the fit.
-void box_covariance(const std::vector<PlaneEdge>& edges, const Fitted& f,
-                    const site::FleetAgv& agv, double correlation, double side_sigma_mm,
-                    std::array<double, 9>* cov) {
+void box_covariance(const std::vector<PlaneEdge>& edges, const Fitted& f, const site::FleetAgv& agv,
+                    double correlation, double side_sigma_mm, std::array<double, 9>* cov) {
   double inv[9];
   invert3(f.h, inv);  // succeeded in refine
   for (int i = 0; i < 9; ++i) (*cov)[static_cast<std::size_t>(i)] = f.s2 * correlation * inv[i];
@@ -460,7 +429,8 @@ void box_covariance(const std::vector<PlaneEdge>& edges, const Fitted& f,
       }
       for (int a = 0; a < 3; ++a) {
         for (int b = 0; b < 3; ++b) {
-          (*cov)[static_cast<std::size_t>(3 * a + b)] += side_sigma_mm * side_sigma_mm * g[a] * g[b];
+          (*cov)[static_cast<std::size_t>(3 * a + b)] +=
+              side_sigma_mm * side_sigma_mm * g[a] * g[b];
         }
       }
     }
@@ -504,7 +474,8 @@ bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::F
   const double max_size_err = std::max(p.max_size_error_mm, p.max_size_error_px * win.mm_per_px);
   const double on_line_mm = p.on_line_px * win.mm_per_px;
   const RimView rim{{cam.t_site_cam_mm[0] - predicted.x_mm, cam.t_site_cam_mm[1] - predicted.y_mm},
-                    cam.t_site_cam_mm[2] - agv.tray_height_mm, p.rim_depth_mm};
+                    cam.t_site_cam_mm[2] - agv.tray_height_mm,
+                    p.rim_depth_mm};
   // Every hypothesis refined a little and scored by the outline it explains: a parcel's edge
   // can out-vote a tray side it hides, but not the whole outline.
   Fitted f, trial;
@@ -514,8 +485,7 @@ bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::F
   double mean_r[kSides];
   std::vector<double> done;
   for (const double coarse : orientations(edges, predicted.theta_rad, allowed)) {
-    const double theta =
-        sharpen(edges, agv, coarse, win.reach_mm, bin_mm, p.class_tol_rad, peaks);
+    const double theta = sharpen(edges, agv, coarse, win.reach_mm, bin_mm, p.class_tol_rad, peaks);
     // Neighbouring histogram peaks often sharpen to the same orientation: its hypotheses once.
     bool again = false;
     for (const double t : done) again = again || axis_distance(t, theta) < 0.5 * kSharpenStepRad;
@@ -541,8 +511,8 @@ bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::F
           const bool both = seen_k(axis) && seen_k(axis + 2);
           if (both && std::abs(mean_r[axis] + mean_r[axis + 2]) > max_size_err) score -= 1.0;
         }
-        score += kRimWeight * rim_coverage(edges, trial.box, agv, rim, on_line_mm,
-                                           win.mm_per_px, p.class_tol_rad);
+        score += kRimWeight * rim_coverage(edges, trial.box, agv, rim, on_line_mm, win.mm_per_px,
+                                           p.class_tol_rad);
         if (score > best) best = score, f = trial;
       }
     }
@@ -573,14 +543,15 @@ bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::F
     }
   }
   // The half-turn (quarter-turn for a square) nearest the prediction.
-  const double theta = f.box.theta +
-                       period * std::round((predicted.theta_rad - f.box.theta) / period);
+  const double theta =
+      f.box.theta + period * std::round((predicted.theta_rad - f.box.theta) / period);
   r.heading_from_prediction_rad = std::abs(wrap_angle_rad(theta - predicted.theta_rad));
   if (r.heading_from_prediction_rad > period / 3.0) {
     return fail(why, fmt("tray heading %.0f deg from the prediction: ambiguous",
                          rad_to_deg(r.heading_from_prediction_rad)));
   }
-  box_covariance(edges, f, agv, p.edge_correlation, p.side_offset_sigma_px * win.mm_per_px, &r.fix.cov);
+  box_covariance(edges, f, agv, p.edge_correlation, p.side_offset_sigma_px * win.mm_per_px,
+                 &r.fix.cov);
   r.fix.pose = {predicted.x_mm + f.box.c.x, predicted.y_mm + f.box.c.y, wrap_angle_rad(theta)};
   r.residual_mm = std::sqrt(f.s2);
   r.fix.residual_mm = r.residual_mm;

@@ -90,9 +90,9 @@ class PlaneGrid {
     nodes_.resize(static_cast<std::size_t>(nx_ * ny_));
     for (int j = 0; j < ny_; ++j) {
       for (int i = 0; i < nx_; ++i) {
-        const Vec2 px{static_cast<double>(x0_ + i * kStepPx), static_cast<double>(y0_ + j * kStepPx)};
-        if (!pixel_to_plane(cam, px, z,
-                            &nodes_[static_cast<std::size_t>(j * nx_ + i)])) {
+        const Vec2 px{static_cast<double>(x0_ + i * kStepPx),
+                      static_cast<double>(y0_ + j * kStepPx)};
+        if (!pixel_to_plane(cam, px, z, &nodes_[static_cast<std::size_t>(j * nx_ + i)])) {
           return false;
         }
       }
@@ -139,7 +139,8 @@ void plane_edges(const cv::Mat& gray, const site::CeilingCamera& cam, const site
   // pixel) at its centre carries every edge's direction onto the plane.
   const Vec2 mid{win.roi.x + 0.5 * win.roi.width, win.roi.y + 0.5 * win.roi.height};
   Vec2 p0, px_step, py_step;
-  if (!pixel_to_plane(cam, mid, z, &p0) || !pixel_to_plane(cam, {mid.x + 1.0, mid.y}, z, &px_step) ||
+  if (!pixel_to_plane(cam, mid, z, &p0) ||
+      !pixel_to_plane(cam, {mid.x + 1.0, mid.y}, z, &px_step) ||
       !pixel_to_plane(cam, {mid.x, mid.y + 1.0}, z, &py_step)) {
     return;
   }
@@ -159,8 +160,8 @@ void plane_edges(const cv::Mat& gray, const site::CeilingCamera& cam, const site
       const double after = static_cast<double>(bilinear(mag, x + ux, y + uy));
       if (!(g > before && g >= after)) continue;
       const double curvature = before - 2.0 * g + after;
-      const double t = curvature < 0.0 ? std::clamp(0.5 * (before - after) / curvature, -0.5, 0.5)
-                                       : 0.0;
+      const double t =
+          curvature < 0.0 ? std::clamp(0.5 * (before - after) / curvature, -0.5, 0.5) : 0.0;
       const Vec2 px{win.roi.x + x + t * ux, win.roi.y + y + t * uy};
       const Vec2 a = grid.at(px);
       // The gradient's axis on the plane: the edge's tangent (-uy, ux) carried over, turned.

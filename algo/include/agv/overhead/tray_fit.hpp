@@ -57,10 +57,10 @@ struct TrayFitParams {
 
 struct TrayFix {
   TagFix fix;  // centre and heading in the site frame with their covariance: the tracker's input
-  int sides_seen = 0;                  // sides with enough support (2..4)
-  std::array<double, 4> coverage{};    // front, left, rear, right: fraction of the side covered
-  std::array<int, 4> points{};         // edge points kept per side
-  double residual_mm = 0.0;            // weighted RMS of the edge points' distances
+  int sides_seen = 0;                    // sides with enough support (2..4)
+  std::array<double, 4> coverage{};      // front, left, rear, right: fraction of the side covered
+  std::array<int, 4> points{};           // edge points kept per side
+  double residual_mm = 0.0;              // weighted RMS of the edge points' distances
   double size_error_mm[2] = {0.0, 0.0};  // length, width: fitted minus known (0 when unseen)
   double heading_from_prediction_rad = 0.0;  // |fitted - predicted|, after resolving
 };
