@@ -1,10 +1,11 @@
 // A vehicle's pose from its tray's outline when a parcel hides its tag (paper 000 eq. 5-8: the
 // tray's oriented box; here the box is fitted, not learned). In the window around the predicted
 // tray, edge pixels (Prewitt, thinned along the gradient, sub-pixel) are carried onto the tray
-// plane, where the tray is an exact rectangle of known length and width; the edges' direction
-// classes and a vote of both sides of each axis find it, a robust least-squares fit of the
-// rectangle's centre and heading refines it, with a covariance from the fit's residuals and a
-// per-side offset term. Parcels crossing an edge only remove that edge's points: two adjacent
+// plane, where the tray is an exact rectangle of known length and width. The edges' directions
+// give the candidate headings, a vote of both sides of each axis the candidate centres; each
+// candidate is refined briefly and the one that explains most of the outline (and of the tray's
+// side face, on the sides facing the camera) is refined by robust least squares of the centre and
+// heading, with a covariance from the fit's residuals and a per-side line error. Parcels crossing an edge only remove that edge's points: two adjacent
 // sides are enough with the known size. A rectangle looks the same turned half a turn, so the
 // heading is taken nearest the prediction, and the fit is refused when the prediction's heading
 // sigma cannot tell the two apart. Pure.
@@ -72,7 +73,9 @@ std::string validate(const TrayFitParams& p);
 // (predicted_cov: x_mm, y_mm, theta_rad, row-major). True with *out; false with the reason in
 // *why (when not null) for bad input (image not 8-bit gray of the camera's size, non-finite or
 // non-positive-definite prediction, bad sizes or parameters), a prediction too uncertain, a tray
-// outside the image, too few sides seen, or a size that does not match the known tray.
+// outside the image, too few sides seen (one of front/rear and one of left/right are needed), a
+// size that does not match the known tray, or a heading more than a third of the symmetry period
+// from the prediction.
 bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::FleetAgv& agv,
               const Pose2& predicted, const std::array<double, 9>& predicted_cov,
               const TrayFitParams& p, TrayFix* out, std::string* why = nullptr);
