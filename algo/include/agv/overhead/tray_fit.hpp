@@ -5,10 +5,10 @@
 // give the candidate headings, a vote of both sides of each axis the candidate centres; each
 // candidate is refined briefly and the one that explains most of the outline (and of the tray's
 // side face, on the sides facing the camera) is refined by robust least squares of the centre and
-// heading, with a covariance from the fit's residuals and a per-side line error. Parcels crossing an edge only remove that edge's points: two adjacent
-// sides are enough with the known size. A rectangle looks the same turned half a turn, so the
-// heading is taken nearest the prediction, and the fit is refused when the prediction's heading
-// sigma cannot tell the two apart. Pure.
+// heading, with a covariance from the fit's residuals and a per-side line error. Parcels crossing
+// an edge only remove that edge's points: two adjacent sides are enough with the known size. A
+// rectangle looks the same turned half a turn, so the heading is taken nearest the prediction, and
+// the fit is refused when the prediction's heading sigma cannot tell the two apart. Pure.
 #pragma once
 
 #include <array>
