@@ -309,7 +309,9 @@ TEST(TrayFit, RandomParcels) {
   const sim::SiteFrameRenderer renderer(cam.intrinsics);
   int fits = 0, refused = 0, wrong = 0;
   std::vector<double> pos;
-  for (std::uint64_t seed = 40; seed < 45; ++seed) {
+  // 5 frames of 4 trays; 50 with AGV_TRAY_FIT_FULL=1.
+  const std::uint64_t frames = std::getenv("AGV_TRAY_FIT_FULL") ? 50 : 5;
+  for (std::uint64_t seed = 40; seed < 40 + frames; ++seed) {
     sim::SiteScene s = covered_scene(cam, seed);
     sim::add_random_parcels(&s, 1.0, seed);
     const sim::RenderResult r = renderer.render(s, sim::RenderCamera::from_ceiling(cam),
@@ -341,8 +343,8 @@ TEST(TrayFit, RandomParcels) {
       "random parcels: %d fits, %d refused, %d outside their covariance (chi2 0.999); "
       "position p50 %.1f p95 %.1f mm\n",
       fits, refused, wrong, percentile(pos, 0.5), percentile(pos, 0.95));
-  EXPECT_GE(fits, 12);
-  EXPECT_LE(wrong, 2);
+  EXPECT_GE(fits, static_cast<int>(2.4 * frames));  // 60 % of the trays
+  EXPECT_LE(wrong, std::max(2, fits / 10));
 }
 
 // Bad input: named refusals, never a crash.

@@ -31,6 +31,9 @@ constexpr double kSharpenStepRad = 0.4 * kPi / 180.0;
 constexpr int kScoringIterations = 2;
 // A rim line seen where the tray's side face should end counts this much of a side.
 constexpr double kRimWeight = 0.5;
+// Headings are searched this much beyond the prediction's sigma_window sigma (the histogram's
+// bins and the sharpening steps).
+constexpr double kHeadingSlackRad = 2.0 * kPi / 180.0;
 
 struct Box {
   Vec2 c;  // relative to the predicted centre, mm
@@ -467,7 +470,15 @@ bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::F
   thread_local std::vector<PlaneEdge> edges;
   plane_edges(gray, cam, agv, predicted, win, p, &edges);
 
-  const double allowed = std::min(p.sigma_window * sigma_theta + p.class_tol_rad, 0.5 * kPi);
+  // Headings and centres are searched, and kept, within the prediction's reach only: a parcel's
+  // lifted outline elsewhere can explain as much of the picture as the tray.
+  const double allowed = std::min(p.sigma_window * sigma_theta + kHeadingSlackRad, 0.5 * kPi);
+  const auto within_reach = [&](const Box& b) {
+    const Vec2 nx = side_normal(0, predicted.theta_rad), ny = side_normal(1, predicted.theta_rad);
+    return std::abs(b.c.x * nx.x + b.c.y * nx.y) <= win.reach_mm &&
+           std::abs(b.c.x * ny.x + b.c.y * ny.y) <= win.reach_mm &&
+           axis_distance(b.theta, predicted.theta_rad) <= allowed;
+  };
   const double bin_mm = std::max(1.0, 0.5 * win.mm_per_px);
   const double band_mm = std::max(2.0 * win.mm_per_px, 4.0 * bin_mm);
   const double min_sigma_mm = 0.05 * win.mm_per_px;
@@ -499,6 +510,7 @@ bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::F
                     &trial)) {
           continue;
         }
+        if (!within_reach(trial.box)) continue;
         side_stats(edges, trial, agv, win.mm_per_px, on_line_mm, &r, mean_r);
         const auto seen_k = [&](int k) {
           return r.coverage[static_cast<std::size_t>(k)] >= p.min_side_coverage;
@@ -520,6 +532,9 @@ bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::F
   if (!(best > 0.0)) return fail(why, "no tray edges in the window");
   if (!refine(edges, agv, band_mm, min_sigma_mm, p.class_tol_rad, p.iterations, &f)) {
     return fail(why, "too few tray edge points to fit");
+  }
+  if (!within_reach(f.box)) {
+    return fail(why, "the tray's outline lies beyond the prediction's reach");
   }
   r = TrayFix{};
   side_stats(edges, f, agv, win.mm_per_px, on_line_mm, &r, mean_r);
