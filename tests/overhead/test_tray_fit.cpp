@@ -101,6 +101,7 @@ struct FitRun {
   int refused = 0;
   std::string last_why;
   double fit_ms = 0.0;
+  int refused_other = 0;  // for another reason than too few sides seen
 };
 
 // frames x 4 covered trays, each fitted from a prediction drawn around the truth with the
@@ -130,6 +131,7 @@ FitRun accuracy_run(int scale, int frames) {
       if (!ok) {
         ++run.refused;
         run.last_why = why;
+        run.refused_other += why.find("too few tray sides") == std::string::npos ? 1 : 0;
         continue;
       }
       run.pos_mm.push_back(
@@ -159,8 +161,9 @@ FitRun accuracy_run(int scale, int frames) {
 // (NEES of a 3-dof error averages 3) without being loose.
 TEST(TrayFit, CoveredTagsAt1280) {
   const FitRun run = accuracy_run(1, 5);
-  EXPECT_EQ(run.refused, 0) << run.last_why;
-  ASSERT_GE(run.pos_mm.size(), 20U);
+  // A parcel or the image's edge may leave two sides only: refused by default (min_sides_seen).
+  EXPECT_EQ(run.refused_other, 0) << run.last_why;
+  ASSERT_GE(run.pos_mm.size(), 17U);
   EXPECT_LE(percentile(run.pos_mm, 0.95), 9.0);  // 8 mm per pixel on the tray plane
   EXPECT_LE(percentile(run.head_deg, 0.95), 0.8);
   EXPECT_LE(mean(run.nees), 6.0);
@@ -171,7 +174,7 @@ TEST(TrayFit, CoveredTagsAt1280) {
 TEST(TrayFit, CoveredTagsAt3840) {
   if (!std::getenv("AGV_TRAY_FIT_FULL")) GTEST_SKIP() << "set AGV_TRAY_FIT_FULL=1 to run";
   const FitRun run = accuracy_run(3, 10);
-  EXPECT_EQ(run.refused, 0) << run.last_why;
+  EXPECT_EQ(run.refused_other, 0) << run.last_why;
   EXPECT_LE(percentile(run.pos_mm, 0.95), 15.0);
   EXPECT_LE(percentile(run.head_deg, 0.95), 0.5);
 }
@@ -203,13 +206,15 @@ struct Frame {
 // heading is unknown (sigma 90 degrees) is refused with the reason.
 TEST(TrayFit, HalfTurnResolvedByThePrediction) {
   const Frame f(21);
+  TrayFitParams two_sides;  // one tray of the frame shows two sides only
+  two_sides.min_sides_seen = 2;
   for (std::size_t i = 0; i < f.r.agvs.size(); ++i) {
     const Pose2 t = f.r.agvs[i].pose;
     for (const double off_deg : {25.0, -25.0, 155.0, -160.0}) {
       const Pose2 pred{t.x_mm + 15.0, t.y_mm - 10.0, t.theta_rad + deg_to_rad(off_deg)};
       TrayFix fix;
       std::string why;
-      ASSERT_TRUE(f.fit(i, pred, diag_cov(20.0, deg_to_rad(10.0)), &fix, &why)) << why;
+      ASSERT_TRUE(f.fit(i, pred, diag_cov(20.0, deg_to_rad(10.0)), &fix, &why, two_sides)) << why;
       // The fit follows the prediction's half-turn: the truth, or the truth turned round.
       const double want = std::abs(off_deg) < 90.0 ? t.theta_rad : t.theta_rad + kPi;
       EXPECT_LT(heading_err_deg(fix.fix.pose.theta_rad, want), 1.0) << off_deg;
@@ -221,7 +226,7 @@ TEST(TrayFit, HalfTurnResolvedByThePrediction) {
     EXPECT_FALSE(f.fit(i, t, diag_cov(20.0, deg_to_rad(90.0)), &fix, &why));
     EXPECT_NE(why.find("cannot resolve"), std::string::npos) << why;
     // 3 sigma just below a third of the half-turn is still resolved.
-    EXPECT_TRUE(f.fit(i, t, diag_cov(20.0, deg_to_rad(19.0)), &fix, &why)) << why;
+    EXPECT_TRUE(f.fit(i, t, diag_cov(20.0, deg_to_rad(19.0)), &fix, &why, two_sides)) << why;
   }
 }
 
@@ -308,6 +313,7 @@ TEST(TrayFit, RandomParcels) {
   const site::CeilingCamera cam = camera(1);
   const sim::SiteFrameRenderer renderer(cam.intrinsics);
   int fits = 0, refused = 0, wrong = 0;
+  int by_sides[5] = {0, 0, 0, 0, 0}, wrong_by_sides[5] = {0, 0, 0, 0, 0};
   std::vector<double> pos;
   // 5 frames of 4 trays; 50 with AGV_TRAY_FIT_FULL=1.
   const std::uint64_t frames = std::getenv("AGV_TRAY_FIT_FULL") ? 50 : 5;
@@ -328,6 +334,8 @@ TEST(TrayFit, RandomParcels) {
       ++fits;
       pos.push_back(std::hypot(fix.fix.pose.x_mm - t.pose.x_mm, fix.fix.pose.y_mm - t.pose.y_mm));
       wrong += nees(fix.fix, t.pose) > 16.27 ? 1 : 0;
+      ++by_sides[fix.sides_seen];
+      wrong_by_sides[fix.sides_seen] += nees(fix.fix, t.pose) > 16.27 ? 1 : 0;
       if (nees(fix.fix, t.pose) > 16.27) {
         std::printf(
             "  outside: seed %d agv %zu err %.1f mm %.2f deg (sigma %.1f mm %.2f deg), "
@@ -341,8 +349,9 @@ TEST(TrayFit, RandomParcels) {
   }
   std::printf(
       "random parcels: %d fits, %d refused, %d outside their covariance (chi2 0.999); "
-      "position p50 %.1f p95 %.1f mm\n",
-      fits, refused, wrong, percentile(pos, 0.5), percentile(pos, 0.95));
+      "position p50 %.1f p95 %.1f mm; by sides seen 2/3/4: %d/%d/%d fits, %d/%d/%d outside\n",
+      fits, refused, wrong, percentile(pos, 0.5), percentile(pos, 0.95), by_sides[2], by_sides[3],
+      by_sides[4], wrong_by_sides[2], wrong_by_sides[3], wrong_by_sides[4]);
   EXPECT_GE(fits, static_cast<int>(2.4 * frames));  // 60 % of the trays
   EXPECT_LE(wrong, std::max(2, fits / 10));
 }
@@ -400,6 +409,7 @@ TEST(TrayFitParams, Validate) {
   named([](TrayFitParams* p) { p->min_side_coverage = 0.0; }, "min_side_coverage");
   named([](TrayFitParams* p) { p->on_line_px = 0.0; }, "on_line_px");
   named([](TrayFitParams* p) { p->rim_depth_mm = -1.0; }, "rim_depth_mm");
+  named([](TrayFitParams* p) { p->min_sides_seen = 1; }, "min_sides_seen");
   named([](TrayFitParams* p) { p->max_size_error_px = 0.0; }, "max_size_error");
   named([](TrayFitParams* p) { p->edge_correlation = 0.5; }, "edge_correlation");
   named([](TrayFitParams* p) { p->side_offset_sigma_px = -1.0; }, "side_offset_sigma_px");

@@ -543,7 +543,7 @@ bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::F
     seen[k] = r.coverage[static_cast<std::size_t>(k)] >= p.min_side_coverage;
     r.sides_seen += seen[k] ? 1 : 0;
   }
-  if (!(seen[0] || seen[2]) || !(seen[1] || seen[3])) {
+  if (!(seen[0] || seen[2]) || !(seen[1] || seen[3]) || r.sides_seen < p.min_sides_seen) {
     return fail(why, fmt("too few tray sides seen (front/rear %.0f%%, left/right %.0f%% covered)",
                          100.0 * std::max(r.coverage[0], r.coverage[2]),
                          100.0 * std::max(r.coverage[1], r.coverage[3])));
