@@ -213,6 +213,26 @@ TEST(CameraFrame, ACoveredTagGetsNoFixAndItsTrackCoasts) {
   EXPECT_GT(r.counters.back().windows_area, 0u);
 }
 
+TEST(CameraFrame, ATagPredictedAcrossTheImageEdgeIsNoMiss) {
+  // Two tracks, no tags in the frame: the one predicted wholly inside the image missed, the one
+  // predicted across the right edge (x about 2.6 m at tray height) may simply be out of view.
+  const site::CeilingCamera cam = test_camera();
+  CameraFrameProcessor proc({cam}, {agv("inside", 1), agv("edge", 2)}, {}, {});
+  FleetTracker tracker(2);
+  TagFix fix;
+  fix.cov = {1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1e-4};
+  fix.pose = {0.0, 0.0, 0.0};
+  ASSERT_EQ(tracker.add_fix(0, 0, fix), FixResult::kStarted);
+  fix.pose = {2620.0, 0.0, 0.0};
+  ASSERT_EQ(tracker.add_fix(1, 0, fix), FixResult::kStarted);
+  const cv::Mat blank(720, 1280, CV_8UC1, cv::Scalar(128));
+  std::string error;
+  ASSERT_TRUE(proc.process(0, 10'000'000, blank, &tracker, nullptr, &error)) << error;
+  EXPECT_EQ(proc.counters().windows_track, 2u);
+  EXPECT_EQ(proc.search_state(0).missed[0], 1u);
+  EXPECT_EQ(proc.search_state(0).missed[1], 0u);
+}
+
 TEST(CameraFrame, BadInputIsRefusedWithAReason) {
   const site::CeilingCamera cam = test_camera();
   CameraFrameProcessor proc({cam}, {agv("a1", 1)}, {}, {});

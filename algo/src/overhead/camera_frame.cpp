@@ -32,6 +32,17 @@ std::vector<const SearchWindow*> in_level_order(const std::vector<SearchWindow>&
   return order;
 }
 
+bool wholly_inside(const std::array<Vec2, 4>& corners_px, int width_px, int height_px) {
+  constexpr double kMarginPx = 2.0;
+  for (const Vec2& c : corners_px) {
+    if (!(c.x >= kMarginPx && c.y >= kMarginPx && c.x <= width_px - 1 - kMarginPx &&
+          c.y <= height_px - 1 - kMarginPx)) {
+      return false;
+    }
+  }
+  return true;
+}
+
 }  // namespace
 
 // State of one call, so that the steps below stay short.
@@ -80,8 +91,12 @@ bool CameraFrameProcessor::process(std::size_t camera, std::int64_t t_ns, const 
   w.found.assign(fleet_.size(), 0);
   w.looked_for.assign(fleet_.size(), 0);
   for (const SearchWindow* win : in_level_order(windows)) {
+    // A tag predicted across the image's edge may well be out of it: not finding it there is
+    // no miss (an area search of its camera would cost much and find it no better).
+    const bool expected = win->level != SearchLevel::kTrack ||
+                          wholly_inside(win->predicted_corners_px, k.width_px, k.height_px);
     for (std::size_t agv : win->agvs) {
-      if (agv < fleet_.size()) w.looked_for[agv] = 1;
+      if (agv < fleet_.size() && expected) w.looked_for[agv] = 1;
     }
     switch (win->level) {
       case SearchLevel::kTrack:
@@ -99,7 +114,8 @@ bool CameraFrameProcessor::process(std::size_t camera, std::int64_t t_ns, const 
     }
   }
   // A vehicle found by any window is back on its track window next frame; one that a window
-  // expected and that none found widens its search; the others (not in this view) keep theirs.
+  // expected wholly in the image and that none found widens its search; the others (not in
+  // this view, or at its edge) keep theirs.
   for (std::size_t i = 0; i < fleet_.size(); ++i) {
     if (w.found[i]) {
       state.missed[i] = 0;

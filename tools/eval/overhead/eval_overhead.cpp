@@ -287,7 +287,7 @@ int run(const Options& o) {
     if (o.apriltag_every > 0 && frame_index % static_cast<std::size_t>(o.apriltag_every) == 0) {
       score.apriltag_ms.push_back(apriltag_full_frame_ms(img));
     }
-    agv::eval::score_detections(dets, corners, in_image, flipped, tracked, &score);
+    agv::eval::score_detections(dets, corners, ok, in_image, flipped, tracked, &score);
     ++frame_index;
   }
   while (next_tick <= end_ns) {

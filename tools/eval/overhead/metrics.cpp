@@ -92,6 +92,7 @@ void score_tick(const std::vector<overhead::TrackOutput>& outs,
 
 void score_detections(const std::vector<overhead::Detection>& dets,
                       const std::vector<std::array<Vec2, 4>>& truth_corners,
+                      const std::vector<std::uint8_t>& projected,
                       const std::vector<std::uint8_t>& in_image,
                       const std::vector<std::uint8_t>& flipped,
                       const std::vector<std::uint8_t>& tracked, Score* s) {
@@ -109,7 +110,7 @@ void score_detections(const std::vector<overhead::Detection>& dets,
     std::size_t best = truth_corners.size();
     double best_d = 0.5 * side;
     for (std::size_t j = 0; j < truth_corners.size(); ++j) {
-      if (!in_image[j]) continue;
+      if (!projected[j]) continue;
       const Vec2 t = centre(truth_corners[j]);
       const double dd = std::hypot(t.x - c.x, t.y - c.y);
       if (dd < best_d) best_d = dd, best = j;
@@ -131,7 +132,7 @@ void score_detections(const std::vector<overhead::Detection>& dets,
     }
   }
   for (std::size_t j = 0; j < flipped.size() && j < read.size(); ++j) {
-    if (!flipped[j]) continue;
+    if (!flipped[j] || !in_image[j]) continue;
     if (read[j] && !right[j]) ++s->flipped_wrong;
     if (j < tracked.size() && tracked[j]) {
       ++s->flipped;

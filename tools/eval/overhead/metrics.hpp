@@ -46,11 +46,13 @@ void score_tick(const std::vector<overhead::TrackOutput>& outs,
                 const std::vector<sim::AgvState>& truth, const std::vector<std::uint8_t>& in_view,
                 Score* s);
 
-// One frame's detections against its rendered tags (corners page order, ok = projected inside
-// the image); flipped marks the vehicles whose tag had cells overwritten in this frame, tracked
-// those that had a track (tentative, confirmed or coasting) when the frame was processed.
+// One frame's detections against its rendered tags (corners page order; projected: in front of
+// the camera, matched against; in_image: wholly inside the image, counted for bit errors); flipped
+// marks the vehicles whose tag had cells overwritten in this frame, tracked those that had a track
+// (tentative, confirmed or coasting) when the frame was processed.
 void score_detections(const std::vector<overhead::Detection>& dets,
                       const std::vector<std::array<Vec2, 4>>& truth_corners,
+                      const std::vector<std::uint8_t>& projected,
                       const std::vector<std::uint8_t>& in_image,
                       const std::vector<std::uint8_t>& flipped,
                       const std::vector<std::uint8_t>& tracked, Score* s);
