@@ -29,7 +29,8 @@ struct MqttOutput {
 };
 
 // cameras.<id>.*: one ceiling camera of the site (matched by id). The live settings are used by
-// `run` only, latency_ms by `replay` only (live frames are processed as they really arrive).
+// `run` and `record`, latency_ms by `replay` only (live frames are processed as they really
+// arrive). driver: v4l2, libcamera or aravis.
 struct CameraSettings {
   double latency_ms = 0.0;
   std::string driver = "v4l2";

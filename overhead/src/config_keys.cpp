@@ -168,15 +168,17 @@ const std::vector<CameraKey>& camera_keys() {
                 "replay: exposure to the frame's arrival at the tracker (fixes keep their "
                 "exposure time; the tracker applies a late fix where it belongs)"),
       string<C>("driver", AGV_OH_AT(driver), "v4l2",
-                "run: the live driver, as on the vehicle (docs/guide/camera.md)",
-                {"v4l2", "libcamera"}),
+                "run, record: the live driver (docs/guide/camera.md); aravis: GigE Vision / USB3 "
+                "Vision, frames stamped by the camera's clock",
+                {"v4l2", "libcamera", "aravis"}),
       string<C>("device", AGV_OH_AT(device), "",
-                "run: V4L2 device node (/dev/video0) or libcamera camera id; empty: not opened"),
-      number<C>("fps", AGV_OH_AT(fps), 1, 240, 30.0, "Hz", "run: the camera's frame rate"),
+                "run, record: V4L2 device node (/dev/video0), libcamera camera id, or Aravis "
+                "device id or IP address; empty: not opened"),
+      number<C>("fps", AGV_OH_AT(fps), 1, 240, 30.0, "Hz", "run, record: the camera's frame rate"),
       integer<C>("exposure_us", AGV_OH_AT(exposure_us), 10, 1000000, 500, "µs",
-                 "run: fixed exposure; blur = speed x exposure (1 mm at 2 m/s for 500 µs)"),
+                 "run, record: fixed exposure; blur = speed x exposure (1 mm at 2 m/s for 500 µs)"),
       number<C>("analogue_gain", AGV_OH_AT(analogue_gain), 1, 64, 1.0, "",
-                "run: fixed analogue gain (brightens, adds noise)"),
+                "run, record: fixed analogue gain (brightens, adds noise)"),
   };
   return keys;
 }

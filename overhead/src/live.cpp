@@ -13,21 +13,16 @@
 #ifdef AGV_HAVE_LIBCAMERA
 #include "agv/libcamera/libcamera_camera.hpp"
 #endif
+#ifdef AGV_HAVE_ARAVIS
+#include "agv/aravis/aravis_camera.hpp"
+#endif
 
 namespace agv::overhead_app {
 
 namespace {
 
-constexpr std::int64_t kFrameWaitNs = 100'000'000;
-constexpr auto kReopenEvery = std::chrono::seconds(1);
 // Frames waiting per camera: more means the pipeline is behind; the oldest goes (counted).
 constexpr std::size_t kQueuePerCamera = 2;
-
-struct LiveFrame {
-  std::size_t camera = 0;  // site camera
-  std::int64_t t_ns = 0;
-  cv::Mat gray;
-};
 
 class FrameQueue {
  public:
@@ -74,73 +69,7 @@ class FrameQueue {
   std::uint64_t dropped_ = 0;
 };
 
-void log_camera(const LiveCamera& c, const std::string& what) {
-  std::fprintf(stderr, "agvloc-overhead run: camera %s: %s\n", c.id.c_str(), what.c_str());
-}
-
-cv::Mat copy_frame(const hal::FrameView& f) {
-  cv::Mat out(f.height_px, f.width_px, CV_8UC1);
-  for (int y = 0; y < f.height_px; ++y) {
-    std::memcpy(out.ptr(y), f.data + static_cast<std::ptrdiff_t>(y) * f.stride_bytes,
-                static_cast<std::size_t>(f.width_px));
-  }
-  return out;
-}
-
-// Sleeps until the next reopen, returning early when stopped.
-void wait_reopen(const std::atomic<bool>& stop) {
-  const auto until = std::chrono::steady_clock::now() + kReopenEvery;
-  while (!stop.load() && std::chrono::steady_clock::now() < until) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-}
-
-void camera_loop(LiveCamera* c, FrameQueue* q, const std::atomic<bool>& stop,
-                 std::atomic<std::uint64_t>* reopens) {
-  bool started = false, failing = false;
-  while (!stop.load()) {
-    if (!started) {
-      const hal::CameraStatus st = c->camera->start();
-      if (st != hal::CameraStatus::kOk) {
-        if (!failing)
-          log_camera(*c, std::string("cannot start (") + hal::to_string(st) + ": " +
-                             c->camera->last_error() + "); retrying every second");
-        failing = true;
-        c->camera->stop();
-        wait_reopen(stop);
-        continue;
-      }
-      if (failing) log_camera(*c, "streaming again");
-      started = true;
-      failing = false;
-    }
-    hal::FrameView f;
-    const hal::CameraStatus st = c->camera->next_frame(kFrameWaitNs, &f);
-    if (st == hal::CameraStatus::kOk) {
-      LiveFrame lf{c->site_camera, f.t_exposure_ns, copy_frame(f)};
-      c->camera->release(f);
-      q->push(std::move(lf));
-    } else if (st == hal::CameraStatus::kEndOfStream) {
-      break;
-    } else if (st != hal::CameraStatus::kTimeout) {
-      log_camera(*c,
-                 std::string(hal::to_string(st)) + " (" + c->camera->last_error() + "); reopening");
-      c->camera->stop();
-      started = false;
-      ++*reopens;
-    }
-  }
-  c->camera->stop();
-  q->camera_ended();
-}
-
 }  // namespace
-
-std::int64_t monotonic_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(
-             std::chrono::steady_clock::now().time_since_epoch())
-      .count();
-}
 
 hal::CameraConfig driver_config(const CameraSettings& s, const site::CeilingCamera& cam) {
   hal::CameraConfig c;
@@ -163,8 +92,18 @@ bool make_live_cameras(const OverheadConfig& cfg, const site::Site& site,
     const std::string verr = camera::validate_config(dc);
     if (!verr.empty()) return (*error = key + ": " + verr, false);
     LiveCamera lc{site.cameras[i].id, i, nullptr};
-    if (it->second.driver == "v4l2") {
+    const std::string& driver = it->second.driver;
+    if (driver == "v4l2") {
       lc.camera = std::make_unique<v4l2::V4l2Camera>(dc);
+    } else if (driver == "aravis") {
+#ifdef AGV_HAVE_ARAVIS
+      lc.camera = std::make_unique<aravis::AravisCamera>(dc);
+#else
+      return (*error = key +
+                       ".driver: aravis is not available in this build (rebuild with "
+                       "libaravis-dev installed)",
+              false);
+#endif
     } else {
 #ifdef AGV_HAVE_LIBCAMERA
       lc.camera = std::make_unique<libcam::LibcameraCamera>(dc);
@@ -187,12 +126,10 @@ bool make_live_cameras(const OverheadConfig& cfg, const site::Site& site,
 LiveCounters run_live(std::vector<LiveCamera>* cams, TrackerCore* core,
                       const std::atomic<bool>& stop, std::int64_t duration_ns) {
   FrameQueue q(cams->size());
-  std::atomic<bool> stop_cameras{false};
-  std::atomic<std::uint64_t> reopens{0};
-  std::vector<std::thread> threads;
-  for (LiveCamera& c : *cams) {
-    threads.emplace_back(camera_loop, &c, &q, std::cref(stop_cameras), &reopens);
-  }
+  CameraFeed feed(
+      cams, "agvloc-overhead run", [&q](LiveFrame&& f) { q.push(std::move(f)); },
+      [&q] { q.camera_ended(); });
+  feed.start();
   LiveCounters n;
   const std::int64_t period = core->period_ns();
   const std::int64_t t_end = duration_ns > 0 ? monotonic_ns() + duration_ns : INT64_MAX;
@@ -215,13 +152,13 @@ LiveCounters run_live(std::vector<LiveCamera>* cams, TrackerCore* core,
       next_tick = now;
     }
   }
-  stop_cameras.store(true);
-  for (std::thread& t : threads) t.join();
+  feed.stop();
   while (q.pop_until(std::chrono::steady_clock::now(), &f)) core->process(f.camera, f.t_ns, f.gray);
   core->publish(monotonic_ns());
   ++n.ticks;
   n.frames_dropped = q.dropped();
-  n.reopens = reopens.load();
+  n.cameras = feed.health();
+  for (const CameraHealth& h : n.cameras) n.reopens += h.reopens;
   return n;
 }
 

@@ -1,9 +1,10 @@
-// agvloc-overhead run: live ceiling cameras through the vehicle's camera drivers (V4L2,
-// libcamera; drivers/v4l2, drivers/libcamera). One thread per camera takes its frames (copied out
-// of the driver's buffer at once) into a bounded queue; the calling thread runs the pipeline on
-// them in arrival order and publishes every vehicle's state at output.rate_hz on CLOCK_MONOTONIC,
-// the clock of the drivers' exposure stamps. A camera that fails or disconnects is reopened at
-// once, then every second while it fails; its vehicles coast on the others meanwhile.
+// agvloc-overhead run: live ceiling cameras through the camera drivers (V4L2, libcamera, and
+// GigE Vision / USB3 Vision through Aravis where built with it; drivers/). The camera feed
+// (live_feed.hpp) takes each camera's frames into a bounded queue; the calling thread runs the
+// pipeline on them in arrival order and publishes every vehicle's state at output.rate_hz on
+// CLOCK_MONOTONIC, the clock of the drivers' exposure stamps. A camera that fails or disconnects
+// is a camera fault, reopened at once, then every second while it fails; its vehicles coast on
+// the others meanwhile.
 #pragma once
 
 #include <atomic>
@@ -16,14 +17,9 @@
 #include "agv/site/site.hpp"
 #include "config.hpp"
 #include "core.hpp"
+#include "live_feed.hpp"
 
 namespace agv::overhead_app {
-
-struct LiveCamera {
-  std::string id;
-  std::size_t site_camera = 0;  // index into site.cameras
-  std::unique_ptr<hal::Camera> camera;
-};
 
 // The driver's settings for a site camera: its image size from the site's intrinsics, the rest
 // from cameras.<id>.
@@ -36,13 +32,12 @@ bool make_live_cameras(const OverheadConfig& cfg, const site::Site& site,
 
 struct LiveCounters {
   std::uint64_t ticks = 0, ticks_skipped = 0, frames_dropped = 0, reopens = 0;
+  std::vector<CameraHealth> cameras;  // as the cameras were given
 };
 
 // Runs until `stop` is set, duration_ns has passed (0: no limit) or every camera has ended
 // (kEndOfStream, a scripted camera). Status lines go to stderr.
 LiveCounters run_live(std::vector<LiveCamera>* cams, TrackerCore* core,
                       const std::atomic<bool>& stop, std::int64_t duration_ns);
-
-std::int64_t monotonic_ns();
 
 }  // namespace agv::overhead_app

@@ -1,5 +1,5 @@
 // agvloc-overhead: the site's fleet tracked from ceiling cameras (docs/guide/overhead.md).
-// Subcommands: check-config, replay, run, config-doc.
+// Subcommands: check-config, replay, run, record, config-doc.
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -8,6 +8,7 @@
 
 #include "config.hpp"
 #include "inputs.hpp"
+#include "record.hpp"
 #include "replay.hpp"
 #include "run.hpp"
 
@@ -21,7 +22,11 @@ constexpr const char* kUsage =
     "  replay --config C --site SITE --recordings DIR... [--out OUT] [--fast]\n"
     "                                      track the fleet in recorded frames of ceiling cameras\n"
     "  run --config C --site SITE [--out OUT] [--duration-s S]\n"
-    "                                      live ceiling cameras (V4L2, libcamera) until SIGTERM\n"
+    "                                      live ceiling cameras (V4L2, libcamera, Aravis) until\n"
+    "                                      SIGTERM\n"
+    "  record --config C --site SITE --out DIR [--duration-s S]\n"
+    "                                      record every configured camera, one folder each under\n"
+    "                                      DIR, for replay\n"
     "  config-doc                          print the configuration key table (Markdown)\n"
     "Exit codes: 0 done, 1 failure while running, 2 bad input. docs/guide/overhead.md\n";
 
@@ -60,8 +65,9 @@ bool parse_replay(int argc, char** argv, ReplayArgs* a, std::string* error) {
   return true;
 }
 
-// Options of run; false with *error on an unknown, incomplete or out-of-range option.
-bool parse_run(int argc, char** argv, agv::overhead_app::RunArgs* a, std::string* error) {
+// Options of run and record; false with *error on an unknown, incomplete or out-of-range option.
+template <typename Args>
+bool parse_live(int argc, char** argv, Args* a, std::string* error) {
   for (int i = 0; i < argc; ++i) {
     const std::string o = argv[i];
     if (i + 1 >= argc || is_option(argv[i + 1])) return (*error = o + " needs a value", false);
@@ -139,8 +145,15 @@ int main(int argc, char** argv) {
   if (cmd == "run") {
     agv::overhead_app::RunArgs a;
     std::string err;
-    if (!parse_run(argc - 2, argv + 2, &a, &err)) return usage_error("run: " + err);
+    if (!parse_live(argc - 2, argv + 2, &a, &err)) return usage_error("run: " + err);
     return agv::overhead_app::run_live_command(a);
+  }
+  if (cmd == "record") {
+    agv::overhead_app::RecordArgs a;
+    std::string err;
+    if (!parse_live(argc - 2, argv + 2, &a, &err)) return usage_error("record: " + err);
+    if (a.out_dir.empty()) return usage_error("record: --out is required (the recording's folder)");
+    return agv::overhead_app::run_record_command(a);
   }
   return usage_error("unknown command '" + cmd + "'");
 }

@@ -57,6 +57,8 @@ int run_live_command(const RunArgs& args) {
       static_cast<unsigned long long>(n.ticks), static_cast<unsigned long long>(n.ticks_skipped),
       static_cast<unsigned long long>(n.frames_dropped),
       static_cast<unsigned long long>(n.reopens));
+  for (std::size_t i = 0; i < cams.size(); ++i)
+    std::printf("agvloc-overhead run: camera %s\n", describe(cams[i].id, n.cameras[i]).c_str());
   if (!core.finish("agvloc-overhead run", cams.size(), &err)) return run_fail(1, err);
   return 0;
 }
