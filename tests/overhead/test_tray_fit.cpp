@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -104,11 +105,19 @@ struct FitRun {
   int refused_other = 0;  // for another reason than too few sides seen
 };
 
+// The renderer's rays are computed once for every test's 1280 x 720 frames.
+const sim::SiteFrameRenderer& shared_renderer() {
+  static const sim::SiteFrameRenderer r(camera(1).intrinsics);
+  return r;
+}
+
 // frames x 4 covered trays, each fitted from a prediction drawn around the truth with the
 // prediction's own sigma.
 FitRun accuracy_run(int scale, int frames) {
   const site::CeilingCamera cam = camera(scale);
-  const sim::SiteFrameRenderer renderer(cam.intrinsics);
+  std::optional<sim::SiteFrameRenderer> own;
+  if (scale != 1) own.emplace(cam.intrinsics);
+  const sim::SiteFrameRenderer& renderer = own ? *own : shared_renderer();
   std::mt19937_64 rng(7);
   std::normal_distribution<double> n01;
   const double sp = 20.0, st = deg_to_rad(3.0);
@@ -187,13 +196,13 @@ struct Frame {
   explicit Frame(std::uint64_t seed, bool parcels = true) {
     scene = covered_scene(cam, seed);
     if (!parcels) scene.parcels.clear();
-    r = sim::render_site_frame(scene, sim::RenderCamera::from_ceiling(cam),
-                               sim::realistic_site_params(), seed);
+    r = shared_renderer().render(scene, sim::RenderCamera::from_ceiling(cam),
+                                 sim::realistic_site_params(), seed);
   }
   const Frame& modify(void (*f)(sim::SiteScene*)) {
     f(&scene);
-    r = sim::render_site_frame(scene, sim::RenderCamera::from_ceiling(cam),
-                               sim::realistic_site_params(), 3);
+    r = shared_renderer().render(scene, sim::RenderCamera::from_ceiling(cam),
+                                 sim::realistic_site_params(), 3);
     return *this;
   }
   bool fit(std::size_t i, const Pose2& pred, const std::array<double, 9>& cov, TrayFix* out,
@@ -311,7 +320,7 @@ TEST(TrayFit, ParcelsCrossingEdges) {
 // which is counted here and must stay rare.
 TEST(TrayFit, RandomParcels) {
   const site::CeilingCamera cam = camera(1);
-  const sim::SiteFrameRenderer renderer(cam.intrinsics);
+  const sim::SiteFrameRenderer& renderer = shared_renderer();
   int fits = 0, refused = 0, wrong = 0;
   int by_sides[5] = {0, 0, 0, 0, 0}, wrong_by_sides[5] = {0, 0, 0, 0, 0};
   std::vector<double> pos;
