@@ -130,7 +130,7 @@ void CameraFeed::camera_loop(std::size_t i) {
   auto fault = [&](const std::string& what, const char* then) {
     if (!failing) {
       ++h.faults;
-      log(i, "fault: " + what + "; " + then);
+      log(i, "fault after " + plural(h.frames, "frame", "frames") + ": " + what + "; " + then);
     }
     failing = true;
   };
@@ -147,7 +147,7 @@ void CameraFeed::camera_loop(std::size_t i) {
       }
       if (failing) {
         ++h.recoveries;
-        log(i, "streaming again");
+        log(i, "streaming again after " + plural(h.frames, "frame", "frames"));
       }
       started = true;
       failing = false;

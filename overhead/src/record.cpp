@@ -34,9 +34,9 @@ constexpr std::int64_t kSyncPeriodNs = 1'000'000'000;
 // PNG compression: the fastest level, as the vehicle's recorder writes at 30 fps.
 constexpr int kPngLevel = 1;
 
-std::atomic<bool> g_stop{false};
+std::atomic<bool> g_record_stop{false};
 
-extern "C" void on_record_signal(int) { g_stop.store(true); }
+extern "C" void on_record_signal(int) { g_record_stop.store(true); }
 
 // Writes `text` under a temporary name, then renames it: a reader sees the whole file or none.
 bool write_file_whole(const fs::path& path, const std::string& text, std::string* error) {
@@ -265,7 +265,7 @@ int run_record_command(const RecordArgs& args) {
   std::vector<CameraRecordCounters> counters;
   std::vector<CameraHealth> health;
   const std::string source = "agvloc-overhead record --site " + args.site_path;
-  if (!record_cameras(&cams, site, args.out_dir, source, g_stop,
+  if (!record_cameras(&cams, site, args.out_dir, source, g_record_stop,
                       static_cast<std::int64_t>(std::llround(args.duration_s * 1e9)), &counters,
                       &health, &err))
     return record_fail(2, err);

@@ -2,8 +2,10 @@
 // Debian aravis-tools) on the loopback interface: real GVCP control and GVSP streaming, real
 // camera timestamps, a camera that dies mid-stream.
 #include <gtest/gtest.h>
+#include <fcntl.h>
 #include <signal.h>
 #include <spawn.h>
+#include <sys/file.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
@@ -48,12 +50,20 @@ std::int64_t clock_ns(clockid_t id) {
 }
 
 // One fake camera process on 127.0.0.1 with a serial of its own. Only one can listen on the
-// GVCP port at a time, so a start that loses the port to another test's camera is retried.
+// GVCP port at a time: the tests that start one hold /tmp/agv-fake-gv.lock while it may run,
+// and a start that loses the port to another camera anyway is retried.
 // It is opened by address: the fake camera answers discovery on every interface, and Aravis
 // may keep eth0's answer and have the frames sent where its packet socket never sees them.
 class FakeCamera {
  public:
   bool start(const std::string& binary, std::string* error) {
+    if (lock_fd_ < 0) {
+      lock_fd_ = open("/tmp/agv-fake-gv.lock", O_RDWR | O_CREAT | O_CLOEXEC, 0666);
+      if (lock_fd_ < 0 || flock(lock_fd_, LOCK_EX) != 0) {
+        *error = "cannot lock /tmp/agv-fake-gv.lock";
+        return false;
+      }
+    }
     serial_ = "AGV" + std::to_string(getpid());
     for (int attempt = 0; attempt < 30; ++attempt) {
       std::vector<std::string> args = {binary, "-i", "127.0.0.1", "-s", serial_};
@@ -83,11 +93,15 @@ class FakeCamera {
     waitpid(pid_, &status, 0);
     pid_ = -1;
   }
-  ~FakeCamera() { stop(); }
+  ~FakeCamera() {
+    stop();
+    if (lock_fd_ >= 0) close(lock_fd_);
+  }
   std::string serial() const { return serial_; }
 
  private:
   pid_t pid_ = -1;
+  int lock_fd_ = -1;
   std::string serial_;
 };
 

@@ -1,0 +1,249 @@
+// agvloc-overhead record (overhead/src/record.cpp) on scripted cameras: what it records replays
+// frame for frame, a writer that falls behind drops frames and counts them, a folder is never
+// overwritten, and a recorder killed (SIGKILL) at any moment leaves folders that replay either
+// reads whole or refuses with a named error.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "agv/fakecamera/fake_camera.hpp"
+#include "agv/posix/posix_clock.hpp"
+#include "agv/recording/recording.hpp"
+#include "agv/sim/site_render.hpp"
+#include "inputs.hpp"
+#include "record.hpp"
+#include "replay.hpp"
+
+namespace agv::overhead_app {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr char kSitePath[] = AGV_SOURCE_DIR "/tests/overhead/data/two_camera_site.yaml";
+
+site::Site test_site() {
+  site::Site s;
+  std::vector<std::string> errors;
+  EXPECT_TRUE(load_site_file(kSitePath, &s, &errors));
+  return s;
+}
+
+fakecamera::FakeImage render(const site::Site& s, std::size_t cam) {
+  sim::SiteScene scene;
+  scene.site = s;
+  scene.agvs = {{{1350.0, 1250.0, 0.3}, 0.0, 0.0}, {{3600.0, 1000.0, -1.0}, 0.0, 0.0}};
+  const sim::SiteFrameRenderer r(s.cameras[cam].intrinsics);
+  const sim::RenderResult res =
+      r.render(scene, sim::RenderCamera::from_ceiling(s.cameras[cam]), sim::SiteRenderParams{}, 1);
+  fakecamera::FakeImage img;
+  img.width_px = res.image.cols;
+  img.height_px = res.image.rows;
+  img.gray.assign(res.image.datastart, res.image.dataend);
+  return img;
+}
+
+fakecamera::FakeImage noise(int w, int h, unsigned seed) {
+  fakecamera::FakeImage img;
+  img.width_px = w;
+  img.height_px = h;
+  img.gray.resize(static_cast<std::size_t>(w) * static_cast<std::size_t>(h));
+  std::mt19937 rng(seed);
+  for (std::uint8_t& v : img.gray) v = static_cast<std::uint8_t>(rng());
+  return img;
+}
+
+class OverheadRecord : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    out_ = fs::temp_directory_path() /
+           ("overhead_record_" + std::to_string(getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(out_);
+    fs::create_directories(out_);
+  }
+  void TearDown() override { fs::remove_all(out_); }
+
+  // One scripted camera per site camera: `frames` frames `period_ns` apart (each after a stall
+  // of that length when paced), then the end of the stream unless `endless`.
+  std::vector<LiveCamera> cameras(const std::vector<fakecamera::FakeImage>& imgs, int frames,
+                                  std::int64_t period_ns, bool paced) {
+    fakecamera::FakeCamera::Options opt;
+    opt.clock = &clock_;
+    opt.end_of_stream_when_empty = true;
+    std::vector<LiveCamera> cams;
+    const std::int64_t t0 = clock_.now_ns();
+    for (std::size_t c = 0; c < imgs.size(); ++c) {
+      auto fake = std::make_unique<fakecamera::FakeCamera>(opt);
+      for (int k = 0; k < frames; ++k) {
+        if (paced) fake->push_stall(period_ns);
+        fake->push_frame(imgs[c], t0 + (k + 1) * period_ns);
+      }
+      cams.push_back({site_.cameras[c].id, c, std::move(fake)});
+    }
+    return cams;
+  }
+
+  posix::PosixClock clock_;
+  site::Site site_ = test_site();
+  fs::path out_;
+};
+
+TEST_F(OverheadRecord, RecordedFramesReplayFrameForFrame) {
+  constexpr int kFrames = 8;
+  constexpr std::int64_t kPeriodNs = 100'000'000;
+  const std::vector<fakecamera::FakeImage> imgs = {render(site_, 0), render(site_, 1)};
+  std::vector<LiveCamera> cams = cameras(imgs, kFrames, kPeriodNs, true);
+  const std::int64_t t0 = clock_.now_ns();
+  const std::atomic<bool> stop{false};
+  std::vector<CameraRecordCounters> counters;
+  std::vector<CameraHealth> health;
+  std::string err;
+  ASSERT_TRUE(record_cameras(&cams, site_, out_.string(), "test", stop, 20'000'000'000, &counters,
+                             &health, &err))
+      << err;
+  ASSERT_EQ(counters.size(), 2u);
+  std::vector<std::string> dirs;
+  for (std::size_t c = 0; c < 2; ++c) {
+    EXPECT_EQ(counters[c].frames_written, static_cast<std::uint64_t>(kFrames));
+    EXPECT_EQ(counters[c].frames_dropped + counters[c].write_errors, 0u);
+    EXPECT_EQ(health[c].frames, static_cast<std::uint64_t>(kFrames));
+    dirs.push_back((out_ / site_.cameras[c].id).string());
+    recording::Recording rec;
+    ASSERT_TRUE(recording::read_recording(dirs.back(), &rec, &err)) << err;
+    EXPECT_TRUE(rec.warnings.empty());
+    ASSERT_EQ(rec.frames.size(), static_cast<std::size_t>(kFrames));
+    EXPECT_EQ(rec.meta.camera.intrinsics.width_px, site_.cameras[c].intrinsics.width_px);
+    EXPECT_EQ(rec.meta.camera.intrinsics.fx, site_.cameras[c].intrinsics.fx);
+    EXPECT_EQ(rec.meta.landmark_family, "tag36h11");
+    std::string id;
+    ASSERT_TRUE(read_camera_id(dirs.back(), &id, &err)) << err;
+    EXPECT_EQ(id, site_.cameras[c].id);
+    for (int k = 0; k < kFrames; ++k) {
+      EXPECT_GT(rec.frames[k].t_ns, t0);  // the scripted stamps, in order
+      if (k > 0) {
+        EXPECT_EQ(rec.frames[k].t_ns - rec.frames[k - 1].t_ns, kPeriodNs);
+      }
+      cv::Mat img;
+      ASSERT_TRUE(recording::load_frame(rec, static_cast<std::size_t>(k), &img, &err)) << err;
+      EXPECT_TRUE(std::equal(img.datastart, img.dataend, imgs[c].gray.begin())) << k;
+    }
+    for (const auto& e : fs::directory_iterator(fs::path(dirs.back()) / "frames"))
+      EXPECT_EQ(e.path().extension(), ".png") << e.path();  // no temporary left
+  }
+  // The replay of what was recorded tracks both vehicles.
+  ReplayArgs ra;
+  ra.site_path = kSitePath;
+  ra.recordings = dirs;
+  ra.out_dir = (out_ / "replay").string();
+  ra.fast = true;
+  ASSERT_EQ(run_replay(ra), 0);
+  std::ifstream tracks(out_ / "replay" / "tracks.csv");
+  std::string line, text;
+  while (std::getline(tracks, line)) text += line + "\n";
+  for (const site::FleetAgv& a : site_.fleet) {
+    EXPECT_NE(text.find("," + a.id + ","), std::string::npos) << a.id;
+  }
+  EXPECT_NE(text.find("confirmed"), std::string::npos);
+}
+
+TEST_F(OverheadRecord, AWriterBehindDropsFramesAndCountsThemAndStampsMustIncrease) {
+  // 1280x720 noise: PNG encoding takes far longer than a burst of frames takes to arrive.
+  constexpr int kFrames = 30;
+  const std::vector<fakecamera::FakeImage> imgs = {noise(1280, 720, 1)};
+  site_.cameras.resize(1);
+  site_.cameras[0].intrinsics.width_px = 1280;
+  site_.cameras[0].intrinsics.height_px = 720;
+  std::vector<LiveCamera> cams = cameras(imgs, kFrames, 1'000'000, false);
+  auto* fake = static_cast<fakecamera::FakeCamera*>(cams[0].camera.get());
+  // Once the writer has caught up, a frame older than every other: the reader's order rule
+  // refuses it, so the recorder counts it and leaves it out.
+  fake->push_stall(1'000'000'000);
+  fake->push_frame(imgs[0], 1);
+  const std::atomic<bool> stop{false};
+  std::vector<CameraRecordCounters> counters;
+  std::vector<CameraHealth> health;
+  std::string err;
+  ASSERT_TRUE(record_cameras(&cams, site_, out_.string(), "test", stop, 20'000'000'000, &counters,
+                             &health, &err))
+      << err;
+  const CameraRecordCounters& c = counters[0];
+  EXPECT_GT(c.frames_dropped, 0u);
+  EXPECT_EQ(health[0].stamps_backwards, 1u);
+  EXPECT_EQ(c.frames_out_of_order, 1u);
+  EXPECT_EQ(c.frames_written + c.frames_dropped + c.frames_out_of_order,
+            static_cast<std::uint64_t>(kFrames + 1));
+  recording::Recording rec;
+  ASSERT_TRUE(recording::read_recording(c.dir, &rec, &err)) << err;
+  EXPECT_EQ(rec.frames.size(), c.frames_written);
+  std::printf("burst of %d frames of 1280x720: %llu written, %llu dropped, %llu out of order\n",
+              kFrames, static_cast<unsigned long long>(c.frames_written),
+              static_cast<unsigned long long>(c.frames_dropped),
+              static_cast<unsigned long long>(c.frames_out_of_order));
+}
+
+TEST_F(OverheadRecord, ARecordingIsNeverOverwritten) {
+  const fs::path dir = out_ / "cam-west";
+  fs::create_directories(dir);
+  std::ofstream(dir / "frames.csv") << "t_ns,file\n";
+  std::string err;
+  EXPECT_FALSE(start_recording_folder(dir.string(), site_.cameras[0], site_, "test", &err));
+  EXPECT_NE(err.find("never overwritten"), std::string::npos) << err;
+  EXPECT_FALSE(fs::exists(dir / "meta.yaml"));
+  // An empty folder is taken.
+  fs::create_directories(out_ / "empty");
+  EXPECT_TRUE(start_recording_folder((out_ / "empty").string(), site_.cameras[0], site_, "t", &err))
+      << err;
+}
+
+// A recorder killed with SIGKILL at several moments (before, during and after its first
+// frames): every folder replays whole or is refused with an error naming it, never a crash.
+TEST_F(OverheadRecord, KilledMidWriteLeavesFoldersReplayReadsOrRefuses) {
+  const std::vector<fakecamera::FakeImage> imgs = {noise(640, 400, 2), noise(640, 400, 3)};
+  int replayed = 0;
+  for (const int kill_after_ms : {0, 5, 40, 150, 400, 700}) {
+    const fs::path out = out_ / ("kill_" + std::to_string(kill_after_ms));
+    const pid_t pid = fork();
+    ASSERT_GE(pid, 0);
+    if (pid == 0) {
+      std::vector<LiveCamera> cams = cameras(imgs, 1000, 10'000'000, true);
+      const std::atomic<bool> stop{false};
+      std::vector<CameraRecordCounters> counters;
+      std::vector<CameraHealth> health;
+      std::string err;
+      record_cameras(&cams, site_, out.string(), "test", stop, 0, &counters, &health, &err);
+      _exit(3);
+    }
+    usleep(static_cast<useconds_t>(kill_after_ms) * 1000);
+    kill(pid, SIGKILL);
+    int status = 0;
+    ASSERT_EQ(waitpid(pid, &status, 0), pid);
+    ASSERT_TRUE(WIFSIGNALED(status)) << "the recorder ended before it was killed";
+    for (const site::CeilingCamera& cam : site_.cameras) {
+      const std::string dir = (out / cam.id).string();
+      std::vector<CameraRecording> recs;
+      std::vector<std::string> warnings;
+      std::string err;
+      if (!open_recordings({dir}, site_, OverheadConfig{}, &recs, &warnings, &err)) {
+        EXPECT_EQ(err.rfind(dir, 0), 0u) << err;  // refused, naming the folder
+        continue;
+      }
+      ++replayed;
+      for (std::size_t i = 0; i < recs[0].rec.frames.size(); ++i) {
+        cv::Mat img;
+        EXPECT_TRUE(recording::load_frame(recs[0].rec, i, &img, &err)) << dir << ": " << err;
+      }
+    }
+  }
+  EXPECT_GT(replayed, 0);  // the later kills leave frames behind
+}
+
+}  // namespace
+}  // namespace agv::overhead_app
