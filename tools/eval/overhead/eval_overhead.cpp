@@ -162,15 +162,7 @@ std::vector<std::uint8_t> inside(const std::vector<std::array<agv::Vec2, 4>>& co
   return in;
 }
 
-int run(const Options& o) {
-  const auto wall0 = std::chrono::steady_clock::now();
-  World world;
-  std::string error;
-  if (!world.build(o.world, &error)) {
-    std::fprintf(stderr, "eval_overhead: %s\n", error.c_str());
-    return 2;
-  }
-  const agv::site::Site& site = world.site();
+void print_header(const Options& o, const agv::site::Site& site) {
   const agv::CameraIntrinsics& k = site.cameras[0].intrinsics;
   std::printf(
       "eval_overhead (simulated, rendered frames): site %.0f x %.0f mm, %zu camera(s) at "
@@ -186,6 +178,36 @@ int run(const Options& o) {
     std::printf("  camera %s at (%.0f, %.0f, %.0f) mm\n", c.id.c_str(), c.t_site_cam_mm[0],
                 c.t_site_cam_mm[1], c.t_site_cam_mm[2]);
   }
+}
+
+void print_counters(const agv::overhead::FrameCounters& fc,
+                    const agv::overhead::TrackerCounters& tc) {
+  std::printf(
+      "pipeline: frames %llu, windows track/area/full %llu/%llu/%llu, predicted reads %llu, "
+      "searched tags %llu, unknown ids %llu, no fix %llu; tracker: applied %llu, started "
+      "%llu, gated %llu, too old %llu, replays %llu, lost %llu\n",
+      static_cast<unsigned long long>(fc.frames), static_cast<unsigned long long>(fc.windows_track),
+      static_cast<unsigned long long>(fc.windows_area),
+      static_cast<unsigned long long>(fc.windows_full),
+      static_cast<unsigned long long>(fc.predicted_reads),
+      static_cast<unsigned long long>(fc.searched_tags),
+      static_cast<unsigned long long>(fc.unknown_ids), static_cast<unsigned long long>(fc.no_fix),
+      static_cast<unsigned long long>(tc.applied), static_cast<unsigned long long>(tc.started),
+      static_cast<unsigned long long>(tc.gated), static_cast<unsigned long long>(tc.too_old),
+      static_cast<unsigned long long>(tc.replays), static_cast<unsigned long long>(tc.lost));
+}
+
+int run(const Options& o) {
+  const auto wall0 = std::chrono::steady_clock::now();
+  World world;
+  std::string error;
+  if (!world.build(o.world, &error)) {
+    std::fprintf(stderr, "eval_overhead: %s\n", error.c_str());
+    return 2;
+  }
+  const agv::site::Site& site = world.site();
+  const agv::CameraIntrinsics& k = site.cameras[0].intrinsics;
+  print_header(o, site);
   // The tracker's idea of the cameras: the rendered ones moved by the calibration error.
   std::mt19937_64 rng(o.world.seed * 7919 + 3);
   std::vector<agv::site::CeilingCamera> believed;
@@ -295,21 +317,7 @@ int run(const Options& o) {
     next_tick += tick_ns;
   }
   std::fputs(agv::eval::report(score, ids).c_str(), stdout);
-  const auto& fc = proc.counters();
-  const auto& tc = tracker.counters();
-  std::printf(
-      "pipeline: frames %llu, windows track/area/full %llu/%llu/%llu, predicted reads %llu, "
-      "searched tags %llu, unknown ids %llu, no fix %llu; tracker: applied %llu, started "
-      "%llu, gated %llu, too old %llu, replays %llu, lost %llu\n",
-      static_cast<unsigned long long>(fc.frames), static_cast<unsigned long long>(fc.windows_track),
-      static_cast<unsigned long long>(fc.windows_area),
-      static_cast<unsigned long long>(fc.windows_full),
-      static_cast<unsigned long long>(fc.predicted_reads),
-      static_cast<unsigned long long>(fc.searched_tags),
-      static_cast<unsigned long long>(fc.unknown_ids), static_cast<unsigned long long>(fc.no_fix),
-      static_cast<unsigned long long>(tc.applied), static_cast<unsigned long long>(tc.started),
-      static_cast<unsigned long long>(tc.gated), static_cast<unsigned long long>(tc.too_old),
-      static_cast<unsigned long long>(tc.replays), static_cast<unsigned long long>(tc.lost));
+  print_counters(proc.counters(), tracker.counters());
   const double wall =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   std::printf("wall %.1f s (backgrounds %.1f s, frames rendered %.1f s, %.1f Mpx of regions)\n",
