@@ -106,7 +106,8 @@ CameraFeed::~CameraFeed() { stop(); }
 
 void CameraFeed::start() {
   stop_.store(false);
-  for (std::size_t i = 0; i < cams_->size(); ++i) threads_.emplace_back([this, i] { camera_loop(i); });
+  for (std::size_t i = 0; i < cams_->size(); ++i)
+    threads_.emplace_back([this, i] { camera_loop(i); });
 }
 
 void CameraFeed::stop() {
@@ -164,7 +165,8 @@ void CameraFeed::camera_loop(std::size_t i) {
       h.age_min_ns = std::min(h.age_min_ns, lf.rx_ns - lf.t_ns);
       h.age_max_ns = std::max(h.age_max_ns, lf.rx_ns - lf.t_ns);
       if (clock != nullptr && clock->has_offset()) {
-        if (!watch.offset_logged) log(i, "camera clock mapped onto the host's: " + clock_state(*clock));
+        if (!watch.offset_logged)
+          log(i, "camera clock mapped onto the host's: " + clock_state(*clock));
         if (!watch.drift_logged && clock->drift_locked()) {
           log(i, "camera clock drift estimated: " + clock_state(*clock));
           watch.drift_logged = true;

@@ -27,9 +27,9 @@ struct LiveCamera {
 };
 
 struct LiveFrame {
-  std::size_t camera = 0;    // site camera
-  std::int64_t t_ns = 0;     // exposure (the driver's stamp, CLOCK_MONOTONIC)
-  std::int64_t rx_ns = 0;    // when the feed took it from the driver, CLOCK_MONOTONIC
+  std::size_t camera = 0;  // site camera
+  std::int64_t t_ns = 0;   // exposure (the driver's stamp, CLOCK_MONOTONIC)
+  std::int64_t rx_ns = 0;  // when the feed took it from the driver, CLOCK_MONOTONIC
   cv::Mat gray;
 };
 

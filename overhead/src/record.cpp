@@ -175,8 +175,7 @@ int record_fail(int code, const std::string& msg) {
 }  // namespace
 
 bool start_recording_folder(const std::string& dir, const site::CeilingCamera& cam,
-                            const site::Site& site, const std::string& source,
-                            std::string* error) {
+                            const site::Site& site, const std::string& source, std::string* error) {
   std::error_code ec;
   if (fs::exists(dir, ec) && !(fs::is_directory(dir, ec) && fs::is_empty(dir, ec))) {
     *error = dir + ": exists and is not an empty folder (a recording is never overwritten)";

@@ -1,8 +1,8 @@
 // The Aravis driver against Aravis's own simulated GigE Vision camera (arv-fake-gv-camera-0.8,
 // Debian aravis-tools) on the loopback interface: real GVCP control and GVSP streaming, real
 // camera timestamps, a camera that dies mid-stream.
-#include <gtest/gtest.h>
 #include <fcntl.h>
+#include <gtest/gtest.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/file.h>

@@ -173,8 +173,8 @@ TEST_F(OverheadAravis, RunReportsAKilledCameraAndItsRecovery) {
   FakeCamera fake(dir_);
   std::string error;
   ASSERT_TRUE(fake.start(binary_, &error)) << error;
-  const pid_t pid = overhead({"run", "--config", config(), "--site", kSite, "--duration-s", "7"},
-                             "run");
+  const pid_t pid =
+      overhead({"run", "--config", config(), "--site", kSite, "--duration-s", "7"}, "run");
   ASSERT_GT(pid, 0);
   std::this_thread::sleep_for(std::chrono::milliseconds(2500));
   fake.stop();
@@ -214,9 +214,9 @@ TEST_F(OverheadAravis, RecordingReplaysEveryFrameAndAKilledOneIsReadOrRefused) {
   std::string error;
   ASSERT_TRUE(fake.start(binary_, &error)) << error;
   const fs::path rec = dir_ / "rec";
-  Exit e = wait_exit(overhead({"record", "--config", config(), "--site", kSite, "--out",
-                               rec.string(), "--duration-s", "2"},
-                              "record"));
+  Exit e = wait_exit(overhead(
+      {"record", "--config", config(), "--site", kSite, "--out", rec.string(), "--duration-s", "2"},
+      "record"));
   ASSERT_FALSE(e.signaled);
   ASSERT_EQ(e.code, 0) << slurp(dir_ / "record.err");
   std::smatch m;
@@ -225,9 +225,9 @@ TEST_F(OverheadAravis, RecordingReplaysEveryFrameAndAKilledOneIsReadOrRefused) {
   ASSERT_TRUE(std::regex_search(rec_out, m, written_re)) << rec_out;
   const long written = std::stol(m[1]);
   EXPECT_GE(written, 15) << rec_out;  // 20 fps for 2 s on a loaded machine
-  e = wait_exit(overhead({"replay", "--site", kSite, "--recordings", (rec / "cam-west").string(),
-                          "--fast"},
-                         "replay"));
+  e = wait_exit(
+      overhead({"replay", "--site", kSite, "--recordings", (rec / "cam-west").string(), "--fast"},
+               "replay"));
   ASSERT_FALSE(e.signaled);
   EXPECT_EQ(e.code, 0) << slurp(dir_ / "replay.err");
   const std::string replayed = slurp(dir_ / "replay.out") + slurp(dir_ / "replay.err");
@@ -235,28 +235,27 @@ TEST_F(OverheadAravis, RecordingReplaysEveryFrameAndAKilledOneIsReadOrRefused) {
             std::string::npos)
       << replayed;
   // The same folder again: refused by name, the recording untouched.
-  e = wait_exit(overhead({"record", "--config", config(), "--site", kSite, "--out", rec.string(),
-                          "--duration-s", "1"},
-                         "again"));
+  e = wait_exit(overhead(
+      {"record", "--config", config(), "--site", kSite, "--out", rec.string(), "--duration-s", "1"},
+      "again"));
   EXPECT_EQ(e.code, 2);
   EXPECT_NE(slurp(dir_ / "again.err").find("never overwritten"), std::string::npos);
 
   // Killed while recording.
   const fs::path killed = dir_ / "killed";
-  const pid_t pid = overhead({"record", "--config", config(), "--site", kSite, "--out",
-                              killed.string()},
-                             "killed");
+  const pid_t pid = overhead(
+      {"record", "--config", config(), "--site", kSite, "--out", killed.string()}, "killed");
   std::this_thread::sleep_for(std::chrono::milliseconds(1500));
   kill(pid, SIGKILL);
   wait_exit(pid);
-  e = wait_exit(overhead({"replay", "--site", kSite, "--recordings", (killed / "cam-west").string(),
-                          "--fast"},
-                         "replay_killed"));
+  e = wait_exit(overhead(
+      {"replay", "--site", kSite, "--recordings", (killed / "cam-west").string(), "--fast"},
+      "replay_killed"));
   const std::string err = slurp(dir_ / "replay_killed.err");
   ASSERT_FALSE(e.signaled) << err;
   EXPECT_TRUE(e.code == 0 || (e.code == 2 && err.find("agvloc-overhead replay: ") == 0)) << err;
-  std::printf("recorded %ld frames in 2 s; killed recording: replay exit %d\n%s%s", written,
-              e.code, slurp(dir_ / "replay_killed.out").c_str(), err.c_str());
+  std::printf("recorded %ld frames in 2 s; killed recording: replay exit %d\n%s%s", written, e.code,
+              slurp(dir_ / "replay_killed.out").c_str(), err.c_str());
 }
 
 }  // namespace
