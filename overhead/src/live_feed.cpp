@@ -38,13 +38,6 @@ std::string plural(std::uint64_t n, const char* one, const char* many) {
   return std::to_string(n) + " " + (n == 1 ? one : many);
 }
 
-// What of a camera clock's mapping has been logged since the stream started.
-struct ClockWatch {
-  bool offset_logged = false;
-  bool drift_logged = false;
-  std::uint64_t jumps_seen = 0;
-};
-
 std::string clock_state(const ClockMap& m) {
   char buf[160];
   if (m.drift_locked()) {
@@ -92,6 +85,24 @@ std::string describe(const std::string& id, const CameraHealth& h) {
     s += buf;
   }
   return s;
+}
+
+std::vector<std::string> clock_news(const ClockMap& m, ClockWatch* w) {
+  std::vector<std::string> out;
+  w->jumps_seen = std::min(w->jumps_seen, m.jumps());  // a counter that was reset
+  if (!m.has_offset()) return out;
+  if (!w->offset_logged) out.push_back("camera clock mapped onto the host's: " + clock_state(m));
+  if (!w->drift_logged && m.drift_locked()) {
+    out.push_back("camera clock drift estimated: " + clock_state(m));
+    w->drift_logged = true;
+  }
+  if (m.jumps() > w->jumps_seen) {
+    w->jumps_total += m.jumps() - w->jumps_seen;
+    out.push_back("camera clock jumped; mapping restarted: " + clock_state(m));
+  }
+  w->offset_logged = true;
+  w->jumps_seen = m.jumps();
+  return out;
 }
 
 CameraFeed::CameraFeed(std::vector<LiveCamera>* cams, std::string log_prefix, Sink sink,
@@ -152,7 +163,7 @@ void CameraFeed::camera_loop(std::size_t i) {
       }
       started = true;
       failing = false;
-      watch = ClockWatch{};
+      watch.restart();
     }
     hal::FrameView f;
     const hal::CameraStatus st = c.camera->next_frame(kFrameWaitNs, &f);
@@ -164,20 +175,10 @@ void CameraFeed::camera_loop(std::size_t i) {
       last_t_ns = std::max(last_t_ns, lf.t_ns);
       h.age_min_ns = std::min(h.age_min_ns, lf.rx_ns - lf.t_ns);
       h.age_max_ns = std::max(h.age_max_ns, lf.rx_ns - lf.t_ns);
-      if (clock != nullptr && clock->has_offset()) {
-        if (!watch.offset_logged)
-          log(i, "camera clock mapped onto the host's: " + clock_state(*clock));
-        if (!watch.drift_logged && clock->drift_locked()) {
-          log(i, "camera clock drift estimated: " + clock_state(*clock));
-          watch.drift_logged = true;
-        }
-        if (clock->jumps() > watch.jumps_seen) {
-          h.clock_jumps += clock->jumps() - watch.jumps_seen;
-          log(i, "camera clock jumped; mapping restarted: " + clock_state(*clock));
-        }
-        watch.offset_logged = true;
-        watch.jumps_seen = clock->jumps();
-        h.clock_mapped = true;
+      if (clock != nullptr) {
+        for (const std::string& line : clock_news(*clock, &watch)) log(i, line);
+        h.clock_jumps = watch.jumps_total;
+        h.clock_mapped = clock->has_offset();
         h.clock_offset_ns = clock->offset_ns();
         h.clock_drift_ppm = clock->drift_ppm();
       }

@@ -16,6 +16,7 @@
 #include <thread>
 #include <vector>
 
+#include "agv/common/clock_map.hpp"
 #include "agv/hal/camera.hpp"
 
 namespace agv::overhead_app {
@@ -53,6 +54,19 @@ struct CameraHealth {
 
 // "cam-west: 120 frames, 1 fault, 1 recovery, ..." for the summaries.
 std::string describe(const std::string& id, const CameraHealth& h);
+
+// What of a camera clock's mapping has been logged since its stream started.
+struct ClockWatch {
+  bool offset_logged = false;
+  bool drift_logged = false;
+  std::uint64_t jumps_seen = 0;   // the mapping's count when last looked at
+  std::uint64_t jumps_total = 0;  // reported since the watch began
+  void restart() { offset_logged = drift_logged = false; }
+};
+
+// The log lines a camera clock's mapping calls for since *w was last updated: the first offset,
+// the first drift estimate, a jump. Empty while the mapping has no offset.
+std::vector<std::string> clock_news(const ClockMap& m, ClockWatch* w);
 
 class CameraFeed {
  public:

@@ -1,7 +1,8 @@
 // agvloc-overhead record (overhead/src/record.cpp) on scripted cameras: what it records replays
 // frame for frame, a writer that falls behind drops frames and counts them, a folder is never
 // overwritten, and a recorder killed (SIGKILL) at any moment leaves folders that replay either
-// reads whole or refuses with a named error.
+// reads whole or refuses with a named error. Also what run and record log of a camera's clock
+// (live_feed.hpp): the first mapping, the first drift, every jump, once each.
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -19,6 +20,7 @@
 #include "agv/recording/recording.hpp"
 #include "agv/sim/site_render.hpp"
 #include "inputs.hpp"
+#include "live_feed.hpp"
 #include "record.hpp"
 #include "replay.hpp"
 
@@ -243,6 +245,41 @@ TEST_F(OverheadRecord, KilledMidWriteLeavesFoldersReplayReadsOrRefuses) {
     }
   }
   EXPECT_GT(replayed, 0);  // the later kills leave frames behind
+}
+
+// A camera clock 100 ms behind the host's with 40 ppm drift, 30 fps, 1 ms receive latency; then
+// its counter restarts from zero (a reboot); then a new stream.
+TEST(CameraClockLog, FirstMappingFirstDriftAndEveryJumpAreLoggedOnce) {
+  ClockMap m;
+  ClockWatch w;
+  std::vector<std::string> lines;
+  auto feed = [&](std::int64_t device_ns, std::int64_t host_ns) {
+    m.add(device_ns, host_ns);
+    for (const std::string& l : clock_news(m, &w)) lines.push_back(l);
+  };
+  EXPECT_TRUE(clock_news(m, &w).empty());  // nothing mapped yet
+  std::int64_t host = 5'000'000'000;
+  for (int k = 0; k < 60; ++k, host += 33'333'333) {
+    feed(static_cast<std::int64_t>(static_cast<double>(host - 100'000'000) / (1 + 40e-6)) -
+             1'000'000,
+         host);
+  }
+  ASSERT_EQ(lines.size(), 2u);
+  EXPECT_EQ(lines[0].rfind("camera clock mapped onto the host's: offset ", 0), 0u) << lines[0];
+  EXPECT_NE(lines[0].find("drift not yet estimated"), std::string::npos) << lines[0];
+  EXPECT_EQ(lines[1].rfind("camera clock drift estimated: offset ", 0), 0u) << lines[1];
+  EXPECT_NE(lines[1].find("ppm"), std::string::npos) << lines[1];
+  for (int k = 0; k < 10; ++k, host += 33'333'333) feed(k * 33'333'333, host);
+  ASSERT_EQ(lines.size(), 3u);
+  EXPECT_EQ(lines[2].rfind("camera clock jumped; mapping restarted: offset ", 0), 0u) << lines[2];
+  EXPECT_EQ(w.jumps_total, 1u);
+  // A new stream: the mapping is logged again, the jumps already counted stay counted.
+  m.reset();
+  w.restart();
+  feed(1'000'000, host);
+  ASSERT_EQ(lines.size(), 4u);
+  EXPECT_EQ(lines[3].rfind("camera clock mapped onto the host's", 0), 0u) << lines[3];
+  EXPECT_EQ(w.jumps_total, 1u);
 }
 
 }  // namespace
