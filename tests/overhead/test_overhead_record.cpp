@@ -205,6 +205,28 @@ TEST_F(OverheadRecord, ARecordingIsNeverOverwritten) {
       << err;
 }
 
+// The command: no camera configured is bad input; a camera that never starts leaves a folder with
+// no frame, which replay refuses by name.
+TEST_F(OverheadRecord, CommandRefusesNoCameraAndAnEmptyRecordingIsRefusedByReplay) {
+  const fs::path cfg = out_ / "config.yaml";
+  std::ofstream(cfg) << "output.rate_hz: 30\n";
+  RecordArgs a;
+  a.config_path = cfg.string();
+  a.site_path = kSitePath;
+  a.out_dir = (out_ / "rec").string();
+  a.duration_s = 0.3;
+  EXPECT_EQ(run_record_command(a), 2);
+  EXPECT_FALSE(fs::exists(a.out_dir));
+  std::ofstream(cfg) << "cameras:\n  cam-west: {device: /dev/agvloc-no-such-video}\n";
+  EXPECT_EQ(run_record_command(a), 0);
+  const std::string dir = (fs::path(a.out_dir) / "cam-west").string();
+  std::vector<CameraRecording> recs;
+  std::vector<std::string> warnings;
+  std::string err;
+  EXPECT_FALSE(open_recordings({dir}, site_, OverheadConfig{}, &recs, &warnings, &err));
+  EXPECT_EQ(err, dir + ": frames.csv has no frame");
+}
+
 // A recorder killed with SIGKILL at several moments (before, during and after its first
 // frames): every folder replays whole or is refused with an error naming it, never a crash.
 TEST_F(OverheadRecord, KilledMidWriteLeavesFoldersReplayReadsOrRefuses) {
