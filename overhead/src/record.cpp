@@ -174,13 +174,24 @@ int record_fail(int code, const std::string& msg) {
 
 }  // namespace
 
-bool start_recording_folder(const std::string& dir, const site::CeilingCamera& cam,
-                            const site::Site& site, const std::string& source, std::string* error) {
+namespace {
+
+// A folder a recording may be started in: absent or empty.
+bool folder_free(const std::string& dir, std::string* error) {
   std::error_code ec;
   if (fs::exists(dir, ec) && !(fs::is_directory(dir, ec) && fs::is_empty(dir, ec))) {
     *error = dir + ": exists and is not an empty folder (a recording is never overwritten)";
     return false;
   }
+  return true;
+}
+
+}  // namespace
+
+bool start_recording_folder(const std::string& dir, const site::CeilingCamera& cam,
+                            const site::Site& site, const std::string& source, std::string* error) {
+  if (!folder_free(dir, error)) return false;
+  std::error_code ec;
   fs::create_directories(fs::path(dir) / "frames", ec);
   if (ec) return (*error = dir + ": cannot create: " + ec.message(), false);
   recording::Meta meta;
@@ -205,6 +216,10 @@ bool record_cameras(std::vector<LiveCamera>* cams, const site::Site& site,
                     std::vector<CameraHealth>* cams_health, std::string* error) {
   std::vector<std::unique_ptr<FolderWriter>> writers;
   std::vector<FolderWriter*> by_site_camera(site.cameras.size(), nullptr);
+  // Every folder checked before any is written: a refusal leaves nothing behind.
+  for (const LiveCamera& c : *cams) {
+    if (!folder_free((fs::path(out_dir) / c.id).string(), error)) return false;
+  }
   for (const LiveCamera& c : *cams) {
     const std::string dir = (fs::path(out_dir) / c.id).string();
     if (!start_recording_folder(dir, site.cameras.at(c.site_camera), site, source, error))

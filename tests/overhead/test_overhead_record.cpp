@@ -199,6 +199,16 @@ TEST_F(OverheadRecord, ARecordingIsNeverOverwritten) {
   EXPECT_FALSE(start_recording_folder(dir.string(), site_.cameras[0], site_, "test", &err));
   EXPECT_NE(err.find("never overwritten"), std::string::npos) << err;
   EXPECT_FALSE(fs::exists(dir / "meta.yaml"));
+  // record_cameras checks every camera's folder before it writes any.
+  std::vector<LiveCamera> cams = cameras({render(site_, 0), render(site_, 1)}, 1, 1'000'000, false);
+  std::swap(cams[0], cams[1]);  // cam-east first: its folder is free, cam-west's is not
+  const std::atomic<bool> stop{false};
+  std::vector<CameraRecordCounters> counters;
+  std::vector<CameraHealth> health;
+  EXPECT_FALSE(
+      record_cameras(&cams, site_, out_.string(), "test", stop, 0, &counters, &health, &err));
+  EXPECT_NE(err.find("cam-west: exists and is not an empty folder"), std::string::npos) << err;
+  EXPECT_FALSE(fs::exists(out_ / "cam-east"));
   // An empty folder is taken.
   fs::create_directories(out_ / "empty");
   EXPECT_TRUE(start_recording_folder((out_ / "empty").string(), site_.cameras[0], site_, "t", &err))
