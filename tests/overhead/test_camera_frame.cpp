@@ -49,9 +49,10 @@ struct Sequence {
   TrackerCounters tracker;
 };
 
-// The frames are rendered and processed once for every test below.
-const Sequence& sequence() {
-  static const Sequence r = [] {
+// The frames are rendered and processed once for every test below, with the tray fit off (the
+// tag path alone) and on.
+Sequence run_sequence(bool tray_fit) {
+  {
     Sequence out;
     sim::SiteScene scene;
     scene.site.outline.vertices_mm = {{-5000, -5000}, {5000, -5000}, {5000, 5000}, {-5000, 5000}};
@@ -70,6 +71,7 @@ const Sequence& sequence() {
     SearchParams sp;
     sp.full_sweep_every_frames = 3;  // frames 0, 3, 6 also sweep the whole image
     CameraFrameProcessor proc({cam}, fleet, {}, sp);
+    proc.set_tray_fit(tray_fit);
     FleetTracker tracker(fleet.size());
     const sim::SiteFrameRenderer renderer(cam.intrinsics);
     sim::SiteRenderParams rp;
@@ -100,7 +102,16 @@ const Sequence& sequence() {
     }
     out.tracker = tracker.counters();
     return out;
-  }();
+  }
+}
+
+const Sequence& sequence() {
+  static const Sequence r = run_sequence(false);
+  return r;
+}
+
+const Sequence& sequence_with_trays() {
+  static const Sequence r = run_sequence(true);
   return r;
 }
 
@@ -199,7 +210,7 @@ TEST(CameraFrame, ACoveredTagGetsNoFixAndItsTrackCoasts) {
   const std::size_t last_seen = kCoveredFrom - 1;
   for (std::size_t f = kCoveredFrom; f < kFrames; ++f) {
     EXPECT_EQ(find(r.dets[f], 2), nullptr) << "frame " << f;
-    EXPECT_EQ(r.missed[f][1], 1u) << "frame " << f;
+    EXPECT_EQ(r.missed[f][1], f - kCoveredFrom + 1) << "frame " << f;  // misses in a row
     EXPECT_EQ(r.missed[f][0], 0u);
     const TrackOutput& o = r.outs[f][1];
     EXPECT_EQ(o.last_fix_t_ns, r.outs[last_seen][1].last_fix_t_ns);
@@ -211,6 +222,25 @@ TEST(CameraFrame, ACoveredTagGetsNoFixAndItsTrackCoasts) {
   }
   // Its window missed: the next frame searched its area.
   EXPECT_GT(r.counters.back().windows_area, 0u);
+}
+
+TEST(CameraFrame, ACoveredTagsTrackIsKeptByItsTrayBox) {
+  const Sequence& r = sequence_with_trays();
+  const FrameCounters& c = r.counters.back();
+  EXPECT_GT(c.tray_fixes, 0u);
+  for (std::size_t f = kCoveredFrom; f < kFrames; ++f) {
+    EXPECT_EQ(find(r.dets[f], 2), nullptr) << "frame " << f;
+    const TrackOutput& o = r.outs[f][1];
+    EXPECT_EQ(o.state, TrackState::kConfirmed) << "frame " << f;
+    const sim::AgvState& truth = r.truth[f][1];
+    EXPECT_LT(std::hypot(o.pose.x_mm - truth.pose.x_mm, o.pose.y_mm - truth.pose.y_mm), 10.0)
+        << "frame " << f;
+    EXPECT_LT(std::abs(wrap_angle_rad(o.pose.theta_rad - truth.pose.theta_rad)), deg_to_rad(1.0));
+  }
+  // The tray box kept the track's fixes coming: its last fix is the last frame's.
+  EXPECT_EQ(r.outs.back()[1].last_fix_t_ns, r.outs.back()[1].t_ns);
+  // Without the tray fit the same frames leave it coasting (the test above).
+  EXPECT_EQ(sequence().counters.back().tray_fixes, 0u);
 }
 
 TEST(CameraFrame, ATagPredictedAcrossTheImageEdgeIsNoMiss) {

@@ -3,6 +3,8 @@
 // fails or where no track leads, then tray-plane fixes into the tracker. docs/design/overhead.md.
 #include "agv/overhead/camera_frame.hpp"
 
+#include "agv/overhead/tag_code.hpp"
+
 #include <algorithm>
 #include <string>
 #include <unordered_set>
@@ -113,14 +115,15 @@ bool CameraFrameProcessor::process(std::size_t camera, std::int64_t t_ns, const 
         break;
     }
   }
+  if (tray_enabled_) fit_covered_trays(gray, &w);
   // A vehicle found by any window is back on its track window next frame; one that a window
-  // expected wholly in the image and that none found widens its search; the others (not in
-  // this view, or at its edge) keep theirs.
+  // expected wholly in the image and that none found widens its search, more with every frame
+  // in a row (search.hpp); the others (not in this view, or at its edge) keep theirs.
   for (std::size_t i = 0; i < fleet_.size(); ++i) {
     if (w.found[i]) {
       state.missed[i] = 0;
-    } else if (w.looked_for[i]) {
-      state.missed[i] = 1;
+    } else if (w.looked_for[i] && state.missed[i] < 255) {
+      ++state.missed[i];
     }
   }
   return true;
@@ -169,6 +172,11 @@ void CameraFrameProcessor::handle_tag(const TagObservation& obs, SearchLevel lev
     d.in_fleet = true;
     d.agv = it->second;
     const site::FleetAgv& agv = fleet_[d.agv];
+    if (!may_start_track(obs, d.agv, *w)) {
+      ++counters_.restricted_new_track_refused;
+      if (w->out) w->out->push_back(d);
+      return;
+    }
     w->found[d.agv] = 1;
     d.has_fix = tag_fix_on_plane(cameras_[w->camera], obs.corners_px, obs.corner_sigma_px,
                                  agv.tray_height_mm, agv.tag_size_mm, &d.fix);
@@ -179,6 +187,36 @@ void CameraFrameProcessor::handle_tag(const TagObservation& obs, SearchLevel lev
     }
   }
   if (w->out) w->out->push_back(d);
+}
+
+// The area's ids make more bits correctable, which is safe only against the vehicles the area
+// holds; the first fix of a track is not gated (nothing to gate by), so a vehicle without a track
+// is started only by a code that also decodes to it against the whole family.
+bool CameraFrameProcessor::may_start_track(const TagObservation& obs, std::size_t agv,
+                                           const FrameWork& w) const {
+  if (!obs.restricted) return true;
+  const TrackState s = w.tracker->output(agv, w.t_ns).state;
+  if (s != TrackState::kNone && s != TrackState::kLost) return true;
+  const DecodeResult g = decode_global(obs.code, detector_.params().global_bits_corrected);
+  return g.ok && g.id == obs.id;
+}
+
+void CameraFrameProcessor::fit_covered_trays(const cv::Mat& gray, FrameWork* w) {
+  for (std::size_t i = 0; i < fleet_.size(); ++i) {
+    if (!w->looked_for[i] || w->found[i]) continue;
+    const TrackOutput o = w->tracker->output(i, w->t_ns);
+    if (!o.valid()) continue;
+    TrayFix tray;
+    if (!fit_tray(gray, cameras_[w->camera], fleet_[i], o.pose, o.cov, tray_, &tray)) {
+      ++counters_.tray_refused;
+      continue;
+    }
+    if (w->tracker->add_fix(i, w->t_ns, tray.fix) == FixResult::kApplied) {
+      ++counters_.tray_fixes;
+    } else {
+      ++counters_.tray_gated;
+    }
+  }
 }
 
 }  // namespace agv::overhead

@@ -16,6 +16,7 @@
 #include "agv/overhead/tag_detect.hpp"
 #include "agv/overhead/tag_fix.hpp"
 #include "agv/overhead/tracker.hpp"
+#include "agv/overhead/tray_fit.hpp"
 #include "agv/site/site.hpp"
 
 namespace agv::overhead {
@@ -37,6 +38,12 @@ struct FrameCounters {
   std::uint64_t frames = 0, windows_track = 0, windows_area = 0, windows_full = 0;
   std::uint64_t predicted_reads = 0, searched_tags = 0, unknown_ids = 0, no_fix = 0;
   std::uint64_t rejected_frames = 0;  // bad input to process(), nothing done
+  // A restricted (area) decode of a vehicle that has no track: not applied, because a track is
+  // started only from the strict global decode (the first fix of a track is not gated).
+  std::uint64_t restricted_new_track_refused = 0;
+  // Covered tags (a tracked vehicle expected wholly in view, its tag not read): tray fits applied
+  // to its track, gated by it, or refused by the fit (too few sides, ambiguous heading, ...).
+  std::uint64_t tray_fixes = 0, tray_gated = 0, tray_refused = 0;
 };
 
 class CameraFrameProcessor {
@@ -55,12 +62,20 @@ class CameraFrameProcessor {
   const FrameCounters& counters() const { return counters_; }
   // The search state of camera `camera` (frames seen, vehicles whose window missed).
   const CameraSearchState& search_state(std::size_t camera) const { return state_.at(camera); }
+  // The tray's oriented box for a tracked vehicle whose tag was not read (tray_fit.hpp): on by
+  // default. A tray fix only updates a valid track (confirmed or coasting), never starts one.
+  void set_tray_fit(bool enabled, const TrayFitParams& params = {}) {
+    tray_enabled_ = enabled;
+    tray_ = params;
+  }
 
  private:
   struct FrameWork;
   void track_window(const SearchWindow& win, const cv::Mat& gray, FrameWork* w);
   void search_window(const SearchWindow& win, const cv::Mat& gray, FrameWork* w);
   void handle_tag(const TagObservation& obs, SearchLevel level, FrameWork* w);
+  bool may_start_track(const TagObservation& obs, std::size_t agv, const FrameWork& w) const;
+  void fit_covered_trays(const cv::Mat& gray, FrameWork* w);
 
   std::vector<site::CeilingCamera> cameras_;
   std::vector<site::FleetAgv> fleet_;
@@ -69,6 +84,8 @@ class CameraFrameProcessor {
   SearchParams search_;
   std::vector<CameraSearchState> state_;
   FrameCounters counters_;
+  bool tray_enabled_ = true;
+  TrayFitParams tray_;
 };
 
 }  // namespace agv::overhead
