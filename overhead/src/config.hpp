@@ -14,6 +14,7 @@
 
 #include "agv/overhead/search.hpp"
 #include "agv/overhead/tag_detect.hpp"
+#include "agv/overhead/tray_fit.hpp"
 #include "agv/overhead/tracker.hpp"
 
 namespace agv::overhead_app {
@@ -44,6 +45,8 @@ struct OverheadConfig {
   overhead::TrackerParams tracker;
   overhead::SearchParams search;
   overhead::TagDetectParams detect;
+  bool tray_fit = true;  // the tray's box for a tracked vehicle whose tag is covered
+  overhead::TrayFitParams tray;
   double output_rate_hz = 30.0;
   MqttOutput mqtt;
   std::map<std::string, CameraSettings> cameras;  // by camera id

@@ -134,6 +134,12 @@ std::vector<Key> search_detect_keys() {
              "Smallest black-to-white border contrast for a square to count"),
       number("detect.max_edge_rms_px", AGV_OH_AT(detect.max_edge_rms_px), 0.01, 10, 0.8, "px",
              "Largest RMS distance of edge points from their fitted line"),
+      boolean("tray.enabled", AGV_OH_AT(tray_fit), true,
+              "A tracked vehicle whose tag a window expected and did not read (a parcel on it) "
+              "is fixed from its tray's box, gated like a tag fix; never starts a track"),
+      integer("tray.min_sides_seen", AGV_OH_AT(tray.min_sides_seen), 2, 4, 3, "sides",
+              "Tray sides that must be seen for a box fit: 2 fits more covered trays, with about "
+              "a fifth of two-side fits outside their covariance on rendered random parcels"),
   };
 }
 

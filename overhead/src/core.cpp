@@ -27,7 +27,9 @@ TrackerCore::TrackerCore(const OverheadConfig& cfg, const site::Site& site)
       site_(site),
       processor_(site.cameras, site.fleet, cfg.detect, cfg.search),
       tracker_(site.fleet.size(), cfg.tracker),
-      header_ids_(site.fleet.size(), 0) {}
+      header_ids_(site.fleet.size(), 0) {
+  processor_.set_tray_fit(cfg.tray_fit, cfg.tray);
+}
 
 std::int64_t TrackerCore::period_ns() const {
   return static_cast<std::int64_t>(std::llround(1e9 / cfg_.output_rate_hz));
