@@ -252,6 +252,9 @@ void wait_for_first_frame_row(const fs::path& csv) {
 // A recorder killed with SIGKILL at several moments (before, during and after its first
 // frames): every folder replays whole or is refused with an error naming it, never a crash.
 TEST_F(OverheadRecord, KilledMidWriteLeavesFoldersReplayReadsOrRefuses) {
+#ifdef AGV_FORK_THREADS_UNSUPPORTED
+  GTEST_SKIP() << "fork, then threads in the child: aborts qemu-user 7.2 (runs natively)";
+#endif
   const std::vector<fakecamera::FakeImage> imgs = {noise(640, 400, 2), noise(640, 400, 3)};
   int replayed = 0;
   // -1: killed as soon as the first camera's frames.csv holds a frame (however slow the machine:
