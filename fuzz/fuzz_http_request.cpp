@@ -5,6 +5,7 @@
 // throws; busy is always 503; only GET and HEAD reach a page; a body of no stated length, a
 // Content-Length that is not a decimal number or over 1 kB never reaches a page; only the five
 // exact paths are served.
+#include <algorithm>
 #include <string>
 #include <string_view>
 
@@ -57,8 +58,13 @@ extern "C" int LLVMFuzzerTestOneInput(const unsigned char* data, std::size_t siz
   if (!get) FUZZ_CHECK(r == a::DiagRoute::kMethodNotAllowed, "a method other than GET/HEAD");
   if (status == 200) {
     FUZZ_CHECK(get && !h.has_transfer_encoding, "a body of no stated length reached a page");
-    FUZZ_CHECK(h.content_length.size() <= 4, "a Content-Length over 1 kB reached a page");
-    for (const char c : h.content_length) FUZZ_CHECK(c >= '0' && c <= '9', "Content-Length");
+    // By value, not by length: "01000" is 1000 bytes (leading zeros are valid HTTP).
+    std::size_t length = 0;
+    for (const char c : h.content_length) {
+      FUZZ_CHECK(c >= '0' && c <= '9', "Content-Length");
+      length = std::min<std::size_t>(length * 10 + static_cast<std::size_t>(c - '0'), 1u << 20);
+    }
+    FUZZ_CHECK(length <= a::kDiagMaxBodyBytes, "a Content-Length over 1 kB reached a page");
     FUZZ_CHECK(h.path == "/" || h.path == "/api/status.json" || h.path == "/api/map.json" ||
                    h.path == "/metrics" || h.path == "/frame.png",
                "a path other than the five served");
