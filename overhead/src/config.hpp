@@ -14,8 +14,8 @@
 
 #include "agv/overhead/search.hpp"
 #include "agv/overhead/tag_detect.hpp"
-#include "agv/overhead/tray_fit.hpp"
 #include "agv/overhead/tracker.hpp"
+#include "agv/overhead/tray_fit.hpp"
 
 namespace agv::overhead_app {
 

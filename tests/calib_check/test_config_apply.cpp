@@ -155,7 +155,7 @@ TEST(ConfigApply, BothSnippetsMergeIntoTheConfigurationKeepingItsComments) {
   EXPECT_NEAR(cfg.camera_model.mount.roll_rad, 0.8002 * M_PI / 180.0, 1e-15);  // new key
   EXPECT_EQ(cfg.camera_model.mount.pitch_rad, 0.0);  // not determined: unchanged
   EXPECT_EQ(cfg.odometry.speed_scale, 1.020012);     // new section
-  EXPECT_EQ(cfg.camera.time_offset_ms, 12.021);  // into the base's camera section
+  EXPECT_EQ(cfg.camera.time_offset_ms, 12.021);      // into the base's camera section
   EXPECT_EQ(cfg.camera.camera.id, "/dev/video0");
   ASSERT_FALSE(m.changes.empty());
   EXPECT_EQ(m.changes[0].key, "camera.width");

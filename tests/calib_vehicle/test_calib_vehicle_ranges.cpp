@@ -52,7 +52,7 @@ TEST(CalibVehiclePriors, DeterminedOdometryNarrowsTheFilterPriors) {
   add("odometry.yaw_rate_scale", 0.5, 0.002, true);      // relative 0.004, 3 sigma 0.012
   add("odometry.yaw_rate_bias_degps", 0.3, 0.04, true);  // 3 sigma 0.12 deg/s
   add("odometry.yaw_per_metre_deg", 0.1, 0.01, false);   // not determined: not written
-  add("camera.time_offset_ms", 12.0, 0.1, true);       // no filter state
+  add("camera.time_offset_ms", 12.0, 0.1, true);         // no filter state
   const std::vector<vcal::FilterPrior> priors = vcal::odometry_priors(r);
   ASSERT_EQ(priors.size(), 3u);
   EXPECT_EQ(priors[0].key, "init_v_scale_sigma");

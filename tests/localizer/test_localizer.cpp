@@ -510,7 +510,7 @@ TEST(Localizer, EachOdometryCorrectionKeyChangesTheFusedInputAsStated) {
   struct Case {
     const char* name;
     localizer::OdometryCorrection corr;
-    std::int64_t raw_dt;  // odometry clock - camera clock in the fed samples
+    std::int64_t raw_dt;            // odometry clock - camera clock in the fed samples
     std::int64_t camera_offset_ns;  // TimeBase::camera_offset_ns configured
   };
   localizer::OdometryCorrection speed, yaw, bias, curve, none, all;
@@ -519,10 +519,10 @@ TEST(Localizer, EachOdometryCorrectionKeyChangesTheFusedInputAsStated) {
   bias.yaw_rate_bias_radps = -0.004;
   curve.yaw_per_metre_rad = 0.008;
   all = {1.03, 0.97, -0.004, 0.008};
-  for (const Case& k :
-       {Case{"speed_scale", speed, 0, 0}, Case{"yaw_rate_scale", yaw, 0, 0},
-        Case{"yaw_rate_bias", bias, 0, 0}, Case{"yaw_per_metre", curve, 0, 0},
-        Case{"camera_time_offset", none, 20 * kMs, 20 * kMs}, Case{"all", all, 20 * kMs, 20 * kMs}}) {
+  for (const Case& k : {Case{"speed_scale", speed, 0, 0}, Case{"yaw_rate_scale", yaw, 0, 0},
+                        Case{"yaw_rate_bias", bias, 0, 0}, Case{"yaw_per_metre", curve, 0, 0},
+                        Case{"camera_time_offset", none, 20 * kMs, 20 * kMs},
+                        Case{"all", all, 20 * kMs, 20 * kMs}}) {
     auto c = plain;
     c.odometry = k.corr;
     c.time_base.camera_offset_ns = k.camera_offset_ns;

@@ -3,11 +3,11 @@
 // fails or where no track leads, then tray-plane fixes into the tracker. docs/design/overhead.md.
 #include "agv/overhead/camera_frame.hpp"
 
-#include "agv/overhead/tag_code.hpp"
-
 #include <algorithm>
 #include <string>
 #include <unordered_set>
+
+#include "agv/overhead/tag_code.hpp"
 
 namespace agv::overhead {
 

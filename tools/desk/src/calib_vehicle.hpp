@@ -69,8 +69,8 @@
 #include <vector>
 
 #include "agv/common/camera_model.hpp"
-#include "agv/common/track_width.hpp"
 #include "agv/common/landmark.hpp"
+#include "agv/common/track_width.hpp"
 
 namespace agv::desk::vcal {
 

@@ -485,7 +485,7 @@ int calibrate_vehicle(int argc, char** argv) {
     if (p.name == "camera.time_offset_ms") {  // the camera's clock onto the vehicle's
       if (p.determined) {
         clock << "camera:\n  time_offset_ms: " << fmt("%.4f", p.value) << "  # sigma "
-            << fmt("%.4f", p.sigma) << " " << p.unit << "\n";
+              << fmt("%.4f", p.sigma) << " " << p.unit << "\n";
       } else {
         clock << "# camera.time_offset_ms: not determined (" << p.why << ")\n";
       }

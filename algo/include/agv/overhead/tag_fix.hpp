@@ -27,8 +27,7 @@ bool tag_fix_on_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>&
                       TagFix* out, double max_size_error_rel = 0.08);
 
 // Site-frame point -> distorted pixel of the camera; false behind it or for non-finite input.
-bool site_to_pixel(const site::CeilingCamera& cam, double x_mm, double y_mm, double z_mm,
-                   Vec2* px);
+bool site_to_pixel(const site::CeilingCamera& cam, double x_mm, double y_mm, double z_mm, Vec2* px);
 // Distorted pixel -> the point where its ray meets the plane z = plane_height_mm.
 bool pixel_to_plane(const site::CeilingCamera& cam, Vec2 px, double plane_height_mm, Vec2* xy_mm);
 
