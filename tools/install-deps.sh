@@ -3,6 +3,8 @@
 # Idempotent; run as root (or with sudo) on Debian bookworm.
 #   tools/install-deps.sh            host build + tests (incl. HIL VM tooling)
 #   tools/install-deps.sh --cross    also the arm64 cross environment (see toolchain/)
+#   tools/install-deps.sh --train    also PyTorch and ONNX for retraining the learned tray detector
+#                                    (tools/train/tray_obb; never needed to build, test or run)
 set -euo pipefail
 
 SUDO=""
@@ -81,4 +83,10 @@ fi
 
 if [ "${1:-}" = "--cross" ]; then
   "$(dirname "$0")/../toolchain/prepare-aarch64.sh"
+fi
+
+# Debian's interpreter (/usr/bin/python3) gets these; a python3 of pyenv or a venv does not see them.
+if [ "${1:-}" = "--train" ]; then
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get install -y -q --no-install-recommends python3-torch python3-onnx
 fi
