@@ -10,50 +10,15 @@
 set -euo pipefail
 
 here="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
-root="$(cd "$here/../.." && pwd)"
-log() { echo "build-vimc: $*" >&2; }
-die() { echo "build-vimc: ERROR: $*" >&2; exit 1; }
+MODULE=vimc
+# shellcheck source=../hil/vm/module-build.sh
+. "$here/../hil/vm/module-build.sh"
+module_cached_or_prepare
 
-kdir="$("$root/tests/hil/vm/fetch-kernel.sh" | tail -n1)" || die "fetch-kernel.sh failed"
-# shellcheck disable=SC1091
-. "$kdir/kernel.env"
-[ -n "${KVER:-}" ] || die "no KVER in $kdir/kernel.env"
-
-cache="${AGV_VM_CACHE:-/var/cache/agvloc-vm}/vimc-$KVER"
-if [ -f "$cache/vimc.ko" ]; then
-  log "using cached $cache/vimc.ko"
-  echo "$cache/vimc.ko"
-  exit 0
-fi
-
-headers="/usr/src/linux-headers-$KVER"
-# The source package is versioned by the upstream series (6.1), the headers by the ABI (KVER).
-series="$(echo "$KVER" | cut -d. -f1,2)"
-tarball="/usr/src/linux-source-$series.tar.xz"
-need=()
-[ -d "$headers" ] || need+=("linux-headers-$KVER")
-[ -f "$tarball" ] || need+=("linux-source-$series")
-if [ "${#need[@]}" -gt 0 ]; then
-  log "installing ${need[*]}"
-  SUDO=""
-  [ "$(id -u)" -eq 0 ] || SUDO="sudo"
-  export DEBIAN_FRONTEND=noninteractive
-  $SUDO apt-get install -y -q --no-install-recommends "${need[@]}" >&2 ||
-    { $SUDO apt-get update -q >&2 && $SUDO apt-get install -y -q --no-install-recommends "${need[@]}" >&2; } ||
-    die "cannot install ${need[*]}"
-fi
-[ -d "$headers" ] && [ -f "$tarball" ] || die "missing $headers or $tarball"
-
-work="$(mktemp -d /tmp/agvloc-vimc.XXXXXX)"
-trap 'rm -rf "$work"' EXIT
 log "extracting vimc from $tarball"
 tar -C "$work" -xJf "$tarball" --wildcards "linux-source-$series/drivers/media/test-drivers/vimc/*"
 src="$work/linux-source-$series/drivers/media/test-drivers/vimc"
 [ -f "$src/Makefile" ] || die "vimc sources not found in $tarball"
 log "building against $headers"
 make -s -C "$headers" M="$src" CONFIG_VIDEO_VIMC=m modules >&2 || die "vimc build failed"
-[ -f "$src/vimc.ko" ] || die "build produced no vimc.ko"
-mkdir -p "$cache"
-cp "$src/vimc.ko" "$cache/vimc.ko.tmp" && mv "$cache/vimc.ko.tmp" "$cache/vimc.ko"
-log "built $cache/vimc.ko ($(modinfo -F vermagic "$cache/vimc.ko"))"
-echo "$cache/vimc.ko"
+module_install "$src"
