@@ -120,6 +120,10 @@ TEST_F(CalibrateCeilingCommand, CheckFailsOff30MmAndPassesAfterTheCalibrationWri
   EXPECT_NEAR(t[1], truth.y_mm, 5.0);
   EXPECT_NEAR(t[2], truth.z_mm, 10.0);
   EXPECT_EQ(back.fleet.size(), 7u);  // the rest of the site is kept
+  // The pose's sigma goes with it, for the overhead tracker's fixes.
+  for (double s : back.cameras[0].position_sigma_mm) EXPECT_GT(s, 0.0);
+  for (double s : back.cameras[0].angle_sigma_rad) EXPECT_GT(s, 0.0);
+  EXPECT_LT(back.cameras[0].position_sigma_mm[0], 5.0);
 
   r = run(calibrate_ceiling_check, args("ceiling-check", site, at("frames"), at("survey.csv")));
   EXPECT_EQ(r.rc, 0) << r.out << r.err;

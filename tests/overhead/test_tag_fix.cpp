@@ -3,6 +3,7 @@
 // frames against the truth poses, the covariance against a Monte-Carlo spread, and bad input.
 #include <gtest/gtest.h>
 
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -10,6 +11,7 @@
 
 #include "agv/overhead/tag_detect.hpp"
 #include "agv/overhead/tag_fix.hpp"
+#include "agv/site/site_geometry.hpp"
 #include "tag_test_scene.hpp"
 
 namespace agv::overhead {
@@ -108,6 +110,50 @@ TEST(TagFixGeometry, CovarianceMatchesMonteCarlo) {
   EXPECT_NEAR(std::sqrt(stt / trials), std::sqrt(fix.cov[8]), 0.15 * std::sqrt(fix.cov[8]));
   EXPECT_GT(fix.cov[0] * fix.cov[4] - fix.cov[1] * fix.cov[3], 0.0);
   EXPECT_DOUBLE_EQ(fix.cov[1], fix.cov[3]);
+}
+
+// The camera's calibrated pose sigma in the fix covariance: fixes cast through cameras moved by
+// errors drawn from that sigma scatter as the covariance says (NEES of x, y, theta about 3).
+TEST(TagFixGeometry, CalibrationSigmaCoversCameraPoseErrors) {
+  const site::CeilingCamera truth = test::ceiling_camera(40.0);
+  const Pose2 pose{1200.0, -700.0, 0.7};
+  const std::array<Vec2, 4> corners = projected_corners(truth, pose);
+  TagFix exact;
+  ASSERT_TRUE(tag_fix_on_plane(truth, corners, 0.0, kTrayMm, kTagMm, &exact));
+  for (double v : exact.cov) EXPECT_EQ(v, 0.0);  // no pixel noise, an exact camera
+  site::CeilingCamera stated = truth;
+  stated.position_sigma_mm = {3.0, 2.0, 4.0};
+  stated.angle_sigma_rad = {4e-4, 6e-4, 3e-4};
+  TagFix wide;
+  ASSERT_TRUE(tag_fix_on_plane(stated, corners, 0.0, kTrayMm, kTagMm, &wide));
+  // 3 mm of camera x alone is 3 mm of fix x; the tilts add (5.6 m range: 0.4 mrad ~ 2.2 mm).
+  EXPECT_GT(wide.cov[0], 9.0 + 2.0 * 2.0);
+  EXPECT_GT(wide.cov[8], 3e-4 * 3e-4 * 0.9);
+  std::mt19937 rng(5);
+  std::normal_distribution<double> n(0.0, 1.0);
+  const int trials = 400;
+  double nees = 0.0;
+  for (int t = 0; t < trials; ++t) {
+    site::CeilingCamera believed = stated;
+    for (std::size_t i = 0; i < 3; ++i) {
+      believed.t_site_cam_mm[i] += stated.position_sigma_mm[i] * n(rng);
+    }
+    double yaw = 0, pitch = 0, roll = 0;
+    site::camera_angles_from_rotation(truth.r_site_cam, &yaw, &pitch, &roll);
+    believed.r_site_cam = site::camera_rotation_from_angles(
+        yaw + stated.angle_sigma_rad[2] * n(rng), pitch + stated.angle_sigma_rad[1] * n(rng),
+        roll + stated.angle_sigma_rad[0] * n(rng));
+    TagFix f;
+    ASSERT_TRUE(tag_fix_on_plane(believed, corners, 0.0, kTrayMm, kTagMm, &f));
+    const Eigen::Vector3d e(f.pose.x_mm - pose.x_mm, f.pose.y_mm - pose.y_mm,
+                            std::remainder(f.pose.theta_rad - pose.theta_rad, 2 * kPi));
+    const Eigen::Matrix3d c =
+        Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(f.cov.data());
+    nees += e.dot(c.ldlt().solve(e));
+  }
+  nees /= trials;
+  EXPECT_GT(nees, 2.5);
+  EXPECT_LT(nees, 3.5);
 }
 
 TEST(TagFixGeometry, BadInputRefused) {

@@ -2,6 +2,7 @@
 // checks, the camera orientation convention and the write/parse round trip.
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -97,6 +98,8 @@ TEST(SiteFile, WriteThenParseGivesTheSameSite) {
   a.site.name = "site: \"north\" #2";
   a.site.obstacles[0].height_mm = 0.1 + 0.2;
   a.site.cameras[1].r_site_cam = camera_rotation_from_angles(0.3, 0.2, -0.1);
+  a.site.cameras[1].position_sigma_mm = {0.38, 0.55, 0.1};
+  a.site.cameras[1].angle_sigma_rad = {8e-5, 1.3e-4, 2e-5};
   const std::string text = write_site(a.site);
   const Result b = parse(text, map_text);
   ASSERT_TRUE(b.ok) << b.all << text;
@@ -146,6 +149,10 @@ TEST(SiteFile, WriteThenParseGivesTheSameSite) {
     EXPECT_EQ(d.intrinsics.k2, c.intrinsics.k2);
     EXPECT_EQ(d.r_site_cam, c.r_site_cam);  // the matrix is written, exactly
     EXPECT_EQ(d.t_site_cam_mm, c.t_site_cam_mm);
+    EXPECT_EQ(d.position_sigma_mm, c.position_sigma_mm);
+    for (std::size_t k = 0; k < 3; ++k) {
+      EXPECT_NEAR(d.angle_sigma_rad[k], c.angle_sigma_rad[k], 1e-18);  // written in degrees
+    }
   }
   ASSERT_EQ(t.fleet.size(), s.fleet.size());
   for (std::size_t i = 0; i < s.fleet.size(); ++i) {
@@ -397,6 +404,22 @@ TEST(SiteFile, CameraChecks) {
                           "height_px: 480, fx: 400, fy: 400, cx: 900, cy: 239.5}\n"
                           "    pose: {x_mm: 1, y_mm: 1, z_mm: 5000}\n");
   EXPECT_TRUE(has_error(cx, "cameras[0].intrinsics.cx", 5, "outside [0, 640]")) << cx.all;
+  // The calibration's pose sigma: optional, each parameter >= 0 and bounded.
+  const Result sigma = parse(kHead + "cameras:\n" + kCamera +
+                             "    pose_sigma: {x_mm: 0.4, z_mm: 0.1, pitch_deg: 0.01}\n");
+  ASSERT_TRUE(sigma.ok) << sigma.all;
+  const CeilingCamera& sc = sigma.site.cameras[0];
+  EXPECT_EQ(sc.position_sigma_mm, (std::array<double, 3>{0.4, 0.0, 0.1}));
+  EXPECT_NEAR(sc.angle_sigma_rad[1], 0.01 * M_PI / 180.0, 1e-15);
+  EXPECT_EQ(sc.angle_sigma_rad[0], 0.0);
+  EXPECT_EQ(parse(kHead + "cameras:\n" + kCamera).site.cameras[0].position_sigma_mm,
+            (std::array<double, 3>{0.0, 0.0, 0.0}));
+  const Result negative =
+      parse(kHead + "cameras:\n" + kCamera + "    pose_sigma: {y_mm: -1, yaw_deg: 45}\n");
+  EXPECT_TRUE(has_error(negative, "cameras[0].pose_sigma.y_mm", 7, "outside")) << negative.all;
+  EXPECT_TRUE(has_error(negative, "cameras[0].pose_sigma.yaw_deg", 7, "outside")) << negative.all;
+  const Result unknown = parse(kHead + "cameras:\n" + kCamera + "    pose_sigma: {yaw_rad: 0.1}\n");
+  EXPECT_TRUE(has_error(unknown, "cameras[0].pose_sigma.yaw_rad", 7, "unknown key")) << unknown.all;
 }
 
 TEST(SiteFile, FleetChecks) {

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "agv/common/camera_model.hpp"
+#include "agv/site/site_geometry.hpp"
 
 namespace agv::overhead {
 
@@ -70,6 +71,65 @@ bool corners_on_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>&
                       std::array<Vec2, 4>* xy) {
   for (std::size_t i = 0; i < 4; ++i) {
     if (!pixel_to_plane(cam, px[i], h_mm, &(*xy)[i])) return false;
+  }
+  return true;
+}
+
+// Central-difference steps on the camera's pose: the fix is linear in the translation and
+// smooth in the angles; these are small against any calibration sigma worth stating.
+constexpr double kPoseStepMm = 0.1;
+constexpr double kPoseStepRad = 1e-5;
+
+// The camera with one pose parameter (x, y, z, roll, pitch, yaw: the calibration's order)
+// moved by delta. An angle moves through the site file's angles: R' = R(a + d) R(a)^T R, exact
+// for any rotation R, whatever its angles round trip gives.
+site::CeilingCamera moved(const site::CeilingCamera& cam, int param, double delta) {
+  site::CeilingCamera out = cam;
+  if (param < 3) {
+    out.t_site_cam_mm[static_cast<std::size_t>(param)] += delta;
+    return out;
+  }
+  double a[3] = {0, 0, 0};  // roll, pitch, yaw
+  site::camera_angles_from_rotation(cam.r_site_cam, &a[2], &a[1], &a[0]);
+  const auto r0 = site::camera_rotation_from_angles(a[2], a[1], a[0]);
+  a[param - 3] += delta;
+  const auto r1 = site::camera_rotation_from_angles(a[2], a[1], a[0]);
+  std::array<double, 9> step{}, r{};
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      for (int k = 0; k < 3; ++k) step[i * 3 + j] += r1[i * 3 + k] * r0[j * 3 + k];
+    }
+  }
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      for (int k = 0; k < 3; ++k) r[i * 3 + j] += step[i * 3 + k] * cam.r_site_cam[k * 3 + j];
+    }
+  }
+  out.r_site_cam = r;
+  return out;
+}
+
+// Adds J diag(sigma^2) J^T of the camera's pose sigma to cov (x, y, theta): a calibration error
+// moves every fix of the camera alike, so a fix is no surer than the pose it is cast through.
+bool add_pose_covariance(const site::CeilingCamera& cam, const std::array<Vec2, 4>& px,
+                         double plane_height_mm, double h, std::array<double, 9>* cov) {
+  for (int p = 0; p < 6; ++p) {
+    const std::size_t i = static_cast<std::size_t>(p % 3);
+    const double sigma = p < 3 ? cam.position_sigma_mm[i] : cam.angle_sigma_rad[i];
+    if (!(sigma > 0.0)) continue;
+    const double step = p < 3 ? kPoseStepMm : kPoseStepRad;
+    std::array<Vec2, 4> xp{}, xm{};
+    if (!corners_on_plane(moved(cam, p, step), px, plane_height_mm, &xp) ||
+        !corners_on_plane(moved(cam, p, -step), px, plane_height_mm, &xm)) {
+      return false;
+    }
+    const PlaneSquare a = fit_square(xp, h), b = fit_square(xm, h);
+    const double j[3] = {(a.c.x - b.c.x) / (2.0 * step), (a.c.y - b.c.y) / (2.0 * step),
+                         std::remainder(a.theta - b.theta, 2.0 * kPi) / (2.0 * step)};
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c)
+        (*cov)[static_cast<std::size_t>(r * 3 + c)] += sigma * sigma * j[r] * j[c];
+    }
   }
   return true;
 }
@@ -150,6 +210,7 @@ bool tag_fix_on_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>&
       out->cov[static_cast<std::size_t>(r * 3 + c)] = var * sum;
     }
   }
+  if (!add_pose_covariance(cam, corners_px, plane_height_mm, h, &out->cov)) return false;
   out->pose = {s.c.x, s.c.y, s.theta};
   out->size_error_rel = s.scale - 1.0;
   out->residual_mm = s.rms;

@@ -27,6 +27,9 @@ namespace {
 constexpr double kDegToRad = M_PI / 180.0;
 // Heights, sizes and camera positions: a warehouse is not taller than this.
 constexpr double kMaxHeightMm = 100000.0;
+// A calibration this uncertain is not one: the tracker's fixes would be metres wide.
+constexpr double kMaxPoseSigmaMm = 1000.0;
+constexpr double kMaxPoseSigmaDeg = 10.0;
 
 void read_obstacle(ReadContext* c, const YAML::Node& n, const std::string& path, Obstacle* o,
                    int* outline_line) {
@@ -164,14 +167,31 @@ void read_camera_pose(ReadContext* c, const YAML::Node& n, const std::string& pa
   cam->r_site_cam = m;
 }
 
+// pose_sigma: the calibration's 1-sigma per pose parameter, each optional (default 0).
+void read_camera_pose_sigma(ReadContext* c, const YAML::Node& n, const std::string& path,
+                            CeilingCamera* cam) {
+  Fields f(c, n, path, {"x_mm", "y_mm", "z_mm", "roll_deg", "pitch_deg", "yaw_deg"});
+  if (!f.is_map()) return;
+  const char* mm[3] = {"x_mm", "y_mm", "z_mm"};
+  const char* deg[3] = {"roll_deg", "pitch_deg", "yaw_deg"};
+  for (std::size_t i = 0; i < 3; ++i) {
+    f.number(mm[i], 0.0, kMaxPoseSigmaMm, &cam->position_sigma_mm[i]);
+    double d = 0.0;
+    if (f.number(deg[i], 0.0, kMaxPoseSigmaDeg, &d)) cam->angle_sigma_rad[i] = d * kDegToRad;
+  }
+}
+
 void read_camera(ReadContext* c, const YAML::Node& n, const std::string& path, CeilingCamera* cam) {
-  Fields f(c, n, path, {"id", "intrinsics", "pose"});
+  Fields f(c, n, path, {"id", "intrinsics", "pose", "pose_sigma"});
   if (!f.is_map()) return;
   for (const char* key : {"id", "intrinsics", "pose"}) f.require(key);
   f.text("id", &cam->id);
   if (f.has("intrinsics"))
     read_intrinsics(c, f.get("intrinsics"), f.path("intrinsics"), &cam->intrinsics);
   if (f.has("pose")) read_camera_pose(c, f.get("pose"), f.path("pose"), cam);
+  if (f.has("pose_sigma")) {
+    read_camera_pose_sigma(c, f.get("pose_sigma"), f.path("pose_sigma"), cam);
+  }
 }
 
 void read_fleet_agv(ReadContext* c, const YAML::Node& n, const std::string& path, FleetAgv* a,

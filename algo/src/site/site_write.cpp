@@ -75,6 +75,14 @@ void write_camera(std::ostringstream& os, const CeilingCamera& c) {
      << "      r_site_cam: [";
   for (int i = 0; i < 9; ++i) os << (i ? ", " : "") << fmt_number(c.r_site_cam[i]);
   os << "]\n";
+  const auto& ps = c.position_sigma_mm;
+  const auto& as = c.angle_sigma_rad;
+  if (ps[0] > 0 || ps[1] > 0 || ps[2] > 0 || as[0] > 0 || as[1] > 0 || as[2] > 0) {
+    os << "    pose_sigma: {x_mm: " << fmt_number(ps[0]) << ", y_mm: " << fmt_number(ps[1])
+       << ", z_mm: " << fmt_number(ps[2]) << ", roll_deg: " << fmt_number(deg(as[0]))
+       << ", pitch_deg: " << fmt_number(deg(as[1])) << ", yaw_deg: " << fmt_number(deg(as[2]))
+       << "}\n";
+  }
 }
 
 }  // namespace

@@ -188,10 +188,25 @@ void print_ignored(const std::vector<ccal::TagSighting>& sightings,
   std::printf("\n");
 }
 
-// The site file with the camera's new pose, written next to it and renamed over it.
-bool write_pose(const std::string& path, site::Site site, std::size_t camera,
-                const ccal::CameraPose& pose, std::string* error) {
-  ccal::set_pose(pose, &site.cameras[camera]);
+// The site file with the camera's new pose and its sigma (pose_sigma, which the overhead tracker
+// adds to every fix of the camera), written next to it and renamed over it. A sigma that is not
+// determined (a singular covariance) or beyond the site file's limits is not written: such a
+// pose is not one to track with.
+bool write_pose(const std::string& path, site::Site site, std::size_t camera, const ccal::Result& r,
+                std::string* error) {
+  site::CeilingCamera& cam = site.cameras[camera];
+  ccal::set_pose(r.pose, &cam);
+  for (std::size_t i = 0; i < 6; ++i) {
+    const bool angle = i >= 3;
+    const double limit = angle ? 10.0 / kRadToDeg : 1000.0;  // docs/guide/site.md, pose_sigma
+    if (!(r.sigma[i] >= 0.0 && r.sigma[i] <= limit)) {
+      *error = "the pose's sigma is not determined or too large (" +
+               std::to_string(angle ? r.sigma[i] * kRadToDeg : r.sigma[i]) +
+               (angle ? " deg" : " mm") + "): not written";
+      return false;
+    }
+    (angle ? cam.angle_sigma_rad[i - 3] : cam.position_sigma_mm[i]) = r.sigma[i];
+  }
   const std::string tmp = path + ".tmp";
   {
     std::ofstream f(tmp, std::ios::binary | std::ios::trunc);
@@ -257,7 +272,7 @@ int calibrate_ceiling(int argc, char** argv) {
   print_residuals(r.eval);
   if (write) {
     std::string err;
-    if (!write_pose(a.site_path, in.site, in.camera, r.pose, &err)) {
+    if (!write_pose(a.site_path, in.site, in.camera, r, &err)) {
       std::fprintf(stderr, "agvloc-desk %s: %s\n", cmd, err.c_str());
       return 1;
     }

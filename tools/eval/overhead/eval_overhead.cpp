@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
@@ -28,6 +29,9 @@ struct Options {
   WorldOptions world;
   double fps = 10.0, output_hz = 30.0;
   double calib_error_mm = 0.0, calib_error_deg = 0.0;
+  // The pose sigma per parameter the tracker is told (the site file's pose_sigma); < 0: that
+  // of the error, error / sqrt(3) per axis (a random direction of that length).
+  double calib_sigma_mm = -1.0, calib_sigma_deg = -1.0;
   int bit_errors = 0;
   double bit_errors_from_s = 3.0;
   double latency_ms = 30.0, latency_spread_ms = 20.0;
@@ -41,6 +45,7 @@ const char* kUsage =
     "usage: eval_overhead [--cameras-height-mm H] [--width W --height H] [--tag-px P]\n"
     "  [--cameras 1|4] [--site-mm L] [--agvs N] [--duration-s S] [--fps F] [--output-hz F]\n"
     "  [--seed S] [--parcels FRACTION] [--clutter N] [--calib-error-mm E] [--calib-error-deg E]\n"
+    "  [--calib-sigma-mm S] [--calib-sigma-deg S]\n"
     "  [--bit-errors N] [--bit-errors-from-s S] [--latency-ms L] [--latency-spread-ms L]\n"
     "  [--full-sweep-every N] [--apriltag-every N] [--max-wall-s S] [--no-distortion] [--clean]\n";
 
@@ -54,6 +59,8 @@ bool parse(int argc, char** argv, Options* o, std::string* error) {
                                      {"--parcels", &o->world.parcels},
                                      {"--calib-error-mm", &o->calib_error_mm},
                                      {"--calib-error-deg", &o->calib_error_deg},
+                                     {"--calib-sigma-mm", &o->calib_sigma_mm},
+                                     {"--calib-sigma-deg", &o->calib_sigma_deg},
                                      {"--bit-errors-from-s", &o->bit_errors_from_s},
                                      {"--latency-ms", &o->latency_ms},
                                      {"--latency-spread-ms", &o->latency_spread_ms},
@@ -208,11 +215,20 @@ int run(const Options& o) {
   const agv::site::Site& site = world.site();
   const agv::CameraIntrinsics& k = site.cameras[0].intrinsics;
   print_header(o, site);
-  // The tracker's idea of the cameras: the rendered ones moved by the calibration error.
+  // The tracker's idea of the cameras: the rendered ones moved by the calibration error, with
+  // the pose sigma a calibration would state.
   std::mt19937_64 rng(o.world.seed * 7919 + 3);
   std::vector<agv::site::CeilingCamera> believed;
+  const double sigma_mm =
+      o.calib_sigma_mm >= 0 ? o.calib_sigma_mm : o.calib_error_mm / std::sqrt(3.0);
+  const double sigma_rad = agv::deg_to_rad(
+      o.calib_sigma_deg >= 0 ? o.calib_sigma_deg : o.calib_error_deg / std::sqrt(3.0));
+  std::printf("tracker told: camera pose sigma %.3f mm, %.4f deg per parameter\n", sigma_mm,
+              agv::rad_to_deg(sigma_rad));
   for (const auto& c : site.cameras) {
     believed.push_back(agv::eval::perturbed(c, o.calib_error_mm, o.calib_error_deg, &rng));
+    believed.back().position_sigma_mm = {sigma_mm, sigma_mm, sigma_mm};
+    believed.back().angle_sigma_rad = {sigma_rad, sigma_rad, sigma_rad};
   }
   agv::overhead::SearchParams sp;
   sp.full_sweep_every_frames = o.full_sweep_every;

@@ -2,7 +2,8 @@
 // (docs/design/overhead.md): every corner's ray meets the tray plane (known height above the
 // floor); the square of known size fitted to the four points gives the centre and heading (paper
 // 000 eq. 9-12 in the image; here in the site frame, free of perspective), and the corners'
-// pixel sigma, carried through the rays, its covariance. Pure.
+// pixel sigma, carried through the rays, plus the camera's calibrated pose sigma
+// (CeilingCamera::position_sigma_mm, angle_sigma_rad), its covariance. Pure.
 #pragma once
 
 #include <array>

@@ -55,6 +55,11 @@ struct CeilingCamera {
   CameraIntrinsics intrinsics;
   std::array<double, 9> r_site_cam{1, 0, 0, 0, -1, 0, 0, 0, -1};  // row-major; default looks down
   std::array<double, 3> t_site_cam_mm{0, 0, 6000};
+  // 1-sigma of the calibrated pose (agvloc-desk calibrate ceiling): the optical centre's x, y, z
+  // (mm) and the roll, pitch, yaw of docs/guide/site.md's angles (rad), taken as independent.
+  // Zero: the pose is taken as exact. The overhead tracker adds it to every fix's covariance.
+  std::array<double, 3> position_sigma_mm{0, 0, 0};
+  std::array<double, 3> angle_sigma_rad{0, 0, 0};  // roll, pitch, yaw
 };
 
 // One vehicle of the fleet. Tray: a horizontal rectangle centred on the vehicle's reference
