@@ -17,7 +17,11 @@ namespace agv::sim {
 
 namespace {
 
+using detail::sheet_grid;
+using detail::SheetGrid;
+using detail::svg_caption;
 using detail::svg_number;
+using detail::svg_sheet_open;
 
 // apriltag_to_image() of tag36h11: 10 x 10 cells, a white ring of one cell around the 8 x 8
 // black square.
@@ -158,34 +162,21 @@ std::string tag_svg(const AprilTagGeometry& geometry, std::uint32_t id) {
 
 std::string tag_sheet_svg(const AprilTagGeometry& geometry, const LandmarkMap& map, int columns) {
   if (columns < 1 || map.entries.empty() || !valid_size(geometry, nullptr)) return {};
-  const double cell_w = 2.0 * geometry.page_half_mm() + 10.0;
-  const double cell_h = cell_w + 8.0;  // caption line under each tag
-  const int n = static_cast<int>(map.entries.size());
-  const int cols = std::min(columns, n);
-  const int rows = (n + cols - 1) / cols;
-  const double w = cols * cell_w, h = rows * cell_h;
+  const SheetGrid g = sheet_grid(2.0 * geometry.page_half_mm() + 10.0,
+                                 static_cast<int>(map.entries.size()), columns);
   std::ostringstream os;
-  os << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-     << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << svg_number(w) << "mm\" height=\""
-     << svg_number(h) << "mm\" viewBox=\"0 0 " << svg_number(w) << " " << svg_number(h)
-     << "\" shape-rendering=\"crispEdges\">\n"
-     << "  <!-- agvloc tag36h11 sheet, black square " << svg_number(geometry.size_mm)
-     << " mm; print at 100% scale -->\n"
-     << "  <rect x=\"0\" y=\"0\" width=\"" << svg_number(w) << "\" height=\"" << svg_number(h)
-     << "\" fill=\"#fff\"/>\n";
+  svg_sheet_open(os, g, "agvloc tag36h11 sheet, black square " + svg_number(geometry.size_mm));
   int i = 0;
   std::vector<std::uint8_t> cells;
   for (const auto& [id, e] : map.entries) {
     if (!tag_cells(id, &cells, nullptr)) return {};
-    const double cx = (i % cols + 0.5) * cell_w, cy = (i / cols) * cell_h + cell_w / 2;
+    const double cx = g.cx(i), cy = g.cy(i);
     append_tag_svg(os, geometry, cells, cx, cy);
     char cap[160];
     std::snprintf(cap, sizeof cap, "tag36h11 id %u  x %.1f  y %.1f  heading %.2f deg",
                   static_cast<unsigned>(id), e.pose.x_mm, e.pose.y_mm,
                   rad_to_deg(wrap_angle_rad(e.pose.theta_rad)));
-    os << "  <text x=\"" << svg_number(cx) << "\" y=\"" << svg_number(cy + cell_w / 2 - 2.0)
-       << "\" font-family=\"sans-serif\" font-size=\"3\" text-anchor=\"middle\">" << cap
-       << "</text>\n";
+    svg_caption(os, cx, cy + g.cell_w / 2 - 2.0, cap);
     ++i;
   }
   os << "</svg>\n";

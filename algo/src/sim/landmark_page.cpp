@@ -17,7 +17,11 @@ namespace agv::sim {
 
 namespace {
 
+using detail::sheet_grid;
+using detail::SheetGrid;
+using detail::svg_caption;
 using detail::svg_number;
+using detail::svg_sheet_open;
 
 // zxing-cpp 1.4 maps setEccLevel(0..8) to QR levels L,L,L,M,M,Q,Q,H,H (level = (e-1)/2);
 // 4 is M. Confirmed by decoding the generated codes in tests/sim.
@@ -200,35 +204,23 @@ std::string full_payload(const LandmarkMapEntry& e) { return vision::map_full_pa
 std::string landmark_sheet_svg(const LandmarkGeometry& geometry, const LandmarkMap& map,
                                int columns) {
   if (columns < 1 || map.entries.empty()) return {};
-  const double cell_w = 2.0 * geometry.outer_half_mm() + 2.0 * geometry.border_width_mm() + 10.0;
-  const double cell_h = cell_w + 8.0;  // caption line under each landmark
-  const int n = static_cast<int>(map.entries.size());
-  const int cols = std::min(columns, n);
-  const int rows = (n + cols - 1) / cols;
-  const double w = cols * cell_w, h = rows * cell_h;
+  const SheetGrid g =
+      sheet_grid(2.0 * geometry.outer_half_mm() + 2.0 * geometry.border_width_mm() + 10.0,
+                 static_cast<int>(map.entries.size()), columns);
   std::ostringstream os;
-  os << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-     << "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"" << svg_number(w) << "mm\" height=\""
-     << svg_number(h) << "mm\" viewBox=\"0 0 " << svg_number(w) << " " << svg_number(h)
-     << "\" shape-rendering=\"crispEdges\">\n"
-     << "  <!-- agvloc landmark sheet, size " << svg_number(geometry.size_mm)
-     << " mm; print at 100% scale -->\n"
-     << "  <rect x=\"0\" y=\"0\" width=\"" << svg_number(w) << "\" height=\"" << svg_number(h)
-     << "\" fill=\"#fff\"/>\n";
+  svg_sheet_open(os, g, "agvloc landmark sheet, size " + svg_number(geometry.size_mm));
   int i = 0;
   for (const auto& [id, e] : map.entries) {
     const std::string payload = full_payload(e);
     LandmarkPattern pat;
     if (payload.empty() || !LandmarkPattern::make(geometry, payload, &pat, nullptr)) return {};
-    const double cx = (i % cols + 0.5) * cell_w, cy = (i / cols) * cell_h + cell_w / 2;
+    const double cx = g.cx(i), cy = g.cy(i);
     append_landmark_svg(os, pat, cx, cy);
     char cap[160];
     std::snprintf(cap, sizeof cap, "id %u  x %.1f  y %.1f  heading %.2f deg",
                   static_cast<unsigned>(id), e.pose.x_mm, e.pose.y_mm,
                   rad_to_deg(wrap_angle_rad(e.pose.theta_rad)));
-    os << "  <text x=\"" << svg_number(cx) << "\" y=\"" << svg_number(cy + cell_w / 2 + 3.0)
-       << "\" font-family=\"sans-serif\" font-size=\"3\" text-anchor=\"middle\">" << cap
-       << "</text>\n";
+    svg_caption(os, cx, cy + g.cell_w / 2 + 3.0, cap);
     ++i;
   }
   os << "</svg>\n";
