@@ -47,6 +47,8 @@ struct OverheadConfig {
   overhead::TagDetectParams detect;
   bool tray_fit = true;  // the tray's box for a tracked vehicle whose tag is covered
   overhead::TrayFitParams tray;
+  // Fleet tag ids whose codes are fewer bits apart are refused with the site (identity).
+  int min_tag_distance = 12;
   double output_rate_hz = 30.0;
   MqttOutput mqtt;
   std::map<std::string, CameraSettings> cameras;  // by camera id

@@ -140,6 +140,10 @@ std::vector<Key> search_detect_keys() {
       integer("tray.min_sides_seen", AGV_OH_AT(tray.min_sides_seen), 2, 4, 3, "sides",
               "Tray sides that must be seen for a box fit: 2 fits more covered trays, with about "
               "a fifth of two-side fits outside their covariance on rendered random parcels"),
+      integer("identity.min_tag_distance", AGV_OH_AT(min_tag_distance), 11, 36, 12, "bits",
+              "Two fleet tags whose tag36h11 codes (any turn) are fewer bits apart are refused "
+              "with the site: 12 keeps a 6-bit misread off the other's code, 13 lets an area of "
+              "any fleet tags correct 6 bits (at most about 30 ids qualify); 11 checks nothing"),
   };
 }
 

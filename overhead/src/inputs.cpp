@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 
+#include "agv/overhead/tag_code.hpp"
 #include "agv/site/site_file.hpp"
 
 namespace agv::overhead_app {
@@ -21,6 +22,30 @@ std::string camera_ids(const site::Site& site) {
 }
 
 }  // namespace
+
+bool check_fleet_tag_distance(const site::Site& site, int min_bits, std::string* error) {
+  const auto& f = site.fleet;
+  std::size_t close = 0;
+  std::string first;
+  for (std::size_t i = 0; i < f.size(); ++i) {
+    for (std::size_t j = i + 1; j < f.size(); ++j) {
+      const int d = overhead::tag_distance(f[i].tag_id, f[j].tag_id);
+      if (d >= min_bits || f[i].tag_id == f[j].tag_id) continue;  // one tag twice: the site's
+      if (close++ == 0) {
+        first = "fleet[" + std::to_string(i) + "] '" + f[i].id + "' (tag " +
+                std::to_string(f[i].tag_id) + ") and fleet[" + std::to_string(j) + "] '" + f[j].id +
+                "' (tag " + std::to_string(f[j].tag_id) + "): codes " + std::to_string(d) +
+                " bits apart";
+      }
+    }
+  }
+  if (close == 0) return true;
+  *error = "identity.min_tag_distance: tags too close: " + first +
+           (close > 1 ? " (and " + std::to_string(close - 1) + " more pairs)" : "") +
+           ", at least " + std::to_string(min_bits) +
+           " required (give one of them another tag id, or lower identity.min_tag_distance)";
+  return false;
+}
 
 bool load_site_file(const std::string& path, site::Site* out, std::vector<std::string>* errors) {
   const site::SiteLimits limits;
@@ -121,6 +146,7 @@ bool open_recordings(const std::vector<std::string>& dirs, const site::Site& sit
 
 bool check_config_against_site(const OverheadConfig& cfg, const site::Site& site,
                                std::string* error) {
+  if (!check_fleet_tag_distance(site, cfg.min_tag_distance, error)) return false;
   for (const auto& entry : cfg.cameras) {
     const std::string& id = entry.first;
     bool found = false;

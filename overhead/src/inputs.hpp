@@ -35,7 +35,13 @@ bool open_recordings(const std::vector<std::string>& dirs, const site::Site& sit
                      const OverheadConfig& cfg, std::vector<CameraRecording>* out,
                      std::vector<std::string>* warnings, std::string* error);
 
-// Every configured cameras.<id> names a camera of the site; else false with *error.
+// Every two fleet vehicles' tags are at least min_bits apart (overhead::tag_distance: a tag read
+// with that many wrong bits could decode as the other); else false with *error naming the first
+// pair and counting the others.
+bool check_fleet_tag_distance(const site::Site& site, int min_bits, std::string* error);
+
+// Every configured cameras.<id> names a camera of the site and the fleet's tags are
+// identity.min_tag_distance apart; else false with *error.
 bool check_config_against_site(const OverheadConfig& cfg, const site::Site& site,
                                std::string* error);
 

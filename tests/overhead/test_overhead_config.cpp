@@ -347,5 +347,48 @@ TEST_F(OverheadInputs, LatencyOfACameraNotInTheSiteIsRefused) {
   EXPECT_NE(err.find("cameras.cam-b: no camera 'cam-b'"), std::string::npos) << err;
 }
 
+// Tags whose codes are fewer than identity.min_tag_distance bits apart are refused by name;
+// tags 1 and 8 are 11 bits apart, 2 and 6 12, 10 and 11 19.
+TEST_F(OverheadInputs, FleetTagsTooCloseAreRefused) {
+  write("site.yaml", std::string(kSiteHead) +
+                         "  - {id: agv-1, tag_id: 1}\n  - {id: agv-2, tag_id: 10}\n"
+                         "  - {id: agv-3, tag_id: 8}\n  - {id: agv-4, tag_id: 11}\n");
+  site::Site s;
+  std::vector<std::string> errors;
+  ASSERT_TRUE(load_site_file((dir_ / "site.yaml").string(), &s, &errors));
+  OverheadConfig cfg;
+  std::string err;
+  EXPECT_FALSE(check_config_against_site(cfg, s, &err));
+  EXPECT_NE(err.find("identity.min_tag_distance: tags too close: fleet[0] 'agv-1' (tag 1) and "
+                     "fleet[2] 'agv-3' (tag 8): codes 11 bits apart, at least 12 required"),
+            std::string::npos)
+      << err;
+  cfg.min_tag_distance = 11;
+  EXPECT_TRUE(check_config_against_site(cfg, s, &err)) << err;
+  s.fleet[2].tag_id = 6;
+  s.fleet[0].tag_id = 2;  // 2 and 6: 12 bits
+  cfg.min_tag_distance = 12;
+  EXPECT_TRUE(check_config_against_site(cfg, s, &err)) << err;
+  cfg.min_tag_distance = 13;
+  EXPECT_FALSE(check_config_against_site(cfg, s, &err));
+  EXPECT_NE(err.find("(tag 2)"), std::string::npos) << err;
+  EXPECT_NE(err.find("12 bits apart, at least 13 required"), std::string::npos) << err;
+  // Every pair is counted: ids 0..5 hold several pairs under 16.
+  s.fleet.resize(6);
+  for (std::uint32_t i = 0; i < 6; ++i) {
+    s.fleet[i].id = "a" + std::to_string(i);
+    s.fleet[i].tag_id = i;
+  }
+  cfg.min_tag_distance = 16;
+  EXPECT_FALSE(check_config_against_site(cfg, s, &err));
+  EXPECT_NE(err.find("more pairs)"), std::string::npos) << err;
+  // The key is read from the file, within its range.
+  std::vector<std::string> cfg_errors;
+  OverheadConfig read;
+  ASSERT_TRUE(parse_config("identity:\n  min_tag_distance: 13\n", &read, &cfg_errors));
+  EXPECT_EQ(read.min_tag_distance, 13);
+  EXPECT_FALSE(parse_config("identity:\n  min_tag_distance: 10\n", &read, &cfg_errors));
+}
+
 }  // namespace
 }  // namespace agv::overhead_app

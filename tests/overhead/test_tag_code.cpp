@@ -75,6 +75,29 @@ TEST(TagCode, FamilyDistanceIsEleven) {
   EXPECT_EQ(min_distance({0}), 18);  // its own nearest turn
 }
 
+// The pair distance the site check uses: symmetric, over every turn of the other, the family's
+// minimum among the first ids.
+TEST(TagCode, PairDistance) {
+  EXPECT_EQ(tag_distance(1, 8), 11);  // the family's minimum
+  EXPECT_EQ(tag_distance(2, 6), 12);
+  EXPECT_EQ(tag_distance(5, 6), 13);
+  EXPECT_EQ(tag_distance(10, 11), 19);
+  EXPECT_EQ(tag_distance(7, 7), 0);
+  EXPECT_EQ(tag_distance(0, kTag36h11Count), 0);
+  int smallest = 36;
+  for (std::uint32_t a = 0; a < 60; ++a) {
+    for (std::uint32_t b = a + 1; b < 60; ++b) {
+      ASSERT_EQ(tag_distance(a, b), tag_distance(b, a)) << a << " " << b;
+      EXPECT_LE(min_distance({a, b}), tag_distance(a, b));  // the set's includes the pair's
+      smallest = std::min(smallest, tag_distance(a, b));
+      // A code turned is the same tag: the distance does not change.
+      const std::uint64_t turned = rotate90(tag36h11_code(b));
+      EXPECT_LE(tag_distance(a, b), hamming36(tag36h11_code(a), turned));
+    }
+  }
+  EXPECT_EQ(smallest, kTag36h11MinDistance);
+}
+
 TEST(TagCode, PaperAreaCorrectsSixBits) {
   const std::vector<std::uint32_t> area{0, 1, 2, 3};
   const int d = min_distance(area);

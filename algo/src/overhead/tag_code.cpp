@@ -156,6 +156,15 @@ DecodeResult decode_global(std::uint64_t code, int max_bits) {
   return nearest(code, all, kTag36h11MinDistance, max_bits < 0 ? 0 : max_bits);
 }
 
+int tag_distance(std::uint32_t a, std::uint32_t b) {
+  if (a >= kTag36h11Count || b >= kTag36h11Count) return 0;
+  const std::uint64_t ca = tag36h11_code(a);
+  std::uint64_t cb = tag36h11_code(b);
+  int best = kTag36h11Bits;
+  for (int turn = 0; turn < 4; ++turn, cb = rotate90(cb)) best = std::min(best, hamming36(ca, cb));
+  return best;
+}
+
 int min_distance(const std::vector<std::uint32_t>& ids) {
   using namespace tag_code_detail;
   if (!all_in_family(ids)) return 0;

@@ -48,6 +48,10 @@ DecodeResult decode_restricted(std::uint64_t code, const std::vector<std::uint32
 // decode_restricted against the whole family with at most max_bits corrected (max_bits < 0: none),
 // without recomputing the family's distance (correctable_bits from kTag36h11MinDistance).
 DecodeResult decode_global(std::uint64_t code, int max_bits);
+// Smallest Hamming distance between the codes of two ids, over the four turns of b's: how many
+// wrong bits turn a read of one into the other. 0 for an id outside the family; every two ids
+// of the family are at least kTag36h11MinDistance apart.
+int tag_distance(std::uint32_t a, std::uint32_t b);
 // Smallest Hamming distance between any two codes of the set, over every turn of each (a
 // code's own turns included, so a set of one id gives its nearest own turn); 36 for an empty
 // set, 0 when an id is outside the family.
