@@ -28,6 +28,9 @@ PKGS=(
   # client and the official schemas' validator for the mqtt tests
   libmosquitto-dev nlohmann-json3-dev mosquitto mosquitto-clients python3-paho-mqtt
   python3-jsonschema
+  # a second MQTT broker (RabbitMQ's MQTT plugin) for agvloc-overhead's broker-independence test;
+  # its service is never started: the test runs a node of its own
+  rabbitmq-server
   # diagnostics page and /metrics (docs/guide/diagnostics.md): HTTP server; the page test's browser
   libmicrohttpd-dev chromium
   # agvloc-desk calibrate vehicle: nonlinear least squares

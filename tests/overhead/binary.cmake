@@ -21,6 +21,14 @@ if(AGV_DESK_CMD)
                          SKIP_RETURN_CODE 77)
   endforeach()
   set_tests_properties(overhead_mqtt PROPERTIES LABELS "overhead;mqtt")
+  # The same on RabbitMQ's MQTT plugin: the tracker depends on MQTT, not on one broker. The
+  # Erlang node boots in 5-20 s; skipped where rabbitmq-server is not installed.
+  add_test(NAME overhead_mqtt_rabbitmq
+           COMMAND ${Python3_EXECUTABLE} ${CMAKE_CURRENT_SOURCE_DIR}/test_overhead_mqtt.py
+                   "${_agv_oh_cmd}" "${AGV_DESK_CMD}" ${_agv_oh_site}
+                   ${CMAKE_CURRENT_BINARY_DIR}/overhead_mqtt_rabbitmq rabbitmq)
+  set_tests_properties(overhead_mqtt_rabbitmq PROPERTIES LABELS "overhead;mqtt" TIMEOUT 180
+                       SKIP_RETURN_CODE 77)
 endif()
 
 # The live loop on scripted cameras (threads: label tsan too). About 2 s.
