@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <cstdint>
@@ -205,6 +206,50 @@ TEST(OverheadTracker, CovarianceIsHonest) {
   EXPECT_LT(mean, 3.5);
   EXPECT_LT(frac95, 0.09);
   EXPECT_LE(gated, 6);
+}
+
+// A camera's calibration error is one bias for all its fixes: the same runs as above, each
+// fix moved by the run's bias drawn from cov_camera as well as by its own noise. The filter
+// averages the noise away, not the bias, and reports the bias on top (NEES about 3). Taken as
+// noise, the bias makes the reported sigma shrink far below the error (NEES well above 3).
+TEST(OverheadTracker, CameraBiasIsReportedNotAveraged) {
+  TrackerParams p;
+  p.accel_noise_mps2 = 0.3;
+  p.alpha_noise_radps2 = 0.5;
+  std::mt19937_64 rng(13);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  const double sigma_mm = 1.0, sigma_rad = 0.002, bias_mm = 4.0, bias_rad = 0.003;
+  auto mean_nees = [&](bool as_bias) {
+    double sum = 0.0;
+    int samples = 0;
+    for (int run = 0; run < 40; ++run) {
+      FleetTracker tr(1, p);
+      const Pose2 x{1000.0, -500.0, 0.3 * run};
+      const double bx = bias_mm * n01(rng), by = bias_mm * n01(rng), bt = bias_rad * n01(rng);
+      for (int k = 0; k <= 50; ++k) {  // a parked vehicle, fixes at 10 Hz
+        TagFix f =
+            noisy_fix({x.x_mm + bx, x.y_mm + by, x.theta_rad + bt}, sigma_mm, sigma_rad, &rng);
+        const std::array<double, 9> c{bias_mm * bias_mm,  0, 0, 0, bias_mm * bias_mm, 0, 0, 0,
+                                      bias_rad * bias_rad};
+        for (std::size_t i = 0; i < 9; ++i) f.cov[i] += c[i];
+        if (as_bias) f.cov_camera = c;
+        const std::int64_t t = k * 100 * kMs;
+        EXPECT_NE(tr.add_fix(0, t, f), FixResult::kGated);
+        if (k < 10) continue;
+        const TrackOutput o = tr.output(0, t);
+        EXPECT_GE(o.cov[0], as_bias ? bias_mm * bias_mm : 0.0);
+        sum += nees3(o, x);
+        ++samples;
+      }
+    }
+    return sum / samples;
+  };
+  const double with_bias = mean_nees(true), as_noise = mean_nees(false);
+  std::printf("NEES mean with the camera part as a bias %.2f, as noise %.2f (3 expected)\n",
+              with_bias, as_noise);
+  EXPECT_GT(with_bias, 2.0);
+  EXPECT_LT(with_bias, 4.0);
+  EXPECT_GT(as_noise, 10.0);
 }
 
 struct TimedFix {

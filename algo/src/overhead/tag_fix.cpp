@@ -109,10 +109,11 @@ site::CeilingCamera moved(const site::CeilingCamera& cam, int param, double delt
   return out;
 }
 
-// Adds J diag(sigma^2) J^T of the camera's pose sigma to cov (x, y, theta): a calibration error
+// J diag(sigma^2) J^T of the camera's pose sigma (x, y, theta): a calibration error
 // moves every fix of the camera alike, so a fix is no surer than the pose it is cast through.
-bool add_pose_covariance(const site::CeilingCamera& cam, const std::array<Vec2, 4>& px,
-                         double plane_height_mm, double h, std::array<double, 9>* cov) {
+bool pose_covariance(const site::CeilingCamera& cam, const std::array<Vec2, 4>& px,
+                     double plane_height_mm, double h, std::array<double, 9>* cov) {
+  cov->fill(0.0);
   for (int p = 0; p < 6; ++p) {
     const std::size_t i = static_cast<std::size_t>(p % 3);
     const double sigma = p < 3 ? cam.position_sigma_mm[i] : cam.angle_sigma_rad[i];
@@ -210,7 +211,8 @@ bool tag_fix_on_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>&
       out->cov[static_cast<std::size_t>(r * 3 + c)] = var * sum;
     }
   }
-  if (!add_pose_covariance(cam, corners_px, plane_height_mm, h, &out->cov)) return false;
+  if (!pose_covariance(cam, corners_px, plane_height_mm, h, &out->cov_camera)) return false;
+  for (std::size_t i = 0; i < 9; ++i) out->cov[i] += out->cov_camera[i];
   out->pose = {s.c.x, s.c.y, s.theta};
   out->size_error_rel = s.scale - 1.0;
   out->residual_mm = s.rms;

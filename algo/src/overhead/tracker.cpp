@@ -67,6 +67,14 @@ Belief belief_at(const TrackCore& tr, std::int64_t t_ns, const tracker_detail::P
   return tracker_detail::predict(e.belief, seconds(diff_ns(t_ns, e.t_ns)), q);
 }
 
+// The belief as reported: the calibration error of the newest fix's camera passes through the
+// filter whole, so it is added on top of the filter's covariance.
+Belief reported_at(const TrackCore& tr, std::int64_t t_ns, const tracker_detail::ProcessNoise& q) {
+  Belief b = belief_at(tr, t_ns, q);
+  b.p.topLeftCorner<3, 3>() += tr.newest().fix.bias;
+  return b;
+}
+
 // The state the track is in at t, given its position sigma then: the stored state aged by the
 // time since its newest fix. Never better than the stored one (only a fix confirms).
 TrackState state_at(const TrackCore& tr, std::int64_t t_ns, double sigma_xy_mm,
@@ -189,11 +197,13 @@ FixResult FleetTracker::add_fix(std::size_t agv, std::int64_t t_ns, const TagFix
   const td::ProcessNoise q = td::noise_of(p_);
   std::size_t k = 0;
   td::Belief prior;
+  td::Mat3 prior_bias = td::Mat3::Zero();
   bool restart = tr.state == TrackState::kNone || tr.state == TrackState::kLost || tr.count == 0;
   if (!restart) {
     k = td::insertion_index(tr, t_ns);
     if (k == tr.count) {
       prior = td::predict(tr.newest().belief, td::seconds(td::diff_ns(t_ns, tr.newest().t_ns)), q);
+      prior_bias = tr.newest().fix.bias;
       const TrackState now = td::state_at(tr, t_ns, td::position_sigma_mm(prior.p), p_);
       if (now == TrackState::kLost) ++counters_.lost;
       restart = now == TrackState::kNone || now == TrackState::kLost;
@@ -204,6 +214,7 @@ FixResult FleetTracker::add_fix(std::size_t agv, std::int64_t t_ns, const TagFix
     } else {
       const td::TrackEntry& before = tr.at(k - 1);
       prior = td::predict(before.belief, td::seconds(td::diff_ns(t_ns, before.t_ns)), q);
+      prior_bias = before.fix.bias;
     }
   }
   if (restart) {
@@ -215,7 +226,7 @@ FixResult FleetTracker::add_fix(std::size_t agv, std::int64_t t_ns, const TagFix
     ++counters_.started;
     return FixResult::kStarted;
   }
-  if (!(td::distance2(prior, m) <= p_.gate_chi2)) {
+  if (!(td::distance2(prior, prior_bias, m) <= p_.gate_chi2)) {
     ++counters_.gated;
     return FixResult::kGated;
   }
@@ -233,7 +244,7 @@ void FleetTracker::update_states(std::int64_t now_ns) {
   const td::ProcessNoise q = td::noise_of(p_);
   for (Track& tr : tracks_) {
     if (tr.count == 0 || tr.state == TrackState::kNone || tr.state == TrackState::kLost) continue;
-    const td::Belief b = td::belief_at(tr, now_ns, q);
+    const td::Belief b = td::reported_at(tr, now_ns, q);
     const TrackState s = td::state_at(tr, now_ns, td::position_sigma_mm(b.p), p_);
     if (s == tr.state) continue;
     if (s == TrackState::kLost) ++counters_.lost;
@@ -249,7 +260,7 @@ TrackOutput FleetTracker::output(std::size_t agv, std::int64_t t_ns) const {
   if (agv >= tracks_.size()) return o;
   const Track& tr = tracks_[agv];
   if (tr.count == 0 || tr.state == TrackState::kNone) return o;
-  const td::Belief b = td::belief_at(tr, t_ns, td::noise_of(p_));
+  const td::Belief b = td::reported_at(tr, t_ns, td::noise_of(p_));
   o.pose = {b.x(0), b.x(1), b.x(2)};
   o.v_mps = b.x(3) / 1000.0;
   o.omega_radps = b.x(4);

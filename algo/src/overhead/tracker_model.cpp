@@ -93,6 +93,19 @@ bool make_measurement(const TagFix& fix, Measurement* out) {
   if (llt.info() != Eigen::Success) return false;
   out->z << fix.pose.x_mm, fix.pose.y_mm, wrap_angle_rad(fix.pose.theta_rad);
   out->r = m;
+  out->bias.setZero();
+  Mat3 c;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) c(i, j) = fix.cov_camera[static_cast<std::size_t>(3 * i + j)];
+  }
+  if (!c.allFinite() || c.isZero(0.0)) return true;
+  c = 0.5 * (c + c.transpose()).eval();
+  const Mat3 noise = m - c;
+  if (Eigen::LLT<Mat3>(noise).info() != Eigen::Success || !(c.diagonal().minCoeff() >= 0.0)) {
+    return true;
+  }
+  out->r = noise;
+  out->bias = c;
   return true;
 }
 
@@ -104,8 +117,8 @@ Vec3 innovation(const Belief& b, const Measurement& m) {
 
 }  // namespace
 
-double distance2(const Belief& b, const Measurement& m) {
-  const Mat3 s = b.p.topLeftCorner<3, 3>() + m.r;
+double distance2(const Belief& b, const Mat3& track_bias, const Measurement& m) {
+  const Mat3 s = b.p.topLeftCorner<3, 3>() + track_bias + m.r + m.bias;
   const Eigen::LLT<Mat3> llt(s);
   const Vec3 y = innovation(b, m);
   return y.dot(llt.solve(y));

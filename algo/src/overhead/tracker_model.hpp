@@ -30,18 +30,25 @@ struct ProcessNoise {
 // is the accelerations' density integrated over |dt_s| through the linearised motion.
 Belief predict(const Belief& b, double dt_s, const ProcessNoise& q);
 
-// A fix as the filter uses it: z = (x_mm, y_mm, theta_rad) and its covariance R.
+// A fix as the filter uses it: z = (x_mm, y_mm, theta_rad), the covariance R of its own noise
+// (the corners'), and that of its camera's calibration error, a bias common to the camera's fixes.
+// The filter averages the noise and not the bias: a fix updates with R, the gate compares with
+// R + bias plus the track's own bias, and the track reports its covariance plus the bias of its
+// newest fix (a consider covariance).
 struct Measurement {
   Vec3 z = Vec3::Zero();
   Mat3 r = Mat3::Identity();
+  Mat3 bias = Mat3::Zero();
 };
 
 // False when the pose is not finite or the covariance is not finite, symmetric and positive
-// definite.
+// definite. A camera part that leaves no positive definite noise (or is not finite) is taken as
+// noise.
 bool make_measurement(const TagFix& fix, Measurement* m);
 
-// Squared Mahalanobis distance of the fix from the belief (heading innovation wrapped).
-double distance2(const Belief& b, const Measurement& m);
+// Squared Mahalanobis distance of the fix from the belief (heading innovation wrapped);
+// track_bias: the calibration error the belief carries.
+double distance2(const Belief& b, const Mat3& track_bias, const Measurement& m);
 
 // Eq. 17-19 with the covariance in Joseph form (stays symmetric positive definite).
 Belief update(const Belief& b, const Measurement& m);
