@@ -188,17 +188,27 @@ TEST(RangingFix, GaussNewtonConvergesFromAPoorStart) {
   EXPECT_LT(f.iterations, 10);
 }
 
-TEST(RangingFix, CollinearLandmarksAreRefused) {
+TEST(RangingFix, CollinearLandmarksRefuseTheDeterminantsNotTheBearings) {
   const Pose2 truth{0.0, 0.0, 0.0};
   std::vector<Observation> obs = {observe(truth, {4000.0, 1000.0}, 30.0, 1e-3),
                                   observe(truth, {6000.0, 2000.0}, 30.0, 1e-3),
                                   observe(truth, {8000.0, 3000.0}, 30.0, 1e-3)};
-  EXPECT_EQ(fix_from_landmarks(obs, FixOptions{}).status, FixStatus::kCollinear);
+  Vec2 p;
+  EXPECT_EQ(trilaterate(obs, FixOptions{}, &p), FixStatus::kCollinear);
+  EXPECT_EQ(fix_trilateration(obs, FixOptions{}).status, FixStatus::kCollinear);
   obs[2] = observe(truth, {8000.0, 3050.0}, 30.0, 1e-3);  // 50 mm off the line over 4 m
-  EXPECT_EQ(fix_from_landmarks(obs, FixOptions{}).status, FixStatus::kCollinear);
-  obs.push_back(observe(truth, {10000.0, 4000.0}, 30.0, 1e-3));
-  obs[2] = observe(truth, {8000.0, 3000.0}, 30.0, 1e-3);
-  EXPECT_EQ(fix_from_landmarks(obs, FixOptions{}).status, FixStatus::kCollinear);
+  EXPECT_EQ(trilaterate(obs, FixOptions{}, &p), FixStatus::kCollinear);
+  // Seen from far along the line, the widest pair crosses at 8 degrees: refused.
+  EXPECT_EQ(fix_from_landmarks(obs, FixOptions{}).status, FixStatus::kShallowGeometry);
+  // Landmarks along one rack face seen from 3 m in front of it: the bearings fix the side.
+  const Pose2 front{1000.0, -500.0, 0.4};
+  std::vector<Observation> rack = {observe(front, {4000.0, -2000.0}, 30.0, 1e-3),
+                                   observe(front, {4000.0, 0.0}, 30.0, 1e-3),
+                                   observe(front, {4000.0, 1500.0}, 30.0, 1e-3)};
+  EXPECT_EQ(trilaterate(rack, FixOptions{}, &p), FixStatus::kCollinear);
+  const FixResult f = fix_from_landmarks(rack, FixOptions{});
+  ASSERT_EQ(f.status, FixStatus::kOk) << fix_status_name(f.status);
+  expect_pose(f.pose, front, 1e-6, 1e-9);
 }
 
 // Seeded noisy trials: a random pose among random landmarks 2-8 m away, range noise growing with

@@ -42,6 +42,18 @@ bool fix_trilateration_pose(std::span<const Observation> obs, const std::vector<
   return true;
 }
 
+// Chi-square that is infinite where some landmark cannot be predicted (at the vehicle's point).
+double fix_chi2_strict(std::span<const Observation> obs, const Eigen::Vector3d& s) {
+  double chi2 = 0.0;
+  for (const Observation& o : obs) {
+    Eigen::Vector2d h;
+    if (!fix_predict(o, s, &h, nullptr)) return std::numeric_limits<double>::infinity();
+    const Eigen::Vector2d r = fix_residual(o, h);
+    chi2 += r.dot(o.cov.ldlt().solve(r));
+  }
+  return chi2;
+}
+
 }  // namespace
 
 double hidden_map_shift_sigma(std::span<const Observation> obs, const Pose2& pose,
@@ -217,8 +229,15 @@ FixResult refine_fix(std::span<const Observation> obs, const Pose2& init, const 
       g += J.transpose() * W * fix_residual(o, h);
     }
     if (converged || it == opt.max_iterations) break;
-    const Eigen::Vector3d step = H.ldlt().solve(g);
+    Eigen::Vector3d step = H.ldlt().solve(g);
     if (!step.allFinite()) break;
+    // Backtracking: a wrong map entry makes the problem far from linear, where full Gauss-Newton
+    // steps run away; halve a step until it lowers chi-square.
+    const double chi2_now = fix_chi2_strict(obs, s);
+    for (int halvings = 0; halvings < 40 && !(fix_chi2_strict(obs, s + step) <= chi2_now);
+         ++halvings) {
+      step *= 0.5;
+    }
     s += step;
     s.z() = wrap_angle_rad(s.z());
     out.iterations = it + 1;
@@ -261,6 +280,24 @@ FixResult fix_from_landmarks(std::span<const Observation> obs, const FixOptions&
     seed.status = trilaterate(obs, opt, &p);
     if (seed.status == FixStatus::kOk) {
       seed.pose = {p.x, p.y, heading_from_bearings_rad(p, obs, 0.0)};
+    } else if (seed.status == FixStatus::kCollinear) {
+      // Landmarks along one rack face: the ranges alone cannot tell the two sides of the line
+      // apart, the bearings can. Start from the widest pair's crossing; its own geometry check
+      // refuses a pair too far away.
+      std::size_t a = 0, b = 1;
+      double widest = -1.0;
+      for (std::size_t i = 0; i < obs.size(); ++i) {
+        for (std::size_t j = i + 1; j < obs.size(); ++j) {
+          const double d = std::hypot(obs[i].landmark_mm.x - obs[j].landmark_mm.x,
+                                      obs[i].landmark_mm.y - obs[j].landmark_mm.y);
+          if (d > widest) {
+            widest = d;
+            a = i;
+            b = j;
+          }
+        }
+      }
+      seed = fix_two_circles(obs[a], obs[b], TwoLandmarkRule::kBearingDifference, false, opt);
     }
   }
   if (seed.status != FixStatus::kOk) return seed;

@@ -142,8 +142,9 @@ FixResult fix_two_circles(const Observation& o0, const Observation& o1, TwoLandm
 FixResult fix_trilateration(std::span<const Observation> obs, const FixOptions& opt);
 
 // The fix to initialise from: one landmark: kTooFew; two: circles with the bearing-difference
-// rule; three or more: trilateration; then refine_fix. Geometry and consistency refusals keep the
-// status and leave the pose unset.
+// rule; three or more: trilateration, or for landmarks on (nearly) one line, such as one rack
+// face, the widest pair's circles with the bearing-difference rule; then refine_fix. Geometry and
+// consistency refusals keep the status and leave the pose unset.
 FixResult fix_from_landmarks(std::span<const Observation> obs, const FixOptions& opt);
 
 }  // namespace agv::ranging

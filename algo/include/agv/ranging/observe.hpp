@@ -1,0 +1,162 @@
+// Landmarks on racks, pillars and walls seen by a forward or side camera: each tag36h11 landmark
+// found in a frame (libapriltag and the border-line corner refinement of the overhead detector)
+// measured two ways on the same refined corners:
+//  - the papers' way: range from the apparent height (pinhole similar triangles) and bearing from
+//    the image column;
+//  - the tag's pose from its four undistorted corners (IPPE square solver, both solutions refined
+//    by Levenberg-Marquardt), giving horizontal range, bearing and the landmark's relative yaw with
+//    a covariance from the corner noise (range_models.hpp).
+// A code seen through a reflection (mirrored) is refused by name, so is a site whose landmark
+// table repeats an id. Conventions and measured figures: docs/design/ranging.md.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "agv/common/camera_model.hpp"
+#include "agv/ranging/fix.hpp"
+#include "agv/ranging/range_models.hpp"
+#include "agv/site/site.hpp"
+
+namespace agv::ranging {
+
+enum class TableStatus {
+  kOk,
+  kDuplicateId,   // two tag36h11 wall landmarks share an id: which one was seen is unknowable
+  kBadLandmark,   // size_mm not positive or a coordinate not finite
+  kBadIntrinsics  // focal lengths not positive or image size empty
+};
+const char* table_status_name(TableStatus status);
+
+enum class RefusalReason {
+  kUnknownId,   // decoded, but no wall landmark of the site has this id
+  kMirrored,    // the code reads correctly only mirrored: seen through a reflection
+  kTooSmall,    // shorter side under min_side_px: its pose would be noise
+  kTouchesEdge, // a corner within edge_margin_px of the image border (partly outside)
+  kNoPose       // the pose solver failed or put the tag behind the camera
+};
+const char* refusal_reason_name(RefusalReason reason);
+
+struct ObserveOptions {
+  // Corner noise used for the covariances: max(floor, scale * the detector's edge-fit sigma).
+  // The edge fit sees the image noise, not the lens calibration's residual or the anti-aliasing
+  // bias of a small square, hence the floor.
+  double corner_sigma_floor_px = 0.15;
+  double corner_sigma_scale = 1.0;
+  double min_side_px = 10.0;
+  double edge_margin_px = 2.0;
+  // Read every frame mirrored too (twice the detection cost) so that a tag seen through a
+  // reflection is refused by name rather than silently dropped or, with bit errors, misread.
+  bool check_mirrored = true;
+  // The two IPPE solutions' reprojection errors closer than this ratio: the tag's yaw is
+  // ambiguous (a small or distant tag), has_yaw is false; range and bearing stay.
+  double yaw_ambiguity_ratio = 2.0;
+  // libapriltag on the whole frame: texture of racks needs a lower contrast floor than the
+  // ceiling cameras' default.
+  int quad_min_white_black_diff = 20;
+};
+
+// The papers' reading of the same corners: the pinhole formula L = f H / h taken as the
+// distance, the bearing from the image column alone (the mount's yaw added).
+struct PaperMeasure {
+  double distance_mm = 0.0;
+  double bearing_rad = 0.0;  // vehicle frame, from the camera's optical centre
+};
+
+// One landmark measured in one frame.
+struct LandmarkObservation {
+  std::uint32_t id = 0;
+  std::size_t landmark_index = 0;  // into the site's wall_landmarks
+  Vec2 landmark_xy_mm;             // surveyed centre, site frame
+  double landmark_facing_rad = 0.0;
+  std::array<Vec2, 4> corners_px{};           // refined, distorted, page order TL TR BR BL
+  std::array<Vec2, 4> corners_undistorted_px{};
+  double corner_sigma_px = 0.0;  // used for both covariances
+  RangeBearing size;             // range from the apparent height read as depth, no yaw
+  RangeBearing pose;             // from the tag pose, with the relative yaw unless ambiguous
+  PaperMeasure paper;
+  // The pose: tag frame T (x page right, y page down, z into the face) in the camera frame C,
+  // and its covariance over (small rotation in C, translation mm) as in range_models.hpp.
+  Eigen::Vector3d t_C_mm = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d R_CT = Eigen::Matrix3d::Identity();
+  Eigen::Matrix<double, 6, 6> cov6 = Eigen::Matrix<double, 6, 6>::Zero();
+  double reprojection_rms_px = 0.0;
+};
+
+struct RefusedLandmark {
+  std::uint32_t id = 0;
+  RefusalReason reason = RefusalReason::kUnknownId;
+  std::array<Vec2, 4> corners_px{};
+};
+
+struct ObserveResult {
+  std::vector<LandmarkObservation> seen;
+  std::vector<RefusedLandmark> refused;
+};
+
+// A range and bearing from the camera itself, in the terms of the EKF's range-bearing aid: the
+// landmark (site frame), the camera's optical centre and yaw in the vehicle frame, the horizontal
+// distance camera -> landmark, the bearing counter-clockwise from the camera's forward axis (its
+// yaw), and the covariance R of (range, bearing).
+struct SensorRangeBearing {
+  Eigen::Vector2d landmark_xy_mm = Eigen::Vector2d::Zero();
+  Eigen::Vector2d sensor_xy_mm = Eigen::Vector2d::Zero();
+  double sensor_yaw_rad = 0.0;
+  double range_mm = 0.0;
+  double bearing_rad = 0.0;
+  Eigen::Matrix2d R = Eigen::Matrix2d::Identity();
+};
+
+class LandmarkObserver {
+ public:
+  // Checks the landmark table and the intrinsics; status() says why it will see nothing.
+  // The agvloc-family landmarks of the site are skipped (this observer reads tag36h11 only).
+  LandmarkObserver(const CameraIntrinsics& intrinsics, const RangingMount& mount,
+                   std::span<const site::WallLandmark> landmarks, const ObserveOptions& options = {});
+  ~LandmarkObserver();
+  LandmarkObserver(const LandmarkObserver&) = delete;
+  LandmarkObserver& operator=(const LandmarkObserver&) = delete;
+
+  TableStatus status() const { return status_; }
+  const std::string& status_detail() const { return status_detail_; }
+
+  // Every tag36h11 landmark in an 8-bit gray frame of this camera. Empty when status() is not
+  // kOk or the frame's size or type differs from the intrinsics.
+  ObserveResult observe(const cv::Mat& gray) const;
+
+  // Measures one detected quad (corners in page order, distorted pixels); false with the reason.
+  bool measure(std::uint32_t id, const std::array<Vec2, 4>& corners_px, double edge_sigma_px,
+               LandmarkObservation* out, RefusalReason* reason) const;
+
+  const RangingMount& mount() const { return mount_; }
+
+ private:
+  struct Impl;
+  CameraIntrinsics k_;
+  RangingMount mount_;
+  ObserveOptions opt_;
+  std::vector<site::WallLandmark> table_;  // sorted by id, tag36h11 only
+  TableStatus status_ = TableStatus::kOk;
+  std::string status_detail_;
+  std::unique_ptr<Impl> impl_;
+};
+
+// The fix's per-landmark input from an observation (range and bearing from the vehicle's
+// reference point): from the tag pose, or from the apparent size.
+Observation fix_observation(const LandmarkObservation& obs, bool from_pose = true);
+std::vector<Observation> fix_observations(std::span<const LandmarkObservation> obs,
+                                          bool from_pose = true);
+
+// The observation from the camera's own optical centre, for the EKF's range-bearing aid.
+SensorRangeBearing sensor_range_bearing(const RangingMount& mount, const LandmarkObservation& obs);
+
+// A fix's covariance grown by the mount's calibration uncertainty: a yaw error of the camera
+// turns every bearing alike (the heading takes it whole), an offset error moves the position.
+void add_mount_uncertainty(double sigma_yaw_rad, double sigma_offset_mm, FixResult* fix);
+
+}  // namespace agv::ranging

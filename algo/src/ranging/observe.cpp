@@ -1,0 +1,300 @@
+#include "agv/ranging/observe.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core.hpp>
+#include <sstream>
+
+#include "agv/overhead/tag_detect.hpp"
+
+namespace agv::ranging {
+
+namespace {
+
+bool observe_finite_landmark(const site::WallLandmark& w) {
+  return std::isfinite(w.x_mm) && std::isfinite(w.y_mm) && std::isfinite(w.z_mm) &&
+         std::isfinite(w.facing_rad) && std::isfinite(w.size_mm) && w.size_mm > 0.0;
+}
+
+Vec2 observe_centre(const std::array<Vec2, 4>& c) {
+  return {(c[0].x + c[1].x + c[2].x + c[3].x) / 4.0, (c[0].y + c[1].y + c[2].y + c[3].y) / 4.0};
+}
+
+double observe_dist(Vec2 a, Vec2 b) { return std::hypot(a.x - b.x, a.y - b.y); }
+
+double observe_shortest_side_px(const std::array<Vec2, 4>& c) {
+  double s = observe_dist(c[3], c[0]);
+  for (std::size_t i = 0; i < 3; ++i) s = std::min(s, observe_dist(c[i], c[i + 1]));
+  return s;
+}
+
+}  // namespace
+
+struct LandmarkObserver::Impl {
+  explicit Impl(const overhead::TagDetectParams& p) : detector(p) {}
+  overhead::TagDetector detector;
+  cv::Matx33d K;
+  std::vector<double> dist;
+};
+
+const char* table_status_name(TableStatus status) {
+  switch (status) {
+    case TableStatus::kOk:
+      return "ok";
+    case TableStatus::kDuplicateId:
+      return "duplicate_landmark_id";
+    case TableStatus::kBadLandmark:
+      return "bad_landmark";
+    case TableStatus::kBadIntrinsics:
+      return "bad_intrinsics";
+  }
+  return "unknown";
+}
+
+const char* refusal_reason_name(RefusalReason reason) {
+  switch (reason) {
+    case RefusalReason::kUnknownId:
+      return "unknown_id";
+    case RefusalReason::kMirrored:
+      return "mirrored";
+    case RefusalReason::kTooSmall:
+      return "too_small";
+    case RefusalReason::kTouchesEdge:
+      return "touches_edge";
+    case RefusalReason::kNoPose:
+      return "no_pose";
+  }
+  return "unknown";
+}
+
+LandmarkObserver::LandmarkObserver(const CameraIntrinsics& intrinsics, const RangingMount& mount,
+                                   std::span<const site::WallLandmark> landmarks,
+                                   const ObserveOptions& options)
+    : k_(intrinsics), mount_(mount), opt_(options) {
+  overhead::TagDetectParams p;
+  p.quad_min_white_black_diff = options.quad_min_white_black_diff;
+  impl_ = std::make_unique<Impl>(p);
+  impl_->K = cv::Matx33d(k_.fx, 0.0, k_.cx, 0.0, k_.fy, k_.cy, 0.0, 0.0, 1.0);
+  impl_->dist = {k_.k1, k_.k2, k_.p1, k_.p2, k_.k3};
+  if (!(k_.fx > 0.0) || !(k_.fy > 0.0) || k_.width_px <= 0 || k_.height_px <= 0) {
+    status_ = TableStatus::kBadIntrinsics;
+    status_detail_ = "camera intrinsics need positive focal lengths and image size";
+    return;
+  }
+  for (const site::WallLandmark& w : landmarks) {
+    if (w.family != site::LandmarkFamily::kTag36h11) continue;
+    if (!observe_finite_landmark(w)) {
+      status_ = TableStatus::kBadLandmark;
+      status_detail_ = "wall landmark " + std::to_string(w.id) + " has a bad size or position";
+      return;
+    }
+    table_.push_back(w);
+  }
+  std::sort(table_.begin(), table_.end(),
+            [](const site::WallLandmark& a, const site::WallLandmark& b) { return a.id < b.id; });
+  for (std::size_t i = 1; i < table_.size(); ++i) {
+    if (table_[i].id == table_[i - 1].id) {
+      status_ = TableStatus::kDuplicateId;
+      status_detail_ = "tag36h11 wall landmark id " + std::to_string(table_[i].id) +
+                       " appears more than once in the site";
+      table_.clear();
+      return;
+    }
+  }
+}
+
+LandmarkObserver::~LandmarkObserver() = default;
+
+bool LandmarkObserver::measure(std::uint32_t id, const std::array<Vec2, 4>& corners_px,
+                               double edge_sigma_px, LandmarkObservation* out,
+                               RefusalReason* reason) const {
+  const auto it = std::lower_bound(
+      table_.begin(), table_.end(), id,
+      [](const site::WallLandmark& w, std::uint32_t v) { return w.id < v; });
+  if (it == table_.end() || it->id != id) {
+    *reason = RefusalReason::kUnknownId;
+    return false;
+  }
+  for (const Vec2& c : corners_px) {
+    if (!(c.x >= opt_.edge_margin_px && c.y >= opt_.edge_margin_px &&
+          c.x <= k_.width_px - 1 - opt_.edge_margin_px &&
+          c.y <= k_.height_px - 1 - opt_.edge_margin_px)) {
+      *reason = RefusalReason::kTouchesEdge;
+      return false;
+    }
+  }
+  std::vector<cv::Point2d> distorted, undistorted;
+  for (const Vec2& c : corners_px) distorted.emplace_back(c.x, c.y);
+  cv::undistortPoints(distorted, undistorted, impl_->K, impl_->dist, cv::noArray(), impl_->K);
+  LandmarkObservation o;
+  o.id = id;
+  o.landmark_index = static_cast<std::size_t>(it - table_.begin());
+  o.landmark_xy_mm = {it->x_mm, it->y_mm};
+  o.landmark_facing_rad = it->facing_rad;
+  o.corners_px = corners_px;
+  for (std::size_t i = 0; i < 4; ++i) o.corners_undistorted_px[i] = {undistorted[i].x, undistorted[i].y};
+  if (observe_shortest_side_px(o.corners_undistorted_px) < opt_.min_side_px) {
+    *reason = RefusalReason::kTooSmall;
+    return false;
+  }
+  o.corner_sigma_px = std::max(opt_.corner_sigma_floor_px, opt_.corner_sigma_scale * edge_sigma_px);
+  const double side = it->size_mm, h = side / 2.0;
+  const double focal = std::sqrt(k_.fx * k_.fy);
+
+  // Pose: IPPE wants the square's corners in the order (-h, h), (h, h), (h, -h), (-h, -h) of its
+  // own frame; with y along the page's down that is bottom-left, bottom-right, top-right, top-left.
+  const std::vector<cv::Point3d> object = {{-h, h, 0}, {h, h, 0}, {h, -h, 0}, {-h, -h, 0}};
+  const std::vector<cv::Point2d> image = {undistorted[3], undistorted[2], undistorted[1],
+                                          undistorted[0]};
+  std::vector<cv::Mat> rvecs, tvecs;
+  const cv::Mat no_dist;
+  int n = 0;
+  try {
+    n = cv::solvePnPGeneric(object, image, impl_->K, no_dist, rvecs, tvecs, false,
+                            cv::SOLVEPNP_IPPE_SQUARE);
+  } catch (const cv::Exception&) {
+    n = 0;
+  }
+  double best_err = 0.0, other_err = -1.0;
+  int best = -1;
+  for (int s = 0; s < n; ++s) {
+    cv::solvePnPRefineLM(object, image, impl_->K, no_dist, rvecs[static_cast<std::size_t>(s)],
+                         tvecs[static_cast<std::size_t>(s)]);
+    std::vector<cv::Point2d> re;
+    cv::projectPoints(object, rvecs[static_cast<std::size_t>(s)],
+                      tvecs[static_cast<std::size_t>(s)], impl_->K, no_dist, re);
+    double e = 0.0;
+    for (std::size_t i = 0; i < 4; ++i) e += std::pow(cv::norm(re[i] - image[i]), 2);
+    if (best < 0 || e < best_err) {
+      if (best >= 0) other_err = best_err;
+      best_err = e;
+      best = s;
+    } else {
+      other_err = e;
+    }
+  }
+  if (best < 0) {
+    *reason = RefusalReason::kNoPose;
+    return false;
+  }
+  cv::Mat R;
+  cv::Rodrigues(rvecs[static_cast<std::size_t>(best)], R);
+  const cv::Mat& t = tvecs[static_cast<std::size_t>(best)];
+  for (int r = 0; r < 3; ++r) {
+    o.t_C_mm[r] = t.at<double>(r);
+    for (int c = 0; c < 3; ++c) o.R_CT(r, c) = R.at<double>(r, c);
+  }
+  if (!(o.t_C_mm.z() > 0.0) || !o.t_C_mm.allFinite()) {
+    *reason = RefusalReason::kNoPose;
+    return false;
+  }
+  o.reprojection_rms_px = std::sqrt(best_err / 8.0);
+  o.cov6 = tag_pose_covariance(focal, side, o.t_C_mm, o.R_CT, o.corner_sigma_px);
+  o.pose = range_bearing_from_tag_pose(mount_, o.t_C_mm, o.R_CT, o.cov6);
+  // A second solution nearly as good: the tag's turn is not resolved by its corners.
+  const double floor_err = 8.0 * o.corner_sigma_px * o.corner_sigma_px;
+  if (other_err >= 0.0 &&
+      other_err < opt_.yaw_ambiguity_ratio * std::max(best_err, floor_err)) {
+    o.pose.has_yaw = false;
+    o.pose.relative_yaw_rad = 0.0;
+    o.pose.cov.row(2).setZero();
+    o.pose.cov.col(2).setZero();
+  }
+
+  // The papers' measure on the same corners: height from the two vertical edges.
+  const auto& u = o.corners_undistorted_px;
+  const double height_px = (observe_dist(u[0], u[3]) + observe_dist(u[1], u[2])) / 2.0;
+  CameraIntrinsics pin = k_;
+  pin.k1 = pin.k2 = pin.p1 = pin.p2 = pin.k3 = 0.0;
+  const SizeRange depth = size_range(k_.fy, side, height_px, o.corner_sigma_px);
+  const Vec2 centre = observe_centre(u);
+  o.size = range_bearing_from_camera_point(
+      mount_, size_camera_point(pin, centre, o.corner_sigma_px / 2.0, depth));
+  o.paper.distance_mm = depth.depth_mm;
+  o.paper.bearing_rad = mount_.yaw_rad + column_bearing_rad(pin, centre.x);
+  *out = o;
+  return true;
+}
+
+ObserveResult LandmarkObserver::observe(const cv::Mat& gray) const {
+  ObserveResult res;
+  if (status_ != TableStatus::kOk || gray.type() != CV_8UC1 || gray.cols != k_.width_px ||
+      gray.rows != k_.height_px) {
+    return res;
+  }
+  const cv::Rect all(0, 0, gray.cols, gray.rows);
+  std::vector<overhead::TagObservation> dets = impl_->detector.detect(gray, all);
+  std::vector<bool> mirrored(dets.size(), false);
+  if (opt_.check_mirrored) {
+    cv::Mat flipped;
+    cv::flip(gray, flipped, 1);
+    const double w1 = gray.cols - 1.0;
+    for (overhead::TagObservation m : impl_->detector.detect(flipped, all)) {
+      for (Vec2& c : m.corners_px) c.x = w1 - c.x;
+      const Vec2 mc = observe_centre(m.corners_px);
+      const double reach = observe_shortest_side_px(m.corners_px) / 2.0;
+      // A direct read at the same place: the mirror image of some valid code also decodes, so
+      // neither read can be trusted.
+      for (std::size_t i = 0; i < dets.size(); ++i) {
+        if (observe_dist(observe_centre(dets[i].corners_px), mc) < reach) mirrored[i] = true;
+      }
+      res.refused.push_back({m.id, RefusalReason::kMirrored, m.corners_px});
+    }
+  }
+  for (std::size_t i = 0; i < dets.size(); ++i) {
+    if (mirrored[i]) continue;
+    LandmarkObservation o;
+    RefusalReason why = RefusalReason::kNoPose;
+    if (measure(dets[i].id, dets[i].corners_px, dets[i].corner_sigma_px, &o, &why)) {
+      res.seen.push_back(o);
+    } else {
+      res.refused.push_back({dets[i].id, why, dets[i].corners_px});
+    }
+  }
+  return res;
+}
+
+Observation fix_observation(const LandmarkObservation& obs, bool from_pose) {
+  const RangeBearing& rb = from_pose ? obs.pose : obs.size;
+  Observation o;
+  o.landmark_mm = obs.landmark_xy_mm;
+  o.range_mm = rb.range_mm;
+  o.bearing_rad = rb.bearing_rad;
+  o.cov = rb.cov.topLeftCorner<2, 2>();
+  return o;
+}
+
+std::vector<Observation> fix_observations(std::span<const LandmarkObservation> obs,
+                                          bool from_pose) {
+  std::vector<Observation> out;
+  out.reserve(obs.size());
+  for (const LandmarkObservation& o : obs) out.push_back(fix_observation(o, from_pose));
+  return out;
+}
+
+SensorRangeBearing sensor_range_bearing(const RangingMount& mount, const LandmarkObservation& obs) {
+  // The same pose seen from a mount at the vehicle's origin without yaw: range and bearing from
+  // the optical centre, the bearing relative to the camera's own yaw.
+  RangingMount at_sensor = mount;
+  at_sensor.x_mm = 0.0;
+  at_sensor.y_mm = 0.0;
+  at_sensor.yaw_rad = 0.0;
+  const RangeBearing rb = range_bearing_from_tag_pose(at_sensor, obs.t_C_mm, obs.R_CT, obs.cov6);
+  SensorRangeBearing s;
+  s.landmark_xy_mm = Eigen::Vector2d(obs.landmark_xy_mm.x, obs.landmark_xy_mm.y);
+  s.sensor_xy_mm = Eigen::Vector2d(mount.x_mm, mount.y_mm);
+  s.sensor_yaw_rad = mount.yaw_rad;
+  s.range_mm = rb.range_mm;
+  s.bearing_rad = rb.bearing_rad;
+  s.R = rb.cov.topLeftCorner<2, 2>();
+  return s;
+}
+
+void add_mount_uncertainty(double sigma_yaw_rad, double sigma_offset_mm, FixResult* fix) {
+  fix->cov(0, 0) += sigma_offset_mm * sigma_offset_mm;
+  fix->cov(1, 1) += sigma_offset_mm * sigma_offset_mm;
+  fix->cov(2, 2) += sigma_yaw_rad * sigma_yaw_rad;
+}
+
+}  // namespace agv::ranging

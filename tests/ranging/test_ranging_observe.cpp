@@ -1,0 +1,306 @@
+// Rack landmarks seen by a vehicle's forward camera (algo/src/ranging/observe.cpp): on small
+// rendered frames, the tag pose's and the apparent size's range, bearing and yaw against the
+// scene's truth, the camera-centred observation for the EKF aid, fixes from two and three
+// rendered landmarks against the true pose, and the refusals: one landmark, shallow geometry, a
+// mirrored code, a repeated id, a wrong map entry.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "agv/ranging/observe.hpp"
+#include "agv/sim/ranging_camera.hpp"
+
+namespace agv::ranging {
+namespace {
+
+CameraIntrinsics small_camera() {
+  CameraIntrinsics k;
+  k.width_px = 640;
+  k.height_px = 400;
+  k.fx = 600.0;
+  k.fy = 600.0;
+  k.cx = 321.5;
+  k.cy = 198.0;
+  k.k1 = -0.06;
+  k.k2 = 0.01;
+  return k;
+}
+
+RangingMount forward_mount() {
+  RangingMount m;
+  m.x_mm = 300.0;
+  m.y_mm = 40.0;
+  m.z_mm = 1000.0;
+  m.pitch_rad = 0.02;
+  m.yaw_rad = -0.03;
+  return m;
+}
+
+// A rack face at x = 4 m facing -x with landmarks on it, one more on a pillar to the left.
+sim::SiteScene rack_scene() {
+  sim::SiteScene s;
+  s.site.outline.vertices_mm = {{-5000, -5000}, {9000, -5000}, {9000, 5000}, {-5000, 5000}};
+  site::Obstacle rack;
+  rack.id = "rack";
+  rack.outline.vertices_mm = {{4000, -2500}, {5000, -2500}, {5000, 2500}, {4000, 2500}};
+  rack.height_mm = 2500.0;
+  s.site.obstacles.push_back(rack);
+  using site::LandmarkFamily;
+  s.site.wall_landmarks.push_back({21, LandmarkFamily::kTag36h11, 4000, -1100, 1150, kPi, 150});
+  s.site.wall_landmarks.push_back({22, LandmarkFamily::kTag36h11, 4000, 150, 1250, kPi, 150});
+  s.site.wall_landmarks.push_back({23, LandmarkFamily::kTag36h11, 4000, 1200, 900, kPi, 150});
+  // Shallow pair: two tags 200 mm apart, far away (they subtend about 3 degrees).
+  s.site.wall_landmarks.push_back({30, LandmarkFamily::kTag36h11, 4000, 1700, 1300, kPi, 150});
+  s.floor.amplitude = 8.0;
+  return s;
+}
+
+const Pose2 kVehicle{500.0, 200.0, 0.06};
+
+sim::RenderResult render(const sim::SiteScene& s, const Pose2& pose, std::uint64_t seed) {
+  const CameraIntrinsics k = small_camera();
+  sim::SiteRenderParams p;
+  p.read_noise_sigma = 2.0;
+  p.defocus_sigma_px = 0.5;
+  p.illumination_ratio = 0.8;
+  return sim::render_site_frame(s, sim::ranging_camera(k, pose, forward_mount()), p, seed);
+}
+
+struct Truth {
+  double range_mm, bearing_rad, yaw_rad;
+};
+Truth truth_for(const site::WallLandmark& w, const Pose2& v) {
+  const double dx = w.x_mm - v.x_mm, dy = w.y_mm - v.y_mm;
+  return {std::hypot(dx, dy), wrap_angle_rad(std::atan2(dy, dx) - v.theta_rad),
+          wrap_angle_rad(w.facing_rad - v.theta_rad)};
+}
+
+const site::WallLandmark& landmark(const sim::SiteScene& s, std::uint32_t id) {
+  for (const site::WallLandmark& w : s.site.wall_landmarks) {
+    if (w.id == id) return w;
+  }
+  return s.site.wall_landmarks.front();
+}
+
+class RangingObserve : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    scene_ = new sim::SiteScene(rack_scene());
+    frame_ = new sim::RenderResult(render(*scene_, kVehicle, 3));
+  }
+  static void TearDownTestSuite() {
+    delete scene_;
+    delete frame_;
+  }
+  static sim::SiteScene* scene_;
+  static sim::RenderResult* frame_;
+};
+sim::SiteScene* RangingObserve::scene_ = nullptr;
+sim::RenderResult* RangingObserve::frame_ = nullptr;
+
+TEST(RangingCamera, RendererMountMatchesTheRangingMount) {
+  RangingMount m;
+  m.x_mm = 120.0;
+  m.y_mm = -80.0;
+  m.z_mm = 900.0;
+  m.roll_rad = 0.07;
+  m.pitch_rad = 0.2;
+  m.yaw_rad = 1.1;
+  const sim::RenderCamera cam = sim::ranging_camera(small_camera(), {0.0, 0.0, 0.0}, m);
+  const Eigen::Matrix3d R = rotation_vehicle_from_camera(m);
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_NEAR(cam.r_site_cam[static_cast<std::size_t>(3 * r + c)], R(r, c), 1e-12);
+    }
+  }
+  EXPECT_DOUBLE_EQ(cam.t_site_cam_mm[0], 120.0);
+  EXPECT_DOUBLE_EQ(cam.t_site_cam_mm[1], -80.0);
+  EXPECT_DOUBLE_EQ(cam.t_site_cam_mm[2], 900.0);
+}
+
+TEST_F(RangingObserve, TagPoseAndSizeAgainstTruth) {
+  const LandmarkObserver obs(small_camera(), forward_mount(), scene_->site.wall_landmarks);
+  ASSERT_EQ(obs.status(), TableStatus::kOk);
+  const ObserveResult r = obs.observe(frame_->image);
+  ASSERT_EQ(r.seen.size(), 4u);
+  EXPECT_TRUE(r.refused.empty());
+  for (const LandmarkObservation& o : r.seen) {
+    const site::WallLandmark& w = landmark(*scene_, o.id);
+    const Truth t = truth_for(w, kVehicle);
+    // The refined corners on the rendered ones.
+    for (const sim::WallLandmarkTruth& wt : frame_->wall_landmarks) {
+      if (wt.id != o.id) continue;
+      for (std::size_t i = 0; i < 4; ++i) {
+        EXPECT_NEAR(o.corners_px[i].x, wt.corners_px[i].x, 0.5) << o.id;
+        EXPECT_NEAR(o.corners_px[i].y, wt.corners_px[i].y, 0.5) << o.id;
+      }
+    }
+    const double s_r = std::sqrt(o.pose.cov(0, 0)), s_b = std::sqrt(o.pose.cov(1, 1));
+    EXPECT_GT(s_r, 1.0);
+    EXPECT_LT(s_r, 40.0);
+    EXPECT_NEAR(o.pose.range_mm, t.range_mm, 4.0 * s_r + 3.0) << o.id;
+    EXPECT_NEAR(o.pose.bearing_rad, t.bearing_rad, 4.0 * s_b + 1e-3) << o.id;
+    if (o.pose.has_yaw) {
+      EXPECT_NEAR(wrap_angle_rad(o.pose.relative_yaw_rad - t.yaw_rad), 0.0,
+                  4.0 * std::sqrt(o.pose.cov(2, 2)) + 0.01)
+          << o.id;
+    }
+    EXPECT_NEAR(o.size.range_mm, t.range_mm, 4.0 * std::sqrt(o.size.cov(0, 0)) + 3.0) << o.id;
+    EXPECT_FALSE(o.size.has_yaw);
+    // The papers' distance is the depth along the optical axis as if it were the distance from
+    // the camera: never further than the true camera distance by more than the noise.
+    EXPECT_GT(o.paper.distance_mm, 0.0);
+  }
+}
+
+TEST_F(RangingObserve, SensorCentredObservationIsTheSameGeometry) {
+  const RangingMount m = forward_mount();
+  const LandmarkObserver obs(small_camera(), m, scene_->site.wall_landmarks);
+  const ObserveResult r = obs.observe(frame_->image);
+  ASSERT_FALSE(r.seen.empty());
+  for (const LandmarkObservation& o : r.seen) {
+    const SensorRangeBearing s = sensor_range_bearing(m, o);
+    EXPECT_EQ(s.sensor_xy_mm, Eigen::Vector2d(m.x_mm, m.y_mm));
+    EXPECT_EQ(s.sensor_yaw_rad, m.yaw_rad);
+    // The landmark from the sensor, in V, must be the landmark from the reference point.
+    const Eigen::Vector2d from_sensor =
+        s.sensor_xy_mm + s.range_mm * Eigen::Vector2d(std::cos(s.bearing_rad + s.sensor_yaw_rad),
+                                                      std::sin(s.bearing_rad + s.sensor_yaw_rad));
+    const Eigen::Vector2d from_ref =
+        o.pose.range_mm * Eigen::Vector2d(std::cos(o.pose.bearing_rad), std::sin(o.pose.bearing_rad));
+    EXPECT_LT((from_sensor - from_ref).norm(), 1e-6);
+    EXPECT_GT(s.R(0, 0), 0.0);
+    EXPECT_GT(s.R(1, 1), 0.0);
+    EXPECT_EQ(s.landmark_xy_mm, Eigen::Vector2d(o.landmark_xy_mm.x, o.landmark_xy_mm.y));
+  }
+}
+
+std::vector<Observation> pick(const ObserveResult& r, std::vector<std::uint32_t> ids) {
+  std::vector<LandmarkObservation> out;
+  for (std::uint32_t id : ids) {
+    for (const LandmarkObservation& o : r.seen) {
+      if (o.id == id) out.push_back(o);
+    }
+  }
+  return fix_observations(out);
+}
+
+double nees(const FixResult& f, const Pose2& truth) {
+  const Eigen::Vector3d e(f.pose.x_mm - truth.x_mm, f.pose.y_mm - truth.y_mm,
+                          wrap_angle_rad(f.pose.theta_rad - truth.theta_rad));
+  return e.dot(f.cov.ldlt().solve(e));
+}
+
+TEST_F(RangingObserve, WlsFixFromRenderedLandmarks) {
+  const LandmarkObserver obs(small_camera(), forward_mount(), scene_->site.wall_landmarks);
+  const ObserveResult r = obs.observe(frame_->image);
+  const std::vector<Observation> three = pick(r, {21, 22, 23});
+  ASSERT_EQ(three.size(), 3u);
+  const FixResult f3 = fix_from_landmarks(three, FixOptions{});
+  ASSERT_EQ(f3.status, FixStatus::kOk) << fix_status_name(f3.status);
+  EXPECT_LT(std::hypot(f3.pose.x_mm - kVehicle.x_mm, f3.pose.y_mm - kVehicle.y_mm), 20.0);
+  EXPECT_LT(std::abs(wrap_angle_rad(f3.pose.theta_rad - kVehicle.theta_rad)), deg_to_rad(0.3));
+  EXPECT_LT(nees(f3, kVehicle), 14.16);  // inside its own 3-sigma ellipsoid
+  EXPECT_GT(f3.cov.determinant(), 0.0);
+
+  const std::vector<Observation> two = pick(r, {21, 23});
+  ASSERT_EQ(two.size(), 2u);
+  const FixResult f2 = fix_from_landmarks(two, FixOptions{});
+  ASSERT_EQ(f2.status, FixStatus::kOk) << fix_status_name(f2.status);
+  EXPECT_LT(std::hypot(f2.pose.x_mm - kVehicle.x_mm, f2.pose.y_mm - kVehicle.y_mm), 50.0);
+  EXPECT_LT(nees(f2, kVehicle), 14.16);
+  // The papers' baseline on the same landmarks: circles with the left/right rule (21 is at the
+  // smaller y, so it appears right of 23).
+  const FixResult paper = fix_two_circles(two[0], two[1], TwoLandmarkRule::kLeftRight, false,
+                                          FixOptions{});
+  ASSERT_EQ(paper.status, FixStatus::kOk) << fix_status_name(paper.status);
+  EXPECT_LT(std::hypot(paper.pose.x_mm - kVehicle.x_mm, paper.pose.y_mm - kVehicle.y_mm), 300.0);
+}
+
+TEST_F(RangingObserve, OneLandmarkNeverFixesAndShallowPairIsRefused) {
+  const LandmarkObserver obs(small_camera(), forward_mount(), scene_->site.wall_landmarks);
+  const ObserveResult r = obs.observe(frame_->image);
+  EXPECT_EQ(fix_from_landmarks(pick(r, {22}), FixOptions{}).status, FixStatus::kTooFew);
+  // 23 and 30 are 530 mm apart at 3.5 m: they cross at about 8 degrees.
+  const FixResult shallow = fix_from_landmarks(pick(r, {23, 30}), FixOptions{});
+  EXPECT_EQ(shallow.status, FixStatus::kShallowGeometry) << fix_status_name(shallow.status);
+}
+
+TEST_F(RangingObserve, WrongMapEntryIsCaughtByTheResidualsWithThreeLandmarks) {
+  sim::SiteScene wrong = *scene_;
+  for (site::WallLandmark& w : wrong.site.wall_landmarks) {
+    if (w.id == 22) w.y_mm += 500.0;  // the survey put it half a metre off along the rack
+  }
+  const LandmarkObserver obs(small_camera(), forward_mount(), wrong.site.wall_landmarks);
+  const ObserveResult r = obs.observe(frame_->image);
+  const std::vector<Observation> ob = pick(r, {21, 22, 23});
+  const FixResult f = fix_from_landmarks(ob, FixOptions{});
+  EXPECT_EQ(f.status, FixStatus::kInconsistent) << fix_status_name(f.status);
+}
+
+TEST_F(RangingObserve, MirroredCodeIsRefusedByName) {
+  const LandmarkObserver obs(small_camera(), forward_mount(), scene_->site.wall_landmarks);
+  cv::Mat mirrored;
+  cv::flip(frame_->image, mirrored, 1);  // the scene seen in a vertical mirror
+  const ObserveResult r = obs.observe(mirrored);
+  EXPECT_TRUE(r.seen.empty());
+  ASSERT_EQ(r.refused.size(), 4u);
+  for (const RefusedLandmark& x : r.refused) {
+    EXPECT_EQ(x.reason, RefusalReason::kMirrored) << refusal_reason_name(x.reason);
+  }
+  EXPECT_STREQ(refusal_reason_name(RefusalReason::kMirrored), "mirrored");
+
+  ObserveOptions off;
+  off.check_mirrored = false;
+  const LandmarkObserver unchecked(small_camera(), forward_mount(), scene_->site.wall_landmarks,
+                                   off);
+  EXPECT_TRUE(unchecked.observe(mirrored).refused.empty());
+}
+
+TEST(RangingObserveTable, DuplicateIdIsANamedError) {
+  sim::SiteScene s = rack_scene();
+  s.site.wall_landmarks.push_back(s.site.wall_landmarks[1]);
+  s.site.wall_landmarks.back().y_mm = -2000.0;
+  const LandmarkObserver obs(small_camera(), forward_mount(), s.site.wall_landmarks);
+  EXPECT_EQ(obs.status(), TableStatus::kDuplicateId);
+  EXPECT_STREQ(table_status_name(obs.status()), "duplicate_landmark_id");
+  EXPECT_NE(obs.status_detail().find("22"), std::string::npos) << obs.status_detail();
+  const sim::RenderResult frame = render(s, kVehicle, 5);
+  const ObserveResult r = obs.observe(frame.image);
+  EXPECT_TRUE(r.seen.empty());
+
+  CameraIntrinsics bad = small_camera();
+  bad.fx = 0.0;
+  EXPECT_EQ(LandmarkObserver(bad, forward_mount(), rack_scene().site.wall_landmarks).status(),
+            TableStatus::kBadIntrinsics);
+  // A frame of the wrong size is no frame of this camera.
+  const LandmarkObserver ok(small_camera(), forward_mount(), rack_scene().site.wall_landmarks);
+  EXPECT_TRUE(ok.observe(cv::Mat(200, 320, CV_8UC1, cv::Scalar(128))).seen.empty());
+}
+
+TEST(RangingObserveTable, UnknownIdIsRefused) {
+  sim::SiteScene s = rack_scene();
+  const sim::RenderResult frame = render(s, kVehicle, 7);
+  std::vector<site::WallLandmark> table = s.site.wall_landmarks;
+  table.erase(table.begin());  // 21 not in this vehicle's table
+  const LandmarkObserver obs(small_camera(), forward_mount(), table);
+  const ObserveResult r = obs.observe(frame.image);
+  ASSERT_EQ(r.refused.size(), 1u);
+  EXPECT_EQ(r.refused[0].id, 21u);
+  EXPECT_EQ(r.refused[0].reason, RefusalReason::kUnknownId);
+  EXPECT_EQ(r.seen.size(), 3u);
+}
+
+TEST(RangingObserveMount, MountUncertaintyGrowsTheCovariance) {
+  FixResult f;
+  f.cov = Eigen::Matrix3d::Identity();
+  add_mount_uncertainty(0.01, 5.0, &f);
+  EXPECT_DOUBLE_EQ(f.cov(0, 0), 26.0);
+  EXPECT_DOUBLE_EQ(f.cov(1, 1), 26.0);
+  EXPECT_DOUBLE_EQ(f.cov(2, 2), 1.0001);
+}
+
+}  // namespace
+}  // namespace agv::ranging
