@@ -4,6 +4,7 @@
 // "Deadlocks").
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 #include <random>
 
 #include "fleet_internal.hpp"
@@ -103,19 +104,20 @@ bool FleetSim::handle_blockage(const std::vector<int>& members, bool cycle) {
     w.reported = true;
     w.retry_s = t_s_ + kFleetRetryS;
   }
-  // Who drives aside: the idle vehicle; in a cycle the lowest priority (highest index) first,
-  // out of the way of the member waiting on it.
-  std::vector<std::size_t> order;
+  // Who drives aside: the idle vehicle, then the one waiting on it (an idle vehicle boxed in
+  // between vehicles coming from both ends can only leave once one of them has backed away); in
+  // a cycle the lowest priority (highest index) first, out of the way of the member waiting on
+  // it.
+  std::vector<std::size_t> order{1, 0};
   if (cycle) {
-    for (std::size_t i = 0; i < members.size(); ++i) order.push_back(i);
+    order.resize(members.size());
+    std::iota(order.begin(), order.end(), std::size_t{0});
     std::sort(order.begin(), order.end(),
               [&](std::size_t a, std::size_t b) { return members[a] > members[b]; });
-  } else {
-    order.push_back(1);
   }
   for (std::size_t i : order) {
     Vehicle& y = vehicles_[static_cast<std::size_t>(members[i])];
-    const std::size_t before = cycle ? (i + members.size() - 1) % members.size() : 0;
+    const std::size_t before = cycle ? (i + members.size() - 1) % members.size() : 1 - i;
     const Vehicle& x = vehicles_[static_cast<std::size_t>(members[before])];
     if (try_evade(y, &x)) {
       event(FleetEventKind::kEvade, {y.index, x.index},
