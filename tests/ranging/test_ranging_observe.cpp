@@ -293,13 +293,54 @@ TEST(RangingObserveTable, UnknownIdIsRefused) {
   EXPECT_EQ(r.seen.size(), 3u);
 }
 
-TEST(RangingObserveMount, MountUncertaintyGrowsTheCovariance) {
-  FixResult f;
-  f.cov = Eigen::Matrix3d::Identity();
-  add_mount_uncertainty(0.01, 5.0, &f);
-  EXPECT_DOUBLE_EQ(f.cov(0, 0), 26.0);
-  EXPECT_DOUBLE_EQ(f.cov(1, 1), 26.0);
-  EXPECT_DOUBLE_EQ(f.cov(2, 2), 1.0001);
+TEST(RangingObserveMount, CommonBearingErrorMatchesTheFixsResponse) {
+  // Noise-free observations of three landmarks, then every bearing turned by 2 mrad: the fix
+  // moves by the rank-one term add_mount_yaw_uncertainty adds for sigma 2 mrad.
+  const Pose2 truth{1000.0, -300.0, 0.3};
+  std::vector<Observation> obs;
+  for (const Vec2 l : {Vec2{5000.0, -1000.0}, Vec2{4500.0, 2500.0}, Vec2{7000.0, 800.0}}) {
+    Observation o;
+    o.landmark_mm = l;
+    o.range_mm = std::hypot(l.x - truth.x_mm, l.y - truth.y_mm);
+    o.bearing_rad = std::atan2(l.y - truth.y_mm, l.x - truth.x_mm) - truth.theta_rad;
+    o.cov = Eigen::Vector2d(400.0, 1e-7).asDiagonal();
+    obs.push_back(o);
+  }
+  FixResult f = fix_from_landmarks(obs, FixOptions{});
+  ASSERT_EQ(f.status, FixStatus::kOk);
+  std::vector<Observation> turned = obs;
+  for (Observation& o : turned) o.bearing_rad += 0.002;
+  const FixResult g = fix_from_landmarks(turned, FixOptions{});
+  ASSERT_EQ(g.status, FixStatus::kOk);
+  const Eigen::Vector3d shift(g.pose.x_mm - f.pose.x_mm, g.pose.y_mm - f.pose.y_mm,
+                              wrap_angle_rad(g.pose.theta_rad - f.pose.theta_rad));
+  const Eigen::Matrix3d before = f.cov;
+  add_mount_yaw_uncertainty(obs, 0.002, &f);
+  const Eigen::Matrix3d added = f.cov - before;
+  EXPECT_NEAR(shift.z(), -0.002, 1e-4);  // the heading takes the turn
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_NEAR(added(r, c), shift[r] * shift[c], 0.02 * std::abs(shift[r] * shift[c]) + 1e-9);
+    }
+  }
+}
+
+TEST_F(RangingObserve, MountRollAndPitchUncertaintyWidensEachBearing) {
+  ObserveOptions opt;
+  opt.mount_sigma_rad = deg_to_rad(0.5);
+  opt.mount_sigma_mm = 3.0;
+  const LandmarkObserver plain(small_camera(), forward_mount(), scene_->site.wall_landmarks);
+  const LandmarkObserver wide(small_camera(), forward_mount(), scene_->site.wall_landmarks, opt);
+  const ObserveResult a = plain.observe(frame_->image), b = wide.observe(frame_->image);
+  ASSERT_EQ(a.seen.size(), b.seen.size());
+  for (std::size_t i = 0; i < a.seen.size(); ++i) {
+    EXPECT_EQ(a.seen[i].pose.range_mm, b.seen[i].pose.range_mm);
+    EXPECT_GT(b.seen[i].pose.cov(1, 1), a.seen[i].pose.cov(1, 1));
+    EXPECT_GT(b.seen[i].size.cov(1, 1), a.seen[i].size.cov(1, 1));
+    const SensorRangeBearing s0 = sensor_range_bearing(forward_mount(), a.seen[i]);
+    const SensorRangeBearing s1 = sensor_range_bearing(forward_mount(), a.seen[i], 0.01, 3.0);
+    EXPECT_GT(s1.R(1, 1), s0.R(1, 1));
+  }
 }
 
 }  // namespace

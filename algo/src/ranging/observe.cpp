@@ -4,7 +4,6 @@
 #include <cmath>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
-#include <sstream>
 
 #include "agv/overhead/tag_detect.hpp"
 
@@ -27,6 +26,35 @@ double observe_shortest_side_px(const std::array<Vec2, 4>& c) {
   double s = observe_dist(c[3], c[0]);
   for (std::size_t i = 0; i < 3; ++i) s = std::min(s, observe_dist(c[i], c[i + 1]));
   return s;
+}
+
+Eigen::Vector3d observe_rb_vector(const RangeBearing& rb) {
+  return {rb.range_mm, rb.bearing_rad, rb.relative_yaw_rad};
+}
+
+// Covariance of (range, bearing, yaw) from the mount's roll, pitch and offsets (x and y only with
+// with_xy), by central differences of measure_at(mount).
+template <class F>
+Eigen::Matrix3d observe_mount_cov(const RangingMount& m, double sigma_rad, double sigma_mm,
+                                  bool with_xy, F measure_at) {
+  double RangingMount::*const fields[] = {&RangingMount::roll_rad, &RangingMount::pitch_rad,
+                                          &RangingMount::z_mm, &RangingMount::x_mm,
+                                          &RangingMount::y_mm};
+  Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+  for (std::size_t k = 0; k < (with_xy ? 5u : 3u); ++k) {
+    const bool angle = k < 2;
+    const double sigma = angle ? sigma_rad : sigma_mm, h = angle ? 1e-5 : 1e-2;
+    if (!(sigma > 0.0)) continue;
+    RangingMount a = m, b = m;
+    a.*fields[k] += h;
+    b.*fields[k] -= h;
+    Eigen::Vector3d d = observe_rb_vector(measure_at(a)) - observe_rb_vector(measure_at(b));
+    d[1] = wrap_angle_rad(d[1]);
+    d[2] = wrap_angle_rad(d[2]);
+    d /= 2.0 * h;
+    C += sigma * sigma * d * d.transpose();
+  }
+  return C;
 }
 
 }  // namespace
@@ -192,6 +220,10 @@ bool LandmarkObserver::measure(std::uint32_t id, const std::array<Vec2, 4>& corn
   o.reprojection_rms_px = std::sqrt(best_err / 8.0);
   o.cov6 = tag_pose_covariance(focal, side, o.t_C_mm, o.R_CT, o.corner_sigma_px);
   o.pose = range_bearing_from_tag_pose(mount_, o.t_C_mm, o.R_CT, o.cov6);
+  o.pose.cov += observe_mount_cov(
+      mount_, opt_.mount_sigma_rad, opt_.mount_sigma_mm, true, [&](const RangingMount& m) {
+        return range_bearing_from_tag_pose(m, o.t_C_mm, o.R_CT, o.cov6);
+      });
   // A second solution nearly as good: the tag's turn is not resolved by its corners.
   const double floor_err = 8.0 * o.corner_sigma_px * o.corner_sigma_px;
   if (other_err >= 0.0 &&
@@ -209,8 +241,14 @@ bool LandmarkObserver::measure(std::uint32_t id, const std::array<Vec2, 4>& corn
   pin.k1 = pin.k2 = pin.p1 = pin.p2 = pin.k3 = 0.0;
   const SizeRange depth = size_range(k_.fy, side, height_px, o.corner_sigma_px);
   const Vec2 centre = observe_centre(u);
-  o.size = range_bearing_from_camera_point(
-      mount_, size_camera_point(pin, centre, o.corner_sigma_px / 2.0, depth));
+  const CameraPoint point = size_camera_point(pin, centre, o.corner_sigma_px / 2.0, depth);
+  o.size = range_bearing_from_camera_point(mount_, point);
+  o.size.cov.topLeftCorner<2, 2>() +=
+      observe_mount_cov(mount_, opt_.mount_sigma_rad, opt_.mount_sigma_mm, true,
+                        [&](const RangingMount& m) {
+                          return range_bearing_from_camera_point(m, point);
+                        })
+          .topLeftCorner<2, 2>();
   o.paper.distance_mm = depth.depth_mm;
   o.paper.bearing_rad = mount_.yaw_rad + column_bearing_rad(pin, centre.x);
   *out = o;
@@ -273,7 +311,8 @@ std::vector<Observation> fix_observations(std::span<const LandmarkObservation> o
   return out;
 }
 
-SensorRangeBearing sensor_range_bearing(const RangingMount& mount, const LandmarkObservation& obs) {
+SensorRangeBearing sensor_range_bearing(const RangingMount& mount, const LandmarkObservation& obs,
+                                        double mount_sigma_rad, double mount_sigma_mm) {
   // The same pose seen from a mount at the vehicle's origin without yaw: range and bearing from
   // the optical centre, the bearing relative to the camera's own yaw.
   RangingMount at_sensor = mount;
@@ -287,14 +326,30 @@ SensorRangeBearing sensor_range_bearing(const RangingMount& mount, const Landmar
   s.sensor_yaw_rad = mount.yaw_rad;
   s.range_mm = rb.range_mm;
   s.bearing_rad = rb.bearing_rad;
-  s.R = rb.cov.topLeftCorner<2, 2>();
+  s.R = rb.cov.topLeftCorner<2, 2>() +
+        observe_mount_cov(at_sensor, mount_sigma_rad, mount_sigma_mm, false,
+                          [&](const RangingMount& m) {
+                            return range_bearing_from_tag_pose(m, obs.t_C_mm, obs.R_CT, obs.cov6);
+                          })
+            .topLeftCorner<2, 2>();
   return s;
 }
 
-void add_mount_uncertainty(double sigma_yaw_rad, double sigma_offset_mm, FixResult* fix) {
-  fix->cov(0, 0) += sigma_offset_mm * sigma_offset_mm;
-  fix->cov(1, 1) += sigma_offset_mm * sigma_offset_mm;
-  fix->cov(2, 2) += sigma_yaw_rad * sigma_yaw_rad;
+void add_mount_yaw_uncertainty(std::span<const Observation> obs, double sigma_common_rad,
+                               FixResult* fix) {
+  // Gauss-Newton's response to a bearing offset b on every landmark: d(pose) = cov J^T W 1_b.
+  Eigen::Vector3d g = Eigen::Vector3d::Zero();
+  for (const Observation& o : obs) {
+    const double dx = o.landmark_mm.x - fix->pose.x_mm, dy = o.landmark_mm.y - fix->pose.y_mm;
+    const double r2 = dx * dx + dy * dy;
+    if (!(r2 > 0.0)) continue;
+    const double r = std::sqrt(r2);
+    Eigen::Matrix<double, 2, 3> J;
+    J << -dx / r, -dy / r, 0.0, dy / r2, -dx / r2, -1.0;
+    g += J.transpose() * o.cov.inverse() * Eigen::Vector2d(0.0, 1.0);
+  }
+  const Eigen::Vector3d d = fix->cov * g;
+  fix->cov += sigma_common_rad * sigma_common_rad * d * d.transpose();
 }
 
 }  // namespace agv::ranging

@@ -59,6 +59,13 @@ struct ObserveOptions {
   // libapriltag on the whole frame: texture of racks needs a lower contrast floor than the
   // ceiling cameras' default.
   int quad_min_white_black_diff = 20;
+  // The mount's calibration uncertainty (1 sigma per angle and per axis). Roll, pitch and the
+  // offsets move each landmark's bearing differently (by its height in the image), so they go
+  // into each observation's covariance; the yaw turns all bearings alike and goes into the fix's
+  // covariance instead (add_mount_yaw_uncertainty), where it does not blur the bearing
+  // differences the fix relies on.
+  double mount_sigma_rad = 0.0;
+  double mount_sigma_mm = 0.0;
 };
 
 // The papers' reading of the same corners: the pinhole formula L = f H / h taken as the
@@ -152,11 +159,17 @@ Observation fix_observation(const LandmarkObservation& obs, bool from_pose = tru
 std::vector<Observation> fix_observations(std::span<const LandmarkObservation> obs,
                                           bool from_pose = true);
 
-// The observation from the camera's own optical centre, for the EKF's range-bearing aid.
-SensorRangeBearing sensor_range_bearing(const RangingMount& mount, const LandmarkObservation& obs);
+// The observation from the camera's own optical centre, for the EKF's range-bearing aid; R
+// holds the corner noise and the mount's roll, pitch and height uncertainty (1 sigma; the yaw and
+// the horizontal offset are the sensor's stated pose, whose errors the aid sees alike in every
+// landmark).
+SensorRangeBearing sensor_range_bearing(const RangingMount& mount, const LandmarkObservation& obs,
+                                        double mount_sigma_rad = 0.0, double mount_sigma_mm = 0.0);
 
-// A fix's covariance grown by the mount's calibration uncertainty: a yaw error of the camera
-// turns every bearing alike (the heading takes it whole), an offset error moves the position.
-void add_mount_uncertainty(double sigma_yaw_rad, double sigma_offset_mm, FixResult* fix);
+// A fix's covariance grown by an error common to all its bearings (the camera's yaw
+// calibration, the principal point's column): the fix's first-order response to one bearing
+// offset, times sigma_common_rad, added as a rank-one term. obs are the fix's own inputs.
+void add_mount_yaw_uncertainty(std::span<const Observation> obs, double sigma_common_rad,
+                               FixResult* fix);
 
 }  // namespace agv::ranging
