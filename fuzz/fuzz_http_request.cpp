@@ -1,4 +1,4 @@
-// The diagnostics page's request decisions (firmware/src/diag_server_route.cpp): the HTTP library
+// The diagnostics page's request decisions (drivers/http/src/diag_route.cpp): the HTTP library
 // (libmicrohttpd) parses the bytes within its per-connection memory limit, then hands the method,
 // path and headers to this function, which decides every answer. Input: a raw request head; the
 // first byte's low bit says the server is at its limit of requests in progress. Properties: never
@@ -9,7 +9,7 @@
 #include <string>
 #include <string_view>
 
-#include "diag_server_route.hpp"
+#include "agv/http/diag_route.hpp"
 #include "fuzz_check.hpp"
 
 namespace a = agv::app;

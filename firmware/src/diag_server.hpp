@@ -1,6 +1,7 @@
-// The live diagnostics page and /metrics (docs/guide/diagnostics.md): an HTTP server (GNU
-// libmicrohttpd, event-driven) on a fixed pool of ordinary (not real-time) threads. It reads the
-// loop only through DiagHandoff and FrameTap (diag_handoff.hpp); pure encodings are algo/src/diag.
+// The live diagnostics page and /metrics (docs/guide/diagnostics.md), served by the shared
+// diagnostics HTTP server (drivers/http: GNU libmicrohttpd, event-driven, on a fixed pool of
+// ordinary, not real-time, threads). It reads the loop only through DiagHandoff and FrameTap
+// (diag_handoff.hpp); pure encodings are algo/src/diag.
 // Bounded however many clients connect (docs/design/security.md): diag.threads polling threads,
 // diag.max_clients requests in progress (more answered 503 at once), a fixed memory budget per
 // connection, a deadline for a request's headers and for the whole connection, one request per
@@ -18,17 +19,10 @@
 #include "agv/common/landmark.hpp"
 #include "agv/config/config.hpp"
 #include "agv/diag/diag.hpp"
+#include "agv/http/http_server.hpp"
 #include "diag_handoff.hpp"
 
 namespace agv::app {
-
-// True for an address the page may listen on without diag.allow_remote (loopback).
-bool is_loopback_address(const std::string& address);
-// Why a TCP listening socket on address:port cannot be opened now, naming the failing call and
-// its errno, e.g. "socket(AF_INET): Address family not supported by protocol (EAFNOSUPPORT: ...)"
-// or "bind: Address already in use (EADDRINUSE)"; "" when it can. The HTTP library reports only
-// that binding failed; DiagServer::start asks this for the reason.
-std::string listen_failure_reason(const std::string& address, int port);
 
 class DiagServer {
  public:
@@ -56,8 +50,5 @@ class DiagServer {
 
 // One summary line: "diag: N requests, ...".
 std::string format_diag_counters(const diag::ServerStats& s);
-
-// Encodes CV_8UC3 (BGR) or CV_8UC1 as PNG into *out (libpng, in memory). False on error.
-bool encode_png(const cv::Mat& image, std::string* out, int compression = 1);
 
 }  // namespace agv::app

@@ -1,4 +1,4 @@
-#include "diag_server_conns.hpp"
+#include "agv/http/diag_conns.hpp"
 
 #include <sys/ioctl.h>
 #include <sys/socket.h>

@@ -1,4 +1,4 @@
-#include "diag_server_route.hpp"
+#include "agv/http/diag_route.hpp"
 
 namespace agv::app {
 
