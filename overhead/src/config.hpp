@@ -57,6 +57,9 @@ struct OverheadConfig {
 enum class KeyType { kNumber, kInteger, kBool, kString, kChoice };
 using Value = std::variant<bool, std::int64_t, double, std::string>;
 
+  // classical (tray_fit.hpp) or learned (tray_net.hpp, the ONNX model at tray_model_path).
+  std::string tray_method = "classical";
+  std::string tray_model_path;
 // One key of a table whose values are stored in a Cfg.
 template <typename Cfg>
 struct KeyOf {

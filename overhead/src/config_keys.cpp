@@ -140,6 +140,14 @@ std::vector<Key> search_detect_keys() {
       integer("tray.min_sides_seen", AGV_OH_AT(tray.min_sides_seen), 2, 4, 3, "sides",
               "Tray sides that must be seen for a box fit: 2 fits more covered trays, with about "
               "a fifth of two-side fits outside their covariance on rendered random parcels"),
+      string("tray.method", AGV_OH_AT(tray_method), "classical",
+             "The tray's box: classical (edges, the known size; about 1 mm at 6 m on rendered "
+             "frames) or learned (the ONNX detector of tray.model_path; coarser, "
+             "docs/design/overhead.md)",
+             {"classical", "learned"}),
+      string("tray.model_path", AGV_OH_AT(tray_model_path), "",
+             "tray.method learned: the detector's ONNX file (models/tray_obb.onnx); missing, "
+             "corrupt or for another window size: named at start, tracking on tags alone"),
       integer("identity.min_tag_distance", AGV_OH_AT(min_tag_distance), 11, 36, 12, "bits",
               "Two fleet tags whose tag36h11 codes (any turn) are fewer bits apart are refused "
               "with the site: 12 keeps a 6-bit misread off the other's code, 13 lets an area of "

@@ -3,6 +3,8 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <fstream>
+#include <iterator>
 
 namespace agv::overhead_app {
 
@@ -29,6 +31,34 @@ TrackerCore::TrackerCore(const OverheadConfig& cfg, const site::Site& site)
       tracker_(site.fleet.size(), cfg.tracker),
       header_ids_(site.fleet.size(), 0) {
   processor_.set_tray_fit(cfg.tray_fit, cfg.tray);
+  if (cfg.tray_fit && cfg.tray_method == "learned") use_tray_model(cfg.tray_model_path);
+}
+
+// The learned detector's model is read here (the library does no file I/O). A model that cannot
+// be used is named at start and the tracker runs on tags alone, saying so: a classical fit in its
+// place would be a method nobody chose.
+void TrackerCore::use_tray_model(const std::string& path) {
+  std::string error;
+  std::ifstream f(path, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  auto net = std::make_shared<overhead::TrayNet>();
+  if (path.empty()) {
+    error = "tray.model_path is empty";
+  } else if (!f.good() && bytes.empty()) {
+    error = "tray.model_path '" + path + "': cannot be read";
+  } else if (!net->load(bytes.data(), bytes.size(), &error)) {
+    error = "tray.model_path '" + path + "': " + error;
+  }
+  if (!error.empty()) {
+    std::fprintf(stderr,
+                 "agvloc-overhead: %s; tray.method learned unavailable: tracking on tags alone "
+                 "(no tray boxes for covered tags)\n",
+                 error.c_str());
+    processor_.set_tray_fit(false);
+    tray_model_error_ = error;
+    return;
+  }
+  processor_.set_tray_net(std::move(net));
 }
 
 std::int64_t TrackerCore::period_ns() const {
@@ -99,6 +129,14 @@ void TrackerCore::print_summary(const std::string& prefix, std::size_t cameras) 
       "%s: fixes applied %llu, tracks started %llu, gated %llu, too old %llu, invalid %llu, lost "
       "%llu\n",
       p, ull(c.applied), ull(c.started), ull(c.gated), ull(c.too_old), ull(c.invalid), ull(c.lost));
+  std::printf(
+      "%s: tray boxes (%s) applied %llu, gated %llu, refused %llu; learned boxes disagreeing "
+      "with a read tag %llu\n",
+      p,
+      !tray_model_error_.empty()  ? "off: model unusable"
+      : processor_.tray_learned() ? "learned"
+                                  : "classical",
+      ull(f.tray_fixes), ull(f.tray_gated), ull(f.tray_refused), ull(f.tray_tag_disagree));
   if (mqtt_) {
     std::printf("%s: mqtt: %llu messages sent, %llu dropped\n", p, ull(mqtt_->sent()),
                 ull(mqtt_->dropped()));

@@ -40,6 +40,7 @@ class TrackerCore {
 
   const OverheadConfig& cfg_;
   const site::Site& site_;
+  void use_tray_model(const std::string& path);
   overhead::CameraFrameProcessor processor_;
   overhead::FleetTracker tracker_;
   std::vector<overhead::Detection> detections_;
@@ -51,3 +52,4 @@ class TrackerCore {
 };
 
 }  // namespace agv::overhead_app
+  std::string tray_model_error_;  // tray.method learned with a model that cannot be used

@@ -4,6 +4,7 @@
 #include "agv/overhead/camera_frame.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <string>
 #include <unordered_set>
 
@@ -56,6 +57,8 @@ struct CameraFrameProcessor::FrameWork {
   std::unordered_set<std::uint32_t> ids_seen;  // tags handled this frame (any window)
   std::vector<std::uint8_t> found;             // per vehicle: its tag was read this frame
   std::vector<std::uint8_t> looked_for;        // per vehicle: a window expected it
+  std::vector<Pose2> tag_pose;                 // per vehicle found: its tag's fix (if any)
+  std::vector<std::uint8_t> has_tag_pose;
 };
 
 bool CameraFrameProcessor::process(std::size_t camera, std::int64_t t_ns, const cv::Mat& gray,
@@ -92,6 +95,8 @@ bool CameraFrameProcessor::process(std::size_t camera, std::int64_t t_ns, const 
   w.out = out;
   w.found.assign(fleet_.size(), 0);
   w.looked_for.assign(fleet_.size(), 0);
+  w.tag_pose.assign(fleet_.size(), Pose2{});
+  w.has_tag_pose.assign(fleet_.size(), 0);
   for (const SearchWindow* win : in_level_order(windows)) {
     // A tag predicted across the image's edge may well be out of it: not finding it there is
     // no miss (an area search of its camera would cost much and find it no better).
@@ -181,6 +186,8 @@ void CameraFrameProcessor::handle_tag(const TagObservation& obs, SearchLevel lev
     d.has_fix = tag_fix_on_plane(cameras_[w->camera], obs.corners_px, obs.corner_sigma_px,
                                  agv.tray_height_mm, agv.tag_size_mm, &d.fix);
     if (d.has_fix) {
+      w->tag_pose[d.agv] = d.fix.pose;
+      w->has_tag_pose[d.agv] = 1;
       d.result = w->tracker->add_fix(d.agv, w->t_ns, d.fix);
     } else {
       ++counters_.no_fix;
@@ -207,7 +214,10 @@ void CameraFrameProcessor::fit_covered_trays(const cv::Mat& gray, FrameWork* w) 
     const TrackOutput o = w->tracker->output(i, w->t_ns);
     if (!o.valid()) continue;
     TrayFix tray;
-    if (!fit_tray(gray, cameras_[w->camera], fleet_[i], o.pose, o.cov, tray_, &tray)) {
+    const bool ok = tray_learned() ? learned_tray_fix(gray, i, o, w, &tray.fix)
+                                   : fit_tray(gray, cameras_[w->camera], fleet_[i], o.pose, o.cov,
+                                              tray_, &tray);
+    if (!ok) {
       ++counters_.tray_refused;
       continue;
     }
@@ -217,6 +227,41 @@ void CameraFrameProcessor::fit_covered_trays(const cv::Mat& gray, FrameWork* w) 
       ++counters_.tray_gated;
     }
   }
+}
+
+// The learned box nearest the prediction in the window around it. Boxes at vehicles whose tag
+// this frame read are compared with the tag's fix (the tag wins; a disagreement is counted).
+bool CameraFrameProcessor::learned_tray_fix(const cv::Mat& gray, std::size_t agv,
+                                            const TrackOutput& o, FrameWork* w, TagFix* fix) {
+  const site::FleetAgv& a = fleet_[agv];
+  ++counters_.tray_net_windows;
+  const std::vector<PlaneTray> trays = tray_net_->detect_on_plane(
+      gray, cameras_[w->camera], {o.pose.x_mm, o.pose.y_mm}, a.tray_height_mm, tray_net_params_);
+  const TrayNetParams& p = tray_net_params_;
+  const PlaneTray* best = nullptr;
+  double best_d = 0.5 * std::min(a.tray_length_mm, a.tray_width_mm);
+  for (const PlaneTray& t : trays) {
+    const double d = std::hypot(t.centre_mm.x - o.pose.x_mm, t.centre_mm.y - o.pose.y_mm);
+    // A box nearer a vehicle read this frame is that vehicle's tray.
+    std::size_t owner = agv;
+    double owner_d = d;
+    for (std::size_t j = 0; j < fleet_.size(); ++j) {
+      if (!w->has_tag_pose[j]) continue;
+      const double dj =
+          std::hypot(t.centre_mm.x - w->tag_pose[j].x_mm, t.centre_mm.y - w->tag_pose[j].y_mm);
+      if (dj < owner_d) owner = j, owner_d = dj;
+    }
+    if (owner != agv) {
+      const double axis_err =
+          std::abs(wrap_angle_rad(2.0 * (t.axis_rad - w->tag_pose[owner].theta_rad))) / 2.0;
+      const bool long_is_x = fleet_[owner].tray_length_mm >= fleet_[owner].tray_width_mm;
+      const double e = long_is_x ? axis_err : std::abs(0.5 * kPi - axis_err);
+      if (owner_d > p.tag_disagree_mm || e > p.tag_disagree_rad) ++counters_.tray_tag_disagree;
+      continue;
+    }
+    if (d < best_d) best = &t, best_d = d;
+  }
+  return best && tray_box_fix(*best, a, o.pose, o.cov, p, tray_net_->geometry().mm_per_px, fix);
 }
 
 }  // namespace agv::overhead

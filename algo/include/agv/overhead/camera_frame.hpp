@@ -7,6 +7,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <string>
 #include <unordered_map>
@@ -17,6 +18,7 @@
 #include "agv/overhead/tag_fix.hpp"
 #include "agv/overhead/tracker.hpp"
 #include "agv/overhead/tray_fit.hpp"
+#include "agv/overhead/tray_net.hpp"
 #include "agv/site/site.hpp"
 
 namespace agv::overhead {
@@ -44,6 +46,9 @@ struct FrameCounters {
   // Covered tags (a tracked vehicle expected wholly in view, its tag not read): tray fits applied
   // to its track, gated by it, or refused by the fit (too few sides, ambiguous heading, ...).
   std::uint64_t tray_fixes = 0, tray_gated = 0, tray_refused = 0;
+  // The learned detector: windows it ran on; boxes found at a vehicle whose tag was read in the
+  // same frame that disagree with the tag's fix (the tag wins; the box is dropped).
+  std::uint64_t tray_net_windows = 0, tray_tag_disagree = 0;
 };
 
 class CameraFrameProcessor {
@@ -68,6 +73,14 @@ class CameraFrameProcessor {
     tray_enabled_ = enabled;
     tray_ = params;
   }
+  // The tray's box from the learned detector (tray_net.hpp) instead of the classical fit: the
+  // rectified window around the prediction, the box nearest it turned into a fix (the half-turn
+  // resolved by the prediction). A null net goes back to the classical fit.
+  void set_tray_net(std::shared_ptr<const TrayNet> net, const TrayNetParams& params = {}) {
+    tray_net_ = std::move(net);
+    tray_net_params_ = params;
+  }
+  bool tray_learned() const { return tray_net_ && tray_net_->loaded(); }
 
  private:
   struct FrameWork;
@@ -76,6 +89,8 @@ class CameraFrameProcessor {
   void handle_tag(const TagObservation& obs, SearchLevel level, FrameWork* w);
   bool may_start_track(const TagObservation& obs, std::size_t agv, const FrameWork& w) const;
   void fit_covered_trays(const cv::Mat& gray, FrameWork* w);
+  bool learned_tray_fix(const cv::Mat& gray, std::size_t agv, const TrackOutput& o, FrameWork* w,
+                        TagFix* fix);
 
   std::vector<site::CeilingCamera> cameras_;
   std::vector<site::FleetAgv> fleet_;
@@ -86,6 +101,8 @@ class CameraFrameProcessor {
   FrameCounters counters_;
   bool tray_enabled_ = true;
   TrayFitParams tray_;
+  std::shared_ptr<const TrayNet> tray_net_;
+  TrayNetParams tray_net_params_;
 };
 
 }  // namespace agv::overhead
