@@ -188,6 +188,23 @@ TEST(RangingFix, GaussNewtonConvergesFromAPoorStart) {
   EXPECT_LT(f.iterations, 10);
 }
 
+TEST(RangingFix, CovarianceSizeCheckRefusesAPoorlyDeterminedFix) {
+  const Pose2 truth{0.0, 0.0, 0.0};
+  const std::vector<Observation> obs = {observe(truth, {6000.0, -1500.0}, 60.0, 3e-4),
+                                        observe(truth, {7000.0, 1500.0}, 70.0, 3e-4)};
+  const FixResult loose = fix_from_landmarks(obs, FixOptions{});
+  ASSERT_EQ(loose.status, FixStatus::kOk);
+  const double worst_sd = std::sqrt(
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(loose.cov.topLeftCorner<2, 2>())
+          .eigenvalues()
+          .maxCoeff());
+  FixOptions strict;
+  strict.max_position_sd_mm = 0.9 * worst_sd;
+  EXPECT_EQ(fix_from_landmarks(obs, strict).status, FixStatus::kShallowGeometry);
+  strict.max_position_sd_mm = 1.1 * worst_sd;
+  EXPECT_EQ(fix_from_landmarks(obs, strict).status, FixStatus::kOk);
+}
+
 TEST(RangingFix, CollinearLandmarksRefuseTheDeterminantsNotTheBearings) {
   const Pose2 truth{0.0, 0.0, 0.0};
   std::vector<Observation> obs = {observe(truth, {4000.0, 1000.0}, 30.0, 1e-3),

@@ -255,6 +255,11 @@ FixResult refine_fix(std::span<const Observation> obs, const Pose2& init, const 
     return out;
   }
   out.cov = H.inverse();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> pos(out.cov.topLeftCorner<2, 2>());
+  if (!(std::sqrt(std::max(0.0, pos.eigenvalues().maxCoeff())) <= opt.max_position_sd_mm)) {
+    out.status = FixStatus::kShallowGeometry;
+    return out;
+  }
   const double gate = chi2_gate(out.dof, opt.chi2_gate_z);
   out.hidden_map_shift_sigma = hidden_map_shift_sigma(obs, out.pose, H, gate);
   if (out.dof > 0 && out.chi2 > gate) {

@@ -34,6 +34,9 @@ using namespace agv::ranging;
 
 constexpr double kNees3Sigma = 14.16;  // chi2(3) at 0.9973
 constexpr double kChi1Sigma3 = 9.0;    // one degree of freedom at 3 sigma
+// The covariance-size check for initialising from two landmarks: a p95 of 50 mm needs a
+// position sd of about 50 / 2.45 along the worst axis.
+constexpr double kInitMaxSdMm = 20.0;
 
 CameraIntrinsics true_camera() {
   CameraIntrinsics k;
@@ -186,10 +189,16 @@ int main(int argc, char** argv) {
   RangingMount mount_true;
   mount_true.x_mm = 300.0;
   mount_true.z_mm = 1000.0;
-  const std::vector<Pose2> poses = sim::random_free_poses(scene.site, trials, 500.0, seed);
+  // random_free_poses keeps its poses apart from each other: draw them in small batches.
+  std::vector<Pose2> poses;
+  for (std::uint64_t batch = 0; static_cast<int>(poses.size()) < trials && batch < 10000; ++batch) {
+    for (const Pose2& p : sim::random_free_poses(scene.site, 8, 500.0, seed * 1000003 + batch)) {
+      if (static_cast<int>(poses.size()) < trials) poses.push_back(p);
+    }
+  }
 
   Errors r_pose, r_size, r_paper, b_pose, b_paper, yaw_pose;
-  FixStats two_paper, two_circles_pose, two_wls, many_det, many_wls, two_wls_size;
+  FixStats two_paper, two_circles_pose, two_wls, two_wls_sd, many_det, many_wls, two_wls_size;
   int frames = 0, frames_2 = 0, frames_3 = 0, refused_mirror = 0, seen_total = 0;
   double observe_ms = 0.0;
   // Uniform errors of +-a have sigma a / sqrt(3); the principal point's 1 px adds to the yaw.
@@ -279,6 +288,11 @@ int main(int argc, char** argv) {
       FixResult f = fix_from_landmarks(two, FixOptions{});
       add_mount_yaw_uncertainty(two, s_common, &f);
       two_wls.add(f, truth, true);
+      FixOptions checked;
+      checked.max_position_sd_mm = kInitMaxSdMm;
+      FixResult fc = fix_from_landmarks(two, checked);
+      add_mount_yaw_uncertainty(two, s_common, &fc);
+      two_wls_sd.add(fc, truth, true);
       const std::vector<Observation> two_size = fix_observations(near, false);
       FixResult fs = fix_from_landmarks(two_size, FixOptions{});
       add_mount_yaw_uncertainty(two_size, s_common, &fs);
@@ -321,10 +335,12 @@ int main(int argc, char** argv) {
   two_circles_pose.print("2 nearest, tag pose + circles + bearing difference", true);
   two_wls_size.print("2 nearest, size as depth + WLS", true);
   two_wls.print("2 nearest, tag pose + WLS (agvloc)", true);
+  two_wls_sd.print("2 nearest, tag pose + WLS, position sd <= 20 mm (agvloc init)", true);
   many_det.print("all (>= 3), paper 004: size L + determinants", false);
   many_wls.print("all (>= 3), tag pose + WLS (agvloc)", true);
   std::printf("\n");
   two_wls.print_refusals("2 nearest, tag pose + WLS");
+  two_wls_sd.print_refusals("2 nearest, tag pose + WLS, sd <= 20 mm");
   many_wls.print_refusals("all (>= 3), tag pose + WLS");
   return 0;
 }

@@ -56,6 +56,10 @@ struct FixOptions {
   // quantile chi2_gate_z (3.09: probability 0.999) refuses the fix.
   double chi2_gate_z = 3.09;
   int max_iterations = 20;
+  // Covariance-size check after the refinement: a fix whose position standard deviation along
+  // its worst axis exceeds this is refused as kShallowGeometry (the crossing angle alone does not
+  // see range noise growing with the square of the distance). Off by default.
+  double max_position_sd_mm = std::numeric_limits<double>::infinity();
   // Map check (refine_fix): the largest pose shift, in sigmas of the fix's own covariance, that a
   // wrong map position of any one landmark could cause while chi-square stays under its gate.
   // Fixes above it are kUnverifiable. Off by default: two landmarks (one degree of freedom) can
