@@ -29,6 +29,16 @@ struct MqttOutput {
   std::string map_id;  // empty: the site's name
 };
 
+// diag.*: the diagnostics page and /metrics of `run` (drivers/http, as the vehicle's).
+struct DiagOutput {
+  bool enabled = false;
+  std::string bind_address = "127.0.0.1";
+  int port = 8090;
+  bool allow_remote = false;
+  int max_clients = 4;
+  int threads = 1;
+};
+
 // cameras.<id>.*: one ceiling camera of the site (matched by id). The live settings are used by
 // `run` and `record`, latency_ms by `replay` only (live frames are processed as they really
 // arrive). driver: v4l2, libcamera or aravis.
@@ -47,19 +57,20 @@ struct OverheadConfig {
   overhead::TagDetectParams detect;
   bool tray_fit = true;  // the tray's box for a tracked vehicle whose tag is covered
   overhead::TrayFitParams tray;
+  // classical (tray_fit.hpp) or learned (tray_net.hpp, the ONNX model at tray_model_path).
+  std::string tray_method = "classical";
+  std::string tray_model_path;
   // Fleet tag ids whose codes are fewer bits apart are refused with the site (identity).
   int min_tag_distance = 12;
   double output_rate_hz = 30.0;
   MqttOutput mqtt;
+  DiagOutput diag;
   std::map<std::string, CameraSettings> cameras;  // by camera id
 };
 
 enum class KeyType { kNumber, kInteger, kBool, kString, kChoice };
 using Value = std::variant<bool, std::int64_t, double, std::string>;
 
-  // classical (tray_fit.hpp) or learned (tray_net.hpp, the ONNX model at tray_model_path).
-  std::string tray_method = "classical";
-  std::string tray_model_path;
 // One key of a table whose values are stored in a Cfg.
 template <typename Cfg>
 struct KeyOf {

@@ -174,6 +174,18 @@ std::vector<Key> output_keys() {
              "VDA 5050 version of the messages (topic v2 or v3)", {"2.0.0", "2.1.0", "3.0.0"}),
       string("output.mqtt.map_id", AGV_OH_AT(mqtt.map_id), "",
              "agvPosition.mapId; empty: the site's name"),
+      boolean("diag.enabled", AGV_OH_AT(diag.enabled), false,
+              "run: serve the diagnostics page and Prometheus /metrics (cameras, vehicles)"),
+      string("diag.bind_address", AGV_OH_AT(diag.bind_address), "127.0.0.1",
+             "Address the page listens on; not loopback only with diag.allow_remote"),
+      integer("diag.port", AGV_OH_AT(diag.port), 0, 65535, 8090, "",
+              "The page's TCP port (0: any free one; the vehicle's page defaults elsewhere)"),
+      boolean("diag.allow_remote", AGV_OH_AT(diag.allow_remote), false,
+              "Allow a non-loopback diag.bind_address: the page has no authentication"),
+      integer("diag.max_clients", AGV_OH_AT(diag.max_clients), 1, 64, 4, "",
+              "Requests in progress at once; more are answered 503"),
+      integer("diag.threads", AGV_OH_AT(diag.threads), 1, 8, 1, "",
+              "Threads serving the page (not real-time)"),
   };
 }
 

@@ -32,15 +32,18 @@ class TrackerCore {
   bool finish(const std::string& prefix, std::size_t cameras, std::string* error);
 
   std::int64_t period_ns() const;
+  // For the diagnostics page: the tracks, and the detections of the last frame processed.
+  const overhead::FleetTracker& tracker() const { return tracker_; }
+  const std::vector<overhead::Detection>& last_detections() const { return detections_; }
   std::uint64_t frames() const { return frames_; }
   std::uint64_t unreadable_frames() const { return bad_frames_; }
 
  private:
   void print_summary(const std::string& prefix, std::size_t cameras) const;
+  void use_tray_model(const std::string& path);
 
   const OverheadConfig& cfg_;
   const site::Site& site_;
-  void use_tray_model(const std::string& path);
   overhead::CameraFrameProcessor processor_;
   overhead::FleetTracker tracker_;
   std::vector<overhead::Detection> detections_;
@@ -49,7 +52,7 @@ class TrackerCore {
   std::vector<vda5050::Identity> ids_;
   std::vector<std::uint32_t> header_ids_;
   std::uint64_t frames_ = 0, bad_frames_ = 0, detections_total_ = 0;
+  std::string tray_model_error_;  // tray.method learned with a model that cannot be used
 };
 
 }  // namespace agv::overhead_app
-  std::string tray_model_error_;  // tray.method learned with a model that cannot be used

@@ -69,6 +69,72 @@ class FrameQueue {
   std::uint64_t dropped_ = 0;
 };
 
+// The diagnostics view of the loop: the cameras' health (their frame rate over about a second)
+// and every vehicle's track, and whether its last fix came from its tag (a detection applied at
+// that exposure time) or from its tray's box.
+class DiagFeeder {
+ public:
+  DiagFeeder(const LiveDiag& d, std::size_t cameras, std::size_t agvs)
+      : d_(d), rate_(cameras), tag_fix_ns_(agvs, INT64_MIN) {}
+
+  void frame_done(const TrackerCore& core, std::int64_t t_ns) {
+    if (!d_.server) return;
+    for (const overhead::Detection& det : core.last_detections()) {
+      if (det.in_fleet && det.agv < tag_fix_ns_.size() &&
+          (det.result == overhead::FixResult::kApplied ||
+           det.result == overhead::FixResult::kStarted)) {
+        tag_fix_ns_[det.agv] = t_ns;
+      }
+    }
+  }
+
+  void tick(const std::vector<LiveCamera>& cams, const CameraFeed& feed, const TrackerCore& core,
+            const LiveCounters& n, std::uint64_t dropped, std::int64_t t_ns) {
+    if (!d_.server) return;
+    DiagView v;
+    v.t_ns = t_ns;
+    v.ticks = n.ticks;
+    v.ticks_skipped = n.ticks_skipped;
+    v.frames = core.frames();
+    v.frames_dropped = dropped;
+    const std::vector<CameraHealth> h = feed.health_now();
+    for (std::size_t i = 0; i < cams.size() && i < h.size(); ++i) {
+      Rate& r = rate_[i];
+      if (t_ns - r.t_ns >= kRateWindowNs) {
+        if (r.t_ns != 0) {
+          r.fps = static_cast<double>(h[i].frames - r.frames) * 1e9 /
+                  static_cast<double>(t_ns - r.t_ns);
+        }
+        r.t_ns = t_ns;
+        r.frames = h[i].frames;
+      }
+      v.cameras.push_back({cams[i].id, h[i], r.fps});
+    }
+    for (std::size_t a = 0; a < d_.agv_ids.size(); ++a) {
+      AgvDiag g;
+      g.id = d_.agv_ids[a];
+      g.track = core.tracker().output(a, t_ns);
+      if (g.track.state != overhead::TrackState::kNone) {
+        g.source =
+            a < tag_fix_ns_.size() && g.track.last_fix_t_ns == tag_fix_ns_[a] ? "tag" : "tray";
+      }
+      v.agvs.push_back(std::move(g));
+    }
+    d_.server->update(std::move(v));
+  }
+
+ private:
+  static constexpr std::int64_t kRateWindowNs = 1'000'000'000;
+  struct Rate {
+    std::int64_t t_ns = 0;
+    std::uint64_t frames = 0;
+    double fps = 0.0;
+  };
+  const LiveDiag& d_;
+  std::vector<Rate> rate_;
+  std::vector<std::int64_t> tag_fix_ns_;
+};
+
 }  // namespace
 
 hal::CameraConfig driver_config(const CameraSettings& s, const site::CeilingCamera& cam) {
@@ -124,13 +190,15 @@ bool make_live_cameras(const OverheadConfig& cfg, const site::Site& site,
 }
 
 LiveCounters run_live(std::vector<LiveCamera>* cams, TrackerCore* core,
-                      const std::atomic<bool>& stop, std::int64_t duration_ns) {
+                      const std::atomic<bool>& stop, std::int64_t duration_ns,
+                      const LiveDiag& diag) {
   FrameQueue q(cams->size());
   CameraFeed feed(
       cams, "agvloc-overhead run", [&q](LiveFrame&& f) { q.push(std::move(f)); },
       [&q] { q.camera_ended(); });
   feed.start();
   LiveCounters n;
+  DiagFeeder feeder(diag, cams->size(), diag.agv_ids.size());
   const std::int64_t period = core->period_ns();
   const std::int64_t t_end = duration_ns > 0 ? monotonic_ns() + duration_ns : INT64_MAX;
   std::int64_t next_tick = monotonic_ns();
@@ -140,12 +208,14 @@ LiveCounters run_live(std::vector<LiveCamera>* cams, TrackerCore* core,
         std::chrono::steady_clock::time_point(std::chrono::nanoseconds(next_tick));
     if (q.pop_until(deadline, &f)) {
       core->process(f.camera, f.t_ns, f.gray);
+      feeder.frame_done(*core, f.t_ns);
       continue;
     }
     const std::int64_t now = monotonic_ns();
     if (now < next_tick) continue;
     core->publish(next_tick);
     ++n.ticks;
+    feeder.tick(*cams, feed, *core, n, q.dropped(), next_tick);
     next_tick += period;
     if (next_tick + period < now) {  // fell behind by more than a tick: publish now, not late
       n.ticks_skipped += static_cast<std::uint64_t>((now - next_tick) / period);

@@ -17,6 +17,7 @@
 #include "agv/site/site.hpp"
 #include "config.hpp"
 #include "core.hpp"
+#include "diag.hpp"
 #include "live_feed.hpp"
 
 namespace agv::overhead_app {
@@ -35,9 +36,16 @@ struct LiveCounters {
   std::vector<CameraHealth> cameras;  // as the cameras were given
 };
 
+// Where run_live hands its diagnostics view at every tick (server null: none).
+struct LiveDiag {
+  OverheadDiag* server = nullptr;
+  std::vector<std::string> agv_ids;  // the site's fleet, in order
+};
+
 // Runs until `stop` is set, duration_ns has passed (0: no limit) or every camera has ended
 // (kEndOfStream, a scripted camera). Status lines go to stderr.
 LiveCounters run_live(std::vector<LiveCamera>* cams, TrackerCore* core,
-                      const std::atomic<bool>& stop, std::int64_t duration_ns);
+                      const std::atomic<bool>& stop, std::int64_t duration_ns,
+                      const LiveDiag& diag = {});
 
 }  // namespace agv::overhead_app

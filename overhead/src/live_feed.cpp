@@ -111,7 +111,13 @@ CameraFeed::CameraFeed(std::vector<LiveCamera>* cams, std::string log_prefix, Si
       prefix_(std::move(log_prefix)),
       sink_(std::move(sink)),
       ended_(std::move(ended)),
-      health_(cams->size()) {}
+      health_(cams->size()),
+      shared_(cams->size()) {}
+
+std::vector<CameraHealth> CameraFeed::health_now() const {
+  std::lock_guard<std::mutex> lock(shared_mutex_);
+  return shared_;
+}
 
 CameraFeed::~CameraFeed() { stop(); }
 
@@ -139,12 +145,18 @@ void CameraFeed::camera_loop(std::size_t i) {
   ClockWatch watch;
   bool started = false, failing = false;
   std::int64_t last_t_ns = std::numeric_limits<std::int64_t>::min();
+  auto share = [&] {
+    h.failing = failing;
+    std::lock_guard<std::mutex> lock(shared_mutex_);
+    shared_[i] = h;
+  };
   auto fault = [&](const std::string& what, const char* then) {
     if (!failing) {
       ++h.faults;
       log(i, "fault after " + plural(h.frames, "frame", "frames") + ": " + what + "; " + then);
     }
     failing = true;
+    share();
   };
   while (!stop_.load()) {
     if (!started) {
@@ -164,6 +176,7 @@ void CameraFeed::camera_loop(std::size_t i) {
       started = true;
       failing = false;
       watch.restart();
+      share();
     }
     hal::FrameView f;
     const hal::CameraStatus st = c.camera->next_frame(kFrameWaitNs, &f);
@@ -182,6 +195,7 @@ void CameraFeed::camera_loop(std::size_t i) {
         h.clock_offset_ns = clock->offset_ns();
         h.clock_drift_ppm = clock->drift_ppm();
       }
+      share();
       sink_(std::move(lf));
     } else if (st == hal::CameraStatus::kEndOfStream) {
       break;

@@ -11,6 +11,7 @@
 #include <functional>
 #include <limits>
 #include <memory>
+#include <mutex>
 #include <opencv2/core.hpp>
 #include <string>
 #include <thread>
@@ -50,6 +51,7 @@ struct CameraHealth {
   std::int64_t clock_offset_ns = 0;
   double clock_drift_ppm = 0.0;
   std::uint64_t clock_jumps = 0;
+  bool failing = false;  // in a fault now (not streaming)
 };
 
 // "cam-west: 120 frames, 1 fault, 1 recovery, ..." for the summaries.
@@ -83,6 +85,8 @@ class CameraFeed {
   void start();
   void stop();  // joins the threads; idempotent
   const std::vector<CameraHealth>& health() const { return health_; }
+  // The cameras' health while they run (copied under a lock; for the diagnostics page).
+  std::vector<CameraHealth> health_now() const;
 
  private:
   void camera_loop(std::size_t i);
@@ -94,6 +98,8 @@ class CameraFeed {
   std::function<void()> ended_;
   std::atomic<bool> stop_{false};
   std::vector<CameraHealth> health_;
+  mutable std::mutex shared_mutex_;
+  std::vector<CameraHealth> shared_;  // health_ as of each camera's last event
   std::vector<std::thread> threads_;
 };
 

@@ -47,10 +47,21 @@ int run_live_command(const RunArgs& args) {
   sigemptyset(&sa.sa_mask);
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
+  OverheadDiag diag(cfg.diag);
+  LiveDiag live_diag;
+  if (cfg.diag.enabled) {
+    if (!diag.start(&err)) return run_fail(1, err);
+    live_diag.server = &diag;
+    for (const site::FleetAgv& a : site.fleet) live_diag.agv_ids.push_back(a.id);
+    const bool v6 = cfg.diag.bind_address.find(':') != std::string::npos;
+    std::fprintf(stderr, "agvloc-overhead run: diag: serving http://%s%s%s:%d/\n", v6 ? "[" : "",
+                 cfg.diag.bind_address.c_str(), v6 ? "]" : "", diag.port());
+  }
   std::fprintf(stderr, "agvloc-overhead run: %zu cameras, %zu vehicles, publishing at %g Hz\n",
                cams.size(), site.fleet.size(), cfg.output_rate_hz);
-  const LiveCounters n = run_live(&cams, &core, g_stop,
-                                  static_cast<std::int64_t>(std::llround(args.duration_s * 1e9)));
+  const LiveCounters n =
+      run_live(&cams, &core, g_stop, static_cast<std::int64_t>(std::llround(args.duration_s * 1e9)),
+               live_diag);
   std::printf(
       "agvloc-overhead run: %llu ticks (%llu skipped), %llu frames dropped behind, %llu "
       "camera reopens\n",

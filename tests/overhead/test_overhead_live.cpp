@@ -2,21 +2,28 @@
 // the test site reach the tracker from one thread per camera, every vehicle is published at the
 // configured rate on the monotonic clock, a camera that disconnects is reopened, and cameras that
 // cannot be opened are named, never a crash.
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "agv/fakecamera/fake_camera.hpp"
 #include "agv/posix/posix_clock.hpp"
 #include "agv/sim/site_render.hpp"
 #include "core.hpp"
+#include "diag.hpp"
 #include "inputs.hpp"
 #include "live.hpp"
 
@@ -181,6 +188,124 @@ TEST_F(OverheadLive, MissingDeviceIsRetriedWithoutCrash) {
   const LiveCounters n = run_live(&cams, &core, stop, 300'000'000);
   EXPECT_EQ(core.frames(), 0u);
   EXPECT_GE(n.ticks, 5u);
+}
+
+// GET path from 127.0.0.1:port, the whole answer (headers and body); "" when it cannot connect.
+std::string http_get(int port, const std::string& path) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  if (fd < 0) return "";
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_port = htons(static_cast<std::uint16_t>(port));
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  std::string out;
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0) {
+    const std::string req = "GET " + path + " HTTP/1.1\r\nHost: localhost\r\n\r\n";
+    if (::send(fd, req.data(), req.size(), MSG_NOSIGNAL) == static_cast<ssize_t>(req.size())) {
+      char buf[4096];
+      for (ssize_t n; (n = ::recv(fd, buf, sizeof buf, 0)) > 0;)
+        out.append(buf, static_cast<std::size_t>(n));
+    }
+  }
+  ::close(fd);
+  return out;
+}
+
+// The value of a metric line "name{labels} value" in a /metrics text; NaN when absent.
+double metric(const std::string& text, const std::string& name_and_labels) {
+  const std::size_t at = text.find("\n" + name_and_labels + " ");
+  if (at == std::string::npos) return std::nan("");
+  return std::stod(text.substr(at + name_and_labels.size() + 2));
+}
+
+// The diagnostics page of `run` while the loop runs: /metrics over loopback shows both cameras'
+// frames and rate, the disconnected camera's fault, and both vehicles confirmed on their tags with
+// a sigma under the lost limit and a fix within the last second; /api/status.json and the page are
+// served, the vehicle page's map and image are not.
+TEST_F(OverheadLive, DiagnosticsServeMetricsWhileRunning) {
+  const site::Site s = test_site();
+  const std::vector<sim::AgvState> agvs = {{{1350.0, 1250.0, 0.3}, 0.0, 0.0},
+                                           {{3600.0, 1000.0, -1.0}, 0.0, 0.0}};
+  posix::PosixClock clock;
+  fakecamera::FakeCamera::Options opt;
+  opt.clock = &clock;
+  opt.end_of_stream_when_empty = true;
+  std::vector<LiveCamera> cams;
+  const fakecamera::FakeImage imgs[2] = {render(s, 0, agvs), render(s, 1, agvs)};
+  const std::int64_t t0 = monotonic_ns();
+  constexpr int kLongRunFrames = 30;  // 3 s at 10 fps
+  for (std::size_t c = 0; c < 2; ++c) {
+    auto fake = std::make_unique<fakecamera::FakeCamera>(opt);
+    for (int k = 0; k < kLongRunFrames; ++k) {
+      fake->push_stall(kFramePeriodNs);
+      fake->push_frame(imgs[c], t0 + (k + 1) * kFramePeriodNs - 30'000'000);
+      if (c == 1 && k == 8) fake->push_disconnect();
+    }
+    cams.push_back({s.cameras[c].id, c, std::move(fake)});
+  }
+  OverheadConfig cfg;
+  cfg.diag.enabled = true;
+  cfg.diag.port = 0;  // any free port
+  OverheadDiag diag(cfg.diag);
+  std::string err;
+  ASSERT_TRUE(diag.start(&err)) << err;
+  ASSERT_GT(diag.port(), 0);
+  LiveDiag ld;
+  ld.server = &diag;
+  for (const site::FleetAgv& a : s.fleet) ld.agv_ids.push_back(a.id);
+  TrackerCore core(cfg, s);
+  std::atomic<bool> stop{false};
+  std::thread loop([&] { run_live(&cams, &core, stop, 20'000'000'000, ld); });
+  bool confirmed = false, fault_seen = false, fps_seen = false;
+  std::string text;
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(8);
+  while (std::chrono::steady_clock::now() < until && !(confirmed && fault_seen && fps_seen)) {
+    text = http_get(diag.port(), "/metrics");
+    confirmed = true;
+    for (const site::FleetAgv& a : s.fleet) {
+      const std::string l = "{agv=\"" + a.id + "\"";
+      confirmed =
+          confirmed &&
+          metric(text, "agvloc_overhead_agv_state{agv=\"" + a.id + "\",state=\"confirmed\"}") ==
+              1.0 &&
+          metric(text, "agvloc_overhead_agv_fix_source{agv=\"" + a.id + "\",source=\"tag\"}") ==
+              1.0 &&
+          metric(text, "agvloc_overhead_agv_sigma_xy_mm" + l + "}") > 0.0 &&
+          metric(text, "agvloc_overhead_agv_sigma_xy_mm" + l + "}") < cfg.tracker.lost_sigma_mm &&
+          metric(text, "agvloc_overhead_agv_last_fix_age_seconds" + l + "}") < 1.0;
+    }
+    fault_seen = fault_seen ||
+                 metric(text, "agvloc_overhead_camera_faults_total{camera=\"cam-east\"}") == 1.0;
+    fps_seen = fps_seen || metric(text, "agvloc_overhead_camera_fps{camera=\"cam-west\"}") > 5.0;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  const std::string status = http_get(diag.port(), "/api/status.json");
+  const std::string page = http_get(diag.port(), "/");
+  const std::string map = http_get(diag.port(), "/api/map.json");
+  stop.store(true);
+  loop.join();
+  EXPECT_TRUE(confirmed) << text;
+  EXPECT_TRUE(fault_seen) << text;
+  EXPECT_TRUE(fps_seen) << text;
+  EXPECT_NE(text.find("HTTP/1.1 200"), std::string::npos) << text.substr(0, 200);
+  EXPECT_NE(text.find("# TYPE agvloc_overhead_camera_frames_total counter"), std::string::npos);
+  EXPECT_GT(metric(text, "agvloc_overhead_camera_frames_total{camera=\"cam-west\"}"), 0.0);
+  EXPECT_GE(metric(text, "agvloc_overhead_ticks_total"), 1.0);
+  EXPECT_NE(status.find("\"agvs\":[{\"id\":\"agv-1\""), std::string::npos) << status;
+  EXPECT_NE(page.find("<title>agvloc-overhead</title>"), std::string::npos) << page.substr(0, 300);
+  EXPECT_NE(map.find("HTTP/1.1 404"), std::string::npos) << map.substr(0, 200);
+  diag.stop();
+}
+
+// A page not on loopback needs diag.allow_remote, as the vehicle's.
+TEST_F(OverheadLive, DiagnosticsRefuseARemoteAddressUnlessAllowed) {
+  DiagOutput d;
+  d.bind_address = "0.0.0.0";
+  d.port = 0;
+  OverheadDiag diag(d);
+  std::string err;
+  EXPECT_FALSE(diag.start(&err));
+  EXPECT_NE(err.find("diag.bind_address 0.0.0.0 is not loopback"), std::string::npos) << err;
 }
 
 }  // namespace

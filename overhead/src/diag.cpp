@@ -1,0 +1,270 @@
+#include "diag.hpp"
+
+#include <cstdio>
+#include <utility>
+
+#include "agv/diag/diag.hpp"
+
+namespace agv::overhead_app {
+
+namespace {
+
+constexpr overhead::TrackState kStates[] = {
+    overhead::TrackState::kNone, overhead::TrackState::kTentative, overhead::TrackState::kConfirmed,
+    overhead::TrackState::kCoasting, overhead::TrackState::kLost};
+
+// A Prometheus label value: backslash, double quote and newline escaped.
+std::string label(const std::string& v) {
+  std::string out;
+  for (const char c : v) {
+    if (c == '\\' || c == '"') out += '\\';
+    out += c == '\n' ? std::string("\\n") : std::string(1, c);
+  }
+  return out;
+}
+
+void line(std::string* out, const char* name, const std::string& labels, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, " %.17g\n", v);
+  *out += name;
+  if (!labels.empty()) *out += "{" + labels + "}";
+  *out += buf;
+}
+
+void help(std::string* out, const char* name, const char* type, const char* text) {
+  *out += std::string("# HELP ") + name + " " + text + "\n# TYPE " + name + " " + type + "\n";
+}
+
+// Seconds from the vehicle's last fix to the view's time; -1 without a track.
+double fix_age_s(const AgvDiag& a, std::int64_t t_ns) {
+  if (a.track.state == overhead::TrackState::kNone) return -1.0;
+  return 1e-9 * static_cast<double>(t_ns - a.track.last_fix_t_ns);
+}
+
+void camera_metrics(const DiagView& v, std::string* out) {
+  struct Row {
+    const char* name;
+    const char* type;
+    const char* text;
+    double (*get)(const CameraDiag&);
+  };
+  static const Row rows[] = {
+      {"agvloc_overhead_camera_frames_total", "counter", "Frames taken from the camera",
+       [](const CameraDiag& c) { return static_cast<double>(c.health.frames); }},
+      {"agvloc_overhead_camera_fps", "gauge", "Frames per second over the last second",
+       [](const CameraDiag& c) { return c.fps; }},
+      {"agvloc_overhead_camera_driver_dropped_total", "counter",
+       "Frames the driver dropped (known when the stream stops)",
+       [](const CameraDiag& c) { return static_cast<double>(c.health.driver_dropped); }},
+      {"agvloc_overhead_camera_faults_total", "counter",
+       "Camera faults: failed starts and disconnects, one per outage",
+       [](const CameraDiag& c) { return static_cast<double>(c.health.faults); }},
+      {"agvloc_overhead_camera_recoveries_total", "counter", "Streaming again after a fault",
+       [](const CameraDiag& c) { return static_cast<double>(c.health.recoveries); }},
+      {"agvloc_overhead_camera_fault", "gauge", "1 while the camera is in a fault",
+       [](const CameraDiag& c) { return c.health.failing ? 1.0 : 0.0; }},
+      {"agvloc_overhead_camera_stamps_backwards_total", "counter",
+       "Frames stamped no later than the camera's previous one",
+       [](const CameraDiag& c) { return static_cast<double>(c.health.stamps_backwards); }},
+      {"agvloc_overhead_camera_clock_mapped", "gauge",
+       "1 when the camera's own clock is mapped onto the host's",
+       [](const CameraDiag& c) { return c.health.clock_mapped ? 1.0 : 0.0; }},
+      {"agvloc_overhead_camera_clock_offset_seconds", "gauge",
+       "Host clock minus camera clock (when mapped)",
+       [](const CameraDiag& c) { return 1e-9 * static_cast<double>(c.health.clock_offset_ns); }},
+      {"agvloc_overhead_camera_clock_drift_ppm", "gauge",
+       "The camera clock's rate against the host's (when mapped)",
+       [](const CameraDiag& c) { return c.health.clock_drift_ppm; }},
+      {"agvloc_overhead_camera_clock_jumps_total", "counter",
+       "Jumps of the camera clock (the mapping restarted)",
+       [](const CameraDiag& c) { return static_cast<double>(c.health.clock_jumps); }},
+  };
+  for (const Row& r : rows) {
+    help(out, r.name, r.type, r.text);
+    for (const CameraDiag& c : v.cameras)
+      line(out, r.name, "camera=\"" + label(c.id) + "\"", r.get(c));
+  }
+}
+
+void agv_metrics(const DiagView& v, std::string* out) {
+  help(out, "agvloc_overhead_agv_state", "gauge", "1 for the track's state (none: never seen)");
+  for (const AgvDiag& a : v.agvs) {
+    for (const overhead::TrackState s : kStates) {
+      line(out, "agvloc_overhead_agv_state",
+           "agv=\"" + label(a.id) + "\",state=\"" + overhead::to_string(s) + "\"",
+           a.track.state == s ? 1.0 : 0.0);
+    }
+  }
+  help(out, "agvloc_overhead_agv_sigma_xy_mm", "gauge", "1 sigma of the position (mm)");
+  for (const AgvDiag& a : v.agvs)
+    line(out, "agvloc_overhead_agv_sigma_xy_mm", "agv=\"" + label(a.id) + "\"",
+         a.track.sigma_xy_mm);
+  help(out, "agvloc_overhead_agv_sigma_theta_rad", "gauge", "1 sigma of the heading (rad)");
+  for (const AgvDiag& a : v.agvs) {
+    line(out, "agvloc_overhead_agv_sigma_theta_rad", "agv=\"" + label(a.id) + "\"",
+         a.track.sigma_theta_rad);
+  }
+  help(out, "agvloc_overhead_agv_last_fix_age_seconds", "gauge",
+       "Time since the vehicle's last fix (-1: no track)");
+  for (const AgvDiag& a : v.agvs) {
+    line(out, "agvloc_overhead_agv_last_fix_age_seconds", "agv=\"" + label(a.id) + "\"",
+         fix_age_s(a, v.t_ns));
+  }
+  help(out, "agvloc_overhead_agv_fix_source", "gauge",
+       "1 for where the last fix came from: the tag or the tray's box");
+  for (const AgvDiag& a : v.agvs) {
+    for (const char* s : {"tag", "tray"}) {
+      line(out, "agvloc_overhead_agv_fix_source",
+           "agv=\"" + label(a.id) + "\",source=\"" + s + "\"",
+           std::string(a.source) == s ? 1.0 : 0.0);
+    }
+  }
+}
+
+}  // namespace
+
+std::string overhead_metrics_text(const DiagView& v, const HttpCounters& http) {
+  std::string out;
+  struct Total {
+    const char* name;
+    const char* text;
+    std::uint64_t value;
+  };
+  const Total totals[] = {
+      {"agvloc_overhead_ticks_total", "Publish ticks", v.ticks},
+      {"agvloc_overhead_ticks_skipped_total", "Ticks skipped (the loop fell behind)",
+       v.ticks_skipped},
+      {"agvloc_overhead_frames_total", "Frames received from every camera", v.frames},
+      {"agvloc_overhead_frames_dropped_total",
+       "Frames dropped because the pipeline was behind (every camera)", v.frames_dropped},
+      {"agvloc_overhead_diag_requests_total", "Diagnostics requests answered", http.requests},
+      {"agvloc_overhead_diag_refused_busy_total", "Diagnostics requests refused: busy",
+       http.refused_busy},
+      {"agvloc_overhead_diag_refused_bad_total", "Diagnostics requests refused: bad request",
+       http.refused_bad},
+  };
+  for (const Total& t : totals) {
+    help(&out, t.name, "counter", t.text);
+    line(&out, t.name, "", static_cast<double>(t.value));
+  }
+  camera_metrics(v, &out);
+  agv_metrics(v, &out);
+  return out;
+}
+
+std::string overhead_status_json(const DiagView& v) {
+  using diag::append_json_number;
+  using diag::append_json_string;
+  std::string o = "{\"t_ns\":" + std::to_string(v.t_ns) + ",\"ticks\":" + std::to_string(v.ticks) +
+                  ",\"frames\":" + std::to_string(v.frames) +
+                  ",\"frames_dropped\":" + std::to_string(v.frames_dropped) + ",\"cameras\":[";
+  for (std::size_t i = 0; i < v.cameras.size(); ++i) {
+    const CameraDiag& c = v.cameras[i];
+    o += i ? ",{\"id\":" : "{\"id\":";
+    append_json_string(&o, c.id.c_str());
+    o += ",\"frames\":" + std::to_string(c.health.frames) + ",\"fps\":";
+    append_json_number(&o, c.fps);
+    o += ",\"faults\":" + std::to_string(c.health.faults) +
+         ",\"fault\":" + (c.health.failing ? "true" : "false") +
+         ",\"driver_dropped\":" + std::to_string(c.health.driver_dropped) +
+         ",\"clock_mapped\":" + (c.health.clock_mapped ? "true" : "false") +
+         ",\"clock_offset_ns\":" + std::to_string(c.health.clock_offset_ns) + "}";
+  }
+  o += "],\"agvs\":[";
+  for (std::size_t i = 0; i < v.agvs.size(); ++i) {
+    const AgvDiag& a = v.agvs[i];
+    o += i ? ",{\"id\":" : "{\"id\":";
+    append_json_string(&o, a.id.c_str());
+    o += ",\"state\":";
+    append_json_string(&o, overhead::to_string(a.track.state));
+    for (const auto& [k, val] :
+         {std::pair{"x_mm", a.track.pose.x_mm}, std::pair{"y_mm", a.track.pose.y_mm},
+          std::pair{"theta_rad", a.track.pose.theta_rad},
+          std::pair{"sigma_xy_mm", a.track.sigma_xy_mm},
+          std::pair{"sigma_theta_rad", a.track.sigma_theta_rad},
+          std::pair{"last_fix_age_s", fix_age_s(a, v.t_ns)}}) {
+      o += std::string(",\"") + k + "\":";
+      append_json_number(&o, val);
+    }
+    o += ",\"source\":";
+    append_json_string(&o, a.source);
+    o += "}";
+  }
+  return o + "]}";
+}
+
+namespace {
+
+const char* kPage = R"(<!doctype html>
+<html><head><meta charset="utf-8"><title>agvloc-overhead</title>
+<style>body{font:14px sans-serif;margin:1em}table{border-collapse:collapse;margin-bottom:1em}
+td,th{border:1px solid #bbb;padding:2px 8px;text-align:right}.bad{background:#fcc}</style></head>
+<body><h1>agvloc-overhead</h1><p id="t"></p><h2>Cameras</h2><table id="c"></table>
+<h2>Vehicles</h2><table id="a"></table><p><a href="/metrics">/metrics</a></p>
+<script>
+function row(cells,cls){const r=document.createElement('tr');if(cls)r.className=cls;
+for(const c of cells){const d=document.createElement('td');d.textContent=c;r.appendChild(d);}return r;}
+function head(t,names){t.replaceChildren();const r=document.createElement('tr');
+for(const n of names){const h=document.createElement('th');h.textContent=n;r.appendChild(h);}t.appendChild(r);}
+function fmt(v,d){return v===null?'':Number(v).toFixed(d);}
+async function tick(){try{const s=await (await fetch('/api/status.json')).json();
+document.getElementById('t').textContent='ticks '+s.ticks+', frames '+s.frames+', dropped '+s.frames_dropped;
+const c=document.getElementById('c');head(c,['camera','frames','fps','faults','fault','clock offset ns']);
+for(const k of s.cameras)c.appendChild(row([k.id,k.frames,fmt(k.fps,1),k.faults,k.fault?'yes':'',
+k.clock_mapped?k.clock_offset_ns:''],k.fault?'bad':''));
+const a=document.getElementById('a');head(a,['vehicle','state','x mm','y mm','theta deg','sigma mm','last fix s','source']);
+for(const v of s.agvs)a.appendChild(row([v.id,v.state,fmt(v.x_mm,1),fmt(v.y_mm,1),fmt(v.theta_rad*57.29578,2),
+fmt(v.sigma_xy_mm,2),fmt(v.last_fix_age_s,2),v.source],v.state==='lost'?'bad':''));}catch(e){}
+setTimeout(tick,500);}
+tick();
+</script></body></html>
+)";
+
+HttpServerSettings settings_of(const DiagOutput& d) {
+  HttpServerSettings s;
+  s.bind_address = d.bind_address;
+  s.port = d.port;
+  s.allow_remote = d.allow_remote;
+  s.threads = d.threads;
+  s.max_clients = d.max_clients;
+  return s;
+}
+
+}  // namespace
+
+OverheadDiag::OverheadDiag(const DiagOutput& cfg)
+    : http_(settings_of(cfg), [this](DiagRoute r, HttpAnswer* a) { answer(r, a); }) {}
+
+bool OverheadDiag::start(std::string* error) { return http_.start(error); }
+
+void OverheadDiag::update(DiagView v) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  view_ = std::move(v);
+}
+
+void OverheadDiag::answer(DiagRoute route, HttpAnswer* a) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  switch (route) {
+    case DiagRoute::kPage:
+      a->body = kPage;
+      a->type = "text/html; charset=utf-8";
+      a->headers.emplace_back("Content-Security-Policy",
+                              "default-src 'none'; script-src 'unsafe-inline'; style-src "
+                              "'unsafe-inline'; connect-src 'self'");
+      break;
+    case DiagRoute::kStatus:
+      a->body = overhead_status_json(view_);
+      a->type = "application/json";
+      break;
+    case DiagRoute::kMetrics:
+      a->body = overhead_metrics_text(view_, http_.counters());
+      a->type = "text/plain; version=0.0.4; charset=utf-8";
+      break;
+    default:  // the vehicle's map and camera image: not served here
+      a->status = 404;
+      a->body = "not found\n";
+      break;
+  }
+}
+
+}  // namespace agv::overhead_app
