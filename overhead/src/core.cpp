@@ -61,6 +61,22 @@ void TrackerCore::use_tray_model(const std::string& path) {
   processor_.set_tray_net(std::move(net));
 }
 
+void TrackerCore::publish_camera_state(const std::string& camera_id, bool fault,
+                                       const std::string& what) {
+  if (!mqtt_ || !topic_level_ok(camera_id)) return;
+  const std::string map_id = cfg_.mqtt.map_id.empty() ? site_.name : cfg_.mqtt.map_id;
+  const vda5050::Identity id = identity_of(cfg_.mqtt, map_id, camera_id);
+  std::vector<vda5050::StateError> errors;
+  if (fault) {
+    errors.push_back(
+        {"cameraFault", "WARNING", "camera " + camera_id + ": " + what, {{"cameraId", camera_id}}});
+  }
+  std::uint32_t& header = camera_header_ids_[camera_id];
+  mqtt_->publish(
+      vda5050::topic(id, "state"),
+      vda5050::encode_state(id, header++, epoch_now_ns(), vda5050::Position{}, {}, errors));
+}
+
 std::int64_t TrackerCore::period_ns() const {
   return static_cast<std::int64_t>(std::llround(1e9 / cfg_.output_rate_hz));
 }

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <opencv2/core.hpp>
 #include <string>
@@ -28,6 +29,9 @@ class TrackerCore {
   void frame_unreadable(const std::string& what);
   // Every tracked vehicle's state extrapolated to t_ns, to tracks.csv and MQTT.
   void publish(std::int64_t t_ns);
+  // A camera's fault state on MQTT (when configured): a VDA 5050 state message whose
+  // serialNumber is the camera's id, errors[] holding a cameraFault while it is in a fault.
+  void publish_camera_state(const std::string& camera_id, bool fault, const std::string& what);
   // Flushes MQTT, prints the summary (prefix: "agvloc-overhead replay"), closes the CSV files.
   bool finish(const std::string& prefix, std::size_t cameras, std::string* error);
 
@@ -51,6 +55,7 @@ class TrackerCore {
   std::unique_ptr<MqttOut> mqtt_;
   std::vector<vda5050::Identity> ids_;
   std::vector<std::uint32_t> header_ids_;
+  std::map<std::string, std::uint32_t> camera_header_ids_;
   std::uint64_t frames_ = 0, bad_frames_ = 0, detections_total_ = 0;
   std::string tray_model_error_;  // tray.method learned with a model that cannot be used
 };

@@ -199,6 +199,9 @@ LiveCounters run_live(std::vector<LiveCamera>* cams, TrackerCore* core,
   feed.start();
   LiveCounters n;
   DiagFeeder feeder(diag, cams->size(), diag.agv_ids.size());
+  // Each camera's fault state as last published (none yet).
+  std::vector<int> published_fault(cams->size(), -1);
+  std::vector<std::uint64_t> published_faults(cams->size(), 0);
   const std::int64_t period = core->period_ns();
   const std::int64_t t_end = duration_ns > 0 ? monotonic_ns() + duration_ns : INT64_MAX;
   std::int64_t next_tick = monotonic_ns();
@@ -216,6 +219,16 @@ LiveCounters run_live(std::vector<LiveCamera>* cams, TrackerCore* core,
     core->publish(next_tick);
     ++n.ticks;
     feeder.tick(*cams, feed, *core, n, q.dropped(), next_tick);
+    const std::vector<CameraHealth> health = feed.health_now();
+    for (std::size_t i = 0; i < cams->size() && i < health.size(); ++i) {
+      const CameraHealth& h = health[i];
+      if (h.frames == 0 && h.faults == 0) continue;  // not started yet: nothing to say
+      const int fault = h.failing ? 1 : 0;
+      if (fault == published_fault[i] && h.faults == published_faults[i]) continue;
+      core->publish_camera_state((*cams)[i].id, h.failing, h.last_fault);
+      published_fault[i] = fault;
+      published_faults[i] = h.faults;
+    }
     next_tick += period;
     if (next_tick + period < now) {  // fell behind by more than a tick: publish now, not late
       n.ticks_skipped += static_cast<std::uint64_t>((now - next_tick) / period);

@@ -153,6 +153,7 @@ void CameraFeed::camera_loop(std::size_t i) {
   auto fault = [&](const std::string& what, const char* then) {
     if (!failing) {
       ++h.faults;
+      h.last_fault = what;
       log(i, "fault after " + plural(h.frames, "frame", "frames") + ": " + what + "; " + then);
     }
     failing = true;

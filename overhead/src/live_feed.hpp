@@ -51,7 +51,8 @@ struct CameraHealth {
   std::int64_t clock_offset_ns = 0;
   double clock_drift_ppm = 0.0;
   std::uint64_t clock_jumps = 0;
-  bool failing = false;  // in a fault now (not streaming)
+  bool failing = false;    // in a fault now (not streaming)
+  std::string last_fault;  // what the newest fault was
 };
 
 // "cam-west: 120 frames, 1 fault, 1 recovery, ..." for the summaries.

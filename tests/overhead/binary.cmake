@@ -31,6 +31,18 @@ if(AGV_DESK_CMD)
                        SKIP_RETURN_CODE 77)
 endif()
 
+# A camera fault of `run` published over MQTT as a VDA 5050 state error (a device that does not
+# exist; about 3 s). Python without agvloc-desk: the run needs no recording.
+find_package(Python3 COMPONENTS Interpreter)
+if(Python3_Interpreter_FOUND AND NOT CMAKE_CROSSCOMPILING)
+  add_test(NAME overhead_camera_fault_mqtt
+           COMMAND ${Python3_EXECUTABLE} ${CMAKE_CURRENT_SOURCE_DIR}/test_overhead_camera_fault_mqtt.py
+                   $<TARGET_FILE:agvloc-overhead> ${CMAKE_CURRENT_SOURCE_DIR}/data/two_camera_site.yaml
+                   ${CMAKE_CURRENT_BINARY_DIR}/overhead_camera_fault_mqtt)
+  set_tests_properties(overhead_camera_fault_mqtt PROPERTIES LABELS "overhead;mqtt" TIMEOUT 60
+                       SKIP_RETURN_CODE 77)
+endif()
+
 # The live loop on scripted cameras (threads: label tsan too). About 2 s.
 agv_add_test(test_overhead_live SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_overhead_live.cpp
              LIBS agv_overhead_app agv_sim agv_fakecamera agv_posix LABELS unit overhead tsan

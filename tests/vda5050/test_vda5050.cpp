@@ -206,6 +206,22 @@ TEST(Vda5050Encode, StateAnswersInstantActionsWhereEachVersionWantsThem) {
   EXPECT_EQ(s30["instantActionStates"][1]["actionStatus"], "FAILED");
 }
 
+// errors[]: none by default; each entry with its type, level, description and references.
+TEST(Vda5050Encode, StateCarriesErrors) {
+  EXPECT_TRUE(
+      json::parse(encode_state(ident(Version::k2_1_0), 0, 0, Position{}, {}))["errors"].empty());
+  const std::vector<StateError> e = {
+      {"cameraFault", "WARNING", "camera cam-1: disconnected", {{"cameraId", "cam-1"}}}};
+  const json s = json::parse(encode_state(ident(Version::k2_1_0), 3, 0, Position{}, {}, e));
+  ASSERT_EQ(s["errors"].size(), 1u);
+  EXPECT_EQ(s["errors"][0]["errorType"], "cameraFault");
+  EXPECT_EQ(s["errors"][0]["errorLevel"], "WARNING");
+  EXPECT_EQ(s["errors"][0]["errorDescription"], "camera cam-1: disconnected");
+  EXPECT_EQ(s["errors"][0]["errorReferences"][0]["referenceKey"], "cameraId");
+  EXPECT_EQ(s["errors"][0]["errorReferences"][0]["referenceValue"], "cam-1");
+  EXPECT_EQ(s["headerId"], 3);
+}
+
 TEST(Vda5050Version, OnlyTheThreeReleases) {
   Version v;
   EXPECT_TRUE(parse_version("3.0.0", &v));

@@ -174,7 +174,8 @@ std::string encode_connection(const Identity& id, std::uint32_t header_id, std::
 }
 
 std::string encode_state(const Identity& id, std::uint32_t header_id, std::int64_t t_ns,
-                         const Position& p, const std::vector<ActionResult>& actions) {
+                         const Position& p, const std::vector<ActionResult>& actions,
+                         const std::vector<StateError>& errors) {
   json m = header(id, header_id, t_ns);
   json states = json::array();
   for (const ActionResult& a : actions) {
@@ -194,6 +195,15 @@ std::string encode_state(const Identity& id, std::uint32_t header_id, std::int64
   m["driving"] = std::fabs(p.vx_mps) > 0.0 || std::fabs(p.omega_radps) > 0.0;
   m["operatingMode"] = "AUTOMATIC";
   m["errors"] = json::array();
+  for (const StateError& e : errors) {
+    json refs = json::array();
+    for (const auto& [key, value] : e.references) {
+      refs.push_back(json{{"referenceKey", key}, {"referenceValue", value}});
+    }
+    json j{{"errorType", e.type}, {"errorLevel", e.level}, {"errorReferences", std::move(refs)}};
+    if (!e.description.empty()) j["errorDescription"] = e.description;
+    m["errors"].push_back(std::move(j));
+  }
   if (id.version == Version::k3_0_0) {
     // 3.0.0 answers instant actions in instantActionStates; actionStates are the order's.
     m["actionStates"] = json::array();

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "agv/localizer/localizer.hpp"
@@ -76,11 +77,20 @@ struct ActionResult {
   ActionStatus status = ActionStatus::kFailed;
   std::string result_description;  // the named reason when failed
 };
-// A state message answering instant actions: the position fields agvloc owns and actionStates;
-// the fields of the vehicle controller (order, nodes, battery, safety) neutral
+// One entry of a state message's errors[]: errorType, errorLevel (WARNING or FATAL; sent as
+// given), errorDescription, errorReferences (referenceKey, referenceValue).
+struct StateError {
+  std::string type;
+  std::string level = "WARNING";
+  std::string description;
+  std::vector<std::pair<std::string, std::string>> references;
+};
+// A state message answering instant actions: the position fields agvloc owns, actionStates and
+// errors; the fields of the vehicle controller (order, nodes, battery, safety) neutral
 // (docs/guide/vda5050.md "Answering initPosition").
 std::string encode_state(const Identity& id, std::uint32_t header_id, std::int64_t t_ns,
-                         const Position& p, const std::vector<ActionResult>& actions);
+                         const Position& p, const std::vector<ActionResult>& actions,
+                         const std::vector<StateError>& errors = {});
 
 // Why a message or an action was refused. Every value has a name (reason_name).
 enum class Reason : std::uint8_t {

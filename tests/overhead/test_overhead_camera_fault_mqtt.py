@@ -1,0 +1,94 @@
+"""agvloc-overhead run publishing a camera fault over MQTT: a camera whose device does not exist
+is a fault from the start; its VDA 5050 state message (serialNumber the camera's id, on
+<interface>/v2/<manufacturer>/<camera>/state) carries a cameraFault error naming it, valid against
+VDA 5050 2.1.0's state schema where python3-jsonschema is installed (tests/overhead/binary.cmake,
+label mqtt; skipped without mosquitto). Usage: test_overhead_camera_fault_mqtt.py OVERHEAD_CMD
+SITE WORK"""
+import json, os, re, shutil, subprocess, sys
+
+try:
+    import jsonschema
+except ImportError:  # the fields are still checked below
+    jsonschema = None
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from mqtt_brokers import start_broker
+from test_overhead_mqtt import PROBE, subscribed
+from test_overhead_util import SKIP, fail, run
+
+
+def state_schema():
+    if jsonschema is None:
+        return None
+    here = os.path.dirname(os.path.abspath(__file__))
+    path = os.path.join(here, "..", "vda5050", "schemas", "2.1.0", "state.schema")
+    return json.loads(re.sub(r",(\s*[}\]])", r"\1", open(path).read()))
+
+
+def main():
+    overhead, site, work = sys.argv[1:4]
+    sub = shutil.which("mosquitto_sub")
+    if not sub:
+        print("SKIP: mosquitto_sub not installed")
+        sys.exit(SKIP)
+    os.makedirs(work, exist_ok=True)
+    broker = start_broker("mosquitto", work)
+    if broker is None:
+        print("SKIP: mosquitto not installed")
+        sys.exit(SKIP)
+    port, stop_broker = broker
+    cfg = os.path.join(work, "overhead.yaml")
+    with open(cfg, "w") as f:
+        f.write("output:\n  mqtt:\n    enabled: true\n    broker_host: 127.0.0.1\n    port: %d\n"
+                "    manufacturer: acme\ncameras:\n  cam-west:\n"
+                "    device: /dev/agvloc-no-such-video\n" % port)
+    messages = os.path.join(work, "messages.txt")
+    proc = None
+    try:
+        log = open(messages, "w")
+        proc = subprocess.Popen([sub, "-h", "127.0.0.1", "-p", str(port), "-v", "-t",
+                                 "agvloc-overhead/#", "-t", PROBE], stdout=log)
+        subscribed(port, messages)
+        rc, so, se = run(overhead, ["run", "--config", cfg, "--site", site, "--duration-s", "1.5"])
+        if rc != 0:
+            fail("run rc %d:\n%s%s" % (rc, so, se))
+        if "camera cam-west: fault" not in se:
+            fail("no fault on stderr:\n" + se)
+        import time
+        time.sleep(0.5)
+    finally:
+        if proc:
+            proc.terminate()
+            proc.wait(5)
+        stop_broker()
+    schema = state_schema()
+    states = []
+    for line in open(messages):
+        if line.startswith(PROBE + " "):
+            continue
+        topic, payload = line.split(" ", 1)
+        if topic == "agvloc-overhead/v2/acme/cam-west/state":
+            states.append(json.loads(payload))
+        elif topic.endswith("/state"):
+            fail("a state message for another camera: " + topic)
+    if not states:
+        fail("no state message for cam-west")
+    msg = states[0]
+    if schema is not None:
+        jsonschema.validate(msg, schema)
+    errors = msg["errors"]
+    if msg["serialNumber"] != "cam-west" or len(errors) != 1 or \
+            errors[0]["errorType"] != "cameraFault" or errors[0]["errorLevel"] != "WARNING" or \
+            errors[0]["errorReferences"] != [{"referenceKey": "cameraId",
+                                              "referenceValue": "cam-west"}] or \
+            "cannot start" not in errors[0]["errorDescription"]:
+        fail("state message: " + json.dumps(msg))
+    # One fault, one message: a camera that keeps failing is not republished every tick.
+    if len(states) != 1:
+        fail("%d state messages for one fault" % len(states))
+    print("PASS: cam-west's fault published as a VDA 5050 state error%s: %s" %
+          (" (valid against 2.1.0's schema)" if schema else "", errors[0]["errorDescription"]))
+
+
+if __name__ == "__main__":
+    main()
