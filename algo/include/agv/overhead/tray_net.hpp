@@ -80,8 +80,8 @@ struct TrayNetParams {
   double nms_iou = 0.3;
   // 1-sigma errors of a detected tray's centre (window pixels) and long-axis angle, measured on
   // rendered held-out frames (docs/design/overhead.md); they give the fix's covariance.
-  double centre_sigma_px = 0.6;
-  double angle_sigma_rad = 0.012;
+  double centre_sigma_px = 1.5;
+  double angle_sigma_rad = 0.08;
   // A box whose length or width is further than this from the tray's known size is no tray.
   double max_size_error_rel = 0.15;
   // A box at a vehicle whose tag was read in the same frame disagrees with the tag's fix beyond

@@ -1,0 +1,7 @@
+# The learned tray detector (algo/src/overhead/tray_net*.cpp) with the committed model
+# models/tray_obb.onnx on rendered held-out frames (tools/train/tray_obb/tray_scene.hpp).
+agv_add_test(test_tray_net SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_tray_net.cpp
+             LIBS agv_overhead agv_sim LABELS unit overhead)
+if(TARGET test_tray_net)
+  target_include_directories(test_tray_net PRIVATE ${CMAKE_SOURCE_DIR}/tools/train/tray_obb)
+endif()
