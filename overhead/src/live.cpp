@@ -202,6 +202,7 @@ LiveCounters run_live(std::vector<LiveCamera>* cams, TrackerCore* core,
   // Each camera's fault state as last published (none yet).
   std::vector<int> published_fault(cams->size(), -1);
   std::vector<std::uint64_t> published_faults(cams->size(), 0);
+  std::vector<std::int64_t> unpublished;  // exposure stamps of frames not yet published
   const std::int64_t period = core->period_ns();
   const std::int64_t t_end = duration_ns > 0 ? monotonic_ns() + duration_ns : INT64_MAX;
   std::int64_t next_tick = monotonic_ns();
@@ -212,12 +213,19 @@ LiveCounters run_live(std::vector<LiveCamera>* cams, TrackerCore* core,
     if (q.pop_until(deadline, &f)) {
       core->process(f.camera, f.t_ns, f.gray);
       feeder.frame_done(*core, f.t_ns);
+      if (diag.exposure_to_publish_ns) unpublished.push_back(f.t_ns);
       continue;
     }
     const std::int64_t now = monotonic_ns();
     if (now < next_tick) continue;
     core->publish(next_tick);
     ++n.ticks;
+    if (diag.exposure_to_publish_ns) {
+      const std::int64_t published = monotonic_ns();
+      for (const std::int64_t t : unpublished)
+        diag.exposure_to_publish_ns->push_back(published - t);
+      unpublished.clear();
+    }
     feeder.tick(*cams, feed, *core, n, q.dropped(), next_tick);
     const std::vector<CameraHealth> health = feed.health_now();
     for (std::size_t i = 0; i < cams->size() && i < health.size(); ++i) {

@@ -40,6 +40,9 @@ struct LiveCounters {
 struct LiveDiag {
   OverheadDiag* server = nullptr;
   std::vector<std::string> agv_ids;  // the site's fleet, in order
+  // When set: for every frame processed, the time from its exposure stamp to the return of the
+  // first publish after it (every vehicle handed to the MQTT client), ns (bench_overhead_latency).
+  std::vector<std::int64_t>* exposure_to_publish_ns = nullptr;
 };
 
 // Runs until `stop` is set, duration_ns has passed (0: no limit) or every camera has ended

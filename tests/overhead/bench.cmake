@@ -5,3 +5,11 @@ if(AGV_BUILD_BENCHMARKS)
   target_link_libraries(bench_overhead_detect PRIVATE agv_overhead agv_sim agv_warnings
                                                       benchmark::benchmark)
 endif()
+
+# agvloc-overhead's exposure -> MQTT publish latency in its live loop on paced cameras (hand-run
+# against a broker; see the source). Not a test: the figure depends on the machine's load.
+if(AGV_BUILD_BENCHMARKS)
+  add_executable(bench_overhead_latency ${PROJECT_SOURCE_DIR}/tests/bench/bench_overhead_latency.cpp)
+  target_link_libraries(bench_overhead_latency PRIVATE agv_overhead_app agv_sim agv_warnings)
+  target_compile_definitions(bench_overhead_latency PRIVATE AGV_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
+endif()
