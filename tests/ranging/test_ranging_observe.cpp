@@ -293,6 +293,26 @@ TEST(RangingObserveTable, UnknownIdIsRefused) {
   EXPECT_EQ(r.seen.size(), 3u);
 }
 
+TEST_F(RangingObserve, CalibrationResidualWidensBearingAndRange) {
+  ObserveOptions opt;
+  opt.calibration_sigma_px = 0.6;
+  opt.focal_sigma_rel = 0.003;
+  const LandmarkObserver plain(small_camera(), forward_mount(), scene_->site.wall_landmarks);
+  const LandmarkObserver cal(small_camera(), forward_mount(), scene_->site.wall_landmarks, opt);
+  const ObserveResult a = plain.observe(frame_->image), b = cal.observe(frame_->image);
+  ASSERT_EQ(a.seen.size(), b.seen.size());
+  for (std::size_t i = 0; i < a.seen.size(); ++i) {
+    const double r = a.seen[i].pose.range_mm;
+    EXPECT_NEAR(b.seen[i].pose.cov(1, 1) - a.seen[i].pose.cov(1, 1), std::pow(0.6 / 600.0, 2),
+                1e-12);
+    EXPECT_NEAR(b.seen[i].pose.cov(0, 0) - a.seen[i].pose.cov(0, 0), std::pow(0.003 * r, 2),
+                1e-6);
+    const SensorRangeBearing s0 = sensor_range_bearing(forward_mount(), a.seen[i]);
+    const SensorRangeBearing s1 = sensor_range_bearing(forward_mount(), b.seen[i]);
+    EXPECT_NEAR(s1.R(1, 1) - s0.R(1, 1), std::pow(0.6 / 600.0, 2), 1e-12);
+  }
+}
+
 TEST(RangingObserveMount, CommonBearingErrorMatchesTheFixsResponse) {
   // Noise-free observations of three landmarks, then every bearing turned by 2 mrad: the fix
   // moves by the rank-one term add_mount_yaw_uncertainty adds for sigma 2 mrad.
@@ -338,6 +358,7 @@ TEST_F(RangingObserve, MountRollAndPitchUncertaintyWidensEachBearing) {
     EXPECT_GT(b.seen[i].pose.cov(1, 1), a.seen[i].pose.cov(1, 1));
     EXPECT_GT(b.seen[i].size.cov(1, 1), a.seen[i].size.cov(1, 1));
     const SensorRangeBearing s0 = sensor_range_bearing(forward_mount(), a.seen[i]);
+    EXPECT_EQ(b.seen[i].calibration_bearing_var_rad2, 0.0);
     const SensorRangeBearing s1 = sensor_range_bearing(forward_mount(), a.seen[i], 0.01, 3.0);
     EXPECT_GT(s1.R(1, 1), s0.R(1, 1));
   }

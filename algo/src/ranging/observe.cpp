@@ -249,6 +249,12 @@ bool LandmarkObserver::measure(std::uint32_t id, const std::array<Vec2, 4>& corn
                           return range_bearing_from_camera_point(m, point);
                         })
           .topLeftCorner<2, 2>();
+  o.calibration_bearing_var_rad2 = std::pow(opt_.calibration_sigma_px / k_.fx, 2);
+  o.calibration_range_var_rel2 = opt_.focal_sigma_rel * opt_.focal_sigma_rel;
+  for (RangeBearing* rb : {&o.pose, &o.size}) {
+    rb->cov(0, 0) += o.calibration_range_var_rel2 * rb->range_mm * rb->range_mm;
+    rb->cov(1, 1) += o.calibration_bearing_var_rad2;
+  }
   o.paper.distance_mm = depth.depth_mm;
   o.paper.bearing_rad = mount_.yaw_rad + column_bearing_rad(pin, centre.x);
   *out = o;
@@ -332,6 +338,8 @@ SensorRangeBearing sensor_range_bearing(const RangingMount& mount, const Landmar
                             return range_bearing_from_tag_pose(m, obs.t_C_mm, obs.R_CT, obs.cov6);
                           })
             .topLeftCorner<2, 2>();
+  s.R(0, 0) += obs.calibration_range_var_rel2 * s.range_mm * s.range_mm;
+  s.R(1, 1) += obs.calibration_bearing_var_rad2;
   return s;
 }
 

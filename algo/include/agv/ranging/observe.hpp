@@ -66,6 +66,11 @@ struct ObserveOptions {
   // differences the fix relies on.
   double mount_sigma_rad = 0.0;
   double mount_sigma_mm = 0.0;
+  // The lens calibration's residual: a systematic error of an undistorted point that differs
+  // across the image (distortion terms, principal point; 1 sigma, px) widens each bearing by
+  // sigma / fx; a relative focal-length error scales each range.
+  double calibration_sigma_px = 0.0;
+  double focal_sigma_rel = 0.0;
 };
 
 // The papers' reading of the same corners: the pinhole formula L = f H / h taken as the
@@ -93,6 +98,10 @@ struct LandmarkObservation {
   Eigen::Matrix3d R_CT = Eigen::Matrix3d::Identity();
   Eigen::Matrix<double, 6, 6> cov6 = Eigen::Matrix<double, 6, 6>::Zero();
   double reprojection_rms_px = 0.0;
+  // The calibration's share of the covariances above (ObserveOptions), kept for
+  // sensor_range_bearing: bearing variance and relative range variance.
+  double calibration_bearing_var_rad2 = 0.0;
+  double calibration_range_var_rel2 = 0.0;
 };
 
 struct RefusedLandmark {
