@@ -192,13 +192,69 @@ namespace {
 
 // Nodes bucketed by a coarse grid (CSR), so that a node's candidate partners can be taken cell by
 // cell, skipping the cells that lie wholly inside the node's non-tangent double cone.
+//
+// Within a cell the nodes are sorted into kAngleBins bins by where their tangent interval
+// starts: the directions of lines that can touch a node without cutting between its ring
+// neighbours form one interval of line angles (less than 180 degrees wide, widened by the tangent
+// test's tolerance). Seen from a node u, a cell covers a small range of line angles, so only the
+// bins whose nodes' intervals can reach that range are visited.
+constexpr int kAngleBins = 32;
+constexpr double kBinWidth = 2.0 / kAngleBins;  // in pseudo-angle units (a half turn is 2)
+
 struct NodeCells {
   double x0 = 0.0, y0 = 0.0, size = 1.0;
   int nx = 1, ny = 1;
-  std::vector<std::uint32_t> start, nodes;
+  std::vector<std::uint32_t> start, nodes;  // per cell and bin: start[c * kAngleBins + b]
+  std::vector<double> widest;               // per cell: its nodes' widest tangent interval
 };
 
-NodeCells bucket_nodes(const std::vector<Vec2>& pos) {
+// The direction of v as a pseudo-angle in [0, 4) (the "diamond angle": monotonic in the angle,
+// a quarter turn is 1, no trigonometry). v must not be zero.
+double pseudo_angle(Vec2 v) {
+  if (v.y >= 0.0) return v.x >= 0.0 ? v.y / (v.x + v.y) : 1.0 - v.x / (v.y - v.x);
+  return v.x < 0.0 ? 2.0 - v.y / (-v.x - v.y) : 3.0 + v.x / (v.x - v.y);
+}
+
+double wrap2(double a) { return a - 2.0 * std::floor(a * 0.5); }
+
+// A node's tangent interval of line pseudo-angles [start, start + width] (modulo 2): from its
+// outgoing edge counter-clockwise to its incoming one, widened like TangentWedges. Width 2: every
+// direction (a degenerate or tiny corner).
+std::pair<double, double> tangent_interval(Vec2 tp, Vec2 tn) {
+  const double lmin = std::min(pd_norm(tp), pd_norm(tn));
+  const double widen = lmin > 0.0 ? 4.0 * kOnLineMm / lmin + 1e-9 : 1.0;
+  if (widen >= 0.01) return {0.0, 2.0};
+  // The pseudo-angle changes at most as fast as the angle: widening by the angle suffices.
+  const double a = wrap2(pseudo_angle(tn)), b = wrap2(pseudo_angle(tp));
+  const double width = wrap2(b - a) + 2.0 * widen;
+  if (width >= 2.0) return {0.0, 2.0};
+  return {wrap2(a - widen), width};
+}
+
+// The bins to visit for a cell whose corners relative to u are c[0..3] (first bin, count): those
+// holding nodes whose interval (at most `widest` wide) can meet the range of line directions
+// from u into the cell.
+std::pair<int, int> bins_to_visit(const Vec2 (&c)[4], double widest) {
+  const std::pair<int, int> all{0, kAngleBins};
+  if (c[0].x <= 0.0 && c[3].x >= 0.0 && c[0].y <= 0.0 && c[3].y >= 0.0) return all;
+  // Seen from outside, the box spans under half a turn: pseudo-angles within 2 of the first.
+  const double a0 = pseudo_angle(c[0]);
+  double lo = 0.0, hi = 0.0;
+  for (int k = 1; k < 4; ++k) {
+    double d = pseudo_angle(c[k]) - a0;
+    if (d > 2.0) d -= 4.0;
+    if (d < -2.0) d += 4.0;
+    lo = std::min(lo, d), hi = std::max(hi, d);
+  }
+  const double from = a0 + lo - widest - 1e-9, span = hi - lo + widest + 2e-9;
+  if (span >= 2.0 - kBinWidth) return all;
+  const int first = std::min(kAngleBins - 1, static_cast<int>(wrap2(from) / kBinWidth));
+  const int last = static_cast<int>(std::floor((wrap2(from) + span) / kBinWidth));
+  return {first, std::min(kAngleBins, last - first + 1)};
+}
+
+NodeCells bucket_nodes(const std::vector<Vec2>& pos, const std::vector<Vec2>& to_prev,
+                       const std::vector<Vec2>& to_next) {
   NodeCells g;
   double x1 = -std::numeric_limits<double>::max(), y1 = x1;
   g.x0 = g.y0 = std::numeric_limits<double>::max();
@@ -207,17 +263,24 @@ NodeCells bucket_nodes(const std::vector<Vec2>& pos) {
     x1 = std::max(x1, p.x), y1 = std::max(y1, p.y);
   }
   if (pos.empty()) g.x0 = g.y0 = x1 = y1 = 0.0;
-  // About 16 nodes per cell: the cone test per cell then costs less than the pairs it skips.
+  // About 32 nodes per cell (spread over the angle bins): the cone test per cell then costs less
+  // than the pairs it skips.
   const double area = std::max(1.0, (x1 - g.x0) * (y1 - g.y0));
-  g.size = std::max(1.0, std::sqrt(16.0 * area / std::max<std::size_t>(1, pos.size())));
+  g.size = std::max(1.0, std::sqrt(32.0 * area / std::max<std::size_t>(1, pos.size())));
   g.nx = std::max(1, static_cast<int>((x1 - g.x0) / g.size) + 1);
   g.ny = std::max(1, static_cast<int>((y1 - g.y0) / g.size) + 1);
   std::vector<std::uint32_t> cell(pos.size());
-  g.start.assign(static_cast<std::size_t>(g.nx) * g.ny + 1, 0);
+  const std::size_t cells = static_cast<std::size_t>(g.nx) * g.ny;
+  g.start.assign(cells * kAngleBins + 1, 0);
+  g.widest.assign(cells, 0.0);
   for (std::size_t k = 0; k < pos.size(); ++k) {
     const int i = std::min(g.nx - 1, static_cast<int>((pos[k].x - g.x0) / g.size));
     const int j = std::min(g.ny - 1, static_cast<int>((pos[k].y - g.y0) / g.size));
-    cell[k] = static_cast<std::uint32_t>(j * g.nx + i);
+    const auto [from, width] = tangent_interval(to_prev[k], to_next[k]);
+    const int bin = std::min(kAngleBins - 1, static_cast<int>(from / kBinWidth));
+    const auto c = static_cast<std::size_t>(j * g.nx + i);
+    g.widest[c] = std::max(g.widest[c], width);
+    cell[k] = static_cast<std::uint32_t>(c * kAngleBins + bin);
     ++g.start[cell[k] + 1];
   }
   for (std::size_t c = 0; c + 1 < g.start.size(); ++c) g.start[c + 1] += g.start[c];
@@ -300,12 +363,17 @@ struct TangentWedges {
   }
 };
 
-// Outside the tangent filter when sp and sn have strictly opposite signs beyond the tolerance
-// kOnLineMm * |v| (tol2 its square: no square root per pair).
-bool tangent(Vec2 v, Vec2 tp, Vec2 tn, double tol2) {
+enum Tangency { kNotTangent, kTangent, kNearlyTangent };
+
+// Not tangent when sp and sn have strictly opposite signs beyond the tolerance kOnLineMm * |v|
+// (tol2 its square: no square root per pair). Tangent when both ring neighbours lie strictly on
+// one side: then v cannot point into the obstacle at a node (its cone is under 180 degrees and
+// v lies outside it), so only nearly tangent directions need the obstacle-side test.
+Tangency tangency(Vec2 v, Vec2 tp, Vec2 tn, double tol2) {
   const double sp = pd_cross(v, tp), sn = pd_cross(v, tn);
   const bool sp_big = sp * sp > tol2, sn_big = sn * sn > tol2;
-  return !(sp_big && sn_big && ((sp > 0.0) != (sn > 0.0)));
+  if (!sp_big || !sn_big) return kNearlyTangent;
+  return (sp > 0.0) == (sn > 0.0) ? kTangent : kNotTangent;
 }
 
 }  // namespace
@@ -323,7 +391,7 @@ void RoutePlanner::Impl::build_graph() {
     pos[k] = pts[i], to_prev[k] = pd_sub(pts[prev[i]], pts[i]),
     to_next[k] = pd_sub(pts[next[i]], pts[i]);
   }
-  const NodeCells cells = bucket_nodes(pos);
+  const NodeCells cells = bucket_nodes(pos, to_prev, to_next);
   // The nodes' data in cell order, side by side, for the pair loop.
   std::vector<Vec2> cpos(n), cprev(n), cnext(n);
   for (std::size_t k = 0; k < n; ++k) {
@@ -343,8 +411,14 @@ void RoutePlanner::Impl::build_graph() {
     const Vec2 p = pos[u], tp = to_prev[u], tn = to_next[u];
     const double tnorm = pd_norm(tp) + pd_norm(tn) + 1.0;  // scales the cell test's margin
     const TangentWedges wedges = TangentWedges::make(tp, tn);
+    // Each pair is taken from the node it leaves forwards (+x first, then +y, then the higher
+    // index for coincident nodes): v is exactly -v seen from the other end, so exactly one end
+    // takes it, and the columns wholly behind the node (by a 1 mm margin) are never visited.
+    const int ci_min =
+        std::max(0, static_cast<int>(std::floor((p.x - 1.0 - cells.x0) / cells.size)));
     for (int cj = 0; cj < cells.ny; ++cj) {
-      const auto cols = wedges.columns(cells, p, cj);
+      auto cols = wedges.columns(cells, p, cj);
+      for (auto& span : cols) span.first = std::max(span.first, ci_min);
       for (int ci = cols[0].first, span = 0; span < 2; ++ci) {
         if (ci > cols[span].second) {
           if (++span == 2) break;
@@ -368,30 +442,41 @@ void RoutePlanner::Impl::build_graph() {
         }
         if (pos_side == 4 || neg_side == 4) continue;
         const std::size_t c = static_cast<std::size_t>(cj) * cells.nx + ci;
-        for (std::uint32_t k = cells.start[c]; k < cells.start[c + 1]; ++k) {
-          if (cells.nodes[k] <= u) continue;
-          const Vec2 v = pd_sub(cpos[k], p);
-          const double tol2 = kOnLineMm * kOnLineMm * pd_dot(v, v);
-          if (!tangent(v, tp, tn, tol2) || !tangent(v, cprev[k], cnext[k], tol2)) continue;
-          const std::uint32_t w = cells.nodes[k];
-          if (enters_obstacle(node_vertex[u], v) || enters_obstacle(node_vertex[w], {-v.x, -v.y}))
-            continue;
-          const double l = pd_norm(v);
-          const auto cached = [&](std::uint32_t e) {
-            return e != kNone && may_block(p, v, kOnLineMm * l, e) && edge_blocks(p, cpos[k], l, e);
-          };
-          if (cached(recent[u][0]) || cached(recent[w][0]) || cached(recent[u][1]) ||
-              cached(recent[w][1]))
-            continue;
-          std::uint32_t e = kNone;
-          if (!segment_clear(p, cpos[k], &e)) {
-            remember(u, e), remember(w, e);
-            continue;
+        const auto [bin0, bins] = bins_to_visit(corner, cells.widest[c]);
+        for (int bi = 0; bi < bins; ++bi) {
+          const std::size_t cb =
+              c * kAngleBins + static_cast<std::size_t>((bin0 + bi) % kAngleBins);
+          for (std::uint32_t k = cells.start[cb]; k < cells.start[cb + 1]; ++k) {
+            const Vec2 v = pd_sub(cpos[k], p);
+            if (v.x < 0.0 || (v.x == 0.0 && (v.y < 0.0 || (v.y == 0.0 && cells.nodes[k] <= u))))
+              continue;
+            const double tol2 = kOnLineMm * kOnLineMm * pd_dot(v, v);
+            const Tangency tu = tangency(v, tp, tn, tol2);
+            if (tu == kNotTangent) continue;
+            const Tangency tw = tangency(v, cprev[k], cnext[k], tol2);
+            if (tw == kNotTangent) continue;
+            const std::uint32_t w = cells.nodes[k];
+            if ((tu == kNearlyTangent && enters_obstacle(node_vertex[u], v)) ||
+                (tw == kNearlyTangent && enters_obstacle(node_vertex[w], {-v.x, -v.y})))
+              continue;
+            const double l = pd_norm(v);
+            const auto cached = [&](std::uint32_t e) {
+              return e != kNone && may_block(p, v, kOnLineMm * l, e) &&
+                     edge_blocks(p, cpos[k], l, e);
+            };
+            if (cached(recent[u][0]) || cached(recent[w][0]) || cached(recent[u][1]) ||
+                cached(recent[w][1]))
+              continue;
+            std::uint32_t e = kNone;
+            if (!segment_clear(p, cpos[k], &e)) {
+              remember(u, e), remember(w, e);
+              continue;
+            }
+            edges.emplace_back(u, w);
+            edges.emplace_back(w, u);
+            weights.push_back({l});
+            weights.push_back({l});
           }
-          edges.emplace_back(u, w);
-          edges.emplace_back(w, u);
-          weights.push_back({l});
-          weights.push_back({l});
         }
       }
     }
