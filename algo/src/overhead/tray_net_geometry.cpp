@@ -76,7 +76,9 @@ bool rectify_window(const cv::Mat& gray, const site::CeilingCamera& cam, Vec2 ce
   }
   const int g = grid.cols;
   const cv::Vec2f c0 = grid.at<cv::Vec2f>(g / 2, g / 2), c1 = grid.at<cv::Vec2f>(g / 2, g / 2 + 1);
-  const double scale = std::hypot(c1[0] - c0[0], c1[1] - c0[1]) / kGridStep;
+  const double scale =
+      std::hypot(static_cast<double>(c1[0] - c0[0]), static_cast<double>(c1[1] - c0[1])) /
+      kGridStep;
   if (!(x1 >= 0.0f && y1 >= 0.0f && x0 <= k.width_px - 1 && y0 <= k.height_px - 1) ||
       !std::isfinite(scale)) {
     return fail("window outside the frame");
