@@ -5,3 +5,7 @@ agv_add_test(test_tray_net SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_tray_net.cpp
 if(TARGET test_tray_net)
   target_include_directories(test_tray_net PRIVATE ${CMAKE_SOURCE_DIR}/tools/train/tray_obb)
 endif()
+
+# agvloc-overhead with tray.method learned: an unusable model named at start, tags alone.
+agv_add_test(test_overhead_tray_model SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_overhead_tray_model.cpp
+             LIBS agv_overhead_app LABELS unit overhead)
