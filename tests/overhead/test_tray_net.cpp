@@ -271,5 +271,62 @@ TEST(TrayNetTracker, CoveredTagFixedFromTheLearnedBox) {
   EXPECT_FALSE(proc.tray_learned());
 }
 
+// Two vehicles side by side: A's tag under a parcel (tracked, fixed from its learned box), B's
+// tag readable. B's box lies in A's window: it agrees with B's tag fix, unless the processor is
+// told B's tray is turned a quarter (its long side across): then the box disagrees with the tag,
+// the tag wins (B's box is never used) and the disagreement is counted.
+std::uint64_t disagreements(bool b_tray_turned) {
+  tray_obb::SceneOptions o;
+  o.width_px = 960;
+  o.height_px = 540;
+  o.fixed_height_mm = 6000.0;
+  o.fixed_native_mm_per_px = 4.0;
+  tray_obb::SceneDraw d = tray_obb::draw_scene(31, tray_obb::Split::kTrain, o);
+  sim::SiteScene& s = d.scene;
+  s.agvs.resize(2);
+  s.site.fleet.resize(2);
+  s.clutter.clear();
+  Vec2 c;
+  EXPECT_TRUE(pixel_to_plane(d.cam, {480, 270}, o.tray_height_mm, &c));
+  s.agvs[0].pose = {c.x - 450.0, c.y, 0.5 * kPi};
+  s.agvs[1].pose = {c.x + 450.0, c.y, 0.5 * kPi + 0.1};
+  s.parcels.clear();
+  sim::Parcel p;
+  p.agv = 0;
+  p.length_mm = 300;
+  p.width_mm = 260;
+  p.height_mm = 150;
+  p.grey = 180;
+  s.parcels.push_back(p);
+  const sim::RenderResult r =
+      sim::render_site_frame(s, sim::RenderCamera::from_ceiling(d.cam), d.render, 3);
+  EXPECT_EQ(r.agvs[0].tag_visible_fraction, 0.0);
+  EXPECT_EQ(r.agvs[1].tag_visible_fraction, 1.0);
+  std::vector<site::FleetAgv> fleet = s.site.fleet;
+  if (b_tray_turned) std::swap(fleet[1].tray_length_mm, fleet[1].tray_width_mm);
+  CameraFrameProcessor proc(s.site.cameras, fleet, {}, {});
+  auto n = std::make_shared<TrayNet>();
+  std::string e;
+  EXPECT_TRUE(n->load(model().data(), model().size(), &e)) << e;
+  proc.set_tray_net(n);
+  FleetTracker tracker(2);
+  const std::int64_t t0 = 1'000'000'000;
+  TagFix f;
+  f.pose = r.agvs[0].pose;
+  f.cov = {100, 0, 0, 0, 100, 0, 0, 0, 1e-3};
+  for (int k = 0; k < 3; ++k) tracker.add_fix(0, t0 - (3 - k) * 50'000'000LL, f);
+  EXPECT_TRUE(proc.process(0, t0, r.image, &tracker, nullptr, &e)) << e;
+  EXPECT_EQ(proc.counters().tray_net_windows, 1u);  // A only: B's tag was read
+  EXPECT_EQ(proc.counters().tray_fixes, 1u);
+  EXPECT_TRUE(tracker.output(1, t0).state != TrackState::kNone);  // started from B's tag
+  return proc.counters().tray_tag_disagree;
+}
+
+TEST(TrayNetTracker, BoxDisagreeingWithAReadTagIsCountedAndTheTagWins) {
+  if (!net()) GTEST_SKIP() << "no model loaded (OpenCV without dnn)";
+  EXPECT_EQ(disagreements(false), 0u);
+  EXPECT_EQ(disagreements(true), 1u);
+}
+
 }  // namespace
 }  // namespace agv::overhead

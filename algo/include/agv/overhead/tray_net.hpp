@@ -85,9 +85,9 @@ struct TrayNetParams {
   // A box whose length or width is further than this from the tray's known size is no tray.
   double max_size_error_rel = 0.15;
   // A box at a vehicle whose tag was read in the same frame disagrees with the tag's fix beyond
-  // these (the tag wins; counted).
-  double tag_disagree_mm = 50.0;
-  double tag_disagree_rad = 0.1;
+  // these, about 4 sigma of the box (the tag wins; counted).
+  double tag_disagree_mm = 60.0;
+  double tag_disagree_rad = 0.3;
 };
 
 std::string validate(const TrayNetParams& p);
