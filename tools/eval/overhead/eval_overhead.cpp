@@ -12,7 +12,10 @@
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
+#include <fstream>
+#include <iterator>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -39,6 +42,7 @@ struct Options {
   double max_wall_s = 0.0;  // > 0: stop taking frames after this long and score what ran
   int full_sweep_every = agv::overhead::SearchParams{}.full_sweep_every_frames;
   bool clean = false;
+  std::string tray_model;  // --tray-model: the learned tray detector instead of the classical fit
 };
 
 const char* kUsage =
@@ -47,7 +51,8 @@ const char* kUsage =
     "  [--seed S] [--parcels FRACTION] [--clutter N] [--calib-error-mm E] [--calib-error-deg E]\n"
     "  [--calib-sigma-mm S] [--calib-sigma-deg S]\n"
     "  [--bit-errors N] [--bit-errors-from-s S] [--latency-ms L] [--latency-spread-ms L]\n"
-    "  [--full-sweep-every N] [--apriltag-every N] [--max-wall-s S] [--no-distortion] [--clean]\n";
+    "  [--full-sweep-every N] [--apriltag-every N] [--max-wall-s S] [--no-distortion] [--clean]\n"
+    "  [--tray-model ONNX]\n";
 
 bool parse(int argc, char** argv, Options* o, std::string* error) {
   std::map<std::string, double*> num{{"--cameras-height-mm", &o->world.camera_height_mm},
@@ -83,6 +88,10 @@ bool parse(int argc, char** argv, Options* o, std::string* error) {
     if (i + 1 >= argc) return *error = a + ": unknown option or missing value", false;
     char* end = nullptr;
     const std::string v = argv[++i];
+    if (a == "--tray-model") {
+      o->tray_model = v;
+      continue;
+    }
     if (a == "--seed") {
       o->world.seed = std::strtoull(v.c_str(), &end, 10);
     } else if (num.count(a)) {
@@ -234,6 +243,17 @@ int run(const Options& o) {
   sp.full_sweep_every_frames = o.full_sweep_every;
   agv::overhead::CameraFrameProcessor proc(believed, site.fleet, {}, sp);
   agv::overhead::FleetTracker tracker(site.fleet.size());
+  if (!o.tray_model.empty()) {
+    std::ifstream f(o.tray_model, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+    auto net = std::make_shared<agv::overhead::TrayNet>();
+    std::string why;
+    if (!net->load(bytes.data(), bytes.size(), &why)) {
+      std::fprintf(stderr, "eval_overhead: %s: %s\n", o.tray_model.c_str(), why.c_str());
+      return 2;
+    }
+    proc.set_tray_net(std::move(net));
+  }
 
   const agv::sim::SiteRenderParams rp =
       o.clean ? agv::sim::SiteRenderParams{} : agv::sim::realistic_site_params();
@@ -334,6 +354,13 @@ int run(const Options& o) {
   }
   std::fputs(agv::eval::report(score, ids).c_str(), stdout);
   print_counters(proc.counters(), tracker.counters());
+  std::printf(
+      "tray boxes (%s): applied %llu, gated %llu, refused %llu, disagreeing with a tag %llu\n",
+      proc.tray_learned() ? "learned" : "classical",
+      static_cast<unsigned long long>(proc.counters().tray_fixes),
+      static_cast<unsigned long long>(proc.counters().tray_gated),
+      static_cast<unsigned long long>(proc.counters().tray_refused),
+      static_cast<unsigned long long>(proc.counters().tray_tag_disagree));
   const double wall =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   std::printf("wall %.1f s (backgrounds %.1f s, frames rendered %.1f s, %.1f Mpx of regions)\n",
