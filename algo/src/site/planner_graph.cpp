@@ -400,10 +400,14 @@ void RoutePlanner::Impl::build_graph() {
   }
   // Per node, the last edges that blocked a segment from it: segments from one node in nearby
   // directions are mostly blocked by the same few edges, and any edge that blocks is proof.
+  constexpr int kRecent = 4;
   constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
-  std::vector<std::array<std::uint32_t, 2>> recent(n, {kNone, kNone});
+  std::vector<std::array<std::uint32_t, kRecent>> recent(n);
+  for (auto& r : recent) r.fill(kNone);
   auto remember = [&](std::uint32_t k, std::uint32_t e) {
-    if (recent[k][0] != e) recent[k][1] = recent[k][0], recent[k][0] = e;
+    if (recent[k][0] == e) return;
+    std::copy_backward(recent[k].begin(), recent[k].end() - 1, recent[k].end());
+    recent[k][0] = e;
   };
   std::vector<std::pair<std::uint32_t, std::uint32_t>> edges;
   std::vector<plan_detail::EdgeWeight> weights;
@@ -464,9 +468,10 @@ void RoutePlanner::Impl::build_graph() {
               return e != kNone && may_block(p, v, kOnLineMm * l, e) &&
                      edge_blocks(p, cpos[k], l, e);
             };
-            if (cached(recent[u][0]) || cached(recent[w][0]) || cached(recent[u][1]) ||
-                cached(recent[w][1]))
-              continue;
+            bool seen = false;
+            for (int r = 0; r < kRecent && !seen; ++r)
+              seen = cached(recent[u][r]) || cached(recent[w][r]);
+            if (seen) continue;
             std::uint32_t e = kNone;
             if (!segment_clear(p, cpos[k], &e)) {
               remember(u, e), remember(w, e);
