@@ -7,6 +7,8 @@
 #include <cstdio>
 #include <opencv2/imgproc.hpp>
 
+#include "render_effects.hpp"
+
 namespace agv::sim {
 
 namespace {
@@ -413,24 +415,20 @@ std::vector<std::uint32_t> FrameRenderer::visible_landmarks(const Pose2& pose) c
   return ids;
 }
 
-cv::Mat FrameRenderer::render(const Pose2& pose, const RenderOptions& o,
-                              std::mt19937_64& rng) const {
-  cv::Mat img(h_, w_, CV_32FC1);
-  if (w_ == 0 || h_ == 0) return cv::Mat(h_, w_, CV_8UC1);
-  const Scene& scene = *scene_;
-  const Evaluator ev(scene, o);
-  const Pose2 v_from_w = inverse(pose);
-  const double reach = ev.reach(scene.geometry);
+namespace {
 
-  // Landmarks that can touch the image: centre within the footprint box grown by their reach.
+// Landmarks that can touch the image: centre within the footprint box grown by their reach.
+std::vector<ActiveLandmark> active_landmarks(const Scene& scene, const RenderOptions& o,
+                                             const Pose2& v_from_w, double reach, Vec2 bbox_min,
+                                             Vec2 bbox_max) {
   std::vector<ActiveLandmark> active;
   for (const SceneLandmark& l : scene.landmarks) {
     const Pose2 v_from_l = compose(v_from_w, l.world_pose);
     // Tags print a white margin beyond their black square.
     const double reach_l = std::max(reach, l.pattern.reach_mm());
     const double r = reach_l * std::sqrt(2.0) + 1.0;
-    if (v_from_l.x_mm < bbox_min_.x - r || v_from_l.x_mm > bbox_max_.x + r ||
-        v_from_l.y_mm < bbox_min_.y - r || v_from_l.y_mm > bbox_max_.y + r) {
+    if (v_from_l.x_mm < bbox_min.x - r || v_from_l.x_mm > bbox_max.x + r ||
+        v_from_l.y_mm < bbox_min.y - r || v_from_l.y_mm > bbox_max.y + r) {
       continue;
     }
     if (is_worn(o, l.id)) {
@@ -442,6 +440,42 @@ cv::Mat FrameRenderer::render(const Pose2& pose, const RenderOptions& o,
       active.push_back({&l, inverse(v_from_l), LandmarkDegradation{}, reach_l});
     }
   }
+  return active;
+}
+
+// Exact per-sub-sample back-projection of pixel (x, y), so edges and corners land exactly where
+// the camera model puts them.
+double supersampled_value(const FloorProjector& camera, const Evaluator& ev,
+                          const ActiveLandmark& a, int x, int y, int n_sub, double floor_grey,
+                          double centre_value) {
+  double sum = 0.0;
+  int cnt = 0;
+  for (int j = 0; j < n_sub; ++j) {
+    for (int i = 0; i < n_sub; ++i) {
+      Vec2 pv;
+      if (!camera.pixel_to_vehicle({x - 0.5 + (i + 0.5) / n_sub, y - 0.5 + (j + 0.5) / n_sub},
+                                   &pv)) {
+        continue;
+      }
+      const Sample s = ev.eval(a, landmark_to_page(transform(a.landmark_from_vehicle, pv)));
+      sum += s.value < 0.0 ? floor_grey : s.value;
+      ++cnt;
+    }
+  }
+  return cnt > 0 ? sum / cnt : centre_value;
+}
+
+}  // namespace
+
+cv::Mat FrameRenderer::render(const Pose2& pose, const RenderOptions& o,
+                              std::mt19937_64& rng) const {
+  cv::Mat img(h_, w_, CV_32FC1);
+  if (w_ == 0 || h_ == 0) return cv::Mat(h_, w_, CV_8UC1);
+  const Scene& scene = *scene_;
+  const Evaluator ev(scene, o);
+  const Pose2 v_from_w = inverse(pose);
+  const std::vector<ActiveLandmark> active =
+      active_landmarks(scene, o, v_from_w, ev.reach(scene.geometry), bbox_min_, bbox_max_);
 
   const int n_sub = std::max(1, o.supersample);
   for (int y = 0; y < h_; ++y) {
@@ -475,23 +509,7 @@ cv::Mat FrameRenderer::render(const Pose2& pose, const RenderOptions& o,
         if (uniform || n_sub == 1) {
           value = sc.value < 0.0 ? floor_grey : sc.value;
         } else {
-          // Exact per-sub-sample back-projection, so edges and corners land exactly where the
-          // camera model puts them.
-          double sum = 0.0;
-          int cnt = 0;
-          for (int j = 0; j < n_sub; ++j) {
-            for (int i = 0; i < n_sub; ++i) {
-              Vec2 pv;
-              if (!camera_.pixel_to_vehicle(
-                      {x - 0.5 + (i + 0.5) / n_sub, y - 0.5 + (j + 0.5) / n_sub}, &pv)) {
-                continue;
-              }
-              const Sample s = ev.eval(a, landmark_to_page(transform(a.landmark_from_vehicle, pv)));
-              sum += s.value < 0.0 ? floor_grey : s.value;
-              ++cnt;
-            }
-          }
-          value = cnt > 0 ? sum / cnt : sc.value;
+          value = supersampled_value(camera_, ev, a, x, y, n_sub, floor_grey, sc.value);
         }
         break;
       }
@@ -499,84 +517,14 @@ cv::Mat FrameRenderer::render(const Pose2& pose, const RenderOptions& o,
     }
   }
 
-  // Illumination (multiplies scene radiance, so it comes before the optical blurs).
-  const double gain = std::max(0.0, o.exposure_gain);
-  if (o.illumination_ratio != 1.0 || gain != 1.0) {
-    const double dir = deg_to_rad(o.illumination_direction_deg);
-    const double dx = std::cos(dir), dy = std::sin(dir);
-    double tmin = 1e300, tmax = -1e300;
-    for (int cy = 0; cy <= 1; ++cy) {
-      for (int cx = 0; cx <= 1; ++cx) {
-        const double t = cx * (w_ - 1) * dx + cy * (h_ - 1) * dy;
-        tmin = std::min(tmin, t);
-        tmax = std::max(tmax, t);
-      }
-    }
-    const double span = std::max(1e-9, tmax - tmin);
-    const double ratio = std::clamp(o.illumination_ratio, 0.0, 10.0);
-    for (int y = 0; y < h_; ++y) {
-      float* row = img.ptr<float>(y);
-      for (int x = 0; x < w_; ++x) {
-        const double t = (x * dx + y * dy - tmin) / span;
-        row[x] = static_cast<float>(static_cast<double>(row[x]) * gain * (1.0 + (ratio - 1.0) * t));
-      }
-    }
-  }
-
+  apply_illumination(o, &img);
   if (o.defocus_sigma_px > 0.0) {
     cv::GaussianBlur(img, img, cv::Size(0, 0), o.defocus_sigma_px, o.defocus_sigma_px,
                      cv::BORDER_REFLECT);
   }
-
-  if (o.exposure_s > 0.0 && (o.speed_mps != 0.0 || o.yaw_rate_radps != 0.0)) {
-    // Image motion of the floor point under the image centre during the exposure. A fixed
-    // world point moves in the vehicle frame with velocity (-v + w*y, -w*x).
-    const size_t ic = static_cast<size_t>((h_ / 2) * w_ + w_ / 2);
-    const Vec2 p = centre_v_[ic];
-    const double t = o.exposure_s;
-    const Vec2 d{t * (-o.speed_mps * 1000.0 + o.yaw_rate_radps * p.y),
-                 t * (-o.yaw_rate_radps * p.x)};
-    Vec2 pa, pb;
-    if (centre_ok_[ic] && camera_.vehicle_to_pixel({p.x - 0.5 * d.x, p.y - 0.5 * d.y}, &pa) &&
-        camera_.vehicle_to_pixel({p.x + 0.5 * d.x, p.y + 0.5 * d.y}, &pb)) {
-      const double mx = pb.x - pa.x, my = pb.y - pa.y, len = std::hypot(mx, my);
-      if (len > 0.25 && len < 500.0) {
-        const int half = static_cast<int>(std::ceil(0.5 * len)) + 1;
-        cv::Mat k = cv::Mat::zeros(2 * half + 1, 2 * half + 1, CV_32FC1);
-        const int steps = static_cast<int>(std::ceil(len * 8.0)) + 1;
-        for (int s = 0; s < steps; ++s) {
-          const double f = (s + 0.5) / steps - 0.5;
-          const double kx = half + f * mx, ky = half + f * my;
-          const int x0 = static_cast<int>(std::floor(kx)), y0 = static_cast<int>(std::floor(ky));
-          const double ax = kx - x0, ay = ky - y0;
-          k.at<float>(y0, x0) += static_cast<float>((1 - ax) * (1 - ay));
-          k.at<float>(y0, x0 + 1) += static_cast<float>(ax * (1 - ay));
-          k.at<float>(y0 + 1, x0) += static_cast<float>((1 - ax) * ay);
-          k.at<float>(y0 + 1, x0 + 1) += static_cast<float>(ax * ay);
-        }
-        k /= cv::sum(k)[0];
-        cv::filter2D(img, img, -1, k, cv::Point(-1, -1), 0.0, cv::BORDER_REFLECT);
-      }
-    }
-  }
-
-  cv::Mat out(h_, w_, CV_8UC1);
-  const bool noisy = o.read_noise_sigma > 0.0 || o.shot_noise_gain > 0.0;
-  std::normal_distribution<double> nd(0.0, 1.0);
-  for (int y = 0; y < h_; ++y) {
-    const float* src = img.ptr<float>(y);
-    auto* dst = out.ptr<std::uint8_t>(y);
-    for (int x = 0; x < w_; ++x) {
-      double v = static_cast<double>(src[x]);
-      if (noisy) {
-        const double var = o.read_noise_sigma * o.read_noise_sigma +
-                           std::max(0.0, o.shot_noise_gain) * std::max(0.0, v);
-        v += std::sqrt(var) * nd(rng);
-      }
-      dst[x] = static_cast<std::uint8_t>(std::clamp(std::lround(v), 0L, 255L));
-    }
-  }
-  return out;
+  const size_t ic = static_cast<size_t>((h_ / 2) * w_ + w_ / 2);
+  apply_motion_blur(o, camera_, centre_v_[ic], centre_ok_[ic] != 0, &img);
+  return quantise_with_noise(img, o, rng);
 }
 
 cv::Mat render_frame(const Scene& scene, const CameraModel& camera, const Pose2& vehicle_pose_world,
