@@ -108,6 +108,67 @@ Segment arc(double r, double angle_rad) {
   return {r * std::abs(angle_rad), angle_rad > 0 ? 1.0 / r : -1.0 / r};
 }
 
+// Why `p` cannot make a trajectory, or "" when its numbers are in range.
+std::string params_error(const TrajectoryParams& p) {
+  if (!(p.speed_mps > 0.0 && p.speed_mps <= 5.0)) return "speed must be in (0, 5] m/s";
+  if (!(p.accel_mps2 > 0.0 && p.accel_mps2 <= 10.0)) return "acceleration must be in (0, 10] m/s^2";
+  if (!(p.grid_spacing_mm >= 200.0 && p.grid_spacing_mm <= 100000.0)) {
+    return "grid spacing must be in [200, 100000] mm";
+  }
+  if (p.grid_columns < 2 || p.grid_rows < 2 || p.grid_columns > 1000 || p.grid_rows > 1000) {
+    return "grid must have 2..1000 columns and rows";
+  }
+  if (!(p.lead_mm >= 100.0 && p.lead_mm <= 100000.0)) return "lead must be in [100, 100000] mm";
+  if (!std::isfinite(p.lateral_offset_mm) || !std::isfinite(p.grid_origin_mm.x) ||
+      !std::isfinite(p.grid_origin_mm.y)) {
+    return "grid origin and lateral offset must be finite";
+  }
+  return "";
+}
+
+// The calibration drive: stop-and-go moves with spins, and the start time, distance and pose of
+// each move; the repeated block runs from the second move to the end.
+void plan_calibration(const TrajectoryParams& p, Trajectory* tr) {
+  const double d = p.grid_spacing_mm, a = p.lead_mm;
+  const double gx = p.grid_origin_mm.x, gy = p.grid_origin_mm.y, o = p.lateral_offset_mm;
+  const int n = std::min(4, p.grid_columns);
+  const double acc_v = std::max(p.accel_mps2, 1.5) * 1000.0, v = p.speed_mps * 1000.0;
+  const double w_peak = 0.8, acc_w = 3.0, pause = 0.3;
+  auto go = [&](double mm) { tr->moves.push_back(make_move(false, mm, v, acc_v, pause)); };
+  auto turn = [&](double rad) { tr->moves.push_back(make_move(true, rad, w_peak, acc_w, pause)); };
+  tr->start = {gx - a, gy + o, 0.0};
+  go(a);
+  turn(2 * kPi);
+  for (int i = 1; i < n; ++i) {
+    go(d);
+    turn(i % 2 ? -kPi / 2 : kPi / 2);
+    turn(i % 2 ? kPi / 2 : -kPi / 2);
+  }
+  turn(kPi);
+  for (int i = 1; i < n; ++i) go(d);
+  turn(-kPi);
+  double t = 0.0, sm = 0.0;
+  Pose2 pose = tr->start;
+  for (size_t i = 0; i < tr->moves.size(); ++i) {
+    if (i == 1) {
+      tr->block_duration_s = -t;
+      tr->block_length_mm = -sm;
+    }
+    tr->move_start_t_s.push_back(t);
+    tr->move_start_s_mm.push_back(sm);
+    tr->move_start_pose.push_back(pose);
+    const Move& m = tr->moves[i];
+    pose = move_pose(pose, m, std::abs(m.amount));
+    t += m.duration_s();
+    if (!m.rotate) sm += m.amount;
+  }
+  tr->block_duration_s += t;
+  tr->block_length_mm += sm;
+  tr->length_mm = sm;
+  tr->closure_error_mm =
+      std::hypot(pose.x_mm - tr->move_start_pose[1].x_mm, pose.y_mm - tr->move_start_pose[1].y_mm);
+}
+
 }  // namespace
 
 bool make_trajectory(const TrajectoryParams& p, Trajectory* out, std::string* error) {
@@ -115,21 +176,7 @@ bool make_trajectory(const TrajectoryParams& p, Trajectory* out, std::string* er
     if (error) *error = why;
     return false;
   };
-  if (!(p.speed_mps > 0.0 && p.speed_mps <= 5.0)) return fail("speed must be in (0, 5] m/s");
-  if (!(p.accel_mps2 > 0.0 && p.accel_mps2 <= 10.0))
-    return fail("acceleration must be in (0, 10] m/s^2");
-  if (!(p.grid_spacing_mm >= 200.0 && p.grid_spacing_mm <= 100000.0)) {
-    return fail("grid spacing must be in [200, 100000] mm");
-  }
-  if (p.grid_columns < 2 || p.grid_rows < 2 || p.grid_columns > 1000 || p.grid_rows > 1000) {
-    return fail("grid must have 2..1000 columns and rows");
-  }
-  if (!(p.lead_mm >= 100.0 && p.lead_mm <= 100000.0))
-    return fail("lead must be in [100, 100000] mm");
-  if (!std::isfinite(p.lateral_offset_mm) || !std::isfinite(p.grid_origin_mm.x) ||
-      !std::isfinite(p.grid_origin_mm.y)) {
-    return fail("grid origin and lateral offset must be finite");
-  }
+  if (const std::string why = params_error(p); !why.empty()) return fail(why);
   const double d = p.grid_spacing_mm, a = p.lead_mm;
   const double w = (p.grid_columns - 1) * d, h = (p.grid_rows - 1) * d;
   const double gx = p.grid_origin_mm.x, gy = p.grid_origin_mm.y, o = p.lateral_offset_mm;
@@ -160,48 +207,10 @@ bool make_trajectory(const TrajectoryParams& p, Trajectory* out, std::string* er
       s = {arc(d, 2 * kPi), arc(d, -2 * kPi)};
       break;
     }
-    case TrajectoryKind::kCalibration: {
-      const int n = std::min(4, p.grid_columns);
-      const double acc_v = std::max(p.accel_mps2, 1.5) * 1000.0, v = p.speed_mps * 1000.0;
-      const double w_peak = 0.8, acc_w = 3.0, pause = 0.3;
-      auto go = [&](double mm) { tr.moves.push_back(make_move(false, mm, v, acc_v, pause)); };
-      auto turn = [&](double rad) {
-        tr.moves.push_back(make_move(true, rad, w_peak, acc_w, pause));
-      };
-      tr.start = {gx - a, gy + o, 0.0};
-      go(a);
-      turn(2 * kPi);
-      for (int i = 1; i < n; ++i) {
-        go(d);
-        turn(i % 2 ? -kPi / 2 : kPi / 2);
-        turn(i % 2 ? kPi / 2 : -kPi / 2);
-      }
-      turn(kPi);
-      for (int i = 1; i < n; ++i) go(d);
-      turn(-kPi);
-      double t = 0.0, sm = 0.0;
-      Pose2 pose = tr.start;
-      for (size_t i = 0; i < tr.moves.size(); ++i) {
-        if (i == 1) {
-          tr.block_duration_s = -t;
-          tr.block_length_mm = -sm;
-        }
-        tr.move_start_t_s.push_back(t);
-        tr.move_start_s_mm.push_back(sm);
-        tr.move_start_pose.push_back(pose);
-        const Move& m = tr.moves[i];
-        pose = move_pose(pose, m, std::abs(m.amount));
-        t += m.duration_s();
-        if (!m.rotate) sm += m.amount;
-      }
-      tr.block_duration_s += t;
-      tr.block_length_mm += sm;
-      tr.length_mm = sm;
-      tr.closure_error_mm = std::hypot(pose.x_mm - tr.move_start_pose[1].x_mm,
-                                       pose.y_mm - tr.move_start_pose[1].y_mm);
+    case TrajectoryKind::kCalibration:
+      plan_calibration(p, &tr);
       *out = std::move(tr);
       return true;
-    }
     case TrajectoryKind::kLawnmower: {
       const int n = p.lawnmower_rows;
       if (n < 2 || n % 2 != 0 || n > p.grid_rows + 1) {
