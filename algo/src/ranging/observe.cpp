@@ -57,6 +57,75 @@ Eigen::Matrix3d observe_mount_cov(const RangingMount& m, double sigma_rad, doubl
   return C;
 }
 
+// Whether every corner keeps `margin_px` from the image border.
+bool inside_margin(const std::array<Vec2, 4>& corners_px, const CameraIntrinsics& k,
+                   double margin_px) {
+  for (const Vec2& c : corners_px) {
+    if (!(c.x >= margin_px && c.y >= margin_px && c.x <= k.width_px - 1 - margin_px &&
+          c.y <= k.height_px - 1 - margin_px)) {
+      return false;
+    }
+  }
+  return true;
+}
+
+// IPPE's (up to two) poses of the square, each refined by Levenberg-Marquardt; returns the index
+// of the one with the smaller squared reprojection error (-1 when none), that error and the other
+// solution's (-1 when there is none).
+int best_square_pose(const std::vector<cv::Point3d>& object, const std::vector<cv::Point2d>& image,
+                     const cv::Matx33d& K, std::vector<cv::Mat>* rvecs, std::vector<cv::Mat>* tvecs,
+                     double* best_err, double* other_err) {
+  const cv::Mat no_dist;
+  int n = 0;
+  try {
+    n = cv::solvePnPGeneric(object, image, K, no_dist, *rvecs, *tvecs, false,
+                            cv::SOLVEPNP_IPPE_SQUARE);
+  } catch (const cv::Exception&) {
+    n = 0;
+  }
+  *best_err = 0.0;
+  *other_err = -1.0;
+  int best = -1;
+  for (int s = 0; s < n; ++s) {
+    cv::solvePnPRefineLM(object, image, K, no_dist, (*rvecs)[static_cast<std::size_t>(s)],
+                         (*tvecs)[static_cast<std::size_t>(s)]);
+    std::vector<cv::Point2d> re;
+    cv::projectPoints(object, (*rvecs)[static_cast<std::size_t>(s)],
+                      (*tvecs)[static_cast<std::size_t>(s)], K, no_dist, re);
+    double e = 0.0;
+    for (std::size_t i = 0; i < 4; ++i) e += std::pow(cv::norm(re[i] - image[i]), 2);
+    if (best < 0 || e < *best_err) {
+      if (best >= 0) *other_err = *best_err;
+      *best_err = e;
+      best = s;
+    } else {
+      *other_err = e;
+    }
+  }
+  return best;
+}
+
+// The papers' measure on the same corners: range from the height of the two vertical edges,
+// bearing from the centre's column (o->size, o->paper).
+void add_size_measure(const CameraIntrinsics& k, const RangingMount& mount,
+                      const ObserveOptions& opt, double side, LandmarkObservation* o) {
+  const auto& u = o->corners_undistorted_px;
+  const double height_px = (observe_dist(u[0], u[3]) + observe_dist(u[1], u[2])) / 2.0;
+  CameraIntrinsics pin = k;
+  pin.k1 = pin.k2 = pin.p1 = pin.p2 = pin.k3 = 0.0;
+  const SizeRange depth = size_range(k.fy, side, height_px, o->corner_sigma_px);
+  const Vec2 centre = observe_centre(u);
+  const CameraPoint point = size_camera_point(pin, centre, o->corner_sigma_px / 2.0, depth);
+  o->size = range_bearing_from_camera_point(mount, point);
+  o->size.cov.topLeftCorner<2, 2>() +=
+      observe_mount_cov(
+          mount, opt.mount_sigma_rad, opt.mount_sigma_mm, true,
+          [&](const RangingMount& m) { return range_bearing_from_camera_point(m, point); })
+          .topLeftCorner<2, 2>();
+  o->paper.distance_mm = depth.depth_mm;
+  o->paper.bearing_rad = mount.yaw_rad + column_bearing_rad(pin, centre.x);
+}
+
 }  // namespace
 
 struct LandmarkObserver::Impl {
@@ -137,20 +206,16 @@ LandmarkObserver::~LandmarkObserver() = default;
 bool LandmarkObserver::measure(std::uint32_t id, const std::array<Vec2, 4>& corners_px,
                                double edge_sigma_px, LandmarkObservation* out,
                                RefusalReason* reason) const {
-  const auto it = std::lower_bound(
-      table_.begin(), table_.end(), id,
-      [](const site::WallLandmark& w, std::uint32_t v) { return w.id < v; });
+  const auto it =
+      std::lower_bound(table_.begin(), table_.end(), id,
+                       [](const site::WallLandmark& w, std::uint32_t v) { return w.id < v; });
   if (it == table_.end() || it->id != id) {
     *reason = RefusalReason::kUnknownId;
     return false;
   }
-  for (const Vec2& c : corners_px) {
-    if (!(c.x >= opt_.edge_margin_px && c.y >= opt_.edge_margin_px &&
-          c.x <= k_.width_px - 1 - opt_.edge_margin_px &&
-          c.y <= k_.height_px - 1 - opt_.edge_margin_px)) {
-      *reason = RefusalReason::kTouchesEdge;
-      return false;
-    }
+  if (!inside_margin(corners_px, k_, opt_.edge_margin_px)) {
+    *reason = RefusalReason::kTouchesEdge;
+    return false;
   }
   std::vector<cv::Point2d> distorted, undistorted;
   for (const Vec2& c : corners_px) distorted.emplace_back(c.x, c.y);
@@ -161,7 +226,8 @@ bool LandmarkObserver::measure(std::uint32_t id, const std::array<Vec2, 4>& corn
   o.landmark_xy_mm = {it->x_mm, it->y_mm};
   o.landmark_facing_rad = it->facing_rad;
   o.corners_px = corners_px;
-  for (std::size_t i = 0; i < 4; ++i) o.corners_undistorted_px[i] = {undistorted[i].x, undistorted[i].y};
+  for (std::size_t i = 0; i < 4; ++i)
+    o.corners_undistorted_px[i] = {undistorted[i].x, undistorted[i].y};
   if (observe_shortest_side_px(o.corners_undistorted_px) < opt_.min_side_px) {
     *reason = RefusalReason::kTooSmall;
     return false;
@@ -176,32 +242,8 @@ bool LandmarkObserver::measure(std::uint32_t id, const std::array<Vec2, 4>& corn
   const std::vector<cv::Point2d> image = {undistorted[3], undistorted[2], undistorted[1],
                                           undistorted[0]};
   std::vector<cv::Mat> rvecs, tvecs;
-  const cv::Mat no_dist;
-  int n = 0;
-  try {
-    n = cv::solvePnPGeneric(object, image, impl_->K, no_dist, rvecs, tvecs, false,
-                            cv::SOLVEPNP_IPPE_SQUARE);
-  } catch (const cv::Exception&) {
-    n = 0;
-  }
   double best_err = 0.0, other_err = -1.0;
-  int best = -1;
-  for (int s = 0; s < n; ++s) {
-    cv::solvePnPRefineLM(object, image, impl_->K, no_dist, rvecs[static_cast<std::size_t>(s)],
-                         tvecs[static_cast<std::size_t>(s)]);
-    std::vector<cv::Point2d> re;
-    cv::projectPoints(object, rvecs[static_cast<std::size_t>(s)],
-                      tvecs[static_cast<std::size_t>(s)], impl_->K, no_dist, re);
-    double e = 0.0;
-    for (std::size_t i = 0; i < 4; ++i) e += std::pow(cv::norm(re[i] - image[i]), 2);
-    if (best < 0 || e < best_err) {
-      if (best >= 0) other_err = best_err;
-      best_err = e;
-      best = s;
-    } else {
-      other_err = e;
-    }
-  }
+  const int best = best_square_pose(object, image, impl_->K, &rvecs, &tvecs, &best_err, &other_err);
   if (best < 0) {
     *reason = RefusalReason::kNoPose;
     return false;
@@ -220,43 +262,26 @@ bool LandmarkObserver::measure(std::uint32_t id, const std::array<Vec2, 4>& corn
   o.reprojection_rms_px = std::sqrt(best_err / 8.0);
   o.cov6 = tag_pose_covariance(focal, side, o.t_C_mm, o.R_CT, o.corner_sigma_px);
   o.pose = range_bearing_from_tag_pose(mount_, o.t_C_mm, o.R_CT, o.cov6);
-  o.pose.cov += observe_mount_cov(
-      mount_, opt_.mount_sigma_rad, opt_.mount_sigma_mm, true, [&](const RangingMount& m) {
-        return range_bearing_from_tag_pose(m, o.t_C_mm, o.R_CT, o.cov6);
-      });
+  o.pose.cov += observe_mount_cov(mount_, opt_.mount_sigma_rad, opt_.mount_sigma_mm, true,
+                                  [&](const RangingMount& m) {
+                                    return range_bearing_from_tag_pose(m, o.t_C_mm, o.R_CT, o.cov6);
+                                  });
   // A second solution nearly as good: the tag's turn is not resolved by its corners.
   const double floor_err = 8.0 * o.corner_sigma_px * o.corner_sigma_px;
-  if (other_err >= 0.0 &&
-      other_err < opt_.yaw_ambiguity_ratio * std::max(best_err, floor_err)) {
+  if (other_err >= 0.0 && other_err < opt_.yaw_ambiguity_ratio * std::max(best_err, floor_err)) {
     o.pose.has_yaw = false;
     o.pose.relative_yaw_rad = 0.0;
     o.pose.cov.row(2).setZero();
     o.pose.cov.col(2).setZero();
   }
 
-  // The papers' measure on the same corners: height from the two vertical edges.
-  const auto& u = o.corners_undistorted_px;
-  const double height_px = (observe_dist(u[0], u[3]) + observe_dist(u[1], u[2])) / 2.0;
-  CameraIntrinsics pin = k_;
-  pin.k1 = pin.k2 = pin.p1 = pin.p2 = pin.k3 = 0.0;
-  const SizeRange depth = size_range(k_.fy, side, height_px, o.corner_sigma_px);
-  const Vec2 centre = observe_centre(u);
-  const CameraPoint point = size_camera_point(pin, centre, o.corner_sigma_px / 2.0, depth);
-  o.size = range_bearing_from_camera_point(mount_, point);
-  o.size.cov.topLeftCorner<2, 2>() +=
-      observe_mount_cov(mount_, opt_.mount_sigma_rad, opt_.mount_sigma_mm, true,
-                        [&](const RangingMount& m) {
-                          return range_bearing_from_camera_point(m, point);
-                        })
-          .topLeftCorner<2, 2>();
+  add_size_measure(k_, mount_, opt_, side, &o);
   o.calibration_bearing_var_rad2 = std::pow(opt_.calibration_sigma_px / k_.fx, 2);
   o.calibration_range_var_rel2 = opt_.focal_sigma_rel * opt_.focal_sigma_rel;
   for (RangeBearing* rb : {&o.pose, &o.size}) {
     rb->cov(0, 0) += o.calibration_range_var_rel2 * rb->range_mm * rb->range_mm;
     rb->cov(1, 1) += o.calibration_bearing_var_rad2;
   }
-  o.paper.distance_mm = depth.depth_mm;
-  o.paper.bearing_rad = mount_.yaw_rad + column_bearing_rad(pin, centre.x);
   *out = o;
   return true;
 }
