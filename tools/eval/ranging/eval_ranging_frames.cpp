@@ -152,12 +152,12 @@ struct FixStats {
     if (has_cov && e.dot(f.cov.ldlt().solve(e)) <= kNees3Sigma) ++inside;
   }
   void print(const char* name, bool has_cov) const {
-    std::printf("| %s | %d | %.0f %% | %.1f / %.1f | %.2f / %.2f | %s | %d |\n", name, tried,
-                tried ? 100.0 * ok / tried : 0.0, pct(pos_mm, 0.5), pct(pos_mm, 0.95),
-                pct(head_deg, 0.5), pct(head_deg, 0.95),
-                has_cov && ok ? (std::to_string(100.0 * inside / ok).substr(0, 4) + " %").c_str()
-                              : "-",
-                wrong);
+    std::printf(
+        "| %s | %d | %.0f %% | %.1f / %.1f | %.2f / %.2f | %s | %d |\n", name, tried,
+        tried ? 100.0 * ok / tried : 0.0, pct(pos_mm, 0.5), pct(pos_mm, 0.95), pct(head_deg, 0.5),
+        pct(head_deg, 0.95),
+        has_cov && ok ? (std::to_string(100.0 * inside / ok).substr(0, 4) + " %").c_str() : "-",
+        wrong);
   }
   void print_refusals(const char* name) const {
     std::printf("%s refusals:", name);
@@ -177,6 +177,189 @@ Observation paper_observation(const LandmarkObservation& o) {
   return p;
 }
 
+// Everything the report prints, summed over the frames.
+struct Tally {
+  Errors r_pose, r_size, r_paper, b_pose, b_paper, yaw_pose;
+  FixStats two_paper, two_circles_pose, two_wls, many_det, many_wls, two_wls_size;
+  FixStats two_sd[3], many_sd[2];
+  int frames = 0, frames_2 = 0, frames_3 = 0, refused_mirror = 0, seen_total = 0;
+  double observe_ms = 0.0;
+};
+
+// Vehicle poses for the trials. random_free_poses keeps its poses apart from each other: draw them
+// in small batches.
+std::vector<Pose2> trial_poses(const sim::SiteScene& scene, int trials, std::uint64_t seed) {
+  std::vector<Pose2> poses;
+  for (std::uint64_t batch = 0; static_cast<int>(poses.size()) < trials && batch < 10000; ++batch) {
+    for (const Pose2& p : sim::random_free_poses(scene.site, 8, 500.0, seed * 1000003 + batch)) {
+      if (static_cast<int>(poses.size()) < trials) poses.push_back(p);
+    }
+  }
+  return poses;
+}
+
+// What the vehicle believes: a calibration with small errors, and a mount off by up to
+// +-mount_deg / +-mount_mm per axis.
+LandmarkObserver believed_observer(std::mt19937_64& rng, const CameraIntrinsics& k_true,
+                                   const RangingMount& mount_true, double mount_deg,
+                                   double mount_mm, const sim::SiteScene& scene,
+                                   const ObserveOptions& oopt) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::normal_distribution<double> n(0.0, 1.0);
+  CameraIntrinsics k_est = k_true;
+  k_est.fx *= 1.0 + 0.002 * n(rng);
+  k_est.fy *= 1.0 + 0.002 * n(rng);
+  k_est.cx += 1.0 * n(rng);
+  k_est.cy += 1.0 * n(rng);
+  k_est.k1 += 0.003 * n(rng);
+  RangingMount m_est = mount_true;
+  m_est.x_mm += mount_mm * u(rng);
+  m_est.y_mm += mount_mm * u(rng);
+  m_est.z_mm += mount_mm * u(rng);
+  m_est.roll_rad += deg_to_rad(mount_deg) * u(rng);
+  m_est.pitch_rad += deg_to_rad(mount_deg) * u(rng);
+  m_est.yaw_rad += deg_to_rad(mount_deg) * u(rng);
+  return LandmarkObserver(k_est, m_est, scene.site.wall_landmarks, oopt);
+}
+
+// Per-landmark range, bearing and yaw errors of the landmarks 2-8 m from the camera; returns
+// those landmarks.
+std::vector<LandmarkObservation> tally_landmarks(const ObserveResult& res,
+                                                 const sim::SiteScene& scene, const Pose2& truth,
+                                                 const RangingMount& mount_true, Tally* t) {
+  const Eigen::Vector2d cam_xy(truth.x_mm + std::cos(truth.theta_rad) * mount_true.x_mm,
+                               truth.y_mm + std::sin(truth.theta_rad) * mount_true.x_mm);
+  std::vector<LandmarkObservation> usable;
+  for (const LandmarkObservation& o : res.seen) {
+    ++t->seen_total;
+    const site::WallLandmark& w = scene.site.wall_landmarks[o.id];
+    const double dcx = w.x_mm - cam_xy.x(), dcy = w.y_mm - cam_xy.y();
+    const double cam_dist = std::hypot(dcx, dcy);
+    if (cam_dist < 2000.0 || cam_dist > 8000.0) continue;
+    usable.push_back(o);
+    const double dx = w.x_mm - truth.x_mm, dy = w.y_mm - truth.y_mm;
+    const double range = std::hypot(dx, dy);
+    const double bearing = wrap_angle_rad(std::atan2(dy, dx) - truth.theta_rad);
+    t->r_pose.add(o.pose.range_mm - range, o.pose.cov(0, 0), kChi1Sigma3);
+    t->r_size.add(o.size.range_mm - range, o.size.cov(0, 0), kChi1Sigma3);
+    const double dz = w.z_mm - mount_true.z_mm;
+    t->r_paper.add(o.paper.distance_mm - std::sqrt(cam_dist * cam_dist + dz * dz), 0.0, 0.0);
+    t->b_pose.add(wrap_angle_rad(o.pose.bearing_rad - bearing), o.pose.cov(1, 1), kChi1Sigma3);
+    t->b_paper.add(wrap_angle_rad(o.paper.bearing_rad -
+                                  wrap_angle_rad(std::atan2(dcy, dcx) - truth.theta_rad)),
+                   0.0, 0.0);
+    if (o.pose.has_yaw) {
+      t->yaw_pose.add(wrap_angle_rad(o.pose.relative_yaw_rad - (w.facing_rad - truth.theta_rad)),
+                      o.pose.cov(2, 2), kChi1Sigma3);
+    }
+  }
+  return usable;
+}
+
+// The two-landmark fixes on the two nearest usable landmarks.
+void tally_two(const std::vector<LandmarkObservation>& usable, const Pose2& truth, double s_common,
+               Tally* t) {
+  ++t->frames_2;
+  // Paper 002 takes the two nearest landmarks.
+  std::vector<LandmarkObservation> near = usable;
+  std::sort(near.begin(), near.end(),
+            [](const auto& a, const auto& b) { return a.pose.range_mm < b.pose.range_mm; });
+  near.resize(2);
+  FixOptions papers;
+  papers.min_crossing_angle_rad = 0.0;  // the paper has no geometry check
+  const bool l0_left = (near[0].corners_undistorted_px[0].x + near[0].corners_undistorted_px[2].x) <
+                       (near[1].corners_undistorted_px[0].x + near[1].corners_undistorted_px[2].x);
+  t->two_paper.add(fix_two_circles(paper_observation(near[0]), paper_observation(near[1]),
+                                   TwoLandmarkRule::kLeftRight, l0_left, papers),
+                   truth, false);
+  const std::vector<Observation> two = fix_observations(near);
+  FixResult c =
+      fix_two_circles(two[0], two[1], TwoLandmarkRule::kBearingDifference, false, FixOptions{});
+  add_mount_yaw_uncertainty(two, s_common, &c);
+  t->two_circles_pose.add(c, truth, true);
+  FixResult f = fix_from_landmarks(two, FixOptions{});
+  add_mount_yaw_uncertainty(two, s_common, &f);
+  t->two_wls.add(f, truth, true);
+  for (std::size_t i = 0; i < 3; ++i) {
+    FixOptions checked;
+    checked.max_position_sd_mm = kTwoMaxSdMm[i];
+    FixResult fc = fix_from_landmarks(two, checked);
+    add_mount_yaw_uncertainty(two, s_common, &fc);
+    t->two_sd[i].add(fc, truth, true);
+  }
+  const std::vector<Observation> two_size = fix_observations(near, false);
+  FixResult fs = fix_from_landmarks(two_size, FixOptions{});
+  add_mount_yaw_uncertainty(two_size, s_common, &fs);
+  t->two_wls_size.add(fs, truth, true);
+}
+
+// The three-or-more fixes on all usable landmarks.
+void tally_many(const std::vector<LandmarkObservation>& usable, const Pose2& truth, double s_common,
+                Tally* t) {
+  ++t->frames_3;
+  std::vector<Observation> papers;
+  for (const LandmarkObservation& o : usable) papers.push_back(paper_observation(o));
+  t->many_det.add(fix_trilateration(papers, FixOptions{}), truth, false);
+  const std::vector<Observation> all = fix_observations(usable);
+  FixResult f = fix_from_landmarks(all, FixOptions{});
+  add_mount_yaw_uncertainty(all, s_common, &f);
+  t->many_wls.add(f, truth, true);
+  for (std::size_t i = 0; i < 2; ++i) {
+    FixOptions checked;
+    checked.max_position_sd_mm = kManyMaxSdMm[i];
+    FixResult fc = fix_from_landmarks(all, checked);
+    add_mount_yaw_uncertainty(all, s_common, &fc);
+    t->many_sd[i].add(fc, truth, true);
+  }
+}
+
+void print_report(const Tally& t, double mount_deg, double mount_mm) {
+  std::printf(
+      "RENDERED frames: %d (1280x800), landmarks read %d, mirrored refusals %d, "
+      "frames with >= 2 usable (2-8 m) %d, >= 3 %d; observe() %.1f ms per frame "
+      "(mirror check included); mount error +-%.1f deg / +-%.0f mm\n\n",
+      t.frames, t.seen_total, t.refused_mirror, t.frames_2, t.frames_3, t.observe_ms / t.frames,
+      mount_deg, mount_mm);
+  std::printf(
+      "| per landmark (2-8 m) | n | bias | p50 | p95 | 3-sigma coverage "
+      "|\n|---|---|---|---|---|---|\n");
+  auto row = [](const char* name, const Errors& e, double scale, const char* unit) {
+    std::printf(
+        "| %s | %zu | %.2f %s | %.2f | %.2f | %s |\n", name, e.value.size(),
+        e.mean_signed() * scale, unit, pct(e.value, 0.5) * scale, pct(e.value, 0.95) * scale,
+        e.judged ? (std::to_string(100.0 * e.inside / e.judged).substr(0, 4) + " %").c_str() : "-");
+  };
+  row("range, paper (L = f H / h as camera distance), mm", t.r_paper, 1.0, "mm");
+  row("range, size read as depth (agvloc), mm", t.r_size, 1.0, "mm");
+  row("range, tag pose (agvloc), mm", t.r_pose, 1.0, "mm");
+  row("bearing, paper (image column), mrad", t.b_paper, 1000.0, "mrad");
+  row("bearing, tag pose, mrad", t.b_pose, 1000.0, "mrad");
+  row("relative yaw, tag pose (unambiguous only), deg", t.yaw_pose, 180.0 / kPi, "deg");
+  std::printf(
+      "\n| fix | frames | ok | p50 / p95 mm | p50 / p95 deg | 3-sigma coverage | wrong > 1 m |\n"
+      "|---|---|---|---|---|---|---|\n");
+  t.two_paper.print("2 nearest, paper 002: size L + circles + left/right", false);
+  t.two_circles_pose.print("2 nearest, tag pose + circles + bearing difference", true);
+  t.two_wls_size.print("2 nearest, size as depth + WLS", true);
+  t.two_wls.print("2 nearest, tag pose + WLS (agvloc)", true);
+  for (std::size_t i = 0; i < 3; ++i) {
+    const std::string name =
+        "2 nearest, tag pose + WLS, position sd <= " + std::to_string(int(kTwoMaxSdMm[i])) + " mm";
+    t.two_sd[i].print(name.c_str(), true);
+  }
+  t.many_det.print("all (>= 3), paper 004: size L + determinants", false);
+  t.many_wls.print("all (>= 3), tag pose + WLS (agvloc)", true);
+  for (std::size_t i = 0; i < 2; ++i) {
+    const std::string name =
+        "all (>= 3), tag pose + WLS, position sd <= " + std::to_string(int(kManyMaxSdMm[i])) +
+        " mm";
+    t.many_sd[i].print(name.c_str(), true);
+  }
+  std::printf("\n");
+  t.two_wls.print_refusals("2 nearest, tag pose + WLS");
+  t.many_wls.print_refusals("all (>= 3), tag pose + WLS");
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -190,19 +373,9 @@ int main(int argc, char** argv) {
   RangingMount mount_true;
   mount_true.x_mm = 300.0;
   mount_true.z_mm = 1000.0;
-  // random_free_poses keeps its poses apart from each other: draw them in small batches.
-  std::vector<Pose2> poses;
-  for (std::uint64_t batch = 0; static_cast<int>(poses.size()) < trials && batch < 10000; ++batch) {
-    for (const Pose2& p : sim::random_free_poses(scene.site, 8, 500.0, seed * 1000003 + batch)) {
-      if (static_cast<int>(poses.size()) < trials) poses.push_back(p);
-    }
-  }
+  const std::vector<Pose2> poses = trial_poses(scene, trials, seed);
 
-  Errors r_pose, r_size, r_paper, b_pose, b_paper, yaw_pose;
-  FixStats two_paper, two_circles_pose, two_wls, many_det, many_wls, two_wls_size;
-  FixStats two_sd[3], many_sd[2];
-  int frames = 0, frames_2 = 0, frames_3 = 0, refused_mirror = 0, seen_total = 0;
-  double observe_ms = 0.0;
+  Tally tally;
   // Uniform errors of +-a have sigma a / sqrt(3); the principal point's 1 px adds to the yaw.
   const double s_yaw = deg_to_rad(mount_deg) / std::sqrt(3.0), s_off = mount_mm / std::sqrt(3.0);
   const double s_common = std::hypot(s_yaw, 1.0 / k_true.fx);
@@ -215,155 +388,25 @@ int main(int argc, char** argv) {
   oopt.focal_sigma_rel = 0.002;
   for (std::size_t t = 0; t < poses.size(); ++t) {
     std::mt19937_64 rng(seed * 7919 + t);
-    std::uniform_real_distribution<double> u(-1.0, 1.0);
-    std::normal_distribution<double> n(0.0, 1.0);
     const Pose2 truth = poses[t];
     const sim::SiteRenderParams params = degraded(rng);
     const sim::RenderResult frame = renderer.render(
         scene, sim::ranging_camera(k_true, truth, mount_true), params, seed * 131 + t);
-    // What the vehicle believes: a calibration with small errors.
-    CameraIntrinsics k_est = k_true;
-    k_est.fx *= 1.0 + 0.002 * n(rng);
-    k_est.fy *= 1.0 + 0.002 * n(rng);
-    k_est.cx += 1.0 * n(rng);
-    k_est.cy += 1.0 * n(rng);
-    k_est.k1 += 0.003 * n(rng);
-    RangingMount m_est = mount_true;
-    m_est.x_mm += mount_mm * u(rng);
-    m_est.y_mm += mount_mm * u(rng);
-    m_est.z_mm += mount_mm * u(rng);
-    m_est.roll_rad += deg_to_rad(mount_deg) * u(rng);
-    m_est.pitch_rad += deg_to_rad(mount_deg) * u(rng);
-    m_est.yaw_rad += deg_to_rad(mount_deg) * u(rng);
-    const LandmarkObserver observer(k_est, m_est, scene.site.wall_landmarks, oopt);
+    const LandmarkObserver observer =
+        believed_observer(rng, k_true, mount_true, mount_deg, mount_mm, scene, oopt);
     const auto t0 = std::chrono::steady_clock::now();
     const ObserveResult res = observer.observe(frame.image);
-    observe_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
-                      .count();
-    ++frames;
+    tally.observe_ms +=
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    ++tally.frames;
     for (const RefusedLandmark& x : res.refused) {
-      if (x.reason == RefusalReason::kMirrored) ++refused_mirror;
+      if (x.reason == RefusalReason::kMirrored) ++tally.refused_mirror;
     }
-    const Eigen::Vector2d cam_xy(truth.x_mm + std::cos(truth.theta_rad) * mount_true.x_mm,
-                                 truth.y_mm + std::sin(truth.theta_rad) * mount_true.x_mm);
-    std::vector<LandmarkObservation> usable;
-    for (const LandmarkObservation& o : res.seen) {
-      ++seen_total;
-      const site::WallLandmark& w = scene.site.wall_landmarks[o.id];
-      const double dcx = w.x_mm - cam_xy.x(), dcy = w.y_mm - cam_xy.y();
-      const double cam_dist = std::hypot(dcx, dcy);
-      if (cam_dist < 2000.0 || cam_dist > 8000.0) continue;
-      usable.push_back(o);
-      const double dx = w.x_mm - truth.x_mm, dy = w.y_mm - truth.y_mm;
-      const double range = std::hypot(dx, dy);
-      const double bearing = wrap_angle_rad(std::atan2(dy, dx) - truth.theta_rad);
-      r_pose.add(o.pose.range_mm - range, o.pose.cov(0, 0), kChi1Sigma3);
-      r_size.add(o.size.range_mm - range, o.size.cov(0, 0), kChi1Sigma3);
-      const double dz = w.z_mm - mount_true.z_mm;
-      r_paper.add(o.paper.distance_mm - std::sqrt(cam_dist * cam_dist + dz * dz), 0.0, 0.0);
-      b_pose.add(wrap_angle_rad(o.pose.bearing_rad - bearing), o.pose.cov(1, 1), kChi1Sigma3);
-      b_paper.add(wrap_angle_rad(o.paper.bearing_rad -
-                                 wrap_angle_rad(std::atan2(dcy, dcx) - truth.theta_rad)),
-                  0.0, 0.0);
-      if (o.pose.has_yaw) {
-        yaw_pose.add(wrap_angle_rad(o.pose.relative_yaw_rad - (w.facing_rad - truth.theta_rad)),
-                     o.pose.cov(2, 2), kChi1Sigma3);
-      }
-    }
-    if (usable.size() >= 2) {
-      ++frames_2;
-      // Paper 002 takes the two nearest landmarks.
-      std::vector<LandmarkObservation> near = usable;
-      std::sort(near.begin(), near.end(), [](const auto& a, const auto& b) {
-        return a.pose.range_mm < b.pose.range_mm;
-      });
-      near.resize(2);
-      FixOptions papers;
-      papers.min_crossing_angle_rad = 0.0;  // the paper has no geometry check
-      const bool l0_left =
-          (near[0].corners_undistorted_px[0].x + near[0].corners_undistorted_px[2].x) <
-          (near[1].corners_undistorted_px[0].x + near[1].corners_undistorted_px[2].x);
-      two_paper.add(fix_two_circles(paper_observation(near[0]), paper_observation(near[1]),
-                                    TwoLandmarkRule::kLeftRight, l0_left, papers),
-                    truth, false);
-      const std::vector<Observation> two = fix_observations(near);
-      FixResult c = fix_two_circles(two[0], two[1], TwoLandmarkRule::kBearingDifference, false,
-                                    FixOptions{});
-      add_mount_yaw_uncertainty(two, s_common, &c);
-      two_circles_pose.add(c, truth, true);
-      FixResult f = fix_from_landmarks(two, FixOptions{});
-      add_mount_yaw_uncertainty(two, s_common, &f);
-      two_wls.add(f, truth, true);
-      for (std::size_t i = 0; i < 3; ++i) {
-        FixOptions checked;
-        checked.max_position_sd_mm = kTwoMaxSdMm[i];
-        FixResult fc = fix_from_landmarks(two, checked);
-        add_mount_yaw_uncertainty(two, s_common, &fc);
-        two_sd[i].add(fc, truth, true);
-      }
-      const std::vector<Observation> two_size = fix_observations(near, false);
-      FixResult fs = fix_from_landmarks(two_size, FixOptions{});
-      add_mount_yaw_uncertainty(two_size, s_common, &fs);
-      two_wls_size.add(fs, truth, true);
-    }
-    if (usable.size() >= 3) {
-      ++frames_3;
-      std::vector<Observation> papers;
-      for (const LandmarkObservation& o : usable) papers.push_back(paper_observation(o));
-      many_det.add(fix_trilateration(papers, FixOptions{}), truth, false);
-      const std::vector<Observation> all = fix_observations(usable);
-      FixResult f = fix_from_landmarks(all, FixOptions{});
-      add_mount_yaw_uncertainty(all, s_common, &f);
-      many_wls.add(f, truth, true);
-      for (std::size_t i = 0; i < 2; ++i) {
-        FixOptions checked;
-        checked.max_position_sd_mm = kManyMaxSdMm[i];
-        FixResult fc = fix_from_landmarks(all, checked);
-        add_mount_yaw_uncertainty(all, s_common, &fc);
-        many_sd[i].add(fc, truth, true);
-      }
-    }
+    const std::vector<LandmarkObservation> usable =
+        tally_landmarks(res, scene, truth, mount_true, &tally);
+    if (usable.size() >= 2) tally_two(usable, truth, s_common, &tally);
+    if (usable.size() >= 3) tally_many(usable, truth, s_common, &tally);
   }
-
-  std::printf("RENDERED frames: %d (1280x800), landmarks read %d, mirrored refusals %d, "
-              "frames with >= 2 usable (2-8 m) %d, >= 3 %d; observe() %.1f ms per frame "
-              "(mirror check included); mount error +-%.1f deg / +-%.0f mm\n\n",
-              frames, seen_total, refused_mirror, frames_2, frames_3, observe_ms / frames,
-              mount_deg, mount_mm);
-  std::printf("| per landmark (2-8 m) | n | bias | p50 | p95 | 3-sigma coverage |\n|---|---|---|---|---|---|\n");
-  auto row = [](const char* name, const Errors& e, double scale, const char* unit) {
-    std::printf("| %s | %zu | %.2f %s | %.2f | %.2f | %s |\n", name, e.value.size(),
-                e.mean_signed() * scale, unit, pct(e.value, 0.5) * scale,
-                pct(e.value, 0.95) * scale,
-                e.judged ? (std::to_string(100.0 * e.inside / e.judged).substr(0, 4) + " %").c_str()
-                         : "-");
-  };
-  row("range, paper (L = f H / h as camera distance), mm", r_paper, 1.0, "mm");
-  row("range, size read as depth (agvloc), mm", r_size, 1.0, "mm");
-  row("range, tag pose (agvloc), mm", r_pose, 1.0, "mm");
-  row("bearing, paper (image column), mrad", b_paper, 1000.0, "mrad");
-  row("bearing, tag pose, mrad", b_pose, 1000.0, "mrad");
-  row("relative yaw, tag pose (unambiguous only), deg", yaw_pose, 180.0 / kPi, "deg");
-  std::printf("\n| fix | frames | ok | p50 / p95 mm | p50 / p95 deg | 3-sigma coverage | wrong > 1 m |\n"
-              "|---|---|---|---|---|---|---|\n");
-  two_paper.print("2 nearest, paper 002: size L + circles + left/right", false);
-  two_circles_pose.print("2 nearest, tag pose + circles + bearing difference", true);
-  two_wls_size.print("2 nearest, size as depth + WLS", true);
-  two_wls.print("2 nearest, tag pose + WLS (agvloc)", true);
-  for (std::size_t i = 0; i < 3; ++i) {
-    const std::string name =
-        "2 nearest, tag pose + WLS, position sd <= " + std::to_string(int(kTwoMaxSdMm[i])) + " mm";
-    two_sd[i].print(name.c_str(), true);
-  }
-  many_det.print("all (>= 3), paper 004: size L + determinants", false);
-  many_wls.print("all (>= 3), tag pose + WLS (agvloc)", true);
-  for (std::size_t i = 0; i < 2; ++i) {
-    const std::string name =
-        "all (>= 3), tag pose + WLS, position sd <= " + std::to_string(int(kManyMaxSdMm[i])) + " mm";
-    many_sd[i].print(name.c_str(), true);
-  }
-  std::printf("\n");
-  two_wls.print_refusals("2 nearest, tag pose + WLS");
-  many_wls.print_refusals("all (>= 3), tag pose + WLS");
+  print_report(tally, mount_deg, mount_mm);
   return 0;
 }
