@@ -7,6 +7,7 @@
 #include <utility>
 #include <vector>
 
+#include "tray_fit_input.hpp"
 #include "tray_fit_internal.hpp"
 
 namespace agv::overhead {
@@ -287,43 +288,6 @@ bool refine(const std::vector<PlaneEdge>& edges, const site::FleetAgv& agv, doub
   return true;
 }
 
-bool fail(std::string* why, const std::string& msg) {
-  if (why) *why = msg;
-  return false;
-}
-
-std::string fmt(const char* f, double a, double b = 0.0) {
-  char buf[160];
-  std::snprintf(buf, sizeof buf, f, a, b);
-  return buf;
-}
-
-bool check_input(const cv::Mat& gray, const site::CeilingCamera& cam, const site::FleetAgv& agv,
-                 const Pose2& predicted, const std::array<double, 9>& cov, const TrayFitParams& p,
-                 std::string* why) {
-  if (const std::string e = validate(p); !e.empty()) return fail(why, "tray fit parameters: " + e);
-  if (gray.empty() || gray.type() != CV_8UC1 || gray.cols != cam.intrinsics.width_px ||
-      gray.rows != cam.intrinsics.height_px || gray.cols < 3 || gray.rows < 3) {
-    return fail(why, "image is not 8-bit gray of the camera's size");
-  }
-  const double sizes[3] = {agv.tray_length_mm, agv.tray_width_mm, agv.tray_height_mm};
-  if (!(sizes[0] > 0.0 && sizes[1] > 0.0) || !std::isfinite(sizes[0]) || !std::isfinite(sizes[1]) ||
-      !std::isfinite(sizes[2])) {
-    return fail(why, "vehicle " + agv.id + ": tray size is not positive and finite");
-  }
-  if (!std::isfinite(predicted.x_mm) || !std::isfinite(predicted.y_mm) ||
-      !std::isfinite(predicted.theta_rad)) {
-    return fail(why, "predicted pose is not finite");
-  }
-  for (const double v : cov) {
-    if (!std::isfinite(v)) return fail(why, "predicted covariance is not finite");
-  }
-  if (!(cov[0] > 0.0 && cov[4] > 0.0 && cov[8] > 0.0 && cov[0] * cov[4] > cov[1] * cov[3])) {
-    return fail(why, "predicted covariance is not positive definite");
-  }
-  return true;
-}
-
 // Fraction of side k's length covered by its kept points within on_line_mm of its line (one bin
 // per two pixels on the plane: a diagonal edge's thinned points are up to sqrt 2 pixels apart),
 // and
@@ -440,6 +404,120 @@ void box_covariance(const std::vector<PlaneEdge>& edges, const Fitted& f, const 
   }
 }
 
+// Lengths on the tray's plane for the fit's tolerances, from the window's scale.
+struct FitScales {
+  double bin_mm, band_mm, min_sigma_mm, max_size_err, on_line_mm;
+};
+
+// Headings and centres are searched, and kept, within the prediction's reach only: a parcel's
+// lifted outline elsewhere can explain as much of the picture as the tray.
+bool within_reach(const Box& b, double theta_pred, double reach_mm, double allowed) {
+  const Vec2 nx = side_normal(0, theta_pred), ny = side_normal(1, theta_pred);
+  return std::abs(b.c.x * nx.x + b.c.y * nx.y) <= reach_mm &&
+         std::abs(b.c.x * ny.x + b.c.y * ny.y) <= reach_mm &&
+         axis_distance(b.theta, theta_pred) <= allowed;
+}
+
+// Every hypothesis refined a little and scored by the outline it explains: a parcel's edge
+// can out-vote a tray side it hides, but not the whole outline. Returns the best score (not
+// positive when nothing fits) and its fit in *f.
+double best_hypothesis(const std::vector<PlaneEdge>& edges, const site::FleetAgv& agv,
+                       double theta_pred, const TrayWindow& win, const RimView& rim, double allowed,
+                       const FitScales& sc, const TrayFitParams& p, Fitted* f) {
+  Fitted trial;
+  double best = -1.0;
+  std::vector<double> peaks[2];
+  TrayFix r;
+  double mean_r[kSides];
+  std::vector<double> done;
+  for (const double coarse : orientations(edges, theta_pred, allowed)) {
+    const double theta =
+        sharpen(edges, agv, coarse, win.reach_mm, sc.bin_mm, p.class_tol_rad, peaks);
+    // Neighbouring histogram peaks often sharpen to the same orientation: its hypotheses once.
+    bool again = false;
+    for (const double t : done) again = again || axis_distance(t, theta) < 0.5 * kSharpenStepRad;
+    if (again) continue;
+    done.push_back(theta);
+    const Vec2 nx = side_normal(0, theta), ny = side_normal(1, theta);
+    for (const double a : peaks[0]) {
+      for (const double b : peaks[1]) {
+        trial.box = {{a * nx.x + b * ny.x, a * nx.y + b * ny.y}, theta};
+        if (!refine(edges, agv, sc.band_mm, sc.min_sigma_mm, p.class_tol_rad, kScoringIterations,
+                    &trial)) {
+          continue;
+        }
+        if (!within_reach(trial.box, theta_pred, win.reach_mm, allowed)) continue;
+        side_stats(edges, trial, agv, win.mm_per_px, sc.on_line_mm, &r, mean_r);
+        const auto seen_k = [&](int k) {
+          return r.coverage[static_cast<std::size_t>(k)] >= p.min_side_coverage;
+        };
+        double score = 0.0;
+        for (int k = 0; k < kSides; ++k) {
+          score += seen_k(k) ? r.coverage[static_cast<std::size_t>(k)] : 0.0;
+        }
+        for (int axis = 0; axis < 2; ++axis) {
+          const bool both = seen_k(axis) && seen_k(axis + 2);
+          if (both && std::abs(mean_r[axis] + mean_r[axis + 2]) > sc.max_size_err) score -= 1.0;
+        }
+        score += kRimWeight * rim_coverage(edges, trial.box, agv, rim, sc.on_line_mm, win.mm_per_px,
+                                           p.class_tol_rad);
+        if (score > best) best = score, *f = trial;
+      }
+    }
+  }
+  return best;
+}
+
+// The refined fit's sides, size and heading checked, and the fix made of it.
+bool accept_fit(const std::vector<PlaneEdge>& edges, const Fitted& f, const site::FleetAgv& agv,
+                const Pose2& predicted, const TrayWindow& win, const FitScales& sc, double period,
+                const TrayFitParams& p, TrayFix* out, std::string* why) {
+  TrayFix r{};
+  double mean_r[kSides];
+  side_stats(edges, f, agv, win.mm_per_px, sc.on_line_mm, &r, mean_r);
+  bool seen[kSides];
+  for (int k = 0; k < kSides; ++k) {
+    seen[k] = r.coverage[static_cast<std::size_t>(k)] >= p.min_side_coverage;
+    r.sides_seen += seen[k] ? 1 : 0;
+  }
+  if (!(seen[0] || seen[2]) || !(seen[1] || seen[3]) || r.sides_seen < p.min_sides_seen) {
+    return fail(why, fmt("too few tray sides seen (front/rear %.0f%%, left/right %.0f%% covered)",
+                         100.0 * std::max(r.coverage[0], r.coverage[2]),
+                         100.0 * std::max(r.coverage[1], r.coverage[3])));
+  }
+  for (int axis = 0; axis < 2; ++axis) {
+    if (!seen[axis] || !seen[axis + 2]) continue;
+    r.size_error_mm[axis] = mean_r[axis] + mean_r[axis + 2];
+    if (std::abs(r.size_error_mm[axis]) > sc.max_size_err) {
+      return fail(why, fmt(axis == 0 ? "tray length off by %.1f mm (limit %.1f)"
+                                     : "tray width off by %.1f mm (limit %.1f)",
+                           r.size_error_mm[axis], sc.max_size_err));
+    }
+  }
+  // The half-turn (quarter-turn for a square) nearest the prediction.
+  const double theta =
+      f.box.theta + period * std::round((predicted.theta_rad - f.box.theta) / period);
+  r.heading_from_prediction_rad = std::abs(wrap_angle_rad(theta - predicted.theta_rad));
+  if (r.heading_from_prediction_rad > period / 3.0) {
+    return fail(why, fmt("tray heading %.0f deg from the prediction: ambiguous",
+                         rad_to_deg(r.heading_from_prediction_rad)));
+  }
+  box_covariance(edges, f, agv, p.edge_correlation, p.side_offset_sigma_px * win.mm_per_px,
+                 &r.fix.cov);
+  r.fix.pose = {predicted.x_mm + f.box.c.x, predicted.y_mm + f.box.c.y, wrap_angle_rad(theta)};
+  r.residual_mm = std::sqrt(f.s2);
+  r.fix.residual_mm = r.residual_mm;
+  r.fix.size_error_rel = 0.0;
+  for (int axis = 0; axis < 2; ++axis) {
+    const double len = axis == 0 ? agv.tray_length_mm : agv.tray_width_mm;
+    if (std::abs(r.size_error_mm[axis] / len) > std::abs(r.fix.size_error_rel)) {
+      r.fix.size_error_rel = r.size_error_mm[axis] / len;
+    }
+  }
+  *out = r;
+  return true;
+}
+
 }  // namespace tray_fit_detail
 
 bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::FleetAgv& agv,
@@ -470,115 +548,25 @@ bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::F
   thread_local std::vector<PlaneEdge> edges;
   plane_edges(gray, cam, agv, predicted, win, p, &edges);
 
-  // Headings and centres are searched, and kept, within the prediction's reach only: a parcel's
-  // lifted outline elsewhere can explain as much of the picture as the tray.
   const double allowed = std::min(p.sigma_window * sigma_theta + kHeadingSlackRad, 0.5 * kPi);
-  const auto within_reach = [&](const Box& b) {
-    const Vec2 nx = side_normal(0, predicted.theta_rad), ny = side_normal(1, predicted.theta_rad);
-    return std::abs(b.c.x * nx.x + b.c.y * nx.y) <= win.reach_mm &&
-           std::abs(b.c.x * ny.x + b.c.y * ny.y) <= win.reach_mm &&
-           axis_distance(b.theta, predicted.theta_rad) <= allowed;
-  };
   const double bin_mm = std::max(1.0, 0.5 * win.mm_per_px);
-  const double band_mm = std::max(2.0 * win.mm_per_px, 4.0 * bin_mm);
-  const double min_sigma_mm = 0.05 * win.mm_per_px;
-  const double max_size_err = std::max(p.max_size_error_mm, p.max_size_error_px * win.mm_per_px);
-  const double on_line_mm = p.on_line_px * win.mm_per_px;
+  const FitScales sc{bin_mm, std::max(2.0 * win.mm_per_px, 4.0 * bin_mm), 0.05 * win.mm_per_px,
+                     std::max(p.max_size_error_mm, p.max_size_error_px * win.mm_per_px),
+                     p.on_line_px * win.mm_per_px};
   const RimView rim{{cam.t_site_cam_mm[0] - predicted.x_mm, cam.t_site_cam_mm[1] - predicted.y_mm},
                     cam.t_site_cam_mm[2] - agv.tray_height_mm,
                     p.rim_depth_mm};
-  // Every hypothesis refined a little and scored by the outline it explains: a parcel's edge
-  // can out-vote a tray side it hides, but not the whole outline.
-  Fitted f, trial;
-  double best = -1.0;
-  std::vector<double> peaks[2];
-  TrayFix r;
-  double mean_r[kSides];
-  std::vector<double> done;
-  for (const double coarse : orientations(edges, predicted.theta_rad, allowed)) {
-    const double theta = sharpen(edges, agv, coarse, win.reach_mm, bin_mm, p.class_tol_rad, peaks);
-    // Neighbouring histogram peaks often sharpen to the same orientation: its hypotheses once.
-    bool again = false;
-    for (const double t : done) again = again || axis_distance(t, theta) < 0.5 * kSharpenStepRad;
-    if (again) continue;
-    done.push_back(theta);
-    const Vec2 nx = side_normal(0, theta), ny = side_normal(1, theta);
-    for (const double a : peaks[0]) {
-      for (const double b : peaks[1]) {
-        trial.box = {{a * nx.x + b * ny.x, a * nx.y + b * ny.y}, theta};
-        if (!refine(edges, agv, band_mm, min_sigma_mm, p.class_tol_rad, kScoringIterations,
-                    &trial)) {
-          continue;
-        }
-        if (!within_reach(trial.box)) continue;
-        side_stats(edges, trial, agv, win.mm_per_px, on_line_mm, &r, mean_r);
-        const auto seen_k = [&](int k) {
-          return r.coverage[static_cast<std::size_t>(k)] >= p.min_side_coverage;
-        };
-        double score = 0.0;
-        for (int k = 0; k < kSides; ++k) {
-          score += seen_k(k) ? r.coverage[static_cast<std::size_t>(k)] : 0.0;
-        }
-        for (int axis = 0; axis < 2; ++axis) {
-          const bool both = seen_k(axis) && seen_k(axis + 2);
-          if (both && std::abs(mean_r[axis] + mean_r[axis + 2]) > max_size_err) score -= 1.0;
-        }
-        score += kRimWeight * rim_coverage(edges, trial.box, agv, rim, on_line_mm, win.mm_per_px,
-                                           p.class_tol_rad);
-        if (score > best) best = score, f = trial;
-      }
-    }
-  }
+  Fitted f;
+  const double best =
+      best_hypothesis(edges, agv, predicted.theta_rad, win, rim, allowed, sc, p, &f);
   if (!(best > 0.0)) return fail(why, "no tray edges in the window");
-  if (!refine(edges, agv, band_mm, min_sigma_mm, p.class_tol_rad, p.iterations, &f)) {
+  if (!refine(edges, agv, sc.band_mm, sc.min_sigma_mm, p.class_tol_rad, p.iterations, &f)) {
     return fail(why, "too few tray edge points to fit");
   }
-  if (!within_reach(f.box)) {
+  if (!within_reach(f.box, predicted.theta_rad, win.reach_mm, allowed)) {
     return fail(why, "the tray's outline lies beyond the prediction's reach");
   }
-  r = TrayFix{};
-  side_stats(edges, f, agv, win.mm_per_px, on_line_mm, &r, mean_r);
-  bool seen[kSides];
-  for (int k = 0; k < kSides; ++k) {
-    seen[k] = r.coverage[static_cast<std::size_t>(k)] >= p.min_side_coverage;
-    r.sides_seen += seen[k] ? 1 : 0;
-  }
-  if (!(seen[0] || seen[2]) || !(seen[1] || seen[3]) || r.sides_seen < p.min_sides_seen) {
-    return fail(why, fmt("too few tray sides seen (front/rear %.0f%%, left/right %.0f%% covered)",
-                         100.0 * std::max(r.coverage[0], r.coverage[2]),
-                         100.0 * std::max(r.coverage[1], r.coverage[3])));
-  }
-  for (int axis = 0; axis < 2; ++axis) {
-    if (!seen[axis] || !seen[axis + 2]) continue;
-    r.size_error_mm[axis] = mean_r[axis] + mean_r[axis + 2];
-    if (std::abs(r.size_error_mm[axis]) > max_size_err) {
-      return fail(why, fmt(axis == 0 ? "tray length off by %.1f mm (limit %.1f)"
-                                     : "tray width off by %.1f mm (limit %.1f)",
-                           r.size_error_mm[axis], max_size_err));
-    }
-  }
-  // The half-turn (quarter-turn for a square) nearest the prediction.
-  const double theta =
-      f.box.theta + period * std::round((predicted.theta_rad - f.box.theta) / period);
-  r.heading_from_prediction_rad = std::abs(wrap_angle_rad(theta - predicted.theta_rad));
-  if (r.heading_from_prediction_rad > period / 3.0) {
-    return fail(why, fmt("tray heading %.0f deg from the prediction: ambiguous",
-                         rad_to_deg(r.heading_from_prediction_rad)));
-  }
-  box_covariance(edges, f, agv, p.edge_correlation, p.side_offset_sigma_px * win.mm_per_px,
-                 &r.fix.cov);
-  r.fix.pose = {predicted.x_mm + f.box.c.x, predicted.y_mm + f.box.c.y, wrap_angle_rad(theta)};
-  r.residual_mm = std::sqrt(f.s2);
-  r.fix.residual_mm = r.residual_mm;
-  r.fix.size_error_rel = 0.0;
-  for (int axis = 0; axis < 2; ++axis) {
-    const double len = axis == 0 ? agv.tray_length_mm : agv.tray_width_mm;
-    if (std::abs(r.size_error_mm[axis] / len) > std::abs(r.fix.size_error_rel)) {
-      r.fix.size_error_rel = r.size_error_mm[axis] / len;
-    }
-  }
-  *out = r;
-  return true;
+  return accept_fit(edges, f, agv, predicted, win, sc, period, p, out, why);
 }
 
 }  // namespace agv::overhead
