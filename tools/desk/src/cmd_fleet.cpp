@@ -118,6 +118,69 @@ std::string events_csv(const sim::FleetResult& r) {
   return s;
 }
 
+// One recording folder name per vehicle: its id made a folder name, or agv<i> when taken.
+std::vector<std::string> folder_names(const std::vector<sim::FleetVehicleSpec>& specs) {
+  std::vector<std::string> names;
+  for (std::size_t i = 0; i < specs.size(); ++i) {
+    std::string name = folder_name(specs[i].id, i);
+    for (const std::string& o : names) {
+      if (o == name) name = "agv" + std::to_string(i);
+    }
+    names.push_back(name);
+  }
+  return names;
+}
+
+// The first of the folders under out_dir that already holds a recording, or "".
+std::string taken_folder(const std::string& out_dir, const std::vector<std::string>& names) {
+  std::error_code ec;
+  for (const std::string& name : names) {
+    if (fs::exists(fs::path(out_dir) / name / "meta.yaml", ec)) return name;
+  }
+  return "";
+}
+
+// Every vehicle's recording, fleet.csv, tasks.csv and events.csv under out_dir.
+bool write_fleet(const std::string& out_dir, const std::vector<std::string>& names,
+                 const sim::FleetResult& r, bool gyro, const std::string& cmdline,
+                 std::string* err) {
+  std::error_code ec;
+  fs::create_directories(out_dir, ec);
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    const std::string dir = (fs::path(out_dir) / names[i]).string();
+    if (!write_vehicle(dir, r.vehicles[i], gyro, cmdline + " (vehicle " + names[i] + ")", err)) {
+      return false;
+    }
+  }
+  return write_text(fs::path(out_dir) / "fleet.csv", fleet_csv(r, names), err) &&
+         write_text(fs::path(out_dir) / "tasks.csv", tasks_csv(r, names), err) &&
+         write_text(fs::path(out_dir) / "events.csv", events_csv(r), err);
+}
+
+// The fleet's events other than evasions, and the run's summary line.
+void print_summary(const std::string& out_dir, std::size_t n_vehicles, const sim::FleetResult& r,
+                   double wall_s) {
+  int waits = 0;
+  double wait_s = 0.0;
+  for (const sim::FleetVehicleOutput& v : r.vehicles) {
+    waits += v.waits;
+    wait_s += v.wait_s;
+  }
+  for (const sim::FleetEvent& e : r.events) {
+    if (e.kind != sim::FleetEventKind::kEvade) {
+      std::printf("  %9.2f s  %-15s %s\n", e.t_s, sim::to_string(e.kind), e.text.c_str());
+    }
+  }
+  std::printf(
+      "agvloc-desk fleet: wrote %s: %zu vehicles, %.0f s simulated; tasks finished %d of %zu; "
+      "min pair distance %.0f mm (margin over r_i + r_j + %.0f mm clearance: %.0f mm); waits %d "
+      "(%.1f vehicle-s); deadlocks %d, blocked by idle %d, unresolved %d; %.1f s to simulate "
+      "(%.0fx real time)\n",
+      out_dir.c_str(), n_vehicles, r.simulated_s, r.tasks_finished, r.tasks.size(),
+      r.min_pair_distance_mm, r.clearance_mm, r.min_pair_margin_mm, waits, wait_s, r.deadlocks,
+      r.blocked_by_idle, r.unresolved, wall_s, wall_s > 0.0 ? r.simulated_s / wall_s : 0.0);
+}
+
 }  // namespace
 
 int fleet_command(int argc, char** argv) {
@@ -181,22 +244,10 @@ int fleet_command(int argc, char** argv) {
   if (!sim::make_random_fleet(planner, site, radii, tasks_per_agv, seed, &specs, &err)) {
     return usage(err);
   }
-  std::vector<std::string> names;
-  for (std::size_t i = 0; i < specs.size(); ++i) {
-    std::string name = folder_name(specs[i].id, i);
-    for (const std::string& o : names) {
-      if (o == name) name = "agv" + std::to_string(i);
-    }
-    names.push_back(name);
-  }
-  std::error_code ec;
-  if (!force) {
-    for (const std::string& name : names) {
-      if (fs::exists(fs::path(out_dir) / name / "meta.yaml", ec)) {
-        return usage(out_dir + "/" + name +
-                     " already holds a recording (use --force to overwrite)");
-      }
-    }
+  const std::vector<std::string> names = folder_names(specs);
+  const std::string taken = force ? std::string() : taken_folder(out_dir, names);
+  if (!taken.empty()) {
+    return usage(out_dir + "/" + taken + " already holds a recording (use --force to overwrite)");
   }
   fp.duration_s = duration_s;
   fp.seed = seed;
@@ -209,39 +260,11 @@ int fleet_command(int argc, char** argv) {
 
   std::string cmdline = "agvloc-desk fleet";
   for (int i = 1; i < argc; ++i) cmdline += std::string(" ") + argv[i];
-  fs::create_directories(out_dir, ec);
-  for (std::size_t i = 0; i < specs.size(); ++i) {
-    const std::string dir = (fs::path(out_dir) / names[i]).string();
-    if (!write_vehicle(dir, r.vehicles[i], gyro, cmdline + " (vehicle " + names[i] + ")", &err)) {
-      std::fprintf(stderr, "agvloc-desk fleet: %s\n", err.c_str());
-      return 1;
-    }
-  }
-  if (!write_text(fs::path(out_dir) / "fleet.csv", fleet_csv(r, names), &err) ||
-      !write_text(fs::path(out_dir) / "tasks.csv", tasks_csv(r, names), &err) ||
-      !write_text(fs::path(out_dir) / "events.csv", events_csv(r), &err)) {
+  if (!write_fleet(out_dir, names, r, gyro, cmdline, &err)) {
     std::fprintf(stderr, "agvloc-desk fleet: %s\n", err.c_str());
     return 1;
   }
-  int waits = 0;
-  double wait_s = 0.0;
-  for (const sim::FleetVehicleOutput& v : r.vehicles) {
-    waits += v.waits;
-    wait_s += v.wait_s;
-  }
-  for (const sim::FleetEvent& e : r.events) {
-    if (e.kind != sim::FleetEventKind::kEvade) {
-      std::printf("  %9.2f s  %-15s %s\n", e.t_s, sim::to_string(e.kind), e.text.c_str());
-    }
-  }
-  std::printf(
-      "agvloc-desk fleet: wrote %s: %zu vehicles, %.0f s simulated; tasks finished %d of %zu; "
-      "min pair distance %.0f mm (margin over r_i + r_j + %.0f mm clearance: %.0f mm); waits %d "
-      "(%.1f vehicle-s); deadlocks %d, blocked by idle %d, unresolved %d; %.1f s to simulate "
-      "(%.0fx real time)\n",
-      out_dir.c_str(), specs.size(), r.simulated_s, r.tasks_finished, r.tasks.size(),
-      r.min_pair_distance_mm, r.clearance_mm, r.min_pair_margin_mm, waits, wait_s, r.deadlocks,
-      r.blocked_by_idle, r.unresolved, wall_s, wall_s > 0.0 ? r.simulated_s / wall_s : 0.0);
+  print_summary(out_dir, specs.size(), r, wall_s);
   return 0;
 }
 
