@@ -213,6 +213,127 @@ void print_counters(const agv::overhead::FrameCounters& fc,
       static_cast<unsigned long long>(tc.replays), static_cast<unsigned long long>(tc.lost));
 }
 
+// The tracker's idea of the cameras: the rendered ones moved by the calibration error, with
+// the pose sigma a calibration would state.
+std::vector<agv::site::CeilingCamera> believed_cameras(const Options& o,
+                                                       const agv::site::Site& site,
+                                                       std::mt19937_64* rng) {
+  std::vector<agv::site::CeilingCamera> believed;
+  const double sigma_mm =
+      o.calib_sigma_mm >= 0 ? o.calib_sigma_mm : o.calib_error_mm / std::sqrt(3.0);
+  const double sigma_rad = agv::deg_to_rad(
+      o.calib_sigma_deg >= 0 ? o.calib_sigma_deg : o.calib_error_deg / std::sqrt(3.0));
+  std::printf("tracker told: camera pose sigma %.3f mm, %.4f deg per parameter\n", sigma_mm,
+              agv::rad_to_deg(sigma_rad));
+  for (const auto& c : site.cameras) {
+    believed.push_back(agv::eval::perturbed(c, o.calib_error_mm, o.calib_error_deg, rng));
+    believed.back().position_sigma_mm = {sigma_mm, sigma_mm, sigma_mm};
+    believed.back().angle_sigma_rad = {sigma_rad, sigma_rad, sigma_rad};
+  }
+  return believed;
+}
+
+// The learned tray detector from an ONNX file; false with a message when it cannot be loaded.
+bool load_tray_model(const std::string& path, agv::overhead::CameraFrameProcessor* proc) {
+  std::ifstream f(path, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  auto net = std::make_shared<agv::overhead::TrayNet>();
+  std::string why;
+  if (!net->load(bytes.data(), bytes.size(), &why)) {
+    std::fprintf(stderr, "eval_overhead: %s: %s\n", path.c_str(), why.c_str());
+    return false;
+  }
+  proc->set_tray_net(std::move(net));
+  return true;
+}
+
+// Every camera's view of the site without vehicles and parcels, rendered once.
+void set_backgrounds(const Options& o, const World& world, agv::eval::RegionRenderer* renderer) {
+  const agv::site::Site& site = world.site();
+  agv::sim::SiteScene empty = world.scene_at(0);
+  empty.site.fleet.clear();
+  empty.agvs.clear();
+  empty.parcels.clear();
+  for (std::size_t c = 0; c < site.cameras.size(); ++c) {
+    renderer->set_background(c, empty, agv::sim::RenderCamera::from_ceiling(site.cameras[c]),
+                             o.world.seed + c);
+  }
+}
+
+// Bit errors put into the tags in the image from bit_errors_from_s on; 1 for each tag changed.
+std::vector<std::uint8_t> flip_bits(const Options& o, const FrameEvent& fe,
+                                    const std::vector<std::array<agv::Vec2, 4>>& corners,
+                                    const std::vector<std::uint8_t>& in_image, cv::Mat* img,
+                                    std::mt19937_64* rng) {
+  std::vector<std::uint8_t> flipped(corners.size(), 0);
+  if (o.bit_errors > 0 && fe.exposure_ns >= static_cast<std::int64_t>(o.bit_errors_from_s * 1e9)) {
+    for (std::size_t i = 0; i < corners.size(); ++i) {
+      if (in_image[i] && agv::eval::flip_tag_cells(img, corners[i], o.bit_errors, rng) > 0) {
+        flipped[i] = 1;
+      }
+    }
+  }
+  return flipped;
+}
+
+// 1 for each vehicle whose tag is inside some camera's image.
+std::vector<std::uint8_t> in_some_view(const World& world,
+                                       const std::vector<agv::sim::AgvState>& truth) {
+  const agv::site::Site& site = world.site();
+  const agv::CameraIntrinsics& k = site.cameras[0].intrinsics;
+  std::vector<std::uint8_t> in_view(truth.size(), 0);
+  for (const auto& c : site.cameras) {
+    std::vector<std::uint8_t> ok;
+    const auto corners = world.tag_corners(agv::sim::RenderCamera::from_ceiling(c), truth, &ok);
+    const auto in = inside(corners, ok, k.width_px, k.height_px);
+    for (std::size_t i = 0; i < in.size(); ++i) in_view[i] = in_view[i] || in[i];
+  }
+  return in_view;
+}
+
+// 1 for each vehicle the tracker follows at t_ns.
+std::vector<std::uint8_t> tracked_at(const agv::overhead::FleetTracker& tracker, std::size_t n,
+                                     std::int64_t t_ns) {
+  std::vector<std::uint8_t> tracked(n, 0);
+  for (std::size_t i = 0; i < tracked.size(); ++i) {
+    const agv::overhead::TrackState st = tracker.output(i, t_ns).state;
+    tracked[i] = st != agv::overhead::TrackState::kNone && st != agv::overhead::TrackState::kLost;
+  }
+  return tracked;
+}
+
+// One frame through the processor, its thread CPU time recorded (apart for frames with a full
+// sweep); false with a message on error.
+bool process_timed(const FrameEvent& fe, const cv::Mat& img,
+                   agv::overhead::CameraFrameProcessor* proc, agv::overhead::FleetTracker* tracker,
+                   std::vector<agv::overhead::Detection>* dets, agv::eval::Score* score) {
+  std::string error;
+  const std::uint64_t full_before = proc->counters().windows_full;
+  const double t0 = thread_cpu_ms();
+  if (!proc->process(fe.camera, fe.exposure_ns, img, tracker, dets, &error)) {
+    std::fprintf(stderr, "eval_overhead: %s\n", error.c_str());
+    return false;
+  }
+  const double ms = thread_cpu_ms() - t0;
+  score->frame_ms.push_back(ms);
+  if (proc->counters().windows_full > full_before) {
+    score->frame_full_ms.push_back(ms);
+  } else {
+    score->frame_windows_ms.push_back(ms);
+  }
+  return true;
+}
+
+void print_tray_boxes(const agv::overhead::CameraFrameProcessor& proc) {
+  std::printf(
+      "tray boxes (%s): applied %llu, gated %llu, refused %llu, disagreeing with a tag %llu\n",
+      proc.tray_learned() ? "learned" : "classical",
+      static_cast<unsigned long long>(proc.counters().tray_fixes),
+      static_cast<unsigned long long>(proc.counters().tray_gated),
+      static_cast<unsigned long long>(proc.counters().tray_refused),
+      static_cast<unsigned long long>(proc.counters().tray_tag_disagree));
+}
+
 int run(const Options& o) {
   const auto wall0 = std::chrono::steady_clock::now();
   World world;
@@ -224,48 +345,18 @@ int run(const Options& o) {
   const agv::site::Site& site = world.site();
   const agv::CameraIntrinsics& k = site.cameras[0].intrinsics;
   print_header(o, site);
-  // The tracker's idea of the cameras: the rendered ones moved by the calibration error, with
-  // the pose sigma a calibration would state.
   std::mt19937_64 rng(o.world.seed * 7919 + 3);
-  std::vector<agv::site::CeilingCamera> believed;
-  const double sigma_mm =
-      o.calib_sigma_mm >= 0 ? o.calib_sigma_mm : o.calib_error_mm / std::sqrt(3.0);
-  const double sigma_rad = agv::deg_to_rad(
-      o.calib_sigma_deg >= 0 ? o.calib_sigma_deg : o.calib_error_deg / std::sqrt(3.0));
-  std::printf("tracker told: camera pose sigma %.3f mm, %.4f deg per parameter\n", sigma_mm,
-              agv::rad_to_deg(sigma_rad));
-  for (const auto& c : site.cameras) {
-    believed.push_back(agv::eval::perturbed(c, o.calib_error_mm, o.calib_error_deg, &rng));
-    believed.back().position_sigma_mm = {sigma_mm, sigma_mm, sigma_mm};
-    believed.back().angle_sigma_rad = {sigma_rad, sigma_rad, sigma_rad};
-  }
+  const std::vector<agv::site::CeilingCamera> believed = believed_cameras(o, site, &rng);
   agv::overhead::SearchParams sp;
   sp.full_sweep_every_frames = o.full_sweep_every;
   agv::overhead::CameraFrameProcessor proc(believed, site.fleet, {}, sp);
   agv::overhead::FleetTracker tracker(site.fleet.size());
-  if (!o.tray_model.empty()) {
-    std::ifstream f(o.tray_model, std::ios::binary);
-    const std::string bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-    auto net = std::make_shared<agv::overhead::TrayNet>();
-    std::string why;
-    if (!net->load(bytes.data(), bytes.size(), &why)) {
-      std::fprintf(stderr, "eval_overhead: %s: %s\n", o.tray_model.c_str(), why.c_str());
-      return 2;
-    }
-    proc.set_tray_net(std::move(net));
-  }
+  if (!o.tray_model.empty() && !load_tray_model(o.tray_model, &proc)) return 2;
 
   const agv::sim::SiteRenderParams rp =
       o.clean ? agv::sim::SiteRenderParams{} : agv::sim::realistic_site_params();
   agv::eval::RegionRenderer renderer(k, rp);
-  agv::sim::SiteScene empty = world.scene_at(0);
-  empty.site.fleet.clear();
-  empty.agvs.clear();
-  empty.parcels.clear();
-  for (std::size_t c = 0; c < site.cameras.size(); ++c) {
-    renderer.set_background(c, empty, agv::sim::RenderCamera::from_ceiling(site.cameras[c]),
-                            o.world.seed + c);
-  }
+  set_backgrounds(o, world, &renderer);
   const auto wall_bg = std::chrono::steady_clock::now();
 
   agv::eval::Score score;
@@ -277,14 +368,7 @@ int run(const Options& o) {
   auto do_tick = [&](std::int64_t t) {
     tracker.update_states(t);
     const std::vector<agv::sim::AgvState> truth = world.states_at(t);
-    std::vector<std::uint8_t> in_view(truth.size(), 0);
-    for (const auto& c : site.cameras) {
-      std::vector<std::uint8_t> ok;
-      const auto corners = world.tag_corners(agv::sim::RenderCamera::from_ceiling(c), truth, &ok);
-      const auto in = inside(corners, ok, k.width_px, k.height_px);
-      for (std::size_t i = 0; i < in.size(); ++i) in_view[i] = in_view[i] || in[i];
-    }
-    agv::eval::score_tick(tracker.outputs(t), truth, in_view, &score);
+    agv::eval::score_tick(tracker.outputs(t), truth, in_some_view(world, truth), &score);
   };
   double render_s = 0.0;
   std::size_t frame_index = 0;
@@ -309,35 +393,11 @@ int run(const Options& o) {
     std::vector<std::uint8_t> ok;
     const auto corners = world.tag_corners(rc, scene.agvs, &ok);
     const auto in_image = inside(corners, ok, k.width_px, k.height_px);
-    std::vector<std::uint8_t> flipped(corners.size(), 0);
-    if (o.bit_errors > 0 &&
-        fe.exposure_ns >= static_cast<std::int64_t>(o.bit_errors_from_s * 1e9)) {
-      for (std::size_t i = 0; i < corners.size(); ++i) {
-        if (in_image[i] && agv::eval::flip_tag_cells(&img, corners[i], o.bit_errors, &rng) > 0) {
-          flipped[i] = 1;
-        }
-      }
-    }
+    const std::vector<std::uint8_t> flipped = flip_bits(o, fe, corners, in_image, &img, &rng);
     render_s += std::chrono::duration<double>(std::chrono::steady_clock::now() - r0).count();
-    std::vector<std::uint8_t> tracked(corners.size(), 0);
-    for (std::size_t i = 0; i < tracked.size(); ++i) {
-      const agv::overhead::TrackState st = tracker.output(i, fe.exposure_ns).state;
-      tracked[i] = st != agv::overhead::TrackState::kNone && st != agv::overhead::TrackState::kLost;
-    }
+    const std::vector<std::uint8_t> tracked = tracked_at(tracker, corners.size(), fe.exposure_ns);
     dets.clear();
-    const std::uint64_t full_before = proc.counters().windows_full;
-    const double t0 = thread_cpu_ms();
-    if (!proc.process(fe.camera, fe.exposure_ns, img, &tracker, &dets, &error)) {
-      std::fprintf(stderr, "eval_overhead: %s\n", error.c_str());
-      return 2;
-    }
-    const double ms = thread_cpu_ms() - t0;
-    score.frame_ms.push_back(ms);
-    if (proc.counters().windows_full > full_before) {
-      score.frame_full_ms.push_back(ms);
-    } else {
-      score.frame_windows_ms.push_back(ms);
-    }
+    if (!process_timed(fe, img, &proc, &tracker, &dets, &score)) return 2;
     if (frame_index % 200 == 199) {
       std::fprintf(stderr, "eval_overhead: frame %zu, t %.2f s\n", frame_index + 1,
                    1e-9 * static_cast<double>(fe.exposure_ns));
@@ -354,13 +414,7 @@ int run(const Options& o) {
   }
   std::fputs(agv::eval::report(score, ids).c_str(), stdout);
   print_counters(proc.counters(), tracker.counters());
-  std::printf(
-      "tray boxes (%s): applied %llu, gated %llu, refused %llu, disagreeing with a tag %llu\n",
-      proc.tray_learned() ? "learned" : "classical",
-      static_cast<unsigned long long>(proc.counters().tray_fixes),
-      static_cast<unsigned long long>(proc.counters().tray_gated),
-      static_cast<unsigned long long>(proc.counters().tray_refused),
-      static_cast<unsigned long long>(proc.counters().tray_tag_disagree));
+  print_tray_boxes(proc);
   const double wall =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   std::printf("wall %.1f s (backgrounds %.1f s, frames rendered %.1f s, %.1f Mpx of regions)\n",
