@@ -164,13 +164,20 @@ double percentile(std::vector<double> v, double q) {
 
 }  // namespace eval_fusion
 
-int main(int argc, char** argv) {
+namespace {
+
+// What the command line asks for.
+struct Args {
   std::string recording;
   SynthParams sp;
   double grid_mm = 1000.0;
   bool partial_window = false;
   int kidnap_fixes = EkfConfig{}.kidnap_fixes;
   bool honesty = false;
+};
+
+// false (after the usage text) on an unknown option or a bad value.
+bool parse_args(int argc, char** argv, Args* out) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     auto next = [&]() -> const char* {
@@ -181,84 +188,80 @@ int main(int argc, char** argv) {
       return argv[++i];
     };
     if (a == "--recording") {
-      recording = next();
+      out->recording = next();
     } else if (a == "--duration") {
-      sp.duration_s = std::atof(next());
+      out->sp.duration_s = std::atof(next());
     } else if (a == "--seed") {
-      sp.seed = std::strtoull(next(), nullptr, 10);
+      out->sp.seed = std::strtoull(next(), nullptr, 10);
     } else if (a == "--drift") {
-      sp.drift_degps = std::atof(next());
+      out->sp.drift_degps = std::atof(next());
     } else if (a == "--scale-error") {
-      sp.scale_error = std::atof(next());
+      out->sp.scale_error = std::atof(next());
     } else if (a == "--grid") {
-      grid_mm = std::atof(next());
+      out->grid_mm = std::atof(next());
     } else if (a == "--kidnap-fixes") {
-      kidnap_fixes = std::atoi(next());
+      out->kidnap_fixes = std::atoi(next());
     } else if (a == "--window") {
       const std::string v = next();
       if (v == "partial") {
-        partial_window = true;
+        out->partial_window = true;
       } else if (v != "full") {
         usage();
-        return 2;
+        return false;
       }
     } else if (a == "--route") {
-      sp.route = next();
-      if (sp.route != "grid" && sp.route != "lawnmower") {
+      out->sp.route = next();
+      if (out->sp.route != "grid" && out->sp.route != "lawnmower") {
         usage();
-        return 2;
+        return false;
       }
     } else if (a == "--lawnmower-out") {
-      sp.lawnmower_out_m = std::atof(next());
+      out->sp.lawnmower_out_m = std::atof(next());
     } else if (a == "--honesty") {
-      honesty = true;
+      out->honesty = true;
     } else if (a == "--quick") {
-      sp.duration_s = 60.0;
+      out->sp.duration_s = 60.0;
     } else {
       usage();
-      return 2;
+      return false;
     }
   }
-  if (!(sp.duration_s > 5.0) || !(grid_mm > 100.0)) {
+  if (!(out->sp.duration_s > 5.0) || !(out->grid_mm > 100.0)) {
     usage();
-    return 2;
+    return false;
   }
+  return true;
+}
 
-  if (honesty) return run_honesty_table(sp, grid_mm, 3);
-  EkfConfig cfg;  // documented defaults
-  cfg.kidnap_fixes = kidnap_fixes;
-  if (!validate(cfg).empty()) {
-    std::fprintf(stderr, "eval_fusion: %s\n", validate(cfg).c_str());
-    return 2;
-  }
-  auto synth = [&](double drift, double offset_x, double drift_degpm = 0.0, double variation = 0.0,
-                   double slip_hz = 0.0) {
-    SynthParams p = sp;
-    p.drift_degps = drift;
-    p.camera_offset_x_mm = offset_x;
-    p.drift_degpm = drift_degpm;
-    p.drift_variation = variation;
-    p.slip_rate_hz = slip_hz;
-    return make_synthetic_world(p, grid_mm);
-  };
-  World base;
-  if (!recording.empty()) {
-#ifdef AGV_EVAL_HAVE_RECORDING
-    if (!load_recording_world(recording, &base)) return 1;
-#else
-    std::fprintf(stderr, "eval_fusion: built without the recording reader\n");
-    return 1;
-#endif
-  } else {
-    base = synth(sp.drift_degps, 0.0);
-  }
+// The synthetic world of sp with another heading drift, camera offset, drift per metre, drift
+// variation and slip rate.
+World synth(const SynthParams& sp, double grid_mm, double drift, double offset_x,
+            double drift_degpm = 0.0, double variation = 0.0, double slip_hz = 0.0) {
+  SynthParams p = sp;
+  p.drift_degps = drift;
+  p.camera_offset_x_mm = offset_x;
+  p.drift_degpm = drift_degpm;
+  p.drift_variation = variation;
+  p.slip_rate_hz = slip_hz;
+  return make_synthetic_world(p, grid_mm);
+}
+
+// fp changed by mod.
+template <class F>
+FixParams with(FixParams fp, F&& mod) {
+  mod(fp);
+  return fp;
+}
+
+void print_intro(const World& base, const Args& args, const EkfConfig& cfg) {
   std::printf("eval_fusion: source %s, %.1f s, %zu odometry samples, %zu frames, grid %.0f mm\n",
               base.source.c_str(),
               static_cast<double>(base.truth.t_ns.back() - base.truth.t_ns.front()) * 1e-9,
-              base.odom.size(), base.frames_ns.size(), grid_mm);
-  if (recording.empty())
+              base.odom.size(), base.frames_ns.size(), args.grid_mm);
+  if (args.recording.empty())
     std::printf("odometry: scale error %+.1f %%, heading drift %.2f deg/s, seed %llu\n",
-                100.0 * sp.scale_error, sp.drift_degps, static_cast<unsigned long long>(sp.seed));
+                100.0 * args.sp.scale_error, args.sp.drift_degps,
+                static_cast<unsigned long long>(args.sp.seed));
   std::printf("gate chi2(3) at %.4f: %.3f\n", cfg.gate_probability, Ekf(cfg).gate_threshold());
   std::printf(
       "columns: lm_* = position error (mm) at the fix exposure after fusing it, for fixes "
@@ -267,25 +270,35 @@ int main(int argc, char** argv) {
       "btw_p95 at ticks >= 200 ms after the last fused fix;\n  all_* over all"
       "\n  output ticks after 2 s; fixes = good fixes, rejG = good fixes rejected "
       "by the gate,\n  outl/outlAcc = corrupted fixes / accepted; reini = re-initialisations\n");
+}
 
+// The fixes' grid and the window in which a landmark is measured.
+FixParams fix_params(const Args& args) {
   FixParams fp;
-  fp.grid_mm = grid_mm;
-  if (sp.route == "lawnmower") fp.grid_max_x_mm = (sp.grid_cells - 1) * grid_mm;
-  if (partial_window) {
+  fp.grid_mm = args.grid_mm;
+  if (args.sp.route == "lawnmower") fp.grid_max_x_mm = (args.sp.grid_cells - 1) * args.grid_mm;
+  if (args.partial_window) {
     // The vision stage also measures a landmark cut by the image border as long as the QR code
     // and one complete side per axis are inside: centre within about +-40 / +-60 mm.
     fp.visible_half_x_mm = 40.0;
     fp.visible_half_y_mm = 60.0;
   }
+  return fp;
+}
+
+void print_fix_window(const FixParams& fp) {
   std::printf(
       "fix window: landmark centre within +-%.1f mm along, +-%.1f mm across the vehicle\n\n",
       fp.visible_half_x_mm, fp.visible_half_y_mm);
-  print_header();
-  auto with = [&](FixParams p, auto&& mod) {
-    mod(p);
-    return p;
-  };
+}
 
+// The runs the targets are judged on: no delay, 50 ms delay and outliers.
+struct CoreRuns {
+  RunResult r0, r50, ro, ro20;
+};
+
+CoreRuns run_core_rows(const World& base, const FixParams& fp, const EkfConfig& cfg,
+                       double grid_mm) {
   const RunResult r0 = run(base, simulate_fixes(base, fp), cfg, grid_mm);
   print_row("baseline (delay 0, diag R)", r0);
   const RunResult r50 =
@@ -322,39 +335,46 @@ int main(int argc, char** argv) {
                              cfg, grid_mm);
   print_row("20 % outliers", ro20);
 
-  World offset_world;
-  if (recording.empty()) {
-    offset_world = synth(sp.drift_degps, 150.0);
-    print_row("camera 150 mm ahead, vision R",
-              run(offset_world,
-                  simulate_fixes(offset_world,
-                                 with(fp, [](FixParams& p) { p.vision_covariance = true; })),
-                  cfg, grid_mm));
-    for (double drift : {0.0, 0.25, 1.0, 2.0, 4.0}) {
-      const World wd = synth(drift, 0.0);
-      char name[64];
-      std::snprintf(name, sizeof name, "heading drift %.2f deg/s", drift);
-      print_row(name, run(wd, simulate_fixes(wd, fp), cfg, grid_mm));
-    }
-    const World wm = synth(0.0, 0.0, 0.46);
-    print_row("drift 0.46 deg/m (wheel mismatch)", run(wm, simulate_fixes(wm, fp), cfg, grid_mm));
-    const World wvar = synth(1.0, 0.0, 0.0, 0.5);
-    print_row("drift 1 deg/s varying +-50 %", run(wvar, simulate_fixes(wvar, fp), cfg, grid_mm));
-    const World wslip = synth(sp.drift_degps, 0.0, 0.0, 0.0, 0.05);
-    print_row("slips 0.05/s (wheel +25 %, 0.3 s)",
-              run(wslip, simulate_fixes(wslip, fp), cfg, grid_mm));
-    EkfConfig cfg_k2 = cfg;
-    cfg_k2.kidnap_fixes = 2;
-    print_row("slips, kidnap_fixes 2", run(wslip, simulate_fixes(wslip, fp), cfg_k2, grid_mm));
-    print_row("kidnap_fixes 2, 20 % outliers", run(base,
-                                                   simulate_fixes(base, with(fp,
-                                                                             [](FixParams& p) {
-                                                                               p.outlier_fraction =
-                                                                                   0.2;
-                                                                               p.seed = 11;
-                                                                             })),
-                                                   cfg_k2, grid_mm));
+  return {r0, r50, ro, ro20};
+}
+
+// Rows only the synthetic source has: camera offset, heading drifts, slips, kidnap_fixes 2.
+void run_synthetic_rows(const SynthParams& sp, double grid_mm, const World& base,
+                        const FixParams& fp, const EkfConfig& cfg) {
+  const World offset_world = synth(sp, grid_mm, sp.drift_degps, 150.0);
+  print_row(
+      "camera 150 mm ahead, vision R",
+      run(offset_world,
+          simulate_fixes(offset_world, with(fp, [](FixParams& p) { p.vision_covariance = true; })),
+          cfg, grid_mm));
+  for (double drift : {0.0, 0.25, 1.0, 2.0, 4.0}) {
+    const World wd = synth(sp, grid_mm, drift, 0.0);
+    char name[64];
+    std::snprintf(name, sizeof name, "heading drift %.2f deg/s", drift);
+    print_row(name, run(wd, simulate_fixes(wd, fp), cfg, grid_mm));
   }
+  const World wm = synth(sp, grid_mm, 0.0, 0.0, 0.46);
+  print_row("drift 0.46 deg/m (wheel mismatch)", run(wm, simulate_fixes(wm, fp), cfg, grid_mm));
+  const World wvar = synth(sp, grid_mm, 1.0, 0.0, 0.0, 0.5);
+  print_row("drift 1 deg/s varying +-50 %", run(wvar, simulate_fixes(wvar, fp), cfg, grid_mm));
+  const World wslip = synth(sp, grid_mm, sp.drift_degps, 0.0, 0.0, 0.0, 0.05);
+  print_row("slips 0.05/s (wheel +25 %, 0.3 s)",
+            run(wslip, simulate_fixes(wslip, fp), cfg, grid_mm));
+  EkfConfig cfg_k2 = cfg;
+  cfg_k2.kidnap_fixes = 2;
+  print_row("slips, kidnap_fixes 2", run(wslip, simulate_fixes(wslip, fp), cfg_k2, grid_mm));
+  print_row("kidnap_fixes 2, 20 % outliers", run(base,
+                                                 simulate_fixes(base, with(fp,
+                                                                           [](FixParams& p) {
+                                                                             p.outlier_fraction =
+                                                                                 0.2;
+                                                                             p.seed = 11;
+                                                                           })),
+                                                 cfg_k2, grid_mm));
+}
+
+void run_five_state_rows(const World& base, const FixParams& fp, const EkfConfig& cfg,
+                         const SynthParams& sp, double grid_mm, bool synthetic) {
   // The plain 5-state filter of paper 000 (no odometry calibration states), same data.
   EkfConfig cfg5 = cfg;
   agv::fusion::use_uncalibrated_noise(&cfg5);
@@ -372,25 +392,27 @@ int main(int argc, char** argv) {
                                             p.vision_covariance = true;
                                           })),
                 cfg5, grid_mm));
-  if (recording.empty()) {
+  if (synthetic) {
     for (double drift : {0.0, 1.0, 2.0}) {
-      const World wd = synth(drift, 0.0);
+      const World wd = synth(sp, grid_mm, drift, 0.0);
       char name[64];
       std::snprintf(name, sizeof name, "5-state, heading drift %.2f deg/s", drift);
       print_row(name, run(wd, simulate_fixes(wd, fp), cfg5, grid_mm));
     }
   }
-  // Odometry only after the initial fix: the dead-reckoning error the fixes must remove.
-  print_row("odometry only (first fix only)", run(base, simulate_fixes(base, fp), cfg, grid_mm,
-                                                  /*use_fixes=*/false));
+}
 
+void print_outliers_by_kind(const RunResult& ro, const RunResult& ro20) {
   std::printf("\noutliers by kind (5 %% run / 20 %% run): corrupted -> accepted\n");
   for (int k = 1; k < 6; ++k)
     std::printf("  %-18s %4ld -> %ld   /  %4ld -> %ld\n", kOutlierNames[k], ro.outliers_by_kind[k],
                 ro.accepted_by_kind[k], ro20.outliers_by_kind[k], ro20.accepted_by_kind[k]);
   std::printf("  max position error right after an accepted outlier: %.2f mm / %.2f mm\n",
               ro.max_err_after_outlier_mm, ro20.max_err_after_outlier_mm);
+}
 
+void print_offset_limit(const World& base, const FixParams& fp, const EkfConfig& cfg,
+                        double grid_mm) {
   std::printf(
       "\nvision-offset detection limit (every fix corrupted by an offset of the given size, "
       "so each gated one is compared with dead reckoning since the last good landmark):\n");
@@ -411,7 +433,9 @@ int main(int argc, char** argv) {
                                   static_cast<double>(rs.outliers)
                             : 0.0);
   }
+}
 
+void print_targets(const RunResult& r0, const RunResult& r50, const RunResult& ro) {
   const double mid0 = percentile(r0.midway_mm, 0.95), mid50 = percentile(r50.midway_mm, 0.95);
   const double lm0 = percentile(r0.at_landmark_mm, 0.95),
                lm50 = percentile(r50.at_landmark_mm, 0.95);
@@ -428,5 +452,46 @@ int main(int argc, char** argv) {
       mid50, mid0, mid50 / mid0, lm50, lm0, lm50 / lm0,
       (std::abs(mid50 / mid0 - 1.0) <= 0.05 && std::abs(lm50 / lm0 - 1.0) <= 0.05) ? "met"
                                                                                    : "NOT met");
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Args args;
+  if (!parse_args(argc, argv, &args)) return 2;
+  const SynthParams& sp = args.sp;
+  const double grid_mm = args.grid_mm;
+  if (args.honesty) return run_honesty_table(sp, grid_mm, 3);
+  EkfConfig cfg;  // documented defaults
+  cfg.kidnap_fixes = args.kidnap_fixes;
+  if (!validate(cfg).empty()) {
+    std::fprintf(stderr, "eval_fusion: %s\n", validate(cfg).c_str());
+    return 2;
+  }
+  World base;
+  if (!args.recording.empty()) {
+#ifdef AGV_EVAL_HAVE_RECORDING
+    if (!load_recording_world(args.recording, &base)) return 1;
+#else
+    std::fprintf(stderr, "eval_fusion: built without the recording reader\n");
+    return 1;
+#endif
+  } else {
+    base = synth(sp, grid_mm, sp.drift_degps, 0.0);
+  }
+  print_intro(base, args, cfg);
+  const FixParams fp = fix_params(args);
+  print_fix_window(fp);
+  print_header();
+  const CoreRuns c = run_core_rows(base, fp, cfg, grid_mm);
+  if (args.recording.empty()) run_synthetic_rows(sp, grid_mm, base, fp, cfg);
+  run_five_state_rows(base, fp, cfg, sp, grid_mm, args.recording.empty());
+  // Odometry only after the initial fix: the dead-reckoning error the fixes must remove.
+  print_row("odometry only (first fix only)", run(base, simulate_fixes(base, fp), cfg, grid_mm,
+                                                  /*use_fixes=*/false));
+
+  print_outliers_by_kind(c.ro, c.ro20);
+  print_offset_limit(base, fp, cfg, grid_mm);
+  print_targets(c.r0, c.r50, c.ro);
   return 0;
 }
