@@ -61,51 +61,64 @@ std::string json_line(const agv::hal::CanFrame& f, const std::vector<Expect>& ex
   return s + "}}";
 }
 
-int interop(const char* log_path, const char* expected_path) {
-  const p::ProtocolConfig cfg;
-  p::Encoder enc(cfg);
-  std::vector<Item> items;
-  std::mt19937 rng(20261121);
-  std::uniform_real_distribution<double> pos(-900000.0, 900000.0), ang(-3.14159, 3.14159),
-      vel(-40.0, 40.0), omg(-4.0, 4.0), sig_mm(0.0, 7000.0), sig_rad(0.0, 7.0), lat(0.0, 7000.0);
+// The generator and ranges the random test values are drawn from.
+struct Draws {
+  std::mt19937 rng{20261121};
+  std::uniform_real_distribution<double> pos{-900000.0, 900000.0}, ang{-3.14159, 3.14159},
+      vel{-40.0, 40.0}, omg{-4.0, 4.0}, sig_mm{0.0, 7000.0}, sig_rad{0.0, 7.0}, lat{0.0, 7000.0};
+};
 
+// Pose frames (AGV_PoseXY and AGV_PoseHeading): range limits, then random poses.
+void add_pose_items(p::Encoder* enc, Draws* d, std::vector<Item>* items) {
   std::vector<p::PoseOut> poses = {{0, 0, 0, 0, true},
                                    {838860.7, -838860.8, 3.1415, 6553.5, true},
                                    {-838860.8, 838860.7, -3.1415, 0.1, true},
                                    {1e9, -1e9, 1.0, 1e9, true},
                                    {12345.6, -0.1, 0.0001, 2.5, false}};
-  for (int i = 0; i < 40; ++i) poses.push_back({pos(rng), pos(rng), ang(rng), lat(rng), true});
+  for (int i = 0; i < 40; ++i)
+    poses.push_back({d->pos(d->rng), d->pos(d->rng), d->ang(d->rng), d->lat(d->rng), true});
   for (const p::PoseOut& po : poses) {
     Item xy, hd;
-    const std::uint8_t counter = enc.next_counter(p::Msg::kPoseXY);
-    enc.encode_pose(po, &xy.frame, &hd.frame);
+    const std::uint8_t counter = enc->next_counter(p::Msg::kPoseXY);
+    enc->encode_pose(po, &xy.frame, &hd.frame);
     xy.expect = {exact("AliveCounter", counter), exact("PoseValid", po.valid ? 1 : 0),
                  expect_phys(p::Msg::kPoseXY, "X", po.x_mm),
                  expect_phys(p::Msg::kPoseXY, "Y", po.y_mm)};
     hd.expect = {exact("AliveCounter", counter), exact("PoseValid", po.valid ? 1 : 0),
                  expect_phys(p::Msg::kPoseHeading, "Theta", po.theta_rad),
                  expect_phys(p::Msg::kPoseHeading, "Latency", po.latency_ms)};
-    items.push_back(xy);
-    items.push_back(hd);
+    items->push_back(xy);
+    items->push_back(hd);
   }
+}
+
+void add_velocity_items(p::Encoder* enc, Draws* d, std::vector<Item>* items) {
   for (int i = 0; i < 30; ++i) {
     Item it;
-    const p::VelocityOut v{vel(rng), omg(rng), i % 7 != 0};
-    enc.encode_velocity(v, &it.frame);
+    const p::VelocityOut v{d->vel(d->rng), d->omg(d->rng), i % 7 != 0};
+    enc->encode_velocity(v, &it.frame);
     it.expect = {exact("VelocityValid", v.valid ? 1 : 0),
                  expect_phys(p::Msg::kVelocity, "V", v.v_mps),
                  expect_phys(p::Msg::kVelocity, "Omega", v.omega_radps)};
-    items.push_back(it);
+    items->push_back(it);
   }
+}
+
+void add_quality_items(p::Encoder* enc, Draws* d, std::vector<Item>* items) {
   for (int i = 0; i < 30; ++i) {
     Item it;
-    const p::QualityOut q{sig_mm(rng), sig_mm(rng), sig_rad(rng), true};
-    enc.encode_quality(q, &it.frame);
+    const p::QualityOut q{d->sig_mm(d->rng), d->sig_mm(d->rng), d->sig_rad(d->rng), true};
+    enc->encode_quality(q, &it.frame);
     it.expect = {exact("QualityValid", 1), expect_phys(p::Msg::kQuality, "SigmaX", q.sigma_x_mm),
                  expect_phys(p::Msg::kQuality, "SigmaY", q.sigma_y_mm),
                  expect_phys(p::Msg::kQuality, "SigmaTheta", q.sigma_theta_rad)};
-    items.push_back(it);
+    items->push_back(it);
   }
+}
+
+// Status frames: every health, landmark ids with and without a fix, random fault and rejection
+// bits.
+void add_status_items(p::Encoder* enc, Draws* d, std::vector<Item>* items) {
   const char* fault_names[] = {"FaultCameraStalled", "FaultCameraError",     "FaultOdomTimeout",
                                "FaultOdomE2E",       "FaultCanErrorPassive", "FaultCanBusOff",
                                "FaultNoMap",         "FaultLoopOverrun",     "FaultImuTimeout",
@@ -119,9 +132,9 @@ int interop(const char* log_path, const char* expected_path) {
     s.last_landmark_id = static_cast<std::uint16_t>(i * 3271);
     s.last_landmark_valid = i % 3 != 0;  // also id 0 (i == 0) both ways: none yet and tag 0
     s.time_since_fix_ms = i == 0 ? -1.0 : i * 997.0;
-    s.faults = static_cast<std::uint16_t>(rng() & 0x3FF);
-    s.rejections = static_cast<std::uint8_t>(rng() & 0x1F);
-    enc.encode_status(s, &it.frame);
+    s.faults = static_cast<std::uint16_t>(d->rng() & 0x3FF);
+    s.rejections = static_cast<std::uint8_t>(d->rng() & 0x1F);
+    enc->encode_status(s, &it.frame);
     it.expect = {exact("Health", i % 4), exact("LastLandmarkId", s.last_landmark_id),
                  exact("LastLandmarkValid", s.last_landmark_valid ? 1 : 0),
                  exact("TimeSinceFix", i == 0 ? 65535.0 : i * 997.0)};
@@ -129,48 +142,59 @@ int interop(const char* log_path, const char* expected_path) {
     for (int b = 0; b < 5; ++b) {
       it.expect.push_back(exact(reject_names[b], (s.rejections >> b) & 1));
     }
-    items.push_back(it);
+    items->push_back(it);
   }
-  {
-    Item it;
-    enc.encode_heartbeat({1, 22, 255, 3600.5}, &it.frame);
-    it.expect = {exact("ProtocolVersion", p::kProtocolVersion), exact("SwMajor", 1),
-                 exact("SwMinor", 22), exact("SwPatch", 255), exact("Uptime", 3600)};
-    items.push_back(it);
-  }
-  // Odometry input frames as a motor controller would send them.
+}
+
+void add_heartbeat_item(p::Encoder* enc, std::vector<Item>* items) {
+  Item it;
+  enc->encode_heartbeat({1, 22, 255, 3600.5}, &it.frame);
+  it.expect = {exact("ProtocolVersion", p::kProtocolVersion), exact("SwMajor", 1),
+               exact("SwMinor", 22), exact("SwPatch", 255), exact("Uptime", 3600)};
+  items->push_back(it);
+}
+
+// Odometry input frames as a motor controller would send them.
+void add_odometry_items(const p::ProtocolConfig& cfg, Draws* d, std::vector<Item>* items) {
   for (p::Msg m : {p::Msg::kOdomWheels, p::Msg::kOdomTwist}) {
-    const p::MessageDef& d = p::message_def(m);
+    const p::MessageDef& def = p::message_def(m);
     for (int i = 0; i < 15; ++i) {
       Item it;
       it.frame.id = p::can_id_of(cfg, m);
       it.frame.len = 8;
-      const double a = vel(rng), b = m == p::Msg::kOdomWheels ? vel(rng) : omg(rng);
-      p::put_phys(d.signals[2], a, it.frame.data);
-      p::put_phys(d.signals[3], b, it.frame.data);
-      p::e2e_protect(d.data_id, static_cast<std::uint8_t>(i % 15), it.frame.data);
-      it.expect = {exact("AliveCounter", i % 15), expect_phys(m, d.signals[2].name, a),
-                   expect_phys(m, d.signals[3].name, b)};
-      items.push_back(it);
+      const double a = d->vel(d->rng),
+                   b = m == p::Msg::kOdomWheels ? d->vel(d->rng) : d->omg(d->rng);
+      p::put_phys(def.signals[2], a, it.frame.data);
+      p::put_phys(def.signals[3], b, it.frame.data);
+      p::e2e_protect(def.data_id, static_cast<std::uint8_t>(i % 15), it.frame.data);
+      it.expect = {exact("AliveCounter", i % 15), expect_phys(m, def.signals[2].name, a),
+                   expect_phys(m, def.signals[3].name, b)};
+      items->push_back(it);
     }
   }
-  // Gyro input frames (AGV_Gyro) as an IMU would send them; yaw rates beyond the range saturate.
+}
+
+// Gyro input frames (AGV_Gyro) as an IMU would send them; yaw rates beyond the range saturate.
+void add_gyro_items(const p::ProtocolConfig& cfg, Draws* d, std::vector<Item>* items) {
   std::uniform_real_distribution<double> yaw(-100.0, 100.0), tilt(-5.0, 5.0);
   for (int i = 0; i < 20; ++i) {
     Item it;
     p::GyroSample g;
-    g.gyro_z_radps = i == 0 ? 0.001 * 3.14159265358979 / 180.0 : yaw(rng);
-    g.gyro_x_radps = tilt(rng);
-    g.gyro_y_radps = tilt(rng);
-    g.saturated = (rng() & 3) == 0;
+    g.gyro_z_radps = i == 0 ? 0.001 * 3.14159265358979 / 180.0 : yaw(d->rng);
+    g.gyro_x_radps = tilt(d->rng);
+    g.gyro_y_radps = tilt(d->rng);
+    g.saturated = (d->rng() & 3) == 0;
     p::encode_gyro(cfg, g, static_cast<std::uint8_t>(i % 15), &it.frame);
     it.expect = {exact("AliveCounter", i % 15), exact("Saturated", g.saturated ? 1 : 0),
                  expect_phys(p::Msg::kGyro, "GyroZ", g.gyro_z_radps),
                  expect_phys(p::Msg::kGyro, "GyroX", g.gyro_x_radps),
                  expect_phys(p::Msg::kGyro, "GyroY", g.gyro_y_radps)};
-    items.push_back(it);
+    items->push_back(it);
   }
+}
 
+// The frames to LOG (candump -l) and what each must decode to to EXPECTED (JSON lines).
+int write_interop(const char* log_path, const char* expected_path, const std::vector<Item>& items) {
   std::FILE* log = std::fopen(log_path, "w");
   std::FILE* exp = std::fopen(expected_path, "w");
   if (!log || !exp) {
@@ -190,6 +214,21 @@ int interop(const char* log_path, const char* expected_path) {
   const bool ok = std::fclose(log) == 0 && std::fclose(exp) == 0;
   std::fprintf(stderr, "agv_can_tool: wrote %zu frames\n", items.size());
   return ok ? 0 : 1;
+}
+
+int interop(const char* log_path, const char* expected_path) {
+  const p::ProtocolConfig cfg;
+  p::Encoder enc(cfg);
+  std::vector<Item> items;
+  Draws d;
+  add_pose_items(&enc, &d, &items);
+  add_velocity_items(&enc, &d, &items);
+  add_quality_items(&enc, &d, &items);
+  add_status_items(&enc, &d, &items);
+  add_heartbeat_item(&enc, &items);
+  add_odometry_items(cfg, &d, &items);
+  add_gyro_items(cfg, &d, &items);
+  return write_interop(log_path, expected_path, items);
 }
 
 bool read_log(const char* path, std::vector<p::CandumpRecord>* out) {
