@@ -188,11 +188,10 @@ struct DiagServer::Impl {
         conns(DiagConnLimits{static_cast<std::size_t>(c.diag.max_clients),
                              static_cast<std::size_t>(c.diag.max_clients) + kIdleHeadroom,
                              kHeaderDeadline, kLifetime}) {
-    LandmarkGeometry g;
-    g.size_mm = c.landmark_size_mm;
     vision::VisionConfig v = c.vision;
     v.now_ns = nullptr;  // the page shows the overlay, not stage timings
-    localizer = std::make_unique<vision::LandmarkLocalizer>(v, c.camera_model, g, map);
+    localizer = std::make_unique<vision::LandmarkLocalizer>(v, c.camera_model,
+                                                            config::landmark_geometry(c), map);
   }
 
   // The newest snapshot (copied from the loop's slot only when it changed).
