@@ -60,14 +60,14 @@ struct CanSection {
   std::uint32_t base_id = 0x300;
   bool extended_ids = false;
   protocol::OdometryMode odometry_mode = protocol::OdometryMode::kTwist;
-  std::uint32_t odometry_id = 0;  // 0 = the DBC's ID: base_id + 0x10 (wheels) / 0x11
+  std::uint32_t odometry_id = 0;
   bool odometry_protected = true;
   // The track width (key can.odometry.track_width_mm) lives in fusion.wheel_track_mm only.
   double wheel_speed_scale = 1.0;
   // The odometry timeout (key can.odometry.timeout_ms) lives in fusion.odom_timeout_ns only.
   // The gyro input AGV_Gyro (protocol::GyroConfig; ID type = can.extended_ids).
   bool gyro_enabled = false;
-  std::uint32_t gyro_id = 0;  // 0 = the DBC's ID: base_id + 0x12
+  std::uint32_t gyro_id = 0;
   bool gyro_protected = true;
   double gyro_timeout_ms = 100.0;  // -> LocalizerConfig::gyro_timeout_ns
 };
@@ -86,9 +86,9 @@ struct ImuSection {
   double bias_radps = 0.0;
   double time_offset_ms = 0.0;  // -> localizer::TimeBase::gyro_offset_ns
   ImuSource source = ImuSource::kCan;
-  std::string iio_device;      // IIO device name (e.g. "bmi160")
-  std::string iio_trigger;     // IIO trigger name; empty = the device's own
-  double iio_rate_hz = 200.0;  // 0 = leave the device's rate
+  std::string iio_device;
+  std::string iio_trigger;
+  double iio_rate_hz = 200.0;
 };
 
 struct LoopSection {
@@ -97,9 +97,9 @@ struct LoopSection {
   int realtime_priority = 0;
   int vision_priority = 0;
   int spin_before_deadline_us = 0;
-  std::string realtime_cpus;  // CPU list (config/cpu_list.hpp); empty = not pinned
-  std::string vision_cpus;    // CPU list; empty = not pinned
-  std::string service_cpus;   // CPU list; empty = not pinned
+  std::string realtime_cpus;  // CPU lists (config/cpu_list.hpp)
+  std::string vision_cpus;
+  std::string service_cpus;
   bool lock_memory = false;
   double log_period_s = 10.0;
   bool pose_on_fix = true;
@@ -111,14 +111,14 @@ struct Vda5050Section {
   std::string broker_host = "localhost";
   int broker_port = 1883;
   std::string interface_name = "uagv";
-  std::string version = "2.1.0";  // 2.1.0 | 3.0.0
+  std::string version = "2.1.0";
   std::string manufacturer = "agvloc";
   std::string serial_number = "agv-0001";
   std::string map_id = "default";
-  double rate_hz = 10.0;      // visualization messages
-  std::string username;       // empty = anonymous
-  std::string password_file;  // resolved relative to the config file; empty = no password
-  std::string tls_ca_file;    // resolved relative to the config file; empty = plain TCP
+  double rate_hz = 10.0;
+  std::string username;
+  std::string password_file;  // resolved relative to the config file by parse_config
+  std::string tls_ca_file;    // resolved relative to the config file by parse_config
 };
 
 // Live diagnostics page and /metrics (docs/guide/diagnostics.md); the firmware's diagnostics server
@@ -126,7 +126,7 @@ struct Vda5050Section {
 struct DiagSection {
   bool enabled = false;
   std::string bind_address = "127.0.0.1";
-  int port = 8088;  // 0 = any free port (printed at start)
+  int port = 8088;
   bool allow_remote = false;
   int max_clients = 16;
   int threads = 2;
