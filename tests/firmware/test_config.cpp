@@ -44,7 +44,7 @@ TEST(Config, ShippedExampleLoads) {
   ASSERT_TRUE(agv::config::load_config(std::string(AGV_SOURCE_DIR) + "/firmware/config/agvloc.yaml",
                                        &cfg, &errors))
       << (errors.empty() ? "" : errors.front());
-  EXPECT_EQ(cfg.camera.driver, "libcamera");
+  EXPECT_EQ(cfg.camera.driver, agv::config::CameraDriver::kLibcamera);
   EXPECT_EQ(cfg.can.base_id, 0x300u);
   EXPECT_NEAR(cfg.camera_model.mm_per_px(), 0.26, 1e-6);
   EXPECT_NE(cfg.map_file.find("tools/maps/default_grid.csv"), std::string::npos);

@@ -171,12 +171,12 @@ void check_relations(YamlChecker& c, const Config& cfg) {
   detail::check_vda5050_values(cfg, key_error);
   detail::check_diag_values(cfg, key_error);
   // One gyro source: a CAN gyro enabled beside another source would be fused twice or not at all.
-  if (cfg.can.gyro_enabled && cfg.imu.source != "can") {
-    c.error("imu.source", "'" + cfg.imu.source +
+  if (cfg.can.gyro_enabled && cfg.imu.source != ImuSource::kCan) {
+    c.error("imu.source", std::string("'") + imu_source_name(cfg.imu.source) +
                               "' with can.gyro.enabled: true; choose one gyro source (imu.source: "
                               "can for AGV_Gyro)");
   }
-  if (cfg.imu.source == "iio" && cfg.imu.iio_device.empty()) {
+  if (cfg.imu.source == ImuSource::kIio && cfg.imu.iio_device.empty()) {
     c.error("imu.iio_device", "missing: imu.source iio needs the IIO device's name");
   }
   // The configuration's own names for what fusion::validate would name by its struct fields.
@@ -256,8 +256,7 @@ protocol::ProtocolConfig protocol_config(const Config& cfg) {
   protocol::ProtocolConfig p;
   p.base_id = cfg.can.base_id;
   p.extended_ids = cfg.can.extended_ids;
-  p.odometry.mode = cfg.can.odometry_mode == "wheels" ? protocol::OdometryMode::kWheels
-                                                      : protocol::OdometryMode::kTwist;
+  p.odometry.mode = cfg.can.odometry_mode;
   p.odometry.can_id = cfg.can.odometry_id;
   p.odometry.extended_id = cfg.can.extended_ids;
   p.odometry.protected_e2e = cfg.can.odometry_protected;
@@ -265,6 +264,9 @@ protocol::ProtocolConfig protocol_config(const Config& cfg) {
   p.odometry.speed_scale = cfg.can.wheel_speed_scale;
   p.output_period_ms = 1000.0 / cfg.loop.output_rate_hz;
   p.heartbeat_period_ms = 1000.0 / cfg.loop.heartbeat_rate_hz;
+  p.gyro.enabled = cfg.can.gyro_enabled;
+  p.gyro.can_id = cfg.can.gyro_id;
+  p.gyro.protected_e2e = cfg.can.gyro_protected;
   return p;
 }
 
