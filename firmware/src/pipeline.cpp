@@ -134,7 +134,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
     apply_fifo_priority(cfg.loop.vision_priority, "vision, loop.vision_priority");
     vision::LandmarkLocalizer loc(vision_config_with_clock(cfg, &clock), cfg.camera_model,
                                   geometry_of(cfg), map);
-    FixRecord rec;
+    FrameRecord rec;
     while (true) {
       hal::FrameView f;
       if (!mailbox.take(100 * hal::kNsPerMs, &f)) {
@@ -158,8 +158,8 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
       } else if (io.fixes) {
         ++fixes_not_recorded;
       }
-      if (rec.fix.status != vision::FixStatus::kNoLandmark && fix_queue.push(rec) && pose_on_fix &&
-          rec.fix.status == vision::FixStatus::kOk) {
+      if (rec.fix.status != vision::FixStatus::kNoLandmark && fix_queue.push(rec.for_fusion()) &&
+          pose_on_fix && rec.fix.status == vision::FixStatus::kOk) {
         wakeup.wake();
       }
       vision_busy = 0;
@@ -249,7 +249,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
 
 int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording::Recording& rec,
              hal::CanBus* bus, adapters::SteppedClock* clock, std::vector<TickRecord>* ticks,
-             std::vector<FixRecord>* fixes, std::atomic<bool>* stop, RunResult* result,
+             std::vector<FrameRecord>* fixes, std::atomic<bool>* stop, RunResult* result,
              bool show_progress, MqttHandoff* mqtt, DiagHandoff* diag, FrameTap* diag_frames) {
   localizer::Localizer core(localizer_config(cfg));
   // Fixes wait here for their simulated arrival.
@@ -303,7 +303,7 @@ int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording:
       cam.error = false;
       ++result->camera.frames_delivered;
       cam.last_frame_ns = rec.frames[i].t_ns;
-      FixRecord fr;
+      FrameRecord fr;
       const std::int64_t w0 = posix::monotonic_now_ns();
       // The core has the inputs up to the previous output step: its prediction to this exposure.
       loc.process(img, core.prediction_at(rec.frames[i].t_ns), &fr.fix);
@@ -313,7 +313,7 @@ int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording:
       fr.t_done_ns = fr.t_exposure_ns + delay_ns;
       localizer::record_vision(fr.fix, 0, w1 - w0, &vstats);  // exposure->start is not simulated
       if (fixes) fixes->push_back(fr);
-      if (fr.fix.status != vision::FixStatus::kNoLandmark && pending.push(fr) &&
+      if (fr.fix.status != vision::FixStatus::kNoLandmark && pending.push(fr.for_fusion()) &&
           fr.fix.status == vision::FixStatus::kOk) {
         if (wake_head == wakes.size()) {
           wakes.clear();

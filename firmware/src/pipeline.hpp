@@ -36,7 +36,7 @@ struct PipelineIo {
   const std::vector<recording::ImuRow>* imu = nullptr;
   // Optional outputs, reserved by the caller (the loop never grows them past their capacity).
   std::vector<TickRecord>* ticks = nullptr;
-  std::vector<FixRecord>* fixes = nullptr;
+  std::vector<FrameRecord>* fixes = nullptr;
   // Odometry decoded from CAN, as fusion got it (OutputLoop::keep_received_odometry).
   std::vector<recording::OdomRow>* odometry_received = nullptr;
   std::atomic<bool>* stop = nullptr;  // set by signal handlers
@@ -66,7 +66,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
 // Deterministic for a recording.
 int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording::Recording& rec,
              hal::CanBus* bus, adapters::SteppedClock* clock, std::vector<TickRecord>* ticks,
-             std::vector<FixRecord>* fixes, std::atomic<bool>* stop, RunResult* result,
+             std::vector<FrameRecord>* fixes, std::atomic<bool>* stop, RunResult* result,
              bool show_progress, MqttHandoff* mqtt = nullptr, DiagHandoff* diag = nullptr,
              FrameTap* diag_frames = nullptr);
 

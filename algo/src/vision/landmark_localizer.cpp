@@ -61,9 +61,9 @@ const char* to_string(SearchMode m) {
   return "unknown";
 }
 
-LandmarkLocalizer::Impl::Impl(const VisionConfig& c, const CameraModel& m,
-                              const LandmarkGeometry& g, const LandmarkMap* mp)
-    : cfg(c), cam(m), cam_linear(m), geom(g), map(mp), planner(c, m, g, mp) {
+VisionSetup::VisionSetup(const VisionConfig& c, const CameraModel& m, const LandmarkGeometry& g,
+                         const LandmarkMap* mp)
+    : cfg(c), cam(m), cam_linear(m), geom(g), map(mp) {
   // 0.26 mm/px is the default camera's scale: a fallback for a degenerate model, which then
   // fails every frame's size check rather than dividing by zero here.
   mm_per_px = cam.mm_per_px();
@@ -79,16 +79,20 @@ LandmarkLocalizer::Impl::Impl(const VisionConfig& c, const CameraModel& m,
   coarse_w = border_px / coarse_factor;
   coarse_h = geom.outer_half_mm() / mm_per_px / coarse_factor;
   coarse_anchor = coarse_w / 2.0;
+}
+
+LandmarkLocalizer::Impl::Impl(const VisionConfig& c, const CameraModel& m,
+                              const LandmarkGeometry& g, const LandmarkMap* mp)
+    : VisionSetup(c, m, g, mp), planner(c, m, g, mp) {
   build_templates();
-  build_logo();
   // A small map's codes are encoded now, at start-up, rather than on the first landmark frame,
   // which would be late by the encoding (1000 landmarks, 2000 codes, take 0.23 s on x86-64); a
-  // large map's book follows the prediction (map_identity_stage.cpp, docs/design/large_maps.md).
+  // large map's book follows the prediction (code_cache.cpp, docs/design/large_maps.md).
   // A tag floor has no QR codes to encode; its start-up work is libapriltag's tables.
   if (cfg.family == LandmarkFamily::kTag36h11) {
     tag = make_tag_detector();
   } else {
-    update_code_book(Prediction{});
+    codes.update_code_book(Prediction{});
   }
 }
 
@@ -113,8 +117,9 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
   // pose stage's edge bands itself and the fit then lands where it said; otherwise from the
   // prediction when it is trusted (tracked, then the windows), the whole frame when there is none
   // or they find nothing (docs/design/tracking.md).
-  prune_map_codes();
-  update_code_book(pred);
+  // The book and the expected codes point into the cache: both go when it is emptied.
+  if (codes.prune()) code_reader.read().expected.clear();
+  codes.update_code_book(pred);
   planner.plan(pred, &windows);
   Detection det;
   Vec2 c_mm;
@@ -174,13 +179,13 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
   // check. Tracking reads the code first and scores the logo at its turn only (logo_and_code).
   LogoScores logo;
   double logo_ms = 0.0;
-  QrRead* const rd = &qr_read;
+  QrRead* const rd = &code_reader.read();
   const int qr_q = logo_and_code(img, pred, c_px, up, c_mm, beta, &logo, &logo_ms, rd, out);
   out->logo_score = logo.best;
   out->logo_margin = logo.margin;
   Pose2 world_landmark;
   st = out->qr_method == 0 ? FixStatus::kQrUnreadable
-                           : check_payload(rd->text, out, &world_landmark);
+                           : code_reader.check_payload(rd->text, out, &world_landmark);
   const double t4 = now_ms();
   if (cfg.now_ns) out->timings.decode_ms = t4 - t2 - logo_ms;
   // 5c. Map-guided identity of an unread code (docs/design/map_identity.md): whole border only, and
@@ -188,7 +193,7 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
   if (st == FixStatus::kQrUnreadable && !out->partly_outside && out->sides_used == 4) {
     int turn = 0;
     std::uint32_t id = 0;
-    if (map_identity(img, pred, c_mm, beta, cov, logo, &world_landmark, &turn, &id)) {
+    if (identity.map_identity(img, pred, c_mm, beta, cov, logo, &world_landmark, &turn, &id)) {
       quadrant = turn;
       out->landmark_id = id;
       fill_result(world_landmark, c_mm, beta, turn, cov, out);
@@ -201,7 +206,7 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
   if (st != FixStatus::kOk) return finish(st);
 
   // 5b. Direction: the logo against the QR code's orientation.
-  const int q_final = decide_direction(logo, qr_q);
+  const int q_final = direction.decide_direction(logo, qr_q);
   if (cfg.now_ns) out->timings.direction_ms = logo_ms + (now_ms() - t4);
   if (q_final < 0) return finish(FixStatus::kDirectionAmbiguous);
   quadrant = q_final;
@@ -210,6 +215,46 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
   fill_result(world_landmark, c_mm, beta, q_final, cov, out);
   out->identity = FixIdentity::kQrCode;
   return finish(FixStatus::kOk);
+}
+
+// Stages 4 and 5a: the logo and the code, returning the code's turn (-1 unknown). With a trusted
+// prediction the code is read first at the predicted turn (TrackingConfig::logo_at_code_turn);
+// a verified read there fixes the direction by the code's own orientation (its finder patterns
+// verify at one turn only), and the logo need only confirm it: at least logo_threshold at that
+// turn. The margin over the other turns matters when the logo alone chooses the turn to read,
+// which it does not here. Otherwise the logo at four turns and the full read, whose decision
+// (decide_direction) refuses a clear logo at another turn than the code's; so does this path,
+// because that logo scores below the threshold at the code's turn and the frame falls back.
+// logo_ms: the logo's share of the time (timings.direction_ms).
+int LandmarkLocalizer::Impl::logo_and_code(const cv::Mat& img, const Prediction& pred, Vec2 c_px,
+                                           double up, Vec2 c_mm, double beta, LogoScores* logo,
+                                           double* logo_ms, QrRead* rd, LandmarkFix* out) {
+  *logo_ms = 0.0;
+  if (cfg.tracking.logo_at_code_turn && pred.valid && !windows.empty()) {
+    const int q = code_reader.read_at_predicted_turn(img, pred, windows, c_mm, beta, rd, out);
+    if (q >= 0) {
+      const double t = now_ms();
+      const double s = direction.logo_ncc(img, c_mm, beta, q);
+      *logo_ms = now_ms() - t;
+      if (s >= cfg.logo_threshold) {
+        *logo = LogoScores{};
+        logo->ncc.fill(-1.0);
+        logo->ncc[static_cast<size_t>(q)] = s;
+        logo->best_q = q;
+        logo->best = s;
+        logo->clear = true;
+        out->logo_one_turn = true;
+        return q;
+      }
+      out->qr_method = 0;
+      out->qr_verified = false;
+      out->qr_centre_only = false;
+    }
+  }
+  const double t = now_ms();
+  *logo = direction.logo_scores(img, c_mm, beta);
+  *logo_ms += now_ms() - t;
+  return code_reader.decode_qr(img, pred, windows, c_px, up, c_mm, beta, *logo, rd, out);
 }
 
 // Stage 3 from an accepted detection: its diagnostics, the image-border check and the pose. t0 is
