@@ -12,7 +12,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "localizer_impl.hpp"
+#include "predicted_detector.hpp"
 
 namespace agv::vision {
 
@@ -99,9 +99,9 @@ bool intersect(const Line2& a, const Line2& b, Vec2* p) {
 // pattern (the inner edge and the dark run between); otherwise the step and the dark over the
 // light run's length just inside it. Returns false when the probe ends outside the image or
 // finds no edge there.
-bool LandmarkLocalizer::Impl::probe_edge(const cv::Mat& img, Vec2 start, Vec2 step, int n,
-                                         double border_px, int s_lo, int s_hi, bool whole,
-                                         ProbeEdge* edge) {
+bool PredictedDetector::probe_edge(const cv::Mat& img, Vec2 start, Vec2 step, int n,
+                                   double border_px, int s_lo, int s_hi, bool whole,
+                                   ProbeEdge* edge) {
   const int dark_lo = static_cast<int>(std::lround(kDarkFromRel * border_px));
   const int dark_hi = static_cast<int>(std::lround(kDarkToRel * border_px));
   const double inner_lo = kInnerEdgeMinRel * border_px, inner_hi = kInnerEdgeMaxRel * border_px;
@@ -182,19 +182,19 @@ bool LandmarkLocalizer::Impl::probe_edge(const cv::Mat& img, Vec2 start, Vec2 st
   return false;
 }
 
-bool LandmarkLocalizer::Impl::probe_prediction(const cv::Mat& img, const SearchWindow& w,
-                                               ProbedSquare* out) {
+bool PredictedDetector::probe_prediction(const cv::Mat& img, const SearchWindow& w,
+                                         ProbedSquare* out) {
   if (!std::isfinite(w.centre_px.x) || !std::isfinite(w.centre_px.y) ||
       !std::isfinite(w.up_angle_rad) || !std::isfinite(w.corner_sigma_px) ||
       !std::isfinite(w.up_angle_sigma_rad)) {
     return false;
   }
-  const double border_px = geom.border_width_mm() / mm_per_px;
-  const double half_px = geom.outer_half_mm() / mm_per_px;
-  const double reach = cfg.tracking.window_sigmas * w.corner_sigma_px;
+  const double border_px = setup.geom.border_width_mm() / setup.mm_per_px;
+  const double half_px = setup.geom.outer_half_mm() / setup.mm_per_px;
+  const double reach = setup.cfg.tracking.window_sigmas * w.corner_sigma_px;
   const double t_max = half_px - reach - kCornerClearBorderWidths * border_px;
   if (t_max < kMinProbeSpanRel * half_px) return false;
-  const double angle_reach = cfg.tracking.window_sigmas * w.up_angle_sigma_rad;
+  const double angle_reach = setup.cfg.tracking.window_sigmas * w.up_angle_sigma_rad;
   if (angle_reach >= kPi / 8) return false;
   // A landmark certainly cut by the image border (a predicted outer corner outside by more than
   // the reach) is not probed: it keeps the detection, which weighs its corners.
@@ -253,7 +253,7 @@ bool LandmarkLocalizer::Impl::probe_prediction(const cv::Mat& img, const SearchW
       // A tag's border has no reliable inner edge (black data cells touch it), but its white
       // margin puts paper before the outer edge: the step and the dark just inside suffice.
       if (!found) {
-        found = probe_edge(img, start, {-nrm.x, -nrm.y}, n, border_px, 0, n, !outer_only, &e);
+        found = probe_edge(img, start, {-nrm.x, -nrm.y}, n, border_px, 0, n, !setup.outer_only, &e);
       }
       if (found) {
         probe_pts.push_back({start.x - nrm.x * e.s, start.y - nrm.y * e.s});
@@ -265,7 +265,7 @@ bool LandmarkLocalizer::Impl::probe_prediction(const cv::Mat& img, const SearchW
     // broke on); the square is then placed from the other three and the known size.
     const auto lose_side = [&] {
       have[static_cast<size_t>(k)] = false;
-      return outer_only;
+      return setup.outer_only;
     };
     if (static_cast<int>(probe_pts.size()) < kMinProbesOnLine) {
       if (lose_side()) continue;

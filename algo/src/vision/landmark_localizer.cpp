@@ -79,21 +79,17 @@ VisionSetup::VisionSetup(const VisionConfig& c, const CameraModel& m, const Land
   coarse_w = border_px / coarse_factor;
   coarse_h = geom.outer_half_mm() / mm_per_px / coarse_factor;
   coarse_anchor = coarse_w / 2.0;
+  outer_only = cfg.family == LandmarkFamily::kTag36h11;
 }
 
 LandmarkLocalizer::Impl::Impl(const VisionConfig& c, const CameraModel& m,
                               const LandmarkGeometry& g, const LandmarkMap* mp)
     : VisionSetup(c, m, g, mp), planner(c, m, g, mp) {
-  build_templates();
   // A small map's codes are encoded now, at start-up, rather than on the first landmark frame,
   // which would be late by the encoding (1000 landmarks, 2000 codes, take 0.23 s on x86-64); a
   // large map's book follows the prediction (code_cache.cpp, docs/design/large_maps.md).
-  // A tag floor has no QR codes to encode; its start-up work is libapriltag's tables.
-  if (cfg.family == LandmarkFamily::kTag36h11) {
-    tag = make_tag_detector();
-  } else {
-    codes.update_code_book(Prediction{});
-  }
+  // A tag floor has no QR codes to encode; its start-up work is libapriltag's tables (TagReader).
+  if (cfg.family != LandmarkFamily::kTag36h11) codes.update_code_book(Prediction{});
 }
 
 // The stages in the order they run, numbered as in docs/design/vision.md "Pipeline". The pose comes
@@ -130,13 +126,13 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
   Vec2 predicted_px;
   bool probed = false;
   if (cfg.tracking.detect_from_prediction && !windows.empty() &&
-      detect_predicted(img, &det, &predicted_px, &probed)) {
+      predicted.detect_predicted(img, windows, &det, &predicted_px, &probed)) {
     const LandmarkFix before = *out;
     out->search = SearchMode::kWindow;
     out->detection_predicted = true;
     out->detection_probed = probed;
     st = measure(img, det, 0.0, t0, out, &c_mm, &beta, &cov);
-    posed = st == FixStatus::kOk && fit_agrees_with_prediction(predicted_px);
+    posed = st == FixStatus::kOk && predicted.fit_agrees_with_prediction(predicted_px);
     if (!posed) *out = before;
   }
   if (!posed) {
@@ -148,11 +144,12 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
     if (!windows.empty()) {
       // The prediction replaces the search (tracked detection); when it finds nothing trusted,
       // the corner search over the windows.
-      found = detect_tracked(img, &det, &corner_score) &&
+      found = corners.detect_tracked(img, windows, &det, &corner_score) &&
               det.white_grey - det.dark_grey >= kMinContrastGrey;
       if (!found) {
         det = Detection{};
-        found = detect_in_windows(img, &det, &found_corner, &corner_score, &searched_all) &&
+        found = corners.detect_in_windows(img, windows, &det, &found_corner, &corner_score,
+                                          &searched_all) &&
                 det.white_grey - det.dark_grey >= kMinContrastGrey;
       }
       out->search = found ? SearchMode::kWindow : SearchMode::kWindowThenFull;
@@ -160,7 +157,7 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
     // Windows that cover the whole frame were the full search: not repeated.
     if (!found && !searched_all) {
       det = Detection{};
-      found = detect(img, &det, &found_corner, &corner_score);
+      found = corners.detect(img, &det, &found_corner, &corner_score);
     }
     if (!found) {
       out->corner_score = corner_score;
@@ -274,43 +271,14 @@ FixStatus LandmarkLocalizer::Impl::measure(const cv::Mat& img, const Detection& 
   out->detect_angle_deg = rad_to_deg(up);
   out->partly_outside = partly_outside(img, c_px, up);
   if (out->partly_outside && !cfg.allow_partly_outside) return FixStatus::kPartlyOutside;
-  FixStatus st = pose(img, c_px, up, contrast, &edge_points, out, c_mm, beta, cov);
+  FixStatus st = square.pose(img, c_px, up, contrast, &square.edge_points(), out, c_mm, beta, cov);
   if (cfg.now_ns) out->timings.pose_ms = now_ms() - t1;
   if (st == FixStatus::kTooFewEdgePoints && out->partly_outside) st = FixStatus::kPartlyOutside;
   return st;
 }
 
-// Detection on the bounding box of the windows, aligned to the coarse grid so its coarse pixels
-// are the full frame's (the windows' margin keeps the binarization block inside): the same
-// hypothesis as the full search, shifted back into frame coordinates.
-bool LandmarkLocalizer::Impl::detect_in_windows(const cv::Mat& img, Detection* best,
-                                                bool* found_corner, double* corner_score,
-                                                bool* whole_frame) {
-  int x0 = img.cols, y0 = img.rows, x1 = 0, y1 = 0;
-  for (const SearchWindow& w : windows) {
-    x0 = std::min(x0, w.x0);
-    y0 = std::min(y0, w.y0);
-    x1 = std::max(x1, w.x1);
-    y1 = std::max(y1, w.y1);
-  }
-  const int f = coarse_factor;
-  x0 = x0 / f * f;
-  y0 = y0 / f * f;
-  // The full search covers only whole coarse pixels (make_coarse): so does the window.
-  x1 = std::min((x1 + f - 1) / f * f, img.cols / f * f);
-  y1 = std::min((y1 + f - 1) / f * f, img.rows / f * f);
-  *whole_frame = false;
-  if (x1 <= x0 || y1 <= y0) return false;
-  *whole_frame = x0 == 0 && y0 == 0 && x1 == img.cols / f * f && y1 == img.rows / f * f;
-  const cv::Mat roi = img(cv::Rect(x0, y0, x1 - x0, y1 - y0));
-  if (!detect(roi, best, found_corner, corner_score)) return false;
-  best->h.cx += x0 / f;
-  best->h.cy += y0 / f;
-  return true;
-}
-
 // Any predicted outer corner beyond the image (plus VisionConfig::outside_margin_mm).
-bool LandmarkLocalizer::Impl::partly_outside(const cv::Mat& img, Vec2 c_px, double up) const {
+bool VisionSetup::partly_outside(const cv::Mat& img, Vec2 c_px, double up) const {
   const double margin_px = cfg.outside_margin_mm / mm_per_px;
   const double ho = geom.outer_half_mm() / mm_per_px;
   bool outside = false;
@@ -350,7 +318,7 @@ const VisionConfig& LandmarkLocalizer::config() const { return impl_->cfg; }
 const std::vector<Vec2>& LandmarkLocalizer::edge_points_px(int line) const {
   static const std::vector<Vec2> kNone;
   if (line < 0 || line >= kNumLines) return kNone;
-  return impl_->edge_points.px[static_cast<size_t>(line)];
+  return impl_->square.edge_points().px[static_cast<size_t>(line)];
 }
 
 FixStatus LandmarkLocalizer::process(const cv::Mat& gray8, LandmarkFix* out) {

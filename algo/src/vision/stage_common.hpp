@@ -204,6 +204,9 @@ struct VisionSetup {
   // Coarse level of the detection: factor, and border width, outer half and anchor in its pixels.
   int coarse_factor = 8;
   double coarse_w = 0, coarse_h = 0, coarse_anchor = 0;
+  // Tag family: the pose stage fits only the outer edge of the border, whose inner edge is broken
+  // by the data cells.
+  bool outer_only = false;
   // metric_cam()'s floor mapping for the per-point loops.
   FloorProjector metric_floor{CameraModel{}};
 
@@ -227,6 +230,11 @@ struct VisionSetup {
     // page_to_landmark(u, v) = (-v, -u), then the rotation by fwd.
     return metric_floor.plane(c_mm, {si, -co}, {-co, -si});
   }
+  // Any predicted outer corner beyond the image (plus VisionConfig::outside_margin_mm).
+  bool partly_outside(const cv::Mat& img, Vec2 c_px, double up) const;
+  // The ring check's acceptance, shared by the coarse check (detect.cpp) and the full-image one
+  // (predicted_detect.cpp).
+  bool ring_accepted(int total, int ring_in, int ring_dark, int out_in, int out_dark) const;
   // Edge points as pixel rows covered (each collected point stands for edge_row_step rows): the
   // unit of min_points_per_line and min_points_total.
   int rows_covered(int points) const { return points * std::max(1, cfg.edge_row_step); }

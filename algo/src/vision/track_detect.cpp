@@ -9,7 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "agv/vision/coarse_level.hpp"
-#include "localizer_impl.hpp"
+#include "corner_detector.hpp"
 
 namespace agv::vision {
 
@@ -28,8 +28,37 @@ constexpr int kOrientGuardPx = 4;
 
 }  // namespace
 
-bool LandmarkLocalizer::Impl::detect_tracked(const cv::Mat& img, Detection* best,
-                                             double* corner_score) {
+// Detection on the bounding box of the windows, aligned to the coarse grid so its coarse pixels
+// are the full frame's (the windows' margin keeps the binarization block inside): the same
+// hypothesis as the full search, shifted back into frame coordinates.
+bool CornerDetector::detect_in_windows(const cv::Mat& img, const std::vector<SearchWindow>& windows,
+                                       Detection* best, bool* found_corner, double* corner_score,
+                                       bool* whole_frame) {
+  int x0 = img.cols, y0 = img.rows, x1 = 0, y1 = 0;
+  for (const SearchWindow& w : windows) {
+    x0 = std::min(x0, w.x0);
+    y0 = std::min(y0, w.y0);
+    x1 = std::max(x1, w.x1);
+    y1 = std::max(y1, w.y1);
+  }
+  const int f = setup.coarse_factor;
+  x0 = x0 / f * f;
+  y0 = y0 / f * f;
+  // The full search covers only whole coarse pixels (make_coarse): so does the window.
+  x1 = std::min((x1 + f - 1) / f * f, img.cols / f * f);
+  y1 = std::min((y1 + f - 1) / f * f, img.rows / f * f);
+  *whole_frame = false;
+  if (x1 <= x0 || y1 <= y0) return false;
+  *whole_frame = x0 == 0 && y0 == 0 && x1 == img.cols / f * f && y1 == img.rows / f * f;
+  const cv::Mat roi = img(cv::Rect(x0, y0, x1 - x0, y1 - y0));
+  if (!detect(roi, best, found_corner, corner_score)) return false;
+  best->h.cx += x0 / f;
+  best->h.cy += y0 / f;
+  return true;
+}
+
+bool CornerDetector::detect_tracked(const cv::Mat& img, const std::vector<SearchWindow>& windows,
+                                    Detection* best, double* corner_score) {
   int best_dark = 0;
   for (const SearchWindow& w : windows) {
     Detection d;
@@ -45,16 +74,15 @@ bool LandmarkLocalizer::Impl::detect_tracked(const cv::Mat& img, Detection* best
   return best_dark > 0;
 }
 
-bool LandmarkLocalizer::Impl::detect_tracked_in(const cv::Mat& img, const SearchWindow& w,
-                                                Detection* best, double* corner_score,
-                                                int* n_dark) {
+bool CornerDetector::detect_tracked_in(const cv::Mat& img, const SearchWindow& w, Detection* best,
+                                       double* corner_score, int* n_dark) {
   if (!std::isfinite(w.centre_px.x) || !std::isfinite(w.centre_px.y) ||
       !std::isfinite(w.up_angle_rad) || !std::isfinite(w.corner_sigma_px)) {
     return false;
   }
   // The window, aligned to the coarse grid as detect_in_windows does: its coarse pixels are the
   // full frame's, and its margin keeps the adaptive threshold's block inside.
-  const int f = coarse_factor;
+  const int f = setup.coarse_factor;
   const int x0 = w.x0 / f * f, y0 = w.y0 / f * f;
   const int x1 = std::min((w.x1 + f - 1) / f * f, img.cols / f * f);
   const int y1 = std::min((w.y1 + f - 1) / f * f, img.rows / f * f);
@@ -66,7 +94,7 @@ bool LandmarkLocalizer::Impl::detect_tracked_in(const cv::Mat& img, const Search
   const double ox = x0 / f, oy = y0 / f;
   const double pcx = (w.centre_px.x + 0.5) / f - 0.5 - ox;
   const double pcy = (w.centre_px.y + 0.5) / f - 0.5 - oy;
-  const double reach_px = cfg.tracking.window_sigmas * w.corner_sigma_px / f;
+  const double reach_px = setup.cfg.tracking.window_sigmas * w.corner_sigma_px / f;
   const int radius = static_cast<int>(std::ceil(reach_px)) + 1;
   const int tsz = templates[0].cols, r = tsz / 2;
   const int n_rot = static_cast<int>(template_angles.size());
@@ -76,7 +104,8 @@ bool LandmarkLocalizer::Impl::detect_tracked_in(const cv::Mat& img, const Search
   peaks.clear();
   for (int k = 0; k < 4; ++k) {
     const double a = w.up_angle_rad + kPi / 2.0 + k * kPi / 2.0;
-    const Vec2 d = rot({coarse_h - coarse_anchor, coarse_h - coarse_anchor}, a);
+    const Vec2 d =
+        rot({setup.coarse_h - setup.coarse_anchor, setup.coarse_h - setup.coarse_anchor}, a);
     const int deg = static_cast<int>(std::lround(rad_to_deg(a))) % 360;
     const std::vector<float>& tz = fine_templates[static_cast<size_t>(deg < 0 ? deg + 360 : deg)];
     const int qx = static_cast<int>(std::lround(pcx - d.x));
@@ -96,7 +125,7 @@ bool LandmarkLocalizer::Impl::detect_tracked_in(const cv::Mat& img, const Search
         }
       }
     }
-    if (p.score < cfg.corner_threshold) continue;
+    if (p.score < setup.cfg.corner_threshold) continue;
     // The nearest 30-degree template: refine_hypothesis snaps its angle to the refined square
     // angle, which gives back this corner's rotation (the templates are < 45 degrees apart).
     const double turns = a / (2.0 * kPi) * n_rot;
@@ -111,10 +140,11 @@ bool LandmarkLocalizer::Impl::detect_tracked_in(const cv::Mat& img, const Search
   for (size_t i = 0; i < n; ++i) {
     const double a = template_angles[static_cast<size_t>(peaks[i].rot)];
     const double a_k = reduce_angle_90(w.up_angle_rad + kPi / 2.0, a);
-    const Vec2 d = rot({coarse_h - coarse_anchor, coarse_h - coarse_anchor}, a_k);
+    const Vec2 d =
+        rot({setup.coarse_h - setup.coarse_anchor, setup.coarse_h - setup.coarse_anchor}, a_k);
     votes[i] = {peaks[i].x + d.x, peaks[i].y + d.y};
   }
-  const double agree = kMergeDistanceBorderWidths * coarse_w;
+  const double agree = kMergeDistanceBorderWidths * setup.coarse_w;
   int best_i = -1, best_count = 0;
   for (size_t i = 0; i < n; ++i) {
     int count = 0;
@@ -143,12 +173,12 @@ bool LandmarkLocalizer::Impl::detect_tracked_in(const cv::Mat& img, const Search
 
   // 3. The full path's refinement (angle from the gradients, centre from the re-matched corners)
   // and ring check. The orientation field is needed only where the refinement reads.
-  const int reach = static_cast<int>(coarse_h + 1.0) + 1 + kOrientGuardPx;
+  const int reach = static_cast<int>(setup.coarse_h + 1.0) + 1 + kOrientGuardPx;
   compute_orient4_in(static_cast<int>(h.cx) - reach, static_cast<int>(h.cy) - reach,
                      static_cast<int>(h.cx) + reach, static_cast<int>(h.cy) + reach);
   refine_hypothesis(&h);
   const double angle_tol =
-      cfg.tracking.window_sigmas * w.up_angle_sigma_rad + deg_to_rad(kTrackedAngleSlackDeg);
+      setup.cfg.tracking.window_sigmas * w.up_angle_sigma_rad + deg_to_rad(kTrackedAngleSlackDeg);
   if (std::abs(reduce_angle_90(h.up_angle, w.up_angle_rad) - w.up_angle_rad) > angle_tol) {
     return false;
   }
