@@ -13,8 +13,6 @@ namespace agv::vision {
 
 namespace {
 
-constexpr int kDataCells = TagReader::kDataCells;
-constexpr int kBitsCorrected = TagReader::kBitsCorrected;
 // The fitted centre must lie within this share of the pose stage's band of where the square was
 // placed: a fit further away found other edges.
 constexpr double kPlacedCentreBandShare = 1.0;
@@ -25,15 +23,15 @@ constexpr double kPlacedCentreBandShare = 1.0;
 // place the predicted tag's square as the QR family's tracking does, and the tag's code is read
 // at the fitted square (docs/design/landmark.md "AprilTag landmark"). libapriltag needs the whole
 // quad with white around it: an occluder over the border, or floor dirt joining it, breaks it.
-FixStatus LandmarkLocalizer::Impl::run_tag(const cv::Mat& img, const Prediction& pred,
-                                           LandmarkFix* out) {
+FixStatus LandmarkLocalizer::Impl::run_tag(Frame& f, LandmarkFix* out) {
+  const cv::Mat& img = f.img;
   const double t0 = now_ms();
   const FixStatus st = tag_from_detector(img, out);
   if (st == FixStatus::kOk || !map) return st;
   if (cfg.tracking.detect_from_prediction) {
-    planner.plan(pred, &windows);
+    planner.plan(f.pred, &f.windows);
     LandmarkFix tried;
-    if (!windows.empty() && tag_from_prediction(img, &tried) == FixStatus::kOk) {
+    if (!f.windows.empty() && tag_from_prediction(f, &tried) == FixStatus::kOk) {
       tried.timings = out->timings;
       *out = tried;
       return FixStatus::kOk;
@@ -109,8 +107,8 @@ FixStatus LandmarkLocalizer::Impl::tag_from_detector(const cv::Mat& img, Landmar
 // after a long leg): the QR family's full search (detect.cpp) finds the black square from its
 // outer corners, which a border broken on one side keeps three of, the pose stage fits the outer
 // square, and the code read at the fitted square is looked up among all tag36h11 codes at the
-// four turns, accepted within kBitsCorrected cells as libapriltag's decode. Only the full search
-// costs anything on a frame without a tag (the QR family's every frame does the same).
+// four turns, accepted within TagReader::kBitsCorrected cells as libapriltag's decode. Only the
+// full search costs anything on a frame without a tag (the QR family's every frame does the same).
 FixStatus LandmarkLocalizer::Impl::tag_from_corners(const cv::Mat& img, double t0_ms,
                                                     LandmarkFix* out) {
   Detection det;
@@ -129,11 +127,11 @@ FixStatus LandmarkLocalizer::Impl::tag_from_corners(const cv::Mat& img, double t
   std::array<TagReader::Cells, 4> read{};
   bool readable[4] = {};
   for (int q = 0; q < 4; ++q) readable[q] = tags.read_tag_cells(img, c_mm, beta, q, half, &read[q]);
-  int best_q = -1, best_d = kDataCells * kDataCells + 1;
+  int best_q = -1, best_d = TagReader::kDataCells * TagReader::kDataCells + 1;
   std::uint32_t best_id = 0;
   tags.nearest_code(read, readable, &best_q, &best_d, &best_id);
   // A dark square without a tag's code (a floor feature, another print) is not a tag.
-  if (best_q < 0 || best_d > kBitsCorrected) return FixStatus::kNoLandmark;
+  if (best_q < 0 || best_d > TagReader::kBitsCorrected) return FixStatus::kNoLandmark;
   quadrant = best_q;
   out->landmark_id = best_id;
   std::snprintf(out->payload, sizeof out->payload, "tag36h11/%u", static_cast<unsigned>(best_id));
@@ -152,9 +150,10 @@ FixStatus LandmarkLocalizer::Impl::tag_from_corners(const cv::Mat& img, double t
 // its outer square fitted by the pose stage, and accepted when its code, read at the fitted
 // square, is the predicted tag's at one of the four turns. The id is read, not assumed: the fix
 // is the detector's (identity tag, map-verified), found where libapriltag's quad search was not.
-FixStatus LandmarkLocalizer::Impl::tag_from_prediction(const cv::Mat& img, LandmarkFix* out) {
+FixStatus LandmarkLocalizer::Impl::tag_from_prediction(const Frame& frame, LandmarkFix* out) {
+  const cv::Mat& img = frame.img;
   FixStatus best_st = FixStatus::kNoLandmark;
-  for (const SearchWindow& w : windows) {
+  for (const SearchWindow& w : frame.windows) {
     const LandmarkMapEntry* e = map->find(w.landmark_id);
     if (!e || w.landmark_id > kTag36h11MaxId) continue;
     Vec2 c_px;
@@ -206,12 +205,12 @@ FixStatus LandmarkLocalizer::Impl::tag_from_prediction(const cv::Mat& img, Landm
       continue;
     }
     const double half = f.outer_half_mm > 0.0 ? f.outer_half_mm : geom.outer_half_mm();
-    int best_q = -1, best_d = kDataCells * kDataCells + 1;
+    int best_q = -1, best_d = TagReader::kDataCells * TagReader::kDataCells + 1;
     for (int q = 0; q < 4; ++q) {
       const int d = tags.tag_code_distance(img, c_mm, beta, q, half, w.landmark_id);
       if (d >= 0 && d < best_d) best_d = d, best_q = q;
     }
-    if (best_q < 0 || best_d > kBitsCorrected) {
+    if (best_q < 0 || best_d > TagReader::kBitsCorrected) {
       best_st = FixStatus::kUnknownLandmark;
       continue;
     }

@@ -108,65 +108,77 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
       img.cols != cam.intrinsics.width_px || img.rows != cam.intrinsics.height_px) {
     return finish(FixStatus::kBadInput);
   }
-  if (cfg.family == LandmarkFamily::kTag36h11) return finish(run_tag(img, pred, out));
-  // 1-2. Binarization and detection: none when the prediction is precise enough to place the
-  // pose stage's edge bands itself and the fit then lands where it said; otherwise from the
-  // prediction when it is trusted (tracked, then the windows), the whole frame when there is none
-  // or they find nothing (docs/design/tracking.md).
+  Frame frame{img, pred, t0, window_storage};
+  if (cfg.family == LandmarkFamily::kTag36h11) return finish(run_tag(frame, out));
   // The book and the expected codes point into the cache: both go when it is emptied.
   if (codes.prune()) code_reader.read().expected.clear();
   codes.update_code_book(pred);
-  planner.plan(pred, &windows);
+  planner.plan(pred, &frame.windows);
   Detection det;
   Vec2 c_mm;
   double beta = 0;
   Eigen::Matrix3d cov;
-  bool posed = false;
-  FixStatus st = FixStatus::kNoLandmark;
+  const FixStatus st = locate(frame, out, &det, &c_mm, &beta, &cov);
+  if (st != FixStatus::kOk) return finish(st);
+  return finish(identify(frame, det, c_mm, beta, cov, out));
+}
+
+// 1-3. Binarization, detection and pose: no detection when the prediction is precise enough to
+// place the pose stage's edge bands itself and the fit then lands where it said; otherwise from
+// the prediction when it is trusted (tracked, then the windows), the whole frame when there is
+// none or they find nothing (docs/design/tracking.md).
+FixStatus LandmarkLocalizer::Impl::locate(const Frame& f, LandmarkFix* out, Detection* det,
+                                          Vec2* c_mm, double* beta, Eigen::Matrix3d* cov) {
+  const cv::Mat& img = f.img;
+  const std::vector<SearchWindow>& windows = f.windows;
   Vec2 predicted_px;
   bool probed = false;
   if (cfg.tracking.detect_from_prediction && !windows.empty() &&
-      predicted.detect_predicted(img, windows, &det, &predicted_px, &probed)) {
+      predicted.detect_predicted(img, windows, det, &predicted_px, &probed)) {
     const LandmarkFix before = *out;
     out->search = SearchMode::kWindow;
     out->detection_predicted = true;
     out->detection_probed = probed;
-    st = measure(img, det, 0.0, t0, out, &c_mm, &beta, &cov);
-    posed = st == FixStatus::kOk && predicted.fit_agrees_with_prediction(predicted_px);
-    if (!posed) *out = before;
+    const FixStatus st = measure(img, *det, 0.0, f.t0_ms, out, c_mm, beta, cov);
+    if (st == FixStatus::kOk && predicted.fit_agrees_with_prediction(predicted_px)) return st;
+    *out = before;
   }
-  if (!posed) {
-    bool found_corner = false;
-    double corner_score = 0;
-    bool found = false;
-    bool searched_all = false;
-    det = Detection{};
-    if (!windows.empty()) {
-      // The prediction replaces the search (tracked detection); when it finds nothing trusted,
-      // the corner search over the windows.
-      found = corners.detect_tracked(img, windows, &det, &corner_score) &&
-              det.white_grey - det.dark_grey >= kMinContrastGrey;
-      if (!found) {
-        det = Detection{};
-        found = corners.detect_in_windows(img, windows, &det, &found_corner, &corner_score,
-                                          &searched_all) &&
-                det.white_grey - det.dark_grey >= kMinContrastGrey;
-      }
-      out->search = found ? SearchMode::kWindow : SearchMode::kWindowThenFull;
-    }
-    // Windows that cover the whole frame were the full search: not repeated.
-    if (!found && !searched_all) {
-      det = Detection{};
-      found = corners.detect(img, &det, &found_corner, &corner_score);
-    }
+  bool found_corner = false;
+  double corner_score = 0;
+  bool found = false;
+  bool searched_all = false;
+  *det = Detection{};
+  if (!windows.empty()) {
+    // The prediction replaces the search (tracked detection); when it finds nothing trusted,
+    // the corner search over the windows.
+    found = corners.detect_tracked(img, windows, det, &corner_score) &&
+            det->white_grey - det->dark_grey >= kMinContrastGrey;
     if (!found) {
-      out->corner_score = corner_score;
-      if (cfg.now_ns) out->timings.detect_ms = now_ms() - t0;
-      return finish(FixStatus::kNoLandmark);
+      *det = Detection{};
+      found = corners.detect_in_windows(img, windows, det, &found_corner, &corner_score,
+                                        &searched_all) &&
+              det->white_grey - det->dark_grey >= kMinContrastGrey;
     }
-    st = measure(img, det, corner_score, t0, out, &c_mm, &beta, &cov);
-    if (st != FixStatus::kOk) return finish(st);
+    out->search = found ? SearchMode::kWindow : SearchMode::kWindowThenFull;
   }
+  // Windows that cover the whole frame were the full search: not repeated.
+  if (!found && !searched_all) {
+    *det = Detection{};
+    found = corners.detect(img, det, &found_corner, &corner_score);
+  }
+  if (!found) {
+    out->corner_score = corner_score;
+    if (cfg.now_ns) out->timings.detect_ms = now_ms() - f.t0_ms;
+    return FixStatus::kNoLandmark;
+  }
+  return measure(img, *det, corner_score, f.t0_ms, out, c_mm, beta, cov);
+}
+
+// 4-6. Logo, code, identity and direction of the measured square (det; c_mm, beta and cov from
+// the pose stage), and the result.
+FixStatus LandmarkLocalizer::Impl::identify(const Frame& f, const Detection& det, Vec2 c_mm,
+                                            double beta, const Eigen::Matrix3d& cov,
+                                            LandmarkFix* out) {
   const Vec2 c_px = coarse_to_full({det.h.cx, det.h.cy});
   const double up = det.h.up_angle;
   const double t2 = now_ms();
@@ -177,12 +189,12 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
   LogoScores logo;
   double logo_ms = 0.0;
   QrRead* const rd = &code_reader.read();
-  const int qr_q = logo_and_code(img, pred, c_px, up, c_mm, beta, &logo, &logo_ms, rd, out);
+  const int qr_q = logo_and_code(f, c_px, up, c_mm, beta, &logo, &logo_ms, rd, out);
   out->logo_score = logo.best;
   out->logo_margin = logo.margin;
   Pose2 world_landmark;
-  st = out->qr_method == 0 ? FixStatus::kQrUnreadable
-                           : code_reader.check_payload(rd->text, out, &world_landmark);
+  FixStatus st = out->qr_method == 0 ? FixStatus::kQrUnreadable
+                                     : code_reader.check_payload(rd->text, out, &world_landmark);
   const double t4 = now_ms();
   if (cfg.now_ns) out->timings.decode_ms = t4 - t2 - logo_ms;
   // 5c. Map-guided identity of an unread code (docs/design/map_identity.md): whole border only, and
@@ -190,28 +202,28 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
   if (st == FixStatus::kQrUnreadable && !out->partly_outside && out->sides_used == 4) {
     int turn = 0;
     std::uint32_t id = 0;
-    if (identity.map_identity(img, pred, c_mm, beta, cov, logo, &world_landmark, &turn, &id)) {
+    if (identity.map_identity(f.img, f.pred, c_mm, beta, cov, logo, &world_landmark, &turn, &id)) {
       quadrant = turn;
       out->landmark_id = id;
       fill_result(world_landmark, c_mm, beta, turn, cov, out);
       out->identity = FixIdentity::kMapGuided;
       if (cfg.now_ns) out->timings.decode_ms = now_ms() - t2 - logo_ms;
-      return finish(FixStatus::kOk);
+      return FixStatus::kOk;
     }
   }
   if (st == FixStatus::kQrUnreadable && out->partly_outside) st = FixStatus::kPartlyOutside;
-  if (st != FixStatus::kOk) return finish(st);
+  if (st != FixStatus::kOk) return st;
 
   // 5b. Direction: the logo against the QR code's orientation.
   const int q_final = direction.decide_direction(logo, qr_q);
   if (cfg.now_ns) out->timings.direction_ms = logo_ms + (now_ms() - t4);
-  if (q_final < 0) return finish(FixStatus::kDirectionAmbiguous);
+  if (q_final < 0) return FixStatus::kDirectionAmbiguous;
   quadrant = q_final;
 
   // 6. Result and its covariance.
   fill_result(world_landmark, c_mm, beta, q_final, cov, out);
   out->identity = FixIdentity::kQrCode;
-  return finish(FixStatus::kOk);
+  return FixStatus::kOk;
 }
 
 // Stages 4 and 5a: the logo and the code, returning the code's turn (-1 unknown). With a trusted
@@ -223,9 +235,12 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
 // (decide_direction) refuses a clear logo at another turn than the code's; so does this path,
 // because that logo scores below the threshold at the code's turn and the frame falls back.
 // logo_ms: the logo's share of the time (timings.direction_ms).
-int LandmarkLocalizer::Impl::logo_and_code(const cv::Mat& img, const Prediction& pred, Vec2 c_px,
-                                           double up, Vec2 c_mm, double beta, LogoScores* logo,
-                                           double* logo_ms, QrRead* rd, LandmarkFix* out) {
+int LandmarkLocalizer::Impl::logo_and_code(const Frame& f, Vec2 c_px, double up, Vec2 c_mm,
+                                           double beta, LogoScores* logo, double* logo_ms,
+                                           QrRead* rd, LandmarkFix* out) {
+  const cv::Mat& img = f.img;
+  const Prediction& pred = f.pred;
+  const std::vector<SearchWindow>& windows = f.windows;
   *logo_ms = 0.0;
   if (cfg.tracking.logo_at_code_turn && pred.valid && !windows.empty()) {
     const int q = code_reader.read_at_predicted_turn(img, pred, windows, c_mm, beta, rd, out);

@@ -50,34 +50,49 @@
 
 namespace agv::vision {
 
+// One frame's inputs, passed explicitly through the composition: the image, the filter's
+// prediction, the frame's start (timings) and the tracking windows planned from the prediction
+// (storage kept by the localizer, so that a frame allocates nothing).
+struct Frame {
+  const cv::Mat& img;
+  const Prediction& pred;
+  double t0_ms = 0.0;
+  std::vector<SearchWindow>& windows;
+};
+
 struct LandmarkLocalizer::Impl : VisionSetup {
   // Kept for the overlay: the fitted square's pixels are SquareFit's.
   bool have_overlay = false;
   int quadrant = 0;
 
-  // Tracking (docs/design/tracking.md): windows of the last frame's prediction.
+  // Tracking (docs/design/tracking.md): the planner, and the storage of a frame's windows.
   WindowPlanner planner;
-  std::vector<SearchWindow> windows;
+  std::vector<SearchWindow> window_storage;
 
   Impl(const VisionConfig& c, const CameraModel& m, const LandmarkGeometry& g,
        const LandmarkMap* mp);
 
-  // run(): the stages in order (landmark_localizer.cpp).
+  // run(): the stages in order (landmark_localizer.cpp): locate (detection and pose), then
+  // identify (logo, code, identity, direction and result).
   FixStatus run(const cv::Mat& img, const Prediction& pred, LandmarkFix* out);
+  FixStatus locate(const Frame& f, LandmarkFix* out, Detection* det, Vec2* c_mm, double* beta,
+                   Eigen::Matrix3d* cov);
+  FixStatus identify(const Frame& f, const Detection& det, Vec2 c_mm, double beta,
+                     const Eigen::Matrix3d& cov, LandmarkFix* out);
   FixStatus measure(const cv::Mat& img, const Detection& det, double corner_score, double t0,
                     LandmarkFix* out, Vec2* c_mm, double* beta, Eigen::Matrix3d* cov);
   void fill_result(const Pose2& world_landmark, Vec2 c_mm, double beta, int q_final,
                    const Eigen::Matrix3d& cov, LandmarkFix* out) const;
 
   // Tag family: detection and id by libapriltag, pose by SquareFit (apriltag.cpp).
-  FixStatus run_tag(const cv::Mat& img, const Prediction& pred, LandmarkFix* out);
+  FixStatus run_tag(Frame& f, LandmarkFix* out);
   FixStatus tag_from_detector(const cv::Mat& img, LandmarkFix* out);
-  FixStatus tag_from_prediction(const cv::Mat& img, LandmarkFix* out);
+  FixStatus tag_from_prediction(const Frame& f, LandmarkFix* out);
   FixStatus tag_from_corners(const cv::Mat& img, double t0_ms, LandmarkFix* out);
 
   // Stages 4 and 5a: the logo and the code read, composed (landmark_localizer.cpp).
-  int logo_and_code(const cv::Mat& img, const Prediction& pred, Vec2 c_px, double up, Vec2 c_mm,
-                    double beta, LogoScores* logo, double* logo_ms, QrRead* rd, LandmarkFix* out);
+  int logo_and_code(const Frame& f, Vec2 c_px, double up, Vec2 c_mm, double beta, LogoScores* logo,
+                    double* logo_ms, QrRead* rd, LandmarkFix* out);
 
   // The stages that own their state (built after the members they reference).
   CornerDetector corners{*this};

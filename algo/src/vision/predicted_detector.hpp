@@ -4,6 +4,7 @@
 // ring's and the probes' samples.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -33,6 +34,25 @@ class PredictedDetector {
   bool probe_prediction(const cv::Mat& img, const SearchWindow& w, ProbedSquare* out);
 
  private:
+  // The probes' geometry for one window (px), fixed by the prediction's reach.
+  struct ProbePlan {
+    double border_px = 0, half_px = 0;
+    double reach = 0;        // of the corners' positions (window_sigmas sigma)
+    double t_max = 0;        // probes at -t_max .. t_max along a side, from its middle
+    double angle_reach = 0;  // of the heading
+    double range = 0;        // of a side's place along a probe
+    int n = 0;               // samples per probe
+  };
+  // Grey levels and ramps summed over the probes on the sides' lines.
+  struct ProbeSums {
+    double light = 0, ramp = 0, dark = 0;
+  };
+  bool plan_probes(const cv::Mat& img, const SearchWindow& w, ProbePlan* plan) const;
+  void probe_side(const cv::Mat& img, const SearchWindow& w, const ProbePlan& plan, int k);
+  bool fit_side(Line2* line, int* on_line, ProbeSums* sums);
+  bool square_from_lines(const SearchWindow& w, const ProbePlan& plan,
+                         const std::array<Line2, 4>& lines, const std::array<bool, 4>& have,
+                         int n_sides, double* up, Vec2* c) const;
   bool probe_edge(const cv::Mat& img, Vec2 start, Vec2 step, int n, double border_px, int s_lo,
                   int s_hi, bool whole, ProbeEdge* edge);
 
