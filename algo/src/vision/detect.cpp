@@ -29,7 +29,7 @@ constexpr int kMinAdaptiveBlockPx = 3;
 // 100+ grey levels darker than the paper; 12 keeps blurred, dim landmarks.
 constexpr double kMinCornerPatchSigmaGrey = 12.0;
 // Two corner peaks belong to the same landmark when their predicted centres are closer than
-// kMergeDistanceBorderWidths (localizer_impl.hpp) and their square angles agree within this (the
+// kMergeDistanceBorderWidths (stage_common.hpp) and their square angles agree within this (the
 // 30-degree templates are at most 15 degrees off each).
 constexpr double kMergeAngleTolDeg = 25.0;
 // Angle refinement from the gradients and centre re-match, alternated at most this many times:

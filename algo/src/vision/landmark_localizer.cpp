@@ -1,5 +1,5 @@
-// LandmarkLocalizer: the stages of one frame in order (run), the public class and the helpers the
-// stage files share. The stages themselves: localizer_impl.hpp lists the files.
+// LandmarkLocalizer: the stages of one frame in order (run, locate, identify), the public class and
+// VisionSetup, the configuration the stages share. The stages themselves: localizer_impl.hpp.
 #include "agv/vision/landmark_localizer.hpp"
 
 #include <algorithm>

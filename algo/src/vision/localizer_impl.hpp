@@ -1,21 +1,18 @@
-// Private to algo/src/vision: the state LandmarkLocalizer keeps between frames and the stage
-// functions that share it. One file per stage (numbers: docs/design/vision.md "Pipeline"):
-//   detect.cpp      1-2 pyramid, adaptive binarization, corner templates, hypotheses, ring check
-//   pose.cpp        3   Prewitt edge bands and classes, robust line fits, centre and heading
-//   direction.cpp   4-5 logo template at the four turns, cross-check with the QR orientation
-//   qr_decode.cpp   5   guided module sampling, zxing fallback, payload and map check
-//   apriltag.cpp    tag36h11 family: libapriltag detection and id, then the pose stage above
-//   covariance.cpp  6   fit covariance from the normal equations, vehicle-in-world propagation
-//   track_detect.cpp    1-2 with a trusted prediction: the predicted landmark's corners only
-//   predicted_detect.cpp 1-2 with a precise prediction: none, the prediction places the bands
-//   edge_probe.cpp      1-2 with a looser one: 1-D edge searches across the predicted sides
-//   landmark_localizer.cpp  run(): the stages in order, the public class, the debug overlay
-// What Impl's members are: the configuration and the models it was built with, storage reused from
-// frame to frame (a frame allocates nothing), the tracking windows planned for the frame, and the
-// last frame's geometry for the overlay. A stage's result is its return value or an argument:
-// the fitted square, the logo scores, the code read (QrRead), the edge points (EdgePoints) and the
-// map-guided identity are not members, so what each stage reads and writes shows in its signature.
-// QrRead and EdgePoints have one instance in Impl only to keep their buffers' storage.
+// Private to algo/src/vision: LandmarkLocalizer's composition of the stages (numbers:
+// docs/design/vision.md "Pipeline"). Each stage is an object that owns its scratch storage and
+// reads the configuration through a const VisionSetup (stage_common.hpp), so what a stage takes
+// from another shows in its arguments:
+//   CornerDetector     1-2  corner_detector.hpp: detect.cpp (full search), track_detect.cpp
+//   PredictedDetector  1-2  predicted_detector.hpp: predicted_detect.cpp, edge_probe.cpp
+//   SquareFit          3, 6 square_fit.hpp: pose.cpp, covariance.cpp
+//   DirectionStage     4-5  direction_stage.hpp: direction.cpp
+//   CodeReader         5    code_reader.hpp: qr_decode.cpp
+//   CodeCache               code_cache.hpp: code_cache.cpp (mapped codes, verified read's book)
+//   MapIdentityStage   5c   map_identity_stage.hpp: map_identity_stage.cpp
+//   TagReader          tag  tag_reader.hpp: tag_reader.cpp (libapriltag, cells, side checks)
+// The composition itself: landmark_localizer.cpp (run, locate, identify, the public class),
+// apriltag.cpp (the tag family) and overlay.cpp. Impl keeps, besides the stages, only what spans
+// them: the window planner and the storage of a frame's windows, and the overlay's turn.
 #pragma once
 
 #include <Eigen/Core>

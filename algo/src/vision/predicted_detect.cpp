@@ -7,7 +7,7 @@
 // refinement are skipped: the prediction places the bands. What the detection also gave is kept:
 // the ring check (a dark border on light paper, not a dark patch of floor), sampled on the full
 // image around the predicted square, and its grey levels, whose difference scales the edge
-// threshold. run() then requires the fitted centre to lie where the prediction said, and falls
+// threshold. locate() then requires the fitted centre to lie where the prediction said, and falls
 // back to the tracked detection when anything here or there declines.
 #include <algorithm>
 #include <cmath>

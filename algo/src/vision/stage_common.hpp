@@ -131,11 +131,11 @@ struct NormalEquations {
 };
 
 // One frame's code read (qr_decode.cpp): what the read expects from the tracking and what it
-// read. The stage's functions take it as an argument; run() keeps one (LandmarkLocalizer::Impl::
-// qr_read) only for its storage, so that a frame allocates nothing. decode_qr resets every field;
-// read_at_predicted_turn, whose result goes to the fix directly, only the code and the text.
+// read. The stage's functions take it as an argument; CodeReader keeps one (read()) only for its
+// storage, so that a frame allocates nothing. decode_qr resets every field; read_at_predicted_turn,
+// whose result goes to the fix directly, only the code and the text.
 struct QrRead {
-  // The tracked landmark's codes (pointing into the localizer's map_codes) and the turn its
+  // The tracked landmark's codes (pointing into the CodeCache) and the turn its
   // predicted heading points to: empty and -1 without a trusted prediction.
   std::vector<QrExpected> expected;
   int predicted_turn = -1;
