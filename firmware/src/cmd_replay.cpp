@@ -286,7 +286,7 @@ struct ReplayOutputs {
 // What the run produced.
 struct ReplayRecord {
   std::vector<app::TickRecord> ticks;
-  std::vector<app::FixRecord> fixes;
+  std::vector<app::FrameRecord> fixes;
   // --odom-from-can: the odometry fusion got from the bus, on the replay clock. With the
   // recording's frames it is a recording of this run's inputs: `agvloc replay` of it reproduces
   // the run without the bus's timing (tests/hil compares against that).

@@ -44,7 +44,7 @@ class DiagHandoff : public OutputSink {
   }
 
   // Loop side.
-  void record_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure_ns,
+  void record_fix(const vision::LandmarkMeasurement& fix, std::int64_t t_exposure_ns,
                   std::int64_t t_arrival_ns) {
     fixes_.push(diag::fix_entry(fix, t_exposure_ns, t_arrival_ns));
   }

@@ -12,10 +12,21 @@
 
 namespace agv::app {
 
+// What the vision worker hands the output thread: the measurement fusion takes and its times,
+// not the frame's diagnostics (FrameRecord), so the real-time ring copies only what it needs.
 struct FixRecord {
   std::int64_t t_exposure_ns = 0;
   std::int64_t t_done_ns = 0;  // when the fix was handed to fusion (its arrival)
+  vision::LandmarkMeasurement fix;
+};
+
+// One frame's full result with its times: what `replay` writes to fixes.csv and the run report.
+struct FrameRecord {
+  std::int64_t t_exposure_ns = 0;
+  std::int64_t t_done_ns = 0;
   vision::LandmarkFix fix;
+
+  FixRecord for_fusion() const { return {t_exposure_ns, t_done_ns, fix.measurement()}; }
 };
 
 // One output period's result, as every sink gets it.

@@ -173,7 +173,7 @@ void ThreadedRun::vision_main() {
   apply_fifo_priority(cfg_.loop.vision_priority, "vision, loop.vision_priority");
   vision::LandmarkLocalizer loc(vision_config_with_clock(cfg_, &clock_), cfg_.camera_model,
                                 config::landmark_geometry(cfg_), map_);
-  FixRecord rec;
+  FrameRecord rec;
   while (true) {
     hal::FrameView f;
     if (!mailbox_.take(100 * hal::kNsPerMs, &f)) {
@@ -197,8 +197,8 @@ void ThreadedRun::vision_main() {
     } else if (io_.fixes) {
       ++fixes_not_recorded_;
     }
-    if (rec.fix.status != vision::FixStatus::kNoLandmark && fix_queue_.push(rec) && pose_on_fix_ &&
-        rec.fix.status == vision::FixStatus::kOk) {
+    if (rec.fix.status != vision::FixStatus::kNoLandmark && fix_queue_.push(rec.for_fusion()) &&
+        pose_on_fix_ && rec.fix.status == vision::FixStatus::kOk) {
       wakeup_.wake();
     }
     vision_busy_ = 0;
@@ -390,7 +390,7 @@ void FastRun::process_frame(std::size_t i) {
   cam_.error = false;
   ++result_->camera.frames_delivered;
   cam_.last_frame_ns = rec_.frames[i].t_ns;
-  FixRecord fr;
+  FrameRecord fr;
   const std::int64_t w0 = posix::monotonic_now_ns();
   // The core has the inputs up to the previous output step: its prediction to this exposure.
   loc_.process(img_, core_.prediction_at(rec_.frames[i].t_ns), &fr.fix);
@@ -400,7 +400,7 @@ void FastRun::process_frame(std::size_t i) {
   fr.t_done_ns = fr.t_exposure_ns + delay_ns_;
   localizer::record_vision(fr.fix, 0, w1 - w0, &vstats_);  // exposure->start is not simulated
   if (io_.fixes) io_.fixes->push_back(fr);
-  if (fr.fix.status != vision::FixStatus::kNoLandmark && pending_.push(fr) &&
+  if (fr.fix.status != vision::FixStatus::kNoLandmark && pending_.push(fr.for_fusion()) &&
       fr.fix.status == vision::FixStatus::kOk) {
     if (wake_head_ == wakes_.size()) {
       wakes_.clear();

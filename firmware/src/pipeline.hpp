@@ -36,7 +36,7 @@ struct PipelineIo {
   const std::vector<recording::ImuRow>* imu = nullptr;
   // Optional outputs, reserved by the caller (the loop never grows them past their capacity).
   std::vector<TickRecord>* ticks = nullptr;
-  std::vector<FixRecord>* fixes = nullptr;
+  std::vector<FrameRecord>* fixes = nullptr;
   // Odometry decoded from CAN, as fusion got it (OutputLoop::keep_received_odometry).
   std::vector<recording::OdomRow>* odometry_received = nullptr;
   std::atomic<bool>* stop = nullptr;  // set by signal handlers

@@ -150,7 +150,7 @@ void check_live_loop(std::int64_t camera_latency_ns) {
   can::FakeCanNetwork net;
   auto vehicle = net.create_endpoint(8192);  // the vehicle controller listening to our frames
   auto ours = net.create_endpoint(256);
-  std::vector<app::FixRecord> fixes;
+  std::vector<app::FrameRecord> fixes;
   fixes.reserve(64);
   app::PipelineIo io;
   io.camera = &cam;
@@ -268,7 +268,7 @@ TEST(LiveLoop, ARecordTooSmallForTheRunIsReported) {
   auto ours = net.create_endpoint(256);
   std::vector<app::TickRecord> ticks;
   ticks.reserve(5);
-  std::vector<app::FixRecord> fixes;
+  std::vector<app::FrameRecord> fixes;
   fixes.reserve(1);
   app::PipelineIo io;
   io.camera = &cam;

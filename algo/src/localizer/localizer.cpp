@@ -170,7 +170,7 @@ bool Localizer::odometry_timed_out(std::int64_t now_ns) const {
   return last_odom_ns_ == INT64_MIN || now_ns - last_odom_ns_ > cfg_.fusion.odom_timeout_ns;
 }
 
-void Localizer::on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure_ns,
+void Localizer::on_fix(const vision::LandmarkMeasurement& fix, std::int64_t t_exposure_ns,
                        std::int64_t t_arrival_ns) {
   using vision::FixStatus;
   switch (fix.status) {

@@ -307,20 +307,28 @@ struct StageTimings {
   double total_ms = 0.0;
 };
 
-struct LandmarkFix {
+// What fusion takes from a frame: the outcome, the landmark's identity and the vehicle's world
+// pose with its covariance. The exposure time travels beside it (the localizer has no clock): the
+// real-time hand-off from the vision worker to the output thread carries only this.
+struct LandmarkMeasurement {
   FixStatus status = FixStatus::kNoLandmark;
   std::uint32_t landmark_id = 0;
+  FixIdentity identity = FixIdentity::kNone;
+  // The landmark's world pose came from the survey map or was checked against it (a map was
+  // given): a misprinted code cannot have produced this fix.
+  bool map_verified = false;
+  Pose2 vehicle_in_world;  // W<-V, valid only when status == kOk
+  // Covariance of (x_mm, y_mm, theta_rad) of vehicle_in_world, from the fit residuals.
+  Eigen::Matrix3d cov_world = Eigen::Matrix3d::Zero();
+};
+
+// How the frame was measured, for the logs, the desk tools and the tests: nothing fusion reads.
+struct FixDiagnostics {
   char payload[48] = {};  // NUL-terminated QR text (truncated if longer; valid payloads are 38)
   // Pose of the vehicle in the landmark frame (docs/design/frames.md "Vision output").
   double e_x_mm = 0.0, e_y_mm = 0.0, e_phi_deg = 0.0;
   Pose2 landmark_in_vehicle;  // V<-L
-  Pose2 vehicle_in_world;     // W<-V, valid only when status == kOk
-  // The landmark's world pose came from the survey map or was checked against it (a map was
-  // given): a misprinted code cannot have produced this fix.
-  bool map_verified = false;
-  // Covariance of (x_mm, y_mm, theta_rad) of vehicle_in_world (and, below, of
-  // landmark_in_vehicle), from the fit residuals.
-  Eigen::Matrix3d cov_world = Eigen::Matrix3d::Zero();
+  // Covariance of (x_mm, y_mm, theta_rad) of landmark_in_vehicle.
   Eigen::Matrix3d cov_landmark_in_vehicle = Eigen::Matrix3d::Zero();
   StageTimings timings;
   int edge_points_used = 0;
@@ -350,7 +358,6 @@ struct LandmarkFix {
   // (about 2 M aarch64 instructions each).
   int qr_grid_decodes = 0;
   int qr_search_attempts = 0;
-  FixIdentity identity = FixIdentity::kNone;
   SearchMode search = SearchMode::kFull;
   // The prediction placed the edge bands; no detection ran
   // (TrackingConfig::detect_from_prediction). detect_x_px / detect_y_px / detect_angle_deg are then
@@ -362,6 +369,13 @@ struct LandmarkFix {
   // Detection estimate (before the edge fit), for diagnostics: landmark centre in pixels and the
   // image angle of one border normal (modulo 90 deg).
   double detect_x_px = 0.0, detect_y_px = 0.0, detect_angle_deg = 0.0;
+};
+
+// One frame's full result: the measurement fusion takes and the frame's diagnostics. Code that
+// feeds fusion takes a LandmarkMeasurement (a LandmarkFix converts to it).
+struct LandmarkFix : LandmarkMeasurement, FixDiagnostics {
+  const LandmarkMeasurement& measurement() const { return *this; }
+  const FixDiagnostics& diagnostics() const { return *this; }
 };
 
 class LandmarkLocalizer {
