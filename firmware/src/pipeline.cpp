@@ -211,7 +211,7 @@ int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& i
       next_ns += period_ns;
       if (io.stop && io.stop->load()) done = true;
       const bool can_odometry_done = io.can_odometry_end_ns == INT64_MIN ||
-                                     now >= io.can_odometry_end_ns + cfg.fusion.odom_timeout_ns;
+                                     now >= io.can_odometry_end_ns + cfg.fusion.health.odom_timeout_ns;
       if (io.stop_at_end_of_stream && camera_eos.load() && vision_busy.load() == 0 &&
           mailbox.closed() && loop.odometry_done() && can_odometry_done) {
         // Hand over what the worker produced, then stop.

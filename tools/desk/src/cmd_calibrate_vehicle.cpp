@@ -299,7 +299,7 @@ int calibrate_vehicle(int argc, char** argv) {
   vcal::VehicleParams initial;
   initial.mount = cam.mount;
   opt.fx_px = cam.intrinsics.fx;
-  opt.track_width_mm = cfg.fusion.wheel_track_mm;
+  opt.track_width_mm = cfg.fusion.slip.wheel_track_mm;
   vcal::Result r;
   if (!vcal::calibrate_vehicle(odom, obs, map, geom.outer_half_mm(), geom.inner_half_mm(), initial,
                                opt, &r, &err)) {
@@ -327,7 +327,7 @@ int calibrate_vehicle(int argc, char** argv) {
     samples.reserve(rec.imu.size());
     for (const auto& s : rec.imu) samples.push_back({s.t_ns, s.gyro_z_radps});
     vcal::GyroOptions gopt;
-    gopt.noise_density_radps_rthz = cfg.fusion.gyro_noise_density_radps_per_sqrt_hz;
+    gopt.noise_density_radps_rthz = cfg.fusion.gyro.noise_density_radps_per_sqrt_hz;
     gyro_ok = vcal::calibrate_gyro(
         samples, obs, map, geom.outer_half_mm(), geom.inner_half_mm(), r.estimate.mount,
         cfg.imu.scale, odo_offset_s + cfg.imu.time_offset_ms * 1e-3, gopt, &gyro, &gyro_error);
@@ -352,10 +352,10 @@ int calibrate_vehicle(int argc, char** argv) {
   for (size_t i = 0; i < r.params.size(); ++i) {
     const auto& p = r.params[i];
     if (!p.determined) continue;
-    out_of_range[i] =
-        wheels && p.name == "odometry.yaw_rate_scale"
-            ? outside_key_range("can.odometry.track_width_mm", cfg.fusion.wheel_track_mm / p.value)
-            : outside_key_range(p.name, p.value);
+    out_of_range[i] = wheels && p.name == "odometry.yaw_rate_scale"
+                          ? outside_key_range("can.odometry.track_width_mm",
+                                              cfg.fusion.slip.wheel_track_mm / p.value)
+                          : outside_key_range(p.name, p.value);
   }
   for (const auto& e : gyro_out_of_range) out_of_range.push_back(e);
   const bool any_out_of_range = std::any_of(out_of_range.begin(), out_of_range.end(),
@@ -497,10 +497,11 @@ int calibrate_vehicle(int argc, char** argv) {
       continue;
     }
     if (wheels && key == "yaw_rate_scale") {
-      const double track = cfg.fusion.wheel_track_mm / p.value;
+      const double track = cfg.fusion.slip.wheel_track_mm / p.value;
       can << "can:\n  odometry:\n    track_width_mm: " << fmt("%.2f", track) << "  # was "
-          << fmt("%.2f", cfg.fusion.wheel_track_mm) << " / yaw-rate scale " << fmt("%.6f", p.value)
-          << " (sigma " << fmt("%.2f", cfg.fusion.wheel_track_mm * p.sigma / (p.value * p.value))
+          << fmt("%.2f", cfg.fusion.slip.wheel_track_mm) << " / yaw-rate scale "
+          << fmt("%.6f", p.value) << " (sigma "
+          << fmt("%.2f", cfg.fusion.slip.wheel_track_mm * p.sigma / (p.value * p.value))
           << " mm)\n";
       odo << "  yaw_rate_scale: 1  # folded into can.odometry.track_width_mm\n";
       any_odo = true;
