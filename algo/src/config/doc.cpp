@@ -109,7 +109,7 @@ const std::vector<Section>& config_sections() {
       {"fusion", "(docs/design/fusion.md has the model)",
        "Fields of `agv::fusion::EkfConfig` (algo/include/agv/fusion/ekf_config.hpp) with the same\n"
        "defaults, in the order of its parts: odometry, core (process noise, history), gyro, wheel\n"
-       "slip, landmark fixes, recovery, health; angles in degrees and\n"
+       "slip, landmark fixes, range-bearing observations, recovery, health; angles in degrees and\n"
        "times in milliseconds here. The combination is checked by\n"
        "`fusion::validate` at start (e.g. `odom_gap_ms` ≥ `odom_period_ms`). With\n"
        "`estimate_odometry_calibration: false` the defaults of\n"

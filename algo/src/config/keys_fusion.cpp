@@ -22,7 +22,6 @@ void add_fusion_odometry(std::vector<Key>* k) {
     if (!c.fusion.odometry.estimate_calibration) fusion::use_uncalibrated_noise(&c.fusion);
   };
   k->push_back(std::move(cal));
-  using Timing = fusion::OdometryConfig::SampleTiming;
   k->push_back(number("fusion.odom_v_sigma_mps", AGV_AT(fusion.odometry.v_sigma_mps), 1e-6, 10.0,
                       0.005,
                       {"m/s",
@@ -63,6 +62,11 @@ void add_fusion_odometry(std::vector<Key>* k) {
   k->push_back(deg_as_rad("fusion.omega_per_v_sigma_degpm_per_sqrt_s",
                           AGV_AT(fusion.odometry.omega_per_v_sigma_radpm_per_sqrt_s), 0.0, 90.0,
                           0.005, {"deg/m per √s", "random walk of the yaw rate per speed"}));
+}
+
+// Odometry timing and gaps (OdometryConfig).
+void add_fusion_odometry_timing(std::vector<Key>* k) {
+  using Timing = fusion::OdometryConfig::SampleTiming;
   k->push_back(enumeration(
       "fusion.odom_sample_timing", AGV_AT(fusion.odometry.sample_timing),
       std::vector<std::pair<std::string, Timing>>{{"period_mean", Timing::kPeriodMean},
@@ -232,6 +236,29 @@ void add_fusion_fix(std::vector<Key>* k) {
                        {"fixes", "kept while odometry is late (oldest dropped, counted)"}));
 }
 
+// Range-bearing observations (RangeBearingConfig).
+void add_fusion_range_bearing(std::vector<Key>* k) {
+  k->push_back(number("fusion.range_bearing_range_floor_sigma_mm",
+                      AGV_AT(fusion.range_bearing.range_floor_sigma_mm), 0.0, 1000.0, 2.0,
+                      {"mm",
+                       "added to the observation's range σ (in quadrature): the landmark's "
+                       "survey error and the camera mount's calibration, which the "
+                       "measurement cannot know"}));
+  k->push_back(deg_as_rad("fusion.range_bearing_bearing_floor_sigma_deg",
+                          AGV_AT(fusion.range_bearing.bearing_floor_sigma_rad), 0.0, 10.0, 0.1,
+                          {"deg", "the same for the bearing (the mount's yaw calibration)"}));
+  k->push_back(number("fusion.range_bearing_gate_probability",
+                      AGV_AT(fusion.range_bearing.gate_probability), 0.5, 0.999999, 0.999,
+                      {"",
+                       "chi-square(2) gate on the range-bearing innovation (0.999 = 13.8). "
+                       "Higher accepts more true observations after poor dead reckoning, lets "
+                       "larger misreads and map errors through"}));
+  k->push_back(ms_as_ns("fusion.range_bearing_max_delay_ms",
+                        AGV_AT(fusion.range_bearing.max_delay_ns), 1.0, 10000.0, 500.0,
+                        "observations older than this behind the newest event are rejected "
+                        "(fused through the history replay when younger)"));
+}
+
 // Recovery (RecoveryConfig): kidnap, re-localisation, unseen slip.
 void add_fusion_recovery(std::vector<Key>* k) {
   k->push_back(integer("fusion.kidnap_fixes", AGV_AT(fusion.recovery.kidnap_fixes), 2, 100, 3,
@@ -289,10 +316,12 @@ void add_fusion_health(std::vector<Key>* k) {
 
 void add_fusion_keys(std::vector<Key>* keys) {
   add_fusion_odometry(keys);
+  add_fusion_odometry_timing(keys);
   add_fusion_core(keys);
   add_fusion_gyro(keys);
   add_fusion_slip(keys);
   add_fusion_fix(keys);
+  add_fusion_range_bearing(keys);
   add_fusion_recovery(keys);
   add_fusion_health(keys);
 }

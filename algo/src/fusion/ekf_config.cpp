@@ -82,6 +82,15 @@ std::string validate(const FixConfig& c) {
   return {};
 }
 
+std::string validate(const RangeBearingConfig& c) {
+  if (!finite_nonneg(c.range_floor_sigma_mm) || !finite_nonneg(c.bearing_floor_sigma_rad))
+    return "range-bearing floor sigmas must be finite and >= 0";
+  if (!(c.gate_probability > 0.0 && c.gate_probability < 1.0))
+    return "range-bearing gate_probability must be in (0, 1)";
+  if (c.max_delay_ns <= 0) return "range-bearing max_delay_ns must be > 0";
+  return {};
+}
+
 std::string validate(const RecoveryConfig& c) {
   if (c.kidnap_fixes < 2) return "kidnap_fixes must be >= 2";
   if (!finite_nonneg(c.kidnap_min_separation_mm) || c.kidnap_min_duration_ns < 0)
@@ -103,7 +112,7 @@ std::string validate(const HealthConfig& c) {
 std::string validate(const EkfConfig& c) {
   for (const std::string& err :
        {validate(c.core), validate(c.odometry), validate(c.gyro), validate(c.slip), validate(c.fix),
-        validate(c.recovery), validate(c.health)}) {
+        validate(c.range_bearing), validate(c.recovery), validate(c.health)}) {
     if (!err.empty()) return err;
   }
   return {};

@@ -1,6 +1,6 @@
 // Ekf core: construction, the prediction step, the time-ordered event history and its replay.
 // The aid sources: aid_odometry.cpp, aid_gyro.cpp, aid_wheel_slip.cpp, aid_fix.cpp,
-// recovery.cpp (kidnap, re-localisation, unseen slip); health.cpp.
+// aid_range_bearing.cpp; recovery.cpp (kidnap, re-localisation, unseen slip); health.cpp.
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -20,6 +20,7 @@ Ekf::Ekf(const EkfConfig& config)
   if (!err.empty()) throw std::invalid_argument("EkfConfig: " + err);
   gate_threshold_ = chi2_3dof_quantile(config_.fix.gate_probability);
   gate_threshold_2d_ = chi2_2dof_quantile(config_.fix.gate_probability);
+  range_bearing_threshold_ = chi2_2dof_quantile(config_.range_bearing.gate_probability);
   history_.resize(config_.core.history_capacity);  // the only allocations; never resized later
   held_.resize(config_.fix.held_capacity);
   gyro_.resize(config_.gyro.capacity);
@@ -130,7 +131,11 @@ std::size_t Ekf::insert_event(const Event& ev) {
 }
 
 void Ekf::update_measurement(const Event& ev, FilterVec* x, FilterCov* P) const {
-  if (ev.kind == EventKind::kFix) update_fix(x, P, ev.z, ev.R);
+  if (ev.kind == EventKind::kFix) {
+    update_fix(x, P, ev.z, ev.R);
+  } else if (ev.kind == EventKind::kRangeBearing) {
+    update_range_bearing(x, P, ev.rb);
+  }
 }
 
 void Ekf::process_event(const Event& prev, Event* ev) const {

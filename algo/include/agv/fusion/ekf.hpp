@@ -1,16 +1,16 @@
-// Fusion EKF: wheel odometry (v, omega), a gyro and landmark fixes (world pose of the vehicle) into
-// a pose at any requested time, with delayed inputs, chi-square gating, kidnap recovery and
-// health. Model: paper 000 eq. 14-19 (state x, y, theta, v,
+// Fusion EKF: wheel odometry (v, omega), a gyro, landmark fixes (world pose of the vehicle) and
+// range-bearing observations of landmarks into a pose at any requested time, with delayed inputs,
+// chi-square gating, kidnap recovery and health. Model: paper 000 eq. 14-19 (state x, y, theta, v,
 // omega); details and measured accuracy in docs/design/fusion.md. Conventions:
 // docs/design/frames.md (mm, rad wrapped to (-pi, pi], ns).
 //
 // The implementation is split by aid source: the core (ekf_core.cpp: prediction, the generic
 // update, the event history and its replay), aid_odometry.cpp, aid_gyro.cpp, aid_wheel_slip.cpp,
-// aid_fix.cpp, recovery.cpp (kidnap, re-localisation, unseen slip) and
+// aid_fix.cpp, aid_range_bearing.cpp, recovery.cpp (kidnap, re-localisation, unseen slip) and
 // health.cpp; each part has its configuration struct in ekf_config.hpp.
 //
 // Real-time use: construct once (all memory is allocated in the constructor); afterwards
-// add_odometry, add_gyro, add_fix, estimate_at and take_flags never allocate.
+// add_odometry, add_gyro, add_fix, add_range_bearing, estimate_at and take_flags never allocate.
 // Not thread-safe: call from one thread (the fusion/output loop) or guard externally.
 #pragma once
 
@@ -25,6 +25,7 @@
 #include "agv/common/geometry.hpp"
 #include "agv/fusion/ekf_config.hpp"
 #include "agv/fusion/motion_model.hpp"
+#include "agv/fusion/range_bearing.hpp"
 #include "agv/fusion/wheel_slip.hpp"
 
 namespace agv::fusion {
@@ -146,6 +147,16 @@ class Ekf {
   // filter. False (state untouched) for a non-finite pose or R not positive definite.
   bool set_pose(std::int64_t t_ns, const Pose2& z_world, const Eigen::Matrix3d& R);
 
+  // Range and bearing to a surveyed landmark from a sensor on the vehicle, at exposure time
+  // t_exposure_ns (aid_range_bearing.cpp): gated (chi-square, 2 dof) against the prior at that
+  // time and fused there; an exposure older than the newest event is fused through the history
+  // replay as a delayed fix is. Never initialises, re-localises or counts towards a kidnap:
+  // kRejectedNotTracking while the filter is uninitialised. kRejectedInvalid for non-finite
+  // values, a range not > 0, R not symmetric positive definite, or a landmark predicted at the
+  // sensor itself; kRejectedTooOld beyond RangeBearingConfig::max_delay_ns or older than the
+  // initialisation or the history.
+  FixOutcome add_range_bearing(std::int64_t t_exposure_ns, const RangeBearingObs& obs);
+
   // Estimate predicted (or, inside the history, interpolated by prediction from the last event
   // at or before t_ns) to t_ns; does not change the filter. valid only once initialised and when
   // t_ns is not older than the oldest state kept.
@@ -178,6 +189,12 @@ class Ekf {
     std::uint64_t slip_events = 0;         // of them: the first of a run
     std::uint64_t standstill_updates = 0;  // zero-rate updates of the gyro bias
     std::uint64_t unseen_slips = 0;  // gate-rejected fixes explained by an unseen heading change
+    std::uint64_t range_bearing_fused = 0;
+    std::uint64_t range_bearing_delayed = 0;  // of them: fused behind newer events
+    std::uint64_t range_bearing_rejected_gate = 0;
+    std::uint64_t range_bearing_rejected_not_initialised = 0;
+    std::uint64_t range_bearing_rejected_too_old = 0;
+    std::uint64_t range_bearing_rejected_invalid = 0;
   };
   const Counters& counters() const { return counters_; }
 
@@ -193,13 +210,14 @@ class Ekf {
 
  private:
   static constexpr std::int64_t kNoOdom = kNoTimeNs;
-  enum class EventKind : std::uint8_t { kOdom, kFix, kInit };
+  enum class EventKind : std::uint8_t { kOdom, kFix, kInit, kRangeBearing };
   struct Event {
     std::int64_t t_ns = 0;
     EventKind kind = EventKind::kOdom;
     double v_mps = 0.0, omega_radps = 0.0;            // odometry input
     Eigen::Vector3d z = Eigen::Vector3d::Zero();      // fix (x_mm, y_mm, theta_rad)
     Eigen::Matrix3d R = Eigen::Matrix3d::Identity();  // effective fix covariance
+    RangeBearingObs rb;  // range-bearing observation, with its effective covariance
     bool valid = false;  // state below is meaningful (filter initialised at this time)
     bool gyro = false;   // the period ending here took its heading from the gyro
     SlipState slip;      // the slip detectors after this event
@@ -263,7 +281,7 @@ class Ekf {
   // Inserts a fused measurement event (its posterior set) and re-propagates the newer events;
   // returns its index. *delayed: newer events existed.
   std::size_t insert_measurement(const Event& ev, bool* delayed);
-  // The measurement update of a fix event (replay and first fusion alike).
+  // The measurement update of a fix or range-bearing event (replay and first fusion alike).
   void update_measurement(const Event& ev, FilterVec* x, FilterCov* P) const;
   // Re-initialises the history at t_ns with state x, P.
   void initialise_at(std::int64_t t_ns, const FilterVec& x, const FilterCov& P);
@@ -405,6 +423,11 @@ class Ekf {
   double position_mahalanobis_sq(const FilterVec& x, const FilterCov& P, const Eigen::Vector3d& z,
                                  const Eigen::Matrix3d& R) const;
 
+  // ---- Range-bearing (aid_range_bearing.cpp) ----
+  void update_range_bearing(FilterVec* x, FilterCov* P, const RangeBearingObs& obs) const;
+  FixOutcome reject_range_bearing_invalid();
+  FixOutcome reject_range_bearing_too_old();
+
   // ---- Recovery (recovery.cpp): kidnap, re-localisation, unseen slip ----
   // Kidnap candidate handling for a gate-rejected fix; true when it re-initialised the filter.
   // prior_worthless (position sigma beyond 4x lost_position_sigma_mm): two separate agreeing
@@ -436,8 +459,9 @@ class Ekf {
 
   EkfConfig config_;
   double gate_threshold_ = 0.0;
-  double gate_threshold_2d_ = 0.0;  // same probability, position only
-  std::vector<Event> history_;      // sized in the constructor, never resized
+  double gate_threshold_2d_ = 0.0;        // same probability, position only
+  double range_bearing_threshold_ = 0.0;  // chi-square, 2 dof, RangeBearingConfig
+  std::vector<Event> history_;            // sized in the constructor, never resized
   struct TrackPoint {
     std::int64_t t_ns = 0;
     double x_mm = 0.0, y_mm = 0.0, theta_rad = 0.0, v_mps = 0.0;

@@ -1,5 +1,5 @@
 // Configuration of the fusion EKF, one struct per part of the filter: the core (process noise,
-// event history), each aid source (odometry, gyro, wheel slip, landmark fix), the
+// event history), each aid source (odometry, gyro, wheel slip, landmark fix, range-bearing), the
 // recovery rules and the health limits. The key table (algo/src/config/keys_fusion.cpp) maps the
 // user-facing keys (fusion.*, unchanged names) onto these fields.
 #pragma once
@@ -273,12 +273,29 @@ struct HealthConfig {
   double lost_position_sigma_mm = 50.0;
   double lost_heading_sigma_rad = deg_to_rad(3.0);
 };
+// Range-bearing observations of landmarks seen at a distance (agv/fusion/range_bearing.hpp;
+// aid_range_bearing.cpp). The observation's covariance R of (range, bearing) is used as
+// R + diag(range_floor_sigma_mm^2, bearing_floor_sigma_rad^2): the floor models what the
+// measurement cannot know (the landmark's survey error, the camera mount's calibration).
+struct RangeBearingConfig {
+  double range_floor_sigma_mm = 2.0;
+  double bearing_floor_sigma_rad = deg_to_rad(0.1);
+  // Probability of the chi-square(2) gate on the (range, bearing) innovation: 0.999 gives 13.8.
+  // Higher accepts more true observations after poor dead reckoning, lets larger misreads and
+  // map errors through.
+  double gate_probability = 0.999;
+  // Observations whose exposure is older than the newest event by more than this are rejected as
+  // too old (as fixes: the history must still hold the state at the exposure).
+  std::int64_t max_delay_ns = 500'000'000;
+};
+
 struct EkfConfig {
   CoreConfig core;
   OdometryConfig odometry;
   GyroConfig gyro;
   SlipConfig slip;
   FixConfig fix;
+  RangeBearingConfig range_bearing;
   RecoveryConfig recovery;
   HealthConfig health;
   using OdomSampleTiming = OdometryConfig::SampleTiming;
@@ -301,6 +318,7 @@ std::string validate(const OdometryConfig& c);
 std::string validate(const GyroConfig& c);
 std::string validate(const SlipConfig& c);
 std::string validate(const FixConfig& c);
+std::string validate(const RangeBearingConfig& c);
 std::string validate(const RecoveryConfig& c);
 std::string validate(const HealthConfig& c);
 std::string validate(const EkfConfig& config);
