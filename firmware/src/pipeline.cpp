@@ -223,7 +223,7 @@ void ThreadedRun::output_period(std::int64_t now) {
   snapshot_.publish(core_.snapshot_at(now));
   if (io_.stop && io_.stop->load()) done_ = true;
   const bool can_odometry_done = io_.can_odometry_end_ns == INT64_MIN ||
-                                 now >= io_.can_odometry_end_ns + cfg_.fusion.odom_timeout_ns;
+                                 now >= io_.can_odometry_end_ns + cfg_.fusion.health.odom_timeout_ns;
   if (io_.stop_at_end_of_stream && camera_eos_.load() && vision_busy_.load() == 0 &&
       mailbox_.closed() && loop_.odometry_done() && can_odometry_done) {
     // Hand over what the worker produced, then stop.

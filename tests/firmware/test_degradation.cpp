@@ -19,7 +19,7 @@ namespace {
 config::Config test_config() {
   config::Config cfg;
   cfg.can.odometry_mode = agv::protocol::OdometryMode::kTwist;
-  cfg.fusion.odom_timeout_ns = 100'000'000;
+  cfg.fusion.health.odom_timeout_ns = 100'000'000;
   return cfg;
 }
 

@@ -146,8 +146,8 @@ void add_can(std::vector<Key>* k) {
                        "checked)"));
   // Stored once, where fusion reads it; the decoder and the odometry correction take it from
   // there (protocol_config, the firmware's localizer_config).
-  k->push_back(number("can.odometry.track_width_mm", AGV_AT(fusion.wheel_track_mm), 50.0, 5000.0,
-                      kDefaultTrackWidthMm,
+  k->push_back(number("can.odometry.track_width_mm", AGV_AT(fusion.slip.wheel_track_mm), 50.0,
+                      5000.0, kDefaultTrackWidthMm,
                       {"mm",
                        "distance between the drive wheels, in both odometry modes. Wheels mode: "
                        "converts wheel speeds to v, ω. The lever of "
@@ -159,11 +159,11 @@ void add_can(std::vector<Key>* k) {
                       1.0, {"", "wheels mode: calibrates wheel radius error"}));
   // Stored once, where it is used (the filter's flag and the core's pose validity both read
   // fusion.odom_timeout_ns); the key keeps its CAN name because the odometry comes over CAN.
-  k->push_back(
-      ms_as_ns("can.odometry.timeout_ms", AGV_AT(fusion.odom_timeout_ns), 5.0, 10000.0, 100.0,
-               "the one odometry timeout: no valid odometry this long → `OdomTimeout`, pose "
-               "flagged invalid and the filter lost. Short reacts fast to a dead controller but "
-               "trips on bus jitter; 100 ms = 10 missed frames at 100 Hz"));
+  k->push_back(ms_as_ns(
+      "can.odometry.timeout_ms", AGV_AT(fusion.health.odom_timeout_ns), 5.0, 10000.0, 100.0,
+      "the one odometry timeout: no valid odometry this long → `OdomTimeout`, pose "
+      "flagged invalid and the filter lost. Short reacts fast to a dead controller but "
+      "trips on bus jitter; 100 ms = 10 missed frames at 100 Hz"));
   k->push_back(boolean(
       "can.gyro.enabled", AGV_AT(can.gyro_enabled), false,
       "receive the yaw rate from an IMU as `AGV_Gyro` (docs/guide/can.md): it carries the heading "

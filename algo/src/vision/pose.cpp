@@ -44,9 +44,8 @@ constexpr double kMinLineAngleVar = 1e-14;
 constexpr int kJointIterationsPerRound = 5;
 constexpr int kJointRobustRounds = 3;
 constexpr double kConvergedStep = 1e-6;
-// Joint re-weighting: robust sigma from the MAD (1.4826 = 1 / Phi^-1(3/4), consistent for
-// Gaussian residuals) with a floor in mm (a perfect frame would otherwise reject everything).
-constexpr double kMadToSigma = 1.4826;
+// Joint re-weighting: robust sigma from the MAD (kMadToSigma, order_statistic.hpp) with a floor
+// in mm (a perfect frame would otherwise reject everything).
 constexpr double kMinJointSigmaMm = 0.005;
 // Two lines whose normals' determinant is below this are treated as parallel.
 constexpr double kParallelDet = 1e-9;

@@ -268,7 +268,7 @@ int solve_vehicle(const Inputs& in, const Observed& seen, vcal::Options opt, vca
   vcal::VehicleParams initial;
   initial.mount = in.cam.mount;
   opt.fx_px = in.cam.intrinsics.fx;
-  opt.track_width_mm = in.cfg.fusion.wheel_track_mm;
+  opt.track_width_mm = in.cfg.fusion.slip.wheel_track_mm;
   std::string err;
   if (!vcal::calibrate_vehicle(odom, seen.obs, in.map, in.geom.outer_half_mm(),
                                in.geom.inner_half_mm(), initial, opt, r, &err)) {
@@ -298,7 +298,7 @@ GyroOutcome solve_gyro(const Inputs& in, const Observed& seen, const vcal::Resul
     samples.reserve(in.rec.imu.size());
     for (const auto& s : in.rec.imu) samples.push_back({s.t_ns, s.gyro_z_radps});
     vcal::GyroOptions gopt;
-    gopt.noise_density_radps_rthz = cfg.fusion.gyro_noise_density_radps_per_sqrt_hz;
+    gopt.noise_density_radps_rthz = cfg.fusion.gyro.noise_density_radps_per_sqrt_hz;
     g.ok = vcal::calibrate_gyro(samples, seen.obs, in.map, in.geom.outer_half_mm(),
                                 in.geom.inner_half_mm(), r.estimate.mount, cfg.imu.scale,
                                 odo_offset_s + cfg.imu.time_offset_ms * 1e-3, gopt, &g.result,
@@ -329,7 +329,7 @@ void check_ranges(const Inputs& in, Outcome* o) {
     if (!p.determined) continue;
     o->out_of_range[i] = o->wheels && p.name == "odometry.yaw_rate_scale"
                              ? outside_key_range("can.odometry.track_width_mm",
-                                                 in.cfg.fusion.wheel_track_mm / p.value)
+                                                 in.cfg.fusion.slip.wheel_track_mm / p.value)
                              : outside_key_range(p.name, p.value);
   }
   for (const auto& e : o->gyro.out_of_range) o->out_of_range.push_back(e);

@@ -137,7 +137,7 @@ void snippet_mounting(const vcal::Result& r, std::ostringstream& snip) {
 // model's equations). Wheels mode: the yaw-rate scale becomes the track width the recording's
 // samples were decoded with divided by the scale (omega = (r - l) / track).
 void snippet_odometry(const Inputs& in, const Outcome& o, std::ostringstream& snip) {
-  const double track_mm = in.cfg.fusion.wheel_track_mm;
+  const double track_mm = in.cfg.fusion.slip.wheel_track_mm;
   std::ostringstream odo, can, clock;
   bool any_odo = false;
   for (size_t i = 6; i < o.r.params.size(); ++i) {

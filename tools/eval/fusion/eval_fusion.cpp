@@ -169,7 +169,7 @@ int main(int argc, char** argv) {
   SynthParams sp;
   double grid_mm = 1000.0;
   bool partial_window = false;
-  int kidnap_fixes = EkfConfig{}.kidnap_fixes;
+  int kidnap_fixes = EkfConfig{}.recovery.kidnap_fixes;
   bool honesty = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -226,7 +226,7 @@ int main(int argc, char** argv) {
 
   if (honesty) return run_honesty_table(sp, grid_mm, 3);
   EkfConfig cfg;  // documented defaults
-  cfg.kidnap_fixes = kidnap_fixes;
+  cfg.recovery.kidnap_fixes = kidnap_fixes;
   if (!validate(cfg).empty()) {
     std::fprintf(stderr, "eval_fusion: %s\n", validate(cfg).c_str());
     return 2;
@@ -259,7 +259,7 @@ int main(int argc, char** argv) {
   if (recording.empty())
     std::printf("odometry: scale error %+.1f %%, heading drift %.2f deg/s, seed %llu\n",
                 100.0 * sp.scale_error, sp.drift_degps, static_cast<unsigned long long>(sp.seed));
-  std::printf("gate chi2(3) at %.4f: %.3f\n", cfg.gate_probability, Ekf(cfg).gate_threshold());
+  std::printf("gate chi2(3) at %.4f: %.3f\n", cfg.fix.gate_probability, Ekf(cfg).gate_threshold());
   std::printf(
       "columns: lm_* = position error (mm) at the fix exposure after fusing it, for fixes "
       "taken\n  at >= 0.5 m/s (lm_n of them), lm_p95d heading (deg);\n  mid_* = real-time error "
@@ -344,7 +344,7 @@ int main(int argc, char** argv) {
     print_row("slips 0.05/s (wheel +25 %, 0.3 s)",
               run(wslip, simulate_fixes(wslip, fp), cfg, grid_mm));
     EkfConfig cfg_k2 = cfg;
-    cfg_k2.kidnap_fixes = 2;
+    cfg_k2.recovery.kidnap_fixes = 2;
     print_row("slips, kidnap_fixes 2", run(wslip, simulate_fixes(wslip, fp), cfg_k2, grid_mm));
     print_row("kidnap_fixes 2, 20 % outliers", run(base,
                                                    simulate_fixes(base, with(fp,
