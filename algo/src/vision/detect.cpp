@@ -1,6 +1,6 @@
 // Stages 1-2 of the pipeline (docs/design/vision.md), binarization and detection: coarse pyramid
 // level, adaptive binarization, rotated corner templates (NCC), corner peaks merged into landmark
-// hypotheses, angle and centre refinement, border ring check. Paper 001 section 3.1 with the
+// hypotheses, angle and centre refinement, border ring check. Li et al. section 3.1 with the
 // changes measured in docs/design/accuracy.md.
 #include <algorithm>
 #include <cmath>

@@ -1,4 +1,4 @@
-// Debug overlay of LandmarkLocalizer (paper 001 figures 5-9): edge points coloured by class,
+// Debug overlay of LandmarkLocalizer (Li et al. figures 5-9): edge points coloured by class,
 // fitted lines, corners, centre, the numbers. Desk use only; not on the vehicle's per-frame path.
 #include <cstdio>
 #include <opencv2/imgproc.hpp>

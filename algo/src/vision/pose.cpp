@@ -187,7 +187,7 @@ double SquareFit::line_heading(const EdgePoints& pts, const std::array<LineFit, 
     const double nrm_angle = std::atan2(f.line.ny, f.line.nx);
     ang[static_cast<size_t>(l)] = reduce_angle_90(nrm_angle, beta0);
     var_ang[static_cast<size_t>(l)] = std::max(f.var_angle, kMinLineAngleVar);
-    // Paper 000 eq. 11 with raw coordinates across the line.
+    // Yang et al. eq. 11 with raw coordinates across the line.
     double sy2 = 0;
     for (const Vec2& p : pts.mm[static_cast<size_t>(l)]) {
       const double y = f.line.nx * p.x + f.line.ny * p.y;
@@ -209,7 +209,7 @@ double SquareFit::line_heading(const EdgePoints& pts, const std::array<LineFit, 
   return beta0 + (sw > 0 ? s / sw : 0.0);
 }
 
-// Paper 001 eq. 8-11 in the frame aligned with the fine heading: corner A of the border's midline
+// Li et al. eq. 8-11 in the frame aligned with the fine heading: corner A of the border's midline
 // square from the extreme edge points of the left (side 3) and top (side 0) sides.
 Vec2 SquareFit::paper_corner_a_centre(const EdgePoints& pts, double beta) const {
   const double cb = std::cos(beta), sb = std::sin(beta);
@@ -413,7 +413,7 @@ void SquareFit::keep_overlay_geometry(const SquareModel& m) {
 // Collects classified, non-maximum-suppressed, optionally subpixel edge points of the 8 border
 // lines (outer and inner edge of each side). Only pixels inside a band of +-band px around each
 // predicted line are visited (rasterised strip), and a pixel is kept for a line only when its
-// gradient class (paper 001 fig. 7: direction within the tolerance of the line's normal, outward
+// gradient class (Li et al. fig. 7: direction within the tolerance of the line's normal, outward
 // on outer edges, inward on inner edges) is that line's class.
 int SquareFit::collect(const cv::Mat& img, Vec2 c, double up, double band, double thr,
                        EdgePoints* pts) {

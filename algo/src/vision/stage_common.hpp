@@ -197,7 +197,7 @@ struct VisionSetup {
 
   VisionConfig cfg;
   CameraModel cam;
-  CameraModel cam_linear;  // same mount, one mm/px ratio, no distortion (paper 001)
+  CameraModel cam_linear;  // same mount, one mm/px ratio, no distortion (Li et al.)
   LandmarkGeometry geom;
   const LandmarkMap* map = nullptr;
   double mm_per_px = 0.26;

@@ -355,7 +355,7 @@ int main(int argc, char** argv) {
                                                                              })),
                                                    cfg_k2, grid_mm));
   }
-  // The plain 5-state filter of paper 000 (no odometry calibration states), same data.
+  // The plain 5-state filter of Yang et al. (no odometry calibration states), same data.
   EkfConfig cfg5 = cfg;
   agv::fusion::use_uncalibrated_noise(&cfg5);
   const RunResult r5 = run(base, simulate_fixes(base, fp), cfg5, grid_mm);

@@ -58,7 +58,7 @@ struct OdometryConfig {
   // Estimate s_v, s_omega, b_omega and c_omega_v from the fixes. A 1 % scale error alone is 5 mm at
   // the midpoint of a 1 m landmark spacing and a 0.5 deg/s yaw-rate bias another ~1-3 mm; learning
   // them (a few landmarks suffice) removes most of that. false: the plain 5-state filter of
-  // paper 000 (the calibration states stay exactly 0); set it with use_uncalibrated_noise(),
+  // Yang et al. (the calibration states stay exactly 0); set it with use_uncalibrated_noise(),
   // whose process noise covers the uncalibrated errors.
   bool estimate_calibration = true;
   // Prior sigmas of the calibration (what a new or re-tyred vehicle may be off by).

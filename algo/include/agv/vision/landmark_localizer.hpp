@@ -1,4 +1,4 @@
-// Landmark pose from one floor image: paper 001's pipeline (adaptive threshold, NCC corner
+// Landmark pose from one floor image: Li et al.'s pipeline (adaptive threshold, NCC corner
 // templates, QR decode, logo direction, Prewitt edge classes, least-squares edge lines) plus the
 // improvements measured in docs/design/accuracy.md. Tunables and their trade-offs:
 // docs/design/vision.md. Frames: docs/design/frames.md. Pure: no I/O, no threads, no clocks (time
@@ -24,13 +24,13 @@ namespace agv::vision {
 
 // How edge-point coordinates become millimetres.
 enum class MetricMode {
-  kLinearRatio,  // paper 001: one mm-per-pixel ratio about the image centre (ignores distortion)
+  kLinearRatio,  // Li et al.: one mm-per-pixel ratio about the image centre (ignores distortion)
   kCameraModel,  // every edge point through CameraModel::pixel_to_vehicle (undistorts)
 };
 
 // How the landmark centre and heading are computed from the classified edge points.
 enum class PoseMethod {
-  kPaperCornerA,       // paper 001 eq. 7-11: heading from the line angles, centre from corner A
+  kPaperCornerA,       // Li et al. eq. 7-11: heading from the line angles, centre from corner A
   kLineIntersections,  // 8 independent line fits; centre = mean of the outer+inner corners
   kJointSquareFit,     // one Gauss-Newton fit of the known square to all points (shared angle)
 };
@@ -38,8 +38,8 @@ enum class PoseMethod {
 // How the four (eight) line angles are averaged into one heading (kPaperCornerA and
 // kLineIntersections; the joint fit estimates one shared angle directly).
 enum class HeadingMethod {
-  kMean,             // paper 001 eq. 7
-  kWeighted000,      // paper 000 eq. 10-11 (weights k_i from the fit residuals)
+  kMean,             // Li et al. eq. 7
+  kWeighted000,      // Yang et al. eq. 10-11 (weights k_i from the fit residuals)
   kInverseVariance,  // each line angle weighted by 1/var from its own residuals
 };
 
@@ -394,7 +394,7 @@ class LandmarkLocalizer {
   // The same with the filter's prediction for this frame (search windows, map-guided identity).
   FixStatus process(const cv::Mat& gray8, const Prediction& prediction, LandmarkFix* out);
 
-  // Debug overlay like paper 001 figures 5-9: edge points coloured by class, fitted lines,
+  // Debug overlay like Li et al. figures 5-9: edge points coloured by class, fitted lines,
   // corners, centre, the numbers. Uses the edge points kept from the last process() call, so
   // pass the same image and the fix that call returned.
   void draw_overlay(const cv::Mat& gray8, const LandmarkFix& fix, cv::Mat* bgr_out) const;
