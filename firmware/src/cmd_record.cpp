@@ -44,7 +44,7 @@ int record(int argc, char** argv) {
     return 2;
   }
   std::unique_ptr<hal::Imu> imu;  // imu.source iio: the same device and reader as `agvloc run`
-  if (cfg.imu.source == "iio") {
+  if (cfg.imu.source == config::ImuSource::kIio) {
     imu = app::make_live_imu(cfg, &err);
     if (!imu) {
       std::fprintf(stderr, "agvloc record: %s\n", err.c_str());
@@ -55,7 +55,7 @@ int record(int argc, char** argv) {
   meta.camera = cfg.camera_model;
   meta.landmark_size_mm = cfg.landmark_size_mm;
   // The configured family is what the floor was taken to carry: replay runs it without --config.
-  meta.landmark_family = cfg.vision.family == LandmarkFamily::kTag36h11 ? "tag36h11" : "qr";
+  meta.landmark_family = landmark_family_name(cfg.vision.family);
   meta.source = "agvloc record --config " + config_file;
   if (!recording::write_meta(out_dir, meta, &err)) {
     std::fprintf(stderr, "agvloc record: %s\n", err.c_str());
@@ -64,8 +64,7 @@ int record(int argc, char** argv) {
   can::SocketCanConfig sc;
   sc.iface = cfg.can.interface;
   can::SocketCanBus bus(sc);
-  protocol::ProtocolConfig pc = config::protocol_config(cfg);
-  pc.gyro = config::gyro_protocol_config(cfg);  // AGV_Gyro is received only when enabled
+  const protocol::ProtocolConfig pc = config::protocol_config(cfg);  // AGV_Gyro when enabled
 
   install_stop_signals();
   posix::PosixClock clock;

@@ -19,13 +19,19 @@
 
 namespace agv::cmd {
 
-int run(int argc, char** argv) {
-  CLI::App app{"Live localization: camera -> vision -> fusion -> CAN (docs/guide/config.md)"};
+namespace {
+
+struct RunArgs {
   std::string config_file;
   bool check_only = false, print_dbc = false;
-  app.add_option("--config", config_file, "configuration YAML")->required();
-  app.add_flag("--check-config", check_only, "validate the configuration and exit");
-  app.add_flag("--print-dbc", print_dbc,
+};
+
+// The command line; -1 to go on, else the exit code.
+int parse_args(int argc, char** argv, RunArgs* a) {
+  CLI::App app{"Live localization: camera -> vision -> fusion -> CAN (docs/guide/config.md)"};
+  app.add_option("--config", a->config_file, "configuration YAML")->required();
+  app.add_flag("--check-config", a->check_only, "validate the configuration and exit");
+  app.add_flag("--print-dbc", a->print_dbc,
                "print the DBC of this configuration (IDs, ID types, cycle times from "
                "loop.output_rate_hz) and exit");
   try {
@@ -33,57 +39,108 @@ int run(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
   }
+  return -1;
+}
+
+// What a live run needs before it starts, checked.
+struct LiveSetup {
   config::Config cfg;
-  if (!config::load_config_or_report(config_file, "agvloc", &cfg)) return 2;
-  std::vector<std::string> file_errors;
-  if (cfg.vda5050.enabled && !app::check_vda5050_files(cfg.vda5050, &file_errors)) {
-    for (const auto& e : file_errors) std::fprintf(stderr, "agvloc: config: %s\n", e.c_str());
+  LandmarkMap map;
+  const LandmarkMap* map_ptr = nullptr;  // null: payload poses only
+  std::unique_ptr<hal::Camera> camera;
+  std::unique_ptr<hal::Imu> imu;  // imu.source iio (docs/design/fusion.md "Gyro from a Linux IIO
+                                  // device"); null otherwise
+};
+
+int run_fail(const std::string& what, int rc = 2) {
+  std::fprintf(stderr, "agvloc: %s\n", what.c_str());
+  return rc;
+}
+
+// The configuration, the map and the devices: -1 to go on, else the exit code (--print-dbc and
+// --check-config end here).
+int prepare(const RunArgs& a, LiveSetup* s) {
+  config::Config& cfg = s->cfg;
+  if (!config::load_config_or_report(a.config_file, "agvloc", &cfg)) return 2;
+  std::vector<std::string> errors;
+  if (cfg.vda5050.enabled && !app::check_vda5050_files(cfg.vda5050, &errors)) {
+    for (const auto& e : errors) run_fail("config: " + e);
     return 2;
   }
-  if (print_dbc) {
-    protocol::ProtocolConfig pc = config::protocol_config(cfg);
-    pc.gyro = config::gyro_protocol_config(cfg);
-    std::fputs(protocol::render_dbc(pc).c_str(), stdout);
+  if (a.print_dbc) {
+    std::fputs(protocol::render_dbc(config::protocol_config(cfg)).c_str(), stdout);
     return 0;
   }
-  LandmarkMap map;
-  const LandmarkMap* map_ptr = nullptr;
   std::string err;
   if (!cfg.map_file.empty()) {
-    if (!config::load_map_file(cfg.map_file, &map, &err)) {
-      std::fprintf(stderr, "agvloc: map: %s\n", err.c_str());
-      return 2;
-    }
-    map_ptr = &map;
+    if (!config::load_map_file(cfg.map_file, &s->map, &err)) return run_fail("map: " + err);
+    s->map_ptr = &s->map;
   }
-  std::vector<std::string> cannot;
-  if (!config::check_can_localize(cfg, map_ptr, &cannot)) {
-    for (const auto& e : cannot) std::fprintf(stderr, "agvloc: config: %s\n", e.c_str());
+  if (!config::check_can_localize(cfg, s->map_ptr, &errors)) {
+    for (const auto& e : errors) run_fail("config: " + e);
     return 2;
   }
-  auto camera = app::make_live_camera(cfg, &err);
-  if (!camera) {
-    std::fprintf(stderr, "agvloc: %s\n", err.c_str());
-    return 2;
+  s->camera = app::make_live_camera(cfg, &err);
+  if (!s->camera) return run_fail(err);
+  if (cfg.imu.source == config::ImuSource::kIio) {
+    s->imu = app::make_live_imu(cfg, &err);
+    if (!s->imu) return run_fail(err);
   }
-  std::unique_ptr<hal::Imu>
-      imu;  // imu.source iio (docs/design/fusion.md "Gyro from a Linux IIO device")
-  if (cfg.imu.source == "iio") {
-    imu = app::make_live_imu(cfg, &err);
-    if (!imu) {
-      std::fprintf(stderr, "agvloc: %s\n", err.c_str());
-      return 2;
-    }
-  }
-  if (check_only) {
-    std::printf("agvloc: configuration %s is valid; checked:\n%s", config_file.c_str(),
-                config::config_summary(cfg, map_ptr).c_str());
+  if (a.check_only) {
+    std::printf("agvloc: configuration %s is valid; checked:\n%s", a.config_file.c_str(),
+                config::config_summary(cfg, s->map_ptr).c_str());
     return 0;
   }
+  return -1;
+}
+
+// The outputs besides CAN, started: the VDA 5050 publisher and the diagnostics page (each only
+// when enabled), their hand-offs added to io's sinks.
+struct Outputs {
+  app::MqttHandoff mqtt_handoff;
+  std::unique_ptr<app::MqttPublisher> mqtt;
+  app::DiagHandoff diag_handoff;
+  app::FrameTap diag_frames;
+  std::unique_ptr<app::DiagServer> diag;
+
+  bool start(const LiveSetup& s, app::PipelineIo* io, std::string* err) {
+    const config::Config& cfg = s.cfg;
+    if (cfg.vda5050.enabled) {
+      // VDA 5050 wants wall-clock stamps; the loop runs on the monotonic clock.
+      mqtt = std::make_unique<app::MqttPublisher>(cfg.vda5050, mqtt_handoff,
+                                                  app::StampClock::kWall, cfg.loop.service_cpus);
+      if (!mqtt->start(err)) return false;
+      io->sinks.push_back(&mqtt_handoff);
+    }
+    // Diagnostics page (docs/guide/diagnostics.md): its own threads, never the loop's.
+    if (cfg.diag.enabled) {
+      diag = std::make_unique<app::DiagServer>(cfg, s.map_ptr, diag_handoff, diag_frames, "run");
+      if (!diag->start(err)) return false;
+      io->sinks.push_back(&diag_handoff);
+      io->diag_frames = &diag_frames;
+    }
+    return true;
+  }
+  // Stops them; their counter lines.
+  std::string stop() {
+    std::string lines;
+    if (mqtt) {
+      mqtt->stop();
+      lines += app::format_mqtt_counters(mqtt->counters(), mqtt_handoff);
+    }
+    if (diag) {
+      diag->stop();
+      lines += app::format_diag_counters(diag->stats());
+    }
+    return lines;
+  }
+};
+
+int run_live(LiveSetup& s) {
+  const config::Config& cfg = s.cfg;
   if (cfg.loop.lock_memory) {
     const int e = posix::lock_all_memory();
-    if (e)
-      std::fprintf(stderr, "agvloc: %s\n", posix::explain_realtime_error("mlockall", e).c_str());
+    if (e) run_fail(posix::explain_realtime_error("mlockall", e));
   }
   can::SocketCanConfig sc;
   sc.iface = cfg.can.interface;
@@ -95,71 +152,48 @@ int run(int argc, char** argv) {
   posix::PosixClock clock;
   install_stop_signals();
   app::PipelineIo io;
-  io.camera = camera.get();
+  io.camera = s.camera.get();
   io.bus = &bus;
   io.clock = &clock;
   io.stop = &stop_requested();
   io.stop_at_end_of_stream = false;
+  std::string err;
   app::GyroRing gyro_ring;
-  app::GyroReader gyro_reader(std::move(imu), gyro_ring);
-  if (cfg.imu.source == "iio") {
-    if (!gyro_reader.start(&err)) {
-      std::fprintf(stderr, "agvloc: %s\n", err.c_str());
-      return 2;
-    }
+  app::GyroReader gyro_reader(std::move(s.imu), gyro_ring);
+  if (cfg.imu.source == config::ImuSource::kIio) {
+    if (!gyro_reader.start(&err)) return run_fail(err);
     std::printf("agvloc: gyro from IIO device %s at %.1f Hz\n", cfg.imu.iio_device.c_str(),
                 gyro_reader.rate_hz());
     io.live_gyro = &gyro_ring;
   }
-  // VDA 5050 wants wall-clock stamps; the loop runs on the monotonic clock.
-  app::MqttHandoff mqtt_handoff;
-  std::unique_ptr<app::MqttPublisher> mqtt;
-  if (cfg.vda5050.enabled) {
-    mqtt = std::make_unique<app::MqttPublisher>(cfg.vda5050, mqtt_handoff, app::StampClock::kWall,
-                                                cfg.loop.service_cpus);
-    if (!mqtt->start(&err)) {
-      std::fprintf(stderr, "agvloc: %s\n", err.c_str());
-      return 2;
-    }
-    io.mqtt = &mqtt_handoff;
-  }
-  // Diagnostics page (diag.enabled, docs/guide/diagnostics.md): its own threads, never the loop's.
-  app::DiagHandoff diag_handoff;
-  app::FrameTap diag_frames;
-  std::unique_ptr<app::DiagServer> diag;
-  if (cfg.diag.enabled) {
-    diag = std::make_unique<app::DiagServer>(cfg, map_ptr, diag_handoff, diag_frames, "run");
-    if (!diag->start(&err)) {
-      std::fprintf(stderr, "agvloc: %s\n", err.c_str());
-      return 2;
-    }
-    io.diag = &diag_handoff;
-    io.diag_frames = &diag_frames;
-  }
+  Outputs outputs;
+  if (!outputs.start(s, &io, &err)) return run_fail(err);
   std::printf("agvloc %s: running (camera %s, CAN %s, %.0f Hz); Ctrl-C to stop\n", AGV_VERSION,
-              cfg.camera.driver.c_str(), sc.iface.c_str(), cfg.loop.output_rate_hz);
+              config::camera_driver_name(cfg.camera.driver), sc.iface.c_str(),
+              cfg.loop.output_rate_hz);
   app::RunResult result;
   const std::int64_t t0 = clock.now_ns();
-  app::run_threads(cfg, map_ptr, io, &result);
+  app::run_threads(cfg, s.map_ptr, io, &result);
   result.wall_ns = clock.now_ns() - t0;
   gyro_reader.stop();
   if (io.live_gyro) {
     std::fputs(app::format_gyro_counters(gyro_reader.counters(), gyro_ring.dropped()).c_str(),
                stdout);
   }
-  std::string mqtt_line;
-  if (mqtt) {
-    mqtt->stop();
-    mqtt_line = app::format_mqtt_counters(mqtt->counters(), mqtt_handoff);
-  }
-  std::string diag_line;
-  if (diag) {
-    diag->stop();
-    diag_line = app::format_diag_counters(diag->stats());
-  }
-  std::printf("agvloc: stopped after %.1f s\n%s%s%s", static_cast<double>(result.wall_ns) / 1e9,
-              app::format_statistics(result).c_str(), mqtt_line.c_str(), diag_line.c_str());
+  const std::string lines = outputs.stop();
+  std::printf("agvloc: stopped after %.1f s\n%s%s", static_cast<double>(result.wall_ns) / 1e9,
+              app::format_statistics(result).c_str(), lines.c_str());
   return 0;
+}
+
+}  // namespace
+
+int run(int argc, char** argv) {
+  RunArgs args;
+  if (const int rc = parse_args(argc, argv, &args); rc >= 0) return rc;
+  LiveSetup setup;
+  if (const int rc = prepare(args, &setup); rc >= 0) return rc;
+  return run_live(setup);
 }
 
 }  // namespace agv::cmd

@@ -94,7 +94,7 @@ std::string hex_id(std::uint32_t id) {
 std::string config_summary(const Config& cfg, const LandmarkMap* map) {
   const auto& cam = cfg.camera.camera;
   std::string s;
-  s += "  camera: " + cfg.camera.driver + (cam.id.empty() ? "" : " id \"" + cam.id + "\"") +
+  s += "  camera: " + val(cfg, "camera.driver") + (cam.id.empty() ? "" : " id \"" + cam.id + "\"") +
        (cam.model.empty() ? "" : " model \"" + cam.model + "\"") + ", " +
        std::to_string(cam.width_px) + "x" + std::to_string(cam.height_px) + " px at " +
        val(cfg, "camera.fps") + " fps, exposure " + val(cfg, "camera.exposure_us") + " us\n";
@@ -121,20 +121,20 @@ std::string config_summary(const Config& cfg, const LandmarkMap* map) {
     s += "no map (poses from the printed codes)\n";
   }
   const protocol::ProtocolConfig pc = protocol_config(cfg);
-  const bool wheels = cfg.can.odometry_mode == "wheels";
+  const bool wheels = cfg.can.odometry_mode == protocol::OdometryMode::kWheels;
   // 0 means the DBC's ID: base_id + 0x10 (wheels) / + 0x11 (v_omega).
   const std::uint32_t odom_id =
       cfg.can.odometry_id != 0 ? cfg.can.odometry_id : pc.base_id + (wheels ? 0x10u : 0x11u);
   s += "  CAN: " + cfg.can.interface + ", base_id " + hex_id(pc.base_id) +
        (cfg.can.extended_ids ? " (extended ids)" : " (standard ids)") + ", odometry " +
-       cfg.can.odometry_mode + " on " + hex_id(odom_id) +
+       val(cfg, "can.odometry.mode") + " on " + hex_id(odom_id) +
        (cfg.can.odometry_protected ? " (E2E protected)" : " (unprotected)") +
        (wheels ? ", track_width_mm " + val(cfg, "can.odometry.track_width_mm") : std::string()) +
        "\n";
-  s += "  imu: source " + cfg.imu.source;
-  if (cfg.imu.source == "iio") {
+  s += "  imu: source " + val(cfg, "imu.source");
+  if (cfg.imu.source == ImuSource::kIio) {
     s += ", device " + cfg.imu.iio_device + " at " + val(cfg, "imu.iio_rate_hz") + " Hz";
-  } else if (cfg.imu.source == "can") {
+  } else if (cfg.imu.source == ImuSource::kCan) {
     const std::uint32_t gyro_id = cfg.can.gyro_id != 0 ? cfg.can.gyro_id : pc.base_id + 0x12u;
     s += cfg.can.gyro_enabled ? ", AGV_Gyro on " + hex_id(gyro_id)
                               : " but can.gyro.enabled false: wheel odometry only";

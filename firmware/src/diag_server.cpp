@@ -46,11 +46,10 @@ struct DiagServer::Impl {
               posix::set_thread_name("agv-diag");
               pin_this_thread(cpus, "diagnostics page, loop.service_cpus");
             }) {
-    LandmarkGeometry g;
-    g.size_mm = c.landmark_size_mm;
     vision::VisionConfig v = c.vision;
     v.now_ns = nullptr;  // the page shows the overlay, not stage timings
-    localizer = std::make_unique<vision::LandmarkLocalizer>(v, c.camera_model, g, map);
+    localizer = std::make_unique<vision::LandmarkLocalizer>(v, c.camera_model,
+                                                            config::landmark_geometry(c), map);
   }
 
   // The newest snapshot (copied from the loop's slot only when it changed).

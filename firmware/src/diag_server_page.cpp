@@ -5,8 +5,9 @@
 // browser test waits for them).
 namespace agv::app {
 
-const char* diag_page_html() {
-  return R"HTML(<!DOCTYPE html>
+namespace {
+
+constexpr const char kDiagPage[] = R"HTML(<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
 <meta name="viewport" content="width=device-width, initial-scale=1">
 <title>agvloc diagnostics</title>
@@ -142,6 +143,9 @@ function mapLoop(){ poll("/api/map.json", m=>{ lastMap=m; if (drawMap(m) && m.la
 loop(); mapLoop(); loadFrame();
 </script></body></html>
 )HTML";
-}
+
+}  // namespace
+
+const char* diag_page_html() { return kDiagPage; }
 
 }  // namespace agv::app

@@ -17,8 +17,10 @@ std::unique_ptr<hal::Camera> make_live_camera(const config::Config& cfg, std::st
     *error = "camera: " + verr;
     return nullptr;
   }
-  if (cfg.camera.driver == "v4l2") return std::make_unique<v4l2::V4l2Camera>(cfg.camera.camera);
-  if (cfg.camera.driver == "libcamera") {
+  if (cfg.camera.driver == config::CameraDriver::kV4l2) {
+    return std::make_unique<v4l2::V4l2Camera>(cfg.camera.camera);
+  }
+  if (cfg.camera.driver == config::CameraDriver::kLibcamera) {
 #ifdef AGV_HAVE_LIBCAMERA
     return std::make_unique<libcam::LibcameraCamera>(cfg.camera.camera);
 #else
@@ -28,8 +30,8 @@ std::unique_ptr<hal::Camera> make_live_camera(const config::Config& cfg, std::st
     return nullptr;
 #endif
   }
-  *error =
-      "camera.driver: '" + cfg.camera.driver + "' is not a live driver (use libcamera or v4l2)";
+  *error = std::string("camera.driver: '") + config::camera_driver_name(cfg.camera.driver) +
+           "' is not a live driver (use libcamera or v4l2)";
   return nullptr;
 }
 

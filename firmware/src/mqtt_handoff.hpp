@@ -1,14 +1,15 @@
 // Hand-off between the output loop and the MQTT thread (docs/guide/vda5050.md "Threads"). The loop
-// side never blocks and never allocates: each slot is guarded by a mutex the loop only try-locks
-// (the MQTT thread holds it for one copy of a few hundred bytes); a busy slot skips this tick's
-// sample or this tick's look at the mailbox (counted), the next tick retries.
+// side never blocks and never allocates: each slot is a LatestSlot the loop only try-locks (the
+// MQTT thread holds it for one copy of a few hundred bytes); a busy slot skips this tick's sample
+// (counted) or this tick's look at the mailbox, the next tick retries.
 #pragma once
 
 #include <atomic>
 #include <cstdint>
-#include <mutex>
 
 #include "agv/localizer/localizer.hpp"
+#include "latest_slot.hpp"
+#include "output_sink.hpp"
 
 namespace agv::app {
 
@@ -24,40 +25,46 @@ struct CommandAnswer {
   bool ok = false;
 };
 
-class MqttHandoff {
+class MqttHandoff : public OutputSink {
  public:
+  // As the output loop's sink: a pending initPosition is applied before the tick (the pose an
+  // operator sets gets half the lost limits as sigma, localizer::init_position_sigma) and each
+  // tick is offered.
+  void before_tick(std::int64_t now_ns, localizer::Localizer& core) override {
+    InitPoseCommand cmd;
+    if (take_command(&cmd)) {
+      report(cmd.seq, core.init_position(now_ns, {cmd.x_mm, cmd.y_mm, cmd.theta_rad}));
+    }
+  }
+  void on_tick(const TickOutput& out) override { offer(out.tick); }
+
   // Loop side. offer: the tick at t_ns, taken when the visualization period is due (rate limit in
   // loop time, so a fast replay publishes at recording rate, not at wall rate).
-  void set_period_ns(std::int64_t period_ns) { period_ns_ = period_ns; }
+  void set_period_ns(std::int64_t period_ns) { due_.set_period_ns(period_ns); }
   void offer(const localizer::TickRecord& tick) {
     // A reported command makes its tick due at once (the answer must carry the pose after it)
     // without moving the schedule.
-    const bool due = next_due_ns_ == INT64_MIN || tick.t_ns >= next_due_ns_;
+    const bool due = due_.is_due(tick.t_ns);
     if (!due && !report_pending_) return;
-    std::unique_lock<std::mutex> lock(sample_mutex_, std::try_to_lock);
-    if (!lock.owns_lock()) {
-      busy_skips_.fetch_add(1, std::memory_order_relaxed);
-      return;  // a pending report stays pending: the next tick offers again
-    }
-    if (has_sample_) superseded_.fetch_add(1, std::memory_order_relaxed);
-    sample_ = tick;
-    has_sample_ = true;
-    if (report_pending_) {
-      sample_answer_ = report_;
-      report_pending_ = false;
-    }
-    if (!due) return;
-    next_due_ns_ = (next_due_ns_ == INT64_MIN ? tick.t_ns : next_due_ns_) + period_ns_;
-    if (next_due_ns_ <= tick.t_ns) next_due_ns_ = tick.t_ns + period_ns_;  // after a gap
+    const bool written = sample_.try_write([&](Sample& s) {
+      if (s.has_tick) superseded_.fetch_add(1, std::memory_order_relaxed);
+      s.tick = tick;
+      s.has_tick = true;
+      if (report_pending_) {
+        s.answer = report_;
+        report_pending_ = false;
+      }
+    });
+    // Busy: a pending report stays pending and the schedule stays, the next tick offers again.
+    if (written && due) due_.advance(tick.t_ns);
   }
   // A pending pose command, once; false when none (or the slot was busy this tick).
   bool take_command(InitPoseCommand* out) {
     if (!command_pending_.load(std::memory_order_acquire)) return false;
-    std::unique_lock<std::mutex> lock(command_mutex_, std::try_to_lock);
-    if (!lock.owns_lock()) return false;
-    *out = command_;
-    command_pending_.store(false, std::memory_order_release);
-    return true;
+    return command_.try_read([&](InitPoseCommand& c) {
+      *out = c;
+      command_pending_.store(false, std::memory_order_release);
+    });
   }
   // The loop applied (ok) or refused command seq, before this tick's offer: the answer travels
   // with that tick's sample, so that it carries the pose after the command.
@@ -70,39 +77,41 @@ class MqttHandoff {
   // The newest sample; *answer (if given) the command answered at or before its tick (seq 0: none
   // since the last take).
   bool take_sample(localizer::TickRecord* out, CommandAnswer* answer = nullptr) {
-    std::lock_guard<std::mutex> lock(sample_mutex_);
-    if (!has_sample_) return false;
-    *out = sample_;
-    has_sample_ = false;
-    if (answer) *answer = sample_answer_;
-    sample_answer_ = {};
-    return true;
+    return sample_.read([&](Sample& s) {
+      if (!s.has_tick) return false;
+      *out = s.tick;
+      s.has_tick = false;
+      if (answer) *answer = s.answer;
+      s.answer = {};
+      return true;
+    });
   }
   // Replaces a command the loop has not taken yet: returns its seq (0 if none) so it can be
   // answered FAILED (superseded).
   std::uint64_t post_command(const InitPoseCommand& c) {
-    std::lock_guard<std::mutex> lock(command_mutex_);
-    const std::uint64_t replaced = command_pending_.load() ? command_.seq : 0;
-    command_ = c;
-    command_pending_.store(true, std::memory_order_release);
+    std::uint64_t replaced = 0;
+    command_.write([&](InitPoseCommand& slot) {
+      replaced = command_pending_.load() ? slot.seq : 0;
+      slot = c;
+      command_pending_.store(true, std::memory_order_release);
+    });
     return replaced;
   }
-  std::uint64_t busy_skips() const { return busy_skips_.load(std::memory_order_relaxed); }
+  std::uint64_t busy_skips() const { return sample_.busy_skips(); }
   std::uint64_t superseded() const { return superseded_.load(std::memory_order_relaxed); }
 
  private:
-  std::int64_t period_ns_ = 100'000'000;
-  std::int64_t next_due_ns_ = INT64_MIN;  // loop thread only
-  std::mutex sample_mutex_;
-  localizer::TickRecord sample_;
-  bool has_sample_ = false;
-  std::mutex command_mutex_;
-  InitPoseCommand command_;
+  struct Sample {
+    localizer::TickRecord tick;
+    bool has_tick = false;
+    CommandAnswer answer;  // the command answered at or before this tick
+  };
+  PeriodicDue due_{100'000'000};  // loop thread only
+  LatestSlot<Sample> sample_;
+  LatestSlot<InitPoseCommand> command_;
   std::atomic<bool> command_pending_{false};
   CommandAnswer report_;         // loop thread only
   bool report_pending_ = false;  // loop thread only
-  CommandAnswer sample_answer_;  // sample_mutex_
-  std::atomic<std::uint64_t> busy_skips_{0};
   std::atomic<std::uint64_t> superseded_{0};
 };
 

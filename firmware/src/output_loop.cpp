@@ -3,6 +3,7 @@
 #include <cinttypes>
 #include <cmath>
 #include <cstdio>
+#include <utility>
 
 namespace agv::app {
 
@@ -10,7 +11,6 @@ localizer::LocalizerConfig localizer_config(const config::Config& cfg) {
   localizer::LocalizerConfig c;
   c.fusion = cfg.fusion;
   c.protocol = config::protocol_config(cfg);
-  c.protocol.gyro = config::gyro_protocol_config(cfg);  // AGV_Gyro: can.gyro.*
   c.odometry.speed_scale = cfg.odometry.speed_scale;
   c.odometry.yaw_rate_scale = cfg.odometry.yaw_rate_scale;
   c.odometry.yaw_rate_bias_radps = cfg.odometry.yaw_rate_bias_radps;
@@ -19,7 +19,7 @@ localizer::LocalizerConfig localizer_config(const config::Config& cfg) {
   c.gyro.bias_radps = cfg.imu.bias_radps;
   c.time_base = config::time_base(cfg);
   c.gyro_timeout_ns = std::llround(cfg.can.gyro_timeout_ms * 1e6);
-  c.gyro_expected = cfg.imu.source == "iio";  // the IIO gyro's timeout is can.gyro.timeout_ms
+  c.gyro_expected = cfg.imu.source == config::ImuSource::kIio;  // the IIO gyro's timeout is can.gyro.timeout_ms
   c.heartbeat_period_ns = static_cast<std::int64_t>(1e9 / cfg.loop.heartbeat_rate_hz);
   c.camera_timeout_ns = static_cast<std::int64_t>(cfg.camera.timeout_ms * 1e6);
   c.sw_major = AGV_VERSION_MAJOR;
@@ -43,7 +43,10 @@ void print_period_line(const OutputStats& o, std::uint64_t dropped) {
                o.can_tx_ok, o.can_tx_failed);
 }
 
-void print_fault_transitions(const localizer::FaultTransitions& ft) {
+}  // namespace
+
+void FaultLogSink::on_tick(const TickOutput& out) {
+  const localizer::FaultTransitions ft = log_.update(out.tick.status.faults, out.tick.t_ns);
   for (int i = 0; i < ft.n; ++i) {
     const localizer::FaultTransition& t = ft.items[static_cast<std::size_t>(i)];
     if (t.changes > 1) {
@@ -56,18 +59,19 @@ void print_fault_transitions(const localizer::FaultTransitions& ft) {
   }
 }
 
-}  // namespace
-
 OutputLoop::OutputLoop(localizer::Localizer& core, hal::CanBus* bus, const hal::Clock& clock,
                        const std::vector<recording::OdomRow>* odometry, FixRing& fixes,
-                       std::int64_t log_period_ns, const std::vector<recording::ImuRow>* imu)
+                       std::int64_t log_period_ns, const std::vector<recording::ImuRow>* imu,
+                       std::vector<OutputSink*> sinks)
     : core_(core),
       bus_(bus),
       clock_(clock),
       odometry_(odometry),
       imu_(imu),
+      sinks_(std::move(sinks)),
       fixes_(fixes),
-      log_period_ns_(log_period_ns) {
+      log_period_ns_(log_period_ns),
+      log_due_(log_period_ns, /*first_at_start=*/false) {
   if (bus_) {
     // One filter per enabled input message (odometry, and AGV_Gyro when can.gyro.enabled).
     constexpr int kMax = localizer::Localizer::kMaxReceiveFilters;
@@ -121,7 +125,7 @@ int OutputLoop::take_inputs(std::int64_t now_ns) {
     fixes_.pop(&rec);
     drain_odometry(rec.t_done_ns);
     core_.on_fix(rec.fix, rec.t_exposure_ns, rec.t_done_ns);
-    if (diag_) diag_->record_fix(rec.fix, rec.t_exposure_ns, rec.t_done_ns);
+    for (OutputSink* sink : sinks_) sink->on_fix(rec);
     if (rec.fix.status == vision::FixStatus::kOk) ++good;
   }
   drain_odometry(now_ns);
@@ -149,38 +153,30 @@ void OutputLoop::tick(std::int64_t now_ns, const CameraState& camera, TickRecord
   take_inputs(now_ns);
   core_.set_camera_state(camera.last_frame_ns, camera.end_of_stream, camera.error);
   if (bus_) core_.set_can_state(bus_->state(), bus_->stats());
-  InitPoseCommand cmd;
-  if (mqtt_ && mqtt_->take_command(&cmd)) {
-    // The pose an operator sets gets half the lost limits as sigma
-    // (localizer::init_position_sigma).
-    mqtt_->report(cmd.seq, core_.init_position(now_ns, {cmd.x_mm, cmd.y_mm, cmd.theta_rad}));
-  }
+  for (OutputSink* sink : sinks_) sink->before_tick(now_ns, core_);
   TickRecord local;
-  if ((mqtt_ || diag_ || log_faults_) && !rec) rec = &local;
+  if (!sinks_.empty() && !rec) rec = &local;
   const std::int64_t t_start = clock_.now_ns();
   core_.tick(now_ns, &frames_, rec);
   const std::int64_t t_fused = clock_.now_ns();
   core_.mutable_stats().fusion_ns.record_ns(t_fused - t_start);
   send(frames_);
   core_.mutable_stats().can_send_ns.record_ns(clock_.now_ns() - t_fused);
-  if (mqtt_) mqtt_->offer(*rec);
-  if (diag_) {
-    diag_->offer(*rec, core_.stats(), bus_, camera.frames_dropped);
+  if (!sinks_.empty()) {
+    const TickOutput out{*rec, core_.stats(), bus_, camera.frames_dropped};
+    for (OutputSink* sink : sinks_) sink->on_tick(out);
     last_tick_ = *rec;
     have_tick_ = true;
   }
-  if (log_faults_) print_fault_transitions(fault_log_.update(rec->status.faults, now_ns));
-  if (log_period_ns_ > 0) {
-    if (next_log_ns_ == INT64_MIN) next_log_ns_ = now_ns + log_period_ns_;
-    if (now_ns >= next_log_ns_) {
-      print_period_line(core_.stats(), camera.frames_dropped);
-      next_log_ns_ += log_period_ns_;
-    }
+  if (log_period_ns_ > 0 && log_due_.take(now_ns)) {
+    print_period_line(core_.stats(), camera.frames_dropped);
   }
 }
 
-void OutputLoop::finish_diag(std::uint64_t frames_dropped) {
-  if (diag_) diag_->finish(have_tick_ ? &last_tick_ : nullptr, core_.stats(), bus_, frames_dropped);
+void OutputLoop::finish(std::uint64_t frames_dropped) {
+  for (OutputSink* sink : sinks_) {
+    sink->finish(have_tick_ ? &last_tick_ : nullptr, core_.stats(), bus_, frames_dropped);
+  }
 }
 
 bool OutputLoop::on_wake(std::int64_t now_ns) {

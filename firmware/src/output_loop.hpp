@@ -13,21 +13,15 @@
 #include "agv/recording/recording.hpp"
 #include "agv/vision/landmark_localizer.hpp"
 #include "config.hpp"
-#include "diag_handoff.hpp"
 #include "gyro_reader.hpp"
 #include "handoff.hpp"
-#include "mqtt_handoff.hpp"
+#include "latest_slot.hpp"
+#include "output_sink.hpp"
 
 namespace agv::app {
 
 using localizer::OutputStats;
 using localizer::TickRecord;
-
-struct FixRecord {
-  std::int64_t t_exposure_ns = 0;
-  std::int64_t t_done_ns = 0;  // when the fix was handed to fusion (its arrival)
-  vision::LandmarkFix fix;
-};
 
 // Vision -> output. Sized for replay --fast too, where fixes wait for their simulated arrival
 // (replay.fix_delay_ms x frame rate of them at most).
@@ -44,15 +38,27 @@ struct CameraState {
   std::uint64_t frames_dropped = 0;  // newest-wins replacements (periodic log line)
 };
 
+// The journal's fault lines: each set / clear of a status fault bit on stderr, rate-limited per
+// bit (localizer::FaultTransitionLog). Not added in tests and quiet replays.
+class FaultLogSink : public OutputSink {
+ public:
+  void on_tick(const TickOutput& out) override;
+
+ private:
+  localizer::FaultTransitionLog log_;
+};
+
 class OutputLoop {
  public:
   // bus: null = no CAN. odometry: replay odometry on the loop clock, null = from CAN.
   // log_period_ns: periodic statistics line on stderr, 0 = none. imu: replay gyro samples
-  // (imu.csv) on the loop clock, null = none (or from CAN). Installs the receive filters on the
-  // bus.
+  // (imu.csv) on the loop clock, null = none (or from CAN). sinks: the outputs besides CAN, each
+  // given every fix and tick in this order (VDA 5050, the diagnostics page, the fault journal);
+  // they must outlive the loop. Installs the receive filters on the bus.
   OutputLoop(localizer::Localizer& core, hal::CanBus* bus, const hal::Clock& clock,
              const std::vector<recording::OdomRow>* odometry, FixRing& fixes,
-             std::int64_t log_period_ns, const std::vector<recording::ImuRow>* imu = nullptr);
+             std::int64_t log_period_ns, const std::vector<recording::ImuRow>* imu = nullptr,
+             std::vector<OutputSink*> sinks = {});
 
   // Keeps every odometry sample decoded from CAN (what fusion was given, on the loop clock) in
   // *received, up to its reserved capacity; the rest are counted (odometry_not_recorded). Null:
@@ -62,17 +68,8 @@ class OutputLoop {
   // imu.source iio: gyro samples from the reader thread (gyro_reader.hpp), fused in take_inputs
   // after the CAN frames. Null (default): none. Called before the loop runs.
   void set_live_gyro(GyroRing* ring) { live_gyro_ = ring; }
-  // VDA 5050 (docs/guide/vda5050.md): each tick is offered to the MQTT thread and a pending
-  // initPosition applied before the tick. Null (default): none. Called before the loop runs.
-  void set_mqtt(MqttHandoff* mqtt) { mqtt_ = mqtt; }
-  // Diagnostics page (docs/guide/diagnostics.md): fixes and ticks are recorded and handed off at
-  // its rate. Null (default): none. Called before the loop runs.
-  void set_diag(DiagHandoff* diag) { diag_ = diag; }
-  // Log each set / clear of a status fault bit on stderr (the journal), rate-limited per bit
-  // (localizer::FaultTransitionLog). Off (default) in tests and quiet replays.
-  void set_log_faults(bool on) { log_faults_ = on; }
-  // The run is over: hands the final state to the diagnostics page (waits for its slot).
-  void finish_diag(std::uint64_t frames_dropped);
+  // The run is over: hands the final state to every sink (they may wait: nothing real-time left).
+  void finish(std::uint64_t frames_dropped);
 
   // One output period at now_ns: odometry up to now, CAN receive, fixes that arrived, camera
   // state, core tick, send, periodic log. Fills *rec when not null.
@@ -104,16 +101,13 @@ class OutputLoop {
   std::size_t imu_i_ = 0;
   std::vector<recording::OdomRow>* received_ = nullptr;
   GyroRing* live_gyro_ = nullptr;
-  MqttHandoff* mqtt_ = nullptr;
-  DiagHandoff* diag_ = nullptr;
+  std::vector<OutputSink*> sinks_;
   TickRecord last_tick_;
   bool have_tick_ = false;
   std::uint64_t odometry_not_recorded_ = 0;
   FixRing& fixes_;
   std::int64_t log_period_ns_;
-  std::int64_t next_log_ns_ = INT64_MIN;
-  bool log_faults_ = false;
-  localizer::FaultTransitionLog fault_log_;
+  PeriodicDue log_due_;
   localizer::OutFrames frames_;
 };
 

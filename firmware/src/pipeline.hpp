@@ -9,7 +9,6 @@
 #include <string>
 #include <vector>
 
-#include "agv/adapters/stepped_clock.hpp"
 #include "agv/common/landmark.hpp"
 #include "agv/common/latency_histogram.hpp"
 #include "agv/hal/camera.hpp"
@@ -19,6 +18,7 @@
 #include "agv/recording/recording.hpp"
 #include "agv/vision/landmark_localizer.hpp"
 #include "config.hpp"
+#include "diag_handoff.hpp"
 #include "output_loop.hpp"
 
 namespace agv::app {
@@ -36,14 +36,15 @@ struct PipelineIo {
   const std::vector<recording::ImuRow>* imu = nullptr;
   // Optional outputs, reserved by the caller (the loop never grows them past their capacity).
   std::vector<TickRecord>* ticks = nullptr;
-  std::vector<FixRecord>* fixes = nullptr;
+  std::vector<FrameRecord>* fixes = nullptr;
   // Odometry decoded from CAN, as fusion got it (OutputLoop::keep_received_odometry).
   std::vector<recording::OdomRow>* odometry_received = nullptr;
   std::atomic<bool>* stop = nullptr;  // set by signal handlers
   GyroRing* live_gyro = nullptr;      // imu.source iio: the reader thread's samples; null: none
-  MqttHandoff* mqtt = nullptr;        // VDA 5050 publisher's hand-off; null: none
-  DiagHandoff* diag = nullptr;        // diagnostics page's hand-off; null: none
-  FrameTap* diag_frames = nullptr;    // camera frames for the page (vision thread); null: none
+  // The outputs besides CAN, in order (the VDA 5050 publisher's and the diagnostics page's
+  // hand-offs); run_threads adds the fault journal unless quiet.
+  std::vector<OutputSink*> sinks;
+  FrameTap* diag_frames = nullptr;  // camera frames for the page (vision thread); null: none
   // Stop when the camera reports end of stream and replay odometry is used up.
   bool stop_at_end_of_stream = true;
   // Odometry from CAN (`replay --odom-from-can`): the last odometry time of the recording being
@@ -59,16 +60,15 @@ struct PipelineIo {
 int run_threads(const config::Config& cfg, const LandmarkMap* map, PipelineIo& io,
                 RunResult* result);
 
-// Fast replay on a stepped clock (*clock, which the bus may also read): time advances in
-// recording time; the vision stage runs inline for frames exposed up to now; each fix arrives
-// cfg.replay_fix_delay_ms after its exposure, where with loop.pose_on_fix the output step is
-// woken as live. The recording's gyro samples (imu.csv) are fused with its odometry.
-// Deterministic for a recording.
+// Fast replay on a stepped clock (*io.clock, e.g. adapters::SteppedClock, which the bus may also
+// read): time advances in recording time; the vision stage runs inline for the recording's frames
+// exposed up to now; each fix arrives cfg.replay_fix_delay_ms after its exposure, where with
+// loop.pose_on_fix the output step is woken as live. io.odometry and io.imu are the inputs fused
+// (the recording's odom.csv and imu.csv); io.camera, io.live_gyro, io.odometry_received and
+// io.can_odometry_end_ns are not used; no log lines (io.quiet does not apply). Deterministic for
+// a recording.
 int run_fast(const config::Config& cfg, const LandmarkMap* map, const recording::Recording& rec,
-             hal::CanBus* bus, adapters::SteppedClock* clock, std::vector<TickRecord>* ticks,
-             std::vector<FixRecord>* fixes, std::atomic<bool>* stop, RunResult* result,
-             bool show_progress, MqttHandoff* mqtt = nullptr, DiagHandoff* diag = nullptr,
-             FrameTap* diag_frames = nullptr);
+             PipelineIo& io, RunResult* result, bool show_progress);
 
 using localizer::format_statistics;
 

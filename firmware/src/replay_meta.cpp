@@ -42,8 +42,9 @@ bool apply_recording_meta(const recording::Meta& meta, const std::vector<std::st
   from_meta.camera.camera.width_px = meta.camera.intrinsics.width_px;
   from_meta.camera.camera.height_px = meta.camera.intrinsics.height_px;
   from_meta.landmark_size_mm = meta.landmark_size_mm;
-  from_meta.vision.family =
-      meta.landmark_family == "tag36h11" ? LandmarkFamily::kTag36h11 : LandmarkFamily::kQr;
+  // read_recording accepts only the families' names; empty (an older recording) is skipped below.
+  from_meta.vision.family = LandmarkFamily::kQr;
+  parse_landmark_family(meta.landmark_family, &from_meta.vision.family);
   for (const std::string& name : meta_keys()) {
     const config::Key* k = config::find_key(name);
     if (!k) continue;  // the list above names table keys only (test_replay_command checks it)

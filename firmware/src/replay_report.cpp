@@ -32,7 +32,7 @@ bool write_poses_csv(const std::string& path, const std::vector<TickRecord>& tic
   return ok;
 }
 
-bool write_fixes_csv(const std::string& path, const std::vector<FixRecord>& fixes,
+bool write_fixes_csv(const std::string& path, const std::vector<FrameRecord>& fixes,
                      std::string* error) {
   FILE* f = std::fopen(path.c_str(), "w");
   if (!f) {
@@ -76,11 +76,11 @@ bool write_odometry_csv(const std::string& path, const std::vector<recording::Od
   return ok;
 }
 
-std::string no_fix_hint(const localizer::RunResult& r, const std::vector<FixRecord>& fixes,
+std::string no_fix_hint(const localizer::RunResult& r, const std::vector<FrameRecord>& fixes,
                         const NoFixContext& c) {
   std::vector<localizer::FrameOutcome> frames;
   frames.reserve(fixes.size());
-  for (const FixRecord& f : fixes) frames.push_back(localizer::frame_outcome(f.fix));
+  for (const FrameRecord& f : fixes) frames.push_back(localizer::frame_outcome(f.fix));
   const localizer::NoFixDiagnosis d =
       localizer::diagnose_no_fix(r.vision.frames_processed, r.vision.by_status, frames, c);
   if (d.cause == localizer::NoFixCause::kNone) return {};

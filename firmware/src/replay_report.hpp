@@ -13,7 +13,7 @@ namespace agv::app {
 
 bool write_poses_csv(const std::string& path, const std::vector<TickRecord>& ticks,
                      std::string* error);
-bool write_fixes_csv(const std::string& path, const std::vector<FixRecord>& fixes,
+bool write_fixes_csv(const std::string& path, const std::vector<FrameRecord>& fixes,
                      std::string* error);
 // odom.csv's columns (docs/guide/recording.md) with every digit of the doubles, so a replay of the
 // file gives fusion the same samples to the bit.
@@ -25,7 +25,7 @@ bool write_odometry_csv(const std::string& path, const std::vector<recording::Od
 // exit 0).
 using NoFixContext = localizer::NoFixContext;
 // Empty when a frame gave a fix or no frame was processed.
-std::string no_fix_hint(const localizer::RunResult& r, const std::vector<FixRecord>& fixes,
+std::string no_fix_hint(const localizer::RunResult& r, const std::vector<FrameRecord>& fixes,
                         const NoFixContext& c);
 
 }  // namespace agv::app

@@ -8,11 +8,10 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstdlib>
-#include <mutex>
-
 #include "agv/common/geometry.hpp"
 #include "agv/localizer/time_base.hpp"
 #include "agv/vision/tracking.hpp"
+#include "latest_slot.hpp"
 
 namespace agv::app {
 
@@ -23,7 +22,7 @@ namespace agv::app {
 constexpr double kSnapshotPosGrowthMmPerS = 100.0;
 constexpr double kSnapshotHeadingGrowthRadPerS = 5.0 * kPi / 180.0;
 
-// The output thread is SCHED_FIFO and must never wait: it publishes with try_lock and skips a
+// The output thread is SCHED_FIFO and must never wait: it publishes with try_write and skips a
 // period when the worker is reading (the next period publishes). The worker holds the lock for a
 // scan of the timestamps and a copy of ~140 bytes.
 //
@@ -39,10 +38,10 @@ class SnapshotSlot {
   explicit SnapshotSlot(const localizer::TimeBase& time_base) : time_base_(time_base) {}
 
   void publish(const vision::MotionSnapshot& s) {
-    std::unique_lock<std::mutex> lock(m_, std::try_to_lock);
-    if (!lock.owns_lock()) return;
-    ring_[next_ % kHistory] = s;
-    ++next_;
+    history_.try_write([&](History& h) {
+      h.ring[h.next % kHistory] = s;
+      ++h.next;
+    });
   }
   // The prediction for a frame exposed at t_exposure_ns on the camera's clock: the pose at that
   // instant on the vehicle's clock, as the core's prediction_at gives it.
@@ -57,20 +56,19 @@ class SnapshotSlot {
   vision::Prediction predict(std::int64_t t_ns, double pos_growth_mm_per_s,
                              double heading_growth_rad_per_s) {
     vision::MotionSnapshot nearest, latest;
-    {
-      std::lock_guard<std::mutex> lock(m_);
-      if (next_ == 0) return {};
-      const std::size_t n = std::min<std::size_t>(next_, kHistory);
-      latest = ring_[(next_ - 1) % kHistory];
-      std::size_t best = (next_ - 1) % kHistory;
+    const bool any = history_.read([&](const History& h) {
+      if (h.next == 0) return false;
+      const std::size_t n = std::min<std::size_t>(h.next, kHistory);
+      latest = h.ring[(h.next - 1) % kHistory];
+      std::size_t best = (h.next - 1) % kHistory;
       for (std::size_t k = 0; k < n; ++k) {
-        const std::size_t i = (next_ - 1 - k) % kHistory;
-        if (std::llabs(ring_[i].t_ns - t_ns) < std::llabs(ring_[best].t_ns - t_ns)) {
-          best = i;
-        }
+        const std::size_t i = (h.next - 1 - k) % kHistory;
+        if (std::llabs(h.ring[i].t_ns - t_ns) < std::llabs(h.ring[best].t_ns - t_ns)) best = i;
       }
-      nearest = ring_[best];
-    }
+      nearest = h.ring[best];
+      return true;
+    });
+    if (!any) return {};
     const vision::Prediction a =
         vision::extrapolate(nearest, t_ns, pos_growth_mm_per_s, heading_growth_rad_per_s);
     const vision::Prediction b =
@@ -82,10 +80,12 @@ class SnapshotSlot {
 
  private:
   static constexpr std::size_t kHistory = 64;
+  struct History {
+    std::array<vision::MotionSnapshot, kHistory> ring{};
+    std::size_t next = 0;
+  };
   localizer::TimeBase time_base_;
-  std::mutex m_;
-  std::array<vision::MotionSnapshot, kHistory> ring_{};
-  std::size_t next_ = 0;
+  LatestSlot<History> history_;
 };
 
 }  // namespace agv::app

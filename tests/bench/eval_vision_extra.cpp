@@ -188,8 +188,8 @@ void run_ablation(const Setup& su, const std::vector<Frame>& clean_frames,
     c->robust = false;
   };
   std::vector<Variant> vars = {
-      {"paper 001 (eq. 7, corner A eq. 8-11, one mm/px ratio, pixel edges)", paper},
-      {"+ paper 000 weighted heading (eq. 10-11)",
+      {"Li et al. (eq. 7, corner A eq. 8-11, one mm/px ratio, pixel edges)", paper},
+      {"+ Yang et al. weighted heading (eq. 10-11)",
        [&](VisionConfig* c) {
          paper(c);
          c->heading_method = HeadingMethod::kWeighted000;

@@ -240,7 +240,7 @@ TEST(DiagJson, StatusFields) {
 TEST(DiagPoseValid, IsTheCanPoseValid) {
   constexpr std::int64_t kMs = 1'000'000;
   localizer::LocalizerConfig c;
-  c.fusion.odom_timeout_ns = 50 * kMs;
+  c.fusion.health.odom_timeout_ns = 50 * kMs;
   c.heartbeat_period_ns = 1000 * kMs;
   localizer::Localizer loc(c);
   localizer::OutFrames out;
@@ -274,7 +274,7 @@ TEST(DiagPoseValid, IsTheCanPoseValid) {
   EXPECT_FALSE(seen.initialised);
   EXPECT_EQ(seen.metric, 0.0);
   // Placed with a sigma beyond the lost limit: initialised, but LOST, so PoseValid 0.
-  const double sigma_mm = 2.0 * c.fusion.lost_position_sigma_mm;
+  const double sigma_mm = 2.0 * c.fusion.health.lost_position_sigma_mm;
   ASSERT_TRUE(loc.set_pose(t, {100.0, 0.0, 0.0}, sigma_mm, 0.01));
   for (int i = 0; i < 3; ++i) {
     loc.on_odometry(t, 0.5, 0.0);

@@ -102,7 +102,7 @@ Result run(OdomFault fault) {
   const std::vector<Fix> fixes = make_fixes(traj);
 
   config::Config cfg;
-  cfg.can.odometry_mode = "v_omega";
+  cfg.can.odometry_mode = agv::protocol::OdometryMode::kTwist;
   const protocol::ProtocolConfig pc = config::protocol_config(cfg);
   can::FakeCanNetwork net;
   auto controller = net.create_endpoint(16);  // pose frames sent back to it are dropped: fine

@@ -44,7 +44,7 @@ using namespace agv;
 
 TEST(SteadyStateLoop, NoHeapAllocationAfterWarmUp) {
   config::Config cfg;
-  cfg.can.odometry_mode = "v_omega";
+  cfg.can.odometry_mode = agv::protocol::OdometryMode::kTwist;
   const protocol::ProtocolConfig pc = config::protocol_config(cfg);
   test::StaticBus bus;
   test::CoreHarness out(cfg, &bus);

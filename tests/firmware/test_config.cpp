@@ -44,7 +44,7 @@ TEST(Config, ShippedExampleLoads) {
   ASSERT_TRUE(agv::config::load_config(std::string(AGV_SOURCE_DIR) + "/firmware/config/agvloc.yaml",
                                        &cfg, &errors))
       << (errors.empty() ? "" : errors.front());
-  EXPECT_EQ(cfg.camera.driver, "libcamera");
+  EXPECT_EQ(cfg.camera.driver, agv::config::CameraDriver::kLibcamera);
   EXPECT_EQ(cfg.can.base_id, 0x300u);
   EXPECT_NEAR(cfg.camera_model.mm_per_px(), 0.26, 1e-6);
   EXPECT_NE(cfg.map_file.find("tools/maps/default_grid.csv"), std::string::npos);
@@ -141,10 +141,10 @@ TEST(Config, FusionAndVisionSectionsReachTheAlgorithms) {
           "  qr_max_missing_modules: 12\n",
       "", &cfg, &errors))
       << errors.front();
-  EXPECT_DOUBLE_EQ(cfg.fusion.gate_probability, 0.99);
-  EXPECT_FALSE(cfg.fusion.estimate_odometry_calibration);
-  EXPECT_EQ(cfg.fusion.max_fix_delay_ns, 250'000'000);
-  EXPECT_NEAR(cfg.fusion.lost_heading_sigma_rad, agv::deg_to_rad(5.0), 1e-12);
+  EXPECT_DOUBLE_EQ(cfg.fusion.fix.gate_probability, 0.99);
+  EXPECT_FALSE(cfg.fusion.odometry.estimate_calibration);
+  EXPECT_EQ(cfg.fusion.fix.max_delay_ns, 250'000'000);
+  EXPECT_NEAR(cfg.fusion.health.lost_heading_sigma_rad, agv::deg_to_rad(5.0), 1e-12);
   EXPECT_DOUBLE_EQ(cfg.vision.corner_threshold, 0.7);
   EXPECT_FALSE(cfg.vision.robust);
   EXPECT_FALSE(cfg.vision.qr_guided);
@@ -261,15 +261,15 @@ TEST(Config, FusionOdometryTimingAndGapKeys) {
       "", &cfg, &errors))
       << (errors.empty() ? "" : errors.front());
   using Timing = agv::fusion::EkfConfig::OdomSampleTiming;
-  EXPECT_EQ(cfg.fusion.odom_sample_timing, Timing::kInstant);
-  EXPECT_EQ(cfg.fusion.odom_period_ns, 20'000'000);
-  EXPECT_EQ(cfg.fusion.odom_gap_ns, 80'000'000);
-  EXPECT_DOUBLE_EQ(cfg.fusion.gap_yaw_rate_change_sigma_radps, 0.3);
-  EXPECT_EQ(cfg.fusion.max_fix_lead_ns, 150'000'000);
-  EXPECT_EQ(cfg.fusion.held_fix_capacity, 4u);
-  EXPECT_FALSE(cfg.fusion.relocalize_from_single_fix);
-  EXPECT_NEAR(cfg.fusion.relocalize_max_fix_sigma_rad, agv::deg_to_rad(1.0), 1e-12);
-  EXPECT_EQ(cfg.fusion.kidnap_min_duration_ns, 1'500'000'000);
+  EXPECT_EQ(cfg.fusion.odometry.sample_timing, Timing::kInstant);
+  EXPECT_EQ(cfg.fusion.odometry.period_ns, 20'000'000);
+  EXPECT_EQ(cfg.fusion.odometry.gap_ns, 80'000'000);
+  EXPECT_DOUBLE_EQ(cfg.fusion.odometry.gap_yaw_rate_change_sigma_radps, 0.3);
+  EXPECT_EQ(cfg.fusion.fix.max_lead_ns, 150'000'000);
+  EXPECT_EQ(cfg.fusion.fix.held_capacity, 4u);
+  EXPECT_FALSE(cfg.fusion.recovery.relocalize_from_single_fix);
+  EXPECT_NEAR(cfg.fusion.recovery.relocalize_max_fix_sigma_rad, agv::deg_to_rad(1.0), 1e-12);
+  EXPECT_EQ(cfg.fusion.recovery.kidnap_min_duration_ns, 1'500'000'000);
   EXPECT_TRUE(mentions(errors_for("fusion:\n  odom_sample_timing: mean\n"), "odom_sample_timing"));
   // Without calibration states the noise defaults cover the uncalibrated errors; explicit keys
   // still win, whatever their order in the file.
@@ -278,9 +278,9 @@ TEST(Config, FusionOdometryTimingAndGapKeys) {
       std::string(kIntrinsics) +
           "fusion:\n  cross_track_sigma_mm_per_sqrt_m: 3\n  estimate_odometry_calibration: false\n",
       "", &plain, &errors));
-  EXPECT_FALSE(plain.fusion.estimate_odometry_calibration);
-  EXPECT_DOUBLE_EQ(plain.fusion.along_track_sigma_mm_per_sqrt_m, 5.0);
-  EXPECT_DOUBLE_EQ(plain.fusion.cross_track_sigma_mm_per_sqrt_m, 3.0);
+  EXPECT_FALSE(plain.fusion.odometry.estimate_calibration);
+  EXPECT_DOUBLE_EQ(plain.fusion.core.along_track_sigma_mm_per_sqrt_m, 5.0);
+  EXPECT_DOUBLE_EQ(plain.fusion.core.cross_track_sigma_mm_per_sqrt_m, 3.0);
   // A gap shorter than one period cannot be told from normal sampling.
   EXPECT_TRUE(mentions(errors_for("fusion:\n  odom_period_ms: 20\n  odom_gap_ms: 10\n"), "fusion"));
 }
@@ -618,8 +618,8 @@ TEST(Config, OneOdometryTimeout) {
   ASSERT_TRUE(agv::config::parse_config(
       std::string(kIntrinsics) + "can:\n  odometry:\n    timeout_ms: 250\n", "", &cfg, &errors));
   // One field from the YAML to its users (the core's pose validity and the filter's flag).
-  EXPECT_EQ(cfg.fusion.odom_timeout_ns, 250'000'000);
-  EXPECT_EQ(agv::app::localizer_config(cfg).fusion.odom_timeout_ns, 250'000'000);
+  EXPECT_EQ(cfg.fusion.health.odom_timeout_ns, 250'000'000);
+  EXPECT_EQ(agv::app::localizer_config(cfg).fusion.health.odom_timeout_ns, 250'000'000);
   // The key reads back the value it was given.
   const auto* key = agv::config::find_key("can.odometry.timeout_ms");
   ASSERT_NE(key, nullptr);
@@ -647,7 +647,7 @@ TEST(Config, OdometryCorrectionKeysReachTheLocalizer) {
   EXPECT_DOUBLE_EQ(lc.odometry.yaw_rate_scale, 1.015);
   EXPECT_NEAR(lc.odometry.yaw_rate_bias_radps, -0.3 * M_PI / 180.0, 1e-15);
   EXPECT_NEAR(lc.odometry.yaw_per_metre_rad, 0.46 * M_PI / 180.0, 1e-15);
-  EXPECT_DOUBLE_EQ(lc.fusion.wheel_track_mm, 500.0);  // can.odometry.track_width_mm's default
+  EXPECT_DOUBLE_EQ(lc.fusion.slip.wheel_track_mm, 500.0);  // can.odometry.track_width_mm's default
   EXPECT_EQ(lc.time_base.camera_offset_ns, 20'500'000);
   // Defaults: no correction.
   Config def;

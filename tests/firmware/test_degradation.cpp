@@ -18,8 +18,8 @@ namespace {
 
 config::Config test_config() {
   config::Config cfg;
-  cfg.can.odometry_mode = "v_omega";
-  cfg.fusion.odom_timeout_ns = 100'000'000;
+  cfg.can.odometry_mode = agv::protocol::OdometryMode::kTwist;
+  cfg.fusion.health.odom_timeout_ns = 100'000'000;
   return cfg;
 }
 

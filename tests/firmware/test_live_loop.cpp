@@ -123,10 +123,11 @@ void check_live_loop(std::int64_t camera_latency_ns) {
   // fusion.max_fix_delay_ms and the fix is rejected as too old, which is right on a vehicle and
   // not what this test is about. The limit is widened to what this machine needs.
   const std::int64_t fix_age_ns = camera_latency_ns + 2 * spacing_ns;
-  if (cfg.fusion.max_fix_delay_ns < fix_age_ns) {
-    cfg.fusion.max_fix_delay_ns = fix_age_ns;
-    cfg.fusion.history_capacity = std::max<std::size_t>(
-        cfg.fusion.history_capacity, static_cast<std::size_t>(2 * fix_age_ns / (10 * kMs)) + 64);
+  if (cfg.fusion.fix.max_delay_ns < fix_age_ns) {
+    cfg.fusion.fix.max_delay_ns = fix_age_ns;
+    cfg.fusion.core.history_capacity =
+        std::max<std::size_t>(cfg.fusion.core.history_capacity,
+                              static_cast<std::size_t>(2 * fix_age_ns / (10 * kMs)) + 64);
   }
 
   posix::PosixClock clock;
@@ -150,7 +151,7 @@ void check_live_loop(std::int64_t camera_latency_ns) {
   can::FakeCanNetwork net;
   auto vehicle = net.create_endpoint(8192);  // the vehicle controller listening to our frames
   auto ours = net.create_endpoint(256);
-  std::vector<app::FixRecord> fixes;
+  std::vector<app::FrameRecord> fixes;
   fixes.reserve(64);
   app::PipelineIo io;
   io.camera = &cam;
@@ -268,7 +269,7 @@ TEST(LiveLoop, ARecordTooSmallForTheRunIsReported) {
   auto ours = net.create_endpoint(256);
   std::vector<app::TickRecord> ticks;
   ticks.reserve(5);
-  std::vector<app::FixRecord> fixes;
+  std::vector<app::FrameRecord> fixes;
   fixes.reserve(1);
   app::PipelineIo io;
   io.camera = &cam;
@@ -453,7 +454,8 @@ TEST(LiveLoop, OdometryFromCanRunsPastTheLastFrameToTheLastOdometry) {
   app::RunResult r;
   ASSERT_EQ(app::run_threads(cfg, &map, io, &r), 0);
   ASSERT_FALSE(ticks.empty());
-  EXPECT_GE(ticks.back().t_ns, io.can_odometry_end_ns + cfg.fusion.odom_timeout_ns);
+  EXPECT_GE(ticks.back().t_ns, io.can_odometry_end_ns + cfg.fusion.health.odom_timeout_ns);
   // Bounded by time, not by frames arriving: none came, and the run still ended.
-  EXPECT_LT(ticks.back().t_ns, io.can_odometry_end_ns + cfg.fusion.odom_timeout_ns + 500 * kMs);
+  EXPECT_LT(ticks.back().t_ns,
+            io.can_odometry_end_ns + cfg.fusion.health.odom_timeout_ns + 500 * kMs);
 }

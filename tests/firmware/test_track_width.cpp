@@ -31,7 +31,7 @@ TEST(TrackWidth, OneKeyGivesTheDecoderAndTheFusionTheSameLeverArm) {
                                         "", &cfg, &errors));
   const agv::localizer::LocalizerConfig lc = agv::app::localizer_config(cfg);
   EXPECT_DOUBLE_EQ(lc.protocol.odometry.track_width_mm, 700.0);  // wheel speeds -> v, omega
-  EXPECT_DOUBLE_EQ(lc.fusion.wheel_track_mm, 700.0);             // a slip's speed error
+  EXPECT_DOUBLE_EQ(lc.fusion.slip.wheel_track_mm, 700.0);             // a slip's speed error
 }
 
 TEST(TrackWidth, TheFusionsOwnKeyIsRemovedNamingTheOne) {

@@ -150,7 +150,7 @@ TEST(FusionEkf, GatedOutlierDoesNotMoveThePose) {
 
 TEST(FusionEkf, GateProbabilityIsConfigurable) {
   EkfConfig c;
-  c.gate_probability = 0.95;
+  c.fix.gate_probability = 0.95;
   EXPECT_NEAR(Ekf{c}.gate_threshold(), 7.815, 1e-3);
 }
 
@@ -221,7 +221,7 @@ TEST(FusionEkf, DelayedFixesGiveTheSameStateAsOnTimeFixes) {
 
 TEST(FusionEkf, FixOlderThanHistoryIsRejectedNotApplied) {
   EkfConfig c;
-  c.max_fix_delay_ns = 200 * kMs;
+  c.fix.max_delay_ns = 200 * kMs;
   Ekf ekf{c};
   ekf.add_odometry(0, 1.0, 0.0);
   ekf.add_fix(0, {0.0, 0.0, 0.0}, fix_cov());
@@ -235,7 +235,7 @@ TEST(FusionEkf, FixOlderThanHistoryIsRejectedNotApplied) {
 
   // Capacity, not time, limits the horizon: 16 events at 10 ms cover only 150 ms.
   EkfConfig small;
-  small.history_capacity = 16;
+  small.core.history_capacity = 16;
   Ekf ekf2{small};
   ekf2.add_odometry(0, 1.0, 0.0);
   ekf2.add_fix(0, {0.0, 0.0, 0.0}, fix_cov());
@@ -331,7 +331,7 @@ TEST(FusionEkf, RepeatedMisreadOfOneLandmarkDoesNotHijackThePose) {
   EXPECT_EQ(ekf.counters().reinitialisations, 0u);
   // Fixes that disagree with each other never re-initialise either.
   EkfConfig c;
-  c.kidnap_min_separation_mm = 0.0;
+  c.recovery.kidnap_min_separation_mm = 0.0;
   Ekf ekf2{c};
   ekf2.add_odometry(0, 1.0, 0.0);
   ekf2.add_fix(0, {0.0, 0.0, 0.0}, fix_cov());
@@ -349,8 +349,8 @@ TEST(FusionEkf, RepeatedMisreadOfOneLandmarkDoesNotHijackThePose) {
 
 TEST(FusionEkf, LongDeadReckoningKeepsCovarianceSpdAndGrowing) {
   EkfConfig c;
-  c.lost_position_sigma_mm = 1e9;
-  c.lost_heading_sigma_rad = 1e9;
+  c.health.lost_position_sigma_mm = 1e9;
+  c.health.lost_heading_sigma_rad = 1e9;
   Ekf ekf{c};
   ekf.add_odometry(0, 1.0, 0.0);
   ekf.add_fix(0, {0.0, 0.0, 0.0}, fix_cov());
@@ -377,10 +377,10 @@ TEST(FusionEkf, LongDeadReckoningKeepsCovarianceSpdAndGrowing) {
 
 TEST(FusionEkf, HealthTransitions) {
   EkfConfig c;
-  c.localized_timeout_ns = 2 * kS;
-  c.odom_timeout_ns = 100 * kMs;
-  c.lost_position_sigma_mm = 20.0;
-  c.estimate_odometry_calibration = false;  // growth from Q alone, see the calibration test
+  c.health.localized_timeout_ns = 2 * kS;
+  c.health.odom_timeout_ns = 100 * kMs;
+  c.health.lost_position_sigma_mm = 20.0;
+  c.odometry.estimate_calibration = false;  // growth from Q alone, see the calibration test
   Ekf ekf{c};
   EXPECT_EQ(ekf.estimate_at(0).health, HealthState::kUninitialized);
   ekf.add_odometry(0, 1.0, 0.0);
@@ -419,7 +419,7 @@ TEST(FusionEkf, HealthTransitions) {
   // right after the last sample, so 100 ms of silence also widens the heading sigma to ~4.6 deg;
   // a looser heading limit keeps this check on the timeout alone.)
   EkfConfig c2 = c;
-  c2.lost_heading_sigma_rad = deg_to_rad(10.0);
+  c2.health.lost_heading_sigma_rad = deg_to_rad(10.0);
   Ekf ekf2{c2};
   ekf2.add_odometry(0, 1.0, 0.0);
   ekf2.add_fix(0, {0.0, 0.0, 0.0}, fix_cov());
@@ -512,17 +512,17 @@ TEST(FusionEkf, FlagsAccumulateUntilTaken) {
 
 TEST(FusionEkf, InvalidConfigurationThrows) {
   EkfConfig c;
-  c.gate_probability = 1.0;
+  c.fix.gate_probability = 1.0;
   EXPECT_THROW(Ekf{c}, std::invalid_argument);
   EXPECT_FALSE(validate(c).empty());
   c = EkfConfig{};
-  c.kidnap_fixes = 1;
+  c.recovery.kidnap_fixes = 1;
   EXPECT_THROW(Ekf{c}, std::invalid_argument);
   c = EkfConfig{};
-  c.odom_v_sigma_mps = 0.0;
+  c.odometry.v_sigma_mps = 0.0;
   EXPECT_THROW(Ekf{c}, std::invalid_argument);
   c = EkfConfig{};
-  c.history_capacity = 2;
+  c.core.history_capacity = 2;
   EXPECT_THROW(Ekf{c}, std::invalid_argument);
   EXPECT_TRUE(validate(EkfConfig{}).empty());
 }
@@ -602,7 +602,7 @@ TEST(FusionEkf, StandingOnAMisprintedLandmarkNeverReinitialises) {
   EXPECT_NEAR(ekf.estimate_at(5 * kS).pose.x_mm, 0.0, 1e-6);
   // With the separation switched off the same data do re-initialise (the guard is what holds).
   EkfConfig c;
-  c.kidnap_min_separation_mm = 0.0;
+  c.recovery.kidnap_min_separation_mm = 0.0;
   Ekf ekf2{c};
   ekf2.add_odometry(0, 0.0, 0.0);
   ekf2.add_fix(0, {0.0, 0.0, 0.0}, fix_cov());

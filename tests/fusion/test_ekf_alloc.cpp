@@ -55,7 +55,7 @@ TEST(FusionEkfAlloc, NoHeapAllocationAfterConstruction) {
   Eigen::Matrix3d bad = R;
   bad(0, 0) = -1.0;
   EkfConfig c;
-  c.history_capacity = 64;  // small, so the ring wraps many times below
+  c.core.history_capacity = 64;  // small, so the ring wraps many times below
   Ekf ekf{c};
 
   const long before = g_allocations.load();

@@ -89,7 +89,7 @@ TEST(FusionEkfFaults, YawRateStepWithInstantSamplesIsIntegratedAsTheTrapezoid) {
   Truth tr{[](std::int64_t) { return 0.5; },
            [](std::int64_t t) { return t >= 1000 * kMs && t < 2500 * kMs ? 1.25 : 0.0; }};
   EkfConfig c;
-  c.odom_sample_timing = EkfConfig::OdomSampleTiming::kInstant;
+  c.odometry.sample_timing = EkfConfig::OdomSampleTiming::kInstant;
   Ekf ekf{c};
   ASSERT_TRUE(ekf.add_odometry(0, 0.5, 0.0));
   ASSERT_EQ(ekf.add_fix(0, tr.pose(), fix_cov()), FixOutcome::kInitialised);

@@ -106,7 +106,7 @@ TEST(FusionGyro, AnOdometryGapWithAWorkingGyroKeepsTheHeading) {
 
 TEST(FusionGyro, SaturatedSamplesLeaveThePeriodToTheWheels) {
   EkfConfig cfg;
-  cfg.gyro_saturation_radps = deg_to_rad(100.0);
+  cfg.gyro.saturation_radps = deg_to_rad(100.0);
   Ekf ekf = started(cfg, true);
   std::int64_t t = 0;
   for (int i = 1; i <= 200; ++i) {
@@ -136,13 +136,13 @@ TEST(FusionGyro, NonIncreasingAndNonFiniteSamplesAreRejected) {
 // map puts at another tag's pose) must not re-initialise it; a fix where it is does.
 TEST(FusionGyro, HeadingOnlyLossStillGatesThePosition) {
   EkfConfig cfg;
-  cfg.lost_heading_sigma_rad = deg_to_rad(0.2);  // lost on heading after a short drive
-  cfg.lost_position_sigma_mm = 150.0;            // (and not on position)
+  cfg.health.lost_heading_sigma_rad = deg_to_rad(0.2);  // lost on heading after a short drive
+  cfg.health.lost_position_sigma_mm = 150.0;            // (and not on position)
   Ekf ekf = started(cfg, false);
   const std::int64_t t = drive(&ekf, 0, 2.0, false);
   const PoseEstimate e = ekf.estimate_at(t);
   ASSERT_EQ(e.health, HealthState::kLost);
-  ASSERT_LT(e.position_sigma_mm, cfg.lost_position_sigma_mm);
+  ASSERT_LT(e.position_sigma_mm, cfg.health.lost_position_sigma_mm);
   // 1 m off across the travel, heading off by 5 deg (gate fails): refused.
   EXPECT_EQ(ekf.add_fix(t, {2000.0, 1000.0, deg_to_rad(5.0)}, fix_cov(), /*map_verified=*/true),
             FixOutcome::kRejectedGate);
@@ -162,7 +162,7 @@ TEST(FusionGyro, UnknownPositionNeedsTwoTagFixes) {
   }
   ekf.add_odometry(t, 1.0, 0.0);
   const PoseEstimate e = ekf.estimate_at(t);
-  ASSERT_GT(e.position_sigma_mm, 4.0 * cfg.lost_position_sigma_mm);
+  ASSERT_GT(e.position_sigma_mm, 4.0 * cfg.health.lost_position_sigma_mm);
   EXPECT_EQ(ekf.add_fix(t, {9000.0, 9000.0, 0.0}, fix_cov(), /*map_verified=*/false),
             FixOutcome::kRejectedGate);
   const std::int64_t t2 = t + 500 * kMs;
@@ -201,8 +201,8 @@ TEST(FusionGyro, AFixJustAfterATurnEndsUsesTheGyroForItsPartOfThePeriod) {
   // prior would be 2 rad/s x 5 ms = 0.57 deg past the truth, at a sigma of hundredths of a degree
   // (calibrated gyro). The gyro's 5 ms samples say where the turn stopped.
   EkfConfig cfg;
-  cfg.init_gyro_scale_sigma = 1e-4;
-  cfg.init_gyro_bias_sigma_radps = deg_to_rad(0.001);
+  cfg.gyro.init_scale_sigma = 1e-4;
+  cfg.gyro.init_bias_sigma_radps = deg_to_rad(0.001);
   Ekf ekf(cfg);
   constexpr double kW = 2.0, kV = 1.0;
   constexpr std::int64_t kTurnEnd = 1003 * kMs;

@@ -19,7 +19,7 @@ using test::fix_cov;
 using test::kMs;
 
 constexpr std::int64_t kPeriod = 10 * kMs;
-constexpr double kTrackM = 0.5;  // EkfConfig::wheel_track_mm
+constexpr double kTrackM = 0.5;  // EkfConfig::slip.wheel_track_mm
 
 // Straight at 1 m/s; the left wheel over-reports by excess_mps(t) (spin: the vehicle believes it
 // turned right and went further). Readings are means over the period from 1 ms steps, so a slip
@@ -55,8 +55,9 @@ struct Drive {
 // sigma is then the slip's, not the calibration prior's.
 EkfConfig calibrated() {
   EkfConfig c;
-  c.init_v_scale_sigma = c.init_omega_scale_sigma = 1e-4;
-  c.init_omega_bias_sigma_radps = c.init_omega_per_v_sigma_radpm = deg_to_rad(0.005);
+  c.odometry.init_v_scale_sigma = c.odometry.init_omega_scale_sigma = 1e-4;
+  c.odometry.init_omega_bias_sigma_radps = c.odometry.init_omega_per_v_sigma_radpm =
+      deg_to_rad(0.005);
   return c;
 }
 

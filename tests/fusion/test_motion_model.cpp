@@ -76,7 +76,7 @@ TEST(FusionMotionModel, ArcCoefficientsContinuousAtSeriesSwitch) {
 }
 
 TEST(FusionMotionModel, StraightLineMatchesEq14) {
-  // omega = 0: eq. 14 of paper 000 exactly.
+  // omega = 0: eq. 14 of Yang et al. exactly.
   const StateVec x = make_state(100.0, 200.0, deg_to_rad(30.0), 1.0, 0.0);
   const StateVec y = motion_predict(x, 0.5);
   EXPECT_NEAR(y(kIx), 100.0 + 500.0 * std::cos(deg_to_rad(30.0)), 1e-9);

@@ -72,7 +72,7 @@ TEST(GyroReader, SamplesReachTheCoreAndAFailedDeviceIsReopened) {
   EXPECT_GT(c.samples, 5u);
 
   agv::config::Config cfg;
-  cfg.imu.source = "iio";
+  cfg.imu.source = agv::config::ImuSource::kIio;
   cfg.imu.iio_device = "fake";
   const auto lc = agv::app::localizer_config(cfg);
   EXPECT_TRUE(lc.gyro_expected);
@@ -91,7 +91,7 @@ TEST(GyroReader, SamplesReachTheCoreAndAFailedDeviceIsReopened) {
 TEST(GyroReader, SilentIioGyroIsAnImuTimeout) {
   namespace p = agv::protocol;
   agv::config::Config cfg;
-  cfg.imu.source = "iio";
+  cfg.imu.source = agv::config::ImuSource::kIio;
   cfg.imu.iio_device = "fake";
   const auto lc = agv::app::localizer_config(cfg);
   auto faults_at = [&](agv::localizer::Localizer& core, std::int64_t t_ns) {

@@ -28,7 +28,7 @@ TEST(ImuConfig, DefaultKeepsTheCanGyro) {
   Config cfg;
   std::vector<std::string> errors;
   ASSERT_TRUE(parse("", &cfg, &errors));
-  EXPECT_EQ(cfg.imu.source, "can");
+  EXPECT_EQ(cfg.imu.source, agv::config::ImuSource::kCan);
   EXPECT_EQ(cfg.imu.iio_rate_hz, 200.0);
   ASSERT_TRUE(parse("can: {gyro: {enabled: true}}\n", &cfg, &errors));
 }
@@ -41,7 +41,7 @@ TEST(ImuConfig, IioWithDeviceIsAccepted) {
             "iio_rate_hz: 400}\n",
             &cfg, &errors))
       << (errors.empty() ? "" : errors.front());
-  EXPECT_EQ(cfg.imu.source, "iio");
+  EXPECT_EQ(cfg.imu.source, agv::config::ImuSource::kIio);
   EXPECT_EQ(cfg.imu.iio_device, "bmi160");
   EXPECT_EQ(cfg.imu.iio_trigger, "bmi160-dev0");
   EXPECT_EQ(cfg.imu.iio_rate_hz, 400.0);

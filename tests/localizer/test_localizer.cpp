@@ -19,7 +19,7 @@ constexpr std::int64_t kMs = 1'000'000;
 
 localizer::LocalizerConfig test_config() {
   localizer::LocalizerConfig c;
-  c.fusion.odom_timeout_ns = 50 * kMs;  // the core's ONE odometry timeout
+  c.fusion.health.odom_timeout_ns = 50 * kMs;  // the core's ONE odometry timeout
   c.heartbeat_period_ns = 1000 * kMs;
   c.camera_timeout_ns = 200 * kMs;
   return c;
@@ -439,7 +439,7 @@ TEST(Localizer, ReceiveFiltersOnePerEnabledInput) {
 
 TEST(Localizer, InvalidConfigurationThrows) {
   auto c = test_config();
-  c.fusion.odom_timeout_ns = 0;
+  c.fusion.health.odom_timeout_ns = 0;
   EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
   c = test_config();
   c.heartbeat_period_ns = 0;
@@ -533,7 +533,7 @@ TEST(Localizer, EachOdometryCorrectionKeyChangesTheFusedInputAsStated) {
     const auto by_hand = drive(
         plain, k.raw_dt,
         [&](Sample s) {
-          const double track_m = plain.fusion.wheel_track_mm * 1e-3;  // the one track width
+          const double track_m = plain.fusion.slip.wheel_track_mm * 1e-3;  // the one track width
           const double q = 0.25 * track_m * track_m;
           return Sample{s.t_ns, s.v * k.corr.speed_scale + k.corr.yaw_per_metre_rad * q * s.w,
                         s.w * k.corr.yaw_rate_scale + k.corr.yaw_rate_bias_radps +
@@ -579,7 +579,7 @@ TEST(Localizer, InvalidOdometryCorrectionThrows) {
   c.odometry.yaw_per_metre_rad = std::numeric_limits<double>::infinity();
   EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
   c = test_config();
-  c.fusion.wheel_track_mm = 0.0;  // the one track width (the fusion refuses it)
+  c.fusion.slip.wheel_track_mm = 0.0;  // the one track width (the fusion refuses it)
   EXPECT_THROW(localizer::Localizer{c}, std::invalid_argument);
 }
 
@@ -725,7 +725,7 @@ TEST(Localizer, MapGuidedFixIsRefusedByALostFilter) {
 // the prediction that map identity needs is given.
 TEST(Localizer, MapGuidedFixIsFusedByAHeadingLostFilterWhenItPassesTheGate) {
   auto c = test_config();
-  c.fusion.lost_heading_sigma_rad = deg_to_rad(0.05);
+  c.fusion.health.lost_heading_sigma_rad = deg_to_rad(0.05);
   localizer::Localizer loc(c);
   localizer::OutFrames out;
   localizer::TickRecord rec;
@@ -738,7 +738,7 @@ TEST(Localizer, MapGuidedFixIsFusedByAHeadingLostFilterWhenItPassesTheGate) {
   }
   loc.tick(t, &out, &rec);
   ASSERT_EQ(rec.estimate.health, fusion::HealthState::kLost);
-  ASSERT_LT(rec.estimate.position_sigma_mm, c.fusion.lost_position_sigma_mm);
+  ASSERT_LT(rec.estimate.position_sigma_mm, c.fusion.health.lost_position_sigma_mm);
   EXPECT_TRUE(loc.prediction_at(t).valid);
   EXPECT_FALSE(pose_valid(c, out));  // the output still says lost
   loc.on_fix(guided_fix(rec.estimate.pose.x_mm), t, t + kMs);

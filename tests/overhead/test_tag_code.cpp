@@ -17,7 +17,7 @@ std::uint64_t flip_bits(std::uint64_t code, const std::vector<int>& bits) {
   return code;
 }
 
-// Paper 000 numbers its codes from 1: its codes 1..4 are libapriltag's ids 0..3.
+// Yang et al. numbers its codes from 1: its codes 1..4 are libapriltag's ids 0..3.
 TEST(TagCode, PaperCodesAreIds0To3RowMajor) {
   EXPECT_EQ(tag36h11_code(0), 0xd5d628584ULL);
   EXPECT_EQ(tag36h11_code(1), 0xd97f18b49ULL);

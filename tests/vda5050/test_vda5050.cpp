@@ -76,10 +76,10 @@ TEST(Vda5050Mapping, ThetaWrappedIntoTheSchemaRange) {
 TEST(Vda5050InitPosition, SigmaIsHalfTheConfiguredLostLimits) {
   fusion::EkfConfig f;
   const localizer::InitPositionSigma d = localizer::init_position_sigma(f);
-  EXPECT_DOUBLE_EQ(d.position_mm, 0.5 * f.lost_position_sigma_mm);
-  EXPECT_DOUBLE_EQ(d.heading_rad, 0.5 * f.lost_heading_sigma_rad);
-  f.lost_position_sigma_mm = 80.0;
-  f.lost_heading_sigma_rad = 0.1;
+  EXPECT_DOUBLE_EQ(d.position_mm, 0.5 * f.health.lost_position_sigma_mm);
+  EXPECT_DOUBLE_EQ(d.heading_rad, 0.5 * f.health.lost_heading_sigma_rad);
+  f.health.lost_position_sigma_mm = 80.0;
+  f.health.lost_heading_sigma_rad = 0.1;
   const localizer::InitPositionSigma c = localizer::init_position_sigma(f);
   EXPECT_DOUBLE_EQ(c.position_mm, 40.0);
   EXPECT_DOUBLE_EQ(c.heading_rad, 0.05);
@@ -117,7 +117,7 @@ TEST(Vda5050InitPosition, PoseStaysValidWhileDrivingUntilSigmaGrowsPastTheLimit)
   const fusion::EkfConfig f;
   // The old constant, the default limit itself: LOST on the first ticks of driving.
   EXPECT_LT(
-      valid_ticks_after_placing(false, f.lost_position_sigma_mm, f.lost_heading_sigma_rad, 100), 5);
+      valid_ticks_after_placing(false, f.health.lost_position_sigma_mm, f.health.lost_heading_sigma_rad, 100), 5);
   // initPosition: valid for at least 1 s of driving at 1 m/s without a landmark.
   EXPECT_EQ(valid_ticks_after_placing(true, 0.0, 0.0, 100), 100);
 }

@@ -1,5 +1,5 @@
 // Stage tests on small synthetic images with known answers: Prewitt (eq. 1-4), gradient-direction
-// classes, least-squares lines (eq. 5-6), robust fitting, angle averaging (eq. 7, paper 000 eq.
+// classes, least-squares lines (eq. 5-6), robust fitting, angle averaging (eq. 7, Yang et al. eq.
 // 10-11).
 #include <gtest/gtest.h>
 

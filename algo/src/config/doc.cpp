@@ -107,8 +107,10 @@ const std::vector<Section>& config_sections() {
        "code's\nvisible modules must agree with that landmark's code (the module check).\n",
        ""},
       {"fusion", "(docs/design/fusion.md has the model)",
-       "Fields of `agv::fusion::EkfConfig` (algo/include/agv/fusion/ekf.hpp) with the same\n"
-       "defaults; angles in degrees and times in milliseconds here. The combination is checked by\n"
+       "Fields of `agv::fusion::EkfConfig` (algo/include/agv/fusion/ekf_config.hpp) with the same\n"
+       "defaults, in the order of its parts: odometry, core (process noise, history), gyro, wheel\n"
+       "slip, landmark fixes, range-bearing observations, recovery, health; angles in degrees and\n"
+       "times in milliseconds here. The combination is checked by\n"
        "`fusion::validate` at start (e.g. `odom_gap_ms` ≥ `odom_period_ms`). With\n"
        "`estimate_odometry_calibration: false` the defaults of\n"
        "`along_track_sigma_mm_per_sqrt_m`, `cross_track_sigma_mm_per_sqrt_m`,\n"

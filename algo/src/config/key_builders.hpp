@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <functional>
 #include <string>
+#include <string_view>
 #include <type_traits>
 #include <utility>
 #include <vector>
@@ -124,6 +125,14 @@ Key enumeration(const char* name, Ref ref, std::vector<std::pair<std::string, E>
     }
   };
   return k;
+}
+
+// An enum's name table (config.hpp, landmark.hpp) as enumeration() takes it.
+template <typename E, std::size_t N>
+std::vector<std::pair<std::string, E>> named(const std::pair<std::string_view, E> (&table)[N]) {
+  std::vector<std::pair<std::string, E>> v;
+  for (const auto& [n, e] : table) v.emplace_back(std::string(n), e);
+  return v;
 }
 
 // The rows of each group, in reading order (keys_vehicle.cpp, keys_vision.cpp, keys_fusion.cpp).

@@ -8,8 +8,8 @@ namespace {
 
 void add_camera(std::vector<Key>* k) {
   using PF = hal::PixelFormatPreference;
-  k->push_back(choice("camera.driver", AGV_AT(camera.driver), {"libcamera", "v4l2", "replay"},
-                      "libcamera", "live backend (replay is used by `agvloc replay`)"));
+  k->push_back(enumeration("camera.driver", AGV_AT(camera.driver), named(kCameraDriverNames),
+                           "libcamera", "live backend (replay is used by `agvloc replay`)"));
   k->push_back(text("camera.id", AGV_AT(camera.camera.id), "",
                     "libcamera camera id, or the V4L2 device node (`/dev/video0`, required for "
                     "v4l2)"));
@@ -107,8 +107,7 @@ void add_landmark(std::vector<Key>* k) {
                        "tag36h11 tag's black square (docs/design/landmark.md)"}));
   k->push_back(enumeration(
       "landmark.family", AGV_AT(vision.family),
-      std::vector<std::pair<std::string, LandmarkFamily>>{{"qr", LandmarkFamily::kQr},
-                                                          {"tag36h11", LandmarkFamily::kTag36h11}},
+      named(kLandmarkFamilyNames),
       "qr",
       "printed landmarks on this floor: the QR landmark (identity and pose in the code) or "
       "AprilTag tag36h11 (libapriltag detection, same edge-fit pose; the id needs the map, so "
@@ -136,8 +135,9 @@ void add_can(std::vector<Key>* k) {
                        "29-bit IDs for all frames (widens the ID ranges below)"));
   k->push_back(can_id("can.base_id", AGV_AT(can.base_id), 0x300,
                       "ID of AGV_PoseXY; the other output frames follow"));
-  k->push_back(choice("can.odometry.mode", AGV_AT(can.odometry_mode), {"v_omega", "wheels"},
-                      "v_omega", "MC_OdomTwist (v, ω) or MC_OdomWheels (left/right wheel speed)"));
+  k->push_back(enumeration("can.odometry.mode", AGV_AT(can.odometry_mode),
+                           named(kOdometryModeNames), "v_omega",
+                           "MC_OdomTwist (v, ω) or MC_OdomWheels (left/right wheel speed)"));
   k->push_back(can_id("can.odometry.id", AGV_AT(can.odometry_id), 0,
                       "0 = DBC default: base_id + 0x10 (wheels) / + 0x11 (v_omega)"));
   k->push_back(boolean("can.odometry.protected", AGV_AT(can.odometry_protected), true,
@@ -146,8 +146,8 @@ void add_can(std::vector<Key>* k) {
                        "checked)"));
   // Stored once, where fusion reads it; the decoder and the odometry correction take it from
   // there (protocol_config, the firmware's localizer_config).
-  k->push_back(number("can.odometry.track_width_mm", AGV_AT(fusion.wheel_track_mm), 50.0, 5000.0,
-                      kDefaultTrackWidthMm,
+  k->push_back(number("can.odometry.track_width_mm", AGV_AT(fusion.slip.wheel_track_mm), 50.0,
+                      5000.0, kDefaultTrackWidthMm,
                       {"mm",
                        "distance between the drive wheels, in both odometry modes. Wheels mode: "
                        "converts wheel speeds to v, ω. The lever of "
@@ -159,11 +159,11 @@ void add_can(std::vector<Key>* k) {
                       1.0, {"", "wheels mode: calibrates wheel radius error"}));
   // Stored once, where it is used (the filter's flag and the core's pose validity both read
   // fusion.odom_timeout_ns); the key keeps its CAN name because the odometry comes over CAN.
-  k->push_back(
-      ms_as_ns("can.odometry.timeout_ms", AGV_AT(fusion.odom_timeout_ns), 5.0, 10000.0, 100.0,
-               "the one odometry timeout: no valid odometry this long → `OdomTimeout`, pose "
-               "flagged invalid and the filter lost. Short reacts fast to a dead controller but "
-               "trips on bus jitter; 100 ms = 10 missed frames at 100 Hz"));
+  k->push_back(ms_as_ns(
+      "can.odometry.timeout_ms", AGV_AT(fusion.health.odom_timeout_ns), 5.0, 10000.0, 100.0,
+      "the one odometry timeout: no valid odometry this long → `OdomTimeout`, pose "
+      "flagged invalid and the filter lost. Short reacts fast to a dead controller but "
+      "trips on bus jitter; 100 ms = 10 missed frames at 100 Hz"));
   k->push_back(boolean(
       "can.gyro.enabled", AGV_AT(can.gyro_enabled), false,
       "receive the yaw rate from an IMU as `AGV_Gyro` (docs/guide/can.md): it carries the heading "
@@ -207,8 +207,8 @@ void add_imu(std::vector<Key>* k) {
                        "t − offset. CAN samples are stamped on receipt, so this is the sensor's "
                        "filter delay plus its transmit latency; at 1 rad/s every ms is 0.057° "
                        "of heading in a turn"}));
-  k->push_back(choice(
-      "imu.source", AGV_AT(imu.source), {"can", "iio", "none"}, "can",
+  k->push_back(enumeration(
+      "imu.source", AGV_AT(imu.source), named(kImuSourceNames), "can",
       "where the yaw rate comes from. can: `AGV_Gyro` on the bus when `can.gyro.enabled` (the "
       "IMU's own controller stamps and protects it). iio: an IMU on the vehicle computer's own "
       "bus (I2C/SPI) through its Linux IIO driver (`imu.iio_*`, docs/design/fusion.md \"Gyro from "

@@ -159,7 +159,7 @@ void add_pose(std::vector<Key>* k) {
       std::vector<std::pair<std::string, MetricMode>>{{"camera_model", MetricMode::kCameraModel},
                                                       {"linear_ratio", MetricMode::kLinearRatio}},
       "camera_model",
-      "edge points to mm: through the camera model (undistorts) or paper 001's single mm/px "
+      "edge points to mm: through the camera model (undistorts) or Li et al.'s single mm/px "
       "ratio (wrong under distortion, see the ablation in docs/design/accuracy.md)"));
   k->push_back(enumeration(
       "vision.pose_method", AGV_AT(vision.pose_method),
@@ -169,7 +169,7 @@ void add_pose(std::vector<Key>* k) {
           {"paper_corner_a", PoseMethod::kPaperCornerA}},
       "joint_square_fit",
       "one fit of the known square to all points (shared angle), 8 independent line fits, or "
-      "paper 001 eq. 8-11 (centre from corner A). Partial views always use the joint fit"));
+      "Li et al. eq. 8-11 (centre from corner A). Partial views always use the joint fit"));
   k->push_back(enumeration(
       "vision.heading_method", AGV_AT(vision.heading_method),
       std::vector<std::pair<std::string, HeadingMethod>>{
@@ -178,7 +178,7 @@ void add_pose(std::vector<Key>* k) {
           {"weighted_000", HeadingMethod::kWeighted000}},
       "inverse_variance",
       "line angles to one heading, for the non-joint pose methods: 1/variance weights, plain "
-      "mean (paper 001 eq. 7) or paper 000 eq. 10-11 weights"));
+      "mean (Li et al. eq. 7) or Yang et al. eq. 10-11 weights"));
   k->push_back(
       integer("vision.min_points_per_line", AGV_AT(vision.min_points_per_line), 3, 10000, 20,
               {"",

@@ -152,10 +152,10 @@ void check_relations(YamlChecker& c, const Config& cfg) {
   }
   const fusion::EkfConfig& f = cfg.fusion;
   // Every replayed fix would arrive later than fusion accepts: all "too old", zero fixes fused.
-  if (cfg.replay_fix_delay_ms * 1e6 > static_cast<double>(f.max_fix_delay_ns)) {
+  if (cfg.replay_fix_delay_ms * 1e6 > static_cast<double>(f.fix.max_delay_ns)) {
     c.error("replay.fix_delay_ms", "value " + ms_text(std::llround(cfg.replay_fix_delay_ms * 1e6)) +
                                        " exceeds fusion.max_fix_delay_ms (" +
-                                       ms_text(f.max_fix_delay_ns) +
+                                       ms_text(f.fix.max_delay_ns) +
                                        "): every replayed fix would be dropped as too old");
   }
   const vision::MapIdentityConfig& id = cfg.vision.identity;
@@ -171,19 +171,19 @@ void check_relations(YamlChecker& c, const Config& cfg) {
   detail::check_vda5050_values(cfg, key_error);
   detail::check_diag_values(cfg, key_error);
   // One gyro source: a CAN gyro enabled beside another source would be fused twice or not at all.
-  if (cfg.can.gyro_enabled && cfg.imu.source != "can") {
-    c.error("imu.source", "'" + cfg.imu.source +
+  if (cfg.can.gyro_enabled && cfg.imu.source != ImuSource::kCan) {
+    c.error("imu.source", std::string("'") + imu_source_name(cfg.imu.source) +
                               "' with can.gyro.enabled: true; choose one gyro source (imu.source: "
                               "can for AGV_Gyro)");
   }
-  if (cfg.imu.source == "iio" && cfg.imu.iio_device.empty()) {
+  if (cfg.imu.source == ImuSource::kIio && cfg.imu.iio_device.empty()) {
     c.error("imu.iio_device", "missing: imu.source iio needs the IIO device's name");
   }
   // The configuration's own names for what fusion::validate would name by its struct fields.
-  if (f.odom_gap_ns < f.odom_period_ns) {
-    c.error("fusion.odom_gap_ms", "value " + ms_text(f.odom_gap_ns) +
+  if (f.odometry.gap_ns < f.odometry.period_ns) {
+    c.error("fusion.odom_gap_ms", "value " + ms_text(f.odometry.gap_ns) +
                                       " must be at least fusion.odom_period_ms (" +
-                                      ms_text(f.odom_period_ns) + ")");
+                                      ms_text(f.odometry.period_ns) + ")");
     return;  // fusion::validate would say it again by the struct's field names
   }
   const std::string err = fusion::validate(cfg.fusion);
@@ -256,15 +256,17 @@ protocol::ProtocolConfig protocol_config(const Config& cfg) {
   protocol::ProtocolConfig p;
   p.base_id = cfg.can.base_id;
   p.extended_ids = cfg.can.extended_ids;
-  p.odometry.mode = cfg.can.odometry_mode == "wheels" ? protocol::OdometryMode::kWheels
-                                                      : protocol::OdometryMode::kTwist;
+  p.odometry.mode = cfg.can.odometry_mode;
   p.odometry.can_id = cfg.can.odometry_id;
   p.odometry.extended_id = cfg.can.extended_ids;
   p.odometry.protected_e2e = cfg.can.odometry_protected;
-  p.odometry.track_width_mm = cfg.fusion.wheel_track_mm;
+  p.odometry.track_width_mm = cfg.fusion.slip.wheel_track_mm;
   p.odometry.speed_scale = cfg.can.wheel_speed_scale;
   p.output_period_ms = 1000.0 / cfg.loop.output_rate_hz;
   p.heartbeat_period_ms = 1000.0 / cfg.loop.heartbeat_rate_hz;
+  p.gyro.enabled = cfg.can.gyro_enabled;
+  p.gyro.can_id = cfg.can.gyro_id;
+  p.gyro.protected_e2e = cfg.can.gyro_protected;
   return p;
 }
 

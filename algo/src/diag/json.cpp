@@ -125,7 +125,7 @@ void append_json_string(std::string* out, const char* s) {
   *out += '"';
 }
 
-FixEntry fix_entry(const vision::LandmarkFix& fix, std::int64_t t_exposure_ns,
+FixEntry fix_entry(const vision::LandmarkMeasurement& fix, std::int64_t t_exposure_ns,
                    std::int64_t t_arrival_ns) {
   FixEntry e;
   e.t_exposure_ns = t_exposure_ns;

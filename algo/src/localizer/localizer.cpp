@@ -37,7 +37,8 @@ Localizer::Localizer(const LocalizerConfig& cfg)
       odom_(cfg.protocol),
       gyro_(cfg.protocol) {
   if (cfg_.heartbeat_period_ns <= 0) throw std::invalid_argument("heartbeat period must be > 0");
-  if (cfg_.fusion.odom_timeout_ns <= 0) throw std::invalid_argument("odometry timeout must be > 0");
+  if (cfg_.fusion.health.odom_timeout_ns <= 0)
+    throw std::invalid_argument("odometry timeout must be > 0");
   if (cfg_.gyro_timeout_ns <= 0) throw std::invalid_argument("gyro timeout must be > 0");
   const OdometryCorrection& o = cfg_.odometry;
   if (!(o.speed_scale > 0.0) || !(o.yaw_rate_scale > 0.0) || !std::isfinite(o.speed_scale) ||
@@ -67,8 +68,8 @@ int Localizer::receive_filters(hal::CanFilter* out, int max) const {
 }
 
 InitPositionSigma init_position_sigma(const fusion::EkfConfig& fusion) {
-  return {kInitPositionSigmaOfLostLimit * fusion.lost_position_sigma_mm,
-          kInitPositionSigmaOfLostLimit * fusion.lost_heading_sigma_rad};
+  return {kInitPositionSigmaOfLostLimit * fusion.health.lost_position_sigma_mm,
+          kInitPositionSigmaOfLostLimit * fusion.health.lost_heading_sigma_rad};
 }
 
 bool Localizer::init_position(std::int64_t now_ns, const Pose2& pose) {
@@ -96,7 +97,7 @@ void Localizer::on_odometry(std::int64_t t_ns, double v_mps, double omega_radps)
   if (c.yaw_rate_bias_radps != 0.0) omega_radps += c.yaw_rate_bias_radps;
   if (c.yaw_per_metre_rad != 0.0) {
     omega_radps += c.yaw_per_metre_rad * v_read_mps;
-    const double track_width_m = cfg_.fusion.wheel_track_mm * 1e-3;
+    const double track_width_m = cfg_.fusion.slip.wheel_track_mm * 1e-3;
     v_mps += c.yaw_per_metre_rad * 0.25 * track_width_m * track_width_m * omega_read_radps;
   }
   if (!ekf_.add_odometry(t_ns, v_mps, omega_radps)) {
@@ -167,10 +168,10 @@ CanRx Localizer::on_can_frame(const hal::CanFrame& frame, protocol::OdomSample* 
 
 bool Localizer::odometry_timed_out(std::int64_t now_ns) const {
   // Whatever the source (CAN or a recording): the newest sample fusion accepted.
-  return last_odom_ns_ == INT64_MIN || now_ns - last_odom_ns_ > cfg_.fusion.odom_timeout_ns;
+  return last_odom_ns_ == INT64_MIN || now_ns - last_odom_ns_ > cfg_.fusion.health.odom_timeout_ns;
 }
 
-void Localizer::on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure_ns,
+void Localizer::on_fix(const vision::LandmarkMeasurement& fix, std::int64_t t_exposure_ns,
                        std::int64_t t_arrival_ns) {
   using vision::FixStatus;
   switch (fix.status) {

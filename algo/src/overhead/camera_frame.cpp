@@ -1,4 +1,4 @@
-// The per-frame pipeline of one ceiling camera (paper 000 Algorithm 1): search windows from the
+// The per-frame pipeline of one ceiling camera (Yang et al. Algorithm 1): search windows from the
 // tracker's predictions, the predicted path with the area's ids first, the global search where it
 // fails or where no track leads, then tray-plane fixes into the tracker. docs/design/overhead.md.
 #include "agv/overhead/camera_frame.hpp"

@@ -1,4 +1,4 @@
-// Search windows of a ceiling camera's frame from the tracker's predictions (paper 000
+// Search windows of a ceiling camera's frame from the tracker's predictions (Yang et al.
 // Algorithm 1, lines 11-18: the track's box, then the area, then the whole image).
 #include "agv/overhead/search.hpp"
 

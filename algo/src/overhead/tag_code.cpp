@@ -1,6 +1,6 @@
 // tag36h11 codes in the page's row-major order and the area-restricted decode (tag_code.hpp).
 // libapriltag 3 stores its codes in its own bit order (family->bit_x/bit_y, a spiral); the table
-// here is re-expressed row-major, which is the order paper 000 quotes (its "code numbered 1",
+// here is re-expressed row-major, which is the order Yang et al. quotes (its "code numbered 1",
 // d5d628584, is libapriltag's id 0).
 #include "agv/overhead/tag_code.hpp"
 

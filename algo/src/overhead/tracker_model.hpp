@@ -1,4 +1,4 @@
-// The per-vehicle filter's mathematics (paper 000 eq. 14-19), apart from the track bookkeeping of
+// The per-vehicle filter's mathematics (Yang et al. eq. 14-19), apart from the track bookkeeping of
 // tracker.cpp. State (x_mm, y_mm, theta_rad, v_mmps, omega_radps): speed in mm/s inside, so that
 // every covariance entry is in millimetres and radians; the public outputs convert to m/s.
 #pragma once

@@ -5,7 +5,7 @@
 #include <algorithm>
 
 #include "agv/vision/pose_covariance.hpp"
-#include "localizer_impl.hpp"
+#include "stage_common.hpp"
 
 namespace agv::vision {
 

@@ -1,6 +1,6 @@
 // Stages 1-2 of the pipeline (docs/design/vision.md), binarization and detection: coarse pyramid
 // level, adaptive binarization, rotated corner templates (NCC), corner peaks merged into landmark
-// hypotheses, angle and centre refinement, border ring check. Paper 001 section 3.1 with the
+// hypotheses, angle and centre refinement, border ring check. Li et al. section 3.1 with the
 // changes measured in docs/design/accuracy.md.
 #include <algorithm>
 #include <cmath>
@@ -8,7 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "agv/vision/coarse_level.hpp"
-#include "localizer_impl.hpp"
+#include "corner_detector.hpp"
 
 namespace agv::vision {
 
@@ -29,7 +29,7 @@ constexpr int kMinAdaptiveBlockPx = 3;
 // 100+ grey levels darker than the paper; 12 keeps blurred, dim landmarks.
 constexpr double kMinCornerPatchSigmaGrey = 12.0;
 // Two corner peaks belong to the same landmark when their predicted centres are closer than
-// kMergeDistanceBorderWidths (localizer_impl.hpp) and their square angles agree within this (the
+// kMergeDistanceBorderWidths (stage_common.hpp) and their square angles agree within this (the
 // 30-degree templates are at most 15 degrees off each).
 constexpr double kMergeAngleTolDeg = 25.0;
 // Angle refinement from the gradients and centre re-match, alternated at most this many times:
@@ -114,7 +114,7 @@ double parabola_offset(double lo, double centre, double hi) {
 // Corner template: the top-left outer corner of the border (square towards +x, +y), rendered
 // by supersampling and rotated by image angle a about its anchor (middle of the corner's dark
 // square), into t (CV_32F, (2r+1)^2).
-void LandmarkLocalizer::Impl::render_corner(double a, int r, cv::Mat* t) const {
+void CornerDetector::render_corner(double a, int r, cv::Mat* t) const {
   constexpr int kS = kTemplateSupersample;
   t->create(2 * r + 1, 2 * r + 1, CV_32FC1);
   const double ca = std::cos(a), sa = std::sin(a);
@@ -125,9 +125,9 @@ void LandmarkLocalizer::Impl::render_corner(double a, int r, cv::Mat* t) const {
         for (int sx = 0; sx < kS; ++sx) {
           const Vec2 q{x + (sx + 0.5) / kS - 0.5, y + (sy + 0.5) / kS - 0.5};
           const Vec2 u{ca * q.x + sa * q.y, -sa * q.x + ca * q.y};  // rotate by -a
-          const double px = u.x + coarse_anchor, py = u.y + coarse_anchor;
+          const double px = u.x + setup.coarse_anchor, py = u.y + setup.coarse_anchor;
           const bool inside = px >= 0 && py >= 0;
-          const bool dark = inside && (px < coarse_w || py < coarse_w);
+          const bool dark = inside && (px < setup.coarse_w || py < setup.coarse_w);
           acc += dark ? 0.0 : 1.0;
         }
       }
@@ -136,9 +136,11 @@ void LandmarkLocalizer::Impl::render_corner(double a, int r, cv::Mat* t) const {
   }
 }
 
-void LandmarkLocalizer::Impl::build_templates() {
-  const int r = static_cast<int>(std::ceil(kTemplateRadiusBorderWidths * coarse_w));
-  const int n_rot = std::clamp(cfg.corner_rotations, 1, kMaxTemplates);
+CornerDetector::CornerDetector(const VisionSetup& s) : setup(s) { build_templates(); }
+
+void CornerDetector::build_templates() {
+  const int r = static_cast<int>(std::ceil(kTemplateRadiusBorderWidths * setup.coarse_w));
+  const int n_rot = std::clamp(setup.cfg.corner_rotations, 1, kMaxTemplates);
   templates.clear();
   templates_zm.clear();
   template_angles.clear();
@@ -169,7 +171,7 @@ void LandmarkLocalizer::Impl::build_templates() {
 
 // NCC of a zero-mean unit template at coarse position (x, y) (top-left of the window); -1 when
 // the window leaves the image or has no contrast. Window sums come from the integral images.
-double LandmarkLocalizer::Impl::ncc_at(const std::vector<float>& tz, int tsz, int x, int y) const {
+double CornerDetector::ncc_at(const std::vector<float>& tz, int tsz, int x, int y) const {
   if (x < 0 || y < 0 || x + tsz > coarse.cols || y + tsz > coarse.rows) return -1.0;
   double sum = 0.0, sq = 0.0;
   window_sum_sq(isum, isq, x, y, tsz, &sum, &sq);
@@ -185,8 +187,8 @@ double LandmarkLocalizer::Impl::ncc_at(const std::vector<float>& tz, int tsz, in
   return static_cast<double>(dot) / std::sqrt(var * n);
 }
 
-bool LandmarkLocalizer::Impl::detect(const cv::Mat& img, Detection* best, bool* found_corner,
-                                     double* corner_score) {
+bool CornerDetector::detect(const cv::Mat& img, Detection* best, bool* found_corner,
+                            double* corner_score) {
   *found_corner = false;
   *corner_score = 0.0;
   // 1. Pyramid and binarization.
@@ -198,8 +200,8 @@ bool LandmarkLocalizer::Impl::detect(const cv::Mat& img, Detection* best, bool* 
   *found_corner = true;
   std::sort(peaks.begin(), peaks.end(),
             [](const CornerPeak& a, const CornerPeak& b) { return a.score > b.score; });
-  if (static_cast<int>(peaks.size()) > cfg.max_corner_peaks) {
-    peaks.resize(static_cast<size_t>(cfg.max_corner_peaks));
+  if (static_cast<int>(peaks.size()) > setup.cfg.max_corner_peaks) {
+    peaks.resize(static_cast<size_t>(setup.cfg.max_corner_peaks));
   }
   *corner_score = peaks[0].score;
   // 2b. Corners that predict the same landmark become one hypothesis.
@@ -208,21 +210,21 @@ bool LandmarkLocalizer::Impl::detect(const cv::Mat& img, Detection* best, bool* 
   return select_hypothesis(best, corner_score);
 }
 
-bool LandmarkLocalizer::Impl::make_coarse(const cv::Mat& img) {
-  const int f = coarse_factor;
+bool CornerDetector::make_coarse(const cv::Mat& img) {
+  const int f = setup.coarse_factor;
   const cv::Size cs(img.cols / f, img.rows / f);
   if (cs.width < templates[0].cols + 2 || cs.height < templates[0].rows + 2) return false;
   box_downsample(img, f, cs, &coarse, &row_sums);
-  int block = static_cast<int>(std::lround(cfg.adaptive_block_mm / (mm_per_px * f)));
+  int block = static_cast<int>(std::lround(setup.cfg.adaptive_block_mm / (setup.mm_per_px * f)));
   block = std::max(kMinAdaptiveBlockPx, block | 1);
-  adaptive_threshold_mean_inv(coarse, block, cfg.adaptive_offset, &binary, &threshold_sums);
+  adaptive_threshold_mean_inv(coarse, block, setup.cfg.adaptive_offset, &binary, &threshold_sums);
   return true;
 }
 
 // NCC of every rotated corner template at the candidate positions: the template's anchor (the
 // middle of the corner's dark square) must be dark in the binary image and the patch must have
 // contrast. Keeps the best score and rotation per position.
-void LandmarkLocalizer::Impl::score_corner_templates() {
+void CornerDetector::score_corner_templates() {
   integral_sum_sq(coarse, &isum, &isq);
   const int tsz = templates[0].cols, r = tsz / 2, n_pix = tsz * tsz;
   best_score.create(coarse.rows - tsz + 1, coarse.cols - tsz + 1, CV_32FC1);
@@ -257,9 +259,9 @@ void LandmarkLocalizer::Impl::score_corner_templates() {
 
 // Local maxima of the score map above the corner threshold, with a parabolic subpixel position.
 // Ties break towards the top-left so a flat plateau yields one peak.
-void LandmarkLocalizer::Impl::find_corner_peaks() {
+void CornerDetector::find_corner_peaks() {
   peaks.clear();
-  const float thr = static_cast<float>(cfg.corner_threshold);
+  const float thr = static_cast<float>(setup.cfg.corner_threshold);
   const int tr = templates[0].cols / 2;
   for (int y = 1; y + 1 < best_score.rows; ++y) {
     const float* sm = best_score.ptr<float>(y - 1);
@@ -284,18 +286,19 @@ void LandmarkLocalizer::Impl::find_corner_peaks() {
 
 // Each corner predicts the landmark centre; corners that agree are merged (score-weighted centre,
 // square angle from the 4x-angle vector).
-void LandmarkLocalizer::Impl::merge_peaks() {
+void CornerDetector::merge_peaks() {
   hyps.clear();
   for (const CornerPeak& p : peaks) {
     const double a = template_angles[static_cast<size_t>(p.rot)];
-    const Vec2 d = rot({coarse_h - coarse_anchor, coarse_h - coarse_anchor}, a);
+    const Vec2 d =
+        rot({setup.coarse_h - setup.coarse_anchor, setup.coarse_h - setup.coarse_anchor}, a);
     const Vec2 c{p.x + d.x, p.y + d.y};
     // Normal of the template's top side points to image angle a - 90 deg.
     const double up = a - kPi / 2.0;
     Hypothesis* hit = nullptr;
     for (Hypothesis& h : hyps) {
       const double da = std::abs(reduce_angle_90(up, h.up_angle) - h.up_angle);
-      if (std::hypot(h.cx - c.x, h.cy - c.y) < kMergeDistanceBorderWidths * coarse_w &&
+      if (std::hypot(h.cx - c.x, h.cy - c.y) < kMergeDistanceBorderWidths * setup.coarse_w &&
           da < deg_to_rad(kMergeAngleTolDeg)) {
         hit = &h;
         break;
@@ -322,7 +325,7 @@ void LandmarkLocalizer::Impl::merge_peaks() {
             [](const Hypothesis& a, const Hypothesis& b) { return a.score_sum > b.score_sum; });
 }
 
-bool LandmarkLocalizer::Impl::select_hypothesis(Detection* best, double* corner_score) {
+bool CornerDetector::select_hypothesis(Detection* best, double* corner_score) {
   int best_dark_count = 0;
   compute_orient4();
   for (Hypothesis& h : hyps) {
@@ -344,7 +347,7 @@ bool LandmarkLocalizer::Impl::select_hypothesis(Detection* best, double* corner_
 
 // The templates are 30 degrees apart: refine the angle from the gradients, then the centre from
 // the supporting corners with the refined angle.
-void LandmarkLocalizer::Impl::refine_hypothesis(Hypothesis* h) const {
+void CornerDetector::refine_hypothesis(Hypothesis* h) const {
   int prev_deg = -1;
   for (int it = 0; it < kRefinePasses; ++it) {
     refine_coarse_angle(h);
@@ -362,7 +365,8 @@ void LandmarkLocalizer::Impl::refine_hypothesis(Hypothesis* h) const {
       const double a = reduce_angle_90(h->up_angle + kPi / 2.0, a_tmpl);
       double w = 0;
       const Vec2 q = rematch_corner(p, a, &w);
-      const Vec2 d = rot({coarse_h - coarse_anchor, coarse_h - coarse_anchor}, a);
+      const Vec2 d =
+          rot({setup.coarse_h - setup.coarse_anchor, setup.coarse_h - setup.coarse_anchor}, a);
       sx += w * (q.x + d.x);
       sy += w * (q.y + d.y);
       sw += w;
@@ -376,7 +380,7 @@ void LandmarkLocalizer::Impl::refine_hypothesis(Hypothesis* h) const {
 
 // Re-matches a template at rotation a around the peak (the 30-degree templates shift the peak)
 // with a parabolic subpixel maximum; returns the corner's coarse position and its vote weight.
-Vec2 LandmarkLocalizer::Impl::rematch_corner(const CornerPeak& p, double a, double* weight) const {
+Vec2 CornerDetector::rematch_corner(const CornerPeak& p, double a, double* weight) const {
   const int tsz = templates[0].cols, r = tsz / 2;
   const int deg = static_cast<int>(std::lround(rad_to_deg(a))) % kFineTemplateSteps;
   const std::vector<float>& tz =
@@ -411,13 +415,13 @@ Vec2 LandmarkLocalizer::Impl::rematch_corner(const CornerPeak& p, double a, doub
 // The corner templates come in 30-degree steps; the dominant gradient orientation (modulo 90
 // degrees, from the 4x angle weighted by |g|^2) inside the predicted square refines the angle.
 // The per-pixel 4x-angle vectors are computed once per frame (orient4), not per hypothesis.
-void LandmarkLocalizer::Impl::compute_orient4() {
+void CornerDetector::compute_orient4() {
   compute_orient4_in(1, 1, coarse.cols - 2, coarse.rows - 2);
 }
 
 // compute_orient4 over [x0, x1] x [y0, y1] only (clipped to the pixels with a full Prewitt
 // neighbourhood); zero elsewhere. The tracked detection needs it only around its hypothesis.
-void LandmarkLocalizer::Impl::compute_orient4_in(int x0, int y0, int x1, int y1) {
+void CornerDetector::compute_orient4_in(int x0, int y0, int x1, int y1) {
   orient4.create(coarse.size(), CV_32FC2);
   orient4.setTo(cv::Scalar::all(0));
   x0 = std::max(x0, 1);
@@ -439,8 +443,8 @@ void LandmarkLocalizer::Impl::compute_orient4_in(int x0, int y0, int x1, int y1)
   }
 }
 
-void LandmarkLocalizer::Impl::refine_coarse_angle(Hypothesis* h) const {
-  const double reach = coarse_h + kRefineReachMarginPx;
+void CornerDetector::refine_coarse_angle(Hypothesis* h) const {
+  const double reach = setup.coarse_h + kRefineReachMarginPx;
   const int x0 = std::max(1, static_cast<int>(h->cx - reach));
   const int x1 = std::min(coarse.cols - 2, static_cast<int>(h->cx + reach) + 1);
   const int y0 = std::max(1, static_cast<int>(h->cy - reach));
@@ -464,11 +468,11 @@ void LandmarkLocalizer::Impl::refine_coarse_angle(Hypothesis* h) const {
 // Samples the predicted border ring (middle of the dark border) and a ring just outside it on the
 // paper. Accepts when enough of the ring is inside the image, the configured fraction of it is
 // dark, and at most half of the outside ring is dark (a dark area is not a landmark).
-bool LandmarkLocalizer::Impl::ring_check(const Hypothesis& h, double* dark_level,
-                                         double* white_level, int* n_dark) {
+bool CornerDetector::ring_check(const Hypothesis& h, double* dark_level, double* white_level,
+                                int* n_dark) {
   int ring_in = 0, ring_dark = 0, out_in = 0, out_dark = 0, total = 0;
   double dark_sum = 0, white_sum = 0;
-  const double len = coarse_h - coarse_w;
+  const double len = setup.coarse_h - setup.coarse_w;
   const int n = std::max(kMinRingSamplesPerSide, static_cast<int>(kRingSamplesPerPx * len));
   for (int k = 0; k < 4; ++k) {
     const double a = h.up_angle + k * kPi / 2.0;
@@ -476,8 +480,8 @@ bool LandmarkLocalizer::Impl::ring_check(const Hypothesis& h, double* dark_level
     for (int i = 0; i <= n; ++i) {
       const double t = -len + 2.0 * len * i / n;
       ++total;
-      const double rx = h.cx + nrm.x * (coarse_h - coarse_w / 2) + tan.x * t;
-      const double ry = h.cy + nrm.y * (coarse_h - coarse_w / 2) + tan.y * t;
+      const double rx = h.cx + nrm.x * (setup.coarse_h - setup.coarse_w / 2) + tan.x * t;
+      const double ry = h.cy + nrm.y * (setup.coarse_h - setup.coarse_w / 2) + tan.y * t;
       const int ix = static_cast<int>(std::lround(rx)), iy = static_cast<int>(std::lround(ry));
       if (ix >= 0 && iy >= 0 && ix < binary.cols && iy < binary.rows) {
         ++ring_in;
@@ -486,7 +490,7 @@ bool LandmarkLocalizer::Impl::ring_check(const Hypothesis& h, double* dark_level
           dark_sum += coarse.at<std::uint8_t>(iy, ix);
         }
       }
-      const double out_r = coarse_h + kOutsideRingBorderWidths * coarse_w;
+      const double out_r = setup.coarse_h + kOutsideRingBorderWidths * setup.coarse_w;
       const double ox = h.cx + nrm.x * out_r + tan.x * t;
       const double oy = h.cy + nrm.y * out_r + tan.y * t;
       const int jx = static_cast<int>(std::lround(ox)), jy = static_cast<int>(std::lround(oy));
@@ -500,7 +504,7 @@ bool LandmarkLocalizer::Impl::ring_check(const Hypothesis& h, double* dark_level
       }
     }
   }
-  if (!ring_accepted(total, ring_in, ring_dark, out_in, out_dark)) return false;
+  if (!setup.ring_accepted(total, ring_in, ring_dark, out_in, out_dark)) return false;
   *dark_level = dark_sum / ring_dark;
   *n_dark = ring_dark;
   *white_level = out_in > out_dark ? white_sum / (out_in - out_dark) : kWhiteGrey;
@@ -511,8 +515,8 @@ bool LandmarkLocalizer::Impl::ring_check(const Hypothesis& h, double* dark_level
 // (predicted_detect.cpp): at least a quarter of the ring (one side's worth) inside the image,
 // ring_dark_fraction of it dark, and at most half of the outside ring dark (a dark area is not a
 // landmark).
-bool LandmarkLocalizer::Impl::ring_accepted(int total, int ring_in, int ring_dark, int out_in,
-                                            int out_dark) const {
+bool VisionSetup::ring_accepted(int total, int ring_in, int ring_dark, int out_in,
+                                int out_dark) const {
   if (ring_in < total / 4 || ring_dark == 0) return false;
   if (static_cast<double>(ring_dark) < cfg.ring_dark_fraction * ring_in) return false;
   return !(out_in > 0 && out_dark > out_in / 2);

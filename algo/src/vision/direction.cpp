@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "localizer_impl.hpp"
+#include "direction_stage.hpp"
 
 namespace agv::vision {
 
@@ -32,11 +32,13 @@ bool in_triangle(Vec2 apex, Vec2 bl, Vec2 br, Vec2 p) {
 
 }  // namespace
 
+DirectionStage::DirectionStage(const VisionSetup& s) : setup(s) { build_logo(); }
+
 // Logo template: samples on the page around the triangle, 1 = white, 0 = inside the triangle.
-void LandmarkLocalizer::Impl::build_logo() {
-  const double k = geom.k();
-  const Vec2 apex = geom.logo_apex_uv_mm(), bl = geom.logo_base_left_uv_mm(),
-             br = geom.logo_base_right_uv_mm();
+void DirectionStage::build_logo() {
+  const double k = setup.geom.k();
+  const Vec2 apex = setup.geom.logo_apex_uv_mm(), bl = setup.geom.logo_base_left_uv_mm(),
+             br = setup.geom.logo_base_right_uv_mm();
   logo_page_pts.clear();
   logo_template.clear();
   for (int j = 0; j < kLogoSamplesV; ++j) {
@@ -51,9 +53,9 @@ void LandmarkLocalizer::Impl::build_logo() {
 
 // Logo NCC at turn q of the fitted square (turn q's forward axis is side q's normal); -1 where
 // the logo leaves the image.
-double LandmarkLocalizer::Impl::logo_ncc(const cv::Mat& img, Vec2 c_mm, double beta, int q) {
+double DirectionStage::logo_ncc(const cv::Mat& img, Vec2 c_mm, double beta, int q) {
   const GreySampler grey(img);
-  const PlaneProjector page = page_projector(c_mm, beta - q * kPi / 2.0);
+  const PlaneProjector page = setup.page_projector(c_mm, beta - q * kPi / 2.0);
   logo_samples.clear();
   for (const Vec2& uv : logo_page_pts) {
     Vec2 px;
@@ -65,7 +67,7 @@ double LandmarkLocalizer::Impl::logo_ncc(const cv::Mat& img, Vec2 c_mm, double b
 }
 
 // Logo NCC at the four turns.
-LogoScores LandmarkLocalizer::Impl::logo_scores(const cv::Mat& img, Vec2 c_mm, double beta) {
+LogoScores DirectionStage::logo_scores(const cv::Mat& img, Vec2 c_mm, double beta) {
   LogoScores r;
   for (int q = 0; q < 4; ++q) r.ncc[static_cast<size_t>(q)] = logo_ncc(img, c_mm, beta, q);
   for (int q = 1; q < 4; ++q) {
@@ -77,56 +79,17 @@ LogoScores LandmarkLocalizer::Impl::logo_scores(const cv::Mat& img, Vec2 c_mm, d
   }
   r.best = r.ncc[static_cast<size_t>(r.best_q)];
   r.margin = r.best - second;
-  r.clear = r.best >= cfg.logo_threshold && r.margin >= cfg.logo_margin;
+  r.clear = r.best >= setup.cfg.logo_threshold && r.margin >= setup.cfg.logo_margin;
   return r;
-}
-
-// Stages 4 and 5a: the logo and the code, returning the code's turn (-1 unknown). With a trusted
-// prediction the code is read first at the predicted turn (TrackingConfig::logo_at_code_turn);
-// a verified read there fixes the direction by the code's own orientation (its finder patterns
-// verify at one turn only), and the logo need only confirm it: at least logo_threshold at that
-// turn. The margin over the other turns matters when the logo alone chooses the turn to read,
-// which it does not here. Otherwise the logo at four turns and the full read, whose decision
-// (decide_direction) refuses a clear logo at another turn than the code's; so does this path,
-// because that logo scores below the threshold at the code's turn and the frame falls back.
-// logo_ms: the logo's share of the time (timings.direction_ms).
-int LandmarkLocalizer::Impl::logo_and_code(const cv::Mat& img, const Prediction& pred, Vec2 c_px,
-                                           double up, Vec2 c_mm, double beta, LogoScores* logo,
-                                           double* logo_ms, QrRead* rd, LandmarkFix* out) {
-  *logo_ms = 0.0;
-  if (cfg.tracking.logo_at_code_turn && pred.valid && !windows.empty()) {
-    const int q = read_at_predicted_turn(img, pred, c_mm, beta, rd, out);
-    if (q >= 0) {
-      const double t = now_ms();
-      const double s = logo_ncc(img, c_mm, beta, q);
-      *logo_ms = now_ms() - t;
-      if (s >= cfg.logo_threshold) {
-        *logo = LogoScores{};
-        logo->ncc.fill(-1.0);
-        logo->ncc[static_cast<size_t>(q)] = s;
-        logo->best_q = q;
-        logo->best = s;
-        logo->clear = true;
-        out->logo_one_turn = true;
-        return q;
-      }
-      out->qr_method = 0;
-      out->qr_verified = false;
-      out->qr_centre_only = false;
-    }
-  }
-  const double t = now_ms();
-  *logo = logo_scores(img, c_mm, beta);
-  *logo_ms += now_ms() - t;
-  return decode_qr(img, pred, c_px, up, c_mm, beta, *logo, rd, out);
 }
 
 // The final turn, or -1 (kDirectionAmbiguous): a clear logo must agree with the QR orientation
 // when the code gave one; an unreadable logo (below threshold, not merely without margin) defers
 // to the QR orientation when the configuration allows it.
-int LandmarkLocalizer::Impl::decide_direction(const LogoScores& logo, int qr_q) const {
+int DirectionStage::decide_direction(const LogoScores& logo, int qr_q) const {
   if (logo.clear) return qr_q >= 0 && qr_q != logo.best_q ? -1 : logo.best_q;
-  if (cfg.direction_from_qr_when_logo_weak && qr_q >= 0 && logo.best < cfg.logo_threshold) {
+  if (setup.cfg.direction_from_qr_when_logo_weak && qr_q >= 0 &&
+      logo.best < setup.cfg.logo_threshold) {
     return qr_q;
   }
   return -1;

@@ -12,7 +12,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "localizer_impl.hpp"
+#include "predicted_detector.hpp"
 
 namespace agv::vision {
 
@@ -99,9 +99,9 @@ bool intersect(const Line2& a, const Line2& b, Vec2* p) {
 // pattern (the inner edge and the dark run between); otherwise the step and the dark over the
 // light run's length just inside it. Returns false when the probe ends outside the image or
 // finds no edge there.
-bool LandmarkLocalizer::Impl::probe_edge(const cv::Mat& img, Vec2 start, Vec2 step, int n,
-                                         double border_px, int s_lo, int s_hi, bool whole,
-                                         ProbeEdge* edge) {
+bool PredictedDetector::probe_edge(const cv::Mat& img, Vec2 start, Vec2 step, int n,
+                                   double border_px, int s_lo, int s_hi, bool whole,
+                                   ProbeEdge* edge) {
   const int dark_lo = static_cast<int>(std::lround(kDarkFromRel * border_px));
   const int dark_hi = static_cast<int>(std::lround(kDarkToRel * border_px));
   const double inner_lo = kInnerEdgeMinRel * border_px, inner_hi = kInnerEdgeMaxRel * border_px;
@@ -182,19 +182,21 @@ bool LandmarkLocalizer::Impl::probe_edge(const cv::Mat& img, Vec2 start, Vec2 st
   return false;
 }
 
-bool LandmarkLocalizer::Impl::probe_prediction(const cv::Mat& img, const SearchWindow& w,
-                                               ProbedSquare* out) {
+// The probes' geometry for window w; false when the prediction cannot be probed (too loose, or
+// the landmark certainly cut by the image border).
+bool PredictedDetector::plan_probes(const cv::Mat& img, const SearchWindow& w,
+                                    ProbePlan* plan) const {
   if (!std::isfinite(w.centre_px.x) || !std::isfinite(w.centre_px.y) ||
       !std::isfinite(w.up_angle_rad) || !std::isfinite(w.corner_sigma_px) ||
       !std::isfinite(w.up_angle_sigma_rad)) {
     return false;
   }
-  const double border_px = geom.border_width_mm() / mm_per_px;
-  const double half_px = geom.outer_half_mm() / mm_per_px;
-  const double reach = cfg.tracking.window_sigmas * w.corner_sigma_px;
+  const double border_px = setup.geom.border_width_mm() / setup.mm_per_px;
+  const double half_px = setup.geom.outer_half_mm() / setup.mm_per_px;
+  const double reach = setup.cfg.tracking.window_sigmas * w.corner_sigma_px;
   const double t_max = half_px - reach - kCornerClearBorderWidths * border_px;
   if (t_max < kMinProbeSpanRel * half_px) return false;
-  const double angle_reach = cfg.tracking.window_sigmas * w.up_angle_sigma_rad;
+  const double angle_reach = setup.cfg.tracking.window_sigmas * w.up_angle_sigma_rad;
   if (angle_reach >= kPi / 8) return false;
   // A landmark certainly cut by the image border (a predicted outer corner outside by more than
   // the reach) is not probed: it keeps the detection, which weighs its corners.
@@ -208,102 +210,116 @@ bool LandmarkLocalizer::Impl::probe_prediction(const cv::Mat& img, const SearchW
   }
   // The side may lie this far either way of its predicted place along the probe.
   const double range = reach + t_max * std::tan(angle_reach) + kSlackBorderWidths * border_px;
-  const int n =
+  plan->n =
       static_cast<int>(std::ceil(2.0 * range + (kDarkFromRel + kInnerEdgeMaxRel) * border_px)) +
       2 * kLevelOffsetPx + 3;
-  std::array<Line2, 4> lines;
-  std::array<bool, 4> have{true, true, true, true};
-  double light_sum = 0, dark_sum = 0, ramp_sum = 0;
-  int n_on_line = 0;
-  for (int k = 0; k < 4; ++k) {
-    const double a = w.up_angle_rad + k * kPi / 2.0;
-    const Vec2 nrm{std::cos(a), std::sin(a)}, tan{-nrm.y, nrm.x};
-    probe_pts.clear();
-    probe_hits.clear();
-    for (int i = 0; i < kProbesPerSide; ++i) {
-      const double t = -t_max + 2.0 * t_max * i / (kProbesPerSide - 1);
-      const double r0 = half_px + range + 1.0 + kLevelOffsetPx;
-      const Vec2 start{w.centre_px.x + nrm.x * r0 + tan.x * t,
-                       w.centre_px.y + nrm.y * r0 + tan.y * t};
-      // After the first edge found on a side, the next probe looks near it (within the predicted
-      // heading's reach); after two that agree, near the line through the first and the last
-      // found. There only the outer step and the dark just inside it are checked: the pattern
-      // was found whole on the first, and the probe then reads a fifth of the pixels,
-      // mostly ones the pose stage's band reads next. Where it finds nothing there (a smudge
-      // took the first), the whole range and pattern.
-      ProbeEdge e;
-      bool found = false;
-      double s_pred = 0, half = -1;
-      if (probe_hits.size() == 1) {
-        s_pred = probe_hits.front().s;
-        half = std::abs(t - probe_hits.front().t) * std::tan(angle_reach) + kNarrowPx;
-      } else if (probe_hits.size() >= 2) {
-        const ProbeEdge &first = probe_hits.front(), &last = probe_hits.back();
-        if (std::abs(last.s - first.s) <=
-            std::abs(last.t - first.t) * std::tan(angle_reach) + kNarrowConsistentPx) {
-          s_pred = first.s + (last.s - first.s) * (t - first.t) / (last.t - first.t);
-          half = kNarrowPx;
-        }
-      }
-      if (half >= 0) {
-        found = probe_edge(img, start, {-nrm.x, -nrm.y}, n, border_px,
-                           static_cast<int>(std::floor(s_pred - half - kRampHalfPx)),
-                           static_cast<int>(std::ceil(s_pred + half)), false, &e);
-      }
-      // A tag's border has no reliable inner edge (black data cells touch it), but its white
-      // margin puts paper before the outer edge: the step and the dark just inside suffice.
-      if (!found) {
-        found = probe_edge(img, start, {-nrm.x, -nrm.y}, n, border_px, 0, n, !outer_only, &e);
-      }
-      if (found) {
-        probe_pts.push_back({start.x - nrm.x * e.s, start.y - nrm.y * e.s});
-        e.t = t;
-        probe_hits.push_back(e);
+  plan->border_px = border_px;
+  plan->half_px = half_px;
+  plan->reach = reach;
+  plan->t_max = t_max;
+  plan->angle_reach = angle_reach;
+  plan->range = range;
+  return true;
+}
+
+// Side k's probes: the border's outer edge on each that finds one (probe_pts, probe_hits).
+void PredictedDetector::probe_side(const cv::Mat& img, const SearchWindow& w, const ProbePlan& plan,
+                                   int k) {
+  const double border_px = plan.border_px, half_px = plan.half_px, t_max = plan.t_max;
+  const double angle_reach = plan.angle_reach, range = plan.range;
+  const int n = plan.n;
+  const double a = w.up_angle_rad + k * kPi / 2.0;
+  const Vec2 nrm{std::cos(a), std::sin(a)}, tan{-nrm.y, nrm.x};
+  probe_pts.clear();
+  probe_hits.clear();
+  for (int i = 0; i < kProbesPerSide; ++i) {
+    const double t = -t_max + 2.0 * t_max * i / (kProbesPerSide - 1);
+    const double r0 = half_px + range + 1.0 + kLevelOffsetPx;
+    const Vec2 start{w.centre_px.x + nrm.x * r0 + tan.x * t,
+                     w.centre_px.y + nrm.y * r0 + tan.y * t};
+    // After the first edge found on a side, the next probe looks near it (within the predicted
+    // heading's reach); after two that agree, near the line through the first and the last
+    // found. There only the outer step and the dark just inside it are checked: the pattern
+    // was found whole on the first, and the probe then reads a fifth of the pixels,
+    // mostly ones the pose stage's band reads next. Where it finds nothing there (a smudge
+    // took the first), the whole range and pattern.
+    ProbeEdge e;
+    bool found = false;
+    double s_pred = 0, half = -1;
+    if (probe_hits.size() == 1) {
+      s_pred = probe_hits.front().s;
+      half = std::abs(t - probe_hits.front().t) * std::tan(angle_reach) + kNarrowPx;
+    } else if (probe_hits.size() >= 2) {
+      const ProbeEdge &first = probe_hits.front(), &last = probe_hits.back();
+      if (std::abs(last.s - first.s) <=
+          std::abs(last.t - first.t) * std::tan(angle_reach) + kNarrowConsistentPx) {
+        s_pred = first.s + (last.s - first.s) * (t - first.t) / (last.t - first.t);
+        half = kNarrowPx;
       }
     }
-    // The tag family may lose one side (an occluder over the border: the side the detector's quad
-    // broke on); the square is then placed from the other three and the known size.
-    const auto lose_side = [&] {
-      have[static_cast<size_t>(k)] = false;
-      return outer_only;
-    };
-    if (static_cast<int>(probe_pts.size()) < kMinProbesOnLine) {
-      if (lose_side()) continue;
-      return false;
+    if (half >= 0) {
+      found = probe_edge(img, start, {-nrm.x, -nrm.y}, n, border_px,
+                         static_cast<int>(std::floor(s_pred - half - kRampHalfPx)),
+                         static_cast<int>(std::ceil(s_pred + half)), false, &e);
     }
-    probe_w.resize(probe_pts.size());
-    LineFit fit;
-    if (!fit_line_robust(probe_pts, kProbeTukeyC, kProbeMinSigmaPx, kProbeIrlsIterations, probe_w,
-                         &fit, kProbeRansacIterations, kProbeRansacTolPx)) {
-      if (lose_side()) continue;
-      return false;
+    // A tag's border has no reliable inner edge (black data cells touch it), but its white
+    // margin puts paper before the outer edge: the step and the dark just inside suffice.
+    if (!found) {
+      found = probe_edge(img, start, {-nrm.x, -nrm.y}, n, border_px, 0, n, !setup.outer_only, &e);
     }
-    int on_line = 0;
+    if (found) {
+      probe_pts.push_back({start.x - nrm.x * e.s, start.y - nrm.y * e.s});
+      e.t = t;
+      probe_hits.push_back(e);
+    }
+  }
+}
+
+// The robust line through the side's probe edges (probe_side), and the grey levels and ramps of
+// the probes on it added to the sums; false (sums unchanged) when too few probes lie on it.
+bool PredictedDetector::fit_side(Line2* line, int* on_line_out, ProbeSums* sums) {
+  if (static_cast<int>(probe_pts.size()) < kMinProbesOnLine) return false;
+  double& light_sum = sums->light;
+  double& ramp_sum = sums->ramp;
+  double& dark_sum = sums->dark;
+  probe_w.resize(probe_pts.size());
+  LineFit fit;
+  if (!fit_line_robust(probe_pts, kProbeTukeyC, kProbeMinSigmaPx, kProbeIrlsIterations, probe_w,
+                       &fit, kProbeRansacIterations, kProbeRansacTolPx)) {
+    return false;
+  }
+  int on_line = 0;
+  for (size_t i = 0; i < probe_pts.size(); ++i) {
+    const Vec2& p = probe_pts[i];
+    if (std::abs(fit.line.nx * p.x + fit.line.ny * p.y - fit.line.d) > kInlierPx) continue;
+    ++on_line;
+    light_sum += probe_hits[i].light_grey;
+    ramp_sum += probe_hits[i].ramp_px;
+    dark_sum += probe_hits[i].dark_grey;
+  }
+  if (on_line < kMinProbesOnLine) {
+    // Points already summed belong to a side that is dropped: take them back out.
     for (size_t i = 0; i < probe_pts.size(); ++i) {
       const Vec2& p = probe_pts[i];
       if (std::abs(fit.line.nx * p.x + fit.line.ny * p.y - fit.line.d) > kInlierPx) continue;
-      ++on_line;
-      light_sum += probe_hits[i].light_grey;
-      ramp_sum += probe_hits[i].ramp_px;
-      dark_sum += probe_hits[i].dark_grey;
+      light_sum -= probe_hits[i].light_grey;
+      ramp_sum -= probe_hits[i].ramp_px;
+      dark_sum -= probe_hits[i].dark_grey;
     }
-    if (on_line < kMinProbesOnLine) {
-      // Points already summed belong to a side that is dropped: take them back out.
-      for (size_t i = 0; i < probe_pts.size(); ++i) {
-        const Vec2& p = probe_pts[i];
-        if (std::abs(fit.line.nx * p.x + fit.line.ny * p.y - fit.line.d) > kInlierPx) continue;
-        light_sum -= probe_hits[i].light_grey;
-        ramp_sum -= probe_hits[i].ramp_px;
-        dark_sum -= probe_hits[i].dark_grey;
-      }
-      if (lose_side()) continue;
-      return false;
-    }
-    n_on_line += on_line;
-    lines[static_cast<size_t>(k)] = fit.line;
+    return false;
   }
-  const int n_sides = static_cast<int>(std::count(have.begin(), have.end(), true));
-  if (n_sides < 3 || n_on_line == 0) return false;
+  *on_line_out = on_line;
+  *line = fit.line;
+  return true;
+}
+
+// The square's centre and border-normal angle from its sides' lines (three or four of them);
+// false when they do not make a square of the landmark's size.
+bool PredictedDetector::square_from_lines(const SearchWindow& w, const ProbePlan& plan,
+                                          const std::array<Line2, 4>& lines,
+                                          const std::array<bool, 4>& have, int n_sides,
+                                          double* up_out, Vec2* c_out) const {
+  const double half_px = plan.half_px;
   double sum_c = 0, sum_s = 0;
   for (int k = 0; k < 4; ++k) {
     if (!have[static_cast<size_t>(k)]) continue;
@@ -365,20 +381,50 @@ bool LandmarkLocalizer::Impl::probe_prediction(const cv::Mat& img, const SearchW
         std::abs(a.nx * c.x + a.ny * c.y - a.d) + std::abs(b.nx * c.x + b.ny * c.y - b.d);
     if (std::abs(dist - 2.0 * half_px) > kSizeTolRel * 2.0 * half_px) return false;
   }
+  *up_out = up;
+  *c_out = c;
+  return true;
+}
+
+bool PredictedDetector::probe_prediction(const cv::Mat& img, const SearchWindow& w,
+                                         ProbedSquare* out) {
+  ProbePlan plan;
+  if (!plan_probes(img, w, &plan)) return false;
+  std::array<Line2, 4> lines;
+  std::array<bool, 4> have{true, true, true, true};
+  ProbeSums sums;
+  int n_on_line = 0;
+  for (int k = 0; k < 4; ++k) {
+    probe_side(img, w, plan, k);
+    int on_line = 0;
+    if (!fit_side(&lines[static_cast<size_t>(k)], &on_line, &sums)) {
+      // The tag family may lose one side (an occluder over the border: the side the detector's
+      // quad broke on); the square is then placed from the other three and the known size.
+      have[static_cast<size_t>(k)] = false;
+      if (setup.outer_only) continue;
+      return false;
+    }
+    n_on_line += on_line;
+  }
+  const int n_sides = static_cast<int>(std::count(have.begin(), have.end(), true));
+  if (n_sides < 3 || n_on_line == 0) return false;
+  double up = 0;
+  Vec2 c;
+  if (!square_from_lines(w, plan, lines, have, n_sides, &up, &c)) return false;
   // Where the tracked detection would accept it: within the reach (plus the corner votes'
   // agreement distance) and the angle tolerance of the prediction.
-  const double angle_tol = angle_reach + deg_to_rad(kTrackedAngleSlackDeg);
+  const double angle_tol = plan.angle_reach + deg_to_rad(kTrackedAngleSlackDeg);
   if (std::abs(up - w.up_angle_rad) > angle_tol) return false;
   if (std::hypot(c.x - w.centre_px.x, c.y - w.centre_px.y) >
-      reach + kMergeDistanceBorderWidths * border_px) {
+      plan.reach + kMergeDistanceBorderWidths * plan.border_px) {
     return false;
   }
   // A blurred landmark keeps the detection (measured, docs/design/tracking.md "Edge probes").
-  if (ramp_sum / n_on_line > kMaxMeanRampPx) return false;
+  if (sums.ramp / n_on_line > kMaxMeanRampPx) return false;
   out->centre_px = c;
   out->up_rad = up;
-  out->dark_grey = dark_sum / n_on_line;
-  out->white_grey = light_sum / n_on_line;
+  out->dark_grey = sums.dark / n_on_line;
+  out->white_grey = sums.light / n_on_line;
   out->on_line_share = static_cast<double>(n_on_line) / (4 * kProbesPerSide);
   return true;
 }

@@ -153,9 +153,6 @@ double Line2::angle_rad() const { return std::atan2(-nx, ny); }
 
 namespace {
 
-// Robust scale from the median absolute residual: 1 / Phi^-1(3/4), consistent for Gaussian noise.
-constexpr double kMadToSigma = 1.4826;
-
 // fit_line_tls; the extent (one more pass over the points) only when asked: the robust fit's
 // intermediate lines only feed the next residuals.
 bool fit_line_tls_impl(std::span<const Vec2> pts, std::span<const double> weights, bool with_extent,

@@ -1,5 +1,5 @@
-// LandmarkLocalizer: the stages of one frame in order (run), the public class and the helpers the
-// stage files share. The stages themselves: localizer_impl.hpp lists the files.
+// LandmarkLocalizer: the stages of one frame in order (run, locate, identify), the public class and
+// VisionSetup, the configuration the stages share. The stages themselves: localizer_impl.hpp.
 #include "agv/vision/landmark_localizer.hpp"
 
 #include <algorithm>
@@ -61,9 +61,9 @@ const char* to_string(SearchMode m) {
   return "unknown";
 }
 
-LandmarkLocalizer::Impl::Impl(const VisionConfig& c, const CameraModel& m,
-                              const LandmarkGeometry& g, const LandmarkMap* mp)
-    : cfg(c), cam(m), cam_linear(m), geom(g), map(mp), planner(c, m, g, mp) {
+VisionSetup::VisionSetup(const VisionConfig& c, const CameraModel& m, const LandmarkGeometry& g,
+                         const LandmarkMap* mp)
+    : cfg(c), cam(m), cam_linear(m), geom(g), map(mp) {
   // 0.26 mm/px is the default camera's scale: a fallback for a degenerate model, which then
   // fails every frame's size check rather than dividing by zero here.
   mm_per_px = cam.mm_per_px();
@@ -79,17 +79,17 @@ LandmarkLocalizer::Impl::Impl(const VisionConfig& c, const CameraModel& m,
   coarse_w = border_px / coarse_factor;
   coarse_h = geom.outer_half_mm() / mm_per_px / coarse_factor;
   coarse_anchor = coarse_w / 2.0;
-  build_templates();
-  build_logo();
+  outer_only = cfg.family == LandmarkFamily::kTag36h11;
+}
+
+LandmarkLocalizer::Impl::Impl(const VisionConfig& c, const CameraModel& m,
+                              const LandmarkGeometry& g, const LandmarkMap* mp)
+    : VisionSetup(c, m, g, mp), planner(c, m, g, mp) {
   // A small map's codes are encoded now, at start-up, rather than on the first landmark frame,
   // which would be late by the encoding (1000 landmarks, 2000 codes, take 0.23 s on x86-64); a
-  // large map's book follows the prediction (map_identity_stage.cpp, docs/design/large_maps.md).
-  // A tag floor has no QR codes to encode; its start-up work is libapriltag's tables.
-  if (cfg.family == LandmarkFamily::kTag36h11) {
-    tag = make_tag_detector();
-  } else {
-    update_code_book(Prediction{});
-  }
+  // large map's book follows the prediction (code_cache.cpp, docs/design/large_maps.md).
+  // A tag floor has no QR codes to encode; its start-up work is libapriltag's tables (TagReader).
+  if (cfg.family != LandmarkFamily::kTag36h11) codes.update_code_book(Prediction{});
 }
 
 // The stages in the order they run, numbered as in docs/design/vision.md "Pipeline". The pose comes
@@ -108,63 +108,77 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
       img.cols != cam.intrinsics.width_px || img.rows != cam.intrinsics.height_px) {
     return finish(FixStatus::kBadInput);
   }
-  if (cfg.family == LandmarkFamily::kTag36h11) return finish(run_tag(img, pred, out));
-  // 1-2. Binarization and detection: none when the prediction is precise enough to place the
-  // pose stage's edge bands itself and the fit then lands where it said; otherwise from the
-  // prediction when it is trusted (tracked, then the windows), the whole frame when there is none
-  // or they find nothing (docs/design/tracking.md).
-  prune_map_codes();
-  update_code_book(pred);
-  planner.plan(pred, &windows);
+  Frame frame{img, pred, t0, window_storage};
+  if (cfg.family == LandmarkFamily::kTag36h11) return finish(run_tag(frame, out));
+  // The book and the expected codes point into the cache: both go when it is emptied.
+  if (codes.prune()) code_reader.read().expected.clear();
+  codes.update_code_book(pred);
+  planner.plan(pred, &frame.windows);
   Detection det;
   Vec2 c_mm;
   double beta = 0;
   Eigen::Matrix3d cov;
-  bool posed = false;
-  FixStatus st = FixStatus::kNoLandmark;
+  const FixStatus st = locate(frame, out, &det, &c_mm, &beta, &cov);
+  if (st != FixStatus::kOk) return finish(st);
+  return finish(identify(frame, det, c_mm, beta, cov, out));
+}
+
+// 1-3. Binarization, detection and pose: no detection when the prediction is precise enough to
+// place the pose stage's edge bands itself and the fit then lands where it said; otherwise from
+// the prediction when it is trusted (tracked, then the windows), the whole frame when there is
+// none or they find nothing (docs/design/tracking.md).
+FixStatus LandmarkLocalizer::Impl::locate(const Frame& f, LandmarkFix* out, Detection* det,
+                                          Vec2* c_mm, double* beta, Eigen::Matrix3d* cov) {
+  const cv::Mat& img = f.img;
+  const std::vector<SearchWindow>& windows = f.windows;
   Vec2 predicted_px;
   bool probed = false;
   if (cfg.tracking.detect_from_prediction && !windows.empty() &&
-      detect_predicted(img, &det, &predicted_px, &probed)) {
+      predicted.detect_predicted(img, windows, det, &predicted_px, &probed)) {
     const LandmarkFix before = *out;
     out->search = SearchMode::kWindow;
     out->detection_predicted = true;
     out->detection_probed = probed;
-    st = measure(img, det, 0.0, t0, out, &c_mm, &beta, &cov);
-    posed = st == FixStatus::kOk && fit_agrees_with_prediction(predicted_px);
-    if (!posed) *out = before;
+    const FixStatus st = measure(img, *det, 0.0, f.t0_ms, out, c_mm, beta, cov);
+    if (st == FixStatus::kOk && predicted.fit_agrees_with_prediction(predicted_px)) return st;
+    *out = before;
   }
-  if (!posed) {
-    bool found_corner = false;
-    double corner_score = 0;
-    bool found = false;
-    bool searched_all = false;
-    det = Detection{};
-    if (!windows.empty()) {
-      // The prediction replaces the search (tracked detection); when it finds nothing trusted,
-      // the corner search over the windows.
-      found = detect_tracked(img, &det, &corner_score) &&
-              det.white_grey - det.dark_grey >= kMinContrastGrey;
-      if (!found) {
-        det = Detection{};
-        found = detect_in_windows(img, &det, &found_corner, &corner_score, &searched_all) &&
-                det.white_grey - det.dark_grey >= kMinContrastGrey;
-      }
-      out->search = found ? SearchMode::kWindow : SearchMode::kWindowThenFull;
-    }
-    // Windows that cover the whole frame were the full search: not repeated.
-    if (!found && !searched_all) {
-      det = Detection{};
-      found = detect(img, &det, &found_corner, &corner_score);
-    }
+  bool found_corner = false;
+  double corner_score = 0;
+  bool found = false;
+  bool searched_all = false;
+  *det = Detection{};
+  if (!windows.empty()) {
+    // The prediction replaces the search (tracked detection); when it finds nothing trusted,
+    // the corner search over the windows.
+    found = corners.detect_tracked(img, windows, det, &corner_score) &&
+            det->white_grey - det->dark_grey >= kMinContrastGrey;
     if (!found) {
-      out->corner_score = corner_score;
-      if (cfg.now_ns) out->timings.detect_ms = now_ms() - t0;
-      return finish(FixStatus::kNoLandmark);
+      *det = Detection{};
+      found = corners.detect_in_windows(img, windows, det, &found_corner, &corner_score,
+                                        &searched_all) &&
+              det->white_grey - det->dark_grey >= kMinContrastGrey;
     }
-    st = measure(img, det, corner_score, t0, out, &c_mm, &beta, &cov);
-    if (st != FixStatus::kOk) return finish(st);
+    out->search = found ? SearchMode::kWindow : SearchMode::kWindowThenFull;
   }
+  // Windows that cover the whole frame were the full search: not repeated.
+  if (!found && !searched_all) {
+    *det = Detection{};
+    found = corners.detect(img, det, &found_corner, &corner_score);
+  }
+  if (!found) {
+    out->corner_score = corner_score;
+    if (cfg.now_ns) out->timings.detect_ms = now_ms() - f.t0_ms;
+    return FixStatus::kNoLandmark;
+  }
+  return measure(img, *det, corner_score, f.t0_ms, out, c_mm, beta, cov);
+}
+
+// 4-6. Logo, code, identity and direction of the measured square (det; c_mm, beta and cov from
+// the pose stage), and the result.
+FixStatus LandmarkLocalizer::Impl::identify(const Frame& f, const Detection& det, Vec2 c_mm,
+                                            double beta, const Eigen::Matrix3d& cov,
+                                            LandmarkFix* out) {
   const Vec2 c_px = coarse_to_full({det.h.cx, det.h.cy});
   const double up = det.h.up_angle;
   const double t2 = now_ms();
@@ -174,13 +188,13 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
   // check. Tracking reads the code first and scores the logo at its turn only (logo_and_code).
   LogoScores logo;
   double logo_ms = 0.0;
-  QrRead* const rd = &qr_read;
-  const int qr_q = logo_and_code(img, pred, c_px, up, c_mm, beta, &logo, &logo_ms, rd, out);
+  QrRead* const rd = &code_reader.read();
+  const int qr_q = logo_and_code(f, c_px, up, c_mm, beta, &logo, &logo_ms, rd, out);
   out->logo_score = logo.best;
   out->logo_margin = logo.margin;
   Pose2 world_landmark;
-  st = out->qr_method == 0 ? FixStatus::kQrUnreadable
-                           : check_payload(rd->text, out, &world_landmark);
+  FixStatus st = out->qr_method == 0 ? FixStatus::kQrUnreadable
+                                     : code_reader.check_payload(rd->text, out, &world_landmark);
   const double t4 = now_ms();
   if (cfg.now_ns) out->timings.decode_ms = t4 - t2 - logo_ms;
   // 5c. Map-guided identity of an unread code (docs/design/map_identity.md): whole border only, and
@@ -188,28 +202,71 @@ FixStatus LandmarkLocalizer::Impl::run(const cv::Mat& img, const Prediction& pre
   if (st == FixStatus::kQrUnreadable && !out->partly_outside && out->sides_used == 4) {
     int turn = 0;
     std::uint32_t id = 0;
-    if (map_identity(img, pred, c_mm, beta, cov, logo, &world_landmark, &turn, &id)) {
+    if (identity.map_identity(f.img, f.pred, c_mm, beta, cov, logo, &world_landmark, &turn, &id)) {
       quadrant = turn;
       out->landmark_id = id;
       fill_result(world_landmark, c_mm, beta, turn, cov, out);
       out->identity = FixIdentity::kMapGuided;
       if (cfg.now_ns) out->timings.decode_ms = now_ms() - t2 - logo_ms;
-      return finish(FixStatus::kOk);
+      return FixStatus::kOk;
     }
   }
   if (st == FixStatus::kQrUnreadable && out->partly_outside) st = FixStatus::kPartlyOutside;
-  if (st != FixStatus::kOk) return finish(st);
+  if (st != FixStatus::kOk) return st;
 
   // 5b. Direction: the logo against the QR code's orientation.
-  const int q_final = decide_direction(logo, qr_q);
+  const int q_final = direction.decide_direction(logo, qr_q);
   if (cfg.now_ns) out->timings.direction_ms = logo_ms + (now_ms() - t4);
-  if (q_final < 0) return finish(FixStatus::kDirectionAmbiguous);
+  if (q_final < 0) return FixStatus::kDirectionAmbiguous;
   quadrant = q_final;
 
   // 6. Result and its covariance.
   fill_result(world_landmark, c_mm, beta, q_final, cov, out);
   out->identity = FixIdentity::kQrCode;
-  return finish(FixStatus::kOk);
+  return FixStatus::kOk;
+}
+
+// Stages 4 and 5a: the logo and the code, returning the code's turn (-1 unknown). With a trusted
+// prediction the code is read first at the predicted turn (TrackingConfig::logo_at_code_turn);
+// a verified read there fixes the direction by the code's own orientation (its finder patterns
+// verify at one turn only), and the logo need only confirm it: at least logo_threshold at that
+// turn. The margin over the other turns matters when the logo alone chooses the turn to read,
+// which it does not here. Otherwise the logo at four turns and the full read, whose decision
+// (decide_direction) refuses a clear logo at another turn than the code's; so does this path,
+// because that logo scores below the threshold at the code's turn and the frame falls back.
+// logo_ms: the logo's share of the time (timings.direction_ms).
+int LandmarkLocalizer::Impl::logo_and_code(const Frame& f, Vec2 c_px, double up, Vec2 c_mm,
+                                           double beta, LogoScores* logo, double* logo_ms,
+                                           QrRead* rd, LandmarkFix* out) {
+  const cv::Mat& img = f.img;
+  const Prediction& pred = f.pred;
+  const std::vector<SearchWindow>& windows = f.windows;
+  *logo_ms = 0.0;
+  if (cfg.tracking.logo_at_code_turn && pred.valid && !windows.empty()) {
+    const int q = code_reader.read_at_predicted_turn(img, pred, windows, c_mm, beta, rd, out);
+    if (q >= 0) {
+      const double t = now_ms();
+      const double s = direction.logo_ncc(img, c_mm, beta, q);
+      *logo_ms = now_ms() - t;
+      if (s >= cfg.logo_threshold) {
+        *logo = LogoScores{};
+        logo->ncc.fill(-1.0);
+        logo->ncc[static_cast<size_t>(q)] = s;
+        logo->best_q = q;
+        logo->best = s;
+        logo->clear = true;
+        out->logo_one_turn = true;
+        return q;
+      }
+      out->qr_method = 0;
+      out->qr_verified = false;
+      out->qr_centre_only = false;
+    }
+  }
+  const double t = now_ms();
+  *logo = direction.logo_scores(img, c_mm, beta);
+  *logo_ms += now_ms() - t;
+  return code_reader.decode_qr(img, pred, windows, c_px, up, c_mm, beta, *logo, rd, out);
 }
 
 // Stage 3 from an accepted detection: its diagnostics, the image-border check and the pose. t0 is
@@ -229,43 +286,14 @@ FixStatus LandmarkLocalizer::Impl::measure(const cv::Mat& img, const Detection& 
   out->detect_angle_deg = rad_to_deg(up);
   out->partly_outside = partly_outside(img, c_px, up);
   if (out->partly_outside && !cfg.allow_partly_outside) return FixStatus::kPartlyOutside;
-  FixStatus st = pose(img, c_px, up, contrast, &edge_points, out, c_mm, beta, cov);
+  FixStatus st = square.pose(img, c_px, up, contrast, &square.edge_points(), out, c_mm, beta, cov);
   if (cfg.now_ns) out->timings.pose_ms = now_ms() - t1;
   if (st == FixStatus::kTooFewEdgePoints && out->partly_outside) st = FixStatus::kPartlyOutside;
   return st;
 }
 
-// Detection on the bounding box of the windows, aligned to the coarse grid so its coarse pixels
-// are the full frame's (the windows' margin keeps the binarization block inside): the same
-// hypothesis as the full search, shifted back into frame coordinates.
-bool LandmarkLocalizer::Impl::detect_in_windows(const cv::Mat& img, Detection* best,
-                                                bool* found_corner, double* corner_score,
-                                                bool* whole_frame) {
-  int x0 = img.cols, y0 = img.rows, x1 = 0, y1 = 0;
-  for (const SearchWindow& w : windows) {
-    x0 = std::min(x0, w.x0);
-    y0 = std::min(y0, w.y0);
-    x1 = std::max(x1, w.x1);
-    y1 = std::max(y1, w.y1);
-  }
-  const int f = coarse_factor;
-  x0 = x0 / f * f;
-  y0 = y0 / f * f;
-  // The full search covers only whole coarse pixels (make_coarse): so does the window.
-  x1 = std::min((x1 + f - 1) / f * f, img.cols / f * f);
-  y1 = std::min((y1 + f - 1) / f * f, img.rows / f * f);
-  *whole_frame = false;
-  if (x1 <= x0 || y1 <= y0) return false;
-  *whole_frame = x0 == 0 && y0 == 0 && x1 == img.cols / f * f && y1 == img.rows / f * f;
-  const cv::Mat roi = img(cv::Rect(x0, y0, x1 - x0, y1 - y0));
-  if (!detect(roi, best, found_corner, corner_score)) return false;
-  best->h.cx += x0 / f;
-  best->h.cy += y0 / f;
-  return true;
-}
-
 // Any predicted outer corner beyond the image (plus VisionConfig::outside_margin_mm).
-bool LandmarkLocalizer::Impl::partly_outside(const cv::Mat& img, Vec2 c_px, double up) const {
+bool VisionSetup::partly_outside(const cv::Mat& img, Vec2 c_px, double up) const {
   const double margin_px = cfg.outside_margin_mm / mm_per_px;
   const double ho = geom.outer_half_mm() / mm_per_px;
   bool outside = false;
@@ -305,7 +333,7 @@ const VisionConfig& LandmarkLocalizer::config() const { return impl_->cfg; }
 const std::vector<Vec2>& LandmarkLocalizer::edge_points_px(int line) const {
   static const std::vector<Vec2> kNone;
   if (line < 0 || line >= kNumLines) return kNone;
-  return impl_->edge_points.px[static_cast<size_t>(line)];
+  return impl_->square.edge_points().px[static_cast<size_t>(line)];
 }
 
 FixStatus LandmarkLocalizer::process(const cv::Mat& gray8, LandmarkFix* out) {

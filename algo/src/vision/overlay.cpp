@@ -1,4 +1,4 @@
-// Debug overlay of LandmarkLocalizer (paper 001 figures 5-9): edge points coloured by class,
+// Debug overlay of LandmarkLocalizer (Li et al. figures 5-9): edge points coloured by class,
 // fitted lines, corners, centre, the numbers. Desk use only; not on the vehicle's per-frame path.
 #include <cstdio>
 #include <opencv2/imgproc.hpp>
@@ -16,6 +16,7 @@ void LandmarkLocalizer::draw_overlay(const cv::Mat& gray8, const LandmarkFix& fi
   }
   cv::cvtColor(gray8, *bgr_out, cv::COLOR_GRAY2BGR);
   const Impl& m = *impl_;
+  const SquarePixels& sq = m.square.pixels();
   char text[160];
   if (m.have_overlay) {
     // Colours by class relative to the landmark's forward direction (page up/right/down/left).
@@ -24,7 +25,7 @@ void LandmarkLocalizer::draw_overlay(const cv::Mat& gray8, const LandmarkFix& fi
       const int side = l / 2;
       const int cls_img = (l % 2 == 0) ? side : (side + 2) % 4;  // gradient class
       const int cls = ((cls_img - m.quadrant) % 4 + 4) % 4;
-      for (const Vec2& p : m.edge_points.px[static_cast<size_t>(l)]) {
+      for (const Vec2& p : m.square.edge_points().px[static_cast<size_t>(l)]) {
         const int x = static_cast<int>(std::lround(p.x)), y = static_cast<int>(std::lround(p.y));
         if (x >= 0 && y >= 0 && x < bgr_out->cols && y < bgr_out->rows) {
           bgr_out->at<cv::Vec3b>(y, x) = cv::Vec3b(static_cast<std::uint8_t>(colours[cls][0]),
@@ -35,23 +36,23 @@ void LandmarkLocalizer::draw_overlay(const cv::Mat& gray8, const LandmarkFix& fi
     }
     for (int e = 0; e < 2; ++e) {
       for (int k = 0; k < 4; ++k) {
-        const Vec2 a = m.corners_px[static_cast<size_t>(e * 4 + k)];
-        const Vec2 b = m.corners_px[static_cast<size_t>(e * 4 + (k + 1) % 4)];
+        const Vec2 a = sq.corners_px[static_cast<size_t>(e * 4 + k)];
+        const Vec2 b = sq.corners_px[static_cast<size_t>(e * 4 + (k + 1) % 4)];
         cv::line(*bgr_out, cv::Point2d(a.x, a.y), cv::Point2d(b.x, b.y), {0, 0, 255}, 1,
                  cv::LINE_AA);
       }
     }
-    for (const Vec2& c : m.corners_px) {
+    for (const Vec2& c : sq.corners_px) {
       cv::circle(*bgr_out, cv::Point2d(c.x, c.y), 3, {0, 0, 255}, -1, cv::LINE_AA);
     }
-    cv::circle(*bgr_out, cv::Point2d(m.centre_px.x, m.centre_px.y), 4, {255, 0, 255}, -1,
+    cv::circle(*bgr_out, cv::Point2d(sq.centre_px.x, sq.centre_px.y), 4, {255, 0, 255}, -1,
                cv::LINE_AA);
     // Forward arrow.
-    const double fwd_img = m.up_angle_px + m.quadrant * kPi / 2.0;
+    const double fwd_img = sq.up_angle_px + m.quadrant * kPi / 2.0;
     const double len = 0.6 * m.geom.outer_half_mm() / m.mm_per_px;
-    cv::arrowedLine(*bgr_out, cv::Point2d(m.centre_px.x, m.centre_px.y),
-                    cv::Point2d(m.centre_px.x + len * std::cos(fwd_img),
-                                m.centre_px.y + len * std::sin(fwd_img)),
+    cv::arrowedLine(*bgr_out, cv::Point2d(sq.centre_px.x, sq.centre_px.y),
+                    cv::Point2d(sq.centre_px.x + len * std::cos(fwd_img),
+                                sq.centre_px.y + len * std::sin(fwd_img)),
                     {255, 0, 255}, 2, cv::LINE_AA);
   }
   std::snprintf(text, sizeof text, "%s id=%u", to_string(fix.status),

@@ -10,7 +10,7 @@
 #include <cstring>
 
 #include "agv/common/order_statistic.hpp"
-#include "localizer_impl.hpp"
+#include "square_fit.hpp"
 
 namespace agv::vision {
 
@@ -44,9 +44,8 @@ constexpr double kMinLineAngleVar = 1e-14;
 constexpr int kJointIterationsPerRound = 5;
 constexpr int kJointRobustRounds = 3;
 constexpr double kConvergedStep = 1e-6;
-// Joint re-weighting: robust sigma from the MAD (1.4826 = 1 / Phi^-1(3/4), consistent for
-// Gaussian residuals) with a floor in mm (a perfect frame would otherwise reject everything).
-constexpr double kMadToSigma = 1.4826;
+// Joint re-weighting: robust sigma from the MAD (kMadToSigma, order_statistic.hpp) with a floor
+// in mm (a perfect frame would otherwise reject everything).
 constexpr double kMinJointSigmaMm = 0.005;
 // Two lines whose normals' determinant is below this are treated as parallel.
 constexpr double kParallelDet = 1e-9;
@@ -67,32 +66,33 @@ Vec2 intersect(const Line2& a, const Line2& b, bool* ok) {
 
 }  // namespace
 
-FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up, double contrast,
-                                        EdgePoints* pts, LandmarkFix* out, Vec2* c_mm,
-                                        double* beta_out, Eigen::Matrix3d* cov) {
+FixStatus SquareFit::pose(const cv::Mat& img, Vec2 c_px, double up, double contrast,
+                          EdgePoints* pts, LandmarkFix* out, Vec2* c_mm, double* beta_out,
+                          Eigen::Matrix3d* cov) {
   // 3a. Classified edge points in bands around the detected square.
-  const double w_px = geom.border_width_mm() / mm_per_px;
-  const double thr = cfg.edge_threshold_rel * kPrewittStepGain * contrast;
-  const int total = collect(img, c_px, up, cfg.band_rel * w_px, thr, pts);
-  up_angle_px = up;
-  if (rows_covered(total) < cfg.min_points_total) return FixStatus::kTooFewEdgePoints;
+  const double w_px = setup.geom.border_width_mm() / setup.mm_per_px;
+  const double thr = setup.cfg.edge_threshold_rel * kPrewittStepGain * contrast;
+  const int total = collect(img, c_px, up, setup.cfg.band_rel * w_px, thr, pts);
+  pixels_.up_angle_px = up;
+  if (setup.rows_covered(total) < setup.cfg.min_points_total) return FixStatus::kTooFewEdgePoints;
 
   // 3b. Metric points and one robust line per edge.
   std::array<LineFit, kNumLines> fits;
   const int used = fit_lines(pts, &fits);
   const auto& line_ok = pts->line_ok;
   std::array<bool, 4> side_ok{};
-  for (int k = 0; k < 4; ++k) side_ok[k] = line_ok[k * 2] && (outer_only || line_ok[k * 2 + 1]);
+  for (int k = 0; k < 4; ++k)
+    side_ok[k] = line_ok[k * 2] && (setup.outer_only || line_ok[k * 2 + 1]);
   out->sides_used = side_ok[0] + side_ok[1] + side_ok[2] + side_ok[3];
   const bool axis0 = side_ok[0] || side_ok[2], axis1 = side_ok[1] || side_ok[3];
-  if (!axis0 || !axis1 || rows_covered(used) < cfg.min_points_total) {
+  if (!axis0 || !axis1 || setup.rows_covered(used) < setup.cfg.min_points_total) {
     return FixStatus::kTooFewEdgePoints;
   }
   out->edge_points_used = used;
 
   // 3c. Heading: initial metric angle of side 0's normal from the pixel angle, then the
   // (weighted) mean of the line angles.
-  const FloorProjector& mc = metric_floor;
+  const FloorProjector& mc = setup.metric_floor;
   Vec2 a0, a1;
   mc.pixel_to_vehicle(c_px, &a0);
   mc.pixel_to_vehicle(
@@ -103,7 +103,7 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
   m.c = {a0.x, a0.y};
 
   // 3d. Centre by the configured method (the joint fit when a side is missing).
-  PoseMethod method = cfg.pose_method;
+  PoseMethod method = setup.cfg.pose_method;
   if (out->sides_used != 4) method = PoseMethod::kJointSquareFit;
   if (method == PoseMethod::kPaperCornerA) {
     m.c = paper_corner_a_centre(*pts, m.beta);
@@ -117,19 +117,19 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
   // percent smaller or larger, and a fixed size would put every side off by that much.
   // Outer-only (tag family): no inner edge, so only the outer half size is free.
   const bool free_size = (side_ok[0] && side_ok[2]) || (side_ok[1] && side_ok[3]);
-  const int n_params = !free_size ? 3 : outer_only ? 4 : 5;
-  m.h_out = geom.outer_half_mm();
-  m.h_in = geom.inner_half_mm();
+  const int n_params = !free_size ? 3 : setup.outer_only ? 4 : 5;
+  m.h_out = setup.geom.outer_half_mm();
+  m.h_in = setup.geom.inner_half_mm();
   if (method == PoseMethod::kJointSquareFit) m.c = joint_start_centre(*pts, fits, m);
   NormalEquations ne;
   if (!joint_fit(method, n_params, pts, &m, &ne)) return FixStatus::kTooFewEdgePoints;
 
   // 3f. Covariance, result, overlay geometry.
-  *cov = fit_covariance(ne, n_params, cfg);
+  *cov = fit_covariance(ne, n_params, setup.cfg);
   out->residual_rms_mm = ne.sum_w > 0 ? std::sqrt(ne.ssr / ne.sum_w) : 0.0;
   if (method == PoseMethod::kJointSquareFit && free_size) {
     out->outer_half_mm = m.h_out;
-    if (!outer_only) out->inner_half_mm = m.h_in;
+    if (!setup.outer_only) out->inner_half_mm = m.h_in;
   }
   *c_mm = m.c;
   *beta_out = m.beta;
@@ -140,8 +140,8 @@ FixStatus LandmarkLocalizer::Impl::pose(const cv::Mat& img, Vec2 c_px, double up
 // Converts every edge point to the metric frame (dropping those the camera model cannot map) and
 // fits each line; a line counts when it has enough points and is long enough to carry an angle
 // (half the inner side). Returns the number of points on the lines that count.
-int LandmarkLocalizer::Impl::fit_lines(EdgePoints* pts, std::array<LineFit, kNumLines>* fits) {
-  const FloorProjector& mc = metric_floor;
+int SquareFit::fit_lines(EdgePoints* pts, std::array<LineFit, kNumLines>* fits) {
+  const FloorProjector& mc = setup.metric_floor;
   pts->line_ok.fill(false);
   int used = 0;
   for (int l = 0; l < kNumLines; ++l) {
@@ -159,16 +159,16 @@ int LandmarkLocalizer::Impl::fit_lines(EdgePoints* pts, std::array<LineFit, kNum
     src.resize(keep);
     auto& w = pts->weights[static_cast<size_t>(l)];
     w.assign(dst.size(), 1.0);
-    if (rows_covered(static_cast<int>(dst.size())) < cfg.min_points_per_line) continue;
+    if (setup.rows_covered(static_cast<int>(dst.size())) < setup.cfg.min_points_per_line) continue;
     LineFit& fit = (*fits)[static_cast<size_t>(l)];
     bool ok;
-    if (cfg.robust) {
-      ok = fit_line_robust(dst, cfg.tukey_c, kLineMinSigmaMm, kLineIrlsIterations, w, &fit,
-                           cfg.ransac_iterations, kRansacInlierPx * mm_per_px);
+    if (setup.cfg.robust) {
+      ok = fit_line_robust(dst, setup.cfg.tukey_c, kLineMinSigmaMm, kLineIrlsIterations, w, &fit,
+                           setup.cfg.ransac_iterations, kRansacInlierPx * setup.mm_per_px);
     } else {
       ok = fit_line_tls(dst, {}, &fit);
     }
-    if (ok && fit.extent >= geom.inner_half_mm()) {
+    if (ok && fit.extent >= setup.geom.inner_half_mm()) {
       pts->line_ok[static_cast<size_t>(l)] = true;
       used += fit.n;
     }
@@ -177,9 +177,8 @@ int LandmarkLocalizer::Impl::fit_lines(EdgePoints* pts, std::array<LineFit, kNum
 }
 
 // Line angles reduced to side 0's normal direction, averaged by the configured heading method.
-double LandmarkLocalizer::Impl::line_heading(const EdgePoints& pts,
-                                             const std::array<LineFit, kNumLines>& fits,
-                                             double beta0) const {
+double SquareFit::line_heading(const EdgePoints& pts, const std::array<LineFit, kNumLines>& fits,
+                               double beta0) const {
   const auto& line_ok = pts.line_ok;
   std::array<double, kNumLines> ang{}, var_ang{}, k000{};
   for (int l = 0; l < kNumLines; ++l) {
@@ -188,7 +187,7 @@ double LandmarkLocalizer::Impl::line_heading(const EdgePoints& pts,
     const double nrm_angle = std::atan2(f.line.ny, f.line.nx);
     ang[static_cast<size_t>(l)] = reduce_angle_90(nrm_angle, beta0);
     var_ang[static_cast<size_t>(l)] = std::max(f.var_angle, kMinLineAngleVar);
-    // Paper 000 eq. 11 with raw coordinates across the line.
+    // Yang et al. eq. 11 with raw coordinates across the line.
     double sy2 = 0;
     for (const Vec2& p : pts.mm[static_cast<size_t>(l)]) {
       const double y = f.line.nx * p.x + f.line.ny * p.y;
@@ -200,8 +199,8 @@ double LandmarkLocalizer::Impl::line_heading(const EdgePoints& pts,
   for (int l = 0; l < kNumLines; ++l) {
     if (!line_ok[static_cast<size_t>(l)]) continue;
     double w = 1.0;
-    if (cfg.heading_method == HeadingMethod::kWeighted000) w = k000[static_cast<size_t>(l)];
-    if (cfg.heading_method == HeadingMethod::kInverseVariance) {
+    if (setup.cfg.heading_method == HeadingMethod::kWeighted000) w = k000[static_cast<size_t>(l)];
+    if (setup.cfg.heading_method == HeadingMethod::kInverseVariance) {
       w = 1.0 / var_ang[static_cast<size_t>(l)];
     }
     s += w * (ang[static_cast<size_t>(l)] - beta0);
@@ -210,9 +209,9 @@ double LandmarkLocalizer::Impl::line_heading(const EdgePoints& pts,
   return beta0 + (sw > 0 ? s / sw : 0.0);
 }
 
-// Paper 001 eq. 8-11 in the frame aligned with the fine heading: corner A of the border's midline
+// Li et al. eq. 8-11 in the frame aligned with the fine heading: corner A of the border's midline
 // square from the extreme edge points of the left (side 3) and top (side 0) sides.
-Vec2 LandmarkLocalizer::Impl::paper_corner_a_centre(const EdgePoints& pts, double beta) const {
+Vec2 SquareFit::paper_corner_a_centre(const EdgePoints& pts, double beta) const {
   const double cb = std::cos(beta), sb = std::sin(beta);
   auto to_al = [&](Vec2 p) { return Vec2{cb * p.x + sb * p.y, -sb * p.x + cb * p.y}; };
   // Aligned frame: side 0 normal = +x, side 3 normal = beta + 90 deg = +y.
@@ -234,14 +233,13 @@ Vec2 LandmarkLocalizer::Impl::paper_corner_a_centre(const EdgePoints& pts, doubl
   extreme(6, false, &y3);                               // side 3 outer, point with max x -> its y
   extreme(7, false, &y4);                               // side 3 inner
   const double xa = (x1 + x2) / 2, ya = (y3 + y4) / 2;  // eq. 8-9
-  const double half_d = 0.5 * (geom.outer_half_mm() + geom.inner_half_mm());
+  const double half_d = 0.5 * (setup.geom.outer_half_mm() + setup.geom.inner_half_mm());
   const Vec2 o_al{xa - half_d, ya - half_d};  // eq. 10-11 (rotation already removed)
   return {cb * o_al.x - sb * o_al.y, sb * o_al.x + cb * o_al.y};
 }
 
 // Centre as the mean of the outer and inner corners (intersections of neighbouring lines).
-bool LandmarkLocalizer::Impl::intersections_centre(const std::array<LineFit, kNumLines>& fits,
-                                                   Vec2* c) const {
+bool SquareFit::intersections_centre(const std::array<LineFit, kNumLines>& fits, Vec2* c) const {
   Vec2 sum{0, 0};
   int n = 0;
   for (int e = 0; e < 2; ++e) {
@@ -263,9 +261,9 @@ bool LandmarkLocalizer::Impl::intersections_centre(const std::array<LineFit, kNu
 
 // Start of the joint fit: the centre's coordinate along each axis from the line centroids,
 // n_k . c = n_k . centroid - h (side k's normal is +-n_(k%2)); an axis without lines keeps m.c.
-Vec2 LandmarkLocalizer::Impl::joint_start_centre(const EdgePoints& pts,
-                                                 const std::array<LineFit, kNumLines>& fits,
-                                                 const SquareModel& m) const {
+Vec2 SquareFit::joint_start_centre(const EdgePoints& pts,
+                                   const std::array<LineFit, kNumLines>& fits,
+                                   const SquareModel& m) const {
   double num[2] = {0, 0};
   int cnt[2] = {0, 0};
   for (int k = 0; k < 4; ++k) {
@@ -290,13 +288,13 @@ Vec2 LandmarkLocalizer::Impl::joint_start_centre(const EdgePoints& pts,
 // first round, every point of every fitted line (also those the per-line fit rejected) is
 // re-weighted (Tukey) by its residual to the joint model with one global scale, so an occluder
 // edge that won a single line's vote is rejected by the square. False when a step is not finite.
-bool LandmarkLocalizer::Impl::joint_fit(PoseMethod method, int n_params, EdgePoints* pts,
-                                        SquareModel* m, NormalEquations* ne) {
+bool SquareFit::joint_fit(PoseMethod method, int n_params, EdgePoints* pts, SquareModel* m,
+                          NormalEquations* ne) {
   const bool joint = method == PoseMethod::kJointSquareFit;
-  const int rounds = joint && cfg.robust ? kJointRobustRounds : 1;
+  const int rounds = joint && setup.cfg.robust ? kJointRobustRounds : 1;
   const int iters = joint ? kJointIterationsPerRound * rounds : 1;
   for (int it = 0; it < iters; ++it) {
-    if (joint && cfg.robust && it > 0 && it % kJointIterationsPerRound == 0)
+    if (joint && setup.cfg.robust && it > 0 && it % kJointIterationsPerRound == 0)
       reweight_joint(*m, pts);
     accumulate_normal_equations(*pts, *m, ne);
     if (!joint) break;
@@ -321,7 +319,7 @@ bool LandmarkLocalizer::Impl::joint_fit(PoseMethod method, int n_params, EdgePoi
   return true;
 }
 
-void LandmarkLocalizer::Impl::reweight_joint(const SquareModel& m, EdgePoints* pts) {
+void SquareFit::reweight_joint(const SquareModel& m, EdgePoints* pts) {
   const auto& line_ok = pts->line_ok;
   residual_buf.clear();
   for (int k = 0; k < 4; ++k) {
@@ -338,7 +336,7 @@ void LandmarkLocalizer::Impl::reweight_joint(const SquareModel& m, EdgePoints* p
   scratch_buf = residual_buf;
   const auto mid = scratch_buf.size() / 2;
   const double sigma = std::max(kMinJointSigmaMm, kMadToSigma * select_kth(scratch_buf, mid));
-  const double cut = cfg.tukey_c * sigma;
+  const double cut = setup.cfg.tukey_c * sigma;
   size_t idx = 0;
   for (int l = 0; l < kNumLines; ++l) {
     if (!line_ok[static_cast<size_t>(l)]) continue;
@@ -351,9 +349,8 @@ void LandmarkLocalizer::Impl::reweight_joint(const SquareModel& m, EdgePoints* p
 
 // Normal equations of all five parameters. Fixed size: no heap, and the per-point work is six
 // sums per line (the Jacobian row is constant along a line except for its angle term).
-void LandmarkLocalizer::Impl::accumulate_normal_equations(const EdgePoints& pts,
-                                                          const SquareModel& m,
-                                                          NormalEquations* ne) const {
+void SquareFit::accumulate_normal_equations(const EdgePoints& pts, const SquareModel& m,
+                                            NormalEquations* ne) const {
   ne->jtj.setZero();
   ne->jtr.setZero();
   ne->ssr = 0;
@@ -399,30 +396,30 @@ void LandmarkLocalizer::Impl::accumulate_normal_equations(const EdgePoints& pts,
 }
 
 // Corners and centre of the fitted square in pixels, for draw_overlay.
-void LandmarkLocalizer::Impl::keep_overlay_geometry(const SquareModel& m) {
-  const FloorProjector& mc = metric_floor;
+void SquareFit::keep_overlay_geometry(const SquareModel& m) {
+  const FloorProjector& mc = setup.metric_floor;
   for (int e = 0; e < 2; ++e) {
     const double h = e == 0 ? m.h_out : m.h_in;
     for (int k = 0; k < 4; ++k) {
       const Vec2 n = side_normal_mm(m.beta, k), n2 = side_normal_mm(m.beta, k + 1);
       Vec2 px;
       mc.vehicle_to_pixel({m.c.x + h * (n.x + n2.x), m.c.y + h * (n.y + n2.y)}, &px);
-      corners_px[static_cast<size_t>(e * 4 + k)] = px;
+      pixels_.corners_px[static_cast<size_t>(e * 4 + k)] = px;
     }
   }
-  mc.vehicle_to_pixel(m.c, &centre_px);
+  mc.vehicle_to_pixel(m.c, &pixels_.centre_px);
 }
 
 // Collects classified, non-maximum-suppressed, optionally subpixel edge points of the 8 border
 // lines (outer and inner edge of each side). Only pixels inside a band of +-band px around each
 // predicted line are visited (rasterised strip), and a pixel is kept for a line only when its
-// gradient class (paper 001 fig. 7: direction within the tolerance of the line's normal, outward
+// gradient class (Li et al. fig. 7: direction within the tolerance of the line's normal, outward
 // on outer edges, inward on inner edges) is that line's class.
-int LandmarkLocalizer::Impl::collect(const cv::Mat& img, Vec2 c, double up, double band, double thr,
-                                     EdgePoints* pts) {
-  const double h_out = geom.outer_half_mm() / mm_per_px;
-  const double h_in = geom.inner_half_mm() / mm_per_px;
-  const double tan_tol = std::tan(deg_to_rad(cfg.edge_direction_tol_deg));
+int SquareFit::collect(const cv::Mat& img, Vec2 c, double up, double band, double thr,
+                       EdgePoints* pts) {
+  const double h_out = setup.geom.outer_half_mm() / setup.mm_per_px;
+  const double h_in = setup.geom.inner_half_mm() / setup.mm_per_px;
+  const double tan_tol = std::tan(deg_to_rad(setup.cfg.edge_direction_tol_deg));
   // Squared-magnitude threshold in integers (Prewitt sums are exact): a pixel passes when
   // gx^2 + gy^2 >= thr^2.
   const int thr2_int = static_cast<int>(std::ceil(std::min(thr * thr, kMaxGradientThreshold2)));
@@ -431,7 +428,7 @@ int LandmarkLocalizer::Impl::collect(const cv::Mat& img, Vec2 c, double up, doub
   for (int k = 0; k < 4; ++k) {
     const double na = up + k * kPi / 2;
     const Vec2 nk{std::cos(na), std::sin(na)};
-    for (int e = 0; e < (outer_only ? 1 : 2); ++e) {
+    for (int e = 0; e < (setup.outer_only ? 1 : 2); ++e) {
       const double h = e == 0 ? h_out : h_in;
       // Expected gradient direction: outward on the outer edge, inward on the inner edge.
       const Vec2 g_dir = e == 0 ? nk : Vec2{-nk.x, -nk.y};
@@ -443,9 +440,8 @@ int LandmarkLocalizer::Impl::collect(const cv::Mat& img, Vec2 c, double up, doub
 }
 
 // One line of collect(): the line is at distance h (px) from c along normal nk.
-int LandmarkLocalizer::Impl::collect_line(const cv::Mat& img, Vec2 c, Vec2 nk, double h, Vec2 g_dir,
-                                          double band, int thr2_int, double tan_tol,
-                                          std::vector<Vec2>* dst) {
+int SquareFit::collect_line(const cv::Mat& img, Vec2 c, Vec2 nk, double h, Vec2 g_dir, double band,
+                            int thr2_int, double tan_tol, std::vector<Vec2>* dst) {
   const std::uint8_t* base = img.data;
   const std::ptrdiff_t step = static_cast<std::ptrdiff_t>(img.step[0]);
   const int x_lo = kEdgeMarginPx, y_lo = kEdgeMarginPx;
@@ -467,7 +463,7 @@ int LandmarkLocalizer::Impl::collect_line(const cv::Mat& img, Vec2 c, Vec2 nk, d
   const double q0 = m_major - std::abs(ta) * t_max, q1 = m_major + std::abs(ta) * t_max;
   // Rows (columns) on the image's grid of the row step, so a slightly different detection
   // (tracked or full search) samples the same rows.
-  const int row_step = std::max(1, cfg.edge_row_step);
+  const int row_step = std::max(1, setup.cfg.edge_row_step);
   int i0 = std::max(static_cast<int>(std::ceil(q0)), by_rows ? y_lo : x_lo);
   i0 += (row_step - i0 % row_step) % row_step;  // i0 >= kEdgeMarginPx > 0
   const int i1 = std::min(static_cast<int>(std::floor(q1)), by_rows ? y_hi : x_hi);
@@ -510,7 +506,7 @@ int LandmarkLocalizer::Impl::collect_line(const cv::Mat& img, Vec2 c, Vec2 nk, d
         const double ep = along_at(q + 1);
         if (!(along >= em && along > ep)) continue;
         double off = 0;
-        if (cfg.subpixel) {
+        if (setup.cfg.subpixel) {
           const double den = em - 2 * along + ep;
           if (den < 0) off = std::clamp(0.5 * (em - ep) / den, -0.5, 0.5);
         }

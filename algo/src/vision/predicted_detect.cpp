@@ -7,12 +7,12 @@
 // refinement are skipped: the prediction places the bands. What the detection also gave is kept:
 // the ring check (a dark border on light paper, not a dark patch of floor), sampled on the full
 // image around the predicted square, and its grey levels, whose difference scales the edge
-// threshold. run() then requires the fitted centre to lie where the prediction said, and falls
+// threshold. locate() then requires the fitted centre to lie where the prediction said, and falls
 // back to the tracked detection when anything here or there declines.
 #include <algorithm>
 #include <cmath>
 
-#include "localizer_impl.hpp"
+#include "predicted_detector.hpp"
 
 namespace agv::vision {
 
@@ -31,15 +31,16 @@ constexpr int kMinRingSamplesPerSide = 4;
 
 }  // namespace
 
-bool LandmarkLocalizer::Impl::prediction_places_bands(const SearchWindow& w) const {
-  const double band_px = cfg.band_rel * geom.border_width_mm() / mm_per_px;
+bool PredictedDetector::prediction_places_bands(const SearchWindow& w) const {
+  const double band_px = setup.cfg.band_rel * setup.geom.border_width_mm() / setup.mm_per_px;
   return std::isfinite(w.centre_px.x) && std::isfinite(w.centre_px.y) &&
          std::isfinite(w.up_angle_rad) && std::isfinite(w.corner_sigma_px) &&
-         cfg.tracking.window_sigmas * w.corner_sigma_px <= kPredictedBandShare * band_px;
+         setup.cfg.tracking.window_sigmas * w.corner_sigma_px <= kPredictedBandShare * band_px;
 }
 
-bool LandmarkLocalizer::Impl::detect_predicted(const cv::Mat& img, Detection* best,
-                                               Vec2* predicted_px, bool* probed) {
+bool PredictedDetector::detect_predicted(const cv::Mat& img,
+                                         const std::vector<SearchWindow>& windows, Detection* best,
+                                         Vec2* predicted_px, bool* probed) {
   // Several landmarks in view: the one with the largest share of dark ring samples, or of probes
   // on the border's lines.
   double best_share = 0.0;
@@ -48,7 +49,7 @@ bool LandmarkLocalizer::Impl::detect_predicted(const cv::Mat& img, Detection* be
     bool from_probes = false;
     if (prediction_places_bands(w)) {
       // A landmark cut by the image border keeps the detection, which weighs its corners.
-      if (partly_outside(img, w.centre_px, w.up_angle_rad)) continue;
+      if (setup.partly_outside(img, w.centre_px, w.up_angle_rad)) continue;
       int n_dark = 0, n_samples = 0;
       sq.centre_px = w.centre_px;
       sq.up_rad = w.up_angle_rad;
@@ -61,8 +62,8 @@ bool LandmarkLocalizer::Impl::detect_predicted(const cv::Mat& img, Detection* be
       // Too loose to place the bands itself: the edge probes may make it precise. They check
       // more than the ring check (a dark run of the border's width between light on either
       // side, on four lines of the landmark's size) and give its grey levels.
-      if (!cfg.tracking.probe_edges || !probe_prediction(img, w, &sq) ||
-          partly_outside(img, sq.centre_px, sq.up_rad)) {
+      if (!setup.cfg.tracking.probe_edges || !probe_prediction(img, w, &sq) ||
+          setup.partly_outside(img, sq.centre_px, sq.up_rad)) {
         continue;
       }
       from_probes = true;
@@ -70,7 +71,7 @@ bool LandmarkLocalizer::Impl::detect_predicted(const cv::Mat& img, Detection* be
     if (sq.on_line_share <= best_share) continue;
     best_share = sq.on_line_share;
     best->h = Hypothesis{};
-    const Vec2 cc = full_to_coarse(sq.centre_px);
+    const Vec2 cc = setup.full_to_coarse(sq.centre_px);
     best->h.cx = cc.x;
     best->h.cy = cc.y;
     best->h.up_angle = sq.up_rad;
@@ -85,11 +86,10 @@ bool LandmarkLocalizer::Impl::detect_predicted(const cv::Mat& img, Detection* be
 // ring_check on the full image: the middle of the border and a ring outside it, split at the
 // midpoint of their mean grey levels (the coarse check's adaptive binary image is not computed
 // here), with the same acceptance (ring_accepted).
-bool LandmarkLocalizer::Impl::ring_check_full(const cv::Mat& img, Vec2 c, double up,
-                                              double* dark_level, double* white_level, int* n_dark,
-                                              int* n_samples) {
-  const double w_px = geom.border_width_mm() / mm_per_px;
-  const double h_px = geom.outer_half_mm() / mm_per_px;
+bool PredictedDetector::ring_check_full(const cv::Mat& img, Vec2 c, double up, double* dark_level,
+                                        double* white_level, int* n_dark, int* n_samples) {
+  const double w_px = setup.geom.border_width_mm() / setup.mm_per_px;
+  const double h_px = setup.geom.outer_half_mm() / setup.mm_per_px;
   const double len = h_px - w_px;
   const int n = std::max(kMinRingSamplesPerSide, static_cast<int>(kRingSamplesPerPx * 2 * len));
   ring_grey.clear();
@@ -134,7 +134,7 @@ bool LandmarkLocalizer::Impl::ring_check_full(const cv::Mat& img, Vec2 c, double
       white_sum += v;
     }
   }
-  if (!ring_accepted(total, ring_in, ring_dark, out_in, out_dark)) return false;
+  if (!setup.ring_accepted(total, ring_in, ring_dark, out_in, out_dark)) return false;
   *dark_level = dark_sum / ring_dark;
   *white_level = out_in > out_dark ? white_sum / (out_in - out_dark) : kWhiteGrey;
   *n_dark = ring_dark;
@@ -145,9 +145,10 @@ bool LandmarkLocalizer::Impl::ring_check_full(const cv::Mat& img, Vec2 c, double
 // The fitted centre (keep_overlay_geometry's centre_px) where the prediction put it: within the
 // share of the band the prediction was admitted with. A fit further away found other edges than
 // the predicted landmark's, or the prediction was wrong after all.
-bool LandmarkLocalizer::Impl::fit_agrees_with_prediction(Vec2 predicted_px) const {
-  const double band_px = cfg.band_rel * geom.border_width_mm() / mm_per_px;
-  return std::hypot(centre_px.x - predicted_px.x, centre_px.y - predicted_px.y) <=
+bool PredictedDetector::fit_agrees_with_prediction(Vec2 predicted_px) const {
+  const double band_px = setup.cfg.band_rel * setup.geom.border_width_mm() / setup.mm_per_px;
+  return std::hypot(square_fit.pixels().centre_px.x - predicted_px.x,
+                    square_fit.pixels().centre_px.y - predicted_px.y) <=
          kPredictedBandShare * band_px;
 }
 

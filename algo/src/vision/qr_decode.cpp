@@ -11,7 +11,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "agv/vision/map_identity.hpp"
-#include "localizer_impl.hpp"
+#include "code_reader.hpp"
 
 namespace agv::vision {
 
@@ -55,11 +55,11 @@ constexpr double kTrackedCodeReachRel = 1.0;
 
 // Reads the code (read_code) expecting the tracked landmark's codes when there is a trusted
 // prediction, and records on the fix how often zxing ran.
-int LandmarkLocalizer::Impl::decode_qr(const cv::Mat& img, const Prediction& pred, Vec2 c_px,
-                                       double up, Vec2 c_mm, double beta, const LogoScores& logo,
-                                       QrRead* rd, LandmarkFix* out) {
+int CodeReader::decode_qr(const cv::Mat& img, const Prediction& pred,
+                          const std::vector<SearchWindow>& windows, Vec2 c_px, double up, Vec2 c_mm,
+                          double beta, const LogoScores& logo, QrRead* rd, LandmarkFix* out) {
   rd->text.clear();
-  expect_tracked_code(pred, c_mm, beta, rd);
+  expect_tracked_code(pred, windows, c_mm, beta, rd);
   qr_scratch.zxing_runs = 0;
   rd->search_attempts = 0;
   const int q = read_code(img, c_px, up, c_mm, beta, logo, rd, out);
@@ -72,15 +72,16 @@ int LandmarkLocalizer::Impl::decode_qr(const cv::Mat& img, const Prediction& pre
 // turn, verified as decode_guided's centre-only read is (and, as that one, only with
 // qr_centre_first). The turn, or -1 with out's QR fields untouched when there is no predicted
 // turn, no expected code or no verified read.
-int LandmarkLocalizer::Impl::read_at_predicted_turn(const cv::Mat& img, const Prediction& pred,
-                                                    Vec2 c_mm, double beta, QrRead* rd,
-                                                    LandmarkFix* out) {
+int CodeReader::read_at_predicted_turn(const cv::Mat& img, const Prediction& pred,
+                                       const std::vector<SearchWindow>& windows, Vec2 c_mm,
+                                       double beta, QrRead* rd, LandmarkFix* out) {
   rd->text.clear();
-  expect_tracked_code(pred, c_mm, beta, rd);
-  if (!cfg.qr_guided || !cfg.qr_centre_first || rd->predicted_turn < 0 || rd->expected.empty()) {
+  expect_tracked_code(pred, windows, c_mm, beta, rd);
+  if (!setup.cfg.qr_guided || !setup.cfg.qr_centre_first || rd->predicted_turn < 0 ||
+      rd->expected.empty()) {
     return -1;
   }
-  if (!read_centres(img, c_mm, beta, rd->predicted_turn, code_book(), rd)) {
+  if (!read_centres(img, c_mm, beta, rd->predicted_turn, cache.code_book(), rd)) {
     rd->text.clear();
     return -1;
   }
@@ -94,8 +95,8 @@ int LandmarkLocalizer::Impl::read_at_predicted_turn(const cv::Mat& img, const Pr
 
 // The centre-only read at turn q: the module centres of either grid size, verified against the
 // expected codes and the book (never zxing). Sets rd->text on success.
-bool LandmarkLocalizer::Impl::read_centres(const cv::Mat& img, Vec2 c_mm, double beta, int q,
-                                           QrCodeBook* book, QrRead* rd) {
+bool CodeReader::read_centres(const cv::Mat& img, Vec2 c_mm, double beta, int q, QrCodeBook* book,
+                              QrRead* rd) {
   for (int n : {kQrModulesV2, kQrModulesV1}) {
     if (sample_qr(img, c_mm, beta - q * kPi / 2.0, n, &qr_samples, true) &&
         verify_qr_grid(qr_samples, kCentreOnlyThreshold, &rd->text, &qr_scratch, rd->expected,
@@ -110,10 +111,9 @@ bool LandmarkLocalizer::Impl::read_centres(const cv::Mat& img, Vec2 c_mm, double
 // off-centre, so a wrong turn samples the wrong place and cannot decode), then zxing's search on
 // the crop. Returns the turn the code's own orientation points to (-1 when unknown) and sets
 // out->qr_method (0 = unread), out->qr_verified and rd->text.
-int LandmarkLocalizer::Impl::read_code(const cv::Mat& img, Vec2 c_px, double up, Vec2 c_mm,
-                                       double beta, const LogoScores& logo, QrRead* rd,
-                                       LandmarkFix* out) {
-  if (cfg.qr_guided) {
+int CodeReader::read_code(const cv::Mat& img, Vec2 c_px, double up, Vec2 c_mm, double beta,
+                          const LogoScores& logo, QrRead* rd, LandmarkFix* out) {
+  if (setup.cfg.qr_guided) {
     const int q = decode_guided(img, c_mm, beta, logo, rd);
     if (q >= 0) {
       out->qr_method = 1;
@@ -131,7 +131,7 @@ int LandmarkLocalizer::Impl::read_code(const cv::Mat& img, Vec2 c_px, double up,
   if (!read_qr_search(img, c_px, up, &rd->text, &qr_up, &qr_ok, &rd->search_attempts)) return -1;
   out->qr_method = 2;
   // The code's orientation in the metric frame: which turn does it point to?
-  const FloorProjector& mc = metric_floor;
+  const FloorProjector& mc = setup.metric_floor;
   Vec2 a0, a1;
   int qr_q = -1;
   if (qr_ok && mc.pixel_to_vehicle(c_px, &a0) &&
@@ -153,16 +153,17 @@ int LandmarkLocalizer::Impl::read_code(const cv::Mat& img, Vec2 c_px, double up,
 // reader expects (rd->expected) and, when the predicted heading is within kQrTurnTolDeg of a turn,
 // the turn to read first (rd->predicted_turn). Neither can change what is read: an expected code
 // is taken only where zxing would decode it too (qr_grid.hpp), and a wrong turn decodes nothing.
-void LandmarkLocalizer::Impl::expect_tracked_code(const Prediction& pred, Vec2 c_mm, double beta,
-                                                  QrRead* rd) {
+void CodeReader::expect_tracked_code(const Prediction& pred,
+                                     const std::vector<SearchWindow>& windows, Vec2 c_mm,
+                                     double beta, QrRead* rd) {
   rd->expected.clear();
   rd->predicted_turn = -1;
-  if (windows.empty() || !map || !pred.valid) return;
+  if (windows.empty() || !setup.map || !pred.valid) return;
   const LandmarkMapEntry* best = nullptr;
   Pose2 best_p;
-  double best_d = kTrackedCodeReachRel * geom.outer_half_mm();
+  double best_d = kTrackedCodeReachRel * setup.geom.outer_half_mm();
   for (const SearchWindow& w : windows) {
-    const LandmarkMapEntry* e = map->find(w.landmark_id);
+    const LandmarkMapEntry* e = setup.map->find(w.landmark_id);
     if (!e) continue;
     const Pose2 p = predicted_landmark_in_vehicle(pred, e->pose, nullptr);
     const double d = std::hypot(p.x_mm - c_mm.x, p.y_mm - c_mm.y);
@@ -172,7 +173,7 @@ void LandmarkLocalizer::Impl::expect_tracked_code(const Prediction& pred, Vec2 c
       best_p = p;
     }
   }
-  MapCodes* codes = best ? codes_of(best->id) : nullptr;
+  CodeCache::MapCodes* codes = best ? cache.codes_of(best->id) : nullptr;
   if (!codes) return;
   for (size_t form = 0; form < 2; ++form) {
     int& back = codes->reads_back[form];
@@ -191,8 +192,8 @@ void LandmarkLocalizer::Impl::expect_tracked_code(const Prediction& pred, Vec2 c
 
 // The turn at which the guided reader decoded, or -1. Turns in the logo's order (only its best
 // when it is clear); an unclear logo's order starts at the predicted turn when there is one.
-int LandmarkLocalizer::Impl::decode_guided(const cv::Mat& img, Vec2 c_mm, double beta,
-                                           const LogoScores& logo, QrRead* rd) {
+int CodeReader::decode_guided(const cv::Mat& img, Vec2 c_mm, double beta, const LogoScores& logo,
+                              QrRead* rd) {
   const int predicted_turn = rd->predicted_turn;
   const std::vector<QrExpected>& expected = rd->expected;
   std::array<int, 4> order{logo.best_q, -1, -1, -1};
@@ -208,14 +209,14 @@ int LandmarkLocalizer::Impl::decode_guided(const cv::Mat& img, Vec2 c_mm, double
   constexpr QrThreshold kThresholds[] = {QrThreshold::kStronglySharpenedLocalMean,
                                          QrThreshold::kSharpenedLocalMean, QrThreshold::kLocalMean,
                                          QrThreshold::kMidpoint};
-  QrCodeBook* book = code_book();
+  QrCodeBook* book = cache.code_book();
   rd->centre_only = false;
   // A cheap first read when a verified read is possible (an expected code or the map's book):
   // the module centres only, and no zxing. Its answer is, as every verified read's, the code
   // zxing would decode from that grid; when it finds none, the full read below runs unchanged, so
   // it can cost a frame a fifth of the sampling but never a read. Whole codes only (sample_qr).
   // Measured in docs/design/tracking.md ("Centre-only first read").
-  if (cfg.qr_centre_first && (!expected.empty() || (book && book->size() > 0))) {
+  if (setup.cfg.qr_centre_first && (!expected.empty() || (book && book->size() > 0))) {
     for (int q : order) {
       if (q < 0) break;
       if (read_centres(img, c_mm, beta, q, book, rd)) {
@@ -228,7 +229,7 @@ int LandmarkLocalizer::Impl::decode_guided(const cv::Mat& img, Vec2 c_mm, double
   // zxing cost: an unclear logo on a cut code took up to 24 reads (4.6 M aarch64 instructions).
   const bool verifiable = !expected.empty() || (book && book->size() > 0);
   const auto read = [&](const QrSamples& g, QrThreshold t) {
-    return qr_scratch.zxing_runs < cfg.qr_max_grid_decodes
+    return qr_scratch.zxing_runs < setup.cfg.qr_max_grid_decodes
                ? decode_qr_grid(g, t, &rd->text, &qr_scratch, expected, book)
                : verifiable && verify_qr_grid(g, t, &rd->text, &qr_scratch, expected, book);
   };
@@ -259,7 +260,7 @@ int LandmarkLocalizer::Impl::decode_guided(const cv::Mat& img, Vec2 c_mm, double
   // zxing on the grids within the budget. No expected codes or book: their verified reads just
   // failed on these grids.
   const auto read_zxing = [&](int i, QrThreshold t) {
-    return qr_scratch.zxing_runs < cfg.qr_max_grid_decodes &&
+    return qr_scratch.zxing_runs < setup.cfg.qr_max_grid_decodes &&
            decode_qr_grid(qr_grids[static_cast<size_t>(i)], t, &rd->text, &qr_scratch);
   };
   // The predicted turn's grids (tracking) get every threshold first ...
@@ -287,27 +288,27 @@ int LandmarkLocalizer::Impl::decode_guided(const cv::Mat& img, Vec2 c_mm, double
 // (4, 5) an unsharp-masked crop with either binarizer, which recovers codes smeared by defocus
 // plus motion blur. qr_up_angle: image angle of the code's "up"; qr_ok: not mirrored;
 // attempts_made: counts the attempts zxing ran.
-bool LandmarkLocalizer::Impl::read_qr_search(const cv::Mat& img, Vec2 c, double up_angle,
-                                             std::string* text, double* qr_up_angle, bool* qr_ok,
-                                             int* attempts_made) {
+bool CodeReader::read_qr_search(const cv::Mat& img, Vec2 c, double up_angle, std::string* text,
+                                double* qr_up_angle, bool* qr_ok, int* attempts_made) {
   *qr_ok = false;
-  const double module_px = geom.qr_side_mm() / kQrModulesV2 / mm_per_px;
+  const double module_px = setup.geom.qr_side_mm() / kQrModulesV2 / setup.mm_per_px;
   int d = 1;
-  if (cfg.qr_target_module_px > 0) {
-    d = std::max(
-        1, static_cast<int>(std::floor(module_px / cfg.qr_target_module_px + kDownscaleRoundUp)));
+  if (setup.cfg.qr_target_module_px > 0) {
+    d = std::max(1, static_cast<int>(
+                        std::floor(module_px / setup.cfg.qr_target_module_px + kDownscaleRoundUp)));
   }
   ZXing::DecodeHints hints;
   hints.setFormats(ZXing::BarcodeFormat::QRCode)
-      .setTryHarder(cfg.qr_try_harder)
-      .setTryRotate(cfg.qr_try_harder)
+      .setTryHarder(setup.cfg.qr_try_harder)
+      .setTryRotate(setup.cfg.qr_try_harder)
       .setTryDownscale(false)
       .setMaxNumberOfSymbols(1);
   ZXing::Result res;
   cv::Rect r;
-  const int attempts = cfg.qr_retries ? kQrSearchAttempts : 1;
+  const int attempts = setup.cfg.qr_retries ? kQrSearchAttempts : 1;
   for (int attempt = 0; attempt < attempts; ++attempt) {
-    const double half = (attempt == 2 ? geom.outer_half_mm() : geom.inner_half_mm()) / mm_per_px *
+    const double half = (attempt == 2 ? setup.geom.outer_half_mm() : setup.geom.inner_half_mm()) /
+                            setup.mm_per_px *
                             (std::abs(std::cos(up_angle)) + std::abs(std::sin(up_angle))) +
                         kQrCropMarginPx;
     r = cv::Rect(static_cast<int>(std::floor(c.x - half)), static_cast<int>(std::floor(c.y - half)),
@@ -354,18 +355,19 @@ bool LandmarkLocalizer::Impl::read_qr_search(const cv::Mat& img, Vec2 c, double 
 // module beyond the image (pixel centres span -0.5 .. size - 0.5): no such turn leaves zxing a
 // whole code. A clear logo admits only its own turn (decide_direction refuses a code read at
 // another), an unclear one all four.
-bool LandmarkLocalizer::Impl::code_cut_at_every_turn(const cv::Mat& img, Vec2 c_mm, double beta,
-                                                     const LogoScores& logo) const {
-  const double side = geom.qr_side_mm();
-  const double module_px = side / kQrModulesV2 / mm_per_px;
+bool CodeReader::code_cut_at_every_turn(const cv::Mat& img, Vec2 c_mm, double beta,
+                                        const LogoScores& logo) const {
+  const double side = setup.geom.qr_side_mm();
+  const double module_px = side / kQrModulesV2 / setup.mm_per_px;
   const double lo = -0.5 - module_px;
   const double hi_x = img.cols - 0.5 + module_px, hi_y = img.rows - 0.5 + module_px;
   for (int q = 0; q < 4; ++q) {
     if (logo.clear && q != logo.best_q) continue;
-    const PlaneProjector page = page_projector(c_mm, beta - q * kPi / 2.0);
+    const PlaneProjector page = setup.page_projector(c_mm, beta - q * kPi / 2.0);
     bool cut = false;
     for (int k = 0; k < 4 && !cut; ++k) {
-      const Vec2 uv{geom.qr_u0_mm() + (k & 1) * side, geom.qr_v0_mm() + (k >> 1) * side};
+      const Vec2 uv{setup.geom.qr_u0_mm() + (k & 1) * side,
+                    setup.geom.qr_v0_mm() + (k >> 1) * side};
       Vec2 px;
       cut = !page.to_pixel(uv, &px) || px.x < lo || px.y < lo || px.x > hi_x || px.y > hi_y;
     }
@@ -378,15 +380,15 @@ bool LandmarkLocalizer::Impl::code_cut_at_every_turn(const cv::Mat& img, Vec2 c_
 // angle fwd) puts it: the mean of kSamplesPerModule samples, or the centre alone (centre_only).
 // False when the code cannot be sampled (too much of it outside the image; for centre_only, any
 // module outside: a cut code goes to the five-sample read and its fill-in directly).
-bool LandmarkLocalizer::Impl::sample_qr(const cv::Mat& img, Vec2 c_mm, double fwd, int n,
-                                        QrSamples* s, bool centre_only) {
-  const PlaneProjector page = page_projector(c_mm, fwd);
-  const double m = geom.qr_side_mm() / n;
+bool CodeReader::sample_qr(const cv::Mat& img, Vec2 c_mm, double fwd, int n, QrSamples* s,
+                           bool centre_only) {
+  const PlaneProjector page = setup.page_projector(c_mm, fwd);
+  const double m = setup.geom.qr_side_mm() / n;
   auto to_px = [&](Vec2 uv, Vec2* px) { return page.to_pixel(uv, px); };
   // The extra samples' pixel offsets are taken at the code's centre; distortion changes them by
   // far less than a pixel over the code.
-  const Vec2 mid{geom.qr_u0_mm() + 0.5 * geom.qr_side_mm(),
-                 geom.qr_v0_mm() + 0.5 * geom.qr_side_mm()};
+  const Vec2 mid{setup.geom.qr_u0_mm() + 0.5 * setup.geom.qr_side_mm(),
+                 setup.geom.qr_v0_mm() + 0.5 * setup.geom.qr_side_mm()};
   Vec2 p0, pu, pv;
   if (!to_px(mid, &p0) || !to_px({mid.x + kSampleOffsetModules * m, mid.y}, &pu) ||
       !to_px({mid.x, mid.y + kSampleOffsetModules * m}, &pv)) {
@@ -400,14 +402,14 @@ bool LandmarkLocalizer::Impl::sample_qr(const cv::Mat& img, Vec2 c_mm, double fw
   // Modules whose samples leave the image (a landmark cut by the image border) are filled in
   // (fill_missing_modules); at most qr_max_missing_modules of them may be data modules.
   int missing_data = 0, missing = 0;
-  const int max_missing_data = cfg.qr_max_missing_modules;
+  const int max_missing_data = setup.cfg.qr_max_missing_modules;
   const double ou[kSamplesPerModule] = {0, 1, -1, 0, 0}, ov[kSamplesPerModule] = {0, 0, 0, 1, -1};
   const int samples = centre_only ? 1 : kSamplesPerModule;
   const GreySampler grey(img);
   for (int r = 0; r < side; ++r) {
     for (int c = 0; c < side; ++c) {
-      const Vec2 uv{geom.qr_u0_mm() + (c - s->ring + 0.5) * m,
-                    geom.qr_v0_mm() + (r - s->ring + 0.5) * m};
+      const Vec2 uv{setup.geom.qr_u0_mm() + (c - s->ring + 0.5) * m,
+                    setup.geom.qr_v0_mm() + (r - s->ring + 0.5) * m};
       Vec2 px;
       double acc = 0, v = 0;
       bool inside = to_px(uv, &px);
@@ -434,7 +436,7 @@ bool LandmarkLocalizer::Impl::sample_qr(const cv::Mat& img, Vec2 c_mm, double fw
 // Fill-in of the modules outside the image: quiet-zone modules with the quiet zone's median,
 // fixed modules with their known value, and data modules with the code's mean (left to
 // Reed-Solomon to correct). Levels from the samples that were inside.
-bool LandmarkLocalizer::Impl::fill_missing_modules(QrSamples* s) {
+bool CodeReader::fill_missing_modules(QrSamples* s) {
   const int n = s->n, side = s->side();
   qr_fill.clear();
   double code_sum = 0;
@@ -475,29 +477,29 @@ bool LandmarkLocalizer::Impl::fill_missing_modules(QrSamples* s) {
 
 // The payload must parse; its landmark must be in the map (an id-only payload takes its pose
 // from there) and a full payload must agree with the map entry within the tolerances.
-FixStatus LandmarkLocalizer::Impl::check_payload(const std::string& text, LandmarkFix* out,
-                                                 Pose2* world_landmark) {
+FixStatus CodeReader::check_payload(const std::string& text, LandmarkFix* out,
+                                    Pose2* world_landmark) {
   std::snprintf(out->payload, sizeof out->payload, "%s", text.c_str());
   LandmarkPayload p;
   if (parse_payload(text, &p) != PayloadError::kOk) return FixStatus::kPayloadInvalid;
   out->landmark_id = p.id;
-  const LandmarkMapEntry* e = map ? map->find(p.id) : nullptr;
+  const LandmarkMapEntry* e = setup.map ? setup.map->find(p.id) : nullptr;
   if (!p.has_pose) {
     if (!e) return FixStatus::kUnknownLandmark;
     *world_landmark = e->pose;
   } else {
     const Pose2 pp = payload_pose(p);
-    if (map) {
+    if (setup.map) {
       if (!e) return FixStatus::kUnknownLandmark;
       const double dpos = std::hypot(pp.x_mm - e->pose.x_mm, pp.y_mm - e->pose.y_mm);
       const double dang = std::abs(rad_to_deg(wrap_angle_rad(pp.theta_rad - e->pose.theta_rad)));
-      if (!(dpos <= cfg.map_tolerance_mm) || !(dang <= cfg.map_tolerance_deg)) {
+      if (!(dpos <= setup.cfg.map_tolerance_mm) || !(dang <= setup.cfg.map_tolerance_deg)) {
         return FixStatus::kPayloadInvalid;
       }
     }
     *world_landmark = pp;
   }
-  out->map_verified = map != nullptr;
+  out->map_verified = setup.map != nullptr;
   return FixStatus::kOk;
 }
 

@@ -40,7 +40,7 @@ double reduce_90(double a) {
 }
 
 int coarse_factor_of(const VisionConfig& v, const LandmarkGeometry& g, double mm_per_px) {
-  // As LandmarkLocalizer::Impl's constructor: the largest power of two keeping coarse_border_px.
+  // As VisionSetup's constructor: the largest power of two keeping coarse_border_px.
   const double border_px = g.border_width_mm() / mm_per_px;
   int f = 1;
   while (border_px / (f * 2) >= v.coarse_border_px) f *= 2;

@@ -19,6 +19,7 @@
 #include <string_view>
 
 #include "agv/common/geometry.hpp"
+#include "agv/common/landmark.hpp"
 #include "agv/recording/png_io.hpp"
 #include "recording_internal.hpp"
 
@@ -481,7 +482,8 @@ bool parse_meta_yaml(const std::string& text, Meta* out, std::string* error,
     }
     if (lm["family"]) {
       const YAML::Node f = lm["family"];
-      if (!f.IsScalar() || (f.Scalar() != "qr" && f.Scalar() != "tag36h11")) {
+      LandmarkFamily family;
+      if (!f.IsScalar() || !parse_landmark_family(f.Scalar(), &family)) {
         return p.fail(f, "'landmark.family' must be qr or tag36h11");
       }
       m.landmark_family = f.Scalar();

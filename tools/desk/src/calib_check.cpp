@@ -146,7 +146,7 @@ bool run_check(const CameraModel& camera, const vision::VisionConfig& vision_con
                " frame(s) (first: " + first_failure +
                "); is the whole landmark in the image, in focus, lit, its id in the map, and " +
                "landmark.family (" +
-               (vision_config.family == LandmarkFamily::kTag36h11 ? "tag36h11" : "qr") +
+               landmark_family_name(vision_config.family) +
                ") the family printed?";
       return false;
     }

@@ -99,9 +99,13 @@ int landmark(int argc, char** argv) {
     return 2;
   };
   const LandmarkGeometry geometry{size_mm};
-  if (family == "tag36h11")
+  LandmarkFamily landmark_family = LandmarkFamily::kQr;
+  if (!parse_landmark_family(family, &landmark_family)) {
+    return usage_error("unknown --family '" + family + "' (qr or tag36h11)");
+  }
+  if (landmark_family == LandmarkFamily::kTag36h11) {
     return print_tags(size_mm, id_opt->count() ? id : -1, map_path, sheet, svg, columns);
-  if (family != "qr") return usage_error("unknown --family '" + family + "' (qr or tag36h11)");
+  }
 
   if (!map_path.empty()) {
     if (sheet.empty()) return usage_error("--map needs --sheet FILE.svg");

@@ -172,7 +172,7 @@ struct Args {
   SynthParams sp;
   double grid_mm = 1000.0;
   bool partial_window = false;
-  int kidnap_fixes = EkfConfig{}.kidnap_fixes;
+  int kidnap_fixes = EkfConfig{}.recovery.kidnap_fixes;
   bool honesty = false;
 };
 
@@ -262,7 +262,7 @@ void print_intro(const World& base, const Args& args, const EkfConfig& cfg) {
     std::printf("odometry: scale error %+.1f %%, heading drift %.2f deg/s, seed %llu\n",
                 100.0 * args.sp.scale_error, args.sp.drift_degps,
                 static_cast<unsigned long long>(args.sp.seed));
-  std::printf("gate chi2(3) at %.4f: %.3f\n", cfg.gate_probability, Ekf(cfg).gate_threshold());
+  std::printf("gate chi2(3) at %.4f: %.3f\n", cfg.fix.gate_probability, Ekf(cfg).gate_threshold());
   std::printf(
       "columns: lm_* = position error (mm) at the fix exposure after fusing it, for fixes "
       "taken\n  at >= 0.5 m/s (lm_n of them), lm_p95d heading (deg);\n  mid_* = real-time error "
@@ -361,7 +361,7 @@ void run_synthetic_rows(const SynthParams& sp, double grid_mm, const World& base
   print_row("slips 0.05/s (wheel +25 %, 0.3 s)",
             run(wslip, simulate_fixes(wslip, fp), cfg, grid_mm));
   EkfConfig cfg_k2 = cfg;
-  cfg_k2.kidnap_fixes = 2;
+  cfg_k2.recovery.kidnap_fixes = 2;
   print_row("slips, kidnap_fixes 2", run(wslip, simulate_fixes(wslip, fp), cfg_k2, grid_mm));
   print_row("kidnap_fixes 2, 20 % outliers", run(base,
                                                  simulate_fixes(base, with(fp,
@@ -375,7 +375,7 @@ void run_synthetic_rows(const SynthParams& sp, double grid_mm, const World& base
 
 void run_five_state_rows(const World& base, const FixParams& fp, const EkfConfig& cfg,
                          const SynthParams& sp, double grid_mm, bool synthetic) {
-  // The plain 5-state filter of paper 000 (no odometry calibration states), same data.
+  // The plain 5-state filter of Yang et al. (no odometry calibration states), same data.
   EkfConfig cfg5 = cfg;
   agv::fusion::use_uncalibrated_noise(&cfg5);
   const RunResult r5 = run(base, simulate_fixes(base, fp), cfg5, grid_mm);
@@ -463,7 +463,7 @@ int main(int argc, char** argv) {
   const double grid_mm = args.grid_mm;
   if (args.honesty) return run_honesty_table(sp, grid_mm, 3);
   EkfConfig cfg;  // documented defaults
-  cfg.kidnap_fixes = args.kidnap_fixes;
+  cfg.recovery.kidnap_fixes = args.kidnap_fixes;
   if (!validate(cfg).empty()) {
     std::fprintf(stderr, "eval_fusion: %s\n", validate(cfg).c_str());
     return 2;

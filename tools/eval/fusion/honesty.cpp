@@ -61,8 +61,8 @@ Honesty run_honesty(const World& w, const std::vector<SimFix>& fixes,
     h.sum_p2 += 0.5 * ((ex / sx) * (ex / sx) + (ey / sy) * (ey / sy));
     h.sum_h2 += (eth / sth) * (eth / sth);
     const double err = std::hypot(ex, ey);
-    const bool good =
-        err <= cfg.lost_position_sigma_mm && std::abs(eth) <= cfg.lost_heading_sigma_rad;
+    const bool good = err <= cfg.health.lost_position_sigma_mm &&
+                      std::abs(eth) <= cfg.health.lost_heading_sigma_rad;
     if (e.health == HealthState::kLost && good) ++h.lost_good;
     if (e.health != HealthState::kLost && !good) ++h.valid_bad;
     if (e.health == HealthState::kLocalized) h.max_localized_mm = std::max(h.max_localized_mm, err);
@@ -82,26 +82,26 @@ agv::fusion::EkfConfig tuned_config() {
     if (const char* s = std::getenv(name)) *v = std::atof(s) * unit;
   };
   const double deg = agv::deg_to_rad(1.0);
-  env("EVAL_HEADING_DRIFT_DEG", &c.heading_drift_sigma_rad_per_sqrt_s, deg);
-  env("EVAL_HEADING_PER_M_DEG", &c.heading_sigma_rad_per_sqrt_m, deg);
-  env("EVAL_TURN_RAD", &c.turn_heading_sigma_rad_per_sqrt_rad, 1.0);
-  env("EVAL_BIAS_WALK_DEG", &c.omega_bias_sigma_radps_per_sqrt_s, deg);
-  env("EVAL_ALONG_MM", &c.along_track_sigma_mm_per_sqrt_m, 1.0);
-  env("EVAL_CROSS_MM", &c.cross_track_sigma_mm_per_sqrt_m, 1.0);
-  env("EVAL_GYRO_N_DEG", &c.gyro_noise_density_radps_per_sqrt_hz, deg);
-  env("EVAL_GYRO_BIAS_WALK_DEG", &c.gyro_bias_sigma_radps_per_sqrt_s, deg);
-  env("EVAL_OMEGA_SIGMA_DEG", &c.odom_omega_sigma_radps, deg);
-  env("EVAL_V_SIGMA", &c.odom_v_sigma_mps, 1.0);
-  env("EVAL_VSCALE_WALK", &c.v_scale_sigma_per_sqrt_s, 1.0);
-  env("EVAL_OSCALE_WALK", &c.omega_scale_sigma_per_sqrt_s, 1.0);
-  env("EVAL_CWV_WALK_DEG", &c.omega_per_v_sigma_radpm_per_sqrt_s, deg);
-  env("EVAL_UNSEEN_SLIP_MAX_DEG", &c.unseen_slip_max_rad, deg);
-  env("EVAL_SLIP_HOLD_FRACTION", &c.slip_hold_sigma_fraction, 1.0);
+  env("EVAL_HEADING_DRIFT_DEG", &c.core.heading_drift_sigma_rad_per_sqrt_s, deg);
+  env("EVAL_HEADING_PER_M_DEG", &c.core.heading_sigma_rad_per_sqrt_m, deg);
+  env("EVAL_TURN_RAD", &c.core.turn_heading_sigma_rad_per_sqrt_rad, 1.0);
+  env("EVAL_BIAS_WALK_DEG", &c.odometry.omega_bias_sigma_radps_per_sqrt_s, deg);
+  env("EVAL_ALONG_MM", &c.core.along_track_sigma_mm_per_sqrt_m, 1.0);
+  env("EVAL_CROSS_MM", &c.core.cross_track_sigma_mm_per_sqrt_m, 1.0);
+  env("EVAL_GYRO_N_DEG", &c.gyro.noise_density_radps_per_sqrt_hz, deg);
+  env("EVAL_GYRO_BIAS_WALK_DEG", &c.gyro.bias_sigma_radps_per_sqrt_s, deg);
+  env("EVAL_OMEGA_SIGMA_DEG", &c.odometry.omega_sigma_radps, deg);
+  env("EVAL_V_SIGMA", &c.odometry.v_sigma_mps, 1.0);
+  env("EVAL_VSCALE_WALK", &c.odometry.v_scale_sigma_per_sqrt_s, 1.0);
+  env("EVAL_OSCALE_WALK", &c.odometry.omega_scale_sigma_per_sqrt_s, 1.0);
+  env("EVAL_CWV_WALK_DEG", &c.odometry.omega_per_v_sigma_radpm_per_sqrt_s, deg);
+  env("EVAL_UNSEEN_SLIP_MAX_DEG", &c.recovery.unseen_slip_max_rad, deg);
+  env("EVAL_SLIP_HOLD_FRACTION", &c.slip.hold_sigma_fraction, 1.0);
   // The odometry calibration's priors (a commissioned vehicle: calibrate vehicle writes them).
-  env("EVAL_INIT_V_SCALE", &c.init_v_scale_sigma, 1.0);
-  env("EVAL_INIT_OMEGA_SCALE", &c.init_omega_scale_sigma, 1.0);
-  env("EVAL_INIT_OMEGA_BIAS_DEG", &c.init_omega_bias_sigma_radps, deg);
-  env("EVAL_INIT_OMEGA_PER_V_DEG", &c.init_omega_per_v_sigma_radpm, deg);
+  env("EVAL_INIT_V_SCALE", &c.odometry.init_v_scale_sigma, 1.0);
+  env("EVAL_INIT_OMEGA_SCALE", &c.odometry.init_omega_scale_sigma, 1.0);
+  env("EVAL_INIT_OMEGA_BIAS_DEG", &c.odometry.init_omega_bias_sigma_radps, deg);
+  env("EVAL_INIT_OMEGA_PER_V_DEG", &c.odometry.init_omega_per_v_sigma_radpm, deg);
   return c;
 }
 

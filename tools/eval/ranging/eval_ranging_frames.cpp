@@ -6,9 +6,9 @@
 // and 5 mm per axis (the observer's mount differs from the renderer's). Per frame the
 // LandmarkObserver reads every landmark; landmarks 2-8 m from the camera are used.
 // Reports, on the same frames: the papers' size range and column bearing against the tag pose's
-// range and bearing; the two-landmark fix (paper 002: size, two circles, left/right rule;
+// range and bearing; the two-landmark fix (Yap & Khoo: size, two circles, left/right rule;
 // agvloc: tag pose, bearing difference, weighted least squares) and the three-or-more fix
-// (paper 004: determinants; agvloc: WLS), with p50/p95 errors and the 3-sigma coverage of the
+// (Nguyen et al.: determinants; agvloc: WLS), with p50/p95 errors and the 3-sigma coverage of the
 // reported covariance. Not a ctest; figures in docs/design/ranging.md.
 // Usage: eval_ranging_frames [trials=300] [seed=1] [mount_error_deg=1] [mount_error_mm=5]
 #include <Eigen/Dense>
@@ -260,7 +260,7 @@ std::vector<LandmarkObservation> tally_landmarks(const ObserveResult& res,
 void tally_two(const std::vector<LandmarkObservation>& usable, const Pose2& truth, double s_common,
                Tally* t) {
   ++t->frames_2;
-  // Paper 002 takes the two nearest landmarks.
+  // Yap & Khoo takes the two nearest landmarks.
   std::vector<LandmarkObservation> near = usable;
   std::sort(near.begin(), near.end(),
             [](const auto& a, const auto& b) { return a.pose.range_mm < b.pose.range_mm; });
@@ -338,7 +338,7 @@ void print_report(const Tally& t, double mount_deg, double mount_mm) {
   std::printf(
       "\n| fix | frames | ok | p50 / p95 mm | p50 / p95 deg | 3-sigma coverage | wrong > 1 m |\n"
       "|---|---|---|---|---|---|---|\n");
-  t.two_paper.print("2 nearest, paper 002: size L + circles + left/right", false);
+  t.two_paper.print("2 nearest, Yap & Khoo: size L + circles + left/right", false);
   t.two_circles_pose.print("2 nearest, tag pose + circles + bearing difference", true);
   t.two_wls_size.print("2 nearest, size as depth + WLS", true);
   t.two_wls.print("2 nearest, tag pose + WLS (agvloc)", true);
@@ -347,7 +347,7 @@ void print_report(const Tally& t, double mount_deg, double mount_mm) {
         "2 nearest, tag pose + WLS, position sd <= " + std::to_string(int(kTwoMaxSdMm[i])) + " mm";
     t.two_sd[i].print(name.c_str(), true);
   }
-  t.many_det.print("all (>= 3), paper 004: size L + determinants", false);
+  t.many_det.print("all (>= 3), Nguyen et al.: size L + determinants", false);
   t.many_wls.print("all (>= 3), tag pose + WLS (agvloc)", true);
   for (std::size_t i = 0; i < 2; ++i) {
     const std::string name =

@@ -2,7 +2,7 @@
 """Trains the learned tray detector (algo/include/agv/overhead/tray_net.hpp) on CPU and exports
 it to ONNX for OpenCV's dnn module.
 
-A small fully-convolutional one-stage detector in the role of paper 000's YOLOv5-OBB: per output
+A small fully-convolutional one-stage detector in the role of Yang et al.'s YOLOv5-OBB: per output
 cell (stride 8) an objectness, the centre's offset in the cell (2 sigmoid - 0.5, so a cell's
 neighbours may carry a box, as YOLOv5), the box's length and width (exp times a 64 px anchor) and
 the long axis's angle as (cos 2a, sin 2a), which a rectangle turned half a turn leaves unchanged.

@@ -6,6 +6,7 @@
 #include <map>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "agv/common/geometry.hpp"
@@ -53,6 +54,26 @@ enum class LandmarkFamily : std::uint8_t {
   kQr,        // the landmark above (border, QR code, logo)
   kTag36h11,  // an AprilTag of family tag36h11 (ids 0..586)
 };
+// The family's name where a text carries it (landmark.family, meta.yaml, messages): the one
+// table both directions read.
+inline constexpr std::pair<std::string_view, LandmarkFamily> kLandmarkFamilyNames[] = {
+    {"qr", LandmarkFamily::kQr}, {"tag36h11", LandmarkFamily::kTag36h11}};
+inline const char* landmark_family_name(LandmarkFamily f) {
+  for (const auto& [n, g] : kLandmarkFamilyNames) {
+    if (g == f) return n.data();  // a literal: NUL-terminated
+  }
+  return "?";
+}
+// False (and *out unchanged) when name is not a family's name.
+inline bool parse_landmark_family(std::string_view name, LandmarkFamily* out) {
+  for (const auto& [n, f] : kLandmarkFamilyNames) {
+    if (n == name) {
+      *out = f;
+      return true;
+    }
+  }
+  return false;
+}
 
 // The printed tag36h11 landmark. LandmarkGeometry::size_mm is the side of the outer black square
 // for both families (the QR landmark's outer border, the tag's 8-module black square), so one

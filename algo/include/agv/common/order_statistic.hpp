@@ -9,6 +9,10 @@
 
 namespace agv {
 
+// Robust scale from the median absolute residual: 1 / Phi^-1(3/4) = 1.4826, consistent for
+// Gaussian residuals.
+inline constexpr double kMadToSigma = 1.4826;
+
 // The value std::nth_element(v.begin(), v.begin() + k, v.end()) would leave at v[k]: the k-th
 // order statistic is one value, so the same to the bit, except that with both +0 and -0 in v
 // either may come back (they compare equal). Reorders v. Requires k < v.size(); with a NaN in v

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <cstdint>
 #include <string>
+#include <string_view>
+#include <utility>
 #include <vector>
 
 #include "agv/common/camera_model.hpp"
@@ -18,10 +20,36 @@
 
 namespace agv::config {
 
+// The choice keys' values as enums: each name is converted once, by the key table's row (which
+// reads these tables); code compares enums. *_name gives the name back for messages.
+enum class CameraDriver : std::uint8_t { kLibcamera, kV4l2, kReplay };
+enum class ImuSource : std::uint8_t { kCan, kIio, kNone };
+inline constexpr std::pair<std::string_view, CameraDriver> kCameraDriverNames[] = {
+    {"libcamera", CameraDriver::kLibcamera},
+    {"v4l2", CameraDriver::kV4l2},
+    {"replay", CameraDriver::kReplay}};
+inline constexpr std::pair<std::string_view, ImuSource> kImuSourceNames[] = {
+    {"can", ImuSource::kCan}, {"iio", ImuSource::kIio}, {"none", ImuSource::kNone}};
+inline constexpr std::pair<std::string_view, protocol::OdometryMode> kOdometryModeNames[] = {
+    {"v_omega", protocol::OdometryMode::kTwist}, {"wheels", protocol::OdometryMode::kWheels}};
+
+template <typename E, std::size_t N>
+const char* choice_name(const std::pair<std::string_view, E> (&table)[N], E e) {
+  for (const auto& [n, v] : table) {
+    if (v == e) return n.data();  // a literal: NUL-terminated
+  }
+  return "?";
+}
+inline const char* camera_driver_name(CameraDriver d) { return choice_name(kCameraDriverNames, d); }
+inline const char* imu_source_name(ImuSource s) { return choice_name(kImuSourceNames, s); }
+inline const char* odometry_mode_name(protocol::OdometryMode m) {
+  return choice_name(kOdometryModeNames, m);
+}
+
 // Defaults here must equal the key table's (test_config: DefaultsEqualTheTable); the meaning of
 // each field is documented once, in the table (docs/guide/config.md).
 struct CameraSection {
-  std::string driver = "libcamera";  // libcamera | v4l2 | replay
+  CameraDriver driver = CameraDriver::kLibcamera;
   hal::CameraConfig camera;
   double timeout_ms = 500.0;
   double time_offset_ms = 0.0;  // -> localizer::TimeBase::camera_offset_ns
@@ -31,15 +59,15 @@ struct CanSection {
   std::string interface = "can0";
   std::uint32_t base_id = 0x300;
   bool extended_ids = false;
-  std::string odometry_mode = "v_omega";  // v_omega | wheels
-  std::uint32_t odometry_id = 0;          // 0 = the DBC's ID: base_id + 0x10 (wheels) / 0x11
+  protocol::OdometryMode odometry_mode = protocol::OdometryMode::kTwist;
+  std::uint32_t odometry_id = 0;
   bool odometry_protected = true;
   // The track width (key can.odometry.track_width_mm) lives in fusion.wheel_track_mm only.
   double wheel_speed_scale = 1.0;
   // The odometry timeout (key can.odometry.timeout_ms) lives in fusion.odom_timeout_ns only.
   // The gyro input AGV_Gyro (protocol::GyroConfig; ID type = can.extended_ids).
   bool gyro_enabled = false;
-  std::uint32_t gyro_id = 0;  // 0 = the DBC's ID: base_id + 0x12
+  std::uint32_t gyro_id = 0;
   bool gyro_protected = true;
   double gyro_timeout_ms = 100.0;  // -> LocalizerConfig::gyro_timeout_ns
 };
@@ -57,12 +85,10 @@ struct ImuSection {
   double scale = 1.0;
   double bias_radps = 0.0;
   double time_offset_ms = 0.0;  // -> localizer::TimeBase::gyro_offset_ns
-  // Where the gyro comes from: "can" (AGV_Gyro when can.gyro.enabled), "iio" (a Linux IIO
-  // device, drivers/iio), "none" (wheels only).
-  std::string source = "can";
-  std::string iio_device;      // IIO device name (e.g. "bmi160")
-  std::string iio_trigger;     // IIO trigger name; empty = the device's own
-  double iio_rate_hz = 200.0;  // 0 = leave the device's rate
+  ImuSource source = ImuSource::kCan;
+  std::string iio_device;
+  std::string iio_trigger;
+  double iio_rate_hz = 200.0;
 };
 
 struct LoopSection {
@@ -71,9 +97,9 @@ struct LoopSection {
   int realtime_priority = 0;
   int vision_priority = 0;
   int spin_before_deadline_us = 0;
-  std::string realtime_cpus;  // CPU list (config/cpu_list.hpp); empty = not pinned
-  std::string vision_cpus;    // CPU list; empty = not pinned
-  std::string service_cpus;   // CPU list; empty = not pinned
+  std::string realtime_cpus;  // CPU lists (config/cpu_list.hpp)
+  std::string vision_cpus;
+  std::string service_cpus;
   bool lock_memory = false;
   double log_period_s = 10.0;
   bool pose_on_fix = true;
@@ -85,14 +111,14 @@ struct Vda5050Section {
   std::string broker_host = "localhost";
   int broker_port = 1883;
   std::string interface_name = "uagv";
-  std::string version = "2.1.0";  // 2.1.0 | 3.0.0
+  std::string version = "2.1.0";
   std::string manufacturer = "agvloc";
   std::string serial_number = "agv-0001";
   std::string map_id = "default";
-  double rate_hz = 10.0;      // visualization messages
-  std::string username;       // empty = anonymous
-  std::string password_file;  // resolved relative to the config file; empty = no password
-  std::string tls_ca_file;    // resolved relative to the config file; empty = plain TCP
+  double rate_hz = 10.0;
+  std::string username;
+  std::string password_file;  // resolved relative to the config file by parse_config
+  std::string tls_ca_file;    // resolved relative to the config file by parse_config
 };
 
 // Live diagnostics page and /metrics (docs/guide/diagnostics.md); the firmware's diagnostics server
@@ -100,7 +126,7 @@ struct Vda5050Section {
 struct DiagSection {
   bool enabled = false;
   std::string bind_address = "127.0.0.1";
-  int port = 8088;  // 0 = any free port (printed at start)
+  int port = 8088;
   bool allow_remote = false;
   int max_clients = 16;
   int threads = 2;
@@ -135,15 +161,14 @@ enum class ConfigUse { kLive, kReplay };
 // landmark.map (a path operation only: nothing is read).
 bool parse_config(const std::string& yaml_text, const std::string& base_dir, Config* out,
                   std::vector<std::string>* errors, ConfigUse use = ConfigUse::kLive);
-// The CAN protocol configuration implied by the can section.
+// The CAN protocol configuration implied by the can section, the gyro input (can.gyro.*)
+// included.
 protocol::ProtocolConfig protocol_config(const Config& cfg);
-// The gyro part of it (can.gyro.*): protocol_config(cfg).gyro is left at its defaults (disabled),
-// so whoever receives AGV_Gyro sets ProtocolConfig::gyro from this (firmware localizer_config).
-inline protocol::GyroConfig gyro_protocol_config(const Config& cfg) {
-  protocol::GyroConfig g;
-  g.enabled = cfg.can.gyro_enabled;
-  g.can_id = cfg.can.gyro_id;
-  g.protected_e2e = cfg.can.gyro_protected;
+
+// The printed landmark's geometry (landmark.size_mm; the rest at its defaults).
+inline LandmarkGeometry landmark_geometry(const Config& cfg) {
+  LandmarkGeometry g;
+  g.size_mm = cfg.landmark_size_mm;
   return g;
 }
 

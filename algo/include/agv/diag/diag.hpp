@@ -82,7 +82,7 @@ struct ServerStats {
 
 // Fills the loop-side parts of *out (tick, statistics, CAN, fixes and track are copied by the
 // caller's recorder); kept here so the firmware and the tests build snapshots alike.
-FixEntry fix_entry(const vision::LandmarkFix& fix, std::int64_t t_exposure_ns,
+FixEntry fix_entry(const vision::LandmarkMeasurement& fix, std::int64_t t_exposure_ns,
                    std::int64_t t_arrival_ns);
 TrackPoint track_point(const localizer::TickRecord& tick);
 

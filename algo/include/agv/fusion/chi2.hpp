@@ -1,6 +1,8 @@
-// Chi-square distribution with 3 degrees of freedom (the dimension of a landmark fix), used for
-// the innovation gate of the fusion EKF.
+// Chi-square distribution with 3 degrees of freedom (the dimension of a landmark fix) and 2 (a
+// position, a range-bearing observation), used for the innovation gates of the fusion EKF.
 #pragma once
+
+#include <cmath>
 
 namespace agv::fusion {
 
@@ -14,5 +16,9 @@ double chi2_3dof_sf(double x);
 // accurate to ~1e-12 relative. Returns NaN for p outside (0, 1).
 // chi2_3dof_quantile(0.999) = 16.266, (0.99) = 11.345, (0.95) = 7.815.
 double chi2_3dof_quantile(double p);
+
+// The same for 2 degrees of freedom (a position, a range-bearing pair), in closed form:
+// -2 ln(1 - p). chi2_2dof_quantile(0.999) = 13.816.
+inline double chi2_2dof_quantile(double p) { return -2.0 * std::log1p(-p); }
 
 }  // namespace agv::fusion

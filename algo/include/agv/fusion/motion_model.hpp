@@ -1,4 +1,4 @@
-// Motion model of the fusion EKF: state (x_mm, y_mm, theta_rad, v_mps, omega_radps), paper 000
+// Motion model of the fusion EKF: state (x_mm, y_mm, theta_rad, v_mps, omega_radps), Yang et al.
 // eq. 14 generalised to the exact constant-turn-rate arc. Conventions: docs/design/frames.md,
 // docs/design/fusion.md.
 #pragma once
@@ -36,7 +36,7 @@ ArcCoefficients arc_coefficients(double a);
 // 0). With d = 1000 v dt (mm) and a = omega dt:
 //   x' = x + d (cos th s(a) - sin th c(a)),  y' = y + d (sin th s(a) + cos th c(a)),
 //   th' = wrap(th + a),  v' = v,  omega' = omega.
-// For a -> 0 this is eq. 14 of paper 000 (x + v dt cos th, ...), which it reduces to.
+// For a -> 0 this is eq. 14 of Yang et al. (x + v dt cos th, ...), which it reduces to.
 StateVec motion_predict(const StateVec& x, double dt_s);
 
 // F = df/dx at x (analytic, eq. 16).

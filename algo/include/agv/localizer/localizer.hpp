@@ -184,7 +184,7 @@ class Localizer {
   // onto the vehicle's), ready at t_arrival_ns.
   // Failed fixes only set status flags. An exposure after the arrival can only come from a
   // camera clock that jumped ahead: rejected as invalid, never fused at a time it was not taken.
-  void on_fix(const vision::LandmarkFix& fix, std::int64_t t_exposure_ns,
+  void on_fix(const vision::LandmarkMeasurement& fix, std::int64_t t_exposure_ns,
               std::int64_t t_arrival_ns = INT64_MAX);
   // An external pose (VDA 5050 initPosition, docs/guide/vda5050.md) at now_ns, in mm / rad with its
   // 1-sigma position and heading uncertainty. False when the filter refused it (non-finite).

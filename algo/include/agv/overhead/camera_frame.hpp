@@ -1,4 +1,4 @@
-// One ceiling camera's frame through the tracker (paper 000 Algorithm 1): plan the search windows
+// One ceiling camera's frame through the tracker (Yang et al. Algorithm 1): plan the search windows
 // (search.hpp), read each tracked vehicle's tag on the predicted path against its area's ids,
 // search the area and whole-image windows with the global decode, turn every tag into a fix on
 // its vehicle's tray plane (tag_fix.hpp) and hand the fixes to the tracker. A tag id not in the

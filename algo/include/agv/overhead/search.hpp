@@ -1,4 +1,4 @@
-// Where each ceiling camera looks for which vehicle (paper 000 Algorithm 1, lines 11-18, made
+// Where each ceiling camera looks for which vehicle (Yang et al. Algorithm 1, lines 11-18, made
 // exact): a window around every track's predicted tag (its 3-sigma ellipse on the tray plane
 // projected into the image, plus the tag), the camera's area for a track that missed its window,
 // and the whole image at a fixed interval for vehicles not yet tracked. Also which ids an area

@@ -1,4 +1,4 @@
-// tag36h11 codes and the area-restricted decoding of paper 000 section 2.4: a code read from a
+// tag36h11 codes and the area-restricted decoding of Yang et al. section 2.4: a code read from a
 // tag is compared only with the codes (in all four turns) of the vehicles the tracker believes to
 // be in the area, so the bits that can be corrected grow from the family's 5 to
 // (d_min(area) - 1) / 2, where d_min(area) is the smallest Hamming distance among those codes.
@@ -17,7 +17,7 @@ inline constexpr int kTag36h11MinDistance = 11;
 
 // The family's code of `id`: bit 35 first, row-major from the page's top-left data cell, a set
 // bit for a white cell. libapriltag 3 keeps the same codes in another bit order (its bit_x/bit_y
-// spiral); this is its table re-expressed row-major, the order paper 000 quotes (the paper's
+// spiral); this is its table re-expressed row-major, the order Yang et al. quotes (the paper's
 // 1-based "code numbered 1", d5d628584, is id 0 here). 0 for an id outside the family.
 std::uint64_t tag36h11_code(std::uint32_t id);
 // The code of the same tag turned a quarter turn: libapriltag's rotate90, in row-major order

@@ -1,4 +1,4 @@
-// One EKF per vehicle of the fleet (paper 000 eq. 14-19: x, y, theta, v, omega; constant speed
+// One EKF per vehicle of the fleet (Yang et al. eq. 14-19: x, y, theta, v, omega; constant speed
 // and turn rate), fed with tag fixes from every ceiling camera, each stamped with its exposure
 // time and arriving after its latency: a fix older than the filter's newest is applied where it
 // belongs (the filter rewinds to a stored state and replays the newer fixes). Every fix is gated

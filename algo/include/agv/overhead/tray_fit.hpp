@@ -1,4 +1,4 @@
-// A vehicle's pose from its tray's outline when a parcel hides its tag (paper 000 eq. 5-8: the
+// A vehicle's pose from its tray's outline when a parcel hides its tag (Yang et al. eq. 5-8: the
 // tray's oriented box; here the box is fitted, not learned). In the window around the predicted
 // tray, edge pixels (Prewitt, thinned along the gradient, sub-pixel) are carried onto the tray
 // plane, where the tray is an exact rectangle of known length and width. The edges' directions

@@ -1,4 +1,4 @@
-// The learned tray detector (paper 000's YOLOv5-OBB role): a small fully-convolutional one-stage
+// The learned tray detector (Yang et al.'s YOLOv5-OBB role): a small fully-convolutional one-stage
 // network finds trays as oriented boxes in a top-down view of the tray plane. The camera's frame
 // is first resampled onto that plane around a site point (a rectified window: a fixed number of
 // millimetres per pixel, axes along the site's, lens distortion and camera tilt removed), so one

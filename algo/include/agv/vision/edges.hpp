@@ -1,4 +1,4 @@
-// Building blocks of the pose stage (paper 001 eq. 1-7, paper 000 eq. 9-11), exposed so each
+// Building blocks of the pose stage (Li et al. eq. 1-7, Yang et al. eq. 9-11), exposed so each
 // stage can be tested on its own. Image coordinates: x right, y down, pixel centres at integers.
 #pragma once
 
@@ -19,7 +19,7 @@ using Rect = Rect_<int>;
 
 namespace agv::vision {
 
-// Prewitt gradient (paper 001 eq. 2-3) of the interior pixel at p in an 8-bit image whose rows are
+// Prewitt gradient (Li et al. eq. 2-3) of the interior pixel at p in an 8-bit image whose rows are
 // `step` bytes apart: gx = right column minus left column, gy = bottom row minus top row (sums of
 // three). The one kernel every gradient of the pipeline goes through.
 inline void prewitt_at(const std::uint8_t* p, std::ptrdiff_t step, int* gx, int* gy) {
@@ -46,12 +46,12 @@ struct StripGradients {
 void strip_gradients(const std::uint8_t* p, std::ptrdiff_t dj, std::ptrdiff_t di, int n, int thr2,
                      bool read_past_end, StripGradients* s);
 
-// Prewitt gradients (paper 001 eq. 1-3) of gray8 inside roi, written to CV_16SC1 images of the
+// Prewitt gradients (Li et al. eq. 1-3) of gray8 inside roi, written to CV_16SC1 images of the
 // roi's size: gx = right column minus left column, gy = bottom row minus top row (sums of three).
 // Pixels on the image border get 0. roi is clipped to the image.
 void prewitt(const cv::Mat& gray8, const cv::Rect& roi, cv::Mat* gx, cv::Mat* gy);
 
-// Side of the border a gradient belongs to, by gradient direction (paper 001 figure 7). The
+// Side of the border a gradient belongs to, by gradient direction (Li et al. figure 7). The
 // landmark's page-up axis points along image angle up_angle_rad = atan2(dy, dx) (y down); side k
 // has its outward normal at up_angle_rad + k * 90 degrees: 0 up, 1 right, 2 down, 3 left
 // (as seen on the page). A dark-to-bright gradient points outward on the outer edge of side k and
@@ -90,7 +90,7 @@ struct LineFit {
 // weights may be empty (all 1). Returns false for fewer than 2 points or degenerate input.
 bool fit_line_tls(std::span<const Vec2> pts, std::span<const double> weights, LineFit* out);
 
-// Paper 001 eq. 5-6: ordinary least squares y = k x + b; returns false when all x are equal.
+// Li et al. eq. 5-6: ordinary least squares y = k x + b; returns false when all x are equal.
 bool fit_line_ols(std::span<const Vec2> pts, double* k, double* b);
 
 // Tukey-biweight IRLS on top of fit_line_tls: weights are recomputed from the residuals with the
@@ -102,12 +102,12 @@ bool fit_line_robust(std::span<const Vec2> pts, double tukey_c, double min_sigma
                      std::span<double> w_out, LineFit* out, int ransac_iterations = 0,
                      double ransac_tol = 0.0);
 
-// Paper 001 eq. 7: mean of the four dip angles after removing the 90-degree offsets; here with
+// Li et al. eq. 7: mean of the four dip angles after removing the 90-degree offsets; here with
 // any number of angles already reduced to a common axis (radians).
 double mean_angle(std::span<const double> angles_rad);
-// Paper 000 eq. 10-11: weighted mean with k_i = sum y^2 / (sum y^2 - sum (y - Y)^2).
+// Yang et al. eq. 10-11: weighted mean with k_i = sum y^2 / (sum y^2 - sum (y - Y)^2).
 double weighted_angle_000(std::span<const double> angles_rad, std::span<const double> k_weights);
-// Paper 000 eq. 11 weight for one edge: sum_y2 = sum of y_j^2, ssr = sum of (y_j - Y_j)^2.
+// Yang et al. eq. 11 weight for one edge: sum_y2 = sum of y_j^2, ssr = sum of (y_j - Y_j)^2.
 double weight_000(double sum_y2, double ssr);
 
 // Reduces a line angle to the representative within +-45 degrees of ref_rad modulo 90 degrees.

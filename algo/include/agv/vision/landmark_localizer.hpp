@@ -1,4 +1,4 @@
-// Landmark pose from one floor image: paper 001's pipeline (adaptive threshold, NCC corner
+// Landmark pose from one floor image: Li et al.'s pipeline (adaptive threshold, NCC corner
 // templates, QR decode, logo direction, Prewitt edge classes, least-squares edge lines) plus the
 // improvements measured in docs/design/accuracy.md. Tunables and their trade-offs:
 // docs/design/vision.md. Frames: docs/design/frames.md. Pure: no I/O, no threads, no clocks (time
@@ -24,13 +24,13 @@ namespace agv::vision {
 
 // How edge-point coordinates become millimetres.
 enum class MetricMode {
-  kLinearRatio,  // paper 001: one mm-per-pixel ratio about the image centre (ignores distortion)
+  kLinearRatio,  // Li et al.: one mm-per-pixel ratio about the image centre (ignores distortion)
   kCameraModel,  // every edge point through CameraModel::pixel_to_vehicle (undistorts)
 };
 
 // How the landmark centre and heading are computed from the classified edge points.
 enum class PoseMethod {
-  kPaperCornerA,       // paper 001 eq. 7-11: heading from the line angles, centre from corner A
+  kPaperCornerA,       // Li et al. eq. 7-11: heading from the line angles, centre from corner A
   kLineIntersections,  // 8 independent line fits; centre = mean of the outer+inner corners
   kJointSquareFit,     // one Gauss-Newton fit of the known square to all points (shared angle)
 };
@@ -38,8 +38,8 @@ enum class PoseMethod {
 // How the four (eight) line angles are averaged into one heading (kPaperCornerA and
 // kLineIntersections; the joint fit estimates one shared angle directly).
 enum class HeadingMethod {
-  kMean,             // paper 001 eq. 7
-  kWeighted000,      // paper 000 eq. 10-11 (weights k_i from the fit residuals)
+  kMean,             // Li et al. eq. 7
+  kWeighted000,      // Yang et al. eq. 10-11 (weights k_i from the fit residuals)
   kInverseVariance,  // each line angle weighted by 1/var from its own residuals
 };
 
@@ -307,20 +307,28 @@ struct StageTimings {
   double total_ms = 0.0;
 };
 
-struct LandmarkFix {
+// What fusion takes from a frame: the outcome, the landmark's identity and the vehicle's world
+// pose with its covariance. The exposure time travels beside it (the localizer has no clock): the
+// real-time hand-off from the vision worker to the output thread carries only this.
+struct LandmarkMeasurement {
   FixStatus status = FixStatus::kNoLandmark;
   std::uint32_t landmark_id = 0;
+  FixIdentity identity = FixIdentity::kNone;
+  // The landmark's world pose came from the survey map or was checked against it (a map was
+  // given): a misprinted code cannot have produced this fix.
+  bool map_verified = false;
+  Pose2 vehicle_in_world;  // W<-V, valid only when status == kOk
+  // Covariance of (x_mm, y_mm, theta_rad) of vehicle_in_world, from the fit residuals.
+  Eigen::Matrix3d cov_world = Eigen::Matrix3d::Zero();
+};
+
+// How the frame was measured, for the logs, the desk tools and the tests: nothing fusion reads.
+struct FixDiagnostics {
   char payload[48] = {};  // NUL-terminated QR text (truncated if longer; valid payloads are 38)
   // Pose of the vehicle in the landmark frame (docs/design/frames.md "Vision output").
   double e_x_mm = 0.0, e_y_mm = 0.0, e_phi_deg = 0.0;
   Pose2 landmark_in_vehicle;  // V<-L
-  Pose2 vehicle_in_world;     // W<-V, valid only when status == kOk
-  // The landmark's world pose came from the survey map or was checked against it (a map was
-  // given): a misprinted code cannot have produced this fix.
-  bool map_verified = false;
-  // Covariance of (x_mm, y_mm, theta_rad) of vehicle_in_world (and, below, of
-  // landmark_in_vehicle), from the fit residuals.
-  Eigen::Matrix3d cov_world = Eigen::Matrix3d::Zero();
+  // Covariance of (x_mm, y_mm, theta_rad) of landmark_in_vehicle.
   Eigen::Matrix3d cov_landmark_in_vehicle = Eigen::Matrix3d::Zero();
   StageTimings timings;
   int edge_points_used = 0;
@@ -350,7 +358,6 @@ struct LandmarkFix {
   // (about 2 M aarch64 instructions each).
   int qr_grid_decodes = 0;
   int qr_search_attempts = 0;
-  FixIdentity identity = FixIdentity::kNone;
   SearchMode search = SearchMode::kFull;
   // The prediction placed the edge bands; no detection ran
   // (TrackingConfig::detect_from_prediction). detect_x_px / detect_y_px / detect_angle_deg are then
@@ -362,6 +369,13 @@ struct LandmarkFix {
   // Detection estimate (before the edge fit), for diagnostics: landmark centre in pixels and the
   // image angle of one border normal (modulo 90 deg).
   double detect_x_px = 0.0, detect_y_px = 0.0, detect_angle_deg = 0.0;
+};
+
+// One frame's full result: the measurement fusion takes and the frame's diagnostics. Code that
+// feeds fusion takes a LandmarkMeasurement (a LandmarkFix converts to it).
+struct LandmarkFix : LandmarkMeasurement, FixDiagnostics {
+  const LandmarkMeasurement& measurement() const { return *this; }
+  const FixDiagnostics& diagnostics() const { return *this; }
 };
 
 class LandmarkLocalizer {
@@ -380,7 +394,7 @@ class LandmarkLocalizer {
   // The same with the filter's prediction for this frame (search windows, map-guided identity).
   FixStatus process(const cv::Mat& gray8, const Prediction& prediction, LandmarkFix* out);
 
-  // Debug overlay like paper 001 figures 5-9: edge points coloured by class, fitted lines,
+  // Debug overlay like Li et al. figures 5-9: edge points coloured by class, fitted lines,
   // corners, centre, the numbers. Uses the edge points kept from the last process() call, so
   // pass the same image and the fix that call returned.
   void draw_overlay(const cv::Mat& gray8, const LandmarkFix& fix, cv::Mat* bgr_out) const;
