@@ -1,44 +1,17 @@
 // Proves the steady-state output loop (CAN odometry in, fixes in, fusion, CAN out every period,
-// fix-triggered poses) does not touch the heap once warmed up. Global operator new is replaced
-// in this binary only.
+// fix-triggered poses) does not touch the heap once warmed up (tests/support/alloc_counter.cpp
+// counts every allocation of this binary).
 #include <gtest/gtest.h>
 
 #include <atomic>
 #include <cstdlib>
 #include <new>
 
+#include "../support/alloc_counter.hpp"
 #include "agv/protocol/codec.hpp"
 #include "config.hpp"
 #include "test_loop_support.hpp"
 
-namespace {
-std::atomic<long> g_allocs{0};
-std::atomic<bool> g_counting{false};
-}  // namespace
-
-// The replacements pair malloc with free on purpose; GCC cannot see that through inlining.
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-
-void* operator new(std::size_t n) {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocs.fetch_add(1);
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n) { return operator new(n); }
-void* operator new(std::size_t n, std::align_val_t al) {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocs.fetch_add(1);
-  if (void* p =
-          std::aligned_alloc(static_cast<std::size_t>(al), (n + static_cast<std::size_t>(al) - 1) &
-                                                               ~(static_cast<std::size_t>(al) - 1)))
-    return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
 
 using namespace agv;
 
@@ -87,11 +60,9 @@ TEST(SteadyStateLoop, NoHeapAllocationAfterWarmUp) {
   run_ticks(300);  // warm-up: filter initialised, history ring filled
   ASSERT_TRUE(out.ekf().initialised());
   ASSERT_GT(out.stats().fixes_fused, 5u);
-  g_allocs = 0;
-  g_counting = true;
+  const long before = agv::test::allocations();
   run_ticks(1000);
-  g_counting = false;
-  EXPECT_EQ(g_allocs.load(), 0) << "heap allocations in 1000 steady-state periods";
+  EXPECT_EQ(agv::test::allocations() - before, 0) << "heap allocations in 1000 steady-state periods";
   EXPECT_GT(out.stats().fixes_fused, 35u);
   EXPECT_GT(out.stats().fix_poses, 35u);
   EXPECT_EQ(out.odometry_decoder().counters().rejected(), 0u);
@@ -99,10 +70,9 @@ TEST(SteadyStateLoop, NoHeapAllocationAfterWarmUp) {
 
 TEST(SteadyStateLoop, CounterDetectsAllocation) {
   // The harness itself must be able to fail.
-  g_allocs = 0;
-  g_counting = true;
+  const long before = agv::test::allocations();
   auto* p = new int(3);
-  g_counting = false;
+  const long after = agv::test::allocations();
   delete p;
-  EXPECT_EQ(g_allocs.load(), 1);
+  EXPECT_EQ(after - before, 1);
 }

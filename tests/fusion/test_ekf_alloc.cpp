@@ -1,49 +1,24 @@
 // Proves the real-time contract of agv::fusion::Ekf: after construction, add_odometry, add_fix
 // (fused, delayed, gated, too old, invalid, kidnap re-initialisation), estimate_at and take_flags
-// never touch the heap. This binary replaces the global allocation functions to count calls.
+// never touch the heap (allocations counted by tests/support/alloc_counter.cpp).
 #include <gtest/gtest.h>
 
-#include <atomic>
 #include <cstdint>
 #include <cstdlib>
 #include <limits>
 #include <new>
 
+#include "../support/alloc_counter.hpp"
 #include "agv/fusion/ekf.hpp"
 
-namespace {
-std::atomic<long> g_allocations{0};
-}
-
-void* operator new(std::size_t n) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n) { return operator new(n); }
-void* operator new(std::size_t n, std::align_val_t al) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  const std::size_t a = static_cast<std::size_t>(al);
-  if (void* p = std::aligned_alloc(a, (n + a - 1) / a * a)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n, std::align_val_t al) { return operator new(n, al); }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
 
 using namespace agv;
 using namespace agv::fusion;
 
 TEST(FusionEkfAlloc, CounterSeesAllocations) {
-  const long before = g_allocations.load();
+  const long before = agv::test::allocations();
   auto* p = new int(3);
-  EXPECT_GT(g_allocations.load(), before);  // the counting hook is active
+  EXPECT_GT(agv::test::allocations(), before);  // the counting hook is active
   delete p;
 }
 
@@ -58,7 +33,7 @@ TEST(FusionEkfAlloc, NoHeapAllocationAfterConstruction) {
   c.core.history_capacity = 64;  // small, so the ring wraps many times below
   Ekf ekf{c};
 
-  const long before = g_allocations.load();
+  const long before = agv::test::allocations();
   std::uint64_t outcomes[6] = {};
   double checksum = 0.0;
   for (int i = 0; i <= 3000; ++i) {  // 30 s at 100 Hz
@@ -81,7 +56,7 @@ TEST(FusionEkfAlloc, NoHeapAllocationAfterConstruction) {
     const PoseEstimate e = ekf.estimate_at(t + 5 * kMs);
     checksum += e.pose.x_mm + static_cast<double>(ekf.take_flags());
   }
-  const long during = g_allocations.load() - before;
+  const long during = agv::test::allocations() - before;
 
   EXPECT_EQ(during, 0);
   EXPECT_GT(outcomes[static_cast<int>(FixOutcome::kInitialised)], 0u);

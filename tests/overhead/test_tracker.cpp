@@ -1,7 +1,7 @@
 // The per-vehicle EKF of the overhead tracker (algo/src/overhead/tracker*.cpp): convergence on a
 // circle, honest covariance (NEES), delayed fixes equal to in-order ones, the gate, the track
-// states, refused input, and no heap use per fix. Fixes are synthetic (no rendering). This binary
-// replaces the global allocation functions to count calls.
+// states, refused input, and no heap use per fix (tests/support/alloc_counter.cpp counts).
+// Fixes are synthetic (no rendering).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -16,51 +16,8 @@
 #include <random>
 #include <vector>
 
+#include "../support/alloc_counter.hpp"
 #include "agv/overhead/tracker.hpp"
-
-namespace {
-std::atomic<long> g_allocations{0};
-}
-
-void* operator new(std::size_t n) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(n == 0 ? 1 : n)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n) { return operator new(n); }
-void* operator new(std::size_t n, std::align_val_t al) {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  const std::size_t a = static_cast<std::size_t>(al);
-  if (void* p = std::aligned_alloc(a, (n + a - 1) / a * a)) return p;
-  throw std::bad_alloc();
-}
-void* operator new[](std::size_t n, std::align_val_t al) { return operator new(n, al); }
-// The nothrow forms too (std::stable_sort's buffer): every form then pairs with free().
-void* operator new(std::size_t n, const std::nothrow_t&) noexcept {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  return std::malloc(n == 0 ? 1 : n);
-}
-void* operator new[](std::size_t n, const std::nothrow_t& t) noexcept { return operator new(n, t); }
-void* operator new(std::size_t n, std::align_val_t al, const std::nothrow_t&) noexcept {
-  g_allocations.fetch_add(1, std::memory_order_relaxed);
-  const std::size_t a = static_cast<std::size_t>(al);
-  return std::aligned_alloc(a, (n + a - 1) / a * a);
-}
-void* operator new[](std::size_t n, std::align_val_t al, const std::nothrow_t& t) noexcept {
-  return operator new(n, al, t);
-}
-void operator delete(void* p, const std::nothrow_t&) noexcept { std::free(p); }
-void operator delete[](void* p, const std::nothrow_t&) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t, const std::nothrow_t&) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t, const std::nothrow_t&) noexcept { std::free(p); }
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete[](void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
-void operator delete(void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::align_val_t) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
-void operator delete[](void* p, std::size_t, std::align_val_t) noexcept { std::free(p); }
 
 using namespace agv;
 using namespace agv::overhead;
@@ -502,9 +459,9 @@ TEST(OverheadTracker, ResetForgetsTheTrack) {
 }
 
 TEST(OverheadTracker, NoHeapUseAfterConstruction) {
-  const long before_hook = g_allocations.load();
+  const long before_hook = agv::test::allocations();
   auto* probe = new int(3);
-  ASSERT_GT(g_allocations.load(), before_hook);  // the counting hook is active
+  ASSERT_GT(agv::test::allocations(), before_hook);  // the counting hook is active
   delete probe;
   TrackerParams p;
   p.history = 16;  // the ring wraps many times below
@@ -513,7 +470,7 @@ TEST(OverheadTracker, NoHeapUseAfterConstruction) {
   std::vector<TagFix> fixes;
   for (int k = 0; k < 400; ++k)
     fixes.push_back(noisy_fix(on_circle(0.05 * k, 2000, 0.5), 5, 0.01, &rng));
-  const long before = g_allocations.load();
+  const long before = agv::test::allocations();
   for (int k = 0; k < 400; ++k) {
     // In order, every fourth one also a late one (replayed), a gated one, an invalid one, a
     // too old one; a second vehicle in order.
@@ -527,7 +484,7 @@ TEST(OverheadTracker, NoHeapUseAfterConstruction) {
     tr.update_states(t);
     (void)tr.output(0, t + 30 * kMs);
   }
-  EXPECT_EQ(g_allocations.load(), before);
+  EXPECT_EQ(agv::test::allocations(), before);
   EXPECT_GT(tr.counters().applied, 800u);
   EXPECT_GT(tr.counters().replays, 90u);
   EXPECT_GT(tr.counters().gated, 300u);

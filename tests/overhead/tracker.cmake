@@ -1,6 +1,7 @@
 # The per-vehicle EKF (algo/src/overhead/tracker*.cpp): synthetic fixes, no rendering. The binary
 # counts heap allocations (it replaces the global operator new).
-agv_add_test(test_tracker SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_tracker.cpp LIBS agv_overhead
+agv_add_test(test_tracker SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_tracker.cpp
+             ${CMAKE_SOURCE_DIR}/tests/support/alloc_counter.cpp LIBS agv_overhead
              LABELS unit overhead)
 # The search windows (algo/src/overhead/search.cpp): synthetic tracks; one tiny rendered frame
 # checks the predicted corners against the renderer's truth.
