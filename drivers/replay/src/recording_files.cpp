@@ -98,7 +98,6 @@ bool check_png_file(const fs::path& p, std::string* why) {
   return true;
 }
 
-
 bool safe_relative_path(std::string_view f) {
   if (f.empty() || f.front() == '/' || f.find('\\') != std::string_view::npos) return false;
   for (char c : f) {

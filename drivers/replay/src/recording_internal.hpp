@@ -13,10 +13,12 @@ namespace agv::recording {
 // Per-file caps (docs/design/security.md): with them a hostile recording cannot make the reader
 // hold more than a few hundred MB (the longest legitimate files, odom.csv and truth.csv at 100 Hz,
 // are ~3 MB per hour; imu.csv at 200 Hz with only t_ns,gyro_z_radps ~20 MB per hour).
-inline constexpr std::uintmax_t kMaxMetaBytes = 64u << 10;      // 64 KiB
-inline constexpr std::uintmax_t kMaxFramesCsvBytes = 8u << 20;  // 8 MiB: ~250k frames, 2.3 h at 30 fps
-inline constexpr std::uintmax_t kMaxTimedCsvBytes = 32u << 20;  // 32 MiB: ~10 h of 100 Hz odometry
-inline constexpr std::uintmax_t kMaxPngBytes = 64u << 20;       // one frame
+inline constexpr std::uintmax_t kMaxMetaBytes = 64u << 10;  // 64 KiB
+// 8 MiB: ~250k frames, 2.3 h at 30 fps
+inline constexpr std::uintmax_t kMaxFramesCsvBytes = 8u << 20;
+// 32 MiB: ~10 h of 100 Hz odometry
+inline constexpr std::uintmax_t kMaxTimedCsvBytes = 32u << 20;
+inline constexpr std::uintmax_t kMaxPngBytes = 64u << 20;  // one frame
 
 // A file name below the recording directory: relative, no "." or ".." component, no trailing
 // "/", no control characters or '"'.
