@@ -239,7 +239,7 @@ Combined combine_placements(const CameraModel& camera, CheckResult* out) {
   return c;
 }
 
-void add(CheckResult* out, Cause c, double value, double limit, std::string msg) {
+void add_finding(CheckResult* out, Cause c, double value, double limit, std::string msg) {
   out->findings.push_back({c, std::abs(value) <= limit, value, limit, std::move(msg)});
 }
 
@@ -249,7 +249,8 @@ void pose_findings(const Tolerances& tol, CheckResult* out) {
   for (size_t i = 0; i < P.size(); ++i) {
     const auto& p = P[i];
     const double d = std::hypot(p.dx_mm, p.dy_mm);
-    add(out, Cause::kPose, d, tol.position_mm,
+    add_finding(
+        out, Cause::kPose, d, tol.position_mm,
         fmt("placement %zu: landmark %u measured %.2f mm from the taped position (dx %+.2f, "
             "dy %+.2f mm in the vehicle frame)",
             i + 1, p.landmark_id, d, p.dx_mm, p.dy_mm));
@@ -263,7 +264,8 @@ void mounting_findings(const CameraModel& camera, const LandmarkGeometry& geom, 
   const double h_c = camera.mount.height_mm;
   const Vec2 o_c{camera.mount.offset_x_mm, camera.mount.offset_y_mm};
   // 2. Heading -> mounting yaw.
-  add(out, Cause::kYaw, c.dpsi_deg, tol.heading_deg,
+  add_finding(
+      out, Cause::kYaw, c.dpsi_deg, tol.heading_deg,
       fmt("heading %+.3f deg from the tape -> mounting yaw: mounting.yaw_deg %.3f (configured "
           "%.3f)",
           c.dpsi_deg, out->yaw_deg, rad_to_deg(camera.mount.yaw_rad)));
@@ -277,32 +279,34 @@ void mounting_findings(const CameraModel& camera, const LandmarkGeometry& geom, 
         bw += p.border_width_mm / c.nsc;
       }
     }
-    add(out, Cause::kHeight, out->height_mm - h_c, tol.height_mm,
+    add_finding(
+        out, Cause::kHeight, out->height_mm - h_c, tol.height_mm,
         fmt("landmark measured %.3f %% too %s (outer side %.3f mm, border %.3f mm; printed %.3f "
             "/ %.3f mm) -> height: mounting.height_mm %.2f (configured %.2f) -- or fx, or the "
             "print is not at 100 %% (measure it with calipers: --printed-size-mm)",
             std::abs(s - 1) * 100, s >= 1 ? "large" : "small", ow, bw, geom.size_mm,
             geom.border_width_mm(), out->height_mm, h_c));
   } else {
-    add(out, Cause::kHeight, 0, tol.height_mm,
+    add_finding(
+        out, Cause::kHeight, 0, tol.height_mm,
         "landmark size not measured (no border axis with both sides in the image): height not "
         "checked; put the whole landmark in the image");
   }
   // 4. What is left -> offset.
   const double doff = std::hypot(c.ox - o_c.x, c.oy - o_c.y);
-  add(out, Cause::kOffset, doff, tol.position_mm,
-      fmt("after yaw and height, a constant offset of %.2f mm -> mounting offset: "
-          "mounting.offset_x_mm %.2f, offset_y_mm %.2f (configured %.2f, %.2f)",
-          doff, c.ox, c.oy, o_c.x, o_c.y));
+  add_finding(out, Cause::kOffset, doff, tol.position_mm,
+              fmt("after yaw and height, a constant offset of %.2f mm -> mounting offset: "
+                  "mounting.offset_x_mm %.2f, offset_y_mm %.2f (configured %.2f, %.2f)",
+                  doff, c.ox, c.oy, o_c.x, o_c.y));
 }
 
 // 5. Position dependence -> distortion / intrinsics. True when a distortion finding failed.
 bool distortion_findings(const Combined& c, const Tolerances& tol, CheckResult* out) {
   const auto& P = out->placements;
   if (P.size() <= 1) {
-    add(out, Cause::kDistortion, 0, 0,
-        "not checked with one placement: repeat with the landmark near two opposite image "
-        "corners (--placements) to separate distortion from height and offset");
+    add_finding(out, Cause::kDistortion, 0, 0,
+                "not checked with one placement: repeat with the landmark near two opposite image "
+                "corners (--placements) to separate distortion from height and offset");
     return false;
   }
   double worst = 0, smin = 1e300, smax = -1e300;
@@ -313,7 +317,8 @@ bool distortion_findings(const Combined& c, const Tolerances& tol, CheckResult* 
       smax = std::max(smax, p.implied_height_mm);
     }
   }
-  add(out, Cause::kDistortion, worst, tol.position_mm,
+  add_finding(
+      out, Cause::kDistortion, worst, tol.position_mm,
       fmt("the offset implied by the %zu placements differs by up to %.2f mm between places in "
           "the image -> %s",
           P.size(), worst,
@@ -321,7 +326,8 @@ bool distortion_findings(const Combined& c, const Tolerances& tol, CheckResult* 
                                     "(recalibrate: agvloc-desk calibrate intrinsics)"
                                   : "not position-dependent"));
   if (smax >= smin) {
-    add(out, Cause::kDistortion, smax - smin, tol.height_mm,
+    add_finding(
+        out, Cause::kDistortion, smax - smin, tol.height_mm,
         fmt("the height implied by the landmark size varies by %.2f mm between places in the "
             "image -> %s",
             smax - smin,
@@ -339,12 +345,12 @@ void focus_findings(bool distortion, const Tolerances& tol, CheckResult* out) {
   const auto& P = out->placements;
   double res = 0;
   for (const auto& p : P) res = std::max(res, p.residual_rms_mm);
-  add(out, distortion ? Cause::kDistortion : Cause::kFocus, res, tol.residual_mm,
-      fmt("edge points lie %.3f mm rms from the fitted square (worst placement) -> %s", res,
-          res <= tol.residual_mm ? "sharp, straight edges"
-          : distortion           ? "edges bent by the uncorrected distortion"
-                                 : "blurred or noisy edges: focus, light/gain, dirt on the print "
-                                   "(or distortion: compare placements)"));
+  add_finding(out, distortion ? Cause::kDistortion : Cause::kFocus, res, tol.residual_mm,
+              fmt("edge points lie %.3f mm rms from the fitted square (worst placement) -> %s", res,
+                  res <= tol.residual_mm ? "sharp, straight edges"
+                  : distortion           ? "edges bent by the uncorrected distortion"
+                               : "blurred or noisy edges: focus, light/gain, dirt on the print "
+                                 "(or distortion: compare placements)"));
   for (size_t i = 0; i < P.size(); ++i) {
     const auto& p = P[i];
     if (p.frames_ok < p.frames_total) {
@@ -355,12 +361,13 @@ void focus_findings(bool distortion, const Tolerances& tol, CheckResult* out) {
           break;
         }
       }
-      add(out, Cause::kFocus, p.frames_total - p.frames_ok, 0,
-          fmt("placement %zu: %d of %d frames gave no fix (first %s) -> focus, blur, light", i + 1,
-              p.frames_total - p.frames_ok, p.frames_total, first.c_str()));
+      add_finding(out, Cause::kFocus, p.frames_total - p.frames_ok, 0,
+                  fmt("placement %zu: %d of %d frames gave no fix (first %s) -> focus, blur, light",
+                      i + 1, p.frames_total - p.frames_ok, p.frames_total, first.c_str()));
     }
     if (p.frames_ok > 1) {
-      add(out, Cause::kFocus, p.spread_mm, tol.spread_mm,
+      add_finding(
+          out, Cause::kFocus, p.spread_mm, tol.spread_mm,
           fmt("placement %zu: position spread %.3f mm, heading %.4f deg (std over %d frames) -> "
               "%s",
               i + 1, p.spread_mm, p.spread_deg, p.frames_ok,

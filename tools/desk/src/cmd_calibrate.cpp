@@ -210,7 +210,7 @@ int read_views(const IntrinsicsArgs& a, std::vector<calib::View>* views) {
 }
 
 // The report, the coverage picture, the truth table and the snippet; the exit code.
-int write_intrinsics(const IntrinsicsArgs& a, const calib::Result& r) {
+int write_intrinsics_outputs(const IntrinsicsArgs& a, const calib::Result& r) {
   const char* who = kIntrinsicsWho;
   // The report goes to stdout when the snippet goes to a file, else to stderr.
   FILE* rep = a.out.empty() ? stderr : stdout;
@@ -262,7 +262,7 @@ int calibrate_intrinsics(int argc, char** argv) {
   std::vector<calib::View> views;
   if (const int rc = read_views(a, &views); rc >= 0) return rc;
   const calib::Result r = calib::calibrate(std::move(views), a.spec, a.opt);
-  return write_intrinsics(a, r);
+  return write_intrinsics_outputs(a, r);
 }
 
 }  // namespace agv::desk
