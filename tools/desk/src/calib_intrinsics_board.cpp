@@ -114,8 +114,8 @@ bool make_sim_board(const BoardSpec& s, double margin_mm, sim::CalibBoard* out,
   for (size_t m = 0; m < board->ids.size(); ++m) {
     sim::CalibBoard::Marker mk;
     for (int c = 0; c < 4; ++c) {
-      mk.corners[static_cast<size_t>(c)] = {board->objPoints[m][static_cast<size_t>(c)].x,
-                                            board->objPoints[m][static_cast<size_t>(c)].y};
+      const cv::Point3f& q = board->objPoints[m][static_cast<size_t>(c)];
+      mk.corners[static_cast<size_t>(c)] = {static_cast<double>(q.x), static_cast<double>(q.y)};
     }
     const int id = board->ids[m];
     const cv::Mat bits = cv::aruco::Dictionary::getBitsFromByteList(

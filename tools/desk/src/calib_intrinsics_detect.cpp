@@ -22,7 +22,7 @@ double percentile(std::vector<float> v, double q) {
   if (v.empty()) return 0.0;
   const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * (v.size() - 1) + 0.5));
   std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(k), v.end());
-  return v[k];
+  return static_cast<double>(v[k]);
 }
 
 // Adjacent-corner distance (px) in a detected view: the smallest distance from any corner to

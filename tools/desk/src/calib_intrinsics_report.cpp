@@ -50,8 +50,8 @@ std::string coverage_svg(const Result& r) {
     const int hue = (n++ * 47) % 360;
     s << "<g fill=\"hsl(" << hue << ",80%,40%)\"><title>" << v.name << "</title>";
     for (const auto& p : v.image_points) {
-      s << "<circle cx=\"" << fmt("%.1f", p.x) << "\" cy=\"" << fmt("%.1f", p.y)
-        << "\" r=\"1.8\"/>";
+      s << "<circle cx=\"" << fmt("%.1f", static_cast<double>(p.x)) << "\" cy=\""
+        << fmt("%.1f", static_cast<double>(p.y)) << "\" r=\"1.8\"/>";
     }
     s << "</g>\n";
   }
