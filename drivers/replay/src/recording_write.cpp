@@ -1,5 +1,6 @@
 // Recording format writers (docs/guide/recording.md): meta.yaml, the CSV files and frame PNGs, as
-// the simulator and `agvloc record` write them. The strict readers are in recording.cpp.
+// the simulator and `agvloc record` write them. The strict readers: recording.cpp and
+// the files it names.
 #include <cstdio>
 #include <filesystem>
 #include <fstream>

@@ -90,28 +90,31 @@ bool print_truth_table(FILE* out, const std::string& path, const calib::Result& 
   return true;
 }
 
-}  // namespace
+const char* const kIntrinsicsWho = "agvloc-desk calibrate intrinsics";
 
-int calibrate(int argc, char** argv) { return dispatch_group(kCalibrate, argc, argv); }
+struct IntrinsicsArgs {
+  std::string images, out, coverage, report, truth, board_type = "charuco";
+  calib::BoardSpec spec;
+  calib::Options opt;
+  std::string print_board;
+};
 
-int calibrate_intrinsics(int argc, char** argv) {
+// The command line: -1 to go on, else the exit code.
+int parse_intrinsics_args(int argc, char** argv, IntrinsicsArgs* a) {
   CLI::App app{
       "Camera intrinsics (fx fy cx cy k1 k2 p1 p2 k3) from PNG images of a ChArUco board or a "
       "chessboard: rejects blurred views by name, reports the RMS reprojection error per view "
       "and the image coverage, writes the camera section of the configuration "
       "(docs/guide/camera.md)",
       "agvloc-desk calibrate intrinsics"};
-  std::string images, out, coverage, report, truth, board_type = "charuco";
-  calib::BoardSpec spec;
-  calib::Options opt;
-  std::string print_board;
-  app.add_option("--images", images, "Directory of PNG images (all *.png, sorted by name)");
-  app.add_option("--print-board", print_board,
+  calib::Options& opt = a->opt;
+  app.add_option("--images", a->images, "Directory of PNG images (all *.png, sorted by name)");
+  app.add_option("--print-board", a->print_board,
                  "Write the board as SVG at physical scale (print at 100 %) and exit");
-  calib::add_board_options(app, &spec, &board_type);
-  app.add_option("--out", out, "Write the configuration snippet here (default: stdout)");
-  app.add_option("--coverage", coverage, "Write the coverage picture (SVG) here");
-  app.add_option("--report", report, "Also write the text report here");
+  calib::add_board_options(app, &a->spec, &a->board_type);
+  app.add_option("--out", a->out, "Write the configuration snippet here (default: stdout)");
+  app.add_option("--coverage", a->coverage, "Write the coverage picture (SVG) here");
+  app.add_option("--report", a->report, "Also write the text report here");
   app.add_option("--min-views", opt.min_views, "Fewer usable views: no result")
       ->check(CLI::Range(3, 10000))
       ->capture_default_str();
@@ -131,7 +134,7 @@ int calibrate_intrinsics(int argc, char** argv) {
   app.add_flag("--fix-aspect", opt.fix_aspect, "Estimate one focal length (fx = fy)");
   app.add_flag("--fix-principal-point", opt.fix_principal_point,
                "Keep the principal point at the image centre");
-  app.add_option("--truth", truth,
+  app.add_option("--truth", a->truth,
                  "Configuration file with the true intrinsics (simulated images, e.g. "
                  "sim-board's truth.yaml): print recovered vs true");
   try {
@@ -139,27 +142,33 @@ int calibrate_intrinsics(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
   }
-  calib::apply_board_type(board_type, &spec);
-  const char* who = "agvloc-desk calibrate intrinsics";
+  return -1;
+}
+
+// --print-board: the board as SVG; the exit code.
+int print_board_svg(const calib::BoardSpec& spec, const std::string& path) {
+  const char* who = kIntrinsicsWho;
   std::string error;
-  if (!calib::validate_board(spec, &error)) {
+  sim::CalibBoard board;
+  const double margin = (spec.type == calib::BoardType::kChessboard ? 1.0 : 0.5) * spec.square_mm;
+  if (!calib::make_sim_board(spec, margin, &board, &error)) {
     std::fprintf(stderr, "%s: %s\n", who, error.c_str());
     return 2;
   }
-  if (!print_board.empty()) {
-    sim::CalibBoard board;
-    const double margin = (spec.type == calib::BoardType::kChessboard ? 1.0 : 0.5) * spec.square_mm;
-    if (!calib::make_sim_board(spec, margin, &board, &error)) {
-      std::fprintf(stderr, "%s: %s\n", who, error.c_str());
-      return 2;
-    }
-    if (!write_text(print_board, calib::board_svg(spec, board))) {
-      std::fprintf(stderr, "%s: cannot write %s\n", who, print_board.c_str());
-      return 1;
-    }
-    std::printf("%s: wrote %s\n", who, print_board.c_str());
-    return 0;
+  if (!write_text(path, calib::board_svg(spec, board))) {
+    std::fprintf(stderr, "%s: cannot write %s\n", who, path.c_str());
+    return 1;
   }
+  std::printf("%s: wrote %s\n", who, path.c_str());
+  return 0;
+}
+
+// The PNG images of --images, each detected (or named as unreadable): -1 to go on, else the exit
+// code.
+int read_views(const IntrinsicsArgs& a, std::vector<calib::View>* views) {
+  const char* who = kIntrinsicsWho;
+  const std::string& images = a.images;
+  std::string error;
   if (images.empty()) {
     std::fprintf(stderr, "%s: --images DIR is required (or --print-board FILE.svg)\n", who);
     return 2;
@@ -185,7 +194,6 @@ int calibrate_intrinsics(int argc, char** argv) {
     std::fprintf(stderr, "%s: %s: no .png images\n", who, images.c_str());
     return 2;
   }
-  std::vector<calib::View> views;
   for (const auto& f : files) {
     cv::Mat gray;
     std::string err;
@@ -193,43 +201,68 @@ int calibrate_intrinsics(int argc, char** argv) {
       calib::View v;
       v.name = f.filename().string();
       v.reject_reason = "cannot read: " + err;
-      views.push_back(v);
+      views->push_back(v);
       continue;
     }
-    views.push_back(calib::detect_view(gray, f.filename().string(), spec, opt));
+    views->push_back(calib::detect_view(gray, f.filename().string(), a.spec, a.opt));
   }
-  const calib::Result r = calib::calibrate(std::move(views), spec, opt);
+  return -1;
+}
+
+// The report, the coverage picture, the truth table and the snippet; the exit code.
+int write_intrinsics_outputs(const IntrinsicsArgs& a, const calib::Result& r) {
+  const char* who = kIntrinsicsWho;
   // The report goes to stdout when the snippet goes to a file, else to stderr.
-  FILE* rep = out.empty() ? stderr : stdout;
+  FILE* rep = a.out.empty() ? stderr : stdout;
   const std::string text = calib::report_text(r);
   std::fputs(text.c_str(), rep);
-  if (!report.empty() && !write_text(report, text)) {
-    std::fprintf(stderr, "%s: cannot write %s\n", who, report.c_str());
+  if (!a.report.empty() && !write_text(a.report, text)) {
+    std::fprintf(stderr, "%s: cannot write %s\n", who, a.report.c_str());
     return 1;
   }
-  if (!coverage.empty() && r.usable > 0) {
-    if (!write_text(coverage, calib::coverage_svg(r))) {
-      std::fprintf(stderr, "%s: cannot write %s\n", who, coverage.c_str());
+  if (!a.coverage.empty() && r.usable > 0) {
+    if (!write_text(a.coverage, calib::coverage_svg(r))) {
+      std::fprintf(stderr, "%s: cannot write %s\n", who, a.coverage.c_str());
       return 1;
     }
-    std::fprintf(rep, "coverage picture: %s\n", coverage.c_str());
+    std::fprintf(rep, "coverage picture: %s\n", a.coverage.c_str());
   }
   if (!r.ok) {
     if (rep != stderr) std::fprintf(stderr, "%s: %s\n", who, r.error.c_str());
     return 1;
   }
-  if (!truth.empty() && !print_truth_table(rep, truth, r)) return 1;
-  const std::string snippet = calib::config_snippet(r, images);
-  if (out.empty()) {
+  if (!a.truth.empty() && !print_truth_table(rep, a.truth, r)) return 1;
+  const std::string snippet = calib::config_snippet(r, a.images);
+  if (a.out.empty()) {
     std::fputs(snippet.c_str(), stdout);
   } else {
-    if (!write_text(out, snippet)) {
-      std::fprintf(stderr, "%s: cannot write %s\n", who, out.c_str());
+    if (!write_text(a.out, snippet)) {
+      std::fprintf(stderr, "%s: cannot write %s\n", who, a.out.c_str());
       return 1;
     }
-    std::fprintf(rep, "wrote %s\n", out.c_str());
+    std::fprintf(rep, "wrote %s\n", a.out.c_str());
   }
   return 0;
+}
+
+}  // namespace
+
+int calibrate(int argc, char** argv) { return dispatch_group(kCalibrate, argc, argv); }
+
+int calibrate_intrinsics(int argc, char** argv) {
+  IntrinsicsArgs a;
+  if (const int rc = parse_intrinsics_args(argc, argv, &a); rc >= 0) return rc;
+  calib::apply_board_type(a.board_type, &a.spec);
+  std::string error;
+  if (!calib::validate_board(a.spec, &error)) {
+    std::fprintf(stderr, "%s: %s\n", kIntrinsicsWho, error.c_str());
+    return 2;
+  }
+  if (!a.print_board.empty()) return print_board_svg(a.spec, a.print_board);
+  std::vector<calib::View> views;
+  if (const int rc = read_views(a, &views); rc >= 0) return rc;
+  const calib::Result r = calib::calibrate(std::move(views), a.spec, a.opt);
+  return write_intrinsics_outputs(a, r);
 }
 
 }  // namespace agv::desk
