@@ -195,9 +195,12 @@ TEST_F(OverheadAravis, RunReportsAKilledCameraAndItsRecovery) {
   EXPECT_EQ(s.backwards, 0) << out;
   // Stamped by the camera's clock mapped onto CLOCK_MONOTONIC: a frame is taken shortly after
   // its exposure (the fake camera stamps a frame when it sends it, so the mid-exposure stamp may
-  // lie up to half an exposure after the receipt).
+  // lie up to half an exposure after the receipt). On a loaded host whole bins of the latency
+  // envelope are lifted, and the line through them has put a mapped stamp up to 2.4 ms after its
+  // receipt (measured with two builds beside the test): 5 ms is the bound, still far below the
+  // frame period a wrong or missing mapping would show.
   EXPECT_TRUE(s.clock_mapped) << out;
-  EXPECT_GT(s.age_min_ms, -1.0) << out;
+  EXPECT_GT(s.age_min_ms, -5.0) << out;
   EXPECT_LT(s.age_max_ms, 500.0) << out;
   EXPECT_NE(err.find("camera cam-west: camera clock mapped onto the host's: offset"),
             std::string::npos)
