@@ -217,7 +217,8 @@ int load_inputs(ReplayArgs& a, ReplayInputs* in) {
   }
   for (const auto& d : in->differ) replay_fail(d, 0);
   in->map_file = a.map_file;
-  if (in->map_file.empty() && std::filesystem::exists(std::filesystem::path(a.rec_dir) / "map.csv")) {
+  if (in->map_file.empty() &&
+      std::filesystem::exists(std::filesystem::path(a.rec_dir) / "map.csv")) {
     in->map_file = (std::filesystem::path(a.rec_dir) / "map.csv").string();
   }
   if (in->map_file.empty() && !cfg.map_file.empty()) in->map_file = cfg.map_file;
@@ -260,8 +261,7 @@ struct ReplayOutputs {
     // VDA 5050 (vda5050.enabled): stamped in recording time, so a message matches poses.csv.
     if (in.cfg.vda5050.enabled) {
       mqtt = std::make_unique<app::MqttPublisher>(in.cfg.vda5050, mqtt_handoff,
-                                                  app::StampClock::kLoop,
-                                                  in.cfg.loop.service_cpus);
+                                                  app::StampClock::kLoop, in.cfg.loop.service_cpus);
       if (!mqtt->start(&err)) return replay_fail(err, 2);
     }
     // Diagnostics page (--serve): the same page as `agvloc run`, in recording time.
@@ -305,8 +305,8 @@ int run_realtime(const ReplayArgs& a, const ReplayInputs& in, ReplayOutputs& out
     if (e) replay_fail(posix::explain_realtime_error("mlockall", e), 0);
   }
   posix::PosixClock mono;
-  std::int64_t t_first = rec.frames.empty() ? (rec.odom.empty() ? 0 : rec.odom.front().t_ns)
-                                            : rec.frames.front().t_ns;
+  std::int64_t t_first =
+      rec.frames.empty() ? (rec.odom.empty() ? 0 : rec.odom.front().t_ns) : rec.frames.front().t_ns;
   hal::CanFrame first_odometry{};
   std::int64_t mono0 = mono.now_ns();
   if (a.odom_from_can) {
@@ -395,8 +395,7 @@ int check_run(const ReplayArgs& a, const ReplayInputs& in, const app::RunResult&
                  static_cast<unsigned long long>(result.camera.errors), in.rec.frames.size(),
                  result.camera_error.c_str());
   }
-  if (!in.rec.frames.empty() && result.camera.frames_delivered == 0 &&
-      !stop_requested().load()) {
+  if (!in.rec.frames.empty() && result.camera.frames_delivered == 0 && !stop_requested().load()) {
     std::fprintf(stderr, "replay: no frame of %s could be read: the run used odometry only\n",
                  a.rec_dir.c_str());
     rc = 1;
@@ -408,8 +407,7 @@ int check_run(const ReplayArgs& a, const ReplayInputs& in, const app::RunResult&
                  "received odometry samples are not in %s\n",
                  static_cast<unsigned long long>(result.ticks_not_recorded),
                  static_cast<unsigned long long>(result.fixes_not_recorded),
-                 static_cast<unsigned long long>(result.odometry_not_recorded),
-                 a.out_dir.c_str());
+                 static_cast<unsigned long long>(result.odometry_not_recorded), a.out_dir.c_str());
   }
   return rc;
 }
@@ -458,8 +456,8 @@ std::string summary_text(const ReplayArgs& a, const ReplayInputs& in, const Repl
 
 // poses.csv, fixes.csv, odom_received.csv, overlays and summary.txt. Returns 1 when a file could
 // not be written, else rc.
-int write_outputs(const ReplayArgs& a, const ReplayInputs& in, const ReplayRecord& r,
-                  bool imu_fed, const std::string& mqtt_line, int rc) {
+int write_outputs(const ReplayArgs& a, const ReplayInputs& in, const ReplayRecord& r, bool imu_fed,
+                  const std::string& mqtt_line, int rc) {
   const std::filesystem::path dir(a.out_dir);
   const std::string poses = (dir / "poses.csv").string();
   const std::string fixes_csv = (dir / "fixes.csv").string();

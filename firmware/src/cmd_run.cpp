@@ -107,8 +107,8 @@ struct Outputs {
     const config::Config& cfg = s.cfg;
     if (cfg.vda5050.enabled) {
       // VDA 5050 wants wall-clock stamps; the loop runs on the monotonic clock.
-      mqtt = std::make_unique<app::MqttPublisher>(cfg.vda5050, mqtt_handoff,
-                                                  app::StampClock::kWall, cfg.loop.service_cpus);
+      mqtt = std::make_unique<app::MqttPublisher>(cfg.vda5050, mqtt_handoff, app::StampClock::kWall,
+                                                  cfg.loop.service_cpus);
       if (!mqtt->start(err)) return false;
       io->sinks.push_back(&mqtt_handoff);
     }

@@ -2,9 +2,9 @@
 // shaped like the MQTT one (mqtt_handoff.hpp): the loop side never blocks and never allocates.
 // The output loop records fixes and trajectory points into fixed rings it alone owns, and at the
 // hand-off rate (loop time) copies them with the tick and the statistics into a LatestSlot it
-// only try-locks; a busy slot skips that hand-off (counted), the next one retries. The vision worker
-// offers frames to a FrameTap the same way; it copies one only when the server asked for it (or
-// rarely, so a finished replay still has a recent frame).
+// only try-locks; a busy slot skips that hand-off (counted), the next one retries. The vision
+// worker offers frames to a FrameTap the same way; it copies one only when the server asked for it
+// (or rarely, so a finished replay still has a recent frame).
 #pragma once
 
 #include <atomic>

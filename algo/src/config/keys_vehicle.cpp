@@ -106,9 +106,7 @@ void add_landmark(std::vector<Key>* k) {
                        "outer side of the dark square: the QR landmark's border, the "
                        "tag36h11 tag's black square (docs/design/landmark.md)"}));
   k->push_back(enumeration(
-      "landmark.family", AGV_AT(vision.family),
-      named(kLandmarkFamilyNames),
-      "qr",
+      "landmark.family", AGV_AT(vision.family), named(kLandmarkFamilyNames), "qr",
       "printed landmarks on this floor: the QR landmark (identity and pose in the code) or "
       "AprilTag tag36h11 (libapriltag detection, same edge-fit pose; the id needs the map, so "
       "without landmark.map every tag is \"not in the map\": `agvloc run` refuses tag36h11 "

@@ -22,7 +22,8 @@ NoFixDiagnosis diagnose_no_fix(std::uint64_t frames_processed,
                   vision::to_string(static_cast<vision::FixStatus>(i));
   }
   const bool tag = c.family == LandmarkFamily::kTag36h11;
-  const std::string family = std::string("landmark.family (") + landmark_family_name(c.family) + ", " +
+  const std::string family = std::string("landmark.family (") + landmark_family_name(c.family) +
+                             ", " +
                              (c.family_source.empty() ? "the default: neither --config nor "
                                                         "meta.yaml sets it"
                                                       : "from " + c.family_source) +

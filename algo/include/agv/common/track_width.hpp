@@ -1,6 +1,7 @@
 // The drive wheels' track, one default for every user: the CAN wheel-speed decoding, the
 // unequal-wheels correction, the fusion's slip lever arm and the vehicle calibration. The value
-// itself is one key, can.odometry.track_width_mm (stored in fusion::EkfConfig::slip.wheel_track_mm).
+// itself is one key, can.odometry.track_width_mm (stored in
+// fusion::EkfConfig::slip.wheel_track_mm).
 #pragma once
 
 namespace agv {

@@ -1,7 +1,7 @@
 // Fusion EKF: wheel odometry (v, omega), a gyro, landmark fixes (world pose of the vehicle) and
 // range-bearing observations of landmarks into a pose at any requested time, with delayed inputs,
-// chi-square gating, kidnap recovery and health. Model: Yang et al. eq. 14-19 (state x, y, theta, v,
-// omega); details and measured accuracy in docs/design/fusion.md. Conventions:
+// chi-square gating, kidnap recovery and health. Model: Yang et al. eq. 14-19 (state x, y, theta,
+// v, omega); details and measured accuracy in docs/design/fusion.md. Conventions:
 // docs/design/frames.md (mm, rad wrapped to (-pi, pi], ns).
 //
 // The implementation is split by aid source: the core (ekf_core.cpp: prediction, the generic

@@ -34,11 +34,11 @@ enum class TableStatus {
 const char* table_status_name(TableStatus status);
 
 enum class RefusalReason {
-  kUnknownId,   // decoded, but no wall landmark of the site has this id
-  kMirrored,    // the code reads correctly only mirrored: seen through a reflection
-  kTooSmall,    // shorter side under min_side_px: its pose would be noise
-  kTouchesEdge, // a corner within edge_margin_px of the image border (partly outside)
-  kNoPose       // the pose solver failed or put the tag behind the camera
+  kUnknownId,    // decoded, but no wall landmark of the site has this id
+  kMirrored,     // the code reads correctly only mirrored: seen through a reflection
+  kTooSmall,     // shorter side under min_side_px: its pose would be noise
+  kTouchesEdge,  // a corner within edge_margin_px of the image border (partly outside)
+  kNoPose        // the pose solver failed or put the tag behind the camera
 };
 const char* refusal_reason_name(RefusalReason reason);
 
@@ -86,7 +86,7 @@ struct LandmarkObservation {
   std::size_t landmark_index = 0;  // into the site's wall_landmarks
   Vec2 landmark_xy_mm;             // surveyed centre, site frame
   double landmark_facing_rad = 0.0;
-  std::array<Vec2, 4> corners_px{};           // refined, distorted, page order TL TR BR BL
+  std::array<Vec2, 4> corners_px{};  // refined, distorted, page order TL TR BR BL
   std::array<Vec2, 4> corners_undistorted_px{};
   double corner_sigma_px = 0.0;  // used for both covariances
   RangeBearing size;             // range from the apparent height read as depth, no yaw
@@ -133,7 +133,8 @@ class LandmarkObserver {
   // Checks the landmark table and the intrinsics; status() says why it will see nothing.
   // The agvloc-family landmarks of the site are skipped (this observer reads tag36h11 only).
   LandmarkObserver(const CameraIntrinsics& intrinsics, const RangingMount& mount,
-                   std::span<const site::WallLandmark> landmarks, const ObserveOptions& options = {});
+                   std::span<const site::WallLandmark> landmarks,
+                   const ObserveOptions& options = {});
   ~LandmarkObserver();
   LandmarkObserver(const LandmarkObserver&) = delete;
   LandmarkObserver& operator=(const LandmarkObserver&) = delete;
