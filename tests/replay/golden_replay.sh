@@ -4,16 +4,10 @@
 #   golden_replay.sh AGVLOC WORKDIR [--update]
 # AGVLOC may be "EMULATOR ARGS... BINARY"; the simulator is agvloc-desk beside BINARY.
 set -euo pipefail
-read -r -a AGVLOC <<< "$1"  # may be "EMULATOR ARGS... BINARY"
-DESK=("${AGVLOC[@]}")
-DESK[-1]="$(dirname "${AGVLOC[-1]}")/agvloc-desk"
-if [ -n "${AGV_DESK:-}" ]; then read -r -a DESK <<< "$AGV_DESK"; fi  # a native desk (AGV_HOST_DESK)
-WORK="$2"
+source "$(dirname "$0")/replay_env.sh"
 UPDATE="${3:-}"
 HERE="$(cd "$(dirname "$0")" && pwd)"
 GOLDEN="$HERE/../data/replay"
-rm -rf "$WORK"
-mkdir -p "$WORK"
 "${DESK[@]}" sim --out "$WORK/rec" --trajectory line --duration-s 4 --fps 15 --seed 7 \
   --speed-mps 0.5 > "$WORK/sim.log"
 "${AGVLOC[@]}" replay "$WORK/rec" --out "$WORK/out" --fast --quiet > "$WORK/replay.log"

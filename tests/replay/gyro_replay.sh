@@ -6,13 +6,7 @@
 # also the output from before the gyro input is golden_replay.sh's question.)
 #   gyro_replay.sh AGVLOC WORKDIR
 set -euo pipefail
-read -r -a AGVLOC <<< "$1"  # may be "EMULATOR ARGS... BINARY"
-DESK=("${AGVLOC[@]}")
-DESK[-1]="$(dirname "${AGVLOC[-1]}")/agvloc-desk"
-if [ -n "${AGV_DESK:-}" ]; then read -r -a DESK <<< "$AGV_DESK"; fi  # a native desk (AGV_HOST_DESK)
-WORK="$2"
-rm -rf "$WORK"
-mkdir -p "$WORK"
+source "$(dirname "$0")/replay_env.sh"
 SIM=(sim --trajectory line --duration-s 4 --fps 15 --seed 7 --speed-mps 0.5)  # golden_replay.sh's
 
 "${DESK[@]}" "${SIM[@]}" --out "$WORK/gyro" > "$WORK/sim_gyro.log"

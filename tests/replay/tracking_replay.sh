@@ -4,14 +4,8 @@
 # prediction's search window (fixes.csv column `search`).
 #   tracking_replay.sh AGVLOC WORKDIR MAP
 set -euo pipefail
-read -r -a AGVLOC <<< "$1"  # may be "EMULATOR ARGS... BINARY"
-DESK=("${AGVLOC[@]}")
-DESK[-1]="$(dirname "${AGVLOC[-1]}")/agvloc-desk"
-if [ -n "${AGV_DESK:-}" ]; then read -r -a DESK <<< "$AGV_DESK"; fi  # a native desk (AGV_HOST_DESK)
-WORK="$2"
+source "$(dirname "$0")/replay_env.sh"
 MAP="$3"
-rm -rf "$WORK"
-mkdir -p "$WORK"
 "${DESK[@]}" sim --out "$WORK/rec" --trajectory line --duration-s 8 --fps 15 --seed 7 \
   --speed-mps 0.5 --map "$MAP" > "$WORK/sim.log"
 "${AGVLOC[@]}" replay "$WORK/rec" --out "$WORK/out" --fast --quiet --map "$MAP" > "$WORK/replay.log"
