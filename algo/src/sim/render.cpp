@@ -524,7 +524,7 @@ cv::Mat FrameRenderer::render(const Pose2& pose, const RenderOptions& o,
   }
   const size_t ic = static_cast<size_t>((h_ / 2) * w_ + w_ / 2);
   apply_motion_blur(o, camera_, centre_v_[ic], centre_ok_[ic] != 0, &img);
-  return quantise_with_noise(img, o, rng);
+  return quantise_with_noise(img, o.read_noise_sigma, o.shot_noise_gain, rng);
 }
 
 cv::Mat render_frame(const Scene& scene, const CameraModel& camera, const Pose2& vehicle_pose_world,

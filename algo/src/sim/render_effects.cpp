@@ -68,10 +68,11 @@ void apply_motion_blur(const RenderOptions& o, const FloorProjector& camera, Vec
   }
 }
 
-cv::Mat quantise_with_noise(const cv::Mat& img, const RenderOptions& o, std::mt19937_64& rng) {
+cv::Mat quantise_with_noise(const cv::Mat& img, double read_noise_sigma, double shot_noise_gain,
+                            std::mt19937_64& rng) {
   const int w = img.cols, h = img.rows;
   cv::Mat out(h, w, CV_8UC1);
-  const bool noisy = o.read_noise_sigma > 0.0 || o.shot_noise_gain > 0.0;
+  const bool noisy = read_noise_sigma > 0.0 || shot_noise_gain > 0.0;
   std::normal_distribution<double> nd(0.0, 1.0);
   for (int y = 0; y < h; ++y) {
     const float* src = img.ptr<float>(y);
@@ -79,8 +80,8 @@ cv::Mat quantise_with_noise(const cv::Mat& img, const RenderOptions& o, std::mt1
     for (int x = 0; x < w; ++x) {
       double v = static_cast<double>(src[x]);
       if (noisy) {
-        const double var = o.read_noise_sigma * o.read_noise_sigma +
-                           std::max(0.0, o.shot_noise_gain) * std::max(0.0, v);
+        const double var =
+            read_noise_sigma * read_noise_sigma + std::max(0.0, shot_noise_gain) * std::max(0.0, v);
         v += std::sqrt(var) * nd(rng);
       }
       dst[x] = static_cast<std::uint8_t>(std::clamp(std::lround(v), 0L, 255L));

@@ -16,7 +16,10 @@ void apply_illumination(const RenderOptions& o, cv::Mat* img);
 void apply_motion_blur(const RenderOptions& o, const FloorProjector& camera, Vec2 centre_v,
                        bool centre_ok, cv::Mat* img);
 
-// The 8-bit frame: read and shot noise drawn from `rng`, rounded and clamped to 0..255.
-cv::Mat quantise_with_noise(const cv::Mat& img, const RenderOptions& o, std::mt19937_64& rng);
+// The 8-bit frame of a CV_32FC1 image: Gaussian read noise (sigma in 8-bit units) and shot noise
+// (variance = gain * signal) drawn from `rng`, rounded and clamped to 0..255. The floor and the
+// site renderer both end with it.
+cv::Mat quantise_with_noise(const cv::Mat& img, double read_noise_sigma, double shot_noise_gain,
+                            std::mt19937_64& rng);
 
 }  // namespace agv::sim

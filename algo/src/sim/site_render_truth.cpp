@@ -6,6 +6,7 @@
 #include <opencv2/imgproc.hpp>
 #include <random>
 
+#include "render_effects.hpp"
 #include "site_render_internal.hpp"
 
 namespace agv::sim::site_render_detail {
@@ -174,24 +175,8 @@ cv::Mat finish_image(const cv::Mat& radiance, const SiteRenderParams& p, std::ui
     cv::GaussianBlur(img, img, cv::Size(0, 0), p.defocus_sigma_px, p.defocus_sigma_px,
                      cv::BORDER_REFLECT);
   }
-  cv::Mat out(h, w, CV_8UC1);
-  const bool noisy = p.read_noise_sigma > 0.0 || p.shot_noise_gain > 0.0;
   std::mt19937_64 rng(seed);
-  std::normal_distribution<double> nd(0.0, 1.0);
-  for (int y = 0; y < h; ++y) {
-    const float* src = img.ptr<float>(y);
-    auto* dst = out.ptr<std::uint8_t>(y);
-    for (int x = 0; x < w; ++x) {
-      double v = static_cast<double>(src[x]);
-      if (noisy) {
-        const double var = p.read_noise_sigma * p.read_noise_sigma +
-                           std::max(0.0, p.shot_noise_gain) * std::max(0.0, v);
-        v += std::sqrt(var) * nd(rng);
-      }
-      dst[x] = static_cast<std::uint8_t>(std::clamp(std::lround(v), 0L, 255L));
-    }
-  }
-  return out;
+  return quantise_with_noise(img, p.read_noise_sigma, p.shot_noise_gain, rng);
 }
 
 }  // namespace agv::sim::site_render_detail
