@@ -7,27 +7,35 @@
 
 namespace agv::sim {
 
+IlluminationGradient illumination_gradient(int width_px, int height_px, double direction_deg) {
+  IlluminationGradient g;
+  const double dir = deg_to_rad(direction_deg);
+  g.dx = std::cos(dir);
+  g.dy = std::sin(dir);
+  double tmin = 1e300, tmax = -1e300;
+  for (int cy = 0; cy <= 1; ++cy) {
+    for (int cx = 0; cx <= 1; ++cx) {
+      const double t = cx * (width_px - 1) * g.dx + cy * (height_px - 1) * g.dy;
+      tmin = std::min(tmin, t);
+      tmax = std::max(tmax, t);
+    }
+  }
+  g.tmin = tmin;
+  g.span = std::max(1e-9, tmax - tmin);
+  return g;
+}
+
 // Illumination multiplies scene radiance, so it comes before the optical blurs.
 void apply_illumination(const RenderOptions& o, cv::Mat* img) {
   const int w = img->cols, h = img->rows;
   const double gain = std::max(0.0, o.exposure_gain);
   if (o.illumination_ratio != 1.0 || gain != 1.0) {
-    const double dir = deg_to_rad(o.illumination_direction_deg);
-    const double dx = std::cos(dir), dy = std::sin(dir);
-    double tmin = 1e300, tmax = -1e300;
-    for (int cy = 0; cy <= 1; ++cy) {
-      for (int cx = 0; cx <= 1; ++cx) {
-        const double t = cx * (w - 1) * dx + cy * (h - 1) * dy;
-        tmin = std::min(tmin, t);
-        tmax = std::max(tmax, t);
-      }
-    }
-    const double span = std::max(1e-9, tmax - tmin);
+    const IlluminationGradient g = illumination_gradient(w, h, o.illumination_direction_deg);
     const double ratio = std::clamp(o.illumination_ratio, 0.0, 10.0);
     for (int y = 0; y < h; ++y) {
       float* row = img->ptr<float>(y);
       for (int x = 0; x < w; ++x) {
-        const double t = (x * dx + y * dy - tmin) / span;
+        const double t = g.at(x, y);
         row[x] = static_cast<float>(static_cast<double>(row[x]) * gain * (1.0 + (ratio - 1.0) * t));
       }
     }

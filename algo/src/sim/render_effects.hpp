@@ -8,6 +8,15 @@
 
 namespace agv::sim {
 
+// Where a pixel lies along a linear illumination gradient: 0 at the image corner first along the
+// direction, 1 at the last. The floor and the site renderer share it.
+struct IlluminationGradient {
+  double dx = 1.0, dy = 0.0;      // the direction in the image
+  double tmin = 0.0, span = 1.0;  // the corners' range along it
+  double at(int x, int y) const { return (x * dx + y * dy - tmin) / span; }
+};
+IlluminationGradient illumination_gradient(int width_px, int height_px, double direction_deg);
+
 // Exposure gain and the linear illumination gradient, in place on a CV_32FC1 radiance image.
 void apply_illumination(const RenderOptions& o, cv::Mat* img);
 

@@ -148,23 +148,13 @@ cv::Mat finish_image(const cv::Mat& radiance, const SiteRenderParams& p, std::ui
   const double ratio = std::clamp(p.illumination_ratio, 0.0, 10.0);
   const double vig = std::clamp(p.vignetting, 0.0, 1.0);
   if (ratio != 1.0 || gain != 1.0 || vig > 0.0) {
-    const double dir = deg_to_rad(p.illumination_direction_deg);
-    const double dx = std::cos(dir), dy = std::sin(dir);
-    double tmin = 1e300, tmax = -1e300;
-    for (int cy = 0; cy <= 1; ++cy) {
-      for (int cx = 0; cx <= 1; ++cx) {
-        const double t = cx * (w - 1) * dx + cy * (h - 1) * dy;
-        tmin = std::min(tmin, t);
-        tmax = std::max(tmax, t);
-      }
-    }
-    const double span = std::max(1e-9, tmax - tmin);
+    const IlluminationGradient g = illumination_gradient(w, h, p.illumination_direction_deg);
     const double mx = 0.5 * (w - 1), my = 0.5 * (h - 1);
     const double r2c = std::max(1e-9, mx * mx + my * my);
     for (int y = 0; y < h; ++y) {
       float* row = img.ptr<float>(y);
       for (int x = 0; x < w; ++x) {
-        const double t = (x * dx + y * dy - tmin) / span;
+        const double t = g.at(x, y);
         const double r2 = ((x - mx) * (x - mx) + (y - my) * (y - my)) / r2c;
         row[x] = static_cast<float>(static_cast<double>(row[x]) * gain * (1.0 + (ratio - 1.0) * t) *
                                     (1.0 - vig * r2));
