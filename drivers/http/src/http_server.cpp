@@ -4,6 +4,7 @@
 #include <arpa/inet.h>
 #include <netdb.h>
 #include <netinet/in.h>
+#include <netinet/tcp.h>
 #include <png.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -46,6 +47,20 @@ constexpr std::size_t kConnectionMemory = 16 * 1024;
 constexpr std::size_t kIdleHeadroom = 64;
 constexpr std::size_t kHardHeadroom = 64;
 constexpr std::size_t kMaxConnections = 512;
+#endif  // AGV_HAVE_MHD
+
+#ifdef AGV_HAVE_MHD
+// A connection reaches the library only once its first bytes are in (or after kIdleTimeoutS): a
+// normal client's request is then waiting from the moment it is accepted, so it never looks like
+// an idle socket to DiagConnections, however long the client or this process is descheduled
+// between connect and send, and idle sockets take no library slot until they are old enough to
+// be dropped. Best effort: without the option the eviction rules alone apply.
+void defer_accept(MHD_Daemon* daemon) {
+  const MHD_DaemonInfo* info = MHD_get_daemon_info(daemon, MHD_DAEMON_INFO_LISTEN_FD);
+  if (!info) return;
+  const int seconds = static_cast<int>(kIdleTimeoutS);
+  (void)::setsockopt(info->listen_fd, IPPROTO_TCP, TCP_DEFER_ACCEPT, &seconds, sizeof(seconds));
+}
 #endif  // AGV_HAVE_MHD
 
 void write_png_data(png_structp png, png_bytep data, png_size_t length) {
@@ -330,7 +345,8 @@ HttpServer::~HttpServer() { stop(); }
 int HttpServer::port() const { return impl_->port; }
 
 HttpCounters HttpServer::counters() const {
-  return {impl_->requests.load(), impl_->refused_busy.load(), impl_->refused_bad.load()};
+  return {impl_->requests.load(), impl_->refused_busy.load(), impl_->refused_bad.load(),
+          impl_->conns.open_count()};
 }
 
 bool HttpServer::start(std::string* error) {
@@ -378,6 +394,7 @@ bool HttpServer::start(std::string* error) {
   }
   const MHD_DaemonInfo* info = MHD_get_daemon_info(m.daemon, MHD_DAEMON_INFO_BIND_PORT);
   m.port = info ? info->port : 0;
+  defer_accept(m.daemon);
   m.stopping = false;
   m.reaper = std::thread([&m] {
     m.on_thread_start();

@@ -53,6 +53,7 @@ struct HttpCounters {
   std::uint64_t requests = 0;      // answered 2xx
   std::uint64_t refused_busy = 0;  // 503: more than max_clients in progress
   std::uint64_t refused_bad = 0;   // 4xx
+  std::uint64_t open = 0;          // connections accepted and not yet closed or cut
 };
 
 class HttpServer {
