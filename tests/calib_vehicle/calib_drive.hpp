@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <map>
 #include <random>
+#include <string>
 #include <vector>
 
 #include "calib_gyro.hpp"
@@ -235,6 +236,36 @@ inline Drive make_calibration_drive(const DriveTruth& tr) {
     }
   }
   return d;
+}
+
+// The landmarks' half-sizes the drives' observations are of (outer square, inner square, mm).
+inline constexpr double kOuterHalfMm = 30.0;
+inline constexpr double kInnerHalfMm = 24.0;
+
+// The vehicle calibration of a drive from the nominal configuration the tests start from (the
+// default camera's mounting); false with *error as calibrate_vehicle.
+inline bool calibrate_from_nominal(const Drive& d, const desk::vcal::Options& opt,
+                                   desk::vcal::Result* r, std::string* error) {
+  desk::vcal::VehicleParams nominal;
+  nominal.mount = CameraModel::default_640x480().mount;
+  return desk::vcal::calibrate_vehicle(d.odom, d.obs, d.map, kOuterHalfMm, kInnerHalfMm, nominal,
+                                       opt, r, error);
+}
+
+// The true parameters in the order and units of the calibration's report (Result::params): mm and
+// degrees for the mounting, the scales, deg/s and deg/m, and the time offset in ms.
+inline std::array<double, 11> reported_truth(const desk::vcal::VehicleParams& p) {
+  return {p.mount.offset_x_mm,
+          p.mount.offset_y_mm,
+          rad_to_deg(p.mount.yaw_rad),
+          p.mount.height_mm,
+          rad_to_deg(p.mount.roll_rad),
+          rad_to_deg(p.mount.pitch_rad),
+          p.speed_scale,
+          p.yaw_rate_scale,
+          rad_to_deg(p.yaw_rate_bias_radps),
+          rad_to_deg(p.yaw_per_metre_rad),
+          p.time_offset_s * 1e3};
 }
 
 }  // namespace agv::calibtest

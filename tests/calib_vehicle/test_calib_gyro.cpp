@@ -33,6 +33,13 @@ double true_bias(const calibtest::DriveTruth& t) {
   return -t.gyro_bias_radps / (1.0 + t.gyro_scale_error);
 }
 
+// The gyro calibration under the drive's true mounting and clock, odometry scale 1.
+bool true_mount_gyro(const calibtest::Drive& d, const calibtest::DriveTruth& t, GyroResult* g,
+                     std::string* error) {
+  return calibrate_gyro(d.gyro, d.obs, d.map, calibtest::kOuterHalfMm, calibtest::kInnerHalfMm,
+                        t.p.mount, 1.0, 0.0, GyroOptions{}, g, error);
+}
+
 Options vehicle_options() {
   Options o;
   o.fx_px = CameraModel::default_640x480().intrinsics.fx;
@@ -62,13 +69,9 @@ TEST_P(CalibGyroSeeds, RecoversScaleAndBiasWithinThreeSigma) {
   const calibtest::DriveTruth t = gyro_drive(GetParam());
   const calibtest::Drive d = calibtest::make_calibration_drive(t);
   ASSERT_FALSE(d.gyro.empty());
-  VehicleParams nominal;
-  nominal.mount = CameraModel::default_640x480().mount;
   Result r;
   std::string err;
-  ASSERT_TRUE(
-      calibrate_vehicle(d.odom, d.obs, d.map, 30.0, 24.0, nominal, vehicle_options(), &r, &err))
-      << err;
+  ASSERT_TRUE(calibtest::calibrate_from_nominal(d, vehicle_options(), &r, &err)) << err;
   GyroResult g;
   // Gyro clock - camera clock starts from the odometry's (as the command does); the truth is the
   // gyro's latency.
@@ -102,9 +105,7 @@ TEST(CalibGyro, PerfectGyroUnderTrueMountingGivesIdentity) {
   const calibtest::Drive d = calibtest::make_calibration_drive(t);
   GyroResult g;
   std::string err;
-  ASSERT_TRUE(calibrate_gyro(d.gyro, d.obs, d.map, 30.0, 24.0, t.p.mount, 1.0, 0.0, GyroOptions{},
-                             &g, &err))
-      << err;
+  ASSERT_TRUE(true_mount_gyro(d, t, &g, &err)) << err;
   print("true mounting, perfect gyro", t, g);
   EXPECT_NEAR(g.scale, 1.0, std::max(3.0 * g.scale_sigma, 1e-5));
   EXPECT_NEAR(g.bias_radps, 0.0, std::max(3.0 * g.bias_sigma_radps, 1e-6));
@@ -122,9 +123,7 @@ TEST(CalibGyro, BadFixesAreLeftOut) {
   }
   GyroResult g;
   std::string err;
-  ASSERT_TRUE(calibrate_gyro(d.gyro, d.obs, d.map, 30.0, 24.0, t.p.mount, 1.0, 0.0, GyroOptions{},
-                             &g, &err))
-      << err;
+  ASSERT_TRUE(true_mount_gyro(d, t, &g, &err)) << err;
   print("8 bad fixes", t, g);
   EXPECT_GE(g.frames_rejected, bad);
   EXPECT_LE(g.frames_rejected, bad + 10);
@@ -143,9 +142,7 @@ TEST(CalibGyro, NoTurnsRefusesScale) {
   const calibtest::Drive d = calibtest::make_calibration_drive(t);
   GyroResult g;
   std::string err;
-  ASSERT_TRUE(calibrate_gyro(d.gyro, d.obs, d.map, 30.0, 24.0, t.p.mount, 1.0, 0.0, GyroOptions{},
-                             &g, &err))
-      << err;
+  ASSERT_TRUE(true_mount_gyro(d, t, &g, &err)) << err;
   print("no turns", t, g);
   EXPECT_FALSE(g.scale_determined);
   EXPECT_TRUE(g.scale_fixed);

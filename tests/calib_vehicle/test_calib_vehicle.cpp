@@ -45,23 +45,10 @@ TEST_P(CalibVehicleSeeds, RecoversPerturbedMountingOdometryAndTimeOffset) {
     truth.p.time_offset_s = -0.03;
   }
   const calibtest::Drive d = calibtest::make_calibration_drive(truth);
-  VehicleParams nominal;
-  nominal.mount = CameraModel::default_640x480().mount;
   Result r;
   std::string err;
-  ASSERT_TRUE(calibrate_vehicle(d.odom, d.obs, d.map, 30.0, 24.0, nominal, options(), &r, &err))
-      << err;
-  const double tv[] = {truth.p.mount.offset_x_mm,
-                       truth.p.mount.offset_y_mm,
-                       rad_to_deg(truth.p.mount.yaw_rad),
-                       truth.p.mount.height_mm,
-                       rad_to_deg(truth.p.mount.roll_rad),
-                       rad_to_deg(truth.p.mount.pitch_rad),
-                       truth.p.speed_scale,
-                       truth.p.yaw_rate_scale,
-                       rad_to_deg(truth.p.yaw_rate_bias_radps),
-                       rad_to_deg(truth.p.yaw_per_metre_rad),
-                       truth.p.time_offset_s * 1e3};
+  ASSERT_TRUE(calibtest::calibrate_from_nominal(d, options(), &r, &err)) << err;
+  const std::array<double, 11> tv = calibtest::reported_truth(truth.p);
   // The commissioning targets (scales: 0.05 % relative); yaw per metre: 3 sigma of this drive (its
   // straight passes determine it to 0.04 deg/m).
   const double tol[] = {0.2, 0.2, 0.02, 0.2, 0.05, 0.05, 0.0005, 0.0005, 0.01, 0.12, 0.5};
@@ -89,12 +76,9 @@ TEST(CalibVehicle, NoTurnsRefusesYawRateScaleAndOffset) {
   calibtest::DriveTruth truth = perturbed();
   truth.turns = false;
   const calibtest::Drive d = calibtest::make_calibration_drive(truth);
-  VehicleParams nominal;
-  nominal.mount = CameraModel::default_640x480().mount;
   Result r;
   std::string err;
-  ASSERT_TRUE(calibrate_vehicle(d.odom, d.obs, d.map, 30.0, 24.0, nominal, options(), &r, &err))
-      << err;
+  ASSERT_TRUE(calibtest::calibrate_from_nominal(d, options(), &r, &err)) << err;
   EXPECT_FALSE(r.turns_seen);
   EXPECT_FALSE(r.param("odometry.yaw_rate_scale").determined);
   EXPECT_FALSE(r.param("mounting.offset_x_mm").determined);

@@ -133,14 +133,12 @@ TEST(CalibVehicleWear, ResidualTableNamesTheWornLandmark) {
   t.wear_mm = 0.05;
   t.wear_noise_px = 0.5;
   const calibtest::Drive d = calibtest::make_calibration_drive(t);
-  VehicleParams nominal;
-  nominal.mount = CameraModel::default_640x480().mount;
   Options opt;
   opt.fx_px = kFx;
   opt.pixel_sigma_px = 0.05;
   Result r;
   std::string err;
-  ASSERT_TRUE(calibrate_vehicle(d.odom, d.obs, d.map, 30.0, 24.0, nominal, opt, &r, &err)) << err;
+  ASSERT_TRUE(calibtest::calibrate_from_nominal(d, opt, &r, &err)) << err;
   const std::string table = landmark_table(r);
   std::printf("%s", table.c_str());
   ASSERT_EQ(r.landmarks.size(), 3u);

@@ -32,25 +32,13 @@ class CalibVehicleWornDrive : public ::testing::TestWithParam<unsigned> {};
 TEST_P(CalibVehicleWornDrive, SigmaCoversTheError) {
   const calibtest::DriveTruth truth = worn_drive(GetParam());
   const calibtest::Drive d = calibtest::make_calibration_drive(truth);
-  VehicleParams nominal;
-  nominal.mount = CameraModel::default_640x480().mount;
   Options opt;
   opt.fx_px = CameraModel::default_640x480().intrinsics.fx;
   opt.pixel_sigma_px = 0.05;  // the clean landmarks' corner noise
   Result r;
   std::string err;
-  ASSERT_TRUE(calibrate_vehicle(d.odom, d.obs, d.map, 30.0, 24.0, nominal, opt, &r, &err)) << err;
-  const double tv[] = {truth.p.mount.offset_x_mm,
-                       truth.p.mount.offset_y_mm,
-                       rad_to_deg(truth.p.mount.yaw_rad),
-                       truth.p.mount.height_mm,
-                       rad_to_deg(truth.p.mount.roll_rad),
-                       rad_to_deg(truth.p.mount.pitch_rad),
-                       truth.p.speed_scale,
-                       truth.p.yaw_rate_scale,
-                       rad_to_deg(truth.p.yaw_rate_bias_radps),
-                       rad_to_deg(truth.p.yaw_per_metre_rad),
-                       truth.p.time_offset_s * 1e3};
+  ASSERT_TRUE(calibtest::calibrate_from_nominal(d, opt, &r, &err)) << err;
+  const std::array<double, 11> tv = calibtest::reported_truth(truth.p);
   ASSERT_EQ(r.params.size(), 11u);
   std::printf("worn landmark 2, seed %u: RMS %.3f -> %.3f px\n", GetParam(), r.rms_before_px,
               r.rms_after_px);
