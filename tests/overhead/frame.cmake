@@ -9,4 +9,11 @@ if(TARGET eval_overhead)
                    --agvs 3 --duration-s 2 --fps 10 --seed 2)
   set_tests_properties(eval_overhead_smoke PROPERTIES LABELS "overhead" TIMEOUT 20
                        PASS_REGULAR_EXPRESSION "identity: wrong-id fixes 0 ")
+  # Parcels loaded during the run over every tag: the covered ticks are scored apart.
+  add_test(NAME eval_overhead_parcels_smoke
+           COMMAND eval_overhead --site-mm 5000 --cameras 1 --width 960 --height 540 --tag-px 24
+                   --agvs 3 --duration-s 3 --fps 10 --seed 2 --parcels 1 --load-from-s 1
+                   --cover-tags)
+  set_tests_properties(eval_overhead_parcels_smoke PROPERTIES LABELS "overhead" TIMEOUT 30
+                       PASS_REGULAR_EXPRESSION "tags under a parcel: [1-9][0-9]* ticks")
 endif()

@@ -48,7 +48,8 @@ struct Options {
 const char* kUsage =
     "usage: eval_overhead [--cameras-height-mm H] [--width W --height H] [--tag-px P]\n"
     "  [--cameras 1|4] [--site-mm L] [--agvs N] [--duration-s S] [--fps F] [--output-hz F]\n"
-    "  [--seed S] [--parcels FRACTION] [--clutter N] [--calib-error-mm E] [--calib-error-deg E]\n"
+    "  [--seed S] [--parcels FRACTION] [--load-from-s S] [--cover-tags] [--clutter N]\n"
+    "  [--calib-error-mm E] [--calib-error-deg E]\n"
     "  [--calib-sigma-mm S] [--calib-sigma-deg S]\n"
     "  [--bit-errors N] [--bit-errors-from-s S] [--latency-ms L] [--latency-spread-ms L]\n"
     "  [--full-sweep-every N] [--apriltag-every N] [--max-wall-s S] [--no-distortion] [--clean]\n"
@@ -62,6 +63,7 @@ bool parse(int argc, char** argv, Options* o, std::string* error) {
                                      {"--fps", &o->fps},
                                      {"--output-hz", &o->output_hz},
                                      {"--parcels", &o->world.parcels},
+                                     {"--load-from-s", &o->world.load_from_s},
                                      {"--calib-error-mm", &o->calib_error_mm},
                                      {"--calib-error-deg", &o->calib_error_deg},
                                      {"--calib-sigma-mm", &o->calib_sigma_mm},
@@ -79,6 +81,10 @@ bool parse(int argc, char** argv, Options* o, std::string* error) {
     const std::string a = argv[i];
     if (a == "--clean") {
       o->clean = true;
+      continue;
+    }
+    if (a == "--cover-tags") {
+      o->world.cover_tags = true;
       continue;
     }
     if (a == "--no-distortion") {
@@ -183,12 +189,14 @@ void print_header(const Options& o, const agv::site::Site& site) {
   std::printf(
       "eval_overhead (simulated, rendered frames): site %.0f x %.0f mm, %zu camera(s) at "
       "%.0f mm, %dx%d, fx %.1f px (tag %.0f px at tray height), %d AGVs, %.1f s at %.1f fps, "
-      "seed %llu, parcels %.2f, clutter %d, calibration error %.1f mm / %.2f deg, bit "
+      "seed %llu, parcels %.2f (%s%s), clutter %d, calibration error %.1f mm / %.2f deg, bit "
       "errors %d from %.1f s, latency %.0f..%.0f ms, full sweep every %d frames%s\n",
       o.world.site_mm, o.world.site_mm, site.cameras.size(), o.world.camera_height_mm, k.width_px,
       k.height_px, k.fx, o.world.tag_px, o.world.agvs, o.world.duration_s, o.fps,
-      static_cast<unsigned long long>(o.world.seed), o.world.parcels, o.world.clutter,
-      o.calib_error_mm, o.calib_error_deg, o.bit_errors, o.bit_errors_from_s, o.latency_ms,
+      static_cast<unsigned long long>(o.world.seed), o.world.parcels,
+      o.world.load_from_s >= 0.0 ? "loaded during the run" : "loaded from the start",
+      o.world.cover_tags ? ", over the tags" : "", o.world.clutter, o.calib_error_mm,
+      o.calib_error_deg, o.bit_errors, o.bit_errors_from_s, o.latency_ms,
       o.latency_ms + o.latency_spread_ms, o.full_sweep_every, o.clean ? ", clean" : "");
   for (const auto& c : site.cameras) {
     std::printf("  camera %s at (%.0f, %.0f, %.0f) mm\n", c.id.c_str(), c.t_site_cam_mm[0],
@@ -368,7 +376,8 @@ int run(const Options& o) {
   auto do_tick = [&](std::int64_t t) {
     tracker.update_states(t);
     const std::vector<agv::sim::AgvState> truth = world.states_at(t);
-    agv::eval::score_tick(tracker.outputs(t), truth, in_some_view(world, truth), &score);
+    const std::vector<std::uint8_t> covered = world.tags_covered_at(t);
+    agv::eval::score_tick(tracker.outputs(t), truth, in_some_view(world, truth), &score, &covered);
   };
   double render_s = 0.0;
   std::size_t frame_index = 0;

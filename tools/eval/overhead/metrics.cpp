@@ -51,11 +51,26 @@ void score_accuracy(const overhead::TrackOutput& o, const Pose2& truth, VehicleS
   if (err > 3.0 * o.sigma_xy_mm && err > 50.0) ++v->confident_wrong;
 }
 
+// The covered ticks' own figures (the NEES and identity counts stay with the whole run's).
+void score_covered(const overhead::TrackOutput& o, const Pose2& truth, bool in_view,
+                   VehicleScore* c) {
+  ++c->ticks;
+  if (in_view) ++c->in_view;
+  if (!o.valid()) return;
+  ++c->valid;
+  if (in_view) ++c->valid_in_view;
+  const double err = dist(o.pose, truth);
+  c->pos_err_mm.push_back(err);
+  c->head_err_deg.push_back(
+      std::abs(rad_to_deg(wrap_angle_rad(o.pose.theta_rad - truth.theta_rad))));
+  if (err > 3.0 * o.sigma_xy_mm && err > 50.0) ++c->confident_wrong;
+}
+
 }  // namespace
 
 void score_tick(const std::vector<overhead::TrackOutput>& outs,
                 const std::vector<sim::AgvState>& truth, const std::vector<std::uint8_t>& in_view,
-                Score* s) {
+                Score* s, const std::vector<std::uint8_t>* covered) {
   const std::size_t n = truth.size();
   if (s->vehicles.size() != n) s->vehicles.assign(n, {});
   if (s->pair_close.size() != n) s->pair_close.assign(n, std::vector<std::uint8_t>(n, 0));
@@ -63,6 +78,9 @@ void score_tick(const std::vector<overhead::TrackOutput>& outs,
     if (o.agv >= n) continue;
     VehicleScore& v = s->vehicles[o.agv];
     ++v.ticks;
+    if (covered && o.agv < covered->size() && (*covered)[o.agv]) {
+      score_covered(o, truth[o.agv].pose, in_view[o.agv] != 0, &s->covered);
+    }
     if (in_view[o.agv]) ++v.in_view;
     if (!o.valid()) {
       v.on_other = false;
@@ -222,6 +240,19 @@ std::string report(const Score& s, const std::vector<std::string>& ids) {
                   "frames (%.1fx the pipeline's median)\n",
                   percentile(s.apriltag_ms, 0.5), s.apriltag_ms.size(),
                   percentile(s.apriltag_ms, 0.5) / percentile(s.frame_ms, 0.5));
+    out += line;
+  }
+  if (s.covered.ticks > 0) {
+    const VehicleScore& c = s.covered;
+    std::snprintf(
+        line, sizeof line,
+        "tags under a parcel: %llu ticks (%llu with the tag in some image), valid %.2f "
+        "%% of them (%.2f %% in view); position p50 %.2f mm, p95 %.2f mm, max %.2f mm; "
+        "heading p95 %.3f deg, max %.3f deg; valid but > 3 sigma and > 50 mm off: %llu\n",
+        static_cast<unsigned long long>(c.ticks), static_cast<unsigned long long>(c.in_view),
+        pct(c.valid, c.ticks), pct(c.valid_in_view, c.in_view), percentile(c.pos_err_mm, 0.5),
+        percentile(c.pos_err_mm, 0.95), max_of(c.pos_err_mm), percentile(c.head_err_deg, 0.95),
+        max_of(c.head_err_deg), static_cast<unsigned long long>(c.confident_wrong));
     out += line;
   }
   if (s.flipped + s.flipped_untracked > 0) {

@@ -23,6 +23,8 @@ struct VehicleScore {
 
 struct Score {
   std::vector<VehicleScore> vehicles;
+  // Every vehicle's ticks while a parcel hid its whole tag (the tray box alone can fix it).
+  VehicleScore covered;
   std::uint64_t id_switches = 0, duplicates = 0;
   std::vector<std::vector<std::uint8_t>> pair_close;  // duplicate episodes in progress
   // NEES of (x, y, theta) over valid outputs; position within 3 sigma_xy.
@@ -41,10 +43,10 @@ struct Score {
 };
 
 // One output tick: every vehicle's output against its truth (in_view: its tag lies inside some
-// camera's image).
+// camera's image; covered, when not null: a parcel hides its whole tag, scored in s->covered too).
 void score_tick(const std::vector<overhead::TrackOutput>& outs,
                 const std::vector<sim::AgvState>& truth, const std::vector<std::uint8_t>& in_view,
-                Score* s);
+                Score* s, const std::vector<std::uint8_t>* covered = nullptr);
 
 // One frame's detections against its rendered tags (corners page order; projected: in front of
 // the camera, matched against; in_image: wholly inside the image, counted for bit errors); flipped

@@ -155,6 +155,37 @@ cv::Rect RegionRenderer::vehicle_box(const sim::SiteScene& scene, std::size_t i,
   return {b.x, b.y, xe - b.x, ye - b.y};
 }
 
+namespace {
+
+// Load times (and, with cover_tags, a first parcel over the whole tag) for the parcels drawn.
+void load_parcels(const WorldOptions& o, const std::vector<site::FleetAgv>& fleet,
+                  std::vector<sim::Parcel>* parcels, std::vector<std::int64_t>* load_ns) {
+  std::mt19937_64 rng(o.seed * 31 + 17);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  std::vector<std::int64_t> agv_load_ns(fleet.size(), 0);
+  for (std::int64_t& t : agv_load_ns) {
+    if (o.load_from_s >= 0.0) {
+      t = static_cast<std::int64_t>(1e9 * (o.load_from_s + 0.5 * o.duration_s * u01(rng)));
+    }
+  }
+  std::vector<std::uint8_t> first(fleet.size(), 1);
+  load_ns->clear();
+  for (sim::Parcel& p : *parcels) {
+    if (p.agv >= fleet.size()) continue;
+    load_ns->push_back(agv_load_ns[p.agv]);
+    if (!o.cover_tags || !first[p.agv]) continue;
+    first[p.agv] = 0;
+    // Wider than the tag's diagonal whatever its turn, and off centre by less than the margin.
+    const double side = 1.5 * fleet[p.agv].tag_size_mm + 80.0 * u01(rng);
+    p.length_mm = side;
+    p.width_mm = side;
+    p.x_mm = 20.0 * (u01(rng) - 0.5);
+    p.y_mm = 20.0 * (u01(rng) - 0.5);
+  }
+}
+
+}  // namespace
+
 bool World::build(const WorldOptions& o, std::string* error) {
   site_ = site::Site{};
   site_.name = "eval_overhead";
@@ -207,6 +238,7 @@ bool World::build(const WorldOptions& o, std::string* error) {
 
   sim::SiteScene s = scene_at(0);
   if (o.parcels > 0.0) sim::add_random_parcels(&s, o.parcels, o.seed + 11);
+  load_parcels(o, site_.fleet, &s.parcels, &parcel_load_ns);
   // Pallets only: low, so a vehicle driving over one's spot (clutter is placed at the start
   // poses, not along the routes) still shows its tray.
   if (o.clutter > 0) sim::add_random_clutter(&s, 0, o.clutter, o.seed + 13);
@@ -239,9 +271,28 @@ sim::SiteScene World::scene_at(std::int64_t t_ns) const {
   sim::SiteScene s;
   s.site = site_;
   s.agvs = states_at(t_ns);
-  s.parcels = parcels;
+  for (std::size_t i = 0; i < parcels.size(); ++i) {
+    if (parcel_load_ns[i] <= t_ns) s.parcels.push_back(parcels[i]);
+  }
   s.clutter = clutter;
   return s;
+}
+
+std::vector<std::uint8_t> World::tags_covered_at(std::int64_t t_ns) const {
+  std::vector<std::uint8_t> out(site_.fleet.size(), 0);
+  for (std::size_t i = 0; i < parcels.size(); ++i) {
+    const sim::Parcel& p = parcels[i];
+    if (parcel_load_ns[i] > t_ns || p.agv >= out.size()) continue;
+    const double h = 0.5 * site_.fleet[p.agv].tag_size_mm;
+    const Pose2 parcel_on_tray{p.x_mm, p.y_mm, p.yaw_rad};
+    bool all = true;
+    for (const Vec2 c : {Vec2{h, h}, Vec2{h, -h}, Vec2{-h, -h}, Vec2{-h, h}}) {
+      const Vec2 q = transform(inverse(parcel_on_tray), c);
+      all = all && std::abs(q.x) < 0.5 * p.length_mm && std::abs(q.y) < 0.5 * p.width_mm;
+    }
+    if (all) out[p.agv] = 1;
+  }
+  return out;
 }
 
 std::vector<std::array<Vec2, 4>> World::tag_corners(const sim::RenderCamera& cam,

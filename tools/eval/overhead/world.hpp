@@ -25,7 +25,13 @@ struct WorldOptions {
   int agvs = 20;
   double duration_s = 60.0;
   double parcels = 0.0;  // fraction of loaded trays
-  int clutter = 0;       // people and pallets on the floor
+  // >= 0: a loaded tray gets its parcels during the run, at a time drawn from [load_from_s,
+  // load_from_s + duration_s / 2] (as at a pick station: the tag is read first, then covered);
+  // < 0: loaded from the start.
+  double load_from_s = -1.0;
+  // The first parcel of a loaded tray lies over the whole tag (the target's case).
+  bool cover_tags = false;
+  int clutter = 0;  // people and pallets on the floor
   std::uint64_t seed = 1;
 };
 
@@ -69,7 +75,10 @@ class World {
   std::vector<std::array<Vec2, 4>> tag_corners(const sim::RenderCamera& cam,
                                                const std::vector<sim::AgvState>& states,
                                                std::vector<std::uint8_t>* ok) const;
+  // Per vehicle at t_ns: a parcel loaded by then hides every corner of its tag.
+  std::vector<std::uint8_t> tags_covered_at(std::int64_t t_ns) const;
   std::vector<sim::Parcel> parcels;
+  std::vector<std::int64_t> parcel_load_ns;  // per parcel: on its tray from this time
   std::vector<sim::Clutter> clutter;
 
  private:
