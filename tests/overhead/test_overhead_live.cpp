@@ -26,6 +26,7 @@
 #include "diag.hpp"
 #include "inputs.hpp"
 #include "live.hpp"
+#include "two_camera_frames.hpp"
 
 namespace agv::overhead_app {
 namespace {
@@ -34,29 +35,6 @@ namespace fs = std::filesystem;
 
 constexpr std::int64_t kFramePeriodNs = 100'000'000;  // 10 fps
 constexpr int kFrames = 12;
-
-site::Site test_site() {
-  site::Site s;
-  std::vector<std::string> errors;
-  EXPECT_TRUE(
-      load_site_file(AGV_SOURCE_DIR "/tests/overhead/data/two_camera_site.yaml", &s, &errors));
-  return s;
-}
-
-fakecamera::FakeImage render(const site::Site& s, std::size_t cam,
-                             const std::vector<sim::AgvState>& agvs) {
-  sim::SiteScene scene;
-  scene.site = s;
-  scene.agvs = agvs;
-  const sim::SiteFrameRenderer r(s.cameras[cam].intrinsics);
-  const sim::RenderResult res =
-      r.render(scene, sim::RenderCamera::from_ceiling(s.cameras[cam]), sim::SiteRenderParams{}, 1);
-  fakecamera::FakeImage img;
-  img.width_px = res.image.cols;
-  img.height_px = res.image.rows;
-  img.gray.assign(res.image.datastart, res.image.dataend);
-  return img;
-}
 
 // tracks.csv rows by vehicle: (t_ns, x, y, theta, state).
 struct Row {
@@ -93,17 +71,17 @@ class OverheadLive : public ::testing::Test {
 };
 
 TEST_F(OverheadLive, TracksTwoCamerasAtTheRateAndReopensADisconnectedCamera) {
-  const site::Site s = test_site();
+  const site::Site s = test::two_camera_site();
   ASSERT_EQ(s.cameras.size(), 2u);
-  const std::vector<sim::AgvState> agvs = {{{1350.0, 1250.0, 0.3}, 0.0, 0.0},
-                                           {{3600.0, 1000.0, -1.0}, 0.0, 0.0}};
+  const std::vector<sim::AgvState> agvs = test::two_vehicles();
   posix::PosixClock clock;
   fakecamera::FakeCamera::Options opt;
   opt.clock = &clock;
   opt.end_of_stream_when_empty = true;
   std::vector<LiveCamera> cams;
   std::vector<fakecamera::FakeCamera*> fakes;
-  const fakecamera::FakeImage imgs[2] = {render(s, 0, agvs), render(s, 1, agvs)};
+  const fakecamera::FakeImage imgs[2] = {test::render_fake_frame(s, 0, agvs),
+                                         test::render_fake_frame(s, 1, agvs)};
   const std::int64_t t0 = monotonic_ns();
   for (std::size_t c = 0; c < 2; ++c) {
     auto fake = std::make_unique<fakecamera::FakeCamera>(opt);
@@ -155,7 +133,7 @@ TEST_F(OverheadLive, TracksTwoCamerasAtTheRateAndReopensADisconnectedCamera) {
 }
 
 TEST_F(OverheadLive, CamerasWithoutDeviceOrWithBadSettingsAreRefused) {
-  const site::Site s = test_site();
+  const site::Site s = test::two_camera_site();
   OverheadConfig cfg;
   std::vector<LiveCamera> cams;
   std::string err;
@@ -177,7 +155,7 @@ TEST_F(OverheadLive, CamerasWithoutDeviceOrWithBadSettingsAreRefused) {
 
 // A device that does not exist: the loop keeps retrying it and publishing until stopped.
 TEST_F(OverheadLive, MissingDeviceIsRetriedWithoutCrash) {
-  const site::Site s = test_site();
+  const site::Site s = test::two_camera_site();
   OverheadConfig cfg;
   cfg.cameras["cam-west"].device = "/dev/agvloc-no-such-video";
   std::vector<LiveCamera> cams;
@@ -223,15 +201,15 @@ double metric(const std::string& text, const std::string& name_and_labels) {
 // a sigma under the lost limit and a fix within the last second; /api/status.json and the page are
 // served, the vehicle page's map and image are not.
 TEST_F(OverheadLive, DiagnosticsServeMetricsWhileRunning) {
-  const site::Site s = test_site();
-  const std::vector<sim::AgvState> agvs = {{{1350.0, 1250.0, 0.3}, 0.0, 0.0},
-                                           {{3600.0, 1000.0, -1.0}, 0.0, 0.0}};
+  const site::Site s = test::two_camera_site();
+  const std::vector<sim::AgvState> agvs = test::two_vehicles();
   posix::PosixClock clock;
   fakecamera::FakeCamera::Options opt;
   opt.clock = &clock;
   opt.end_of_stream_when_empty = true;
   std::vector<LiveCamera> cams;
-  const fakecamera::FakeImage imgs[2] = {render(s, 0, agvs), render(s, 1, agvs)};
+  const fakecamera::FakeImage imgs[2] = {test::render_fake_frame(s, 0, agvs),
+                                         test::render_fake_frame(s, 1, agvs)};
   const std::int64_t t0 = monotonic_ns();
   constexpr int kLongRunFrames = 30;  // 3 s at 10 fps
   for (std::size_t c = 0; c < 2; ++c) {

@@ -23,33 +23,15 @@
 #include "live_feed.hpp"
 #include "record.hpp"
 #include "replay.hpp"
+#include "two_camera_frames.hpp"
 
 namespace agv::overhead_app {
 namespace {
 
 namespace fs = std::filesystem;
 
-constexpr char kSitePath[] = AGV_SOURCE_DIR "/tests/overhead/data/two_camera_site.yaml";
-
-site::Site test_site() {
-  site::Site s;
-  std::vector<std::string> errors;
-  EXPECT_TRUE(load_site_file(kSitePath, &s, &errors));
-  return s;
-}
-
 fakecamera::FakeImage render(const site::Site& s, std::size_t cam) {
-  sim::SiteScene scene;
-  scene.site = s;
-  scene.agvs = {{{1350.0, 1250.0, 0.3}, 0.0, 0.0}, {{3600.0, 1000.0, -1.0}, 0.0, 0.0}};
-  const sim::SiteFrameRenderer r(s.cameras[cam].intrinsics);
-  const sim::RenderResult res =
-      r.render(scene, sim::RenderCamera::from_ceiling(s.cameras[cam]), sim::SiteRenderParams{}, 1);
-  fakecamera::FakeImage img;
-  img.width_px = res.image.cols;
-  img.height_px = res.image.rows;
-  img.gray.assign(res.image.datastart, res.image.dataend);
-  return img;
+  return test::render_fake_frame(s, cam, test::two_vehicles());
 }
 
 fakecamera::FakeImage noise(int w, int h, unsigned seed) {
@@ -93,8 +75,24 @@ class OverheadRecord : public ::testing::Test {
     return cams;
   }
 
+  // What record_cameras of `cams` into `out` found, for at most `duration_ns` (0: until the
+  // cameras' end of stream).
+  struct Recorded {
+    bool ok = false;
+    std::vector<CameraRecordCounters> counters;
+    std::vector<CameraHealth> health;
+    std::string err;
+  };
+  Recorded record(std::vector<LiveCamera>* cams, const fs::path& out, std::int64_t duration_ns) {
+    const std::atomic<bool> stop{false};
+    Recorded r;
+    r.ok = record_cameras(cams, site_, out.string(), "test", stop, duration_ns, &r.counters,
+                          &r.health, &r.err);
+    return r;
+  }
+
   posix::PosixClock clock_;
-  site::Site site_ = test_site();
+  site::Site site_ = test::two_camera_site();
   fs::path out_;
 };
 
@@ -104,13 +102,11 @@ TEST_F(OverheadRecord, RecordedFramesReplayFrameForFrame) {
   const std::vector<fakecamera::FakeImage> imgs = {render(site_, 0), render(site_, 1)};
   std::vector<LiveCamera> cams = cameras(imgs, kFrames, kPeriodNs, true);
   const std::int64_t t0 = clock_.now_ns();
-  const std::atomic<bool> stop{false};
-  std::vector<CameraRecordCounters> counters;
-  std::vector<CameraHealth> health;
-  std::string err;
-  ASSERT_TRUE(record_cameras(&cams, site_, out_.string(), "test", stop, 20'000'000'000, &counters,
-                             &health, &err))
-      << err;
+  Recorded run = record(&cams, out_, 20'000'000'000);
+  ASSERT_TRUE(run.ok) << run.err;
+  const std::vector<CameraRecordCounters>& counters = run.counters;
+  const std::vector<CameraHealth>& health = run.health;
+  std::string& err = run.err;
   ASSERT_EQ(counters.size(), 2u);
   std::vector<std::string> dirs;
   for (std::size_t c = 0; c < 2; ++c) {
@@ -142,7 +138,7 @@ TEST_F(OverheadRecord, RecordedFramesReplayFrameForFrame) {
   }
   // The replay of what was recorded tracks both vehicles.
   ReplayArgs ra;
-  ra.site_path = kSitePath;
+  ra.site_path = test::kTwoCameraSitePath;
   ra.recordings = dirs;
   ra.out_dir = (out_ / "replay").string();
   ra.fast = true;
@@ -169,13 +165,11 @@ TEST_F(OverheadRecord, AWriterBehindDropsFramesAndCountsThemAndStampsMustIncreas
   // refuses it, so the recorder counts it and leaves it out.
   fake->push_stall(1'000'000'000);
   fake->push_frame(imgs[0], 1);
-  const std::atomic<bool> stop{false};
-  std::vector<CameraRecordCounters> counters;
-  std::vector<CameraHealth> health;
-  std::string err;
-  ASSERT_TRUE(record_cameras(&cams, site_, out_.string(), "test", stop, 20'000'000'000, &counters,
-                             &health, &err))
-      << err;
+  Recorded run = record(&cams, out_, 20'000'000'000);
+  ASSERT_TRUE(run.ok) << run.err;
+  const std::vector<CameraRecordCounters>& counters = run.counters;
+  const std::vector<CameraHealth>& health = run.health;
+  std::string& err = run.err;
   const CameraRecordCounters& c = counters[0];
   EXPECT_GT(c.frames_dropped, 0u);
   EXPECT_EQ(health[0].stamps_backwards, 1u);
@@ -202,12 +196,10 @@ TEST_F(OverheadRecord, ARecordingIsNeverOverwritten) {
   // record_cameras checks every camera's folder before it writes any.
   std::vector<LiveCamera> cams = cameras({render(site_, 0), render(site_, 1)}, 1, 1'000'000, false);
   std::swap(cams[0], cams[1]);  // cam-east first: its folder is free, cam-west's is not
-  const std::atomic<bool> stop{false};
-  std::vector<CameraRecordCounters> counters;
-  std::vector<CameraHealth> health;
-  EXPECT_FALSE(
-      record_cameras(&cams, site_, out_.string(), "test", stop, 0, &counters, &health, &err));
-  EXPECT_NE(err.find("cam-west: exists and is not an empty folder"), std::string::npos) << err;
+  const Recorded run = record(&cams, out_, 0);
+  EXPECT_FALSE(run.ok);
+  EXPECT_NE(run.err.find("cam-west: exists and is not an empty folder"), std::string::npos)
+      << run.err;
   EXPECT_FALSE(fs::exists(out_ / "cam-east"));
   // An empty folder is taken.
   fs::create_directories(out_ / "empty");
@@ -222,7 +214,7 @@ TEST_F(OverheadRecord, CommandRefusesNoCameraAndAnEmptyRecordingIsRefusedByRepla
   std::ofstream(cfg) << "output.rate_hz: 30\n";
   RecordArgs a;
   a.config_path = cfg.string();
-  a.site_path = kSitePath;
+  a.site_path = test::kTwoCameraSitePath;
   a.out_dir = (out_ / "rec").string();
   a.duration_s = 0.3;
   EXPECT_EQ(run_record_command(a), 2);
@@ -265,11 +257,7 @@ TEST_F(OverheadRecord, KilledMidWriteLeavesFoldersReplayReadsOrRefuses) {
     ASSERT_GE(pid, 0);
     if (pid == 0) {
       std::vector<LiveCamera> cams = cameras(imgs, 1000, 10'000'000, true);
-      const std::atomic<bool> stop{false};
-      std::vector<CameraRecordCounters> counters;
-      std::vector<CameraHealth> health;
-      std::string err;
-      record_cameras(&cams, site_, out.string(), "test", stop, 0, &counters, &health, &err);
+      record(&cams, out, 0);
       _exit(3);
     }
     if (kill_after_ms >= 0) {

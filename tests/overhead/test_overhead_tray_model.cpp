@@ -10,17 +10,10 @@
 #include "config.hpp"
 #include "core.hpp"
 #include "inputs.hpp"
+#include "two_camera_site.hpp"
 
 namespace agv::overhead_app {
 namespace {
-
-site::Site test_site() {
-  site::Site s;
-  std::vector<std::string> errors;
-  EXPECT_TRUE(
-      load_site_file(AGV_SOURCE_DIR "/tests/overhead/data/two_camera_site.yaml", &s, &errors));
-  return s;
-}
 
 struct Started {
   std::string err, summary;
@@ -31,7 +24,7 @@ Started start_with(const std::string& model_path) {
   OverheadConfig cfg;
   cfg.tray_method = "learned";
   cfg.tray_model_path = model_path;
-  const site::Site site = test_site();
+  const site::Site site = test::two_camera_site();
   testing::internal::CaptureStderr();
   TrackerCore core(cfg, site);
   Started s;
@@ -74,7 +67,7 @@ TEST(OverheadTrayModel, CommittedModelIsTaken) {
   EXPECT_NE(s.summary.find("tray boxes (learned)"), std::string::npos) << s.summary;
   // The default is the classical fit, with no model read.
   OverheadConfig cfg;
-  const site::Site site = test_site();
+  const site::Site site = test::two_camera_site();
   testing::internal::CaptureStderr();
   TrackerCore core(cfg, site);
   EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
