@@ -19,7 +19,8 @@ localizer::LocalizerConfig localizer_config(const config::Config& cfg) {
   c.gyro.bias_radps = cfg.imu.bias_radps;
   c.time_base = config::time_base(cfg);
   c.gyro_timeout_ns = std::llround(cfg.can.gyro_timeout_ms * 1e6);
-  c.gyro_expected = cfg.imu.source == config::ImuSource::kIio;  // the IIO gyro's timeout is can.gyro.timeout_ms
+  c.gyro_expected =
+      cfg.imu.source == config::ImuSource::kIio;  // the IIO gyro's timeout is can.gyro.timeout_ms
   c.heartbeat_period_ns = static_cast<std::int64_t>(1e9 / cfg.loop.heartbeat_rate_hz);
   c.camera_timeout_ns = static_cast<std::int64_t>(cfg.camera.timeout_ms * 1e6);
   c.sw_major = AGV_VERSION_MAJOR;
@@ -71,7 +72,8 @@ OutputLoop::OutputLoop(localizer::Localizer& core, hal::CanBus* bus, const hal::
       sinks_(std::move(sinks)),
       fixes_(fixes),
       log_period_ns_(log_period_ns),
-      log_due_(log_period_ns, /*first_at_start=*/false) {
+      log_due_(log_period_ns, /*first_at_start=*/false),
+      can_(core.config().protocol) {
   if (bus_) {
     // One filter per enabled input message (odometry, and AGV_Gyro when can.gyro.enabled).
     constexpr int kMax = localizer::Localizer::kMaxReceiveFilters;
@@ -155,9 +157,10 @@ void OutputLoop::tick(std::int64_t now_ns, const CameraState& camera, TickRecord
   if (bus_) core_.set_can_state(bus_->state(), bus_->stats());
   for (OutputSink* sink : sinks_) sink->before_tick(now_ns, core_);
   TickRecord local;
-  if (!sinks_.empty() && !rec) rec = &local;
+  if (!rec) rec = &local;
   const std::int64_t t_start = clock_.now_ns();
-  core_.tick(now_ns, &frames_, rec);
+  *rec = core_.tick(now_ns);
+  can_.encode(*rec, &frames_);
   const std::int64_t t_fused = clock_.now_ns();
   core_.mutable_stats().fusion_ns.record_ns(t_fused - t_start);
   send(frames_);
@@ -181,7 +184,7 @@ void OutputLoop::finish(std::uint64_t frames_dropped) {
 
 bool OutputLoop::on_wake(std::int64_t now_ns) {
   if (take_inputs(now_ns) == 0) return false;
-  core_.pose_now(now_ns, &frames_);
+  can_.encode_pose(core_.pose_now(now_ns), &frames_);
   send(frames_);
   return true;
 }

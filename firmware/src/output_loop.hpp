@@ -8,6 +8,7 @@
 
 #include "agv/hal/can_bus.hpp"
 #include "agv/hal/clock.hpp"
+#include "agv/localizer/can_output.hpp"
 #include "agv/localizer/fault_transitions.hpp"
 #include "agv/localizer/localizer.hpp"
 #include "agv/recording/recording.hpp"
@@ -108,6 +109,7 @@ class OutputLoop {
   FixRing& fixes_;
   std::int64_t log_period_ns_;
   PeriodicDue log_due_;
+  localizer::CanOutput can_;  // the CAN encoding of the core's output (alive counters, E2E)
   localizer::OutFrames frames_;
 };
 

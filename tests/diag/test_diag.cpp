@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "agv/diag/diag.hpp"
+#include "agv/localizer/can_output.hpp"
 #include "agv/protocol/codec.hpp"
 
 namespace agv::diag {
@@ -243,6 +244,7 @@ TEST(DiagPoseValid, IsTheCanPoseValid) {
   c.fusion.health.odom_timeout_ns = 50 * kMs;
   c.heartbeat_period_ns = 1000 * kMs;
   localizer::Localizer loc(c);
+  localizer::CanOutput can(c.protocol);
   localizer::OutFrames out;
   struct Seen {
     bool can = false, page = false, initialised = false;
@@ -252,7 +254,7 @@ TEST(DiagPoseValid, IsTheCanPoseValid) {
   auto tick = [&](std::int64_t t) {
     Snapshot s;
     s.has_tick = true;
-    loc.tick(t, &out, &s.tick);
+    can.tick(loc, t, &out, &s.tick);
     protocol::PoseOut pose;
     EXPECT_TRUE(protocol::decode_pose(c.protocol, out.frame[0], out.frame[1], &pose));
     const auto j = nlohmann::json::parse(status_json(s, {}, "run"));

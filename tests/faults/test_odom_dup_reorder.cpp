@@ -108,7 +108,6 @@ Result run(OdomFault fault) {
   auto controller = net.create_endpoint(16);  // pose frames sent back to it are dropped: fine
   auto localizer = net.create_endpoint(256);
   localizer::Localizer out(app::localizer_config(cfg));
-  localizer::OutFrames frames;
 
   auto frame_for = [&](std::int64_t k) {
     const std::int64_t t = k * kPeriodNs;
@@ -148,8 +147,7 @@ Result run(OdomFault fault) {
       out.on_fix(fixes[next_fix].fix, fixes[next_fix].t_ns);
       ++next_fix;
     }
-    app::TickRecord rec;
-    out.tick(kT0Ns + t, &frames, &rec);
+    const app::TickRecord rec = out.tick(kT0Ns + t);
     const fusion::PoseEstimate& e = rec.estimate;
     if (!e.valid) continue;
     const Pose2 truth = sim::trajectory_state(traj, t).pose;

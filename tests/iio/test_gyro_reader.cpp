@@ -96,7 +96,7 @@ TEST(GyroReader, SilentIioGyroIsAnImuTimeout) {
   const auto lc = agv::app::localizer_config(cfg);
   auto faults_at = [&](agv::localizer::Localizer& core, std::int64_t t_ns) {
     agv::localizer::OutFrames out;
-    core.tick(t_ns, &out, nullptr);
+    agv::localizer::CanOutput(lc.protocol).encode(core.tick(t_ns), &out);
     for (int i = 0; i < out.n; ++i) {
       if (out.frame[i].id != p::can_id_of(lc.protocol, p::Msg::kStatus)) continue;
       p::StatusOut st;

@@ -1,5 +1,5 @@
-// The pure localizer core (algo/localizer): inputs and a time in, frames to send out. No bus,
-// no clock: every test drives it with plain values.
+// The pure localizer core (algo/localizer): inputs and a time in, the transport-neutral record
+// out, encoded to frames by CanOutput. No bus, no clock: every test drives it with plain values.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -7,6 +7,7 @@
 #include <limits>
 #include <vector>
 
+#include "agv/localizer/can_output.hpp"
 #include "agv/localizer/fault_transitions.hpp"
 #include "agv/localizer/localizer.hpp"
 
@@ -62,18 +63,19 @@ bool pose_valid(const localizer::LocalizerConfig& c, const localizer::OutFrames&
 TEST(Localizer, TickProducesThePosePairFirstAndTheHeartbeatWhenDue) {
   const auto c = test_config();
   localizer::Localizer loc(c);
+  localizer::CanOutput can(c.protocol);
   localizer::OutFrames out;
-  loc.tick(1000 * kMs, &out, nullptr);
+  can.tick(loc, 1000 * kMs, &out, nullptr);
   ASSERT_EQ(out.n, 6);
   const p::Msg order[] = {p::Msg::kPoseXY,  p::Msg::kPoseHeading, p::Msg::kVelocity,
                           p::Msg::kQuality, p::Msg::kStatus,      p::Msg::kHeartbeat};
   for (int i = 0; i < 6; ++i) EXPECT_EQ(msg_of(c, out.frame[i]), order[i]) << i;
-  loc.tick(1010 * kMs, &out, nullptr);
+  can.tick(loc, 1010 * kMs, &out, nullptr);
   EXPECT_EQ(out.n, 5);  // heartbeat once per heartbeat period
-  loc.tick(2000 * kMs, &out, nullptr);
+  can.tick(loc, 2000 * kMs, &out, nullptr);
   EXPECT_EQ(out.n, 6);
   localizer::OutFrames pose;
-  loc.pose_now(2005 * kMs, &pose);
+  can.pose_now(loc, 2005 * kMs, &pose);
   EXPECT_EQ(pose.n, 2);
   EXPECT_EQ(msg_of(c, pose.frame[0]), p::Msg::kPoseXY);
   EXPECT_EQ(loc.stats().fix_poses, 1u);
@@ -82,23 +84,24 @@ TEST(Localizer, TickProducesThePosePairFirstAndTheHeartbeatWhenDue) {
 TEST(Localizer, OneOdometryTimeoutDrivesPoseValidityAndTheEkfFlag) {
   const auto c = test_config();
   localizer::Localizer loc(c);
+  localizer::CanOutput can(c.protocol);
   localizer::OutFrames out;
   localizer::TickRecord rec;
   std::int64_t t = 1000 * kMs;
   for (int i = 0; i < 10; ++i) {
     loc.on_odometry(t, 0.5, 0.0);
-    loc.tick(t += 10 * kMs, &out, &rec);
+    can.tick(loc, t += 10 * kMs, &out, &rec);
   }
   loc.on_fix(good_fix(0.0), t - 5 * kMs, t);
   loc.on_odometry(t, 0.5, 0.0);
-  loc.tick(t += 10 * kMs, &out, &rec);
+  can.tick(loc, t += 10 * kMs, &out, &rec);
   EXPECT_TRUE(pose_valid(c, out));
   EXPECT_EQ(status_of(c, out).faults & p::fault::kOdomTimeout, 0);
   // 40 ms without odometry: within the 50 ms timeout.
-  loc.tick(t += 30 * kMs, &out, &rec);
+  can.tick(loc, t += 30 * kMs, &out, &rec);
   EXPECT_TRUE(pose_valid(c, out));
   // 60 ms: the pose is invalid, the status flags it, and the EKF says so too (not at 10 s).
-  loc.tick(t += 20 * kMs, &out, &rec);
+  can.tick(loc, t += 20 * kMs, &out, &rec);
   EXPECT_FALSE(pose_valid(c, out));
   EXPECT_NE(status_of(c, out).faults & p::fault::kOdomTimeout, 0);
   EXPECT_NE(rec.estimate.flags & fusion::flags::kOdomTimeout, 0);
@@ -108,19 +111,20 @@ TEST(Localizer, OneOdometryTimeoutDrivesPoseValidityAndTheEkfFlag) {
 TEST(Localizer, FusedFixIsCarriedByTheNextPosePairOnlyForEndToEndLatency) {
   const auto c = test_config();
   localizer::Localizer loc(c);
+  localizer::CanOutput can(c.protocol);
   localizer::OutFrames out;
   std::int64_t t = 1000 * kMs;
   for (int i = 0; i < 5; ++i) {
     loc.on_odometry(t, 0.5, 0.0);
-    loc.tick(t += 10 * kMs, &out, nullptr);
+    can.tick(loc, t += 10 * kMs, &out, nullptr);
     EXPECT_EQ(out.e2e_exposure_ns, INT64_MIN);
   }
   loc.on_odometry(t, 0.5, 0.0);
   loc.on_fix(good_fix(0.0), t - 3 * kMs, t);
   EXPECT_EQ(loc.stats().fixes_fused, 1u);
-  loc.pose_now(t + 1 * kMs, &out);
+  can.pose_now(loc, t + 1 * kMs, &out);
   EXPECT_EQ(out.e2e_exposure_ns, t - 3 * kMs);
-  loc.tick(t += 10 * kMs, &out, nullptr);
+  can.tick(loc, t += 10 * kMs, &out, nullptr);
   EXPECT_EQ(out.e2e_exposure_ns, INT64_MIN);  // already sent with the fix-triggered pose
 }
 
@@ -129,10 +133,11 @@ TEST(Localizer, FusedFixIsCarriedByTheNextPosePairOnlyForEndToEndLatency) {
 TEST(Localizer, StatusTellsAFixOnLandmarkZeroFromNoFixYet) {
   const auto c = test_config();
   localizer::Localizer loc(c);
+  localizer::CanOutput can(c.protocol);
   localizer::OutFrames out;
   std::int64_t t = 1000 * kMs;
   loc.on_odometry(t, 0.5, 0.0);
-  loc.tick(t += 10 * kMs, &out, nullptr);
+  can.tick(loc, t += 10 * kMs, &out, nullptr);
   p::StatusOut st = status_of(c, out);
   EXPECT_FALSE(st.last_landmark_valid);
   EXPECT_EQ(st.last_landmark_id, 0);
@@ -141,13 +146,13 @@ TEST(Localizer, StatusTellsAFixOnLandmarkZeroFromNoFixYet) {
   loc.on_odometry(t, 0.5, 0.0);
   loc.on_fix(tag0, t - 3 * kMs, t);
   ASSERT_EQ(loc.stats().fixes_fused, 1u);
-  loc.tick(t += 10 * kMs, &out, nullptr);
+  can.tick(loc, t += 10 * kMs, &out, nullptr);
   st = status_of(c, out);
   EXPECT_TRUE(st.last_landmark_valid);
   EXPECT_EQ(st.last_landmark_id, 0);
   for (int i = 0; i < 5; ++i) {  // no further fix: still valid, still landmark 0
     loc.on_odometry(t, 0.5, 0.0);
-    loc.tick(t += 10 * kMs, &out, nullptr);
+    can.tick(loc, t += 10 * kMs, &out, nullptr);
   }
   st = status_of(c, out);
   EXPECT_TRUE(st.last_landmark_valid);
@@ -157,36 +162,38 @@ TEST(Localizer, StatusTellsAFixOnLandmarkZeroFromNoFixYet) {
 TEST(Localizer, CanFaultsAreLatchedFromTheBusStateItIsGiven) {
   const auto c = test_config();
   localizer::Localizer loc(c);
+  localizer::CanOutput can(c.protocol);
   localizer::OutFrames out;
-  loc.tick(1000 * kMs, &out, nullptr);
+  can.tick(loc, 1000 * kMs, &out, nullptr);
   EXPECT_EQ(status_of(c, out).faults & (p::fault::kCanBusOff | p::fault::kCanErrorPassive), 0);
   hal::CanStats s;
   s.bus_off_count = 1;
   s.restarts = 1;  // went bus-off and came back between two status frames
   loc.set_can_state(hal::CanBusState::kErrorActive, s);
-  loc.tick(1010 * kMs, &out, nullptr);
+  can.tick(loc, 1010 * kMs, &out, nullptr);
   EXPECT_NE(status_of(c, out).faults & p::fault::kCanBusOff, 0);
-  loc.tick(1020 * kMs, &out, nullptr);  // latched once, then clear
+  can.tick(loc, 1020 * kMs, &out, nullptr);  // latched once, then clear
   EXPECT_EQ(status_of(c, out).faults & p::fault::kCanBusOff, 0);
   loc.set_can_state(hal::CanBusState::kErrorPassive, s);
-  loc.tick(1030 * kMs, &out, nullptr);
+  can.tick(loc, 1030 * kMs, &out, nullptr);
   EXPECT_NE(status_of(c, out).faults & p::fault::kCanErrorPassive, 0);
 }
 
 TEST(Localizer, CameraStallNeedsTheTimeoutAndNotTheEndOfTheStream) {
   const auto c = test_config();
   localizer::Localizer loc(c);
+  localizer::CanOutput can(c.protocol);
   localizer::OutFrames out;
   loc.set_camera_state(1000 * kMs, false, false);
-  loc.tick(1200 * kMs, &out, nullptr);
+  can.tick(loc, 1200 * kMs, &out, nullptr);
   EXPECT_EQ(status_of(c, out).faults & p::fault::kCameraStalled, 0);
-  loc.tick(1201 * kMs, &out, nullptr);
+  can.tick(loc, 1201 * kMs, &out, nullptr);
   EXPECT_NE(status_of(c, out).faults & p::fault::kCameraStalled, 0);
   loc.set_camera_state(1000 * kMs, true, false);  // replay ran out of frames: not a stall
-  loc.tick(1300 * kMs, &out, nullptr);
+  can.tick(loc, 1300 * kMs, &out, nullptr);
   EXPECT_EQ(status_of(c, out).faults & p::fault::kCameraStalled, 0);
   loc.set_camera_state(1000 * kMs, false, true);
-  loc.tick(1310 * kMs, &out, nullptr);
+  can.tick(loc, 1310 * kMs, &out, nullptr);
   EXPECT_NE(status_of(c, out).faults & p::fault::kCameraError, 0);
 }
 
@@ -279,6 +286,7 @@ TEST(Localizer, CanFramesAreDispatchedByIdToOdometryAndGyro) {
 TEST(Localizer, GyroFramesAreOtherFramesUnlessEnabled) {
   const auto c = test_config();  // gyro not enabled
   localizer::Localizer loc(c);
+  localizer::CanOutput can(c.protocol);
   p::GyroSample g;
   EXPECT_EQ(loc.on_can_frame(gyro_can(c, 0.25, 0, 1000 * kMs), nullptr, &g),
             localizer::CanRx::kOther);
@@ -286,8 +294,8 @@ TEST(Localizer, GyroFramesAreOtherFramesUnlessEnabled) {
   EXPECT_EQ(loc.stats().can_rx_other, 1u);
   // Never received: no gyro fault whatever the time.
   localizer::OutFrames out;
-  loc.tick(1000 * kMs, &out, nullptr);
-  loc.tick(5000 * kMs, &out, nullptr);
+  can.tick(loc, 1000 * kMs, &out, nullptr);
+  can.tick(loc, 5000 * kMs, &out, nullptr);
   EXPECT_EQ(status_of(c, out).faults & (p::fault::kImuTimeout | p::fault::kImuE2E), 0);
 }
 
@@ -309,11 +317,12 @@ TEST(Localizer, SaturatedGyroSamplesAreCountedNotFused) {
 TEST(Localizer, RejectedGyroFramesSetImuE2EForOneStatusFrame) {
   const auto c = gyro_config();
   localizer::Localizer loc(c);
+  localizer::CanOutput can(c.protocol);
   localizer::OutFrames out;
   std::int64_t t = 1000 * kMs;
   loc.on_can_frame(odom_can(c, 0, t));
   ASSERT_EQ(loc.on_can_frame(gyro_can(c, 0.1, 0, t), nullptr, nullptr), localizer::CanRx::kGyro);
-  loc.tick(t += 10 * kMs, &out, nullptr);
+  can.tick(loc, t += 10 * kMs, &out, nullptr);
   EXPECT_EQ(status_of(c, out).faults & p::fault::kImuE2E, 0);
   hal::CanFrame bad = gyro_can(c, 0.1, 1, t);
   bad.data[3] ^= 0x10;
@@ -321,29 +330,30 @@ TEST(Localizer, RejectedGyroFramesSetImuE2EForOneStatusFrame) {
   EXPECT_EQ(loc.stats().gyro_samples, 1u);
   EXPECT_EQ(loc.gyro_decoder().counters().bad_crc, 1u);
   loc.on_can_frame(odom_can(c, 1, t));
-  loc.tick(t += 10 * kMs, &out, nullptr);
+  can.tick(loc, t += 10 * kMs, &out, nullptr);
   const auto faults = status_of(c, out).faults;
   EXPECT_NE(faults & p::fault::kImuE2E, 0);
   EXPECT_EQ(faults & p::fault::kOdomE2E, 0);  // the odometry's flag is its own
   loc.on_can_frame(odom_can(c, 2, t));
-  loc.tick(t += 10 * kMs, &out, nullptr);
+  can.tick(loc, t += 10 * kMs, &out, nullptr);
   EXPECT_EQ(status_of(c, out).faults & p::fault::kImuE2E, 0);  // an event flag: latched once
 }
 
 TEST(Localizer, ImuTimeoutIsSetAfterTheGyroTimeoutAndClearWhileSamplesArrive) {
   const auto c = gyro_config();  // gyro timeout 50 ms
   localizer::Localizer loc(c);
+  localizer::CanOutput can(c.protocol);
   localizer::OutFrames out;
   std::int64_t t = 1000 * kMs;
   int oc = 0, gc = 0;
   // Enabled but silent since the first tick: flagged once the timeout has passed.
   loc.on_can_frame(odom_can(c, oc++, t));
-  loc.tick(t, &out, nullptr);
+  can.tick(loc, t, &out, nullptr);
   EXPECT_EQ(status_of(c, out).faults & p::fault::kImuTimeout, 0);
   for (int i = 0; i < 6; ++i) {
     t += 10 * kMs;
     loc.on_can_frame(odom_can(c, oc++, t));
-    loc.tick(t, &out, nullptr);
+    can.tick(loc, t, &out, nullptr);
   }
   EXPECT_NE(status_of(c, out).faults & p::fault::kImuTimeout, 0);  // 60 ms, none yet
   // Samples arriving every 10 ms: clear.
@@ -352,7 +362,7 @@ TEST(Localizer, ImuTimeoutIsSetAfterTheGyroTimeoutAndClearWhileSamplesArrive) {
     loc.on_can_frame(odom_can(c, oc++, t));
     ASSERT_EQ(loc.on_can_frame(gyro_can(c, 0.05, gc++, t - 2 * kMs), nullptr, nullptr),
               localizer::CanRx::kGyro);
-    loc.tick(t, &out, nullptr);
+    can.tick(loc, t, &out, nullptr);
     EXPECT_EQ(status_of(c, out).faults & p::fault::kImuTimeout, 0) << i;
   }
   const std::int64_t last_gyro = t - 2 * kMs;
@@ -360,7 +370,7 @@ TEST(Localizer, ImuTimeoutIsSetAfterTheGyroTimeoutAndClearWhileSamplesArrive) {
   for (int i = 0; i < 10; ++i) {
     t += 10 * kMs;
     loc.on_can_frame(odom_can(c, oc++, t));
-    loc.tick(t, &out, nullptr);
+    can.tick(loc, t, &out, nullptr);
     const bool expect = t - last_gyro > 50 * kMs;
     EXPECT_EQ((status_of(c, out).faults & p::fault::kImuTimeout) != 0, expect) << i;
     EXPECT_EQ(loc.gyro_timed_out(t), expect) << i;
@@ -369,13 +379,13 @@ TEST(Localizer, ImuTimeoutIsSetAfterTheGyroTimeoutAndClearWhileSamplesArrive) {
   t += 10 * kMs;
   loc.on_can_frame(odom_can(c, oc++, t));
   loc.on_can_frame(gyro_can(c, 9.0, gc++, t - 2 * kMs, true));
-  loc.tick(t, &out, nullptr);
+  can.tick(loc, t, &out, nullptr);
   EXPECT_NE(status_of(c, out).faults & p::fault::kImuTimeout, 0);
   // Back: clear at once.
   t += 10 * kMs;
   loc.on_can_frame(odom_can(c, oc++, t));
   loc.on_can_frame(gyro_can(c, 0.05, gc++, t - 2 * kMs));
-  loc.tick(t, &out, nullptr);
+  can.tick(loc, t, &out, nullptr);
   EXPECT_EQ(status_of(c, out).faults & p::fault::kImuTimeout, 0);
   EXPECT_EQ(status_of(c, out).faults & p::fault::kImuE2E, 0);
   EXPECT_EQ(status_of(c, out).faults & p::fault::kOdomTimeout, 0);
@@ -469,6 +479,7 @@ template <typename Feed>
 std::vector<fusion::PoseEstimate> drive(const localizer::LocalizerConfig& c, std::int64_t raw_dt,
                                         Feed feed, std::int64_t fix_shift_ns = 0) {
   localizer::Localizer loc(c);
+  localizer::CanOutput can(c.protocol);
   localizer::OutFrames out;
   localizer::TickRecord rec;
   std::vector<fusion::PoseEstimate> est;
@@ -478,7 +489,7 @@ std::vector<fusion::PoseEstimate> drive(const localizer::LocalizerConfig& c, std
     const Sample s = feed(Sample{t + raw_dt, 0.5 + 0.001 * i, w});
     loc.on_odometry(s.t_ns, s.v, s.w);
     if (t == 1000 * kMs) loc.on_fix(good_fix(100.0), t + fix_shift_ns, t + fix_shift_ns + 5 * kMs);
-    loc.tick(t + 5 * kMs, &out, &rec);
+    can.tick(loc, t + 5 * kMs, &out, &rec);
     est.push_back(rec.estimate);
   }
   return est;
@@ -586,18 +597,19 @@ TEST(Localizer, InvalidOdometryCorrectionThrows) {
 TEST(Localizer, PredictionForAFrameIsValidOnlyWhenThePoseIs) {
   const auto c = test_config();
   localizer::Localizer loc(c);
+  localizer::CanOutput can(c.protocol);
   localizer::OutFrames out;
   std::int64_t t = 1000 * kMs;
   // Not initialised: odometry alone gives no prediction.
   for (int i = 0; i < 5; ++i) {
     loc.on_odometry(t, 0.5, 0.0);
-    loc.tick(t += 10 * kMs, &out, nullptr);
+    can.tick(loc, t += 10 * kMs, &out, nullptr);
   }
   EXPECT_FALSE(loc.prediction_at(t).valid);
   EXPECT_FALSE(loc.snapshot_at(t).valid);
   loc.on_fix(good_fix(100.0), t - 5 * kMs, t);
   loc.on_odometry(t, 0.5, 0.0);
-  loc.tick(t += 10 * kMs, &out, nullptr);
+  can.tick(loc, t += 10 * kMs, &out, nullptr);
   ASSERT_TRUE(pose_valid(c, out));
   // Initialised with odometry: the estimate at the exposure, moving at 0.5 m/s.
   const vision::Prediction p = loc.prediction_at(t + 4 * kMs);
@@ -641,11 +653,12 @@ p::QualityOut quality_of(const localizer::LocalizerConfig& c, const localizer::O
 TEST(Localizer, MapGuidedFixNeverInitialisesTheFilter) {
   const auto c = test_config();
   localizer::Localizer loc(c);
+  localizer::CanOutput can(c.protocol);
   localizer::OutFrames out;
   std::int64_t t = 1000 * kMs;
   for (int i = 0; i < 5; ++i) {
     loc.on_odometry(t, 0.5, 0.0);
-    loc.tick(t += 10 * kMs, &out, nullptr);
+    can.tick(loc, t += 10 * kMs, &out, nullptr);
   }
   loc.on_odometry(t, 0.5, 0.0);
   vision::LandmarkFix g = guided_fix(0.0);
@@ -655,21 +668,21 @@ TEST(Localizer, MapGuidedFixNeverInitialisesTheFilter) {
   EXPECT_EQ(loc.stats().fixes_map_guided, 1u);
   EXPECT_EQ(loc.stats().fixes_rejected_not_tracking, 1u);
   EXPECT_EQ(loc.stats().fixes_fused, 0u);
-  loc.tick(t += 10 * kMs, &out, nullptr);
+  can.tick(loc, t += 10 * kMs, &out, nullptr);
   EXPECT_FALSE(quality_of(c, out).map_guided_fix);
   // A QR fix initialises; then a map-guided fix is fused and flagged in the next quality frame
   // (and only that one).
   loc.on_odometry(t, 0.5, 0.0);
   loc.on_fix(good_fix(0.0), t - 3 * kMs, t);
   ASSERT_TRUE(loc.ekf().initialised());
-  loc.tick(t += 10 * kMs, &out, nullptr);
+  can.tick(loc, t += 10 * kMs, &out, nullptr);
   EXPECT_FALSE(quality_of(c, out).map_guided_fix);
   loc.on_odometry(t, 0.5, 0.0);
   loc.on_fix(guided_fix(loc.ekf().estimate_at(t - 3 * kMs).pose.x_mm), t - 3 * kMs, t);
   EXPECT_EQ(loc.stats().fixes_map_guided_fused, 1u);
-  loc.tick(t += 10 * kMs, &out, nullptr);
+  can.tick(loc, t += 10 * kMs, &out, nullptr);
   EXPECT_TRUE(quality_of(c, out).map_guided_fix);
-  loc.tick(t += 10 * kMs, &out, nullptr);
+  can.tick(loc, t += 10 * kMs, &out, nullptr);
   EXPECT_FALSE(quality_of(c, out).map_guided_fix);
 }
 
@@ -727,6 +740,7 @@ TEST(Localizer, MapGuidedFixIsFusedByAHeadingLostFilterWhenItPassesTheGate) {
   auto c = test_config();
   c.fusion.health.lost_heading_sigma_rad = deg_to_rad(0.05);
   localizer::Localizer loc(c);
+  localizer::CanOutput can(c.protocol);
   localizer::OutFrames out;
   localizer::TickRecord rec;
   std::int64_t t = 1000 * kMs;
@@ -736,7 +750,7 @@ TEST(Localizer, MapGuidedFixIsFusedByAHeadingLostFilterWhenItPassesTheGate) {
     t += 10 * kMs;
     loc.on_odometry(t, 0.5, 0.0);
   }
-  loc.tick(t, &out, &rec);
+  can.tick(loc, t, &out, &rec);
   ASSERT_EQ(rec.estimate.health, fusion::HealthState::kLost);
   ASSERT_LT(rec.estimate.position_sigma_mm, c.fusion.health.lost_position_sigma_mm);
   EXPECT_TRUE(loc.prediction_at(t).valid);
@@ -754,6 +768,7 @@ TEST(Localizer, CalibratedCameraOffsetKeepsTheOutputOnTheVehicleClock) {
     auto c = test_config();
     c.time_base.camera_offset_ns = configured_offset_ns;
     localizer::Localizer loc(c);
+    localizer::CanOutput can(c.protocol);
     localizer::OutFrames out;
     localizer::TickRecord rec;
     double worst_mm = 0.0;
@@ -764,7 +779,7 @@ TEST(Localizer, CalibratedCameraOffsetKeepsTheOutputOnTheVehicleClock) {
         const double x_true_mm = static_cast<double>(t - 1000 * kMs) * 1e-6;
         loc.on_fix(good_fix(x_true_mm), t + 12 * kMs, t + 30 * kMs);
       }
-      loc.tick(t, &out, &rec);
+      can.tick(loc, t, &out, &rec);
       if (i >= 100 && rec.estimate.valid) {
         const double x_true_mm = static_cast<double>(t - 1000 * kMs) * 1e-6;
         worst_mm = std::max(worst_mm, std::abs(rec.estimate.pose.x_mm - x_true_mm));

@@ -91,12 +91,11 @@ int valid_ticks_after_placing(bool init_position, double sigma_mm, double sigma_
   constexpr std::int64_t kMs = 1'000'000;
   localizer::LocalizerConfig c;
   localizer::Localizer loc(c);
-  localizer::OutFrames out;
   localizer::TickRecord rec;
   std::int64_t t = 1000 * kMs;
   for (int i = 0; i < 20; ++i) {
     loc.on_odometry(t, 1.0, 0.0);
-    loc.tick(t += 10 * kMs, &out, &rec);
+    rec = loc.tick(t += 10 * kMs);
   }
   const Pose2 placed{1000.0, 2000.0, 0.5};
   const bool ok =
@@ -104,7 +103,7 @@ int valid_ticks_after_placing(bool init_position, double sigma_mm, double sigma_
   EXPECT_TRUE(ok);
   for (int i = 0; i < n_ticks; ++i) {
     loc.on_odometry(t, 1.0, 0.0);
-    loc.tick(t += 10 * kMs, &out, &rec);
+    rec = loc.tick(t += 10 * kMs);
     if (!rec.pose_valid) {
       EXPECT_EQ(rec.status.health, protocol::Health::kLost);
       return i;

@@ -22,6 +22,27 @@ protocol::Health to_protocol(fusion::HealthState h) {
   return protocol::Health::kLost;
 }
 
+// The status frame's rejection flag for a vision result without a fix (0: nothing to flag).
+std::uint8_t rejection_of(vision::FixStatus status) {
+  using vision::FixStatus;
+  switch (status) {
+    case FixStatus::kOk:
+    case FixStatus::kNoLandmark:
+    case FixStatus::kBadInput:
+      return 0;
+    case FixStatus::kUnknownLandmark:
+      return protocol::reject::kUnknownLandmark;
+    case FixStatus::kQrUnreadable:
+    case FixStatus::kPayloadInvalid:
+      return protocol::reject::kDecodeFailed;
+    case FixStatus::kPartlyOutside:
+    case FixStatus::kDirectionAmbiguous:
+    case FixStatus::kTooFewEdgePoints:
+      return protocol::reject::kGeometry;
+  }
+  return 0;
+}
+
 const protocol::ProtocolConfig& checked(const protocol::ProtocolConfig& p) {
   const std::string err = protocol::validate(p);
   if (!err.empty()) throw std::invalid_argument("protocol: " + err);
@@ -31,11 +52,7 @@ const protocol::ProtocolConfig& checked(const protocol::ProtocolConfig& p) {
 }  // namespace
 
 Localizer::Localizer(const LocalizerConfig& cfg)
-    : cfg_(cfg),
-      ekf_(cfg.fusion),
-      encoder_(checked(cfg.protocol)),
-      odom_(cfg.protocol),
-      gyro_(cfg.protocol) {
+    : cfg_(cfg), ekf_(cfg.fusion), odom_(checked(cfg.protocol)), gyro_(cfg.protocol) {
   if (cfg_.heartbeat_period_ns <= 0) throw std::invalid_argument("heartbeat period must be > 0");
   if (cfg_.fusion.health.odom_timeout_ns <= 0)
     throw std::invalid_argument("odometry timeout must be > 0");
@@ -173,25 +190,9 @@ bool Localizer::odometry_timed_out(std::int64_t now_ns) const {
 
 void Localizer::on_fix(const vision::LandmarkMeasurement& fix, std::int64_t t_exposure_ns,
                        std::int64_t t_arrival_ns) {
-  using vision::FixStatus;
-  switch (fix.status) {
-    case FixStatus::kOk:
-      break;
-    case FixStatus::kNoLandmark:
-    case FixStatus::kBadInput:
-      return;
-    case FixStatus::kUnknownLandmark:
-      rejections_ |= protocol::reject::kUnknownLandmark;
-      return;
-    case FixStatus::kQrUnreadable:
-    case FixStatus::kPayloadInvalid:
-      rejections_ |= protocol::reject::kDecodeFailed;
-      return;
-    case FixStatus::kPartlyOutside:
-    case FixStatus::kDirectionAmbiguous:
-    case FixStatus::kTooFewEdgePoints:
-      rejections_ |= protocol::reject::kGeometry;
-      return;
+  if (fix.status != vision::FixStatus::kOk) {
+    rejections_ |= rejection_of(fix.status);
+    return;
   }
   ++stats_.fixes_received;
   if (t_exposure_ns > t_arrival_ns) {
@@ -258,12 +259,10 @@ protocol::PoseOut Localizer::pose_out(const fusion::PoseEstimate& est, std::int6
   return pose;
 }
 
-void Localizer::add_pose(const protocol::PoseOut& pose, OutFrames* out) {
-  out->n = 0;
-  encoder_.encode_pose(pose, &out->frame[0], &out->frame[1]);
-  out->n = 2;
-  out->e2e_exposure_ns = pending_e2e_exposure_ns_;
+PoseOutput Localizer::take_pose(const protocol::PoseOut& pose) {
+  PoseOutput out{pose, pending_e2e_exposure_ns_};
   pending_e2e_exposure_ns_ = INT64_MIN;
+  return out;
 }
 
 vision::MotionSnapshot Localizer::snapshot_at(std::int64_t t_ns) const {
@@ -293,26 +292,15 @@ vision::Prediction Localizer::prediction_at(std::int64_t t_exposure_ns) const {
   return p;
 }
 
-void Localizer::pose_now(std::int64_t now_ns, OutFrames* out) {
+PoseOutput Localizer::pose_now(std::int64_t now_ns) {
   const fusion::PoseEstimate est = ekf_.estimate_at(now_ns);
   bool odom_timeout = false;
-  add_pose(pose_out(est, now_ns, &odom_timeout), out);
+  const PoseOutput out = take_pose(pose_out(est, now_ns, &odom_timeout));
   ++stats_.fix_poses;
+  return out;
 }
 
-void Localizer::tick(std::int64_t now_ns, OutFrames* out, TickRecord* rec) {
-  ++stats_.ticks;
-  if (first_tick_ns_ == INT64_MIN) first_tick_ns_ = now_ns;
-
-  fusion::PoseEstimate est = ekf_.estimate_at(now_ns);
-  est.flags |= ekf_.take_flags();
-
-  bool odom_timeout = false;
-  const protocol::PoseOut pose = pose_out(est, now_ns, &odom_timeout);
-  protocol::VelocityOut vel;
-  vel.valid = est.valid;
-  vel.v_mps = est.v_mps;
-  vel.omega_radps = est.omega_radps;
+protocol::QualityOut Localizer::quality_of(const fusion::PoseEstimate& est) {
   protocol::QualityOut q;
   q.valid = est.valid;
   q.sigma_x_mm = std::sqrt(std::max(0.0, est.cov(0, 0)));
@@ -320,7 +308,11 @@ void Localizer::tick(std::int64_t now_ns, OutFrames* out, TickRecord* rec) {
   q.sigma_theta_rad = std::sqrt(std::max(0.0, est.cov(2, 2)));
   q.map_guided_fix = map_guided_fused_;
   map_guided_fused_ = false;
+  return q;
+}
 
+protocol::StatusOut Localizer::status_at(std::int64_t now_ns, const fusion::PoseEstimate& est,
+                                         bool odom_timeout) {
   protocol::StatusOut st;
   st.health = to_protocol(est.health);
   st.last_landmark_id = last_landmark_id_;
@@ -355,29 +347,42 @@ void Localizer::tick(std::int64_t now_ns, OutFrames* out, TickRecord* rec) {
   if (est.flags & fusion::flags::kRejectedTooOld) rejections_ |= protocol::reject::kFixTooOld;
   st.rejections = rejections_;
   rejections_ = 0;
+  return st;
+}
 
-  add_pose(pose, out);
-  encoder_.encode_velocity(vel, &out->frame[out->n++]);
-  encoder_.encode_quality(q, &out->frame[out->n++]);
-  encoder_.encode_status(st, &out->frame[out->n++]);
-  if (now_ns >= next_heartbeat_ns_) {
-    protocol::HeartbeatOut hb;
-    hb.sw_major = cfg_.sw_major;
-    hb.sw_minor = cfg_.sw_minor;
-    hb.sw_patch = cfg_.sw_patch;
-    hb.uptime_s = static_cast<double>(now_ns - first_tick_ns_) / 1e9;
-    encoder_.encode_heartbeat(hb, &out->frame[out->n++]);
-    next_heartbeat_ns_ =
-        (next_heartbeat_ns_ == INT64_MIN ? now_ns : next_heartbeat_ns_) + cfg_.heartbeat_period_ns;
-    if (next_heartbeat_ns_ <= now_ns) next_heartbeat_ns_ = now_ns + cfg_.heartbeat_period_ns;
-  }
+bool Localizer::heartbeat_due(std::int64_t now_ns, protocol::HeartbeatOut* hb) {
+  if (now_ns < next_heartbeat_ns_) return false;
+  hb->sw_major = cfg_.sw_major;
+  hb->sw_minor = cfg_.sw_minor;
+  hb->sw_patch = cfg_.sw_patch;
+  hb->uptime_s = static_cast<double>(now_ns - first_tick_ns_) / 1e9;
+  next_heartbeat_ns_ =
+      (next_heartbeat_ns_ == INT64_MIN ? now_ns : next_heartbeat_ns_) + cfg_.heartbeat_period_ns;
+  if (next_heartbeat_ns_ <= now_ns) next_heartbeat_ns_ = now_ns + cfg_.heartbeat_period_ns;
+  return true;
+}
 
-  if (rec) {
-    rec->t_ns = now_ns;
-    rec->estimate = est;
-    rec->status = st;
-    rec->pose_valid = protocol::pose_valid_on_can(pose);
-  }
+TickRecord Localizer::tick(std::int64_t now_ns) {
+  ++stats_.ticks;
+  if (first_tick_ns_ == INT64_MIN) first_tick_ns_ = now_ns;
+
+  TickRecord rec;
+  rec.t_ns = now_ns;
+  rec.estimate = ekf_.estimate_at(now_ns);
+  rec.estimate.flags |= ekf_.take_flags();
+  const fusion::PoseEstimate& est = rec.estimate;
+
+  bool odom_timeout = false;
+  const protocol::PoseOut pose = pose_out(est, now_ns, &odom_timeout);
+  rec.velocity.valid = est.valid;
+  rec.velocity.v_mps = est.v_mps;
+  rec.velocity.omega_radps = est.omega_radps;
+  rec.quality = quality_of(est);
+  rec.status = status_at(now_ns, est, odom_timeout);
+  rec.pose = take_pose(pose);
+  rec.pose_valid = protocol::pose_valid_on_can(pose);
+  rec.heartbeat_due = heartbeat_due(now_ns, &rec.heartbeat);
+  return rec;
 }
 
 }  // namespace agv::localizer

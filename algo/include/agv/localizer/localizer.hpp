@@ -1,8 +1,11 @@
-// The localizer core: odometry, gyro, CAN frames and vision results in; the CAN frames to send out.
-// Owns fusion (fusion::Ekf) and the output policy: pose validity, health, fault latching,
-// rejection flags, heartbeat. Pure: no bus, no clock, no threads; the caller passes the time and
-// sends the frames (firmware/src/output_loop.*). After construction none of its methods
-// allocates (tests/firmware/test_alloc.cpp proves it).
+// The localizer core: odometry, gyro, CAN frames and vision results in; one transport-neutral
+// record per output period out (TickRecord: pose with its validity, velocity, quality, status,
+// heartbeat due, end-to-end exposure), which every output encodes for itself: CAN
+// (localizer::CanOutput, can_output.hpp), VDA 5050 (vda5050::map_tick), the diagnostics page,
+// poses.csv. Owns fusion (fusion::Ekf) and the output policy: pose validity, health, fault
+// latching, rejection flags, heartbeat schedule. Pure: no bus, no clock, no threads; the caller
+// passes the time (firmware/src/output_loop.*). After construction none of its methods allocates
+// (tests/firmware/test_alloc.cpp proves it).
 #pragma once
 
 #include <cstdint>
@@ -97,7 +100,7 @@ struct OutputStats {
   std::uint64_t can_tx_failed = 0;
   std::uint64_t can_rx_frames = 0;
   std::uint64_t can_rx_other = 0;     // frames of no enabled input message (ignored)
-  LatencyHistogram fusion_ns;         // tick(): estimate and policy for one period
+  LatencyHistogram fusion_ns;         // tick() and its CAN encoding, one period
   LatencyHistogram can_send_ns;       // all sends of one tick
   LatencyHistogram end_to_end_ns;     // first pose frame sent after a fix - that frame's exposure
   LatencyHistogram period_jitter_ns;  // |actual wake-up - scheduled wake-up|
@@ -113,26 +116,31 @@ enum class CanRx : std::uint8_t {
   kOther,          // no enabled input message: counted in can_rx_other, ignored
 };
 
-// What one tick produced (replay writes these to poses.csv).
+// The pose pair's content (AGV_PoseXY, AGV_PoseHeading) at one instant, periodic or at once
+// after a fix (Localizer::pose_now).
+struct PoseOutput {
+  protocol::PoseOut pose;
+  // Exposure of the newest fused fix this pose is the first to carry; INT64_MIN if none. The
+  // sender records end-to-end latency = (time the pose left) - this.
+  std::int64_t e2e_exposure_ns = INT64_MIN;
+};
+
+// What one tick produced, transport-neutral: what the CAN frames carry as plain values, with the
+// estimate behind them. Every output encodes this one value (CAN: CanOutput; VDA 5050; the
+// diagnostics page; replay's poses.csv).
 struct TickRecord {
   std::int64_t t_ns = 0;
   fusion::PoseEstimate estimate;
+  PoseOutput pose;
+  protocol::VelocityOut velocity;
+  protocol::QualityOut quality;
   protocol::StatusOut status;
-  // PoseValid of the pose frames this tick sent (protocol::pose_valid_on_can). Not the same as
+  // AGV_Heartbeat is due this period (LocalizerConfig::heartbeat_period_ns); heartbeat holds it.
+  bool heartbeat_due = false;
+  protocol::HeartbeatOut heartbeat;
+  // PoseValid of the pose (protocol::pose_valid_on_can(pose.pose)). Not the same as
   // estimate.valid, which means only "the filter is initialised" (true while LOST too).
   bool pose_valid = false;
-};
-
-// Frames to send, in order, in a fixed buffer. The pose pair (xy, heading) always comes first.
-struct OutFrames {
-  // One per transmitted message of the signal table (pose xy + heading, velocity, quality,
-  // status, heartbeat); the localizer test checks it against the table.
-  static constexpr int kMax = 6;
-  hal::CanFrame frame[kMax];
-  int n = 0;
-  // Exposure of the newest fused fix this pose pair is the first to carry; INT64_MIN if none.
-  // The sender records end-to-end latency = (time the pose pair left) - this.
-  std::int64_t e2e_exposure_ns = INT64_MIN;
 };
 
 // The 1-sigma uncertainty an operator-set pose (VDA 5050 initPosition) gets: half the configured
@@ -208,12 +216,11 @@ class Localizer {
     overrun_ = true;
   }
 
-  // The periodic output at now_ns: pose pair, velocity, quality, status, heartbeat when due.
-  // Fills *rec when not null.
-  void tick(std::int64_t now_ns, OutFrames* out, TickRecord* rec);
-  // The pose pair alone, estimated at now_ns, outside the periodic schedule (loop.pose_on_fix:
-  // a fused fix reaches the bus without waiting up to one period).
-  void pose_now(std::int64_t now_ns, OutFrames* out);
+  // The periodic output at now_ns: pose, velocity, quality, status, heartbeat when due.
+  TickRecord tick(std::int64_t now_ns);
+  // The pose alone, estimated at now_ns, outside the periodic schedule (loop.pose_on_fix: a
+  // fused fix reaches the bus without waiting up to one period).
+  PoseOutput pose_now(std::int64_t now_ns);
 
   // The fused pose predicted to a camera frame's exposure (the camera's clock), for its search
   // windows
@@ -226,6 +233,7 @@ class Localizer {
   // vehicle's clock by time_base().
   vision::MotionSnapshot snapshot_at(std::int64_t t_ns) const;
   const TimeBase& time_base() const { return cfg_.time_base; }
+  const LocalizerConfig& config() const { return cfg_; }
 
   const OutputStats& stats() const { return stats_; }
   // The sender records transmit results and latencies here.
@@ -239,11 +247,14 @@ class Localizer {
   // Pose output for an estimate: invalid when uninitialised, lost or without odometry.
   protocol::PoseOut pose_out(const fusion::PoseEstimate& est, std::int64_t now_ns,
                              bool* odom_timeout) const;
-  void add_pose(const protocol::PoseOut& pose, OutFrames* out);
+  PoseOutput take_pose(const protocol::PoseOut& pose);
+  protocol::StatusOut status_at(std::int64_t now_ns, const fusion::PoseEstimate& est,
+                                bool odom_timeout);
+  protocol::QualityOut quality_of(const fusion::PoseEstimate& est);
+  bool heartbeat_due(std::int64_t now_ns, protocol::HeartbeatOut* hb);
 
   LocalizerConfig cfg_;
   fusion::Ekf ekf_;
-  protocol::Encoder encoder_;
   protocol::OdometryDecoder odom_;
   protocol::GyroDecoder gyro_;
   std::int64_t last_odom_ns_ = INT64_MIN;
