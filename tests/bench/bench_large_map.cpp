@@ -10,6 +10,7 @@
 #include <random>
 #include <string>
 
+#include "../support/prediction.hpp"
 #include "agv/common/landmark_index.hpp"
 #include "agv/sim/render.hpp"
 #include "agv/vision/landmark_localizer.hpp"
@@ -43,15 +44,7 @@ LandmarkMap grid_map(int n) {
   return m;
 }
 
-vision::Prediction predict(const Pose2& v, double sigma_mm, double sigma_deg) {
-  vision::Prediction p;
-  p.valid = true;
-  p.vehicle_in_world = v;
-  p.cov = Eigen::Vector3d(sigma_mm * sigma_mm, sigma_mm * sigma_mm,
-                          deg_to_rad(sigma_deg) * deg_to_rad(sigma_deg))
-              .asDiagonal();
-  return p;
-}
+using testsupport::predict;
 
 // A frame over landmark 1 (the origin): rendered from a map of that landmark alone, which images
 // the same as the large map (its neighbours are a metre away, out of the camera's view).

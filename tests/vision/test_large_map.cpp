@@ -7,6 +7,7 @@
 #include <random>
 #include <vector>
 
+#include "../support/prediction.hpp"
 #include "agv/common/landmark_index.hpp"
 #include "agv/vision/map_identity.hpp"
 #include "agv/vision/tracking.hpp"
@@ -27,15 +28,7 @@ LandmarkMap grid_map(int side, double spacing_mm) {
   return m;
 }
 
-Prediction predict(const Pose2& v, double sigma_mm, double sigma_deg) {
-  Prediction p;
-  p.valid = true;
-  p.vehicle_in_world = v;
-  p.cov = Eigen::Vector3d(sigma_mm * sigma_mm, sigma_mm * sigma_mm,
-                          deg_to_rad(sigma_deg) * deg_to_rad(sigma_deg))
-              .asDiagonal();
-  return p;
-}
+using testsupport::predict;
 
 }  // namespace
 

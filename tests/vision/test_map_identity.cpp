@@ -7,6 +7,7 @@
 #include <random>
 #include <string>
 
+#include "../support/prediction.hpp"
 #include "agv/sim/render.hpp"
 #include "agv/vision/landmark_localizer.hpp"
 #include "agv/vision/map_identity.hpp"
@@ -30,13 +31,7 @@ LandmarkMap two_landmarks(double spacing_mm) {
   return m;
 }
 
-Prediction predict(const Pose2& v, double sigma_mm, double sigma_deg) {
-  Prediction p;
-  p.valid = true;
-  p.vehicle_in_world = v;
-  p.cov = diag_cov(sigma_mm, sigma_deg);
-  return p;
-}
+using testsupport::predict;
 
 // The fitted square as the vision stage reports it for a landmark seen at `l_in_v` at turn q:
 // beta = forward + q * 90 deg.

@@ -13,6 +13,7 @@
 #include <random>
 #include <string>
 
+#include "../support/prediction.hpp"
 #include "agv/sim/render.hpp"
 #include "agv/vision/landmark_localizer.hpp"
 #include "agv/vision/tracking.hpp"
@@ -40,15 +41,7 @@ cv::Mat render(const LandmarkMap& map, const Pose2& vehicle_in_world, const Came
   return sim::render_frame(scene, cam, vehicle_in_world, sim::RenderOptions{}, rng);
 }
 
-Prediction predict(const Pose2& v, double sigma_mm, double sigma_deg) {
-  Prediction p;
-  p.valid = true;
-  p.vehicle_in_world = v;
-  p.cov = Eigen::Vector3d(sigma_mm * sigma_mm, sigma_mm * sigma_mm,
-                          deg_to_rad(sigma_deg) * deg_to_rad(sigma_deg))
-              .asDiagonal();
-  return p;
-}
+using testsupport::predict;
 
 // Bounding box of the dark (printed) pixels.
 cv::Rect dark_box(const cv::Mat& img) {
