@@ -1,5 +1,5 @@
 // The core's transport-neutral output (TickRecord, PoseOutput) and its CAN encoding
-// (localizer::CanOutput).
+// (localizer::CanOutput), and the fix counters the statistics read from the EKF.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -102,4 +102,66 @@ TEST(LocalizerOutput, PoseNowAndTickShareThePoseCounter) {
   can.tick(loc, 1010 * kMs, &out);
   EXPECT_EQ(can.encoder().next_counter(p::Msg::kPoseXY), 3);
   EXPECT_EQ(can.encoder().next_counter(p::Msg::kVelocity), 2);
+}
+
+// A fix ahead of the odometry is held by the EKF and fused when the odometry catches up: the
+// statistics count it then (they are the EKF's counters, not a second count of add_fix results).
+TEST(LocalizerOutput, AHeldFixIsCountedWhenTheEkfFusesIt) {
+  const auto c = test_config();
+  localizer::Localizer loc(c);
+  std::int64_t t = 1000 * kMs;
+  for (int i = 0; i < 5; ++i) loc.on_odometry(t += 10 * kMs, 0.5, 0.0);
+  loc.on_fix(fix_at(0.0), t - 5 * kMs, t);
+  ASSERT_EQ(loc.stats().fixes_fused, 1u);
+  // Exposed 250 ms after the newest odometry (more than fusion.max_fix_lead), where the vehicle
+  // is then at 0.5 m/s; the odometry resumes after a 300 ms gap.
+  const std::int64_t exposure = t + 250 * kMs;
+  loc.on_fix(fix_at(127.5), exposure, exposure + 30 * kMs);
+  EXPECT_EQ(loc.ekf().counters().fixes_held, 1u);
+  EXPECT_EQ(loc.stats().fixes_fused, 1u);
+  t += 300 * kMs;
+  for (int i = 0; i < 5; ++i) loc.on_odometry(t += 10 * kMs, 0.5, 0.0);
+  EXPECT_EQ(loc.ekf().counters().fixes_fused, 1u);  // the first one initialised
+  EXPECT_EQ(loc.stats().fixes_fused, 2u);
+  EXPECT_EQ(loc.stats().fixes_received, 2u);
+}
+
+// An operator-set pose (VDA 5050 initPosition) re-initialises the EKF, but it is no fix: the fix
+// statistics do not count it.
+TEST(LocalizerOutput, AnOperatorPoseIsNotCountedAsAFix) {
+  const auto c = test_config();
+  localizer::Localizer loc(c);
+  std::int64_t t = 1000 * kMs;
+  for (int i = 0; i < 5; ++i) loc.on_odometry(t += 10 * kMs, 0.5, 0.0);
+  loc.on_fix(fix_at(0.0), t - 5 * kMs, t);
+  loc.on_odometry(t += 10 * kMs, 0.5, 0.0);
+  ASSERT_TRUE(loc.init_position(t, Pose2{500.0, 500.0, 1.0}));
+  EXPECT_EQ(loc.ekf().counters().reinitialisations, 1u);
+  EXPECT_EQ(loc.stats().reinitialisations, 0u);
+  EXPECT_EQ(loc.stats().fixes_fused, 1u);
+  EXPECT_EQ(loc.stats().fixes_rejected_gate, 0u);
+}
+
+// The mapping from the EKF's counters: a kidnap is counted by the EKF as a gate rejection and a
+// re-initialisation; the statistics show it as a fused fix that re-initialised the filter.
+TEST(LocalizerOutput, FixOutcomeCountsFromTheEkfCounters) {
+  fusion::Ekf::Counters e;
+  e.fixes_fused = 10;
+  e.fixes_initialised = 1;
+  e.fixes_rejected_gate = 4;  // one of them became a kidnap
+  e.reinitialisations = 3;    // the kidnap, a re-localisation from a fix, an operator pose
+  e.relocalisations = 2;      // the fix's and the operator's
+  e.fixes_rejected_too_old = 5;
+  e.fixes_rejected_invalid = 6;
+  e.fixes_rejected_not_tracking = 7;
+  localizer::OperatorPoseCounts op;
+  op.reinitialisations = 1;
+  localizer::OutputStats s;
+  localizer::fix_outcome_counts(e, /*exposed_after_arrival=*/2, op, &s);
+  EXPECT_EQ(s.fixes_fused, 13u);  // 10 fused + 1 initialisation + 2 re-initialisations
+  EXPECT_EQ(s.fixes_rejected_gate, 3u);
+  EXPECT_EQ(s.reinitialisations, 2u);
+  EXPECT_EQ(s.fixes_rejected_too_old, 5u);
+  EXPECT_EQ(s.fixes_rejected_invalid, 8u);
+  EXPECT_EQ(s.fixes_rejected_not_tracking, 7u);
 }

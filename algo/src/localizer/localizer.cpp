@@ -89,6 +89,21 @@ InitPositionSigma init_position_sigma(const fusion::EkfConfig& fusion) {
           kInitPositionSigmaOfLostLimit * fusion.health.lost_heading_sigma_rad};
 }
 
+void fix_outcome_counts(const fusion::Ekf::Counters& ekf, std::uint64_t exposed_after_arrival,
+                        const OperatorPoseCounts& operator_poses, OutputStats* out) {
+  // The EKF counts a kidnap (consecutive agreeing fixes outside the gate) as a gate rejection and
+  // a re-initialisation; the re-initialisations that are not re-localisations are those.
+  const std::uint64_t from_fixes = ekf.reinitialisations - operator_poses.reinitialisations;
+  const std::uint64_t kidnaps = ekf.reinitialisations - ekf.relocalisations;
+  out->fixes_fused =
+      ekf.fixes_fused + ekf.fixes_initialised - operator_poses.initialisations + from_fixes;
+  out->fixes_rejected_gate = ekf.fixes_rejected_gate - kidnaps;
+  out->fixes_rejected_too_old = ekf.fixes_rejected_too_old;
+  out->fixes_rejected_invalid = ekf.fixes_rejected_invalid + exposed_after_arrival;
+  out->fixes_rejected_not_tracking = ekf.fixes_rejected_not_tracking;
+  out->reinitialisations = from_fixes;
+}
+
 bool Localizer::init_position(std::int64_t now_ns, const Pose2& pose) {
   const InitPositionSigma s = init_position_sigma(cfg_.fusion);
   return set_pose(now_ns, pose, s.position_mm, s.heading_rad);
@@ -99,7 +114,12 @@ bool Localizer::set_pose(std::int64_t now_ns, const Pose2& pose, double sigma_mm
   Eigen::Matrix3d R = Eigen::Matrix3d::Zero();
   R(0, 0) = R(1, 1) = sigma_mm * sigma_mm;
   R(2, 2) = sigma_rad * sigma_rad;
-  return ekf_.set_pose(now_ns, pose, R);
+  const fusion::Ekf::Counters before = ekf_.counters();
+  const bool ok = ekf_.set_pose(now_ns, pose, R);
+  operator_poses_.initialisations += ekf_.counters().fixes_initialised - before.fixes_initialised;
+  operator_poses_.reinitialisations += ekf_.counters().reinitialisations - before.reinitialisations;
+  refresh_fix_counts();
+  return ok;
 }
 
 void Localizer::on_odometry(std::int64_t t_ns, double v_mps, double omega_radps) {
@@ -117,7 +137,9 @@ void Localizer::on_odometry(std::int64_t t_ns, double v_mps, double omega_radps)
     const double track_width_m = cfg_.fusion.slip.wheel_track_mm * 1e-3;
     v_mps += c.yaw_per_metre_rad * 0.25 * track_width_m * track_width_m * omega_read_radps;
   }
-  if (!ekf_.add_odometry(t_ns, v_mps, omega_radps)) {
+  const bool accepted = ekf_.add_odometry(t_ns, v_mps, omega_radps);
+  refresh_fix_counts();  // odometry that catches up releases held fixes
+  if (!accepted) {
     ++stats_.odom_rejected;
     return;
   }
@@ -130,7 +152,9 @@ bool Localizer::on_gyro(std::int64_t t_ns, double gyro_z_radps) {
   t_ns = cfg_.time_base.gyro_to_vehicle_ns(t_ns);
   gyro_z_radps *= c.scale;
   if (c.bias_radps != 0.0) gyro_z_radps += c.bias_radps;
-  if (!ekf_.add_gyro(t_ns, gyro_z_radps)) {
+  const bool accepted = ekf_.add_gyro(t_ns, gyro_z_radps);
+  refresh_fix_counts();
+  if (!accepted) {
     ++stats_.gyro_rejected;
     return false;
   }
@@ -196,7 +220,8 @@ void Localizer::on_fix(const vision::LandmarkMeasurement& fix, std::int64_t t_ex
   }
   ++stats_.fixes_received;
   if (t_exposure_ns > t_arrival_ns) {
-    ++stats_.fixes_rejected_invalid;
+    ++fixes_exposed_after_arrival_;
+    refresh_fix_counts();
     rejections_ |= protocol::reject::kGeometry;
     return;
   }
@@ -208,35 +233,29 @@ void Localizer::on_fix(const vision::LandmarkMeasurement& fix, std::int64_t t_ex
   // means a QR payload the map confirmed.
   const bool vouches =
       fix.map_verified && !guided && fix.identity != vision::FixIdentity::kAprilTag;
-  switch (ekf_.add_fix(t_exposure_ns, fix.vehicle_in_world, fix.cov_world, vouches, guided)) {
+  const fusion::FixOutcome outcome =
+      ekf_.add_fix(t_exposure_ns, fix.vehicle_in_world, fix.cov_world, vouches, guided);
+  refresh_fix_counts();
+  switch (outcome) {
     case fusion::FixOutcome::kHeld:  // fused (or rejected) when odometry catches up
       return;
     case fusion::FixOutcome::kFused:
     case fusion::FixOutcome::kInitialised:
-      ++stats_.fixes_fused;
       if (guided) {
         ++stats_.fixes_map_guided_fused;
         map_guided_fused_ = true;
       }
       break;
-    case fusion::FixOutcome::kRejectedNotTracking:
-      ++stats_.fixes_rejected_not_tracking;
-      rejections_ |= protocol::reject::kGate;
-      return;
     case fusion::FixOutcome::kReinitialised:
-      ++stats_.fixes_fused;
-      ++stats_.reinitialisations;
       break;
+    case fusion::FixOutcome::kRejectedNotTracking:
     case fusion::FixOutcome::kRejectedGate:
-      ++stats_.fixes_rejected_gate;
       rejections_ |= protocol::reject::kGate;
       return;
     case fusion::FixOutcome::kRejectedTooOld:
-      ++stats_.fixes_rejected_too_old;
       rejections_ |= protocol::reject::kFixTooOld;
       return;
     case fusion::FixOutcome::kRejectedInvalid:
-      ++stats_.fixes_rejected_invalid;
       rejections_ |= protocol::reject::kGeometry;
       return;
   }

@@ -85,11 +85,15 @@ struct OutputStats {
   // (not in gyro_samples).
   std::uint64_t gyro_saturated = 0;
   std::uint64_t fixes_received = 0;
+  // The fix outcomes below are the EKF's counters (fusion::Ekf::Counters, the one count), read by
+  // fix_outcome_counts(): a fix held ahead of the odometry is counted when it is fused or
+  // rejected. Written by the Localizer after every input; a sender must not change them.
+  // fixes_fused: fused, initialising or re-initialising the filter (kidnap, re-localisation).
   std::uint64_t fixes_fused = 0;
   std::uint64_t fixes_rejected_gate = 0;
   std::uint64_t fixes_rejected_too_old = 0;
-  std::uint64_t fixes_rejected_invalid = 0;
-  std::uint64_t reinitialisations = 0;
+  std::uint64_t fixes_rejected_invalid = 0;  // also those exposed after their arrival
+  std::uint64_t reinitialisations = 0;       // from fixes (not from an operator-set pose)
   // Map-guided fixes (docs/design/map_identity.md): received (also counted in fixes_received),
   // fused, and refused because the filter was uninitialised or lost.
   std::uint64_t fixes_map_guided = 0;
@@ -142,6 +146,17 @@ struct TickRecord {
   // estimate.valid, which means only "the filter is initialised" (true while LOST too).
   bool pose_valid = false;
 };
+
+// The fix outcomes of OutputStats, from the EKF's counters. exposed_after_arrival: fixes the
+// Localizer refused before the EKF saw them (counted as invalid); operator: what operator-set
+// poses (set_pose) added to the EKF's initialisations and re-initialisations, which are not
+// fixes.
+struct OperatorPoseCounts {
+  std::uint64_t initialisations = 0;
+  std::uint64_t reinitialisations = 0;
+};
+void fix_outcome_counts(const fusion::Ekf::Counters& ekf, std::uint64_t exposed_after_arrival,
+                        const OperatorPoseCounts& operator_poses, OutputStats* out);
 
 // The 1-sigma uncertainty an operator-set pose (VDA 5050 initPosition) gets: half the configured
 // lost limits (fusion.lost_position_sigma_mm, fusion.lost_heading_sigma_deg). The pose is then
@@ -236,7 +251,7 @@ class Localizer {
   const LocalizerConfig& config() const { return cfg_; }
 
   const OutputStats& stats() const { return stats_; }
-  // The sender records transmit results and latencies here.
+  // The sender records transmit results and latencies here (not the fix outcomes: the EKF's).
   OutputStats& mutable_stats() { return stats_; }
   const fusion::Ekf& ekf() const { return ekf_; }
   const protocol::OdometryDecoder& odometry_decoder() const { return odom_; }
@@ -252,6 +267,10 @@ class Localizer {
                                 bool odom_timeout);
   protocol::QualityOut quality_of(const fusion::PoseEstimate& est);
   bool heartbeat_due(std::int64_t now_ns, protocol::HeartbeatOut* hb);
+  // OutputStats' fix outcomes from the EKF's counters, after every call that may change them.
+  void refresh_fix_counts() {
+    fix_outcome_counts(ekf_.counters(), fixes_exposed_after_arrival_, operator_poses_, &stats_);
+  }
 
   LocalizerConfig cfg_;
   fusion::Ekf ekf_;
@@ -276,6 +295,8 @@ class Localizer {
   hal::CanStats can_stats_;
   std::int64_t pending_e2e_exposure_ns_ = INT64_MIN;  // newest fused fix not yet sent
   CanFaultMonitor can_faults_;  // latches bus-off / passive / drops between status frames
+  std::uint64_t fixes_exposed_after_arrival_ = 0;  // refused before the EKF
+  OperatorPoseCounts operator_poses_;
   OutputStats stats_;
 };
 
