@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <limits>
 #include <random>
 #include <string>
 #include <vector>
@@ -73,7 +74,7 @@ double floyd_warshall(const FreeRings& f, Vec2 start, Vec2 goal) {
   std::vector<Vec2> v{start, goal};
   for (const auto& r : f.rings) v.insert(v.end(), r.begin(), r.end());
   const std::size_t n = v.size();
-  std::vector<double> d(n * n, INFINITY);
+  std::vector<double> d(n * n, std::numeric_limits<double>::infinity());
   for (std::size_t i = 0; i < n; ++i) {
     d[i * n + i] = 0.0;
     for (std::size_t j = i + 1; j < n; ++j) {
@@ -156,6 +157,54 @@ TEST(PlannerRandom, RoutesAreClearAndShortest) {
   EXPECT_GT(routes, sites / 2);
   std::printf("%d sites: %d routes, %d no route, %d blocked ends\n", sites, routes, no_route,
               blocked);
+}
+
+// The graph's edges against brute force over every pair of reflex free-space vertices (tangent
+// at both ends by this file's own test, then visible): on a grid of racks most pairs are hidden
+// behind other racks, so skipping hidden partners wholesale must not lose a single edge.
+TEST(PlannerRandom, RackGridEdgesMatchBruteForce) {
+  Site s;
+  s.outline = test::rect(0, 0, 30000, 16000);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> jitter(-100, 100);
+  for (int c = 0; c < 6; ++c) {
+    for (int r = 0; r < 5; ++r) {
+      const double x0 = 1500 + c * 4800 + jitter(rng), y0 = 1200 + r * 2900 + jitter(rng);
+      s.obstacles.push_back(test::rack("r" + std::to_string(c) + "_" + std::to_string(r), x0, y0,
+                                       x0 + 3600, y0 + 1000));
+    }
+  }
+  RoutePlanner p;
+  std::string error;
+  ASSERT_TRUE(RoutePlanner::build(s, {}, &p, &error)) << error;
+  const FreeRings f{p.free_boundary()};
+  struct Node {
+    Vec2 at, prev, next;
+  };
+  std::vector<Node> nodes;
+  for (const auto& ring : f.rings) {
+    for (std::size_t i = 0; i < ring.size(); ++i) {
+      const Vec2 a = ring[(i + ring.size() - 1) % ring.size()], b = ring[i],
+                 c = ring[(i + 1) % ring.size()];
+      if (cross(a, b, c) < 0.0) nodes.push_back({b, a, c});  // turns right: F is reflex there
+    }
+  }
+  // Both ring neighbours of n on one side of the line n -> m (or on it, within 1e-6 mm).
+  const auto tangent = [](const Node& n, Vec2 m) {
+    const double l = std::hypot(m.x - n.at.x, m.y - n.at.y);
+    const double sp = cross(n.at, m, n.prev) / l, sn = cross(n.at, m, n.next) / l;
+    return !((sp > 1e-6 && sn < -1e-6) || (sp < -1e-6 && sn > 1e-6));
+  };
+  std::size_t edges = 0;
+  for (std::size_t i = 0; i < nodes.size(); ++i) {
+    for (std::size_t j = i + 1; j < nodes.size(); ++j) {
+      const Vec2 a = nodes[i].at, b = nodes[j].at;
+      edges += tangent(nodes[i], b) && tangent(nodes[j], a) && f.visible(a, b);
+    }
+  }
+  EXPECT_EQ(p.vertex_count(), nodes.size());
+  EXPECT_EQ(p.edge_count(), edges);
+  EXPECT_GT(edges, nodes.size());  // more than the racks' own outlines
 }
 
 }  // namespace
