@@ -1,15 +1,10 @@
 """MQTT brokers of their own for the script tests, on free loopback ports: mosquitto, and RabbitMQ
 with its MQTT plugin (a second implementation, to show agvloc-overhead depends on MQTT 3.1.1, not
 on mosquitto). start_broker(kind, work) -> (port, stop) or None when the broker is not installed."""
-import os, shutil, signal, socket, subprocess, time
+import os, shutil, signal, socket, subprocess, sys, time
 
-
-def free_port():
-    s = socket.socket()
-    s.bind(("127.0.0.1", 0))
-    port = s.getsockname()[1]
-    s.close()
-    return port
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "vda5050"))
+from mqtt_replay import free_port  # noqa: E402
 
 
 def wait_port(port, timeout_s):

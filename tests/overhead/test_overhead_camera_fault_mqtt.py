@@ -4,7 +4,7 @@ is a fault from the start; its VDA 5050 state message (serialNumber the camera's
 VDA 5050 2.1.0's state schema where python3-jsonschema is installed (tests/overhead/binary.cmake,
 label mqtt; skipped without mosquitto). Usage: test_overhead_camera_fault_mqtt.py OVERHEAD_CMD
 SITE WORK"""
-import json, os, re, shutil, subprocess, sys
+import json, os, shutil, subprocess, sys
 
 try:
     import jsonschema
@@ -14,15 +14,7 @@ except ImportError:  # the fields are still checked below
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from mqtt_brokers import start_broker
 from test_overhead_mqtt import PROBE, subscribed
-from test_overhead_util import SKIP, fail, run
-
-
-def state_schema():
-    if jsonschema is None:
-        return None
-    here = os.path.dirname(os.path.abspath(__file__))
-    path = os.path.join(here, "..", "vda5050", "schemas", "2.1.0", "state.schema")
-    return json.loads(re.sub(r",(\s*[}\]])", r"\1", open(path).read()))
+from test_overhead_util import SKIP, fail, run, vda5050_schema
 
 
 def main():
@@ -61,7 +53,7 @@ def main():
             proc.terminate()
             proc.wait(5)
         stop_broker()
-    schema = state_schema()
+    schema = vda5050_schema(jsonschema, "state")
     states = []
     for line in open(messages):
         if line.startswith(PROBE + " "):

@@ -1,7 +1,7 @@
 """agvloc-overhead replay publishing VDA 5050 visualization per vehicle to a broker of its own:
 mosquitto, or RabbitMQ's MQTT plugin (tests/overhead/binary.cmake, label mqtt; skipped without
 the broker). Usage: test_overhead_mqtt.py OVERHEAD_CMD DESK_CMD SITE WORK [mosquitto|rabbitmq]"""
-import json, os, re, shutil, subprocess, sys, time
+import json, os, shutil, subprocess, sys, time
 
 try:
     import jsonschema
@@ -10,16 +10,7 @@ except ImportError:  # the messages' fields are still checked below
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from mqtt_brokers import start_broker
-from test_overhead_util import SKIP, fail, read_csv, render, run
-
-
-def visualization_schema():
-    """VDA 5050 2.1.0's visualization schema (tests/vda5050/schemas), or None without jsonschema."""
-    if jsonschema is None:
-        return None
-    here = os.path.dirname(os.path.abspath(__file__))
-    path = os.path.join(here, "..", "vda5050", "schemas", "2.1.0", "visualization.schema")
-    return json.loads(re.sub(r",(\s*[}\]])", r"\1", open(path).read()))
+from test_overhead_util import SKIP, fail, read_csv, render, run, vda5050_schema
 
 
 PROBE = "agvtest/probe"
@@ -89,7 +80,7 @@ def main():
     want = {}
     for r in tracks:
         want[r[1]] = want.get(r[1], 0) + 1
-    schema = visualization_schema()
+    schema = vda5050_schema(jsonschema, "visualization")
     got, last = {}, {}
     for line in open(messages):
         if line.startswith(PROBE + " "):

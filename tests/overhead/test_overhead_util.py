@@ -5,6 +5,15 @@ import csv, os, shlex, shutil, subprocess, sys
 
 SKIP = 77
 
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "vda5050"))
+from mqtt_replay import load_schema  # noqa: E402
+
+
+def vda5050_schema(jsonschema, topic):
+    """VDA 5050 2.1.0's schema of `topic` (tests/vda5050/schemas), or None without the caller's
+    jsonschema module (the messages' fields are then checked by hand only)."""
+    return None if jsonschema is None else load_schema("2.1.0", topic)
+
 
 def fail(msg):
     print("FAIL: " + msg)
