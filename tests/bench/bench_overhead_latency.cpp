@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "../overhead/tag_test_scene.hpp"
 #include "agv/hal/camera.hpp"
 #include "agv/sim/site_render.hpp"
 #include "core.hpp"
@@ -113,15 +114,7 @@ int main(int argc, char** argv) {
   }
   // --scale N: every camera N times larger in pixels (the same view), for heavier frames.
   const int scale = static_cast<int>(o["--scale"]);
-  for (site::CeilingCamera& c : s.cameras) {
-    CameraIntrinsics& k = c.intrinsics;
-    k.width_px *= scale;
-    k.height_px *= scale;
-    k.fx *= scale;
-    k.fy *= scale;
-    k.cx = (k.cx + 0.5) * scale - 0.5;
-    k.cy = (k.cy + 0.5) * scale - 0.5;
-  }
+  for (site::CeilingCamera& c : s.cameras) overhead::test::scale_camera(&c, scale);
   const std::vector<sim::AgvState> agvs = {{{1350.0, 1250.0, 0.3}, 0.0, 0.0},
                                            {{3600.0, 1000.0, -1.0}, 0.0, 0.0}};
   OverheadConfig cfg;

@@ -81,4 +81,16 @@ inline sim::SiteScene tag_scene(double tag_side_px, int n, std::uint64_t seed) {
   return s;
 }
 
+// The same view on a sensor `scale` times larger in pixels (pixel centres kept:
+// c' = (c + 0.5) * scale - 0.5).
+inline void scale_camera(site::CeilingCamera* c, int scale) {
+  CameraIntrinsics& k = c->intrinsics;
+  k.width_px *= scale;
+  k.height_px *= scale;
+  k.fx *= scale;
+  k.fy *= scale;
+  k.cx = (k.cx + 0.5) * scale - 0.5;
+  k.cy = (k.cy + 0.5) * scale - 0.5;
+}
+
 }  // namespace agv::overhead::test

@@ -18,6 +18,7 @@
 
 #include "../support/alloc_counter.hpp"
 #include "agv/overhead/tracker.hpp"
+#include "pose_nees.hpp"
 
 using namespace agv;
 using namespace agv::overhead;
@@ -50,23 +51,8 @@ Pose2 on_circle(double t_s, double radius_mm, double speed_mps) {
   return {radius_mm * std::cos(a), radius_mm * std::sin(a), wrap_angle_rad(a + kPi / 2.0)};
 }
 
-// (x, y, theta) error's squared Mahalanobis distance under the output's covariance.
 double nees3(const TrackOutput& o, const Pose2& truth) {
-  const double e[3] = {o.pose.x_mm - truth.x_mm, o.pose.y_mm - truth.y_mm,
-                       wrap_angle_rad(o.pose.theta_rad - truth.theta_rad)};
-  // Inverse of the symmetric 3 x 3 covariance by cofactors.
-  const auto& c = o.cov;
-  const double a00 = c[4] * c[8] - c[5] * c[7], a01 = c[2] * c[7] - c[1] * c[8],
-               a02 = c[1] * c[5] - c[2] * c[4], a11 = c[0] * c[8] - c[2] * c[6],
-               a12 = c[2] * c[3] - c[0] * c[5], a22 = c[0] * c[4] - c[1] * c[3];
-  const double det =
-      c[0] * a00 + c[1] * (c[5] * c[6] - c[3] * c[8]) + c[2] * (c[3] * c[7] - c[4] * c[6]);
-  const double inv[9] = {a00, a01, a02, a01, a11, a12, a02, a12, a22};
-  double d2 = 0.0;
-  for (int i = 0; i < 3; ++i) {
-    for (int j = 0; j < 3; ++j) d2 += e[i] * inv[3 * i + j] * e[j];
-  }
-  return d2 / det;
+  return overhead::test::pose_nees(o.pose, o.cov, truth);
 }
 
 TEST(OverheadTracker, CircleWithNoisyFixesConverges) {

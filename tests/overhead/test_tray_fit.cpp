@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "agv/overhead/tray_fit.hpp"
+#include "pose_nees.hpp"
 #include "tag_test_scene.hpp"
 
 namespace agv::overhead {
@@ -25,13 +26,7 @@ constexpr double kTagPx = 20.0;
 
 site::CeilingCamera camera(int scale) {
   site::CeilingCamera c = test::ceiling_camera(kTagPx);
-  CameraIntrinsics& k = c.intrinsics;
-  k.width_px *= scale;
-  k.height_px *= scale;
-  k.fx *= scale;
-  k.fy *= scale;
-  k.cx = (k.cx + 0.5) * scale - 0.5;
-  k.cy = (k.cy + 0.5) * scale - 0.5;
+  test::scale_camera(&c, scale);
   return c;
 }
 
@@ -70,21 +65,7 @@ std::array<double, 9> diag_cov(double sigma_mm, double sigma_rad) {
 
 double heading_err_deg(double a, double b) { return std::abs(rad_to_deg(wrap_angle_rad(a - b))); }
 
-double nees(const TagFix& f, const Pose2& t) {
-  const double e[3] = {f.pose.x_mm - t.x_mm, f.pose.y_mm - t.y_mm,
-                       wrap_angle_rad(f.pose.theta_rad - t.theta_rad)};
-  const auto& c = f.cov;
-  // e^T C^-1 e through the adjugate.
-  const double a00 = c[4] * c[8] - c[5] * c[7], a01 = c[2] * c[7] - c[1] * c[8],
-               a02 = c[1] * c[5] - c[2] * c[4], a11 = c[0] * c[8] - c[2] * c[6],
-               a12 = c[2] * c[3] - c[0] * c[5], a22 = c[0] * c[4] - c[1] * c[3];
-  const double det =
-      c[0] * a00 + c[1] * (c[5] * c[6] - c[3] * c[8]) + c[2] * (c[3] * c[7] - c[4] * c[6]);
-  const double q = e[0] * (a00 * e[0] + a01 * e[1] + a02 * e[2]) +
-                   e[1] * (a01 * e[0] + a11 * e[1] + a12 * e[2]) +
-                   e[2] * (a02 * e[0] + a12 * e[1] + a22 * e[2]);
-  return q / det;
-}
+double nees(const TagFix& f, const Pose2& t) { return test::pose_nees(f.pose, f.cov, t); }
 
 double percentile(std::vector<double> v, double q) {
   std::sort(v.begin(), v.end());
