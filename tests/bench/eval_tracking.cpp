@@ -19,6 +19,7 @@
 #include "agv/sim/render.hpp"
 #include "agv/vision/landmark_localizer.hpp"
 #include "agv/vision/tracking.hpp"
+#include "degradations.hpp"
 
 using namespace agv;
 
@@ -52,34 +53,18 @@ constexpr double kSameFixDeg = 0.002;
 // unknown name.
 bool degrade(const std::string& name, double mm_per_px, std::mt19937_64& rng,
              sim::RenderOptions* o) {
-  std::uniform_real_distribution<double> u(0, 1);
-  const auto blur = [&](double px) {
-    o->exposure_s = 0.001;
-    o->speed_mps = px * mm_per_px;  // px * mm/px per ms = m/s
-  };
   if (name == "realistic") return true;
   if (name == "motion7") {
-    blur(7.0);
+    bench::motion_blur(7.0, mm_per_px, o);
   } else if (name == "occluder15") {
     o->occluder_border_fraction = 0.15;
   } else if (name == "dirt") {
     o->scratches_per_landmark = 3;
     o->dirt_spots_per_landmark = 3;
   } else if (name == "combined") {
-    o->defocus_sigma_px = 2.0 * u(rng);
-    blur(7.0 * u(rng));
-    o->read_noise_sigma = 4.0 * u(rng);
-    o->shot_noise_gain = 0.3 * u(rng);
-    o->illumination_ratio = 1.0 - 0.5 * u(rng);
-    o->illumination_direction_deg = 360 * u(rng);
-    o->scratches_per_landmark = static_cast<int>(4 * u(rng));
-    o->dirt_spots_per_landmark = 3 * u(rng);
-    o->occluder_border_fraction = 0.15 * u(rng);
+    bench::combined_degradations(mm_per_px, rng, o);
   } else if (name == "stress") {
-    o->defocus_sigma_px = 2.0;
-    blur(7.0);
-    o->read_noise_sigma = 4.0;
-    o->shot_noise_gain = 0.3;
+    bench::stress_degradations(mm_per_px, o);
   } else {
     return false;
   }

@@ -16,6 +16,8 @@
 #include <string>
 #include <vector>
 
+#include "degradations.hpp"
+
 using namespace eval_vision;
 
 namespace {
@@ -40,16 +42,13 @@ struct Args {
 // The fully visible conditions; the second last ("all combined") is rendered through the
 // distorted lens and reused by the speed comparison and the ablation.
 std::vector<Condition> make_conditions(double mmpp) {
-  auto blur_opts = [mmpp](double px, sim::RenderOptions* o) {
-    o->exposure_s = 0.001;
-    o->speed_mps = px * mmpp;  // px * mm/px per ms = m/s
-  };
   return {
       {"clean", nullptr, false, true},
       {"defocus sigma 2 px",
        [](std::mt19937_64&, sim::RenderOptions* o) { o->defocus_sigma_px = 2.0; }, false, true},
-      {"motion blur 7 px", [=](std::mt19937_64&, sim::RenderOptions* o) { blur_opts(7.0, o); },
-       false, true},
+      {"motion blur 7 px",
+       [=](std::mt19937_64&, sim::RenderOptions* o) { bench::motion_blur(7.0, mmpp, o); }, false,
+       true},
       {"noise (read 4 + shot 0.3)",
        [](std::mt19937_64&, sim::RenderOptions* o) {
          o->read_noise_sigma = 4.0;
@@ -73,29 +72,13 @@ std::vector<Condition> make_conditions(double mmpp) {
        [](std::mt19937_64&, sim::RenderOptions* o) { o->occluder_border_fraction = 0.15; }, false,
        true},
       {"all combined (random, up to the limits)",
-       [=](std::mt19937_64& r, sim::RenderOptions* o) {
-         std::uniform_real_distribution<double> u(0, 1);
-         o->defocus_sigma_px = 2.0 * u(r);
-         blur_opts(7.0 * u(r), o);
-         o->read_noise_sigma = 4.0 * u(r);
-         o->shot_noise_gain = 0.3 * u(r);
-         o->illumination_ratio = 1.0 - 0.5 * u(r);
-         o->illumination_direction_deg = 360 * u(r);
-         o->scratches_per_landmark = static_cast<int>(4 * u(r));
-         o->dirt_spots_per_landmark = 3 * u(r);
-         o->occluder_border_fraction = 0.15 * u(r);
-       },
+       [=](std::mt19937_64& r, sim::RenderOptions* o) { bench::combined_degradations(mmpp, r, o); },
        true, true},
       // Stress, beyond the degraded set's "up to" limits: defocus, motion blur and noise all at
       // their limits in the same frame.
       {"stress: defocus 2 + motion 7 px + noise, all at the limits",
-       [=](std::mt19937_64&, sim::RenderOptions* o) {
-         o->defocus_sigma_px = 2.0;
-         blur_opts(7.0, o);
-         o->read_noise_sigma = 4.0;
-         o->shot_noise_gain = 0.3;
-       },
-       false, true},
+       [=](std::mt19937_64&, sim::RenderOptions* o) { bench::stress_degradations(mmpp, o); }, false,
+       true},
   };
 }
 
