@@ -10,31 +10,16 @@
 #include "agv/localizer/can_output.hpp"
 #include "agv/localizer/fault_transitions.hpp"
 #include "agv/localizer/localizer.hpp"
+#include "localizer_test_support.hpp"
 
 using namespace agv;
 namespace p = agv::protocol;
 
+using localizer_test::good_fix;
+using localizer_test::kMs;
+using localizer_test::test_config;
+
 namespace {
-
-constexpr std::int64_t kMs = 1'000'000;
-
-localizer::LocalizerConfig test_config() {
-  localizer::LocalizerConfig c;
-  c.fusion.health.odom_timeout_ns = 50 * kMs;  // the core's ONE odometry timeout
-  c.heartbeat_period_ns = 1000 * kMs;
-  c.camera_timeout_ns = 200 * kMs;
-  return c;
-}
-
-vision::LandmarkFix good_fix(double x_mm) {
-  vision::LandmarkFix fix;
-  fix.status = vision::FixStatus::kOk;
-  fix.landmark_id = 9;
-  fix.vehicle_in_world = {x_mm, 0.0, 0.0};
-  fix.cov_world = Eigen::Matrix3d::Identity() * 0.01;
-  fix.cov_world(2, 2) = 1e-6;
-  return fix;
-}
 
 p::Msg msg_of(const localizer::LocalizerConfig& c, const hal::CanFrame& f) {
   return p::identify(c.protocol, f);

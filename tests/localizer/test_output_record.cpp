@@ -6,29 +6,28 @@
 
 #include "agv/localizer/can_output.hpp"
 #include "agv/localizer/localizer.hpp"
+#include "localizer_test_support.hpp"
 
 using namespace agv;
 namespace p = agv::protocol;
+using localizer_test::good_fix;
+using localizer_test::kMs;
+using localizer_test::test_config;
 
 namespace {
 
-constexpr std::int64_t kMs = 1'000'000;
-
-localizer::LocalizerConfig test_config() {
-  localizer::LocalizerConfig c;
-  c.fusion.health.odom_timeout_ns = 50 * kMs;
+localizer::LocalizerConfig config_100ms_heartbeat() {
+  localizer::LocalizerConfig c = test_config();
   c.heartbeat_period_ns = 100 * kMs;
   return c;
 }
 
-vision::LandmarkFix fix_at(double x_mm) {
-  vision::LandmarkFix fix;
-  fix.status = vision::FixStatus::kOk;
-  fix.landmark_id = 4;
-  fix.vehicle_in_world = {x_mm, 20.0, 0.0};
-  fix.cov_world = Eigen::Matrix3d::Identity() * 4.0;
-  fix.cov_world(2, 2) = 1e-4;
-  return fix;
+// Odometry at 0.5 m/s and one fix: the filter initialised at the returned time.
+std::int64_t initialised(localizer::Localizer* loc) {
+  std::int64_t t = 1000 * kMs;
+  for (int i = 0; i < 5; ++i) loc->on_odometry(t += 10 * kMs, 0.5, 0.0);
+  loc->on_fix(good_fix(0.0), t - 5 * kMs, t);
+  return t;
 }
 
 // Every frame of a period decodes to the record's values (to the signals' resolution).
@@ -67,14 +66,14 @@ void expect_frames_carry(const localizer::LocalizerConfig& c, const localizer::T
 }  // namespace
 
 TEST(LocalizerOutput, TheFramesCarryTheTickRecord) {
-  const auto c = test_config();
+  const auto c = config_100ms_heartbeat();
   localizer::Localizer loc(c);
   localizer::CanOutput can(c.protocol);
   std::int64_t t = 1000 * kMs;
   int heartbeats = 0, valid = 0;
   for (int i = 0; i < 40; ++i) {
     loc.on_odometry(t, 0.5, 0.05);
-    if (i == 10) loc.on_fix(fix_at(100.0), t - 5 * kMs, t);
+    if (i == 10) loc.on_fix(good_fix(100.0), t - 5 * kMs, t);
     const localizer::TickRecord r = loc.tick(t += 10 * kMs);
     EXPECT_EQ(r.t_ns, t);
     EXPECT_EQ(r.pose_valid, p::pose_valid_on_can(r.pose.pose));
@@ -91,7 +90,7 @@ TEST(LocalizerOutput, TheFramesCarryTheTickRecord) {
 // The alive counters live in the CAN output: the pose pair sent at once after a fix and the
 // periodic one count on one sequence, as on the bus.
 TEST(LocalizerOutput, PoseNowAndTickShareThePoseCounter) {
-  const auto c = test_config();
+  const auto c = config_100ms_heartbeat();
   localizer::Localizer loc(c);
   localizer::CanOutput can(c.protocol);
   localizer::OutFrames out;
@@ -107,16 +106,14 @@ TEST(LocalizerOutput, PoseNowAndTickShareThePoseCounter) {
 // A fix ahead of the odometry is held by the EKF and fused when the odometry catches up: the
 // statistics count it then (they are the EKF's counters, not a second count of add_fix results).
 TEST(LocalizerOutput, AHeldFixIsCountedWhenTheEkfFusesIt) {
-  const auto c = test_config();
+  const auto c = config_100ms_heartbeat();
   localizer::Localizer loc(c);
-  std::int64_t t = 1000 * kMs;
-  for (int i = 0; i < 5; ++i) loc.on_odometry(t += 10 * kMs, 0.5, 0.0);
-  loc.on_fix(fix_at(0.0), t - 5 * kMs, t);
+  std::int64_t t = initialised(&loc);
   ASSERT_EQ(loc.stats().fixes_fused, 1u);
   // Exposed 250 ms after the newest odometry (more than fusion.max_fix_lead), where the vehicle
   // is then at 0.5 m/s; the odometry resumes after a 300 ms gap.
   const std::int64_t exposure = t + 250 * kMs;
-  loc.on_fix(fix_at(127.5), exposure, exposure + 30 * kMs);
+  loc.on_fix(good_fix(127.5), exposure, exposure + 30 * kMs);
   EXPECT_EQ(loc.ekf().counters().fixes_held, 1u);
   EXPECT_EQ(loc.stats().fixes_fused, 1u);
   t += 300 * kMs;
@@ -129,11 +126,9 @@ TEST(LocalizerOutput, AHeldFixIsCountedWhenTheEkfFusesIt) {
 // An operator-set pose (VDA 5050 initPosition) re-initialises the EKF, but it is no fix: the fix
 // statistics do not count it.
 TEST(LocalizerOutput, AnOperatorPoseIsNotCountedAsAFix) {
-  const auto c = test_config();
+  const auto c = config_100ms_heartbeat();
   localizer::Localizer loc(c);
-  std::int64_t t = 1000 * kMs;
-  for (int i = 0; i < 5; ++i) loc.on_odometry(t += 10 * kMs, 0.5, 0.0);
-  loc.on_fix(fix_at(0.0), t - 5 * kMs, t);
+  std::int64_t t = initialised(&loc);
   loc.on_odometry(t += 10 * kMs, 0.5, 0.0);
   ASSERT_TRUE(loc.init_position(t, Pose2{500.0, 500.0, 1.0}));
   EXPECT_EQ(loc.ekf().counters().reinitialisations, 1u);
