@@ -11,6 +11,7 @@
 #include <fstream>
 #include <random>
 
+#include "../support/desk_command.hpp"
 #include "agv/recording/png_io.hpp"
 #include "agv/recording/recording.hpp"
 #include "agv/sim/render.hpp"
@@ -375,10 +376,7 @@ void write_config(const fs::path& path, const CameraModel& c) {
 }
 
 int run(std::vector<std::string> args) {
-  args.insert(args.begin(), "check");
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  return desk::calibrate_check(static_cast<int>(argv.size()), argv.data());
+  return testsupport::run_command(desk::calibrate_check, "check", std::move(args));
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "../support/desk_command.hpp"
 #include "agv/config/config.hpp"
 #include "calib_intrinsics.hpp"
 #include "commands.hpp"
@@ -122,12 +123,10 @@ struct ApplyRun {
 };
 
 ApplyRun apply(std::vector<std::string> args) {
-  args.insert(args.begin(), "apply");
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
   testing::internal::CaptureStdout();
   testing::internal::CaptureStderr();
-  const int rc = agv::desk::config_apply_command(static_cast<int>(argv.size()), argv.data());
+  const int rc =
+      agv::testsupport::run_command(agv::desk::config_apply_command, "apply", std::move(args));
   return {rc, testing::internal::GetCapturedStdout(), testing::internal::GetCapturedStderr()};
 }
 

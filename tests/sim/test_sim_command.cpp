@@ -9,6 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
+#include "../support/desk_command.hpp"
 #include "agv/recording/recording.hpp"
 #include "agv/sim/render.hpp"
 #include "agv/vision/landmark_localizer.hpp"
@@ -20,10 +21,7 @@ using namespace agv;
 namespace {
 
 int run_sim(std::vector<std::string> args) {
-  args.insert(args.begin(), "sim");
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  return agv::desk::sim(static_cast<int>(argv.size()), argv.data());
+  return testsupport::run_command(desk::sim, "sim", std::move(args));
 }
 
 std::string slurp(const fs::path& p) {
@@ -175,10 +173,7 @@ TEST(SimCommand, RejectsBadArguments) {
 namespace {
 
 int run_landmark(std::vector<std::string> args) {
-  args.insert(args.begin(), "landmark");
-  std::vector<char*> argv;
-  for (auto& a : args) argv.push_back(a.data());
-  return agv::desk::landmark(static_cast<int>(argv.size()), argv.data());
+  return testsupport::run_command(desk::landmark, "landmark", std::move(args));
 }
 
 }  // namespace

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "../support/desk_command.hpp"
 #include "agv/recording/recording.hpp"
 #include "commands.hpp"
 
@@ -22,12 +23,9 @@ namespace fs = std::filesystem;
 const std::string kSite = AGV_SOURCE_DIR "/tools/maps/example_site.yaml";
 
 int run(std::vector<std::string> args, std::string* err = nullptr) {
-  args.insert(args.begin(), "render-site");
-  std::vector<char*> argv;
-  for (std::string& s : args) argv.push_back(s.data());
   testing::internal::CaptureStderr();
   testing::internal::CaptureStdout();
-  const int rc = render_site_command(static_cast<int>(argv.size()), argv.data());
+  const int rc = testsupport::run_command(render_site_command, "render-site", std::move(args));
   testing::internal::GetCapturedStdout();
   const std::string e = testing::internal::GetCapturedStderr();
   if (err) *err = e;
