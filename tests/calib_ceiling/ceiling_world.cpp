@@ -24,17 +24,6 @@ CameraIntrinsics intrinsics() {
   return k;
 }
 
-// Where the ray through an undistorted pixel meets the plane z = z_mm under the true pose.
-static Vec2 on_plane(const site::CeilingCamera& cam, double u, double v, double z_mm) {
-  const auto& k = cam.intrinsics;
-  const double n[3] = {(u - k.cx) / k.fx, (v - k.cy) / k.fy, 1.0};
-  const auto& r = cam.r_site_cam;
-  double d[3];
-  for (int i = 0; i < 3; ++i) d[i] = r[3 * i] * n[0] + r[3 * i + 1] * n[1] + r[3 * i + 2] * n[2];
-  const double s = (z_mm - cam.t_site_cam_mm[2]) / d[2];
-  return {cam.t_site_cam_mm[0] + s * d[0], cam.t_site_cam_mm[1] + s * d[1]};
-}
-
 // Seven vehicles standing in view: the top row's three (tags 1..3) on one image row at one tray
 // height, so on one line of the site; the others at other heights, turned every way.
 // A tray exactly at the floor ties with it along every ray and the floor is drawn; 1 mm above it

@@ -13,6 +13,17 @@ namespace agv::desk::test {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kDeg = kPi / 180.0;
 
+// Where the ray through the undistorted pixel (u, v) of `cam` meets the plane z = z_mm.
+inline Vec2 on_plane(const site::CeilingCamera& cam, double u, double v, double z_mm) {
+  const auto& k = cam.intrinsics;
+  const double n[3] = {(u - k.cx) / k.fx, (v - k.cy) / k.fy, 1.0};
+  const auto& r = cam.r_site_cam;
+  double d[3];
+  for (int i = 0; i < 3; ++i) d[i] = r[3 * i] * n[0] + r[3 * i + 1] * n[1] + r[3 * i + 2] * n[2];
+  const double s = (z_mm - cam.t_site_cam_mm[2]) / d[2];
+  return {cam.t_site_cam_mm[0] + s * d[0], cam.t_site_cam_mm[1] + s * d[1]};
+}
+
 ccal::CameraPose true_pose();
 CameraIntrinsics intrinsics();
 

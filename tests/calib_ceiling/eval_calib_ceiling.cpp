@@ -14,6 +14,7 @@
 
 #include "agv/sim/site_render.hpp"
 #include "calib_ceiling.hpp"
+#include "ceiling_world.hpp"
 
 namespace {
 
@@ -52,16 +53,6 @@ bool parse(int argc, char** argv, Args* a) {
       return false;
   }
   return argc % 2 == 1 && a->width > 0 && a->height > 0 && a->tags >= 3 && a->frames > 0;
-}
-
-Vec2 on_plane(const site::CeilingCamera& cam, double u, double v, double z_mm) {
-  const auto& k = cam.intrinsics;
-  const double n[3] = {(u - k.cx) / k.fx, (v - k.cy) / k.fy, 1.0};
-  const auto& r = cam.r_site_cam;
-  double d[3];
-  for (int i = 0; i < 3; ++i) d[i] = r[3 * i] * n[0] + r[3 * i + 1] * n[1] + r[3 * i + 2] * n[2];
-  const double s = (z_mm - cam.t_site_cam_mm[2]) / d[2];
-  return {cam.t_site_cam_mm[0] + s * d[0], cam.t_site_cam_mm[1] + s * d[1]};
 }
 
 }  // namespace
@@ -115,7 +106,7 @@ int main(int argc, char** argv) {
       agv.tag_size_mm = a.tag_mm;
       agv.tray_height_mm = 350.0 + 100.0 * uni(rng);
       scene.site.fleet.push_back(agv);
-      const Vec2 p = on_plane(cam, u, v, agv.tray_height_mm);
+      const Vec2 p = desk::test::on_plane(cam, u, v, agv.tray_height_mm);
       const double heading = (uni(rng) * 360.0 - 180.0) * kDeg;
       scene.agvs.push_back({{p.x, p.y, heading}, 0.0, 0.0});
       survey[agv.tag_id] = {agv.tag_id, p.x, p.y, agv.tray_height_mm, heading, a.tag_mm};
