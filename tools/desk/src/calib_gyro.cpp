@@ -174,23 +174,9 @@ bool frame_heading(const CornerObservation& o, const LandmarkMap& map, double ou
     v.push_back({mount.offset_x_mm + lambda * dx, mount.offset_y_mm + lambda * dy});
     q.push_back(corners[c]);
   }
-  if (q.size() < 3) return false;
-  Vec2 mq{0, 0}, mv{0, 0};
-  for (size_t i = 0; i < q.size(); ++i) {
-    mq = {mq.x + q[i].x, mq.y + q[i].y};
-    mv = {mv.x + v[i].x, mv.y + v[i].y};
-  }
-  const double n = static_cast<double>(q.size());
-  mq = {mq.x / n, mq.y / n};
-  mv = {mv.x / n, mv.y / n};
-  double sc = 0.0, ss = 0.0;
-  for (size_t i = 0; i < q.size(); ++i) {
-    const double ax = q[i].x - mq.x, ay = q[i].y - mq.y;
-    const double bx = v[i].x - mv.x, by = v[i].y - mv.y;
-    sc += ax * bx + ay * by;
-    ss += ax * by - ay * bx;
-  }
-  const double yaw_in_vehicle = std::atan2(ss, sc);  // landmark frame -> vehicle frame
+  Pose2 v_from_l;
+  if (q.size() < 3 || !fit_rigid(q, v, &v_from_l)) return false;
+  const double yaw_in_vehicle = v_from_l.theta_rad;  // landmark frame -> vehicle frame
   *heading_rad = wrap_angle_rad(e->second.pose.theta_rad - yaw_in_vehicle);
   return std::isfinite(*heading_rad);
 }

@@ -1,22 +1,17 @@
 // Vehicle calibration by nonlinear least squares (Ceres): the problem built from the drive and
 // solved. Model: calib_vehicle.hpp; the costs: calib_vehicle_problem.hpp; the report:
 // calib_vehicle_report.cpp.
+#include "calib_vehicle.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <memory>
 
-#include "calib_vehicle.hpp"
 #include "calib_vehicle_problem.hpp"
 
 namespace agv::desk::vcal {
 
-namespace detail {
-namespace {
-
-double deg(double rad) { return rad * 180.0 / kPi; }
-
-// Rigid 2D fit: V<-L from landmark-frame points and their vehicle-frame images.
 bool fit_rigid(const std::vector<Vec2>& l, const std::vector<Vec2>& v, Pose2* v_from_l) {
   if (l.size() < 2) return false;
   Vec2 ml{0, 0}, mv{0, 0};
@@ -37,6 +32,11 @@ bool fit_rigid(const std::vector<Vec2>& l, const std::vector<Vec2>& v, Pose2* v_
   *v_from_l = {mv.x - (c * ml.x - s * ml.y), mv.y - (s * ml.x + c * ml.y), th};
   return true;
 }
+
+namespace detail {
+namespace {
+
+double deg(double rad) { return rad * 180.0 / kPi; }
 
 // After the first solve (printed geometry): every corner residual is mapped to the landmark
 // plane through the frame's own image of the landmark (the affine map its outer corners give,
@@ -434,8 +434,9 @@ bool build(const std::vector<OdomSample>& odom, const std::vector<CornerObservat
     return false;
   }
   s->t_ref = obs_in.front().t_ns;
-  if (!load_odometry(odom, opt, s, why) || !select_observations(obs_in, map, initial, s, out, why) ||
-      !find_passes(opt, s, why) || !initial_values(map, initial, lc, s, why)) {
+  if (!load_odometry(odom, opt, s, why) ||
+      !select_observations(obs_in, map, initial, s, out, why) || !find_passes(opt, s, why) ||
+      !initial_values(map, initial, lc, s, why)) {
     return false;
   }
   add_frame_costs(map, lc, opt, s);

@@ -200,6 +200,10 @@ struct Result {
   }
 };
 
+// Least-squares rigid 2D fit V<-L of landmark-frame points `l` to their vehicle-frame images `v`
+// (the same count); false with fewer than two.
+bool fit_rigid(const std::vector<Vec2>& l, const std::vector<Vec2>& v, Pose2* v_from_l);
+
 // False with *error naming what is missing (no odometry, no observation of a mapped landmark,
 // too few passes, no frame inside the odometry span, solver failure).
 bool calibrate_vehicle(const std::vector<OdomSample>& odom,

@@ -6,6 +6,7 @@
 #include <fstream>
 #include <iterator>
 #include <opencv2/core.hpp>
+#include <optional>
 
 #include "agv/recording/png_io.hpp"
 #include "agv/site/site_file.hpp"
@@ -19,6 +20,23 @@ namespace agv::desk {
 namespace site_cmd {
 namespace {
 
+// Parses the command line and loads the site file `path` (bound to an option of `app`): the
+// command's exit code when either fails (0 after --help), nothing when both succeed.
+std::optional<int> parse_and_load(CLI::App& app, int argc, char** argv, const std::string& path,
+                                  agv::site::Site* site) {
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e) == 0 ? 0 : 2;
+  }
+  std::string errors;
+  if (!load_site(path, site, &errors)) {
+    std::fputs(errors.c_str(), stderr);
+    return 2;
+  }
+  return std::nullopt;
+}
+
 int check(int argc, char** argv) {
   CLI::App app{
       "Check a site file: every key, range and geometric rule of docs/guide/site.md. "
@@ -26,17 +44,8 @@ int check(int argc, char** argv) {
       "agvloc-desk site check"};
   std::string path;
   app.add_option("site", path, "The site file (site.yaml)")->required();
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
   agv::site::Site site;
-  std::string errors;
-  if (!load_site(path, &site, &errors)) {
-    std::fputs(errors.c_str(), stderr);
-    return 2;
-  }
+  if (const std::optional<int> rc = parse_and_load(app, argc, argv, path, &site)) return *rc;
   for (const std::string& w : agv::site::site_warnings(site)) {
     std::printf("warning: %s: %s\n", path.c_str(), w.c_str());
   }
@@ -61,17 +70,8 @@ int draw(int argc, char** argv) {
   app.add_option("--px-per-m", px_per_m, "Pixels per metre of the site")
       ->check(CLI::Range(1.0, 1000.0))
       ->capture_default_str();
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
   agv::site::Site site;
-  std::string errors;
-  if (!load_site(path, &site, &errors)) {
-    std::fputs(errors.c_str(), stderr);
-    return 2;
-  }
+  if (const std::optional<int> rc = parse_and_load(app, argc, argv, path, &site)) return *rc;
   cv::Mat png;
   if (!png_path.empty()) {
     std::string err;
