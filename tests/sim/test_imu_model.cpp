@@ -5,6 +5,7 @@
 #include <cmath>
 #include <numeric>
 
+#include "../support/gyro_errors.hpp"
 #include "agv/sim/imu_model.hpp"
 
 using namespace agv;
@@ -15,11 +16,7 @@ namespace {
 // Every error off; tests switch on the one they measure.
 GyroParams ideal() {
   GyroParams p;
-  p.noise_density_radps_rthz = 0.0;
-  p.bias_radps = 0.0;
-  p.bias_instability_radps = 0.0;
-  p.bias_random_walk_radps_rts = 0.0;
-  p.scale_error = 0.0;
+  testsupport::switch_off_gyro_errors(&p);
   return p;
 }
 

@@ -5,6 +5,7 @@
 
 #include <cmath>
 
+#include "../support/gyro_errors.hpp"
 #include "agv/sim/fleet.hpp"
 #include "fleet_warehouse.hpp"
 
@@ -255,8 +256,7 @@ TEST(Fleet, SensorsFollowTheTruth) {
   p.duration_s = 50.0;
   p.odometry.scale_error = p.odometry.scale_asymmetry = p.odometry.noise_mps = 0.0;
   p.odometry.slip_rate_per_s = 0.0;
-  p.gyro.noise_density_radps_rthz = p.gyro.bias_radps = p.gyro.bias_instability_radps = 0.0;
-  p.gyro.bias_random_walk_radps_rts = p.gyro.scale_error = 0.0;
+  testsupport::switch_off_gyro_errors(&p.gyro);
   FleetResult r;
   std::string err;
   ASSERT_TRUE(simulate_fleet(s, planner, specs, p, &r, &err)) << err;
