@@ -8,6 +8,7 @@
 #include <random>
 #include <vector>
 
+#include "../support/one_landmark_frame.hpp"
 #include "agv/sim/render.hpp"
 #include "agv/vision/coarse_level.hpp"
 #include "agv/vision/landmark_localizer.hpp"
@@ -180,16 +181,13 @@ TEST(CoarseLevel, IntegralWindowsEqualOpenCv) {
 // 12 rotations in 12 lanes give the fixes they gave in 16 is the golden replay's check.
 TEST(CoarseLevel, EveryCornerTemplatePackingFindsTheLandmark) {
   const Pose2 landmark{1000.0, -2000.0, deg_to_rad(90.0)};
-  LandmarkMap map;
-  map.entries[17] = {17, landmark};
-  sim::Scene scene;
-  std::string err;
-  ASSERT_TRUE(sim::make_scene(map, LandmarkGeometry{}, sim::PayloadMode::kFull, &scene, &err))
-      << err;
-  const CameraModel cam = CameraModel::default_640x480();
-  std::mt19937_64 rng(5);
   const Pose2 e{4.0, -3.0, deg_to_rad(23.0)};
-  const cv::Mat img = sim::render_frame(scene, cam, compose(landmark, e), {}, rng);
+  testsupport::OneLandmarkFrame f;
+  std::string err;
+  ASSERT_TRUE(testsupport::render_one_landmark(landmark, e, {}, &f, &err)) << err;
+  const LandmarkMap& map = f.map;
+  const CameraModel& cam = f.cam;
+  const cv::Mat& img = f.img;
   LandmarkFix ref;
   {
     LandmarkLocalizer loc(VisionConfig{}, cam, LandmarkGeometry{}, &map);

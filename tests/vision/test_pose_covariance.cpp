@@ -9,6 +9,7 @@
 #include <random>
 #include <string>
 
+#include "../support/one_landmark_frame.hpp"
 #include "agv/common/geometry.hpp"
 #include "agv/sim/render.hpp"
 #include "agv/vision/landmark_localizer.hpp"
@@ -75,21 +76,15 @@ TEST(VisionPoseCovariance, LocalizerReportsThePropagatedCovariance) {
   // The fix's world covariance is this function of its own landmark-in-vehicle pose and
   // covariance (the map pose is exact), bit for bit: the product has no second copy.
   const Pose2 world_landmark{1000.0, -2000.0, deg_to_rad(90.0)};
-  LandmarkMap map;
-  map.entries[17] = {17, world_landmark};
-  sim::Scene scene;
-  std::string err;
-  ASSERT_TRUE(sim::make_scene(map, LandmarkGeometry{}, sim::PayloadMode::kFull, &scene, &err))
-      << err;
-  const CameraModel cam = CameraModel::default_640x480();
-  std::mt19937_64 rng(5);
   const Pose2 e{6.0, -4.0, deg_to_rad(37.0)};
   sim::RenderOptions o;
   o.defocus_sigma_px = 1.5;  // a non-trivial fit covariance
-  const cv::Mat img = sim::render_frame(scene, cam, compose(world_landmark, e), o, rng);
-  vision::LandmarkLocalizer loc(vision::VisionConfig{}, cam, LandmarkGeometry{}, &map);
+  testsupport::OneLandmarkFrame f;
+  std::string err;
+  ASSERT_TRUE(testsupport::render_one_landmark(world_landmark, e, o, &f, &err)) << err;
+  vision::LandmarkLocalizer loc(vision::VisionConfig{}, f.cam, LandmarkGeometry{}, &f.map);
   vision::LandmarkFix fix;
-  ASSERT_EQ(loc.process(img, &fix), vision::FixStatus::kOk) << vision::to_string(fix.status);
+  ASSERT_EQ(loc.process(f.img, &fix), vision::FixStatus::kOk) << vision::to_string(fix.status);
   const Eigen::Matrix3d want = vehicle_in_world_covariance(world_landmark, fix.landmark_in_vehicle,
                                                            fix.cov_landmark_in_vehicle);
   EXPECT_EQ(fix.cov_world, want);
