@@ -5,6 +5,7 @@
 // mirrored code, a repeated id, a wrong map entry.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <opencv2/core.hpp>
 #include <vector>
@@ -169,7 +170,8 @@ TEST_F(RangingObserve, SensorCentredObservationIsTheSameGeometry) {
         s.sensor_xy_mm + s.range_mm * Eigen::Vector2d(std::cos(s.bearing_rad + s.sensor_yaw_rad),
                                                       std::sin(s.bearing_rad + s.sensor_yaw_rad));
     const Eigen::Vector2d from_ref =
-        o.pose.range_mm * Eigen::Vector2d(std::cos(o.pose.bearing_rad), std::sin(o.pose.bearing_rad));
+        o.pose.range_mm *
+        Eigen::Vector2d(std::cos(o.pose.bearing_rad), std::sin(o.pose.bearing_rad));
     EXPECT_LT((from_sensor - from_ref).norm(), 1e-6);
     EXPECT_GT(s.R(0, 0), 0.0);
     EXPECT_GT(s.R(1, 1), 0.0);
@@ -213,8 +215,8 @@ TEST_F(RangingObserve, WlsFixFromRenderedLandmarks) {
   EXPECT_LT(nees(f2, kVehicle), 14.16);
   // The papers' baseline on the same landmarks: circles with the left/right rule (21 is at the
   // smaller y, so it appears right of 23).
-  const FixResult paper = fix_two_circles(two[0], two[1], TwoLandmarkRule::kLeftRight, false,
-                                          FixOptions{});
+  const FixResult paper =
+      fix_two_circles(two[0], two[1], TwoLandmarkRule::kLeftRight, false, FixOptions{});
   ASSERT_EQ(paper.status, FixStatus::kOk) << fix_status_name(paper.status);
   EXPECT_LT(std::hypot(paper.pose.x_mm - kVehicle.x_mm, paper.pose.y_mm - kVehicle.y_mm), 300.0);
 }
@@ -245,18 +247,134 @@ TEST_F(RangingObserve, MirroredCodeIsRefusedByName) {
   cv::Mat mirrored;
   cv::flip(frame_->image, mirrored, 1);  // the scene seen in a vertical mirror
   const ObserveResult r = obs.observe(mirrored);
+  // Own windows only: the mirrored tags do not decode directly, so nothing is read (and nothing
+  // misread); they are not named.
   EXPECT_TRUE(r.seen.empty());
-  ASSERT_EQ(r.refused.size(), 4u);
-  for (const RefusedLandmark& x : r.refused) {
+  EXPECT_TRUE(r.refused.empty());
+
+  ObserveOptions full;
+  full.mirror_check = MirrorCheck::kFullFrame;
+  const LandmarkObserver named(small_camera(), forward_mount(), scene_->site.wall_landmarks, full);
+  const ObserveResult n = named.observe(mirrored);
+  EXPECT_TRUE(n.seen.empty());
+  ASSERT_EQ(n.refused.size(), 4u);
+  for (const RefusedLandmark& x : n.refused) {
     EXPECT_EQ(x.reason, RefusalReason::kMirrored) << refusal_reason_name(x.reason);
   }
   EXPECT_STREQ(refusal_reason_name(RefusalReason::kMirrored), "mirrored");
 
   ObserveOptions off;
-  off.check_mirrored = false;
+  off.mirror_check = MirrorCheck::kOff;
   const LandmarkObserver unchecked(small_camera(), forward_mount(), scene_->site.wall_landmarks,
                                    off);
   EXPECT_TRUE(unchecked.observe(mirrored).refused.empty());
+}
+
+// The prior a localized EKF would give: the true pose moved by about one sigma.
+PosePrior near_prior() {
+  PosePrior p;
+  p.pose = {kVehicle.x_mm + 25.0, kVehicle.y_mm - 20.0, kVehicle.theta_rad + deg_to_rad(0.25)};
+  p.cov = Eigen::Vector3d(30.0 * 30.0, 30.0 * 30.0, std::pow(deg_to_rad(0.3), 2)).asDiagonal();
+  return p;
+}
+
+void expect_same_reads(const ObserveResult& sweep, const ObserveResult& windows) {
+  ASSERT_EQ(windows.seen.size(), sweep.seen.size());
+  for (const LandmarkObservation& a : sweep.seen) {
+    const auto b = std::find_if(windows.seen.begin(), windows.seen.end(),
+                                [&](const LandmarkObservation& o) { return o.id == a.id; });
+    ASSERT_NE(b, windows.seen.end()) << a.id;
+    for (std::size_t i = 0; i < 4; ++i) {
+      EXPECT_NEAR(b->corners_px[i].x, a.corners_px[i].x, 0.2) << a.id;
+      EXPECT_NEAR(b->corners_px[i].y, a.corners_px[i].y, 0.2) << a.id;
+    }
+    EXPECT_NEAR(b->pose.range_mm, a.pose.range_mm, 0.02 * std::sqrt(a.pose.cov(0, 0)) + 1.0);
+  }
+}
+
+TEST_F(RangingObserve, PredictedCornersAreTheRenderedOnes) {
+  const LandmarkObserver obs(small_camera(), forward_mount(), scene_->site.wall_landmarks);
+  PosePrior exact;
+  exact.pose = kVehicle;
+  exact.cov = Eigen::Vector3d(1.0, 1.0, 1e-8).asDiagonal();
+  const WindowPlan plan = obs.plan_windows(&exact, 1);
+  ASSERT_FALSE(plan.full_sweep) << sweep_reason_name(plan.reason);
+  ASSERT_EQ(plan.predicted.size(), 4u);
+  for (const PredictedLandmark& p : plan.predicted) {
+    for (const sim::WallLandmarkTruth& wt : frame_->wall_landmarks) {
+      if (wt.id != p.id) continue;
+      for (std::size_t i = 0; i < 4; ++i) {
+        EXPECT_NEAR(p.corners_px[i].x, wt.corners_px[i].x, 0.2) << p.id;
+        EXPECT_NEAR(p.corners_px[i].y, wt.corners_px[i].y, 0.2) << p.id;
+      }
+    }
+  }
+}
+
+TEST_F(RangingObserve, WindowsReadWhatTheFullSweepReads) {
+  const LandmarkObserver obs(small_camera(), forward_mount(), scene_->site.wall_landmarks);
+  const PosePrior prior = near_prior();
+  const ObserveResult sweep = obs.observe(frame_->image);
+  const ObserveResult windows = obs.observe(frame_->image, &prior, 1);
+  EXPECT_FALSE(windows.full_sweep);
+  EXPECT_EQ(windows.reason, SweepReason::kWindows);
+  EXPECT_GE(windows.windows_searched, 1u);
+  EXPECT_TRUE(windows.refused.empty());
+  expect_same_reads(sweep, windows);
+}
+
+TEST_F(RangingObserve, ShrunkWindowsReadWhatTheFullSweepReads) {
+  // 2 m from the rack the tags span about 45 px: their windows are searched at half size and the
+  // tags refined at full size from the scaled corners.
+  const Pose2 near{2000.0, 650.0, 0.0};
+  const sim::RenderResult frame = render(*scene_, near, 9);
+  const LandmarkObserver obs(small_camera(), forward_mount(), scene_->site.wall_landmarks);
+  PosePrior prior = near_prior();
+  prior.pose = {near.x_mm - 20.0, near.y_mm + 25.0, near.theta_rad - deg_to_rad(0.2)};
+  const WindowPlan plan = obs.plan_windows(&prior, 1);
+  ASSERT_FALSE(plan.full_sweep) << sweep_reason_name(plan.reason);
+  EXPECT_TRUE(std::any_of(plan.windows.begin(), plan.windows.end(),
+                          [](const SearchWindow& w) { return w.decimation >= 2; }));
+  const ObserveResult sweep = obs.observe(frame.image);
+  EXPECT_GE(sweep.seen.size(), 2u);
+  expect_same_reads(sweep, obs.observe(frame.image, plan));
+}
+
+TEST_F(RangingObserve, FullSweepWithoutAUsablePriorAndAtTheInterval) {
+  const LandmarkObserver obs(small_camera(), forward_mount(), scene_->site.wall_landmarks);
+  PosePrior prior = near_prior();
+  EXPECT_EQ(obs.observe(frame_->image, nullptr, 1).reason, SweepReason::kNoPrior);
+  const ObserveResult interval = obs.observe(frame_->image, &prior, 300);
+  EXPECT_TRUE(interval.full_sweep);
+  EXPECT_EQ(interval.reason, SweepReason::kInterval);
+  EXPECT_EQ(interval.seen.size(), 4u);
+  WindowOptions never;
+  never.full_sweep_interval_frames = 0;
+  EXPECT_EQ(obs.plan_windows(&prior, 300, never).reason, SweepReason::kWindows);
+  WindowOptions small_share;
+  small_share.max_window_share = 0.01;
+  EXPECT_EQ(obs.plan_windows(&prior, 1, small_share).reason, SweepReason::kWindowsTooLarge);
+  prior.cov(0, 0) = 400.0 * 400.0;
+  EXPECT_EQ(obs.plan_windows(&prior, 1).reason, SweepReason::kUncertainPrior);
+  prior = near_prior();
+  prior.cov(2, 2) = std::pow(deg_to_rad(5.0), 2);
+  EXPECT_EQ(obs.plan_windows(&prior, 1).reason, SweepReason::kUncertainPrior);
+  prior.cov(2, 2) = std::nan("");
+  const ObserveResult bad = obs.observe(frame_->image, &prior, 1);
+  EXPECT_EQ(bad.reason, SweepReason::kUncertainPrior);
+  EXPECT_EQ(bad.seen.size(), 4u);
+  EXPECT_STREQ(sweep_reason_name(SweepReason::kUncertainPrior), "uncertain_prior");
+}
+
+TEST_F(RangingObserve, WindowsFollowThePriorNotTheFrame) {
+  // A prior turned 25 degrees away (but claiming 0.3 degrees): its windows miss tags the frame
+  // holds; only the full sweep at the interval would find them.
+  const LandmarkObserver obs(small_camera(), forward_mount(), scene_->site.wall_landmarks);
+  PosePrior away = near_prior();
+  away.pose.theta_rad += deg_to_rad(25.0);
+  const ObserveResult r = obs.observe(frame_->image, &away, 1);
+  EXPECT_FALSE(r.full_sweep);
+  EXPECT_LT(r.seen.size(), 4u);
 }
 
 TEST(RangingObserveTable, DuplicateIdIsANamedError) {
@@ -305,8 +423,7 @@ TEST_F(RangingObserve, CalibrationResidualWidensBearingAndRange) {
     const double r = a.seen[i].pose.range_mm;
     EXPECT_NEAR(b.seen[i].pose.cov(1, 1) - a.seen[i].pose.cov(1, 1), std::pow(0.6 / 600.0, 2),
                 1e-12);
-    EXPECT_NEAR(b.seen[i].pose.cov(0, 0) - a.seen[i].pose.cov(0, 0), std::pow(0.003 * r, 2),
-                1e-6);
+    EXPECT_NEAR(b.seen[i].pose.cov(0, 0) - a.seen[i].pose.cov(0, 0), std::pow(0.003 * r, 2), 1e-6);
     const SensorRangeBearing s0 = sensor_range_bearing(forward_mount(), a.seen[i]);
     const SensorRangeBearing s1 = sensor_range_bearing(forward_mount(), b.seen[i]);
     EXPECT_NEAR(s1.R(1, 1) - s0.R(1, 1), std::pow(0.6 / 600.0, 2), 1e-12);

@@ -6,6 +6,7 @@
 #include <opencv2/core.hpp>
 
 #include "agv/overhead/tag_detect.hpp"
+#include "observe_internal.hpp"
 
 namespace agv::ranging {
 
@@ -128,12 +129,59 @@ void add_size_measure(const CameraIntrinsics& k, const RangingMount& mount,
 
 }  // namespace
 
-struct LandmarkObserver::Impl {
-  explicit Impl(const overhead::TagDetectParams& p) : detector(p) {}
-  overhead::TagDetector detector;
-  cv::Matx33d K;
-  std::vector<double> dist;
-};
+namespace observe_detail {
+
+cv::Rect own_window(const std::array<Vec2, 4>& corners_px, const cv::Size& image) {
+  double x0 = corners_px[0].x, x1 = x0, y0 = corners_px[0].y, y1 = y0;
+  for (const Vec2& c : corners_px) {
+    x0 = std::min(x0, c.x);
+    x1 = std::max(x1, c.x);
+    y0 = std::min(y0, c.y);
+    y1 = std::max(y1, c.y);
+  }
+  const double m = std::max(16.0, 0.5 * std::max(x1 - x0, y1 - y0));
+  const cv::Rect r(
+      cv::Point(static_cast<int>(std::floor(x0 - m)), static_cast<int>(std::floor(y0 - m))),
+      cv::Point(static_cast<int>(std::ceil(x1 + m)) + 1, static_cast<int>(std::ceil(y1 + m)) + 1));
+  return r & cv::Rect(cv::Point(0, 0), image);
+}
+
+std::vector<overhead::TagObservation> mirrored_reads(const overhead::TagDetector& det,
+                                                     const cv::Mat& gray, const cv::Rect& window) {
+  const cv::Rect w = window & cv::Rect(0, 0, gray.cols, gray.rows);
+  if (w.empty()) return {};
+  cv::Mat flipped;
+  cv::flip(gray(w), flipped, 1);
+  std::vector<overhead::TagObservation> out =
+      det.detect(flipped, cv::Rect(0, 0, flipped.cols, flipped.rows));
+  const double right = w.x + w.width - 1.0;
+  for (overhead::TagObservation& m : out) {
+    for (Vec2& c : m.corners_px) {
+      c.x = right - c.x;
+      c.y += w.y;
+    }
+  }
+  return out;
+}
+
+void refuse_mirrored(const std::vector<overhead::TagObservation>& mirrored,
+                     const std::vector<overhead::TagObservation>& direct,
+                     std::vector<bool>* flagged, ObserveResult* res) {
+  for (const overhead::TagObservation& m : mirrored) {
+    const Vec2 mc = observe_centre(m.corners_px);
+    const double reach = observe_shortest_side_px(m.corners_px) / 2.0;
+    for (std::size_t i = 0; i < direct.size(); ++i) {
+      if (observe_dist(observe_centre(direct[i].corners_px), mc) < reach) (*flagged)[i] = true;
+    }
+    const bool known = std::any_of(res->refused.begin(), res->refused.end(), [&](const auto& r) {
+      return r.reason == RefusalReason::kMirrored && r.id == m.id &&
+             observe_dist(observe_centre(r.corners_px), mc) < reach;
+    });
+    if (!known) res->refused.push_back({m.id, RefusalReason::kMirrored, m.corners_px});
+  }
+}
+
+}  // namespace observe_detail
 
 const char* table_status_name(TableStatus status) {
   switch (status) {
@@ -165,6 +213,22 @@ const char* refusal_reason_name(RefusalReason reason) {
   return "unknown";
 }
 
+const char* sweep_reason_name(SweepReason reason) {
+  switch (reason) {
+    case SweepReason::kWindows:
+      return "windows";
+    case SweepReason::kNoPrior:
+      return "no_prior";
+    case SweepReason::kUncertainPrior:
+      return "uncertain_prior";
+    case SweepReason::kInterval:
+      return "interval";
+    case SweepReason::kWindowsTooLarge:
+      return "windows_too_large";
+  }
+  return "unknown";
+}
+
 LandmarkObserver::LandmarkObserver(const CameraIntrinsics& intrinsics, const RangingMount& mount,
                                    std::span<const site::WallLandmark> landmarks,
                                    const ObserveOptions& options)
@@ -172,6 +236,10 @@ LandmarkObserver::LandmarkObserver(const CameraIntrinsics& intrinsics, const Ran
   overhead::TagDetectParams p;
   p.quad_min_white_black_diff = options.quad_min_white_black_diff;
   impl_ = std::make_unique<Impl>(p);
+  if (options.full_sweep_decimate > 1.0) {
+    p.quad_decimate = options.full_sweep_decimate;
+    impl_->decimated = std::make_unique<overhead::TagDetector>(p);
+  }
   impl_->K = cv::Matx33d(k_.fx, 0.0, k_.cx, 0.0, k_.fy, k_.cy, 0.0, 0.0, 1.0);
   impl_->dist = {k_.k1, k_.k2, k_.p1, k_.p2, k_.k3};
   if (!(k_.fx > 0.0) || !(k_.fy > 0.0) || k_.width_px <= 0 || k_.height_px <= 0) {
@@ -286,42 +354,49 @@ bool LandmarkObserver::measure(std::uint32_t id, const std::array<Vec2, 4>& corn
   return true;
 }
 
+bool LandmarkObserver::usable_frame(const cv::Mat& gray) const {
+  return status_ == TableStatus::kOk && gray.type() == CV_8UC1 && gray.cols == k_.width_px &&
+         gray.rows == k_.height_px;
+}
+
 ObserveResult LandmarkObserver::observe(const cv::Mat& gray) const {
+  return full_sweep(gray, SweepReason::kNoPrior);
+}
+
+ObserveResult LandmarkObserver::full_sweep(const cv::Mat& gray, SweepReason reason) const {
   ObserveResult res;
-  if (status_ != TableStatus::kOk || gray.type() != CV_8UC1 || gray.cols != k_.width_px ||
-      gray.rows != k_.height_px) {
-    return res;
-  }
+  res.reason = reason;
+  if (!usable_frame(gray)) return res;
   const cv::Rect all(0, 0, gray.cols, gray.rows);
-  std::vector<overhead::TagObservation> dets = impl_->detector.detect(gray, all);
+  const std::vector<overhead::TagObservation> dets = impl_->sweep_detector().detect(gray, all);
   std::vector<bool> mirrored(dets.size(), false);
-  if (opt_.check_mirrored) {
-    cv::Mat flipped;
-    cv::flip(gray, flipped, 1);
-    const double w1 = gray.cols - 1.0;
-    for (overhead::TagObservation m : impl_->detector.detect(flipped, all)) {
-      for (Vec2& c : m.corners_px) c.x = w1 - c.x;
-      const Vec2 mc = observe_centre(m.corners_px);
-      const double reach = observe_shortest_side_px(m.corners_px) / 2.0;
-      // A direct read at the same place: the mirror image of some valid code also decodes, so
-      // neither read can be trusted.
-      for (std::size_t i = 0; i < dets.size(); ++i) {
-        if (observe_dist(observe_centre(dets[i].corners_px), mc) < reach) mirrored[i] = true;
-      }
-      res.refused.push_back({m.id, RefusalReason::kMirrored, m.corners_px});
+  if (opt_.mirror_check == MirrorCheck::kFullFrame) {
+    observe_detail::refuse_mirrored(
+        observe_detail::mirrored_reads(impl_->sweep_detector(), gray, all), dets, &mirrored, &res);
+  } else if (opt_.mirror_check == MirrorCheck::kOwnWindow) {
+    for (const overhead::TagObservation& d : dets) {
+      const cv::Rect own = observe_detail::own_window(d.corners_px, gray.size());
+      observe_detail::refuse_mirrored(observe_detail::mirrored_reads(impl_->detector, gray, own),
+                                      dets, &mirrored, &res);
     }
   }
+  measure_detections(dets, mirrored, &res);
+  return res;
+}
+
+void LandmarkObserver::measure_detections(const std::vector<overhead::TagObservation>& dets,
+                                          const std::vector<bool>& mirrored,
+                                          ObserveResult* res) const {
   for (std::size_t i = 0; i < dets.size(); ++i) {
     if (mirrored[i]) continue;
     LandmarkObservation o;
     RefusalReason why = RefusalReason::kNoPose;
     if (measure(dets[i].id, dets[i].corners_px, dets[i].corner_sigma_px, &o, &why)) {
-      res.seen.push_back(o);
+      res->seen.push_back(o);
     } else {
-      res.refused.push_back({dets[i].id, why, dets[i].corners_px});
+      res->refused.push_back({dets[i].id, why, dets[i].corners_px});
     }
   }
-  return res;
 }
 
 Observation fix_observation(const LandmarkObservation& obs, bool from_pose) {

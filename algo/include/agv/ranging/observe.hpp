@@ -7,7 +7,9 @@
 //    by Levenberg-Marquardt), giving horizontal range, bearing and the landmark's relative yaw with
 //    a covariance from the corner noise (range_models.hpp).
 // A code seen through a reflection (mirrored) is refused by name, so is a site whose landmark
-// table repeats an id. Conventions and measured figures: docs/design/ranging.md.
+// table repeats an id. Given the vehicle's pose prior (the EKF's), detection runs only in windows
+// around the landmarks the prior puts in view, with a full sweep when there is no usable prior
+// and at an interval. Conventions and measured figures: docs/design/ranging.md.
 #pragma once
 
 #include <array>
@@ -19,6 +21,7 @@
 #include <vector>
 
 #include "agv/common/camera_model.hpp"
+#include "agv/overhead/tag_detect.hpp"
 #include "agv/ranging/fix.hpp"
 #include "agv/ranging/range_models.hpp"
 #include "agv/site/site.hpp"
@@ -42,6 +45,30 @@ enum class RefusalReason {
 };
 const char* refusal_reason_name(RefusalReason reason);
 
+// Where the frame is also read mirrored (a code read correctly only mirrored is seen through a
+// reflection).
+enum class MirrorCheck {
+  kOff,
+  // Each direct read not confirmed by the pose prior is read again mirrored in its own small
+  // window: a direct read that is the mirror image of another code is refused. A mirrored tag
+  // that does not decode directly stays unseen (not named).
+  kOwnWindow,
+  // Everything searched is read mirrored as well (the whole frame on a full sweep, each window
+  // otherwise): mirrored tags are also named when the direct read misses them. On a full sweep
+  // this is a second full-frame detection, twice the cost.
+  kFullFrame
+};
+
+// Why a frame was read the way it was (ObserveResult::reason).
+enum class SweepReason {
+  kWindows,         // predicted windows only
+  kNoPrior,         // full sweep: no pose prior given
+  kUncertainPrior,  // full sweep: the prior's covariance over WindowOptions' limits (or not finite)
+  kInterval,        // full sweep: the frame index is a multiple of the sweep interval
+  kWindowsTooLarge  // full sweep: the windows would cover too much of the frame
+};
+const char* sweep_reason_name(SweepReason reason);
+
 struct ObserveOptions {
   // Corner noise used for the covariances: max(floor, scale * the detector's edge-fit sigma).
   // The edge fit sees the image noise, not the lens calibration's residual or the anti-aliasing
@@ -50,9 +77,11 @@ struct ObserveOptions {
   double corner_sigma_scale = 1.0;
   double min_side_px = 10.0;
   double edge_margin_px = 2.0;
-  // Read every frame mirrored too (twice the detection cost) so that a tag seen through a
-  // reflection is refused by name rather than silently dropped or, with bit errors, misread.
-  bool check_mirrored = true;
+  // A tag seen through a reflection is refused by name rather than, with bit errors, misread.
+  MirrorCheck mirror_check = MirrorCheck::kOwnWindow;
+  // libapriltag's quad decimation on a full sweep (windows are searched at full resolution): 2
+  // costs a quarter but misses some of the smallest tags (150 mm beyond about 7 m at f = 1000 px).
+  double full_sweep_decimate = 1.0;
   // The two IPPE solutions' reprojection errors closer than this ratio: the tag's yaw is
   // ambiguous (a small or distant tag), has_yaw is false; range and bearing stay.
   double yaw_ambiguity_ratio = 2.0;
@@ -113,6 +142,63 @@ struct RefusedLandmark {
 struct ObserveResult {
   std::vector<LandmarkObservation> seen;
   std::vector<RefusedLandmark> refused;
+  bool full_sweep = true;
+  SweepReason reason = SweepReason::kNoPrior;
+  std::size_t windows_searched = 0;  // after merging overlapping windows; 0 on a full sweep
+};
+
+// The vehicle's pose and its covariance over (x_mm, y_mm, theta_rad), site frame (the EKF's).
+struct PosePrior {
+  Pose2 pose;
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+};
+
+struct WindowOptions {
+  // A window covers the predicted corners plus sigma_count projected sigmas (pose prior, mount
+  // and lens calibration sigmas of ObserveOptions) plus a margin: libapriltag needs the tag's white
+  // border and some background around it to find the quad.
+  double sigma_count = 3.0;
+  double margin_px = 16.0;
+  double margin_side_share = 0.5;  // of the predicted tag's side, when more than margin_px
+  // A prior worse than these (worst position axis, heading; 1 sigma) gets a full sweep.
+  double max_position_sd_mm = 150.0;
+  double max_heading_sd_rad = 0.035;
+  // Windows together covering more than this share of the frame: a full sweep instead.
+  double max_window_share = 0.3;
+  // A full sweep every this many frames (frame_index multiple of it) to find what the prior
+  // does not expect; 0: never.
+  std::uint64_t full_sweep_interval_frames = 150;
+  // Landmarks predicted smaller than this share of ObserveOptions::min_side_px, or seen more
+  // obliquely than max_view_angle_rad from their face normal, are not looked for.
+  double min_side_share = 0.8;
+  double max_view_angle_rad = 1.3;
+  // A window whose smallest predicted tag is n times this side (px) is searched shrunk n times
+  // (up to max_decimation): libapriltag's cost goes with the pixels, and it finds a tag of this
+  // size reliably. The tag is then refined at full resolution from the scaled corners.
+  double decimated_side_px = 24.0;
+  int max_decimation = 4;
+};
+
+// One landmark the prior puts in view: its corners at the prior pose (distorted pixels, page
+// order), the largest projected sigma of a corner coordinate and the window searched.
+struct PredictedLandmark {
+  std::uint32_t id = 0;
+  std::array<Vec2, 4> corners_px{};
+  double corner_sigma_px = 0.0;
+  double side_px = 0.0;  // shortest side at the prior pose
+  cv::Rect window;
+};
+
+struct SearchWindow {
+  cv::Rect rect;
+  int decimation = 1;  // searched shrunk this many times
+};
+
+struct WindowPlan {
+  bool full_sweep = true;
+  SweepReason reason = SweepReason::kNoPrior;
+  std::vector<PredictedLandmark> predicted;
+  std::vector<SearchWindow> windows;  // the predicted windows, overlapping ones merged
 };
 
 // A range and bearing from the camera itself, in the terms of the EKF's range-bearing aid: the
@@ -146,6 +232,17 @@ class LandmarkObserver {
   // kOk or the frame's size or type differs from the intrinsics.
   ObserveResult observe(const cv::Mat& gray) const;
 
+  // The windows to search given a pose prior (nullptr: none) at frame frame_index, or a full
+  // sweep and why.
+  WindowPlan plan_windows(const PosePrior* prior, std::uint64_t frame_index,
+                          const WindowOptions& wopt = {}) const;
+  // A frame read as planned: in the plan's windows only, or a full sweep. Detections in a window
+  // are the full sweep's (same detector, same refinement) where the window holds the tag.
+  ObserveResult observe(const cv::Mat& gray, const WindowPlan& plan) const;
+  // plan_windows then observe.
+  ObserveResult observe(const cv::Mat& gray, const PosePrior* prior, std::uint64_t frame_index,
+                        const WindowOptions& wopt = {}) const;
+
   // Measures one detected quad (corners in page order, distorted pixels); false with the reason.
   bool measure(std::uint32_t id, const std::array<Vec2, 4>& corners_px, double edge_sigma_px,
                LandmarkObservation* out, RefusalReason* reason) const;
@@ -154,6 +251,14 @@ class LandmarkObserver {
 
  private:
   struct Impl;
+  bool usable_frame(const cv::Mat& gray) const;
+  ObserveResult full_sweep(const cv::Mat& gray, SweepReason reason) const;
+  bool predict_landmark(const site::WallLandmark& w, const PosePrior& prior,
+                        const WindowOptions& wopt, PredictedLandmark* out) const;
+  // Measures the detections not flagged mirrored into res.
+  std::vector<overhead::TagObservation> detect_in(const cv::Mat& gray, const SearchWindow& w) const;
+  void measure_detections(const std::vector<overhead::TagObservation>& dets,
+                          const std::vector<bool>& mirrored, ObserveResult* res) const;
   CameraIntrinsics k_;
   RangingMount mount_;
   ObserveOptions opt_;

@@ -1,0 +1,314 @@
+// LandmarkObserver cost per frame (hand-run, not a ctest; figures in docs/design/ranging.md), on
+// RENDERED frames (not camera images): the forward camera of eval_ranging_frames (1280x800,
+// f = 1000 px, lens distortion, defocus, noise, uneven light) at random poses in an area lined
+// with racks carrying tag36h11 landmarks of 150 mm (2-8 m and beyond). Side by side on the same
+// frames, one thread:
+//  - FullSweepOld: the whole frame, and the whole frame again mirrored (MirrorCheck::kFullFrame,
+//    the way observe() read every frame before predicted windows);
+//  - FullSweep: the whole frame, each read re-read mirrored in its own window (kOwnWindow);
+//  - FullSweepDecimate2: the same with libapriltag's quad decimation 2;
+//  - Windows: the windows predicted from a pose prior (the true pose moved by a draw from its
+//    covariance: 30 mm per axis, 0.3 deg), no periodic sweep (the interval's cost is one full
+//    sweep per interval).
+// Counters: median and p90 CPU per frame (thread CPU time, ms), landmarks seen per frame.
+// `bench_ranging_observe --profile` first prints libapriltag's own stage times on the frames and
+// the windowed reads against the full sweep's (ids, largest corner difference).
+#include <apriltag/apriltag.h>
+#include <apriltag/common/timeprofile.h>
+#include <apriltag/tag36h11.h>
+#include <benchmark/benchmark.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstring>
+#include <ctime>
+#include <map>
+#include <random>
+#include <string>
+
+#include "agv/overhead/tag_detect.hpp"
+#include "agv/ranging/observe.hpp"
+#include "agv/sim/ranging_camera.hpp"
+#include "ranging_scene.hpp"
+
+using namespace agv;
+using namespace agv::ranging;
+
+namespace {
+
+constexpr int kFrames = 24;
+
+struct Frames {
+  sim::SiteScene scene;
+  CameraIntrinsics k;
+  RangingMount mount;
+  std::vector<cv::Mat> images;
+  std::vector<PosePrior> priors;                                  // 30 mm per axis, 0.3 deg
+  std::vector<PosePrior> tight_priors;                            // 10 mm per axis, 0.1 deg
+  std::vector<std::vector<overhead::TagObservation>> detections;  // the full sweep's
+};
+
+PosePrior draw_prior(const Pose2& truth, double sd_mm, double sd_deg, std::mt19937_64& rng) {
+  std::normal_distribution<double> n(0.0, 1.0);
+  PosePrior prior;
+  prior.cov =
+      Eigen::Vector3d(sd_mm * sd_mm, sd_mm * sd_mm, std::pow(deg_to_rad(sd_deg), 2)).asDiagonal();
+  prior.pose = {truth.x_mm + sd_mm * n(rng), truth.y_mm + sd_mm * n(rng),
+                truth.theta_rad + deg_to_rad(sd_deg) * n(rng)};
+  return prior;
+}
+
+const Frames& frames() {
+  static const Frames f = [] {
+    Frames out;
+    out.scene = ranging_eval::warehouse(1);
+    out.k = ranging_eval::true_camera();
+    out.mount.x_mm = 300.0;
+    out.mount.z_mm = 1000.0;
+    const sim::SiteFrameRenderer renderer(out.k);
+    const std::vector<Pose2> poses = ranging_eval::trial_poses(out.scene, kFrames, 1);
+    std::mt19937_64 rng(5);
+    overhead::TagDetectParams dp;
+    dp.quad_min_white_black_diff = ObserveOptions{}.quad_min_white_black_diff;
+    const overhead::TagDetector detector(dp);
+    for (std::size_t i = 0; i < poses.size(); ++i) {
+      std::mt19937_64 frame_rng(7919 + i);
+      const sim::SiteRenderParams p = ranging_eval::degraded(frame_rng);
+      out.images.push_back(
+          renderer.render(out.scene, sim::ranging_camera(out.k, poses[i], out.mount), p, 131 + i)
+              .image);
+      out.priors.push_back(draw_prior(poses[i], 30.0, 0.3, rng));
+      out.tight_priors.push_back(draw_prior(poses[i], 10.0, 0.1, rng));
+      const cv::Mat& g = out.images.back();
+      out.detections.push_back(detector.detect(g, cv::Rect(0, 0, g.cols, g.rows)));
+    }
+    return out;
+  }();
+  return f;
+}
+
+double thread_cpu_ms() {
+  timespec t{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &t);
+  return static_cast<double>(t.tv_sec) * 1e3 + static_cast<double>(t.tv_nsec) * 1e-6;
+}
+
+double quantile(std::vector<double> v, double q) {
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1,
+                    static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5))];
+}
+
+// windows: 0 full sweep, 1 the 30 mm / 0.3 deg priors, 2 the 10 mm / 0.1 deg ones.
+void run(benchmark::State& state, const ObserveOptions& opt, int windows) {
+  const Frames& f = frames();
+  const LandmarkObserver obs(f.k, f.mount, f.scene.site.wall_landmarks, opt);
+  WindowOptions wopt;
+  wopt.full_sweep_interval_frames = 0;
+  std::vector<double> ms;
+  std::size_t i = 0, seen = 0, swept = 0;
+  for (auto _ : state) {
+    const std::size_t fi = i++ % f.images.size();
+    const double t0 = thread_cpu_ms();
+    const PosePrior* prior = windows == 1 ? &f.priors[fi] : &f.tight_priors[fi];
+    const ObserveResult r =
+        windows ? obs.observe(f.images[fi], prior, 1, wopt) : obs.observe(f.images[fi]);
+    ms.push_back(thread_cpu_ms() - t0);
+    seen += r.seen.size();
+    swept += r.full_sweep ? 1 : 0;
+    benchmark::DoNotOptimize(r.seen.data());
+  }
+  state.counters["median_cpu_ms"] = quantile(ms, 0.5);
+  state.counters["p90_cpu_ms"] = quantile(ms, 0.9);
+  state.counters["seen_per_frame"] = static_cast<double>(seen) / static_cast<double>(ms.size());
+  state.counters["full_sweeps"] = static_cast<double>(swept);
+}
+
+void BM_FullSweepOld(benchmark::State& state) {
+  ObserveOptions o;
+  o.mirror_check = MirrorCheck::kFullFrame;
+  run(state, o, 0);
+}
+void BM_FullSweep(benchmark::State& state) { run(state, ObserveOptions{}, 0); }
+void BM_FullSweepNoMirror(benchmark::State& state) {
+  ObserveOptions o;
+  o.mirror_check = MirrorCheck::kOff;
+  run(state, o, 0);
+}
+void BM_FullSweepDecimate2(benchmark::State& state) {
+  ObserveOptions o;
+  o.full_sweep_decimate = 2.0;
+  run(state, o, 0);
+}
+void BM_Windows(benchmark::State& state) { run(state, ObserveOptions{}, 1); }
+void BM_WindowsTightPrior(benchmark::State& state) { run(state, ObserveOptions{}, 2); }
+
+// measure() alone (undistortion, pose, covariances) on the full sweep's detections.
+void BM_MeasurePerLandmark(benchmark::State& state) {
+  const Frames& f = frames();
+  const LandmarkObserver obs(f.k, f.mount, f.scene.site.wall_landmarks);
+  std::vector<overhead::TagObservation> all;
+  for (const auto& d : f.detections) all.insert(all.end(), d.begin(), d.end());
+  std::size_t i = 0;
+  for (auto _ : state) {
+    const overhead::TagObservation& d = all[i++ % all.size()];
+    LandmarkObservation o;
+    RefusalReason why{};
+    benchmark::DoNotOptimize(obs.measure(d.id, d.corners_px, d.corner_sigma_px, &o, &why));
+  }
+}
+void BM_WindowsMirrorEachWindow(benchmark::State& state) {
+  ObserveOptions o;
+  o.mirror_check = MirrorCheck::kFullFrame;
+  run(state, o, 1);
+}
+
+BENCHMARK(BM_FullSweepOld)->Unit(benchmark::kMillisecond)->Iterations(kFrames)->UseRealTime();
+BENCHMARK(BM_FullSweep)->Unit(benchmark::kMillisecond)->Iterations(kFrames)->UseRealTime();
+BENCHMARK(BM_FullSweepNoMirror)->Unit(benchmark::kMillisecond)->Iterations(kFrames)->UseRealTime();
+BENCHMARK(BM_FullSweepDecimate2)->Unit(benchmark::kMillisecond)->Iterations(kFrames)->UseRealTime();
+BENCHMARK(BM_Windows)->Unit(benchmark::kMillisecond)->Iterations(4 * kFrames)->UseRealTime();
+BENCHMARK(BM_WindowsTightPrior)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(4 * kFrames)
+    ->UseRealTime();
+BENCHMARK(BM_MeasurePerLandmark)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_WindowsMirrorEachWindow)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(4 * kFrames)
+    ->UseRealTime();
+
+// libapriltag's own stage times (wall, from its time profile) on the frames, as the observer
+// configures it for a full sweep.
+void print_apriltag_stages(double decimate) {
+  const Frames& f = frames();
+  apriltag_family_t* family = tag36h11_create();
+  apriltag_detector_t* td = apriltag_detector_create();
+  apriltag_detector_add_family_bits(td, family, 2);
+  td->quad_decimate = static_cast<float>(decimate);
+  td->nthreads = 1;
+  td->refine_edges = 1;
+  td->decode_sharpening = 0.25;
+  td->qtp.min_white_black_diff = ObserveOptions{}.quad_min_white_black_diff;
+  std::map<std::string, double> total_ms;
+  std::vector<std::string> order;
+  for (const cv::Mat& g : f.images) {
+    image_u8_t view{g.cols, g.rows, static_cast<std::int32_t>(g.step[0]), g.data};
+    apriltag_detections_destroy(apriltag_detector_detect(td, &view));
+    std::int64_t last = td->tp->utime;
+    for (int i = 0; i < zarray_size(td->tp->stamps); ++i) {
+      timeprofile_entry e{};
+      zarray_get(td->tp->stamps, i, &e);
+      if (!total_ms.count(e.name)) order.push_back(e.name);
+      total_ms[e.name] += static_cast<double>(e.utime - last) * 1e-3;
+      last = e.utime;
+    }
+  }
+  std::printf("libapriltag stages, decimation %.0f, mean wall ms per frame:\n", decimate);
+  for (const std::string& s : order) {
+    std::printf("  %-24s %8.2f\n", s.c_str(), total_ms[s] / static_cast<double>(f.images.size()));
+  }
+  apriltag_detector_destroy(td);
+  tag36h11_destroy(family);
+}
+
+// The windowed reads against the full sweep's on the same frames.
+void print_window_agreement() {
+  const Frames& f = frames();
+  const LandmarkObserver obs(f.k, f.mount, f.scene.site.wall_landmarks);
+  WindowOptions wopt;
+  wopt.full_sweep_interval_frames = 0;
+  int both = 0, sweep_only = 0, window_only = 0;
+  double worst_px = 0.0, measure_ms = 0.0;
+  std::size_t windows = 0, measured = 0;
+  for (std::size_t i = 0; i < f.images.size(); ++i) {
+    const ObserveResult a = obs.observe(f.images[i]);
+    const ObserveResult b = obs.observe(f.images[i], &f.priors[i], 1, wopt);
+    windows += b.windows_searched;
+    for (const LandmarkObservation& x : a.seen) {
+      const auto y =
+          std::find_if(b.seen.begin(), b.seen.end(), [&](const auto& o) { return o.id == x.id; });
+      if (y == b.seen.end()) {
+        ++sweep_only;
+        continue;
+      }
+      ++both;
+      for (std::size_t c = 0; c < 4; ++c) {
+        worst_px = std::max(worst_px, std::hypot(x.corners_px[c].x - y->corners_px[c].x,
+                                                 x.corners_px[c].y - y->corners_px[c].y));
+      }
+      LandmarkObservation o;
+      RefusalReason why{};
+      const double t0 = thread_cpu_ms();
+      obs.measure(x.id, x.corners_px, x.corner_sigma_px, &o, &why);
+      measure_ms += thread_cpu_ms() - t0;
+      ++measured;
+    }
+    for (const LandmarkObservation& y : b.seen) {
+      if (std::none_of(a.seen.begin(), a.seen.end(), [&](const auto& o) { return o.id == y.id; })) {
+        ++window_only;
+      }
+    }
+  }
+  std::printf(
+      "windows vs full sweep on %zu frames: %d landmarks in both (largest corner difference %.4f "
+      "px), "
+      "%d full sweep only, %d windows only; %.2f windows per frame; measure() %.3f ms CPU per "
+      "landmark (mean)\n",
+      f.images.size(), both, worst_px, sweep_only, window_only,
+      static_cast<double>(windows) / static_cast<double>(f.images.size()),
+      measured ? measure_ms / static_cast<double>(measured) : 0.0);
+}
+
+void print_window_diag() {
+  const Frames& f = frames();
+  const LandmarkObserver obs(f.k, f.mount, f.scene.site.wall_landmarks);
+  WindowOptions wopt;
+  wopt.full_sweep_interval_frames = 0;
+  for (std::size_t i = 0; i < 8; ++i) {
+    const WindowPlan plan = obs.plan_windows(&f.priors[i], 1, wopt);
+    std::printf("frame %zu: %s, %zu predicted\n", i, sweep_reason_name(plan.reason),
+                plan.predicted.size());
+    for (const auto& p : plan.predicted)
+      std::printf("   id %u side %.1f sigma %.1f win %dx%d\n", p.id, p.side_px, p.corner_sigma_px,
+                  p.window.width, p.window.height);
+    for (const SearchWindow& w : plan.windows) {
+      WindowPlan one = plan;
+      one.windows = {w};
+      double best = 1e9;
+      std::size_t seen = 0;
+      for (int rep = 0; rep < 3; ++rep) {
+        const double t0 = thread_cpu_ms();
+        seen = obs.observe(f.images[i], one).seen.size();
+        best = std::min(best, thread_cpu_ms() - t0);
+      }
+      std::printf("   window %dx%d dec %d: %.3f ms, %zu seen\n", w.rect.width, w.rect.height,
+                  w.decimation, best, seen);
+    }
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bool profile = false;
+  std::vector<char*> args;
+  for (int i = 0; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--profile") == 0) {
+      profile = true;
+    } else {
+      args.push_back(argv[i]);
+    }
+  }
+  if (profile) {
+    print_apriltag_stages(1.0);
+    print_apriltag_stages(2.0);
+    print_window_agreement();
+    print_window_diag();
+  }
+  int n = static_cast<int>(args.size());
+  benchmark::Initialize(&n, args.data());
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}
