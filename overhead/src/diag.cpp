@@ -220,20 +220,10 @@ tick();
 </script></body></html>
 )";
 
-HttpServerSettings settings_of(const DiagOutput& d) {
-  HttpServerSettings s;
-  s.bind_address = d.bind_address;
-  s.port = d.port;
-  s.allow_remote = d.allow_remote;
-  s.threads = d.threads;
-  s.max_clients = d.max_clients;
-  return s;
-}
-
 }  // namespace
 
 OverheadDiag::OverheadDiag(const DiagOutput& cfg)
-    : http_(settings_of(cfg), [this](DiagRoute r, HttpAnswer* a) { answer(r, a); }) {}
+    : http_(app::http_settings_of(cfg), [this](DiagRoute r, HttpAnswer* a) { answer(r, a); }) {}
 
 bool OverheadDiag::start(std::string* error) { return http_.start(error); }
 
