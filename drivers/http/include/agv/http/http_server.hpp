@@ -44,13 +44,7 @@ struct HttpServerSettings {
 // and the overhead application's DiagOutput carry the same five keys (key_prefix stays "diag").
 template <class Section>
 HttpServerSettings http_settings_of(const Section& d) {
-  HttpServerSettings s;
-  s.bind_address = d.bind_address;
-  s.port = d.port;
-  s.allow_remote = d.allow_remote;
-  s.threads = d.threads;
-  s.max_clients = d.max_clients;
-  return s;
+  return {d.bind_address, d.port, d.allow_remote, d.threads, d.max_clients};
 }
 
 // What a route answers. The server adds Content-Type, Cache-Control: no-store, nosniff and
