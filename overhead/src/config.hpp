@@ -12,6 +12,7 @@
 #include <variant>
 #include <vector>
 
+#include "agv/overhead/reacquire.hpp"
 #include "agv/overhead/search.hpp"
 #include "agv/overhead/tag_detect.hpp"
 #include "agv/overhead/tracker.hpp"
@@ -60,6 +61,9 @@ struct OverheadConfig {
   // classical (tray_fit.hpp) or learned (tray_net.hpp, the ONNX model at tray_model_path).
   std::string tray_method = "classical";
   std::string tray_model_path;
+  // Vehicles lost while their tags were hidden, searched for with the model of tray_model_path
+  // (with either tray method).
+  overhead::ReacquireParams reacquire;
   // Fleet tag ids whose codes are fewer bits apart are refused with the site (identity).
   int min_tag_distance = 12;
   double output_rate_hz = 30.0;

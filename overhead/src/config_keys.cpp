@@ -146,8 +146,31 @@ std::vector<Key> search_detect_keys() {
              "docs/design/overhead.md)",
              {"classical", "learned"}),
       string("tray.model_path", AGV_OH_AT(tray_model_path), "",
-             "tray.method learned: the detector's ONNX file (models/tray_obb.onnx); missing, "
-             "corrupt or for another window size: named at start, tracking on tags alone"),
+             "The learned detector's ONNX file (models/tray_obb.onnx): tray.method learned and "
+             "reacquire; missing, corrupt or for another window size: named at start, tracking "
+             "on tags alone (learned) or without re-acquisition"),
+      boolean("reacquire.enabled", AGV_OH_AT(reacquire.enabled), true,
+              "With tray.model_path set (either tray.method): a vehicle lost while its tag was "
+              "hidden is searched for with the learned detector over the view around where it "
+              "can be, and restarted from a box only nothing else explains"),
+      number("reacquire.max_speed_mps", AGV_OH_AT(reacquire.max_speed_mps), 0.1, 10, 2.0, "m/s",
+             "The fleet's top speed: a lost vehicle is looked for within this speed of its last "
+             "fix"),
+      number("reacquire.max_turn_rate_radps", AGV_OH_AT(reacquire.max_turn_rate_radps), 0.05, 10,
+             1.0, "rad/s",
+             "The fleet's top turn rate: the last heading resolves a box's half turn while the "
+             "vehicle cannot have turned a quarter turn since"),
+      number("reacquire.max_lost_s", AGV_OH_AT(reacquire.max_lost_s), 1, 3600, 30.0, "s",
+             "A vehicle lost longer than this is not searched for"),
+      integer("reacquire.sweep_every_frames", AGV_OH_AT(reacquire.sweep_every_frames), 1, 1000, 5,
+              "frames", "A camera's view is swept for lost vehicles every this many frames"),
+      number("reacquire.min_score", AGV_OH_AT(reacquire.min_score), 0.05, 1, 0.7, "",
+             "Smallest detector score of a box that may restart a track"),
+      boolean("reacquire.forward_only", AGV_OH_AT(reacquire.forward_only), true,
+              "The fleet drives forward: two sweeps that see a lost vehicle's box moved along "
+              "its long axis give its heading (false: only the last heading does)"),
+      number("reacquire.min_travel_mm", AGV_OH_AT(reacquire.min_travel_mm), 10, 5000, 150.0, "mm",
+             "Travel between two sweeps that gives the heading"),
       integer("identity.min_tag_distance", AGV_OH_AT(min_tag_distance), 11, 36, 12, "bits",
               "Two fleet tags whose tag36h11 codes (any turn) are fewer bits apart are refused "
               "with the site: 12 keeps a 6-bit misread off the other's code, 13 lets an area of "

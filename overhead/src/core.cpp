@@ -1,5 +1,6 @@
 #include "core.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -31,13 +32,15 @@ TrackerCore::TrackerCore(const OverheadConfig& cfg, const site::Site& site)
       tracker_(site.fleet.size(), cfg.tracker),
       header_ids_(site.fleet.size(), 0) {
   processor_.set_tray_fit(cfg.tray_fit, cfg.tray);
-  if (cfg.tray_fit && cfg.tray_method == "learned") use_tray_model(cfg.tray_model_path);
+  const bool learned = cfg.tray_fit && cfg.tray_method == "learned";
+  const bool reacquire = cfg.reacquire.enabled && !cfg.tray_model_path.empty();
+  if (learned || reacquire) use_tray_model(cfg.tray_model_path, learned);
 }
 
 // The learned detector's model is read here (the library does no file I/O). A model that cannot
 // be used is named at start and the tracker runs on tags alone, saying so: a classical fit in its
 // place would be a method nobody chose.
-void TrackerCore::use_tray_model(const std::string& path) {
+void TrackerCore::use_tray_model(const std::string& path, bool learned) {
   std::string error;
   std::ifstream f(path, std::ios::binary);
   const std::string bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
@@ -51,14 +54,17 @@ void TrackerCore::use_tray_model(const std::string& path) {
   }
   if (!error.empty()) {
     std::fprintf(stderr,
-                 "agvloc-overhead: %s; tray.method learned unavailable: tracking on tags alone "
-                 "(no tray boxes for covered tags)\n",
+                 learned ? "agvloc-overhead: %s; tray.method learned unavailable: tracking on "
+                           "tags alone (no tray boxes for covered tags)\n"
+                         : "agvloc-overhead: %s; no re-acquisition of vehicles lost under a "
+                           "parcel\n",
                  error.c_str());
-    processor_.set_tray_fit(false);
-    tray_model_error_ = error;
+    if (learned) processor_.set_tray_fit(false);
+    (learned ? tray_model_error_ : reacquire_error_) = error;
     return;
   }
-  processor_.set_tray_net(std::move(net));
+  if (cfg_.reacquire.enabled) processor_.set_reacquire(net, cfg_.reacquire);
+  if (learned) processor_.set_tray_net(std::move(net));
 }
 
 void TrackerCore::publish_camera_state(const std::string& camera_id, bool fault,
@@ -99,6 +105,7 @@ bool TrackerCore::open_outputs(const std::string& out_dir, std::string* error) {
 void TrackerCore::process(std::size_t camera, std::int64_t t_ns, const cv::Mat& gray) {
   detections_.clear();
   processor_.process(camera, t_ns, gray, &tracker_, &detections_);
+  newest_frame_ns_ = frames_ == 0 ? t_ns : std::max(newest_frame_ns_, t_ns);
   ++frames_;
   for (const overhead::Detection& d : detections_) {
     ++detections_total_;
@@ -113,7 +120,14 @@ void TrackerCore::frame_unreadable(const std::string& what) {
 }
 
 void TrackerCore::publish(std::int64_t t_ns) {
-  tracker_.update_states(t_ns);
+  // Tracks are dropped or lost by the time of the data, not of the publish clock: a pipeline
+  // behind its cameras (frames queued, a loaded machine) must not drop a tentative track whose
+  // next fix is in a frame not processed yet. The outputs below still extrapolate to t_ns by the
+  // same rules, so they never report a track valid that its age would have lost; and a pipeline
+  // more than kMaxDataLagNs behind (cameras gone) no longer holds the states back.
+  std::int64_t states_ns = t_ns;
+  if (frames_ > 0) states_ns = std::min(t_ns, std::max(newest_frame_ns_, t_ns - kMaxDataLagNs));
+  tracker_.update_states(states_ns);
   const std::int64_t epoch_ns = mqtt_ ? epoch_now_ns() : 0;
   for (std::size_t i = 0; i < site_.fleet.size(); ++i) {
     const overhead::TrackOutput t = tracker_.output(i, t_ns);
@@ -153,6 +167,16 @@ void TrackerCore::print_summary(const std::string& prefix, std::size_t cameras) 
       : processor_.tray_learned() ? "learned"
                                   : "classical",
       ull(f.tray_fixes), ull(f.tray_gated), ull(f.tray_refused), ull(f.tray_tag_disagree));
+  std::printf(
+      "%s: re-acquisition (%s): sweeps %llu, detector windows %llu, tracks restarted %llu, "
+      "boxes two lost vehicles could be %llu, half turn unknown %llu\n",
+      p,
+      processor_.reacquiring()    ? "on"
+      : !reacquire_error_.empty() ? "off: model unusable"
+      : cfg_.reacquire.enabled    ? "off: no tray.model_path"
+                                  : "off",
+      ull(f.reacquire_sweeps), ull(f.reacquire_windows), ull(f.reacquired),
+      ull(f.reacquire_ambiguous), ull(f.reacquire_heading_unknown));
   if (mqtt_) {
     std::printf("%s: mqtt: %llu messages sent, %llu dropped\n", p, ull(mqtt_->sent()),
                 ull(mqtt_->dropped()));

@@ -44,7 +44,8 @@ class TrackerCore {
 
  private:
   void print_summary(const std::string& prefix, std::size_t cameras) const;
-  void use_tray_model(const std::string& path);
+  // Loads the learned detector: the tray method when learned, re-acquisition when enabled.
+  void use_tray_model(const std::string& path, bool learned);
 
   const OverheadConfig& cfg_;
   const site::Site& site_;
@@ -57,7 +58,10 @@ class TrackerCore {
   std::vector<std::uint32_t> header_ids_;
   std::map<std::string, std::uint32_t> camera_header_ids_;
   std::uint64_t frames_ = 0, bad_frames_ = 0, detections_total_ = 0;
+  std::int64_t newest_frame_ns_ = 0;  // exposure of the newest frame processed
+  static constexpr std::int64_t kMaxDataLagNs = 1'000'000'000;
   std::string tray_model_error_;  // tray.method learned with a model that cannot be used
+  std::string reacquire_error_;   // the same for re-acquisition alone
 };
 
 }  // namespace agv::overhead_app

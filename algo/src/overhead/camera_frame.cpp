@@ -9,6 +9,7 @@
 #include <unordered_set>
 
 #include "agv/overhead/tag_code.hpp"
+#include "camera_frame_internal.hpp"
 
 namespace agv::overhead {
 
@@ -19,6 +20,8 @@ CameraFrameProcessor::CameraFrameProcessor(const std::vector<site::CeilingCamera
     : cameras_(cameras), fleet_(fleet), detector_(detect), search_(search), state_(cameras.size()) {
   for (std::size_t i = 0; i < fleet_.size(); ++i) agv_of_tag_.emplace(fleet_[i].tag_id, i);
   for (CameraSearchState& s : state_) s.missed.assign(fleet_.size(), 0);
+  remembered_.assign(fleet_.size(), {});
+  sweep_frames_.assign(cameras_.size(), 0);
 }
 
 namespace {
@@ -47,19 +50,6 @@ bool wholly_inside(const std::array<Vec2, 4>& corners_px, int width_px, int heig
 }
 
 }  // namespace
-
-// State of one call, so that the steps below stay short.
-struct CameraFrameProcessor::FrameWork {
-  std::size_t camera = 0;
-  std::int64_t t_ns = 0;
-  FleetTracker* tracker = nullptr;
-  std::vector<Detection>* out = nullptr;
-  std::unordered_set<std::uint32_t> ids_seen;  // tags handled this frame (any window)
-  std::vector<std::uint8_t> found;             // per vehicle: its tag was read this frame
-  std::vector<std::uint8_t> looked_for;        // per vehicle: a window expected it
-  std::vector<Pose2> tag_pose;                 // per vehicle found: its tag's fix (if any)
-  std::vector<std::uint8_t> has_tag_pose;
-};
 
 bool CameraFrameProcessor::process(std::size_t camera, std::int64_t t_ns, const cv::Mat& gray,
                                    FleetTracker* tracker, std::vector<Detection>* out,
@@ -121,6 +111,7 @@ bool CameraFrameProcessor::process(std::size_t camera, std::int64_t t_ns, const 
     }
   }
   if (tray_enabled_) fit_covered_trays(gray, &w);
+  if (reacquiring()) reacquire_lost(gray, &w);
   // A vehicle found by any window is back on its track window next frame; one that a window
   // expected wholly in the image and that none found widens its search, more with every frame
   // in a row (search.hpp); the others (not in this view, or at its edge) keep theirs.
@@ -212,7 +203,8 @@ void CameraFrameProcessor::fit_covered_trays(const cv::Mat& gray, FrameWork* w) 
   for (std::size_t i = 0; i < fleet_.size(); ++i) {
     if (!w->looked_for[i] || w->found[i]) continue;
     const TrackOutput o = w->tracker->output(i, w->t_ns);
-    if (!o.valid()) continue;
+    // A tentative track too: one restarted from a box is confirmed only by the boxes after it.
+    if (!o.valid() && o.state != TrackState::kTentative) continue;
     TrayFix tray;
     const bool ok = tray_learned() ? learned_tray_fix(gray, i, o, w, &tray.fix)
                                    : fit_tray(gray, cameras_[w->camera], fleet_[i], o.pose, o.cov,

@@ -13,6 +13,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "agv/overhead/reacquire.hpp"
 #include "agv/overhead/search.hpp"
 #include "agv/overhead/tag_detect.hpp"
 #include "agv/overhead/tag_fix.hpp"
@@ -49,6 +50,11 @@ struct FrameCounters {
   // The learned detector: windows it ran on; boxes found at a vehicle whose tag was read in the
   // same frame that disagree with the tag's fix (the tag wins; the box is dropped).
   std::uint64_t tray_net_windows = 0, tray_tag_disagree = 0;
+  // Re-acquisition (reacquire.hpp): sweeps of a view for lost vehicles, the detector's windows
+  // they took, tracks restarted from a box, and boxes given to no vehicle because two lost
+  // vehicles could be there (or one vehicle had two boxes), or because the half turn was unknown.
+  std::uint64_t reacquire_sweeps = 0, reacquire_windows = 0, reacquired = 0;
+  std::uint64_t reacquire_ambiguous = 0, reacquire_heading_unknown = 0;
 };
 
 class CameraFrameProcessor {
@@ -81,6 +87,18 @@ class CameraFrameProcessor {
     tray_net_params_ = params;
   }
   bool tray_learned() const { return tray_net_ && tray_net_->loaded(); }
+  // Re-acquisition of vehicles lost while their tags were hidden, by the learned detector swept
+  // over the view (reacquire.hpp); the box is refined by the classical fit when that is the tray
+  // method. A null net turns it off (the default).
+  void set_reacquire(std::shared_ptr<const TrayNet> net, const ReacquireParams& params = {},
+                     const TrayNetParams& net_params = {}) {
+    reacquire_net_ = std::move(net);
+    reacquire_ = params;
+    reacquire_net_params_ = net_params;
+  }
+  bool reacquiring() const {
+    return reacquire_.enabled && reacquire_net_ && reacquire_net_->loaded();
+  }
 
  private:
   struct FrameWork;
@@ -91,6 +109,12 @@ class CameraFrameProcessor {
   void fit_covered_trays(const cv::Mat& gray, FrameWork* w);
   bool learned_tray_fix(const cv::Mat& gray, std::size_t agv, const TrackOutput& o, FrameWork* w,
                         TagFix* fix);
+  void reacquire_lost(const cv::Mat& gray, FrameWork* w);
+  std::vector<LostVehicle> lost_vehicles(FrameWork* w, std::vector<Vec2>* explained);
+  std::vector<PlaneTray> sweep_for(const cv::Mat& gray, std::size_t camera, std::int64_t t_ns,
+                                   const std::vector<LostVehicle>& lost);
+  void restart_from_box(const cv::Mat& gray, const ReacquireBox& box, const LostVehicle& v,
+                        FrameWork* w);
 
   std::vector<site::CeilingCamera> cameras_;
   std::vector<site::FleetAgv> fleet_;
@@ -103,6 +127,20 @@ class CameraFrameProcessor {
   TrayFitParams tray_;
   std::shared_ptr<const TrayNet> tray_net_;
   TrayNetParams tray_net_params_;
+  std::shared_ptr<const TrayNet> reacquire_net_;
+  ReacquireParams reacquire_;
+  TrayNetParams reacquire_net_params_;
+  // Per vehicle: what its track was at its last fix while valid, and the box a sweep last gave
+  // it (for the heading from travel).
+  struct Remembered {
+    bool known = false;
+    LostVehicle last;
+    bool have_box = false;
+    PlaneTray box;
+    std::int64_t box_t_ns = 0;
+  };
+  std::vector<Remembered> remembered_;
+  std::vector<std::uint64_t> sweep_frames_;  // per camera: frames with a lost vehicle to sweep for
 };
 
 }  // namespace agv::overhead
