@@ -20,16 +20,6 @@ namespace {
 // newest one it has (a stalled camera, a finished replay).
 constexpr auto kFrameWait = std::chrono::milliseconds(300);
 
-HttpServerSettings http_settings(const config::DiagSection& d) {
-  HttpServerSettings s;
-  s.bind_address = d.bind_address;
-  s.port = d.port;
-  s.allow_remote = d.allow_remote;
-  s.threads = d.threads;
-  s.max_clients = d.max_clients;
-  return s;
-}
-
 }  // namespace
 
 struct DiagServer::Impl {
@@ -41,7 +31,7 @@ struct DiagServer::Impl {
         frames(f),
         mode(md),
         http(
-            http_settings(c.diag), [this](DiagRoute r, HttpAnswer* a) { answer(r, a); },
+            http_settings_of(c.diag), [this](DiagRoute r, HttpAnswer* a) { answer(r, a); },
             [this] {
               posix::set_thread_name("agv-diag");
               pin_this_thread(cpus, "diagnostics page, loop.service_cpus");

@@ -43,6 +43,7 @@ struct Options {
   int full_sweep_every = agv::overhead::SearchParams{}.full_sweep_every_frames;
   bool clean = false;
   std::string tray_model;  // --tray-model: the learned tray detector instead of the classical fit
+  std::string reacquire_model;  // --reacquire-model: re-acquisition of lost covered vehicles
 };
 
 const char* kUsage =
@@ -53,7 +54,7 @@ const char* kUsage =
     "  [--calib-sigma-mm S] [--calib-sigma-deg S]\n"
     "  [--bit-errors N] [--bit-errors-from-s S] [--latency-ms L] [--latency-spread-ms L]\n"
     "  [--full-sweep-every N] [--apriltag-every N] [--max-wall-s S] [--no-distortion] [--clean]\n"
-    "  [--tray-model ONNX]\n";
+    "  [--tray-model ONNX] [--reacquire-model ONNX]\n";
 
 bool parse(int argc, char** argv, Options* o, std::string* error) {
   std::map<std::string, double*> num{{"--cameras-height-mm", &o->world.camera_height_mm},
@@ -96,6 +97,10 @@ bool parse(int argc, char** argv, Options* o, std::string* error) {
     const std::string v = argv[++i];
     if (a == "--tray-model") {
       o->tray_model = v;
+      continue;
+    }
+    if (a == "--reacquire-model") {
+      o->reacquire_model = v;
       continue;
     }
     if (a == "--seed") {
@@ -242,7 +247,8 @@ std::vector<agv::site::CeilingCamera> believed_cameras(const Options& o,
 }
 
 // The learned tray detector from an ONNX file; false with a message when it cannot be loaded.
-bool load_tray_model(const std::string& path, agv::overhead::CameraFrameProcessor* proc) {
+bool load_tray_model(const std::string& path, agv::overhead::CameraFrameProcessor* proc,
+                     bool reacquire) {
   std::ifstream f(path, std::ios::binary);
   const std::string bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
   auto net = std::make_shared<agv::overhead::TrayNet>();
@@ -251,7 +257,11 @@ bool load_tray_model(const std::string& path, agv::overhead::CameraFrameProcesso
     std::fprintf(stderr, "eval_overhead: %s: %s\n", path.c_str(), why.c_str());
     return false;
   }
-  proc->set_tray_net(std::move(net));
+  if (reacquire) {
+    proc->set_reacquire(std::move(net));
+  } else {
+    proc->set_tray_net(std::move(net));
+  }
   return true;
 }
 
@@ -340,6 +350,15 @@ void print_tray_boxes(const agv::overhead::CameraFrameProcessor& proc) {
       static_cast<unsigned long long>(proc.counters().tray_gated),
       static_cast<unsigned long long>(proc.counters().tray_refused),
       static_cast<unsigned long long>(proc.counters().tray_tag_disagree));
+  const agv::overhead::FrameCounters& c = proc.counters();
+  std::printf(
+      "re-acquisition (%s): sweeps %llu, detector windows %llu, tracks restarted %llu, "
+      "ambiguous boxes %llu, half turn unknown %llu\n",
+      proc.reacquiring() ? "on" : "off", static_cast<unsigned long long>(c.reacquire_sweeps),
+      static_cast<unsigned long long>(c.reacquire_windows),
+      static_cast<unsigned long long>(c.reacquired),
+      static_cast<unsigned long long>(c.reacquire_ambiguous),
+      static_cast<unsigned long long>(c.reacquire_heading_unknown));
 }
 
 int run(const Options& o) {
@@ -359,7 +378,8 @@ int run(const Options& o) {
   sp.full_sweep_every_frames = o.full_sweep_every;
   agv::overhead::CameraFrameProcessor proc(believed, site.fleet, {}, sp);
   agv::overhead::FleetTracker tracker(site.fleet.size());
-  if (!o.tray_model.empty() && !load_tray_model(o.tray_model, &proc)) return 2;
+  if (!o.tray_model.empty() && !load_tray_model(o.tray_model, &proc, false)) return 2;
+  if (!o.reacquire_model.empty() && !load_tray_model(o.reacquire_model, &proc, true)) return 2;
 
   const agv::sim::SiteRenderParams rp =
       o.clean ? agv::sim::SiteRenderParams{} : agv::sim::realistic_site_params();
