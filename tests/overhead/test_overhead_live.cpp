@@ -217,8 +217,8 @@ double metric(const std::string& text, const std::string& name_and_labels) {
 
 // The diagnostics page of `run` while the loop runs: /metrics over loopback shows both cameras'
 // frames and rate, the disconnected camera's fault, and both vehicles confirmed on their tags with
-// a sigma under the lost limit and a fix within the last second; /api/status.json and the page are
-// served, the vehicle page's map and image are not.
+// a sigma under the lost limit and a fix within the coasting limit; /api/status.json and the page
+// are served, the vehicle page's map and image are not.
 TEST_F(OverheadLive, DiagnosticsServeMetricsWhileRunning) {
   const site::Site s = test::two_camera_site();
   const std::vector<sim::AgvState> agvs = test::two_vehicles();
@@ -231,6 +231,10 @@ TEST_F(OverheadLive, DiagnosticsServeMetricsWhileRunning) {
                                          test::render_fake_frame(s, 1, agvs)};
   OverheadConfig cfg;
   cfg.diag.enabled = true;
+  // The page is under test, not the pipeline's latency: a sanitizer build or a loaded machine
+  // processes a frame later than the 300 ms after which a track coasts by default.
+  cfg.tracker.coast_after_ms = 3000.0;
+  cfg.tracker.lost_after_ms = 6000.0;
   cfg.diag.port = 0;  // any free port
   OverheadDiag diag(cfg.diag);
   std::string err;
@@ -277,7 +281,7 @@ TEST_F(OverheadLive, DiagnosticsServeMetricsWhileRunning) {
                1.0 &&
            metric(text, "agvloc_overhead_agv_sigma_xy_mm" + l + "}") > 0.0 &&
            metric(text, "agvloc_overhead_agv_sigma_xy_mm" + l + "}") < cfg.tracker.lost_sigma_mm &&
-           metric(text, "agvloc_overhead_agv_last_fix_age_seconds" + l + "}") < 1.0);
+           metric(text, "agvloc_overhead_agv_last_fix_age_seconds" + l + "}") < 3.0);
       confirmed = confirmed && seen_confirmed[i];
     }
     fault_seen = fault_seen ||
