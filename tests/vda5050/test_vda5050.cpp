@@ -115,8 +115,9 @@ int valid_ticks_after_placing(bool init_position, double sigma_mm, double sigma_
 TEST(Vda5050InitPosition, PoseStaysValidWhileDrivingUntilSigmaGrowsPastTheLimit) {
   const fusion::EkfConfig f;
   // The old constant, the default limit itself: LOST on the first ticks of driving.
-  EXPECT_LT(
-      valid_ticks_after_placing(false, f.health.lost_position_sigma_mm, f.health.lost_heading_sigma_rad, 100), 5);
+  EXPECT_LT(valid_ticks_after_placing(false, f.health.lost_position_sigma_mm,
+                                      f.health.lost_heading_sigma_rad, 100),
+            5);
   // initPosition: valid for at least 1 s of driving at 1 m/s without a landmark.
   EXPECT_EQ(valid_ticks_after_placing(true, 0.0, 0.0, 100), 100);
 }
