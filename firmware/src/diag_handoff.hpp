@@ -13,7 +13,7 @@
 
 #include "agv/diag/diag.hpp"
 #include "agv/hal/can_bus.hpp"
-#include "latest_slot.hpp"
+#include "agv/http/latest_slot.hpp"
 #include "output_sink.hpp"
 
 namespace agv::app {

@@ -8,7 +8,7 @@
 #include <cstdint>
 
 #include "agv/localizer/localizer.hpp"
-#include "latest_slot.hpp"
+#include "agv/http/latest_slot.hpp"
 #include "output_sink.hpp"
 
 namespace agv::app {

@@ -16,7 +16,7 @@
 #include "config.hpp"
 #include "gyro_reader.hpp"
 #include "handoff.hpp"
-#include "latest_slot.hpp"
+#include "agv/http/latest_slot.hpp"
 #include "output_sink.hpp"
 
 namespace agv::app {

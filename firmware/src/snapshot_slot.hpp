@@ -11,7 +11,7 @@
 #include "agv/common/geometry.hpp"
 #include "agv/localizer/time_base.hpp"
 #include "agv/vision/tracking.hpp"
-#include "latest_slot.hpp"
+#include "agv/http/latest_slot.hpp"
 
 namespace agv::app {
 

@@ -9,7 +9,7 @@
 #include <vector>
 
 #include "agv/adapters/stepped_clock.hpp"
-#include "latest_slot.hpp"
+#include "agv/http/latest_slot.hpp"
 #include "output_loop.hpp"
 
 namespace agv::app {

@@ -28,12 +28,33 @@ DiagRoute route_diag_request(const DiagRequestHead& h) {
   if (h.path == "/api/map.json") return DiagRoute::kMap;
   if (h.path == "/metrics") return DiagRoute::kMetrics;
   if (h.path == "/frame.png") return DiagRoute::kFrame;
+  if (h.path == "/site.svg") return DiagRoute::kSite;
+  if (diag_camera_index(h.path) >= 0) return DiagRoute::kCamera;
   return DiagRoute::kNotFound;
+}
+
+int diag_camera_index(std::string_view path) {
+  constexpr std::string_view kPrefix = "/camera/", kSuffix = ".png";
+  if (path.size() <= kPrefix.size() + kSuffix.size() || path.substr(0, kPrefix.size()) != kPrefix ||
+      path.substr(path.size() - kSuffix.size()) != kSuffix) {
+    return -1;
+  }
+  const std::string_view digits =
+      path.substr(kPrefix.size(), path.size() - kPrefix.size() - kSuffix.size());
+  if (digits.size() > 3 || (digits.size() > 1 && digits[0] == '0')) return -1;
+  int index = 0;
+  for (const char c : digits) {
+    if (c < '0' || c > '9') return -1;
+    index = index * 10 + (c - '0');
+  }
+  return index;
 }
 
 int diag_route_status(DiagRoute route) {
   switch (route) {
     case DiagRoute::kNotFound:
+    case DiagRoute::kSite:
+    case DiagRoute::kCamera:
       return 404;
     case DiagRoute::kMethodNotAllowed:
       return 405;

@@ -293,6 +293,12 @@ MHD_Result HttpServer::Impl::answer(MHD_Connection* c, const char* url, const ch
     case DiagRoute::kFrame:
       handler(route, &a);
       break;
+    case DiagRoute::kSite:
+    case DiagRoute::kCamera:
+      a.body = "not found\n";  // unless the handler serves it
+      a.camera = diag_camera_index(head.path);
+      handler(route, &a);
+      break;
     case DiagRoute::kNotFound:
       a.body = "not found\n";
       break;

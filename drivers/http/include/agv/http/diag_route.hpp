@@ -19,6 +19,8 @@ enum class DiagRoute : std::uint8_t {
   kMap,      // GET /api/map.json
   kMetrics,  // GET /metrics
   kFrame,    // GET /frame.png
+  kSite,     // GET /site.svg (agvloc-overhead: the site map with the fleet)
+  kCamera,   // GET /camera/<index>.png (agvloc-overhead: a ceiling camera's view)
   kNotFound,
   kMethodNotAllowed,  // 405 with Allow: GET, HEAD
   kBodyTooLarge,      // 413
@@ -39,8 +41,13 @@ bool diag_body_too_large(std::string_view content_length, bool has_transfer_enco
 
 DiagRoute route_diag_request(const DiagRequestHead& head);
 
+// The index in "/camera/<index>.png": one to three decimal digits, no sign, no leading zero
+// (so each camera has exactly one path); -1 for any other path.
+int diag_camera_index(std::string_view path);
+
 // The status code the route is answered with (200 for the pages; a kFrame without a camera frame
-// is answered 503 by the server).
+// is answered 503 by the server). kSite and kCamera are 404 unless the handler serves them (only
+// agvloc-overhead does, and it answers 404 for an index that is not one of its cameras).
 int diag_route_status(DiagRoute route);
 
 }  // namespace agv::app

@@ -50,6 +50,7 @@ HttpServerSettings http_settings_of(const Section& d) {
 // What a route answers. The server adds Content-Type, Cache-Control: no-store, nosniff and
 // Connection: close.
 struct HttpAnswer {
+  int camera = -1;  // given to the handler: kCamera's index (diag_camera_index), else -1
   int status = 200;
   std::string body;
   std::string type = "text/plain";
@@ -65,8 +66,9 @@ struct HttpCounters {
 
 class HttpServer {
  public:
-  // Called for kPage, kStatus, kMap, kMetrics and kFrame with *answer holding that route's status
-  // (the other routes the server answers itself); on the library's threads, several at once.
+  // Called for kPage, kStatus, kMap, kMetrics, kFrame, kSite and kCamera with *answer holding that
+  // route's status (kSite and kCamera: 404 "not found" until the handler answers them); the other
+  // routes the server answers itself. On the library's threads, several at once.
   using Handler = std::function<void(DiagRoute route, HttpAnswer* answer)>;
   // Run first on every thread the server starts (to name it, pin it).
   using ThreadStart = std::function<void()>;
