@@ -3,6 +3,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 
 #include "agv/overhead/tag_code.hpp"
@@ -158,6 +159,27 @@ bool check_config_against_site(const OverheadConfig& cfg, const site::Site& site
     }
   }
   return true;
+}
+
+int command_fail(const char* command, int code, const std::string& msg) {
+  std::fprintf(stderr, "agvloc-overhead %s: %s\n", command, msg.c_str());
+  return code;
+}
+
+bool load_config_and_site(const char* command, const std::string& config_path,
+                          const std::string& site_path, OverheadConfig* cfg, site::Site* site) {
+  std::vector<std::string> errors;
+  bool ok = (config_path.empty() || load_config(config_path, cfg, &errors)) &&
+            load_site_file(site_path, site, &errors);
+  std::string err;
+  if (ok && !check_config_against_site(*cfg, *site, &err)) {
+    errors.push_back(config_path + ": " + err);
+    ok = false;
+  }
+  if (!ok) {
+    for (const std::string& e : errors) command_fail(command, 2, e);
+  }
+  return ok;
 }
 
 }  // namespace agv::overhead_app

@@ -45,4 +45,13 @@ bool check_fleet_tag_distance(const site::Site& site, int min_bits, std::string*
 bool check_config_against_site(const OverheadConfig& cfg, const site::Site& site,
                                std::string* error);
 
+// What every command that tracks starts from: the configuration (its defaults when config_path is
+// empty) and the site, checked against each other. False after printing each problem as
+// "agvloc-overhead COMMAND: ..." on stderr.
+bool load_config_and_site(const char* command, const std::string& config_path,
+                          const std::string& site_path, OverheadConfig* cfg, site::Site* site);
+
+// Prints "agvloc-overhead COMMAND: MSG" on stderr and returns code.
+int command_fail(const char* command, int code, const std::string& msg);
+
 }  // namespace agv::overhead_app

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <condition_variable>
+#include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <deque>
@@ -10,6 +11,7 @@
 
 #include "agv/camera/common.hpp"
 #include "agv/v4l2/v4l2_camera.hpp"
+#include "inputs.hpp"
 #ifdef AGV_HAVE_LIBCAMERA
 #include "agv/libcamera/libcamera_camera.hpp"
 #endif
@@ -251,6 +253,22 @@ LiveCounters run_live(std::vector<LiveCamera>* cams, TrackerCore* core,
   n.cameras = feed.health();
   for (const CameraHealth& h : n.cameras) n.reopens += h.reopens;
   return n;
+}
+
+bool start_live(const char* command, const std::string& config_path, const std::string& site_path,
+                void (*on_stop)(int), LiveInputs* in) {
+  if (!load_config_and_site(command, config_path, site_path, &in->cfg, &in->site)) return false;
+  std::string err;
+  if (!make_live_cameras(in->cfg, in->site, &in->cams, &err)) {
+    command_fail(command, 2, config_path + ": " + err);
+    return false;
+  }
+  struct sigaction sa {};
+  sa.sa_handler = on_stop;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+  return true;
 }
 
 }  // namespace agv::overhead_app

@@ -31,6 +31,18 @@ hal::CameraConfig driver_config(const CameraSettings& s, const site::CeilingCame
 bool make_live_cameras(const OverheadConfig& cfg, const site::Site& site,
                        std::vector<LiveCamera>* out, std::string* error);
 
+// What run and record start from.
+struct LiveInputs {
+  OverheadConfig cfg;
+  site::Site site;
+  std::vector<LiveCamera> cams;  // the site's cameras as drivers, not started
+};
+
+// Loads the configuration and the site, makes the cameras' drivers and has SIGINT and SIGTERM call
+// on_stop. False after printing each problem as "agvloc-overhead COMMAND: ..." on stderr.
+bool start_live(const char* command, const std::string& config_path, const std::string& site_path,
+                void (*on_stop)(int), LiveInputs* in);
+
 struct LiveCounters {
   std::uint64_t ticks = 0, ticks_skipped = 0, frames_dropped = 0, reopens = 0;
   std::vector<CameraHealth> cameras;  // as the cameras were given

@@ -7,7 +7,6 @@
 #include <cinttypes>
 #include <cmath>
 #include <condition_variable>
-#include <csignal>
 #include <cstdio>
 #include <deque>
 #include <filesystem>
@@ -167,11 +166,6 @@ class FolderWriter {
   std::thread thread_;
 };
 
-int record_fail(int code, const std::string& msg) {
-  std::fprintf(stderr, "agvloc-overhead record: %s\n", msg.c_str());
-  return code;
-}
-
 }  // namespace
 
 namespace {
@@ -252,39 +246,20 @@ bool record_cameras(std::vector<LiveCamera>* cams, const site::Site& site,
 }
 
 int run_record_command(const RecordArgs& args) {
-  OverheadConfig cfg;
-  std::vector<std::string> errors;
-  if (!load_config(args.config_path, &cfg, &errors)) {
-    for (const std::string& e : errors) record_fail(2, e);
-    return 2;
-  }
-  site::Site site;
-  if (!load_site_file(args.site_path, &site, &errors)) {
-    for (const std::string& e : errors) record_fail(2, e);
-    return 2;
-  }
+  LiveInputs in;
+  if (!start_live("record", args.config_path, args.site_path, on_record_signal, &in)) return 2;
   std::string err;
-  if (!check_config_against_site(cfg, site, &err))
-    return record_fail(2, args.config_path + ": " + err);
-  std::vector<LiveCamera> cams;
-  if (!make_live_cameras(cfg, site, &cams, &err))
-    return record_fail(2, args.config_path + ": " + err);
-  struct sigaction sa {};
-  sa.sa_handler = on_record_signal;
-  sigemptyset(&sa.sa_mask);
-  sigaction(SIGINT, &sa, nullptr);
-  sigaction(SIGTERM, &sa, nullptr);
-  std::fprintf(stderr, "agvloc-overhead record: %zu cameras into %s\n", cams.size(),
+  std::fprintf(stderr, "agvloc-overhead record: %zu cameras into %s\n", in.cams.size(),
                args.out_dir.c_str());
   std::vector<CameraRecordCounters> counters;
   std::vector<CameraHealth> health;
   const std::string source = "agvloc-overhead record --site " + args.site_path;
-  if (!record_cameras(&cams, site, args.out_dir, source, g_record_stop,
+  if (!record_cameras(&in.cams, in.site, args.out_dir, source, g_record_stop,
                       static_cast<std::int64_t>(std::llround(args.duration_s * 1e9)), &counters,
                       &health, &err))
-    return record_fail(2, err);
+    return command_fail("record", 2, err);
   std::uint64_t write_errors = 0;
-  for (std::size_t i = 0; i < cams.size(); ++i) {
+  for (std::size_t i = 0; i < in.cams.size(); ++i) {
     const CameraRecordCounters& c = counters[i];
     write_errors += c.write_errors;
     std::printf(
@@ -293,7 +268,8 @@ int run_record_command(const RecordArgs& args) {
         c.dir.c_str(), static_cast<unsigned long long>(c.frames_written),
         static_cast<unsigned long long>(c.frames_dropped),
         static_cast<unsigned long long>(c.frames_out_of_order),
-        static_cast<unsigned long long>(c.write_errors), describe(cams[i].id, health[i]).c_str());
+        static_cast<unsigned long long>(c.write_errors),
+        describe(in.cams[i].id, health[i]).c_str());
   }
   return write_errors == 0 ? 0 : 1;
 }

@@ -63,37 +63,23 @@ void play(const std::vector<CameraRecording>& cams, bool fast, TrackerCore* core
   core->publish(next_tick);
 }
 
-int replay_fail(int code, const std::string& msg) {
-  std::fprintf(stderr, "agvloc-overhead replay: %s\n", msg.c_str());
-  return code;
-}
-
 }  // namespace
 
 int run_replay(const ReplayArgs& args) {
   OverheadConfig cfg;
-  std::vector<std::string> errors;
-  if (!args.config_path.empty() && !load_config(args.config_path, &cfg, &errors)) {
-    for (const std::string& e : errors) replay_fail(2, e);
-    return 2;
-  }
   site::Site site;
-  if (!load_site_file(args.site_path, &site, &errors)) {
-    for (const std::string& e : errors) replay_fail(2, e);
-    return 2;
-  }
+  if (!load_config_and_site("replay", args.config_path, args.site_path, &cfg, &site)) return 2;
   std::string err;
-  if (!check_config_against_site(cfg, site, &err))
-    return replay_fail(2, args.config_path + ": " + err);
   std::vector<CameraRecording> cams;
   std::vector<std::string> warnings;
   if (!open_recordings(args.recordings, site, cfg, &cams, &warnings, &err))
-    return replay_fail(2, err);
-  for (const std::string& w : warnings) replay_fail(0, "warning: " + w);
+    return command_fail("replay", 2, err);
+  for (const std::string& w : warnings) command_fail("replay", 0, "warning: " + w);
   TrackerCore core(cfg, site);
-  if (!core.open_outputs(args.out_dir, &err)) return replay_fail(1, err);
+  if (!core.open_outputs(args.out_dir, &err)) return command_fail("replay", 1, err);
   play(cams, args.fast, &core);
-  if (!core.finish("agvloc-overhead replay", cams.size(), &err)) return replay_fail(1, err);
+  if (!core.finish("agvloc-overhead replay", cams.size(), &err))
+    return command_fail("replay", 1, err);
   return 0;
 }
 
