@@ -4,12 +4,14 @@
 
 #include <vector>
 
+#include "../support/good_fix.hpp"
 #include "agv/fakecamera/fake_camera.hpp"
 #include "agv/posix/posix_clock.hpp"
 #include "agv/protocol/codec.hpp"
 #include "config.hpp"
 #include "pipeline.hpp"
 #include "test_loop_support.hpp"
+#include "threaded_run_support.hpp"
 
 using namespace agv;
 namespace p = agv::protocol;
@@ -46,16 +48,6 @@ bool last_pose_valid(const config::Config& cfg, const test::StaticBus& bus) {
   return false;
 }
 
-vision::LandmarkFix good_fix(double x_mm) {
-  vision::LandmarkFix fix;
-  fix.status = vision::FixStatus::kOk;
-  fix.landmark_id = 3;
-  fix.vehicle_in_world = {x_mm, 0.0, 0.0};
-  fix.cov_world = Eigen::Matrix3d::Identity() * 0.01;
-  fix.cov_world(2, 2) = 1e-6;
-  return fix;
-}
-
 hal::CanFrame odom(const config::Config& cfg, std::int64_t t_ns, double v, std::uint8_t counter,
                    bool corrupt = false) {
   agv::hal::CanFrame f;
@@ -65,42 +57,53 @@ hal::CanFrame odom(const config::Config& cfg, std::int64_t t_ns, double v, std::
   return f;
 }
 
+// The output step every 10 ms from t = 1 s, each tick after CAN odometry at 0.5 m/s stamped
+// odom_lag_ns before it.
+struct OdomTicks {
+  const config::Config& cfg;
+  test::StaticBus& bus;
+  test::CoreHarness& out;
+  std::int64_t odom_lag_ns = 0;
+  std::int64_t t = 1'000'000'000;
+  std::uint8_t c = 0;
+
+  void tick(bool with_odom = true) {
+    t += 10'000'000;
+    if (with_odom) bus.inject(odom(cfg, t - odom_lag_ns, 0.5, c++ % 15));
+    out.poll_can();
+    out.tick(t, nullptr);
+  }
+};
+
 }  // namespace
 
 TEST(Degradation, OdometryLossFlagsAndInvalidatesThePoseThenRecovers) {
   const config::Config cfg = test_config();
   test::StaticBus bus;
   test::CoreHarness out(cfg, &bus);
-  std::int64_t t = 1'000'000'000;
-  std::uint8_t c = 0;
-  auto tick = [&](bool with_odom) {
-    t += 10'000'000;
-    if (with_odom) bus.inject(odom(cfg, t - 1'000'000, 0.5, c++ % 15));
-    out.poll_can();
-    out.tick(t, nullptr);
-  };
-  for (int i = 0; i < 20; ++i) tick(true);
-  const std::int64_t t_fix0 = t;
-  out.on_fix(good_fix(0.0), t);
-  for (int i = 0; i < 20; ++i) tick(true);
+  OdomTicks d{cfg, bus, out, 1'000'000};
+  for (int i = 0; i < 20; ++i) d.tick();
+  const std::int64_t t_fix0 = d.t;
+  out.on_fix(test::good_fix(0.0, 3), d.t);
+  for (int i = 0; i < 20; ++i) d.tick();
   p::StatusOut st;
   ASSERT_TRUE(last_status(cfg, bus, &st));
   EXPECT_EQ(st.faults & p::fault::kOdomTimeout, 0);
   EXPECT_TRUE(last_pose_valid(cfg, bus));
   EXPECT_EQ(st.health, p::Health::kOk);
 
-  for (int i = 0; i < 15; ++i) tick(false);  // 150 ms without odometry > 100 ms timeout
+  for (int i = 0; i < 15; ++i) d.tick(false);  // 150 ms without odometry > 100 ms timeout
   ASSERT_TRUE(last_status(cfg, bus, &st));
   EXPECT_NE(st.faults & p::fault::kOdomTimeout, 0);
   EXPECT_FALSE(last_pose_valid(cfg, bus));
 
-  for (int i = 0; i < 5; ++i) tick(true);  // resumes (counter jump re-synchronises)
+  for (int i = 0; i < 5; ++i) d.tick();  // resumes (counter jump re-synchronises)
   ASSERT_TRUE(last_status(cfg, bus, &st));
   EXPECT_EQ(st.faults & p::fault::kOdomTimeout, 0);
   // What the vehicle did in the gap is unknown (it may have turned): the pose is valid again
   // once the covariance says so, at the latest with the next landmark (0.5 m/s along x).
-  out.on_fix(good_fix(0.5e-6 * static_cast<double>(t - t_fix0)), t);
-  for (int i = 0; i < 5; ++i) tick(true);
+  out.on_fix(test::good_fix(0.5e-6 * static_cast<double>(d.t - t_fix0), 3), d.t);
+  for (int i = 0; i < 5; ++i) d.tick();
   ASSERT_TRUE(last_status(cfg, bus, &st));
   EXPECT_EQ(st.faults & p::fault::kOdomTimeout, 0);
   EXPECT_TRUE(last_pose_valid(cfg, bus));
@@ -111,15 +114,10 @@ TEST(Degradation, GarbageOdometryFramesAreRejectedCountedAndFlagged) {
   const config::Config cfg = test_config();
   test::StaticBus bus;
   test::CoreHarness out(cfg, &bus);
-  std::int64_t t = 1'000'000'000;
-  std::uint8_t c = 0;
-  for (int i = 0; i < 10; ++i) {
-    t += 10'000'000;
-    bus.inject(odom(cfg, t, 0.5, c++ % 15));
-    out.poll_can();
-    out.tick(t, nullptr);
-  }
-  t += 10'000'000;
+  OdomTicks d{cfg, bus, out};
+  for (int i = 0; i < 10; ++i) d.tick();
+  const std::int64_t t = d.t + 10'000'000;
+  const std::uint8_t c = d.c;
   bus.inject(odom(cfg, t, 3.0, c % 15, /*corrupt=*/true));
   hal::CanFrame short_frame = odom(cfg, t, 0.5, c % 15);
   short_frame.len = 5;
@@ -168,10 +166,7 @@ TEST(Degradation, CameraStallIsFlaggedWhileTheLoopKeepsRunning) {
   cfg.camera.timeout_ms = 200.0;
   cfg.loop.log_period_s = 0.0;
   posix::PosixClock clock;
-  fakecamera::FakeCamera::Options o;
-  o.clock = &clock;
-  o.end_of_stream_when_empty = true;
-  fakecamera::FakeCamera cam(o);
+  fakecamera::FakeCamera cam(test::scripted_camera(&clock));
   const std::int64_t t0 = clock.now_ns() + 50'000'000;
   std::int64_t t = t0;
   for (int i = 0; i < 9; ++i)
@@ -180,20 +175,13 @@ TEST(Degradation, CameraStallIsFlaggedWhileTheLoopKeepsRunning) {
   for (int i = 0; i < 9; ++i)
     cam.push_frame(fakecamera::FakeCamera::solid(64, 48, 128), t + 800'000'000 + 33'000'000 * i);
   cam.push_end_of_stream();
-  std::vector<recording::OdomRow> odo;
-  for (std::int64_t to = t0 - 100'000'000; to < t0 + 2'000'000'000; to += 10'000'000) {
-    odo.push_back({to, 0.2, 0.0});
-  }
+  const std::vector<recording::OdomRow> odo =
+      test::straight_odometry(t0 - 100'000'000, t0 + 2'000'000'000, 0.2);
   test::StaticBus bus;
   std::vector<app::TickRecord> ticks;
   ticks.reserve(1000);
-  app::PipelineIo io;
-  io.camera = &cam;
-  io.bus = &bus;
-  io.clock = &clock;
-  io.odometry = &odo;
+  app::PipelineIo io = test::quiet_io(&cam, &bus, &clock, &odo);
   io.ticks = &ticks;
-  io.quiet = true;
   app::RunResult r;
   ASSERT_EQ(app::run_threads(cfg, nullptr, io, &r), 0);
   int stalled = 0, not_stalled_before = 0;
@@ -220,11 +208,11 @@ TEST(OutputLoop, PoseOnFixSendsThePoseWithoutWaitingForThePeriod) {
   }
   const std::size_t before = bus.sent_n;
   out.on_odometry(t + 2'000'000, 0.5, 0.0);
-  ASSERT_TRUE(out.fix_arrives(good_fix(0.0), t + 1'000'000, t + 3'000'000));
+  ASSERT_TRUE(out.fix_arrives(test::good_fix(0.0, 3), t + 1'000'000, t + 3'000'000));
   ASSERT_EQ(bus.sent_n, before + 2);  // exactly the pose pair
   EXPECT_EQ(out.stats().fix_poses, 1u);
   // A failed fix wakes nothing and sends nothing.
-  vision::LandmarkFix bad = good_fix(0.0);
+  vision::LandmarkFix bad = test::good_fix(0.0, 3);
   bad.status = vision::FixStatus::kQrUnreadable;
   EXPECT_FALSE(out.fix_arrives(bad, t + 4'000'000, t + 5'000'000));
   EXPECT_EQ(bus.sent_n, before + 2);
@@ -238,17 +226,13 @@ TEST(Degradation, FixExposedAfterItArrivedIsRejectedNotFused) {
   const config::Config cfg = test_config();
   test::StaticBus bus;
   test::CoreHarness out(cfg, &bus);
-  std::int64_t t = 1'000'000'000;
-  for (std::uint8_t c = 0; c < 10; ++c) {
-    t += 10'000'000;
-    bus.inject(odom(cfg, t, 0.5, c));
-    out.poll_can();
-    out.tick(t, nullptr);
-  }
-  out.on_fix(good_fix(0.0), t + 5'000'000, t);
+  OdomTicks d{cfg, bus, out};
+  for (int i = 0; i < 10; ++i) d.tick();
+  const std::int64_t t = d.t;
+  out.on_fix(test::good_fix(0.0, 3), t + 5'000'000, t);
   EXPECT_EQ(out.stats().fixes_rejected_invalid, 1u);
   EXPECT_EQ(out.stats().fixes_fused, 0u);
   EXPECT_FALSE(out.ekf().initialised());
-  out.on_fix(good_fix(0.0), t - 5'000'000, t);
+  out.on_fix(test::good_fix(0.0, 3), t - 5'000'000, t);
   EXPECT_EQ(out.stats().fixes_fused, 1u);
 }

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <cstdio>
 
+#include "../support/good_fix.hpp"
 #include "agv/config/config.hpp"
 #include "agv/localizer/localizer.hpp"
 #include "output_loop.hpp"
@@ -17,16 +18,6 @@ using namespace agv;
 namespace {
 
 constexpr std::int64_t kMs = 1'000'000;
-
-vision::LandmarkFix fix_at(double x_mm) {
-  vision::LandmarkFix fix;
-  fix.status = vision::FixStatus::kOk;
-  fix.landmark_id = 9;
-  fix.vehicle_in_world = {x_mm, 0.0, 0.0};
-  fix.cov_world = Eigen::Matrix3d::Identity() * 0.01;
-  fix.cov_world(2, 2) = 1e-6;
-  return fix;
-}
 
 // The largest position difference (mm) between the two paths' predictions for frames exposed
 // 50..10 ms before the newest snapshot, with the camera offset configured. Before the one time
@@ -45,7 +36,7 @@ double worst_difference_mm(double camera_offset_ms) {
     const std::int64_t t = t0 + i * 10 * kMs;
     core.on_odometry(t, 1.0, 0.0);
     if (i % 20 == 0) {
-      core.on_fix(fix_at(static_cast<double>(t - t0) * 1e-6), t - offset_ns, t + 30 * kMs);
+      core.on_fix(test::good_fix(static_cast<double>(t - t0) * 1e-6), t - offset_ns, t + 30 * kMs);
     }
     slot.publish(core.snapshot_at(t));
     t_last = t;

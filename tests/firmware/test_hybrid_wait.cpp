@@ -11,6 +11,7 @@
 #include "config.hpp"
 #include "pipeline.hpp"
 #include "test_loop_support.hpp"
+#include "threaded_run_support.hpp"
 
 using namespace agv;
 
@@ -47,22 +48,13 @@ LatencyHistogram loop_jitter(int spin_us) {
   cfg.loop.log_period_s = 0.0;
   cfg.loop.spin_before_deadline_us = spin_us;
   LateWakeClock clock;
-  fakecamera::FakeCamera::Options o;
-  o.clock = &clock;
-  o.end_of_stream_when_empty = true;
-  fakecamera::FakeCamera cam(o);
+  fakecamera::FakeCamera cam(test::scripted_camera(&clock));
   cam.push_end_of_stream();
-  std::vector<recording::OdomRow> odo;
   const std::int64_t t0 = clock.now_ns();
-  for (std::int64_t t = t0; t < t0 + 400'000'000; t += 10'000'000) odo.push_back({t, 0.2, 0.0});
+  const std::vector<recording::OdomRow> odo = test::straight_odometry(t0, t0 + 400'000'000, 0.2);
   test::StaticBus bus;
-  app::PipelineIo io;
-  io.camera = &cam;
-  io.bus = &bus;
-  io.clock = &clock;
-  io.odometry = &odo;
-  io.quiet = true;
   app::RunResult r;
+  app::PipelineIo io = test::quiet_io(&cam, &bus, &clock, &odo);
   EXPECT_EQ(app::run_threads(cfg, nullptr, io, &r), 0);
   EXPECT_GT(r.output.ticks, 20u);
   return r.output.period_jitter_ns;

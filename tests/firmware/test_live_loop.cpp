@@ -26,6 +26,7 @@
 #include "agv/vision/landmark_localizer.hpp"
 #include "config.hpp"
 #include "pipeline.hpp"
+#include "threaded_run_support.hpp"
 
 using namespace agv;
 namespace p = agv::protocol;
@@ -36,9 +37,23 @@ constexpr std::int64_t kMs = 1'000'000;
 constexpr std::uint32_t kId = 17;
 const Pose2 kLandmarkWorld{1000.0, -2000.0, deg_to_rad(90.0)};
 
-fakecamera::FakeImage landmark_frame(const Pose2& vehicle_world, const CameraModel& cam) {
+// The map of the one landmark the tests' frames show.
+LandmarkMap one_landmark_map() {
   LandmarkMap map;
   map.entries[kId] = {kId, kLandmarkWorld};
+  return map;
+}
+
+// The shipped configuration on a 640x480 camera, without the periodic log lines.
+config::Config quiet_640x480_config() {
+  config::Config cfg;
+  cfg.loop.log_period_s = 0.0;
+  cfg.camera_model = CameraModel::default_640x480();
+  return cfg;
+}
+
+fakecamera::FakeImage landmark_frame(const Pose2& vehicle_world, const CameraModel& cam) {
+  const LandmarkMap map = one_landmark_map();
   sim::Scene scene;
   std::string err;
   EXPECT_TRUE(sim::make_scene(map, LandmarkGeometry{}, sim::PayloadMode::kFull, &scene, &err))
@@ -107,13 +122,10 @@ std::int64_t frame_spacing_ns(const config::Config& cfg, const LandmarkMap& map,
 // frame_spacing_ns) whose exposure stamps are camera_latency_ns before their delivery (a camera
 // pipeline's latency, or a worker that lags on a loaded CPU).
 void check_live_loop(std::int64_t camera_latency_ns) {
-  config::Config cfg;
+  config::Config cfg = quiet_640x480_config();
   ASSERT_TRUE(cfg.loop.pose_on_fix) << "the shipped default this test covers";
-  cfg.loop.log_period_s = 0.0;
-  cfg.camera_model = CameraModel::default_640x480();
   cfg.landmark_size_mm = LandmarkGeometry{}.size_mm;
-  LandmarkMap map;
-  map.entries[kId] = {kId, kLandmarkWorld};
+  const LandmarkMap map = one_landmark_map();
   // Standing still a few millimetres from the landmark, turned a little.
   const Pose2 truth = compose(kLandmarkWorld, Pose2{6.0, -4.0, deg_to_rad(7.0)});
   const fakecamera::FakeImage img = landmark_frame(truth, cfg.camera_model);
@@ -131,10 +143,7 @@ void check_live_loop(std::int64_t camera_latency_ns) {
   }
 
   posix::PosixClock clock;
-  fakecamera::FakeCamera::Options o;
-  o.clock = &clock;
-  o.end_of_stream_when_empty = true;
-  fakecamera::FakeCamera cam(o);
+  fakecamera::FakeCamera cam(test::scripted_camera(&clock));
   const std::int64_t t0 = clock.now_ns() + 50 * kMs;
   constexpr int kFrames = 8;
   cam.push_stall(50 * kMs);
@@ -143,23 +152,15 @@ void check_live_loop(std::int64_t camera_latency_ns) {
     cam.push_stall(spacing_ns);
   }
   cam.push_end_of_stream();
-  std::vector<recording::OdomRow> odo;
-  for (std::int64_t t = t0 - 100 * kMs - camera_latency_ns; t < t0 + (kFrames + 3) * spacing_ns;
-       t += 10 * kMs) {
-    odo.push_back({t, 0.0, 0.0});
-  }
+  const std::vector<recording::OdomRow> odo = test::straight_odometry(
+      t0 - 100 * kMs - camera_latency_ns, t0 + (kFrames + 3) * spacing_ns, 0.0);
   can::FakeCanNetwork net;
   auto vehicle = net.create_endpoint(8192);  // the vehicle controller listening to our frames
   auto ours = net.create_endpoint(256);
   std::vector<app::FrameRecord> fixes;
   fixes.reserve(64);
-  app::PipelineIo io;
-  io.camera = &cam;
-  io.bus = ours.get();
-  io.clock = &clock;
-  io.odometry = &odo;
+  app::PipelineIo io = test::quiet_io(&cam, ours.get(), &clock, &odo);
   io.fixes = &fixes;
-  io.quiet = true;
   app::RunResult r;
   ASSERT_EQ(app::run_threads(cfg, &map, io, &r), 0);
 
@@ -240,12 +241,9 @@ TEST(LiveLoop, FramesDelivered150MsLateStillUseTheSearchWindow) { check_live_loo
 // never grown by the real-time threads: what does not fit is counted and reported, not silently
 // dropped (a HIL run under load lost 206 ticks' rows this way).
 TEST(LiveLoop, ARecordTooSmallForTheRunIsReported) {
-  config::Config cfg;
-  cfg.loop.log_period_s = 0.0;
-  cfg.camera_model = CameraModel::default_640x480();
+  config::Config cfg = quiet_640x480_config();
   cfg.landmark_size_mm = LandmarkGeometry{}.size_mm;
-  LandmarkMap map;
-  map.entries[kId] = {kId, kLandmarkWorld};
+  const LandmarkMap map = one_landmark_map();
   const fakecamera::FakeImage blank = blank_frame();
   // Frames 50 ms apart, or further where the vision stage is slower (qemu, a loaded machine), so
   // that at least two are processed even if the mailbox drops some. A blank frame is quick to
@@ -253,17 +251,12 @@ TEST(LiveLoop, ARecordTooSmallForTheRunIsReported) {
   // compilers four times, 50 ms, once let only one of the eight frames through).
   const std::int64_t spacing_ns = frame_spacing_ns(cfg, map, blank, 50 * kMs, 10);
   posix::PosixClock clock;
-  fakecamera::FakeCamera::Options o;
-  o.clock = &clock;
-  o.end_of_stream_when_empty = true;
-  fakecamera::FakeCamera cam(o);
+  fakecamera::FakeCamera cam(test::scripted_camera(&clock));
   const std::int64_t t0 = clock.now_ns() + 20 * kMs;
   constexpr int kFrames = 8;
   push_frames(cam, blank, kFrames, t0, spacing_ns);
-  std::vector<recording::OdomRow> odo;
-  for (std::int64_t t = t0 - 50 * kMs; t < t0 + (kFrames + 2) * spacing_ns; t += 10 * kMs) {
-    odo.push_back({t, 0.0, 0.0});
-  }
+  const std::vector<recording::OdomRow> odo =
+      test::straight_odometry(t0 - 50 * kMs, t0 + (kFrames + 2) * spacing_ns, 0.0);
   can::FakeCanNetwork net;
   auto vehicle = net.create_endpoint(8192);
   auto ours = net.create_endpoint(256);
@@ -271,14 +264,9 @@ TEST(LiveLoop, ARecordTooSmallForTheRunIsReported) {
   ticks.reserve(5);
   std::vector<app::FrameRecord> fixes;
   fixes.reserve(1);
-  app::PipelineIo io;
-  io.camera = &cam;
-  io.bus = ours.get();
-  io.clock = &clock;
-  io.odometry = &odo;
+  app::PipelineIo io = test::quiet_io(&cam, ours.get(), &clock, &odo);
   io.ticks = &ticks;
   io.fixes = &fixes;
-  io.quiet = true;
   app::RunResult r;
   ASSERT_EQ(app::run_threads(cfg, &map, io, &r), 0);
   EXPECT_EQ(ticks.size(), 5u);
@@ -387,31 +375,21 @@ TEST(LiveLoop, RealtimeAndVisionCpusPinTheLoopThreads) {
   const std::vector<int> allowed = test::allowed_cpus();
   ASSERT_FALSE(allowed.empty());
   const int target = allowed.back();  // the highest CPU this process may use
-  config::Config cfg;
-  cfg.loop.log_period_s = 0.0;
+  config::Config cfg = quiet_640x480_config();
   cfg.loop.realtime_cpus = std::to_string(target);
   cfg.loop.vision_cpus = std::to_string(target);
-  cfg.camera_model = CameraModel::default_640x480();
   LandmarkMap map;
   const fakecamera::FakeImage blank = blank_frame();
   AffinityNotingClock clock;
-  fakecamera::FakeCamera::Options o;
-  o.clock = &clock;
-  o.end_of_stream_when_empty = true;
-  fakecamera::FakeCamera cam(o);
+  fakecamera::FakeCamera cam(test::scripted_camera(&clock));
   const std::int64_t t0 = clock.now_ns() + 20 * kMs;
   push_frames(cam, blank, 3, t0, 50 * kMs);
-  std::vector<recording::OdomRow> odo;
-  for (std::int64_t t = t0 - 50 * kMs; t < t0 + 250 * kMs; t += 10 * kMs) odo.push_back({t, 0, 0});
+  const std::vector<recording::OdomRow> odo =
+      test::straight_odometry(t0 - 50 * kMs, t0 + 250 * kMs, 0.0);
   can::FakeCanNetwork net;
   auto ours = net.create_endpoint(256);
-  app::PipelineIo io;
-  io.camera = &cam;
-  io.bus = ours.get();
-  io.clock = &clock;
-  io.odometry = &odo;
-  io.quiet = true;
   app::RunResult r;
+  app::PipelineIo io = test::quiet_io(&cam, ours.get(), &clock, &odo);
   ASSERT_EQ(app::run_threads(cfg, &map, io, &r), 0);
   const auto seen = clock.seen();
   for (const char* name : {"agv-output", "agv-capture", "agv-vision"}) {
@@ -426,29 +404,19 @@ TEST(LiveLoop, RealtimeAndVisionCpusPinTheLoopThreads) {
 // frames are received (a HIL run under load recorded 900 of 901: the last row, sent while the
 // loop was already stopping).
 TEST(LiveLoop, OdometryFromCanRunsPastTheLastFrameToTheLastOdometry) {
-  config::Config cfg;
-  cfg.loop.log_period_s = 0.0;
-  cfg.camera_model = CameraModel::default_640x480();
+  const config::Config cfg = quiet_640x480_config();
   LandmarkMap map;
   const fakecamera::FakeImage blank = blank_frame();
   posix::PosixClock clock;
-  fakecamera::FakeCamera::Options o;
-  o.clock = &clock;
-  o.end_of_stream_when_empty = true;
-  fakecamera::FakeCamera cam(o);
+  fakecamera::FakeCamera cam(test::scripted_camera(&clock));
   const std::int64_t t0 = clock.now_ns() + 20 * kMs;
   push_frames(cam, blank, 2, t0, 20 * kMs);
   can::FakeCanNetwork net;
   auto ours = net.create_endpoint(256);
   std::vector<app::TickRecord> ticks;
   ticks.reserve(400);
-  app::PipelineIo io;
-  io.camera = &cam;
-  io.bus = ours.get();
-  io.clock = &clock;
-  io.odometry = nullptr;  // odometry from CAN
+  app::PipelineIo io = test::quiet_io(&cam, ours.get(), &clock, nullptr);  // odometry from CAN
   io.ticks = &ticks;
-  io.quiet = true;
   // The recording's odometry ends 400 ms after its last frame.
   io.can_odometry_end_ns = t0 + 440 * kMs;
   app::RunResult r;

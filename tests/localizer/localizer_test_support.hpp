@@ -1,8 +1,10 @@
-// What the localizer core's tests share: the configuration they drive it with and a good fix.
+// What the localizer core's tests share: the configuration they drive it with and a good fix
+// (tests/support/good_fix.hpp: landmark 9 at (x_mm, 0)).
 #pragma once
 
 #include <cstdint>
 
+#include "../support/good_fix.hpp"
 #include "agv/localizer/localizer.hpp"
 
 namespace agv::localizer_test {
@@ -17,15 +19,6 @@ inline localizer::LocalizerConfig test_config() {
   return c;
 }
 
-// A QR fix of landmark 9 putting the vehicle at (x_mm, 0) heading 0, sigma 0.1 mm / 1 mrad.
-inline vision::LandmarkFix good_fix(double x_mm) {
-  vision::LandmarkFix fix;
-  fix.status = vision::FixStatus::kOk;
-  fix.landmark_id = 9;
-  fix.vehicle_in_world = {x_mm, 0.0, 0.0};
-  fix.cov_world = Eigen::Matrix3d::Identity() * 0.01;
-  fix.cov_world(2, 2) = 1e-6;
-  return fix;
-}
+using test::good_fix;
 
 }  // namespace agv::localizer_test
