@@ -38,6 +38,7 @@ struct DiagOutput {
   bool allow_remote = false;
   int max_clients = 4;
   int threads = 1;
+  int view_width_px = 960;  // /camera/<index>.png: frames downscaled to at most this width
 };
 
 // cameras.<id>.*: one ceiling camera of the site (matched by id). The live settings are used by

@@ -209,6 +209,9 @@ std::vector<Key> output_keys() {
               "Requests in progress at once; more are answered 503"),
       integer("diag.threads", AGV_OH_AT(diag.threads), 1, 8, 1, "",
               "Threads serving the page (not real-time)"),
+      integer("diag.view_width_px", AGV_OH_AT(diag.view_width_px), 160, 3840, 960, "px",
+              "Width of each camera's view on the page (/camera/<index>.png): the frame "
+              "downscaled to it (never enlarged), detections and track windows drawn"),
   };
 }
 

@@ -152,7 +152,7 @@ std::string overhead_metrics_text(const DiagView& v, const HttpCounters& http) {
   return out;
 }
 
-std::string overhead_status_json(const DiagView& v) {
+std::string overhead_status_json(const DiagView& v, const site::Site* site) {
   using diag::append_json_number;
   using diag::append_json_string;
   std::string o = "{\"t_ns\":" + std::to_string(v.t_ns) + ",\"ticks\":" + std::to_string(v.ticks) +
@@ -190,6 +190,12 @@ std::string overhead_status_json(const DiagView& v) {
     append_json_string(&o, a.source);
     o += "}";
   }
+  o += "],\"views\":[";
+  for (std::size_t i = 0; site && i < site->cameras.size(); ++i) {
+    o += (i ? ",{\"index\":" : "{\"index\":") + std::to_string(i) + ",\"id\":";
+    append_json_string(&o, site->cameras[i].id.c_str());
+    o += "}";
+  }
   return o + "]}";
 }
 
@@ -200,7 +206,9 @@ const char* kPage = R"(<!doctype html>
 <style>body{font:14px sans-serif;margin:1em}table{border-collapse:collapse;margin-bottom:1em}
 td,th{border:1px solid #bbb;padding:2px 8px;text-align:right}.bad{background:#fcc}</style></head>
 <body><h1>agvloc-overhead</h1><p id="t"></p><h2>Cameras</h2><table id="c"></table>
-<h2>Vehicles</h2><table id="a"></table><p><a href="/metrics">/metrics</a></p>
+<h2>Vehicles</h2><table id="a"></table>
+<h2>Site</h2><p><a href="/site.svg"><img id="site" alt="no site map" style="max-width:100%"></a></p>
+<h2>Camera views</h2><div id="v"></div><p><a href="/metrics">/metrics</a></p>
 <script>
 function row(cells,cls){const r=document.createElement('tr');if(cls)r.className=cls;
 for(const c of cells){const d=document.createElement('td');d.textContent=c;r.appendChild(d);}return r;}
@@ -214,16 +222,95 @@ for(const k of s.cameras)c.appendChild(row([k.id,k.frames,fmt(k.fps,1),k.faults,
 k.clock_mapped?k.clock_offset_ns:''],k.fault?'bad':''));
 const a=document.getElementById('a');head(a,['vehicle','state','x mm','y mm','theta deg','sigma mm','last fix s','source']);
 for(const v of s.agvs)a.appendChild(row([v.id,v.state,fmt(v.x_mm,1),fmt(v.y_mm,1),fmt(v.theta_rad*57.29578,2),
-fmt(v.sigma_xy_mm,2),fmt(v.last_fix_age_s,2),v.source],v.state==='lost'?'bad':''));}catch(e){}
+fmt(v.sigma_xy_mm,2),fmt(v.last_fix_age_s,2),v.source],v.state==='lost'?'bad':''));
+const vs=document.getElementById('v');for(const w of s.views||[])if(!document.getElementById('view'+w.index)){
+const f=document.createElement('figure');const i=document.createElement('img');i.id='view'+w.index;
+i.alt='camera '+w.id+': no frame yet';i.style.maxWidth='100%';const c=document.createElement('figcaption');
+const l=document.createElement('a');l.href='/camera/'+w.index+'.png';l.textContent=w.id;c.appendChild(l);
+f.appendChild(i);f.appendChild(c);vs.appendChild(f);}}catch(e){}
 setTimeout(tick,500);}
-tick();
+function pictures(){const t='?t='+Date.now();document.getElementById('site').src='/site.svg'+t;
+for(const i of document.querySelectorAll('#v img'))i.src='/camera/'+i.id.slice(4)+'.png'+t;
+setTimeout(pictures,1000);}
+tick();pictures();
 </script></body></html>
 )";
 
 }  // namespace
 
 OverheadDiag::OverheadDiag(const DiagOutput& cfg)
-    : http_(app::http_settings_of(cfg), [this](DiagRoute r, HttpAnswer* a) { answer(r, a); }) {}
+    : view_width_px_(cfg.view_width_px),
+      http_(app::http_settings_of(cfg), [this](DiagRoute r, HttpAnswer* a) { answer(r, a); }) {}
+
+void OverheadDiag::attach(const site::Site& site, const overhead::SearchParams& search) {
+  std::lock_guard<std::mutex> lock(attach_mutex_);
+  if (attached_.load(std::memory_order_acquire)) return;
+  site_ = &site;
+  search_ = search;
+  for (const site::FleetAgv& a : site.fleet) agv_ids_.push_back(a.id);
+  for (std::size_t i = 0; i < site.cameras.size(); ++i) {
+    taps_.push_back(std::make_unique<CameraViewTap>());
+    caches_.push_back(std::make_unique<ViewCache>());
+  }
+  attached_.store(true, std::memory_order_release);
+}
+
+void OverheadDiag::offer_frame(std::size_t camera, std::int64_t t_ns, const cv::Mat& gray,
+                               const overhead::FleetTracker& tracker,
+                               const std::vector<overhead::Detection>& detections) {
+  if (!attached_.load(std::memory_order_acquire) || camera >= taps_.size()) return;
+  CameraViewTap& tap = *taps_[camera];
+  if (!tap.due(t_ns)) return;
+  tap.offer(t_ns, [&](CameraView& v) {
+    fill_camera_view(*site_, camera, tracker, detections, search_, t_ns, gray, &v);
+  });
+}
+
+void OverheadDiag::put_view(std::size_t camera, CameraView v) {
+  if (!attached_.load(std::memory_order_acquire) || camera >= taps_.size()) return;
+  taps_[camera]->put(std::move(v));
+}
+
+// Drawn and encoded here, on the server's thread, once per new frame in the slot; the tracker is
+// asked for a fresh one for the next request.
+void OverheadDiag::answer_camera(int camera, HttpAnswer* a) {
+  if (!attached_.load(std::memory_order_acquire) || camera < 0 ||
+      static_cast<std::size_t>(camera) >= taps_.size()) {
+    a->status = 404;
+    a->body = "no camera " + std::to_string(camera) + " (see \"views\" in /api/status.json)\n";
+    return;
+  }
+  const auto i = static_cast<std::size_t>(camera);
+  CameraViewTap& tap = *taps_[i];
+  ViewCache& cache = *caches_[i];
+  tap.request();
+  std::lock_guard<std::mutex> lock(cache.mutex);
+  const std::uint64_t seq = tap.seq();
+  if (seq != cache.seq) {
+    cv::Mat bgr;
+    std::int64_t t_ns = 0;
+    tap.read([&](const CameraView& v) {
+      bgr = draw_camera_view(v, agv_ids_, view_width_px_);
+      t_ns = v.t_ns;
+    });
+    std::string png;
+    if (!bgr.empty() && app::encode_png(bgr, &png)) {
+      cache.png = std::move(png);
+      cache.t_ns = t_ns;
+    }
+    cache.seq = seq;
+  }
+  if (cache.png.empty()) {
+    a->status = 503;
+    a->body = "camera " + site_->cameras[i].id + ": no frame yet\n";
+    a->headers.emplace_back("Retry-After", "1");
+    return;
+  }
+  a->status = 200;
+  a->body = cache.png;
+  a->type = "image/png";
+  a->headers.emplace_back("X-Frame-Exposure-Ns", std::to_string(cache.t_ns));
+}
 
 bool OverheadDiag::start(std::string* error) { return http_.start(error); }
 
@@ -233,6 +320,20 @@ void OverheadDiag::update(DiagView v) {
 }
 
 void OverheadDiag::answer(DiagRoute route, HttpAnswer* a) {
+  if (route == DiagRoute::kCamera) return answer_camera(a->camera, a);
+  const site::Site* site = attached_.load(std::memory_order_acquire) ? site_ : nullptr;
+  if (route == DiagRoute::kSite) {
+    if (!site) return;  // 404 as the server set it
+    DiagView v;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      v = view_;
+    }
+    a->status = 200;
+    a->body = overhead_site_svg(*site, v);
+    a->type = "image/svg+xml";
+    return;
+  }
   std::lock_guard<std::mutex> lock(mutex_);
   switch (route) {
     case DiagRoute::kPage:
@@ -240,10 +341,10 @@ void OverheadDiag::answer(DiagRoute route, HttpAnswer* a) {
       a->type = "text/html; charset=utf-8";
       a->headers.emplace_back("Content-Security-Policy",
                               "default-src 'none'; script-src 'unsafe-inline'; style-src "
-                              "'unsafe-inline'; connect-src 'self'");
+                              "'unsafe-inline'; img-src 'self'; connect-src 'self'");
       break;
     case DiagRoute::kStatus:
-      a->body = overhead_status_json(view_);
+      a->body = overhead_status_json(view_, site);
       a->type = "application/json";
       break;
     case DiagRoute::kMetrics:
