@@ -16,12 +16,5 @@ case "$driver" in
     modules="$modules videobuf2-vmalloc videobuf2-dma-contig $vimc" ;;
   *) echo "usage: run_camera_vm.sh v4l2|libcamera RESULTS_DIR BINARY" >&2; exit 2 ;;
 esac
-"$root/tests/hil/vm/run-in-vm.sh" --share "$out" --timeout "${AGV_CAMERA_VM_TIMEOUT:-270}" \
-  --quiet --modules "$modules" -- bash "$here/guest_camera.sh" "$driver" "$bin"
-rc=$?
-sed -n '/AGV-VM: COMMAND-START/,/AGV-VM: COMMAND-EXIT/p' "$out/.vm/console.log"
-[ -f "$out/.vm/timing" ] && cat "$out/.vm/timing"
-if [ "$rc" -ne 0 ]; then
-  echo "FAIL: camera_vm_check ($driver) in the VM exited with $rc; console: $out/.vm/console.log"
-fi
-exit "$rc"
+exec "$root/tests/hil/vm/run-check-in-vm.sh" "camera_vm_check ($driver)" "$out" \
+  "${AGV_CAMERA_VM_TIMEOUT:-270}" "$modules" bash "$here/guest_camera.sh" "$driver" "$bin"

@@ -527,19 +527,21 @@ def main():
     variants.append((nominal, {}))
     steps_v = Variant("yaw_rate_steps", base, None, None,
                       "nominal run; recovery after every arc entry/exit (omega step)", steps=steps)
+    def removed_rows(name, seg, where, length_s, csv):
+        """The variant without `csv`'s rows in a window of length_s centred on `seg`."""
+        mid = (seg[0] + seg[1]) // 2
+        t0, t1 = mid - int(length_s * 5e8), mid + int(length_s * 5e8)
+        what = f"{csv} rows in ({t0}, {t1}) removed, centred on a {where}"
+        return Variant(name, base, t0, t1, what), remove_window(t0, t1)
+
     for gap in ODOM_GAPS_S:
         for where, seg in (("straight", straight), ("turn", turn)):
-            mid = (seg[0] + seg[1]) // 2
-            g0, g1 = mid - int(gap * 5e8), mid + int(gap * 5e8)
-            v = Variant(f"odom_gap_{gap:g}s_{where}", base, g0, g1,
-                        f"odom.csv rows in ({g0}, {g1}) removed, centred on a {where}")
-            variants.append((v, {"edit_odom": remove_window(g0, g1)}))
+            v, edit = removed_rows(f"odom_gap_{gap:g}s_{where}", seg, where, gap, "odom.csv")
+            variants.append((v, {"edit_odom": edit}))
     for stall in CAMERA_STALLS_S:
-        mid = (straight[0] + straight[1]) // 2
-        s0, s1 = mid - int(stall * 5e8), mid + int(stall * 5e8)
-        v = Variant(f"camera_stall_{stall:g}s", base, s0, s1,
-                    f"frames.csv rows in ({s0}, {s1}) removed, centred on a straight")
-        variants.append((v, {"edit_frames": remove_window(s0, s1)}))
+        v, edit = removed_rows(f"camera_stall_{stall:g}s", straight, "straight", stall,
+                               "frames.csv")
+        variants.append((v, {"edit_frames": edit}))
     for jump in CLOCK_JUMP_MS:
         w0 = (straight[0] + straight[1]) // 2 - int(CLOCK_JUMP_WINDOW_S * 5e8)
         w1 = w0 + int(CLOCK_JUMP_WINDOW_S * 1e9)

@@ -75,7 +75,8 @@ TEST(PeriodicDue, FirstOnePeriodAfterTheStartWhenAsked) {
 // Records what the loop hands it, tagged with its name, into a shared log.
 class RecordingSink : public OutputSink {
  public:
-  RecordingSink(std::string name, std::vector<std::string>* log) : name_(std::move(name)), log_(log) {}
+  RecordingSink(std::string name, std::vector<std::string>* log)
+      : name_(std::move(name)), log_(log) {}
   void before_tick(std::int64_t now_ns, localizer::Localizer&) override {
     log_->push_back(name_ + " before " + std::to_string(now_ns / kMs));
   }
@@ -88,8 +89,8 @@ class RecordingSink : public OutputSink {
   }
   void finish(const localizer::TickRecord* last, const localizer::OutputStats&, const hal::CanBus*,
               std::uint64_t frames_dropped) override {
-    log_->push_back(name_ + " finish " + (last ? std::to_string(last->t_ns / kMs) : "none") +
-                    " " + std::to_string(frames_dropped));
+    log_->push_back(name_ + " finish " + (last ? std::to_string(last->t_ns / kMs) : "none") + " " +
+                    std::to_string(frames_dropped));
   }
 
  private:
@@ -97,14 +98,21 @@ class RecordingSink : public OutputSink {
   std::vector<std::string>* log_;
 };
 
-TEST(OutputLoop, HandsEveryFixAndTickToItsSinksInOrder) {
+// What an output loop without a bus runs on: the core on the default configuration, a stepped
+// clock at 1 s, the fix ring, and the log its recording sinks write.
+struct LoopParts {
   config::Config cfg;
-  localizer::Localizer core(localizer_config(cfg));
-  adapters::SteppedClock clock(1000 * kMs);
+  localizer::Localizer core{localizer_config(cfg)};
+  adapters::SteppedClock clock{1000 * kMs};
   FixRing fixes;
   std::vector<std::string> log;
-  RecordingSink a("a", &log), b("b", &log);
-  OutputLoop loop(core, nullptr, clock, nullptr, fixes, 0, nullptr, {&a, &b});
+};
+
+TEST(OutputLoop, HandsEveryFixAndTickToItsSinksInOrder) {
+  LoopParts parts;
+  FixRing& fixes = parts.fixes;
+  RecordingSink a("a", &parts.log), b("b", &parts.log);
+  OutputLoop loop(parts.core, nullptr, parts.clock, nullptr, fixes, 0, nullptr, {&a, &b});
   FixRecord fix;
   fix.t_exposure_ns = 995 * kMs;
   fix.t_done_ns = 1005 * kMs;
@@ -116,22 +124,18 @@ TEST(OutputLoop, HandsEveryFixAndTickToItsSinksInOrder) {
   cam.frames_dropped = 7;
   loop.finish(cam.frames_dropped);
   const std::vector<std::string> expected = {
-      "a before 1000", "b before 1000", "a tick 1000 nobus", "b tick 1000 nobus",
-      "a fix 1005",    "b fix 1005",    "a before 1010",     "b before 1010",
+      "a before 1000",     "b before 1000",     "a tick 1000 nobus", "b tick 1000 nobus",
+      "a fix 1005",        "b fix 1005",        "a before 1010",     "b before 1010",
       "a tick 1010 nobus", "b tick 1010 nobus", "a finish 1010 7",   "b finish 1010 7"};
-  EXPECT_EQ(log, expected);
+  EXPECT_EQ(parts.log, expected);
 }
 
 TEST(OutputLoop, FinishWithoutATickSaysSo) {
-  config::Config cfg;
-  localizer::Localizer core(localizer_config(cfg));
-  adapters::SteppedClock clock(1000 * kMs);
-  FixRing fixes;
-  std::vector<std::string> log;
-  RecordingSink a("a", &log);
-  OutputLoop loop(core, nullptr, clock, nullptr, fixes, 0, nullptr, {&a});
+  LoopParts parts;
+  RecordingSink a("a", &parts.log);
+  OutputLoop loop(parts.core, nullptr, parts.clock, nullptr, parts.fixes, 0, nullptr, {&a});
   loop.finish(0);
-  EXPECT_EQ(log, std::vector<std::string>{"a finish none 0"});
+  EXPECT_EQ(parts.log, std::vector<std::string>{"a finish none 0"});
 }
 
 }  // namespace

@@ -143,6 +143,30 @@ struct Vehicle {
   int odom_counter = 0, gyro_counter = 0;
 };
 
+// The vehicle on a fake bus, a camera that waits for pushes, and the recorder writing what both
+// send into `dir`.
+struct VehicleRecording {
+  VehicleRecording(const std::string& dir, const p::ProtocolConfig& pc,
+                   const agv::app::RecorderOptions& opt = {})
+      : vehicle(pc),
+        bus(vehicle.net.create_endpoint(4096)),
+        camera(waiting_camera()),
+        rec(dir, pc, camera, *bus, nullptr, clock, opt) {}
+  Vehicle vehicle;
+  std::unique_ptr<agv::can::FakeCanEndpoint> bus;
+  FakeCamera camera;
+  agv::posix::PosixClock clock;
+  agv::app::Recorder rec;
+};
+
+// Runs `child` in a forked process (it ends with _exit); returns its pid, or -1.
+template <class F>
+pid_t in_child(F child) {
+  const pid_t pid = ::fork();
+  if (pid == 0) child();
+  return pid;
+}
+
 p::ProtocolConfig can_gyro_config() {
   p::ProtocolConfig pc;
   pc.gyro.enabled = true;
@@ -154,13 +178,12 @@ p::ProtocolConfig can_gyro_config() {
 TEST(Recorder, RowsReachTheFilesWhileRecording) {
   const std::string dir = fresh_dir("stream");
   const p::ProtocolConfig pc = can_gyro_config();
-  Vehicle vehicle(pc);
-  auto bus = vehicle.net.create_endpoint(4096);
-  FakeCamera camera(waiting_camera());
-  agv::posix::PosixClock clock;
   agv::app::RecorderOptions opt;
   opt.flush_period_ns = 20 * kMs;
-  agv::app::Recorder rec(dir, pc, camera, *bus, nullptr, clock, opt);
+  VehicleRecording v(dir, pc, opt);
+  Vehicle& vehicle = v.vehicle;
+  FakeCamera& camera = v.camera;
+  agv::app::Recorder& rec = v.rec;
   std::string err;
   ASSERT_TRUE(rec.start(&err)) << err;
   // Headers are on disk at once: a recording killed before its first row is still valid.
@@ -244,25 +267,19 @@ TEST(Recorder, RecordingKilledMidwayReplays) {
   AGV_SKIP_FORK_UNDER_TSAN();
   const std::string dir = fresh_dir("killed");
   write_meta(dir);
-  const pid_t pid = ::fork();
-  ASSERT_GE(pid, 0);
-  if (pid == 0) {
-    const p::ProtocolConfig pc = can_gyro_config();
-    Vehicle vehicle(pc);
-    auto bus = vehicle.net.create_endpoint(4096);
-    FakeCamera camera(waiting_camera());
-    agv::posix::PosixClock clock;
-    agv::app::Recorder rec(dir, pc, camera, *bus, nullptr, clock);
+  const pid_t pid = in_child([&] {
+    VehicleRecording v(dir, can_gyro_config());
     std::string err;
-    if (!rec.start(&err)) ::_exit(3);
+    if (!v.rec.start(&err)) ::_exit(3);
     for (std::int64_t i = 0;; ++i) {  // until killed
-      vehicle.odom((1000 + 10 * i) * kMs, 0.2);
-      vehicle.gyro((1001 + 10 * i) * kMs, 0.1, false);
-      if (i % 3 == 0) camera.push_frame(FakeCamera::solid(640, 480, 50), (1000 + 10 * i) * kMs);
-      rec.step(0);
+      v.vehicle.odom((1000 + 10 * i) * kMs, 0.2);
+      v.vehicle.gyro((1001 + 10 * i) * kMs, 0.1, false);
+      if (i % 3 == 0) v.camera.push_frame(FakeCamera::solid(640, 480, 50), (1000 + 10 * i) * kMs);
+      v.rec.step(0);
       std::this_thread::sleep_for(std::chrono::milliseconds(1));
     }
-  }
+  });
+  ASSERT_GE(pid, 0);
   const auto t_end = std::chrono::steady_clock::now() + std::chrono::seconds(10);
   while ((rows_in(dir + "/odom.csv") < 100 || rows_in(dir + "/frames.csv") < 5) &&
          std::chrono::steady_clock::now() < t_end) {
@@ -327,29 +344,23 @@ TEST(Recorder, CsvWriteErrorsAreCountedAndLeaveWholeRows) {
   AGV_SKIP_FORK_UNDER_TSAN();
   const std::string dir = fresh_dir("csv_errors");
   write_meta(dir);
-  const pid_t pid = ::fork();
-  ASSERT_GE(pid, 0);
-  if (pid == 0) {  // the limit applies to the whole process: only the child gets it
+  const pid_t pid = in_child([&] {  // the limit applies to the whole process: only the child's
     ::signal(SIGXFSZ, SIG_IGN);
     const rlimit lim{4096, 4096};
     ::setrlimit(RLIMIT_FSIZE, &lim);
-    p::ProtocolConfig pc;
-    Vehicle vehicle(pc);
-    auto bus = vehicle.net.create_endpoint(4096);
-    FakeCamera camera(waiting_camera());
-    agv::posix::PosixClock clock;
-    agv::app::Recorder rec(dir, pc, camera, *bus, nullptr, clock);
+    VehicleRecording v(dir, p::ProtocolConfig{});
     std::string err;
-    if (!rec.start(&err)) ::_exit(3);
+    if (!v.rec.start(&err)) ::_exit(3);
     for (int i = 0; i < 400; ++i) {
-      vehicle.odom((1000 + 10 * i) * kMs, 0.123456);
-      rec.step(0);
+      v.vehicle.odom((1000 + 10 * i) * kMs, 0.123456);
+      v.rec.step(0);
     }
-    const bool ok = rec.stop();
-    const auto c = rec.counters();
+    const bool ok = v.rec.stop();
+    const auto c = v.rec.counters();
     ::_exit(!ok && c.csv_write_errors > 0 && c.rows_lost > 0 && c.odom + c.rows_lost == 400 ? 0
                                                                                             : 4);
-  }
+  });
+  ASSERT_GE(pid, 0);
   int status = 0;
   ASSERT_EQ(::waitpid(pid, &status, 0), pid);
   ASSERT_TRUE(WIFEXITED(status));

@@ -34,6 +34,12 @@ EFF, RTR, ERR = 0x80000000, 0x40000000, 0x20000000
 FAULT = set(os.environ.get("AGV_FAKE_FAULT", "").split(","))
 
 
+def next_due(due, now, period_s):
+    """The due time one period on; one period from now if the loop fell behind it."""
+    due += period_s
+    return due if due >= now else now + period_s
+
+
 def integrate(rows):
     """Poses at each odometry row: midpoint integration with the previous row's v, omega."""
     x = y = th = 0.0
@@ -185,9 +191,7 @@ def bus(a, rows) -> int:
             continue
         t_rec_now = rows[0][0] + (now - t_wall0) * a.speed * 1e9
         if now >= next_pose:
-            next_pose += 1.0 / rate
-            if next_pose < now:
-                next_pose = now + 1.0 / rate
+            next_pose = next_due(next_pose, now, 1.0 / rate)
             lat_ms = (t_rec_now - est[0]) / 1e6 / a.speed
 
             def xy(m, d):
@@ -211,9 +215,7 @@ def bus(a, rows) -> int:
             send("AGV_Velocity", vel)
             counters["AGV_Velocity"] = (counters["AGV_Velocity"] + 1) % 15
         if now >= next_status:
-            next_status += 0.1 / a.speed
-            if next_status < now:
-                next_status = now + 0.1 / a.speed
+            next_status = next_due(next_status, now, 0.1 / a.speed)
             tmo = last_ok is None or now - last_ok > timeout
             if "no-timeout" in FAULT:
                 tmo = False
@@ -235,9 +237,7 @@ def bus(a, rows) -> int:
             send("AGV_Quality", q)
             counters["AGV_Quality"] = (counters["AGV_Quality"] + 1) % 15
         if now >= next_hb:
-            next_hb += 1.0 / a.speed
-            if next_hb < now:
-                next_hb = now + 1.0 / a.speed
+            next_hb = next_due(next_hb, now, 1.0 / a.speed)
 
             def hb(m, d):
                 m.signals["ProtocolVersion"].encode(d, 1)

@@ -10,12 +10,5 @@ out="$1"; bin="$2"
 rm -rf "$out"; mkdir -p "$out"
 trig="$("$here/build-iio-trig-sysfs.sh" | tail -n1)" ||
   { echo "FAIL: build-iio-trig-sysfs.sh failed"; exit 1; }
-"$root/tests/hil/vm/run-in-vm.sh" --share "$out" --timeout "${AGV_IMU_VM_TIMEOUT:-240}" \
-  --quiet --modules "$trig" -- bash "$here/guest_imu.sh" "$bin"
-rc=$?
-sed -n '/AGV-VM: COMMAND-START/,/AGV-VM: COMMAND-EXIT/p' "$out/.vm/console.log"
-[ -f "$out/.vm/timing" ] && cat "$out/.vm/timing"
-if [ "$rc" -ne 0 ]; then
-  echo "FAIL: imu_vm_check in the VM exited with $rc; console: $out/.vm/console.log"
-fi
-exit "$rc"
+exec "$root/tests/hil/vm/run-check-in-vm.sh" imu_vm_check "$out" "${AGV_IMU_VM_TIMEOUT:-240}" \
+  "$trig" bash "$here/guest_imu.sh" "$bin"

@@ -31,6 +31,14 @@ std::string slurp(const fs::path& p) {
   return s.str();
 }
 
+// The sim's arguments: `common`, then --out `out`, then `extra`.
+std::vector<std::string> sim_args(std::vector<std::string> common, const fs::path& out,
+                                  const std::vector<std::string>& extra) {
+  common.insert(common.end(), {"--out", out.string()});
+  common.insert(common.end(), extra.begin(), extra.end());
+  return common;
+}
+
 fs::path tmp(const std::string& name) {
   const fs::path d =
       fs::temp_directory_path() / ("agv_test_simcmd_" + std::to_string(::getpid()) + "_" + name);
@@ -45,9 +53,7 @@ TEST(SimCommand, WritesValidDeterministicRecording) {
   const std::vector<std::string> common = {"--duration-s", "1.0",     "--fps",     "10",
                                            "--trajectory", "figure8", "--degrade", "realistic"};
   auto with = [&](const fs::path& out, const std::string& seed) {
-    std::vector<std::string> v = common;
-    v.insert(v.end(), {"--out", out.string(), "--seed", seed});
-    return v;
+    return sim_args(common, out, {"--seed", seed});
   };
   ASSERT_EQ(run_sim(with(a, "3")), 0);
   ASSERT_EQ(run_sim(with(b, "3")), 0);
@@ -85,11 +91,8 @@ TEST(SimCommand, WritesValidDeterministicRecording) {
 TEST(SimCommand, RecordsOdometrySampleTiming) {
   const fs::path a = tmp("timing_default"), b = tmp("timing_instant");
   const std::vector<std::string> common = {"--duration-s", "0.1", "--fps", "10"};
-  auto with = [&](const fs::path& out, std::vector<std::string> extra) {
-    std::vector<std::string> v = common;
-    v.insert(v.end(), {"--out", out.string()});
-    v.insert(v.end(), extra.begin(), extra.end());
-    return v;
+  auto with = [&](const fs::path& out, const std::vector<std::string>& extra) {
+    return sim_args(common, out, extra);
   };
   ASSERT_EQ(run_sim(with(a, {})), 0);
   ASSERT_EQ(run_sim(with(b, {"--odom-sample", "instant", "--misprint", "8:300:0"})), 0);
@@ -113,11 +116,8 @@ TEST(SimCommand, WritesImuCsvUnlessNoGyro) {
   const fs::path a = tmp("gyro_a"), b = tmp("gyro_b"), c = tmp("gyro_c");
   const std::vector<std::string> common = {"--duration-s", "0.5",   "--fps", "5",
                                            "--trajectory", "circle"};
-  auto with = [&](const fs::path& out, std::vector<std::string> extra) {
-    std::vector<std::string> v = common;
-    v.insert(v.end(), {"--out", out.string()});
-    v.insert(v.end(), extra.begin(), extra.end());
-    return v;
+  auto with = [&](const fs::path& out, const std::vector<std::string>& extra) {
+    return sim_args(common, out, extra);
   };
   ASSERT_EQ(run_sim(with(a, {})), 0);
   ASSERT_EQ(run_sim(with(b, {})), 0);

@@ -173,6 +173,14 @@ OdometryParams error_free(OdomSampleTiming timing) {
   return op;
 }
 
+// The lawnmower at 1 m/s; false where the trajectory cannot be made.
+bool lawnmower_1mps(Trajectory* t) {
+  TrajectoryParams tp;
+  tp.kind = TrajectoryKind::kLawnmower;
+  tp.speed_mps = 1.0;
+  return make_trajectory(tp, t, nullptr);
+}
+
 // Time at which the vehicle reaches path length s_mm (after the start ramp).
 std::int64_t time_at_s(const Trajectory& t, double s_mm) {
   const double v = t.params.speed_mps, a = t.params.accel_mps2;
@@ -197,11 +205,8 @@ TEST(Odometry, SampleTimingNames) {
 // period-mean sample integrates to exactly the heading the vehicle turned over the period; the
 // instantaneous sample claims the whole period was turning.
 TEST(Odometry, PeriodMeanIntegratesArcEntryExactly) {
-  TrajectoryParams tp;
-  tp.kind = TrajectoryKind::kLawnmower;
-  tp.speed_mps = 1.0;
   Trajectory t;
-  ASSERT_TRUE(make_trajectory(tp, &t, nullptr));
+  ASSERT_TRUE(lawnmower_1mps(&t));
   ASSERT_EQ(t.segments[0].curvature_per_mm, 0.0);
   ASSERT_NE(t.segments[1].curvature_per_mm, 0.0);
   const std::int64_t entry = time_at_s(t, t.seg_start_s_mm[1]);
@@ -226,11 +231,8 @@ TEST(Odometry, PeriodMeanIntegratesArcEntryExactly) {
 // twelve omega steps) ends where the vehicle is: heading exactly (the samples telescope), position
 // to the arc-vs-chord error of constant-curvature integration. Instantaneous samples do not.
 TEST(Odometry, PeriodMeanSamplesReproduceRoute) {
-  TrajectoryParams tp;
-  tp.kind = TrajectoryKind::kLawnmower;
-  tp.speed_mps = 1.0;
   Trajectory t;
-  ASSERT_TRUE(make_trajectory(tp, &t, nullptr));
+  ASSERT_TRUE(lawnmower_1mps(&t));
   auto dead_reckon = [&](OdomSampleTiming timing, double* max_pos_mm, double* max_head_rad) {
     const OdometryParams op = error_free(timing);
     const double dt_s = static_cast<double>(op.period_ns) * 1e-9;

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <thread>
@@ -116,39 +117,42 @@ class MqttPublisherBroker : public ::testing::Test {
     broker_ = std::make_unique<Broker>(work_dir());
     ASSERT_TRUE(broker_->start()) << "mosquitto did not start";
   }
+  // A subscriber to every topic under the base, then a started publisher with wall-clock stamps.
+  void subscribe_and_start() {
+    sub_ = std::make_unique<Subscriber>(broker_->port(), std::string(kBase) + "#");
+    ASSERT_TRUE(sub_->wait_subscribed());
+    pub_ = std::make_unique<MqttPublisher>(section(broker_->port()), handoff_, StampClock::kWall);
+    std::string error;
+    ASSERT_TRUE(pub_->start(&error)) << error;
+  }
   std::unique_ptr<Broker> broker_;
+  std::unique_ptr<Subscriber> sub_;
+  MqttHandoff handoff_;
+  std::unique_ptr<MqttPublisher> pub_;
 };
 
 // agvloc run: the first ONLINE is sent before any tick; it was stamped with the machine's boot
 // time (the loop's monotonic zero plus the wall-minus-monotonic offset).
 TEST_F(MqttPublisherBroker, WallClockStampsFromTheFirstMessage) {
-  Subscriber sub(broker_->port(), std::string(kBase) + "#");
-  ASSERT_TRUE(sub.wait_subscribed());
-  MqttHandoff handoff;
-  MqttPublisher pub(section(broker_->port()), handoff, StampClock::kWall);
-  std::string error;
-  ASSERT_TRUE(pub.start(&error)) << error;
+  ASSERT_NO_FATAL_FAILURE(subscribe_and_start());
+  Subscriber& sub = *sub_;
   ASSERT_TRUE(wait_until([&] { return !on_topic(sub, "connection").empty(); }));
   const json online = on_topic(sub, "connection").front();
   EXPECT_EQ(online["connectionState"], "ONLINE");
   EXPECT_LT(std::llabs(stamp_ms(online["timestamp"]) - wall_now_ms()), 60'000) << online.dump();
   {
-    FakeLoop loop(handoff);
+    FakeLoop loop(handoff_);
     ASSERT_TRUE(wait_until([&] { return !on_topic(sub, "visualization").empty(); }));
   }
   const json vis = on_topic(sub, "visualization").front();
   EXPECT_LT(std::llabs(stamp_ms(vis["timestamp"]) - wall_now_ms()), 60'000) << vis.dump();
-  pub.stop();
+  pub_->stop();
 }
 
 TEST_F(MqttPublisherBroker, InitPositionStateCarriesThePoseAfterTheAction) {
-  Subscriber sub(broker_->port(), std::string(kBase) + "#");
-  ASSERT_TRUE(sub.wait_subscribed());
-  MqttHandoff handoff;
-  MqttPublisher pub(section(broker_->port()), handoff, StampClock::kWall);
-  std::string error;
-  ASSERT_TRUE(pub.start(&error)) << error;
-  FakeLoop loop(handoff);
+  ASSERT_NO_FATAL_FAILURE(subscribe_and_start());
+  Subscriber& sub = *sub_;
+  FakeLoop loop(handoff_);
   ASSERT_TRUE(wait_until([&] { return !on_topic(sub, "visualization").empty(); }));
   const json action = {{"headerId", 1},
                        {"timestamp", "2026-01-01T00:00:00.000Z"},
@@ -171,7 +175,7 @@ TEST_F(MqttPublisherBroker, InitPositionStateCarriesThePoseAfterTheAction) {
   EXPECT_EQ(state["actionStates"][0]["actionStatus"], "FINISHED");
   EXPECT_NEAR(state["agvPosition"]["x"].get<double>(), 10.014, 1e-9) << state.dump();
   EXPECT_NEAR(state["agvPosition"]["y"].get<double>(), 10.021, 1e-9) << state.dump();
-  pub.stop();
+  pub_->stop();
 }
 
 // The will (CONNECTIONBROKEN) is set before ONLINE is sent; a fleet control that drops
