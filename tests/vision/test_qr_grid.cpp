@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <random>
 #include <set>
+#include <span>
 #include <string>
 
 #include "agv/sim/render.hpp"
@@ -206,6 +207,33 @@ std::vector<std::pair<int, int>> data_modules(int n) {
   return m;
 }
 
+// Reads the damaged grid `s` of `text` by zxing alone and verified against `expected`. Over the
+// bound the read is not verified and gives zxing's answer; within it, it is verified and both give
+// `text`. *verified: whether the read was verified.
+void check_verified_read(const QrSamples& s, const std::string& text,
+                         std::span<const QrExpected> expected, bool over, int trial,
+                         QrGridScratch* scratch, bool* verified) {
+  std::string via_zxing, via_expected;
+  const bool z = decode_qr_grid(s, QrThreshold::kMidpoint, &via_zxing, scratch);
+  EXPECT_FALSE(scratch->verified);
+  const bool e = decode_qr_grid(s, QrThreshold::kMidpoint, &via_expected, scratch, expected);
+  EXPECT_EQ(scratch->verified, !over) << text << " trial " << trial;
+  if (over) {
+    // Not verified: the grid went to zxing, with zxing's answer.
+    EXPECT_EQ(e, z);
+    if (e) {
+      EXPECT_EQ(via_expected, via_zxing);
+    }
+    *verified = false;
+    return;
+  }
+  *verified = true;
+  ASSERT_TRUE(e);
+  EXPECT_EQ(via_expected, text);
+  ASSERT_TRUE(z) << text << " trial " << trial << ": zxing failed where the read was verified";
+  EXPECT_EQ(via_zxing, text);
+}
+
 }  // namespace
 
 TEST(QrGrid, FormatModulesAreTheTwoFifteenModuleCopies) {
@@ -263,24 +291,10 @@ TEST(QrGrid, VerifiedReadAgreesWithZxingWithinTheBound) {
       }
       for (int k = 0; k < n_format; ++k)
         flip(&s, format[static_cast<size_t>(k)].first, format[static_cast<size_t>(k)].second);
-      std::string via_zxing, via_expected;
-      const bool z = decode_qr_grid(s, QrThreshold::kMidpoint, &via_zxing, &scratch);
-      EXPECT_FALSE(scratch.verified);
-      const bool e = decode_qr_grid(s, QrThreshold::kMidpoint, &via_expected, &scratch, expected);
-      EXPECT_EQ(scratch.verified, !over) << text << " trial " << trial;
-      if (over) {
-        // Not verified: the grid went to zxing, with zxing's answer.
-        EXPECT_EQ(e, z);
-        if (e) {
-          EXPECT_EQ(via_expected, via_zxing);
-        }
-        continue;
-      }
-      ++verified;
-      ASSERT_TRUE(e);
-      EXPECT_EQ(via_expected, text);
-      ASSERT_TRUE(z) << text << " trial " << trial << ": zxing failed where the read was verified";
-      EXPECT_EQ(via_zxing, text);
+      bool read_verified = false;
+      ASSERT_NO_FATAL_FAILURE(
+          check_verified_read(s, text, expected, over, trial, &scratch, &read_verified));
+      verified += read_verified;
     }
     EXPECT_EQ(verified, 90) << text;
   }
@@ -666,22 +680,10 @@ TEST(QrGrid, VerifiedReadCountsWrongCodewordsNotModules) {
           flip(&s, ms[static_cast<size_t>(j)].first, ms[static_cast<size_t>(j)].second);
         flipped += m;
       }
-      std::string via_zxing, via_expected;
-      const bool z = decode_qr_grid(s, QrThreshold::kMidpoint, &via_zxing, &scratch);
-      const bool e = decode_qr_grid(s, QrThreshold::kMidpoint, &via_expected, &scratch, expected);
-      EXPECT_EQ(scratch.verified, !over) << text << " trial " << trial;
-      if (over) {
-        EXPECT_EQ(e, z);
-        if (e) {
-          EXPECT_EQ(via_expected, via_zxing);
-        }
-        continue;
-      }
-      verified_beyond_modules += flipped > bound;
-      ASSERT_TRUE(e);
-      EXPECT_EQ(via_expected, text);
-      ASSERT_TRUE(z) << text << " trial " << trial << ": zxing failed where the read was verified";
-      EXPECT_EQ(via_zxing, text);
+      bool read_verified = false;
+      ASSERT_NO_FATAL_FAILURE(
+          check_verified_read(s, text, expected, over, trial, &scratch, &read_verified));
+      verified_beyond_modules += read_verified && flipped > bound;
     }
     // Most verified grids had more wrong modules than the bound: the module count refused them.
     EXPECT_GE(verified_beyond_modules, 30) << text;
