@@ -57,13 +57,14 @@ hal::CanFrame odom(const config::Config& cfg, std::int64_t t_ns, double v, std::
   return f;
 }
 
-// The output step every 10 ms from t = 1 s, each tick after CAN odometry at 0.5 m/s stamped
-// odom_lag_ns before it.
+// The core and its output step on the test configuration, ticked every 10 ms from t = 1 s, each
+// tick after CAN odometry at 0.5 m/s stamped odom_lag_ns before it.
 struct OdomTicks {
-  const config::Config& cfg;
-  test::StaticBus& bus;
-  test::CoreHarness& out;
-  std::int64_t odom_lag_ns = 0;
+  explicit OdomTicks(std::int64_t lag_ns = 0) : odom_lag_ns(lag_ns) {}
+  const config::Config cfg = test_config();
+  test::StaticBus bus;
+  test::CoreHarness out{cfg, &bus};
+  std::int64_t odom_lag_ns;
   std::int64_t t = 1'000'000'000;
   std::uint8_t c = 0;
 
@@ -78,57 +79,51 @@ struct OdomTicks {
 }  // namespace
 
 TEST(Degradation, OdometryLossFlagsAndInvalidatesThePoseThenRecovers) {
-  const config::Config cfg = test_config();
-  test::StaticBus bus;
-  test::CoreHarness out(cfg, &bus);
-  OdomTicks d{cfg, bus, out, 1'000'000};
+  OdomTicks d(1'000'000);
   for (int i = 0; i < 20; ++i) d.tick();
   const std::int64_t t_fix0 = d.t;
-  out.on_fix(test::good_fix(0.0, 3), d.t);
+  d.out.on_fix(test::good_fix(0.0, 3), d.t);
   for (int i = 0; i < 20; ++i) d.tick();
   p::StatusOut st;
-  ASSERT_TRUE(last_status(cfg, bus, &st));
+  ASSERT_TRUE(last_status(d.cfg, d.bus, &st));
   EXPECT_EQ(st.faults & p::fault::kOdomTimeout, 0);
-  EXPECT_TRUE(last_pose_valid(cfg, bus));
+  EXPECT_TRUE(last_pose_valid(d.cfg, d.bus));
   EXPECT_EQ(st.health, p::Health::kOk);
 
   for (int i = 0; i < 15; ++i) d.tick(false);  // 150 ms without odometry > 100 ms timeout
-  ASSERT_TRUE(last_status(cfg, bus, &st));
+  ASSERT_TRUE(last_status(d.cfg, d.bus, &st));
   EXPECT_NE(st.faults & p::fault::kOdomTimeout, 0);
-  EXPECT_FALSE(last_pose_valid(cfg, bus));
+  EXPECT_FALSE(last_pose_valid(d.cfg, d.bus));
 
   for (int i = 0; i < 5; ++i) d.tick();  // resumes (counter jump re-synchronises)
-  ASSERT_TRUE(last_status(cfg, bus, &st));
+  ASSERT_TRUE(last_status(d.cfg, d.bus, &st));
   EXPECT_EQ(st.faults & p::fault::kOdomTimeout, 0);
   // What the vehicle did in the gap is unknown (it may have turned): the pose is valid again
   // once the covariance says so, at the latest with the next landmark (0.5 m/s along x).
-  out.on_fix(test::good_fix(0.5e-6 * static_cast<double>(d.t - t_fix0), 3), d.t);
+  d.out.on_fix(test::good_fix(0.5e-6 * static_cast<double>(d.t - t_fix0), 3), d.t);
   for (int i = 0; i < 5; ++i) d.tick();
-  ASSERT_TRUE(last_status(cfg, bus, &st));
+  ASSERT_TRUE(last_status(d.cfg, d.bus, &st));
   EXPECT_EQ(st.faults & p::fault::kOdomTimeout, 0);
-  EXPECT_TRUE(last_pose_valid(cfg, bus));
+  EXPECT_TRUE(last_pose_valid(d.cfg, d.bus));
   EXPECT_EQ(st.health, p::Health::kOk);
 }
 
 TEST(Degradation, GarbageOdometryFramesAreRejectedCountedAndFlagged) {
-  const config::Config cfg = test_config();
-  test::StaticBus bus;
-  test::CoreHarness out(cfg, &bus);
-  OdomTicks d{cfg, bus, out};
+  OdomTicks d;
   for (int i = 0; i < 10; ++i) d.tick();
   const std::int64_t t = d.t + 10'000'000;
   const std::uint8_t c = d.c;
-  bus.inject(odom(cfg, t, 3.0, c % 15, /*corrupt=*/true));
-  hal::CanFrame short_frame = odom(cfg, t, 0.5, c % 15);
+  d.bus.inject(odom(d.cfg, t, 3.0, c % 15, /*corrupt=*/true));
+  hal::CanFrame short_frame = odom(d.cfg, t, 0.5, c % 15);
   short_frame.len = 5;
-  bus.inject(short_frame);
-  out.poll_can();
-  out.tick(t, nullptr);
-  EXPECT_EQ(out.odometry_decoder().counters().bad_crc, 1u);
-  EXPECT_EQ(out.odometry_decoder().counters().bad_length, 1u);
-  EXPECT_EQ(out.stats().odom_samples, 10u);  // neither reached fusion
+  d.bus.inject(short_frame);
+  d.out.poll_can();
+  d.out.tick(t, nullptr);
+  EXPECT_EQ(d.out.odometry_decoder().counters().bad_crc, 1u);
+  EXPECT_EQ(d.out.odometry_decoder().counters().bad_length, 1u);
+  EXPECT_EQ(d.out.stats().odom_samples, 10u);  // neither reached fusion
   p::StatusOut st;
-  ASSERT_TRUE(last_status(cfg, bus, &st));
+  ASSERT_TRUE(last_status(d.cfg, d.bus, &st));
   EXPECT_NE(st.faults & p::fault::kOdomE2E, 0);
 }
 
@@ -223,16 +218,13 @@ TEST(OutputLoop, PoseOnFixSendsThePoseWithoutWaitingForThePeriod) {
 
 TEST(Degradation, FixExposedAfterItArrivedIsRejectedNotFused) {
   // A camera clock that jumped ahead stamps frames in the future of the loop's clock.
-  const config::Config cfg = test_config();
-  test::StaticBus bus;
-  test::CoreHarness out(cfg, &bus);
-  OdomTicks d{cfg, bus, out};
+  OdomTicks d;
   for (int i = 0; i < 10; ++i) d.tick();
   const std::int64_t t = d.t;
-  out.on_fix(test::good_fix(0.0, 3), t + 5'000'000, t);
-  EXPECT_EQ(out.stats().fixes_rejected_invalid, 1u);
-  EXPECT_EQ(out.stats().fixes_fused, 0u);
-  EXPECT_FALSE(out.ekf().initialised());
-  out.on_fix(test::good_fix(0.0, 3), t - 5'000'000, t);
-  EXPECT_EQ(out.stats().fixes_fused, 1u);
+  d.out.on_fix(test::good_fix(0.0, 3), t + 5'000'000, t);
+  EXPECT_EQ(d.out.stats().fixes_rejected_invalid, 1u);
+  EXPECT_EQ(d.out.stats().fixes_fused, 0u);
+  EXPECT_FALSE(d.out.ekf().initialised());
+  d.out.on_fix(test::good_fix(0.0, 3), t - 5'000'000, t);
+  EXPECT_EQ(d.out.stats().fixes_fused, 1u);
 }
