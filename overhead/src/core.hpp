@@ -40,6 +40,8 @@ class TrackerCore {
   const overhead::FleetTracker& tracker() const { return tracker_; }
   const std::vector<overhead::Detection>& last_detections() const { return detections_; }
   std::uint64_t frames() const { return frames_; }
+  const site::Site& site() const { return site_; }
+  const OverheadConfig& config() const { return cfg_; }
   std::uint64_t unreadable_frames() const { return bad_frames_; }
 
  private:

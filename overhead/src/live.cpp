@@ -79,8 +79,10 @@ class DiagFeeder {
   DiagFeeder(const LiveDiag& d, std::size_t cameras, std::size_t agvs)
       : d_(d), rate_(cameras), tag_fix_ns_(agvs, INT64_MIN) {}
 
-  void frame_done(const TrackerCore& core, std::int64_t t_ns) {
+  void frame_done(const TrackerCore& core, const LiveFrame& f) {
     if (!d_.server) return;
+    const std::int64_t t_ns = f.t_ns;
+    d_.server->offer_frame(f.camera, t_ns, f.gray, core.tracker(), core.last_detections());
     for (const overhead::Detection& det : core.last_detections()) {
       if (det.in_fleet && det.agv < tag_fix_ns_.size() &&
           (det.result == overhead::FixResult::kApplied ||
@@ -201,6 +203,7 @@ LiveCounters run_live(std::vector<LiveCamera>* cams, TrackerCore* core,
   feed.start();
   LiveCounters n;
   DiagFeeder feeder(diag, cams->size(), diag.agv_ids.size());
+  if (diag.server) diag.server->attach(core->site(), core->config().search);
   // Each camera's fault state as last published (none yet).
   std::vector<int> published_fault(cams->size(), -1);
   std::vector<std::uint64_t> published_faults(cams->size(), 0);
@@ -214,7 +217,7 @@ LiveCounters run_live(std::vector<LiveCamera>* cams, TrackerCore* core,
         std::chrono::steady_clock::time_point(std::chrono::nanoseconds(next_tick));
     if (q.pop_until(deadline, &f)) {
       core->process(f.camera, f.t_ns, f.gray);
-      feeder.frame_done(*core, f.t_ns);
+      feeder.frame_done(*core, f);
       if (diag.exposure_to_publish_ns) unpublished.push_back(f.t_ns);
       continue;
     }
