@@ -9,6 +9,7 @@
 #include "agv/can/socketcan.hpp"
 #include "agv/posix/posix_clock.hpp"
 #include "agv/recording/recording.hpp"
+#include "cli_parse.hpp"
 #include "commands.hpp"
 #include "config.hpp"
 #include "live_devices.hpp"
@@ -25,11 +26,7 @@ int record(int argc, char** argv) {
   app.add_option("--config", config_file, "configuration YAML")->required();
   app.add_option("--out", out_dir, "recording directory to create")->required();
   app.add_option("--duration-s", duration_s, "stop after this many seconds (0 = until Ctrl-C)");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
+  if (const int parse_rc = cli::parse(app, argc, argv); parse_rc >= 0) return parse_rc;
   config::Config cfg;
   if (!config::load_config_or_report(config_file, "agvloc record", &cfg)) return 2;
   std::string err;

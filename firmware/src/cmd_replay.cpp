@@ -23,6 +23,7 @@
 #include "agv/posix/realtime.hpp"
 #include "agv/recording/png_io.hpp"
 #include "agv/recording/replay_camera.hpp"
+#include "cli_parse.hpp"
 #include "commands.hpp"
 #include "config.hpp"
 #include "diag_server.hpp"
@@ -147,11 +148,7 @@ int parse_args(int argc, char** argv, ReplayArgs* a) {
   app.add_flag("--serve", a->serve,
                "serve the diagnostics page and /metrics during the replay and after it until "
                "SIGINT / SIGTERM (address and port: diag.* keys; docs/guide/diagnostics.md)");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
+  if (const int parse_rc = cli::parse(app, argc, argv); parse_rc >= 0) return parse_rc;
   if (a->odom_from_can && (a->can_iface.empty() || !a->realtime)) {
     std::fprintf(stderr, "replay: --odom-from-can needs --can IFACE and --realtime\n");
     return 2;

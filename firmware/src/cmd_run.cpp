@@ -8,6 +8,7 @@
 #include "agv/posix/posix_clock.hpp"
 #include "agv/posix/realtime.hpp"
 #include "agv/protocol/dbc.hpp"
+#include "cli_parse.hpp"
 #include "commands.hpp"
 #include "config.hpp"
 #include "diag_server.hpp"
@@ -34,12 +35,7 @@ int parse_args(int argc, char** argv, RunArgs* a) {
   app.add_flag("--print-dbc", a->print_dbc,
                "print the DBC of this configuration (IDs, ID types, cycle times from "
                "loop.output_rate_hz) and exit");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
-  return -1;
+  return cli::parse(app, argc, argv);
 }
 
 // What a live run needs before it starts, checked.

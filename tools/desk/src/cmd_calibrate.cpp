@@ -10,6 +10,7 @@
 
 #include "calib_cli.hpp"
 #include "calib_intrinsics.hpp"
+#include "cli_parse.hpp"
 #include "commands.hpp"
 #include "config.hpp"
 #include "desk_input.hpp"
@@ -137,12 +138,7 @@ int parse_intrinsics_args(int argc, char** argv, IntrinsicsArgs* a) {
   app.add_option("--truth", a->truth,
                  "Configuration file with the true intrinsics (simulated images, e.g. "
                  "sim-board's truth.yaml): print recovered vs true");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
-  return -1;
+  return cli::parse(app, argc, argv);
 }
 
 // --print-board: the board as SVG; the exit code.

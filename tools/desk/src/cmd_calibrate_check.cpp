@@ -10,6 +10,7 @@
 #include "agv/recording/recording.hpp"
 #include "calib_check.hpp"
 #include "calib_cli.hpp"
+#include "cli_parse.hpp"
 #include "commands.hpp"
 #include "config.hpp"
 #include "desk_input.hpp"
@@ -108,11 +109,7 @@ int calibrate_check(int argc, char** argv) {
   app.add_option("--tol-residual-mm", tol.residual_mm, "Edge-point rms about the fitted square")
       ->check(tol_range)
       ->capture_default_str();
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
+  if (const int parse_rc = cli::parse(app, argc, argv); parse_rc >= 0) return parse_rc;
   auto bad = [](const std::string& msg) {
     std::fprintf(stderr, "agvloc-desk calibrate check: %s\n", msg.c_str());
     return 2;

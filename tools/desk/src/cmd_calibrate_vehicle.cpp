@@ -3,6 +3,8 @@
 // a calibration drive over mapped landmarks. Model: calib_vehicle.hpp. Needs no truth.csv. With
 // an imu.csv also the gyro's scale, bias and clock offset (calib_gyro.hpp). The texts it writes:
 // cmd_calibrate_vehicle_report.cpp.
+#include "cmd_calibrate_vehicle.hpp"
+
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cmath>
@@ -16,7 +18,7 @@
 #include "agv/recording/png_io.hpp"
 #include "agv/vision/landmark_localizer.hpp"
 #include "calib_cli.hpp"
-#include "cmd_calibrate_vehicle.hpp"
+#include "cli_parse.hpp"
 #include "commands.hpp"
 #include "config.hpp"
 #include "desk_input.hpp"
@@ -110,12 +112,7 @@ int parse_args(int argc, char** argv, Inputs* in, vcal::Options* opt) {
   app.add_option("--min-passes", opt->min_passes, "Fewest landmark passes accepted")
       ->check(CLI::Range(2, 10000))
       ->capture_default_str();
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
-  return -1;
+  return cli::parse(app, argc, argv);
 }
 
 // --config over the recording's meta.yaml: -1 to go on, else the exit code.
@@ -307,8 +304,7 @@ GyroOutcome solve_gyro(const Inputs& in, const Observed& seen, const vcal::Resul
   const vcal::GyroResult& gyro = g.result;
   g.offset_ms = (gyro.clock_offset_s - odo_offset_s) * 1e3;
   if (g.ok) {
-    if (gyro.scale_determined)
-      g.out_of_range.push_back(outside_key_range("imu.scale", gyro.scale));
+    if (gyro.scale_determined) g.out_of_range.push_back(outside_key_range("imu.scale", gyro.scale));
     if (gyro.bias_determined) {
       g.out_of_range.push_back(outside_key_range("imu.bias_degps", rad_to_deg(gyro.bias_radps)));
     }

@@ -8,6 +8,7 @@
 
 #include "agv/config/config.hpp"
 #include "agv/recording/recording.hpp"
+#include "cli_parse.hpp"
 #include "commands.hpp"
 #include "config.hpp"
 #include "config_apply.hpp"
@@ -74,11 +75,7 @@ int config_apply_command(int argc, char** argv) {
                  "to this file's directory)")
       ->required();
   app.add_flag("--force", force, "Overwrite --out if it exists (also when it is --config)");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
+  if (const int parse_rc = cli::parse(app, argc, argv); parse_rc >= 0) return parse_rc;
   const char* who = "agvloc-desk config apply";
   auto fail = [who](const std::string& m) {
     std::fprintf(stderr, "%s: %s\n", who, m.c_str());

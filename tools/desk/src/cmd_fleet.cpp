@@ -14,6 +14,7 @@
 
 #include "agv/recording/recording.hpp"
 #include "agv/sim/fleet.hpp"
+#include "cli_parse.hpp"
 #include "commands.hpp"
 #include "site_io.hpp"
 
@@ -219,11 +220,7 @@ int fleet_command(int argc, char** argv) {
       ->capture_default_str();
   app.add_flag("--gyro,!--no-gyro", gyro, "Write imu.csv per vehicle (default on)");
   app.add_flag("--force", force, "Overwrite recordings already in --out");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
+  if (const int parse_rc = cli::parse(app, argc, argv); parse_rc >= 0) return parse_rc;
   auto usage = [](const std::string& msg) {
     std::fprintf(stderr, "agvloc-desk fleet: %s\n", msg.c_str());
     return 2;

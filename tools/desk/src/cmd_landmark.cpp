@@ -6,6 +6,7 @@
 
 #include "agv/recording/png_io.hpp"
 #include "agv/sim/render.hpp"
+#include "cli_parse.hpp"
 #include "commands.hpp"
 #include "config.hpp"
 
@@ -89,11 +90,7 @@ int landmark(int argc, char** argv) {
                  "side, white margin of two cells)")
       ->capture_default_str();
   id_opt->excludes(map_opt);
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
+  if (const int parse_rc = cli::parse(app, argc, argv); parse_rc >= 0) return parse_rc;
   auto usage_error = [](const std::string& msg) {
     std::fprintf(stderr, "agvloc-desk landmark: %s\n", msg.c_str());
     return 2;

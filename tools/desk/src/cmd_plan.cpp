@@ -12,6 +12,7 @@
 #include "agv/site/planner.hpp"
 #include "agv/vda5050/order.hpp"
 #include "agv/vda5050/vda5050.hpp"
+#include "cli_parse.hpp"
 #include "commands.hpp"
 #include "site_io.hpp"
 #include "site_svg.hpp"
@@ -84,11 +85,7 @@ int plan_command(int argc, char** argv) {
   app.add_option("--manufacturer", manufacturer, "manufacturer of the order")
       ->capture_default_str();
   app.add_option("--serial", serial, "serialNumber of the order")->capture_default_str();
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
+  if (const int parse_rc = cli::parse(app, argc, argv); parse_rc >= 0) return parse_rc;
   Vec2 from, to;
   if (!parse_xy(from_text, &from) || !parse_xy(to_text, &to)) {
     std::fprintf(stderr, "agvloc-desk plan: --from and --to take X,Y in mm (e.g. 1200,3400)\n");

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "agv/recording/recording.hpp"
+#include "cli_parse.hpp"
 #include "commands.hpp"
 #include "render_site_motion.hpp"
 #include "site_io.hpp"
@@ -370,11 +371,7 @@ int render_site_command(int argc, char** argv) {
       "agvloc-desk render-site"};
   RenderSiteArgs a;
   add_options(app, a);
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
+  if (const int parse_rc = cli::parse(app, argc, argv); parse_rc >= 0) return parse_rc;
   site::Site site;
   std::string err;
   if (!load_site(a.site_path, &site, &err)) {

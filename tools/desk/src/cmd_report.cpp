@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <filesystem>
 
+#include "cli_parse.hpp"
 #include "commands.hpp"
 #include "config.hpp"
 #include "report.hpp"
@@ -19,11 +20,7 @@ int report(int argc, char** argv) {
   app.add_option("--recording", rec_dir, "the recording that was replayed")->required();
   app.add_option("--map", map_file, "landmark map to draw (default: RECORDING/map.csv if present)");
   app.add_option("--plot", plot, "trajectory plot to write (default: REPLAY_OUT/trajectory.svg)");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
+  if (const int parse_rc = cli::parse(app, argc, argv); parse_rc >= 0) return parse_rc;
   namespace fs = std::filesystem;
   std::string err;
   recording::Recording rec;

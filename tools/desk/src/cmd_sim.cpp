@@ -15,6 +15,7 @@
 #include "agv/sim/imu_model.hpp"
 #include "agv/sim/render.hpp"
 #include "agv/sim/trajectory.hpp"
+#include "cli_parse.hpp"
 #include "commands.hpp"
 #include "config.hpp"
 
@@ -30,8 +31,8 @@ constexpr std::int64_t kT0_ns = 10'000'000'000LL;
 // The command line, as given (units as the options state them).
 struct SimArgs {
   std::string out_dir, map_path, trajectory = "line", profile = "640x480", degrade = "realistic",
-                       payload_mode = "full", odom_sample = "period_mean", misprint,
-                       family = "qr";
+                                 payload_mode = "full", odom_sample = "period_mean", misprint,
+                                 family = "qr";
   double duration_s = 60.0, fps = 30.0, odom_hz = 100.0, speed_mps = 0.5, exposure_ms = 2.0;
   double grid_spacing_mm = 1000.0, k1 = 0.0, k2 = 0.0, occluder = 0.0, dirt = 0.0;
   double occluder_overhang_mm = -1.0;
@@ -96,7 +97,9 @@ void add_drive_options(CLI::App& app, SimArgs& a) {
   app.add_option("--duration-s", a.duration_s, "Recording length in seconds")
       ->check(CLI::Range(0.1, 3600.0))
       ->capture_default_str();
-  app.add_option("--fps", a.fps, "Frame rate")->check(CLI::Range(1.0, 200.0))->capture_default_str();
+  app.add_option("--fps", a.fps, "Frame rate")
+      ->check(CLI::Range(1.0, 200.0))
+      ->capture_default_str();
   app.add_option("--odom-hz", a.odom_hz, "Odometry (and truth) rate")
       ->check(CLI::Range(10.0, 1000.0))
       ->capture_default_str();
@@ -274,12 +277,7 @@ int parse_args(int argc, char** argv, SimArgs* args) {
   add_mounting_options(app, a);
   add_odometry_options(app, a);
   add_gyro_options(app, a);
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
-  return -1;
+  return cli::parse(app, argc, argv);
 }
 
 // The trajectory kind and the camera. -1 to go on, else the exit code.
@@ -336,7 +334,8 @@ int make_print(SimArgs& a, SimSetup* setup) {
   }
 
   if (!sim::parse_odom_sample_timing(a.odom_sample, &a.op.timing)) {
-    return sim_usage_error("unknown --odom-sample '" + a.odom_sample + "' (period_mean or instant)");
+    return sim_usage_error("unknown --odom-sample '" + a.odom_sample +
+                           "' (period_mean or instant)");
   }
   if (!a.misprint.empty()) {
     char tail = 0;
@@ -371,7 +370,8 @@ int make_world(SimArgs& a, SimSetup* setup) {
   // A worn id the floor does not have would silently leave every landmark clean.
   for (std::uint32_t id : a.worn_ids) {
     if (!s.map.find(id)) {
-      return sim_usage_error("--wear-landmarks: landmark " + std::to_string(id) + " is not in the map");
+      return sim_usage_error("--wear-landmarks: landmark " + std::to_string(id) +
+                             " is not in the map");
     }
   }
 
@@ -385,8 +385,10 @@ int make_world(SimArgs& a, SimSetup* setup) {
   }
   s.tp.grid_origin_mm = {minx, miny};
   s.tp.grid_spacing_mm = a.grid_spacing_mm;
-  s.tp.grid_columns = std::max(2, static_cast<int>(std::lround((maxx - minx) / a.grid_spacing_mm)) + 1);
-  s.tp.grid_rows = std::max(2, static_cast<int>(std::lround((maxy - miny) / a.grid_spacing_mm)) + 1);
+  s.tp.grid_columns =
+      std::max(2, static_cast<int>(std::lround((maxx - minx) / a.grid_spacing_mm)) + 1);
+  s.tp.grid_rows =
+      std::max(2, static_cast<int>(std::lround((maxy - miny) / a.grid_spacing_mm)) + 1);
   s.tp.lawnmower_rows = s.tp.grid_rows - (s.tp.grid_rows % 2);  // even: the loop closes
   s.tp.speed_mps = a.speed_mps;
   if (!sim::make_trajectory(s.tp, &s.traj, &err)) return sim_usage_error("trajectory: " + err);
@@ -397,13 +399,15 @@ int make_world(SimArgs& a, SimSetup* setup) {
   }
   if (landmark_family == LandmarkFamily::kTag36h11) {
     if (!a.misprint.empty()) return sim_usage_error("--misprint needs --family qr");
-    if (!sim::make_tag_scene(s.map, AprilTagGeometry{}, &s.scene, &err)) return sim_usage_error(err);
+    if (!sim::make_tag_scene(s.map, AprilTagGeometry{}, &s.scene, &err))
+      return sim_usage_error(err);
   } else if (!sim::make_scene(s.map, LandmarkGeometry{}, s.pm, &s.scene, &err)) {
     return sim_usage_error(err);
   }
   s.scene.floor.seed = a.seed;
-  if (!a.misprint.empty() && !sim::misprint_landmark(&s.scene, static_cast<std::uint32_t>(s.misprint_id),
-                                                   s.misprint_offset_mm, &err)) {
+  if (!a.misprint.empty() &&
+      !sim::misprint_landmark(&s.scene, static_cast<std::uint32_t>(s.misprint_id),
+                              s.misprint_offset_mm, &err)) {
     return sim_usage_error("--misprint: " + err);
   }
   return -1;
@@ -417,7 +421,8 @@ int start_recording(SimArgs& a, const SimSetup& s, const std::string& cmdline) {
   }
   if (a.force) {
     fs::remove_all(fs::path(a.out_dir) / "frames", ec);
-    fs::remove(fs::path(a.out_dir) / "imu.csv", ec);  // a --no-gyro rewrite must not keep an old one
+    fs::remove(fs::path(a.out_dir) / "imu.csv",
+               ec);  // a --no-gyro rewrite must not keep an old one
   }
   fs::create_directories(a.out_dir, ec);
   if (ec) {
@@ -497,8 +502,7 @@ int render_frames(const SimArgs& a, const SimSetup& s, SimRun* r) {
     r->frames.push_back({kT0_ns + t, name});
     r->truth_times.push_back(t);
   }
-  r->render_s =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  r->render_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   return -1;
 }
 
@@ -507,7 +511,8 @@ int write_tables(const SimArgs& a, const SimSetup& s, SimRun* r) {
   std::string err;
   // Truth at every odometry and frame time (exact pose at each exposure mid-time).
   std::sort(r->truth_times.begin(), r->truth_times.end());
-  r->truth_times.erase(std::unique(r->truth_times.begin(), r->truth_times.end()), r->truth_times.end());
+  r->truth_times.erase(std::unique(r->truth_times.begin(), r->truth_times.end()),
+                       r->truth_times.end());
   std::vector<recording::TruthRow> truth;
   truth.reserve(r->truth_times.size());
   for (std::int64_t t : r->truth_times) {
@@ -524,8 +529,9 @@ int write_tables(const SimArgs& a, const SimSetup& s, SimRun* r) {
   std::printf(
       "agvloc-desk sim: wrote %s: %zu frames (%lld with a landmark in view), %zu odometry rows, "
       "%zu truth rows, %s; trajectory %s, lap %.1f m, %zu slip events; %.1f s to render\n",
-      a.out_dir.c_str(), r->frames.size(), static_cast<long long>(r->frames_with_landmark), r->odom.size(),
-      truth.size(), a.gyro ? (std::to_string(r->imu.size()) + " gyro rows").c_str() : "no gyro",
+      a.out_dir.c_str(), r->frames.size(), static_cast<long long>(r->frames_with_landmark),
+      r->odom.size(), truth.size(),
+      a.gyro ? (std::to_string(r->imu.size()) + " gyro rows").c_str() : "no gyro",
       sim::to_string(s.tp.kind), s.traj.length_mm / 1000.0, r->slips.size(), r->render_s);
   return 0;
 }

@@ -10,6 +10,7 @@
 #include "agv/sim/calib_board.hpp"
 #include "calib_cli.hpp"
 #include "calib_intrinsics.hpp"
+#include "cli_parse.hpp"
 #include "commands.hpp"
 
 namespace agv::desk {
@@ -145,11 +146,7 @@ int sim_board(int argc, char** argv) {
   app.add_option("--p1", k.p1, "True camera")->capture_default_str();
   app.add_option("--p2", k.p2, "True camera")->capture_default_str();
   app.add_option("--k3", k.k3, "True camera")->capture_default_str();
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
+  if (const int parse_rc = cli::parse(app, argc, argv); parse_rc >= 0) return parse_rc;
   calib::apply_board_type(board_type, &spec);
   if (clean) {
     set.blur_sigma_px = 0.0;

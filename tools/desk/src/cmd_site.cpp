@@ -10,6 +10,7 @@
 
 #include "agv/recording/png_io.hpp"
 #include "agv/site/site_file.hpp"
+#include "cli_parse.hpp"
 #include "commands.hpp"
 #include "site_io.hpp"
 #include "site_svg.hpp"
@@ -24,11 +25,7 @@ namespace {
 // command's exit code when either fails (0 after --help), nothing when both succeed.
 std::optional<int> parse_and_load(CLI::App& app, int argc, char** argv, const std::string& path,
                                   agv::site::Site* site) {
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
+  if (const int parse_rc = cli::parse(app, argc, argv); parse_rc >= 0) return parse_rc;
   std::string errors;
   if (!load_site(path, site, &errors)) {
     std::fputs(errors.c_str(), stderr);
