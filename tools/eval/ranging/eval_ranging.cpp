@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
+#include <limits>
 #include <map>
 #include <opencv2/calib3d.hpp>
 #include <random>
@@ -18,6 +19,7 @@
 
 #include "agv/ranging/fix.hpp"
 #include "agv/ranging/range_models.hpp"
+#include "fix_errors.hpp"
 
 namespace {
 
@@ -28,7 +30,8 @@ using Eigen::Vector3d;
 
 constexpr double kTagMm = 150.0;
 constexpr double kCornerSigmaPx = 0.3;
-constexpr double kNees3Sigma = 14.16;  // chi2(3) at 0.9973
+using ranging_eval::FixErrors;
+using ranging_eval::kNees3Sigma;
 // The pose-based range's covariance: the closed form for a tag facing the camera, or the corner
 // Fisher information at the estimated pose (the default).
 bool pose_cov_closed_form = false;
@@ -144,7 +147,7 @@ const Observation& pick(const Measured& m, Method method) {
 
 // Percentiles of a sample, in place.
 double percentile(std::vector<double>& v, double p) {
-  if (v.empty()) return NAN;
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
   const std::size_t i =
       std::min(v.size() - 1, static_cast<std::size_t>(p * static_cast<double>(v.size())));
   std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(i), v.end());
@@ -209,31 +212,20 @@ void range_table(std::mt19937_64& rng) {
   }
 }
 
-struct Tally {
-  std::vector<double> pos_mm, heading_deg;
-  int trials = 0, ok = 0, covered = 0, wrong_side = 0;
-  std::map<std::string, int> refusals;
+struct Tally : FixErrors {
+  int covered = 0;
   void add(const FixResult& f, const Pose2& truth) {
-    ++trials;
-    if (f.status != FixStatus::kOk) {
-      ++refusals[fix_status_name(f.status)];
-      return;
-    }
-    ++ok;
-    const Eigen::Vector3d e(f.pose.x_mm - truth.x_mm, f.pose.y_mm - truth.y_mm,
-                            wrap_angle_rad(f.pose.theta_rad - truth.theta_rad));
-    pos_mm.push_back(std::hypot(e.x(), e.y()));
-    heading_deg.push_back(std::abs(rad_to_deg(e.z())));
-    wrong_side += pos_mm.back() > 1000.0;
+    const std::optional<Eigen::Vector3d> e = FixErrors::add(f, truth);
+    if (!e) return;
     const Eigen::Matrix3d cov = f.cov;
-    covered += cov.determinant() > 0.0 && e.dot(cov.ldlt().solve(e)) <= kNees3Sigma;
+    covered += cov.determinant() > 0.0 && e->dot(cov.ldlt().solve(*e)) <= kNees3Sigma;
   }
   void print(const char* name) {
     std::string refused;
     for (const auto& [k, n] : refusals) refused += " " + k + "=" + std::to_string(n);
-    std::printf("%-46s %5d/%-5d %7.1f %7.1f %6.2f %6.2f %6.1f%% %5d %s\n", name, ok, trials,
+    std::printf("%-46s %5d/%-5d %7.1f %7.1f %6.2f %6.2f %6.1f%% %5d %s\n", name, ok, tried,
                 percentile(pos_mm, 0.5), percentile(pos_mm, 0.95), percentile(heading_deg, 0.5),
-                percentile(heading_deg, 0.95), ok ? 100.0 * covered / ok : 0.0, wrong_side,
+                percentile(heading_deg, 0.95), ok ? 100.0 * covered / ok : 0.0, wrong,
                 refused.c_str());
   }
 };

@@ -26,6 +26,7 @@
 #include "agv/ranging/observe.hpp"
 #include "agv/sim/ranging_camera.hpp"
 #include "agv/sim/site_render.hpp"
+#include "fix_errors.hpp"
 #include "ranging_scene.hpp"
 
 namespace {
@@ -33,12 +34,13 @@ namespace {
 using namespace agv;
 using namespace agv::ranging;
 using ranging_eval::degraded;
+using ranging_eval::FixErrors;
+using ranging_eval::kNees3Sigma;
 using ranging_eval::trial_poses;
 using ranging_eval::true_camera;
 using ranging_eval::warehouse;
 
-constexpr double kNees3Sigma = 14.16;  // chi2(3) at 0.9973
-constexpr double kChi1Sigma3 = 9.0;    // one degree of freedom at 3 sigma
+constexpr double kChi1Sigma3 = 9.0;  // one degree of freedom at 3 sigma
 // Covariance-size checks tried (FixOptions::max_position_sd_mm): a p95 of 50 mm needs a position
 // sd of about 50 / 2.45 along the worst axis, 20 mm about 8.
 constexpr double kTwoMaxSdMm[3] = {15.0, 20.0, 30.0};
@@ -70,35 +72,23 @@ struct Errors {
   }
 };
 
-struct FixStats {
-  int tried = 0, ok = 0, wrong = 0, inside = 0;
-  std::vector<double> pos_mm, head_deg;
-  std::map<std::string, int> refused;
+struct FixStats : FixErrors {
+  int inside = 0;
   void add(const FixResult& f, const Pose2& truth, bool has_cov) {
-    ++tried;
-    if (f.status != FixStatus::kOk) {
-      ++refused[fix_status_name(f.status)];
-      return;
-    }
-    ++ok;
-    const Eigen::Vector3d e(f.pose.x_mm - truth.x_mm, f.pose.y_mm - truth.y_mm,
-                            wrap_angle_rad(f.pose.theta_rad - truth.theta_rad));
-    pos_mm.push_back(std::hypot(e.x(), e.y()));
-    head_deg.push_back(std::abs(rad_to_deg(e.z())));
-    if (pos_mm.back() > 1000.0) ++wrong;
-    if (has_cov && e.dot(f.cov.ldlt().solve(e)) <= kNees3Sigma) ++inside;
+    const std::optional<Eigen::Vector3d> e = FixErrors::add(f, truth);
+    if (e && has_cov && e->dot(f.cov.ldlt().solve(*e)) <= kNees3Sigma) ++inside;
   }
   void print(const char* name, bool has_cov) const {
     std::printf(
         "| %s | %d | %.0f %% | %.1f / %.1f | %.2f / %.2f | %s | %d |\n", name, tried,
-        tried ? 100.0 * ok / tried : 0.0, pct(pos_mm, 0.5), pct(pos_mm, 0.95), pct(head_deg, 0.5),
-        pct(head_deg, 0.95),
+        tried ? 100.0 * ok / tried : 0.0, pct(pos_mm, 0.5), pct(pos_mm, 0.95),
+        pct(heading_deg, 0.5), pct(heading_deg, 0.95),
         has_cov && ok ? (std::to_string(100.0 * inside / ok).substr(0, 4) + " %").c_str() : "-",
         wrong);
   }
   void print_refusals(const char* name) const {
     std::printf("%s refusals:", name);
-    for (const auto& [k, v] : refused) std::printf(" %s %d", k.c_str(), v);
+    for (const auto& [k, v] : refusals) std::printf(" %s %d", k.c_str(), v);
     std::printf("\n");
   }
 };
@@ -181,6 +171,22 @@ std::vector<LandmarkObservation> tally_landmarks(const ObserveResult& res,
   return usable;
 }
 
+// The weighted least-squares fix from obs, its covariance widened by the common mount yaw's
+// uncertainty, tallied into *into.
+void tally_wls(const std::vector<Observation>& obs, const FixOptions& opt, double s_common,
+               const Pose2& truth, FixStats* into) {
+  FixResult f = fix_from_landmarks(obs, opt);
+  add_mount_yaw_uncertainty(obs, s_common, &f);
+  into->add(f, truth, true);
+}
+
+// Options that refuse a fix whose position sigma is above max_sd_mm.
+FixOptions sd_checked(double max_sd_mm) {
+  FixOptions o;
+  o.max_position_sd_mm = max_sd_mm;
+  return o;
+}
+
 // The two-landmark fixes on the two nearest usable landmarks.
 void tally_two(const std::vector<LandmarkObservation>& usable, const Pose2& truth, double s_common,
                Tally* t) {
@@ -202,20 +208,10 @@ void tally_two(const std::vector<LandmarkObservation>& usable, const Pose2& trut
       fix_two_circles(two[0], two[1], TwoLandmarkRule::kBearingDifference, false, FixOptions{});
   add_mount_yaw_uncertainty(two, s_common, &c);
   t->two_circles_pose.add(c, truth, true);
-  FixResult f = fix_from_landmarks(two, FixOptions{});
-  add_mount_yaw_uncertainty(two, s_common, &f);
-  t->two_wls.add(f, truth, true);
-  for (std::size_t i = 0; i < 3; ++i) {
-    FixOptions checked;
-    checked.max_position_sd_mm = kTwoMaxSdMm[i];
-    FixResult fc = fix_from_landmarks(two, checked);
-    add_mount_yaw_uncertainty(two, s_common, &fc);
-    t->two_sd[i].add(fc, truth, true);
-  }
-  const std::vector<Observation> two_size = fix_observations(near, false);
-  FixResult fs = fix_from_landmarks(two_size, FixOptions{});
-  add_mount_yaw_uncertainty(two_size, s_common, &fs);
-  t->two_wls_size.add(fs, truth, true);
+  tally_wls(two, FixOptions{}, s_common, truth, &t->two_wls);
+  for (std::size_t i = 0; i < 3; ++i)
+    tally_wls(two, sd_checked(kTwoMaxSdMm[i]), s_common, truth, &t->two_sd[i]);
+  tally_wls(fix_observations(near, false), FixOptions{}, s_common, truth, &t->two_wls_size);
 }
 
 // The three-or-more fixes on all usable landmarks.
@@ -226,16 +222,9 @@ void tally_many(const std::vector<LandmarkObservation>& usable, const Pose2& tru
   for (const LandmarkObservation& o : usable) papers.push_back(paper_observation(o));
   t->many_det.add(fix_trilateration(papers, FixOptions{}), truth, false);
   const std::vector<Observation> all = fix_observations(usable);
-  FixResult f = fix_from_landmarks(all, FixOptions{});
-  add_mount_yaw_uncertainty(all, s_common, &f);
-  t->many_wls.add(f, truth, true);
-  for (std::size_t i = 0; i < 2; ++i) {
-    FixOptions checked;
-    checked.max_position_sd_mm = kManyMaxSdMm[i];
-    FixResult fc = fix_from_landmarks(all, checked);
-    add_mount_yaw_uncertainty(all, s_common, &fc);
-    t->many_sd[i].add(fc, truth, true);
-  }
+  tally_wls(all, FixOptions{}, s_common, truth, &t->many_wls);
+  for (std::size_t i = 0; i < 2; ++i)
+    tally_wls(all, sd_checked(kManyMaxSdMm[i]), s_common, truth, &t->many_sd[i]);
 }
 
 void print_report(const Tally& t, double mount_deg, double mount_mm) {
