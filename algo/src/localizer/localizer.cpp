@@ -144,6 +144,8 @@ void Localizer::on_odometry(std::int64_t t_ns, double v_mps, double omega_radps)
     return;
   }
   last_odom_ns_ = t_ns;
+  last_v_mps_ = v_mps;
+  last_omega_radps_ = omega_radps;
 }
 
 bool Localizer::on_gyro(std::int64_t t_ns, double gyro_z_radps) {

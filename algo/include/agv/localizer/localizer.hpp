@@ -8,7 +8,9 @@
 // (tests/firmware/test_alloc.cpp proves it).
 #pragma once
 
+#include <array>
 #include <cstdint>
+#include <span>
 
 #include "agv/common/latency_histogram.hpp"
 #include "agv/fusion/ekf.hpp"
@@ -17,6 +19,7 @@
 #include "agv/localizer/can_fault_monitor.hpp"
 #include "agv/localizer/time_base.hpp"
 #include "agv/protocol/codec.hpp"
+#include "agv/ranging/fix.hpp"
 #include "agv/vision/landmark_localizer.hpp"
 #include "agv/vision/tracking.hpp"
 
@@ -48,6 +51,53 @@ struct GyroCorrection {
   double bias_radps = 0.0;
 };
 
+// Landmarks on racks seen by the second (forward or side) camera (Localizer::on_ranging,
+// docs/design/ranging.md "In the localizer"). While the filter is uninitialised or lost, each
+// frame's landmarks give a prior-free fix (ranging::fix_from_landmarks); init_fixes consecutive
+// fixes that agree initialise (or re-localise) the filter, one landmark never does. While it
+// tracks, each landmark is a range-bearing update of the EKF (gated there).
+inline ranging::FixOptions rack_fix_options() {
+  ranging::FixOptions o;
+  // Two landmarks at 5-8 m give fixes of 30-100 mm sigma across the baseline; the lost limit is
+  // 50 mm, and a fix above this would start the filter no better than lost.
+  o.max_position_sd_mm = 20.0;
+  return o;
+}
+struct RangingAidConfig {
+  ranging::FixOptions fix = rack_fix_options();
+  // Consecutive agreeing fixes needed to initialise: 2, as two agreeing fixes are what lets tags
+  // (whose map entry is their only truth) re-initialise a filter whose position is unknown.
+  int init_fixes = 2;
+  // Fixes further apart than this are not consecutive: the count restarts.
+  std::int64_t init_max_gap_ns = 500'000'000;
+  // The earlier fix is carried to the later one with the newest odometry (v, omega); the motion's
+  // doubt, per axis, is this share of the distance (and of the turn).
+  double motion_sigma_share = 0.05;
+  // Chi-square (3 dof) gate on the two fixes' difference: 16.27 is probability 0.999.
+  double agreement_gate = 16.27;
+  // vehicle clock = second camera's clock + camera_offset_ns (as TimeBase::camera_offset_ns).
+  std::int64_t camera_offset_ns = 0;
+};
+
+// One landmark of one second-camera frame, both ways the localizer uses it: from the vehicle's
+// reference point (the prior-free fix's input, ranging::fix_observations) and from the camera
+// itself (the EKF aid's input, ranging::sensor_range_bearing).
+struct RackObservation {
+  ranging::Observation vehicle;
+  fusion::RangeBearingObs sensor;
+};
+
+// What Localizer::on_ranging did with one frame.
+enum class RangingResult : std::uint8_t {
+  kEmpty,        // no landmark in the frame
+  kFused,        // tracking: at least one landmark fused
+  kRejected,     // tracking: every landmark rejected by the EKF (gate, too old, invalid)
+  kFixRefused,   // not tracking: the fix was refused (stats().ranging_fix_refused says why)
+  kFixPending,   // not tracking: an OK fix, not yet agreed by enough consecutive ones
+  kInitialised,  // not tracking: the filter was initialised or re-localised from the fix
+};
+const char* to_string(RangingResult r);
+
 struct LocalizerConfig {
   // fusion.odom_timeout_ns is THE odometry timeout: no accepted sample (CAN or recording) for
   // this long makes the pose invalid, sets FaultOdomTimeout and the EKF's kOdomTimeout flag.
@@ -72,6 +122,7 @@ struct LocalizerConfig {
   // No camera frame for this long (and the stream not at its end) -> FaultCameraStalled.
   std::int64_t camera_timeout_ns = 500'000'000;
   std::uint8_t sw_major = 0, sw_minor = 0, sw_patch = 0;  // sent in the heartbeat
+  RangingAidConfig ranging;
 };
 
 struct OutputStats {
@@ -100,6 +151,19 @@ struct OutputStats {
   std::uint64_t fixes_map_guided_fused = 0;
   std::uint64_t fixes_rejected_not_tracking = 0;
   std::uint64_t fix_poses = 0;  // pose pairs sent at once after a fix (pose_on_fix)
+  // Second camera (on_ranging): frames and landmarks received; while tracking, the EKF's
+  // range-bearing outcomes (its counters); while not, the fixes computed, those refused (by
+  // ranging::FixStatus), OK ones that disagreed with the previous, and the initialisations and
+  // re-localisations they made (not in fixes_fused or reinitialisations, which are floor fixes').
+  std::uint64_t ranging_frames = 0;
+  std::uint64_t ranging_landmarks = 0;
+  std::uint64_t ranging_fused = 0;
+  std::uint64_t ranging_rejected_gate = 0;
+  std::uint64_t ranging_rejected_other = 0;  // too old, invalid, not initialised
+  std::uint64_t ranging_fixes = 0;
+  std::array<std::uint64_t, 8> ranging_fix_refused{};  // by ranging::FixStatus (kOk unused)
+  std::uint64_t ranging_fixes_disagreed = 0;
+  std::uint64_t ranging_initialisations = 0;
   std::uint64_t can_tx_ok = 0;
   std::uint64_t can_tx_failed = 0;
   std::uint64_t can_rx_frames = 0;
@@ -212,6 +276,13 @@ class Localizer {
   // An external pose (VDA 5050 initPosition, docs/guide/vda5050.md) at now_ns, in mm / rad with its
   // 1-sigma position and heading uncertainty. False when the filter refused it (non-finite).
   bool set_pose(std::int64_t now_ns, const Pose2& pose, double sigma_mm, double sigma_rad);
+  // The landmarks on racks of one second-camera frame exposed at t_exposure_ns (that camera's
+  // clock; LocalizerConfig::ranging.camera_offset_ns moves it onto the vehicle's). Tracking: each
+  // landmark -> Ekf::add_range_bearing. Uninitialised or lost: the prior-free fix, initialising
+  // by RangingAidConfig's rules (ranging_aid.cpp). At most kMaxRackLandmarks are used.
+  // The fix path allocates (ranging::fix_from_landmarks); the tracking path does not.
+  RangingResult on_ranging(std::int64_t t_exposure_ns, std::span<const RackObservation> obs);
+  static constexpr std::size_t kMaxRackLandmarks = 16;
   // VDA 5050 initPosition: set_pose with init_position_sigma(config().fusion).
   bool init_position(std::int64_t now_ns, const Pose2& pose);
   // Camera health: receive time of the newest frame, the stream ended (replay), driver error.
@@ -268,9 +339,18 @@ class Localizer {
   protocol::QualityOut quality_of(const fusion::PoseEstimate& est);
   bool heartbeat_due(std::int64_t now_ns, protocol::HeartbeatOut* hb);
   // OutputStats' fix outcomes from the EKF's counters, after every call that may change them.
+  // Initialisations from rack fixes are set poses to the EKF, counted apart like operator poses.
   void refresh_fix_counts() {
-    fix_outcome_counts(ekf_.counters(), fixes_exposed_after_arrival_, operator_poses_, &stats_);
+    const OperatorPoseCounts set_poses{
+        operator_poses_.initialisations + rack_poses_.initialisations,
+        operator_poses_.reinitialisations + rack_poses_.reinitialisations};
+    fix_outcome_counts(ekf_.counters(), fixes_exposed_after_arrival_, set_poses, &stats_);
   }
+  // on_ranging's two paths (ranging_aid.cpp).
+  RangingResult ranging_track(std::int64_t t_ns, std::span<const RackObservation> obs);
+  RangingResult ranging_fix(std::int64_t t_ns, std::span<const RackObservation> obs);
+  // The fix agrees with the previous OK fix carried to t_ns by the newest odometry.
+  bool rack_fix_agrees(std::int64_t t_ns, const ranging::FixResult& fix) const;
 
   LocalizerConfig cfg_;
   fusion::Ekf ekf_;
@@ -297,6 +377,16 @@ class Localizer {
   CanFaultMonitor can_faults_;  // latches bus-off / passive / drops between status frames
   std::uint64_t fixes_exposed_after_arrival_ = 0;  // refused before the EKF
   OperatorPoseCounts operator_poses_;
+  OperatorPoseCounts rack_poses_;  // EKF initialisations made from rack fixes
+  // The newest OK rack fix while not tracking, and how many consecutive agreeing ones it ends.
+  struct RackCandidate {
+    int count = 0;
+    std::int64_t t_ns = 0;
+    ranging::FixResult fix;
+  };
+  RackCandidate rack_candidate_;
+  double last_v_mps_ = 0.0;  // newest accepted odometry, corrected (carries rack fixes)
+  double last_omega_radps_ = 0.0;
   OutputStats stats_;
 };
 

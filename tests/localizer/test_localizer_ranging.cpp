@@ -1,0 +1,237 @@
+// Landmarks on racks in the localizer (Localizer::on_ranging): a second camera's range-bearing
+// observations, simulated from a known pose with the ranging library's own corner-noise model
+// (a 150 mm tag, f = 1000 px, 0.3 px corners) and seeded noise, initialise a lost filter from
+// two landmarks, never from one or from an inconsistent map, and narrow the pose between floor
+// fixes while tracking.
+#include <gtest/gtest.h>
+
+#include <Eigen/Cholesky>
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "agv/localizer/localizer.hpp"
+#include "agv/ranging/range_models.hpp"
+
+namespace agv {
+namespace {
+
+constexpr std::int64_t kMs = 1'000'000;
+constexpr std::int64_t kFramePeriodNs = 66'666'667;  // 15 fps
+constexpr std::int64_t kOdomPeriodNs = 10 * kMs;
+
+localizer::LocalizerConfig config() {
+  localizer::LocalizerConfig c;
+  c.fusion.health.odom_timeout_ns = 50 * kMs;
+  c.camera_timeout_ns = 200 * kMs;
+  return c;
+}
+
+// A forward camera 1 m up, 300 mm ahead of the reference point, level.
+ranging::RangingMount camera_mount() {
+  ranging::RangingMount m;
+  m.x_mm = 300.0;
+  m.z_mm = 1000.0;
+  return m;
+}
+
+struct Landmark {
+  Vec2 xy_mm;
+  double z_mm = 1200.0;
+};
+
+// One landmark seen from the true pose, with the tag-translation noise of ranging's corner model
+// drawn from rng; map_xy_mm is what the map says (the truth unless a test makes it wrong).
+localizer::RackObservation observe(const Pose2& truth, const Landmark& lm, Vec2 map_xy_mm,
+                                   std::mt19937* rng) {
+  const ranging::RangingMount mount = camera_mount();
+  const double c = std::cos(truth.theta_rad), s = std::sin(truth.theta_rad);
+  const double dx = lm.xy_mm.x - truth.x_mm, dy = lm.xy_mm.y - truth.y_mm;
+  const Eigen::Vector3d p_V(c * dx + s * dy, -s * dx + c * dy, lm.z_mm);
+  const Eigen::Matrix3d R_VC = ranging::rotation_vehicle_from_camera(mount);
+  const Eigen::Vector3d t_C =
+      R_VC.transpose() * (p_V - Eigen::Vector3d(mount.x_mm, mount.y_mm, mount.z_mm));
+  const Eigen::Matrix3d cov_t = ranging::tag_translation_covariance(1000.0, 150.0, t_C, 0.3);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  const Eigen::Vector3d noise(n01(*rng), n01(*rng), n01(*rng));
+  const Eigen::Vector3d t_noisy = t_C + Eigen::Matrix3d(cov_t.llt().matrixL()) * noise;
+
+  localizer::RackObservation o;
+  const ranging::RangeBearing from_v =
+      ranging::range_bearing_from_tag_translation(mount, t_noisy, cov_t);
+  o.vehicle.landmark_mm = map_xy_mm;
+  o.vehicle.range_mm = from_v.range_mm;
+  o.vehicle.bearing_rad = from_v.bearing_rad;
+  o.vehicle.cov = from_v.cov.topLeftCorner<2, 2>();
+  ranging::RangingMount at_camera = mount;  // the same from the camera's own centre and axis
+  at_camera.x_mm = at_camera.y_mm = at_camera.yaw_rad = 0.0;
+  const ranging::RangeBearing from_c =
+      ranging::range_bearing_from_tag_translation(at_camera, t_noisy, cov_t);
+  o.sensor.landmark_xy_mm = Eigen::Vector2d(map_xy_mm.x, map_xy_mm.y);
+  o.sensor.sensor_xy_mm = Eigen::Vector2d(mount.x_mm, mount.y_mm);
+  o.sensor.sensor_yaw_rad = mount.yaw_rad;
+  o.sensor.range_mm = from_c.range_mm;
+  o.sensor.bearing_rad = from_c.bearing_rad;
+  o.sensor.R = from_c.cov.topLeftCorner<2, 2>();
+  return o;
+}
+
+std::vector<localizer::RackObservation> frame(const Pose2& truth, const std::vector<Landmark>& lms,
+                                              const std::vector<Vec2>& map, std::mt19937* rng) {
+  std::vector<localizer::RackObservation> out;
+  for (std::size_t i = 0; i < lms.size(); ++i) out.push_back(observe(truth, lms[i], map[i], rng));
+  return out;
+}
+
+std::vector<Vec2> true_map(const std::vector<Landmark>& lms) {
+  std::vector<Vec2> m;
+  for (const Landmark& l : lms) m.push_back(l.xy_mm);
+  return m;
+}
+
+const Pose2 kTruth{1000.0, 200.0, 0.1};
+// Two rack uprights 3.2-3.4 m away, 80 deg apart as seen from the truth, and a third between.
+const std::vector<Landmark> kTwo = {{{3500.0, 2200.0}}, {{3800.0, -1600.0}}};
+const std::vector<Landmark> kThree = {{{3500.0, 2200.0}}, {{3800.0, -1600.0}}, {{4300.0, 500.0}}};
+
+struct StandRun {
+  std::int64_t first_valid_ns = -1;  // data time of the first valid pose, -1 never
+  localizer::TickRecord last;
+};
+
+// Standing still at the truth for duration_ns: odometry at 100 Hz, frames at 15 fps, a tick
+// after every frame.
+StandRun stand(localizer::Localizer* loc, std::int64_t t0_ns, std::int64_t duration_ns,
+               const std::vector<Landmark>& lms, const std::vector<Vec2>& map, std::mt19937* rng) {
+  StandRun r;
+  std::int64_t next_frame = t0_ns;
+  for (std::int64_t t = t0_ns; t <= t0_ns + duration_ns; t += kOdomPeriodNs) {
+    loc->on_odometry(t, 0.0, 0.0);
+    if (t < next_frame) continue;
+    const auto obs = frame(kTruth, lms, map, rng);
+    loc->on_ranging(next_frame, obs);
+    next_frame += kFramePeriodNs;
+    loc->set_camera_state(t, false, false);
+    r.last = loc->tick(t);
+    if (r.last.pose_valid && r.first_valid_ns < 0) r.first_valid_ns = t - t0_ns;
+  }
+  return r;
+}
+
+TEST(LocalizerRanging, TwoRackLandmarksLocalizeALostVehicleWithinOneSecond) {
+  localizer::Localizer loc(config());
+  std::mt19937 rng(54);
+  const StandRun r = stand(&loc, 0, 1000 * kMs, kTwo, true_map(kTwo), &rng);
+  ASSERT_GE(r.first_valid_ns, 0) << "never localized";
+  // One fix is not trusted alone: the second agreeing frame initialises.
+  EXPECT_GE(r.first_valid_ns, kFramePeriodNs);
+  EXPECT_LE(r.first_valid_ns, 1000 * kMs);
+  const fusion::PoseEstimate& e = r.last.estimate;
+  const double err_mm = std::hypot(e.pose.x_mm - kTruth.x_mm, e.pose.y_mm - kTruth.y_mm);
+  const double err_deg = std::abs(rad_to_deg(wrap_angle_rad(e.pose.theta_rad - kTruth.theta_rad)));
+  std::printf("localized after %.0f ms; at 1 s: %.1f mm, %.3f deg off, sigma %.1f mm %.3f deg\n",
+              static_cast<double>(r.first_valid_ns) / 1e6, err_mm, err_deg, e.position_sigma_mm,
+              rad_to_deg(e.heading_sigma_rad));
+  EXPECT_LT(err_mm, 50.0);
+  EXPECT_LT(err_deg, 1.0);
+  EXPECT_EQ(e.health, fusion::HealthState::kLocalized);
+  EXPECT_EQ(loc.stats().ranging_initialisations, 1u);
+  EXPECT_EQ(loc.stats().fixes_fused, 0u);      // rack initialisations are not floor fixes
+  EXPECT_GT(loc.stats().ranging_fused, 0u);    // after it, the landmarks are EKF updates
+  EXPECT_EQ(loc.stats().ranging_frames, 15u);  // 0 to 933 ms
+}
+
+TEST(LocalizerRanging, OneLandmarkNeverInitialisesASecondDoes) {
+  localizer::Localizer loc(config());
+  std::mt19937 rng(7);
+  const std::vector<Landmark> one = {kTwo[0]};
+  const StandRun r = stand(&loc, 0, 2000 * kMs, one, true_map(one), &rng);
+  EXPECT_LT(r.first_valid_ns, 0);
+  EXPECT_FALSE(loc.ekf().initialised());
+  EXPECT_EQ(loc.stats().ranging_fixes, 30u);
+  EXPECT_EQ(loc.stats().ranging_fix_refused[static_cast<int>(ranging::FixStatus::kTooFew)], 30u);
+  // The same frames with the second landmark in view: localized.
+  const StandRun r2 = stand(&loc, 2010 * kMs, 1000 * kMs, kTwo, true_map(kTwo), &rng);
+  EXPECT_GE(r2.first_valid_ns, 0);
+}
+
+TEST(LocalizerRanging, AMapEntryHalfAMetreOffGivesNoConfidentWrongPose) {
+  std::mt19937 rng(11);
+  // Three landmarks in view, one map entry 0.5 m off in each of 8 directions: the fix is refused
+  // (inconsistent), or any pose it gives has the error inside 3 sigma.
+  int refused_frames = 0, valid_runs = 0;
+  for (int k = 0; k < 8; ++k) {
+    localizer::Localizer loc(config());
+    std::vector<Vec2> map = true_map(kThree);
+    const double a = k * M_PI / 4.0;
+    map[1] = {map[1].x + 500.0 * std::cos(a), map[1].y + 500.0 * std::sin(a)};
+    const StandRun r = stand(&loc, 0, 1000 * kMs, kThree, map, &rng);
+    const fusion::PoseEstimate& e = r.last.estimate;
+    if (r.last.pose_valid) {
+      const double err_mm = std::hypot(e.pose.x_mm - kTruth.x_mm, e.pose.y_mm - kTruth.y_mm);
+      EXPECT_LT(err_mm, 3.0 * e.position_sigma_mm) << "direction " << k;
+      ++valid_runs;
+    }
+    refused_frames += static_cast<int>(
+        loc.stats().ranging_fix_refused[static_cast<int>(ranging::FixStatus::kInconsistent)]);
+  }
+  std::printf("map entry 0.5 m off, 8 directions: %d localized, %d of 120 frames inconsistent\n",
+              valid_runs, refused_frames);
+  EXPECT_GT(refused_frames, 0);
+  // The correct map localizes with the same landmarks.
+  localizer::Localizer ok(config());
+  const StandRun r = stand(&ok, 0, 1000 * kMs, kThree, true_map(kThree), &rng);
+  EXPECT_TRUE(r.last.pose_valid);
+}
+
+TEST(LocalizerRanging, RackUpdatesNarrowThePoseBetweenFloorFixes) {
+  // Driving at 0.5 m/s along x after a floor fix; with the rack landmarks in view the position
+  // sigma after 3 s is smaller than with the wheels alone.
+  auto drive = [](bool with_racks) {
+    localizer::Localizer loc(config());
+    std::mt19937 rng(3);
+    vision::LandmarkMeasurement floor;
+    floor.status = vision::FixStatus::kOk;
+    floor.landmark_id = 9;
+    floor.map_verified = true;
+    floor.vehicle_in_world = kTruth;
+    floor.cov_world = Eigen::Matrix3d::Identity() * 0.01;
+    floor.cov_world(2, 2) = 1e-6;
+    loc.on_odometry(0, 0.5, 0.0);
+    loc.on_fix(floor, 0, 0);
+    const double v = 0.5;
+    std::int64_t next_frame = kFramePeriodNs;
+    localizer::TickRecord rec;
+    for (std::int64_t t = kOdomPeriodNs; t <= 3000 * kMs; t += kOdomPeriodNs) {
+      loc.on_odometry(t, v, 0.0);
+      if (t < next_frame) continue;
+      const double d_mm = v * static_cast<double>(next_frame) * 1e-6;
+      const Pose2 at{kTruth.x_mm + d_mm * std::cos(kTruth.theta_rad),
+                     kTruth.y_mm + d_mm * std::sin(kTruth.theta_rad), kTruth.theta_rad};
+      if (with_racks) {
+        std::vector<localizer::RackObservation> obs;
+        for (const Landmark& l : kTwo) obs.push_back(observe(at, l, l.xy_mm, &rng));
+        loc.on_ranging(next_frame, obs);
+      }
+      next_frame += kFramePeriodNs;
+      loc.set_camera_state(t, false, false);
+      rec = loc.tick(t);
+    }
+    EXPECT_EQ(loc.stats().ranging_rejected_gate, 0u);
+    return rec.estimate;
+  };
+  const fusion::PoseEstimate wheels = drive(false);
+  const fusion::PoseEstimate racks = drive(true);
+  std::printf("position sigma after 3 s: wheels %.2f mm, with rack landmarks %.2f mm\n",
+              wheels.position_sigma_mm, racks.position_sigma_mm);
+  ASSERT_TRUE(wheels.valid && racks.valid);
+  EXPECT_LT(racks.position_sigma_mm, 0.5 * wheels.position_sigma_mm);
+  const double d_mm = 0.5 * static_cast<double>(racks.t_ns) * 1e-6;
+  const Pose2 end{kTruth.x_mm + d_mm * std::cos(kTruth.theta_rad),
+                  kTruth.y_mm + d_mm * std::sin(kTruth.theta_rad), kTruth.theta_rad};
+  const double err_mm = std::hypot(racks.pose.x_mm - end.x_mm, racks.pose.y_mm - end.y_mm);
+  EXPECT_LT(err_mm, 3.0 * racks.position_sigma_mm);
+}
+
+}  // namespace
+}  // namespace agv
