@@ -1,7 +1,6 @@
 #include <cstdio>
-#include <cstring>
-#include <initializer_list>
 
+#include "command_main.hpp"
 #include "commands.hpp"
 
 namespace {
@@ -17,39 +16,33 @@ void usage(FILE* f) {
                "agvloc-desk.\n");
 }
 
+// The desk commands are not in the vehicle binary: say where they are.
+int desk_command(int, char** argv) {
+  std::fprintf(stderr,
+               "agvloc: '%s' is a desk command and not part of the vehicle binary: run "
+               "`agvloc-desk %s` (built beside agvloc, not in the .deb)\n",
+               argv[0], argv[0]);
+  return 2;
+}
+
+void print_version() {
+#ifdef AGV_HAVE_LIBCAMERA
+  std::printf("agvloc %s (live camera: libcamera)\n", AGV_VERSION);
+#else
+  std::printf("agvloc %s (replay-only build: libcamera not found at build time)\n", AGV_VERSION);
+#endif
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 2) {
-    usage(stderr);
-    return 2;
-  }
-  const char* c = argv[1];
-  if (!std::strcmp(c, "--version") || !std::strcmp(c, "version")) {
-#ifdef AGV_HAVE_LIBCAMERA
-    std::printf("agvloc %s (live camera: libcamera)\n", AGV_VERSION);
-#else
-    std::printf("agvloc %s (replay-only build: libcamera not found at build time)\n", AGV_VERSION);
-#endif
-    return 0;
-  }
-  if (!std::strcmp(c, "--help") || !std::strcmp(c, "-h")) {
-    usage(stdout);
-    return 0;
-  }
-  for (const char* desk : {"sim", "landmark", "report", "calibrate", "sim-board"}) {
-    if (!std::strcmp(c, desk)) {
-      std::fprintf(stderr,
-                   "agvloc: '%s' is a desk command and not part of the vehicle binary: run "
-                   "`agvloc-desk %s` (built beside agvloc, not in the .deb)\n",
-                   c, c);
-      return 2;
-    }
-  }
-  if (!std::strcmp(c, "replay")) return agv::cmd::replay(argc - 1, argv + 1);
-  if (!std::strcmp(c, "run")) return agv::cmd::run(argc - 1, argv + 1);
-  if (!std::strcmp(c, "record")) return agv::cmd::record(argc - 1, argv + 1);
-  std::fprintf(stderr, "agvloc: unknown command '%s'\n", c);
-  usage(stderr);
-  return 2;
+  return agv::cli::command_main("agvloc", argc, argv, usage, print_version,
+                                {{"sim", desk_command},
+                                 {"landmark", desk_command},
+                                 {"report", desk_command},
+                                 {"calibrate", desk_command},
+                                 {"sim-board", desk_command},
+                                 {"replay", agv::cmd::replay},
+                                 {"run", agv::cmd::run},
+                                 {"record", agv::cmd::record}});
 }

@@ -1,8 +1,8 @@
 // agvloc-desk: the tools for the desk (simulator, landmark printing, replay reports). Kept out
 // of the vehicle binary `agvloc` so that the real-time program links none of their code.
 #include <cstdio>
-#include <cstring>
 
+#include "command_main.hpp"
 #include "commands.hpp"
 
 namespace {
@@ -27,33 +27,20 @@ void usage(FILE* f) {
                "agvloc.\n");
 }
 
+void print_version() { std::printf("agvloc-desk %s\n", AGV_VERSION); }
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc < 2) {
-    usage(stderr);
-    return 2;
-  }
-  const char* c = argv[1];
-  if (!std::strcmp(c, "--version") || !std::strcmp(c, "version")) {
-    std::printf("agvloc-desk %s\n", AGV_VERSION);
-    return 0;
-  }
-  if (!std::strcmp(c, "--help") || !std::strcmp(c, "-h")) {
-    usage(stdout);
-    return 0;
-  }
-  if (!std::strcmp(c, "sim")) return agv::desk::sim(argc - 1, argv + 1);
-  if (!std::strcmp(c, "landmark")) return agv::desk::landmark(argc - 1, argv + 1);
-  if (!std::strcmp(c, "report")) return agv::desk::report(argc - 1, argv + 1);
-  if (!std::strcmp(c, "calibrate")) return agv::desk::calibrate(argc - 1, argv + 1);
-  if (!std::strcmp(c, "sim-board")) return agv::desk::sim_board(argc - 1, argv + 1);
-  if (!std::strcmp(c, "config")) return agv::desk::config_command(argc - 1, argv + 1);
-  if (!std::strcmp(c, "site")) return agv::desk::site_command(argc - 1, argv + 1);
-  if (!std::strcmp(c, "plan")) return agv::desk::plan_command(argc - 1, argv + 1);
-  if (!std::strcmp(c, "fleet")) return agv::desk::fleet_command(argc - 1, argv + 1);
-  if (!std::strcmp(c, "render-site")) return agv::desk::render_site_command(argc - 1, argv + 1);
-  std::fprintf(stderr, "agvloc-desk: unknown command '%s'\n", c);
-  usage(stderr);
-  return 2;
+  return agv::cli::command_main("agvloc-desk", argc, argv, usage, print_version,
+                                {{"sim", agv::desk::sim},
+                                 {"landmark", agv::desk::landmark},
+                                 {"report", agv::desk::report},
+                                 {"calibrate", agv::desk::calibrate},
+                                 {"sim-board", agv::desk::sim_board},
+                                 {"config", agv::desk::config_command},
+                                 {"site", agv::desk::site_command},
+                                 {"plan", agv::desk::plan_command},
+                                 {"fleet", agv::desk::fleet_command},
+                                 {"render-site", agv::desk::render_site_command}});
 }
