@@ -94,21 +94,19 @@ int calibrate_check(int argc, char** argv) {
       ->check(calib::key_range("landmark.size_mm"));
   // Tolerances: positive and finite (an infinite one would pass anything).
   const auto tol_range = calib::finite_in(1e-6, 1e3);
-  app.add_option("--tol-mm", tol.position_mm, "Position tolerance")
-      ->check(tol_range)
-      ->capture_default_str();
-  app.add_option("--tol-deg", tol.heading_deg, "Heading tolerance")
-      ->check(tol_range)
-      ->capture_default_str();
-  app.add_option("--tol-height-mm", tol.height_mm, "Height tolerance")
-      ->check(tol_range)
-      ->capture_default_str();
-  app.add_option("--tol-spread-mm", tol.spread_mm, "Spread over the frames of one placement")
-      ->check(tol_range)
-      ->capture_default_str();
-  app.add_option("--tol-residual-mm", tol.residual_mm, "Edge-point rms about the fitted square")
-      ->check(tol_range)
-      ->capture_default_str();
+  const struct {
+    const char* flag;
+    double* value;
+    const char* what;
+  } tolerances[] = {
+      {"--tol-mm", &tol.position_mm, "Position tolerance"},
+      {"--tol-deg", &tol.heading_deg, "Heading tolerance"},
+      {"--tol-height-mm", &tol.height_mm, "Height tolerance"},
+      {"--tol-spread-mm", &tol.spread_mm, "Spread over the frames of one placement"},
+      {"--tol-residual-mm", &tol.residual_mm, "Edge-point rms about the fitted square"},
+  };
+  for (const auto& t : tolerances)
+    app.add_option(t.flag, *t.value, t.what)->check(tol_range)->capture_default_str();
   if (const int parse_rc = cli::parse(app, argc, argv); parse_rc >= 0) return parse_rc;
   auto bad = [](const std::string& msg) {
     std::fprintf(stderr, "agvloc-desk calibrate check: %s\n", msg.c_str());
