@@ -23,38 +23,27 @@ FakeImage FakeCamera::solid(int width_px, int height_px, std::uint8_t value) {
 }
 
 void FakeCamera::push_frame(FakeImage image, std::int64_t t_exposure_ns, std::int64_t sequence) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  Event e;
-  e.kind = Kind::kFrame;
-  e.image = std::move(image);
-  e.t_ns = t_exposure_ns;
-  e.sequence = sequence < 0 ? next_sequence_ : static_cast<std::uint64_t>(sequence);
-  next_sequence_ = e.sequence + 1;
-  events_.push_back(std::move(e));
-  cv_.notify_all();
+  push_event(Kind::kFrame, t_exposure_ns, std::move(image), sequence);
 }
 
 void FakeCamera::push_stall(std::int64_t duration_ns) {
-  std::lock_guard<std::mutex> lock(mutex_);
-  Event e;
-  e.kind = Kind::kStall;
-  e.t_ns = std::max<std::int64_t>(0, duration_ns);
-  events_.push_back(std::move(e));
-  cv_.notify_all();
+  push_event(Kind::kStall, std::max<std::int64_t>(0, duration_ns));
 }
 
-void FakeCamera::push_disconnect() {
-  std::lock_guard<std::mutex> lock(mutex_);
-  Event e;
-  e.kind = Kind::kDisconnect;
-  events_.push_back(std::move(e));
-  cv_.notify_all();
-}
+void FakeCamera::push_disconnect() { push_event(Kind::kDisconnect); }
 
-void FakeCamera::push_end_of_stream() {
+void FakeCamera::push_end_of_stream() { push_event(Kind::kEndOfStream); }
+
+void FakeCamera::push_event(Kind kind, std::int64_t t_ns, FakeImage image, std::int64_t sequence) {
   std::lock_guard<std::mutex> lock(mutex_);
   Event e;
-  e.kind = Kind::kEndOfStream;
+  e.kind = kind;
+  e.t_ns = t_ns;
+  e.image = std::move(image);
+  if (kind == Kind::kFrame) {
+    e.sequence = sequence < 0 ? next_sequence_ : static_cast<std::uint64_t>(sequence);
+    next_sequence_ = e.sequence + 1;
+  }
   events_.push_back(std::move(e));
   cv_.notify_all();
 }

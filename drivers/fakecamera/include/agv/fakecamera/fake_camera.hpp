@@ -87,6 +87,10 @@ class FakeCamera : public hal::Camera {
     FakeImage image;
   };
 
+  // Queues an event for next_frame; a frame is numbered `sequence`, or previous + 1 when that is
+  // < 0.
+  void push_event(Kind kind, std::int64_t t_ns = 0, FakeImage image = {},
+                  std::int64_t sequence = -1);
   void wait_ns(std::int64_t ns);
 
   Options options_;
