@@ -1,15 +1,13 @@
 // The page's answers to what is not a plain GET (docs/guide/diagnostics.md "Requests"): HEAD is a
 // GET without the body, any other method 405, a body over 1 kB (or of no stated length) 413 before
 // it is read, whatever the method.
-#include <arpa/inet.h>
 #include <gtest/gtest.h>
-#include <netinet/in.h>
 #include <sys/socket.h>
-#include <sys/time.h>
 #include <unistd.h>
 
 #include <string>
 
+#include "../support/loopback_client.hpp"
 #include "diag_handoff.hpp"
 #include "diag_server.hpp"
 
@@ -18,24 +16,10 @@ namespace {
 
 // Sends raw bytes, returns everything read until the server closes (or 20 s pass).
 std::string exchange(int port, const std::string& request) {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  const int fd = test::connect_loopback(port, 20);
   if (fd < 0) return "";
-  timeval tv{20, 0};
-  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  a.sin_port = htons(static_cast<std::uint16_t>(port));
-  std::string out;
-  if (::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0) {
-    ::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
-    char buf[4096];
-    for (;;) {
-      const ssize_t n = ::recv(fd, buf, sizeof buf, 0);
-      if (n <= 0) break;  // closed, reset after the answer, or the timeout
-      out.append(buf, static_cast<std::size_t>(n));
-    }
-  }
+  ::send(fd, request.data(), request.size(), MSG_NOSIGNAL);
+  std::string out = test::read_until_closed(fd);  // closed, reset after the answer, or the timeout
   ::close(fd);
   return out;
 }
