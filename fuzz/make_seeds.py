@@ -191,6 +191,13 @@ landmark:
         vda("2.1.0", "initPosition", good[:3] + [{"key": "mapId", "value": "x"}]))
     put("fuzz_vda_action", "other_action", vda("2.1.0", "startPause", []))
     put("fuzz_vda_action", "truncated", '{"headerId": [[[')
+    det = ('{"v":1,"camera":"cam-a","t_ns":1000000000,"seq":7,"tags":[{"id":3,"code":123456,'
+           '"hamming":0,"margin":9,"restricted":false,"contrast":140.5,"sigma_px":0.05,'
+           '"corners_px":[[10,20],[70,21],[69,80],[9,79]],"level":"full"}]}')
+    put("fuzz_detection_msg", "one_tag", det)
+    put("fuzz_detection_msg", "empty", det.split('"tags"')[0] + '"tags":[]}')
+    put("fuzz_detection_msg", "other_camera", det.replace("cam-a", "cam-z"))
+    put("fuzz_detection_msg", "truncated", det[:90])
     # calibrate check --placements CSV (docs/guide/commissioning.md): placements of several
     # frames, recording directories, comments and CRLF, and near misses.
     put("fuzz_placements", "three", "frame,x_mm,y_mm,heading_deg\nc1.png,300,0,0\nc2.png,300,0,0\n"
