@@ -512,6 +512,12 @@ TEST(Config, EveryKeyRoundTrips) {
       if (k.name == "loop.vision_priority") keys["loop.realtime_priority"] = "99";
       // An address that is not loopback needs allow_remote.
       if (k.name == "diag.bind_address") keys["diag.allow_remote"] = "true";
+      // The second camera, enabled, needs its calibration and the site file.
+      if (k.name == "ranging_camera.enabled") {
+        keys["ranging_camera.intrinsics.fx"] = "1000";
+        keys["ranging_camera.intrinsics.fy"] = "1000";
+        keys["ranging_camera.site"] = "site.yaml";
+      }
       keys[k.name] = yaml_scalar(k, v);
       Config cfg;
       std::vector<std::string> errors;

@@ -130,6 +130,16 @@ const std::vector<Section>& config_sections() {
        "the map and trajectory) and Prometheus metrics, served by `agvloc run` when `enabled` and\n"
        "by `agvloc replay --serve`. Its threads are not real-time and never hold up the loop.\n",
        ""},
+      {"ranging_camera", "(second camera, landmarks on racks, docs/design/ranging.md)",
+       "A forward or side camera reading the tag36h11 landmarks the site file places on racks,\n"
+       "pillars and walls (`wall_landmarks`, docs/guide/site.md). Off by default: nothing changes\n"
+       "for a vehicle without one. While the filter is uninitialised or lost, two landmarks in\n"
+       "view give a fix, and two consecutive agreeing fixes initialise it; while it tracks, each\n"
+       "landmark is a range-bearing update (`fusion.range_bearing_*`). `agvloc replay` reads the\n"
+       "recording's `ranging/` stream (docs/guide/recording.md) with this section enabled.\n",
+       ""},
+      {"ranging_camera.intrinsics", "(the second camera's calibration, OpenCV model)", "", ""},
+      {"ranging_camera.mount", "(6-DoF, vehicle frame)", "", ""},
   };
   return sections;
 }

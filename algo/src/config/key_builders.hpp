@@ -140,13 +140,15 @@ void add_vehicle_keys(std::vector<Key>* keys);
 void add_vision_keys(std::vector<Key>* keys);
 void add_fusion_keys(std::vector<Key>* keys);
 void add_replay_keys(std::vector<Key>* keys);
-void add_vda5050_keys(std::vector<Key>* keys);  // keys_vda5050.cpp
-void add_diag_keys(std::vector<Key>* keys);     // keys_diag.cpp
+void add_vda5050_keys(std::vector<Key>* keys);         // keys_vda5050.cpp
+void add_diag_keys(std::vector<Key>* keys);            // keys_diag.cpp
+void add_ranging_camera_keys(std::vector<Key>* keys);  // keys_ranging.cpp
 
 // What the consumers of a section's strings accept beyond the key's type (parse.cpp calls these
 // with the keys read): error(key, why) per refusal.
 using KeyError = std::function<void(const std::string& key, const std::string& why)>;
-void check_vda5050_values(const Config& cfg, const KeyError& error);  // keys_vda5050.cpp
-void check_diag_values(const Config& cfg, const KeyError& error);     // keys_diag.cpp
+void check_vda5050_values(const Config& cfg, const KeyError& error);         // keys_vda5050.cpp
+void check_diag_values(const Config& cfg, const KeyError& error);            // keys_diag.cpp
+void check_ranging_camera_values(const Config& cfg, const KeyError& error);  // keys_ranging.cpp
 
 }  // namespace agv::config::detail

@@ -19,6 +19,7 @@ const std::vector<Key>& config_keys() {
     detail::add_replay_keys(&k);
     detail::add_vda5050_keys(&k);
     detail::add_diag_keys(&k);
+    detail::add_ranging_camera_keys(&k);
     return k;
   }();
   return keys;

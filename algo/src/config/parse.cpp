@@ -170,6 +170,7 @@ void check_relations(YamlChecker& c, const Config& cfg) {
   };
   detail::check_vda5050_values(cfg, key_error);
   detail::check_diag_values(cfg, key_error);
+  detail::check_ranging_camera_values(cfg, key_error);
   // One gyro source: a CAN gyro enabled beside another source would be fused twice or not at all.
   if (cfg.can.gyro_enabled && cfg.imu.source != ImuSource::kCan) {
     c.error("imu.source", std::string("'") + imu_source_name(cfg.imu.source) +
@@ -204,11 +205,14 @@ bool parse_root(const YAML::Node& root, const std::string& base_dir, ConfigUse u
   }
   cfg.camera_model.intrinsics.width_px = cfg.camera.camera.width_px;
   cfg.camera_model.intrinsics.height_px = cfg.camera.camera.height_px;
+  cfg.ranging_camera.intrinsics.width_px = cfg.ranging_camera.camera.width_px;
+  cfg.ranging_camera.intrinsics.height_px = cfg.ranging_camera.camera.height_px;
   if (!cfg.map_file.empty() && !base_dir.empty() &&
       std::filesystem::path(cfg.map_file).is_relative()) {
     cfg.map_file = (std::filesystem::path(base_dir) / cfg.map_file).lexically_normal().string();
   }
-  for (std::string* f : {&cfg.vda5050.password_file, &cfg.vda5050.tls_ca_file}) {
+  for (std::string* f :
+       {&cfg.vda5050.password_file, &cfg.vda5050.tls_ca_file, &cfg.ranging_camera.site_file}) {
     if (!f->empty() && !base_dir.empty() && std::filesystem::path(*f).is_relative()) {
       *f = (std::filesystem::path(base_dir) / *f).lexically_normal().string();
     }

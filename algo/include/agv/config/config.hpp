@@ -16,6 +16,7 @@
 #include "agv/hal/camera.hpp"
 #include "agv/localizer/time_base.hpp"
 #include "agv/protocol/codec.hpp"
+#include "agv/ranging/range_models.hpp"
 #include "agv/vision/landmark_localizer.hpp"
 
 namespace agv::config {
@@ -133,6 +134,28 @@ struct DiagSection {
   double frame_interval_ms = 500.0;
 };
 
+// The second camera, looking at landmarks on racks (docs/design/ranging.md): its stream as the
+// floor camera's, its own calibration and 6-DoF mount, and the site file whose vertical
+// landmarks it reads.
+inline hal::CameraConfig ranging_camera_stream() {
+  hal::CameraConfig c;
+  c.width_px = 1280;
+  c.height_px = 800;
+  c.fps = 15.0;
+  c.exposure_us = 2000;
+  return c;
+}
+struct RangingCameraSection {
+  bool enabled = false;
+  CameraDriver driver = CameraDriver::kLibcamera;
+  hal::CameraConfig camera = ranging_camera_stream();
+  double time_offset_ms = 0.0;  // -> localizer::RangingAidConfig::camera_offset_ns
+  // Resolved relative to the configuration file; required when enabled.
+  std::string site_file;
+  CameraIntrinsics intrinsics;  // image size from camera.width_px / height_px
+  ranging::RangingMount mount;
+};
+
 struct Config {
   CameraSection camera;
   CameraModel camera_model;  // intrinsics + mounting
@@ -147,6 +170,7 @@ struct Config {
   double replay_fix_delay_ms = 30.0;
   Vda5050Section vda5050;
   DiagSection diag;
+  RangingCameraSection ranging_camera;
   std::string source;  // file name the config came from, for messages
 };
 
