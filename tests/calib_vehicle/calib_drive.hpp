@@ -44,8 +44,9 @@ struct DriveTruth {
 };
 
 // The perturbed vehicle the calibration tests start from (mount, odometry and clock all off).
-inline DriveTruth perturbed_drive() {
+inline DriveTruth perturbed_drive(unsigned seed = 1) {
   DriveTruth t;
+  t.seed = seed;
   t.p.mount = CameraModel::default_640x480().mount;
   t.p.mount.offset_x_mm = 8.0;
   t.p.mount.offset_y_mm = -6.0;

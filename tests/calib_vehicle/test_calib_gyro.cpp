@@ -16,8 +16,7 @@ using namespace agv::desk::vcal;
 namespace {
 
 calibtest::DriveTruth gyro_drive(unsigned seed) {
-  calibtest::DriveTruth t = calibtest::perturbed_drive();
-  t.seed = seed;
+  calibtest::DriveTruth t = calibtest::perturbed_drive(seed);
   // The simulator's default gyro (docs/design/simulator.md "Gyro"), other signs for even seeds.
   const double sgn = seed % 2 == 0 ? -1.0 : 1.0;
   t.gyro_scale_error = 0.003 * sgn;

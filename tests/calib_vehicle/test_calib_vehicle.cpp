@@ -28,8 +28,7 @@ Options options() {
 class CalibVehicleSeeds : public ::testing::TestWithParam<unsigned> {};
 
 TEST_P(CalibVehicleSeeds, RecoversPerturbedMountingOdometryAndTimeOffset) {
-  calibtest::DriveTruth truth = perturbed();
-  truth.seed = GetParam();
+  calibtest::DriveTruth truth = calibtest::perturbed_drive(GetParam());
   // Other signs of the perturbations for other seeds.
   if (truth.seed % 2 == 0) {
     truth.p.mount.offset_x_mm = -7.0;

@@ -16,8 +16,7 @@ using namespace agv::desk::vcal;
 namespace {
 
 calibtest::DriveTruth worn_drive(unsigned seed) {
-  calibtest::DriveTruth t = calibtest::perturbed_drive();
-  t.seed = seed;
+  calibtest::DriveTruth t = calibtest::perturbed_drive(seed);
   t.duration_s = 45;
   t.worn = {2};
   t.wear_mm = 0.1;
