@@ -4,6 +4,8 @@
 #include <chrono>
 #include <utility>
 
+#include "agv/camera/common.hpp"
+
 namespace agv::fakecamera {
 
 using hal::CameraStatus;
@@ -134,9 +136,7 @@ CameraStatus FakeCamera::next_frame(std::int64_t timeout_ns, hal::FrameView* fra
       case Kind::kFrame: {
         Event ev = std::move(e);
         events_.pop_front();
-        if (last_sequence_ >= 0 && ev.sequence > static_cast<std::uint64_t>(last_sequence_) + 1) {
-          stats_.frames_dropped += ev.sequence - static_cast<std::uint64_t>(last_sequence_) - 1;
-        }
+        stats_.frames_dropped += camera::frames_skipped(last_sequence_, ev.sequence);
         last_sequence_ = static_cast<std::int64_t>(ev.sequence);
         auto free_slot =
             std::find_if(slots_.begin(), slots_.end(), [](const Slot& s) { return !s.busy; });

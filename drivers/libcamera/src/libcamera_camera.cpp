@@ -489,9 +489,7 @@ CameraStatus LibcameraCamera::next_frame(std::int64_t timeout_ns, hal::FrameView
     frame->slot = static_cast<int>(req->cookie());
     {
       std::lock_guard<std::mutex> lock(m.stat_mutex);
-      if (m.last_sequence >= 0 && md.sequence > static_cast<std::uint32_t>(m.last_sequence) + 1u) {
-        m.stats.frames_dropped += md.sequence - static_cast<std::uint32_t>(m.last_sequence) - 1u;
-      }
+      m.stats.frames_dropped += camera::frames_skipped(m.last_sequence, md.sequence);
       ++m.stats.frames_delivered;
     }
     m.last_sequence = md.sequence;

@@ -411,9 +411,7 @@ CameraStatus V4l2Camera::next_frame(std::int64_t timeout_ns, hal::FrameView* fra
   frame->slot = static_cast<int>(got.index);
   {
     std::lock_guard<std::mutex> lock(m.stat_mutex);
-    if (m.last_sequence >= 0 && got.sequence > static_cast<std::uint32_t>(m.last_sequence) + 1u) {
-      m.stats.frames_dropped += got.sequence - static_cast<std::uint32_t>(m.last_sequence) - 1u;
-    }
+    m.stats.frames_dropped += camera::frames_skipped(m.last_sequence, got.sequence);
     ++m.stats.frames_delivered;
   }
   m.last_sequence = got.sequence;

@@ -83,6 +83,19 @@ void rgb24_to_gray(const std::uint8_t* src, int src_stride_bytes, int width_px, 
 bool convert_to_gray(std::uint32_t fourcc, const std::uint8_t* src, int src_stride_bytes,
                      int width_px, int height_px, std::uint8_t* dst, int dst_stride_bytes);
 
+// ---- frame sequence ---------------------------------------------------------------------------
+
+// Frames the device numbered but never delivered between the previous delivered frame
+// (`last_sequence`, -1 before the first) and this one: the gap in its sequence counter. Computed
+// in the counter's own unsigned type, so a counter that wraps (V4L2's and libcamera's 32 bits)
+// counts across the wrap.
+template <typename Seq>
+Seq frames_skipped(std::int64_t last_sequence, Seq sequence) {
+  if (last_sequence < 0) return 0;
+  const Seq expected = static_cast<Seq>(static_cast<Seq>(last_sequence) + 1u);
+  return sequence > expected ? static_cast<Seq>(sequence - expected) : Seq{0};
+}
+
 // ---- timestamps -------------------------------------------------------------------------------
 
 // What instant a driver timestamp marks.
