@@ -30,6 +30,13 @@ struct MqttOutput {
   std::string map_id;  // empty: the site's name
 };
 
+// Per-camera detector processes (`detect`) and the tracker fed by them (`run
+// --detections-from-broker`) meet on the output.mqtt broker under
+// <topic_prefix>/detections/<camera>.
+struct DetectionsBus {
+  std::string topic_prefix = "agvloc-overhead";
+};
+
 // diag.*: the diagnostics page and /metrics of `run` (drivers/http, as the vehicle's).
 struct DiagOutput {
   bool enabled = false;
@@ -69,6 +76,7 @@ struct OverheadConfig {
   int min_tag_distance = 12;
   double output_rate_hz = 30.0;
   MqttOutput mqtt;
+  DetectionsBus detections;
   DiagOutput diag;
   std::map<std::string, CameraSettings> cameras;  // by camera id
 };

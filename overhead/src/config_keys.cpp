@@ -197,6 +197,9 @@ std::vector<Key> output_keys() {
              "VDA 5050 version of the messages (topic v2 or v3)", {"2.0.0", "2.1.0", "3.0.0"}),
       string("output.mqtt.map_id", AGV_OH_AT(mqtt.map_id), "",
              "agvPosition.mapId; empty: the site's name"),
+      string("detections.topic_prefix", AGV_OH_AT(detections.topic_prefix), "agvloc-overhead",
+             "Detector processes publish each frame's tags on PREFIX/detections/CAMERA_ID of "
+             "the output.mqtt broker; `run --detections-from-broker` subscribes there"),
       boolean("diag.enabled", AGV_OH_AT(diag.enabled), false,
               "run: serve the diagnostics page and Prometheus /metrics (cameras, vehicles)"),
       string("diag.bind_address", AGV_OH_AT(diag.bind_address), "127.0.0.1",

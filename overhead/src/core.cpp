@@ -7,6 +7,8 @@
 #include <fstream>
 #include <iterator>
 
+#include "agv/overhead/tag_code.hpp"
+
 namespace agv::overhead_app {
 
 namespace {
@@ -105,6 +107,48 @@ bool TrackerCore::open_outputs(const std::string& out_dir, std::string* error) {
 void TrackerCore::process(std::size_t camera, std::int64_t t_ns, const cv::Mat& gray) {
   detections_.clear();
   processor_.process(camera, t_ns, gray, &tracker_, &detections_);
+  newest_frame_ns_ = frames_ == 0 ? t_ns : std::max(newest_frame_ns_, t_ns);
+  ++frames_;
+  for (const overhead::Detection& d : detections_) {
+    ++detections_total_;
+    if (csv_.is_open()) csv_.detection(detection_row(site_, d));
+  }
+}
+
+void TrackerCore::apply_tags(std::size_t camera, std::int64_t t_ns,
+                             const std::vector<overhead::MsgTag>& tags) {
+  detections_.clear();
+  for (const overhead::MsgTag& m : tags) {
+    overhead::Detection d;
+    d.camera = camera;
+    d.t_ns = t_ns;
+    d.tag = m.tag;
+    d.level = m.level;
+    ++remote_.tags;
+    const auto agv = std::find_if(site_.fleet.begin(), site_.fleet.end(),
+                                  [&](const site::FleetAgv& a) { return a.tag_id == m.tag.id; });
+    d.in_fleet = agv != site_.fleet.end();
+    if (!d.in_fleet) {
+      ++remote_.unknown_ids;
+    } else {
+      d.agv = static_cast<std::size_t>(agv - site_.fleet.begin());
+      // As CameraFrameProcessor: a track starts only from a strict global decode.
+      const overhead::TrackState s = tracker_.output(d.agv, t_ns).state;
+      const bool untracked = s == overhead::TrackState::kNone || s == overhead::TrackState::kLost;
+      const overhead::DecodeResult g =
+          overhead::decode_global(m.tag.code, cfg_.detect.global_bits_corrected);
+      if (m.tag.restricted && untracked && !(g.ok && g.id == m.tag.id)) {
+        ++remote_.restricted_refused;
+      } else {
+        d.has_fix = overhead::tag_fix_on_plane(site_.cameras[camera], m.tag.corners_px,
+                                               m.tag.corner_sigma_px, agv->tray_height_mm,
+                                               agv->tag_size_mm, &d.fix);
+        if (d.has_fix) d.result = tracker_.add_fix(d.agv, t_ns, d.fix);
+        if (!d.has_fix) ++remote_.no_fix;
+      }
+    }
+    detections_.push_back(d);
+  }
   newest_frame_ns_ = frames_ == 0 ? t_ns : std::max(newest_frame_ns_, t_ns);
   ++frames_;
   for (const overhead::Detection& d : detections_) {

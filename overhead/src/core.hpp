@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "agv/overhead/camera_frame.hpp"
+#include "agv/overhead/detection_msg.hpp"
 #include "config.hpp"
 #include "outputs.hpp"
 #include "visualization.hpp"
@@ -25,6 +26,15 @@ class TrackerCore {
   bool open_outputs(const std::string& out_dir, std::string* error);
   // One frame of site camera `camera` exposed at t_ns.
   void process(std::size_t camera, std::int64_t t_ns, const cv::Mat& gray);
+  // The tags of one frame of site camera `camera` from a detector process: turned into fixes
+  // with this site's camera and fleet and applied by their exposure time, as process() does.
+  void apply_tags(std::size_t camera, std::int64_t t_ns, const std::vector<overhead::MsgTag>& tags);
+  // Of apply_tags: tags of no fleet vehicle, without a fix, and restricted decodes that would
+  // have started a track.
+  struct RemoteCounters {
+    std::uint64_t tags = 0, unknown_ids = 0, no_fix = 0, restricted_refused = 0;
+  };
+  const RemoteCounters& remote_counters() const { return remote_; }
   // A frame that could not be read: counted, the first few named on stderr.
   void frame_unreadable(const std::string& what);
   // Every tracked vehicle's state extrapolated to t_ns, to tracks.csv and MQTT.
@@ -60,6 +70,7 @@ class TrackerCore {
   std::vector<std::uint32_t> header_ids_;
   std::map<std::string, std::uint32_t> camera_header_ids_;
   std::uint64_t frames_ = 0, bad_frames_ = 0, detections_total_ = 0;
+  RemoteCounters remote_;
   std::int64_t newest_frame_ns_ = 0;  // exposure of the newest frame processed
   static constexpr std::int64_t kMaxDataLagNs = 1'000'000'000;
   std::string tray_model_error_;  // tray.method learned with a model that cannot be used

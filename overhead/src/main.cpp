@@ -1,5 +1,6 @@
 // agvloc-overhead: the site's fleet tracked from ceiling cameras (docs/guide/overhead.md).
 // Subcommands: check-config, replay, run, record, config-doc.
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -7,6 +8,7 @@
 #include <vector>
 
 #include "config.hpp"
+#include "detect.hpp"
 #include "inputs.hpp"
 #include "record.hpp"
 #include "replay.hpp"
@@ -24,6 +26,10 @@ constexpr const char* kUsage =
     "  run --config C --site SITE [--out OUT] [--duration-s S]\n"
     "                                      live ceiling cameras (V4L2, libcamera, Aravis) until\n"
     "                                      SIGTERM\n"
+    "  run --detections-from-broker --config C --site SITE [--out OUT] [--duration-s S]\n"
+    "                                      track from the detector processes' tags on the broker\n"
+    "  detect --config C --site SITE --camera ID --replay DIR [--fast]\n"
+    "                                      one camera's tags to the broker (a recording of it)\n"
     "  record --config C --site SITE --out DIR [--duration-s S]\n"
     "                                      record every configured camera, one folder each under\n"
     "                                      DIR, for replay\n"
@@ -62,6 +68,35 @@ bool parse_replay(int argc, char** argv, ReplayArgs* a, std::string* error) {
   }
   if (a->site_path.empty()) return (*error = "--site is required", false);
   if (a->recordings.empty()) return (*error = "--recordings needs at least one folder", false);
+  return true;
+}
+
+// Options of detect; false with *error on an unknown or incomplete option.
+bool parse_detect(int argc, char** argv, agv::overhead_app::DetectArgs* a, std::string* error) {
+  for (int i = 0; i < argc; ++i) {
+    const std::string o = argv[i];
+    if (o == "--fast") {
+      a->fast = true;
+      continue;
+    }
+    if (i + 1 >= argc || is_option(argv[i + 1])) return (*error = o + " needs a value", false);
+    const std::string v = argv[++i];
+    if (o == "--config") {
+      a->config_path = v;
+    } else if (o == "--site") {
+      a->site_path = v;
+    } else if (o == "--camera") {
+      a->camera = v;
+    } else if (o == "--replay") {
+      a->replay_dir = v;
+    } else {
+      return (*error = "unknown option '" + o + "'", false);
+    }
+  }
+  if (a->site_path.empty()) return (*error = "--site is required", false);
+  if (a->camera.empty()) return (*error = "--camera is required", false);
+  if (a->replay_dir.empty())
+    return (*error = "--replay is required (the camera's recording)", false);
   return true;
 }
 
@@ -145,8 +180,20 @@ int main(int argc, char** argv) {
   if (cmd == "run") {
     agv::overhead_app::RunArgs a;
     std::string err;
-    if (!parse_live(argc - 2, argv + 2, &a, &err)) return usage_error("run: " + err);
-    return agv::overhead_app::run_live_command(a);
+    std::vector<char*> args(argv + 2, argv + argc);
+    const auto flag = std::find(args.begin(), args.end(), std::string("--detections-from-broker"));
+    const bool from_broker = flag != args.end();
+    if (from_broker) args.erase(flag);
+    if (!parse_live(static_cast<int>(args.size()), args.data(), &a, &err))
+      return usage_error("run: " + err);
+    return from_broker ? agv::overhead_app::run_broker_tracker(a)
+                       : agv::overhead_app::run_live_command(a);
+  }
+  if (cmd == "detect") {
+    agv::overhead_app::DetectArgs a;
+    std::string err;
+    if (!parse_detect(argc - 2, argv + 2, &a, &err)) return usage_error("detect: " + err);
+    return agv::overhead_app::run_detect(a);
   }
   if (cmd == "record") {
     agv::overhead_app::RecordArgs a;

@@ -1,0 +1,184 @@
+// `run --detections-from-broker`: the tracker fed by the detector processes. libmosquitto's
+// thread queues the payloads; this thread decodes them (a refused message is counted by reason
+// and named on stderr, never applied) and hands each frame's tags to TrackerCore::apply_tags. The
+// tracks are published on the detections' clock: every tick up to a frame's exposure before the
+// frame, as replay does with its arrival order.
+#include <mosquitto.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <csignal>
+#include <cstdio>
+#include <deque>
+#include <map>
+#include <mutex>
+#include <thread>
+
+#include "core.hpp"
+#include "detect.hpp"
+#include "inputs.hpp"
+
+namespace agv::overhead_app {
+namespace {
+
+std::atomic<bool> g_bus_stop{false};
+extern "C" void on_bus_stop_signal(int) { g_bus_stop.store(true); }
+
+constexpr int kBusConnectTimeoutMs = 5000;
+constexpr std::size_t kMaxQueued = 10000;  // beyond: dropped and counted (the tracker is behind)
+
+// A subscription whose messages wait in a bounded queue for the tracker's thread.
+class DetectionsIn {
+ public:
+  ~DetectionsIn() { stop(); }
+  bool start(const MqttOutput& cfg, const std::string& topic, std::string* error) {
+    topic_ = topic;
+    mosquitto_lib_init();
+    mosq_ = mosquitto_new(nullptr, true, this);
+    if (!mosq_) return (*error = "cannot create an MQTT client", false);
+    mosquitto_connect_callback_set(mosq_, &DetectionsIn::on_connect);
+    mosquitto_subscribe_callback_set(mosq_, &DetectionsIn::on_subscribe);
+    mosquitto_message_callback_set(mosq_, &DetectionsIn::on_message);
+    mosquitto_reconnect_delay_set(mosq_, 1, 10, true);
+    int rc = mosquitto_connect_async(mosq_, cfg.broker_host.c_str(), cfg.port, 30);
+    if (rc == MOSQ_ERR_SUCCESS) rc = mosquitto_loop_start(mosq_);
+    const std::string where = "broker " + cfg.broker_host + ":" + std::to_string(cfg.port) + ": ";
+    if (rc != MOSQ_ERR_SUCCESS) return (*error = where + mosquitto_strerror(rc), false);
+    const auto until =
+        std::chrono::steady_clock::now() + std::chrono::milliseconds(kBusConnectTimeoutMs);
+    while (!subscribed_.load() && std::chrono::steady_clock::now() < until)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    if (!subscribed_.load()) return (*error = where + "not subscribed within 5 s", false);
+    return true;
+  }
+  // The oldest payload, waiting up to wait_ms; false when none came.
+  bool pop(std::string* payload, int wait_ms) {
+    std::unique_lock<std::mutex> lock(mu_);
+    if (!cv_.wait_for(lock, std::chrono::milliseconds(wait_ms), [&] { return !q_.empty(); }))
+      return false;
+    *payload = std::move(q_.front());
+    q_.pop_front();
+    return true;
+  }
+  void stop() {
+    if (!mosq_) return;
+    mosquitto_disconnect(mosq_);
+    mosquitto_loop_stop(mosq_, false);
+    mosquitto_destroy(mosq_);
+    mosq_ = nullptr;
+    mosquitto_lib_cleanup();
+  }
+  std::uint64_t overflow() const { return overflow_.load(); }
+
+ private:
+  static void on_connect(mosquitto* m, void* self, int rc) {
+    auto* in = static_cast<DetectionsIn*>(self);
+    if (rc == 0) mosquitto_subscribe(m, nullptr, in->topic_.c_str(), 0);
+  }
+  static void on_subscribe(mosquitto*, void* self, int, int, const int*) {
+    static_cast<DetectionsIn*>(self)->subscribed_.store(true);
+  }
+  static void on_message(mosquitto*, void* self, const mosquitto_message* msg) {
+    auto* in = static_cast<DetectionsIn*>(self);
+    std::lock_guard<std::mutex> lock(in->mu_);
+    if (in->q_.size() >= kMaxQueued) {
+      ++in->overflow_;
+      return;
+    }
+    in->q_.emplace_back(static_cast<const char*>(msg->payload),
+                        static_cast<std::size_t>(std::max(msg->payloadlen, 0)));
+    in->cv_.notify_one();
+  }
+
+  mosquitto* mosq_ = nullptr;
+  std::string topic_;
+  std::atomic<bool> subscribed_{false};
+  std::atomic<std::uint64_t> overflow_{0};
+  std::mutex mu_;
+  std::condition_variable cv_;
+  std::deque<std::string> q_;
+};
+
+struct BusCounters {
+  std::uint64_t messages = 0, refused = 0, seq_gaps = 0;
+  std::map<std::string, std::uint64_t> refused_by_reason;
+  std::map<std::string, std::uint64_t> next_seq;  // per camera id
+};
+
+// One payload: decoded, checked, applied. `ticks` publishes up to a time.
+template <typename Ticks>
+void handle(const std::string& payload, const std::vector<std::string>& camera_ids,
+            TrackerCore* core, BusCounters* n, Ticks ticks) {
+  overhead::DetectionMsg msg;
+  ++n->messages;
+  const overhead::MsgReason why = overhead::decode_detections(payload, camera_ids, &msg);
+  if (why != overhead::MsgReason::kNone) {
+    if (++n->refused <= 5)
+      command_fail("run", 0, std::string("detections message refused: ") + reason_name(why));
+    ++n->refused_by_reason[reason_name(why)];
+    return;
+  }
+  const auto next = n->next_seq.find(msg.camera_id);
+  if (next != n->next_seq.end() && msg.seq > next->second) n->seq_gaps += msg.seq - next->second;
+  n->next_seq[msg.camera_id] = msg.seq + 1;
+  ticks(msg.t_ns);
+  const auto cam = std::find(camera_ids.begin(), camera_ids.end(), msg.camera_id);
+  core->apply_tags(static_cast<std::size_t>(cam - camera_ids.begin()), msg.t_ns, msg.tags);
+}
+
+void print_bus_summary(const BusCounters& n, const TrackerCore& core, std::uint64_t overflow) {
+  const auto u = [](std::uint64_t v) { return static_cast<unsigned long long>(v); };
+  const TrackerCore::RemoteCounters& r = core.remote_counters();
+  std::printf(
+      "agvloc-overhead run: detections from the broker: %llu messages (%llu refused, %llu lost "
+      "by sequence, %llu dropped behind), %llu tags (%llu unknown ids, %llu without fix, %llu "
+      "restricted decodes refused)\n",
+      u(n.messages), u(n.refused), u(n.seq_gaps), u(overflow), u(r.tags), u(r.unknown_ids),
+      u(r.no_fix), u(r.restricted_refused));
+  for (const auto& [reason, count] : n.refused_by_reason)
+    std::printf("agvloc-overhead run: refused %s: %llu\n", reason.c_str(), u(count));
+}
+
+}  // namespace
+
+int run_broker_tracker(const RunArgs& a) {
+  OverheadConfig cfg;
+  site::Site site;
+  if (!load_config_and_site("run", a.config_path, a.site_path, &cfg, &site)) return 2;
+  std::signal(SIGINT, on_bus_stop_signal);
+  std::signal(SIGTERM, on_bus_stop_signal);
+  std::vector<std::string> camera_ids;
+  for (const site::CeilingCamera& c : site.cameras) camera_ids.push_back(c.id);
+  std::string err;
+  TrackerCore core(cfg, site);
+  if (!core.open_outputs(a.out_dir, &err)) return command_fail("run", 1, err);
+  DetectionsIn in;
+  const std::string topic = detections_topic(cfg, "+");
+  if (!in.start(cfg.mqtt, topic, &err)) return command_fail("run", 1, err);
+  std::fprintf(stderr, "agvloc-overhead run: detections from %s, %zu vehicles\n", topic.c_str(),
+               site.fleet.size());
+  const auto end =
+      std::chrono::steady_clock::now() + std::chrono::nanoseconds(std::llround(a.duration_s * 1e9));
+  bool started = false;
+  std::int64_t next_tick = 0;
+  const auto ticks = [&](std::int64_t t_ns) {
+    if (!started) next_tick = t_ns, started = true;
+    for (; next_tick <= t_ns; next_tick += core.period_ns()) core.publish(next_tick);
+  };
+  BusCounters n;
+  std::string payload;
+  while (!g_bus_stop.load() && (a.duration_s <= 0.0 || std::chrono::steady_clock::now() < end)) {
+    if (in.pop(&payload, 100)) handle(payload, camera_ids, &core, &n, ticks);
+  }
+  in.stop();
+  if (started) core.publish(next_tick);
+  print_bus_summary(n, core, in.overflow());
+  if (!core.finish("agvloc-overhead run", site.cameras.size(), &err))
+    return command_fail("run", 1, err);
+  return 0;
+}
+
+}  // namespace agv::overhead_app

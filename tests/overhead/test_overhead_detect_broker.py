@@ -1,0 +1,116 @@
+"""Scaling out: one `agvloc-overhead detect --replay` process per camera of the two-camera site
+publishing tags to a mosquitto broker of its own, one `run --detections-from-broker` tracking from
+them; the tracks must equal `replay` of the same recordings in one process (same vehicles and
+states, positions within a few mm), and a malformed message is refused and counted, never applied
+(tests/overhead/detect_broker.cmake). Usage: test_overhead_detect_broker.py OVERHEAD_CMD DESK_CMD
+SITE WORK"""
+import math, os, shutil, signal, subprocess, sys, time
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from mqtt_brokers import start_broker
+from test_overhead_util import SKIP, fail, read_csv, render, run
+
+FRAMES = 24
+TOLERANCE_MM = 5.0
+
+
+def final_rows(tracks_csv):
+    """{agv: (t_ns, x, y, theta, v_mps, omega, state)} of the last row of each vehicle."""
+    out = {}
+    for r in read_csv(tracks_csv)[1]:
+        out[r[1]] = (int(r[0]), float(r[2]), float(r[3]), float(r[4]), float(r[5]), float(r[6]),
+                     r[-1])
+    return out
+
+
+def at(row, t_ns):
+    """A row's position moved to t_ns at its speed and heading (the rows are a tick apart)."""
+    dt = (t_ns - row[0]) * 1e-9
+    return (row[1] + 1000.0 * row[4] * dt * math.cos(row[3]),
+            row[2] + 1000.0 * row[4] * dt * math.sin(row[3]))
+
+
+def wait_for(path, text, proc, timeout_s=60.0):
+    end = time.time() + timeout_s
+    while time.time() < end and proc.poll() is None:
+        if text in open(path).read():
+            return
+        time.sleep(0.1)
+    fail("no '%s' in %s:\n%s" % (text, path, open(path).read()))
+
+
+def main():
+    overhead, desk, site, work = sys.argv[1:5]
+    pub = shutil.which("mosquitto_pub")
+    if not pub:
+        print("SKIP: mosquitto_pub not installed")
+        sys.exit(SKIP)
+    os.makedirs(work, exist_ok=True)
+    recs = render(desk, site, os.path.join(work, "rec"), frames=FRAMES)
+    one = os.path.join(work, "one")
+    rc, so, se = run(overhead, ["replay", "--site", site, "--recordings"] + recs +
+                     ["--out", one, "--fast"])
+    if rc != 0:
+        fail("replay rc %d:\n%s%s" % (rc, so, se))
+    broker = start_broker("mosquitto", work)
+    if broker is None:
+        print("SKIP: mosquitto not installed")
+        sys.exit(SKIP)
+    port, stop_broker = broker
+    cfg = os.path.join(work, "overhead.yaml")
+    with open(cfg, "w") as f:
+        f.write("output:\n  mqtt:\n    broker_host: 127.0.0.1\n    port: %d\n"
+                "detections:\n  topic_prefix: site-7\n" % port)
+    bus = os.path.join(work, "bus")
+    log_path = os.path.join(work, "tracker.log")
+    tracker = None
+    try:
+        log = open(log_path, "w")
+        tracker = subprocess.Popen(
+            overhead.split() + ["run", "--detections-from-broker", "--config", cfg, "--site", site,
+                                "--out", bus, "--duration-s", "300"], stdout=log, stderr=log)
+        wait_for(log_path, "detections from site-7/detections/+", tracker)
+        detectors = []
+        for rec in recs:
+            cam = open(os.path.join(rec, "camera.yaml")).read().split("id:")[1].split()[0]
+            detectors.append(subprocess.Popen(
+                overhead.split() + ["detect", "--config", cfg, "--site", site, "--camera", cam,
+                                    "--replay", rec, "--fast"],
+                stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True))
+        subprocess.run([pub, "-h", "127.0.0.1", "-p", str(port), "-t",
+                        "site-7/detections/cam-west", "-m", '{"v":1,"camera":'], check=True)
+        for d in detectors:
+            so, _ = d.communicate(timeout=180)
+            if d.returncode != 0 or "%d frames" % FRAMES not in so:
+                fail("detect rc %d:\n%s" % (d.returncode, so))
+            print(so.strip())
+        time.sleep(5.0)  # QoS 0 on loopback: delivered in milliseconds; this is slack
+        tracker.send_signal(signal.SIGTERM)
+        tracker.wait(60)
+    finally:
+        if tracker and tracker.poll() is None:
+            tracker.kill()
+        stop_broker()
+    text = open(log_path).read()
+    print(text)
+    if tracker.returncode != 0:
+        fail("tracker rc %d" % tracker.returncode)
+    want = "%d messages (1 refused, 0 lost by sequence, 0 dropped behind)" % (2 * FRAMES + 1)
+    if want not in text or "refused not_json: 1" not in text:
+        fail("expected '%s' and one not_json refusal" % want)
+    a, b = final_rows(os.path.join(one, "tracks.csv")), final_rows(os.path.join(bus, "tracks.csv"))
+    if sorted(a) != sorted(b) or not a:
+        fail("vehicles differ: replay %s, broker %s" % (sorted(a), sorted(b)))
+    for agv in sorted(a):
+        if a[agv][6] != b[agv][6]:
+            fail("%s: state %s in replay, %s through the broker" % (agv, a[agv][6], b[agv][6]))
+        x, y = at(a[agv], b[agv][0])
+        err = math.hypot(x - b[agv][1], y - b[agv][2])
+        print("%s: %s, final position %.3f mm apart" % (agv, b[agv][6], err))
+        if err > TOLERANCE_MM:
+            fail("%s: %.3f mm from replay's track (> %g)" % (agv, err, TOLERANCE_MM))
+    print("OK")
+
+
+if __name__ == "__main__":
+    main()
