@@ -172,7 +172,32 @@ struct ReplayInputs {
   LandmarkMap map;
   const LandmarkMap* map_ptr = nullptr;  // null: payload poses only
   std::int64_t period_ns = 0;
+  // ranging_camera.enabled: the second stream, its site's landmarks and their observer.
+  recording::Recording ranging;
+  std::vector<site::WallLandmark> walls;
+  std::unique_ptr<app::RackObserver> rack;
+  app::RangingCounts ranging_counts;
 };
+
+// ranging_camera.enabled: the site's landmarks, the observer and the recording's ranging/
+// stream. -1 to go on, else the exit code.
+int load_ranging(const ReplayArgs& a, ReplayInputs* in) {
+  const config::RangingCameraSection& rc = in->cfg.ranging_camera;
+  if (!rc.enabled) return -1;
+  std::string err;
+  if (!app::load_wall_landmarks(rc.site_file, &in->walls, &err)) return replay_fail(err, 2);
+  in->rack = std::make_unique<app::RackObserver>(rc, in->walls);
+  if (!in->rack->ok(&err)) return replay_fail(err, 2);
+  std::vector<std::string> warnings;
+  if (!app::read_ranging_stream(a.rec_dir, rc, &in->ranging, &warnings, &err)) {
+    return replay_fail(a.rec_dir + ": " + err, 1);
+  }
+  for (const auto& w : warnings) replay_fail("warning: " + w, 0);
+  if (a.realtime) {
+    replay_fail("warning: ranging_camera: the second stream is replayed by --fast only", 0);
+  }
+  return -1;
+}
 
 // The keys a configuration file sets; false with *err.
 bool config_file_keys(const std::string& file, std::vector<std::string>* keys, std::string* err) {
@@ -223,6 +248,7 @@ int load_inputs(ReplayArgs& a, ReplayInputs* in) {
     if (!config::load_map_file(in->map_file, &in->map, &err)) return replay_fail("map: " + err, 2);
     in->map_ptr = &in->map;
   }
+  if (const int rc = load_ranging(a, in); rc >= 0) return rc;
   std::error_code ec;
   std::filesystem::create_directories(a.out_dir, ec);
   if (ec) return replay_fail("cannot create " + a.out_dir + ": " + ec.message(), 1);
@@ -359,8 +385,7 @@ int run_realtime(const ReplayArgs& a, const ReplayInputs& in, ReplayOutputs& out
 }
 
 // --fast (the default): one thread on a stepped clock, deterministic.
-void run_fast_replay(const ReplayArgs& a, const ReplayInputs& in, ReplayOutputs& out,
-                     ReplayRecord* r) {
+void run_fast_replay(const ReplayArgs& a, ReplayInputs& in, ReplayOutputs& out, ReplayRecord* r) {
   const recording::Recording& rec = in.rec;
   // The span is bounded above, so this is at most kMaxReplayTicks records, allocated once.
   const std::int64_t t0 = std::min(rec.frames.empty() ? INT64_MAX : rec.frames.front().t_ns,
@@ -379,6 +404,11 @@ void run_fast_replay(const ReplayArgs& a, const ReplayInputs& in, ReplayOutputs&
   io.ticks = &r->ticks;
   io.fixes = &r->fixes;
   io.stop = &stop_requested();
+  if (in.rack) {
+    io.ranging_frames = &in.ranging;
+    io.rack_observer = in.rack.get();
+    io.ranging_counts = &in.ranging_counts;
+  }
   out.attach(&io);
   app::run_fast(in.cfg, in.map_ptr, rec, io, &r->result, !a.quiet);
 }
@@ -438,6 +468,7 @@ std::string summary_text(const ReplayArgs& a, const ReplayInputs& in, const Repl
       r.ticks.size(), static_cast<double>(r.result.wall_ns) / 1e9);
   summary += buf;
   summary += gyro_summary(r.result.output, in.rec, imu_fed);
+  if (in.rack) summary += app::ranging_summary(in.ranging_counts, r.result.output);
   for (const auto& d : in.differ) summary += "camera from --config over meta.yaml: " + d + "\n";
   summary += app::format_statistics(r.result);
   summary += mqtt_line;

@@ -124,12 +124,25 @@ int OutputLoop::take_inputs(std::int64_t now_ns) {
   }
   int good = 0;
   FixRecord rec;
-  while (fixes_.front(&rec) && rec.t_done_ns <= now_ns) {
-    fixes_.pop(&rec);
-    drain_odometry(rec.t_done_ns);
-    core_.on_fix(rec.fix, rec.t_exposure_ns, rec.t_done_ns);
-    for (OutputSink* sink : sinks_) sink->on_fix(rec);
-    if (rec.fix.status == vision::FixStatus::kOk) ++good;
+  // Floor fixes and second-camera frames in arrival order (a fix first on equal times).
+  while (true) {
+    const bool fix_due = fixes_.front(&rec) && rec.t_done_ns <= now_ns;
+    const bool ranging_due =
+        ranging_ && ranging_->front(&ranging_rec_) && ranging_rec_.t_done_ns <= now_ns;
+    if (fix_due && (!ranging_due || rec.t_done_ns <= ranging_rec_.t_done_ns)) {
+      fixes_.pop(&rec);
+      drain_odometry(rec.t_done_ns);
+      core_.on_fix(rec.fix, rec.t_exposure_ns, rec.t_done_ns);
+      for (OutputSink* sink : sinks_) sink->on_fix(rec);
+      if (rec.fix.status == vision::FixStatus::kOk) ++good;
+    } else if (ranging_due) {
+      ranging_->pop(&ranging_rec_);
+      drain_odometry(ranging_rec_.t_done_ns);
+      core_.on_ranging(ranging_rec_.t_exposure_ns,
+                       std::span(ranging_rec_.obs.data(), ranging_rec_.n));
+    } else {
+      break;
+    }
   }
   drain_odometry(now_ns);
   return good;

@@ -3,11 +3,13 @@
 // stepped clock in recording time. One CAN writer: only this sends.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
 #include "agv/hal/can_bus.hpp"
 #include "agv/hal/clock.hpp"
+#include "agv/http/latest_slot.hpp"
 #include "agv/localizer/can_output.hpp"
 #include "agv/localizer/fault_transitions.hpp"
 #include "agv/localizer/localizer.hpp"
@@ -16,7 +18,6 @@
 #include "config.hpp"
 #include "gyro_reader.hpp"
 #include "handoff.hpp"
-#include "agv/http/latest_slot.hpp"
 #include "output_sink.hpp"
 
 namespace agv::app {
@@ -27,6 +28,16 @@ using localizer::TickRecord;
 // Vision -> output. Sized for replay --fast too, where fixes wait for their simulated arrival
 // (replay.fix_delay_ms x frame rate of them at most).
 using FixRing = SpscRing<FixRecord, 64>;
+
+// One second-camera frame's landmarks, as Localizer::on_ranging takes them (ranging_stream.hpp).
+struct RangingRecord {
+  std::int64_t t_exposure_ns = 0;  // the second camera's clock (the core adds its offset)
+  std::int64_t t_done_ns = 0;      // when it reaches the core (loop clock)
+  std::size_t n = 0;
+  std::array<localizer::RackObservation, localizer::Localizer::kMaxRackLandmarks> obs{};
+};
+// Second camera -> output step; at 15 fps, 16 frames are a second of a stalled output step.
+using RangingRing = SpscRing<RangingRecord, 16>;
 
 // The whole configuration of the localizer core, from the YAML tree: the one place that reads
 // config::Config for it.
@@ -69,6 +80,9 @@ class OutputLoop {
   // imu.source iio: gyro samples from the reader thread (gyro_reader.hpp), fused in take_inputs
   // after the CAN frames. Null (default): none. Called before the loop runs.
   void set_live_gyro(GyroRing* ring) { live_gyro_ = ring; }
+  // ranging_camera.enabled: the second camera's frames, handed to the core in take_inputs in
+  // arrival order with the floor fixes. Null (default): none. Called before the loop runs.
+  void set_ranging(RangingRing* ring) { ranging_ = ring; }
   // The run is over: hands the final state to every sink (they may wait: nothing real-time left).
   void finish(std::uint64_t frames_dropped);
 
@@ -102,6 +116,8 @@ class OutputLoop {
   std::size_t imu_i_ = 0;
   std::vector<recording::OdomRow>* received_ = nullptr;
   GyroRing* live_gyro_ = nullptr;
+  RangingRing* ranging_ = nullptr;
+  RangingRecord ranging_rec_;  // the ring's front, kept here: 2.5 kB
   std::vector<OutputSink*> sinks_;
   TickRecord last_tick_;
   bool have_tick_ = false;

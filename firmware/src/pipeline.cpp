@@ -4,8 +4,10 @@
 
 #include <algorithm>
 #include <cinttypes>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <memory>
 #include <mutex>
 #include <opencv2/core.hpp>
 #include <thread>
@@ -222,8 +224,9 @@ void ThreadedRun::output_period(std::int64_t now) {
   loop_.tick(now, cam, tr);
   snapshot_.publish(core_.snapshot_at(now));
   if (io_.stop && io_.stop->load()) done_ = true;
-  const bool can_odometry_done = io_.can_odometry_end_ns == INT64_MIN ||
-                                 now >= io_.can_odometry_end_ns + cfg_.fusion.health.odom_timeout_ns;
+  const bool can_odometry_done =
+      io_.can_odometry_end_ns == INT64_MIN ||
+      now >= io_.can_odometry_end_ns + cfg_.fusion.health.odom_timeout_ns;
   if (io_.stop_at_end_of_stream && camera_eos_.load() && vision_busy_.load() == 0 &&
       mailbox_.closed() && loop_.odometry_done() && can_odometry_done) {
     // Hand over what the worker produced, then stop.
@@ -325,10 +328,16 @@ class FastRun {
         result_(result),
         core_(localizer_config(cfg)),
         loop_(core_, io.bus, clock_, io.odometry, pending_, 0, io.imu, io.sinks),
-        loc_(vision_config_with_clock(cfg, nullptr), cfg.camera_model, config::landmark_geometry(cfg), map),
+        loc_(vision_config_with_clock(cfg, nullptr), cfg.camera_model,
+             config::landmark_geometry(cfg), map),
         pose_on_fix_(cfg.loop.pose_on_fix),
-        delay_ns_(static_cast<std::int64_t>(cfg.replay_fix_delay_ms * 1e6)) {
+        delay_ns_(static_cast<std::int64_t>(cfg.replay_fix_delay_ms * 1e6)),
+        ranging_offset_ns_(std::llround(cfg.ranging_camera.time_offset_ms * 1e6)) {
     wakes_.reserve(64);
+    if (io.ranging_frames && io.rack_observer && io.ranging_counts) {
+      ranging_ring_ = std::make_unique<RangingRing>();
+      loop_.set_ranging(ranging_ring_.get());
+    }
   }
 
   // Frames exposed up to now are processed; their fixes arrive after the vision delay.
@@ -358,6 +367,7 @@ class FastRun {
 
  private:
   void process_frame(std::size_t i);
+  void process_ranging_frame(std::size_t i);
 
   const recording::Recording& rec_;
   PipelineIo& io_;
@@ -378,7 +388,30 @@ class FastRun {
   CameraState cam_;
   cv::Mat img_;
   std::string err_;
+  // The second camera's stream (null: not configured), in data time with the floor frames.
+  const std::int64_t ranging_offset_ns_;
+  std::unique_ptr<RangingRing> ranging_ring_;
+  std::size_t ranging_i_ = 0;
+  RangingRecord ranging_rec_;
 };
+
+void FastRun::process_ranging_frame(std::size_t i) {
+  const recording::Recording& rr = *io_.ranging_frames;
+  RangingCounts& counts = *io_.ranging_counts;
+  if (!recording::load_frame(rr, i, &img_, &err_)) {
+    ++counts.frame_errors;
+    counts.last_error = "ranging/" + err_;
+    return;
+  }
+  const std::int64_t t_ns = rr.frames[i].t_ns;
+  // The core has the inputs up to the previous output step: its pose at this exposure.
+  ranging::PosePrior prior;
+  const bool tracking = pose_prior(core_, t_ns + ranging_offset_ns_, &prior);
+  io_.rack_observer->observe(img_, tracking ? &prior : nullptr, &ranging_rec_, &counts);
+  ranging_rec_.t_exposure_ns = t_ns;
+  ranging_rec_.t_done_ns = t_ns + delay_ns_;
+  if (!ranging_ring_->push(ranging_rec_)) ++counts.dropped_queue;
+}
 
 void FastRun::process_frame(std::size_t i) {
   if (!recording::load_frame(rec_, i, &img_, &err_)) {
@@ -411,8 +444,20 @@ void FastRun::process_frame(std::size_t i) {
 }
 
 void FastRun::process_frames(std::int64_t now) {
-  while (frame_i_ < rec_.frames.size() && rec_.frames[frame_i_].t_ns <= now) {
-    process_frame(frame_i_++);
+  // Both cameras' frames in exposure order (the floor's first on equal times).
+  const std::vector<recording::FrameRow>* ranging =
+      ranging_ring_ ? &io_.ranging_frames->frames : nullptr;
+  while (true) {
+    const bool floor_due = frame_i_ < rec_.frames.size() && rec_.frames[frame_i_].t_ns <= now;
+    const bool ranging_due =
+        ranging && ranging_i_ < ranging->size() && (*ranging)[ranging_i_].t_ns <= now;
+    if (floor_due && (!ranging_due || rec_.frames[frame_i_].t_ns <= (*ranging)[ranging_i_].t_ns)) {
+      process_frame(frame_i_++);
+    } else if (ranging_due) {
+      process_ranging_frame(ranging_i_++);
+    } else {
+      break;
+    }
   }
   cam_.end_of_stream = frame_i_ >= rec_.frames.size();
 }
@@ -443,8 +488,8 @@ class Progress {
     const int pct = static_cast<int>(100.0 * static_cast<double>(now - t_begin_) /
                                      static_cast<double>(t_end_ - t_begin_ + 1));
     if (pct == last_pct_) return;
-    std::fprintf(stderr, "\rreplay: %3d %%  frames %zu/%zu  fixes fused %" PRIu64, pct,
-                 frames_done, frames, fixes_fused);
+    std::fprintf(stderr, "\rreplay: %3d %%  frames %zu/%zu  fixes fused %" PRIu64, pct, frames_done,
+                 frames, fixes_fused);
     last_pct_ = pct;
   }
   void end() {

@@ -20,6 +20,7 @@
 #include "config.hpp"
 #include "diag_handoff.hpp"
 #include "output_loop.hpp"
+#include "ranging_stream.hpp"
 
 namespace agv::app {
 
@@ -54,6 +55,11 @@ struct PipelineIo {
   // no such wait.
   std::int64_t can_odometry_end_ns = INT64_MIN;
   bool quiet = false;  // no periodic log lines
+  // ranging_camera.enabled, replay --fast: the recording's second stream (ranging/), read by
+  // rack_observer, counted in ranging_counts; all three or none.
+  const recording::Recording* ranging_frames = nullptr;
+  RackObserver* rack_observer = nullptr;
+  RangingCounts* ranging_counts = nullptr;
 };
 
 // Runs until *io.stop or end of stream. Returns 0, or 1 when the loop could not start.

@@ -1,0 +1,141 @@
+#include "ranging_stream.hpp"
+
+#include <cstdio>
+#include <filesystem>
+
+#include "agv/site/site_file.hpp"
+
+namespace agv::app {
+
+namespace fs = std::filesystem;
+
+bool load_wall_landmarks(const std::string& site_file, std::vector<site::WallLandmark>* out,
+                         std::string* error) {
+  const site::SiteLimits limits;
+  std::string text, map_name, map_text, err;
+  if (!recording::read_file_bounded(site_file, limits.max_text_bytes, &text, &err)) {
+    *error = "ranging_camera.site: " + err;
+    return false;
+  }
+  if (!site::site_floor_map_file(text, &map_name, &err)) {
+    *error = "ranging_camera.site: " + site_file + ": " + err;
+    return false;
+  }
+  if (!map_name.empty()) {
+    fs::path map_path(map_name);
+    if (map_path.is_relative()) map_path = fs::path(site_file).parent_path() / map_path;
+    if (!recording::read_file_bounded(map_path.lexically_normal().string(), limits.max_text_bytes,
+                                      &map_text, &err)) {
+      *error = "ranging_camera.site: " + site_file + ": floor_map.file: " + err;
+      return false;
+    }
+  }
+  site::Site s;
+  std::vector<site::SiteError> found;
+  if (!site::parse_site(text, map_text, &s, &found, limits)) {
+    *error = "ranging_camera.site: " + site_file + ":";
+    for (const site::SiteError& e : found) *error += "\n  " + e.to_string();
+    return false;
+  }
+  if (s.wall_landmarks.empty()) {
+    *error = "ranging_camera.site: " + site_file +
+             ": wall_landmarks: none (the second camera has nothing to read)";
+    return false;
+  }
+  *out = std::move(s.wall_landmarks);
+  return true;
+}
+
+RackObserver::RackObserver(const config::RangingCameraSection& cfg,
+                           std::span<const site::WallLandmark> landmarks)
+    : observer_(cfg.intrinsics, cfg.mount, landmarks) {}
+
+bool RackObserver::ok(std::string* error) const {
+  if (observer_.status() == ranging::TableStatus::kOk) return true;
+  *error = std::string("ranging_camera: ") + ranging::table_status_name(observer_.status()) + ": " +
+           observer_.status_detail();
+  return false;
+}
+
+void RackObserver::observe(const cv::Mat& gray, const ranging::PosePrior* prior, RangingRecord* rec,
+                           RangingCounts* counts) {
+  const ranging::ObserveResult res = observer_.observe(gray, prior, frame_index_++);
+  ++counts->frames;
+  if (!res.full_sweep) ++counts->windowed;
+  counts->refused += res.refused.size();
+  rec->n = 0;
+  const ranging::RangingMount& mount = observer_.mount();
+  for (const ranging::LandmarkObservation& o : res.seen) {
+    if (rec->n >= rec->obs.size()) break;
+    localizer::RackObservation& r = rec->obs[rec->n++];
+    r.vehicle = ranging::fix_observation(o);
+    const ranging::SensorRangeBearing s = ranging::sensor_range_bearing(mount, o);
+    r.sensor.landmark_xy_mm = s.landmark_xy_mm;
+    r.sensor.sensor_xy_mm = s.sensor_xy_mm;
+    r.sensor.sensor_yaw_rad = s.sensor_yaw_rad;
+    r.sensor.range_mm = s.range_mm;
+    r.sensor.bearing_rad = s.bearing_rad;
+    r.sensor.R = s.R;
+  }
+  counts->landmarks += rec->n;
+}
+
+bool pose_prior(const localizer::Localizer& core, std::int64_t t_ns, ranging::PosePrior* prior) {
+  const fusion::PoseEstimate e = core.ekf().estimate_at(t_ns);
+  if (!e.valid || e.health == fusion::HealthState::kLost) return false;
+  prior->pose = e.pose;
+  prior->cov = e.cov.topLeftCorner<3, 3>();
+  return true;
+}
+
+bool read_ranging_stream(const std::string& rec_dir, const config::RangingCameraSection& cfg,
+                         recording::Recording* out, std::vector<std::string>* warnings,
+                         std::string* error) {
+  const fs::path dir = fs::path(rec_dir) / "ranging";
+  const std::string name = "ranging/frames.csv";
+  // The same bound as the floor stream's frames.csv.
+  constexpr std::uintmax_t kMaxBytes = 8u << 20;
+  std::string text, err;
+  if (!recording::read_file_bounded((dir / "frames.csv").string(), kMaxBytes, &text, &err)) {
+    *error = name + ": " + err + " (ranging_camera.enabled needs the recording's second stream)";
+    return false;
+  }
+  // A cut last line (interrupted recorder) is dropped as read_recording does for frames.csv.
+  if (!text.empty() && text.back() != '\n') {
+    const std::size_t nl = text.rfind('\n');
+    if (nl != std::string::npos) {
+      warnings->push_back(name + ": last line cut (no newline: interrupted write), ignored");
+      text.resize(nl + 1);
+    }
+  }
+  recording::Recording r;
+  if (!recording::parse_frames_csv(text, &r.frames, &err, name)) {
+    *error = err;
+    return false;
+  }
+  r.dir = dir.string();
+  r.meta.camera.intrinsics = cfg.intrinsics;
+  *out = std::move(r);
+  return true;
+}
+
+std::string ranging_summary(const RangingCounts& c, const localizer::OutputStats& o) {
+  char buf[400];
+  std::snprintf(
+      buf, sizeof buf,
+      "ranging camera: %llu frames (%llu in windows), %llu unreadable, %llu landmarks, "
+      "%llu refused, %llu dropped; core: %llu fused, %llu gated, %llu fixes, %llu "
+      "initialisations\n",
+      static_cast<unsigned long long>(c.frames), static_cast<unsigned long long>(c.windowed),
+      static_cast<unsigned long long>(c.frame_errors), static_cast<unsigned long long>(c.landmarks),
+      static_cast<unsigned long long>(c.refused), static_cast<unsigned long long>(c.dropped_queue),
+      static_cast<unsigned long long>(o.ranging_fused),
+      static_cast<unsigned long long>(o.ranging_rejected_gate),
+      static_cast<unsigned long long>(o.ranging_fixes),
+      static_cast<unsigned long long>(o.ranging_initialisations));
+  std::string s = buf;
+  if (!c.last_error.empty()) s += "ranging camera: last unreadable frame: " + c.last_error + "\n";
+  return s;
+}
+
+}  // namespace agv::app

@@ -1,0 +1,70 @@
+// The second camera (ranging_camera.*, docs/design/ranging.md): the site's landmarks on racks read
+// in each of its frames (ranging::LandmarkObserver, in windows from the core's pose when it
+// tracks), each landmark turned into the core's input (localizer::RackObservation), handed to the
+// output step through a fixed ring like the floor fixes; and the recording's `ranging/` stream
+// (docs/guide/recording.md).
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <string>
+#include <vector>
+
+#include "agv/localizer/localizer.hpp"
+#include "agv/ranging/observe.hpp"
+#include "agv/recording/recording.hpp"
+#include "agv/site/site.hpp"
+#include "config.hpp"
+#include "output_loop.hpp"
+
+namespace agv::app {
+
+// What the second camera's frames gave (summary line).
+struct RangingCounts {
+  std::uint64_t frames = 0;         // read and searched
+  std::uint64_t frame_errors = 0;   // could not be read (skipped)
+  std::uint64_t windowed = 0;       // searched in windows from the pose
+  std::uint64_t landmarks = 0;      // measured
+  std::uint64_t refused = 0;        // decoded but refused (unknown id, mirrored, ...)
+  std::uint64_t dropped_queue = 0;  // ring full
+  std::string last_error;
+};
+
+// The site file's wall landmarks (its floor map read too when it names one). False with *error
+// naming the file and every problem.
+bool load_wall_landmarks(const std::string& site_file, std::vector<site::WallLandmark>* out,
+                         std::string* error);
+
+// The observer of the configured second camera.
+class RackObserver {
+ public:
+  RackObserver(const config::RangingCameraSection& cfg,
+               std::span<const site::WallLandmark> landmarks);
+  // False with *error when the landmark table or the calibration cannot be used.
+  bool ok(std::string* error) const;
+  // Reads one gray frame; prior null: a full sweep. Fills rec's observations (not its times).
+  void observe(const cv::Mat& gray, const ranging::PosePrior* prior, RangingRecord* rec,
+               RangingCounts* counts);
+
+ private:
+  ranging::LandmarkObserver observer_;
+  std::uint64_t frame_index_ = 0;
+};
+
+// The core's pose at t_ns (vehicle clock) as the observer's prior; false when the core does not
+// track (uninitialised or lost): the frame is then searched whole.
+bool pose_prior(const localizer::Localizer& core, std::int64_t t_ns, ranging::PosePrior* prior);
+
+// The recording's second stream: DIR/ranging/frames.csv (the frames.csv format, paths relative to
+// DIR/ranging), its images of the configured size. A cut last line is dropped with a warning in
+// *warnings; a missing or malformed file is an error naming it. Images are checked when read.
+bool read_ranging_stream(const std::string& rec_dir, const config::RangingCameraSection& cfg,
+                         recording::Recording* out, std::vector<std::string>* warnings,
+                         std::string* error);
+
+// The summary's line for the second camera.
+std::string ranging_summary(const RangingCounts& c, const localizer::OutputStats& o);
+
+}  // namespace agv::app
