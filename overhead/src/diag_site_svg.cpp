@@ -5,6 +5,7 @@
 #include <limits>
 #include <string>
 
+#include "agv/common/xml_escape.hpp"
 #include "agv/site/site_geometry.hpp"
 #include "diag.hpp"
 
@@ -20,29 +21,6 @@ std::string num(double v) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.1f", v);
   return buf;
-}
-
-std::string xml(const std::string& s) {
-  std::string out;
-  for (const char c : s) {
-    switch (c) {
-      case '&':
-        out += "&amp;";
-        break;
-      case '<':
-        out += "&lt;";
-        break;
-      case '>':
-        out += "&gt;";
-        break;
-      case '"':
-        out += "&quot;";
-        break;
-      default:
-        out += c;
-    }
-  }
-  return out;
 }
 
 // SVG points of a site polygon (y flipped: the page's y grows downwards).
@@ -93,9 +71,10 @@ void agv_svg(const site::FleetAgv* fleet_agv, const AgvDiag& a, double font_mm, 
   const double r = fleet_agv ? fleet_agv->radius_mm : 400.0;
   double rx = 0, ry = 0, angle = 0;
   sigma_ellipse(t, &rx, &ry, &angle);
-  *o += "<g class=\"agv\" data-agv=\"" + xml(a.id) + "\" data-state=\"" + state + "\" stroke=\"" +
-        state_colour(t.state) + "\"><title>" + xml(a.id) + " " + state + " x " + num(t.pose.x_mm) +
-        " y " + num(t.pose.y_mm) + " mm, sigma " + num(t.sigma_xy_mm) + " mm</title>";
+  *o += "<g class=\"agv\" data-agv=\"" + escape_xml(a.id) + "\" data-state=\"" + state +
+        "\" stroke=\"" + state_colour(t.state) + "\"><title>" + escape_xml(a.id) + " " + state +
+        " x " + num(t.pose.x_mm) + " y " + num(t.pose.y_mm) + " mm, sigma " + num(t.sigma_xy_mm) +
+        " mm</title>";
   *o += "<ellipse cx=\"" + num(x) + "\" cy=\"" + num(y) + "\" rx=\"" + num(std::max(rx, 1.0)) +
         "\" ry=\"" + num(std::max(ry, 1.0)) + "\" transform=\"rotate(" + num(-angle) + " " +
         num(x) + " " + num(y) + ")\" fill=\"none\" stroke-dasharray=\"4 3\"/>";
@@ -105,7 +84,7 @@ void agv_svg(const site::FleetAgv* fleet_agv, const AgvDiag& a, double font_mm, 
         num(x + r * std::cos(t.pose.theta_rad)) + "\" y2=\"" +
         num(y - r * std::sin(t.pose.theta_rad)) + "\" stroke-width=\"2.5\"/>";
   *o += "<text x=\"" + num(x + r) + "\" y=\"" + num(y - r) + "\" font-size=\"" + num(font_mm) +
-        "\" stroke=\"none\" fill=\"#111\">" + xml(a.id) + " " + state + "</text></g>\n";
+        "\" stroke=\"none\" fill=\"#111\">" + escape_xml(a.id) + " " + state + "</text></g>\n";
 }
 
 }  // namespace
@@ -123,29 +102,30 @@ std::string overhead_site_svg(const site::Site& site, const DiagView& v) {
   const double font_mm = std::max(w, h) / 70.0;
   std::string o = "<svg xmlns=\"http://www.w3.org/2000/svg\" viewBox=\"" + num(box.x0 - pad) + " " +
                   num(-box.y1 - pad) + " " + num(w) + " " + num(h) + "\" width=\"800\" height=\"" +
-                  num(800.0 * h / w) + "\">\n<title>" + xml(site.name) +
+                  num(800.0 * h / w) + "\">\n<title>" + escape_xml(site.name) +
                   "</title>\n<g fill=\"none\">";
   o += "<polygon class=\"outline\" points=\"" + points(site.outline.vertices_mm) +
        "\" fill=\"#fcfcfd\" stroke=\"#374151\" stroke-width=\"" + num(font_mm / 6) + "\"/>\n";
   for (const site::Obstacle& ob : site.obstacles) {
     o += "<polygon class=\"obstacle\" points=\"" + points(ob.outline.vertices_mm) +
-         "\" fill=\"#9ca3af\" stroke=\"#4b5563\"><title>" + xml(ob.id) + "</title></polygon>\n";
+         "\" fill=\"#9ca3af\" stroke=\"#4b5563\"><title>" + escape_xml(ob.id) +
+         "</title></polygon>\n";
   }
   for (const site::CeilingCamera& cam : site.cameras) {
     const std::vector<Vec2> fp = site::camera_floor_footprint(cam, 4, kFootprintRangeMm);
     if (fp.size() < 3) continue;
     o += "<polygon class=\"camera\" points=\"" + points(fp) +
          "\" stroke=\"#2563eb\" stroke-width=\"" + num(font_mm / 8) + "\" stroke-dasharray=\"" +
-         num(font_mm / 2) + "\"><title>" + xml(cam.id) + "</title></polygon>\n<text x=\"" +
+         num(font_mm / 2) + "\"><title>" + escape_xml(cam.id) + "</title></polygon>\n<text x=\"" +
          num(cam.t_site_cam_mm[0]) + "\" y=\"" + num(-cam.t_site_cam_mm[1]) + "\" font-size=\"" +
-         num(font_mm) + "\" fill=\"#2563eb\">" + xml(cam.id) + "</text>\n";
+         num(font_mm) + "\" fill=\"#2563eb\">" + escape_xml(cam.id) + "</text>\n";
   }
   o += "</g>\n<g stroke-width=\"" + num(font_mm / 6) + "\">\n";
   std::string unseen;
   for (std::size_t i = 0; i < v.agvs.size(); ++i) {
     const AgvDiag& a = v.agvs[i];
     if (a.track.state == overhead::TrackState::kNone) {
-      unseen += (unseen.empty() ? "" : ", ") + xml(a.id);
+      unseen += (unseen.empty() ? "" : ", ") + escape_xml(a.id);
       continue;
     }
     agv_svg(i < site.fleet.size() ? &site.fleet[i] : nullptr, a, font_mm, &o);

@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
+#include "agv/common/xml_escape.hpp"
 #include "agv/site/site_geometry.hpp"
 
 namespace agv::desk {
@@ -260,29 +261,6 @@ SiteScene build_site_scene(const Site& s, const std::vector<std::vector<Vec2>>& 
   return sc;
 }
 
-std::string site_xml_escape(const std::string& s) {
-  std::string out;
-  for (char c : s) {
-    switch (c) {
-      case '&':
-        out += "&amp;";
-        break;
-      case '<':
-        out += "&lt;";
-        break;
-      case '>':
-        out += "&gt;";
-        break;
-      case '"':
-        out += "&quot;";
-        break;
-      default:
-        out += c;
-    }
-  }
-  return out;
-}
-
 std::string site_points(const std::vector<Vec2>& px) {
   std::string out;
   char buf[64];
@@ -389,7 +367,7 @@ std::string site_svg(const agv::site::Site& site, const std::vector<std::vector<
         break;
       case site_draw::SitePrim::kText:
         os << "<text x=\"" << p.px[0].x << "\" y=\"" << p.px[0].y << "\" font-size=\"" << p.text_px
-           << "\" fill=\"" << p.fill << "\">" << site_draw::site_xml_escape(p.text) << "</text>\n";
+           << "\" fill=\"" << p.fill << "\">" << escape_xml(p.text) << "</text>\n";
         break;
     }
   }
