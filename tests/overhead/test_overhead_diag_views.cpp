@@ -4,16 +4,13 @@
 // track windows drawn where they are, 404 for a camera that is not the site's, 503 before a frame,
 // and the tracker's hand-off only when the page asked and not closer than its bound. Served from
 // views put in place before each request: nothing here depends on timing.
-#include <arpa/inet.h>
 #include <gtest/gtest.h>
-#include <netinet/in.h>
-#include <sys/socket.h>
-#include <unistd.h>
 
 #include <opencv2/imgcodecs.hpp>
 #include <string>
 #include <vector>
 
+#include "../support/loopback_client.hpp"
 #include "diag.hpp"
 #include "two_camera_site.hpp"
 
@@ -26,22 +23,7 @@ struct Reply {
 
 // GET path from 127.0.0.1:port.
 Reply http_get(int port, const std::string& path) {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  std::string out;
-  if (fd < 0) return {};
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_port = htons(static_cast<std::uint16_t>(port));
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0) {
-    const std::string req = "GET " + path + " HTTP/1.1\r\nHost: localhost\r\n\r\n";
-    if (::send(fd, req.data(), req.size(), MSG_NOSIGNAL) == static_cast<ssize_t>(req.size())) {
-      char buf[4096];
-      for (ssize_t n; (n = ::recv(fd, buf, sizeof buf, 0)) > 0;)
-        out.append(buf, static_cast<std::size_t>(n));
-    }
-  }
-  ::close(fd);
+  const std::string out = agv::test::http_get_raw(port, path);
   const std::size_t split = out.find("\r\n\r\n");
   if (split == std::string::npos) return {out, ""};
   return {out.substr(0, split), out.substr(split + 4)};

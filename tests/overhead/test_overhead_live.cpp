@@ -2,11 +2,7 @@
 // the test site reach the tracker from one thread per camera, every vehicle is published at the
 // configured rate on the monotonic clock, a camera that disconnects is reopened, and cameras that
 // cannot be opened are named, never a crash.
-#include <arpa/inet.h>
 #include <gtest/gtest.h>
-#include <netinet/in.h>
-#include <sys/socket.h>
-#include <unistd.h>
 
 #include <atomic>
 #include <chrono>
@@ -19,6 +15,7 @@
 #include <thread>
 #include <vector>
 
+#include "../support/loopback_client.hpp"
 #include "agv/fakecamera/fake_camera.hpp"
 #include "agv/posix/posix_clock.hpp"
 #include "agv/sim/site_render.hpp"
@@ -187,27 +184,6 @@ TEST_F(OverheadLive, MissingDeviceIsRetriedWithoutCrash) {
   EXPECT_GE(n.ticks, 5u);
 }
 
-// GET path from 127.0.0.1:port, the whole answer (headers and body); "" when it cannot connect.
-std::string http_get(int port, const std::string& path) {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  if (fd < 0) return "";
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_port = htons(static_cast<std::uint16_t>(port));
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  std::string out;
-  if (::connect(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0) {
-    const std::string req = "GET " + path + " HTTP/1.1\r\nHost: localhost\r\n\r\n";
-    if (::send(fd, req.data(), req.size(), MSG_NOSIGNAL) == static_cast<ssize_t>(req.size())) {
-      char buf[4096];
-      for (ssize_t n; (n = ::recv(fd, buf, sizeof buf, 0)) > 0;)
-        out.append(buf, static_cast<std::size_t>(n));
-    }
-  }
-  ::close(fd);
-  return out;
-}
-
 // The value of a metric line "name{labels} value" in a /metrics text; NaN when absent.
 double metric(const std::string& text, const std::string& name_and_labels) {
   const std::size_t at = text.find("\n" + name_and_labels + " ");
@@ -268,7 +244,7 @@ TEST_F(OverheadLive, DiagnosticsServeMetricsWhileRunning) {
   std::string text;
   const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(8);
   while (std::chrono::steady_clock::now() < until && !(confirmed && fault_seen && fps_seen)) {
-    text = http_get(diag.port(), "/metrics");
+    text = agv::test::http_get_raw(diag.port(), "/metrics");
     confirmed = true;
     for (std::size_t i = 0; i < s.fleet.size(); ++i) {
       const site::FleetAgv& a = s.fleet[i];
@@ -289,9 +265,9 @@ TEST_F(OverheadLive, DiagnosticsServeMetricsWhileRunning) {
     fps_seen = fps_seen || metric(text, "agvloc_overhead_camera_fps{camera=\"cam-west\"}") > 5.0;
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
   }
-  const std::string status = http_get(diag.port(), "/api/status.json");
-  const std::string page = http_get(diag.port(), "/");
-  const std::string map = http_get(diag.port(), "/api/map.json");
+  const std::string status = agv::test::http_get_raw(diag.port(), "/api/status.json");
+  const std::string page = agv::test::http_get_raw(diag.port(), "/");
+  const std::string map = agv::test::http_get_raw(diag.port(), "/api/map.json");
   stop.store(true);
   loop.join();
   EXPECT_TRUE(confirmed) << text;

@@ -13,8 +13,8 @@
 
 namespace agv::test {
 
-// A socket connected to the loopback port, each recv giving up after `recv_timeout_s`; -1 when
-// the socket or the connection fails.
+// A socket connected to the loopback port, each recv giving up after `recv_timeout_s` (0: never);
+// -1 when the socket or the connection fails.
 inline int connect_loopback(int port, long recv_timeout_s) {
   const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
   if (fd < 0) return -1;
@@ -40,6 +40,19 @@ inline std::string read_until_closed(int fd) {
     if (n <= 0) return out;
     out.append(buf, static_cast<std::size_t>(n));
   }
+}
+
+// GET path over a new connection: the whole answer (headers and body) until the server closes;
+// "" when it cannot connect.
+inline std::string http_get_raw(int port, const std::string& path, long recv_timeout_s = 0) {
+  const int fd = connect_loopback(port, recv_timeout_s);
+  if (fd < 0) return "";
+  std::string out;
+  const std::string req = "GET " + path + " HTTP/1.1\r\nHost: localhost\r\n\r\n";
+  if (::send(fd, req.data(), req.size(), MSG_NOSIGNAL) == static_cast<ssize_t>(req.size()))
+    out = read_until_closed(fd);
+  ::close(fd);
+  return out;
 }
 
 }  // namespace agv::test
