@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Geometry>
 #include <cmath>
 #include <random>
 #include <vector>
@@ -38,7 +39,44 @@ ranging::RangingMount camera_mount() {
 struct Landmark {
   Vec2 xy_mm;
   double z_mm = 1200.0;
+  // Seen by its full tag pose (the face yaw goes into the fix) when set: the face normal in W.
+  bool full_pose = false;
+  double facing_rad = 0.0;
 };
+
+// The full tag pose's noise (rotation and translation from the corner model) drawn from rng, the
+// fix's input with its face yaw; returns the noisy translation for the EKF's input.
+Eigen::Vector3d observe_full_pose(const Pose2& truth, const Landmark& lm, Vec2 map_xy_mm,
+                                  const Eigen::Vector3d& t_C, std::mt19937* rng,
+                                  ranging::Observation* out) {
+  const ranging::RangingMount mount = camera_mount();
+  const double c = std::cos(lm.facing_rad), s = std::sin(lm.facing_rad);
+  Eigen::Matrix3d R_WT;  // x page right, y page down, z into the face
+  R_WT << -s, 0.0, -c, c, 0.0, -s, 0.0, -1.0, 0.0;
+  const Eigen::Matrix3d R_VW =
+      Eigen::AngleAxisd(-truth.theta_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  Eigen::Matrix3d R_CT = ranging::rotation_vehicle_from_camera(mount).transpose() * R_VW * R_WT;
+  const Eigen::Matrix<double, 6, 6> cov6 =
+      ranging::tag_pose_covariance(1000.0, 150.0, t_C, R_CT, 0.3);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  Eigen::Matrix<double, 6, 1> e;
+  for (int i = 0; i < 6; ++i) e(i) = n01(*rng);
+  const Eigen::Matrix<double, 6, 1> d = Eigen::Matrix<double, 6, 6>(cov6.llt().matrixL()) * e;
+  const Eigen::Vector3d w = d.head<3>();
+  if (w.norm() > 0.0) R_CT = Eigen::AngleAxisd(w.norm(), w.normalized()) * R_CT;
+  const Eigen::Vector3d t_noisy = t_C + d.tail<3>();
+  const ranging::RangeBearing rb = ranging::range_bearing_from_tag_pose(mount, t_noisy, R_CT, cov6);
+  out->landmark_mm = map_xy_mm;
+  out->range_mm = rb.range_mm;
+  out->bearing_rad = rb.bearing_rad;
+  out->cov = rb.cov.topLeftCorner<2, 2>();
+  out->has_face_yaw = rb.has_yaw;
+  out->face_yaw_rad = rb.relative_yaw_rad;
+  out->face_yaw_var_rad2 = rb.cov(2, 2);
+  out->face_yaw_cov = rb.cov.topRightCorner<2, 1>();
+  out->landmark_facing_rad = lm.facing_rad;
+  return t_noisy;
+}
 
 // One landmark seen from the true pose, with the tag-translation noise of ranging's corner model
 // drawn from rng; map_xy_mm is what the map says (the truth unless a test makes it wrong).
@@ -52,17 +90,21 @@ localizer::RackObservation observe(const Pose2& truth, const Landmark& lm, Vec2 
   const Eigen::Vector3d t_C =
       R_VC.transpose() * (p_V - Eigen::Vector3d(mount.x_mm, mount.y_mm, mount.z_mm));
   const Eigen::Matrix3d cov_t = ranging::tag_translation_covariance(1000.0, 150.0, t_C, 0.3);
-  std::normal_distribution<double> n01(0.0, 1.0);
-  const Eigen::Vector3d noise(n01(*rng), n01(*rng), n01(*rng));
-  const Eigen::Vector3d t_noisy = t_C + Eigen::Matrix3d(cov_t.llt().matrixL()) * noise;
-
   localizer::RackObservation o;
-  const ranging::RangeBearing from_v =
-      ranging::range_bearing_from_tag_translation(mount, t_noisy, cov_t);
-  o.vehicle.landmark_mm = map_xy_mm;
-  o.vehicle.range_mm = from_v.range_mm;
-  o.vehicle.bearing_rad = from_v.bearing_rad;
-  o.vehicle.cov = from_v.cov.topLeftCorner<2, 2>();
+  Eigen::Vector3d t_noisy;
+  if (lm.full_pose) {
+    t_noisy = observe_full_pose(truth, lm, map_xy_mm, t_C, rng, &o.vehicle);
+  } else {
+    std::normal_distribution<double> n01(0.0, 1.0);
+    const Eigen::Vector3d noise(n01(*rng), n01(*rng), n01(*rng));
+    t_noisy = t_C + Eigen::Matrix3d(cov_t.llt().matrixL()) * noise;
+    const ranging::RangeBearing from_v =
+        ranging::range_bearing_from_tag_translation(mount, t_noisy, cov_t);
+    o.vehicle.landmark_mm = map_xy_mm;
+    o.vehicle.range_mm = from_v.range_mm;
+    o.vehicle.bearing_rad = from_v.bearing_rad;
+    o.vehicle.cov = from_v.cov.topLeftCorner<2, 2>();
+  }
   ranging::RangingMount at_camera = mount;  // the same from the camera's own centre and axis
   at_camera.x_mm = at_camera.y_mm = at_camera.yaw_rad = 0.0;
   const ranging::RangeBearing from_c =
@@ -182,6 +224,44 @@ TEST(LocalizerRanging, AMapEntryHalfAMetreOffGivesNoConfidentWrongPose) {
   localizer::Localizer ok(config());
   const StandRun r = stand(&ok, 0, 1000 * kMs, kThree, true_map(kThree), &rng);
   EXPECT_TRUE(r.last.pose_valid);
+}
+
+// Two landmarks, one map entry 0.5 m off in 36 directions. Ranges and bearings alone cannot see
+// an error that turns the pose about the other landmark; each landmark's face yaw (its full tag
+// pose, seen 30 degrees off face-on) says the heading, which that turn contradicts.
+TEST(LocalizerRanging, TwoLandmarksWithFaceYawsGiveNoConfidentWrongPoseFromAWrongMap) {
+  std::vector<Landmark> two = kTwo;
+  for (Landmark& l : two) l.full_pose = true;
+  two[0].facing_rad = std::atan2(kTruth.y_mm - 2200.0, kTruth.x_mm - 3500.0) + deg_to_rad(30.0);
+  two[1].facing_rad = std::atan2(kTruth.y_mm + 1600.0, kTruth.x_mm - 3800.0) - deg_to_rad(30.0);
+  int confident_wrong[2] = {0, 0}, localized[2] = {0, 0};
+  for (int use = 0; use < 2; ++use) {
+    std::mt19937 rng(541);
+    for (int k = 0; k < 36; ++k) {
+      std::vector<Landmark> lms = two;
+      for (Landmark& l : lms) l.full_pose = use == 1;
+      localizer::Localizer loc(config());
+      std::vector<Vec2> map = true_map(lms);
+      const double a = k * M_PI / 18.0;
+      map[0] = {map[0].x + 500.0 * std::cos(a), map[0].y + 500.0 * std::sin(a)};
+      const StandRun r = stand(&loc, 0, 1000 * kMs, lms, map, &rng);
+      if (!r.last.pose_valid) continue;
+      ++localized[use];
+      const fusion::PoseEstimate& e = r.last.estimate;
+      const double err_mm = std::hypot(e.pose.x_mm - kTruth.x_mm, e.pose.y_mm - kTruth.y_mm);
+      confident_wrong[use] += err_mm > 3.0 * e.position_sigma_mm;
+    }
+  }
+  std::printf(
+      "two landmarks, map entry 0.5 m off, 36 directions: without face yaws %d localized,"
+      " %d outside 3 sigma; with %d localized, %d outside 3 sigma\n",
+      localized[0], confident_wrong[0], localized[1], confident_wrong[1]);
+  EXPECT_GE(confident_wrong[0], 1);  // the limit the face yaws remove
+  EXPECT_EQ(confident_wrong[1], 0);
+  // The correct map still localizes with the face yaws.
+  std::mt19937 rng(5);
+  localizer::Localizer ok(config());
+  EXPECT_TRUE(stand(&ok, 0, 1000 * kMs, two, true_map(two), &rng).last.pose_valid);
 }
 
 TEST(LocalizerRanging, RackUpdatesNarrowThePoseBetweenFloorFixes) {

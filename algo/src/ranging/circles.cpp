@@ -121,7 +121,7 @@ double heading_from_bearings_rad(Vec2 position_mm, std::span<const Observation> 
 FixResult fix_two_circles(const Observation& o0, const Observation& o1, TwoLandmarkRule rule,
                           bool l0_left_of_l1, const FixOptions& opt) {
   FixResult out;
-  out.dof = 1;
+  out.dof = 1 + static_cast<int>(o0.has_face_yaw) + static_cast<int>(o1.has_face_yaw);
   const double sigma_sum = std::sqrt(std::max(0.0, o0.cov(0, 0) + o1.cov(0, 0)));
   const double tolerance = opt.intersection_gate_sigma * sigma_sum;
   const CircleCrossing c =

@@ -27,6 +27,85 @@ Eigen::Vector2d fix_residual(const Observation& o, const Eigen::Vector2d& h) {
   return {o.range_mm - h.x(), wrap_angle_rad(o.bearing_rad - h.y())};
 }
 
+// An observation with a face yaw: residual over (range, bearing, face yaw) and its 3x3 Jacobian.
+// The face yaw predicted from the pose is the landmark's facing minus the heading.
+bool fix_residual_yaw(const Observation& o, const Eigen::Vector3d& s, Eigen::Vector3d* r,
+                      Eigen::Matrix3d* J) {
+  Eigen::Vector2d h;
+  Eigen::Matrix<double, 2, 3> J2;
+  if (!fix_predict(o, s, &h, &J2)) return false;
+  *r << fix_residual(o, h), wrap_angle_rad(o.face_yaw_rad - (o.landmark_facing_rad - s.z()));
+  if (J) {
+    J->topRows<2>() = J2;
+    J->row(2) << 0.0, 0.0, -1.0;
+  }
+  return true;
+}
+
+Eigen::Matrix3d face_yaw_covariance(const Observation& o) {
+  Eigen::Matrix3d R;
+  R.topLeftCorner<2, 2>() = o.cov;
+  R.topRightCorner<2, 1>() = o.face_yaw_cov;
+  R.bottomLeftCorner<1, 2>() = o.face_yaw_cov.transpose();
+  R(2, 2) = o.face_yaw_var_rad2;
+  return R;
+}
+
+// One observation's weighted squared residual at s; false where it cannot be predicted.
+bool observation_chi2(const Observation& o, const Eigen::Vector3d& s, double* chi2) {
+  if (o.has_face_yaw) {
+    Eigen::Vector3d r;
+    if (!fix_residual_yaw(o, s, &r, nullptr)) return false;
+    *chi2 = r.dot(face_yaw_covariance(o).ldlt().solve(r));
+    return true;
+  }
+  Eigen::Vector2d h;
+  if (!fix_predict(o, s, &h, nullptr)) return false;
+  const Eigen::Vector2d r = fix_residual(o, h);
+  *chi2 = r.dot(o.cov.ldlt().solve(r));
+  return true;
+}
+
+// Adds one observation's J^T W J and J^T W r at s; false where it cannot be predicted.
+bool add_normal_equations(const Observation& o, const Eigen::Vector3d& s, Eigen::Matrix3d* H,
+                          Eigen::Vector3d* g) {
+  if (o.has_face_yaw) {
+    Eigen::Vector3d r;
+    Eigen::Matrix3d J;
+    if (!fix_residual_yaw(o, s, &r, &J)) return false;
+    const Eigen::Matrix3d W = face_yaw_covariance(o).inverse();
+    *H += J.transpose() * W * J;
+    *g += J.transpose() * W * r;
+    return true;
+  }
+  Eigen::Vector2d h;
+  Eigen::Matrix<double, 2, 3> J;
+  if (!fix_predict(o, s, &h, &J)) return false;
+  const Eigen::Matrix2d W = o.cov.inverse();
+  *H += J.transpose() * W * J;
+  *g += J.transpose() * W * fix_residual(o, h);
+  return true;
+}
+
+int measured_quantities(std::span<const Observation> obs) {
+  int m = 0;
+  for (const Observation& o : obs) m += o.has_face_yaw ? 3 : 2;
+  return m;
+}
+
+// The largest pose NEES per unit of chi-square rise over one landmark's map errors: the largest
+// generalised eigenvalue of (shift, seen), both quadratic forms over the map error.
+template <int N>
+double worst_hidden_ratio(const Eigen::Matrix<double, N, N>& shift,
+                          const Eigen::Matrix<double, N, N>& seen) {
+  using Mat = Eigen::Matrix<double, N, N>;
+  Eigen::GeneralizedSelfAdjointEigenSolver<Mat> eig;
+  const Mat seen_reg = seen + 1e-12 * seen.trace() * Mat::Identity();
+  eig.compute(shift, seen_reg);
+  if (eig.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
+  return eig.eigenvalues().maxCoeff();
+}
+
 // The three-or-more-landmark pose as a function of the measurements (r_i, b_i), for the numeric
 // Jacobian of fix_trilateration.
 bool fix_trilateration_pose(std::span<const Observation> obs, const std::vector<double>& z,
@@ -46,10 +125,9 @@ bool fix_trilateration_pose(std::span<const Observation> obs, const std::vector<
 double fix_chi2_strict(std::span<const Observation> obs, const Eigen::Vector3d& s) {
   double chi2 = 0.0;
   for (const Observation& o : obs) {
-    Eigen::Vector2d h;
-    if (!fix_predict(o, s, &h, nullptr)) return std::numeric_limits<double>::infinity();
-    const Eigen::Vector2d r = fix_residual(o, h);
-    chi2 += r.dot(o.cov.ldlt().solve(r));
+    double c = 0.0;
+    if (!observation_chi2(o, s, &c)) return std::numeric_limits<double>::infinity();
+    chi2 += c;
   }
   return chi2;
 }
@@ -62,6 +140,22 @@ double hidden_map_shift_sigma(std::span<const Observation> obs, const Pose2& pos
   const Eigen::Matrix3d H_inv = information.inverse();
   double worst = 0.0;
   for (const Observation& o : obs) {
+    if (o.has_face_yaw) {
+      // The map error over (x, y, facing): the facing moves only the face yaw.
+      Eigen::Vector3d r;
+      Eigen::Matrix3d J;
+      if (!fix_residual_yaw(o, s, &r, &J)) continue;
+      const Eigen::Matrix3d W = face_yaw_covariance(o).inverse();
+      Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+      A.topLeftCorner<2, 2>() = -J.topLeftCorner<2, 2>();
+      A(2, 2) = 1.0;
+      const Eigen::Matrix3d G = J.transpose() * W * A;
+      const Eigen::Matrix3d shift = G.transpose() * H_inv * G;
+      const Eigen::Matrix3d seen = A.transpose() * W * A - shift;
+      worst = std::max(worst, worst_hidden_ratio<3>(shift, seen));
+      if (std::isinf(worst)) return worst;
+      continue;
+    }
     Eigen::Vector2d h;
     Eigen::Matrix<double, 2, 3> J;
     if (!fix_predict(o, s, &h, &J)) continue;
@@ -71,12 +165,8 @@ double hidden_map_shift_sigma(std::span<const Observation> obs, const Pose2& pos
     const Eigen::Matrix<double, 3, 2> G = J.transpose() * W * A;
     const Eigen::Matrix2d shift = G.transpose() * H_inv * G;     // pose NEES per map error
     const Eigen::Matrix2d seen = A.transpose() * W * A - shift;  // chi-square per map error
-    // Largest shift / seen over map-error directions: a 2x2 generalised eigenvalue.
-    Eigen::GeneralizedSelfAdjointEigenSolver<Eigen::Matrix2d> eig;
-    const Eigen::Matrix2d seen_reg = seen + 1e-12 * seen.trace() * Eigen::Matrix2d::Identity();
-    eig.compute(shift, seen_reg);
-    if (eig.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
-    worst = std::max(worst, eig.eigenvalues().maxCoeff());
+    worst = std::max(worst, worst_hidden_ratio<2>(shift, seen));
+    if (std::isinf(worst)) return worst;
   }
   return std::sqrt(worst * gate);
 }
@@ -114,10 +204,8 @@ double fix_chi2(std::span<const Observation> obs, const Pose2& pose) {
   const Eigen::Vector3d s(pose.x_mm, pose.y_mm, pose.theta_rad);
   double chi2 = 0.0;
   for (const Observation& o : obs) {
-    Eigen::Vector2d h;
-    if (!fix_predict(o, s, &h, nullptr)) continue;
-    const Eigen::Vector2d r = fix_residual(o, h);
-    chi2 += r.dot(o.cov.ldlt().solve(r));
+    double c = 0.0;
+    if (observation_chi2(o, s, &c)) chi2 += c;
   }
   return chi2;
 }
@@ -171,7 +259,7 @@ FixStatus trilaterate(std::span<const Observation> obs, const FixOptions& opt, V
 
 FixResult fix_trilateration(std::span<const Observation> obs, const FixOptions& opt) {
   FixResult out;
-  out.dof = 2 * static_cast<int>(obs.size()) - 3;
+  out.dof = measured_quantities(obs) - 3;
   Vec2 p;
   out.status = trilaterate(obs, opt, &p);
   if (out.status != FixStatus::kOk) return out;
@@ -209,7 +297,7 @@ FixResult fix_trilateration(std::span<const Observation> obs, const FixOptions& 
 
 FixResult refine_fix(std::span<const Observation> obs, const Pose2& init, const FixOptions& opt) {
   FixResult out;
-  out.dof = 2 * static_cast<int>(obs.size()) - 3;
+  out.dof = measured_quantities(obs) - 3;
   if (obs.size() < 2) return out;
   Eigen::Vector3d s(init.x_mm, init.y_mm, init.theta_rad);
   Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
@@ -218,15 +306,10 @@ FixResult refine_fix(std::span<const Observation> obs, const Pose2& init, const 
     H.setZero();
     Eigen::Vector3d g = Eigen::Vector3d::Zero();
     for (const Observation& o : obs) {
-      Eigen::Vector2d h;
-      Eigen::Matrix<double, 2, 3> J;
-      if (!fix_predict(o, s, &h, &J)) {
+      if (!add_normal_equations(o, s, &H, &g)) {
         out.status = FixStatus::kShallowGeometry;
         return out;
       }
-      const Eigen::Matrix2d W = o.cov.inverse();
-      H += J.transpose() * W * J;
-      g += J.transpose() * W * fix_residual(o, h);
     }
     if (converged || it == opt.max_iterations) break;
     Eigen::Vector3d step = H.ldlt().solve(g);

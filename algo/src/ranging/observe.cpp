@@ -406,6 +406,13 @@ Observation fix_observation(const LandmarkObservation& obs, bool from_pose) {
   o.range_mm = rb.range_mm;
   o.bearing_rad = rb.bearing_rad;
   o.cov = rb.cov.topLeftCorner<2, 2>();
+  if (from_pose && rb.has_yaw) {
+    o.has_face_yaw = true;
+    o.face_yaw_rad = rb.relative_yaw_rad;
+    o.face_yaw_var_rad2 = rb.cov(2, 2);
+    o.face_yaw_cov = rb.cov.topRightCorner<2, 1>();
+    o.landmark_facing_rad = obs.landmark_facing_rad;
+  }
   return o;
 }
 

@@ -16,12 +16,24 @@ namespace agv::ranging {
 
 // One landmark seen from the vehicle: its surveyed floor position in W, and the measured
 // horizontal range and bearing from the vehicle reference point in V (RangeBearing), with their
-// 2x2 covariance over (range_mm, bearing_rad).
+// 2x2 covariance over (range_mm, bearing_rad). Optionally the landmark's face yaw: the direction
+// in V of its face normal (RangeBearing::relative_yaw_rad, from a full tag pose) and its surveyed
+// facing in W, which together say the heading (facing minus face yaw) and make a third residual.
+// With two landmarks it is what checks the map: a wrong position of one landmark along the circle
+// around the other turns the pose about that other landmark, which the ranges and bearings cannot
+// see but the face yaws do.
 struct Observation {
   Vec2 landmark_mm;
   double range_mm = 0.0;
   double bearing_rad = 0.0;
   Eigen::Matrix2d cov = Eigen::Matrix2d::Identity();
+  bool has_face_yaw = false;
+  double face_yaw_rad = 0.0;
+  double face_yaw_var_rad2 = 0.0;
+  // Covariance of the face yaw with (range_mm, bearing_rad): a tag pose's rotation and translation
+  // share the corners' noise.
+  Eigen::Vector2d face_yaw_cov = Eigen::Vector2d::Zero();
+  double landmark_facing_rad = 0.0;
 };
 
 enum class FixStatus {
@@ -62,9 +74,10 @@ struct FixOptions {
   double max_position_sd_mm = std::numeric_limits<double>::infinity();
   // Map check (refine_fix): the largest pose shift, in sigmas of the fix's own covariance, that a
   // wrong map position of any one landmark could cause while chi-square stays under its gate.
-  // Fixes above it are kUnverifiable. Off by default: two landmarks (one degree of freedom) can
-  // never check the map (the figure is then 1e4 and more), three or more give 10 to 200 on
-  // ordinary geometry; a finite value such as 1000 therefore means "never from two landmarks".
+  // Fixes above it are kUnverifiable. Off by default: two landmarks without face yaws (one degree
+  // of freedom) can never check the map (the figure is then 1e4 and more), with face yaws they
+  // give hundreds to thousands, three or more give 10 to 200 on ordinary geometry; a finite value
+  // such as 1000 therefore means "never from two landmarks without face yaws".
   double max_hidden_map_shift_sigma = std::numeric_limits<double>::infinity();
 };
 
@@ -73,7 +86,7 @@ struct FixResult {
   Pose2 pose;                                     // V in W
   Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();  // over (x_mm, y_mm, theta_rad)
   double chi2 = 0.0;                              // weighted squared residuals at pose
-  int dof = 0;                                    // 2 * landmarks - 3
+  int dof = 0;                                    // 2 * landmarks + face yaws - 3
   int iterations = 0;                             // Gauss-Newton iterations taken
   bool touching = false;                          // two circles taken as touching
   double hidden_map_shift_sigma = 0.0;            // see FixOptions::max_hidden_map_shift_sigma
@@ -118,14 +131,15 @@ double heading_from_bearings_rad(Vec2 position_mm, std::span<const Observation> 
 // for three). kCollinear when the normalised determinant is below min_baseline_sine.
 FixStatus trilaterate(std::span<const Observation> obs, const FixOptions& opt, Vec2* position_mm);
 
-// Gauss-Newton weighted least squares over all ranges and bearings from init; fills pose, the
-// covariance (J^T W J)^-1, chi2, dof and iterations, and checks the chi-square gate.
+// Gauss-Newton weighted least squares over all ranges, bearings and face yaws from init; fills
+// pose, the covariance (J^T W J)^-1, chi2, dof and iterations, and checks the chi-square gate.
 FixResult refine_fix(std::span<const Observation> obs, const Pose2& init, const FixOptions& opt);
 
 // The map check's figure for a pose with information matrix J^T W J and chi-square gate: the
 // largest sqrt(pose NEES) over single-landmark map errors whose chi-square rise is the gate
-// (Baarda's external reliability, per landmark, worst direction). Infinite when some map error
-// raises chi-square not at all.
+// (Baarda's external reliability, per landmark, worst direction). A landmark's map error is its
+// position, and its facing too where it has a face yaw. Infinite when some map error raises
+// chi-square not at all.
 double hidden_map_shift_sigma(std::span<const Observation> obs, const Pose2& pose,
                               const Eigen::Matrix3d& information, double gate);
 

@@ -269,7 +269,8 @@ class LandmarkObserver {
 };
 
 // The fix's per-landmark input from an observation (range and bearing from the vehicle's
-// reference point): from the tag pose, or from the apparent size.
+// reference point): from the tag pose, or from the apparent size. From the tag pose with a yaw
+// (not ambiguous), also the face yaw with its covariance and the landmark's surveyed facing.
 Observation fix_observation(const LandmarkObservation& obs, bool from_pose = true);
 std::vector<Observation> fix_observations(std::span<const LandmarkObservation> obs,
                                           bool from_pose = true);
