@@ -77,14 +77,17 @@ def main():
                 overhead.split() + ["detect", "--config", cfg, "--site", site, "--camera", cam,
                                     "--replay", rec, "--fast"],
                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True))
-        subprocess.run([pub, "-h", "127.0.0.1", "-p", str(port), "-t",
-                        "site-7/detections/cam-west", "-m", '{"v":1,"camera":'], check=True)
         for d in detectors:
             so, _ = d.communicate(timeout=180)
             if d.returncode != 0 or "%d frames" % FRAMES not in so:
                 fail("detect rc %d:\n%s" % (d.returncode, so))
             print(so.strip())
-        time.sleep(5.0)  # QoS 0 on loopback: delivered in milliseconds; this is slack
+        # A malformed message after every detector has gone: the broker forwards in the order it
+        # received, and the tracker handles its queue in order, so once it names this refusal it
+        # has handled every detection before it (no waiting on the clock).
+        subprocess.run([pub, "-h", "127.0.0.1", "-p", str(port), "-t",
+                        "site-7/detections/cam-west", "-m", '{"v":1,"camera":'], check=True)
+        wait_for(log_path, "detections message refused: not_json", tracker, timeout_s=120.0)
         tracker.send_signal(signal.SIGTERM)
         tracker.wait(60)
     finally:
