@@ -3,7 +3,7 @@
 #include <cstdio>
 #include <filesystem>
 
-#include "agv/site/site_file.hpp"
+#include "agv/recording/site_file.hpp"
 
 namespace agv::app {
 
@@ -11,30 +11,11 @@ namespace fs = std::filesystem;
 
 bool load_wall_landmarks(const std::string& site_file, std::vector<site::WallLandmark>* out,
                          std::string* error) {
-  const site::SiteLimits limits;
-  std::string text, map_name, map_text, err;
-  if (!recording::read_file_bounded(site_file, limits.max_text_bytes, &text, &err)) {
-    *error = "ranging_camera.site: " + err;
-    return false;
-  }
-  if (!site::site_floor_map_file(text, &map_name, &err)) {
-    *error = "ranging_camera.site: " + site_file + ": " + err;
-    return false;
-  }
-  if (!map_name.empty()) {
-    fs::path map_path(map_name);
-    if (map_path.is_relative()) map_path = fs::path(site_file).parent_path() / map_path;
-    if (!recording::read_file_bounded(map_path.lexically_normal().string(), limits.max_text_bytes,
-                                      &map_text, &err)) {
-      *error = "ranging_camera.site: " + site_file + ": floor_map.file: " + err;
-      return false;
-    }
-  }
   site::Site s;
-  std::vector<site::SiteError> found;
-  if (!site::parse_site(text, map_text, &s, &found, limits)) {
-    *error = "ranging_camera.site: " + site_file + ":";
-    for (const site::SiteError& e : found) *error += "\n  " + e.to_string();
+  std::vector<std::string> found;
+  if (!recording::read_site_file(site_file, &s, &found)) {
+    *error = "ranging_camera.site:";
+    for (const std::string& e : found) *error += (found.size() == 1 ? " " : "\n  ") + e;
     return false;
   }
   if (s.wall_landmarks.empty()) {

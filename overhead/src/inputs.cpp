@@ -7,7 +7,7 @@
 #include <filesystem>
 
 #include "agv/overhead/tag_code.hpp"
-#include "agv/site/site_file.hpp"
+#include "agv/recording/site_file.hpp"
 
 namespace agv::overhead_app {
 
@@ -49,34 +49,10 @@ bool check_fleet_tag_distance(const site::Site& site, int min_bits, std::string*
 }
 
 bool load_site_file(const std::string& path, site::Site* out, std::vector<std::string>* errors) {
-  const site::SiteLimits limits;
-  std::string text, err;
-  if (!recording::read_file_bounded(path, limits.max_text_bytes, &text, &err)) {
-    errors->push_back("site: " + err);
-    return false;
-  }
-  std::string map_name, map_text;
-  if (!site::site_floor_map_file(text, &map_name, &err)) {
-    errors->push_back(path + ": " + err);
-    return false;
-  }
-  if (!map_name.empty()) {
-    fs::path map_path(map_name);
-    if (map_path.is_relative()) map_path = fs::path(path).parent_path() / map_path;
-    if (!recording::read_file_bounded(map_path.lexically_normal().string(), limits.max_text_bytes,
-                                      &map_text, &err)) {
-      errors->push_back(path + ": floor_map.file: " + err);
-      return false;
-    }
-  }
-  std::vector<site::SiteError> found;
-  if (site::parse_site(text, map_text, out, &found, limits)) {
-    if (out->cameras.empty()) errors->push_back(path + ": cameras: the site has no ceiling camera");
-    if (out->fleet.empty()) errors->push_back(path + ": fleet: the site has no vehicle");
-    return errors->empty();
-  }
-  for (const site::SiteError& e : found) errors->push_back(path + ": " + e.to_string());
-  return false;
+  if (!recording::read_site_file(path, out, errors)) return false;
+  if (out->cameras.empty()) errors->push_back(path + ": cameras: the site has no ceiling camera");
+  if (out->fleet.empty()) errors->push_back(path + ": fleet: the site has no vehicle");
+  return errors->empty();
 }
 
 bool read_camera_id(const std::string& dir, std::string* id, std::string* error) {

@@ -207,3 +207,19 @@ TEST(ReplayRanging, MissingStreamIsANamedErrorUnreadableFramesAreCounted) {
 }
 
 }  // namespace
+
+TEST(ReplayRanging, ABrokenSiteFileIsANamedErrorAndNothingIsReplayed) {
+  const fs::path d = write_recording("badsite");
+  std::ofstream(d / "site.yaml") << "site: {name: [\n";
+  ReplayRun r = replay(d, true);
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("ranging_camera.site: "), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("site.yaml"), std::string::npos) << r.err;
+  EXPECT_TRUE(valid_poses(d).empty());
+  fs::remove_all(d / "out");
+  fs::remove(d / "site.yaml");
+  r = replay(d, true);
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("ranging_camera.site: "), std::string::npos) << r.err;
+  fs::remove_all(d);
+}
