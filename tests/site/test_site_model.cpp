@@ -191,6 +191,15 @@ TEST(SiteFile, UnknownKeyNamesLineAndSuggests) {
   EXPECT_EQ(t.all.find("did you mean"), std::string::npos);
 }
 
+// A tagged or quoted empty key is a scalar with no name; the error must still name where.
+TEST(SiteFile, EmptyKeyIsNamedByItsMapping) {
+  for (const std::string line : {"\"\": 1\n", "!x : 2\n"}) {
+    const Result r = parse(kHead + line);
+    EXPECT_FALSE(r.ok) << line;
+    EXPECT_TRUE(has_error(r, "top level", 3, "empty key")) << line << r.all;
+  }
+}
+
 TEST(SiteFile, ReportsEveryErrorWithKeyAndLine) {
   const Result r = parse(
       "name: test\n"

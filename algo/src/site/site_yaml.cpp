@@ -68,6 +68,10 @@ Fields::Fields(ReadContext* ctx, const YAML::Node& node, std::string path,
       continue;
     }
     const std::string& k = kv.first.Scalar();
+    if (k.empty()) {
+      ctx_->errors->add(path_.empty() ? "top level" : path_, line, "an empty key");
+      continue;
+    }
     const auto known =
         std::find_if(allowed.begin(), allowed.end(), [&](const char* a) { return k == a; });
     if (known == allowed.end()) {
