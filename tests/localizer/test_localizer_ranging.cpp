@@ -7,6 +7,7 @@
 
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
@@ -311,6 +312,128 @@ TEST(LocalizerRanging, RackUpdatesNarrowThePoseBetweenFloorFixes) {
                   kTruth.y_mm + d_mm * std::sin(kTruth.theta_rad), kTruth.theta_rad};
   const double err_mm = std::hypot(racks.pose.x_mm - end.x_mm, racks.pose.y_mm - end.y_mm);
   EXPECT_LT(err_mm, 3.0 * racks.position_sigma_mm);
+}
+
+// A drive at 0.5 m/s from a floor fix at kTruth with kTwo in view at 15 fps, wheels only. At
+// step_ns the vehicle turns by step_rad in place without the odometry seeing it (a wheel slip);
+// bad_frames are observed from a pose turned by step_rad without the vehicle turning (a bad
+// frame). Returns the estimate at the end, and the frame index of the first re-localisation.
+struct StepDrive {
+  fusion::PoseEstimate end;
+  Pose2 truth_end;
+  int relocalised_frame = -1;
+  std::uint64_t relocalisations = 0;
+  std::uint64_t gated = 0;
+};
+StepDrive drive_with_step(std::int64_t step_ns, double step_rad, const std::vector<int>& bad_frames,
+                          const std::vector<Landmark>& lms, const std::vector<Vec2>& map,
+                          bool step_rule = true) {
+  localizer::LocalizerConfig cfg = config();
+  if (!step_rule) cfg.fusion.recovery.unseen_slip_max_rad = 0.0;
+  localizer::Localizer loc(cfg);
+  std::mt19937 rng(3);
+  vision::LandmarkMeasurement floor;
+  floor.status = vision::FixStatus::kOk;
+  floor.landmark_id = 9;
+  floor.map_verified = true;
+  floor.vehicle_in_world = kTruth;
+  floor.cov_world = Eigen::Matrix3d::Identity() * 0.01;
+  floor.cov_world(2, 2) = 1e-6;
+  const double v = 0.5;
+  loc.on_odometry(0, v, 0.0);
+  loc.on_fix(floor, 0, 0);
+  StepDrive r;
+  auto truth_at = [&](std::int64_t t) {
+    const double d_mm = v * static_cast<double>(t) * 1e-6;
+    if (t < step_ns)
+      return Pose2{kTruth.x_mm + d_mm * std::cos(kTruth.theta_rad),
+                   kTruth.y_mm + d_mm * std::sin(kTruth.theta_rad), kTruth.theta_rad};
+    const double d0_mm = v * static_cast<double>(step_ns) * 1e-6;
+    const double th = kTruth.theta_rad + step_rad;
+    return Pose2{kTruth.x_mm + d0_mm * std::cos(kTruth.theta_rad) + (d_mm - d0_mm) * std::cos(th),
+                 kTruth.y_mm + d0_mm * std::sin(kTruth.theta_rad) + (d_mm - d0_mm) * std::sin(th),
+                 th};
+  };
+  std::int64_t next_frame = kFramePeriodNs;
+  int frame_index = 0;
+  for (std::int64_t t = kOdomPeriodNs; t <= 3000 * kMs; t += kOdomPeriodNs) {
+    loc.on_odometry(t, v, 0.0);
+    if (t < next_frame) continue;
+    Pose2 at = truth_at(next_frame);
+    if (std::find(bad_frames.begin(), bad_frames.end(), frame_index) != bad_frames.end())
+      at.theta_rad += step_rad;
+    const auto obs = frame(at, lms, map, &rng);
+    const localizer::RangingResult res = loc.on_ranging(next_frame, obs);
+    if (res == localizer::RangingResult::kRelocalised && r.relocalised_frame < 0)
+      r.relocalised_frame = frame_index;
+    next_frame += kFramePeriodNs;
+    ++frame_index;
+    loc.set_camera_state(t, false, false);
+    r.end = loc.tick(t).estimate;
+  }
+  r.truth_end = truth_at(r.end.t_ns);
+  r.relocalisations = loc.stats().ranging_step_relocalisations;
+  r.gated = loc.stats().ranging_rejected_gate;
+  return r;
+}
+
+double position_error_mm(const StepDrive& r) {
+  return std::hypot(r.end.pose.x_mm - r.truth_end.x_mm, r.end.pose.y_mm - r.truth_end.y_mm);
+}
+double heading_error_rad(const StepDrive& r) {
+  return std::abs(wrap_angle_rad(r.end.pose.theta_rad - r.truth_end.theta_rad));
+}
+
+TEST(LocalizerRanging, AHeadingStepTheWheelsDidNotSeeIsRelocalisedByRackFixes) {
+  // 1 s of rack updates make the heading sigma small; then an unseen 2 deg turn. Every landmark
+  // fails its gate from then on unless the rack fixes re-localise the filter.
+  const std::int64_t step_ns = 1000 * kMs;
+  const StepDrive r = drive_with_step(step_ns, deg_to_rad(2.0), {}, kTwo, true_map(kTwo));
+  const int step_frame = static_cast<int>(step_ns / kFramePeriodNs);
+  std::printf("2 deg unseen step at frame %d: re-localised at frame %d; at 3 s %.2f mm %.3f deg off,"
+              " sigma %.2f mm %.3f deg; %llu landmarks gated\n",
+              step_frame, r.relocalised_frame, position_error_mm(r),
+              rad_to_deg(heading_error_rad(r)), r.end.position_sigma_mm,
+              rad_to_deg(r.end.heading_sigma_rad), static_cast<unsigned long long>(r.gated));
+  ASSERT_GE(r.relocalised_frame, step_frame);
+  EXPECT_LE(r.relocalised_frame, step_frame + 3);  // init_fixes (2) frames after the step
+  EXPECT_EQ(r.relocalisations, 1u);
+  EXPECT_LT(position_error_mm(r), 3.0 * r.end.position_sigma_mm + 1.0);
+  EXPECT_LT(heading_error_rad(r), 3.0 * r.end.heading_sigma_rad + deg_to_rad(0.01));
+  EXPECT_EQ(r.end.health, fusion::HealthState::kLocalized);
+  // The same drive without the rule (fusion.recovery.unseen_slip_max_rad 0, as before it): the
+  // landmarks stay gated and the confident pose ends outside 3 sigma.
+  const StepDrive off = drive_with_step(step_ns, deg_to_rad(2.0), {}, kTwo, true_map(kTwo), false);
+  std::printf("without the rule: %.2f mm off, sigma %.2f mm; %llu landmarks gated\n",
+              position_error_mm(off), off.end.position_sigma_mm,
+              static_cast<unsigned long long>(off.gated));
+  EXPECT_EQ(off.relocalisations, 0u);
+  EXPECT_GT(position_error_mm(off), 3.0 * off.end.position_sigma_mm);
+}
+
+TEST(LocalizerRanging, SingleDisagreeingFramesDoNotMoveAConfidentFilter) {
+  // Frames seen as if turned by 2 deg, one at a time (two of them with a good frame between):
+  // each is gated, none re-localises, and the pose stays where the good frames have it.
+  const StepDrive r =
+      drive_with_step(INT64_MAX, deg_to_rad(2.0), {20, 30, 32}, kTwo, true_map(kTwo));
+  EXPECT_EQ(r.relocalisations, 0u);
+  EXPECT_EQ(r.relocalised_frame, -1);
+  EXPECT_GE(r.gated, 4u);  // the bad frames' landmarks were seen and refused
+  EXPECT_LT(position_error_mm(r), 3.0 * r.end.position_sigma_mm + 1.0);
+  EXPECT_LT(heading_error_rad(r), deg_to_rad(0.1));
+}
+
+TEST(LocalizerRanging, AWrongMapEntryAmongCorrectOnesDoesNotMoveATrackingFilter) {
+  // Three in view while tracking, one map entry 0.5 m off in 8 directions: the correct landmarks
+  // are fused in every frame, so no frame is all gated and the wrong entry never re-localises.
+  for (int k = 0; k < 8; ++k) {
+    std::vector<Vec2> map = true_map(kThree);
+    const double a = k * M_PI / 4.0;
+    map[1] = {map[1].x + 500.0 * std::cos(a), map[1].y + 500.0 * std::sin(a)};
+    const StepDrive r = drive_with_step(INT64_MAX, 0.0, {}, kThree, map);
+    EXPECT_EQ(r.relocalisations, 0u) << "direction " << k;
+    EXPECT_LT(position_error_mm(r), 3.0 * r.end.position_sigma_mm + 1.0) << "direction " << k;
+  }
 }
 
 }  // namespace

@@ -7,6 +7,17 @@
 // inconsistent ...), and init_fixes consecutive fixes must agree, the earlier carried to the
 // later by the odometry. What no rule inside two-landmark fixes can catch, a wrong map entry
 // that keeps their chi-square small, is in docs/design/ranging.md.
+//
+// Tracking, a slip the wheels did not show (wheels only: one wheel a few percent over for a few
+// tenths of a second turns the vehicle by degrees) leaves a filter confident of a wrong heading,
+// and every later rack landmark fails its gate. The floor fixes' answer (the EKF's unseen-slip
+// test) needs a fix, which a range-bearing update is not; here the frame's prior-free fix is the
+// witness, under that test's preconditions: no gyro carried the heading, and the fix's heading
+// differs from the filter's by more than 3 sigma (of both) and at most
+// fusion.recovery.unseen_slip_max_rad. init_fixes consecutive such frames whose fixes agree with
+// each other re-localise the filter from the newest (Ekf::set_pose, speed and calibration kept).
+// A frame with any landmark fused breaks the run, so one wrong map entry among correct ones in
+// view, or one bad frame, cannot move a confident filter.
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <array>
@@ -30,6 +41,8 @@ const char* to_string(RangingResult r) {
       return "fix_pending";
     case RangingResult::kInitialised:
       return "initialised";
+    case RangingResult::kRelocalised:
+      return "relocalised";
   }
   return "?";
 }
@@ -42,14 +55,13 @@ RangingResult Localizer::on_ranging(std::int64_t t_exposure_ns,
   if (obs.empty()) return RangingResult::kEmpty;
   const std::int64_t t_ns = t_exposure_ns + cfg_.ranging.camera_offset_ns;
   const fusion::PoseEstimate est = ekf_.estimate_at(t_ns);
-  if (est.valid && est.health != fusion::HealthState::kLost) {
-    rack_candidate_.count = 0;  // agreement is counted among consecutive untracked frames
-    return ranging_track(t_ns, obs);
-  }
+  if (est.valid && est.health != fusion::HealthState::kLost) return ranging_track(t_ns, obs, est);
   return ranging_fix(t_ns, obs);
 }
 
-RangingResult Localizer::ranging_track(std::int64_t t_ns, std::span<const RackObservation> obs) {
+RangingResult Localizer::ranging_track(std::int64_t t_ns, std::span<const RackObservation> obs,
+                                       const fusion::PoseEstimate& prior) {
+  const std::uint64_t gated_before = ekf_.counters().range_bearing_rejected_gate;
   bool fused = false;
   for (const RackObservation& o : obs)
     fused = ekf_.add_range_bearing(t_ns, o.sensor) == fusion::FixOutcome::kFused || fused;
@@ -59,7 +71,40 @@ RangingResult Localizer::ranging_track(std::int64_t t_ns, std::span<const RackOb
   stats_.ranging_rejected_other = c.range_bearing_rejected_too_old +
                                   c.range_bearing_rejected_invalid +
                                   c.range_bearing_rejected_not_initialised;
-  return fused ? RangingResult::kFused : RangingResult::kRejected;
+  const bool gated = c.range_bearing_rejected_gate > gated_before;
+  if (fused || !gated) {
+    rack_candidate_.count = 0;  // only consecutive all-gated frames count towards a step
+    return fused ? RangingResult::kFused : RangingResult::kRejected;
+  }
+  return ranging_step(t_ns, obs, prior);
+}
+
+bool Localizer::rack_heading_step(const ranging::FixResult& fix,
+                                  const fusion::PoseEstimate& prior) const {
+  const double max_rad = cfg_.fusion.recovery.unseen_slip_max_rad;
+  if (!(max_rad > 0.0) || prior.gyro_heading) return false;
+  const double dth = wrap_angle_rad(fix.pose.theta_rad - prior.pose.theta_rad);
+  const double var = prior.cov(2, 2) + fix.cov(2, 2);
+  return std::abs(dth) <= max_rad && dth * dth > 9.0 * var;
+}
+
+RangingResult Localizer::ranging_step(std::int64_t t_ns, std::span<const RackObservation> obs,
+                                      const fusion::PoseEstimate& prior) {
+  ranging::FixResult fix;
+  if (!rack_fix(obs, &fix) || !rack_heading_step(fix, prior)) {
+    rack_candidate_.count = 0;
+    return RangingResult::kRejected;
+  }
+  if (!count_rack_fix(t_ns, fix)) return RangingResult::kRejected;
+  const fusion::Ekf::Counters before = ekf_.counters();
+  const bool ok = ekf_.set_pose(t_ns, fix.pose, fix.cov);
+  rack_poses_.reinitialisations += ekf_.counters().reinitialisations - before.reinitialisations;
+  refresh_fix_counts();
+  rack_candidate_.count = 0;
+  if (!ok) return RangingResult::kRejected;
+  ++stats_.ranging_initialisations;
+  ++stats_.ranging_step_relocalisations;
+  return RangingResult::kRelocalised;
 }
 
 bool Localizer::rack_fix_agrees(std::int64_t t_ns, const ranging::FixResult& fix) const {
@@ -86,18 +131,18 @@ bool Localizer::rack_fix_agrees(std::int64_t t_ns, const ranging::FixResult& fix
   return d2 <= cfg_.ranging.agreement_gate;
 }
 
-RangingResult Localizer::ranging_fix(std::int64_t t_ns, std::span<const RackObservation> obs) {
+bool Localizer::rack_fix(std::span<const RackObservation> obs, ranging::FixResult* fix) {
   std::array<ranging::Observation, kMaxRackLandmarks> in;
   for (std::size_t i = 0; i < obs.size(); ++i) in[i] = obs[i].vehicle;
-  const ranging::FixResult fix =
-      ranging::fix_from_landmarks(std::span(in.data(), obs.size()), cfg_.ranging.fix);
+  *fix = ranging::fix_from_landmarks(std::span(in.data(), obs.size()), cfg_.ranging.fix);
   ++stats_.ranging_fixes;
-  if (fix.status != ranging::FixStatus::kOk) {
-    const auto k = static_cast<std::size_t>(fix.status);
-    if (k < stats_.ranging_fix_refused.size()) ++stats_.ranging_fix_refused[k];
-    rack_candidate_.count = 0;  // a refused frame breaks the run of consecutive fixes
-    return RangingResult::kFixRefused;
-  }
+  if (fix->status == ranging::FixStatus::kOk) return true;
+  const auto k = static_cast<std::size_t>(fix->status);
+  if (k < stats_.ranging_fix_refused.size()) ++stats_.ranging_fix_refused[k];
+  return false;
+}
+
+bool Localizer::count_rack_fix(std::int64_t t_ns, const ranging::FixResult& fix) {
   if (rack_fix_agrees(t_ns, fix)) {
     ++rack_candidate_.count;
   } else {
@@ -106,8 +151,16 @@ RangingResult Localizer::ranging_fix(std::int64_t t_ns, std::span<const RackObse
   }
   rack_candidate_.t_ns = t_ns;
   rack_candidate_.fix = fix;
-  if (rack_candidate_.count < std::max(1, cfg_.ranging.init_fixes))
-    return RangingResult::kFixPending;
+  return rack_candidate_.count >= std::max(1, cfg_.ranging.init_fixes);
+}
+
+RangingResult Localizer::ranging_fix(std::int64_t t_ns, std::span<const RackObservation> obs) {
+  ranging::FixResult fix;
+  if (!rack_fix(obs, &fix)) {
+    rack_candidate_.count = 0;  // a refused frame breaks the run of consecutive fixes
+    return RangingResult::kFixRefused;
+  }
+  if (!count_rack_fix(t_ns, fix)) return RangingResult::kFixPending;
 
   // Initialised from the newest fix: uninitialised, as from a first fix; lost, re-localised
   // keeping speed and calibration (Ekf::set_pose). Counted apart from floor fixes.

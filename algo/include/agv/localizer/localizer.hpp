@@ -55,7 +55,9 @@ struct GyroCorrection {
 // docs/design/ranging.md "In the localizer"). While the filter is uninitialised or lost, each
 // frame's landmarks give a prior-free fix (ranging::fix_from_landmarks); init_fixes consecutive
 // fixes that agree initialise (or re-localise) the filter, one landmark never does. While it
-// tracks, each landmark is a range-bearing update of the EKF (gated there).
+// tracks, each landmark is a range-bearing update of the EKF (gated there); init_fixes consecutive
+// frames with every landmark gated, whose fixes agree with each other on a heading step the wheels
+// did not show (fusion.recovery.unseen_slip_max_rad, wheels only), re-localise it.
 inline ranging::FixOptions rack_fix_options() {
   ranging::FixOptions o;
   // Two landmarks at 5-8 m give fixes of 30-100 mm sigma across the baseline; the lost limit is
@@ -95,6 +97,9 @@ enum class RangingResult : std::uint8_t {
   kFixRefused,   // not tracking: the fix was refused (stats().ranging_fix_refused says why)
   kFixPending,   // not tracking: an OK fix, not yet agreed by enough consecutive ones
   kInitialised,  // not tracking: the filter was initialised or re-localised from the fix
+  // Tracking, every landmark gated: init_fixes consecutive such frames' fixes agreed on a heading
+  // step the wheels did not show (ranging_aid.cpp); re-localised from the newest.
+  kRelocalised,
 };
 const char* to_string(RangingResult r);
 
@@ -155,6 +160,7 @@ struct OutputStats {
   // range-bearing outcomes (its counters); while not, the fixes computed, those refused (by
   // ranging::FixStatus), OK ones that disagreed with the previous, and the initialisations and
   // re-localisations they made (not in fixes_fused or reinitialisations, which are floor fixes').
+  // Tracking frames whose landmarks were all gated compute the fix too (ranging_step).
   std::uint64_t ranging_frames = 0;
   std::uint64_t ranging_landmarks = 0;
   std::uint64_t ranging_fused = 0;
@@ -164,6 +170,9 @@ struct OutputStats {
   std::array<std::uint64_t, 8> ranging_fix_refused{};  // by ranging::FixStatus (kOk unused)
   std::uint64_t ranging_fixes_disagreed = 0;
   std::uint64_t ranging_initialisations = 0;
+  // Of ranging_initialisations: while tracking, after a heading step the wheels did not show
+  // (every landmark gated, consecutive agreeing fixes; RangingResult::kRelocalised).
+  std::uint64_t ranging_step_relocalisations = 0;
   std::uint64_t can_tx_ok = 0;
   std::uint64_t can_tx_failed = 0;
   std::uint64_t can_rx_frames = 0;
@@ -278,7 +287,8 @@ class Localizer {
   bool set_pose(std::int64_t now_ns, const Pose2& pose, double sigma_mm, double sigma_rad);
   // The landmarks on racks of one second-camera frame exposed at t_exposure_ns (that camera's
   // clock; LocalizerConfig::ranging.camera_offset_ns moves it onto the vehicle's). Tracking: each
-  // landmark -> Ekf::add_range_bearing. Uninitialised or lost: the prior-free fix, initialising
+  // landmark -> Ekf::add_range_bearing; all of them gated: the fix may witness a heading step the
+  // wheels did not show (re-localised after init_fixes agreeing frames). Uninitialised or lost: the prior-free fix, initialising
   // by RangingAidConfig's rules (ranging_aid.cpp). At most kMaxRackLandmarks are used.
   // The fix path allocates (ranging::fix_from_landmarks); the tracking path does not.
   RangingResult on_ranging(std::int64_t t_exposure_ns, std::span<const RackObservation> obs);
@@ -347,8 +357,18 @@ class Localizer {
     fix_outcome_counts(ekf_.counters(), fixes_exposed_after_arrival_, set_poses, &stats_);
   }
   // on_ranging's two paths (ranging_aid.cpp).
-  RangingResult ranging_track(std::int64_t t_ns, std::span<const RackObservation> obs);
+  RangingResult ranging_track(std::int64_t t_ns, std::span<const RackObservation> obs,
+                              const fusion::PoseEstimate& prior);
   RangingResult ranging_fix(std::int64_t t_ns, std::span<const RackObservation> obs);
+  // Tracking, every landmark of the frame gated: the frame's fix as the witness of a heading step
+  // the wheels did not show; init_fixes consecutive agreeing ones re-localise.
+  RangingResult ranging_step(std::int64_t t_ns, std::span<const RackObservation> obs,
+                             const fusion::PoseEstimate& prior);
+  bool rack_heading_step(const ranging::FixResult& fix, const fusion::PoseEstimate& prior) const;
+  // The frame's prior-free fix, counted (refusals by status); true when OK.
+  bool rack_fix(std::span<const RackObservation> obs, ranging::FixResult* fix);
+  // The OK fix into the run of consecutive agreeing ones; true when it completes init_fixes.
+  bool count_rack_fix(std::int64_t t_ns, const ranging::FixResult& fix);
   // The fix agrees with the previous OK fix carried to t_ns by the newest odometry.
   bool rack_fix_agrees(std::int64_t t_ns, const ranging::FixResult& fix) const;
 
@@ -378,7 +398,8 @@ class Localizer {
   std::uint64_t fixes_exposed_after_arrival_ = 0;  // refused before the EKF
   OperatorPoseCounts operator_poses_;
   OperatorPoseCounts rack_poses_;  // EKF initialisations made from rack fixes
-  // The newest OK rack fix while not tracking, and how many consecutive agreeing ones it ends.
+  // The newest OK rack fix while not tracking (or tracking with every landmark gated and a
+  // heading step), and how many consecutive agreeing ones it ends.
   struct RackCandidate {
     int count = 0;
     std::int64_t t_ns = 0;
