@@ -99,22 +99,20 @@ std::string set_camera_key(const std::string& key, const std::string& scalar, Ov
   return what;
 }
 
-std::string check_mqtt_names(const OverheadConfig& c) {
-  if (!topic_level_ok(c.mqtt.interface_name)) return "output.mqtt.interface_name";
-  if (!topic_level_ok(c.mqtt.manufacturer)) return "output.mqtt.manufacturer";
-  return "";
+// The configured parts of every topic published to or subscribed to (topics.hpp).
+void check_topic_names(const OverheadConfig& c, std::vector<std::string>* errors) {
+  const auto check = [&](const char* key, const std::string& v, const std::string& why,
+                         bool prefix = false) {
+    if (!why.empty()) errors->push_back(topic_error(key, v, why, prefix));
+  };
+  check("output.mqtt.interface_name", c.mqtt.interface_name,
+        topic_first_level_problem(c.mqtt.interface_name));
+  check("output.mqtt.manufacturer", c.mqtt.manufacturer, topic_level_problem(c.mqtt.manufacturer));
+  check("detections.topic_prefix", c.detections.topic_prefix,
+        topic_prefix_problem(c.detections.topic_prefix), true);
 }
 
 }  // namespace
-
-bool topic_level_ok(const std::string& s) {
-  if (s.empty()) return false;
-  for (const char ch : s) {
-    const auto u = static_cast<unsigned char>(ch);
-    if (ch == '/' || ch == '+' || ch == '#' || u < 0x20 || u == 0x7F) return false;
-  }
-  return true;
-}
 
 bool parse_config(const std::string& text, OverheadConfig* out, std::vector<std::string>* errors) {
   std::vector<config::YamlEntry> entries;
@@ -152,14 +150,7 @@ bool parse_config(const std::string& text, OverheadConfig* out, std::vector<std:
     }
     k->set(cfg, v);
   }
-  if (errors->size() == before) {
-    const std::string bad = check_mqtt_names(cfg);
-    if (!bad.empty()) {
-      errors->push_back(bad +
-                        ": must be one MQTT topic level (not empty, no '/', '+', '#' or "
-                        "control characters)");
-    }
-  }
+  if (errors->size() == before) check_topic_names(cfg, errors);
   if (errors->size() != before) return false;
   *out = cfg;
   return true;

@@ -17,6 +17,7 @@
 #include "agv/overhead/tag_detect.hpp"
 #include "agv/overhead/tracker.hpp"
 #include "agv/overhead/tray_fit.hpp"
+#include "topics.hpp"
 
 namespace agv::overhead_app {
 
@@ -111,9 +112,6 @@ bool parse_config(const std::string& text, OverheadConfig* out, std::vector<std:
 
 // Reads and parses a file (a regular file of at most 1 MiB); errors prefixed with the path.
 bool load_config(const std::string& path, OverheadConfig* out, std::vector<std::string>* errors);
-
-// A name usable as one MQTT topic level (not empty, no '/', '+', '#', NUL or control character).
-bool topic_level_ok(const std::string& s);
 
 std::string format_value(const Value& v);
 template <typename Cfg>

@@ -45,13 +45,17 @@ std::string detections_topic(const OverheadConfig& cfg, const std::string& camer
   return cfg.detections.topic_prefix + "/detections/" + camera;
 }
 
+std::string detections_subscription(const OverheadConfig& cfg) { return detections_topic(cfg, "+"); }
+
 int run_detect(const DetectArgs& a) {
   OverheadConfig cfg;
   site::Site site;
   if (!load_config_and_site("detect", a.config_path, a.site_path, &cfg, &site)) return 2;
   std::string err;
   CameraRecording cam;
-  if (!topic_level_ok(a.camera)) return command_fail("detect", 2, "--camera: not a topic level");
+  const std::string bad_camera = topic_error("--camera", a.camera, topic_level_problem(a.camera));
+  if (!bad_camera.empty()) return command_fail("detect", 2, bad_camera);
+  if (!check_site_topic_ids(cfg, site, true, &err)) return command_fail("detect", 2, err);
   if (!open_camera(a, site, cfg, &cam, &err)) return command_fail("detect", 2, err);
   // The camera's own tracks steer its search windows (predicted reads, areas); the fixes that
   // count are made again by the tracker from the published corners.

@@ -22,6 +22,9 @@ struct DetectArgs {
 
 // <detections.topic_prefix>/detections/<camera>.
 std::string detections_topic(const OverheadConfig& cfg, const std::string& camera);
+// What the tracker subscribes to: every camera's detections topic, <prefix>/detections/+ (the
+// one wildcard; the prefix holds none, config.cpp refuses it).
+std::string detections_subscription(const OverheadConfig& cfg);
 
 // Exit code: 0 done, 2 bad input, 1 the broker refused or went away.
 int run_detect(const DetectArgs& args);

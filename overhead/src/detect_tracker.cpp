@@ -153,10 +153,11 @@ int run_broker_tracker(const RunArgs& a) {
   std::vector<std::string> camera_ids;
   for (const site::CeilingCamera& c : site.cameras) camera_ids.push_back(c.id);
   std::string err;
+  if (!check_site_topic_ids(cfg, site, true, &err)) return command_fail("run", 2, err);
   TrackerCore core(cfg, site);
   if (!core.open_outputs(a.out_dir, &err)) return command_fail("run", 1, err);
   DetectionsIn in;
-  const std::string topic = detections_topic(cfg, "+");
+  const std::string topic = detections_subscription(cfg);
   if (!in.start(cfg.mqtt, topic, &err)) return command_fail("run", 1, err);
   std::fprintf(stderr, "agvloc-overhead run: detections from %s, %zu vehicles\n", topic.c_str(),
                site.fleet.size());

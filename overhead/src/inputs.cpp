@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 
+#include "agv/overhead/detection_msg.hpp"
 #include "agv/overhead/tag_code.hpp"
 #include "agv/recording/site_file.hpp"
 
@@ -121,9 +122,33 @@ bool open_recordings(const std::vector<std::string>& dirs, const site::Site& sit
   return true;
 }
 
+bool check_site_topic_ids(const OverheadConfig& cfg, const site::Site& site, bool bus,
+                          std::string* error) {
+  if (cfg.mqtt.enabled) {
+    for (std::size_t i = 0; i < site.fleet.size(); ++i) {
+      *error = topic_error("site fleet[" + std::to_string(i) + "].id", site.fleet[i].id,
+                           topic_level_problem(site.fleet[i].id));
+      if (!error->empty()) return false;
+    }
+  }
+  if (!cfg.mqtt.enabled && !bus) return true;
+  for (std::size_t i = 0; i < site.cameras.size(); ++i) {
+    const std::string& id = site.cameras[i].id;
+    std::string why = topic_level_problem(id);
+    if (why.empty() && bus && id.size() > overhead::kMaxCameraIdChars) {
+      why = std::to_string(id.size()) + " bytes, more than the " +
+            std::to_string(overhead::kMaxCameraIdChars) + " a detections message carries";
+    }
+    *error = topic_error("site cameras[" + std::to_string(i) + "].id", id, why);
+    if (!error->empty()) return false;
+  }
+  return true;
+}
+
 bool check_config_against_site(const OverheadConfig& cfg, const site::Site& site,
                                std::string* error) {
   if (!check_fleet_tag_distance(site, cfg.min_tag_distance, error)) return false;
+  if (!check_site_topic_ids(cfg, site, false, error)) return false;
   for (const auto& entry : cfg.cameras) {
     const std::string& id = entry.first;
     bool found = false;

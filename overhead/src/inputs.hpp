@@ -40,8 +40,16 @@ bool open_recordings(const std::vector<std::string>& dirs, const site::Site& sit
 // pair and counting the others.
 bool check_fleet_tag_distance(const site::Site& site, int min_bits, std::string* error);
 
-// Every configured cameras.<id> names a camera of the site and the fleet's tags are
-// identity.min_tag_distance apart; else false with *error.
+// The site's ids that become MQTT topic levels (topics.hpp): with output.mqtt.enabled every
+// vehicle's and camera's (VDA 5050 visualization and camera state topics); with `bus` every
+// camera's (PREFIX/detections/CAMERA, its detection messages' camera id: at most
+// overhead::kMaxCameraIdChars). False with *error naming the first id refused.
+bool check_site_topic_ids(const OverheadConfig& cfg, const site::Site& site, bool bus,
+                          std::string* error);
+
+// Every configured cameras.<id> names a camera of the site, the fleet's tags are
+// identity.min_tag_distance apart and, with output.mqtt.enabled, the site's ids are topic levels
+// (check_site_topic_ids); else false with *error.
 bool check_config_against_site(const OverheadConfig& cfg, const site::Site& site,
                                std::string* error);
 

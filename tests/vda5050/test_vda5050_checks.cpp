@@ -64,6 +64,16 @@ TEST(Vda5050ConfigCheck, RefusesMqttWildcardsAndSeparatorsInTopicLevels) {
   EXPECT_TRUE(errors_of(vda("serial_number", "AGV_7.a:b-c")).empty());
 }
 
+TEST(Vda5050ConfigCheck, RefusesC1ControlsInTopicLevelsAndABrokerTopicAsFirstLevel) {
+  for (const char* key : {"serial_number", "manufacturer", "interface_name"}) {
+    EXPECT_TRUE(names(errors_of(vda(key, "\"a\\x85b\"")), std::string("vda5050.") + key)) << key;
+  }
+  const auto e = errors_of(vda("interface_name", "\"$SYS\""));
+  ASSERT_TRUE(names(e, "vda5050.interface_name"));
+  EXPECT_TRUE(names(e, "'$'"));
+  EXPECT_TRUE(errors_of(vda("serial_number", "\"$agv-1\"")).empty());  // not the first level
+}
+
 TEST(Vda5050ConfigCheck, RefusesIdsLongerThanAnInstantActionMayCarry) {
   EXPECT_TRUE(
       names(errors_of(vda("serial_number", std::string(257, 'a'))), "vda5050.serial_number"));

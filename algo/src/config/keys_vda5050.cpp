@@ -66,6 +66,16 @@ bool has_control(std::string_view s) {
   return false;
 }
 
+// U+0080..U+009F as UTF-8 (C2 80..C2 9F): MQTT 3.1.1 section 1.5.3 says a topic should not
+// carry these any more than U+0001..U+001F.
+bool has_c1_control(std::string_view s) {
+  for (std::size_t i = 0; i + 1 < s.size(); ++i) {
+    if (static_cast<unsigned char>(s[i]) == 0xC2 && static_cast<unsigned char>(s[i + 1]) <= 0x9F)
+      return true;
+  }
+  return false;
+}
+
 // A string carried in a JSON message (nlohmann-json refuses to write one that is not UTF-8).
 bool json_text(const KeyError& error, const std::string& key, const std::string& v) {
   if (!is_valid_utf8(v)) {
@@ -83,16 +93,25 @@ bool json_text(const KeyError& error, const std::string& key, const std::string&
 
 // One level of interfaceName/vN/manufacturer/serialNumber/topic: MQTT forbids the wildcards in a
 // topic that is published to, '/' would add a level, NUL ends the string in the client library.
-void topic_level(const KeyError& error, const std::string& key, const std::string& v) {
+// first: the topic's first level (interfaceName).
+void topic_level(const KeyError& error, const std::string& key, const std::string& v,
+                 bool first = false) {
   if (v.empty()) {
     error(key, "empty: it is a topic level (interfaceName/vN/manufacturer/serialNumber/topic)");
     return;
   }
   if (!json_text(error, key, v)) return;
-  if (v.find_first_of(std::string_view("+#/\0", 4)) != std::string::npos || has_control(v)) {
+  if (v.find_first_of(std::string_view("+#/\0", 4)) != std::string::npos || has_control(v) ||
+      has_c1_control(v)) {
     error(key, "'" + escape_for_log(v) +
                    "' contains '+', '#', '/' or a control character, which an MQTT topic level "
                    "cannot carry (wildcards, level separator)");
+    return;
+  }
+  if (first && v.front() == '$') {
+    error(key, "'" + escape_for_log(v) +
+                   "' begins with '$', which marks the broker's own topics ($SYS): the first "
+                   "topic level cannot");
   }
 }
 
@@ -100,7 +119,7 @@ void topic_level(const KeyError& error, const std::string& key, const std::strin
 
 void check_vda5050_values(const Config& cfg, const KeyError& error) {
   const Vda5050Section& v = cfg.vda5050;
-  topic_level(error, "vda5050.interface_name", v.interface_name);
+  topic_level(error, "vda5050.interface_name", v.interface_name, true);
   topic_level(error, "vda5050.manufacturer", v.manufacturer);
   topic_level(error, "vda5050.serial_number", v.serial_number);
   json_text(error, "vda5050.map_id", v.map_id);
