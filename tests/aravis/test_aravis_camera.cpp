@@ -106,15 +106,8 @@ class FakeCamera {
 };
 
 agv::hal::CameraConfig small_config(const std::string& id) {
-  agv::hal::CameraConfig c;
-  c.id = id;
-  c.width_px = 320;
-  c.height_px = 240;
-  c.fps = 50.0;
-  c.exposure_us = 2000;
-  c.analogue_gain = 2.0;
-  c.buffer_count = 6;
-  return c;
+  return {.id = id, .width_px = 320, .height_px = 240, .fps = 50.0, .exposure_us = 2000,
+          .analogue_gain = 2.0, .buffer_count = 6};
 }
 
 // Opens the camera, retrying while the fresh fake camera is not yet discoverable.

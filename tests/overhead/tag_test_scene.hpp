@@ -13,19 +13,11 @@ namespace agv::overhead::test {
 inline site::CeilingCamera ceiling_camera(double tag_side_px) {
   site::CeilingCamera c;
   c.id = "cam0";
-  CameraIntrinsics& k = c.intrinsics;
-  k.width_px = 1280;
-  k.height_px = 720;
   // 160 mm tag at 6000 - 400 mm range.
-  k.fx = tag_side_px * 5600.0 / 160.0;
-  k.fy = k.fx * 1.002;
-  k.cx = 641.3;
-  k.cy = 357.8;
-  k.k1 = -0.08;
-  k.k2 = 0.02;
-  k.p1 = 0.0004;
-  k.p2 = -0.0003;
-  k.k3 = 0.0;
+  const double f_px = tag_side_px * 5600.0 / 160.0;
+  c.intrinsics = {.width_px = 1280, .height_px = 720, .fx = f_px, .fy = f_px * 1.002,
+                  .cx = 641.3, .cy = 357.8, .k1 = -0.08, .k2 = 0.02, .p1 = 0.0004,
+                  .p2 = -0.0003};
   // Looking down (image right = site +x, image down = site -y), turned 0.2 rad about the optical
   // axis and tilted 3 degrees about the image x axis.
   const double a = 0.2, t = 3.0 * kPi / 180.0;

@@ -15,13 +15,7 @@ using Eigen::Matrix3d;
 using Eigen::Vector3d;
 
 CameraIntrinsics forward_camera() {
-  CameraIntrinsics k;
-  k.width_px = 1280;
-  k.height_px = 800;
-  k.fx = k.fy = 900.0;
-  k.cx = 639.5;
-  k.cy = 399.5;
-  return k;
+  return {.width_px = 1280, .height_px = 800, .fx = 900.0, .fy = 900.0, .cx = 639.5, .cy = 399.5};
 }
 
 TEST(RangingModels, SizeRangeIsSimilarTrianglesWithFirstOrderVariance) {
@@ -57,14 +51,8 @@ TEST(RangingModels, MountAxes) {
 }
 
 RangingMount tilted_mount() {
-  RangingMount m;
-  m.x_mm = 350.0;
-  m.y_mm = -120.0;
-  m.z_mm = 900.0;
-  m.roll_rad = 0.03;
-  m.pitch_rad = -0.05;
-  m.yaw_rad = 0.4;
-  return m;
+  return {.x_mm = 350.0, .y_mm = -120.0, .z_mm = 900.0, .roll_rad = 0.03, .pitch_rad = -0.05,
+          .yaw_rad = 0.4};
 }
 
 TEST(RangingModels, CameraPointToVehicleRangeBearingMatchesDirectGeometry) {

@@ -17,26 +17,12 @@ namespace agv::ranging {
 namespace {
 
 CameraIntrinsics small_camera() {
-  CameraIntrinsics k;
-  k.width_px = 640;
-  k.height_px = 400;
-  k.fx = 600.0;
-  k.fy = 600.0;
-  k.cx = 321.5;
-  k.cy = 198.0;
-  k.k1 = -0.06;
-  k.k2 = 0.01;
-  return k;
+  return {.width_px = 640, .height_px = 400, .fx = 600.0, .fy = 600.0, .cx = 321.5, .cy = 198.0,
+          .k1 = -0.06, .k2 = 0.01};
 }
 
 RangingMount forward_mount() {
-  RangingMount m;
-  m.x_mm = 300.0;
-  m.y_mm = 40.0;
-  m.z_mm = 1000.0;
-  m.pitch_rad = 0.02;
-  m.yaw_rad = -0.03;
-  return m;
+  return {.x_mm = 300.0, .y_mm = 40.0, .z_mm = 1000.0, .pitch_rad = 0.02, .yaw_rad = -0.03};
 }
 
 // A rack face at x = 4 m facing -x with landmarks on it, one more on a pillar to the left.

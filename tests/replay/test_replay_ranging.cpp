@@ -30,21 +30,10 @@ constexpr int kFrames = 10;
 const Pose2 kTruth{1000.0, 2000.0, 0.0};
 
 CameraIntrinsics ranging_intrinsics() {
-  CameraIntrinsics k;
-  k.width_px = 640;
-  k.height_px = 400;
-  k.fx = k.fy = 400.0;
-  k.cx = 319.5;
-  k.cy = 199.5;
-  return k;
+  return {.width_px = 640, .height_px = 400, .fx = 400.0, .fy = 400.0, .cx = 319.5, .cy = 199.5};
 }
 
-ranging::RangingMount ranging_mount() {
-  ranging::RangingMount m;
-  m.x_mm = 300.0;
-  m.z_mm = 1000.0;
-  return m;
-}
+ranging::RangingMount ranging_mount() { return {.x_mm = 300.0, .z_mm = 1000.0}; }
 
 // A rack face 2.5 m ahead with two 150 mm tags 3 m apart, 62 deg apart as seen from the truth.
 sim::SiteScene scene() {

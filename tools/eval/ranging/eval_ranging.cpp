@@ -37,13 +37,7 @@ using ranging_eval::kNees3Sigma;
 bool pose_cov_closed_form = false;
 
 CameraIntrinsics eval_camera() {
-  CameraIntrinsics k;
-  k.width_px = 1280;
-  k.height_px = 800;
-  k.fx = k.fy = 1000.0;
-  k.cx = 639.5;
-  k.cy = 399.5;
-  return k;
+  return {.width_px = 1280, .height_px = 800, .fx = 1000.0, .fy = 1000.0, .cx = 639.5, .cy = 399.5};
 }
 
 // A landmark as the simulation knows it: centre and face normal in V, world position.
