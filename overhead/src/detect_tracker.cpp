@@ -2,7 +2,8 @@
 // thread queues the payloads; this thread decodes them (a refused message is counted by reason
 // and named on stderr, never applied) and hands each frame's tags to TrackerCore::apply_tags. The
 // tracks are published on the detections' clock: every tick up to a frame's exposure before the
-// frame, as replay does with its arrival order.
+// frame, as replay does with its arrival order. With diag.enabled its page and /metrics carry
+// the messages' counts (refusals by reason) and the vehicles' tracks.
 #include <mosquitto.h>
 
 #include <algorithm>
@@ -19,6 +20,7 @@
 
 #include "core.hpp"
 #include "detect.hpp"
+#include "diag.hpp"
 #include "inputs.hpp"
 
 namespace agv::overhead_app {
@@ -104,8 +106,14 @@ class DetectionsIn {
 
 struct BusCounters {
   std::uint64_t messages = 0, refused = 0, seq_gaps = 0;
-  std::map<std::string, std::uint64_t> refused_by_reason;
-  std::map<std::string, std::uint64_t> next_seq;  // per camera id
+  std::map<std::string, std::uint64_t> refused_by_reason;  // every reason, from 0
+  std::map<std::string, std::uint64_t> next_seq;           // per camera id
+  BusCounters() {
+    // kTooManyTags is the last reason: a series per reason from the start, so a rate over
+    // /metrics sees the first refusal.
+    for (int r = 1; r <= static_cast<int>(overhead::MsgReason::kTooManyTags); ++r)
+      refused_by_reason[reason_name(static_cast<overhead::MsgReason>(r))] = 0;
+  }
 };
 
 // One payload: decoded, checked, applied. `ticks` publishes up to a time.
@@ -138,9 +146,60 @@ void print_bus_summary(const BusCounters& n, const TrackerCore& core, std::uint6
       "restricted decodes refused)\n",
       u(n.messages), u(n.refused), u(n.seq_gaps), u(overflow), u(r.tags), u(r.unknown_ids),
       u(r.no_fix), u(r.restricted_refused));
-  for (const auto& [reason, count] : n.refused_by_reason)
-    std::printf("agvloc-overhead run: refused %s: %llu\n", reason.c_str(), u(count));
+  for (const auto& [reason, count] : n.refused_by_reason) {
+    if (count > 0) std::printf("agvloc-overhead run: refused %s: %llu\n", reason.c_str(), u(count));
+  }
 }
+
+// The diagnostics page of the broker-fed tracker: its counters and every vehicle's track at the
+// newest tick (detections' clock); no camera of its own.
+class BusDiagFeeder {
+ public:
+  BusDiagFeeder(const OverheadConfig& cfg, const site::Site& site) : server_(cfg.diag) {
+    enabled_ = cfg.diag.enabled;
+    for (const site::FleetAgv& a : site.fleet) agv_ids_.push_back(a.id);
+  }
+  bool start(const TrackerCore& core, std::string* error) {
+    if (!enabled_) return true;
+    if (!server_.start(error)) return false;
+    server_.attach(core.site(), core.config().search);
+    const std::string& host = core.config().diag.bind_address;
+    const bool v6 = host.find(':') != std::string::npos;
+    std::fprintf(stderr, "agvloc-overhead run: diag: serving http://%s%s%s:%d/\n", v6 ? "[" : "",
+                 host.c_str(), v6 ? "]" : "", server_.port());
+    return true;
+  }
+  // At most every kMinPeriod of the host's clock, and whenever `now` (the queue ran empty).
+  void update(const BusCounters& n, const TrackerCore& core, std::uint64_t overflow,
+              std::uint64_t ticks, std::int64_t t_ns, bool now) {
+    const auto wall = std::chrono::steady_clock::now();
+    if (!enabled_ || (!now && wall - last_ < kMinPeriod)) return;
+    last_ = wall;
+    DiagView v;
+    v.t_ns = t_ns;
+    v.ticks = ticks;
+    v.has_bus = true;
+    const TrackerCore::RemoteCounters& r = core.remote_counters();
+    v.bus = {n.messages, n.seq_gaps,      overflow, n.refused_by_reason,
+             r.tags,     r.unknown_ids, r.no_fix,   r.restricted_refused};
+    for (std::size_t a = 0; a < agv_ids_.size(); ++a) {
+      AgvDiag g;
+      g.id = agv_ids_[a];
+      g.track = core.tracker().output(a, t_ns);
+      if (g.track.state != overhead::TrackState::kNone) g.source = "tag";
+      v.agvs.push_back(std::move(g));
+    }
+    server_.update(std::move(v));
+  }
+  void stop() { server_.stop(); }
+
+ private:
+  static constexpr std::chrono::milliseconds kMinPeriod{100};
+  bool enabled_ = false;
+  std::vector<std::string> agv_ids_;
+  std::chrono::steady_clock::time_point last_{};
+  OverheadDiag server_;
+};
 
 }  // namespace
 
@@ -156,6 +215,8 @@ int run_broker_tracker(const RunArgs& a) {
   if (!check_site_topic_ids(cfg, site, true, &err)) return command_fail("run", 2, err);
   TrackerCore core(cfg, site);
   if (!core.open_outputs(a.out_dir, &err)) return command_fail("run", 1, err);
+  BusDiagFeeder diag(cfg, site);
+  if (!diag.start(core, &err)) return command_fail("run", 1, err);
   DetectionsIn in;
   const std::string topic = detections_subscription(cfg);
   if (!in.start(cfg.mqtt, topic, &err)) return command_fail("run", 1, err);
@@ -165,16 +226,21 @@ int run_broker_tracker(const RunArgs& a) {
       std::chrono::steady_clock::now() + std::chrono::nanoseconds(std::llround(a.duration_s * 1e9));
   bool started = false;
   std::int64_t next_tick = 0;
+  std::uint64_t ticks_done = 0;
   const auto ticks = [&](std::int64_t t_ns) {
     if (!started) next_tick = t_ns, started = true;
-    for (; next_tick <= t_ns; next_tick += core.period_ns()) core.publish(next_tick);
+    for (; next_tick <= t_ns; next_tick += core.period_ns(), ++ticks_done) core.publish(next_tick);
   };
   BusCounters n;
   std::string payload;
   while (!g_bus_stop.load() && (a.duration_s <= 0.0 || std::chrono::steady_clock::now() < end)) {
-    if (in.pop(&payload, 100)) handle(payload, camera_ids, &core, &n, ticks);
+    const bool got = in.pop(&payload, 100);
+    if (got) handle(payload, camera_ids, &core, &n, ticks);
+    diag.update(n, core, in.overflow(), ticks_done, started ? next_tick - core.period_ns() : 0,
+                !got);
   }
   in.stop();
+  diag.stop();
   if (started) core.publish(next_tick);
   print_bus_summary(n, core, in.overflow());
   if (!core.finish("agvloc-overhead run", site.cameras.size(), &err))

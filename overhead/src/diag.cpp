@@ -121,6 +121,36 @@ void agv_metrics(const DiagView& v, std::string* out) {
   }
 }
 
+void bus_metrics(const BusDiag& b, std::string* out) {
+  const auto total = [out](const char* name, const char* text, std::uint64_t v) {
+    help(out, name, "counter", text);
+    line(out, name, "", static_cast<double>(v));
+  };
+  total("agvloc_overhead_detections_messages_total",
+        "Detections messages taken from the broker, refused ones included", b.messages);
+  help(out, "agvloc_overhead_detections_refused_total", "counter",
+       "Detections messages refused (never applied), by reason");
+  for (const auto& [reason, n] : b.refused) {
+    line(out, "agvloc_overhead_detections_refused_total", "reason=\"" + label(reason) + "\"",
+         static_cast<double>(n));
+  }
+  total("agvloc_overhead_detections_lost_total",
+        "Detections messages lost on the way (skipped sequence numbers)", b.lost);
+  total("agvloc_overhead_detections_dropped_total",
+        "Detections messages dropped undecoded because the tracker was behind", b.dropped_behind);
+  total("agvloc_overhead_detections_tags_total", "Tags of the applied detections messages",
+        b.tags);
+  help(out, "agvloc_overhead_detections_tags_refused_total", "counter",
+       "Tags of applied messages that moved no track, by reason");
+  const std::pair<const char*, std::uint64_t> tags[] = {{"unknown_id", b.unknown_ids},
+                                                        {"no_fix", b.no_fix},
+                                                        {"restricted_decode", b.restricted_refused}};
+  for (const auto& [reason, n] : tags) {
+    line(out, "agvloc_overhead_detections_tags_refused_total",
+         std::string("reason=\"") + reason + "\"", static_cast<double>(n));
+  }
+}
+
 }  // namespace
 
 std::string overhead_metrics_text(const DiagView& v, const HttpCounters& http) {
@@ -149,6 +179,7 @@ std::string overhead_metrics_text(const DiagView& v, const HttpCounters& http) {
   }
   camera_metrics(v, &out);
   agv_metrics(v, &out);
+  if (v.has_bus) bus_metrics(v.bus, &out);
   return out;
 }
 

@@ -9,6 +9,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -41,11 +42,24 @@ struct AgvDiag {
   const char* source = "";      // the last fix: "tag", "tray", or "" when there is no track
 };
 
+// `run --detections-from-broker`: the detections messages taken from the broker and what became
+// of them and of their tags.
+struct BusDiag {
+  std::uint64_t messages = 0;        // refused ones included
+  std::uint64_t lost = 0;            // skipped sequence numbers: lost on the way
+  std::uint64_t dropped_behind = 0;  // never decoded: the tracker's queue was full
+  // Refused messages (never applied) by overhead::reason_name; every reason, 0 included.
+  std::map<std::string, std::uint64_t> refused;
+  std::uint64_t tags = 0, unknown_ids = 0, no_fix = 0, restricted_refused = 0;
+};
+
 struct DiagView {
   std::int64_t t_ns = 0;  // the publish tick (CLOCK_MONOTONIC)
   std::uint64_t ticks = 0, ticks_skipped = 0, frames = 0, frames_dropped = 0;
   std::vector<CameraDiag> cameras;
   std::vector<AgvDiag> agvs;
+  bool has_bus = false;  // the tracker is fed by detector processes: `bus` is filled
+  BusDiag bus;
 };
 
 // /metrics: Prometheus text exposition format 0.0.4.

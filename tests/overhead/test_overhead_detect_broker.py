@@ -1,10 +1,11 @@
 """Scaling out: one `agvloc-overhead detect --replay` process per camera of the two-camera site
 publishing tags to a mosquitto broker of its own, one `run --detections-from-broker` tracking from
 them; the tracks must equal `replay` of the same recordings in one process (same vehicles and
-states, positions within a few mm), and a malformed message is refused and counted, never applied
+states, positions within a few mm), and refused messages (malformed, another version, an unknown
+camera) are counted by reason in the summary and on /metrics, never applied
 (tests/overhead/detect_broker.cmake). Usage: test_overhead_detect_broker.py OVERHEAD_CMD DESK_CMD
 SITE WORK"""
-import math, os, shutil, signal, subprocess, sys, time
+import math, os, re, shutil, signal, subprocess, sys, time, urllib.request
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from mqtt_brokers import start_broker
@@ -28,6 +29,40 @@ def at(row, t_ns):
     dt = (t_ns - row[0]) * 1e-9
     return (row[1] + 1000.0 * row[4] * dt * math.cos(row[3]),
             row[2] + 1000.0 * row[4] * dt * math.sin(row[3]))
+
+
+# Refused by the tracker, never applied: another version, a camera the site does not have, and
+# (last: the test waits for it) a message cut short.
+BAD_MESSAGES = ['{"v":2,"camera":"cam-west","t_ns":1,"seq":0,"tags":[]}',
+                '{"v":1,"camera":"cam-nowhere","t_ns":1,"seq":0,"tags":[]}',
+                '{"v":1,"camera":']
+REFUSED = ["bad_version", "unknown_camera", "not_json"]
+
+
+def check_metrics(log_path, messages, timeout_s=30.0):
+    """The tracker's /metrics counts every message and each refusal by reason (the view is
+    refreshed when its queue runs empty: polled until the count arrives)."""
+    port = int(re.search(r"diag: serving http://127\.0\.0\.1:(\d+)/",
+                         open(log_path).read()).group(1))
+    want = "agvloc_overhead_detections_messages_total %d\n" % messages
+    end = time.time() + timeout_s
+    text = ""
+    while time.time() < end and want not in text:
+        text = urllib.request.urlopen("http://127.0.0.1:%d/metrics" % port, timeout=5).read()
+        text = text.decode()
+        time.sleep(0.1)
+    if want not in text:
+        fail("no '%s' in /metrics:\n%s" % (want.strip(), text))
+    for reason in ["too_large", "bad_version", "unknown_camera", "not_json", "missing_field"]:
+        n = 1 if reason in REFUSED else 0
+        line = 'agvloc_overhead_detections_refused_total{reason="%s"} %d\n' % (reason, n)
+        if line not in text:
+            fail("no '%s' in /metrics:\n%s" % (line.strip(), text))
+    for line in ["agvloc_overhead_detections_lost_total 0\n",
+                 "agvloc_overhead_detections_dropped_total 0\n"]:
+        if line not in text:
+            fail("no '%s' in /metrics:\n%s" % (line.strip(), text))
+    print("metrics: %d messages, refused %s once each" % (messages, ", ".join(REFUSED)))
 
 
 def wait_for(path, text, proc, timeout_s=60.0):
@@ -60,7 +95,8 @@ def main():
     cfg = os.path.join(work, "overhead.yaml")
     with open(cfg, "w") as f:
         f.write("output:\n  mqtt:\n    broker_host: 127.0.0.1\n    port: %d\n"
-                "detections:\n  topic_prefix: site-7\n" % port)
+                "detections:\n  topic_prefix: site-7\ndiag:\n  enabled: true\n  port: 0\n"
+                % port)
     bus = os.path.join(work, "bus")
     log_path = os.path.join(work, "tracker.log")
     tracker = None
@@ -82,12 +118,14 @@ def main():
             if d.returncode != 0 or "%d frames" % FRAMES not in so:
                 fail("detect rc %d:\n%s" % (d.returncode, so))
             print(so.strip())
-        # A malformed message after every detector has gone: the broker forwards in the order it
-        # received, and the tracker handles its queue in order, so once it names this refusal it
-        # has handled every detection before it (no waiting on the clock).
-        subprocess.run([pub, "-h", "127.0.0.1", "-p", str(port), "-t",
-                        "site-7/detections/cam-west", "-m", '{"v":1,"camera":'], check=True)
+        # Refused messages after every detector has gone, a malformed one last: the broker
+        # forwards in the order it received, and the tracker handles its queue in order, so once
+        # it names that refusal it has handled every message before it (no waiting on the clock).
+        for bad in BAD_MESSAGES:
+            subprocess.run([pub, "-h", "127.0.0.1", "-p", str(port), "-t",
+                            "site-7/detections/cam-west", "-m", bad], check=True)
         wait_for(log_path, "detections message refused: not_json", tracker, timeout_s=120.0)
+        check_metrics(log_path, 2 * FRAMES + len(BAD_MESSAGES))
         tracker.send_signal(signal.SIGTERM)
         tracker.wait(60)
     finally:
@@ -98,9 +136,9 @@ def main():
     print(text)
     if tracker.returncode != 0:
         fail("tracker rc %d" % tracker.returncode)
-    want = "%d messages (1 refused, 0 lost by sequence, 0 dropped behind)" % (2 * FRAMES + 1)
-    if want not in text or "refused not_json: 1" not in text:
-        fail("expected '%s' and one not_json refusal" % want)
+    want = "%d messages (3 refused, 0 lost by sequence, 0 dropped behind)" % (2 * FRAMES + 3)
+    if want not in text or any("refused %s: 1" % r not in text for r in REFUSED):
+        fail("expected '%s' and one refusal of each of %s" % (want, REFUSED))
     a, b = final_rows(os.path.join(one, "tracks.csv")), final_rows(os.path.join(bus, "tracks.csv"))
     if sorted(a) != sorted(b) or not a:
         fail("vehicles differ: replay %s, broker %s" % (sorted(a), sorted(b)))

@@ -1,0 +1,51 @@
+// /metrics of the tracker fed by detector processes (`run --detections-from-broker`): every
+// detections message counted, each refusal under its reason, the tags that moved no track
+// (overhead/src/diag.cpp, docs/guide/overhead.md "Diagnostics page and metrics").
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "diag.hpp"
+
+namespace agv::overhead_app {
+namespace {
+
+bool has(const std::string& text, const std::string& line) {
+  return text.find(line + "\n") != std::string::npos;
+}
+
+TEST(OverheadBusMetrics, MessagesAndRefusalsByReason) {
+  DiagView v;
+  v.has_bus = true;
+  v.bus.messages = 52;
+  v.bus.lost = 3;
+  v.bus.dropped_behind = 4;
+  v.bus.refused = {{"bad_version", 1}, {"not_json", 2}, {"unknown_camera", 0}};
+  v.bus.tags = 90;
+  v.bus.unknown_ids = 5;
+  v.bus.no_fix = 6;
+  v.bus.restricted_refused = 7;
+  const std::string t = overhead_metrics_text(v, {});
+  EXPECT_TRUE(has(t, "# TYPE agvloc_overhead_detections_refused_total counter")) << t;
+  EXPECT_TRUE(has(t, "agvloc_overhead_detections_messages_total 52")) << t;
+  EXPECT_TRUE(has(t, "agvloc_overhead_detections_refused_total{reason=\"bad_version\"} 1")) << t;
+  EXPECT_TRUE(has(t, "agvloc_overhead_detections_refused_total{reason=\"not_json\"} 2")) << t;
+  EXPECT_TRUE(has(t, "agvloc_overhead_detections_refused_total{reason=\"unknown_camera\"} 0")) << t;
+  EXPECT_TRUE(has(t, "agvloc_overhead_detections_lost_total 3")) << t;
+  EXPECT_TRUE(has(t, "agvloc_overhead_detections_dropped_total 4")) << t;
+  EXPECT_TRUE(has(t, "agvloc_overhead_detections_tags_total 90")) << t;
+  EXPECT_TRUE(has(t, "agvloc_overhead_detections_tags_refused_total{reason=\"unknown_id\"} 5")) << t;
+  EXPECT_TRUE(has(t, "agvloc_overhead_detections_tags_refused_total{reason=\"no_fix\"} 6")) << t;
+  EXPECT_TRUE(
+      has(t, "agvloc_overhead_detections_tags_refused_total{reason=\"restricted_decode\"} 7"))
+      << t;
+}
+
+TEST(OverheadBusMetrics, NotShownWithoutDetectorProcesses) {
+  const std::string t = overhead_metrics_text(DiagView{}, {});
+  EXPECT_EQ(t.find("agvloc_overhead_detections_"), std::string::npos) << t;
+  EXPECT_NE(t.find("agvloc_overhead_ticks_total"), std::string::npos) << t;
+}
+
+}  // namespace
+}  // namespace agv::overhead_app
