@@ -17,12 +17,6 @@ namespace agv::sim {
 
 namespace {
 
-using detail::sheet_grid;
-using detail::SheetGrid;
-using detail::svg_caption;
-using detail::svg_number;
-using detail::svg_sheet_open;
-
 // apriltag_to_image() of tag36h11: 10 x 10 cells, a white ring of one cell around the 8 x 8
 // black square.
 constexpr int kTagCells = 10;

@@ -17,12 +17,6 @@ namespace agv::sim {
 
 namespace {
 
-using detail::sheet_grid;
-using detail::SheetGrid;
-using detail::svg_caption;
-using detail::svg_number;
-using detail::svg_sheet_open;
-
 // zxing-cpp 1.4 maps setEccLevel(0..8) to QR levels L,L,L,M,M,Q,Q,H,H (level = (e-1)/2);
 // 4 is M. Confirmed by decoding the generated codes in tests/sim.
 constexpr int kZxingEccLevelM = 4;

@@ -60,3 +60,12 @@ inline void svg_caption(std::ostream& os, double cx, double y, const char* text)
 }
 
 }  // namespace agv::sim::detail
+
+namespace agv::sim {
+// The two page generators use these unqualified; the header is internal to this folder.
+using detail::sheet_grid;
+using detail::SheetGrid;
+using detail::svg_caption;
+using detail::svg_number;
+using detail::svg_sheet_open;
+}  // namespace agv::sim

@@ -11,12 +11,6 @@
 
 namespace agv::site {
 
-using plan_detail::kOnLineMm;
-using plan_detail::pd_cross;
-using plan_detail::pd_dot;
-using plan_detail::pd_norm;
-using plan_detail::pd_sub;
-
 void RoutePlanner::Impl::build_grid() {
   double x0 = std::numeric_limits<double>::max(), y0 = x0, x1 = -x0, y1 = -x0;
   for (const Vec2& p : pts) {

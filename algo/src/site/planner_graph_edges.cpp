@@ -15,12 +15,6 @@
 
 namespace agv::site {
 
-using plan_detail::kOnLineMm;
-using plan_detail::pd_cross;
-using plan_detail::pd_dot;
-using plan_detail::pd_norm;
-using plan_detail::pd_sub;
-
 namespace {
 
 // Nodes bucketed by a coarse grid (CSR), so that a node's candidate partners can be taken cell by

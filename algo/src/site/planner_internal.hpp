@@ -43,6 +43,13 @@ using Graph = boost::compressed_sparse_row_graph<boost::directedS, boost::no_pro
 
 namespace agv::site {
 
+// The planner's files use the helpers unqualified; they are internal to this folder.
+using plan_detail::kOnLineMm;
+using plan_detail::pd_cross;
+using plan_detail::pd_dot;
+using plan_detail::pd_norm;
+using plan_detail::pd_sub;
+
 struct RoutePlanner::Impl {
   PlannerParams params;
   plan_detail::FreeSpace free;
@@ -73,8 +80,8 @@ struct RoutePlanner::Impl {
   // edge_blocks' first test, inline: false when edge e lies wholly on one side of the line
   // a + s ab beyond tol_ab (then it cannot block).
   bool may_block(Vec2 a, Vec2 ab, double tol_ab, std::uint32_t e) const {
-    const double s1 = plan_detail::pd_cross(ab, plan_detail::pd_sub(pts[e], a));
-    const double s2 = plan_detail::pd_cross(ab, plan_detail::pd_sub(pts_next[e], a));
+    const double s1 = pd_cross(ab, pd_sub(pts[e], a));
+    const double s2 = pd_cross(ab, pd_sub(pts_next[e], a));
     return !((s1 > tol_ab && s2 > tol_ab) || (s1 < -tol_ab && s2 < -tol_ab));
   }
   void build_graph();

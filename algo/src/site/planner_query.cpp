@@ -13,12 +13,6 @@
 
 namespace agv::site {
 
-using plan_detail::kOnLineMm;
-using plan_detail::pd_cross;
-using plan_detail::pd_dot;
-using plan_detail::pd_norm;
-using plan_detail::pd_sub;
-
 const char* to_string(PlanStatus s) {
   switch (s) {
     case PlanStatus::kOk:
