@@ -76,8 +76,18 @@ std::vector<Key> tracker_keys() {
              "m/s²",
              "White acceleration density of the constant-speed model: higher follows "
              "sharper speed changes, smooths less"),
-      number("tracker.alpha_noise_radps2", AGV_OH_AT(tracker.alpha_noise_radps2), 0.01, 100, 2.0,
-             "rad/s²", "White turn-rate acceleration density: higher follows sharper turns"),
+      number("tracker.alpha_noise_radps2", AGV_OH_AT(tracker.alpha_noise_radps2), 0.01, 100, 0.3,
+             "rad/s²",
+             "White turn-rate acceleration density between turns: lower keeps the turn rate, "
+             "and the heading extrapolated to the publish time, steadier"),
+      number("tracker.maneuver_alpha_noise_radps2",
+             AGV_OH_AT(tracker.maneuver_alpha_noise_radps2), 0, 100, 2.0, "rad/s²",
+             "Density for a fix whose heading shows a turn starting or stopping (beyond "
+             "maneuver_chi2 of the steady prediction); it is gated by this prediction. 0: off "
+             "(such fixes are gated by the steady one)"),
+      number("tracker.maneuver_chi2", AGV_OH_AT(tracker.maneuver_chi2), 1, 1000, 9.0, "",
+             "Squared heading innovation (1 dof) beyond which a fix is taken as a turn's start "
+             "or end"),
       number("tracker.gate_chi2", AGV_OH_AT(tracker.gate_chi2), 1, 1000, 16.27, "",
              "A fix farther than this squared Mahalanobis distance (3 dof) is refused; 16.27 is "
              "chi2 0.999, so a wrong id cannot move another vehicle's track"),

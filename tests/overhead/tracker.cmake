@@ -7,3 +7,7 @@ agv_add_test(test_tracker SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_tracker.cpp
 # checks the predicted corners against the renderer's truth.
 agv_add_test(test_search SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_search.cpp
              LIBS agv_overhead agv_sim LABELS unit overhead)
+# The tracker on the simulated fleet's motion: turns on the spot that start and stop in a step,
+# fixes as precise as a 60 px tag's (synthetic).
+agv_add_test(test_tracker_turns SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_tracker_turns.cpp
+             LIBS agv_overhead LABELS unit overhead)

@@ -59,6 +59,34 @@ tracker_detail::ProcessNoise noise_of(const TrackerParams& p) {
   return {a * a, p.alpha_noise_radps2 * p.alpha_noise_radps2};
 }
 
+// The steady model and the one for a turn's start or end (tracker.hpp).
+struct Models {
+  ProcessNoise steady, maneuver;
+  bool maneuvers = false;
+  double maneuver_chi2 = 0.0;
+};
+
+Models models_of(const TrackerParams& p) {
+  Models m;
+  m.steady = noise_of(p);
+  m.maneuver = m.steady;
+  m.maneuver.alpha = p.maneuver_alpha_noise_radps2 * p.maneuver_alpha_noise_radps2;
+  m.maneuvers = p.maneuver_alpha_noise_radps2 > 0.0;
+  m.maneuver_chi2 = p.maneuver_chi2;
+  return m;
+}
+
+// The prior of fix m dt_s after b (b carrying the calibration error bias): the steady
+// prediction, or the maneuver one when the fix's heading is beyond the steady one's reach.
+Belief prior_for(const Belief& b, double dt_s, const Mat3& bias, const Measurement& m,
+                 const Models& q) {
+  Belief prior = tracker_detail::predict(b, dt_s, q.steady);
+  if (q.maneuvers && !(tracker_detail::heading_distance2(prior, bias, m) <= q.maneuver_chi2)) {
+    prior = tracker_detail::predict(b, dt_s, q.maneuver);
+  }
+  return prior;
+}
+
 // The newest entry at or before t (the oldest when t precedes them all), predicted to t.
 Belief belief_at(const TrackCore& tr, std::int64_t t_ns, const tracker_detail::ProcessNoise& q) {
   std::size_t j = tr.count - 1;
@@ -103,8 +131,7 @@ std::size_t insertion_index(const TrackCore& tr, std::int64_t t_ns) {
 
 // Puts e at index k (0 < k <= count), dropping the oldest entry when the ring is full, and
 // replays the entries after it. Returns the number of entries replayed.
-std::size_t insert_and_replay(TrackCore* tr, std::size_t k, const TrackEntry& e,
-                              const tracker_detail::ProcessNoise& q) {
+std::size_t insert_and_replay(TrackCore* tr, std::size_t k, const TrackEntry& e, const Models& q) {
   if (tr->count == tr->ring.size()) {
     tr->head = (tr->head + 1) % tr->ring.size();
     --tr->count;
@@ -117,7 +144,8 @@ std::size_t insert_and_replay(TrackCore* tr, std::size_t k, const TrackEntry& e,
     const TrackEntry& prev = tr->at(j - 1);
     TrackEntry& cur = tr->at(j);
     cur.belief = tracker_detail::update(
-        tracker_detail::predict(prev.belief, seconds(diff_ns(cur.t_ns, prev.t_ns)), q), cur.fix);
+        prior_for(prev.belief, seconds(diff_ns(cur.t_ns, prev.t_ns)), prev.fix.bias, cur.fix, q),
+        cur.fix);
   }
   return tr->count - 1 - k;
 }
@@ -149,6 +177,10 @@ std::string validate(const TrackerParams& p) {
   if (!(std::isfinite(p.alpha_noise_radps2) && p.alpha_noise_radps2 >= 0.0)) {
     return "alpha_noise_radps2 must be finite and >= 0";
   }
+  if (!(std::isfinite(p.maneuver_alpha_noise_radps2) && p.maneuver_alpha_noise_radps2 >= 0.0)) {
+    return "maneuver_alpha_noise_radps2 must be finite and >= 0";
+  }
+  if (!td::finite_positive(p.maneuver_chi2)) return "maneuver_chi2 must be finite and > 0";
   if (!td::finite_positive(p.gate_chi2)) return "gate_chi2 must be finite and > 0";
   if (p.confirm_fixes < 1) return "confirm_fixes must be >= 1";
   if (!td::duration_ok(p.confirm_window_ms)) return "confirm_window_ms must be in (0, 3.6e6]";
@@ -194,7 +226,7 @@ FixResult FleetTracker::add_fix(std::size_t agv, std::int64_t t_ns, const TagFix
     return FixResult::kInvalid;
   }
   Track& tr = tracks_[agv];
-  const td::ProcessNoise q = td::noise_of(p_);
+  const td::Models models = td::models_of(p_);
   std::size_t k = 0;
   td::Belief prior;
   td::Mat3 prior_bias = td::Mat3::Zero();
@@ -202,8 +234,9 @@ FixResult FleetTracker::add_fix(std::size_t agv, std::int64_t t_ns, const TagFix
   if (!restart) {
     k = td::insertion_index(tr, t_ns);
     if (k == tr.count) {
-      prior = td::predict(tr.newest().belief, td::seconds(td::diff_ns(t_ns, tr.newest().t_ns)), q);
       prior_bias = tr.newest().fix.bias;
+      prior = td::prior_for(tr.newest().belief, td::seconds(td::diff_ns(t_ns, tr.newest().t_ns)),
+                            prior_bias, m, models);
       const TrackState now = td::state_at(tr, t_ns, td::position_sigma_mm(prior.p), p_);
       if (now == TrackState::kLost) ++counters_.lost;
       restart = now == TrackState::kNone || now == TrackState::kLost;
@@ -213,8 +246,9 @@ FixResult FleetTracker::add_fix(std::size_t agv, std::int64_t t_ns, const TagFix
       return FixResult::kTooOld;
     } else {
       const td::TrackEntry& before = tr.at(k - 1);
-      prior = td::predict(before.belief, td::seconds(td::diff_ns(t_ns, before.t_ns)), q);
       prior_bias = before.fix.bias;
+      prior = td::prior_for(before.belief, td::seconds(td::diff_ns(t_ns, before.t_ns)), prior_bias,
+                            m, models);
     }
   }
   if (restart) {
@@ -230,7 +264,9 @@ FixResult FleetTracker::add_fix(std::size_t agv, std::int64_t t_ns, const TagFix
     ++counters_.gated;
     return FixResult::kGated;
   }
-  if (td::insert_and_replay(&tr, k, {t_ns, td::update(prior, m), m}, q) > 0) ++counters_.replays;
+  if (td::insert_and_replay(&tr, k, {t_ns, td::update(prior, m), m}, models) > 0) {
+    ++counters_.replays;
+  }
   ++counters_.applied;
   if (tr.state == TrackState::kCoasting ||
       (tr.state == TrackState::kTentative &&

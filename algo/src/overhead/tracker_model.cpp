@@ -124,6 +124,12 @@ double distance2(const Belief& b, const Mat3& track_bias, const Measurement& m) 
   return y.dot(llt.solve(y));
 }
 
+double heading_distance2(const Belief& b, const Mat3& track_bias, const Measurement& m) {
+  const double s = b.p(2, 2) + track_bias(2, 2) + m.r(2, 2) + m.bias(2, 2);
+  const double y = wrap_angle_rad(m.z(2) - b.x(2));
+  return y * y / s;
+}
+
 Belief update(const Belief& b, const Measurement& m) {
   const Mat3 s = b.p.topLeftCorner<3, 3>() + m.r;
   const Eigen::LLT<Mat3> llt(s);

@@ -50,6 +50,9 @@ bool make_measurement(const TagFix& fix, Measurement* m);
 // track_bias: the calibration error the belief carries.
 double distance2(const Belief& b, const Mat3& track_bias, const Measurement& m);
 
+// Squared heading innovation of the fix over its variance (1 dof, wrapped); track_bias as above.
+double heading_distance2(const Belief& b, const Mat3& track_bias, const Measurement& m);
+
 // Eq. 17-19 with the covariance in Joseph form (stays symmetric positive definite).
 Belief update(const Belief& b, const Measurement& m);
 

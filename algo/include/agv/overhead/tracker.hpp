@@ -31,7 +31,14 @@ struct TrackerParams {
   // accelerations (over one second the speed random-walks by accel_noise_mps2, the turn rate by
   // alpha_noise_radps2), integrated over each prediction step through the motion model.
   double accel_noise_mps2 = 1.0;
-  double alpha_noise_radps2 = 2.0;
+  double alpha_noise_radps2 = 0.3;
+  // A vehicle that starts or stops turning changes its turn rate in a step that a density small
+  // enough to keep the turn rate still between turns does not follow (it would gate the fix): a
+  // fix whose heading innovation under the steady prediction exceeds maneuver_chi2 (chi2, 1 dof)
+  // is predicted with maneuver_alpha_noise_radps2 instead, and gated by that prediction, so the
+  // new turn rate is taken from the fixes at once. 0: off.
+  double maneuver_alpha_noise_radps2 = 2.0;
+  double maneuver_chi2 = 9.0;
   // A fix whose squared Mahalanobis distance exceeds this (chi2, 3 dof, 0.999) is refused.
   double gate_chi2 = 16.27;
   int confirm_fixes = 3;  // fixes within confirm_window_ms to confirm a track
