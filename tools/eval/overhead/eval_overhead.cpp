@@ -21,6 +21,7 @@
 
 #include "agv/overhead/camera_frame.hpp"
 #include "metrics.hpp"
+#include "trace.hpp"
 #include "world.hpp"
 
 namespace {
@@ -44,6 +45,7 @@ struct Options {
   bool clean = false;
   std::string tray_model;  // --tray-model: the learned tray detector instead of the classical fit
   std::string reacquire_model;  // --reacquire-model: re-acquisition of lost covered vehicles
+  std::string trace_prefix;     // --trace-prefix: per-tick and per-fix CSVs (trace.hpp)
 };
 
 const char* kUsage =
@@ -54,7 +56,7 @@ const char* kUsage =
     "  [--calib-sigma-mm S] [--calib-sigma-deg S]\n"
     "  [--bit-errors N] [--bit-errors-from-s S] [--latency-ms L] [--latency-spread-ms L]\n"
     "  [--full-sweep-every N] [--apriltag-every N] [--max-wall-s S] [--no-distortion] [--clean]\n"
-    "  [--tray-model ONNX] [--reacquire-model ONNX]\n";
+    "  [--tray-model ONNX] [--reacquire-model ONNX] [--trace-prefix PATH_PREFIX]\n";
 
 bool parse(int argc, char** argv, Options* o, std::string* error) {
   std::map<std::string, double*> num{{"--cameras-height-mm", &o->world.camera_height_mm},
@@ -101,6 +103,10 @@ bool parse(int argc, char** argv, Options* o, std::string* error) {
     }
     if (a == "--reacquire-model") {
       o->reacquire_model = v;
+      continue;
+    }
+    if (a == "--trace-prefix") {
+      o->trace_prefix = v;
       continue;
     }
     if (a == "--seed") {
@@ -380,6 +386,11 @@ int run(const Options& o) {
   agv::overhead::FleetTracker tracker(site.fleet.size());
   if (!o.tray_model.empty() && !load_tray_model(o.tray_model, &proc, false)) return 2;
   if (!o.reacquire_model.empty() && !load_tray_model(o.reacquire_model, &proc, true)) return 2;
+  agv::eval::Trace trace;
+  if (!o.trace_prefix.empty() && !trace.open(o.trace_prefix, &error)) {
+    std::fprintf(stderr, "eval_overhead: %s\n", error.c_str());
+    return 2;
+  }
 
   const agv::sim::SiteRenderParams rp =
       o.clean ? agv::sim::SiteRenderParams{} : agv::sim::realistic_site_params();
@@ -397,7 +408,9 @@ int run(const Options& o) {
     tracker.update_states(t);
     const std::vector<agv::sim::AgvState> truth = world.states_at(t);
     const std::vector<std::uint8_t> covered = world.tags_covered_at(t);
-    agv::eval::score_tick(tracker.outputs(t), truth, in_some_view(world, truth), &score, &covered);
+    const std::vector<agv::overhead::TrackOutput> outs = tracker.outputs(t);
+    agv::eval::score_tick(outs, truth, in_some_view(world, truth), &score, &covered);
+    trace.tick(t, outs, truth);
   };
   double render_s = 0.0;
   std::size_t frame_index = 0;
@@ -435,6 +448,7 @@ int run(const Options& o) {
       score.apriltag_ms.push_back(apriltag_full_frame_ms(img));
     }
     agv::eval::score_detections(dets, corners, ok, in_image, flipped, tracked, &score);
+    if (trace.active()) trace.fixes(fe.arrival_ns, dets, scene.agvs);
     ++frame_index;
   }
   while (next_tick <= end_ns) {

@@ -1,0 +1,149 @@
+// replay_trace: the fixes of an eval_overhead trace (--trace-prefix) through a FleetTracker again,
+// in their arrival order, scored at the trace's output ticks against its truth: the tracker's
+// filter compared on the same fixes in a second instead of re-rendering a run (the camera
+// pipeline's windows follow the original run's tracker, so this holds while tracking is not lost).
+//   replay_trace PREFIX [--alpha-noise A] [--maneuver-alpha-noise A] [--maneuver-chi2 C]
+//     [--accel-noise A]
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <Eigen/Dense>
+
+#include "agv/overhead/tracker.hpp"
+#include "metrics.hpp"
+
+namespace {
+
+using Row = std::map<std::string, std::string>;
+
+// A CSV with a header line as rows of named fields; empty when the file cannot be read.
+std::vector<Row> read_csv(const std::string& path) {
+  std::ifstream f(path);
+  std::string line;
+  std::vector<Row> rows;
+  if (!std::getline(f, line)) return rows;
+  std::vector<std::string> names;
+  std::stringstream hs(line);
+  for (std::string n; std::getline(hs, n, ',');) names.push_back(n);
+  while (std::getline(f, line)) {
+    std::stringstream ls(line);
+    Row r;
+    std::size_t i = 0;
+    for (std::string v; std::getline(ls, v, ',') && i < names.size(); ++i) r[names[i]] = v;
+    rows.push_back(std::move(r));
+  }
+  return rows;
+}
+
+double num(const Row& r, const std::string& k) { return std::strtod(r.at(k).c_str(), nullptr); }
+std::int64_t ns(const Row& r, const std::string& k) { return std::llround(num(r, k) * 1e9); }
+
+struct Stats {
+  std::vector<double> pos, head;
+  double nees = 0.0;
+  std::size_t nees_n = 0, in95 = 0;
+};
+
+void score(const agv::overhead::TrackOutput& o, const Row& t, Stats* s) {
+  if (!o.valid()) return;
+  const double ex = o.pose.x_mm - num(t, "true_x_mm"), ey = o.pose.y_mm - num(t, "true_y_mm");
+  const double et = agv::wrap_angle_rad(o.pose.theta_rad - num(t, "true_theta_rad"));
+  s->pos.push_back(std::hypot(ex, ey));
+  s->head.push_back(std::abs(agv::rad_to_deg(et)));
+  Eigen::Matrix3d p;
+  for (int i = 0; i < 9; ++i) p(i / 3, i % 3) = o.cov[static_cast<std::size_t>(i)];
+  const Eigen::Vector3d e(ex, ey, et);
+  const double d2 = e.dot(p.ldlt().solve(e));
+  s->nees += d2;
+  ++s->nees_n;
+  if (d2 <= 7.815) ++s->in95;
+}
+
+// Tracker settings from the options after the prefix; false with a message on a bad one.
+bool parse(int argc, char** argv, agv::overhead::TrackerParams* params) {
+  if (argc < 2) {
+    std::fprintf(stderr,
+                 "usage: replay_trace PREFIX [--alpha-noise A] [--maneuver-alpha-noise A] "
+                 "[--maneuver-chi2 C] [--accel-noise A]\n");
+    return false;
+  }
+  for (int i = 2; i < argc; i += 2) {
+    const std::string a = argv[i];
+    char* end = nullptr;
+    const double v = i + 1 < argc ? std::strtod(argv[i + 1], &end) : 0.0;
+    if (i + 1 >= argc || end == argv[i + 1] || *end != '\0') {
+      std::fprintf(stderr, "replay_trace: %s: missing or bad value\n", a.c_str());
+      return false;
+    }
+    if (a == "--alpha-noise") {
+      params->alpha_noise_radps2 = v;
+    } else if (a == "--maneuver-alpha-noise") {
+      params->maneuver_alpha_noise_radps2 = v;
+    } else if (a == "--maneuver-chi2") {
+      params->maneuver_chi2 = v;
+    } else if (a == "--accel-noise") {
+      params->accel_noise_mps2 = v;
+    } else {
+      std::fprintf(stderr, "replay_trace: unknown option %s\n", a.c_str());
+      return false;
+    }
+  }
+  const std::string err = agv::overhead::validate(*params);
+  if (!err.empty()) std::fprintf(stderr, "replay_trace: %s\n", err.c_str());
+  return err.empty();
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  agv::overhead::TrackerParams params;
+  if (!parse(argc, argv, &params)) return 2;
+  const std::string prefix = argv[1];
+  const std::vector<Row> fixes = read_csv(prefix + "_fixes.csv");
+  const std::vector<Row> ticks = read_csv(prefix + "_ticks.csv");
+  if (fixes.empty() || ticks.empty()) {
+    std::fprintf(stderr, "replay_trace: cannot read %s_fixes.csv / _ticks.csv\n", prefix.c_str());
+    return 2;
+  }
+  std::size_t n = 0;
+  for (const Row& t : ticks) n = std::max(n, static_cast<std::size_t>(num(t, "agv")) + 1);
+  agv::overhead::FleetTracker tracker(n, params);
+  Stats s;
+  std::size_t f = 0;
+  for (std::size_t k = 0; k < ticks.size(); k += n) {
+    const std::int64_t t_ns = ns(ticks[k], "t_s");
+    // Ticks are scored before the frames that arrive at or after them, as eval_overhead does.
+    for (; f < fixes.size() && ns(fixes[f], "arrival_s") < t_ns; ++f) {
+      agv::overhead::TagFix fx;
+      fx.pose = {num(fixes[f], "x_mm"), num(fixes[f], "y_mm"), num(fixes[f], "fix_theta_rad")};
+      for (std::size_t i = 0; i < 9; ++i) {
+        fx.cov[i] = num(fixes[f], "cov" + std::to_string(i));
+        fx.cov_camera[i] = num(fixes[f], "cov_camera" + std::to_string(i));
+      }
+      tracker.add_fix(static_cast<std::size_t>(num(fixes[f], "agv")), ns(fixes[f], "t_s"), fx);
+    }
+    tracker.update_states(t_ns);
+    for (std::size_t j = k; j < k + n && j < ticks.size(); ++j) {
+      score(tracker.output(static_cast<std::size_t>(num(ticks[j], "agv")), t_ns), ticks[j], &s);
+    }
+  }
+  const auto& c = tracker.counters();
+  std::printf(
+      "valid %zu: position p50 %.2f p95 %.2f max %.2f mm; heading p50 %.3f p95 %.3f max %.3f "
+      "deg; NEES mean %.2f, within chi2 95 %% %.1f %%; applied %llu gated %llu started %llu\n",
+      s.pos.size(), agv::eval::percentile(s.pos, 0.5), agv::eval::percentile(s.pos, 0.95),
+      agv::eval::percentile(s.pos, 1.0), agv::eval::percentile(s.head, 0.5),
+      agv::eval::percentile(s.head, 0.95), agv::eval::percentile(s.head, 1.0),
+      s.nees / static_cast<double>(std::max<std::size_t>(1, s.nees_n)),
+      100.0 * static_cast<double>(s.in95) / static_cast<double>(std::max<std::size_t>(1, s.nees_n)),
+      static_cast<unsigned long long>(c.applied), static_cast<unsigned long long>(c.gated),
+      static_cast<unsigned long long>(c.started));
+  return 0;
+}
