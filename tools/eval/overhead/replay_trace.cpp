@@ -47,8 +47,8 @@ std::int64_t ns(const Row& r, const std::string& k) { return std::llround(num(r,
 
 struct Stats {
   std::vector<double> pos, head;
-  double nees = 0.0;
-  std::size_t nees_n = 0, in95 = 0;
+  double nees = 0.0, head_nees = 0.0;  // 3 dof (x, y, theta) and the heading's alone
+  std::size_t nees_n = 0, in95 = 0, head_in3 = 0;
 };
 
 void score(const agv::overhead::TrackOutput& o, const Row& t, Stats* s) {
@@ -64,6 +64,9 @@ void score(const agv::overhead::TrackOutput& o, const Row& t, Stats* s) {
   s->nees += d2;
   ++s->nees_n;
   if (d2 <= 7.815) ++s->in95;
+  const double h2 = et * et / p(2, 2);
+  s->head_nees += h2;
+  if (h2 <= 9.0) ++s->head_in3;
 }
 
 // Tracker settings from the options after the prefix; false with a message on a bad one.
@@ -137,12 +140,16 @@ int main(int argc, char** argv) {
   const auto& c = tracker.counters();
   std::printf(
       "valid %zu: position p50 %.2f p95 %.2f max %.2f mm; heading p50 %.3f p95 %.3f max %.3f "
-      "deg; NEES mean %.2f, within chi2 95 %% %.1f %%; applied %llu gated %llu started %llu\n",
+      "deg; NEES mean %.2f, within chi2 95 %% %.1f %%; heading alone: NEES mean %.2f (1 if "
+      "honest), within 3 sigma %.1f %%; applied %llu gated %llu started %llu\n",
       s.pos.size(), agv::eval::percentile(s.pos, 0.5), agv::eval::percentile(s.pos, 0.95),
       agv::eval::percentile(s.pos, 1.0), agv::eval::percentile(s.head, 0.5),
       agv::eval::percentile(s.head, 0.95), agv::eval::percentile(s.head, 1.0),
       s.nees / static_cast<double>(std::max<std::size_t>(1, s.nees_n)),
       100.0 * static_cast<double>(s.in95) / static_cast<double>(std::max<std::size_t>(1, s.nees_n)),
+      s.head_nees / static_cast<double>(std::max<std::size_t>(1, s.nees_n)),
+      100.0 * static_cast<double>(s.head_in3) /
+          static_cast<double>(std::max<std::size_t>(1, s.nees_n)),
       static_cast<unsigned long long>(c.applied), static_cast<unsigned long long>(c.gated),
       static_cast<unsigned long long>(c.started));
   return 0;
