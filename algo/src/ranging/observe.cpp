@@ -6,6 +6,7 @@
 #include <opencv2/core.hpp>
 
 #include "agv/overhead/tag_detect.hpp"
+#include "agv/ranging/square_pose.hpp"
 #include "observe_internal.hpp"
 
 namespace agv::ranging {
@@ -70,31 +71,40 @@ bool inside_margin(const std::array<Vec2, 4>& corners_px, const CameraIntrinsics
   return true;
 }
 
-// IPPE's (up to two) poses of the square, each refined by Levenberg-Marquardt; returns the index
-// of the one with the smaller squared reprojection error (-1 when none), that error and the other
-// solution's (-1 when there is none).
-int best_square_pose(const std::vector<cv::Point3d>& object, const std::vector<cv::Point2d>& image,
-                     const cv::Matx33d& K, std::vector<cv::Mat>* rvecs, std::vector<cv::Mat>* tvecs,
+// IPPE's (up to two) poses of the square, each refined by Levenberg-Marquardt on the undistorted
+// corners (refine_square_pose); returns the index of the one with the smaller squared reprojection
+// error (-1 when none), that error and the other solution's (-1 when there is none).
+int best_square_pose(const CameraIntrinsics& k, double side_mm, const cv::Matx33d& K,
+                     const std::array<Vec2, 4>& image, std::array<SquarePose, 2>* poses,
                      double* best_err, double* other_err) {
-  const cv::Mat no_dist;
+  const double h = side_mm / 2.0;
+  std::array<cv::Point3d, 4> object = {{{-h, h, 0.0}, {h, h, 0.0}, {h, -h, 0.0}, {-h, -h, 0.0}}};
+  std::array<cv::Point2d, 4> image_cv;
+  for (std::size_t i = 0; i < 4; ++i) image_cv[i] = {image[i].x, image[i].y};
+  std::vector<cv::Mat> rvecs, tvecs;
   int n = 0;
   try {
-    n = cv::solvePnPGeneric(object, image, K, no_dist, *rvecs, *tvecs, false,
-                            cv::SOLVEPNP_IPPE_SQUARE);
+    n = cv::solvePnPGeneric(cv::Mat(4, 1, CV_64FC3, object.data()),
+                            cv::Mat(4, 1, CV_64FC2, image_cv.data()), K, cv::noArray(), rvecs,
+                            tvecs, false, cv::SOLVEPNP_IPPE_SQUARE);
   } catch (const cv::Exception&) {
     n = 0;
   }
   *best_err = 0.0;
   *other_err = -1.0;
   int best = -1;
-  for (int s = 0; s < n; ++s) {
-    cv::solvePnPRefineLM(object, image, K, no_dist, (*rvecs)[static_cast<std::size_t>(s)],
-                         (*tvecs)[static_cast<std::size_t>(s)]);
-    std::vector<cv::Point2d> re;
-    cv::projectPoints(object, (*rvecs)[static_cast<std::size_t>(s)],
-                      (*tvecs)[static_cast<std::size_t>(s)], K, no_dist, re);
-    double e = 0.0;
-    for (std::size_t i = 0; i < 4; ++i) e += std::pow(cv::norm(re[i] - image[i]), 2);
+  for (int s = 0; s < std::min(n, 2); ++s) {
+    const cv::Mat& r = rvecs[static_cast<std::size_t>(s)];
+    const cv::Mat& t = tvecs[static_cast<std::size_t>(s)];
+    const Eigen::Vector3d w(r.at<double>(0), r.at<double>(1), r.at<double>(2));
+    const double a = w.norm();
+    const Eigen::Matrix3d R0 =
+        a > 0.0 ? Eigen::AngleAxisd(a, w / a).toRotationMatrix() : Eigen::Matrix3d::Identity();
+    const Eigen::Vector3d t0(t.at<double>(0), t.at<double>(1), t.at<double>(2));
+    SquarePose& p = (*poses)[static_cast<std::size_t>(s)];
+    p = refine_square_pose(k.fx, k.fy, k.cx, k.cy, side_mm, image, R0, t0);
+    if (!p.ok) continue;
+    const double e = p.squared_error_px2;
     if (best < 0 || e < *best_err) {
       if (best >= 0) *other_err = *best_err;
       *best_err = e;
@@ -285,9 +295,12 @@ bool LandmarkObserver::measure(std::uint32_t id, const std::array<Vec2, 4>& corn
     *reason = RefusalReason::kTouchesEdge;
     return false;
   }
-  std::vector<cv::Point2d> distorted, undistorted;
-  for (const Vec2& c : corners_px) distorted.emplace_back(c.x, c.y);
-  cv::undistortPoints(distorted, undistorted, impl_->K, impl_->dist, cv::noArray(), impl_->K);
+  // Fixed buffers: no allocation for the four points.
+  std::array<cv::Point2d, 4> distorted, undistorted;
+  for (std::size_t i = 0; i < 4; ++i) distorted[i] = {corners_px[i].x, corners_px[i].y};
+  cv::Mat undistorted_mat(4, 1, CV_64FC2, undistorted.data());
+  cv::undistortPoints(cv::Mat(4, 1, CV_64FC2, distorted.data()), undistorted_mat, impl_->K,
+                      impl_->dist, cv::noArray(), impl_->K);
   LandmarkObservation o;
   o.id = id;
   o.landmark_index = static_cast<std::size_t>(it - table_.begin());
@@ -301,28 +314,22 @@ bool LandmarkObserver::measure(std::uint32_t id, const std::array<Vec2, 4>& corn
     return false;
   }
   o.corner_sigma_px = std::max(opt_.corner_sigma_floor_px, opt_.corner_sigma_scale * edge_sigma_px);
-  const double side = it->size_mm, h = side / 2.0;
+  const double side = it->size_mm;
   const double focal = std::sqrt(k_.fx * k_.fy);
 
   // Pose: IPPE wants the square's corners in the order (-h, h), (h, h), (h, -h), (-h, -h) of its
   // own frame; with y along the page's down that is bottom-left, bottom-right, top-right, top-left.
-  const std::vector<cv::Point3d> object = {{-h, h, 0}, {h, h, 0}, {h, -h, 0}, {-h, -h, 0}};
-  const std::vector<cv::Point2d> image = {undistorted[3], undistorted[2], undistorted[1],
-                                          undistorted[0]};
-  std::vector<cv::Mat> rvecs, tvecs;
+  const auto& u = o.corners_undistorted_px;
+  std::array<SquarePose, 2> poses;
   double best_err = 0.0, other_err = -1.0;
-  const int best = best_square_pose(object, image, impl_->K, &rvecs, &tvecs, &best_err, &other_err);
+  const int best =
+      best_square_pose(k_, side, impl_->K, {u[3], u[2], u[1], u[0]}, &poses, &best_err, &other_err);
   if (best < 0) {
     *reason = RefusalReason::kNoPose;
     return false;
   }
-  cv::Mat R;
-  cv::Rodrigues(rvecs[static_cast<std::size_t>(best)], R);
-  const cv::Mat& t = tvecs[static_cast<std::size_t>(best)];
-  for (int r = 0; r < 3; ++r) {
-    o.t_C_mm[r] = t.at<double>(r);
-    for (int c = 0; c < 3; ++c) o.R_CT(r, c) = R.at<double>(r, c);
-  }
+  o.t_C_mm = poses[static_cast<std::size_t>(best)].t_C_mm;
+  o.R_CT = poses[static_cast<std::size_t>(best)].R_CT;
   if (!(o.t_C_mm.z() > 0.0) || !o.t_C_mm.allFinite()) {
     *reason = RefusalReason::kNoPose;
     return false;

@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "agv/ranging/square_pose.hpp"
+
 namespace agv::ranging {
 
 namespace {
@@ -133,28 +135,9 @@ Mat3 tag_translation_covariance(double focal_px, double side_mm, const Vec3& t_C
 
 Eigen::Matrix<double, 6, 6> tag_pose_covariance(double focal_px, double side_mm, const Vec3& t_C_mm,
                                                 const Mat3& R_CT, double sigma_corner_px) {
-  using Vec6 = Eigen::Matrix<double, 6, 1>;
-  using Vec8 = Eigen::Matrix<double, 8, 1>;
-  const double h = side_mm / 2;
-  const double corners[4][2] = {{-h, h}, {h, h}, {h, -h}, {-h, -h}};
-  auto project = [&](const Vec6& d) {
-    Vec8 uv;
-    const double a = d.head<3>().norm();
-    const Mat3 dR =
-        a > 0.0 ? Eigen::AngleAxisd(a, d.head<3>() / a).toRotationMatrix() : Mat3::Identity();
-    for (int i = 0; i < 4; ++i) {
-      const Vec3 X = dR * R_CT * Vec3(corners[i][0], corners[i][1], 0.0) + t_C_mm + d.tail<3>();
-      uv[2 * i] = focal_px * X.x() / X.z();
-      uv[2 * i + 1] = focal_px * X.y() / X.z();
-    }
-    return uv;
-  };
-  Eigen::Matrix<double, 8, 6> J;
-  for (int k = 0; k < 6; ++k) {
-    Vec6 d = Vec6::Zero();
-    d[k] = k < 3 ? 1e-6 : 1e-3;
-    J.col(k) = (project(d) - project(-d)) / (2.0 * d[k]);
-  }
+  SquareCorners8 uv;
+  SquareJacobian J;
+  project_square(focal_px, focal_px, 0.0, 0.0, side_mm, R_CT, t_C_mm, &uv, &J);
   const Eigen::Matrix<double, 6, 6> info = J.transpose() * J;
   return sigma_corner_px * sigma_corner_px * info.inverse();
 }

@@ -103,7 +103,7 @@ Eigen::Matrix3d tag_translation_covariance(double focal_px, double side_mm,
 // First-order covariance of a square tag's full pose (over (d_omega, d_t) as in
 // range_bearing_from_tag_pose) from its corners' pixel noise, for any pose: the inverse of the
 // Fisher information of the eight corner coordinates of a pinhole camera with focal_px, the
-// Jacobian taken by central differences. Obliquity weakens the scale (range) information, which
+// Jacobian in closed form (project_square). Obliquity weakens the scale (range) information, which
 // the closed form above, derived facing the camera, does not see.
 Eigen::Matrix<double, 6, 6> tag_pose_covariance(double focal_px, double side_mm,
                                                 const Eigen::Vector3d& t_C_mm,
