@@ -130,7 +130,13 @@ int main(int argc, char** argv) {
         fx.cov[i] = num(fixes[f], "cov" + std::to_string(i));
         fx.cov_camera[i] = num(fixes[f], "cov_camera" + std::to_string(i));
       }
-      tracker.add_fix(static_cast<std::size_t>(num(fixes[f], "agv")), ns(fixes[f], "t_s"), fx);
+      const agv::overhead::FixResult res =
+          tracker.add_fix(static_cast<std::size_t>(num(fixes[f], "agv")), ns(fixes[f], "t_s"), fx);
+      if (res == agv::overhead::FixResult::kGated) {
+        std::printf("gated: agv %s at %s s (true turn rate %s rad/s, speed %s m/s)\n",
+                    fixes[f].at("agv").c_str(), fixes[f].at("t_s").c_str(),
+                    fixes[f].at("true_omega_radps").c_str(), fixes[f].at("true_v_mps").c_str());
+      }
     }
     tracker.update_states(t_ns);
     for (std::size_t j = k; j < k + n && j < ticks.size(); ++j) {
