@@ -270,3 +270,105 @@ TEST(FusionRangeBearing, NeverInitialisesAndRefusesBadInput) {
   EXPECT_EQ(ekf.add_range_bearing(0, good), FixOutcome::kFused);
   EXPECT_EQ(ekf.counters().range_bearing_fused, 1u);
 }
+
+// ---- A heading step the wheels did not see, then one landmark at a time ----
+
+namespace {
+
+constexpr std::int64_t kStepNs = 1000 * kMs;
+constexpr std::int64_t kStepDriveNs = 2500 * kMs;
+
+// The truth turned by step_rad at kStepNs about where it is then, straight on afterwards.
+Pose2 stepped_truth(std::int64_t t_ns, double step_rad) {
+  if (t_ns <= kStepNs) return truth_at(t_ns);
+  const Pose2 p0 = truth_at(kStepNs);
+  const double d_mm = 1000.0 * static_cast<double>(t_ns - kStepNs) * 1e-9;
+  return {p0.x_mm + d_mm * std::cos(step_rad), p0.y_mm + d_mm * std::sin(step_rad), step_rad};
+}
+
+struct StepResult {
+  PoseEstimate end;
+  Pose2 truth_end;
+  Ekf::Counters counters;
+};
+
+// Odometry of a straight drive (the wheels do not see the step); both landmarks every 100 ms
+// before the step, then one per frame: kLandmarks[0] reported at its map position plus
+// map_offset, and, when with_good, kLandmarks[1] (right) after it in the same frame; when
+// alternate, kLandmarks[0] and [1] in turns, one per frame (both right).
+StepResult drive_step(const EkfConfig& c, double step_rad, const Eigen::Vector2d& map_offset,
+                      bool with_good, bool alternate = false) {
+  std::mt19937 rng(5);
+  const std::vector<OdomSample> odom = odometry(c, kStepDriveNs, &rng);
+  Ekf ekf(c);
+  EXPECT_TRUE(ekf.add_odometry(odom[0].t_ns, odom[0].v_mps, odom[0].omega_radps));
+  EXPECT_TRUE(ekf.set_pose(0, truth_at(0), prior_cov(30.0, 1.0)));
+  for (std::size_t k = 1; k < odom.size(); ++k) {
+    const std::int64_t t = odom[k].t_ns;
+    EXPECT_TRUE(ekf.add_odometry(t, odom[k].v_mps, odom[k].omega_radps));
+    if (k % 10 != 0) continue;
+    const Pose2 truth = stepped_truth(t, step_rad);
+    if (t <= kStepNs) {
+      for (const Eigen::Vector2d& lm : kLandmarks)
+        ekf.add_range_bearing(t, observe(truth, lm, &rng));
+      continue;
+    }
+    if (alternate) {
+      ekf.add_range_bearing(t, observe(truth, kLandmarks[(k / 10) % 2], &rng));
+      continue;
+    }
+    RangeBearingObs first = observe(truth, kLandmarks[0], &rng);
+    first.landmark_xy_mm += map_offset;
+    ekf.add_range_bearing(t, first);
+    if (with_good) ekf.add_range_bearing(t, observe(truth, kLandmarks[1], &rng));
+  }
+  return {ekf.estimate_at(kStepDriveNs), stepped_truth(kStepDriveNs, step_rad), ekf.counters()};
+}
+
+// Largest error over sigma of x, y and heading.
+double worst_sigmas(const StepResult& r) {
+  const Eigen::Vector3d err = error(r.end, r.truth_end);
+  double worst = 0.0;
+  for (int i = 0; i < 3; ++i)
+    worst = std::max(worst, std::abs(err(i)) / std::sqrt(r.end.cov(i, i)));
+  return worst;
+}
+
+}  // namespace
+
+TEST(FusionRangeBearing, AnUnseenHeadingStepIsRecoveredFromOneLandmarkAtATime) {
+  // 1 s of two landmarks make the heading sigma small; then the vehicle turns by 2 deg, the
+  // wheels do not see it, and the camera sees one landmark per frame, the two in turns.
+  const EkfConfig c = consistent_config();
+  const StepResult r = drive_step(c, deg_to_rad(2.0), Eigen::Vector2d::Zero(), false, true);
+  const Eigen::Vector3d err = error(r.end, r.truth_end);
+  EXPECT_EQ(r.counters.range_bearing_unseen_slips, 1u);
+  EXPECT_EQ(r.counters.range_bearing_rejected_gate, 1u);  // the first, awaiting a second
+  EXPECT_LT(worst_sigmas(r), 3.0) << err.transpose();
+  EXPECT_LT(std::abs(err(2)), deg_to_rad(0.3));
+  // Without the rule every landmark after the step is gated and the confident pose ends outside
+  // 3 sigma.
+  EkfConfig off = c;
+  off.recovery.unseen_slip_max_rad = 0.0;
+  const StepResult o = drive_step(off, deg_to_rad(2.0), Eigen::Vector2d::Zero(), false, true);
+  EXPECT_EQ(o.counters.range_bearing_unseen_slips, 0u);
+  EXPECT_EQ(o.counters.range_bearing_rejected_gate, 15u);
+  EXPECT_GT(worst_sigmas(o), 3.0);
+}
+
+TEST(FusionRangeBearing, AWrongMapEntryIsNotTakenForAnUnseenSlip) {
+  const EkfConfig c = consistent_config();
+  for (int k = 0; k < 8; ++k) {
+    const double a = k * M_PI / 4.0;
+    const Eigen::Vector2d off(500.0 * std::cos(a), 500.0 * std::sin(a));
+    // Among a correct landmark fused in every frame it never counts as an unseen slip.
+    const StepResult with_good = drive_step(c, 0.0, off, true);
+    EXPECT_EQ(with_good.counters.range_bearing_unseen_slips, 0u) << "direction " << k;
+    EXPECT_LT(worst_sigmas(with_good), 3.0) << "direction " << k;
+    // Alone frame after frame it fits a heading change every time, but is one landmark: gated.
+    const StepResult alone = drive_step(c, 0.0, off, false);
+    EXPECT_EQ(alone.counters.range_bearing_unseen_slips, 0u) << "direction " << k;
+    EXPECT_EQ(alone.counters.range_bearing_rejected_gate, 15u) << "direction " << k;
+    EXPECT_LT(worst_sigmas(alone), 3.0) << "direction " << k;
+  }
+}

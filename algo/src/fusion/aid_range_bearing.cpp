@@ -8,8 +8,18 @@
 // observation is fused through the history replay, as a delayed fix is. It never initialises or
 // re-localises the filter: a range and a bearing leave the pose underdetermined, and a gate
 // against a prior is its only protection from a misread or a moved landmark.
+// Wheels only, a gated observation may be explained by a heading change the wheels did not see
+// (the floor fixes' unseen-slip rule, recovery.cpp): one range and bearing fit such a change
+// about nearly any point of the path, so it takes a second consecutive gated observation, at
+// another exposure, of another landmark and with no observation or fix fused between, that the
+// same change explains; the second is then fused with the change's uncertainty added. A wrong
+// map entry never gets there alone: seen among correct landmarks, they are fused between; seen
+// alone frame after frame, it is always the same landmark.
 #include <Eigen/Cholesky>
+#include <algorithm>
 #include <cmath>
+#include <cstdlib>
+#include <limits>
 
 #include "agv/fusion/ekf.hpp"
 #include "ekf_internal.hpp"
@@ -108,10 +118,13 @@ FixOutcome Ekf::add_range_bearing(std::int64_t t_exposure_ns, const RangeBearing
   eff.R(1, 1) += c.bearing_floor_sigma_rad * c.bearing_floor_sigma_rad;
   RangeBearingModel m;
   if (!range_bearing_model(x, eff, &m)) return reject_range_bearing_invalid();
-  if (!(detail::mahalanobis_sq<2>(P, m.H, m.nu, eff.R) <= range_bearing_threshold_)) {
+  if (!(detail::mahalanobis_sq<2>(P, m.H, m.nu, eff.R) <= range_bearing_threshold_) &&
+      !range_bearing_unseen_slip(t_ns, eff, x, &P)) {
     ++counters_.range_bearing_rejected_gate;
     return FixOutcome::kRejectedGate;
   }
+  rb_slip_.count = 0;
+  track_rb_fused_t_ns_ = std::max(track_rb_fused_t_ns_, t_ns);
 
   // Fuse at the exposure and re-propagate newer events.
   detail::joseph_update<2>(&x, &P, m.H, m.nu, eff.R);
@@ -130,6 +143,124 @@ FixOutcome Ekf::add_range_bearing(std::int64_t t_exposure_ns, const RangeBearing
   ++counters_.range_bearing_fused;
   if (delayed) ++counters_.range_bearing_delayed;
   return FixOutcome::kFused;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Unseen slip
+
+namespace {
+
+// Two observations explaining the same unseen slip are at most this far apart: a slip
+// lasts tenths of a second, and the camera sees a landmark several times a second.
+constexpr std::int64_t kRbSlipWindowNs = 1'000'000'000;
+
+// Gauss-Newton on the one unknown, the heading change, from dth (innovations whitened by L0);
+// turned(dth, &m): the observation's model at the state turned by dth, false at the landmark.
+template <class Turned>
+double fit_turn(const Turned& turned, const Eigen::LLT<Eigen::Matrix2d>& L0, double dth) {
+  constexpr double kStepRad = 1e-6;
+  for (int it = 0; it < 4; ++it) {
+    RangeBearingModel m, m1;
+    if (!turned(dth, &m) || !turned(dth + kStepRad, &m1)) break;
+    const Eigen::Vector2d r = L0.matrixL().solve(m.nu);
+    const Eigen::Vector2d g = (L0.matrixL().solve(m1.nu) - r) / kStepRad;
+    if (!(g.squaredNorm() > 0.0)) break;
+    dth -= g.dot(r) / g.squaredNorm();
+  }
+  return dth;
+}
+
+}  // namespace
+
+bool Ekf::explain_unseen_slip(std::int64_t t_ns, const RangeBearingObs& obs, const FilterVec& x,
+                              FilterCov* P, double* dth_rad) const {
+  if (!unseen_slip_possible()) return false;
+  RangeBearingModel m0;
+  if (!range_bearing_model(x, obs, &m0)) return false;
+  const Eigen::Matrix2d S0 = m0.H * *P * m0.H.transpose() + obs.R;
+  const Eigen::LLT<Eigen::Matrix2d> L0(S0);
+  if (L0.info() != Eigen::Success) return false;
+  const Eigen::Vector2d p(x(kIx), x(kIy));
+  // The observation at the state turned by dth about tp (false at the landmark).
+  auto turned = [&](const TrackPoint& tp, double dth, RangeBearingModel* m, UnseenTurn* turn) {
+    *turn = unseen_turn(tp, p, dth);
+    FilterVec xt = x;
+    xt(kIx) += turn->q.x();
+    xt(kIy) += turn->q.y();
+    xt(kItheta) = wrap_angle_rad(x(kItheta) + dth);
+    return range_bearing_model(xt, obs, m);
+  };
+  // Turn points: the path since the last fused observation (the heading was confirmed there),
+  // and the exposure itself.
+  const TrackPoint here{t_ns, x(kIx), x(kIy), x(kItheta), x(kIv)};
+  double best_d2 = std::numeric_limits<double>::infinity(), best_dth = 0.0;
+  UnseenTurn best;
+  for (std::size_t j = 0; j <= track_size_; ++j) {
+    const TrackPoint& tp = j < track_size_ ? track_[j] : here;
+    if (tp.t_ns > t_ns || tp.t_ns + track_spacing_ns_ < track_rb_fused_t_ns_) continue;
+    // A turn by dth lowers the bearing by about dth: the fit starts from its innovation.
+    UnseenTurn turn;
+    const auto at_tp = [&](double d, RangeBearingModel* m) { return turned(tp, d, m, &turn); };
+    const double dth = fit_turn(at_tp, L0, -m0.nu(1));
+    RangeBearingModel m;
+    if (!turned(tp, dth, &m, &turn)) continue;
+    const auto Hp = m.H.leftCols<2>();
+    const Eigen::Matrix2d slack = turn.along_mm * turn.along_mm * turn.u * turn.u.transpose() +
+                                  turn.smear_mm * turn.smear_mm * Eigen::Matrix2d::Identity();
+    const Eigen::Matrix2d S = m.H * *P * m.H.transpose() + obs.R + Hp * slack * Hp.transpose();
+    const double d2 = m.nu.dot(S.ldlt().solve(m.nu));
+    if (d2 < best_d2) {
+      best_d2 = d2;
+      best_dth = dth;
+      best = turn;
+    }
+  }
+  // Only a heading change the prior cannot explain, and not beyond what a slip turns.
+  const double var_th = (*P)(kItheta, kItheta) + obs.R(1, 1);
+  if (!(best_d2 <= range_bearing_threshold_) ||
+      std::abs(best_dth) > config_.recovery.unseen_slip_max_rad ||
+      best_dth * best_dth <= 9.0 * var_th)
+    return false;
+  FilterCov P_slip = *P;
+  add_unseen_turn(best, best_dth, &P_slip);
+  if (!(detail::mahalanobis_sq<2>(P_slip, m0.H, m0.nu, obs.R) <= range_bearing_threshold_))
+    return false;
+  *P = P_slip;
+  *dth_rad = best_dth;
+  return true;
+}
+
+bool Ekf::range_bearing_unseen_slip(std::int64_t t_ns, const RangeBearingObs& obs,
+                                    const FilterVec& x, FilterCov* P) {
+  FilterCov P_slip = *P;
+  double dth = 0.0;
+  if (!explain_unseen_slip(t_ns, obs, x, &P_slip, &dth)) {
+    rb_slip_.count = 0;
+    return false;
+  }
+  // The change is known to about the bearing's and the prior heading's sigma, per observation.
+  const double tol_rad = 3.0 * std::sqrt(2.0 * ((*P)(kItheta, kItheta) + obs.R(1, 1)));
+  RbSlipCandidate& c = rb_slip_;
+  const bool agrees = c.count > 0 && std::llabs(t_ns - c.t_ns) <= kRbSlipWindowNs &&
+                      std::abs(wrap_angle_rad(dth - c.dth_rad)) <= std::max(tol_rad, c.tol_rad);
+  // Another landmark (as the kidnap rule counts fixes): one wrong map entry, seen alone frame
+  // after frame, fits a heading change every time and must not confirm itself.
+  const bool other_landmark =
+      (obs.landmark_xy_mm - c.landmark_xy_mm).norm() >= config_.recovery.kidnap_min_separation_mm;
+  if (!agrees) {
+    c = {1, t_ns, dth, tol_rad, obs.landmark_xy_mm};
+    return false;
+  }
+  // The same frame's landmarks are the localizer's (its re-localisation from a frame's fix).
+  if (!other_landmark || t_ns == c.t_ns) {
+    if (!other_landmark && t_ns != c.t_ns) c = {1, t_ns, dth, tol_rad, obs.landmark_xy_mm};
+    return false;
+  }
+  c.count = 0;
+  *P = P_slip;
+  ++counters_.range_bearing_unseen_slips;
+  pending_flags_ |= flags::kWheelSlip;
+  return true;
 }
 
 }  // namespace agv::fusion

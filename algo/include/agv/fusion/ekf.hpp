@@ -195,6 +195,9 @@ class Ekf {
     std::uint64_t range_bearing_rejected_not_initialised = 0;
     std::uint64_t range_bearing_rejected_too_old = 0;
     std::uint64_t range_bearing_rejected_invalid = 0;
+    // Of range_bearing_fused: gated, fused with an unseen heading change's uncertainty added
+    // (the second of consecutive gated observations that the same change explains).
+    std::uint64_t range_bearing_unseen_slips = 0;
   };
   const Counters& counters() const { return counters_; }
 
@@ -451,6 +454,29 @@ class Ekf {
   // t_ns); then adds it to *P (heading, and position through the lever arm to the fix).
   bool explain_unseen_slip(std::int64_t t_ns, const Eigen::Vector3d& z, const Eigen::Matrix3d& R,
                            const FilterVec& x, FilterCov* P) const;
+  // The same for a gated range-bearing observation (obs: its effective R): the heading change
+  // and turn point that best explain it; true when one within unseen_slip_max_rad and beyond the
+  // prior's 3 sigma does, and the observation passes the gate with it added to *P. *dth_rad: the
+  // change.
+  bool explain_unseen_slip(std::int64_t t_ns, const RangeBearingObs& obs, const FilterVec& x,
+                           FilterCov* P, double* dth_rad) const;
+  // Wheels only since the last fused fix and the rule on: a heading change may be unseen.
+  bool unseen_slip_possible() const;
+  // A turn by dth_rad about a point of the path, seen at position p: its displacement q there,
+  // the direction u of the path at the point, the along-track and spread slack (mm).
+  struct UnseenTurn {
+    Eigen::Vector2d q = Eigen::Vector2d::Zero(), u = Eigen::Vector2d::Zero();
+    double along_mm = 0.0, smear_mm = 0.0;
+  };
+  struct TrackPoint;
+  UnseenTurn unseen_turn(const TrackPoint& tp, const Eigen::Vector2d& p, double dth_rad) const;
+  // Adds the turn's uncertainty to *P: heading by its own size, position along the chord it
+  // moved, the along-track and spread terms.
+  void add_unseen_turn(const UnseenTurn& turn, double dth_rad, FilterCov* P) const;
+  // Gated range-bearing observation: true when it is the second of consecutive gated ones, of
+  // two landmarks, explained by the same unseen heading change; then *P carries that change.
+  bool range_bearing_unseen_slip(std::int64_t t_ns, const RangeBearingObs& obs, const FilterVec& x,
+                                 FilterCov* P);
 
   // ---- Health (health.cpp) ----
   // Position or heading sigma of P beyond the lost limits; reports both sigmas when asked.
@@ -470,6 +496,17 @@ class Ekf {
   std::array<TrackPoint, kTrackPoints> track_{};
   std::size_t track_size_ = 0;
   std::int64_t track_spacing_ns_ = 50'000'000;  // doubles each time the track is thinned
+  // Newest fused range-bearing exposure since the track started (heading confirmed there).
+  std::int64_t track_rb_fused_t_ns_ = std::numeric_limits<std::int64_t>::min();
+  // The last gated range-bearing observation an unseen heading change explained (count 0: none
+  // since the last fused observation or fix).
+  struct RbSlipCandidate {
+    int count = 0;
+    std::int64_t t_ns = 0;
+    double dth_rad = 0.0, tol_rad = 0.0;
+    Eigen::Vector2d landmark_xy_mm = Eigen::Vector2d::Zero();
+  };
+  RbSlipCandidate rb_slip_;
   std::size_t head_ = 0;
   std::size_t size_ = 0;
 
