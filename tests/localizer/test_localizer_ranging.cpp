@@ -265,21 +265,26 @@ TEST(LocalizerRanging, TwoLandmarksWithFaceYawsGiveNoConfidentWrongPoseFromAWron
   EXPECT_TRUE(stand(&ok, 0, 1000 * kMs, two, true_map(two), &rng).last.pose_valid);
 }
 
+// A floor fix at kTruth at t = 0 (sd 0.1 mm, 1 mrad), the wheels already at speed_mps.
+void start_at_floor_fix(localizer::Localizer* loc, double speed_mps) {
+  vision::LandmarkMeasurement floor;
+  floor.status = vision::FixStatus::kOk;
+  floor.landmark_id = 9;
+  floor.map_verified = true;
+  floor.vehicle_in_world = kTruth;
+  floor.cov_world = Eigen::Matrix3d::Identity() * 0.01;
+  floor.cov_world(2, 2) = 1e-6;
+  loc->on_odometry(0, speed_mps, 0.0);
+  loc->on_fix(floor, 0, 0);
+}
+
 TEST(LocalizerRanging, RackUpdatesNarrowThePoseBetweenFloorFixes) {
   // Driving at 0.5 m/s along x after a floor fix; with the rack landmarks in view the position
   // sigma after 3 s is smaller than with the wheels alone.
   auto drive = [](bool with_racks) {
     localizer::Localizer loc(config());
     std::mt19937 rng(3);
-    vision::LandmarkMeasurement floor;
-    floor.status = vision::FixStatus::kOk;
-    floor.landmark_id = 9;
-    floor.map_verified = true;
-    floor.vehicle_in_world = kTruth;
-    floor.cov_world = Eigen::Matrix3d::Identity() * 0.01;
-    floor.cov_world(2, 2) = 1e-6;
-    loc.on_odometry(0, 0.5, 0.0);
-    loc.on_fix(floor, 0, 0);
+    start_at_floor_fix(&loc, 0.5);
     const double v = 0.5;
     std::int64_t next_frame = kFramePeriodNs;
     localizer::TickRecord rec;
@@ -332,16 +337,8 @@ StepDrive drive_with_step(std::int64_t step_ns, double step_rad, const std::vect
   if (!step_rule) cfg.fusion.recovery.unseen_slip_max_rad = 0.0;
   localizer::Localizer loc(cfg);
   std::mt19937 rng(3);
-  vision::LandmarkMeasurement floor;
-  floor.status = vision::FixStatus::kOk;
-  floor.landmark_id = 9;
-  floor.map_verified = true;
-  floor.vehicle_in_world = kTruth;
-  floor.cov_world = Eigen::Matrix3d::Identity() * 0.01;
-  floor.cov_world(2, 2) = 1e-6;
   const double v = 0.5;
-  loc.on_odometry(0, v, 0.0);
-  loc.on_fix(floor, 0, 0);
+  start_at_floor_fix(&loc, v);
   StepDrive r;
   auto truth_at = [&](std::int64_t t) {
     const double d_mm = v * static_cast<double>(t) * 1e-6;

@@ -9,9 +9,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Dense>
@@ -85,18 +87,18 @@ bool parse(int argc, char** argv, agv::overhead::TrackerParams* params) {
       std::fprintf(stderr, "replay_trace: %s: missing or bad value\n", a.c_str());
       return false;
     }
-    if (a == "--alpha-noise") {
-      params->alpha_noise_radps2 = v;
-    } else if (a == "--maneuver-alpha-noise") {
-      params->maneuver_alpha_noise_radps2 = v;
-    } else if (a == "--maneuver-chi2") {
-      params->maneuver_chi2 = v;
-    } else if (a == "--accel-noise") {
-      params->accel_noise_mps2 = v;
-    } else {
+    const std::pair<const char*, double*> options[] = {
+        {"--alpha-noise", &params->alpha_noise_radps2},
+        {"--maneuver-alpha-noise", &params->maneuver_alpha_noise_radps2},
+        {"--maneuver-chi2", &params->maneuver_chi2},
+        {"--accel-noise", &params->accel_noise_mps2}};
+    const auto* o = std::find_if(std::begin(options), std::end(options),
+                                 [&](const auto& kv) { return a == kv.first; });
+    if (o == std::end(options)) {
       std::fprintf(stderr, "replay_trace: unknown option %s\n", a.c_str());
       return false;
     }
+    *o->second = v;
   }
   const std::string err = agv::overhead::validate(*params);
   if (!err.empty()) std::fprintf(stderr, "replay_trace: %s\n", err.c_str());
