@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "../support/desk_command.hpp"
+#include "../support/fresh_dir.hpp"
 #include "agv/config/config.hpp"
 #include "calib_intrinsics.hpp"
 #include "commands.hpp"
@@ -95,11 +96,7 @@ agv::config::Config parsed(const std::string& text) {
 }
 
 fs::path fresh_dir(const std::string& name) {
-  const fs::path d =
-      fs::temp_directory_path() / ("agv_test_cfgapply_" + std::to_string(::getpid()) + "_" + name);
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
+  return agv::test_support::fresh_dir("cfgapply", name);
 }
 
 std::string slurp(const fs::path& p) {

@@ -10,6 +10,7 @@
 #include <random>
 #include <sstream>
 
+#include "../support/fresh_dir.hpp"
 #include "agv/recording/recording.hpp"
 
 using namespace agv;
@@ -19,11 +20,7 @@ namespace fs = std::filesystem;
 namespace {
 
 fs::path fresh_dir(const std::string& name) {
-  const fs::path d =
-      fs::temp_directory_path() / ("agv_test_recording_" + std::to_string(::getpid()) + "_" + name);
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
+  return test_support::fresh_dir("recording", name);
 }
 
 std::string slurp(const fs::path& p) {

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "../support/fresh_dir.hpp"
 #include "../support/tag_recording.hpp"
 #include "agv/config/keys.hpp"
 #include "agv/recording/recording.hpp"
@@ -24,11 +25,7 @@ using namespace agv;
 namespace {
 
 fs::path fresh_dir(const std::string& name) {
-  const fs::path d =
-      fs::temp_directory_path() / ("agv_test_replaycmd_" + std::to_string(::getpid()) + "_" + name);
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
+  return test_support::fresh_dir("replaycmd", name);
 }
 
 // A 64x48 recording with `n` frames (0.1 s apart) and 100 Hz odometry over the same time.

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "../support/fresh_dir.hpp"
 #include "agv/recording/recording.hpp"
 #include "agv/sim/ranging_camera.hpp"
 #include "agv/sim/site_render.hpp"
@@ -53,11 +54,7 @@ sim::SiteScene scene() {
 }
 
 fs::path fresh_dir(const std::string& name) {
-  const fs::path d =
-      fs::temp_directory_path() / ("agv_test_replayrng_" + std::to_string(::getpid()) + "_" + name);
-  fs::remove_all(d);
-  fs::create_directories(d);
-  return d;
+  return test_support::fresh_dir("replayrng", name);
 }
 
 // Floor frames of bare floor (no landmark), odometry standing still, the second camera's frames
