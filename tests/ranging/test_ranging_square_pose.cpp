@@ -171,13 +171,15 @@ TEST(RangingSquarePose, ClosedFormJacobianMatchesCentralDifferences) {
 // Both minimise the same error from the same start. OpenCV's LM stops after 20 iterations or a
 // relative step of FLT_EPSILON; in the flat valley of IPPE's second (mirrored) solution it can stop
 // short of the minimum, which the refinement here reaches (about 1 solution in 800 below, error
-// 0.2 % lower). Elsewhere the two agree to rounding.
+// 0.2 % lower). Elsewhere the two agree far within the pose's own uncertainty: in that valley the
+// error changes by less than 1e-6 over hundredths of a millimetre, and where each stops there
+// depends on rounding (an ASan build differs from the default one).
 TEST(RangingSquarePose, RefinementMatchesOpenCvLevenbergMarquardt) {
   const CameraIntrinsics k = sq_camera();
   CameraIntrinsics pin = k;
   pin.k1 = pin.k2 = pin.p1 = pin.p2 = 0.0;
   std::mt19937_64 rng(3);
-  double worst_t_mm = 0.0, worst_r_rad = 0.0;
+  double worst_t_mm = 0.0, worst_r_rad = 0.0, worst_t_sd = 0.0, worst_r_sd = 0.0;
   int compared = 0, lower = 0;
   for (int trial = 0; trial < 400; ++trial) {
     const TruePose p = draw_pose(rng);
@@ -193,18 +195,23 @@ TEST(RangingSquarePose, RefinementMatchesOpenCvLevenbergMarquardt) {
         ++lower;
         continue;
       }
-      worst_t_mm = std::max(worst_t_mm, (s.t_C_mm - ref.t_C_mm).norm());
-      worst_r_rad = std::max(worst_r_rad, rotation_angle(s.R_CT, ref.R_CT));
+      const Mat6 cov = tag_pose_covariance(k.fx, kSideMm, ref.t_C_mm, ref.R_CT, 0.3);
+      const double dt_mm = (s.t_C_mm - ref.t_C_mm).norm();
+      const double dr_rad = rotation_angle(s.R_CT, ref.R_CT);
+      worst_t_mm = std::max(worst_t_mm, dt_mm);
+      worst_r_rad = std::max(worst_r_rad, dr_rad);
+      worst_t_sd = std::max(worst_t_sd, dt_mm / std::sqrt(cov.bottomRightCorner<3, 3>().trace()));
+      worst_r_sd = std::max(worst_r_sd, dr_rad / std::sqrt(cov.topLeftCorner<3, 3>().trace()));
     }
   }
   std::printf(
-      "refinement vs OpenCV LM on %d solutions: %d with a lower error; the others t %.3g "
-      "mm, R %.3g rad\n",
-      compared, lower, worst_t_mm, worst_r_rad);
+      "refinement vs OpenCV LM on %d solutions: %d with a lower error; the others t %.3g mm "
+      "(%.3g sd), R %.3g rad (%.3g sd)\n",
+      compared, lower, worst_t_mm, worst_t_sd, worst_r_rad, worst_r_sd);
   EXPECT_GT(compared, 400);
   EXPECT_LE(lower, compared / 100);
-  EXPECT_LT(worst_t_mm, 1e-3);
-  EXPECT_LT(worst_r_rad, 1e-6);
+  EXPECT_LT(worst_t_sd, 0.01);
+  EXPECT_LT(worst_r_sd, 0.01);
 }
 
 TEST(RangingSquarePose, MeasureMatchesTheOpenCvPipeline) {
