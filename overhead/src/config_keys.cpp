@@ -80,8 +80,8 @@ std::vector<Key> tracker_keys() {
              "rad/s²",
              "White turn-rate acceleration density between turns: lower keeps the turn rate, "
              "and the heading extrapolated to the publish time, steadier"),
-      number("tracker.maneuver_alpha_noise_radps2",
-             AGV_OH_AT(tracker.maneuver_alpha_noise_radps2), 0, 100, 2.0, "rad/s²",
+      number("tracker.maneuver_alpha_noise_radps2", AGV_OH_AT(tracker.maneuver_alpha_noise_radps2),
+             0, 100, 2.0, "rad/s²",
              "Density for a fix whose heading shows a turn starting or stopping (beyond "
              "maneuver_chi2 of the steady prediction); it is gated by this prediction. 0: off "
              "(such fixes are gated by the steady one)"),

@@ -45,7 +45,9 @@ std::string detections_topic(const OverheadConfig& cfg, const std::string& camer
   return cfg.detections.topic_prefix + "/detections/" + camera;
 }
 
-std::string detections_subscription(const OverheadConfig& cfg) { return detections_topic(cfg, "+"); }
+std::string detections_subscription(const OverheadConfig& cfg) {
+  return detections_topic(cfg, "+");
+}
 
 int run_detect(const DetectArgs& a) {
   OverheadConfig cfg;

@@ -180,8 +180,8 @@ class BusDiagFeeder {
     v.ticks = ticks;
     v.has_bus = true;
     const TrackerCore::RemoteCounters& r = core.remote_counters();
-    v.bus = {n.messages, n.seq_gaps,      overflow, n.refused_by_reason,
-             r.tags,     r.unknown_ids, r.no_fix,   r.restricted_refused};
+    v.bus = {n.messages, n.seq_gaps,    overflow, n.refused_by_reason,
+             r.tags,     r.unknown_ids, r.no_fix, r.restricted_refused};
     for (std::size_t a = 0; a < agv_ids_.size(); ++a) {
       AgvDiag g;
       g.id = agv_ids_[a];

@@ -138,13 +138,13 @@ void bus_metrics(const BusDiag& b, std::string* out) {
         "Detections messages lost on the way (skipped sequence numbers)", b.lost);
   total("agvloc_overhead_detections_dropped_total",
         "Detections messages dropped undecoded because the tracker was behind", b.dropped_behind);
-  total("agvloc_overhead_detections_tags_total", "Tags of the applied detections messages",
-        b.tags);
+  total("agvloc_overhead_detections_tags_total", "Tags of the applied detections messages", b.tags);
   help(out, "agvloc_overhead_detections_tags_refused_total", "counter",
        "Tags of applied messages that moved no track, by reason");
-  const std::pair<const char*, std::uint64_t> tags[] = {{"unknown_id", b.unknown_ids},
-                                                        {"no_fix", b.no_fix},
-                                                        {"restricted_decode", b.restricted_refused}};
+  const std::pair<const char*, std::uint64_t> tags[] = {
+      {"unknown_id", b.unknown_ids},
+      {"no_fix", b.no_fix},
+      {"restricted_decode", b.restricted_refused}};
   for (const auto& [reason, n] : tags) {
     line(out, "agvloc_overhead_detections_tags_refused_total",
          std::string("reason=\"") + reason + "\"", static_cast<double>(n));

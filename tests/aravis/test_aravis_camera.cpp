@@ -106,8 +106,13 @@ class FakeCamera {
 };
 
 agv::hal::CameraConfig small_config(const std::string& id) {
-  return {.id = id, .width_px = 320, .height_px = 240, .fps = 50.0, .exposure_us = 2000,
-          .analogue_gain = 2.0, .buffer_count = 6};
+  return {.id = id,
+          .width_px = 320,
+          .height_px = 240,
+          .fps = 50.0,
+          .exposure_us = 2000,
+          .analogue_gain = 2.0,
+          .buffer_count = 6};
 }
 
 // Opens the camera, retrying while the fresh fake camera is not yet discoverable.

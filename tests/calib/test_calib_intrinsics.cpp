@@ -318,9 +318,17 @@ TEST(CalibIntrinsics, SnippetParsesWithTheKeyTableAndRoundTrips) {
   r.corners = 1646;
   r.rms_px = 0.0141;
   auto& k = r.intrinsics;
-  k = {.width_px = 1280, .height_px = 800, .fx = 1542.123456789, .fy = 1539.987654321,
-       .cx = 641.25, .cy = 398.75, .k1 = -0.123456789, .k2 = 0.0876543211, .p1 = 0.000612345,
-       .p2 = -0.000398765, .k3 = 0.0212345678};
+  k = {.width_px = 1280,
+       .height_px = 800,
+       .fx = 1542.123456789,
+       .fy = 1539.987654321,
+       .cx = 641.25,
+       .cy = 398.75,
+       .k1 = -0.123456789,
+       .k2 = 0.0876543211,
+       .p1 = 0.000612345,
+       .p2 = -0.000398765,
+       .k3 = 0.0212345678};
   const std::string text = config_snippet(r, "views/");
   config::Config cfg;
   std::vector<std::string> errors;

@@ -10,8 +10,16 @@ ccal::CameraPose true_pose() {
 }
 
 CameraIntrinsics intrinsics() {
-  return {.width_px = 1280, .height_px = 720, .fx = 1000.0, .fy = 1002.0, .cx = 641.0,
-          .cy = 358.0, .k1 = -0.06, .k2 = 0.012, .p1 = 0.0004, .p2 = -0.0003};
+  return {.width_px = 1280,
+          .height_px = 720,
+          .fx = 1000.0,
+          .fy = 1002.0,
+          .cx = 641.0,
+          .cy = 358.0,
+          .k1 = -0.06,
+          .k2 = 0.012,
+          .p1 = 0.0004,
+          .p2 = -0.0003};
 }
 
 // Seven vehicles standing in view: the top row's three (tags 1..3) on one image row at one tray

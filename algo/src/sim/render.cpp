@@ -113,8 +113,12 @@ bool misprint_landmark(Scene* scene, std::uint32_t id, Vec2 offset_mm, std::stri
 }
 
 RenderOptions realistic_options() {
-  return {.defocus_sigma_px = 0.8, .exposure_s = 0.002, .illumination_ratio = 0.7,
-          .illumination_direction_deg = 30.0, .read_noise_sigma = 2.0, .shot_noise_gain = 0.05};
+  return {.defocus_sigma_px = 0.8,
+          .exposure_s = 0.002,
+          .illumination_ratio = 0.7,
+          .illumination_direction_deg = 30.0,
+          .read_noise_sigma = 2.0,
+          .shot_noise_gain = 0.05};
 }
 
 // ---------------------------------------------------------------------------------------------

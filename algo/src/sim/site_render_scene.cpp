@@ -68,8 +68,12 @@ std::vector<Vec2> project_points(const RenderCamera& cam, const std::vector<Vec3
 }
 
 SiteRenderParams realistic_site_params() {
-  return {.exposure_s = 0.004, .illumination_ratio = 0.85, .illumination_direction_deg = 20.0,
-          .vignetting = 0.25, .defocus_sigma_px = 0.6, .read_noise_sigma = 2.0,
+  return {.exposure_s = 0.004,
+          .illumination_ratio = 0.85,
+          .illumination_direction_deg = 20.0,
+          .vignetting = 0.25,
+          .defocus_sigma_px = 0.6,
+          .read_noise_sigma = 2.0,
           .shot_noise_gain = 0.05};
 }
 

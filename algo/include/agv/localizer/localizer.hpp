@@ -288,9 +288,10 @@ class Localizer {
   // The landmarks on racks of one second-camera frame exposed at t_exposure_ns (that camera's
   // clock; LocalizerConfig::ranging.camera_offset_ns moves it onto the vehicle's). Tracking: each
   // landmark -> Ekf::add_range_bearing; all of them gated: the fix may witness a heading step the
-  // wheels did not show (re-localised after init_fixes agreeing frames). Uninitialised or lost: the prior-free fix, initialising
-  // by RangingAidConfig's rules (ranging_aid.cpp). At most kMaxRackLandmarks are used.
-  // The fix path allocates (ranging::fix_from_landmarks); the tracking path does not.
+  // wheels did not show (re-localised after init_fixes agreeing frames). Uninitialised or lost: the
+  // prior-free fix, initialising by RangingAidConfig's rules (ranging_aid.cpp). At most
+  // kMaxRackLandmarks are used. The fix path allocates (ranging::fix_from_landmarks); the tracking
+  // path does not.
   RangingResult on_ranging(std::int64_t t_exposure_ns, std::span<const RackObservation> obs);
   static constexpr std::size_t kMaxRackLandmarks = 16;
   // VDA 5050 initPosition: set_pose with init_position_sigma(config().fusion).
