@@ -1,5 +1,6 @@
-// agvloc record --config FILE --out DIR: the live camera, CAN odometry and the gyro (AGV_Gyro
-// with can.gyro.enabled, the IIO device with imu.source iio), streamed in the recording format
+// agvloc record --config FILE --out DIR: the live camera (and the second camera with
+// ranging_camera.enabled), CAN odometry and the gyro (AGV_Gyro with can.gyro.enabled, the IIO
+// device with imu.source iio), streamed in the recording format
 // (docs/guide/recording.md) for later replay. The recording itself is app::Recorder.
 #include <CLI/CLI.hpp>
 #include <cstdio>
@@ -40,6 +41,15 @@ int record(int argc, char** argv) {
     std::fprintf(stderr, "agvloc record: %s\n", err.c_str());
     return 2;
   }
+  std::unique_ptr<hal::Camera> ranging_camera;  // ranging_camera.enabled: into ranging/
+  if (cfg.ranging_camera.enabled) {
+    const config::RangingCameraSection& rc = cfg.ranging_camera;
+    ranging_camera = app::make_live_camera(rc.driver, rc.camera, "ranging_camera", &err);
+    if (!ranging_camera) {
+      std::fprintf(stderr, "agvloc record: %s\n", err.c_str());
+      return 2;
+    }
+  }
   std::unique_ptr<hal::Imu> imu;  // imu.source iio: the same device and reader as `agvloc run`
   if (cfg.imu.source == config::ImuSource::kIio) {
     imu = app::make_live_imu(cfg, &err);
@@ -67,7 +77,8 @@ int record(int argc, char** argv) {
   posix::PosixClock clock;
   const std::int64_t t_end =
       duration_s > 0 ? clock.now_ns() + static_cast<std::int64_t>(duration_s * 1e9) : INT64_MAX;
-  app::Recorder recorder(out_dir, pc, *camera, bus, std::move(imu), clock);
+  app::Recorder recorder(out_dir, pc, *camera, bus, std::move(imu), clock, {},
+                         ranging_camera.get());
   if (!recorder.start(&err)) {
     std::fprintf(stderr, "agvloc record: %s\n", err.c_str());
     return 1;

@@ -193,9 +193,6 @@ int load_ranging(const ReplayArgs& a, ReplayInputs* in) {
     return replay_fail(a.rec_dir + ": " + err, 1);
   }
   for (const auto& w : warnings) replay_fail("warning: " + w, 0);
-  if (a.realtime) {
-    replay_fail("warning: ranging_camera: the second stream is replayed by --fast only", 0);
-  }
   return -1;
 }
 
@@ -318,7 +315,7 @@ struct ReplayRecord {
 };
 
 // --realtime: the threads of `agvloc run` on the recording's clock. -1, or the exit code.
-int run_realtime(const ReplayArgs& a, const ReplayInputs& in, ReplayOutputs& out, bool imu_fed,
+int run_realtime(const ReplayArgs& a, ReplayInputs& in, ReplayOutputs& out, bool imu_fed,
                  ReplayRecord* r) {
   const config::Config& cfg = in.cfg;
   const recording::Recording& rec = in.rec;
@@ -339,6 +336,8 @@ int run_realtime(const ReplayArgs& a, const ReplayInputs& in, ReplayOutputs& out
   }
   adapters::ScaledClock clock(mono, t_first, a.speed, mono0);
   recording::ReplayCamera camera(rec, &clock);
+  // ranging_camera.enabled: the second stream as a camera of its own, on the same clock.
+  recording::ReplayCamera ranging_camera(in.ranging, &clock);
   std::unique_ptr<hal::CanBus> bus;
   if (out.socket_bus) {
     auto mapped = std::make_unique<adapters::TimeMappedBus>(*out.socket_bus, &clock);
@@ -377,6 +376,11 @@ int run_realtime(const ReplayArgs& a, const ReplayInputs& in, ReplayOutputs& out
   if (a.odom_from_can && !rec.odom.empty()) io.can_odometry_end_ns = rec.odom.back().t_ns;
   io.stop = &stop_requested();
   io.quiet = a.quiet;
+  if (in.rack) {
+    io.ranging_camera = &ranging_camera;
+    io.rack_observer = in.rack.get();
+    io.ranging_counts = &in.ranging_counts;
+  }
   out.attach(&io);
   const std::int64_t w0 = posix::monotonic_now_ns();
   app::run_threads(cfg, in.map_ptr, io, &r->result);

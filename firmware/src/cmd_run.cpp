@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cstdio>
 #include <memory>
+#include <vector>
 
 #include "agv/can/socketcan.hpp"
 #include "agv/posix/posix_clock.hpp"
@@ -16,6 +17,7 @@
 #include "live_devices.hpp"
 #include "mqtt_publisher.hpp"
 #include "pipeline.hpp"
+#include "ranging_stream.hpp"
 #include "signals.hpp"
 
 namespace agv::cmd {
@@ -46,11 +48,30 @@ struct LiveSetup {
   std::unique_ptr<hal::Camera> camera;
   std::unique_ptr<hal::Imu> imu;  // imu.source iio (docs/design/fusion.md "Gyro from a Linux IIO
                                   // device"); null otherwise
+  // ranging_camera.enabled: the second camera, the site's landmarks on racks and their observer.
+  std::unique_ptr<hal::Camera> ranging_camera;
+  std::vector<site::WallLandmark> walls;
+  std::unique_ptr<app::RackObserver> rack;
+  app::RangingCounts ranging_counts;
 };
 
 int run_fail(const std::string& what, int rc = 2) {
   std::fprintf(stderr, "agvloc: %s\n", what.c_str());
   return rc;
+}
+
+// ranging_camera.enabled: its driver, the site's landmarks and the observer. -1 to go on, else
+// the exit code.
+int prepare_ranging(LiveSetup* s) {
+  const config::RangingCameraSection& rc = s->cfg.ranging_camera;
+  if (!rc.enabled) return -1;
+  std::string err;
+  s->ranging_camera = app::make_live_camera(rc.driver, rc.camera, "ranging_camera", &err);
+  if (!s->ranging_camera) return run_fail(err);
+  if (!app::load_wall_landmarks(rc.site_file, &s->walls, &err)) return run_fail(err);
+  s->rack = std::make_unique<app::RackObserver>(rc, s->walls);
+  if (!s->rack->ok(&err)) return run_fail(err);
+  return -1;
 }
 
 // The configuration, the map and the devices: -1 to go on, else the exit code (--print-dbc and
@@ -82,6 +103,7 @@ int prepare(const RunArgs& a, LiveSetup* s) {
     s->imu = app::make_live_imu(cfg, &err);
     if (!s->imu) return run_fail(err);
   }
+  if (const int rc = prepare_ranging(s); rc >= 0) return rc;
   if (a.check_only) {
     std::printf("agvloc: configuration %s is valid; checked:\n%s", a.config_file.c_str(),
                 config::config_summary(cfg, s->map_ptr).c_str());
@@ -153,6 +175,11 @@ int run_live(LiveSetup& s) {
   io.clock = &clock;
   io.stop = &stop_requested();
   io.stop_at_end_of_stream = false;
+  if (s.rack) {
+    io.ranging_camera = s.ranging_camera.get();
+    io.rack_observer = s.rack.get();
+    io.ranging_counts = &s.ranging_counts;
+  }
   std::string err;
   app::GyroRing gyro_ring;
   app::GyroReader gyro_reader(std::move(s.imu), gyro_ring);
@@ -179,6 +206,7 @@ int run_live(LiveSetup& s) {
   const std::string lines = outputs.stop();
   std::printf("agvloc: stopped after %.1f s\n%s%s", static_cast<double>(result.wall_ns) / 1e9,
               app::format_statistics(result).c_str(), lines.c_str());
+  if (s.rack) std::fputs(app::ranging_summary(s.ranging_counts, result.output).c_str(), stdout);
   return 0;
 }
 

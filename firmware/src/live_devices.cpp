@@ -11,28 +11,32 @@
 
 namespace agv::app {
 
-std::unique_ptr<hal::Camera> make_live_camera(const config::Config& cfg, std::string* error) {
-  const std::string verr = camera::validate_config(cfg.camera.camera);
+std::unique_ptr<hal::Camera> make_live_camera(config::CameraDriver driver,
+                                              const hal::CameraConfig& camera,
+                                              const std::string& section, std::string* error) {
+  const std::string verr = camera::validate_config(camera);
   if (!verr.empty()) {
-    *error = "camera: " + verr;
+    *error = section + ": " + verr;
     return nullptr;
   }
-  if (cfg.camera.driver == config::CameraDriver::kV4l2) {
-    return std::make_unique<v4l2::V4l2Camera>(cfg.camera.camera);
-  }
-  if (cfg.camera.driver == config::CameraDriver::kLibcamera) {
+  if (driver == config::CameraDriver::kV4l2) return std::make_unique<v4l2::V4l2Camera>(camera);
+  if (driver == config::CameraDriver::kLibcamera) {
 #ifdef AGV_HAVE_LIBCAMERA
-    return std::make_unique<libcam::LibcameraCamera>(cfg.camera.camera);
+    return std::make_unique<libcam::LibcameraCamera>(camera);
 #else
-    *error =
-        "camera.driver: libcamera is not available in this build (replay-only build; use "
-        "v4l2 or rebuild with libcamera-dev installed)";
+    *error = section +
+             ".driver: libcamera is not available in this build (replay-only build; use v4l2 or "
+             "rebuild with libcamera-dev installed)";
     return nullptr;
 #endif
   }
-  *error = std::string("camera.driver: '") + config::camera_driver_name(cfg.camera.driver) +
+  *error = section + ".driver: '" + config::camera_driver_name(driver) +
            "' is not a live driver (use libcamera or v4l2)";
   return nullptr;
+}
+
+std::unique_ptr<hal::Camera> make_live_camera(const config::Config& cfg, std::string* error) {
+  return make_live_camera(cfg.camera.driver, cfg.camera.camera, "camera", error);
 }
 
 std::unique_ptr<hal::Imu> make_live_imu(const config::Config& cfg, std::string* error) {

@@ -24,6 +24,7 @@ localizer::LocalizerConfig localizer_config(const config::Config& cfg) {
   c.heartbeat_period_ns = static_cast<std::int64_t>(1e9 / cfg.loop.heartbeat_rate_hz);
   c.camera_timeout_ns = static_cast<std::int64_t>(cfg.camera.timeout_ms * 1e6);
   c.ranging.camera_offset_ns = std::llround(cfg.ranging_camera.time_offset_ms * 1e6);
+  c.ranging.common_bearing_sigma_rad = config::common_bearing_sigma_rad(cfg.ranging_camera);
   c.sw_major = AGV_VERSION_MAJOR;
   c.sw_minor = AGV_VERSION_MINOR;
   c.sw_patch = AGV_VERSION_PATCH;

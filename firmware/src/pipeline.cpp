@@ -19,6 +19,7 @@
 #include "agv/posix/posix_clock.hpp"
 #include "agv/posix/realtime.hpp"
 #include "handoff.hpp"
+#include "ranging_worker.hpp"
 #include "snapshot_slot.hpp"
 
 namespace agv::app {
@@ -66,6 +67,16 @@ class ThreadedRun {
         snapshot_(core_.time_base()) {
     loop_.keep_received_odometry(io.odometry_received);
     loop_.set_live_gyro(io.live_gyro);
+    if (io.ranging_camera && io.rack_observer && io.ranging_counts) {
+      ranging_ring_ = std::make_unique<RangingRing>();
+      loop_.set_ranging(ranging_ring_.get());
+      ranging_ = std::make_unique<RangingWorker>(
+          io.ranging_camera, io.rack_observer, io.ranging_counts, ranging_ring_.get(), &snapshot_,
+          &clock_, core_.config().ranging.camera_offset_ns, [this] {
+            pin_this_thread(cfg_.loop.vision_cpus, "ranging, loop.vision_cpus");
+            apply_fifo_priority(cfg_.loop.vision_priority, "ranging, loop.vision_priority");
+          });
+    }
   }
 
   void start_camera() {
@@ -74,6 +85,7 @@ class ThreadedRun {
                    io_.camera->last_error());
       camera_error_ = true;
     }
+    if (ranging_) ranging_->start();
   }
   void capture_main();
   void vision_main();
@@ -85,6 +97,7 @@ class ThreadedRun {
     mailbox_.close();
     capture->join();
     worker->join();
+    if (ranging_) ranging_->stop();
     io_.camera->stop();
     loop_.finish(mailbox_.dropped());
   }
@@ -121,6 +134,9 @@ class ThreadedRun {
   std::atomic<std::uint64_t> vision_busy_{0};
   VisionStats vstats_;
   SnapshotSlot snapshot_;
+  // ranging_camera.enabled: the second camera's worker and its ring (null: none).
+  std::unique_ptr<RangingRing> ranging_ring_;
+  std::unique_ptr<RangingWorker> ranging_;
   // Written by one thread each (worker, output), read after both are joined.
   std::uint64_t fixes_not_recorded_ = 0, ticks_not_recorded_ = 0;
 };
@@ -227,8 +243,9 @@ void ThreadedRun::output_period(std::int64_t now) {
   const bool can_odometry_done =
       io_.can_odometry_end_ns == INT64_MIN ||
       now >= io_.can_odometry_end_ns + cfg_.fusion.health.odom_timeout_ns;
+  const bool ranging_done = !ranging_ || (ranging_->ended() && !ranging_->busy());
   if (io_.stop_at_end_of_stream && camera_eos_.load() && vision_busy_.load() == 0 &&
-      mailbox_.closed() && loop_.odometry_done() && can_odometry_done) {
+      mailbox_.closed() && loop_.odometry_done() && can_odometry_done && ranging_done) {
     // Hand over what the worker produced, then stop.
     loop_.take_inputs(INT64_MAX);
     done_ = true;
@@ -332,7 +349,7 @@ class FastRun {
              config::landmark_geometry(cfg), map),
         pose_on_fix_(cfg.loop.pose_on_fix),
         delay_ns_(static_cast<std::int64_t>(cfg.replay_fix_delay_ms * 1e6)),
-        ranging_offset_ns_(std::llround(cfg.ranging_camera.time_offset_ms * 1e6)) {
+        ranging_offset_ns_(core_.config().ranging.camera_offset_ns) {
     wakes_.reserve(64);
     if (io.ranging_frames && io.rack_observer && io.ranging_counts) {
       ranging_ring_ = std::make_unique<RangingRing>();

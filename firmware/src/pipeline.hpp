@@ -55,9 +55,12 @@ struct PipelineIo {
   // no such wait.
   std::int64_t can_odometry_end_ns = INT64_MIN;
   bool quiet = false;  // no periodic log lines
-  // ranging_camera.enabled, replay --fast: the recording's second stream (ranging/), read by
-  // rack_observer, counted in ranging_counts; all three or none.
+  // ranging_camera.enabled: the second camera's frames, read by rack_observer, counted in
+  // ranging_counts (written by the run, read after it). run_fast takes the recording's second
+  // stream (ranging_frames), run_threads a camera (ranging_camera: live, or a replay of that
+  // stream); without rack_observer and ranging_counts neither is read.
   const recording::Recording* ranging_frames = nullptr;
+  hal::Camera* ranging_camera = nullptr;
   RackObserver* rack_observer = nullptr;
   RangingCounts* ranging_counts = nullptr;
 };

@@ -27,9 +27,26 @@ bool load_wall_landmarks(const std::string& site_file, std::vector<site::WallLan
   return true;
 }
 
+namespace {
+
+ranging::ObserveOptions observe_options(const config::RangingCameraSection& cfg) {
+  ranging::ObserveOptions o;
+  o.mount_sigma_rad = cfg.mount_sigma_rad;
+  o.mount_sigma_mm = cfg.mount_sigma_mm;
+  o.calibration_sigma_px = cfg.calibration_sigma_px;
+  o.focal_sigma_rel = cfg.focal_sigma_rel;
+  return o;
+}
+
+}  // namespace
+
 RackObserver::RackObserver(const config::RangingCameraSection& cfg,
                            std::span<const site::WallLandmark> landmarks)
-    : observer_(cfg.intrinsics, cfg.mount, landmarks) {}
+    : observer_(cfg.intrinsics, cfg.mount, landmarks, observe_options(cfg)),
+      width_px_(cfg.intrinsics.width_px),
+      height_px_(cfg.intrinsics.height_px),
+      mount_sigma_rad_(cfg.mount_sigma_rad),
+      mount_sigma_mm_(cfg.mount_sigma_mm) {}
 
 bool RackObserver::ok(std::string* error) const {
   if (observer_.status() == ranging::TableStatus::kOk) return true;
@@ -50,7 +67,8 @@ void RackObserver::observe(const cv::Mat& gray, const ranging::PosePrior* prior,
     if (rec->n >= rec->obs.size()) break;
     localizer::RackObservation& r = rec->obs[rec->n++];
     r.vehicle = ranging::fix_observation(o);
-    const ranging::SensorRangeBearing s = ranging::sensor_range_bearing(mount, o);
+    const ranging::SensorRangeBearing s =
+        ranging::sensor_range_bearing(mount, o, mount_sigma_rad_, mount_sigma_mm_);
     r.sensor.landmark_xy_mm = s.landmark_xy_mm;
     r.sensor.sensor_xy_mm = s.sensor_xy_mm;
     r.sensor.sensor_yaw_rad = s.sensor_yaw_rad;
@@ -105,16 +123,22 @@ std::string ranging_summary(const RangingCounts& c, const localizer::OutputStats
   std::snprintf(
       buf, sizeof buf,
       "ranging camera: %llu frames (%llu in windows), %llu unreadable, %llu landmarks, "
-      "%llu refused, %llu dropped; core: %llu fused, %llu gated, %llu fixes, %llu "
+      "%llu refused, %llu dropped, %llu stalls; core: %llu fused, %llu gated, %llu fixes, %llu "
       "initialisations\n",
       static_cast<unsigned long long>(c.frames), static_cast<unsigned long long>(c.windowed),
       static_cast<unsigned long long>(c.frame_errors), static_cast<unsigned long long>(c.landmarks),
       static_cast<unsigned long long>(c.refused), static_cast<unsigned long long>(c.dropped_queue),
-      static_cast<unsigned long long>(o.ranging_fused),
+      static_cast<unsigned long long>(c.stalls), static_cast<unsigned long long>(o.ranging_fused),
       static_cast<unsigned long long>(o.ranging_rejected_gate),
       static_cast<unsigned long long>(o.ranging_fixes),
       static_cast<unsigned long long>(o.ranging_initialisations));
   std::string s = buf;
+  if (c.cpu_ns > 0 && c.frames > 0) {
+    std::snprintf(buf, sizeof buf, "ranging camera: CPU per frame mean %.2f ms, max %.2f ms\n",
+                  static_cast<double>(c.cpu_ns) / 1e6 / static_cast<double>(c.frames),
+                  static_cast<double>(c.cpu_max_ns) / 1e6);
+    s += buf;
+  }
   if (!c.last_error.empty()) s += "ranging camera: last unreadable frame: " + c.last_error + "\n";
   return s;
 }

@@ -21,6 +21,10 @@
 
 namespace agv::app {
 
+// A second camera silent this long is stalled: counted and logged (the vehicle runs on its other
+// aids meanwhile).
+constexpr std::int64_t kRangingStallNs = 1'000'000'000;
+
 // What the second camera's frames gave (summary line).
 struct RangingCounts {
   std::uint64_t frames = 0;         // read and searched
@@ -29,6 +33,10 @@ struct RangingCounts {
   std::uint64_t landmarks = 0;      // measured
   std::uint64_t refused = 0;        // decoded but refused (unknown id, mirrored, ...)
   std::uint64_t dropped_queue = 0;  // ring full
+  // The threaded loop: spans of more than kRangingStallNs without a frame from a started camera.
+  std::uint64_t stalls = 0;
+  // The threaded loop's worker: its thread CPU time per frame read (0: not measured, --fast).
+  std::int64_t cpu_ns = 0, cpu_max_ns = 0;
   std::string last_error;
 };
 
@@ -44,12 +52,18 @@ class RackObserver {
                std::span<const site::WallLandmark> landmarks);
   // False with *error when the landmark table or the calibration cannot be used.
   bool ok(std::string* error) const;
+  // Whether a frame of this size is the configured camera's (ranging_camera.camera).
+  bool frame_size_ok(int width_px, int height_px) const {
+    return width_px == width_px_ && height_px == height_px_;
+  }
   // Reads one gray frame; prior null: a full sweep. Fills rec's observations (not its times).
   void observe(const cv::Mat& gray, const ranging::PosePrior* prior, RangingRecord* rec,
                RangingCounts* counts);
 
  private:
   ranging::LandmarkObserver observer_;
+  int width_px_ = 0, height_px_ = 0;
+  double mount_sigma_rad_ = 0.0, mount_sigma_mm_ = 0.0;  // the EKF aid's share of the mount's doubt
   std::uint64_t frame_index_ = 0;
 };
 

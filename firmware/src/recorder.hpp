@@ -1,11 +1,12 @@
-// The recording behind `agvloc record` (docs/guide/recording.md): the camera's frames as PNGs, CAN
-// odometry, and the gyro (AGV_Gyro on CAN, or a hal::Imu for imu.source iio), each row appended
-// to its CSV as it arrives. Rows reach the file at least every flush_period_ns, so a crash loses
-// at most that much; a power loss at most sync_period_ns of rows.
+// The recording behind `agvloc record` (docs/guide/recording.md): the camera's frames as PNGs (and
+// the second camera's in ranging/ with ranging_camera.enabled), CAN odometry, and the gyro
+// (AGV_Gyro on CAN, or a hal::Imu for imu.source iio), each row appended to its CSV as it arrives.
+// Rows reach the file at least every flush_period_ns, so a crash loses at most that much; a power
+// loss at most sync_period_ns of rows.
 //
-// Threads: capture (camera -> mailbox, newest frame wins), PNG writer (mailbox -> frames/ and
-// frames.csv), the IIO gyro reader when there is an IIO gyro, and the caller's, which calls
-// step() in a loop: CAN frames -> odom.csv / imu.csv, IIO samples -> imu.csv.
+// Threads: per camera a capture and a PNG writer (frame_stream_recorder.hpp), the IIO gyro reader
+// when there is an IIO gyro, and the caller's, which calls step() in a loop: CAN frames ->
+// odom.csv / imu.csv, IIO samples -> imu.csv.
 #pragma once
 
 #include <atomic>
@@ -20,6 +21,7 @@
 #include "agv/hal/imu.hpp"
 #include "agv/protocol/codec.hpp"
 #include "agv/recording/csv_stream.hpp"
+#include "frame_stream_recorder.hpp"
 #include "gyro_reader.hpp"
 #include "handoff.hpp"
 
@@ -44,22 +46,25 @@ struct RecorderCounters {
   std::uint64_t samples_out_of_order = 0;  // odometry or gyro stamp not after the previous row's
   std::uint64_t csv_write_errors = 0;      // failed flushes, creates and syncs of the CSV files
   std::uint64_t rows_lost = 0;             // rows those failures kept out of the files
+  bool ranging = false;                    // the second camera was recorded (ranging/)
+  FrameStreamCounters ranging_frames;
 };
 
 class Recorder {
  public:
   // `imu`: the IIO gyro of imu.source iio, or null. AGV_Gyro frames are recorded when
-  // pc.gyro.enabled. The devices and the clock must outlive the recorder.
+  // pc.gyro.enabled. `ranging_camera`: the second camera (ranging_camera.enabled), or null. The
+  // devices and the clock must outlive the recorder.
   Recorder(std::string dir, const protocol::ProtocolConfig& pc, hal::Camera& camera,
            hal::CanBus& bus, std::unique_ptr<hal::Imu> imu, const hal::Clock& clock,
-           RecorderOptions options = {});
+           RecorderOptions options = {}, hal::Camera* ranging_camera = nullptr);
   ~Recorder();
   Recorder(const Recorder&) = delete;
   Recorder& operator=(const Recorder&) = delete;
 
-  // Starts the camera and the IIO gyro, creates frames.csv and odom.csv (refusing existing ones)
-  // in `dir`, sets the CAN filters and starts the threads. False with *error, nothing left
-  // running.
+  // Starts the cameras and the IIO gyro, creates frames.csv (ranging/frames.csv) and odom.csv
+  // (refusing existing ones) in `dir`, sets the CAN filters and starts the threads. False with
+  // *error, nothing left running.
   bool start(std::string* error);
   // Waits up to timeout_ns for one CAN frame and records it, takes the IIO gyro's samples and
   // flushes what is due.
@@ -72,16 +77,12 @@ class Recorder {
   std::string summary() const;  // the closing line of `agvloc record`
 
  private:
-  void capture_loop();
-  void writer_loop();
-  void record_frame(const hal::FrameView& f);
   void add_imu(std::int64_t t_ns, double gyro_z_radps);
   void flush_rows(bool force);
   void csv_error(const std::string& what);
 
   std::string dir_;
   protocol::ProtocolConfig pc_;
-  hal::Camera& camera_;
   hal::CanBus& bus_;
   const hal::Clock& clock_;
   RecorderOptions options_;
@@ -90,16 +91,9 @@ class Recorder {
   GyroRing gyro_ring_;
   std::unique_ptr<GyroReader> gyro_reader_;  // imu.source iio
 
-  FrameMailbox mailbox_;
-  std::thread capture_, writer_;
-  std::atomic<bool> done_{false};
+  FrameStreamRecorder floor_;
+  std::unique_ptr<FrameStreamRecorder> ranging_;
   bool running_ = false;
-
-  // Writer thread only.
-  recording::CsvStream frames_csv_;
-  std::int64_t last_frame_t_ns_ = -1;
-  std::int64_t frames_synced_ns_ = 0;
-  std::atomic<std::uint64_t> frames_{0}, frames_out_of_order_{0}, png_write_errors_{0};
 
   // step() thread only.
   recording::CsvStream odom_csv_, imu_csv_;  // imu.csv is created by the first sample
@@ -107,7 +101,7 @@ class Recorder {
   std::int64_t flushed_ns_ = 0, synced_ns_ = 0;
   std::uint64_t gyro_saturated_ = 0, samples_out_of_order_ = 0;
 
-  std::atomic<std::uint64_t> csv_write_errors_{0}, frames_rows_lost_{0};
+  std::uint64_t csv_write_errors_ = 0;
 };
 
 }  // namespace agv::app

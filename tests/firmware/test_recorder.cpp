@@ -21,6 +21,7 @@
 #include "agv/posix/posix_clock.hpp"
 #include "agv/protocol/codec.hpp"
 #include "agv/recording/recording.hpp"
+#include "ranging_stream.hpp"
 #include "recorder.hpp"
 
 // The two tests that record in a forked child cannot run under TSan: its runtime refuses to start
@@ -375,3 +376,67 @@ TEST(Recorder, CsvWriteErrorsAreCountedAndLeaveWholeRows) {
 }
 
 }  // namespace
+
+// The floor camera and the second one (ranging_camera.enabled), both waiting for pushes.
+struct TwoCameras {
+  explicit TwoCameras(const std::string& dir)
+      : vehicle(pc),
+        bus(vehicle.net.create_endpoint(4096)),
+        camera(waiting_camera()),
+        ranging(waiting_camera()),
+        rec(dir, pc, camera, *bus, nullptr, clock, {}, &ranging) {}
+  const p::ProtocolConfig pc;
+  Vehicle vehicle;
+  std::unique_ptr<agv::can::FakeCanEndpoint> bus;
+  FakeCamera camera, ranging;
+  agv::posix::PosixClock clock;
+  agv::app::Recorder rec;
+};
+
+// ranging_camera.enabled: before, `agvloc record` left the second camera out; its frames now go
+// to ranging/ in the stream format replay reads.
+TEST(Recorder, SecondCameraGoesToRangingInTheStreamFormat) {
+  const std::string dir = fresh_dir("ranging");
+  TwoCameras v(dir);
+  FakeCamera &camera = v.camera, &ranging = v.ranging;
+  agv::app::Recorder& rec = v.rec;
+  std::string err;
+  ASSERT_TRUE(rec.start(&err)) << err;
+  camera.push_frame(FakeCamera::solid(640, 480, 100), 1000 * kMs);
+  for (std::uint64_t i = 0; i < 3; ++i) {
+    ranging.push_frame(FakeCamera::solid(64, 48, 80), (1005 + 66 * static_cast<int>(i)) * kMs);
+    ASSERT_TRUE(step_until(rec, [&] { return rec.counters().ranging_frames.frames == i + 1; }));
+  }
+  ASSERT_TRUE(step_until(rec, [&] { return rec.counters().frames == 1; }));
+  EXPECT_TRUE(rec.stop());
+  EXPECT_NE(rec.summary().find("ranging camera: 3 frames"), std::string::npos) << rec.summary();
+  agv::config::RangingCameraSection section;
+  section.camera.width_px = 64;
+  section.camera.height_px = 48;
+  section.intrinsics.width_px = 64;
+  section.intrinsics.height_px = 48;
+  agv::recording::Recording stream;
+  std::vector<std::string> warnings;
+  ASSERT_TRUE(agv::app::read_ranging_stream(dir, section, &stream, &warnings, &err)) << err;
+  ASSERT_EQ(stream.frames.size(), 3u);
+  EXPECT_EQ(stream.frames[2].t_ns, 1137 * kMs);
+  cv::Mat img;
+  EXPECT_TRUE(agv::recording::load_frame(stream, 2, &img, &err)) << err;
+  EXPECT_EQ(img.cols, 64);
+  fs::remove_all(dir);
+}
+
+TEST(Recorder, ASecondCameraThatDoesNotStartLeavesNothingRunning) {
+  const std::string dir = fresh_dir("ranging_down");
+  TwoCameras v(dir);
+  FakeCamera& camera = v.camera;
+  v.ranging.set_start_status(agv::hal::CameraStatus::kDisconnected);
+  std::string err;
+  EXPECT_FALSE(v.rec.start(&err));
+  EXPECT_NE(err.find("ranging camera did not start"), std::string::npos) << err;
+  EXPECT_EQ(camera.start_calls(), 1);
+  EXPECT_EQ(camera.stop_calls(), 1);
+  EXPECT_FALSE(fs::exists(fs::path(dir) / "odom.csv"));
+  EXPECT_FALSE(fs::exists(fs::path(dir) / "frames.csv"));
+  fs::remove_all(dir);
+}

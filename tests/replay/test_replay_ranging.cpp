@@ -53,9 +53,7 @@ sim::SiteScene scene() {
   return s;
 }
 
-fs::path fresh_dir(const std::string& name) {
-  return test_support::fresh_dir("replayrng", name);
-}
+fs::path fresh_dir(const std::string& name) { return test_support::fresh_dir("replayrng", name); }
 
 // Floor frames of bare floor (no landmark), odometry standing still, the second camera's frames
 // rendered at the truth, the site file and a configuration enabling the second camera.
@@ -108,9 +106,10 @@ struct ReplayRun {
   std::string out, err;
 };
 
-ReplayRun replay(const fs::path& rec, bool with_config) {
-  std::vector<std::string> args = {"replay", rec.string(), "--out", (rec / "out").string(),
-                                   "--fast", "--quiet"};
+ReplayRun replay(const fs::path& rec, bool with_config, bool realtime = false) {
+  std::vector<std::string> args = {
+      "replay", rec.string(), "--out", (rec / "out").string(), realtime ? "--realtime" : "--fast",
+      "--quiet"};
   if (with_config) {
     args.push_back("--config");
     args.push_back((rec / "ranging.yaml").string());
@@ -162,6 +161,24 @@ TEST(ReplayRanging, TwoRackLandmarksLocalizeAVehicleWithNoFloorLandmark) {
               static_cast<double>(first.t_ns - kT0) / 1e6, err_mm, last.theta_deg);
   EXPECT_LE(first.t_ns - kT0, 1'000'000'000);
   EXPECT_LT(err_mm, 50.0);
+  EXPECT_LT(std::abs(last.theta_deg), 1.0);
+  fs::remove_all(d);
+}
+
+// --realtime runs the threads of `agvloc run`: the second stream is a camera of its own, read by
+// the ranging worker with the output thread's pose as the prior. Every frame is read (the replay
+// camera does not drop), and the vehicle is localized as in --fast.
+TEST(ReplayRanging, RealtimeReadsTheSecondCameraInItsOwnThread) {
+  const fs::path d = write_recording("realtime");
+  const ReplayRun r = replay(d, true, true);
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_NE(r.out.find("ranging camera: 10 frames"), std::string::npos) << r.out;
+  EXPECT_EQ(r.err.find("replayed by --fast only"), std::string::npos) << r.err;
+  EXPECT_NE(r.out.find("ranging camera: CPU per frame mean"), std::string::npos) << r.out;
+  const std::vector<Pose> poses = valid_poses(d);
+  ASSERT_FALSE(poses.empty()) << r.out << r.err;
+  const Pose& last = poses.back();
+  EXPECT_LT(std::hypot(last.x_mm - kTruth.x_mm, last.y_mm - kTruth.y_mm), 50.0);
   EXPECT_LT(std::abs(last.theta_deg), 1.0);
   fs::remove_all(d);
 }

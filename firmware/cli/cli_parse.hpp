@@ -1,5 +1,5 @@
-// The command line convention of agvloc and agvloc-desk: --help and --version exit 0, any
-// parse error exits 2 after CLI11 has printed it.
+// The command line convention of agvloc, agvloc-desk and agvloc-overhead: --help and --version exit
+// 0, any parse error exits 2 after CLI11 has printed it.
 #pragma once
 
 #include <CLI/CLI.hpp>
