@@ -85,6 +85,34 @@ TEST(ConfigRanging, ValuesReachTheStructs) {
   EXPECT_EQ(cfg.camera.camera.width_px, 640);
   EXPECT_EQ(cfg.camera.camera.height_px, 480);
   EXPECT_EQ(agv::app::localizer_config(cfg).ranging.camera_offset_ns, -12'500'000);
+  EXPECT_EQ(agv::app::localizer_config(cfg).ranging.common_bearing_sigma_rad, 0.0);
+}
+
+TEST(ConfigRanging, TheCalibrationsDoubtReachesTheObserverAndTheFixes) {
+  const std::string yaml = std::string(kFloor) +
+                           "ranging_camera:\n"
+                           "  enabled: true\n"
+                           "  site: hall.yaml\n"
+                           "  intrinsics: {fx: 1000, fy: 1000, cx: 639.5, cy: 399.5}\n"
+                           "  mount: {sigma_deg: 0.5, sigma_mm: 3}\n"
+                           "  calibration_sigma_px: 2\n"
+                           "  focal_sigma_rel: 0.002\n";
+  Config cfg;
+  std::vector<std::string> errors;
+  ASSERT_TRUE(agv::config::parse_config(yaml, "", &cfg, &errors))
+      << (errors.empty() ? "" : errors.front());
+  const agv::config::RangingCameraSection& r = cfg.ranging_camera;
+  EXPECT_NEAR(r.mount_sigma_rad, 0.5 * M_PI / 180.0, 1e-15);
+  EXPECT_DOUBLE_EQ(r.mount_sigma_mm, 3.0);
+  EXPECT_DOUBLE_EQ(r.calibration_sigma_px, 2.0);
+  EXPECT_DOUBLE_EQ(r.focal_sigma_rel, 0.002);
+  // The mount's yaw and the principal point's column (2 px at f = 1000 px) shared by every bearing.
+  EXPECT_NEAR(agv::app::localizer_config(cfg).ranging.common_bearing_sigma_rad,
+              std::hypot(0.5 * M_PI / 180.0, 0.002), 1e-15);
+  errors.clear();
+  EXPECT_FALSE(agv::config::parse_config(
+      std::string(kFloor) + "ranging_camera: {mount: {sigma_deg: -1}}\n", "", &cfg, &errors));
+  EXPECT_TRUE(mentions(errors, "ranging_camera.mount.sigma_deg"));
 }
 
 }  // namespace

@@ -16,10 +16,12 @@
 namespace agv::ranging {
 namespace {
 
+// clang-format off
 CameraIntrinsics small_camera() {
   return {.width_px = 640, .height_px = 400, .fx = 600.0, .fy = 600.0, .cx = 321.5, .cy = 198.0,
           .k1 = -0.06, .k2 = 0.01};
 }
+// clang-format on
 
 RangingMount forward_mount() {
   return {.x_mm = 300.0, .y_mm = 40.0, .z_mm = 1000.0, .pitch_rad = 0.02, .yaw_rad = -0.03};
@@ -416,23 +418,16 @@ TEST_F(RangingObserve, CalibrationResidualWidensBearingAndRange) {
   }
 }
 
-TEST(RangingObserveMount, CommonBearingErrorMatchesTheFixsResponse) {
-  // Noise-free observations of three landmarks, then every bearing turned by 2 mrad: the fix
-  // moves by the rank-one term add_mount_yaw_uncertainty adds for sigma 2 mrad.
-  const Pose2 truth{1000.0, -300.0, 0.3};
-  std::vector<Observation> obs;
-  for (const Vec2 l : {Vec2{5000.0, -1000.0}, Vec2{4500.0, 2500.0}, Vec2{7000.0, 800.0}}) {
-    Observation o;
-    o.landmark_mm = l;
-    o.range_mm = std::hypot(l.x - truth.x_mm, l.y - truth.y_mm);
-    o.bearing_rad = std::atan2(l.y - truth.y_mm, l.x - truth.x_mm) - truth.theta_rad;
-    o.cov = Eigen::Vector2d(400.0, 1e-7).asDiagonal();
-    obs.push_back(o);
-  }
+// Every bearing (and face yaw) of obs turned by 2 mrad: the fix moves by the rank-one term
+// add_mount_yaw_uncertainty adds for sigma 2 mrad.
+void expect_common_turn_response(const std::vector<Observation>& obs) {
   FixResult f = fix_from_landmarks(obs, FixOptions{});
   ASSERT_EQ(f.status, FixStatus::kOk);
   std::vector<Observation> turned = obs;
-  for (Observation& o : turned) o.bearing_rad += 0.002;
+  for (Observation& o : turned) {
+    o.bearing_rad += 0.002;
+    if (o.has_face_yaw) o.face_yaw_rad += 0.002;
+  }
   const FixResult g = fix_from_landmarks(turned, FixOptions{});
   ASSERT_EQ(g.status, FixStatus::kOk);
   const Eigen::Vector3d shift(g.pose.x_mm - f.pose.x_mm, g.pose.y_mm - f.pose.y_mm,
@@ -446,6 +441,36 @@ TEST(RangingObserveMount, CommonBearingErrorMatchesTheFixsResponse) {
       EXPECT_NEAR(added(r, c), shift[r] * shift[c], 0.02 * std::abs(shift[r] * shift[c]) + 1e-9);
     }
   }
+}
+
+// Noise-free observations of three landmarks from truth; with face_yaw, each also carries its
+// face's yaw as precise as its bearing (the full tag pose).
+std::vector<Observation> three_landmarks(const Pose2& truth, bool face_yaw) {
+  std::vector<Observation> obs;
+  const double facing[3] = {2.8, -2.5, 3.1};
+  int i = 0;
+  for (const Vec2 l : {Vec2{5000.0, -1000.0}, Vec2{4500.0, 2500.0}, Vec2{7000.0, 800.0}}) {
+    Observation o;
+    o.landmark_mm = l;
+    o.range_mm = std::hypot(l.x - truth.x_mm, l.y - truth.y_mm);
+    o.bearing_rad = std::atan2(l.y - truth.y_mm, l.x - truth.x_mm) - truth.theta_rad;
+    o.cov = Eigen::Vector2d(400.0, 1e-7).asDiagonal();
+    o.has_face_yaw = face_yaw;
+    o.landmark_facing_rad = facing[i++];
+    o.face_yaw_rad = wrap_angle_rad(o.landmark_facing_rad - truth.theta_rad);
+    o.face_yaw_var_rad2 = 1e-7;
+    obs.push_back(o);
+  }
+  return obs;
+}
+
+TEST(RangingObserveMount, CommonBearingErrorMatchesTheFixsResponse) {
+  expect_common_turn_response(three_landmarks({1000.0, -300.0, 0.3}, false));
+}
+
+TEST(RangingObserveMount, CommonBearingAndFaceYawErrorMatchesTheFixsResponse) {
+  // The full tag pose: a yawed camera turns each landmark's face yaw as it turns its bearing.
+  expect_common_turn_response(three_landmarks({1000.0, -300.0, 0.3}, true));
 }
 
 TEST_F(RangingObserve, MountRollAndPitchUncertaintyWidensEachBearing) {

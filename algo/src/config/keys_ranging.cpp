@@ -87,12 +87,34 @@ void add_ranging_mount(std::vector<Key>* k) {
                            "the order is yaw, then pitch, then roll (docs/design/ranging.md)"}));
 }
 
+void add_ranging_calibration_doubt(std::vector<Key>* k) {
+  k->push_back(deg_as_rad(
+      "ranging_camera.mount.sigma_deg", AGV_AT(ranging_camera.mount_sigma_rad), 0.0, 10.0, 0.0,
+      {"deg",
+       "1 sigma of each mount angle as calibrated. Roll and pitch widen each landmark's range and "
+       "bearing; the yaw turns every bearing alike, so it widens a prior-free fix's covariance "
+       "instead (its heading cannot be surer than the mount). 0: the mount is taken as exact"}));
+  k->push_back(number("ranging_camera.mount.sigma_mm", AGV_AT(ranging_camera.mount_sigma_mm), 0.0,
+                      100.0, 0.0, {"mm", "1 sigma of each mount offset as measured"}));
+  k->push_back(number("ranging_camera.calibration_sigma_px",
+                      AGV_AT(ranging_camera.calibration_sigma_px), 0.0, 20.0, 0.0,
+                      {"px",
+                       "systematic error of an undistorted point left by the lens calibration "
+                       "(its reprojection RMS is a fair start): widens each bearing by sigma / "
+                       "fx, and, through the principal point, every bearing alike as the mount's "
+                       "yaw does"}));
+  k->push_back(
+      number("ranging_camera.focal_sigma_rel", AGV_AT(ranging_camera.focal_sigma_rel), 0.0, 0.1,
+             0.0, {"", "relative error of the focal length (0.002 = 0.2 %): scales each range"}));
+}
+
 }  // namespace
 
 void add_ranging_camera_keys(std::vector<Key>* keys) {
   add_ranging_stream(keys);
   add_ranging_intrinsics(keys);
   add_ranging_mount(keys);
+  add_ranging_calibration_doubt(keys);
 }
 
 void check_ranging_camera_values(const Config& cfg, const KeyError& error) {

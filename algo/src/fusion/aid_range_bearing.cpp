@@ -62,6 +62,20 @@ bool range_bearing_model(const FilterVec& x, const RangeBearingObs& obs, RangeBe
   return true;
 }
 
+// Part of what the range floor stands for is common to all frames of a landmark, and of the
+// landmarks on one face (its map position against the print, the mount's calibration, the pose
+// solver's bias at a distance): frames fused as independent would locate the vehicle along the
+// line of sight better than any of them can. The position variance along the sight is kept at
+// least at this share of the floor's; the state is not touched.
+constexpr double kCommonFloorShare = 0.5;
+
+void keep_floor_along_sight(const RangeBearingModel& m, double range_floor_mm, FilterCov* P) {
+  const double floor_mm = kCommonFloorShare * range_floor_mm;
+  const Eigen::Vector2d u(-m.H(0, kIx), -m.H(0, kIy));  // unit, sensor towards the landmark
+  const double add = floor_mm * floor_mm - u.dot(P->block<2, 2>(kIx, kIx) * u);
+  if (add > 0.0) P->block<2, 2>(kIx, kIx) += add * u * u.transpose();
+}
+
 bool valid_observation(const RangeBearingObs& obs) {
   if (!obs.landmark_xy_mm.allFinite() || !obs.sensor_xy_mm.allFinite() ||
       !std::isfinite(obs.sensor_yaw_rad) || !std::isfinite(obs.range_mm) ||
@@ -90,6 +104,7 @@ void Ekf::update_range_bearing(FilterVec* x, FilterCov* P, const RangeBearingObs
   RangeBearingModel m;
   if (!range_bearing_model(*x, obs, &m)) return;  // replayed onto a prior at the landmark
   detail::joseph_update<2>(x, P, m.H, m.nu, obs.R);
+  keep_floor_along_sight(m, config_.range_bearing.range_floor_sigma_mm, P);
   (*x)(kItheta) = wrap_angle_rad((*x)(kItheta));
 }
 
@@ -128,6 +143,7 @@ FixOutcome Ekf::add_range_bearing(std::int64_t t_exposure_ns, const RangeBearing
 
   // Fuse at the exposure and re-propagate newer events.
   detail::joseph_update<2>(&x, &P, m.H, m.nu, eff.R);
+  keep_floor_along_sight(m, c.range_floor_sigma_mm, &P);
   x(kItheta) = wrap_angle_rad(x(kItheta));
   Event ev;
   ev.t_ns = t_ns;
@@ -247,13 +263,23 @@ bool Ekf::range_bearing_unseen_slip(std::int64_t t_ns, const RangeBearingObs& ob
   // after frame, fits a heading change every time and must not confirm itself.
   const bool other_landmark =
       (obs.landmark_xy_mm - c.landmark_xy_mm).norm() >= config_.recovery.kidnap_min_separation_mm;
+  // Until confirmed, the change is reported (estimate_at) but not fused: one landmark fits a
+  // turn almost always, a wrong map entry included, and the state must not follow it.
+  RbSlipCandidate fresh;
+  fresh.count = 1;
+  fresh.t_ns = t_ns;
+  fresh.dth_rad = dth;
+  fresh.tol_rad = tol_rad;
+  fresh.landmark_xy_mm = obs.landmark_xy_mm;
+  fresh.turn_cov = (P_slip - *P).topLeftCorner<3, 3>();
+  fresh.p_mm = Eigen::Vector2d(x(kIx), x(kIy));
   if (!agrees) {
-    c = {1, t_ns, dth, tol_rad, obs.landmark_xy_mm};
+    c = fresh;
     return false;
   }
   // The same frame's landmarks are the localizer's (its re-localisation from a frame's fix).
   if (!other_landmark || t_ns == c.t_ns) {
-    if (!other_landmark && t_ns != c.t_ns) c = {1, t_ns, dth, tol_rad, obs.landmark_xy_mm};
+    if (!other_landmark && t_ns != c.t_ns) c = fresh;
     return false;
   }
   c.count = 0;
@@ -261,6 +287,17 @@ bool Ekf::range_bearing_unseen_slip(std::int64_t t_ns, const RangeBearingObs& ob
   ++counters_.range_bearing_unseen_slips;
   pending_flags_ |= flags::kWheelSlip;
   return true;
+}
+
+Eigen::Matrix3d Ekf::unconfirmed_slip_cov(std::int64_t t_ns, const Eigen::Vector2d& p_mm) const {
+  const RbSlipCandidate& c = rb_slip_;
+  if (!initialised_ || c.count == 0 || t_ns < c.t_ns || t_ns - c.t_ns > kRbSlipWindowNs)
+    return Eigen::Matrix3d::Zero();
+  // The heading's share moves the position as the vehicle drives on from the exposure.
+  Eigen::Matrix3d F = Eigen::Matrix3d::Identity();
+  F(0, 2) = -(p_mm.y() - c.p_mm.y());
+  F(1, 2) = p_mm.x() - c.p_mm.x();
+  return F * c.turn_cov * F.transpose();
 }
 
 }  // namespace agv::fusion

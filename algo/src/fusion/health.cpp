@@ -79,6 +79,8 @@ PoseEstimate Ekf::estimate_at(std::int64_t t_ns) const {
   } else {
     e.health = HealthState::kDeadReckoning;
   }
+  // Reported only: health, gates and the state stay with the filter's own P.
+  e.cov.topLeftCorner<3, 3>() += unconfirmed_slip_cov(t_ns, Eigen::Vector2d(x(kIx), x(kIy)));
   return e;
 }
 

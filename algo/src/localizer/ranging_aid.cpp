@@ -54,7 +54,12 @@ RangingResult Localizer::on_ranging(std::int64_t t_exposure_ns,
   stats_.ranging_landmarks += obs.size();
   if (obs.empty()) return RangingResult::kEmpty;
   const std::int64_t t_ns = t_exposure_ns + cfg_.ranging.camera_offset_ns;
-  const fusion::PoseEstimate est = ekf_.estimate_at(t_ns);
+  fusion::PoseEstimate est = ekf_.estimate_at(t_ns);
+  // The filter's own covariance: a reported, unconfirmed heading change is no evidence against
+  // a frame's fix (the re-localisation's 3-sigma test).
+  if (est.valid)
+    est.cov.topLeftCorner<3, 3>() -=
+        ekf_.unconfirmed_slip_cov(t_ns, Eigen::Vector2d(est.pose.x_mm, est.pose.y_mm));
   if (est.valid && est.health != fusion::HealthState::kLost) return ranging_track(t_ns, obs, est);
   return ranging_fix(t_ns, obs);
 }
@@ -134,9 +139,13 @@ bool Localizer::rack_fix_agrees(std::int64_t t_ns, const ranging::FixResult& fix
 bool Localizer::rack_fix(std::span<const RackObservation> obs, ranging::FixResult* fix) {
   std::array<ranging::Observation, kMaxRackLandmarks> in;
   for (std::size_t i = 0; i < obs.size(); ++i) in[i] = obs[i].vehicle;
-  *fix = ranging::fix_from_landmarks(std::span(in.data(), obs.size()), cfg_.ranging.fix);
+  const std::span<const ranging::Observation> seen(in.data(), obs.size());
+  *fix = ranging::fix_from_landmarks(seen, cfg_.ranging.fix);
   ++stats_.ranging_fixes;
-  if (fix->status == ranging::FixStatus::kOk) return true;
+  if (fix->status == ranging::FixStatus::kOk) {
+    ranging::add_mount_yaw_uncertainty(seen, cfg_.ranging.common_bearing_sigma_rad, fix);
+    return true;
+  }
   const auto k = static_cast<std::size_t>(fix->status);
   if (k < stats_.ranging_fix_refused.size()) ++stats_.ranging_fix_refused[k];
   return false;

@@ -394,4 +394,26 @@ FixResult fix_from_landmarks(std::span<const Observation> obs, const FixOptions&
   return out;
 }
 
+void add_mount_yaw_uncertainty(std::span<const Observation> obs, double sigma_common_rad,
+                               FixResult* fix) {
+  if (!(sigma_common_rad > 0.0)) return;
+  // Gauss-Newton's response to an offset b on every bearing and face yaw: d(pose) = cov J^T W 1_b.
+  const Eigen::Vector3d s(fix->pose.x_mm, fix->pose.y_mm, fix->pose.theta_rad);
+  Eigen::Vector3d g = Eigen::Vector3d::Zero();
+  for (const Observation& o : obs) {
+    if (o.has_face_yaw) {
+      Eigen::Vector3d r;
+      Eigen::Matrix3d J;
+      if (fix_residual_yaw(o, s, &r, &J))
+        g += J.transpose() * face_yaw_covariance(o).inverse() * Eigen::Vector3d(0.0, 1.0, 1.0);
+      continue;
+    }
+    Eigen::Vector2d h;
+    Eigen::Matrix<double, 2, 3> J;
+    if (fix_predict(o, s, &h, &J)) g += J.transpose() * o.cov.inverse() * Eigen::Vector2d(0.0, 1.0);
+  }
+  const Eigen::Vector3d d = fix->cov * g;
+  fix->cov += sigma_common_rad * sigma_common_rad * d * d.transpose();
+}
+
 }  // namespace agv::ranging

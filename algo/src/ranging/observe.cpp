@@ -457,21 +457,4 @@ SensorRangeBearing sensor_range_bearing(const RangingMount& mount, const Landmar
   return s;
 }
 
-void add_mount_yaw_uncertainty(std::span<const Observation> obs, double sigma_common_rad,
-                               FixResult* fix) {
-  // Gauss-Newton's response to a bearing offset b on every landmark: d(pose) = cov J^T W 1_b.
-  Eigen::Vector3d g = Eigen::Vector3d::Zero();
-  for (const Observation& o : obs) {
-    const double dx = o.landmark_mm.x - fix->pose.x_mm, dy = o.landmark_mm.y - fix->pose.y_mm;
-    const double r2 = dx * dx + dy * dy;
-    if (!(r2 > 0.0)) continue;
-    const double r = std::sqrt(r2);
-    Eigen::Matrix<double, 2, 3> J;
-    J << -dx / r, -dy / r, 0.0, dy / r2, -dx / r2, -1.0;
-    g += J.transpose() * o.cov.inverse() * Eigen::Vector2d(0.0, 1.0);
-  }
-  const Eigen::Vector3d d = fix->cov * g;
-  fix->cov += sigma_common_rad * sigma_common_rad * d * d.transpose();
-}
-
 }  // namespace agv::ranging

@@ -206,7 +206,10 @@ void tally_two(const std::vector<LandmarkObservation>& usable, const Pose2& trut
   const std::vector<Observation> two = fix_observations(near);
   FixResult c =
       fix_two_circles(two[0], two[1], TwoLandmarkRule::kBearingDifference, false, FixOptions{});
-  add_mount_yaw_uncertainty(two, s_common, &c);
+  // The circles take their heading from the bearings alone: the common turn's response is theirs.
+  std::vector<Observation> two_bearings = two;
+  for (Observation& o : two_bearings) o.has_face_yaw = false;
+  add_mount_yaw_uncertainty(two_bearings, s_common, &c);
   t->two_circles_pose.add(c, truth, true);
   tally_wls(two, FixOptions{}, s_common, truth, &t->two_wls);
   for (std::size_t i = 0; i < 3; ++i)

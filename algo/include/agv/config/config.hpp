@@ -154,7 +154,20 @@ struct RangingCameraSection {
   std::string site_file;
   CameraIntrinsics intrinsics;  // image size from camera.width_px / height_px
   ranging::RangingMount mount;
+  // The calibration's doubt (1 sigma): each mount angle, each mount offset, a systematic error of
+  // an undistorted point (px), the focal length's relative error (ranging::ObserveOptions).
+  double mount_sigma_rad = 0.0;
+  double mount_sigma_mm = 0.0;
+  double calibration_sigma_px = 0.0;
+  double focal_sigma_rel = 0.0;
 };
+
+// The doubt every bearing of a second-camera frame shares: the mount's yaw and the principal
+// point's column (calibration_sigma_px / fx), 1 sigma.
+inline double common_bearing_sigma_rad(const RangingCameraSection& r) {
+  const double pp_rad = r.intrinsics.fx > 0.0 ? r.calibration_sigma_px / r.intrinsics.fx : 0.0;
+  return std::hypot(r.mount_sigma_rad, pp_rad);
+}
 
 struct Config {
   CameraSection camera;

@@ -156,6 +156,10 @@ class Ekf {
   // sensor itself; kRejectedTooOld beyond RangeBearingConfig::max_delay_ns or older than the
   // initialisation or the history.
   FixOutcome add_range_bearing(std::int64_t t_exposure_ns, const RangeBearingObs& obs);
+  // What estimate_at adds to the reported covariance (x, y, heading) at t_ns, position p_mm, for
+  // an unseen heading change one gated range-bearing observation fits but no second landmark has
+  // confirmed yet (aid_range_bearing.cpp); zero when there is none. Never in the filter's own P.
+  Eigen::Matrix3d unconfirmed_slip_cov(std::int64_t t_ns, const Eigen::Vector2d& p_mm) const;
 
   // Estimate predicted (or, inside the history, interpolated by prediction from the last event
   // at or before t_ns) to t_ns; does not change the filter. valid only once initialised and when
@@ -505,6 +509,10 @@ class Ekf {
     std::int64_t t_ns = 0;
     double dth_rad = 0.0, tol_rad = 0.0;
     Eigen::Vector2d landmark_xy_mm = Eigen::Vector2d::Zero();
+    // The turn's uncertainty at the exposure (x, y, heading) and the position there: reported,
+    // never fused, until a second landmark confirms the change or an update refutes it.
+    Eigen::Matrix3d turn_cov = Eigen::Matrix3d::Zero();
+    Eigen::Vector2d p_mm = Eigen::Vector2d::Zero();
   };
   RbSlipCandidate rb_slip_;
   std::size_t head_ = 0;

@@ -79,6 +79,10 @@ struct RangingAidConfig {
   double agreement_gate = 16.27;
   // vehicle clock = second camera's clock + camera_offset_ns (as TimeBase::camera_offset_ns).
   std::int64_t camera_offset_ns = 0;
+  // 1 sigma of an error every bearing of a frame shares (the camera's yaw as mounted against as
+  // calibrated, the principal point's column): added to each prior-free fix's covariance
+  // (ranging::add_mount_yaw_uncertainty), which the landmarks themselves cannot reveal.
+  double common_bearing_sigma_rad = 0.0;
 };
 
 // One landmark of one second-camera frame, both ways the localizer uses it: from the vehicle's

@@ -165,4 +165,11 @@ FixResult fix_trilateration(std::span<const Observation> obs, const FixOptions& 
 // consistency refusals keep the status and leave the pose unset.
 FixResult fix_from_landmarks(std::span<const Observation> obs, const FixOptions& opt);
 
+// A fix's covariance grown by an error that every bearing and face yaw of its landmarks shares
+// (the camera's yaw calibration, the principal point's column): the fix's first-order response
+// to one such offset, times sigma_common_rad, added as a rank-one term. obs are the fix's own
+// inputs; nothing is added for a sigma of 0.
+void add_mount_yaw_uncertainty(std::span<const Observation> obs, double sigma_common_rad,
+                               FixResult* fix);
+
 }  // namespace agv::ranging

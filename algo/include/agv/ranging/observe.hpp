@@ -282,10 +282,4 @@ std::vector<Observation> fix_observations(std::span<const LandmarkObservation> o
 SensorRangeBearing sensor_range_bearing(const RangingMount& mount, const LandmarkObservation& obs,
                                         double mount_sigma_rad = 0.0, double mount_sigma_mm = 0.0);
 
-// A fix's covariance grown by an error common to all its bearings (the camera's yaw
-// calibration, the principal point's column): the fix's first-order response to one bearing
-// offset, times sigma_common_rad, added as a rank-one term. obs are the fix's own inputs.
-void add_mount_yaw_uncertainty(std::span<const Observation> obs, double sigma_common_rad,
-                               FixResult* fix);
-
 }  // namespace agv::ranging
