@@ -5,9 +5,18 @@
 // by their exposure stamps, publishing the tracks as `run` does.
 #pragma once
 
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <opencv2/core.hpp>
 #include <string>
 
+#include "agv/overhead/camera_frame.hpp"
+#include "agv/overhead/detection_msg.hpp"
+#include "agv/overhead/tracker.hpp"
+#include "agv/site/site.hpp"
 #include "config.hpp"
+#include "live_feed.hpp"
 #include "run.hpp"
 
 namespace agv::overhead_app {
@@ -15,10 +24,49 @@ namespace agv::overhead_app {
 struct DetectArgs {
   std::string config_path;  // empty: the defaults
   std::string site_path;
-  std::string camera;      // the site camera's id
-  std::string replay_dir;  // one camera's recording
-  bool fast = false;       // as fast as possible instead of at the recording's pace
+  std::string camera;       // the site camera's id
+  std::string replay_dir;   // one camera's recording; empty: the live camera (cameras.<id>.device)
+  bool fast = false;        // as fast as possible instead of at the recording's pace
+  double duration_s = 0.0;  // live: 0 until SIGINT / SIGTERM
 };
+
+// One camera's tag detection, frame by frame, for the replay and the live camera alike. The
+// camera's own tracks steer its search windows (predicted reads, areas); the fixes that count
+// are made again by the tracker from the published corners.
+class CameraDetector {
+ public:
+  CameraDetector(const site::Site& site, const OverheadConfig& cfg, std::size_t site_camera);
+  // The frame's tags, stamped t_ns, with the next sequence number; null with *error for a frame
+  // that is not 8-bit gray of the camera's size (nothing to publish, no number used).
+  const overhead::DetectionMsg* detect(std::int64_t t_ns, const cv::Mat& gray, std::string* error);
+  std::uint64_t frames() const { return msg_.seq; }
+  std::uint64_t tags() const { return tags_; }
+
+ private:
+  std::size_t camera_;
+  overhead::CameraFrameProcessor processor_;
+  overhead::FleetTracker local_;
+  std::vector<overhead::Detection> dets_;
+  overhead::DetectionMsg msg_;
+  std::uint64_t tags_ = 0;
+};
+
+struct LiveDetectCounters {
+  std::uint64_t frames_detected = 0;
+  std::uint64_t frames_refused = 0;  // not the camera's size or format (the first few logged)
+  // Frames the camera delivered while the previous one was still being detected, replaced by a
+  // newer one before their turn: the detector always works on the newest frame.
+  std::uint64_t frames_replaced = 0;
+  CameraHealth health;
+};
+
+// The live camera's frames through `det` until `stop` is set, duration_ns has passed (0: no
+// limit) or its stream ended; every message to `publish` (on the calling thread). A camera that
+// fails or disconnects is reopened (live_feed.hpp).
+LiveDetectCounters run_detect_live(
+    LiveCamera* cam, CameraDetector* det,
+    const std::function<void(const overhead::DetectionMsg&)>& publish,
+    const std::atomic<bool>& stop, std::int64_t duration_ns);
 
 // <detections.topic_prefix>/detections/<camera>.
 std::string detections_topic(const OverheadConfig& cfg, const std::string& camera);

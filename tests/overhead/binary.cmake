@@ -43,6 +43,12 @@ if(Python3_Interpreter_FOUND AND NOT CMAKE_CROSSCOMPILING)
                        SKIP_RETURN_CODE 77)
 endif()
 
+# detect on a live (scripted) camera: threads, label tsan too. Under 1 s.
+agv_add_test(test_overhead_detect_live
+             SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_overhead_detect_live.cpp
+             LIBS agv_overhead_app agv_sim agv_fakecamera agv_posix LABELS unit overhead tsan
+             TIMEOUT 60)
+
 # The live loop on scripted cameras (threads: label tsan too). About 2 s.
 agv_add_test(test_overhead_live SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_overhead_live.cpp
              LIBS agv_overhead_app agv_sim agv_fakecamera agv_posix LABELS unit overhead tsan

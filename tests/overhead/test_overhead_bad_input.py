@@ -58,7 +58,15 @@ def main():
     expect(overhead, ["run", "--config", os.path.join(work, "nodev.yml"), "--site", site,
                       "--duration-s", "-1"], 2, "--duration-s")
     expect(overhead, ["replay", "--site", site], 2, "--recordings")
-    expect(overhead, replay("--bogus"), 2, "unknown option '--bogus'")
+    expect(overhead, replay("--bogus"), 2, "--bogus")
+    expect(overhead, ["record", "--config", os.path.join(work, "lat.yml"), "--site", site], 2,
+           "--out is required")
+    expect(overhead, ["detect", "--config", os.path.join(work, "nodev.yml"), "--site", site,
+                      "--camera", "cam-west"], 2, "no camera to open")
+    expect(overhead, ["detect", "--site", site, "--camera", "cam-west", "--replay", recs[0],
+                      "--duration-s", "1"], 2, "--duration-s")
+    expect(overhead, [], 2, "subcommand")
+    expect(overhead, ["--help"], 0, "check-config", "replay", "detect")
 
     # Recordings.
     expect(overhead, replay(recordings=[os.path.join(work, "no_such_rec")]), 2,

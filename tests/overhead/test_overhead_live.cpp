@@ -72,9 +72,7 @@ TEST_F(OverheadLive, TracksTwoCamerasAtTheRateAndReopensADisconnectedCamera) {
   ASSERT_EQ(s.cameras.size(), 2u);
   const std::vector<sim::AgvState> agvs = test::two_vehicles();
   posix::PosixClock clock;
-  fakecamera::FakeCamera::Options opt;
-  opt.clock = &clock;
-  opt.end_of_stream_when_empty = true;
+  const fakecamera::FakeCamera::Options opt = test::scripted_camera(&clock);
   std::vector<LiveCamera> cams;
   std::vector<fakecamera::FakeCamera*> fakes;
   const fakecamera::FakeImage imgs[2] = {test::render_fake_frame(s, 0, agvs),
@@ -199,9 +197,7 @@ TEST_F(OverheadLive, DiagnosticsServeMetricsWhileRunning) {
   const site::Site s = test::two_camera_site();
   const std::vector<sim::AgvState> agvs = test::two_vehicles();
   posix::PosixClock clock;
-  fakecamera::FakeCamera::Options opt;
-  opt.clock = &clock;
-  opt.end_of_stream_when_empty = true;
+  const fakecamera::FakeCamera::Options opt = test::scripted_camera(&clock);
   std::vector<LiveCamera> cams;
   const fakecamera::FakeImage imgs[2] = {test::render_fake_frame(s, 0, agvs),
                                          test::render_fake_frame(s, 1, agvs)};

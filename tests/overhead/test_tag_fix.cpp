@@ -82,34 +82,102 @@ std::array<Vec2, 4> projected_corners(const site::CeilingCamera& cam, Pose2 p) {
   return {px[0], px[1], px[2], px[3]};
 }
 
-// The covariance against the spread of fixes from corners with Gaussian pixel noise.
-TEST(TagFixGeometry, CovarianceMatchesMonteCarlo) {
+// Corners as the detector makes them: four lines, each fitted to edge points spread over the
+// middle 76 % of its side, with an offset error (variance v0) and an angle error about the span's
+// centre (12 v0 / span^2); corner i where lines i - 1 and i meet. Adjacent corners share a line.
+struct EdgeLines {
+  std::array<Vec2, 4> p{}, d{};
+};
+
+EdgeLines lines_of(const std::array<Vec2, 4>& c) {
+  EdgeLines l;
+  for (std::size_t j = 0; j < 4; ++j) {
+    const Vec2 a = c[j], b = c[(j + 1) % 4];
+    const double len = std::hypot(b.x - a.x, b.y - a.y);
+    l.p[j] = {0.5 * (a.x + b.x), 0.5 * (a.y + b.y)};
+    l.d[j] = {(b.x - a.x) / len, (b.y - a.y) / len};
+  }
+  return l;
+}
+
+std::array<Vec2, 4> corners_of(const EdgeLines& l) {
+  std::array<Vec2, 4> c{};
+  for (std::size_t i = 0; i < 4; ++i) {
+    const std::size_t a = (i + 3) % 4;
+    const double den = l.d[a].x * l.d[i].y - l.d[a].y * l.d[i].x;
+    const double t = ((l.p[i].x - l.p[a].x) * l.d[i].y - (l.p[i].y - l.p[a].y) * l.d[i].x) / den;
+    c[i] = {l.p[a].x + t * l.d[a].x, l.p[a].y + t * l.d[a].y};
+  }
+  return c;
+}
+
+// The covariance against the spread of fixes from corners whose edge lines carry the detector's
+// errors, with the corner sigma the detector reports for them.
+TEST(TagFixGeometry, CovarianceMatchesMonteCarloOfEdgeLines) {
   const site::CeilingCamera cam = test::ceiling_camera(40.0);
   const std::array<Vec2, 4> corners = projected_corners(cam, {1200.0, -700.0, 0.7});
-  const double sigma = 0.3;
+  const double v0 = 0.02;  // px^2
+  const EdgeLines truth = lines_of(corners);
+  std::array<double, 4> v1{};
+  double reported = 0.0;  // the detector's mean over corners of (va + vb) / (2 sin^2)
+  for (std::size_t k = 0; k < 4; ++k) {
+    const Vec2 a = corners[k], b = corners[(k + 1) % 4];
+    const double len = std::hypot(b.x - a.x, b.y - a.y), span = 0.76 * len;
+    v1[k] = 12.0 * v0 / (span * span);
+  }
+  for (std::size_t k = 0; k < 4; ++k) {
+    const std::size_t a = (k + 3) % 4;
+    const double la = std::hypot(corners[k].x - corners[a].x, corners[k].y - corners[a].y);
+    const double lk =
+        std::hypot(corners[(k + 1) % 4].x - corners[k].x, corners[(k + 1) % 4].y - corners[k].y);
+    const double s = truth.d[a].x * truth.d[k].y - truth.d[a].y * truth.d[k].x;
+    reported += 0.25 * 0.5 * (2.0 * v0 + v1[a] * la * la / 4 + v1[k] * lk * lk / 4) / (s * s);
+  }
+  const double sigma = std::sqrt(reported);
   TagFix fix;
   ASSERT_TRUE(tag_fix_on_plane(cam, corners, sigma, kTrayMm, kTagMm, &fix));
-  TagFix half;
+  TagFix half, floor;  // the lines' scatter scales with the sigma, the offset floor does not
   ASSERT_TRUE(tag_fix_on_plane(cam, corners, 0.5 * sigma, kTrayMm, kTagMm, &half));
-  EXPECT_NEAR(half.cov[0], 0.25 * fix.cov[0], 1e-9 + 1e-6 * fix.cov[0]);
+  ASSERT_TRUE(tag_fix_on_plane(cam, corners, 0.0, kTrayMm, kTagMm, &floor));
+  EXPECT_NEAR(half.cov[0] - floor.cov[0], 0.25 * (fix.cov[0] - floor.cov[0]),
+              1e-9 + 1e-6 * fix.cov[0]);
   std::mt19937 rng(11);
-  std::normal_distribution<double> n(0.0, sigma);
-  const int trials = 400;
+  std::normal_distribution<double> n(0.0, 1.0);
+  const int trials = 2000;
   double sxx = 0, syy = 0, stt = 0;
   for (int i = 0; i < trials; ++i) {
-    std::array<Vec2, 4> c = corners;
-    for (Vec2& p : c) p.x += n(rng), p.y += n(rng);
+    EdgeLines l = truth;
+    for (std::size_t k = 0; k < 4; ++k) {
+      const double o = std::sqrt(v0) * n(rng), t = std::sqrt(v1[k]) * n(rng);
+      l.p[k] = {l.p[k].x - o * l.d[k].y, l.p[k].y + o * l.d[k].x};
+      l.d[k] = {std::cos(t) * l.d[k].x - std::sin(t) * l.d[k].y,
+                std::sin(t) * l.d[k].x + std::cos(t) * l.d[k].y};
+    }
     TagFix f;
-    ASSERT_TRUE(tag_fix_on_plane(cam, c, sigma, kTrayMm, kTagMm, &f));
+    ASSERT_TRUE(tag_fix_on_plane(cam, corners_of(l), sigma, kTrayMm, kTagMm, &f));
     sxx += std::pow(f.pose.x_mm - fix.pose.x_mm, 2);
     syy += std::pow(f.pose.y_mm - fix.pose.y_mm, 2);
     stt += std::pow(std::remainder(f.pose.theta_rad - fix.pose.theta_rad, 2 * kPi), 2);
   }
-  EXPECT_NEAR(std::sqrt(sxx / trials), std::sqrt(fix.cov[0]), 0.15 * std::sqrt(fix.cov[0]));
-  EXPECT_NEAR(std::sqrt(syy / trials), std::sqrt(fix.cov[4]), 0.15 * std::sqrt(fix.cov[4]));
-  EXPECT_NEAR(std::sqrt(stt / trials), std::sqrt(fix.cov[8]), 0.15 * std::sqrt(fix.cov[8]));
+  EXPECT_NEAR(std::sqrt(sxx / trials), std::sqrt(fix.cov[0]), 0.08 * std::sqrt(fix.cov[0]));
+  EXPECT_NEAR(std::sqrt(syy / trials), std::sqrt(fix.cov[4]), 0.08 * std::sqrt(fix.cov[4]));
+  EXPECT_NEAR(std::sqrt(stt / trials), std::sqrt(fix.cov[8]), 0.08 * std::sqrt(fix.cov[8]));
   EXPECT_GT(fix.cov[0] * fix.cov[4] - fix.cov[1] * fix.cov[3], 0.0);
-  EXPECT_DOUBLE_EQ(fix.cov[1], fix.cov[3]);
+  EXPECT_NEAR(fix.cov[1], fix.cov[3], 1e-12 + 1e-9 * std::abs(fix.cov[1]));
+}
+
+// Perfect corners still give a position sigma (the edges' offset floor, about 0.0075 px each,
+// half of it in each centre coordinate), and no heading sigma: an offset moves a side, not its
+// direction.
+TEST(TagFixGeometry, EdgeOffsetFloorGivesPositionNotHeading) {
+  const site::CeilingCamera cam = test::ceiling_camera(40.0);
+  const std::array<Vec2, 4> corners = projected_corners(cam, {1200.0, -700.0, 0.7});
+  TagFix fix;
+  ASSERT_TRUE(tag_fix_on_plane(cam, corners, 0.0, kTrayMm, kTagMm, &fix));
+  const double mm_per_px = kTagMm / 40.0;
+  EXPECT_NEAR(std::sqrt(fix.cov[0]), 0.0075 * mm_per_px / std::sqrt(2.0), 0.2 * 0.0075 * mm_per_px);
+  EXPECT_NEAR(std::sqrt(fix.cov[4]), 0.0075 * mm_per_px / std::sqrt(2.0), 0.2 * 0.0075 * mm_per_px);
+  EXPECT_LT(std::sqrt(fix.cov[8]), 1e-3 * std::sqrt(fix.cov[0]) / kTagMm);
 }
 
 // The camera's calibrated pose sigma in the fix covariance: fixes cast through cameras moved by
@@ -120,7 +188,9 @@ TEST(TagFixGeometry, CalibrationSigmaCoversCameraPoseErrors) {
   const std::array<Vec2, 4> corners = projected_corners(truth, pose);
   TagFix exact;
   ASSERT_TRUE(tag_fix_on_plane(truth, corners, 0.0, kTrayMm, kTagMm, &exact));
-  for (double v : exact.cov) EXPECT_EQ(v, 0.0);  // no pixel noise, an exact camera
+  // No pixel noise, an exact camera: the edges' offset floor only (hundredths of a millimetre).
+  for (double v : exact.cov_camera) EXPECT_EQ(v, 0.0);
+  EXPECT_LT(exact.cov[0], 1e-3);
   site::CeilingCamera stated = truth;
   stated.position_sigma_mm = {3.0, 2.0, 4.0};
   stated.angle_sigma_rad = {4e-4, 6e-4, 3e-4};

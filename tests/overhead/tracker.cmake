@@ -11,3 +11,7 @@ agv_add_test(test_search SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_search.cpp
 # fixes as precise as a 60 px tag's (synthetic).
 agv_add_test(test_tracker_turns SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_tracker_turns.cpp
              LIBS agv_overhead LABELS unit overhead)
+# The route prior (algo/src/overhead/route_prior.cpp, FleetTracker::set_route): a coasting track
+# extrapolated along its vehicle's route round a corner; synthetic fixes.
+agv_add_test(test_route_prior SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_route_prior.cpp
+             LIBS agv_overhead agv_vda5050 LABELS unit overhead)

@@ -11,6 +11,15 @@
 
 namespace agv::overhead_app::test {
 
+// A scripted camera on `clock`: stalls take that clock's time, the end of the script ends the
+// stream.
+inline fakecamera::FakeCamera::Options scripted_camera(hal::Clock* clock) {
+  fakecamera::FakeCamera::Options opt;
+  opt.clock = clock;
+  opt.end_of_stream_when_empty = true;
+  return opt;
+}
+
 // Two vehicles, one under each camera.
 inline std::vector<sim::AgvState> two_vehicles() {
   return {{{1350.0, 1250.0, 0.3}, 0.0, 0.0}, {{3600.0, 1000.0, -1.0}, 0.0, 0.0}};

@@ -26,6 +26,8 @@ struct TrackCore {
   TrackState state = TrackState::kNone;
   std::vector<TrackEntry> ring;
   std::size_t head = 0, count = 0;
+  RoutePath route;  // empty: none
+  std::int64_t route_t_ns = 0;
 
   TrackEntry& at(std::size_t i) { return ring[(head + i) % ring.size()]; }
   const TrackEntry& at(std::size_t i) const { return ring[(head + i) % ring.size()]; }
@@ -101,6 +103,55 @@ Belief reported_at(const TrackCore& tr, std::int64_t t_ns, const tracker_detail:
   Belief b = belief_at(tr, t_ns, q);
   b.p.topLeftCorner<3, 3>() += tr.newest().fix.bias;
   return b;
+}
+
+// The belief at t extrapolated along the track's route (route_prior.hpp), when the prior is on,
+// the track is confirmed or coasting, has had no fix for coast_after_ms and its newest fix (at or
+// after the route was set) lies on the route. Speed and turn rate keep the filter's covariance
+// grown by the process noise; the turn rate is 0 on a route's straight segments.
+bool route_belief_at(const TrackCore& tr, std::int64_t t_ns, const TrackerParams& p,
+                     const ProcessNoise& q, Belief* out) {
+  if (!p.route_prior || tr.route.empty() || tr.count == 0) return false;
+  if (tr.state != TrackState::kConfirmed && tr.state != TrackState::kCoasting) return false;
+  const TrackEntry& e = tr.newest();
+  if (e.t_ns < tr.route_t_ns) return false;
+  const std::int64_t age_ns = diff_ns(t_ns, e.t_ns);
+  if (!(static_cast<double>(age_ns) > ms_as_ns(p.coast_after_ms))) return false;
+  RouteFixState fs;
+  fs.pose = {e.belief.x(0), e.belief.x(1), e.belief.x(2)};
+  fs.v_mmps = e.belief.x(3);
+  const int idx[3] = {0, 1, 3};
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j)
+      fs.cov_xyv[static_cast<std::size_t>(3 * i + j)] = e.belief.p(idx[i], idx[j]);
+  }
+  fs.var_theta_rad2 = e.belief.p(2, 2);
+  const double dt_s = seconds(age_ns);
+  RoutePrediction r;
+  if (predict_on_route(tr.route, fs, dt_s, q.accel, p.route, &r) != RouteFit::kOnRoute) {
+    return false;
+  }
+  Belief b;
+  b.x << r.pose.x_mm, r.pose.y_mm, r.pose.theta_rad, e.belief.x(3), 0.0;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) b.p(i, j) = r.cov[static_cast<std::size_t>(3 * i + j)];
+  }
+  b.p(3, 3) = e.belief.p(3, 3) + q.accel * dt_s;
+  b.p(4, 4) = e.belief.p(4, 4) + q.alpha * dt_s;
+  *out = b;
+  return true;
+}
+
+// The belief as reported at t: along the route when route_belief_at gives one, otherwise the
+// motion model's (reported_at).
+Belief reported_with_route(const TrackCore& tr, std::int64_t t_ns, const TrackerParams& p) {
+  const ProcessNoise q = noise_of(p);
+  Belief b;
+  if (route_belief_at(tr, t_ns, p, q, &b)) {
+    b.p.topLeftCorner<3, 3>() += tr.newest().fix.bias;
+    return b;
+  }
+  return reported_at(tr, t_ns, q);
 }
 
 // The state the track is in at t, given its position sigma then: the stored state aged by the
@@ -201,6 +252,10 @@ std::string validate(const TrackerParams& p) {
   if (!td::finite_positive(p.initial_turn_sigma_radps)) {
     return "initial_turn_sigma_radps must be finite and > 0";
   }
+  if (p.route_prior) {
+    const std::string err = validate(p.route);
+    if (!err.empty()) return "route." + err;
+  }
   return {};
 }
 
@@ -235,8 +290,10 @@ FixResult FleetTracker::add_fix(std::size_t agv, std::int64_t t_ns, const TagFix
     k = td::insertion_index(tr, t_ns);
     if (k == tr.count) {
       prior_bias = tr.newest().fix.bias;
-      prior = td::prior_for(tr.newest().belief, td::seconds(td::diff_ns(t_ns, tr.newest().t_ns)),
-                            prior_bias, m, models);
+      if (!td::route_belief_at(tr, t_ns, p_, models.steady, &prior)) {
+        prior = td::prior_for(tr.newest().belief, td::seconds(td::diff_ns(t_ns, tr.newest().t_ns)),
+                              prior_bias, m, models);
+      }
       const TrackState now = td::state_at(tr, t_ns, td::position_sigma_mm(prior.p), p_);
       if (now == TrackState::kLost) ++counters_.lost;
       restart = now == TrackState::kNone || now == TrackState::kLost;
@@ -277,10 +334,9 @@ FixResult FleetTracker::add_fix(std::size_t agv, std::int64_t t_ns, const TagFix
 }
 
 void FleetTracker::update_states(std::int64_t now_ns) {
-  const td::ProcessNoise q = td::noise_of(p_);
   for (Track& tr : tracks_) {
     if (tr.count == 0 || tr.state == TrackState::kNone || tr.state == TrackState::kLost) continue;
-    const td::Belief b = td::reported_at(tr, now_ns, q);
+    const td::Belief b = td::reported_with_route(tr, now_ns, p_);
     const TrackState s = td::state_at(tr, now_ns, td::position_sigma_mm(b.p), p_);
     if (s == tr.state) continue;
     if (s == TrackState::kLost) ++counters_.lost;
@@ -296,7 +352,7 @@ TrackOutput FleetTracker::output(std::size_t agv, std::int64_t t_ns) const {
   if (agv >= tracks_.size()) return o;
   const Track& tr = tracks_[agv];
   if (tr.count == 0 || tr.state == TrackState::kNone) return o;
-  const td::Belief b = td::reported_at(tr, t_ns, td::noise_of(p_));
+  const td::Belief b = td::reported_with_route(tr, t_ns, p_);
   o.pose = {b.x(0), b.x(1), b.x(2)};
   o.v_mps = b.x(3) / 1000.0;
   o.omega_radps = b.x(4);
@@ -315,6 +371,26 @@ std::vector<TrackOutput> FleetTracker::outputs(std::int64_t t_ns) const {
   out.reserve(tracks_.size());
   for (std::size_t i = 0; i < tracks_.size(); ++i) out.push_back(output(i, t_ns));
   return out;
+}
+
+bool FleetTracker::set_route(std::size_t agv, const std::vector<Vec2>& waypoints_mm,
+                             std::int64_t t_ns, std::string* error) {
+  auto fail = [&](const std::string& why) {
+    if (error != nullptr) *error = why;
+    return false;
+  };
+  if (!p_.route_prior) return fail("the route prior is off (TrackerParams::route_prior)");
+  if (agv >= tracks_.size()) return fail("vehicle index outside the fleet");
+  RoutePath path;
+  std::string why;
+  if (!path.assign(waypoints_mm, &why)) return fail(why);
+  tracks_[agv].route = std::move(path);
+  tracks_[agv].route_t_ns = t_ns;
+  return true;
+}
+
+void FleetTracker::clear_route(std::size_t agv) {
+  if (agv < tracks_.size()) tracks_[agv].route.clear();
 }
 
 void FleetTracker::reset(std::size_t agv) {

@@ -95,7 +95,8 @@ std::vector<OrientedBox> TrayNet::detect(const cv::Mat& window, const TrayNetPar
                                            geometry_.stride_px, p.min_score, &boxes)) {
     return {};
   }
-  return nms_oriented(std::move(boxes), p.nms_iou);
+  return p.fuse_boxes ? nms_fused(std::move(boxes), p.nms_iou)
+                      : nms_oriented(std::move(boxes), p.nms_iou);
 #else
   (void)p;
   return {};

@@ -194,6 +194,42 @@ std::vector<OrientedBox> nms_oriented(std::vector<OrientedBox> boxes, double iou
   return kept;
 }
 
+std::vector<OrientedBox> nms_fused(std::vector<OrientedBox> boxes, double iou) {
+  std::stable_sort(boxes.begin(), boxes.end(),
+                   [](const OrientedBox& a, const OrientedBox& b) { return a.score > b.score; });
+  std::vector<bool> taken(boxes.size(), false);
+  std::vector<OrientedBox> kept;
+  for (std::size_t i = 0; i < boxes.size(); ++i) {
+    if (taken[i]) continue;
+    const OrientedBox& k = boxes[i];
+    double w = 0.0, cx = 0.0, cy = 0.0, len = 0.0, wid = 0.0, c2 = 0.0, s2 = 0.0;
+    for (std::size_t j = i; j < boxes.size(); ++j) {
+      if (taken[j] || (j != i && oriented_iou(boxes[j], k) <= iou)) continue;
+      taken[j] = true;
+      const OrientedBox& b = boxes[j];
+      w += b.score;
+      cx += b.score * b.cx;
+      cy += b.score * b.cy;
+      len += b.score * b.length;
+      wid += b.score * b.width;
+      c2 += b.score * std::cos(2.0 * b.angle_rad);
+      s2 += b.score * std::sin(2.0 * b.angle_rad);
+    }
+    OrientedBox f = k;
+    if (w > 0.0) {
+      f.cx = cx / w;
+      f.cy = cy / w;
+      f.length = len / w;
+      f.width = wid / w;
+      double a = 0.5 * std::atan2(s2, c2);
+      if (a < 0.0) a += kPi;
+      f.angle_rad = a >= kPi ? a - kPi : a;
+    }
+    kept.push_back(f);
+  }
+  return kept;
+}
+
 std::string validate(const TrayNetParams& p) {
   if (!(p.min_score > 0.0 && p.min_score < 1.0)) return "min_score must be in (0, 1)";
   if (!(p.nms_iou > 0.0 && p.nms_iou < 1.0)) return "nms_iou must be in (0, 1)";

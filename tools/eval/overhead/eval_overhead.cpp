@@ -43,6 +43,9 @@ struct Options {
   double max_wall_s = 0.0;  // > 0: stop taking frames after this long and score what ran
   int full_sweep_every = agv::overhead::SearchParams{}.full_sweep_every_frames;
   bool clean = false;
+  // --route-prior: the tracker gets each vehicle's route whenever the simulator starts a task leg
+  // (as the fleet manager's order would) and extrapolates coasting tracks along it.
+  bool route_prior = false;
   std::string tray_model;  // --tray-model: the learned tray detector instead of the classical fit
   std::string reacquire_model;  // --reacquire-model: re-acquisition of lost covered vehicles
   std::string trace_prefix;     // --trace-prefix: per-tick and per-fix CSVs (trace.hpp)
@@ -56,7 +59,8 @@ const char* kUsage =
     "  [--calib-sigma-mm S] [--calib-sigma-deg S]\n"
     "  [--bit-errors N] [--bit-errors-from-s S] [--latency-ms L] [--latency-spread-ms L]\n"
     "  [--full-sweep-every N] [--apriltag-every N] [--max-wall-s S] [--no-distortion] [--clean]\n"
-    "  [--tray-model ONNX] [--reacquire-model ONNX] [--trace-prefix PATH_PREFIX]\n";
+    "  [--tray-model ONNX] [--reacquire-model ONNX] [--trace-prefix PATH_PREFIX]\n"
+    "  [--route-prior]\n";
 
 bool parse(int argc, char** argv, Options* o, std::string* error) {
   std::map<std::string, double*> num{{"--cameras-height-mm", &o->world.camera_height_mm},
@@ -88,6 +92,10 @@ bool parse(int argc, char** argv, Options* o, std::string* error) {
     }
     if (a == "--cover-tags") {
       o->world.cover_tags = true;
+      continue;
+    }
+    if (a == "--route-prior") {
+      o->route_prior = true;
       continue;
     }
     if (a == "--no-distortion") {
@@ -201,14 +209,15 @@ void print_header(const Options& o, const agv::site::Site& site) {
       "eval_overhead (simulated, rendered frames): site %.0f x %.0f mm, %zu camera(s) at "
       "%.0f mm, %dx%d, fx %.1f px (tag %.0f px at tray height), %d AGVs, %.1f s at %.1f fps, "
       "seed %llu, parcels %.2f (%s%s), clutter %d, calibration error %.1f mm / %.2f deg, bit "
-      "errors %d from %.1f s, latency %.0f..%.0f ms, full sweep every %d frames%s\n",
+      "errors %d from %.1f s, latency %.0f..%.0f ms, full sweep every %d frames%s%s\n",
       o.world.site_mm, o.world.site_mm, site.cameras.size(), o.world.camera_height_mm, k.width_px,
       k.height_px, k.fx, o.world.tag_px, o.world.agvs, o.world.duration_s, o.fps,
       static_cast<unsigned long long>(o.world.seed), o.world.parcels,
       o.world.load_from_s >= 0.0 ? "loaded during the run" : "loaded from the start",
       o.world.cover_tags ? ", over the tags" : "", o.world.clutter, o.calib_error_mm,
       o.calib_error_deg, o.bit_errors, o.bit_errors_from_s, o.latency_ms,
-      o.latency_ms + o.latency_spread_ms, o.full_sweep_every, o.clean ? ", clean" : "");
+      o.latency_ms + o.latency_spread_ms, o.full_sweep_every, o.clean ? ", clean" : "",
+      o.route_prior ? ", route prior" : "");
   for (const auto& c : site.cameras) {
     std::printf("  camera %s at (%.0f, %.0f, %.0f) mm\n", c.id.c_str(), c.t_site_cam_mm[0],
                 c.t_site_cam_mm[1], c.t_site_cam_mm[2]);
@@ -367,6 +376,24 @@ void print_tray_boxes(const agv::overhead::CameraFrameProcessor& proc) {
       static_cast<unsigned long long>(c.reacquire_heading_unknown));
 }
 
+// The routes the simulator gave, handed to the tracker as their times pass (the fleet manager's
+// orders as they arrive).
+struct RouteFeed {
+  std::vector<agv::eval::RouteEvent> events;
+  std::size_t next = 0, refused = 0;
+  void give(std::int64_t t_ns, agv::overhead::FleetTracker* tracker) {
+    for (; next < events.size() && events[next].t_ns <= t_ns; ++next) {
+      const agv::eval::RouteEvent& r = events[next];
+      std::string why;
+      if (!tracker->set_route(r.agv, r.waypoints_mm, r.t_ns, &why)) {
+        std::fprintf(stderr, "eval_overhead: route of vehicle %zu refused: %s\n", r.agv,
+                     why.c_str());
+        ++refused;
+      }
+    }
+  }
+};
+
 int run(const Options& o) {
   const auto wall0 = std::chrono::steady_clock::now();
   World world;
@@ -383,7 +410,12 @@ int run(const Options& o) {
   agv::overhead::SearchParams sp;
   sp.full_sweep_every_frames = o.full_sweep_every;
   agv::overhead::CameraFrameProcessor proc(believed, site.fleet, {}, sp);
-  agv::overhead::FleetTracker tracker(site.fleet.size());
+  agv::overhead::TrackerParams tp;
+  tp.route_prior = o.route_prior;
+  agv::overhead::FleetTracker tracker(site.fleet.size(), tp);
+  RouteFeed routes;
+  if (o.route_prior) routes.events = world.route_events();
+  auto give_routes = [&](std::int64_t t) { routes.give(t, &tracker); };
   if (!o.tray_model.empty() && !load_tray_model(o.tray_model, &proc, false)) return 2;
   if (!o.reacquire_model.empty() && !load_tray_model(o.reacquire_model, &proc, true)) return 2;
   agv::eval::Trace trace;
@@ -405,6 +437,7 @@ int run(const Options& o) {
   auto end_ns = static_cast<std::int64_t>(o.world.duration_s * 1e9);
   std::int64_t next_tick = tick_ns;
   auto do_tick = [&](std::int64_t t) {
+    give_routes(t);
     tracker.update_states(t);
     const std::vector<agv::sim::AgvState> truth = world.states_at(t);
     const std::vector<std::uint8_t> covered = world.tags_covered_at(t);
@@ -428,6 +461,7 @@ int run(const Options& o) {
       do_tick(next_tick);
       next_tick += tick_ns;
     }
+    give_routes(fe.arrival_ns);
     const auto r0 = std::chrono::steady_clock::now();
     const agv::sim::SiteScene scene = world.scene_at(fe.exposure_ns);
     const agv::sim::RenderCamera rc = agv::sim::RenderCamera::from_ceiling(site.cameras[fe.camera]);
@@ -458,6 +492,10 @@ int run(const Options& o) {
   std::fputs(agv::eval::report(score, ids).c_str(), stdout);
   print_counters(proc.counters(), tracker.counters());
   print_tray_boxes(proc);
+  if (o.route_prior) {
+    std::printf("route prior: %zu routes given, %zu refused\n", routes.next - routes.refused,
+                routes.refused);
+  }
   const double wall =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   std::printf("wall %.1f s (backgrounds %.1f s, frames rendered %.1f s, %.1f Mpx of regions)\n",

@@ -2,7 +2,7 @@
 // in docs/design/overhead.md).
 //
 //   eval_tray_net --model models/tray_obb.onnx [--frames 40] [--covered-frames 30] [--seed 1]
-//                 [--min-score 0.5]
+//                 [--min-score 0.5] [--fuse 1] [--verbose 0]
 //
 // 1. Recall and precision on held-out frames (a camera height and a lighting not in training):
 //    a window around each tray wholly in the frame, centred a few centimetres off (as a track's
@@ -32,7 +32,8 @@ namespace {
 using namespace agv;
 using namespace agv::overhead;
 
-TrayNetParams g_params;  // --min-score
+TrayNetParams g_params;  // --min-score, --fuse (0: plain NMS)
+bool g_verbose = false;  // --verbose 1: each miss and false box
 
 double pct(std::vector<double> v, double q) {
   if (v.empty()) return 0.0;
@@ -104,8 +105,17 @@ void held_out(const TrayNet& net, int frames, std::uint64_t seed) {
           }
         }
         fp += matched ? 0 : 1;
+        if (!matched && g_verbose) {
+          const double e = std::hypot(p.centre_mm.x - t.pose.x_mm, p.centre_mm.y - t.pose.y_mm);
+          std::printf("  false: frame %d, %.0f mm from the window's tray, score %.2f\n", f, e,
+                      p.score);
+        }
       }
       (hit ? tp : fn) += 1;
+      if (!hit && g_verbose) {
+        std::printf("  missed: frame %d, tag visible %.2f, %zu boxes in the window\n", f,
+                    t.tag_visible_fraction, found.size());
+      }
     }
   }
   std::printf(
@@ -216,6 +226,10 @@ int main(int argc, char** argv) {
       covered = std::atoi(v.c_str());
     else if (k == "--min-score")
       g_params.min_score = std::atof(v.c_str());
+    else if (k == "--verbose")
+      g_verbose = std::atoi(v.c_str()) != 0;
+    else if (k == "--fuse")
+      g_params.fuse_boxes = std::atoi(v.c_str()) != 0;
     else if (k == "--seed")
       seed = std::strtoull(v.c_str(), nullptr, 10);
     else {

@@ -81,6 +81,9 @@ void score_tick(const std::vector<overhead::TrackOutput>& outs,
     if (covered && o.agv < covered->size() && (*covered)[o.agv]) {
       score_covered(o, truth[o.agv].pose, in_view[o.agv] != 0, &s->covered);
     }
+    if (o.state == overhead::TrackState::kCoasting) {
+      score_covered(o, truth[o.agv].pose, in_view[o.agv] != 0, &s->coasting);
+    }
     if (in_view[o.agv]) ++v.in_view;
     if (!o.valid()) {
       v.on_other = false;
@@ -253,6 +256,17 @@ std::string report(const Score& s, const std::vector<std::string>& ids) {
         pct(c.valid, c.ticks), pct(c.valid_in_view, c.in_view), percentile(c.pos_err_mm, 0.5),
         percentile(c.pos_err_mm, 0.95), max_of(c.pos_err_mm), percentile(c.head_err_deg, 0.95),
         max_of(c.head_err_deg), static_cast<unsigned long long>(c.confident_wrong));
+    out += line;
+  }
+  if (s.coasting.ticks > 0) {
+    const VehicleScore& c = s.coasting;
+    std::snprintf(line, sizeof line,
+                  "coasting: %llu ticks (%.2f %% of all); position p50 %.2f mm, p95 %.2f mm, max "
+                  "%.2f mm; heading p95 %.3f deg; > 3 sigma and > 50 mm off: %llu\n",
+                  static_cast<unsigned long long>(c.ticks), pct(c.ticks, ticks),
+                  percentile(c.pos_err_mm, 0.5), percentile(c.pos_err_mm, 0.95),
+                  max_of(c.pos_err_mm), percentile(c.head_err_deg, 0.95),
+                  static_cast<unsigned long long>(c.confident_wrong));
     out += line;
   }
   if (s.flipped + s.flipped_untracked > 0) {

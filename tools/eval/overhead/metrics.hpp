@@ -25,6 +25,8 @@ struct Score {
   std::vector<VehicleScore> vehicles;
   // Every vehicle's ticks while a parcel hid its whole tag (the tray box alone can fix it).
   VehicleScore covered;
+  // Every vehicle's ticks while its track coasts (no fix for coast_after_ms; valid by definition).
+  VehicleScore coasting;
   std::uint64_t id_switches = 0, duplicates = 0;
   std::vector<std::vector<std::uint8_t>> pair_close;  // duplicate episodes in progress
   // NEES of (x, y, theta) over valid outputs; position within 3 sigma_xy.

@@ -4,6 +4,7 @@
 // pipeline's windows follow the original run's tracker, so this holds while tracking is not lost).
 //   replay_trace PREFIX [--alpha-noise A] [--maneuver-alpha-noise A] [--maneuver-chi2 C]
 //     [--accel-noise A]
+#include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -15,8 +16,6 @@
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <Eigen/Dense>
 
 #include "agv/overhead/tracker.hpp"
 #include "metrics.hpp"
@@ -31,10 +30,15 @@ std::vector<Row> read_csv(const std::string& path) {
   std::string line;
   std::vector<Row> rows;
   if (!std::getline(f, line)) return rows;
+  auto chomp = [](std::string* l) {  // a file written on Windows (or by Python's csv) ends in CR LF
+    if (!l->empty() && l->back() == '\r') l->pop_back();
+  };
+  chomp(&line);
   std::vector<std::string> names;
   std::stringstream hs(line);
   for (std::string n; std::getline(hs, n, ',');) names.push_back(n);
   while (std::getline(f, line)) {
+    chomp(&line);
     std::stringstream ls(line);
     Row r;
     std::size_t i = 0;
@@ -69,6 +73,30 @@ void score(const agv::overhead::TrackOutput& o, const Row& t, Stats* s) {
   const double h2 = et * et / p(2, 2);
   s->head_nees += h2;
   if (h2 <= 9.0) ++s->head_in3;
+}
+
+// The first field a row of either file lacks (a truncated last line, another program's CSV); empty
+// when every row has every field the replay reads.
+std::string missing_field(const std::vector<Row>& fixes, const std::vector<Row>& ticks) {
+  std::vector<std::string> fix_keys = {"t_s",  "agv",           "arrival_s",        "x_mm",
+                                       "y_mm", "fix_theta_rad", "true_omega_radps", "true_v_mps"};
+  for (int i = 0; i < 9; ++i) {
+    fix_keys.push_back("cov" + std::to_string(i));
+    fix_keys.push_back("cov_camera" + std::to_string(i));
+  }
+  const std::vector<std::string> tick_keys = {"t_s", "agv", "true_x_mm", "true_y_mm",
+                                              "true_theta_rad"};
+  auto first_missing = [](const std::vector<Row>& rows, const std::vector<std::string>& keys) {
+    for (const Row& r : rows) {
+      for (const std::string& k : keys) {
+        if (r.find(k) == r.end()) return k;
+      }
+    }
+    return std::string();
+  };
+  const std::string k = first_missing(fixes, fix_keys);
+  if (!k.empty()) return k;
+  return first_missing(ticks, tick_keys);
 }
 
 // Tracker settings from the options after the prefix; false with a message on a bad one.
@@ -115,6 +143,12 @@ int main(int argc, char** argv) {
   const std::vector<Row> ticks = read_csv(prefix + "_ticks.csv");
   if (fixes.empty() || ticks.empty()) {
     std::fprintf(stderr, "replay_trace: cannot read %s_fixes.csv / _ticks.csv\n", prefix.c_str());
+    return 2;
+  }
+  const std::string missing = missing_field(fixes, ticks);
+  if (!missing.empty()) {
+    std::fprintf(stderr, "replay_trace: %s: a row without field %s\n", prefix.c_str(),
+                 missing.c_str());
     return 2;
   }
   std::size_t n = 0;

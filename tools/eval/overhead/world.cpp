@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
+#include <utility>
 
 #include "agv/site/planner.hpp"
 
@@ -223,7 +224,7 @@ bool World::build(const WorldOptions& o, std::string* error) {
     }
   }
   const std::vector<double> radii(static_cast<std::size_t>(o.agvs), site::FleetAgv{}.radius_mm);
-  site::RoutePlanner planner;
+  site::RoutePlanner& planner = planner_;
   if (!sim::route_planner_for_fleet(site_, radii, &planner, error)) return false;
   std::vector<sim::FleetVehicleSpec> specs;
   const int tasks = 2 + static_cast<int>(o.duration_s / 10.0);
@@ -264,6 +265,27 @@ std::vector<sim::AgvState> World::states_at(std::int64_t t_ns) const {
     }
     out.push_back(st);
   }
+  return out;
+}
+
+std::vector<RouteEvent> World::route_events() const {
+  std::vector<RouteEvent> out;
+  for (const sim::FleetTaskRecord& r : fleet_.tasks) {
+    const auto agv = static_cast<std::size_t>(r.vehicle);
+    if (agv >= fleet_.vehicles.size()) continue;
+    const std::pair<double, Vec2> legs[2] = {{r.start_s, r.task.pick_mm},
+                                             {r.picked_s, r.task.drop_mm}};
+    for (const auto& [t_s, goal] : legs) {
+      if (t_s < 0.0) continue;
+      const auto t_ns = static_cast<std::int64_t>(std::llround(t_s * 1e9));
+      const Pose2 at = states_at(t_ns)[agv].pose;
+      const site::Route route = planner_.plan({at.x_mm, at.y_mm}, goal);
+      if (route.status != site::PlanStatus::kOk || route.waypoints_mm.size() < 2) continue;
+      out.push_back({t_ns, agv, route.waypoints_mm});
+    }
+  }
+  std::stable_sort(out.begin(), out.end(),
+                   [](const RouteEvent& a, const RouteEvent& b) { return a.t_ns < b.t_ns; });
   return out;
 }
 

@@ -62,6 +62,13 @@ class RegionRenderer {
   std::size_t pixels_rendered_ = 0;
 };
 
+// A route the simulator gave a vehicle (as a fleet manager's order would): from t_ns on.
+struct RouteEvent {
+  std::int64_t t_ns = 0;
+  std::size_t agv = 0;
+  std::vector<Vec2> waypoints_mm;
+};
+
 class World {
  public:
   // False with *error when the fleet cannot be placed or simulated.
@@ -77,6 +84,11 @@ class World {
                                                std::vector<std::uint8_t>* ok) const;
   // Per vehicle at t_ns: a parcel loaded by then hides every corner of its tag.
   std::vector<std::uint8_t> tags_covered_at(std::int64_t t_ns) const;
+  // Every task leg's route in time order: planned again, as the simulator planned it, from the
+  // vehicle's position when the leg started (to the pick point, after the pick dwell to the drop
+  // point). A leg driven aside to resolve a blockage is not among them (its vehicle is then off
+  // the route it was given).
+  std::vector<RouteEvent> route_events() const;
   std::vector<sim::Parcel> parcels;
   std::vector<std::int64_t> parcel_load_ns;  // per parcel: on its tray from this time
   std::vector<sim::Clutter> clutter;
@@ -84,6 +96,7 @@ class World {
  private:
   site::Site site_;
   sim::FleetResult fleet_;
+  site::RoutePlanner planner_;
 };
 
 // Overwrites n data cells of the tag at corners_px (page order, outer black square) with the

@@ -25,7 +25,7 @@ import numpy as np
 import torch
 import torch.nn as nn
 import torch.nn.functional as F
-from PIL import Image
+from PIL import Image, ImageFilter
 
 STRIDE = 8
 ANCHOR_PX = 64.0
@@ -87,8 +87,21 @@ def standardise(img):
     return (x - x.mean()) / max(float(x.std()), 8.0)
 
 
+_GRIDS = {}
+
+
+def unit_grid(n):
+    """x and y across an n x n window, -0.5 .. 0.5."""
+    if n not in _GRIDS:
+        t = np.linspace(-0.5, 0.5, n, dtype=np.float32)
+        _GRIDS[n] = (t[None, :].repeat(n, 0), t[:, None].repeat(n, 1))
+    return _GRIDS[n]
+
+
 def augment(img, boxes, rng):
-    """A random symmetry of the square (flips and transpose), gain, offset and noise."""
+    """A random symmetry of the square (flips and transpose); blur (a higher or poorer camera's
+    coarser pixels); a light field (gain, a linear gradient and vignetting, darker than any
+    rendered training frame); offset and noise after the gain (a dim frame's poorer signal)."""
     n = img.shape[0]
     b = [list(x) for x in boxes]
     if rng.random() < 0.5:
@@ -103,9 +116,20 @@ def augment(img, boxes, rng):
         img = img.T
         for x in b:
             x[0], x[1], x[4] = x[1], x[0], (90.0 - x[4]) % 180.0
-    f = img.astype(np.float32) * rng.uniform(0.6, 1.3) + rng.uniform(-30, 30)
-    f += rng.normal(0.0, rng.uniform(0.0, 4.0), f.shape)
-    return np.clip(f, 0, 255), b
+    if rng.random() < 0.5:
+        im = Image.fromarray(np.ascontiguousarray(img))
+        img = np.array(im.filter(ImageFilter.GaussianBlur(rng.uniform(0.3, 1.6))))
+    f = img.astype(np.float32)
+    if rng.random() < 0.7:
+        xx, yy = unit_grid(n)
+        a = rng.uniform(0.0, 2.0 * math.pi)
+        field = 1.0 + rng.uniform(0.0, 0.6) * (math.cos(a) * xx + math.sin(a) * yy)
+        field *= 1.0 - rng.uniform(0.0, 0.6) * (xx * xx + yy * yy)
+        f *= field
+    f = f * rng.uniform(0.35, 1.3) + rng.uniform(-30, 30)
+    f += rng.standard_normal(f.shape, np.float32) * rng.uniform(0.0, 5.0)
+    f = np.clip(f, 0, 255)
+    return np.round(f) if rng.random() < 0.5 else f, b
 
 
 def targets(boxes, n):
@@ -169,8 +193,9 @@ def decode(out7, min_score=0.5):
     return res
 
 
-def evaluate(model, images, boxes, match_px=12.0):
-    """Recall and precision (a detection matches a full tray within match_px of its centre; a
+def evaluate(model, images, boxes, match_px=7.5):
+    """Recall and precision (a detection matches a full tray within match_px of its centre, 60 mm
+    as eval_tray_net; a
     detection at a tray not wholly in the frame is neither), centre and angle errors."""
     exp = Exported(model).eval()
     tp = fp = fn = 0
@@ -251,7 +276,16 @@ def main():
     model = TrayNet()
     opt = torch.optim.AdamW(model.parameters(), lr=a.lr, weight_decay=1e-4)
     steps = a.epochs * (len(tr_img) // a.batch)
-    sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=a.lr, total_steps=steps)
+    budget_s = 60.0 * a.max_minutes
+
+    def lr_at(step, elapsed_s):
+        # Warm-up, then a cosine to zero over whichever ends first, the epochs or the time
+        # budget: a run cut short by the budget still ends annealed.
+        done = max(step / steps, elapsed_s / budget_s)
+        if step < 0.03 * steps:
+            return a.lr * (0.1 + 0.9 * step / (0.03 * steps))
+        return 0.5 * a.lr * (1.0 + math.cos(math.pi * min(done, 1.0)))
+
     t0 = time.time()
     step = 0
     for ep in range(a.epochs):
@@ -259,6 +293,8 @@ def main():
         order = rng.permutation(len(tr_img))
         tot = 0.0
         for s in range(0, len(order) - a.batch + 1, a.batch):
+            if time.time() - t0 >= budget_s:
+                break
             xs, ps, gs, rs = [], [], [], []
             for k in order[s:s + a.batch]:
                 img, b = augment(tr_img[k], tr_box[k], rng)
@@ -270,14 +306,14 @@ def main():
             out = model(torch.from_numpy(np.stack(xs)[:, None]))
             loss, _ = loss_fn(out, torch.from_numpy(np.stack(ps)), torch.from_numpy(np.stack(gs)),
                               torch.from_numpy(np.stack(rs)))
+            for grp in opt.param_groups:
+                grp['lr'] = lr_at(step, time.time() - t0)
             opt.zero_grad()
             loss.backward()
             opt.step()
-            if step < steps - 1:
-                sched.step()
             step += 1
             tot += loss.item()
-        last = ep + 1 == a.epochs or (time.time() - t0) / 60 > a.max_minutes
+        last = ep + 1 == a.epochs or time.time() - t0 >= budget_s
         if (ep + 1) % 5 and not last:
             print(f'epoch {ep + 1}: loss {tot / max(len(order) // a.batch, 1):.3f}; '
                   f'{(time.time() - t0) / 60:.1f} min', flush=True)

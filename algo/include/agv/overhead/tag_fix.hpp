@@ -1,9 +1,11 @@
 // From a tag's corner pixels in a ceiling camera to the vehicle's pose on the floor
 // (docs/design/overhead.md): every corner's ray meets the tray plane (known height above the
 // floor); the square of known size fitted to the four points gives the centre and heading (paper
-// 000 eq. 9-12 in the image; here in the site frame, free of perspective), and the corners'
-// pixel sigma, carried through the rays, plus the camera's calibrated pose sigma
-// (CeilingCamera::position_sigma_mm, angle_sigma_rad), its covariance. Pure.
+// 000 eq. 9-12 in the image; here in the site frame, free of perspective), and its covariance:
+// the errors of the four edge lines the corners are the meeting points of (each line's offset
+// and angle, recovered from the detector's corner pixel sigma; two corners on a line move
+// together, which is where the heading's error comes from), carried through the rays, plus the
+// camera's calibrated pose sigma (CeilingCamera::position_sigma_mm, angle_sigma_rad). Pure.
 #pragma once
 
 #include <array>

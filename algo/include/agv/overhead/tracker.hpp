@@ -8,6 +8,8 @@
 // the fleet index: a vehicle has one track, so a hand-over between cameras cannot duplicate it.
 // The first fix of a new or lost track has nothing to be gated by: the caller gives such fixes
 // only from a strict global decode (never from a decode restricted to an area's ids).
+// Optionally each vehicle's route (set_route; route_prior.hpp) is the motion prior of its
+// coasting track: extrapolated along the route, round its corners, instead of straight on.
 // Pure: time is an argument; no allocation per fix (every buffer is sized by the constructor);
 // docs/design/overhead.md.
 #pragma once
@@ -19,6 +21,7 @@
 #include <vector>
 
 #include "agv/common/geometry.hpp"
+#include "agv/overhead/route_prior.hpp"
 #include "agv/overhead/tag_fix.hpp"
 
 namespace agv::overhead {
@@ -54,6 +57,12 @@ struct TrackerParams {
   // A track starts from a fix with this velocity sigma (at rest unknown).
   double initial_speed_sigma_mps = 1.0;
   double initial_turn_sigma_radps = 1.0;
+  // The vehicles' routes as the motion prior of coasting tracks (route_prior.hpp; off: set_route
+  // is refused). A track without a fix for coast_after_ms whose newest fix (taken at or after its
+  // route was set) lies on the route within route's limits is extrapolated along the route, and
+  // the next fix is gated against that extrapolation; otherwise the constant turn-rate model.
+  bool route_prior = false;
+  RoutePriorParams route;
 };
 
 // Empty string when the parameters are usable, otherwise what is wrong (names the field).
@@ -107,8 +116,17 @@ class FleetTracker {
   // outside the fleet.
   TrackOutput output(std::size_t agv, std::int64_t t_ns) const;
   std::vector<TrackOutput> outputs(std::int64_t t_ns) const;
-  // Forget a track (operator command; a vehicle taken off the floor).
+  // Forget a track (operator command; a vehicle taken off the floor). Its route stays.
   void reset(std::size_t agv);
+  // Vehicle `agv`'s route (mm), in force from t_ns (the time its order was received): fixes
+  // older than that are not extrapolated along it. Replaces the previous route. False with
+  // *error (the previous route kept) when the route prior is off, the index is outside the fleet
+  // or the waypoints are refused (RoutePath::assign). Allocates: call when an order arrives, not
+  // per fix.
+  bool set_route(std::size_t agv, const std::vector<Vec2>& waypoints_mm, std::int64_t t_ns,
+                 std::string* error = nullptr);
+  // No route for vehicle `agv` (its order finished or cancelled); nothing for an index outside.
+  void clear_route(std::size_t agv);
 
   std::size_t size() const;
   const TrackerCounters& counters() const { return counters_; }

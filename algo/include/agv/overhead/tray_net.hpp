@@ -69,6 +69,10 @@ double oriented_iou(const OrientedBox& a, const OrientedBox& b);
 // Greedy non-maximum suppression: highest score first, a box overlapping a kept one by more
 // than iou is dropped. Returns the kept boxes, best first.
 std::vector<OrientedBox> nms_oriented(std::vector<OrientedBox> boxes, double iou);
+// The same suppression, but each kept box becomes the score-weighted mean (centre, size, long
+// axis through its doubled angle) of itself and the boxes it suppressed: the neighbouring cells'
+// estimates of one tray average out. The kept box's score stays.
+std::vector<OrientedBox> nms_fused(std::vector<OrientedBox> boxes, double iou);
 
 // The model's declared input shape read from an ONNX buffer (N, C, H, W; a symbolic dimension is
 // -1). False with *why when the buffer is not an ONNX model with one 4-d input.
@@ -78,6 +82,7 @@ bool onnx_input_shape(const char* data, std::size_t size, std::array<long long, 
 struct TrayNetParams {
   double min_score = 0.5;  // objectness probability
   double nms_iou = 0.3;
+  bool fuse_boxes = true;  // nms_fused, not nms_oriented
   // 1-sigma errors of a detected tray's centre (window pixels) and long-axis angle, measured on
   // rendered held-out frames (docs/design/overhead.md); they give the fix's covariance.
   double centre_sigma_px = 1.5;
