@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <initializer_list>
 #include <limits>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -156,20 +157,33 @@ void check_prometheus(const std::string& text, std::map<std::string, double>* sa
   }
 }
 
+// Each named sample present with exactly its value.
+void expect_samples(const std::map<std::string, double>& samples,
+                    std::initializer_list<std::pair<const char*, double>> want) {
+  for (const auto& [name, value] : want) {
+    const auto it = samples.find(name);
+    if (it == samples.end()) {
+      ADD_FAILURE() << "no sample " << name;
+    } else {
+      EXPECT_EQ(it->second, value) << name;
+    }
+  }
+}
+
 TEST(DiagMetrics, TextFormatIsValid) {
   const Snapshot s = sample_snapshot();
   ServerStats server;
   server.requests = 5;
   std::map<std::string, double> samples;
   check_prometheus(metrics_text(s, server), &samples);
-  EXPECT_EQ(samples["agvloc_ticks_total"], 250);
-  EXPECT_EQ(samples["agvloc_fixes_fused_total"], 17);
-  EXPECT_EQ(samples["agvloc_fixes_rejected_total{reason=\"gate\"}"], 2);
-  EXPECT_EQ(samples["agvloc_can_errors_total{kind=\"tx_error\"}"], 3);
-  EXPECT_EQ(samples["agvloc_health{state=\"degraded\"}"], 1);
-  EXPECT_EQ(samples["agvloc_health{state=\"ok\"}"], 0);
-  EXPECT_DOUBLE_EQ(samples["agvloc_position_sigma_meters"], 0.003);
-  EXPECT_EQ(samples["agvloc_diag_requests_total"], 5);
+  expect_samples(samples, {{"agvloc_ticks_total", 250},
+                           {"agvloc_fixes_fused_total", 17},
+                           {"agvloc_fixes_rejected_total{reason=\"gate\"}", 2},
+                           {"agvloc_can_errors_total{kind=\"tx_error\"}", 3},
+                           {"agvloc_health{state=\"degraded\"}", 1},
+                           {"agvloc_health{state=\"ok\"}", 0},
+                           {"agvloc_position_sigma_meters", 0.003},
+                           {"agvloc_diag_requests_total", 5}});
 }
 
 TEST(DiagMetrics, HistogramMatchesRecordedValues) {
@@ -180,15 +194,15 @@ TEST(DiagMetrics, HistogramMatchesRecordedValues) {
   EXPECT_NEAR(samples["agvloc_end_to_end_seconds_sum"], 45.982e-3, 1e-9);
   // 500 ns, 1.5 us, 80 us < 100 us; 0.9 ms < 1 ms; 2 and 3 ms < 5 ms; 40 ms < 50 ms. A value is
   // counted under a bound once its ~3 % wide bucket lies below it.
-  EXPECT_EQ(samples["agvloc_end_to_end_seconds_bucket{le=\"0.0001\"}"], 3);
-  EXPECT_EQ(samples["agvloc_end_to_end_seconds_bucket{le=\"0.001\"}"], 4);
-  EXPECT_EQ(samples["agvloc_end_to_end_seconds_bucket{le=\"0.0025\"}"], 5);
-  EXPECT_EQ(samples["agvloc_end_to_end_seconds_bucket{le=\"0.005\"}"], 6);
-  EXPECT_EQ(samples["agvloc_end_to_end_seconds_bucket{le=\"0.025\"}"], 6);
-  EXPECT_EQ(samples["agvloc_end_to_end_seconds_bucket{le=\"0.05\"}"], 7);
-  EXPECT_EQ(samples["agvloc_end_to_end_seconds_bucket{le=\"+Inf\"}"], 7);
-  EXPECT_EQ(samples["agvloc_period_jitter_seconds_bucket{le=\"0.0001\"}"], 1);
-  EXPECT_EQ(samples["agvloc_period_jitter_seconds_sum"], 0.0);
+  expect_samples(samples, {{"agvloc_end_to_end_seconds_bucket{le=\"0.0001\"}", 3},
+                           {"agvloc_end_to_end_seconds_bucket{le=\"0.001\"}", 4},
+                           {"agvloc_end_to_end_seconds_bucket{le=\"0.0025\"}", 5},
+                           {"agvloc_end_to_end_seconds_bucket{le=\"0.005\"}", 6},
+                           {"agvloc_end_to_end_seconds_bucket{le=\"0.025\"}", 6},
+                           {"agvloc_end_to_end_seconds_bucket{le=\"0.05\"}", 7},
+                           {"agvloc_end_to_end_seconds_bucket{le=\"+Inf\"}", 7},
+                           {"agvloc_period_jitter_seconds_bucket{le=\"0.0001\"}", 1},
+                           {"agvloc_period_jitter_seconds_sum", 0.0}});
 }
 
 TEST(DiagMetrics, EmptySnapshotIsValid) {

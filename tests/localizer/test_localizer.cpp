@@ -25,16 +25,35 @@ p::Msg msg_of(const localizer::LocalizerConfig& c, const hal::CanFrame& f) {
   return p::identify(c.protocol, f);
 }
 
-p::StatusOut status_of(const localizer::LocalizerConfig& c, const localizer::OutFrames& out) {
-  p::StatusOut st;
+// A localizer and its CAN output on one configuration, and the time the tests drive them from.
+struct Rig {
+  explicit Rig(localizer::LocalizerConfig config = test_config())
+      : c(std::move(config)), loc(c), can(c.protocol) {}
+  localizer::LocalizerConfig c;
+  localizer::Localizer loc;
+  localizer::CanOutput can;
+  localizer::OutFrames out;
+  std::int64_t t = 1000 * kMs;
+};
+
+// The first frame of `kind` in a tick's output, decoded.
+template <typename Out, typename Decode>
+Out decoded(const localizer::LocalizerConfig& c, const localizer::OutFrames& out, p::Msg kind,
+            Decode decode) {
+  Out v;
   for (int i = 0; i < out.n; ++i) {
-    if (msg_of(c, out.frame[i]) == p::Msg::kStatus) {
-      EXPECT_TRUE(p::decode_status(c.protocol, out.frame[i], &st));
-      return st;
+    if (p::identify(c.protocol, out.frame[i]) == kind) {
+      EXPECT_TRUE(decode(c.protocol, out.frame[i], &v));
+      return v;
     }
   }
-  ADD_FAILURE() << "no status frame";
-  return st;
+  ADD_FAILURE() << "no frame of kind " << static_cast<int>(kind);
+  return v;
+}
+
+p::StatusOut status_of(const localizer::LocalizerConfig& c, const localizer::OutFrames& out) {
+  return decoded<p::StatusOut>(c, out, p::Msg::kStatus,
+                               [](auto&&... a) { return p::decode_status(a...); });
 }
 
 bool pose_valid(const localizer::LocalizerConfig& c, const localizer::OutFrames& out) {
@@ -46,10 +65,8 @@ bool pose_valid(const localizer::LocalizerConfig& c, const localizer::OutFrames&
 }  // namespace
 
 TEST(Localizer, TickProducesThePosePairFirstAndTheHeartbeatWhenDue) {
-  const auto c = test_config();
-  localizer::Localizer loc(c);
-  localizer::CanOutput can(c.protocol);
-  localizer::OutFrames out;
+  Rig r;
+  auto& [c, loc, can, out, t] = r;
   can.tick(loc, 1000 * kMs, &out, nullptr);
   ASSERT_EQ(out.n, 6);
   const p::Msg order[] = {p::Msg::kPoseXY,  p::Msg::kPoseHeading, p::Msg::kVelocity,
@@ -67,12 +84,9 @@ TEST(Localizer, TickProducesThePosePairFirstAndTheHeartbeatWhenDue) {
 }
 
 TEST(Localizer, OneOdometryTimeoutDrivesPoseValidityAndTheEkfFlag) {
-  const auto c = test_config();
-  localizer::Localizer loc(c);
-  localizer::CanOutput can(c.protocol);
-  localizer::OutFrames out;
+  Rig r;
+  auto& [c, loc, can, out, t] = r;
   localizer::TickRecord rec;
-  std::int64_t t = 1000 * kMs;
   for (int i = 0; i < 10; ++i) {
     loc.on_odometry(t, 0.5, 0.0);
     can.tick(loc, t += 10 * kMs, &out, &rec);
@@ -94,11 +108,8 @@ TEST(Localizer, OneOdometryTimeoutDrivesPoseValidityAndTheEkfFlag) {
 }
 
 TEST(Localizer, FusedFixIsCarriedByTheNextPosePairOnlyForEndToEndLatency) {
-  const auto c = test_config();
-  localizer::Localizer loc(c);
-  localizer::CanOutput can(c.protocol);
-  localizer::OutFrames out;
-  std::int64_t t = 1000 * kMs;
+  Rig r;
+  auto& [c, loc, can, out, t] = r;
   for (int i = 0; i < 5; ++i) {
     loc.on_odometry(t, 0.5, 0.0);
     can.tick(loc, t += 10 * kMs, &out, nullptr);
@@ -116,11 +127,8 @@ TEST(Localizer, FusedFixIsCarriedByTheNextPosePairOnlyForEndToEndLatency) {
 // A fix on tag36h11's tag 0: the status says "a landmark, id 0", not "none yet", by
 // LastLandmarkValid, which stays 1 from the first accepted fix on.
 TEST(Localizer, StatusTellsAFixOnLandmarkZeroFromNoFixYet) {
-  const auto c = test_config();
-  localizer::Localizer loc(c);
-  localizer::CanOutput can(c.protocol);
-  localizer::OutFrames out;
-  std::int64_t t = 1000 * kMs;
+  Rig r;
+  auto& [c, loc, can, out, t] = r;
   loc.on_odometry(t, 0.5, 0.0);
   can.tick(loc, t += 10 * kMs, &out, nullptr);
   p::StatusOut st = status_of(c, out);
@@ -145,10 +153,8 @@ TEST(Localizer, StatusTellsAFixOnLandmarkZeroFromNoFixYet) {
 }
 
 TEST(Localizer, CanFaultsAreLatchedFromTheBusStateItIsGiven) {
-  const auto c = test_config();
-  localizer::Localizer loc(c);
-  localizer::CanOutput can(c.protocol);
-  localizer::OutFrames out;
+  Rig r;
+  auto& [c, loc, can, out, t] = r;
   can.tick(loc, 1000 * kMs, &out, nullptr);
   EXPECT_EQ(status_of(c, out).faults & (p::fault::kCanBusOff | p::fault::kCanErrorPassive), 0);
   hal::CanStats s;
@@ -165,10 +171,8 @@ TEST(Localizer, CanFaultsAreLatchedFromTheBusStateItIsGiven) {
 }
 
 TEST(Localizer, CameraStallNeedsTheTimeoutAndNotTheEndOfTheStream) {
-  const auto c = test_config();
-  localizer::Localizer loc(c);
-  localizer::CanOutput can(c.protocol);
-  localizer::OutFrames out;
+  Rig r;
+  auto& [c, loc, can, out, t] = r;
   loc.set_camera_state(1000 * kMs, false, false);
   can.tick(loc, 1200 * kMs, &out, nullptr);
   EXPECT_EQ(status_of(c, out).faults & p::fault::kCameraStalled, 0);
@@ -300,11 +304,8 @@ TEST(Localizer, SaturatedGyroSamplesAreCountedNotFused) {
 }
 
 TEST(Localizer, RejectedGyroFramesSetImuE2EForOneStatusFrame) {
-  const auto c = gyro_config();
-  localizer::Localizer loc(c);
-  localizer::CanOutput can(c.protocol);
-  localizer::OutFrames out;
-  std::int64_t t = 1000 * kMs;
+  Rig r(gyro_config());
+  auto& [c, loc, can, out, t] = r;
   loc.on_can_frame(odom_can(c, 0, t));
   ASSERT_EQ(loc.on_can_frame(gyro_can(c, 0.1, 0, t), nullptr, nullptr), localizer::CanRx::kGyro);
   can.tick(loc, t += 10 * kMs, &out, nullptr);
@@ -325,11 +326,8 @@ TEST(Localizer, RejectedGyroFramesSetImuE2EForOneStatusFrame) {
 }
 
 TEST(Localizer, ImuTimeoutIsSetAfterTheGyroTimeoutAndClearWhileSamplesArrive) {
-  const auto c = gyro_config();  // gyro timeout 50 ms
-  localizer::Localizer loc(c);
-  localizer::CanOutput can(c.protocol);
-  localizer::OutFrames out;
-  std::int64_t t = 1000 * kMs;
+  Rig r(gyro_config());  // gyro timeout 50 ms
+  auto& [c, loc, can, out, t] = r;
   int oc = 0, gc = 0;
   // Enabled but silent since the first tick: flagged once the timeout has passed.
   loc.on_can_frame(odom_can(c, oc++, t));
@@ -580,11 +578,8 @@ TEST(Localizer, InvalidOdometryCorrectionThrows) {
 }
 
 TEST(Localizer, PredictionForAFrameIsValidOnlyWhenThePoseIs) {
-  const auto c = test_config();
-  localizer::Localizer loc(c);
-  localizer::CanOutput can(c.protocol);
-  localizer::OutFrames out;
-  std::int64_t t = 1000 * kMs;
+  Rig r;
+  auto& [c, loc, can, out, t] = r;
   // Not initialised: odometry alone gives no prediction.
   for (int i = 0; i < 5; ++i) {
     loc.on_odometry(t, 0.5, 0.0);
@@ -620,15 +615,8 @@ vision::LandmarkFix guided_fix(double x_mm) {
 }
 
 p::QualityOut quality_of(const localizer::LocalizerConfig& c, const localizer::OutFrames& out) {
-  p::QualityOut q;
-  for (int i = 0; i < out.n; ++i) {
-    if (msg_of(c, out.frame[i]) == p::Msg::kQuality) {
-      EXPECT_TRUE(p::decode_quality(c.protocol, out.frame[i], &q));
-      return q;
-    }
-  }
-  ADD_FAILURE() << "no quality frame";
-  return q;
+  return decoded<p::QualityOut>(c, out, p::Msg::kQuality,
+                                [](auto&&... a) { return p::decode_quality(a...); });
 }
 
 }  // namespace
@@ -636,11 +624,8 @@ p::QualityOut quality_of(const localizer::LocalizerConfig& c, const localizer::O
 // docs/design/map_identity.md: a map-guided fix took its identity from the filter's own prediction,
 // so it can only refine a filter that is tracking; it never starts or restarts one.
 TEST(Localizer, MapGuidedFixNeverInitialisesTheFilter) {
-  const auto c = test_config();
-  localizer::Localizer loc(c);
-  localizer::CanOutput can(c.protocol);
-  localizer::OutFrames out;
-  std::int64_t t = 1000 * kMs;
+  Rig r;
+  auto& [c, loc, can, out, t] = r;
   for (int i = 0; i < 5; ++i) {
     loc.on_odometry(t, 0.5, 0.0);
     can.tick(loc, t += 10 * kMs, &out, nullptr);

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 #include <limits>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -31,6 +32,22 @@ LandmarkMap one_map() {
   m.entries[kId] = {kId, kLandmarkWorld};
   return m;
 }
+
+// One landmark's map and the default camera; the default localizer and one with `change` made to
+// its configuration: a feature on and off on the same frames.
+struct OnOff {
+  explicit OnOff(const std::function<void(VisionConfig*)>& change) : other(changed(change)) {}
+  static VisionConfig changed(const std::function<void(VisionConfig*)>& change) {
+    VisionConfig c;
+    change(&c);
+    return c;
+  }
+  const LandmarkMap map = one_map();
+  const CameraModel cam = CameraModel::default_640x480();
+  const VisionConfig other;
+  LandmarkLocalizer loc{VisionConfig{}, cam, LandmarkGeometry{}, &map};
+  LandmarkLocalizer loc_other{other, cam, LandmarkGeometry{}, &map};
+};
 
 cv::Mat render(const LandmarkMap& map, const Pose2& vehicle_in_world, const CameraModel& cam) {
   sim::Scene scene;
@@ -470,12 +487,8 @@ TEST(Tracking, ZxingGridReadsStayWithinTheirBudget) {
 // partly covered codes; it reads most frames, and the frames it does not read (a covered strip
 // beyond the verified bound) still get the five-sample read.
 TEST(Tracking, CentreOnlyFirstReadReadsWhatTheFiveSampleReadReads) {
-  const LandmarkMap map = one_map();
-  const CameraModel cam = CameraModel::default_640x480();
-  VisionConfig five;
-  five.qr_centre_first = false;
-  LandmarkLocalizer loc(VisionConfig{}, cam, LandmarkGeometry{}, &map);
-  LandmarkLocalizer loc5(five, cam, LandmarkGeometry{}, &map);
+  OnOff t([](VisionConfig* c) { c->qr_centre_first = false; });
+  auto& [map, cam, five, loc, loc5] = t;
   sim::Scene scene;
   std::string err;
   ASSERT_TRUE(sim::make_scene(map, LandmarkGeometry{}, sim::PayloadMode::kFull, &scene, &err));
@@ -609,12 +622,8 @@ TEST(Tracking, PrecisePredictionPlacesTheBandsWithoutDetection) {
 // than the band) or the fit lands elsewhere than predicted (1.5 mm off, inside the band but
 // beyond the gate). Either way the frame falls back to the tracked detection and its fix.
 TEST(Tracking, WrongPrecisePredictionFallsBackToTheDetection) {
-  const LandmarkMap map = one_map();
-  const CameraModel cam = CameraModel::default_640x480();
-  VisionConfig off;
-  off.tracking.detect_from_prediction = false;
-  LandmarkLocalizer loc(VisionConfig{}, cam, LandmarkGeometry{}, &map);
-  LandmarkLocalizer loc_off(off, cam, LandmarkGeometry{}, &map);
+  OnOff t([](VisionConfig* c) { c->tracking.detect_from_prediction = false; });
+  auto& [map, cam, off, loc, loc_off] = t;
   for (double miss_mm : {1.5, 3.0, 6.0}) {
     for (double deg : {12.0, 200.0}) {
       const Pose2 v = over_landmark(cam, 8.0, -5.0, deg_to_rad(deg));
@@ -751,12 +760,8 @@ FixStatus expect_probes_fall_back(LandmarkLocalizer& loc, LandmarkLocalizer& loc
 // loose prediction 25 mm off (beyond its 4 sigma: the lines, if any, are not where it said).
 // Plain floor where the map puts a landmark: PrecisePredictionOfAMissingLandmarkGivesNoFix.
 TEST(Tracking, EdgeProbesDeclineWhatIsNotTheBorder) {
-  const LandmarkMap map = one_map();
-  const CameraModel cam = CameraModel::default_640x480();
-  VisionConfig off;
-  off.tracking.probe_edges = false;
-  LandmarkLocalizer loc(VisionConfig{}, cam, LandmarkGeometry{}, &map);
-  LandmarkLocalizer loc_off(off, cam, LandmarkGeometry{}, &map);
+  OnOff t([](VisionConfig* c) { c->tracking.probe_edges = false; });
+  auto& [map, cam, off, loc, loc_off] = t;
   int n_covered = 0;
   for (double deg : {12.0, 200.0}) {
     const Pose2 v = over_landmark(cam, 8.0, -5.0, deg_to_rad(deg));
@@ -785,12 +790,8 @@ TEST(Tracking, EdgeProbesDeclineWhatIsNotTheBorder) {
 // 7 px of motion blur and noise at once the tracked detection's fixes were measured better than
 // the probes'. The same view sharp is probed; blurred it is not, and gives the tracked fix.
 TEST(Tracking, EdgeProbesLeaveABlurredLandmarkToTheDetection) {
-  const LandmarkMap map = one_map();
-  const CameraModel cam = CameraModel::default_640x480();
-  VisionConfig off;
-  off.tracking.probe_edges = false;
-  LandmarkLocalizer loc(VisionConfig{}, cam, LandmarkGeometry{}, &map);
-  LandmarkLocalizer loc_off(off, cam, LandmarkGeometry{}, &map);
+  OnOff t([](VisionConfig* c) { c->tracking.probe_edges = false; });
+  auto& [map, cam, off, loc, loc_off] = t;
   sim::Scene scene;
   std::string err;
   ASSERT_TRUE(sim::make_scene(map, LandmarkGeometry{}, sim::PayloadMode::kFull, &scene, &err));
@@ -820,12 +821,8 @@ TEST(Tracking, EdgeProbesLeaveABlurredLandmarkToTheDetection) {
 // predicted turn scores the logo at that turn only, and gives the four turns' fix. An erased logo,
 // or one printed a quarter turn away, takes the four turns; the latter is refused as before.
 TEST(Tracking, LogoIsScoredAtTheVerifiedCodesTurnOnly) {
-  const LandmarkMap map = one_map();
-  const CameraModel cam = CameraModel::default_640x480();
-  VisionConfig four;
-  four.tracking.logo_at_code_turn = false;
-  LandmarkLocalizer loc(VisionConfig{}, cam, LandmarkGeometry{}, &map);
-  LandmarkLocalizer loc4(four, cam, LandmarkGeometry{}, &map);
+  OnOff t([](VisionConfig* c) { c->tracking.logo_at_code_turn = false; });
+  auto& [map, cam, four, loc, loc4] = t;
   enum { kIntact, kErased, kTurned };
   for (int logo : {kIntact, kErased, kTurned}) {
     for (double deg : {3.0, 44.0, 151.0, 268.0}) {
