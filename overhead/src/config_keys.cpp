@@ -83,8 +83,9 @@ std::vector<Key> tracker_keys() {
       number("tracker.maneuver_alpha_noise_radps2", AGV_OH_AT(tracker.maneuver_alpha_noise_radps2),
              0, 100, 2.0, "rad/s²",
              "Density for a fix whose heading shows a turn starting or stopping (beyond "
-             "maneuver_chi2 of the steady prediction); it is gated by this prediction. 0: off "
-             "(such fixes are gated by the steady one)"),
+             "maneuver_chi2 of the steady prediction), and for a prediction over more than "
+             "coast_after_ms without a fix (a turn may have started unseen); it is gated by "
+             "this prediction. 0: off (such fixes are gated by the steady one)"),
       number("tracker.maneuver_chi2", AGV_OH_AT(tracker.maneuver_chi2), 1, 1000, 9.0, "",
              "Squared heading innovation (1 dof) beyond which a fix is taken as a turn's start "
              "or end"),

@@ -66,6 +66,7 @@ struct Models {
   ProcessNoise steady, maneuver;
   bool maneuvers = false;
   double maneuver_chi2 = 0.0;
+  double steady_span_s = 0.0;
 };
 
 Models models_of(const TrackerParams& p) {
@@ -75,14 +76,24 @@ Models models_of(const TrackerParams& p) {
   m.maneuver.alpha = p.maneuver_alpha_noise_radps2 * p.maneuver_alpha_noise_radps2;
   m.maneuvers = p.maneuver_alpha_noise_radps2 > 0.0;
   m.maneuver_chi2 = p.maneuver_chi2;
+  m.steady_span_s = p.coast_after_ms * 1e-3;
   return m;
 }
 
-// The prior of fix m dt_s after b (b carrying the calibration error bias): the steady
-// prediction, or the maneuver one when the fix's heading is beyond the steady one's reach.
+// b predicted over dt_s: with the steady density while the track is confirmed by fixes, with the
+// manoeuvre density over the whole gap once it has had none for coast_after_ms. A vehicle that
+// began to turn after the newest fix shows it in the next one; a track that missed its fixes cannot
+// tell, and its output and the search window drawn from it must allow for the turn.
+Belief predict_unseen(const Belief& b, double dt_s, const Models& q) {
+  const bool unseen = q.maneuvers && std::abs(dt_s) > q.steady_span_s;
+  return tracker_detail::predict(b, dt_s, unseen ? q.maneuver : q.steady);
+}
+
+// The prior of fix m dt_s after b (b carrying the calibration error bias): predict_unseen's, or
+// the manoeuvre one when the fix's heading is beyond that prediction's reach.
 Belief prior_for(const Belief& b, double dt_s, const Mat3& bias, const Measurement& m,
                  const Models& q) {
-  Belief prior = tracker_detail::predict(b, dt_s, q.steady);
+  Belief prior = predict_unseen(b, dt_s, q);
   if (q.maneuvers && !(tracker_detail::heading_distance2(prior, bias, m) <= q.maneuver_chi2)) {
     prior = tracker_detail::predict(b, dt_s, q.maneuver);
   }
@@ -90,16 +101,16 @@ Belief prior_for(const Belief& b, double dt_s, const Mat3& bias, const Measureme
 }
 
 // The newest entry at or before t (the oldest when t precedes them all), predicted to t.
-Belief belief_at(const TrackCore& tr, std::int64_t t_ns, const tracker_detail::ProcessNoise& q) {
+Belief belief_at(const TrackCore& tr, std::int64_t t_ns, const Models& q) {
   std::size_t j = tr.count - 1;
   while (j > 0 && tr.at(j).t_ns > t_ns) --j;
   const TrackEntry& e = tr.at(j);
-  return tracker_detail::predict(e.belief, seconds(diff_ns(t_ns, e.t_ns)), q);
+  return predict_unseen(e.belief, seconds(diff_ns(t_ns, e.t_ns)), q);
 }
 
 // The belief as reported: the calibration error of the newest fix's camera passes through the
 // filter whole, so it is added on top of the filter's covariance.
-Belief reported_at(const TrackCore& tr, std::int64_t t_ns, const tracker_detail::ProcessNoise& q) {
+Belief reported_at(const TrackCore& tr, std::int64_t t_ns, const Models& q) {
   Belief b = belief_at(tr, t_ns, q);
   b.p.topLeftCorner<3, 3>() += tr.newest().fix.bias;
   return b;
@@ -145,9 +156,9 @@ bool route_belief_at(const TrackCore& tr, std::int64_t t_ns, const TrackerParams
 // The belief as reported at t: along the route when route_belief_at gives one, otherwise the
 // motion model's (reported_at).
 Belief reported_with_route(const TrackCore& tr, std::int64_t t_ns, const TrackerParams& p) {
-  const ProcessNoise q = noise_of(p);
+  const Models q = models_of(p);
   Belief b;
-  if (route_belief_at(tr, t_ns, p, q, &b)) {
+  if (route_belief_at(tr, t_ns, p, q.steady, &b)) {
     b.p.topLeftCorner<3, 3>() += tr.newest().fix.bias;
     return b;
   }

@@ -39,7 +39,10 @@ struct TrackerParams {
   // enough to keep the turn rate still between turns does not follow (it would gate the fix): a
   // fix whose heading innovation under the steady prediction exceeds maneuver_chi2 (chi2, 1 dof)
   // is predicted with maneuver_alpha_noise_radps2 instead, and gated by that prediction, so the
-  // new turn rate is taken from the fixes at once. 0: off.
+  // new turn rate is taken from the fixes at once. A prediction over more than coast_after_ms
+  // from the track's fix (a coasting track's output and search window, a covered tag's next tray
+  // box) takes this density over the whole gap: the missed fixes could have shown a turn start.
+  // 0: off.
   double maneuver_alpha_noise_radps2 = 2.0;
   double maneuver_chi2 = 9.0;
   // A fix whose squared Mahalanobis distance exceeds this (chi2, 3 dof, 0.999) is refused.
