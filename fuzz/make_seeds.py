@@ -198,6 +198,27 @@ landmark:
     put("fuzz_detection_msg", "empty", det.split('"tags"')[0] + '"tags":[]}')
     put("fuzz_detection_msg", "other_camera", det.replace("cam-a", "cam-z"))
     put("fuzz_detection_msg", "truncated", det[:90])
+    # Orders for the overhead tracker's route prior: topic line, payload; messages split by NUL.
+    def order(oid, update, first, xs, released=None):
+        import json
+        n = len(xs)
+        rel = released or [True] * n
+        nodes = [{"nodeId": "%s_n%d" % (oid, first + i), "sequenceId": 2 * (first + i),
+                  "released": rel[i], "actions": [],
+                  "nodePosition": {"x": x, "y": 0.5, "mapId": "hall"}} for i, x in enumerate(xs)]
+        edges = [{"edgeId": "%s_e%d" % (oid, first + i), "sequenceId": 2 * (first + i) + 1,
+                  "released": rel[i + 1], "startNodeId": nodes[i]["nodeId"],
+                  "endNodeId": nodes[i + 1]["nodeId"], "actions": []} for i in range(n - 1)]
+        return "uagv/v2/acme/agv-2/order\n" + json.dumps({
+            "headerId": 1, "timestamp": "2026-01-01T00:00:00.000Z", "version": "2.1.0",
+            "manufacturer": "acme", "serialNumber": "agv-2", "orderId": oid,
+            "orderUpdateId": update, "nodes": nodes, "edges": edges})
+    put("fuzz_order_intake", "one", order("o1", 0, 0, [1.0, 2.0, 3.0]))
+    put("fuzz_order_intake", "stitched", order("o1", 0, 0, [1.0, 2.0]) + "\0" +
+        order("o1", 1, 1, [2.0, 4.0]) + "\0" + order("o1", 1, 1, [2.0, 4.0]))
+    put("fuzz_order_intake", "horizon", order("o1", 0, 0, [1.0, 2.0, 3.0], [True, False, False]))
+    put("fuzz_order_intake", "bad_topic", order("o1", 0, 0, [1.0]).replace("/order", "/state"))
+    put("fuzz_order_intake", "truncated", order("o1", 0, 0, [1.0, 2.0])[:120])
     # calibrate check --placements CSV (docs/guide/commissioning.md): placements of several
     # frames, recording directories, comments and CRLF, and near misses.
     put("fuzz_placements", "three", "frame,x_mm,y_mm,heading_deg\nc1.png,300,0,0\nc2.png,300,0,0\n"

@@ -18,7 +18,7 @@ shift || true
 all=(fuzz_payload fuzz_map fuzz_recording_meta fuzz_recording_frames fuzz_recording_odom
      fuzz_recording_truth fuzz_config fuzz_candump fuzz_can_odometry fuzz_png fuzz_vision
      fuzz_vda_action fuzz_placements fuzz_config_apply fuzz_report_csv fuzz_site fuzz_http_request
-     fuzz_detection_msg)
+     fuzz_detection_msg fuzz_order_intake)
 if [ "$#" -gt 0 ]; then harnesses=("$@"); else harnesses=("${all[@]}"); fi
 
 t0=$(date +%s)
@@ -38,6 +38,7 @@ dict_of() {
     fuzz_candump) echo fuzz/dict/candump.dict ;;
     fuzz_vda_action) echo fuzz/dict/vda5050.dict ;;
     fuzz_detection_msg) echo fuzz/dict/detection_msg.dict ;;
+    fuzz_order_intake) echo fuzz/dict/vda5050.dict ;;
   esac
 }
 

@@ -15,3 +15,7 @@ agv_add_test(test_tracker_turns SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_tracker
 # extrapolated along its vehicle's route round a corner; synthetic fixes.
 agv_add_test(test_route_prior SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_route_prior.cpp
              LIBS agv_overhead agv_vda5050 LABELS unit overhead)
+# Orders as routes (algo/src/overhead/order_intake.cpp): VDA 5050 orders for fleet vehicles,
+# stitched updates, and every refusal named.
+agv_add_test(test_order_intake SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_order_intake.cpp
+             LIBS agv_overhead LABELS unit overhead)
