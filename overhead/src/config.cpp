@@ -110,6 +110,17 @@ void check_topic_names(const OverheadConfig& c, std::vector<std::string>* errors
   check("output.mqtt.manufacturer", c.mqtt.manufacturer, topic_level_problem(c.mqtt.manufacturer));
   check("detections.topic_prefix", c.detections.topic_prefix,
         topic_prefix_problem(c.detections.topic_prefix), true);
+  check("orders.interface_name", c.orders.interface_name,
+        topic_first_level_problem(c.orders.interface_name));
+}
+
+// Keys that only mean something together.
+void check_combinations(const OverheadConfig& c, std::vector<std::string>* errors) {
+  if (c.orders.subscribe && !c.tracker.route_prior)
+    errors->push_back("orders.subscribe: true needs tracker.route_prior: true (the orders are "
+                      "the route prior's routes)");
+  const std::string route = overhead::validate(c.tracker.route);
+  if (!route.empty()) errors->push_back("tracker.route: " + route);
 }
 
 }  // namespace
@@ -151,6 +162,7 @@ bool parse_config(const std::string& text, OverheadConfig* out, std::vector<std:
     k->set(cfg, v);
   }
   if (errors->size() == before) check_topic_names(cfg, errors);
+  if (errors->size() == before) check_combinations(cfg, errors);
   if (errors->size() != before) return false;
   *out = cfg;
   return true;

@@ -38,6 +38,13 @@ struct DetectionsBus {
   std::string topic_prefix = "agvloc-overhead";
 };
 
+// orders.*: `run` subscribes to <interface_name>/+/+/+/order on the output.mqtt broker and hands
+// each fleet vehicle's order to the tracker as its route (order_intake.hpp).
+struct OrdersIn {
+  bool subscribe = false;
+  std::string interface_name = "uagv";
+};
+
 // diag.*: the diagnostics page and /metrics of `run` (drivers/http, as the vehicle's).
 struct DiagOutput {
   bool enabled = false;
@@ -78,6 +85,7 @@ struct OverheadConfig {
   double output_rate_hz = 30.0;
   MqttOutput mqtt;
   DetectionsBus detections;
+  OrdersIn orders;
   DiagOutput diag;
   std::map<std::string, CameraSettings> cameras;  // by camera id
 };

@@ -111,6 +111,20 @@ std::vector<Key> tracker_keys() {
              20, 1.0, "m/s", "Speed sigma of a track started from one fix"),
       number("tracker.initial_turn_sigma_radps", AGV_OH_AT(tracker.initial_turn_sigma_radps), 0.001,
              20, 1.0, "rad/s", "Turn-rate sigma of a track started from one fix"),
+      boolean("tracker.route_prior", AGV_OH_AT(tracker.route_prior), false,
+              "A coasting vehicle on its route (its fleet manager's order, orders.subscribe) is "
+              "extrapolated along the route round its corners, not straight on"),
+      number("tracker.route.max_cross_track_mm", AGV_OH_AT(tracker.route.max_cross_track_mm), 1,
+             10000, 300.0, "mm", "The last fix farther from the route than this: no route prior"),
+      number("tracker.route.max_heading_error_rad",
+             AGV_OH_AT(tracker.route.max_heading_error_rad), 0.01, 3.14, 0.5, "rad",
+             "The last fix's heading farther from the route's direction than this: no route prior"),
+      number("tracker.route.cross_track_sigma_mm", AGV_OH_AT(tracker.route.cross_track_sigma_mm),
+             1, 5000, 150.0, "mm",
+             "How closely the vehicles keep to their routes (the predicted cross-track sigma "
+             "never below it; a controller's tolerance, corners cut on arcs)"),
+      number("tracker.route.heading_sigma_rad", AGV_OH_AT(tracker.route.heading_sigma_rad), 0.001,
+             3.14, 0.15, "rad", "The same for heading"),
   };
 }
 
@@ -211,6 +225,12 @@ std::vector<Key> output_keys() {
       string("detections.topic_prefix", AGV_OH_AT(detections.topic_prefix), "agvloc-overhead",
              "Detector processes publish each frame's tags on PREFIX/detections/CAMERA_ID of "
              "the output.mqtt broker; `run --detections-from-broker` subscribes there"),
+      boolean("orders.subscribe", AGV_OH_AT(orders.subscribe), false,
+              "run: read every fleet vehicle's VDA 5050 order from the output.mqtt broker as its "
+              "route (needs tracker.route_prior); refused orders are counted by reason"),
+      string("orders.interface_name", AGV_OH_AT(orders.interface_name), "uagv",
+             "First topic level of the vehicles' orders: INTERFACE/vN/MANUFACTURER/ID/order, ID "
+             "a fleet vehicle's id in the site file"),
       boolean("diag.enabled", AGV_OH_AT(diag.enabled), false,
               "run: serve the diagnostics page and Prometheus /metrics (cameras, vehicles)"),
       string("diag.bind_address", AGV_OH_AT(diag.bind_address), "127.0.0.1",

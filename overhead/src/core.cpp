@@ -25,6 +25,12 @@ std::int64_t epoch_now_ns() {
 
 unsigned long long ull(std::uint64_t v) { return static_cast<unsigned long long>(v); }
 
+std::vector<std::string> fleet_ids(const site::Site& site) {
+  std::vector<std::string> ids;
+  for (const site::FleetAgv& a : site.fleet) ids.push_back(a.id);
+  return ids;
+}
+
 }  // namespace
 
 TrackerCore::TrackerCore(const OverheadConfig& cfg, const site::Site& site)
@@ -32,7 +38,13 @@ TrackerCore::TrackerCore(const OverheadConfig& cfg, const site::Site& site)
       site_(site),
       processor_(site.cameras, site.fleet, cfg.detect, cfg.search),
       tracker_(site.fleet.size(), cfg.tracker),
-      header_ids_(site.fleet.size(), 0) {
+      header_ids_(site.fleet.size(), 0),
+      order_intake_(fleet_ids(site), cfg.orders.interface_name) {
+  for (int r = static_cast<int>(overhead::OrderReason::kBadTopic); r < overhead::kOrderReasonCount;
+       ++r)
+    orders_.refused_by_reason[overhead::order_reason_name(static_cast<overhead::OrderReason>(r))] =
+        0;
+  orders_.refused_by_reason["route_refused"] = 0;
   processor_.set_tray_fit(cfg.tray_fit, cfg.tray);
   const bool learned = cfg.tray_fit && cfg.tray_method == "learned";
   const bool reacquire = cfg.reacquire.enabled && !cfg.tray_model_path.empty();
@@ -67,6 +79,37 @@ void TrackerCore::use_tray_model(const std::string& path, bool learned) {
   }
   if (cfg_.reacquire.enabled) processor_.set_reacquire(net, cfg_.reacquire);
   if (learned) processor_.set_tray_net(std::move(net));
+}
+
+void TrackerCore::apply_order(std::string_view topic, std::string_view payload,
+                              std::int64_t t_ns) {
+  ++orders_.messages;
+  overhead::OrderRoute route;
+  std::string why;
+  overhead::OrderReason r = order_intake_.take(topic, payload, &route, &why);
+  if (r == overhead::OrderReason::kDuplicate) {
+    ++orders_.duplicates;
+    return;
+  }
+  if (r == overhead::OrderReason::kNone && route.waypoints_mm.size() < 2) {
+    tracker_.clear_route(route.agv);  // to stay at its one node: nothing to follow
+    ++orders_.routes_cleared;
+    return;
+  }
+  if (r == overhead::OrderReason::kNone) {
+    if (tracker_.set_route(route.agv, route.waypoints_mm, t_ns, &why)) {
+      ++orders_.routes_set;
+      return;
+    }
+    tracker_.clear_route(route.agv);  // an order it cannot follow: no stale route either
+    order_intake_.forget(route.agv);
+    ++orders_.routes_cleared;
+  }
+  ++orders_.refused;
+  const char* name = r == overhead::OrderReason::kNone ? "route_refused" : overhead::order_reason_name(r);
+  ++orders_.refused_by_reason[name];
+  if (orders_.refused <= kFrameWarningsShown)
+    std::fprintf(stderr, "agvloc-overhead: order refused (%s): %s\n", name, why.c_str());
 }
 
 void TrackerCore::publish_camera_state(const std::string& camera_id, bool fault,
@@ -221,6 +264,17 @@ void TrackerCore::print_summary(const std::string& prefix, std::size_t cameras) 
                                   : "off",
       ull(f.reacquire_sweeps), ull(f.reacquire_windows), ull(f.reacquired),
       ull(f.reacquire_ambiguous), ull(f.reacquire_heading_unknown));
+  if (cfg_.orders.subscribe) {
+    const OrderCounters& o = orders_;
+    std::printf(
+        "%s: orders: %llu messages, %llu routes set, %llu cleared, %llu duplicates, %llu "
+        "refused\n",
+        p, ull(o.messages), ull(o.routes_set), ull(o.routes_cleared), ull(o.duplicates),
+        ull(o.refused));
+    for (const auto& [reason, count] : o.refused_by_reason) {
+      if (count > 0) std::printf("%s: order refused %s: %llu\n", p, reason.c_str(), ull(count));
+    }
+  }
   if (mqtt_) {
     std::printf("%s: mqtt: %llu messages sent, %llu dropped\n", p, ull(mqtt_->sent()),
                 ull(mqtt_->dropped()));

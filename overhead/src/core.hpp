@@ -8,10 +8,12 @@
 #include <memory>
 #include <opencv2/core.hpp>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "agv/overhead/camera_frame.hpp"
 #include "agv/overhead/detection_msg.hpp"
+#include "agv/overhead/order_intake.hpp"
 #include "config.hpp"
 #include "outputs.hpp"
 #include "visualization.hpp"
@@ -35,6 +37,15 @@ class TrackerCore {
     std::uint64_t tags = 0, unknown_ids = 0, no_fix = 0, restricted_refused = 0;
   };
   const RemoteCounters& remote_counters() const { return remote_; }
+  // One message from the vehicles' order topics (orders.subscribe) received at t_ns on the
+  // tracks' clock: an accepted order's base becomes the vehicle's route from t_ns (one node:
+  // its route is cleared); a refusal is counted by reason, the first few named on stderr.
+  void apply_order(std::string_view topic, std::string_view payload, std::int64_t t_ns);
+  struct OrderCounters {
+    std::uint64_t messages = 0, routes_set = 0, routes_cleared = 0, duplicates = 0, refused = 0;
+    std::map<std::string, std::uint64_t> refused_by_reason;  // every reason, from 0
+  };
+  const OrderCounters& order_counters() const { return orders_; }
   // A frame that could not be read: counted, the first few named on stderr.
   void frame_unreadable(const std::string& what);
   // Every tracked vehicle's state extrapolated to t_ns, to tracks.csv and MQTT.
@@ -71,6 +82,8 @@ class TrackerCore {
   std::map<std::string, std::uint32_t> camera_header_ids_;
   std::uint64_t frames_ = 0, bad_frames_ = 0, detections_total_ = 0;
   RemoteCounters remote_;
+  overhead::OrderIntake order_intake_;
+  OrderCounters orders_;
   std::int64_t newest_frame_ns_ = 0;  // exposure of the newest frame processed
   static constexpr std::int64_t kMaxDataLagNs = 1'000'000'000;
   std::string tray_model_error_;  // tray.method learned with a model that cannot be used

@@ -46,6 +46,15 @@ std::string detections_subscription(const OverheadConfig& cfg) {
   return detections_topic(cfg, "+");
 }
 
+std::string orders_subscription(const OverheadConfig& cfg) {
+  return cfg.orders.interface_name + "/+/+/+/order";
+}
+
+bool is_order_topic(const OverheadConfig& cfg, const std::string& topic) {
+  const std::string detections = detections_topic(cfg, "");
+  return topic.compare(0, detections.size(), detections) != 0;
+}
+
 namespace {
 
 std::atomic<bool> g_stop{false};

@@ -74,6 +74,11 @@ std::string detections_topic(const OverheadConfig& cfg, const std::string& camer
 // one wildcard; the prefix holds none, config.cpp refuses it).
 std::string detections_subscription(const OverheadConfig& cfg);
 
+// What `run` subscribes to with orders.subscribe: <orders.interface_name>/+/+/+/order.
+std::string orders_subscription(const OverheadConfig& cfg);
+// A topic of that subscription (a detections topic otherwise).
+bool is_order_topic(const OverheadConfig& cfg, const std::string& topic);
+
 // Exit code: 0 done, 2 bad input, 1 the broker refused or went away.
 int run_detect(const DetectArgs& args);
 // `run --detections-from-broker`: until SIGINT / SIGTERM or args.duration_s.

@@ -22,87 +22,13 @@
 #include "detect.hpp"
 #include "diag.hpp"
 #include "inputs.hpp"
+#include "mqtt_in.hpp"
 
 namespace agv::overhead_app {
 namespace {
 
 std::atomic<bool> g_bus_stop{false};
 extern "C" void on_bus_stop_signal(int) { g_bus_stop.store(true); }
-
-constexpr int kBusConnectTimeoutMs = 5000;
-constexpr std::size_t kMaxQueued = 10000;  // beyond: dropped and counted (the tracker is behind)
-
-// A subscription whose messages wait in a bounded queue for the tracker's thread.
-class DetectionsIn {
- public:
-  ~DetectionsIn() { stop(); }
-  bool start(const MqttOutput& cfg, const std::string& topic, std::string* error) {
-    topic_ = topic;
-    mosquitto_lib_init();
-    mosq_ = mosquitto_new(nullptr, true, this);
-    if (!mosq_) return (*error = "cannot create an MQTT client", false);
-    mosquitto_connect_callback_set(mosq_, &DetectionsIn::on_connect);
-    mosquitto_subscribe_callback_set(mosq_, &DetectionsIn::on_subscribe);
-    mosquitto_message_callback_set(mosq_, &DetectionsIn::on_message);
-    mosquitto_reconnect_delay_set(mosq_, 1, 10, true);
-    int rc = mosquitto_connect_async(mosq_, cfg.broker_host.c_str(), cfg.port, 30);
-    if (rc == MOSQ_ERR_SUCCESS) rc = mosquitto_loop_start(mosq_);
-    const std::string where = "broker " + cfg.broker_host + ":" + std::to_string(cfg.port) + ": ";
-    if (rc != MOSQ_ERR_SUCCESS) return (*error = where + mosquitto_strerror(rc), false);
-    const auto until =
-        std::chrono::steady_clock::now() + std::chrono::milliseconds(kBusConnectTimeoutMs);
-    while (!subscribed_.load() && std::chrono::steady_clock::now() < until)
-      std::this_thread::sleep_for(std::chrono::milliseconds(5));
-    if (!subscribed_.load()) return (*error = where + "not subscribed within 5 s", false);
-    return true;
-  }
-  // The oldest payload, waiting up to wait_ms; false when none came.
-  bool pop(std::string* payload, int wait_ms) {
-    std::unique_lock<std::mutex> lock(mu_);
-    if (!cv_.wait_for(lock, std::chrono::milliseconds(wait_ms), [&] { return !q_.empty(); }))
-      return false;
-    *payload = std::move(q_.front());
-    q_.pop_front();
-    return true;
-  }
-  void stop() {
-    if (!mosq_) return;
-    mosquitto_disconnect(mosq_);
-    mosquitto_loop_stop(mosq_, false);
-    mosquitto_destroy(mosq_);
-    mosq_ = nullptr;
-    mosquitto_lib_cleanup();
-  }
-  std::uint64_t overflow() const { return overflow_.load(); }
-
- private:
-  static void on_connect(mosquitto* m, void* self, int rc) {
-    auto* in = static_cast<DetectionsIn*>(self);
-    if (rc == 0) mosquitto_subscribe(m, nullptr, in->topic_.c_str(), 0);
-  }
-  static void on_subscribe(mosquitto*, void* self, int, int, const int*) {
-    static_cast<DetectionsIn*>(self)->subscribed_.store(true);
-  }
-  static void on_message(mosquitto*, void* self, const mosquitto_message* msg) {
-    auto* in = static_cast<DetectionsIn*>(self);
-    std::lock_guard<std::mutex> lock(in->mu_);
-    if (in->q_.size() >= kMaxQueued) {
-      ++in->overflow_;
-      return;
-    }
-    in->q_.emplace_back(static_cast<const char*>(msg->payload),
-                        static_cast<std::size_t>(std::max(msg->payloadlen, 0)));
-    in->cv_.notify_one();
-  }
-
-  mosquitto* mosq_ = nullptr;
-  std::string topic_;
-  std::atomic<bool> subscribed_{false};
-  std::atomic<std::uint64_t> overflow_{0};
-  std::mutex mu_;
-  std::condition_variable cv_;
-  std::deque<std::string> q_;
-};
 
 struct BusCounters {
   std::uint64_t messages = 0, refused = 0, seq_gaps = 0;
@@ -217,11 +143,15 @@ int run_broker_tracker(const RunArgs& a) {
   if (!core.open_outputs(a.out_dir, &err)) return command_fail("run", 1, err);
   BusDiagFeeder diag(cfg, site);
   if (!diag.start(core, &err)) return command_fail("run", 1, err);
-  DetectionsIn in;
+  MqttIn in;
   const std::string topic = detections_subscription(cfg);
-  if (!in.start(cfg.mqtt, topic, &err)) return command_fail("run", 1, err);
+  std::vector<std::string> topics = {topic};
+  if (cfg.orders.subscribe) topics.push_back(orders_subscription(cfg));
+  if (!in.start(cfg.mqtt, topics, &err)) return command_fail("run", 1, err);
   std::fprintf(stderr, "agvloc-overhead run: detections from %s, %zu vehicles\n", topic.c_str(),
                site.fleet.size());
+  if (cfg.orders.subscribe)
+    std::fprintf(stderr, "agvloc-overhead run: orders from %s\n", topics.back().c_str());
   const auto end =
       std::chrono::steady_clock::now() + std::chrono::nanoseconds(std::llround(a.duration_s * 1e9));
   bool started = false;
@@ -232,12 +162,15 @@ int run_broker_tracker(const RunArgs& a) {
     for (; next_tick <= t_ns; next_tick += core.period_ns(), ++ticks_done) core.publish(next_tick);
   };
   BusCounters n;
-  std::string payload;
+  MqttMessage msg;
   while (!g_bus_stop.load() && (a.duration_s <= 0.0 || std::chrono::steady_clock::now() < end)) {
-    const bool got = in.pop(&payload, 100);
-    if (got) handle(payload, camera_ids, &core, &n, ticks);
-    diag.update(n, core, in.overflow(), ticks_done, started ? next_tick - core.period_ns() : 0,
-                !got);
+    const bool got = in.pop(&msg, 100);
+    const std::int64_t newest_ns = started ? next_tick - core.period_ns() : 0;
+    if (got && is_order_topic(cfg, msg.topic))
+      core.apply_order(msg.topic, msg.payload, newest_ns);
+    else if (got)
+      handle(msg.payload, camera_ids, &core, &n, ticks);
+    diag.update(n, core, in.overflow(), ticks_done, newest_ns, !got);
   }
   in.stop();
   diag.stop();

@@ -195,7 +195,7 @@ bool make_live_cameras(const OverheadConfig& cfg, const site::Site& site,
 
 LiveCounters run_live(std::vector<LiveCamera>* cams, TrackerCore* core,
                       const std::atomic<bool>& stop, std::int64_t duration_ns,
-                      const LiveDiag& diag) {
+                      const LiveDiag& diag, MqttIn* orders) {
   FrameQueue q(cams->size());
   CameraFeed feed(
       cams, "agvloc-overhead run", [&q](LiveFrame&& f) { q.push(std::move(f)); },
@@ -223,6 +223,7 @@ LiveCounters run_live(std::vector<LiveCamera>* cams, TrackerCore* core,
     }
     const std::int64_t now = monotonic_ns();
     if (now < next_tick) continue;
+    for (MqttMessage m; orders && orders->pop(&m, 0);) core->apply_order(m.topic, m.payload, now);
     core->publish(next_tick);
     ++n.ticks;
     if (diag.exposure_to_publish_ns) {

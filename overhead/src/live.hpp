@@ -19,6 +19,7 @@
 #include "core.hpp"
 #include "diag.hpp"
 #include "live_feed.hpp"
+#include "mqtt_in.hpp"
 
 namespace agv::overhead_app {
 
@@ -59,8 +60,9 @@ struct LiveDiag {
 
 // Runs until `stop` is set, duration_ns has passed (0: no limit) or every camera has ended
 // (kEndOfStream, a scripted camera). Status lines go to stderr.
+// With `orders` (orders.subscribe), the vehicles' orders it has queued are applied at every tick.
 LiveCounters run_live(std::vector<LiveCamera>* cams, TrackerCore* core,
                       const std::atomic<bool>& stop, std::int64_t duration_ns,
-                      const LiveDiag& diag = {});
+                      const LiveDiag& diag = {}, MqttIn* orders = nullptr);
 
 }  // namespace agv::overhead_app

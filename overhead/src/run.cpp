@@ -5,6 +5,7 @@
 #include <cstdio>
 
 #include "inputs.hpp"
+#include "detect.hpp"
 #include "live.hpp"
 
 namespace agv::overhead_app {
@@ -35,9 +36,16 @@ int run_live_command(const RunArgs& args) {
   }
   std::fprintf(stderr, "agvloc-overhead run: %zu cameras, %zu vehicles, publishing at %g Hz\n",
                in.cams.size(), in.site.fleet.size(), in.cfg.output_rate_hz);
-  const LiveCounters n =
-      run_live(&in.cams, &core, g_stop,
-               static_cast<std::int64_t>(std::llround(args.duration_s * 1e9)), live_diag);
+  MqttIn orders;
+  if (in.cfg.orders.subscribe) {
+    const std::string topic = orders_subscription(in.cfg);
+    if (!orders.start(in.cfg.mqtt, {topic}, &err)) return command_fail("run", 1, err);
+    std::fprintf(stderr, "agvloc-overhead run: orders from %s\n", topic.c_str());
+  }
+  const LiveCounters n = run_live(&in.cams, &core, g_stop,
+                                  static_cast<std::int64_t>(std::llround(args.duration_s * 1e9)),
+                                  live_diag, in.cfg.orders.subscribe ? &orders : nullptr);
+  orders.stop();
   std::printf(
       "agvloc-overhead run: %llu ticks (%llu skipped), %llu frames dropped behind, %llu "
       "camera reopens\n",

@@ -68,6 +68,7 @@ TEST(OverheadConfig, EveryKeyIsReadAndStoredWhereTheTableSays) {
       indent += "  ";
     }
     text += indent + leaf + ": " + format_value(v) + "\n";
+    if (k.name == "orders.subscribe") text += "tracker:\n  route_prior: true\n";  // needs it
     OverheadConfig cfg;
     std::vector<std::string> errors;
     ASSERT_TRUE(parse_config(text, &cfg, &errors)) << text << (errors.empty() ? "" : errors[0]);
@@ -137,6 +138,10 @@ TEST(OverheadConfig, ErrorsNameTheKeyAndTheLine) {
                {"output.mqtt.version", "not one of", "2.1.0"});
   expect_error("output:\n  mqtt:\n    interface_name: a/b\n",
                {"output.mqtt.interface_name", "topic level"});
+  expect_error("orders:\n  subscribe: true\n", {"orders.subscribe", "tracker.route_prior"});
+  expect_error("orders:\n  interface_name: uagv/#\n", {"orders.interface_name", "'#'"});
+  expect_error("tracker:\n  route:\n    cross_track_sigma_mm: 0\n",
+               {"tracker.route.cross_track_sigma_mm", "1..5000"});
   expect_error("cameras:\n  cam-a:\n    latency_ms: 5000\n",
                {"line 3", "cameras.cam-a.latency_ms", "0..1000"});
   expect_error("cameras:\n  cam-a:\n    driver: gige\n",

@@ -2,8 +2,10 @@
 publishing tags to a mosquitto broker of its own, one `run --detections-from-broker` tracking from
 them; the tracks must equal `replay` of the same recordings in one process (same vehicles and
 states, positions within a few mm), and refused messages (malformed, another version, an unknown
-camera) are counted by reason in the summary and on /metrics, never applied
-(tests/overhead/detect_broker.cmake). Usage: test_overhead_detect_broker.py OVERHEAD_CMD DESK_CMD
+camera) are counted by reason in the summary and on /metrics, never applied. The tracker also
+reads the vehicles' VDA 5050 orders (orders.subscribe): a fleet vehicle's order sets its route, an
+update of it extends the route, a repeat is a duplicate, and orders for another vehicle, cut short
+or unstitched are refused by reason (tests/overhead/detect_broker.cmake). Usage: test_overhead_detect_broker.py OVERHEAD_CMD DESK_CMD
 SITE WORK"""
 import math, os, re, shutil, signal, subprocess, sys, time, urllib.request
 
@@ -37,6 +39,31 @@ BAD_MESSAGES = ['{"v":2,"camera":"cam-west","t_ns":1,"seq":0,"tags":[]}',
                 '{"v":1,"camera":"cam-nowhere","t_ns":1,"seq":0,"tags":[]}',
                 '{"v":1,"camera":']
 REFUSED = ["bad_version", "unknown_camera", "not_json"]
+
+
+def order(serial, update, first, xs_m):
+    """A VDA 5050 2.1.0 order o1 (update `update`) through (x, 2.0) m, node ids from `first`."""
+    import json
+    nodes = [{"nodeId": "o1_n%d" % (first + i), "sequenceId": 2 * (first + i), "released": True,
+              "actions": [], "nodePosition": {"x": x, "y": 2.0, "mapId": "site"}}
+             for i, x in enumerate(xs_m)]
+    edges = [{"edgeId": "o1_e%d" % (first + i), "sequenceId": 2 * (first + i) + 1,
+              "released": True, "startNodeId": nodes[i]["nodeId"],
+              "endNodeId": nodes[i + 1]["nodeId"], "actions": []} for i in range(len(xs_m) - 1)]
+    return json.dumps({"headerId": update, "timestamp": "2026-12-03T10:00:00.000Z",
+                       "version": "2.1.0", "manufacturer": "acme", "serialNumber": serial,
+                       "orderId": "o1", "orderUpdateId": update, "nodes": nodes, "edges": edges})
+
+
+# (topic, payload): set, extended, repeated; then another vehicle's, cut short, unstitched.
+ORDERS = [("uagv/v2/acme/agv-1/order", order("agv-1", 0, 0, [1.0, 2.0, 3.0])),
+          ("uagv/v2/acme/agv-1/order", order("agv-1", 1, 2, [3.0, 4.0])),
+          ("uagv/v2/acme/agv-1/order", order("agv-1", 1, 2, [3.0, 4.0])),
+          ("uagv/v2/acme/agv-9/order", order("agv-9", 0, 0, [1.0, 2.0])),
+          ("uagv/v2/acme/agv-2/order", order("agv-2", 0, 0, [1.0, 2.0])[:60]),
+          ("uagv/v2/acme/agv-1/order", order("agv-1", 2, 1, [9.0, 8.0]))]
+ORDERS_SUMMARY = "orders: 6 messages, 2 routes set, 0 cleared, 1 duplicates, 3 refused"
+ORDERS_REFUSED = ["unknown_vehicle", "malformed", "not_stitched"]
 
 
 def check_metrics(log_path, messages, timeout_s=30.0):
@@ -96,7 +123,7 @@ def main():
     with open(cfg, "w") as f:
         f.write("output:\n  mqtt:\n    broker_host: 127.0.0.1\n    port: %d\n"
                 "detections:\n  topic_prefix: site-7\ndiag:\n  enabled: true\n  port: 0\n"
-                % port)
+                "tracker:\n  route_prior: true\norders:\n  subscribe: true\n" % port)
     bus = os.path.join(work, "bus")
     log_path = os.path.join(work, "tracker.log")
     tracker = None
@@ -105,7 +132,7 @@ def main():
         tracker = subprocess.Popen(
             overhead.split() + ["run", "--detections-from-broker", "--config", cfg, "--site", site,
                                 "--out", bus, "--duration-s", "300"], stdout=log, stderr=log)
-        wait_for(log_path, "detections from site-7/detections/+", tracker)
+        wait_for(log_path, "orders from uagv/+/+/+/order", tracker)
         detectors = []
         for rec in recs:
             cam = open(os.path.join(rec, "camera.yaml")).read().split("id:")[1].split()[0]
@@ -118,6 +145,9 @@ def main():
             if d.returncode != 0 or "%d frames" % FRAMES not in so:
                 fail("detect rc %d:\n%s" % (d.returncode, so))
             print(so.strip())
+        for topic, payload in ORDERS:
+            subprocess.run([pub, "-h", "127.0.0.1", "-p", str(port), "-t", topic, "-m", payload],
+                           check=True)
         # Refused messages after every detector has gone, a malformed one last: the broker
         # forwards in the order it received, and the tracker handles its queue in order, so once
         # it names that refusal it has handled every message before it (no waiting on the clock).
@@ -139,6 +169,10 @@ def main():
     want = "%d messages (3 refused, 0 lost by sequence, 0 dropped behind)" % (2 * FRAMES + 3)
     if want not in text or any("refused %s: 1" % r not in text for r in REFUSED):
         fail("expected '%s' and one refusal of each of %s" % (want, REFUSED))
+    if ORDERS_SUMMARY not in text or any("order refused %s: 1" % r not in text
+                                         for r in ORDERS_REFUSED):
+        fail("expected '%s' and one order refused of each of %s" % (ORDERS_SUMMARY,
+                                                                    ORDERS_REFUSED))
     a, b = final_rows(os.path.join(one, "tracks.csv")), final_rows(os.path.join(bus, "tracks.csv"))
     if sorted(a) != sorted(b) or not a:
         fail("vehicles differ: replay %s, broker %s" % (sorted(a), sorted(b)))
