@@ -19,8 +19,8 @@ namespace {
 
 void one(o::OrderIntake* in, std::string_view msg) {
   const std::size_t nl = msg.find('\n');
-  const std::string_view topic = msg.substr(0, nl), payload =
-                                     nl == std::string_view::npos ? "" : msg.substr(nl + 1);
+  const std::string_view topic = msg.substr(0, nl),
+                         payload = nl == std::string_view::npos ? "" : msg.substr(nl + 1);
   o::OrderRoute r;
   r.agv = 7;
   std::string why;

@@ -117,8 +117,9 @@ void check_topic_names(const OverheadConfig& c, std::vector<std::string>* errors
 // Keys that only mean something together.
 void check_combinations(const OverheadConfig& c, std::vector<std::string>* errors) {
   if (c.orders.subscribe && !c.tracker.route_prior)
-    errors->push_back("orders.subscribe: true needs tracker.route_prior: true (the orders are "
-                      "the route prior's routes)");
+    errors->push_back(
+        "orders.subscribe: true needs tracker.route_prior: true (the orders are "
+        "the route prior's routes)");
   const std::string route = overhead::validate(c.tracker.route);
   if (!route.empty()) errors->push_back("tracker.route: " + route);
 }

@@ -81,8 +81,7 @@ void TrackerCore::use_tray_model(const std::string& path, bool learned) {
   if (learned) processor_.set_tray_net(std::move(net));
 }
 
-void TrackerCore::apply_order(std::string_view topic, std::string_view payload,
-                              std::int64_t t_ns) {
+void TrackerCore::apply_order(std::string_view topic, std::string_view payload, std::int64_t t_ns) {
   ++orders_.messages;
   overhead::OrderRoute route;
   std::string why;
@@ -106,7 +105,8 @@ void TrackerCore::apply_order(std::string_view topic, std::string_view payload,
     ++orders_.routes_cleared;
   }
   ++orders_.refused;
-  const char* name = r == overhead::OrderReason::kNone ? "route_refused" : overhead::order_reason_name(r);
+  const char* name =
+      r == overhead::OrderReason::kNone ? "route_refused" : overhead::order_reason_name(r);
   ++orders_.refused_by_reason[name];
   if (orders_.refused <= kFrameWarningsShown)
     std::fprintf(stderr, "agvloc-overhead: order refused (%s): %s\n", name, why.c_str());

@@ -194,8 +194,8 @@ bool make_live_cameras(const OverheadConfig& cfg, const site::Site& site,
 }
 
 LiveCounters run_live(std::vector<LiveCamera>* cams, TrackerCore* core,
-                      const std::atomic<bool>& stop, std::int64_t duration_ns,
-                      const LiveDiag& diag, MqttIn* orders) {
+                      const std::atomic<bool>& stop, std::int64_t duration_ns, const LiveDiag& diag,
+                      MqttIn* orders) {
   FrameQueue q(cams->size());
   CameraFeed feed(
       cams, "agvloc-overhead run", [&q](LiveFrame&& f) { q.push(std::move(f)); },

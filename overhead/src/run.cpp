@@ -4,8 +4,8 @@
 #include <cmath>
 #include <cstdio>
 
-#include "inputs.hpp"
 #include "detect.hpp"
+#include "inputs.hpp"
 #include "live.hpp"
 
 namespace agv::overhead_app {

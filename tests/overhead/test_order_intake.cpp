@@ -81,8 +81,7 @@ TEST(OrderIntake, AStitchedUpdateExtendsTheRoute) {
   EXPECT_EQ(r.order_update_id, 1u);
   EXPECT_EQ(take(&in, order("agv-2", "o1", 1, {{2000, 0}, {2000, 1000}}, 2), &r),
             OrderReason::kDuplicate);
-  EXPECT_EQ(take(&in, order("agv-2", "o1", 0, {{0, 0}, {9000, 0}}), &r),
-            OrderReason::kStaleUpdate);
+  EXPECT_EQ(take(&in, order("agv-2", "o1", 0, {{0, 0}, {9000, 0}}), &r), OrderReason::kStaleUpdate);
   // Not at the base's last node (o1_n3): refused, and the route stays as it was.
   EXPECT_EQ(take(&in, order("agv-2", "o1", 2, {{2000, 0}, {2000, 5000}}, 2), &r),
             OrderReason::kNotStitched);
@@ -126,8 +125,7 @@ TEST(OrderIntake, EndlessUpdatesKeepTheNewestPartOfTheRoute) {
   ASSERT_EQ(take(&in, order("agv-2", "o1", 0, {{0, 0}, {100, 0}}), &r), OrderReason::kNone);
   for (std::uint32_t u = 1; u < 1200; ++u) {
     const double x = 100.0 * u;
-    ASSERT_EQ(take(&in, order("agv-2", "o1", u, {{x, 0}, {x + 100, 0}}, u), &r),
-              OrderReason::kNone)
+    ASSERT_EQ(take(&in, order("agv-2", "o1", u, {{x, 0}, {x + 100, 0}}, u), &r), OrderReason::kNone)
         << u;
   }
   ASSERT_EQ(r.waypoints_mm.size(), kRouteMaxPoints);

@@ -49,8 +49,7 @@ OrderReason base_of(const vda5050::Order& o, std::size_t* n, std::string* detail
   for (std::size_t i = 0; i < *n; ++i) {
     if (!o.nodes[i].has_position)
       return fail(OrderReason::kNoPosition, detail,
-                  "nodes[" + std::to_string(i) + "] (" + o.nodes[i].node_id +
-                      "): no nodePosition");
+                  "nodes[" + std::to_string(i) + "] (" + o.nodes[i].node_id + "): no nodePosition");
   }
   return OrderReason::kNone;
 }
@@ -59,16 +58,26 @@ OrderReason base_of(const vda5050::Order& o, std::size_t* n, std::string* detail
 
 const char* order_reason_name(OrderReason r) {
   switch (r) {
-    case OrderReason::kNone: return "none";
-    case OrderReason::kDuplicate: return "duplicate";
-    case OrderReason::kBadTopic: return "bad_topic";
-    case OrderReason::kUnknownVehicle: return "unknown_vehicle";
-    case OrderReason::kMalformed: return "malformed";
-    case OrderReason::kTopicMismatch: return "topic_mismatch";
-    case OrderReason::kNoPosition: return "no_position";
-    case OrderReason::kReleasedAfterHorizon: return "released_after_horizon";
-    case OrderReason::kStaleUpdate: return "stale_update";
-    case OrderReason::kNotStitched: return "not_stitched";
+    case OrderReason::kNone:
+      return "none";
+    case OrderReason::kDuplicate:
+      return "duplicate";
+    case OrderReason::kBadTopic:
+      return "bad_topic";
+    case OrderReason::kUnknownVehicle:
+      return "unknown_vehicle";
+    case OrderReason::kMalformed:
+      return "malformed";
+    case OrderReason::kTopicMismatch:
+      return "topic_mismatch";
+    case OrderReason::kNoPosition:
+      return "no_position";
+    case OrderReason::kReleasedAfterHorizon:
+      return "released_after_horizon";
+    case OrderReason::kStaleUpdate:
+      return "stale_update";
+    case OrderReason::kNotStitched:
+      return "not_stitched";
   }
   return "unknown";
 }

@@ -18,13 +18,13 @@
 namespace agv::overhead {
 
 enum class OrderReason : std::uint8_t {
-  kNone,            // accepted: a route
-  kDuplicate,       // the current order's update id again: nothing to do, not an error
-  kBadTopic,        // not <interface>/vN/<manufacturer>/<serial>/order
-  kUnknownVehicle,  // the topic's serial number is no fleet vehicle's id
-  kMalformed,       // refused by the strict reading (vda5050::parse_order)
-  kTopicMismatch,   // the payload's serialNumber, manufacturer or major version differ
-  kNoPosition,      // a released node without nodePosition
+  kNone,                  // accepted: a route
+  kDuplicate,             // the current order's update id again: nothing to do, not an error
+  kBadTopic,              // not <interface>/vN/<manufacturer>/<serial>/order
+  kUnknownVehicle,        // the topic's serial number is no fleet vehicle's id
+  kMalformed,             // refused by the strict reading (vda5050::parse_order)
+  kTopicMismatch,         // the payload's serialNumber, manufacturer or major version differ
+  kNoPosition,            // a released node without nodePosition
   kReleasedAfterHorizon,  // a released node after an unreleased one
   kStaleUpdate,           // the current order with a lower orderUpdateId
   kNotStitched,           // an update that does not begin at the route's last base node
