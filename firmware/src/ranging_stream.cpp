@@ -46,7 +46,9 @@ RackObserver::RackObserver(const config::RangingCameraSection& cfg,
       width_px_(cfg.intrinsics.width_px),
       height_px_(cfg.intrinsics.height_px),
       mount_sigma_rad_(cfg.mount_sigma_rad),
-      mount_sigma_mm_(cfg.mount_sigma_mm) {}
+      mount_sigma_mm_(cfg.mount_sigma_mm) {
+  windows_.predicted_first = cfg.predicted_first;
+}
 
 bool RackObserver::ok(std::string* error) const {
   if (observer_.status() == ranging::TableStatus::kOk) return true;
@@ -57,7 +59,7 @@ bool RackObserver::ok(std::string* error) const {
 
 void RackObserver::observe(const cv::Mat& gray, const ranging::PosePrior* prior, RangingRecord* rec,
                            RangingCounts* counts) {
-  const ranging::ObserveResult res = observer_.observe(gray, prior, frame_index_++);
+  const ranging::ObserveResult res = observer_.observe(gray, prior, frame_index_++, windows_);
   ++counts->frames;
   if (!res.full_sweep) ++counts->windowed;
   counts->refused += res.refused.size();

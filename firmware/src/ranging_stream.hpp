@@ -65,6 +65,7 @@ class RackObserver {
   int width_px_ = 0, height_px_ = 0;
   double mount_sigma_rad_ = 0.0, mount_sigma_mm_ = 0.0;  // the EKF aid's share of the mount's doubt
   std::uint64_t frame_index_ = 0;
+  ranging::WindowOptions windows_;
 };
 
 // The core's pose at t_ns (vehicle clock) as the observer's prior; false when the core does not

@@ -45,6 +45,7 @@ struct Frames {
   std::vector<cv::Mat> images;
   std::vector<PosePrior> priors;                                  // 30 mm per axis, 0.3 deg
   std::vector<PosePrior> tight_priors;                            // 10 mm per axis, 0.1 deg
+  std::vector<PosePrior> localized_priors;                        // 3 mm per axis, 0.03 deg
   std::vector<std::vector<overhead::TagObservation>> detections;  // the full sweep's
 };
 
@@ -79,6 +80,7 @@ const Frames& frames() {
               .image);
       out.priors.push_back(draw_prior(poses[i], 30.0, 0.3, rng));
       out.tight_priors.push_back(draw_prior(poses[i], 10.0, 0.1, rng));
+      out.localized_priors.push_back(draw_prior(poses[i], 3.0, 0.03, rng));
       const cv::Mat& g = out.images.back();
       out.detections.push_back(detector.detect(g, cv::Rect(0, 0, g.cols, g.rows)));
     }
@@ -99,29 +101,37 @@ double quantile(std::vector<double> v, double q) {
                     static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5))];
 }
 
-// windows: 0 full sweep, 1 the 30 mm / 0.3 deg priors, 2 the 10 mm / 0.1 deg ones.
-void run(benchmark::State& state, const ObserveOptions& opt, int windows) {
+// windows: 0 full sweep, 1 the 30 mm / 0.3 deg priors, 2 the 10 mm / 0.1 deg ones, 3 the 3 mm /
+// 0.03 deg ones; predicted_first: WindowOptions::predicted_first.
+void run(benchmark::State& state, const ObserveOptions& opt, int windows,
+         bool predicted_first = true) {
   const Frames& f = frames();
   const LandmarkObserver obs(f.k, f.mount, f.scene.site.wall_landmarks, opt);
   WindowOptions wopt;
   wopt.full_sweep_interval_frames = 0;
+  wopt.predicted_first = predicted_first;
   std::vector<double> ms;
-  std::size_t i = 0, seen = 0, swept = 0;
+  std::size_t i = 0, seen = 0, swept = 0, predicted = 0;
   for (auto _ : state) {
     const std::size_t fi = i++ % f.images.size();
     const double t0 = thread_cpu_ms();
-    const PosePrior* prior = windows == 1 ? &f.priors[fi] : &f.tight_priors[fi];
+    const PosePrior* prior = windows == 1   ? &f.priors[fi]
+                             : windows == 2 ? &f.tight_priors[fi]
+                                            : &f.localized_priors[fi];
     const ObserveResult r =
         windows ? obs.observe(f.images[fi], prior, 1, wopt) : obs.observe(f.images[fi]);
     ms.push_back(thread_cpu_ms() - t0);
     seen += r.seen.size();
     swept += r.full_sweep ? 1 : 0;
+    predicted += r.predicted_reads;
     benchmark::DoNotOptimize(r.seen.data());
   }
   state.counters["median_cpu_ms"] = quantile(ms, 0.5);
   state.counters["p90_cpu_ms"] = quantile(ms, 0.9);
   state.counters["seen_per_frame"] = static_cast<double>(seen) / static_cast<double>(ms.size());
   state.counters["full_sweeps"] = static_cast<double>(swept);
+  state.counters["predicted_per_frame"] =
+      static_cast<double>(predicted) / static_cast<double>(ms.size());
 }
 
 void BM_FullSweepOld(benchmark::State& state) {
@@ -142,6 +152,15 @@ void BM_FullSweepDecimate2(benchmark::State& state) {
 }
 void BM_Windows(benchmark::State& state) { run(state, ObserveOptions{}, 1); }
 void BM_WindowsTightPrior(benchmark::State& state) { run(state, ObserveOptions{}, 2); }
+void BM_WindowsLocalizedPrior(benchmark::State& state) { run(state, ObserveOptions{}, 3); }
+// The same three without the predicted path (libapriltag in every window).
+void BM_WindowsNoPredicted(benchmark::State& state) { run(state, ObserveOptions{}, 1, false); }
+void BM_WindowsTightPriorNoPredicted(benchmark::State& state) {
+  run(state, ObserveOptions{}, 2, false);
+}
+void BM_WindowsLocalizedPriorNoPredicted(benchmark::State& state) {
+  run(state, ObserveOptions{}, 3, false);
+}
 
 // measure() alone (undistortion, pose, covariances) on the full sweep's detections.
 void BM_MeasurePerLandmark(benchmark::State& state) {
@@ -169,6 +188,22 @@ BENCHMARK(BM_FullSweepNoMirror)->Unit(benchmark::kMillisecond)->Iterations(kFram
 BENCHMARK(BM_FullSweepDecimate2)->Unit(benchmark::kMillisecond)->Iterations(kFrames)->UseRealTime();
 BENCHMARK(BM_Windows)->Unit(benchmark::kMillisecond)->Iterations(4 * kFrames)->UseRealTime();
 BENCHMARK(BM_WindowsTightPrior)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(4 * kFrames)
+    ->UseRealTime();
+BENCHMARK(BM_WindowsLocalizedPrior)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(4 * kFrames)
+    ->UseRealTime();
+BENCHMARK(BM_WindowsNoPredicted)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(4 * kFrames)
+    ->UseRealTime();
+BENCHMARK(BM_WindowsTightPriorNoPredicted)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(4 * kFrames)
+    ->UseRealTime();
+BENCHMARK(BM_WindowsLocalizedPriorNoPredicted)
     ->Unit(benchmark::kMillisecond)
     ->Iterations(4 * kFrames)
     ->UseRealTime();

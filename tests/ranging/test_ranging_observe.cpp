@@ -328,6 +328,47 @@ TEST_F(RangingObserve, ShrunkWindowsReadWhatTheFullSweepReads) {
   expect_same_reads(sweep, obs.observe(frame.image, plan));
 }
 
+TEST_F(RangingObserve, ATightPriorReadsOnThePredictedPathWithoutWindowSearch) {
+  // A localized EKF's prior (5 mm, 0.05 deg, about one sigma off): every landmark's corners are
+  // predicted within the detector's predicted search, read there, and no window is searched.
+  const LandmarkObserver obs(small_camera(), forward_mount(), scene_->site.wall_landmarks);
+  PosePrior tight;
+  tight.pose = {kVehicle.x_mm + 4.0, kVehicle.y_mm - 5.0, kVehicle.theta_rad + deg_to_rad(0.04)};
+  tight.cov = Eigen::Vector3d(25.0, 25.0, std::pow(deg_to_rad(0.05), 2)).asDiagonal();
+  const WindowPlan plan = obs.plan_windows(&tight, 1);
+  ASSERT_FALSE(plan.full_sweep) << sweep_reason_name(plan.reason);
+  for (const PredictedLandmark& p : plan.predicted) EXPECT_TRUE(p.predicted_path) << p.id;
+  const ObserveResult sweep = obs.observe(frame_->image);
+  const ObserveResult r = obs.observe(frame_->image, plan);
+  EXPECT_EQ(r.predicted_reads, 4u);
+  EXPECT_EQ(r.windows_searched, 0u);
+  expect_same_reads(sweep, r);
+  // Off: every window searched by libapriltag, the same reads.
+  WindowOptions off;
+  off.predicted_first = false;
+  const ObserveResult all = obs.observe(frame_->image, &tight, 1, off);
+  EXPECT_EQ(all.predicted_reads, 0u);
+  EXPECT_GE(all.windows_searched, 1u);
+  expect_same_reads(sweep, all);
+}
+
+TEST_F(RangingObserve, APredictedReadThatFailsFallsBackToItsWindow) {
+  // The prior claims 1 mm but is 70 mm off: the predicted path is tried and fails (the square
+  // is beyond its search), and the landmarks are still read in their windows... when the window
+  // reaches them; here the margin does (16 px and half the tag's side).
+  const LandmarkObserver obs(small_camera(), forward_mount(), scene_->site.wall_landmarks);
+  PosePrior wrong;
+  wrong.pose = {kVehicle.x_mm, kVehicle.y_mm + 70.0, kVehicle.theta_rad};
+  wrong.cov = Eigen::Vector3d(1.0, 1.0, 1e-8).asDiagonal();
+  const WindowPlan plan = obs.plan_windows(&wrong, 1);
+  ASSERT_FALSE(plan.full_sweep) << sweep_reason_name(plan.reason);
+  const ObserveResult r = obs.observe(frame_->image, plan);
+  EXPECT_LT(r.predicted_reads, r.seen.size());
+  EXPECT_GE(r.windows_searched, 1u);
+  EXPECT_TRUE(r.refused.empty());
+  expect_same_reads(obs.observe(frame_->image), r);
+}
+
 TEST_F(RangingObserve, FullSweepWithoutAUsablePriorAndAtTheInterval) {
   const LandmarkObserver obs(small_camera(), forward_mount(), scene_->site.wall_landmarks);
   PosePrior prior = near_prior();

@@ -209,6 +209,8 @@ bool LandmarkObserver::predict_landmark(const site::WallLandmark& w, const PoseP
   out->corner_sigma_px = std::max(su, sv);
   out->side_px = side;
   out->window = window;
+  out->predicted_path = wopt.predicted_first && wopt.sigma_count * out->corner_sigma_px <=
+                                                    impl_->detector.params().predicted_search_px;
   return true;
 }
 
@@ -288,6 +290,34 @@ std::vector<overhead::TagObservation> LandmarkObserver::detect_in(const cv::Mat&
   return out;
 }
 
+std::vector<bool> LandmarkObserver::read_predicted(
+    const cv::Mat& gray, const WindowPlan& plan,
+    std::vector<overhead::TagObservation>* dets) const {
+  std::vector<bool> read(plan.predicted.size(), false);
+  const int bits = impl_->detector.params().global_bits_corrected;
+  for (std::size_t i = 0; i < plan.predicted.size(); ++i) {
+    const PredictedLandmark& p = plan.predicted[i];
+    overhead::TagObservation o;
+    if (p.predicted_path && impl_->detector.detect_predicted(gray, p.corners_px, {p.id}, &o) &&
+        o.id == p.id && o.hamming <= bits) {
+      dets->push_back(o);
+      read[i] = true;
+    }
+  }
+  return read;
+}
+
+bool LandmarkObserver::window_done(const WindowPlan& plan, const std::vector<bool>& read,
+                                   const SearchWindow& w) {
+  bool any = false;
+  for (std::size_t i = 0; i < plan.predicted.size(); ++i) {
+    if ((plan.predicted[i].window & w.rect).area() == 0) continue;
+    if (!read[i]) return false;
+    any = true;
+  }
+  return any;
+}
+
 ObserveResult LandmarkObserver::observe(const cv::Mat& gray, const WindowPlan& plan) const {
   if (plan.full_sweep) return full_sweep(gray, plan.reason);
   ObserveResult res;
@@ -296,8 +326,15 @@ ObserveResult LandmarkObserver::observe(const cv::Mat& gray, const WindowPlan& p
   if (!usable_frame(gray)) return res;
   std::vector<overhead::TagObservation> dets;
   std::vector<bool> confirmed;
+  const std::vector<bool> read = read_predicted(gray, plan, &dets);
+  confirmed.assign(dets.size(), true);
+  res.predicted_reads = dets.size();
   for (const SearchWindow& w : plan.windows) {
+    if (window_done(plan, read, w)) continue;
     for (const overhead::TagObservation& d : detect_in(gray, w)) {
+      if (std::any_of(dets.begin(), dets.begin() + static_cast<std::ptrdiff_t>(res.predicted_reads),
+                      [&](const overhead::TagObservation& o) { return o.id == d.id; }))
+        continue;  // read on the predicted path already (ids are unique in the table)
       // Confirmed by the prior: a predicted id whose predicted window holds the read.
       const bool expected = std::any_of(
           plan.predicted.begin(), plan.predicted.end(),

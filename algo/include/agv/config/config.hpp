@@ -160,6 +160,7 @@ struct RangingCameraSection {
   double mount_sigma_mm = 0.0;
   double calibration_sigma_px = 0.0;
   double focal_sigma_rel = 0.0;
+  bool predicted_first = true;  // ranging::WindowOptions::predicted_first
 };
 
 // The doubt every bearing of a second-camera frame shares: the mount's yaw and the principal

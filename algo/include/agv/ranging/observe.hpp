@@ -145,6 +145,7 @@ struct ObserveResult {
   bool full_sweep = true;
   SweepReason reason = SweepReason::kNoPrior;
   std::size_t windows_searched = 0;  // after merging overlapping windows; 0 on a full sweep
+  std::size_t predicted_reads = 0;   // landmarks read on the predicted path (no window search)
 };
 
 // The vehicle's pose and its covariance over (x_mm, y_mm, theta_rad), site frame (the EKF's).
@@ -177,6 +178,12 @@ struct WindowOptions {
   // size reliably. The tag is then refined at full resolution from the scaled corners.
   double decimated_side_px = 24.0;
   int max_decimation = 4;
+  // A landmark whose corners the prior predicts within the tag detector's predicted search
+  // (sigma_count corner sigmas within TagDetectParams::predicted_search_px) is read first on the
+  // detector's predicted path: edge lines fitted around the predicted square and the cells
+  // decoded against its id alone, within the bits the search path corrects; a window is searched
+  // by libapriltag only when a landmark in it was not read so. false: libapriltag in every window.
+  bool predicted_first = true;
 };
 
 // One landmark the prior puts in view: its corners at the prior pose (distorted pixels, page
@@ -187,6 +194,7 @@ struct PredictedLandmark {
   double corner_sigma_px = 0.0;
   double side_px = 0.0;  // shortest side at the prior pose
   cv::Rect window;
+  bool predicted_path = false;  // tried on the predicted path first (predicted_first)
 };
 
 struct SearchWindow {
@@ -255,8 +263,15 @@ class LandmarkObserver {
   ObserveResult full_sweep(const cv::Mat& gray, SweepReason reason) const;
   bool predict_landmark(const site::WallLandmark& w, const PosePrior& prior,
                         const WindowOptions& wopt, PredictedLandmark* out) const;
-  // Measures the detections not flagged mirrored into res.
   std::vector<overhead::TagObservation> detect_in(const cv::Mat& gray, const SearchWindow& w) const;
+  // The predicted landmarks read on the predicted path (appended to *dets); per landmark of
+  // plan.predicted, whether it was.
+  std::vector<bool> read_predicted(const cv::Mat& gray, const WindowPlan& plan,
+                                   std::vector<overhead::TagObservation>* dets) const;
+  // Every predicted landmark in window w was read on the predicted path.
+  static bool window_done(const WindowPlan& plan, const std::vector<bool>& read,
+                          const SearchWindow& w);
+  // Measures the detections not flagged mirrored into res.
   void measure_detections(const std::vector<overhead::TagObservation>& dets,
                           const std::vector<bool>& mirrored, ObserveResult* res) const;
   CameraIntrinsics k_;
