@@ -258,6 +258,34 @@ TEST(TrayFit, UncoveredTraysFitToo) {
   }
 }
 
+// The sides' shared offsets are the fix's bias (TagFix::cov_camera) in the share the parameter
+// gives, inside its covariance: without it the tracker averaged a covered tray's box down to a
+// sigma below its error (NEES 6.3 on the rendered covered-tag run, docs/design/overhead.md).
+TEST(TrayFit, SharedSideOffsetsAreTheFixesBias) {
+  const Frame f(23, false);
+  const Pose2 t = f.r.agvs[0].pose;
+  const Pose2 pred{t.x_mm - 30.0, t.y_mm + 20.0, t.theta_rad + 0.05};
+  std::array<double, 9> bias[3];
+  double cov_xx[3];
+  const double shares[3] = {0.0, 0.25, 1.0};
+  for (int i = 0; i < 3; ++i) {
+    TrayFitParams p;
+    p.side_offset_bias_share = shares[i];
+    TrayFix fix;
+    std::string why;
+    ASSERT_TRUE(f.fit(0, pred, diag_cov(20.0, 0.05), &fix, &why, p)) << why;
+    bias[i] = fix.fix.cov_camera;
+    cov_xx[i] = fix.fix.cov[0];
+  }
+  for (double c : bias[0]) EXPECT_EQ(c, 0.0);
+  EXPECT_GT(bias[1][0], 0.0);
+  EXPECT_GT(bias[1][8], 0.0);
+  for (std::size_t k = 0; k < 9; ++k)
+    EXPECT_NEAR(bias[2][k], 4.0 * bias[1][k], 1e-9 + 1e-9 * std::abs(bias[2][k]));
+  EXPECT_EQ(cov_xx[0], cov_xx[2]);   // the total is the same: only its split differs
+  EXPECT_LT(bias[2][0], cov_xx[2]);  // the edge points' own scatter stays noise
+}
+
 // Parcels hanging over the tray's edges hide them in part: the sides left give the fix, with
 // the known size.
 TEST(TrayFit, ParcelsCrossingEdges) {
@@ -404,6 +432,7 @@ TEST(TrayFitParams, Validate) {
   named([](TrayFitParams* p) { p->edge_correlation = 0.5; }, "edge_correlation");
   named([](TrayFitParams* p) { p->side_offset_sigma_px = -1.0; }, "side_offset_sigma_px");
   named([](TrayFitParams* p) { p->iterations = 0; }, "iterations");
+  named([](TrayFitParams* p) { p->side_offset_bias_share = 1.5; }, "side_offset_bias_share");
 }
 
 }  // namespace

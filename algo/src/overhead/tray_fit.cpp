@@ -366,10 +366,14 @@ double rim_coverage(const std::vector<PlaneEdge>& edges, const Box& box, const s
 // Covariance of (cx, cy, theta): the residuals' scatter, each counted once per `correlation`
 // neighbours, plus an error of every side's line (an offset and a turn: the edge model, the
 // plate's face, a parcel's edge along part of it) carried through the fit.
+// *bias: bias_share of the sides' offset and turn share of *cov, which the next frames share
+// (TrayFitParams::side_offset_bias_share), so that the tracker does not average it down.
 void box_covariance(const std::vector<PlaneEdge>& edges, const Fitted& f, const site::FleetAgv& agv,
-                    double correlation, double side_sigma_mm, std::array<double, 9>* cov) {
+                    double correlation, double side_sigma_mm, double bias_share,
+                    std::array<double, 9>* cov, std::array<double, 9>* bias) {
   double inv[9];
   invert3(f.h, inv);  // succeeded in refine
+  bias->fill(0.0);
   for (int i = 0; i < 9; ++i) (*cov)[static_cast<std::size_t>(i)] = f.s2 * correlation * inv[i];
   const Axes ax(f.box.theta, 0.25 * kPi);
   for (int k = 0; k < kSides; ++k) {
@@ -396,8 +400,9 @@ void box_covariance(const std::vector<PlaneEdge>& edges, const Fitted& f, const 
       }
       for (int a = 0; a < 3; ++a) {
         for (int b = 0; b < 3; ++b) {
-          (*cov)[static_cast<std::size_t>(3 * a + b)] +=
-              side_sigma_mm * side_sigma_mm * g[a] * g[b];
+          const double c = side_sigma_mm * side_sigma_mm * g[a] * g[b];
+          (*cov)[static_cast<std::size_t>(3 * a + b)] += c;
+          (*bias)[static_cast<std::size_t>(3 * a + b)] += bias_share * c;
         }
       }
     }
@@ -503,7 +508,7 @@ bool accept_fit(const std::vector<PlaneEdge>& edges, const Fitted& f, const site
                          rad_to_deg(r.heading_from_prediction_rad)));
   }
   box_covariance(edges, f, agv, p.edge_correlation, p.side_offset_sigma_px * win.mm_per_px,
-                 &r.fix.cov);
+                 p.side_offset_bias_share, &r.fix.cov, &r.fix.cov_camera);
   r.fix.pose = {predicted.x_mm + f.box.c.x, predicted.y_mm + f.box.c.y, wrap_angle_rad(theta)};
   r.residual_mm = std::sqrt(f.s2);
   r.fix.residual_mm = r.residual_mm;

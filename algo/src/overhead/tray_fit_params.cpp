@@ -33,6 +33,9 @@ std::string validate(const TrayFitParams& p) {
   if (!(p.side_offset_sigma_px >= 0.0) || !std::isfinite(p.side_offset_sigma_px)) {
     return "side_offset_sigma_px must be >= 0";
   }
+  if (!(p.side_offset_bias_share >= 0.0 && p.side_offset_bias_share <= 1.0)) {
+    return "side_offset_bias_share must be in [0, 1]";
+  }
   if (p.min_sides_seen < 2 || p.min_sides_seen > 4) return "min_sides_seen must be in 2..4";
   if (p.iterations < 1 || p.iterations > 100) return "iterations must be in 1..100";
   return "";

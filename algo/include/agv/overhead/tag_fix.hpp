@@ -19,8 +19,9 @@ struct TagFix {
   Pose2 pose;  // the tag's centre and page-up direction in the site frame = the vehicle's pose
   // Covariance of (x_mm, y_mm, theta_rad), row-major.
   std::array<double, 9> cov{};
-  // The part of cov that comes from the camera's pose sigma: an error common to every fix of
-  // that camera (a bias, which averaging fixes does not reduce), as the tracker treats it.
+  // The part of cov common to consecutive fixes (a bias, which averaging fixes does not reduce,
+  // as the tracker treats it): a tag fix's camera pose sigma, a tray box's shared side offsets
+  // (TrayFitParams::side_offset_bias_share).
   std::array<double, 9> cov_camera{};
   double size_error_rel = 0.0;  // fitted side / tag_size_mm - 1 (calibration or height error)
   double residual_mm = 0.0;     // RMS distance of the four corners from the fitted square

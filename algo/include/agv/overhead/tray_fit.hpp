@@ -58,6 +58,12 @@ struct TrayFitParams {
   // much, on top.
   double edge_correlation = 3.0;
   double side_offset_sigma_px = 0.25;
+  // The share of the sides' offset and turn variance that the next frames share (the same plate
+  // face, shading and edge model a few pixels on): the fix carries it as a bias
+  // (TagFix::cov_camera), which the tracker adds to its output instead of averaging it down. 0:
+  // every frame's independent (the tracker's sigma then falls below its error), 1: all bias (the
+  // filter follows each box's frame-to-frame scatter). docs/design/overhead.md.
+  double side_offset_bias_share = 0.25;
   int iterations = 8;
 };
 
