@@ -112,6 +112,13 @@ void TrackerCore::apply_order(std::string_view topic, std::string_view payload, 
     std::fprintf(stderr, "agvloc-overhead: order refused (%s): %s\n", name, why.c_str());
 }
 
+void TrackerCore::fill_orders_diag(DiagView* v) const {
+  v->has_orders = cfg_.orders.subscribe;
+  if (!v->has_orders) return;
+  v->orders = {orders_.messages, orders_.routes_set, orders_.routes_cleared, orders_.duplicates,
+               orders_.refused_by_reason};
+}
+
 void TrackerCore::publish_camera_state(const std::string& camera_id, bool fault,
                                        const std::string& what) {
   if (!mqtt_ || !topic_level_ok(camera_id)) return;

@@ -15,6 +15,7 @@
 #include "agv/overhead/detection_msg.hpp"
 #include "agv/overhead/order_intake.hpp"
 #include "config.hpp"
+#include "diag.hpp"
 #include "outputs.hpp"
 #include "visualization.hpp"
 
@@ -46,6 +47,8 @@ class TrackerCore {
     std::map<std::string, std::uint64_t> refused_by_reason;  // every reason, from 0
   };
   const OrderCounters& order_counters() const { return orders_; }
+  // The diagnostics view's orders (has_orders with orders.subscribe).
+  void fill_orders_diag(DiagView* v) const;
   // A frame that could not be read: counted, the first few named on stderr.
   void frame_unreadable(const std::string& what);
   // Every tracked vehicle's state extrapolated to t_ns, to tracks.csv and MQTT.

@@ -115,6 +115,7 @@ class BusDiagFeeder {
       if (g.track.state != overhead::TrackState::kNone) g.source = "tag";
       v.agvs.push_back(std::move(g));
     }
+    core.fill_orders_diag(&v);
     server_.update(std::move(v));
   }
   void stop() { server_.stop(); }

@@ -151,6 +151,27 @@ void bus_metrics(const BusDiag& b, std::string* out) {
   }
 }
 
+void orders_metrics(const OrdersDiag& o, std::string* out) {
+  const auto total = [out](const char* name, const char* text, std::uint64_t v) {
+    help(out, name, "counter", text);
+    line(out, name, "", static_cast<double>(v));
+  };
+  total("agvloc_overhead_orders_messages_total", "Messages on the vehicles' order topics",
+        o.messages);
+  total("agvloc_overhead_orders_routes_set_total", "Orders whose base became a vehicle's route",
+        o.routes_set);
+  total("agvloc_overhead_orders_routes_cleared_total",
+        "Orders that left a vehicle without a route (one node, or one it cannot follow)",
+        o.routes_cleared);
+  total("agvloc_overhead_orders_duplicates_total", "Orders repeated (same update)", o.duplicates);
+  help(out, "agvloc_overhead_orders_refused_total", "counter",
+       "Orders refused (never applied), by reason");
+  for (const auto& [reason, n] : o.refused) {
+    line(out, "agvloc_overhead_orders_refused_total", "reason=\"" + label(reason) + "\"",
+         static_cast<double>(n));
+  }
+}
+
 }  // namespace
 
 std::string overhead_metrics_text(const DiagView& v, const HttpCounters& http) {
@@ -180,6 +201,7 @@ std::string overhead_metrics_text(const DiagView& v, const HttpCounters& http) {
   camera_metrics(v, &out);
   agv_metrics(v, &out);
   if (v.has_bus) bus_metrics(v.bus, &out);
+  if (v.has_orders) orders_metrics(v.orders, &out);
   return out;
 }
 

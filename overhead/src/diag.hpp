@@ -53,6 +53,12 @@ struct BusDiag {
   std::uint64_t tags = 0, unknown_ids = 0, no_fix = 0, restricted_refused = 0;
 };
 
+// orders.subscribe: the vehicles' orders taken from the broker (TrackerCore::apply_order).
+struct OrdersDiag {
+  std::uint64_t messages = 0, routes_set = 0, routes_cleared = 0, duplicates = 0;
+  std::map<std::string, std::uint64_t> refused;  // by reason, every reason, 0 included
+};
+
 struct DiagView {
   std::int64_t t_ns = 0;  // the publish tick (CLOCK_MONOTONIC)
   std::uint64_t ticks = 0, ticks_skipped = 0, frames = 0, frames_dropped = 0;
@@ -60,6 +66,8 @@ struct DiagView {
   std::vector<AgvDiag> agvs;
   bool has_bus = false;  // the tracker is fed by detector processes: `bus` is filled
   BusDiag bus;
+  bool has_orders = false;  // orders.subscribe: `orders` is filled
+  OrdersDiag orders;
 };
 
 // /metrics: Prometheus text exposition format 0.0.4.

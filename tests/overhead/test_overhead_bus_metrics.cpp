@@ -34,7 +34,8 @@ TEST(OverheadBusMetrics, MessagesAndRefusalsByReason) {
   EXPECT_TRUE(has(t, "agvloc_overhead_detections_lost_total 3")) << t;
   EXPECT_TRUE(has(t, "agvloc_overhead_detections_dropped_total 4")) << t;
   EXPECT_TRUE(has(t, "agvloc_overhead_detections_tags_total 90")) << t;
-  EXPECT_TRUE(has(t, "agvloc_overhead_detections_tags_refused_total{reason=\"unknown_id\"} 5")) << t;
+  EXPECT_TRUE(has(t, "agvloc_overhead_detections_tags_refused_total{reason=\"unknown_id\"} 5"))
+      << t;
   EXPECT_TRUE(has(t, "agvloc_overhead_detections_tags_refused_total{reason=\"no_fix\"} 6")) << t;
   EXPECT_TRUE(
       has(t, "agvloc_overhead_detections_tags_refused_total{reason=\"restricted_decode\"} 7"))
@@ -45,6 +46,25 @@ TEST(OverheadBusMetrics, NotShownWithoutDetectorProcesses) {
   const std::string t = overhead_metrics_text(DiagView{}, {});
   EXPECT_EQ(t.find("agvloc_overhead_detections_"), std::string::npos) << t;
   EXPECT_NE(t.find("agvloc_overhead_ticks_total"), std::string::npos) << t;
+}
+
+TEST(OverheadBusMetrics, OrdersAndTheirRefusalsByReason) {
+  DiagView v;
+  v.has_orders = true;
+  v.orders.messages = 6;
+  v.orders.routes_set = 2;
+  v.orders.duplicates = 1;
+  v.orders.refused = {{"malformed", 1}, {"not_stitched", 2}, {"stale_update", 0}};
+  const std::string t = overhead_metrics_text(v, {});
+  EXPECT_TRUE(has(t, "agvloc_overhead_orders_messages_total 6")) << t;
+  EXPECT_TRUE(has(t, "agvloc_overhead_orders_routes_set_total 2")) << t;
+  EXPECT_TRUE(has(t, "agvloc_overhead_orders_routes_cleared_total 0")) << t;
+  EXPECT_TRUE(has(t, "agvloc_overhead_orders_duplicates_total 1")) << t;
+  EXPECT_TRUE(has(t, "agvloc_overhead_orders_refused_total{reason=\"malformed\"} 1")) << t;
+  EXPECT_TRUE(has(t, "agvloc_overhead_orders_refused_total{reason=\"not_stitched\"} 2")) << t;
+  EXPECT_TRUE(has(t, "agvloc_overhead_orders_refused_total{reason=\"stale_update\"} 0")) << t;
+  EXPECT_EQ(overhead_metrics_text(DiagView{}, {}).find("agvloc_overhead_orders_"),
+            std::string::npos);
 }
 
 }  // namespace

@@ -86,7 +86,10 @@ def check_metrics(log_path, messages, timeout_s=30.0):
         if line not in text:
             fail("no '%s' in /metrics:\n%s" % (line.strip(), text))
     for line in ["agvloc_overhead_detections_lost_total 0\n",
-                 "agvloc_overhead_detections_dropped_total 0\n"]:
+                 "agvloc_overhead_detections_dropped_total 0\n",
+                 "agvloc_overhead_orders_messages_total %d\n" % len(ORDERS),
+                 "agvloc_overhead_orders_routes_set_total 2\n",
+                 'agvloc_overhead_orders_refused_total{reason="not_stitched"} 1\n']:
         if line not in text:
             fail("no '%s' in /metrics:\n%s" % (line.strip(), text))
     print("metrics: %d messages, refused %s once each" % (messages, ", ".join(REFUSED)))
