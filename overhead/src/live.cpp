@@ -194,6 +194,9 @@ bool make_live_cameras(const OverheadConfig& cfg, const site::Site& site,
   return true;
 }
 
+// Orders applied per publish tick at most (each is read strictly, up to 1 MiB of JSON).
+constexpr int kOrdersPerTick = 8;
+
 LiveCounters run_live(std::vector<LiveCamera>* cams, TrackerCore* core,
                       const std::atomic<bool>& stop, std::int64_t duration_ns, const LiveDiag& diag,
                       MqttIn* orders) {
@@ -224,7 +227,10 @@ LiveCounters run_live(std::vector<LiveCamera>* cams, TrackerCore* core,
     }
     const std::int64_t now = monotonic_ns();
     if (now < next_tick) continue;
-    for (MqttMessage m; orders && orders->pop(&m, 0);) core->apply_order(m.topic, m.payload, now);
+    // A few per tick: a flood of orders delays the next ticks' publication by no more than this.
+    MqttMessage m;
+    for (int k = 0; k < kOrdersPerTick && orders && orders->pop(&m, 0); ++k)
+      core->apply_order(m.topic, m.payload, now);
     core->publish(next_tick);
     ++n.ticks;
     if (diag.exposure_to_publish_ns) {

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstring>
 #include <thread>
 
 namespace agv::overhead_app {
@@ -41,6 +42,7 @@ bool MqttIn::pop(MqttMessage* out, int wait_ms) {
     return false;
   *out = std::move(q_.front());
   q_.pop_front();
+  queued_bytes_ -= out->topic.size() + out->payload.size();
   return true;
 }
 
@@ -66,13 +68,16 @@ void MqttIn::on_subscribe(mosquitto*, void* self, int, int, const int*) {
 void MqttIn::on_message(mosquitto*, void* self, const mosquitto_message* msg) {
   auto* in = static_cast<MqttIn*>(self);
   std::lock_guard<std::mutex> lock(in->mu_);
-  if (in->q_.size() >= kMaxQueued) {
+  const std::size_t topic_len = msg->topic ? std::strlen(msg->topic) : 0;
+  const std::size_t bytes = topic_len + static_cast<std::size_t>(std::max(msg->payloadlen, 0));
+  if (in->q_.size() >= kMaxQueued || in->queued_bytes_ + bytes > kMaxQueuedBytes) {
     ++in->overflow_;
     return;
   }
-  in->q_.push_back({msg->topic ? msg->topic : "",
+  in->q_.push_back({std::string(msg->topic ? msg->topic : "", topic_len),
                     std::string(static_cast<const char*>(msg->payload),
                                 static_cast<std::size_t>(std::max(msg->payloadlen, 0)))});
+  in->queued_bytes_ += bytes;
   in->cv_.notify_one();
 }
 

@@ -26,7 +26,9 @@ struct MqttMessage {
 
 class MqttIn {
  public:
-  static constexpr std::size_t kMaxQueued = 10000;  // beyond: dropped and counted (behind)
+  // Beyond either: dropped and counted (the tracker is behind, or a client floods the broker).
+  static constexpr std::size_t kMaxQueued = 10000;
+  static constexpr std::size_t kMaxQueuedBytes = 64u << 20;
 
   MqttIn() = default;
   MqttIn(const MqttIn&) = delete;
@@ -52,6 +54,7 @@ class MqttIn {
   std::mutex mu_;
   std::condition_variable cv_;
   std::deque<MqttMessage> q_;
+  std::size_t queued_bytes_ = 0;
 };
 
 }  // namespace agv::overhead_app
