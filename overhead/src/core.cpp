@@ -119,6 +119,17 @@ void TrackerCore::fill_orders_diag(DiagView* v) const {
                orders_.refused_by_reason};
 }
 
+void TrackerCore::fill_tray_diag(DiagView* v) const {
+  v->has_tray = cfg_.tray_fit;
+  if (!v->has_tray) return;
+  const overhead::FrameCounters& f = processor_.counters();
+  v->tray = {f.tray_fixes, f.tray_gated, f.tray_tag_disagree, {}};
+  for (std::size_t r = 1; r < overhead::kTrayRefusalCount; ++r) {
+    const char* name = overhead::to_string(static_cast<overhead::TrayRefusal>(r));
+    v->tray.refused[name] = f.tray_refused_by[r];
+  }
+}
+
 void TrackerCore::publish_camera_state(const std::string& camera_id, bool fault,
                                        const std::string& what) {
   if (!mqtt_ || !topic_level_ok(camera_id)) return;
@@ -261,6 +272,12 @@ void TrackerCore::print_summary(const std::string& prefix, std::size_t cameras) 
       : processor_.tray_learned() ? "learned"
                                   : "classical",
       ull(f.tray_fixes), ull(f.tray_gated), ull(f.tray_refused), ull(f.tray_tag_disagree));
+  for (std::size_t r = 1; r < overhead::kTrayRefusalCount; ++r) {
+    if (f.tray_refused_by[r] == 0) continue;
+    std::printf("%s: tray boxes refused %s: %llu\n", p,
+                overhead::to_string(static_cast<overhead::TrayRefusal>(r)),
+                ull(f.tray_refused_by[r]));
+  }
   std::printf(
       "%s: re-acquisition (%s): sweeps %llu, detector windows %llu, tracks restarted %llu, "
       "boxes two lost vehicles could be %llu, half turn unknown %llu\n",

@@ -49,6 +49,8 @@ class TrackerCore {
   const OrderCounters& order_counters() const { return orders_; }
   // The diagnostics view's orders (has_orders with orders.subscribe).
   void fill_orders_diag(DiagView* v) const;
+  // The diagnostics view's tray boxes (has_tray with tray.enabled): this process's frames.
+  void fill_tray_diag(DiagView* v) const;
   // A frame that could not be read: counted, the first few named on stderr.
   void frame_unreadable(const std::string& what);
   // Every tracked vehicle's state extrapolated to t_ns, to tracks.csv and MQTT.

@@ -172,6 +172,23 @@ void orders_metrics(const OrdersDiag& o, std::string* out) {
   }
 }
 
+void tray_metrics(const TrayDiag& t, std::string* out) {
+  const char* boxes = "agvloc_overhead_tray_boxes_total";
+  help(out, boxes, "counter", "Tray boxes of covered tags, by what the track did with them");
+  line(out, boxes, "result=\"applied\"", static_cast<double>(t.applied));
+  line(out, boxes, "result=\"gated\"", static_cast<double>(t.gated));
+  help(out, "agvloc_overhead_tray_refused_total", "counter",
+       "Covered tags whose tray box was refused, by reason (sides_hidden, no_outline: the "
+       "parcel hides the outline; uncertain_prediction: too long without a fix)");
+  for (const auto& [reason, n] : t.refused) {
+    line(out, "agvloc_overhead_tray_refused_total", "reason=\"" + label(reason) + "\"",
+         static_cast<double>(n));
+  }
+  help(out, "agvloc_overhead_tray_tag_disagree_total", "counter",
+       "Learned boxes at a vehicle whose tag was read that disagree with the tag (the tag wins)");
+  line(out, "agvloc_overhead_tray_tag_disagree_total", "", static_cast<double>(t.tag_disagree));
+}
+
 }  // namespace
 
 std::string overhead_metrics_text(const DiagView& v, const HttpCounters& http) {
@@ -202,6 +219,7 @@ std::string overhead_metrics_text(const DiagView& v, const HttpCounters& http) {
   agv_metrics(v, &out);
   if (v.has_bus) bus_metrics(v.bus, &out);
   if (v.has_orders) orders_metrics(v.orders, &out);
+  if (v.has_tray) tray_metrics(v.tray, &out);
   return out;
 }
 

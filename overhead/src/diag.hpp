@@ -59,6 +59,12 @@ struct OrdersDiag {
   std::map<std::string, std::uint64_t> refused;  // by reason, every reason, 0 included
 };
 
+// The tray boxes fitted for vehicles whose tag a parcel covers (this process's frames).
+struct TrayDiag {
+  std::uint64_t applied = 0, gated = 0, tag_disagree = 0;
+  std::map<std::string, std::uint64_t> refused;  // by overhead::TrayRefusal name, 0 included
+};
+
 struct DiagView {
   std::int64_t t_ns = 0;  // the publish tick (CLOCK_MONOTONIC)
   std::uint64_t ticks = 0, ticks_skipped = 0, frames = 0, frames_dropped = 0;
@@ -68,6 +74,8 @@ struct DiagView {
   BusDiag bus;
   bool has_orders = false;  // orders.subscribe: `orders` is filled
   OrdersDiag orders;
+  bool has_tray = false;  // tray.enabled in a process that sees frames: `tray` is filled
+  TrayDiag tray;
 };
 
 // /metrics: Prometheus text exposition format 0.0.4.

@@ -125,6 +125,7 @@ class DiagFeeder {
       v.agvs.push_back(std::move(g));
     }
     core.fill_orders_diag(&v);
+    core.fill_tray_diag(&v);
     d_.server->update(std::move(v));
   }
 

@@ -50,8 +50,9 @@ struct Sequence {
 };
 
 // The frames are rendered and processed once for every test below, with the tray fit off (the
-// tag path alone) and on.
-Sequence run_sequence(bool tray_fit) {
+// tag path alone) and on; and once with the tray fit on and a parcel wider than the tray on every
+// side, which hides its outline.
+Sequence run_sequence(bool tray_fit, double parcel_mm = 320.0) {
   {
     Sequence out;
     sim::SiteScene scene;
@@ -87,7 +88,7 @@ Sequence run_sequence(bool tray_fit) {
         scene.agvs.push_back(now);
       }
       scene.parcels.clear();
-      if (f >= kCoveredFrom) scene.parcels.push_back({1, 0.0, 0.0, 0.3, 320, 320, 200, 150});
+      if (f >= kCoveredFrom) scene.parcels.push_back({1, 0.0, 0.0, 0.3, parcel_mm, parcel_mm, 200, 150});
       const cv::Mat img =
           renderer.render(scene, sim::RenderCamera::from_ceiling(cam), rp, 5 + f).image;
       std::vector<Detection> d;
@@ -112,6 +113,11 @@ const Sequence& sequence() {
 
 const Sequence& sequence_with_trays() {
   static const Sequence r = run_sequence(true);
+  return r;
+}
+
+const Sequence& sequence_tray_hidden() {
+  static const Sequence r = run_sequence(true, 900.0);
   return r;
 }
 
@@ -241,6 +247,26 @@ TEST(CameraFrame, ACoveredTagsTrackIsKeptByItsTrayBox) {
   EXPECT_EQ(r.outs.back()[1].last_fix_t_ns, r.outs.back()[1].t_ns);
   // Without the tray fit the same frames leave it coasting (the test above).
   EXPECT_EQ(sequence().counters.back().tray_fixes, 0u);
+}
+
+// A parcel over the whole tray hides its outline: no box, and the refusals are counted by why,
+// so that a site can tell a hidden outline from a prediction gone too loose.
+TEST(CameraFrame, ATrayHiddenByItsParcelIsRefusedAndCountedByReason) {
+  const Sequence& r = sequence_tray_hidden();
+  const FrameCounters& c = r.counters.back();
+  EXPECT_EQ(c.tray_fixes, 0u);
+  EXPECT_GT(c.tray_refused, 0u);
+  std::uint64_t sum = 0;
+  for (const std::uint64_t n : c.tray_refused_by) sum += n;
+  EXPECT_EQ(sum, c.tray_refused);
+  EXPECT_EQ(c.tray_refused_by[static_cast<std::size_t>(TrayRefusal::kNone)], 0u);
+  const std::uint64_t hidden = c.tray_refused_by[static_cast<std::size_t>(TrayRefusal::kSidesHidden)] +
+                               c.tray_refused_by[static_cast<std::size_t>(TrayRefusal::kNoOutline)];
+  EXPECT_GT(hidden, 0u) << "sides_hidden " << c.tray_refused_by[5] << ", no_outline "
+                        << c.tray_refused_by[4] << ", uncertain " << c.tray_refused_by[2];
+  // The tray boxes of the visible trays are counted apart: the two uncovered vehicles get none
+  // (their tags are read), so every refusal is the covered one's.
+  EXPECT_LE(c.tray_refused, static_cast<std::uint64_t>(kFrames - kCoveredFrom));
 }
 
 TEST(CameraFrame, ATagPredictedAcrossTheImageEdgeIsNoMiss) {

@@ -1,6 +1,7 @@
 // /metrics of the tracker fed by detector processes (`run --detections-from-broker`): every
 // detections message counted, each refusal under its reason, the tags that moved no track
-// (overhead/src/diag.cpp, docs/guide/overhead.md "Diagnostics page and metrics").
+// (overhead/src/diag.cpp, docs/guide/overhead.md "Diagnostics page and metrics"); the orders and
+// the tray boxes likewise.
 #include <gtest/gtest.h>
 
 #include <string>
@@ -64,6 +65,25 @@ TEST(OverheadBusMetrics, OrdersAndTheirRefusalsByReason) {
   EXPECT_TRUE(has(t, "agvloc_overhead_orders_refused_total{reason=\"not_stitched\"} 2")) << t;
   EXPECT_TRUE(has(t, "agvloc_overhead_orders_refused_total{reason=\"stale_update\"} 0")) << t;
   EXPECT_EQ(overhead_metrics_text(DiagView{}, {}).find("agvloc_overhead_orders_"),
+            std::string::npos);
+}
+
+// The live run's tray boxes: what the tracks did with them, and each refusal under its reason.
+TEST(OverheadBusMetrics, TrayBoxesAndTheirRefusalsByReason) {
+  DiagView v;
+  v.has_tray = true;
+  v.tray.applied = 470;
+  v.tray.gated = 2;
+  v.tray.refused = {{"sides_hidden", 12}, {"uncertain_prediction", 6}, {"no_outline", 0}};
+  const std::string t = overhead_metrics_text(v, {});
+  EXPECT_TRUE(has(t, "agvloc_overhead_tray_boxes_total{result=\"applied\"} 470")) << t;
+  EXPECT_TRUE(has(t, "agvloc_overhead_tray_boxes_total{result=\"gated\"} 2")) << t;
+  EXPECT_TRUE(has(t, "agvloc_overhead_tray_refused_total{reason=\"sides_hidden\"} 12")) << t;
+  EXPECT_TRUE(has(t, "agvloc_overhead_tray_refused_total{reason=\"uncertain_prediction\"} 6"))
+      << t;
+  EXPECT_TRUE(has(t, "agvloc_overhead_tray_refused_total{reason=\"no_outline\"} 0")) << t;
+  EXPECT_TRUE(has(t, "agvloc_overhead_tray_tag_disagree_total 0")) << t;
+  EXPECT_EQ(overhead_metrics_text(DiagView{}, {}).find("agvloc_overhead_tray_"),
             std::string::npos);
 }
 

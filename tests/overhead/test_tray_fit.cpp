@@ -122,6 +122,9 @@ FitRun accuracy_run(int scale, int frames) {
         ++run.refused;
         run.last_why = why;
         run.refused_other += why.find("too few tray sides") == std::string::npos ? 1 : 0;
+        EXPECT_EQ(fix.refusal == TrayRefusal::kSidesHidden,
+                  why.find("too few tray sides") != std::string::npos)
+            << why;
         continue;
       }
       run.pos_mm.push_back(
@@ -205,6 +208,7 @@ TEST(TrayFit, HalfTurnResolvedByThePrediction) {
       TrayFix fix;
       std::string why;
       ASSERT_TRUE(f.fit(i, pred, diag_cov(20.0, deg_to_rad(10.0)), &fix, &why, two_sides)) << why;
+      EXPECT_EQ(fix.refusal, TrayRefusal::kNone);
       // The fit follows the prediction's half-turn: the truth, or the truth turned round.
       const double want = std::abs(off_deg) < 90.0 ? t.theta_rad : t.theta_rad + kPi;
       EXPECT_LT(heading_err_deg(fix.fix.pose.theta_rad, want), 1.0) << off_deg;
@@ -215,6 +219,7 @@ TEST(TrayFit, HalfTurnResolvedByThePrediction) {
     std::string why;
     EXPECT_FALSE(f.fit(i, t, diag_cov(20.0, deg_to_rad(90.0)), &fix, &why));
     EXPECT_NE(why.find("cannot resolve"), std::string::npos) << why;
+    EXPECT_EQ(fix.refusal, TrayRefusal::kUncertain);
     // 3 sigma just below a third of the half-turn is still resolved.
     EXPECT_TRUE(f.fit(i, t, diag_cov(20.0, deg_to_rad(19.0)), &fix, &why, two_sides)) << why;
   }
@@ -228,11 +233,21 @@ TEST(TrayFit, NoTrayNoFit) {
   // Between the two rows of vehicles: textured floor only.
   EXPECT_FALSE(f.fit(0, {0.0, -50.0, 0.3}, diag_cov(20.0, 0.05), &fix, &why));
   EXPECT_FALSE(why.empty());
+  // Named for the counters: what is in the window is no tray's outline.
+  EXPECT_TRUE(fix.refusal == TrayRefusal::kNoOutline || fix.refusal == TrayRefusal::kSidesHidden ||
+              fix.refusal == TrayRefusal::kSizeMismatch)
+      << to_string(fix.refusal) << ": " << why;
   EXPECT_FALSE(f.fit(0, {20000.0, 0.0, 0.3}, diag_cov(20.0, 0.05), &fix, &why));
   EXPECT_NE(why.find("outside the image"), std::string::npos) << why;
+  EXPECT_EQ(fix.refusal, TrayRefusal::kOutOfView);
   // A prediction too uncertain to search a window is refused, not searched.
   EXPECT_FALSE(f.fit(0, f.r.agvs[0].pose, diag_cov(400.0, 0.05), &fix, &why));
   EXPECT_NE(why.find("position sigma"), std::string::npos) << why;
+  EXPECT_EQ(fix.refusal, TrayRefusal::kUncertain);
+  EXPECT_STREQ(to_string(fix.refusal), "uncertain_prediction");
+  // Bad input is named as such; a fit that succeeds says kNone.
+  EXPECT_FALSE(f.fit(0, f.r.agvs[0].pose, diag_cov(20.0, std::nan("")), &fix, &why));
+  EXPECT_EQ(fix.refusal, TrayRefusal::kBadInput) << why;
 }
 
 // The tag's own square (no parcel) does not pull the box: its edges are parallel but vote for

@@ -206,11 +206,12 @@ void CameraFrameProcessor::fit_covered_trays(const cv::Mat& gray, FrameWork* w) 
     // A tentative track too: one restarted from a box is confirmed only by the boxes after it.
     if (!o.valid() && o.state != TrackState::kTentative) continue;
     TrayFix tray;
-    const bool ok = tray_learned() ? learned_tray_fix(gray, i, o, w, &tray.fix)
+    const bool ok = tray_learned() ? learned_tray_fix(gray, i, o, w, &tray)
                                    : fit_tray(gray, cameras_[w->camera], fleet_[i], o.pose, o.cov,
                                               tray_, &tray);
     if (!ok) {
       ++counters_.tray_refused;
+      ++counters_.tray_refused_by[static_cast<std::size_t>(tray.refusal)];
       continue;
     }
     if (w->tracker->add_fix(i, w->t_ns, tray.fix) == FixResult::kApplied) {
@@ -224,7 +225,7 @@ void CameraFrameProcessor::fit_covered_trays(const cv::Mat& gray, FrameWork* w) 
 // The learned box nearest the prediction in the window around it. Boxes at vehicles whose tag
 // this frame read are compared with the tag's fix (the tag wins; a disagreement is counted).
 bool CameraFrameProcessor::learned_tray_fix(const cv::Mat& gray, std::size_t agv,
-                                            const TrackOutput& o, FrameWork* w, TagFix* fix) {
+                                            const TrackOutput& o, FrameWork* w, TrayFix* out) {
   const site::FleetAgv& a = fleet_[agv];
   ++counters_.tray_net_windows;
   const std::vector<PlaneTray> trays = tray_net_->detect_on_plane(
@@ -253,7 +254,19 @@ bool CameraFrameProcessor::learned_tray_fix(const cv::Mat& gray, std::size_t agv
     }
     if (d < best_d) best = &t, best_d = d;
   }
-  return best && tray_box_fix(*best, a, o.pose, o.cov, p, tray_net_->geometry().mm_per_px, fix);
+  if (!best) return (out->refusal = TrayRefusal::kNoOutline, false);
+  if (tray_box_fix(*best, a, o.pose, o.cov, p, tray_net_->geometry().mm_per_px, &out->fix)) {
+    return true;
+  }
+  // tray_box_fix refuses a square tray, an unresolvable half turn (3 sigma beyond a quarter
+  // turn) or a box that is not this tray's size.
+  const bool square = std::abs(a.tray_length_mm - a.tray_width_mm) <
+                      0.1 * std::max(a.tray_length_mm, a.tray_width_mm);
+  const bool loose = 3.0 * std::sqrt(std::max(o.cov[8], 0.0)) >= 0.5 * kPi;
+  out->refusal = square  ? TrayRefusal::kBadInput
+                 : loose ? TrayRefusal::kUncertain
+                         : TrayRefusal::kSizeMismatch;
+  return false;
 }
 
 }  // namespace agv::overhead

@@ -486,6 +486,7 @@ bool accept_fit(const std::vector<PlaneEdge>& edges, const Fitted& f, const site
     r.sides_seen += seen[k] ? 1 : 0;
   }
   if (!(seen[0] || seen[2]) || !(seen[1] || seen[3]) || r.sides_seen < p.min_sides_seen) {
+    out->refusal = TrayRefusal::kSidesHidden;
     return fail(why, fmt("too few tray sides seen (front/rear %.0f%%, left/right %.0f%% covered)",
                          100.0 * std::max(r.coverage[0], r.coverage[2]),
                          100.0 * std::max(r.coverage[1], r.coverage[3])));
@@ -494,6 +495,7 @@ bool accept_fit(const std::vector<PlaneEdge>& edges, const Fitted& f, const site
     if (!seen[axis] || !seen[axis + 2]) continue;
     r.size_error_mm[axis] = mean_r[axis] + mean_r[axis + 2];
     if (std::abs(r.size_error_mm[axis]) > sc.max_size_err) {
+      out->refusal = TrayRefusal::kSizeMismatch;
       return fail(why, fmt(axis == 0 ? "tray length off by %.1f mm (limit %.1f)"
                                      : "tray width off by %.1f mm (limit %.1f)",
                            r.size_error_mm[axis], sc.max_size_err));
@@ -504,6 +506,7 @@ bool accept_fit(const std::vector<PlaneEdge>& edges, const Fitted& f, const site
       f.box.theta + period * std::round((predicted.theta_rad - f.box.theta) / period);
   r.heading_from_prediction_rad = std::abs(wrap_angle_rad(theta - predicted.theta_rad));
   if (r.heading_from_prediction_rad > period / 3.0) {
+    out->refusal = TrayRefusal::kAmbiguous;
     return fail(why, fmt("tray heading %.0f deg from the prediction: ambiguous",
                          rad_to_deg(r.heading_from_prediction_rad)));
   }
@@ -530,12 +533,14 @@ bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::F
               const TrayFitParams& p, TrayFix* out, std::string* why) {
   using namespace tray_fit_detail;
   if (!out) return fail(why, "no output");
+  out->refusal = TrayRefusal::kBadInput;
   if (!check_input(gray, cam, agv, predicted, predicted_cov, p, why)) return false;
   const double pxx = predicted_cov[0], pyy = predicted_cov[4];
   const double pxy = 0.5 * (predicted_cov[1] + predicted_cov[3]);
   const double sigma_pos =
       std::sqrt(0.5 * (pxx + pyy) + std::sqrt(0.25 * (pxx - pyy) * (pxx - pyy) + pxy * pxy));
   const double sigma_theta = std::sqrt(predicted_cov[8]);
+  out->refusal = TrayRefusal::kUncertain;
   if (sigma_pos > p.max_position_sigma_mm) {
     return fail(why, fmt("prediction's position sigma %.0f mm is beyond %.0f mm", sigma_pos,
                          p.max_position_sigma_mm));
@@ -549,6 +554,7 @@ bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::F
                          rad_to_deg(p.sigma_window * sigma_theta), rad_to_deg(period)));
   }
   TrayWindow win;
+  out->refusal = TrayRefusal::kOutOfView;
   if (!tray_window(cam, agv, predicted, sigma_pos, sigma_theta, p, &win, why)) return false;
   thread_local std::vector<PlaneEdge> edges;
   plane_edges(gray, cam, agv, predicted, win, p, &edges);
@@ -562,6 +568,7 @@ bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::F
                     cam.t_site_cam_mm[2] - agv.tray_height_mm,
                     p.rim_depth_mm};
   Fitted f;
+  out->refusal = TrayRefusal::kNoOutline;
   const double best =
       best_hypothesis(edges, agv, predicted.theta_rad, win, rim, allowed, sc, p, &f);
   if (!(best > 0.0)) return fail(why, "no tray edges in the window");

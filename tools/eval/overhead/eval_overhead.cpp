@@ -366,6 +366,12 @@ void print_tray_boxes(const agv::overhead::CameraFrameProcessor& proc) {
       static_cast<unsigned long long>(proc.counters().tray_refused),
       static_cast<unsigned long long>(proc.counters().tray_tag_disagree));
   const agv::overhead::FrameCounters& c = proc.counters();
+  std::printf("tray boxes refused by reason:");
+  for (std::size_t r = 1; r < agv::overhead::kTrayRefusalCount; ++r) {
+    std::printf(" %s %llu", agv::overhead::to_string(static_cast<agv::overhead::TrayRefusal>(r)),
+                static_cast<unsigned long long>(c.tray_refused_by[r]));
+  }
+  std::printf("\n");
   std::printf(
       "re-acquisition (%s): sweeps %llu, detector windows %llu, tracks restarted %llu, "
       "ambiguous boxes %llu, half turn unknown %llu\n",

@@ -5,6 +5,7 @@
 // fleet is ignored and counted; a fix the tracker gates is counted, never applied. Pure.
 #pragma once
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -47,6 +48,8 @@ struct FrameCounters {
   // Covered tags (a tracked vehicle expected wholly in view, its tag not read): tray fits applied
   // to its track, gated by it, or refused by the fit (too few sides, ambiguous heading, ...).
   std::uint64_t tray_fixes = 0, tray_gated = 0, tray_refused = 0;
+  // tray_refused by TrayRefusal (index: the enum's value; the learned box's refusals too).
+  std::array<std::uint64_t, kTrayRefusalCount> tray_refused_by{};
   // The learned detector: windows it ran on; boxes found at a vehicle whose tag was read in the
   // same frame that disagree with the tag's fix (the tag wins; the box is dropped).
   std::uint64_t tray_net_windows = 0, tray_tag_disagree = 0;
@@ -107,8 +110,9 @@ class CameraFrameProcessor {
   void handle_tag(const TagObservation& obs, SearchLevel level, FrameWork* w);
   bool may_start_track(const TagObservation& obs, std::size_t agv, const FrameWork& w) const;
   void fit_covered_trays(const cv::Mat& gray, FrameWork* w);
+  // False with out->refusal set when no box at the prediction makes a fix.
   bool learned_tray_fix(const cv::Mat& gray, std::size_t agv, const TrackOutput& o, FrameWork* w,
-                        TagFix* fix);
+                        TrayFix* out);
   void reacquire_lost(const cv::Mat& gray, FrameWork* w);
   std::vector<LostVehicle> lost_vehicles(FrameWork* w, std::vector<Vec2>* explained);
   std::vector<PlaneTray> sweep_for(const cv::Mat& gray, std::size_t camera, std::int64_t t_ns,

@@ -12,6 +12,8 @@
 #pragma once
 
 #include <array>
+#include <cstddef>
+#include <cstdint>
 #include <opencv2/core.hpp>
 #include <string>
 
@@ -67,8 +69,27 @@ struct TrayFitParams {
   int iterations = 8;
 };
 
+// Why a fit was refused, for the counters a site reads when covered vehicles coast: a parcel
+// that hides the tray's outline (kSidesHidden, kNoOutline) needs another cue, a prediction too
+// loose (kUncertain) a shorter gap between fixes.
+enum class TrayRefusal : std::uint8_t {
+  kNone,
+  kBadInput,     // image, parameters, tray size, prediction not finite or not positive definite
+  kUncertain,    // the prediction's position or heading sigma is beyond what a fit can resolve
+  kOutOfView,    // the predicted tray is outside the image or behind the camera
+  kNoOutline,    // no tray outline in the window, too few edge points, or beyond reach
+  kSidesHidden,  // too few sides seen: the outline is mostly covered
+  kSizeMismatch,
+  kAmbiguous,  // the fitted heading is a third of the symmetry period from the prediction
+};
+inline constexpr std::size_t kTrayRefusalCount = 8;
+// Stable names (metrics labels): none, bad_input, uncertain_prediction, out_of_view,
+// no_outline, sides_hidden, size_mismatch, ambiguous_heading.
+const char* to_string(TrayRefusal r);
+
 struct TrayFix {
-  TagFix fix;  // centre and heading in the site frame with their covariance: the tracker's input
+  TagFix fix;
+  TrayRefusal refusal = TrayRefusal::kNone;  // set when fit_tray returns false  // centre and heading in the site frame with their covariance: the tracker's input
   int sides_seen = 0;                    // sides with enough support (2..4)
   std::array<double, 4> coverage{};      // front, left, rear, right: fraction of the side covered
   std::array<int, 4> points{};           // edge points kept per side
@@ -86,7 +107,7 @@ std::string validate(const TrayFitParams& p);
 // non-positive-definite prediction, bad sizes or parameters), a prediction too uncertain, a tray
 // outside the image, too few sides seen (one of front/rear and one of left/right are needed), a
 // size that does not match the known tray, or a heading more than a third of the symmetry period
-// from the prediction.
+// from the prediction. out->refusal names the reason (kNone on success).
 bool fit_tray(const cv::Mat& gray, const site::CeilingCamera& cam, const site::FleetAgv& agv,
               const Pose2& predicted, const std::array<double, 9>& predicted_cov,
               const TrayFitParams& p, TrayFix* out, std::string* why = nullptr);
