@@ -88,7 +88,8 @@ Sequence run_sequence(bool tray_fit, double parcel_mm = 320.0) {
         scene.agvs.push_back(now);
       }
       scene.parcels.clear();
-      if (f >= kCoveredFrom) scene.parcels.push_back({1, 0.0, 0.0, 0.3, parcel_mm, parcel_mm, 200, 150});
+      if (f >= kCoveredFrom)
+        scene.parcels.push_back({1, 0.0, 0.0, 0.3, parcel_mm, parcel_mm, 200, 150});
       const cv::Mat img =
           renderer.render(scene, sim::RenderCamera::from_ceiling(cam), rp, 5 + f).image;
       std::vector<Detection> d;
@@ -260,8 +261,9 @@ TEST(CameraFrame, ATrayHiddenByItsParcelIsRefusedAndCountedByReason) {
   for (const std::uint64_t n : c.tray_refused_by) sum += n;
   EXPECT_EQ(sum, c.tray_refused);
   EXPECT_EQ(c.tray_refused_by[static_cast<std::size_t>(TrayRefusal::kNone)], 0u);
-  const std::uint64_t hidden = c.tray_refused_by[static_cast<std::size_t>(TrayRefusal::kSidesHidden)] +
-                               c.tray_refused_by[static_cast<std::size_t>(TrayRefusal::kNoOutline)];
+  const std::uint64_t hidden =
+      c.tray_refused_by[static_cast<std::size_t>(TrayRefusal::kSidesHidden)] +
+      c.tray_refused_by[static_cast<std::size_t>(TrayRefusal::kNoOutline)];
   EXPECT_GT(hidden, 0u) << "sides_hidden " << c.tray_refused_by[5] << ", no_outline "
                         << c.tray_refused_by[4] << ", uncertain " << c.tray_refused_by[2];
   // The tray boxes of the visible trays are counted apart: the two uncovered vehicles get none

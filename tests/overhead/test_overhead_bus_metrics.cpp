@@ -79,12 +79,10 @@ TEST(OverheadBusMetrics, TrayBoxesAndTheirRefusalsByReason) {
   EXPECT_TRUE(has(t, "agvloc_overhead_tray_boxes_total{result=\"applied\"} 470")) << t;
   EXPECT_TRUE(has(t, "agvloc_overhead_tray_boxes_total{result=\"gated\"} 2")) << t;
   EXPECT_TRUE(has(t, "agvloc_overhead_tray_refused_total{reason=\"sides_hidden\"} 12")) << t;
-  EXPECT_TRUE(has(t, "agvloc_overhead_tray_refused_total{reason=\"uncertain_prediction\"} 6"))
-      << t;
+  EXPECT_TRUE(has(t, "agvloc_overhead_tray_refused_total{reason=\"uncertain_prediction\"} 6")) << t;
   EXPECT_TRUE(has(t, "agvloc_overhead_tray_refused_total{reason=\"no_outline\"} 0")) << t;
   EXPECT_TRUE(has(t, "agvloc_overhead_tray_tag_disagree_total 0")) << t;
-  EXPECT_EQ(overhead_metrics_text(DiagView{}, {}).find("agvloc_overhead_tray_"),
-            std::string::npos);
+  EXPECT_EQ(overhead_metrics_text(DiagView{}, {}).find("agvloc_overhead_tray_"), std::string::npos);
 }
 
 }  // namespace

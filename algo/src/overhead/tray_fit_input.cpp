@@ -8,14 +8,22 @@ namespace agv::overhead {
 
 const char* to_string(TrayRefusal r) {
   switch (r) {
-    case TrayRefusal::kNone: return "none";
-    case TrayRefusal::kBadInput: return "bad_input";
-    case TrayRefusal::kUncertain: return "uncertain_prediction";
-    case TrayRefusal::kOutOfView: return "out_of_view";
-    case TrayRefusal::kNoOutline: return "no_outline";
-    case TrayRefusal::kSidesHidden: return "sides_hidden";
-    case TrayRefusal::kSizeMismatch: return "size_mismatch";
-    case TrayRefusal::kAmbiguous: return "ambiguous_heading";
+    case TrayRefusal::kNone:
+      return "none";
+    case TrayRefusal::kBadInput:
+      return "bad_input";
+    case TrayRefusal::kUncertain:
+      return "uncertain_prediction";
+    case TrayRefusal::kOutOfView:
+      return "out_of_view";
+    case TrayRefusal::kNoOutline:
+      return "no_outline";
+    case TrayRefusal::kSidesHidden:
+      return "sides_hidden";
+    case TrayRefusal::kSizeMismatch:
+      return "size_mismatch";
+    case TrayRefusal::kAmbiguous:
+      return "ambiguous_heading";
   }
   return "unknown";
 }
