@@ -88,11 +88,9 @@ inline constexpr std::size_t kTrayRefusalCount = 8;
 const char* to_string(TrayRefusal r);
 
 struct TrayFix {
-  TagFix fix;
-  TrayRefusal refusal =
-      TrayRefusal::kNone;  // set when fit_tray returns false  // centre and heading in the site
-                           // frame with their covariance: the tracker's input
-  int sides_seen = 0;      // sides with enough support (2..4)
+  TagFix fix;  // centre and heading in the site frame with their covariance: the tracker's input
+  TrayRefusal refusal = TrayRefusal::kNone;  // why fit_tray returned false
+  int sides_seen = 0;                        // sides with enough support (2..4)
   std::array<double, 4> coverage{};      // front, left, rear, right: fraction of the side covered
   std::array<int, 4> points{};           // edge points kept per side
   double residual_mm = 0.0;              // weighted RMS of the edge points' distances
