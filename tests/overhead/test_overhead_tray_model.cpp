@@ -9,6 +9,7 @@
 
 #include "config.hpp"
 #include "core.hpp"
+#include "diag.hpp"
 #include "inputs.hpp"
 #include "two_camera_site.hpp"
 
@@ -71,6 +72,30 @@ TEST(OverheadTrayModel, CommittedModelIsTaken) {
   testing::internal::CaptureStderr();
   TrackerCore core(cfg, site);
   EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
+}
+
+// The diagnostics view carries the tray boxes with every refusal reason from the start (0 until
+// one comes), so that a dashboard's series exist before the first covered tag; none with
+// tray.enabled false.
+TEST(OverheadTrayModel, DiagViewHasEveryRefusalReasonFromTheStart) {
+  const site::Site site = test::two_camera_site();
+  OverheadConfig cfg;
+  TrackerCore core(cfg, site);
+  DiagView v;
+  core.fill_tray_diag(&v);
+  ASSERT_TRUE(v.has_tray);
+  for (const char* reason : {"bad_input", "uncertain_prediction", "out_of_view", "no_outline",
+                             "sides_hidden", "size_mismatch", "ambiguous_heading"}) {
+    ASSERT_EQ(v.tray.refused.count(reason), 1u) << reason;
+    EXPECT_EQ(v.tray.refused.at(reason), 0u) << reason;
+  }
+  EXPECT_EQ(v.tray.refused.size(), 7u);
+  EXPECT_EQ(v.tray.applied, 0u);
+  cfg.tray_fit = false;
+  TrackerCore off(cfg, site);
+  DiagView w;
+  off.fill_tray_diag(&w);
+  EXPECT_FALSE(w.has_tray);
 }
 
 }  // namespace
