@@ -72,6 +72,8 @@ struct OverheadConfig {
   overhead::TrackerParams tracker;
   overhead::SearchParams search;
   overhead::TagDetectParams detect;
+  // How far the trays' tops depart from level at their height (widens every tag fix).
+  overhead::TrayPlaneSigma tray_plane{0.0087, 2.0};
   bool tray_fit = true;  // the tray's box for a tracked vehicle whose tag is covered
   overhead::TrayFitParams tray;
   // classical (tray_fit.hpp) or learned (tray_net.hpp, the ONNX model at tray_model_path).

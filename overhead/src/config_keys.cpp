@@ -159,6 +159,13 @@ std::vector<Key> search_detect_keys() {
              "Smallest black-to-white border contrast for a square to count"),
       number("detect.max_edge_rms_px", AGV_OH_AT(detect.max_edge_rms_px), 0.01, 10, 0.8, "px",
              "Largest RMS distance of edge points from their fitted line"),
+      number("detect.tray_tilt_sigma_rad", AGV_OH_AT(tray_plane.tilt_rad), 0, 0.5, 0.0087, "rad",
+             "How far a tray's top may tilt (per axis; 0.0087 = 0.5 deg): seen off the camera's "
+             "axis a tilt turns the tag's image, so every tag fix's heading sigma grows with it "
+             "(0: level trays)"),
+      number("detect.tray_height_sigma_mm", AGV_OH_AT(tray_plane.height_mm), 0, 200, 2.0, "mm",
+             "How far a tag may sit above or below its vehicle's tray_height_mm (load, wheel "
+             "wear): seen off the camera's axis it moves the fix, so the position sigma grows"),
       boolean("tray.enabled", AGV_OH_AT(tray_fit), true,
               "A tracked vehicle whose tag a window expected and did not read (a parcel on it) "
               "is fixed from its tray's box, gated like a tag fix; never starts a track"),

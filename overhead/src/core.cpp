@@ -46,6 +46,7 @@ TrackerCore::TrackerCore(const OverheadConfig& cfg, const site::Site& site)
         0;
   orders_.refused_by_reason["route_refused"] = 0;
   processor_.set_tray_fit(cfg.tray_fit, cfg.tray);
+  processor_.set_tray_plane_sigma(cfg.tray_plane);
   const bool learned = cfg.tray_fit && cfg.tray_method == "learned";
   const bool reacquire = cfg.reacquire.enabled && !cfg.tray_model_path.empty();
   if (learned || reacquire) use_tray_model(cfg.tray_model_path, learned);
@@ -201,9 +202,9 @@ void TrackerCore::apply_tags(std::size_t camera, std::int64_t t_ns,
       if (m.tag.restricted && untracked && !(g.ok && g.id == m.tag.id)) {
         ++remote_.restricted_refused;
       } else {
-        d.has_fix = overhead::tag_fix_on_plane(site_.cameras[camera], m.tag.corners_px,
-                                               m.tag.corner_sigma_px, agv->tray_height_mm,
-                                               agv->tag_size_mm, &d.fix);
+        d.has_fix = overhead::tag_fix_on_plane(
+            site_.cameras[camera], m.tag.corners_px, m.tag.corner_sigma_px, agv->tray_height_mm,
+            agv->tag_size_mm, &d.fix, overhead::kDefaultMaxSizeErrorRel, cfg_.tray_plane);
         if (d.has_fix) d.result = tracker_.add_fix(d.agv, t_ns, d.fix);
         if (!d.has_fix) ++remote_.no_fix;
       }

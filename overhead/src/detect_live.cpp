@@ -65,6 +65,7 @@ CameraDetector::CameraDetector(const site::Site& site, const OverheadConfig& cfg
       processor_(site.cameras, site.fleet, cfg.detect, cfg.search),
       local_(site.fleet.size(), cfg.tracker) {
   processor_.set_tray_fit(cfg.tray_fit, cfg.tray);
+  processor_.set_tray_plane_sigma(cfg.tray_plane);
   msg_.camera_id = site.cameras.at(site_camera).id;
 }
 

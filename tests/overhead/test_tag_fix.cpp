@@ -226,6 +226,93 @@ TEST(TagFixGeometry, CalibrationSigmaCoversCameraPoseErrors) {
   EXPECT_LT(nees, 3.5);
 }
 
+// A tag on a tray plane raised by dz and sloped by (gx, gy) about its centre, by the renderer's
+// projection.
+std::array<Vec2, 4> sloped_corners(const site::CeilingCamera& cam, Pose2 p, double gx, double gy,
+                                   double dz) {
+  const double h = 0.5 * kTagMm, c = std::cos(p.theta_rad), s = std::sin(p.theta_rad);
+  std::vector<sim::Vec3> pts;
+  for (const Vec2 q : {Vec2{h, h}, Vec2{h, -h}, Vec2{-h, -h}, Vec2{-h, h}}) {
+    const double dx = c * q.x - s * q.y, dy = s * q.x + c * q.y;
+    pts.push_back({p.x_mm + dx, p.y_mm + dy, kTrayMm + dz + gx * dx + gy * dy});
+  }
+  const std::vector<Vec2> px = sim::project_points(sim::RenderCamera::from_ceiling(cam), pts);
+  return {px[0], px[1], px[2], px[3]};
+}
+
+// Trays off level by the stated sigma, seen off the camera's axis: each component's squared error
+// over its variance averages about 1; told nothing, the heading's is far above it.
+TEST(TagFixGeometry, TraySigmaCoversTiltedAndRaisedTrays) {
+  const site::CeilingCamera cam = test::ceiling_camera(40.0);
+  const Pose2 pose{2000.0, -1300.0, 0.4};
+  const TrayPlaneSigma sigma{1.0 * kPi / 180.0, 3.0};
+  std::mt19937 rng(11);
+  std::normal_distribution<double> n(0.0, 1.0);
+  const int trials = 400;
+  std::array<double, 3> ratio{}, ratio_untold{};
+  for (int t = 0; t < trials; ++t) {
+    const std::array<Vec2, 4> c =
+        sloped_corners(cam, pose, std::tan(sigma.tilt_rad) * n(rng),
+                       std::tan(sigma.tilt_rad) * n(rng), sigma.height_mm * n(rng));
+    TagFix f, untold;
+    ASSERT_TRUE(
+        tag_fix_on_plane(cam, c, 0.02, kTrayMm, kTagMm, &f, kDefaultMaxSizeErrorRel, sigma));
+    ASSERT_TRUE(tag_fix_on_plane(cam, c, 0.02, kTrayMm, kTagMm, &untold));
+    const double e[3] = {f.pose.x_mm - pose.x_mm, f.pose.y_mm - pose.y_mm,
+                         std::remainder(f.pose.theta_rad - pose.theta_rad, 2 * kPi)};
+    for (std::size_t i = 0; i < 3; ++i) {
+      ratio[i] += e[i] * e[i] / f.cov[4 * i] / trials;
+      ratio_untold[i] += e[i] * e[i] / untold.cov[4 * i] / trials;
+      // The tray's part is a bias (the tracker does not average it down).
+      EXPECT_GT(f.cov_camera[4 * i], 0.0);
+    }
+  }
+  std::printf(
+      "[ measured ] squared error / variance x, y, heading: %.2f %.2f %.2f (told nothing: "
+      "%.1f %.1f %.1f)\n",
+      ratio[0], ratio[1], ratio[2], ratio_untold[0], ratio_untold[1], ratio_untold[2]);
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_GT(ratio[i], 0.75) << i;
+    EXPECT_LT(ratio[i], 1.33) << i;
+  }
+  EXPECT_GT(ratio_untold[2], 10.0);
+}
+
+// The renderer tilts the tray's top with its tag: detected corners match the truth corners, the
+// tilt turns the fix off the truth heading off the camera's axis, and the stated tray sigma covers
+// what it turns.
+TEST(TagFixGeometry, RenderedTiltedTraysStayWithinTheirSigma) {
+  sim::SiteScene s = test::tag_scene(40.0, 6, 2);
+  const site::CeilingCamera& cam = s.site.cameras[0];
+  const double tilt = 1.0 * kPi / 180.0;
+  for (std::size_t i = 0; i < s.agvs.size(); ++i) {
+    s.agvs[i].tray_roll_rad = tilt * std::cos(1.1 * static_cast<double>(i));
+    s.agvs[i].tray_pitch_rad = tilt * std::sin(1.1 * static_cast<double>(i));
+    s.agvs[i].v_mps = s.agvs[i].omega_radps = 0.0;
+  }
+  const sim::RenderResult r =
+      sim::render_site_frame(s, sim::RenderCamera::from_ceiling(cam), {}, 2);
+  const auto obs = TagDetector().detect(r.image, cv::Rect(0, 0, r.image.cols, r.image.rows));
+  ASSERT_EQ(obs.size(), s.agvs.size());
+  double largest_turn_deg = 0.0;
+  for (const TagObservation& o : obs) {
+    const sim::AgvTruth* t = nullptr;
+    for (const auto& a : r.agvs) t = a.tag_id == o.id ? &a : t;
+    ASSERT_NE(t, nullptr);
+    TagFix seen, truth;
+    ASSERT_TRUE(tag_fix_on_plane(cam, o.corners_px, o.corner_sigma_px, kTrayMm, kTagMm, &seen,
+                                 kDefaultMaxSizeErrorRel, {tilt, 0.0}));
+    ASSERT_TRUE(tag_fix_on_plane(cam, t->tag_corners_px, 0.0, kTrayMm, kTagMm, &truth));
+    EXPECT_LT(angle_err_deg(seen.pose.theta_rad, truth.pose.theta_rad), 0.05);
+    EXPECT_LT(std::hypot(seen.pose.x_mm - truth.pose.x_mm, seen.pose.y_mm - truth.pose.y_mm), 0.5);
+    const double turn = std::remainder(seen.pose.theta_rad - t->pose.theta_rad, 2 * kPi);
+    largest_turn_deg = std::max(largest_turn_deg, std::abs(rad_to_deg(turn)));
+    EXPECT_LT(std::abs(turn), 3.0 * std::sqrt(seen.cov[8])) << o.id;
+  }
+  std::printf("[ measured ] 1 deg tilted trays: largest heading turn %.3f deg\n", largest_turn_deg);
+  EXPECT_GT(largest_turn_deg, 0.05);
+}
+
 TEST(TagFixGeometry, BadInputRefused) {
   const site::CeilingCamera cam = test::ceiling_camera(50.0);
   const std::array<Vec2, 4> c = projected_corners(cam, {-300.0, 400.0, -2.0});
@@ -241,6 +328,10 @@ TEST(TagFixGeometry, BadInputRefused) {
   EXPECT_FALSE(tag_fix_on_plane(cam, c, -1.0, kTrayMm, kTagMm, &fix));
   EXPECT_FALSE(tag_fix_on_plane(cam, c, 0.1, kTrayMm, 0.0, &fix));
   EXPECT_FALSE(tag_fix_on_plane(cam, c, 0.1, kTrayMm, kTagMm, nullptr));
+  EXPECT_FALSE(
+      tag_fix_on_plane(cam, c, 0.1, kTrayMm, kTagMm, &fix, kDefaultMaxSizeErrorRel, {-0.01, 0.0}));
+  EXPECT_FALSE(tag_fix_on_plane(cam, c, 0.1, kTrayMm, kTagMm, &fix, kDefaultMaxSizeErrorRel,
+                                {0.0, std::nan("")}));
   std::array<Vec2, 4> nan = c;
   nan[1].y = std::nan("");
   EXPECT_FALSE(tag_fix_on_plane(cam, nan, 0.1, kTrayMm, kTagMm, &fix));

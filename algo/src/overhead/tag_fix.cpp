@@ -219,6 +219,44 @@ bool edge_covariance(const site::CeilingCamera& cam, const std::array<Vec2, 4>& 
   return true;
 }
 
+// Central-difference steps on the tray plane: a slope (dimensionless) and a height (mm).
+constexpr double kSlopeStep = 1e-4;
+constexpr double kHeightStepMm = 0.1;
+
+// The corners' rays met by the tray plane raised by dz at the centre and sloped by (gx, gy)
+// about the level points' centre c.
+bool corners_on_sloped_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>& px,
+                             double h_mm, const std::array<Vec2, 4>& level, Vec2 c, double gx,
+                             double gy, double dz, std::array<Vec2, 4>* xy) {
+  for (std::size_t i = 0; i < 4; ++i) {
+    const double z = h_mm + dz + gx * (level[i].x - c.x) + gy * (level[i].y - c.y);
+    if (!pixel_to_plane(cam, px[i], z, &(*xy)[i])) return false;
+  }
+  return true;
+}
+
+// J diag(sigma^2) J^T of the tray plane's slope along x and y and its height, added to *cov.
+bool tray_plane_covariance(const site::CeilingCamera& cam, const std::array<Vec2, 4>& px,
+                           double plane_height_mm, double h, const std::array<Vec2, 4>& level,
+                           const TrayPlaneSigma& sigma, std::array<double, 9>* cov) {
+  const double slope_sigma = std::tan(sigma.tilt_rad);
+  Vec2 c;
+  for (const Vec2& v : level) c.x += 0.25 * v.x, c.y += 0.25 * v.y;
+  for (int q = 0; q < 3; ++q) {
+    const double s = q < 2 ? slope_sigma : sigma.height_mm;
+    if (!(s > 0.0)) continue;
+    const double step = q < 2 ? kSlopeStep : kHeightStepMm;
+    const double d[3] = {q == 0 ? step : 0.0, q == 1 ? step : 0.0, q == 2 ? step : 0.0};
+    std::array<Vec2, 4> xp{}, xm{};
+    if (!corners_on_sloped_plane(cam, px, plane_height_mm, level, c, d[0], d[1], d[2], &xp) ||
+        !corners_on_sloped_plane(cam, px, plane_height_mm, level, c, -d[0], -d[1], -d[2], &xm)) {
+      return false;
+    }
+    add_central_difference(xp, xm, h, step, s * s, cov);
+  }
+  return true;
+}
+
 }  // namespace tag_fix_detail
 
 bool pixel_to_plane(const site::CeilingCamera& cam, Vec2 px, double plane_height_mm, Vec2* xy_mm) {
@@ -258,10 +296,11 @@ bool site_to_pixel(const site::CeilingCamera& cam, double x_mm, double y_mm, dou
 
 bool tag_fix_on_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>& corners_px,
                       double corner_sigma_px, double plane_height_mm, double tag_size_mm,
-                      TagFix* out, double max_size_error_rel) {
+                      TagFix* out, double max_size_error_rel, const TrayPlaneSigma& tray) {
   using namespace tag_fix_detail;
   if (!out || !(tag_size_mm > 0.0) || !std::isfinite(tag_size_mm) || !(corner_sigma_px >= 0.0) ||
-      !std::isfinite(corner_sigma_px)) {
+      !std::isfinite(corner_sigma_px) || !(tray.tilt_rad >= 0.0 && tray.tilt_rad < 0.5 * kPi) ||
+      !(tray.height_mm >= 0.0) || !std::isfinite(tray.height_mm)) {
     return false;
   }
   const double h = 0.5 * tag_size_mm;
@@ -272,7 +311,10 @@ bool tag_fix_on_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>&
   if (!edge_covariance(cam, corners_px, corner_sigma_px, plane_height_mm, h, &out->cov)) {
     return false;
   }
-  if (!pose_covariance(cam, corners_px, plane_height_mm, h, &out->cov_camera)) return false;
+  if (!pose_covariance(cam, corners_px, plane_height_mm, h, &out->cov_camera) ||
+      !tray_plane_covariance(cam, corners_px, plane_height_mm, h, xy, tray, &out->cov_camera)) {
+    return false;
+  }
   for (std::size_t i = 0; i < 9; ++i) out->cov[i] += out->cov_camera[i];
   out->pose = {s.c.x, s.c.y, s.theta};
   out->size_error_rel = s.scale - 1.0;

@@ -162,6 +162,7 @@ double obstacle_grey(site::ObstacleKind k) {
 void add_vehicle(const SiteScene& s, const Pages& pages, size_t i, const Pose2& pose,
                  std::vector<Face>* out, FaceIndex* index) {
   const site::FleetAgv& a = s.site.fleet[i];
+  const AgvState& st = s.agvs[i];
   const double th = a.tray_height_mm;
   const double plate = std::min(30.0, 0.5 * th);
   const Vec2 c{pose.x_mm, pose.y_mm};
@@ -170,16 +171,26 @@ void add_vehicle(const SiteScene& s, const Pages& pages, size_t i, const Pose2& 
   if (body.size() < 3) {
     body = footprint_shape(c, pose.theta_rad, 0.9 * a.tray_length_mm, 0.9 * a.tray_width_mm, 4);
   }
-  extrude(body, 0.0, th - plate, s.body_grey, true, true, out);
-  extrude(footprint_shape(c, pose.theta_rad, a.tray_length_mm, a.tray_width_mm, 4), th - plate, th,
-          s.tray_grey, true, false, out);
+  const double hu = 0.5 * a.tray_width_mm, hv = 0.5 * a.tray_length_mm;
+  const double roll = st.tray_roll_rad, pitch = st.tray_pitch_rad;
+  // The plate's walls end below the tilted top's lowest edge, so they never hide it.
+  const double dip = hv * std::abs(std::sin(pitch)) + hu * std::abs(std::sin(roll));
+  extrude(body, 0.0, th - plate - dip, s.body_grey, true, true, out);
+  extrude(footprint_shape(c, pose.theta_rad, a.tray_length_mm, a.tray_width_mm, 4),
+          th - plate - dip, th - dip, s.tray_grey, true, false, out);
   const double cs = std::cos(pose.theta_rad), sn = std::sin(pose.theta_rad);
+  const double cr = std::cos(roll), sr = std::sin(roll), cp = std::cos(pitch), sp = std::sin(pitch);
+  // The vehicle's x and y axes turned by Ry(pitch) Rx(roll), then by the heading.
+  const Vec3 xv{cp, 0.0, -sp}, yv{sp * sr, cr, cp * sr};
+  const auto site_dir = [&](const Vec3& v) {
+    return Vec3{cs * v.x - sn * v.y, sn * v.x + cs * v.y, v.z};
+  };
+  const Vec3 xs = site_dir(xv), ys = site_dir(yv);
   Face tray;
   tray.o = {c.x, c.y, th};
-  tray.eu = {sn, -cs, 0.0};   // page right: the vehicle's -y
-  tray.ev = {-cs, -sn, 0.0};  // page down: the vehicle's -x
+  tray.eu = {-ys.x, -ys.y, -ys.z};  // page right: the vehicle's -y
+  tray.ev = {-xs.x, -xs.y, -xs.z};  // page down: the vehicle's -x
   tray.n = cross3(tray.eu, tray.ev);
-  const double hu = 0.5 * a.tray_width_mm, hv = 0.5 * a.tray_length_mm;
   tray.poly = {{-hu, -hv}, {hu, -hv}, {hu, hv}, {-hu, hv}};
   tray.shade = face_shade({0, 0, 1});
   tray.grey = s.tray_grey * tray.shade;

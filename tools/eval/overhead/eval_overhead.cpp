@@ -36,6 +36,8 @@ struct Options {
   // The pose sigma per parameter the tracker is told (the site file's pose_sigma); < 0: that
   // of the error, error / sqrt(3) per axis (a random direction of that length).
   double calib_sigma_mm = -1.0, calib_sigma_deg = -1.0;
+  // The trays' departure from level the tracker is told (TrayPlaneSigma): 0 = level trays.
+  double tray_tilt_sigma_deg = 0.0, tray_height_sigma_mm = 0.0;
   int bit_errors = 0;
   double bit_errors_from_s = 3.0;
   double latency_ms = 30.0, latency_spread_ms = 20.0;
@@ -57,6 +59,8 @@ const char* kUsage =
     "  [--seed S] [--parcels FRACTION] [--load-from-s S] [--cover-tags] [--clutter N]\n"
     "  [--calib-error-mm E] [--calib-error-deg E]\n"
     "  [--calib-sigma-mm S] [--calib-sigma-deg S]\n"
+    "  [--tray-tilt-deg D] [--tray-height-error-mm E] [--tray-tilt-sigma-deg S]\n"
+    "  [--tray-height-sigma-mm S]\n"
     "  [--bit-errors N] [--bit-errors-from-s S] [--latency-ms L] [--latency-spread-ms L]\n"
     "  [--full-sweep-every N] [--apriltag-every N] [--max-wall-s S] [--no-distortion] [--clean]\n"
     "  [--tray-model ONNX] [--reacquire-model ONNX] [--trace-prefix PATH_PREFIX]\n"
@@ -75,6 +79,10 @@ bool parse(int argc, char** argv, Options* o, std::string* error) {
                                      {"--calib-error-deg", &o->calib_error_deg},
                                      {"--calib-sigma-mm", &o->calib_sigma_mm},
                                      {"--calib-sigma-deg", &o->calib_sigma_deg},
+                                     {"--tray-tilt-deg", &o->world.tray_tilt_deg},
+                                     {"--tray-height-error-mm", &o->world.tray_height_error_mm},
+                                     {"--tray-tilt-sigma-deg", &o->tray_tilt_sigma_deg},
+                                     {"--tray-height-sigma-mm", &o->tray_height_sigma_mm},
                                      {"--bit-errors-from-s", &o->bit_errors_from_s},
                                      {"--latency-ms", &o->latency_ms},
                                      {"--latency-spread-ms", &o->latency_spread_ms},
@@ -133,7 +141,10 @@ bool parse(int argc, char** argv, Options* o, std::string* error) {
       (w.cameras != 1 && w.cameras != 4) || w.site_mm < 3000 || w.agvs < 1 || w.agvs > 500 ||
       w.duration_s <= 0 || o->fps <= 0 || o->fps > 120 || o->output_hz <= 0 || w.parcels < 0 ||
       w.parcels > 1 || w.clutter < 0 || o->bit_errors < 0 || o->bit_errors > 36 ||
-      o->latency_ms < 0 || o->latency_spread_ms < 0 || o->full_sweep_every < 1) {
+      o->latency_ms < 0 || o->latency_spread_ms < 0 || o->full_sweep_every < 1 ||
+      !(w.tray_tilt_deg >= 0 && w.tray_tilt_deg < 30) || !(w.tray_height_error_mm >= 0) ||
+      !(o->tray_tilt_sigma_deg >= 0 && o->tray_tilt_sigma_deg < 30) ||
+      !(o->tray_height_sigma_mm >= 0)) {
     return *error = "an option is out of range", false;
   }
   return true;
@@ -218,6 +229,11 @@ void print_header(const Options& o, const agv::site::Site& site) {
       o.calib_error_deg, o.bit_errors, o.bit_errors_from_s, o.latency_ms,
       o.latency_ms + o.latency_spread_ms, o.full_sweep_every, o.clean ? ", clean" : "",
       o.route_prior ? ", route prior" : "");
+  std::printf(
+      "  trays: tilted %.2f deg, tags up to %.1f mm off their height; the tracker told "
+      "%.2f deg / %.1f mm\n",
+      o.world.tray_tilt_deg, o.world.tray_height_error_mm, o.tray_tilt_sigma_deg,
+      o.tray_height_sigma_mm);
   for (const auto& c : site.cameras) {
     std::printf("  camera %s at (%.0f, %.0f, %.0f) mm\n", c.id.c_str(), c.t_site_cam_mm[0],
                 c.t_site_cam_mm[1], c.t_site_cam_mm[2]);
@@ -416,6 +432,7 @@ int run(const Options& o) {
   agv::overhead::SearchParams sp;
   sp.full_sweep_every_frames = o.full_sweep_every;
   agv::overhead::CameraFrameProcessor proc(believed, site.fleet, {}, sp);
+  proc.set_tray_plane_sigma({o.tray_tilt_sigma_deg * agv::kPi / 180.0, o.tray_height_sigma_mm});
   agv::overhead::TrackerParams tp;
   tp.route_prior = o.route_prior;
   agv::overhead::FleetTracker tracker(site.fleet.size(), tp);

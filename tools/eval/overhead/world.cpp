@@ -245,7 +245,20 @@ bool World::build(const WorldOptions& o, std::string* error) {
   if (o.clutter > 0) sim::add_random_clutter(&s, 0, o.clutter, o.seed + 13);
   parcels = s.parcels;
   clutter = s.clutter;
+  draw_tray_planes(o, site_.fleet.size());
   return true;
+}
+
+void World::draw_tray_planes(const WorldOptions& o, std::size_t n) {
+  std::mt19937_64 rng(o.seed + 17);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  const double tilt = o.tray_tilt_deg * kPi / 180.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double dir = 2.0 * kPi * u01(rng);
+    tray_roll_rad.push_back(tilt * std::cos(dir));
+    tray_pitch_rad.push_back(tilt * std::sin(dir));
+    tray_dz_mm.push_back(o.tray_height_error_mm * (2.0 * u01(rng) - 1.0));
+  }
 }
 
 std::vector<sim::AgvState> World::states_at(std::int64_t t_ns) const {
@@ -262,6 +275,10 @@ std::vector<sim::AgvState> World::states_at(std::int64_t t_ns) const {
       st.omega_radps = s.omega_radps;
       st.pose = s.pose;
       st.pose = sim::advance_agv_pose(st, 1e-9 * static_cast<double>(t_ns - s.t_ns));
+    }
+    if (out.size() < tray_roll_rad.size()) {
+      st.tray_roll_rad = tray_roll_rad[out.size()];
+      st.tray_pitch_rad = tray_pitch_rad[out.size()];
     }
     out.push_back(st);
   }
@@ -292,6 +309,9 @@ std::vector<RouteEvent> World::route_events() const {
 sim::SiteScene World::scene_at(std::int64_t t_ns) const {
   sim::SiteScene s;
   s.site = site_;
+  for (std::size_t i = 0; i < s.site.fleet.size() && i < tray_dz_mm.size(); ++i) {
+    s.site.fleet[i].tray_height_mm += tray_dz_mm[i];
+  }
   s.agvs = states_at(t_ns);
   for (std::size_t i = 0; i < parcels.size(); ++i) {
     if (parcel_load_ns[i] <= t_ns) s.parcels.push_back(parcels[i]);
@@ -327,7 +347,8 @@ std::vector<std::array<Vec2, 4>> World::tag_corners(const sim::RenderCamera& cam
     // Page order seen from above: top-left = front-left, then front-right, rear-right, rear-left.
     for (const Vec2 c : {Vec2{h, h}, Vec2{h, -h}, Vec2{-h, -h}, Vec2{-h, h}}) {
       const Vec2 p = transform(states[i].pose, c);
-      pts.push_back({p.x, p.y, a.tray_height_mm});
+      const double dz = i < tray_dz_mm.size() ? tray_dz_mm[i] : 0.0;
+      pts.push_back({p.x, p.y, a.tray_height_mm + dz});
     }
   }
   std::vector<std::uint8_t> pok;

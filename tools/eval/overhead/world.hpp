@@ -32,6 +32,9 @@ struct WorldOptions {
   // The first parcel of a loaded tray lies over the whole tag (the target's case).
   bool cover_tags = false;
   int clutter = 0;  // people and pallets on the floor
+  // Each vehicle's tray top tilted by this much in a random direction, and its tag up to this far
+  // above or below the tray height the tracker is told (uniform), fixed for the run.
+  double tray_tilt_deg = 0.0, tray_height_error_mm = 0.0;
   std::uint64_t seed = 1;
 };
 
@@ -92,8 +95,11 @@ class World {
   std::vector<sim::Parcel> parcels;
   std::vector<std::int64_t> parcel_load_ns;  // per parcel: on its tray from this time
   std::vector<sim::Clutter> clutter;
+  // Per vehicle: its tray's roll and pitch and its tag's height error (WorldOptions).
+  std::vector<double> tray_roll_rad, tray_pitch_rad, tray_dz_mm;
 
  private:
+  void draw_tray_planes(const WorldOptions& o, std::size_t n);
   site::Site site_;
   sim::FleetResult fleet_;
   site::RoutePlanner planner_;

@@ -82,6 +82,9 @@ class CameraFrameProcessor {
     tray_enabled_ = enabled;
     tray_ = params;
   }
+  // How far the trays' tops may depart from level at their nominal height (tag_fix.hpp): widens
+  // every tag fix's covariance. Default: level trays at their height.
+  void set_tray_plane_sigma(const TrayPlaneSigma& sigma) { tray_plane_ = sigma; }
   // The tray's box from the learned detector (tray_net.hpp) instead of the classical fit: the
   // rectified window around the prediction, the box nearest it turned into a fix (the half-turn
   // resolved by the prediction). A null net goes back to the classical fit.
@@ -129,6 +132,7 @@ class CameraFrameProcessor {
   FrameCounters counters_;
   bool tray_enabled_ = true;
   TrayFitParams tray_;
+  TrayPlaneSigma tray_plane_;
   std::shared_ptr<const TrayNet> tray_net_;
   TrayNetParams tray_net_params_;
   std::shared_ptr<const TrayNet> reacquire_net_;

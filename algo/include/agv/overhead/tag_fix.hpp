@@ -5,7 +5,8 @@
 // the errors of the four edge lines the corners are the meeting points of (each line's offset
 // and angle, recovered from the detector's corner pixel sigma; two corners on a line move
 // together, which is where the heading's error comes from), carried through the rays, plus the
-// camera's calibrated pose sigma (CeilingCamera::position_sigma_mm, angle_sigma_rad). Pure.
+// camera's calibrated pose sigma (CeilingCamera::position_sigma_mm, angle_sigma_rad) and the
+// tray's tilt and height sigma (TrayPlaneSigma). Pure.
 #pragma once
 
 #include <array>
@@ -27,11 +28,26 @@ struct TagFix {
   double residual_mm = 0.0;     // RMS distance of the four corners from the fitted square
 };
 
+// How far a real tray's top departs from the level plane at its nominal height that the fix
+// assumes (a bent tray, a load off centre, worn wheels, a floor step). Seen off the camera's
+// axis, a tilt turns the tag's image (up to tan(view angle) * tilt / 2 of heading) and a height
+// error moves it (tan(view angle) * error); both stay while the vehicle drives, so they go into
+// TagFix::cov_camera, the part the tracker does not average down. 0: a level tray at its height.
+struct TrayPlaneSigma {
+  double tilt_rad = 0.0;   // per axis (the plane's slope along the site's x and along its y)
+  double height_mm = 0.0;  // the tag's centre above or below FleetAgv::tray_height_mm
+};
+
+// A fitted square this far off the tag's size is not the tag (a wrong height, a wrong camera).
+constexpr double kDefaultMaxSizeErrorRel = 0.08;
+
 // False when a corner's ray does not meet the plane in front of the camera, the intrinsics are
-// invalid, or the fitted square is more than max_size_error_rel off tag_size_mm.
+// invalid, the tray sigma is negative or not finite, or the fitted square is more than
+// max_size_error_rel off tag_size_mm.
 bool tag_fix_on_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>& corners_px,
                       double corner_sigma_px, double plane_height_mm, double tag_size_mm,
-                      TagFix* out, double max_size_error_rel = 0.08);
+                      TagFix* out, double max_size_error_rel = kDefaultMaxSizeErrorRel,
+                      const TrayPlaneSigma& tray = {});
 
 // Site-frame point -> distorted pixel of the camera; false behind it or for non-finite input.
 bool site_to_pixel(const site::CeilingCamera& cam, double x_mm, double y_mm, double z_mm, Vec2* px);

@@ -57,6 +57,9 @@ struct AgvState {
   Pose2 pose;
   double v_mps = 0.0;
   double omega_radps = 0.0;
+  // The tray top (and its tag) tilted about its centre, which stays at the tray's height: roll
+  // about the vehicle's x, then pitch about its y (a bent tray, a load off centre, a floor step).
+  double tray_roll_rad = 0.0, tray_pitch_rad = 0.0;
 };
 
 // The vehicle's pose dt_s seconds later (circular arc at constant v and omega).
