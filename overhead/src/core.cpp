@@ -202,9 +202,8 @@ void TrackerCore::apply_tags(std::size_t camera, std::int64_t t_ns,
       if (m.tag.restricted && untracked && !(g.ok && g.id == m.tag.id)) {
         ++remote_.restricted_refused;
       } else {
-        d.has_fix = overhead::tag_fix_on_plane(
-            site_.cameras[camera], m.tag.corners_px, m.tag.corner_sigma_px, agv->tray_height_mm,
-            agv->tag_size_mm, &d.fix, overhead::kDefaultMaxSizeErrorRel, cfg_.tray_plane);
+        d.has_fix = overhead::tag_fix_on_tray(site_.cameras[camera], m.tag.corners_px,
+                                              m.tag.corner_sigma_px, *agv, cfg_.tray_plane, &d.fix);
         if (d.has_fix) d.result = tracker_.add_fix(d.agv, t_ns, d.fix);
         if (!d.has_fix) ++remote_.no_fix;
       }

@@ -240,6 +240,48 @@ std::array<Vec2, 4> sloped_corners(const site::CeilingCamera& cam, Pose2 p, doub
   return {px[0], px[1], px[2], px[3]};
 }
 
+// A tag on a tray turned by Rz(heading) Ry(pitch) Rx(roll) about its centre (the renderer's
+// convention), by the renderer's projection.
+std::array<Vec2, 4> tilted_corners(const site::CeilingCamera& cam, Pose2 p, double roll,
+                                   double pitch) {
+  const double h = 0.5 * kTagMm, c = std::cos(p.theta_rad), s = std::sin(p.theta_rad);
+  const double cr = std::cos(roll), sr = std::sin(roll), cp = std::cos(pitch), sp = std::sin(pitch);
+  std::vector<sim::Vec3> pts;
+  for (const Vec2 q : {Vec2{h, h}, Vec2{h, -h}, Vec2{-h, -h}, Vec2{-h, h}}) {
+    // Rx(roll) then Ry(pitch) of (q.x, q.y, 0).
+    const double y1 = cr * q.y, z1 = sr * q.y;
+    const double x2 = cp * q.x + sp * z1, z2 = -sp * q.x + cp * z1;
+    pts.push_back({p.x_mm + c * x2 - s * y1, p.y_mm + s * x2 + c * y1, kTrayMm + z2});
+  }
+  const std::vector<Vec2> px = sim::project_points(sim::RenderCamera::from_ceiling(cam), pts);
+  return {px[0], px[1], px[2], px[3]};
+}
+
+// A surveyed tilt is cast out exactly, at every heading; ignored, it turns the fix.
+TEST(TagFixGeometry, SurveyedTrayTiltIsCastOut) {
+  const site::CeilingCamera cam = test::ceiling_camera(40.0);
+  site::FleetAgv agv;
+  agv.tray_roll_rad = 1.5 * kPi / 180.0;
+  agv.tray_pitch_rad = -1.0 * kPi / 180.0;
+  double largest_level_deg = 0.0;
+  for (const double heading : {0.0, 0.9, 2.2, -1.4, -2.9}) {
+    const Pose2 pose{1900.0, -1100.0, heading};
+    const std::array<Vec2, 4> c = tilted_corners(cam, pose, agv.tray_roll_rad, agv.tray_pitch_rad);
+    TagFix f, level;
+    ASSERT_TRUE(tag_fix_on_tray(cam, c, 0.05, agv, {}, &f));
+    EXPECT_NEAR(f.pose.x_mm, pose.x_mm, 1e-3) << heading;
+    EXPECT_NEAR(f.pose.y_mm, pose.y_mm, 1e-3) << heading;
+    EXPECT_LT(angle_err_deg(f.pose.theta_rad, heading), 1e-4) << heading;
+    ASSERT_TRUE(tag_fix_on_plane(cam, c, 0.05, kTrayMm, kTagMm, &level));
+    largest_level_deg = std::max(largest_level_deg, angle_err_deg(level.pose.theta_rad, heading));
+  }
+  EXPECT_GT(largest_level_deg, 0.1);
+  site::FleetAgv bad = agv;
+  bad.tray_pitch_rad = 2.0;
+  TagFix f;
+  EXPECT_FALSE(tag_fix_on_tray(cam, tilted_corners(cam, {0, 0, 0}, 0, 0), 0.05, bad, {}, &f));
+}
+
 // Trays off level by the stated sigma, seen off the camera's axis: each component's squared error
 // over its variance averages about 1; told nothing, the heading's is far above it.
 TEST(TagFixGeometry, TraySigmaCoversTiltedAndRaisedTrays) {
@@ -308,6 +350,13 @@ TEST(TagFixGeometry, RenderedTiltedTraysStayWithinTheirSigma) {
     const double turn = std::remainder(seen.pose.theta_rad - t->pose.theta_rad, 2 * kPi);
     largest_turn_deg = std::max(largest_turn_deg, std::abs(rad_to_deg(turn)));
     EXPECT_LT(std::abs(turn), 3.0 * std::sqrt(seen.cov[8])) << o.id;
+    // Told each tray's tilt, the fix meets the tilted plane: the turn is gone.
+    site::FleetAgv agv;
+    agv.tray_roll_rad = s.agvs[t->index].tray_roll_rad;
+    agv.tray_pitch_rad = s.agvs[t->index].tray_pitch_rad;
+    TagFix surveyed;
+    ASSERT_TRUE(tag_fix_on_tray(cam, o.corners_px, o.corner_sigma_px, agv, {}, &surveyed));
+    EXPECT_LT(angle_err_deg(surveyed.pose.theta_rad, t->pose.theta_rad), 0.05) << o.id;
   }
   std::printf("[ measured ] 1 deg tilted trays: largest heading turn %.3f deg\n", largest_turn_deg);
   EXPECT_GT(largest_turn_deg, 0.05);

@@ -100,6 +100,9 @@ TEST(SiteFile, WriteThenParseGivesTheSameSite) {
   a.site.cameras[1].r_site_cam = camera_rotation_from_angles(0.3, 0.2, -0.1);
   a.site.cameras[1].position_sigma_mm = {0.38, 0.55, 0.1};
   a.site.cameras[1].angle_sigma_rad = {8e-5, 1.3e-4, 2e-5};
+  ASSERT_FALSE(a.site.fleet.empty());
+  a.site.fleet[0].tray_roll_rad = 0.0123;
+  a.site.fleet[0].tray_pitch_rad = -0.0071;
   const std::string text = write_site(a.site);
   const Result b = parse(text, map_text);
   ASSERT_TRUE(b.ok) << b.all << text;
@@ -163,6 +166,8 @@ TEST(SiteFile, WriteThenParseGivesTheSameSite) {
     EXPECT_EQ(g.tray_length_mm, f.tray_length_mm);
     EXPECT_EQ(g.tray_width_mm, f.tray_width_mm);
     EXPECT_EQ(g.tray_height_mm, f.tray_height_mm);
+    EXPECT_NEAR(g.tray_roll_rad, f.tray_roll_rad, 1e-18);  // written in degrees
+    EXPECT_NEAR(g.tray_pitch_rad, f.tray_pitch_rad, 1e-18);
     EXPECT_EQ(g.radius_mm, f.radius_mm);
     EXPECT_TRUE(same_polygon(g.footprint, f.footprint));
   }
@@ -209,8 +214,9 @@ TEST(SiteFile, ReportsEveryErrorWithKeyAndLine) {
       "  - {id: r1, kind: shelf, height_mm: -5, box_mm: {x_min: 0, y_min: 0, x_max: 1, "
       "y_max: 1}}\n"  // 5: kind, height
       "fleet:\n"
-      "  - {id: a1, tag_id: 587}\n"    // 7: tag id range
-      "  - {id: a2, tag_id: [1]}\n");  // 8: type
+      "  - {id: a1, tag_id: 587}\n"                                         // 7: tag id range
+      "  - {id: a2, tag_id: [1]}\n"                                         // 8: type
+      "  - {id: a3, tag_id: 3, tray: {roll_deg: 20, pitch_deg: .nan}}\n");  // 9: tilt
   EXPECT_FALSE(r.ok);
   EXPECT_TRUE(has_error(r, "clearance_mm", 2, "expected a number")) << r.all;
   EXPECT_TRUE(has_error(r, "outline_mm[1].x", 3, "not a finite number")) << r.all;
@@ -219,7 +225,9 @@ TEST(SiteFile, ReportsEveryErrorWithKeyAndLine) {
   EXPECT_TRUE(has_error(r, "obstacles[0].height_mm", 5, "outside (0,")) << r.all;
   EXPECT_TRUE(has_error(r, "fleet[0].tag_id", 7, "outside [0, 586]")) << r.all;
   EXPECT_TRUE(has_error(r, "fleet[1].tag_id", 8, "expected an integer")) << r.all;
-  EXPECT_EQ(r.errors.size(), 7u) << r.all;
+  EXPECT_TRUE(has_error(r, "fleet[2].tray.roll_deg", 9, "outside [-15, 15]")) << r.all;
+  EXPECT_TRUE(has_error(r, "fleet[2].tray.pitch_deg", 9, "not a finite number")) << r.all;
+  EXPECT_EQ(r.errors.size(), 9u) << r.all;
   for (const auto& e : r.errors) EXPECT_GT(e.line, 0) << e.to_string();
 }
 

@@ -174,9 +174,8 @@ void CameraFrameProcessor::handle_tag(const TagObservation& obs, SearchLevel lev
       return;
     }
     w->found[d.agv] = 1;
-    d.has_fix = tag_fix_on_plane(cameras_[w->camera], obs.corners_px, obs.corner_sigma_px,
-                                 agv.tray_height_mm, agv.tag_size_mm, &d.fix,
-                                 kDefaultMaxSizeErrorRel, tray_plane_);
+    d.has_fix = tag_fix_on_tray(cameras_[w->camera], obs.corners_px, obs.corner_sigma_px, agv,
+                                tray_plane_, &d.fix);
     if (d.has_fix) {
       w->tag_pose[d.agv] = d.fix.pose;
       w->has_tag_pose[d.agv] = 1;

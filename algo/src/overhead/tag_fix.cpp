@@ -41,10 +41,9 @@ struct PlaneSquare {
 // order TL, TR, BR, BL seen from above.
 std::array<Vec2, 4> model_corners(double h) { return {{{h, h}, {h, -h}, {-h, -h}, {-h, h}}}; }
 
-// Least-squares similarity (Procrustes) of the model square onto the points: the centre is the
-// points' mean, the angle and scale closed form.
-PlaneSquare fit_square(const std::array<Vec2, 4>& p, double h) {
-  const std::array<Vec2, 4> q = model_corners(h);
+// Least-squares similarity (Procrustes) of the model corners q (centred on the origin) onto the
+// points: the centre is the points' mean, the angle and scale closed form.
+PlaneSquare fit_model(const std::array<Vec2, 4>& p, const std::array<Vec2, 4>& q) {
   PlaneSquare s;
   for (const Vec2& v : p) s.c.x += 0.25 * v.x, s.c.y += 0.25 * v.y;
   double a = 0, b = 0, qq = 0;
@@ -65,6 +64,20 @@ PlaneSquare fit_square(const std::array<Vec2, 4>& p, double h) {
   }
   s.rms = std::sqrt(ss / 4.0);
   return s;
+}
+
+PlaneSquare fit_square(const std::array<Vec2, 4>& p, double h) {
+  return fit_model(p, model_corners(h));
+}
+
+// The tag's corners on a tray turned by Ry(pitch) Rx(roll), seen from above (dropping z): the
+// square's outline the site frame sees, before the heading turns it.
+std::array<Vec2, 4> tilted_model(double h, double roll_rad, double pitch_rad) {
+  std::array<Vec2, 4> q = model_corners(h);
+  const double cr = std::cos(roll_rad), sr = std::sin(roll_rad);
+  const double cp = std::cos(pitch_rad), sp = std::sin(pitch_rad);
+  for (Vec2& v : q) v = {cp * v.x + sp * sr * v.y, cr * v.y};
+  return q;
 }
 
 bool corners_on_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>& px, double h_mm,
@@ -257,6 +270,63 @@ bool tray_plane_covariance(const site::CeilingCamera& cam, const std::array<Vec2
   return true;
 }
 
+struct Tray {
+  double height_mm, tag_size_mm, roll_rad, pitch_rad;
+};
+
+// The square fitted to the corners cast onto the tray's plane: level, or tilted by the tray's
+// roll and pitch in the vehicle frame, which the fitted heading turns into the site frame (the
+// heights taken at the previous pass's corners; three passes leave well under a micrometre).
+bool fit_on_tray(const site::CeilingCamera& cam, const std::array<Vec2, 4>& px, const Tray& t,
+                 std::array<Vec2, 4>* xy, PlaneSquare* sq) {
+  const double h = 0.5 * t.tag_size_mm;
+  if (!corners_on_plane(cam, px, t.height_mm, xy)) return false;
+  *sq = fit_square(*xy, h);
+  if (t.roll_rad == 0.0 && t.pitch_rad == 0.0) return true;
+  // The plane's slope along the vehicle's x and y (its normal Ry(pitch) Rx(roll) z).
+  const double gxv = -std::tan(t.pitch_rad), gyv = std::tan(t.roll_rad) / std::cos(t.pitch_rad);
+  const std::array<Vec2, 4> model = tilted_model(h, t.roll_rad, t.pitch_rad);
+  for (int pass = 0; pass < 3; ++pass) {
+    const double c = std::cos(sq->theta), s = std::sin(sq->theta);
+    const std::array<Vec2, 4> at = *xy;
+    if (!corners_on_sloped_plane(cam, px, t.height_mm, at, sq->c, c * gxv - s * gyv,
+                                 s * gxv + c * gyv, 0.0, xy)) {
+      return false;
+    }
+    *sq = fit_model(*xy, model);
+  }
+  return true;
+}
+
+bool fix_on_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>& corners_px,
+                  double corner_sigma_px, const Tray& t, double max_size_error_rel,
+                  const TrayPlaneSigma& tray, TagFix* out) {
+  if (!out || !(t.tag_size_mm > 0.0) || !std::isfinite(t.tag_size_mm) ||
+      !(corner_sigma_px >= 0.0) || !std::isfinite(corner_sigma_px) ||
+      !(tray.tilt_rad >= 0.0 && tray.tilt_rad < 0.5 * kPi) || !(tray.height_mm >= 0.0) ||
+      !std::isfinite(tray.height_mm) || !(std::abs(t.roll_rad) < 0.5 * kPi) ||
+      !(std::abs(t.pitch_rad) < 0.5 * kPi)) {
+    return false;
+  }
+  const double h = 0.5 * t.tag_size_mm;
+  std::array<Vec2, 4> xy{};
+  PlaneSquare s;
+  if (!fit_on_tray(cam, corners_px, t, &xy, &s)) return false;
+  if (!(std::abs(s.scale - 1.0) <= max_size_error_rel)) return false;
+  if (!edge_covariance(cam, corners_px, corner_sigma_px, t.height_mm, h, &out->cov)) {
+    return false;
+  }
+  if (!pose_covariance(cam, corners_px, t.height_mm, h, &out->cov_camera) ||
+      !tray_plane_covariance(cam, corners_px, t.height_mm, h, xy, tray, &out->cov_camera)) {
+    return false;
+  }
+  for (std::size_t i = 0; i < 9; ++i) out->cov[i] += out->cov_camera[i];
+  out->pose = {s.c.x, s.c.y, s.theta};
+  out->size_error_rel = s.scale - 1.0;
+  out->residual_mm = s.rms;
+  return true;
+}
+
 }  // namespace tag_fix_detail
 
 bool pixel_to_plane(const site::CeilingCamera& cam, Vec2 px, double plane_height_mm, Vec2* xy_mm) {
@@ -297,29 +367,18 @@ bool site_to_pixel(const site::CeilingCamera& cam, double x_mm, double y_mm, dou
 bool tag_fix_on_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>& corners_px,
                       double corner_sigma_px, double plane_height_mm, double tag_size_mm,
                       TagFix* out, double max_size_error_rel, const TrayPlaneSigma& tray) {
-  using namespace tag_fix_detail;
-  if (!out || !(tag_size_mm > 0.0) || !std::isfinite(tag_size_mm) || !(corner_sigma_px >= 0.0) ||
-      !std::isfinite(corner_sigma_px) || !(tray.tilt_rad >= 0.0 && tray.tilt_rad < 0.5 * kPi) ||
-      !(tray.height_mm >= 0.0) || !std::isfinite(tray.height_mm)) {
-    return false;
-  }
-  const double h = 0.5 * tag_size_mm;
-  std::array<Vec2, 4> xy{};
-  if (!corners_on_plane(cam, corners_px, plane_height_mm, &xy)) return false;
-  const PlaneSquare s = fit_square(xy, h);
-  if (!(std::abs(s.scale - 1.0) <= max_size_error_rel)) return false;
-  if (!edge_covariance(cam, corners_px, corner_sigma_px, plane_height_mm, h, &out->cov)) {
-    return false;
-  }
-  if (!pose_covariance(cam, corners_px, plane_height_mm, h, &out->cov_camera) ||
-      !tray_plane_covariance(cam, corners_px, plane_height_mm, h, xy, tray, &out->cov_camera)) {
-    return false;
-  }
-  for (std::size_t i = 0; i < 9; ++i) out->cov[i] += out->cov_camera[i];
-  out->pose = {s.c.x, s.c.y, s.theta};
-  out->size_error_rel = s.scale - 1.0;
-  out->residual_mm = s.rms;
-  return true;
+  return tag_fix_detail::fix_on_plane(cam, corners_px, corner_sigma_px,
+                                      {plane_height_mm, tag_size_mm, 0.0, 0.0}, max_size_error_rel,
+                                      tray, out);
+}
+
+bool tag_fix_on_tray(const site::CeilingCamera& cam, const std::array<Vec2, 4>& corners_px,
+                     double corner_sigma_px, const site::FleetAgv& agv, const TrayPlaneSigma& sigma,
+                     TagFix* out) {
+  return tag_fix_detail::fix_on_plane(
+      cam, corners_px, corner_sigma_px,
+      {agv.tray_height_mm, agv.tag_size_mm, agv.tray_roll_rad, agv.tray_pitch_rad},
+      kDefaultMaxSizeErrorRel, sigma, out);
 }
 
 }  // namespace agv::overhead

@@ -27,6 +27,8 @@ namespace {
 constexpr double kDegToRad = M_PI / 180.0;
 // Heights, sizes and camera positions: a warehouse is not taller than this.
 constexpr double kMaxHeightMm = 100000.0;
+// A tray tilted further is not a tray a tag can be read on from above.
+constexpr double kMaxTrayTiltDeg = 15.0;
 // A calibration this uncertain is not one: the tracker's fixes would be metres wide.
 constexpr double kMaxPoseSigmaMm = 1000.0;
 constexpr double kMaxPoseSigmaDeg = 10.0;
@@ -205,10 +207,16 @@ void read_fleet_agv(ReadContext* c, const YAML::Node& n, const std::string& path
   if (f.integer("tag_id", 0, kTag36h11MaxId, &tag)) a->tag_id = static_cast<std::uint32_t>(tag);
   f.number("tag_size_mm", 0.0, 5000.0, &a->tag_size_mm, true);
   if (f.has("tray")) {
-    Fields t(c, f.get("tray"), f.path("tray"), {"length_mm", "width_mm", "height_mm"});
+    Fields t(c, f.get("tray"), f.path("tray"),
+             {"length_mm", "width_mm", "height_mm", "roll_deg", "pitch_deg"});
     t.number("length_mm", 0.0, 20000.0, &a->tray_length_mm, true);
     t.number("width_mm", 0.0, 20000.0, &a->tray_width_mm, true);
     t.number("height_mm", 0.0, kMaxHeightMm, &a->tray_height_mm);
+    double roll_deg = 0.0, pitch_deg = 0.0;
+    t.number("roll_deg", -kMaxTrayTiltDeg, kMaxTrayTiltDeg, &roll_deg);
+    t.number("pitch_deg", -kMaxTrayTiltDeg, kMaxTrayTiltDeg, &pitch_deg);
+    a->tray_roll_rad = roll_deg * kDegToRad;
+    a->tray_pitch_rad = pitch_deg * kDegToRad;
   }
   *footprint_line = f.line();
   if (f.has("footprint_mm")) {

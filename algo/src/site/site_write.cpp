@@ -122,7 +122,12 @@ std::string write_site(const Site& s) {
        << "    tag_size_mm: " << fmt_number(a.tag_size_mm) << "\n"
        << "    tray: {length_mm: " << fmt_number(a.tray_length_mm)
        << ", width_mm: " << fmt_number(a.tray_width_mm)
-       << ", height_mm: " << fmt_number(a.tray_height_mm) << "}\n"
+       << ", height_mm: " << fmt_number(a.tray_height_mm);
+    if (a.tray_roll_rad != 0.0 || a.tray_pitch_rad != 0.0) {
+      os << ", roll_deg: " << fmt_number(detail::deg(a.tray_roll_rad))
+         << ", pitch_deg: " << fmt_number(detail::deg(a.tray_pitch_rad));
+    }
+    os << "}\n"
        << "    footprint_mm: " << vertices(a.footprint) << "\n"
        << "    radius_mm: " << fmt_number(a.radius_mm) << "\n";
   }

@@ -38,6 +38,8 @@ struct Options {
   double calib_sigma_mm = -1.0, calib_sigma_deg = -1.0;
   // The trays' departure from level the tracker is told (TrayPlaneSigma): 0 = level trays.
   double tray_tilt_sigma_deg = 0.0, tray_height_sigma_mm = 0.0;
+  // --tray-tilt-surveyed: the tracker's fleet has every tray's true tilt (a surveyed site file).
+  bool tray_tilt_surveyed = false;
   int bit_errors = 0;
   double bit_errors_from_s = 3.0;
   double latency_ms = 30.0, latency_spread_ms = 20.0;
@@ -60,7 +62,7 @@ const char* kUsage =
     "  [--calib-error-mm E] [--calib-error-deg E]\n"
     "  [--calib-sigma-mm S] [--calib-sigma-deg S]\n"
     "  [--tray-tilt-deg D] [--tray-height-error-mm E] [--tray-tilt-sigma-deg S]\n"
-    "  [--tray-height-sigma-mm S]\n"
+    "  [--tray-height-sigma-mm S] [--tray-tilt-surveyed]\n"
     "  [--bit-errors N] [--bit-errors-from-s S] [--latency-ms L] [--latency-spread-ms L]\n"
     "  [--full-sweep-every N] [--apriltag-every N] [--max-wall-s S] [--no-distortion] [--clean]\n"
     "  [--tray-model ONNX] [--reacquire-model ONNX] [--trace-prefix PATH_PREFIX]\n"
@@ -104,6 +106,10 @@ bool parse(int argc, char** argv, Options* o, std::string* error) {
     }
     if (a == "--route-prior") {
       o->route_prior = true;
+      continue;
+    }
+    if (a == "--tray-tilt-surveyed") {
+      o->tray_tilt_surveyed = true;
       continue;
     }
     if (a == "--no-distortion") {
@@ -231,9 +237,9 @@ void print_header(const Options& o, const agv::site::Site& site) {
       o.route_prior ? ", route prior" : "");
   std::printf(
       "  trays: tilted %.2f deg, tags up to %.1f mm off their height; the tracker told "
-      "%.2f deg / %.1f mm\n",
+      "%.2f deg / %.1f mm%s\n",
       o.world.tray_tilt_deg, o.world.tray_height_error_mm, o.tray_tilt_sigma_deg,
-      o.tray_height_sigma_mm);
+      o.tray_height_sigma_mm, o.tray_tilt_surveyed ? ", and every tray's tilt" : "");
   for (const auto& c : site.cameras) {
     std::printf("  camera %s at (%.0f, %.0f, %.0f) mm\n", c.id.c_str(), c.t_site_cam_mm[0],
                 c.t_site_cam_mm[1], c.t_site_cam_mm[2]);
@@ -431,7 +437,12 @@ int run(const Options& o) {
   const std::vector<agv::site::CeilingCamera> believed = believed_cameras(o, site, &rng);
   agv::overhead::SearchParams sp;
   sp.full_sweep_every_frames = o.full_sweep_every;
-  agv::overhead::CameraFrameProcessor proc(believed, site.fleet, {}, sp);
+  std::vector<agv::site::FleetAgv> fleet = site.fleet;
+  for (std::size_t i = 0; o.tray_tilt_surveyed && i < fleet.size(); ++i) {
+    fleet[i].tray_roll_rad = world.tray_roll_rad[i];
+    fleet[i].tray_pitch_rad = world.tray_pitch_rad[i];
+  }
+  agv::overhead::CameraFrameProcessor proc(believed, fleet, {}, sp);
   proc.set_tray_plane_sigma({o.tray_tilt_sigma_deg * agv::kPi / 180.0, o.tray_height_sigma_mm});
   agv::overhead::TrackerParams tp;
   tp.route_prior = o.route_prior;

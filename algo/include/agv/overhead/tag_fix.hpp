@@ -49,6 +49,13 @@ bool tag_fix_on_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>&
                       TagFix* out, double max_size_error_rel = kDefaultMaxSizeErrorRel,
                       const TrayPlaneSigma& tray = {});
 
+// The same for the tag of fleet vehicle `agv`: its tray height and tag size, and its tray's
+// surveyed tilt (FleetAgv::tray_roll_rad, tray_pitch_rad): the corners' rays meet the tilted
+// plane, turned with the fitted heading.
+bool tag_fix_on_tray(const site::CeilingCamera& cam, const std::array<Vec2, 4>& corners_px,
+                     double corner_sigma_px, const site::FleetAgv& agv, const TrayPlaneSigma& sigma,
+                     TagFix* out);
+
 // Site-frame point -> distorted pixel of the camera; false behind it or for non-finite input.
 bool site_to_pixel(const site::CeilingCamera& cam, double x_mm, double y_mm, double z_mm, Vec2* px);
 // Distorted pixel -> the point where its ray meets the plane z = plane_height_mm.

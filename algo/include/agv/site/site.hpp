@@ -73,6 +73,10 @@ struct FleetAgv {
   double tray_length_mm = 600.0;  // along vehicle x
   double tray_width_mm = 400.0;   // along vehicle y
   double tray_height_mm = 400.0;
+  // The tray top's surveyed tilt about its centre: roll about the vehicle's x, then pitch about
+  // its y (positive pitch lowers the front). The overhead tracker casts the tag's corners onto the
+  // tilted plane; 0: level.
+  double tray_roll_rad = 0.0, tray_pitch_rad = 0.0;
   Polygon footprint;  // vehicle frame
   double radius_mm = 400.0;
 };
