@@ -327,9 +327,17 @@ TEST(TagFixGeometry, RenderedTiltedTraysStayWithinTheirSigma) {
   sim::SiteScene s = test::tag_scene(40.0, 6, 2);
   const site::CeilingCamera& cam = s.site.cameras[0];
   const double tilt = 1.0 * kPi / 180.0;
+  // Half of the trays tilted in the site file (surveyed), half beyond it (the vehicle's state).
+  std::vector<site::FleetAgv> surveyed = s.site.fleet;
   for (std::size_t i = 0; i < s.agvs.size(); ++i) {
-    s.agvs[i].tray_roll_rad = tilt * std::cos(1.1 * static_cast<double>(i));
-    s.agvs[i].tray_pitch_rad = tilt * std::sin(1.1 * static_cast<double>(i));
+    surveyed[i].tray_roll_rad = tilt * std::cos(1.1 * static_cast<double>(i));
+    surveyed[i].tray_pitch_rad = tilt * std::sin(1.1 * static_cast<double>(i));
+    if (i % 2 == 0) {
+      s.agvs[i].tray_roll_rad = surveyed[i].tray_roll_rad;
+      s.agvs[i].tray_pitch_rad = surveyed[i].tray_pitch_rad;
+    } else {
+      s.site.fleet[i] = surveyed[i];
+    }
     s.agvs[i].v_mps = s.agvs[i].omega_radps = 0.0;
   }
   const sim::RenderResult r =
@@ -351,12 +359,10 @@ TEST(TagFixGeometry, RenderedTiltedTraysStayWithinTheirSigma) {
     largest_turn_deg = std::max(largest_turn_deg, std::abs(rad_to_deg(turn)));
     EXPECT_LT(std::abs(turn), 3.0 * std::sqrt(seen.cov[8])) << o.id;
     // Told each tray's tilt, the fix meets the tilted plane: the turn is gone.
-    site::FleetAgv agv;
-    agv.tray_roll_rad = s.agvs[t->index].tray_roll_rad;
-    agv.tray_pitch_rad = s.agvs[t->index].tray_pitch_rad;
-    TagFix surveyed;
-    ASSERT_TRUE(tag_fix_on_tray(cam, o.corners_px, o.corner_sigma_px, agv, {}, &surveyed));
-    EXPECT_LT(angle_err_deg(surveyed.pose.theta_rad, t->pose.theta_rad), 0.05) << o.id;
+    TagFix told;
+    ASSERT_TRUE(
+        tag_fix_on_tray(cam, o.corners_px, o.corner_sigma_px, surveyed[t->index], {}, &told));
+    EXPECT_LT(angle_err_deg(told.pose.theta_rad, t->pose.theta_rad), 0.05) << o.id;
   }
   std::printf("[ measured ] 1 deg tilted trays: largest heading turn %.3f deg\n", largest_turn_deg);
   EXPECT_GT(largest_turn_deg, 0.05);

@@ -172,7 +172,8 @@ void add_vehicle(const SiteScene& s, const Pages& pages, size_t i, const Pose2& 
     body = footprint_shape(c, pose.theta_rad, 0.9 * a.tray_length_mm, 0.9 * a.tray_width_mm, 4);
   }
   const double hu = 0.5 * a.tray_width_mm, hv = 0.5 * a.tray_length_mm;
-  const double roll = st.tray_roll_rad, pitch = st.tray_pitch_rad;
+  const double roll = a.tray_roll_rad + st.tray_roll_rad;
+  const double pitch = a.tray_pitch_rad + st.tray_pitch_rad;
   // The plate's walls end below the tilted top's lowest edge, so they never hide it.
   const double dip = hv * std::abs(std::sin(pitch)) + hu * std::abs(std::sin(roll));
   extrude(body, 0.0, th - plate - dip, s.body_grey, true, true, out);

@@ -58,7 +58,8 @@ struct AgvState {
   double v_mps = 0.0;
   double omega_radps = 0.0;
   // The tray top (and its tag) tilted about its centre, which stays at the tray's height: roll
-  // about the vehicle's x, then pitch about its y (a bent tray, a load off centre, a floor step).
+  // about the vehicle's x, then pitch about its y (a bent tray, a load off centre, a floor step),
+  // beyond the site file's surveyed tilt (FleetAgv::tray_roll_rad, tray_pitch_rad; the two add).
   double tray_roll_rad = 0.0, tray_pitch_rad = 0.0;
 };
 
