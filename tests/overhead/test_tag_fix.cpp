@@ -297,8 +297,7 @@ TEST(TagFixGeometry, TraySigmaCoversTiltedAndRaisedTrays) {
         sloped_corners(cam, pose, std::tan(sigma.tilt_rad) * n(rng),
                        std::tan(sigma.tilt_rad) * n(rng), sigma.height_mm * n(rng));
     TagFix f, untold;
-    ASSERT_TRUE(
-        tag_fix_on_plane(cam, c, 0.02, kTrayMm, kTagMm, &f, kDefaultMaxSizeErrorRel, sigma));
+    ASSERT_TRUE(tag_fix_on_tray(cam, c, 0.02, site::FleetAgv{}, sigma, &f));
     ASSERT_TRUE(tag_fix_on_plane(cam, c, 0.02, kTrayMm, kTagMm, &untold));
     const double e[3] = {f.pose.x_mm - pose.x_mm, f.pose.y_mm - pose.y_mm,
                          std::remainder(f.pose.theta_rad - pose.theta_rad, 2 * kPi)};
@@ -350,8 +349,8 @@ TEST(TagFixGeometry, RenderedTiltedTraysStayWithinTheirSigma) {
     for (const auto& a : r.agvs) t = a.tag_id == o.id ? &a : t;
     ASSERT_NE(t, nullptr);
     TagFix seen, truth;
-    ASSERT_TRUE(tag_fix_on_plane(cam, o.corners_px, o.corner_sigma_px, kTrayMm, kTagMm, &seen,
-                                 kDefaultMaxSizeErrorRel, {tilt, 0.0}));
+    ASSERT_TRUE(tag_fix_on_tray(cam, o.corners_px, o.corner_sigma_px, site::FleetAgv{}, {tilt, 0.0},
+                                &seen));
     ASSERT_TRUE(tag_fix_on_plane(cam, t->tag_corners_px, 0.0, kTrayMm, kTagMm, &truth));
     EXPECT_LT(angle_err_deg(seen.pose.theta_rad, truth.pose.theta_rad), 0.05);
     EXPECT_LT(std::hypot(seen.pose.x_mm - truth.pose.x_mm, seen.pose.y_mm - truth.pose.y_mm), 0.5);
@@ -383,10 +382,9 @@ TEST(TagFixGeometry, BadInputRefused) {
   EXPECT_FALSE(tag_fix_on_plane(cam, c, -1.0, kTrayMm, kTagMm, &fix));
   EXPECT_FALSE(tag_fix_on_plane(cam, c, 0.1, kTrayMm, 0.0, &fix));
   EXPECT_FALSE(tag_fix_on_plane(cam, c, 0.1, kTrayMm, kTagMm, nullptr));
-  EXPECT_FALSE(
-      tag_fix_on_plane(cam, c, 0.1, kTrayMm, kTagMm, &fix, kDefaultMaxSizeErrorRel, {-0.01, 0.0}));
-  EXPECT_FALSE(tag_fix_on_plane(cam, c, 0.1, kTrayMm, kTagMm, &fix, kDefaultMaxSizeErrorRel,
-                                {0.0, std::nan("")}));
+  ASSERT_TRUE(tag_fix_on_tray(cam, c, 0.1, site::FleetAgv{}, {0.01, 1.0}, &fix));
+  EXPECT_FALSE(tag_fix_on_tray(cam, c, 0.1, site::FleetAgv{}, {-0.01, 0.0}, &fix));
+  EXPECT_FALSE(tag_fix_on_tray(cam, c, 0.1, site::FleetAgv{}, {0.0, std::nan("")}, &fix));
   std::array<Vec2, 4> nan = c;
   nan[1].y = std::nan("");
   EXPECT_FALSE(tag_fix_on_plane(cam, nan, 0.1, kTrayMm, kTagMm, &fix));

@@ -80,12 +80,42 @@ std::array<Vec2, 4> tilted_model(double h, double roll_rad, double pitch_rad) {
   return q;
 }
 
-bool corners_on_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>& px, double h_mm,
-                      std::array<Vec2, 4>* xy) {
+// Where the ray of normalized camera point xn meets the plane z = h_mm, in the site frame.
+bool ray_to_plane(const site::CeilingCamera& cam, Vec2 xn, double h_mm, Vec2* xy_mm) {
+  const auto& r = cam.r_site_cam;
+  const auto& t = cam.t_site_cam_mm;
+  const double d[3] = {r[0] * xn.x + r[1] * xn.y + r[2], r[3] * xn.x + r[4] * xn.y + r[5],
+                       r[6] * xn.x + r[7] * xn.y + r[8]};
+  if (!(std::abs(d[2]) > 1e-12)) return false;
+  const double s = (h_mm - t[2]) / d[2];  // camera-frame depth along the ray (z = 1)
+  if (!(s >= kMinRangeMm) || !std::isfinite(s)) return false;
+  *xy_mm = {t[0] + s * d[0], t[1] + s * d[1]};
+  return true;
+}
+
+// The corners' undistorted rays: the same for every plane and every camera pose a fix tries (the
+// intrinsics do not change), so the lens is inverted once per corner.
+bool corner_rays(const site::CeilingCamera& cam, const std::array<Vec2, 4>& px,
+                 std::array<Vec2, 4>* xn) {
+  const CameraModel lens = lens_of(cam);
   for (std::size_t i = 0; i < 4; ++i) {
-    if (!pixel_to_plane(cam, px[i], h_mm, &(*xy)[i])) return false;
+    if (!lens.undistort_pixel_to_normalized(px[i], &(*xn)[i])) return false;
   }
   return true;
+}
+
+bool rays_on_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>& xn, double h_mm,
+                   std::array<Vec2, 4>* xy) {
+  for (std::size_t i = 0; i < 4; ++i) {
+    if (!ray_to_plane(cam, xn[i], h_mm, &(*xy)[i])) return false;
+  }
+  return true;
+}
+
+bool corners_on_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>& px, double h_mm,
+                      std::array<Vec2, 4>* xy) {
+  std::array<Vec2, 4> xn{};
+  return corner_rays(cam, px, &xn) && rays_on_plane(cam, xn, h_mm, xy);
 }
 
 // Central-difference steps on the camera's pose: the fix is linear in the translation and
@@ -136,7 +166,7 @@ void add_central_difference(const std::array<Vec2, 4>& xp, const std::array<Vec2
 
 // J diag(sigma^2) J^T of the camera's pose sigma (x, y, theta): a calibration error
 // moves every fix of the camera alike, so a fix is no surer than the pose it is cast through.
-bool pose_covariance(const site::CeilingCamera& cam, const std::array<Vec2, 4>& px,
+bool pose_covariance(const site::CeilingCamera& cam, const std::array<Vec2, 4>& rays,
                      double plane_height_mm, double h, std::array<double, 9>* cov) {
   cov->fill(0.0);
   for (int p = 0; p < 6; ++p) {
@@ -145,8 +175,8 @@ bool pose_covariance(const site::CeilingCamera& cam, const std::array<Vec2, 4>& 
     if (!(sigma > 0.0)) continue;
     const double step = p < 3 ? kPoseStepMm : kPoseStepRad;
     std::array<Vec2, 4> xp{}, xm{};
-    if (!corners_on_plane(moved(cam, p, step), px, plane_height_mm, &xp) ||
-        !corners_on_plane(moved(cam, p, -step), px, plane_height_mm, &xm)) {
+    if (!rays_on_plane(moved(cam, p, step), rays, plane_height_mm, &xp) ||
+        !rays_on_plane(moved(cam, p, -step), rays, plane_height_mm, &xm)) {
       return false;
     }
     add_central_difference(xp, xm, h, step, sigma * sigma, cov);
@@ -237,19 +267,19 @@ constexpr double kSlopeStep = 1e-4;
 constexpr double kHeightStepMm = 0.1;
 
 // The corners' rays met by the tray plane raised by dz at the centre and sloped by (gx, gy)
-// about the level points' centre c.
-bool corners_on_sloped_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>& px,
-                             double h_mm, const std::array<Vec2, 4>& level, Vec2 c, double gx,
-                             double gy, double dz, std::array<Vec2, 4>* xy) {
+// about c, each corner's height taken at its point `at` of a previous cast.
+bool rays_on_sloped_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>& rays,
+                          double h_mm, const std::array<Vec2, 4>& at, Vec2 c, double gx, double gy,
+                          double dz, std::array<Vec2, 4>* xy) {
   for (std::size_t i = 0; i < 4; ++i) {
-    const double z = h_mm + dz + gx * (level[i].x - c.x) + gy * (level[i].y - c.y);
-    if (!pixel_to_plane(cam, px[i], z, &(*xy)[i])) return false;
+    const double z = h_mm + dz + gx * (at[i].x - c.x) + gy * (at[i].y - c.y);
+    if (!ray_to_plane(cam, rays[i], z, &(*xy)[i])) return false;
   }
   return true;
 }
 
 // J diag(sigma^2) J^T of the tray plane's slope along x and y and its height, added to *cov.
-bool tray_plane_covariance(const site::CeilingCamera& cam, const std::array<Vec2, 4>& px,
+bool tray_plane_covariance(const site::CeilingCamera& cam, const std::array<Vec2, 4>& rays,
                            double plane_height_mm, double h, const std::array<Vec2, 4>& level,
                            const TrayPlaneSigma& sigma, std::array<double, 9>* cov) {
   const double slope_sigma = std::tan(sigma.tilt_rad);
@@ -261,8 +291,8 @@ bool tray_plane_covariance(const site::CeilingCamera& cam, const std::array<Vec2
     const double step = q < 2 ? kSlopeStep : kHeightStepMm;
     const double d[3] = {q == 0 ? step : 0.0, q == 1 ? step : 0.0, q == 2 ? step : 0.0};
     std::array<Vec2, 4> xp{}, xm{};
-    if (!corners_on_sloped_plane(cam, px, plane_height_mm, level, c, d[0], d[1], d[2], &xp) ||
-        !corners_on_sloped_plane(cam, px, plane_height_mm, level, c, -d[0], -d[1], -d[2], &xm)) {
+    if (!rays_on_sloped_plane(cam, rays, plane_height_mm, level, c, d[0], d[1], d[2], &xp) ||
+        !rays_on_sloped_plane(cam, rays, plane_height_mm, level, c, -d[0], -d[1], -d[2], &xm)) {
       return false;
     }
     add_central_difference(xp, xm, h, step, s * s, cov);
@@ -277,10 +307,10 @@ struct Tray {
 // The square fitted to the corners cast onto the tray's plane: level, or tilted by the tray's
 // roll and pitch in the vehicle frame, which the fitted heading turns into the site frame (the
 // heights taken at the previous pass's corners; three passes leave well under a micrometre).
-bool fit_on_tray(const site::CeilingCamera& cam, const std::array<Vec2, 4>& px, const Tray& t,
+bool fit_on_tray(const site::CeilingCamera& cam, const std::array<Vec2, 4>& rays, const Tray& t,
                  std::array<Vec2, 4>* xy, PlaneSquare* sq) {
   const double h = 0.5 * t.tag_size_mm;
-  if (!corners_on_plane(cam, px, t.height_mm, xy)) return false;
+  if (!rays_on_plane(cam, rays, t.height_mm, xy)) return false;
   *sq = fit_square(*xy, h);
   if (t.roll_rad == 0.0 && t.pitch_rad == 0.0) return true;
   // The plane's slope along the vehicle's x and y (its normal Ry(pitch) Rx(roll) z).
@@ -289,8 +319,8 @@ bool fit_on_tray(const site::CeilingCamera& cam, const std::array<Vec2, 4>& px, 
   for (int pass = 0; pass < 3; ++pass) {
     const double c = std::cos(sq->theta), s = std::sin(sq->theta);
     const std::array<Vec2, 4> at = *xy;
-    if (!corners_on_sloped_plane(cam, px, t.height_mm, at, sq->c, c * gxv - s * gyv,
-                                 s * gxv + c * gyv, 0.0, xy)) {
+    if (!rays_on_sloped_plane(cam, rays, t.height_mm, at, sq->c, c * gxv - s * gyv,
+                              s * gxv + c * gyv, 0.0, xy)) {
       return false;
     }
     *sq = fit_model(*xy, model);
@@ -309,15 +339,18 @@ bool fix_on_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>& cor
     return false;
   }
   const double h = 0.5 * t.tag_size_mm;
-  std::array<Vec2, 4> xy{};
+  std::array<Vec2, 4> rays{}, xy{};
   PlaneSquare s;
-  if (!fit_on_tray(cam, corners_px, t, &xy, &s)) return false;
+  if (!valid_intrinsics(cam.intrinsics) || !corner_rays(cam, corners_px, &rays) ||
+      !fit_on_tray(cam, rays, t, &xy, &s)) {
+    return false;
+  }
   if (!(std::abs(s.scale - 1.0) <= max_size_error_rel)) return false;
   if (!edge_covariance(cam, corners_px, corner_sigma_px, t.height_mm, h, &out->cov)) {
     return false;
   }
-  if (!pose_covariance(cam, corners_px, t.height_mm, h, &out->cov_camera) ||
-      !tray_plane_covariance(cam, corners_px, t.height_mm, h, xy, tray, &out->cov_camera)) {
+  if (!pose_covariance(cam, rays, t.height_mm, h, &out->cov_camera) ||
+      !tray_plane_covariance(cam, rays, t.height_mm, h, xy, tray, &out->cov_camera)) {
     return false;
   }
   for (std::size_t i = 0; i < 9; ++i) out->cov[i] += out->cov_camera[i];
@@ -333,16 +366,8 @@ bool pixel_to_plane(const site::CeilingCamera& cam, Vec2 px, double plane_height
   using namespace tag_fix_detail;
   if (!xy_mm || !valid_intrinsics(cam.intrinsics) || !std::isfinite(plane_height_mm)) return false;
   Vec2 xn;
-  if (!lens_of(cam).undistort_pixel_to_normalized(px, &xn)) return false;
-  const auto& r = cam.r_site_cam;
-  const auto& t = cam.t_site_cam_mm;
-  const double d[3] = {r[0] * xn.x + r[1] * xn.y + r[2], r[3] * xn.x + r[4] * xn.y + r[5],
-                       r[6] * xn.x + r[7] * xn.y + r[8]};
-  if (!(std::abs(d[2]) > 1e-12)) return false;
-  const double s = (plane_height_mm - t[2]) / d[2];  // camera-frame depth along the ray (z = 1)
-  if (!(s >= kMinRangeMm) || !std::isfinite(s)) return false;
-  *xy_mm = {t[0] + s * d[0], t[1] + s * d[1]};
-  return true;
+  return lens_of(cam).undistort_pixel_to_normalized(px, &xn) &&
+         ray_to_plane(cam, xn, plane_height_mm, xy_mm);
 }
 
 bool site_to_pixel(const site::CeilingCamera& cam, double x_mm, double y_mm, double z_mm,
@@ -366,10 +391,10 @@ bool site_to_pixel(const site::CeilingCamera& cam, double x_mm, double y_mm, dou
 
 bool tag_fix_on_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>& corners_px,
                       double corner_sigma_px, double plane_height_mm, double tag_size_mm,
-                      TagFix* out, double max_size_error_rel, const TrayPlaneSigma& tray) {
+                      TagFix* out, double max_size_error_rel) {
   return tag_fix_detail::fix_on_plane(cam, corners_px, corner_sigma_px,
                                       {plane_height_mm, tag_size_mm, 0.0, 0.0}, max_size_error_rel,
-                                      tray, out);
+                                      {}, out);
 }
 
 bool tag_fix_on_tray(const site::CeilingCamera& cam, const std::array<Vec2, 4>& corners_px,

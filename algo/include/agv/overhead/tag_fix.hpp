@@ -41,17 +41,17 @@ struct TrayPlaneSigma {
 // A fitted square this far off the tag's size is not the tag (a wrong height, a wrong camera).
 constexpr double kDefaultMaxSizeErrorRel = 0.08;
 
-// False when a corner's ray does not meet the plane in front of the camera, the intrinsics are
-// invalid, the tray sigma is negative or not finite, or the fitted square is more than
+// The fix on a level plane taken as exact. False when a corner's ray does not meet the plane in
+// front of the camera, the intrinsics are invalid, or the fitted square is more than
 // max_size_error_rel off tag_size_mm.
 bool tag_fix_on_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>& corners_px,
                       double corner_sigma_px, double plane_height_mm, double tag_size_mm,
-                      TagFix* out, double max_size_error_rel = kDefaultMaxSizeErrorRel,
-                      const TrayPlaneSigma& tray = {});
+                      TagFix* out, double max_size_error_rel = kDefaultMaxSizeErrorRel);
 
-// The same for the tag of fleet vehicle `agv`: its tray height and tag size, and its tray's
-// surveyed tilt (FleetAgv::tray_roll_rad, tray_pitch_rad): the corners' rays meet the tilted
-// plane, turned with the fitted heading.
+// The fix of fleet vehicle `agv`'s tag: its tray height and tag size, its tray's surveyed tilt
+// (FleetAgv::tray_roll_rad, tray_pitch_rad: the corners' rays meet the tilted plane, turned with
+// the fitted heading) and what the tray may still depart from that (sigma). False as
+// tag_fix_on_plane, and for a sigma that is negative or not finite.
 bool tag_fix_on_tray(const site::CeilingCamera& cam, const std::array<Vec2, 4>& corners_px,
                      double corner_sigma_px, const site::FleetAgv& agv, const TrayPlaneSigma& sigma,
                      TagFix* out);
