@@ -5,7 +5,9 @@
 //    decimation 1 and 2;
 //  - TagDetector::detect_predicted at each tag's corners moved 3 px (the predicted path);
 //  - libapriltag (tag36h11, 2 bits, one thread) on the whole frame, decimation 1 and 2, with its
-//    default min_white_black_diff (5) and with the detector's (40).
+//    default min_white_black_diff (5) and with the detector's (40);
+//  - tag_fix_on_tray on each visible tag's corners: level trays told nothing, with the default
+//    tray sigma (0.5 degrees, 2 mm), and with that sigma and a surveyed tilt.
 // Run with --benchmark_repetitions=5 --benchmark_report_aggregates_only=true for medians.
 #include <apriltag/apriltag.h>
 #include <apriltag/tag36h11.h>
@@ -14,6 +16,7 @@
 #include <cstdio>
 
 #include "agv/overhead/tag_detect.hpp"
+#include "agv/overhead/tag_fix.hpp"
 #include "agv/sim/site_render.hpp"
 
 using namespace agv;
@@ -21,9 +24,11 @@ using namespace agv;
 namespace {
 
 struct Bench {
+  site::CeilingCamera camera;
   sim::RenderResult frame;
   std::vector<cv::Rect> windows;
   std::vector<std::array<Vec2, 4>> predicted;
+  std::vector<std::array<Vec2, 4>> corners;  // the fully visible tags' truth corners
   std::vector<std::uint32_t> ids;
 };
 
@@ -55,6 +60,7 @@ const Bench& bench() {
     cc.intrinsics.cy = 1079.5;
     cc.intrinsics.k1 = -0.08;
     cc.intrinsics.k2 = 0.01;
+    out.camera = cc;
     out.frame = sim::render_site_frame(s, sim::RenderCamera::from_ceiling(cc),
                                        sim::realistic_site_params(), 1);
     for (const sim::AgvTruth& t : out.frame.agvs) {
@@ -69,6 +75,7 @@ const Bench& bench() {
       }
       out.windows.emplace_back(static_cast<int>(c.x) - 128, static_cast<int>(c.y) - 128, 256, 256);
       out.predicted.push_back(pred);
+      out.corners.push_back(t.tag_corners_px);
     }
     std::printf("frame %dx%d, %zu of %zu tags fully visible\n", out.frame.image.cols,
                 out.frame.image.rows, out.windows.size(), out.frame.agvs.size());
@@ -129,10 +136,28 @@ void BM_LibapriltagFullFrame(benchmark::State& state) {
   tag36h11_destroy(f);
 }
 
+void BM_TagFix(benchmark::State& state) {
+  const Bench& b = bench();
+  site::FleetAgv agv;
+  overhead::TrayPlaneSigma sigma;
+  if (state.range(0) >= 1) sigma = {0.0087, 2.0};
+  if (state.range(0) == 2) agv.tray_roll_rad = 0.01, agv.tray_pitch_rad = -0.01;
+  std::size_t i = 0, ok = 0, calls = 0;
+  for (auto _ : state) {
+    overhead::TagFix f;
+    ok += overhead::tag_fix_on_tray(b.camera, b.corners[i], 0.1, agv, sigma, &f) ? 1 : 0;
+    ++calls;
+    i = (i + 1) % b.corners.size();
+    benchmark::DoNotOptimize(f);
+  }
+  state.counters["fixed_share"] = static_cast<double>(ok) / static_cast<double>(calls);
+}
+
 }  // namespace
 
 BENCHMARK(BM_DetectWindow256)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DetectPredicted)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_TagFix)->Arg(0)->Arg(1)->Arg(2)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_LibapriltagFullFrame)
     ->Args({1, 5})
     ->Args({1, 40})
