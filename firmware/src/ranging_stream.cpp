@@ -77,6 +77,7 @@ void RackObserver::observe(const cv::Mat& gray, const ranging::PosePrior* prior,
     r.sensor.range_mm = s.range_mm;
     r.sensor.bearing_rad = s.bearing_rad;
     r.sensor.R = s.R;
+    r.sensor.R_systematic = s.R_systematic;
   }
   counts->landmarks += rec->n;
 }

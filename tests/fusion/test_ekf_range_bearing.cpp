@@ -266,7 +266,18 @@ TEST(FusionRangeBearing, NeverInitialisesAndRefusesBadInput) {
   bad = good;
   bad.landmark_xy_mm = truth_at(0).x_mm * Eigen::Vector2d::UnitX() + kSensorMm;  // at the sensor
   EXPECT_EQ(ekf.add_range_bearing(0, bad), FixOutcome::kRejectedInvalid);
-  EXPECT_EQ(ekf.counters().range_bearing_rejected_invalid, 5u);
+  bad = good;
+  bad.common_bearing_sigma_rad = -1e-3;
+  EXPECT_EQ(ekf.add_range_bearing(0, bad), FixOutcome::kRejectedInvalid);
+  bad.common_bearing_sigma_rad = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(ekf.add_range_bearing(0, bad), FixOutcome::kRejectedInvalid);
+  bad = good;
+  bad.R_systematic = 2.0 * good.R;  // more repeats than there is
+  EXPECT_EQ(ekf.add_range_bearing(0, bad), FixOutcome::kRejectedInvalid);
+  bad.R_systematic = good.R;
+  bad.R_systematic(0, 0) = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(ekf.add_range_bearing(0, bad), FixOutcome::kRejectedInvalid);
+  EXPECT_EQ(ekf.counters().range_bearing_rejected_invalid, 9u);
   EXPECT_EQ(ekf.add_range_bearing(0, good), FixOutcome::kFused);
   EXPECT_EQ(ekf.counters().range_bearing_fused, 1u);
 }
@@ -420,4 +431,95 @@ TEST(FusionRangeBearing, FramesOfOneMapErrorDoNotShrinkTheSigmaAlongTheSightBelo
   EXPECT_EQ(ekf.counters().range_bearing_rejected_gate, 0u);
   EXPECT_GT(std::sqrt(e.cov(0, 0)), 0.8);
   EXPECT_LT(std::abs(err(0)), 3.0 * std::sqrt(e.cov(0, 0))) << err.transpose();
+}
+
+TEST(FusionRangeBearing, ASensorsYawErrorIsNotAveragedAwayOverFrames) {
+  // The camera is mounted 0.5 deg off the yaw it is calibrated at, and says so
+  // (common_bearing_sigma_rad 0.3 deg); every frame is exact otherwise and precise. Fused as
+  // independent the frames would drive the heading sigma far below the turn they all share.
+  const double mount_error_rad = deg_to_rad(0.5), common_sigma_rad = deg_to_rad(0.3);
+  auto run = [&](double told_sigma_rad, double prior_deg, double yaw_error_rad) {
+    EkfConfig c = consistent_config();
+    std::mt19937 rng(5);
+    Ekf ekf(c);
+    ASSERT_TRUE(ekf.add_odometry(0, 1.0, 0.0));
+    ASSERT_TRUE(ekf.set_pose(0, truth_at(0), prior_cov(20.0, prior_deg)));
+    for (std::int64_t t = kOdomPeriodNs; t <= 2 * kS; t += kOdomPeriodNs) {
+      ASSERT_TRUE(ekf.add_odometry(t, 1.0, 0.0));
+      if (t % (100 * kMs) != 0) continue;
+      for (const Eigen::Vector2d& lm : kLandmarks) {
+        RangeBearingObs o = observe(truth_at(t), lm, nullptr);
+        o.bearing_rad -= yaw_error_rad;
+        o.R = Eigen::Vector2d(1.0, 1e-8).asDiagonal();
+        o.common_bearing_sigma_rad = told_sigma_rad;
+        ekf.add_range_bearing(t, o);
+      }
+    }
+    const PoseEstimate e = ekf.estimate_at(2 * kS);
+    const double err_rad = std::abs(error(e, truth_at(2 * kS))(2));
+    if (told_sigma_rad == 0.0) {
+      EXPECT_GT(err_rad, 10.0 * std::sqrt(e.cov(2, 2)));  // what the floor is for
+    } else if (prior_deg > rad_to_deg(told_sigma_rad)) {
+      EXPECT_NEAR(std::sqrt(e.cov(2, 2)), told_sigma_rad, 1e-3 * told_sigma_rad);
+      EXPECT_LT(err_rad, 3.0 * std::sqrt(e.cov(2, 2)));
+    } else {
+      // A heading already better than the sensor's yaw is not made better by it.
+      EXPECT_EQ(ekf.counters().range_bearing_fused, 40u);
+      EXPECT_GE(std::sqrt(e.cov(2, 2)), 0.999 * deg_to_rad(prior_deg));
+    }
+  };
+  run(0.0, 2.0, mount_error_rad);
+  run(common_sigma_rad, 2.0, mount_error_rad);
+  run(common_sigma_rad, 0.1, 0.0);
+}
+
+TEST(FusionRangeBearing, ARepeatedRangeAndBearingErrorIsNotAveragedAwayOverFrames) {
+  // Every frame's ranges 1 % long and bearings 1 mrad off alike for each landmark in turn (a
+  // focal length and a lens calibration slightly off), the frames otherwise precise; the
+  // observations say which share of R repeats. Not told, the frames shrink the reported position
+  // sigma below that error; told, the reported covariance keeps it, the filter's own state is
+  // the same (the frames' noise still averages), and a floor fix is weighed against it and
+  // clears it.
+  struct Run {
+    PoseEstimate end, after_fix;
+    double nees = 0.0;
+    FixOutcome floor_fix = FixOutcome::kRejectedInvalid;
+  };
+  auto run = [](bool told) {
+    EkfConfig c = consistent_config();
+    Ekf ekf(c);
+    std::mt19937 rng(9);
+    drive_frames(&ekf, c, &rng, [&](std::int64_t t, std::size_t) {
+      for (int i = 0; i < 2; ++i) {
+        RangeBearingObs o = observe(truth_at(t), kLandmarks[i], nullptr);
+        o.range_mm *= 1.01;
+        o.bearing_rad += i == 0 ? 1e-3 : -1e-3;
+        const Eigen::Matrix2d S =
+            Eigen::Vector2d(std::pow(0.01 * o.range_mm, 2), 1e-6).asDiagonal();
+        o.R = Eigen::Vector2d(0.25, 1e-8).asDiagonal();
+        o.R += S;
+        if (told) o.R_systematic = S;
+        ekf.add_range_bearing(t, o);
+      }
+    });
+    Run r;
+    r.end = ekf.estimate_at(kStepDriveNs);
+    const Eigen::Vector2d err = error(r.end, truth_at(kStepDriveNs)).head<2>();
+    r.nees = err.dot(r.end.cov.topLeftCorner<2, 2>().ldlt().solve(err));
+    r.floor_fix = ekf.add_fix(kStepDriveNs, truth_at(kStepDriveNs), prior_cov(0.5, 0.05), true);
+    r.after_fix = ekf.estimate_at(kStepDriveNs);
+    return r;
+  };
+  const Run untold = run(false), told = run(true);
+  std::printf("position NEES (2 dof): not told %.1f, told %.2f; sigma %.2f / %.2f mm\n",
+              untold.nees, told.nees, untold.end.position_sigma_mm, told.end.position_sigma_mm);
+  EXPECT_GT(untold.nees, 11.83);  // outside 3 sigma
+  EXPECT_LT(told.nees, 11.83);
+  EXPECT_EQ(told.end.pose.x_mm, untold.end.pose.x_mm);
+  EXPECT_EQ(told.end.pose.y_mm, untold.end.pose.y_mm);
+  EXPECT_EQ(told.end.pose.theta_rad, untold.end.pose.theta_rad);
+  EXPECT_GT(told.end.position_sigma_mm, 2.0 * untold.end.position_sigma_mm);
+  EXPECT_EQ(told.floor_fix, FixOutcome::kFused);
+  EXPECT_LT(told.after_fix.position_sigma_mm, 1.0);
+  EXPECT_LT(error(told.after_fix, truth_at(kStepDriveNs)).head<2>().norm(), 1.0);
 }

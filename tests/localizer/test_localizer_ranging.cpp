@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
@@ -474,6 +475,105 @@ TEST(LocalizerRanging, TheMountsYawDoubtIsInTheInitialisingFixsHeadingSigma) {
   ASSERT_GT(told, 0.0);
   EXPECT_LT(told, 2.0);
   EXPECT_GT(untold, 3.0);
+}
+
+// Two landmarks 5-6 m away, 35 deg apart: one frame's fix is 20-100 mm across the baseline.
+const std::vector<Landmark> kFarTwo = {{{5000.0, 1900.0}}, {{5200.0, -1400.0}}};
+
+// The worst-axis position sigma of a noise-free frame's fix from lms at kTruth.
+double single_fix_sd_mm(const std::vector<Landmark>& lms) {
+  std::vector<ranging::Observation> in;
+  std::mt19937 rng(1);
+  for (const Landmark& l : lms) {
+    localizer::RackObservation o = observe(kTruth, l, l.xy_mm, &rng);
+    in.push_back(o.vehicle);
+  }
+  const ranging::FixResult f = ranging::fix_from_landmarks(in, ranging::FixOptions{});
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(f.cov.topLeftCorner<2, 2>());
+  return f.status == ranging::FixStatus::kOk ? std::sqrt(eig.eigenvalues().maxCoeff()) : -1.0;
+}
+
+// Standing at kTruth for 1 s; every frame's landmarks also carry an error that repeats in all of
+// them (range scale, bearing offset: a calibration's), drawn once, of which the observations say
+// so (systematic_cov) when told. The first valid pose's NEES (3 dof), -1 when none.
+double stacked_init_nees(const localizer::LocalizerConfig& c, const std::vector<Landmark>& lms,
+                         bool told, std::mt19937* rng) {
+  constexpr double kScaleSd = 0.002, kBearingSd = 1e-3;
+  std::normal_distribution<double> n01(0.0, 1.0);
+  const double scale = kScaleSd * n01(*rng), offset = kBearingSd * n01(*rng);
+  localizer::Localizer loc(c);
+  for (std::int64_t t = 0, next_frame = 0; t <= 1000 * kMs; t += kOdomPeriodNs) {
+    loc.on_odometry(t, 0.0, 0.0);
+    if (t < next_frame) continue;
+    std::vector<localizer::RackObservation> obs = frame(kTruth, lms, true_map(lms), rng);
+    for (localizer::RackObservation& o : obs) {
+      const Eigen::Matrix2d S =
+          Eigen::Vector2d(std::pow(kScaleSd * o.vehicle.range_mm, 2), kBearingSd * kBearingSd)
+              .asDiagonal();
+      o.vehicle.range_mm *= 1.0 + scale;
+      o.vehicle.bearing_rad += offset;
+      o.vehicle.cov += S;
+      if (told) o.vehicle.systematic_cov.topLeftCorner<2, 2>() = S;
+    }
+    loc.on_ranging(next_frame, obs);
+    next_frame += kFramePeriodNs;
+    loc.set_camera_state(t, false, false);
+    const localizer::TickRecord rec = loc.tick(t);
+    if (!rec.pose_valid) continue;
+    const fusion::PoseEstimate& e = rec.estimate;
+    const Eigen::Vector3d err(e.pose.x_mm - kTruth.x_mm, e.pose.y_mm - kTruth.y_mm,
+                              wrap_angle_rad(e.pose.theta_rad - kTruth.theta_rad));
+    return err.dot(e.cov.topLeftCorner<3, 3>().ldlt().solve(err));
+  }
+  return -1.0;
+}
+
+TEST(LocalizerRanging, StackedFramesInitialiseWhereOneFrameIsTooUncertain) {
+  const double sd = single_fix_sd_mm(kFarTwo);
+  std::printf("one frame's fix: %.1f mm worst-axis sigma\n", sd);
+  ASSERT_GT(sd, localizer::RangingAidConfig{}.init_position_sd_mm);  // the premise
+  ASSERT_LT(sd, localizer::rack_fix_options().max_position_sd_mm);
+  localizer::LocalizerConfig single = config();
+  single.ranging.stack_fixes = false;
+  std::mt19937 rng(21);
+  localizer::Localizer alone(single);
+  EXPECT_LT(stand(&alone, 0, 1000 * kMs, kFarTwo, true_map(kFarTwo), &rng).first_valid_ns, 0);
+
+  localizer::Localizer stacked(config());
+  const StandRun r = stand(&stacked, 0, 1000 * kMs, kFarTwo, true_map(kFarTwo), &rng);
+  ASSERT_GE(r.first_valid_ns, 0) << "never localized";
+  const fusion::PoseEstimate& e = r.last.estimate;
+  const double err_mm = std::hypot(e.pose.x_mm - kTruth.x_mm, e.pose.y_mm - kTruth.y_mm);
+  std::printf("stacked: localized after %.0f ms; at 1 s %.1f mm off, sigma %.1f mm\n",
+              static_cast<double>(r.first_valid_ns) / 1e6, err_mm, e.position_sigma_mm);
+  EXPECT_LE(r.first_valid_ns, 1000 * kMs);
+  EXPECT_LT(err_mm, 3.0 * e.position_sigma_mm);
+  EXPECT_EQ(stacked.stats().ranging_initialisations, 1u);
+}
+
+TEST(LocalizerRanging, AnErrorEveryFrameRepeatsIsNotAveragedAwayByTheStack) {
+  // 40 vehicles switched on, each with its own calibration error: told which share of each
+  // observation's covariance repeats, the stacked pose that initialises covers its error. The
+  // limit is widened so that the stack can start the filter with that share in it, and it takes
+  // twelve frames (0.73 s) so that the share would be averaged down if it were not told.
+  localizer::LocalizerConfig c = config();
+  c.ranging.init_position_sd_mm = 30.0;
+  c.ranging.init_fixes = 12;
+  int outside[2] = {0, 0}, localized[2] = {0, 0};
+  for (int told = 0; told < 2; ++told) {
+    std::mt19937 rng(77);
+    for (int k = 0; k < 40; ++k) {
+      const double nees = stacked_init_nees(c, kFarTwo, told == 1, &rng);
+      if (nees < 0.0) continue;
+      ++localized[told];
+      outside[told] += nees > 14.16;
+    }
+  }
+  std::printf("repeated errors, 40 runs: not told %d of %d outside 3 sigma, told %d of %d\n",
+              outside[0], localized[0], outside[1], localized[1]);
+  EXPECT_GE(localized[1], 36);
+  EXPECT_LE(outside[1], 2);
+  EXPECT_GT(outside[0], outside[1] + 4);
 }
 
 }  // namespace

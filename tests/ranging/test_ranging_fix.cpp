@@ -194,10 +194,10 @@ TEST(RangingFix, CovarianceSizeCheckRefusesAPoorlyDeterminedFix) {
                                         observe(truth, {7000.0, 1500.0}, 70.0, 3e-4)};
   const FixResult loose = fix_from_landmarks(obs, FixOptions{});
   ASSERT_EQ(loose.status, FixStatus::kOk);
-  const double worst_sd = std::sqrt(
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(loose.cov.topLeftCorner<2, 2>())
-          .eigenvalues()
-          .maxCoeff());
+  const double worst_sd =
+      std::sqrt(Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(loose.cov.topLeftCorner<2, 2>())
+                    .eigenvalues()
+                    .maxCoeff());
   FixOptions strict;
   strict.max_position_sd_mm = 0.9 * worst_sd;
   EXPECT_EQ(fix_from_landmarks(obs, strict).status, FixStatus::kShallowGeometry);
@@ -332,6 +332,40 @@ TEST(RangingFix, AWrongMapEntryIsRefusedOrFlaggedAsUncheckable) {
     ok3 += fix_from_landmarks(noisy_trial(rng3, 3, 0.0).obs, strict).status == FixStatus::kOk;
   }
   EXPECT_GE(ok3, 45);
+}
+
+TEST(RangingFix, TheSystematicShareOfAFixIsItsResponseToTheRepeatedShares) {
+  // A fix's covariance is its response to the observations' covariances (cov J^T W R W J cov):
+  // the shares its observations say repeat give that part of it, all of them all of it, none
+  // nothing; with face yaws too.
+  const Pose2 truth{3000.0, 2000.0, -1.0};
+  std::vector<Observation> obs = {observe(truth, {8000.0, 0.0}, 30.0, 1e-3),
+                                  observe(truth, {6000.0, -4000.0}, 40.0, 2e-3),
+                                  observe(truth, {0.0, -5000.0}, 20.0, 1e-3)};
+  obs[1].has_face_yaw = true;
+  obs[1].face_yaw_rad = wrap_angle_rad(0.4 - truth.theta_rad);
+  obs[1].landmark_facing_rad = 0.4;
+  obs[1].face_yaw_var_rad2 = 1e-4;
+  obs[1].face_yaw_cov = Eigen::Vector2d(0.01, 1e-7);
+  const FixResult f = fix_from_landmarks(obs, FixOptions{});
+  ASSERT_EQ(f.status, FixStatus::kOk);
+  EXPECT_TRUE(fix_systematic_cov(obs, f).isZero(0.0));
+  for (const double share : {0.3, 1.0}) {
+    std::vector<Observation> told = obs;
+    for (Observation& o : told) {
+      o.systematic_cov.topLeftCorner<2, 2>() = share * o.cov;
+      if (!o.has_face_yaw) continue;
+      o.systematic_cov(2, 2) = share * o.face_yaw_var_rad2;
+      o.systematic_cov.block<2, 1>(0, 2) = share * o.face_yaw_cov;
+      o.systematic_cov.block<1, 2>(2, 0) = share * o.face_yaw_cov.transpose();
+    }
+    const Eigen::Matrix3d S = fix_systematic_cov(told, f);
+    EXPECT_LE((S - share * f.cov).cwiseAbs().maxCoeff(), 1e-6 * f.cov.cwiseAbs().maxCoeff())
+        << share;
+  }
+  FixResult refused = f;
+  refused.status = FixStatus::kInconsistent;
+  EXPECT_TRUE(fix_systematic_cov(obs, refused).isZero(0.0));
 }
 
 }  // namespace

@@ -533,5 +533,40 @@ TEST_F(RangingObserve, MountRollAndPitchUncertaintyWidensEachBearing) {
   }
 }
 
+TEST_F(RangingObserve, TheCalibrationsShareOfEachCovarianceIsSaidToRepeat) {
+  // What the mount's and the calibration's doubt add is the share of each covariance that every
+  // frame repeats (averaging frames must not shrink it); the corners' own share is the rest.
+  ObserveOptions opt;
+  opt.mount_sigma_rad = deg_to_rad(0.5);
+  opt.mount_sigma_mm = 3.0;
+  opt.calibration_sigma_px = 0.5;
+  opt.focal_sigma_rel = 0.002;
+  const LandmarkObserver plain(small_camera(), forward_mount(), scene_->site.wall_landmarks);
+  const LandmarkObserver wide(small_camera(), forward_mount(), scene_->site.wall_landmarks, opt);
+  const ObserveResult a = plain.observe(frame_->image), b = wide.observe(frame_->image);
+  ASSERT_EQ(a.seen.size(), b.seen.size());
+  ASSERT_GE(a.seen.size(), 3u);
+  for (std::size_t i = 0; i < a.seen.size(); ++i) {
+    const LandmarkObservation &p = a.seen[i], &w = b.seen[i];
+    EXPECT_TRUE(p.pose.systematic_cov.isZero(0.0));
+    EXPECT_GT(w.pose.systematic_cov(0, 0), 0.0);
+    EXPECT_LE((w.pose.cov - w.pose.systematic_cov - p.pose.cov).cwiseAbs().maxCoeff(),
+              1e-9 * p.pose.cov.cwiseAbs().maxCoeff());
+    EXPECT_LE((w.size.cov - w.size.systematic_cov - p.size.cov).cwiseAbs().maxCoeff(),
+              1e-9 * p.size.cov.cwiseAbs().maxCoeff());
+    const Observation o = fix_observation(w);
+    EXPECT_EQ(o.systematic_cov(0, 0), w.pose.systematic_cov(0, 0));
+    EXPECT_EQ(o.systematic_cov(1, 1), w.pose.systematic_cov(1, 1));
+    const SensorRangeBearing s0 = sensor_range_bearing(forward_mount(), p);
+    const SensorRangeBearing s1 =
+        sensor_range_bearing(forward_mount(), w, opt.mount_sigma_rad, opt.mount_sigma_mm);
+    EXPECT_TRUE(s0.R_systematic.isZero(0.0));
+    EXPECT_GT(s1.R_systematic(0, 0), 0.0);
+    EXPECT_GT(s1.R_systematic(1, 1), 0.0);
+    EXPECT_LE((s1.R - s1.R_systematic - s0.R).cwiseAbs().maxCoeff(),
+              1e-9 * s0.R.cwiseAbs().maxCoeff());
+  }
+}
+
 }  // namespace
 }  // namespace agv::ranging

@@ -101,6 +101,9 @@ FixOutcome Ekf::fuse_fix(std::int64_t t_ns, const Pose2& z_world, const Eigen::M
   prior.x = base.x;
   prior.P = base.P;
   predict_span(&prior.x, &prior.P, base.t_ns, t_ns, odom_time_after(base));
+  // What the rack landmarks' repeated errors may have moved the state by: a floor fix is
+  // independent of them, weighed and gated against it, and clears it once fused.
+  prior.P.topLeftCorner<2, 2>() += repeated_share_excess(prior.P.topLeftCorner<2, 2>());
   const FixOutcome gated = gate_fix(t_ns, z, R, R_in, map_verified, map_guided, &prior);
   if (gated != FixOutcome::kFused) return gated;
   return fuse_gated_fix(t_ns, z, R, &prior);
@@ -214,6 +217,7 @@ FixOutcome Ekf::fuse_gated_fix(std::int64_t t_ns, const Eigen::Vector3d& z,
   bool delayed = false;
   const std::size_t i = insert_measurement(ev, &delayed);
   track_restart(i);
+  rb_repeated_floor_.setZero();
   ++counters_.fixes_fused;
   pending_flags_ |= flags::kFusedFix;
   if (delayed) {

@@ -16,6 +16,7 @@
 // map entry never gets there alone: seen among correct landmarks, they are fused between; seen
 // alone frame after frame, it is always the same landmark.
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -34,6 +35,7 @@ constexpr double kMinRangeMm = 1.0;
 struct RangeBearingModel {
   detail::MeasRow<2> H = detail::MeasRow<2>::Zero();
   Eigen::Vector2d nu = Eigen::Vector2d::Zero();  // innovation, bearing wrapped
+  double range_mm = 0.0;                         // predicted
 };
 
 // h(x), its Jacobian and the innovation at x; false when the landmark is predicted at the sensor.
@@ -57,6 +59,7 @@ bool range_bearing_model(const FilterVec& x, const RangeBearingObs& obs, RangeBe
   m->H(1, kIx) = dy / r2;
   m->H(1, kIy) = -dx / r2;
   m->H(1, kItheta) = -(dx * ox + dy * oy) / r2 - 1.0;
+  m->range_mm = r;
   m->nu(0) = obs.range_mm - r;
   m->nu(1) = wrap_angle_rad(obs.bearing_rad - bearing);
   return true;
@@ -76,12 +79,43 @@ void keep_floor_along_sight(const RangeBearingModel& m, double range_floor_mm, F
   if (add > 0.0) P->block<2, 2>(kIx, kIx) += add * u * u.transpose();
 }
 
+// The position covariance an observation's repeated share (RangeBearingObs::R_systematic) alone
+// leaves: its range share along the line of sight, its bearing share times the range squared
+// across it.
+Eigen::Matrix2d repeated_floor(const RangeBearingModel& m, const Eigen::Matrix2d& R_systematic) {
+  const Eigen::Vector2d u(-m.H(0, kIx), -m.H(0, kIy));
+  const Eigen::Vector2d across(-u.y(), u.x());
+  return R_systematic(0, 0) * u * u.transpose() +
+         R_systematic(1, 1) * m.range_mm * m.range_mm * across * across.transpose();
+}
+
+// The positive semi-definite part of a symmetric 2x2 matrix.
+Eigen::Matrix2d psd_part(const Eigen::Matrix2d& M) {
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(0.5 * (M + M.transpose()));
+  if (eig.info() != Eigen::Success) return Eigen::Matrix2d::Zero();
+  const Eigen::Vector2d l = eig.eigenvalues().cwiseMax(0.0);
+  return eig.eigenvectors() * l.asDiagonal() * eig.eigenvectors().transpose();
+}
+
+// The sensor's yaw error is common to all its bearings (RangeBearingObs::common_bearing_sigma_rad):
+// an update never takes the heading variance below the smaller of its prior and that error's.
+void keep_heading_floor(double prior_var_rad2, double common_sigma_rad, FilterCov* P) {
+  const double floor = std::min(prior_var_rad2, common_sigma_rad * common_sigma_rad);
+  if ((*P)(kItheta, kItheta) < floor) (*P)(kItheta, kItheta) = floor;
+}
+
 bool valid_observation(const RangeBearingObs& obs) {
+  if (!std::isfinite(obs.common_bearing_sigma_rad) || obs.common_bearing_sigma_rad < 0.0)
+    return false;
   if (!obs.landmark_xy_mm.allFinite() || !obs.sensor_xy_mm.allFinite() ||
       !std::isfinite(obs.sensor_yaw_rad) || !std::isfinite(obs.range_mm) ||
       !std::isfinite(obs.bearing_rad) || !obs.R.allFinite())
     return false;
   if (!(obs.range_mm > 0.0)) return false;
+  const Eigen::Matrix2d& S = obs.R_systematic;
+  if (!S.allFinite() || !(S(0, 0) >= 0.0 && S(1, 1) >= 0.0) || S(0, 0) > obs.R(0, 0) ||
+      S(1, 1) > obs.R(1, 1) || S(0, 0) * S(1, 1) < S(0, 1) * S(1, 0))
+    return false;
   const double scale = obs.R.cwiseAbs().maxCoeff();
   if (!(std::abs(obs.R(0, 1) - obs.R(1, 0)) <= 1e-9 * scale)) return false;
   return obs.R(0, 0) > 0.0 && obs.R(1, 1) > 0.0 &&
@@ -103,8 +137,10 @@ FixOutcome Ekf::reject_range_bearing_too_old() {
 void Ekf::update_range_bearing(FilterVec* x, FilterCov* P, const RangeBearingObs& obs) const {
   RangeBearingModel m;
   if (!range_bearing_model(*x, obs, &m)) return;  // replayed onto a prior at the landmark
+  const double prior_heading_var = (*P)(kItheta, kItheta);
   detail::joseph_update<2>(x, P, m.H, m.nu, obs.R);
   keep_floor_along_sight(m, config_.range_bearing.range_floor_sigma_mm, P);
+  keep_heading_floor(prior_heading_var, obs.common_bearing_sigma_rad, P);
   (*x)(kItheta) = wrap_angle_rad((*x)(kItheta));
 }
 
@@ -142,8 +178,12 @@ FixOutcome Ekf::add_range_bearing(std::int64_t t_exposure_ns, const RangeBearing
   track_rb_fused_t_ns_ = std::max(track_rb_fused_t_ns_, t_ns);
 
   // Fuse at the exposure and re-propagate newer events.
+  const double prior_heading_var = P(kItheta, kItheta);
   detail::joseph_update<2>(&x, &P, m.H, m.nu, eff.R);
   keep_floor_along_sight(m, c.range_floor_sigma_mm, &P);
+  if (!obs.R_systematic.isZero(0.0))
+    rb_repeated_floor_ += psd_part(repeated_floor(m, obs.R_systematic) - rb_repeated_floor_);
+  keep_heading_floor(prior_heading_var, eff.common_bearing_sigma_rad, &P);
   x(kItheta) = wrap_angle_rad(x(kItheta));
   Event ev;
   ev.t_ns = t_ns;
@@ -287,6 +327,11 @@ bool Ekf::range_bearing_unseen_slip(std::int64_t t_ns, const RangeBearingObs& ob
   ++counters_.range_bearing_unseen_slips;
   pending_flags_ |= flags::kWheelSlip;
   return true;
+}
+
+Eigen::Matrix2d Ekf::repeated_share_excess(const Eigen::Matrix2d& P_xy) const {
+  if (rb_repeated_floor_.isZero(0.0)) return Eigen::Matrix2d::Zero();
+  return psd_part(rb_repeated_floor_ - P_xy);
 }
 
 Eigen::Matrix3d Ekf::unconfirmed_slip_cov(std::int64_t t_ns, const Eigen::Vector2d& p_mm) const {

@@ -196,6 +196,7 @@ void Ekf::initialise_at(std::int64_t t_ns, const FilterVec& x, const FilterCov& 
   counters_.events_replayed += size_ - i - 1;
   initialised_ = true;
   track_restart(i);
+  rb_repeated_floor_.setZero();
   t_init_ns_ = t_ns;
   have_fix_ = true;
   last_fix_t_ns_ = t_ns;

@@ -57,6 +57,7 @@ PoseEstimate Ekf::estimate_at(std::int64_t t_ns) const {
   FilterVec x = base.x;
   FilterCov P = base.P;
   predict_span(&x, &P, base.t_ns, t_ns, odom_time_after(base));
+  P.topLeftCorner<2, 2>() += repeated_share_excess(P.topLeftCorner<2, 2>());
   e.valid = true;
   e.pose = {x(kIx), x(kIy), wrap_angle_rad(x(kItheta))};
   e.v_mps = x(kIv);
@@ -79,7 +80,8 @@ PoseEstimate Ekf::estimate_at(std::int64_t t_ns) const {
   } else {
     e.health = HealthState::kDeadReckoning;
   }
-  // Reported only: health, gates and the state stay with the filter's own P.
+  // Reported only: health, gates and the state stay with the filter's own P (and the repeated
+  // share's excess above).
   e.cov.topLeftCorner<3, 3>() += unconfirmed_slip_cov(t_ns, Eigen::Vector2d(x(kIx), x(kIy)));
   return e;
 }

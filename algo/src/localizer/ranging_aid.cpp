@@ -5,8 +5,11 @@
 // is), so a filter whose position is unknown re-initialises only from two agreeing fixes. Here
 // each fix already needs two landmarks and an OK status (not too few, shallow, ambiguous,
 // inconsistent ...), and init_fixes consecutive fixes must agree, the earlier carried to the
-// later by the odometry. What no rule inside two-landmark fixes can catch, a wrong map entry
-// that keeps their chi-square small, is in docs/design/ranging.md.
+// later by the odometry. The agreeing fixes are stacked: a vehicle at rest sees the same
+// landmarks in every frame, and each frame's noise is its own while the calibration's share of
+// the covariance repeats, so the stack averages the one and keeps the other once; it initialises
+// when within init_position_sd_mm. What no rule inside two-landmark fixes can catch, a wrong map
+// entry that keeps their chi-square small, is in docs/design/ranging.md.
 //
 // Tracking, a slip the wheels did not show (wheels only: one wheel a few percent over for a few
 // tenths of a second turns the vehicle by degrees) leaves a filter confident of a wrong heading,
@@ -15,10 +18,11 @@
 // witness, under that test's preconditions: no gyro carried the heading, and the fix's heading
 // differs from the filter's by more than 3 sigma (of both) and at most
 // fusion.recovery.unseen_slip_max_rad. init_fixes consecutive such frames whose fixes agree with
-// each other re-localise the filter from the newest (Ekf::set_pose, speed and calibration kept).
+// each other re-localise the filter from their stack (Ekf::set_pose, speed and calibration kept).
 // A frame with any landmark fused breaks the run, so one wrong map entry among correct ones in
 // view, or one bad frame, cannot move a confident filter.
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -68,8 +72,12 @@ RangingResult Localizer::ranging_track(std::int64_t t_ns, std::span<const RackOb
                                        const fusion::PoseEstimate& prior) {
   const std::uint64_t gated_before = ekf_.counters().range_bearing_rejected_gate;
   bool fused = false;
-  for (const RackObservation& o : obs)
-    fused = ekf_.add_range_bearing(t_ns, o.sensor) == fusion::FixOutcome::kFused || fused;
+  for (const RackObservation& o : obs) {
+    fusion::RangeBearingObs sensor = o.sensor;
+    sensor.common_bearing_sigma_rad =
+        std::max(sensor.common_bearing_sigma_rad, cfg_.ranging.common_bearing_sigma_rad);
+    fused = ekf_.add_range_bearing(t_ns, sensor) == fusion::FixOutcome::kFused || fused;
+  }
   const fusion::Ekf::Counters& c = ekf_.counters();
   stats_.ranging_fused = c.range_bearing_fused;
   stats_.ranging_rejected_gate = c.range_bearing_rejected_gate;
@@ -96,13 +104,15 @@ bool Localizer::rack_heading_step(const ranging::FixResult& fix,
 RangingResult Localizer::ranging_step(std::int64_t t_ns, std::span<const RackObservation> obs,
                                       const fusion::PoseEstimate& prior) {
   ranging::FixResult fix;
-  if (!rack_fix(obs, &fix) || !rack_heading_step(fix, prior)) {
+  Eigen::Matrix3d systematic_cov;
+  if (!rack_fix(obs, &fix, &systematic_cov) || !rack_heading_step(fix, prior)) {
     rack_candidate_.count = 0;
     return RangingResult::kRejected;
   }
-  if (!count_rack_fix(t_ns, fix)) return RangingResult::kRejected;
+  if (!count_rack_fix(t_ns, fix, systematic_cov)) return RangingResult::kRejected;
+  const ranging::FixResult& pose = rack_candidate_.fix;
   const fusion::Ekf::Counters before = ekf_.counters();
-  const bool ok = ekf_.set_pose(t_ns, fix.pose, fix.cov);
+  const bool ok = ekf_.set_pose(t_ns, pose.pose, pose.cov);
   rack_poses_.reinitialisations += ekf_.counters().reinitialisations - before.reinitialisations;
   refresh_fix_counts();
   rack_candidate_.count = 0;
@@ -112,38 +122,72 @@ RangingResult Localizer::ranging_step(std::int64_t t_ns, std::span<const RackObs
   return RangingResult::kRelocalised;
 }
 
-bool Localizer::rack_fix_agrees(std::int64_t t_ns, const ranging::FixResult& fix) const {
+void Localizer::carry_rack_candidate(std::int64_t t_ns, Eigen::Vector3d* pose,
+                                     Eigen::Matrix3d* Q) const {
   const RackCandidate& c = rack_candidate_;
   const double dt_s = static_cast<double>(t_ns - c.t_ns) * 1e-9;
-  if (c.count == 0 || dt_s < 0.0 || t_ns - c.t_ns > cfg_.ranging.init_max_gap_ns) return false;
-  // The earlier fix carried by the newest odometry over the gap (a frame or a few at 15 fps).
+  // Over the gap (a frame or a few at 15 fps) with the newest odometry.
   const double dist_mm = last_v_mps_ * dt_s * 1e3;
   const double turn_rad = last_omega_radps_ * dt_s;
   const double mid_rad = c.fix.pose.theta_rad + 0.5 * turn_rad;
-  const Eigen::Vector3d carried(c.fix.pose.x_mm + dist_mm * std::cos(mid_rad),
-                                c.fix.pose.y_mm + dist_mm * std::sin(mid_rad),
-                                c.fix.pose.theta_rad + turn_rad);
-  Eigen::Vector3d d(fix.pose.x_mm - carried(0), fix.pose.y_mm - carried(1), 0.0);
-  d(2) = wrap_angle_rad(fix.pose.theta_rad - carried(2));
+  *pose = Eigen::Vector3d(c.fix.pose.x_mm + dist_mm * std::cos(mid_rad),
+                          c.fix.pose.y_mm + dist_mm * std::sin(mid_rad),
+                          c.fix.pose.theta_rad + turn_rad);
   const double share = cfg_.ranging.motion_sigma_share;
-  Eigen::Matrix3d S = c.fix.cov + fix.cov;
-  S(0, 0) += share * share * dist_mm * dist_mm;
-  S(1, 1) += share * share * dist_mm * dist_mm;
-  S(2, 2) += share * share * turn_rad * turn_rad;
-  const Eigen::LLT<Eigen::Matrix3d> llt(S);
-  if (llt.info() != Eigen::Success) return false;
-  const double d2 = d.dot(llt.solve(d));
-  return d2 <= cfg_.ranging.agreement_gate;
+  *Q = Eigen::Vector3d(share * share * dist_mm * dist_mm, share * share * dist_mm * dist_mm,
+                       share * share * turn_rad * turn_rad)
+           .asDiagonal();
 }
 
-bool Localizer::rack_fix(std::span<const RackObservation> obs, ranging::FixResult* fix) {
+bool Localizer::rack_fix_agrees(std::int64_t t_ns, const ranging::FixResult& fix) const {
+  const RackCandidate& c = rack_candidate_;
+  if (c.count == 0 || t_ns < c.t_ns || t_ns - c.t_ns > cfg_.ranging.init_max_gap_ns) return false;
+  Eigen::Vector3d carried;
+  Eigen::Matrix3d Q;
+  carry_rack_candidate(t_ns, &carried, &Q);
+  Eigen::Vector3d d(fix.pose.x_mm - carried(0), fix.pose.y_mm - carried(1), 0.0);
+  d(2) = wrap_angle_rad(fix.pose.theta_rad - carried(2));
+  // Both covariances whole: the shares the two repeat count twice, which only widens the gate.
+  const Eigen::LLT<Eigen::Matrix3d> llt(c.fix.cov + fix.cov + Q);
+  if (llt.info() != Eigen::Success) return false;
+  return d.dot(llt.solve(d)) <= cfg_.ranging.agreement_gate;
+}
+
+void Localizer::stack_rack_fix(std::int64_t t_ns, const ranging::FixResult& fix,
+                               const Eigen::Matrix3d& systematic_cov) {
+  RackCandidate& c = rack_candidate_;
+  Eigen::Vector3d carried;
+  Eigen::Matrix3d Q;
+  carry_rack_candidate(t_ns, &carried, &Q);
+  const Eigen::Matrix3d P = c.own_cov + Q;
+  const Eigen::Matrix3d F = fix.cov - systematic_cov;
+  const Eigen::LLT<Eigen::Matrix3d> llt(P + F);
+  if (llt.info() != Eigen::Success) return;  // kept as it was: the run still counts the fix
+  Eigen::Vector3d d(fix.pose.x_mm - carried(0), fix.pose.y_mm - carried(1), 0.0);
+  d(2) = wrap_angle_rad(fix.pose.theta_rad - carried(2));
+  const Eigen::Matrix3d K = llt.solve(P).transpose();  // P (P + F)^-1, both symmetric
+  const Eigen::Vector3d m = carried + K * d;
+  c.own_cov = (Eigen::Matrix3d::Identity() - K) * P;
+  c.own_cov = 0.5 * (c.own_cov + c.own_cov.transpose());
+  c.systematic_cov = systematic_cov;
+  c.fix.pose = {m(0), m(1), wrap_angle_rad(m(2))};
+  c.fix.cov = c.own_cov + c.systematic_cov;
+}
+
+bool Localizer::rack_fix(std::span<const RackObservation> obs, ranging::FixResult* fix,
+                         Eigen::Matrix3d* systematic_cov) {
   std::array<ranging::Observation, kMaxRackLandmarks> in;
   for (std::size_t i = 0; i < obs.size(); ++i) in[i] = obs[i].vehicle;
   const std::span<const ranging::Observation> seen(in.data(), obs.size());
-  *fix = ranging::fix_from_landmarks(seen, cfg_.ranging.fix);
+  ranging::FixOptions opt = cfg_.ranging.fix;
+  if (!cfg_.ranging.stack_fixes)
+    opt.max_position_sd_mm = std::min(opt.max_position_sd_mm, cfg_.ranging.init_position_sd_mm);
+  *fix = ranging::fix_from_landmarks(seen, opt);
   ++stats_.ranging_fixes;
   if (fix->status == ranging::FixStatus::kOk) {
+    *systematic_cov = ranging::fix_systematic_cov(seen, *fix) - fix->cov;
     ranging::add_mount_yaw_uncertainty(seen, cfg_.ranging.common_bearing_sigma_rad, fix);
+    *systematic_cov += fix->cov;  // the mount yaw's term repeats in every frame
     return true;
   }
   const auto k = static_cast<std::size_t>(fix->status);
@@ -151,30 +195,45 @@ bool Localizer::rack_fix(std::span<const RackObservation> obs, ranging::FixResul
   return false;
 }
 
-bool Localizer::count_rack_fix(std::int64_t t_ns, const ranging::FixResult& fix) {
+bool Localizer::count_rack_fix(std::int64_t t_ns, const ranging::FixResult& fix,
+                               const Eigen::Matrix3d& systematic_cov) {
+  RackCandidate& c = rack_candidate_;
   if (rack_fix_agrees(t_ns, fix)) {
-    ++rack_candidate_.count;
+    ++c.count;
+    if (cfg_.ranging.stack_fixes) {
+      stack_rack_fix(t_ns, fix, systematic_cov);
+    } else {
+      c.fix = fix;
+    }
   } else {
-    if (rack_candidate_.count > 0) ++stats_.ranging_fixes_disagreed;
-    rack_candidate_.count = 1;
+    if (c.count > 0) ++stats_.ranging_fixes_disagreed;
+    c.count = 1;
+    c.fix = fix;
+    c.systematic_cov = systematic_cov;
+    c.own_cov = fix.cov - systematic_cov;
   }
-  rack_candidate_.t_ns = t_ns;
-  rack_candidate_.fix = fix;
-  return rack_candidate_.count >= std::max(1, cfg_.ranging.init_fixes);
+  c.t_ns = t_ns;
+  if (c.count < std::max(1, cfg_.ranging.init_fixes)) return false;
+  if (!cfg_.ranging.stack_fixes) return true;  // each fix was held to the limit alone
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> pos(c.fix.cov.topLeftCorner<2, 2>());
+  const double worst_sd_mm = std::sqrt(std::max(0.0, pos.eigenvalues().maxCoeff()));
+  return worst_sd_mm <= cfg_.ranging.init_position_sd_mm;
 }
 
 RangingResult Localizer::ranging_fix(std::int64_t t_ns, std::span<const RackObservation> obs) {
   ranging::FixResult fix;
-  if (!rack_fix(obs, &fix)) {
+  Eigen::Matrix3d systematic_cov;
+  if (!rack_fix(obs, &fix, &systematic_cov)) {
     rack_candidate_.count = 0;  // a refused frame breaks the run of consecutive fixes
     return RangingResult::kFixRefused;
   }
-  if (!count_rack_fix(t_ns, fix)) return RangingResult::kFixPending;
+  if (!count_rack_fix(t_ns, fix, systematic_cov)) return RangingResult::kFixPending;
 
-  // Initialised from the newest fix: uninitialised, as from a first fix; lost, re-localised
+  // Initialised from the run's pose: uninitialised, as from a first fix; lost, re-localised
   // keeping speed and calibration (Ekf::set_pose). Counted apart from floor fixes.
+  const ranging::FixResult& pose = rack_candidate_.fix;
   const fusion::Ekf::Counters before = ekf_.counters();
-  const bool ok = ekf_.set_pose(t_ns, fix.pose, fix.cov);
+  const bool ok = ekf_.set_pose(t_ns, pose.pose, pose.cov);
   rack_poses_.initialisations += ekf_.counters().fixes_initialised - before.fixes_initialised;
   rack_poses_.reinitialisations += ekf_.counters().reinitialisations - before.reinitialisations;
   refresh_fix_counts();

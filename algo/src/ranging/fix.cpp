@@ -416,4 +416,36 @@ void add_mount_yaw_uncertainty(std::span<const Observation> obs, double sigma_co
   fix->cov += sigma_common_rad * sigma_common_rad * d * d.transpose();
 }
 
+Eigen::Matrix3d fix_systematic_cov(std::span<const Observation> obs, const FixResult& fix) {
+  const Eigen::Vector3d s(fix.pose.x_mm, fix.pose.y_mm, fix.pose.theta_rad);
+  Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d unused = Eigen::Vector3d::Zero();
+  bool any = false;
+  for (const Observation& o : obs) {
+    any = any || !o.systematic_cov.isZero(0.0);
+    add_normal_equations(o, s, &H, &unused);
+  }
+  const Eigen::LDLT<Eigen::Matrix3d> ldlt(H);
+  if (!any || fix.status != FixStatus::kOk || ldlt.info() != Eigen::Success) {
+    return Eigen::Matrix3d::Zero();
+  }
+  Eigen::Matrix3d out = Eigen::Matrix3d::Zero();
+  for (const Observation& o : obs) {
+    if (o.has_face_yaw) {
+      Eigen::Vector3d r;
+      Eigen::Matrix3d J;
+      if (!fix_residual_yaw(o, s, &r, &J)) continue;
+      const Eigen::Matrix3d G = ldlt.solve(J.transpose() * face_yaw_covariance(o).inverse());
+      out += G * o.systematic_cov * G.transpose();
+      continue;
+    }
+    Eigen::Vector2d h;
+    Eigen::Matrix<double, 2, 3> J;
+    if (!fix_predict(o, s, &h, &J)) continue;
+    const Eigen::Matrix<double, 3, 2> G = ldlt.solve(J.transpose() * o.cov.inverse());
+    out += G * o.systematic_cov.topLeftCorner<2, 2>() * G.transpose();
+  }
+  return 0.5 * (out + out.transpose());
+}
+
 }  // namespace agv::ranging

@@ -128,11 +128,12 @@ void add_size_measure(const CameraIntrinsics& k, const RangingMount& mount,
   const Vec2 centre = observe_centre(u);
   const CameraPoint point = size_camera_point(pin, centre, o->corner_sigma_px / 2.0, depth);
   o->size = range_bearing_from_camera_point(mount, point);
-  o->size.cov.topLeftCorner<2, 2>() +=
+  o->size.systematic_cov.topLeftCorner<2, 2>() =
       observe_mount_cov(
           mount, opt.mount_sigma_rad, opt.mount_sigma_mm, true,
           [&](const RangingMount& m) { return range_bearing_from_camera_point(m, point); })
           .topLeftCorner<2, 2>();
+  o->size.cov.topLeftCorner<2, 2>() += o->size.systematic_cov.topLeftCorner<2, 2>();
   o->paper.distance_mm = depth.depth_mm;
   o->paper.bearing_rad = mount.yaw_rad + column_bearing_rad(pin, centre.x);
 }
@@ -337,25 +338,30 @@ bool LandmarkObserver::measure(std::uint32_t id, const std::array<Vec2, 4>& corn
   o.reprojection_rms_px = std::sqrt(best_err / 8.0);
   o.cov6 = tag_pose_covariance(focal, side, o.t_C_mm, o.R_CT, o.corner_sigma_px);
   o.pose = range_bearing_from_tag_pose(mount_, o.t_C_mm, o.R_CT, o.cov6);
-  o.pose.cov += observe_mount_cov(mount_, opt_.mount_sigma_rad, opt_.mount_sigma_mm, true,
-                                  [&](const RangingMount& m) {
-                                    return range_bearing_from_tag_pose(m, o.t_C_mm, o.R_CT, o.cov6);
-                                  });
+  o.pose.systematic_cov = observe_mount_cov(
+      mount_, opt_.mount_sigma_rad, opt_.mount_sigma_mm, true, [&](const RangingMount& m) {
+        return range_bearing_from_tag_pose(m, o.t_C_mm, o.R_CT, o.cov6);
+      });
+  o.pose.cov += o.pose.systematic_cov;
   // A second solution nearly as good: the tag's turn is not resolved by its corners.
   const double floor_err = 8.0 * o.corner_sigma_px * o.corner_sigma_px;
   if (other_err >= 0.0 && other_err < opt_.yaw_ambiguity_ratio * std::max(best_err, floor_err)) {
     o.pose.has_yaw = false;
     o.pose.relative_yaw_rad = 0.0;
-    o.pose.cov.row(2).setZero();
-    o.pose.cov.col(2).setZero();
+    for (Eigen::Matrix3d* m : {&o.pose.cov, &o.pose.systematic_cov}) {
+      m->row(2).setZero();
+      m->col(2).setZero();
+    }
   }
 
   add_size_measure(k_, mount_, opt_, side, &o);
   o.calibration_bearing_var_rad2 = std::pow(opt_.calibration_sigma_px / k_.fx, 2);
   o.calibration_range_var_rel2 = opt_.focal_sigma_rel * opt_.focal_sigma_rel;
   for (RangeBearing* rb : {&o.pose, &o.size}) {
-    rb->cov(0, 0) += o.calibration_range_var_rel2 * rb->range_mm * rb->range_mm;
-    rb->cov(1, 1) += o.calibration_bearing_var_rad2;
+    for (Eigen::Matrix3d* m : {&rb->cov, &rb->systematic_cov}) {
+      (*m)(0, 0) += o.calibration_range_var_rel2 * rb->range_mm * rb->range_mm;
+      (*m)(1, 1) += o.calibration_bearing_var_rad2;
+    }
   }
   *out = o;
   return true;
@@ -413,7 +419,10 @@ Observation fix_observation(const LandmarkObservation& obs, bool from_pose) {
   o.range_mm = rb.range_mm;
   o.bearing_rad = rb.bearing_rad;
   o.cov = rb.cov.topLeftCorner<2, 2>();
+  o.systematic_cov.topLeftCorner<2, 2>() = rb.systematic_cov.topLeftCorner<2, 2>();
   if (from_pose && rb.has_yaw) {
+    o.systematic_cov.row(2) = rb.systematic_cov.row(2);
+    o.systematic_cov.col(2) = rb.systematic_cov.col(2);
     o.has_face_yaw = true;
     o.face_yaw_rad = rb.relative_yaw_rad;
     o.face_yaw_var_rad2 = rb.cov(2, 2);
@@ -446,14 +455,15 @@ SensorRangeBearing sensor_range_bearing(const RangingMount& mount, const Landmar
   s.sensor_yaw_rad = mount.yaw_rad;
   s.range_mm = rb.range_mm;
   s.bearing_rad = rb.bearing_rad;
-  s.R = rb.cov.topLeftCorner<2, 2>() +
-        observe_mount_cov(at_sensor, mount_sigma_rad, mount_sigma_mm, false,
-                          [&](const RangingMount& m) {
-                            return range_bearing_from_tag_pose(m, obs.t_C_mm, obs.R_CT, obs.cov6);
-                          })
-            .topLeftCorner<2, 2>();
-  s.R(0, 0) += obs.calibration_range_var_rel2 * s.range_mm * s.range_mm;
-  s.R(1, 1) += obs.calibration_bearing_var_rad2;
+  s.R_systematic =
+      observe_mount_cov(at_sensor, mount_sigma_rad, mount_sigma_mm, false,
+                        [&](const RangingMount& m) {
+                          return range_bearing_from_tag_pose(m, obs.t_C_mm, obs.R_CT, obs.cov6);
+                        })
+          .topLeftCorner<2, 2>();
+  s.R_systematic(0, 0) += obs.calibration_range_var_rel2 * s.range_mm * s.range_mm;
+  s.R_systematic(1, 1) += obs.calibration_bearing_var_rad2;
+  s.R = rb.cov.topLeftCorner<2, 2>() + s.R_systematic;
   return s;
 }
 

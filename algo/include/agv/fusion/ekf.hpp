@@ -160,6 +160,13 @@ class Ekf {
   // an unseen heading change one gated range-bearing observation fits but no second landmark has
   // confirmed yet (aid_range_bearing.cpp); zero when there is none. Never in the filter's own P.
   Eigen::Matrix3d unconfirmed_slip_cov(std::int64_t t_ns, const Eigen::Vector2d& p_mm) const;
+  // What a position covariance P_xy lacks of the one the repeated shares of the range-bearing
+  // observations fused since the last floor fix or (re)initialisation leave
+  // (RangeBearingObs::R_systematic): frames fused as independent shrink the filter's own P below
+  // it. Added to the reported covariance (estimate_at: its sigma and health too) and to a floor
+  // fix's prior (its gate and gain), never to the filter's own P, so the frames' noise still
+  // averages.
+  Eigen::Matrix2d repeated_share_excess(const Eigen::Matrix2d& P_xy) const;
 
   // Estimate predicted (or, inside the history, interpolated by prediction from the last event
   // at or before t_ns) to t_ns; does not change the filter. valid only once initialised and when
@@ -515,6 +522,8 @@ class Ekf {
     Eigen::Vector2d p_mm = Eigen::Vector2d::Zero();
   };
   RbSlipCandidate rb_slip_;
+  // The envelope of the repeated shares' position covariances (repeated_share_excess).
+  Eigen::Matrix2d rb_repeated_floor_ = Eigen::Matrix2d::Zero();
   std::size_t head_ = 0;
   std::size_t size_ = 0;
 

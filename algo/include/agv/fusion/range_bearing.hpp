@@ -19,6 +19,15 @@ struct RangeBearingObs {
   double bearing_rad = 0.0;
   // Covariance of (range_mm, bearing_rad).
   Eigen::Matrix2d R = Eigen::Matrix2d::Identity();
+  // 1 sigma of an error every bearing of this sensor shares (its yaw as mounted against as
+  // calibrated): frames fused as independent would average it away, so an update leaves the
+  // heading variance at least at the smaller of its prior value and this squared.
+  double common_bearing_sigma_rad = 0.0;
+  // The share of R that repeats in every frame of this landmark seen from about here (the
+  // mount's roll, pitch and offsets, the lens calibration: ranging::sensor_range_bearing), at most
+  // R. Frames fused as independent would shrink it: the position variance is kept at least at
+  // its range share along the line of sight and its bearing share times the range squared across.
+  Eigen::Matrix2d R_systematic = Eigen::Matrix2d::Zero();
 };
 
 }  // namespace agv::fusion

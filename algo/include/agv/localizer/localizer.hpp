@@ -60,9 +60,10 @@ struct GyroCorrection {
 // did not show (fusion.recovery.unseen_slip_max_rad, wheels only), re-localise it.
 inline ranging::FixOptions rack_fix_options() {
   ranging::FixOptions o;
-  // Two landmarks at 5-8 m give fixes of 30-100 mm sigma across the baseline; the lost limit is
-  // 50 mm, and a fix above this would start the filter no better than lost.
-  o.max_position_sd_mm = 20.0;
+  // One frame's fix, before stacking: two landmarks at 5-8 m give 30-100 mm sigma across the
+  // baseline, which a second of frames brings to the initialisation's limit; wider fixes are
+  // nearly as ambiguous as they are uncertain.
+  o.max_position_sd_mm = 100.0;
   return o;
 }
 struct RangingAidConfig {
@@ -70,6 +71,16 @@ struct RangingAidConfig {
   // Consecutive agreeing fixes needed to initialise: 2, as two agreeing fixes are what lets tags
   // (whose map entry is their only truth) re-initialise a filter whose position is unknown.
   int init_fixes = 2;
+  // The pose that initialises (or re-localises) has at most this position sigma along its worst
+  // axis: the lost limit is 50 mm, and a pose above this would start the filter no better than
+  // lost.
+  double init_position_sd_mm = 20.0;
+  // true: the consecutive agreeing fixes are stacked (their own shares of the covariance
+  // averaged, the share every frame repeats, the calibration's, kept once: fix_systematic_cov)
+  // and the stack initialises once init_fixes agree and it is within init_position_sd_mm, so a
+  // vehicle at rest gains from every frame. false: each frame's fix alone must be within
+  // init_position_sd_mm, and the newest of init_fixes agreeing ones initialises.
+  bool stack_fixes = true;
   // Fixes further apart than this are not consecutive: the count restarts.
   std::int64_t init_max_gap_ns = 500'000'000;
   // The earlier fix is carried to the later one with the newest odometry (v, omega); the motion's
@@ -370,12 +381,21 @@ class Localizer {
   RangingResult ranging_step(std::int64_t t_ns, std::span<const RackObservation> obs,
                              const fusion::PoseEstimate& prior);
   bool rack_heading_step(const ranging::FixResult& fix, const fusion::PoseEstimate& prior) const;
-  // The frame's prior-free fix, counted (refusals by status); true when OK.
-  bool rack_fix(std::span<const RackObservation> obs, ranging::FixResult* fix);
-  // The OK fix into the run of consecutive agreeing ones; true when it completes init_fixes.
-  bool count_rack_fix(std::int64_t t_ns, const ranging::FixResult& fix);
-  // The fix agrees with the previous OK fix carried to t_ns by the newest odometry.
+  // The frame's prior-free fix, counted (refusals by status), and the share of its covariance
+  // that other frames of the same landmarks repeat; true when OK.
+  bool rack_fix(std::span<const RackObservation> obs, ranging::FixResult* fix,
+                Eigen::Matrix3d* systematic_cov);
+  // The OK fix into the run of consecutive agreeing ones; true when the run may initialise:
+  // init_fixes long and within init_position_sd_mm (rack_candidate_.fix is the pose).
+  bool count_rack_fix(std::int64_t t_ns, const ranging::FixResult& fix,
+                      const Eigen::Matrix3d& systematic_cov);
+  // The run's pose carried to t_ns by the newest odometry, and the motion's doubt.
+  void carry_rack_candidate(std::int64_t t_ns, Eigen::Vector3d* pose, Eigen::Matrix3d* Q) const;
+  // The fix agrees with the run's pose carried to t_ns.
   bool rack_fix_agrees(std::int64_t t_ns, const ranging::FixResult& fix) const;
+  // The fix stacked onto the run (stack_fixes).
+  void stack_rack_fix(std::int64_t t_ns, const ranging::FixResult& fix,
+                      const Eigen::Matrix3d& systematic_cov);
 
   LocalizerConfig cfg_;
   fusion::Ekf ekf_;
@@ -403,12 +423,16 @@ class Localizer {
   std::uint64_t fixes_exposed_after_arrival_ = 0;  // refused before the EKF
   OperatorPoseCounts operator_poses_;
   OperatorPoseCounts rack_poses_;  // EKF initialisations made from rack fixes
-  // The newest OK rack fix while not tracking (or tracking with every landmark gated and a
-  // heading step), and how many consecutive agreeing ones it ends.
+  // The consecutive agreeing OK rack fixes while not tracking (or tracking with every landmark
+  // gated and a heading step): how many, stacked into fix (the newest alone without
+  // stack_fixes), whose covariance is own_cov (the frames' own shares, averaged) plus
+  // systematic_cov (the newest frame's repeated share).
   struct RackCandidate {
     int count = 0;
     std::int64_t t_ns = 0;
     ranging::FixResult fix;
+    Eigen::Matrix3d own_cov = Eigen::Matrix3d::Zero();
+    Eigen::Matrix3d systematic_cov = Eigen::Matrix3d::Zero();
   };
   RackCandidate rack_candidate_;
   double last_v_mps_ = 0.0;  // newest accepted odometry, corrected (carries rack fixes)

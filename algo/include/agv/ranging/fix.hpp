@@ -34,6 +34,10 @@ struct Observation {
   // share the corners' noise.
   Eigen::Vector2d face_yaw_cov = Eigen::Vector2d::Zero();
   double landmark_facing_rad = 0.0;
+  // The share of the covariance over (range_mm, bearing_rad, face yaw) that every frame of this
+  // landmark seen from the same place repeats (RangeBearing::systematic_cov): what averaging
+  // frames cannot shrink. Zero where nothing is known of it.
+  Eigen::Matrix3d systematic_cov = Eigen::Matrix3d::Zero();
 };
 
 enum class FixStatus {
@@ -171,5 +175,11 @@ FixResult fix_from_landmarks(std::span<const Observation> obs, const FixOptions&
 // inputs; nothing is added for a sigma of 0.
 void add_mount_yaw_uncertainty(std::span<const Observation> obs, double sigma_common_rad,
                                FixResult* fix);
+
+// The share of an OK fix's covariance that its observations' systematic_cov make: the weighted
+// least squares' first-order response to them (cov J^T W per landmark). A fix of the same
+// landmarks from the same place in another frame repeats it; the rest of cov is that frame's own.
+// obs are the fix's own inputs; zero when none carries a systematic share.
+Eigen::Matrix3d fix_systematic_cov(std::span<const Observation> obs, const FixResult& fix);
 
 }  // namespace agv::ranging

@@ -220,6 +220,9 @@ struct SensorRangeBearing {
   double range_mm = 0.0;
   double bearing_rad = 0.0;
   Eigen::Matrix2d R = Eigen::Matrix2d::Identity();
+  // The mount's (roll, pitch, offsets) and the calibration's share of R: the same in every frame
+  // of this landmark seen from about here (fusion::RangeBearingObs::R_systematic).
+  Eigen::Matrix2d R_systematic = Eigen::Matrix2d::Zero();
 };
 
 class LandmarkObserver {

@@ -49,6 +49,10 @@ struct RangeBearing {
   double relative_yaw_rad = 0.0;
   bool has_yaw = false;
   Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  // The share of cov that every frame of this landmark seen from the same place repeats (the
+  // mount's and the lens calibration's doubt, ObserveOptions): frames averaged together shrink
+  // the rest of cov, never this.
+  Eigen::Matrix3d systematic_cov = Eigen::Matrix3d::Zero();
 };
 
 // Pinhole range from apparent size: a landmark edge of size_mm perpendicular to the optical axis
