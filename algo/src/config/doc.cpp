@@ -134,9 +134,11 @@ const std::vector<Section>& config_sections() {
        "A forward or side camera reading the tag36h11 landmarks the site file places on racks,\n"
        "pillars and walls (`wall_landmarks`, docs/guide/site.md). Off by default: nothing changes\n"
        "for a vehicle without one. While the filter is uninitialised or lost, two landmarks in\n"
-       "view give a fix, and two consecutive agreeing fixes initialise it; while it tracks, each\n"
-       "landmark is a range-bearing update (`fusion.range_bearing_*`). `agvloc replay` reads the\n"
-       "recording's `ranging/` stream (docs/guide/recording.md) with this section enabled.\n",
+       "view give a fix; consecutive agreeing fixes are stacked (the calibration's doubt below\n"
+       "is the same in every frame, so stacking never shrinks it) and initialise it once two\n"
+       "agree and the stack is within 20 mm; while it tracks, each landmark is a range-bearing\n"
+       "update (`fusion.range_bearing_*`). `agvloc replay` reads the recording's `ranging/`\n"
+       "stream (docs/guide/recording.md) with this section enabled.\n",
        ""},
       {"ranging_camera.intrinsics", "(the second camera's calibration, OpenCV model)", "", ""},
       {"ranging_camera.mount", "(6-DoF, vehicle frame)", "", ""},

@@ -93,7 +93,9 @@ void add_ranging_calibration_doubt(std::vector<Key>* k) {
       {"deg",
        "1 sigma of each mount angle as calibrated. Roll and pitch widen each landmark's range and "
        "bearing; the yaw turns every bearing alike, so it widens a prior-free fix's covariance "
-       "instead (its heading cannot be surer than the mount). 0: the mount is taken as exact"}));
+       "instead (its heading cannot be surer than the mount), and the heading sigma of the "
+       "filter's range-bearing updates stays at least at it. Errors the same in every frame: "
+       "frames averaged never shrink them. 0: the mount is taken as exact"}));
   k->push_back(number("ranging_camera.mount.sigma_mm", AGV_AT(ranging_camera.mount_sigma_mm), 0.0,
                       100.0, 0.0, {"mm", "1 sigma of each mount offset as measured"}));
   k->push_back(number("ranging_camera.calibration_sigma_px",
