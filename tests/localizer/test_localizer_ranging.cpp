@@ -10,6 +10,8 @@
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
+#include <functional>
+#include <optional>
 #include <random>
 #include <vector>
 
@@ -435,34 +437,44 @@ TEST(LocalizerRanging, AWrongMapEntryAmongCorrectOnesDoesNotMoveATrackingFilter)
   }
 }
 
+// Standing at kTruth for 1 s seeing lms, each frame's observations changed by `alter`: the
+// first valid estimate, or none.
+std::optional<fusion::PoseEstimate> first_valid_estimate(
+    const localizer::LocalizerConfig& c, const std::vector<Landmark>& lms, std::mt19937* rng,
+    const std::function<void(std::vector<localizer::RackObservation>*)>& alter) {
+  localizer::Localizer loc(c);
+  for (std::int64_t t = 0, next_frame = 0; t <= 1000 * kMs; t += kOdomPeriodNs) {
+    loc.on_odometry(t, 0.0, 0.0);
+    if (t < next_frame) continue;
+    std::vector<localizer::RackObservation> obs = frame(kTruth, lms, true_map(lms), rng);
+    alter(&obs);
+    loc.on_ranging(next_frame, obs);
+    next_frame += kFramePeriodNs;
+    loc.set_camera_state(t, false, false);
+    const localizer::TickRecord rec = loc.tick(t);
+    if (rec.pose_valid) return rec.estimate;
+  }
+  return std::nullopt;
+}
+
 // Standing at the truth, the camera turned by yaw_err_rad from its calibrated yaw (every bearing
 // and face yaw off alike), the core told common_sigma_rad of it: the heading error over the
 // heading sigma at the first valid pose (the initialising fix), -1 when none in 1 s.
 double initial_heading_sigmas(double yaw_err_rad, double common_sigma_rad) {
   localizer::LocalizerConfig c = config();
   c.ranging.common_bearing_sigma_rad = common_sigma_rad;
-  localizer::Localizer loc(c);
   std::mt19937 rng(11);
   std::vector<Landmark> lms = kThree;
   for (Landmark& l : lms) l.full_pose = true;
-  for (std::int64_t t = 0, next_frame = 0; t <= 1000 * kMs; t += kOdomPeriodNs) {
-    loc.on_odometry(t, 0.0, 0.0);
-    if (t < next_frame) continue;
-    std::vector<localizer::RackObservation> obs = frame(kTruth, lms, true_map(lms), &rng);
-    for (localizer::RackObservation& o : obs) {
+  const auto e = first_valid_estimate(c, lms, &rng, [&](auto* obs) {
+    for (localizer::RackObservation& o : *obs) {
       o.vehicle.bearing_rad += yaw_err_rad;
       o.vehicle.face_yaw_rad += yaw_err_rad;
       o.sensor.bearing_rad += yaw_err_rad;
     }
-    loc.on_ranging(next_frame, obs);
-    next_frame += kFramePeriodNs;
-    loc.set_camera_state(t, false, false);
-    const localizer::TickRecord rec = loc.tick(t);
-    if (!rec.pose_valid) continue;
-    const fusion::PoseEstimate& e = rec.estimate;
-    return std::abs(wrap_angle_rad(e.pose.theta_rad - kTruth.theta_rad)) / e.heading_sigma_rad;
-  }
-  return -1.0;
+  });
+  if (!e) return -1.0;
+  return std::abs(wrap_angle_rad(e->pose.theta_rad - kTruth.theta_rad)) / e->heading_sigma_rad;
 }
 
 TEST(LocalizerRanging, TheMountsYawDoubtIsInTheInitialisingFixsHeadingSigma) {
@@ -501,12 +513,8 @@ double stacked_init_nees(const localizer::LocalizerConfig& c, const std::vector<
   constexpr double kScaleSd = 0.002, kBearingSd = 1e-3;
   std::normal_distribution<double> n01(0.0, 1.0);
   const double scale = kScaleSd * n01(*rng), offset = kBearingSd * n01(*rng);
-  localizer::Localizer loc(c);
-  for (std::int64_t t = 0, next_frame = 0; t <= 1000 * kMs; t += kOdomPeriodNs) {
-    loc.on_odometry(t, 0.0, 0.0);
-    if (t < next_frame) continue;
-    std::vector<localizer::RackObservation> obs = frame(kTruth, lms, true_map(lms), rng);
-    for (localizer::RackObservation& o : obs) {
+  const auto e = first_valid_estimate(c, lms, rng, [&](auto* obs) {
+    for (localizer::RackObservation& o : *obs) {
       const Eigen::Matrix2d S =
           Eigen::Vector2d(std::pow(kScaleSd * o.vehicle.range_mm, 2), kBearingSd * kBearingSd)
               .asDiagonal();
@@ -515,17 +523,11 @@ double stacked_init_nees(const localizer::LocalizerConfig& c, const std::vector<
       o.vehicle.cov += S;
       if (told) o.vehicle.systematic_cov.topLeftCorner<2, 2>() = S;
     }
-    loc.on_ranging(next_frame, obs);
-    next_frame += kFramePeriodNs;
-    loc.set_camera_state(t, false, false);
-    const localizer::TickRecord rec = loc.tick(t);
-    if (!rec.pose_valid) continue;
-    const fusion::PoseEstimate& e = rec.estimate;
-    const Eigen::Vector3d err(e.pose.x_mm - kTruth.x_mm, e.pose.y_mm - kTruth.y_mm,
-                              wrap_angle_rad(e.pose.theta_rad - kTruth.theta_rad));
-    return err.dot(e.cov.topLeftCorner<3, 3>().ldlt().solve(err));
-  }
-  return -1.0;
+  });
+  if (!e) return -1.0;
+  const Eigen::Vector3d err(e->pose.x_mm - kTruth.x_mm, e->pose.y_mm - kTruth.y_mm,
+                            wrap_angle_rad(e->pose.theta_rad - kTruth.theta_rad));
+  return err.dot(e->cov.topLeftCorner<3, 3>().ldlt().solve(err));
 }
 
 TEST(LocalizerRanging, StackedFramesInitialiseWhereOneFrameIsTooUncertain) {

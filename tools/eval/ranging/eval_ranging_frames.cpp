@@ -33,6 +33,7 @@ namespace {
 
 using namespace agv;
 using namespace agv::ranging;
+using ranging_eval::believed_observer;
 using ranging_eval::degraded;
 using ranging_eval::FixErrors;
 using ranging_eval::kNees3Sigma;
@@ -112,30 +113,6 @@ struct Tally {
   int frames = 0, frames_2 = 0, frames_3 = 0, refused_mirror = 0, seen_total = 0;
   double observe_ms = 0.0;
 };
-
-// What the vehicle believes: a calibration with small errors, and a mount off by up to
-// +-mount_deg / +-mount_mm per axis.
-LandmarkObserver believed_observer(std::mt19937_64& rng, const CameraIntrinsics& k_true,
-                                   const RangingMount& mount_true, double mount_deg,
-                                   double mount_mm, const sim::SiteScene& scene,
-                                   const ObserveOptions& oopt) {
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  std::normal_distribution<double> n(0.0, 1.0);
-  CameraIntrinsics k_est = k_true;
-  k_est.fx *= 1.0 + 0.002 * n(rng);
-  k_est.fy *= 1.0 + 0.002 * n(rng);
-  k_est.cx += 1.0 * n(rng);
-  k_est.cy += 1.0 * n(rng);
-  k_est.k1 += 0.003 * n(rng);
-  RangingMount m_est = mount_true;
-  m_est.x_mm += mount_mm * u(rng);
-  m_est.y_mm += mount_mm * u(rng);
-  m_est.z_mm += mount_mm * u(rng);
-  m_est.roll_rad += deg_to_rad(mount_deg) * u(rng);
-  m_est.pitch_rad += deg_to_rad(mount_deg) * u(rng);
-  m_est.yaw_rad += deg_to_rad(mount_deg) * u(rng);
-  return LandmarkObserver(k_est, m_est, scene.site.wall_landmarks, oopt);
-}
 
 // Per-landmark range, bearing and yaw errors of the landmarks 2-8 m from the camera; returns
 // those landmarks.

@@ -5,8 +5,9 @@
 // its own noise; the LandmarkObserver reads them without a prior (full sweep), and the Localizer
 // gets them through on_ranging with the wheels at rest, once per initialisation rule on the same
 // observations: each frame's fix alone (RangingAidConfig::stack_fixes false) and the frames' fixes
-// stacked; and stacked with the range-bearing updates not told which share of their covariance
-// repeats (RangeBearingObs::R_systematic zero). Reports per rule: poses localized within the
+// stacked; stacked with two-landmark fixes down to a 5 degree crossing; and stacked with the
+// range-bearing updates not told which share of their covariance repeats
+// (RangeBearingObs::R_systematic zero). Reports per rule: poses localized within the
 // frames, time to the first valid pose, its error and 3-sigma coverage, and the same at the end.
 // Not a ctest; figures in docs/design/ranging.md ("Switched on"). Usage: eval_ranging_switch_on
 // [trials=60] [seed=1] [frames=15] [mount_error_deg=1]
@@ -157,31 +158,6 @@ struct RuleTally {
   }
 };
 
-// What the vehicle believes: the calibration and mount with errors, as eval_ranging_frames.
-ranging::LandmarkObserver believed_observer(std::mt19937_64& rng, const CameraIntrinsics& k_true,
-                                            const ranging::RangingMount& mount_true,
-                                            double mount_deg, double mount_mm,
-                                            const sim::SiteScene& scene,
-                                            const ranging::ObserveOptions& oopt,
-                                            ranging::RangingMount* m_est) {
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  std::normal_distribution<double> n(0.0, 1.0);
-  CameraIntrinsics k_est = k_true;
-  k_est.fx *= 1.0 + 0.002 * n(rng);
-  k_est.fy *= 1.0 + 0.002 * n(rng);
-  k_est.cx += 1.0 * n(rng);
-  k_est.cy += 1.0 * n(rng);
-  k_est.k1 += 0.003 * n(rng);
-  *m_est = mount_true;
-  m_est->x_mm += mount_mm * u(rng);
-  m_est->y_mm += mount_mm * u(rng);
-  m_est->z_mm += mount_mm * u(rng);
-  m_est->roll_rad += deg_to_rad(mount_deg) * u(rng);
-  m_est->pitch_rad += deg_to_rad(mount_deg) * u(rng);
-  m_est->yaw_rad += deg_to_rad(mount_deg) * u(rng);
-  return ranging::LandmarkObserver(k_est, *m_est, scene.site.wall_landmarks, oopt);
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -210,20 +186,23 @@ int main(int argc, char** argv) {
   base.ranging.common_bearing_sigma_rad = std::hypot(s_yaw, 1.0 / k_true.fx);
   localizer::LocalizerConfig single = base;
   single.ranging.stack_fixes = false;
+  localizer::LocalizerConfig shallow = base;
+  shallow.ranging.fix.min_crossing_angle_rad = deg_to_rad(5.0);
   // Per rule, per group (the most landmarks read in one of the frames: two, three or more).
-  const char* kRules[3] = {"each frame's fix alone", "the frames' fixes stacked",
+  const char* kRules[4] = {"each frame's fix alone", "the frames' fixes stacked",
+                           "stacked, circles crossing down to 5 deg",
                            "stacked, the EKF not told what repeats"};
-  RuleTally tally[3][2];
+  RuleTally tally[4][2];
   int in_view[2] = {0, 0};
-  for (int r = 0; r < 3; ++r) {
+  for (int r = 0; r < 4; ++r) {
     for (int g = 0; g < 2; ++g) tally[r][g].name = std::string(kRules[r]) + (g ? ", 3+" : ", 2");
   }
   for (std::size_t t = 0; t < poses.size(); ++t) {
     std::mt19937_64 rng(seed * 7919 + t);
     const sim::SiteRenderParams params = ranging_eval::degraded(rng);
     ranging::RangingMount m_est;
-    const ranging::LandmarkObserver observer =
-        believed_observer(rng, k_true, mount_true, mount_deg, mount_mm, scene, oopt, &m_est);
+    const ranging::LandmarkObserver observer = ranging_eval::believed_observer(
+        rng, k_true, mount_true, mount_deg, mount_mm, scene, oopt, &m_est);
     std::vector<Frame> frames;
     std::size_t most = 0;
     for (int f = 0; f < n_frames; ++f) {
@@ -238,10 +217,11 @@ int main(int argc, char** argv) {
     ++in_view[g];
     tally[0][g].add(stand(single, frames, poses[t]));
     tally[1][g].add(stand(base, frames, poses[t]));
+    tally[2][g].add(stand(shallow, frames, poses[t]));
     for (Frame& f : frames) {
       for (localizer::RackObservation& o : f) o.sensor.R_systematic.setZero();
     }
-    tally[2][g].add(stand(base, frames, poses[t]));
+    tally[3][g].add(stand(base, frames, poses[t]));
     std::fprintf(stderr, "\r%zu / %zu poses", t + 1, poses.size());
   }
   std::fprintf(stderr, "\n");
@@ -256,10 +236,10 @@ int main(int argc, char** argv) {
       "(position / heading) |\n"
       "|---|---|---|---|---|---|---|---|---|\n");
   for (int g = 0; g < 2; ++g) {
-    for (int r = 0; r < 3; ++r) tally[r][g].print(in_view[g]);
+    for (int r = 0; r < 4; ++r) tally[r][g].print(in_view[g]);
   }
   std::printf("\nNot localized in time, their frames' fixes refused:\n");
-  for (int r = 0; r < 2; ++r) {
+  for (int r = 0; r < 3; ++r) {
     for (int g = 0; g < 2; ++g) {
       std::printf("- %s:", tally[r][g].name.c_str());
       for (const auto& [k, v] : tally[r][g].refused)

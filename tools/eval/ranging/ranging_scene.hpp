@@ -8,6 +8,7 @@
 #include <random>
 #include <vector>
 
+#include "agv/ranging/observe.hpp"
 #include "agv/sim/site_render.hpp"
 
 namespace agv::ranging_eval {
@@ -80,6 +81,32 @@ inline std::vector<Pose2> trial_poses(const sim::SiteScene& scene, int trials, s
     }
   }
   return poses;
+}
+
+// What the vehicle believes: a calibration with small errors (fx, fy 0.2 %, cx, cy 1 px, k1
+// 0.003, 1 sigma) and a mount off by up to +-mount_deg / +-mount_mm per axis (uniform); the
+// believed mount in *m_est when given.
+inline ranging::LandmarkObserver believed_observer(
+    std::mt19937_64& rng, const CameraIntrinsics& k_true, const ranging::RangingMount& mount_true,
+    double mount_deg, double mount_mm, const sim::SiteScene& scene,
+    const ranging::ObserveOptions& oopt, ranging::RangingMount* m_est = nullptr) {
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  std::normal_distribution<double> n(0.0, 1.0);
+  CameraIntrinsics k_est = k_true;
+  k_est.fx *= 1.0 + 0.002 * n(rng);
+  k_est.fy *= 1.0 + 0.002 * n(rng);
+  k_est.cx += 1.0 * n(rng);
+  k_est.cy += 1.0 * n(rng);
+  k_est.k1 += 0.003 * n(rng);
+  ranging::RangingMount m = mount_true;
+  m.x_mm += mount_mm * u(rng);
+  m.y_mm += mount_mm * u(rng);
+  m.z_mm += mount_mm * u(rng);
+  m.roll_rad += deg_to_rad(mount_deg) * u(rng);
+  m.pitch_rad += deg_to_rad(mount_deg) * u(rng);
+  m.yaw_rad += deg_to_rad(mount_deg) * u(rng);
+  if (m_est) *m_est = m;
+  return ranging::LandmarkObserver(k_est, m, scene.site.wall_landmarks, oopt);
 }
 
 }  // namespace agv::ranging_eval
