@@ -185,9 +185,10 @@ bool Localizer::rack_fix(std::span<const RackObservation> obs, ranging::FixResul
   *fix = ranging::fix_from_landmarks(seen, opt);
   ++stats_.ranging_fixes;
   if (fix->status == ranging::FixStatus::kOk) {
-    *systematic_cov = ranging::fix_systematic_cov(seen, *fix) - fix->cov;
+    *systematic_cov = ranging::fix_systematic_cov(seen, *fix);
+    const Eigen::Matrix3d without_yaw = fix->cov;
     ranging::add_mount_yaw_uncertainty(seen, cfg_.ranging.common_bearing_sigma_rad, fix);
-    *systematic_cov += fix->cov;  // the mount yaw's term repeats in every frame
+    *systematic_cov += fix->cov - without_yaw;  // the mount yaw's term repeats in every frame
     return true;
   }
   const auto k = static_cast<std::size_t>(fix->status);

@@ -394,56 +394,51 @@ FixResult fix_from_landmarks(std::span<const Observation> obs, const FixOptions&
   return out;
 }
 
+namespace {
+
+// One observation's J^T W at s, over (range, bearing, face yaw): the fix's first-order response
+// to an error of that observation is cov J^T W. Without a face yaw the third column is zero.
+bool weighted_jacobian(const Observation& o, const Eigen::Vector3d& s, Eigen::Matrix3d* JtW) {
+  if (o.has_face_yaw) {
+    Eigen::Vector3d r;
+    Eigen::Matrix3d J;
+    if (!fix_residual_yaw(o, s, &r, &J)) return false;
+    *JtW = J.transpose() * face_yaw_covariance(o).inverse();
+    return true;
+  }
+  Eigen::Vector2d h;
+  Eigen::Matrix<double, 2, 3> J;
+  if (!fix_predict(o, s, &h, &J)) return false;
+  JtW->setZero();
+  JtW->leftCols<2>() = J.transpose() * o.cov.inverse();
+  return true;
+}
+
+}  // namespace
+
 void add_mount_yaw_uncertainty(std::span<const Observation> obs, double sigma_common_rad,
                                FixResult* fix) {
   if (!(sigma_common_rad > 0.0)) return;
   // Gauss-Newton's response to an offset b on every bearing and face yaw: d(pose) = cov J^T W 1_b.
   const Eigen::Vector3d s(fix->pose.x_mm, fix->pose.y_mm, fix->pose.theta_rad);
   Eigen::Vector3d g = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d JtW;
   for (const Observation& o : obs) {
-    if (o.has_face_yaw) {
-      Eigen::Vector3d r;
-      Eigen::Matrix3d J;
-      if (fix_residual_yaw(o, s, &r, &J))
-        g += J.transpose() * face_yaw_covariance(o).inverse() * Eigen::Vector3d(0.0, 1.0, 1.0);
-      continue;
-    }
-    Eigen::Vector2d h;
-    Eigen::Matrix<double, 2, 3> J;
-    if (fix_predict(o, s, &h, &J)) g += J.transpose() * o.cov.inverse() * Eigen::Vector2d(0.0, 1.0);
+    if (weighted_jacobian(o, s, &JtW)) g += JtW * Eigen::Vector3d(0.0, 1.0, 1.0);
   }
   const Eigen::Vector3d d = fix->cov * g;
   fix->cov += sigma_common_rad * sigma_common_rad * d * d.transpose();
 }
 
 Eigen::Matrix3d fix_systematic_cov(std::span<const Observation> obs, const FixResult& fix) {
-  const Eigen::Vector3d s(fix.pose.x_mm, fix.pose.y_mm, fix.pose.theta_rad);
-  Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
-  Eigen::Vector3d unused = Eigen::Vector3d::Zero();
-  bool any = false;
-  for (const Observation& o : obs) {
-    any = any || !o.systematic_cov.isZero(0.0);
-    add_normal_equations(o, s, &H, &unused);
-  }
-  const Eigen::LDLT<Eigen::Matrix3d> ldlt(H);
-  if (!any || fix.status != FixStatus::kOk || ldlt.info() != Eigen::Success) {
-    return Eigen::Matrix3d::Zero();
-  }
   Eigen::Matrix3d out = Eigen::Matrix3d::Zero();
+  if (fix.status != FixStatus::kOk) return out;
+  const Eigen::Vector3d s(fix.pose.x_mm, fix.pose.y_mm, fix.pose.theta_rad);
+  Eigen::Matrix3d JtW;
   for (const Observation& o : obs) {
-    if (o.has_face_yaw) {
-      Eigen::Vector3d r;
-      Eigen::Matrix3d J;
-      if (!fix_residual_yaw(o, s, &r, &J)) continue;
-      const Eigen::Matrix3d G = ldlt.solve(J.transpose() * face_yaw_covariance(o).inverse());
-      out += G * o.systematic_cov * G.transpose();
-      continue;
-    }
-    Eigen::Vector2d h;
-    Eigen::Matrix<double, 2, 3> J;
-    if (!fix_predict(o, s, &h, &J)) continue;
-    const Eigen::Matrix<double, 3, 2> G = ldlt.solve(J.transpose() * o.cov.inverse());
-    out += G * o.systematic_cov.topLeftCorner<2, 2>() * G.transpose();
+    if (o.systematic_cov.isZero(0.0) || !weighted_jacobian(o, s, &JtW)) continue;
+    const Eigen::Matrix3d G = fix.cov * JtW;
+    out += G * o.systematic_cov * G.transpose();
   }
   return 0.5 * (out + out.transpose());
 }

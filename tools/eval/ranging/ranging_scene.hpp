@@ -14,8 +14,16 @@
 namespace agv::ranging_eval {
 
 inline CameraIntrinsics true_camera() {
-  return {.width_px = 1280, .height_px = 800, .fx = 1000.0, .fy = 1001.5, .cx = 642.0,
-          .cy = 397.0, .k1 = -0.09, .k2 = 0.02, .p1 = 0.0006, .p2 = -0.0004};
+  return {.width_px = 1280,
+          .height_px = 800,
+          .fx = 1000.0,
+          .fy = 1001.5,
+          .cx = 642.0,
+          .cy = 397.0,
+          .k1 = -0.09,
+          .k2 = 0.02,
+          .p1 = 0.0006,
+          .p2 = -0.0004};
 }
 
 // An open area 10 x 8 m lined with racks 1 m deep, landmarks every 1.5 m on their inner faces,

@@ -179,7 +179,8 @@ void add_mount_yaw_uncertainty(std::span<const Observation> obs, double sigma_co
 // The share of an OK fix's covariance that its observations' systematic_cov make: the weighted
 // least squares' first-order response to them (cov J^T W per landmark). A fix of the same
 // landmarks from the same place in another frame repeats it; the rest of cov is that frame's own.
-// obs are the fix's own inputs; zero when none carries a systematic share.
+// obs are the fix's own inputs and fix as fix_from_landmarks returned it (before
+// add_mount_yaw_uncertainty); zero when none carries a systematic share.
 Eigen::Matrix3d fix_systematic_cov(std::span<const Observation> obs, const FixResult& fix);
 
 }  // namespace agv::ranging
