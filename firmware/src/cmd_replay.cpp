@@ -174,7 +174,7 @@ struct ReplayInputs {
   std::int64_t period_ns = 0;
   // ranging_camera.enabled: the second stream, its site's landmarks and their observer.
   recording::Recording ranging;
-  std::vector<site::WallLandmark> walls;
+  app::RackSite rack_site;
   std::unique_ptr<app::RackObserver> rack;
   app::RangingCounts ranging_counts;
 };
@@ -185,8 +185,8 @@ int load_ranging(const ReplayArgs& a, ReplayInputs* in) {
   const config::RangingCameraSection& rc = in->cfg.ranging_camera;
   if (!rc.enabled) return -1;
   std::string err;
-  if (!app::load_wall_landmarks(rc.site_file, &in->walls, &err)) return replay_fail(err, 2);
-  in->rack = std::make_unique<app::RackObserver>(rc, in->walls);
+  if (!app::load_rack_site(rc.site_file, &in->rack_site, &err)) return replay_fail(err, 2);
+  in->rack = std::make_unique<app::RackObserver>(rc, in->rack_site);
   if (!in->rack->ok(&err)) return replay_fail(err, 2);
   std::vector<std::string> warnings;
   if (!app::read_ranging_stream(a.rec_dir, rc, &in->ranging, &warnings, &err)) {

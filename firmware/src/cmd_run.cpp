@@ -50,7 +50,7 @@ struct LiveSetup {
                                   // device"); null otherwise
   // ranging_camera.enabled: the second camera, the site's landmarks on racks and their observer.
   std::unique_ptr<hal::Camera> ranging_camera;
-  std::vector<site::WallLandmark> walls;
+  app::RackSite rack_site;
   std::unique_ptr<app::RackObserver> rack;
   app::RangingCounts ranging_counts;
 };
@@ -68,8 +68,8 @@ int prepare_ranging(LiveSetup* s) {
   std::string err;
   s->ranging_camera = app::make_live_camera(rc.driver, rc.camera, "ranging_camera", &err);
   if (!s->ranging_camera) return run_fail(err);
-  if (!app::load_wall_landmarks(rc.site_file, &s->walls, &err)) return run_fail(err);
-  s->rack = std::make_unique<app::RackObserver>(rc, s->walls);
+  if (!app::load_rack_site(rc.site_file, &s->rack_site, &err)) return run_fail(err);
+  s->rack = std::make_unique<app::RackObserver>(rc, s->rack_site);
   if (!s->rack->ok(&err)) return run_fail(err);
   return -1;
 }

@@ -9,8 +9,7 @@ namespace agv::app {
 
 namespace fs = std::filesystem;
 
-bool load_wall_landmarks(const std::string& site_file, std::vector<site::WallLandmark>* out,
-                         std::string* error) {
+bool load_rack_site(const std::string& site_file, RackSite* out, std::string* error) {
   site::Site s;
   std::vector<std::string> found;
   if (!recording::read_site_file(site_file, &s, &found)) {
@@ -23,7 +22,8 @@ bool load_wall_landmarks(const std::string& site_file, std::vector<site::WallLan
              ": wall_landmarks: none (the second camera has nothing to read)";
     return false;
   }
-  *out = std::move(s.wall_landmarks);
+  out->walls = std::move(s.wall_landmarks);
+  out->obstacles = std::move(s.obstacles);
   return true;
 }
 
@@ -35,19 +35,21 @@ ranging::ObserveOptions observe_options(const config::RangingCameraSection& cfg)
   o.mount_sigma_mm = cfg.mount_sigma_mm;
   o.calibration_sigma_px = cfg.calibration_sigma_px;
   o.focal_sigma_rel = cfg.focal_sigma_rel;
+  o.interval_sweep_decimate = cfg.interval_sweep_decimate;
   return o;
 }
 
 }  // namespace
 
-RackObserver::RackObserver(const config::RangingCameraSection& cfg,
-                           std::span<const site::WallLandmark> landmarks)
-    : observer_(cfg.intrinsics, cfg.mount, landmarks, observe_options(cfg)),
+RackObserver::RackObserver(const config::RangingCameraSection& cfg, const RackSite& site)
+    : observer_(cfg.intrinsics, cfg.mount, site.walls, observe_options(cfg)),
       width_px_(cfg.intrinsics.width_px),
       height_px_(cfg.intrinsics.height_px),
       mount_sigma_rad_(cfg.mount_sigma_rad),
       mount_sigma_mm_(cfg.mount_sigma_mm) {
+  observer_.set_obstacles(site.obstacles);
   windows_.predicted_first = cfg.predicted_first;
+  windows_.full_sweep_interval_frames = static_cast<std::uint64_t>(cfg.sweep_interval_frames);
 }
 
 bool RackObserver::ok(std::string* error) const {

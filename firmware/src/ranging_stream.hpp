@@ -40,16 +40,21 @@ struct RangingCounts {
   std::string last_error;
 };
 
-// The site file's wall landmarks (its floor map read too when it names one). False with *error
-// naming the file and every problem.
-bool load_wall_landmarks(const std::string& site_file, std::vector<site::WallLandmark>* out,
-                         std::string* error);
+// What the second camera needs of the site: the wall landmarks it reads and the obstacles that
+// hide them.
+struct RackSite {
+  std::vector<site::WallLandmark> walls;
+  std::vector<site::Obstacle> obstacles;
+};
+
+// The site file's wall landmarks and obstacles (its floor map read too when it names one). False
+// with *error naming the file and every problem.
+bool load_rack_site(const std::string& site_file, RackSite* out, std::string* error);
 
 // The observer of the configured second camera.
 class RackObserver {
  public:
-  RackObserver(const config::RangingCameraSection& cfg,
-               std::span<const site::WallLandmark> landmarks);
+  RackObserver(const config::RangingCameraSection& cfg, const RackSite& site);
   // False with *error when the landmark table or the calibration cannot be used.
   bool ok(std::string* error) const;
   // Whether a frame of this size is the configured camera's (ranging_camera.camera).

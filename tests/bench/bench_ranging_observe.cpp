@@ -9,8 +9,10 @@
 //  - FullSweepDecimate2: the same with libapriltag's quad decimation 2;
 //  - Windows: the windows predicted from a pose prior (the true pose moved by a draw from its
 //    covariance: 30 mm per axis, 0.3 deg), no periodic sweep (the interval's cost is one full
-//    sweep per interval).
-// Counters: median and p90 CPU per frame (thread CPU time, ms), landmarks seen per frame.
+//    sweep per interval), the site's racks given to the observer (NoObstacles: not);
+//  - IntervalLocalized / IntervalLocalizedFullSweep: the interval's frame with the localized prior,
+//    the windows plus the whole frame at quad decimation 2, or a full sweep in their place.
+// Counters: median, p90 and mean CPU per frame (thread CPU time, ms), landmarks seen per frame.
 // `bench_ranging_observe --profile` first prints libapriltag's own stage times on the frames and
 // the windowed reads against the full sweep's (ids, largest corner difference).
 #include <apriltag/apriltag.h>
@@ -20,6 +22,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <ctime>
 #include <map>
@@ -36,7 +39,10 @@ using namespace agv::ranging;
 
 namespace {
 
+// Benchmark rows iterate over the first kFrames (4 kFrames: each 4 times) rendered frames;
+// `--frames N` renders N for the --profile figures (the design note's agreement rows use 120).
 constexpr int kFrames = 24;
+int g_frames = kFrames;
 
 struct Frames {
   sim::SiteScene scene;
@@ -67,7 +73,7 @@ const Frames& frames() {
     out.mount.x_mm = 300.0;
     out.mount.z_mm = 1000.0;
     const sim::SiteFrameRenderer renderer(out.k);
-    const std::vector<Pose2> poses = ranging_eval::trial_poses(out.scene, kFrames, 1);
+    const std::vector<Pose2> poses = ranging_eval::trial_poses(out.scene, g_frames, 1);
     std::mt19937_64 rng(5);
     overhead::TagDetectParams dp;
     dp.quad_min_white_black_diff = ObserveOptions{}.quad_min_white_black_diff;
@@ -101,25 +107,33 @@ double quantile(std::vector<double> v, double q) {
                     static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5))];
 }
 
-// windows: 0 full sweep, 1 the 30 mm / 0.3 deg priors, 2 the 10 mm / 0.1 deg ones, 3 the 3 mm /
-// 0.03 deg ones; predicted_first: WindowOptions::predicted_first.
-void run(benchmark::State& state, const ObserveOptions& opt, int windows,
-         bool predicted_first = true) {
+// The priors: 1 the 30 mm / 0.3 deg ones, 2 the 10 mm / 0.1 deg ones, 3 the 3 mm / 0.03 deg ones.
+const PosePrior& prior_of(const Frames& f, int kind, std::size_t i) {
+  return kind == 1 ? f.priors[i] : kind == 2 ? f.tight_priors[i] : f.localized_priors[i];
+}
+
+struct Mode {
+  int windows = 0;              // 0 full sweep, else the priors of prior_of
+  bool predicted_first = true;  // WindowOptions::predicted_first
+  bool interval = false;        // every frame is the sweep interval's
+  bool obstacles = true;        // the site's racks given to the observer (set_obstacles)
+};
+
+void run(benchmark::State& state, const ObserveOptions& opt, const Mode& mode) {
   const Frames& f = frames();
-  const LandmarkObserver obs(f.k, f.mount, f.scene.site.wall_landmarks, opt);
+  LandmarkObserver obs(f.k, f.mount, f.scene.site.wall_landmarks, opt);
+  if (mode.obstacles) obs.set_obstacles(f.scene.site.obstacles);
   WindowOptions wopt;
-  wopt.full_sweep_interval_frames = 0;
-  wopt.predicted_first = predicted_first;
+  wopt.full_sweep_interval_frames = mode.interval ? 1 : 0;
+  wopt.predicted_first = mode.predicted_first;
   std::vector<double> ms;
   std::size_t i = 0, seen = 0, swept = 0, predicted = 0;
   for (auto _ : state) {
-    const std::size_t fi = i++ % f.images.size();
+    const std::size_t fi = i++ % std::min<std::size_t>(kFrames, f.images.size());
     const double t0 = thread_cpu_ms();
-    const PosePrior* prior = windows == 1   ? &f.priors[fi]
-                             : windows == 2 ? &f.tight_priors[fi]
-                                            : &f.localized_priors[fi];
-    const ObserveResult r =
-        windows ? obs.observe(f.images[fi], prior, 1, wopt) : obs.observe(f.images[fi]);
+    const ObserveResult r = mode.windows
+                                ? obs.observe(f.images[fi], &prior_of(f, mode.windows, fi), 1, wopt)
+                                : obs.observe(f.images[fi]);
     ms.push_back(thread_cpu_ms() - t0);
     seen += r.seen.size();
     swept += r.full_sweep ? 1 : 0;
@@ -128,6 +142,9 @@ void run(benchmark::State& state, const ObserveOptions& opt, int windows,
   }
   state.counters["median_cpu_ms"] = quantile(ms, 0.5);
   state.counters["p90_cpu_ms"] = quantile(ms, 0.9);
+  double sum_ms = 0.0;
+  for (double m : ms) sum_ms += m;
+  state.counters["mean_cpu_ms"] = sum_ms / static_cast<double>(ms.size());
   state.counters["seen_per_frame"] = static_cast<double>(seen) / static_cast<double>(ms.size());
   state.counters["full_sweeps"] = static_cast<double>(swept);
   state.counters["predicted_per_frame"] =
@@ -137,29 +154,51 @@ void run(benchmark::State& state, const ObserveOptions& opt, int windows,
 void BM_FullSweepOld(benchmark::State& state) {
   ObserveOptions o;
   o.mirror_check = MirrorCheck::kFullFrame;
-  run(state, o, 0);
+  run(state, o, {.windows = 0});
 }
-void BM_FullSweep(benchmark::State& state) { run(state, ObserveOptions{}, 0); }
+void BM_FullSweep(benchmark::State& state) { run(state, ObserveOptions{}, {.windows = 0}); }
 void BM_FullSweepNoMirror(benchmark::State& state) {
   ObserveOptions o;
   o.mirror_check = MirrorCheck::kOff;
-  run(state, o, 0);
+  run(state, o, {.windows = 0});
 }
 void BM_FullSweepDecimate2(benchmark::State& state) {
   ObserveOptions o;
   o.full_sweep_decimate = 2.0;
-  run(state, o, 0);
+  run(state, o, {.windows = 0});
 }
-void BM_Windows(benchmark::State& state) { run(state, ObserveOptions{}, 1); }
-void BM_WindowsTightPrior(benchmark::State& state) { run(state, ObserveOptions{}, 2); }
-void BM_WindowsLocalizedPrior(benchmark::State& state) { run(state, ObserveOptions{}, 3); }
+void BM_Windows(benchmark::State& state) { run(state, ObserveOptions{}, {.windows = 1}); }
+void BM_WindowsTightPrior(benchmark::State& state) { run(state, ObserveOptions{}, {.windows = 2}); }
+void BM_WindowsLocalizedPrior(benchmark::State& state) {
+  run(state, ObserveOptions{}, {.windows = 3});
+}
 // The same three without the predicted path (libapriltag in every window).
-void BM_WindowsNoPredicted(benchmark::State& state) { run(state, ObserveOptions{}, 1, false); }
+void BM_WindowsNoPredicted(benchmark::State& state) {
+  run(state, ObserveOptions{}, {.windows = 1, .predicted_first = false});
+}
 void BM_WindowsTightPriorNoPredicted(benchmark::State& state) {
-  run(state, ObserveOptions{}, 2, false);
+  run(state, ObserveOptions{}, {.windows = 2, .predicted_first = false});
 }
 void BM_WindowsLocalizedPriorNoPredicted(benchmark::State& state) {
-  run(state, ObserveOptions{}, 3, false);
+  run(state, ObserveOptions{}, {.windows = 3, .predicted_first = false});
+}
+
+// Without the site's racks given to the observer: landmarks behind them searched too.
+void BM_WindowsNoObstacles(benchmark::State& state) {
+  run(state, ObserveOptions{}, {.windows = 1, .obstacles = false});
+}
+void BM_WindowsLocalizedPriorNoObstacles(benchmark::State& state) {
+  run(state, ObserveOptions{}, {.windows = 3, .obstacles = false});
+}
+// The interval's frame of a localized vehicle: the windows and the whole frame at quad
+// decimation 2 (default), or a full sweep in their place (interval_sweep_decimate 1).
+void BM_IntervalLocalized(benchmark::State& state) {
+  run(state, ObserveOptions{}, {.windows = 3, .interval = true});
+}
+void BM_IntervalLocalizedFullSweep(benchmark::State& state) {
+  ObserveOptions o;
+  o.interval_sweep_decimate = 1.0;
+  run(state, o, {.windows = 3, .interval = true});
 }
 
 // measure() alone (undistortion, pose, covariances) on the full sweep's detections.
@@ -179,7 +218,7 @@ void BM_MeasurePerLandmark(benchmark::State& state) {
 void BM_WindowsMirrorEachWindow(benchmark::State& state) {
   ObserveOptions o;
   o.mirror_check = MirrorCheck::kFullFrame;
-  run(state, o, 1);
+  run(state, o, {.windows = 1});
 }
 
 BENCHMARK(BM_FullSweepOld)->Unit(benchmark::kMillisecond)->Iterations(kFrames)->UseRealTime();
@@ -206,6 +245,19 @@ BENCHMARK(BM_WindowsTightPriorNoPredicted)
 BENCHMARK(BM_WindowsLocalizedPriorNoPredicted)
     ->Unit(benchmark::kMillisecond)
     ->Iterations(4 * kFrames)
+    ->UseRealTime();
+BENCHMARK(BM_WindowsNoObstacles)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(4 * kFrames)
+    ->UseRealTime();
+BENCHMARK(BM_WindowsLocalizedPriorNoObstacles)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(4 * kFrames)
+    ->UseRealTime();
+BENCHMARK(BM_IntervalLocalized)->Unit(benchmark::kMillisecond)->Iterations(kFrames)->UseRealTime();
+BENCHMARK(BM_IntervalLocalizedFullSweep)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(kFrames)
     ->UseRealTime();
 BENCHMARK(BM_MeasurePerLandmark)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_WindowsMirrorEachWindow)
@@ -247,19 +299,27 @@ void print_apriltag_stages(double decimate) {
   tag36h11_destroy(family);
 }
 
-// The windowed reads against the full sweep's on the same frames.
-void print_window_agreement() {
+// The windowed reads against the full sweep's on the same frames, per prior (the site's racks
+// given to the observer), with the windowed path's CPU per frame (one pass, thread CPU).
+void print_window_agreement(int kind, const char* name) {
   const Frames& f = frames();
-  const LandmarkObserver obs(f.k, f.mount, f.scene.site.wall_landmarks);
+  LandmarkObserver obs(f.k, f.mount, f.scene.site.wall_landmarks);
+  obs.set_obstacles(f.scene.site.obstacles);
   WindowOptions wopt;
   wopt.full_sweep_interval_frames = 0;
   int both = 0, sweep_only = 0, window_only = 0;
-  double worst_px = 0.0, measure_ms = 0.0;
-  std::size_t windows = 0, measured = 0;
+  double worst_px = 0.0;
+  std::size_t windows = 0, swept = 0, hidden = 0;
+  std::vector<double> ms;
   for (std::size_t i = 0; i < f.images.size(); ++i) {
     const ObserveResult a = obs.observe(f.images[i]);
-    const ObserveResult b = obs.observe(f.images[i], &f.priors[i], 1, wopt);
+    const WindowPlan plan = obs.plan_windows(&prior_of(f, kind, i), 1, wopt);
+    const double t0 = thread_cpu_ms();
+    const ObserveResult b = obs.observe(f.images[i], plan);
+    ms.push_back(thread_cpu_ms() - t0);
     windows += b.windows_searched;
+    swept += b.full_sweep ? 1 : 0;
+    hidden += plan.hidden;
     for (const LandmarkObservation& x : a.seen) {
       const auto y =
           std::find_if(b.seen.begin(), b.seen.end(), [&](const auto& o) { return o.id == x.id; });
@@ -272,12 +332,6 @@ void print_window_agreement() {
         worst_px = std::max(worst_px, std::hypot(x.corners_px[c].x - y->corners_px[c].x,
                                                  x.corners_px[c].y - y->corners_px[c].y));
       }
-      LandmarkObservation o;
-      RefusalReason why{};
-      const double t0 = thread_cpu_ms();
-      obs.measure(x.id, x.corners_px, x.corner_sigma_px, &o, &why);
-      measure_ms += thread_cpu_ms() - t0;
-      ++measured;
     }
     for (const LandmarkObservation& y : b.seen) {
       if (std::none_of(a.seen.begin(), a.seen.end(), [&](const auto& o) { return o.id == y.id; })) {
@@ -285,14 +339,16 @@ void print_window_agreement() {
       }
     }
   }
+  double sum_ms = 0.0;
+  for (double m : ms) sum_ms += m;
+  const double n = static_cast<double>(f.images.size());
   std::printf(
-      "windows vs full sweep on %zu frames: %d landmarks in both (largest corner difference %.4f "
-      "px), "
-      "%d full sweep only, %d windows only; %.2f windows per frame; measure() %.3f ms CPU per "
-      "landmark (mean)\n",
-      f.images.size(), both, worst_px, sweep_only, window_only,
-      static_cast<double>(windows) / static_cast<double>(f.images.size()),
-      measured ? measure_ms / static_cast<double>(measured) : 0.0);
+      "windows (%s) vs full sweep on %zu frames: %d landmarks in both (largest corner difference "
+      "%.4f px), %d full sweep only, %d windows only; %.2f windows searched and %.2f landmarks "
+      "hidden per frame, %zu full sweeps; CPU per frame mean %.3f ms, median %.3f ms\n",
+      name, f.images.size(), both, worst_px, sweep_only, window_only,
+      static_cast<double>(windows) / n, static_cast<double>(hidden) / n, swept, sum_ms / n,
+      quantile(ms, 0.5));
 }
 
 void print_window_diag() {
@@ -331,6 +387,8 @@ int main(int argc, char** argv) {
   for (int i = 0; i < argc; ++i) {
     if (std::strcmp(argv[i], "--profile") == 0) {
       profile = true;
+    } else if (std::strcmp(argv[i], "--frames") == 0 && i + 1 < argc) {
+      g_frames = std::max(1, std::atoi(argv[++i]));
     } else {
       args.push_back(argv[i]);
     }
@@ -338,7 +396,9 @@ int main(int argc, char** argv) {
   if (profile) {
     print_apriltag_stages(1.0);
     print_apriltag_stages(2.0);
-    print_window_agreement();
+    print_window_agreement(1, "prior 30 mm / 0.3 deg");
+    print_window_agreement(2, "prior 10 mm / 0.1 deg");
+    print_window_agreement(3, "prior 3 mm / 0.03 deg");
     print_window_diag();
   }
   int n = static_cast<int>(args.size());

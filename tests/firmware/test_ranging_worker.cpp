@@ -27,8 +27,8 @@ config::RangingCameraSection section() {
 // it did not end within 20 s.
 bool run_to_end(fakecamera::FakeCamera* cam, hal::Clock* clock, RangingCounts* counts,
                 RangingRing* ring) {
-  const std::vector<site::WallLandmark> walls = {{.id = 3, .x_mm = 3000.0, .z_mm = 1000.0}};
-  RackObserver rack(section(), walls);
+  const RackSite site{.walls = {{.id = 3, .x_mm = 3000.0, .z_mm = 1000.0}}};
+  RackObserver rack(section(), site);
   std::string err;
   EXPECT_TRUE(rack.ok(&err)) << err;
   SnapshotSlot snapshot{localizer::TimeBase{}};

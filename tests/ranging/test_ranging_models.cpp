@@ -51,7 +51,11 @@ TEST(RangingModels, MountAxes) {
 }
 
 RangingMount tilted_mount() {
-  return {.x_mm = 350.0, .y_mm = -120.0, .z_mm = 900.0, .roll_rad = 0.03, .pitch_rad = -0.05,
+  return {.x_mm = 350.0,
+          .y_mm = -120.0,
+          .z_mm = 900.0,
+          .roll_rad = 0.03,
+          .pitch_rad = -0.05,
           .yaw_rad = 0.4};
 }
 

@@ -546,5 +546,20 @@ TEST(SiteGeometry, FootprintOfADownCameraIsItsImageOnTheFloor) {
   EXPECT_NEAR(signed_area_mm2(Polygon{foot}), 6400.0 * 4800.0, 1e-3);
 }
 
+TEST(SiteGeometry, SightLinesStopAtObstaclesTallerThanTheLine) {
+  Obstacle rack;
+  rack.outline.vertices_mm = {{2000, -500}, {3000, -500}, {3000, 500}, {2000, 500}};
+  rack.height_mm = 2000.0;
+  const std::vector<Obstacle> racks{rack};
+  const std::array<double, 3> cam{0.0, 0.0, 1000.0};
+  EXPECT_TRUE(sight_line_blocked(cam, {5000.0, 0.0, 1000.0}, racks));      // through it
+  EXPECT_FALSE(sight_line_blocked(cam, {5000.0, 2000.0, 1000.0}, racks));  // beside it
+  EXPECT_FALSE(sight_line_blocked(cam, {5000.0, 0.0, 6000.0}, racks));     // over it
+  // A landmark on the rack's near face is not hidden by that face, one on the far face is.
+  EXPECT_FALSE(sight_line_blocked(cam, {2000.0, 100.0, 1000.0}, racks));
+  EXPECT_TRUE(sight_line_blocked(cam, {3000.0, 100.0, 1000.0}, racks));
+  EXPECT_FALSE(sight_line_blocked(cam, {5000.0, 0.0, 1000.0}, {}));
+}
+
 }  // namespace
 }  // namespace agv::site

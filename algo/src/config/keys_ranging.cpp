@@ -114,6 +114,19 @@ void add_ranging_calibration_doubt(std::vector<Key>* k) {
                        "edge lines around its predicted square, decoded against its own id; its "
                        "window is searched only when that fails (about half the CPU per frame "
                        "once localized, docs/design/ranging.md). false: every window searched"));
+  k->push_back(integer("ranging_camera.sweep_interval_frames",
+                       AGV_AT(ranging_camera.sweep_interval_frames), 0, 100000, 150,
+                       {"frames",
+                        "every this many frames the whole frame is searched as well, for "
+                        "landmarks the pose does not expect in view (a pose wrong beyond its "
+                        "sigma); without a usable pose every frame is. 0: never"}));
+  k->push_back(number("ranging_camera.interval_sweep_decimate",
+                      AGV_AT(ranging_camera.interval_sweep_decimate), 1.0, 4.0, 2.0,
+                      {"",
+                       "libapriltag's quad decimation for that search: 2 adds the tags the "
+                       "windows did not read at a third of a full sweep's CPU, missing some of "
+                       "the smallest (150 mm beyond about 7 m at 1000 px focal length). 1: a "
+                       "full-resolution sweep in place of the windows"}));
 }
 
 }  // namespace

@@ -251,6 +251,10 @@ LandmarkObserver::LandmarkObserver(const CameraIntrinsics& intrinsics, const Ran
     p.quad_decimate = options.full_sweep_decimate;
     impl_->decimated = std::make_unique<overhead::TagDetector>(p);
   }
+  if (options.interval_sweep_decimate > 1.0) {
+    p.quad_decimate = options.interval_sweep_decimate;
+    impl_->interval = std::make_unique<overhead::TagDetector>(p);
+  }
   impl_->K = cv::Matx33d(k_.fx, 0.0, k_.cx, 0.0, k_.fy, k_.cy, 0.0, 0.0, 1.0);
   impl_->dist = {k_.k1, k_.k2, k_.p1, k_.p2, k_.k3};
   if (!(k_.fx > 0.0) || !(k_.fy > 0.0) || k_.width_px <= 0 || k_.height_px <= 0) {

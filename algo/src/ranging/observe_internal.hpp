@@ -18,6 +18,8 @@ struct LandmarkObserver::Impl {
   std::unique_ptr<overhead::TagDetector> decimated;
   cv::Matx33d K;
   std::vector<double> dist;
+  // The interval's search of the whole frame (ObserveOptions::interval_sweep_decimate > 1).
+  std::unique_ptr<overhead::TagDetector> interval;
   const overhead::TagDetector& sweep_detector() const { return decimated ? *decimated : detector; }
 };
 

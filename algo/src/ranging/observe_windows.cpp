@@ -1,8 +1,8 @@
 // LandmarkObserver's predicted windows (observe.hpp): each landmark the pose prior puts in view
 // projected into the camera at the prior pose, a window around it grown by the projected
 // uncertainty of the prior, the mount and the lens calibration, and libapriltag run in those
-// windows only. A full sweep when there is no usable prior, at an interval, or when the windows
-// would cover much of the frame.
+// windows only; at an interval the whole frame at a coarser quad decimation as well. A full sweep
+// when there is no usable prior or when the windows would cover much of the frame.
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "agv/ranging/observe.hpp"
+#include "agv/site/site_geometry.hpp"
 #include "observe_internal.hpp"
 
 namespace agv::ranging {
@@ -37,6 +38,20 @@ std::array<Eigen::Vector3d, 4> landmark_corners_site(const site::WallLandmark& w
   const Eigen::Vector3d up(0.0, 0.0, 1.0);
   return {c - h * right + h * up, c + h * right + h * up, c + h * right - h * up,
           c - h * right - h * up};
+}
+
+// Every corner's sight line from the camera at the vehicle pose crosses an obstacle: the
+// landmark cannot be read there. One corner in sight keeps it (the prior's doubt and the
+// outline's survey put the edge of the shadow in doubt too).
+bool hidden(const std::array<Eigen::Vector3d, 4>& corners_site, const Pose2& pose,
+            const RangingMount& mount, std::span<const site::Obstacle> obstacles) {
+  if (obstacles.empty()) return false;
+  const double c = std::cos(pose.theta_rad), s = std::sin(pose.theta_rad);
+  const std::array<double, 3> cam{pose.x_mm + c * mount.x_mm - s * mount.y_mm,
+                                  pose.y_mm + s * mount.x_mm + c * mount.y_mm, mount.z_mm};
+  return std::all_of(corners_site.begin(), corners_site.end(), [&](const Eigen::Vector3d& p) {
+    return site::sight_line_blocked(cam, {p.x(), p.y(), p.z()}, obstacles);
+  });
 }
 
 // The corners in distorted pixels seen from vehicle pose (x, y, theta) through the mount; false
@@ -156,13 +171,18 @@ bool prior_usable(const PosePrior& prior, const WindowOptions& wopt) {
 
 // Overlapping windows merged into their bounding rectangles (until none overlap), so that no
 // tag is searched twice.
-std::vector<cv::Rect> merge_windows(std::vector<cv::Rect> w) {
+std::vector<SearchWindow> merge_windows(std::vector<SearchWindow> w) {
   for (bool merged = true; merged;) {
     merged = false;
     for (std::size_t i = 0; i < w.size() && !merged; ++i) {
       for (std::size_t j = i + 1; j < w.size(); ++j) {
-        if ((w[i] & w[j]).area() > 0) {
-          w[i] |= w[j];
+        // Overlapping windows of one decimation are merged when their bounding box wastes
+        // little. A near tag's coarse window over a far tag's fine one, or two crossing at a
+        // corner, stay two: a tag read in both is kept once.
+        const cv::Rect a = w[i].rect, b = w[j].rect;
+        if (w[i].decimation == w[j].decimation && (a & b).area() > 0 &&
+            (a | b).area() <= a.area() + b.area()) {
+          w[i].rect |= b;
           w.erase(w.begin() + static_cast<std::ptrdiff_t>(j));
           merged = true;
           break;
@@ -211,6 +231,8 @@ bool LandmarkObserver::predict_landmark(const site::WallLandmark& w, const PoseP
   out->window = window;
   out->predicted_path = wopt.predicted_first && wopt.sigma_count * out->corner_sigma_px <=
                                                     impl_->detector.params().predicted_search_px;
+  const int dec = static_cast<int>(std::floor(side / wopt.decimated_side_px));
+  out->decimation = std::clamp(dec, 1, std::max(1, wopt.max_decimation));
   return true;
 }
 
@@ -219,7 +241,10 @@ WindowPlan LandmarkObserver::plan_windows(const PosePrior* prior, std::uint64_t 
   using namespace window_detail;
   WindowPlan plan;
   if (!prior) return plan;  // full sweep, no prior
-  if (wopt.full_sweep_interval_frames > 0 && frame_index % wopt.full_sweep_interval_frames == 0) {
+  const bool interval =
+      wopt.full_sweep_interval_frames > 0 && frame_index % wopt.full_sweep_interval_frames == 0;
+  // A mirrored read of everything searched (kFullFrame) keeps the interval a full sweep.
+  if (interval && (!impl_->interval || opt_.mirror_check == MirrorCheck::kFullFrame)) {
     plan.reason = SweepReason::kInterval;
     return plan;
   }
@@ -227,30 +252,29 @@ WindowPlan LandmarkObserver::plan_windows(const PosePrior* prior, std::uint64_t 
     plan.reason = SweepReason::kUncertainPrior;
     return plan;
   }
-  std::vector<cv::Rect> windows;
+  std::vector<SearchWindow> windows;
   for (const site::WallLandmark& w : table_) {
     PredictedLandmark p;
     if (!predict_landmark(w, *prior, wopt, &p)) continue;
-    plan.predicted.push_back(p);
-    windows.push_back(p.window);
-  }
-  double area = 0.0;
-  for (const cv::Rect& r : merge_windows(windows)) {
-    // The smallest tag predicted in the window sets its decimation.
-    double side = std::numeric_limits<double>::infinity();
-    for (const PredictedLandmark& p : plan.predicted) {
-      if ((p.window & r).area() > 0) side = std::min(side, p.side_px);
+    if (hidden(landmark_corners_site(w), prior->pose, mount_, obstacles_)) {
+      ++plan.hidden;
+      continue;
     }
-    const int dec = static_cast<int>(std::floor(side / wopt.decimated_side_px));
-    plan.windows.push_back({r, std::clamp(dec, 1, std::max(1, wopt.max_decimation))});
-    area += static_cast<double>(r.area());
+    plan.predicted.push_back(p);
+    windows.push_back({p.window, p.decimation});
   }
-  if (area > wopt.max_window_share * k_.width_px * k_.height_px) {
+  plan.windows = merge_windows(std::move(windows));
+  double searched_px = 0.0;
+  for (const SearchWindow& w : plan.windows) {
+    searched_px += static_cast<double>(w.rect.area()) / (w.decimation * w.decimation);
+  }
+  if (searched_px > wopt.max_window_share * k_.width_px * k_.height_px) {
     plan.reason = SweepReason::kWindowsTooLarge;
     return plan;
   }
   plan.full_sweep = false;
-  plan.reason = SweepReason::kWindows;
+  plan.reason = interval ? SweepReason::kInterval : SweepReason::kWindows;
+  plan.discovery = interval;
   return plan;
 }
 
@@ -318,32 +342,72 @@ bool LandmarkObserver::window_done(const WindowPlan& plan, const std::vector<boo
   return any;
 }
 
-ObserveResult LandmarkObserver::observe(const cv::Mat& gray, const WindowPlan& plan) const {
-  if (plan.full_sweep) return full_sweep(gray, plan.reason);
-  ObserveResult res;
-  res.full_sweep = false;
-  res.reason = SweepReason::kWindows;
-  if (!usable_frame(gray)) return res;
-  std::vector<overhead::TagObservation> dets;
-  std::vector<bool> confirmed;
-  const std::vector<bool> read = read_predicted(gray, plan, &dets);
-  confirmed.assign(dets.size(), true);
-  res.predicted_reads = dets.size();
+int LandmarkObserver::unread_decimation(const WindowPlan& plan, const std::vector<bool>& read,
+                                        const SearchWindow& w) {
+  int dec = std::numeric_limits<int>::max();
+  for (std::size_t i = 0; i < plan.predicted.size(); ++i) {
+    if (!read[i] && (plan.predicted[i].window & w.rect).area() > 0) {
+      dec = std::min(dec, plan.predicted[i].decimation);
+    }
+  }
+  return dec == std::numeric_limits<int>::max() ? w.decimation : std::max(dec, w.decimation);
+}
+
+void LandmarkObserver::search_windows(const cv::Mat& gray, const WindowPlan& plan,
+                                      const std::vector<bool>& read, WindowReads* out,
+                                      ObserveResult* res) const {
   for (const SearchWindow& w : plan.windows) {
     if (window_done(plan, read, w)) continue;
-    for (const overhead::TagObservation& d : detect_in(gray, w)) {
-      if (std::any_of(dets.begin(), dets.begin() + static_cast<std::ptrdiff_t>(res.predicted_reads),
+    for (const overhead::TagObservation& d :
+         detect_in(gray, {w.rect, unread_decimation(plan, read, w)})) {
+      if (std::any_of(out->dets.begin(), out->dets.end(),
                       [&](const overhead::TagObservation& o) { return o.id == d.id; }))
-        continue;  // read on the predicted path already (ids are unique in the table)
+        continue;  // read on the predicted path or in another window (ids are unique)
       // Confirmed by the prior: a predicted id whose predicted window holds the read.
       const bool expected = std::any_of(
           plan.predicted.begin(), plan.predicted.end(),
           [&](const auto& p) { return p.id == d.id && (p.window & w.rect).area() > 0; });
-      dets.push_back(d);
-      confirmed.push_back(expected);
+      out->dets.push_back(d);
+      out->confirmed.push_back(expected);
     }
-    ++res.windows_searched;
+    ++res->windows_searched;
   }
+}
+
+void LandmarkObserver::search_discovery(const cv::Mat& gray, const WindowPlan& plan,
+                                        WindowReads* out) const {
+  std::vector<std::uint32_t> known;
+  for (const overhead::TagObservation& d : out->dets) known.push_back(d.id);
+  const cv::Rect all(0, 0, gray.cols, gray.rows);
+  for (const overhead::TagObservation& d : impl_->interval->detect(gray, all)) {
+    if (std::find(known.begin(), known.end(), d.id) != known.end()) continue;
+    const cv::Point centre(static_cast<int>(0.25 * (d.corners_px[0].x + d.corners_px[1].x +
+                                                    d.corners_px[2].x + d.corners_px[3].x)),
+                           static_cast<int>(0.25 * (d.corners_px[0].y + d.corners_px[1].y +
+                                                    d.corners_px[2].y + d.corners_px[3].y)));
+    const bool expected =
+        std::any_of(plan.predicted.begin(), plan.predicted.end(),
+                    [&](const auto& p) { return p.id == d.id && p.window.contains(centre); });
+    out->dets.push_back(d);
+    out->confirmed.push_back(expected);
+    known.push_back(d.id);
+  }
+}
+
+ObserveResult LandmarkObserver::observe(const cv::Mat& gray, const WindowPlan& plan) const {
+  if (plan.full_sweep) return full_sweep(gray, plan.reason);
+  ObserveResult res;
+  res.full_sweep = false;
+  res.reason = plan.reason;
+  if (!usable_frame(gray)) return res;
+  WindowReads reads;
+  const std::vector<bool> read = read_predicted(gray, plan, &reads.dets);
+  reads.confirmed.assign(reads.dets.size(), true);
+  res.predicted_reads = reads.dets.size();
+  search_windows(gray, plan, read, &reads, &res);
+  if (plan.discovery && impl_->interval) search_discovery(gray, plan, &reads);
+  const std::vector<overhead::TagObservation>& dets = reads.dets;
+  const std::vector<bool>& confirmed = reads.confirmed;
   std::vector<bool> mirrored(dets.size(), false);
   if (opt_.mirror_check == MirrorCheck::kFullFrame) {
     for (const SearchWindow& w : plan.windows) {

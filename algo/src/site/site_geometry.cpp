@@ -136,4 +136,35 @@ double signed_area_mm2(const Polygon& p) {
   return 0.5 * a;
 }
 
+namespace detail {
+// The parameter along p + t d (t in [0, t_max]) where it crosses the edge a-b, or -1.
+double edge_crossing(Vec2 p, Vec2 d, double t_max, Vec2 a, Vec2 b) {
+  const Vec2 e{b.x - a.x, b.y - a.y};
+  const double den = d.x * e.y - d.y * e.x;
+  if (std::abs(den) < 1e-12) return -1.0;  // parallel: grazing an edge hides nothing
+  const Vec2 ap{a.x - p.x, a.y - p.y};
+  const double t = (ap.x * e.y - ap.y * e.x) / den;
+  const double u = (ap.x * d.y - ap.y * d.x) / den;
+  return t >= 0.0 && t <= t_max && u >= 0.0 && u <= 1.0 ? t : -1.0;
+}
+}  // namespace detail
+
+bool sight_line_blocked(const std::array<double, 3>& from_mm, const std::array<double, 3>& to_mm,
+                        std::span<const Obstacle> obstacles, double end_clearance_mm) {
+  const Vec2 p{from_mm[0], from_mm[1]};
+  const Vec2 d{to_mm[0] - from_mm[0], to_mm[1] - from_mm[1]};
+  const double length_mm = std::hypot(d.x, d.y);
+  if (!(length_mm > end_clearance_mm)) return false;
+  const double t_max = 1.0 - end_clearance_mm / length_mm;
+  for (const Obstacle& o : obstacles) {
+    const std::vector<Vec2>& v = o.outline.vertices_mm;
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      const double t = detail::edge_crossing(p, d, t_max, v[i], v[(i + 1) % v.size()]);
+      if (t < 0.0) continue;
+      if (from_mm[2] + t * (to_mm[2] - from_mm[2]) < o.height_mm) return true;
+    }
+  }
+  return false;
+}
+
 }  // namespace agv::site

@@ -160,7 +160,9 @@ struct RangingCameraSection {
   double mount_sigma_mm = 0.0;
   double calibration_sigma_px = 0.0;
   double focal_sigma_rel = 0.0;
-  bool predicted_first = true;  // ranging::WindowOptions::predicted_first
+  bool predicted_first = true;               // ranging::WindowOptions::predicted_first
+  std::int64_t sweep_interval_frames = 150;  // ranging::WindowOptions::full_sweep_interval_frames
+  double interval_sweep_decimate = 2.0;      // ranging::ObserveOptions::interval_sweep_decimate
 };
 
 // The doubt every bearing of a second-camera frame shares: the mount's yaw and the principal

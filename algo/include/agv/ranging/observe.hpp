@@ -64,8 +64,9 @@ enum class SweepReason {
   kWindows,         // predicted windows only
   kNoPrior,         // full sweep: no pose prior given
   kUncertainPrior,  // full sweep: the prior's covariance over WindowOptions' limits (or not finite)
-  kInterval,        // full sweep: the frame index is a multiple of the sweep interval
-  kWindowsTooLarge  // full sweep: the windows would cover too much of the frame
+  kInterval,        // the frame index is a multiple of the sweep interval: the windows plus the
+                    // whole frame at ObserveOptions::interval_sweep_decimate, or a full sweep
+  kWindowsTooLarge  // full sweep: the windows would search about as many pixels as it does
 };
 const char* sweep_reason_name(SweepReason reason);
 
@@ -82,6 +83,12 @@ struct ObserveOptions {
   // libapriltag's quad decimation on a full sweep (windows are searched at full resolution): 2
   // costs a quarter but misses some of the smallest tags (150 mm beyond about 7 m at f = 1000 px).
   double full_sweep_decimate = 1.0;
+  // libapriltag's quad decimation for the interval's search of the whole frame
+  // (WindowOptions::full_sweep_interval_frames) when the prior is usable: the windows are read as
+  // on any frame and this search adds the tags they did not read, at about a third of a full
+  // sweep's cost for 2; it misses some of the smallest tags, which the windows read once the
+  // prior expects them. 1: a full sweep at full_sweep_decimate in place of the windows.
+  double interval_sweep_decimate = 2.0;
   // The two IPPE solutions' reprojection errors closer than this ratio: the tag's yaw is
   // ambiguous (a small or distant tag), has_yaw is false; range and bearing stay.
   double yaw_ambiguity_ratio = 2.0;
@@ -160,23 +167,27 @@ struct WindowOptions {
   // border and some background around it to find the quad.
   double sigma_count = 3.0;
   double margin_px = 16.0;
-  double margin_side_share = 0.5;  // of the predicted tag's side, when more than margin_px
+  double margin_side_share = 0.25;  // of the predicted tag's side, when more than margin_px
   // A prior worse than these (worst position axis, heading; 1 sigma) gets a full sweep.
   double max_position_sd_mm = 150.0;
   double max_heading_sd_rad = 0.035;
-  // Windows together covering more than this share of the frame: a full sweep instead.
+  // Windows whose pixels searched (each window's area over its decimation squared) add up to
+  // more than this share of the frame: a full sweep instead.
   double max_window_share = 0.3;
-  // A full sweep every this many frames (frame_index multiple of it) to find what the prior
-  // does not expect; 0: never.
+  // Every this many frames (frame_index multiple of it) the whole frame is searched as well, for
+  // what the prior does not expect (a landmark it puts out of view, a prior wrong beyond its
+  // sigma); 0: never.
   std::uint64_t full_sweep_interval_frames = 150;
   // Landmarks predicted smaller than this share of ObserveOptions::min_side_px, or seen more
   // obliquely than max_view_angle_rad from their face normal, are not looked for.
   double min_side_share = 0.8;
   double max_view_angle_rad = 1.3;
-  // A window whose smallest predicted tag is n times this side (px) is searched shrunk n times
-  // (up to max_decimation): libapriltag's cost goes with the pixels, and it finds a tag of this
-  // size reliably. The tag is then refined at full resolution from the scaled corners.
-  double decimated_side_px = 24.0;
+  // A window whose smallest predicted tag is n times this side (px; its shortest side) is
+  // searched shrunk n times (up to max_decimation): libapriltag's cost goes with the pixels, and
+  // it finds a tag of this size reliably, an oblique one too (at 24 px a tag seen at 70 degrees,
+  // 50 x 140 px, was lost at half size). The tag is then refined at full resolution from the
+  // scaled corners.
+  double decimated_side_px = 32.0;
   int max_decimation = 4;
   // A landmark whose corners the prior predicts within the tag detector's predicted search
   // (sigma_count corner sigmas within TagDetectParams::predicted_search_px) is read first on the
@@ -195,6 +206,7 @@ struct PredictedLandmark {
   double side_px = 0.0;  // shortest side at the prior pose
   cv::Rect window;
   bool predicted_path = false;  // tried on the predicted path first (predicted_first)
+  int decimation = 1;           // a window searched for it alone is shrunk this many times
 };
 
 struct SearchWindow {
@@ -207,6 +219,10 @@ struct WindowPlan {
   SweepReason reason = SweepReason::kNoPrior;
   std::vector<PredictedLandmark> predicted;
   std::vector<SearchWindow> windows;  // the predicted windows, overlapping ones merged
+  std::size_t hidden = 0;  // landmarks in view but behind an obstacle (set_obstacles): not searched
+  // The whole frame is searched as well for tags the windows did not read (the interval's search,
+  // ObserveOptions::interval_sweep_decimate).
+  bool discovery = false;
 };
 
 // A range and bearing from the camera itself, in the terms of the EKF's range-bearing aid: the
@@ -235,6 +251,13 @@ class LandmarkObserver {
   ~LandmarkObserver();
   LandmarkObserver(const LandmarkObserver&) = delete;
   LandmarkObserver& operator=(const LandmarkObserver&) = delete;
+
+  // The site's obstacles (opaque, extruded to their height): a landmark the prior puts in view
+  // but behind one (every corner's sight line crossing it) gets no window. A full sweep and the
+  // interval's search still read it if it is in sight after all. None by default.
+  void set_obstacles(std::span<const site::Obstacle> obstacles) {
+    obstacles_.assign(obstacles.begin(), obstacles.end());
+  }
 
   TableStatus status() const { return status_; }
   const std::string& status_detail() const { return status_detail_; }
@@ -271,6 +294,20 @@ class LandmarkObserver {
   // plan.predicted, whether it was.
   std::vector<bool> read_predicted(const cv::Mat& gray, const WindowPlan& plan,
                                    std::vector<overhead::TagObservation>* dets) const;
+  // Detections of a windowed frame, each with whether the prior expected it there.
+  struct WindowReads {
+    std::vector<overhead::TagObservation> dets;
+    std::vector<bool> confirmed;
+  };
+  // libapriltag in the plan's windows that the predicted path did not finish.
+  void search_windows(const cv::Mat& gray, const WindowPlan& plan, const std::vector<bool>& read,
+                      WindowReads* out, ObserveResult* res) const;
+  // The whole frame at the interval's decimation: tags not read yet.
+  void search_discovery(const cv::Mat& gray, const WindowPlan& plan, WindowReads* out) const;
+  // The decimation window w is searched at: that of its smallest landmark not read on the
+  // predicted path (a small tag read there does not make the search of a near one finer).
+  static int unread_decimation(const WindowPlan& plan, const std::vector<bool>& read,
+                               const SearchWindow& w);
   // Every predicted landmark in window w was read on the predicted path.
   static bool window_done(const WindowPlan& plan, const std::vector<bool>& read,
                           const SearchWindow& w);
@@ -281,6 +318,7 @@ class LandmarkObserver {
   RangingMount mount_;
   ObserveOptions opt_;
   std::vector<site::WallLandmark> table_;  // sorted by id, tag36h11 only
+  std::vector<site::Obstacle> obstacles_;
   TableStatus status_ = TableStatus::kOk;
   std::string status_detail_;
   std::unique_ptr<Impl> impl_;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <array>
+#include <span>
 #include <vector>
 
 #include "agv/site/site.hpp"
@@ -39,5 +40,12 @@ std::vector<Vec2> camera_floor_footprint(const CeilingCamera& cam, int samples_p
 
 // Shoelace area: positive for a counter-clockwise polygon.
 double signed_area_mm2(const Polygon& p);
+
+// Whether an obstacle (its outline extruded from the floor to its height, opaque) stands between
+// two points (site frame, mm): the segment crosses an outline edge lower than the obstacle's
+// height there. The segment stops end_clearance_mm (horizontally) short of `to`, so that a point
+// on an obstacle's face, such as a landmark printed on it, is not hidden by its own face.
+bool sight_line_blocked(const std::array<double, 3>& from_mm, const std::array<double, 3>& to_mm,
+                        std::span<const Obstacle> obstacles, double end_clearance_mm = 20.0);
 
 }  // namespace agv::site
