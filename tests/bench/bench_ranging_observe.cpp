@@ -112,11 +112,17 @@ const PosePrior& prior_of(const Frames& f, int kind, std::size_t i) {
   return kind == 1 ? f.priors[i] : kind == 2 ? f.tight_priors[i] : f.localized_priors[i];
 }
 
+PosePrior turned(PosePrior p, double deg) {
+  p.pose.theta_rad += deg_to_rad(deg);
+  return p;
+}
+
 struct Mode {
   int windows = 0;              // 0 full sweep, else the priors of prior_of
   bool predicted_first = true;  // WindowOptions::predicted_first
   bool interval = false;        // every frame is the sweep interval's
   bool obstacles = true;        // the site's racks given to the observer (set_obstacles)
+  double turn_deg = 0.0;        // the prior turned by this much (a prior wrong beyond its sigma)
 };
 
 void run(benchmark::State& state, const ObserveOptions& opt, const Mode& mode) {
@@ -130,10 +136,10 @@ void run(benchmark::State& state, const ObserveOptions& opt, const Mode& mode) {
   std::size_t i = 0, seen = 0, swept = 0, predicted = 0;
   for (auto _ : state) {
     const std::size_t fi = i++ % std::min<std::size_t>(kFrames, f.images.size());
+    const PosePrior prior = turned(prior_of(f, std::max(1, mode.windows), fi), mode.turn_deg);
     const double t0 = thread_cpu_ms();
-    const ObserveResult r = mode.windows
-                                ? obs.observe(f.images[fi], &prior_of(f, mode.windows, fi), 1, wopt)
-                                : obs.observe(f.images[fi]);
+    const ObserveResult r =
+        mode.windows ? obs.observe(f.images[fi], &prior, 1, wopt) : obs.observe(f.images[fi]);
     ms.push_back(thread_cpu_ms() - t0);
     seen += r.seen.size();
     swept += r.full_sweep ? 1 : 0;
@@ -200,6 +206,13 @@ void BM_IntervalLocalizedFullSweep(benchmark::State& state) {
   o.interval_sweep_decimate = 1.0;
   run(state, o, {.windows = 3, .interval = true});
 }
+// What the interval's search finds for a prior 20 degrees off that claims 0.03: its windows
+// miss, the whole frame at quad decimation 2, 3 (decimate = state.range(0)) or a full sweep (1).
+void BM_IntervalWrongPrior(benchmark::State& state) {
+  ObserveOptions o;
+  o.interval_sweep_decimate = static_cast<double>(state.range(0));
+  run(state, o, {.windows = 3, .interval = true, .turn_deg = 20.0});
+}
 
 // measure() alone (undistortion, pose, covariances) on the full sweep's detections.
 void BM_MeasurePerLandmark(benchmark::State& state) {
@@ -256,6 +269,13 @@ BENCHMARK(BM_WindowsLocalizedPriorNoObstacles)
     ->UseRealTime();
 BENCHMARK(BM_IntervalLocalized)->Unit(benchmark::kMillisecond)->Iterations(kFrames)->UseRealTime();
 BENCHMARK(BM_IntervalLocalizedFullSweep)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(kFrames)
+    ->UseRealTime();
+BENCHMARK(BM_IntervalWrongPrior)
+    ->Arg(1)
+    ->Arg(2)
+    ->Arg(3)
     ->Unit(benchmark::kMillisecond)
     ->Iterations(kFrames)
     ->UseRealTime();
