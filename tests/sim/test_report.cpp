@@ -40,6 +40,9 @@ TEST(Report, ReadsPosesCsvAsReplayWritesIt) {
   EXPECT_DOUBLE_EQ(rows[0].pose.y_mm, -2.25);
   EXPECT_NEAR(rows[0].pose.theta_rad, M_PI / 2, 1e-12);
   EXPECT_EQ(rows[0].time_since_fix_ns, 42'500'000);
+  EXPECT_EQ(rows[0].health, 1);
+  EXPECT_DOUBLE_EQ(rows[0].sigma_x_mm, 1.0);
+  EXPECT_NEAR(rows[0].sigma_theta_rad, 0.1 * M_PI / 180.0, 1e-12);
   // Integer times above 2^53 stay exact (not parsed through a double).
   EXPECT_EQ(rows[1].t_ns, 9'007'199'254'740'993);
   EXPECT_FALSE(rows[1].valid);

@@ -42,6 +42,8 @@ const Subcommand kCalibrateSubcommands[] = {
     {"ceiling", calibrate_ceiling, "a ceiling camera's pose from tags at surveyed positions"},
     {"ceiling-check", calibrate_ceiling_check,
      "the site file's ceiling camera pose checked against tags at surveyed positions"},
+    {"ranging-mount", calibrate_ranging_mount,
+     "the second camera's mount from a drive past rack landmarks, localized on the floor"},
 };
 const CommandGroup kCalibrate{"calibrate", kCalibrateSubcommands, std::size(kCalibrateSubcommands)};
 

@@ -24,6 +24,9 @@ int calibrate_check(int argc, char** argv);
 // frames. Exit 0 pass, 1 fail, 2 bad input.
 int calibrate_ceiling(int argc, char** argv);
 int calibrate_ceiling_check(int argc, char** argv);
+// calibrate ranging-mount: the second camera's mount from a drive past rack landmarks, the
+// vehicle localized by the floor camera. Exit 0 solved, 1 no mount or write failure, 2 bad input.
+int calibrate_ranging_mount(int argc, char** argv);
 int config_command(int argc, char** argv);  // dispatcher: config apply
 void print_config_subcommands(FILE* f);     // one usage line per config subcommand
 // config apply: calibration snippets merged into a configuration. Exit 0 written, 1 write

@@ -78,10 +78,12 @@ bool read_poses_csv(const std::string& path, std::vector<PoseRow>* out, std::str
   return read_csv(path, "t_ns,valid,health,x_mm,y_mm,theta_deg", 12, error,
                   [&](const std::vector<std::string>& f) {
                     std::int64_t t;
-                    double valid, x, y, th, since_ms;
+                    double valid, health, x, y, th, sx, sy, sth, since_ms;
                     if (!parse_int64(f[0], &t) || !parse_number(f[1], &valid) ||
-                        !parse_number(f[3], &x) || !parse_number(f[4], &y) ||
-                        !parse_number(f[5], &th) || !parse_number(f[11], &since_ms)) {
+                        !parse_number(f[2], &health) || !parse_number(f[3], &x) ||
+                        !parse_number(f[4], &y) || !parse_number(f[5], &th) ||
+                        !parse_number(f[8], &sx) || !parse_number(f[9], &sy) ||
+                        !parse_number(f[10], &sth) || !parse_number(f[11], &since_ms)) {
                       return false;
                     }
                     // Beyond int64 nanoseconds llround gives a negative value (fuzz_report_csv:
@@ -91,6 +93,10 @@ bool read_poses_csv(const std::string& path, std::vector<PoseRow>* out, std::str
                     r.t_ns = t;
                     r.valid = valid != 0.0;
                     r.pose = {x, y, deg_to_rad(th)};
+                    r.health = health >= 0.0 && health <= 3.0 ? static_cast<int>(health) : -1;
+                    r.sigma_x_mm = sx;
+                    r.sigma_y_mm = sy;
+                    r.sigma_theta_rad = deg_to_rad(sth);
                     // Written with 0.1 ms resolution; -1 means no fix yet.
                     r.time_since_fix_ns = since_ms < 0 ? -1 : std::llround(since_ms * 1e6);
                     out->push_back(r);

@@ -19,6 +19,8 @@ struct PoseRow {
   bool valid = false;
   Pose2 pose;
   std::int64_t time_since_fix_ns = -1;  // -1: no fix yet
+  int health = 0;                       // 0 uninitialised, 1 localized, 2 dead reckoning, 3 lost
+  double sigma_x_mm = 0.0, sigma_y_mm = 0.0, sigma_theta_rad = 0.0;
 };
 
 // One fixes.csv row with status ok (other rows carry no pose).
