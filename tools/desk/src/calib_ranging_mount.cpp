@@ -18,12 +18,13 @@ namespace {
 
 constexpr double kMinDepthMm = 10.0;
 
-// Site point -> undistorted pixel. q: mount {x, y, z, roll, pitch, yaw}; p: vehicle {x, y, theta}.
+// Site point -> undistorted pixel. q: mount {x, y, z, roll, pitch, yaw}; p: vehicle {x, y, theta};
+// c: the lens's doubt {focal scale, principal point shift x, y (px)}, {1, 0, 0} as calibrated.
 // R_VC = Rz(yaw) Ry(pitch) Rx(roll) R_BC (ranging::rotation_vehicle_from_camera), so the camera
 // point is R_BC^T Rx^T Ry^T Rz^T (p_V - m), R_BC^T b = (-b_y, -b_z, b_x).
 template <typename T>
-bool project_generic(const CameraIntrinsics& k, const T* q, const T* p, const double s[3], T* u,
-                     T* v) {
+bool project_generic(const CameraIntrinsics& k, const T* q, const T* p, const T* c,
+                     const double s[3], T* u, T* v) {
   using std::cos;
   using std::sin;
   const T ct = cos(p[2]), st = sin(p[2]);
@@ -37,14 +38,16 @@ bool project_generic(const CameraIntrinsics& k, const T* q, const T* p, const do
   const T b0 = f0, b1 = cr * f1 + sr * f2, b2 = -sr * f1 + cr * f2;
   const T x = -b1, y = -b2, z = b0;
   if (!(z > T(kMinDepthMm))) return false;
-  *u = T(k.fx) * x / z + T(k.cx);
-  *v = T(k.fy) * y / z + T(k.cy);
+  *u = T(k.fx) * c[0] * x / z + T(k.cx) + c[1];
+  *v = T(k.fy) * c[0] * y / z + T(k.cy) + c[2];
   return true;
 }
 
 std::array<double, 6> params_of(const ranging::RangingMount& m) {
   return {m.x_mm, m.y_mm, m.z_mm, m.roll_rad, m.pitch_rad, m.yaw_rad};
 }
+
+#if AGV_HAVE_CERES
 
 ranging::RangingMount mount_of(const double* q) {
   ranging::RangingMount m;
@@ -55,6 +58,10 @@ ranging::RangingMount mount_of(const double* q) {
   m.pitch_rad = q[4];
   m.yaw_rad = q[5];
   return m;
+}
+
+double corner_sigma(const MountSighting& s, const Options& opt) {
+  return s.corner_sigma_px > 0.0 ? s.corner_sigma_px : opt.corner_sigma_px;
 }
 
 // Per frame (one t_ns): its pose block and the sightings in it.
@@ -86,8 +93,8 @@ std::vector<Frame> group_frames(std::span<const MountSighting> s) {
 std::map<std::size_t, LandmarkResidual> residuals(const CameraIntrinsics& k,
                                                   std::span<const site::WallLandmark> walls,
                                                   std::span<const MountSighting> s,
-                                                  const std::vector<Frame>& frames,
-                                                  const double* q) {
+                                                  const std::vector<Frame>& frames, const double* q,
+                                                  const double* lens) {
   std::map<std::size_t, LandmarkResidual> out;
   std::map<std::size_t, double> sum2;
   for (const Frame& f : frames) {
@@ -98,7 +105,7 @@ std::map<std::size_t, LandmarkResidual> residuals(const CameraIntrinsics& k,
       ++r.sightings;
       for (std::size_t c = 0; c < 4; ++c) {
         double u = 0.0, v = 0.0;
-        const bool ok = project_generic(k, q, f.pose.data(), corners[c].data(), &u, &v);
+        const bool ok = project_generic(k, q, f.pose.data(), lens, corners[c].data(), &u, &v);
         const double du = ok ? u - s[i].corners_undistorted_px[c].x : 1e3;
         const double dv = ok ? v - s[i].corners_undistorted_px[c].y : 1e3;
         sum2[s[i].landmark_index] += du * du + dv * dv;
@@ -109,17 +116,15 @@ std::map<std::size_t, LandmarkResidual> residuals(const CameraIntrinsics& k,
   return out;
 }
 
-#if AGV_HAVE_CERES
-
 struct CornerCost {
   CornerCost(const CameraIntrinsics& k, const std::array<std::array<double, 3>, 4>& corners,
              const std::array<Vec2, 4>& observed, double sigma_px)
       : k_(k), corners_(corners), observed_(observed), inv_sigma_(1.0 / sigma_px) {}
   template <typename T>
-  bool operator()(const T* q, const T* p, T* r) const {
+  bool operator()(const T* q, const T* p, const T* lens, T* r) const {
     for (std::size_t c = 0; c < 4; ++c) {
       T u, v;
-      if (!project_generic(k_, q, p, corners_[c].data(), &u, &v)) return false;
+      if (!project_generic(k_, q, p, lens, corners_[c].data(), &u, &v)) return false;
       r[2 * c] = (u - T(observed_[c].x)) * T(inv_sigma_);
       r[2 * c + 1] = (v - T(observed_[c].y)) * T(inv_sigma_);
     }
@@ -150,9 +155,31 @@ struct Solved {
   int corner_coords = 0;
 };
 
+// The lens's doubt as a nuisance block with its prior (Options::focal_sigma_rel,
+// principal_sigma_px): a focal length off by 0.1 % moves every depth by 0.1 %, which the mount's
+// offset along the optical axis would otherwise take up with a sigma that knows nothing of it.
+// Components without a doubt are held.
+void add_lens(const Options& opt, double* lens, ceres::Problem* problem) {
+  const std::array<double, 3> sigma{opt.focal_sigma_rel, opt.principal_sigma_px,
+                                    opt.principal_sigma_px};
+  std::vector<int> held;
+  for (int i = 0; i < 3; ++i)
+    if (!(sigma[static_cast<std::size_t>(i)] > 0.0)) held.push_back(i);
+  if (held.size() == 3) {
+    problem->SetParameterBlockConstant(lens);
+    return;
+  }
+  std::array<double, 3> safe = sigma;
+  for (int i : held) safe[static_cast<std::size_t>(i)] = 1.0;  // the component is held anyway
+  problem->AddResidualBlock(
+      new ceres::AutoDiffCostFunction<PriorCost<3>, 3, 3>(new PriorCost<3>({1.0, 0.0, 0.0}, safe)),
+      nullptr, lens);
+  if (!held.empty()) problem->SetManifold(lens, new ceres::SubsetManifold(3, held));
+}
+
 Solved solve_once(const CameraIntrinsics& k, std::span<const site::WallLandmark> walls,
                   std::span<const MountSighting> s, const std::set<std::size_t>& rejected,
-                  const std::array<double, 6>& prior, const Options& opt, double* q,
+                  const std::array<double, 6>& prior, const Options& opt, double* q, double* lens,
                   std::vector<Frame>* frames, ceres::Problem* problem) {
   std::array<double, 6> prior_sigma{};
   for (std::size_t i = 0; i < 6; ++i)
@@ -166,9 +193,9 @@ Solved solve_once(const CameraIntrinsics& k, std::span<const site::WallLandmark>
     for (std::size_t i : f.sightings) {
       if (rejected.count(s[i].landmark_index)) continue;
       auto* cost = new CornerCost(k, wall_corners_site(walls[s[i].landmark_index]),
-                                  s[i].corners_undistorted_px, opt.corner_sigma_px);
-      problem->AddResidualBlock(new ceres::AutoDiffCostFunction<CornerCost, 8, 6, 3>(cost),
-                                new ceres::HuberLoss(opt.robust_sigmas), q, f.pose.data());
+                                  s[i].corners_undistorted_px, corner_sigma(s[i], opt));
+      problem->AddResidualBlock(new ceres::AutoDiffCostFunction<CornerCost, 8, 6, 3, 3>(cost),
+                                new ceres::HuberLoss(opt.robust_sigmas), q, f.pose.data(), lens);
       out.corner_coords += 8;
       used = true;
     }
@@ -177,6 +204,7 @@ Solved solve_once(const CameraIntrinsics& k, std::span<const site::WallLandmark>
         new ceres::AutoDiffCostFunction<PriorCost<3>, 3, 3>(new PriorCost<3>(f.prior, f.sigma)),
         nullptr, f.pose.data());
   }
+  add_lens(opt, lens, problem);
   ceres::Solver::Options so;
   so.linear_solver_type = ceres::SPARSE_SCHUR;
   so.max_num_iterations = 100;
@@ -190,9 +218,9 @@ Solved solve_once(const CameraIntrinsics& k, std::span<const site::WallLandmark>
     for (std::size_t i : f.sightings) {
       if (rejected.count(s[i].landmark_index)) continue;
       CornerCost cost(k, wall_corners_site(walls[s[i].landmark_index]), s[i].corners_undistorted_px,
-                      opt.corner_sigma_px);
+                      corner_sigma(s[i], opt));
       double r[8];
-      if (!cost(q, f.pose.data(), r)) continue;
+      if (!cost(q, f.pose.data(), lens, r)) continue;
       for (double x : r) out.chi2 += x * x;
     }
   }
@@ -227,6 +255,26 @@ bool mount_sigmas(ceres::Problem* problem, const double* q, double scale, Result
   if (!cov.Compute(want, problem) || !cov.GetCovarianceBlock(q, q, c)) return false;
   for (std::size_t i = 0; i < 6; ++i) res->sigma[i] = std::sqrt(std::max(c[i * 7], 0.0) * scale);
   return true;
+}
+
+// The landmarks' residuals, the RMS and the counts over what the solve used.
+void fill_counts(const std::map<std::size_t, LandmarkResidual>& per_landmark,
+                 const std::set<std::size_t>& rejected, const std::vector<Frame>& frames,
+                 std::span<const MountSighting> sightings, Result* res) {
+  double sum2 = 0.0;
+  for (auto [index, r] : per_landmark) {
+    r.rejected = rejected.count(index) > 0;
+    if (!r.rejected) {
+      sum2 += r.rms_px * r.rms_px * 4.0 * r.sightings;
+      res->sightings_used += r.sightings;
+    }
+    res->landmarks.push_back(r);
+  }
+  res->rms_px = std::sqrt(sum2 / std::max(1, 4 * res->sightings_used));
+  for (const Frame& f : frames)
+    if (std::any_of(f.sightings.begin(), f.sightings.end(),
+                    [&](std::size_t i) { return !rejected.count(sightings[i].landmark_index); }))
+      ++res->frames_used;
 }
 
 #endif  // AGV_HAVE_CERES
@@ -290,7 +338,8 @@ bool project_undistorted(const CameraIntrinsics& k, const ranging::RangingMount&
                          const Pose2& vehicle, const std::array<double, 3>& p_site, Vec2* px) {
   const auto q = params_of(mount);
   const double p[3] = {vehicle.x_mm, vehicle.y_mm, vehicle.theta_rad};
-  return project_generic(k, q.data(), p, p_site.data(), &px->x, &px->y);
+  const double lens[3] = {1.0, 0.0, 0.0};
+  return project_generic(k, q.data(), p, lens, p_site.data(), &px->x, &px->y);
 }
 
 Result solve_mount(const CameraIntrinsics& k, std::span<const site::WallLandmark> walls,
@@ -302,47 +351,33 @@ Result solve_mount(const CameraIntrinsics& k, std::span<const site::WallLandmark
   if (res.error != Error::kNone) return res;
 #if AGV_HAVE_CERES
   const std::array<double, 6> prior = params_of(initial);
-  std::array<double, 6> q = prior;
   std::set<std::size_t> rejected;
   for (;;) {
     std::vector<Frame> frames = group_frames(sightings);
-    q = prior;
+    std::array<double, 6> q = prior;
+    std::array<double, 3> lens{1.0, 0.0, 0.0};
     ceres::Problem problem;
-    const Solved solved =
-        solve_once(k, walls, sightings, rejected, prior, opt, q.data(), &frames, &problem);
+    const Solved solved = solve_once(k, walls, sightings, rejected, prior, opt, q.data(),
+                                     lens.data(), &frames, &problem);
     if (!solved.ok) {
       res.error = Error::kSolveFailed;
       res.message = "the least squares did not converge";
       return res;
     }
-    const auto per_landmark = residuals(k, walls, sightings, frames, q.data());
+    const auto per_landmark = residuals(k, walls, sightings, frames, q.data(), lens.data());
     const std::size_t bad = outlier(per_landmark, rejected, opt);
     if (bad != SIZE_MAX) {
       rejected.insert(bad);
       continue;
     }
-    const int dof = std::max(1, solved.corner_coords - 6);
-    res.reduced_chi2 = solved.chi2 / dof;
+    res.reduced_chi2 = solved.chi2 / std::max(1, solved.corner_coords - 6);
     if (!mount_sigmas(&problem, q.data(), std::max(1.0, res.reduced_chi2), &res)) {
       res.error = Error::kSolveFailed;
       res.message = "the mount's covariance is singular";
       return res;
     }
     res.mount = mount_of(q.data());
-    double sum2 = 0.0;
-    for (auto [index, r] : per_landmark) {
-      r.rejected = rejected.count(index) > 0;
-      if (!r.rejected) {
-        sum2 += r.rms_px * r.rms_px * 4.0 * r.sightings;
-        res.sightings_used += r.sightings;
-      }
-      res.landmarks.push_back(r);
-    }
-    res.rms_px = std::sqrt(sum2 / std::max(1, 4 * res.sightings_used));
-    for (const Frame& f : frames)
-      if (std::any_of(f.sightings.begin(), f.sightings.end(),
-                      [&](std::size_t i) { return !rejected.count(sightings[i].landmark_index); }))
-        ++res.frames_used;
+    fill_counts(per_landmark, rejected, frames, sightings, &res);
     check_sigmas(opt, &res);
     return res;
   }

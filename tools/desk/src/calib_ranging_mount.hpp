@@ -34,6 +34,7 @@ struct MountSighting {
   std::array<double, 3> vehicle_sigma{};         // x_mm, y_mm, theta_rad (1 sigma)
   std::size_t landmark_index = 0;                // into the walls given to the solve
   std::array<Vec2, 4> corners_undistorted_px{};  // page order TL TR BR BL
+  double corner_sigma_px = 0.0;                  // the observer's; 0: Options::corner_sigma_px
 };
 
 enum class Error : std::uint8_t {
@@ -49,6 +50,13 @@ struct Options {
   double robust_sigmas = 3.0;     // Huber scale in corner sigmas: further off counts linearly
   double prior_sigma_mm = 100.0;  // loose prior on each offset at the initial mount
   double prior_sigma_rad = 0.1;   // and on each angle
+  // The lens calibration's doubt (1 sigma; ranging_camera.focal_sigma_rel and
+  // calibration_sigma_px): the focal length's relative error and the principal point's shift,
+  // solved as nuisance parameters with these priors so that the mount's sigma carries them (a
+  // focal length off by 0.1 % reads every depth 0.1 % off, which the offset along the optical
+  // axis would take up). 0: the lens is exact.
+  double focal_sigma_rel = 0.0;
+  double principal_sigma_px = 0.0;
   int min_frames = 10;
   int min_landmarks = 3;
   // Limits of the result's sigmas; above them the result is kPoorlyObserved (still filled).

@@ -90,7 +90,8 @@ struct Input {
 // at a usable pose. Returns 0, or the exit code after printing the error.
 int load_input(const Args& a, Input* in) {
   std::vector<std::string> errors;
-  if (!config::load_config(a.config_path, &in->cfg, &errors)) {
+  // As replay reads it: the floor camera's calibration may come from the recording (unused here).
+  if (!config::load_config(a.config_path, &in->cfg, &errors, config::ConfigUse::kReplay)) {
     for (const auto& e : errors) std::fprintf(stderr, "agvloc-desk %s: %s\n", kCmd, e.c_str());
     return 2;
   }
@@ -133,6 +134,7 @@ int load_input(const Args& a, Input* in) {
     for (const ranging::LandmarkObservation& o : observer.observe(gray).seen) {
       at.landmark_index = o.landmark_index;
       at.corners_undistorted_px = o.corners_undistorted_px;
+      at.corner_sigma_px = o.corner_sigma_px;
       in->sightings.push_back(at);
     }
   }
@@ -200,7 +202,7 @@ void add_options(CLI::App& app, Args* a) {
       ->check(calib::finite_in(0.001, 10.0))
       ->capture_default_str();
   app.add_option("--corner-sigma-px", a->opt.corner_sigma_px,
-                 "Corner noise (px, per coordinate) before the residuals' own scale")
+                 "Corner noise (px, per coordinate) where the observer states none")
       ->check(calib::finite_in(0.01, 10.0))
       ->capture_default_str();
 }
@@ -219,6 +221,8 @@ int calibrate_ranging_mount(int argc, char** argv) {
   Input in;
   if (const int rc = load_input(a, &in); rc != 0) return rc;
   const ranging::RangingMount& before = in.cfg.ranging_camera.mount;
+  a.opt.focal_sigma_rel = in.cfg.ranging_camera.focal_sigma_rel;
+  a.opt.principal_sigma_px = in.cfg.ranging_camera.calibration_sigma_px;
   std::printf(
       "%d frames, %d at localized poses within the sigma limits (%d unreadable), %zu "
       "landmark sightings\n",

@@ -4,9 +4,10 @@
 #   1. a configuration whose mount is off by the switch-on evaluation's calibration errors
 #      (OFF_MM per offset, OFF_DEG per angle; defaults 5 mm and 1 deg);
 #   2. `agvloc-desk calibrate ranging-mount` from it, the recording and the floor-only replay;
-#      the mount it writes merged into that configuration by `agvloc-desk config apply`;
+#      the mount (and its sigma) it writes put into that configuration;
 #   3. the calibrated mount against the renderer's (the truth), per axis in sigmas;
-#   4. `agvloc replay` with the off, the calibrated and the true mount, scored as
+#   4. `agvloc replay` with the off mount (stated exact, and with its offsets as its sigma), the
+#      calibrated and the true mount, scored as
 #      rack_drive_eval.sh scores its replays.
 # Not a ctest (a few minutes per seed).
 #   mount_calibration_eval.sh WORKDIR AGVLOC AGVLOC-DESK RENDER_RANGING_STREAM [SEEDS...]
@@ -43,8 +44,15 @@ EOF
   rm -f "$rec/calibrated.yaml"
   "$DESK" calibrate ranging-mount --config "$rec/off.yaml" --recording "$rec" \
     --replay "$WORK/out_floor_$seed" --out "$rec/mount_snippet.yaml" | tee "$WORK/calibrate_$seed.log"
-  "$DESK" config apply --config "$rec/off.yaml" "$rec/mount_snippet.yaml" \
-    --out "$rec/calibrated.yaml" > /dev/null
+  # ranging.yaml is an overlay of the recording's configuration, which `config apply` cannot check
+  # alone: the snippet's mount replaces the off one here.
+  python3 - "$rec/off.yaml" "$rec/mount_snippet.yaml" "$rec/calibrated.yaml" <<'EOF'
+import re, sys
+text = open(sys.argv[1]).read()
+snip = dict(re.findall(r"^\s+(\w+): ([-\d.e]+)$", open(sys.argv[2]).read(), re.M))
+mount = "mount: {" + ", ".join(f"{k}: {v}" for k, v in snip.items()) + "}"
+open(sys.argv[3], "w").write(re.sub(r"mount: \{[^}]*\}", mount, text))
+EOF
   python3 - "$rec/ranging.yaml" "$WORK/calibrate_$seed.log" <<'EOF'
 import re, sys
 t = open(sys.argv[1]).read()
@@ -60,7 +68,11 @@ for k, v in truth.items():
     e = rows[k][0] - v
     print(f"| {k} | {e:+.4f} | {rows[k][1]:.4f} | {e / rows[k][1]:+.2f} |")
 EOF
-  for mode in off calibrated true; do
+  # The off mount told as the doubt it is (sigma = the offsets): what the filter does without the
+  # calibration but knowing it lacks one.
+  sed -E "s/yaw_deg: ([-0-9.e]+)\}/yaw_deg: \1, sigma_deg: $OFF_DEG, sigma_mm: $OFF_MM}/" \
+    "$rec/off.yaml" > "$rec/off_told.yaml"
+  for mode in off off_told calibrated true; do
     cfg="$rec/$mode.yaml"
     [ "$mode" = true ] && cfg="$rec/ranging.yaml"
     rm -rf "$WORK/out_${mode}_$seed"
@@ -70,5 +82,6 @@ EOF
   done
   echo "seed $seed, mounts off by $OFF_MM mm and $OFF_DEG deg per axis:"
   python3 "$ROOT/tools/eval/fusion/score_replay.py" "$rec" "$WORK/out_floor_$seed" \
-    "$rec" "$WORK/out_off_$seed" "$rec" "$WORK/out_calibrated_$seed" "$rec" "$WORK/out_true_$seed"
+    "$rec" "$WORK/out_off_$seed" "$rec" "$WORK/out_off_told_$seed" "$rec" \
+    "$WORK/out_calibrated_$seed" "$rec" "$WORK/out_true_$seed"
 done
