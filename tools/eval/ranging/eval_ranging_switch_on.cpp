@@ -228,7 +228,7 @@ int main(int argc, char** argv) {
   std::printf(
       "RENDERED frames, standing still: %zu poses, %d with at most two landmarks read in a "
       "frame, %d with three or more (the trials; the rest saw fewer), %d frames each at 15 fps; "
-      "mount error +-%.1f deg / +-%.0f mm\n\n",
+      "mount error +-%.3g deg / +-%.3g mm\n\n",
       poses.size(), in_view[0], in_view[1], n_frames, mount_deg, mount_mm);
   std::printf(
       "| initialisation, landmarks | localized | first valid ms p50 / p95 | first pose mm p50 / "
