@@ -72,6 +72,26 @@ TEST_F(RangingObserve, TagPoseAndSizeAgainstTruth) {
   }
 }
 
+// landmark_index indexes the list the observer was given, in its order (a site file need not list
+// its landmarks by id, and may hold landmarks of the other family): calibrate ranging-mount looks
+// the surveyed corners up by it. It indexed the observer's own sorted table before.
+TEST_F(RangingObserve, LandmarkIndexPointsIntoTheGivenList) {
+  std::vector<site::WallLandmark> walls(scene_->site.wall_landmarks.rbegin(),
+                                        scene_->site.wall_landmarks.rend());
+  site::WallLandmark other = walls.front();
+  other.id = 1;
+  other.family = site::LandmarkFamily::kAgvloc;
+  walls.insert(walls.begin(), other);
+  const LandmarkObserver obs(small_camera(), forward_mount(), walls);
+  const ObserveResult res = obs.observe(frame_->image);
+  ASSERT_GE(res.seen.size(), 2u);
+  for (const LandmarkObservation& o : res.seen) {
+    ASSERT_LT(o.landmark_index, walls.size());
+    EXPECT_EQ(walls[o.landmark_index].id, o.id);
+    EXPECT_EQ(walls[o.landmark_index].family, site::LandmarkFamily::kTag36h11);
+  }
+}
+
 TEST_F(RangingObserve, SensorCentredObservationIsTheSameGeometry) {
   const RangingMount m = forward_mount();
   const LandmarkObserver obs(small_camera(), m, scene_->site.wall_landmarks);

@@ -262,23 +262,28 @@ LandmarkObserver::LandmarkObserver(const CameraIntrinsics& intrinsics, const Ran
     status_detail_ = "camera intrinsics need positive focal lengths and image size";
     return;
   }
-  for (const site::WallLandmark& w : landmarks) {
+  std::vector<std::size_t> order;
+  for (std::size_t i = 0; i < landmarks.size(); ++i) {
+    const site::WallLandmark& w = landmarks[i];
     if (w.family != site::LandmarkFamily::kTag36h11) continue;
     if (!observe_finite_landmark(w)) {
       status_ = TableStatus::kBadLandmark;
       status_detail_ = "wall landmark " + std::to_string(w.id) + " has a bad size or position";
       return;
     }
-    table_.push_back(w);
+    order.push_back(i);
   }
-  std::sort(table_.begin(), table_.end(),
-            [](const site::WallLandmark& a, const site::WallLandmark& b) { return a.id < b.id; });
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return landmarks[a].id < landmarks[b].id; });
+  for (std::size_t i : order) table_.push_back(landmarks[i]);
+  site_index_ = std::move(order);
   for (std::size_t i = 1; i < table_.size(); ++i) {
     if (table_[i].id == table_[i - 1].id) {
       status_ = TableStatus::kDuplicateId;
       status_detail_ = "tag36h11 wall landmark id " + std::to_string(table_[i].id) +
                        " appears more than once in the site";
       table_.clear();
+      site_index_.clear();
       return;
     }
   }
@@ -308,7 +313,7 @@ bool LandmarkObserver::measure(std::uint32_t id, const std::array<Vec2, 4>& corn
                       impl_->dist, cv::noArray(), impl_->K);
   LandmarkObservation o;
   o.id = id;
-  o.landmark_index = static_cast<std::size_t>(it - table_.begin());
+  o.landmark_index = site_index_[static_cast<std::size_t>(it - table_.begin())];
   o.landmark_xy_mm = {it->x_mm, it->y_mm};
   o.landmark_facing_rad = it->facing_rad;
   o.corners_px = corners_px;

@@ -119,7 +119,7 @@ struct PaperMeasure {
 // One landmark measured in one frame.
 struct LandmarkObservation {
   std::uint32_t id = 0;
-  std::size_t landmark_index = 0;  // into the site's wall_landmarks
+  std::size_t landmark_index = 0;  // into the landmarks the observer was built with
   Vec2 landmark_xy_mm;             // surveyed centre, site frame
   double landmark_facing_rad = 0.0;
   std::array<Vec2, 4> corners_px{};  // refined, distorted, page order TL TR BR BL
@@ -318,6 +318,7 @@ class LandmarkObserver {
   RangingMount mount_;
   ObserveOptions opt_;
   std::vector<site::WallLandmark> table_;  // sorted by id, tag36h11 only
+  std::vector<std::size_t> site_index_;  // table_[i] is the constructor's landmarks[site_index_[i]]
   std::vector<site::Obstacle> obstacles_;
   TableStatus status_ = TableStatus::kOk;
   std::string status_detail_;
