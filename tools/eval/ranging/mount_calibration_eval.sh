@@ -10,7 +10,8 @@
 #   4. `agvloc replay` with the off mount (stated exact, and with its offsets as its sigma), the
 #      calibrated and the true mount, scored as
 #      rack_drive_eval.sh scores its replays.
-# Not a ctest (a few minutes per seed).
+# Not a ctest (a few minutes per seed). SLIP_RATE_PER_S: unset = no slips, empty = the simulator's
+# default slips, a number = that rate.
 #   mount_calibration_eval.sh WORKDIR AGVLOC AGVLOC-DESK RENDER_RANGING_STREAM [SEEDS...]
 set -euo pipefail
 HERE="$(cd "$(dirname "$0")" && pwd)"
@@ -32,7 +33,7 @@ mkdir -p "$WORK"
 for seed in "${SEEDS[@]}"; do
   rec="$WORK/rack_$seed"
   if [ ! -f "$rec/ranging/frames.csv" ] || [ ! -f "$WORK/out_floor_$seed/poses.csv" ]; then
-    SLIP_RATE_PER_S="${SLIP_RATE_PER_S:-0}" "$HERE/rack_drive_eval.sh" "$WORK" "$AGVLOC" "$DESK" \
+    SLIP_RATE_PER_S="${SLIP_RATE_PER_S-0}" "$HERE/rack_drive_eval.sh" "$WORK" "$AGVLOC" "$DESK" \
       "$RENDER" "$seed" > "$WORK/rack_drive_$seed.log"
   fi
   # The true mount is the one ranging.yaml states; the off one moves every axis.
