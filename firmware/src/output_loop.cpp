@@ -25,6 +25,7 @@ localizer::LocalizerConfig localizer_config(const config::Config& cfg) {
   c.camera_timeout_ns = static_cast<std::int64_t>(cfg.camera.timeout_ms * 1e6);
   c.ranging.camera_offset_ns = std::llround(cfg.ranging_camera.time_offset_ms * 1e6);
   c.ranging.common_bearing_sigma_rad = config::common_bearing_sigma_rad(cfg.ranging_camera);
+  c.ranging.floor_check = cfg.ranging_camera.enabled;
   c.sw_major = AGV_VERSION_MAJOR;
   c.sw_minor = AGV_VERSION_MINOR;
   c.sw_patch = AGV_VERSION_PATCH;

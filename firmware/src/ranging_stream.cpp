@@ -138,6 +138,15 @@ std::string ranging_summary(const RangingCounts& c, const localizer::OutputStats
       static_cast<unsigned long long>(o.ranging_fixes),
       static_cast<unsigned long long>(o.ranging_initialisations));
   std::string s = buf;
+  if (o.ranging_floor_conflicts > 0) {
+    std::snprintf(buf, sizeof buf,
+                  "ranging camera: %llu floor fixes overruled the rack landmarks (the filter "
+                  "took over its floor-only twin; %llu frames unused while suspended): check the "
+                  "mount calibration and the rack landmarks' survey\n",
+                  static_cast<unsigned long long>(o.ranging_floor_conflicts),
+                  static_cast<unsigned long long>(o.ranging_suspended_frames));
+    s += buf;
+  }
   if (c.cpu_ns > 0 && c.frames > 0) {
     std::snprintf(buf, sizeof buf, "ranging camera: CPU per frame mean %.2f ms, max %.2f ms\n",
                   static_cast<double>(c.cpu_ns) / 1e6 / static_cast<double>(c.frames),

@@ -618,6 +618,15 @@ TEST(Config, MapIdentityGateFromTheConfiguration) {
                        "vision.identity.gate_chi2"));
 }
 
+// The core keeps a floor-only twin (RangingAidConfig::floor_check) exactly when a second camera
+// is configured: a turned rack camera must not veto the floor camera's fixes.
+TEST(Config, TheSecondCameraTurnsOnTheFloorCheck) {
+  Config cfg;
+  EXPECT_FALSE(agv::app::localizer_config(cfg).ranging.floor_check);
+  cfg.ranging_camera.enabled = true;
+  EXPECT_TRUE(agv::app::localizer_config(cfg).ranging.floor_check);
+}
+
 TEST(Config, OneOdometryTimeout) {
   Config cfg;
   std::vector<std::string> errors;

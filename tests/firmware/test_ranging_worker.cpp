@@ -84,3 +84,23 @@ TEST(RangingWorker, ACameraSilentForOverASecondIsOneStall) {
 
 }  // namespace
 }  // namespace agv::app
+
+namespace agv::app {
+namespace {
+
+// A floor fix that overruled the rack landmarks is said in the summary, with what to check.
+TEST(RangingSummary, SaysWhenFloorFixesOverruledTheRackLandmarks) {
+  RangingCounts c;
+  c.frames = 30;
+  localizer::OutputStats o;
+  EXPECT_EQ(ranging_summary(c, o).find("overruled"), std::string::npos);
+  o.ranging_floor_conflicts = 2;
+  o.ranging_suspended_frames = 17;
+  const std::string s = ranging_summary(c, o);
+  EXPECT_NE(s.find("2 floor fixes overruled the rack landmarks"), std::string::npos) << s;
+  EXPECT_NE(s.find("17 frames unused"), std::string::npos) << s;
+  EXPECT_NE(s.find("mount calibration"), std::string::npos) << s;
+}
+
+}  // namespace
+}  // namespace agv::app

@@ -155,6 +155,15 @@ bool Ekf::set_pose(std::int64_t t_ns, const Pose2& z_world, const Eigen::Matrix3
   return true;
 }
 
+void Ekf::adopt_estimate(const Ekf& other) {
+  if (&other == this) return;
+  const Counters kept = counters_;
+  *this = other;
+  counters_ = kept;
+  ++counters_.reinitialisations;
+  pending_flags_ |= flags::kReinitialised;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Unseen slip
 

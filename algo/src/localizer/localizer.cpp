@@ -63,6 +63,7 @@ Localizer::Localizer(const LocalizerConfig& cfg)
       !std::isfinite(o.yaw_per_metre_rad)) {
     throw std::invalid_argument("odometry correction: scales must be finite and > 0");
   }
+  if (cfg_.ranging.floor_check) floor_twin_.emplace(cfg_.fusion);
 }
 
 int receive_filters(const protocol::ProtocolConfig& cfg, hal::CanFilter* out, int max) {
@@ -116,6 +117,7 @@ bool Localizer::set_pose(std::int64_t now_ns, const Pose2& pose, double sigma_mm
   R(2, 2) = sigma_rad * sigma_rad;
   const fusion::Ekf::Counters before = ekf_.counters();
   const bool ok = ekf_.set_pose(now_ns, pose, R);
+  if (floor_twin_) floor_twin_->set_pose(now_ns, pose, R);
   operator_poses_.initialisations += ekf_.counters().fixes_initialised - before.fixes_initialised;
   operator_poses_.reinitialisations += ekf_.counters().reinitialisations - before.reinitialisations;
   refresh_fix_counts();
@@ -138,6 +140,7 @@ void Localizer::on_odometry(std::int64_t t_ns, double v_mps, double omega_radps)
     v_mps += c.yaw_per_metre_rad * 0.25 * track_width_m * track_width_m * omega_read_radps;
   }
   const bool accepted = ekf_.add_odometry(t_ns, v_mps, omega_radps);
+  if (floor_twin_) floor_twin_->add_odometry(t_ns, v_mps, omega_radps);
   refresh_fix_counts();  // odometry that catches up releases held fixes
   if (!accepted) {
     ++stats_.odom_rejected;
@@ -155,6 +158,7 @@ bool Localizer::on_gyro(std::int64_t t_ns, double gyro_z_radps) {
   gyro_z_radps *= c.scale;
   if (c.bias_radps != 0.0) gyro_z_radps += c.bias_radps;
   const bool accepted = ekf_.add_gyro(t_ns, gyro_z_radps);
+  if (floor_twin_) floor_twin_->add_gyro(t_ns, gyro_z_radps);
   refresh_fix_counts();
   if (!accepted) {
     ++stats_.gyro_rejected;
@@ -235,8 +239,13 @@ void Localizer::on_fix(const vision::LandmarkMeasurement& fix, std::int64_t t_ex
   // means a QR payload the map confirmed.
   const bool vouches =
       fix.map_verified && !guided && fix.identity != vision::FixIdentity::kAprilTag;
-  const fusion::FixOutcome outcome =
+  fusion::FixOutcome outcome =
       ekf_.add_fix(t_exposure_ns, fix.vehicle_in_world, fix.cov_world, vouches, guided);
+  if (floor_twin_) {
+    const fusion::FixOutcome twin =
+        floor_twin_->add_fix(t_exposure_ns, fix.vehicle_in_world, fix.cov_world, vouches, guided);
+    outcome = floor_arbitration(t_exposure_ns, outcome, twin, guided);
+  }
   refresh_fix_counts();
   switch (outcome) {
     case fusion::FixOutcome::kHeld:  // fused (or rejected) when odometry catches up

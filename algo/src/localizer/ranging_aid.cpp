@@ -47,6 +47,8 @@ const char* to_string(RangingResult r) {
       return "initialised";
     case RangingResult::kRelocalised:
       return "relocalised";
+    case RangingResult::kSuspended:
+      return "suspended";
   }
   return "?";
 }
@@ -58,6 +60,10 @@ RangingResult Localizer::on_ranging(std::int64_t t_exposure_ns,
   stats_.ranging_landmarks += obs.size();
   if (obs.empty()) return RangingResult::kEmpty;
   const std::int64_t t_ns = t_exposure_ns + cfg_.ranging.camera_offset_ns;
+  if (t_ns < rack_suspended_until_ns_) {
+    ++stats_.ranging_suspended_frames;
+    return RangingResult::kSuspended;
+  }
   fusion::PoseEstimate est = ekf_.estimate_at(t_ns);
   // The filter's own covariance: a reported, unconfirmed heading change is no evidence against
   // a frame's fix (the re-localisation's 3-sigma test).
@@ -85,6 +91,7 @@ RangingResult Localizer::ranging_track(std::int64_t t_ns, std::span<const RackOb
                                   c.range_bearing_rejected_invalid +
                                   c.range_bearing_rejected_not_initialised;
   const bool gated = c.range_bearing_rejected_gate > gated_before;
+  if (fused) rack_since_floor_fix_ = true;
   if (fused || !gated) {
     rack_candidate_.count = 0;  // only consecutive all-gated frames count towards a step
     return fused ? RangingResult::kFused : RangingResult::kRejected;
@@ -117,6 +124,7 @@ RangingResult Localizer::ranging_step(std::int64_t t_ns, std::span<const RackObs
   refresh_fix_counts();
   rack_candidate_.count = 0;
   if (!ok) return RangingResult::kRejected;
+  rack_since_floor_fix_ = true;
   ++stats_.ranging_initialisations;
   ++stats_.ranging_step_relocalisations;
   return RangingResult::kRelocalised;
@@ -240,8 +248,28 @@ RangingResult Localizer::ranging_fix(std::int64_t t_ns, std::span<const RackObse
   refresh_fix_counts();
   rack_candidate_.count = 0;
   if (!ok) return RangingResult::kFixRefused;
+  rack_since_floor_fix_ = true;
   ++stats_.ranging_initialisations;
   return RangingResult::kInitialised;
+}
+
+fusion::FixOutcome Localizer::floor_arbitration(std::int64_t t_ns, fusion::FixOutcome outcome,
+                                                fusion::FixOutcome twin_outcome, bool guided) {
+  using fusion::FixOutcome;
+  if (outcome == FixOutcome::kFused || outcome == FixOutcome::kInitialised ||
+      outcome == FixOutcome::kReinitialised) {
+    rack_since_floor_fix_ = false;
+    return outcome;
+  }
+  if (outcome != FixOutcome::kRejectedGate || twin_outcome != FixOutcome::kFused || guided ||
+      !rack_since_floor_fix_)
+    return outcome;
+  ekf_.adopt_estimate(*floor_twin_);
+  ++stats_.ranging_floor_conflicts;
+  rack_suspended_until_ns_ = t_ns + cfg_.ranging.conflict_suspend_ns;
+  rack_since_floor_fix_ = false;
+  rack_candidate_.count = 0;
+  return FixOutcome::kReinitialised;
 }
 
 }  // namespace agv::localizer

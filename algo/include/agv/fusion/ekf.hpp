@@ -146,6 +146,10 @@ class Ekf {
   // uninitialised, it initialises as from a first fix. No gate: the operator overrides the
   // filter. False (state untouched) for a non-finite pose or R not positive definite.
   bool set_pose(std::int64_t t_ns, const Pose2& z_world, const Eigen::Matrix3d& R);
+  // Becomes other's estimate entirely (state, covariance, history, calibration, recovery state),
+  // keeping its own counters, and counts a re-initialisation: a filter whose aids were found
+  // wrong takes over from a twin that never fused them (localizer's floor_check).
+  void adopt_estimate(const Ekf& other);
 
   // Range and bearing to a surveyed landmark from a sensor on the vehicle, at exposure time
   // t_exposure_ns (aid_range_bearing.cpp): gated (chi-square, 2 dof) against the prior at that

@@ -10,6 +10,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <span>
 
 #include "agv/common/latency_histogram.hpp"
@@ -94,6 +95,17 @@ struct RangingAidConfig {
   // calibrated, the principal point's column): added to each prior-free fix's covariance
   // (ranging::add_mount_yaw_uncertainty), which the landmarks themselves cannot reveal.
   double common_bearing_sigma_rad = 0.0;
+  // A floor-only twin of the filter (the same odometry, gyro, floor fixes and operator poses; no
+  // rack landmarks) arbitrates a floor fix that fails the gate after rack updates were fused: when
+  // the twin fuses it, the rack landmarks pulled the filter away from the floor (a mount turned
+  // since its calibration, a rack that moved), and a wrong second camera must not veto the floor
+  // camera. The filter then takes over the twin's estimate and the rack aid is suspended for
+  // conflict_suspend_ns (counted: OutputStats::ranging_floor_conflicts). Only fixes whose identity
+  // is their own (not map-guided) arbitrate. Off: no twin (the firmware turns it on with
+  // ranging_camera.enabled). Longer suspension: a miscalibrated camera costs less often; shorter:
+  // a transient conflict (a pushed rack) gives the rack aid back sooner.
+  bool floor_check = false;
+  std::int64_t conflict_suspend_ns = 30'000'000'000;
 };
 
 // One landmark of one second-camera frame, both ways the localizer uses it: from the vehicle's
@@ -115,6 +127,8 @@ enum class RangingResult : std::uint8_t {
   // Tracking, every landmark gated: init_fixes consecutive such frames' fixes agreed on a heading
   // step the wheels did not show (ranging_aid.cpp); re-localised from the newest.
   kRelocalised,
+  // Not used: the rack aid is suspended after it disagreed with a floor fix (floor_check).
+  kSuspended,
 };
 const char* to_string(RangingResult r);
 
@@ -188,6 +202,10 @@ struct OutputStats {
   // Of ranging_initialisations: while tracking, after a heading step the wheels did not show
   // (every landmark gated, consecutive agreeing fixes; RangingResult::kRelocalised).
   std::uint64_t ranging_step_relocalisations = 0;
+  // floor_check: floor fixes the filter gated but its floor-only twin fused after rack updates
+  // (the filter reset to the twin), and the frames not used while the rack aid was suspended.
+  std::uint64_t ranging_floor_conflicts = 0;
+  std::uint64_t ranging_suspended_frames = 0;
   std::uint64_t can_tx_ok = 0;
   std::uint64_t can_tx_failed = 0;
   std::uint64_t can_rx_frames = 0;
@@ -381,6 +399,10 @@ class Localizer {
   RangingResult ranging_step(std::int64_t t_ns, std::span<const RackObservation> obs,
                              const fusion::PoseEstimate& prior);
   bool rack_heading_step(const ranging::FixResult& fix, const fusion::PoseEstimate& prior) const;
+  // floor_check: a floor fix's outcome in the filter against the floor-only twin's; the outcome
+  // to act on (kReinitialised when the twin overruled the rack aid).
+  fusion::FixOutcome floor_arbitration(std::int64_t t_ns, fusion::FixOutcome outcome,
+                                       fusion::FixOutcome twin_outcome, bool guided);
   // The frame's prior-free fix, counted (refusals by status), and the share of its covariance
   // that other frames of the same landmarks repeat; true when OK.
   bool rack_fix(std::span<const RackObservation> obs, ranging::FixResult* fix,
@@ -399,6 +421,9 @@ class Localizer {
 
   LocalizerConfig cfg_;
   fusion::Ekf ekf_;
+  std::optional<fusion::Ekf> floor_twin_;  // RangingAidConfig::floor_check
+  bool rack_since_floor_fix_ = false;  // rack updates or a rack initialisation since a floor fix
+  std::int64_t rack_suspended_until_ns_ = INT64_MIN;
   protocol::OdometryDecoder odom_;
   protocol::GyroDecoder gyro_;
   std::int64_t last_odom_ns_ = INT64_MIN;
