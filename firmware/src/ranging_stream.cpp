@@ -141,9 +141,10 @@ std::string ranging_summary(const RangingCounts& c, const localizer::OutputStats
   if (o.ranging_floor_conflicts > 0) {
     std::snprintf(buf, sizeof buf,
                   "ranging camera: %llu floor fixes overruled the rack landmarks (the filter "
-                  "took over its floor-only twin; %llu frames unused while suspended): check the "
-                  "mount calibration and the rack landmarks' survey\n",
+                  "took over its floor-only twin), %llu suspensions, %llu frames unused while "
+                  "suspended: check the mount calibration and the rack landmarks' survey\n",
                   static_cast<unsigned long long>(o.ranging_floor_conflicts),
+                  static_cast<unsigned long long>(o.ranging_suspensions),
                   static_cast<unsigned long long>(o.ranging_suspended_frames));
     s += buf;
   }

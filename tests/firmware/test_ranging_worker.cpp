@@ -95,10 +95,11 @@ TEST(RangingSummary, SaysWhenFloorFixesOverruledTheRackLandmarks) {
   localizer::OutputStats o;
   EXPECT_EQ(ranging_summary(c, o).find("overruled"), std::string::npos);
   o.ranging_floor_conflicts = 2;
+  o.ranging_suspensions = 1;
   o.ranging_suspended_frames = 17;
   const std::string s = ranging_summary(c, o);
   EXPECT_NE(s.find("2 floor fixes overruled the rack landmarks"), std::string::npos) << s;
-  EXPECT_NE(s.find("17 frames unused"), std::string::npos) << s;
+  EXPECT_NE(s.find("1 suspensions, 17 frames unused"), std::string::npos) << s;
   EXPECT_NE(s.find("mount calibration"), std::string::npos) << s;
 }
 

@@ -331,7 +331,8 @@ struct MountDrive {
   Pose2 truth_at_fix;
 };
 
-MountDrive drive_with_turned_camera(bool floor_check, double mount_error_rad) {
+MountDrive drive_with_turned_camera(bool floor_check, double mount_error_rad,
+                                    bool turned_after_fix = true) {
   localizer::LocalizerConfig cfg = config();
   cfg.ranging.floor_check = floor_check;
   localizer::Localizer loc(cfg);
@@ -360,7 +361,7 @@ MountDrive drive_with_turned_camera(bool floor_check, double mount_error_rad) {
     }
     if (t < next_frame) continue;
     Pose2 seen_from = truth(next_frame);
-    seen_from.theta_rad += mount_error_rad;
+    if (turned_after_fix || next_frame < 3000 * kMs) seen_from.theta_rad += mount_error_rad;
     std::vector<localizer::RackObservation> obs;
     for (const Landmark& l : kTwo) obs.push_back(observe(seen_from, l, l.xy_mm, &rng));
     loc.on_ranging(next_frame, obs);
@@ -396,6 +397,7 @@ TEST(LocalizerRanging, AFloorFixOverrulesRackLandmarksSeenThroughATurnedCamera) 
   EXPECT_EQ(without.stats.fixes_rejected_gate, 1u);
   EXPECT_GT(heading_err(without), deg_to_rad(1.0));
   EXPECT_EQ(with.stats.ranging_floor_conflicts, 1u);
+  EXPECT_EQ(with.stats.ranging_suspensions, 1u);
   EXPECT_LT(heading_err(with), deg_to_rad(0.2));
   EXPECT_LT(position_err(with), 5.0);
   // Suspended: the frames of the last second are not used.
@@ -403,10 +405,23 @@ TEST(LocalizerRanging, AFloorFixOverrulesRackLandmarksSeenThroughATurnedCamera) 
   EXPECT_EQ(without.stats.ranging_suspended_frames, 0u);
 }
 
+// The rack frames after the reset agree with the floor camera's pose (here the camera is right
+// again; on a drive, the filter had been overconfident after a slip the wheels did not show): the
+// rack aid is not suspended and fuses them.
+TEST(LocalizerRanging, RackFramesThatAgreeAfterTheResetKeepTheRackAid) {
+  const MountDrive r = drive_with_turned_camera(true, deg_to_rad(2.0), false);
+  EXPECT_EQ(r.stats.ranging_floor_conflicts, 1u);
+  EXPECT_EQ(r.stats.ranging_suspensions, 0u);
+  EXPECT_EQ(r.stats.ranging_suspended_frames, 0u);
+  EXPECT_LT(std::abs(wrap_angle_rad(r.after_fix.pose.theta_rad - r.truth_at_fix.theta_rad)),
+            deg_to_rad(0.2));
+}
+
 // With the camera as calibrated the floor fix is fused and nothing is overruled.
 TEST(LocalizerRanging, ACalibratedCameraIsNeverOverruled) {
   const MountDrive r = drive_with_turned_camera(true, 0.0);
   EXPECT_EQ(r.stats.ranging_floor_conflicts, 0u);
+  EXPECT_EQ(r.stats.ranging_suspensions, 0u);
   EXPECT_EQ(r.stats.ranging_suspended_frames, 0u);
   EXPECT_EQ(r.stats.fixes_rejected_gate, 0u);
 }

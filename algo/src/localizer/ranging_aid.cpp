@@ -92,6 +92,18 @@ RangingResult Localizer::ranging_track(std::int64_t t_ns, std::span<const RackOb
                                   c.range_bearing_rejected_not_initialised;
   const bool gated = c.range_bearing_rejected_gate > gated_before;
   if (fused) rack_since_floor_fix_ = true;
+  if (t_ns < rack_probation_until_ns_ && (fused || gated)) {
+    // The first frame after a floor fix overruled the rack aid: agreeing with the floor camera's
+    // pose, the filter had only been overconfident (an unseen slip); disagreeing, the rack
+    // landmarks or the camera are wrong, and the rack aid is suspended.
+    rack_probation_until_ns_ = INT64_MIN;
+    if (!fused) {
+      ++stats_.ranging_suspensions;
+      rack_suspended_until_ns_ = t_ns + cfg_.ranging.conflict_suspend_ns;
+      rack_candidate_.count = 0;
+      return RangingResult::kRejected;
+    }
+  }
   if (fused || !gated) {
     rack_candidate_.count = 0;  // only consecutive all-gated frames count towards a step
     return fused ? RangingResult::kFused : RangingResult::kRejected;
@@ -266,7 +278,7 @@ fusion::FixOutcome Localizer::floor_arbitration(std::int64_t t_ns, fusion::FixOu
     return outcome;
   ekf_.adopt_estimate(*floor_twin_);
   ++stats_.ranging_floor_conflicts;
-  rack_suspended_until_ns_ = t_ns + cfg_.ranging.conflict_suspend_ns;
+  rack_probation_until_ns_ = t_ns + cfg_.ranging.probation_ns;
   rack_since_floor_fix_ = false;
   rack_candidate_.count = 0;
   return FixOutcome::kReinitialised;

@@ -96,16 +96,21 @@ struct RangingAidConfig {
   // (ranging::add_mount_yaw_uncertainty), which the landmarks themselves cannot reveal.
   double common_bearing_sigma_rad = 0.0;
   // A floor-only twin of the filter (the same odometry, gyro, floor fixes and operator poses; no
-  // rack landmarks) arbitrates a floor fix that fails the gate after rack updates were fused: when
-  // the twin fuses it, the rack landmarks pulled the filter away from the floor (a mount turned
-  // since its calibration, a rack that moved), and a wrong second camera must not veto the floor
-  // camera. The filter then takes over the twin's estimate and the rack aid is suspended for
-  // conflict_suspend_ns (counted: OutputStats::ranging_floor_conflicts). Only fixes whose identity
+  // rack landmarks) arbitrates a floor fix that fails the gate after rack updates were fused: a
+  // wrong second camera (a mount turned since its calibration, a rack that moved) must not veto
+  // the floor camera. When the twin fuses the fix, the filter takes over the twin's estimate
+  // (OutputStats::ranging_floor_conflicts); if the next rack frame disagrees with it too
+  // (probation_ns), the rack aid is suspended for conflict_suspend_ns. Only fixes whose identity
   // is their own (not map-guided) arbitrate. Off: no twin (the firmware turns it on with
   // ranging_camera.enabled). Longer suspension: a miscalibrated camera costs less often; shorter:
   // a transient conflict (a pushed rack) gives the rack aid back sooner.
   bool floor_check = false;
   std::int64_t conflict_suspend_ns = 30'000'000'000;
+  // After taking over the twin's estimate, the first rack frame within this time that has a
+  // landmark fused or gated decides: fused, the rack aid agrees with the floor camera (the filter
+  // had been overconfident, e.g. after a slip the wheels did not show) and goes on; all gated, it
+  // is suspended for conflict_suspend_ns.
+  std::int64_t probation_ns = 1'000'000'000;
 };
 
 // One landmark of one second-camera frame, both ways the localizer uses it: from the vehicle's
@@ -203,8 +208,11 @@ struct OutputStats {
   // (every landmark gated, consecutive agreeing fixes; RangingResult::kRelocalised).
   std::uint64_t ranging_step_relocalisations = 0;
   // floor_check: floor fixes the filter gated but its floor-only twin fused after rack updates
-  // (the filter reset to the twin), and the frames not used while the rack aid was suspended.
+  // (the filter took over the twin's estimate), the suspensions of the rack aid that followed
+  // (the next rack frame disagreed with the floor camera's pose too), and the frames not used
+  // while suspended.
   std::uint64_t ranging_floor_conflicts = 0;
+  std::uint64_t ranging_suspensions = 0;
   std::uint64_t ranging_suspended_frames = 0;
   std::uint64_t can_tx_ok = 0;
   std::uint64_t can_tx_failed = 0;
@@ -424,6 +432,7 @@ class Localizer {
   std::optional<fusion::Ekf> floor_twin_;  // RangingAidConfig::floor_check
   bool rack_since_floor_fix_ = false;  // rack updates or a rack initialisation since a floor fix
   std::int64_t rack_suspended_until_ns_ = INT64_MIN;
+  std::int64_t rack_probation_until_ns_ = INT64_MIN;  // a floor fix overruled the rack aid
   protocol::OdometryDecoder odom_;
   protocol::GyroDecoder gyro_;
   std::int64_t last_odom_ns_ = INT64_MIN;
