@@ -17,128 +17,12 @@
 
 #include "agv/localizer/localizer.hpp"
 #include "agv/ranging/range_models.hpp"
+#include "localizer_ranging_support.hpp"
 
 namespace agv {
 namespace {
 
-constexpr std::int64_t kMs = 1'000'000;
-constexpr std::int64_t kFramePeriodNs = 66'666'667;  // 15 fps
-constexpr std::int64_t kOdomPeriodNs = 10 * kMs;
-
-localizer::LocalizerConfig config() {
-  localizer::LocalizerConfig c;
-  c.fusion.health.odom_timeout_ns = 50 * kMs;
-  c.camera_timeout_ns = 200 * kMs;
-  return c;
-}
-
-// A forward camera 1 m up, 300 mm ahead of the reference point, level.
-ranging::RangingMount camera_mount() {
-  ranging::RangingMount m;
-  m.x_mm = 300.0;
-  m.z_mm = 1000.0;
-  return m;
-}
-
-struct Landmark {
-  Vec2 xy_mm;
-  double z_mm = 1200.0;
-  // Seen by its full tag pose (the face yaw goes into the fix) when set: the face normal in W.
-  bool full_pose = false;
-  double facing_rad = 0.0;
-};
-
-// The full tag pose's noise (rotation and translation from the corner model) drawn from rng, the
-// fix's input with its face yaw; returns the noisy translation for the EKF's input.
-Eigen::Vector3d observe_full_pose(const Pose2& truth, const Landmark& lm, Vec2 map_xy_mm,
-                                  const Eigen::Vector3d& t_C, std::mt19937* rng,
-                                  ranging::Observation* out) {
-  const ranging::RangingMount mount = camera_mount();
-  const double c = std::cos(lm.facing_rad), s = std::sin(lm.facing_rad);
-  Eigen::Matrix3d R_WT;  // x page right, y page down, z into the face
-  R_WT << -s, 0.0, -c, c, 0.0, -s, 0.0, -1.0, 0.0;
-  const Eigen::Matrix3d R_VW =
-      Eigen::AngleAxisd(-truth.theta_rad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  Eigen::Matrix3d R_CT = ranging::rotation_vehicle_from_camera(mount).transpose() * R_VW * R_WT;
-  const Eigen::Matrix<double, 6, 6> cov6 =
-      ranging::tag_pose_covariance(1000.0, 150.0, t_C, R_CT, 0.3);
-  std::normal_distribution<double> n01(0.0, 1.0);
-  Eigen::Matrix<double, 6, 1> e;
-  for (int i = 0; i < 6; ++i) e(i) = n01(*rng);
-  const Eigen::Matrix<double, 6, 1> d = Eigen::Matrix<double, 6, 6>(cov6.llt().matrixL()) * e;
-  const Eigen::Vector3d w = d.head<3>();
-  if (w.norm() > 0.0) R_CT = Eigen::AngleAxisd(w.norm(), w.normalized()) * R_CT;
-  const Eigen::Vector3d t_noisy = t_C + d.tail<3>();
-  const ranging::RangeBearing rb = ranging::range_bearing_from_tag_pose(mount, t_noisy, R_CT, cov6);
-  out->landmark_mm = map_xy_mm;
-  out->range_mm = rb.range_mm;
-  out->bearing_rad = rb.bearing_rad;
-  out->cov = rb.cov.topLeftCorner<2, 2>();
-  out->has_face_yaw = rb.has_yaw;
-  out->face_yaw_rad = rb.relative_yaw_rad;
-  out->face_yaw_var_rad2 = rb.cov(2, 2);
-  out->face_yaw_cov = rb.cov.topRightCorner<2, 1>();
-  out->landmark_facing_rad = lm.facing_rad;
-  return t_noisy;
-}
-
-// One landmark seen from the true pose, with the tag-translation noise of ranging's corner model
-// drawn from rng; map_xy_mm is what the map says (the truth unless a test makes it wrong).
-localizer::RackObservation observe(const Pose2& truth, const Landmark& lm, Vec2 map_xy_mm,
-                                   std::mt19937* rng) {
-  const ranging::RangingMount mount = camera_mount();
-  const double c = std::cos(truth.theta_rad), s = std::sin(truth.theta_rad);
-  const double dx = lm.xy_mm.x - truth.x_mm, dy = lm.xy_mm.y - truth.y_mm;
-  const Eigen::Vector3d p_V(c * dx + s * dy, -s * dx + c * dy, lm.z_mm);
-  const Eigen::Matrix3d R_VC = ranging::rotation_vehicle_from_camera(mount);
-  const Eigen::Vector3d t_C =
-      R_VC.transpose() * (p_V - Eigen::Vector3d(mount.x_mm, mount.y_mm, mount.z_mm));
-  const Eigen::Matrix3d cov_t = ranging::tag_translation_covariance(1000.0, 150.0, t_C, 0.3);
-  localizer::RackObservation o;
-  Eigen::Vector3d t_noisy;
-  if (lm.full_pose) {
-    t_noisy = observe_full_pose(truth, lm, map_xy_mm, t_C, rng, &o.vehicle);
-  } else {
-    std::normal_distribution<double> n01(0.0, 1.0);
-    const Eigen::Vector3d noise(n01(*rng), n01(*rng), n01(*rng));
-    t_noisy = t_C + Eigen::Matrix3d(cov_t.llt().matrixL()) * noise;
-    const ranging::RangeBearing from_v =
-        ranging::range_bearing_from_tag_translation(mount, t_noisy, cov_t);
-    o.vehicle.landmark_mm = map_xy_mm;
-    o.vehicle.range_mm = from_v.range_mm;
-    o.vehicle.bearing_rad = from_v.bearing_rad;
-    o.vehicle.cov = from_v.cov.topLeftCorner<2, 2>();
-  }
-  ranging::RangingMount at_camera = mount;  // the same from the camera's own centre and axis
-  at_camera.x_mm = at_camera.y_mm = at_camera.yaw_rad = 0.0;
-  const ranging::RangeBearing from_c =
-      ranging::range_bearing_from_tag_translation(at_camera, t_noisy, cov_t);
-  o.sensor.landmark_xy_mm = Eigen::Vector2d(map_xy_mm.x, map_xy_mm.y);
-  o.sensor.sensor_xy_mm = Eigen::Vector2d(mount.x_mm, mount.y_mm);
-  o.sensor.sensor_yaw_rad = mount.yaw_rad;
-  o.sensor.range_mm = from_c.range_mm;
-  o.sensor.bearing_rad = from_c.bearing_rad;
-  o.sensor.R = from_c.cov.topLeftCorner<2, 2>();
-  return o;
-}
-
-std::vector<localizer::RackObservation> frame(const Pose2& truth, const std::vector<Landmark>& lms,
-                                              const std::vector<Vec2>& map, std::mt19937* rng) {
-  std::vector<localizer::RackObservation> out;
-  for (std::size_t i = 0; i < lms.size(); ++i) out.push_back(observe(truth, lms[i], map[i], rng));
-  return out;
-}
-
-std::vector<Vec2> true_map(const std::vector<Landmark>& lms) {
-  std::vector<Vec2> m;
-  for (const Landmark& l : lms) m.push_back(l.xy_mm);
-  return m;
-}
-
-const Pose2 kTruth{1000.0, 200.0, 0.1};
-// Two rack uprights 3.2-3.4 m away, 80 deg apart as seen from the truth, and a third between.
-const std::vector<Landmark> kTwo = {{{3500.0, 2200.0}}, {{3800.0, -1600.0}}};
-const std::vector<Landmark> kThree = {{{3500.0, 2200.0}}, {{3800.0, -1600.0}}, {{4300.0, 500.0}}};
+using namespace ranging_test;  // NOLINT: the shared simulation
 
 struct StandRun {
   std::int64_t first_valid_ns = -1;  // data time of the first valid pose, -1 never
@@ -268,19 +152,6 @@ TEST(LocalizerRanging, TwoLandmarksWithFaceYawsGiveNoConfidentWrongPoseFromAWron
   EXPECT_TRUE(stand(&ok, 0, 1000 * kMs, two, true_map(two), &rng).last.pose_valid);
 }
 
-// A floor fix at kTruth at t = 0 (sd 0.1 mm, 1 mrad), the wheels already at speed_mps.
-void start_at_floor_fix(localizer::Localizer* loc, double speed_mps) {
-  vision::LandmarkMeasurement floor;
-  floor.status = vision::FixStatus::kOk;
-  floor.landmark_id = 9;
-  floor.map_verified = true;
-  floor.vehicle_in_world = kTruth;
-  floor.cov_world = Eigen::Matrix3d::Identity() * 0.01;
-  floor.cov_world(2, 2) = 1e-6;
-  loc->on_odometry(0, speed_mps, 0.0);
-  loc->on_fix(floor, 0, 0);
-}
-
 TEST(LocalizerRanging, RackUpdatesNarrowThePoseBetweenFloorFixes) {
   // Driving at 0.5 m/s along x after a floor fix; with the rack landmarks in view the position
   // sigma after 3 s is smaller than with the wheels alone.
@@ -320,110 +191,6 @@ TEST(LocalizerRanging, RackUpdatesNarrowThePoseBetweenFloorFixes) {
                   kTruth.y_mm + d_mm * std::sin(kTruth.theta_rad), kTruth.theta_rad};
   const double err_mm = std::hypot(racks.pose.x_mm - end.x_mm, racks.pose.y_mm - end.y_mm);
   EXPECT_LT(err_mm, 3.0 * racks.position_sigma_mm);
-}
-
-// A drive at 0.5 m/s from a floor fix at kTruth for 3 s, the rack landmarks seen through a camera
-// turned mount_error_rad from its calibration (each frame observed from the true position with
-// the heading off by that much), then a floor fix at the true pose and 1 s more of frames.
-struct MountDrive {
-  localizer::OutputStats stats;
-  fusion::PoseEstimate after_fix;  // the estimate right after the floor fix at 3 s
-  Pose2 truth_at_fix;
-};
-
-MountDrive drive_with_turned_camera(bool floor_check, double mount_error_rad,
-                                    bool turned_after_fix = true) {
-  localizer::LocalizerConfig cfg = config();
-  cfg.ranging.floor_check = floor_check;
-  localizer::Localizer loc(cfg);
-  std::mt19937 rng(11);
-  start_at_floor_fix(&loc, 0.5);
-  const double v = 0.5;
-  auto truth = [&](std::int64_t t) {
-    const double d_mm = v * static_cast<double>(t) * 1e-6;
-    return Pose2{kTruth.x_mm + d_mm * std::cos(kTruth.theta_rad),
-                 kTruth.y_mm + d_mm * std::sin(kTruth.theta_rad), kTruth.theta_rad};
-  };
-  MountDrive r;
-  std::int64_t next_frame = kFramePeriodNs;
-  for (std::int64_t t = kOdomPeriodNs; t <= 4000 * kMs; t += kOdomPeriodNs) {
-    loc.on_odometry(t, v, 0.0);
-    if (t == 3000 * kMs) {
-      vision::LandmarkMeasurement floor;
-      floor.status = vision::FixStatus::kOk;
-      floor.landmark_id = 10;
-      floor.vehicle_in_world = truth(t);
-      floor.cov_world = Eigen::Matrix3d::Identity() * 0.01;
-      floor.cov_world(2, 2) = 1e-6;
-      loc.on_fix(floor, t, t);
-      r.after_fix = loc.ekf().estimate_at(t);
-      r.truth_at_fix = truth(t);
-    }
-    if (t < next_frame) continue;
-    Pose2 seen_from = truth(next_frame);
-    if (turned_after_fix || next_frame < 3000 * kMs) seen_from.theta_rad += mount_error_rad;
-    std::vector<localizer::RackObservation> obs;
-    for (const Landmark& l : kTwo) obs.push_back(observe(seen_from, l, l.xy_mm, &rng));
-    loc.on_ranging(next_frame, obs);
-    next_frame += kFramePeriodNs;
-    loc.set_camera_state(t, false, false);
-    loc.tick(t);
-  }
-  r.stats = loc.stats();
-  return r;
-}
-
-// A camera turned 2 degrees since its calibration pulls the filter's heading 2 degrees off; the
-// floor fix that shows it fails the gate of a filter the rack updates made confident. Without the
-// floor-only twin it is refused and the filter stays wrong; with it, the twin (which fused the
-// fix) overrules the rack aid: the filter is reset to the floor camera's pose and the rack aid
-// suspended.
-TEST(LocalizerRanging, AFloorFixOverrulesRackLandmarksSeenThroughATurnedCamera) {
-  const double err = deg_to_rad(2.0);
-  const MountDrive without = drive_with_turned_camera(false, err);
-  const MountDrive with = drive_with_turned_camera(true, err);
-  auto heading_err = [](const MountDrive& r) {
-    return std::abs(wrap_angle_rad(r.after_fix.pose.theta_rad - r.truth_at_fix.theta_rad));
-  };
-  auto position_err = [](const MountDrive& r) {
-    return std::hypot(r.after_fix.pose.x_mm - r.truth_at_fix.x_mm,
-                      r.after_fix.pose.y_mm - r.truth_at_fix.y_mm);
-  };
-  std::printf(
-      "turned camera: without the twin heading %.3f deg off, %.1f mm; with it %.3f deg, "
-      "%.1f mm\n",
-      heading_err(without) * 180.0 / kPi, position_err(without), heading_err(with) * 180.0 / kPi,
-      position_err(with));
-  EXPECT_EQ(without.stats.fixes_rejected_gate, 1u);
-  EXPECT_GT(heading_err(without), deg_to_rad(1.0));
-  EXPECT_EQ(with.stats.ranging_floor_conflicts, 1u);
-  EXPECT_EQ(with.stats.ranging_suspensions, 1u);
-  EXPECT_LT(heading_err(with), deg_to_rad(0.2));
-  EXPECT_LT(position_err(with), 5.0);
-  // Suspended: the frames of the last second are not used.
-  EXPECT_GE(with.stats.ranging_suspended_frames, 14u);
-  EXPECT_EQ(without.stats.ranging_suspended_frames, 0u);
-}
-
-// The rack frames after the reset agree with the floor camera's pose (here the camera is right
-// again; on a drive, the filter had been overconfident after a slip the wheels did not show): the
-// rack aid is not suspended and fuses them.
-TEST(LocalizerRanging, RackFramesThatAgreeAfterTheResetKeepTheRackAid) {
-  const MountDrive r = drive_with_turned_camera(true, deg_to_rad(2.0), false);
-  EXPECT_EQ(r.stats.ranging_floor_conflicts, 1u);
-  EXPECT_EQ(r.stats.ranging_suspensions, 0u);
-  EXPECT_EQ(r.stats.ranging_suspended_frames, 0u);
-  EXPECT_LT(std::abs(wrap_angle_rad(r.after_fix.pose.theta_rad - r.truth_at_fix.theta_rad)),
-            deg_to_rad(0.2));
-}
-
-// With the camera as calibrated the floor fix is fused and nothing is overruled.
-TEST(LocalizerRanging, ACalibratedCameraIsNeverOverruled) {
-  const MountDrive r = drive_with_turned_camera(true, 0.0);
-  EXPECT_EQ(r.stats.ranging_floor_conflicts, 0u);
-  EXPECT_EQ(r.stats.ranging_suspensions, 0u);
-  EXPECT_EQ(r.stats.ranging_suspended_frames, 0u);
-  EXPECT_EQ(r.stats.fixes_rejected_gate, 0u);
 }
 
 // A drive at 0.5 m/s from a floor fix at kTruth with kTwo in view at 15 fps, wheels only. At
