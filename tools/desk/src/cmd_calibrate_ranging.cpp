@@ -20,6 +20,10 @@
 
 namespace agv::desk {
 
+// A namespace of its own: the desk library is built in unity batches, where every file's
+// anonymous namespace in agv::desk is one (cmd_calibrate_ceiling.cpp has a named_error too).
+namespace ranging_mount_cmd {
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -209,7 +213,7 @@ void add_options(CLI::App& app, Args* a) {
 
 }  // namespace
 
-int calibrate_ranging_mount(int argc, char** argv) {
+int run(int argc, char** argv) {
   CLI::App app{
       "The second camera's mount from a drive past the site's rack landmarks, the vehicle "
       "localized by the floor camera (docs/guide/ranging.md, \"Calibrating the mount\"). Exit 0 "
@@ -251,5 +255,9 @@ int calibrate_ranging_mount(int argc, char** argv) {
   }
   return 0;
 }
+
+}  // namespace ranging_mount_cmd
+
+int calibrate_ranging_mount(int argc, char** argv) { return ranging_mount_cmd::run(argc, argv); }
 
 }  // namespace agv::desk
