@@ -140,12 +140,19 @@ std::string ranging_summary(const RangingCounts& c, const localizer::OutputStats
   std::string s = buf;
   if (o.ranging_floor_conflicts > 0) {
     std::snprintf(buf, sizeof buf,
-                  "ranging camera: %llu floor fixes overruled the rack landmarks (the filter "
-                  "took over its floor-only twin), %llu suspensions, %llu frames unused while "
-                  "suspended: check the mount calibration and the rack landmarks' survey\n",
+                  "ranging camera: floor fixes overruled the rack landmarks %llu times (the "
+                  "filter took over its floor-only twin), %llu suspensions, %llu frames unused "
+                  "while suspended: check the mount calibration and the rack landmarks' survey\n",
                   static_cast<unsigned long long>(o.ranging_floor_conflicts),
                   static_cast<unsigned long long>(o.ranging_suspensions),
                   static_cast<unsigned long long>(o.ranging_suspended_frames));
+    s += buf;
+  }
+  if (o.ranging_floor_disputes > 0) {
+    std::snprintf(buf, sizeof buf,
+                  "ranging camera: %llu floor fixes disagreed with the rack landmarks, not enough "
+                  "in a row to overrule them\n",
+                  static_cast<unsigned long long>(o.ranging_floor_disputes));
     s += buf;
   }
   if (c.cpu_ns > 0 && c.frames > 0) {

@@ -98,9 +98,21 @@ TEST(RangingSummary, SaysWhenFloorFixesOverruledTheRackLandmarks) {
   o.ranging_suspensions = 1;
   o.ranging_suspended_frames = 17;
   const std::string s = ranging_summary(c, o);
-  EXPECT_NE(s.find("2 floor fixes overruled the rack landmarks"), std::string::npos) << s;
+  EXPECT_NE(s.find("floor fixes overruled the rack landmarks 2 times"), std::string::npos) << s;
   EXPECT_NE(s.find("1 suspensions, 17 frames unused"), std::string::npos) << s;
   EXPECT_NE(s.find("mount calibration"), std::string::npos) << s;
+  EXPECT_EQ(s.find("disagreed"), std::string::npos) << s;
+}
+
+// Floor fixes that disagreed one at a time (conflict_fixes not reached) are said too.
+TEST(RangingSummary, SaysWhenLoneFloorFixesDisagreedWithTheRackLandmarks) {
+  RangingCounts c;
+  c.frames = 30;
+  localizer::OutputStats o;
+  o.ranging_floor_disputes = 3;
+  const std::string s = ranging_summary(c, o);
+  EXPECT_NE(s.find("3 floor fixes disagreed with the rack landmarks"), std::string::npos) << s;
+  EXPECT_EQ(s.find("overruled the rack landmarks"), std::string::npos) << s;
 }
 
 }  // namespace

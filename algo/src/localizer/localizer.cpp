@@ -118,6 +118,7 @@ bool Localizer::set_pose(std::int64_t now_ns, const Pose2& pose, double sigma_mm
   const fusion::Ekf::Counters before = ekf_.counters();
   const bool ok = ekf_.set_pose(now_ns, pose, R);
   if (floor_twin_) floor_twin_->set_pose(now_ns, pose, R);
+  floor_conflict_streak_ = 0;
   operator_poses_.initialisations += ekf_.counters().fixes_initialised - before.fixes_initialised;
   operator_poses_.reinitialisations += ekf_.counters().reinitialisations - before.reinitialisations;
   refresh_fix_counts();

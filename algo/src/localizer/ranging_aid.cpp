@@ -271,11 +271,17 @@ fusion::FixOutcome Localizer::floor_arbitration(std::int64_t t_ns, fusion::FixOu
   if (outcome == FixOutcome::kFused || outcome == FixOutcome::kInitialised ||
       outcome == FixOutcome::kReinitialised) {
     rack_since_floor_fix_ = false;
+    floor_conflict_streak_ = 0;
     return outcome;
   }
   if (outcome != FixOutcome::kRejectedGate || twin_outcome != FixOutcome::kFused || guided ||
       !rack_since_floor_fix_)
     return outcome;
+  if (++floor_conflict_streak_ < std::max(cfg_.ranging.conflict_fixes, 1)) {
+    ++stats_.ranging_floor_disputes;
+    return outcome;
+  }
+  floor_conflict_streak_ = 0;
   ekf_.adopt_estimate(*floor_twin_);
   ++stats_.ranging_floor_conflicts;
   rack_probation_until_ns_ = t_ns + cfg_.ranging.probation_ns;

@@ -98,7 +98,8 @@ struct RangingAidConfig {
   // A floor-only twin of the filter (the same odometry, gyro, floor fixes and operator poses; no
   // rack landmarks) arbitrates a floor fix that fails the gate after rack updates were fused: a
   // wrong second camera (a mount turned since its calibration, a rack that moved) must not veto
-  // the floor camera. When the twin fuses the fix, the filter takes over the twin's estimate
+  // the floor camera. When the twin fuses conflict_fixes such fixes in a row (no floor fix the
+  // filter fused between them), the filter takes over the twin's estimate
   // (OutputStats::ranging_floor_conflicts); if the next rack frame disagrees with it too
   // (probation_ns), the rack aid is suspended for conflict_suspend_ns. Only fixes whose identity
   // is their own (not map-guided) arbitrate. Off: no twin (the firmware turns it on with
@@ -111,6 +112,11 @@ struct RangingAidConfig {
   // had been overconfident, e.g. after a slip the wheels did not show) and goes on; all gated, it
   // is suspended for conflict_suspend_ns.
   std::int64_t probation_ns = 1'000'000'000;
+  // Floor fixes in a row, each gated by the filter and fused by the twin, before the take-over
+  // (>= 1). One wrong floor fix (a misread corner, glare; the twin, less sure between floor
+  // landmarks, fuses it) is not enough to overrule the rack aid; a turned second camera keeps
+  // the filter gating every floor fix, and costs one floor frame more per take-over.
+  int conflict_fixes = 2;
 };
 
 // One landmark of one second-camera frame, both ways the localizer uses it: from the vehicle's
@@ -212,6 +218,9 @@ struct OutputStats {
   // (the next rack frame disagreed with the floor camera's pose too), and the frames not used
   // while suspended.
   std::uint64_t ranging_floor_conflicts = 0;
+  // Such floor fixes short of conflict_fixes in a row (not taken over; a floor fix the filter
+  // fused came next, or none yet).
+  std::uint64_t ranging_floor_disputes = 0;
   std::uint64_t ranging_suspensions = 0;
   std::uint64_t ranging_suspended_frames = 0;
   std::uint64_t can_tx_ok = 0;
@@ -431,6 +440,7 @@ class Localizer {
   fusion::Ekf ekf_;
   std::optional<fusion::Ekf> floor_twin_;  // RangingAidConfig::floor_check
   bool rack_since_floor_fix_ = false;  // rack updates or a rack initialisation since a floor fix
+  int floor_conflict_streak_ = 0;      // floor fixes in a row gated here, fused by the twin
   std::int64_t rack_suspended_until_ns_ = INT64_MIN;
   std::int64_t rack_probation_until_ns_ = INT64_MIN;  // a floor fix overruled the rack aid
   protocol::OdometryDecoder odom_;
