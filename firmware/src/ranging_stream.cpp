@@ -155,6 +155,13 @@ std::string ranging_summary(const RangingCounts& c, const localizer::OutputStats
                   static_cast<unsigned long long>(o.ranging_floor_disputes));
     s += buf;
   }
+  if (o.ranging_floor_twin_resyncs > 0) {
+    std::snprintf(buf, sizeof buf,
+                  "ranging camera: the floor-only twin refused %llu floor fixes that floor and "
+                  "rack landmarks agreed on (it held an older, misread one) and was reset\n",
+                  static_cast<unsigned long long>(o.ranging_floor_twin_resyncs));
+    s += buf;
+  }
   if (c.cpu_ns > 0 && c.frames > 0) {
     std::snprintf(buf, sizeof buf, "ranging camera: CPU per frame mean %.2f ms, max %.2f ms\n",
                   static_cast<double>(c.cpu_ns) / 1e6 / static_cast<double>(c.frames),

@@ -110,9 +110,13 @@ TEST(RangingSummary, SaysWhenLoneFloorFixesDisagreedWithTheRackLandmarks) {
   c.frames = 30;
   localizer::OutputStats o;
   o.ranging_floor_disputes = 3;
-  const std::string s = ranging_summary(c, o);
+  std::string s = ranging_summary(c, o);
   EXPECT_NE(s.find("3 floor fixes disagreed with the rack landmarks"), std::string::npos) << s;
   EXPECT_EQ(s.find("overruled the rack landmarks"), std::string::npos) << s;
+  EXPECT_EQ(s.find("twin"), std::string::npos) << s;
+  o.ranging_floor_twin_resyncs = 2;
+  s = ranging_summary(c, o);
+  EXPECT_NE(s.find("the floor-only twin refused 2 floor fixes"), std::string::npos) << s;
 }
 
 }  // namespace

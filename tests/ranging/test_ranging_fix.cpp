@@ -146,6 +146,48 @@ TEST(RangingFix, ShallowCrossingIsRefused) {
   EXPECT_EQ(fix_from_landmarks(obs, loose).status, FixStatus::kOk);
 }
 
+// The same shallow pair read with face yaws (the tags' full poses, 1 degree sigma): the face yaws
+// constrain what the circles do not; turned on, the fix is seeded from the two single-landmark
+// poses and refined over both, its covariance covering the error. Off (the default), refused.
+TEST(RangingFix, ShallowPairWithFaceYawsIsSeededFromThem) {
+  const Pose2 truth{0.0, 0.0, 0.1};
+  Observation obs[2] = {observe(truth, {8000.0, 500.0}, 30.0, 1e-3),
+                        observe(truth, {8000.0, -500.0}, 30.0, 1e-3)};
+  const double yaw_sigma_rad = deg_to_rad(1.0);
+  for (Observation& o : obs) {
+    o.has_face_yaw = true;
+    o.landmark_facing_rad = M_PI;  // facing the vehicle
+    o.face_yaw_rad = wrap_angle_rad(o.landmark_facing_rad - truth.theta_rad);
+    o.face_yaw_var_rad2 = yaw_sigma_rad * yaw_sigma_rad;
+  }
+  EXPECT_EQ(fix_from_landmarks(obs, FixOptions{}).status, FixStatus::kShallowGeometry);
+  FixOptions on;
+  on.face_yaw_pairs_below_crossing = true;
+  const FixResult exact = fix_from_landmarks(obs, on);
+  ASSERT_EQ(exact.status, FixStatus::kOk) << fix_status_name(exact.status);
+  expect_pose(exact.pose, truth, 1e-6, 1e-9);
+  // Seeded noise: the refined pose inside its own 3 sigma (chi-square, 3 dof, 14.16 = 0.997).
+  std::mt19937 rng(3);
+  std::normal_distribution<double> n01(0.0, 1.0);
+  int inside = 0, ok = 0;
+  for (int k = 0; k < 200; ++k) {
+    Observation noisy[2] = {obs[0], obs[1]};
+    for (Observation& o : noisy) {
+      o.range_mm += 30.0 * n01(rng);
+      o.bearing_rad += 1e-3 * n01(rng);
+      o.face_yaw_rad += yaw_sigma_rad * n01(rng);
+    }
+    const FixResult f = fix_from_landmarks(noisy, on);
+    if (f.status != FixStatus::kOk) continue;
+    ++ok;
+    Eigen::Vector3d d(f.pose.x_mm - truth.x_mm, f.pose.y_mm - truth.y_mm,
+                      wrap_angle_rad(f.pose.theta_rad - truth.theta_rad));
+    inside += d.dot(f.cov.ldlt().solve(d)) <= 14.16;
+  }
+  EXPECT_GE(ok, 190);
+  EXPECT_GE(inside, ok * 97 / 100) << inside << " of " << ok;
+}
+
 TEST(RangingFix, OneLandmarkNeverFixes) {
   const Observation o = observe({0, 0, 0}, {3000.0, 0.0}, 10.0, 1e-3);
   EXPECT_EQ(fix_from_landmarks(std::span<const Observation>(&o, 1), FixOptions{}).status,

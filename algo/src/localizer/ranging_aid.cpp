@@ -272,6 +272,13 @@ fusion::FixOutcome Localizer::floor_arbitration(std::int64_t t_ns, fusion::FixOu
       outcome == FixOutcome::kReinitialised) {
     rack_since_floor_fix_ = false;
     floor_conflict_streak_ = 0;
+    // The twin refused a floor fix that floor and rack landmarks agree on: it holds an older floor
+    // fix (a misread it fused, 0.1 mm sure) and would stay wrong and confident, drifting on the
+    // odometry calibration that fix taught it, to overrule the rack landmarks later.
+    if (twin_outcome == FixOutcome::kRejectedGate) {
+      floor_twin_->adopt_estimate(ekf_);
+      ++stats_.ranging_floor_twin_resyncs;
+    }
     return outcome;
   }
   if (outcome != FixOutcome::kRejectedGate || twin_outcome != FixOutcome::kFused || guided ||

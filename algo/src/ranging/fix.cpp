@@ -355,6 +355,39 @@ FixResult refine_fix(std::span<const Observation> obs, const Pose2& init, const 
   return out;
 }
 
+namespace {
+
+// The vehicle's pose from one landmark read with its face yaw: heading from the landmark's facing
+// and the face yaw, position back along the range and bearing.
+Pose2 pose_from_face_yaw(const Observation& o) {
+  const double theta = wrap_angle_rad(o.landmark_facing_rad - o.face_yaw_rad);
+  const double a = theta + o.bearing_rad;
+  return {o.landmark_mm.x - o.range_mm * std::cos(a), o.landmark_mm.y - o.range_mm * std::sin(a),
+          theta};
+}
+
+// A shallow pair's seed from its two single-landmark poses (their mean; the circular mean of the
+// headings). Only a seed: the fix is the least squares over both landmarks.
+bool face_yaw_pair_seed(const Observation& o0, const Observation& o1, const FixOptions& opt,
+                        Pose2* seed) {
+  if (!opt.face_yaw_pairs_below_crossing || !o0.has_face_yaw || !o1.has_face_yaw) return false;
+  const Pose2 a = pose_from_face_yaw(o0), b = pose_from_face_yaw(o1);
+  *seed = {0.5 * (a.x_mm + b.x_mm), 0.5 * (a.y_mm + b.y_mm),
+           std::atan2(std::sin(a.theta_rad) + std::sin(b.theta_rad),
+                      std::cos(a.theta_rad) + std::cos(b.theta_rad))};
+  return std::isfinite(seed->x_mm) && std::isfinite(seed->y_mm) && std::isfinite(seed->theta_rad);
+}
+
+// Two landmarks' seed: their circles' crossing, or where it is too shallow, their face yaws.
+FixResult pair_seed(const Observation& o0, const Observation& o1, const FixOptions& opt) {
+  FixResult seed = fix_two_circles(o0, o1, TwoLandmarkRule::kBearingDifference, false, opt);
+  if (seed.status == FixStatus::kShallowGeometry && face_yaw_pair_seed(o0, o1, opt, &seed.pose))
+    seed.status = FixStatus::kOk;
+  return seed;
+}
+
+}  // namespace
+
 FixResult fix_from_landmarks(std::span<const Observation> obs, const FixOptions& opt) {
   FixResult seed;
   if (obs.size() < 2) {
@@ -362,7 +395,7 @@ FixResult fix_from_landmarks(std::span<const Observation> obs, const FixOptions&
     return seed;
   }
   if (obs.size() == 2) {
-    seed = fix_two_circles(obs[0], obs[1], TwoLandmarkRule::kBearingDifference, false, opt);
+    seed = pair_seed(obs[0], obs[1], opt);
   } else {
     Vec2 p;
     seed.status = trilaterate(obs, opt, &p);
@@ -385,7 +418,7 @@ FixResult fix_from_landmarks(std::span<const Observation> obs, const FixOptions&
           }
         }
       }
-      seed = fix_two_circles(obs[a], obs[b], TwoLandmarkRule::kBearingDifference, false, opt);
+      seed = pair_seed(obs[a], obs[b], opt);
     }
   }
   if (seed.status != FixStatus::kOk) return seed;

@@ -5,8 +5,9 @@
 // its own noise; the LandmarkObserver reads them without a prior (full sweep), and the Localizer
 // gets them through on_ranging with the wheels at rest, once per initialisation rule on the same
 // observations: each frame's fix alone (RangingAidConfig::stack_fixes false) and the frames' fixes
-// stacked; stacked with two-landmark fixes down to a 5 degree crossing; and stacked with the
-// range-bearing updates not told which share of their covariance repeats
+// stacked; stacked with two landmarks read with face yaws seeded from them below the 15 degree
+// crossing instead of refused (FixOptions::face_yaw_pairs_below_crossing true, off by default); and
+// stacked with the range-bearing updates not told which share of their covariance repeats
 // (RangeBearingObs::R_systematic zero). Reports per rule: poses localized within the
 // frames, time to the first valid pose, its error and 3-sigma coverage, and the same at the end.
 // Not a ctest; figures in docs/design/ranging.md ("Switched on"). Usage: eval_ranging_switch_on
@@ -187,10 +188,10 @@ int main(int argc, char** argv) {
   localizer::LocalizerConfig single = base;
   single.ranging.stack_fixes = false;
   localizer::LocalizerConfig shallow = base;
-  shallow.ranging.fix.min_crossing_angle_rad = deg_to_rad(5.0);
+  shallow.ranging.fix.face_yaw_pairs_below_crossing = true;
   // Per rule, per group (the most landmarks read in one of the frames: two, three or more).
   const char* kRules[4] = {"each frame's fix alone", "the frames' fixes stacked",
-                           "stacked, circles crossing down to 5 deg",
+                           "stacked, shallow pairs seeded from face yaws",
                            "stacked, the EKF not told what repeats"};
   RuleTally tally[4][2];
   int in_view[2] = {0, 0};

@@ -221,6 +221,9 @@ struct OutputStats {
   // Such floor fixes short of conflict_fixes in a row (not taken over; a floor fix the filter
   // fused came next, or none yet).
   std::uint64_t ranging_floor_disputes = 0;
+  // Floor fixes the filter fused and the twin gated (it held an older floor fix, a misread it
+  // fused): the twin took over the filter's estimate.
+  std::uint64_t ranging_floor_twin_resyncs = 0;
   std::uint64_t ranging_suspensions = 0;
   std::uint64_t ranging_suspended_frames = 0;
   std::uint64_t can_tx_ok = 0;

@@ -60,6 +60,14 @@ struct FixOptions {
   // landmarks subtend there, or its supplement). The position error across the bisector grows as
   // 1 / sin(angle): 15 degrees amplifies the range noise about 3.9 times.
   double min_crossing_angle_rad = deg_to_rad(15.0);
+  // Two landmarks both read with their face yaw (the tag's full pose) whose circles cross below
+  // min_crossing_angle_rad: true seeds the least squares from the two single-landmark poses
+  // instead of refusing, and leaves the geometry to the refinement's rank and max_position_sd_mm
+  // checks (the face yaws constrain what the shallow circles do not). Off by default: the position
+  // along the bisector then rests on the face yaws alone, and on rendered frames a 150 mm tag at
+  // 4.5 m read its face yaw 0.8 deg off in frame after frame against a told 0.32 deg sigma, a first
+  // pose 54 mm off at about 5 sigma (docs/design/ranging.md, "Switched on").
+  bool face_yaw_pairs_below_crossing = false;
   // Circles that miss each other by less than this many standard deviations of the range sum
   // (or difference) are taken as touching: their one solution is the closest point.
   double intersection_gate_sigma = 3.0;
