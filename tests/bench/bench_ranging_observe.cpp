@@ -14,7 +14,8 @@
 //    the windows plus the whole frame at quad decimation 2, or a full sweep in their place.
 // Counters: median, p90 and mean CPU per frame (thread CPU time, ms), landmarks seen per frame.
 // `bench_ranging_observe --profile` first prints libapriltag's own stage times on the frames and
-// the windowed reads against the full sweep's (ids, largest corner difference).
+// the windowed reads against the full sweep's (ids, largest corner difference). `--diag` prints,
+// for each frame with the localized prior, every predicted landmark and how it was read.
 #include <apriltag/apriltag.h>
 #include <apriltag/common/timeprofile.h>
 #include <apriltag/tag36h11.h>
@@ -53,6 +54,7 @@ struct Frames {
   std::vector<PosePrior> tight_priors;                            // 10 mm per axis, 0.1 deg
   std::vector<PosePrior> localized_priors;                        // 3 mm per axis, 0.03 deg
   std::vector<std::vector<overhead::TagObservation>> detections;  // the full sweep's
+  std::vector<std::vector<sim::WallLandmarkTruth>> truths;        // the renderer's
 };
 
 PosePrior draw_prior(const Pose2& truth, double sd_mm, double sd_deg, std::mt19937_64& rng) {
@@ -81,9 +83,10 @@ const Frames& frames() {
     for (std::size_t i = 0; i < poses.size(); ++i) {
       std::mt19937_64 frame_rng(7919 + i);
       const sim::SiteRenderParams p = ranging_eval::degraded(frame_rng);
-      out.images.push_back(
-          renderer.render(out.scene, sim::ranging_camera(out.k, poses[i], out.mount), p, 131 + i)
-              .image);
+      sim::RenderResult frame =
+          renderer.render(out.scene, sim::ranging_camera(out.k, poses[i], out.mount), p, 131 + i);
+      out.images.push_back(frame.image);
+      out.truths.push_back(std::move(frame.wall_landmarks));
       out.priors.push_back(draw_prior(poses[i], 30.0, 0.3, rng));
       out.tight_priors.push_back(draw_prior(poses[i], 10.0, 0.1, rng));
       out.localized_priors.push_back(draw_prior(poses[i], 3.0, 0.03, rng));
@@ -371,18 +374,49 @@ void print_window_agreement(int kind, const char* name) {
       quantile(ms, 0.5));
 }
 
-void print_window_diag() {
+bool has_id(const ObserveResult& r, std::uint32_t id) {
+  return std::any_of(r.seen.begin(), r.seen.end(), [&](const auto& o) { return o.id == id; });
+}
+
+double visible_fraction(const Frames& f, std::size_t frame, std::uint32_t id) {
+  for (const sim::WallLandmarkTruth& t : f.truths[frame]) {
+    if (t.id == id) return t.visible_fraction;
+  }
+  return -1.0;
+}
+
+// Per frame: the whole plan's CPU (best of 3), each predicted landmark and how it was read (on the
+// predicted path, by libapriltag in its window after the predicted path failed, or not at all)
+// with the renderer's visible fraction, then each window alone (prior 1: the 30 mm ones, 8
+// frames, with --profile; prior 3, the localized ones, every frame with --diag).
+void print_window_diag(int kind, std::size_t n_frames) {
   const Frames& f = frames();
-  const LandmarkObserver obs(f.k, f.mount, f.scene.site.wall_landmarks);
+  LandmarkObserver obs(f.k, f.mount, f.scene.site.wall_landmarks);
+  if (kind == 3) obs.set_obstacles(f.scene.site.obstacles);
   WindowOptions wopt;
   wopt.full_sweep_interval_frames = 0;
-  for (std::size_t i = 0; i < 8; ++i) {
-    const WindowPlan plan = obs.plan_windows(&f.priors[i], 1, wopt);
-    std::printf("frame %zu: %s, %zu predicted\n", i, sweep_reason_name(plan.reason),
-                plan.predicted.size());
-    for (const auto& p : plan.predicted)
-      std::printf("   id %u side %.1f sigma %.1f win %dx%d\n", p.id, p.side_px, p.corner_sigma_px,
-                  p.window.width, p.window.height);
+  for (std::size_t i = 0; i < std::min(n_frames, f.images.size()); ++i) {
+    const WindowPlan plan = obs.plan_windows(&prior_of(f, kind, i), 1, wopt);
+    double all_ms = 1e9;
+    ObserveResult all;
+    for (int rep = 0; rep < 3; ++rep) {
+      const double t0 = thread_cpu_ms();
+      all = obs.observe(f.images[i], plan);
+      all_ms = std::min(all_ms, thread_cpu_ms() - t0);
+    }
+    WindowPlan no_windows = plan;
+    no_windows.windows.clear();
+    const ObserveResult pred = obs.observe(f.images[i], no_windows);
+    std::printf("frame %zu: %s, %zu predicted, %zu read, %.3f ms\n", i,
+                sweep_reason_name(plan.reason), plan.predicted.size(), all.seen.size(), all_ms);
+    for (const auto& p : plan.predicted) {
+      const char* how = has_id(pred, p.id)  ? "read on the predicted path"
+                        : has_id(all, p.id) ? "read in its window"
+                                            : "not read";
+      std::printf("   id %u side %.1f sigma %.1f win %dx%d, %.2f visible: %s\n", p.id, p.side_px,
+                  p.corner_sigma_px, p.window.width, p.window.height, visible_fraction(f, i, p.id),
+                  how);
+    }
     for (const SearchWindow& w : plan.windows) {
       WindowPlan one = plan;
       one.windows = {w};
@@ -402,11 +436,13 @@ void print_window_diag() {
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool profile = false;
+  bool profile = false, diag = false;
   std::vector<char*> args;
   for (int i = 0; i < argc; ++i) {
     if (std::strcmp(argv[i], "--profile") == 0) {
       profile = true;
+    } else if (std::strcmp(argv[i], "--diag") == 0) {
+      diag = true;
     } else if (std::strcmp(argv[i], "--frames") == 0 && i + 1 < argc) {
       g_frames = std::max(1, std::atoi(argv[++i]));
     } else {
@@ -419,8 +455,9 @@ int main(int argc, char** argv) {
     print_window_agreement(1, "prior 30 mm / 0.3 deg");
     print_window_agreement(2, "prior 10 mm / 0.1 deg");
     print_window_agreement(3, "prior 3 mm / 0.03 deg");
-    print_window_diag();
+    print_window_diag(1, 8);
   }
+  if (diag) print_window_diag(3, static_cast<std::size_t>(g_frames));
   int n = static_cast<int>(args.size());
   benchmark::Initialize(&n, args.data());
   benchmark::RunSpecifiedBenchmarks();

@@ -37,7 +37,9 @@ TEST_F(RangingObserve, WindowsReadWhatTheFullSweepReads) {
   const LandmarkObserver obs(small_camera(), forward_mount(), scene_->site.wall_landmarks);
   const PosePrior prior = near_prior();
   const ObserveResult sweep = obs.observe(frame_->image);
-  const ObserveResult windows = obs.observe(frame_->image, &prior, 1);
+  WindowOptions windows_only;  // the predicted path would read them all (next tests)
+  windows_only.predicted_first = false;
+  const ObserveResult windows = obs.observe(frame_->image, &prior, 1, windows_only);
   EXPECT_FALSE(windows.full_sweep);
   EXPECT_EQ(windows.reason, SweepReason::kWindows);
   EXPECT_GE(windows.windows_searched, 1u);
@@ -84,6 +86,49 @@ TEST_F(RangingObserve, ATightPriorReadsOnThePredictedPathWithoutWindowSearch) {
   EXPECT_EQ(all.predicted_reads, 0u);
   EXPECT_GE(all.windows_searched, 1u);
   expect_same_reads(sweep, all);
+}
+
+double corner_rms_px(const ObserveResult& r, const sim::RenderResult& truth) {
+  double ss = 0.0;
+  int n = 0;
+  for (const LandmarkObservation& o : r.seen) {
+    for (const sim::WallLandmarkTruth& wt : truth.wall_landmarks) {
+      if (wt.id != o.id) continue;
+      for (std::size_t i = 0; i < 4; ++i) {
+        ss += std::pow(o.corners_px[i].x - wt.corners_px[i].x, 2) +
+              std::pow(o.corners_px[i].y - wt.corners_px[i].y, 2);
+        ++n;
+      }
+    }
+  }
+  return n > 0 ? std::sqrt(ss / n) : 1e9;
+}
+
+TEST_F(RangingObserve, ALooserPriorStillTriesThePredictedPathFirst) {
+  // 30 mm / 0.3 deg claimed and about one sigma off: three corner sigmas reach beyond the
+  // predicted search, yet the corners are within it. The landmarks are read there, no window is
+  // searched, and the corners are as close to the rendered ones as the full sweep's.
+  const LandmarkObserver obs(small_camera(), forward_mount(), scene_->site.wall_landmarks);
+  const PosePrior loose = near_prior();
+  const WindowPlan plan = obs.plan_windows(&loose, 1);
+  ASSERT_FALSE(plan.full_sweep) << sweep_reason_name(plan.reason);
+  const double search_px = overhead::TagDetectParams{}.predicted_search_px;
+  for (const PredictedLandmark& p : plan.predicted) {
+    EXPECT_GT(3.0 * p.corner_sigma_px, search_px) << p.id;
+    EXPECT_TRUE(p.predicted_path) << p.id;
+  }
+  const ObserveResult r = obs.observe(frame_->image, plan);
+  const ObserveResult sweep = obs.observe(frame_->image);
+  EXPECT_EQ(r.predicted_reads, 4u);
+  EXPECT_EQ(r.windows_searched, 0u);
+  ASSERT_EQ(r.seen.size(), sweep.seen.size());
+  EXPECT_LT(corner_rms_px(r, *frame_), corner_rms_px(sweep, *frame_) + 0.01);
+  for (const LandmarkObservation& a : sweep.seen) {
+    const auto b = std::find_if(r.seen.begin(), r.seen.end(),
+                                [&](const LandmarkObservation& o) { return o.id == a.id; });
+    ASSERT_NE(b, r.seen.end()) << a.id;
+    EXPECT_NEAR(b->pose.range_mm, a.pose.range_mm, 0.15 * std::sqrt(a.pose.cov(0, 0))) << a.id;
+  }
 }
 
 TEST_F(RangingObserve, APredictedReadThatFailsFallsBackToItsWindow) {

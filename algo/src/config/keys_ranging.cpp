@@ -110,8 +110,8 @@ void add_ranging_calibration_doubt(std::vector<Key>* k) {
              0.0, {"", "relative error of the focal length (0.002 = 0.2 %): scales each range"}));
   k->push_back(boolean("ranging_camera.predicted_first", AGV_AT(ranging_camera.predicted_first),
                        true,
-                       "a landmark the pose predicts within 8 px (3 sigma) is read first from "
-                       "edge lines around its predicted square, decoded against its own id; its "
+                       "a landmark the pose predicts in view is read first from edge lines "
+                       "within 8 px of its predicted square, decoded against its own id; its "
                        "window is searched only when that fails (about half the CPU per frame "
                        "once localized, docs/design/ranging.md). false: every window searched"));
   k->push_back(integer("ranging_camera.sweep_interval_frames",

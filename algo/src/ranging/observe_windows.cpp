@@ -229,8 +229,9 @@ bool LandmarkObserver::predict_landmark(const site::WallLandmark& w, const PoseP
   out->corner_sigma_px = std::max(su, sv);
   out->side_px = side;
   out->window = window;
-  out->predicted_path = wopt.predicted_first && wopt.sigma_count * out->corner_sigma_px <=
-                                                    impl_->detector.params().predicted_search_px;
+  // Tried whatever the prior's sigma: a read the prior did not promise within the search still
+  // saves its window, and a failed one costs a fraction of the window's search.
+  out->predicted_path = wopt.predicted_first;
   const int dec = static_cast<int>(std::floor(side / wopt.decimated_side_px));
   out->decimation = std::clamp(dec, 1, std::max(1, wopt.max_decimation));
   return true;

@@ -189,11 +189,13 @@ struct WindowOptions {
   // scaled corners.
   double decimated_side_px = 32.0;
   int max_decimation = 4;
-  // A landmark whose corners the prior predicts within the tag detector's predicted search
-  // (sigma_count corner sigmas within TagDetectParams::predicted_search_px) is read first on the
-  // detector's predicted path: edge lines fitted around the predicted square and the cells
-  // decoded against its id alone, within the bits the search path corrects; a window is searched
-  // by libapriltag only when a landmark in it was not read so. false: libapriltag in every window.
+  // Every landmark the prior puts in view is read first on the tag detector's predicted path:
+  // edge lines fitted around the predicted square (within TagDetectParams::predicted_search_px)
+  // and the cells decoded against its id alone, within the bits the search path corrects; a
+  // window is searched by libapriltag only when a landmark in it was not read so. Tried whatever
+  // the prior's sigma: a near tag's corner sigma is a few px even for a localized vehicle, and its
+  // corners are mostly within the search anyway (a failed read costs a fraction of the window).
+  // false: libapriltag in every window.
   bool predicted_first = true;
 };
 
