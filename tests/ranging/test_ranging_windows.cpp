@@ -114,7 +114,7 @@ TEST_F(RangingObserve, ALooserPriorStillTriesThePredictedPathFirst) {
   ASSERT_FALSE(plan.full_sweep) << sweep_reason_name(plan.reason);
   const double search_px = overhead::TagDetectParams{}.predicted_search_px;
   for (const PredictedLandmark& p : plan.predicted) {
-    EXPECT_GT(3.0 * p.corner_sigma_px, search_px) << p.id;
+    EXPECT_GT(WindowOptions{}.sigma_count * p.corner_sigma_px, search_px) << p.id;
     EXPECT_TRUE(p.predicted_path) << p.id;
   }
   const ObserveResult r = obs.observe(frame_->image, plan);
