@@ -135,7 +135,15 @@ std::vector<Key> search_detect_keys() {
       number("search.window_margin_px", AGV_OH_AT(search.window_margin_px), 0, 1000, 12.0, "px",
              "Margin of a track's window beyond the predicted tag's corners"),
       integer("search.max_window_px", AGV_OH_AT(search.max_window_px), 16, 16384, 512, "px",
-              "A track window wider than this falls back to the area search"),
+              "A track window wider or taller than this, in the pixels it is searched at (after "
+              "decimation), falls back to the area search"),
+      number("search.decimated_side_px", AGV_OH_AT(search.decimated_side_px), 8, 4096, 32.0, "px",
+             "A track or area window whose smallest predicted tag is n times this side is "
+             "searched shrunk n times (up to search.max_decimation), the tag then refined at "
+             "full resolution"),
+      integer("search.max_decimation", AGV_OH_AT(search.max_decimation), 1, 8, 4, "",
+              "Largest shrink factor of a window's search; 1 searches every window at full "
+              "resolution"),
       integer("search.full_sweep_every_frames", AGV_OH_AT(search.full_sweep_every_frames), 1,
               100000, 15, "frames",
               "Whole-image search every this many frames of a camera (vehicles not yet tracked); "

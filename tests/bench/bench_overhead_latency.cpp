@@ -7,7 +7,7 @@
 // it (every vehicle handed to the MQTT client). Hand-run, not a test; numbers in
 // docs/design/overhead.md. Start a broker first, e.g. `mosquitto -p 18830`:
 //   bench_overhead_latency --broker-port 18830 [--seconds 20] [--fps 30] [--rate-hz 30]
-//                          [--camera-latency-ms 0] [--scale 1]
+//                          [--camera-latency-ms 0] [--scale 1] [--max-decimation 4]
 #include <time.h>
 
 #include <algorithm>
@@ -90,9 +90,9 @@ double percentile_ms(std::vector<std::int64_t> v, double p) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::map<std::string, double> o{{"--seconds", 20},    {"--fps", 30},
-                                  {"--rate-hz", 30},    {"--camera-latency-ms", 0},
-                                  {"--broker-port", 0}, {"--scale", 1}};
+  std::map<std::string, double> o{
+      {"--seconds", 20},    {"--fps", 30},  {"--rate-hz", 30},      {"--camera-latency-ms", 0},
+      {"--broker-port", 0}, {"--scale", 1}, {"--max-decimation", 4}};
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!o.count(argv[i])) {
       std::fprintf(stderr, "bench_overhead_latency: unknown option %s\n", argv[i]);
@@ -103,7 +103,7 @@ int main(int argc, char** argv) {
   if (o["--broker-port"] <= 0 || o["--fps"] <= 0 || o["--seconds"] <= 0 || o["--scale"] < 1) {
     std::fprintf(stderr,
                  "usage: bench_overhead_latency --broker-port P [--seconds S] [--fps F] "
-                 "[--rate-hz R] [--camera-latency-ms L] [--scale N]\n");
+                 "[--rate-hz R] [--camera-latency-ms L] [--scale N] [--max-decimation D]\n");
     return 2;
   }
   site::Site s;
@@ -119,33 +119,40 @@ int main(int argc, char** argv) {
                                            {{3600.0, 1000.0, -1.0}, 0.0, 0.0}};
   OverheadConfig cfg;
   cfg.output_rate_hz = o["--rate-hz"];
+  cfg.search.max_decimation = static_cast<int>(o["--max-decimation"]);
   cfg.mqtt.enabled = true;
   cfg.mqtt.broker_host = "127.0.0.1";
   cfg.mqtt.port = static_cast<int>(o["--broker-port"]);
-  const std::int64_t period = std::llround(1e9 / o["--fps"]);
-  const std::int64_t t0 = monotonic_ns() + 500'000'000;
-  const std::int64_t end = t0 + std::llround(o["--seconds"] * 1e9);
-  std::vector<LiveCamera> cams;
+  std::vector<cv::Mat> images;
   for (std::size_t c = 0; c < s.cameras.size(); ++c) {
     sim::SiteScene scene;
     scene.site = s;
     scene.agvs = agvs;
     const sim::SiteFrameRenderer r(s.cameras[c].intrinsics);
-    const sim::RenderResult res = r.render(scene, sim::RenderCamera::from_ceiling(s.cameras[c]),
-                                           sim::realistic_site_params(), 1);
-    // Cameras free running, their exposures staggered over the period.
-    const std::int64_t offset =
-        period * static_cast<std::int64_t>(c) / static_cast<std::int64_t>(s.cameras.size());
-    cams.push_back(
-        {s.cameras[c].id, c,
-         std::make_unique<PacedCamera>(res.image.clone(), t0 + offset, period,
-                                       std::llround(o["--camera-latency-ms"] * 1e6), end)});
+    images.push_back(r.render(scene, sim::RenderCamera::from_ceiling(s.cameras[c]),
+                              sim::realistic_site_params(), 1)
+                         .image.clone());
   }
   TrackerCore core(cfg, s);
   std::string err;
   if (!core.open_outputs("", &err)) {
     std::fprintf(stderr, "bench_overhead_latency: %s\n", err.c_str());
     return 1;
+  }
+  // The first exposure after the rendering and the broker's connection (large frames take
+  // seconds to render): frames due before the loop starts would arrive as one burst.
+  const std::int64_t period = std::llround(1e9 / o["--fps"]);
+  const std::int64_t t0 = monotonic_ns() + 500'000'000;
+  const std::int64_t end = t0 + std::llround(o["--seconds"] * 1e9);
+  std::vector<LiveCamera> cams;
+  for (std::size_t c = 0; c < s.cameras.size(); ++c) {
+    // Cameras free running, their exposures staggered over the period.
+    const std::int64_t offset =
+        period * static_cast<std::int64_t>(c) / static_cast<std::int64_t>(s.cameras.size());
+    cams.push_back(
+        {s.cameras[c].id, c,
+         std::make_unique<PacedCamera>(images[c], t0 + offset, period,
+                                       std::llround(o["--camera-latency-ms"] * 1e6), end)});
   }
   std::vector<std::int64_t> lat;
   LiveDiag d;

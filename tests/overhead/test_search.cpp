@@ -242,6 +242,56 @@ TEST(OverheadSearch, WideWindowFallsBackToTheArea) {
   EXPECT_GT(wide.rect.width, 300);
 }
 
+// A large tag's window is searched shrunk (its smallest side over decimated_side_px, at most
+// max_decimation times), and its size is judged in the pixels it is searched at; an area holding
+// a large and a small tag is shrunk for the small one.
+TEST(OverheadSearch, LargeTagsAreSearchedShrunk) {
+  const site::CeilingCamera cam = camera();
+  std::vector<site::FleetAgv> fleet = fleet_of(2);
+  fleet[0].tag_size_mm = 640.0;  // about 160 px in this view
+  FleetTracker tr(2);
+  track(&tr, 0, {-2000, 1000, 0.4}, 0.5);
+  track(&tr, 1, {-1700, 900, 1.0});  // same tile
+  SearchParams sp;
+  CameraSearchState st = state_at_frame(2, 2);
+  std::vector<SearchWindow> ws = plan_search(cam, fleet, tr, kNow, sp, st);
+  ASSERT_EQ(windows_of(ws, 0).at(0)->level, SearchLevel::kTrack);
+  EXPECT_EQ(windows_of(ws, 0).at(0)->decimation, 4);
+  EXPECT_EQ(windows_of(ws, 1).at(0)->decimation, 1);
+  sp.decimated_side_px = 60.0;
+  EXPECT_EQ(windows_of(plan_search(cam, fleet, tr, kNow, sp, st), 0).at(0)->decimation, 2);
+  sp.decimated_side_px = 32.0;
+  sp.max_decimation = 1;
+  EXPECT_EQ(windows_of(plan_search(cam, fleet, tr, kNow, sp, st), 0).at(0)->decimation, 1);
+  // Coasting: a window wider than max_window_px at full resolution, not shrunk 4 times.
+  const std::int64_t later = kNow + 600 * kMs;
+  ASSERT_EQ(tr.output(0, later).state, TrackState::kCoasting);
+  sp.max_decimation = 4;
+  const int width = windows_of(plan_search(cam, fleet, tr, later, sp, st), 0).at(0)->rect.width;
+  sp.max_window_px = width / 2;
+  ASSERT_GT(width, sp.max_window_px);
+  EXPECT_EQ(windows_of(plan_search(cam, fleet, tr, later, sp, st), 0).at(0)->level,
+            SearchLevel::kTrack);
+  sp.max_decimation = 1;
+  EXPECT_EQ(windows_of(plan_search(cam, fleet, tr, later, sp, st), 0).at(0)->level,
+            SearchLevel::kArea);
+  // Areas: the large tag's alone is shrunk, one shared with the small tag is not.
+  sp = SearchParams{};
+  st.missed = {1, 0};
+  ws = plan_search(cam, fleet, tr, kNow, sp, st);
+  ASSERT_EQ(windows_of(ws, 0).at(0)->level, SearchLevel::kArea);
+  EXPECT_EQ(windows_of(ws, 0).at(0)->decimation, 4);
+  st.missed = {1, 1};
+  ws = plan_search(cam, fleet, tr, kNow, sp, st);
+  ASSERT_EQ(count_level(ws, SearchLevel::kArea), 1);
+  EXPECT_EQ(windows_of(ws, 0).at(0)->decimation, 1);
+  sp.max_decimation = 0;
+  EXPECT_NE(validate(sp), "");
+  sp.max_decimation = 4;
+  sp.decimated_side_px = 4.0;
+  EXPECT_NE(validate(sp), "");
+}
+
 TEST(OverheadSearch, FullSweepCadence) {
   const site::CeilingCamera cam = camera();
   const std::vector<site::FleetAgv> fleet = fleet_of(2);

@@ -370,5 +370,47 @@ TEST(TagDetectBadInput, NoDetectionNoCrash) {
 
 INSTANTIATE_TEST_SUITE_P(Sides, TagDetectSizes, ::testing::Values(40.0, 60.0));
 
+// Large tags (the 40 px scene on a sensor 3 times larger: 120 px) searched shrunk 3 times:
+// every visible one found with its id from the whole-family decode (it may start a track), its
+// corners refined at full resolution as close to the truth as the full-resolution search's.
+TEST(TagDetectDecimated, LargeTagsFoundShrunkWithFullResolutionCorners) {
+  Frame f;
+  f.scene = test::tag_scene(40.0, 6, 5);
+  test::scale_camera(&f.scene.site.cameras[0], 3);
+  f.r = sim::render_site_frame(f.scene, sim::RenderCamera::from_ceiling(f.scene.site.cameras[0]),
+                               sim::realistic_site_params(), 5);
+  const TagDetector det;
+  const cv::Rect full(0, 0, f.r.image.cols, f.r.image.rows);
+  const std::vector<TagObservation> at1 = det.detect(f.r.image, full);
+  const std::vector<TagObservation> shrunk = det.detect(f.r.image, full, 3);
+  int visible = 0;
+  double sum1 = 0.0, sum_s = 0.0;
+  for (const sim::AgvTruth& t : f.r.agvs) {
+    if (!inside(t, f.r.image, 20.0)) continue;
+    ++visible;
+    const TagObservation *a = nullptr, *b = nullptr;
+    for (const TagObservation& o : at1) a = o.id == t.tag_id ? &o : a;
+    for (const TagObservation& o : shrunk) b = o.id == t.tag_id ? &o : b;
+    ASSERT_NE(a, nullptr) << "tag " << t.tag_id << " at full resolution";
+    ASSERT_NE(b, nullptr) << "tag " << t.tag_id << " shrunk";
+    EXPECT_FALSE(b->restricted);
+    EXPECT_LE(b->hamming, 2);
+    EXPECT_EQ(hamming36(b->code, tag36h11_code(t.tag_id)), b->hamming);
+    EXPECT_GT(b->corner_sigma_px, 0.0);
+    sum1 += corner_err2(a->corners_px, t.tag_corners_px);
+    sum_s += corner_err2(b->corners_px, t.tag_corners_px);
+  }
+  EXPECT_EQ(shrunk.size(), static_cast<std::size_t>(visible));
+  ASSERT_GE(visible, 2);
+  const double rms1 = std::sqrt(sum1 / (4 * visible)), rms_s = std::sqrt(sum_s / (4 * visible));
+  std::printf("[ measured ] 120 px tags: %d visible, corner RMS %.3f px full, %.3f px shrunk 3x\n",
+              visible, rms1, rms_s);
+  EXPECT_LT(rms_s, 0.3);
+  EXPECT_LT(rms_s, rms1 + 0.05);
+  // Too small a window to shrink: the full-resolution search.
+  const cv::Rect small(0, 0, 60, 60);
+  EXPECT_EQ(det.detect(f.r.image, small, 4).size(), det.detect(f.r.image, small).size());
+}
+
 }  // namespace
 }  // namespace agv::overhead

@@ -147,7 +147,7 @@ void CameraFrameProcessor::track_window(const SearchWindow& win, const cv::Mat& 
 
 void CameraFrameProcessor::search_window(const SearchWindow& win, const cv::Mat& gray,
                                          FrameWork* w) {
-  for (const TagObservation& obs : detector_.detect(gray, win.rect)) {
+  for (const TagObservation& obs : detector_.detect(gray, win.rect, win.decimation)) {
     if (w->ids_seen.count(obs.id) != 0) continue;
     ++counters_.searched_tags;
     handle_tag(obs, win.level, w);

@@ -120,10 +120,26 @@ bool has_track(TrackState s) {
   return s == TrackState::kTentative || s == TrackState::kConfirmed || s == TrackState::kCoasting;
 }
 
-void add_area(std::size_t agv, const cv::Rect& rect, std::vector<SearchWindow>* out) {
+// The shrink factor for a window whose smallest tag has this shortest side (SearchParams).
+int decimation_for(const std::array<Vec2, 4>& corners_px, const SearchParams& sp) {
+  double side = INFINITY;
+  for (std::size_t i = 0; i < 4; ++i) {
+    const Vec2& a = corners_px[i];
+    const Vec2& b = corners_px[(i + 1) % 4];
+    side = std::min(side, std::hypot(b.x - a.x, b.y - a.y));
+  }
+  if (!(side > 0.0) || !std::isfinite(side)) return 1;
+  const double n = std::floor(side / sp.decimated_side_px);
+  return static_cast<int>(std::clamp(n, 1.0, static_cast<double>(std::max(1, sp.max_decimation))));
+}
+
+// An area shared by several vehicles is shrunk for the smallest of their tags.
+void add_area(std::size_t agv, const cv::Rect& rect, int decimation,
+              std::vector<SearchWindow>* out) {
   for (SearchWindow& w : *out) {
     if (w.level == SearchLevel::kArea && w.rect == rect) {
       w.agvs.push_back(agv);
+      w.decimation = std::min(w.decimation, decimation);
       return;
     }
   }
@@ -131,6 +147,7 @@ void add_area(std::size_t agv, const cv::Rect& rect, std::vector<SearchWindow>* 
   w.level = SearchLevel::kArea;
   w.rect = rect;
   w.agvs.push_back(agv);
+  w.decimation = decimation;
   out->push_back(std::move(w));
 }
 
@@ -148,6 +165,11 @@ std::string validate(const SearchParams& p) {
     return "window_margin_px must be in [0, 10000]";
   }
   if (p.max_window_px < 1) return "max_window_px must be >= 1";
+  if (!(std::isfinite(p.decimated_side_px) && p.decimated_side_px >= 8.0 &&
+        p.decimated_side_px <= 4096.0)) {
+    return "decimated_side_px must be in [8, 4096]";
+  }
+  if (p.max_decimation < 1 || p.max_decimation > 8) return "max_decimation must be in [1, 8]";
   if (p.full_sweep_every_frames < 0) return "full_sweep_every_frames must be >= 0";
   if (p.area_cols < 1 || p.area_cols > 64) return "area_cols must be in [1, 64]";
   if (p.area_rows < 1 || p.area_rows > 64) return "area_rows must be in [1, 64]";
@@ -184,13 +206,16 @@ std::vector<SearchWindow> plan_search(const site::CeilingCamera& cam,
     // The whole image only for a vehicle no camera has seen for a while: one that another camera
     // sees (at this one's border, in a hand-over) keeps its track fresh.
     lost_in_area = lost_in_area || (missed >= 2 && o.state == TrackState::kCoasting);
-    if (missed > 0 || rect.width > params.max_window_px || rect.height > params.max_window_px) {
-      sd::add_area(i, sd::area_rect(p.centre_px, params, image), &out);
+    const int dec = sd::decimation_for(p.corners_px, params);
+    const int max_px = params.max_window_px;
+    if (missed > 0 || rect.width / dec > max_px || rect.height / dec > max_px) {
+      sd::add_area(i, sd::area_rect(p.centre_px, params, image), dec, &out);
       continue;
     }
     SearchWindow w;
     w.level = SearchLevel::kTrack;
     w.rect = rect;
+    w.decimation = dec;
     w.agvs.push_back(i);
     w.predicted_corners_px = p.corners_px;
     out.push_back(std::move(w));

@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <opencv2/imgproc.hpp>
 
 #include "agv/overhead/tag_code.hpp"
 #include "tag_detect_internal.hpp"
@@ -138,6 +139,58 @@ std::vector<TagObservation> TagDetector::detect(const cv::Mat& gray, const cv::R
   }
   apriltag_detections_destroy(dets);
   return found;
+}
+
+std::vector<TagObservation> TagDetector::detect(const cv::Mat& gray, const cv::Rect& window,
+                                                int decimation) const {
+  using namespace detector_detail;
+  const cv::Rect r = window & cv::Rect(0, 0, gray.cols, gray.rows);
+  if (decimation <= 1 || !usable_image(gray) || r.width / decimation < kMinWindowPx ||
+      r.height / decimation < kMinWindowPx) {
+    return detect(gray, window);
+  }
+  cv::Mat small;
+  const double f = 1.0 / decimation;
+  cv::resize(gray(r), small, cv::Size(), f, f, cv::INTER_AREA);
+  std::vector<TagObservation> out;
+  for (const TagObservation& d : detect(small, cv::Rect(0, 0, small.cols, small.rows))) {
+    // Pixel centres: small (i, j) covers full [dec i, dec (i + 1)), its centre dec (i + 0.5) - 0.5.
+    std::array<Vec2, 4> guess{};
+    for (std::size_t c = 0; c < 4; ++c) {
+      guess[c] = {r.x + decimation * (d.corners_px[c].x + 0.5) - 0.5,
+                  r.y + decimation * (d.corners_px[c].y + 0.5) - 0.5};
+    }
+    TagObservation full;
+    if (detect_predicted(gray, guess, {d.id}, &full) && full.id == d.id) {
+      const DecodeResult g = decode_global(full.code, p_.global_bits_corrected);
+      if (g.ok && g.id == d.id && g.rotation == 0) {
+        full.hamming = g.hamming;
+        full.margin = g.margin;
+        full.restricted = false;
+        out.push_back(full);
+        continue;
+      }
+    }
+    for (const TagObservation& o : detect(gray, own_window(guess, gray.size()))) {
+      if (o.id == d.id) out.push_back(o);
+    }
+  }
+  return out;
+}
+
+cv::Rect own_window(const std::array<Vec2, 4>& corners_px, const cv::Size& image) {
+  double x0 = corners_px[0].x, x1 = x0, y0 = corners_px[0].y, y1 = y0;
+  for (const Vec2& c : corners_px) {
+    x0 = std::min(x0, c.x);
+    x1 = std::max(x1, c.x);
+    y0 = std::min(y0, c.y);
+    y1 = std::max(y1, c.y);
+  }
+  const double m = std::max(16.0, 0.5 * std::max(x1 - x0, y1 - y0));
+  const cv::Rect r(
+      cv::Point(static_cast<int>(std::floor(x0 - m)), static_cast<int>(std::floor(y0 - m))),
+      cv::Point(static_cast<int>(std::ceil(x1 + m)) + 1, static_cast<int>(std::ceil(y1 + m)) + 1));
+  return r & cv::Rect(cv::Point(0, 0), image);
 }
 
 bool TagDetector::detect_predicted(const cv::Mat& gray,

@@ -142,21 +142,6 @@ void add_size_measure(const CameraIntrinsics& k, const RangingMount& mount,
 
 namespace observe_detail {
 
-cv::Rect own_window(const std::array<Vec2, 4>& corners_px, const cv::Size& image) {
-  double x0 = corners_px[0].x, x1 = x0, y0 = corners_px[0].y, y1 = y0;
-  for (const Vec2& c : corners_px) {
-    x0 = std::min(x0, c.x);
-    x1 = std::max(x1, c.x);
-    y0 = std::min(y0, c.y);
-    y1 = std::max(y1, c.y);
-  }
-  const double m = std::max(16.0, 0.5 * std::max(x1 - x0, y1 - y0));
-  const cv::Rect r(
-      cv::Point(static_cast<int>(std::floor(x0 - m)), static_cast<int>(std::floor(y0 - m))),
-      cv::Point(static_cast<int>(std::ceil(x1 + m)) + 1, static_cast<int>(std::ceil(y1 + m)) + 1));
-  return r & cv::Rect(cv::Point(0, 0), image);
-}
-
 std::vector<overhead::TagObservation> mirrored_reads(const overhead::TagDetector& det,
                                                      const cv::Mat& gray, const cv::Rect& window) {
   const cv::Rect w = window & cv::Rect(0, 0, gray.cols, gray.rows);
@@ -397,7 +382,7 @@ ObserveResult LandmarkObserver::full_sweep(const cv::Mat& gray, SweepReason reas
         observe_detail::mirrored_reads(impl_->sweep_detector(), gray, all), dets, &mirrored, &res);
   } else if (opt_.mirror_check == MirrorCheck::kOwnWindow) {
     for (const overhead::TagObservation& d : dets) {
-      const cv::Rect own = observe_detail::own_window(d.corners_px, gray.size());
+      const cv::Rect own = overhead::own_window(d.corners_px, gray.size());
       observe_detail::refuse_mirrored(observe_detail::mirrored_reads(impl_->detector, gray, own),
                                       dets, &mirrored, &res);
     }

@@ -26,10 +26,6 @@ struct LandmarkObserver::Impl {
 // Named, not anonymous: the library is built as one unity source.
 namespace observe_detail {
 
-// A tag's own window: its corners' bounding box grown by max(16 px, half its side), clipped to
-// the image.
-cv::Rect own_window(const std::array<Vec2, 4>& corners_px, const cv::Size& image);
-
 // The tags read in `window` of the frame mirrored left-right, their corners mapped back into the
 // frame (they are the mirror images' corners, page order of the mirrored read).
 std::vector<overhead::TagObservation> mirrored_reads(const overhead::TagDetector& det,

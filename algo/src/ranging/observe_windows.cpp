@@ -7,7 +7,6 @@
 #include <cmath>
 #include <limits>
 #include <opencv2/core.hpp>
-#include <opencv2/imgproc.hpp>
 
 #include "agv/ranging/observe.hpp"
 #include "agv/site/site_geometry.hpp"
@@ -281,38 +280,7 @@ WindowPlan LandmarkObserver::plan_windows(const PosePrior* prior, std::uint64_t 
 
 std::vector<overhead::TagObservation> LandmarkObserver::detect_in(const cv::Mat& gray,
                                                                   const SearchWindow& w) const {
-  const cv::Rect r = w.rect & cv::Rect(0, 0, gray.cols, gray.rows);
-  if (w.decimation <= 1 || r.width / w.decimation < window_detail::kMinWindowPx ||
-      r.height / w.decimation < window_detail::kMinWindowPx) {
-    return impl_->detector.detect(gray, r);
-  }
-  cv::Mat small;
-  const double f = 1.0 / w.decimation;
-  cv::resize(gray(r), small, cv::Size(), f, f, cv::INTER_AREA);
-  std::vector<overhead::TagObservation> out;
-  const int bits = impl_->detector.params().global_bits_corrected;
-  for (const overhead::TagObservation& d :
-       impl_->detector.detect(small, cv::Rect(0, 0, small.cols, small.rows))) {
-    // Pixel centres: small (i, j) covers full [dec i, dec (i + 1)), its centre dec (i + 0.5) - 0.5.
-    std::array<Vec2, 4> guess{};
-    for (std::size_t c = 0; c < 4; ++c) {
-      guess[c] = {r.x + w.decimation * (d.corners_px[c].x + 0.5) - 0.5,
-                  r.y + w.decimation * (d.corners_px[c].y + 0.5) - 0.5};
-    }
-    // Refined at full resolution from the scaled corners; the decode must be one the full
-    // sweep would accept (the same id within the bits libapriltag corrects there).
-    overhead::TagObservation full;
-    if (impl_->detector.detect_predicted(gray, guess, {d.id}, &full) && full.id == d.id &&
-        full.hamming <= bits) {
-      out.push_back(full);
-      continue;
-    }
-    for (const overhead::TagObservation& o :
-         impl_->detector.detect(gray, observe_detail::own_window(guess, gray.size()))) {
-      if (o.id == d.id) out.push_back(o);
-    }
-  }
-  return out;
+  return impl_->detector.detect(gray, w.rect, w.decimation);
 }
 
 std::vector<bool> LandmarkObserver::read_predicted(
@@ -418,7 +386,7 @@ ObserveResult LandmarkObserver::observe(const cv::Mat& gray, const WindowPlan& p
   } else if (opt_.mirror_check == MirrorCheck::kOwnWindow) {
     for (std::size_t i = 0; i < dets.size(); ++i) {
       if (confirmed[i]) continue;
-      const cv::Rect own = observe_detail::own_window(dets[i].corners_px, gray.size());
+      const cv::Rect own = overhead::own_window(dets[i].corners_px, gray.size());
       observe_detail::refuse_mirrored(observe_detail::mirrored_reads(impl_->detector, gray, own),
                                       dets, &mirrored, &res);
     }

@@ -26,7 +26,16 @@ struct SearchParams {
   // The window covers this many sigmas of the prediction's position and heading.
   double window_sigmas = 3.0;
   double window_margin_px = 12.0;  // beyond the predicted tag's corners
-  int max_window_px = 512;         // a wider or taller window falls back to the area search
+  // A wider or taller window (in the pixels it is searched at, after decimation) falls back to
+  // the area search.
+  int max_window_px = 512;
+  // A track or area window whose smallest predicted tag is n times this side (px, its shortest
+  // side) is searched shrunk n times, up to max_decimation (1: never): libapriltag's cost goes
+  // with the pixels, and it finds a tag of this size reliably; the tag is then refined and read
+  // at full resolution (TagDetector::detect with a decimation). The same rule as the rack
+  // landmarks' windows (ranging::WindowOptions).
+  double decimated_side_px = 32.0;
+  int max_decimation = 4;
   // Whole image every this many frames of the camera while some vehicle of the fleet has no
   // track (none or lost), and on the camera's first frame; 0: the first frame only.
   int full_sweep_every_frames = 15;
@@ -45,6 +54,7 @@ struct SearchWindow {
   SearchLevel level = SearchLevel::kTrack;
   cv::Rect rect;                  // clipped to the image
   std::vector<std::size_t> agvs;  // the vehicles expected in it (empty for kFull)
+  int decimation = 1;             // searched shrunk this many times (SearchParams)
   // The tag's predicted corners (page order, distorted pixels) for kTrack windows.
   std::array<Vec2, 4> predicted_corners_px{};
 };

@@ -63,6 +63,13 @@ class TagDetector {
 
   // Search path on `window` (clipped to the image) of an 8-bit gray image.
   std::vector<TagObservation> detect(const cv::Mat& gray, const cv::Rect& window) const;
+  // The same on `window` shrunk `decimation` times (area averaging): libapriltag's cost goes
+  // with the pixels, and a large tag is found as well at a fraction of its size. Each tag found
+  // is refined and read at full resolution from its scaled corners, and kept only when that read
+  // decodes to the same id against the whole family within global_bits_corrected (as the search
+  // path's own). decimation <= 1, or a window that would shrink under a few cells: detect().
+  std::vector<TagObservation> detect(const cv::Mat& gray, const cv::Rect& window,
+                                     int decimation) const;
   // Predicted path: the tag expected at predicted_corners_px (page order). False when no square
   // of enough contrast and straight edges lies there or the cells decode to none of allowed_ids.
   bool detect_predicted(const cv::Mat& gray, const std::array<Vec2, 4>& predicted_corners_px,
@@ -74,5 +81,9 @@ class TagDetector {
   TagDetectParams p_;
   std::unique_ptr<Impl> impl_;
 };
+
+// A tag's own window: its corners' bounding box grown by max(16 px, half its side), clipped to
+// the image (where the search path looks again for a tag placed from elsewhere).
+cv::Rect own_window(const std::array<Vec2, 4>& corners_px, const cv::Size& image);
 
 }  // namespace agv::overhead
