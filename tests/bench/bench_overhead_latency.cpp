@@ -8,6 +8,9 @@
 // docs/design/overhead.md. Start a broker first, e.g. `mosquitto -p 18830`:
 //   bench_overhead_latency --broker-port 18830 [--seconds 20] [--fps 30] [--rate-hz 30]
 //                          [--camera-latency-ms 0] [--scale 1] [--max-decimation 4]
+//                          [--sweep-max-pixels P] [--absent N]  (N more vehicles in the fleet, in
+//                          no camera's view: the
+//                                         whole-image sweeps that look for them)
 #include <time.h>
 
 #include <algorithm>
@@ -91,8 +94,9 @@ double percentile_ms(std::vector<std::int64_t> v, double p) {
 
 int main(int argc, char** argv) {
   std::map<std::string, double> o{
-      {"--seconds", 20},    {"--fps", 30},  {"--rate-hz", 30},      {"--camera-latency-ms", 0},
-      {"--broker-port", 0}, {"--scale", 1}, {"--max-decimation", 4}};
+      {"--seconds", 20},          {"--fps", 30},        {"--rate-hz", 30},
+      {"--camera-latency-ms", 0}, {"--broker-port", 0}, {"--scale", 1},
+      {"--max-decimation", 4},    {"--absent", 0},      {"--sweep-max-pixels", 2.5e6}};
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!o.count(argv[i])) {
       std::fprintf(stderr, "bench_overhead_latency: unknown option %s\n", argv[i]);
@@ -103,7 +107,8 @@ int main(int argc, char** argv) {
   if (o["--broker-port"] <= 0 || o["--fps"] <= 0 || o["--seconds"] <= 0 || o["--scale"] < 1) {
     std::fprintf(stderr,
                  "usage: bench_overhead_latency --broker-port P [--seconds S] [--fps F] "
-                 "[--rate-hz R] [--camera-latency-ms L] [--scale N] [--max-decimation D]\n");
+                 "[--rate-hz R] [--camera-latency-ms L] [--scale N] [--max-decimation D] "
+                 "[--sweep-max-pixels P] [--absent N]\n");
     return 2;
   }
   site::Site s;
@@ -120,6 +125,7 @@ int main(int argc, char** argv) {
   OverheadConfig cfg;
   cfg.output_rate_hz = o["--rate-hz"];
   cfg.search.max_decimation = static_cast<int>(o["--max-decimation"]);
+  cfg.search.sweep_max_pixels = static_cast<int>(o["--sweep-max-pixels"]);
   cfg.mqtt.enabled = true;
   cfg.mqtt.broker_host = "127.0.0.1";
   cfg.mqtt.port = static_cast<int>(o["--broker-port"]);
@@ -132,6 +138,13 @@ int main(int argc, char** argv) {
     images.push_back(r.render(scene, sim::RenderCamera::from_ceiling(s.cameras[c]),
                               sim::realistic_site_params(), 1)
                          .image.clone());
+  }
+  // After rendering: the renderer draws every vehicle of the fleet.
+  for (int i = 0; i < static_cast<int>(o["--absent"]); ++i) {
+    site::FleetAgv a = s.fleet.front();
+    a.id = "absent-" + std::to_string(i + 1);
+    a.tag_id = static_cast<std::uint32_t>(100 + i);
+    s.fleet.push_back(a);
   }
   TrackerCore core(cfg, s);
   std::string err;

@@ -332,6 +332,82 @@ TEST(OverheadSearch, FullSweepCadence) {
   EXPECT_EQ(fulls(tr, 0), 1);
 }
 
+// The same view on a sensor 3 times larger (3840 x 2160: 8.3 Mpx, 160 mm tags about 120 px).
+site::CeilingCamera camera_4k() {
+  site::CeilingCamera c = camera();
+  CameraIntrinsics& k = c.intrinsics;
+  k.width_px *= 3;
+  k.height_px *= 3;
+  k.fx *= 3;
+  k.fy *= 3;
+  k.cx = (k.cx + 0.5) * 3 - 0.5;
+  k.cy = (k.cy + 0.5) * 3 - 0.5;
+  return c;
+}
+
+// A large image's interval sweep is one horizontal strip per frame (4 for 3840 x 2160 at
+// 2.5 Mpx), together the whole image, each two overlapping by more than any tag's extent; the
+// camera's first frame stays whole. Whole-image windows are shrunk for the smallest tag in view.
+TEST(OverheadSearch, LargeImagesAreSweptAStripAFrame) {
+  const site::CeilingCamera cam = camera_4k();
+  const std::vector<site::FleetAgv> fleet = fleet_of(2);
+  FleetTracker tr(2);
+  track(&tr, 0, {0, 0, 0});  // vehicle 1 has no track: the sweep is due
+  const SearchParams sp;
+  const ViewTagSizes sizes = view_tag_sizes(cam, fleet);
+  ASSERT_TRUE(sizes.ok);
+  // 160 mm at 5.6 m with fx 4200: 120 px at the centre, less at the corners (barrel).
+  EXPECT_GT(sizes.min_side_px, 100.0);
+  EXPECT_LE(sizes.min_side_px, 120.5);
+  EXPECT_GE(sizes.max_extent_px, 120.0 * std::sqrt(2.0) - 0.5);
+  const auto full_of = [&](std::int64_t frames, const SearchParams& p) -> const SearchWindow* {
+    static std::vector<SearchWindow> ws;
+    ws = plan_search(cam, fleet, tr, kNow, p, state_at_frame(frames, 2));
+    return ws.back().level == SearchLevel::kFull ? &ws.back() : nullptr;
+  };
+  ASSERT_NE(full_of(0, sp), nullptr);
+  EXPECT_EQ(full_of(0, sp)->rect, cv::Rect(0, 0, 3840, 2160));
+  EXPECT_EQ(full_of(0, sp)->decimation, 3);
+  std::vector<cv::Rect> strips;
+  for (std::int64_t f = 15; f < 30; ++f) {
+    const SearchWindow* w = full_of(f, sp);
+    if (f < 19) {
+      ASSERT_NE(w, nullptr) << f;
+      strips.push_back(w->rect);
+      EXPECT_EQ(w->decimation, 3);
+    } else {
+      EXPECT_EQ(w, nullptr) << f;
+    }
+  }
+  EXPECT_EQ(strips.front().y, 0);
+  EXPECT_EQ(strips.back().y + strips.back().height, 2160);
+  for (std::size_t i = 0; i < strips.size(); ++i) {
+    EXPECT_EQ(strips[i].x, 0);
+    EXPECT_EQ(strips[i].width, 3840);
+    EXPECT_LT(strips[i].height, 2160 / 2);
+    if (i == 0) continue;
+    const int overlap = strips[i - 1].y + strips[i - 1].height - strips[i].y;
+    EXPECT_GT(overlap, sizes.max_extent_px) << i;
+  }
+  // 0: the whole image at once, at the interval only.
+  SearchParams whole = sp;
+  whole.sweep_max_pixels = 0;
+  ASSERT_NE(full_of(15, whole), nullptr);
+  EXPECT_EQ(full_of(15, whole)->rect, cv::Rect(0, 0, 3840, 2160));
+  EXPECT_EQ(full_of(16, whole), nullptr);
+  // Never more strips than frames between sweeps.
+  SearchParams often = sp;
+  often.full_sweep_every_frames = 2;
+  ASSERT_NE(full_of(3, often), nullptr);
+  EXPECT_EQ(full_of(3, often)->rect.y + full_of(3, often)->rect.height, 2160);
+  // An image under the limit: whole, as before.
+  const site::CeilingCamera small = camera();
+  EXPECT_EQ(plan_search(small, fleet, tr, kNow, sp, state_at_frame(15, 2)).back().rect,
+            cv::Rect(0, 0, 1280, 720));
+  whole.sweep_max_pixels = -1;
+  EXPECT_NE(validate(whole), "");
+}
+
 TEST(OverheadSearch, IdsInAreaHoldNearVehiclesOnly) {
   const site::CeilingCamera cam = camera();
   std::vector<site::FleetAgv> fleet = fleet_of(6);

@@ -121,6 +121,12 @@ bool has_track(TrackState s) {
 }
 
 // The shrink factor for a window whose smallest tag has this shortest side (SearchParams).
+int decimation_for_side(double side_px, const SearchParams& sp) {
+  if (!(side_px > 0.0) || !std::isfinite(side_px)) return 1;
+  const double n = std::floor(side_px / sp.decimated_side_px);
+  return static_cast<int>(std::clamp(n, 1.0, static_cast<double>(std::max(1, sp.max_decimation))));
+}
+
 int decimation_for(const std::array<Vec2, 4>& corners_px, const SearchParams& sp) {
   double side = INFINITY;
   for (std::size_t i = 0; i < 4; ++i) {
@@ -128,9 +134,7 @@ int decimation_for(const std::array<Vec2, 4>& corners_px, const SearchParams& sp
     const Vec2& b = corners_px[(i + 1) % 4];
     side = std::min(side, std::hypot(b.x - a.x, b.y - a.y));
   }
-  if (!(side > 0.0) || !std::isfinite(side)) return 1;
-  const double n = std::floor(side / sp.decimated_side_px);
-  return static_cast<int>(std::clamp(n, 1.0, static_cast<double>(std::max(1, sp.max_decimation))));
+  return decimation_for_side(side, sp);
 }
 
 // An area shared by several vehicles is shrunk for the smallest of their tags.
@@ -149,6 +153,41 @@ void add_area(std::size_t agv, const cv::Rect& rect, int decimation,
   w.agvs.push_back(agv);
   w.decimation = decimation;
   out->push_back(std::move(w));
+}
+
+// Singular values of the 2 x 2 matrix [a b; c d].
+void singular_values(double a, double b, double c, double d, double* lo, double* hi) {
+  const double s1 = a * a + b * b + c * c + d * d;
+  const double det = a * d - b * c;
+  const double root = std::sqrt(std::max(0.0, s1 * s1 - 4.0 * det * det));
+  *hi = std::sqrt(0.5 * (s1 + root));
+  *lo = std::sqrt(std::max(0.0, 0.5 * (s1 - root)));
+}
+
+// Strip j of n of the image (rows), grown by overlap_px on both sides, clipped.
+cv::Rect sweep_strip(const cv::Rect& image, int j, int n, double overlap_px) {
+  const int grow = static_cast<int>(std::ceil(0.5 * overlap_px));
+  const int y0 = std::max(0, tile_edge(j, n, image.height) - grow);
+  const int y1 = std::min(image.height, tile_edge(j + 1, n, image.height) + grow);
+  return cv::Rect(0, y0, image.width, std::max(0, y1 - y0));
+}
+
+// The interval's whole-image window for this frame: the whole image, or one strip of it.
+bool interval_sweep(const cv::Rect& image, const SearchParams& sp, const ViewTagSizes& sizes,
+                    std::int64_t frames, cv::Rect* rect) {
+  const int every = sp.full_sweep_every_frames;
+  const long long pixels = static_cast<long long>(image.width) * image.height;
+  int strips = 1;
+  if (sp.sweep_max_pixels > 0 && sizes.ok && pixels > sp.sweep_max_pixels) {
+    strips = static_cast<int>(std::min<long long>(
+        std::max(1, every), (pixels + sp.sweep_max_pixels - 1) / sp.sweep_max_pixels));
+  }
+  const std::int64_t j = frames % every;
+  if (j >= strips) return false;
+  *rect = strips == 1 ? image
+                      : sweep_strip(image, static_cast<int>(j), strips,
+                                    sizes.max_extent_px + 2.0 * sp.window_margin_px);
+  return true;
 }
 
 }  // namespace
@@ -171,6 +210,7 @@ std::string validate(const SearchParams& p) {
   }
   if (p.max_decimation < 1 || p.max_decimation > 8) return "max_decimation must be in [1, 8]";
   if (p.full_sweep_every_frames < 0) return "full_sweep_every_frames must be >= 0";
+  if (p.sweep_max_pixels < 0) return "sweep_max_pixels must be >= 0";
   if (p.area_cols < 1 || p.area_cols > 64) return "area_cols must be in [1, 64]";
   if (p.area_rows < 1 || p.area_rows > 64) return "area_rows must be in [1, 64]";
   return {};
@@ -221,9 +261,45 @@ std::vector<SearchWindow> plan_search(const site::CeilingCamera& cam,
     out.push_back(std::move(w));
   }
   const int every = params.full_sweep_every_frames;
-  if (state.frames == 0 || lost_in_area || (untracked && every > 0 && state.frames % every == 0)) {
+  const bool whole = state.frames == 0 || lost_in_area;
+  if (!whole && !(untracked && every > 0)) return out;
+  const ViewTagSizes sizes = view_tag_sizes(cam, fleet);
+  if (sizes.ok) {
+    full.decimation = sd::decimation_for_side(sizes.min_side_px, params);
+  }
+  if (whole || sd::interval_sweep(image, params, sizes, state.frames, &full.rect)) {
     out.push_back(full);
   }
+  return out;
+}
+
+ViewTagSizes view_tag_sizes(const site::CeilingCamera& cam,
+                            const std::vector<site::FleetAgv>& fleet) {
+  ViewTagSizes out;
+  out.min_side_px = INFINITY;
+  constexpr double kStepMm = 10.0;
+  const double w = cam.intrinsics.width_px - 1.0, h = cam.intrinsics.height_px - 1.0;
+  for (const site::FleetAgv& a : fleet) {
+    if (!(std::isfinite(a.tag_size_mm) && a.tag_size_mm > 0.0)) continue;
+    for (int i = 0; i < 9; ++i) {
+      const Vec2 px{0.5 * (i % 3) * w, 0.5 * (i / 3) * h};
+      Vec2 c, p0, pu, pv;
+      const double z = a.tray_height_mm;
+      if (!pixel_to_plane(cam, px, z, &c) || !site_to_pixel(cam, c.x, c.y, z, &p0) ||
+          !site_to_pixel(cam, c.x + kStepMm, c.y, z, &pu) ||
+          !site_to_pixel(cam, c.x, c.y + kStepMm, z, &pv)) {
+        continue;
+      }
+      double lo = 0.0, hi = 0.0;
+      sd::singular_values((pu.x - p0.x) / kStepMm, (pv.x - p0.x) / kStepMm,
+                          (pu.y - p0.y) / kStepMm, (pv.y - p0.y) / kStepMm, &lo, &hi);
+      if (!std::isfinite(lo) || !std::isfinite(hi)) continue;
+      out.ok = true;
+      out.min_side_px = std::min(out.min_side_px, lo * a.tag_size_mm);
+      out.max_extent_px = std::max(out.max_extent_px, hi * a.tag_size_mm * std::sqrt(2.0));
+    }
+  }
+  if (!out.ok) out = ViewTagSizes{};
   return out;
 }
 

@@ -46,6 +46,8 @@ struct Options {
   int apriltag_every = 0;
   double max_wall_s = 0.0;  // > 0: stop taking frames after this long and score what ran
   int full_sweep_every = agv::overhead::SearchParams{}.full_sweep_every_frames;
+  int sweep_max_pixels = agv::overhead::SearchParams{}.sweep_max_pixels;
+  int max_decimation = agv::overhead::SearchParams{}.max_decimation;
   bool clean = false;
   // --route-prior: the tracker gets each vehicle's route whenever the simulator starts a task leg
   // (as the fleet manager's order would) and extrapolates coasting tracks along it.
@@ -64,7 +66,8 @@ const char* kUsage =
     "  [--tray-tilt-deg D] [--tray-height-error-mm E] [--tray-tilt-sigma-deg S]\n"
     "  [--tray-height-sigma-mm S] [--tray-tilt-surveyed]\n"
     "  [--bit-errors N] [--bit-errors-from-s S] [--latency-ms L] [--latency-spread-ms L]\n"
-    "  [--full-sweep-every N] [--apriltag-every N] [--max-wall-s S] [--no-distortion] [--clean]\n"
+    "  [--full-sweep-every N] [--sweep-max-pixels N] [--max-decimation N] [--apriltag-every N] "
+    "[--max-wall-s S] [--no-distortion] [--clean]\n"
     "  [--tray-model ONNX] [--reacquire-model ONNX] [--trace-prefix PATH_PREFIX]\n"
     "  [--route-prior]\n";
 
@@ -89,11 +92,16 @@ bool parse(int argc, char** argv, Options* o, std::string* error) {
                                      {"--latency-ms", &o->latency_ms},
                                      {"--latency-spread-ms", &o->latency_spread_ms},
                                      {"--max-wall-s", &o->max_wall_s}};
-  std::map<std::string, int*> ints{
-      {"--width", &o->world.width_px},          {"--height", &o->world.height_px},
-      {"--cameras", &o->world.cameras},         {"--agvs", &o->world.agvs},
-      {"--clutter", &o->world.clutter},         {"--bit-errors", &o->bit_errors},
-      {"--apriltag-every", &o->apriltag_every}, {"--full-sweep-every", &o->full_sweep_every}};
+  std::map<std::string, int*> ints{{"--width", &o->world.width_px},
+                                   {"--height", &o->world.height_px},
+                                   {"--cameras", &o->world.cameras},
+                                   {"--agvs", &o->world.agvs},
+                                   {"--clutter", &o->world.clutter},
+                                   {"--bit-errors", &o->bit_errors},
+                                   {"--apriltag-every", &o->apriltag_every},
+                                   {"--full-sweep-every", &o->full_sweep_every},
+                                   {"--sweep-max-pixels", &o->sweep_max_pixels},
+                                   {"--max-decimation", &o->max_decimation}};
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--clean") {
@@ -148,6 +156,7 @@ bool parse(int argc, char** argv, Options* o, std::string* error) {
       w.duration_s <= 0 || o->fps <= 0 || o->fps > 120 || o->output_hz <= 0 || w.parcels < 0 ||
       w.parcels > 1 || w.clutter < 0 || o->bit_errors < 0 || o->bit_errors > 36 ||
       o->latency_ms < 0 || o->latency_spread_ms < 0 || o->full_sweep_every < 1 ||
+      o->sweep_max_pixels < 0 || o->max_decimation < 1 || o->max_decimation > 8 ||
       !(w.tray_tilt_deg >= 0 && w.tray_tilt_deg < 30) || !(w.tray_height_error_mm >= 0) ||
       !(o->tray_tilt_sigma_deg >= 0 && o->tray_tilt_sigma_deg < 30) ||
       !(o->tray_height_sigma_mm >= 0)) {
@@ -437,6 +446,8 @@ int run(const Options& o) {
   const std::vector<agv::site::CeilingCamera> believed = believed_cameras(o, site, &rng);
   agv::overhead::SearchParams sp;
   sp.full_sweep_every_frames = o.full_sweep_every;
+  sp.sweep_max_pixels = o.sweep_max_pixels;
+  sp.max_decimation = o.max_decimation;
   std::vector<agv::site::FleetAgv> fleet = site.fleet;
   for (std::size_t i = 0; o.tray_tilt_surveyed && i < fleet.size(); ++i) {
     fleet[i].tray_roll_rad = world.tray_roll_rad[i];

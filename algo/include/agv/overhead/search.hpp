@@ -39,6 +39,13 @@ struct SearchParams {
   // Whole image every this many frames of the camera while some vehicle of the fleet has no
   // track (none or lost), and on the camera's first frame; 0: the first frame only.
   int full_sweep_every_frames = 15;
+  // That whole-image search of an image of more pixels than this is spread over consecutive
+  // frames, one horizontal strip per frame (the strips overlap by the largest tag the view can
+  // hold, so each tag lies wholly in one): the cost of one frame stays bounded, and with it the
+  // exposure to publish latency of every frame queued behind it. A 3840 x 2160 image is 4 strips,
+  // at most full_sweep_every_frames. The camera's first frame and the search for a vehicle lost
+  // in view stay whole. 0: always the whole image at once.
+  int sweep_max_pixels = 2'500'000;
   // Area of a camera: its image divided into area_cols x area_rows tiles (paper: regions of the
   // site); a track that missed its window is looked for in the tile of its prediction and the
   // eight around it.
@@ -76,12 +83,24 @@ struct CameraSearchState {
 //   vehicle whose window missed last frame or came out larger than max_window_px;
 // - no window for a vehicle predicted behind the camera or whose widened box misses the image;
 // - a kFull window (the whole image, no vehicles) last, when the sweep is due (SearchParams) or
-//   a coasting vehicle in view missed its area too (missed >= 2).
+//   a coasting vehicle in view missed its area too (missed >= 2); the interval's sweep of a large
+//   image is a strip of it per frame (sweep_max_pixels). Whole-image windows are shrunk for the
+//   smallest tag of the fleet anywhere in the view (decimated_side_px).
 // Invalid params (validate) give one kFull window; invalid intrinsics, none.
 std::vector<SearchWindow> plan_search(const site::CeilingCamera& cam,
                                       const std::vector<site::FleetAgv>& fleet,
                                       const FleetTracker& tracker, std::int64_t t_ns,
                                       const SearchParams& params, const CameraSearchState& state);
+
+// The sizes the fleet's tags can take in the camera's view: the shortest side and the largest
+// extent (px) over a 3 x 3 grid of the image on each vehicle's tray plane, from the lens's local
+// scale there. ok false when no point of the grid maps onto a tray plane.
+struct ViewTagSizes {
+  bool ok = false;
+  double min_side_px = 0.0, max_extent_px = 0.0;
+};
+ViewTagSizes view_tag_sizes(const site::CeilingCamera& cam,
+                            const std::vector<site::FleetAgv>& fleet);
 
 // The fleet's tag ids a window may hold: the vehicles whose predicted tray-plane position,
 // widened by 3 sigma and the tag's half diagonal, projects into rect (tracks not valid are in
