@@ -406,6 +406,18 @@ TEST(OverheadSearch, LargeImagesAreSweptAStripAFrame) {
             cv::Rect(0, 0, 1280, 720));
   whole.sweep_max_pixels = -1;
   EXPECT_NE(validate(whole), "");
+  // The tags' extent unknown (no usable tag size): the interval's first frame whole, no strips.
+  std::vector<site::FleetAgv> unsized = fleet;
+  for (site::FleetAgv& a : unsized) a.tag_size_mm = 0.0;
+  EXPECT_FALSE(view_tag_sizes(cam, unsized).ok);
+  const std::vector<SearchWindow> w15 =
+      plan_search(cam, unsized, tr, kNow, sp, state_at_frame(15, 2));
+  EXPECT_EQ(w15.back().level, SearchLevel::kFull);
+  EXPECT_EQ(w15.back().rect, cv::Rect(0, 0, 3840, 2160));
+  EXPECT_EQ(w15.back().decimation, 1);
+  EXPECT_EQ(count_level(plan_search(cam, unsized, tr, kNow, sp, state_at_frame(16, 2)),
+                        SearchLevel::kFull),
+            0);
 }
 
 TEST(OverheadSearch, IdsInAreaHoldNearVehiclesOnly) {

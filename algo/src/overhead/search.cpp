@@ -172,22 +172,22 @@ cv::Rect sweep_strip(const cv::Rect& image, int j, int n, double overlap_px) {
   return cv::Rect(0, y0, image.width, std::max(0, y1 - y0));
 }
 
-// The interval's whole-image window for this frame: the whole image, or one strip of it.
-bool interval_sweep(const cv::Rect& image, const SearchParams& sp, const ViewTagSizes& sizes,
-                    std::int64_t frames, cv::Rect* rect) {
-  const int every = sp.full_sweep_every_frames;
+// How many strips the interval's sweep of the image takes (SearchParams::sweep_max_pixels).
+int sweep_strips(const cv::Rect& image, const SearchParams& sp) {
   const long long pixels = static_cast<long long>(image.width) * image.height;
-  int strips = 1;
-  if (sp.sweep_max_pixels > 0 && sizes.ok && pixels > sp.sweep_max_pixels) {
-    strips = static_cast<int>(std::min<long long>(
-        std::max(1, every), (pixels + sp.sweep_max_pixels - 1) / sp.sweep_max_pixels));
-  }
-  const std::int64_t j = frames % every;
-  if (j >= strips) return false;
-  *rect = strips == 1 ? image
-                      : sweep_strip(image, static_cast<int>(j), strips,
-                                    sizes.max_extent_px + 2.0 * sp.window_margin_px);
-  return true;
+  if (sp.sweep_max_pixels <= 0 || pixels <= sp.sweep_max_pixels) return 1;
+  return static_cast<int>(
+      std::min<long long>(std::max(1, sp.full_sweep_every_frames),
+                          (pixels + sp.sweep_max_pixels - 1) / sp.sweep_max_pixels));
+}
+
+// The interval's whole-image window for frame j of the interval (j < sweep_strips): the whole
+// image, or strip j of it; whole when the tags' extent in view is unknown.
+cv::Rect interval_sweep(const cv::Rect& image, const SearchParams& sp, const ViewTagSizes& sizes,
+                        int j) {
+  const int strips = sweep_strips(image, sp);
+  if (strips == 1 || !sizes.ok) return image;
+  return sweep_strip(image, j, strips, sizes.max_extent_px + 2.0 * sp.window_margin_px);
 }
 
 }  // namespace
@@ -262,14 +262,16 @@ std::vector<SearchWindow> plan_search(const site::CeilingCamera& cam,
   }
   const int every = params.full_sweep_every_frames;
   const bool whole = state.frames == 0 || lost_in_area;
-  if (!whole && !(untracked && every > 0)) return out;
+  const std::int64_t j = every > 0 ? state.frames % every : 0;
+  const bool strip_due = untracked && every > 0 && j < sd::sweep_strips(image, params);
+  if (!whole && !strip_due) return out;
   const ViewTagSizes sizes = view_tag_sizes(cam, fleet);
-  if (sizes.ok) {
-    full.decimation = sd::decimation_for_side(sizes.min_side_px, params);
-  }
-  if (whole || sd::interval_sweep(image, params, sizes, state.frames, &full.rect)) {
-    out.push_back(full);
-  }
+  // Without the tags' extent the strips' overlap is unknown: the interval's first frame then
+  // searches the whole image, as without strips.
+  if (!whole && !sizes.ok && j > 0) return out;
+  if (sizes.ok) full.decimation = sd::decimation_for_side(sizes.min_side_px, params);
+  if (!whole) full.rect = sd::interval_sweep(image, params, sizes, static_cast<int>(j));
+  out.push_back(full);
   return out;
 }
 
@@ -279,8 +281,14 @@ ViewTagSizes view_tag_sizes(const site::CeilingCamera& cam,
   out.min_side_px = INFINITY;
   constexpr double kStepMm = 10.0;
   const double w = cam.intrinsics.width_px - 1.0, h = cam.intrinsics.height_px - 1.0;
-  for (const site::FleetAgv& a : fleet) {
+  for (std::size_t k = 0; k < fleet.size(); ++k) {
+    const site::FleetAgv& a = fleet[k];
     if (!(std::isfinite(a.tag_size_mm) && a.tag_size_mm > 0.0)) continue;
+    // A fleet of one kind of vehicle is one computation.
+    const auto same = [&a](const site::FleetAgv& b) {
+      return b.tag_size_mm == a.tag_size_mm && b.tray_height_mm == a.tray_height_mm;
+    };
+    if (std::any_of(fleet.begin(), fleet.begin() + static_cast<std::ptrdiff_t>(k), same)) continue;
     for (int i = 0; i < 9; ++i) {
       const Vec2 px{0.5 * (i % 3) * w, 0.5 * (i / 3) * h};
       Vec2 c, p0, pu, pv;
@@ -291,8 +299,8 @@ ViewTagSizes view_tag_sizes(const site::CeilingCamera& cam,
         continue;
       }
       double lo = 0.0, hi = 0.0;
-      sd::singular_values((pu.x - p0.x) / kStepMm, (pv.x - p0.x) / kStepMm,
-                          (pu.y - p0.y) / kStepMm, (pv.y - p0.y) / kStepMm, &lo, &hi);
+      sd::singular_values((pu.x - p0.x) / kStepMm, (pv.x - p0.x) / kStepMm, (pu.y - p0.y) / kStepMm,
+                          (pv.y - p0.y) / kStepMm, &lo, &hi);
       if (!std::isfinite(lo) || !std::isfinite(hi)) continue;
       out.ok = true;
       out.min_side_px = std::min(out.min_side_px, lo * a.tag_size_mm);
