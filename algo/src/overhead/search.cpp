@@ -122,19 +122,7 @@ bool has_track(TrackState s) {
 
 // The shrink factor for a window whose smallest tag has this shortest side (SearchParams).
 int decimation_for_side(double side_px, const SearchParams& sp) {
-  if (!(side_px > 0.0) || !std::isfinite(side_px)) return 1;
-  const double n = std::floor(side_px / sp.decimated_side_px);
-  return static_cast<int>(std::clamp(n, 1.0, static_cast<double>(std::max(1, sp.max_decimation))));
-}
-
-int decimation_for(const std::array<Vec2, 4>& corners_px, const SearchParams& sp) {
-  double side = INFINITY;
-  for (std::size_t i = 0; i < 4; ++i) {
-    const Vec2& a = corners_px[i];
-    const Vec2& b = corners_px[(i + 1) % 4];
-    side = std::min(side, std::hypot(b.x - a.x, b.y - a.y));
-  }
-  return decimation_for_side(side, sp);
+  return search_decimation(side_px, sp.decimated_side_px, sp.max_decimation);
 }
 
 // An area shared by several vehicles is shrunk for the smallest of their tags.
@@ -246,7 +234,7 @@ std::vector<SearchWindow> plan_search(const site::CeilingCamera& cam,
     // The whole image only for a vehicle no camera has seen for a while: one that another camera
     // sees (at this one's border, in a hand-over) keeps its track fresh.
     lost_in_area = lost_in_area || (missed >= 2 && o.state == TrackState::kCoasting);
-    const int dec = sd::decimation_for(p.corners_px, params);
+    const int dec = sd::decimation_for_side(shortest_side_px(p.corners_px), params);
     const int max_px = params.max_window_px;
     if (missed > 0 || rect.width / dec > max_px || rect.height / dec > max_px) {
       sd::add_area(i, sd::area_rect(p.centre_px, params, image), dec, &out);

@@ -178,6 +178,20 @@ std::vector<TagObservation> TagDetector::detect(const cv::Mat& gray, const cv::R
   return out;
 }
 
+double shortest_side_px(const std::array<Vec2, 4>& c) {
+  double s = std::hypot(c[3].x - c[0].x, c[3].y - c[0].y);
+  for (std::size_t i = 0; i < 3; ++i) {
+    s = std::min(s, std::hypot(c[i + 1].x - c[i].x, c[i + 1].y - c[i].y));
+  }
+  return s;
+}
+
+int search_decimation(double side_px, double decimated_side_px, int max_decimation) {
+  if (!(side_px > 0.0) || !std::isfinite(side_px) || !(decimated_side_px > 0.0)) return 1;
+  const double n = std::floor(side_px / decimated_side_px);
+  return static_cast<int>(std::clamp(n, 1.0, static_cast<double>(std::max(1, max_decimation))));
+}
+
 cv::Rect own_window(const std::array<Vec2, 4>& corners_px, const cv::Size& image) {
   double x0 = corners_px[0].x, x1 = x0, y0 = corners_px[0].y, y1 = y0;
   for (const Vec2& c : corners_px) {

@@ -24,12 +24,6 @@ Vec2 observe_centre(const std::array<Vec2, 4>& c) {
 
 double observe_dist(Vec2 a, Vec2 b) { return std::hypot(a.x - b.x, a.y - b.y); }
 
-double observe_shortest_side_px(const std::array<Vec2, 4>& c) {
-  double s = observe_dist(c[3], c[0]);
-  for (std::size_t i = 0; i < 3; ++i) s = std::min(s, observe_dist(c[i], c[i + 1]));
-  return s;
-}
-
 Eigen::Vector3d observe_rb_vector(const RangeBearing& rb) {
   return {rb.range_mm, rb.bearing_rad, rb.relative_yaw_rad};
 }
@@ -165,7 +159,7 @@ void refuse_mirrored(const std::vector<overhead::TagObservation>& mirrored,
                      std::vector<bool>* flagged, ObserveResult* res) {
   for (const overhead::TagObservation& m : mirrored) {
     const Vec2 mc = observe_centre(m.corners_px);
-    const double reach = observe_shortest_side_px(m.corners_px) / 2.0;
+    const double reach = overhead::shortest_side_px(m.corners_px) / 2.0;
     for (std::size_t i = 0; i < direct.size(); ++i) {
       if (observe_dist(observe_centre(direct[i].corners_px), mc) < reach) (*flagged)[i] = true;
     }
@@ -304,7 +298,7 @@ bool LandmarkObserver::measure(std::uint32_t id, const std::array<Vec2, 4>& corn
   o.corners_px = corners_px;
   for (std::size_t i = 0; i < 4; ++i)
     o.corners_undistorted_px[i] = {undistorted[i].x, undistorted[i].y};
-  if (observe_shortest_side_px(o.corners_undistorted_px) < opt_.min_side_px) {
+  if (overhead::shortest_side_px(o.corners_undistorted_px) < opt_.min_side_px) {
     *reason = RefusalReason::kTooSmall;
     return false;
   }

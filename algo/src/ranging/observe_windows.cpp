@@ -86,13 +86,6 @@ bool faces_camera(const site::WallLandmark& w, const Pose2& pose, const RangingM
   return n.dot(to_cam) > std::cos(max_angle_rad) * to_cam.norm();
 }
 
-double shortest_side_px(const std::array<Vec2, 4>& c) {
-  double s = std::hypot(c[3].x - c[0].x, c[3].y - c[0].y);
-  for (std::size_t i = 0; i < 3; ++i)
-    s = std::min(s, std::hypot(c[i + 1].x - c[i].x, c[i + 1].y - c[i].y));
-  return s;
-}
-
 // Adds sigma^2 d d^T of each corner for one perturbed projection (d = central difference).
 void add_corner_term(const std::array<Vec2, 4>& plus, const std::array<Vec2, 4>& minus, double step,
                      double sigma, std::array<Eigen::Matrix2d, 4>* cov) {
@@ -203,7 +196,7 @@ bool LandmarkObserver::predict_landmark(const site::WallLandmark& w, const PoseP
   const std::array<Eigen::Vector3d, 4> cs = landmark_corners_site(w);
   std::array<Vec2, 4> px{};
   if (!project_corners(cs, prior.pose, mount_, cam, &px)) return false;
-  const double side = shortest_side_px(px);
+  const double side = overhead::shortest_side_px(px);
   if (side < wopt.min_side_share * opt_.min_side_px) return false;
   double su = 0.0, sv = 0.0;
   if (!corner_sigmas(cs, prior, mount_, cam, opt_, px, &su, &sv)) return false;
@@ -231,8 +224,7 @@ bool LandmarkObserver::predict_landmark(const site::WallLandmark& w, const PoseP
   // Tried whatever the prior's sigma: a read the prior did not promise within the search still
   // saves its window, and a failed one costs a fraction of the window's search.
   out->predicted_path = wopt.predicted_first;
-  const int dec = static_cast<int>(std::floor(side / wopt.decimated_side_px));
-  out->decimation = std::clamp(dec, 1, std::max(1, wopt.max_decimation));
+  out->decimation = overhead::search_decimation(side, wopt.decimated_side_px, wopt.max_decimation);
   return true;
 }
 

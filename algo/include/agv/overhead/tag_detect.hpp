@@ -82,6 +82,13 @@ class TagDetector {
   std::unique_ptr<Impl> impl_;
 };
 
+// The shortest side of a tag's four corners (px, page order).
+double shortest_side_px(const std::array<Vec2, 4>& corners_px);
+
+// The shrink factor for a window whose smallest tag has this shortest side: floor(side /
+// decimated_side_px), clamped to [1, max_decimation] (1 for a side that is not positive).
+int search_decimation(double side_px, double decimated_side_px, int max_decimation);
+
 // A tag's own window: its corners' bounding box grown by max(16 px, half its side), clipped to
 // the image (where the search path looks again for a tag placed from elsewhere).
 cv::Rect own_window(const std::array<Vec2, 4>& corners_px, const cv::Size& image);
