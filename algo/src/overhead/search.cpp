@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "agv/overhead/tag_detect.hpp"
 #include "agv/overhead/tag_fix.hpp"
 
 namespace agv::overhead {
