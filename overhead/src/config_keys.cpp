@@ -150,11 +150,12 @@ std::vector<Key> search_detect_keys() {
               "1 searches every frame whole"),
       integer("search.sweep_max_pixels", AGV_OH_AT(search.sweep_max_pixels), 0, 1000000000, 2500000,
               "px",
-              "The interval's whole-image search (full_sweep_every_frames) of a larger image is "
-              "spread over consecutive frames, a "
-              "horizontal strip per frame (overlapping by the largest tag in view): bounds one "
-              "frame's cost and the latency of the frames behind it; the first frame stays "
-              "whole; 0 searches the whole image at once"),
+              "A larger search is spread over consecutive frames, a horizontal strip per frame "
+              "(overlapping by the largest tag in view): the interval's whole-image search "
+              "(full_sweep_every_frames), the search for a vehicle lost in view, and an area "
+              "(counted after its shrink; its prediction's strip first): bounds one frame's "
+              "cost and the latency of the frames behind it; the first frame stays whole; 0 "
+              "searches at once"),
       integer("search.area_cols", AGV_OH_AT(search.area_cols), 1, 64, 4, "",
               "A camera's image is cut into area_cols x area_rows areas for the area search and "
               "the restricted decoding"),

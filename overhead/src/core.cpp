@@ -266,9 +266,9 @@ void TrackerCore::print_summary(const std::string& prefix, std::size_t cameras) 
       p, ull(c.applied), ull(c.started), ull(c.gated), ull(c.too_old), ull(c.invalid), ull(c.lost));
   std::printf(
       "%s: search windows: track %llu (tags read on the predicted path %llu), area %llu, whole "
-      "image %llu; tags found by searching %llu\n",
+      "image %llu, not searched (already read or searched) %llu; tags found by searching %llu\n",
       p, ull(f.windows_track), ull(f.predicted_reads), ull(f.windows_area), ull(f.windows_full),
-      ull(f.searched_tags));
+      ull(f.windows_skipped), ull(f.searched_tags));
   std::printf(
       "%s: tray boxes (%s) applied %llu, gated %llu, refused %llu; learned boxes disagreeing "
       "with a read tag %llu\n",

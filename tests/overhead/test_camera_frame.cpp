@@ -291,6 +291,56 @@ TEST(CameraFrame, ATagPredictedAcrossTheImageEdgeIsNoMiss) {
   EXPECT_EQ(proc.search_state(0).missed[1], 0u);
 }
 
+// Areas are costly (most of a large image): one whose vehicles an earlier window of the frame
+// already read, or that lies inside a region the frame already searched, is not searched again.
+TEST(CameraFrame, AnAreaAlreadyReadOrSearchedIsSkipped) {
+  const site::CeilingCamera cam = test_camera();
+  const std::vector<site::FleetAgv> fleet{agv("a1", 1), agv("a2", 2)};
+  SearchParams sp;
+  sp.max_window_px = 30;  // every track window too large: an area per vehicle
+  sp.full_sweep_every_frames = 0;
+  const auto run = [&](const std::vector<Pose2>& poses, bool render) {
+    CameraFrameProcessor proc({cam}, fleet, {}, sp);
+    FleetTracker tracker(2);
+    TagFix fix;
+    fix.cov = {4.0, 0.0, 0.0, 0.0, 4.0, 0.0, 0.0, 0.0, 1e-4};
+    for (std::size_t i = 0; i < 2; ++i) {
+      fix.pose = poses[i];
+      EXPECT_EQ(tracker.add_fix(i, 0, fix), FixResult::kStarted);
+    }
+    const cv::Mat blank(720, 1280, CV_8UC1, cv::Scalar(128));
+    std::string error;
+    EXPECT_TRUE(proc.process(0, 0, blank, &tracker, nullptr, &error)) << error;  // first: whole
+    sim::SiteScene scene;
+    scene.site.fleet = fleet;
+    for (const Pose2& p : poses) scene.agvs.push_back({p, 0.0, 0.0});
+    const cv::Mat img =
+        render ? sim::SiteFrameRenderer(cam.intrinsics)
+                     .render(scene, sim::RenderCamera::from_ceiling(cam), sim::SiteRenderParams{}, 3)
+                     .image
+               : blank;
+    const FrameCounters before = proc.counters();
+    std::vector<Detection> dets;
+    EXPECT_TRUE(proc.process(0, 50'000'000, img, &tracker, &dets, &error)) << error;
+    FrameCounters c = proc.counters();
+    c.windows_area -= before.windows_area;
+    c.windows_skipped -= before.windows_skipped;
+    return std::make_pair(c, dets);
+  };
+  // Both tags in view, a2's inside a1's area but its own area reaching beyond: a1's area reads
+  // both, a2's is skipped.
+  const auto [read, dets] = run({{-900, 0, 0.3}, {300, 0, 1.0}}, true);
+  EXPECT_EQ(read.windows_area, 2u);
+  EXPECT_EQ(read.windows_skipped, 1u);
+  ASSERT_EQ(dets.size(), 2u);
+  for (const Detection& d : dets) EXPECT_EQ(d.level, SearchLevel::kArea);
+  // No tags: the area of a vehicle near the image's side lies inside the other's: skipped.
+  const auto [empty, none] = run({{0, 0, 0.0}, {-1500, 0, 0.0}}, false);
+  EXPECT_EQ(empty.windows_area, 2u);
+  EXPECT_EQ(empty.windows_skipped, 1u);
+  EXPECT_TRUE(none.empty());
+}
+
 TEST(CameraFrame, BadInputIsRefusedWithAReason) {
   const site::CeilingCamera cam = test_camera();
   CameraFrameProcessor proc({cam}, {agv("a1", 1)}, {}, {});

@@ -4,6 +4,7 @@
 // nothing behind the camera or beyond the lens model. Tracks from synthetic fixes.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -240,6 +241,15 @@ TEST(OverheadSearch, WideWindowFallsBackToTheArea) {
   const SearchWindow wide = plan_search(cam, fleet, tr, later, sp, st).at(0);
   EXPECT_EQ(wide.level, SearchLevel::kTrack);
   EXPECT_GT(wide.rect.width, 300);
+  // The area (the centre tile's 3 x 3) searched only where the window lies: the window holds the
+  // tag at 3 sigma. After a miss, the whole area.
+  const cv::Rect area(320, 0, 960, 720);
+  EXPECT_EQ(w.rect, wide.rect & area);
+  EXPECT_LT(w.rect.area(), area.area() / 2);
+  sp.max_window_px = 300;
+  CameraSearchState missed = st;
+  missed.missed[0] = 1;
+  EXPECT_EQ(plan_search(cam, fleet, tr, later, sp, missed).at(0).rect, area);
 }
 
 // A large tag's window is searched shrunk (its smallest side over decimated_side_px, at most
@@ -418,6 +428,89 @@ TEST(OverheadSearch, LargeImagesAreSweptAStripAFrame) {
   EXPECT_EQ(count_level(plan_search(cam, unsized, tr, kNow, sp, state_at_frame(16, 2)),
                         SearchLevel::kFull),
             0);
+}
+
+// On a large image with tags too small to shrink, an area (3 x 3 tiles: most of the image) and
+// the whole-image search for a vehicle lost in view are a strip per frame: an area's part in the
+// prediction's strip first, the others on later misses in a row, together all of it, each holding
+// a whole tag wherever it lies; the lost vehicle's search the image's strips in turn. Small
+// images, and sweep_max_pixels 0, search them at once.
+TEST(OverheadSearch, LargeAreasAndLostSearchesAreAStripAFrame) {
+  const site::CeilingCamera cam = camera_4k();
+  std::vector<site::FleetAgv> fleet = fleet_of(2);
+  for (site::FleetAgv& a : fleet) a.tag_size_mm = 80.0;  // about 60 px: never shrunk
+  FleetTracker tr(2);
+  track(&tr, 0, {-300, 200, 0.4});  // centre tile: its area is 3 x 3 tiles, 6.2 Mpx
+  track(&tr, 1, {1800, -1000, 0.0});
+  const ViewTagSizes sizes = view_tag_sizes(cam, fleet);
+  ASSERT_TRUE(sizes.ok);
+  ASSERT_LT(sizes.min_side_px, 64.0);
+  const auto area_after = [&](int misses, const SearchParams& sp) {
+    CameraSearchState st = state_at_frame(7, 2);
+    st.missed[0] = static_cast<std::uint8_t>(misses);
+    const std::vector<SearchWindow> ws = plan_search(cam, fleet, tr, kNow, sp, st);
+    EXPECT_EQ(count_level(ws, SearchLevel::kFull), 0);
+    const SearchWindow w = *windows_of(ws, 0).at(0);
+    EXPECT_EQ(w.level, SearchLevel::kArea);
+    EXPECT_EQ(w.decimation, 1);
+    return w.rect;
+  };
+  SearchParams at_once;
+  at_once.sweep_max_pixels = 0;
+  const cv::Rect whole_area = area_after(1, at_once);
+  EXPECT_EQ(whole_area, cv::Rect(0, 0, 2880, 2160));
+  const std::vector<Vec2> truth = truth_corners(cam, fleet[0], tr.output(0, kNow).pose);
+  for (const Vec2& c : truth) EXPECT_TRUE(contains(area_after(1, SearchParams{}), c));
+  std::vector<cv::Rect> parts;
+  cv::Rect covered;
+  for (int m = 1; m <= 3; ++m) {
+    const cv::Rect r = area_after(m, SearchParams{});
+    EXPECT_LE(static_cast<long long>(r.area()), SearchParams{}.sweep_max_pixels) << m;
+    EXPECT_EQ((r & whole_area), r) << m;
+    for (const cv::Rect& q : parts) EXPECT_NE(q, r) << m;
+    parts.push_back(r);
+    covered = covered.empty() ? r : (covered | r);
+  }
+  EXPECT_EQ(covered, whole_area);
+  EXPECT_EQ(area_after(4, SearchParams{}), parts[0]);  // and round again
+  // Any tag in the area lies wholly in one part: neighbours overlap by its largest extent.
+  std::sort(parts.begin(), parts.end(), [](const cv::Rect& a, const cv::Rect& b) { return a.y < b.y; });
+  for (std::size_t i = 1; i < parts.size(); ++i) {
+    EXPECT_GT(parts[i - 1].y + parts[i - 1].height - parts[i].y, sizes.max_extent_px) << i;
+  }
+  // The other vehicle stays on its track window throughout.
+  EXPECT_EQ(windows_of(plan_search(cam, fleet, tr, kNow, SearchParams{}, state_at_frame(7, 2)), 1)
+                .at(0)
+                ->level,
+            SearchLevel::kTrack);
+
+  // Lost in view (coasting, missed its area too): the whole image's strips in turn.
+  const std::int64_t later = kNow + 400 * kMs;
+  ASSERT_EQ(tr.output(0, later).state, TrackState::kCoasting);
+  const auto lost_search = [&](std::int64_t frames, const SearchParams& sp) {
+    CameraSearchState st = state_at_frame(frames, 2);
+    st.missed[0] = 2;
+    const std::vector<SearchWindow> ws = plan_search(cam, fleet, tr, later, sp, st);
+    EXPECT_EQ(count_level(ws, SearchLevel::kFull), 1);
+    return ws.back().rect;
+  };
+  EXPECT_EQ(lost_search(7, at_once), cv::Rect(0, 0, 3840, 2160));
+  EXPECT_EQ(lost_search(0, SearchParams{}), cv::Rect(0, 0, 3840, 2160));  // the first frame
+  cv::Rect image_covered;
+  for (std::int64_t f = 8; f < 12; ++f) {
+    const cv::Rect r = lost_search(f, SearchParams{});
+    EXPECT_EQ(r.width, 3840);
+    EXPECT_LT(r.height, 2160 / 2);
+    image_covered = image_covered.empty() ? r : (image_covered | r);
+  }
+  EXPECT_EQ(image_covered, cv::Rect(0, 0, 3840, 2160));
+  // A small image: at once, as before.
+  const site::CeilingCamera small = camera();
+  CameraSearchState st = state_at_frame(7, 2);
+  st.missed[0] = 2;
+  const std::vector<SearchWindow> ws = plan_search(small, fleet, tr, later, SearchParams{}, st);
+  EXPECT_EQ(ws.back().rect, cv::Rect(0, 0, 1280, 720));
+  EXPECT_EQ(windows_of(ws, 0).at(0)->rect, cv::Rect(0, 0, 960, 720));
 }
 
 TEST(OverheadSearch, IdsInAreaHoldNearVehiclesOnly) {

@@ -147,6 +147,19 @@ void CameraFrameProcessor::track_window(const SearchWindow& win, const cv::Mat& 
 
 void CameraFrameProcessor::search_window(const SearchWindow& win, const cv::Mat& gray,
                                          FrameWork* w) {
+  // An area is searched for its vehicles: once an earlier window of the frame (often another
+  // vehicle's overlapping area) has read them all, it would cost much and add nothing the
+  // interval's sweep does not look for.
+  bool pending = win.level != SearchLevel::kArea;
+  for (std::size_t agv : win.agvs) pending = pending || (agv < fleet_.size() && !w->found[agv]);
+  const auto inside = [&win](const std::pair<cv::Rect, int>& s) {
+    return (s.first & win.rect) == win.rect && s.second <= win.decimation;
+  };
+  if (!pending || std::any_of(w->searched.begin(), w->searched.end(), inside)) {
+    ++counters_.windows_skipped;
+    return;
+  }
+  w->searched.emplace_back(win.rect, win.decimation);
   for (const TagObservation& obs : detector_.detect(gray, win.rect, win.decimation)) {
     if (w->ids_seen.count(obs.id) != 0) continue;
     ++counters_.searched_tags;

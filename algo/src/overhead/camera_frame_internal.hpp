@@ -2,8 +2,11 @@
 #pragma once
 
 #include <cstdint>
+#include <utility>
 #include <unordered_set>
 #include <vector>
+
+#include <opencv2/core/types.hpp>
 
 #include "agv/overhead/camera_frame.hpp"
 
@@ -20,6 +23,9 @@ struct CameraFrameProcessor::FrameWork {
   std::vector<std::uint8_t> looked_for;        // per vehicle: a window expected it
   std::vector<Pose2> tag_pose;                 // per vehicle found: its tag's fix (if any)
   std::vector<std::uint8_t> has_tag_pose;
+  // Regions searched this frame, with their decimation: a later window inside one at the same
+  // or a finer decimation would find nothing new.
+  std::vector<std::pair<cv::Rect, int>> searched;
 };
 
 }  // namespace agv::overhead

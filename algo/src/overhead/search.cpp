@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include "agv/overhead/tag_detect.hpp"
 #include "agv/overhead/tag_fix.hpp"
@@ -161,13 +162,55 @@ cv::Rect sweep_strip(const cv::Rect& image, int j, int n, double overlap_px) {
   return cv::Rect(0, y0, image.width, std::max(0, y1 - y0));
 }
 
-// How many strips the interval's sweep of the image takes (SearchParams::sweep_max_pixels).
-int sweep_strips(const cv::Rect& image, const SearchParams& sp) {
-  const long long pixels = static_cast<long long>(image.width) * image.height;
+// How many horizontal strips a search of this many pixels is cut into
+// (SearchParams::sweep_max_pixels); 1: searched at once.
+int strips_for(long long pixels, const SearchParams& sp) {
   if (sp.sweep_max_pixels <= 0 || pixels <= sp.sweep_max_pixels) return 1;
   return static_cast<int>(
-      std::min<long long>(std::max(1, sp.full_sweep_every_frames),
-                          (pixels + sp.sweep_max_pixels - 1) / sp.sweep_max_pixels));
+      std::min<long long>(1 << 16, (pixels + sp.sweep_max_pixels - 1) / sp.sweep_max_pixels));
+}
+
+long long pixels_of(const cv::Rect& r, int decimation) {
+  const long long d = std::max(1, decimation);
+  return static_cast<long long>(r.width) * r.height / (d * d);
+}
+
+// How many strips the interval's sweep of the image takes: never more than the frames between
+// sweeps, so each sweep ends before the next begins.
+int sweep_strips(const cv::Rect& image, const SearchParams& sp) {
+  return std::min(std::max(1, sp.full_sweep_every_frames), strips_for(pixels_of(image, 1), sp));
+}
+
+// The strip of an n-strip image (sweep_strip) holding the row.
+int strip_of_row(double y_px, int n, const cv::Rect& image) {
+  const double f = std::floor(y_px * n / std::max(1, image.height));
+  return static_cast<int>(std::clamp(f, 0.0, static_cast<double>(n - 1)));
+}
+
+// An area too large to search in one frame (sweep_max_pixels, after its decimation): the part of
+// it in one strip of the image, the strip of the prediction first, then the others nearest first,
+// one more per frame of misses in a row. The strips overlap by a tag's largest extent, so a tag
+// standing still lies wholly in one of them.
+cv::Rect area_strip(const cv::Rect& area, Vec2 centre_px, int decimation, int missed,
+                    double overlap_px, const SearchParams& sp, const cv::Rect& image) {
+  const int n = strips_for(pixels_of(area, decimation), sp);
+  if (n <= 1) return area;
+  const int per_image = std::max(n, static_cast<int>(std::ceil(
+                                        static_cast<double>(n) * image.height / area.height)));
+  const int home = strip_of_row(centre_px.y, per_image, image);
+  std::vector<cv::Rect> parts;
+  for (int d = 0; d < per_image; ++d) {
+    for (int b : {home - d, home + d}) {
+      if (b < 0 || b >= per_image) continue;
+      const cv::Rect part = sweep_strip(image, b, per_image, overlap_px) & area;
+      // A strip that only grazes the area lies in its neighbour's overlap.
+      const auto holds = [&part](const cv::Rect& q) { return (q & part) == part; };
+      if (!part.empty() && std::none_of(parts.begin(), parts.end(), holds)) parts.push_back(part);
+      if (d == 0) break;
+    }
+  }
+  if (parts.empty()) return area;
+  return parts[static_cast<std::size_t>(std::max(0, missed - 1)) % parts.size()];
 }
 
 // The interval's whole-image window for frame j of the interval (j < sweep_strips): the whole
@@ -219,6 +262,14 @@ std::vector<SearchWindow> plan_search(const site::CeilingCamera& cam,
     out.push_back(full);
     return out;
   }
+  // The tags' sizes in view, computed only for a frame that needs them (a strip's overlap, a
+  // whole-image window's decimation).
+  std::optional<ViewTagSizes> sizes_memo;
+  const auto sizes = [&]() -> const ViewTagSizes& {
+    if (!sizes_memo) sizes_memo = view_tag_sizes(cam, fleet);
+    return *sizes_memo;
+  };
+  const auto overlap_px = [&] { return sizes().max_extent_px + 2.0 * params.window_margin_px; };
   const std::size_t tracked = std::min(fleet.size(), tracker.size());
   bool untracked = fleet.size() > tracked, lost_in_area = false;
   for (std::size_t i = 0; i < tracked; ++i) {
@@ -238,7 +289,14 @@ std::vector<SearchWindow> plan_search(const site::CeilingCamera& cam,
     const int dec = sd::decimation_for_side(shortest_side_px(p.corners_px), params);
     const int max_px = params.max_window_px;
     if (missed > 0 || rect.width / dec > max_px || rect.height / dec > max_px) {
-      sd::add_area(i, sd::area_rect(p.centre_px, params, image), dec, &out);
+      cv::Rect area = sd::area_rect(p.centre_px, params, image);
+      // A window too large but not missed yet holds the tag at window_sigmas: no need to look
+      // beyond it.
+      if (missed == 0) area &= rect;
+      if (sizes().ok) {
+        area = sd::area_strip(area, p.centre_px, dec, missed, overlap_px(), params, image);
+      }
+      sd::add_area(i, area, dec, &out);
       continue;
     }
     SearchWindow w;
@@ -250,16 +308,23 @@ std::vector<SearchWindow> plan_search(const site::CeilingCamera& cam,
     out.push_back(std::move(w));
   }
   const int every = params.full_sweep_every_frames;
-  const bool whole = state.frames == 0 || lost_in_area;
   const std::int64_t j = every > 0 ? state.frames % every : 0;
   const bool strip_due = untracked && every > 0 && j < sd::sweep_strips(image, params);
-  if (!whole && !strip_due) return out;
-  const ViewTagSizes sizes = view_tag_sizes(cam, fleet);
-  // Without the tags' extent the strips' overlap is unknown: the interval's first frame then
-  // searches the whole image, as without strips.
-  if (!whole && !sizes.ok && j > 0) return out;
-  if (sizes.ok) full.decimation = sd::decimation_for_side(sizes.min_side_px, params);
-  if (!whole) full.rect = sd::interval_sweep(image, params, sizes, static_cast<int>(j));
+  if (state.frames != 0 && !lost_in_area && !strip_due) return out;
+  if (sizes().ok) full.decimation = sd::decimation_for_side(sizes().min_side_px, params);
+  if (state.frames == 0 || !sizes().ok) {
+    // Without the tags' extent the strips' overlap is unknown: the whole image, for the
+    // interval on its first frame only.
+    if (state.frames == 0 || lost_in_area || j == 0) out.push_back(full);
+    return out;
+  }
+  if (strip_due) {
+    full.rect = sd::interval_sweep(image, params, sizes(), static_cast<int>(j));
+  } else {
+    // A vehicle lost in view: the image's strips in turn, one per frame.
+    const int n = sd::strips_for(sd::pixels_of(image, 1), params);
+    full.rect = sd::sweep_strip(image, static_cast<int>(state.frames % n), n, overlap_px());
+  }
   out.push_back(full);
   return out;
 }

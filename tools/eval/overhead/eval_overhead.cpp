@@ -258,12 +258,14 @@ void print_header(const Options& o, const agv::site::Site& site) {
 void print_counters(const agv::overhead::FrameCounters& fc,
                     const agv::overhead::TrackerCounters& tc) {
   std::printf(
-      "pipeline: frames %llu, windows track/area/full %llu/%llu/%llu, predicted reads %llu, "
+      "pipeline: frames %llu, windows track/area/full %llu/%llu/%llu (not searched %llu), "
+      "predicted reads %llu, "
       "searched tags %llu, unknown ids %llu, no fix %llu; tracker: applied %llu, started "
       "%llu, gated %llu, too old %llu, replays %llu, lost %llu\n",
       static_cast<unsigned long long>(fc.frames), static_cast<unsigned long long>(fc.windows_track),
       static_cast<unsigned long long>(fc.windows_area),
       static_cast<unsigned long long>(fc.windows_full),
+      static_cast<unsigned long long>(fc.windows_skipped),
       static_cast<unsigned long long>(fc.predicted_reads),
       static_cast<unsigned long long>(fc.searched_tags),
       static_cast<unsigned long long>(fc.unknown_ids), static_cast<unsigned long long>(fc.no_fix),

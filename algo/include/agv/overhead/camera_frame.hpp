@@ -42,6 +42,9 @@ struct FrameCounters {
   std::uint64_t frames = 0, windows_track = 0, windows_area = 0, windows_full = 0;
   std::uint64_t predicted_reads = 0, searched_tags = 0, unknown_ids = 0, no_fix = 0;
   std::uint64_t rejected_frames = 0;  // bad input to process(), nothing done
+  // Area and whole-image searches not made: every vehicle of the area already read this frame,
+  // or the region inside one searched this frame at the same or a finer decimation.
+  std::uint64_t windows_skipped = 0;
   // A restricted (area) decode of a vehicle that has no track: not applied, because a track is
   // started only from the strict global decode (the first fix of a track is not gated).
   std::uint64_t restricted_new_track_refused = 0;

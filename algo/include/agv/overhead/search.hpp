@@ -39,12 +39,15 @@ struct SearchParams {
   // Whole image every this many frames of the camera while some vehicle of the fleet has no
   // track (none or lost), and on the camera's first frame; 0: the first frame only.
   int full_sweep_every_frames = 15;
-  // That whole-image search of an image of more pixels than this is spread over consecutive
-  // frames, one horizontal strip per frame (the strips overlap by the largest tag the view can
-  // hold, so each tag lies wholly in one): the cost of one frame stays bounded, and with it the
-  // exposure to publish latency of every frame queued behind it. A 3840 x 2160 image is 4 strips,
-  // at most full_sweep_every_frames. The camera's first frame and the search for a vehicle lost
-  // in view stay whole. 0: always the whole image at once.
+  // A search of more pixels than this (an area's after its decimation, the whole image's before:
+  // its strips are fixed before the tags in view are known) is spread over consecutive frames,
+  // one horizontal strip per frame (the strips overlap by the largest tag the view can hold, so
+  // each tag lies wholly in one): the cost of one frame stays bounded, and with it the exposure to
+  // publish latency of every frame queued behind it. The interval's whole-image search (a
+  // 3840 x 2160 image is 4 strips, at most full_sweep_every_frames), the whole-image search for a
+  // vehicle lost in view (the strips in turn while it stays lost), and an area (the part in the
+  // prediction's strip first, then the nearest others, one more per frame it stays unfound). The
+  // camera's first frame stays whole. 0: always at once.
   int sweep_max_pixels = 2'500'000;
   // Area of a camera: its image divided into area_cols x area_rows tiles (paper: regions of the
   // site); a track that missed its window is looked for in the tile of its prediction and the
@@ -80,12 +83,14 @@ struct CameraSearchState {
 //   and heading (projected through the lens at the prediction) and window_margin_px, clipped to
 //   the image;
 // - instead a kArea window (the tiles around the prediction's, identical ones merged) for a
-//   vehicle whose window missed last frame or came out larger than max_window_px;
+//   vehicle whose window missed last frame, or, only where its window lies, whose window came
+//   out larger than max_window_px;
 // - no window for a vehicle predicted behind the camera or whose widened box misses the image;
 // - a kFull window (the whole image, no vehicles) last, when the sweep is due (SearchParams) or
-//   a coasting vehicle in view missed its area too (missed >= 2); the interval's sweep of a large
-//   image is a strip of it per frame (sweep_max_pixels). Whole-image windows are shrunk for the
-//   smallest tag of the fleet anywhere in the view (decimated_side_px).
+//   a coasting vehicle in view missed its area too (missed >= 2); on a large image the
+//   interval's sweep, the lost vehicle's search and a large area are a strip per frame
+//   (sweep_max_pixels). Whole-image windows are shrunk for the smallest tag of the fleet anywhere
+//   in the view (decimated_side_px).
 // Invalid params (validate) give one kFull window; invalid intrinsics, none.
 std::vector<SearchWindow> plan_search(const site::CeilingCamera& cam,
                                       const std::vector<site::FleetAgv>& fleet,
