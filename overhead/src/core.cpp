@@ -204,6 +204,7 @@ void TrackerCore::apply_tags(std::size_t camera, std::int64_t t_ns,
       } else {
         d.has_fix = overhead::tag_fix_on_tray(site_.cameras[camera], m.tag.corners_px,
                                               m.tag.corner_sigma_px, *agv, cfg_.tray_plane, &d.fix);
+        d.fix.source = static_cast<std::int32_t>(camera);
         if (d.has_fix) d.result = tracker_.add_fix(d.agv, t_ns, d.fix);
         if (!d.has_fix) ++remote_.no_fix;
       }

@@ -4,7 +4,8 @@
 // effects (noise, vignetting, gradient), calibrates from the tray tags and compares with the
 // truth. Prints each trial and the summary: largest errors and how often |error| <= k sigma.
 //   eval_calib_ceiling [--width 3840 --height 2160 --f 2100 --z 6000 --tag 160 --tags 8
-//                       --frames 2 --trials 10 --seed 1]
+//                       --frames 2 --trials 10 --seed 1 --survey-error-mm 0]
+// --survey-error-mm: each surveyed coordinate (x, y, z) off by a Gaussian error of that sigma.
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -23,7 +24,7 @@ constexpr double kDeg = kPi / 180.0;
 
 struct Args {
   int width = 3840, height = 2160, tags = 8, frames = 2, trials = 10;
-  double f = 2100.0, z_mm = 6000.0, tag_mm = 160.0;
+  double f = 2100.0, z_mm = 6000.0, tag_mm = 160.0, survey_mm = 0.0;
   unsigned seed = 1;
 };
 
@@ -47,12 +48,15 @@ bool parse(int argc, char** argv, Args* a) {
       a->frames = static_cast<int>(v);
     else if (k == "--trials")
       a->trials = static_cast<int>(v);
+    else if (k == "--survey-error-mm")
+      a->survey_mm = v;
     else if (k == "--seed")
       a->seed = static_cast<unsigned>(v);
     else
       return false;
   }
-  return argc % 2 == 1 && a->width > 0 && a->height > 0 && a->tags >= 3 && a->frames > 0;
+  return argc % 2 == 1 && a->width > 0 && a->height > 0 && a->tags >= 3 && a->frames > 0 &&
+         a->survey_mm >= 0.0;
 }
 
 }  // namespace
@@ -109,7 +113,10 @@ int main(int argc, char** argv) {
       const Vec2 p = desk::test::on_plane(cam, u, v, agv.tray_height_mm);
       const double heading = (uni(rng) * 360.0 - 180.0) * kDeg;
       scene.agvs.push_back({{p.x, p.y, heading}, 0.0, 0.0});
-      survey[agv.tag_id] = {agv.tag_id, p.x, p.y, agv.tray_height_mm, heading, a.tag_mm};
+      std::normal_distribution<double> unit(0.0, 1.0);
+      const auto off = [&] { return a.survey_mm * unit(rng); };
+      survey[agv.tag_id] = {agv.tag_id,         p.x + off(), p.y + off(),
+                            agv.tray_height_mm + off(), heading, a.tag_mm};
     }
     scene.floor.amplitude = 30.0;
     std::vector<desk::ccal::TagSighting> sightings;

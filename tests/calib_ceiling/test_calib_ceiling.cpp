@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -104,6 +105,38 @@ TEST(CalibCeiling, SolvesThePoseAndItsSigmaCoversTheError) {
               r.eval.max_floor_mm);
   EXPECT_LT(r.eval.rms_px, 0.2);
   EXPECT_LT(r.eval.max_floor_mm, 1.5);
+}
+
+// A survey off by millimetres moves all of a tag's corners alike, in every frame: the sigmas come
+// from the residuals' spread between tags (not between corners) and cover the pose's error; a
+// sideways shift and a tilt of a camera looking down come out strongly correlated.
+TEST(CalibCeiling, SurveyErrorIsCoveredAndShiftAndTiltCorrelate) {
+  const World& w = world();
+  const auto sightings = all_sightings(w);
+  const ccal::Result clean = ccal::solve_camera_pose(intrinsics(), survey_of(w), sightings);
+  auto survey = survey_of(w);
+  std::mt19937 rng(3);
+  std::normal_distribution<double> n(0.0, 3.0);
+  for (auto& [id, t] : survey) {
+    t.x_mm += n(rng);
+    t.y_mm += n(rng);
+    t.z_mm += n(rng);
+  }
+  const ccal::Result off = ccal::solve_camera_pose(intrinsics(), survey, sightings);
+  ASSERT_EQ(off.error, ccal::Error::kNone) << off.message;
+  const PoseError e = pose_error(off.pose, true_pose());
+  for (std::size_t i = 0; i < 6; ++i) {
+    std::printf("parameter %zu: error %+.5f sigma %.5f (clean survey %.5f)\n", i, e.d[i],
+                off.sigma[i], clean.sigma[i]);
+    EXPECT_LE(std::abs(e.d[i]), 3.0 * off.sigma[i]) << i;
+  }
+  EXPECT_GT(off.sigma[0], 2.0 * clean.sigma[0]);
+  EXPECT_GT(off.sigma[1], 2.0 * clean.sigma[1]);
+  // (x, roll), (x, pitch), (y, roll), (y, pitch) in pose_correlation's order.
+  double strongest = 0.0;
+  for (std::size_t k : {2u, 3u, 6u, 7u}) strongest = std::max(strongest, std::abs(off.correlation[k]));
+  EXPECT_GT(strongest, 0.5);
+  for (double r : off.correlation) EXPECT_LE(std::abs(r), 1.0);
 }
 
 TEST(CalibCeiling, RecoversFromAStartOff50MmAndOneDegree) {

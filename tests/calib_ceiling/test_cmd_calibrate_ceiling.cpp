@@ -2,6 +2,8 @@
 // whose pose is 30 mm off fails the check, the calibration writes a pose that passes it, and
 // every named error with its exit code.
 #include <gtest/gtest.h>
+
+#include <algorithm>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -123,6 +125,10 @@ TEST_F(CalibrateCeilingCommand, CheckFailsOff30MmAndPassesAfterTheCalibrationWri
   // The pose's sigma goes with it, for the overhead tracker's fixes.
   for (double s : back.cameras[0].position_sigma_mm) EXPECT_GT(s, 0.0);
   for (double s : back.cameras[0].angle_sigma_rad) EXPECT_GT(s, 0.0);
+  // And their correlation (a shift and a tilt of a camera looking down go together).
+  double strongest = 0.0;
+  for (double c : back.cameras[0].pose_correlation) strongest = std::max(strongest, std::abs(c));
+  EXPECT_GT(strongest, 0.5);
   EXPECT_LT(back.cameras[0].position_sigma_mm[0], 5.0);
 
   r = run(calibrate_ceiling_check, args("ceiling-check", site, at("frames"), at("survey.csv")));

@@ -226,6 +226,66 @@ TEST(TagFixGeometry, CalibrationSigmaCoversCameraPoseErrors) {
   EXPECT_LT(nees, 3.5);
 }
 
+// A calibration from tags on about one plane leaves a sideways shift and a tilt of the camera
+// strongly correlated, and their effects on the plane cancel: with the correlation the fix's
+// covariance is the error the correlated pose errors cause (NEES about 2: two error sources),
+// without it overstated.
+TEST(TagFixGeometry, CorrelatedCalibrationSigmaIsTheFloorError) {
+  const site::CeilingCamera truth = test::ceiling_camera(40.0);
+  const Pose2 pose{1200.0, -700.0, 0.7};
+  const std::array<Vec2, 4> corners = projected_corners(truth, pose);
+  const auto trace = [](const TagFix& f) { return f.cov_camera[0] + f.cov_camera[4]; };
+  // The tilt (roll or pitch, by the camera's yaw) that moves the fix along x, and the sign of
+  // its correlation with x that cancels: about 3 mm each on the plane.
+  int angle = -1;
+  double rho = 0.0, best = 1e9;
+  for (int a : {0, 1}) {
+    site::CeilingCamera stated = truth;
+    stated.position_sigma_mm = {3.0, 0.0, 0.0};
+    stated.angle_sigma_rad[static_cast<std::size_t>(a)] = 5e-4;
+    TagFix independent;
+    ASSERT_TRUE(tag_fix_on_plane(stated, corners, 0.0, kTrayMm, kTagMm, &independent));
+    for (double r : {0.98, -0.98}) {
+      stated.pose_correlation[static_cast<std::size_t>(2 + a)] = r;  // (x, roll) or (x, pitch)
+      TagFix f;
+      ASSERT_TRUE(tag_fix_on_plane(stated, corners, 0.0, kTrayMm, kTagMm, &f));
+      const double ratio = trace(f) / trace(independent);
+      if (ratio < best) best = ratio, angle = a, rho = r;
+    }
+  }
+  EXPECT_LT(best, 0.3);  // with the correlation ignored, overstated over 3 times
+  site::CeilingCamera stated = truth;
+  stated.position_sigma_mm = {3.0, 0.0, 0.0};
+  stated.angle_sigma_rad[static_cast<std::size_t>(angle)] = 5e-4;
+  stated.pose_correlation[static_cast<std::size_t>(2 + angle)] = rho;
+  std::mt19937 rng(7);
+  std::normal_distribution<double> n(0.0, 1.0);
+  double yaw = 0, pitch = 0, roll = 0;
+  site::camera_angles_from_rotation(truth.r_site_cam, &yaw, &pitch, &roll);
+  const int trials = 400;
+  double nees = 0.0;
+  for (int t = 0; t < trials; ++t) {
+    const double a = n(rng), b = n(rng);
+    const double tilt = 5e-4 * (rho * a + std::sqrt(1.0 - rho * rho) * b);
+    site::CeilingCamera believed = stated;
+    believed.t_site_cam_mm[0] += 3.0 * a;
+    believed.r_site_cam = site::camera_rotation_from_angles(yaw, pitch + (angle == 1 ? tilt : 0.0),
+                                                            roll + (angle == 0 ? tilt : 0.0));
+    TagFix f;
+    ASSERT_TRUE(tag_fix_on_plane(believed, corners, 0.0, kTrayMm, kTagMm, &f));
+    const Eigen::Vector3d e(f.pose.x_mm - pose.x_mm, f.pose.y_mm - pose.y_mm,
+                            std::remainder(f.pose.theta_rad - pose.theta_rad, 2 * kPi));
+    const Eigen::Matrix3d c =
+        Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(f.cov.data());
+    nees += e.dot(c.ldlt().solve(e));
+  }
+  nees /= trials;
+  std::printf("tilt %d, correlation %+.2f: covariance %.2f of the independent one's; NEES %.2f "
+              "(2 if honest)\n", angle, rho, best, nees);
+  EXPECT_GT(nees, 1.5);
+  EXPECT_LT(nees, 2.6);
+}
+
 // A tag on a tray plane raised by dz and sloped by (gx, gy) about its centre, by the renderer's
 // projection.
 std::array<Vec2, 4> sloped_corners(const site::CeilingCamera& cam, Pose2 p, double gx, double gy,

@@ -100,6 +100,8 @@ TEST(SiteFile, WriteThenParseGivesTheSameSite) {
   a.site.cameras[1].r_site_cam = camera_rotation_from_angles(0.3, 0.2, -0.1);
   a.site.cameras[1].position_sigma_mm = {0.38, 0.55, 0.1};
   a.site.cameras[1].angle_sigma_rad = {8e-5, 1.3e-4, 2e-5};
+  a.site.cameras[1].pose_correlation[3] = -0.912345678901;  // x with pitch
+  a.site.cameras[1].pose_correlation[7] = 0.1 + 0.2;        // y with pitch
   ASSERT_FALSE(a.site.fleet.empty());
   a.site.fleet[0].tray_roll_rad = 0.0123;
   a.site.fleet[0].tray_pitch_rad = -0.0071;
@@ -153,6 +155,7 @@ TEST(SiteFile, WriteThenParseGivesTheSameSite) {
     EXPECT_EQ(d.r_site_cam, c.r_site_cam);  // the matrix is written, exactly
     EXPECT_EQ(d.t_site_cam_mm, c.t_site_cam_mm);
     EXPECT_EQ(d.position_sigma_mm, c.position_sigma_mm);
+    EXPECT_EQ(d.pose_correlation, c.pose_correlation);
     for (std::size_t k = 0; k < 3; ++k) {
       EXPECT_NEAR(d.angle_sigma_rad[k], c.angle_sigma_rad[k], 1e-18);  // written in degrees
     }
@@ -437,6 +440,30 @@ TEST(SiteFile, CameraChecks) {
   EXPECT_TRUE(has_error(negative, "cameras[0].pose_sigma.yaw_deg", 7, "outside")) << negative.all;
   const Result unknown = parse(kHead + "cameras:\n" + kCamera + "    pose_sigma: {yaw_rad: 0.1}\n");
   EXPECT_TRUE(has_error(unknown, "cameras[0].pose_sigma.yaw_rad", 7, "unknown key")) << unknown.all;
+  // Their correlation: 15 coefficients that make a correlation matrix, else a named error.
+  const std::string zeros13 = "0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0";
+  const Result rho = parse(kHead + "cameras:\n" + kCamera +
+                           "    pose_sigma: {x_mm: 1, pitch_deg: 0.01, correlation: [0, 0, 0, -0.9, " +
+                           zeros13.substr(6) + "]}\n");
+  ASSERT_TRUE(rho.ok) << rho.all;
+  EXPECT_EQ(pose_correlation_at(rho.site.cameras[0], 0, 3), 0.0);
+  EXPECT_EQ(pose_correlation_at(rho.site.cameras[0], 4, 0), -0.9);
+  EXPECT_EQ(pose_correlation_at(rho.site.cameras[0], 2, 2), 1.0);
+  const Result short_list =
+      parse(kHead + "cameras:\n" + kCamera + "    pose_sigma: {correlation: [0.5, 0.1]}\n");
+  EXPECT_TRUE(has_error(short_list, "cameras[0].pose_sigma.correlation", 7, "15 numbers"))
+      << short_list.all;
+  // x~y 0.9, x~z 0.9, y~z -0.9: no such three variables.
+  const Result not_psd =
+      parse(kHead + "cameras:\n" + kCamera + "    pose_sigma: {correlation: [0.9, 0.9, 0, 0, 0, -0.9, " +
+            zeros13.substr(12) + "]}\n");
+  EXPECT_TRUE(has_error(not_psd, "cameras[0].pose_sigma.correlation", 7, "not a correlation"))
+      << not_psd.all;
+  const Result beyond =
+      parse(kHead + "cameras:\n" + kCamera + "    pose_sigma: {correlation: [1.5, " + zeros13 +
+            ", 0]}\n");
+  EXPECT_TRUE(has_error(beyond, "cameras[0].pose_sigma.correlation[0]", 7, "outside"))
+      << beyond.all;
 }
 
 TEST(SiteFile, FleetChecks) {

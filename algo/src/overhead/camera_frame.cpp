@@ -190,6 +190,7 @@ void CameraFrameProcessor::handle_tag(const TagObservation& obs, SearchLevel lev
     d.has_fix = tag_fix_on_tray(cameras_[w->camera], obs.corners_px, obs.corner_sigma_px, agv,
                                 tray_plane_, &d.fix);
     if (d.has_fix) {
+      d.fix.source = static_cast<std::int32_t>(w->camera);
       w->tag_pose[d.agv] = d.fix.pose;
       w->has_tag_pose[d.agv] = 1;
       d.result = w->tracker->add_fix(d.agv, w->t_ns, d.fix);
@@ -227,6 +228,7 @@ void CameraFrameProcessor::fit_covered_trays(const cv::Mat& gray, FrameWork* w) 
       ++counters_.tray_refused_by[static_cast<std::size_t>(tray.refusal)];
       continue;
     }
+    tray.fix.source = static_cast<std::int32_t>(w->camera);
     if (w->tracker->add_fix(i, w->t_ns, tray.fix) == FixResult::kApplied) {
       ++counters_.tray_fixes;
     } else {

@@ -133,6 +133,7 @@ void CameraFrameProcessor::restart_from_box(const cv::Mat& gray, const Reacquire
       fit_tray(gray, cameras_[w->camera], fleet_[v.agv], fix.pose, fix.cov, tray_, &refined)) {
     fix = refined.fix;
   }
+  fix.source = static_cast<std::int32_t>(w->camera);
   if (w->tracker->add_fix(v.agv, w->t_ns, fix) == FixResult::kStarted) {
     ++counters_.reacquired;
     r.have_box = false;

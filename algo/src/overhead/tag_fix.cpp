@@ -152,23 +152,31 @@ site::CeilingCamera moved(const site::CeilingCamera& cam, int param, double delt
   return out;
 }
 
-// Adds var J J^T to *cov, J the central difference in (x, y, theta) of the squares fitted to the
-// corners moved by +step (xp) and -step (xm).
+// The central difference in (x, y, theta) of the squares fitted to the corners moved by +step
+// (xp) and -step (xm).
+std::array<double, 3> central_difference(const std::array<Vec2, 4>& xp,
+                                         const std::array<Vec2, 4>& xm, double h, double step) {
+  const PlaneSquare a = fit_square(xp, h), b = fit_square(xm, h);
+  return {(a.c.x - b.c.x) / (2.0 * step), (a.c.y - b.c.y) / (2.0 * step),
+          std::remainder(a.theta - b.theta, 2.0 * kPi) / (2.0 * step)};
+}
+
+// Adds var J J^T to *cov, J the central difference above.
 void add_central_difference(const std::array<Vec2, 4>& xp, const std::array<Vec2, 4>& xm, double h,
                             double step, double var, std::array<double, 9>* cov) {
-  const PlaneSquare a = fit_square(xp, h), b = fit_square(xm, h);
-  const double j[3] = {(a.c.x - b.c.x) / (2.0 * step), (a.c.y - b.c.y) / (2.0 * step),
-                       std::remainder(a.theta - b.theta, 2.0 * kPi) / (2.0 * step)};
-  for (int r = 0; r < 3; ++r) {
-    for (int c = 0; c < 3; ++c) (*cov)[static_cast<std::size_t>(r * 3 + c)] += var * j[r] * j[c];
+  const std::array<double, 3> j = central_difference(xp, xm, h, step);
+  for (std::size_t r = 0; r < 3; ++r) {
+    for (std::size_t c = 0; c < 3; ++c) (*cov)[r * 3 + c] += var * j[r] * j[c];
   }
 }
 
-// J diag(sigma^2) J^T of the camera's pose sigma (x, y, theta): a calibration error
-// moves every fix of the camera alike, so a fix is no surer than the pose it is cast through.
+// J S J^T of the camera's pose covariance S (its sigmas and their correlation), in (x, y, theta):
+// a calibration error moves every fix of the camera alike, so a fix is no surer than the pose it
+// is cast through.
 bool pose_covariance(const site::CeilingCamera& cam, const std::array<Vec2, 4>& rays,
                      double plane_height_mm, double h, std::array<double, 9>* cov) {
   cov->fill(0.0);
+  std::array<std::array<double, 3>, 6> j{};  // per parameter: d(x, y, theta) * its sigma
   for (int p = 0; p < 6; ++p) {
     const std::size_t i = static_cast<std::size_t>(p % 3);
     const double sigma = p < 3 ? cam.position_sigma_mm[i] : cam.angle_sigma_rad[i];
@@ -179,7 +187,25 @@ bool pose_covariance(const site::CeilingCamera& cam, const std::array<Vec2, 4>& 
         !rays_on_plane(moved(cam, p, -step), rays, plane_height_mm, &xm)) {
       return false;
     }
-    add_central_difference(xp, xm, h, step, sigma * sigma, cov);
+    j[static_cast<std::size_t>(p)] = central_difference(xp, xm, h, step);
+    for (double& v : j[static_cast<std::size_t>(p)]) v *= sigma;
+  }
+  for (int p = 0; p < 6; ++p) {
+    for (int q = 0; q < 6; ++q) {
+      const double rho = site::pose_correlation_at(cam, p, q);
+      if (rho == 0.0) continue;
+      const auto& a = j[static_cast<std::size_t>(p)];
+      const auto& b = j[static_cast<std::size_t>(q)];
+      for (std::size_t r = 0; r < 3; ++r) {
+        for (std::size_t c = 0; c < 3; ++c) (*cov)[r * 3 + c] += rho * a[r] * b[c];
+      }
+    }
+  }
+  // Symmetric to the last bit, whatever the order of the sums.
+  for (std::size_t r = 0; r < 3; ++r) {
+    for (std::size_t c = r + 1; c < 3; ++c) {
+      (*cov)[r * 3 + c] = (*cov)[c * 3 + r] = 0.5 * ((*cov)[r * 3 + c] + (*cov)[c * 3 + r]);
+    }
   }
   return true;
 }

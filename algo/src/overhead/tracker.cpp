@@ -207,7 +207,7 @@ std::size_t insert_and_replay(TrackCore* tr, std::size_t k, const TrackEntry& e,
     TrackEntry& cur = tr->at(j);
     cur.belief = tracker_detail::update(
         prior_for(prev.belief, seconds(diff_ns(cur.t_ns, prev.t_ns)), prev.fix.bias, cur.fix, q),
-        cur.fix);
+        cur.fix, prev.fix);
   }
   return tr->count - 1 - k;
 }
@@ -296,11 +296,13 @@ FixResult FleetTracker::add_fix(std::size_t agv, std::int64_t t_ns, const TagFix
   std::size_t k = 0;
   td::Belief prior;
   td::Mat3 prior_bias = td::Mat3::Zero();
+  td::Measurement prior_fix = m;  // the fix the prior came from
   bool restart = tr.state == TrackState::kNone || tr.state == TrackState::kLost || tr.count == 0;
   if (!restart) {
     k = td::insertion_index(tr, t_ns);
     if (k == tr.count) {
       prior_bias = tr.newest().fix.bias;
+      prior_fix = tr.newest().fix;
       if (!td::route_belief_at(tr, t_ns, p_, models.steady, &prior)) {
         prior = td::prior_for(tr.newest().belief, td::seconds(td::diff_ns(t_ns, tr.newest().t_ns)),
                               prior_bias, m, models);
@@ -315,6 +317,7 @@ FixResult FleetTracker::add_fix(std::size_t agv, std::int64_t t_ns, const TagFix
     } else {
       const td::TrackEntry& before = tr.at(k - 1);
       prior_bias = before.fix.bias;
+      prior_fix = before.fix;
       prior = td::prior_for(before.belief, td::seconds(td::diff_ns(t_ns, before.t_ns)), prior_bias,
                             m, models);
     }
@@ -332,7 +335,7 @@ FixResult FleetTracker::add_fix(std::size_t agv, std::int64_t t_ns, const TagFix
     ++counters_.gated;
     return FixResult::kGated;
   }
-  if (td::insert_and_replay(&tr, k, {t_ns, td::update(prior, m), m}, models) > 0) {
+  if (td::insert_and_replay(&tr, k, {t_ns, td::update(prior, m, prior_fix), m}, models) > 0) {
     ++counters_.replays;
   }
   ++counters_.applied;

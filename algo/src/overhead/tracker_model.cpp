@@ -92,6 +92,7 @@ bool make_measurement(const TagFix& fix, Measurement* out) {
   const Eigen::LLT<Mat3> llt(m);
   if (llt.info() != Eigen::Success) return false;
   out->z << fix.pose.x_mm, fix.pose.y_mm, wrap_angle_rad(fix.pose.theta_rad);
+  out->source = fix.source;
   out->r = m;
   out->bias.setZero();
   Mat3 c;
@@ -128,6 +129,13 @@ double heading_distance2(const Belief& b, const Mat3& track_bias, const Measurem
   const double s = b.p(2, 2) + track_bias(2, 2) + m.r(2, 2) + m.bias(2, 2);
   const double y = wrap_angle_rad(m.z(2) - b.x(2));
   return y * y / s;
+}
+
+Belief update(const Belief& b, const Measurement& m, const Measurement& prior_fix) {
+  if (m.source < 0 || prior_fix.source < 0 || m.source == prior_fix.source) return update(b, m);
+  Measurement across = m;
+  across.r += m.bias + prior_fix.bias;
+  return update(b, across);
 }
 
 Belief update(const Belief& b, const Measurement& m) {

@@ -3,6 +3,8 @@
 // every covariance entry is in millimetres and radians; the public outputs convert to m/s.
 #pragma once
 
+#include <cstdint>
+
 #include <Eigen/Core>
 
 #include "agv/overhead/tag_fix.hpp"
@@ -39,6 +41,7 @@ struct Measurement {
   Vec3 z = Vec3::Zero();
   Mat3 r = Mat3::Identity();
   Mat3 bias = Mat3::Zero();
+  std::int32_t source = -1;  // TagFix::source
 };
 
 // False when the pose is not finite or the covariance is not finite, symmetric and positive
@@ -55,6 +58,10 @@ double heading_distance2(const Belief& b, const Mat3& track_bias, const Measurem
 
 // Eq. 17-19 with the covariance in Joseph form (stays symmetric positive definite).
 Belief update(const Belief& b, const Measurement& m);
+// The same for a prior that came from the fix prior_fix: a fix of another camera than that one
+// also carries both cameras' biases (their difference is a jump no motion explains; taken as
+// noise, a vehicle seen alternately by two cameras is not given a speed by it).
+Belief update(const Belief& b, const Measurement& m, const Measurement& prior_fix);
 
 // A new track's belief: the fix's pose and covariance, at rest with the given sigmas.
 Belief start(const Measurement& m, double speed_sigma_mmps, double turn_sigma_radps);

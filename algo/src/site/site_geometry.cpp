@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include "agv/common/camera_model.hpp"
 
@@ -165,6 +166,13 @@ bool sight_line_blocked(const std::array<double, 3>& from_mm, const std::array<d
     }
   }
   return false;
+}
+
+double pose_correlation_at(const CeilingCamera& cam, int p, int q) {
+  if (p == q) return 1.0;
+  if (p > q) std::swap(p, q);
+  if (p < 0 || q > 5) return 0.0;
+  return cam.pose_correlation[static_cast<std::size_t>(p * 6 - p * (p + 1) / 2 + (q - p - 1))];
 }
 
 }  // namespace agv::site

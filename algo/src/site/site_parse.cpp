@@ -1,8 +1,11 @@
 // The site file's reader: YAML -> Site with every key typed and range-checked (schema:
 // docs/guide/site.md). The semantic checks follow in site_check.cpp.
+#include <array>
 #include <cmath>
 #include <exception>
 #include <utility>
+
+#include <Eigen/Eigenvalues>
 
 #include "agv/site/site_file.hpp"
 #include "agv/site/site_geometry.hpp"
@@ -169,11 +172,42 @@ void read_camera_pose(ReadContext* c, const YAML::Node& n, const std::string& pa
   cam->r_site_cam = m;
 }
 
-// pose_sigma: the calibration's 1-sigma per pose parameter, each optional (default 0).
+// pose_sigma.correlation: 15 coefficients in [-1, 1] that make a correlation matrix (positive
+// semi-definite, to the digits a writer keeps).
+void read_pose_correlation(ReadContext* c, const YAML::Node& n, const std::string& path,
+                           CeilingCamera* cam) {
+  if (!n.IsSequence() || n.size() != 15) {
+    c->errors->add(path, line_of(n), "expected 15 numbers (the upper triangle, row by row)");
+    return;
+  }
+  std::array<double, 15> r{};
+  bool ok = true;
+  for (std::size_t i = 0; i < 15; ++i) {
+    ok &= read_number(c, n[i], path + "[" + std::to_string(i) + "]", -1.0, 1.0, &r[i]);
+  }
+  if (!ok) return;
+  CeilingCamera probe;
+  probe.pose_correlation = r;
+  Eigen::Matrix<double, 6, 6> m;
+  for (int p = 0; p < 6; ++p) {
+    for (int q = 0; q < 6; ++q) m(p, q) = pose_correlation_at(probe, p, q);
+  }
+  if (Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>>(m).eigenvalues().minCoeff() <
+      -1e-6) {
+    c->errors->add(path, line_of(n), "not a correlation matrix (not positive semi-definite)");
+    return;
+  }
+  cam->pose_correlation = r;
+}
+
+// pose_sigma: the calibration's 1-sigma per pose parameter, each optional (default 0), and their
+// correlation (optional, default independent).
 void read_camera_pose_sigma(ReadContext* c, const YAML::Node& n, const std::string& path,
                             CeilingCamera* cam) {
-  Fields f(c, n, path, {"x_mm", "y_mm", "z_mm", "roll_deg", "pitch_deg", "yaw_deg"});
+  Fields f(c, n, path,
+           {"x_mm", "y_mm", "z_mm", "roll_deg", "pitch_deg", "yaw_deg", "correlation"});
   if (!f.is_map()) return;
+  if (f.has("correlation")) read_pose_correlation(c, f.get("correlation"), f.path("correlation"), cam);
   const char* mm[3] = {"x_mm", "y_mm", "z_mm"};
   const char* deg[3] = {"roll_deg", "pitch_deg", "yaw_deg"};
   for (std::size_t i = 0; i < 3; ++i) {

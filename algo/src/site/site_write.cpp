@@ -1,6 +1,7 @@
 // Writing a site as site-file YAML (the inverse of site_parse.cpp), and the warnings of a valid
 // site. Numbers are written with the fewest digits that read back to the same double, so a
 // written site reads back equal (angles: to the last bit or two of the degree conversion).
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -80,8 +81,14 @@ void write_camera(std::ostringstream& os, const CeilingCamera& c) {
   if (ps[0] > 0 || ps[1] > 0 || ps[2] > 0 || as[0] > 0 || as[1] > 0 || as[2] > 0) {
     os << "    pose_sigma: {x_mm: " << fmt_number(ps[0]) << ", y_mm: " << fmt_number(ps[1])
        << ", z_mm: " << fmt_number(ps[2]) << ", roll_deg: " << fmt_number(deg(as[0]))
-       << ", pitch_deg: " << fmt_number(deg(as[1])) << ", yaw_deg: " << fmt_number(deg(as[2]))
-       << "}\n";
+       << ", pitch_deg: " << fmt_number(deg(as[1])) << ", yaw_deg: " << fmt_number(deg(as[2]));
+    const auto& rho = c.pose_correlation;
+    if (std::any_of(rho.begin(), rho.end(), [](double v) { return v != 0.0; })) {
+      os << ", correlation: [";
+      for (std::size_t i = 0; i < rho.size(); ++i) os << (i ? ", " : "") << fmt_number(rho[i]);
+      os << "]";
+    }
+    os << "}\n";
   }
 }
 

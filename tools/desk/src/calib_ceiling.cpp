@@ -356,15 +356,65 @@ struct CornerCost {
   Vec2 obs_;
 };
 
-// Robust refinement from *q; the sigmas from the covariance scaled by the residual variance.
+// Variance of each parameter (x, y, z, yaw, pitch, roll) with the residuals taken as independent
+// between tags only (the cluster-robust estimate by the linearised jackknife over tags, CR3,
+// which stays on the safe side with a dozen tags where the plain sandwich does not): a tag's
+// corners share its survey error, and its sightings in several frames share that and the
+// detector's bias, so counting every corner as independent overstates what the data know. False
+// where it cannot be formed (fewer than two tags, a singular normal matrix).
+using Mat6 = Eigen::Matrix<double, 6, 6>;
+bool tag_clustered_covariance(const ceres::CRSMatrix& jac, const std::vector<double>& r,
+                              const std::vector<std::uint32_t>& row_tag, Mat6* out) {
+  const int n = jac.num_rows;
+  if (jac.num_cols != 6 || n != static_cast<int>(r.size()) || n != static_cast<int>(row_tag.size()) ||
+      n <= 6) {
+    return false;
+  }
+  Eigen::MatrixXd j = Eigen::MatrixXd::Zero(n, 6);
+  for (int row = 0; row < n; ++row) {
+    for (int e = jac.rows[static_cast<std::size_t>(row)]; e < jac.rows[static_cast<std::size_t>(row) + 1]; ++e) {
+      j(row, jac.cols[static_cast<std::size_t>(e)]) = jac.values[static_cast<std::size_t>(e)];
+    }
+  }
+  const Eigen::Matrix<double, 6, 6> a = j.transpose() * j;
+  const Eigen::FullPivLU<Eigen::Matrix<double, 6, 6>> lu(a);
+  if (lu.rank() < 6) return false;
+  struct Tag {
+    Eigen::Matrix<double, 6, 6> info = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 6, 1> score = Eigen::Matrix<double, 6, 1>::Zero();
+  };
+  std::map<std::uint32_t, Tag> tags;
+  for (int row = 0; row < n; ++row) {
+    Tag& t = tags[row_tag[static_cast<std::size_t>(row)]];
+    t.info += j.row(row).transpose() * j.row(row);
+    t.score += j.row(row).transpose() * r[static_cast<std::size_t>(row)];
+  }
+  const double g = static_cast<double>(tags.size());
+  if (g < 2) return false;
+  // The pose's shift when one tag is left out: (A - A_g)^-1 J_g^T r_g.
+  Eigen::Matrix<double, 6, 6> c = Eigen::Matrix<double, 6, 6>::Zero();
+  for (const auto& [id, t] : tags) {
+    const Eigen::FullPivLU<Eigen::Matrix<double, 6, 6>> without(a - t.info);
+    if (without.rank() < 6) return false;
+    const Eigen::Matrix<double, 6, 1> d = without.solve(t.score);
+    c += d * d.transpose();
+  }
+  *out = c * ((g - 1.0) / g);
+  return true;
+}
+
+// Robust refinement from *q; the sigmas from the covariance scaled by the residual variance, or
+// from the residuals' spread between tags where that is larger (tag_clustered_variance).
 bool refine(const CameraIntrinsics& k, const std::map<std::uint32_t, SurveyedTag>& survey,
             const std::vector<const TagSighting*>& used, const Options& opt, double q[6],
             Result* res) {
   ceres::Problem problem;
   std::vector<ceres::ResidualBlockId> blocks;
+  std::vector<std::uint32_t> row_tag;  // per residual row
   for (const TagSighting* s : used) {
     const auto corners = tag_corners_site(survey.at(s->id));
     for (int c = 0; c < 4; ++c) {
+      row_tag.insert(row_tag.end(), 2, s->id);
       blocks.push_back(
           problem.AddResidualBlock(new ceres::AutoDiffCostFunction<CornerCost, 2, 6>(
                                        new CornerCost(k, corners[c], s->corners_px[c])),
@@ -389,7 +439,10 @@ bool refine(const CameraIntrinsics& k, const std::map<std::uint32_t, SurveyedTag
   eo.residual_blocks = blocks;
   std::vector<double> r;
   double cost = 0.0;
-  problem.Evaluate(eo, &cost, &r, nullptr, nullptr);
+  ceres::CRSMatrix jac;
+  problem.Evaluate(eo, &cost, &r, nullptr, &jac);
+  Mat6 clustered;
+  const bool clustered_ok = tag_clustered_covariance(jac, r, row_tag, &clustered);
   double ss = 0.0;
   for (double v : r) ss += v * v;
   const double dof = static_cast<double>(r.size()) - 6.0;
@@ -402,12 +455,28 @@ bool refine(const CameraIntrinsics& k, const std::map<std::uint32_t, SurveyedTag
   double c[36];
   const std::vector<std::pair<const double*, const double*>> want = {{q, q}};
   const bool cov_ok = cov.Compute(want, &problem) && cov.GetCovarianceBlock(q, q, c);
+  if (!cov_ok) {
+    res->sigma.fill(std::numeric_limits<double>::quiet_NaN());
+    return true;
+  }
+  // Each sigma the larger of the two estimates; the correlations those of the one between tags
+  // where it could be formed.
+  const Mat6 iid = Eigen::Map<const Eigen::Matrix<double, 6, 6, Eigen::RowMajor>>(c) * var;
+  const Mat6& shape = clustered_ok ? clustered : iid;
   // Result order: x, y, z, roll, pitch, yaw; parameter order x, y, z, yaw, pitch, roll.
   const int order[6] = {0, 1, 2, 5, 4, 3};
   for (int i = 0; i < 6; ++i) {
     const int p = order[i];
-    res->sigma[static_cast<std::size_t>(i)] = cov_ok ? std::sqrt(std::max(c[p * 6 + p], 0.0) * var)
-                                                     : std::numeric_limits<double>::quiet_NaN();
+    const double v = std::max(iid(p, p), clustered_ok ? clustered(p, p) : 0.0);
+    res->sigma[static_cast<std::size_t>(i)] = std::sqrt(std::max(v, 0.0));
+  }
+  std::size_t at = 0;
+  for (int i = 0; i < 6; ++i) {
+    for (int j = i + 1; j < 6; ++j, ++at) {
+      const int a = order[i], b = order[j];
+      const double d = std::sqrt(shape(a, a) * shape(b, b));
+      res->correlation[at] = d > 0.0 ? std::clamp(shape(a, b) / d, -1.0, 1.0) : 0.0;
+    }
   }
   return true;
 }

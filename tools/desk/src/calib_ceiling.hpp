@@ -124,8 +124,11 @@ struct Result {
   std::string message;  // why, for a failure
   CameraPose pose;
   // 1-sigma of x, y, z (mm) and roll, pitch, yaw (rad): the Ceres covariance scaled by the
-  // corner residuals' variance. NaN when the covariance is singular.
+  // corner residuals' variance, or from the residuals' spread between tags where that is larger
+  // (a survey error is common to a tag's corners). NaN when the covariance is singular.
   std::array<double, 6> sigma{};
+  // Their correlation coefficients in site::CeilingCamera::pose_correlation's order.
+  std::array<double, 15> correlation{};
   double residual_sigma_px = 0.0;  // per coordinate, from the residuals
   int tags_used = 0;
   int corners_used = 0;

@@ -207,6 +207,7 @@ bool write_pose(const std::string& path, site::Site site, std::size_t camera, co
     }
     (angle ? cam.angle_sigma_rad[i - 3] : cam.position_sigma_mm[i]) = r.sigma[i];
   }
+  cam.pose_correlation = r.correlation;
   const std::string tmp = path + ".tmp";
   {
     std::ofstream f(tmp, std::ios::binary | std::ios::trunc);

@@ -20,6 +20,9 @@
 #include <vector>
 
 #include "agv/overhead/camera_frame.hpp"
+#if AGV_EVAL_CALIBRATE
+#include "calibrate.hpp"
+#endif
 #include "metrics.hpp"
 #include "trace.hpp"
 #include "world.hpp"
@@ -36,6 +39,10 @@ struct Options {
   // The pose sigma per parameter the tracker is told (the site file's pose_sigma); < 0: that
   // of the error, error / sqrt(3) per axis (a random direction of that length).
   double calib_sigma_mm = -1.0, calib_sigma_deg = -1.0;
+  // --calibrate-tags N: the cameras as this project's calibration solves them from N surveyed
+  // tags each (calibrate.hpp), the survey off by --survey-error-mm; replaces the two above.
+  int calibrate_tags = 0;
+  double survey_error_mm = 0.0;
   // The trays' departure from level the tracker is told (TrayPlaneSigma): 0 = level trays.
   double tray_tilt_sigma_deg = 0.0, tray_height_sigma_mm = 0.0;
   // --tray-tilt-surveyed: the tracker's fleet has every tray's true tilt (a surveyed site file).
@@ -62,7 +69,7 @@ const char* kUsage =
     "  [--cameras 1|4] [--site-mm L] [--agvs N] [--duration-s S] [--fps F] [--output-hz F]\n"
     "  [--seed S] [--parcels FRACTION] [--load-from-s S] [--cover-tags] [--clutter N]\n"
     "  [--calib-error-mm E] [--calib-error-deg E]\n"
-    "  [--calib-sigma-mm S] [--calib-sigma-deg S]\n"
+    "  [--calib-sigma-mm S] [--calib-sigma-deg S] [--calibrate-tags N] [--survey-error-mm S]\n"
     "  [--tray-tilt-deg D] [--tray-height-error-mm E] [--tray-tilt-sigma-deg S]\n"
     "  [--tray-height-sigma-mm S] [--tray-tilt-surveyed]\n"
     "  [--bit-errors N] [--bit-errors-from-s S] [--latency-ms L] [--latency-spread-ms L]\n"
@@ -84,6 +91,7 @@ bool parse(int argc, char** argv, Options* o, std::string* error) {
                                      {"--calib-error-deg", &o->calib_error_deg},
                                      {"--calib-sigma-mm", &o->calib_sigma_mm},
                                      {"--calib-sigma-deg", &o->calib_sigma_deg},
+                                     {"--survey-error-mm", &o->survey_error_mm},
                                      {"--tray-tilt-deg", &o->world.tray_tilt_deg},
                                      {"--tray-height-error-mm", &o->world.tray_height_error_mm},
                                      {"--tray-tilt-sigma-deg", &o->tray_tilt_sigma_deg},
@@ -98,6 +106,7 @@ bool parse(int argc, char** argv, Options* o, std::string* error) {
                                    {"--agvs", &o->world.agvs},
                                    {"--clutter", &o->world.clutter},
                                    {"--bit-errors", &o->bit_errors},
+                                   {"--calibrate-tags", &o->calibrate_tags},
                                    {"--apriltag-every", &o->apriltag_every},
                                    {"--full-sweep-every", &o->full_sweep_every},
                                    {"--sweep-max-pixels", &o->sweep_max_pixels},
@@ -159,7 +168,9 @@ bool parse(int argc, char** argv, Options* o, std::string* error) {
       o->sweep_max_pixels < 0 || o->max_decimation < 1 || o->max_decimation > 8 ||
       !(w.tray_tilt_deg >= 0 && w.tray_tilt_deg < 30) || !(w.tray_height_error_mm >= 0) ||
       !(o->tray_tilt_sigma_deg >= 0 && o->tray_tilt_sigma_deg < 30) ||
-      !(o->tray_height_sigma_mm >= 0)) {
+      !(o->tray_height_sigma_mm >= 0) ||
+      (o->calibrate_tags != 0 && (o->calibrate_tags < 3 || o->calibrate_tags > 100)) ||
+      !(o->survey_error_mm >= 0 && o->survey_error_mm < 1000)) {
     return *error = "an option is out of range", false;
   }
   return true;
@@ -272,6 +283,21 @@ void print_counters(const agv::overhead::FrameCounters& fc,
       static_cast<unsigned long long>(tc.applied), static_cast<unsigned long long>(tc.started),
       static_cast<unsigned long long>(tc.gated), static_cast<unsigned long long>(tc.too_old),
       static_cast<unsigned long long>(tc.replays), static_cast<unsigned long long>(tc.lost));
+}
+
+// The cameras as this project's calibration solves them (calibrate.hpp); false with *error.
+bool calibrated_cameras(const Options& o, const agv::site::Site& site,
+                        std::vector<agv::site::CeilingCamera>* out, std::string* error) {
+#if AGV_EVAL_CALIBRATE
+  agv::eval::CalibrationSetup setup;
+  setup.tags = o.calibrate_tags;
+  setup.survey_error_mm = o.survey_error_mm;
+  setup.seed = o.world.seed * 131;
+  return agv::eval::calibrated_cameras(site, setup, out, error);
+#else
+  (void)o, (void)site, (void)out;
+  return *error = "--calibrate-tags: this build has no desk library (agv_desk)", false;
+#endif
 }
 
 // The tracker's idea of the cameras: the rendered ones moved by the calibration error, with
@@ -445,7 +471,15 @@ int run(const Options& o) {
   const agv::CameraIntrinsics& k = site.cameras[0].intrinsics;
   print_header(o, site);
   std::mt19937_64 rng(o.world.seed * 7919 + 3);
-  const std::vector<agv::site::CeilingCamera> believed = believed_cameras(o, site, &rng);
+  std::vector<agv::site::CeilingCamera> believed;
+  if (o.calibrate_tags > 0) {
+    if (!calibrated_cameras(o, site, &believed, &error)) {
+      std::fprintf(stderr, "eval_overhead: %s\n", error.c_str());
+      return 2;
+    }
+  } else {
+    believed = believed_cameras(o, site, &rng);
+  }
   agv::overhead::SearchParams sp;
   sp.full_sweep_every_frames = o.full_sweep_every;
   sp.sweep_max_pixels = o.sweep_max_pixels;

@@ -10,6 +10,7 @@
 #pragma once
 
 #include <array>
+#include <cstdint>
 
 #include "agv/common/geometry.hpp"
 #include "agv/site/site.hpp"
@@ -26,6 +27,9 @@ struct TagFix {
   std::array<double, 9> cov_camera{};
   double size_error_rel = 0.0;  // fitted side / tag_size_mm - 1 (calibration or height error)
   double residual_mm = 0.0;     // RMS distance of the four corners from the fitted square
+  // The camera (its index) that made the fix: fixes of one camera share its bias, fixes of two
+  // differ by both biases (FleetTracker). -1: unknown, taken as the previous fix's camera.
+  std::int32_t source = -1;
 };
 
 // How far a real tray's top departs from the level plane at its nominal height that the fix

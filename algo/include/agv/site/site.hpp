@@ -60,7 +60,15 @@ struct CeilingCamera {
   // Zero: the pose is taken as exact. The overhead tracker adds it to every fix's covariance.
   std::array<double, 3> position_sigma_mm{0, 0, 0};
   std::array<double, 3> angle_sigma_rad{0, 0, 0};  // roll, pitch, yaw
+  // Correlation coefficients between those six (x, y, z, roll, pitch, yaw), the upper triangle row
+  // by row: (x,y), (x,z), (x,roll), (x,pitch), (x,yaw), (y,z), ..., (pitch,yaw). Tags seen on
+  // about one plane hardly tell a sideways shift from a tilt, and the two cancel where the tags
+  // lie: without the correlation the pose's error on the floor is overstated. All 0: independent.
+  std::array<double, 15> pose_correlation{};
 };
+
+// pose_correlation's entry for parameters p and q (0..5, the order above); 1 for p == q.
+double pose_correlation_at(const CeilingCamera& cam, int p, int q);
 
 // One vehicle of the fleet. Tray: a horizontal rectangle centred on the vehicle's reference
 // point at tray_height_mm, carrying a tag36h11 (tag_id) of tag_size_mm centred on it, the tag's
