@@ -115,8 +115,8 @@ int main(int argc, char** argv) {
       scene.agvs.push_back({{p.x, p.y, heading}, 0.0, 0.0});
       std::normal_distribution<double> unit(0.0, 1.0);
       const auto off = [&] { return a.survey_mm * unit(rng); };
-      survey[agv.tag_id] = {agv.tag_id,         p.x + off(), p.y + off(),
-                            agv.tray_height_mm + off(), heading, a.tag_mm};
+      survey[agv.tag_id] = {agv.tag_id, p.x + off(), p.y + off(), agv.tray_height_mm + off(),
+                            heading,    a.tag_mm};
     }
     scene.floor.amplitude = 30.0;
     std::vector<desk::ccal::TagSighting> sightings;

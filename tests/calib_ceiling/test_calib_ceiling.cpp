@@ -134,7 +134,8 @@ TEST(CalibCeiling, SurveyErrorIsCoveredAndShiftAndTiltCorrelate) {
   EXPECT_GT(off.sigma[1], 2.0 * clean.sigma[1]);
   // (x, roll), (x, pitch), (y, roll), (y, pitch) in pose_correlation's order.
   double strongest = 0.0;
-  for (std::size_t k : {2u, 3u, 6u, 7u}) strongest = std::max(strongest, std::abs(off.correlation[k]));
+  for (std::size_t k : {2u, 3u, 6u, 7u})
+    strongest = std::max(strongest, std::abs(off.correlation[k]));
   EXPECT_GT(strongest, 0.5);
   for (double r : off.correlation) EXPECT_LE(std::abs(r), 1.0);
 }

@@ -2,11 +2,10 @@
 // whose pose is 30 mm off fails the check, the calibration writes a pose that passes it, and
 // every named error with its exit code.
 #include <gtest/gtest.h>
-
-#include <algorithm>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <string>

@@ -314,11 +314,11 @@ TEST(CameraFrame, AnAreaAlreadyReadOrSearchedIsSkipped) {
     sim::SiteScene scene;
     scene.site.fleet = fleet;
     for (const Pose2& p : poses) scene.agvs.push_back({p, 0.0, 0.0});
-    const cv::Mat img =
-        render ? sim::SiteFrameRenderer(cam.intrinsics)
-                     .render(scene, sim::RenderCamera::from_ceiling(cam), sim::SiteRenderParams{}, 3)
-                     .image
-               : blank;
+    const cv::Mat img = render ? sim::SiteFrameRenderer(cam.intrinsics)
+                                     .render(scene, sim::RenderCamera::from_ceiling(cam),
+                                             sim::SiteRenderParams{}, 3)
+                                     .image
+                               : blank;
     const FrameCounters before = proc.counters();
     std::vector<Detection> dets;
     EXPECT_TRUE(proc.process(0, 50'000'000, img, &tracker, &dets, &error)) << error;

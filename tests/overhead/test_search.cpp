@@ -474,7 +474,8 @@ TEST(OverheadSearch, LargeAreasAndLostSearchesAreAStripAFrame) {
   EXPECT_EQ(covered, whole_area);
   EXPECT_EQ(area_after(4, SearchParams{}), parts[0]);  // and round again
   // Any tag in the area lies wholly in one part: neighbours overlap by its largest extent.
-  std::sort(parts.begin(), parts.end(), [](const cv::Rect& a, const cv::Rect& b) { return a.y < b.y; });
+  std::sort(parts.begin(), parts.end(),
+            [](const cv::Rect& a, const cv::Rect& b) { return a.y < b.y; });
   for (std::size_t i = 1; i < parts.size(); ++i) {
     EXPECT_GT(parts[i - 1].y + parts[i - 1].height - parts[i].y, sizes.max_extent_px) << i;
   }

@@ -280,8 +280,10 @@ TEST(TagFixGeometry, CorrelatedCalibrationSigmaIsTheFloorError) {
     nees += e.dot(c.ldlt().solve(e));
   }
   nees /= trials;
-  std::printf("tilt %d, correlation %+.2f: covariance %.2f of the independent one's; NEES %.2f "
-              "(2 if honest)\n", angle, rho, best, nees);
+  std::printf(
+      "tilt %d, correlation %+.2f: covariance %.2f of the independent one's; NEES %.2f "
+      "(2 if honest)\n",
+      angle, rho, best, nees);
   EXPECT_GT(nees, 1.5);
   EXPECT_LT(nees, 2.6);
 }

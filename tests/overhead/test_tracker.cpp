@@ -210,8 +210,8 @@ TEST(OverheadTracker, TwoCamerasBiasesAreNoMotion) {
       const int cam = k % 2;
       const double t_s = 0.05 * k;
       const Pose2 truth{2000.0, 1000.0, wrap_angle_rad(0.3 - 0.8 * t_s)};
-      TagFix f = noisy_fix({truth.x_mm + (cam == 0 ? 1.5 : -1.5), truth.y_mm, truth.theta_rad},
-                           0.3, 0.0005, &rng);
+      TagFix f = noisy_fix({truth.x_mm + (cam == 0 ? 1.5 : -1.5), truth.y_mm, truth.theta_rad}, 0.3,
+                           0.0005, &rng);
       for (std::size_t i = 0; i < 9; ++i) f.cov[i] += c[i];
       f.cov_camera = c;
       f.source = sources_known ? cam : -1;

@@ -442,9 +442,10 @@ TEST(SiteFile, CameraChecks) {
   EXPECT_TRUE(has_error(unknown, "cameras[0].pose_sigma.yaw_rad", 7, "unknown key")) << unknown.all;
   // Their correlation: 15 coefficients that make a correlation matrix, else a named error.
   const std::string zeros13 = "0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0";
-  const Result rho = parse(kHead + "cameras:\n" + kCamera +
-                           "    pose_sigma: {x_mm: 1, pitch_deg: 0.01, correlation: [0, 0, 0, -0.9, " +
-                           zeros13.substr(6) + "]}\n");
+  const Result rho =
+      parse(kHead + "cameras:\n" + kCamera +
+            "    pose_sigma: {x_mm: 1, pitch_deg: 0.01, correlation: [0, 0, 0, -0.9, " +
+            zeros13.substr(6) + "]}\n");
   ASSERT_TRUE(rho.ok) << rho.all;
   EXPECT_EQ(pose_correlation_at(rho.site.cameras[0], 0, 3), 0.0);
   EXPECT_EQ(pose_correlation_at(rho.site.cameras[0], 4, 0), -0.9);
@@ -454,14 +455,13 @@ TEST(SiteFile, CameraChecks) {
   EXPECT_TRUE(has_error(short_list, "cameras[0].pose_sigma.correlation", 7, "15 numbers"))
       << short_list.all;
   // x~y 0.9, x~z 0.9, y~z -0.9: no such three variables.
-  const Result not_psd =
-      parse(kHead + "cameras:\n" + kCamera + "    pose_sigma: {correlation: [0.9, 0.9, 0, 0, 0, -0.9, " +
-            zeros13.substr(12) + "]}\n");
+  const Result not_psd = parse(kHead + "cameras:\n" + kCamera +
+                               "    pose_sigma: {correlation: [0.9, 0.9, 0, 0, 0, -0.9, " +
+                               zeros13.substr(12) + "]}\n");
   EXPECT_TRUE(has_error(not_psd, "cameras[0].pose_sigma.correlation", 7, "not a correlation"))
       << not_psd.all;
-  const Result beyond =
-      parse(kHead + "cameras:\n" + kCamera + "    pose_sigma: {correlation: [1.5, " + zeros13 +
-            ", 0]}\n");
+  const Result beyond = parse(kHead + "cameras:\n" + kCamera +
+                              "    pose_sigma: {correlation: [1.5, " + zeros13 + ", 0]}\n");
   EXPECT_TRUE(has_error(beyond, "cameras[0].pose_sigma.correlation[0]", 7, "outside"))
       << beyond.all;
 }

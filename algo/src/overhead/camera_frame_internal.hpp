@@ -2,11 +2,10 @@
 #pragma once
 
 #include <cstdint>
-#include <utility>
-#include <unordered_set>
-#include <vector>
-
 #include <opencv2/core/types.hpp>
+#include <unordered_set>
+#include <utility>
+#include <vector>
 
 #include "agv/overhead/camera_frame.hpp"
 

@@ -195,8 +195,8 @@ cv::Rect area_strip(const cv::Rect& area, Vec2 centre_px, int decimation, int mi
                     double overlap_px, const SearchParams& sp, const cv::Rect& image) {
   const int n = strips_for(pixels_of(area, decimation), sp);
   if (n <= 1) return area;
-  const int per_image = std::max(n, static_cast<int>(std::ceil(
-                                        static_cast<double>(n) * image.height / area.height)));
+  const int per_image =
+      std::max(n, static_cast<int>(std::ceil(static_cast<double>(n) * image.height / area.height)));
   const int home = strip_of_row(centre_px.y, per_image, image);
   std::vector<cv::Rect> parts;
   for (int d = 0; d < per_image; ++d) {

@@ -3,9 +3,8 @@
 // every covariance entry is in millimetres and radians; the public outputs convert to m/s.
 #pragma once
 
-#include <cstdint>
-
 #include <Eigen/Core>
+#include <cstdint>
 
 #include "agv/overhead/tag_fix.hpp"
 

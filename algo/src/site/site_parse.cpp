@@ -1,11 +1,10 @@
 // The site file's reader: YAML -> Site with every key typed and range-checked (schema:
 // docs/guide/site.md). The semantic checks follow in site_check.cpp.
+#include <Eigen/Eigenvalues>
 #include <array>
 #include <cmath>
 #include <exception>
 #include <utility>
-
-#include <Eigen/Eigenvalues>
 
 #include "agv/site/site_file.hpp"
 #include "agv/site/site_geometry.hpp"
@@ -204,10 +203,10 @@ void read_pose_correlation(ReadContext* c, const YAML::Node& n, const std::strin
 // correlation (optional, default independent).
 void read_camera_pose_sigma(ReadContext* c, const YAML::Node& n, const std::string& path,
                             CeilingCamera* cam) {
-  Fields f(c, n, path,
-           {"x_mm", "y_mm", "z_mm", "roll_deg", "pitch_deg", "yaw_deg", "correlation"});
+  Fields f(c, n, path, {"x_mm", "y_mm", "z_mm", "roll_deg", "pitch_deg", "yaw_deg", "correlation"});
   if (!f.is_map()) return;
-  if (f.has("correlation")) read_pose_correlation(c, f.get("correlation"), f.path("correlation"), cam);
+  if (f.has("correlation"))
+    read_pose_correlation(c, f.get("correlation"), f.path("correlation"), cam);
   const char* mm[3] = {"x_mm", "y_mm", "z_mm"};
   const char* deg[3] = {"roll_deg", "pitch_deg", "yaw_deg"};
   for (std::size_t i = 0; i < 3; ++i) {

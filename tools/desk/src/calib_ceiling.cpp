@@ -366,13 +366,14 @@ using Mat6 = Eigen::Matrix<double, 6, 6>;
 bool tag_clustered_covariance(const ceres::CRSMatrix& jac, const std::vector<double>& r,
                               const std::vector<std::uint32_t>& row_tag, Mat6* out) {
   const int n = jac.num_rows;
-  if (jac.num_cols != 6 || n != static_cast<int>(r.size()) || n != static_cast<int>(row_tag.size()) ||
-      n <= 6) {
+  if (jac.num_cols != 6 || n != static_cast<int>(r.size()) ||
+      n != static_cast<int>(row_tag.size()) || n <= 6) {
     return false;
   }
   Eigen::MatrixXd j = Eigen::MatrixXd::Zero(n, 6);
   for (int row = 0; row < n; ++row) {
-    for (int e = jac.rows[static_cast<std::size_t>(row)]; e < jac.rows[static_cast<std::size_t>(row) + 1]; ++e) {
+    for (int e = jac.rows[static_cast<std::size_t>(row)];
+         e < jac.rows[static_cast<std::size_t>(row) + 1]; ++e) {
       j(row, jac.cols[static_cast<std::size_t>(e)]) = jac.values[static_cast<std::size_t>(e)];
     }
   }
@@ -404,7 +405,7 @@ bool tag_clustered_covariance(const ceres::CRSMatrix& jac, const std::vector<dou
 }
 
 // Robust refinement from *q; the sigmas from the covariance scaled by the residual variance, or
-// from the residuals' spread between tags where that is larger (tag_clustered_variance).
+// from the residuals' spread between tags where that is larger (tag_clustered_covariance).
 bool refine(const CameraIntrinsics& k, const std::map<std::uint32_t, SurveyedTag>& survey,
             const std::vector<const TagSighting*>& used, const Options& opt, double q[6],
             Result* res) {

@@ -75,8 +75,8 @@ bool calibrated_camera(const site::CeilingCamera& truth, const CalibrationSetup&
   std::vector<ccal::TagSighting> sightings;
   for (int f = 0; f < setup.frames; ++f) {
     const sim::RenderResult r =
-        renderer.render(scene, sim::RenderCamera::from_ceiling(truth),
-                        sim::realistic_site_params(), setup.seed * 1000u + static_cast<unsigned>(f));
+        renderer.render(scene, sim::RenderCamera::from_ceiling(truth), sim::realistic_site_params(),
+                        setup.seed * 1000u + static_cast<unsigned>(f));
     const auto s = ccal::detect_tags(r.image, f);
     sightings.insert(sightings.end(), s.begin(), s.end());
   }

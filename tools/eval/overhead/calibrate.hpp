@@ -14,10 +14,10 @@
 namespace agv::eval {
 
 struct CalibrationSetup {
-  int tags = 0;                 // surveyed tags per camera (>= 3)
-  int frames = 2;               // rendered frames of them per camera
-  double tag_mm = 160.0;        // black square's side
-  double survey_error_mm = 0.0; // sigma of each surveyed coordinate (x, y and z), Gaussian
+  int tags = 0;                  // surveyed tags per camera (>= 3)
+  int frames = 2;                // rendered frames of them per camera
+  double tag_mm = 160.0;         // black square's side
+  double survey_error_mm = 0.0;  // sigma of each surveyed coordinate (x, y and z), Gaussian
   std::uint64_t seed = 1;
 };
 
