@@ -9,8 +9,9 @@
 //   bench_overhead_latency --broker-port 18830 [--seconds 20] [--fps 30] [--rate-hz 30]
 //                          [--camera-latency-ms 0] [--scale 1] [--max-decimation 4]
 //                          [--sweep-max-pixels P] [--absent N]  (N more vehicles in the fleet, in
-//                          no camera's view: the
-//                                         whole-image sweeps that look for them)
+//                          no camera's view: the whole-image sweeps that look for them)
+//                          [--vehicles N]  (N vehicles at rest in view, a grid of 5 columns;
+//                          2: the test site's own two)
 #include <time.h>
 
 #include <algorithm>
@@ -96,7 +97,8 @@ int main(int argc, char** argv) {
   std::map<std::string, double> o{
       {"--seconds", 20},          {"--fps", 30},        {"--rate-hz", 30},
       {"--camera-latency-ms", 0}, {"--broker-port", 0}, {"--scale", 1},
-      {"--max-decimation", 4},    {"--absent", 0},      {"--sweep-max-pixels", 2.5e6}};
+      {"--max-decimation", 4},    {"--absent", 0},      {"--sweep-max-pixels", 2.5e6},
+      {"--vehicles", 2}};
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!o.count(argv[i])) {
       std::fprintf(stderr, "bench_overhead_latency: unknown option %s\n", argv[i]);
@@ -104,11 +106,12 @@ int main(int argc, char** argv) {
     }
     o[argv[i]] = std::atof(argv[i + 1]);
   }
-  if (o["--broker-port"] <= 0 || o["--fps"] <= 0 || o["--seconds"] <= 0 || o["--scale"] < 1) {
+  if (o["--broker-port"] <= 0 || o["--fps"] <= 0 || o["--seconds"] <= 0 || o["--scale"] < 1 ||
+      o["--vehicles"] < 1 || o["--vehicles"] > 40) {
     std::fprintf(stderr,
                  "usage: bench_overhead_latency --broker-port P [--seconds S] [--fps F] "
                  "[--rate-hz R] [--camera-latency-ms L] [--scale N] [--max-decimation D] "
-                 "[--sweep-max-pixels P] [--absent N]\n");
+                 "[--sweep-max-pixels P] [--absent N] [--vehicles N]\n");
     return 2;
   }
   site::Site s;
@@ -120,8 +123,25 @@ int main(int argc, char** argv) {
   // --scale N: every camera N times larger in pixels (the same view), for heavier frames.
   const int scale = static_cast<int>(o["--scale"]);
   for (site::CeilingCamera& c : s.cameras) overhead::test::scale_camera(&c, scale);
-  const std::vector<sim::AgvState> agvs = {{{1350.0, 1250.0, 0.3}, 0.0, 0.0},
-                                           {{3600.0, 1000.0, -1.0}, 0.0, 0.0}};
+  std::vector<sim::AgvState> agvs = {{{1350.0, 1250.0, 0.3}, 0.0, 0.0},
+                                     {{3600.0, 1000.0, -1.0}, 0.0, 0.0}};
+  const int vehicles = static_cast<int>(o["--vehicles"]);
+  if (vehicles != 2) {
+    // A grid of 5 columns 1 m apart and rows 0.6 m apart over the 5 x 2.4 m floor (trays 500 x
+    // 400 mm: they do not touch), each vehicle turned its own way.
+    agvs.clear();
+    const site::FleetAgv first = s.fleet.front();
+    s.fleet.clear();
+    const int rows = (vehicles + 4) / 5;
+    for (int i = 0; i < vehicles; ++i) {
+      const double y = 2400.0 * (i / 5 + 0.5) / rows;
+      agvs.push_back({{500.0 + 1000.0 * (i % 5), y, -3.0 + 0.29 * i}, 0.0, 0.0});
+      site::FleetAgv a = first;
+      a.id = "agv-" + std::to_string(i + 1);
+      a.tag_id = static_cast<std::uint32_t>(30 + i);
+      s.fleet.push_back(a);
+    }
+  }
   OverheadConfig cfg;
   cfg.output_rate_hz = o["--rate-hz"];
   cfg.search.max_decimation = static_cast<int>(o["--max-decimation"]);
@@ -178,11 +198,11 @@ int main(int argc, char** argv) {
   const std::vector<std::int64_t> steady(lat.begin() + static_cast<std::ptrdiff_t>(skip),
                                          lat.end());
   std::printf(
-      "bench_overhead_latency: %zu cameras %dx%d at %.0f fps, publishing at %.0f Hz to "
+      "bench_overhead_latency: %zu vehicles, %zu cameras %dx%d at %.0f fps, publishing at %.0f Hz to "
       "127.0.0.1:%d, camera latency %.1f ms, %.0f s: %zu frames measured (%llu dropped behind, "
       "%llu ticks, %llu skipped)\n"
       "exposure -> publish: p50 %.2f ms, p90 %.2f ms, p99 %.2f ms, max %.2f ms\n",
-      cams.size(), s.cameras[0].intrinsics.width_px, s.cameras[0].intrinsics.height_px, o["--fps"],
+      agvs.size(), cams.size(), s.cameras[0].intrinsics.width_px, s.cameras[0].intrinsics.height_px, o["--fps"],
       o["--rate-hz"], cfg.mqtt.port, o["--camera-latency-ms"], o["--seconds"], steady.size(),
       static_cast<unsigned long long>(n.frames_dropped), static_cast<unsigned long long>(n.ticks),
       static_cast<unsigned long long>(n.ticks_skipped), percentile_ms(steady, 0.5),

@@ -104,6 +104,31 @@ TEST(CalibIntrinsics, CharucoMildBlurAndNoiseRejectsTheBlurredViewsByName) {
   EXPECT_NE(report.find("rejected: blurred"), std::string::npos) << report;
 }
 
+// A board that is not flat (the calibration takes it flat) leaves its mark in the residual and
+// in the lens: what a real print on foam board does that the flat simulated one does not.
+TEST(CalibIntrinsics, ABowedBoardRaisesTheResidual) {
+  if (!have_charuco()) GTEST_SKIP() << "built without OpenCV aruco";
+  SimBoardSet set = default_sim_board_set();
+  set.blurred = 0;
+  set.views = 15;
+  set.seed = 3;
+  const SimRun flat = simulate_and_calibrate(BoardSpec{}, set);
+  set.bow_mm = 0.3;  // of a 110 x 80 mm board
+  const SimRun bowed = simulate_and_calibrate(BoardSpec{}, set);
+  ASSERT_TRUE(flat.result.ok) << flat.result.error;
+  ASSERT_TRUE(bowed.result.ok) << bowed.result.error;
+  double moved = 0.0;
+  for (std::size_t i = 0; i < flat.sim.size(); ++i) {
+    moved = std::max(moved, cv::norm(flat.sim[i].image, bowed.sim[i].image, cv::NORM_INF));
+  }
+  const auto& f = flat.result.intrinsics;
+  const auto& b = bowed.result.intrinsics;
+  std::printf("flat: RMS %.4f px, fx %.3f k1 %.5f; bowed 0.3 mm: RMS %.4f px, fx %.3f k1 %.5f\n",
+              flat.result.rms_px, f.fx, f.k1, bowed.result.rms_px, b.fx, b.k1);
+  EXPECT_GT(moved, 50.0);  // edges moved: the bow is rendered
+  EXPECT_GT(bowed.result.rms_px, 2.0 * flat.result.rms_px);
+}
+
 TEST(CalibIntrinsics, ChessboardThirtyCleanViewsMeetTheTargets) {
   BoardSpec spec;
   spec.type = BoardType::kChessboard;

@@ -2,10 +2,12 @@
 // seven fleet vehicles standing still (their tray tags are the surveyed tags), two frames.
 #pragma once
 
+#include <cmath>
 #include <map>
 #include <vector>
 
 #include "agv/sim/site_render.hpp"
+#include "agv/site/site_geometry.hpp"
 #include "calib_ceiling.hpp"
 
 namespace agv::desk::test {
@@ -13,15 +15,11 @@ namespace agv::desk::test {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kDeg = kPi / 180.0;
 
-// Where the ray through the undistorted pixel (u, v) of `cam` meets the plane z = z_mm.
+// Where the ray through pixel (u, v) of `cam` meets the plane z = z_mm; NaN when it does not.
 inline Vec2 on_plane(const site::CeilingCamera& cam, double u, double v, double z_mm) {
-  const auto& k = cam.intrinsics;
-  const double n[3] = {(u - k.cx) / k.fx, (v - k.cy) / k.fy, 1.0};
-  const auto& r = cam.r_site_cam;
-  double d[3];
-  for (int i = 0; i < 3; ++i) d[i] = r[3 * i] * n[0] + r[3 * i + 1] * n[1] + r[3 * i + 2] * n[2];
-  const double s = (z_mm - cam.t_site_cam_mm[2]) / d[2];
-  return {cam.t_site_cam_mm[0] + s * d[0], cam.t_site_cam_mm[1] + s * d[1]};
+  Vec2 p{std::nan(""), std::nan("")};
+  site::camera_pixel_to_plane(cam, {u, v}, z_mm, &p);
+  return p;
 }
 
 ccal::CameraPose true_pose();

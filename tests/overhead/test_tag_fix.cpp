@@ -180,6 +180,18 @@ TEST(TagFixGeometry, EdgeOffsetFloorGivesPositionNotHeading) {
   EXPECT_LT(std::sqrt(fix.cov[8]), 1e-3 * std::sqrt(fix.cov[0]) / kTagMm);
 }
 
+// The fix's NEES (x, y, theta) through a camera believed where it is not; NaN without a fix.
+double fix_nees(const site::CeilingCamera& believed, const std::array<Vec2, 4>& corners,
+                const Pose2& pose) {
+  TagFix f;
+  if (!tag_fix_on_plane(believed, corners, 0.0, kTrayMm, kTagMm, &f)) return std::nan("");
+  const Eigen::Vector3d e(f.pose.x_mm - pose.x_mm, f.pose.y_mm - pose.y_mm,
+                          std::remainder(f.pose.theta_rad - pose.theta_rad, 2 * kPi));
+  const Eigen::Matrix3d c =
+      Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(f.cov.data());
+  return e.dot(c.ldlt().solve(e));
+}
+
 // The camera's calibrated pose sigma in the fix covariance: fixes cast through cameras moved by
 // errors drawn from that sigma scatter as the covariance says (NEES of x, y, theta about 3).
 TEST(TagFixGeometry, CalibrationSigmaCoversCameraPoseErrors) {
@@ -213,13 +225,7 @@ TEST(TagFixGeometry, CalibrationSigmaCoversCameraPoseErrors) {
     believed.r_site_cam = site::camera_rotation_from_angles(
         yaw + stated.angle_sigma_rad[2] * n(rng), pitch + stated.angle_sigma_rad[1] * n(rng),
         roll + stated.angle_sigma_rad[0] * n(rng));
-    TagFix f;
-    ASSERT_TRUE(tag_fix_on_plane(believed, corners, 0.0, kTrayMm, kTagMm, &f));
-    const Eigen::Vector3d e(f.pose.x_mm - pose.x_mm, f.pose.y_mm - pose.y_mm,
-                            std::remainder(f.pose.theta_rad - pose.theta_rad, 2 * kPi));
-    const Eigen::Matrix3d c =
-        Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(f.cov.data());
-    nees += e.dot(c.ldlt().solve(e));
+    nees += fix_nees(believed, corners, pose);
   }
   nees /= trials;
   EXPECT_GT(nees, 2.5);
@@ -271,13 +277,7 @@ TEST(TagFixGeometry, CorrelatedCalibrationSigmaIsTheFloorError) {
     believed.t_site_cam_mm[0] += 3.0 * a;
     believed.r_site_cam = site::camera_rotation_from_angles(yaw, pitch + (angle == 1 ? tilt : 0.0),
                                                             roll + (angle == 0 ? tilt : 0.0));
-    TagFix f;
-    ASSERT_TRUE(tag_fix_on_plane(believed, corners, 0.0, kTrayMm, kTagMm, &f));
-    const Eigen::Vector3d e(f.pose.x_mm - pose.x_mm, f.pose.y_mm - pose.y_mm,
-                            std::remainder(f.pose.theta_rad - pose.theta_rad, 2 * kPi));
-    const Eigen::Matrix3d c =
-        Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(f.cov.data());
-    nees += e.dot(c.ldlt().solve(e));
+    nees += fix_nees(believed, corners, pose);
   }
   nees /= trials;
   std::printf(

@@ -73,6 +73,14 @@ cv::Matx33d rot_z(double a) {
   return {c, -s, 0, s, c, 0, 0, 0, 1};
 }
 
+// Height of a board bowed by bow_mm at its centre over its corners (a paraboloid of revolution).
+double bow_at(const CalibBoard& board, double bow_mm, Vec2 p) {
+  const Vec2 lo = board.paper_min(), hi = board.paper_max();
+  const double cx = 0.5 * (lo.x + hi.x), cy = 0.5 * (lo.y + hi.y);
+  const double r2 = 0.25 * ((hi.x - lo.x) * (hi.x - lo.x) + (hi.y - lo.y) * (hi.y - lo.y));
+  return bow_mm * (1.0 - ((p.x - cx) * (p.x - cx) + (p.y - cy) * (p.y - cy)) / r2);
+}
+
 }  // namespace
 
 PageInk CalibBoard::at(Vec2 p) const { return BoardInk(*this).at(p); }
@@ -136,9 +144,15 @@ cv::Mat render_board_view(const CalibBoard& board, const CameraIntrinsics& intri
       const cv::Vec3d d(xn.x, xn.y, 1.0);
       const double nd = n.dot(d);
       if (std::abs(nd) < 1e-12) continue;
-      const double lambda = nt / nd;
+      double lambda = nt / nd;
+      cv::Vec3d xb = rt * (lambda * d - pose.t);
+      // A bowed board: the ray meets the surface z = bow(x, y) in the board frame; the bow is
+      // under a millimetre, so a few fixed-point steps from the plane converge.
+      for (int it = 0; it < 3 && o.bow_mm != 0.0; ++it) {
+        lambda = (nt + bow_at(board, o.bow_mm, {xb[0], xb[1]})) / nd;
+        xb = rt * (lambda * d - pose.t);
+      }
       if (!(lambda > 0.0)) continue;
-      const cv::Vec3d xb = rt * (lambda * d - pose.t);
       const size_t k = static_cast<size_t>(y) * gw + static_cast<size_t>(x);
       grid[k] = {xb[0], xb[1]};
       valid[k] = 1;

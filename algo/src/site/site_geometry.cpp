@@ -85,16 +85,20 @@ bool pixel_ray(const CeilingCamera& cam, Vec2 pixel, std::array<double, 3>* d) {
 }  // namespace
 }  // namespace detail
 
-bool camera_pixel_to_floor(const CeilingCamera& cam, Vec2 pixel, Vec2* floor_mm) {
+bool camera_pixel_to_plane(const CeilingCamera& cam, Vec2 pixel, double z_mm, Vec2* at_mm) {
   std::array<double, 3> d{};
   if (!detail::pixel_ray(cam, pixel, &d)) return false;
   const double n = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-  const double z = cam.t_site_cam_mm[2];
-  // A ray within ~0.06 deg of the horizon meets the floor kilometres away: not a view of it.
-  if (!(z > 0.0) || !(d[2] < -1e-3 * n)) return false;
-  const double t = -z / d[2];
-  *floor_mm = {cam.t_site_cam_mm[0] + t * d[0], cam.t_site_cam_mm[1] + t * d[1]};
-  return std::isfinite(floor_mm->x) && std::isfinite(floor_mm->y);
+  const double dz = z_mm - cam.t_site_cam_mm[2];
+  // A ray within ~0.06 deg of the horizon meets the plane kilometres away: not a view of it.
+  if (!(dz < 0.0) || !(d[2] < -1e-3 * n)) return false;
+  const double t = dz / d[2];
+  *at_mm = {cam.t_site_cam_mm[0] + t * d[0], cam.t_site_cam_mm[1] + t * d[1]};
+  return std::isfinite(at_mm->x) && std::isfinite(at_mm->y);
+}
+
+bool camera_pixel_to_floor(const CeilingCamera& cam, Vec2 pixel, Vec2* floor_mm) {
+  return camera_pixel_to_plane(cam, pixel, 0.0, floor_mm);
 }
 
 std::vector<Vec2> camera_floor_footprint(const CeilingCamera& cam, int samples_per_edge,

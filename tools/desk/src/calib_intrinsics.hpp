@@ -138,6 +138,7 @@ struct SimBoardSet {
   double blurred_sigma_px = 3.0;  // their Gaussian blur
   double blur_sigma_px = 0.5;     // mild blur of the normal views
   double noise_sigma = 1.0;       // sensor noise, 8-bit units
+  double bow_mm = 0.0;            // the board's bow at its centre (sim::BoardImageOptions)
   double max_tilt_deg = 35.0;
   double margin_mm = -1.0;  // paper margin; < 0: one square (chessboard), half (ChArUco)
   std::uint64_t seed = 1;

@@ -66,6 +66,7 @@ bool simulate_board_views(const BoardSpec& spec, const SimBoardSet& set, std::ve
     sim::BoardImageOptions io;
     io.blur_sigma_px = v.blurred ? set.blurred_sigma_px : set.blur_sigma_px;
     io.noise_sigma = set.noise_sigma;
+    io.bow_mm = set.bow_mm;
     io.seed = set.seed * 100003u + static_cast<std::uint64_t>(k);
     v.image = sim::render_board_view(board, set.camera, poses[static_cast<size_t>(k)], io);
     if (v.image.empty()) {

@@ -18,12 +18,20 @@ struct CalibrationSetup {
   int frames = 2;                // rendered frames of them per camera
   double tag_mm = 160.0;         // black square's side
   double survey_error_mm = 0.0;  // sigma of each surveyed coordinate (x, y and z), Gaussian
+  // > 0: the lens too is calibrated (agvloc-desk calibrate intrinsics) from this many rendered
+  // views of a ChArUco board through the true lens, as on a bench before mounting, and the pose
+  // is solved with it; 0: the true lens.
+  int board_views = 0;
+  // The board's bow at its centre (sim::BoardImageOptions::bow_mm): 0.5 mm on its 660 x 480 mm,
+  // a print glued on foam board; the calibration takes it flat, as the command does.
+  double board_bow_mm = 0.5;
   std::uint64_t seed = 1;
 };
 
 // The camera as the calibration solves it from frames rendered through `truth`, with the solved
-// pose's sigmas in position_sigma_mm and angle_sigma_rad. False with *error when the solve fails.
-// *report: one line, the solve's residuals and its error against the truth.
+// pose's sigmas in position_sigma_mm and angle_sigma_rad, and the calibrated lens when
+// setup.board_views > 0. False with *error when a solve fails. *report: the solves' residuals
+// and their errors against the truth.
 bool calibrated_camera(const site::CeilingCamera& truth, const CalibrationSetup& setup,
                        site::CeilingCamera* out, std::string* report, std::string* error);
 

@@ -40,9 +40,9 @@ struct Options {
   // of the error, error / sqrt(3) per axis (a random direction of that length).
   double calib_sigma_mm = -1.0, calib_sigma_deg = -1.0;
   // --calibrate-tags N: the cameras as this project's calibration solves them from N surveyed
-  // tags each (calibrate.hpp), the survey off by --survey-error-mm; replaces the two above.
-  int calibrate_tags = 0;
-  double survey_error_mm = 0.0;
+  // tags each (calibrate.hpp), the survey off by --survey-error-mm, the lens from --board-views
+  // rendered board views (0: the true lens); replaces the two above.
+  agv::eval::CalibrationSetup calib;
   // The trays' departure from level the tracker is told (TrayPlaneSigma): 0 = level trays.
   double tray_tilt_sigma_deg = 0.0, tray_height_sigma_mm = 0.0;
   // --tray-tilt-surveyed: the tracker's fleet has every tray's true tilt (a surveyed site file).
@@ -70,6 +70,7 @@ const char* kUsage =
     "  [--seed S] [--parcels FRACTION] [--load-from-s S] [--cover-tags] [--clutter N]\n"
     "  [--calib-error-mm E] [--calib-error-deg E]\n"
     "  [--calib-sigma-mm S] [--calib-sigma-deg S] [--calibrate-tags N] [--survey-error-mm S]\n"
+    "  [--board-views N] [--board-bow-mm B]\n"
     "  [--tray-tilt-deg D] [--tray-height-error-mm E] [--tray-tilt-sigma-deg S]\n"
     "  [--tray-height-sigma-mm S] [--tray-tilt-surveyed]\n"
     "  [--bit-errors N] [--bit-errors-from-s S] [--latency-ms L] [--latency-spread-ms L]\n"
@@ -91,7 +92,8 @@ bool parse(int argc, char** argv, Options* o, std::string* error) {
                                      {"--calib-error-deg", &o->calib_error_deg},
                                      {"--calib-sigma-mm", &o->calib_sigma_mm},
                                      {"--calib-sigma-deg", &o->calib_sigma_deg},
-                                     {"--survey-error-mm", &o->survey_error_mm},
+                                     {"--survey-error-mm", &o->calib.survey_error_mm},
+                                     {"--board-bow-mm", &o->calib.board_bow_mm},
                                      {"--tray-tilt-deg", &o->world.tray_tilt_deg},
                                      {"--tray-height-error-mm", &o->world.tray_height_error_mm},
                                      {"--tray-tilt-sigma-deg", &o->tray_tilt_sigma_deg},
@@ -106,27 +108,20 @@ bool parse(int argc, char** argv, Options* o, std::string* error) {
                                    {"--agvs", &o->world.agvs},
                                    {"--clutter", &o->world.clutter},
                                    {"--bit-errors", &o->bit_errors},
-                                   {"--calibrate-tags", &o->calibrate_tags},
+                                   {"--calibrate-tags", &o->calib.tags},
+                                   {"--board-views", &o->calib.board_views},
                                    {"--apriltag-every", &o->apriltag_every},
                                    {"--full-sweep-every", &o->full_sweep_every},
                                    {"--sweep-max-pixels", &o->sweep_max_pixels},
                                    {"--max-decimation", &o->max_decimation}};
+  std::map<std::string, bool*> flags{{"--clean", &o->clean},
+                                     {"--cover-tags", &o->world.cover_tags},
+                                     {"--route-prior", &o->route_prior},
+                                     {"--tray-tilt-surveyed", &o->tray_tilt_surveyed}};
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
-    if (a == "--clean") {
-      o->clean = true;
-      continue;
-    }
-    if (a == "--cover-tags") {
-      o->world.cover_tags = true;
-      continue;
-    }
-    if (a == "--route-prior") {
-      o->route_prior = true;
-      continue;
-    }
-    if (a == "--tray-tilt-surveyed") {
-      o->tray_tilt_surveyed = true;
+    if (flags.count(a)) {
+      *flags[a] = true;
       continue;
     }
     if (a == "--no-distortion") {
@@ -169,8 +164,10 @@ bool parse(int argc, char** argv, Options* o, std::string* error) {
       !(w.tray_tilt_deg >= 0 && w.tray_tilt_deg < 30) || !(w.tray_height_error_mm >= 0) ||
       !(o->tray_tilt_sigma_deg >= 0 && o->tray_tilt_sigma_deg < 30) ||
       !(o->tray_height_sigma_mm >= 0) ||
-      (o->calibrate_tags != 0 && (o->calibrate_tags < 3 || o->calibrate_tags > 100)) ||
-      !(o->survey_error_mm >= 0 && o->survey_error_mm < 1000)) {
+      (o->calib.tags != 0 && (o->calib.tags < 3 || o->calib.tags > 100)) ||
+      !(o->calib.survey_error_mm >= 0 && o->calib.survey_error_mm < 1000) ||
+      o->calib.board_views < 0 || (o->calib.board_views > 0 && o->calib.board_views < 10) ||
+      !(std::abs(o->calib.board_bow_mm) < 20)) {
     return *error = "an option is out of range", false;
   }
   return true;
@@ -289,9 +286,7 @@ void print_counters(const agv::overhead::FrameCounters& fc,
 bool calibrated_cameras(const Options& o, const agv::site::Site& site,
                         std::vector<agv::site::CeilingCamera>* out, std::string* error) {
 #if AGV_EVAL_CALIBRATE
-  agv::eval::CalibrationSetup setup;
-  setup.tags = o.calibrate_tags;
-  setup.survey_error_mm = o.survey_error_mm;
+  agv::eval::CalibrationSetup setup = o.calib;
   setup.seed = o.world.seed * 131;
   return agv::eval::calibrated_cameras(site, setup, out, error);
 #else
@@ -472,7 +467,7 @@ int run(const Options& o) {
   print_header(o, site);
   std::mt19937_64 rng(o.world.seed * 7919 + 3);
   std::vector<agv::site::CeilingCamera> believed;
-  if (o.calibrate_tags > 0) {
+  if (o.calib.tags > 0) {
     if (!calibrated_cameras(o, site, &believed, &error)) {
       std::fprintf(stderr, "eval_overhead: %s\n", error.c_str());
       return 2;

@@ -65,6 +65,9 @@ struct BoardImageOptions {
   double background = 90.0;    // what lies behind the board
   double blur_sigma_px = 0.0;  // Gaussian defocus blur after rendering (0 = none)
   double noise_sigma = 0.0;    // additive Gaussian sensor noise, 8-bit units (0 = none)
+  // The board bowed off its plane by this much at its centre, its corners on the plane (a print
+  // glued on foam board is rarely flatter than half a millimetre); the calibration takes it flat.
+  double bow_mm = 0.0;
   std::uint64_t seed = 1;      // noise seed
 };
 

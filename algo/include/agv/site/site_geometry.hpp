@@ -31,6 +31,8 @@ double camera_tilt_rad(const CeilingCamera& cam);
 // Where the ray through a (distorted) pixel meets the floor z = 0. False when the pixel does not
 // undistort (far outside the lens's field) or its ray does not go down to the floor.
 bool camera_pixel_to_floor(const CeilingCamera& cam, Vec2 pixel, Vec2* floor_mm);
+// The same for the horizontal plane z = z_mm below the camera (a tray, a tag on a stand).
+bool camera_pixel_to_plane(const CeilingCamera& cam, Vec2 pixel, double z_mm, Vec2* at_mm);
 
 // The floor area the image sees: the image border sampled samples_per_edge times per edge,
 // counter-clockwise in the image. A ray that does not reach the floor (above the horizon) is cut
