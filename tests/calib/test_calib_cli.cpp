@@ -66,8 +66,12 @@ TEST(CalibCli, TooFewViewsExitsOneNamesTheMinimumAndWritesNothing) {
   const fs::path dir = fs::path(testing::TempDir()) / "calib_cli_few";
   fs::remove_all(dir);
   const Out sim = run("sim-board --out " + (dir / "views").string() + " " + board_flags() +
-                      " --views 5 --blurred 1 --seed 5");
+                      " --views 5 --blurred 1 --seed 5 --bow-mm 0.4");
   ASSERT_EQ(sim.code, 0) << sim.text;
+  std::ifstream truth(dir / "views" / "truth.yaml");
+  std::stringstream ts;
+  ts << truth.rdbuf();
+  EXPECT_NE(ts.str().find("# Board bowed at its centre: 0.4 mm"), std::string::npos) << ts.str();
   const std::string yaml = (dir / "camera.yaml").string();
   const Out cal = run("calibrate intrinsics --images " + (dir / "views").string() + " " +
                       board_flags() + " --out " + yaml);
@@ -89,6 +93,9 @@ TEST(CalibCli, UsageErrorsAreNamed) {
   o = run("calibrate intrinsics --board chessboard --images " + (dir / "missing").string());
   EXPECT_EQ(o.code, 2);
   EXPECT_NE(o.text.find("not a directory"), std::string::npos) << o.text;
+  o = run("sim-board --out " + (dir / "v").string() + " --bow-mm 25");
+  EXPECT_EQ(o.code, 2);
+  EXPECT_NE(o.text.find("--bow-mm"), std::string::npos) << o.text;
   o = run("calibrate nonsense");
   EXPECT_EQ(o.code, 2);
   EXPECT_NE(o.text.find("unknown subcommand 'nonsense'"), std::string::npos) << o.text;

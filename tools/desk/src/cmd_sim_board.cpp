@@ -88,10 +88,12 @@ std::string truth_yaml(const SimBoardSet& set, const std::vector<SimView>& views
   std::snprintf(buf, sizeof buf,
                 "# True camera of agvloc-desk sim-board (simulated views).\n"
                 "# Deliberately blurred views (sigma %.2f px):%s\n"
+                "# Board bowed at its centre: %.3g mm\n"
                 "camera:\n  width: %d\n  height: %d\n"
                 "intrinsics:\n  fx: %.12g\n  fy: %.12g\n  cx: %.12g\n  cy: %.12g\n"
                 "  k1: %.12g\n  k2: %.12g\n  p1: %.12g\n  p2: %.12g\n  k3: %.12g\n",
-                set.blurred_sigma_px, blurred.empty() ? " none" : blurred.c_str(), k.width_px,
+                set.blurred_sigma_px, blurred.empty() ? " none" : blurred.c_str(), set.bow_mm,
+                k.width_px,
                 k.height_px, k.fx, k.fy, k.cx, k.cy, k.k1, k.k2, k.p1, k.p2, k.k3);
   return buf;
 }
@@ -125,6 +127,9 @@ int sim_board(int argc, char** argv) {
       ->capture_default_str();
   app.add_option("--noise", set.noise_sigma, "Gaussian sensor noise (8-bit units)")
       ->check(CLI::Range(0.0, 100.0))
+      ->capture_default_str();
+  app.add_option("--bow-mm", set.bow_mm, "The board bowed this much at its centre (not flat)")
+      ->check(CLI::Range(-20.0, 20.0))
       ->capture_default_str();
   app.add_flag("--clean", clean, "No blur and no noise on the normal views");
   app.add_option("--max-tilt-deg", set.max_tilt_deg, "Board tilt range (+-)")
