@@ -140,6 +140,27 @@ TEST(CalibCeiling, SurveyErrorIsCoveredAndShiftAndTiltCorrelate) {
   for (double r : off.correlation) EXPECT_LE(std::abs(r), 1.0);
 }
 
+// A lens calibrated wrong (here k1 off by 0.01, about what a bowed board leaves at the image's
+// edge) is an error field on the floor that no pose absorbs: the tags' floor residual beyond the
+// pose grows with it, and with it what the tracker is told of every fix between the tags.
+TEST(CalibCeiling, ALensErrorShowsInTheFloorSigma) {
+  const World& w = world();
+  const auto sightings = all_sightings(w);
+  const ccal::Result exact = ccal::solve_camera_pose(intrinsics(), survey_of(w), sightings);
+  CameraIntrinsics wrong = intrinsics();
+  wrong.k1 += 0.01;
+  const ccal::Result off = ccal::solve_camera_pose(wrong, survey_of(w), sightings);
+  ASSERT_EQ(exact.error, ccal::Error::kNone) << exact.message;
+  ASSERT_EQ(off.error, ccal::Error::kNone) << off.message;
+  std::printf("floor sigma: true lens %.3f mm, k1 off by 0.01 %.3f mm (largest residual %.2f)\n",
+              exact.eval.floor_sigma_mm, off.eval.floor_sigma_mm, off.eval.max_floor_mm);
+  EXPECT_GT(exact.eval.floor_sigma_mm, 0.0);
+  EXPECT_LT(exact.eval.floor_sigma_mm, 1.0);
+  EXPECT_GT(off.eval.floor_sigma_mm, 2.0 * exact.eval.floor_sigma_mm);
+  // Per axis, over the 2 n - 6 degrees of freedom: about the largest residual's scale.
+  EXPECT_GT(off.eval.floor_sigma_mm, 0.3 * off.eval.max_floor_mm);
+}
+
 TEST(CalibCeiling, RecoversFromAStartOff50MmAndOneDegree) {
   const World& w = world();
   const auto sightings = all_sightings(w);

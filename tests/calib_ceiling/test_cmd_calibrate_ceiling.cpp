@@ -129,6 +129,9 @@ TEST_F(CalibrateCeilingCommand, CheckFailsOff30MmAndPassesAfterTheCalibrationWri
   for (double c : back.cameras[0].pose_correlation) strongest = std::max(strongest, std::abs(c));
   EXPECT_GT(strongest, 0.5);
   EXPECT_LT(back.cameras[0].position_sigma_mm[0], 5.0);
+  // And the tags' floor residual beyond the pose (a millimetre or less on these frames).
+  EXPECT_GT(back.cameras[0].floor_sigma_mm, 0.0);
+  EXPECT_LT(back.cameras[0].floor_sigma_mm, 2.0);
 
   r = run(calibrate_ceiling_check, args("ceiling-check", site, at("frames"), at("survey.csv")));
   EXPECT_EQ(r.rc, 0) << r.out << r.err;

@@ -232,6 +232,22 @@ TEST(TagFixGeometry, CalibrationSigmaCoversCameraPoseErrors) {
   EXPECT_LT(nees, 3.5);
 }
 
+// The calibration's floor residual (pose_sigma.floor_mm) is a bias of every fix on the floor:
+// added to the camera part of the covariance in x and y, not to the heading.
+TEST(TagFixGeometry, FloorSigmaIsAddedToTheCameraBias) {
+  site::CeilingCamera cam = test::ceiling_camera(40.0);
+  const std::array<Vec2, 4> corners = projected_corners(cam, {1200.0, -700.0, 0.7});
+  TagFix none, floor;
+  ASSERT_TRUE(tag_fix_on_plane(cam, corners, 0.1, kTrayMm, kTagMm, &none));
+  cam.floor_sigma_mm = 2.0;
+  ASSERT_TRUE(tag_fix_on_plane(cam, corners, 0.1, kTrayMm, kTagMm, &floor));
+  EXPECT_NEAR(floor.cov_camera[0] - none.cov_camera[0], 4.0, 1e-9);
+  EXPECT_NEAR(floor.cov_camera[4] - none.cov_camera[4], 4.0, 1e-9);
+  EXPECT_NEAR(floor.cov[0] - none.cov[0], 4.0, 1e-9);
+  EXPECT_EQ(floor.cov_camera[8], none.cov_camera[8]);
+  EXPECT_EQ(floor.cov_camera[1], none.cov_camera[1]);
+}
+
 // A calibration from tags on about one plane leaves a sideways shift and a tilt of the camera
 // strongly correlated, and their effects on the plane cancel: with the correlation the fix's
 // covariance is the error the correlated pose errors cause (NEES about 2: two error sources),

@@ -102,6 +102,7 @@ TEST(SiteFile, WriteThenParseGivesTheSameSite) {
   a.site.cameras[1].angle_sigma_rad = {8e-5, 1.3e-4, 2e-5};
   a.site.cameras[1].pose_correlation[3] = -0.912345678901;  // x with pitch
   a.site.cameras[1].pose_correlation[7] = 0.1 + 0.2;        // y with pitch
+  a.site.cameras[1].floor_sigma_mm = 1.0 / 3.0;
   ASSERT_FALSE(a.site.fleet.empty());
   a.site.fleet[0].tray_roll_rad = 0.0123;
   a.site.fleet[0].tray_pitch_rad = -0.0071;
@@ -156,6 +157,7 @@ TEST(SiteFile, WriteThenParseGivesTheSameSite) {
     EXPECT_EQ(d.t_site_cam_mm, c.t_site_cam_mm);
     EXPECT_EQ(d.position_sigma_mm, c.position_sigma_mm);
     EXPECT_EQ(d.pose_correlation, c.pose_correlation);
+    EXPECT_EQ(d.floor_sigma_mm, c.floor_sigma_mm);
     for (std::size_t k = 0; k < 3; ++k) {
       EXPECT_NEAR(d.angle_sigma_rad[k], c.angle_sigma_rad[k], 1e-18);  // written in degrees
     }
@@ -450,6 +452,14 @@ TEST(SiteFile, CameraChecks) {
   EXPECT_EQ(pose_correlation_at(rho.site.cameras[0], 0, 3), 0.0);
   EXPECT_EQ(pose_correlation_at(rho.site.cameras[0], 4, 0), -0.9);
   EXPECT_EQ(pose_correlation_at(rho.site.cameras[0], 2, 2), 1.0);
+  EXPECT_EQ(rho.site.cameras[0].floor_sigma_mm, 0.0);  // not given: none
+  const Result floor = parse(kHead + "cameras:\n" + kCamera + "    pose_sigma: {floor_mm: 2.5}\n");
+  ASSERT_TRUE(floor.ok) << floor.all;
+  EXPECT_EQ(floor.site.cameras[0].floor_sigma_mm, 2.5);
+  const Result floor_neg =
+      parse(kHead + "cameras:\n" + kCamera + "    pose_sigma: {floor_mm: -1}\n");
+  EXPECT_TRUE(has_error(floor_neg, "cameras[0].pose_sigma.floor_mm", 7, "outside"))
+      << floor_neg.all;
   const Result short_list =
       parse(kHead + "cameras:\n" + kCamera + "    pose_sigma: {correlation: [0.5, 0.1]}\n");
   EXPECT_TRUE(has_error(short_list, "cameras[0].pose_sigma.correlation", 7, "15 numbers"))

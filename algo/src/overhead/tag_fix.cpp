@@ -379,6 +379,8 @@ bool fix_on_plane(const site::CeilingCamera& cam, const std::array<Vec2, 4>& cor
       !tray_plane_covariance(cam, rays, t.height_mm, h, xy, tray, &out->cov_camera)) {
     return false;
   }
+  out->cov_camera[0] += cam.floor_sigma_mm * cam.floor_sigma_mm;
+  out->cov_camera[4] += cam.floor_sigma_mm * cam.floor_sigma_mm;
   for (std::size_t i = 0; i < 9; ++i) out->cov[i] += out->cov_camera[i];
   out->pose = {s.c.x, s.c.y, s.theta};
   out->size_error_rel = s.scale - 1.0;

@@ -203,8 +203,10 @@ void read_pose_correlation(ReadContext* c, const YAML::Node& n, const std::strin
 // correlation (optional, default independent).
 void read_camera_pose_sigma(ReadContext* c, const YAML::Node& n, const std::string& path,
                             CeilingCamera* cam) {
-  Fields f(c, n, path, {"x_mm", "y_mm", "z_mm", "roll_deg", "pitch_deg", "yaw_deg", "correlation"});
+  Fields f(c, n, path,
+           {"x_mm", "y_mm", "z_mm", "roll_deg", "pitch_deg", "yaw_deg", "correlation", "floor_mm"});
   if (!f.is_map()) return;
+  f.number("floor_mm", 0.0, kMaxPoseSigmaMm, &cam->floor_sigma_mm);
   if (f.has("correlation"))
     read_pose_correlation(c, f.get("correlation"), f.path("correlation"), cam);
   const char* mm[3] = {"x_mm", "y_mm", "z_mm"};

@@ -78,10 +78,12 @@ void write_camera(std::ostringstream& os, const CeilingCamera& c) {
   os << "]\n";
   const auto& ps = c.position_sigma_mm;
   const auto& as = c.angle_sigma_rad;
-  if (ps[0] > 0 || ps[1] > 0 || ps[2] > 0 || as[0] > 0 || as[1] > 0 || as[2] > 0) {
+  if (ps[0] > 0 || ps[1] > 0 || ps[2] > 0 || as[0] > 0 || as[1] > 0 || as[2] > 0 ||
+      c.floor_sigma_mm > 0) {
     os << "    pose_sigma: {x_mm: " << fmt_number(ps[0]) << ", y_mm: " << fmt_number(ps[1])
        << ", z_mm: " << fmt_number(ps[2]) << ", roll_deg: " << fmt_number(deg(as[0]))
        << ", pitch_deg: " << fmt_number(deg(as[1])) << ", yaw_deg: " << fmt_number(deg(as[2]));
+    if (c.floor_sigma_mm > 0) os << ", floor_mm: " << fmt_number(c.floor_sigma_mm);
     const auto& rho = c.pose_correlation;
     if (std::any_of(rho.begin(), rho.end(), [](double v) { return v != 0.0; })) {
       os << ", correlation: [";

@@ -295,6 +295,7 @@ Evaluation evaluate(const CameraIntrinsics& k, const std::map<std::uint32_t, Sur
     ++a.centres;
   }
   ev.rms_px = ev.corners ? std::sqrt(se_all / ev.corners) : 0.0;
+  double floor_se = 0.0;
   for (const auto& [id, a] : acc) {
     TagResidual tr;
     tr.id = id;
@@ -306,12 +307,15 @@ Evaluation evaluate(const CameraIntrinsics& k, const std::map<std::uint32_t, Sur
       tr.floor_dx_mm = a.sx / a.centres - survey.at(id).x_mm;
       tr.floor_dy_mm = a.sy / a.centres - survey.at(id).y_mm;
       tr.floor_mm = std::hypot(tr.floor_dx_mm, tr.floor_dy_mm);
+      floor_se += tr.floor_mm * tr.floor_mm;
     }
     ev.max_floor_mm = std::isnan(tr.floor_mm) || std::isnan(ev.max_floor_mm)
                           ? std::numeric_limits<double>::quiet_NaN()
                           : std::max(ev.max_floor_mm, tr.floor_mm);
     ev.tags.push_back(tr);
   }
+  const double dof = 2.0 * static_cast<double>(ev.tags.size()) - 6.0;
+  ev.floor_sigma_mm = dof > 0.0 ? std::sqrt(floor_se / dof) : 0.0;
   return ev;
 }
 
@@ -586,6 +590,7 @@ Result solve_camera_pose(const CameraIntrinsics& k,
   res.eval.rms_px = used.rms_px;
   res.eval.max_px = used.max_px;
   res.eval.max_floor_mm = used.max_floor_mm;
+  res.eval.floor_sigma_mm = used.floor_sigma_mm;
   return res;
 }
 

@@ -174,6 +174,8 @@ void print_residuals(const ccal::Evaluation& ev) {
     std::printf("  %3u  %9d  %7.3f  %11.2f  %11.2f  %8.2f\n", t.id, t.sightings, t.rms_px,
                 t.floor_dx_mm, t.floor_dy_mm, t.floor_mm);
   }
+  std::printf("floor residual sigma per axis %.2f mm (what no pose explains: lens, survey)\n",
+              ev.floor_sigma_mm);
 }
 
 void print_ignored(const std::vector<ccal::TagSighting>& sightings,
@@ -208,6 +210,11 @@ bool write_pose(const std::string& path, site::Site site, std::size_t camera, co
     (angle ? cam.angle_sigma_rad[i - 3] : cam.position_sigma_mm[i]) = r.sigma[i];
   }
   cam.pose_correlation = r.correlation;
+  if (!(r.eval.floor_sigma_mm >= 0.0 && r.eval.floor_sigma_mm <= 1000.0)) {
+    *error = "the tags' floor residual is not determined or too large: not written";
+    return false;
+  }
+  cam.floor_sigma_mm = r.eval.floor_sigma_mm;
   const std::string tmp = path + ".tmp";
   {
     std::ofstream f(tmp, std::ios::binary | std::ios::trunc);

@@ -129,19 +129,20 @@ bool calibrated_camera(const site::CeilingCamera& truth, const CalibrationSetup&
     out->angle_sigma_rad[i] = res.sigma[i + 3];
   }
   out->pose_correlation = res.correlation;
+  out->floor_sigma_mm = res.eval.floor_sigma_mm;
   const ccal::CameraPose t = ccal::pose_of(truth);
   const auto deg = [](double r) { return std::remainder(r, 2.0 * kPi) * 180.0 / kPi; };
   char line[512];
   std::snprintf(line, sizeof line,
                 "%s: calibrated from %d tags (%d rejected), rms %.3f px; error x %+.2f y %+.2f "
                 "z %+.2f mm, roll %+.4f pitch %+.4f yaw %+.4f deg; sigma %.2f %.2f %.2f mm, "
-                "%.4f %.4f %.4f deg",
+                "%.4f %.4f %.4f deg, floor %.2f mm",
                 truth.id.c_str(), res.tags_used, static_cast<int>(res.rejected_ids.size()),
                 res.eval.rms_px, res.pose.x_mm - t.x_mm, res.pose.y_mm - t.y_mm,
                 res.pose.z_mm - t.z_mm, deg(res.pose.roll_rad - t.roll_rad),
                 deg(res.pose.pitch_rad - t.pitch_rad), deg(res.pose.yaw_rad - t.yaw_rad),
                 res.sigma[0], res.sigma[1], res.sigma[2], deg(res.sigma[3]), deg(res.sigma[4]),
-                deg(res.sigma[5]));
+                deg(res.sigma[5]), res.eval.floor_sigma_mm);
   *report = lens_report + line;
   return true;
 }

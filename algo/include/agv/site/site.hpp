@@ -65,6 +65,10 @@ struct CeilingCamera {
   // about one plane hardly tell a sideways shift from a tilt, and the two cancel where the tags
   // lie: without the correlation the pose's error on the floor is overstated. All 0: independent.
   std::array<double, 15> pose_correlation{};
+  // 1-sigma per axis (mm) of what a fix is off on the floor beyond the pose's sigma: the
+  // calibration tags' own floor residuals (the lens's residual error, the survey's), which no
+  // pose error explains. The tracker adds it to every fix of the camera as a bias. 0: none.
+  double floor_sigma_mm = 0.0;
 };
 
 // pose_correlation's entry for parameters p and q (0..5, the order above); 1 for p == q.
