@@ -198,14 +198,15 @@ int main(int argc, char** argv) {
   const std::vector<std::int64_t> steady(lat.begin() + static_cast<std::ptrdiff_t>(skip),
                                          lat.end());
   std::printf(
-      "bench_overhead_latency: %zu vehicles, %zu cameras %dx%d at %.0f fps, publishing at %.0f Hz to "
-      "127.0.0.1:%d, camera latency %.1f ms, %.0f s: %zu frames measured (%llu dropped behind, "
-      "%llu ticks, %llu skipped)\n"
+      "bench_overhead_latency: %zu vehicles, %zu cameras %dx%d at %.0f fps, publishing at %.0f Hz "
+      "to 127.0.0.1:%d, camera latency %.1f ms, %.0f s: %zu frames measured (%llu dropped "
+      "behind, %llu ticks, %llu skipped)\n"
       "exposure -> publish: p50 %.2f ms, p90 %.2f ms, p99 %.2f ms, max %.2f ms\n",
-      agvs.size(), cams.size(), s.cameras[0].intrinsics.width_px, s.cameras[0].intrinsics.height_px, o["--fps"],
-      o["--rate-hz"], cfg.mqtt.port, o["--camera-latency-ms"], o["--seconds"], steady.size(),
-      static_cast<unsigned long long>(n.frames_dropped), static_cast<unsigned long long>(n.ticks),
-      static_cast<unsigned long long>(n.ticks_skipped), percentile_ms(steady, 0.5),
-      percentile_ms(steady, 0.9), percentile_ms(steady, 0.99), percentile_ms(steady, 1.0));
+      agvs.size(), cams.size(), s.cameras[0].intrinsics.width_px, s.cameras[0].intrinsics.height_px,
+      o["--fps"], o["--rate-hz"], cfg.mqtt.port, o["--camera-latency-ms"], o["--seconds"],
+      steady.size(), static_cast<unsigned long long>(n.frames_dropped),
+      static_cast<unsigned long long>(n.ticks), static_cast<unsigned long long>(n.ticks_skipped),
+      percentile_ms(steady, 0.5), percentile_ms(steady, 0.9), percentile_ms(steady, 0.99),
+      percentile_ms(steady, 1.0));
   return 0;
 }

@@ -93,8 +93,7 @@ std::string truth_yaml(const SimBoardSet& set, const std::vector<SimView>& views
                 "intrinsics:\n  fx: %.12g\n  fy: %.12g\n  cx: %.12g\n  cy: %.12g\n"
                 "  k1: %.12g\n  k2: %.12g\n  p1: %.12g\n  p2: %.12g\n  k3: %.12g\n",
                 set.blurred_sigma_px, blurred.empty() ? " none" : blurred.c_str(), set.bow_mm,
-                k.width_px,
-                k.height_px, k.fx, k.fy, k.cx, k.cy, k.k1, k.k2, k.p1, k.p2, k.k3);
+                k.width_px, k.height_px, k.fx, k.fy, k.cx, k.cy, k.k1, k.k2, k.p1, k.p2, k.k3);
   return buf;
 }
 

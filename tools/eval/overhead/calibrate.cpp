@@ -75,10 +75,11 @@ bool calibrated_lens(const CameraIntrinsics& truth, const CalibrationSetup& setu
   *out = r.intrinsics;
   char line[256];
   std::snprintf(line, sizeof line,
-                "lens from %d of %d board views (bowed %.2f mm), rms %.3f px; error fx %+.2f fy %+.2f cx %+.2f "
-                "cy %+.2f px, k1 %+.5f k2 %+.5f; ",
-                r.usable, setup.board_views, setup.board_bow_mm, r.rms_px, out->fx - truth.fx, out->fy - truth.fy,
-                out->cx - truth.cx, out->cy - truth.cy, out->k1 - truth.k1, out->k2 - truth.k2);
+                "lens from %d of %d board views (bowed %.2f mm), rms %.3f px; error fx %+.2f "
+                "fy %+.2f cx %+.2f cy %+.2f px, k1 %+.5f k2 %+.5f; ",
+                r.usable, setup.board_views, setup.board_bow_mm, r.rms_px, out->fx - truth.fx,
+                out->fy - truth.fy, out->cx - truth.cx, out->cy - truth.cy, out->k1 - truth.k1,
+                out->k2 - truth.k2);
   *report = line;
   return true;
 }
@@ -106,7 +107,8 @@ bool calibrated_camera(const site::CeilingCamera& truth, const CalibrationSetup&
   }
   CameraIntrinsics lens = truth.intrinsics;
   std::string lens_report;
-  if (setup.board_views > 0 && !calibrated_lens(truth.intrinsics, setup, &lens, &lens_report, error)) {
+  if (setup.board_views > 0 &&
+      !calibrated_lens(truth.intrinsics, setup, &lens, &lens_report, error)) {
     *error = truth.id + ": " + *error;
     return false;
   }
