@@ -87,7 +87,7 @@ struct Evaluation {
   int corners = 0;
   double rms_px = 0.0;  // over every corner of every surveyed sighting
   double max_px = 0.0;
-  double max_floor_mm = 0.0;      // NaN when a tag's centre ray misses its plane
+  double max_floor_mm = 0.0;  // NaN when a tag's centre ray misses its plane
   // Per axis, the tags' floor residuals' RMS over their degrees of freedom (2 per tag less the
   // pose's 6): what a point between the tags is off beyond the pose's sigma (the lens's residual
   // error, the survey's); written as pose_sigma.floor_mm. 0 with 3 tags or fewer.

@@ -68,7 +68,7 @@ struct BoardImageOptions {
   // The board bowed off its plane by this much at its centre, its corners on the plane (a print
   // glued on foam board is rarely flatter than half a millimetre); the calibration takes it flat.
   double bow_mm = 0.0;
-  std::uint64_t seed = 1;      // noise seed
+  std::uint64_t seed = 1;  // noise seed
 };
 
 // Renders the board through the camera (pinhole + the intrinsics' Brown-Conrady distortion;
