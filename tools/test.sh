@@ -43,7 +43,10 @@ mkdir -p build
 prep_log=build/prepare-aarch64.log
 ( bash toolchain/prepare-aarch64.sh >"$prep_log" 2>&1; echo $? >"$prep_log.rc" ) &
 prep_pid=$!
-cmake --preset default
+# Each test program runs as a few tests of its cases (AGV_TESTS_PER_PROGRAM, tests/CMakeLists.txt:
+# shards of up to 16 cases) rather than one process per case: the default ctest's test CPU
+# halved (docs/guide/testing.md). A developer's own `cmake --preset default` keeps one test per case.
+cmake --preset default -DAGV_TESTS_PER_PROGRAM=ON
 cmake --build --preset default -j "$jobs"
 step "default: build"
 ctest --preset default -j "$jobs" -LE '^(hil|vm)$'
@@ -71,9 +74,9 @@ for preset in asan tsan; do
   ctest --preset "$preset" -j "$jobs"
   step "$preset: ctest"
   if [ "$preset" = asan ]; then
-    # Fuzzing (docs/design/security.md): every harness, built above, on the committed corpus, 10 s
+    # Fuzzing (docs/design/security.md): every harness, built above, on the committed corpus, 5 s
     # each: a regression check of the corpus and a short search; campaigns are run by hand (60 s+).
-    bash fuzz/run.sh "${AGV_FUZZ_SECONDS:-10}"
+    bash fuzz/run.sh "${AGV_FUZZ_SECONDS:-5}"
     step "asan: fuzz/run.sh"
   fi
 done
