@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The arm64 cross build in one command (CI runs it from tools/test.sh):
 #   1. prepares the cross environment (toolchain/prepare-aarch64.sh; idempotent, needs root/sudo),
-#   2. configures and builds the preset `aarch64` (build/aarch64; no benchmarks, no VM tests, no
-#      site tracker agvloc-overhead: it runs on the site's server, not the vehicle),
+#   2. configures and builds the preset `aarch64` (build/aarch64; no benchmarks, no VM tests; the
+#      site tracker agvloc-overhead with its replay and bad-input tests only: AGV_OVERHEAD_SMOKE_ONLY),
 #   3. runs the tests under qemu-aarch64 (CMAKE_CROSSCOMPILING_EMULATOR), except the labels
 #      hil, vm (they boot an x86-64 VM), interop (needs npm tooling), and calib and sim: the desk
 #      tool's commissioning and simulator tests (agvloc-desk is not shipped to the vehicle; they

@@ -5,27 +5,21 @@ find_package(nlohmann_json 3 REQUIRED)
 agv_add_test(test_overhead_config SOURCES ${CMAKE_CURRENT_SOURCE_DIR}/test_overhead_config.cpp
              LIBS agv_overhead_app nlohmann_json::nlohmann_json LABELS unit overhead TIMEOUT 60)
 
-# The binary on a two-camera recording rendered by agvloc-desk render-site (640x400, a few frames):
-# replay against the truth, bad input, and MQTT on a broker of its own. A few seconds each.
+# The binary on a two-camera recording (agv_overhead_binary_test, CMakeLists.txt): replay against
+# the truth, bad input, and MQTT on a broker of its own; only where agvloc-desk renders.
 if(AGV_DESK_CMD)
   find_package(Python3 REQUIRED COMPONENTS Interpreter)
-  string(REPLACE ";" " " _agv_oh_emu "${CMAKE_CROSSCOMPILING_EMULATOR}")
-  string(STRIP "${_agv_oh_emu} $<TARGET_FILE:agvloc-overhead>" _agv_oh_cmd)
-  set(_agv_oh_site ${CMAKE_CURRENT_SOURCE_DIR}/data/two_camera_site.yaml)
   foreach(_case replay bad_input mqtt)
-    add_test(NAME overhead_${_case}
-             COMMAND ${Python3_EXECUTABLE} ${CMAKE_CURRENT_SOURCE_DIR}/test_overhead_${_case}.py
-                     "${_agv_oh_cmd}" "${AGV_DESK_CMD}" ${_agv_oh_site}
-                     ${CMAKE_CURRENT_BINARY_DIR}/overhead_${_case})
-    set_tests_properties(overhead_${_case} PROPERTIES LABELS "overhead" TIMEOUT 120
-                         SKIP_RETURN_CODE 77)
+    agv_overhead_binary_test(${_case})
   endforeach()
   set_tests_properties(overhead_mqtt PROPERTIES LABELS "overhead;mqtt")
   # The same on RabbitMQ's MQTT plugin: the tracker depends on MQTT, not on one broker. The
   # Erlang node boots in 5-20 s; skipped where rabbitmq-server is not installed.
+  string(REPLACE ";" " " _agv_oh_emu "${CMAKE_CROSSCOMPILING_EMULATOR}")
+  string(STRIP "${_agv_oh_emu} $<TARGET_FILE:agvloc-overhead>" _agv_oh_cmd)
   add_test(NAME overhead_mqtt_rabbitmq
            COMMAND ${Python3_EXECUTABLE} ${CMAKE_CURRENT_SOURCE_DIR}/test_overhead_mqtt.py
-                   "${_agv_oh_cmd}" "${AGV_DESK_CMD}" ${_agv_oh_site}
+                   "${_agv_oh_cmd}" "${AGV_DESK_CMD}" ${CMAKE_CURRENT_SOURCE_DIR}/data/two_camera_site.yaml
                    ${CMAKE_CURRENT_BINARY_DIR}/overhead_mqtt_rabbitmq rabbitmq)
   set_tests_properties(overhead_mqtt_rabbitmq PROPERTIES LABELS "overhead;mqtt" TIMEOUT 180
                        SKIP_RETURN_CODE 77)

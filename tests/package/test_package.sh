@@ -42,6 +42,11 @@ if [ -f "$src/can/agvloc.dbc" ]; then
   check "contains /usr/share/agvloc/agvloc.dbc" cmp -s "$src/can/agvloc.dbc" "$root/usr/share/agvloc/agvloc.dbc"
 fi
 check "no desk tool in the package" test ! -e "$root/usr/bin/agvloc-desk"
+# The site tracker, where this build has it (AGV_BUILD_OVERHEAD_APP): for x86-64 and arm64 edge computers.
+if [ -x "$build/overhead/agvloc-overhead" ]; then
+  check "contains /usr/bin/agvloc-overhead" test -s "$root/usr/bin/agvloc-overhead"
+  check "agvloc-overhead is $elf" grep -q "$elf" <<<"$(file -b "$root/usr/bin/agvloc-overhead")"
+fi
 check "config names the shipped map" grep -qE "^  map: map.csv" "$root/etc/agvloc/agvloc.yaml"
 check "binary is $elf" grep -q "$elf" <<<"$(file -b "$root/usr/bin/agvloc")"
 check "binary stripped" grep -q ", stripped" <<<"$(file -b "$root/usr/bin/agvloc")"
