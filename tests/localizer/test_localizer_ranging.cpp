@@ -85,6 +85,38 @@ TEST(LocalizerRanging, OneLandmarkNeverInitialisesASecondDoes) {
   EXPECT_GE(r2.first_valid_ns, 0);
 }
 
+// A landmark missed in every other frame (a glint, a passer-by, the tag at the edge of the
+// view): the frames that read one landmark give no fix and are skipped, not a break of the run,
+// so the two-landmark frames 133 ms apart still initialise. Before, each one-landmark frame
+// reset the run and the vehicle never localized.
+TEST(LocalizerRanging, AFrameThatReadsOneLandmarkDoesNotBreakTheRun) {
+  localizer::Localizer loc(config());
+  std::mt19937 rng(54);
+  const std::vector<Vec2> map = true_map(kTwo);
+  const std::vector<Landmark> one = {kTwo[0]};
+  const std::vector<Vec2> one_map = {map[0]};
+  std::int64_t first_valid_ns = -1;
+  std::int64_t next_frame = 0;
+  int frame_index = 0;
+  for (std::int64_t t = 0; t <= 1000 * kMs; t += kOdomPeriodNs) {
+    loc.on_odometry(t, 0.0, 0.0);
+    if (t < next_frame) continue;
+    const bool both = frame_index++ % 2 == 0;
+    const auto obs = both ? frame(kTruth, kTwo, map, &rng) : frame(kTruth, one, one_map, &rng);
+    loc.on_ranging(next_frame, obs);
+    next_frame += kFramePeriodNs;
+    loc.set_camera_state(t, false, false);
+    if (loc.tick(t).pose_valid && first_valid_ns < 0) first_valid_ns = t;
+  }
+  const auto too_few = static_cast<int>(ranging::FixStatus::kTooFew);
+  EXPECT_GE(loc.stats().ranging_fix_refused[too_few], 1u);
+  ASSERT_GE(first_valid_ns, 0) << "never localized";
+  EXPECT_LE(first_valid_ns, 2 * kFramePeriodNs + kOdomPeriodNs);  // the second two-landmark frame
+  EXPECT_EQ(loc.stats().ranging_initialisations, 1u);
+  const fusion::PoseEstimate e = loc.ekf().estimate_at(1000 * kMs);
+  EXPECT_LT(std::hypot(e.pose.x_mm - kTruth.x_mm, e.pose.y_mm - kTruth.y_mm), 50.0);
+}
+
 TEST(LocalizerRanging, AMapEntryHalfAMetreOffGivesNoConfidentWrongPose) {
   std::mt19937 rng(11);
   // Three landmarks in view, one map entry 0.5 m off in each of 8 directions: the fix is refused

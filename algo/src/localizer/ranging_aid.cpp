@@ -5,10 +5,11 @@
 // is), so a filter whose position is unknown re-initialises only from two agreeing fixes. Here
 // each fix already needs two landmarks and an OK status (not too few, shallow, ambiguous,
 // inconsistent ...), and init_fixes consecutive fixes must agree, the earlier carried to the
-// later by the odometry. The agreeing fixes are stacked: a vehicle at rest sees the same
-// landmarks in every frame, and each frame's noise is its own while the calibration's share of
-// the covariance repeats, so the stack averages the one and keeps the other once; it initialises
-// when within init_position_sd_mm. What no rule inside two-landmark fixes can catch, a wrong map
+// later by the odometry (a frame that read fewer than two landmarks is skipped, not a break).
+// The agreeing fixes are stacked: a vehicle at rest sees the same landmarks in every frame, and
+// each frame's noise is its own while the calibration's share of the covariance repeats, so the
+// stack averages the one and keeps the other once; it initialises when within
+// init_position_sd_mm. What no rule inside two-landmark fixes can catch, a wrong map
 // entry that keeps their chi-square small, is in docs/design/ranging.md.
 //
 // Tracking, a slip the wheels did not show (wheels only: one wheel a few percent over for a few
@@ -245,7 +246,10 @@ RangingResult Localizer::ranging_fix(std::int64_t t_ns, std::span<const RackObse
   ranging::FixResult fix;
   Eigen::Matrix3d systematic_cov;
   if (!rack_fix(obs, &fix, &systematic_cov)) {
-    rack_candidate_.count = 0;  // a refused frame breaks the run of consecutive fixes
+    // A frame that read one landmark says no more against the run than a frame that read none:
+    // both leave it to the gap limit. A fix refused for what its landmarks say (shallow,
+    // ambiguous, inconsistent ...) breaks it.
+    if (fix.status != ranging::FixStatus::kTooFew) rack_candidate_.count = 0;
     return RangingResult::kFixRefused;
   }
   if (!count_rack_fix(t_ns, fix, systematic_cov)) return RangingResult::kFixPending;
