@@ -26,6 +26,7 @@ localizer::LocalizerConfig localizer_config(const config::Config& cfg) {
   c.ranging.camera_offset_ns = std::llround(cfg.ranging_camera.time_offset_ms * 1e6);
   c.ranging.common_bearing_sigma_rad = config::common_bearing_sigma_rad(cfg.ranging_camera);
   c.ranging.floor_check = cfg.ranging_camera.enabled;
+  c.ranging.fix.face_yaw_pairs_below_crossing = cfg.ranging_camera.shallow_pairs_from_face_yaws;
   c.sw_major = AGV_VERSION_MAJOR;
   c.sw_minor = AGV_VERSION_MINOR;
   c.sw_patch = AGV_VERSION_PATCH;

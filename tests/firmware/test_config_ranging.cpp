@@ -88,6 +88,23 @@ TEST(ConfigRanging, ValuesReachTheStructs) {
   EXPECT_EQ(agv::app::localizer_config(cfg).ranging.common_bearing_sigma_rad, 0.0);
 }
 
+TEST(ConfigRanging, ShallowPairsFromFaceYawsReachTheFixes) {
+  const std::string base = std::string(kFloor) +
+                           "ranging_camera:\n"
+                           "  enabled: true\n"
+                           "  site: hall.yaml\n"
+                           "  intrinsics: {fx: 1000, fy: 1000, cx: 639.5, cy: 399.5}\n";
+  for (const bool on : {true, false}) {
+    const std::string yaml =
+        base + (on ? "" : "  shallow_pairs_from_face_yaws: false\n");  // on by default
+    Config cfg;
+    std::vector<std::string> errors;
+    ASSERT_TRUE(agv::config::parse_config(yaml, "/etc/agvloc", &cfg, &errors))
+        << (errors.empty() ? "" : errors.front());
+    EXPECT_EQ(agv::app::localizer_config(cfg).ranging.fix.face_yaw_pairs_below_crossing, on);
+  }
+}
+
 TEST(ConfigRanging, TheCalibrationsDoubtReachesTheObserverAndTheFixes) {
   const std::string yaml = std::string(kFloor) +
                            "ranging_camera:\n"

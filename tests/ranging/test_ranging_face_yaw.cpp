@@ -271,5 +271,58 @@ TEST(RangingFaceYaw, CorrectMapFixesAreNoWorseAndTheirChiSquareIsHonest) {
   correct_map_trials("20-60 deg off face-on", 20.0, 60.0);
 }
 
+// Two landmarks 3-12 degrees apart as seen from the vehicle (one behind the other, 2-8 m away,
+// 20-45 deg off face-on): their circles cross below 15 degrees, so they are refused unless seeded
+// from their face yaws (FixOptions::face_yaw_pairs_below_crossing, on by default). Seeded, the
+// position along the bisector rests on the face yaws: a wrong map entry must not be let through
+// more often than by the wider pairs above, and a correct map must be covered.
+TEST(RangingFaceYaw, ShallowPairsSeededFromFaceYawsLetNoMoreWrongMapEntriesThrough) {
+  std::mt19937_64 rng(55);
+  std::uniform_real_distribution<double> uni(0.0, 1.0);
+  WrongMapCount wrong_map;
+  int total = 0, correct_ok = 0, correct_covered = 0, refused_off = 0;
+  for (int scene = 0; scene < 20; ++scene) {
+    Scene sc = random_scene(rng, 2, 20.0, 45.0);
+    // Landmark 1 moved to 3-12 degrees beside landmark 0's direction, facing the vehicle as before.
+    const double d0 =
+        std::atan2(sc.lms[0].xy_mm.y - sc.truth.y_mm, sc.lms[0].xy_mm.x - sc.truth.x_mm);
+    const double d1 =
+        d0 + deg_to_rad(uni(rng) < 0.5 ? 3.0 + 9.0 * uni(rng) : -3.0 - 9.0 * uni(rng));
+    const double r1 = 2000.0 + 6000.0 * uni(rng);
+    const double oblique = wrap_angle_rad(
+        sc.lms[1].facing_rad -
+        (std::atan2(sc.lms[1].xy_mm.y - sc.truth.y_mm, sc.lms[1].xy_mm.x - sc.truth.x_mm) + kPi));
+    sc.lms[1].xy_mm = {sc.truth.x_mm + r1 * std::cos(d1), sc.truth.y_mm + r1 * std::sin(d1)};
+    sc.lms[1].facing_rad = wrap_angle_rad(d1 + kPi + oblique);
+    sc.lms[1].mount_yaw_rad = sc.lms[0].mount_yaw_rad;
+    const std::vector<Observation> right = observe_scene(sc, true_map(sc), true, &rng);
+    FixOptions off;
+    off.face_yaw_pairs_below_crossing = false;
+    refused_off += fix_from_landmarks(right, off).status == FixStatus::kShallowGeometry;
+    const FixResult f = fix_from_landmarks(right, FixOptions{});
+    if (f.status == FixStatus::kOk) {
+      ++correct_ok;
+      correct_covered += nees(f, sc.truth) <= kGate3Sigma3Dof;
+    }
+    for (int k = 0; k < 36; ++k) {
+      std::vector<Vec2> map = true_map(sc);
+      const double a = 2.0 * kPi * k / 36.0;
+      map[0].x += 500.0 * std::cos(a);
+      map[0].y += 500.0 * std::sin(a);
+      ++total;
+      count_fix(observe_scene(sc, map, true, &rng), FixOptions{}, sc.truth, &wrong_map);
+    }
+  }
+  std::printf(
+      "shallow pairs: %d of 20 refused as shallow without seeding; correct map %d ok, %d inside 3"
+      " sigma; map 0.5 m off, %d fixes: %d ok, %d outside 3 sigma (worst %.0f mm)\n",
+      refused_off, correct_ok, correct_covered, total, wrong_map.ok, wrong_map.wrong,
+      wrong_map.worst_mm);
+  EXPECT_GE(refused_off, 15);
+  EXPECT_GE(correct_ok, 10);
+  EXPECT_GE(correct_covered, correct_ok - 1);
+  EXPECT_LE(wrong_map.wrong, 45);  // the wider 20-60 deg pairs' bound above
+}
+
 }  // namespace
 }  // namespace agv::ranging

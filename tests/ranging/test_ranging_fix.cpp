@@ -148,7 +148,7 @@ TEST(RangingFix, ShallowCrossingIsRefused) {
 
 // The same shallow pair read with face yaws (the tags' full poses, 1 degree sigma): the face yaws
 // constrain what the circles do not; turned on, the fix is seeded from the two single-landmark
-// poses and refined over both, its covariance covering the error. Off (the default), refused.
+// poses and refined over both, its covariance covering the error (the default). Off, refused.
 TEST(RangingFix, ShallowPairWithFaceYawsIsSeededFromThem) {
   const Pose2 truth{0.0, 0.0, 0.1};
   Observation obs[2] = {observe(truth, {8000.0, 500.0}, 30.0, 1e-3),
@@ -160,9 +160,11 @@ TEST(RangingFix, ShallowPairWithFaceYawsIsSeededFromThem) {
     o.face_yaw_rad = wrap_angle_rad(o.landmark_facing_rad - truth.theta_rad);
     o.face_yaw_var_rad2 = yaw_sigma_rad * yaw_sigma_rad;
   }
-  EXPECT_EQ(fix_from_landmarks(obs, FixOptions{}).status, FixStatus::kShallowGeometry);
-  FixOptions on;
-  on.face_yaw_pairs_below_crossing = true;
+  FixOptions off;
+  off.face_yaw_pairs_below_crossing = false;
+  EXPECT_EQ(fix_from_landmarks(obs, off).status, FixStatus::kShallowGeometry);
+  const FixOptions on;
+  EXPECT_TRUE(on.face_yaw_pairs_below_crossing);
   const FixResult exact = fix_from_landmarks(obs, on);
   ASSERT_EQ(exact.status, FixStatus::kOk) << fix_status_name(exact.status);
   expect_pose(exact.pose, truth, 1e-6, 1e-9);

@@ -105,9 +105,17 @@ void add_ranging_calibration_doubt(std::vector<Key>* k) {
                        "(its reprojection RMS is a fair start): widens each bearing by sigma / "
                        "fx, and, through the principal point, every bearing alike as the mount's "
                        "yaw does"}));
-  k->push_back(
-      number("ranging_camera.focal_sigma_rel", AGV_AT(ranging_camera.focal_sigma_rel), 0.0, 0.1,
-             0.0, {"", "relative error of the focal length (0.002 = 0.2 %): scales each range"}));
+  k->push_back(number("ranging_camera.focal_sigma_rel", AGV_AT(ranging_camera.focal_sigma_rel), 0.0,
+                      0.1, 0.0,
+                      {"",
+                       "relative error of the focal length (0.002 = 0.2 %): scales each range "
+                       "and, on fx and fy apart, turns each tag's face yaw"}));
+  k->push_back(boolean("ranging_camera.shallow_pairs_from_face_yaws",
+                       AGV_AT(ranging_camera.shallow_pairs_from_face_yaws), true,
+                       "two landmarks seen under 15 deg of each other (their range circles cross "
+                       "shallowly) fix a pose from their face yaws (the tags' turn) instead of "
+                       "being refused; their sigma carries focal_sigma_rel, so state it "
+                       "(docs/design/ranging.md, \"Switched on\"). false: refused"));
   k->push_back(boolean("ranging_camera.predicted_first", AGV_AT(ranging_camera.predicted_first),
                        true,
                        "a landmark the pose predicts in view is read first from edge lines "

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
 
@@ -63,6 +64,32 @@ bool inside_margin(const std::array<Vec2, 4>& corners_px, const CameraIntrinsics
     }
   }
   return true;
+}
+
+// The face yaw's share of the lens's scale doubt, fx and fy apart (focal_sigma_rel on each: their
+// ratio, a distortion term's local stretch). Seen near face-on, a tag's yaw rests on the ratio
+// of its width to its height: 0.2 % on one axis turns it by about 0.65 deg at 10 deg off face-on,
+// where the corners' own noise says far less. The pose is refined again with each focal length
+// moved by sigma_rel either way; infinity when a refinement fails.
+double face_yaw_scale_var(const CameraIntrinsics& k, double side_mm,
+                          const std::array<Vec2, 4>& ippe_corners, const RangingMount& mount,
+                          const LandmarkObservation& o, double sigma_rel) {
+  double var = 0.0;
+  for (int axis = 0; axis < 2; ++axis) {
+    std::array<double, 2> yaw{};
+    for (int s = 0; s < 2; ++s) {
+      const double f = s == 0 ? 1.0 + sigma_rel : 1.0 - sigma_rel;
+      const SquarePose p =
+          refine_square_pose(axis == 0 ? k.fx * f : k.fx, axis == 1 ? k.fy * f : k.fy, k.cx, k.cy,
+                             side_mm, ippe_corners, o.R_CT, o.t_C_mm);
+      if (!p.ok) return std::numeric_limits<double>::infinity();
+      yaw[static_cast<std::size_t>(s)] =
+          range_bearing_from_tag_pose(mount, p.t_C_mm, p.R_CT, o.cov6).relative_yaw_rad;
+    }
+    const double half = 0.5 * wrap_angle_rad(yaw[0] - yaw[1]);
+    var += half * half;
+  }
+  return var;
 }
 
 // IPPE's (up to two) poses of the square, each refined by Levenberg-Marquardt on the undistorted
@@ -333,13 +360,22 @@ bool LandmarkObserver::measure(std::uint32_t id, const std::array<Vec2, 4>& corn
   o.pose.cov += o.pose.systematic_cov;
   // A second solution nearly as good: the tag's turn is not resolved by its corners.
   const double floor_err = 8.0 * o.corner_sigma_px * o.corner_sigma_px;
-  if (other_err >= 0.0 && other_err < opt_.yaw_ambiguity_ratio * std::max(best_err, floor_err)) {
+  const double scale_var =
+      opt_.focal_sigma_rel > 0.0
+          ? face_yaw_scale_var(k_, side, {u[3], u[2], u[1], u[0]}, mount_, o, opt_.focal_sigma_rel)
+          : 0.0;
+  const bool yaw_ambiguous =
+      other_err >= 0.0 && other_err < opt_.yaw_ambiguity_ratio * std::max(best_err, floor_err);
+  if (yaw_ambiguous || !std::isfinite(scale_var)) {
     o.pose.has_yaw = false;
     o.pose.relative_yaw_rad = 0.0;
     for (Eigen::Matrix3d* m : {&o.pose.cov, &o.pose.systematic_cov}) {
       m->row(2).setZero();
       m->col(2).setZero();
     }
+  } else {
+    o.pose.cov(2, 2) += scale_var;  // the same in every frame: the systematic share too
+    o.pose.systematic_cov(2, 2) += scale_var;
   }
 
   add_size_measure(k_, mount_, opt_, side, &o);

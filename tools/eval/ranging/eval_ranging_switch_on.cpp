@@ -4,11 +4,11 @@
 // errors, per-frame degradations) the camera takes `frames` RENDERED frames at 15 fps, each with
 // its own noise; the LandmarkObserver reads them without a prior (full sweep), and the Localizer
 // gets them through on_ranging with the wheels at rest, once per initialisation rule on the same
-// observations: each frame's fix alone (RangingAidConfig::stack_fixes false) and the frames' fixes
-// stacked; stacked with two landmarks read with face yaws seeded from them below the 15 degree
-// crossing instead of refused (FixOptions::face_yaw_pairs_below_crossing true, off by default); and
-// stacked with the range-bearing updates not told which share of their covariance repeats
-// (RangeBearingObs::R_systematic zero). Reports per rule: poses localized within the
+// observations: each frame's fix alone (RangingAidConfig::stack_fixes false); the frames' fixes
+// stacked with two landmarks whose circles cross below 15 degrees refused
+// (FixOptions::face_yaw_pairs_below_crossing false); stacked with such pairs seeded from their
+// face yaws (the default); and the default with the range-bearing updates not told which share of
+// their covariance repeats (RangeBearingObs::R_systematic zero). Reports per rule: poses localized within the
 // frames, time to the first valid pose, its error and 3-sigma coverage, and the same at the end.
 // Not a ctest; figures in docs/design/ranging.md ("Switched on"). Usage: eval_ranging_switch_on
 // [trials=60] [seed=1] [frames=15] [mount_error_deg=1]
@@ -187,12 +187,13 @@ int main(int argc, char** argv) {
   base.ranging.common_bearing_sigma_rad = std::hypot(s_yaw, 1.0 / k_true.fx);
   localizer::LocalizerConfig single = base;
   single.ranging.stack_fixes = false;
-  localizer::LocalizerConfig shallow = base;
-  shallow.ranging.fix.face_yaw_pairs_below_crossing = true;
+  single.ranging.fix.face_yaw_pairs_below_crossing = false;
+  localizer::LocalizerConfig refused = base;
+  refused.ranging.fix.face_yaw_pairs_below_crossing = false;
   // Per rule, per group (the most landmarks read in one of the frames: two, three or more).
-  const char* kRules[4] = {"each frame's fix alone", "the frames' fixes stacked",
-                           "stacked, shallow pairs seeded from face yaws",
-                           "stacked, the EKF not told what repeats"};
+  const char* kRules[4] = {"each frame's fix alone", "stacked, shallow pairs refused",
+                           "stacked, shallow pairs seeded from face yaws (default)",
+                           "the default, the EKF not told what repeats"};
   RuleTally tally[4][2];
   int in_view[2] = {0, 0};
   for (int r = 0; r < 4; ++r) {
@@ -217,8 +218,8 @@ int main(int argc, char** argv) {
     const int g = most >= 3 ? 1 : 0;
     ++in_view[g];
     tally[0][g].add(stand(single, frames, poses[t]));
-    tally[1][g].add(stand(base, frames, poses[t]));
-    tally[2][g].add(stand(shallow, frames, poses[t]));
+    tally[1][g].add(stand(refused, frames, poses[t]));
+    tally[2][g].add(stand(base, frames, poses[t]));
     for (Frame& f : frames) {
       for (localizer::RackObservation& o : f) o.sensor.R_systematic.setZero();
     }

@@ -160,6 +160,7 @@ struct RangingCameraSection {
   double mount_sigma_mm = 0.0;
   double calibration_sigma_px = 0.0;
   double focal_sigma_rel = 0.0;
+  bool shallow_pairs_from_face_yaws = true;  // ranging::FixOptions::face_yaw_pairs_below_crossing
   bool predicted_first = true;               // ranging::WindowOptions::predicted_first
   std::int64_t sweep_interval_frames = 150;  // ranging::WindowOptions::full_sweep_interval_frames
   double interval_sweep_decimate = 2.0;      // ranging::ObserveOptions::interval_sweep_decimate

@@ -63,11 +63,12 @@ struct FixOptions {
   // Two landmarks both read with their face yaw (the tag's full pose) whose circles cross below
   // min_crossing_angle_rad: true seeds the least squares from the two single-landmark poses
   // instead of refusing, and leaves the geometry to the refinement's rank and max_position_sd_mm
-  // checks (the face yaws constrain what the shallow circles do not). Off by default: the position
-  // along the bisector then rests on the face yaws alone, and on rendered frames a 150 mm tag at
-  // 4.5 m read its face yaw 0.8 deg off in frame after frame against a told 0.32 deg sigma, a first
-  // pose 54 mm off at about 5 sigma (docs/design/ranging.md, "Switched on").
-  bool face_yaw_pairs_below_crossing = false;
+  // checks (the face yaws constrain what the shallow circles do not). The position along the
+  // bisector then rests on the face yaws, so their sigma must carry the lens's scale doubt
+  // (ObserveOptions::focal_sigma_rel), which turns a face yaw alike in every frame; with it, on
+  // rendered frames, shallow pairs initialise within 3 sigma (docs/design/ranging.md, "Switched
+  // on"). false: refused as kShallowGeometry.
+  bool face_yaw_pairs_below_crossing = true;
   // Circles that miss each other by less than this many standard deviations of the range sum
   // (or difference) are taken as touching: their one solution is the closest point.
   double intersection_gate_sigma = 3.0;

@@ -104,7 +104,8 @@ struct ObserveOptions {
   double mount_sigma_mm = 0.0;
   // The lens calibration's residual: a systematic error of an undistorted point that differs
   // across the image (distortion terms, principal point; 1 sigma, px) widens each bearing by
-  // sigma / fx; a relative focal-length error scales each range.
+  // sigma / fx; a relative focal-length error scales each range and, on fx and fy apart, turns
+  // each face yaw (the tag's width against its height; far more near face-on).
   double calibration_sigma_px = 0.0;
   double focal_sigma_rel = 0.0;
 };
