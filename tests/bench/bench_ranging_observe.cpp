@@ -217,10 +217,21 @@ void BM_IntervalWrongPrior(benchmark::State& state) {
   run(state, o, {.windows = 3, .interval = true, .turn_deg = 20.0});
 }
 
-// measure() alone (undistortion, pose, covariances) on the full sweep's detections.
+// The localized windows with the lens's focal doubt stated (focal_sigma_rel 0.002): each face
+// yaw's share of it (two pose refinements per focal axis and landmark), and windows widened by it.
+void BM_WindowsLocalizedPriorFocalDoubt(benchmark::State& state) {
+  ObserveOptions o;
+  o.focal_sigma_rel = 0.002;
+  run(state, o, {.windows = 3});
+}
+
+// measure() alone (undistortion, pose, covariances) on the full sweep's detections; Arg(1) with
+// the focal doubt stated (the face yaw's share of it), Arg(0) without.
 void BM_MeasurePerLandmark(benchmark::State& state) {
   const Frames& f = frames();
-  const LandmarkObserver obs(f.k, f.mount, f.scene.site.wall_landmarks);
+  ObserveOptions opt;
+  opt.focal_sigma_rel = state.range(0) != 0 ? 0.002 : 0.0;
+  const LandmarkObserver obs(f.k, f.mount, f.scene.site.wall_landmarks, opt);
   std::vector<overhead::TagObservation> all;
   for (const auto& d : f.detections) all.insert(all.end(), d.begin(), d.end());
   std::size_t i = 0;
@@ -282,7 +293,11 @@ BENCHMARK(BM_IntervalWrongPrior)
     ->Unit(benchmark::kMillisecond)
     ->Iterations(kFrames)
     ->UseRealTime();
-BENCHMARK(BM_MeasurePerLandmark)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_WindowsLocalizedPriorFocalDoubt)
+    ->Unit(benchmark::kMillisecond)
+    ->Iterations(4 * kFrames)
+    ->UseRealTime();
+BENCHMARK(BM_MeasurePerLandmark)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_WindowsMirrorEachWindow)
     ->Unit(benchmark::kMillisecond)
     ->Iterations(4 * kFrames)

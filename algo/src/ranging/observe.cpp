@@ -69,22 +69,34 @@ bool inside_margin(const std::array<Vec2, 4>& corners_px, const CameraIntrinsics
 // The face yaw's share of the lens's scale doubt, fx and fy apart (focal_sigma_rel on each: their
 // ratio, a distortion term's local stretch). Seen near face-on, a tag's yaw rests on the ratio
 // of its width to its height: 0.2 % on one axis turns it by about 0.65 deg at 10 deg off face-on,
-// where the corners' own noise says far less. The pose is refined again with each focal length
-// moved by sigma_rel either way; infinity when a refinement fails.
-double face_yaw_scale_var(const CameraIntrinsics& k, double side_mm,
-                          const std::array<Vec2, 4>& ippe_corners, const RangingMount& mount,
+// where the corners' own noise says far less. A focal length longer by sigma_rel moves the
+// projected corners by sigma_rel (u - cx) (or (v - cy)); the pose that puts them back is one
+// Gauss-Newton step on the corners' Jacobian, and the face yaw is read at that pose either way.
+// Infinity when the projection or its normal equations fail.
+double face_yaw_scale_var(const CameraIntrinsics& k, double side_mm, const RangingMount& mount,
                           const LandmarkObservation& o, double sigma_rel) {
+  SquareCorners8 uv;
+  SquareJacobian J;
+  if (!project_square(k.fx, k.fy, k.cx, k.cy, side_mm, o.R_CT, o.t_C_mm, &uv, &J))
+    return std::numeric_limits<double>::infinity();
+  const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> normal(J.transpose() * J);
+  if (normal.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
   double var = 0.0;
   for (int axis = 0; axis < 2; ++axis) {
+    SquareCorners8 moved = SquareCorners8::Zero();
+    const double centre = axis == 0 ? k.cx : k.cy;
+    for (int i = 0; i < 4; ++i) moved(2 * i + axis) = sigma_rel * (uv(2 * i + axis) - centre);
+    const Eigen::Matrix<double, 6, 1> d = normal.solve(J.transpose() * moved);
+    if (!d.allFinite()) return std::numeric_limits<double>::infinity();
     std::array<double, 2> yaw{};
     for (int s = 0; s < 2; ++s) {
-      const double f = s == 0 ? 1.0 + sigma_rel : 1.0 - sigma_rel;
-      const SquarePose p =
-          refine_square_pose(axis == 0 ? k.fx * f : k.fx, axis == 1 ? k.fy * f : k.fy, k.cx, k.cy,
-                             side_mm, ippe_corners, o.R_CT, o.t_C_mm);
-      if (!p.ok) return std::numeric_limits<double>::infinity();
+      const Eigen::Matrix<double, 6, 1> step = s == 0 ? d : Eigen::Matrix<double, 6, 1>(-d);
+      const Eigen::Vector3d w = step.head<3>();
+      const Eigen::Matrix3d R =
+          w.norm() > 0.0 ? Eigen::Matrix3d(Eigen::AngleAxisd(w.norm(), w.normalized()) * o.R_CT)
+                         : o.R_CT;
       yaw[static_cast<std::size_t>(s)] =
-          range_bearing_from_tag_pose(mount, p.t_C_mm, p.R_CT, o.cov6).relative_yaw_rad;
+          range_bearing_from_tag_pose(mount, o.t_C_mm + step.tail<3>(), R, o.cov6).relative_yaw_rad;
     }
     const double half = 0.5 * wrap_angle_rad(yaw[0] - yaw[1]);
     var += half * half;
@@ -360,10 +372,9 @@ bool LandmarkObserver::measure(std::uint32_t id, const std::array<Vec2, 4>& corn
   o.pose.cov += o.pose.systematic_cov;
   // A second solution nearly as good: the tag's turn is not resolved by its corners.
   const double floor_err = 8.0 * o.corner_sigma_px * o.corner_sigma_px;
-  const double scale_var =
-      opt_.focal_sigma_rel > 0.0
-          ? face_yaw_scale_var(k_, side, {u[3], u[2], u[1], u[0]}, mount_, o, opt_.focal_sigma_rel)
-          : 0.0;
+  const double scale_var = opt_.focal_sigma_rel > 0.0
+                               ? face_yaw_scale_var(k_, side, mount_, o, opt_.focal_sigma_rel)
+                               : 0.0;
   const bool yaw_ambiguous =
       other_err >= 0.0 && other_err < opt_.yaw_ambiguity_ratio * std::max(best_err, floor_err);
   if (yaw_ambiguous || !std::isfinite(scale_var)) {
