@@ -8,8 +8,9 @@
 // stacked with two landmarks whose circles cross below 15 degrees refused
 // (FixOptions::face_yaw_pairs_below_crossing false); stacked with such pairs seeded from their
 // face yaws (the default); and the default with the range-bearing updates not told which share of
-// their covariance repeats (RangeBearingObs::R_systematic zero). Reports per rule: poses localized within the
-// frames, time to the first valid pose, its error and 3-sigma coverage, and the same at the end.
+// their covariance repeats (RangeBearingObs::R_systematic zero). Reports per rule: poses localized
+// within the frames, time to the first valid pose, its error and 3-sigma coverage, and the same
+// at the end.
 // Not a ctest; figures in docs/design/ranging.md ("Switched on"). Usage: eval_ranging_switch_on
 // [trials=60] [seed=1] [frames=15] [mount_error_deg=1]
 //                               [mount_error_mm=5]
