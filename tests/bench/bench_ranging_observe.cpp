@@ -218,7 +218,7 @@ void BM_IntervalWrongPrior(benchmark::State& state) {
 }
 
 // The localized windows with the lens's focal doubt stated (focal_sigma_rel 0.002): each face
-// yaw's share of it (two pose refinements per focal axis and landmark), and windows widened by it.
+// yaw's share of it (one Gauss-Newton step per focal axis and landmark), and windows widened by it.
 void BM_WindowsLocalizedPriorFocalDoubt(benchmark::State& state) {
   ObserveOptions o;
   o.focal_sigma_rel = 0.002;
