@@ -412,5 +412,89 @@ TEST(RangingFix, TheSystematicShareOfAFixIsItsResponseToTheRepeatedShares) {
   EXPECT_TRUE(fix_systematic_cov(obs, refused).isZero(0.0));
 }
 
+// Trials whose every range is scaled by one common error (a focal length off) besides its own
+// noise, the common share told per landmark: the fraction of fixes inside their 3-sigma
+// ellipsoid, and the median position sd, with the share left per landmark or made one error.
+struct ScaleCoverage {
+  double inside = 0.0, median_sd_mm = 0.0;
+};
+
+ScaleCoverage coverage_under_common_scale(const std::vector<Vec2>& landmarks, bool with_change) {
+  const Pose2 truth{3000.0, 2000.0, 0.3};
+  constexpr double kScale = 0.002, kRangeMm = 3.0, kBearingRad = 5e-4;
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> n(0.0, 1.0);
+  int inside = 0;
+  std::vector<double> sd;
+  for (int t = 0; t < 2000; ++t) {
+    const double common = kScale * n(rng);
+    std::vector<Observation> obs;
+    for (const Vec2& l : landmarks) {
+      Observation o = observe(truth, l, kRangeMm, kBearingRad);
+      o.cov(0, 0) += kScale * kScale * o.range_mm * o.range_mm;
+      o.systematic_cov(0, 0) = kScale * kScale * o.range_mm * o.range_mm;
+      o.common_range_var_rel2 = kScale * kScale;
+      o.range_mm = o.range_mm * (1.0 + common) + kRangeMm * n(rng);
+      o.bearing_rad += kBearingRad * n(rng);
+      obs.push_back(o);
+    }
+    FixResult f = fix_from_landmarks(obs, FixOptions{});
+    if (f.status != FixStatus::kOk) continue;
+    if (with_change) f.cov += range_scale_cov_change(obs, f);
+    const Eigen::Vector3d e(f.pose.x_mm - truth.x_mm, f.pose.y_mm - truth.y_mm,
+                            wrap_angle_rad(f.pose.theta_rad - truth.theta_rad));
+    inside += e.dot(f.cov.ldlt().solve(e)) <= 14.16;
+    sd.push_back(std::sqrt(f.cov.topLeftCorner<2, 2>().trace()));
+  }
+  if (sd.size() < 1900) return {};
+  std::nth_element(sd.begin(), sd.begin() + sd.size() / 2, sd.end());
+  return {static_cast<double>(inside) / sd.size(), sd[sd.size() / 2]};
+}
+
+TEST(RangingFix, ACommonRangeScaleIsOneErrorNotOnePerLandmark) {
+  // Seen from (3, 2) m heading 0.3 rad. A narrow fan ahead: the bearings barely fix the distance,
+  // the common scale moves the fix along the fan, which per-landmark shares average down. A wide
+  // fan: the bearings fix the position and the common scale is mostly residual, which
+  // per-landmark shares overstate.
+  const std::vector<Vec2> narrow = {{7700.0, 3400.0}, {9200.0, 4000.0}, {8300.0, 4400.0}};
+  const std::vector<Vec2> wide = {{7500.0, 1500.0}, {8000.0, 4500.0}, {6000.0, 5500.0}};
+  const ScaleCoverage narrow_apart = coverage_under_common_scale(narrow, false);
+  const ScaleCoverage narrow_common = coverage_under_common_scale(narrow, true);
+  const ScaleCoverage wide_apart = coverage_under_common_scale(wide, false);
+  const ScaleCoverage wide_common = coverage_under_common_scale(wide, true);
+  std::printf("3-sigma coverage / median sd mm, per landmark against one error: narrow fan "
+              "%.4f / %.1f, %.4f / %.1f; wide fan %.4f / %.1f, %.4f / %.1f\n",
+              narrow_apart.inside, narrow_apart.median_sd_mm, narrow_common.inside,
+              narrow_common.median_sd_mm, wide_apart.inside, wide_apart.median_sd_mm,
+              wide_common.inside, wide_common.median_sd_mm);
+  EXPECT_LT(narrow_apart.inside, 0.98);
+  EXPECT_GE(narrow_common.inside, 0.99);
+  EXPECT_GE(wide_common.inside, 0.99);
+  EXPECT_LT(wide_common.median_sd_mm, 0.7 * wide_apart.median_sd_mm);
+}
+
+TEST(RangingFix, RangeScaleChangeIsZeroWithoutACommonShareAndKeepsTheCovariancePositive) {
+  const Pose2 truth{3000.0, 2000.0, 0.3};
+  // Around the vehicle the common scale mostly cancels: the change may be negative there, never
+  // by more than the per-landmark shares the covariance holds.
+  std::vector<Observation> obs = {observe(truth, {8000.0, 2000.0}, 10.0, 1e-3),
+                                  observe(truth, {0.0, 6000.0}, 10.0, 1e-3),
+                                  observe(truth, {0.0, -2000.0}, 10.0, 1e-3)};
+  FixResult f = fix_from_landmarks(obs, FixOptions{});
+  ASSERT_EQ(f.status, FixStatus::kOk);
+  EXPECT_TRUE(range_scale_cov_change(obs, f).isZero(0.0));
+  for (Observation& o : obs) {
+    o.cov(0, 0) += 1e-4 * o.range_mm * o.range_mm;
+    o.common_range_var_rel2 = 1e-4;
+  }
+  f = fix_from_landmarks(obs, FixOptions{});
+  ASSERT_EQ(f.status, FixStatus::kOk);
+  const Eigen::Matrix3d changed = f.cov + range_scale_cov_change(obs, f);
+  EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(changed).eigenvalues().minCoeff(), 0.0);
+  FixResult refused = f;
+  refused.status = FixStatus::kInconsistent;
+  EXPECT_TRUE(range_scale_cov_change(obs, refused).isZero(0.0));
+}
+
 }  // namespace
 }  // namespace agv::ranging

@@ -455,6 +455,7 @@ Observation fix_observation(const LandmarkObservation& obs, bool from_pose) {
   o.bearing_rad = rb.bearing_rad;
   o.cov = rb.cov.topLeftCorner<2, 2>();
   o.systematic_cov.topLeftCorner<2, 2>() = rb.systematic_cov.topLeftCorner<2, 2>();
+  o.common_range_var_rel2 = obs.calibration_range_var_rel2;
   if (from_pose && rb.has_yaw) {
     o.systematic_cov.row(2) = rb.systematic_cov.row(2);
     o.systematic_cov.col(2) = rb.systematic_cov.col(2);

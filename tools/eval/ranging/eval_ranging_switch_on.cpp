@@ -13,7 +13,9 @@
 // at the end.
 // Not a ctest; figures in docs/design/ranging.md ("Switched on"). Usage: eval_ranging_switch_on
 // [trials=60] [seed=1] [frames=15] [mount_error_deg=1]
-//                               [mount_error_mm=5]
+//                               [mount_error_mm=5] [calibration_error_scale=1]
+// With AGV_EVAL_POSES set, one line per trial of the default rule on stderr (pose, landmarks,
+// first error and its sigmas) to trace which poses miss.
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -117,6 +119,19 @@ Outcome stand(const localizer::LocalizerConfig& cfg, const std::vector<Frame>& f
   return out;
 }
 
+// One trial of the default rule: where, what was read, the first pose's error against its sigmas.
+void print_trial(std::size_t t, const Pose2& truth, const std::vector<Frame>& frames,
+                 const Outcome& o) {
+  std::fprintf(stderr, "\ntrial %zu at %.0f %.0f %.1f deg, landmarks", t, truth.x_mm, truth.y_mm,
+               rad_to_deg(truth.theta_rad));
+  for (const localizer::RackObservation& r : frames.front()) {
+    std::fprintf(stderr, " %.0fmm/%.1fdeg", r.sensor.range_mm, rad_to_deg(r.sensor.bearing_rad));
+  }
+  std::fprintf(stderr, "; first %s err %.1f %.1f mm %.2f deg nees %.1f\n",
+               o.first_valid_ns < 0 ? "none" : "valid", o.first_error.x(), o.first_error.y(),
+               rad_to_deg(o.first_error.z()), o.first_nees);
+}
+
 struct RuleTally {
   std::string name;
   // Frames of the vehicles not localized in time: refused fixes by status, disagreeing runs.
@@ -168,6 +183,8 @@ int main(int argc, char** argv) {
   const int n_frames = argc > 3 ? std::max(2, std::atoi(argv[3])) : 15;
   const double mount_deg = argc > 4 ? std::atof(argv[4]) : 1.0;
   const double mount_mm = argc > 5 ? std::atof(argv[5]) : 5.0;
+  const double calibration_scale = argc > 6 ? std::atof(argv[6]) : 1.0;
+  const bool dump = std::getenv("AGV_EVAL_POSES") != nullptr;
   const sim::SiteScene scene = ranging_eval::warehouse(seed);
   const CameraIntrinsics k_true = ranging_eval::true_camera();
   const sim::SiteFrameRenderer renderer(k_true);
@@ -205,7 +222,7 @@ int main(int argc, char** argv) {
     const sim::SiteRenderParams params = ranging_eval::degraded(rng);
     ranging::RangingMount m_est;
     const ranging::LandmarkObserver observer = ranging_eval::believed_observer(
-        rng, k_true, mount_true, mount_deg, mount_mm, scene, oopt, &m_est);
+        rng, k_true, mount_true, mount_deg, mount_mm, scene, oopt, &m_est, calibration_scale);
     std::vector<Frame> frames;
     std::size_t most = 0;
     for (int f = 0; f < n_frames; ++f) {
@@ -220,7 +237,9 @@ int main(int argc, char** argv) {
     ++in_view[g];
     tally[0][g].add(stand(single, frames, poses[t]));
     tally[1][g].add(stand(refused, frames, poses[t]));
-    tally[2][g].add(stand(base, frames, poses[t]));
+    const Outcome def = stand(base, frames, poses[t]);
+    tally[2][g].add(def);
+    if (dump) print_trial(t, poses[t], frames, def);
     for (Frame& f : frames) {
       for (localizer::RackObservation& o : f) o.sensor.R_systematic.setZero();
     }
