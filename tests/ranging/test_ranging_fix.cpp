@@ -433,14 +433,14 @@ ScaleCoverage coverage_under_common_scale(const std::vector<Vec2>& landmarks, bo
       Observation o = observe(truth, l, kRangeMm, kBearingRad);
       o.cov(0, 0) += kScale * kScale * o.range_mm * o.range_mm;
       o.systematic_cov(0, 0) = kScale * kScale * o.range_mm * o.range_mm;
-      o.common_range_var_rel2 = kScale * kScale;
+      o.lens_response(0, 0) = kScale * o.range_mm;
       o.range_mm = o.range_mm * (1.0 + common) + kRangeMm * n(rng);
       o.bearing_rad += kBearingRad * n(rng);
       obs.push_back(o);
     }
     FixResult f = fix_from_landmarks(obs, FixOptions{});
     if (f.status != FixStatus::kOk) continue;
-    if (with_change) f.cov += range_scale_cov_change(obs, f);
+    if (with_change) f.cov += lens_cov_change(obs, f);
     const Eigen::Vector3d e(f.pose.x_mm - truth.x_mm, f.pose.y_mm - truth.y_mm,
                             wrap_angle_rad(f.pose.theta_rad - truth.theta_rad));
     inside += e.dot(f.cov.ldlt().solve(e)) <= 14.16;
@@ -473,7 +473,7 @@ TEST(RangingFix, ACommonRangeScaleIsOneErrorNotOnePerLandmark) {
   EXPECT_LT(wide_common.median_sd_mm, 0.7 * wide_apart.median_sd_mm);
 }
 
-TEST(RangingFix, RangeScaleChangeIsZeroWithoutACommonShareAndKeepsTheCovariancePositive) {
+TEST(RangingFix, LensChangeIsZeroWithoutACommonShareAndKeepsTheCovariancePositive) {
   const Pose2 truth{3000.0, 2000.0, 0.3};
   // Around the vehicle the common scale mostly cancels: the change may be negative there, never
   // by more than the per-landmark shares the covariance holds.
@@ -482,18 +482,18 @@ TEST(RangingFix, RangeScaleChangeIsZeroWithoutACommonShareAndKeepsTheCovarianceP
                                   observe(truth, {0.0, -2000.0}, 10.0, 1e-3)};
   FixResult f = fix_from_landmarks(obs, FixOptions{});
   ASSERT_EQ(f.status, FixStatus::kOk);
-  EXPECT_TRUE(range_scale_cov_change(obs, f).isZero(0.0));
+  EXPECT_TRUE(lens_cov_change(obs, f).isZero(0.0));
   for (Observation& o : obs) {
     o.cov(0, 0) += 1e-4 * o.range_mm * o.range_mm;
-    o.common_range_var_rel2 = 1e-4;
+    o.lens_response(0, 0) = 1e-2 * o.range_mm;
   }
   f = fix_from_landmarks(obs, FixOptions{});
   ASSERT_EQ(f.status, FixStatus::kOk);
-  const Eigen::Matrix3d changed = f.cov + range_scale_cov_change(obs, f);
+  const Eigen::Matrix3d changed = f.cov + lens_cov_change(obs, f);
   EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(changed).eigenvalues().minCoeff(), 0.0);
   FixResult refused = f;
   refused.status = FixStatus::kInconsistent;
-  EXPECT_TRUE(range_scale_cov_change(obs, refused).isZero(0.0));
+  EXPECT_TRUE(lens_cov_change(obs, refused).isZero(0.0));
 }
 
 }  // namespace

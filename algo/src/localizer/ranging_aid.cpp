@@ -209,11 +209,11 @@ bool Localizer::rack_fix(std::span<const RackObservation> obs, ranging::FixResul
     // Both terms below repeat in every frame; each is the response of the least squares' own
     // covariance, so both are computed before either is added.
     *systematic_cov = ranging::fix_systematic_cov(seen, *fix);
-    const Eigen::Matrix3d scale = ranging::range_scale_cov_change(seen, *fix);
+    const Eigen::Matrix3d lens = ranging::lens_cov_change(seen, *fix);
     const Eigen::Matrix3d without_yaw = fix->cov;
     ranging::add_mount_yaw_uncertainty(seen, cfg_.ranging.common_bearing_sigma_rad, fix);
-    *systematic_cov += fix->cov - without_yaw + scale;
-    fix->cov += scale;
+    *systematic_cov += fix->cov - without_yaw + lens;
+    fix->cov += lens;
     return true;
   }
   const auto k = static_cast<std::size_t>(fix->status);

@@ -476,17 +476,16 @@ Eigen::Matrix3d fix_systematic_cov(std::span<const Observation> obs, const FixRe
   return 0.5 * (out + out.transpose());
 }
 
-Eigen::Matrix3d range_scale_cov_change(std::span<const Observation> obs, const FixResult& fix) {
+Eigen::Matrix3d lens_cov_change(std::span<const Observation> obs, const FixResult& fix) {
   Eigen::Matrix3d out = Eigen::Matrix3d::Zero();
   if (fix.status != FixStatus::kOk) return out;
   const Eigen::Vector3d s(fix.pose.x_mm, fix.pose.y_mm, fix.pose.theta_rad);
-  Eigen::Vector3d common = Eigen::Vector3d::Zero();
+  Eigen::Matrix<double, 3, 2> common = Eigen::Matrix<double, 3, 2>::Zero();
   Eigen::Matrix3d JtW;
   for (const Observation& o : obs) {
-    if (!(o.common_range_var_rel2 > 0.0) || !weighted_jacobian(o, s, &JtW)) continue;
-    // The fix's response to this range being off by its share of the common scale.
-    const Eigen::Vector3d g =
-        fix.cov * JtW.col(0) * (o.range_mm * std::sqrt(o.common_range_var_rel2));
+    if (o.lens_response.isZero(0.0) || !weighted_jacobian(o, s, &JtW)) continue;
+    // The fix's response to this landmark's share of the common error, per column.
+    const Eigen::Matrix<double, 3, 2> g = fix.cov * JtW * o.lens_response;
     common += g;
     out -= g * g.transpose();
   }

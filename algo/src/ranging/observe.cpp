@@ -66,42 +66,28 @@ bool inside_margin(const std::array<Vec2, 4>& corners_px, const CameraIntrinsics
   return true;
 }
 
-// The face yaw's share of the lens's scale doubt, fx and fy apart (focal_sigma_rel on each: their
-// ratio, a distortion term's local stretch). Seen near face-on, a tag's yaw rests on the ratio
-// of its width to its height: 0.2 % on one axis turns it by about 0.65 deg at 10 deg off face-on,
-// where the corners' own noise says far less. A focal length longer by sigma_rel moves the
+// The tag pose's change for each focal length (fx, fy apart) believed longer by sigma_rel than
+// the lens's. Seen near
+// face-on, a tag's yaw rests on the ratio of its width to its height: 0.2 % on one axis turns it
+// by about 0.65 deg at 10 deg off face-on; both axes scale the range and, off the image centre,
+// the bearing. A lens whose focal length is longer than believed by sigma_rel moves the
 // projected corners by sigma_rel (u - cx) (or (v - cy)); the pose that puts them back is one
-// Gauss-Newton step on the corners' Jacobian, and the face yaw is read at that pose either way.
-// Infinity when the projection or its normal equations fail.
-double face_yaw_scale_var(const CameraIntrinsics& k, double side_mm, const RangingMount& mount,
-                          const LandmarkObservation& o, double sigma_rel) {
+// Gauss-Newton step on the corners' Jacobian, and a belief too long moves the pose the other way.
+// False when the projection or its normal equations fail.
+bool focal_pose_step(const CameraIntrinsics& k, double side_mm, const LandmarkObservation& o,
+                     double sigma_rel, Eigen::Matrix<double, 6, 2>* step) {
   SquareCorners8 uv;
   SquareJacobian J;
-  if (!project_square(k.fx, k.fy, k.cx, k.cy, side_mm, o.R_CT, o.t_C_mm, &uv, &J))
-    return std::numeric_limits<double>::infinity();
+  if (!project_square(k.fx, k.fy, k.cx, k.cy, side_mm, o.R_CT, o.t_C_mm, &uv, &J)) return false;
   const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> normal(J.transpose() * J);
-  if (normal.info() != Eigen::Success) return std::numeric_limits<double>::infinity();
-  double var = 0.0;
+  if (normal.info() != Eigen::Success) return false;
   for (int axis = 0; axis < 2; ++axis) {
     SquareCorners8 moved = SquareCorners8::Zero();
     const double centre = axis == 0 ? k.cx : k.cy;
     for (int i = 0; i < 4; ++i) moved(2 * i + axis) = sigma_rel * (uv(2 * i + axis) - centre);
-    const Eigen::Matrix<double, 6, 1> d = normal.solve(J.transpose() * moved);
-    if (!d.allFinite()) return std::numeric_limits<double>::infinity();
-    std::array<double, 2> yaw{};
-    for (int s = 0; s < 2; ++s) {
-      const Eigen::Matrix<double, 6, 1> step = s == 0 ? d : Eigen::Matrix<double, 6, 1>(-d);
-      const Eigen::Vector3d w = step.head<3>();
-      const Eigen::Matrix3d R =
-          w.norm() > 0.0 ? Eigen::Matrix3d(Eigen::AngleAxisd(w.norm(), w.normalized()) * o.R_CT)
-                         : o.R_CT;
-      yaw[static_cast<std::size_t>(s)] =
-          range_bearing_from_tag_pose(mount, o.t_C_mm + step.tail<3>(), R, o.cov6).relative_yaw_rad;
-    }
-    const double half = 0.5 * wrap_angle_rad(yaw[0] - yaw[1]);
-    var += half * half;
+    step->col(axis) = -normal.solve(J.transpose() * moved);
   }
-  return var;
+  return step->allFinite();
 }
 
 // IPPE's (up to two) poses of the square, each refined by Levenberg-Marquardt on the undistorted
@@ -372,31 +358,38 @@ bool LandmarkObserver::measure(std::uint32_t id, const std::array<Vec2, 4>& corn
   o.pose.cov += o.pose.systematic_cov;
   // A second solution nearly as good: the tag's turn is not resolved by its corners.
   const double floor_err = 8.0 * o.corner_sigma_px * o.corner_sigma_px;
-  const double scale_var = opt_.focal_sigma_rel > 0.0
-                               ? face_yaw_scale_var(k_, side, mount_, o, opt_.focal_sigma_rel)
-                               : 0.0;
+  const bool lens_ok = !(opt_.focal_sigma_rel > 0.0) ||
+                       focal_pose_step(k_, side, o, opt_.focal_sigma_rel, &o.focal_pose_step);
+  if (!lens_ok) o.focal_pose_step.setZero();
+  // The focal lengths' share, the same in every frame: the systematic share too.
+  const Eigen::Matrix<double, 3, 2> lens = lens_response(mount_, o);
+  o.pose.cov += lens * lens.transpose();
+  o.pose.systematic_cov += lens * lens.transpose();
   const bool yaw_ambiguous =
       other_err >= 0.0 && other_err < opt_.yaw_ambiguity_ratio * std::max(best_err, floor_err);
-  if (yaw_ambiguous || !std::isfinite(scale_var)) {
+  if (yaw_ambiguous || !lens_ok) {
     o.pose.has_yaw = false;
     o.pose.relative_yaw_rad = 0.0;
     for (Eigen::Matrix3d* m : {&o.pose.cov, &o.pose.systematic_cov}) {
       m->row(2).setZero();
       m->col(2).setZero();
     }
-  } else {
-    o.pose.cov(2, 2) += scale_var;  // the same in every frame: the systematic share too
-    o.pose.systematic_cov(2, 2) += scale_var;
   }
+  o.pose_lens_response = lens;
+  if (!o.pose.has_yaw) o.pose_lens_response.row(2).setZero();
 
   add_size_measure(k_, mount_, opt_, side, &o);
   o.calibration_bearing_var_rad2 = std::pow(opt_.calibration_sigma_px / k_.fx, 2);
   o.calibration_range_var_rel2 = opt_.focal_sigma_rel * opt_.focal_sigma_rel;
+  for (Eigen::Matrix3d* m : {&o.size.cov, &o.size.systematic_cov})
+    (*m)(0, 0) += o.calibration_range_var_rel2 * o.size.range_mm * o.size.range_mm;
+  if (!lens_ok) {  // no step: the pose's range takes the size model's scale share instead
+    for (Eigen::Matrix3d* m : {&o.pose.cov, &o.pose.systematic_cov})
+      (*m)(0, 0) += o.calibration_range_var_rel2 * o.pose.range_mm * o.pose.range_mm;
+  }
   for (RangeBearing* rb : {&o.pose, &o.size}) {
-    for (Eigen::Matrix3d* m : {&rb->cov, &rb->systematic_cov}) {
-      (*m)(0, 0) += o.calibration_range_var_rel2 * rb->range_mm * rb->range_mm;
+    for (Eigen::Matrix3d* m : {&rb->cov, &rb->systematic_cov})
       (*m)(1, 1) += o.calibration_bearing_var_rad2;
-    }
   }
   *out = o;
   return true;
@@ -455,7 +448,11 @@ Observation fix_observation(const LandmarkObservation& obs, bool from_pose) {
   o.bearing_rad = rb.bearing_rad;
   o.cov = rb.cov.topLeftCorner<2, 2>();
   o.systematic_cov.topLeftCorner<2, 2>() = rb.systematic_cov.topLeftCorner<2, 2>();
-  o.common_range_var_rel2 = obs.calibration_range_var_rel2;
+  if (from_pose && !obs.focal_pose_step.isZero(0.0)) {
+    o.lens_response = obs.pose_lens_response;
+  } else {  // the size model's range, or no step: one common scale of the range
+    o.lens_response.col(0) << std::sqrt(obs.calibration_range_var_rel2) * rb.range_mm, 0.0, 0.0;
+  }
   if (from_pose && rb.has_yaw) {
     o.systematic_cov.row(2) = rb.systematic_cov.row(2);
     o.systematic_cov.col(2) = rb.systematic_cov.col(2);
@@ -473,6 +470,29 @@ std::vector<Observation> fix_observations(std::span<const LandmarkObservation> o
   std::vector<Observation> out;
   out.reserve(obs.size());
   for (const LandmarkObservation& o : obs) out.push_back(fix_observation(o, from_pose));
+  return out;
+}
+
+Eigen::Matrix<double, 3, 2> lens_response(const RangingMount& mount,
+                                          const LandmarkObservation& obs) {
+  Eigen::Matrix<double, 3, 2> out = Eigen::Matrix<double, 3, 2>::Zero();
+  if (obs.focal_pose_step.isZero(0.0)) return out;
+  // Central differences over +-step: the tag pose's small rotation is applied in C.
+  for (int axis = 0; axis < 2; ++axis) {
+    std::array<RangeBearing, 2> rb;
+    for (int s = 0; s < 2; ++s) {
+      const Eigen::Matrix<double, 6, 1> step = (s == 0 ? 1.0 : -1.0) * obs.focal_pose_step.col(axis);
+      const Eigen::Vector3d w = step.head<3>();
+      const Eigen::Matrix3d R =
+          w.norm() > 0.0 ? Eigen::Matrix3d(Eigen::AngleAxisd(w.norm(), w.normalized()) * obs.R_CT)
+                         : obs.R_CT;
+      rb[static_cast<std::size_t>(s)] =
+          range_bearing_from_tag_pose(mount, obs.t_C_mm + step.tail<3>(), R, obs.cov6);
+    }
+    out.col(axis) << 0.5 * (rb[0].range_mm - rb[1].range_mm),
+        0.5 * wrap_angle_rad(rb[0].bearing_rad - rb[1].bearing_rad),
+        0.5 * wrap_angle_rad(rb[0].relative_yaw_rad - rb[1].relative_yaw_rad);
+  }
   return out;
 }
 
@@ -497,7 +517,12 @@ SensorRangeBearing sensor_range_bearing(const RangingMount& mount, const Landmar
                           return range_bearing_from_tag_pose(m, obs.t_C_mm, obs.R_CT, obs.cov6);
                         })
           .topLeftCorner<2, 2>();
-  s.R_systematic(0, 0) += obs.calibration_range_var_rel2 * s.range_mm * s.range_mm;
+  if (obs.focal_pose_step.isZero(0.0)) {
+    s.R_systematic(0, 0) += obs.calibration_range_var_rel2 * s.range_mm * s.range_mm;
+  } else {
+    const Eigen::Matrix<double, 2, 2> lens = lens_response(at_sensor, obs).topRows<2>();
+    s.R_systematic += lens * lens.transpose();
+  }
   s.R_systematic(1, 1) += obs.calibration_bearing_var_rad2;
   s.R = rb.cov.topLeftCorner<2, 2>() + s.R_systematic;
   return s;

@@ -14,8 +14,9 @@
 // Not a ctest; figures in docs/design/ranging.md ("Switched on"). Usage: eval_ranging_switch_on
 // [trials=60] [seed=1] [frames=15] [mount_error_deg=1]
 //                               [mount_error_mm=5] [calibration_error_scale=1]
-// With AGV_EVAL_POSES set, one line per trial of the default rule on stderr (pose, landmarks,
-// first error and its sigmas) to trace which poses miss.
+// AGV_EVAL_CAL_TERMS (letters f, c, k) keeps only those lens errors: focal lengths, principal
+// point, distortion. With AGV_EVAL_POSES set, one line per trial of the default rule on stderr
+// (pose, landmarks, the first pose's error and NEES) to trace which poses miss.
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -183,7 +184,14 @@ int main(int argc, char** argv) {
   const int n_frames = argc > 3 ? std::max(2, std::atoi(argv[3])) : 15;
   const double mount_deg = argc > 4 ? std::atof(argv[4]) : 1.0;
   const double mount_mm = argc > 5 ? std::atof(argv[5]) : 5.0;
-  const double calibration_scale = argc > 6 ? std::atof(argv[6]) : 1.0;
+  ranging_eval::CalibrationErrors cal;
+  cal.scale = argc > 6 ? std::atof(argv[6]) : 1.0;
+  if (const char* terms = std::getenv("AGV_EVAL_CAL_TERMS")) {
+    const std::string t(terms);
+    cal.focal = t.find('f') != std::string::npos;
+    cal.principal_point = t.find('c') != std::string::npos;
+    cal.distortion = t.find('k') != std::string::npos;
+  }
   const bool dump = std::getenv("AGV_EVAL_POSES") != nullptr;
   const sim::SiteScene scene = ranging_eval::warehouse(seed);
   const CameraIntrinsics k_true = ranging_eval::true_camera();
@@ -222,7 +230,7 @@ int main(int argc, char** argv) {
     const sim::SiteRenderParams params = ranging_eval::degraded(rng);
     ranging::RangingMount m_est;
     const ranging::LandmarkObserver observer = ranging_eval::believed_observer(
-        rng, k_true, mount_true, mount_deg, mount_mm, scene, oopt, &m_est, calibration_scale);
+        rng, k_true, mount_true, mount_deg, mount_mm, scene, oopt, &m_est, cal);
     std::vector<Frame> frames;
     std::size_t most = 0;
     for (int f = 0; f < n_frames; ++f) {

@@ -91,23 +91,30 @@ inline std::vector<Pose2> trial_poses(const sim::SiteScene& scene, int trials, s
   return poses;
 }
 
+// Which lens calibration errors believed_observer draws (all by default).
+struct CalibrationErrors {
+  double scale = 1.0;  // times each 1-sigma figure below
+  bool focal = true, principal_point = true, distortion = true;
+};
+
 // What the vehicle believes: a calibration with small errors (fx, fy 0.2 %, cx, cy 1 px, k1
-// 0.003, 1 sigma, each times calibration_scale) and a mount off by up to +-mount_deg /
-// +-mount_mm per axis (uniform); the believed mount in *m_est when given.
+// 0.003, 1 sigma; as cal says) and a mount off by up to +-mount_deg / +-mount_mm per axis
+// (uniform); the believed mount in *m_est when given. The draws are the same whatever cal says.
 inline ranging::LandmarkObserver believed_observer(
     std::mt19937_64& rng, const CameraIntrinsics& k_true, const ranging::RangingMount& mount_true,
     double mount_deg, double mount_mm, const sim::SiteScene& scene,
     const ranging::ObserveOptions& oopt, ranging::RangingMount* m_est = nullptr,
-    double calibration_scale = 1.0) {
+    const CalibrationErrors& cal = {}) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   std::normal_distribution<double> n(0.0, 1.0);
   CameraIntrinsics k_est = k_true;
-  const double c = calibration_scale;
-  k_est.fx *= 1.0 + c * 0.002 * n(rng);
-  k_est.fy *= 1.0 + c * 0.002 * n(rng);
+  const double f = cal.focal ? cal.scale : 0.0, c = cal.principal_point ? cal.scale : 0.0;
+  const double k = cal.distortion ? cal.scale : 0.0;
+  k_est.fx *= 1.0 + f * 0.002 * n(rng);
+  k_est.fy *= 1.0 + f * 0.002 * n(rng);
   k_est.cx += c * 1.0 * n(rng);
   k_est.cy += c * 1.0 * n(rng);
-  k_est.k1 += c * 0.003 * n(rng);
+  k_est.k1 += k * 0.003 * n(rng);
   ranging::RangingMount m = mount_true;
   m.x_mm += mount_mm * u(rng);
   m.y_mm += mount_mm * u(rng);

@@ -38,10 +38,11 @@ struct Observation {
   // landmark seen from the same place repeats (RangeBearing::systematic_cov): what averaging
   // frames cannot shrink. Zero where nothing is known of it.
   Eigen::Matrix3d systematic_cov = Eigen::Matrix3d::Zero();
-  // The relative range variance that every landmark of the frame shares (the lens's focal length,
-  // ObserveOptions::focal_sigma_rel squared). cov and systematic_cov hold it per landmark, as if
-  // each had its own; range_scale_cov_change makes it the one error it is.
-  double common_range_var_rel2 = 0.0;
+  // How one error that every landmark of the frame shares moves this one's (range, bearing, face
+  // yaw), 1 sigma per column: the lens's focal lengths, fx and fy (ranging::lens_response). cov
+  // and systematic_cov hold lens_response lens_response^T, as if each landmark had its own error;
+  // lens_cov_change makes it the one error it is. The face yaw's row is zero without one.
+  Eigen::Matrix<double, 3, 2> lens_response = Eigen::Matrix<double, 3, 2>::Zero();
 };
 
 enum class FixStatus {
@@ -196,13 +197,14 @@ void add_mount_yaw_uncertainty(std::span<const Observation> obs, double sigma_co
 // add_mount_yaw_uncertainty); zero when none carries a systematic share.
 Eigen::Matrix3d fix_systematic_cov(std::span<const Observation> obs, const FixResult& fix);
 
-// What an OK fix's covariance (and its systematic share alike) must change by when the ranges'
-// common scale error (Observation::common_range_var_rel2) is one error shared by all landmarks:
-// the fix's first-order response to it as a rank-one term, less the per-landmark shares the least
-// squares averaged down. Landmarks on one side of the vehicle (a forward camera) leave the common
-// scale almost whole in the position, so the change is positive along their mean direction; ones
-// around the vehicle cancel it. Symmetric, not always PSD; fix->cov plus it is. obs and fix as
-// for fix_systematic_cov; zero when no observation carries a common share.
-Eigen::Matrix3d range_scale_cov_change(std::span<const Observation> obs, const FixResult& fix);
+// What an OK fix's covariance (and its systematic share alike) must change by when the lens's
+// error (Observation::lens_response) is one error shared by all landmarks: per column the fix's
+// first-order response to it as a rank-one term, less the per-landmark shares the least squares
+// averaged down as if independent. A focal length off scales the whole view: landmarks on one
+// side of the vehicle (a forward camera) then leave it almost whole in the position, along their
+// mean direction; where the bearings fix the position and the ranges disagree with them, it is
+// mostly residual and the change is negative. Symmetric, not always PSD; fix.cov plus it is. obs
+// and fix as for fix_systematic_cov; zero when no observation carries a lens response.
+Eigen::Matrix3d lens_cov_change(std::span<const Observation> obs, const FixResult& fix);
 
 }  // namespace agv::ranging

@@ -139,7 +139,22 @@ struct LandmarkObservation {
   // sensor_range_bearing: bearing variance and relative range variance.
   double calibration_bearing_var_rad2 = 0.0;
   double calibration_range_var_rel2 = 0.0;
+  // The tag pose's first-order change (small rotation in C, translation mm, as cov6) for a focal
+  // length believed longer than the lens's by ObserveOptions::focal_sigma_rel: column 0 fx,
+  // column 1 fy. One error for
+  // every landmark of the frame, so kept apart from the covariances (lens_response). Zero when no
+  // focal doubt is stated or the step failed.
+  Eigen::Matrix<double, 6, 2> focal_pose_step = Eigen::Matrix<double, 6, 2>::Zero();
+  // lens_response from the observer's mount: what it added to pose.cov (the face yaw's row zero
+  // where the pose has no yaw).
+  Eigen::Matrix<double, 3, 2> pose_lens_response = Eigen::Matrix<double, 3, 2>::Zero();
 };
+
+// The change of (range, bearing, face yaw) as seen from mount for each column of
+// obs.focal_pose_step: how one error of the lens's focal lengths, shared by all landmarks of a
+// frame, moves this one.
+Eigen::Matrix<double, 3, 2> lens_response(const RangingMount& mount,
+                                          const LandmarkObservation& obs);
 
 struct RefusedLandmark {
   std::uint32_t id = 0;
