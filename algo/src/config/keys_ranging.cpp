@@ -108,8 +108,9 @@ void add_ranging_calibration_doubt(std::vector<Key>* k) {
   k->push_back(number("ranging_camera.focal_sigma_rel", AGV_AT(ranging_camera.focal_sigma_rel), 0.0,
                       0.1, 0.0,
                       {"",
-                       "relative error of the focal length (0.002 = 0.2 %): scales each range "
-                       "and, on fx and fy apart, turns each tag's face yaw"}));
+                       "relative error of the focal length, fx and fy apart (0.002 = 0.2 %): "
+                       "scales the whole view, each range and bearing, and turns each tag's face "
+                       "yaw; one error for all landmarks of a frame"}));
   k->push_back(boolean("ranging_camera.shallow_pairs_from_face_yaws",
                        AGV_AT(ranging_camera.shallow_pairs_from_face_yaws), true,
                        "two landmarks seen under 15 deg of each other (their range circles cross "

@@ -104,8 +104,11 @@ struct ObserveOptions {
   double mount_sigma_mm = 0.0;
   // The lens calibration's residual: a systematic error of an undistorted point that differs
   // across the image (distortion terms, principal point; 1 sigma, px) widens each bearing by
-  // sigma / fx; a relative focal-length error scales each range and, on fx and fy apart, turns
-  // each face yaw (the tag's width against its height; far more near face-on).
+  // sigma / fx; a relative focal-length error (1 sigma, on fx and fy apart) scales the whole
+  // view: each range, each bearing off the image centre and, on one axis, each face yaw (the
+  // tag's width against its height; far more near face-on). It is one error for all landmarks of
+  // a frame (LandmarkObservation::focal_pose_step), which the fixes keep as one
+  // (ranging::lens_cov_change).
   double calibration_sigma_px = 0.0;
   double focal_sigma_rel = 0.0;
 };
