@@ -462,11 +462,12 @@ TEST(RangingFix, ACommonRangeScaleIsOneErrorNotOnePerLandmark) {
   const ScaleCoverage narrow_common = coverage_under_common_scale(narrow, true);
   const ScaleCoverage wide_apart = coverage_under_common_scale(wide, false);
   const ScaleCoverage wide_common = coverage_under_common_scale(wide, true);
-  std::printf("3-sigma coverage / median sd mm, per landmark against one error: narrow fan "
-              "%.4f / %.1f, %.4f / %.1f; wide fan %.4f / %.1f, %.4f / %.1f\n",
-              narrow_apart.inside, narrow_apart.median_sd_mm, narrow_common.inside,
-              narrow_common.median_sd_mm, wide_apart.inside, wide_apart.median_sd_mm,
-              wide_common.inside, wide_common.median_sd_mm);
+  std::printf(
+      "3-sigma coverage / median sd mm, per landmark against one error: narrow fan "
+      "%.4f / %.1f, %.4f / %.1f; wide fan %.4f / %.1f, %.4f / %.1f\n",
+      narrow_apart.inside, narrow_apart.median_sd_mm, narrow_common.inside,
+      narrow_common.median_sd_mm, wide_apart.inside, wide_apart.median_sd_mm, wide_common.inside,
+      wide_common.median_sd_mm);
   EXPECT_LT(narrow_apart.inside, 0.98);
   EXPECT_GE(narrow_common.inside, 0.99);
   EXPECT_GE(wide_common.inside, 0.99);

@@ -278,9 +278,10 @@ TEST_F(RangingObserve, AFocalLengthOffMovesRangeAndBearingAsTheLensResponseSays)
   CameraIntrinsics off = small_camera();
   off.fx *= 1.006;
   const auto& lms = scene_->site.wall_landmarks;
-  const ObserveResult exact = LandmarkObserver(small_camera(), forward_mount(), lms, opt)
-                                  .observe(frame_->image);
-  const ObserveResult moved = LandmarkObserver(off, forward_mount(), lms, opt).observe(frame_->image);
+  const ObserveResult exact =
+      LandmarkObserver(small_camera(), forward_mount(), lms, opt).observe(frame_->image);
+  const ObserveResult moved =
+      LandmarkObserver(off, forward_mount(), lms, opt).observe(frame_->image);
   ASSERT_EQ(moved.seen.size(), exact.seen.size());
   ASSERT_GE(exact.seen.size(), 2u);
   for (std::size_t i = 0; i < exact.seen.size(); ++i) {

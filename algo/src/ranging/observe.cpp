@@ -67,13 +67,12 @@ bool inside_margin(const std::array<Vec2, 4>& corners_px, const CameraIntrinsics
 }
 
 // The tag pose's change for each focal length (fx, fy apart) believed longer by sigma_rel than
-// the lens's. Seen near
-// face-on, a tag's yaw rests on the ratio of its width to its height: 0.2 % on one axis turns it
-// by about 0.65 deg at 10 deg off face-on; both axes scale the range and, off the image centre,
-// the bearing. A lens whose focal length is longer than believed by sigma_rel moves the
-// projected corners by sigma_rel (u - cx) (or (v - cy)); the pose that puts them back is one
-// Gauss-Newton step on the corners' Jacobian, and a belief too long moves the pose the other way.
-// False when the projection or its normal equations fail.
+// the lens's. Seen near face-on, a tag's yaw rests on the ratio of its width to its height: 0.2 %
+// on one axis turns it by about 0.65 deg at 10 deg off face-on; both axes scale the range and,
+// off the image centre, the bearing. A lens whose focal length is longer than believed by
+// sigma_rel moves the projected corners by sigma_rel (u - cx) (or (v - cy)); the pose that puts
+// them back is one Gauss-Newton step on the corners' Jacobian, and a belief too long moves the
+// pose the other way. False when the projection or its normal equations fail.
 bool focal_pose_step(const CameraIntrinsics& k, double side_mm, const LandmarkObservation& o,
                      double sigma_rel, Eigen::Matrix<double, 6, 2>* step) {
   SquareCorners8 uv;
@@ -481,7 +480,8 @@ Eigen::Matrix<double, 3, 2> lens_response(const RangingMount& mount,
   for (int axis = 0; axis < 2; ++axis) {
     std::array<RangeBearing, 2> rb;
     for (int s = 0; s < 2; ++s) {
-      const Eigen::Matrix<double, 6, 1> step = (s == 0 ? 1.0 : -1.0) * obs.focal_pose_step.col(axis);
+      const Eigen::Matrix<double, 6, 1> step =
+          (s == 0 ? 1.0 : -1.0) * obs.focal_pose_step.col(axis);
       const Eigen::Vector3d w = step.head<3>();
       const Eigen::Matrix3d R =
           w.norm() > 0.0 ? Eigen::Matrix3d(Eigen::AngleAxisd(w.norm(), w.normalized()) * obs.R_CT)

@@ -144,9 +144,8 @@ struct LandmarkObservation {
   double calibration_range_var_rel2 = 0.0;
   // The tag pose's first-order change (small rotation in C, translation mm, as cov6) for a focal
   // length believed longer than the lens's by ObserveOptions::focal_sigma_rel: column 0 fx,
-  // column 1 fy. One error for
-  // every landmark of the frame, so kept apart from the covariances (lens_response). Zero when no
-  // focal doubt is stated or the step failed.
+  // column 1 fy. One error for every landmark of the frame, so kept apart from the covariances
+  // (lens_response). Zero when no focal doubt is stated or the step failed.
   Eigen::Matrix<double, 6, 2> focal_pose_step = Eigen::Matrix<double, 6, 2>::Zero();
   // lens_response from the observer's mount: what it added to pose.cov (the face yaw's row zero
   // where the pose has no yaw).
