@@ -242,6 +242,25 @@ void BM_MeasurePerLandmark(benchmark::State& state) {
     benchmark::DoNotOptimize(obs.measure(d.id, d.corners_px, d.corner_sigma_px, &o, &why));
   }
 }
+// What the firmware does per landmark read (RackObserver): measure, then the fix's and the EKF's
+// inputs; the lens response is read twice (vehicle and camera centre) when a focal doubt is stated.
+void BM_MeasureForLocalizerPerLandmark(benchmark::State& state) {
+  const Frames& f = frames();
+  ObserveOptions opt;
+  opt.focal_sigma_rel = state.range(0) != 0 ? 0.002 : 0.0;
+  const LandmarkObserver obs(f.k, f.mount, f.scene.site.wall_landmarks, opt);
+  std::vector<overhead::TagObservation> all;
+  for (const auto& d : f.detections) all.insert(all.end(), d.begin(), d.end());
+  std::size_t i = 0;
+  for (auto _ : state) {
+    const overhead::TagObservation& d = all[i++ % all.size()];
+    LandmarkObservation o;
+    RefusalReason why{};
+    if (!obs.measure(d.id, d.corners_px, d.corner_sigma_px, &o, &why)) continue;
+    benchmark::DoNotOptimize(fix_observation(o));
+    benchmark::DoNotOptimize(sensor_range_bearing(f.mount, o, 0.001, 1.0));
+  }
+}
 void BM_WindowsMirrorEachWindow(benchmark::State& state) {
   ObserveOptions o;
   o.mirror_check = MirrorCheck::kFullFrame;
@@ -298,6 +317,7 @@ BENCHMARK(BM_WindowsLocalizedPriorFocalDoubt)
     ->Iterations(4 * kFrames)
     ->UseRealTime();
 BENCHMARK(BM_MeasurePerLandmark)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_MeasureForLocalizerPerLandmark)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_WindowsMirrorEachWindow)
     ->Unit(benchmark::kMillisecond)
     ->Iterations(4 * kFrames)
