@@ -227,7 +227,10 @@ void BM_WindowsLocalizedPriorFocalDoubt(benchmark::State& state) {
 
 // measure() alone (undistortion, pose, covariances) on the full sweep's detections; Arg(1) with
 // the focal doubt stated (the face yaw's share of it), Arg(0) without.
-void BM_MeasurePerLandmark(benchmark::State& state) {
+// Measures the frames' detections one per iteration (range(0) != 0: a 0.2 % focal doubt stated)
+// and hands each landmark measured to then.
+template <typename Then>
+void measure_each(benchmark::State& state, Then then) {
   const Frames& f = frames();
   ObserveOptions opt;
   opt.focal_sigma_rel = state.range(0) != 0 ? 0.002 : 0.0;
@@ -239,27 +242,21 @@ void BM_MeasurePerLandmark(benchmark::State& state) {
     const overhead::TagObservation& d = all[i++ % all.size()];
     LandmarkObservation o;
     RefusalReason why{};
-    benchmark::DoNotOptimize(obs.measure(d.id, d.corners_px, d.corner_sigma_px, &o, &why));
+    const bool measured = obs.measure(d.id, d.corners_px, d.corner_sigma_px, &o, &why);
+    benchmark::DoNotOptimize(measured);
+    if (measured) then(f, o);
   }
+}
+void BM_MeasurePerLandmark(benchmark::State& state) {
+  measure_each(state, [](const Frames&, const LandmarkObservation&) {});
 }
 // What the firmware does per landmark read (RackObserver): measure, then the fix's and the EKF's
 // inputs; the lens response is read twice (vehicle and camera centre) when a focal doubt is stated.
 void BM_MeasureForLocalizerPerLandmark(benchmark::State& state) {
-  const Frames& f = frames();
-  ObserveOptions opt;
-  opt.focal_sigma_rel = state.range(0) != 0 ? 0.002 : 0.0;
-  const LandmarkObserver obs(f.k, f.mount, f.scene.site.wall_landmarks, opt);
-  std::vector<overhead::TagObservation> all;
-  for (const auto& d : f.detections) all.insert(all.end(), d.begin(), d.end());
-  std::size_t i = 0;
-  for (auto _ : state) {
-    const overhead::TagObservation& d = all[i++ % all.size()];
-    LandmarkObservation o;
-    RefusalReason why{};
-    if (!obs.measure(d.id, d.corners_px, d.corner_sigma_px, &o, &why)) continue;
+  measure_each(state, [](const Frames& f, const LandmarkObservation& o) {
     benchmark::DoNotOptimize(fix_observation(o));
     benchmark::DoNotOptimize(sensor_range_bearing(f.mount, o, 0.001, 1.0));
-  }
+  });
 }
 void BM_WindowsMirrorEachWindow(benchmark::State& state) {
   ObserveOptions o;
