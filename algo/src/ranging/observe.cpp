@@ -474,26 +474,7 @@ std::vector<Observation> fix_observations(std::span<const LandmarkObservation> o
 
 Eigen::Matrix<double, 3, 2> lens_response(const RangingMount& mount,
                                           const LandmarkObservation& obs) {
-  Eigen::Matrix<double, 3, 2> out = Eigen::Matrix<double, 3, 2>::Zero();
-  if (obs.focal_pose_step.isZero(0.0)) return out;
-  // Central differences over +-step: the tag pose's small rotation is applied in C.
-  for (int axis = 0; axis < 2; ++axis) {
-    std::array<RangeBearing, 2> rb;
-    for (int s = 0; s < 2; ++s) {
-      const Eigen::Matrix<double, 6, 1> step =
-          (s == 0 ? 1.0 : -1.0) * obs.focal_pose_step.col(axis);
-      const Eigen::Vector3d w = step.head<3>();
-      const Eigen::Matrix3d R =
-          w.norm() > 0.0 ? Eigen::Matrix3d(Eigen::AngleAxisd(w.norm(), w.normalized()) * obs.R_CT)
-                         : obs.R_CT;
-      rb[static_cast<std::size_t>(s)] =
-          range_bearing_from_tag_pose(mount, obs.t_C_mm + step.tail<3>(), R, obs.cov6);
-    }
-    out.col(axis) << 0.5 * (rb[0].range_mm - rb[1].range_mm),
-        0.5 * wrap_angle_rad(rb[0].bearing_rad - rb[1].bearing_rad),
-        0.5 * wrap_angle_rad(rb[0].relative_yaw_rad - rb[1].relative_yaw_rad);
-  }
-  return out;
+  return tag_pose_jacobian(mount, obs.t_C_mm, obs.R_CT) * obs.focal_pose_step;
 }
 
 SensorRangeBearing sensor_range_bearing(const RangingMount& mount, const LandmarkObservation& obs,

@@ -93,33 +93,49 @@ RangeBearing range_bearing_from_tag_translation(const RangingMount& mount, const
   return range_bearing_from_camera_point(mount, CameraPoint{t_C_mm, cov_t_mm2});
 }
 
-RangeBearing range_bearing_from_tag_pose(const RangingMount& mount, const Vec3& t_C_mm,
-                                         const Mat3& R_CT,
-                                         const Eigen::Matrix<double, 6, 6>& cov6) {
+namespace {
+
+// Range, bearing and face yaw of a tag pose seen from mount, and J mapping the pose's change
+// (d_omega, d_t) to them (the yaw's row zero without a yaw). False for a tag straight above or
+// below the reference point (no bearing).
+bool tag_pose_polar(const RangingMount& mount, const Vec3& t_C_mm, const Mat3& R_CT,
+                    RangeBearing* out, Eigen::Matrix<double, 3, 6>* J) {
   const Mat3 R_VC = rotation_vehicle_from_camera(mount);
   const Vec3 p_V = R_VC * t_C_mm + ranging_mount_offset(mount);
-  RangeBearing out;
   Eigen::Matrix<double, 2, 3> Jp;
-  if (!ranging_polar(p_V, &out.range_mm, &out.bearing_rad, &Jp)) return out;
+  if (!ranging_polar(p_V, &out->range_mm, &out->bearing_rad, &Jp)) return false;
   // Face normal towards the viewer: -z_T. Under R_CT -> exp([w]x) R_CT, n_C -> n_C + w x n_C.
   const Vec3 n_C = -R_CT.col(2);
   const Vec3 n_V = R_VC * n_C;
   const double h2 = n_V.x() * n_V.x() + n_V.y() * n_V.y();
-  // J maps (d_omega, d_t) to (range, bearing, yaw).
-  Eigen::Matrix<double, 3, 6> J = Eigen::Matrix<double, 3, 6>::Zero();
-  J.block<2, 3>(0, 3) = Jp * R_VC;
+  J->setZero();
+  J->block<2, 3>(0, 3) = Jp * R_VC;
   if (h2 > 1e-12) {
-    out.has_yaw = true;
-    out.relative_yaw_rad = std::atan2(n_V.y(), n_V.x());
+    out->has_yaw = true;
+    out->relative_yaw_rad = std::atan2(n_V.y(), n_V.x());
     const Eigen::RowVector3d dyaw_dn(-n_V.y() / h2, n_V.x() / h2, 0.0);
-    J.block<1, 3>(2, 0) = dyaw_dn * R_VC * (-ranging_skew(n_C));
+    J->block<1, 3>(2, 0) = dyaw_dn * R_VC * (-ranging_skew(n_C));
   }
-  out.cov = J * cov6 * J.transpose();
-  if (!out.has_yaw) {
-    out.cov.row(2).setZero();
-    out.cov.col(2).setZero();
-  }
+  return true;
+}
+
+}  // namespace
+
+RangeBearing range_bearing_from_tag_pose(const RangingMount& mount, const Vec3& t_C_mm,
+                                         const Mat3& R_CT,
+                                         const Eigen::Matrix<double, 6, 6>& cov6) {
+  RangeBearing out;
+  Eigen::Matrix<double, 3, 6> J;
+  if (!tag_pose_polar(mount, t_C_mm, R_CT, &out, &J)) return out;
+  out.cov = J * cov6 * J.transpose();  // the yaw's row and column zero with J's
   return out;
+}
+
+Eigen::Matrix<double, 3, 6> tag_pose_jacobian(const RangingMount& mount, const Vec3& t_C_mm,
+                                              const Mat3& R_CT) {
+  RangeBearing rb;
+  Eigen::Matrix<double, 3, 6> J;
+  return tag_pose_polar(mount, t_C_mm, R_CT, &rb, &J) ? J : Eigen::Matrix<double, 3, 6>::Zero();
 }
 
 Mat3 tag_translation_covariance(double focal_px, double side_mm, const Vec3& t_C_mm,

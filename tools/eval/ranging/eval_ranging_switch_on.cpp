@@ -120,7 +120,8 @@ Outcome stand(const localizer::LocalizerConfig& cfg, const std::vector<Frame>& f
   return out;
 }
 
-// One trial of the default rule: where, what was read, the first pose's error against its sigmas.
+// One trial of the default rule: where, what its first frame read, the first pose's error and
+// NEES.
 void print_trial(std::size_t t, const Pose2& truth, const std::vector<Frame>& frames,
                  const Outcome& o) {
   std::fprintf(stderr, "\ntrial %zu at %.0f %.0f %.1f deg, landmarks", t, truth.x_mm, truth.y_mm,

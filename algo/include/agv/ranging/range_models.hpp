@@ -89,6 +89,13 @@ RangeBearing range_bearing_from_tag_pose(const RangingMount& mount, const Eigen:
                                          const Eigen::Matrix3d& R_CT,
                                          const Eigen::Matrix<double, 6, 6>& cov6);
 
+// The first-order change of that range, bearing and relative yaw for a change (d_omega, d_t) of
+// the tag pose, as cov6 is over; the yaw's row zero where the face has no yaw, all zero where
+// the tag has no bearing.
+Eigen::Matrix<double, 3, 6> tag_pose_jacobian(const RangingMount& mount,
+                                              const Eigen::Vector3d& t_C_mm,
+                                              const Eigen::Matrix3d& R_CT);
+
 // The same without a rotation (translation covariance only): range and bearing, no yaw.
 RangeBearing range_bearing_from_tag_translation(const RangingMount& mount,
                                                 const Eigen::Vector3d& t_C_mm,
