@@ -3,6 +3,7 @@
 // inconsistent) and the covariance's coverage on seeded noisy trials.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -414,18 +415,28 @@ TEST(RangingFix, TheSystematicShareOfAFixIsItsResponseToTheRepeatedShares) {
 
 // Trials whose every range is scaled by one common error (a focal length off) besides its own
 // noise, the common share told per landmark: the fraction of fixes inside their 3-sigma
-// ellipsoid, and the median position sd, with the share left per landmark or made one error.
+// ellipsoid, the median position sd and the p95 position error, with the share weighed per
+// landmark (alone, or with lens_cov_change) or estimated as the one error it is.
 struct ScaleCoverage {
-  double inside = 0.0, median_sd_mm = 0.0;
+  double inside = 0.0, median_sd_mm = 0.0, p95_mm = 0.0;
 };
+enum class LensWeighing { kPerLandmark, kPerLandmarkChanged, kEstimated };
 
-ScaleCoverage coverage_under_common_scale(const std::vector<Vec2>& landmarks, bool with_change) {
+double quantile(std::vector<double> v, double q) {
+  const auto k = static_cast<std::ptrdiff_t>(q * static_cast<double>(v.size() - 1));
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  return v[static_cast<std::size_t>(k)];
+}
+
+ScaleCoverage coverage_under_common_scale(const std::vector<Vec2>& landmarks, LensWeighing how) {
   const Pose2 truth{3000.0, 2000.0, 0.3};
   constexpr double kScale = 0.002, kRangeMm = 3.0, kBearingRad = 5e-4;
   std::mt19937_64 rng(7);
   std::normal_distribution<double> n(0.0, 1.0);
+  FixOptions opt;
+  opt.lens_in_weights = how == LensWeighing::kEstimated;
   int inside = 0;
-  std::vector<double> sd;
+  std::vector<double> sd, err;
   for (int t = 0; t < 2000; ++t) {
     const double common = kScale * n(rng);
     std::vector<Observation> obs;
@@ -438,40 +449,83 @@ ScaleCoverage coverage_under_common_scale(const std::vector<Vec2>& landmarks, bo
       o.bearing_rad += kBearingRad * n(rng);
       obs.push_back(o);
     }
-    FixResult f = fix_from_landmarks(obs, FixOptions{});
+    FixResult f = fix_from_landmarks(obs, opt);
     if (f.status != FixStatus::kOk) continue;
-    if (with_change) f.cov += lens_cov_change(obs, f);
+    EXPECT_EQ(f.lens_estimated, how == LensWeighing::kEstimated);
+    if (how == LensWeighing::kPerLandmarkChanged) f.cov += lens_cov_change(obs, f);
     const Eigen::Vector3d e(f.pose.x_mm - truth.x_mm, f.pose.y_mm - truth.y_mm,
                             wrap_angle_rad(f.pose.theta_rad - truth.theta_rad));
     inside += e.dot(f.cov.ldlt().solve(e)) <= 14.16;
     sd.push_back(std::sqrt(f.cov.topLeftCorner<2, 2>().trace()));
+    err.push_back(std::hypot(e.x(), e.y()));
   }
   if (sd.size() < 1900) return {};
-  std::nth_element(sd.begin(), sd.begin() + sd.size() / 2, sd.end());
-  return {static_cast<double>(inside) / sd.size(), sd[sd.size() / 2]};
+  return {static_cast<double>(inside) / static_cast<double>(sd.size()), quantile(sd, 0.5),
+          quantile(err, 0.95)};
 }
 
 TEST(RangingFix, ACommonRangeScaleIsOneErrorNotOnePerLandmark) {
   // Seen from (3, 2) m heading 0.3 rad. A narrow fan ahead: the bearings barely fix the distance,
   // the common scale moves the fix along the fan, which per-landmark shares average down. A wide
   // fan: the bearings fix the position and the common scale is mostly residual, which
-  // per-landmark shares overstate.
+  // per-landmark shares overstate and an estimate of it removes from the ranges.
   const std::vector<Vec2> narrow = {{7700.0, 3400.0}, {9200.0, 4000.0}, {8300.0, 4400.0}};
   const std::vector<Vec2> wide = {{7500.0, 1500.0}, {8000.0, 4500.0}, {6000.0, 5500.0}};
-  const ScaleCoverage narrow_apart = coverage_under_common_scale(narrow, false);
-  const ScaleCoverage narrow_common = coverage_under_common_scale(narrow, true);
-  const ScaleCoverage wide_apart = coverage_under_common_scale(wide, false);
-  const ScaleCoverage wide_common = coverage_under_common_scale(wide, true);
-  std::printf(
-      "3-sigma coverage / median sd mm, per landmark against one error: narrow fan "
-      "%.4f / %.1f, %.4f / %.1f; wide fan %.4f / %.1f, %.4f / %.1f\n",
-      narrow_apart.inside, narrow_apart.median_sd_mm, narrow_common.inside,
-      narrow_common.median_sd_mm, wide_apart.inside, wide_apart.median_sd_mm, wide_common.inside,
-      wide_common.median_sd_mm);
-  EXPECT_LT(narrow_apart.inside, 0.98);
-  EXPECT_GE(narrow_common.inside, 0.99);
-  EXPECT_GE(wide_common.inside, 0.99);
-  EXPECT_LT(wide_common.median_sd_mm, 0.7 * wide_apart.median_sd_mm);
+  ScaleCoverage c[2][3];
+  for (int fan = 0; fan < 2; ++fan) {
+    for (int how = 0; how < 3; ++how) {
+      c[fan][how] =
+          coverage_under_common_scale(fan == 0 ? narrow : wide, static_cast<LensWeighing>(how));
+      std::printf("%s fan, %s: inside 3 sigma %.4f, median sd %.2f mm, p95 error %.2f mm\n",
+                  fan == 0 ? "narrow" : "wide",
+                  how == 0   ? "per landmark"
+                  : how == 1 ? "per landmark + change"
+                             : "estimated",
+                  c[fan][how].inside, c[fan][how].median_sd_mm, c[fan][how].p95_mm);
+    }
+  }
+  EXPECT_LT(c[0][0].inside, 0.98);
+  for (int fan = 0; fan < 2; ++fan) {
+    EXPECT_GE(c[fan][1].inside, 0.99);
+    EXPECT_GE(c[fan][2].inside, 0.99);
+    // The estimate is at least as accurate as either per-landmark weighing, and says so.
+    EXPECT_LE(c[fan][2].p95_mm, 1.02 * std::min(c[fan][0].p95_mm, c[fan][1].p95_mm));
+    EXPECT_LE(c[fan][2].median_sd_mm, 1.02 * c[fan][1].median_sd_mm);
+  }
+  EXPECT_LT(c[1][1].median_sd_mm, 0.7 * c[1][0].median_sd_mm);
+  EXPECT_LT(c[0][2].p95_mm, 0.9 * c[0][1].p95_mm);
+  EXPECT_LT(c[1][2].p95_mm, 0.8 * c[1][1].p95_mm);
+}
+
+TEST(RangingFix, AnEstimatedLensErrorIsHeldOnceAndOnlyWhereTheCovarianceHoldsIt) {
+  const Pose2 truth{3000.0, 2000.0, 0.3};
+  std::vector<Observation> obs = {observe(truth, {7700.0, 3400.0}, 3.0, 5e-4),
+                                  observe(truth, {9200.0, 4000.0}, 3.0, 5e-4),
+                                  observe(truth, {8300.0, 4400.0}, 3.0, 5e-4)};
+  for (Observation& o : obs) {
+    o.lens_response.col(0) << 0.002 * o.range_mm, -1e-4, 0.0;
+    o.lens_response.col(1) << 0.001 * o.range_mm, 2e-4, 0.0;
+    o.cov += o.lens_response.topRows<2>() * o.lens_response.topRows<2>().transpose();
+    o.systematic_cov.topLeftCorner<2, 2>() = o.cov;  // everything repeats
+  }
+  const FixResult f = fix_from_landmarks(obs, FixOptions{});
+  ASSERT_EQ(f.status, FixStatus::kOk);
+  ASSERT_TRUE(f.lens_estimated);
+  // All of the covariance repeats, the common lens error included once: the systematic share is
+  // the whole covariance, through the gains of the estimate that held the lens error.
+  const Eigen::Matrix3d S = fix_systematic_cov(obs, f);
+  EXPECT_LE((S - f.cov).cwiseAbs().maxCoeff(), 1e-6 * f.cov.cwiseAbs().maxCoeff());
+  // A response the covariance does not hold is not a share of it: weighed per landmark.
+  std::vector<Observation> untold = obs;
+  untold[1].cov = Eigen::Vector2d(9.0, 2.5e-7).asDiagonal();
+  const FixResult g = fix_from_landmarks(untold, FixOptions{});
+  ASSERT_EQ(g.status, FixStatus::kOk);
+  EXPECT_FALSE(g.lens_estimated);
+  FixOptions per_landmark;
+  per_landmark.lens_in_weights = false;
+  const FixResult h = fix_from_landmarks(untold, per_landmark);
+  EXPECT_EQ(g.pose.x_mm, h.pose.x_mm);
+  EXPECT_EQ(g.pose.y_mm, h.pose.y_mm);
 }
 
 TEST(RangingFix, LensChangeIsZeroWithoutACommonShareAndKeepsTheCovariancePositive) {
@@ -481,14 +535,20 @@ TEST(RangingFix, LensChangeIsZeroWithoutACommonShareAndKeepsTheCovariancePositiv
   std::vector<Observation> obs = {observe(truth, {8000.0, 2000.0}, 10.0, 1e-3),
                                   observe(truth, {0.0, 6000.0}, 10.0, 1e-3),
                                   observe(truth, {0.0, -2000.0}, 10.0, 1e-3)};
-  FixResult f = fix_from_landmarks(obs, FixOptions{});
+  FixOptions per_landmark;
+  per_landmark.lens_in_weights = false;
+  FixResult f = fix_from_landmarks(obs, per_landmark);
   ASSERT_EQ(f.status, FixStatus::kOk);
   EXPECT_TRUE(lens_cov_change(obs, f).isZero(0.0));
   for (Observation& o : obs) {
     o.cov(0, 0) += 1e-4 * o.range_mm * o.range_mm;
     o.lens_response(0, 0) = 1e-2 * o.range_mm;
   }
-  f = fix_from_landmarks(obs, FixOptions{});
+  const FixResult estimated = fix_from_landmarks(obs, FixOptions{});
+  ASSERT_EQ(estimated.status, FixStatus::kOk);
+  ASSERT_TRUE(estimated.lens_estimated);
+  EXPECT_TRUE(lens_cov_change(obs, estimated).isZero(0.0));
+  f = fix_from_landmarks(obs, per_landmark);
   ASSERT_EQ(f.status, FixStatus::kOk);
   const Eigen::Matrix3d changed = f.cov + lens_cov_change(obs, f);
   EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(changed).eigenvalues().minCoeff(), 0.0);

@@ -7,11 +7,12 @@
 #include <limits>
 #include <vector>
 
+#include "fix_internal.hpp"
+
 namespace agv::ranging {
 
-namespace {
+namespace fix_detail {
 
-// Predicted (range, bearing) of a landmark from pose, with the 2x3 Jacobian over (x, y, theta).
 bool fix_predict(const Observation& o, const Eigen::Vector3d& s, Eigen::Vector2d* h,
                  Eigen::Matrix<double, 2, 3>* J) {
   const double dx = o.landmark_mm.x - s.x(), dy = o.landmark_mm.y - s.y();
@@ -27,7 +28,6 @@ Eigen::Vector2d fix_residual(const Observation& o, const Eigen::Vector2d& h) {
   return {o.range_mm - h.x(), wrap_angle_rad(o.bearing_rad - h.y())};
 }
 
-// An observation with a face yaw: residual over (range, bearing, face yaw) and its 3x3 Jacobian.
 // The face yaw predicted from the pose is the landmark's facing minus the heading.
 bool fix_residual_yaw(const Observation& o, const Eigen::Vector3d& s, Eigen::Vector3d* r,
                       Eigen::Matrix3d* J) {
@@ -51,6 +51,84 @@ Eigen::Matrix3d face_yaw_covariance(const Observation& o) {
   return R;
 }
 
+bool linearise(const Observation& o, const State& x, bool lens_shared, Linearised* out) {
+  const Eigen::Vector3d s = x.head<3>();
+  Linearised l;
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+  if (o.has_face_yaw) {
+    Eigen::Matrix3d J;
+    if (!fix_residual_yaw(o, s, &l.r, &J)) return false;
+    l.A.leftCols<3>() = J;
+    R = face_yaw_covariance(o);
+  } else {
+    Eigen::Vector2d h;
+    Eigen::Matrix<double, 2, 3> J;
+    if (!fix_predict(o, s, &h, &J)) return false;
+    l.r.head<2>() = fix_residual(o, h);
+    l.A.topLeftCorner<2, 3>() = J;
+    R.topLeftCorner<2, 2>() = o.cov;
+  }
+  if (lens_shared) {
+    Eigen::Matrix<double, 3, 2> L = o.lens_response;
+    if (!o.has_face_yaw) L.row(2).setZero();
+    l.A.rightCols<2>() = L;
+    l.r -= L * x.tail<2>();
+    R -= L * L.transpose();
+  }
+  const Eigen::LLT<Eigen::Matrix3d> llt(R);
+  if (llt.info() != Eigen::Success) return false;
+  l.W = llt.solve(Eigen::Matrix3d::Identity());
+  *out = l;
+  return true;
+}
+
+bool lens_shareable(std::span<const Observation> obs) {
+  bool any = false;
+  for (const Observation& o : obs) {
+    Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
+    R.topLeftCorner<2, 2>() = o.cov;
+    Eigen::Matrix<double, 3, 2> L = o.lens_response;
+    if (o.has_face_yaw) {
+      R = face_yaw_covariance(o);
+    } else {
+      L.row(2).setZero();
+    }
+    any = any || !L.isZero(0.0);
+    // What is left of the covariance must stay clearly positive: a response the covariance does
+    // not hold is not a share of it.
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(R - L * L.transpose());
+    if (eig.info() != Eigen::Success ||
+        !(eig.eigenvalues().minCoeff() > 1e-9 * eig.eigenvalues().maxCoeff()))
+      return false;
+  }
+  return any;
+}
+
+bool normal_equations(std::span<const Observation> obs, const State& x, bool lens_shared,
+                      Matrix5d* H, State* g) {
+  H->setZero();
+  g->setZero();
+  for (const Observation& o : obs) {
+    Linearised l;
+    if (!linearise(o, x, lens_shared, &l)) return false;
+    const Eigen::Matrix<double, 5, 3> AtW = l.A.transpose() * l.W;
+    *H += AtW * l.A;
+    *g += AtW * l.r;
+  }
+  H->bottomRightCorner<2, 2>() += Eigen::Matrix2d::Identity();
+  g->tail<2>() -= x.tail<2>();
+  return true;
+}
+
+}  // namespace fix_detail
+
+namespace {
+
+using fix_detail::face_yaw_covariance;
+using fix_detail::fix_predict;
+using fix_detail::fix_residual;
+using fix_detail::fix_residual_yaw;
+
 // One observation's weighted squared residual at s; false where it cannot be predicted.
 bool observation_chi2(const Observation& o, const Eigen::Vector3d& s, double* chi2) {
   if (o.has_face_yaw) {
@@ -63,27 +141,6 @@ bool observation_chi2(const Observation& o, const Eigen::Vector3d& s, double* ch
   if (!fix_predict(o, s, &h, nullptr)) return false;
   const Eigen::Vector2d r = fix_residual(o, h);
   *chi2 = r.dot(o.cov.ldlt().solve(r));
-  return true;
-}
-
-// Adds one observation's J^T W J and J^T W r at s; false where it cannot be predicted.
-bool add_normal_equations(const Observation& o, const Eigen::Vector3d& s, Eigen::Matrix3d* H,
-                          Eigen::Vector3d* g) {
-  if (o.has_face_yaw) {
-    Eigen::Vector3d r;
-    Eigen::Matrix3d J;
-    if (!fix_residual_yaw(o, s, &r, &J)) return false;
-    const Eigen::Matrix3d W = face_yaw_covariance(o).inverse();
-    *H += J.transpose() * W * J;
-    *g += J.transpose() * W * r;
-    return true;
-  }
-  Eigen::Vector2d h;
-  Eigen::Matrix<double, 2, 3> J;
-  if (!fix_predict(o, s, &h, &J)) return false;
-  const Eigen::Matrix2d W = o.cov.inverse();
-  *H += J.transpose() * W * J;
-  *g += J.transpose() * W * fix_residual(o, h);
   return true;
 }
 
@@ -121,15 +178,24 @@ bool fix_trilateration_pose(std::span<const Observation> obs, const std::vector<
   return true;
 }
 
-// Chi-square that is infinite where some landmark cannot be predicted (at the vehicle's point).
-double fix_chi2_strict(std::span<const Observation> obs, const Eigen::Vector3d& s) {
-  double chi2 = 0.0;
+// The least squares' objective: weighted squared residuals plus the lens error's prior; infinite
+// where some landmark cannot be predicted (at the vehicle's point).
+double cost_strict(std::span<const Observation> obs, const fix_detail::State& x, bool lens_shared) {
+  double cost = x.tail<2>().squaredNorm();
   for (const Observation& o : obs) {
-    double c = 0.0;
-    if (!observation_chi2(o, s, &c)) return std::numeric_limits<double>::infinity();
-    chi2 += c;
+    fix_detail::Linearised l;
+    if (!fix_detail::linearise(o, x, lens_shared, &l))
+      return std::numeric_limits<double>::infinity();
+    cost += l.r.dot(l.W * l.r);
   }
-  return chi2;
+  return cost;
+}
+
+// The pose's information with the lens error marginalised out (the Schur complement).
+Eigen::Matrix3d pose_information(const fix_detail::Matrix5d& H) {
+  return H.topLeftCorner<3, 3>() - H.topRightCorner<3, 2>() *
+                                       H.bottomRightCorner<2, 2>().inverse() *
+                                       H.bottomLeftCorner<2, 3>();
 }
 
 }  // namespace
@@ -299,52 +365,57 @@ FixResult refine_fix(std::span<const Observation> obs, const Pose2& init, const 
   FixResult out;
   out.dof = measured_quantities(obs) - 3;
   if (obs.size() < 2) return out;
-  Eigen::Vector3d s(init.x_mm, init.y_mm, init.theta_rad);
-  Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+  const bool shared = opt.lens_in_weights && fix_detail::lens_shareable(obs);
+  fix_detail::State x;
+  x << init.x_mm, init.y_mm, init.theta_rad, 0.0, 0.0;
+  fix_detail::Matrix5d H;
   bool converged = false;
   for (int it = 0; it <= opt.max_iterations; ++it) {
-    H.setZero();
-    Eigen::Vector3d g = Eigen::Vector3d::Zero();
-    for (const Observation& o : obs) {
-      if (!add_normal_equations(o, s, &H, &g)) {
-        out.status = FixStatus::kShallowGeometry;
-        return out;
-      }
+    fix_detail::State g;
+    if (!fix_detail::normal_equations(obs, x, shared, &H, &g)) {
+      out.status = FixStatus::kShallowGeometry;
+      return out;
     }
     if (converged || it == opt.max_iterations) break;
-    Eigen::Vector3d step = H.ldlt().solve(g);
+    fix_detail::State step = H.ldlt().solve(g);
     if (!step.allFinite()) break;
     // Backtracking: a wrong map entry makes the problem far from linear, where full Gauss-Newton
-    // steps run away; halve a step until it lowers chi-square.
-    const double chi2_now = fix_chi2_strict(obs, s);
-    for (int halvings = 0; halvings < 40 && !(fix_chi2_strict(obs, s + step) <= chi2_now);
+    // steps run away; halve a step until it lowers the objective.
+    const double cost_now = cost_strict(obs, x, shared);
+    for (int halvings = 0; halvings < 40 && !(cost_strict(obs, x + step, shared) <= cost_now);
          ++halvings) {
       step *= 0.5;
     }
-    s += step;
-    s.z() = wrap_angle_rad(s.z());
+    x += step;
+    x(2) = wrap_angle_rad(x(2));
     out.iterations = it + 1;
     // One more pass after a negligible step so that H is evaluated at the final state.
-    converged = std::hypot(step.x(), step.y()) < 1e-10 && std::abs(step.z()) < 1e-13;
+    converged = std::hypot(step(0), step(1)) < 1e-10 && std::abs(step(2)) < 1e-13 &&
+                step.tail<2>().norm() < 1e-10;
   }
+  const Eigen::Vector3d s = x.head<3>();
+  out.lens_estimated = shared;
+  out.lens_error_sigma = x.tail<2>();
   out.pose = {s.x(), s.y(), s.z()};
-  out.chi2 = fix_chi2(obs, out.pose);
+  // With the lens shared, the residuals that one lens error explains are not misfit.
+  out.chi2 = shared ? cost_strict(obs, x, true) : fix_chi2(obs, out.pose);
   // A rank-deficient information matrix (the landmarks and the vehicle on one line, ranges only
   // informative along it) has no covariance to report.
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(H);
+  const Eigen::Matrix3d info = pose_information(H);
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(info);
   if (eig.info() != Eigen::Success ||
       !(eig.eigenvalues().minCoeff() > 1e-12 * eig.eigenvalues().maxCoeff())) {
     out.status = FixStatus::kShallowGeometry;
     return out;
   }
-  out.cov = H.inverse();
+  out.cov = info.inverse();
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> pos(out.cov.topLeftCorner<2, 2>());
   if (!(std::sqrt(std::max(0.0, pos.eigenvalues().maxCoeff())) <= opt.max_position_sd_mm)) {
     out.status = FixStatus::kShallowGeometry;
     return out;
   }
   const double gate = chi2_gate(out.dof, opt.chi2_gate_z);
-  out.hidden_map_shift_sigma = hidden_map_shift_sigma(obs, out.pose, H, gate);
+  out.hidden_map_shift_sigma = hidden_map_shift_sigma(obs, out.pose, info, gate);
   if (out.dof > 0 && out.chi2 > gate) {
     out.status = FixStatus::kInconsistent;
   } else if (out.hidden_map_shift_sigma > opt.max_hidden_map_shift_sigma) {
@@ -425,72 +496,6 @@ FixResult fix_from_landmarks(std::span<const Observation> obs, const FixOptions&
   FixResult out = refine_fix(obs, seed.pose, opt);
   out.touching = seed.touching;
   return out;
-}
-
-namespace {
-
-// One observation's J^T W at s, over (range, bearing, face yaw): the fix's first-order response
-// to an error of that observation is cov J^T W. Without a face yaw the third column is zero.
-bool weighted_jacobian(const Observation& o, const Eigen::Vector3d& s, Eigen::Matrix3d* JtW) {
-  if (o.has_face_yaw) {
-    Eigen::Vector3d r;
-    Eigen::Matrix3d J;
-    if (!fix_residual_yaw(o, s, &r, &J)) return false;
-    *JtW = J.transpose() * face_yaw_covariance(o).inverse();
-    return true;
-  }
-  Eigen::Vector2d h;
-  Eigen::Matrix<double, 2, 3> J;
-  if (!fix_predict(o, s, &h, &J)) return false;
-  JtW->setZero();
-  JtW->leftCols<2>() = J.transpose() * o.cov.inverse();
-  return true;
-}
-
-}  // namespace
-
-void add_mount_yaw_uncertainty(std::span<const Observation> obs, double sigma_common_rad,
-                               FixResult* fix) {
-  if (!(sigma_common_rad > 0.0)) return;
-  // Gauss-Newton's response to an offset b on every bearing and face yaw: d(pose) = cov J^T W 1_b.
-  const Eigen::Vector3d s(fix->pose.x_mm, fix->pose.y_mm, fix->pose.theta_rad);
-  Eigen::Vector3d g = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d JtW;
-  for (const Observation& o : obs) {
-    if (weighted_jacobian(o, s, &JtW)) g += JtW * Eigen::Vector3d(0.0, 1.0, 1.0);
-  }
-  const Eigen::Vector3d d = fix->cov * g;
-  fix->cov += sigma_common_rad * sigma_common_rad * d * d.transpose();
-}
-
-Eigen::Matrix3d fix_systematic_cov(std::span<const Observation> obs, const FixResult& fix) {
-  Eigen::Matrix3d out = Eigen::Matrix3d::Zero();
-  if (fix.status != FixStatus::kOk) return out;
-  const Eigen::Vector3d s(fix.pose.x_mm, fix.pose.y_mm, fix.pose.theta_rad);
-  Eigen::Matrix3d JtW;
-  for (const Observation& o : obs) {
-    if (o.systematic_cov.isZero(0.0) || !weighted_jacobian(o, s, &JtW)) continue;
-    const Eigen::Matrix3d G = fix.cov * JtW;
-    out += G * o.systematic_cov * G.transpose();
-  }
-  return 0.5 * (out + out.transpose());
-}
-
-Eigen::Matrix3d lens_cov_change(std::span<const Observation> obs, const FixResult& fix) {
-  Eigen::Matrix3d out = Eigen::Matrix3d::Zero();
-  if (fix.status != FixStatus::kOk) return out;
-  const Eigen::Vector3d s(fix.pose.x_mm, fix.pose.y_mm, fix.pose.theta_rad);
-  Eigen::Matrix<double, 3, 2> common = Eigen::Matrix<double, 3, 2>::Zero();
-  Eigen::Matrix3d JtW;
-  for (const Observation& o : obs) {
-    if (o.lens_response.isZero(0.0) || !weighted_jacobian(o, s, &JtW)) continue;
-    // The fix's response to this landmark's share of the common error, per column.
-    const Eigen::Matrix<double, 3, 2> g = fix.cov * JtW * o.lens_response;
-    common += g;
-    out -= g * g.transpose();
-  }
-  out += common * common.transpose();
-  return 0.5 * (out + out.transpose());
 }
 
 }  // namespace agv::ranging

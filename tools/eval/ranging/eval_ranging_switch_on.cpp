@@ -15,8 +15,10 @@
 // [trials=60] [seed=1] [frames=15] [mount_error_deg=1]
 //                               [mount_error_mm=5] [calibration_error_scale=1]
 // AGV_EVAL_CAL_TERMS (letters f, c, k) keeps only those lens errors: focal lengths, principal
-// point, distortion. With AGV_EVAL_POSES set, one line per trial of the default rule on stderr
-// (pose, landmarks, the first pose's error and NEES) to trace which poses miss.
+// point, distortion. AGV_EVAL_LENS_PER_LANDMARK set: the fixes weigh the focal lengths' share per
+// landmark (FixOptions::lens_in_weights false), as before it was estimated. With AGV_EVAL_POSES
+// set, one line per trial of the default rule on stderr (pose, landmarks, the first pose's error
+// and NEES) to trace which poses miss.
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
@@ -212,6 +214,7 @@ int main(int argc, char** argv) {
   base.fusion.health.odom_timeout_ns = 50 * kMs;
   base.camera_timeout_ns = 200 * kMs;
   base.ranging.common_bearing_sigma_rad = std::hypot(s_yaw, 1.0 / k_true.fx);
+  base.ranging.fix.lens_in_weights = std::getenv("AGV_EVAL_LENS_PER_LANDMARK") == nullptr;
   localizer::LocalizerConfig single = base;
   single.ranging.stack_fixes = false;
   single.ranging.fix.face_yaw_pairs_below_crossing = false;

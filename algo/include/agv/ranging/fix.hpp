@@ -97,6 +97,12 @@ struct FixOptions {
   // give hundreds to thousands, three or more give 10 to 200 on ordinary geometry; a finite value
   // such as 1000 therefore means "never from two landmarks without face yaws".
   double max_hidden_map_shift_sigma = std::numeric_limits<double>::infinity();
+  // Landmarks that carry a lens response (Observation::lens_response, held in their cov): true
+  // weighs them as a generalised least squares with the focal lengths' error as one error of the
+  // frame, estimated with the pose under its unit prior and marginalised out of cov
+  // (FixResult::lens_estimated); false weighs each landmark's share as its own, as if independent,
+  // and leaves the common error to lens_cov_change.
+  bool lens_in_weights = true;
 };
 
 struct FixResult {
@@ -108,6 +114,10 @@ struct FixResult {
   int iterations = 0;                             // Gauss-Newton iterations taken
   bool touching = false;                          // two circles taken as touching
   double hidden_map_shift_sigma = 0.0;            // see FixOptions::max_hidden_map_shift_sigma
+  // FixOptions::lens_in_weights took effect: cov holds the common lens error once, and
+  // lens_error_sigma is its estimate, in sigmas of (fx, fy) (prior 0 +- 1).
+  bool lens_estimated = false;
+  Eigen::Vector2d lens_error_sigma = Eigen::Vector2d::Zero();
 };
 
 // Two circles: the solutions (up to two) of |p - c0| = r0, |p - c1| = r1. solutions[0] lies to
@@ -149,8 +159,9 @@ double heading_from_bearings_rad(Vec2 position_mm, std::span<const Observation> 
 // for three). kCollinear when the normalised determinant is below min_baseline_sine.
 FixStatus trilaterate(std::span<const Observation> obs, const FixOptions& opt, Vec2* position_mm);
 
-// Gauss-Newton weighted least squares over all ranges, bearings and face yaws from init; fills
-// pose, the covariance (J^T W J)^-1, chi2, dof and iterations, and checks the chi-square gate.
+// Gauss-Newton weighted least squares over all ranges, bearings and face yaws from init (and the
+// common lens error, FixOptions::lens_in_weights); fills pose, the covariance (J^T W J)^-1 of the
+// pose, chi2, dof and iterations, and checks the chi-square gate.
 FixResult refine_fix(std::span<const Observation> obs, const Pose2& init, const FixOptions& opt);
 
 // The map check's figure for a pose with information matrix J^T W J and chi-square gate: the
@@ -198,12 +209,13 @@ void add_mount_yaw_uncertainty(std::span<const Observation> obs, double sigma_co
 Eigen::Matrix3d fix_systematic_cov(std::span<const Observation> obs, const FixResult& fix);
 
 // What an OK fix's covariance (and its systematic share alike) must change by when the lens's
-// error (Observation::lens_response) is one error shared by all landmarks: per column the fix's
-// first-order response to it as a rank-one term, less the per-landmark shares the least squares
-// averaged down as if independent. A focal length off scales the whole view: landmarks on one
-// side of the vehicle (a forward camera) then leave it almost whole in the position, along their
-// mean direction; where the bearings fix the position and the ranges disagree with them, it is
-// mostly residual and the change is negative. Symmetric, not always PSD; fix.cov plus it is. obs
+// error (Observation::lens_response) is one error shared by all landmarks and the fix weighed it
+// per landmark (zero for a fix with lens_estimated, whose cov holds it already): per column the
+// fix's first-order response to it as a rank-one term, less the per-landmark shares the least
+// squares averaged down as if independent. A focal length off scales the whole view: landmarks on
+// one side of the vehicle (a forward camera) then leave it almost whole in the position, along
+// their mean direction; where the bearings fix the position and the ranges disagree with them, it
+// is mostly residual and the change is negative. Symmetric, not always PSD; fix.cov plus it is. obs
 // and fix as for fix_systematic_cov; zero when no observation carries a lens response.
 Eigen::Matrix3d lens_cov_change(std::span<const Observation> obs, const FixResult& fix);
 
