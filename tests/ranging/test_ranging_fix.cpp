@@ -499,9 +499,11 @@ TEST(RangingFix, ACommonRangeScaleIsOneErrorNotOnePerLandmark) {
 
 TEST(RangingFix, AnEstimatedLensErrorIsHeldOnceAndOnlyWhereTheCovarianceHoldsIt) {
   const Pose2 truth{3000.0, 2000.0, 0.3};
-  std::vector<Observation> obs = {observe(truth, {7700.0, 3400.0}, 3.0, 5e-4),
-                                  observe(truth, {9200.0, 4000.0}, 3.0, 5e-4),
-                                  observe(truth, {8300.0, 4400.0}, 3.0, 5e-4)};
+  // Variances of 1e2 mm^2 beside 1e-9 rad^2, as on rendered frames: the check that the covariance
+  // holds the response must not take the units' spread for a singular matrix.
+  std::vector<Observation> obs = {observe(truth, {7700.0, 3400.0}, 10.0, 5e-5),
+                                  observe(truth, {9200.0, 4000.0}, 10.0, 5e-5),
+                                  observe(truth, {8300.0, 4400.0}, 10.0, 5e-5)};
   for (Observation& o : obs) {
     o.lens_response.col(0) << 0.002 * o.range_mm, -1e-4, 0.0;
     o.lens_response.col(1) << 0.001 * o.range_mm, 2e-4, 0.0;
@@ -517,7 +519,7 @@ TEST(RangingFix, AnEstimatedLensErrorIsHeldOnceAndOnlyWhereTheCovarianceHoldsIt)
   EXPECT_LE((S - f.cov).cwiseAbs().maxCoeff(), 1e-6 * f.cov.cwiseAbs().maxCoeff());
   // A response the covariance does not hold is not a share of it: weighed per landmark.
   std::vector<Observation> untold = obs;
-  untold[1].cov = Eigen::Vector2d(9.0, 2.5e-7).asDiagonal();
+  untold[1].cov = Eigen::Vector2d(100.0, 2.5e-9).asDiagonal();
   const FixResult g = fix_from_landmarks(untold, FixOptions{});
   ASSERT_EQ(g.status, FixStatus::kOk);
   EXPECT_FALSE(g.lens_estimated);

@@ -94,12 +94,15 @@ bool lens_shareable(std::span<const Observation> obs) {
       L.row(2).setZero();
     }
     any = any || !L.isZero(0.0);
-    // What is left of the covariance must stay clearly positive: a response the covariance does
-    // not hold is not a share of it.
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(R - L * L.transpose());
-    if (eig.info() != Eigen::Success ||
-        !(eig.eigenvalues().minCoeff() > 1e-9 * eig.eigenvalues().maxCoeff()))
-      return false;
+    // What is left of the covariance must stay clearly positive, in units of its own diagonal
+    // (mm and rad differ by orders of magnitude): a response the covariance does not hold is not
+    // a share of it.
+    const Eigen::Vector3d d = R.diagonal();
+    if (!(d.minCoeff() > 0.0)) return false;
+    const Eigen::Vector3d n = d.cwiseSqrt().cwiseInverse();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(
+        n.asDiagonal() * (R - L * L.transpose()) * n.asDiagonal());
+    if (eig.info() != Eigen::Success || !(eig.eigenvalues().minCoeff() > 1e-6)) return false;
   }
   return any;
 }
