@@ -91,5 +91,5 @@ fi
 # Debian's interpreter (/usr/bin/python3) gets these; a python3 of pyenv or a venv does not see them.
 if [ "${1:-}" = "--train" ]; then
   export DEBIAN_FRONTEND=noninteractive
-  $SUDO apt-get install -y -q --no-install-recommends python3-torch python3-onnx
+  $SUDO apt-get install -y -q --no-install-recommends python3-torch python3-onnx python3-pil
 fi

@@ -261,6 +261,8 @@ def main():
                     help='1: several OpenMP threads on a busy machine are far slower')
     ap.add_argument('--max-minutes', type=float, default=14.0)
     ap.add_argument('--input-px', type=int, default=256, help='the exported model\'s window')
+    ap.add_argument('--width', type=int, default=24,
+                    help='channels of the last four layers (compute grows about as its square)')
     a = ap.parse_args()
     torch.manual_seed(a.seed)
     np.random.seed(a.seed)
@@ -273,7 +275,7 @@ def main():
     te_img, te_box, _ = load_set(a.test)
     n = tr_img.shape[1]
     print(f'train {len(tr_img)} crops, test {len(te_img)} crops of {n} px', flush=True)
-    model = TrayNet()
+    model = TrayNet(a.width)
     opt = torch.optim.AdamW(model.parameters(), lr=a.lr, weight_decay=1e-4)
     steps = a.epochs * (len(tr_img) // a.batch)
     budget_s = 60.0 * a.max_minutes
