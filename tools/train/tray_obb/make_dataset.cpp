@@ -4,7 +4,8 @@
 //
 //   make_tray_dataset --out DIR --split train|test --frames N [--seed S] [--crop 128]
 //                     [--mm-per-px 8] [--tray-length-mm 600 --tray-width-mm 400
-//                      --tray-height-mm 400]
+//                      --tray-height-mm 400] [--overhang F: vehicles with a parcel overhanging the
+//                      tray]
 //
 // Writes DIR/crops/NNNNNN.png (8-bit gray, crop x crop), DIR/crops.csv
 // (file,frame,camera_height_mm,native_mm_per_px,lighting) and DIR/boxes.csv
@@ -41,7 +42,7 @@ struct Args {
   std::fprintf(stderr,
                "make_tray_dataset: %s\nusage: make_tray_dataset --out DIR --split train|test "
                "--frames N [--seed S] [--crop 128] [--mm-per-px 8] [--tray-length-mm 600] "
-               "[--tray-width-mm 400] [--tray-height-mm 400]\n",
+               "[--tray-width-mm 400] [--tray-height-mm 400] [--overhang 0]\n",
                why.c_str());
   std::exit(2);
 }
@@ -71,6 +72,8 @@ Args parse(int argc, char** argv) {
         a.scene.tray_width_mm = std::stod(v);
       else if (k == "--tray-height-mm")
         a.scene.tray_height_mm = std::stod(v);
+      else if (k == "--overhang")
+        a.scene.overhang_fraction = std::stod(v);
       else
         usage("unknown option or value: " + k + " " + v);
     } catch (const std::exception&) {

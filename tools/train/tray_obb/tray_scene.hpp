@@ -42,6 +42,9 @@ struct SceneOptions {
   double tag_size_mm = 160.0;
   double covered_fraction = 0.35;  // vehicles with a parcel over the whole tag
   bool all_covered = false;        // every vehicle's tag under a parcel (evaluation)
+  // Vehicles given one more parcel, heavy and tall, overhanging the tray's sides: the case that
+  // pulls a detector's box off the tray (training only; 0 keeps the frames as before).
+  double overhang_fraction = 0.0;
 };
 
 // Camera 6-DoF: looking down from height_mm over the origin, turned yaw about the optical axis,
@@ -118,6 +121,26 @@ inline void draw_lighting(std::mt19937_64& rng, Split split, SceneDraw* d) {
   }
 }
 
+// SceneOptions::overhang_fraction: from its own generator, so that 0 leaves the frames unchanged.
+inline void add_overhanging_parcels(std::uint64_t seed, const SceneOptions& o, sim::SiteScene* s) {
+  if (!(o.overhang_fraction > 0.0)) return;
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  for (std::size_t i = 0; i < s->agvs.size(); ++i) {
+    if (!(u(rng) < o.overhang_fraction)) continue;
+    sim::Parcel p;
+    p.agv = i;
+    p.length_mm = o.tray_length_mm * (0.6 + 0.55 * u(rng));
+    p.width_mm = o.tray_width_mm * (0.6 + 0.6 * u(rng));
+    p.x_mm = 0.25 * o.tray_length_mm * (2.0 * u(rng) - 1.0);
+    p.y_mm = 0.3 * o.tray_width_mm * (2.0 * u(rng) - 1.0);
+    p.yaw_rad = 0.5 * (2.0 * u(rng) - 1.0);
+    p.height_mm = 200.0 + 250.0 * u(rng);
+    p.grey = 60.0 + 170.0 * u(rng);
+    s->parcels.push_back(p);
+  }
+}
+
 // One random frame's scene: camera, fleet in its view, parcels (some over the whole tag),
 // clutter, floor, lighting.
 inline SceneDraw draw_scene(std::uint64_t seed, Split split, const SceneOptions& o) {
@@ -188,6 +211,7 @@ inline SceneDraw draw_scene(std::uint64_t seed, Split split, const SceneOptions&
     }
     s.parcels.push_back(p);
   }
+  add_overhanging_parcels(seed ^ 0x0a0a, o, &s);
   const int people = static_cast<int>(3.0 * u(rng)), pallets = static_cast<int>(3.0 * u(rng));
   sim::add_random_clutter(&s, people, pallets, seed ^ 0x3c3c);
   draw_lighting(rng, split, &d);
