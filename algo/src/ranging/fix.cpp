@@ -51,26 +51,35 @@ Eigen::Matrix3d face_yaw_covariance(const Observation& o) {
   return R;
 }
 
+void padded_cov_and_lens(const Observation& o, Eigen::Matrix3d* R, Eigen::Matrix<double, 3, 2>* L) {
+  *L = o.lens_response;
+  if (o.has_face_yaw) {
+    *R = face_yaw_covariance(o);
+    return;
+  }
+  R->setIdentity();
+  R->topLeftCorner<2, 2>() = o.cov;
+  L->row(2).setZero();
+}
+
 bool linearise(const Observation& o, const State& x, bool lens_shared, Linearised* out) {
   const Eigen::Vector3d s = x.head<3>();
   Linearised l;
-  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
   if (o.has_face_yaw) {
     Eigen::Matrix3d J;
     if (!fix_residual_yaw(o, s, &l.r, &J)) return false;
     l.A.leftCols<3>() = J;
-    R = face_yaw_covariance(o);
   } else {
     Eigen::Vector2d h;
     Eigen::Matrix<double, 2, 3> J;
     if (!fix_predict(o, s, &h, &J)) return false;
     l.r.head<2>() = fix_residual(o, h);
     l.A.topLeftCorner<2, 3>() = J;
-    R.topLeftCorner<2, 2>() = o.cov;
   }
+  Eigen::Matrix3d R;
+  Eigen::Matrix<double, 3, 2> L;
+  padded_cov_and_lens(o, &R, &L);
   if (lens_shared) {
-    Eigen::Matrix<double, 3, 2> L = o.lens_response;
-    if (!o.has_face_yaw) L.row(2).setZero();
     l.A.rightCols<2>() = L;
     l.r -= L * x.tail<2>();
     R -= L * L.transpose();
@@ -85,14 +94,9 @@ bool linearise(const Observation& o, const State& x, bool lens_shared, Linearise
 bool lens_shareable(std::span<const Observation> obs) {
   bool any = false;
   for (const Observation& o : obs) {
-    Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
-    R.topLeftCorner<2, 2>() = o.cov;
-    Eigen::Matrix<double, 3, 2> L = o.lens_response;
-    if (o.has_face_yaw) {
-      R = face_yaw_covariance(o);
-    } else {
-      L.row(2).setZero();
-    }
+    Eigen::Matrix3d R;
+    Eigen::Matrix<double, 3, 2> L;
+    padded_cov_and_lens(o, &R, &L);
     any = any || !L.isZero(0.0);
     // What is left of the covariance must stay clearly positive, in units of its own diagonal
     // (mm and rad differ by orders of magnitude): a response the covariance does not hold is not

@@ -24,6 +24,10 @@ bool fix_residual_yaw(const Observation& o, const Eigen::Vector3d& s, Eigen::Vec
                       Eigen::Matrix3d* J);
 Eigen::Matrix3d face_yaw_covariance(const Observation& o);
 
+// An observation's covariance over (range, bearing, face yaw) and its lens response, the third row
+// and column padding (unit variance, zero response) without a face yaw.
+void padded_cov_and_lens(const Observation& o, Eigen::Matrix3d* R, Eigen::Matrix<double, 3, 2>* L);
+
 // One observation linearised at x: the residual z - h(pose) - L e over (range, bearing, face yaw),
 // its Jacobian over the state, and the inverse of the observation's own covariance (its share of
 // the common lens error, L L^T, removed when the lens is shared). Without a face yaw the third

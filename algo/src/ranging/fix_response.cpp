@@ -58,8 +58,9 @@ Eigen::Matrix3d fix_systematic_cov(std::span<const Observation> obs, const FixRe
         Eigen::Matrix3d S = o.systematic_cov;
         // A fix that estimated the lens error holds it once, below, not per landmark.
         if (fix.lens_estimated) {
-          Eigen::Matrix<double, 3, 2> L = o.lens_response;
-          if (!o.has_face_yaw) L.row(2).setZero();
+          Eigen::Matrix3d R;
+          Eigen::Matrix<double, 3, 2> L;
+          fix_detail::padded_cov_and_lens(o, &R, &L);
           S -= L * L.transpose();
         }
         out += G * S * G.transpose();
