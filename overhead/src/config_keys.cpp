@@ -160,6 +160,10 @@ std::vector<Key> search_detect_keys() {
               "A camera's image is cut into area_cols x area_rows areas for the area search and "
               "the restricted decoding"),
       integer("search.area_rows", AGV_OH_AT(search.area_rows), 1, 64, 3, "", "See area_cols"),
+      boolean("search.tray_box_holds_window", AGV_OH_AT(search.tray_box_holds_window), true,
+              "A vehicle whose tray box was applied (its tag under a parcel) keeps its track "
+              "window next frame instead of the area search; false widens its search like any "
+              "other miss"),
       number("detect.quad_decimate", AGV_OH_AT(detect.quad_decimate), 1, 8, 1.0, "",
              "libapriltag's quad_decimate: 1 keeps 40 px tags findable, 2 halves the search cost "
              "for large tags"),

@@ -13,3 +13,11 @@ if(AGV_BUILD_BENCHMARKS)
   target_link_libraries(bench_overhead_latency PRIVATE agv_overhead_app agv_sim agv_warnings)
   target_compile_definitions(bench_overhead_latency PRIVATE AGV_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
 endif()
+
+# The classical tray fit's cost per covered tray at 3840 x 2160 (hand-run; see the source).
+if(AGV_BUILD_BENCHMARKS)
+  add_executable(bench_tray_fit ${PROJECT_SOURCE_DIR}/tests/bench/bench_tray_fit.cpp)
+  target_include_directories(bench_tray_fit PRIVATE ${PROJECT_SOURCE_DIR}/tests/overhead)
+  target_link_libraries(bench_tray_fit PRIVATE agv_overhead agv_sim agv_warnings
+                                               benchmark::benchmark)
+endif()

@@ -250,6 +250,21 @@ TEST(CameraFrame, ACoveredTagsTrackIsKeptByItsTrayBox) {
   EXPECT_EQ(sequence().counters.back().tray_fixes, 0u);
 }
 
+// A vehicle placed by its tray box is no miss: it keeps its track window, and its camera searches
+// no area for a tag that lies under a parcel (SearchParams::tray_box_holds_window).
+TEST(CameraFrame, ATrayBoxKeepsTheTrackWindowAndSearchesNoArea) {
+  const Sequence& r = sequence_with_trays();
+  int boxed = 0;
+  for (std::size_t f = kCoveredFrom; f < kFrames; ++f) {
+    if (r.counters[f].tray_fixes == r.counters[f - 1].tray_fixes) continue;
+    ++boxed;
+    EXPECT_EQ(r.missed[f][1], 0u) << "frame " << f;
+  }
+  EXPECT_EQ(boxed, kFrames - kCoveredFrom);
+  EXPECT_EQ(r.counters.back().windows_area, r.counters[kCoveredFrom - 1].windows_area);
+  EXPECT_GT(r.counters.back().windows_track, r.counters[kCoveredFrom - 1].windows_track);
+}
+
 // A parcel over the whole tray hides its outline: no box, and the refusals are counted by why,
 // so that a site can tell a hidden outline from a prediction gone too loose.
 TEST(CameraFrame, ATrayHiddenByItsParcelIsRefusedAndCountedByReason) {

@@ -85,6 +85,7 @@ bool CameraFrameProcessor::process(std::size_t camera, std::int64_t t_ns, const 
   w.out = out;
   w.found.assign(fleet_.size(), 0);
   w.looked_for.assign(fleet_.size(), 0);
+  w.tray_applied.assign(fleet_.size(), 0);
   w.tag_pose.assign(fleet_.size(), Pose2{});
   w.has_tag_pose.assign(fleet_.size(), 0);
   for (const SearchWindow* win : in_level_order(windows)) {
@@ -114,9 +115,12 @@ bool CameraFrameProcessor::process(std::size_t camera, std::int64_t t_ns, const 
   if (reacquiring()) reacquire_lost(gray, &w);
   // A vehicle found by any window is back on its track window next frame; one that a window
   // expected wholly in the image and that none found widens its search, more with every frame
-  // in a row (search.hpp); the others (not in this view, or at its edge) keep theirs.
+  // in a row (search.hpp); the others (not in this view, or at its edge) keep theirs. A vehicle
+  // whose tray box was applied is where its window looked: its tag is under a parcel, and an
+  // area search would cost much (the frame time with parcels) and find it no better; its track
+  // window still looks for the tag every frame.
   for (std::size_t i = 0; i < fleet_.size(); ++i) {
-    if (w.found[i]) {
+    if (w.found[i] || (w.tray_applied[i] && search_.tray_box_holds_window)) {
       state.missed[i] = 0;
     } else if (w.looked_for[i] && state.missed[i] < 255) {
       ++state.missed[i];
@@ -231,6 +235,7 @@ void CameraFrameProcessor::fit_covered_trays(const cv::Mat& gray, FrameWork* w) 
     tray.fix.source = static_cast<std::int32_t>(w->camera);
     if (w->tracker->add_fix(i, w->t_ns, tray.fix) == FixResult::kApplied) {
       ++counters_.tray_fixes;
+      w->tray_applied[i] = 1;
     } else {
       ++counters_.tray_gated;
     }

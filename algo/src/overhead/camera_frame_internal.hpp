@@ -20,6 +20,7 @@ struct CameraFrameProcessor::FrameWork {
   std::unordered_set<std::uint32_t> ids_seen;  // tags handled this frame (any window)
   std::vector<std::uint8_t> found;             // per vehicle: its tag was read this frame
   std::vector<std::uint8_t> looked_for;        // per vehicle: a window expected it
+  std::vector<std::uint8_t> tray_applied;      // per vehicle: a tray box of it was applied
   std::vector<Pose2> tag_pose;                 // per vehicle found: its tag's fix (if any)
   std::vector<std::uint8_t> has_tag_pose;
   // Regions searched this frame, with their decimation: a later window inside one at the same

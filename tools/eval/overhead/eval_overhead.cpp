@@ -56,6 +56,7 @@ struct Options {
   int sweep_max_pixels = agv::overhead::SearchParams{}.sweep_max_pixels;
   int max_decimation = agv::overhead::SearchParams{}.max_decimation;
   bool clean = false;
+  bool tray_area_search = false;  // --tray-area-search: SearchParams::tray_box_holds_window false
   // --route-prior: the tracker gets each vehicle's route whenever the simulator starts a task leg
   // (as the fleet manager's order would) and extrapolates coasting tracks along it.
   bool route_prior = false;
@@ -77,7 +78,7 @@ const char* kUsage =
     "  [--full-sweep-every N] [--sweep-max-pixels N] [--max-decimation N] [--apriltag-every N] "
     "[--max-wall-s S] [--no-distortion] [--clean]\n"
     "  [--tray-model ONNX] [--reacquire-model ONNX] [--trace-prefix PATH_PREFIX]\n"
-    "  [--route-prior]\n";
+    "  [--route-prior] [--tray-area-search]\n";
 
 bool parse(int argc, char** argv, Options* o, std::string* error) {
   std::map<std::string, double*> num{{"--cameras-height-mm", &o->world.camera_height_mm},
@@ -117,6 +118,7 @@ bool parse(int argc, char** argv, Options* o, std::string* error) {
   std::map<std::string, bool*> flags{{"--clean", &o->clean},
                                      {"--cover-tags", &o->world.cover_tags},
                                      {"--route-prior", &o->route_prior},
+                                     {"--tray-area-search", &o->tray_area_search},
                                      {"--tray-tilt-surveyed", &o->tray_tilt_surveyed}};
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -479,6 +481,7 @@ int run(const Options& o) {
   sp.full_sweep_every_frames = o.full_sweep_every;
   sp.sweep_max_pixels = o.sweep_max_pixels;
   sp.max_decimation = o.max_decimation;
+  sp.tray_box_holds_window = !o.tray_area_search;
   std::vector<agv::site::FleetAgv> fleet = site.fleet;
   for (std::size_t i = 0; o.tray_tilt_surveyed && i < fleet.size(); ++i) {
     fleet[i].tray_roll_rad = world.tray_roll_rad[i];

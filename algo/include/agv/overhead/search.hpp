@@ -53,6 +53,11 @@ struct SearchParams {
   // site); a track that missed its window is looked for in the tile of its prediction and the
   // eight around it.
   int area_cols = 4, area_rows = 3;
+  // A vehicle whose tray box (tray_fit.hpp) was applied in a frame keeps its track window next
+  // frame instead of the area: its tag is under a parcel and the box has placed it, so the tag
+  // would be no more findable in the area, and the areas of half a fleet's covered vehicles are
+  // most of a frame's cost. false: a covered vehicle's miss widens its search like any other.
+  bool tray_box_holds_window = true;
 };
 
 // Empty string when the parameters are usable, otherwise what is wrong (names the field).
