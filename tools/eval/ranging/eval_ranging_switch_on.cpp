@@ -15,7 +15,10 @@
 // [trials=60] [seed=1] [frames=15] [mount_error_deg=1]
 //                               [mount_error_mm=5] [calibration_error_scale=1]
 // AGV_EVAL_CAL_TERMS (letters f, c, k) keeps only those lens errors: focal lengths, principal
-// point, distortion. AGV_EVAL_LENS_PER_LANDMARK set: the fixes weigh the focal lengths' share per
+// point, distortion. AGV_EVAL_BOARD_VIEWS=N: instead of drawn lens errors, AGV_EVAL_LENSES
+// (default 8) lenses calibrated by the desk's `calibrate intrinsics` code from N rendered views
+// of a ChArUco board bowed AGV_EVAL_BOARD_BOW_MM (default 0.5), trial t taking lens t mod K;
+// AGV_EVAL_FOCAL_SIGMA_REL sets the focal sigma the observer is told (default 0.002). AGV_EVAL_LENS_PER_LANDMARK set: the fixes weigh the focal lengths' share per
 // landmark (FixOptions::lens_in_weights false), as before it was estimated. With AGV_EVAL_POSES
 // set, one line per trial of the default rule on stderr (pose, landmarks, the first pose's error
 // and NEES) to trace which poses miss.
@@ -36,6 +39,9 @@
 #include "agv/sim/site_render.hpp"
 #include "fix_errors.hpp"
 #include "ranging_scene.hpp"
+#ifdef AGV_EVAL_CALIBRATE
+#include "calibrated_lens.hpp"
+#endif
 
 namespace {
 
@@ -179,6 +185,43 @@ struct RuleTally {
   }
 };
 
+double env_number(const char* name, double fallback) {
+  const char* v = std::getenv(name);
+  return v != nullptr ? std::atof(v) : fallback;
+}
+
+// The lenses AGV_EVAL_BOARD_VIEWS asks for (none without it); false when a calibration fails
+// or the build has no desk tool.
+bool calibrated_lenses(const CameraIntrinsics& truth, std::uint64_t seed,
+                       std::vector<CameraIntrinsics>* out) {
+  const int views = static_cast<int>(env_number("AGV_EVAL_BOARD_VIEWS", 0));
+  if (views <= 0) return true;
+#ifdef AGV_EVAL_CALIBRATE
+  const int lenses = std::max(1, static_cast<int>(env_number("AGV_EVAL_LENSES", 8)));
+  for (int i = 0; i < lenses; ++i) {
+    ranging_eval::BoardCalibration setup;
+    setup.views = views;
+    setup.bow_mm = env_number("AGV_EVAL_BOARD_BOW_MM", 0.5);
+    setup.seed = seed * 100 + static_cast<std::uint64_t>(i);
+    CameraIntrinsics k;
+    std::string report, error;
+    if (!ranging_eval::calibrate_lens(truth, setup, &k, &report, &error)) {
+      std::fprintf(stderr, "eval_ranging_switch_on: %s\n", error.c_str());
+      return false;
+    }
+    std::printf("%s\n", report.c_str());
+    out->push_back(k);
+  }
+  return true;
+#else
+  (void)truth;
+  (void)seed;
+  (void)out;
+  std::fprintf(stderr, "eval_ranging_switch_on: built without the desk tool: no board views\n");
+  return false;
+#endif
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -203,13 +246,15 @@ int main(int argc, char** argv) {
   mount_true.x_mm = 300.0;
   mount_true.z_mm = 1000.0;
   const std::vector<Pose2> poses = ranging_eval::trial_poses(scene, trials, seed);
+  std::vector<CameraIntrinsics> lenses;
+  if (!calibrated_lenses(k_true, seed, &lenses)) return 2;
 
   const double s_yaw = deg_to_rad(mount_deg) / std::sqrt(3.0), s_off = mount_mm / std::sqrt(3.0);
   ranging::ObserveOptions oopt;
   oopt.mount_sigma_rad = s_yaw;
   oopt.mount_sigma_mm = s_off;
   oopt.calibration_sigma_px = 0.5;
-  oopt.focal_sigma_rel = 0.002;
+  oopt.focal_sigma_rel = env_number("AGV_EVAL_FOCAL_SIGMA_REL", 0.002);
   localizer::LocalizerConfig base;
   base.fusion.health.odom_timeout_ns = 50 * kMs;
   base.camera_timeout_ns = 200 * kMs;
@@ -233,6 +278,7 @@ int main(int argc, char** argv) {
     std::mt19937_64 rng(seed * 7919 + t);
     const sim::SiteRenderParams params = ranging_eval::degraded(rng);
     ranging::RangingMount m_est;
+    if (!lenses.empty()) cal.calibrated = &lenses[t % lenses.size()];
     const ranging::LandmarkObserver observer = ranging_eval::believed_observer(
         rng, k_true, mount_true, mount_deg, mount_mm, scene, oopt, &m_est, cal);
     std::vector<Frame> frames;
