@@ -60,15 +60,15 @@ void BM_FitTray(benchmark::State& state) {
   const Bench& b = bench();
   const double off_mm = static_cast<double>(state.range(0));
   const double off_rad = static_cast<double>(state.range(1)) * 0.01 * kPi / 180.0;
-  const std::array<double, 9> cov{off_mm * off_mm, 0, 0, 0, off_mm * off_mm, 0, 0, 0,
+  const std::array<double, 9> cov{off_mm * off_mm,  0, 0, 0, off_mm * off_mm, 0, 0, 0,
                                   off_rad * off_rad};
   int fitted = 0, tried = 0;
   for (auto _ : state) {
     for (const sim::AgvTruth& t : b.frame.agvs) {
       const Pose2 pred{t.pose.x_mm + off_mm, t.pose.y_mm - off_mm, t.pose.theta_rad + off_rad};
       overhead::TrayFix fix;
-      fitted += overhead::fit_tray(b.frame.image, b.camera, b.scene.site.fleet[t.index], pred,
-                                   cov, {}, &fix)
+      fitted += overhead::fit_tray(b.frame.image, b.camera, b.scene.site.fleet[t.index], pred, cov,
+                                   {}, &fix)
                     ? 1
                     : 0;
       ++tried;

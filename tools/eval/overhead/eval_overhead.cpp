@@ -267,21 +267,15 @@ void print_header(const Options& o, const agv::site::Site& site) {
 
 void print_counters(const agv::overhead::FrameCounters& fc,
                     const agv::overhead::TrackerCounters& tc) {
+  using ull = unsigned long long;
   std::printf(
       "pipeline: frames %llu, windows track/area/full %llu/%llu/%llu (not searched %llu), "
-      "predicted reads %llu, "
-      "searched tags %llu, unknown ids %llu, no fix %llu; tracker: applied %llu, started "
-      "%llu, gated %llu, too old %llu, replays %llu, lost %llu\n",
-      static_cast<unsigned long long>(fc.frames), static_cast<unsigned long long>(fc.windows_track),
-      static_cast<unsigned long long>(fc.windows_area),
-      static_cast<unsigned long long>(fc.windows_full),
-      static_cast<unsigned long long>(fc.windows_skipped),
-      static_cast<unsigned long long>(fc.predicted_reads),
-      static_cast<unsigned long long>(fc.searched_tags),
-      static_cast<unsigned long long>(fc.unknown_ids), static_cast<unsigned long long>(fc.no_fix),
-      static_cast<unsigned long long>(tc.applied), static_cast<unsigned long long>(tc.started),
-      static_cast<unsigned long long>(tc.gated), static_cast<unsigned long long>(tc.too_old),
-      static_cast<unsigned long long>(tc.replays), static_cast<unsigned long long>(tc.lost));
+      "predicted reads %llu, searched tags %llu, unknown ids %llu, no fix %llu; tracker: "
+      "applied %llu, started %llu, gated %llu, too old %llu, replays %llu, lost %llu\n",
+      ull(fc.frames), ull(fc.windows_track), ull(fc.windows_area), ull(fc.windows_full),
+      ull(fc.windows_skipped), ull(fc.predicted_reads), ull(fc.searched_tags), ull(fc.unknown_ids),
+      ull(fc.no_fix), ull(tc.applied), ull(tc.started), ull(tc.gated), ull(tc.too_old),
+      ull(tc.replays), ull(tc.lost));
 }
 
 // The cameras as this project's calibration solves them (calibrate.hpp); false with *error.
@@ -456,6 +450,25 @@ struct RouteFeed {
   }
 };
 
+agv::overhead::SearchParams search_params(const Options& o) {
+  agv::overhead::SearchParams sp;
+  sp.full_sweep_every_frames = o.full_sweep_every;
+  sp.sweep_max_pixels = o.sweep_max_pixels;
+  sp.max_decimation = o.max_decimation;
+  sp.tray_box_holds_window = !o.tray_area_search;
+  return sp;
+}
+
+// The fleet as the tracker is told it: each tray's tilt when it was surveyed.
+std::vector<agv::site::FleetAgv> told_fleet(const Options& o, const World& world) {
+  std::vector<agv::site::FleetAgv> fleet = world.site().fleet;
+  for (std::size_t i = 0; o.tray_tilt_surveyed && i < fleet.size(); ++i) {
+    fleet[i].tray_roll_rad = world.tray_roll_rad[i];
+    fleet[i].tray_pitch_rad = world.tray_pitch_rad[i];
+  }
+  return fleet;
+}
+
 int run(const Options& o) {
   const auto wall0 = std::chrono::steady_clock::now();
   World world;
@@ -477,17 +490,7 @@ int run(const Options& o) {
   } else {
     believed = believed_cameras(o, site, &rng);
   }
-  agv::overhead::SearchParams sp;
-  sp.full_sweep_every_frames = o.full_sweep_every;
-  sp.sweep_max_pixels = o.sweep_max_pixels;
-  sp.max_decimation = o.max_decimation;
-  sp.tray_box_holds_window = !o.tray_area_search;
-  std::vector<agv::site::FleetAgv> fleet = site.fleet;
-  for (std::size_t i = 0; o.tray_tilt_surveyed && i < fleet.size(); ++i) {
-    fleet[i].tray_roll_rad = world.tray_roll_rad[i];
-    fleet[i].tray_pitch_rad = world.tray_pitch_rad[i];
-  }
-  agv::overhead::CameraFrameProcessor proc(believed, fleet, {}, sp);
+  agv::overhead::CameraFrameProcessor proc(believed, told_fleet(o, world), {}, search_params(o));
   proc.set_tray_plane_sigma({o.tray_tilt_sigma_deg * agv::kPi / 180.0, o.tray_height_sigma_mm});
   agv::overhead::TrackerParams tp;
   tp.route_prior = o.route_prior;

@@ -18,10 +18,11 @@
 // point, distortion. AGV_EVAL_BOARD_VIEWS=N: instead of drawn lens errors, AGV_EVAL_LENSES
 // (default 8) lenses calibrated by the desk's `calibrate intrinsics` code from N rendered views
 // of a ChArUco board bowed AGV_EVAL_BOARD_BOW_MM (default 0.5), trial t taking lens t mod K;
-// AGV_EVAL_FOCAL_SIGMA_REL sets the focal sigma the observer is told (default 0.002). AGV_EVAL_LENS_PER_LANDMARK set: the fixes weigh the focal lengths' share per
-// landmark (FixOptions::lens_in_weights false), as before it was estimated. With AGV_EVAL_POSES
-// set, one line per trial of the default rule on stderr (pose, landmarks, the first pose's error
-// and NEES) to trace which poses miss.
+// AGV_EVAL_FOCAL_SIGMA_REL sets the focal sigma the observer is told (default 0.002).
+// AGV_EVAL_LENS_PER_LANDMARK set: the fixes weigh the focal lengths' share per landmark
+// (FixOptions::lens_in_weights false), as before it was estimated. With AGV_EVAL_POSES set, one
+// line per trial of the default rule on stderr (pose, landmarks, the first pose's error and NEES)
+// to trace which poses miss.
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
