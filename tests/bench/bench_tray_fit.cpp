@@ -8,7 +8,6 @@
 
 #include <array>
 #include <cmath>
-#include <random>
 #include <vector>
 
 #include "agv/overhead/tray_fit.hpp"
@@ -30,22 +29,7 @@ const Bench& bench() {
     Bench out;
     out.camera = overhead::test::ceiling_camera(20.0);
     overhead::test::scale_camera(&out.camera, 3);
-    out.scene = overhead::test::tag_scene(20.0, 4, 3);
-    out.scene.site.cameras[0] = out.camera;
-    std::mt19937_64 rng(3);
-    std::uniform_real_distribution<double> u(-1.0, 1.0);
-    for (std::size_t i = 0; i < out.scene.agvs.size(); ++i) {
-      sim::Parcel p;
-      p.agv = i;
-      p.x_mm = 30.0 * u(rng);
-      p.y_mm = 25.0 * u(rng);
-      p.yaw_rad = 0.3 * u(rng);
-      p.length_mm = 300.0 + 60.0 * u(rng);
-      p.width_mm = 260.0 + 40.0 * u(rng);
-      p.height_mm = 190.0 + 110.0 * u(rng);
-      p.grey = 130.0 + 70.0 * u(rng);
-      out.scene.parcels.push_back(p);
-    }
+    out.scene = overhead::test::covered_tag_scene(out.camera, 20.0, 4, 3);
     sim::add_random_clutter(&out.scene, 3, 2, 1);
     const sim::SiteFrameRenderer r(out.camera.intrinsics);
     out.frame = r.render(out.scene, sim::RenderCamera::from_ceiling(out.camera),

@@ -129,6 +129,30 @@ TEST(CalibIntrinsics, ABowedBoardRaisesTheResidual) {
   EXPECT_GT(bowed.result.rms_px, 2.0 * flat.result.rms_px);
 }
 
+// The evaluations' board (calibrate_simulated_board, 660 x 480 mm): flat, the focal lengths come
+// back; bowed 1 mm at its centre, both come back long by about 0.3 % while the calibration's own
+// sigma stays an order of magnitude smaller (what docs/guide/ranging.md warns of).
+TEST(CalibIntrinsics, TheEvaluationBoardsBowMakesTheFocalLengthsLong) {
+  if (!have_charuco()) GTEST_SKIP() << "built without OpenCV aruco";
+  const CameraIntrinsics t = default_sim_board_set().camera;
+  const Result flat = calibrate_simulated_board(t, 12, 0.0, 5);
+  const Result bowed = calibrate_simulated_board(t, 12, 1.0, 5);
+  ASSERT_TRUE(flat.ok) << flat.error;
+  ASSERT_TRUE(bowed.ok) << bowed.error;
+  const double flat_rel = flat.intrinsics.fx / t.fx - 1.0;
+  const double bowed_rel[2] = {bowed.intrinsics.fx / t.fx - 1.0, bowed.intrinsics.fy / t.fy - 1.0};
+  std::printf(
+      "evaluation board: flat fx %+.4f %%; bowed 1 mm fx %+.4f %% fy %+.4f %% (own sigma "
+      "%.4f %%)\n",
+      100.0 * flat_rel, 100.0 * bowed_rel[0], 100.0 * bowed_rel[1],
+      100.0 * bowed.stddev[0] / bowed.intrinsics.fx);
+  EXPECT_LT(std::abs(flat_rel), 0.0005);
+  for (const double rel : bowed_rel) {
+    EXPECT_GT(rel, 0.0015);
+    EXPECT_LT(rel, 0.005);
+    EXPECT_GT(rel, 5.0 * bowed.stddev[0] / bowed.intrinsics.fx);
+  }
+}
 TEST(CalibIntrinsics, ChessboardThirtyCleanViewsMeetTheTargets) {
   BoardSpec spec;
   spec.type = BoardType::kChessboard;

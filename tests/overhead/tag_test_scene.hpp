@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <random>
 
 #include "agv/sim/site_render.hpp"
 
@@ -15,8 +16,15 @@ inline site::CeilingCamera ceiling_camera(double tag_side_px) {
   c.id = "cam0";
   // 160 mm tag at 6000 - 400 mm range.
   const double f_px = tag_side_px * 5600.0 / 160.0;
-  c.intrinsics = {.width_px = 1280, .height_px = 720, .fx = f_px, .fy = f_px * 1.002,
-                  .cx = 641.3, .cy = 357.8, .k1 = -0.08, .k2 = 0.02, .p1 = 0.0004,
+  c.intrinsics = {.width_px = 1280,
+                  .height_px = 720,
+                  .fx = f_px,
+                  .fy = f_px * 1.002,
+                  .cx = 641.3,
+                  .cy = 357.8,
+                  .k1 = -0.08,
+                  .k2 = 0.02,
+                  .p1 = 0.0004,
                   .p2 = -0.0003};
   // Looking down (image right = site +x, image down = site -y), turned 0.2 rad about the optical
   // axis and tilted 3 degrees about the image x axis.
@@ -83,6 +91,33 @@ inline void scale_camera(site::CeilingCamera* c, int scale) {
   k.fy *= scale;
   k.cx = (k.cx + 0.5) * scale - 0.5;
   k.cy = (k.cy + 0.5) * scale - 0.5;
+}
+
+// tag_scene seen by `cam`, each vehicle moved a little and turned at random, with a parcel over
+// its tag (visible fraction 0) that may overhang the tray a little: the covered trays of the
+// tray fit's tests and benchmark.
+inline sim::SiteScene covered_tag_scene(const site::CeilingCamera& cam, double tag_side_px, int n,
+                                        std::uint64_t seed) {
+  sim::SiteScene s = tag_scene(tag_side_px, n, seed);
+  s.site.cameras[0] = cam;
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (std::size_t i = 0; i < s.agvs.size(); ++i) {
+    s.agvs[i].pose.theta_rad = kPi * u(rng);
+    s.agvs[i].pose.x_mm += 150.0 * u(rng);
+    s.agvs[i].pose.y_mm += 150.0 * u(rng);
+    sim::Parcel p;
+    p.agv = i;
+    p.x_mm = 30.0 * u(rng);
+    p.y_mm = 25.0 * u(rng);
+    p.yaw_rad = 0.3 * u(rng);
+    p.length_mm = 300.0 + 60.0 * u(rng);
+    p.width_mm = 260.0 + 40.0 * u(rng);
+    p.height_mm = 190.0 + 110.0 * u(rng);
+    p.grey = 130.0 + 70.0 * u(rng);
+    s.parcels.push_back(p);
+  }
+  return s;
 }
 
 }  // namespace agv::overhead::test

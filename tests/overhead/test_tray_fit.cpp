@@ -37,26 +37,7 @@ struct Sample {
 
 // Four vehicles at random headings, each with a parcel over its tag (visible fraction 0).
 sim::SiteScene covered_scene(const site::CeilingCamera& cam, std::uint64_t seed) {
-  sim::SiteScene s = test::tag_scene(kTagPx, 4, seed);
-  s.site.cameras[0] = cam;
-  std::mt19937_64 rng(seed);
-  std::uniform_real_distribution<double> u(-1.0, 1.0);
-  for (std::size_t i = 0; i < s.agvs.size(); ++i) {
-    s.agvs[i].pose.theta_rad = kPi * u(rng);
-    s.agvs[i].pose.x_mm += 150.0 * u(rng);
-    s.agvs[i].pose.y_mm += 150.0 * u(rng);
-    sim::Parcel p;
-    p.agv = i;
-    p.x_mm = 30.0 * u(rng);
-    p.y_mm = 25.0 * u(rng);
-    p.yaw_rad = 0.3 * u(rng);
-    p.length_mm = 300.0 + 60.0 * u(rng);
-    p.width_mm = 260.0 + 40.0 * u(rng);
-    p.height_mm = 190.0 + 110.0 * u(rng);
-    p.grey = 130.0 + 70.0 * u(rng);
-    s.parcels.push_back(p);
-  }
-  return s;
+  return test::covered_tag_scene(cam, kTagPx, 4, seed);
 }
 
 std::array<double, 9> diag_cov(double sigma_mm, double sigma_rad) {

@@ -153,6 +153,12 @@ SimBoardSet default_sim_board_set();
 // Renders the views; false with *error for a bad board or a board that cannot be kept in view.
 bool simulate_board_views(const BoardSpec& spec, const SimBoardSet& set, std::vector<SimView>* out,
                           std::string* error);
+// The lens `calibrate intrinsics` finds through `camera` from `views` simulated views (no
+// deliberately blurred ones) of an 11 x 8 ChArUco board of 60 mm squares (660 x 480 mm, a board
+// for cameras metres away) bowed bow_mm at its centre: what a site's calibration leaves, for the
+// evaluations. ok false with the error when the views cannot be made or nothing calibrates.
+Result calibrate_simulated_board(const CameraIntrinsics& camera, int views, double bow_mm,
+                                 std::uint64_t seed);
 // truth.yaml: the true camera as a configuration file (camera + intrinsics sections), with the
 // blurred views named in a comment.
 std::string truth_yaml(const SimBoardSet& set, const std::vector<SimView>& views);

@@ -78,6 +78,26 @@ bool simulate_board_views(const BoardSpec& spec, const SimBoardSet& set, std::ve
   return true;
 }
 
+Result calibrate_simulated_board(const CameraIntrinsics& camera, int views, double bow_mm,
+                                 std::uint64_t seed) {
+  BoardSpec spec;
+  spec.square_mm = 60.0;
+  spec.marker_mm = 45.0;
+  SimBoardSet set;
+  set.camera = camera;
+  set.views = views;
+  set.blurred = 0;
+  set.bow_mm = bow_mm;
+  set.seed = seed;
+  std::vector<SimView> sim;
+  Result r;
+  if (!simulate_board_views(spec, set, &sim, &r.error)) return r;
+  const Options options;
+  std::vector<View> detected;
+  for (const SimView& v : sim) detected.push_back(detect_view(v.image, v.name, spec, options));
+  return calibrate(std::move(detected), spec, options);
+}
+
 std::string truth_yaml(const SimBoardSet& set, const std::vector<SimView>& views) {
   char buf[1024];
   std::string blurred;

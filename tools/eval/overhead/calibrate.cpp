@@ -50,27 +50,14 @@ void place_tags(const site::CeilingCamera& cam, const CalibrationSetup& setup, s
   }
 }
 
-// The lens as `calibrate intrinsics` finds it from rendered views of an 11 x 8 ChArUco board of
-// 60 mm squares through the true lens (the board filling 45-85 % of the image width, tilted up
-// to 35 degrees, bowed, 0.5 px defocus, sensor noise); *report gets its residual and errors.
+// The lens as `calibrate intrinsics` finds it from rendered views of the evaluations' board
+// through the true lens (calib::calibrate_simulated_board: 660 x 480 mm, filling 45-85 % of the
+// image width, tilted up to 35 degrees, bowed, 0.5 px defocus, sensor noise); *report gets its
+// residual and errors.
 bool calibrated_lens(const CameraIntrinsics& truth, const CalibrationSetup& setup,
                      CameraIntrinsics* out, std::string* report, std::string* error) {
-  namespace cal = desk::calib;
-  cal::BoardSpec spec;
-  spec.square_mm = 60.0;
-  spec.marker_mm = 45.0;
-  cal::SimBoardSet set;
-  set.camera = truth;
-  set.views = setup.board_views;
-  set.blurred = 0;
-  set.bow_mm = setup.board_bow_mm;
-  set.seed = setup.seed;
-  std::vector<cal::SimView> sim;
-  if (!cal::simulate_board_views(spec, set, &sim, error)) return false;
-  const cal::Options options;
-  std::vector<cal::View> views;
-  for (const auto& v : sim) views.push_back(cal::detect_view(v.image, v.name, spec, options));
-  const cal::Result r = cal::calibrate(std::move(views), spec, options);
+  const desk::calib::Result r = desk::calib::calibrate_simulated_board(
+      truth, setup.board_views, setup.board_bow_mm, setup.seed);
   if (!r.ok) return *error = "lens calibration: " + r.error, false;
   *out = r.intrinsics;
   char line[256];

@@ -41,7 +41,7 @@
 #include "fix_errors.hpp"
 #include "ranging_scene.hpp"
 #ifdef AGV_EVAL_CALIBRATE
-#include "calibrated_lens.hpp"
+#include "calib_intrinsics.hpp"
 #endif
 
 namespace {
@@ -199,18 +199,23 @@ bool calibrated_lenses(const CameraIntrinsics& truth, std::uint64_t seed,
   if (views <= 0) return true;
 #ifdef AGV_EVAL_CALIBRATE
   const int lenses = std::max(1, static_cast<int>(env_number("AGV_EVAL_LENSES", 8)));
+  const double bow_mm = env_number("AGV_EVAL_BOARD_BOW_MM", 0.5);
   for (int i = 0; i < lenses; ++i) {
-    ranging_eval::BoardCalibration setup;
-    setup.views = views;
-    setup.bow_mm = env_number("AGV_EVAL_BOARD_BOW_MM", 0.5);
-    setup.seed = seed * 100 + static_cast<std::uint64_t>(i);
-    CameraIntrinsics k;
-    std::string report, error;
-    if (!ranging_eval::calibrate_lens(truth, setup, &k, &report, &error)) {
-      std::fprintf(stderr, "eval_ranging_switch_on: %s\n", error.c_str());
+    const std::uint64_t board_seed = seed * 100 + static_cast<std::uint64_t>(i);
+    const desk::calib::Result r =
+        desk::calib::calibrate_simulated_board(truth, views, bow_mm, board_seed);
+    if (!r.ok) {
+      std::fprintf(stderr, "eval_ranging_switch_on: lens calibration: %s\n", r.error.c_str());
       return false;
     }
-    std::printf("%s\n", report.c_str());
+    const CameraIntrinsics& k = r.intrinsics;
+    std::printf(
+        "lens from %d of %d board views (bowed %.2f mm, seed %llu), rms %.3f px; error fx "
+        "%+.3f %% fy %+.3f %% (told %.3f / %.3f %%), cx %+.2f cy %+.2f px, k1 %+.5f\n",
+        r.usable, views, bow_mm, static_cast<unsigned long long>(board_seed), r.rms_px,
+        100.0 * (k.fx / truth.fx - 1.0), 100.0 * (k.fy / truth.fy - 1.0),
+        100.0 * r.stddev[0] / k.fx, 100.0 * r.stddev[1] / k.fy, k.cx - truth.cx, k.cy - truth.cy,
+        k.k1 - truth.k1);
     out->push_back(k);
   }
   return true;
