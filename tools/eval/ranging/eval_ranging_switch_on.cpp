@@ -211,7 +211,7 @@ bool calibrated_lenses(const CameraIntrinsics& truth, std::uint64_t seed,
     const CameraIntrinsics& k = r.intrinsics;
     std::printf(
         "lens from %d of %d board views (bowed %.2f mm, seed %llu), rms %.3f px; error fx "
-        "%+.3f %% fy %+.3f %% (told %.3f / %.3f %%), cx %+.2f cy %+.2f px, k1 %+.5f\n",
+        "%+.3f %% fy %+.3f %% (own sigma %.3f / %.3f %%), cx %+.2f cy %+.2f px, k1 %+.5f\n",
         r.usable, views, bow_mm, static_cast<unsigned long long>(board_seed), r.rms_px,
         100.0 * (k.fx / truth.fx - 1.0), 100.0 * (k.fy / truth.fy - 1.0),
         100.0 * r.stddev[0] / k.fx, 100.0 * r.stddev[1] / k.fy, k.cx - truth.cx, k.cy - truth.cy,
