@@ -81,7 +81,9 @@ struct OverheadConfig {
   std::string tray_model_path;
   // Vehicles lost while their tags were hidden, searched for with the model of tray_model_path
   // (with either tray method).
-  overhead::ReacquireParams reacquire;
+  // Off unless asked for: a rendered fleet run restarted covered vehicles from other vehicles'
+  // boxes (docs/design/overhead.md, "Twenty vehicles, half the trays loaded").
+  overhead::ReacquireParams reacquire{.enabled = false};
   // Fleet tag ids whose codes are fewer bits apart are refused with the site (identity).
   int min_tag_distance = 12;
   double output_rate_hz = 30.0;

@@ -205,10 +205,12 @@ std::vector<Key> search_detect_keys() {
              "The learned detector's ONNX file (models/tray_obb.onnx): tray.method learned and "
              "reacquire; missing, corrupt or for another window size: named at start, tracking "
              "on tags alone (learned) or without re-acquisition"),
-      boolean("reacquire.enabled", AGV_OH_AT(reacquire.enabled), true,
+      boolean("reacquire.enabled", AGV_OH_AT(reacquire.enabled), false,
               "With tray.model_path set (either tray.method): a vehicle lost while its tag was "
               "hidden is searched for with the learned detector over the view around where it "
-              "can be, and restarted from a box only nothing else explains"),
+              "can be, and restarted from a box only nothing else explains. Off by default: on "
+              "a rendered 20-vehicle run it restarted covered vehicles from other vehicles' "
+              "boxes, valid and metres wrong (docs/design/overhead.md)"),
       number("reacquire.max_speed_mps", AGV_OH_AT(reacquire.max_speed_mps), 0.1, 10, 2.0, "m/s",
              "The fleet's top speed: a lost vehicle is looked for within this speed of its last "
              "fix"),
