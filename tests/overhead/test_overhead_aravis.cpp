@@ -233,17 +233,25 @@ TEST_F(OverheadAravis, RecordingReplaysEveryFrameAndAKilledOneIsReadOrRefused) {
   FakeCamera fake(dir_);
   std::string error;
   ASSERT_TRUE(fake.start(binary_, &error)) << error;
-  const fs::path rec = dir_ / "rec";
-  Exit e = wait_exit(overhead(
-      {"record", "--config", config(), "--site", kSite, "--out", rec.string(), "--duration-s", "2"},
-      "record"));
-  ASSERT_FALSE(e.signaled);
-  ASSERT_EQ(e.code, 0) << slurp(dir_ / "record.err");
-  std::smatch m;
-  const std::string rec_out = slurp(dir_ / "record.out");
+  // A camera just started may not stream within a loaded host's first seconds (a 2 s recording
+  // then holds no frame): one that caught too few is made again, up to three times.
+  fs::path rec;
+  Exit e;
+  long written = 0;
+  std::string rec_out;
   static const std::regex written_re(R"((\d+) frames written)");
-  ASSERT_TRUE(std::regex_search(rec_out, m, written_re)) << rec_out;
-  const long written = std::stol(m[1]);
+  for (int attempt = 0; attempt < 3 && written < 15; ++attempt) {
+    rec = dir_ / ("rec" + std::to_string(attempt));
+    e = wait_exit(overhead({"record", "--config", config(), "--site", kSite, "--out", rec.string(),
+                            "--duration-s", "2"},
+                           "record"));
+    ASSERT_FALSE(e.signaled);
+    ASSERT_EQ(e.code, 0) << slurp(dir_ / "record.err");
+    rec_out = slurp(dir_ / "record.out");
+    std::smatch m;
+    ASSERT_TRUE(std::regex_search(rec_out, m, written_re)) << rec_out;
+    written = std::stol(m[1]);
+  }
   EXPECT_GE(written, 15) << rec_out;  // 20 fps for 2 s on a loaded machine
   e = wait_exit(
       overhead({"replay", "--site", kSite, "--recordings", (rec / "cam-west").string(), "--fast"},
