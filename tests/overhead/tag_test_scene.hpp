@@ -16,15 +16,8 @@ inline site::CeilingCamera ceiling_camera(double tag_side_px) {
   c.id = "cam0";
   // 160 mm tag at 6000 - 400 mm range.
   const double f_px = tag_side_px * 5600.0 / 160.0;
-  c.intrinsics = {.width_px = 1280,
-                  .height_px = 720,
-                  .fx = f_px,
-                  .fy = f_px * 1.002,
-                  .cx = 641.3,
-                  .cy = 357.8,
-                  .k1 = -0.08,
-                  .k2 = 0.02,
-                  .p1 = 0.0004,
+  c.intrinsics = {.width_px = 1280, .height_px = 720, .fx = f_px, .fy = f_px * 1.002,
+                  .cx = 641.3, .cy = 357.8, .k1 = -0.08, .k2 = 0.02, .p1 = 0.0004,
                   .p2 = -0.0003};
   // Looking down (image right = site +x, image down = site -y), turned 0.2 rad about the optical
   // axis and tilted 3 degrees about the image x axis.
